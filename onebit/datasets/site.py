@@ -1,0 +1,373 @@
+"""The site model: ``site.toml`` loaded and validated into shapely geometry.
+
+A site describes one deployment: the boundary polygon of the workspace W, obstacle polygons
+(holes and walls), directional beams, named regions, the overhead camera and the units.
+Every problem is reported as a :class:`~onebit.errors.SiteError` naming the key.
+
+Beam convention
+---------------
+A beam is the segment ``p0 -> p1``. ``forward`` names the side ("left" or "right" of the
+direction ``p0 -> p1``) on which an agent *ends* after a forward crossing (direction +1).
+Its two emitter-detector pairs run parallel to the segment, ``spacing`` apart: pair ``a`` on
+the backward side, pair ``b`` on the forward side, so a forward crossing blocks ``a`` first
+and clears ``b`` last (paper Figs. 5-7).
+"""
+
+from __future__ import annotations
+
+import math
+import tomllib
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+import shapely
+from shapely.geometry import LineString, Point, Polygon
+
+from onebit.errors import SiteError
+
+#: Tolerance (world units) for "a beam end touches the boundary or an obstacle".
+TOUCH_TOL = 1e-6
+
+_TOP_KEYS = {"name", "units", "epoch", "boundary", "obstacles", "beams", "regions", "camera"}
+_BOUNDARY_KEYS = {"polygon"}
+_OBSTACLE_KEYS = {"name", "polygon"}
+_BEAM_KEYS = {"id", "segment", "forward", "spacing", "capacity"}
+_REGION_KEYS = {"name", "point", "capacity"}
+_CAMERA_KEYS = {"width", "height", "fps", "homography", "points", "t0"}
+_UNITS = {"m", "ft", "cm", "mm", "in"}
+
+
+@dataclass(frozen=True)
+class Beam:
+    """A directional beam: segment, forward side and spacing of its two pairs."""
+
+    id: str
+    p0: tuple[float, float]
+    p1: tuple[float, float]
+    forward: str = "left"
+    spacing: float = 0.0
+
+    @property
+    def line(self) -> LineString:
+        return LineString([self.p0, self.p1])
+
+    @property
+    def forward_normal(self) -> np.ndarray:
+        """Unit normal pointing to the forward side."""
+        d = np.subtract(self.p1, self.p0, dtype=float)
+        d /= np.hypot(*d)
+        left = np.array([-d[1], d[0]])
+        return left if self.forward == "left" else -left
+
+    def pair_segments(self) -> dict[str, tuple[np.ndarray, np.ndarray]]:
+        """End points of pair ``a`` (backward side) and pair ``b`` (forward side)."""
+        off = self.forward_normal * self.spacing / 2.0
+        p0, p1 = np.asarray(self.p0, float), np.asarray(self.p1, float)
+        return {"a": (p0 - off, p1 - off), "b": (p0 + off, p1 + off)}
+
+
+@dataclass(frozen=True)
+class RegionSpec:
+    """A named region, identified by a point inside it."""
+
+    name: str
+    point: tuple[float, float]
+    capacity: int | None = None
+
+
+@dataclass(frozen=True)
+class Camera:
+    """Overhead camera: image size, frame rate, pixel->world homography and time offset."""
+
+    width: int
+    height: int
+    fps: float
+    homography: np.ndarray = field(repr=False)  # 3x3, pixel (u, v, 1) -> world (x, y, w)
+    t0: float = 0.0
+
+    @property
+    def world_to_pixel(self) -> np.ndarray:
+        return np.linalg.inv(self.homography)
+
+    def pixel_to_world(self, uv: np.ndarray) -> np.ndarray:
+        """Map ``(N, 2)`` pixel coordinates to world coordinates."""
+        return _apply_h(self.homography, uv)
+
+    def world_to_pixel_xy(self, xy: np.ndarray) -> np.ndarray:
+        """Map ``(N, 2)`` world coordinates to pixel coordinates."""
+        return _apply_h(self.world_to_pixel, xy)
+
+
+def _apply_h(h: np.ndarray, pts: np.ndarray) -> np.ndarray:
+    pts = np.asarray(pts, float).reshape(-1, 2)
+    hom = np.c_[pts, np.ones(len(pts))] @ h.T
+    return hom[:, :2] / hom[:, 2:3]
+
+
+@dataclass(frozen=True)
+class Site:
+    """A validated deployment. ``free_space`` is the boundary minus the obstacles (E in the paper)."""
+
+    name: str
+    units: str
+    boundary: Polygon
+    obstacles: tuple[Polygon, ...]
+    obstacle_names: tuple[str, ...]
+    beams: tuple[Beam, ...]
+    regions: tuple[RegionSpec, ...]
+    camera: Camera | None
+    epoch: str | None = None
+    source: str = "<site>"
+
+    @property
+    def free_space(self):
+        return shapely.difference(self.boundary, shapely.union_all(list(self.obstacles))) if self.obstacles else self.boundary
+
+    @property
+    def beam_ids(self) -> tuple[str, ...]:
+        return tuple(b.id for b in self.beams)
+
+    def beam(self, beam_id: str) -> Beam:
+        for b in self.beams:
+            if b.id == beam_id:
+                return b
+        raise KeyError(beam_id)
+
+    @property
+    def diagonal(self) -> float:
+        minx, miny, maxx, maxy = self.boundary.bounds
+        return float(math.hypot(maxx - minx, maxy - miny))
+
+
+# --------------------------------------------------------------------------- loading
+
+
+def load_site(path: str | Path) -> Site:
+    """Load and validate ``site.toml``; raise :class:`SiteError` naming the key on any problem."""
+    path = Path(path)
+    try:
+        text = path.read_text(encoding="utf-8")
+    except OSError as exc:
+        raise SiteError(f"cannot read site file: {exc.strerror}", file=path) from None
+    try:
+        data = tomllib.loads(text)
+    except tomllib.TOMLDecodeError as exc:
+        raise SiteError(f"not valid TOML: {exc}", file=path) from None
+    return site_from_dict(data, source=str(path))
+
+
+def site_from_dict(data: dict, *, source: str = "<site>") -> Site:
+    """Validate a parsed ``site.toml`` mapping into a :class:`Site`."""
+
+    def err(key: str, reason: str) -> SiteError:
+        return SiteError(reason, file=source, field=key)
+
+    _unknown(data, _TOP_KEYS, "", err)
+    name = str(data.get("name", Path(source).parent.name or "site"))
+    units = data.get("units", "m")
+    if units not in _UNITS:
+        raise err("units", f"unknown unit {units!r}; expected one of {sorted(_UNITS)}")
+    epoch = data.get("epoch")
+    if epoch is not None and not isinstance(epoch, str):
+        epoch = epoch.isoformat() if hasattr(epoch, "isoformat") else str(epoch)
+
+    if "boundary" not in data:
+        raise err("boundary", "missing; the site needs a boundary polygon")
+    bnd = data["boundary"]
+    if not isinstance(bnd, dict):
+        raise err("boundary", "must be a table with a 'polygon' key")
+    _unknown(bnd, _BOUNDARY_KEYS, "boundary.", err)
+    boundary = _polygon(bnd.get("polygon"), "boundary.polygon", err)
+
+    obstacles, obstacle_names = [], []
+    for i, ob in enumerate(_list_of_tables(data.get("obstacles", []), "obstacles", err)):
+        key = f"obstacles[{i}]"
+        _unknown(ob, _OBSTACLE_KEYS, key + ".", err)
+        poly = _polygon(ob.get("polygon"), key + ".polygon", err)
+        if not boundary.buffer(TOUCH_TOL).contains(poly):
+            raise err(key + ".polygon", "obstacle is not inside the boundary")
+        obstacles.append(poly)
+        obstacle_names.append(str(ob.get("name", i)))
+    free = shapely.difference(boundary, shapely.union_all(obstacles)) if obstacles else boundary
+    walls = shapely.union_all([boundary.exterior, *[o.boundary for o in obstacles]])
+
+    beams: list[Beam] = []
+    seen: set[str] = set()
+    for i, bm in enumerate(_list_of_tables(data.get("beams", []), "beams", err)):
+        key = f"beams[{i}]"
+        _unknown(bm, _BEAM_KEYS, key + ".", err)
+        if "id" not in bm:
+            raise err(key + ".id", "missing")
+        bid = str(bm["id"])
+        key = f"beams[{i}] (id {bid!r})"
+        if bid in seen:
+            raise err(key + ".id", "duplicate beam id")
+        seen.add(bid)
+        seg = bm.get("segment")
+        pts = _points(seg, key + ".segment", err)
+        if len(pts) != 2:
+            raise err(key + ".segment", f"needs exactly 2 points, got {len(pts)}")
+        line = LineString(pts)
+        if line.length <= TOUCH_TOL:
+            raise err(key + ".segment", "has zero length")
+        for end, p in zip(("start", "end"), pts):
+            if walls.distance(Point(p)) > TOUCH_TOL * max(1.0, line.length):
+                raise err(key + ".segment", f"{end} point {tuple(p)} does not touch the boundary or an obstacle")
+        mid = line.interpolate(0.5, normalized=True)
+        if not free.buffer(TOUCH_TOL).contains(line) or not free.contains(mid):
+            raise err(key + ".segment", "beam does not lie in the free space")
+        forward = bm.get("forward", "left")
+        if forward not in ("left", "right"):
+            raise err(key + ".forward", f"must be 'left' or 'right', got {forward!r}")
+        spacing = bm.get("spacing", 0.0)
+        if not isinstance(spacing, (int, float)) or spacing < 0:
+            raise err(key + ".spacing", f"must be a non-negative number, got {spacing!r}")
+        beams.append(Beam(bid, tuple(pts[0]), tuple(pts[1]), forward, float(spacing)))
+    for i in range(len(beams)):
+        for j in range(i + 1, len(beams)):
+            li, lj = beams[i].line, beams[j].line
+            inter = li.intersection(lj)
+            if not inter.is_empty and (inter.length > 0 or not _at_end(inter, beams[i]) or not _at_end(inter, beams[j])):
+                raise err(f"beams[{j}] (id {beams[j].id!r}).segment", f"crosses beam {beams[i].id!r}; beams must be pairwise disjoint")
+
+    regions: list[RegionSpec] = []
+    for i, rg in enumerate(_list_of_tables(data.get("regions", []), "regions", err)):
+        key = f"regions[{i}]"
+        _unknown(rg, _REGION_KEYS, key + ".", err)
+        if "name" not in rg:
+            raise err(key + ".name", "missing")
+        pts = _points([rg.get("point")] if rg.get("point") is not None else None, key + ".point", err)
+        if not free.contains(Point(pts[0])):
+            raise err(key + ".point", f"{tuple(pts[0])} is not in the free space")
+        cap = rg.get("capacity")
+        if cap is not None and (not isinstance(cap, int) or cap < 0):
+            raise err(key + ".capacity", f"must be a non-negative integer, got {cap!r}")
+        regions.append(RegionSpec(str(rg["name"]), tuple(pts[0]), cap))
+    if len({r.name for r in regions}) != len(regions):
+        raise err("regions", "duplicate region name")
+
+    camera = None
+    if "camera" in data:
+        camera = _camera(data["camera"], err)
+
+    return Site(
+        name=name,
+        units=units,
+        boundary=boundary,
+        obstacles=tuple(obstacles),
+        obstacle_names=tuple(obstacle_names),
+        beams=tuple(beams),
+        regions=tuple(regions),
+        camera=camera,
+        epoch=epoch,
+        source=source,
+    )
+
+
+def _at_end(inter, beam: Beam) -> bool:
+    pts = [Point(beam.p0), Point(beam.p1)]
+    return all(min(p.distance(q) for q in pts) <= TOUCH_TOL for p in _geom_points(inter))
+
+
+def _geom_points(g):
+    if g.geom_type == "Point":
+        return [g]
+    return list(getattr(g, "geoms", []))
+
+
+def _unknown(table: dict, allowed: set[str], prefix: str, err) -> None:
+    for k in table:
+        if k not in allowed:
+            raise err(prefix + k, f"unknown key; allowed keys are {sorted(allowed)}")
+
+
+def _list_of_tables(value, key: str, err) -> list[dict]:
+    if not isinstance(value, list) or not all(isinstance(v, dict) for v in value):
+        raise err(key, "must be an array of tables ([[" + key + "]])")
+    return value
+
+
+def _points(value, key: str, err) -> np.ndarray:
+    if value is None:
+        raise err(key, "missing")
+    try:
+        arr = np.asarray(value, dtype=float)
+    except (TypeError, ValueError):
+        raise err(key, "must be a list of [x, y] number pairs") from None
+    if arr.ndim != 2 or arr.shape[1] != 2 or not np.all(np.isfinite(arr)):
+        raise err(key, "must be a list of [x, y] number pairs")
+    return arr
+
+
+def _polygon(value, key: str, err) -> Polygon:
+    pts = _points(value, key, err)
+    if len(pts) < 3:
+        raise err(key, f"a polygon needs at least 3 points, got {len(pts)}")
+    poly = Polygon(pts)
+    if not poly.is_valid:
+        raise err(key, f"invalid polygon: {shapely.is_valid_reason(poly)}")
+    if poly.area <= 0:
+        raise err(key, "polygon has zero area")
+    return shapely.orient_polygons(poly) if hasattr(shapely, "orient_polygons") else poly
+
+
+def _camera(cam, err) -> Camera:
+    if not isinstance(cam, dict):
+        raise err("camera", "must be a table")
+    _unknown(cam, _CAMERA_KEYS, "camera.", err)
+    for k in ("width", "height"):
+        if k not in cam:
+            raise err(f"camera.{k}", "missing")
+        if not isinstance(cam[k], int) or cam[k] <= 0:
+            raise err(f"camera.{k}", f"must be a positive integer, got {cam[k]!r}")
+    fps = cam.get("fps", 10.0)
+    if not isinstance(fps, (int, float)) or fps <= 0:
+        raise err("camera.fps", f"must be a positive number, got {fps!r}")
+    if "homography" in cam and "points" in cam:
+        raise err("camera", "give either 'homography' or 'points', not both")
+    if "homography" in cam:
+        h = np.asarray(cam["homography"], dtype=float) if _is_matrix(cam["homography"]) else None
+        if h is None or h.shape != (3, 3) or not np.all(np.isfinite(h)):
+            raise err("camera.homography", "must be a 3x3 matrix of numbers (pixel -> world)")
+        if abs(np.linalg.det(h)) < 1e-12:
+            raise err("camera.homography", "is singular")
+    elif "points" in cam:
+        pts = cam["points"]
+        if not isinstance(pts, dict) or set(pts) != {"pixel", "world"}:
+            raise err("camera.points", "must be a table with 'pixel' and 'world' lists of 4 points")
+        px = _points(pts["pixel"], "camera.points.pixel", err)
+        wd = _points(pts["world"], "camera.points.world", err)
+        if len(px) != 4 or len(wd) != 4:
+            raise err("camera.points", "needs exactly 4 pixel and 4 world points")
+        import cv2
+
+        h = cv2.getPerspectiveTransform(px.astype(np.float32), wd.astype(np.float32)).astype(float)
+    else:
+        raise err("camera.homography", "missing; give 'homography' (3x3) or 'points' (4 correspondences)")
+    t0 = cam.get("t0", 0.0)
+    if not isinstance(t0, (int, float)):
+        raise err("camera.t0", f"must be a number of seconds, got {t0!r}")
+    return Camera(int(cam["width"]), int(cam["height"]), float(fps), h, float(t0))
+
+
+def _is_matrix(v) -> bool:
+    return isinstance(v, list) and all(isinstance(r, list) for r in v)
+
+
+# --------------------------------------------------------------------------- built-in sites
+
+BUILTIN_DIR = Path(__file__).with_name("sites")
+
+
+def builtin_site_path(name: str) -> Path:
+    """Path of a built-in site file (``building`` = paper Fig. 1, ``lab`` = paper Fig. 8)."""
+    p = BUILTIN_DIR / f"{name}.toml"
+    if not p.exists():
+        known = sorted(q.stem for q in BUILTIN_DIR.glob("*.toml"))
+        raise SiteError(f"no built-in site {name!r}; known: {known}")
+    return p
+
+
+def builtin_site(name: str) -> Site:
+    return load_site(builtin_site_path(name))
