@@ -1,0 +1,118 @@
+"""The ``onebit`` command line: run, report, simulate, logs info / logs convert."""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+
+from onebit.errors import OnebitError
+
+
+def _cmd_run(args) -> int:
+    from onebit.pipeline.report import format_report
+    from onebit.pipeline.runner import load_run_config, run_pipeline
+
+    trackers = tuple(t.strip() for t in args.trackers.split(",")) if args.trackers else None
+    config = load_run_config(args.config)
+    print(f"onebit run {args.dataset} -> {args.out}")
+    res = run_pipeline(args.dataset, args.out, trackers=trackers, config=config, echo=print)
+    print(format_report(res.report, title=f"report of {args.out}"))
+    print(f"Rerun recordings: {Path(args.out) / 'rrd'}/*.rrd   (open later with: rerun {Path(args.out) / 'rrd'}/*.rrd)")
+    return 0 if res.ok else 1
+
+
+def _cmd_report(args) -> int:
+    from onebit.pipeline.report import format_report, load_report
+
+    print(format_report(load_report(args.out), title=f"report of {args.out}"))
+    return 0
+
+
+def _cmd_simulate(args) -> int:
+    from onebit.datasets.beams_sim import SCENARIOS, write_beams_dataset
+
+    if args.scenario not in SCENARIOS:
+        raise OnebitError(f"unknown scenario {args.scenario!r}; known: {sorted(SCENARIOS)}")
+    out = write_beams_dataset(
+        args.dataset,
+        args.scenario,
+        seed=args.seed,
+        duration=args.duration,
+        agents=args.agents,
+        drop=args.drop,
+        camera=not args.no_camera,
+    )
+    print(f"wrote {args.scenario} dataset to {out} (seed {args.seed}, {args.duration:g} s)")
+    return 0
+
+
+def _cmd_logs_info(args) -> int:
+    from onebit.readers.loginfo import format_log_info, log_info
+
+    print(format_log_info(log_info(args.file)))
+    return 0
+
+
+def _cmd_logs_convert(args) -> int:
+    from onebit.readers.mcap_io import csv_folder_to_mcap, mcap_to_csv_folder
+
+    src, dst = Path(args.src), Path(args.dst)
+    if src.suffix.lower() == ".mcap":
+        mcap_to_csv_folder(src, dst)
+    elif dst.suffix.lower() == ".mcap":
+        csv_folder_to_mcap(src, dst)
+    else:
+        raise OnebitError("one of IN and OUT must be an .mcap file")
+    print(f"converted {src} -> {dst}")
+    return 0
+
+
+def build_parser() -> argparse.ArgumentParser:
+    p = argparse.ArgumentParser(prog="onebit", description="Tracking from one-bit sensors.")
+    sub = p.add_subparsers(dest="command", required=True)
+
+    r = sub.add_parser("run", help="run every stage whose inputs exist on a dataset folder")
+    r.add_argument("dataset")
+    r.add_argument("--out", required=True, help="run folder to write")
+    r.add_argument("--trackers", help="comma-separated tracker names (default: all)")
+    r.add_argument("--config", help="run.toml with one [section] per stage")
+    r.set_defaults(func=_cmd_run)
+
+    rp = sub.add_parser("report", help="print the report of a finished run")
+    rp.add_argument("out")
+    rp.set_defaults(func=_cmd_report)
+
+    s = sub.add_parser("simulate", help="write a simulated dataset folder with ground truth")
+    s.add_argument("scenario", help="beams-lab or beams-building")
+    s.add_argument("dataset")
+    s.add_argument("--seed", type=int, default=0)
+    s.add_argument("--duration", type=float, default=180.0, help="seconds")
+    s.add_argument("--agents", type=int, default=None)
+    s.add_argument("--drop", type=float, default=0.0, help="probability that a crossing is not reported")
+    s.add_argument("--no-camera", action="store_true", help="do not render camera.mp4")
+    s.set_defaults(func=_cmd_simulate)
+
+    lg = sub.add_parser("logs", help="inspect or convert raw logs")
+    lsub = lg.add_subparsers(dest="logs_command", required=True)
+    li = lsub.add_parser("info", help="channels, sensors, time span, rates and rejects of a log")
+    li.add_argument("file")
+    li.set_defaults(func=_cmd_logs_info)
+    lc = lsub.add_parser("convert", help="CSV/Parquet folder <-> MCAP")
+    lc.add_argument("src")
+    lc.add_argument("dst")
+    lc.set_defaults(func=_cmd_logs_convert)
+    return p
+
+
+def main(argv: list[str] | None = None) -> int:
+    args = build_parser().parse_args(argv)
+    try:
+        return int(args.func(args) or 0)
+    except OnebitError as exc:
+        print(f"onebit: error: {exc}", file=sys.stderr)
+        return 2
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,225 @@
+"""``onebit logs info``: what a raw log holds -- channels, sensors, time span, rates, rejects.
+
+Works on any raw-log CSV or Parquet file, on an ``.mcap`` recording (one row per channel)
+and on a folder (every ``*.csv``, ``*.parquet`` and ``*.mcap`` in it).
+"""
+
+from __future__ import annotations
+
+import io
+from pathlib import Path
+
+import polars as pl
+
+from onebit.errors import InputError
+from onebit.readers.mcap_io import read_mcap
+
+#: Schema of the :func:`log_info` frame.
+LOG_INFO = pl.Schema(
+    {
+        "source": pl.String,
+        "rows": pl.Int64,
+        "sensors": pl.Int64,
+        "sensor_ids": pl.String,
+        "t_min": pl.Float64,
+        "t_max": pl.Float64,
+        "span_s": pl.Float64,
+        "rate_hz": pl.Float64,
+        "rejects": pl.Int64,
+    }
+)
+
+#: Columns that name a sensor (or target), in order of preference.
+ID_COLUMNS = ("beam", "sensor", "target")
+#: How many ids :func:`log_info` lists before eliding the rest.
+MAX_IDS = 10
+
+_EXTRA = "__extra__"
+_SUFFIXES = (".csv", ".parquet", ".mcap")
+
+
+def _parse_t(values: pl.Series) -> pl.Series:
+    """``t`` as Float64 seconds: numbers as they are, ISO wall-clock as Unix seconds; else null."""
+    s = values.str.strip_chars()
+    num = s.cast(pl.Float64, strict=False)
+    todo = num.is_null() & s.is_not_null() & (s != "")
+    if todo.any():
+        try:
+            iso = (
+                s.filter(todo)
+                .str.to_datetime(time_unit="us", time_zone="UTC", strict=False)
+                .dt.epoch("us")
+                .cast(pl.Float64)
+                / 1e6
+            )
+        except pl.exceptions.PolarsError:
+            iso = pl.Series([None] * int(todo.sum()), dtype=pl.Float64)
+        num = num.scatter(todo.arg_true(), iso)
+    return num.fill_nan(None)
+
+
+def _summarise(source: str, df: pl.DataFrame, bad_rows: int, extra_rejects: int = 0) -> dict:
+    """One summary row for string rows ``df`` (already stripped of ``bad_rows`` malformed rows)."""
+    rejects = bad_rows + extra_rejects
+    if "t" in df.columns:
+        t = _parse_t(df["t"])
+        ok = t.is_not_null() & t.is_finite()
+        rejects += int((~ok).sum())
+        df = df.filter(ok)
+        t = t.filter(ok)
+    else:
+        t = pl.Series([], dtype=pl.Float64)
+    id_col = next((c for c in ID_COLUMNS if c in df.columns), None)
+    sensors = ids = None
+    if id_col is not None:
+        uniq = df[id_col].drop_nulls().unique().sort().to_list()
+        sensors = len(uniq)
+        ids = ",".join(uniq[:MAX_IDS]) + (f",… (+{len(uniq) - MAX_IDS})" if len(uniq) > MAX_IDS else "")
+    t_min = t.min() if t.len() else None
+    t_max = t.max() if t.len() else None
+    span = None if t_min is None else float(t_max - t_min)
+    rate = df.height / span if span else None
+    return {
+        "source": source,
+        "rows": df.height,
+        "sensors": sensors,
+        "sensor_ids": ids,
+        "t_min": t_min,
+        "t_max": t_max,
+        "span_s": span,
+        "rate_hz": rate,
+        "rejects": rejects,
+    }
+
+
+def _csv_rows(path: Path) -> list[dict]:
+    try:
+        header = [h.strip() for h in pl.read_csv(path, n_rows=0, infer_schema=False).columns]
+    except pl.exceptions.NoDataError:
+        return [_summarise(path.name, pl.DataFrame(), 0)]
+    except (pl.exceptions.PolarsError, OSError, UnicodeDecodeError) as exc:
+        raise InputError(f"cannot read CSV header: {exc}", file=path, line=1) from None
+    names = [h if h != _EXTRA else h + "_" for h in header]
+    try:
+        df = pl.read_csv(
+            path,
+            has_header=False,
+            skip_rows=1,
+            schema={**{n: pl.String for n in names}, _EXTRA: pl.String},
+            missing_columns="insert",
+            truncate_ragged_lines=True,
+        )
+    except (pl.exceptions.PolarsError, OSError) as exc:
+        raise InputError(f"cannot parse CSV: {exc}", file=path) from None
+    df = df.filter(~pl.all_horizontal(pl.all().is_null()))
+    n_fields = pl.sum_horizontal([pl.col(n).is_not_null().cast(pl.Int32) for n in names])
+    bad = pl.col(_EXTRA).is_not_null() | (pl.col(names[-1]).is_null() & (n_fields < len(names)))
+    malformed = df.filter(bad).height
+    return [_summarise(path.name, df.filter(~bad).drop(_EXTRA), malformed)]
+
+
+def _parquet_rows(path: Path) -> list[dict]:
+    try:
+        df = pl.read_parquet(path)
+    except (pl.exceptions.PolarsError, OSError) as exc:
+        raise InputError(f"cannot read Parquet: {exc}", file=path) from None
+    return [_summarise(path.name, df.with_columns(pl.all().cast(pl.String)), 0)]
+
+
+def _mcap_rows(path: Path) -> list[dict]:
+    contents = read_mcap(path)
+    per_source = dict(contents.rejects.group_by("source").len().iter_rows())
+    rows = []
+    for topic, df in contents.channels.items():
+        source = f"{path.name}:{topic}"
+        rows.append(_summarise(source, df.drop("line", "raw"), 0, per_source.pop(source, 0)))
+    for source, n in sorted(per_source.items()):  # unknown topics, the file itself (truncation)
+        rows.append(_summarise(source, pl.DataFrame(), 0, n))
+    return rows
+
+
+def log_info(path: str | Path) -> pl.DataFrame:
+    """Summarise a raw log: one row per file (CSV/Parquet) or per channel (MCAP).
+
+    Parameters
+    ----------
+    path
+        A ``*.csv`` or ``*.parquet`` raw log, an ``.mcap`` recording, or a folder of them.
+
+    Returns
+    -------
+    pl.DataFrame
+        In the :data:`LOG_INFO` schema: ``source`` (file name, or ``"<file>:<topic>"``),
+        ``rows`` (rows that parse), ``sensors`` / ``sensor_ids`` (distinct values of the first
+        of ``beam``, ``sensor``, ``target`` present; null without one; at most
+        :data:`MAX_IDS` ids listed), ``t_min`` / ``t_max`` / ``span_s`` (seconds; ISO times
+        as Unix seconds), ``rate_hz`` (rows / span; null for a zero span) and ``rejects``.
+
+    Notes
+    -----
+    A row is a reject when it has too many or too few fields (an empty last field counts as
+    missing) or its ``t`` is neither a number nor an ISO time; for MCAP also every message
+    the reader rejected. Rejects with no channel (an unknown topic, a truncated file) get
+    their own row named like the reader's reject ``source``, with ``rows = 0``.
+
+    Raises
+    ------
+    InputError
+        A missing file, an unsupported suffix, a file that cannot be read at all, or non-MCAP
+        bytes in a ``.mcap``.
+    """
+    path = Path(path)
+    if path.is_dir():
+        files = sorted(p for p in path.iterdir() if p.is_file() and p.suffix.lower() in _SUFFIXES)
+        if not files:
+            raise InputError("no *.csv, *.parquet or *.mcap files in this folder", file=path)
+        return pl.concat([log_info(p) for p in files])
+    if not path.is_file():
+        raise InputError("no such file", file=path)
+    suffix = path.suffix.lower()
+    if suffix == ".csv":
+        rows = _csv_rows(path)
+    elif suffix == ".parquet":
+        rows = _parquet_rows(path)
+    elif suffix == ".mcap":
+        rows = _mcap_rows(path)
+    else:
+        raise InputError(f"unsupported file type '{path.suffix}'; expected .csv, .parquet or .mcap", file=path)
+    return pl.DataFrame(rows, schema=LOG_INFO, orient="row") if rows else pl.DataFrame(schema=LOG_INFO)
+
+
+def _fmt(value: object, spec: str = ".3f") -> str:
+    if value is None:
+        return "-"
+    if isinstance(value, float):
+        return format(value, spec)
+    return str(value)
+
+
+def format_log_info(df: pl.DataFrame, *, width: int = 120) -> str:
+    """Render a :func:`log_info` frame as a plain-text table (rich, no colour codes).
+
+    Parameters
+    ----------
+    df
+        A frame in the :data:`LOG_INFO` schema.
+    width
+        Console width in characters the table is fitted to.
+
+    Returns
+    -------
+    str
+        The table, ending with a newline.
+    """
+    from rich.console import Console
+    from rich.table import Table
+
+    table = Table(title="raw logs", title_justify="left")
+    numeric = {"rows", "sensors", "t_min", "t_max", "span_s", "rate_hz", "rejects"}
+    for col in LOG_INFO:
+        table.add_column(col, justify="right" if col in numeric else "left", overflow="fold")
+    for row in df.select(list(LOG_INFO)).iter_rows(named=True):
+        table.add_row(*(_fmt(row[c], ".4g" if c == "rate_hz" else ".3f") for c in LOG_INFO))
+    buf = io.StringIO()
+    Console(file=buf, width=width, color_system=None, force_terminal=False).print(table)
+    return buf.getvalue()

@@ -1,0 +1,64 @@
+"""Readers of already-canonical logs: ``crossings.csv``, ``truth.csv``, ``truth_crossings.csv``."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import polars as pl
+
+from onebit.readers.rows import RawRows, parse_choice, parse_float, parse_name, parse_time, read_csv_rows, type_rows
+from onebit.tables import CROSSINGS, TRUE_CROSSINGS, TRUTH, conform
+
+_DIRECTION = {"1": 1, "+1": 1, "-1": -1, "f": 1, "b": -1, "forward": 1, "backward": -1}
+
+
+def crossings_from_rows(raw: RawRows, beam_ids, *, epoch=None, path: Path | None = None):
+    """Type crossing rows: t, known beam, direction +1|-1. Returns ``(crossings, rejects)``."""
+    parsers = {
+        "t": parse_time("t", epoch),
+        "beam": parse_name("beam", tuple(beam_ids), "beam"),
+        "direction": parse_choice("direction", _DIRECTION, pl.Int8),
+    }
+    ok, rej = type_rows(raw, parsers, key=("t", "beam", "direction"), path=path)
+    return conform(ok, CROSSINGS), rej
+
+
+def true_crossings_from_rows(raw: RawRows, beam_ids, *, epoch=None, path: Path | None = None):
+    parsers = {
+        "t": parse_time("t", epoch),
+        "beam": parse_name("beam", tuple(beam_ids), "beam"),
+        "direction": parse_choice("direction", _DIRECTION, pl.Int8),
+        "target": parse_name("target", None, "target"),
+    }
+    ok, rej = type_rows(raw, parsers, key=("t", "beam", "direction", "target"), path=path)
+    return conform(ok, TRUE_CROSSINGS), rej
+
+
+def truth_from_rows(raw: RawRows, *, epoch=None, path: Path | None = None):
+    """Type truth rows: t, target, x, y (world units). Returns ``(truth, rejects)``.
+
+    Time order is checked per file; a target may appear at most once per time stamp.
+    """
+    parsers = {
+        "t": parse_time("t", epoch),
+        "target": parse_name("target", None, "target"),
+        "x": parse_float("x"),
+        "y": parse_float("y"),
+    }
+    ok, rej = type_rows(raw, parsers, key=("t", "target"), path=path)
+    return conform(ok, TRUTH), rej
+
+
+def read_crossings_csv(path, beam_ids, *, epoch=None):
+    path = Path(path)
+    return crossings_from_rows(read_csv_rows(path, ("t", "beam", "direction")), beam_ids, epoch=epoch, path=path)
+
+
+def read_true_crossings_csv(path, beam_ids, *, epoch=None):
+    path = Path(path)
+    return true_crossings_from_rows(read_csv_rows(path, ("t", "beam", "direction", "target")), beam_ids, epoch=epoch, path=path)
+
+
+def read_truth_csv(path, *, epoch=None):
+    path = Path(path)
+    return truth_from_rows(read_csv_rows(path, ("t", "target", "x", "y")), epoch=epoch, path=path)

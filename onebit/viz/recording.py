@@ -1,0 +1,86 @@
+"""Opening and closing ``.rrd`` files atomically.
+
+A recording is written to a temp file next to its final path and renamed into place only
+when it is complete, so an interrupted run never leaves a half ``.rrd`` (DESIGN.md,
+"Standards"). Every stage of a run writes its own file ``OUT/rrd/<stage>.rrd`` with the same
+application id and recording id, so opening them together overlays them in one recording.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import os
+from collections.abc import Iterator
+from pathlib import Path
+
+import rerun as rr
+
+#: Application id of every onebit recording.
+APPLICATION_ID = "onebit"
+
+
+def temp_path(path: str | Path) -> Path:
+    """The temp file a recording for ``path`` is written to before the rename."""
+    path = Path(path)
+    return path.with_name(f".{path.name}.{os.getpid()}.partial")
+
+
+def open_recording(
+    path: str | Path, *, recording_id: str, application_id: str = APPLICATION_ID
+) -> rr.RecordingStream:
+    """A new recording stream saving to a temp file next to ``path``.
+
+    Nothing is spawned and no network is used. Finish with :func:`close_recording`, which
+    renames the temp file to ``path``; or use :func:`stage_recording`.
+    """
+    if not recording_id:
+        raise ValueError(f"recording_id must be a non-empty string, got {recording_id!r}")
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    rec = rr.RecordingStream(application_id, recording_id=recording_id)
+    rec.save(temp_path(path))
+    return rec
+
+
+def close_recording(rec: rr.RecordingStream, path: str | Path) -> Path:
+    """Flush ``rec``, close its file and atomically rename the temp file to ``path``."""
+    path = Path(path)
+    rec.flush()
+    rec.disconnect()
+    tmp = temp_path(path)
+    if not tmp.exists():
+        raise FileNotFoundError(f"no recording was opened for {path} (missing temp file {tmp})")
+    os.replace(tmp, path)
+    return path
+
+
+def discard_recording(rec: rr.RecordingStream, path: str | Path) -> None:
+    """Close ``rec`` and delete its temp file; ``path`` is left untouched."""
+    rec.disconnect()
+    temp_path(path).unlink(missing_ok=True)
+
+
+def stage_path(out_dir: str | Path, stage: str) -> Path:
+    """``OUT/rrd/<stage>.rrd``."""
+    return Path(out_dir) / "rrd" / f"{stage}.rrd"
+
+
+@contextlib.contextmanager
+def stage_recording(
+    out_dir: str | Path, stage: str, recording_id: str, *, application_id: str = APPLICATION_ID
+) -> Iterator[rr.RecordingStream]:
+    """Record one stage into ``OUT/rrd/<stage>.rrd``; the file appears only if the block succeeds.
+
+    Examples
+    --------
+    >>> with stage_recording(out, "beams", run_id) as rec:   # doctest: +SKIP
+    ...     log_site(rec, site, region_graph)
+    """
+    path = stage_path(out_dir, stage)
+    rec = open_recording(path, recording_id=recording_id, application_id=application_id)
+    try:
+        yield rec
+    except BaseException:
+        discard_recording(rec, path)
+        raise
+    close_recording(rec, path)

@@ -1,0 +1,90 @@
+"""The static site drawing: boundary, obstacles, beams and regions (logged once, ``static=True``).
+
+Regions are drawn as a translucent outline (:class:`rerun.LineStrips2D`) in the region's
+colour plus a labelled :class:`rerun.Points2D` at ``representative_point()`` on the same
+entity. Rerun 0.41 has no filled 2D polygon archetype, and a triangulated
+:class:`rerun.Mesh3D` would only show in a 3D view, not in the 2D site view.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import rerun as rr
+
+from onebit.datasets.region_graph import RegionGraph
+from onebit.datasets.site import Site
+from onebit.viz import colors, paths
+from onebit.viz._series import rings
+
+#: Line widths in UI points (independent of the site's units).
+WALL_WIDTH = rr.Radius.ui_points(1.5)
+BEAM_WIDTH = rr.Radius.ui_points(1.5)
+REGION_WIDTH = rr.Radius.ui_points(1.0)
+LABEL_RADIUS = rr.Radius.ui_points(3.0)
+
+#: Alpha of region outlines.
+REGION_ALPHA = 110
+
+
+def beam_arrow(site: Site, beam_id: str) -> tuple[np.ndarray, np.ndarray]:
+    """Origin (the beam midpoint) and vector (towards the forward side) of a beam's arrow."""
+    b = site.beam(beam_id)
+    p0, p1 = np.asarray(b.p0, float), np.asarray(b.p1, float)
+    length = min(0.5 * float(np.hypot(*(p1 - p0))), 0.06 * site.diagonal)
+    return (p0 + p1) / 2.0, b.forward_normal * length
+
+
+def log_site(rec: rr.RecordingStream, site: Site, region_graph: RegionGraph | None = None) -> None:
+    """Log ``site`` (and the regions of ``region_graph``) as static geometry.
+
+    Entities: ``site/boundary``, ``site/obstacles/<i>``, ``site/beams/<id>`` (segment and an
+    arrow to the forward side labelled with the beam id), ``site/regions/<name>``. Without a
+    region graph, the site's named region points are logged as labelled points.
+    """
+    rec.log(
+        paths.site_boundary(),
+        rr.LineStrips2D(rings(site.boundary), radii=WALL_WIDTH, colors=colors.WALL, labels=[site.name], show_labels=False),
+        static=True,
+    )
+    for i, (poly, name) in enumerate(zip(site.obstacles, site.obstacle_names, strict=True)):
+        rec.log(
+            paths.site_obstacle(i),
+            rr.LineStrips2D(rings(poly), radii=WALL_WIDTH, colors=colors.OBSTACLE, labels=[name], show_labels=False),
+            static=True,
+        )
+    for b in site.beams:
+        origin, vector = beam_arrow(site, b.id)
+        rec.log(
+            paths.site_beam(b.id),
+            rr.LineStrips2D([np.array([b.p0, b.p1], float)], radii=BEAM_WIDTH, colors=colors.BEAM, draw_order=20.0),
+            rr.Arrows2D(
+                origins=[origin], vectors=[vector], radii=BEAM_WIDTH, colors=colors.BEAM, labels=[b.id], show_labels=True,
+                draw_order=20.0,
+            ),
+            static=True,
+        )
+    if region_graph is not None:
+        for name, poly in zip(region_graph.names, region_graph.polygons, strict=True):
+            rp = poly.representative_point()
+            outline = rings(poly)
+            rec.log(
+                paths.site_region(name),
+                rr.LineStrips2D(
+                    outline, radii=REGION_WIDTH, colors=colors.color_of(name, alpha=REGION_ALPHA), draw_order=5.0
+                ),
+                rr.Points2D(
+                    [[rp.x, rp.y]], radii=LABEL_RADIUS, colors=colors.color_of(name, alpha=REGION_ALPHA),
+                    labels=[name], show_labels=True, draw_order=6.0,
+                ),
+                static=True,
+            )
+    else:
+        for spec in site.regions:
+            rec.log(
+                paths.site_region(spec.name),
+                rr.Points2D(
+                    [spec.point], radii=LABEL_RADIUS, colors=colors.color_of(spec.name, alpha=REGION_ALPHA),
+                    labels=[spec.name], show_labels=True, draw_order=6.0,
+                ),
+                static=True,
+            )
