@@ -98,7 +98,7 @@ def match_crossings(observed: pl.DataFrame, true: pl.DataFrame, tolerance: float
     """
     obs = observed.with_row_index("obs").sort("t")
     tru = true.select("t", "beam", "direction", "target").with_row_index("true_id").with_columns(t_true=pl.col("t")).sort("t")
-    j = obs.join_asof(tru.drop("target"), on="t", by=["beam", "direction"], strategy="nearest", tolerance=tolerance)
+    j = obs.join_asof(tru.drop("target"), on="t", by=["beam", "direction"], strategy="nearest", tolerance=tolerance, check_sortedness=False)
     j = j.with_columns(dt=(pl.col("t") - pl.col("t_true")).abs())
     best = pl.col("dt") == pl.col("dt").min().over("true_id")
     first = pl.col("obs") == pl.col("obs").filter(best).min().over("true_id")
@@ -147,7 +147,7 @@ def region_scores(
     m = pl.DataFrame({"track": list(mapping), "target": list(mapping.values())})
     est = tracks.select("track", "t", est_region="region").join(m, on="track").sort("t")
     tru = truth_regions(truth.select("t", "target", "x", "y"), rg).drop_nulls("region").sort("t")
-    j = tru.join_asof(est, on="t", by="target", strategy="backward").drop_nulls("est_region")
+    j = tru.join_asof(est, on="t", by="target", strategy="backward", check_sortedness=False).drop_nulls("est_region")
     if j.height == 0:
         return pl.DataFrame(schema=SCORES)
     idx = rg.index
