@@ -227,3 +227,14 @@ def test_truth_error_counts_missed(site, rendered, result):
     err = truth_error(dropped, rendered[1], diagonal=site.diagonal)
     assert err["missed"] == 10
     assert err["matched"] == rendered[1].height - 10
+
+
+def test_video_without_agents_gives_empty_tables(site, tmp_path):
+    path = tmp_path / "empty_scene.mp4"
+    t = np.arange(20) / site.camera.fps
+    outside = pl.DataFrame({"t": t, "target": "ghost", "x": np.full_like(t, -50.0), "y": np.full_like(t, -50.0)})
+    assert render_overhead_video(path, site, outside, seed=3, radius=RADIUS) == 20
+    res = read_camera(path, site)
+    assert res.frames == 20
+    assert res.truth.height == 0 and res.truth.schema == TRUTH
+    assert res.detections.height == 0

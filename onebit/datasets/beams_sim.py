@@ -241,10 +241,11 @@ def simulate_beams(site: Site, cfg: BeamsSimConfig, *, seed: int) -> BeamsSimula
                 pl.DataFrame(
                     {
                         "t": times[edges],
-                        "beam": beam.id,
-                        "pair": pair,
+                        "beam": [beam.id] * len(edges),
+                        "pair": [pair] * len(edges),
                         "blocked": blocked[edges],
-                    }
+                    },
+                    schema={"t": pl.Float64, "beam": pl.String, "pair": pl.String, "blocked": pl.Boolean},
                 )
             )
     beam_events = pl.concat(events).sort(["t", "beam", "pair"]) if events else pl.DataFrame()

@@ -12,13 +12,13 @@ Pipeline
    container declares keeps the frames so far and adds a ``rejects`` row.
 2. **Lighting**: each frame's brightness is ``m_k = median(I_k)`` (on a 4x subsampled grid;
    the agents are a small fraction of the image so the median is the floor's). Frames are
-   normalised to a common level, ``J_k = I_k * m_ref / m_k`` with ``m_ref = median_k m_k``,
-   which removes a global multiplicative drift ``g(t)``.
+   normalised to a common level, ``J_k = c_k I_k`` with ``c_k = m_ref / m_k`` and
+   ``m_ref = median_k m_k``, which removes a global multiplicative lighting drift.
 3. **Background** ``B = median_k J_k`` per pixel over up to ``BG_SAMPLES`` frames spread evenly
    over the video (a moving agent covers a pixel in few of them); lower median by
    ``np.partition``.
-4. **Foreground**: ``D_k = |J_k - B|`` (computed in 8 bits as ``|I_k - B / g_k|``); threshold ``tau = max(TAU_MIN, TAU_SIGMAS * sigma)``
-   where ``sigma = 1.4826 * MAD(J_k - B)`` is the robust noise level measured on the background
+4. **Foreground**: ``D_k = |J_k - B|`` (computed in 8 bits as ``|I_k - B / c_k| > tau / c_k``);
+   threshold ``tau = max(TAU_MIN, TAU_SIGMAS * sigma)`` where ``sigma = 1.4826 * MAD(J_k - B)`` is the robust noise level measured on the background
    samples. ``D_k > tau`` is cleaned by a morphological opening (3x3 ellipse, removes speckle)
    then closing (5x5 ellipse, fills holes).
 5. **Blobs**: ``cv2.connectedComponentsWithStats`` (8-connectivity) gives each blob's pixel
@@ -117,6 +117,9 @@ def read_camera(
     """
     path = Path(path)
     camera = _require_camera(site, path)
+    for name, value in (("min_area_px", min_area_px), ("gate", gate), ("max_gap", max_gap)):
+        if value is not None and not value > 0:
+            raise InputError(f"must be positive, got {value!r}", field=name)
     stack, rejects = decode_frames(path, camera)
     gains = frame_gains(stack)
     background = background_model(stack, gains)
@@ -263,9 +266,9 @@ _CLOSE = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (5, 5))
 
 
 def foreground_mask(frame: np.ndarray, gain: float, background: np.ndarray, tau: float) -> np.ndarray:
-    """Binary mask ``|I g - B| > tau`` of one frame (uint8 0/255).
+    """Binary mask ``|c I - B| > tau`` of one frame with brightness correction ``c = gain``.
 
-    Evaluated in 8 bits as the equivalent ``|I - round(B / g)| > tau / g`` with
+    Evaluated in 8 bits as the equivalent ``|I - round(B / c)| > tau / c`` with
     ``cv2.convertScaleAbs``, ``cv2.absdiff`` and ``cv2.threshold`` (rounding costs at most
     half a grey level, far below ``tau >= TAU_MIN``).
     """

@@ -32,7 +32,7 @@ CHANNELS: dict[str, tuple[str, ...]] = {
     "/beams": ("t", "beam", "pair", "blocked"),
     "/crossings": ("t", "beam", "direction"),
     "/truth": ("t", "target", "x", "y"),
-    "/truth_crossings": ("t", "beam", "direction", "target"),
+    "/truth_crossings": ("t", "beam", "direction", "target", "dropped"),  # dropped: simulator flag 0|1
     "/motion": ("t", "sensor", "value"),
     "/proximity": ("t", "sensor", "value"),
 }
