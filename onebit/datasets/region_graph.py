@@ -12,6 +12,7 @@ from dataclasses import dataclass
 
 import networkx as nx
 import numpy as np
+import polars as pl
 import shapely
 from shapely.geometry import Point, Polygon
 
@@ -54,10 +55,13 @@ class RegionGraph:
         """Vectorised :meth:`endpoints`: region indices of source and target of every crossing."""
         idx = self.index
         ids = sorted(self.beam_source)
-        code = {b: k for k, b in enumerate(ids)}
         fwd_s = np.array([idx[self.beam_source[b]] for b in ids], dtype=np.int64)
         fwd_t = np.array([idx[self.beam_target[b]] for b in ids], dtype=np.int64)
-        k = np.array([code[b] for b in beams], dtype=np.int64) if len(beams) else np.zeros(0, np.int64)
+        k = (
+            pl.Series(beams, dtype=pl.String).replace_strict(ids, list(range(len(ids))), return_dtype=pl.Int64).to_numpy()
+            if len(beams)
+            else np.zeros(0, np.int64)
+        )
         fwd = np.asarray(directions) > 0
         src = np.where(fwd, fwd_s[k], fwd_t[k])
         tgt = np.where(fwd, fwd_t[k], fwd_s[k])

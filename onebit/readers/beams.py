@@ -48,7 +48,7 @@ class BeamDecode:
 def read_beam_events(raw: RawRows, beam_ids: tuple[str, ...], *, epoch: str | None = None, path: Path | None = None):
     """Type and check raw beam rows: ``t``, known ``beam``, ``pair`` in a|b, ``blocked`` in 0|1."""
     parsers = {
-        "t": parse_time("t", epoch),
+        "t": parse_time("t", epoch, raw.frame),
         "beam": parse_name("beam", beam_ids, "beam"),
         "pair": parse_choice("pair", {"a": "a", "b": "b", "A": "a", "B": "b"}, pl.String),
         "blocked": parse_choice("blocked", {"1": True, "0": False, "true": True, "false": False}, pl.Boolean),

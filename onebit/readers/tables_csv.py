@@ -15,7 +15,7 @@ _DIRECTION = {"1": 1, "+1": 1, "-1": -1, "f": 1, "b": -1, "forward": 1, "backwar
 def crossings_from_rows(raw: RawRows, beam_ids, *, epoch=None, path: Path | None = None):
     """Type crossing rows: t, known beam, direction +1|-1. Returns ``(crossings, rejects)``."""
     parsers = {
-        "t": parse_time("t", epoch),
+        "t": parse_time("t", epoch, raw.frame),
         "beam": parse_name("beam", tuple(beam_ids), "beam"),
         "direction": parse_choice("direction", _DIRECTION, pl.Int8),
     }
@@ -25,7 +25,7 @@ def crossings_from_rows(raw: RawRows, beam_ids, *, epoch=None, path: Path | None
 
 def true_crossings_from_rows(raw: RawRows, beam_ids, *, epoch=None, path: Path | None = None):
     parsers = {
-        "t": parse_time("t", epoch),
+        "t": parse_time("t", epoch, raw.frame),
         "beam": parse_name("beam", tuple(beam_ids), "beam"),
         "direction": parse_choice("direction", _DIRECTION, pl.Int8),
         "target": parse_name("target", None, "target"),
@@ -40,7 +40,7 @@ def truth_from_rows(raw: RawRows, *, epoch=None, path: Path | None = None):
     Time order is checked per file; a target may appear at most once per time stamp.
     """
     parsers = {
-        "t": parse_time("t", epoch),
+        "t": parse_time("t", epoch, raw.frame),
         "target": parse_name("target", None, "target"),
         "x": parse_float("x"),
         "y": parse_float("y"),

@@ -1,0 +1,49 @@
+"""``python -m benchmarks`` (what ``make bench`` runs): every benchmark in turn, each under a header.
+
+A benchmark that fails (including a failed equality check against its peer) is reported and
+the run goes on; the exit status is 1 if any failed. ``bench_camera`` is skipped with a note
+when it cannot be imported.
+"""
+
+from __future__ import annotations
+
+import importlib
+import sys
+import time
+import traceback
+
+BENCHMARKS = (
+    ("bench_reader", "raw beam log reader"),
+    ("bench_assignment", "Algorithm 1 agent assignment"),
+    ("bench_camera", "camera reader"),
+)
+OPTIONAL = {"bench_camera"}
+
+
+def main() -> int:
+    failed: list[str] = []
+    t_all = time.perf_counter()
+    for name, title in BENCHMARKS:
+        print(f"\n=== {name}: {title} ===", flush=True)
+        try:
+            module = importlib.import_module(f"benchmarks.{name}")
+        except ImportError as exc:
+            if name in OPTIONAL and (getattr(exc, "name", None) or "").startswith(f"benchmarks.{name}"):
+                print(f"(skipped: benchmarks/{name}.py is not there)")
+                continue
+            traceback.print_exc()
+            failed.append(name)
+            continue
+        t0 = time.perf_counter()
+        try:
+            module.main()
+        except Exception:  # report and go on with the next benchmark
+            traceback.print_exc()
+            failed.append(name)
+        print(f"({name}: {time.perf_counter() - t0:.1f} s)", flush=True)
+    print(f"\nall benchmarks: {time.perf_counter() - t_all:.1f} s" + (f"; FAILED: {', '.join(failed)}" if failed else ""))
+    return 1 if failed else 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
