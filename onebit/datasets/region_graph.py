@@ -51,14 +51,14 @@ class RegionGraph:
         s, t = self.beam_source[beam], self.beam_target[beam]
         return (s, t) if direction > 0 else (t, s)
 
-    def endpoint_arrays(self, beams: np.ndarray, directions: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    def endpoint_arrays(self, beams: np.ndarray | pl.Series, directions: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Vectorised :meth:`endpoints`: region indices of source and target of every crossing."""
         idx = self.index
         ids = sorted(self.beam_source)
         fwd_s = np.array([idx[self.beam_source[b]] for b in ids], dtype=np.int64)
         fwd_t = np.array([idx[self.beam_target[b]] for b in ids], dtype=np.int64)
         k = (
-            pl.Series(beams, dtype=pl.String).replace_strict(ids, list(range(len(ids))), return_dtype=pl.Int64).to_numpy()
+            (beams if isinstance(beams, pl.Series) else pl.Series(beams, dtype=pl.String)).replace_strict(ids, list(range(len(ids))), return_dtype=pl.Int64).to_numpy()
             if len(beams)
             else np.zeros(0, np.int64)
         )

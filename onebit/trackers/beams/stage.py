@@ -47,7 +47,7 @@ def run(inputs: dict, site: Site, config: BeamsConfig, log=None) -> dict[str, pl
     crossings = check_schema(inputs["crossings"], CROSSINGS, name="crossings").sort("t", maintain_order=True)
     rg: RegionGraph = inputs.get("region_graph") or build_region_graph(site)
     names = np.asarray(rg.names, dtype=object)
-    src, tgt = rg.endpoint_arrays(crossings["beam"].to_numpy(), crossings["direction"].to_numpy())
+    src, tgt = rg.endpoint_arrays(crossings["beam"], crossings["direction"].to_numpy())
     res = assign_agents(src, tgt, len(rg.names), policy=config.policy)
     track_ids = pl.Series("track", [f"agent{k + 1}" for k in range(res.n_agents)], dtype=pl.String)
 
