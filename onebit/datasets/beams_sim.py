@@ -329,3 +329,27 @@ def _atomic_copy(src: Path, dst: Path) -> None:
     tmp = dst.with_name(f".{dst.name}.tmp")
     shutil.copyfile(src, tmp)
     os.replace(tmp, dst)
+
+
+def _scenario_writer(name: str):
+    def write(dataset, *, seed: int, duration: float, agents: int | None, drop: float, camera: bool, params: dict):
+        if params:
+            from onebit.errors import ConfigError
+
+            raise ConfigError(f"scenario {name!r} takes no --param options, got {sorted(params)}")
+        return write_beams_dataset(dataset, name, seed=seed, duration=180.0 if duration is None else duration, agents=agents, drop=drop, camera=camera)
+
+    return write
+
+
+def _specs():
+    from onebit.datasets.scenarios import Scenario
+
+    helps = {
+        "beams-lab": "paper Fig. 8 lab: 4 directional beams, 5 regions in a chain, 2 agents, camera",
+        "beams-building": "paper Fig. 1 building: 7 beams, 6 regions, 3 agents, camera",
+    }
+    return {n: Scenario(n, helps[n], _scenario_writer(n)) for n in SCENARIOS}
+
+
+SCENARIO_SPECS = _specs()

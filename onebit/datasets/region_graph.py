@@ -148,11 +148,10 @@ def build_region_graph(site: Site) -> RegionGraph:
     for b in site.beams:
         mid = np.asarray(b.line.interpolate(0.5, normalized=True).coords[0])
         n = b.forward_normal
-        back = _containing(polys_t, mid - n * probe * 1000)
-        front = _containing(polys_t, mid + n * probe * 1000)
-        if back is None or front is None:
-            back = back if back is not None else _containing(polys_t, mid - n * probe)
-            front = front if front is not None else _containing(polys_t, mid + n * probe)
+        back = front = None
+        for scale in (1.0, 10.0, 100.0, 1000.0):  # nearest piece first: a neighbouring beam may be close
+            back = back if back is not None else _containing(polys_t, mid - n * probe * scale)
+            front = front if front is not None else _containing(polys_t, mid + n * probe * scale)
         if back is None or front is None:
             raise SiteError("cannot find the regions on both sides of the beam", file=site.source, field=f"beams ({b.id})")
         if back == front:

@@ -29,7 +29,13 @@ from onebit.errors import SiteError
 #: Tolerance (world units) for "a beam end touches the boundary or an obstacle".
 TOUCH_TOL = 1e-6
 
-_TOP_KEYS = {"name", "units", "epoch", "boundary", "obstacles", "beams", "regions", "camera"}
+_TOP_KEYS = {
+    "name", "units", "epoch", "boundary", "obstacles", "beams", "regions", "camera",
+    "targets", "motion_sensors", "proximity_sensors", "sensor_graph", "sensor_types",
+}
+_MOTION_KEYS = {"id", "position", "heading", "type", "refractory", "fov", "range"}
+_PROXIMITY_KEYS = {"id", "position", "radius", "r_inner", "r_outer"}
+_GRAPH_KEYS = {"edges", "entries", "exits", "signatures"}
 _BOUNDARY_KEYS = {"polygon"}
 _OBSTACLE_KEYS = {"name", "polygon"}
 _BEAM_KEYS = {"id", "segment", "forward", "spacing", "capacity"}
@@ -106,6 +112,62 @@ def _apply_h(h: np.ndarray, pts: np.ndarray) -> np.ndarray:
 
 
 @dataclass(frozen=True)
+class MotionSensor:
+    """A PIR / motion sensor: pose, type name, refractory period and optional field of view.
+
+    ``heading`` is the direction (degrees, counter-clockwise from +x) of the sensor frame's
+    x axis in the world. ``fov`` is the detection polygon in world coordinates when the site
+    gives one; otherwise the sensor's type (a characterisation, see the intruder tracker)
+    defines it. ``type`` names a table in ``[sensor_types]`` or a built-in type.
+    """
+
+    id: str
+    position: tuple[float, float]
+    heading: float = 0.0
+    type: str = "pir"
+    refractory: float = 0.0
+    fov: Polygon | None = None
+    range: float | None = None
+
+
+@dataclass(frozen=True)
+class ProximitySensor:
+    """A binary proximity sensor at ``position``: on means a target within ``r_outer`` (R_o),
+    off means no target within ``r_inner`` (R_i); ideal sensing has R_i = R_o = R."""
+
+    id: str
+    position: tuple[float, float]
+    r_inner: float
+    r_outer: float
+
+
+@dataclass(frozen=True)
+class SensorGraph:
+    """Physical 1-hop adjacency of motion-sensor nodes, with entry/exit nodes.
+
+    ``signatures`` are ordered node pairs ``(outer, inner)``: activity at ``outer`` followed by
+    ``inner`` is an entry, the reverse an exit (paper: 104 -> 103 is an entry).
+    """
+
+    nodes: tuple[str, ...]
+    edges: tuple[tuple[str, str], ...]
+    entries: tuple[str, ...] = ()
+    exits: tuple[str, ...] = ()
+    signatures: tuple[tuple[str, str], ...] = ()
+
+    def to_networkx(self, site: "Site | None" = None):
+        """Undirected ``networkx.Graph``; node attribute ``pos`` when ``site`` is given."""
+        import networkx as nx
+
+        g = nx.Graph()
+        pos = {m.id: m.position for m in site.motion_sensors} if site is not None else {}
+        for n in self.nodes:
+            g.add_node(n, pos=pos.get(n), entry=n in self.entries, exit=n in self.exits)
+        g.add_edges_from(self.edges)
+        return g
+
+
+@dataclass(frozen=True)
 class Site:
     """A validated deployment. ``free_space`` is the boundary minus the obstacles (E in the paper)."""
 
@@ -119,6 +181,11 @@ class Site:
     camera: Camera | None
     epoch: str | None = None
     source: str = "<site>"
+    targets: int | None = None
+    motion_sensors: tuple[MotionSensor, ...] = ()
+    proximity_sensors: tuple[ProximitySensor, ...] = ()
+    sensor_graph: SensorGraph | None = None
+    sensor_types: dict = field(default_factory=dict, repr=False)  # raw tables, validated by their user
 
     @property
     def free_space(self):
@@ -251,6 +318,17 @@ def site_from_dict(data: dict, *, source: str = "<site>") -> Site:
     if "camera" in data:
         camera = _camera(data["camera"], err)
 
+    targets = data.get("targets")
+    if targets is not None and (not isinstance(targets, int) or isinstance(targets, bool) or targets < 0):
+        raise err("targets", f"must be a non-negative integer, got {targets!r}")
+    sensor_ids: set[str] = set(seen)
+    motion = [_motion_sensor(ms, i, boundary, sensor_ids, err) for i, ms in enumerate(_list_of_tables(data.get("motion_sensors", []), "motion_sensors", err))]
+    prox = [_proximity_sensor(ps, i, sensor_ids, err) for i, ps in enumerate(_list_of_tables(data.get("proximity_sensors", []), "proximity_sensors", err))]
+    graph = _sensor_graph(data["sensor_graph"], {m.id for m in motion}, err) if "sensor_graph" in data else None
+    stypes = data.get("sensor_types", {})
+    if not isinstance(stypes, dict) or not all(isinstance(v, dict) for v in stypes.values()):
+        raise err("sensor_types", "must be a table of tables ([sensor_types.<name>])")
+
     return Site(
         name=name,
         units=units,
@@ -262,7 +340,104 @@ def site_from_dict(data: dict, *, source: str = "<site>") -> Site:
         camera=camera,
         epoch=epoch,
         source=source,
+        targets=targets,
+        motion_sensors=tuple(motion),
+        proximity_sensors=tuple(prox),
+        sensor_graph=graph,
+        sensor_types=stypes,
     )
+
+
+def _number(value, key: str, err, *, lo: float | None = None, positive: bool = False) -> float:
+    if not isinstance(value, (int, float)) or isinstance(value, bool) or not math.isfinite(value):
+        raise err(key, f"must be a number, got {value!r}")
+    if positive and value <= 0:
+        raise err(key, f"must be positive, got {value!r}")
+    if lo is not None and value < lo:
+        raise err(key, f"must be at least {lo}, got {value!r}")
+    return float(value)
+
+
+def _sensor_id(table: dict, key: str, seen: set[str], err) -> str:
+    if "id" not in table:
+        raise err(key + ".id", "missing")
+    sid = str(table["id"])
+    if sid in seen:
+        raise err(key + ".id", f"duplicate sensor id {sid!r}")
+    seen.add(sid)
+    return sid
+
+
+def _motion_sensor(ms: dict, i: int, boundary: Polygon, seen: set[str], err) -> MotionSensor:
+    key = f"motion_sensors[{i}]"
+    _unknown(ms, _MOTION_KEYS, key + ".", err)
+    sid = _sensor_id(ms, key, seen, err)
+    key = f"motion_sensors[{i}] (id {sid!r})"
+    pos = _points([ms.get("position")] if ms.get("position") is not None else None, key + ".position", err)[0]
+    heading = _number(ms.get("heading", 0.0), key + ".heading", err)
+    typ = ms.get("type", "pir")
+    if not isinstance(typ, str):
+        raise err(key + ".type", f"must be a string, got {typ!r}")
+    refr = _number(ms.get("refractory", 0.0), key + ".refractory", err, lo=0.0)
+    fov = _polygon(ms["fov"], key + ".fov", err) if "fov" in ms else None
+    rng = _number(ms["range"], key + ".range", err, positive=True) if "range" in ms else None
+    return MotionSensor(sid, (float(pos[0]), float(pos[1])), heading, typ, refr, fov, rng)
+
+
+def _proximity_sensor(ps: dict, i: int, seen: set[str], err) -> ProximitySensor:
+    key = f"proximity_sensors[{i}]"
+    _unknown(ps, _PROXIMITY_KEYS, key + ".", err)
+    sid = _sensor_id(ps, key, seen, err)
+    key = f"proximity_sensors[{i}] (id {sid!r})"
+    pos = _points([ps.get("position")] if ps.get("position") is not None else None, key + ".position", err)[0]
+    if "radius" in ps:
+        if "r_inner" in ps or "r_outer" in ps:
+            raise err(key + ".radius", "give either 'radius' or 'r_inner'/'r_outer', not both")
+        r_in = r_out = _number(ps["radius"], key + ".radius", err, positive=True)
+    else:
+        if "r_inner" not in ps or "r_outer" not in ps:
+            raise err(key + ".radius", "missing; give 'radius' (ideal) or both 'r_inner' and 'r_outer'")
+        r_in = _number(ps["r_inner"], key + ".r_inner", err, lo=0.0)
+        r_out = _number(ps["r_outer"], key + ".r_outer", err, positive=True)
+        if r_in > r_out:
+            raise err(key + ".r_inner", f"r_inner {r_in} exceeds r_outer {r_out}")
+    return ProximitySensor(sid, (float(pos[0]), float(pos[1])), r_in, r_out)
+
+
+def _sensor_graph(g, motion_ids: set[str], err) -> SensorGraph:
+    if not isinstance(g, dict):
+        raise err("sensor_graph", "must be a table")
+    _unknown(g, _GRAPH_KEYS, "sensor_graph.", err)
+    edges = g.get("edges", [])
+    if not isinstance(edges, list) or not all(isinstance(e, list) and len(e) == 2 for e in edges):
+        raise err("sensor_graph.edges", "must be a list of [node, node] pairs")
+    edges_t = tuple((str(a), str(b)) for a, b in edges)
+    for k, (a, b) in enumerate(edges_t):
+        for n in (a, b):
+            if n not in motion_ids:
+                raise err(f"sensor_graph.edges[{k}]", f"node {n!r} is not a motion sensor id")
+        if a == b:
+            raise err(f"sensor_graph.edges[{k}]", f"self loop at {a!r}")
+    out = {}
+    for name in ("entries", "exits"):
+        v = g.get(name, [])
+        if not isinstance(v, list):
+            raise err(f"sensor_graph.{name}", "must be a list of node ids")
+        for n in v:
+            if str(n) not in motion_ids:
+                raise err(f"sensor_graph.{name}", f"node {n!r} is not a motion sensor id")
+        out[name] = tuple(str(n) for n in v)
+    sig = g.get("signatures", [])
+    if not isinstance(sig, list) or not all(isinstance(e, list) and len(e) == 2 for e in sig):
+        raise err("sensor_graph.signatures", "must be a list of [outer, inner] node pairs")
+    nodes = tuple(sorted(motion_ids, key=_natural_key))
+    return SensorGraph(nodes, edges_t, out["entries"], out["exits"], tuple((str(a), str(b)) for a, b in sig))
+
+
+def _natural_key(s: str):
+    import re
+
+    return [int(p) if p.isdigit() else p for p in re.split(r"(\d+)", s)]
 
 
 def _at_end(inter, beam: Beam) -> bool:

@@ -30,20 +30,33 @@ def _cmd_report(args) -> int:
 
 
 def _cmd_simulate(args) -> int:
-    from onebit.datasets.beams_sim import SCENARIOS, write_beams_dataset
+    from onebit.datasets.scenarios import all_scenarios, get_scenario, parse_params
 
-    if args.scenario not in SCENARIOS:
-        raise OnebitError(f"unknown scenario {args.scenario!r}; known: {sorted(SCENARIOS)}")
-    out = write_beams_dataset(
+    if args.scenario == "list":
+        for name, sc in sorted(all_scenarios().items()):
+            print(f"{name:28s} {sc.help}")
+        return 0
+    sc = get_scenario(args.scenario)
+    out = sc.write(
         args.dataset,
-        args.scenario,
         seed=args.seed,
         duration=args.duration,
         agents=args.agents,
         drop=args.drop,
         camera=not args.no_camera,
+        params=parse_params(args.param),
     )
-    print(f"wrote {args.scenario} dataset to {out} (seed {args.seed}, {args.duration:g} s)")
+    dur = f", {args.duration:g} s" if args.duration is not None else ""
+    print(f"wrote {args.scenario} dataset to {out} (seed {args.seed}{dur})")
+    return 0
+
+
+def _cmd_experiment(args) -> int:
+    from onebit.pipeline.experiments import get_experiment
+
+    mod = get_experiment(args.name)
+    out = mod.run(Path(args.out), seed=args.seed, trials=args.trials, quick=args.quick, echo=print)
+    print(f"experiment {args.name}: results in {out}")
     return 0
 
 
@@ -84,14 +97,24 @@ def build_parser() -> argparse.ArgumentParser:
     rp.set_defaults(func=_cmd_report)
 
     s = sub.add_parser("simulate", help="write a simulated dataset folder with ground truth")
-    s.add_argument("scenario", help="beams-lab or beams-building")
+    s.add_argument("scenario", help="scenario name ('onebit simulate list DIR' lists them)")
     s.add_argument("dataset")
     s.add_argument("--seed", type=int, default=0)
-    s.add_argument("--duration", type=float, default=180.0, help="seconds")
-    s.add_argument("--agents", type=int, default=None)
-    s.add_argument("--drop", type=float, default=0.0, help="probability that a crossing is not reported")
+    s.add_argument("--duration", type=float, default=None, help="seconds (default: the scenario's)")
+    s.add_argument("--agents", "--users", "--targets", dest="agents", type=int, default=None,
+                   help="number of agents / users / targets (default: the scenario's)")
+    s.add_argument("--drop", type=float, default=0.0, help="probability that a crossing / reading is lost")
     s.add_argument("--no-camera", action="store_true", help="do not render camera.mp4")
+    s.add_argument("--param", action="append", metavar="KEY=VALUE", help="scenario-specific option (repeatable)")
     s.set_defaults(func=_cmd_simulate)
+
+    e = sub.add_parser("experiment", help="reproduce a paper's study: simulate, run, tabulate, plot")
+    e.add_argument("name", help="schiff, singh, okane, ...")
+    e.add_argument("out")
+    e.add_argument("--seed", type=int, default=0)
+    e.add_argument("--trials", type=int, default=None, help="trials per setting (default: the paper's)")
+    e.add_argument("--quick", action="store_true", help="a reduced study (smoke test)")
+    e.set_defaults(func=_cmd_experiment)
 
     lg = sub.add_parser("logs", help="inspect or convert raw logs")
     lsub = lg.add_subparsers(dest="logs_command", required=True)

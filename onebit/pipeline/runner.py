@@ -37,9 +37,10 @@ from onebit.pipeline.scores import (
 )
 from onebit.readers.rows import RawRows, read_csv_rows
 from onebit.tables import REJECTS, REPORT
+from onebit.trackers import load_trackers
 from onebit.trackers.base import REGISTRY, config_from_mapping
 
-import onebit.trackers.beams  # noqa: F401  (registers the tracker)
+load_trackers()
 
 
 @dataclass
@@ -55,6 +56,7 @@ class RunContext:
     report: list[tuple[str, str, float, str]] = field(default_factory=list)
     mcap_channels: dict[str, RawRows] = field(default_factory=dict)
     trackers: tuple[str, ...] = ("beams",)
+    status: dict[str, str] = field(default_factory=dict)
 
     def source(self, stem: str, columns: tuple[str, ...]) -> tuple[RawRows, Path | None] | None:
         """String rows of ``<stem>.csv`` in the dataset, else of the MCAP channel ``/<stem>``."""
@@ -176,6 +178,8 @@ def _tracker_stage(name: str) -> Stage:
     def available(ctx: RunContext) -> str | None:
         if name not in ctx.trackers:
             return f"tracker '{name}' not selected (--trackers)"
+        if spec.available is not None:
+            return spec.available(ctx.site)
         return None
 
     def work(ctx: RunContext, log) -> dict[str, pl.DataFrame]:
@@ -219,6 +223,13 @@ def _scores_work(ctx: RunContext, log) -> dict[str, pl.DataFrame]:
             ctx.report += error_summary(sc, stage="beams", unit=ctx.site.units)
             out["scores"] = sc
             log.scores("beams", sc)
+    for name in ctx.trackers:
+        spec = REGISTRY[name]
+        if name == "beams" or spec.score is None or ctx.status.get(name, "").split(" ")[0] != "ok":
+            continue
+        rows, tables = spec.score(t, ctx.site, log)
+        ctx.report += rows
+        out.update(tables)
     if "sim_crossings" in t and "true_crossings" in t:
         # how well truth positions reproduce the simulator's own crossing list
         m2 = match_crossings(t["true_crossings"], t["sim_crossings"], cfg.crossing_tolerance_s)
@@ -230,12 +241,15 @@ def _scores_work(ctx: RunContext, log) -> dict[str, pl.DataFrame]:
 
 
 def stages() -> list[Stage]:
-    """The declared pipeline."""
+    """The declared pipeline: reader stages, contributed stages, one stage per tracker, scores."""
+    from onebit.pipeline.plugins import extra_stages
+
     return [
         Stage("crossings", (), ("crossings", "aborted", "beam_events"), _crossings_available, _crossings_work),
         Stage("truth", (), ("truth", "true_crossings"), _truth_available, _truth_work),
         Stage("camera", (), ("camera_truth", "camera_detections"), _camera_available, _camera_work),
-        _tracker_stage("beams"),
+        *extra_stages(),
+        *[_tracker_stage(name) for name in REGISTRY],
         Stage("scores", (), ("crossing_matches", "scores"), _scores_available, _scores_work),
     ]
 
@@ -290,7 +304,7 @@ def run_pipeline(
     (out / "tables").mkdir(parents=True, exist_ok=True)
     (out / "rrd").mkdir(parents=True, exist_ok=True)
     recording_id = str(uuid.uuid4())
-    status: dict[str, str] = {}
+    status = ctx.status
 
     mcaps = sorted(dataset.glob("*.mcap"))
     if mcaps:

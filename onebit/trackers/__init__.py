@@ -1,0 +1,18 @@
+"""Trackers, one subpackage per paper. Importing :func:`load_trackers` registers them all."""
+
+from __future__ import annotations
+
+import importlib
+
+#: Tracker packages, in the order their stages run.
+TRACKER_MODULES: tuple[str, ...] = (
+    "onebit.trackers.beams",
+)
+
+
+def load_trackers() -> dict:
+    from onebit.trackers.base import REGISTRY
+
+    for mod in TRACKER_MODULES:
+        importlib.import_module(mod)
+    return REGISTRY

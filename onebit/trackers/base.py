@@ -22,6 +22,13 @@ class TrackerSpec:
     needs: tuple[str, ...]
     config: type
     run: Callable[..., dict[str, Any]]
+    #: ``score(tables, site, log) -> (report_rows, tables)``, run by the ``scores`` stage when
+    #: the tracker ran: ``tables`` holds every table of the run (truth, the tracker's outputs
+    #: named ``<tracker>_<name>``, ...); ``report_rows`` are ``(stage, metric, value, unit)``.
+    score: Callable[..., tuple[list[tuple[str, str, float, str]], dict[str, Any]]] | None = None
+    #: ``available(site) -> reason to skip or None`` (e.g. the site has no motion sensors).
+    available: Callable[..., str | None] | None = None
+    help: str = ""
 
 
 REGISTRY: dict[str, TrackerSpec] = {}
