@@ -25,6 +25,7 @@ test: install
 	RERUN_ANALYTICS=0 $(BIN)/python -m pytest
 
 bench: install
+	$(BIN)/python -m pip install --quiet -e '.[test,bench]'
 	$(BIN)/python -m benchmarks
 
 clean:

@@ -96,6 +96,12 @@ class StageLog:
         if self.rec is not None:
             log_scores(self.rec, tracker, scores)
 
+    def emit(self, fn, *args, **kwargs) -> None:
+        """Call ``fn(rec, *args, **kwargs)`` -- a logging function of a ``onebit.viz`` module --
+        when recording is on. Trackers log through this so they never import rerun."""
+        if self.rec is not None:
+            fn(self.rec, *args, **kwargs)
+
     def blueprint(self, trackers: list[str]) -> None:
         if self.rec is not None:
             send_blueprint(self.rec, trackers=trackers)
