@@ -185,6 +185,7 @@ def _tracker_stage(name: str) -> Stage:
     def work(ctx: RunContext, log) -> dict[str, pl.DataFrame]:
         cfg = config_from_mapping(spec.config, ctx.config.get(name), section=name)
         inputs = {k: ctx.tables[k] for k in spec.needs}
+        inputs.update({k: ctx.tables[k] for k in spec.wants if k in ctx.tables})
         inputs["region_graph"] = ctx.region_graph
         out = spec.run(inputs, ctx.site, cfg, log)
         ctx.config.setdefault(name, {}).update(asdict(cfg))

@@ -29,6 +29,8 @@ class TrackerSpec:
     #: ``available(site) -> reason to skip or None`` (e.g. the site has no motion sensors).
     available: Callable[..., str | None] | None = None
     help: str = ""
+    #: optional input tables: passed in ``inputs`` when an earlier stage produced them.
+    wants: tuple[str, ...] = ()
 
 
 REGISTRY: dict[str, TrackerSpec] = {}
