@@ -16,6 +16,10 @@ BENCHMARKS = (
     ("bench_reader", "raw beam log reader"),
     ("bench_assignment", "Algorithm 1 agent assignment"),
     ("bench_camera", "camera reader"),
+    ("bench_counting", "counting-automaton error correction"),
+    ("bench_clustertrack", "CLUSTERTRACK Algorithm 1 scan vs direct per-particle"),
+    ("bench_intruder", "intruder SIR particle filter vs Stone Soup particle predictor/updater"),
+    ("bench_findinghumo", "FindingHuMo Viterbi vs hmmlearn, decoder time per slot, 2nd-order memory"),
 )
 OPTIONAL = {"bench_camera"}
 

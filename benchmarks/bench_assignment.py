@@ -17,6 +17,14 @@ The agent sequences of ours and the peer must be identical, and ``minimum_agents
 the number of agents Algorithm 1 created (both asserted). Printed: seconds, crossings per
 second, peer/ours speed-up and the growth of ours' time from the previous ``m`` (10 = linear).
 
+**variations**: for ``m`` in (10^4, 10^5), Algorithm 1 with every section IV variation on
+(A capacity, B track length + shortest-first queues, C known initial condition, D two teams with
+per-team bounds and a team-preferring exit policy, E minimum traversal times) against the base
+algorithm on the same string, as a ratio. The bounds are set so none binds (capacities = agents,
+``L = m + 1``, ``tau`` below every gap, initial regions = the base run's), so both explain the
+same crossings and the ratio is the pure cost of checking the constraints: line 5 becomes a scan of
+``Q_source`` (O(n) per crossing instead of O(1)).
+
 Run with ``python -m benchmarks.bench_assignment``.
 """
 
@@ -28,7 +36,7 @@ import numpy as np
 
 from onebit.datasets.region_graph import RegionGraph, build_region_graph
 from onebit.datasets.site import builtin_site
-from onebit.trackers.beams.assignment import assign_agents, minimum_agents
+from onebit.trackers.beams.assignment import Constraints, assign_agents, minimum_agents
 
 SIZES = (10_000, 100_000, 1_000_000)
 SEED = 0
@@ -122,12 +130,47 @@ def main() -> None:
                 f"{m:>9} {policy:>6} {t_ours:>8.3f} {t_ends:>9.3f} {t_peer:>8.3f} {t_peer / t_ours:>9.2f} "
                 f"{m / t_ours:>13.3g} {m / t_peer:>13.3g} {growth:>7} {t_min:>7.3f} {res.n_agents:>6} {k:>7}"
             )
+    variations(rg)
     print(
         "ours = endpoint_arrays + assign_agents (ends s: endpoint_arrays alone); peer/ours: speed-up of ours; "
         "growth: ours' time over the previous m (10 = linear).\n"
         "min s: minimum_agents; agents (Algorithm 1, FIFO and LIFO, and the peer) = minimum_agents (asserted); "
         "walkers: agents that generated the string (Algorithm 1 may need fewer)."
     )
+
+
+def all_variations(src: np.ndarray, tgt: np.ndarray, n_regions: int, initial: np.ndarray) -> Constraints:
+    """Every section IV variation on, with bounds that never bind (see the module docstring)."""
+    n = len(initial)
+    return Constraints(
+        capacity=np.full(n_regions, n, np.int64),
+        max_track_length=len(src) + 1,
+        prefer_short=True,
+        initial_region=initial,
+        team=np.arange(n, dtype=np.int64) % 2,
+        team_capacity=np.full((n_regions, 2), n, np.int64),
+        team_rank=np.array([0, 1], np.int64),
+        min_traversal=np.full(n_regions, 0.5),
+    )
+
+
+def variations(rg: RegionGraph) -> None:
+    n_regions = len(rg.names)
+    print("\nAlgorithm 1 with variations A-E all on vs the base algorithm (same string, FIFO)")
+    print(f"{'m':>9} {'base s':>8} {'A-E s':>8} {'A-E/base':>8} {'growth':>7} {'agents':>6} {'unexpl.':>7}")
+    prev = None
+    for m in (10_000, 100_000):
+        beams, dirs, _, _ = random_crossings(rg, m)
+        src, tgt = rg.endpoint_arrays(beams, dirs)
+        times = np.arange(m, dtype=np.float64)  # one crossing per second: every tau = 0.5 s is met
+        t_base, base = _best_of(lambda: assign_agents(src, tgt, n_regions, policy="fifo"), 3)
+        cons = all_variations(src, tgt, n_regions, base.initial_region)
+        t_all, res = _best_of(lambda: assign_agents(src, tgt, n_regions, policy="fifo", constraints=cons, times=times), 3)
+        assert len(res.unexplained) == 0 and res.n_agents == base.n_agents, "non-binding constraints must explain all"
+        growth = f"{t_all / prev:.1f}" if prev else "-"
+        prev = t_all
+        print(f"{m:>9} {t_base:>8.3f} {t_all:>8.3f} {t_all / t_base:>8.2f} {growth:>7} {res.n_agents:>6} {len(res.unexplained):>7}")
+    print("A-E/base: cost of the variations over the base algorithm; growth: A-E time over the previous m (10 = linear).")
 
 
 if __name__ == "__main__":

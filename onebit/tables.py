@@ -25,8 +25,9 @@ ABORTED = pl.Schema({"t": pl.Float64, "beam": pl.String, "side": pl.Int8})
 #: Motion sensors after debounce: one row per accepted edge.
 MOTION = pl.Schema({"t": pl.Float64, "sensor": pl.String, "on": pl.Boolean})
 
-#: Motion sampled at a period T for slot-based trackers.
-FRAMES = pl.Schema({"slot": pl.Int64, "t": pl.Float64, "sensor": pl.String, "on": pl.Boolean})
+#: Motion sampled at a period T for slot-based trackers: ``t`` = slot start, ``on`` = the sensor
+#: was on at some time in the slot, ``fired`` = a rising edge (0 -> 1) of the sensor in the slot.
+FRAMES = pl.Schema({"slot": pl.Int64, "t": pl.Float64, "sensor": pl.String, "on": pl.Boolean, "fired": pl.Boolean})
 
 #: Binary proximity readings.
 PROXIMITY = pl.Schema({"t": pl.Float64, "sensor": pl.String, "on": pl.Boolean})

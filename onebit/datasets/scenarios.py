@@ -18,6 +18,9 @@ from onebit.errors import ConfigError
 
 SCENARIO_MODULES: tuple[str, ...] = (
     "onebit.datasets.beams_sim",
+    "onebit.datasets.pir_sim",
+    "onebit.datasets.proximity_sim",
+    "onebit.datasets.hallway_sim",
 )
 
 

@@ -116,6 +116,14 @@ def build_parser() -> argparse.ArgumentParser:
     e.add_argument("--quick", action="store_true", help="a reduced study (smoke test)")
     e.set_defaults(func=_cmd_experiment)
 
+    vp = sub.add_parser("verify-path", help="is a story (crossing labels) plausible? Smith-Waterman vs a beams run")
+    vp.add_argument("out", help="run folder of a finished 'onebit run' with the beams tracker")
+    vp.add_argument("--story", required=True, help='crossing labels, e.g. "a b^-1 c"')
+    vp.add_argument("--match", type=float, default=2.0, help="score of a matching label")
+    vp.add_argument("--mismatch", type=float, default=-1.0, help="score of a mismatching label (<= 0)")
+    vp.add_argument("--gap", type=float, default=1.0, help="penalty of a gap (> 0)")
+    vp.set_defaults(func=lambda a: __import__("onebit.trackers.beams.verify", fromlist=["cli_main"]).cli_main(a))
+
     lg = sub.add_parser("logs", help="inspect or convert raw logs")
     lsub = lg.add_subparsers(dest="logs_command", required=True)
     li = lsub.add_parser("info", help="channels, sensors, time span, rates and rejects of a log")

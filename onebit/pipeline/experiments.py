@@ -13,7 +13,10 @@ import importlib
 
 from onebit.errors import ConfigError
 
-EXPERIMENT_MODULES: dict[str, str] = {}
+EXPERIMENT_MODULES: dict[str, str] = {
+    "singh": "onebit.pipeline.exp_singh",
+    "schiff": "onebit.pipeline.exp_schiff",
+}
 
 
 def get_experiment(name: str):

@@ -10,7 +10,11 @@ from __future__ import annotations
 
 import importlib
 
-STAGE_MODULES: tuple[str, ...] = ()
+STAGE_MODULES: tuple[str, ...] = (
+    "onebit.pipeline.stages_motion",
+    "onebit.pipeline.stages_correct",
+    "onebit.pipeline.stages_proximity",
+)
 
 
 def extra_stages() -> list:

@@ -129,7 +129,7 @@ def _truth_available(ctx: RunContext) -> str | None:
 
 
 def _truth_work(ctx: RunContext, log) -> dict[str, pl.DataFrame]:
-    from onebit.readers.tables_csv import true_crossings_from_rows, truth_from_rows
+    from onebit.readers.tables_csv import true_crossings_columns, true_crossings_from_rows, truth_from_rows
 
     raw, path = ctx.source("truth", ("t", "target", "x", "y"))
     truth, rej = truth_from_rows(raw, epoch=ctx.site.epoch, path=path)
@@ -137,7 +137,7 @@ def _truth_work(ctx: RunContext, log) -> dict[str, pl.DataFrame]:
     truth = truth_regions(truth, ctx.region_graph)
     out = {"truth": truth, "true_crossings": true_crossings_from_truth(truth, ctx.site, ctx.region_graph)}
     if ctx.has_source("truth_crossings"):
-        raw, path = ctx.source("truth_crossings", ("t", "beam", "direction", "target"))
+        raw, path = ctx.source("truth_crossings", true_crossings_columns(ctx.dataset / "truth_crossings.csv"))
         sim_cr, rej = true_crossings_from_rows(raw, ctx.site.beam_ids, epoch=ctx.site.epoch, path=path)
         ctx.add_rejects(rej)
         out["sim_crossings"] = sim_cr
@@ -172,6 +172,16 @@ def _camera_work(ctx: RunContext, log) -> dict[str, pl.DataFrame]:
     return {"camera_truth": cam_truth, "camera_detections": res.detections}
 
 
+#: (tracker, input table) -> the table fed instead when an earlier stage made it
+#: (the ``correct`` stage's false-negative-corrected crossings for the beams tracker).
+INPUT_ALIASES: dict[tuple[str, str], str] = {("beams", "crossings"): "corrected_crossings"}
+
+
+def _input_table(ctx: RunContext, tracker: str, key: str) -> pl.DataFrame:
+    alias = INPUT_ALIASES.get((tracker, key))
+    return ctx.tables[alias] if alias in ctx.tables else ctx.tables[key]
+
+
 def _tracker_stage(name: str) -> Stage:
     spec = REGISTRY[name]
 
@@ -184,7 +194,7 @@ def _tracker_stage(name: str) -> Stage:
 
     def work(ctx: RunContext, log) -> dict[str, pl.DataFrame]:
         cfg = config_from_mapping(spec.config, ctx.config.get(name), section=name)
-        inputs = {k: ctx.tables[k] for k in spec.needs}
+        inputs = {k: _input_table(ctx, name, k) for k in spec.needs}
         inputs.update({k: ctx.tables[k] for k in spec.wants if k in ctx.tables})
         inputs["region_graph"] = ctx.region_graph
         out = spec.run(inputs, ctx.site, cfg, log)
@@ -211,8 +221,15 @@ def _scores_work(ctx: RunContext, log) -> dict[str, pl.DataFrame]:
         ctx.report.append(("crossings", "true", float(n_true), "crossings"))
         ctx.report.append(("crossings", "spurious", float(m["true_id"].null_count()), "crossings"))
         out["crossing_matches"] = m
+        beams_m = m  # true target of every crossing the beams tracker read
+        if "corrected_crossings" in t:
+            from onebit.pipeline.stages_correct import score_correction
+
+            rows, tables, beams_m = score_correction(t, m)
+            ctx.report += rows
+            out.update(tables)
         if "beams_assignment" in t:
-            acc, mapping = assignment_scores(m, t["beams_assignment"])
+            acc, mapping = assignment_scores(beams_m, t["beams_assignment"])
             n_true_agents = t["truth"]["target"].n_unique()
             n_rec = t["beams_agents"].height
             ctx.report += [
@@ -226,7 +243,7 @@ def _scores_work(ctx: RunContext, log) -> dict[str, pl.DataFrame]:
             log.scores("beams", sc)
     for name in ctx.trackers:
         spec = REGISTRY[name]
-        if name == "beams" or spec.score is None or ctx.status.get(name, "").split(" ")[0] != "ok":
+        if spec.score is None or ctx.status.get(name, "").split(" ")[0] != "ok":
             continue
         rows, tables = spec.score(t, ctx.site, log)
         ctx.report += rows

@@ -119,7 +119,7 @@ def assignment_scores(
     if assignment.height == 0:
         return 1.0, {}
     pair = pl.DataFrame({"track": assignment["track"], "target": matched["target"]}).drop_nulls()
-    tracks = sorted(assignment["track"].unique().to_list())
+    tracks = sorted(assignment["track"].drop_nulls().unique().to_list())  # null = unexplained crossing
     targets = sorted(pair["target"].unique().to_list()) if pair.height else []
     if not targets:
         return 0.0, {}

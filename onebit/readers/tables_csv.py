@@ -9,6 +9,7 @@ import polars as pl
 from onebit.readers.rows import RawRows, parse_choice, parse_float, parse_name, parse_time, read_csv_rows, type_rows
 from onebit.tables import CROSSINGS, TRUE_CROSSINGS, TRUTH, conform
 
+_FLAG = {"0": False, "1": True, "false": False, "true": True}
 _DIRECTION = {"1": 1, "+1": 1, "-1": -1, "f": 1, "b": -1, "forward": 1, "backward": -1}
 
 
@@ -24,14 +25,28 @@ def crossings_from_rows(raw: RawRows, beam_ids, *, epoch=None, path: Path | None
 
 
 def true_crossings_from_rows(raw: RawRows, beam_ids, *, epoch=None, path: Path | None = None):
+    """Type true-crossing rows; a ``dropped`` column (simulator flag 0|1), when read, is kept."""
     parsers = {
         "t": parse_time("t", epoch, raw.frame),
         "beam": parse_name("beam", tuple(beam_ids), "beam"),
         "direction": parse_choice("direction", _DIRECTION, pl.Int8),
         "target": parse_name("target", None, "target"),
     }
+    if "dropped" in raw.frame.columns:
+        parsers["dropped"] = parse_choice("dropped", _FLAG, pl.Boolean)
     ok, rej = type_rows(raw, parsers, key=("t", "beam", "direction", "target"), path=path)
-    return conform(ok, TRUE_CROSSINGS), rej
+    out = conform(ok, TRUE_CROSSINGS)
+    return (out.with_columns(ok["dropped"]) if "dropped" in parsers else out), rej
+
+
+def true_crossings_columns(path: Path) -> tuple[str, ...]:
+    """Columns to read from ``truth_crossings.csv``: TRUE_CROSSINGS, plus ``dropped`` if the header has it."""
+    base = tuple(TRUE_CROSSINGS.names())
+    try:
+        header = [h.strip() for h in pl.read_csv(path, n_rows=0, infer_schema=False).columns]
+    except (OSError, pl.exceptions.PolarsError):
+        return base  # absent or unreadable: read_csv_rows reports it
+    return base + ("dropped",) if "dropped" in header else base
 
 
 def truth_from_rows(raw: RawRows, *, epoch=None, path: Path | None = None):

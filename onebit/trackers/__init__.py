@@ -7,6 +7,9 @@ import importlib
 #: Tracker packages, in the order their stages run.
 TRACKER_MODULES: tuple[str, ...] = (
     "onebit.trackers.beams",
+    "onebit.trackers.intruder",
+    "onebit.trackers.clustertrack",
+    "onebit.trackers.findinghumo",
 )
 
 

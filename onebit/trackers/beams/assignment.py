@@ -1,4 +1,5 @@
-"""Algorithm 1 (AgentsAssignment) of Bobadilla et al., with FIFO and LIFO region queues.
+"""Algorithm 1 (AgentsAssignment) of Bobadilla et al. with FIFO/LIFO queues and the
+variations A-E of section IV.
 
 Each crossing ``y[j]`` is a directed edge ``source -> target`` of the region graph. Every
 region ``r`` keeps a queue ``Q_r`` of the agents currently in it (all empty at the start)::
@@ -17,12 +18,45 @@ the inputs are converted to plain integer lists first so the loop does no numpy 
 Proposition 3.1: with either policy the number of agents is the minimum that explains ``y``,
 ``sum_r max(0, max_k (exits_r(k) - entries_r(k)))`` over prefixes ``k``
 (:func:`minimum_agents`, computed vectorised).
+
+Variations (section IV), given as :class:`Constraints`, combinable
+------------------------------------------------------------------
+A. **capacity** ``u_r``: ``|Q_r| <= u_r`` is checked before every insertion (lines 8, 12). A
+   new agent created in ``r`` (line 10) has been in ``r`` since the start, so it raises every
+   past occupancy of ``r`` by one: it is admitted only if ``peak_r + 1 <= u_r`` where
+   ``peak_r = max_{t' <= t} |Q_r(t')|`` (kept in O(1) per crossing).
+B. **track length**: agent ``a`` keeps ``c_a`` = regions visited (its initial region counts 1);
+   an agent with ``c_a >= L`` may not leave (line 5), since the move would make ``c_a = L + 1``.
+   Option ``prefer_short``: among the eligible agents the one with the smallest ``c_a`` leaves.
+C. **initial condition**: ``n`` and each agent's initial region fill the queues before the
+   pass; no agent is ever created (``n`` is known). ``max_agents`` caps creation when only
+   ``n`` is known.
+D. **teams** ``l: A -> T``, ``|T| = m``: each region has an m-tuple of bounds
+   ``U_r = [u_r^1..u_r^m]``; an agent of team ``k`` is eligible for ``y[j]`` only if
+   ``|Q_target^k| < u_target^k`` (checked before the insertion, line 8). With
+   ``team_rank`` the exit policy (line 5) prefers the eligible agent of the best-ranked team.
+E. **time stamps**: region ``r`` has a minimum traversal time ``tau_r``; an agent that entered
+   ``r`` at ``t_in`` is eligible to leave at ``t`` only if ``t - t_in >= tau_r`` (agents there
+   from the start have ``t_in = -inf``).
+
+Line 5 then picks, among the *eligible* agents of ``Q_source``, the minimum of the key
+``(team rank, c_a if prefer_short, queue order)`` with queue order = arrival order (FIFO) or
+reversed arrival order (LIFO). When no agent is eligible:
+
+* a new agent is created in ``source`` (line 10) if creation is allowed (``n`` unknown or
+  fewer than ``max_agents`` agents so far) and region ``source`` has room for it (A);
+* otherwise the crossing is **unexplainable**: it is reported (index and reason), assigned to
+  no agent (``A[j] = -1``) and leaves every queue unchanged.
+
+A crossing into a full region (A) is unexplainable whatever the agent. Complexity: O(1) per
+crossing for the base algorithm and for A and C; B (track length), D and E scan ``Q_source``
+for an eligible agent, O(|Q_source|) <= O(n) per crossing, so O(|y| n + |R|) in all.
 """
 
 from __future__ import annotations
 
 from collections import deque
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -33,17 +67,74 @@ POLICIES = ("fifo", "lifo")
 class Assignment:
     """Output of Algorithm 1.
 
-    agents : (m,) int64, ``A[j]`` = agent (0-based) of crossing ``j``.
-    n_agents : number of agents created.
+    agents : (m,) int64, ``A[j]`` = agent (0-based) of crossing ``j``; -1 = unexplainable.
+    n_agents : number of agents (created or given by the initial condition).
     initial_region : (n_agents,) int64, region each agent was in before its first crossing.
+    unexplained : (k,) int64 indices of the unexplainable crossings, in order.
+    reasons : why each unexplained crossing could not be explained (same order).
+    team : (n_agents,) int64 team index of each agent, -1 = unknown.
     """
 
     agents: np.ndarray
     n_agents: int
     initial_region: np.ndarray
+    unexplained: np.ndarray = field(default_factory=lambda: np.zeros(0, np.int64))
+    reasons: tuple[str, ...] = ()
+    team: np.ndarray = field(default_factory=lambda: np.zeros(0, np.int64))
 
 
-def assign_agents(source: np.ndarray, target: np.ndarray, n_regions: int, *, policy: str = "fifo") -> Assignment:
+@dataclass(frozen=True, kw_only=True)
+class Constraints:
+    """Section IV variations in index form (see the module docstring); every field optional.
+
+    capacity : (p,) int64 ``u_r`` (A); -1 = unbounded.
+    max_track_length : ``L`` (B), regions an agent may visit including its initial one; 0 = none.
+    prefer_short : (B) the eligible agent with the fewest regions visited leaves first.
+    initial_region : (n,) int64 initial region of each agent (C); ``None`` = unknown.
+    max_agents : most agents that may exist when ``initial_region`` is ``None``; 0 = unbounded.
+    team : (n,) int64 team of each initial agent (D); needs ``initial_region``.
+    team_capacity : (p, m) int64 ``U_r`` (D); -1 = unbounded.
+    team_rank : (m,) int64 exit priority of each team (D), lower leaves first; ``None`` = none.
+    min_traversal : (p,) float64 ``tau_r`` in seconds (E); needs crossing times.
+    region_names : names used in the reasons (default ``r<index>``).
+    """
+
+    capacity: np.ndarray | None = None
+    max_track_length: int = 0
+    prefer_short: bool = False
+    initial_region: np.ndarray | None = None
+    max_agents: int = 0
+    team: np.ndarray | None = None
+    team_capacity: np.ndarray | None = None
+    team_rank: np.ndarray | None = None
+    min_traversal: np.ndarray | None = None
+    region_names: tuple[str, ...] | None = None
+
+    @property
+    def trivial(self) -> bool:
+        """True when nothing differs from the base algorithm."""
+        return (
+            (self.capacity is None or bool(np.all(np.asarray(self.capacity) < 0)))
+            and self.max_track_length == 0
+            and not self.prefer_short
+            and self.initial_region is None
+            and self.max_agents == 0
+            and self.team is None
+            and self.team_capacity is None
+            and self.team_rank is None
+            and (self.min_traversal is None or not bool(np.any(np.asarray(self.min_traversal) > 0)))
+        )
+
+
+def assign_agents(
+    source: np.ndarray,
+    target: np.ndarray,
+    n_regions: int,
+    *,
+    policy: str = "fifo",
+    constraints: Constraints | None = None,
+    times: np.ndarray | None = None,
+) -> Assignment:
     """Run Algorithm 1 on crossings given as region indices ``source[j] -> target[j]``.
 
     Parameters
@@ -51,9 +142,20 @@ def assign_agents(source: np.ndarray, target: np.ndarray, n_regions: int, *, pol
     source, target : (m,) integer arrays of region indices in ``[0, n_regions)``.
     n_regions : |R|.
     policy : ``"fifo"`` (agent waiting longest leaves first) or ``"lifo"`` (last in, first out).
+    constraints : the section IV variations; ``None`` runs the base algorithm.
+    times : (m,) crossing times in seconds, needed by ``constraints.min_traversal`` (E).
+
+    Examples
+    --------
+    >>> assign_agents([1, 1, 2], [2, 2, 3], 4).agents.tolist()
+    [0, 1, 0]
+    >>> assign_agents([1, 1, 2], [2, 2, 3], 4, policy="lifo").agents.tolist()
+    [0, 1, 1]
     """
     if policy not in POLICIES:
         raise ValueError(f"policy must be one of {POLICIES}, got {policy!r}")
+    if constraints is not None and not constraints.trivial:
+        return _assign_constrained(source, target, n_regions, policy, constraints, times)
     src = np.asarray(source, dtype=np.int64).tolist()
     tgt = np.asarray(target, dtype=np.int64).tolist()
     queues = [deque() for _ in range(n_regions)]
@@ -69,7 +171,170 @@ def assign_agents(source: np.ndarray, target: np.ndarray, n_regions: int, *, pol
             initial.append(s)
         out[j] = agent
         queues[t].append(agent)
-    return Assignment(np.asarray(out, dtype=np.int64), len(initial), np.asarray(initial, dtype=np.int64))
+    n = len(initial)
+    return Assignment(
+        np.asarray(out, dtype=np.int64), n, np.asarray(initial, dtype=np.int64), team=np.full(n, -1, np.int64)
+    )
+
+
+def _assign_constrained(source, target, n_regions: int, policy: str, c: Constraints, times) -> Assignment:
+    """Algorithm 1 with the variations of :class:`Constraints` (see the module docstring).
+
+    Inherently sequential, one pass; Line 5 scans ``Q_source`` when B, D or E is active.
+    """
+    src = np.asarray(source, dtype=np.int64).tolist()
+    tgt = np.asarray(target, dtype=np.int64).tolist()
+    m = len(src)
+    p = n_regions
+    names = list(c.region_names) if c.region_names is not None else [f"r{i}" for i in range(p)]
+    cap = np.asarray(c.capacity, np.int64).tolist() if c.capacity is not None else [-1] * p
+    tau = np.asarray(c.min_traversal, np.float64).tolist() if c.min_traversal is not None else [0.0] * p
+    use_time = any(x > 0 for x in tau)
+    if use_time:
+        if times is None or len(times) != m:
+            raise ValueError("min_traversal (variation E) needs one time stamp per crossing")
+        tt = np.asarray(times, np.float64).tolist()
+    else:
+        tt = [0.0] * m
+    L = int(c.max_track_length)
+    team_cap = np.asarray(c.team_capacity, np.int64).tolist() if c.team_capacity is not None else None
+    rank = np.asarray(c.team_rank, np.int64).tolist() if c.team_rank is not None else None
+    n_teams = len(team_cap[0]) if team_cap else (len(rank) if rank else 0)
+    scan = L > 0 or c.prefer_short or use_time or team_cap is not None or rank is not None
+    lifo = policy == "lifo"
+
+    queues: list[list[int]] = [[] for _ in range(p)]
+    team_count = [[0] * n_teams for _ in range(p)]
+    initial: list[int] = []
+    visits: list[int] = []
+    entered: list[float] = []
+    team: list[int] = []
+    if c.initial_region is not None:
+        init = np.asarray(c.initial_region, np.int64).tolist()
+        tm = np.asarray(c.team, np.int64).tolist() if c.team is not None else [-1] * len(init)
+        if len(tm) != len(init):
+            raise ValueError(f"team has {len(tm)} entries but initial_region has {len(init)}")
+        for a, (r, k) in enumerate(zip(init, tm)):
+            queues[r].append(a)
+            initial.append(r)
+            visits.append(1)
+            entered.append(float("-inf"))
+            team.append(k)
+            if k >= 0 and n_teams:
+                team_count[r][k] += 1
+        allow_new = False
+    else:
+        allow_new = True
+    max_agents = len(initial) if c.initial_region is not None else int(c.max_agents)
+    peak = [len(q) for q in queues]
+
+    out = [-1] * m
+    unexplained: list[int] = []
+    reasons: list[str] = []
+    for j in range(m):
+        s, t = src[j], tgt[j]
+        q = queues[s]
+        if cap[t] >= 0 and len(queues[t]) >= cap[t]:
+            unexplained.append(j)
+            reasons.append(f"capacity of {names[t]} ({cap[t]}) reached")
+            continue
+        pos = -1
+        if q and not scan:
+            pos = len(q) - 1 if lifo else 0
+        elif q:
+            best = None
+            why: dict[str, int] = {}
+            order = range(len(q) - 1, -1, -1) if lifo else range(len(q))
+            for i in order:
+                a = q[i]
+                if L and visits[a] >= L:
+                    why["track length"] = why.get("track length", 0) + 1
+                    continue
+                if use_time and tt[j] - entered[a] < tau[s]:
+                    why["in region < traversal time"] = why.get("in region < traversal time", 0) + 1
+                    continue
+                k = team[a]
+                if team_cap is not None and k >= 0 and 0 <= team_cap[t][k] <= team_count[t][k]:
+                    why["team bound of target"] = why.get("team bound of target", 0) + 1
+                    continue
+                key = (rank[k] if (rank is not None and k >= 0) else n_teams, visits[a] if c.prefer_short else 0)
+                if best is None or key < best:
+                    best, pos = key, i
+        if pos >= 0:
+            agent = q.pop(pos)
+        else:
+            can_create = allow_new and (max_agents == 0 or len(initial) < max_agents) and L != 1
+            room = cap[s] < 0 or peak[s] + 1 <= cap[s]
+            if can_create and room:
+                agent = len(initial)
+                initial.append(s)
+                visits.append(1)
+                entered.append(float("-inf"))
+                team.append(-1)
+                peak[s] += 1
+            else:
+                unexplained.append(j)
+                if q:
+                    detail = ", ".join(f"{v} {k}" for k, v in why.items())
+                    reasons.append(f"no eligible agent among the {len(q)} in {names[s]} ({detail})")
+                elif L == 1:
+                    reasons.append(f"no agent in {names[s]}; a new one would exceed max_track_length 1")
+                elif not can_create:
+                    reasons.append(f"no agent in {names[s]} and all {max_agents} agents are known")
+                else:
+                    reasons.append(f"no agent in {names[s]} and no room for a new one (capacity {cap[s]})")
+                continue
+        k = team[agent]
+        if k >= 0 and n_teams:
+            team_count[s][k] -= 1
+            team_count[t][k] += 1
+        out[j] = agent
+        visits[agent] += 1
+        entered[agent] = tt[j]
+        queues[t].append(agent)
+        if len(queues[t]) > peak[t]:
+            peak[t] = len(queues[t])
+    return Assignment(
+        np.asarray(out, dtype=np.int64),
+        len(initial),
+        np.asarray(initial, dtype=np.int64),
+        np.asarray(unexplained, dtype=np.int64),
+        tuple(reasons),
+        np.asarray(team, dtype=np.int64),
+    )
+
+
+def ambiguous_crossings(first: np.ndarray, second: np.ndarray) -> np.ndarray:
+    """Crossings whose agent differs between two assignments, up to agent relabelling.
+
+    The agents of ``second`` are relabelled to those of ``first`` by the matching that
+    maximises the number of crossings they share (``scipy.optimize.linear_sum_assignment`` on
+    the contingency table); a crossing is ambiguous when its relabelled agent differs from its
+    agent in ``first`` (-1 = unexplained counts as an agent of its own). Vectorised, (m,) bool.
+
+    Examples
+    --------
+    >>> ambiguous_crossings(np.array([0, 1, 0]), np.array([1, 0, 1])).tolist()
+    [False, False, False]
+    >>> ambiguous_crossings(np.array([0, 1, 0]), np.array([0, 1, 1])).tolist()
+    [False, False, True]
+    """
+    from scipy.optimize import linear_sum_assignment
+
+    a = np.asarray(first, np.int64) + 1
+    b = np.asarray(second, np.int64) + 1
+    if len(a) == 0:
+        return np.zeros(0, dtype=bool)
+    table = np.zeros((a.max() + 1, b.max() + 1), dtype=np.int64)
+    np.add.at(table, (a, b), 1)
+    # unexplained (index 0) only maps to unexplained
+    big = len(a) + 1
+    table[0, 1:] -= big
+    table[1:, 0] -= big
+    r, c = linear_sum_assignment(table, maximize=True)
+    relabel = np.full(b.max() + 1, -2, dtype=np.int64)
+    relabel[c] = r
+    return relabel[b] != a
 
 
 def minimum_agents(source: np.ndarray, target: np.ndarray, n_regions: int) -> int:

@@ -1,119 +1,317 @@
-"""The ``beams`` stage: crossings + site -> per-agent crossing strings, region paths and tracks."""
+"""The ``beams`` stage: crossings + site -> per-agent crossing strings, region paths, tracks,
+ambiguity, unexplained crossings and the section IV-F-1 queries."""
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 import polars as pl
 
 from onebit.datasets.region_graph import RegionGraph, build_region_graph
 from onebit.datasets.site import Site
+from onebit.errors import ConfigError
 from onebit.tables import CROSSINGS, TRACKS, check_schema, conform
-from onebit.trackers.base import TrackerSpec, check_choice, register
-from onebit.trackers.beams.assignment import POLICIES, assign_agents
+from onebit.trackers.base import TrackerSpec, check_choice, check_range, register
+from onebit.trackers.beams import queries
+from onebit.trackers.beams.assignment import POLICIES, Assignment, Constraints, ambiguous_crossings, assign_agents
 
 NAME = "beams"
+
+_UNEXPLAINED = {
+    "crossing": pl.Int64, "t": pl.Float64, "beam": pl.String, "direction": pl.Int8,
+    "source": pl.String, "region": pl.String, "reason": pl.String,
+}  # fmt: skip
 
 
 @dataclass(frozen=True, kw_only=True)
 class BeamsConfig:
-    """Configuration of the ``beams`` tracker.
+    """Configuration of the ``beams`` tracker (``[beams]`` in ``run.toml``).
 
     policy : queue discipline of the region queues Q_r (Algorithm 1, line 5): ``"fifo"``
         assigns the agent that has waited longest (the paper's experiment), ``"lifo"`` the
         agent that arrived last ("agents with momentum keep moving").
+    capacity : IV-A, ``{region: u_r}`` upper bound on the agents in a region; overrides the
+        ``capacity`` of the site's ``[[regions]]``. Empty = unbounded.
+    max_track_length : IV-B, most regions an agent may visit (its initial region counts);
+        0 = unbounded.
+    prefer_short_tracks : IV-B, region queues ordered by regions visited, shortest first.
+    initial_regions : IV-C, the initial region of every agent (n = its length); no other
+        agent is created. Empty = unknown.
+    max_agents : when ``initial_regions`` is empty, most agents that may be created; 0 = unbounded.
+    teams : IV-D, the team of every agent of ``initial_regions`` (same length). Empty = none.
+    team_names : IV-D, the m teams, in the order of the ``team_capacity`` tuples and of the
+        exit priority.
+    team_capacity : IV-D, ``{region: [u^1, .., u^m]}`` per-team bounds (-1 = unbounded).
+    prefer_team_order : IV-D, the exit policy prefers ``team_names[0]``, then ``[1]``, ...
+        (e.g. robots before humans), before the queue order.
+    min_traversal_s : IV-E, ``{region: seconds}`` minimum time an agent stays in a region
+        before it may leave; key ``"*"`` sets every other region. Empty = no time rule.
+    ambiguity : run both FIFO and LIFO and mark the crossings whose agent differs.
+    traffic_bucket_s : IV-F-1, time bucket of the traffic query (seconds).
+    occupancy_threshold : IV-F-1, "were there more than N agents in any region" (the paper's N = 10).
     """
 
     policy: str = "fifo"
+    capacity: dict = field(default_factory=dict)
+    max_track_length: int = 0
+    prefer_short_tracks: bool = False
+    initial_regions: list = field(default_factory=list)
+    max_agents: int = 0
+    teams: list = field(default_factory=list)
+    team_names: list = field(default_factory=list)
+    team_capacity: dict = field(default_factory=dict)
+    prefer_team_order: bool = False
+    min_traversal_s: dict = field(default_factory=dict)
+    ambiguity: bool = True
+    traffic_bucket_s: float = 60.0
+    occupancy_threshold: int = 10
 
     def __post_init__(self) -> None:
         check_choice(self, "policy", POLICIES)
+        check_range(self, "max_track_length", 0, None, types=(int,))
+        check_range(self, "max_agents", 0, None, types=(int,))
+        check_range(self, "traffic_bucket_s", 1e-9, None)
+        check_range(self, "occupancy_threshold", 0, None, types=(int,))
+        for name in ("prefer_short_tracks", "prefer_team_order", "ambiguity"):
+            if not isinstance(getattr(self, name), bool):
+                raise ConfigError(f"BeamsConfig.{name} = {getattr(self, name)!r}; must be true or false")
+        for name in ("capacity", "team_capacity", "min_traversal_s"):
+            if not isinstance(getattr(self, name), dict):
+                raise ConfigError(f"BeamsConfig.{name} = {getattr(self, name)!r}; must be a table {{region = ...}}")
+        for name in ("initial_regions", "teams", "team_names"):
+            v = getattr(self, name)
+            if not isinstance(v, (list, tuple)) or not all(isinstance(x, str) for x in v):
+                raise ConfigError(f"BeamsConfig.{name} = {v!r}; must be a list of names")
+        for r, u in self.capacity.items():
+            if not isinstance(u, int) or isinstance(u, bool) or u < 0:
+                raise ConfigError(f"BeamsConfig.capacity.{r} = {u!r}; allowed range: [0, None]")
+        for r, s in self.min_traversal_s.items():
+            if not isinstance(s, (int, float)) or isinstance(s, bool) or s < 0:
+                raise ConfigError(f"BeamsConfig.min_traversal_s.{r} = {s!r}; allowed range: [0, None]")
+        if self.teams and len(self.teams) != len(self.initial_regions):
+            raise ConfigError(
+                f"BeamsConfig.teams has {len(self.teams)} entries; it needs one per agent of "
+                f"initial_regions ({len(self.initial_regions)}) -- teams need the known initial condition (IV-C, IV-D)"
+            )
+        unknown = sorted(set(self.teams) - set(self.team_names))
+        if self.team_names and unknown:
+            raise ConfigError(f"BeamsConfig.teams names team(s) {unknown} not in team_names {self.team_names}")
+        if (self.team_capacity or self.prefer_team_order) and not self.team_names:
+            raise ConfigError("BeamsConfig.team_names must list the teams when team_capacity or prefer_team_order is set")
+        for r, us in self.team_capacity.items():
+            ok = isinstance(us, (list, tuple)) and len(us) == len(self.team_names)
+            ok = ok and all(isinstance(u, int) and not isinstance(u, bool) and u >= -1 for u in us)
+            if not ok:
+                raise ConfigError(
+                    f"BeamsConfig.team_capacity.{r} = {us!r}; must be {len(self.team_names)} integers >= -1 "
+                    f"(one per team of team_names {self.team_names}, -1 = unbounded)"
+                )
+
+    def constraints(self, site: Site, rg: RegionGraph) -> Constraints | None:
+        """The section IV variations in index form for :func:`assign_agents` (``None`` = base)."""
+        idx = rg.index
+        p = len(rg.names)
+
+        def region(name: str, where: str) -> int:
+            if name not in idx:
+                raise ConfigError(f"BeamsConfig.{where}: unknown region {name!r}; regions are {list(rg.names)}")
+            return idx[name]
+
+        cap = np.full(p, -1, np.int64)
+        for spec in site.regions:
+            if spec.capacity is not None and spec.name in idx:
+                cap[idx[spec.name]] = spec.capacity
+        for r, u in self.capacity.items():
+            cap[region(r, f"capacity.{r}")] = u
+        init = np.array([region(r, "initial_regions") for r in self.initial_regions], np.int64) if self.initial_regions else None
+        if init is not None:
+            counts = np.bincount(init, minlength=p)
+            over = np.flatnonzero((cap >= 0) & (counts > cap))
+            if len(over):
+                r = rg.names[over[0]]
+                raise ConfigError(f"BeamsConfig.initial_regions puts {counts[over[0]]} agents in {r}, over its capacity {cap[over[0]]}")
+        tidx = {t: k for k, t in enumerate(self.team_names)}
+        team = np.array([tidx[t] for t in self.teams], np.int64) if self.teams else None
+        tcap = None
+        if self.team_capacity:
+            tcap = np.full((p, len(self.team_names)), -1, np.int64)
+            for r, us in self.team_capacity.items():
+                tcap[region(r, f"team_capacity.{r}")] = us
+            if init is not None and team is not None:
+                both = np.zeros_like(tcap)
+                np.add.at(both, (init, team), 1)
+                if np.any((tcap >= 0) & (both > tcap)):
+                    raise ConfigError("BeamsConfig.initial_regions and teams exceed a team_capacity bound at the start")
+        rank = np.arange(len(self.team_names), dtype=np.int64) if self.prefer_team_order else None
+        tau = None
+        if self.min_traversal_s:
+            tau = np.full(p, float(self.min_traversal_s.get("*", 0.0)))
+            for r, s in self.min_traversal_s.items():
+                if r != "*":
+                    tau[region(r, f"min_traversal_s.{r}")] = float(s)
+        c = Constraints(
+            capacity=cap if np.any(cap >= 0) else None,
+            max_track_length=self.max_track_length,
+            prefer_short=self.prefer_short_tracks,
+            initial_region=init,
+            max_agents=self.max_agents,
+            team=team,
+            team_capacity=tcap,
+            team_rank=rank,
+            min_traversal=tau,
+            region_names=tuple(rg.names),
+        )
+        return None if c.trivial else c
 
 
 def run(inputs: dict, site: Site, config: BeamsConfig, log=None) -> dict[str, pl.DataFrame]:
-    """Assign every crossing to an agent (Algorithm 1) and build tracks.
+    """Assign every crossing to an agent (Algorithm 1 + variations) and answer the queries.
 
     Inputs: ``crossings`` (CROSSINGS); optional ``region_graph`` (built from ``site`` otherwise).
     Outputs:
 
-    - ``assignment``: t, beam, direction, track -- the assignment vector A.
-    - ``agents``: track, initial_region, crossings (the string y_i, e.g. ``"b^-1 c"``),
-      regions (the region path), n_crossings.
+    - ``assignment``: t, beam, direction, track (null = unexplained), source, region,
+      ambiguous -- the assignment vector A.
+    - ``agents``: track, initial_region, team, crossings (the string y_i, e.g. ``"b^-1 c"``),
+      regions (the region path), n_crossings, ambiguous_crossings.
     - ``tracks`` (TRACKS): one row per agent at the first crossing time of the run in its
       initial region, then one row per crossing with the region entered; x/y null.
-    - ``occupancy``: t, region, count -- agents per region after every crossing.
+    - ``unexplained``: crossing (index), t, beam, direction, source, region, reason.
+    - ``occupancy`` (t, region, count), ``visits`` (region, visits), ``traffic`` (bucket,
+      t_start, region, entries, exits, traffic), ``over_threshold`` (region, t_start, t_end,
+      duration_s, peak): the IV-F-1 queries (:mod:`onebit.trackers.beams.queries`).
     """
     crossings = check_schema(inputs["crossings"], CROSSINGS, name="crossings").sort("t", maintain_order=True)
     rg: RegionGraph = inputs.get("region_graph") or build_region_graph(site)
     names = np.asarray(rg.names, dtype=object)
     src, tgt = rg.endpoint_arrays(crossings["beam"], crossings["direction"].to_numpy())
-    res = assign_agents(src, tgt, len(rg.names), policy=config.policy)
+    cons = config.constraints(site, rg)
+    times = crossings["t"].to_numpy()
+    res = assign_agents(src, tgt, len(rg.names), policy=config.policy, constraints=cons, times=times)
+    if config.ambiguity:
+        other = "lifo" if config.policy == "fifo" else "fifo"
+        alt = assign_agents(src, tgt, len(rg.names), policy=other, constraints=cons, times=times)
+        ambiguous = ambiguous_crossings(res.agents, alt.agents)
+    else:
+        ambiguous = np.zeros(len(src), dtype=bool)
     track_ids = pl.Series("track", [f"agent{k + 1}" for k in range(res.n_agents)], dtype=pl.String)
+    track_col = _track_column(res, track_ids)
 
     labels = pl.when(pl.col("direction") > 0).then(pl.col("beam")).otherwise(pl.col("beam") + "^-1")
     assignment = crossings.with_columns(
-        track=track_ids.gather(res.agents) if res.n_agents else pl.Series("track", [], dtype=pl.String),
+        track=track_col,
         source=pl.Series(names[src].tolist() if len(src) else [], dtype=pl.String),
         region=pl.Series(names[tgt].tolist() if len(tgt) else [], dtype=pl.String),
+        ambiguous=pl.Series(ambiguous, dtype=pl.Boolean),
         label=labels,
     )
+    explained = assignment.filter(pl.col("track").is_not_null())
     t0 = float(crossings["t"].min()) if crossings.height else 0.0
+    team_names = np.asarray([*config.team_names, None], dtype=object)
     starts = pl.DataFrame(
         {
             "track": track_ids,
             "t": pl.Series([t0] * res.n_agents, dtype=pl.Float64),
             "region": pl.Series(names[res.initial_region].tolist() if res.n_agents else [], dtype=pl.String),
+            "team": pl.Series(team_names[res.team].tolist() if res.n_agents else [], dtype=pl.String),
         }
     )
-    steps = pl.concat([starts.with_columns(order=pl.lit(0)), assignment.select("track", "t", "region").with_columns(order=pl.lit(1))])
+    steps = pl.concat(
+        [
+            starts.select("track", "t", "region").with_columns(order=pl.lit(0)),
+            explained.select("track", "t", "region").with_columns(order=pl.lit(1)),
+        ]
+    )
     tracks = conform(
         steps.sort(["track", "order", "t"], maintain_order=True).with_columns(tracker=pl.lit(NAME)), TRACKS
     )
     agents = (
-        assignment.group_by("track", maintain_order=True)
-        .agg(crossings=pl.col("label").str.join(" "), path=pl.col("region").str.join(" "), n_crossings=pl.len())
-        .join(starts.select("track", initial_region="region"), on="track", how="right")
+        explained.group_by("track", maintain_order=True)
+        .agg(
+            crossings=pl.col("label").str.join(" "),
+            path=pl.col("region").str.join(" "),
+            n_crossings=pl.len(),
+            ambiguous_crossings=pl.col("ambiguous").sum(),
+        )
+        .join(starts.select("track", "team", initial_region="region"), on="track", how="right")
         .select(
             "track",
             "initial_region",
+            "team",
             pl.col("crossings").fill_null(""),
             regions=pl.concat_str([pl.col("initial_region"), pl.col("path")], separator=" ", ignore_nulls=True),
             n_crossings=pl.col("n_crossings").fill_null(0).cast(pl.Int64),
+            ambiguous_crossings=pl.col("ambiguous_crossings").fill_null(0).cast(pl.Int64),
         )
     )
-    occ = occupancy(assignment, starts, rg)
-    out = {"assignment": assignment.drop("label"), "agents": agents, "tracks": tracks, "occupancy": occ}
+    unexplained = pl.DataFrame(
+        {"crossing": res.unexplained, "reason": list(res.reasons)}, schema={"crossing": pl.Int64, "reason": pl.String}
+    ).join(assignment.with_row_index("crossing").with_columns(pl.col("crossing").cast(pl.Int64)), on="crossing", how="left")
+    unexplained = unexplained.select(list(_UNEXPLAINED)).cast(_UNEXPLAINED)
+    occ = queries.occupancy(explained, starts, rg.names)
+    out = {
+        "assignment": assignment.drop("label"),
+        "agents": agents,
+        "tracks": tracks,
+        "unexplained": unexplained,
+        "occupancy": occ,
+        "visits": queries.visits_per_region(explained, rg.names),
+        "traffic": queries.traffic_per_region(explained, config.traffic_bucket_s),
+        "over_threshold": queries.intervals_over_threshold(
+            occ, config.occupancy_threshold, t_end=float(crossings["t"].max()) if crossings.height else None
+        ),
+    }
     if log is not None:
         log.region_tracks(NAME, tracks, rg)
         log.occupancy(NAME, occ)
+        if getattr(log, "enabled", False):
+            from onebit.viz import beams as viz_beams  # only when recording: trackers never need rerun
+
+            log.emit(viz_beams.log_agent_region_paths, NAME, agents, rg)
+            log.emit(viz_beams.log_marked_crossings, NAME, "ambiguous", assignment.filter(pl.col("ambiguous")), site)
+            log.emit(viz_beams.log_marked_crossings, NAME, "unexplained", unexplained, site)
     return out
 
 
+def _track_column(res: Assignment, track_ids: pl.Series) -> pl.Series:
+    """Track id of every crossing, null for the unexplained ones (``A[j] = -1``)."""
+    if len(res.agents) == 0 or res.n_agents == 0:
+        return pl.Series("track", [None] * len(res.agents), dtype=pl.String)
+    ok = res.agents >= 0
+    col = track_ids.gather(np.where(ok, res.agents, 0))
+    return pl.select(pl.when(pl.Series(ok)).then(col).otherwise(None)).to_series().rename("track")
+
+
 def occupancy(assignment: pl.DataFrame, starts: pl.DataFrame, rg: RegionGraph) -> pl.DataFrame:
-    """Agents per region over time: initial counts at the first time, then after each crossing.
-
-    ``count_r(t) = n_r(0) + entries_r(<= t) - exits_r(<= t)``; one row per region at the
-    start and one per (crossing, endpoint region), computed with cumulative sums per region.
-    """
-    t0 = starts["t"].min() if starts.height else 0.0
-    init = (
-        pl.DataFrame({"region": list(rg.names)})
-        .join(starts.group_by("region").agg(delta=pl.len().cast(pl.Int64)), on="region", how="left")
-        .with_columns(t=pl.lit(t0, pl.Float64), delta=pl.col("delta").fill_null(0), order=pl.lit(0))
-    )
-    moves = pl.concat(
-        [
-            assignment.select("t", region="source", delta=pl.lit(-1, pl.Int64)).with_row_index("order", offset=1),
-            assignment.select("t", region="region", delta=pl.lit(1, pl.Int64)).with_row_index("order", offset=1),
-        ]
-    ).select("t", "region", "delta", pl.col("order").cast(pl.Int32))
-    allm = pl.concat([init.select("t", "region", "delta", pl.col("order").cast(pl.Int32)), moves])
-    return (
-        allm.sort(["order", "delta"])
-        .with_columns(count=pl.col("delta").cum_sum().over("region"))
-        .select("t", "region", "count")
-    )
+    """Agents per region over time (kept for callers of the first version; see
+    :func:`onebit.trackers.beams.queries.occupancy`)."""
+    return queries.occupancy(assignment, starts, rg.names)
 
 
-SPEC = register(TrackerSpec(name=NAME, needs=("crossings",), config=BeamsConfig, run=run))
+def score(tables: dict, site: Site, log=None) -> tuple[list[tuple[str, str, float, str]], dict]:
+    """Report rows of the beams stage that need no truth: ambiguity, unexplained crossings and
+    the IV-F-1 query summaries (most visited region, peak occupancy, time over threshold)."""
+    rows: list[tuple[str, str, float, str]] = []
+    a = tables.get("beams_assignment")
+    if a is None:
+        return rows, {}
+    rows.append(("beams", "ambiguous_crossings", float(a["ambiguous"].sum()) if "ambiguous" in a.columns else 0.0, "crossings"))
+    un = tables.get("beams_unexplained")
+    rows.append(("beams", "unexplained_crossings", float(un.height) if un is not None else 0.0, "crossings"))
+    visits = tables.get("beams_visits")
+    if visits is not None and visits.height:
+        top = visits.row(0, named=True)
+        rows.append(("beams", "most_visited_visits", float(top["visits"]), f"visits of {top['region']}"))
+    occ = tables.get("beams_occupancy")
+    if occ is not None and occ.height:
+        best = occ.sort(["count", "t"], descending=[True, False]).row(0, named=True)
+        rows.append(("beams", "peak_occupancy", float(best["count"]), f"agents in {best['region']}"))
+    over = tables.get("beams_over_threshold")
+    if over is not None:
+        rows.append(("beams", "over_threshold_intervals", float(over.height), "intervals"))
+        rows.append(("beams", "over_threshold_s", float(over["duration_s"].sum()) if over.height else 0.0, "s"))
+    return rows, {}
+
+
+SPEC = register(TrackerSpec(name=NAME, needs=("crossings",), config=BeamsConfig, run=run, score=score))

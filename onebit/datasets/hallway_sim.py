@@ -1,0 +1,244 @@
+"""Smart-environment simulator of FindingHuMo (De et al., section IV-C) on the ``hallway`` site.
+
+Users enter through the door (node 104) at staggered times and walk along the hallway graph
+between destinations that alternate between the west wing (printer room 92, busy lab 93,
+94, 96, 97) and the east wing (kitchen 99, 110, 114, 117, 106, 118, 100), so their paths
+overlap and cross in the middle corridor as in the paper's Fig. 2. Each user has its own
+walking speed that also varies from edge to edge, and pauses at destinations. With
+``exits``, that many users walk back to the door and leave before the end.
+
+Sensors: a ceiling PIR at each node with its own coverage radius (``range`` in site.toml:
+non-uniform coverage). Positions are sampled at 10 Hz; a user inside a node's radius is
+detected in a sample with probability ``p_detect`` (motion comes in bursts) and a detection
+holds the PIR on for ``hold`` seconds. Each node has a clock offset (uniform in
+``+-clock_offset`` s) added to its time stamps, and each on-burst's packets are lost with
+probability ``drop``. ``motion.csv`` is the raw toggle log (t, sensor, value).
+
+Truth (``truth.csv``): t, target, x, y, node at 10 Hz while a user is inside; ``node`` is the
+node whose coverage the user is in (the nearest when several), else the last one it was in
+(:func:`current_node`, also used by the scorer).
+
+Planning is sequential per user (each leg starts where the last ended); sampling and
+sensing are vectorised over samples, users and nodes.
+"""
+
+from __future__ import annotations
+
+import os
+import shutil
+from dataclasses import dataclass
+from pathlib import Path
+
+import networkx as nx
+import numpy as np
+import polars as pl
+
+from onebit.datasets.site import Site, builtin_site_path, load_site
+from onebit.errors import ConfigError
+
+WEST = ("92", "93", "94", "96", "97", "95")
+EAST = ("99", "110", "114", "117", "106", "118", "100", "111", "101")
+DOOR = "104"
+
+
+@dataclass(frozen=True, kw_only=True)
+class HallwaySimConfig:
+    """Simulation parameters (metres, seconds)."""
+
+    duration: float = 150.0
+    users: int = 3
+    speed: tuple[float, float] = (0.9, 1.6)  #: per-user mean walking speed range (m/s)
+    speed_jitter: float = 0.2  #: relative edge-to-edge variation of a user's speed
+    pause: tuple[float, float] = (0.0, 4.0)  #: pause at a destination (s)
+    enter_gap: tuple[float, float] = (2.0, 8.0)  #: time between two users entering (s)
+    exits: int = 0  #: users that leave through the door before the end
+    rate_hz: float = 10.0
+    p_detect: float = 0.85
+    hold: float = 0.6
+    clock_offset: float = 0.2
+    drop: float = 0.02
+
+    def __post_init__(self) -> None:
+        if not (isinstance(self.duration, (int, float)) and self.duration > 0):
+            raise ConfigError(f"HallwaySimConfig.duration = {self.duration!r}; must be > 0 seconds")
+        if not isinstance(self.users, int) or self.users < 1:
+            raise ConfigError(f"HallwaySimConfig.users = {self.users!r}; must be an integer >= 1")
+        if not isinstance(self.exits, int) or not 0 <= self.exits <= self.users:
+            raise ConfigError(f"HallwaySimConfig.exits = {self.exits!r}; allowed range: [0, users]")
+        for name in ("drop", "p_detect"):
+            v = getattr(self, name)
+            if not 0.0 <= v <= 1.0:
+                raise ConfigError(f"HallwaySimConfig.{name} = {v!r}; allowed range: [0, 1]")
+        if self.p_detect <= 0:
+            raise ConfigError("HallwaySimConfig.p_detect must be > 0")
+
+
+@dataclass(frozen=True)
+class HallwaySimulation:
+    samples: pl.DataFrame  # t, target, x, y, node (truth at rate_hz)
+    toggles: pl.DataFrame  # t, sensor, value (raw log, with offsets and drops)
+
+
+def _plan_user(g: nx.Graph, pos: dict, cfg: HallwaySimConfig, rng: np.random.Generator, t_in: float, leave_at: float | None):
+    """Waypoints (t, x, y) of one user: enter at the door, alternate wings, maybe leave."""
+    speed = rng.uniform(*cfg.speed)
+    t = t_in
+    node = DOOR
+    way = [(t, *pos[node])]
+    wing = rng.integers(2)
+    end = leave_at if leave_at is not None else cfg.duration + 5.0
+
+    def walk(route):
+        nonlocal t, node
+        for a, b in zip(route[:-1], route[1:]):
+            d = float(np.hypot(*(np.subtract(pos[b], pos[a]))))
+            v = speed * (1.0 + rng.uniform(-cfg.speed_jitter, cfg.speed_jitter))
+            t += d / v
+            way.append((t, *pos[b]))
+            node = b
+
+    while t < end:
+        choices = WEST if wing == 0 else EAST
+        dest = choices[rng.integers(len(choices))]
+        wing = 1 - wing
+        if dest == node:
+            continue
+        walk(nx.shortest_path(g, node, dest))
+        p = rng.uniform(*cfg.pause)
+        t += p
+        way.append((t, *pos[node]))
+    if leave_at is not None:
+        walk(nx.shortest_path(g, node, DOOR))
+        t += 1.0
+        way.append((t, *pos[DOOR]))
+    return np.array(way), (t if leave_at is not None else None)
+
+
+def current_node(xy: np.ndarray, targets: np.ndarray, node_xy: np.ndarray, ranges: np.ndarray) -> np.ndarray:
+    """Index of the node whose coverage each sample is in (nearest if several), else the last
+    one the same target was in (forward fill in sample order); -1 before the first."""
+    d = np.hypot(xy[:, None, 0] - node_xy[None, :, 0], xy[:, None, 1] - node_xy[None, :, 1])
+    inside = d <= ranges[None, :]
+    near = np.argmin(np.where(inside, d, np.inf), axis=1)
+    cur = np.where(inside.any(axis=1), near, -1)
+    s = pl.DataFrame({"target": targets, "cur": pl.Series(cur).replace(-1, None)})
+    return s.select(pl.col("cur").forward_fill().over("target")).to_series().fill_null(-1).to_numpy()
+
+
+def simulate_hallway(site: Site, cfg: HallwaySimConfig, *, seed: int) -> HallwaySimulation:
+    rng = np.random.default_rng(seed)
+    g = site.sensor_graph.to_networkx(site)
+    pos = {m.id: m.position for m in site.motion_sensors}
+    ids = [m.id for m in site.motion_sensors]
+    node_xy = np.array([pos[i] for i in ids])
+    ranges = np.array([m.range or 2.5 for m in site.motion_sensors])
+    times = np.arange(0.0, cfg.duration, 1.0 / cfg.rate_hz)
+    leavers = set(rng.choice(cfg.users, size=cfg.exits, replace=False).tolist()) if cfg.exits else set()
+    t_in = 1.0
+    frames = []
+    for u in range(cfg.users):
+        leave_at = cfg.duration - rng.uniform(25.0, 40.0) if u in leavers else None
+        way, t_out = _plan_user(g, pos, cfg, rng, t_in, leave_at)
+        present = (times >= way[0, 0]) & (times <= (t_out if t_out is not None else np.inf))
+        tt = times[present]
+        x = np.interp(tt, way[:, 0], way[:, 1])
+        y = np.interp(tt, way[:, 0], way[:, 2])
+        frames.append(pl.DataFrame({"t": tt, "target": f"user{u + 1}", "x": x, "y": y}))
+        t_in += rng.uniform(*cfg.enter_gap)
+    samples = pl.concat(frames).sort(["t", "target"])
+    xy = samples.select("x", "y").to_numpy()
+    cur = current_node(xy, samples["target"].to_numpy(), node_xy, ranges)
+    samples = samples.with_columns(node=pl.Series(np.asarray(ids + [None], dtype=object)[cur].tolist(), dtype=pl.String))
+
+    # sensing: per sample index and node, any user inside the radius and detected
+    k = np.rint(samples["t"].to_numpy() * cfg.rate_hz).astype(np.int64)
+    d = np.hypot(xy[:, None, 0] - node_xy[None, :, 0], xy[:, None, 1] - node_xy[None, :, 1])
+    det = (d <= ranges[None, :]) & (rng.random(d.shape) < cfg.p_detect)
+    hit = np.zeros((len(times), len(ids)), bool)
+    rr, cc = np.nonzero(det)
+    hit[k[rr], cc] = True
+    hold = max(1, int(round(cfg.hold * cfg.rate_hz)))
+    csum = np.cumsum(np.vstack([np.zeros((1, len(ids)), np.int64), hit.astype(np.int64)]), axis=0)
+    lo = np.maximum(np.arange(len(times)) - hold + 1, 0)
+    on = (csum[np.arange(len(times)) + 1] - csum[lo]) > 0  # a detection in the last `hold` s
+    padded = np.vstack([np.zeros((1, len(ids)), bool), on, np.zeros((1, len(ids)), bool)])
+    edge_t, edge_n = np.nonzero(padded[1:] != padded[:-1])
+    value = padded[1:][edge_t, edge_n]
+    # drop whole bursts: an on edge and its off edge together
+    burst = np.zeros(len(edge_t), np.int64)
+    order = np.lexsort((edge_t, edge_n))
+    burst[order] = np.cumsum(value[order]) + edge_n[order] * len(times)
+    burst_ids, inv = np.unique(burst, return_inverse=True)
+    keep = (rng.random(len(burst_ids)) >= cfg.drop)[inv]
+    offset = rng.uniform(-cfg.clock_offset, cfg.clock_offset, size=len(ids))
+    t_edge = np.minimum(edge_t, len(times)) / cfg.rate_hz + offset[edge_n]
+    toggles = (
+        pl.DataFrame({"t": np.maximum(t_edge, 0.0), "sensor": np.asarray(ids, dtype=object)[edge_n].tolist(), "value": value.astype(np.int8)})
+        .filter(pl.Series(keep))
+        .sort(["t", "sensor"])
+        .with_columns(pl.col("t").round(3))
+    )
+    return HallwaySimulation(samples, toggles)
+
+
+def write_hallway_dataset(
+    out_dir: str | Path, *, seed: int = 0, duration: float = 150.0, users: int = 3, drop: float = 0.02, exits: int = 0
+) -> Path:
+    """Simulate the ``hallway`` scenario and write ``site.toml``, ``motion.csv``, ``truth.csv``
+    (each atomically)."""
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    site_path = builtin_site_path("hallway")
+    site = load_site(site_path)
+    cfg = HallwaySimConfig(duration=duration, users=users, drop=drop, exits=exits)
+    sim = simulate_hallway(site, cfg, seed=seed)
+    _atomic_copy(site_path, out / "site.toml")
+    _atomic_csv(sim.toggles, out / "motion.csv")
+    _atomic_csv(sim.samples.with_columns(pl.col("t").round(3)), out / "truth.csv")
+    return out
+
+
+def _atomic_csv(df: pl.DataFrame, path: Path) -> None:
+    tmp = path.with_name(f".{path.name}.tmp")
+    df.write_csv(tmp)
+    os.replace(tmp, path)
+
+
+def _atomic_copy(src: Path, dst: Path) -> None:
+    tmp = dst.with_name(f".{dst.name}.tmp")
+    shutil.copyfile(src, tmp)
+    os.replace(tmp, dst)
+
+
+def _write(dataset, *, seed: int, duration, agents, drop: float, camera: bool, params: dict):
+    known = {"exits"}
+    bad = sorted(set(params) - known)
+    if bad:
+        raise ConfigError(f"scenario 'hallway': unknown --param {bad}; known: {sorted(known)}")
+    try:
+        exits = int(params.get("exits", 0))
+    except ValueError:
+        raise ConfigError(f"scenario 'hallway': --param exits={params['exits']!r} is not an integer") from None
+    return write_hallway_dataset(
+        dataset,
+        seed=seed,
+        duration=150.0 if duration is None else duration,
+        users=3 if agents is None else agents,
+        drop=0.02 if drop is None else drop,
+        exits=exits,
+    )
+
+
+def _specs():
+    from onebit.datasets.scenarios import Scenario
+
+    return {
+        "hallway": Scenario(
+            "hallway",
+            "FindingHuMo Fig. 1 floor: 20 PIR nodes on a hallway graph, 3 users with crossing paths (--param exits=N)",
+            _write,
+        )
+    }
+
+
+SCENARIO_SPECS = _specs()

@@ -1,0 +1,302 @@
+"""The ``correct`` stage: false-negative correction of the crossing string (Bobadilla et al. V).
+
+Runs after the reader stages and before the trackers, when the number of agents ``n`` is
+known (``site.toml`` ``targets`` or ``run.toml`` ``[correct] n``). It checks the observed
+string against the counting automaton M_C and inserts the fewest crossings that make it a
+string of ``L(M_C)`` (:mod:`onebit.trackers.beams.counting`). The ``beams`` tracker then
+reads ``corrected_crossings`` instead of ``crossings`` (the runner's input alias).
+
+Initial count vector ``eta_0``, in order of precedence:
+
+1. ``[correct] initial = {r1 = 2, r4 = 1}`` -- counts per region (sum = n);
+2. ``[correct] start_region = "r2"`` -- all n agents start there (the lab experiment, Fig. 9a);
+3. otherwise unknown: every ``eta_0`` with ``sum = n`` is a free start state and the DP
+   picks the one that needs the fewest insertions (reported as table ``correct_initial``).
+
+Tables: ``corrected_crossings`` (CROSSINGS + ``inserted: Boolean``), ``correct_insertions``
+(every inserted crossing: t, beam, direction, index in the corrected string, the observed
+crossing it precedes, source and target region), ``correct_initial`` (region, count).
+Report: ``correct/accepted`` (1 if the observed string is already in ``L(M_C)``),
+``correct/first_violation`` (index of the first unexplainable crossing, -1 if none),
+``correct/inserted``, ``correct/n``, ``correct/peak_states``; the ``scores`` stage adds
+``correct/recovered`` in simulation (:func:`recovered_matches`).
+"""
+
+from __future__ import annotations
+
+from dataclasses import asdict, dataclass
+
+import numpy as np
+import polars as pl
+from scipy.optimize import linear_sum_assignment
+
+from onebit.errors import ConfigError
+from onebit.pipeline.runner import RunContext, Stage
+from onebit.tables import CROSSINGS, check_schema
+from onebit.trackers.base import check_choice, check_range, config_from_mapping
+from onebit.trackers.beams.counting import PLACEMENTS, RegionEdges, correct, minimal_initial_counts, verify
+
+#: The corrected crossing string: CROSSINGS plus whether each crossing was inserted.
+CORRECTED_CROSSINGS = pl.Schema({**dict(CROSSINGS), "inserted": pl.Boolean})
+
+
+@dataclass(frozen=True, kw_only=True)
+class CorrectConfig:
+    """``run.toml`` ``[correct]``.
+
+    n : number of agents (section V assumes it known); ``None`` = ``site.toml`` ``targets``.
+    initial : known initial counts per region name (sum = n); ``None`` = not known.
+    start_region : all n agents start in this region; used when ``initial`` is not given.
+    placement : where an inserted crossing goes in its feasible window: ``"earliest"``
+        (as early as the counts allow) or ``"latest"`` (right before the crossing that needs it).
+    window : how many crossings back ``"earliest"`` may move an insertion.
+    """
+
+    n: int | None = None
+    initial: dict | None = None
+    start_region: str | None = None
+    placement: str = "earliest"
+    window: int = 4096
+
+    def __post_init__(self) -> None:
+        if self.n is not None:
+            check_range(self, "n", 1, None, types=(int,))
+        check_choice(self, "placement", PLACEMENTS)
+        check_range(self, "window", 1, None, types=(int,))
+        if self.initial is not None:
+            if not isinstance(self.initial, dict) or not self.initial:
+                raise ConfigError(f"CorrectConfig.initial = {self.initial!r}; expected a table region -> count")
+            for k, v in self.initial.items():
+                if isinstance(v, bool) or not isinstance(v, int) or v < 0:
+                    raise ConfigError(f"CorrectConfig.initial.{k} = {v!r}; expected a count >= 0")
+        if self.start_region is not None and not isinstance(self.start_region, str):
+            raise ConfigError(f"CorrectConfig.start_region = {self.start_region!r}; expected a region name")
+
+
+def initial_counts(cfg: CorrectConfig, names: tuple[str, ...], n: int) -> np.ndarray | None:
+    """``eta_0`` from the config (region names checked against the region graph), or None."""
+    idx = {r: i for i, r in enumerate(names)}
+    if cfg.initial is not None:
+        unknown = sorted(set(cfg.initial) - set(idx))
+        if unknown:
+            raise ConfigError(f"[correct] initial: unknown region(s) {unknown}; regions are {list(names)}")
+        eta = np.zeros(len(names), dtype=np.int64)
+        for r, c in cfg.initial.items():
+            eta[idx[r]] = c
+        if int(eta.sum()) != n:
+            raise ConfigError(f"[correct] initial: counts sum to {int(eta.sum())}, but n = {n}")
+        return eta
+    if cfg.start_region is not None:
+        if cfg.start_region not in idx:
+            raise ConfigError(f"[correct] start_region = {cfg.start_region!r}: unknown region; regions are {list(names)}")
+        eta = np.zeros(len(names), dtype=np.int64)
+        eta[idx[cfg.start_region]] = n
+        return eta
+    return None
+
+
+def _agent_count(ctx: RunContext) -> int | None:
+    n = (ctx.config.get("correct") or {}).get("n")
+    return n if n is not None else ctx.site.targets
+
+
+def _available(ctx: RunContext) -> str | None:
+    n = _agent_count(ctx)
+    if n is None:
+        return "number of agents unknown: set site.toml targets or run.toml [correct] n"
+    if not ctx.site.beams:
+        return "site has no beams"
+    return None
+
+
+def corrected_frame(crossings: pl.DataFrame, res, edges: RegionEdges) -> pl.DataFrame:
+    """The corrected string as a CORRECTED_CROSSINGS frame.
+
+    Observed rows keep their time; a run of ``K`` inserted crossings between observed times
+    ``t_a`` and ``t_b`` gets ``t_a + (t_b - t_a) k / (K + 1)``, k = 1..K (``t_b`` alone before
+    the first observed crossing, ``t_a`` alone after the last).
+    """
+    ob = crossings.select("t", "beam", "direction")
+    if ob.height == 0:  # nothing observed, nothing inserted
+        return pl.DataFrame(schema=CORRECTED_CROSSINGS)
+    ins = res.inserted
+    obs_row = np.where(ins, 0, res.observed_index)
+    edge = np.where(ins, res.edge, 0)
+    beams = np.asarray(edges.edge_beam, dtype=object)[edge]
+    dirs = np.asarray(edges.edge_direction, dtype=np.int8)[edge]
+    df = pl.DataFrame(
+        {
+            "t_obs": pl.Series(ob["t"].to_numpy()[obs_row]).scatter(np.flatnonzero(ins), None),
+            "beam": pl.Series(np.where(ins, beams, ob["beam"].to_numpy()[obs_row]).tolist(), dtype=pl.String),
+            "direction": pl.Series(np.where(ins, dirs, ob["direction"].to_numpy()[obs_row]), dtype=pl.Int8),
+            "inserted": pl.Series(ins, dtype=pl.Boolean),
+        }
+    )
+    run = (~pl.col("inserted")).cum_sum()
+    df = df.with_columns(
+        prev=pl.col("t_obs").forward_fill(),
+        next=pl.col("t_obs").backward_fill(),
+        k=pl.int_range(pl.len()).over(run),
+        big_k=pl.len().over(run),
+    )
+    # in a run led by an observed row, inserted rows are k = 1..K with K = len - 1; a run at the
+    # very start has no observed row and k = 0..K-1
+    lead_obs = pl.col("prev").is_not_null()
+    k = pl.when(lead_obs).then(pl.col("k")).otherwise(pl.col("k") + 1)
+    kk = pl.when(lead_obs).then(pl.col("big_k") - 1).otherwise(pl.col("big_k"))
+    interp = pl.col("prev") + (pl.col("next") - pl.col("prev")) * k / (kk + 1)
+    t = pl.coalesce(pl.col("t_obs"), interp, pl.col("next"), pl.col("prev"))
+    return df.select(t.cast(pl.Float64).alias("t"), "beam", "direction", "inserted")
+
+
+def _work(ctx: RunContext, log) -> dict[str, pl.DataFrame]:
+    cfg = config_from_mapping(CorrectConfig, ctx.config.get("correct"), section="correct")
+    n = cfg.n if cfg.n is not None else ctx.site.targets
+    ctx.config.setdefault("correct", {}).update({k: v for k, v in asdict(cfg).items() if v is not None} | {"n": n})
+    rg = ctx.region_graph
+    edges = RegionEdges.from_region_graph(rg)
+    crossings = check_schema(ctx.tables["crossings"], CROSSINGS, name="crossings").sort("t", maintain_order=True)
+    src, tgt = rg.endpoint_arrays(crossings["beam"], crossings["direction"].to_numpy())
+    eta0 = initial_counts(cfg, rg.names, n)
+    if eta0 is not None:
+        ver = verify(src, tgt, eta0)
+        accepted, first = ver.accepted, ver.first_violation
+    else:
+        need = minimal_initial_counts(src, tgt, len(rg.names))
+        accepted = int(need.sum()) <= n
+        first = -1 if accepted else _first_violation_unknown(src, tgt, len(rg.names), n)
+    res = correct(src, tgt, edges, n_agents=n, initial=eta0, placement=cfg.placement, window=cfg.window)
+    names = np.asarray(rg.names, dtype=object)
+    corrected = corrected_frame(crossings, res, edges)
+    pos = res.insertion_positions
+    # the observed crossing each insertion precedes: next non-negative observed_index
+    nxt = np.minimum.accumulate(np.where(res.observed_index >= 0, np.arange(len(res.inserted)), len(res.inserted))[::-1])[::-1]
+    before = np.r_[res.observed_index, -1][nxt[pos]].astype(np.int64)
+    insertions = corrected.with_row_index("index").filter(pl.col("inserted")).select(
+        "t",
+        "beam",
+        "direction",
+        pl.col("index").cast(pl.Int64),
+        pl.Series("before", before, dtype=pl.Int64).replace(-1, None),
+        pl.Series("source", names[res.source[pos]].tolist(), dtype=pl.String),
+        pl.Series("target", names[res.target[pos]].tolist(), dtype=pl.String),
+    )
+    initial = pl.DataFrame({"region": list(rg.names), "count": res.initial.astype(np.int64)})
+    ctx.report += [
+        ("correct", "n", float(n), "agents"),
+        ("correct", "accepted", 1.0 if accepted else 0.0, "flag"),
+        ("correct", "first_violation", float(first), "index"),
+        ("correct", "inserted", float(res.cost), "crossings"),
+        ("correct", "peak_states", float(res.peak_states), "count states"),
+    ]
+    from onebit.viz.beams_correct import log_corrected_crossings
+
+    log.emit(log_corrected_crossings, corrected, ctx.site)
+    return {"corrected_crossings": corrected, "correct_insertions": insertions, "correct_initial": initial}
+
+
+def _first_violation_unknown(src, tgt, p: int, n: int) -> int:
+    """First crossing index at which no ``eta_0`` with sum ``n`` explains the prefix.
+
+    The prefix up to ``k`` needs ``sum_r max(0, max_{j<=k} -C_r(j))`` agents; the first ``k``
+    where that exceeds ``n`` is the violation (vectorised running maxima).
+    """
+    from onebit.trackers.beams.counting import crossing_deltas
+
+    c = np.cumsum(crossing_deltas(src, tgt, p), axis=0)
+    need = np.maximum.accumulate(np.maximum(0, -c), axis=0).sum(axis=1)
+    over = np.flatnonzero(need > n)
+    return int(over[0]) if over.size else -1
+
+
+# --------------------------------------------------------------------------- scoring (simulation)
+
+
+def recovered_matches(corrected: pl.DataFrame, sim_crossings: pl.DataFrame) -> pl.DataFrame:
+    """Dropped true crossings matched one-to-one to inserted crossings.
+
+    A dropped crossing of target ``X`` (``sim_crossings.dropped``) at time ``t_d`` is
+    *restored* by an inserted crossing with the same beam and direction whose time lies
+    strictly between ``X``'s previous and next true crossings -- its position within the
+    neighbouring crossings of the same agent. The matching maximises the number restored
+    (``linear_sum_assignment``; ties go to the smaller time difference).
+
+    Returns the dropped crossings with ``inserted_row`` (row of ``corrected``, null if not restored).
+    """
+    sim = sim_crossings.sort(["target", "t"]).with_columns(
+        t_prev=pl.col("t").shift(1).over("target").fill_null(-np.inf),
+        t_next=pl.col("t").shift(-1).over("target").fill_null(np.inf),
+    )
+    drops = sim.filter(pl.col("dropped")).sort("t").with_row_index("drop_id")
+    ins = corrected.with_row_index("row").filter(pl.col("inserted"))
+    empty = drops.select("t", "beam", "direction", "target", pl.lit(None, pl.Int64).alias("inserted_row"))
+    if drops.height == 0 or ins.height == 0:
+        return empty
+    pairs = drops.join(ins.select("row", "beam", "direction", t_ins="t"), on=["beam", "direction"]).filter(
+        (pl.col("t_ins") > pl.col("t_prev")) & (pl.col("t_ins") < pl.col("t_next"))
+    )
+    if pairs.height == 0:
+        return empty
+    d_ids = pairs["drop_id"].unique().sort().to_numpy()
+    r_ids = pairs["row"].unique().sort().to_numpy()
+    di = np.searchsorted(d_ids, pairs["drop_id"].to_numpy())
+    ri = np.searchsorted(r_ids, pairs["row"].to_numpy())
+    dt = np.abs(pairs["t_ins"].to_numpy() - pairs["t"].to_numpy())
+    w = np.zeros((len(d_ids), len(r_ids)))
+    w[di, ri] = 1.0 + 1.0 / (1.0 + dt)  # one restored crossing outweighs any time difference
+    a, b = linear_sum_assignment(w, maximize=True)
+    ok = w[a, b] > 0
+    got = pl.DataFrame({"drop_id": d_ids[a[ok]].astype(np.uint32), "inserted_row": r_ids[b[ok]].astype(np.int64)})
+    return drops.join(got, on="drop_id", how="left").select("t", "beam", "direction", "target", "inserted_row")
+
+
+def corrected_targets(
+    corrected: pl.DataFrame, observed_matches: pl.DataFrame, recovered: pl.DataFrame | None
+) -> pl.DataFrame:
+    """Per corrected crossing (in order) the true target: observed rows from ``observed_matches``
+    (the matching of ``crossings`` to the true crossings), inserted rows from ``recovered``."""
+    tgt = np.full(corrected.height, None, dtype=object)
+    obs_rows = np.flatnonzero(~corrected["inserted"].to_numpy())
+    tgt[obs_rows] = np.asarray(observed_matches["target"].to_list(), dtype=object)
+    if recovered is not None and recovered.height:
+        r = recovered.drop_nulls("inserted_row")
+        tgt[r["inserted_row"].to_numpy()] = np.asarray(r["target"].to_list(), dtype=object)
+    return pl.DataFrame({"target": pl.Series(tgt.tolist(), dtype=pl.String)})
+
+
+def score_correction(tables: dict, observed_matches: pl.DataFrame):
+    """Report rows, tables and per-corrected-crossing targets for the ``scores`` stage.
+
+    ``observed_matches``: the observed crossings matched to the true ones (``target`` column).
+    In simulation (``sim_crossings`` with ``dropped``): ``correct/dropped`` and
+    ``correct/recovered`` = restored / dropped (:func:`recovered_matches`), table
+    ``correct_recovered``. The returned targets give inserted crossings the target of the
+    dropped crossing they restored, so assignment accuracy counts them too.
+    """
+    corrected = tables["corrected_crossings"]
+    sim = tables.get("sim_crossings")
+    rows: list[tuple[str, str, float, str]] = []
+    out: dict[str, pl.DataFrame] = {}
+    rec = None
+    if sim is not None and "dropped" in sim.columns:
+        rec = recovered_matches(corrected, sim)
+        n_drop = rec.height
+        n_ok = rec["inserted_row"].drop_nulls().len()
+        rows += [
+            ("correct", "dropped", float(n_drop), "crossings"),
+            ("correct", "restored", float(n_ok), "crossings"),
+            ("correct", "recovered", n_ok / n_drop if n_drop else 1.0, "fraction"),
+        ]
+        out["correct_recovered"] = rec
+    return rows, out, corrected_targets(corrected, observed_matches, rec)
+
+
+STAGES = [
+    Stage(
+        "correct",
+        ("crossings",),
+        ("corrected_crossings", "correct_insertions", "correct_initial"),
+        _available,
+        _work,
+    )
+]

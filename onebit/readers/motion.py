@@ -1,0 +1,346 @@
+"""Binary toggle logs (``motion.csv``, ``proximity.csv``: t, sensor, value) -> accepted edges.
+
+A raw PIR log is a list of state changes (``value`` 1 = on, 0 = off) per sensor, with the
+faults of cheap relays. The reader works in three passes, all polars expressions over the
+whole log (no Python loop over rows):
+
+1. **Typing** (:func:`onebit.readers.rows.type_rows`): malformed ``t`` / ``value``, an unknown
+   sensor, a row identical to an earlier one (duplicate) and a row whose ``t`` is earlier
+   than an accepted row before it (out of order) go to ``rejects``.
+2. **State changes.** Every sensor starts off. An edge that does not change its sensor's state
+   (``1`` while already on, ``0`` while already off) cannot be a transition and goes to
+   ``rejects`` ("no state change"). Removing every edge equal to its predecessor leaves an
+   alternating sequence ``on, off, on, ...`` per sensor (a run-length compression), so one
+   pass suffices.
+3. **Debounce** (:class:`DebounceRules`, per sensor or per sensor type), on that alternating
+   sequence, in this order:
+
+   * *relay chatter* (Singh et al.'s experiment): an off edge at ``t_off`` followed by the
+     sensor's next edge, an on edge at ``t_on``, with ``t_on - t_off <= chatter_window``:
+     both edges are suppressed (the sensor is taken to have stayed on);
+   * *minimum on-time*: an on edge at ``t_on`` followed by its off edge at ``t_off`` with
+     ``t_off - t_on < min_on``: both edges are suppressed (the pulse is taken as noise). An
+     on-period still open at the end of the log has no known length and is kept.
+
+   Each rule removes (off, on) or (on, off) pairs of consecutive edges, so the sequence stays
+   alternating; removing a short on-pulse only lengthens off-gaps, so it never creates new
+   chatter, and one pass of each rule is exact. Suppressed edges go to ``suppressed`` with
+   the rule's name; nothing is lost: accepted + rejected + suppressed = input rows.
+
+:func:`motion_frames` samples accepted edges on a grid of slots of length ``period`` (the
+paper's processing period t_P): ``on`` = the sensor was on at some time in the slot,
+``fired`` = a rising edge in the slot (Schiff & Goldberg's S_i = 1 for the iteration).
+
+Examples
+--------
+>>> import polars as pl
+>>> from onebit.readers.rows import RawRows
+>>> from onebit.tables import REJECTS
+>>> frame = pl.DataFrame({"line": [2, 3, 4, 5], "t": ["0", "1.0", "1.05", "3"],
+...                       "sensor": ["p1"] * 4, "value": ["1", "0", "1", "0"],
+...                       "raw": [None] * 4}, schema_overrides={"line": pl.Int64, "raw": pl.String})
+>>> res = read_motion(RawRows("motion.csv", frame, pl.DataFrame(schema=REJECTS)), ["p1"],
+...                   rules=DebounceRules(chatter_window=0.1))
+>>> res.motion["t"].to_list(), res.suppressed["rule"].to_list()
+([0.0, 3.0], ['chatter', 'chatter'])
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, fields
+from pathlib import Path
+
+import polars as pl
+
+from onebit.errors import ConfigError
+from onebit.readers.rows import RawRows, make_rejects, parse_choice, parse_name, parse_time, read_csv_rows, type_rows
+from onebit.tables import FRAMES, MOTION, REJECTS, conform
+
+#: Columns of a toggle log.
+TOGGLE_COLUMNS = ("t", "sensor", "value")
+
+#: Accepted spellings of a toggle value.
+TOGGLE_VALUES = {"1": True, "0": False, "true": True, "false": False, "on": True, "off": False, "True": True, "False": False}
+
+#: Tolerance (s) of the debounce comparisons, so a gap of exactly the window counts as inside it
+#: despite floating-point rounding of the time stamps.
+TIME_EPS = 1e-9
+
+#: Schema of the ``suppressed`` table: edges removed by a debounce rule.
+SUPPRESSED = pl.Schema({"t": pl.Float64, "sensor": pl.String, "on": pl.Boolean, "rule": pl.String, "line": pl.Int64})
+
+
+@dataclass(frozen=True, kw_only=True)
+class DebounceRules:
+    """Debounce rules of one sensor (type). The defaults change nothing.
+
+    Every field is in seconds, finite and >= 0.
+    """
+
+    chatter_window: float = 0.0  #: s; a 1->0 followed by 0->1 on the same sensor within this window: both edges suppressed
+    min_on: float = 0.0  #: s; an on-period shorter than this is suppressed (both its edges)
+
+    def __post_init__(self) -> None:
+        for f in fields(self):
+            v = getattr(self, f.name)
+            if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v) or v < 0:
+                raise ConfigError(f"DebounceRules.{f.name} = {v!r}: must be a finite number >= 0 (seconds)")
+            object.__setattr__(self, f.name, float(v))
+
+    @classmethod
+    def from_mapping(cls, data: Mapping[str, object] | None, *, section: str = "motion") -> "DebounceRules":
+        """Rules from a config table (e.g. run.toml ``[motion]``); other keys are ignored."""
+        data = dict(data or {})
+        names = {f.name for f in fields(cls)}
+        kwargs = {k: v for k, v in data.items() if k in names}
+        try:
+            return cls(**kwargs)
+        except ConfigError as exc:
+            raise ConfigError(f"[{section}] {exc}") from None
+
+
+def rules_by_type(
+    sensor_types: Mapping[str, str],
+    by_type: Mapping[str, DebounceRules],
+    default: DebounceRules | None = None,
+) -> dict[str, DebounceRules]:
+    """Per-sensor rules from per-type rules: ``sensor_types`` maps sensor id -> type name.
+
+    Sensors whose type has no rules get ``default`` (no-op rules when ``None``).
+    """
+    default = default or DebounceRules()
+    return {sid: by_type.get(typ, default) for sid, typ in sensor_types.items()}
+
+
+@dataclass(frozen=True)
+class MotionRead:
+    """What :func:`read_motion` made of a toggle log."""
+
+    motion: pl.DataFrame  # MOTION schema (t, sensor, on), accepted edges, sorted by t
+    rejects: pl.DataFrame  # REJECTS schema (source, line, reason, raw)
+    suppressed: pl.DataFrame  # SUPPRESSED: t, sensor, on, rule, line
+
+
+def read_motion(
+    raw: RawRows,
+    sensors: Sequence[str],
+    *,
+    epoch: str | None = None,
+    path: Path | None = None,
+    rules: DebounceRules | Mapping[str, DebounceRules] | None = None,
+) -> MotionRead:
+    """Type, check and debounce the string rows of a toggle log (CSV or an MCAP channel).
+
+    Parameters
+    ----------
+    raw : string rows with columns ``t``, ``sensor``, ``value`` (see ``read_csv_rows``).
+    sensors : the known sensor ids; any other id is rejected.
+    epoch : the site's epoch, for ISO wall-clock stamps.
+    path : the CSV file, so rejects carry the raw line text.
+    rules : one :class:`DebounceRules` for every sensor, or a mapping sensor id -> rules
+        (sensors not in it get no-op rules; see :func:`rules_by_type`).
+
+    The reasons never name the sensor kind, so the same reader serves ``proximity.csv``.
+    """
+    sensors = tuple(sensors)
+    parsers = {
+        "t": parse_time("t", epoch, raw.frame),
+        "sensor": parse_name("sensor", sensors, "sensor"),
+        "value": parse_choice("value", TOGGLE_VALUES, pl.Boolean),
+    }
+    ok, rejects = type_rows(raw, parsers, key=("t", "sensor", "value"), path=path)
+    ok = ok.rename({"value": "on"}).sort(["t", "line"])
+
+    # pass 2: edges that do not change their sensor's state (every sensor starts off)
+    prev = pl.col("on").shift(1).over("sensor").fill_null(False)
+    ok = ok.with_columns(
+        pl.when(pl.col("on") == prev)
+        .then(
+            pl.when(pl.col("on"))
+            .then(pl.format("no state change: sensor {} already on", pl.col("sensor")))
+            .otherwise(pl.format("no state change: sensor {} already off", pl.col("sensor")))
+        )
+        .otherwise(None)
+        .alias("_reason")
+    )
+    same = ok.filter(pl.col("_reason").is_not_null())
+    if same.height:
+        more = make_rejects(same, raw.source, path)
+        rejects = pl.concat([rejects, more]).sort("line")
+    edges = ok.filter(pl.col("_reason").is_null()).drop("_reason")
+
+    # pass 3: debounce on the alternating sequence
+    edges, suppressed = debounce(edges, sensors, rules)
+    motion = conform(edges, MOTION)
+    return MotionRead(motion, rejects.select(REJECTS.names()).cast(dict(REJECTS)), suppressed)
+
+
+#: The same reader under the name the proximity sensors use (``proximity.csv``: t, sensor, value).
+read_toggles = read_motion
+
+
+def _rules_frame(sensors: Sequence[str], rules) -> pl.DataFrame:
+    if rules is None:
+        rules = DebounceRules()
+    if isinstance(rules, DebounceRules):
+        per = {s: rules for s in sensors}
+    else:
+        per = {s: rules.get(s, DebounceRules()) for s in sensors}
+        for k, v in rules.items():
+            if not isinstance(v, DebounceRules):
+                raise ConfigError(f"rules[{k!r}] must be DebounceRules, got {type(v).__name__}")
+    return pl.DataFrame(
+        {
+            "sensor": list(per),
+            "_chatter": [r.chatter_window for r in per.values()],
+            "_min_on": [r.min_on for r in per.values()],
+        },
+        schema={"sensor": pl.String, "_chatter": pl.Float64, "_min_on": pl.Float64},
+    )
+
+
+def debounce(
+    edges: pl.DataFrame,
+    sensors: Sequence[str],
+    rules: DebounceRules | Mapping[str, DebounceRules] | None,
+) -> tuple[pl.DataFrame, pl.DataFrame]:
+    """Apply the chatter and minimum-on rules to alternating edges (``line``, t, sensor, on).
+
+    Returns ``(kept, suppressed)``; ``kept`` is sorted by ``t`` (file order within a stamp).
+    """
+    table = _rules_frame(sensors, rules)
+    ev = edges.sort(["t", "line"]).join(table, on="sensor", how="left").with_columns(
+        pl.col("_chatter").fill_null(0.0), pl.col("_min_on").fill_null(0.0)
+    )
+    nxt_t = pl.col("t").shift(-1).over("sensor", order_by=["t", "line"])
+    prv_t = pl.col("t").shift(1).over("sensor", order_by=["t", "line"])
+    prv_on = pl.col("on").shift(1).over("sensor", order_by=["t", "line"])
+    nxt_on = pl.col("on").shift(-1).over("sensor", order_by=["t", "line"])
+
+    # chatter: (off at t_k, on at t_{k+1}) with t_{k+1} - t_k <= window, window > 0
+    chatter = (pl.col("_chatter") > 0) & (
+        (~pl.col("on") & nxt_on.fill_null(False) & ((nxt_t - pl.col("t")) <= pl.col("_chatter") + TIME_EPS))
+        | (pl.col("on") & (prv_on == False) & ((pl.col("t") - prv_t) <= pl.col("_chatter") + TIME_EPS))  # noqa: E712
+    )
+    ev = ev.with_columns(chatter.fill_null(False).alias("_chat"))
+    sup_chat = ev.filter(pl.col("_chat")).with_columns(rule=pl.lit("chatter"))
+    ev = ev.filter(~pl.col("_chat"))
+
+    # minimum on-time: (on at t_k, off at t_{k+1}) with t_{k+1} - t_k < min_on
+    short = (pl.col("_min_on") > 0) & (
+        (pl.col("on") & (nxt_on == False) & ((nxt_t - pl.col("t")) < pl.col("_min_on") - TIME_EPS))  # noqa: E712
+        | (~pl.col("on") & prv_on.fill_null(False) & ((pl.col("t") - prv_t) < pl.col("_min_on") - TIME_EPS))
+    )
+    ev = ev.with_columns(short.fill_null(False).alias("_short"))
+    sup_short = ev.filter(pl.col("_short")).with_columns(rule=pl.lit("min_on"))
+    kept = ev.filter(~pl.col("_short")).select("line", "t", "sensor", "on").sort(["t", "line"])
+    suppressed = conform(pl.concat([sup_chat.drop("_short", strict=False), sup_short], how="diagonal"), SUPPRESSED).sort(
+        ["t", "line"]
+    )
+    return kept, suppressed
+
+
+def read_motion_csv(
+    path: str | Path,
+    sensors: Sequence[str],
+    *,
+    epoch: str | None = None,
+    rules: DebounceRules | Mapping[str, DebounceRules] | None = None,
+) -> MotionRead:
+    """Read ``motion.csv`` (or ``proximity.csv``): the whole toggle reader for one file."""
+    path = Path(path)
+    return read_motion(read_csv_rows(path, TOGGLE_COLUMNS), sensors, epoch=epoch, path=path, rules=rules)
+
+
+def motion_frames(
+    motion: pl.DataFrame,
+    sensors: Sequence[str],
+    *,
+    period: float,
+    t0: float | None = None,
+    t1: float | None = None,
+) -> pl.DataFrame:
+    """Sample accepted edges (MOTION) on slots of length ``period``: a FRAMES table.
+
+    Slot ``k`` covers ``[t0 + k*period, t0 + (k+1)*period)`` and ``t`` is its start. For
+    every slot x sensor (sensor-major order within a slot)::
+
+        on    = state at the slot start (after edges at exactly that time) or a rising edge in the slot
+        fired = a rising edge (off -> on) in the slot
+
+    ``t0`` defaults to ``floor(first edge / period) * period`` (slots stay aligned on
+    multiples of ``period``), the number of slots to the one holding the last edge; with
+    ``t1`` given, slots cover ``[t0, t1)`` (``ceil((t1 - t0) / period)`` slots). Every
+    sensor starts off; edges before ``t0`` set the state at the first slot.
+    """
+    if not (isinstance(period, (int, float)) and math.isfinite(period) and period > 0):
+        raise ConfigError(f"period = {period!r}: must be a finite number > 0 (seconds)")
+    sensors = list(dict.fromkeys(sensors))
+    ev = motion.select("t", "sensor", "on").filter(pl.col("sensor").is_in(sensors)).sort("t", maintain_order=True)
+    if t0 is None:
+        if ev.height == 0 and t1 is None:
+            return pl.DataFrame(schema=FRAMES)
+        first = float(ev["t"].min()) if ev.height else 0.0
+        t0 = math.floor(first / period) * period
+    if t1 is None:
+        last = float(ev["t"].max()) if ev.height else t0
+        n = max(int(math.floor((last - t0) / period)) + 1, 1)
+    else:
+        n = max(int(math.ceil((t1 - t0) / period - 1e-12)), 0)
+    if n == 0 or not sensors:
+        return pl.DataFrame(schema=FRAMES)
+    grid = (
+        pl.DataFrame({"slot": pl.arange(0, n, eager=True).cast(pl.Int64)})
+        .join(pl.DataFrame({"sensor": sensors}, schema={"sensor": pl.String}), how="cross")
+        .with_columns(t=pl.lit(t0) + pl.col("slot").cast(pl.Float64) * period)
+    )
+    ev = ev.with_columns(slot=((pl.col("t") - t0) / period).floor().cast(pl.Int64))
+    fired = ev.filter(pl.col("on") & (pl.col("slot") >= 0) & (pl.col("slot") < n)).group_by("sensor", "slot").agg(
+        fired=pl.lit(True)
+    )
+    state = grid.sort("t").join_asof(
+        ev.select("t", "sensor", pl.col("on").alias("state")).sort("t"),
+        on="t",
+        by="sensor",
+        strategy="backward",
+        check_sortedness=False,  # both sides are sorted by t just above
+    )
+    out = (
+        state.join(fired, on=["sensor", "slot"], how="left")
+        .with_columns(pl.col("fired").fill_null(False), pl.col("state").fill_null(False))
+        .with_columns(on=pl.col("state") | pl.col("fired"))
+    )
+    order = pl.DataFrame({"sensor": sensors, "_k": list(range(len(sensors)))}, schema={"sensor": pl.String, "_k": pl.Int64})
+    out = out.join(order, on="sensor").sort(["slot", "_k"])
+    return conform(out, FRAMES)
+
+
+def refractory_state(frames: pl.DataFrame, refractory: Mapping[str, float], *, period: float) -> pl.DataFrame:
+    """The paper's trigger semantics per slot: ``beta`` (remaining blind time) and ``B``.
+
+    Schiff & Goldberg, section VII-B.1, with S = ``fired``::
+
+        beta_{i,tau} = f_i                          if S_{i,tau} = 1
+                     = max(0, beta_{i,tau-1} - t_P) otherwise,      beta_{i,0} = 0
+
+    and ``blind`` = (beta_{i,tau-1} > 0): the sensor is in its refractory period during slot
+    tau because it fired in an earlier slot less than f_i seconds before (B_{i,tau} = 1).
+    Closed form (no recursion): with ``last`` the latest earlier slot where the sensor fired,
+    ``beta_{i,tau-1} = max(0, f_i - (tau - 1 - last) * t_P)``, computed with a forward fill.
+    Returns frames + columns ``beta`` (after the slot) and ``blind``.
+    """
+    ref = pl.DataFrame(
+        {"sensor": list(refractory), "_f": [float(v) for v in refractory.values()]},
+        schema={"sensor": pl.String, "_f": pl.Float64},
+    )
+    df = frames.join(ref, on="sensor", how="left").with_columns(pl.col("_f").fill_null(0.0))
+    last_fire = pl.when(pl.col("fired")).then(pl.col("slot")).otherwise(None).forward_fill().over("sensor", order_by="slot")
+    df = df.with_columns(_last=last_fire)
+    beta = pl.when(pl.col("_last").is_null()).then(0.0).otherwise(
+        (pl.col("_f") - (pl.col("slot") - pl.col("_last")).cast(pl.Float64) * period).clip(lower_bound=0.0)
+    )
+    prev_beta = beta.shift(1).over("sensor", order_by="slot").fill_null(0.0)
+    df = df.with_columns(beta=beta).with_columns(blind=prev_beta > 0)
+    return df.drop("_f", "_last").sort(["slot"], maintain_order=True)

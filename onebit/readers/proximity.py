@@ -1,0 +1,99 @@
+"""``proximity.csv`` (t, sensor, value) -> the ``proximity`` table and frames at chosen instants.
+
+The raw log has the same shape as a PIR toggle log, so typing, state-change checks and the
+debounce (relay chatter, minimum on-time) are :func:`onebit.readers.motion.read_motion`'s.
+Singh et al. (section 6) sample such a log at regular instants, taking "the reading of a
+sensor at any time [to be] the one after its last toggle": :func:`proximity_frames` does
+exactly that (``join_asof`` backward; every sensor starts off).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass
+from pathlib import Path
+
+import polars as pl
+
+from onebit.errors import ConfigError
+from onebit.readers.motion import TOGGLE_COLUMNS, DebounceRules, MotionRead, read_motion
+from onebit.readers.rows import RawRows, read_csv_rows
+from onebit.tables import FRAMES, PROXIMITY, conform
+from onebit.trackers.base import check_range
+
+__all__ = ["ProximityConfig", "read_proximity", "read_proximity_csv", "proximity_frames", "TOGGLE_COLUMNS"]
+
+
+@dataclass(frozen=True, kw_only=True)
+class ProximityConfig:
+    """The ``[proximity]`` section of ``run.toml``.
+
+    period : seconds between sampling instants.
+    start : time of the first instant (s); negative = ``floor(first edge / period) * period``.
+    instants : number of instants; 0 = up to the last accepted edge.
+    chatter_window : s; a 1->0 edge followed within this time by 0->1 on the same sensor is
+        undone (Singh et al.: "neglect every 1->0 transition immediately followed by 0->1").
+    min_on : s; shorter on-pulses are suppressed.
+    """
+
+    period: float = 1.0
+    start: float = -1.0
+    instants: int = 0
+    chatter_window: float = 0.0
+    min_on: float = 0.0
+
+    def __post_init__(self) -> None:
+        check_range(self, "period", 1e-9, None)
+        check_range(self, "start", None, None)
+        check_range(self, "instants", 0, None, types=(int,))
+        check_range(self, "chatter_window", 0.0, None)
+        check_range(self, "min_on", 0.0, None)
+        if not math.isfinite(self.period):
+            raise ConfigError(f"ProximityConfig.period = {self.period!r}; must be finite")
+
+    @property
+    def rules(self) -> DebounceRules:
+        return DebounceRules(chatter_window=self.chatter_window, min_on=self.min_on)
+
+
+def read_proximity(raw: RawRows, sensors: Sequence[str], *, epoch=None, path: Path | None = None,
+                   rules: DebounceRules | None = None) -> MotionRead:
+    """Type, check and debounce a proximity toggle log; ``motion`` holds PROXIMITY rows."""
+    res = read_motion(raw, sensors, epoch=epoch, path=path, rules=rules)
+    return MotionRead(conform(res.motion, PROXIMITY), res.rejects, res.suppressed)
+
+
+def read_proximity_csv(path: str | Path, sensors: Sequence[str], *, epoch=None, rules: DebounceRules | None = None) -> MotionRead:
+    path = Path(path)
+    return read_proximity(read_csv_rows(path, TOGGLE_COLUMNS), sensors, epoch=epoch, path=path, rules=rules)
+
+
+def proximity_frames(proximity: pl.DataFrame, sensors: Sequence[str], *, period: float, start: float | None = None,
+                     instants: int | None = None) -> pl.DataFrame:
+    """Readings at instants ``t_k = start + k * period`` (FRAMES: slot, t, sensor, on).
+
+    ``on`` = the state after the sensor's last accepted edge at or before ``t_k`` (off before
+    its first edge). ``start`` defaults to ``floor(first edge / period) * period``;
+    ``instants`` to the count reaching the last edge.
+    """
+    sensors = list(dict.fromkeys(sensors))
+    ev = proximity.select("t", "sensor", pl.col("on").alias("state")).filter(pl.col("sensor").is_in(sensors)).sort("t")
+    if start is None:
+        if ev.height == 0 and not instants:
+            return pl.DataFrame(schema=FRAMES)
+        start = math.floor(float(ev["t"].min()) / period) * period if ev.height else 0.0
+    if not instants:
+        last = float(ev["t"].max()) if ev.height else start
+        instants = max(int(math.floor((last - start) / period + 1e-9)) + 1, 1)
+    if not sensors:
+        return pl.DataFrame(schema=FRAMES)
+    grid = (
+        pl.DataFrame({"slot": pl.arange(0, instants, eager=True).cast(pl.Int64)})
+        .join(pl.DataFrame({"sensor": sensors, "_k": list(range(len(sensors)))}, schema={"sensor": pl.String, "_k": pl.Int64}), how="cross")
+        .with_columns(t=pl.lit(float(start)) + pl.col("slot").cast(pl.Float64) * period)
+        .sort("t")
+    )
+    out = grid.join_asof(ev, on="t", by="sensor", strategy="backward", check_sortedness=False, tolerance=None)
+    out = out.with_columns(on=pl.col("state").fill_null(False)).sort(["slot", "_k"])
+    return conform(out, FRAMES)

@@ -1,0 +1,454 @@
+"""Counting automaton M_C of Bobadilla et al., section V: verification and error correction.
+
+Counting information space (Definition 2)
+-----------------------------------------
+With ``p`` regions and ``n`` indistinguishable agents, an information state is the count
+vector ``eta = (n_1, ..., n_p)`` with ``sum_i n_i = n``::
+
+    I_C = { eta in N^p : sum_i eta_i = n },   |I_C| = C(n + p - 1, p - 1)
+
+(stars and bars; the paper prints ``C(p+n-1, n-1)``, which is the count for ``n`` and
+``p`` swapped). For the building (p = 6) and n = 3, 4, 5, 6 this is 56, 126, 252, 462.
+
+Counting automaton (Definition 3, eq. 1)
+----------------------------------------
+``M_C = (Sigma, I_C, eta_0, delta_C)``; a crossing ``y = beta^{+-1}`` is the directed edge
+``s -> t`` of the region graph and::
+
+    delta_C(eta, y) = eta - e_s + e_t     defined iff eta_s >= 1.
+
+Verification (:func:`verify`) runs ``delta_C`` from ``eta_0`` without building the automaton:
+only ``eta`` is kept (O(|R|) state) and every crossing is read once (O(|y|) time). The pass is
+vectorised in chunks of ``chunk`` crossings: within a chunk the counts before crossing ``k``
+are ``eta + C[k]`` with ``C`` the chunk's prefix sums of ``delta_k = e_t(k) - e_s(k)``, and
+the string leaves ``L(M_C)`` at the first ``k`` with ``eta_s(k) + C[k]_s(k) < 1``.
+
+Error correction (:func:`correct`)
+----------------------------------
+Only false negatives occur, so the corrected string is ``y`` with crossings inserted, and we
+want the fewest insertions that put it in ``L(M_C)`` -- an edit distance to a regular
+language with insertions only (Wagner 1974). As a shortest-path problem its nodes are
+``(position i, count state eta)``; consuming ``y[i]`` costs 0 (when ``eta_{s(i)} >= 1``) and
+inserting any crossing costs 1.
+
+Canonical form (what makes it small). Postponing an inserted crossing past an observed one
+never breaks feasibility unless the observed crossing leaves the region the inserted one
+enters, and an inserted crossing still pending at the end can be deleted. So an optimal
+correction exists in which insertions happen only right before an observed crossing ``y[k]``
+whose source region ``s`` is empty (a *deficit*), and there they move exactly one agent from
+an occupied region ``r`` to ``s`` along a shortest path of the region graph, at cost
+``H[r, s]`` (hop distance). The search is therefore a dynamic programme over the reachable
+count states only::
+
+    D_0(eta) = 0 for eta in the start set (eta_0, or all of I_C when eta_0 is unknown)
+    no deficit at k:  D(eta - e_s + e_t) <- D(eta)
+    deficit at k:     D(eta - e_r + e_t) <- D(eta) + H[r, s]   for every r with eta_r >= 1
+
+All live states are advanced together; runs of crossings where no live state has a deficit
+are skipped in one vectorised step (as in :func:`verify`). After each deficit the states are
+merged (same ``eta`` -> lowest cost) and pruned by dominance: ``eta_B`` is dropped when some
+``eta_A`` has ``D(A) + d(A, B) <= D(B)`` with ``d(A, B) = |A - B|_1 / 2 * diam(G)`` an upper
+bound on the insertions that turn ``A`` into ``B`` (each of the ``|A - B|_1 / 2`` displaced
+agents walks at most ``diam(G)`` beams), because from ``A`` one can insert those moves and
+then follow ``B``'s best continuation. Count states never reached from the start set are
+never created.
+
+The DP is exact: :func:`correct` returns the minimum number of insertions (tests compare it
+with a breadth-first search over (position, count vector) with every insertion allowed).
+
+Placement (:func:`place_insertions`). The canonical form puts every insertion as late as
+possible. An inserted crossing ``u -> v`` can be moved earlier to any position from which,
+up to its old position, region ``u`` still holds an agent for it and one for every observed
+crossing that leaves ``u``; ``placement="earliest"`` moves each one (in order) to the
+earliest such position within ``window`` crossings, ``"latest"`` leaves them where the DP
+put them. Both keep the string in ``L(M_C)`` and the number of insertions.
+
+The DP and the placement are sequential in the string (each step depends on the states the
+previous one left); they are vectorised over the live count states and over runs of crossings.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from math import comb
+
+import numpy as np
+from scipy.sparse import csr_matrix
+from scipy.sparse.csgraph import shortest_path
+
+PLACEMENTS = ("earliest", "latest")
+_FAR = 10**6  # hop distance standing for "unreachable"
+
+
+# --------------------------------------------------------------------------- I_C
+
+
+def count_space_size(n_regions: int, n_agents: int) -> int:
+    """``|I_C| = C(n + p - 1, p - 1)``: ways to put ``n`` agents in ``p`` regions."""
+    return comb(n_agents + n_regions - 1, n_regions - 1)
+
+
+def count_states(n_regions: int, n_agents: int) -> np.ndarray:
+    """Every count vector of ``I_C`` as an ``(|I_C|, p)`` int array (lexicographic order).
+
+    Built by extending the partial vectors one region at a time (numpy, no per-state loop).
+    """
+    states = np.zeros((1, 0), dtype=np.int64)
+    left = np.array([n_agents], dtype=np.int64)
+    for r in range(n_regions - 1):
+        reps = left + 1
+        idx = np.repeat(np.arange(len(states)), reps)
+        starts = np.cumsum(reps) - reps
+        take = np.arange(len(idx)) - np.repeat(starts, reps)
+        states = np.c_[states[idx], take]
+        left = left[idx] - take
+    return np.c_[states, left].astype(np.int64)
+
+
+def crossing_deltas(source: np.ndarray, target: np.ndarray, n_regions: int) -> np.ndarray:
+    """``(m, p)`` int32: row ``k`` is ``e_t(k) - e_s(k)``, the change of the count vector."""
+    m = len(source)
+    d = np.zeros((m, n_regions), dtype=np.int32)
+    rows = np.arange(m)
+    np.add.at(d, (rows, source), -1)
+    np.add.at(d, (rows, target), 1)
+    return d
+
+
+def minimal_initial_counts(source: np.ndarray, target: np.ndarray, n_regions: int) -> np.ndarray:
+    """Smallest ``eta_0`` (componentwise) from which the string is in ``L(M_C)``.
+
+    ``eta_0[r] = max(0, max_k (exits_r - entries_r)(first k crossings))``; the string is in
+    ``L(M_C)`` for some ``eta_0`` with ``sum eta_0 = n`` iff ``sum`` of this vector ``<= n``
+    (extra agents can wait anywhere). Its sum is Algorithm 1's agent count (Prop. 3.1).
+    """
+    src = np.asarray(source, dtype=np.int64)
+    if len(src) == 0:
+        return np.zeros(n_regions, dtype=np.int64)
+    c = np.cumsum(crossing_deltas(src, np.asarray(target, dtype=np.int64), n_regions), axis=0)
+    return np.maximum(0, -c.min(axis=0)).astype(np.int64)
+
+
+# --------------------------------------------------------------------------- verification
+
+
+@dataclass(frozen=True)
+class Verification:
+    """Result of running M_C on a string.
+
+    accepted : the string is in ``L(M_C)`` from ``eta_0``.
+    first_violation : index of the first crossing whose source region is empty (-1 if none).
+    final : count vector after the last crossing read (before the violation if rejected).
+    """
+
+    accepted: bool
+    first_violation: int
+    final: np.ndarray
+
+
+def verify(source, target, initial, *, chunk: int = 65536) -> Verification:
+    """Run ``delta_C`` from ``eta_0 = initial`` over the crossings ``source[k] -> target[k]``.
+
+    O(|R| + chunk) memory and O(|y|) time: the string is read in chunks; within one the
+    counts before crossing ``k`` are ``eta + C[k]`` (prefix sums of the deltas).
+    """
+    src = np.asarray(source, dtype=np.int64)
+    tgt = np.asarray(target, dtype=np.int64)
+    eta = np.asarray(initial, dtype=np.int64).copy()
+    p = len(eta)
+    if np.any(eta < 0):
+        raise ValueError(f"initial counts must be >= 0, got {eta.tolist()}")
+    for lo in range(0, len(src), chunk):
+        s, t = src[lo : lo + chunk], tgt[lo : lo + chunk]
+        c = np.cumsum(crossing_deltas(s, t, p), axis=0)
+        before = eta[s] + np.r_[0, c[:-1][np.arange(len(s) - 1), s[1:]]] if len(s) > 1 else eta[s]
+        bad = np.flatnonzero(before < 1)
+        if bad.size:
+            k = int(bad[0])
+            eta = eta + (c[k - 1] if k > 0 else 0)
+            return Verification(False, lo + k, eta)
+        eta = eta + c[-1]
+    return Verification(True, -1, eta)
+
+
+# --------------------------------------------------------------------------- region graph helpers
+
+
+@dataclass(frozen=True)
+class RegionEdges:
+    """The region graph as arrays: directed edges (one per beam and direction) and hops.
+
+    edge_source, edge_target : (E,) region indices of every labelled edge.
+    hops : (p, p) hop distance (edges are paired, so it is symmetric); -1 when unreachable.
+    first_edge : (p, p) index of the lowest-numbered edge ``u -> v`` (-1 if none).
+    predecessor : (p, p) scipy predecessor matrix of the shortest paths.
+    """
+
+    edge_source: np.ndarray
+    edge_target: np.ndarray
+    hops: np.ndarray
+    first_edge: np.ndarray
+    predecessor: np.ndarray
+    edge_beam: tuple[str, ...] = ()
+    edge_direction: tuple[int, ...] = ()
+
+    @property
+    def n_regions(self) -> int:
+        return self.hops.shape[0]
+
+    @property
+    def diameter(self) -> int:
+        return int(self.hops.max()) if self.hops.size else 0
+
+    @classmethod
+    def from_region_graph(cls, rg) -> "RegionEdges":
+        """Edges of a :class:`~onebit.datasets.region_graph.RegionGraph`: for every beam in
+        sorted order its forward edge, then all backward edges (so ties between parallel
+        beams, like b and c of the building, go to the first beam id)."""
+        idx = rg.index
+        beams = sorted(rg.beam_source)
+        fs = [idx[rg.beam_source[b]] for b in beams]
+        ft = [idx[rg.beam_target[b]] for b in beams]
+        return cls.from_arrays(
+            fs + ft, ft + fs, len(rg.names), beams=tuple(beams + beams), directions=tuple([1] * len(beams) + [-1] * len(beams))
+        )
+
+    @classmethod
+    def from_arrays(cls, edge_source, edge_target, n_regions: int, *, beams=(), directions=()) -> "RegionEdges":
+        es = np.asarray(edge_source, dtype=np.int64)
+        et = np.asarray(edge_target, dtype=np.int64)
+        adj = csr_matrix((np.ones(len(es)), (es, et)), shape=(n_regions, n_regions))
+        dist, pred = shortest_path(adj, method="D", unweighted=True, return_predecessors=True)
+        hops = np.where(np.isfinite(dist), dist, -1).astype(np.int64)
+        first = np.full((n_regions, n_regions), -1, dtype=np.int64)
+        order = np.arange(len(es))[::-1]  # assign in reverse so the lowest index wins
+        first[es[order], et[order]] = order
+        return cls(es, et, hops, first, pred, tuple(beams), tuple(int(d) for d in directions))
+
+    def path_edges(self, r: int, s: int) -> list[int]:
+        """Edge indices of the shortest path ``r -> s`` (lowest-numbered parallel edge)."""
+        nodes = [s]
+        while nodes[-1] != r:
+            nodes.append(int(self.predecessor[r, nodes[-1]]))
+        nodes.reverse()
+        return [int(self.first_edge[a, b]) for a, b in zip(nodes[:-1], nodes[1:])]
+
+
+# --------------------------------------------------------------------------- correction
+
+
+@dataclass(frozen=True)
+class Correction:
+    """Minimum-insertion correction of a crossing string.
+
+    cost : number of inserted crossings (the minimum).
+    initial : (p,) count vector ``eta_0`` used (given, or the DP's choice).
+    source, target : (m + cost,) region indices of the corrected string.
+    inserted : (m + cost,) bool, True for inserted crossings.
+    observed_index : (m + cost,) index into the observed string, -1 for inserted crossings.
+    edge : (m + cost,) edge index of inserted crossings (into ``RegionEdges``), -1 for observed.
+    peak_states : largest number of live count states during the DP.
+    events : number of deficit positions processed (DP steps that branched).
+    """
+
+    cost: int
+    initial: np.ndarray
+    source: np.ndarray
+    target: np.ndarray
+    inserted: np.ndarray
+    observed_index: np.ndarray
+    edge: np.ndarray
+    peak_states: int
+    events: int
+
+    @property
+    def insertion_positions(self) -> np.ndarray:
+        """Index in the corrected string of every inserted crossing."""
+        return np.flatnonzero(self.inserted)
+
+
+def _merge_and_prune(E, cost, node, diam):
+    """Keep the cheapest entry per count vector, then drop dominated states (see module doc)."""
+    if len(E) > 1:
+        key = np.ascontiguousarray(E).view(np.dtype((np.void, E.dtype.itemsize * E.shape[1]))).ravel()
+        order = np.lexsort((node, cost, key))
+        ks = key[order]
+        first = np.r_[True, ks[1:] != ks[:-1]]
+        keep = order[first]
+        E, cost, node = E[keep], cost[keep], node[keep]
+    if len(E) > 1 and cost.max() > cost.min():
+        # d(A, B) = |A - B|_1 / 2 * diam; B dominated if cost_A + d(A, B) <= cost_B
+        l1 = np.abs(E[:, None, :] - E[None, :, :]).sum(axis=2)
+        bound = cost[:, None] + (l1 // 2) * diam
+        dominated = (bound <= cost[None, :]) & (l1 > 0)
+        alive = ~dominated.any(axis=0)
+        E, cost, node = E[alive], cost[alive], node[alive]
+    return E, cost, node
+
+
+def correct(
+    source,
+    target,
+    edges: RegionEdges,
+    *,
+    n_agents: int | None = None,
+    initial=None,
+    placement: str = "earliest",
+    window: int = 4096,
+    max_chunk: int = 8192,
+) -> Correction:
+    """Fewest inserted crossings that put ``source -> target`` in ``L(M_C)``.
+
+    Parameters
+    ----------
+    source, target : (m,) region indices of the observed crossings.
+    edges : the region graph (:class:`RegionEdges`).
+    n_agents : n; with ``initial=None`` every count vector with sum n is a free start state
+        (the DP picks the one needing fewest insertions).
+    initial : (p,) known ``eta_0`` (then ``n_agents`` defaults to its sum and must match).
+    placement : ``"earliest"`` or ``"latest"`` (see :func:`place_insertions`).
+    window : how many crossings back an insertion may be moved by ``"earliest"``.
+    """
+    if placement not in PLACEMENTS:
+        raise ValueError(f"placement must be one of {PLACEMENTS}, got {placement!r}")
+    src = np.asarray(source, dtype=np.int64)
+    tgt = np.asarray(target, dtype=np.int64)
+    p = edges.n_regions
+    m = len(src)
+    if initial is not None:
+        start = np.asarray(initial, dtype=np.int64).reshape(1, p)
+        if np.any(start < 0):
+            raise ValueError(f"initial counts must be >= 0, got {start.ravel().tolist()}")
+        if n_agents is not None and int(start.sum()) != n_agents:
+            raise ValueError(f"initial counts sum to {int(start.sum())}, not n = {n_agents}")
+        n_agents = int(start.sum())
+    elif n_agents is None:
+        raise ValueError("give n_agents or initial")
+    else:
+        start = count_states(p, n_agents)
+    if n_agents < 1 and m > 0:
+        raise ValueError("a non-empty crossing string needs n >= 1 agents")
+    H = np.where(edges.hops >= 0, edges.hops, _FAR)
+    diam = max(edges.diameter, 1)
+
+    E = start.astype(np.int32)
+    cost = np.zeros(len(E), dtype=np.int64)
+    node = np.arange(len(E), dtype=np.int64)  # start nodes 0..K0-1 (no parent)
+    par: list[np.ndarray] = [np.full(len(E), -1, dtype=np.int64)]
+    npos: list[np.ndarray] = [np.full(len(E), -1, dtype=np.int64)]
+    nreg: list[np.ndarray] = [np.full(len(E), -1, dtype=np.int64)]
+    n_nodes = len(E)
+    E, cost, node = _merge_and_prune(E, cost, node, diam)
+    peak, events = len(E), 0
+    i, L = 0, 64
+    while i < m:
+        hi = min(m, i + L)
+        s, t = src[i:hi], tgt[i:hi]
+        c = np.cumsum(crossing_deltas(s, t, p), axis=0)
+        cpre_s = np.r_[0, c[:-1][np.arange(len(s) - 1), s[1:]]] if len(s) > 1 else np.zeros(1, np.int32)
+        before = E[:, s] + cpre_s[None, :]  # (K, l) agents in the source region before crossing k
+        bad_any = (before < 1).any(axis=0)
+        if not bad_any.any():
+            E = E + c[-1]
+            i, L = hi, min(2 * L, max_chunk)
+            continue
+        k = int(np.argmax(bad_any))
+        if k:
+            E = E + c[k - 1]
+        pos, sk, tk = i + k, int(s[k]), int(t[k])
+        deficit = E[:, sk] < 1
+        okE = E[~deficit].copy()
+        okE[:, sk] -= 1
+        okE[:, tk] += 1
+        dE = E[deficit]
+        rows, rs = np.nonzero(dE >= 1)
+        reach = H[rs, sk] < _FAR
+        rows, rs = rows[reach], rs[reach]
+        newE = dE[rows].copy()
+        newE[np.arange(len(rows)), rs] -= 1
+        newE[:, tk] += 1
+        newcost = cost[deficit][rows] + H[rs, sk]
+        newnode = np.arange(n_nodes, n_nodes + len(rows), dtype=np.int64)
+        par.append(node[deficit][rows])
+        npos.append(np.full(len(rows), pos, dtype=np.int64))
+        nreg.append(rs.astype(np.int64))
+        n_nodes += len(rows)
+        E = np.concatenate([okE, newE])
+        cost = np.concatenate([cost[~deficit], newcost])
+        node = np.concatenate([node[~deficit], newnode])
+        if len(E) == 0:
+            raise ValueError(f"crossing {pos} cannot be explained: no agent can reach its source region")
+        E, cost, node = _merge_and_prune(E, cost, node, diam)
+        peak, events = max(peak, len(E)), events + 1
+        i, L = pos + 1, 64
+
+    best = int(np.lexsort((node, cost))[0])
+    parent = np.concatenate(par)
+    position = np.concatenate(npos)
+    region = np.concatenate(nreg)
+    blocks: list[tuple[int, int]] = []  # (position, source region r) of each insertion block
+    q = int(node[best])
+    while parent[q] >= 0:
+        blocks.append((int(position[q]), int(region[q])))
+        q = int(parent[q])
+    eta0 = start[q].astype(np.int64)
+    blocks.reverse()
+
+    ins_pos: list[int] = []
+    ins_edge: list[int] = []
+    for pos, r in blocks:  # one entry per block, a few per dropped crossing
+        for e in edges.path_edges(r, int(src[pos])):
+            ins_pos.append(pos)
+            ins_edge.append(e)
+    cor = _splice(src, tgt, np.asarray(ins_pos, dtype=np.int64), np.asarray(ins_edge, dtype=np.int64), edges)
+    if placement == "earliest" and len(ins_pos):
+        cor = place_insertions(*cor, eta0, window=window)
+    S, T, inserted, obs, edge = cor
+    return Correction(int(inserted.sum()), eta0, S, T, inserted, obs, edge, int(peak), int(events))
+
+
+def _splice(src, tgt, ins_pos, ins_edge, edges: RegionEdges):
+    """Corrected arrays with inserted edges placed right before observed crossing ``ins_pos``."""
+    m = len(src)
+    total = m + len(ins_pos)
+    # sort key: observed k at 2k+1, insertions before k at 2k (stable keeps path order)
+    key = np.r_[2 * np.arange(m) + 1, 2 * ins_pos]
+    order = np.argsort(key, kind="stable")
+    S = np.r_[src, edges.edge_source[ins_edge]][order] if total else np.zeros(0, np.int64)
+    T = np.r_[tgt, edges.edge_target[ins_edge]][order] if total else np.zeros(0, np.int64)
+    inserted = np.r_[np.zeros(m, bool), np.ones(len(ins_pos), bool)][order]
+    obs = np.r_[np.arange(m), np.full(len(ins_pos), -1)][order]
+    edge = np.r_[np.full(m, -1), ins_edge][order]
+    return S.astype(np.int64), T.astype(np.int64), inserted, obs.astype(np.int64), edge.astype(np.int64)
+
+
+def place_insertions(S, T, inserted, obs, edge, initial, *, window: int = 4096):
+    """Move every inserted crossing ``u -> v`` to the earliest position that keeps the string valid.
+
+    Processed in string order. For the insertion at index ``q`` the count of ``u`` before
+    index ``y < q`` is ``c_u[y]``; moving it to ``x`` lowers ``c_u`` by one on ``[x, q)``, which
+    is allowed iff ``c_u[y] >= 1 + [S[y] = u]`` for every ``y`` in ``[x, q)``. The new place is
+    one past the last ``y`` violating that (searched within ``window`` crossings).
+    Sequential over insertions, vectorised over the window.
+    """
+    S, T, inserted, obs, edge = S.copy(), T.copy(), inserted.copy(), obs.copy(), edge.copy()
+    init = np.asarray(initial, dtype=np.int64)
+    p = len(init)
+    # P[y] = net count change of every region from the elements before index y
+    P = np.zeros((len(S) + 1, p), dtype=np.int32)
+    if len(S):
+        P[1:] = np.cumsum(crossing_deltas(S, T, p), axis=0)
+    for q in np.flatnonzero(inserted).tolist():
+        u, v = int(S[q]), int(T[q])
+        lo = max(0, q - window)
+        c = init[u] + P[lo:q, u]  # agents in u before each y in [lo, q)
+        need = 1 + (S[lo:q] == u)
+        bad = np.flatnonzero(c < need)
+        x = lo + (int(bad[-1]) + 1 if bad.size else 0)
+        if x < q:
+            for arr in (S, T, inserted, obs, edge):
+                arr[x : q + 1] = np.r_[arr[q], arr[x:q]]
+            P[x + 1 : q + 1] = P[x:q]  # the elements of [x, q) moved one place right
+            P[x + 1 : q + 1, u] -= 1
+            P[x + 1 : q + 1, v] += 1
+    return S, T, inserted, obs, edge

@@ -1,0 +1,359 @@
+"""CLUSTERTRACK (Singh et al., section 4.2, Algorithm 1; Appendix B; section 6 consensus).
+
+A *particle* is a candidate trajectory ``P = (x[1], ..., x[t])``. At every instant t:
+
+1. each of the K_{t-1} surviving particles is extended by m_t points drawn uniformly from
+   F[t] (independently per particle), ``m_t = round(m_o * S_F(t))``: m_t K_{t-1} candidates;
+2. cost (section 4.2.1) = sum over n of the change in velocity::
+
+       c[n] = || x[n+1] + x[n-1] - 2 x[n] ||,     cost(P) = sum_{n=2}^{t-1} c[n]
+
+3. candidates are scanned in increasing cost; a candidate joins the cluster whose
+   *cluster head* (first member) is nearest under
+   ``D(P, CH) = (1/t) sum_l || P[l] - CH[l] ||`` when that minimum is below D_0 -- kept only if
+   the cluster holds fewer than H -- and otherwise founds a new cluster (always kept); the
+   scan stops when K are kept or L have been scanned.
+
+At T the best (first) particle of every cluster is a track.
+
+Vectorisation. The scan is sequential in the paper; here it loops once per *cluster head*,
+never per particle: the distances of all scanned candidates to the newest head are computed
+at once and folded into a running minimum; the next head is the first later candidate
+whose running minimum is >= D_0 (the minimum only over heads founded before it, as in the
+sequential scan). The trajectory part of D is kept as a matrix of summed distances between
+surviving particles, updated per instant as ``PD_t = PD_{t-1}[parent, parent] + ||x_a - x_b||``,
+so D costs O(1) per pair. Cluster ranks come from one stable sort; the H cap and the K / L
+stops are cumulative sums.
+
+Ties in cost (every cost is 0 for t <= 2) are broken in a random order, so the first
+instants keep a random subset rather than the first particles generated.
+
+Rules of thumb (section 4.2.2), used for every parameter not given::
+
+    Q_hat = max_t lower_bound(t)      (times ``q_factor``)
+    A_hat = sum_t S_F(t) / (T Q_hat)
+    K     = H Q_hat,   L = H m_o mean_t S_F(t),   D_0 = A_hat^(1/n)
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from onebit.trackers.clustertrack.space import FeasibleSpace
+
+
+@dataclass(frozen=True)
+class Params:
+    """Resolved parameters of one CLUSTERTRACK run."""
+
+    H: int
+    m_o: float  # samples per unit length (1-D) or area (2-D)
+    K: int
+    L: int
+    D0: float
+    Q_hat: int
+    A_hat: float
+
+
+def rules_of_thumb(space: FeasibleSpace, *, H: int, m_o: float, q_hat: int = 0, q_factor: float = 1.0,
+                   K: int = 0, L: int = 0, D0: float = 0.0) -> Params:
+    """Parameters from the data (section 4.2.2); a non-zero argument overrides its rule."""
+    q = int(q_hat) if q_hat > 0 else max(1, int(np.ceil(q_factor * max(space.max_lower_bound, 1))))
+    mean_sf = float(np.mean(space.sizes_all)) if space.sizes_all.size else 0.0
+    a_hat = mean_sf / q
+    k = int(K) if K > 0 else H * q
+    l_ = int(L) if L > 0 else max(k, int(round(H * m_o * mean_sf)))
+    d0 = float(D0) if D0 > 0 else (a_hat ** (1.0 / space.dim) if a_hat > 0 else 1e-9)
+    return Params(H, m_o, k, l_, d0, q, a_hat)
+
+
+@dataclass
+class RunResult:
+    """One pass of Algorithm 1 over all instants.
+
+    tracks : ``(N, T, dim)`` best particle of each final cluster, in the space's step order
+        mapped back to original instants (index = original instant).
+    costs : ``(N,)``. ``kept``, ``scanned``, ``clusters``, ``candidates``: ``(T,)`` per step.
+    particles : per step, ``(K_t, dim)`` current positions, ``(K_t,)`` cluster ids and costs
+        (for the recordings).
+    """
+
+    tracks: np.ndarray
+    costs: np.ndarray
+    kept: np.ndarray
+    scanned: np.ndarray
+    clusters: np.ndarray
+    candidates: np.ndarray
+    particles: list = field(default_factory=list)
+    max_cluster: np.ndarray | None = None
+
+
+def _norm(v: np.ndarray) -> np.ndarray:
+    return np.sqrt(np.sum(v * v, axis=-1))
+
+
+def scan_clusters(cost: np.ndarray, parent: np.ndarray, x: np.ndarray, pd: np.ndarray, steps: int,
+                  *, H: int, K: int, L: int, D0: float, rng: np.random.Generator):
+    """Steps 3-18 of Algorithm 1 over candidates ``(parent, x)`` with ``cost``.
+
+    ``pd (K_prev, K_prev)``: summed distances between the parents over the earlier steps;
+    ``steps`` = t (length of a candidate trajectory). Returns ``(kept, label, is_head,
+    n_scanned)``: candidate indices kept (in scan order), their cluster ids (0.. in order of
+    foundation), whether each is its cluster's head, and how many were scanned.
+    """
+    n = cost.size
+    perm = rng.permutation(n)
+    lim = min(L, n)
+    if lim < n:
+        part = np.argpartition(cost[perm], lim - 1)[:lim]
+        sel = perm[part]
+    else:
+        sel = perm
+    order = sel[np.argsort(cost[sel], kind="stable")]
+    par, xs = parent[order], x[order]
+    m = order.size
+    dmin = np.full(m, np.inf)
+    amin = np.full(m, -1, dtype=np.int64)
+    heads: list[int] = []
+    pos = 0
+    while True:  # once per cluster head, vectorised over the later candidates
+        h = len(heads)
+        heads.append(pos)
+        amin[pos] = h
+        dmin[pos] = 0.0
+        if len(heads) >= K or pos + 1 >= m:
+            break
+        rest = slice(pos + 1, m)
+        d = (pd[par[rest], par[pos]] + _norm(xs[rest] - xs[pos])) / steps
+        better = d < dmin[rest]
+        dmin[rest] = np.where(better, d, dmin[rest])
+        amin[rest] = np.where(better, h, amin[rest])
+        nxt = np.flatnonzero(dmin[rest] >= D0)
+        if nxt.size == 0:
+            break
+        pos = pos + 1 + int(nxt[0])
+    # candidates after the last head founded that were never compared belong to no cluster yet:
+    # they lie beyond the K-th head, so they can never be kept (the scan stops at K kept)
+    scanned_upto = m
+    valid = amin >= 0
+    label = np.where(valid, amin, len(heads))
+    idx = np.arange(m)
+    o = np.lexsort((idx, label))
+    lab_sorted = label[o]
+    start = np.r_[True, lab_sorted[1:] != lab_sorted[:-1]]
+    first = np.maximum.accumulate(np.where(start, np.arange(m), 0))
+    rank = np.empty(m, dtype=np.int64)
+    rank[o] = np.arange(m) - first
+    keep = valid & (rank < H)
+    ck = np.cumsum(keep)
+    keep &= ck <= K
+    if ck[-1] >= K:
+        scanned_upto = int(np.searchsorted(ck, K) + 1)
+    is_head = np.zeros(m, dtype=bool)
+    is_head[np.asarray(heads)] = True
+    kidx = np.flatnonzero(keep)
+    return order[kidx], label[kidx], is_head[kidx], scanned_upto
+
+
+def cluster_track(space: FeasibleSpace, p: Params, rng: np.random.Generator, *, record: bool = False) -> RunResult:
+    """One pass of Algorithm 1 over the space's steps (sequential in time by nature)."""
+    T, dim = space.T, space.dim
+    traj = np.zeros((1, 0, dim))  # K_{t-1} particles x t-1 steps
+    cost = np.zeros(1)
+    pd = np.zeros((1, 1))
+    kept_n = np.zeros(T, dtype=np.int64)
+    scanned_n = np.zeros(T, dtype=np.int64)
+    clusters_n = np.zeros(T, dtype=np.int64)
+    cand_n = np.zeros(T, dtype=np.int64)
+    max_cluster = np.zeros(T, dtype=np.int64)
+    particles = []
+    label = np.zeros(1, dtype=np.int64)
+    is_head = np.ones(1, dtype=bool)
+    for step in range(T):
+        kprev = traj.shape[0]
+        m_t = max(1, int(round(p.m_o * space.size(step))))
+        x = space.sample(step, kprev * m_t, rng).reshape(kprev * m_t, dim)
+        if x.shape[0] == 0:  # F empty (inconsistent readings): keep the particles where they are
+            x = traj[:, -1, :] if step > 0 else np.zeros((1, dim))
+            m_t = 1
+        parent = np.repeat(np.arange(kprev), m_t)
+        if step >= 2:
+            inc = _norm(x + traj[parent, step - 2] - 2.0 * traj[parent, step - 1])
+        else:
+            inc = np.zeros(x.shape[0])
+        c = cost[parent] + inc
+        kept, label, is_head, scanned = scan_clusters(
+            c, parent, x, pd, step + 1, H=p.H, K=p.K, L=p.L, D0=p.D0, rng=rng
+        )
+        par = parent[kept]
+        xk = x[kept]
+        pd = pd[np.ix_(par, par)] + _norm(xk[:, None, :] - xk[None, :, :])
+        traj = np.concatenate([traj[par], xk[:, None, :]], axis=1)
+        cost = c[kept]
+        kept_n[step], scanned_n[step], cand_n[step] = kept.size, scanned, c.size
+        clusters_n[step] = np.unique(label).size
+        max_cluster[step] = np.bincount(label).max()
+        if record:
+            particles.append((xk.copy(), label.copy(), cost.copy()))
+    heads = np.flatnonzero(is_head)
+    tracks = np.empty((heads.size, T, dim))
+    tracks[:, space.order, :] = traj[heads]
+    if record:
+        # particles were recorded in step order; store them by original instant
+        by_t = [None] * T
+        for s, item in enumerate(particles):
+            by_t[int(space.order[s])] = item
+        particles = by_t
+    return RunResult(tracks, cost[heads], kept_n, scanned_n, clusters_n, cand_n, particles, max_cluster)
+
+
+def trajectory_distance(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """``D`` between every trajectory of ``a (p, T, d)`` and ``b (q, T, d)``: ``(p, q)``."""
+    return np.mean(_norm(a[:, None] - b[None, :]), axis=-1)
+
+
+def usage(space: FeasibleSpace, tracks: np.ndarray) -> list[np.ndarray]:
+    """Per original instant: number of tracks in each component of F."""
+    out = []
+    for t in range(space.sizes_all.size):
+        nc = space.comp_bounds_all[t].size
+        if tracks.shape[0] == 0 or nc == 0:
+            out.append(np.zeros(nc, dtype=np.int64))
+            continue
+        c = space.component_of(t, tracks[:, t, :])
+        out.append(np.bincount(c[c >= 0], minlength=nc)[:nc].astype(np.int64))
+    return out
+
+
+def underused(space: FeasibleSpace, tracks: np.ndarray) -> tuple[int, int, int] | None:
+    """First ``(t_o, c_o, deficit)`` in the scan order 1, T, 2, T-1, ... (Appendix B)."""
+    T = space.sizes_all.size
+    use = usage(space, tracks)
+    scan = np.empty(T, dtype=np.int64)
+    scan[0::2] = np.arange((T + 1) // 2)
+    scan[1::2] = np.arange(T - 1, (T + 1) // 2 - 1, -1)[: T // 2]
+    for t in scan:  # over instants
+        gap = space.comp_bounds_all[t] - use[t]
+        bad = np.flatnonzero(gap > 0)
+        if bad.size:
+            return int(t), int(bad[0]), int(gap[bad[0]])
+    return None
+
+
+@dataclass
+class TrackResult:
+    """CLUSTERTRACK with Appendix B reruns."""
+
+    tracks: np.ndarray  # (N, T, dim)
+    costs: np.ndarray  # (N,)
+    origin: np.ndarray  # (N,) 0 = first run, k = k-th rerun
+    params: Params
+    first: RunResult
+    reruns: int
+    satisfied: bool
+
+
+def clustertrack(space: FeasibleSpace, p: Params, rng: np.random.Generator, *, max_reruns: int = 10,
+                 rerun: bool = True, record: bool = False, hard_limit: int = 40) -> TrackResult:
+    """Algorithm 1, then Appendix B: rerun through under-used components.
+
+    While some instant t_o has a component c_o holding fewer tracks than its lower bound,
+    rerun with F[t_o] restricted to c_o, Q_hat = the deficit (K = H Q_hat), reversing time
+    when t_o > T/2. A new track is kept only if it clusters (D < D_0) with no existing track;
+    after ``max_reruns`` reruns every new track is kept. ``hard_limit`` bounds the total
+    number of reruns (each one after ``max_reruns`` adds at least one track through c_o).
+    """
+    first = cluster_track(space, p, rng, record=record)
+    tracks, costs = first.tracks, first.costs
+    origin = np.zeros(costs.size, dtype=np.int64)
+    n = 0
+    T = space.sizes_all.size
+    while rerun and n < hard_limit:
+        u = underused(space, tracks)
+        if u is None:
+            break
+        t_o, c_o, deficit = u
+        n += 1
+        sub = space.restricted(t_o, c_o)
+        if t_o > T / 2:
+            sub = sub.reversed()
+        q = deficit
+        pr = Params(p.H, p.m_o, p.H * q, p.L, p.D0, q, p.A_hat)
+        res = cluster_track(sub, pr, rng)
+        new, nc = res.tracks, res.costs
+        if n <= max_reruns and tracks.shape[0] and new.shape[0]:
+            fresh = trajectory_distance(new, tracks).min(axis=1) >= p.D0
+            new, nc = new[fresh], nc[fresh]
+        tracks = np.concatenate([tracks, new])
+        costs = np.concatenate([costs, nc])
+        origin = np.concatenate([origin, np.full(nc.size, n)])
+    return TrackResult(tracks, costs, origin, p, first, n, underused(space, tracks) is None)
+
+
+def leader_clusters(trajs: np.ndarray, costs: np.ndarray, D0: float) -> np.ndarray:
+    """Cluster trajectories the way Algorithm 1 does (scan by cost, nearest head within D_0,
+    no cap): returns a cluster id per trajectory. Loops once per head."""
+    n = costs.size
+    if n == 0:
+        return np.zeros(0, dtype=np.int64)
+    order = np.argsort(costs, kind="stable")
+    d = trajectory_distance(trajs[order], trajs[order])
+    dmin = np.full(n, np.inf)
+    lab = np.full(n, -1, dtype=np.int64)
+    pos, h = 0, 0
+    while True:
+        lab[pos] = h
+        dmin[pos] = 0.0
+        rest = np.arange(pos + 1, n)
+        better = d[rest, pos] < dmin[rest]
+        dmin[rest] = np.where(better, d[rest, pos], dmin[rest])
+        lab[rest] = np.where(better, h, lab[rest])
+        nxt = np.flatnonzero(dmin[rest] >= D0)
+        if nxt.size == 0:
+            break
+        pos = pos + 1 + int(nxt[0])
+        h += 1
+    out = np.empty(n, dtype=np.int64)
+    out[order] = lab
+    return out
+
+
+@dataclass
+class Consensus:
+    """Multi-run consensus (section 6, Fig. 12b)."""
+
+    tracks: np.ndarray  # (M, T, dim) every kept track of every run
+    costs: np.ndarray
+    run: np.ndarray  # run index of each track
+    cluster: np.ndarray  # consensus cluster of each track
+    support: np.ndarray  # per cluster: fraction of runs with a track in it
+    count: int  # clusters supported by at least ``min_support`` of the runs
+    runs: int
+
+
+def consensus(space: FeasibleSpace, p: Params, seeds: list[int], *, ratio: float = 10.0, min_support: float = 0.5,
+              max_reruns: int = 10) -> Consensus:
+    """Run CLUSTERTRACK once per seed, drop tracks costing more than ``ratio`` times the
+    cheapest, cluster the rest (Algorithm 1's criterion) and count the clusters that hold a
+    track from at least ``min_support`` of the runs (the paper's "biased by the number of
+    trajectories in each cluster")."""
+    all_t, all_c, all_r = [], [], []
+    for k, s in enumerate(seeds):  # independent runs (one per seed)
+        r = clustertrack(space, p, np.random.default_rng(s), max_reruns=max_reruns)
+        all_t.append(r.tracks)
+        all_c.append(r.costs)
+        all_r.append(np.full(r.costs.size, k))
+    tr = np.concatenate(all_t) if all_t else np.zeros((0, space.sizes_all.size, space.dim))
+    co = np.concatenate(all_c) if all_c else np.zeros(0)
+    ru = np.concatenate(all_r) if all_r else np.zeros(0, dtype=np.int64)
+    if co.size:
+        keep = co <= ratio * max(float(co.min()), 1e-9)
+        tr, co, ru = tr[keep], co[keep], ru[keep]
+    lab = leader_clusters(tr, co, p.D0)
+    nclu = int(lab.max()) + 1 if lab.size else 0
+    hit = np.zeros((nclu, len(seeds)), dtype=bool)
+    hit[lab, ru] = True
+    support = hit.mean(axis=1) if nclu else np.zeros(0)
+    return Consensus(tr, co, ru, lab, support, int(np.sum(support >= min_support)), len(seeds))

@@ -1,0 +1,165 @@
+"""The sequence of feasible spaces {F[t]} that CLUSTERTRACK samples from, in 1-D or 2-D.
+
+:class:`FeasibleSpace` holds, per instant, what the algorithm and Appendix B need: the size
+S_F(t), a uniform sampler, the component of a point, the lower bound on the target count
+and the per-component bounds. It can be *restricted* (F[t_o] replaced by one component c_o)
+and *reversed* in time without recomputing anything (Appendix B).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field, replace
+
+import numpy as np
+
+from onebit.trackers.clustertrack.counting import snapshot_bounds_1d, snapshot_bounds_2d
+from onebit.trackers.clustertrack.feasible import (
+    Feasible1D,
+    Raster,
+    SensorArray,
+    disk_masks,
+    feasible_1d,
+    feasible_raster,
+    make_raster,
+    raster_components,
+    sample_intervals,
+    sample_raster,
+)
+
+
+@dataclass(frozen=True)
+class FeasibleSpace:
+    """F[t] for instants ``order`` (indices into the original instants).
+
+    ``dim`` is 1 or 2; positions are ``(..., dim)`` arrays. ``only`` maps an original
+    instant to the single component F is restricted to there (Appendix B).
+    """
+
+    dim: int
+    times: np.ndarray  # (T,) seconds of the original instants
+    sizes_all: np.ndarray  # (T,) S_F of the original instants
+    bounds_all: np.ndarray  # (T,) lower bound on the count
+    comp_bounds_all: tuple  # T arrays: lower bound per component
+    f1d: tuple = ()  # T Feasible1D (1-D)
+    raster: Raster | None = None  # 2-D
+    masks: np.ndarray | None = None  # (T, cells) bool F (2-D)
+    labels: np.ndarray | None = None  # (T, cells) component labels, 0 outside (2-D)
+    order: np.ndarray = field(default=None)  # (T',) original instant of each step
+    only: tuple = ()  # ((t, c), ...)
+
+    # ----------------------------------------------------------------- construction
+
+    @classmethod
+    def build(cls, on: np.ndarray, times: np.ndarray, sensors: SensorArray, boundary, *, dim: int, cell: float) -> "FeasibleSpace":
+        """From readings ``on (T, n)`` (sensor order of ``sensors``) at ``times (T,)``."""
+        on = np.asarray(on, dtype=bool)
+        T = on.shape[0]
+        if dim == 1:
+            minx, _, maxx, _ = boundary.bounds
+            x = sensors.xy[:, 0]
+            fs = tuple(feasible_1d(x, on[t], sensors.r_inner, sensors.r_outer, minx, maxx) for t in range(T))
+            b = [snapshot_bounds_1d(f) for f in fs]
+            return cls(
+                1,
+                np.asarray(times, float),
+                np.array([f.size for f in fs]),
+                np.array([x[0] for x in b], dtype=np.int64),
+                tuple(x[1] for x in b),
+                f1d=fs,
+                order=np.arange(T),
+            )
+        raster = make_raster(boundary, cell)
+        outer = disk_masks(raster, sensors.xy, sensors.r_outer, closed=True)
+        inner = disk_masks(raster, sensors.xy, sensors.r_inner, closed=False)
+        masks = feasible_raster(on, outer, inner, raster.inside)
+        labels = np.zeros(masks.shape, dtype=np.int64)
+        bounds, cb = [], []
+        for t in range(T):  # per instant: OpenCV labelling, vectorised over cells and sensors
+            n, lab = raster_components(masks[t], raster)
+            labels[t] = lab
+            lb, per = snapshot_bounds_2d(lab, n, np.flatnonzero(on[t]), outer)
+            bounds.append(lb)
+            cb.append(per)
+        return cls(
+            2,
+            np.asarray(times, float),
+            masks.sum(axis=1) * raster.cell**2,
+            np.array(bounds, dtype=np.int64),
+            tuple(cb),
+            raster=raster,
+            masks=masks,
+            labels=labels,
+            order=np.arange(T),
+        )
+
+    # ----------------------------------------------------------------- views
+
+    @property
+    def T(self) -> int:
+        return int(self.order.size)
+
+    def restricted(self, t: int, c: int) -> "FeasibleSpace":
+        """F with F[t] (original instant) replaced by its component ``c``."""
+        return replace(self, only=tuple(x for x in self.only if x[0] != t) + ((int(t), int(c)),))
+
+    def reversed(self) -> "FeasibleSpace":
+        return replace(self, order=self.order[::-1].copy())
+
+    def _only(self, t: int) -> int | None:
+        for tt, c in self.only:
+            if tt == t:
+                return c
+        return None
+
+    # ----------------------------------------------------------------- per step
+
+    def size(self, step: int) -> float:
+        """S_F at ``step`` (with a restriction applied)."""
+        t = int(self.order[step])
+        c = self._only(t)
+        if c is None:
+            return float(self.sizes_all[t])
+        if self.dim == 1:
+            iv = self.f1d[t].components[c]
+            return float(iv[1] - iv[0])
+        return float(np.count_nonzero(self.labels[t] == c + 1) * self.raster.cell**2)
+
+    def sample(self, step: int, n: int, rng: np.random.Generator) -> np.ndarray:
+        """``(n, dim)`` points uniform on F at ``step``."""
+        t = int(self.order[step])
+        c = self._only(t)
+        if self.dim == 1:
+            iv = self.f1d[t].components
+            if c is not None:
+                iv = iv[c : c + 1]
+            return sample_intervals(iv, n, rng)[:, None]
+        mask = self.masks[t] if c is None else self.labels[t] == c + 1
+        return sample_raster(mask, self.raster, n, rng)
+
+    def component_of(self, t: int, pts: np.ndarray) -> np.ndarray:
+        """Component index (0-based) of points ``(m, dim)`` at original instant ``t``; -1 outside F.
+
+        In 2-D a point just outside F (a track between rasterised components) takes the
+        component of its nearest F cell within one cell.
+        """
+        pts = np.asarray(pts, float).reshape(-1, self.dim)
+        if self.dim == 1:
+            return self.f1d[t].component_of(pts[:, 0])
+        r = self.raster
+        j = np.floor((pts[:, 0] - r.x0) / r.cell).astype(np.int64)
+        i = np.floor((pts[:, 1] - r.y0) / r.cell).astype(np.int64)
+        lab = self.labels[t].reshape(r.height, r.width)
+        best = np.full(len(pts), -1, dtype=np.int64)
+        for di, dj in ((0, 0), (0, 1), (1, 0), (0, -1), (-1, 0), (1, 1), (1, -1), (-1, 1), (-1, -1)):
+            ii, jj = i + di, j + dj
+            ok = (ii >= 0) & (ii < r.height) & (jj >= 0) & (jj < r.width)
+            val = np.where(ok, lab[np.clip(ii, 0, r.height - 1), np.clip(jj, 0, r.width - 1)], 0) - 1
+            best = np.where(best < 0, val, best)
+        return best
+
+    @property
+    def max_lower_bound(self) -> int:
+        return int(self.bounds_all.max()) if self.bounds_all.size else 0
+
+    def f_at(self, t: int) -> Feasible1D:
+        return self.f1d[t]

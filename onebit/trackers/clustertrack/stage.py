@@ -1,0 +1,296 @@
+"""The ``clustertrack`` stage: proximity frames + site -> tracks, counts and consensus.
+
+Inputs: ``proximity_frames`` (FRAMES: slot, t, sensor, on). The site's proximity sensors give
+positions and radii; the problem is 1-D when every sensor has ``y == 0`` (a strip site),
+2-D otherwise (``dim`` overrides).
+
+Outputs (tables ``clustertrack_<key>``):
+
+- ``tracks`` (TRACKS): the best particle of every final cluster (first run + Appendix B).
+- ``track_info``: track, cost, origin (0 first run, k = k-th rerun).
+- ``counts``: per instant t: size S_F, components, lower_bound (Theorem 4 / component count).
+- ``minimal_targets`` (1-D): t, x of a minimal set of targets explaining each snapshot.
+- ``feasible`` (1-D): t, component, lo, hi -- the intervals of F.
+- ``steps``: per instant: candidates, scanned, kept, clusters, max_cluster (Algorithm 1).
+- ``particles``: t, particle, cluster, x, y, cost -- the survivors of the first run.
+- ``consensus``: run, track, cluster, cost, support (section 6, over ``consensus_runs`` seeds).
+- ``params``: one row: dim, R, H, m_o, K, L, D0, Q_hat, A_hat, reruns, satisfied,
+  count_lower_bound, count_consensus.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import polars as pl
+from scipy.optimize import linear_sum_assignment
+
+from onebit.datasets.site import Site
+from onebit.tables import FRAMES, SCORES, TRACKS, check_schema, conform
+from onebit.trackers.base import TrackerSpec, check_choice, check_range, register
+from onebit.trackers.clustertrack.algorithm import Params, clustertrack, consensus, rules_of_thumb
+from onebit.trackers.clustertrack.feasible import sensor_array
+from onebit.trackers.clustertrack.space import FeasibleSpace
+
+NAME = "clustertrack"
+
+
+@dataclass(frozen=True, kw_only=True)
+class ClusterTrackConfig:
+    """Configuration of ``clustertrack`` (defaults: Singh et al., sections 5.1 and 5.3).
+
+    h : H, particles kept per cluster in 1-D (paper: 25).
+    m_o_r : sampling density m_o R in 1-D (paper: 15 samples per R).
+    h_2d : H in 2-D (paper: 50).
+    m_o_r2 : m_o R^2 in 2-D (paper: 50).
+    q_hat : estimated number of targets; 0 = max over instants of the lower bound (paper).
+    q_factor : multiplies the rule-of-thumb Q_hat (the paper tried up to 2).
+    k, l : K and L; 0 = rules of thumb K = H Q_hat, L = H m_o mean(S_F).
+    d0_r : clustering threshold D_0 in units of R; 0 = rule of thumb A_hat^(1/n).
+    reruns : Appendix B: reruns that must yield tracks not clustering with existing ones
+        (paper: 10); 0 switches Appendix B off (the paper's "one-run version").
+    consensus_runs : R runs (seeds ``seed .. seed+R-1``) for the multi-run target count.
+    consensus_ratio : drop consensus tracks costing more than this times the cheapest (10).
+    consensus_support : a consensus cluster counts when at least this fraction of runs has a
+        track in it.
+    raster_per_r : 2-D raster cells per R.
+    dim : "auto" (1-D when every sensor has y == 0), "1d" or "2d".
+    seed : random seed.
+    """
+
+    h: int = 25
+    m_o_r: float = 15.0
+    h_2d: int = 50
+    m_o_r2: float = 50.0
+    q_hat: int = 0
+    q_factor: float = 1.0
+    k: int = 0
+    l: int = 0  # noqa: E741
+    d0_r: float = 0.0
+    reruns: int = 10
+    consensus_runs: int = 10
+    consensus_ratio: float = 10.0
+    consensus_support: float = 0.5
+    raster_per_r: int = 10
+    dim: str = "auto"
+    seed: int = 0
+
+    def __post_init__(self) -> None:
+        check_range(self, "h", 1, 100000, types=(int,))
+        check_range(self, "h_2d", 1, 100000, types=(int,))
+        check_range(self, "m_o_r", 1e-6, 1e5)
+        check_range(self, "m_o_r2", 1e-6, 1e6)
+        check_range(self, "q_hat", 0, 10000, types=(int,))
+        check_range(self, "q_factor", 1e-6, 100.0)
+        check_range(self, "k", 0, 10**7, types=(int,))
+        check_range(self, "l", 0, 10**8, types=(int,))
+        check_range(self, "d0_r", 0.0, 1e6)
+        check_range(self, "reruns", 0, 1000, types=(int,))
+        check_range(self, "consensus_runs", 0, 10000, types=(int,))
+        check_range(self, "consensus_ratio", 1.0, 1e9)
+        check_range(self, "consensus_support", 0.0, 1.0)
+        check_range(self, "raster_per_r", 1, 1000, types=(int,))
+        check_choice(self, "dim", ("auto", "1d", "2d"))
+        check_range(self, "seed", 0, None, types=(int,))
+
+
+def available(site: Site) -> str | None:
+    return None if site.proximity_sensors else "site has no proximity sensors"
+
+
+def readings(frames: pl.DataFrame, ids: tuple[str, ...]) -> tuple[np.ndarray, np.ndarray]:
+    """``(times (T,), on (T, n))`` from FRAMES, sensors in site order (absent = off)."""
+    frames = frames.filter(pl.col("sensor").is_in(list(ids)))
+    slots = frames.select("slot", "t").unique("slot").sort("slot")
+    if slots.height == 0:
+        return np.zeros(0), np.zeros((0, len(ids)), dtype=bool)
+    si = frames["slot"].to_numpy()
+    k = np.searchsorted(slots["slot"].to_numpy(), si)
+    col = pl.Series(frames["sensor"]).replace_strict(list(ids), list(range(len(ids))), return_dtype=pl.Int64).to_numpy()
+    on = np.zeros((slots.height, len(ids)), dtype=bool)
+    on[k, col] = frames["on"].to_numpy()
+    return slots["t"].to_numpy().astype(float), on
+
+
+def build_space(frames: pl.DataFrame, site: Site, config: ClusterTrackConfig) -> tuple[FeasibleSpace, float, np.ndarray]:
+    """``(space, R, on (T, n))`` from the frames."""
+    sa = sensor_array(site)
+    times, on = readings(frames, sa.ids)
+    dim = {"auto": 1 if sa.is_1d else 2, "1d": 1, "2d": 2}[config.dim]
+    R = sa.radius
+    return FeasibleSpace.build(on, times, sa, site.boundary, dim=dim, cell=R / config.raster_per_r), R, on
+
+
+def params_for(space: FeasibleSpace, R: float, config: ClusterTrackConfig) -> Params:
+    if space.dim == 1:
+        H, m_o = config.h, config.m_o_r / R
+    else:
+        H, m_o = config.h_2d, config.m_o_r2 / R**2
+    return rules_of_thumb(space, H=H, m_o=m_o, q_hat=config.q_hat, q_factor=config.q_factor, K=config.k, L=config.l,
+                          D0=config.d0_r * R)
+
+
+def _xy(a: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """x and y columns of ``(..., dim)`` positions (y = 0 in 1-D)."""
+    return a[..., 0], (a[..., 1] if a.shape[-1] > 1 else np.zeros(a.shape[:-1]))
+
+
+def run(inputs: dict, site: Site, config: ClusterTrackConfig, log=None) -> dict[str, pl.DataFrame]:
+    """Feasible spaces, counts, CLUSTERTRACK with Appendix B, and the multi-run consensus."""
+    frames = check_schema(inputs["proximity_frames"], FRAMES, name="proximity_frames")
+    space, R, on = build_space(frames, site, config)
+    T = space.T
+    times = space.times
+    if T == 0:
+        empty = {k: pl.DataFrame() for k in ("track_info", "counts", "steps", "particles", "consensus", "params")}
+        return {"tracks": pl.DataFrame(schema=TRACKS), **empty}
+    p = params_for(space, R, config)
+    rng = np.random.default_rng(config.seed)
+    res = clustertrack(space, p, rng, max_reruns=config.reruns, rerun=config.reruns > 0, record=True)
+    N = res.tracks.shape[0]
+    names = [f"c{i + 1}" for i in range(N)]
+    x, y = _xy(res.tracks)
+    tracks = conform(
+        pl.DataFrame(
+            {
+                "tracker": NAME,
+                "track": np.repeat(names, T) if N else np.array([], dtype=str),
+                "t": np.tile(times, N),
+                "x": x.ravel(),
+                "y": y.ravel(),
+            },
+            schema_overrides={"track": pl.String},
+        ),
+        TRACKS,
+    ).sort(["t", "track"], maintain_order=True)
+    info = pl.DataFrame({"track": names, "cost": res.costs, "origin": res.origin}, schema={"track": pl.String, "cost": pl.Float64, "origin": pl.Int64})
+    ncomp = np.array([cb.size for cb in space.comp_bounds_all], dtype=np.int64)
+    counts = pl.DataFrame({"t": times, "size": space.sizes_all, "components": ncomp, "lower_bound": space.bounds_all})
+    fr = res.first
+    steps = pl.DataFrame({"t": times[space.order], "candidates": fr.candidates, "scanned": fr.scanned, "kept": fr.kept,
+                          "clusters": fr.clusters, "max_cluster": fr.max_cluster})
+    parts = []
+    for t in range(T):  # per instant (T tables of K_t particles each)
+        xk, lab, cost = fr.particles[t]
+        px, py = _xy(xk)
+        parts.append(pl.DataFrame({"t": np.full(lab.size, times[t]), "particle": np.arange(lab.size), "cluster": lab,
+                                   "x": px, "y": py, "cost": cost}))
+    particles = pl.concat(parts)
+    out = {"tracks": tracks, "track_info": info, "counts": counts, "steps": steps, "particles": particles}
+    if space.dim == 1:
+        out["feasible"] = pl.concat(
+            [pl.DataFrame({"t": np.full(len(f.components), times[t]), "component": np.arange(len(f.components)),
+                           "lo": f.components[:, 0], "hi": f.components[:, 1]}) for t, f in enumerate(space.f1d)]
+        )
+        from onebit.trackers.clustertrack.counting import snapshot_bounds_1d
+
+        mins = [snapshot_bounds_1d(f)[2] for f in space.f1d]
+        out["minimal_targets"] = pl.DataFrame({"t": np.repeat(times, [m.size for m in mins]), "x": np.concatenate(mins)})
+    count_consensus = -1
+    if config.consensus_runs > 0:
+        seeds = list(range(config.seed, config.seed + config.consensus_runs))
+        cons = consensus(space, p, seeds, ratio=config.consensus_ratio, min_support=config.consensus_support,
+                         max_reruns=config.reruns)
+        count_consensus = cons.count
+        out["consensus"] = pl.DataFrame({"run": cons.run, "cluster": cons.cluster, "cost": cons.costs,
+                                         "support": cons.support[cons.cluster] if cons.cluster.size else np.zeros(0)})
+    out["params"] = pl.DataFrame(
+        [{"dim": space.dim, "R": R, "H": p.H, "m_o": p.m_o, "K": p.K, "L": p.L, "D0": p.D0, "Q_hat": p.Q_hat, "A_hat": p.A_hat,
+          "reruns": res.reruns, "satisfied": res.satisfied, "count_lower_bound": space.max_lower_bound,
+          "count_consensus": count_consensus, "tracks": N}]
+    )
+    if log is not None:
+        from onebit.viz import clustertrack as viz
+
+        cells = None
+        if space.dim == 2:
+            ti, ci = np.nonzero(space.labels > 0)
+            cxy = space.raster.centres[ci]
+            cells = pl.DataFrame({"t": times[ti], "x": cxy[:, 0], "y": cxy[:, 1], "component": space.labels[ti, ci]})
+        log.emit(viz.log_clustertrack, NAME, site, out, times, frames_on=on, cells=cells,
+                 cell=space.raster.cell if space.raster is not None else 0.1)
+    return out
+
+
+# --------------------------------------------------------------------------- scoring
+
+
+def match_tracks(truth: pl.DataFrame, tracks: pl.DataFrame) -> tuple[list[str], list[str], np.ndarray, pl.DataFrame]:
+    """Mean distance (over the track's instants) between every target and every track.
+
+    Returns ``(targets, tracks, D (Q, N), joined)`` where ``joined`` pairs each track row with
+    the truth of every target at the nearest truth time.
+    """
+    tr = tracks.select("track", "t", "x", pl.col("y").fill_null(0.0)).sort("t")
+    tru = truth.select("t", "target", tx="x", ty="y").sort("t")
+    targets = sorted(tru["target"].unique().to_list())
+    names = sorted(tr["track"].unique().to_list())
+    if not targets or not names:
+        return targets, names, np.zeros((len(targets), len(names))), pl.DataFrame()
+    pairs = pl.concat(
+        [tr.join_asof(tru.filter(pl.col("target") == g).drop("target"), on="t", strategy="nearest", check_sortedness=False)
+         .with_columns(target=pl.lit(g)) for g in targets]  # per target (Q joins, vectorised over rows)
+    ).with_columns(err=((pl.col("x") - pl.col("tx")) ** 2 + (pl.col("y") - pl.col("ty")) ** 2).sqrt())
+    m = pairs.group_by("target", "track").agg(pl.col("err").mean())
+    D = np.full((len(targets), len(names)), np.inf)
+    gi = {g: i for i, g in enumerate(targets)}
+    ti = {t: i for i, t in enumerate(names)}
+    D[[gi[g] for g in m["target"]], [ti[t] for t in m["track"]]] = m["err"].to_numpy()
+    return targets, names, D, pairs
+
+
+def score(tables: dict, site: Site, log=None) -> tuple[list[tuple[str, str, float, str]], dict[str, pl.DataFrame]]:
+    """Report rows: mean_error_R, targets_true, targets_found, spurious_tracks,
+    count_lower_bound, count_consensus; table ``clustertrack_scores`` (SCORES)."""
+    rows: list[tuple[str, str, float, str]] = []
+    params = tables.get(f"{NAME}_params")
+    if params is None or params.height == 0:
+        return rows, {}
+    R, D0 = float(params["R"][0]), float(params["D0"][0])
+    rows.append((NAME, "count_lower_bound", float(params["count_lower_bound"][0]), "targets"))
+    if int(params["count_consensus"][0]) >= 0:
+        rows.append((NAME, "count_consensus", float(params["count_consensus"][0]), "targets"))
+    rows.append((NAME, "tracks", float(params["tracks"][0]), "tracks"))
+    rows.append((NAME, "reruns", float(params["reruns"][0]), "reruns"))
+    truth, tracks = tables.get("truth"), tables.get(f"{NAME}_tracks")
+    if truth is None or truth.height == 0 or tracks is None:
+        return rows, {}
+    targets, names, D, pairs = match_tracks(truth, tracks)
+    rows.append((NAME, "targets_true", float(len(targets)), "targets"))
+    if not names:
+        rows += [(NAME, "targets_found", 0.0, "targets"), (NAME, "spurious_tracks", 0.0, "tracks")]
+        return rows, {}
+    nearest = D.min(axis=1)
+    rows.append((NAME, "mean_error_R", float(nearest.mean() / R), "R"))
+    a, b = linear_sum_assignment(D)
+    ok = D[a, b] <= D0
+    found = int(ok.sum())
+    rows += [(NAME, "targets_found", float(found), "targets"), (NAME, "spurious_tracks", float(len(names) - found), "tracks")]
+    matched = pl.DataFrame({"target": [targets[i] for i in a[ok]], "track": [names[j] for j in b[ok]]}, schema={"target": pl.String, "track": pl.String})
+    sc = pairs.join(matched, on=["target", "track"]).with_columns(tracker=pl.lit(NAME), error=pl.col("err"))
+    sc = conform(sc, SCORES).sort(["t", "track"])
+    rows.append((NAME, "error_mean_matched", float(sc["error"].mean()) if sc.height else float("nan"), site.units))
+    if log is not None:
+        log.scores(NAME, sc)
+        if int(params["dim"][0]) == 1:
+            from onebit.viz import clustertrack as viz
+
+            times = np.unique(tracks["t"].to_numpy())
+            minx, _, maxx, _ = site.boundary.bounds
+            row = max((maxx - minx) / max(times.size, 1) / 2.0, 0.2)
+            log.emit(viz.log_space_time, NAME, pl.DataFrame(), truth.filter(pl.col("t").is_in(times.tolist())), times, row=row)
+    return rows, {f"{NAME}_scores": sc}
+
+
+SPEC = register(
+    TrackerSpec(
+        name=NAME,
+        needs=("proximity_frames",),
+        config=ClusterTrackConfig,
+        run=run,
+        score=score,
+        available=available,
+        help="Singh et al.: target counting and CLUSTERTRACK from binary proximity sensors",
+    )
+)

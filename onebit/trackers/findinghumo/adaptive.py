@@ -1,0 +1,385 @@
+"""Adaptive-HMM (paper section III-B2..4) and the full-state baselines, window by window.
+
+The run's slot activity ``B`` (D, N) bool is decoded in windows of ``d_max`` slots that
+slide by ``tau`` (the decoded states of the first ``tau`` slots of a window are accepted,
+the rest is look-ahead). Per window:
+
+1. **User count** (III-B3): ``K = max(K_pre + Sig_in - Sig_out, K_now)``. ``K_now`` is the
+   largest number of nodes triggered in one slot that are pairwise at least 2 hops apart
+   (a maximum independent set of the active nodes in the 1-hop graph; exact, by
+   ``networkx.max_weight_clique`` on the complement -- active sets are small). ``Sig_in``
+   counts entry signatures ``outer -> inner`` (an onset at ``outer`` followed by activity at
+   ``inner`` in the window) with no known user within 1 hop of ``outer``; ``Sig_out`` counts
+   users whose decoded path ends ``inner -> outer`` with ``outer`` silent afterwards in the
+   window: they leave.
+2. **Overlap detection and model choice** (III-B2(a), Algorithm 3). The activations of the
+   window form a space-time graph (``(t, j)`` ~ ``(t', j')`` when ``|t - t'| <= 1`` and
+   ``hops(j, j') <= 1``); its connected components (``scipy.sparse.csgraph``) are the motion
+   sequences. The window is *non-overlapping* when every component has at most one
+   independent active node per slot and at most one known user within 2 hops of it, and no
+   user is near two components; then one first-order HMM is forked per component over its
+   nodes and their 1-hop neighbours. Otherwise one second-order HMM over the active nodes and
+   their 1- and 2-hop neighbours decodes all ``K`` users.
+3. **Transitions** (III-B2(b)): first order ``a(j2, j1) = a'(j2, j1)``; second order
+   ``a(j3, j2, j1) = a'(j2, j1) a''(j3, j1)``, applied where it carries information -- a
+   2-hop move ``j3 != j2 != j1`` -- and normalised so that the 2-hop factor re-weights
+   *where* a user moves, not *whether* it moves::
+
+       a(j3, j2, j2) = a'(j2, j2)                                       (stay)
+       a(j2, j2, j1) = a'(j2, j1)                                       (no direction known)
+       a(j3, j2, j1) = (1 - a'(j2, j2)) a'(j2, j1) a''(j3, j1) / sum_{m != j2} a'(j2, m) a''(j3, m)
+
+   Rows restricted to a reduced state set are renormalised.
+4. **Emissions** (III-B2(c)) and **multi-user decoding**. The paper does not say how ``K``
+   paths are decoded jointly; a joint HMM over K-tuples is exponential in ``K``. We decode the
+   users one after another, each *explaining away* the activations the earlier ones claimed,
+   and repeat the sweep (each user re-decoded with the others fixed) ``sweeps`` times -- a
+   coordinate ascent on the joint log-likelihood::
+
+   Each node is an independent noisy OR of the users at it: with ``c`` users at ``j``,
+   ``P(b_j = 1 | c) = 1 - (1 - p_hit)^c`` for ``c >= 1`` and ``p_false`` for ``c = 0``. The
+   joint log-likelihood of all users then changes, when user ``u`` is put at ``j`` while
+   ``c`` others are there, by the emission term used in ``u``'s Viterbi::
+
+       log c_j(O_t) = log(p_hit / p_false)                          b_j(t) = 1, c = 0
+                    = log(P(on | c + 1) / P(on | c))                b_j(t) = 1, c >= 1
+                    = log((1 - p_hit) / (1 - p_false))              b_j(t) = 0, c = 0
+                    = log(1 - p_hit)                                b_j(t) = 0, c >= 1
+
+   so an activation nobody explains pulls a user towards it, and an activation already
+   explained adds little (the paper's ``c_{j2 j1}`` is taken independent of ``j2``). Each
+   re-decoding of one user with the others fixed cannot lower the joint likelihood. The initial distribution is
+   the previous window's result: each known user's last two accepted nodes are prepended as
+   clamped slots (emission 0 at that node, ``-inf`` elsewhere), so the decoder continues the
+   user's path with its second-order context. A new user starts at its entry node (Sig_in)
+   or uniformly over the window's states.
+
+The baselines ``hmm1`` / ``hmm2`` run the same loop with the full state set and a fixed order
+(``mode = "full1"`` / ``"full2"``); ``offline`` uses one window spanning the whole run.
+The window loop is inherently sequential (each window starts from the previous one's users).
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field
+
+import networkx as nx
+import numpy as np
+from scipy.optimize import linear_sum_assignment
+from scipy.sparse import coo_matrix
+from scipy.sparse.csgraph import connected_components
+
+from onebit.trackers.findinghumo.eatg import Eatg, onsets
+from onebit.trackers.findinghumo.viterbi import log_safe, viterbi_first_order, viterbi_second_order
+
+MODES = ("adaptive", "full1", "full2")
+
+
+@dataclass(frozen=True, kw_only=True)
+class DecoderParams:
+    """Parameters of the window decoder (see the module docstring)."""
+
+    mode: str = "adaptive"
+    d_max: int = 5
+    tau: int = 3
+    p_hit: float = 0.9
+    p_false: float = 0.05
+    sweeps: int = 3
+    offline: bool = False
+
+
+@dataclass
+class DecodeResult:
+    paths: np.ndarray  # (U, D) node index per user and slot, -1 when absent
+    windows: list[dict] = field(default_factory=list)  # per window: slot, K, order, states, overlap
+    seconds: float = 0.0
+
+
+# --------------------------------------------------------------------------- model pieces
+
+
+def restricted_first(a1: np.ndarray, idx: np.ndarray) -> np.ndarray:
+    """(S, S) log a' restricted to the states ``idx`` and renormalised."""
+    sub = a1[np.ix_(idx, idx)]
+    s = sub.sum(axis=1, keepdims=True)
+    sub = np.where(s > 0, sub / np.where(s > 0, s, 1.0), np.eye(len(idx)))
+    return log_safe(sub)
+
+
+def second_order_tensor(a1: np.ndarray, a2: np.ndarray, idx: np.ndarray) -> np.ndarray:
+    """(S, S, S) log a(j3, j2, j1) on the states ``idx`` (module docstring, item 3)."""
+    p1 = a1[np.ix_(idx, idx)]
+    s = p1.sum(axis=1, keepdims=True)
+    p1 = np.where(s > 0, p1 / np.where(s > 0, s, 1.0), np.eye(len(idx)))
+    p2 = a2[np.ix_(idx, idx)]
+    n = len(idx)
+    eye = np.eye(n, dtype=bool)
+    stay = np.diag(p1)  # (j2,)
+    move = np.where(eye, 0.0, p1)  # (j2, j1), j1 != j2
+    w = move[None, :, :] * p2[:, None, :]  # (j3, j2, j1)
+    z = w.sum(axis=2, keepdims=True)
+    directed = np.where(z > 0, (1.0 - stay)[None, :, None] * w / np.where(z > 0, z, 1.0), move[None, :, :])
+    t = np.where(eye[:, :, None], move[None, :, :], directed)  # j3 == j2: first order
+    t = np.where(eye[None, :, :], stay[None, :, None] * np.ones((n, 1, 1)), t)  # j1 == j2: stay
+    return log_safe(t)
+
+
+def max_independent(nodes_on: np.ndarray, adj: np.ndarray, cache: dict) -> int:
+    """Size of a maximum set of active nodes pairwise >= 2 hops apart (exact)."""
+    key = tuple(nodes_on.tolist())
+    if len(key) <= 1:
+        return len(key)
+    if key not in cache:
+        sub = adj[np.ix_(nodes_on, nodes_on)]
+        comp = nx.from_numpy_array((~sub & ~np.eye(len(key), dtype=bool)).astype(int))
+        cache[key] = len(nx.max_weight_clique(comp, weight=None)[0])
+    return cache[key]
+
+
+def motion_components(obs: np.ndarray, hops: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Space-time components of the activations of a window: (slot, node, label) arrays."""
+    t, j = np.nonzero(obs)
+    if t.size == 0:
+        return t, j, t
+    near = (np.abs(t[:, None] - t[None, :]) <= 1) & (hops[j[:, None], j[None, :]] <= 1)
+    r, c = np.nonzero(near)
+    _, lab = connected_components(coo_matrix((np.ones(r.size), (r, c)), shape=(t.size, t.size)), directed=False)
+    return t, j, lab
+
+
+# --------------------------------------------------------------------------- decoding users
+
+
+def emission_gain(on: np.ndarray, claims: np.ndarray, p_hit: float, p_false: float) -> np.ndarray:
+    """(L, S) log-likelihood change of putting one more user at each state (module docstring, 4)."""
+    c = claims.astype(float)
+    p_on_c = np.where(c > 0, 1.0 - (1.0 - p_hit) ** c, p_false)
+    p_on_c1 = 1.0 - (1.0 - p_hit) ** (c + 1.0)
+    gain_on = np.log(p_on_c1 / p_on_c)
+    gain_off = np.where(c > 0, np.log1p(-p_hit), np.log((1.0 - p_hit) / (1.0 - p_false)))
+    return np.where(on, gain_on, gain_off)
+
+
+@dataclass
+class _User:
+    uid: int
+    start: int  # first slot (absolute) of the user
+    entry_node: int = -1  # node to start at (entry signature), -1 = uniform
+
+
+def decode_users(
+    obs: np.ndarray,
+    states: np.ndarray,
+    prefixes: list[list[int]],
+    starts: list[int],
+    entry_nodes: list[int],
+    *,
+    order: int,
+    eatg: Eatg,
+    params: DecoderParams,
+) -> np.ndarray:
+    """Decode ``K`` users on one window by explain-away coordinate ascent (module docstring).
+
+    obs : (L, N) bool activity of the window; states : (S,) node indices of the state set.
+    prefixes : per user, the last accepted nodes (0-2 of them) clamped before slot 0.
+    starts : per user, the window slot it appears at (0 for known users).
+    Returns (K, L) node indices, -1 before a user's start.
+    """
+    k = len(prefixes)
+    n_slots = obs.shape[0]
+    out = np.full((k, n_slots), -1, dtype=np.int64)
+    if k == 0 or n_slots == 0:
+        return out
+    s = len(states)
+    pos = {int(v): i for i, v in enumerate(states)}
+    on = obs[:, states]  # (L, S)
+    p, f = params.p_hit, params.p_false
+    log_a1 = restricted_first(eatg.a1, states)
+    log_a2 = second_order_tensor(eatg.a1, eatg.a2, states) if order == 2 else None
+    claims = np.zeros((n_slots, s), dtype=np.int64)
+    decoded = np.full((k, n_slots), -1, dtype=np.int64)  # state positions
+    for _ in range(max(params.sweeps, 1)):
+        for u in range(k):
+            st = starts[u]
+            if st >= n_slots:
+                continue
+            mine = decoded[u]
+            have = mine >= 0
+            claims[np.flatnonzero(have), mine[have]] -= 1
+            emis = emission_gain(on[st:], claims[st:], p, f)
+            pre = [pos[p] for p in prefixes[u]]
+            clamp = np.full((len(pre), s), -np.inf)
+            clamp[np.arange(len(pre)), pre] = 0.0
+            log_b = np.vstack([clamp, emis])
+            log_pi = np.zeros(s)
+            if not pre and entry_nodes[u] >= 0:
+                log_pi = np.full(s, -np.inf)
+                log_pi[pos[entry_nodes[u]]] = 0.0
+            if order == 2:
+                path, _ = viterbi_second_order(log_pi, log_a1, log_a2, log_b)
+            else:
+                path, _ = viterbi_first_order(log_pi, log_a1, log_b)
+            path = path[len(pre):]
+            decoded[u] = -1
+            decoded[u, st:] = path
+            claims[np.arange(st, n_slots), path] += 1
+    have = decoded >= 0
+    out[have] = states[decoded[have]]
+    return out
+
+
+# --------------------------------------------------------------------------- the run
+
+
+def decode_run(
+    active: np.ndarray,
+    eatg: Eatg,
+    *,
+    signatures: list[tuple[int, int]] = (),
+    params: DecoderParams = DecoderParams(),
+) -> DecodeResult:
+    """Decode every user's node path from slot activity ``active`` (D, N) bool."""
+    t_start = time.perf_counter()
+    active = np.asarray(active, bool)
+    n_slots, n = active.shape
+    hops = eatg.hops
+    adj = hops == 1
+    mis_cache: dict = {}
+    ons = onsets(active)
+    users: list[_User] = []
+    rows: list[np.ndarray] = []  # per user, full-length path
+    alive: list[int] = []  # indices into users of present users
+    windows: list[dict] = []
+    d_max = n_slots if params.offline else params.d_max
+    tau = n_slots if params.offline else params.tau
+    s = 0
+    while s < n_slots:
+        e = min(s + d_max, n_slots)
+        acc = e if e == n_slots else min(s + tau, n_slots)
+        obs = active[s:e]
+        k_now = max((max_independent(np.flatnonzero(row), adj, mis_cache) for row in obs), default=0)
+        last = {u: _last_nodes(rows[u], s) for u in alive}
+        # entry signatures: onset at outer, then inner active later in the window, nobody near outer
+        entries = []
+        for outer, inner in signatures:
+            for t in np.flatnonzero(ons[s:e, outer]):
+                if not obs[t:, inner].any():
+                    continue
+                if any(hops[outer, lst[-1]] <= 1 for lst in last.values() if lst):
+                    continue
+                if any(hops[outer, rows[u][s + t - 1]] <= 1 for u in alive if s + t - 1 >= 0 and rows[u][s + t - 1] >= 0):
+                    continue
+                entries.append((t, outer))
+        entries = sorted({(t, o) for t, o in entries})  # one entry per onset, whatever the signature
+        k_pre = len(alive)
+        k = max(k_pre + len(entries), k_now)
+        new = []
+        for i in range(k - k_pre):
+            t0, node = entries[i] if i < len(entries) else (0, -1)
+            users.append(_User(len(users), s + t0, node))
+            rows.append(np.full(n_slots, -1, dtype=np.int64))
+            new.append(len(users) - 1)
+        cur = alive + new
+        prefixes = [last.get(u, []) for u in cur]
+        starts = [max(0, users[u].start - s) for u in cur]
+        entry_nodes = [users[u].entry_node for u in cur]
+        if not obs.any():
+            # no motion at all: every known user stays where it was
+            paths = np.array([[p[-1] if p else -1] * (e - s) for p in prefixes], dtype=np.int64).reshape(len(cur), e - s)
+            info = dict(order=0, states=0, overlap=False)
+        elif params.mode == "adaptive":
+            paths, info = _adaptive_window(obs, prefixes, starts, entry_nodes, eatg, params)
+        else:
+            order = 1 if params.mode == "full1" else 2
+            paths = decode_users(obs, np.arange(n), prefixes, starts, entry_nodes, order=order, eatg=eatg, params=params)
+            info = dict(order=order, states=n, overlap=None)
+        gone = []
+        for i, u in enumerate(cur):
+            rows[u][s:acc] = np.where(np.arange(s, acc) >= users[u].start, paths[i, : acc - s], -1)
+            if _exits(rows[u][:acc], active[acc:e], signatures):
+                gone.append(u)
+        alive = [u for u in cur if u not in gone]
+        windows.append(dict(slot=s, k=k, k_now=k_now, sig_in=len(entries), sig_out=len(gone), **info))
+        s = acc
+    paths = np.array(rows, dtype=np.int64).reshape(len(rows), n_slots)
+    return DecodeResult(paths, windows, time.perf_counter() - t_start)
+
+
+def _last_nodes(row: np.ndarray, s: int) -> list[int]:
+    if s == 0 or row[s - 1] < 0:
+        return []
+    if s >= 2 and row[s - 2] >= 0:
+        return [int(row[s - 2]), int(row[s - 1])]
+    return [int(row[s - 1])]
+
+
+def _exits(row: np.ndarray, after: np.ndarray, signatures) -> bool:
+    """The path ends ``inner -> outer`` of an exit signature and ``outer`` is silent after."""
+    valid = row[row >= 0]
+    if valid.size < 2:
+        return False
+    end = valid[-1]
+    moved = valid[valid != end]
+    if moved.size == 0:
+        return False
+    for outer, inner in signatures:
+        if end == outer and moved[-1] == inner and not after[:, outer].any():
+            return True
+    return False
+
+
+def _adaptive_window(obs, prefixes, starts, entry_nodes, eatg: Eatg, params: DecoderParams):
+    """Algorithm 3: fork first-order HMMs on non-overlapping motion, else one second-order HMM."""
+    hops = eatg.hops
+    adj = hops == 1
+    t, j, lab = motion_components(obs, hops)
+    n_comp = int(lab.max()) + 1 if lab.size else 0
+    comp_nodes = [np.unique(j[lab == c]) for c in range(n_comp)]
+    multi = False
+    for c in range(n_comp):
+        tc, jc = t[lab == c], j[lab == c]
+        for tt in np.unique(tc):
+            if max_independent(np.unique(jc[tc == tt]), adj, {}) >= 2:
+                multi = True
+                break
+    k = len(prefixes)
+    # users near components: last node (or entry node) within 2 hops of the component's nodes
+    anchor = [p[-1] if p else entry_nodes[i] for i, p in enumerate(prefixes)]
+    near = np.zeros((k, n_comp), bool)
+    for i, a in enumerate(anchor):
+        if a >= 0:
+            near[i] = [hops[a, cn].min() <= 2 for cn in comp_nodes]
+    overlap = multi or (near.sum(axis=0) > 1).any() or (near.sum(axis=1) > 1).any()
+    active_nodes = np.unique(j)
+    if overlap:
+        keep = np.unique(np.concatenate([active_nodes, [a for a in anchor if a >= 0], *[p for p in prefixes if p]]).astype(np.int64))
+        states = np.flatnonzero((hops[keep] <= 2).any(axis=0))
+        paths = decode_users(obs, states, prefixes, starts, entry_nodes, order=2, eatg=eatg, params=params)
+        return paths, dict(order=2, states=len(states), overlap=True)
+    paths = np.full((k, obs.shape[0]), -1, dtype=np.int64)
+    # pair users with components (each user near at most one component, each component near at most one user)
+    free_users = [i for i in range(k) if not near[i].any()]
+    free_comps = [c for c in range(n_comp) if not near[:, c].any()]
+    pairs = [(i, int(np.flatnonzero(near[i])[0])) for i in range(k) if near[i].any()]
+    if free_users and free_comps:  # users without a nearby component (new, uniform start) take the rest
+        cost = np.array([[0.0 if anchor[i] < 0 else hops[anchor[i], comp_nodes[c]].min() for c in free_comps] for i in free_users])
+        r, cc = linear_sum_assignment(cost)
+        pairs += [(free_users[a], free_comps[b]) for a, b in zip(r, cc)]
+    paired = {i for i, _ in pairs}
+    states_total = 0
+    for i, c in pairs:
+        mask = np.zeros_like(obs)
+        sel = lab == c
+        mask[t[sel], j[sel]] = True
+        keep = np.unique(np.concatenate([comp_nodes[c], [n for n in prefixes[i]], [anchor[i]] if anchor[i] >= 0 else []]).astype(np.int64))
+        states = np.flatnonzero((hops[keep] <= 1).any(axis=0))
+        states_total += len(states)
+        paths[i] = decode_users(mask, states, [prefixes[i]], [starts[i]], [entry_nodes[i]], order=1, eatg=eatg, params=params)[0]
+    for i in range(k):
+        if i not in paired:  # no motion near this user: it stays (or, new without motion, waits)
+            if prefixes[i]:
+                paths[i, starts[i]:] = prefixes[i][-1]
+            elif entry_nodes[i] >= 0:
+                paths[i, starts[i]:] = entry_nodes[i]
+    return paths, dict(order=1, states=states_total, overlap=False)

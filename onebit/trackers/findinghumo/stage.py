@@ -1,0 +1,222 @@
+"""Stages ``findinghumo`` (Adaptive-HMM + CPDA) and the baselines ``hmm1`` / ``hmm2``.
+
+``findinghumo`` (paper Algorithm 1): slot the motion log at ``period`` T, learn the EATG,
+decode the users window by window with the Adaptive-HMM (first order on non-overlapping
+motion over the active nodes and their 1-hop neighbours, second order over up to 2-hop
+neighbours on overlapping motion), then disambiguate crossovers with CPDA over the last ``C``
+windows. ``hmm1`` / ``hmm2`` (section IV-B): full-state first / second-order HMMs decoded
+online on the same windows (or ``offline = true``: one window over the whole run), no CPDA.
+
+Outputs (tables ``<tracker>_<key>``): ``tracks`` (TRACKS; one row per user and slot at the
+slot's mid time, ``node`` and its x/y), ``eatg`` (kind, src, dst, weight, hops), ``windows``
+(per HMM window: slot, K, K_now, Sig_in, Sig_out, order, states, overlap), ``decoder``
+(slots, seconds), and for ``findinghumo`` ``switches`` (CPDA switches: slot, node, users,
+pairing).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import polars as pl
+
+from onebit.datasets.site import Site
+from onebit.tables import MOTION, TRACKS, check_schema, conform
+from onebit.trackers.base import TrackerSpec, check_choice, check_range, register
+from onebit.trackers.findinghumo.adaptive import DecoderParams, decode_run
+from onebit.trackers.findinghumo.cpda import SWITCHES, cpda, switches_table
+from onebit.trackers.findinghumo.eatg import Eatg, hop_matrix, layout_eatg, trained_eatg
+
+
+@dataclass(frozen=True, kw_only=True)
+class HmmConfig:
+    """Shared configuration of the HMM trackers (``run.toml`` sections ``[findinghumo]``,
+    ``[hmm1]``, ``[hmm2]``); defaults are the paper's (section IV-A).
+
+    period : length T of a unit timeslot (s).
+    d_max : HMM window length in slots (d_max T = 5 s).
+    tau : acceptance threshold: the first ``tau`` slots of a window are kept, the next window
+        starts there (the paper does not give a value).
+    eatg : ``"trained"`` -- A', A'' learned from the run's own motion data (eqs. 1, 2),
+        smoothed with the layout -- or ``"layout"`` (physical layout only).
+    stay : layout prior probability of staying at a node for one slot.
+    turn_back : layout prior probability of turning back after one hop.
+    prior_strength : pseudo-counts of the layout prior per row of the trained EATG.
+    p_hit : probability that the node a user is at is seen active in a slot.
+    p_false : probability that a node nobody is at is seen active in a slot.
+    sweeps : explain-away sweeps over the users per window (coordinate ascent).
+    offline : decode the whole run as one window (the paper's offline baselines).
+    """
+
+    period: float = 1.0
+    d_max: int = 5
+    tau: int = 3
+    eatg: str = "trained"
+    stay: float = 0.6
+    turn_back: float = 0.05
+    prior_strength: float = 2.0
+    p_hit: float = 0.9
+    p_false: float = 0.05
+    sweeps: int = 3
+    offline: bool = False
+
+    def __post_init__(self) -> None:
+        check_range(self, "period", 1e-3, None)
+        check_range(self, "d_max", 1, 1000, types=(int,))
+        check_range(self, "tau", 1, self.d_max if isinstance(self.d_max, int) else None, types=(int,))
+        check_choice(self, "eatg", ("trained", "layout"))
+        check_range(self, "stay", 0.0, 0.999)
+        check_range(self, "turn_back", 0.0, 1.0)
+        check_range(self, "prior_strength", 0.0, None)
+        check_range(self, "p_hit", 0.5, 0.999)
+        check_range(self, "p_false", 1e-6, 0.5)
+        check_range(self, "sweeps", 1, 20, types=(int,))
+        check_choice(self, "offline", (False, True))
+
+
+@dataclass(frozen=True, kw_only=True)
+class FindingHumoConfig(HmmConfig):
+    """``[findinghumo]``: the shared HMM options plus CPDA's.
+
+    c_windows : C, the number of HMM windows CPDA looks back and ahead over (paper example: 2).
+    cpda_passes : maximum number of CPDA passes ("repeat until stable").
+    """
+
+    c_windows: int = 2
+    cpda_passes: int = 5
+
+    def __post_init__(self) -> None:
+        super().__post_init__()
+        check_range(self, "c_windows", 1, 1000, types=(int,))
+        check_range(self, "cpda_passes", 1, 100, types=(int,))
+
+
+def _available(site: Site) -> str | None:
+    if not site.motion_sensors:
+        return "site has no motion sensors"
+    if site.sensor_graph is None or not site.sensor_graph.edges:
+        return "site has no [sensor_graph] with edges"
+    return None
+
+
+def slot_activity(motion: pl.DataFrame, nodes: tuple[str, ...], period: float) -> tuple[np.ndarray, float]:
+    """(D, N) bool activity per slot and node (``motion_frames`` at ``period``), and ``t0``."""
+    from onebit.readers.motion import motion_frames
+
+    frames = motion_frames(motion, list(nodes), period=period)
+    if frames.height == 0:
+        return np.zeros((0, len(nodes)), bool), 0.0
+    n = len(nodes)
+    return frames["on"].to_numpy().reshape(-1, n), float(frames["t"].min())
+
+
+def build_eatg(site: Site, active: np.ndarray, cfg: HmmConfig) -> Eatg:
+    g = site.sensor_graph
+    hops = hop_matrix(g.nodes, g.edges)
+    if cfg.eatg == "layout" or active.shape[0] < 2:
+        return layout_eatg(g.nodes, hops, stay=cfg.stay, turn_back=cfg.turn_back)
+    return trained_eatg(
+        active, g.nodes, hops, horizon=cfg.d_max, prior_strength=cfg.prior_strength, stay=cfg.stay, turn_back=cfg.turn_back
+    )
+
+
+def _run(name: str, mode: str, inputs: dict, site: Site, cfg: HmmConfig, log) -> dict[str, pl.DataFrame]:
+    motion = check_schema(inputs["motion"], MOTION, name="motion")
+    g = site.sensor_graph
+    nodes = g.nodes
+    active, t0 = slot_activity(motion, nodes, cfg.period)
+    eatg = build_eatg(site, active, cfg)
+    idx = eatg.index
+    sigs = [(idx[a], idx[b]) for a, b in g.signatures if a in idx and b in idx]
+    params = DecoderParams(
+        mode=mode, d_max=cfg.d_max, tau=cfg.tau, p_hit=cfg.p_hit, p_false=cfg.p_false, sweeps=cfg.sweeps, offline=cfg.offline
+    )
+    res = decode_run(active, eatg, signatures=sigs, params=params)
+    paths = res.paths
+    seconds = res.seconds
+    out: dict[str, pl.DataFrame] = {}
+    if isinstance(cfg, FindingHumoConfig):
+        import time
+
+        t_c = time.perf_counter()
+        feature = np.isin(np.asarray(nodes), list(g.entries) + list(g.exits))
+        cp = cpda(paths, eatg.a2, horizon=cfg.c_windows * cfg.d_max, feature=feature, hops=eatg.hops, max_passes=cfg.cpda_passes)
+        seconds += time.perf_counter() - t_c
+        out["decoded_hmm"] = _tracks(name, res.paths, nodes, site, t0, cfg.period).drop("tracker")
+        paths = cp.paths
+        out["switches"] = switches_table(cp, nodes)
+    tracks = _tracks(name, paths, nodes, site, t0, cfg.period)
+    out["tracks"] = tracks
+    out["eatg"] = eatg.table()
+    out["windows"] = pl.DataFrame(res.windows) if res.windows else pl.DataFrame()
+    out["decoder"] = pl.DataFrame({"slots": [int(active.shape[0])], "seconds": [seconds], "users": [int(paths.shape[0])]})
+    if log is not None:
+        from onebit.viz import findinghumo as viz
+
+        log.emit(viz.log_eatg, name, eatg, site)
+        log.emit(viz.log_activations, name, active, site, nodes, t0, cfg.period)
+        log.emit(viz.log_decoded, name, tracks)
+        if "switches" in out:
+            log.emit(viz.log_switches, name, out["switches"], site, nodes, t0, cfg.period)
+    return out
+
+
+def _tracks(name: str, paths: np.ndarray, nodes, site: Site, t0: float, period: float) -> pl.DataFrame:
+    u, s = np.nonzero(paths >= 0)
+    pos = {m.id: m.position for m in site.motion_sensors}
+    xy = np.array([pos[n] for n in nodes]).reshape(-1, 2)
+    k = paths[u, s]
+    df = pl.DataFrame(
+        {
+            "tracker": name,
+            "track": [f"user{i + 1}" for i in u.tolist()],
+            "t": t0 + (s + 0.5) * period,
+            "x": xy[k, 0] if k.size else np.zeros(0),
+            "y": xy[k, 1] if k.size else np.zeros(0),
+            "node": np.asarray(nodes, dtype=object)[k].tolist(),
+        },
+        schema_overrides={"track": pl.String, "node": pl.String, "tracker": pl.String},
+    )
+    return conform(df, TRACKS).sort(["t", "track"])
+
+
+def run_findinghumo(inputs, site, config: FindingHumoConfig, log=None):
+    """FindingHuMo: Adaptive-HMM + CPDA (module docstring)."""
+    return _run("findinghumo", "adaptive", inputs, site, config, log)
+
+
+def run_hmm1(inputs, site, config: HmmConfig, log=None):
+    """Full-state first-order HMM baseline (online windows, or offline)."""
+    return _run("hmm1", "full1", inputs, site, config, log)
+
+
+def run_hmm2(inputs, site, config: HmmConfig, log=None):
+    """Full-state second-order HMM baseline (online windows, or offline)."""
+    return _run("hmm2", "full2", inputs, site, config, log)
+
+
+def _scorer(name: str):
+    def score(tables: dict, site: Site, log):
+        from onebit.trackers.findinghumo.scoring import hop_scores
+
+        return hop_scores(name, tables, site, log)
+
+    return score
+
+
+SPECS = [
+    register(TrackerSpec(
+        name="findinghumo", needs=("motion",), config=FindingHumoConfig, run=run_findinghumo,
+        score=_scorer("findinghumo"), available=_available,
+        help="FindingHuMo (De et al.): Adaptive-HMM on a PIR sensor graph + CPDA path disambiguation",
+    )),
+    register(TrackerSpec(
+        name="hmm1", needs=("motion",), config=HmmConfig, run=run_hmm1, score=_scorer("hmm1"), available=_available,
+        help="baseline: full-state first-order HMM on the PIR sensor graph (FindingHuMo section IV-B)",
+    )),
+    register(TrackerSpec(
+        name="hmm2", needs=("motion",), config=HmmConfig, run=run_hmm2, score=_scorer("hmm2"), available=_available,
+        help="baseline: full-state second-order HMM on the PIR sensor graph (FindingHuMo section IV-B)",
+    )),
+]

@@ -1,0 +1,298 @@
+"""Trackers ``intruder`` (the SIR particle filter) and ``intruder-naive`` (the room centre).
+
+Input: the ``motion`` table (accepted PIR edges). The tracker slots it at its own period
+``t_P`` (:func:`onebit.readers.motion.motion_frames`), takes S_i = ``fired`` and the
+refractory state B_i from :func:`onebit.readers.motion.refractory_state` with each sensor's
+``refractory`` (f_i) from ``site.toml``, and estimates the intruder's cell at the end of every
+iteration (``t = start + (k + 1) t_P``). Lengths in the config are in **cells** (the paper's
+units) and converted to world units with ``cell`` (world units per cell).
+
+Outputs: ``tracks`` (one track ``intruder``), ``iterations`` (per iteration: ESS, redraws,
+clamped particles, spread, fired and blind sensor counts, ``cell``), ``coverage`` (the
+deployed grid q_ij of every sensor: sensor, ix, iy, x, y, p_detect).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import polars as pl
+from scipy.optimize import linear_sum_assignment
+
+from onebit.datasets.site import Site
+from onebit.errors import ConfigError
+from onebit.readers.motion import motion_frames, refractory_state
+from onebit.tables import SCORES, TRACKS, check_schema, conform, MOTION
+from onebit.trackers.base import TrackerSpec, check_choice, check_range, register
+from onebit.trackers.intruder.filter import Motion, Room, run_filter
+from onebit.trackers.intruder.sensors import Deployment, deploy
+
+NAME = "intruder"
+NAIVE = "intruder-naive"
+
+
+@dataclass(frozen=True, kw_only=True)
+class IntruderConfig:
+    """``run.toml`` ``[intruder]``; defaults are the paper's simulation values (section VIII)."""
+
+    particles: int = 1000  #: number of particles
+    period: float = 2.0  #: t_P, seconds per iteration
+    v_max: float = 4.0  #: maximum speed, cells/s
+    speed_sigma: float = 1.5  #: std of the Gaussian added to the speed, cells/s
+    turn_scale: float = 1.0  #: sigma_theta = turn_scale / speed (rad * cells/s), capped at pi
+    box_width: float = 2.0  #: intruder bounding prism width (x), cells
+    box_depth: float = 2.0  #: intruder bounding prism depth (y), cells
+    cell: float = 1.0  #: world units per cell
+    resample: str = "systematic"  #: systematic | multinomial
+    resample_when: str = "always"  #: always (SIR) | ess (when ESS < ess_threshold * particles)
+    ess_threshold: float = 0.5  #: fraction of particles, for resample_when = "ess"
+    max_retries: int = 50  #: rejection-sampling rounds before a particle is left in place
+    seed: int = 0  #: random seed
+    start: float = 0.0  #: time the intruder enters (s); iteration k ends at start + (k+1) t_P
+    end: float | None = None  #: time it leaves (s); None = the slot of the last edge
+    log_particles: int = 1000  #: particles per iteration sent to Rerun
+    box_height: float = 1.0  #: intruder bounding prism height, cells (for camera pointing)
+    camera_position: list[float] | None = None  #: [x, y, z] of the pan-tilt-zoom camera (world units); None = no camera table
+    camera_fov: float = 60.0  #: horizontal field of view of the camera at zoom 1, degrees
+    camera_aspect: float = 4.0 / 3.0  #: image width / height
+
+    def __post_init__(self) -> None:
+        check_range(self, "particles", 1, None, types=(int,))
+        check_range(self, "period", 1e-6, None)
+        check_range(self, "v_max", 0.0, None)
+        check_range(self, "speed_sigma", 0.0, None)
+        check_range(self, "turn_scale", 0.0, None)
+        check_range(self, "box_width", 1e-6, None)
+        check_range(self, "box_depth", 1e-6, None)
+        check_range(self, "cell", 1e-9, None)
+        check_choice(self, "resample", ("systematic", "multinomial"))
+        check_choice(self, "resample_when", ("always", "ess"))
+        check_range(self, "ess_threshold", 0.0, 1.0)
+        check_range(self, "max_retries", 1, None, types=(int,))
+        check_range(self, "seed", 0, None, types=(int,))
+        check_range(self, "start", None, None)
+        if self.end is not None:
+            check_range(self, "end", self.start, None)
+        check_range(self, "log_particles", 0, None, types=(int,))
+        check_range(self, "box_height", 1e-6, None)
+        check_range(self, "camera_fov", 1e-3, 179.0)
+        check_range(self, "camera_aspect", 1e-3, None)
+        cp = self.camera_position
+        if cp is not None and not (
+            isinstance(cp, (list, tuple)) and len(cp) == 3
+            and all(isinstance(v, (int, float)) and not isinstance(v, bool) and np.isfinite(v) for v in cp)
+        ):  # fmt: skip
+            raise ConfigError(f"IntruderConfig.camera_position = {cp!r}; expected [x, y, z] (3 finite numbers)")
+
+
+@dataclass(frozen=True, kw_only=True)
+class NaiveConfig:
+    """``run.toml`` ``[intruder-naive]``: the baseline reports the room centre every iteration."""
+
+    period: float = 2.0  #: t_P, seconds per iteration
+    cell: float = 1.0  #: world units per cell (for the error in cells)
+    start: float = 0.0  #: time the intruder enters (s)
+    end: float | None = None  #: time it leaves (s); None = the slot of the last edge
+
+    def __post_init__(self) -> None:
+        check_range(self, "period", 1e-6, None)
+        check_range(self, "cell", 1e-9, None)
+        check_range(self, "start", None, None)
+        if self.end is not None:
+            check_range(self, "end", self.start, None)
+
+
+def available(site: Site) -> str | None:
+    return None if site.motion_sensors else "site has no motion sensors"
+
+
+def observations(motion: pl.DataFrame, site: Site, *, period: float, start: float, end: float | None):
+    """``(fired, blind, t_end)``: ``(T, n)`` S_i and B_i per iteration and each iteration's end time."""
+    ids = [m.id for m in site.motion_sensors]
+    motion = motion.filter(pl.col("t") >= start)
+    frames = motion_frames(motion, ids, period=period, t0=start, t1=end)
+    if frames.height == 0:
+        return np.zeros((0, len(ids)), bool), np.zeros((0, len(ids)), bool), np.zeros(0)
+    st = refractory_state(frames, {m.id: m.refractory for m in site.motion_sensors}, period=period)
+    order = pl.DataFrame({"sensor": ids, "_k": list(range(len(ids)))}, schema={"sensor": pl.String, "_k": pl.Int64})
+    st = st.join(order, on="sensor").sort(["slot", "_k"])
+    T = st["slot"].n_unique()
+    fired = st["fired"].to_numpy().reshape(T, len(ids))
+    blind = st["blind"].to_numpy().reshape(T, len(ids))
+    t_end = start + (np.arange(T) + 1) * period
+    return fired, blind, t_end
+
+
+def coverage_table(dep: Deployment) -> pl.DataFrame:
+    """The deployed grids q_ij as a long table (non-zero cells only)."""
+    n, ny, nx = dep.q.shape
+    s, iy, ix = np.nonzero(dep.q)
+    g = dep.grid
+    return pl.DataFrame(
+        {
+            "sensor": pl.Series(np.asarray(dep.ids, dtype=object)[s].tolist() if n else [], dtype=pl.String),
+            "ix": ix.astype(np.int64),
+            "iy": iy.astype(np.int64),
+            "x": g.x0 + (ix + 0.5) * g.cell,
+            "y": g.y0 + (iy + 0.5) * g.cell,
+            "p_detect": dep.q[s, iy, ix],
+        }
+    )
+
+
+def track_frame(tracker: str, t: np.ndarray, xy: np.ndarray) -> pl.DataFrame:
+    return conform(
+        pl.DataFrame({"tracker": tracker, "track": tracker, "t": t, "x": xy[:, 0], "y": xy[:, 1]}).with_columns(
+            pl.col("tracker").cast(pl.String)
+        ),
+        TRACKS,
+    )
+
+
+def run(inputs: dict, site: Site, config: IntruderConfig, log=None) -> dict[str, pl.DataFrame]:
+    """The ``intruder`` stage: PIR edges -> the SIR filter's estimated cell per iteration."""
+    motion = check_schema(inputs["motion"], MOTION, name="motion")
+    c = config.cell
+    dep = deploy(site, c)
+    fired, blind, t_end = observations(motion, site, period=config.period, start=config.start, end=config.end)
+    room = Room(site.free_space)
+    mot = Motion(config.period, config.v_max * c, config.speed_sigma * c, config.turn_scale * c, config.max_retries)
+    res = run_filter(
+        fired, blind, dep, room, mot,
+        n_particles=config.particles, half_w=config.box_width * c / 2, half_d=config.box_depth * c / 2,
+        rng=np.random.default_rng(config.seed), resample=config.resample, resample_when=config.resample_when,
+        ess_threshold=config.ess_threshold, log_particles=config.log_particles,
+    )  # fmt: skip
+    tracks = track_frame(NAME, t_end, res.estimates)
+    iterations = pl.DataFrame(
+        {
+            "t": t_end,
+            "ess": res.ess,
+            "redraws": res.redraws,
+            "clamped": res.clamped,
+            "resampled": res.resampled,
+            "spread": res.spread,
+            "fired": fired.sum(axis=1).astype(np.int64),
+            "blind": blind.sum(axis=1).astype(np.int64),
+            "cell": np.full(len(t_end), c),
+        }
+    )
+    coverage = coverage_table(dep)
+    extra = {}
+    if config.camera_position is not None:
+        from onebit.trackers.intruder.camera import pan_tilt_zoom
+
+        ptz = pan_tilt_zoom(
+            res.estimates, tuple(config.camera_position), width=config.box_width * c, depth=config.box_depth * c,
+            height=config.box_height * c, fov_deg=config.camera_fov, aspect=config.camera_aspect,
+        )  # fmt: skip
+        extra["camera"] = pl.DataFrame({"t": t_end, "pan": ptz[:, 0], "tilt": ptz[:, 1], "zoom": ptz[:, 2]})
+    if log is not None:
+        from onebit.viz import intruder as viz
+
+        log.emit(viz.log_coverage, dep)
+        log.emit(viz.log_sensor_states, NAME, dep, t_end, fired, blind)
+        log.emit(viz.log_particles, NAME, t_end, res.logged_xy, res.logged_w)
+        log.emit(viz.log_estimate, NAME, t_end, res.estimates, config.box_width * c, config.box_depth * c)
+        if "camera" in extra:
+            log.emit(viz.log_camera_cone, NAME, tuple(config.camera_position), t_end, res.estimates, extra["camera"], config.camera_fov)
+        log.point_tracks(NAME, tracks)
+    return {"tracks": tracks, "iterations": iterations, "coverage": coverage, **extra}
+
+
+def run_naive(inputs: dict, site: Site, config: NaiveConfig, log=None) -> dict[str, pl.DataFrame]:
+    """The ``intruder-naive`` stage: the intruder is always at the centre of the room."""
+    motion = check_schema(inputs["motion"], MOTION, name="motion")
+    _, _, t_end = observations(motion, site, period=config.period, start=config.start, end=config.end)
+    centre = site.boundary.centroid
+    xy = np.tile([centre.x, centre.y], (len(t_end), 1)).reshape(-1, 2)
+    tracks = track_frame(NAIVE, t_end, xy)
+    if log is not None:
+        log.point_tracks(NAIVE, tracks)
+    return {"tracks": tracks, "iterations": pl.DataFrame({"t": t_end, "cell": np.full(len(t_end), config.cell)})}
+
+
+# --------------------------------------------------------------------------- scoring
+
+
+def match_errors(tracks: pl.DataFrame, truth: pl.DataFrame, *, tolerance: float) -> pl.DataFrame:
+    """Per-sample error of every track against the target it is matched to (SCORES).
+
+    Each track sample is paired with each target's truth sample nearest in time (within
+    ``tolerance`` s); tracks and targets are matched one-to-one by minimum mean error
+    (``scipy.optimize.linear_sum_assignment``).
+    """
+    if tracks.height == 0 or truth.height == 0:
+        return pl.DataFrame(schema=SCORES)
+    tr = tracks.select("tracker", "track", "t", "x", "y").drop_nulls(["x", "y"]).sort("t")
+    tracks_ids = tr["track"].unique().sort().to_list()
+    targets = truth["target"].unique().sort().to_list()
+    pairs = []
+    for tg in targets:  # loop over targets (few), each a vectorised as-of join
+        g = truth.filter(pl.col("target") == tg).select("t", "target", pl.col("x").alias("tx"), pl.col("y").alias("ty")).sort("t")
+        j = tr.join_asof(g, on="t", strategy="nearest", tolerance=tolerance).drop_nulls("tx")
+        pairs.append(j.with_columns(error=((pl.col("x") - pl.col("tx")) ** 2 + (pl.col("y") - pl.col("ty")) ** 2).sqrt()))
+    allp = pl.concat(pairs) if pairs else pl.DataFrame()
+    if allp.height == 0:
+        return pl.DataFrame(schema=SCORES)
+    mean = allp.group_by("track", "target").agg(pl.col("error").mean())
+    cost = np.full((len(tracks_ids), len(targets)), 1e18)
+    ti = {k: i for i, k in enumerate(tracks_ids)}
+    gi = {k: i for i, k in enumerate(targets)}
+    for r in mean.iter_rows(named=True):  # (tracks x targets) entries, not samples
+        cost[ti[r["track"]], gi[r["target"]]] = r["error"]
+    rows, cols = linear_sum_assignment(cost)
+    keep = pl.DataFrame(
+        {"track": [tracks_ids[r] for r in rows], "target": [targets[c] for c in cols]},
+        schema={"track": pl.String, "target": pl.String},
+    )
+    out = allp.join(keep, on=["track", "target"]).sort("t")
+    return conform(out, SCORES)
+
+
+def error_rows(scores: pl.DataFrame, *, stage: str, cell: float) -> list[tuple[str, str, float, str]]:
+    """Mean, median, p90 error in cells and the fraction within 1, 2, 3, 4 cells."""
+    if scores.height == 0:
+        return []
+    e = scores["error"] / cell
+    rows = [
+        (stage, "mean_error_cells", float(e.mean()), "cells"),
+        (stage, "median_error_cells", float(e.median()), "cells"),
+        (stage, "p90_error_cells", float(e.quantile(0.9, "linear")), "cells"),
+    ]
+    rows += [(stage, f"within_{k}", float((e <= k).mean()), "fraction") for k in (1, 2, 3, 4)]
+    rows.append((stage, "scored_iterations", float(scores.height), "iterations"))
+    return rows
+
+
+def make_score(name: str):
+    def score(tables: dict, site: Site, log=None):
+        tracks = tables.get(f"{name}_tracks")
+        truth = tables.get("truth")
+        if tracks is None or truth is None:
+            return [], {}
+        it = tables.get(f"{name}_iterations")
+        cell = float(it["cell"][0]) if it is not None and it.height else 1.0
+        t = tracks["t"].sort().to_numpy()
+        tol = float(np.median(np.diff(t))) / 2 if len(t) > 1 else 1.0
+        sc = match_errors(tracks, truth, tolerance=tol)
+        if log is not None:
+            log.scores(name, sc)
+        return error_rows(sc, stage=name, cell=cell), {f"{name}_scores": sc}
+
+    return score
+
+
+SPEC = register(
+    TrackerSpec(
+        name=NAME, needs=("motion",), config=IntruderConfig, run=run, score=make_score(NAME), available=available,
+        help="SIR particle filter over PIR firings with refractory periods (Schiff & Goldberg)",
+    )
+)  # fmt: skip
+NAIVE_SPEC = register(
+    TrackerSpec(
+        name=NAIVE, needs=("motion",), config=NaiveConfig, run=run_naive, score=make_score(NAIVE), available=available,
+        help="baseline: the intruder is always at the centre of the room",
+    )
+)  # fmt: skip

@@ -1,0 +1,241 @@
+"""Active tracking with I-states (O'Kane, section VII): destinations, matching, shortest paths.
+
+Each tracker, from its own I-state and what it knows of the other trackers' positions:
+
+1. partitions the free space into **cells** -- maximal sets not crossed by any region
+   boundary of its I-state (``shapely.polygonize`` of all boundaries) -- and bounds the
+   number of targets in each cell, ``t(c) = max_i #{k : R^(i)_k covers c}`` (Fig. 5);
+2. selects ``m`` destinations by a modified k-means over the cell centroids: greedy
+   initialisation (a centre at the centroid of the largest contiguous set of cells with
+   ``t(c) = t_max``, whose ``t`` is then decremented, ``m`` times) and weights
+   ``w(c) = t(c) / a(c)^2`` (:func:`select_destinations`);
+3. assigns trackers to destinations by a minimum-weight perfect matching on the complete
+   bipartite graph whose weights are the *largest possible* tracker-destination distances
+   (``scipy.optimize.linear_sum_assignment``);
+4. moves along the shortest path among obstacles toward its own destination
+   (:class:`ShortestPaths`, a visibility graph).
+
+The paper says the weights are "included in the distance computation for moving the
+cluster centers"; a per-observation factor on the distance does not change which centre is
+nearest, so we read it as the weighted Lloyd update ``mu_j = sum_{c in C_j} w(c) x_c /
+sum_{c in C_j} w(c)`` with assignment by Euclidean distance.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import networkx as nx
+import numpy as np
+import shapely
+from scipy.optimize import linear_sum_assignment
+from scipy.sparse.csgraph import shortest_path
+from shapely.geometry.base import BaseGeometry
+
+from onebit.trackers.istate.core import IState
+
+
+# --------------------------------------------------------------------------- shortest paths
+
+
+class ShortestPaths:
+    """Shortest paths in a polygonal free space: a visibility graph on the obstacle vertices.
+
+    The vertices of the free space's boundary rings, pushed ``margin`` away from the walls,
+    are the graph nodes; two nodes are joined when the segment between them lies in the
+    free space (``shapely.covers`` on all pairs at once). All-pairs distances and
+    predecessors come from ``scipy.sparse.csgraph.shortest_path``. A query connects start
+    and goal to the nodes they see (vectorised) and picks the best pair of entry and exit
+    nodes in numpy.
+    """
+
+    def __init__(self, free_space: BaseGeometry, *, margin: float = 1e-3) -> None:
+        self.free = free_space
+        self._covers = shapely.prepare(free_space) or free_space
+        inner = free_space.buffer(-margin, join_style="mitre")
+        pts = shapely.get_coordinates(shapely.boundary(inner))
+        pts = np.unique(np.round(pts, 9), axis=0)
+        pts = pts[shapely.covers(free_space, shapely.points(pts))]
+        self.nodes = pts
+        N = len(pts)
+        i, j = np.triu_indices(N, 1)
+        seg = shapely.linestrings(np.stack([pts[i], pts[j]], axis=1))
+        vis = shapely.covers(free_space, seg)
+        w = np.full((N, N), np.inf)
+        d = np.hypot(*(pts[i] - pts[j]).T)
+        w[i[vis], j[vis]] = d[vis]
+        w[j[vis], i[vis]] = d[vis]
+        from scipy.sparse import csr_matrix
+
+        m = np.where(np.isfinite(w), w, 0.0)
+        self.dist, self.pred = shortest_path(csr_matrix(m), directed=False, return_predecessors=True) if N else (np.zeros((0, 0)), np.zeros((0, 0), int))
+
+    def _visible(self, p: np.ndarray) -> np.ndarray:
+        if len(self.nodes) == 0:
+            return np.zeros(0, dtype=bool)
+        seg = shapely.linestrings(np.stack([np.broadcast_to(p, self.nodes.shape), self.nodes], axis=1))
+        return shapely.covers(self.free, seg)
+
+    def path(self, p, q) -> np.ndarray:
+        """Waypoints ``(k, 2)`` from ``p`` to ``q`` (straight when visible); ``[p]`` if unreachable."""
+        p, q = np.asarray(p, float), np.asarray(q, float)
+        if shapely.covers(self.free, shapely.linestrings([p, q])):
+            return np.array([p, q])
+        vp, vq = self._visible(p), self._visible(q)
+        if not vp.any() or not vq.any():
+            return np.array([p])
+        a, b = np.flatnonzero(vp), np.flatnonzero(vq)
+        cost = np.hypot(*(self.nodes[a] - p).T)[:, None] + self.dist[np.ix_(a, b)] + np.hypot(*(self.nodes[b] - q).T)[None, :]
+        ia, ib = np.unravel_index(np.argmin(cost), cost.shape)
+        if not np.isfinite(cost[ia, ib]):
+            return np.array([p])
+        s, g = a[ia], b[ib]
+        chain = [g]
+        while chain[-1] != s:
+            chain.append(self.pred[s, chain[-1]])
+        return np.vstack([p, self.nodes[chain[::-1]], q])
+
+    def length(self, p, q) -> float:
+        w = self.path(p, q)
+        return float(np.hypot(*np.diff(w, axis=0).T).sum()) if len(w) > 1 else (0.0 if np.allclose(p, q) else np.inf)
+
+
+def advance(waypoints: np.ndarray, distance: float) -> np.ndarray:
+    """The point ``distance`` along a polyline (its end when shorter)."""
+    if len(waypoints) == 1:
+        return waypoints[0]
+    seg = np.diff(waypoints, axis=0)
+    L = np.hypot(*seg.T)
+    cum = np.r_[0.0, np.cumsum(L)]
+    if distance >= cum[-1]:
+        return waypoints[-1]
+    k = int(np.searchsorted(cum, distance, side="right") - 1)
+    u = (distance - cum[k]) / L[k] if L[k] > 0 else 0.0
+    return waypoints[k] + u * seg[k]
+
+
+# --------------------------------------------------------------------------- destination selection
+
+
+@dataclass(frozen=True)
+class Cells:
+    """The partition of the free space by an I-state's region boundaries."""
+
+    polygons: np.ndarray  # (C,) polygons
+    centroids: np.ndarray  # (C, 2)
+    area: np.ndarray  # (C,)
+    bound: np.ndarray  # (C,) t(c)
+
+
+def partition_cells(istate: IState, free_space: BaseGeometry) -> Cells:
+    """Cells of ``free_space`` cut by every region boundary, and ``t(c)`` for each (Fig. 5).
+
+    ``t(c) = max_i sum_k [R^(i)_k covers c]``, tested at a representative point of each
+    cell (cells are not crossed by region boundaries), vectorised over elements, regions
+    and cells.
+    """
+    lines = [shapely.boundary(free_space)]
+    if istate.size:
+        lines.extend(shapely.boundary(istate.regions.ravel()))
+    noded = shapely.union_all(lines)
+    polys = np.asarray(shapely.get_parts(shapely.polygonize(shapely.get_parts(noded))), dtype=object)
+    rp = shapely.point_on_surface(polys)
+    inside = shapely.covers(free_space, rp) & (shapely.area(polys) > 1e-12)
+    polys, rp = polys[inside], rp[inside]
+    xy = shapely.get_coordinates(rp)
+    if istate.size:
+        cov = shapely.intersects_xy(istate.regions[:, :, None], xy[None, None, :, 0], xy[None, None, :, 1])  # (E, n, C)
+        bound = cov.sum(axis=1).max(axis=0)
+    else:
+        bound = np.zeros(len(polys), dtype=np.int64)
+    return Cells(polys, shapely.get_coordinates(shapely.centroid(polys)), shapely.area(polys), bound.astype(np.int64))
+
+
+def greedy_centres(cells: Cells, m: int) -> np.ndarray:
+    """Greedy initialisation: ``m`` times, a centre at the (area-weighted) centroid of the
+    largest contiguous collection of cells with ``t(c) = t_max`` (connected components of
+    the cell adjacency graph, networkx), then those cells' ``t`` decremented."""
+    C = len(cells.polygons)
+    tree = shapely.STRtree(cells.polygons)
+    a, b = tree.query(cells.polygons, predicate="intersects")
+    keep = a < b
+    shared = shapely.length(shapely.intersection(cells.polygons[a[keep]], cells.polygons[b[keep]])) > 0
+    g = nx.Graph()
+    g.add_nodes_from(range(C))
+    g.add_edges_from(zip(a[keep][shared].tolist(), b[keep][shared].tolist()))
+    t = cells.bound.copy()
+    out = np.zeros((m, 2))
+    for j in range(m):  # sequential: each centre changes the working t(c)
+        tmax = t.max()
+        top = np.flatnonzero(t == tmax)
+        comps = [np.fromiter(c, dtype=np.int64) for c in nx.connected_components(g.subgraph(top.tolist()))]
+        best = max(comps, key=lambda c: (cells.area[c].sum(), -c.min()))
+        out[j] = (cells.centroids[best] * cells.area[best, None]).sum(axis=0) / cells.area[best].sum()
+        t[best] -= 1
+    return out
+
+
+def weighted_kmeans(points: np.ndarray, weights: np.ndarray, centres: np.ndarray, *, iterations: int = 50) -> np.ndarray:
+    """Lloyd's algorithm with per-observation weights: assign each point to its nearest
+    centre, move each centre to the weighted mean of its points (a centre whose points weigh
+    nothing stays). Vectorised over points and centres; sequential over iterations."""
+    c = centres.copy()
+    for _ in range(iterations):
+        d = np.hypot(*(points[:, None, :] - c[None, :, :]).transpose(2, 0, 1))
+        lab = np.argmin(d, axis=1)
+        W = np.zeros(len(c))
+        np.add.at(W, lab, weights)
+        S = np.zeros_like(c)
+        np.add.at(S, lab, weights[:, None] * points)
+        new = np.where(W[:, None] > 0, S / np.where(W > 0, W, 1.0)[:, None], c)
+        if np.allclose(new, c):
+            break
+        c = new
+    return c
+
+
+def select_destinations(istate: IState, free_space: BaseGeometry, m: int) -> np.ndarray:
+    """Destination selection (section VII-A): ``m`` points in the free space."""
+    cells = partition_cells(istate, free_space)
+    if len(cells.polygons) == 0:
+        xy = np.asarray(free_space.representative_point().coords[0])
+        return np.tile(xy, (m, 1))
+    init = greedy_centres(cells, m)
+    w = cells.bound / np.maximum(cells.area, 1e-12) ** 2
+    c = weighted_kmeans(cells.centroids, w.astype(float), init)
+    # a centre inside an obstacle moves to the nearest free point
+    pts = shapely.points(c)
+    outside = ~shapely.covers(free_space, pts)
+    if outside.any():
+        near = shapely.get_coordinates(shapely.shortest_line(free_space, pts[outside]))[1::2]
+        c[outside] = near
+    return c
+
+
+def match_destinations(worst_distance: np.ndarray) -> np.ndarray:
+    """Section VII-B: the minimum-weight perfect matching of trackers to destinations on the
+    complete bipartite graph with weights = the largest possible distance
+    (``worst_distance[j, d]``); returns the destination of each tracker."""
+    r, c = linear_sum_assignment(worst_distance)
+    out = np.empty(worst_distance.shape[0], dtype=np.int64)
+    out[r] = c
+    return out
+
+
+def worst_distances(possible: list[BaseGeometry], destinations: np.ndarray) -> np.ndarray:
+    """Largest distance from each tracker's possible-position set to each destination:
+    ``max_{p in P_j} |p - d|``, attained at a vertex of ``P_j`` (vectorised over vertices)."""
+    out = np.zeros((len(possible), len(destinations)))
+    for j, P in enumerate(possible):  # m is small
+        v = shapely.get_coordinates(P)
+        out[j] = np.hypot(*(v[:, None, :] - destinations[None, :, :]).transpose(2, 0, 1)).max(axis=0)
+    return out
+
+
+def performance(targets: np.ndarray, trackers: np.ndarray) -> np.ndarray:
+    """Eq. (1): ``P_k = 1/(n k) sum_{i<=k} sum_l min_j |p_i(j) - q_i(l)|`` for every ``k``.
+
+    ``targets (K, n, 2)``, ``trackers (K, m, 2)``; returns ``(K,)``."""
+    d = np.hypot(*(targets[:, :, None, :] - trackers[:, None, :, :]).transpose(3, 0, 1, 2)).min(axis=2)  # (K, n)
+    k = np.arange(1, len(d) + 1)
+    return np.cumsum(d.sum(axis=1)) / (targets.shape[1] * k)

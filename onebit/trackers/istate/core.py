@@ -1,0 +1,590 @@
+"""O'Kane's set-based information states: the unordered union-of-products filter.
+
+An I-state is a set of target states ``eta subset W^n`` of ``n`` indistinguishable point
+targets. By Lemma 3 every reachable I-state has the *unordered union-of-products* form (Eq. 3)
+
+    eta = U_i U_{tau in S_n} R^(i)_tau(1) x ... x R^(i)_tau(n),
+
+so it is stored as a set of **elements** ``i``, each an unordered collection of ``n`` planar
+**regions** ``R^(i)_1..R^(i)_n`` (shapely geometry). :class:`IState` holds them as an
+``(E, n)`` object array, so every geometric step is one call of shapely's vectorised
+functions over all ``E * n`` regions (or all ``E * E * n * n`` region pairs).
+
+Operations (each named after the paper's step):
+
+* :func:`forward_project` -- motion update, ``R <- F(R) = (R (+) B(s_tgt)) cap W_free``;
+* :func:`observation_update` -- Algorithm 1 / Eq. (4) for one sensing region with reading 1;
+* :func:`negative_update` -- *beyond the paper*: a reading 0 of a sensor without false
+  negatives, ``R <- R \\ S``;
+* :func:`clean_up` -- canonical order, empty and duplicate elements removed, dominated
+  elements removed (a perfect matching on the containment bipartite graph);
+* :func:`cap_elements` -- while more than ``M`` elements, merge the two most similar into
+  their region-wise union;
+* :func:`constrain` -- the geometric over-approximation (section VI-A.1): the smallest
+  axis-aligned rectangle or disk containing each exact result;
+* :func:`contains` / :func:`contains_states` -- the query of section VI-A.2;
+* :func:`communicate` -- the communication update of section VI-B (perfect matchings of the
+  non-empty-intersection graph); :func:`communicate_bruteforce` is the direct
+  ``O(M^2 n!)`` formula it replaces, kept as the reference.
+
+Soundness. Every operation returns a superset of the exact result (the containment
+guarantee of the paper). Shapely approximates round buffers by inscribed polygons, so every
+buffer that must *contain* a disk is made with the circumscribing radius
+``r / cos(pi / (4 q))`` (``q`` segments per quarter circle), see :func:`grow`.
+"""
+
+from __future__ import annotations
+
+import itertools
+import math
+from dataclasses import dataclass
+from functools import lru_cache
+
+import networkx as nx
+import numpy as np
+import shapely
+from scipy.optimize import linear_sum_assignment
+from shapely.geometry.base import BaseGeometry
+
+#: Region shapes: exact polygons, or the smallest axis-aligned rectangle / disk containing them.
+SHAPES = ("exact", "rect", "disk")
+
+#: Segments per quarter circle of every round buffer.
+QUAD_SEGS = 4
+
+#: Relative slack added to grown distances so round-off never excludes a reachable point.
+_SLACK = 1e-9
+
+#: Grid (world units) to which disk centres are snapped and radii rounded up.
+DISK_GRID = 1e-6
+
+#: Largest ``n`` for which matchings are found by enumerating the ``n!`` permutations in numpy.
+PERM_TABLE_MAX_N = 5
+
+
+# --------------------------------------------------------------------------- representation
+
+
+@dataclass(frozen=True)
+class IState:
+    """An I-state in unordered union-of-products form (Eq. 3).
+
+    ``regions`` is an ``(E, n)`` object array of shapely geometries: row ``i`` is element
+    ``i``, representing ``U_tau R_tau(1) x ... x R_tau(n)``. ``E = 0`` is the empty set.
+    """
+
+    regions: np.ndarray
+
+    def __post_init__(self) -> None:
+        r = self.regions
+        if not isinstance(r, np.ndarray) or r.ndim != 2 or r.dtype != object:
+            raise ValueError(f"IState.regions must be an (E, n) object array, got {type(r).__name__} {getattr(r, 'shape', '')}")
+
+    @property
+    def n(self) -> int:
+        """Number of targets."""
+        return self.regions.shape[1]
+
+    @property
+    def size(self) -> int:
+        """Number of elements ``E``."""
+        return self.regions.shape[0]
+
+    @classmethod
+    def initial(cls, space: BaseGeometry, n: int) -> IState:
+        """The initial I-state ``eta_1 = W^n``: one element of ``n`` copies of ``W``."""
+        if n < 1:
+            raise ValueError(f"n = {n}; an I-state needs at least one target")
+        return cls(_objects([[space] * n]))
+
+    @classmethod
+    def from_elements(cls, elements, n: int | None = None) -> IState:
+        """From a list of elements, each a list of ``n`` geometries."""
+        elements = list(elements)
+        if not elements:
+            return cls(np.empty((0, n or 0), dtype=object))
+        return cls(_objects(elements))
+
+    def total_area(self) -> float:
+        """Area of the union of all regions: the planar footprint of the possible target positions."""
+        if self.size == 0:
+            return 0.0
+        return float(shapely.area(shapely.union_all(self.regions.ravel())))
+
+
+def _objects(rows) -> np.ndarray:
+    rows = list(rows)
+    out = np.empty((len(rows), len(rows[0]) if rows else 0), dtype=object)
+    for i, row in enumerate(rows):
+        out[i, :] = list(row)
+    return out
+
+
+# --------------------------------------------------------------------------- geometry helpers
+
+
+def grow(geoms, distance, *, quad_segs: int = QUAD_SEGS):
+    """``geoms (+) B(distance)``, a *superset* of the Minkowski sum with the closed disk.
+
+    Shapely's round buffer is a polygon inscribed in the true offset curve; its chords are
+    at least ``r cos(pi / (4 q))`` from the source, so buffering by ``r / cos(pi / (4 q))``
+    contains every point within ``r``. ``distance`` may be an array (one per geometry).
+    """
+    d = np.asarray(distance, dtype=float)
+    r = d / math.cos(math.pi / (4 * quad_segs)) * (1 + _SLACK) + _SLACK
+    return shapely.buffer(geoms, np.where(d > 0, r, 0.0), quad_segs=quad_segs)
+
+
+def disk(center, radius: float, *, outer: bool = True, quad_segs: int = QUAD_SEGS):
+    """A disk polygon: circumscribing the true disk (``outer``) or inscribed in it."""
+    p = shapely.points(np.asarray(center, float))
+    return grow(p, radius, quad_segs=quad_segs) if outer else shapely.buffer(p, radius, quad_segs=quad_segs)
+
+
+def constrain(geoms, shape: str, *, quad_segs: int = QUAD_SEGS):
+    """The smallest region of the range space ``shape`` containing each geometry (section VI-A.1).
+
+    * ``exact``: unchanged;
+    * ``rect``: the axis-aligned bounding box ``[min x, max x] x [min y, max y]``;
+    * ``disk``: the minimum enclosing circle ``B(c, r)`` (shapely's
+      ``minimum_bounding_circle``), its centre snapped to a ``DISK_GRID`` grid and its radius
+      rounded up by the snap distance (so equal disks get identical polygons and duplicates
+      are found), drawn as a polygon circumscribing it.
+
+    Empty geometries stay empty; a point or segment keeps a tiny positive extent so it is
+    still contained.
+    """
+    if shape == "exact":
+        return geoms
+    g = np.asarray(geoms, dtype=object)
+    empty = shapely.is_empty(g)
+    if shape == "rect":
+        b = shapely.bounds(g)
+        b = np.where(empty[..., None], 0.0, b)
+        out = shapely.box(b[..., 0], b[..., 1], b[..., 2], b[..., 3])
+    elif shape == "disk":
+        xy = shapely.get_coordinates(shapely.centroid(shapely.minimum_bounding_circle(g[~empty])))
+        r = shapely.minimum_bounding_radius(g[~empty])
+        # snap centre to a grid and round the radius up (so equal disks compare equal)
+        q = DISK_GRID
+        cq = np.round(xy / q) * q
+        rq = np.ceil((r + np.hypot(*(cq - xy).T)) / q) * q + q
+        out = np.empty(g.shape, dtype=object)
+        out[~empty] = grow(shapely.points(cq), rq, quad_segs=quad_segs)
+        out[empty] = shapely.Polygon()
+    else:
+        raise ValueError(f"shape = {shape!r}; allowed: {list(SHAPES)}")
+    return np.where(empty, shapely.Polygon(), out)
+
+
+def _bounds(regions: np.ndarray) -> np.ndarray:
+    """``(..., 4)`` bounds, NaN for empty geometries."""
+    return shapely.bounds(regions)
+
+
+# --------------------------------------------------------------------------- perfect matchings
+
+
+@lru_cache(maxsize=16)
+def permutations(n: int) -> np.ndarray:
+    """``(n!, n)`` table of all permutations of ``range(n)`` (the symmetric group S_n)."""
+    return np.array(list(itertools.permutations(range(n))), dtype=np.int64).reshape(-1, n)
+
+
+def has_perfect_matching(adj: np.ndarray) -> np.ndarray:
+    """Whether each ``n x n`` bipartite graph ``adj[..., k, l]`` has a perfect matching.
+
+    For ``n <= PERM_TABLE_MAX_N`` all ``n!`` permutations are tested at once in numpy
+    (``any_tau all_k adj[k, tau(k)]``); above it each graph goes to networkx's
+    Hopcroft-Karp maximum matching (a loop over graphs, documented as such).
+    """
+    adj = np.asarray(adj, dtype=bool)
+    n = adj.shape[-1]
+    lead = adj.shape[:-2]
+    if n == 0:
+        return np.ones(lead, dtype=bool)
+    flat = adj.reshape(-1, n, n)
+    if n <= PERM_TABLE_MAX_N:
+        perms = permutations(n)
+        rows = np.arange(n)
+        ok = flat[:, rows[None, :], perms].all(axis=-1).any(axis=-1)
+        return ok.reshape(lead)
+    out = np.empty(len(flat), dtype=bool)
+    for i, a in enumerate(flat):
+        out[i] = _nx_perfect(a)
+    return out.reshape(lead)
+
+
+def _nx_perfect(a: np.ndarray) -> bool:
+    n = a.shape[0]
+    g = nx.Graph()
+    g.add_nodes_from(range(2 * n))
+    k, l = np.nonzero(a)
+    g.add_edges_from(zip(k.tolist(), (l + n).tolist()))
+    m = nx.bipartite.hopcroft_karp_matching(g, top_nodes=range(n))
+    return len(m) == 2 * n
+
+
+def enumerate_perfect_matchings(adj: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """All perfect matchings of a batch of bipartite graphs ``adj (G, n, n)``.
+
+    Returns ``(graph, match)``: ``match[j]`` (``(n,)``) is a perfect matching of graph
+    ``graph[j]``, row ``k`` matched to column ``match[j, k]``. The enumeration extends every
+    partial matching row by row over all graphs at once (a breadth-first backtracking in
+    numpy), so its cost grows with the number of partial matchings, not with ``n!`` -- the
+    output-sensitive enumeration the paper cites [3], [19]. Partial matchings that leave
+    a later row without a free neighbour are pruned at once.
+    """
+    adj = np.asarray(adj, dtype=bool)
+    G, n, _ = adj.shape
+    graph = np.arange(G)
+    match = np.zeros((G, 0), dtype=np.int64)
+    used = np.zeros((G, n), dtype=bool)
+    for k in range(n):
+        cand = adj[graph, k, :] & ~used  # (P, n)
+        p, col = np.nonzero(cand)
+        graph, match, used = graph[p], np.c_[match[p], col], used[p].copy()
+        used[np.arange(len(p)), col] = True
+        if k + 1 < n and len(graph):
+            # prune: every later row needs at least one free neighbour
+            alive = (adj[graph, k + 1 :, :] & ~used[:, None, :]).any(axis=-1).all(axis=-1)
+            graph, match, used = graph[alive], match[alive], used[alive]
+    return graph, match
+
+
+# --------------------------------------------------------------------------- Algorithm 1
+
+
+def forward_project(istate: IState, step: float, free_space: BaseGeometry, *, shape: str = "exact", substeps: int = 1) -> IState:
+    """Motion update (Algorithm 1, lines 1-5): every region ``R <- F(R)``.
+
+    ``F(R) = (R (+) B(s_tgt)) cap W_free``, computed as ``substeps`` rounds of growing by
+    ``s_tgt / substeps`` and clipping to the free space, then constrained to ``shape`` (for
+    ``rect`` the grown rectangle is the box expanded by ``d`` on every side, which is the
+    smallest rectangle containing ``R (+) B(d)``). Each
+    round is a superset of the points reachable within that distance, so the result contains
+    the exact forward projection (the geodesic ball among obstacles); more rounds follow the
+    obstacles more tightly. By Lemma 1, ``F(U_i prod R) = U_i prod F(R)``.
+    """
+    if istate.size == 0 or step <= 0:
+        return istate
+    r = istate.regions
+    for _ in range(max(1, substeps)):
+        d = step / max(1, substeps)
+        if shape == "rect":  # the smallest rectangle containing R (+) B(d) is R expanded by d
+            b = shapely.bounds(r)
+            grown = shapely.box(b[..., 0] - d, b[..., 1] - d, b[..., 2] + d, b[..., 3] + d)
+        else:
+            grown = grow(r, d)
+        r = shapely.intersection(grown, free_space)
+    return IState(np.asarray(constrain(r, shape), dtype=object).reshape(istate.regions.shape))
+
+
+def observation_update(istate: IState, sensing: BaseGeometry, *, shape: str = "exact") -> IState:
+    """Observation update for one sensing region ``S`` with reading 1 (Algorithm 1, lines 9-15).
+
+    Eq. (4): ``eta' = U_i U_j R^(i)_1 x .. x (R^(i)_j cap S) x .. x R^(i)_n`` -- every
+    element is replaced by ``n`` elements, the ``j``-th intersecting its ``j``-th region
+    with ``S``. Elements with an empty region are dropped at once (the paper's on-the-fly
+    optimisation of line 12). Vectorised over the ``E * n`` new elements.
+    """
+    E, n = istate.regions.shape
+    if E == 0:
+        return istate
+    rep = np.repeat(istate.regions, n, axis=0)  # (E n, n): element i repeated n times
+    rows = np.arange(E * n)
+    cols = np.tile(np.arange(n), E)
+    rep[rows, cols] = constrain(shapely.intersection(rep[rows, cols], sensing), shape)
+    keep = ~shapely.is_empty(rep[rows, cols])
+    return IState(rep[keep])
+
+
+def negative_update(istate: IState, sensing: BaseGeometry, *, shape: str = "exact") -> IState:
+    """*Beyond the paper*: a reading 0 from a sensor without false negatives, ``R <- R \\ S``
+    for every region (no target is in ``S``). Elements with an emptied region are dropped.
+    Under ``rect``/``disk`` the difference is over-approximated like every other result."""
+    if istate.size == 0:
+        return istate
+    r = np.asarray(constrain(shapely.difference(istate.regions, sensing), shape), dtype=object).reshape(istate.regions.shape)
+    keep = ~shapely.is_empty(r).any(axis=1)
+    return IState(r[keep])
+
+
+# --------------------------------------------------------------------------- clean-up
+
+
+def canonical(istate: IState) -> IState:
+    """Canonical form: empty elements dropped, regions of each element in lexicographic order
+    of their normalised WKB, elements in lexicographic order, duplicates removed.
+
+    Lemma 2 (reordering regions) and the commutativity and idempotence of the union
+    (reordering and de-duplicating elements) leave the represented set unchanged.
+    """
+    r = istate.regions
+    if r.shape[0] == 0:
+        return istate
+    r = r[~shapely.is_empty(r).any(axis=1)]
+    if r.shape[0] == 0:
+        return IState(r)
+    keys = shapely.to_wkb(shapely.normalize(r.ravel()))
+    uniq, inv = np.unique(keys, return_inverse=True)
+    ids = inv.reshape(r.shape)
+    order = np.argsort(ids, axis=1, kind="stable")
+    ids = np.take_along_axis(ids, order, axis=1)
+    r = np.take_along_axis(r, order, axis=1)
+    _, first = np.unique(ids, axis=0, return_index=True)  # sorted unique rows: canonical order
+    return IState(r[first])
+
+
+def covers_matrix(regions: np.ndarray, *, shape: str = "exact") -> np.ndarray:
+    """``cov[a, b, k, l]``: region ``l`` of element ``b`` covers region ``k`` of element ``a``.
+
+    Only pairs whose bounding boxes nest are tested with ``shapely.covers`` (for ``rect``
+    regions bounding-box nesting *is* covering).
+    """
+    E, n = regions.shape
+    b = _bounds(regions)  # (E, n, 4)
+    ba = b[:, None, :, None, :]
+    bb = b[None, :, None, :, :]
+    nest = (bb[..., 0] <= ba[..., 0]) & (bb[..., 1] <= ba[..., 1]) & (bb[..., 2] >= ba[..., 2]) & (bb[..., 3] >= ba[..., 3])
+    if shape == "rect":
+        return nest
+    cov = np.zeros_like(nest)
+    a_idx, b_idx, k_idx, l_idx = np.nonzero(nest)
+    cov[a_idx, b_idx, k_idx, l_idx] = shapely.covers(regions[b_idx, l_idx], regions[a_idx, k_idx])
+    return cov
+
+
+def remove_dominated(istate: IState, *, shape: str = "exact") -> IState:
+    """Remove every element dominated by another (section VI-A, fourth clean-up step).
+
+    ``E_b`` dominates ``E_a`` iff the containment bipartite graph (region ``k`` of ``E_a`` --
+    region ``l`` of ``E_b`` when ``R^(a)_k subset R^(b)_l``) has a perfect matching. ``E_a``
+    is removed when some ``E_b`` dominates it strictly, or equally with ``b < a``: that
+    relation is a strict partial order, so every removed element is dominated by a kept
+    one and the union is unchanged.
+    """
+    E = istate.size
+    if E <= 1:
+        return istate
+    cov = covers_matrix(istate.regions, shape=shape)
+    dom = has_perfect_matching(cov)  # dom[a, b]: b dominates a
+    np.fill_diagonal(dom, False)
+    idx = np.arange(E)
+    beaten = dom & (~dom.T | (idx[None, :] < idx[:, None]))
+    return IState(istate.regions[~beaten.any(axis=1)])
+
+
+def clean_up(istate: IState, *, shape: str = "exact") -> IState:
+    """The four clean-up steps of section VI-A: canonical order, duplicates and empty elements
+    removed, dominated elements removed."""
+    return remove_dominated(canonical(istate), shape=shape)
+
+
+# --------------------------------------------------------------------------- the cap M
+
+
+def overlap_areas(a: np.ndarray, b: np.ndarray, *, shape: str = "exact") -> np.ndarray:
+    """``ov[i, j, k, l] = area(R^(a_i)_k cap R^(b_j)_l)`` for elements ``a (Ea, n)`` and ``b (Eb, n)``;
+    only pairs with intersecting bounding boxes are intersected (numpy for ``rect``)."""
+    ba = _bounds(a)[:, None, :, None, :]
+    bb = _bounds(b)[None, :, None, :, :]
+    w = np.minimum(ba[..., 2], bb[..., 2]) - np.maximum(ba[..., 0], bb[..., 0])
+    h = np.minimum(ba[..., 3], bb[..., 3]) - np.maximum(ba[..., 1], bb[..., 1])
+    box = np.where((w > 0) & (h > 0), w * h, 0.0)
+    box = np.nan_to_num(box)
+    if shape == "rect":
+        return box
+    ov = np.zeros_like(box)
+    i, j, k, l = np.nonzero(box > 0)
+    ov[i, j, k, l] = shapely.area(shapely.intersection(a[i, k], b[j, l]))
+    return ov
+
+
+def best_pairing(ov: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """For overlap matrices ``ov (..., n, n)``: the largest total overlap over pairings
+    ``max_tau sum_k ov[k, tau(k)]`` and the maximising ``tau (..., n)``.
+
+    ``n <= PERM_TABLE_MAX_N``: all permutations in numpy; above: ``linear_sum_assignment``
+    per matrix (a loop over pairs)."""
+    n = ov.shape[-1]
+    lead = ov.shape[:-2]
+    flat = ov.reshape(-1, n, n)
+    if n <= PERM_TABLE_MAX_N:
+        perms = permutations(n)
+        tot = flat[:, np.arange(n)[None, :], perms].sum(axis=-1)  # (P, n!)
+        best = tot.argmax(axis=1)
+        return tot[np.arange(len(flat)), best].reshape(lead), perms[best].reshape(*lead, n)
+    vals = np.empty(len(flat))
+    taus = np.empty((len(flat), n), dtype=np.int64)
+    for p, m in enumerate(flat):
+        r, c = linear_sum_assignment(m, maximize=True)
+        vals[p], taus[p, r] = m[r, c].sum(), c
+    return vals.reshape(lead), taus.reshape(*lead, n)
+
+
+def merge_elements(a: np.ndarray, b: np.ndarray, tau: np.ndarray, *, shape: str = "exact") -> np.ndarray:
+    """Region-wise union ``(R^(a)_k cup R^(b)_tau(k))_k`` of two elements.
+
+    For any pairing ``tau`` the result contains both elements' products (``prod_k R^(a)_k``
+    and ``prod_k R^(b)_tau(k)`` are sub-products of it), so the merge never shrinks the set."""
+    return np.asarray(constrain(shapely.union(a, b[tau]), shape), dtype=object)
+
+
+def cap_elements(istate: IState, max_elements: int, *, shape: str = "exact") -> IState:
+    """Merge until at most ``M`` elements remain (section VI-A).
+
+    Similarity of two elements = their total pairwise region overlap under the pairing of
+    regions that maximises it, ``sim(a, b) = max_tau sum_k area(R^(a)_k cap R^(b)_tau(k))``
+    (the paper's "total pairwise overlap" needs a pairing of the unordered regions; we use
+    the best one). The most similar pair is replaced by :func:`merge_elements` along that
+    pairing; the new element's similarities are computed incrementally. Inherently
+    sequential over merges; each merge is vectorised.
+    """
+    E, n = istate.regions.shape
+    if E <= max_elements:
+        return istate
+    regs = [row for row in istate.regions]
+    ov = overlap_areas(istate.regions, istate.regions, shape=shape)
+    sim, tau = best_pairing(ov)
+    sim = sim.astype(float)
+    np.fill_diagonal(sim, -np.inf)
+    alive = np.ones(E, dtype=bool)
+    while alive.sum() > max_elements:
+        masked = np.where(alive[:, None] & alive[None, :], sim, -np.inf)
+        i, j = np.unravel_index(np.argmax(masked), masked.shape)
+        merged = merge_elements(regs[i], regs[j], tau[i, j], shape=shape)
+        alive[j] = False
+        regs[i] = merged
+        others = np.flatnonzero(alive)
+        others = others[others != i]
+        if len(others):
+            stack = np.stack([regs[o] for o in others])
+            ov_new = overlap_areas(merged[None, :], stack, shape=shape)[0]  # (len(others), n, n)
+            s_new, t_new = best_pairing(ov_new)
+            sim[i, others] = s_new
+            tau[i, others] = t_new
+            sim[others, i] = s_new
+            tau[others, i] = np.argsort(t_new, axis=1)  # inverse pairing
+    out = IState(np.stack([regs[k] for k in np.flatnonzero(alive)]))
+    return clean_up(out, shape=shape)
+
+
+# --------------------------------------------------------------------------- query
+
+
+def contains_states(istate: IState, states: np.ndarray) -> np.ndarray:
+    """Query (section VI-A.2): does the I-state contain each target state?
+
+    ``states (Q, n, 2)``. For every element a bipartite graph joins target ``l`` to region
+    ``k`` when the point lies in (or on) the region; the state is in the element iff that
+    graph has a perfect matching, and in the I-state iff it is in some element. Vectorised
+    over states, elements, regions and targets.
+    """
+    states = np.asarray(states, dtype=float)
+    if states.ndim == 2:
+        states = states[None]
+    Q = states.shape[0]
+    if istate.size == 0:
+        return np.zeros(Q, dtype=bool)
+    r = istate.regions[None, :, :, None]  # (1, E, n_regions, 1)
+    x = states[:, None, None, :, 0]
+    y = states[:, None, None, :, 1]
+    adj = shapely.intersects_xy(r, x, y)  # (Q, E, k, l)
+    return has_perfect_matching(adj).any(axis=1)
+
+
+def contains(istate: IState, state) -> bool:
+    """Whether the I-state contains one target state ``(n, 2)``."""
+    return bool(contains_states(istate, np.asarray(state, float)[None])[0])
+
+
+# --------------------------------------------------------------------------- communication
+
+
+def communicate(a: IState, b: IState, *, shape: str = "exact") -> IState:
+    """Communication update (section VI-B): ``eta' = eta^(1) cap eta^(2)``.
+
+    ``eta' = U_i U_j U_tau prod_k (R^(i)_tau(k) cap T^(j)_k)``. Instead of all
+    ``Ea Eb n!`` terms, for each element pair ``(i, j)`` the bipartite graph joining
+    ``R^(i)_k`` and ``T^(j)_l`` when they intersect is built (``shapely.intersects`` on all
+    ``Ea Eb n^2`` pairs at once) and only its perfect matchings are enumerated
+    (:func:`enumerate_perfect_matchings`); each gives one element of intersected regions.
+    The result is cleaned up (not capped).
+    """
+    if a.n != b.n:
+        raise ValueError(f"cannot intersect I-states of {a.n} and {b.n} targets")
+    Ea, Eb, n = a.size, b.size, a.n
+    if Ea == 0 or Eb == 0:
+        return IState(np.empty((0, n), dtype=object))
+    ra = a.regions[:, None, :, None]
+    rb = b.regions[None, :, None, :]
+    adj = shapely.intersects(ra, rb)  # (Ea, Eb, n, n)
+    graph, match = enumerate_perfect_matchings(adj.reshape(Ea * Eb, n, n))
+    if len(graph) == 0:
+        return IState(np.empty((0, n), dtype=object))
+    i, j = np.divmod(graph, Eb)
+    left = a.regions[i]  # (P, n)
+    right = np.take_along_axis(b.regions[j], match, axis=1)
+    inter = np.asarray(constrain(shapely.intersection(left, right), shape), dtype=object).reshape(left.shape)
+    return clean_up(IState(inter), shape=shape)
+
+
+def communicate_bruteforce(a: IState, b: IState, *, shape: str = "exact") -> IState:
+    """The direct formula of section VI-B, ``O(Ea Eb n!)`` intersections: every element pair
+    and every permutation, empty products dropped, then clean-up (reference for tests and
+    the benchmark)."""
+    Ea, Eb, n = a.size, b.size, a.n
+    if Ea == 0 or Eb == 0:
+        return IState(np.empty((0, n), dtype=object))
+    perms = permutations(n)
+    i, j, p = np.meshgrid(np.arange(Ea), np.arange(Eb), np.arange(len(perms)), indexing="ij")
+    i, j, p = i.ravel(), j.ravel(), p.ravel()
+    left = a.regions[i]
+    right = np.take_along_axis(b.regions[j], perms[p], axis=1)
+    inter = np.asarray(constrain(shapely.intersection(left, right), shape), dtype=object).reshape(left.shape)
+    return clean_up(IState(inter), shape=shape)
+
+
+def same_elements(a: IState, b: IState) -> bool:
+    """Whether two canonical I-states hold the same elements (exact geometric equality)."""
+    if a.regions.shape != b.regions.shape:
+        return False
+    if a.size == 0:
+        return True
+    ka = shapely.to_wkb(shapely.normalize(canonical(a).regions.ravel()))
+    kb = shapely.to_wkb(shapely.normalize(canonical(b).regions.ravel()))
+    return bool(np.all(ka == kb))
+
+
+# --------------------------------------------------------------------------- one filter step
+
+
+def info_state_update(
+    istate: IState,
+    detections,
+    *,
+    step: float,
+    free_space: BaseGeometry,
+    shape: str = "exact",
+    max_elements: int | None = 10,
+    negatives=(),
+    substeps: int = 1,
+) -> IState:
+    """INFOSTATEUPDATE (Algorithm 1) followed by the clean-up and the cap.
+
+    Motion update with ``step = s_tgt``; then, for each sensing region in ``detections``
+    (readings 1), :func:`observation_update` followed by :func:`clean_up` and -- when
+    ``max_elements`` is set -- :func:`cap_elements` (the clean-up is applied after every
+    region, the paper's "on-the-fly" variant, so the element count stays below ``M n``);
+    finally each region of ``negatives`` (sensors without false negatives reading 0, beyond
+    the paper) is subtracted. Sequential over sensing regions (each depends on the last).
+    """
+    eta = forward_project(istate, step, free_space, shape=shape, substeps=substeps)
+    for s in detections:
+        eta = clean_up(observation_update(eta, s, shape=shape), shape=shape)
+        if max_elements is not None:
+            eta = cap_elements(eta, max_elements, shape=shape)
+    for s in negatives:
+        eta = clean_up(negative_update(eta, s, shape=shape), shape=shape)
+    return eta

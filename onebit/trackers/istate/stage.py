@@ -1,0 +1,390 @@
+"""The ``istate`` stage: binary sensors of known sensing regions -> O'Kane I-states per stage.
+
+The dataset's sensors are treated as fixed trackers that share one I-state (they always
+communicate): a PIR motion sensor's field of view (``fov``, else a disk of its ``range``), a
+proximity sensor's disk of radius ``R_o`` and a beam as a thin region (the segment grown by
+half its pair spacing plus ``beam_width``). Readings are sampled at stage times
+``t_k = k T`` (``T = period_s``) and the filter of :mod:`onebit.trackers.istate.core` runs.
+
+Sampling (our formulation; the paper has discrete stages already). A sensor contributes a
+detection at stage ``k``
+
+* when it is on at ``t_k``: region ``S (+) B(v hold_s)`` (``v = max_speed``; ``hold_s`` is
+  how long a sensor stays on after the target left, 0 for ideal sensors);
+* when it was on during ``(t_{k-1}, t_k]`` but is off at ``t_k``: it went off at ``t_off``,
+  so a target was in ``S`` just before ``t_off`` and is now within ``v (t_k - t_off + hold_s)``
+  of it -- region ``S (+) B(v (t_k - t_off + hold_s))``;
+* a crossing of a beam at ``t_c in (t_{k-1}, t_k]``: region ``beam (+) B(v (t_k - t_c))``.
+
+Each region is clipped to the free space. A reading 0 carries no information (the paper's
+model: false negatives are possible), unless ``reliable_negatives`` is set: then a motion
+sensor off at ``t_k`` (with no edge in the stage) removes its region and a proximity sensor
+off removes its inner disk ``R_i`` (beyond the paper). The loop over stages is inherently
+sequential; every stage's geometry is vectorised in :mod:`core`.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import polars as pl
+import shapely
+from scipy.optimize import linear_sum_assignment
+
+from onebit.datasets.site import Site
+from onebit.errors import ConfigError
+from onebit.tables import CROSSINGS, MOTION, PROXIMITY, TRACKS, check_schema, conform
+from onebit.trackers.base import TrackerSpec, check_choice, check_range, register
+from onebit.trackers.istate.core import SHAPES, IState, disk, grow, info_state_update
+
+NAME = "istate"
+
+#: Schema of ``istate_regions``: every region of every element at every stage (WKB).
+REGIONS = pl.Schema(
+    {"t": pl.Float64, "stage": pl.Int64, "element": pl.Int64, "k": pl.Int64, "area": pl.Float64, "wkb": pl.Binary}
+)
+#: Schema of ``istate_summary``: one row per stage.
+SUMMARY = pl.Schema(
+    {"t": pl.Float64, "stage": pl.Int64, "elements": pl.Int64, "area": pl.Float64, "detections": pl.Int64}
+)
+#: Schema of ``istate_detections``: the sensing regions with reading 1 used at each stage.
+DETECTIONS = pl.Schema({"t": pl.Float64, "stage": pl.Int64, "sensor": pl.String, "inflation": pl.Float64})
+
+
+@dataclass(frozen=True, kw_only=True)
+class IStateConfig:
+    """Configuration of the ``istate`` tracker ([istate] in run.toml).
+
+    period_s : stage period T in seconds (readings are sampled at ``t_k = k T``).
+    max_speed : largest target speed (world units per second); ``s_tgt = max_speed * T``.
+    targets : number of targets n; 0 = the site's ``targets``.
+    max_elements : the cap M on the number of elements (paper: 10); 0 = no cap.
+    shape : ``exact`` polygons, or the over-approximation by ``rect`` (axis-aligned
+        rectangles, the paper's simulations) or ``disk`` (section VI-A.1).
+    reliable_negatives : readings 0 remove the sensing region (sensors without false
+        negatives; beyond the paper).
+    hold_s : seconds a motion/proximity sensor may stay on after the target left.
+    beam_width : half-width added to a beam's thin region besides half its pair spacing.
+    substeps : rounds of grow-and-clip in the motion update (more follow obstacles tighter).
+    """
+
+    period_s: float = 1.0
+    max_speed: float = 1.5
+    targets: int = 0
+    max_elements: int = 10
+    shape: str = "exact"
+    reliable_negatives: bool = False
+    hold_s: float = 0.0
+    beam_width: float = 0.05
+    substeps: int = 1
+
+    def __post_init__(self) -> None:
+        check_range(self, "period_s", 1e-6, None)
+        check_range(self, "max_speed", 0.0, None)
+        check_range(self, "targets", 0, 8, types=(int,))
+        check_range(self, "max_elements", 0, 10_000, types=(int,))
+        check_choice(self, "shape", SHAPES)
+        check_choice(self, "reliable_negatives", (True, False))
+        check_range(self, "hold_s", 0.0, None)
+        check_range(self, "beam_width", 0.0, None)
+        check_range(self, "substeps", 1, 100, types=(int,))
+
+
+# --------------------------------------------------------------------------- sensing regions
+
+
+@dataclass(frozen=True)
+class SensingRegions:
+    """Sensing region of every sensor id (superset of where a reading 1 can come from) and,
+    for ``reliable_negatives``, the region a reading 0 clears (a subset of it)."""
+
+    ids: tuple[str, ...]
+    positive: np.ndarray  # (r,) geometries
+    negative: np.ndarray  # (r,) geometries, empty where a 0 says nothing
+    kind: tuple[str, ...]
+
+
+def sensing_regions(site: Site, config: IStateConfig) -> SensingRegions:
+    """The sensing regions of the site's motion sensors (``fov`` else a disk of ``range``),
+    proximity sensors (disk ``R_o``; negatives clear the inscribed disk ``R_i``) and beams
+    (the segment grown by ``spacing / 2 + beam_width``). Motion sensors with neither ``fov``
+    nor ``range`` have no known region and are left out."""
+    ids, pos, neg, kind = [], [], [], []
+    for m in site.motion_sensors:
+        if m.fov is not None:
+            region = m.fov
+        elif m.range is not None:
+            region = disk(m.position, m.range)
+        else:
+            continue
+        ids.append(m.id), pos.append(region), kind.append("motion")
+        neg.append(m.fov if m.fov is not None else disk(m.position, m.range, outer=False))
+    for p in site.proximity_sensors:
+        ids.append(p.id), pos.append(disk(p.position, p.r_outer)), kind.append("proximity")
+        neg.append(disk(p.position, p.r_inner, outer=False) if p.r_inner > 0 else shapely.Polygon())
+    for b in site.beams:
+        ids.append(b.id), kind.append("beam"), neg.append(shapely.Polygon())
+        pos.append(grow(b.line, b.spacing / 2 + config.beam_width))
+    obj = lambda xs: np.array(xs + [None], dtype=object)[:-1]  # noqa: E731 -- 1-d object array
+    return SensingRegions(tuple(ids), obj(pos), obj(neg), tuple(kind))
+
+
+def available(site: Site) -> str | None:
+    if not (any(m.fov is not None or m.range is not None for m in site.motion_sensors) or site.proximity_sensors or site.beams):
+        return "site has no binary sensors with known sensing regions (motion fov/range, proximity, beams)"
+    return None
+
+
+# --------------------------------------------------------------------------- sampling
+
+
+def stage_times(tables: list[pl.DataFrame], period: float) -> np.ndarray:
+    """Stage times ``k T`` from the first to the last reading (aligned to multiples of ``T``)."""
+    ts = [df["t"] for df in tables if df.height]
+    if not ts:
+        return np.zeros(0)
+    lo, hi = float(min(t.min() for t in ts)), float(max(t.max() for t in ts))
+    k0, k1 = int(np.floor(lo / period + 1e-9)), int(np.ceil(hi / period - 1e-9))
+    return np.arange(k0, k1 + 1) * period
+
+
+def _stage_index(t: pl.Expr, t0: float, period: float) -> pl.Expr:
+    """Stage k with ``t in (t_{k-1}, t_k]`` (index from the first stage time t0)."""
+    return ((t - t0) / period - 1e-9).ceil().cast(pl.Int64).clip(0, None)
+
+
+def state_readings(edges: pl.DataFrame, times: np.ndarray, period: float, hold: float, speed: float) -> pl.DataFrame:
+    """Detections and negatives of on/off sensors at stage times.
+
+    ``edges`` (t, sensor, on). Returns (stage, sensor, detect, inflation, negative): ``detect``
+    when on at ``t_k`` (inflation ``v hold``) or on during the stage (inflation
+    ``v (t_k - t_off + hold)``); ``negative`` when off at ``t_k`` with no edge in the stage.
+    Vectorised with polars over sensors x stages.
+    """
+    if edges.height == 0 or len(times) == 0:
+        return pl.DataFrame(schema={"stage": pl.Int64, "sensor": pl.String, "detect": pl.Boolean, "inflation": pl.Float64, "negative": pl.Boolean})
+    t0 = float(times[0])
+    e = edges.with_columns(stage=_stage_index(pl.col("t"), t0, period)).sort("t", maintain_order=True)
+    per = e.group_by("sensor", "stage").agg(
+        last_on=pl.col("on").last(),
+        n_edges=pl.len(),
+        t_off=pl.col("t").filter(~pl.col("on")).max(),
+    )
+    grid = pl.DataFrame({"sensor": edges["sensor"].unique().sort()}).join(
+        pl.DataFrame({"stage": np.arange(len(times), dtype=np.int64), "tk": times}), how="cross"
+    )
+    g = (
+        grid.join(per, on=["sensor", "stage"], how="left")
+        .sort("sensor", "stage")
+        .with_columns(state=pl.col("last_on").forward_fill().over("sensor").fill_null(False), n_edges=pl.col("n_edges").fill_null(0))
+    )
+    on_during = (pl.col("n_edges") > 0) & pl.col("t_off").is_not_null()
+    return g.select(
+        "stage",
+        "sensor",
+        detect=pl.col("state") | on_during,
+        inflation=pl.when(pl.col("state")).then(speed * hold).otherwise(speed * (pl.col("tk") - pl.col("t_off") + hold)),
+        negative=~pl.col("state") & (pl.col("n_edges") == 0),
+    )
+
+
+def crossing_readings(crossings: pl.DataFrame, times: np.ndarray, period: float, speed: float) -> pl.DataFrame:
+    """Beam detections: the latest crossing of each beam in each stage, inflated by ``v (t_k - t_c)``."""
+    if crossings.height == 0 or len(times) == 0:
+        return pl.DataFrame(schema={"stage": pl.Int64, "sensor": pl.String, "detect": pl.Boolean, "inflation": pl.Float64, "negative": pl.Boolean})
+    t0 = float(times[0])
+    tk = pl.Series("tk", times)
+    return (
+        crossings.with_columns(stage=_stage_index(pl.col("t"), t0, period))
+        .filter(pl.col("stage") < len(times))
+        .group_by("stage", pl.col("beam").alias("sensor"))
+        .agg(tc=pl.col("t").max())
+        .with_columns(inflation=speed * (pl.lit(tk).gather(pl.col("stage")) - pl.col("tc")), detect=pl.lit(True), negative=pl.lit(False))
+        .select("stage", "sensor", "detect", "inflation", "negative")
+    )
+
+
+# --------------------------------------------------------------------------- the stage
+
+
+def run(inputs: dict, site: Site, config: IStateConfig, log=None) -> dict[str, pl.DataFrame]:
+    """Run the I-state filter over the run's binary sensor tables.
+
+    Inputs (all optional, ``TrackerSpec.wants``): ``motion`` (MOTION), ``proximity``
+    (PROXIMITY), ``crossings`` (CROSSINGS). Outputs: ``tracks`` (TRACKS; a point summary:
+    the centroids of the regions of the element of smallest total area, identities kept
+    from stage to stage by ``linear_sum_assignment`` on centroid distance), ``summary``
+    (t, stage, elements, area of the union of all regions, detections), ``regions`` (every
+    region as WKB, for scoring and replay) and ``detections``.
+    """
+    n = config.targets or (site.targets or 0)
+    if n < 1:
+        raise ConfigError("istate: the number of targets is unknown; set 'targets' in site.toml or [istate] targets")
+    sr = sensing_regions(site, config)
+    index = {s: i for i, s in enumerate(sr.ids)}
+    tables = []
+    for name, schema in (("motion", MOTION), ("proximity", PROXIMITY)):
+        if name in inputs:
+            df = check_schema(inputs[name], schema, name=name).filter(pl.col("sensor").is_in(list(index)))
+            tables.append(df)
+    cross = None
+    if "crossings" in inputs:
+        cross = check_schema(inputs["crossings"], CROSSINGS, name="crossings").filter(pl.col("beam").is_in(list(index)))
+    T = config.period_s
+    times = stage_times(tables + ([cross] if cross is not None else []), T)
+    v = config.max_speed
+    readings = [state_readings(pl.concat([df.select("t", "sensor", "on") for df in tables]), times, T, config.hold_s, v)] if tables else []
+    if cross is not None:
+        readings.append(crossing_readings(cross, times, T, v))
+    rd = pl.concat(readings) if readings else pl.DataFrame(schema={"stage": pl.Int64, "sensor": pl.String, "detect": pl.Boolean, "inflation": pl.Float64, "negative": pl.Boolean})
+    rd = rd.with_columns(idx=pl.col("sensor").replace_strict(index, return_dtype=pl.Int64)).sort("stage", "idx")
+
+    free = site.free_space
+    det = rd.filter("detect")
+    det_geom = shapely.intersection(grow(sr.positive[det["idx"].to_numpy()], det["inflation"].to_numpy()), free) if det.height else np.zeros(0, object)
+    det_stage = det["stage"].to_numpy()
+    neg = rd.filter(pl.col("negative") & pl.lit(config.reliable_negatives)) if config.reliable_negatives else rd.clear()
+    neg_geom = sr.negative[neg["idx"].to_numpy()] if neg.height else np.zeros(0, object)
+    neg_stage = neg["stage"].to_numpy()
+    keep_neg = ~shapely.is_empty(neg_geom) if len(neg_geom) else np.zeros(0, bool)
+    neg_geom, neg_stage = neg_geom[keep_neg], neg_stage[keep_neg]
+
+    det_bounds = np.searchsorted(det_stage, np.arange(len(times) + 1))
+    neg_bounds = np.searchsorted(neg_stage, np.arange(len(times) + 1))
+    eta = IState.initial(free, n)
+    cap = config.max_elements or None
+    reg_rows, summ, track_xy = [], [], np.zeros((len(times), n, 2))
+    prev = None
+    for k, tk in enumerate(times):  # inherently sequential: the I-state of stage k depends on k-1
+        eta = info_state_update(
+            eta,
+            det_geom[det_bounds[k] : det_bounds[k + 1]],
+            step=v * T if k else 0.0,
+            free_space=free,
+            shape=config.shape,
+            max_elements=cap,
+            negatives=neg_geom[neg_bounds[k] : neg_bounds[k + 1]],
+            substeps=config.substeps,
+        )
+        E = eta.size
+        areas = shapely.area(eta.regions)
+        reg_rows.append(
+            pl.DataFrame(
+                {
+                    "t": np.full(E * n, tk),
+                    "stage": np.full(E * n, k, dtype=np.int64),
+                    "element": np.repeat(np.arange(E, dtype=np.int64), n),
+                    "k": np.tile(np.arange(n, dtype=np.int64), E),
+                    "area": areas.ravel(),
+                    "wkb": shapely.to_wkb(eta.regions.ravel()),
+                },
+                schema=REGIONS,
+            )
+        )
+        summ.append((float(tk), k, E, eta.total_area(), int(det_bounds[k + 1] - det_bounds[k])))
+        track_xy[k] = prev = _point_summary(eta, prev, n)
+
+    summary = pl.DataFrame(summ, schema=SUMMARY, orient="row")
+    regions = pl.concat(reg_rows) if reg_rows else pl.DataFrame(schema=REGIONS)
+    K = len(times)
+    tracks = conform(
+        pl.DataFrame(
+            {
+                "tracker": [NAME] * (K * n),
+                "track": np.tile([f"target{i + 1}" for i in range(n)], K).tolist(),
+                "t": np.repeat(times, n),
+                "x": track_xy[:, :, 0].ravel(),
+                "y": track_xy[:, :, 1].ravel(),
+            }
+        ),
+        TRACKS,
+    ).with_columns(pl.col("x").fill_nan(None), pl.col("y").fill_nan(None))
+    detections = pl.DataFrame(
+        {"t": times[det_stage] if len(times) else [], "stage": det_stage, "sensor": det["sensor"], "inflation": det["inflation"]},
+        schema=DETECTIONS,
+    )
+    if log is not None:
+        from onebit.viz.istate import log_istate_run
+
+        log.emit(log_istate_run, NAME, regions, summary, site=site, sensing=dict(zip(sr.ids, sr.positive)), detections=detections)
+        log.point_tracks(NAME, tracks)
+    return {"tracks": tracks, "summary": summary, "regions": regions, "detections": detections}
+
+
+def _point_summary(eta: IState, prev: np.ndarray | None, n: int) -> np.ndarray:
+    """``(n, 2)`` centroids of the regions of the smallest element, ordered to follow ``prev``."""
+    if eta.size == 0:
+        return np.full((n, 2), np.nan)
+    best = int(np.argmin(shapely.area(eta.regions).sum(axis=1)))
+    xy = shapely.get_coordinates(shapely.centroid(eta.regions[best]))
+    if prev is None or np.isnan(prev).any() or len(xy) != n:
+        return xy if len(xy) == n else np.full((n, 2), np.nan)
+    cost = np.hypot(*(prev[:, None, :] - xy[None, :, :]).transpose(2, 0, 1))
+    r, c = linear_sum_assignment(cost)
+    return xy[c[np.argsort(r)]]
+
+
+# --------------------------------------------------------------------------- scoring
+
+
+def score(tables: dict, site: Site, log=None) -> tuple[list[tuple[str, str, float, str]], dict]:
+    """``istate/containment``: fraction of scored stages whose I-state contains the true joint
+    state (truth at the stage time, all n targets present); ``elements_mean``/``_max``;
+    ``area_mean`` (mean area of the union of the regions); ``scored_stages``."""
+    from onebit.trackers.istate.core import contains
+
+    summ = tables.get(f"{NAME}_summary")
+    regs = tables.get(f"{NAME}_regions")
+    if summ is None or regs is None:
+        return [], {}
+    rows = [
+        (NAME, "elements_mean", float(summ["elements"].mean()) if summ.height else 0.0, "elements"),
+        (NAME, "elements_max", float(summ["elements"].max()) if summ.height else 0.0, "elements"),
+        (NAME, "area_mean", float(summ["area"].mean()) if summ.height else 0.0, f"{site.units}^2"),
+    ]
+    truth = tables.get("truth")
+    if truth is None or truth.height == 0 or summ.height == 0:
+        return rows, {}
+    n = int(regs["k"].max()) + 1 if regs.height else 0
+    targets = truth["target"].unique().sort().to_list()
+    if n and len(targets) != n:
+        rows.append((NAME, "target_count_mismatch", float(len(targets) - n), "targets"))
+        return rows, {}
+    tol = 1e-6 + 0.05 * (float(summ["t"].diff().median() or 1.0))
+    stages = summ.select("t", "stage").sort("t")
+    pos = []
+    for tgt in targets:  # one as-of join per target (n is small)
+        tt = truth.filter(pl.col("target") == tgt).select("t", "x", "y").sort("t")
+        pos.append(stages.join_asof(tt, on="t", strategy="nearest", tolerance=tol).select("x", "y").to_numpy())
+    pos = np.stack(pos, axis=1)  # (K, n, 2)
+    ok_truth = ~np.isnan(pos).any(axis=(1, 2))
+    geoms = shapely.from_wkb(regs["wkb"].to_numpy())
+    st_idx = regs["stage"].to_numpy()
+    bounds = np.searchsorted(st_idx, stages["stage"].to_numpy())
+    bounds = np.r_[bounds, len(st_idx)]
+    inside = np.zeros(len(stages), dtype=bool)
+    for s in np.flatnonzero(ok_truth):  # one I-state per stage
+        g = geoms[bounds[s] : bounds[s + 1]]
+        inside[s] = len(g) > 0 and contains(IState(g.reshape(-1, n)), pos[s])
+    scored = int(ok_truth.sum())
+    rows += [
+        (NAME, "containment", float(inside[ok_truth].mean()) if scored else float("nan"), "fraction"),
+        (NAME, "scored_stages", float(scored), "stages"),
+    ]
+    out = stages.with_columns(contains=pl.Series(inside), scored=pl.Series(ok_truth))
+    return rows, {f"{NAME}_containment": out}
+
+
+SPEC = register(
+    TrackerSpec(
+        name=NAME,
+        needs=(),
+        wants=("motion", "proximity", "crossings"),
+        config=IStateConfig,
+        run=run,
+        score=score,
+        available=available,
+        help="O'Kane set-based I-state filter over binary sensors (union of products)",
+    )
+)

@@ -1,0 +1,86 @@
+"""The ``correct`` stage in Rerun: observed and inserted (corrected) crossings, told apart.
+
+Entities (timeline ``t``):
+
+* ``correct/crossings/observed`` -- Points2D at the crossed beam's midpoint, small, grey;
+* ``correct/crossings/inserted`` -- Points2D at the inserted crossing's beam, large, magenta,
+  labelled ``"a^-1 inserted"``;
+* ``correct/log`` -- a TextLog line per inserted crossing (level WARN) and per observed one (INFO).
+
+Each entity is sent with one ``send_columns`` call (one point per time step).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import polars as pl
+import rerun as rr
+
+from onebit.datasets.site import Site
+from onebit.viz import paths
+from onebit.viz._series import is_empty, require
+
+ROOT = "correct"
+OBSERVED = (150, 150, 150, 255)
+INSERTED = (230, 0, 200, 255)
+
+
+def observed_path() -> str:
+    return paths.join(ROOT, "crossings", "observed")
+
+
+def inserted_path() -> str:
+    return paths.join(ROOT, "crossings", "inserted")
+
+
+def log_path() -> str:
+    return paths.join(ROOT, "log")
+
+
+def _labels(df: pl.DataFrame, suffix: str) -> list[str]:
+    return df.select(
+        (pl.when(pl.col("direction") > 0).then(pl.col("beam")).otherwise(pl.col("beam") + "^-1") + pl.lit(suffix)).alias("s")
+    )["s"].to_list()
+
+
+def log_corrected_crossings(rec: rr.RecordingStream, corrected: pl.DataFrame | None, site: Site) -> None:
+    """Log the corrected string ``(t, beam, direction, inserted)``: observed and inserted crossings
+    on separate entities with distinct colours and sizes, and a text line for each."""
+    if is_empty(corrected):
+        return
+    require(corrected, ("t", "beam", "direction", "inserted"), name="corrected crossings")
+    mids = {b.id: np.asarray(b.line.interpolate(0.5, normalized=True).coords[0], float) for b in site.beams}
+    for inserted, entity, color, radius, suffix in (
+        (False, observed_path(), OBSERVED, 0.15, ""),
+        (True, inserted_path(), INSERTED, 0.4, " inserted"),
+    ):
+        g = corrected.filter(pl.col("inserted") == inserted).sort("t", maintain_order=True)
+        if g.height == 0:
+            continue
+        xy = np.stack([mids[b] for b in g["beam"].to_list()])
+        rec.send_columns(
+            entity,
+            indexes=[paths.time_column(g["t"].to_numpy())],
+            columns=rr.Points2D.columns(
+                positions=xy,
+                colors=np.tile(np.asarray(color, np.uint8), (g.height, 1)),
+                radii=np.full(g.height, radius, np.float32),
+                labels=_labels(g, suffix),
+            ).partition(np.ones(g.height, dtype=np.int64)),
+        )
+    flag = corrected["inserted"].to_numpy()
+    text = corrected.select(
+        (
+            pl.when(pl.col("direction") > 0).then(pl.col("beam")).otherwise(pl.col("beam") + "^-1")
+            + pl.when(pl.col("inserted")).then(pl.lit(" inserted")).otherwise(pl.lit(" observed"))
+        ).alias("s")
+    )["s"].to_list()
+    rec.send_columns(
+        log_path(),
+        indexes=[paths.time_column(corrected["t"].to_numpy())],
+        columns=rr.TextLog.columns(
+            text=text,
+            level=np.where(flag, rr.TextLogLevel.WARN, rr.TextLogLevel.INFO).tolist(),
+            color=np.where(flag[:, None], np.asarray(INSERTED, np.uint8), np.asarray(OBSERVED, np.uint8)).astype(np.uint8),
+        ),
+    )
