@@ -20,6 +20,7 @@ BENCHMARKS = (
     ("bench_clustertrack", "CLUSTERTRACK Algorithm 1 scan vs direct per-particle"),
     ("bench_intruder", "intruder SIR particle filter vs Stone Soup particle predictor/updater"),
     ("bench_findinghumo", "FindingHuMo Viterbi vs hmmlearn, decoder time per slot, 2nd-order memory"),
+    ("bench_istate", "O'Kane I-state filter step, matching vs direct communication update"),
 )
 OPTIONAL = {"bench_camera"}
 

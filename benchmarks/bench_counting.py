@@ -3,7 +3,8 @@ agent count, side by side with a plain breadth-first search.
 
 Input (seeded, not timed): on the building's region graph (6 regions, 7 beams), ``n`` agents
 take random walks, one random agent moving at a time, for ``m / 0.95`` crossings; 5 % of the
-crossings are then dropped. ``eta_0`` is unknown (every count vector with sum n is a start).
+crossings are then dropped. ``eta_0`` is unknown (every count vector with sum n is a start);
+placement is the default ``"midpoint"`` (on ranks: no times are given).
 
 Timed:
 

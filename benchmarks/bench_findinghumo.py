@@ -72,7 +72,8 @@ def decoder_scaling(n_slots: int = 40) -> None:
     from onebit.trackers.findinghumo.adaptive import DecoderParams, decode_run
     from onebit.trackers.findinghumo.eatg import hop_matrix, layout_eatg
 
-    print(f"\ndecoder time per slot (ms), {n_slots} slots, grid corridors; real time is 1000 ms per slot")
+    print(f"\ndecoder time per slot (ms), {n_slots} slots, grid corridors, 2 sweeps, 1 restart (the default 3 restarts")
+    print("cost up to 3x); real time is 1000 ms per slot")
     print(f"{'nodes':>6} {'users':>6} {'adaptive+2nd':>13} {'full 1st':>9} {'full 2nd':>9}")
     rng = np.random.default_rng(1)
     for n_nodes, users in ((20, 1), (20, 3), (20, 10), (100, 3), (100, 10), (200, 3), (200, 10), (500, 3)):
@@ -85,15 +86,15 @@ def decoder_scaling(n_slots: int = 40) -> None:
             if mode == "full2" and len(nodes) > 100:
                 row.append("   (skip)")
                 continue
-            t, _ = _best(lambda: decode_run(act, eatg, params=DecoderParams(mode=mode, sweeps=2)), repeat=1)
+            t, _ = _best(lambda: decode_run(act, eatg, params=DecoderParams(mode=mode, sweeps=2, restarts=1)), repeat=1)
             row.append(f"{t / n_slots * 1e3:9.2f}")
         print(f"{len(nodes):>6} {users:>6} {row[0]:>13} {row[1]:>9} {row[2]:>9}")
 
 
 def second_order_memory() -> None:
-    from onebit.trackers.findinghumo.viterbi import viterbi_second_order
+    from onebit.trackers.findinghumo.viterbi import viterbi_motion_second_order
 
-    print("\nsecond-order Viterbi memory (window of 7 slots; peak traced by tracemalloc)")
+    print("\nsecond-order (distinct-node context) Viterbi memory (window of 7 slots; peak traced by tracemalloc)")
     print(f"{'states':>7} {'peak MiB':>9} {'model S^3 MiB':>14}")
     rng = np.random.default_rng(2)
     for s in (10, 20, 40, 80, 120):
@@ -101,7 +102,7 @@ def second_order_memory() -> None:
         a1 = np.log(rng.dirichlet(np.ones(s), size=s))
         b = np.log(rng.random((7, s)))
         tracemalloc.start()
-        viterbi_second_order(np.zeros(s), a1, a2, b)
+        viterbi_motion_second_order(np.zeros(s), np.diag(a1), a2, b)
         _, peak = tracemalloc.get_traced_memory()
         tracemalloc.stop()
         print(f"{s:>7} {peak / 2**20:>9.2f} {a2.nbytes / 2**20:>14.2f}")

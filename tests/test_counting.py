@@ -185,7 +185,7 @@ def test_minimal_initial_counts_is_algorithm_1_agent_count():
 # --------------------------------------------------------------------------- correction
 
 
-@pytest.mark.parametrize("placement", ["earliest", "latest"])
+@pytest.mark.parametrize("placement", ["earliest", "latest", "midpoint"])
 def test_correction_is_minimal_and_in_language(placement):
     rng = np.random.default_rng(11)
     for trial in range(120):
@@ -196,7 +196,19 @@ def test_correction_is_minimal_and_in_language(placement):
         keep = rng.random(len(src)) > 0.35
         s, t = src[keep], tgt[keep]
         known = trial % 2 == 0
-        c = correct(s, t, edges, initial=eta0 if known else None, n_agents=n, placement=placement)
+        times = np.sort(rng.uniform(0, 100, len(s))) if trial % 3 else None
+        c = correct(s, t, edges, initial=eta0 if known else None, n_agents=n, placement=placement, times=times)
+        if times is None:
+            assert c.time is None
+        else:
+            # observed crossings keep their times; with "midpoint" every inserted one gets a
+            # time and the corrected string stays sorted (the inserted time lies between its
+            # neighbours, i.e. inside its feasible window)
+            assert np.array_equal(c.time[~c.inserted], times)
+            if placement == "midpoint":
+                assert np.all(np.isfinite(c.time)) and np.all(np.diff(c.time) >= 0)
+            else:
+                assert np.all(np.isnan(c.time[c.inserted]))
         starts = [eta0] if known else count_states(p, n)
         assert c.cost == brute_force_insertions(s, t, edges, starts), trial
         # the corrected string is in L(M_C) from the eta_0 used, and contains y in order
@@ -243,3 +255,47 @@ def test_errors_name_the_problem():
         correct(np.array([0]), np.array([1]), e, n_agents=1, placement="middle")
     with pytest.raises(ValueError, match="n_agents or initial"):
         correct(np.array([0]), np.array([1]), e)
+    with pytest.raises(ValueError, match="times must be 1 sorted"):
+        correct(np.array([0]), np.array([1]), e, n_agents=1, times=[1.0, 2.0])
+
+
+def random_tree(rng: np.random.Generator, p: int) -> RegionEdges:
+    """A random tree region graph (no cycles, no parallel beams)."""
+    pairs = [(int(rng.integers(0, k)), k) for k in range(1, p)]
+    es = [a for a, _ in pairs] + [b for _, b in pairs]
+    et = [b for _, b in pairs] + [a for a, _ in pairs]
+    return RegionEdges.from_arrays(es, et, p)
+
+
+@settings(max_examples=40, deadline=None)
+@given(seed=st.integers(0, 10**6), p=st.integers(2, 7), m=st.integers(2, 40), placement=st.sampled_from(["earliest", "latest", "midpoint"]))
+def test_single_agent_isolated_drop_is_restored_exactly(seed, p, m, placement):
+    """One agent, known eta_0, a tree: every dropped crossing j whose neighbours j - 1 and
+    j + 1 were observed is detected (the agent's next crossing leaves an empty region), its
+    feasible window is the single gap between crossings j - 1 and j + 1, the only occupied
+    region is the one it left, and a tree has one beam between two regions -- so the
+    correction restores it with the right beam and direction, between the neighbouring
+    crossings, whatever the placement."""
+    rng = np.random.default_rng(seed)
+    edges = random_tree(rng, p)
+    eta0, src, tgt, ids = simulate(rng, edges, 1, m)
+    times = np.cumsum(rng.uniform(0.5, 3.0, m))
+    drop = rng.random(m) < 0.3
+    keep = ~drop
+    c = correct(src[keep], tgt[keep], edges, initial=eta0, placement=placement, times=times[keep])
+    nxt_kept = np.r_[keep[1:], False]
+    prev_kept = np.r_[True, keep[:-1]]
+    isolated = np.flatnonzero(drop & nxt_kept & prev_kept)
+    assert c.cost >= len(isolated)
+    ins = np.flatnonzero(c.inserted)
+    # corrected times (interpolated between observed neighbours for earliest/latest)
+    t_cor = c.time.copy()
+    for q in ins:  # test bookkeeping only
+        if np.isnan(t_cor[q]):
+            lo = c.time[:q][~c.inserted[:q]]
+            hi = c.time[q + 1 :][~c.inserted[q + 1 :]]
+            t_cor[q] = 0.5 * ((lo[-1] if lo.size else 0.0) + (hi[0] if hi.size else lo[-1] + 1.0))
+    for j in isolated:
+        t_prev = times[j - 1] if j > 0 else -np.inf
+        hit = ins[(c.edge[ins] == ids[j]) & (t_cor[ins] > t_prev) & (t_cor[ins] < times[j + 1])]
+        assert hit.size == 1, (j, ids[j], c.edge[ins], t_cor[ins], t_prev, times[j + 1])

@@ -5,6 +5,8 @@ from __future__ import annotations
 import numpy as np
 import polars as pl
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from onebit.datasets.hallway_sim import write_hallway_dataset
 from onebit.datasets.site import builtin_site, load_site
@@ -12,8 +14,8 @@ from onebit.errors import ConfigError
 from onebit.pipeline.report import metric
 from onebit.pipeline.runner import run_pipeline
 from onebit.readers.motion import read_motion_csv
-from onebit.tables import TRACKS
-from onebit.trackers.findinghumo.adaptive import DecoderParams, decode_users, max_independent
+from onebit.tables import MOTION, TRACKS
+from onebit.trackers.findinghumo.adaptive import DecoderParams, decode_run, decode_users, max_independent
 from onebit.trackers.findinghumo.eatg import hop_matrix, layout_eatg
 from onebit.trackers.findinghumo.stage import FindingHumoConfig, HmmConfig, build_eatg, run_findinghumo, slot_activity
 from onebit.viz.inspect import entity_paths
@@ -145,8 +147,59 @@ def _mean(runs, name):
     return float(np.mean([metric(r.report, f"{name}/hop_error") for r in runs.values()]))
 
 
-@pytest.mark.xfail(strict=True, reason="measured numbers do not reach the issue's target yet; see docs/findinghumo.md")
+@pytest.mark.xfail(
+    strict=True,
+    reason=(
+        "target not reached: mean hop error over seeds 0-4 (3 users, 150 s, drop 0.02) is findinghumo 1.00 "
+        "(1.41 0.95 0.80 1.44 0.40), hmm2 0.96 (1.46 1.32 0.82 0.77 0.41), hmm1 1.54 (1.45 1.24 1.56 1.84 1.61); "
+        "one user alone: 0.07. Residual error = identity swaps after users walk together in one direction "
+        "(no binary-sensor cue tells them apart) and dropped PIR bursts; see docs/findinghumo.md"
+    ),
+)
 def test_hallway_findinghumo_beats_baselines(hallway_runs):
     """The issue's acceptance: FindingHuMo hop error <= 0.1 and below hmm2, which is below hmm1."""
     fh, h1, h2 = (_mean(hallway_runs, n) for n in ("findinghumo", "hmm1", "hmm2"))
     assert fh <= 0.1 and fh < h2 < h1, (fh, h2, h1)
+
+
+@settings(max_examples=40, deadline=None)
+@given(gaps=st.lists(st.floats(0.05, 3.0), min_size=2, max_size=16), start=st.floats(0.0, 2.0))
+def test_mid_slot_sampling(gaps, start):
+    """``b_j(k)`` is the state at the slot's mid time, and no on-period is lost: one shorter than
+    a slot that holds no mid time is kept in the slot of its own mid time."""
+    t = start + np.cumsum(gaps)
+    on = np.arange(t.size) % 2 == 0  # alternating edges from off
+    motion = pl.DataFrame({"t": t, "sensor": "a", "on": on}, schema=MOTION)
+    act, t0 = slot_activity(motion, ("a", "b"), 1.0, "mid")
+    assert not act[:, 1].any()
+    d = act.shape[0]
+    mids = t0 + np.arange(d) + 0.5
+    state = np.zeros(d, bool)
+    k = np.searchsorted(t, mids, side="right") - 1  # last edge at or before each mid time
+    state[k >= 0] = on[k[k >= 0]]
+    lo, hi = t[on], np.append(t[~on], t0 + d)[: on.sum()]  # an open period ends with the grid
+    for a, b in zip(lo, hi):  # every on-period shows in some slot it overlaps
+        inside = (mids >= a) & (mids < b)
+        slots = np.arange(d)[(t0 + np.arange(d) + 1 > a) & (t0 + np.arange(d) < b)]
+        assert act[slots, 0].any()
+        if inside.any():
+            assert act[inside, 0].all()
+    short = np.zeros(d, bool)  # slots holding the mid time of a period that covers no mid time
+    for a, b in zip(lo, hi):
+        if not ((mids >= a) & (mids < b)).any():
+            short[min(int(np.floor((a + b) / 2 - t0)), d - 1)] = True
+    np.testing.assert_array_equal(act[:, 0], state | short)
+
+
+def test_user_walking_through_the_door_keeps_its_identity(hallway):
+    """103 -> 104 -> 97 is an exit signature then an entry one: the same user, not a new one."""
+    site, eatg = hallway
+    i = eatg.index
+    seq = ["102"] * 3 + ["103"] * 4 + ["104"] * 4 + ["97"] * 4 + ["96"] * 4
+    active = np.zeros((len(seq), len(eatg.nodes)), bool)
+    active[np.arange(len(seq)), [i[n] for n in seq]] = True
+    sigs = [(i[a], i[b]) for a, b in site.sensor_graph.signatures]
+    for mode in ("adaptive", "full1", "full2"):
+        res = decode_run(active, eatg, signatures=sigs, params=DecoderParams(mode=mode))
+        assert res.paths.shape[0] == 1, mode
+        assert [eatg.nodes[j] for j in res.paths[0]] == seq, mode

@@ -13,6 +13,7 @@ from onebit.trackers.findinghumo.viterbi import (
     log_safe,
     viterbi_first_order,
     viterbi_first_order_batch,
+    viterbi_motion_second_order,
     viterbi_second_order,
 )
 
@@ -108,3 +109,50 @@ def test_second_order_reduces_to_first_order_when_memoryless():
     p1, l1 = viterbi_first_order(np.log(pi), np.log(a), log_b)
     np.testing.assert_array_equal(p1, p2)
     assert l1 == pytest.approx(l2)
+
+
+def _motion_path_score(q, log_pi, log_stay, log_move, log_b):
+    """Score of a path under the distinct-node second-order model (brute-force reference)."""
+    s = log_pi[q[0]] + log_b[0, q[0]]
+    came = q[0]  # previous distinct node; == current node while none is known
+    for d in range(1, len(q)):
+        if q[d] == q[d - 1]:
+            s += log_stay[q[d]]
+        else:
+            s += log_move[came, q[d - 1], q[d]]
+            came = q[d - 1]
+        s += log_b[d, q[d]]
+    return s
+
+
+@settings(max_examples=25, deadline=None)
+@given(seed=st.integers(0, 10_000), n_states=st.integers(1, 4), n_slots=st.integers(1, 6), sparse=st.booleans())
+def test_motion_second_order_equals_brute_force(seed, n_states, n_slots, sparse):
+    """The context of a move is the last *different* node, however long the user dwelt."""
+    rng = np.random.default_rng(seed)
+    pi = rng.dirichlet(np.ones(n_states))
+    stay = rng.uniform(0.2, 0.8, size=n_states)
+    move = rng.dirichlet(np.ones(n_states), size=(n_states, n_states))
+    if sparse and n_states > 1:
+        move = np.where(rng.random(move.shape) < 0.3, 0.0, move)
+    log_b = np.log(rng.random((n_slots, n_states)) + 1e-3)
+    args = (log_safe(pi), np.log(stay), log_safe(move), log_b)
+    path, logp = viterbi_motion_second_order(*args)
+    ref = max(_motion_path_score(q, *args) for q in itertools.product(range(n_states), repeat=n_slots))
+    assert logp == pytest.approx(ref)
+    assert _motion_path_score(path, *args) == pytest.approx(ref)
+
+
+def test_motion_second_order_remembers_direction_through_a_dwell():
+    """A user that came 0 -> 1 and dwelt at 1 continues to 2 (straight) rather than back to 0,
+    even when the observation of the move is ambiguous; the slot-literal model forgets."""
+    n = 3
+    stay = np.full(n, 0.6)
+    move = np.zeros((n, n, n))
+    move[:, 1, 0] = move[:, 1, 2] = 0.2  # no direction known: either way
+    move[0, 1, 2], move[0, 1, 0] = 0.38, 0.02  # came from 0: go on to 2
+    move[2, 1, 0], move[2, 1, 2] = 0.38, 0.02
+    move[1, 0, 1] = move[1, 2, 1] = move[0, 0, 1] = move[2, 2, 1] = 0.4
+    obs = np.log(np.array([[0.9, 0.05, 0.05]] + [[0.05, 0.9, 0.05]] * 4 + [[0.5, 0.05, 0.5]]))
+    path, _ = viterbi_motion_second_order(np.log(np.full(n, 1 / 3)), np.log(stay), log_safe(move), obs)
+    assert path.tolist() == [0, 1, 1, 1, 1, 2]

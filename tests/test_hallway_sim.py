@@ -7,7 +7,7 @@ import numpy as np
 import polars as pl
 import pytest
 
-from onebit.datasets.hallway_sim import HallwaySimConfig, simulate_hallway, write_hallway_dataset
+from onebit.datasets.hallway_sim import ROUTE_EAST, ROUTE_WEST, HallwaySimConfig, simulate_hallway, write_hallway_dataset
 from onebit.datasets.scenarios import get_scenario
 from onebit.datasets.site import builtin_site
 from onebit.errors import ConfigError
@@ -42,8 +42,13 @@ def test_simulation_is_deterministic_and_truthful(tmp_path):
     truth, rej = read_truth_csv(a / "truth.csv")
     assert rej.height == 0 and truth["target"].n_unique() == 3
     raw = pl.read_csv(a / "truth.csv", schema_overrides={"node": pl.String})
-    # users enter through the door, at staggered times
+    # scripted routes (default): users start at staggered times at an end of their west-east route
     first = raw.sort("t").group_by("target", maintain_order=True).first()
+    assert set(first["node"]) <= set(ROUTE_WEST + ROUTE_EAST) and first["t"].n_unique() == 3
+    # random destinations: users enter through the door
+    c = write_hallway_dataset(tmp_path / "c", seed=5, duration=60.0, users=3, walk="random")
+    rnd = pl.read_csv(c / "truth.csv", schema_overrides={"node": pl.String})
+    first = rnd.sort("t").group_by("target", maintain_order=True).first()
     assert set(first["node"]) == {"104"} and first["t"].n_unique() == 3
     # truth moves at walking speed and every node is a graph node
     for _, g in raw.group_by("target"):

@@ -75,6 +75,7 @@ class BeamsSimulation:
     beam_events: pl.DataFrame  # t, beam, pair, blocked (raw, after drops)
     true_crossings: pl.DataFrame  # t, beam, direction, target (all crossings, dropped or not)
     dropped: pl.DataFrame  # t, beam, direction, target of the dropped crossings
+    start_regions: dict[str, str] | None = None  # target -> region name at t = 0
 
 
 class _Planner:
@@ -211,10 +212,11 @@ def simulate_beams(site: Site, cfg: BeamsSimConfig, *, seed: int) -> BeamsSimula
     planner = _Planner(site, rg, cfg, rng, reserved)
     times = np.arange(0.0, cfg.duration, 1.0 / cfg.rate_hz)
     start_region = int(rng.integers(len(rg.names)))
-    paths, crossings = {}, []
+    paths, crossings, starts = {}, [], {}
     for k in range(cfg.agents):
         target = f"agent{k + 1}"
         region = start_region if cfg.start == "same" else int(rng.integers(len(rg.names)))
+        starts[target] = rg.names[region]
         p0 = planner.random_points(region, 16)[0]
         way, cr = planner.plan(target, region, p0)
         paths[target] = sample_path(way, times)
@@ -252,7 +254,7 @@ def simulate_beams(site: Site, cfg: BeamsSimConfig, *, seed: int) -> BeamsSimula
     samples = pl.concat(
         [pl.DataFrame({"t": times, "target": tgt, "x": pos[:, 0], "y": pos[:, 1]}) for tgt, pos in paths.items()]
     ).sort(["t", "target"])
-    return BeamsSimulation(samples, beam_events, true_cross, dropped)
+    return BeamsSimulation(samples, beam_events, true_cross, dropped, starts)
 
 
 def _within_dropped(times: np.ndarray, near: np.ndarray, drop_t: np.ndarray) -> np.ndarray:
@@ -280,7 +282,9 @@ def write_beams_dataset(
 
     Writes ``site.toml``, ``beams.csv`` (raw pair events), ``truth.csv`` (at the camera frame
     rate), ``truth_crossings.csv`` (every true crossing, with its agent and a ``dropped``
-    flag) and, with ``camera``, an overhead ``camera.mp4``. Every file is written atomically.
+    flag), ``run.toml`` (the known initial condition for the ``correct`` stage: ``[correct]``
+    ``n`` and ``initial`` counts per region, the paper's known eta_0 of section V) and, with
+    ``camera``, an overhead ``camera.mp4``. Every file is written atomically.
     """
     if scenario not in SCENARIOS:
         from onebit.errors import ConfigError
@@ -312,11 +316,32 @@ def write_beams_dataset(
         pl.col("dropped").fill_null(False).cast(pl.Int8)
     )
     _atomic_csv(tc, out / "truth_crossings.csv")
+    _atomic_text(initial_condition_toml(sim.start_regions or {}), out / "run.toml")
     if camera and cam is not None:
         from onebit.datasets.camera_render import render_overhead_video
 
         render_overhead_video(out / "camera.mp4", site, frames, seed=seed, radius=cfg.radius)
     return out
+
+
+def initial_condition_toml(start_regions: dict[str, str]) -> str:
+    """The dataset's ``run.toml``: ``[correct] n`` and ``initial`` (agents per start region)."""
+    counts: dict[str, int] = {}
+    for region in start_regions.values():
+        counts[region] = counts.get(region, 0) + 1
+    table = ", ".join(f'"{r}" = {c}' for r, c in sorted(counts.items()))
+    return (
+        "# Written by the simulator: the known initial condition (Bobadilla et al. V, IV-C).\n"
+        "[correct]\n"
+        f"n = {len(start_regions)}\n"
+        f"initial = {{{table}}}\n"
+    )
+
+
+def _atomic_text(text: str, path: Path) -> None:
+    tmp = path.with_name(f".{path.name}.tmp")
+    tmp.write_text(text, encoding="utf-8")
+    os.replace(tmp, path)
 
 
 def _atomic_csv(df: pl.DataFrame, path: Path) -> None:

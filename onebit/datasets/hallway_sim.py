@@ -1,11 +1,16 @@
 """Smart-environment simulator of FindingHuMo (De et al., section IV-C) on the ``hallway`` site.
 
-Users enter through the door (node 104) at staggered times and walk along the hallway graph
-between destinations that alternate between the west wing (printer room 92, busy lab 93,
-94, 96, 97) and the east wing (kitchen 99, 110, 114, 117, 106, 118, 100), so their paths
-overlap and cross in the middle corridor as in the paper's Fig. 2. Each user has its own
-walking speed that also varies from edge to edge, and pauses at destinations. With
-``exits``, that many users walk back to the door and leave before the end.
+``walk = "routes"`` (default) follows the paper's experiment (section IV-B: three users "made
+to repeatedly move through the space in overlapping paths", Fig. 2): each user paces its own
+route back and forth between a west end (printer room 92, busy lab 93, 97) and an east end
+(110, 117, 116); every such route runs through the middle corridor 96-95-99-111, where the
+routes overlap and users cross one another; users start at staggered times, alternately at
+the west and the east end. ``walk = "random"`` (the first version): users enter through the
+door (node 104) at staggered times and walk between random destinations alternating between
+the wings -- then they mostly walk in file through the door corridor, 10-24 % of user-slots
+with two users at one node, which no binary-sensor method can tell apart. Each user has its
+own walking speed that also varies from edge to edge, and pauses at route ends /
+destinations. With ``exits``, that many users walk to the door and leave before the end.
 
 Sensors: a ceiling PIR at each node with its own coverage radius (``range`` in site.toml:
 non-uniform coverage). Positions are sampled at 10 Hz; a user inside a node's radius is
@@ -39,6 +44,11 @@ from onebit.errors import ConfigError
 WEST = ("92", "93", "94", "96", "97", "95")
 EAST = ("99", "110", "114", "117", "106", "118", "100", "111", "101")
 DOOR = "104"
+#: ends of the scripted routes (``walk = "routes"``): every shortest path from a west end to an
+#: east end runs through the middle corridor 96-95-99-111, where the routes overlap and cross
+ROUTE_WEST = ("92", "93", "97")
+ROUTE_EAST = ("110", "117", "116")
+WALKS = ("routes", "random")
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -52,6 +62,7 @@ class HallwaySimConfig:
     pause: tuple[float, float] = (0.0, 4.0)  #: pause at a destination (s)
     enter_gap: tuple[float, float] = (2.0, 8.0)  #: time between two users entering (s)
     exits: int = 0  #: users that leave through the door before the end
+    walk: str = "routes"  #: "routes": each user paces its own west-east route; "random": random destinations from the door
     rate_hz: float = 10.0
     p_detect: float = 0.85
     hold: float = 0.6
@@ -69,6 +80,8 @@ class HallwaySimConfig:
             v = getattr(self, name)
             if not 0.0 <= v <= 1.0:
                 raise ConfigError(f"HallwaySimConfig.{name} = {v!r}; allowed range: [0, 1]")
+        if self.walk not in WALKS:
+            raise ConfigError(f"HallwaySimConfig.walk = {self.walk!r}; allowed: {list(WALKS)}")
         if self.p_detect <= 0:
             raise ConfigError("HallwaySimConfig.p_detect must be > 0")
 
@@ -114,6 +127,52 @@ def _plan_user(g: nx.Graph, pos: dict, cfg: HallwaySimConfig, rng: np.random.Gen
     return np.array(way), (t if leave_at is not None else None)
 
 
+def _plan_route_user(g: nx.Graph, pos: dict, cfg: HallwaySimConfig, rng: np.random.Generator, t_in: float,
+                     leave_at: float | None, route: list[str]):
+    """Waypoints (t, x, y) of one user pacing ``route`` back and forth (the paper's scripted
+    experiment, section IV-B: users "repeatedly move through the space in overlapping paths"),
+    pausing at the ends; a leaver walks to the door at ``leave_at`` and leaves."""
+    speed = rng.uniform(*cfg.speed)
+    t = t_in
+    way = [(t, *pos[route[0]])]
+    end = leave_at if leave_at is not None else cfg.duration + 5.0
+    here = route[0]
+
+    def walk(path):
+        nonlocal t, here
+        for a, b in zip(path[:-1], path[1:]):
+            d = float(np.hypot(*(np.subtract(pos[b], pos[a]))))
+            t += d / (speed * (1.0 + rng.uniform(-cfg.speed_jitter, cfg.speed_jitter)))
+            way.append((t, *pos[b]))
+            here = b
+            if t >= end:
+                return
+
+    leg = route
+    while t < end:
+        walk(leg)
+        t += rng.uniform(*cfg.pause)
+        way.append((t, *pos[here]))
+        leg = leg[::-1]
+    if leave_at is not None:
+        walk(nx.shortest_path(g, here, DOOR))
+        t += 1.0
+        way.append((t, *pos[DOOR]))
+    return np.array(way), (t if leave_at is not None else None)
+
+
+def _routes(g: nx.Graph, users: int, rng: np.random.Generator) -> list[list[str]]:
+    """One west-east route per user; ends are dealt without repetition while they last, and
+    users alternate the end they start from (so routes are walked in both directions)."""
+    west = rng.permutation(ROUTE_WEST).tolist()
+    east = rng.permutation(ROUTE_EAST).tolist()
+    out = []
+    for u in range(users):
+        path = nx.shortest_path(g, west[u % len(west)], east[u % len(east)])
+        out.append(path if u % 2 == 0 else path[::-1])
+    return out
+
+
 def current_node(xy: np.ndarray, targets: np.ndarray, node_xy: np.ndarray, ranges: np.ndarray) -> np.ndarray:
     """Index of the node whose coverage each sample is in (nearest if several), else the last
     one the same target was in (forward fill in sample order); -1 before the first."""
@@ -135,10 +194,14 @@ def simulate_hallway(site: Site, cfg: HallwaySimConfig, *, seed: int) -> Hallway
     times = np.arange(0.0, cfg.duration, 1.0 / cfg.rate_hz)
     leavers = set(rng.choice(cfg.users, size=cfg.exits, replace=False).tolist()) if cfg.exits else set()
     t_in = 1.0
+    routes = _routes(g, cfg.users, rng) if cfg.walk == "routes" else []
     frames = []
     for u in range(cfg.users):
         leave_at = cfg.duration - rng.uniform(25.0, 40.0) if u in leavers else None
-        way, t_out = _plan_user(g, pos, cfg, rng, t_in, leave_at)
+        if cfg.walk == "routes":
+            way, t_out = _plan_route_user(g, pos, cfg, rng, t_in, leave_at, routes[u])
+        else:
+            way, t_out = _plan_user(g, pos, cfg, rng, t_in, leave_at)
         present = (times >= way[0, 0]) & (times <= (t_out if t_out is not None else np.inf))
         tt = times[present]
         x = np.interp(tt, way[:, 0], way[:, 1])
@@ -182,7 +245,8 @@ def simulate_hallway(site: Site, cfg: HallwaySimConfig, *, seed: int) -> Hallway
 
 
 def write_hallway_dataset(
-    out_dir: str | Path, *, seed: int = 0, duration: float = 150.0, users: int = 3, drop: float = 0.02, exits: int = 0
+    out_dir: str | Path, *, seed: int = 0, duration: float = 150.0, users: int = 3, drop: float = 0.02, exits: int = 0,
+    walk: str = "routes",
 ) -> Path:
     """Simulate the ``hallway`` scenario and write ``site.toml``, ``motion.csv``, ``truth.csv``
     (each atomically)."""
@@ -190,7 +254,7 @@ def write_hallway_dataset(
     out.mkdir(parents=True, exist_ok=True)
     site_path = builtin_site_path("hallway")
     site = load_site(site_path)
-    cfg = HallwaySimConfig(duration=duration, users=users, drop=drop, exits=exits)
+    cfg = HallwaySimConfig(duration=duration, users=users, drop=drop, exits=exits, walk=walk)
     sim = simulate_hallway(site, cfg, seed=seed)
     _atomic_copy(site_path, out / "site.toml")
     _atomic_csv(sim.toggles, out / "motion.csv")
@@ -211,7 +275,7 @@ def _atomic_copy(src: Path, dst: Path) -> None:
 
 
 def _write(dataset, *, seed: int, duration, agents, drop: float, camera: bool, params: dict):
-    known = {"exits"}
+    known = {"exits", "walk"}
     bad = sorted(set(params) - known)
     if bad:
         raise ConfigError(f"scenario 'hallway': unknown --param {bad}; known: {sorted(known)}")
@@ -226,6 +290,7 @@ def _write(dataset, *, seed: int, duration, agents, drop: float, camera: bool, p
         users=3 if agents is None else agents,
         drop=0.02 if drop is None else drop,
         exits=exits,
+        walk=params.get("walk", "routes"),
     )
 
 
@@ -235,7 +300,7 @@ def _specs():
     return {
         "hallway": Scenario(
             "hallway",
-            "FindingHuMo Fig. 1 floor: 20 PIR nodes on a hallway graph, 3 users with crossing paths (--param exits=N)",
+            "FindingHuMo Fig. 1 floor: 20 PIR nodes on a hallway graph, 3 users with crossing paths (--param exits=N, walk=routes|random)",
             _write,
         )
     }

@@ -21,6 +21,7 @@ SCENARIO_MODULES: tuple[str, ...] = (
     "onebit.datasets.pir_sim",
     "onebit.datasets.proximity_sim",
     "onebit.datasets.hallway_sim",
+    "onebit.datasets.okane_sim",
 )
 
 

@@ -16,6 +16,7 @@ from onebit.errors import ConfigError
 EXPERIMENT_MODULES: dict[str, str] = {
     "singh": "onebit.pipeline.exp_singh",
     "schiff": "onebit.pipeline.exp_schiff",
+    "okane": "onebit.pipeline.exp_okane",
 }
 
 

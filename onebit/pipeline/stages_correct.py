@@ -1,9 +1,12 @@
 """The ``correct`` stage: false-negative correction of the crossing string (Bobadilla et al. V).
 
 Runs after the reader stages and before the trackers, when the number of agents ``n`` is
-known (``site.toml`` ``targets`` or ``run.toml`` ``[correct] n``). It checks the observed
-string against the counting automaton M_C and inserts the fewest crossings that make it a
-string of ``L(M_C)`` (:mod:`onebit.trackers.beams.counting`). The ``beams`` tracker then
+known (``site.toml`` ``targets`` or ``run.toml`` ``[correct] n``). The ``[correct]`` section
+comes from ``--config``; when that has none, from the dataset's own ``run.toml`` (the beams
+simulator writes ``n`` and the known initial counts there -- the paper's known ``eta_0``).
+It checks the observed string against the counting automaton M_C and inserts the fewest
+crossings that make it a string of ``L(M_C)`` (:mod:`onebit.trackers.beams.counting`), each
+at the middle in time of its feasible window (``placement``). The ``beams`` tracker then
 reads ``corrected_crossings`` instead of ``crossings`` (the runner's input alias).
 
 Initial count vector ``eta_0``, in order of precedence:
@@ -24,13 +27,14 @@ Report: ``correct/accepted`` (1 if the observed string is already in ``L(M_C)``)
 
 from __future__ import annotations
 
+import tomllib
 from dataclasses import asdict, dataclass
 
 import numpy as np
 import polars as pl
 from scipy.optimize import linear_sum_assignment
 
-from onebit.errors import ConfigError
+from onebit.errors import ConfigError, InputError
 from onebit.pipeline.runner import RunContext, Stage
 from onebit.tables import CROSSINGS, check_schema
 from onebit.trackers.base import check_choice, check_range, config_from_mapping
@@ -48,21 +52,28 @@ class CorrectConfig:
     initial : known initial counts per region name (sum = n); ``None`` = not known.
     start_region : all n agents start in this region; used when ``initial`` is not given.
     placement : where an inserted crossing goes in its feasible window: ``"earliest"``
-        (as early as the counts allow) or ``"latest"`` (right before the crossing that needs it).
-    window : how many crossings back ``"earliest"`` may move an insertion.
+        (as early as the counts allow), ``"latest"`` (right before the crossing that needs it)
+        or ``"midpoint"`` (the middle in time of that window; the default, see
+        :func:`~onebit.trackers.beams.counting.place_insertions`).
+    window : how many crossings back an insertion may be moved.
+    enabled : ``false`` skips the stage (e.g. to compare with the uncorrected string when
+        the dataset's ``run.toml`` would turn it on).
     """
 
     n: int | None = None
     initial: dict | None = None
     start_region: str | None = None
-    placement: str = "earliest"
+    placement: str = "midpoint"
     window: int = 4096
+    enabled: bool = True
 
     def __post_init__(self) -> None:
         if self.n is not None:
             check_range(self, "n", 1, None, types=(int,))
         check_choice(self, "placement", PLACEMENTS)
         check_range(self, "window", 1, None, types=(int,))
+        if not isinstance(self.enabled, bool):
+            raise ConfigError(f"CorrectConfig.enabled = {self.enabled!r}; expected true or false")
         if self.initial is not None:
             if not isinstance(self.initial, dict) or not self.initial:
                 raise ConfigError(f"CorrectConfig.initial = {self.initial!r}; expected a table region -> count")
@@ -95,12 +106,27 @@ def initial_counts(cfg: CorrectConfig, names: tuple[str, ...], n: int) -> np.nda
     return None
 
 
+def _section(ctx: RunContext) -> dict:
+    """``[correct]`` from ``--config``; without one, from the dataset's ``run.toml``."""
+    if "correct" in ctx.config:
+        return ctx.config["correct"] or {}
+    p = ctx.dataset / "run.toml"
+    if p.exists():
+        try:
+            return dict(tomllib.loads(p.read_text(encoding="utf-8")).get("correct", {}))
+        except tomllib.TOMLDecodeError as exc:
+            raise InputError(f"not valid TOML: {exc}", file=p) from None
+    return {}
+
+
 def _agent_count(ctx: RunContext) -> int | None:
-    n = (ctx.config.get("correct") or {}).get("n")
+    n = _section(ctx).get("n")
     return n if n is not None else ctx.site.targets
 
 
 def _available(ctx: RunContext) -> str | None:
+    if _section(ctx).get("enabled", True) is False:
+        return "disabled: [correct] enabled = false"
     n = _agent_count(ctx)
     if n is None:
         return "number of agents unknown: set site.toml targets or run.toml [correct] n"
@@ -112,14 +138,16 @@ def _available(ctx: RunContext) -> str | None:
 def corrected_frame(crossings: pl.DataFrame, res, edges: RegionEdges) -> pl.DataFrame:
     """The corrected string as a CORRECTED_CROSSINGS frame.
 
-    Observed rows keep their time; a run of ``K`` inserted crossings between observed times
-    ``t_a`` and ``t_b`` gets ``t_a + (t_b - t_a) k / (K + 1)``, k = 1..K (``t_b`` alone before
-    the first observed crossing, ``t_a`` alone after the last).
+    Observed rows keep their time; inserted rows get the time their placement chose
+    (``res.time``, the timed placements); otherwise a run of ``K`` inserted crossings between
+    observed times ``t_a`` and ``t_b`` gets ``t_a + (t_b - t_a) k / (K + 1)``, k = 1..K
+    (``t_b`` alone before the first observed crossing, ``t_a`` alone after the last).
     """
     ob = crossings.select("t", "beam", "direction")
     if ob.height == 0:  # nothing observed, nothing inserted
         return pl.DataFrame(schema=CORRECTED_CROSSINGS)
     ins = res.inserted
+    placed = np.where(ins, res.time, np.nan) if res.time is not None else np.full(len(ins), np.nan)
     obs_row = np.where(ins, 0, res.observed_index)
     edge = np.where(ins, res.edge, 0)
     beams = np.asarray(edges.edge_beam, dtype=object)[edge]
@@ -130,6 +158,7 @@ def corrected_frame(crossings: pl.DataFrame, res, edges: RegionEdges) -> pl.Data
             "beam": pl.Series(np.where(ins, beams, ob["beam"].to_numpy()[obs_row]).tolist(), dtype=pl.String),
             "direction": pl.Series(np.where(ins, dirs, ob["direction"].to_numpy()[obs_row]), dtype=pl.Int8),
             "inserted": pl.Series(ins, dtype=pl.Boolean),
+            "t_placed": pl.Series(placed, dtype=pl.Float64).fill_nan(None),
         }
     )
     run = (~pl.col("inserted")).cum_sum()
@@ -145,12 +174,12 @@ def corrected_frame(crossings: pl.DataFrame, res, edges: RegionEdges) -> pl.Data
     k = pl.when(lead_obs).then(pl.col("k")).otherwise(pl.col("k") + 1)
     kk = pl.when(lead_obs).then(pl.col("big_k") - 1).otherwise(pl.col("big_k"))
     interp = pl.col("prev") + (pl.col("next") - pl.col("prev")) * k / (kk + 1)
-    t = pl.coalesce(pl.col("t_obs"), interp, pl.col("next"), pl.col("prev"))
+    t = pl.coalesce(pl.col("t_obs"), pl.col("t_placed"), interp, pl.col("next"), pl.col("prev"))
     return df.select(t.cast(pl.Float64).alias("t"), "beam", "direction", "inserted")
 
 
 def _work(ctx: RunContext, log) -> dict[str, pl.DataFrame]:
-    cfg = config_from_mapping(CorrectConfig, ctx.config.get("correct"), section="correct")
+    cfg = config_from_mapping(CorrectConfig, _section(ctx), section="correct")
     n = cfg.n if cfg.n is not None else ctx.site.targets
     ctx.config.setdefault("correct", {}).update({k: v for k, v in asdict(cfg).items() if v is not None} | {"n": n})
     rg = ctx.region_graph
@@ -165,7 +194,9 @@ def _work(ctx: RunContext, log) -> dict[str, pl.DataFrame]:
         need = minimal_initial_counts(src, tgt, len(rg.names))
         accepted = int(need.sum()) <= n
         first = -1 if accepted else _first_violation_unknown(src, tgt, len(rg.names), n)
-    res = correct(src, tgt, edges, n_agents=n, initial=eta0, placement=cfg.placement, window=cfg.window)
+    res = correct(
+        src, tgt, edges, n_agents=n, initial=eta0, placement=cfg.placement, window=cfg.window, times=crossings["t"].to_numpy()
+    )
     names = np.asarray(rg.names, dtype=object)
     corrected = corrected_frame(crossings, res, edges)
     pos = res.insertion_positions

@@ -10,6 +10,7 @@ TRACKER_MODULES: tuple[str, ...] = (
     "onebit.trackers.intruder",
     "onebit.trackers.clustertrack",
     "onebit.trackers.findinghumo",
+    "onebit.trackers.istate",
 )
 
 

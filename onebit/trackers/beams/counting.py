@@ -59,9 +59,20 @@ with a breadth-first search over (position, count vector) with every insertion a
 Placement (:func:`place_insertions`). The canonical form puts every insertion as late as
 possible. An inserted crossing ``u -> v`` can be moved earlier to any position from which,
 up to its old position, region ``u`` still holds an agent for it and one for every observed
-crossing that leaves ``u``; ``placement="earliest"`` moves each one (in order) to the
-earliest such position within ``window`` crossings, ``"latest"`` leaves them where the DP
-put them. Both keep the string in ``L(M_C)`` and the number of insertions.
+crossing that leaves ``u``: its *feasible window*. Counts say nothing about where in the
+window the agent really crossed; when the insertion stands for a real drop ``u -> v`` the
+true moment lies in it (the observed string has one agent too many in ``u`` from then on). ``placement="midpoint"`` (the default of
+the ``correct`` stage) puts it at the middle *in time* of the window,
+``tau = (t_first + t_last) / 2`` with ``t_first`` the time of the crossing that opens the
+window and ``t_last`` that of the crossing that needed the insertion -- our choice where the
+paper is silent: with no motion model, the middle minimises the worst-case distance to the
+true moment. ``"earliest"`` moves each one (in order) to the start of its window (within
+``window`` crossings), ``"latest"`` leaves it where the DP put it. All keep the string in
+``L(M_C)`` and the number of insertions. Parallel beams (two beams joining the same two
+regions, like b and c of the building) cannot be told apart by counts: the lowest beam id is
+inserted. (A tie-break by the shortest walk between the neighbouring beams was measured on
+the building and restored no more drops -- the simulator picks beams uniformly -- so it is
+not used.)
 
 The DP and the placement are sequential in the string (each step depends on the states the
 previous one left); they are vectorised over the live count states and over runs of crossings.
@@ -76,7 +87,7 @@ import numpy as np
 from scipy.sparse import csr_matrix
 from scipy.sparse.csgraph import shortest_path
 
-PLACEMENTS = ("earliest", "latest")
+PLACEMENTS = ("earliest", "latest", "midpoint")
 _FAR = 10**6  # hop distance standing for "unreachable"
 
 
@@ -249,6 +260,9 @@ class Correction:
     edge : (m + cost,) edge index of inserted crossings (into ``RegionEdges``), -1 for observed.
     peak_states : largest number of live count states during the DP.
     events : number of deficit positions processed (DP steps that branched).
+    time : (m + cost,) float times when observed ``times`` were given: the observed ones,
+        and the placement's time for inserted crossings (NaN for ``"earliest"``/``"latest"``,
+        whose times the caller interpolates); None without ``times``.
     """
 
     cost: int
@@ -260,6 +274,7 @@ class Correction:
     edge: np.ndarray
     peak_states: int
     events: int
+    time: np.ndarray | None = None
 
     @property
     def insertion_positions(self) -> np.ndarray:
@@ -293,9 +308,10 @@ def correct(
     *,
     n_agents: int | None = None,
     initial=None,
-    placement: str = "earliest",
+    placement: str = "midpoint",
     window: int = 4096,
     max_chunk: int = 8192,
+    times=None,
 ) -> Correction:
     """Fewest inserted crossings that put ``source -> target`` in ``L(M_C)``.
 
@@ -306,8 +322,10 @@ def correct(
     n_agents : n; with ``initial=None`` every count vector with sum n is a free start state
         (the DP picks the one needing fewest insertions).
     initial : (p,) known ``eta_0`` (then ``n_agents`` defaults to its sum and must match).
-    placement : ``"earliest"`` or ``"latest"`` (see :func:`place_insertions`).
-    window : how many crossings back an insertion may be moved by ``"earliest"``.
+    placement : ``"earliest"``, ``"latest"`` or ``"midpoint"`` (see :func:`place_insertions`).
+    window : how many crossings back an insertion may be moved.
+    times : (m,) sorted times of the observed crossings; ``"midpoint"`` then works in time and
+        gives every inserted crossing one (``Correction.time``), otherwise it works on ranks.
     """
     if placement not in PLACEMENTS:
         raise ValueError(f"placement must be one of {PLACEMENTS}, got {placement!r}")
@@ -315,6 +333,9 @@ def correct(
     tgt = np.asarray(target, dtype=np.int64)
     p = edges.n_regions
     m = len(src)
+    obs_times = None if times is None else np.asarray(times, dtype=np.float64)
+    if obs_times is not None and (len(obs_times) != m or np.any(np.diff(obs_times) < 0)):
+        raise ValueError(f"times must be {m} sorted values, one per observed crossing")
     if initial is not None:
         start = np.asarray(initial, dtype=np.int64).reshape(1, p)
         if np.any(start < 0):
@@ -401,10 +422,21 @@ def correct(
             ins_pos.append(pos)
             ins_edge.append(e)
     cor = _splice(src, tgt, np.asarray(ins_pos, dtype=np.int64), np.asarray(ins_edge, dtype=np.int64), edges)
-    if placement == "earliest" and len(ins_pos):
-        cor = place_insertions(*cor, eta0, window=window)
+    tau = np.full(len(cor[0]), np.nan)
+    if placement != "latest" and len(ins_pos):
+        el_times = None
+        if times is not None:
+            # inserted elements carry the time of the observed crossing they precede
+            ob = cor[3]
+            nxt = np.minimum.accumulate(np.where(ob >= 0, np.arange(len(ob)), len(ob))[::-1])[::-1]
+            el_times = obs_times[ob[nxt]]
+        *cor, tau = place_insertions(*cor, eta0, window=window, placement=placement, times=el_times)
     S, T, inserted, obs, edge = cor
-    return Correction(int(inserted.sum()), eta0, S, T, inserted, obs, edge, int(peak), int(events))
+    if times is not None:
+        tau = np.where(inserted, tau, obs_times[np.maximum(obs, 0)]) if len(obs) else np.zeros(0)
+    else:
+        tau = None
+    return Correction(int(inserted.sum()), eta0, S, T, inserted, obs, edge, int(peak), int(events), tau)
 
 
 def _splice(src, tgt, ins_pos, ins_edge, edges: RegionEdges):
@@ -422,21 +454,40 @@ def _splice(src, tgt, ins_pos, ins_edge, edges: RegionEdges):
     return S.astype(np.int64), T.astype(np.int64), inserted, obs.astype(np.int64), edge.astype(np.int64)
 
 
-def place_insertions(S, T, inserted, obs, edge, initial, *, window: int = 4096):
-    """Move every inserted crossing ``u -> v`` to the earliest position that keeps the string valid.
+def place_insertions(S, T, inserted, obs, edge, initial, *, window: int = 4096, placement: str = "midpoint", times=None):
+    """Move every inserted crossing ``u -> v`` to a place of its feasible window.
 
     Processed in string order. For the insertion at index ``q`` the count of ``u`` before
     index ``y < q`` is ``c_u[y]``; moving it to ``x`` lowers ``c_u`` by one on ``[x, q)``, which
-    is allowed iff ``c_u[y] >= 1 + [S[y] = u]`` for every ``y`` in ``[x, q)``. The new place is
-    one past the last ``y`` violating that (searched within ``window`` crossings).
+    is allowed iff ``c_u[y] >= 1 + [S[y] = u]`` for every ``y`` in ``[x, q)``. The feasible
+    window is ``[x_lo, q]`` with ``x_lo`` one past the last ``y`` violating that (searched
+    within ``window`` crossings); every position in it keeps the string in ``L(M_C)``.
+
+    ``times`` (one per element, sorted; inserted elements carry the time of the crossing they
+    precede) gives every element a time; without it the element's rank is used. The place:
+
+    * ``"earliest"``: ``x = x_lo``;  ``"latest"``: ``x = q`` (where the DP put it);
+    * ``"midpoint"``: ``tau = (t[x_lo - 1] + t[q + 1]) / 2``, the middle in time of the
+      window (``t[-1]`` = ``min(0, t[0])``, the start of the recording; rank -1 without times).
+
+    For ``"midpoint"`` the crossing goes at the first ``x`` of the window with ``t[x] > tau``
+    and gets time ``tau`` (clipped to its neighbours), so times stay sorted.
     Sequential over insertions, vectorised over the window.
+
+    Returns ``S, T, inserted, obs, edge, tau`` with ``tau`` NaN for ``"earliest"``/``"latest"``.
     """
+    if placement not in PLACEMENTS:
+        raise ValueError(f"placement must be one of {PLACEMENTS}, got {placement!r}")
     S, T, inserted, obs, edge = S.copy(), T.copy(), inserted.copy(), obs.copy(), edge.copy()
+    n_el = len(S)
+    tt = np.arange(n_el, dtype=np.float64) if times is None else np.asarray(times, dtype=np.float64).copy()
+    tau_out = np.full(n_el, np.nan)
+    t0 = (tt[0] - 1.0 if n_el else 0.0) if times is None else min(0.0, float(tt[0]) if n_el else 0.0)
     init = np.asarray(initial, dtype=np.int64)
     p = len(init)
     # P[y] = net count change of every region from the elements before index y
-    P = np.zeros((len(S) + 1, p), dtype=np.int32)
-    if len(S):
+    P = np.zeros((n_el + 1, p), dtype=np.int32)
+    if n_el:
         P[1:] = np.cumsum(crossing_deltas(S, T, p), axis=0)
     for q in np.flatnonzero(inserted).tolist():
         u, v = int(S[q]), int(T[q])
@@ -444,11 +495,26 @@ def place_insertions(S, T, inserted, obs, edge, initial, *, window: int = 4096):
         c = init[u] + P[lo:q, u]  # agents in u before each y in [lo, q)
         need = 1 + (S[lo:q] == u)
         bad = np.flatnonzero(c < need)
-        x = lo + (int(bad[-1]) + 1 if bad.size else 0)
+        x_lo = lo + (int(bad[-1]) + 1 if bad.size else 0)
+        tau = np.nan
+        if placement == "earliest":
+            x = x_lo
+        elif placement == "latest":
+            x = q
+        else:
+            t_before = tt[x_lo - 1] if x_lo > 0 else t0
+            tau = 0.5 * (t_before + tt[q + 1])  # middle of the feasible window in time
+            tau = float(np.clip(tau, t_before, tt[q + 1]))
+            x = x_lo + int(np.searchsorted(tt[x_lo:q], tau, side="right"))
+        tt[q] = tau if np.isfinite(tau) else tt[q]
+        tau_out[q] = tau
         if x < q:
-            for arr in (S, T, inserted, obs, edge):
+            for arr in (S, T, inserted, obs, edge, tt, tau_out):
                 arr[x : q + 1] = np.r_[arr[q], arr[x:q]]
             P[x + 1 : q + 1] = P[x:q]  # the elements of [x, q) moved one place right
             P[x + 1 : q + 1, u] -= 1
             P[x + 1 : q + 1, v] += 1
-    return S, T, inserted, obs, edge
+    if times is None:
+        tau_out[:] = np.nan
+    return S, T, inserted, obs, edge, tau_out
+

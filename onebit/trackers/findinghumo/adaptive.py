@@ -11,7 +11,12 @@ the rest is look-ahead). Per window:
    counts entry signatures ``outer -> inner`` (an onset at ``outer`` followed by activity at
    ``inner`` in the window) with no known user within 1 hop of ``outer``; ``Sig_out`` counts
    users whose decoded path ends ``inner -> outer`` with ``outer`` silent afterwards in the
-   window: they leave.
+   window: they leave. A door node can lie on a corridor (104 between 97 and 103): walking
+   through it is an exit signature followed by an entry one (``-1 + 1``, K unchanged). So
+   that the walker keeps its identity, a user that left is kept *dormant* for ``resume``
+   slots; a new user (from an entry signature at that door, or from ``K_now`` with the
+   door within 1 hop of the window's activity) in that time is the dormant user coming back
+   (its slots in between are filled with the door node).
 2. **Overlap detection and model choice** (III-B2(a), Algorithm 3). The activations of the
    window form a space-time graph (``(t, j)`` ~ ``(t', j')`` when ``|t - t'| <= 1`` and
    ``hops(j, j') <= 1``); its connected components (``scipy.sparse.csgraph``) are the motion
@@ -23,7 +28,12 @@ the rest is look-ahead). Per window:
 3. **Transitions** (III-B2(b)): first order ``a(j2, j1) = a'(j2, j1)``; second order
    ``a(j3, j2, j1) = a'(j2, j1) a''(j3, j1)``, applied where it carries information -- a
    2-hop move ``j3 != j2 != j1`` -- and normalised so that the 2-hop factor re-weights
-   *where* a user moves, not *whether* it moves::
+   *where* a user moves, not *whether* it moves. ``j3`` is the node the user came from --
+   the last node different from ``j2``, however many slots it dwelt at ``j2`` -- not the
+   node at slot ``t - 2``: with 1-s slots a user dwells ~4 slots per node, and the slot-literal
+   context would forget the direction after one slot of dwelling
+   (:func:`~onebit.trackers.findinghumo.viterbi.viterbi_motion_second_order`; ``a''`` is
+   trained on trigger sequences, i.e. on exactly these distinct-node sequences)::
 
        a(j3, j2, j2) = a'(j2, j2)                                       (stay)
        a(j2, j2, j1) = a'(j2, j1)                                       (no direction known)
@@ -49,10 +59,13 @@ the rest is look-ahead). Per window:
    so an activation nobody explains pulls a user towards it, and an activation already
    explained adds little (the paper's ``c_{j2 j1}`` is taken independent of ``j2``). Each
    re-decoding of one user with the others fixed cannot lower the joint likelihood. The initial distribution is
-   the previous window's result: each known user's last two accepted nodes are prepended as
-   clamped slots (emission 0 at that node, ``-inf`` elsewhere), so the decoder continues the
-   user's path with its second-order context. A new user starts at its entry node (Sig_in)
-   or uniformly over the window's states.
+   the previous window's result: each known user's last accepted node, preceded by the node it
+   came from, is prepended as clamped slots (emission 0 at that node, ``-inf`` elsewhere), so
+   the decoder continues the user's path with its second-order context. A new user starts at
+   its entry node (Sig_in) or uniformly over the window's states. Coordinate ascent finds a
+   local optimum that depends on the order the users are decoded in, so it is run
+   ``restarts`` times with the order rotated, and the run with the highest joint
+   log-likelihood ``sum_u log P(path_u) + sum_{t,j} log P(b_j(t) | c_j(t))`` is kept.
 
 The baselines ``hmm1`` / ``hmm2`` run the same loop with the full state set and a fixed order
 (``mode = "full1"`` / ``"full2"``); ``offline`` uses one window spanning the whole run.
@@ -71,9 +84,12 @@ from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import connected_components
 
 from onebit.trackers.findinghumo.eatg import Eatg, onsets
-from onebit.trackers.findinghumo.viterbi import log_safe, viterbi_first_order, viterbi_second_order
+from onebit.trackers.findinghumo.viterbi import log_safe, viterbi_first_order, viterbi_motion_second_order
 
 MODES = ("adaptive", "full1", "full2")
+
+#: slots searched back for the node a user came from (its second-order context)
+LOOKBACK = 120
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -87,6 +103,8 @@ class DecoderParams:
     p_false: float = 0.05
     sweeps: int = 3
     offline: bool = False
+    resume: int = 10  # slots after an exit in which an entry at the same door continues that user
+    restarts: int = 3  # coordinate-ascent restarts (user order rotated); the best joint likelihood wins
 
 
 @dataclass
@@ -197,18 +215,45 @@ def decode_users(
     p, f = params.p_hit, params.p_false
     log_a1 = restricted_first(eatg.a1, states)
     log_a2 = second_order_tensor(eatg.a1, eatg.a2, states) if order == 2 else None
+    best, best_score = None, -np.inf
+    for r in range(min(k, params.restarts)):  # restarts: the users' decoding order rotated by r
+        order_u = [(u + r) % k for u in range(k)]
+        decoded, score = _coordinate_ascent(
+            on, pos, prefixes, starts, entry_nodes, order_u, order=order, log_a1=log_a1, log_a2=log_a2, params=params
+        )
+        if best is None or score > best_score + 1e-9:
+            best, best_score = decoded, score
+    decoded = best
+    have = decoded >= 0
+    out[have] = states[decoded[have]]
+    return out
+
+
+def joint_emission(on: np.ndarray, claims: np.ndarray, p_hit: float, p_false: float) -> float:
+    """``sum_{t,j} log P(b_j(t) | c_j(t))`` of the noisy-OR emission model (module docstring, 4)."""
+    c = claims.astype(float)
+    p_on = np.where(c > 0, 1.0 - (1.0 - p_hit) ** c, p_false)
+    return float(np.where(on, np.log(p_on), np.log1p(-p_on)).sum())
+
+
+def _coordinate_ascent(on, pos, prefixes, starts, entry_nodes, order_u, *, order, log_a1, log_a2, params):
+    """Explain-away sweeps over the users in the order ``order_u``; returns the (K, L) state
+    positions and the joint log-likelihood ``sum_u log P(path_u) + joint_emission``."""
+    k = len(prefixes)
+    n_slots, s = on.shape
     claims = np.zeros((n_slots, s), dtype=np.int64)
-    decoded = np.full((k, n_slots), -1, dtype=np.int64)  # state positions
+    decoded = np.full((k, n_slots), -1, dtype=np.int64)
+    trans = np.zeros(k)
     for _ in range(max(params.sweeps, 1)):
-        for u in range(k):
+        for u in order_u:
             st = starts[u]
             if st >= n_slots:
                 continue
             mine = decoded[u]
             have = mine >= 0
             claims[np.flatnonzero(have), mine[have]] -= 1
-            emis = emission_gain(on[st:], claims[st:], p, f)
-            pre = [pos[p] for p in prefixes[u]]
+            emis = emission_gain(on[st:], claims[st:], params.p_hit, params.p_false)
+            pre = [pos[q] for q in prefixes[u]]
             clamp = np.full((len(pre), s), -np.inf)
             clamp[np.arange(len(pre)), pre] = 0.0
             log_b = np.vstack([clamp, emis])
@@ -217,16 +262,15 @@ def decode_users(
                 log_pi = np.full(s, -np.inf)
                 log_pi[pos[entry_nodes[u]]] = 0.0
             if order == 2:
-                path, _ = viterbi_second_order(log_pi, log_a1, log_a2, log_b)
+                path, score = viterbi_motion_second_order(log_pi, np.diag(log_a1), log_a2, log_b)
             else:
-                path, _ = viterbi_first_order(log_pi, log_a1, log_b)
+                path, score = viterbi_first_order(log_pi, log_a1, log_b)
             path = path[len(pre):]
+            trans[u] = score - float(emis[np.arange(n_slots - st), path].sum())
             decoded[u] = -1
             decoded[u, st:] = path
             claims[np.arange(st, n_slots), path] += 1
-    have = decoded >= 0
-    out[have] = states[decoded[have]]
-    return out
+    return decoded, float(trans.sum()) + joint_emission(on, claims, params.p_hit, params.p_false)
 
 
 # --------------------------------------------------------------------------- the run
@@ -251,6 +295,8 @@ def decode_run(
     rows: list[np.ndarray] = []  # per user, full-length path
     alive: list[int] = []  # indices into users of present users
     windows: list[dict] = []
+    dormant: dict[int, tuple[int, int]] = {}  # exited user -> (slot after its exit, door node)
+    resume = params.resume
     d_max = n_slots if params.offline else params.d_max
     tau = n_slots if params.offline else params.tau
     s = 0
@@ -277,6 +323,18 @@ def decode_run(
         new = []
         for i in range(k - k_pre):
             t0, node = entries[i] if i < len(entries) else (0, -1)
+            seen = np.flatnonzero(obs.any(axis=0))
+            back = [
+                u for u, (slot, outer) in dormant.items()
+                if s + t0 - slot <= resume and (outer == node or (node < 0 and seen.size and hops[outer, seen].min() <= 1))
+            ]
+            if back:  # an exit at this door just before: the same user walked through it
+                u = max(back, key=lambda v: dormant[v][0])
+                slot, door = dormant.pop(u)
+                rows[u][slot : s + t0] = door
+                users[u].start, users[u].entry_node = s + t0, door
+                new.append(u)
+                continue
             users.append(_User(len(users), s + t0, node))
             rows.append(np.full(n_slots, -1, dtype=np.int64))
             new.append(len(users) - 1)
@@ -300,6 +358,8 @@ def decode_run(
             if _exits(rows[u][:acc], active[acc:e], signatures):
                 gone.append(u)
         alive = [u for u in cur if u not in gone]
+        for u in gone:
+            dormant[u] = (acc, int(rows[u][acc - 1]))
         windows.append(dict(slot=s, k=k, k_now=k_now, sig_in=len(entries), sig_out=len(gone), **info))
         s = acc
     paths = np.array(rows, dtype=np.int64).reshape(len(rows), n_slots)
@@ -307,11 +367,15 @@ def decode_run(
 
 
 def _last_nodes(row: np.ndarray, s: int) -> list[int]:
+    """The user's node at slot ``s - 1`` preceded by the last different node it came from
+    (the second-order context), or ``[]`` if absent at ``s - 1``."""
     if s == 0 or row[s - 1] < 0:
         return []
-    if s >= 2 and row[s - 2] >= 0:
-        return [int(row[s - 2]), int(row[s - 1])]
-    return [int(row[s - 1])]
+    last = int(row[s - 1])
+    recent = row[max(0, s - LOOKBACK) : s]
+    before = recent[recent >= 0]
+    came = np.flatnonzero(before != last)
+    return [int(before[came[-1]]), last] if came.size else [last]
 
 
 def _exits(row: np.ndarray, after: np.ndarray, signatures) -> bool:

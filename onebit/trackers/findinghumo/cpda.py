@@ -114,6 +114,11 @@ def _neighbour_node(row: np.ndarray, node: int, start: int, stop: int, step: int
     return int(seg[diff[0]])
 
 
+def _connected(adj: np.ndarray) -> bool:
+    """Whether the users of a meeting (adjacency ``adj`` between their nodes) still form one group."""
+    return connected_components(csr_matrix(adj), directed=False)[0] == 1
+
+
 def junction_score(seq: list[int], log_a2: np.ndarray) -> float:
     """Sum of ``log a''(s_i, s_{i+2})`` over the distinct-node sequence ``seq`` (unknowns dropped)."""
     s = [x for x in seq if x >= 0]
@@ -150,6 +155,9 @@ def cpda(
             users = np.asarray(group)
             at = paths[users, c]
             if (at < 0).any():
+                continue
+            # events are listed before the pass; an earlier switch may have moved these users apart
+            if (hops is None and (at != at[0]).any()) or (hops is not None and not _connected(hops[np.ix_(at, at)] <= 1)):
                 continue
             d = paths.shape[1]
             lo, hi = max(0, c - horizon), min(d, c + 1 + horizon)

@@ -35,6 +35,9 @@ class HmmConfig:
     ``[hmm1]``, ``[hmm2]``); defaults are the paper's (section IV-A).
 
     period : length T of a unit timeslot (s).
+    sampling : how the binary series becomes ``b_j(t)`` per slot: ``"mid"`` -- the state at
+        the slot's mid time (short on-periods kept in their own slot) -- or ``"any"`` -- on at
+        some time in the slot (:func:`slot_activity`).
     d_max : HMM window length in slots (d_max T = 5 s).
     tau : acceptance threshold: the first ``tau`` slots of a window are kept, the next window
         starts there (the paper does not give a value).
@@ -46,10 +49,13 @@ class HmmConfig:
     p_hit : probability that the node a user is at is seen active in a slot.
     p_false : probability that a node nobody is at is seen active in a slot.
     sweeps : explain-away sweeps over the users per window (coordinate ascent).
+    restarts : coordinate-ascent runs per window, each with the users' decoding order rotated;
+        the run with the highest joint log-likelihood is kept.
     offline : decode the whole run as one window (the paper's offline baselines).
     """
 
     period: float = 1.0
+    sampling: str = "mid"
     d_max: int = 5
     tau: int = 3
     eatg: str = "trained"
@@ -59,10 +65,12 @@ class HmmConfig:
     p_hit: float = 0.9
     p_false: float = 0.05
     sweeps: int = 3
+    restarts: int = 3
     offline: bool = False
 
     def __post_init__(self) -> None:
         check_range(self, "period", 1e-3, None)
+        check_choice(self, "sampling", ("mid", "any"))
         check_range(self, "d_max", 1, 1000, types=(int,))
         check_range(self, "tau", 1, self.d_max if isinstance(self.d_max, int) else None, types=(int,))
         check_choice(self, "eatg", ("trained", "layout"))
@@ -72,6 +80,7 @@ class HmmConfig:
         check_range(self, "p_hit", 0.5, 0.999)
         check_range(self, "p_false", 1e-6, 0.5)
         check_range(self, "sweeps", 1, 20, types=(int,))
+        check_range(self, "restarts", 1, 20, types=(int,))
         check_choice(self, "offline", (False, True))
 
 
@@ -100,15 +109,60 @@ def _available(site: Site) -> str | None:
     return None
 
 
-def slot_activity(motion: pl.DataFrame, nodes: tuple[str, ...], period: float) -> tuple[np.ndarray, float]:
-    """(D, N) bool activity per slot and node (``motion_frames`` at ``period``), and ``t0``."""
+def slot_activity(
+    motion: pl.DataFrame, nodes: tuple[str, ...], period: float, sampling: str = "mid"
+) -> tuple[np.ndarray, float]:
+    """(D, N) bool activity ``b_j(t)`` per slot and node, and ``t0`` (slot ``k`` covers
+    ``[t0 + kT, t0 + (k+1)T)``, the grid of ``motion_frames``).
+
+    ``sampling = "any"``: ``b_j(k) = 1`` when ``j`` was on at some time in slot ``k``
+    (``motion_frames``' ``on``). ``sampling = "mid"`` (default): the binary series is sampled
+    once per slot, at its mid time ``t0 + (k + 1/2) T``; an on-period ``[t_on, t_off)`` that
+    contains no mid time (shorter than a slot) is kept in the slot holding its own mid time
+    ``(t_on + t_off) / 2``, so no activation is lost::
+
+        b_j(k) = 1  iff  some on-period [t_on, t_off) of j has t_on <= t0 + (k + 1/2) T < t_off,
+                         or lies inside slot k with no mid time in it and (t_on + t_off)/2 in slot k
+
+    With "any", the slot in which a user passes from ``m_a`` to ``m_b`` shows both nodes (and
+    the PIR's hold keeps ``m_a`` on into the next slot); the mid-time sample shows the node
+    the user is at in the middle of the slot -- the state the HMM decodes per slot.
+    Vectorised: one difference array over (slot, node).
+    """
     from onebit.readers.motion import motion_frames
 
     frames = motion_frames(motion, list(nodes), period=period)
     if frames.height == 0:
         return np.zeros((0, len(nodes)), bool), 0.0
     n = len(nodes)
-    return frames["on"].to_numpy().reshape(-1, n), float(frames["t"].min())
+    t0 = float(frames["t"].min())
+    if sampling == "any":
+        return frames["on"].to_numpy().reshape(-1, n), t0
+    d = frames.height // n
+    idx = {m: i for i, m in enumerate(nodes)}
+    iv = (
+        motion.select("t", "sensor", "on")
+        .filter(pl.col("sensor").is_in(list(nodes)))
+        .sort("t", maintain_order=True)
+        .with_columns(t_off=pl.col("t").shift(-1).over("sensor"))
+        .filter(pl.col("on"))
+        .with_columns(pl.col("t_off").fill_null(t0 + d * period))
+    )
+    if iv.height == 0:
+        return np.zeros((d, n), bool), t0
+    j = np.array([idx[s] for s in iv["sensor"].to_list()], dtype=np.int64)
+    a = (iv["t"].to_numpy() - t0) / period - 0.5
+    b = (iv["t_off"].to_numpy() - t0) / period - 0.5
+    first = np.ceil(a).astype(np.int64)
+    last = np.ceil(b).astype(np.int64) - 1
+    short = last < first
+    own = np.floor((a + b) / 2 + 0.5).astype(np.int64)
+    first = np.clip(np.where(short, own, first), 0, d - 1)
+    last = np.clip(np.where(short, own, last), 0, d - 1)
+    diff = np.zeros((d + 1, n), np.int64)
+    np.add.at(diff, (first, j), 1)
+    np.add.at(diff, (last + 1, j), -1)
+    return np.cumsum(diff, axis=0)[:d] > 0, t0
 
 
 def build_eatg(site: Site, active: np.ndarray, cfg: HmmConfig) -> Eatg:
@@ -125,12 +179,12 @@ def _run(name: str, mode: str, inputs: dict, site: Site, cfg: HmmConfig, log) ->
     motion = check_schema(inputs["motion"], MOTION, name="motion")
     g = site.sensor_graph
     nodes = g.nodes
-    active, t0 = slot_activity(motion, nodes, cfg.period)
+    active, t0 = slot_activity(motion, nodes, cfg.period, cfg.sampling)
     eatg = build_eatg(site, active, cfg)
     idx = eatg.index
     sigs = [(idx[a], idx[b]) for a, b in g.signatures if a in idx and b in idx]
     params = DecoderParams(
-        mode=mode, d_max=cfg.d_max, tau=cfg.tau, p_hit=cfg.p_hit, p_false=cfg.p_false, sweeps=cfg.sweeps, offline=cfg.offline
+        mode=mode, d_max=cfg.d_max, tau=cfg.tau, p_hit=cfg.p_hit, p_false=cfg.p_false, sweeps=cfg.sweeps, restarts=cfg.restarts, offline=cfg.offline
     )
     res = decode_run(active, eatg, signatures=sigs, params=params)
     paths = res.paths

@@ -132,6 +132,71 @@ def viterbi_second_order(
     return path, float(delta[prev, last])
 
 
+def viterbi_motion_second_order(
+    log_pi: np.ndarray, log_stay: np.ndarray, log_move: np.ndarray, log_b: np.ndarray
+) -> tuple[np.ndarray, float]:
+    """Most probable path of a second-order HMM whose context is the previous *distinct* node.
+
+    With slots of 1 s a user dwells several slots at a node, so the literal context
+    ``q(t-2)`` is the same node most of the time and the 2-hop factor ``a''`` would only act
+    on a move right after another move. Here the second-order context is the node the user
+    came from -- the EATG's node sequence, on which ``a''`` is trained (triggers) -- so every
+    move is weighted by where the user came from, however long it stayed::
+
+        P(q_d = q_{d-1})                  = stay(q_{d-1})
+        P(q_d = k != q_{d-1} = j | p)     = move(p, j, k)     p = last node != j before d-1
+                                                              (p = j: none yet, first order)
+
+    The Viterbi runs over pairs ``(x, y)`` = (previous distinct node, current node), the
+    pair states of Algorithm 5; ``(j, j)`` means "no previous node yet"::
+
+        delta_0(j, j)  = log pi_j + log b_0(j)
+        delta_d(x, y)  = max( delta_{d-1}(x, y) + log stay(y),                 (stay)
+                              max_p delta_{d-1}(p, x) + log move(p, x, y) )     (move x -> y)
+                         + log b_d(y)
+
+    Parameters
+    ----------
+    log_pi : (S,); log_stay : (S,); log_move : (S, S, S) indexed ``[p, j, k]`` (entries with
+    ``k == j`` are ignored); log_b : (D, S).
+
+    Returns
+    -------
+    path : (D,) state indices; ``log_prob``. Vectorised over states; the recursion over
+    slots is sequential by construction. Memory: (D, S, S) back-pointers.
+    """
+    log_b = np.asarray(log_b, float)
+    n_slots, n_states = log_b.shape
+    if n_slots == 0:
+        return np.zeros(0, dtype=np.int64), 0.0
+    log_stay = np.asarray(log_stay, float)
+    no_move = np.eye(n_states, dtype=bool)
+    delta = np.full((n_states, n_states), NEG_INF)
+    delta[np.diag_indices(n_states)] = np.asarray(log_pi, float) + log_b[0]
+    back = np.full((n_slots, n_states, n_states), -1, dtype=np.int64)
+    jj = np.arange(n_states)[:, None]
+    kk = np.arange(n_states)[None, :]
+    for d in range(1, n_slots):  # sequential in time by construction
+        stay = delta + log_stay[None, :]
+        scores = delta[:, :, None] + log_move  # (p, j, k)
+        best = np.argmax(scores, axis=0)  # (j, k)
+        move = np.where(no_move, NEG_INF, scores[best, jj, kk])
+        moved = move > stay
+        back[d] = np.where(moved, best, -1)
+        delta = np.where(moved, move, stay) + log_b[d][None, :]
+    flat = int(np.argmax(delta))
+    x, y = divmod(flat, n_states)
+    score = float(delta[x, y])
+    path = np.zeros(n_slots, dtype=np.int64)
+    path[-1] = y
+    for d in range(n_slots - 1, 0, -1):
+        b = back[d, x, y]
+        if b >= 0:
+            x, y = int(b), x
+        path[d - 1] = y
+    return path, score
+
+
 def log_safe(p: np.ndarray) -> np.ndarray:
     """``log(p)`` with ``log(0) = -inf`` and no warning."""
     with np.errstate(divide="ignore"):

@@ -51,7 +51,6 @@ class ShortestPaths:
 
     def __init__(self, free_space: BaseGeometry, *, margin: float = 1e-3) -> None:
         self.free = free_space
-        self._covers = shapely.prepare(free_space) or free_space
         inner = free_space.buffer(-margin, join_style="mitre")
         pts = shapely.get_coordinates(shapely.boundary(inner))
         pts = np.unique(np.round(pts, 9), axis=0)

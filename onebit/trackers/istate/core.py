@@ -58,6 +58,9 @@ _SLACK = 1e-9
 #: Grid (world units) to which disk centres are snapped and radii rounded up.
 DISK_GRID = 1e-6
 
+#: Largest number of elements whose pairwise similarities the cap computes at once.
+CAP_CHUNK = 128
+
 #: Largest ``n`` for which matchings are found by enumerating the ``n!`` permutations in numpy.
 PERM_TABLE_MAX_N = 5
 
@@ -105,11 +108,13 @@ class IState:
             return cls(np.empty((0, n or 0), dtype=object))
         return cls(_objects(elements))
 
-    def total_area(self) -> float:
-        """Area of the union of all regions: the planar footprint of the possible target positions."""
+    def total_area(self, within: BaseGeometry | None = None) -> float:
+        """Area of the union of all regions (clipped to ``within``, e.g. the free space, since
+        rectangles and disks may reach outside it): the footprint of the possible target positions."""
         if self.size == 0:
             return 0.0
-        return float(shapely.area(shapely.union_all(self.regions.ravel())))
+        u = shapely.union_all(self.regions.ravel())
+        return float(shapely.area(u if within is None else shapely.intersection(u, within)))
 
 
 def _objects(rows) -> np.ndarray:
@@ -133,6 +138,14 @@ def grow(geoms, distance, *, quad_segs: int = QUAD_SEGS):
     d = np.asarray(distance, dtype=float)
     r = d / math.cos(math.pi / (4 * quad_segs)) * (1 + _SLACK) + _SLACK
     return shapely.buffer(geoms, np.where(d > 0, r, 0.0), quad_segs=quad_segs)
+
+
+def shrink(geoms, distance, *, quad_segs: int = QUAD_SEGS):
+    """``geoms (-) B(distance)`` (erosion), a *subset* of the points at least ``distance``
+    inside: the inward buffer by the circumscribing radius (see :func:`grow`)."""
+    d = np.asarray(distance, dtype=float)
+    r = d / math.cos(math.pi / (4 * quad_segs)) * (1 + _SLACK) + _SLACK
+    return shapely.buffer(geoms, -np.where(d > 0, r, 0.0), quad_segs=quad_segs)
 
 
 def disk(center, radius: float, *, outer: bool = True, quad_segs: int = QUAD_SEGS):
@@ -294,7 +307,16 @@ def observation_update(istate: IState, sensing: BaseGeometry, *, shape: str = "e
     rep = np.repeat(istate.regions, n, axis=0)  # (E n, n): element i repeated n times
     rows = np.arange(E * n)
     cols = np.tile(np.arange(n), E)
-    rep[rows, cols] = constrain(shapely.intersection(rep[rows, cols], sensing), shape)
+    if shape == "rect" and shapely.equals(sensing, shapely.envelope(sensing)):  # box cap box, in numpy
+        b = _bounds(rep[rows, cols])
+        sb = np.asarray(sensing.bounds)
+        lo, hi = np.maximum(b[:, :2], sb[:2]), np.minimum(b[:, 2:], sb[2:])
+        ok = (lo <= hi).all(axis=1)
+        new = np.full(len(rows), shapely.Polygon(), dtype=object)
+        new[ok] = shapely.box(lo[ok, 0], lo[ok, 1], hi[ok, 0], hi[ok, 1])
+        rep[rows, cols] = new
+    else:
+        rep[rows, cols] = constrain(shapely.intersection(rep[rows, cols], sensing), shape)
     keep = ~shapely.is_empty(rep[rows, cols])
     return IState(rep[keep])
 
@@ -313,9 +335,10 @@ def negative_update(istate: IState, sensing: BaseGeometry, *, shape: str = "exac
 # --------------------------------------------------------------------------- clean-up
 
 
-def canonical(istate: IState) -> IState:
+def canonical(istate: IState, *, shape: str = "exact") -> IState:
     """Canonical form: empty elements dropped, regions of each element in lexicographic order
-    of their normalised WKB, elements in lexicographic order, duplicates removed.
+    of their normalised WKB (of their bounds, for ``rect``), elements in lexicographic order,
+    duplicates removed.
 
     Lemma 2 (reordering regions) and the commutativity and idempotence of the union
     (reordering and de-duplicating elements) leave the represented set unchanged.
@@ -326,8 +349,10 @@ def canonical(istate: IState) -> IState:
     r = r[~shapely.is_empty(r).any(axis=1)]
     if r.shape[0] == 0:
         return IState(r)
-    keys = shapely.to_wkb(shapely.normalize(r.ravel()))
-    uniq, inv = np.unique(keys, return_inverse=True)
+    if shape == "rect":  # a box is identified by its bounds
+        _, inv = np.unique(_bounds(r.ravel()), axis=0, return_inverse=True)
+    else:
+        _, inv = np.unique(shapely.to_wkb(shapely.normalize(r.ravel())), return_inverse=True)
     ids = inv.reshape(r.shape)
     order = np.argsort(ids, axis=1, kind="stable")
     ids = np.take_along_axis(ids, order, axis=1)
@@ -336,23 +361,28 @@ def canonical(istate: IState) -> IState:
     return IState(r[first])
 
 
-def covers_matrix(regions: np.ndarray, *, shape: str = "exact") -> np.ndarray:
-    """``cov[a, b, k, l]``: region ``l`` of element ``b`` covers region ``k`` of element ``a``.
+def covers_pairs(regions: np.ndarray, a: np.ndarray, b: np.ndarray, *, shape: str = "exact") -> np.ndarray:
+    """``cov[p, k, l]``: region ``l`` of element ``b[p]`` covers region ``k`` of element ``a[p]``.
 
-    Only pairs whose bounding boxes nest are tested with ``shapely.covers`` (for ``rect``
-    regions bounding-box nesting *is* covering).
-    """
-    E, n = regions.shape
-    b = _bounds(regions)  # (E, n, 4)
-    ba = b[:, None, :, None, :]
-    bb = b[None, :, None, :, :]
+    Only region pairs whose bounding boxes nest are tested with ``shapely.covers`` (for
+    ``rect`` regions bounding-box nesting *is* covering)."""
+    bnd = _bounds(regions)  # (E, n, 4)
+    ba = bnd[a][:, :, None, :]
+    bb = bnd[b][:, None, :, :]
     nest = (bb[..., 0] <= ba[..., 0]) & (bb[..., 1] <= ba[..., 1]) & (bb[..., 2] >= ba[..., 2]) & (bb[..., 3] >= ba[..., 3])
     if shape == "rect":
         return nest
     cov = np.zeros_like(nest)
-    a_idx, b_idx, k_idx, l_idx = np.nonzero(nest)
-    cov[a_idx, b_idx, k_idx, l_idx] = shapely.covers(regions[b_idx, l_idx], regions[a_idx, k_idx])
+    p, k, l = np.nonzero(nest)
+    cov[p, k, l] = shapely.covers(regions[b[p], l], regions[a[p], k])
     return cov
+
+
+def covers_matrix(regions: np.ndarray, *, shape: str = "exact") -> np.ndarray:
+    """``cov[a, b, k, l]`` for every pair of elements (see :func:`covers_pairs`)."""
+    E = regions.shape[0]
+    a, b = np.divmod(np.arange(E * E), E)
+    return covers_pairs(regions, a, b, shape=shape).reshape(E, E, regions.shape[1], regions.shape[1])
 
 
 def remove_dominated(istate: IState, *, shape: str = "exact") -> IState:
@@ -363,22 +393,41 @@ def remove_dominated(istate: IState, *, shape: str = "exact") -> IState:
     is removed when some ``E_b`` dominates it strictly, or equally with ``b < a``: that
     relation is a strict partial order, so every removed element is dominated by a kept
     one and the union is unchanged.
+
+    Two necessary conditions prune the ``E^2`` pairs in numpy before any geometry: the
+    bounding box of ``E_b``'s regions contains that of ``E_a``'s, and ``E_b``'s region areas,
+    sorted, are elementwise at least ``E_a``'s (a matching into supersets implies both).
     """
     E = istate.size
     if E <= 1:
         return istate
-    cov = covers_matrix(istate.regions, shape=shape)
-    dom = has_perfect_matching(cov)  # dom[a, b]: b dominates a
-    np.fill_diagonal(dom, False)
+    r = istate.regions
+    bnd = _bounds(r)
+    box_e = np.stack([bnd[..., 0].min(1), bnd[..., 1].min(1), bnd[..., 2].max(1), bnd[..., 3].max(1)], axis=1)
+    sa = -np.sort(-shapely.area(r), axis=1)
+    tol = 1e-12 * (1.0 + sa.max())
+    dom = np.zeros((E, E), dtype=bool)  # dom[a, b]: b dominates a
+    for lo in range(0, E, 512):  # rows in blocks: memory O(512 E n)
+        hi = min(E, lo + 512)
+        ba, bb = box_e[lo:hi, None, :], box_e[None, :, :]
+        cand = (bb[..., 0] <= ba[..., 0]) & (bb[..., 1] <= ba[..., 1]) & (bb[..., 2] >= ba[..., 2]) & (bb[..., 3] >= ba[..., 3])
+        cand &= (sa[None, :, :] >= sa[lo:hi, None, :] - tol).all(axis=-1)
+        a, b = np.nonzero(cand)
+        a = a + lo
+        keep = a != b
+        a, b = a[keep], b[keep]
+        for c in range(0, len(a), 65536):  # candidate pairs in chunks: memory O(65536 n^2)
+            aa, bb_ = a[c : c + 65536], b[c : c + 65536]
+            dom[aa, bb_] = has_perfect_matching(covers_pairs(r, aa, bb_, shape=shape))
     idx = np.arange(E)
     beaten = dom & (~dom.T | (idx[None, :] < idx[:, None]))
-    return IState(istate.regions[~beaten.any(axis=1)])
+    return IState(r[~beaten.any(axis=1)])
 
 
 def clean_up(istate: IState, *, shape: str = "exact") -> IState:
     """The four clean-up steps of section VI-A: canonical order, duplicates and empty elements
     removed, dominated elements removed."""
-    return remove_dominated(canonical(istate), shape=shape)
+    return remove_dominated(canonical(istate, shape=shape), shape=shape)
 
 
 # --------------------------------------------------------------------------- the cap M
@@ -439,11 +488,16 @@ def cap_elements(istate: IState, max_elements: int, *, shape: str = "exact") -> 
     (the paper's "total pairwise overlap" needs a pairing of the unordered regions; we use
     the best one). The most similar pair is replaced by :func:`merge_elements` along that
     pairing; the new element's similarities are computed incrementally. Inherently
-    sequential over merges; each merge is vectorised.
+    sequential over merges; each merge is vectorised. Above ``CAP_CHUNK`` elements (after a
+    communication update) chunks of ``CAP_CHUNK`` are capped first, then their union: the
+    pairwise similarity matrix stays ``O(CAP_CHUNK^2 n^2)``.
     """
     E, n = istate.regions.shape
     if E <= max_elements:
         return istate
+    if E > CAP_CHUNK:  # hierarchical: cap chunks of CAP_CHUNK first (each merge is a superset)
+        parts = [cap_elements(IState(istate.regions[i : i + CAP_CHUNK]), max_elements, shape=shape).regions for i in range(0, E, CAP_CHUNK)]
+        return cap_elements(clean_up(IState(np.vstack(parts)), shape=shape), max_elements, shape=shape)
     regs = [row for row in istate.regions]
     ov = overlap_areas(istate.regions, istate.regions, shape=shape)
     sim, tau = best_pairing(ov)
@@ -517,16 +571,28 @@ def communicate(a: IState, b: IState, *, shape: str = "exact") -> IState:
     Ea, Eb, n = a.size, b.size, a.n
     if Ea == 0 or Eb == 0:
         return IState(np.empty((0, n), dtype=object))
-    ra = a.regions[:, None, :, None]
-    rb = b.regions[None, :, None, :]
-    adj = shapely.intersects(ra, rb)  # (Ea, Eb, n, n)
+    if shape == "rect":  # boxes: intersection tests and intersections in numpy
+        ba, bb = _bounds(a.regions), _bounds(b.regions)
+        x = ba[:, None, :, None, :], bb[None, :, None, :, :]
+        adj = (np.maximum(x[0][..., 0], x[1][..., 0]) <= np.minimum(x[0][..., 2], x[1][..., 2])) & (
+            np.maximum(x[0][..., 1], x[1][..., 1]) <= np.minimum(x[0][..., 3], x[1][..., 3])
+        )
+    else:
+        adj = shapely.intersects(a.regions[:, None, :, None], b.regions[None, :, None, :])  # (Ea, Eb, n, n)
     graph, match = enumerate_perfect_matchings(adj.reshape(Ea * Eb, n, n))
     if len(graph) == 0:
         return IState(np.empty((0, n), dtype=object))
     i, j = np.divmod(graph, Eb)
-    left = a.regions[i]  # (P, n)
-    right = np.take_along_axis(b.regions[j], match, axis=1)
-    inter = np.asarray(constrain(shapely.intersection(left, right), shape), dtype=object).reshape(left.shape)
+    if shape == "rect":
+        la = ba[i]
+        rb_ = np.take_along_axis(bb[j], match[..., None], axis=1)
+        lo = np.maximum(la[..., :2], rb_[..., :2])
+        hi = np.minimum(la[..., 2:], rb_[..., 2:])
+        inter = np.asarray(shapely.box(lo[..., 0], lo[..., 1], hi[..., 0], hi[..., 1]), dtype=object)
+    else:
+        left = a.regions[i]  # (P, n)
+        right = np.take_along_axis(b.regions[j], match, axis=1)
+        inter = np.asarray(constrain(shapely.intersection(left, right), shape), dtype=object).reshape(left.shape)
     return clean_up(IState(inter), shape=shape)
 
 

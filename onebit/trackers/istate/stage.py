@@ -9,17 +9,18 @@ half its pair spacing plus ``beam_width``). Readings are sampled at stage times
 Sampling (our formulation; the paper has discrete stages already). A sensor contributes a
 detection at stage ``k``
 
-* when it is on at ``t_k``: region ``S (+) B(v hold_s)`` (``v = max_speed``; ``hold_s`` is
-  how long a sensor stays on after the target left, 0 for ideal sensors);
+* when it is on at ``t_k``: region ``S (+) B(v latency_s)`` (``v = max_speed``; ``latency_s`` is
+  how long a reading may lag the target: the log's sampling interval, a hold time; 0 for
+  ideal continuous-time sensors);
 * when it was on during ``(t_{k-1}, t_k]`` but is off at ``t_k``: it went off at ``t_off``,
-  so a target was in ``S`` just before ``t_off`` and is now within ``v (t_k - t_off + hold_s)``
-  of it -- region ``S (+) B(v (t_k - t_off + hold_s))``;
+  so a target was in ``S`` just before ``t_off`` and is now within ``v (t_k - t_off + latency_s)``
+  of it -- region ``S (+) B(v (t_k - t_off + latency_s))``;
 * a crossing of a beam at ``t_c in (t_{k-1}, t_k]``: region ``beam (+) B(v (t_k - t_c))``.
 
 Each region is clipped to the free space. A reading 0 carries no information (the paper's
 model: false negatives are possible), unless ``reliable_negatives`` is set: then a motion
 sensor off at ``t_k`` (with no edge in the stage) removes its region and a proximity sensor
-off removes its inner disk ``R_i`` (beyond the paper). The loop over stages is inherently
+off removes its inner disk ``R_i``, each eroded by ``v latency_s`` (beyond the paper). The loop over stages is inherently
 sequential; every stage's geometry is vectorised in :mod:`core`.
 """
 
@@ -36,7 +37,7 @@ from onebit.datasets.site import Site
 from onebit.errors import ConfigError
 from onebit.tables import CROSSINGS, MOTION, PROXIMITY, TRACKS, check_schema, conform
 from onebit.trackers.base import TrackerSpec, check_choice, check_range, register
-from onebit.trackers.istate.core import SHAPES, IState, disk, grow, info_state_update
+from onebit.trackers.istate.core import SHAPES, IState, disk, grow, info_state_update, shrink
 
 NAME = "istate"
 
@@ -58,13 +59,19 @@ class IStateConfig:
 
     period_s : stage period T in seconds (readings are sampled at ``t_k = k T``).
     max_speed : largest target speed (world units per second); ``s_tgt = max_speed * T``.
-    targets : number of targets n; 0 = the site's ``targets``.
+    targets : number of targets n; 0 = the site's ``targets`` (the stage runs only on sites
+        that declare ``targets``; this overrides it).
     max_elements : the cap M on the number of elements (paper: 10); 0 = no cap.
     shape : ``exact`` polygons, or the over-approximation by ``rect`` (axis-aligned
         rectangles, the paper's simulations) or ``disk`` (section VI-A.1).
     reliable_negatives : readings 0 remove the sensing region (sensors without false
         negatives; beyond the paper).
-    hold_s : seconds a motion/proximity sensor may stay on after the target left.
+    latency_s : how late a sensor's reading may lag the target (s): an off edge may come up
+        to this long after the target left, an on state may hold this long after it (the
+        sampling interval of the log, a PIR hold time). 0 = ideal continuous-time sensors.
+    latency_auto : use ``max(latency_s, resolution)``, where the resolution is the smallest
+        positive gap between distinct reading times of the motion/proximity logs (0.1 s for
+        a 10 Hz log, 1 s for readings at whole seconds).
     beam_width : half-width added to a beam's thin region besides half its pair spacing.
     substeps : rounds of grow-and-clip in the motion update (more follow obstacles tighter).
     """
@@ -75,7 +82,8 @@ class IStateConfig:
     max_elements: int = 10
     shape: str = "exact"
     reliable_negatives: bool = False
-    hold_s: float = 0.0
+    latency_s: float = 0.0
+    latency_auto: bool = True
     beam_width: float = 0.05
     substeps: int = 1
 
@@ -86,7 +94,8 @@ class IStateConfig:
         check_range(self, "max_elements", 0, 10_000, types=(int,))
         check_choice(self, "shape", SHAPES)
         check_choice(self, "reliable_negatives", (True, False))
-        check_range(self, "hold_s", 0.0, None)
+        check_range(self, "latency_s", 0.0, None)
+        check_choice(self, "latency_auto", (True, False))
         check_range(self, "beam_width", 0.0, None)
         check_range(self, "substeps", 1, 100, types=(int,))
 
@@ -133,6 +142,8 @@ def sensing_regions(site: Site, config: IStateConfig) -> SensingRegions:
 def available(site: Site) -> str | None:
     if not (any(m.fov is not None or m.range is not None for m in site.motion_sensors) or site.proximity_sensors or site.beams):
         return "site has no binary sensors with known sensing regions (motion fov/range, proximity, beams)"
+    if site.targets is None:
+        return "site.toml does not give the number of targets ('targets'); the I-state is over W^n"
     return None
 
 
@@ -149,6 +160,13 @@ def stage_times(tables: list[pl.DataFrame], period: float) -> np.ndarray:
     return np.arange(k0, k1 + 1) * period
 
 
+def time_resolution(t: pl.Series) -> float:
+    """Smallest positive gap between distinct reading times (0 for fewer than two)."""
+    u = t.unique().sort().diff().drop_nulls()
+    u = u.filter(u > 1e-9)
+    return float(u.min()) if len(u) else 0.0
+
+
 def _stage_index(t: pl.Expr, t0: float, period: float) -> pl.Expr:
     """Stage k with ``t in (t_{k-1}, t_k]`` (index from the first stage time t0)."""
     return ((t - t0) / period - 1e-9).ceil().cast(pl.Int64).clip(0, None)
@@ -157,7 +175,7 @@ def _stage_index(t: pl.Expr, t0: float, period: float) -> pl.Expr:
 def state_readings(edges: pl.DataFrame, times: np.ndarray, period: float, hold: float, speed: float) -> pl.DataFrame:
     """Detections and negatives of on/off sensors at stage times.
 
-    ``edges`` (t, sensor, on). Returns (stage, sensor, detect, inflation, negative): ``detect``
+    ``edges`` (t, sensor, on): edges or level readings (repeated states are dropped). Returns (stage, sensor, detect, inflation, negative): ``detect``
     when on at ``t_k`` (inflation ``v hold``) or on during the stage (inflation
     ``v (t_k - t_off + hold)``); ``negative`` when off at ``t_k`` with no edge in the stage.
     Vectorised with polars over sensors x stages.
@@ -165,7 +183,13 @@ def state_readings(edges: pl.DataFrame, times: np.ndarray, period: float, hold: 
     if edges.height == 0 or len(times) == 0:
         return pl.DataFrame(schema={"stage": pl.Int64, "sensor": pl.String, "detect": pl.Boolean, "inflation": pl.Float64, "negative": pl.Boolean})
     t0 = float(times[0])
-    e = edges.with_columns(stage=_stage_index(pl.col("t"), t0, period)).sort("t", maintain_order=True)
+    # readings -> edges: keep a row only where the sensor's state changes (every sensor starts
+    # off), so level-sampled tables (a row per reading) and edge tables are treated alike
+    e = (
+        edges.sort("t", maintain_order=True)
+        .filter(pl.col("on") != pl.col("on").shift(1, fill_value=False).over("sensor"))
+        .with_columns(stage=_stage_index(pl.col("t"), t0, period))
+    )
     per = e.group_by("sensor", "stage").agg(
         last_on=pl.col("on").last(),
         n_edges=pl.len(),
@@ -215,7 +239,7 @@ def run(inputs: dict, site: Site, config: IStateConfig, log=None) -> dict[str, p
     (PROXIMITY), ``crossings`` (CROSSINGS). Outputs: ``tracks`` (TRACKS; a point summary:
     the centroids of the regions of the element of smallest total area, identities kept
     from stage to stage by ``linear_sum_assignment`` on centroid distance), ``summary``
-    (t, stage, elements, area of the union of all regions, detections), ``regions`` (every
+    (t, stage, elements, area of the union of all regions within the free space, detections), ``regions`` (every
     region as WKB, for scoring and replay) and ``detections``.
     """
     n = config.targets or (site.targets or 0)
@@ -234,7 +258,11 @@ def run(inputs: dict, site: Site, config: IStateConfig, log=None) -> dict[str, p
     T = config.period_s
     times = stage_times(tables + ([cross] if cross is not None else []), T)
     v = config.max_speed
-    readings = [state_readings(pl.concat([df.select("t", "sensor", "on") for df in tables]), times, T, config.hold_s, v)] if tables else []
+    levels = pl.concat([df.select("t", "sensor", "on") for df in tables]) if tables else None
+    latency = config.latency_s
+    if config.latency_auto and levels is not None:
+        latency = max(latency, time_resolution(levels["t"]))
+    readings = [state_readings(levels, times, T, latency, v)] if tables else []
     if cross is not None:
         readings.append(crossing_readings(cross, times, T, v))
     rd = pl.concat(readings) if readings else pl.DataFrame(schema={"stage": pl.Int64, "sensor": pl.String, "detect": pl.Boolean, "inflation": pl.Float64, "negative": pl.Boolean})
@@ -245,7 +273,8 @@ def run(inputs: dict, site: Site, config: IStateConfig, log=None) -> dict[str, p
     det_geom = shapely.intersection(grow(sr.positive[det["idx"].to_numpy()], det["inflation"].to_numpy()), free) if det.height else np.zeros(0, object)
     det_stage = det["stage"].to_numpy()
     neg = rd.filter(pl.col("negative") & pl.lit(config.reliable_negatives)) if config.reliable_negatives else rd.clear()
-    neg_geom = sr.negative[neg["idx"].to_numpy()] if neg.height else np.zeros(0, object)
+    # a reading may lag the target by latency_s: only S eroded by v latency_s is surely empty
+    neg_geom = shrink(sr.negative[neg["idx"].to_numpy()], v * latency) if neg.height else np.zeros(0, object)
     neg_stage = neg["stage"].to_numpy()
     keep_neg = ~shapely.is_empty(neg_geom) if len(neg_geom) else np.zeros(0, bool)
     neg_geom, neg_stage = neg_geom[keep_neg], neg_stage[keep_neg]
@@ -282,7 +311,7 @@ def run(inputs: dict, site: Site, config: IStateConfig, log=None) -> dict[str, p
                 schema=REGIONS,
             )
         )
-        summ.append((float(tk), k, E, eta.total_area(), int(det_bounds[k + 1] - det_bounds[k])))
+        summ.append((float(tk), k, E, eta.total_area(free), int(det_bounds[k + 1] - det_bounds[k])))
         track_xy[k] = prev = _point_summary(eta, prev, n)
 
     summary = pl.DataFrame(summ, schema=SUMMARY, orient="row")
@@ -331,7 +360,8 @@ def _point_summary(eta: IState, prev: np.ndarray | None, n: int) -> np.ndarray:
 def score(tables: dict, site: Site, log=None) -> tuple[list[tuple[str, str, float, str]], dict]:
     """``istate/containment``: fraction of scored stages whose I-state contains the true joint
     state (truth at the stage time, all n targets present); ``elements_mean``/``_max``;
-    ``area_mean`` (mean area of the union of the regions); ``scored_stages``."""
+    ``area_mean`` (mean area of the union of the regions within the free space);
+    ``scored_stages``."""
     from onebit.trackers.istate.core import contains
 
     summ = tables.get(f"{NAME}_summary")

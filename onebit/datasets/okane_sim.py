@@ -1,0 +1,338 @@
+"""Simulations for O'Kane's I-state tracker: the ``istate-room`` dataset and active tracking.
+
+``istate-room`` (``onebit simulate istate-room DIR``): a 12 m x 8 m room with two obstacles,
+six motion sensors with square fields of view (``fov`` in ``site.toml``), ``n`` targets
+(default 2) walking along shortest paths among the obstacles to random destinations at
+0.4-1.2 m/s. Writes ``site.toml``, ``motion.csv`` (t, sensor, value: an edge whenever the set
+of targets inside a sensor's square becomes empty or non-empty, sampled at 10 Hz, no chatter;
+``--drop p`` removes each on-period with probability p -- false negatives) and ``truth.csv``
+(10 Hz). Deterministic for a seed; every file written atomically.
+
+:func:`simulate_active` -- section VIII: ``m`` mobile trackers, each with 9 square sensing
+regions in a 3 x 3 grid around it, its own I-state, what it knows of the other trackers'
+positions (the last position heard, grown by ``s_trk`` per stage since), communication
+within ``r_c`` (I-states intersected, knowledge shared), destination selection and matching
+of section VII; ``n`` targets moving along shortest paths to random destinations, the first
+``m`` starting near a tracker. The environment is :func:`fig9_environment`. Inherently
+sequential over stages (each depends on the last); vectorised within a stage.
+"""
+
+from __future__ import annotations
+
+import os
+from dataclasses import dataclass
+from pathlib import Path
+
+import networkx as nx
+import numpy as np
+import polars as pl
+import shapely
+from shapely.geometry import box
+
+from onebit.errors import ConfigError
+from onebit.trackers.istate.active import (
+    ShortestPaths,
+    advance,
+    match_destinations,
+    performance,
+    select_destinations,
+    worst_distances,
+)
+from onebit.trackers.istate.core import IState, cap_elements, communicate, info_state_update
+
+# --------------------------------------------------------------------------- environments
+
+
+def fig9_environment() -> tuple[shapely.Polygon, list[shapely.Polygon]]:
+    """A 100 x 100 square with five rectangular obstacles, after the paper's Fig. 9 (the
+    paper gives no coordinates; this is our reconstruction: blocks spread over the square
+    leaving corridors between them)."""
+    boundary = box(0, 0, 100, 100)
+    obstacles = [box(18, 18, 38, 34), box(60, 12, 74, 42), box(22, 60, 44, 80), box(62, 64, 86, 76), box(44, 44, 54, 54)]
+    return boundary, obstacles
+
+
+def _free(boundary, obstacles):
+    return shapely.difference(boundary, shapely.union_all(obstacles)) if obstacles else boundary
+
+
+def random_free_points(rng: np.random.Generator, free, k: int) -> np.ndarray:
+    """``k`` uniform points in ``free`` (rejection sampling, vectorised)."""
+    minx, miny, maxx, maxy = free.bounds
+    out = np.zeros((0, 2))
+    while len(out) < k:
+        pts = rng.uniform([minx, miny], [maxx, maxy], size=(4 * k + 8, 2))
+        out = np.vstack([out, pts[shapely.contains_xy(free, pts[:, 0], pts[:, 1])]])
+    return out[:k]
+
+
+class TargetMotion:
+    """Targets moving along shortest paths to random destinations, ``step`` per stage."""
+
+    def __init__(self, rng, planner: ShortestPaths, start: np.ndarray, step: np.ndarray) -> None:
+        self.rng, self.planner, self.pos, self.step = rng, planner, start.copy(), np.asarray(step, float)
+        self.routes = [self._new_route(p) for p in self.pos]
+
+    def _new_route(self, p):
+        while True:
+            q = random_free_points(self.rng, self.planner.free, 1)[0]
+            w = self.planner.path(p, q)
+            if len(w) > 1:
+                return w
+
+    def move(self) -> np.ndarray:
+        """Advance every target by its step (per-target: routes differ in length)."""
+        for i in range(len(self.pos)):  # n targets, each on its own polyline
+            w = self.routes[i]
+            L = float(np.hypot(*np.diff(w, axis=0).T).sum())
+            s = float(self.step[i])
+            if s >= L:
+                self.pos[i] = w[-1]
+                self.routes[i] = self._new_route(self.pos[i])
+            else:
+                self.pos[i] = advance(w, s)
+                seg_end = np.cumsum(np.r_[0.0, np.hypot(*np.diff(w, axis=0).T)])
+                k = int(np.searchsorted(seg_end, s, side="right"))
+                self.routes[i] = np.vstack([self.pos[i], w[k:]])
+        return self.pos.copy()
+
+
+# --------------------------------------------------------------------------- istate-room dataset
+
+ROOM = dict(boundary=[[0, 0], [12, 0], [12, 8], [0, 8]], obstacles=[[[4, 2], [5, 2], [5, 5.5], [4, 5.5]], [[8, 4], [9.5, 4], [9.5, 8], [8, 8]]])
+ROOM_SENSORS = {"m1": (1.5, 1.5), "m2": (1.5, 6.0), "m3": (6.5, 1.2), "m4": (6.5, 5.5), "m5": (10.5, 1.5), "m6": (10.5, 5.5)}
+ROOM_FOV = 1.0  # half side of each square field of view (m)
+
+
+def room_site_toml(n: int) -> str:
+    """``site.toml`` of the ``istate-room`` scenario."""
+    def poly(p):
+        return "[" + ", ".join(f"[{x}, {y}]" for x, y in p) + "]"
+
+    lines = ['name = "istate-room"', 'units = "m"', f"targets = {n}", "", "[boundary]", f"polygon = {poly(ROOM['boundary'])}", ""]
+    for i, ob in enumerate(ROOM["obstacles"]):
+        lines += ["[[obstacles]]", f'name = "block{i + 1}"', f"polygon = {poly(ob)}", ""]
+    for sid, (x, y) in ROOM_SENSORS.items():
+        h = ROOM_FOV
+        sq = [[x - h, y - h], [x + h, y - h], [x + h, y + h], [x - h, y + h]]
+        lines += ["[[motion_sensors]]", f'id = "{sid}"', f"position = [{x}, {y}]", f"fov = {poly(sq)}", ""]
+    return "\n".join(lines)
+
+
+def simulate_room(*, seed: int, duration: float, n: int, drop: float, rate_hz: float = 10.0):
+    """Truth (t, target, x, y) and motion edges (t, sensor, value) of the ``istate-room`` scenario."""
+    rng = np.random.default_rng(seed)
+    bnd = shapely.Polygon(ROOM["boundary"])
+    obs = [shapely.Polygon(o) for o in ROOM["obstacles"]]
+    free = _free(bnd, obs)
+    planner = ShortestPaths(free.buffer(-0.2), margin=0.05)
+    K = int(round(duration * rate_hz)) + 1
+    speed = rng.uniform(0.4, 1.2, n)
+    motion = TargetMotion(rng, planner, random_free_points(rng, planner.free, n), speed / rate_hz)
+    pos = np.empty((K, n, 2))
+    pos[0] = motion.pos
+    for k in range(1, K):  # sequential: each sample follows the last
+        pos[k] = motion.move()
+    t = np.arange(K) / rate_hz
+    truth = pl.DataFrame({"t": np.repeat(t, n), "target": np.tile([f"target{i + 1}" for i in range(n)], K), "x": pos[:, :, 0].ravel(), "y": pos[:, :, 1].ravel()})
+    ids = list(ROOM_SENSORS)
+    c = np.array([ROOM_SENSORS[s] for s in ids])
+    inside = (np.abs(pos[:, :, None, 0] - c[None, None, :, 0]) <= ROOM_FOV) & (np.abs(pos[:, :, None, 1] - c[None, None, :, 1]) <= ROOM_FOV)
+    on = inside.any(axis=1)  # (K, sensors)
+    # drop whole on-periods with probability `drop` (false negatives)
+    start = np.vstack([on[:1], on[1:] & ~on[:-1]])
+    period_id = np.cumsum(start, axis=0)
+    dropped = rng.random((K + 1, len(ids))) < drop
+    on = on & ~np.take_along_axis(dropped, period_id, axis=0)
+    prev = np.vstack([np.zeros((1, len(ids)), bool), on[:-1]])
+    kk, ss = np.nonzero(on != prev)
+    edges = pl.DataFrame({"t": t[kk], "sensor": np.asarray(ids)[ss], "value": on[kk, ss].astype(np.int8)}).sort("t", "sensor")
+    return truth, edges
+
+
+def write_room_dataset(out_dir, *, seed: int = 0, duration: float = 120.0, n: int = 2, drop: float = 0.0) -> Path:
+    """Write the ``istate-room`` dataset folder (see the module docstring)."""
+    if not 1 <= n <= 6:
+        raise ConfigError(f"istate-room: targets = {n}; allowed range: [1, 6]")
+    if not 0.0 <= drop < 1.0:
+        raise ConfigError(f"istate-room: drop = {drop!r}; allowed range: [0, 1)")
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    truth, edges = simulate_room(seed=seed, duration=duration, n=n, drop=drop)
+    _atomic_text(room_site_toml(n), out / "site.toml")
+    _atomic_csv(edges, out / "motion.csv")
+    _atomic_csv(truth, out / "truth.csv")
+    return out
+
+
+def _atomic_text(text: str, path: Path) -> None:
+    tmp = path.with_name(f".{path.name}.tmp")
+    tmp.write_text(text, encoding="utf-8")
+    os.replace(tmp, path)
+
+
+def _atomic_csv(df: pl.DataFrame, path: Path) -> None:
+    tmp = path.with_name(f".{path.name}.tmp")
+    df.write_csv(tmp)
+    os.replace(tmp, path)
+
+
+# --------------------------------------------------------------------------- active tracking
+
+
+@dataclass(frozen=True, kw_only=True)
+class ActiveConfig:
+    """Active tracking simulation (section VIII); lengths in units of the 100 x 100 environment.
+
+    trackers m, targets n, stages, max_elements M (paper: 10), shape of regions (paper:
+    rectangles), s_tgt / s_trk largest moves per stage, r_c communication range, cell the
+    side of each of the 9 sensing squares, start_radius how near a tracker the first m
+    targets start, p_miss the false-negative probability of a sensing square.
+    """
+
+    trackers: int = 2
+    targets: int = 3
+    stages: int = 1000
+    max_elements: int = 10
+    shape: str = "rect"
+    s_tgt: float = 1.0
+    s_trk: float = 1.5
+    r_c: float = 25.0
+    cell: float = 5.0
+    start_radius: float = 3.0
+    p_miss: float = 0.0
+
+    def __post_init__(self) -> None:
+        from onebit.trackers.base import check_choice, check_range
+
+        check_range(self, "trackers", 1, 16, types=(int,))
+        check_range(self, "targets", 1, 8, types=(int,))
+        check_range(self, "stages", 1, None, types=(int,))
+        check_range(self, "max_elements", 1, 1000, types=(int,))
+        check_choice(self, "shape", ("exact", "rect", "disk"))
+        for f in ("s_tgt", "s_trk", "r_c", "cell", "start_radius"):
+            check_range(self, f, 0.0, None)
+        check_range(self, "p_miss", 0.0, 1.0)
+
+
+@dataclass(frozen=True)
+class ActiveResult:
+    targets: np.ndarray  # (K, n, 2)
+    trackers: np.ndarray  # (K, m, 2)
+    destinations: np.ndarray  # (K, m, 2)
+    elements: np.ndarray  # (K, m)
+    contained: np.ndarray  # (K, m) the tracker's I-state holds the true state
+    links: list  # per stage (L, 2, 2)
+    sensing: np.ndarray  # (K, m) object: the 9 squares of each tracker
+    performance: np.ndarray  # (K,) P_k of Eq. (1)
+    regions0: list  # per stage, tracker 0's I-state regions (E, n)
+
+
+def sensing_squares(p: np.ndarray, cell: float) -> np.ndarray:
+    """The 9 square sensing regions of a tracker at ``p``: a 3 x 3 grid of side ``cell``."""
+    off = (np.arange(3) - 1) * cell
+    cx, cy = np.meshgrid(p[0] + off, p[1] + off, indexing="ij")
+    h = cell / 2
+    return shapely.box(cx.ravel() - h, cy.ravel() - h, cx.ravel() + h, cy.ravel() + h)
+
+
+def simulate_active(cfg: ActiveConfig, *, seed: int, environment=None, record_regions: bool = False) -> ActiveResult:
+    """Run one active-tracking trial (see the module docstring)."""
+    rng = np.random.default_rng(seed)
+    boundary, obstacles = environment or fig9_environment()
+    free = _free(boundary, obstacles)
+    planner = ShortestPaths(free, margin=0.05)
+    m, n, K = cfg.trackers, cfg.targets, cfg.stages
+    trk = random_free_points(rng, free, m)
+    start = random_free_points(rng, free, n)
+    for i in range(min(m, n)):  # the first m targets start near a tracker
+        near = random_free_points(rng, free.intersection(shapely.Point(trk[i]).buffer(cfg.start_radius)), 1)
+        start[i] = near[0]
+    targets = TargetMotion(rng, planner, start, np.full(n, cfg.s_tgt))
+    eta = [IState.initial(free, n) for _ in range(m)]
+    last_pos = np.broadcast_to(trk, (m, m, 2)).copy()  # last_pos[j, o]: where j last knew o
+    last_seen = np.zeros((m, m), dtype=np.int64)
+    out_t = np.zeros((K, n, 2))
+    out_p = np.zeros((K, m, 2))
+    out_d = np.zeros((K, m, 2))
+    out_e = np.zeros((K, m), dtype=np.int64)
+    out_c = np.zeros((K, m), dtype=bool)
+    out_s = np.empty((K, m), dtype=object)
+    links, regs0 = [], []
+    from onebit.trackers.istate.core import contains
+
+    for k in range(K):  # inherently sequential
+        q = targets.move() if k else targets.pos.copy()
+        out_t[k] = q
+        # sensing and the filter of every tracker
+        for j in range(m):
+            sq = sensing_squares(trk[j], cfg.cell)
+            out_s[k, j] = shapely.union_all(sq)
+            hit = shapely.contains_xy(sq[:, None], q[None, :, 0], q[None, :, 1]).any(axis=1)
+            hit &= rng.random(9) >= cfg.p_miss
+            eta[j] = info_state_update(eta[j], sq[hit], step=cfg.s_tgt if k else 0.0, free_space=free, shape=cfg.shape, max_elements=cfg.max_elements)
+        # communication within r_c: each connected group shares one intersected I-state
+        d = np.hypot(*(trk[:, None, :] - trk[None, :, :]).transpose(2, 0, 1))
+        g = nx.Graph()
+        g.add_nodes_from(range(m))
+        ii, jj = np.nonzero(np.triu(d <= cfg.r_c, 1))
+        g.add_edges_from(zip(ii.tolist(), jj.tolist()))
+        links.append(np.stack([trk[ii], trk[jj]], axis=1) if len(ii) else np.zeros((0, 2, 2)))
+        for comp in nx.connected_components(g):
+            comp = sorted(comp)
+            if len(comp) < 2:
+                continue
+            merged = eta[comp[0]]
+            for o in comp[1:]:
+                merged = cap_elements(communicate(merged, eta[o], shape=cfg.shape), cfg.max_elements, shape=cfg.shape)
+            best = np.argmax(last_seen[comp], axis=0)  # freshest knowledge of each tracker
+            fresh_pos = last_pos[np.asarray(comp)[best], np.arange(m)]
+            fresh_seen = last_seen[np.asarray(comp)[best], np.arange(m)]
+            for j in comp:
+                eta[j] = merged
+                last_pos[j], last_seen[j] = fresh_pos, fresh_seen
+                last_pos[j, comp], last_seen[j, comp] = trk[comp], k
+        for j in range(m):
+            last_pos[j, j], last_seen[j, j] = trk[j], k
+            out_e[k, j] = eta[j].size
+            out_c[k, j] = contains(eta[j], q)
+        if record_regions:
+            regs0.append(eta[0].regions.copy())
+        out_p[k] = trk
+        # destinations, matching, movement
+        new = trk.copy()
+        for j in range(m):
+            dest = select_destinations(eta[j], free, m)
+            possible = [
+                shapely.Point(trk[o]).buffer(1e-9) if o == j else shapely.Point(last_pos[j, o]).buffer(max(cfg.s_trk * (k - last_seen[j, o]), 1e-9), quad_segs=4)
+                for o in range(m)
+            ]
+            mine = dest[match_destinations(worst_distances(possible, dest))[j]]
+            out_d[k, j] = mine
+            new[j] = advance(planner.path(trk[j], mine), cfg.s_trk)
+        trk = new
+    return ActiveResult(out_t, out_p, out_d, out_e, out_c, links, out_s, performance(out_t, out_p), regs0)
+
+
+# --------------------------------------------------------------------------- registry
+
+
+def _write_room(dataset, *, seed: int, duration, agents, drop: float, camera: bool, params: dict) -> Path:
+    if params:
+        raise ConfigError(f"scenario 'istate-room' takes no --param options, got {sorted(params)}")
+    return write_room_dataset(dataset, seed=seed, duration=120.0 if duration is None else duration, n=agents or 2, drop=drop)
+
+
+def _specs():
+    from onebit.datasets.scenarios import Scenario
+
+    return {
+        "istate-room": Scenario(
+            "istate-room",
+            "O'Kane I-states: 12 x 8 m room, 2 obstacles, 6 square motion-sensor fields of view, 2 targets on shortest paths",
+            _write_room,
+        )
+    }
+
+
+SCENARIO_SPECS = _specs()
