@@ -72,8 +72,8 @@ def decoder_scaling(n_slots: int = 40) -> None:
     from onebit.trackers.findinghumo.adaptive import DecoderParams, decode_run
     from onebit.trackers.findinghumo.eatg import hop_matrix, layout_eatg
 
-    print(f"\ndecoder time per slot (ms), {n_slots} slots, grid corridors, 2 sweeps, 1 restart (the default 3 restarts")
-    print("cost up to 3x); real time is 1000 ms per slot")
+    print(f"\ndecoder time per slot (ms), {n_slots} slots, grid corridors, 2 sweeps, 1 restart (the default 6 restarts")
+    print("cost up to 6x); real time is 1000 ms per slot")
     print(f"{'nodes':>6} {'users':>6} {'adaptive+2nd':>13} {'full 1st':>9} {'full 2nd':>9}")
     rng = np.random.default_rng(1)
     for n_nodes, users in ((20, 1), (20, 3), (20, 10), (100, 3), (100, 10), (200, 3), (200, 10), (500, 3)):

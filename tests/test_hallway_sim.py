@@ -42,9 +42,15 @@ def test_simulation_is_deterministic_and_truthful(tmp_path):
     truth, rej = read_truth_csv(a / "truth.csv")
     assert rej.height == 0 and truth["target"].n_unique() == 3
     raw = pl.read_csv(a / "truth.csv", schema_overrides={"node": pl.String})
-    # scripted routes (default): users start at staggered times at an end of their west-east route
+    # scripted routes (default): every user is at an end of its west-east route when the
+    # experiment starts, pairwise >= 2 hops apart (countable by K_now), and they set off at staggered times
     first = raw.sort("t").group_by("target", maintain_order=True).first()
-    assert set(first["node"]) <= set(ROUTE_WEST + ROUTE_EAST) and first["t"].n_unique() == 3
+    assert set(first["node"]) <= set(ROUTE_WEST + ROUTE_EAST) and set(first["t"]) == {1.0}
+    g = site.sensor_graph.to_networkx(site)
+    starts = first["node"].to_list()
+    assert all(nx.shortest_path_length(g, a, b) >= 2 for i, a in enumerate(starts) for b in starts[i + 1 :])
+    moved = raw.sort("t").filter(pl.col("node") != pl.col("node").first().over("target")).group_by("target").agg(pl.col("t").min())
+    assert moved["t"].n_unique() == 3
     # random destinations: users enter through the door
     c = write_hallway_dataset(tmp_path / "c", seed=5, duration=60.0, users=3, walk="random")
     rnd = pl.read_csv(c / "truth.csv", schema_overrides={"node": pl.String})

@@ -49,6 +49,8 @@ DOOR = "104"
 ROUTE_WEST = ("92", "93", "97")
 ROUTE_EAST = ("110", "117", "116")
 WALKS = ("routes", "random")
+#: time (s) at which the scripted experiment starts: every route user is at its route's start
+START = 1.0
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -134,7 +136,7 @@ def _plan_route_user(g: nx.Graph, pos: dict, cfg: HallwaySimConfig, rng: np.rand
     pausing at the ends; a leaver walks to the door at ``leave_at`` and leaves."""
     speed = rng.uniform(*cfg.speed)
     t = t_in
-    way = [(t, *pos[route[0]])]
+    way = [(min(START, t), *pos[route[0]]), (t, *pos[route[0]])]  # present from the start, leaves at t_in
     end = leave_at if leave_at is not None else cfg.duration + 5.0
     here = route[0]
 

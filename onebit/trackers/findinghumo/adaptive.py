@@ -21,8 +21,9 @@ the rest is look-ahead). Per window:
    window form a space-time graph (``(t, j)`` ~ ``(t', j')`` when ``|t - t'| <= 1`` and
    ``hops(j, j') <= 1``); its connected components (``scipy.sparse.csgraph``) are the motion
    sequences. The window is *non-overlapping* when every component has at most one
-   independent active node per slot and at most one known user within 2 hops of it, and no
-   user is near two components; then one first-order HMM is forked per component over its
+   independent active node per slot and at most one known user near it (last node within
+   ``NEAR_HOPS`` = 1 hop of the component: the paper's "activated nodes at each slot are 1-hop
+   away"), and no user is near two components; then one first-order HMM is forked per component over its
    nodes and their 1-hop neighbours. Otherwise one second-order HMM over the active nodes and
    their 1- and 2-hop neighbours decodes all ``K`` users.
 3. **Transitions** (III-B2(b)): first order ``a(j2, j1) = a'(j2, j1)``; second order
@@ -63,8 +64,9 @@ the rest is look-ahead). Per window:
    came from, is prepended as clamped slots (emission 0 at that node, ``-inf`` elsewhere), so
    the decoder continues the user's path with its second-order context. A new user starts at
    its entry node (Sig_in) or uniformly over the window's states. Coordinate ascent finds a
-   local optimum that depends on the order the users are decoded in, so it is run
-   ``restarts`` times with the order rotated, and the run with the highest joint
+   local optimum that depends on the order the users are decoded in (i.e. on their arbitrary
+   labels), so it is run over every order when ``K! <= restarts`` (else ``restarts``
+   rotations), and the run with the highest joint
    log-likelihood ``sum_u log P(path_u) + sum_{t,j} log P(b_j(t) | c_j(t))`` is kept.
 
 The baselines ``hmm1`` / ``hmm2`` run the same loop with the full state set and a fixed order
@@ -74,6 +76,8 @@ The window loop is inherently sequential (each window starts from the previous o
 
 from __future__ import annotations
 
+import itertools
+import math
 import time
 from dataclasses import dataclass, field
 
@@ -91,6 +95,9 @@ MODES = ("adaptive", "full1", "full2")
 #: slots searched back for the node a user came from (its second-order context)
 LOOKBACK = 120
 
+#: a known user is "near" a motion component when its last node is within this many hops of it
+NEAR_HOPS = 1
+
 
 @dataclass(frozen=True, kw_only=True)
 class DecoderParams:
@@ -104,7 +111,7 @@ class DecoderParams:
     sweeps: int = 3
     offline: bool = False
     resume: int = 10  # slots after an exit in which an entry at the same door continues that user
-    restarts: int = 3  # coordinate-ascent restarts (user order rotated); the best joint likelihood wins
+    restarts: int = 6  # coordinate-ascent restarts (all user orders when K! <= restarts, else rotations); best joint likelihood wins
 
 
 @dataclass
@@ -216,8 +223,11 @@ def decode_users(
     log_a1 = restricted_first(eatg.a1, states)
     log_a2 = second_order_tensor(eatg.a1, eatg.a2, states) if order == 2 else None
     best, best_score = None, -np.inf
-    for r in range(min(k, params.restarts)):  # restarts: the users' decoding order rotated by r
-        order_u = [(u + r) % k for u in range(k)]
+    if math.factorial(k) <= params.restarts:  # every order: the result does not depend on the labels
+        orders = [list(o) for o in itertools.permutations(range(k))]
+    else:  # the users' decoding order rotated
+        orders = [[(u + r) % k for u in range(k)] for r in range(min(k, params.restarts))]
+    for order_u in orders:
         decoded, score = _coordinate_ascent(
             on, pos, prefixes, starts, entry_nodes, order_u, order=order, log_a1=log_a1, log_a2=log_a2, params=params
         )
@@ -408,12 +418,12 @@ def _adaptive_window(obs, prefixes, starts, entry_nodes, eatg: Eatg, params: Dec
                 multi = True
                 break
     k = len(prefixes)
-    # users near components: last node (or entry node) within 2 hops of the component's nodes
+    # users near components: last node (or entry node) within NEAR_HOPS of the component's nodes
     anchor = [p[-1] if p else entry_nodes[i] for i, p in enumerate(prefixes)]
     near = np.zeros((k, n_comp), bool)
     for i, a in enumerate(anchor):
         if a >= 0:
-            near[i] = [hops[a, cn].min() <= 2 for cn in comp_nodes]
+            near[i] = [hops[a, cn].min() <= NEAR_HOPS for cn in comp_nodes]
     overlap = multi or (near.sum(axis=0) > 1).any() or (near.sum(axis=1) > 1).any()
     active_nodes = np.unique(j)
     if overlap:

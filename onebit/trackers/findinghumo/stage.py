@@ -49,8 +49,8 @@ class HmmConfig:
     p_hit : probability that the node a user is at is seen active in a slot.
     p_false : probability that a node nobody is at is seen active in a slot.
     sweeps : explain-away sweeps over the users per window (coordinate ascent).
-    restarts : coordinate-ascent runs per window, each with the users' decoding order rotated;
-        the run with the highest joint log-likelihood is kept.
+    restarts : coordinate-ascent runs per window over different user decoding orders (every
+        order when K! <= restarts, else rotations); the highest joint log-likelihood is kept.
     offline : decode the whole run as one window (the paper's offline baselines).
     """
 
@@ -65,7 +65,7 @@ class HmmConfig:
     p_hit: float = 0.9
     p_false: float = 0.05
     sweeps: int = 3
-    restarts: int = 3
+    restarts: int = 6
     offline: bool = False
 
     def __post_init__(self) -> None:

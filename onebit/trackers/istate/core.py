@@ -170,7 +170,7 @@ def constrain(geoms, shape: str, *, quad_segs: int = QUAD_SEGS):
     if shape == "exact":
         return geoms
     g = np.asarray(geoms, dtype=object)
-    empty = shapely.is_empty(g)
+    empty = void(g)
     if shape == "rect":
         b = shapely.bounds(g)
         b = np.where(empty[..., None], 0.0, b)
@@ -188,6 +188,13 @@ def constrain(geoms, shape: str, *, quad_segs: int = QUAD_SEGS):
     else:
         raise ValueError(f"shape = {shape!r}; allowed: {list(SHAPES)}")
     return np.where(empty, shapely.Polygon(), out)
+
+
+def void(geoms) -> np.ndarray:
+    """Empty *or missing* (``None``, e.g. a box built from the NaN bounds of an empty
+    geometry): a region representing the empty set. An element with such a region is empty
+    and is dropped; a missing region must never reach a union (``R cup None = None``)."""
+    return shapely.is_empty(geoms) | shapely.is_missing(geoms)
 
 
 def _bounds(regions: np.ndarray) -> np.ndarray:
@@ -317,7 +324,7 @@ def observation_update(istate: IState, sensing: BaseGeometry, *, shape: str = "e
         rep[rows, cols] = new
     else:
         rep[rows, cols] = constrain(shapely.intersection(rep[rows, cols], sensing), shape)
-    keep = ~shapely.is_empty(rep[rows, cols])
+    keep = ~void(rep[rows, cols])
     return IState(rep[keep])
 
 
@@ -328,7 +335,7 @@ def negative_update(istate: IState, sensing: BaseGeometry, *, shape: str = "exac
     if istate.size == 0:
         return istate
     r = np.asarray(constrain(shapely.difference(istate.regions, sensing), shape), dtype=object).reshape(istate.regions.shape)
-    keep = ~shapely.is_empty(r).any(axis=1)
+    keep = ~void(r).any(axis=1)
     return IState(r[keep])
 
 
@@ -346,7 +353,7 @@ def canonical(istate: IState, *, shape: str = "exact") -> IState:
     r = istate.regions
     if r.shape[0] == 0:
         return istate
-    r = r[~shapely.is_empty(r).any(axis=1)]
+    r = r[~void(r).any(axis=1)]
     if r.shape[0] == 0:
         return IState(r)
     if shape == "rect":  # a box is identified by its bounds
