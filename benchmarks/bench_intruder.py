@@ -49,7 +49,7 @@ from onebit.trackers.intruder.filter import (
 from onebit.trackers.intruder.sensors import deploy
 from onebit.trackers.intruder.stage import observations
 
-MOTION = Motion(period=2.0, v_max=4.0, speed_sigma=1.5, turn_scale=1.0, max_retries=50)
+MOTION = Motion(period=2.0, v_max=4.0, speed_sigma=1.5, turn_scale=4.0, max_retries=50)
 HALF = 1.0
 
 

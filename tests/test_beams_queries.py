@@ -133,7 +133,23 @@ def test_rrd_holds_occupancy_region_paths_and_marks(building_run):
     for track in agents["track"]:
         assert f"beams/tracks/{track}/regions" in ents and f"beams/tracks/{track}" in ents
     a = pl.read_parquet(res.out / "tables" / "beams_assignment.parquet")
-    if a["ambiguous"].any():
-        assert {"beams/ambiguous", "beams/ambiguous/log"} <= ents
-    if a["track"].null_count():
-        assert "beams/unexplained" in ents
+    # this run has both kinds of marked crossings, so the marks must be in the recording
+    assert a["ambiguous"].any() and a["track"].null_count() > 0
+    assert {"beams/ambiguous", "beams/ambiguous/log", "beams/unexplained", "beams/unexplained/log"} <= ents
+
+
+def test_beam_midpoints_are_gathered_per_crossing_and_unknown_beams_named():
+    import numpy as np
+
+    from onebit.viz.beams import beam_midpoints
+
+    site = builtin_site("building")
+    ids = [b.id for b in site.beams]
+    want = {b.id: np.asarray(b.line.interpolate(0.5, normalized=True).coords[0]) for b in site.beams}
+    order = [ids[k] for k in np.random.default_rng(0).integers(0, len(ids), 50)]
+    got = beam_midpoints(site, pl.Series(order))
+    assert got.shape == (50, 2)
+    np.testing.assert_allclose(got, np.array([want[b] for b in order]))
+    assert beam_midpoints(site, []).shape == (0, 2)
+    with pytest.raises(ValueError, match="'zz'"):
+        beam_midpoints(site, ["a", "zz"])

@@ -164,3 +164,34 @@ def test_quick_singh_experiment_writes_table_and_plots(tmp_path):
     assert set(res["setting"]) >= {"ideal", "nonideal 0.7/1.3", "nonideal 0.5/1.5", "pir-line"}
     assert res.filter(pl.col("setting") == "ideal")["error_R"].max() < 1.0
     assert (out / "error_vs_density.png").stat().st_size > 1000 and (out / "found_spurious.png").exists()
+
+
+def test_match_tracks_pairs_every_track_row_with_the_nearest_truth_of_every_target():
+    from onebit.trackers.clustertrack.stage import match_tracks
+
+    rng = np.random.default_rng(5)
+    truth = pl.DataFrame({"t": np.repeat(np.arange(12) * 0.5, 3), "target": ["b", "a", "c"] * 12,
+                          "x": rng.random(36), "y": rng.random(36)})
+    tracks = pl.DataFrame({"track": np.repeat(["c2", "c1"], 9), "t": np.tile(np.arange(9) * 0.7, 2),
+                           "x": rng.random(18), "y": rng.random(18)})
+    targets, names, D, pairs = match_tracks(truth, tracks)
+    assert targets == ["a", "b", "c"] and names == ["c1", "c2"]
+    assert pairs.height == 3 * tracks.height
+    for i, g in enumerate(targets):  # brute force: nearest truth time of target g, mean distance
+        tg = truth.filter(pl.col("target") == g).sort("t")
+        tt, tx, ty = tg["t"].to_numpy(), tg["x"].to_numpy(), tg["y"].to_numpy()
+        for j, k in enumerate(names):
+            tk = tracks.filter(pl.col("track") == k)
+            near = np.abs(tk["t"].to_numpy()[:, None] - tt[None, :]).argmin(axis=1)
+            err = np.hypot(tk["x"].to_numpy() - tx[near], tk["y"].to_numpy() - ty[near])
+            assert D[i, j] == pytest.approx(err.mean())
+
+
+def test_minimal_targets_explain_every_1d_snapshot():
+    """The stored minimal target set of each instant has the greedy's size (the lower bound)
+    and puts a target in the on-range of every on-sensor whose g_i is not empty."""
+    w, sp, R = world_space("proximity-line", 2)
+    for t, pos in enumerate(sp.minimal_targets):
+        assert pos.size == sp.bounds_all[t]
+        hull, s = sp.f1d[t].hulls()
+        assert np.all(np.any((pos[None, :] >= hull[:, :1] - 1e-9) & (pos[None, :] <= hull[:, 1:] + 1e-9), axis=1))

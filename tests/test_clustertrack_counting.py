@@ -141,7 +141,10 @@ def test_2d_raster_matches_shapely_disks_and_counts_components():
     assert abs(F.sum() * 0.05**2 - exact.area) < 0.05 * exact.area + 0.05
     n, lab = raster_components(F, rast)
     assert n == 2
-    c = rast.centres
-    for t in targets:  # each target lies in (or next to) a distinct component
-        k = np.argmin(np.linalg.norm(c - t, axis=1))
-        assert lab[k] > 0 or F[k]
+    c = rast.centres[F]
+    comp = []
+    for t in targets:  # each target lies in (within a cell of) F, in a component of its own
+        d = np.linalg.norm(c - t, axis=1)
+        assert d.min() <= 0.05 * np.sqrt(2)
+        comp.append(int(lab[np.flatnonzero(F)[np.argmin(d)]]))
+    assert sorted(comp) == [1, 2]

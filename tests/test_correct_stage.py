@@ -223,3 +223,14 @@ def test_dropped_crossings_recovered_on_average(twenty_seeds):
     df = twenty_seeds.filter(pl.col("dropped") > 0)
     assert df.height > 10
     assert float(np.mean(df["recovered"].to_numpy())) >= 0.9, df
+
+
+def test_broken_dataset_run_toml_fails_the_stage_naming_the_file(tmp_path):
+    """A dataset whose run.toml is not TOML: the correct stage fails with the file named,
+    the rest of the run goes on (no exception escapes the pipeline)."""
+    data = write_beams_dataset(tmp_path / "d", "beams-building", seed=0, duration=30.0, drop=0.0, camera=False)
+    (data / "run.toml").write_text("[correct\nn = 3\n")
+    res = run_pipeline(data, tmp_path / "run", trackers=("beams",))
+    assert res.status["correct"].startswith("failed"), res.status
+    assert "run.toml" in res.status["correct"] and "TOML" in res.status["correct"]
+    assert res.status["beams"].startswith("ok"), res.status

@@ -30,7 +30,7 @@ from onebit.trackers.intruder.filter import (
 from onebit.trackers.intruder.sensors import WorldGrid, deploy, sensor_type
 from onebit.trackers.intruder.stage import IntruderConfig, match_errors, run, run_naive, NaiveConfig
 
-PAPER_MOTION = Motion(period=2.0, v_max=4.0, speed_sigma=1.5, turn_scale=1.0, max_retries=50)
+PAPER_MOTION = Motion(period=2.0, v_max=4.0, speed_sigma=1.5, turn_scale=4.0, max_retries=50)
 
 
 def run_scenario(tmp_path, scenario, seed, *, refractory=0.0, duration=120.0, **cfg):
@@ -137,7 +137,7 @@ def test_refractory_sensor_contributes_only_its_refractory_probability():
 @given(st.floats(0.5, 9.5), st.floats(0.5, 9.5), st.floats(0.0, 0.5), st.integers(0, 1000))
 @settings(max_examples=50, deadline=None)
 def test_silent_probability_is_the_interpolated_product(x, y, h, seed):
-    """P(S=0|x) = prod over all m cells of L(1-p0, 1-q, V) (brute force over the whole grid)."""
+    """P(S=0|x) = prod over the xi region cells (q > 0) of L(1-p0, 1-q, V) (brute force over the grid)."""
     rng = np.random.default_rng(seed)
     q = rng.random((10, 10)) * (rng.random((10, 10)) < 0.5)
     samples = [[i + 0.5, j + 0.5, q[j, i]] for j in range(10) for i in range(10) if q[j, i] > 0]
@@ -150,11 +150,73 @@ def test_silent_probability_is_the_interpolated_product(x, y, h, seed):
     prod = 1.0
     for j in range(10):
         for i in range(10):
+            if dep.q[0, j, i] == 0:
+                continue  # outside the detection region: no influence on the sensor
             V = cells.intersection(shapely.box(i, j, i + 1, j + 1)).area
             qq = max(dep.q[0, j, i], p0)
             prod *= (1 - p0) + V * ((1 - qq) - (1 - p0))
     got = math.exp(log_p_silent(np.array([x]), np.array([y]), dep, 1.0, 1.0)[0, 0])
     assert got == pytest.approx(max(prod, 0.0), abs=1e-9)
+
+
+@pytest.mark.parametrize("h", [0.0, 0.05, 0.25, 0.6])
+def test_empty_room_false_positive_rate_is_h(h):
+    """Section VIII-D defines h = P(S_i = 1 | O_1 = ... = O_m = 0, B_i = 0): with the intruder's
+    box away from the detection region the sensor fires with probability exactly h, and the
+    xi region cells, each with p0 = 1 - (1 - h)^(1/xi), multiply back to it."""
+    site = site_from_dict(site_dict("pir14-imperfect"))
+    typ = {**site.sensor_types["pir-imperfect"], "false_positive": h}
+    site = site_from_dict({**site_dict("pir14-imperfect"), "sensor_types": {"pir-imperfect": typ}})
+    dep = deploy(site, 1.0)
+    assert np.allclose((1 - dep.p0) ** dep.xi, 1 - h)
+    xs, ys = (a.ravel() for a in np.meshgrid(np.arange(1.0, 9.01, 0.25), np.arange(1.0, 9.01, 0.25)))
+    p_fire = -np.expm1(log_p_silent(xs, ys, dep, 1.0, 1.0))  # (14, N)
+    cx, cy = dep.grid.centres()
+    for i in range(14):
+        region = dep.q[i] > 0
+        far = np.array([not np.any(region & (np.abs(cx - x) < 1.5) & (np.abs(cy - y) < 1.5)) for x, y in zip(xs, ys)])
+        assert far.any() and np.allclose(p_fire[i, far], h)
+        # inside the region firing is at least as likely as in an empty room, and more when q > p0
+        assert np.all(p_fire[i] >= h - 1e-12) and p_fire[i, ~far].max() > h + 0.05
+
+
+def test_simulated_false_firings_follow_h():
+    """The simulator fires with the tracker's model: a sensor whose region the intruder never
+    approaches fires in about a fraction h of the iterations (h = 0.25 for pir14-imperfect)."""
+    from onebit.datasets.pir_sim import fire
+
+    site = site_from_dict(site_dict("pir14-imperfect"))
+    dep = deploy(site, 1.0)
+    rng = np.random.default_rng(5)
+    T = 4000
+    xy = np.tile([5.0, 5.0], (T + 1, 1))
+    xy[:, 0] = 0.5  # against the left wall, mid-height
+    S, _ = fire(rng, xy, dep)
+    cx, cy = dep.grid.centres()
+    far = [i for i in range(14) if not np.any((dep.q[i] > 0) & (np.abs(cx - 0.5) < 1.5) & (np.abs(cy - 5.0) < 1.5))]
+    assert far
+    rate = S[:, far].mean(axis=0)
+    assert np.all(np.abs(rate - 0.25) < 0.03), rate
+
+
+def test_simulated_paths_match_the_papers_naive_baseline():
+    """Fig. 4: the room-centre estimator is within 4 cells 55 % of the time over the paper's paths.
+    The paths come from the paper's intruder model; 2000 of them, 60 steps each, in one array."""
+    from onebit.datasets.pir_sim import path_motion
+    from onebit.trackers.intruder.filter import prior
+
+    room = Room(shapely.box(0, 0, 10, 10))
+    rng = np.random.default_rng(11)
+    p = prior(2000, room, path_motion(), rng)
+    d = []
+    for _ in range(60):
+        p, _, clamped = propagate(p, room, path_motion(), rng)
+        assert clamped == 0
+        d.append(np.hypot(p.x - 5.0, p.y - 5.0))
+    d = np.concatenate(d)
+    assert 0.52 <= (d <= 4.0).mean() <= 0.58
+    # more central than a uniform position in the room (50 % within 4, mean 3.83)
+    assert d.mean() < 3.8
 
 
 def test_deployment_of_beam_and_triangle():

@@ -214,3 +214,22 @@ def test_perfect_matching_agrees_with_networkx(n, bits):
     brute = perms[adj[np.arange(n)[None, :], perms].all(axis=1)]
     assert sorted(map(tuple, match)) == sorted(map(tuple, brute))
     assert (len(match) > 0) == expected
+
+
+def test_region_vanishing_in_an_obstacle_empties_its_element_and_never_becomes_missing():
+    """Regression: under ``rect`` a box can lie inside an obstacle; its forward projection is
+    empty, the element must be dropped, and no ``None`` region may reach a merge (the union
+    with ``None`` is ``None``, which silently lost the true state in the Fig. 9 study)."""
+    free = shapely.difference(box(0, 0, 40, 40), box(10, 10, 30, 30))
+    inside = box(18, 18, 22, 22)  # in the obstacle, 8 from its sides
+    ok = [box(1, 1, 3, 3), box(35, 35, 38, 38)]
+    eta = IState.from_elements([[inside, ok[0]], ok])
+    out = forward_project(eta, 1.0, free, shape="rect")
+    assert out.size == 1 and not any(g is None for g in out.regions.ravel())
+    assert contains(out, [(2, 2), (36, 36)])
+    # missing regions count as empty everywhere
+    rows = IState(np.array([[None, ok[0]], ok], dtype=object))
+    assert canonical(rows, shape="rect").size == 1
+    assert constrain(np.array([None], dtype=object), "rect")[0].is_empty
+    capped = cap_elements(IState.from_elements([[box(i, 0, i + 1, 1), box(5, 5, 6, 6)] for i in range(6)]), 2, shape="rect")
+    assert not any(g is None for g in capped.regions.ravel())

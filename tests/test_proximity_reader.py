@@ -71,3 +71,24 @@ def test_pipeline_reads_proximity_from_the_dataset_run_toml(tmp_path):
     assert metric(res.report, "proximity/instants") == 20
     assert metric(res.report, "proximity/suppressed") > 0
     assert metric(res.report, "proximity/rejected") == 0
+
+
+def test_config_rejects_non_finite_values_naming_the_field():
+    import pytest
+
+    from onebit.errors import ConfigError
+
+    for field, bad in (("start", float("nan")), ("start", float("inf")), ("period", float("inf")),
+                       ("chatter_window", float("inf")), ("instants", -1)):
+        with pytest.raises(ConfigError, match=f"ProximityConfig.{field}"):
+            ProximityConfig(**{field: bad})
+
+
+def test_broken_dataset_run_toml_fails_the_stage_naming_the_file(tmp_path):
+    from onebit.pipeline.runner import run_pipeline
+
+    d = SCENARIO_SPECS["pir-line"].write(tmp_path / "pir", seed=1, params={})
+    (d / "run.toml").write_text("[proximity\nperiod = 1.0\n")
+    res = run_pipeline(d, tmp_path / "run", trackers=())
+    assert res.status["proximity"].startswith("failed"), res.status
+    assert "run.toml" in res.status["proximity"] and "TOML" in res.status["proximity"]

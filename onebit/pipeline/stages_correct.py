@@ -38,7 +38,7 @@ from onebit.errors import ConfigError, InputError
 from onebit.pipeline.runner import RunContext, Stage
 from onebit.tables import CROSSINGS, check_schema
 from onebit.trackers.base import check_choice, check_range, config_from_mapping
-from onebit.trackers.beams.counting import PLACEMENTS, RegionEdges, correct, minimal_initial_counts, verify
+from onebit.trackers.beams.counting import PLACEMENTS, RegionEdges, correct, first_count_violation, minimal_initial_counts, verify
 
 #: The corrected crossing string: CROSSINGS plus whether each crossing was inserted.
 CORRECTED_CROSSINGS = pl.Schema({**dict(CROSSINGS), "inserted": pl.Boolean})
@@ -125,13 +125,17 @@ def _agent_count(ctx: RunContext) -> int | None:
 
 
 def _available(ctx: RunContext) -> str | None:
-    if _section(ctx).get("enabled", True) is False:
+    if not ctx.site.beams:
+        return "site has no beams"
+    try:
+        section = _section(ctx)
+    except InputError:  # a broken run.toml: run the stage so it fails naming the file
+        return None
+    if section.get("enabled", True) is False:
         return "disabled: [correct] enabled = false"
     n = _agent_count(ctx)
     if n is None:
         return "number of agents unknown: set site.toml targets or run.toml [correct] n"
-    if not ctx.site.beams:
-        return "site has no beams"
     return None
 
 
@@ -150,12 +154,12 @@ def corrected_frame(crossings: pl.DataFrame, res, edges: RegionEdges) -> pl.Data
     placed = np.where(ins, res.time, np.nan) if res.time is not None else np.full(len(ins), np.nan)
     obs_row = np.where(ins, 0, res.observed_index)
     edge = np.where(ins, res.edge, 0)
-    beams = np.asarray(edges.edge_beam, dtype=object)[edge]
+    beams = pl.Series(list(edges.edge_beam), dtype=pl.String).gather(edge)
     dirs = np.asarray(edges.edge_direction, dtype=np.int8)[edge]
     df = pl.DataFrame(
         {
             "t_obs": pl.Series(ob["t"].to_numpy()[obs_row]).scatter(np.flatnonzero(ins), None),
-            "beam": pl.Series(np.where(ins, beams, ob["beam"].to_numpy()[obs_row]).tolist(), dtype=pl.String),
+            "beam": pl.select(pl.when(pl.Series(ins)).then(beams).otherwise(ob["beam"].gather(obs_row))).to_series(),
             "direction": pl.Series(np.where(ins, dirs, ob["direction"].to_numpy()[obs_row]), dtype=pl.Int8),
             "inserted": pl.Series(ins, dtype=pl.Boolean),
             "t_placed": pl.Series(placed, dtype=pl.Float64).fill_nan(None),
@@ -193,11 +197,11 @@ def _work(ctx: RunContext, log) -> dict[str, pl.DataFrame]:
     else:
         need = minimal_initial_counts(src, tgt, len(rg.names))
         accepted = int(need.sum()) <= n
-        first = -1 if accepted else _first_violation_unknown(src, tgt, len(rg.names), n)
+        first = -1 if accepted else first_count_violation(src, tgt, len(rg.names), n)
     res = correct(
         src, tgt, edges, n_agents=n, initial=eta0, placement=cfg.placement, window=cfg.window, times=crossings["t"].to_numpy()
     )
-    names = np.asarray(rg.names, dtype=object)
+    names = pl.Series("region", list(rg.names), dtype=pl.String)  # gathered by index below
     corrected = corrected_frame(crossings, res, edges)
     pos = res.insertion_positions
     # the observed crossing each insertion precedes: next non-negative observed_index
@@ -209,8 +213,8 @@ def _work(ctx: RunContext, log) -> dict[str, pl.DataFrame]:
         "direction",
         pl.col("index").cast(pl.Int64),
         pl.Series("before", before, dtype=pl.Int64).replace(-1, None),
-        pl.Series("source", names[res.source[pos]].tolist(), dtype=pl.String),
-        pl.Series("target", names[res.target[pos]].tolist(), dtype=pl.String),
+        names.gather(res.source[pos]).alias("source"),
+        names.gather(res.target[pos]).alias("target"),
     )
     initial = pl.DataFrame({"region": list(rg.names), "count": res.initial.astype(np.int64)})
     ctx.report += [
@@ -224,20 +228,6 @@ def _work(ctx: RunContext, log) -> dict[str, pl.DataFrame]:
 
     log.emit(log_corrected_crossings, corrected, ctx.site)
     return {"corrected_crossings": corrected, "correct_insertions": insertions, "correct_initial": initial}
-
-
-def _first_violation_unknown(src, tgt, p: int, n: int) -> int:
-    """First crossing index at which no ``eta_0`` with sum ``n`` explains the prefix.
-
-    The prefix up to ``k`` needs ``sum_r max(0, max_{j<=k} -C_r(j))`` agents; the first ``k``
-    where that exceeds ``n`` is the violation (vectorised running maxima).
-    """
-    from onebit.trackers.beams.counting import crossing_deltas
-
-    c = np.cumsum(crossing_deltas(src, tgt, p), axis=0)
-    need = np.maximum.accumulate(np.maximum(0, -c), axis=0).sum(axis=1)
-    over = np.flatnonzero(need > n)
-    return int(over[0]) if over.size else -1
 
 
 # --------------------------------------------------------------------------- scoring (simulation)
@@ -286,13 +276,15 @@ def corrected_targets(
 ) -> pl.DataFrame:
     """Per corrected crossing (in order) the true target: observed rows from ``observed_matches``
     (the matching of ``crossings`` to the true crossings), inserted rows from ``recovered``."""
-    tgt = np.full(corrected.height, None, dtype=object)
+    tgt = pl.Series("target", dtype=pl.String).extend_constant(None, corrected.height)
     obs_rows = np.flatnonzero(~corrected["inserted"].to_numpy())
-    tgt[obs_rows] = np.asarray(observed_matches["target"].to_list(), dtype=object)
+    if obs_rows.size:
+        tgt = tgt.scatter(obs_rows, observed_matches["target"].cast(pl.String))
     if recovered is not None and recovered.height:
         r = recovered.drop_nulls("inserted_row")
-        tgt[r["inserted_row"].to_numpy()] = np.asarray(r["target"].to_list(), dtype=object)
-    return pl.DataFrame({"target": pl.Series(tgt.tolist(), dtype=pl.String)})
+        if r.height:
+            tgt = tgt.scatter(r["inserted_row"].to_numpy(), r["target"].cast(pl.String))
+    return tgt.to_frame()
 
 
 def score_correction(tables: dict, observed_matches: pl.DataFrame):

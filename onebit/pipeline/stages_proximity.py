@@ -13,6 +13,7 @@ from dataclasses import asdict
 
 import polars as pl
 
+from onebit.errors import InputError
 from onebit.pipeline.runner import RunContext, Stage
 from onebit.readers.proximity import TOGGLE_COLUMNS, ProximityConfig, proximity_frames, read_proximity
 from onebit.trackers.base import config_from_mapping
@@ -33,8 +34,8 @@ def _section(ctx: RunContext) -> dict:
     if p.exists():
         try:
             return dict(tomllib.loads(p.read_text(encoding="utf-8")).get("proximity", {}))
-        except tomllib.TOMLDecodeError:
-            return {}
+        except tomllib.TOMLDecodeError as exc:  # a broken run.toml is reported, never ignored
+            raise InputError(f"not valid TOML: {exc}", file=p) from None
     return {}
 
 

@@ -49,8 +49,9 @@ class ProximityConfig:
         check_range(self, "instants", 0, None, types=(int,))
         check_range(self, "chatter_window", 0.0, None)
         check_range(self, "min_on", 0.0, None)
-        if not math.isfinite(self.period):
-            raise ConfigError(f"ProximityConfig.period = {self.period!r}; must be finite")
+        for name in ("period", "start", "chatter_window", "min_on"):
+            if not math.isfinite(getattr(self, name)):
+                raise ConfigError(f"ProximityConfig.{name} = {getattr(self, name)!r}; must be finite")
 
     @property
     def rules(self) -> DebounceRules:

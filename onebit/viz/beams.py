@@ -17,6 +17,7 @@ from __future__ import annotations
 import numpy as np
 import polars as pl
 import rerun as rr
+import shapely
 
 from onebit.datasets.region_graph import RegionGraph
 from onebit.datasets.site import Site
@@ -50,10 +51,25 @@ def log_agent_region_paths(rec: rr.RecordingStream, tracker: str, agents: pl.Dat
         )
 
 
-def beam_midpoints(site: Site, beams: list[str]) -> np.ndarray:
-    """``(n, 2)`` midpoint of each named beam's segment."""
-    mids = {b.id: np.asarray(b.line.interpolate(0.5, normalized=True).coords[0], float) for b in site.beams}
-    return np.array([mids[b] for b in beams], dtype=np.float64).reshape(-1, 2)
+def beam_midpoints(site: Site, beams: list[str] | pl.Series) -> np.ndarray:
+    """``(n, 2)`` midpoint of each named beam's segment.
+
+    The midpoints of the site's beams are computed once (shapely, vectorised over beams) and
+    gathered by index: no Python work per crossing. An id that is not a beam of the site
+    raises ``ValueError`` naming it.
+    """
+    ids = [b.id for b in site.beams]
+    names = pl.Series("beam", beams, dtype=pl.String)
+    if not ids:
+        if names.len():
+            raise ValueError(f"beam(s) {names.unique().sort().to_list()} not in the site (it has no beams)")
+        return np.zeros((0, 2), dtype=np.float64)
+    mids = shapely.get_coordinates(shapely.line_interpolate_point([b.line for b in site.beams], 0.5, normalized=True))
+    unknown = names.filter(~names.is_in(ids)).unique().sort()
+    if unknown.len():
+        raise ValueError(f"beam(s) {unknown.to_list()} not in the site; beams are {ids}")
+    k = names.replace_strict(ids, list(range(len(ids))), return_dtype=pl.Int64).to_numpy()
+    return mids[k].astype(np.float64).reshape(-1, 2)
 
 
 def log_marked_crossings(rec: rr.RecordingStream, tracker: str, kind: str, marked: pl.DataFrame | None, site: Site) -> None:
@@ -69,7 +85,7 @@ def log_marked_crossings(rec: rr.RecordingStream, tracker: str, kind: str, marke
     extra = pl.col("reason") if "reason" in m.columns else pl.col("track").fill_null("") if "track" in m.columns else pl.lit("")
     text = m.select(pl.format("#{} {} {}", pl.col("crossing"), label, extra).alias("text"))["text"].to_list()
     t = m["t"].to_numpy()
-    xy = beam_midpoints(site, m["beam"].to_list())
+    xy = beam_midpoints(site, m["beam"])
     entity = paths.join(paths.tracker_root(tracker), kind)
     color = _MARK_COLOR.get(kind, colors.WARNING)
     rec.log(entity, rr.Points2D.from_fields(radii=MARK_RADIUS, colors=color, draw_order=40.0), static=True)

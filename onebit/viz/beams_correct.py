@@ -19,6 +19,7 @@ import rerun as rr
 from onebit.datasets.site import Site
 from onebit.viz import paths
 from onebit.viz._series import is_empty, require
+from onebit.viz.beams import beam_midpoints
 
 ROOT = "correct"
 OBSERVED = (150, 150, 150, 255)
@@ -49,7 +50,6 @@ def log_corrected_crossings(rec: rr.RecordingStream, corrected: pl.DataFrame | N
     if is_empty(corrected):
         return
     require(corrected, ("t", "beam", "direction", "inserted"), name="corrected crossings")
-    mids = {b.id: np.asarray(b.line.interpolate(0.5, normalized=True).coords[0], float) for b in site.beams}
     for inserted, entity, color, radius, suffix in (
         (False, observed_path(), OBSERVED, 0.15, ""),
         (True, inserted_path(), INSERTED, 0.4, " inserted"),
@@ -57,7 +57,7 @@ def log_corrected_crossings(rec: rr.RecordingStream, corrected: pl.DataFrame | N
         g = corrected.filter(pl.col("inserted") == inserted).sort("t", maintain_order=True)
         if g.height == 0:
             continue
-        xy = np.stack([mids[b] for b in g["beam"].to_list()])
+        xy = beam_midpoints(site, g["beam"])
         rec.send_columns(
             entity,
             indexes=[paths.time_column(g["t"].to_numpy())],

@@ -30,6 +30,13 @@ def _instants(times: np.ndarray, t: np.ndarray) -> np.ndarray:
     return np.searchsorted(times, t)
 
 
+def _colors_by_id(ids: pl.Series, *, alpha: int) -> np.ndarray:
+    """``(n, 4)`` colours of integer ids (clusters, components): the palette is looked up once
+    per distinct id and gathered, so there is no Python work per particle or cell."""
+    u, inv = np.unique(ids.to_numpy(), return_inverse=True)
+    return colors.colors_of(u.tolist(), alpha=alpha)[inv.ravel()]
+
+
 def log_sensor_states(rec: rr.RecordingStream, tracker: str, site, frames_on: np.ndarray, times: np.ndarray) -> None:
     """Sensors as disks (R_o, and R_i when smaller) coloured by their state per instant."""
     ps = site.proximity_sensors
@@ -80,7 +87,7 @@ def log_feasible_2d(rec: rr.RecordingStream, tracker: str, cells: pl.DataFrame, 
     rec.send_columns(
         ent,
         indexes=[paths.time_column(times)],
-        columns=rr.Points2D.columns(positions=c.select("x", "y").to_numpy(), colors=colors.colors_of(c["component"].to_list(), alpha=90)).partition(counts.tolist()),
+        columns=rr.Points2D.columns(positions=c.select("x", "y").to_numpy(), colors=_colors_by_id(c["component"], alpha=90)).partition(counts.tolist()),
     )
 
 
@@ -96,7 +103,7 @@ def log_particles(rec: rr.RecordingStream, tracker: str, particles: pl.DataFrame
     rec.send_columns(
         ent,
         indexes=[paths.time_column(times)],
-        columns=rr.Points2D.columns(positions=p.select("x", "y").to_numpy(), colors=colors.colors_of(p["cluster"].to_list(), alpha=160)).partition(counts.tolist()),
+        columns=rr.Points2D.columns(positions=p.select("x", "y").to_numpy(), colors=_colors_by_id(p["cluster"], alpha=160)).partition(counts.tolist()),
     )
 
 

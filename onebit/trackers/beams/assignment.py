@@ -337,24 +337,58 @@ def ambiguous_crossings(first: np.ndarray, second: np.ndarray) -> np.ndarray:
     return relabel[b] != a
 
 
+def region_events(source: np.ndarray, target: np.ndarray, n_regions: int):
+    """The crossings as per-region events, grouped by region: ``(region, j, running)``.
+
+    Crossing ``j`` is an entry into ``target[j]`` and an exit from ``source[j]``; the ``2m``
+    events are ordered by region, then by ``j`` with the entry first (one stable radix sort of
+    the region index), and ``running`` is ``D_r`` after each event: exits minus entries of
+    region ``r`` so far. O(m) memory, where a dense ``(m, |R|)`` table of prefix sums would be
+    O(m |R|). Returns ``(region, j, running, starts, counts)`` with ``starts``/``counts`` the
+    slice of every region.
+    """
+    src = np.asarray(source, dtype=np.int64)
+    tgt = np.asarray(target, dtype=np.int64)
+    m = len(src)
+    reg = np.empty(2 * m, dtype=np.int64)
+    reg[0::2], reg[1::2] = tgt, src
+    delta = np.empty(2 * m, dtype=np.int64)
+    delta[0::2], delta[1::2] = -1, 1
+    key = reg.astype(np.uint16) if n_regions <= np.iinfo(np.uint16).max else reg
+    order = np.argsort(key, kind="stable")
+    reg, delta = reg[order], delta[order]
+    counts = np.bincount(reg, minlength=n_regions)
+    starts = np.cumsum(counts) - counts
+    cs = np.cumsum(delta)
+    base = np.where(starts > 0, cs[np.maximum(starts - 1, 0)], 0)  # cumsum before each region's slice
+    running = cs - np.repeat(base, counts)
+    return reg, order // 2, running, starts, counts
+
+
+def region_deficits(source: np.ndarray, target: np.ndarray, n_regions: int) -> np.ndarray:
+    """``(|R|,)`` int64: ``max(0, max_k D_r(k))``, the fewest agents region ``r`` must start with.
+
+    ``D_r(k)`` = exits from ``r`` minus entries into ``r`` among the first ``k`` crossings
+    (Proposition 3.1). Vectorised over the per-region events of :func:`region_events`.
+    """
+    out = np.zeros(n_regions, dtype=np.int64)
+    if len(source) == 0:
+        return out
+    _, _, running, starts, counts = region_events(source, target, n_regions)
+    nz = counts > 0
+    out[nz] = np.maximum(0, np.maximum.reduceat(running, starts[nz]))
+    return out
+
+
 def minimum_agents(source: np.ndarray, target: np.ndarray, n_regions: int) -> int:
     """Minimum number of agents that explains the crossings (Proposition 3.1), vectorised.
 
     Region ``r`` must initially hold at least ``max(0, max_k D_r(k))`` agents, where
     ``D_r(k)`` = exits from ``r`` minus entries into ``r`` among the first ``k`` crossings;
-    these bounds are independent across regions and jointly achievable.
+    these bounds are independent across regions and jointly achievable
+    (:func:`region_deficits`, O(m) memory).
     """
-    src = np.asarray(source, dtype=np.int64)
-    tgt = np.asarray(target, dtype=np.int64)
-    m = len(src)
-    if m == 0:
-        return 0
-    delta = np.zeros((m, n_regions), dtype=np.int64)
-    rows = np.arange(m)
-    np.add.at(delta, (rows, src), 1)
-    np.add.at(delta, (rows, tgt), -1)
-    deficit = np.cumsum(delta, axis=0).max(axis=0)
-    return int(np.maximum(deficit, 0).sum())
+    return int(region_deficits(source, target, n_regions).sum())
 
 
 def is_consistent_partition(source, target, groups: list[list[int]]) -> bool:

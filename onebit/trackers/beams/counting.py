@@ -87,6 +87,8 @@ import numpy as np
 from scipy.sparse import csr_matrix
 from scipy.sparse.csgraph import shortest_path
 
+from onebit.trackers.beams.assignment import region_deficits, region_events
+
 PLACEMENTS = ("earliest", "latest", "midpoint")
 _FAR = 10**6  # hop distance standing for "unreachable"
 
@@ -132,12 +134,32 @@ def minimal_initial_counts(source: np.ndarray, target: np.ndarray, n_regions: in
     ``eta_0[r] = max(0, max_k (exits_r - entries_r)(first k crossings))``; the string is in
     ``L(M_C)`` for some ``eta_0`` with ``sum eta_0 = n`` iff ``sum`` of this vector ``<= n``
     (extra agents can wait anywhere). Its sum is Algorithm 1's agent count (Prop. 3.1).
+    Computed per region over the crossings' events, O(m) memory (no ``(m, p)`` table).
     """
-    src = np.asarray(source, dtype=np.int64)
-    if len(src) == 0:
-        return np.zeros(n_regions, dtype=np.int64)
-    c = np.cumsum(crossing_deltas(src, np.asarray(target, dtype=np.int64), n_regions), axis=0)
-    return np.maximum(0, -c.min(axis=0)).astype(np.int64)
+    return region_deficits(source, target, n_regions)
+
+
+def first_count_violation(source: np.ndarray, target: np.ndarray, n_regions: int, n_agents: int) -> int:
+    """First crossing index ``k`` at which no ``eta_0`` with sum ``n_agents`` explains the prefix
+    ``y[0..k]`` (-1 if none): the prefix needs ``need(k) = sum_r max(0, max_{j <= k} D_r(j))``
+    agents (:func:`minimal_initial_counts` of the prefix).
+
+    Vectorised over the per-region events (:func:`~onebit.trackers.beams.assignment.region_events`):
+    each region's running maximum of ``max(0, D_r)`` is one offset ``maximum.accumulate``, its
+    increases are credited to their crossing and ``need`` is their cumulative sum. O(m) memory.
+    """
+    m = len(source)
+    if m == 0:
+        return -1
+    reg, j, running, starts, counts = region_events(source, target, n_regions)
+    big = m + 1  # max(0, D_r) lies in [0, m]: offsetting region r by r * big keeps the scan per region
+    off = reg * big
+    cm = np.maximum.accumulate(np.maximum(running, 0) + off) - off
+    prev = np.r_[0, cm[:-1]]
+    prev[starts[counts > 0]] = 0  # each region's maximum starts at 0
+    need = np.cumsum(np.bincount(j, weights=cm - prev, minlength=m))
+    over = np.flatnonzero(need > n_agents)
+    return int(over[0]) if over.size else -1
 
 
 # --------------------------------------------------------------------------- verification

@@ -71,7 +71,7 @@ class BeamsConfig:
         check_choice(self, "policy", POLICIES)
         check_range(self, "max_track_length", 0, None, types=(int,))
         check_range(self, "max_agents", 0, None, types=(int,))
-        check_range(self, "traffic_bucket_s", 1e-9, None)
+        check_range(self, "traffic_bucket_s", 1e-9, 1e12)
         check_range(self, "occupancy_threshold", 0, None, types=(int,))
         for name in ("prefer_short_tracks", "prefer_team_order", "ambiguity"):
             if not isinstance(getattr(self, name), bool):
@@ -87,7 +87,7 @@ class BeamsConfig:
             if not isinstance(u, int) or isinstance(u, bool) or u < 0:
                 raise ConfigError(f"BeamsConfig.capacity.{r} = {u!r}; allowed range: [0, None]")
         for r, s in self.min_traversal_s.items():
-            if not isinstance(s, (int, float)) or isinstance(s, bool) or s < 0:
+            if not isinstance(s, (int, float)) or isinstance(s, bool) or not (0 <= s < float("inf")):
                 raise ConfigError(f"BeamsConfig.min_traversal_s.{r} = {s!r}; allowed range: [0, None]")
         if self.teams and len(self.teams) != len(self.initial_regions):
             raise ConfigError(
@@ -184,7 +184,7 @@ def run(inputs: dict, site: Site, config: BeamsConfig, log=None) -> dict[str, pl
     """
     crossings = check_schema(inputs["crossings"], CROSSINGS, name="crossings").sort("t", maintain_order=True)
     rg: RegionGraph = inputs.get("region_graph") or build_region_graph(site)
-    names = np.asarray(rg.names, dtype=object)
+    names = pl.Series("region", list(rg.names), dtype=pl.String)  # gathered by index below
     src, tgt = rg.endpoint_arrays(crossings["beam"], crossings["direction"].to_numpy())
     cons = config.constraints(site, rg)
     times = crossings["t"].to_numpy()
@@ -195,26 +195,26 @@ def run(inputs: dict, site: Site, config: BeamsConfig, log=None) -> dict[str, pl
         ambiguous = ambiguous_crossings(res.agents, alt.agents)
     else:
         ambiguous = np.zeros(len(src), dtype=bool)
-    track_ids = pl.Series("track", [f"agent{k + 1}" for k in range(res.n_agents)], dtype=pl.String)
+    track_ids = pl.select(pl.format("agent{}", pl.int_range(1, res.n_agents + 1, dtype=pl.Int64))).to_series().rename("track")
     track_col = _track_column(res, track_ids)
 
     labels = pl.when(pl.col("direction") > 0).then(pl.col("beam")).otherwise(pl.col("beam") + "^-1")
     assignment = crossings.with_columns(
         track=track_col,
-        source=pl.Series(names[src].tolist() if len(src) else [], dtype=pl.String),
-        region=pl.Series(names[tgt].tolist() if len(tgt) else [], dtype=pl.String),
+        source=names.gather(src),
+        region=names.gather(tgt),
         ambiguous=pl.Series(ambiguous, dtype=pl.Boolean),
         label=labels,
     )
     explained = assignment.filter(pl.col("track").is_not_null())
     t0 = float(crossings["t"].min()) if crossings.height else 0.0
-    team_names = np.asarray([*config.team_names, None], dtype=object)
+    team_names = pl.Series("team", [*config.team_names, None], dtype=pl.String)  # index -1 = no team
     starts = pl.DataFrame(
         {
             "track": track_ids,
             "t": pl.Series([t0] * res.n_agents, dtype=pl.Float64),
-            "region": pl.Series(names[res.initial_region].tolist() if res.n_agents else [], dtype=pl.String),
-            "team": pl.Series(team_names[res.team].tolist() if res.n_agents else [], dtype=pl.String),
+            "region": names.gather(res.initial_region),
+            "team": team_names.gather(np.where(res.team >= 0, res.team, len(config.team_names))),
         }
     )
     steps = pl.concat(

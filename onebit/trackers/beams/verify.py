@@ -156,10 +156,12 @@ def verify_path(
         for (track,), g in a.filter(pl.col("track").is_not_null()).partition_by("track", as_dict=True).items():
             targets.append((str(track), g))
     rows = []
+    # one alignment per target string (the observation, then each agent); each is the
+    # row-vectorised Smith-Waterman of ``smith_waterman_table``
     for name, g in sorted(targets, key=lambda x: (x[0] != "observation", _natural(x[0]))):
         labels = g["label"].to_list()
         al = local_alignment(toks, labels, match=match, mismatch=mismatch, gap=gap)
-        ts = g["t"].to_list()
+        ts = g["t"]
         j0, j1 = al.observed_span
         rows.append(
             {

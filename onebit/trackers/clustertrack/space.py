@@ -46,6 +46,7 @@ class FeasibleSpace:
     labels: np.ndarray | None = None  # (T, cells) component labels, 0 outside (2-D)
     order: np.ndarray = field(default=None)  # (T',) original instant of each step
     only: tuple = ()  # ((t, c), ...)
+    minimal_targets: tuple = ()  # T arrays: positions of a minimal target set (1-D, Theorem 4)
 
     # ----------------------------------------------------------------- construction
 
@@ -57,6 +58,8 @@ class FeasibleSpace:
         if dim == 1:
             minx, _, maxx, _ = boundary.bounds
             x = sensors.xy[:, 0]
+            # per instant: F is a different number of intervals at every instant (each call is
+            # vectorised over sensors); Theorem 4's greedy is sequential in its picks
             fs = tuple(feasible_1d(x, on[t], sensors.r_inner, sensors.r_outer, minx, maxx) for t in range(T))
             b = [snapshot_bounds_1d(f) for f in fs]
             return cls(
@@ -67,6 +70,7 @@ class FeasibleSpace:
                 tuple(x[1] for x in b),
                 f1d=fs,
                 order=np.arange(T),
+                minimal_targets=tuple(x[2] for x in b),
             )
         raster = make_raster(boundary, cell)
         outer = disk_masks(raster, sensors.xy, sensors.r_outer, closed=True)
@@ -74,7 +78,11 @@ class FeasibleSpace:
         masks = feasible_raster(on, outer, inner, raster.inside)
         labels = np.zeros(masks.shape, dtype=np.int64)
         bounds, cb = [], []
-        for t in range(T):  # per instant: OpenCV labelling, vectorised over cells and sensors
+        # Per instant: one OpenCV labelling (~30 us) and the bounds vectorised over on-sensors
+        # x cells. Stacking all instants into one image and one (instant, sensor) x cells pass
+        # was measured 10x slower (re-numbering the labels and gathering a label row per pair
+        # cost more than the T calls), so the loop over instants stays.
+        for t in range(T):
             n, lab = raster_components(masks[t], raster)
             labels[t] = lab
             lb, per = snapshot_bounds_2d(lab, n, np.flatnonzero(on[t]), outer)

@@ -170,23 +170,32 @@ def run(inputs: dict, site: Site, config: ClusterTrackConfig, log=None) -> dict[
     fr = res.first
     steps = pl.DataFrame({"t": times[space.order], "candidates": fr.candidates, "scanned": fr.scanned, "kept": fr.kept,
                           "clusters": fr.clusters, "max_cluster": fr.max_cluster})
-    parts = []
-    for t in range(T):  # per instant (T tables of K_t particles each)
-        xk, lab, cost = fr.particles[t]
-        px, py = _xy(xk)
-        parts.append(pl.DataFrame({"t": np.full(lab.size, times[t]), "particle": np.arange(lab.size), "cluster": lab,
-                                   "x": px, "y": py, "cost": cost}))
-    particles = pl.concat(parts)
+    # survivors of every instant in one table: the per-instant arrays are concatenated once
+    n_t = np.array([fr.particles[t][1].size for t in range(T)], dtype=np.int64)
+    pxy = np.concatenate([fr.particles[t][0] for t in range(T)]).reshape(-1, space.dim)
+    px, py = _xy(pxy)
+    particles = pl.DataFrame(
+        {
+            "t": np.repeat(times, n_t),
+            "particle": np.arange(n_t.sum()) - np.repeat(np.cumsum(n_t) - n_t, n_t),
+            "cluster": np.concatenate([fr.particles[t][1] for t in range(T)]).astype(np.int64),
+            "x": px,
+            "y": py,
+            "cost": np.concatenate([fr.particles[t][2] for t in range(T)]).astype(np.float64),
+        }
+    )
     out = {"tracks": tracks, "track_info": info, "counts": counts, "steps": steps, "particles": particles}
     if space.dim == 1:
-        out["feasible"] = pl.concat(
-            [pl.DataFrame({"t": np.full(len(f.components), times[t]), "component": np.arange(len(f.components)),
-                           "lo": f.components[:, 0], "hi": f.components[:, 1]}) for t, f in enumerate(space.f1d)]
+        n_c = np.array([len(f.components) for f in space.f1d], dtype=np.int64)
+        comps = np.concatenate([f.components for f in space.f1d]).reshape(-1, 2)
+        out["feasible"] = pl.DataFrame(
+            {"t": np.repeat(times, n_c), "component": np.arange(n_c.sum()) - np.repeat(np.cumsum(n_c) - n_c, n_c),
+             "lo": comps[:, 0], "hi": comps[:, 1]}
         )
-        from onebit.trackers.clustertrack.counting import snapshot_bounds_1d
-
-        mins = [snapshot_bounds_1d(f)[2] for f in space.f1d]
-        out["minimal_targets"] = pl.DataFrame({"t": np.repeat(times, [m.size for m in mins]), "x": np.concatenate(mins)})
+        out["minimal_targets"] = pl.DataFrame(
+            {"t": np.repeat(times, [m.size for m in space.minimal_targets]),
+             "x": np.concatenate(space.minimal_targets) if T else np.zeros(0)}
+        )
     count_consensus = -1
     if config.consensus_runs > 0:
         seeds = list(range(config.seed, config.seed + config.consensus_runs))
@@ -228,9 +237,11 @@ def match_tracks(truth: pl.DataFrame, tracks: pl.DataFrame) -> tuple[list[str], 
     names = sorted(tr["track"].unique().to_list())
     if not targets or not names:
         return targets, names, np.zeros((len(targets), len(names))), pl.DataFrame()
+    # one as-of join per target (Q joins, each vectorised over the rows); a cross join with the
+    # targets and one as-of join ``by="target"`` was measured 3-5x slower
     pairs = pl.concat(
         [tr.join_asof(tru.filter(pl.col("target") == g).drop("target"), on="t", strategy="nearest", check_sortedness=False)
-         .with_columns(target=pl.lit(g)) for g in targets]  # per target (Q joins, vectorised over rows)
+         .with_columns(target=pl.lit(g)) for g in targets]
     ).with_columns(err=((pl.col("x") - pl.col("tx")) ** 2 + (pl.col("y") - pl.col("ty")) ** 2).sqrt())
     m = pairs.group_by("target", "track").agg(pl.col("err").mean())
     D = np.full((len(targets), len(names)), np.inf)

@@ -19,15 +19,23 @@ and speed (world units / s). One iteration tau (``t_P`` seconds):
 
        P(E | x) = prod_i P(S_i = s_i | x)
        B_i = 1:  P(S_i = 1 | x) = P(S_i = 1 | B_i = 1) = rho_i                   (refractory branch)
-       B_i = 0:  P(S_i = 0 | x) = prod_k L(1 - p0_i, 1 - q_ik, V_k(x)),
+       B_i = 0:  P(S_i = 0 | x) = prod_{k in R_i} L(1 - p0_i, 1 - q_ik, V_k(x)),
                  L(a, b, V) = a + V (b - a)
 
+   ``R_i`` is the sensor's detection region: the ``xi_i`` cells with ``q_ik > 0`` (section
+   VI). The paper writes the product over all ``m`` cells, but derives
+   ``p0_i = 1 - (1 - h)^(1 / xi_i)`` from "the ``xi`` cells where q > 0 are independent", so
+   that with nobody in the region ``P(S_i = 1) = 1 - (1 - p0_i)^xi_i = h`` -- the paper's
+   definition of h, ``P(S_i = 1 | O_1 = ... = O_m = 0, B_i = 0)`` (section VIII-D). A cell
+   outside ``R_i`` is outside the sensor's detection region and does not influence it
+   (factor 1); over all ``m`` cells the empty-room firing rate would be
+   ``1 - (1 - h)^(m / xi)`` (0.41-0.54 instead of 0.25 for the imperfect PIRs).
    ``V_k(x)`` is the fraction of cell ``k`` covered by the intruder's bounding box (width x
-   depth, centred on ``x``). Cells the box does not touch give ``L = 1 - p0_i``, so the
-   product is ``(1 - p0_i)^(m - K) * prod_{k touched} L`` with only the ``K <= (ceil(w/c)+1)
-   (ceil(d/c)+1)`` touched cells computed. ``q_ik`` is raised to at least ``p0_i`` (being in
-   a cell never makes a firing less likely than being elsewhere). Probabilities are clipped
-   to ``[1e-12, 1]`` and weights kept in log space.
+   depth, centred on ``x``). Cells of ``R_i`` the box does not touch give ``L = 1 - p0_i``,
+   so the product is ``(1 - p0_i)^xi_i * prod_{k touched, in R_i} L / (1 - p0_i)`` with only
+   the ``K <= (ceil(w/c)+1) (ceil(d/c)+1)`` touched cells computed. ``q_ik`` is raised to at
+   least ``p0_i`` (being in a cell never makes a firing less likely than being elsewhere).
+   Probabilities are clipped to ``[1e-12, 1]`` and weights kept in log space.
 
 3. **Estimate** (:func:`estimate_cell`, section VII-C): the cell whose centre maximises the
    (weighted) number of particles inside the bounding box centred there -- a box filter over
@@ -181,38 +189,41 @@ def box_cells(x: np.ndarray, y: np.ndarray, grid: WorldGrid, half_w: float, half
 
 
 def log_p_silent(x: np.ndarray, y: np.ndarray, dep: Deployment, half_w: float, half_d: float) -> np.ndarray:
-    """``(n, N)`` log P(S_i = 0 | x, B_i = 0) = log prod_k L(1 - p0_i, 1 - q_ik, V_k(x)).
+    """``(n, N)`` log P(S_i = 0 | x, B_i = 0) = log prod_{k in R_i} L(1 - p0_i, 1 - q_ik, V_k(x)).
 
-    Sensor by sensor (a loop over sensors, vectorised over particles): only particles whose
-    box reaches the bounding box of the sensor's non-zero cells are computed; for the others
-    every touched cell has ``q = p0`` and the value is exactly ``m log(1 - p0_i)``.
+    ``R_i`` = the ``xi_i`` cells with ``q_ik > 0``. Sensor by sensor (a loop over sensors,
+    vectorised over particles): only particles whose box reaches the bounding box of the
+    sensor's non-zero cells are computed; for the others no touched cell is in ``R_i`` and
+    the value is exactly ``xi_i log(1 - p0_i) = log(1 - h_i)``.
     """
     n = len(dep.ids)
     out = np.empty((n, len(x)))
     if n == 0:
         return out
     g = dep.grid
-    m = g.nx * g.ny
     log_a = np.log1p(-np.minimum(dep.p0, 1 - PROB_FLOOR))  # (n,)
-    out[:] = (m * log_a)[:, None]
+    out[:] = (dep.xi * log_a)[:, None]
     qf = dep.q.reshape(n, -1)
     bbox = dep.cell_bounds()  # (n, 4): x0, y0, x1, y1 of the non-zero cells
     for s in range(0, len(x), CHUNK):
         xs, ys = x[s : s + CHUNK], y[s : s + CHUNK]
         iy, ix, V = box_cells(xs, ys, g, half_w, half_d)
         flat = iy * g.nx + ix
-        K = V.shape[1]
         for i in range(n):
             bx0, by0, bx1, by1 = bbox[i]
             sel = np.flatnonzero((xs + half_w > bx0) & (xs - half_w < bx1) & (ys + half_d > by0) & (ys - half_d < by1))
             if sel.size == 0:
                 continue
             p0 = dep.p0[i]
-            q = np.maximum(qf[i][flat[sel]], p0)  # (c, K)
+            qk = qf[i][flat[sel]]  # (c, K)
+            q = np.maximum(qk, p0)
             L = (1.0 - p0) - V[sel] * (q - p0)  # L(1 - p0, 1 - q, V)
             np.maximum(L, PROB_FLOOR, out=L)
-            # sum_k log L_k as the log of the product over the K touched cells (>= 1e-12^K, no underflow)
-            out[i, s + sel] = (m - K) * log_a[i] + np.log(L.prod(axis=1))
+            # touched cells of R_i replace their (1 - p0) factor by L; cells outside R_i give 1.
+            # (A touched cell clipped in from outside the grid has V = 0, so L = 1 - p0 and the
+            # replacement changes nothing.)
+            ratio = np.where(qk > 0, L / math.exp(log_a[i]), 1.0)
+            out[i, s + sel] = dep.xi[i] * log_a[i] + np.log(ratio).sum(axis=1)
     return out
 
 

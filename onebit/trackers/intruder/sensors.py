@@ -25,6 +25,11 @@ non-zero value::
     q_ij = P(S_i = 1 | O_j = 1, B_i = 0)                 (the deployed grid)
     p0_i = P(S_i = 1 | O_j = 0, B_i = 0) = 1 - (1 - h)^(1 / xi)
 
+so that the ``xi`` independent cells of the detection region give the paper's definition of
+the false-positive rate, ``P(S_i = 1 | O_1 = ... = O_m = 0, B_i = 0) = 1 - (1 - p0_i)^xi = h``
+(per sensor and iteration; cells outside the region do not influence the sensor, see
+:func:`onebit.trackers.intruder.filter.log_p_silent`).
+
 The world grid is 2-D (the floor layer): the intruder stays on the floor (section VII-B.1)
 and its bounding prism is one layer high, so only the floor layer of a characterisation is
 used.

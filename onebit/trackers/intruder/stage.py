@@ -40,7 +40,7 @@ class IntruderConfig:
     period: float = 2.0  #: t_P, seconds per iteration
     v_max: float = 4.0  #: maximum speed, cells/s
     speed_sigma: float = 1.5  #: std of the Gaussian added to the speed, cells/s
-    turn_scale: float = 1.0  #: sigma_theta = turn_scale / speed (rad * cells/s), capped at pi
+    turn_scale: float | None = None  #: sigma_theta = turn_scale / speed (rad * cells/s), capped at pi; None = v_max (1 rad at top speed)
     box_width: float = 2.0  #: intruder bounding prism width (x), cells
     box_depth: float = 2.0  #: intruder bounding prism depth (y), cells
     cell: float = 1.0  #: world units per cell
@@ -62,7 +62,8 @@ class IntruderConfig:
         check_range(self, "period", 1e-6, None)
         check_range(self, "v_max", 0.0, None)
         check_range(self, "speed_sigma", 0.0, None)
-        check_range(self, "turn_scale", 0.0, None)
+        if self.turn_scale is not None:
+            check_range(self, "turn_scale", 0.0, None)
         check_range(self, "box_width", 1e-6, None)
         check_range(self, "box_depth", 1e-6, None)
         check_range(self, "cell", 1e-9, None)
@@ -157,7 +158,8 @@ def run(inputs: dict, site: Site, config: IntruderConfig, log=None) -> dict[str,
     dep = deploy(site, c)
     fired, blind, t_end = observations(motion, site, period=config.period, start=config.start, end=config.end)
     room = Room(site.free_space)
-    mot = Motion(config.period, config.v_max * c, config.speed_sigma * c, config.turn_scale * c, config.max_retries)
+    turn = config.v_max if config.turn_scale is None else config.turn_scale
+    mot = Motion(config.period, config.v_max * c, config.speed_sigma * c, turn * c, config.max_retries)
     res = run_filter(
         fired, blind, dep, room, mot,
         n_particles=config.particles, half_w=config.box_width * c / 2, half_d=config.box_depth * c / 2,

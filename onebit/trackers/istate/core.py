@@ -297,7 +297,10 @@ def forward_project(istate: IState, step: float, free_space: BaseGeometry, *, sh
         else:
             grown = grow(r, d)
         r = shapely.intersection(grown, free_space)
-    return IState(np.asarray(constrain(r, shape), dtype=object).reshape(istate.regions.shape))
+    r = np.asarray(constrain(r, shape), dtype=object).reshape(istate.regions.shape)
+    # a region that was only an over-approximation inside an obstacle can vanish: the element
+    # is then empty and is dropped (before a later step could turn it into a missing region)
+    return IState(r[~void(r).any(axis=1)])
 
 
 def observation_update(istate: IState, sensing: BaseGeometry, *, shape: str = "exact") -> IState:

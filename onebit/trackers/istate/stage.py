@@ -20,8 +20,10 @@ detection at stage ``k``
 Each region is clipped to the free space. A reading 0 carries no information (the paper's
 model: false negatives are possible), unless ``reliable_negatives`` is set: then a motion
 sensor off at ``t_k`` (with no edge in the stage) removes its region and a proximity sensor
-off removes its inner disk ``R_i``, each eroded by ``v latency_s`` (beyond the paper). The loop over stages is inherently
-sequential; every stage's geometry is vectorised in :mod:`core`.
+off removes its inner disk ``R_i``, each eroded by ``v latency_s`` (beyond the paper).
+``latency_s`` is by default raised to the logs' time resolution (``latency_auto``).
+Readings are first reduced to edges, so level-sampled logs work too. The loop over stages
+is inherently sequential; every stage's geometry is vectorised in :mod:`core`.
 """
 
 from __future__ import annotations
