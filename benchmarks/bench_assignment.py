@@ -33,6 +33,7 @@ from __future__ import annotations
 import time
 
 import numpy as np
+import polars as pl
 
 from onebit.datasets.region_graph import RegionGraph, build_region_graph
 from onebit.datasets.site import builtin_site
@@ -62,7 +63,8 @@ def random_crossings(rg: RegionGraph, m: int, *, seed: int = SEED) -> tuple[np.n
         beams[j], dirs[j] = beam, d
         pos[a] = tgt
     labels = [rg.label(b, d) for b, d in zip(beams, dirs)]
-    return np.array(beams), np.array(dirs, dtype=np.int8), labels, k
+    # the pipeline hands the crossings' beam column over as a polars Series; so does the benchmark
+    return pl.Series("beam", beams, dtype=pl.String), np.array(dirs, dtype=np.int8), labels, k
 
 
 def peer_assign(labels: list[str], ends: dict[str, tuple[str, str]], policy: str) -> tuple[list[int], int]:

@@ -69,7 +69,16 @@ def test_stage_tables_and_report(building_run):
     assert metric(res.report, "beams/agents") <= 3
     rec = pl.read_parquet(out / "correct_recovered.parquet")
     assert rec.height == metric(res.report, "correct/dropped") > 0
-    assert 0.0 <= metric(res.report, "correct/recovered") <= 1.0
+    restored = rec["inserted_row"].drop_nulls()
+    assert metric(res.report, "correct/restored") == restored.len() > 0
+    assert metric(res.report, "correct/recovered") == pytest.approx(restored.len() / rec.height)
+    # every restoring insertion is an inserted row with the dropped crossing's beam and direction
+    hit = rec.drop_nulls("inserted_row").join(
+        cor.with_row_index("inserted_row").with_columns(pl.col("inserted_row").cast(pl.Int64)),
+        on="inserted_row", suffix="_ins",
+    )
+    assert hit.height == restored.len() and hit["inserted"].all()
+    assert (hit["beam"] == hit["beam_ins"]).all() and (hit["direction"] == hit["direction_ins"]).all()
 
 
 def test_inserted_crossings_are_their_own_rerun_entity(building_run):

@@ -285,6 +285,13 @@ def test_motion_stage_reads_debounces_and_reports(tmp_path: Path):
     assert frames.schema == FRAMES and frames["t"].unique().sort().to_list() == [0.0, 2.0]
     rejects = pl.read_parquet(tmp_path / "run" / "tables" / "rejects.parquet")
     assert sorted(rejects["line"].to_list()) == [8, 9]
-    assert (tmp_path / "run" / "rrd" / "motion.rrd").exists()
+    # p1: on 0.5, off 2.5 (the 1.0 off / 1.05 on chatter pair suppressed); p2: on 0.7, off 3.0
+    fr = frames.sort(["slot", "sensor"])
+    assert fr["sensor"].to_list() == ["p1", "p2", "p1", "p2"]
+    assert fr["on"].to_list() == [True, True, True, True]
+    assert fr["fired"].to_list() == [True, True, False, False]
+    from onebit.viz.inspect import entity_paths
+
+    assert {"sensors/p1", "sensors/p2"} <= entity_paths(tmp_path / "run" / "rrd" / "motion.rrd")
     bad = run_pipeline(data, tmp_path / "run2", trackers=("beams",), config={"motion": {"period": -1}})
     assert bad.status["motion"].startswith("failed") and "period" in bad.status["motion"]
