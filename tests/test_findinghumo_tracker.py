@@ -9,7 +9,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from onebit.datasets.hallway_sim import write_hallway_dataset
-from onebit.datasets.site import builtin_site, load_site
+from onebit.datasets.site import builtin_site
 from onebit.errors import ConfigError
 from onebit.pipeline.report import metric
 from onebit.pipeline.runner import run_pipeline

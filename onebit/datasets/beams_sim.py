@@ -20,8 +20,6 @@ the sampling of positions and the beam/pair blocking are vectorised over samples
 
 from __future__ import annotations
 
-import os
-import shutil
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -32,6 +30,7 @@ from shapely.geometry import LineString, Point
 
 from onebit.datasets.region_graph import RegionGraph, build_region_graph
 from onebit.datasets.site import Site, builtin_site_path, load_site
+from onebit.pipeline.outputs import write_text as _atomic_text, write_csv as _atomic_csv, copy_file as _atomic_copy
 
 #: Built-in scenarios: site, default agent count, speed range (units/s), agent radius (units).
 SCENARIOS = {
@@ -336,24 +335,6 @@ def initial_condition_toml(start_regions: dict[str, str]) -> str:
         f"n = {len(start_regions)}\n"
         f"initial = {{{table}}}\n"
     )
-
-
-def _atomic_text(text: str, path: Path) -> None:
-    tmp = path.with_name(f".{path.name}.tmp")
-    tmp.write_text(text, encoding="utf-8")
-    os.replace(tmp, path)
-
-
-def _atomic_csv(df: pl.DataFrame, path: Path) -> None:
-    tmp = path.with_name(f".{path.name}.tmp")
-    df.write_csv(tmp)
-    os.replace(tmp, path)
-
-
-def _atomic_copy(src: Path, dst: Path) -> None:
-    tmp = dst.with_name(f".{dst.name}.tmp")
-    shutil.copyfile(src, tmp)
-    os.replace(tmp, dst)
 
 
 def _scenario_writer(name: str):

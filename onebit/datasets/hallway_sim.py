@@ -29,8 +29,6 @@ sensing are vectorised over samples, users and nodes.
 
 from __future__ import annotations
 
-import os
-import shutil
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -40,6 +38,7 @@ import polars as pl
 
 from onebit.datasets.site import Site, builtin_site_path, load_site
 from onebit.errors import ConfigError
+from onebit.pipeline.outputs import write_csv as _atomic_csv, copy_file as _atomic_copy
 
 WEST = ("92", "93", "94", "96", "97", "95")
 EAST = ("99", "110", "114", "117", "106", "118", "100", "111", "101")
@@ -262,18 +261,6 @@ def write_hallway_dataset(
     _atomic_csv(sim.toggles, out / "motion.csv")
     _atomic_csv(sim.samples.with_columns(pl.col("t").round(3)), out / "truth.csv")
     return out
-
-
-def _atomic_csv(df: pl.DataFrame, path: Path) -> None:
-    tmp = path.with_name(f".{path.name}.tmp")
-    df.write_csv(tmp)
-    os.replace(tmp, path)
-
-
-def _atomic_copy(src: Path, dst: Path) -> None:
-    tmp = dst.with_name(f".{dst.name}.tmp")
-    shutil.copyfile(src, tmp)
-    os.replace(tmp, dst)
 
 
 def _write(dataset, *, seed: int, duration, agents, drop: float, camera: bool, params: dict):

@@ -19,7 +19,6 @@ sequential over stages (each depends on the last); vectorised within a stage.
 
 from __future__ import annotations
 
-import os
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -39,6 +38,7 @@ from onebit.trackers.istate.active import (
     worst_distances,
 )
 from onebit.trackers.istate.core import IState, cap_elements, communicate, info_state_update
+from onebit.pipeline.outputs import write_text as _atomic_text, write_csv as _atomic_csv
 
 # --------------------------------------------------------------------------- environments
 
@@ -163,18 +163,6 @@ def write_room_dataset(out_dir, *, seed: int = 0, duration: float = 120.0, n: in
     _atomic_csv(edges, out / "motion.csv")
     _atomic_csv(truth, out / "truth.csv")
     return out
-
-
-def _atomic_text(text: str, path: Path) -> None:
-    tmp = path.with_name(f".{path.name}.tmp")
-    tmp.write_text(text, encoding="utf-8")
-    os.replace(tmp, path)
-
-
-def _atomic_csv(df: pl.DataFrame, path: Path) -> None:
-    tmp = path.with_name(f".{path.name}.tmp")
-    df.write_csv(tmp)
-    os.replace(tmp, path)
 
 
 # --------------------------------------------------------------------------- active tracking

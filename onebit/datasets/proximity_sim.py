@@ -34,7 +34,6 @@ the seed and written atomically.
 
 from __future__ import annotations
 
-import os
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -42,6 +41,7 @@ import numpy as np
 import polars as pl
 
 from onebit.errors import ConfigError
+from onebit.pipeline.outputs import write_text as _atomic_text, write_csv as _atomic_csv
 
 #: Seconds between instants (the sampling period of the frames).
 PERIOD = 1.0
@@ -238,18 +238,6 @@ def write_world(world: ProximityWorld, out: str | Path, rng: np.random.Generator
         run.append(f"chatter_window = {world.chatter!r}")
     _atomic_text("\n".join(run) + "\n", out / "run.toml")
     return out
-
-
-def _atomic_csv(df: pl.DataFrame, path: Path) -> None:
-    tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
-    df.write_csv(tmp)
-    os.replace(tmp, path)
-
-
-def _atomic_text(text: str, path: Path) -> None:
-    tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
-    tmp.write_text(text, encoding="utf-8")
-    os.replace(tmp, path)
 
 
 # --------------------------------------------------------------------------- scenarios

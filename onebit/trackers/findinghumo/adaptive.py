@@ -216,10 +216,8 @@ def decode_users(
     out = np.full((k, n_slots), -1, dtype=np.int64)
     if k == 0 or n_slots == 0:
         return out
-    s = len(states)
     pos = {int(v): i for i, v in enumerate(states)}
     on = obs[:, states]  # (L, S)
-    p, f = params.p_hit, params.p_false
     log_a1 = restricted_first(eatg.a1, states)
     log_a2 = second_order_tensor(eatg.a1, eatg.a2, states) if order == 2 else None
     best, best_score = None, -np.inf
