@@ -105,7 +105,13 @@ class NaiveConfig:
 
 
 def available(site: Site) -> str | None:
-    return None if site.motion_sensors else "site has no motion sensors"
+    """Skip sites without motion sensors, and sites that declare more than one target: the
+    paper's filter tracks a single intruder (``--trackers intruder`` cannot override this)."""
+    if not site.motion_sensors:
+        return "site has no motion sensors"
+    if site.targets is not None and site.targets > 1:
+        return f"site.toml declares {site.targets} targets; the filter tracks a single intruder"
+    return None
 
 
 def observations(motion: pl.DataFrame, site: Site, *, period: float, start: float, end: float | None):
