@@ -195,3 +195,33 @@ def test_minimal_targets_explain_every_1d_snapshot():
         assert pos.size == sp.bounds_all[t]
         hull, s = sp.f1d[t].hulls()
         assert np.all(np.any((pos[None, :] >= hull[:, :1] - 1e-9) & (pos[None, :] <= hull[:, 1:] + 1e-9), axis=1))
+
+
+def test_ten_targets_reruns_are_not_monopolised_by_jump_trajectories():
+    """Appendix B with Q = 10 parallel targets (issue 5 follow-up): a rerun with K = H q
+    (one cluster) is captured by a zero-cost jump between components and returns a high-cost
+    trajectory that satisfies (t_o, c_o) but is no target. Repeating such a rerun with
+    K = H Q_hat finds the targets: all 10, few spurious tracks, far fewer reruns."""
+    w = make_world("proximity-line", seed=0, targets=10, params={"variant": "separated"})
+    sa = SensorArray(tuple(f"p{i}" for i in range(len(w.sensor_xy))), w.sensor_xy, w.r_inner, w.r_outer)
+    sp = FeasibleSpace.build(w.on, np.arange(w.on.shape[0], dtype=float), sa, box(*w.boundary), dim=1, cell=0.1)
+    p = rules_of_thumb(sp, H=25, m_o=15.0)
+    assert p.Q_hat == 10 and np.all(sp.bounds_all == 10)
+
+    def score(res):
+        D = trajectory_distance(w.truth[:, :, :1], res.tracks)
+        a, b = linear_sum_assignment(D)
+        found = int(np.sum(D[a, b] <= p.D0))
+        return found, res.tracks.shape[0] - found
+
+    fixed = clustertrack(sp, p, np.random.default_rng(0))
+    literal = clustertrack(sp, p, np.random.default_rng(0), high_cost=0.0)
+    found, spurious = score(fixed)
+    lit_found, lit_spurious = score(literal)
+    assert fixed.satisfied and found == 10 and spurious <= 3
+    assert fixed.reruns <= 10 < literal.reruns and lit_spurious >= spurious + 10 and lit_found <= found
+    # every rerun retains at most its deficit q (here every component's bound is 1)
+    assert np.all(np.bincount(fixed.origin)[1:] <= 1) and np.all(np.bincount(literal.origin)[1:] <= 1)
+    # the retained rerun tracks pass through the component they were run for: bounds hold
+    for t, u in enumerate(usage(sp, fixed.tracks)):
+        assert np.all(u >= sp.comp_bounds_all[t])

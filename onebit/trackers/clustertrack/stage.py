@@ -50,6 +50,9 @@ class ClusterTrackConfig:
     d0_r : clustering threshold D_0 in units of R; 0 = rule of thumb A_hat^(1/n).
     reruns : Appendix B: reruns that must yield tracks not clustering with existing ones
         (paper: 10); 0 switches Appendix B off (the paper's "one-run version").
+    rerun_cost_ratio : a rerun whose new tracks all cost more than this times the cheapest
+        track (section 6's "significantly high cost") was monopolised by one cluster of its
+        K = H q budget; it is repeated once with K = H Q_hat. 0 = the paper-literal rerun.
     consensus_runs : R runs (seeds ``seed .. seed+R-1``) for the multi-run target count.
     consensus_ratio : drop consensus tracks costing more than this times the cheapest (10).
     consensus_support : a consensus cluster counts when at least this fraction of runs has a
@@ -69,6 +72,7 @@ class ClusterTrackConfig:
     l: int = 0  # noqa: E741
     d0_r: float = 0.0
     reruns: int = 10
+    rerun_cost_ratio: float = 10.0
     consensus_runs: int = 10
     consensus_ratio: float = 10.0
     consensus_support: float = 0.5
@@ -87,6 +91,7 @@ class ClusterTrackConfig:
         check_range(self, "l", 0, 10**8, types=(int,))
         check_range(self, "d0_r", 0.0, 1e6)
         check_range(self, "reruns", 0, 1000, types=(int,))
+        check_range(self, "rerun_cost_ratio", 0.0, 1e9)
         check_range(self, "consensus_runs", 0, 10000, types=(int,))
         check_range(self, "consensus_ratio", 1.0, 1e9)
         check_range(self, "consensus_support", 0.0, 1.0)
@@ -147,7 +152,8 @@ def run(inputs: dict, site: Site, config: ClusterTrackConfig, log=None) -> dict[
         return {"tracks": pl.DataFrame(schema=TRACKS), **empty}
     p = params_for(space, R, config)
     rng = np.random.default_rng(config.seed)
-    res = clustertrack(space, p, rng, max_reruns=config.reruns, rerun=config.reruns > 0, record=True)
+    res = clustertrack(space, p, rng, max_reruns=config.reruns, rerun=config.reruns > 0, record=True,
+                       high_cost=config.rerun_cost_ratio)
     N = res.tracks.shape[0]
     names = [f"c{i + 1}" for i in range(N)]
     x, y = _xy(res.tracks)
@@ -200,7 +206,7 @@ def run(inputs: dict, site: Site, config: ClusterTrackConfig, log=None) -> dict[
     if config.consensus_runs > 0:
         seeds = list(range(config.seed, config.seed + config.consensus_runs))
         cons = consensus(space, p, seeds, ratio=config.consensus_ratio, min_support=config.consensus_support,
-                         max_reruns=config.reruns)
+                         max_reruns=config.reruns, high_cost=config.rerun_cost_ratio)
         count_consensus = cons.count
         out["consensus"] = pl.DataFrame({"run": cons.run, "cluster": cons.cluster, "cost": cons.costs,
                                          "support": cons.support[cons.cluster] if cons.cluster.size else np.zeros(0)})
