@@ -23,7 +23,6 @@ Run with ``python -m benchmarks.bench_counting``.
 
 from __future__ import annotations
 
-import collections
 import time
 import tracemalloc
 
@@ -31,7 +30,7 @@ import numpy as np
 
 from onebit.datasets.region_graph import build_region_graph
 from onebit.datasets.site import builtin_site
-from onebit.trackers.beams.counting import RegionEdges, correct, count_space_size, count_states
+from onebit.trackers.beams.counting import RegionEdges, correct, count_space_size, count_states, min_insertions_bfs
 
 SIZES = (1_000, 10_000, 100_000)
 AGENTS = (2, 3, 4, 5, 6)
@@ -63,39 +62,7 @@ def dropped_walks(edges: RegionEdges, m: int, n: int, *, seed: int = 0):
 
 def peer_bfs(src, tgt, edges: RegionEdges, n: int) -> int:
     """Plain 0-1 BFS over (position, count vector) from every eta_0 with sum n."""
-    src, tgt = src.tolist(), tgt.tolist()
-    es, et = edges.edge_source.tolist(), edges.edge_target.tolist()
-    m = len(src)
-    dist: dict = {}
-    dq = collections.deque()
-    for s in count_states(edges.n_regions, n):
-        node = (0, tuple(int(x) for x in s))
-        dist[node] = 0
-        dq.append(node)
-    while dq:
-        node = dq.popleft()
-        i, eta = node
-        d = dist[node]
-        if i == m:
-            return d
-        if eta[src[i]] >= 1:
-            e = list(eta)
-            e[src[i]] -= 1
-            e[tgt[i]] += 1
-            nxt = (i + 1, tuple(e))
-            if dist.get(nxt, 1 << 60) > d:
-                dist[nxt] = d
-                dq.appendleft(nxt)
-        for a, b in zip(es, et):
-            if eta[a] >= 1:
-                e = list(eta)
-                e[a] -= 1
-                e[b] += 1
-                nxt = (i, tuple(e))
-                if dist.get(nxt, 1 << 60) > d + 1:
-                    dist[nxt] = d + 1
-                    dq.append(nxt)
-    raise RuntimeError("no correction")
+    return min_insertions_bfs(src, tgt, edges, count_states(edges.n_regions, n))
 
 
 def _timed(fn):

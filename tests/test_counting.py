@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import collections
 from math import comb
 
 import numpy as np
@@ -14,6 +13,7 @@ from onebit.datasets.region_graph import build_region_graph
 from onebit.datasets.site import builtin_site
 from onebit.trackers.beams.assignment import assign_agents
 from onebit.trackers.beams.counting import (
+    min_insertions_bfs,
     RegionEdges,
     correct,
     count_space_size,
@@ -63,39 +63,9 @@ def reference_run(src, tgt, eta0):
     return -1
 
 
+
 def brute_force_insertions(src, tgt, edges: RegionEdges, starts) -> int:
-    """0-1 BFS over (position, full count vector): consume y[i] for 0, insert any crossing for 1."""
-    m = len(src)
-    dist: dict = {}
-    dq = collections.deque()
-    for s in starts:
-        node = (0, tuple(int(x) for x in s))
-        dist[node] = 0
-        dq.append(node)
-    while dq:
-        node = dq.popleft()
-        i, eta = node
-        d = dist[node]
-        if i == m:
-            return d
-        if eta[src[i]] >= 1:
-            e = list(eta)
-            e[src[i]] -= 1
-            e[tgt[i]] += 1
-            nxt = (i + 1, tuple(e))
-            if dist.get(nxt, 1 << 30) > d:
-                dist[nxt] = d
-                dq.appendleft(nxt)
-        for a, b in zip(edges.edge_source, edges.edge_target):
-            if eta[a] >= 1:
-                e = list(eta)
-                e[a] -= 1
-                e[b] += 1
-                nxt = (i, tuple(e))
-                if dist.get(nxt, 1 << 30) > d + 1:
-                    dist[nxt] = d + 1
-                    dq.append(nxt)
-    raise AssertionError("no correction found")
+    return min_insertions_bfs(src, tgt, edges, starts)
 
 
 # --------------------------------------------------------------------------- I_C

@@ -80,6 +80,8 @@ previous one left); they are vectorised over the live count states and over runs
 
 from __future__ import annotations
 
+import collections
+
 from dataclasses import dataclass
 from math import comb
 
@@ -540,3 +542,48 @@ def place_insertions(S, T, inserted, obs, edge, initial, *, window: int = 4096, 
         tau_out[:] = np.nan
     return S, T, inserted, obs, edge, tau_out
 
+
+def min_insertions_bfs(src, tgt, edges: RegionEdges, starts) -> int:
+    """Reference (unpruned) minimum number of insertions: a plain 0-1 breadth-first search.
+
+    Nodes are ``(i, eta)`` = (position in the observed string, full count vector); consuming
+    ``y[i]`` from ``eta`` costs 0, inserting any crossing of the region graph costs 1; the
+    search starts from every count vector in ``starts`` and stops at the first node with
+    ``i = |y|``. Exponential state space and one Python step per node: it is the test
+    oracle and the benchmark peer of :func:`correct`, not something to run on long strings.
+    """
+    src = [int(v) for v in src]
+    tgt = [int(v) for v in tgt]
+    es = [int(v) for v in edges.edge_source]
+    et = [int(v) for v in edges.edge_target]
+    m = len(src)
+    dist: dict = {}
+    dq: collections.deque = collections.deque()
+    for s in starts:
+        node = (0, tuple(int(x) for x in s))
+        dist[node] = 0
+        dq.append(node)
+    while dq:
+        node = dq.popleft()
+        i, eta = node
+        d = dist[node]
+        if i == m:
+            return d
+        if eta[src[i]] >= 1:
+            e = list(eta)
+            e[src[i]] -= 1
+            e[tgt[i]] += 1
+            nxt = (i + 1, tuple(e))
+            if dist.get(nxt, 1 << 60) > d:
+                dist[nxt] = d
+                dq.appendleft(nxt)
+        for a, b in zip(es, et):
+            if eta[a] >= 1:
+                e = list(eta)
+                e[a] -= 1
+                e[b] += 1
+                nxt = (i, tuple(e))
+                if dist.get(nxt, 1 << 60) > d + 1:
+                    dist[nxt] = d + 1
+                    dq.append(nxt)
+    raise ValueError("no sequence of insertions makes the string valid from these initial counts")
