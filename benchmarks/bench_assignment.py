@@ -35,6 +35,7 @@ import time
 import numpy as np
 import polars as pl
 
+from benchmarks.bench_reader import timed as _best_of
 from onebit.datasets.region_graph import RegionGraph, build_region_graph
 from onebit.datasets.site import builtin_site
 from onebit.trackers.beams.assignment import Constraints, assign_agents, minimum_agents
@@ -85,17 +86,6 @@ def peer_assign(labels: list[str], ends: dict[str, tuple[str, str]], policy: str
         queues.setdefault(tgt, []).append(agent)
     return agents, n
 
-
-def _best_of(fn, repeats: int, budget: float = 10.0) -> tuple[float, object]:
-    best, out, spent = float("inf"), None, 0.0
-    for _ in range(repeats):
-        t0 = time.perf_counter()
-        out = fn()
-        dt = time.perf_counter() - t0
-        best, spent = min(best, dt), spent + dt
-        if spent > budget:
-            break
-    return best, out
 
 
 def main() -> None:
