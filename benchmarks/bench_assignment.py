@@ -30,7 +30,6 @@ Run with ``python -m benchmarks.bench_assignment``.
 
 from __future__ import annotations
 
-import time
 
 import numpy as np
 import polars as pl
