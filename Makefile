@@ -13,6 +13,7 @@ $(STAMP): pyproject.toml
 	test -x $(BIN)/python || $(PY) -m venv $(VENV)
 	$(BIN)/python -m pip install --quiet --upgrade pip
 	$(BIN)/python -m pip install --quiet -e '.[test]'
+	$(BIN)/python -m pip install --quiet --no-deps 'trackeval>=1.3,<2'
 	$(BIN)/rerun analytics disable >/dev/null 2>&1 || true
 	touch $(STAMP)
 
@@ -30,7 +31,9 @@ demo: install
 	$(BIN)/onebit simulate istate-room $(BUILD)/demo/istate-room --seed 7
 	$(BIN)/onebit run $(BUILD)/demo/istate-room --out $(BUILD)/demo/istate-room-run
 
+# test: the layers contract (import-linter, pyproject.toml) and the test suite.
 test: install
+	$(BIN)/lint-imports --no-cache
 	RERUN_ANALYTICS=0 $(BIN)/python -m pytest
 
 bench: install

@@ -35,8 +35,8 @@ import numpy as np
 import polars as pl
 
 from benchmarks.bench_reader import timed as _best_of
-from onebit.datasets.region_graph import RegionGraph, build_region_graph
-from onebit.datasets.site import builtin_site
+from onebit.core.region_graph import RegionGraph, build_region_graph
+from onebit.datasets.builtin import builtin_site
 from onebit.trackers.beams.assignment import Constraints, assign_agents, minimum_agents
 
 SIZES = (10_000, 100_000, 1_000_000)

@@ -25,7 +25,8 @@ import numpy as np
 import polars as pl
 
 from onebit.datasets.camera_render import render_overhead_video
-from onebit.datasets.site import Site, builtin_site
+from onebit.core.site import Site
+from onebit.datasets.builtin import builtin_site
 from onebit.readers.camera import read_camera, truth_error
 
 SIZES = (100, 300, 1000)

@@ -28,8 +28,8 @@ import tracemalloc
 
 import numpy as np
 
-from onebit.datasets.region_graph import build_region_graph
-from onebit.datasets.site import builtin_site
+from onebit.core.region_graph import build_region_graph
+from onebit.datasets.builtin import builtin_site
 from onebit.trackers.beams.counting import RegionEdges, correct, count_space_size, count_states, min_insertions_bfs
 
 SIZES = (1_000, 10_000, 100_000)

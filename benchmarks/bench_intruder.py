@@ -35,18 +35,13 @@ import numpy as np
 import polars as pl
 
 from onebit.datasets.pir_sim import simulate
-from onebit.datasets.site import site_from_dict
-from onebit.pipeline.exp_schiff import toggles_as_rows
-from onebit.pipeline.stages_motion import MotionConfig, site_rules
+from onebit.core.site import site_from_dict
+from onebit.experiments.schiff import toggles_as_rows
+from onebit.readers.motion import MotionConfig, site_rules
 from onebit.readers.motion import read_motion
-from onebit.trackers.intruder.filter import (
-    Motion,
-    Room,
-    estimate_cell,
-    log_weights,
-    run_filter,
-)
-from onebit.trackers.intruder.sensors import deploy
+from onebit.models.motion import Motion, Room
+from onebit.models.pir import deploy, log_weights
+from onebit.trackers.intruder.filter import estimate_cell, run_filter
 from onebit.trackers.intruder.stage import observations
 
 MOTION = Motion(period=2.0, v_max=4.0, speed_sigma=1.5, turn_scale=4.0, max_retries=50)

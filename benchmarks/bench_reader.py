@@ -43,7 +43,7 @@ from pathlib import Path
 import numpy as np
 import polars as pl
 
-from onebit.datasets.site import builtin_site
+from onebit.datasets.builtin import builtin_site
 from onebit.readers.beams import decode_beam_log
 
 SIZES = (10_000, 100_000, 1_000_000)

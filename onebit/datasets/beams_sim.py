@@ -28,9 +28,13 @@ import polars as pl
 import shapely
 from shapely.geometry import LineString, Point
 
-from onebit.datasets.region_graph import RegionGraph, build_region_graph
-from onebit.datasets.site import Site, builtin_site_path, load_site
-from onebit.pipeline.outputs import write_text as _atomic_text, write_csv as _atomic_csv, copy_file as _atomic_copy
+from onebit.datasets.scenario import Scenario
+from onebit.core.region_graph import RegionGraph, build_region_graph
+from onebit.core.site import Site, load_site
+from onebit.datasets.builtin import builtin_site_path
+from onebit.core.writers import write_text as _atomic_text, write_csv as _atomic_csv, copy_file as _atomic_copy
+from onebit.core.errors import ConfigError
+from onebit.datasets.camera_render import render_overhead_video
 
 #: Built-in scenarios: site, default agent count, speed range (units/s), agent radius (units).
 SCENARIOS = {
@@ -54,7 +58,6 @@ class BeamsSimConfig:
     start: str = "random"
 
     def __post_init__(self) -> None:
-        from onebit.errors import ConfigError
 
         if self.duration <= 0:
             raise ConfigError(f"duration = {self.duration!r}; must be > 0 seconds")
@@ -286,7 +289,6 @@ def write_beams_dataset(
     ``camera``, an overhead ``camera.mp4``. Every file is written atomically.
     """
     if scenario not in SCENARIOS:
-        from onebit.errors import ConfigError
 
         raise ConfigError(f"unknown scenario {scenario!r}; known: {sorted(SCENARIOS)}")
     sc = SCENARIOS[scenario]
@@ -317,7 +319,6 @@ def write_beams_dataset(
     _atomic_csv(tc, out / "truth_crossings.csv")
     _atomic_text(initial_condition_toml(sim.start_regions or {}), out / "run.toml")
     if camera and cam is not None:
-        from onebit.datasets.camera_render import render_overhead_video
 
         render_overhead_video(out / "camera.mp4", site, frames, seed=seed, radius=cfg.radius)
     return out
@@ -340,7 +341,6 @@ def initial_condition_toml(start_regions: dict[str, str]) -> str:
 def _scenario_writer(name: str):
     def write(dataset, *, seed: int, duration: float, agents: int | None, drop: float, camera: bool, params: dict):
         if params:
-            from onebit.errors import ConfigError
 
             raise ConfigError(f"scenario {name!r} takes no --param options, got {sorted(params)}")
         return write_beams_dataset(dataset, name, seed=seed, duration=180.0 if duration is None else duration, agents=agents, drop=drop, camera=camera)
@@ -349,7 +349,6 @@ def _scenario_writer(name: str):
 
 
 def _specs():
-    from onebit.datasets.scenarios import Scenario
 
     helps = {
         "beams-lab": "paper Fig. 8 lab: 4 directional beams, 5 regions in a chain, 2 agents, camera",

@@ -38,7 +38,6 @@ temporary name in the same folder and renamed over ``path`` (atomic).
 from __future__ import annotations
 
 import contextlib
-import os
 from collections.abc import Iterator
 from pathlib import Path
 
@@ -46,8 +45,9 @@ import cv2
 import numpy as np
 import polars as pl
 
-from onebit.datasets.site import Camera, Site
-from onebit.errors import InputError, OnebitError
+from onebit.core.site import Camera, Site
+from onebit.core.writers import atomic_path
+from onebit.core.errors import InputError, OnebitError
 
 #: Grey level of the floor.
 FLOOR = 200.0
@@ -224,19 +224,14 @@ def _lighting_gain(t: float) -> float:
 
 @contextlib.contextmanager
 def _atomic_writer(path: Path, camera: Camera) -> Iterator[cv2.VideoWriter]:
-    """A ``cv2.VideoWriter`` on a temporary file next to ``path``, renamed over it on success."""
-    path.parent.mkdir(parents=True, exist_ok=True)
-    tmp = path.with_name(f".{path.stem}.{os.getpid()}.tmp{path.suffix or '.mp4'}")
-    width, height = encoded_size(camera)
-    writer = cv2.VideoWriter(str(tmp), cv2.CAP_FFMPEG, cv2.VideoWriter_fourcc(*FOURCC), float(camera.fps), (width, height))
-    if not writer.isOpened():
-        tmp.unlink(missing_ok=True)
-        raise OnebitError(f"{path}: OpenCV cannot open a '{FOURCC}' video writer")
-    try:
-        yield writer
-        writer.release()
-        os.replace(tmp, path)
-    except BaseException:
-        writer.release()
-        tmp.unlink(missing_ok=True)
-        raise
+    """A ``cv2.VideoWriter`` on a temporary file next to ``path``, renamed over it on success
+    (:func:`onebit.core.writers.atomic_path`; the temp name keeps the extension OpenCV needs)."""
+    with atomic_path(path, suffix=f".tmp{path.suffix or '.mp4'}") as tmp:
+        width, height = encoded_size(camera)
+        writer = cv2.VideoWriter(str(tmp), cv2.CAP_FFMPEG, cv2.VideoWriter_fourcc(*FOURCC), float(camera.fps), (width, height))
+        if not writer.isOpened():
+            raise OnebitError(f"{path}: OpenCV cannot open a '{FOURCC}' video writer")
+        try:
+            yield writer
+        finally:
+            writer.release()

@@ -13,8 +13,9 @@ own walking speed that also varies from edge to edge, and pauses at route ends /
 destinations. With ``exits``, that many users walk to the door and leave before the end.
 
 Sensors: a ceiling PIR at each node with its own coverage radius (``range`` in site.toml:
-non-uniform coverage). Positions are sampled at 10 Hz; a user inside a node's radius is
-detected in a sample with probability ``p_detect`` (motion comes in bursts) and a detection
+non-uniform coverage), read through the site's detection regions
+(:func:`onebit.core.sensing.detection_regions`). Positions are sampled at 10 Hz; a user inside
+a node's region is detected in a sample with probability ``p_detect`` (motion comes in bursts) and a detection
 holds the PIR on for ``hold`` seconds. Each node has a clock offset (uniform in
 ``+-clock_offset`` s) added to its time stamps, and each on-burst's packets are lost with
 probability ``drop``. ``motion.csv`` is the raw toggle log (t, sensor, value).
@@ -36,9 +37,12 @@ import networkx as nx
 import numpy as np
 import polars as pl
 
-from onebit.datasets.site import Site, builtin_site_path, load_site
-from onebit.errors import ConfigError
-from onebit.pipeline.outputs import write_csv as _atomic_csv, copy_file as _atomic_copy
+from onebit.datasets.scenario import Scenario
+from onebit.core.sensing import covers, current_node, detection_regions
+from onebit.core.site import Site, load_site
+from onebit.datasets.builtin import builtin_site_path
+from onebit.core.errors import ConfigError
+from onebit.core.writers import write_csv as _atomic_csv, copy_file as _atomic_copy
 
 WEST = ("92", "93", "94", "96", "97", "95")
 EAST = ("99", "110", "114", "117", "106", "118", "100", "111", "101")
@@ -174,24 +178,12 @@ def _routes(g: nx.Graph, users: int, rng: np.random.Generator) -> list[list[str]
     return out
 
 
-def current_node(xy: np.ndarray, targets: np.ndarray, node_xy: np.ndarray, ranges: np.ndarray) -> np.ndarray:
-    """Index of the node whose coverage each sample is in (nearest if several), else the last
-    one the same target was in (forward fill in sample order); -1 before the first."""
-    d = np.hypot(xy[:, None, 0] - node_xy[None, :, 0], xy[:, None, 1] - node_xy[None, :, 1])
-    inside = d <= ranges[None, :]
-    near = np.argmin(np.where(inside, d, np.inf), axis=1)
-    cur = np.where(inside.any(axis=1), near, -1)
-    s = pl.DataFrame({"target": targets, "cur": pl.Series(cur).replace(-1, None)})
-    return s.select(pl.col("cur").forward_fill().over("target")).to_series().fill_null(-1).to_numpy()
-
-
 def simulate_hallway(site: Site, cfg: HallwaySimConfig, *, seed: int) -> HallwaySimulation:
     rng = np.random.default_rng(seed)
     g = site.sensor_graph.to_networkx(site)
     pos = {m.id: m.position for m in site.motion_sensors}
     ids = [m.id for m in site.motion_sensors]
-    node_xy = np.array([pos[i] for i in ids])
-    ranges = np.array([m.range or 2.5 for m in site.motion_sensors])
+    regions = [detection_regions(site)[i] for i in ids]
     times = np.arange(0.0, cfg.duration, 1.0 / cfg.rate_hz)
     leavers = set(rng.choice(cfg.users, size=cfg.exits, replace=False).tolist()) if cfg.exits else set()
     t_in = 1.0
@@ -211,13 +203,13 @@ def simulate_hallway(site: Site, cfg: HallwaySimConfig, *, seed: int) -> Hallway
         t_in += rng.uniform(*cfg.enter_gap)
     samples = pl.concat(frames).sort(["t", "target"])
     xy = samples.select("x", "y").to_numpy()
-    cur = current_node(xy, samples["target"].to_numpy(), node_xy, ranges)
+    cur = current_node(xy, samples["target"].to_numpy(), regions)
     samples = samples.with_columns(node=pl.Series(np.asarray(ids + [None], dtype=object)[cur].tolist(), dtype=pl.String))
 
-    # sensing: per sample index and node, any user inside the radius and detected
+    # sensing: per sample index and node, any user inside the node's region and detected
     k = np.rint(samples["t"].to_numpy() * cfg.rate_hz).astype(np.int64)
-    d = np.hypot(xy[:, None, 0] - node_xy[None, :, 0], xy[:, None, 1] - node_xy[None, :, 1])
-    det = (d <= ranges[None, :]) & (rng.random(d.shape) < cfg.p_detect)
+    inside = covers(regions, xy)
+    det = inside & (rng.random(inside.shape) < cfg.p_detect)
     hit = np.zeros((len(times), len(ids)), bool)
     rr, cc = np.nonzero(det)
     hit[k[rr], cc] = True
@@ -284,7 +276,6 @@ def _write(dataset, *, seed: int, duration, agents, drop: float, camera: bool, p
 
 
 def _specs():
-    from onebit.datasets.scenarios import Scenario
 
     return {
         "hallway": Scenario(

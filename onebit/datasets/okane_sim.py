@@ -28,7 +28,8 @@ import polars as pl
 import shapely
 from shapely.geometry import box
 
-from onebit.errors import ConfigError
+from onebit.datasets.scenario import Scenario
+from onebit.core.errors import ConfigError
 from onebit.trackers.istate.active import (
     ShortestPaths,
     advance,
@@ -38,7 +39,9 @@ from onebit.trackers.istate.active import (
     worst_distances,
 )
 from onebit.trackers.istate.core import IState, cap_elements, communicate, info_state_update
-from onebit.pipeline.outputs import write_text as _atomic_text, write_csv as _atomic_csv
+from onebit.core.writers import write_text as _atomic_text, write_csv as _atomic_csv
+from onebit.trackers.istate.core import contains
+from onebit.core.config import check_choice, check_range
 
 # --------------------------------------------------------------------------- environments
 
@@ -191,7 +194,6 @@ class ActiveConfig:
     p_miss: float = 0.0
 
     def __post_init__(self) -> None:
-        from onebit.trackers.base import check_choice, check_range
 
         check_range(self, "trackers", 1, 16, types=(int,))
         check_range(self, "targets", 1, 8, types=(int,))
@@ -247,7 +249,6 @@ def simulate_active(cfg: ActiveConfig, *, seed: int, environment=None, record_re
     out_c = np.zeros((K, m), dtype=bool)
     out_s = np.empty((K, m), dtype=object)
     links, regs0 = [], []
-    from onebit.trackers.istate.core import contains
 
     for k in range(K):  # inherently sequential
         q = targets.move() if k else targets.pos.copy()
@@ -312,7 +313,6 @@ def _write_room(dataset, *, seed: int, duration, agents, drop: float, camera: bo
 
 
 def _specs():
-    from onebit.datasets.scenarios import Scenario
 
     return {
         "istate-room": Scenario(

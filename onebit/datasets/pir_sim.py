@@ -36,16 +36,20 @@ Scenarios (``--param refractory=F`` sets every sensor's refractory period, defau
 from __future__ import annotations
 
 import math
-import os
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 import polars as pl
 
-from onebit.datasets.scenarios import Scenario
-from onebit.datasets.site import site_from_dict
-from onebit.errors import ConfigError
+from onebit.datasets.scenario import Scenario
+from onebit.core.site import site_from_dict
+from onebit.core import writers
+from onebit.core.errors import ConfigError
+from onebit.models.motion import Motion
+from onebit.models.motion import Room, prior, propagate
+from onebit.models.pir import log_p_silent
+from onebit.models.pir import deploy
 
 ROOM = 10.0
 PERIOD = 2.0
@@ -135,14 +139,12 @@ class Simulation:
 
 def path_motion():
     """The intruder model of the simulated paths (:class:`~onebit.trackers.intruder.filter.Motion`)."""
-    from onebit.trackers.intruder.filter import Motion
 
     return Motion(PERIOD, V_MAX, SPEED_SIGMA, TURN_SCALE, 1000)
 
 
 def intruder_path(rng: np.random.Generator, n_steps: int, site) -> np.ndarray:
     """``(n_steps + 1, 2)`` positions at t_tau from the paper's intruder model (sequential in time)."""
-    from onebit.trackers.intruder.filter import Room, prior, propagate
 
     room = Room(site.free_space)
     motion = path_motion()
@@ -161,7 +163,6 @@ def fire(rng: np.random.Generator, xy: np.ndarray, dep, *, drop: float = 0.0) ->
     Probabilities for every iteration and sensor are computed at once; only the refractory
     recursion beta_tau = f if S else max(0, beta_{tau-1} - t_P) runs over iterations.
     """
-    from onebit.trackers.intruder.filter import log_p_silent
 
     pos = xy[1:]
     T, n = len(pos), len(dep.ids)
@@ -220,7 +221,6 @@ def simulate(
 ) -> tuple[dict, Simulation]:
     """Simulate one scenario. ``path_seed`` (default ``seed``) draws the path, so several sensor
     sets can share the paper's 10 trajectories."""
-    from onebit.trackers.intruder.sensors import deploy
 
     d = site_dict(scenario, refractory)
     site = site_from_dict(d, source=f"{scenario}/site.toml")
@@ -238,23 +238,29 @@ def simulate(
     return d, Simulation(truth, firings, toggles)
 
 
-def _atomic_write(path: Path, write) -> None:
-    tmp = path.with_name(f".{path.name}.tmp")
-    write(tmp)
-    os.replace(tmp, path)
+def run_toml() -> str:
+    """The dataset's ``run.toml``: what the simulation knows that a tracker's defaults do not.
+
+    ``[istate]``: the simulated intruder moves at up to ``V_MAX`` cells/s (cells of 1 m, so
+    m/s), and a sensor's state is the firing of the last iteration, so a reading may lag the
+    intruder by up to one period ``t_P`` (``latency_s``); with the I-state filter's defaults
+    (a walker, no lag) the I-state would lose the intruder.
+    """
+    return f"[istate]\nmax_speed = {V_MAX}\nlatency_s = {PERIOD}\n"
 
 
 def write_pir_dataset(
     dataset: str | Path, scenario: str, *, seed: int, duration: float = 180.0, refractory: float = 0.0, **kwargs
 ) -> Path:
-    """Write ``site.toml``, ``motion.csv``, ``truth.csv`` and ``truth_firings.csv`` for one run."""
+    """Write ``site.toml``, ``motion.csv``, ``truth.csv``, ``truth_firings.csv`` and ``run.toml`` (atomically)."""
     dataset = Path(dataset)
     dataset.mkdir(parents=True, exist_ok=True)
     d, sim = simulate(scenario, seed=seed, duration=duration, refractory=refractory, **kwargs)
-    _atomic_write(dataset / "site.toml", lambda p: p.write_text(site_toml(d), encoding="utf-8"))
-    _atomic_write(dataset / "motion.csv", lambda p: sim.toggles.write_csv(p))
-    _atomic_write(dataset / "truth.csv", lambda p: sim.truth.write_csv(p))
-    _atomic_write(dataset / "truth_firings.csv", lambda p: sim.firings.write_csv(p))
+    writers.write_text(site_toml(d), dataset / "site.toml")
+    writers.write_csv(sim.toggles, dataset / "motion.csv")
+    writers.write_csv(sim.truth, dataset / "truth.csv")
+    writers.write_csv(sim.firings, dataset / "truth_firings.csv")
+    writers.write_text(run_toml(), dataset / "run.toml")
     return dataset
 
 

@@ -40,8 +40,9 @@ from pathlib import Path
 import numpy as np
 import polars as pl
 
-from onebit.errors import ConfigError
-from onebit.pipeline.outputs import write_text as _atomic_text, write_csv as _atomic_csv
+from onebit.datasets.scenario import Scenario
+from onebit.core.errors import ConfigError
+from onebit.core.writers import write_text as _atomic_text, write_csv as _atomic_csv
 
 #: Seconds between instants (the sampling period of the frames).
 PERIOD = 1.0
@@ -303,7 +304,6 @@ def _writer(name: str):
 
 
 def _specs():
-    from onebit.datasets.scenarios import Scenario
 
     helps = {
         "proximity-line": "Singh 5.1: 5 targets, 20 instants, sensors every R; --param variant=crossing|together|separated",

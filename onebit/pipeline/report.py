@@ -7,7 +7,7 @@ from pathlib import Path
 
 import polars as pl
 
-from onebit.errors import InputError
+from onebit.core.errors import InputError
 
 
 def load_report(out_dir: str | Path) -> pl.DataFrame:

@@ -29,7 +29,8 @@ from pathlib import Path
 import polars as pl
 
 from onebit.readers.rows import RawRows, make_rejects, parse_choice, parse_name, parse_time, read_csv_rows, type_rows
-from onebit.tables import ABORTED, BEAM_EVENTS, CROSSINGS, REJECTS, conform
+from onebit.core.tables import ABORTED, BEAM_EVENTS, CROSSINGS, REJECTS, conform
+from onebit.readers.rows import raw_lines
 
 BEAM_COLUMNS = ("t", "beam", "pair", "blocked")
 
@@ -128,7 +129,6 @@ def decode_raw_beams(raw: RawRows, beam_ids, *, epoch=None, path: Path | None = 
         fixed = out.rejects.join(events.select("line"), on="line", how="left")
         lines = fixed["line"].to_list()
         if path is not None:
-            from onebit.readers.rows import raw_lines
 
             text = raw_lines(path, lines)
             fixed = fixed.with_columns(pl.Series("raw", [text.get(i) for i in lines], dtype=pl.String))

@@ -8,7 +8,7 @@ Pipeline
 --------
 1. **Decode** every frame with ``cv2.VideoCapture`` (FFmpeg) into a grey ``(K, H, W)`` uint8
    stack (memory ``K * H * W`` bytes). A file that cannot be opened or yields no frame raises
-   :class:`~onebit.errors.InputError`; a decode that stops before the frame count the
+   :class:`~onebit.core.errors.InputError`; a decode that stops before the frame count the
    container declares keeps the frames so far and adds a ``rejects`` row.
 2. **Lighting**: each frame's brightness is ``m_k = median(I_k)`` (on a 4x subsampled grid;
    the agents are a small fraction of the image so the median is the floor's). Frames are
@@ -40,9 +40,9 @@ import polars as pl
 from scipy.optimize import linear_sum_assignment
 from scipy.spatial.distance import cdist
 
-from onebit.datasets.site import Camera, Site
-from onebit.errors import InputError
-from onebit.tables import REJECTS, TRUTH, conform, rejects_frame
+from onebit.core.site import Camera, Site
+from onebit.core.errors import InputError
+from onebit.core.tables import REJECTS, TRUTH, conform, rejects_frame
 
 #: Frames sampled for the background median (odd, so the median is one sample).
 BG_SAMPLES = 41
@@ -65,12 +65,12 @@ class CameraResult:
     Attributes
     ----------
     truth
-        ``onebit.tables.TRUTH`` rows, one per tracked blob per frame; targets ``cam1``,
+        ``onebit.core.tables.TRUTH`` rows, one per tracked blob per frame; targets ``cam1``,
         ``cam2``, ... in track birth order; ``region`` / ``node`` null.
     detections
         Every accepted blob: ``frame`` (Int64), ``t``, ``x``, ``y`` (world), ``area`` (pixels).
     rejects
-        ``onebit.tables.REJECTS`` rows for frames that could not be decoded.
+        ``onebit.core.tables.REJECTS`` rows for frames that could not be decoded.
     frames
         Number of frames decoded.
     """

@@ -11,7 +11,7 @@ from pathlib import Path
 
 import polars as pl
 
-from onebit.errors import InputError
+from onebit.core.errors import InputError
 from onebit.readers.mcap_io import read_mcap
 
 #: Schema of the :func:`log_info` frame.

@@ -15,7 +15,6 @@ from __future__ import annotations
 
 import json
 import os
-import tempfile
 from collections.abc import Iterator
 from contextlib import contextmanager
 from dataclasses import dataclass, field
@@ -24,8 +23,9 @@ from typing import IO
 
 import polars as pl
 
-from onebit.errors import InputError
-from onebit.tables import REJECTS
+from onebit.core.errors import InputError
+from onebit.core.writers import atomic_path
+from onebit.core.tables import REJECTS
 
 #: Topic -> column names of each raw-log channel (topic = "/" + the CSV file's stem).
 CHANNELS: dict[str, tuple[str, ...]] = {
@@ -53,7 +53,7 @@ class McapContents:
         index of the message in its channel) and ``raw: String`` (the message's JSON text).
         Every known topic that has a channel record in the file is present, possibly empty.
     rejects
-        Messages not accepted, in the :data:`onebit.tables.REJECTS` schema.
+        Messages not accepted, in the :data:`onebit.core.tables.REJECTS` schema.
     truncated
         True when the file ended before its footer (the data before the cut is kept).
     """
@@ -76,28 +76,12 @@ class Conversion:
 
 @contextmanager
 def _atomic(path: Path) -> Iterator[IO[bytes]]:
-    """Open a temp file next to ``path`` for binary writing; rename it over ``path`` on success."""
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
-    try:
-        os.chmod(tmp, 0o666 & ~_umask())
-        with os.fdopen(fd, "wb") as fh:
-            yield fh
-            fh.flush()
-            os.fsync(fh.fileno())
-        os.replace(tmp, path)
-    except BaseException:
-        try:
-            os.unlink(tmp)
-        except FileNotFoundError:
-            pass
-        raise
-
-
-def _umask() -> int:
-    mask = os.umask(0)
-    os.umask(mask)
-    return mask
+    """A binary file handle on a temp file next to ``path``, flushed to disk and renamed over
+    ``path`` on success (:func:`onebit.core.writers.atomic_path`)."""
+    with atomic_path(path) as tmp, open(tmp, "wb") as fh:
+        yield fh
+        fh.flush()
+        os.fsync(fh.fileno())
 
 
 # --------------------------------------------------------------------------- writing

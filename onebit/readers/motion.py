@@ -35,7 +35,7 @@ Examples
 --------
 >>> import polars as pl
 >>> from onebit.readers.rows import RawRows
->>> from onebit.tables import REJECTS
+>>> from onebit.core.tables import REJECTS
 >>> frame = pl.DataFrame({"line": [2, 3, 4, 5], "t": ["0", "1.0", "1.05", "3"],
 ...                       "sensor": ["p1"] * 4, "value": ["1", "0", "1", "0"],
 ...                       "raw": [None] * 4}, schema_overrides={"line": pl.Int64, "raw": pl.String})
@@ -54,9 +54,9 @@ from pathlib import Path
 
 import polars as pl
 
-from onebit.errors import ConfigError
+from onebit.core.errors import ConfigError
 from onebit.readers.rows import RawRows, make_rejects, parse_choice, parse_name, parse_time, read_csv_rows, type_rows
-from onebit.tables import FRAMES, MOTION, REJECTS, conform
+from onebit.core.tables import FRAMES, MOTION, REJECTS, conform
 
 #: Columns of a toggle log.
 TOGGLE_COLUMNS = ("t", "sensor", "value")
@@ -344,3 +344,45 @@ def refractory_state(frames: pl.DataFrame, refractory: Mapping[str, float], *, p
     prev_beta = beta.shift(1).over("sensor", order_by="slot").fill_null(0.0)
     df = df.with_columns(beta=beta).with_columns(blind=prev_beta > 0)
     return df.drop("_f", "_last").sort(["slot"], maintain_order=True)
+
+
+# --------------------------------------------------------------------------- reader config
+
+
+@dataclass(frozen=True, kw_only=True)
+class MotionConfig:
+    """``run.toml`` ``[motion]``.
+
+    period : slot length of the ``frames`` table (s).
+    chatter_window : relay-chatter window (s) for every sensor; ``None`` = from the sensor type.
+    min_on : minimum on-time (s) for every sensor; ``None`` = from the sensor type.
+    """
+
+    period: float = 1.0
+    chatter_window: float | None = None
+    min_on: float | None = None
+
+    def __post_init__(self) -> None:
+        p = self.period
+        if isinstance(p, bool) or not isinstance(p, (int, float)) or not math.isfinite(p) or p <= 0:
+            raise ConfigError(f"MotionConfig.period = {p!r}; allowed range: (0, inf) seconds")
+        for name in ("chatter_window", "min_on"):
+            v = getattr(self, name)
+            if v is not None and (isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v) or v < 0):
+                raise ConfigError(f"MotionConfig.{name} = {v!r}; allowed range: [0, inf) seconds")
+
+
+def site_rules(site, cfg: MotionConfig) -> dict[str, DebounceRules]:
+    """Per-sensor debounce rules: the sensor type's, overridden by ``cfg`` where set."""
+    out: dict[str, DebounceRules] = {}
+    for ms in site.motion_sensors:
+        typ = site.sensor_types.get(ms.type, {}) if isinstance(site.sensor_types, dict) else {}
+        vals = {k: typ[k] for k in ("chatter_window", "min_on") if k in typ}
+        for k in ("chatter_window", "min_on"):
+            if getattr(cfg, k) is not None:
+                vals[k] = getattr(cfg, k)
+        try:
+            out[ms.id] = DebounceRules(**vals)
+        except ConfigError as exc:
+            raise ConfigError(f"site.toml [sensor_types.{ms.type}]: {exc}") from None
+    return out

@@ -16,11 +16,11 @@ from pathlib import Path
 
 import polars as pl
 
-from onebit.errors import ConfigError
+from onebit.core.errors import ConfigError
 from onebit.readers.motion import TOGGLE_COLUMNS, DebounceRules, MotionRead, read_motion
 from onebit.readers.rows import RawRows, read_csv_rows
-from onebit.tables import FRAMES, PROXIMITY, conform
-from onebit.trackers.base import check_range
+from onebit.core.tables import FRAMES, PROXIMITY, conform
+from onebit.core.config import check_range
 
 __all__ = ["ProximityConfig", "read_proximity", "read_proximity_csv", "proximity_frames", "TOGGLE_COLUMNS"]
 

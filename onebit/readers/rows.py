@@ -14,8 +14,8 @@ from pathlib import Path
 
 import polars as pl
 
-from onebit.errors import InputError
-from onebit.tables import REJECTS
+from onebit.core.errors import InputError
+from onebit.core.tables import REJECTS
 
 EXTRA = "__extra__"
 

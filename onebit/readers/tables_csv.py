@@ -7,7 +7,7 @@ from pathlib import Path
 import polars as pl
 
 from onebit.readers.rows import RawRows, parse_choice, parse_float, parse_name, parse_time, read_csv_rows, type_rows
-from onebit.tables import CROSSINGS, TRUE_CROSSINGS, TRUTH, conform
+from onebit.core.tables import CROSSINGS, TRUE_CROSSINGS, TRUTH, conform
 
 _FLAG = {"0": False, "1": True, "false": False, "true": True}
 _DIRECTION = {"1": 1, "+1": 1, "-1": -1, "f": 1, "b": -1, "forward": 1, "backward": -1}

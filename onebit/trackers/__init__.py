@@ -1,22 +1,5 @@
-"""Trackers, one subpackage per paper. Importing :func:`load_trackers` registers them all."""
+"""Trackers, one subpackage per paper: pure batch functions ``tables + site -> tracks``.
 
-from __future__ import annotations
-
-import importlib
-
-#: Tracker packages, in the order their stages run.
-TRACKER_MODULES: tuple[str, ...] = (
-    "onebit.trackers.beams",
-    "onebit.trackers.intruder",
-    "onebit.trackers.clustertrack",
-    "onebit.trackers.findinghumo",
-    "onebit.trackers.istate",
-)
-
-
-def load_trackers() -> dict:
-    from onebit.trackers.base import REGISTRY
-
-    for mod in TRACKER_MODULES:
-        importlib.import_module(mod)
-    return REGISTRY
+The pipeline's stage list (:mod:`onebit.pipeline.stages`) names every tracker; nothing is
+registered here.
+"""

@@ -19,8 +19,9 @@ import polars as pl
 import rerun as rr
 import shapely
 
-from onebit.datasets.region_graph import RegionGraph
-from onebit.datasets.site import Site
+from onebit.core.region_graph import RegionGraph
+from onebit.core.site import Site
+from onebit.viz.tracks import log_occupancy, log_region_tracks
 from onebit.viz import colors, paths
 from onebit.viz._series import is_empty, require
 from onebit.viz.tracks import region_positions
@@ -100,3 +101,13 @@ def log_marked_crossings(rec: rr.RecordingStream, tracker: str, kind: str, marke
         indexes=[paths.time_column(t)],
         columns=rr.TextLog.columns(text=text, level=[level] * len(t), color=np.tile(np.asarray(color, np.uint8), (len(t), 1))),
     )
+
+
+def log_run(rec: rr.RecordingStream, tracker: str, out: dict, *, site: Site, region_graph: RegionGraph, config, tables: dict) -> None:
+    """Everything the ``beams`` tracker produced: region tracks, occupancy, agents' region
+    paths, ambiguous and unexplained crossings."""
+    log_region_tracks(rec, tracker, out["tracks"], region_graph)
+    log_occupancy(rec, tracker, out["occupancy"])
+    log_agent_region_paths(rec, tracker, out["agents"], region_graph)
+    log_marked_crossings(rec, tracker, "ambiguous", out["assignment"].filter(pl.col("ambiguous")), site)
+    log_marked_crossings(rec, tracker, "unexplained", out["unexplained"], site)

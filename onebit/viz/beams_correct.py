@@ -16,7 +16,7 @@ import numpy as np
 import polars as pl
 import rerun as rr
 
-from onebit.datasets.site import Site
+from onebit.core.site import Site
 from onebit.viz import paths
 from onebit.viz._series import is_empty, require
 from onebit.viz.beams import beam_midpoints

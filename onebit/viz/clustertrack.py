@@ -133,3 +133,16 @@ def log_clustertrack(rec: rr.RecordingStream, tracker: str, site, out: dict, tim
         log_feasible_2d(rec, tracker, cells, times, cell)
     log_particles(rec, tracker, out["particles"], times)
     log_point_tracks(rec, tracker, out["tracks"])
+
+
+def log_run(rec: rr.RecordingStream, tracker: str, out: dict, *, site, region_graph, config, tables: dict) -> None:
+    """Everything CLUSTERTRACK produced (see the module docstring); the truth joins the
+    space-time view when the run has it."""
+    art = out.get("artifacts")
+    if art is None:
+        return
+    times = art["times"]
+    truth = tables.get("truth")
+    if truth is not None:
+        truth = truth.filter(pl.col("t").is_in(times.tolist()))
+    log_clustertrack(rec, tracker, site, out, times, frames_on=art["frames_on"], cells=art["cells"], cell=art["cell"], truth=truth)

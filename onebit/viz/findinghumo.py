@@ -82,3 +82,14 @@ def log_switches(rec: rr.RecordingStream, tracker: str, switches: pl.DataFrame |
         indexes=[paths.time_column(t)],
         columns=rr.Points2D.columns(positions=xy, labels=labels, radii=np.full(len(t), 1.2, np.float32), colors=np.tile([255, 230, 0, 200], (len(t), 1))).partition(np.ones(len(t), dtype=np.int64)),
     )
+
+
+def log_run(rec: rr.RecordingStream, tracker: str, out: dict, *, site, region_graph, config, tables: dict) -> None:
+    """Everything an HMM tracker produced: the EATG, active nodes per slot, decoded paths and
+    (FindingHuMo) the CPDA switches."""
+    art = out["artifacts"]
+    log_eatg(rec, tracker, art["eatg"], site)
+    log_activations(rec, tracker, art["active"], site, art["nodes"], art["t0"], art["period"])
+    log_decoded(rec, tracker, out["tracks"])
+    if "switches" in out:
+        log_switches(rec, tracker, out["switches"], site, art["nodes"], art["t0"], art["period"])

@@ -22,6 +22,7 @@ import numpy as np
 import polars as pl
 import rerun as rr
 
+from onebit.viz.tracks import log_point_tracks
 from onebit.viz import colors, paths
 from onebit.viz._series import is_empty
 
@@ -164,3 +165,18 @@ def log_camera_cone(
     strips = [np.vstack([a[k], cam, b[k]]) for k in range(len(t))]  # one 3-vertex strip per iteration
     rec.log(entity, rr.LineStrips2D.from_fields(colors=(40, 170, 90, 255), radii=rr.Radius.ui_points(1.5), draw_order=26.0), static=True)
     rec.send_columns(entity, indexes=[paths.time_column(t)], columns=rr.LineStrips2D.columns(strips=strips))
+
+
+def log_run(rec: rr.RecordingStream, tracker: str, out: dict, *, site, region_graph, config, tables: dict) -> None:
+    """Everything the ``intruder`` (or ``intruder-naive``) tracker produced: coverage, sensor
+    states, particles, the estimate with its box, the camera cone and the track."""
+    art = out.get("artifacts")
+    if art is not None:
+        t_end = art["t_end"]
+        log_coverage(rec, art["deployment"])
+        log_sensor_states(rec, tracker, art["deployment"], t_end, art["fired"], art["blind"])
+        log_particles(rec, tracker, t_end, art["particles_xy"], art["particles_w"])
+        log_estimate(rec, tracker, t_end, art["estimates"], *art["box"])
+        if "camera" in out:
+            log_camera_cone(rec, tracker, tuple(config.camera_position), t_end, art["estimates"], out["camera"], config.camera_fov)
+    log_point_tracks(rec, tracker, out["tracks"])

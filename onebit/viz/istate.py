@@ -19,6 +19,7 @@ import polars as pl
 import rerun as rr
 import shapely
 
+from onebit.viz.tracks import log_point_tracks
 from onebit.viz import colors, paths
 from onebit.viz._series import rings
 
@@ -142,3 +143,13 @@ def log_active_tracking(
     _series(rec, paths.join(root, "P"), "P", times, performance)
     if regions is not None:
         log_istate_regions(rec, tracker, regions, times)
+
+
+def log_run(rec: rr.RecordingStream, tracker: str, out: dict, *, site, region_graph, config, tables: dict) -> None:
+    """Everything the I-state filter produced: regions, sensing regions, detections, element
+    count and area, and the point summary."""
+    log_istate_run(
+        rec, tracker, out["regions"], out["summary"], site=site,
+        sensing=out["artifacts"]["sensing"], detections=out["detections"],
+    )  # fmt: skip
+    log_point_tracks(rec, tracker, out["tracks"])

@@ -9,11 +9,12 @@ application id and recording id, so opening them together overlays them in one r
 from __future__ import annotations
 
 import contextlib
-import os
 from collections.abc import Iterator
 from pathlib import Path
 
 import rerun as rr
+
+from onebit.core import writers
 
 #: Application id of every onebit recording.
 APPLICATION_ID = "onebit"
@@ -21,8 +22,7 @@ APPLICATION_ID = "onebit"
 
 def temp_path(path: str | Path) -> Path:
     """The temp file a recording for ``path`` is written to before the rename."""
-    path = Path(path)
-    return path.with_name(f".{path.name}.{os.getpid()}.partial")
+    return writers.temp_path(path, suffix=".partial")
 
 
 def open_recording(
@@ -50,8 +50,7 @@ def close_recording(rec: rr.RecordingStream, path: str | Path) -> Path:
     tmp = temp_path(path)
     if not tmp.exists():
         raise FileNotFoundError(f"no recording was opened for {path} (missing temp file {tmp})")
-    os.replace(tmp, path)
-    return path
+    return writers.commit(tmp, path)
 
 
 def discard_recording(rec: rr.RecordingStream, path: str | Path) -> None:

@@ -11,8 +11,8 @@ from __future__ import annotations
 import numpy as np
 import rerun as rr
 
-from onebit.datasets.region_graph import RegionGraph
-from onebit.datasets.site import Site
+from onebit.core.region_graph import RegionGraph
+from onebit.core.site import Site
 from onebit.viz import colors, paths
 from onebit.viz._series import rings
 

@@ -12,7 +12,7 @@ import polars as pl
 import rerun as rr
 import shapely
 
-from onebit.datasets.region_graph import RegionGraph
+from onebit.core.region_graph import RegionGraph
 from onebit.viz import colors, paths
 from onebit.viz._series import groups, is_empty, only_tracker, require
 from onebit.viz.truth import MAX_PATH_UPDATES, MAX_PATH_VERTICES, log_moving_points

@@ -237,7 +237,7 @@ class RegionEdges:
 
     @classmethod
     def from_region_graph(cls, rg) -> "RegionEdges":
-        """Edges of a :class:`~onebit.datasets.region_graph.RegionGraph`: for every beam in
+        """Edges of a :class:`~onebit.core.region_graph.RegionGraph`: for every beam in
         sorted order its forward edge, then all backward edges (so ties between parallel
         beams, like b and c of the building, go to the first beam id)."""
         idx = rg.index

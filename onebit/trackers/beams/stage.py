@@ -8,11 +8,12 @@ from dataclasses import dataclass, field
 import numpy as np
 import polars as pl
 
-from onebit.datasets.region_graph import RegionGraph, build_region_graph
-from onebit.datasets.site import Site
-from onebit.errors import ConfigError
-from onebit.tables import CROSSINGS, TRACKS, check_schema, conform
-from onebit.trackers.base import TrackerSpec, check_choice, check_range, register
+from onebit.core.region_graph import RegionGraph, build_region_graph
+from onebit.core.site import Site
+from onebit.core.errors import ConfigError
+from onebit.core.tables import CROSSINGS, TRACKS, check_schema, conform
+from onebit.trackers.base import TrackerSpec
+from onebit.core.config import check_choice, check_range
 from onebit.trackers.beams import queries
 from onebit.trackers.beams.assignment import POLICIES, Assignment, Constraints, ambiguous_crossings, assign_agents
 
@@ -26,7 +27,8 @@ _UNEXPLAINED = {
 
 @dataclass(frozen=True, kw_only=True)
 class BeamsConfig:
-    """Configuration of the ``beams`` tracker (``[beams]`` in ``run.toml``).
+    """Configuration of the ``beams`` tracker (``[beams]`` in ``run.toml``). It works on the
+    region graph: no field is a length (times are seconds).
 
     policy : queue discipline of the region queues Q_r (Algorithm 1, line 5): ``"fifo"``
         assigns the agent that has waited longest (the paper's experiment), ``"lifo"`` the
@@ -165,7 +167,7 @@ class BeamsConfig:
         return None if c.trivial else c
 
 
-def run(inputs: dict, site: Site, config: BeamsConfig, log=None) -> dict[str, pl.DataFrame]:
+def run(inputs: dict, site: Site, config: BeamsConfig) -> dict[str, pl.DataFrame]:
     """Assign every crossing to an agent (Algorithm 1 + variations) and answer the queries.
 
     Inputs: ``crossings`` (CROSSINGS); optional ``region_graph`` (built from ``site`` otherwise).
@@ -262,15 +264,6 @@ def run(inputs: dict, site: Site, config: BeamsConfig, log=None) -> dict[str, pl
             occ, config.occupancy_threshold, t_end=float(crossings["t"].max()) if crossings.height else None
         ),
     }
-    if log is not None:
-        log.region_tracks(NAME, tracks, rg)
-        log.occupancy(NAME, occ)
-        if getattr(log, "enabled", False):
-            from onebit.viz import beams as viz_beams  # only when recording: trackers never need rerun
-
-            log.emit(viz_beams.log_agent_region_paths, NAME, agents, rg)
-            log.emit(viz_beams.log_marked_crossings, NAME, "ambiguous", assignment.filter(pl.col("ambiguous")), site)
-            log.emit(viz_beams.log_marked_crossings, NAME, "unexplained", unexplained, site)
     return out
 
 
@@ -289,29 +282,7 @@ def occupancy(assignment: pl.DataFrame, starts: pl.DataFrame, rg: RegionGraph) -
     return queries.occupancy(assignment, starts, rg.names)
 
 
-def score(tables: dict, site: Site, log=None) -> tuple[list[tuple[str, str, float, str]], dict]:
-    """Report rows of the beams stage that need no truth: ambiguity, unexplained crossings and
-    the IV-F-1 query summaries (most visited region, peak occupancy, time over threshold)."""
-    rows: list[tuple[str, str, float, str]] = []
-    a = tables.get("beams_assignment")
-    if a is None:
-        return rows, {}
-    rows.append(("beams", "ambiguous_crossings", float(a["ambiguous"].sum()) if "ambiguous" in a.columns else 0.0, "crossings"))
-    un = tables.get("beams_unexplained")
-    rows.append(("beams", "unexplained_crossings", float(un.height) if un is not None else 0.0, "crossings"))
-    visits = tables.get("beams_visits")
-    if visits is not None and visits.height:
-        top = visits.row(0, named=True)
-        rows.append(("beams", "most_visited_visits", float(top["visits"]), f"visits of {top['region']}"))
-    occ = tables.get("beams_occupancy")
-    if occ is not None and occ.height:
-        best = occ.sort(["count", "t"], descending=[True, False]).row(0, named=True)
-        rows.append(("beams", "peak_occupancy", float(best["count"]), f"agents in {best['region']}"))
-    over = tables.get("beams_over_threshold")
-    if over is not None:
-        rows.append(("beams", "over_threshold_intervals", float(over.height), "intervals"))
-        rows.append(("beams", "over_threshold_s", float(over["duration_s"].sum()) if over.height else 0.0, "s"))
-    return rows, {}
-
-
-SPEC = register(TrackerSpec(name=NAME, needs=("crossings",), config=BeamsConfig, run=run, score=score))
+SPEC = TrackerSpec(
+    name=NAME, needs=("crossings",), config=BeamsConfig, run=run,
+    help="Bobadilla et al.: region-graph agent assignment from directional beams",
+)

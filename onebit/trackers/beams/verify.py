@@ -20,15 +20,12 @@ for the traceback, which walks back from the arg-max until a zero cell).
 
 from __future__ import annotations
 
-import argparse
 import re
 from dataclasses import dataclass
-from pathlib import Path
 
 import numpy as np
 import polars as pl
 
-from onebit.errors import InputError
 
 _TOKEN = re.compile(r"^[^\s^]+(\^-1)?$")
 
@@ -180,34 +177,6 @@ def verify_path(
         "observed_aligned": pl.String, "t_start": pl.Float64, "t_end": pl.Float64, "plausible": pl.Boolean,
     }  # fmt: skip
     return pl.DataFrame(rows, schema=schema)
-
-
-def verify_run(out: str | Path, story: str, **scores: float) -> pl.DataFrame:
-    """:func:`verify_path` on the ``beams_assignment`` table of a finished run folder ``out``."""
-    path = Path(out) / "tables" / "beams_assignment.parquet"
-    if not path.exists():
-        raise InputError("no beams_assignment table: run the beams tracker first (onebit run)", file=path)
-    return verify_path(story, pl.read_parquet(path), **scores)
-
-
-def cli_main(args: argparse.Namespace) -> int:
-    """``onebit verify-path OUT --story "a b^-1 c"``: print the alignments; exit 0 when the
-    story is plausible against the observation string, 1 when it is not."""
-    from onebit.errors import ConfigError
-
-    try:
-        res = verify_run(args.out, args.story, match=args.match, mismatch=args.mismatch, gap=args.gap)
-    except ValueError as exc:
-        raise ConfigError(f"--story: {exc}") from None
-    with pl.Config(tbl_rows=-1, tbl_cols=-1, fmt_str_lengths=80, tbl_hide_dataframe_shape=True):
-        print(f"story {' '.join(parse_story(args.story))!r} against the run {args.out}")
-        print(res)
-    obs = res.filter(pl.col("target") == "observation")
-    ok = bool(obs["plausible"][0]) if obs.height else False
-    plausible_agents = res.filter((pl.col("target") != "observation") & pl.col("plausible"))["target"].to_list()
-    print(f"plausible against the observation string: {'yes' if ok else 'no'}; "
-          f"agents whose reconstructed path contains it: {', '.join(plausible_agents) or 'none'}")
-    return 0 if ok else 1
 
 
 def _natural(name: str):

@@ -25,6 +25,8 @@ from dataclasses import dataclass
 import cv2
 import numpy as np
 
+from onebit.core.sensing import detection_regions
+
 #: Lengths below this (world units) are treated as empty.
 EPS = 1e-9
 
@@ -50,12 +52,15 @@ class SensorArray:
 
 
 def sensor_array(site) -> SensorArray:
-    ps = site.proximity_sensors
+    """The site's proximity sensors from their detection regions
+    (:func:`onebit.core.sensing.detection_regions`): centre, ``R_i`` and ``R_o``."""
+    regions = detection_regions(site)
+    rs = [regions[p.id] for p in site.proximity_sensors]
     return SensorArray(
-        tuple(p.id for p in ps),
-        np.array([p.position for p in ps], dtype=float).reshape(-1, 2),
-        np.array([p.r_inner for p in ps], dtype=float),
-        np.array([p.r_outer for p in ps], dtype=float),
+        tuple(r.sensor for r in rs),
+        np.array([r.position for r in rs], dtype=float).reshape(-1, 2),
+        np.array([r.inner_radius for r in rs], dtype=float),
+        np.array([r.radius for r in rs], dtype=float),
     )
 
 

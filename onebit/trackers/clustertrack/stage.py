@@ -24,11 +24,11 @@ from dataclasses import dataclass
 
 import numpy as np
 import polars as pl
-from scipy.optimize import linear_sum_assignment
 
-from onebit.datasets.site import Site
-from onebit.tables import FRAMES, SCORES, TRACKS, check_schema, conform
-from onebit.trackers.base import TrackerSpec, check_choice, check_range, register
+from onebit.core.site import Site
+from onebit.core.tables import FRAMES, TRACKS, check_schema, conform
+from onebit.trackers.base import ARTIFACTS, TrackerSpec
+from onebit.core.config import check_choice, check_range
 from onebit.trackers.clustertrack.algorithm import Params, clustertrack, consensus, rules_of_thumb
 from onebit.trackers.clustertrack.feasible import sensor_array
 from onebit.trackers.clustertrack.space import FeasibleSpace
@@ -39,6 +39,9 @@ NAME = "clustertrack"
 @dataclass(frozen=True, kw_only=True)
 class ClusterTrackConfig:
     """Configuration of ``clustertrack`` (defaults: Singh et al., sections 5.1 and 5.3).
+
+    Every length is relative to R (the sensors' mean radius, from the site's detection
+    regions), so no field carries a unit and a ``run.toml`` means the same in any units.
 
     h : H, particles kept per cluster in 1-D (paper: 25).
     m_o_r : sampling density m_o R in 1-D (paper: 15 samples per R).
@@ -100,6 +103,24 @@ class ClusterTrackConfig:
         check_range(self, "seed", 0, None, types=(int,))
 
 
+#: Schemas of the tables besides ``tracks`` (``feasible`` and ``minimal_targets`` in 1-D only,
+#: ``consensus`` when ``consensus_runs > 0``).
+OUTPUT_SCHEMAS: dict[str, pl.Schema] = {
+    "track_info": pl.Schema({"track": pl.String, "cost": pl.Float64, "origin": pl.Int64}),
+    "counts": pl.Schema({"t": pl.Float64, "size": pl.Float64, "components": pl.Int64, "lower_bound": pl.Int64}),
+    "steps": pl.Schema({"t": pl.Float64, "candidates": pl.Int64, "scanned": pl.Int64, "kept": pl.Int64,
+                        "clusters": pl.Int64, "max_cluster": pl.Int64}),
+    "particles": pl.Schema({"t": pl.Float64, "particle": pl.Int64, "cluster": pl.Int64, "x": pl.Float64, "y": pl.Float64,
+                            "cost": pl.Float64}),
+    "feasible": pl.Schema({"t": pl.Float64, "component": pl.Int64, "lo": pl.Float64, "hi": pl.Float64}),
+    "minimal_targets": pl.Schema({"t": pl.Float64, "x": pl.Float64}),
+    "consensus": pl.Schema({"run": pl.Int64, "cluster": pl.Int64, "cost": pl.Float64, "support": pl.Float64}),
+    "params": pl.Schema({"dim": pl.Int64, "R": pl.Float64, "H": pl.Float64, "m_o": pl.Float64, "K": pl.Int64, "L": pl.Int64,
+                         "D0": pl.Float64, "Q_hat": pl.Int64, "A_hat": pl.Float64, "reruns": pl.Int64, "satisfied": pl.Boolean,
+                         "count_lower_bound": pl.Int64, "count_consensus": pl.Int64, "tracks": pl.Int64}),
+}  # fmt: skip
+
+
 def available(site: Site) -> str | None:
     return None if site.proximity_sensors else "site has no proximity sensors"
 
@@ -141,14 +162,18 @@ def _xy(a: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return a[..., 0], (a[..., 1] if a.shape[-1] > 1 else np.zeros(a.shape[:-1]))
 
 
-def run(inputs: dict, site: Site, config: ClusterTrackConfig, log=None) -> dict[str, pl.DataFrame]:
+def run(inputs: dict, site: Site, config: ClusterTrackConfig) -> dict[str, pl.DataFrame]:
     """Feasible spaces, counts, CLUSTERTRACK with Appendix B, and the multi-run consensus."""
     frames = check_schema(inputs["proximity_frames"], FRAMES, name="proximity_frames")
     space, R, on = build_space(frames, site, config)
     T = space.T
     times = space.times
-    if T == 0:
-        empty = {k: pl.DataFrame() for k in ("track_info", "counts", "steps", "particles", "consensus", "params")}
+    if T == 0:  # no instant at all: every table empty, with its schema
+        empty = {k: pl.DataFrame(schema=v) for k, v in OUTPUT_SCHEMAS.items()}
+        if space.dim != 1:
+            del empty["feasible"], empty["minimal_targets"]
+        if config.consensus_runs == 0:
+            del empty["consensus"]
         return {"tracks": pl.DataFrame(schema=TRACKS), **empty}
     p = params_for(space, R, config)
     rng = np.random.default_rng(config.seed)
@@ -215,99 +240,22 @@ def run(inputs: dict, site: Site, config: ClusterTrackConfig, log=None) -> dict[
           "reruns": res.reruns, "satisfied": res.satisfied, "count_lower_bound": space.max_lower_bound,
           "count_consensus": count_consensus, "tracks": N}]
     )
-    if log is not None:
-        from onebit.viz import clustertrack as viz
-
-        cells = None
-        if space.dim == 2:
-            ti, ci = np.nonzero(space.labels > 0)
-            cxy = space.raster.centres[ci]
-            cells = pl.DataFrame({"t": times[ti], "x": cxy[:, 0], "y": cxy[:, 1], "component": space.labels[ti, ci]})
-        log.emit(viz.log_clustertrack, NAME, site, out, times, frames_on=on, cells=cells,
-                 cell=space.raster.cell if space.raster is not None else 0.1)
-    return out
+    cells = None
+    if space.dim == 2:
+        ti, ci = np.nonzero(space.labels > 0)
+        cxy = space.raster.centres[ci]
+        cells = pl.DataFrame({"t": times[ti], "x": cxy[:, 0], "y": cxy[:, 1], "component": space.labels[ti, ci]})
+    out[ARTIFACTS] = {
+        "times": times, "frames_on": on, "cells": cells, "cell": space.raster.cell if space.raster is not None else R / config.raster_per_r,
+    }  # fmt: skip
+    return {k: (v.cast(dict(OUTPUT_SCHEMAS[k])) if k in OUTPUT_SCHEMAS else v) for k, v in out.items()}
 
 
-# --------------------------------------------------------------------------- scoring
-
-
-def match_tracks(truth: pl.DataFrame, tracks: pl.DataFrame) -> tuple[list[str], list[str], np.ndarray, pl.DataFrame]:
-    """Mean distance (over the track's instants) between every target and every track.
-
-    Returns ``(targets, tracks, D (Q, N), joined)`` where ``joined`` pairs each track row with
-    the truth of every target at the nearest truth time.
-    """
-    tr = tracks.select("track", "t", "x", pl.col("y").fill_null(0.0)).sort("t")
-    tru = truth.select("t", "target", tx="x", ty="y").sort("t")
-    targets = sorted(tru["target"].unique().to_list())
-    names = sorted(tr["track"].unique().to_list())
-    if not targets or not names:
-        return targets, names, np.zeros((len(targets), len(names))), pl.DataFrame()
-    # one as-of join per target (Q joins, each vectorised over the rows); a cross join with the
-    # targets and one as-of join ``by="target"`` was measured 3-5x slower
-    pairs = pl.concat(
-        [tr.join_asof(tru.filter(pl.col("target") == g).drop("target"), on="t", strategy="nearest", check_sortedness=False)
-         .with_columns(target=pl.lit(g)) for g in targets]
-    ).with_columns(err=((pl.col("x") - pl.col("tx")) ** 2 + (pl.col("y") - pl.col("ty")) ** 2).sqrt())
-    m = pairs.group_by("target", "track").agg(pl.col("err").mean())
-    D = np.full((len(targets), len(names)), np.inf)
-    gi = {g: i for i, g in enumerate(targets)}
-    ti = {t: i for i, t in enumerate(names)}
-    D[[gi[g] for g in m["target"]], [ti[t] for t in m["track"]]] = m["err"].to_numpy()
-    return targets, names, D, pairs
-
-
-def score(tables: dict, site: Site, log=None) -> tuple[list[tuple[str, str, float, str]], dict[str, pl.DataFrame]]:
-    """Report rows: mean_error_R, targets_true, targets_found, spurious_tracks,
-    count_lower_bound, count_consensus; table ``clustertrack_scores`` (SCORES)."""
-    rows: list[tuple[str, str, float, str]] = []
-    params = tables.get(f"{NAME}_params")
-    if params is None or params.height == 0:
-        return rows, {}
-    R, D0 = float(params["R"][0]), float(params["D0"][0])
-    rows.append((NAME, "count_lower_bound", float(params["count_lower_bound"][0]), "targets"))
-    if int(params["count_consensus"][0]) >= 0:
-        rows.append((NAME, "count_consensus", float(params["count_consensus"][0]), "targets"))
-    rows.append((NAME, "tracks", float(params["tracks"][0]), "tracks"))
-    rows.append((NAME, "reruns", float(params["reruns"][0]), "reruns"))
-    truth, tracks = tables.get("truth"), tables.get(f"{NAME}_tracks")
-    if truth is None or truth.height == 0 or tracks is None:
-        return rows, {}
-    targets, names, D, pairs = match_tracks(truth, tracks)
-    rows.append((NAME, "targets_true", float(len(targets)), "targets"))
-    if not names:
-        rows += [(NAME, "targets_found", 0.0, "targets"), (NAME, "spurious_tracks", 0.0, "tracks")]
-        return rows, {}
-    nearest = D.min(axis=1)
-    rows.append((NAME, "mean_error_R", float(nearest.mean() / R), "R"))
-    a, b = linear_sum_assignment(D)
-    ok = D[a, b] <= D0
-    found = int(ok.sum())
-    rows += [(NAME, "targets_found", float(found), "targets"), (NAME, "spurious_tracks", float(len(names) - found), "tracks")]
-    matched = pl.DataFrame({"target": [targets[i] for i in a[ok]], "track": [names[j] for j in b[ok]]}, schema={"target": pl.String, "track": pl.String})
-    sc = pairs.join(matched, on=["target", "track"]).with_columns(tracker=pl.lit(NAME), error=pl.col("err"))
-    sc = conform(sc, SCORES).sort(["t", "track"])
-    rows.append((NAME, "error_mean_matched", float(sc["error"].mean()) if sc.height else float("nan"), site.units))
-    if log is not None:
-        log.scores(NAME, sc)
-        if int(params["dim"][0]) == 1:
-            from onebit.viz import clustertrack as viz
-
-            times = np.unique(tracks["t"].to_numpy())
-            minx, _, maxx, _ = site.boundary.bounds
-            row = max((maxx - minx) / max(times.size, 1) / 2.0, 0.2)
-            log.emit(viz.log_space_time, NAME, pl.DataFrame(), truth.filter(pl.col("t").is_in(times.tolist())), times, row=row)
-    return rows, {f"{NAME}_scores": sc}
-
-
-SPEC = register(
-    TrackerSpec(
-        name=NAME,
-        needs=("proximity_frames",),
-        config=ClusterTrackConfig,
-        run=run,
-        score=score,
-        available=available,
-        help="Singh et al.: target counting and CLUSTERTRACK from binary proximity sensors",
-    )
+SPEC = TrackerSpec(
+    name=NAME,
+    needs=("proximity_frames",),
+    config=ClusterTrackConfig,
+    run=run,
+    available=available,
+    help="Singh et al.: target counting and CLUSTERTRACK from binary proximity sensors",
 )

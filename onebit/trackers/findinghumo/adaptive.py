@@ -78,7 +78,6 @@ from __future__ import annotations
 
 import itertools
 import math
-import time
 from dataclasses import dataclass, field
 
 import networkx as nx
@@ -118,7 +117,6 @@ class DecoderParams:
 class DecodeResult:
     paths: np.ndarray  # (U, D) node index per user and slot, -1 when absent
     windows: list[dict] = field(default_factory=list)  # per window: slot, K, order, states, overlap
-    seconds: float = 0.0
 
 
 # --------------------------------------------------------------------------- model pieces
@@ -292,7 +290,6 @@ def decode_run(
     params: DecoderParams = DecoderParams(),
 ) -> DecodeResult:
     """Decode every user's node path from slot activity ``active`` (D, N) bool."""
-    t_start = time.perf_counter()
     active = np.asarray(active, bool)
     n_slots, n = active.shape
     hops = eatg.hops
@@ -371,7 +368,7 @@ def decode_run(
         windows.append(dict(slot=s, k=k, k_now=k_now, sig_in=len(entries), sig_out=len(gone), **info))
         s = acc
     paths = np.array(rows, dtype=np.int64).reshape(len(rows), n_slots)
-    return DecodeResult(paths, windows, time.perf_counter() - t_start)
+    return DecodeResult(paths, windows)
 
 
 def _last_nodes(row: np.ndarray, s: int) -> list[int]:

@@ -21,18 +21,29 @@ from dataclasses import dataclass
 import numpy as np
 import polars as pl
 
-from onebit.datasets.site import Site
-from onebit.tables import MOTION, TRACKS, check_schema, conform
-from onebit.trackers.base import TrackerSpec, check_choice, check_range, register
+from onebit.core.site import Site
+from onebit.core.tables import MOTION, TRACKS, check_schema, conform
+from onebit.trackers.base import ARTIFACTS, TrackerSpec
+from onebit.core.config import check_choice, check_range
 from onebit.trackers.findinghumo.adaptive import DecoderParams, decode_run
-from onebit.trackers.findinghumo.cpda import SWITCHES, cpda, switches_table
+from onebit.trackers.findinghumo.cpda import cpda, switches_table
 from onebit.trackers.findinghumo.eatg import Eatg, hop_matrix, layout_eatg, trained_eatg
+from onebit.readers.motion import motion_frames
+
+
+#: One row per HMM window: first slot, users K (and K now), entry/exit signatures, HMM order,
+#: states and whether the motion overlapped (null for the full-state baselines).
+WINDOWS = pl.Schema({
+    "slot": pl.Int64, "k": pl.Int64, "k_now": pl.Int64, "sig_in": pl.Int64, "sig_out": pl.Int64,
+    "order": pl.Int64, "states": pl.Int64, "overlap": pl.Boolean,
+})  # fmt: skip
 
 
 @dataclass(frozen=True, kw_only=True)
 class HmmConfig:
     """Shared configuration of the HMM trackers (``run.toml`` sections ``[findinghumo]``,
-    ``[hmm1]``, ``[hmm2]``); defaults are the paper's (section IV-A).
+    ``[hmm1]``, ``[hmm2]``); defaults are the paper's (section IV-A). The trackers work on
+    the sensor graph: no field is a length.
 
     period : length T of a unit timeslot (s).
     sampling : how the binary series becomes ``b_j(t)`` per slot: ``"mid"`` -- the state at
@@ -129,7 +140,6 @@ def slot_activity(
     the user is at in the middle of the slot -- the state the HMM decodes per slot.
     Vectorised: one difference array over (slot, node).
     """
-    from onebit.readers.motion import motion_frames
 
     frames = motion_frames(motion, list(nodes), period=period)
     if frames.height == 0:
@@ -175,7 +185,7 @@ def build_eatg(site: Site, active: np.ndarray, cfg: HmmConfig) -> Eatg:
     )
 
 
-def _run(name: str, mode: str, inputs: dict, site: Site, cfg: HmmConfig, log) -> dict[str, pl.DataFrame]:
+def _run(name: str, mode: str, inputs: dict, site: Site, cfg: HmmConfig) -> dict[str, pl.DataFrame]:
     motion = check_schema(inputs["motion"], MOTION, name="motion")
     g = site.sensor_graph
     nodes = g.nodes
@@ -188,31 +198,19 @@ def _run(name: str, mode: str, inputs: dict, site: Site, cfg: HmmConfig, log) ->
     )
     res = decode_run(active, eatg, signatures=sigs, params=params)
     paths = res.paths
-    seconds = res.seconds
     out: dict[str, pl.DataFrame] = {}
     if isinstance(cfg, FindingHumoConfig):
-        import time
-
-        t_c = time.perf_counter()
         feature = np.isin(np.asarray(nodes), list(g.entries) + list(g.exits))
         cp = cpda(paths, eatg.a2, horizon=cfg.c_windows * cfg.d_max, feature=feature, hops=eatg.hops, max_passes=cfg.cpda_passes)
-        seconds += time.perf_counter() - t_c
         out["decoded_hmm"] = _tracks(name, res.paths, nodes, site, t0, cfg.period).drop("tracker")
         paths = cp.paths
         out["switches"] = switches_table(cp, nodes)
     tracks = _tracks(name, paths, nodes, site, t0, cfg.period)
     out["tracks"] = tracks
     out["eatg"] = eatg.table()
-    out["windows"] = pl.DataFrame(res.windows) if res.windows else pl.DataFrame()
-    out["decoder"] = pl.DataFrame({"slots": [int(active.shape[0])], "seconds": [seconds], "users": [int(paths.shape[0])]})
-    if log is not None:
-        from onebit.viz import findinghumo as viz
-
-        log.emit(viz.log_eatg, name, eatg, site)
-        log.emit(viz.log_activations, name, active, site, nodes, t0, cfg.period)
-        log.emit(viz.log_decoded, name, tracks)
-        if "switches" in out:
-            log.emit(viz.log_switches, name, out["switches"], site, nodes, t0, cfg.period)
+    out["windows"] = pl.DataFrame(res.windows, schema=WINDOWS, orient="row") if res.windows else pl.DataFrame(schema=WINDOWS)
+    out["decoder"] = pl.DataFrame({"slots": [int(active.shape[0])], "users": [int(paths.shape[0])]})
+    out[ARTIFACTS] = {"eatg": eatg, "active": active, "nodes": nodes, "t0": t0, "period": cfg.period}
     return out
 
 
@@ -235,42 +233,33 @@ def _tracks(name: str, paths: np.ndarray, nodes, site: Site, t0: float, period: 
     return conform(df, TRACKS).sort(["t", "track"])
 
 
-def run_findinghumo(inputs, site, config: FindingHumoConfig, log=None):
+def run_findinghumo(inputs: dict, site: Site, config: FindingHumoConfig):
     """FindingHuMo: Adaptive-HMM + CPDA (module docstring)."""
-    return _run("findinghumo", "adaptive", inputs, site, config, log)
+    return _run("findinghumo", "adaptive", inputs, site, config)
 
 
-def run_hmm1(inputs, site, config: HmmConfig, log=None):
+def run_hmm1(inputs: dict, site: Site, config: HmmConfig):
     """Full-state first-order HMM baseline (online windows, or offline)."""
-    return _run("hmm1", "full1", inputs, site, config, log)
+    return _run("hmm1", "full1", inputs, site, config)
 
 
-def run_hmm2(inputs, site, config: HmmConfig, log=None):
+def run_hmm2(inputs: dict, site: Site, config: HmmConfig):
     """Full-state second-order HMM baseline (online windows, or offline)."""
-    return _run("hmm2", "full2", inputs, site, config, log)
-
-
-def _scorer(name: str):
-    def score(tables: dict, site: Site, log):
-        from onebit.trackers.findinghumo.scoring import hop_scores
-
-        return hop_scores(name, tables, site, log)
-
-    return score
+    return _run("hmm2", "full2", inputs, site, config)
 
 
 SPECS = [
-    register(TrackerSpec(
+    TrackerSpec(
         name="findinghumo", needs=("motion",), config=FindingHumoConfig, run=run_findinghumo,
-        score=_scorer("findinghumo"), available=_available,
+        available=_available,
         help="FindingHuMo (De et al.): Adaptive-HMM on a PIR sensor graph + CPDA path disambiguation",
-    )),
-    register(TrackerSpec(
-        name="hmm1", needs=("motion",), config=HmmConfig, run=run_hmm1, score=_scorer("hmm1"), available=_available,
+    ),
+    TrackerSpec(
+        name="hmm1", needs=("motion",), config=HmmConfig, run=run_hmm1, available=_available,
         help="baseline: full-state first-order HMM on the PIR sensor graph (FindingHuMo section IV-B)",
-    )),
-    register(TrackerSpec(
-        name="hmm2", needs=("motion",), config=HmmConfig, run=run_hmm2, score=_scorer("hmm2"), available=_available,
+    ),
+    TrackerSpec(
+        name="hmm2", needs=("motion",), config=HmmConfig, run=run_hmm2, available=_available,
         help="baseline: full-state second-order HMM on the PIR sensor graph (FindingHuMo section IV-B)",
-    )),
+    ),
 ]

@@ -5,7 +5,11 @@ Input: the ``motion`` table (accepted PIR edges). The tracker slots it at its ow
 refractory state B_i from :func:`onebit.readers.motion.refractory_state` with each sensor's
 ``refractory`` (f_i) from ``site.toml``, and estimates the intruder's cell at the end of every
 iteration (``t = start + (k + 1) t_P``). Lengths in the config are in **cells** (the paper's
-units) and converted to world units with ``cell`` (world units per cell).
+units) and converted to world units with ``cell``, the size of a cell: given in metres and
+converted once to the site's units (:func:`onebit.core.units.config_in_site_units`), so
+the same ``run.toml`` means the same on a site drawn in cm and on one drawn in m. Each
+sensor's detection probabilities are deployed on the cells within its detection region
+(:func:`onebit.models.pir.deploy`); a sensor without one is an error.
 
 Outputs: ``tracks`` (one track ``intruder``), ``iterations`` (per iteration: ESS, redraws,
 clamped particles, spread, fired and blind sensor counts, ``cell``), ``coverage`` (the
@@ -18,15 +22,18 @@ from dataclasses import dataclass
 
 import numpy as np
 import polars as pl
-from scipy.optimize import linear_sum_assignment
 
-from onebit.datasets.site import Site
-from onebit.errors import ConfigError
+from onebit.core.site import Site
+from onebit.core.errors import ConfigError
+from onebit.core.units import length
 from onebit.readers.motion import motion_frames, refractory_state
-from onebit.tables import SCORES, TRACKS, check_schema, conform, MOTION
-from onebit.trackers.base import TrackerSpec, check_choice, check_range, register
-from onebit.trackers.intruder.filter import Motion, Room, run_filter
-from onebit.trackers.intruder.sensors import Deployment, deploy
+from onebit.core.tables import TRACKS, check_schema, conform, MOTION
+from onebit.trackers.base import ARTIFACTS, TrackerSpec
+from onebit.core.config import check_choice, check_range
+from onebit.trackers.intruder.camera import pan_tilt_zoom
+from onebit.models.motion import Motion, Room
+from onebit.trackers.intruder.filter import run_filter
+from onebit.models.pir import Deployment, deploy
 
 NAME = "intruder"
 NAIVE = "intruder-naive"
@@ -43,7 +50,7 @@ class IntruderConfig:
     turn_scale: float | None = None  #: sigma_theta = turn_scale / speed (rad * cells/s), capped at pi; None = v_max (1 rad at top speed)
     box_width: float = 2.0  #: intruder bounding prism width (x), cells
     box_depth: float = 2.0  #: intruder bounding prism depth (y), cells
-    cell: float = 1.0  #: world units per cell
+    cell: float = length(1.0)  #: size of a cell, m (converted to site units: world units per cell)
     resample: str = "systematic"  #: systematic | multinomial
     resample_when: str = "always"  #: always (SIR) | ess (when ESS < ess_threshold * particles)
     ess_threshold: float = 0.5  #: fraction of particles, for resample_when = "ess"
@@ -53,7 +60,7 @@ class IntruderConfig:
     end: float | None = None  #: time it leaves (s); None = the slot of the last edge
     log_particles: int = 1000  #: particles per iteration sent to Rerun
     box_height: float = 1.0  #: intruder bounding prism height, cells (for camera pointing)
-    camera_position: list[float] | None = None  #: [x, y, z] of the pan-tilt-zoom camera (world units); None = no camera table
+    camera_position: list[float] | None = length(None)  #: [x, y, z] of the pan-tilt-zoom camera, m (converted to site units); None = no camera table
     camera_fov: float = 60.0  #: horizontal field of view of the camera at zoom 1, degrees
     camera_aspect: float = 4.0 / 3.0  #: image width / height
 
@@ -92,7 +99,7 @@ class NaiveConfig:
     """``run.toml`` ``[intruder-naive]``: the baseline reports the room centre every iteration."""
 
     period: float = 2.0  #: t_P, seconds per iteration
-    cell: float = 1.0  #: world units per cell (for the error in cells)
+    cell: float = length(1.0)  #: size of a cell, m (converted to site units; for the error in cells)
     start: float = 0.0  #: time the intruder enters (s)
     end: float | None = None  #: time it leaves (s); None = the slot of the last edge
 
@@ -118,6 +125,8 @@ def observations(motion: pl.DataFrame, site: Site, *, period: float, start: floa
     """``(fired, blind, t_end)``: ``(T, n)`` S_i and B_i per iteration and each iteration's end time."""
     ids = [m.id for m in site.motion_sensors]
     motion = motion.filter(pl.col("t") >= start)
+    if motion.height == 0 and end is None:  # nothing observed and no end given: no iteration to run
+        return np.zeros((0, len(ids)), bool), np.zeros((0, len(ids)), bool), np.zeros(0)
     frames = motion_frames(motion, ids, period=period, t0=start, t1=end)
     if frames.height == 0:
         return np.zeros((0, len(ids)), bool), np.zeros((0, len(ids)), bool), np.zeros(0)
@@ -157,7 +166,7 @@ def track_frame(tracker: str, t: np.ndarray, xy: np.ndarray) -> pl.DataFrame:
     )
 
 
-def run(inputs: dict, site: Site, config: IntruderConfig, log=None) -> dict[str, pl.DataFrame]:
+def run(inputs: dict, site: Site, config: IntruderConfig) -> dict[str, pl.DataFrame]:
     """The ``intruder`` stage: PIR edges -> the SIR filter's estimated cell per iteration."""
     motion = check_schema(inputs["motion"], MOTION, name="motion")
     c = config.cell
@@ -189,118 +198,34 @@ def run(inputs: dict, site: Site, config: IntruderConfig, log=None) -> dict[str,
     coverage = coverage_table(dep)
     extra = {}
     if config.camera_position is not None:
-        from onebit.trackers.intruder.camera import pan_tilt_zoom
-
         ptz = pan_tilt_zoom(
             res.estimates, tuple(config.camera_position), width=config.box_width * c, depth=config.box_depth * c,
             height=config.box_height * c, fov_deg=config.camera_fov, aspect=config.camera_aspect,
         )  # fmt: skip
         extra["camera"] = pl.DataFrame({"t": t_end, "pan": ptz[:, 0], "tilt": ptz[:, 1], "zoom": ptz[:, 2]})
-    if log is not None:
-        from onebit.viz import intruder as viz
-
-        log.emit(viz.log_coverage, dep)
-        log.emit(viz.log_sensor_states, NAME, dep, t_end, fired, blind)
-        log.emit(viz.log_particles, NAME, t_end, res.logged_xy, res.logged_w)
-        log.emit(viz.log_estimate, NAME, t_end, res.estimates, config.box_width * c, config.box_depth * c)
-        if "camera" in extra:
-            log.emit(viz.log_camera_cone, NAME, tuple(config.camera_position), t_end, res.estimates, extra["camera"], config.camera_fov)
-        log.point_tracks(NAME, tracks)
-    return {"tracks": tracks, "iterations": iterations, "coverage": coverage, **extra}
+    artifacts = {
+        "deployment": dep, "t_end": t_end, "fired": fired, "blind": blind,
+        "particles_xy": res.logged_xy, "particles_w": res.logged_w, "estimates": res.estimates,
+        "box": (config.box_width * c, config.box_depth * c),
+    }  # fmt: skip
+    return {"tracks": tracks, "iterations": iterations, "coverage": coverage, **extra, ARTIFACTS: artifacts}
 
 
-def run_naive(inputs: dict, site: Site, config: NaiveConfig, log=None) -> dict[str, pl.DataFrame]:
+def run_naive(inputs: dict, site: Site, config: NaiveConfig) -> dict[str, pl.DataFrame]:
     """The ``intruder-naive`` stage: the intruder is always at the centre of the room."""
     motion = check_schema(inputs["motion"], MOTION, name="motion")
     _, _, t_end = observations(motion, site, period=config.period, start=config.start, end=config.end)
     centre = site.boundary.centroid
     xy = np.tile([centre.x, centre.y], (len(t_end), 1)).reshape(-1, 2)
     tracks = track_frame(NAIVE, t_end, xy)
-    if log is not None:
-        log.point_tracks(NAIVE, tracks)
     return {"tracks": tracks, "iterations": pl.DataFrame({"t": t_end, "cell": np.full(len(t_end), config.cell)})}
 
 
-# --------------------------------------------------------------------------- scoring
-
-
-def match_errors(tracks: pl.DataFrame, truth: pl.DataFrame, *, tolerance: float) -> pl.DataFrame:
-    """Per-sample error of every track against the target it is matched to (SCORES).
-
-    Each track sample is paired with each target's truth sample nearest in time (within
-    ``tolerance`` s); tracks and targets are matched one-to-one by minimum mean error
-    (``scipy.optimize.linear_sum_assignment``).
-    """
-    if tracks.height == 0 or truth.height == 0:
-        return pl.DataFrame(schema=SCORES)
-    tr = tracks.select("tracker", "track", "t", "x", "y").drop_nulls(["x", "y"]).sort("t")
-    tracks_ids = tr["track"].unique().sort().to_list()
-    targets = truth["target"].unique().sort().to_list()
-    pairs = []
-    for tg in targets:  # loop over targets (few), each a vectorised as-of join
-        g = truth.filter(pl.col("target") == tg).select("t", "target", pl.col("x").alias("tx"), pl.col("y").alias("ty")).sort("t")
-        j = tr.join_asof(g, on="t", strategy="nearest", tolerance=tolerance).drop_nulls("tx")
-        pairs.append(j.with_columns(error=((pl.col("x") - pl.col("tx")) ** 2 + (pl.col("y") - pl.col("ty")) ** 2).sqrt()))
-    allp = pl.concat(pairs) if pairs else pl.DataFrame()
-    if allp.height == 0:
-        return pl.DataFrame(schema=SCORES)
-    mean = allp.group_by("track", "target").agg(pl.col("error").mean())
-    cost = np.full((len(tracks_ids), len(targets)), 1e18)
-    ti = {k: i for i, k in enumerate(tracks_ids)}
-    gi = {k: i for i, k in enumerate(targets)}
-    for r in mean.iter_rows(named=True):  # (tracks x targets) entries, not samples
-        cost[ti[r["track"]], gi[r["target"]]] = r["error"]
-    rows, cols = linear_sum_assignment(cost)
-    keep = pl.DataFrame(
-        {"track": [tracks_ids[r] for r in rows], "target": [targets[c] for c in cols]},
-        schema={"track": pl.String, "target": pl.String},
-    )
-    out = allp.join(keep, on=["track", "target"]).sort("t")
-    return conform(out, SCORES)
-
-
-def error_rows(scores: pl.DataFrame, *, stage: str, cell: float) -> list[tuple[str, str, float, str]]:
-    """Mean, median, p90 error in cells and the fraction within 1, 2, 3, 4 cells."""
-    if scores.height == 0:
-        return []
-    e = scores["error"] / cell
-    rows = [
-        (stage, "mean_error_cells", float(e.mean()), "cells"),
-        (stage, "median_error_cells", float(e.median()), "cells"),
-        (stage, "p90_error_cells", float(e.quantile(0.9, "linear")), "cells"),
-    ]
-    rows += [(stage, f"within_{k}", float((e <= k).mean()), "fraction") for k in (1, 2, 3, 4)]
-    rows.append((stage, "scored_iterations", float(scores.height), "iterations"))
-    return rows
-
-
-def make_score(name: str):
-    def score(tables: dict, site: Site, log=None):
-        tracks = tables.get(f"{name}_tracks")
-        truth = tables.get("truth")
-        if tracks is None or truth is None:
-            return [], {}
-        it = tables.get(f"{name}_iterations")
-        cell = float(it["cell"][0]) if it is not None and it.height else 1.0
-        t = tracks["t"].sort().to_numpy()
-        tol = float(np.median(np.diff(t))) / 2 if len(t) > 1 else 1.0
-        sc = match_errors(tracks, truth, tolerance=tol)
-        if log is not None:
-            log.scores(name, sc)
-        return error_rows(sc, stage=name, cell=cell), {f"{name}_scores": sc}
-
-    return score
-
-
-SPEC = register(
-    TrackerSpec(
-        name=NAME, needs=("motion",), config=IntruderConfig, run=run, score=make_score(NAME), available=available,
-        help="SIR particle filter over PIR firings with refractory periods (Schiff & Goldberg)",
-    )
+SPEC = TrackerSpec(
+    name=NAME, needs=("motion",), config=IntruderConfig, run=run, available=available,
+    help="SIR particle filter over PIR firings with refractory periods (Schiff & Goldberg)",
 )  # fmt: skip
-NAIVE_SPEC = register(
-    TrackerSpec(
-        name=NAIVE, needs=("motion",), config=NaiveConfig, run=run_naive, score=make_score(NAIVE), available=available,
-        help="baseline: the intruder is always at the centre of the room",
-    )
+NAIVE_SPEC = TrackerSpec(
+    name=NAIVE, needs=("motion",), config=NaiveConfig, run=run_naive, available=available,
+    help="baseline: the intruder is always at the centre of the room",
 )  # fmt: skip

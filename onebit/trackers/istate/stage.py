@@ -1,10 +1,13 @@
 """The ``istate`` stage: binary sensors of known sensing regions -> O'Kane I-states per stage.
 
 The dataset's sensors are treated as fixed trackers that share one I-state (they always
-communicate): a PIR motion sensor's field of view (``fov``, else a disk of its ``range``), a
-proximity sensor's disk of radius ``R_o`` and a beam as a thin region (the segment grown by
-half its pair spacing plus ``beam_width``). Readings are sampled at stage times
-``t_k = k T`` (``T = period_s``) and the filter of :mod:`onebit.trackers.istate.core` runs.
+communicate); each senses its detection region of the site (:mod:`onebit.core.sensing`: a
+motion sensor's ``fov``, ``range`` disk and type extent intersected, a proximity sensor's
+disk of radius ``R_o``, a beam as a thin region -- the segment grown by half its pair
+spacing, here plus ``beam_width``). Lengths and speeds of the config are in metres (m/s)
+and reach the stage in the site's units (:func:`onebit.core.units.config_in_site_units`).
+Readings are sampled at stage times ``t_k = k T`` (``T = period_s``) and the filter of
+:mod:`onebit.trackers.istate.core` runs.
 
 Sampling (our formulation; the paper has discrete stages already). A sensor contributes a
 detection at stage ``k``
@@ -35,10 +38,13 @@ import polars as pl
 import shapely
 from scipy.optimize import linear_sum_assignment
 
-from onebit.datasets.site import Site
-from onebit.errors import ConfigError
-from onebit.tables import CROSSINGS, MOTION, PROXIMITY, TRACKS, check_schema, conform
-from onebit.trackers.base import TrackerSpec, check_choice, check_range, register
+from onebit.core.site import Site
+from onebit.core.errors import ConfigError
+from onebit.core.sensing import detection_regions
+from onebit.core.units import length
+from onebit.core.tables import CROSSINGS, MOTION, PROXIMITY, TRACKS, check_schema, conform
+from onebit.trackers.base import ARTIFACTS, TrackerSpec
+from onebit.core.config import check_choice, check_range
 from onebit.trackers.istate.core import SHAPES, IState, disk, grow, info_state_update, shrink
 
 NAME = "istate"
@@ -60,7 +66,8 @@ class IStateConfig:
     """Configuration of the ``istate`` tracker ([istate] in run.toml).
 
     period_s : stage period T in seconds (readings are sampled at ``t_k = k T``).
-    max_speed : largest target speed (world units per second); ``s_tgt = max_speed * T``.
+    max_speed : largest target speed, m/s (converted to site units per second);
+        ``s_tgt = max_speed * T``.
     targets : number of targets n; 0 = the site's ``targets`` (the stage runs only on sites
         that declare ``targets``; this overrides it).
     max_elements : the cap M on the number of elements (paper: 10); 0 = no cap.
@@ -74,19 +81,19 @@ class IStateConfig:
     latency_auto : use ``max(latency_s, resolution)``, where the resolution is the smallest
         positive gap between distinct reading times of the motion/proximity logs (0.1 s for
         a 10 Hz log, 1 s for readings at whole seconds).
-    beam_width : half-width added to a beam's thin region besides half its pair spacing.
+    beam_width : half-width added to a beam's thin region besides half its pair spacing, m.
     substeps : rounds of grow-and-clip in the motion update (more follow obstacles tighter).
     """
 
     period_s: float = 1.0
-    max_speed: float = 1.5
+    max_speed: float = length(1.5, unit="m/s")
     targets: int = 0
     max_elements: int = 10
     shape: str = "exact"
     reliable_negatives: bool = False
     latency_s: float = 0.0
     latency_auto: bool = True
-    beam_width: float = 0.05
+    beam_width: float = length(0.05, unit="m")
     substeps: int = 1
 
     def __post_init__(self) -> None:
@@ -117,33 +124,40 @@ class SensingRegions:
 
 
 def sensing_regions(site: Site, config: IStateConfig) -> SensingRegions:
-    """The sensing regions of the site's motion sensors (``fov`` else a disk of ``range``),
-    proximity sensors (disk ``R_o``; negatives clear the inscribed disk ``R_i``) and beams
-    (the segment grown by ``spacing / 2 + beam_width``). Motion sensors with neither ``fov``
-    nor ``range`` have no known region and are left out."""
+    """The sensing regions of every sensor, from the site's detection regions
+    (:func:`onebit.core.sensing.detection_regions`: a motion sensor's ``fov``, ``range`` disk
+    and type extent intersected; a proximity sensor's disk ``R_o``; a beam's segment grown by
+    half its pair spacing), as polygons that contain them (round parts grown by the
+    circumscribing radius, :func:`~onebit.trackers.istate.core.grow`), a beam's grown further
+    by ``beam_width``. Negatives clear a subset: a motion sensor's region with its disk
+    inscribed, a proximity sensor's inscribed disk ``R_i``; a beam clears nothing. A motion
+    sensor without a usable region raises :class:`~onebit.core.errors.SiteError`."""
     ids, pos, neg, kind = [], [], [], []
-    for m in site.motion_sensors:
-        if m.fov is not None:
-            region = m.fov
-        elif m.range is not None:
-            region = disk(m.position, m.range)
+    for r in detection_regions(site).values():
+        polys = [g for g in (r.fov, r.extent) if g is not None]
+        extra = config.beam_width if r.kind == "beam" else 0.0
+        outer = polys + ([grow(r.core, r.radius + extra)] if r.radius is not None else [])
+        ids.append(r.sensor), kind.append(r.kind), pos.append(_intersect(outer))
+        if r.kind == "motion":
+            neg.append(_intersect(polys + ([disk(r.position, r.radius, outer=False)] if r.radius is not None else [])))
+        elif r.kind == "proximity" and r.inner_radius:
+            neg.append(disk(r.position, r.inner_radius, outer=False))
         else:
-            continue
-        ids.append(m.id), pos.append(region), kind.append("motion")
-        neg.append(m.fov if m.fov is not None else disk(m.position, m.range, outer=False))
-    for p in site.proximity_sensors:
-        ids.append(p.id), pos.append(disk(p.position, p.r_outer)), kind.append("proximity")
-        neg.append(disk(p.position, p.r_inner, outer=False) if p.r_inner > 0 else shapely.Polygon())
-    for b in site.beams:
-        ids.append(b.id), kind.append("beam"), neg.append(shapely.Polygon())
-        pos.append(grow(b.line, b.spacing / 2 + config.beam_width))
+            neg.append(shapely.Polygon())
     obj = lambda xs: np.array(xs + [None], dtype=object)[:-1]  # noqa: E731 -- 1-d object array
     return SensingRegions(tuple(ids), obj(pos), obj(neg), tuple(kind))
 
 
+def _intersect(parts: list):
+    out = parts[0]
+    for g in parts[1:]:
+        out = shapely.intersection(out, g)
+    return out
+
+
 def available(site: Site) -> str | None:
-    if not (any(m.fov is not None or m.range is not None for m in site.motion_sensors) or site.proximity_sensors or site.beams):
-        return "site has no binary sensors with known sensing regions (motion fov/range, proximity, beams)"
+    if not (site.motion_sensors or site.proximity_sensors or site.beams):
+        return "site has no binary sensors (motion, proximity, beams)"
     if site.targets is None:
         return "site.toml does not give the number of targets ('targets'); the I-state is over W^n"
     return None
@@ -234,7 +248,7 @@ def crossing_readings(crossings: pl.DataFrame, times: np.ndarray, period: float,
 # --------------------------------------------------------------------------- the stage
 
 
-def run(inputs: dict, site: Site, config: IStateConfig, log=None) -> dict[str, pl.DataFrame]:
+def run(inputs: dict, site: Site, config: IStateConfig) -> dict[str, pl.DataFrame]:
     """Run the I-state filter over the run's binary sensor tables.
 
     Inputs (all optional, ``TrackerSpec.wants``): ``motion`` (MOTION), ``proximity``
@@ -335,12 +349,8 @@ def run(inputs: dict, site: Site, config: IStateConfig, log=None) -> dict[str, p
         {"t": times[det_stage] if len(times) else [], "stage": det_stage, "sensor": det["sensor"], "inflation": det["inflation"]},
         schema=DETECTIONS,
     )
-    if log is not None:
-        from onebit.viz.istate import log_istate_run
-
-        log.emit(log_istate_run, NAME, regions, summary, site=site, sensing=dict(zip(sr.ids, sr.positive)), detections=detections)
-        log.point_tracks(NAME, tracks)
-    return {"tracks": tracks, "summary": summary, "regions": regions, "detections": detections}
+    artifacts = {"sensing": dict(zip(sr.ids, sr.positive))}
+    return {"tracks": tracks, "summary": summary, "regions": regions, "detections": detections, ARTIFACTS: artifacts}
 
 
 def _point_summary(eta: IState, prev: np.ndarray | None, n: int) -> np.ndarray:
@@ -356,67 +366,12 @@ def _point_summary(eta: IState, prev: np.ndarray | None, n: int) -> np.ndarray:
     return xy[c[np.argsort(r)]]
 
 
-# --------------------------------------------------------------------------- scoring
-
-
-def score(tables: dict, site: Site, log=None) -> tuple[list[tuple[str, str, float, str]], dict]:
-    """``istate/containment``: fraction of scored stages whose I-state contains the true joint
-    state (truth at the stage time, all n targets present); ``elements_mean``/``_max``;
-    ``area_mean`` (mean area of the union of the regions within the free space);
-    ``scored_stages``."""
-    from onebit.trackers.istate.core import contains
-
-    summ = tables.get(f"{NAME}_summary")
-    regs = tables.get(f"{NAME}_regions")
-    if summ is None or regs is None:
-        return [], {}
-    rows = [
-        (NAME, "elements_mean", float(summ["elements"].mean()) if summ.height else 0.0, "elements"),
-        (NAME, "elements_max", float(summ["elements"].max()) if summ.height else 0.0, "elements"),
-        (NAME, "area_mean", float(summ["area"].mean()) if summ.height else 0.0, f"{site.units}^2"),
-    ]
-    truth = tables.get("truth")
-    if truth is None or truth.height == 0 or summ.height == 0:
-        return rows, {}
-    n = int(regs["k"].max()) + 1 if regs.height else 0
-    targets = truth["target"].unique().sort().to_list()
-    if n and len(targets) != n:
-        rows.append((NAME, "target_count_mismatch", float(len(targets) - n), "targets"))
-        return rows, {}
-    tol = 1e-6 + 0.05 * (float(summ["t"].diff().median() or 1.0))
-    stages = summ.select("t", "stage").sort("t")
-    pos = []
-    for tgt in targets:  # one as-of join per target (n is small)
-        tt = truth.filter(pl.col("target") == tgt).select("t", "x", "y").sort("t")
-        pos.append(stages.join_asof(tt, on="t", strategy="nearest", tolerance=tol).select("x", "y").to_numpy())
-    pos = np.stack(pos, axis=1)  # (K, n, 2)
-    ok_truth = ~np.isnan(pos).any(axis=(1, 2))
-    geoms = shapely.from_wkb(regs["wkb"].to_numpy())
-    st_idx = regs["stage"].to_numpy()
-    bounds = np.searchsorted(st_idx, stages["stage"].to_numpy())
-    bounds = np.r_[bounds, len(st_idx)]
-    inside = np.zeros(len(stages), dtype=bool)
-    for s in np.flatnonzero(ok_truth):  # one I-state per stage
-        g = geoms[bounds[s] : bounds[s + 1]]
-        inside[s] = len(g) > 0 and contains(IState(g.reshape(-1, n)), pos[s])
-    scored = int(ok_truth.sum())
-    rows += [
-        (NAME, "containment", float(inside[ok_truth].mean()) if scored else float("nan"), "fraction"),
-        (NAME, "scored_stages", float(scored), "stages"),
-    ]
-    out = stages.with_columns(contains=pl.Series(inside), scored=pl.Series(ok_truth))
-    return rows, {f"{NAME}_containment": out}
-
-
-SPEC = register(
-    TrackerSpec(
-        name=NAME,
-        needs=(),
-        wants=("motion", "proximity", "crossings"),
-        config=IStateConfig,
-        run=run,
-        score=score,
-        available=available,
-        help="O'Kane set-based I-state filter over binary sensors (union of products)",
-    )
+SPEC = TrackerSpec(
+    name=NAME,
+    needs=(),
+    wants=("motion", "proximity", "crossings"),
+    config=IStateConfig,
+    run=run,
+    available=available,
+    help="O'Kane set-based I-state filter over binary sensors (union of products)",
 )

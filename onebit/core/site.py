@@ -1,0 +1,547 @@
+"""The site model: ``site.toml`` loaded and validated into shapely geometry.
+
+A site describes one deployment: the boundary polygon of the workspace W, obstacle polygons
+(holes and walls), directional beams, named regions, the overhead camera and the units.
+Every problem is reported as a :class:`~onebit.core.errors.SiteError` naming the key.
+
+Units: every length of ``site.toml`` (geometry, sensor ``range``/``fov``/radii, the lengths
+of its ``[sensor_types]``) is in the site's ``units`` (one of
+:data:`onebit.core.units.METRES_PER_UNIT`; ``m`` when the key is absent), and so are the
+logs' and the truth's positions. Tracker configs are in metres and converted once
+(:func:`onebit.core.units.config_in_site_units`). Each sensor's detection region is built
+once per site by :mod:`onebit.core.sensing` (:attr:`Site.detection_regions`).
+
+Beam convention
+---------------
+A beam is the segment ``p0 -> p1``. ``forward`` names the side ("left" or "right" of the
+direction ``p0 -> p1``) on which an agent *ends* after a forward crossing (direction +1).
+Its two emitter-detector pairs run parallel to the segment, ``spacing`` apart: pair ``a`` on
+the backward side, pair ``b`` on the forward side, so a forward crossing blocks ``a`` first
+and clears ``b`` last (paper Figs. 5-7).
+"""
+
+from __future__ import annotations
+
+import math
+import tomllib
+from dataclasses import dataclass, field
+from functools import cached_property
+from pathlib import Path
+
+import numpy as np
+import shapely
+from shapely.geometry import LineString, Point, Polygon
+
+from onebit.core.errors import SiteError
+from onebit.core.sensing import build_detection_regions
+from onebit.core.units import METRES_PER_UNIT
+
+#: Tolerance (world units) for "a beam end touches the boundary or an obstacle".
+TOUCH_TOL = 1e-6
+
+_TOP_KEYS = {
+    "name", "units", "epoch", "boundary", "obstacles", "beams", "regions", "camera",
+    "targets", "motion_sensors", "proximity_sensors", "sensor_graph", "sensor_types",
+}
+_MOTION_KEYS = {"id", "position", "heading", "type", "refractory", "fov", "range"}
+_PROXIMITY_KEYS = {"id", "position", "radius", "r_inner", "r_outer"}
+_GRAPH_KEYS = {"edges", "entries", "exits", "signatures"}
+_BOUNDARY_KEYS = {"polygon"}
+_OBSTACLE_KEYS = {"name", "polygon"}
+_BEAM_KEYS = {"id", "segment", "forward", "spacing", "capacity"}
+_REGION_KEYS = {"name", "point", "capacity"}
+_CAMERA_KEYS = {"width", "height", "fps", "homography", "points", "t0"}
+_UNITS = set(METRES_PER_UNIT)
+
+
+@dataclass(frozen=True)
+class Beam:
+    """A directional beam: segment, forward side and spacing of its two pairs."""
+
+    id: str
+    p0: tuple[float, float]
+    p1: tuple[float, float]
+    forward: str = "left"
+    spacing: float = 0.0
+
+    @property
+    def line(self) -> LineString:
+        return LineString([self.p0, self.p1])
+
+    @property
+    def forward_normal(self) -> np.ndarray:
+        """Unit normal pointing to the forward side."""
+        d = np.subtract(self.p1, self.p0, dtype=float)
+        d /= np.hypot(*d)
+        left = np.array([-d[1], d[0]])
+        return left if self.forward == "left" else -left
+
+    def pair_segments(self) -> dict[str, tuple[np.ndarray, np.ndarray]]:
+        """End points of pair ``a`` (backward side) and pair ``b`` (forward side)."""
+        off = self.forward_normal * self.spacing / 2.0
+        p0, p1 = np.asarray(self.p0, float), np.asarray(self.p1, float)
+        return {"a": (p0 - off, p1 - off), "b": (p0 + off, p1 + off)}
+
+
+@dataclass(frozen=True)
+class RegionSpec:
+    """A named region, identified by a point inside it."""
+
+    name: str
+    point: tuple[float, float]
+    capacity: int | None = None
+
+
+@dataclass(frozen=True)
+class Camera:
+    """Overhead camera: image size, frame rate, pixel->world homography and time offset."""
+
+    width: int
+    height: int
+    fps: float
+    homography: np.ndarray = field(repr=False)  # 3x3, pixel (u, v, 1) -> world (x, y, w)
+    t0: float = 0.0
+
+    @property
+    def world_to_pixel(self) -> np.ndarray:
+        return np.linalg.inv(self.homography)
+
+    def pixel_to_world(self, uv: np.ndarray) -> np.ndarray:
+        """Map ``(N, 2)`` pixel coordinates to world coordinates."""
+        return _apply_h(self.homography, uv)
+
+    def world_to_pixel_xy(self, xy: np.ndarray) -> np.ndarray:
+        """Map ``(N, 2)`` world coordinates to pixel coordinates."""
+        return _apply_h(self.world_to_pixel, xy)
+
+
+def _apply_h(h: np.ndarray, pts: np.ndarray) -> np.ndarray:
+    pts = np.asarray(pts, float).reshape(-1, 2)
+    hom = np.c_[pts, np.ones(len(pts))] @ h.T
+    return hom[:, :2] / hom[:, 2:3]
+
+
+@dataclass(frozen=True)
+class MotionSensor:
+    """A PIR / motion sensor: pose, type name, refractory period, field of view and range.
+
+    ``heading`` is the direction (degrees, counter-clockwise from +x) of the sensor frame's
+    x axis in the world. ``fov`` is a detection polygon in world coordinates, ``range`` the
+    radius of a detection disk around ``position``, ``type`` names a table in
+    ``[sensor_types]`` or a built-in type (``None``: not declared). The detection region is
+    the intersection of the extents declared (:mod:`onebit.core.sensing`); a sensor needs at
+    least one of them.
+    """
+
+    id: str
+    position: tuple[float, float]
+    heading: float = 0.0
+    type: str | None = None
+    refractory: float = 0.0
+    fov: Polygon | None = None
+    range: float | None = None
+
+
+@dataclass(frozen=True)
+class ProximitySensor:
+    """A binary proximity sensor at ``position``: on means a target within ``r_outer`` (R_o),
+    off means no target within ``r_inner`` (R_i); ideal sensing has R_i = R_o = R."""
+
+    id: str
+    position: tuple[float, float]
+    r_inner: float
+    r_outer: float
+
+
+@dataclass(frozen=True)
+class SensorGraph:
+    """Physical 1-hop adjacency of motion-sensor nodes, with entry/exit nodes.
+
+    ``signatures`` are ordered node pairs ``(outer, inner)``: activity at ``outer`` followed by
+    ``inner`` is an entry, the reverse an exit (paper: 104 -> 103 is an entry).
+    """
+
+    nodes: tuple[str, ...]
+    edges: tuple[tuple[str, str], ...]
+    entries: tuple[str, ...] = ()
+    exits: tuple[str, ...] = ()
+    signatures: tuple[tuple[str, str], ...] = ()
+
+    def to_networkx(self, site: "Site | None" = None):
+        """Undirected ``networkx.Graph``; node attribute ``pos`` when ``site`` is given."""
+        import networkx as nx
+
+        g = nx.Graph()
+        pos = {m.id: m.position for m in site.motion_sensors} if site is not None else {}
+        for n in self.nodes:
+            g.add_node(n, pos=pos.get(n), entry=n in self.entries, exit=n in self.exits)
+        g.add_edges_from(self.edges)
+        return g
+
+
+@dataclass(frozen=True)
+class Site:
+    """A validated deployment. ``free_space`` is the boundary minus the obstacles (E in the paper)."""
+
+    name: str
+    units: str
+    boundary: Polygon
+    obstacles: tuple[Polygon, ...]
+    obstacle_names: tuple[str, ...]
+    beams: tuple[Beam, ...]
+    regions: tuple[RegionSpec, ...]
+    camera: Camera | None
+    epoch: str | None = None
+    source: str = "<site>"
+    targets: int | None = None
+    motion_sensors: tuple[MotionSensor, ...] = ()
+    proximity_sensors: tuple[ProximitySensor, ...] = ()
+    sensor_graph: SensorGraph | None = None
+    sensor_types: dict = field(default_factory=dict, repr=False)  # raw tables, validated by their user
+
+    @property
+    def free_space(self):
+        return shapely.difference(self.boundary, shapely.union_all(list(self.obstacles))) if self.obstacles else self.boundary
+
+    @property
+    def beam_ids(self) -> tuple[str, ...]:
+        return tuple(b.id for b in self.beams)
+
+    def beam(self, beam_id: str) -> Beam:
+        for b in self.beams:
+            if b.id == beam_id:
+                return b
+        raise KeyError(beam_id)
+
+    @cached_property
+    def detection_regions(self) -> dict:
+        """Every sensor's detection region by id, built once (:func:`onebit.core.sensing.detection_regions`)."""
+        return build_detection_regions(self)
+
+    @property
+    def diagonal(self) -> float:
+        minx, miny, maxx, maxy = self.boundary.bounds
+        return float(math.hypot(maxx - minx, maxy - miny))
+
+
+# --------------------------------------------------------------------------- loading
+
+
+def load_site(path: str | Path) -> Site:
+    """Load and validate ``site.toml``; raise :class:`SiteError` naming the key on any problem."""
+    path = Path(path)
+    try:
+        text = path.read_text(encoding="utf-8")
+    except OSError as exc:
+        raise SiteError(f"cannot read site file: {exc.strerror}", file=path) from None
+    try:
+        data = tomllib.loads(text)
+    except tomllib.TOMLDecodeError as exc:
+        raise SiteError(f"not valid TOML: {exc}", file=path) from None
+    return site_from_dict(data, source=str(path))
+
+
+def site_from_dict(data: dict, *, source: str = "<site>") -> Site:
+    """Validate a parsed ``site.toml`` mapping into a :class:`Site`."""
+
+    def err(key: str, reason: str) -> SiteError:
+        return SiteError(reason, file=source, field=key)
+
+    _unknown(data, _TOP_KEYS, "", err)
+    name = str(data.get("name", Path(source).parent.name or "site"))
+    units = data.get("units", "m")
+    if not isinstance(units, str) or units not in _UNITS:
+        raise err("units", f"unknown unit {units!r}; expected one of {sorted(_UNITS)}")
+    epoch = data.get("epoch")
+    if epoch is not None and not isinstance(epoch, str):
+        epoch = epoch.isoformat() if hasattr(epoch, "isoformat") else str(epoch)
+
+    if "boundary" not in data:
+        raise err("boundary", "missing; the site needs a boundary polygon")
+    bnd = data["boundary"]
+    if not isinstance(bnd, dict):
+        raise err("boundary", "must be a table with a 'polygon' key")
+    _unknown(bnd, _BOUNDARY_KEYS, "boundary.", err)
+    boundary = _polygon(bnd.get("polygon"), "boundary.polygon", err)
+
+    obstacles, obstacle_names = [], []
+    for i, ob in enumerate(_list_of_tables(data.get("obstacles", []), "obstacles", err)):
+        key = f"obstacles[{i}]"
+        _unknown(ob, _OBSTACLE_KEYS, key + ".", err)
+        poly = _polygon(ob.get("polygon"), key + ".polygon", err)
+        if not boundary.buffer(TOUCH_TOL).contains(poly):
+            raise err(key + ".polygon", "obstacle is not inside the boundary")
+        obstacles.append(poly)
+        obstacle_names.append(str(ob.get("name", i)))
+    free = shapely.difference(boundary, shapely.union_all(obstacles)) if obstacles else boundary
+    walls = shapely.union_all([boundary.exterior, *[o.boundary for o in obstacles]])
+
+    beams: list[Beam] = []
+    seen: set[str] = set()
+    for i, bm in enumerate(_list_of_tables(data.get("beams", []), "beams", err)):
+        key = f"beams[{i}]"
+        _unknown(bm, _BEAM_KEYS, key + ".", err)
+        if "id" not in bm:
+            raise err(key + ".id", "missing")
+        bid = str(bm["id"])
+        key = f"beams[{i}] (id {bid!r})"
+        if bid in seen:
+            raise err(key + ".id", "duplicate beam id")
+        seen.add(bid)
+        seg = bm.get("segment")
+        pts = _points(seg, key + ".segment", err)
+        if len(pts) != 2:
+            raise err(key + ".segment", f"needs exactly 2 points, got {len(pts)}")
+        line = LineString(pts)
+        if line.length <= TOUCH_TOL:
+            raise err(key + ".segment", "has zero length")
+        for end, p in zip(("start", "end"), pts):
+            if walls.distance(Point(p)) > TOUCH_TOL * max(1.0, line.length):
+                raise err(key + ".segment", f"{end} point {tuple(p)} does not touch the boundary or an obstacle")
+        mid = line.interpolate(0.5, normalized=True)
+        if not free.buffer(TOUCH_TOL).contains(line) or not free.contains(mid):
+            raise err(key + ".segment", "beam does not lie in the free space")
+        forward = bm.get("forward", "left")
+        if forward not in ("left", "right"):
+            raise err(key + ".forward", f"must be 'left' or 'right', got {forward!r}")
+        spacing = bm.get("spacing", 0.0)
+        if not isinstance(spacing, (int, float)) or spacing < 0:
+            raise err(key + ".spacing", f"must be a non-negative number, got {spacing!r}")
+        beams.append(Beam(bid, tuple(pts[0]), tuple(pts[1]), forward, float(spacing)))
+    for i in range(len(beams)):
+        for j in range(i + 1, len(beams)):
+            li, lj = beams[i].line, beams[j].line
+            inter = li.intersection(lj)
+            if not inter.is_empty and (inter.length > 0 or not _at_end(inter, beams[i]) or not _at_end(inter, beams[j])):
+                raise err(f"beams[{j}] (id {beams[j].id!r}).segment", f"crosses beam {beams[i].id!r}; beams must be pairwise disjoint")
+
+    regions: list[RegionSpec] = []
+    for i, rg in enumerate(_list_of_tables(data.get("regions", []), "regions", err)):
+        key = f"regions[{i}]"
+        _unknown(rg, _REGION_KEYS, key + ".", err)
+        if "name" not in rg:
+            raise err(key + ".name", "missing")
+        pts = _points([rg.get("point")] if rg.get("point") is not None else None, key + ".point", err)
+        if not free.contains(Point(pts[0])):
+            raise err(key + ".point", f"{tuple(pts[0])} is not in the free space")
+        cap = rg.get("capacity")
+        if cap is not None and (not isinstance(cap, int) or cap < 0):
+            raise err(key + ".capacity", f"must be a non-negative integer, got {cap!r}")
+        regions.append(RegionSpec(str(rg["name"]), tuple(pts[0]), cap))
+    if len({r.name for r in regions}) != len(regions):
+        raise err("regions", "duplicate region name")
+
+    camera = None
+    if "camera" in data:
+        camera = _camera(data["camera"], err)
+
+    targets = data.get("targets")
+    if targets is not None and (not isinstance(targets, int) or isinstance(targets, bool) or targets < 0):
+        raise err("targets", f"must be a non-negative integer, got {targets!r}")
+    sensor_ids: set[str] = set(seen)
+    motion = [_motion_sensor(ms, i, boundary, sensor_ids, err) for i, ms in enumerate(_list_of_tables(data.get("motion_sensors", []), "motion_sensors", err))]
+    prox = [_proximity_sensor(ps, i, sensor_ids, err) for i, ps in enumerate(_list_of_tables(data.get("proximity_sensors", []), "proximity_sensors", err))]
+    graph = _sensor_graph(data["sensor_graph"], {m.id for m in motion}, err) if "sensor_graph" in data else None
+    stypes = data.get("sensor_types", {})
+    if not isinstance(stypes, dict) or not all(isinstance(v, dict) for v in stypes.values()):
+        raise err("sensor_types", "must be a table of tables ([sensor_types.<name>])")
+
+    return Site(
+        name=name,
+        units=units,
+        boundary=boundary,
+        obstacles=tuple(obstacles),
+        obstacle_names=tuple(obstacle_names),
+        beams=tuple(beams),
+        regions=tuple(regions),
+        camera=camera,
+        epoch=epoch,
+        source=source,
+        targets=targets,
+        motion_sensors=tuple(motion),
+        proximity_sensors=tuple(prox),
+        sensor_graph=graph,
+        sensor_types=stypes,
+    )
+
+
+def _number(value, key: str, err, *, lo: float | None = None, positive: bool = False) -> float:
+    if not isinstance(value, (int, float)) or isinstance(value, bool) or not math.isfinite(value):
+        raise err(key, f"must be a number, got {value!r}")
+    if positive and value <= 0:
+        raise err(key, f"must be positive, got {value!r}")
+    if lo is not None and value < lo:
+        raise err(key, f"must be at least {lo}, got {value!r}")
+    return float(value)
+
+
+def _sensor_id(table: dict, key: str, seen: set[str], err) -> str:
+    if "id" not in table:
+        raise err(key + ".id", "missing")
+    sid = str(table["id"])
+    if sid in seen:
+        raise err(key + ".id", f"duplicate sensor id {sid!r}")
+    seen.add(sid)
+    return sid
+
+
+def _motion_sensor(ms: dict, i: int, boundary: Polygon, seen: set[str], err) -> MotionSensor:
+    key = f"motion_sensors[{i}]"
+    _unknown(ms, _MOTION_KEYS, key + ".", err)
+    sid = _sensor_id(ms, key, seen, err)
+    key = f"motion_sensors[{i}] (id {sid!r})"
+    pos = _points([ms.get("position")] if ms.get("position") is not None else None, key + ".position", err)[0]
+    heading = _number(ms.get("heading", 0.0), key + ".heading", err)
+    typ = ms.get("type")
+    if typ is not None and not isinstance(typ, str):
+        raise err(key + ".type", f"must be a string, got {typ!r}")
+    refr = _number(ms.get("refractory", 0.0), key + ".refractory", err, lo=0.0)
+    fov = _polygon(ms["fov"], key + ".fov", err) if "fov" in ms else None
+    rng = _number(ms["range"], key + ".range", err, positive=True) if "range" in ms else None
+    return MotionSensor(sid, (float(pos[0]), float(pos[1])), heading, typ, refr, fov, rng)
+
+
+def _proximity_sensor(ps: dict, i: int, seen: set[str], err) -> ProximitySensor:
+    key = f"proximity_sensors[{i}]"
+    _unknown(ps, _PROXIMITY_KEYS, key + ".", err)
+    sid = _sensor_id(ps, key, seen, err)
+    key = f"proximity_sensors[{i}] (id {sid!r})"
+    pos = _points([ps.get("position")] if ps.get("position") is not None else None, key + ".position", err)[0]
+    if "radius" in ps:
+        if "r_inner" in ps or "r_outer" in ps:
+            raise err(key + ".radius", "give either 'radius' or 'r_inner'/'r_outer', not both")
+        r_in = r_out = _number(ps["radius"], key + ".radius", err, positive=True)
+    else:
+        if "r_inner" not in ps or "r_outer" not in ps:
+            raise err(key + ".radius", "missing; give 'radius' (ideal) or both 'r_inner' and 'r_outer'")
+        r_in = _number(ps["r_inner"], key + ".r_inner", err, lo=0.0)
+        r_out = _number(ps["r_outer"], key + ".r_outer", err, positive=True)
+        if r_in > r_out:
+            raise err(key + ".r_inner", f"r_inner {r_in} exceeds r_outer {r_out}")
+    return ProximitySensor(sid, (float(pos[0]), float(pos[1])), r_in, r_out)
+
+
+def _sensor_graph(g, motion_ids: set[str], err) -> SensorGraph:
+    if not isinstance(g, dict):
+        raise err("sensor_graph", "must be a table")
+    _unknown(g, _GRAPH_KEYS, "sensor_graph.", err)
+    edges = g.get("edges", [])
+    if not isinstance(edges, list) or not all(isinstance(e, list) and len(e) == 2 for e in edges):
+        raise err("sensor_graph.edges", "must be a list of [node, node] pairs")
+    edges_t = tuple((str(a), str(b)) for a, b in edges)
+    for k, (a, b) in enumerate(edges_t):
+        for n in (a, b):
+            if n not in motion_ids:
+                raise err(f"sensor_graph.edges[{k}]", f"node {n!r} is not a motion sensor id")
+        if a == b:
+            raise err(f"sensor_graph.edges[{k}]", f"self loop at {a!r}")
+    out = {}
+    for name in ("entries", "exits"):
+        v = g.get(name, [])
+        if not isinstance(v, list):
+            raise err(f"sensor_graph.{name}", "must be a list of node ids")
+        for n in v:
+            if str(n) not in motion_ids:
+                raise err(f"sensor_graph.{name}", f"node {n!r} is not a motion sensor id")
+        out[name] = tuple(str(n) for n in v)
+    sig = g.get("signatures", [])
+    if not isinstance(sig, list) or not all(isinstance(e, list) and len(e) == 2 for e in sig):
+        raise err("sensor_graph.signatures", "must be a list of [outer, inner] node pairs")
+    nodes = tuple(sorted(motion_ids, key=_natural_key))
+    return SensorGraph(nodes, edges_t, out["entries"], out["exits"], tuple((str(a), str(b)) for a, b in sig))
+
+
+def _natural_key(s: str):
+    import re
+
+    return [int(p) if p.isdigit() else p for p in re.split(r"(\d+)", s)]
+
+
+def _at_end(inter, beam: Beam) -> bool:
+    pts = [Point(beam.p0), Point(beam.p1)]
+    return all(min(p.distance(q) for q in pts) <= TOUCH_TOL for p in _geom_points(inter))
+
+
+def _geom_points(g):
+    if g.geom_type == "Point":
+        return [g]
+    return list(getattr(g, "geoms", []))
+
+
+def _unknown(table: dict, allowed: set[str], prefix: str, err) -> None:
+    for k in table:
+        if k not in allowed:
+            raise err(prefix + k, f"unknown key; allowed keys are {sorted(allowed)}")
+
+
+def _list_of_tables(value, key: str, err) -> list[dict]:
+    if not isinstance(value, list) or not all(isinstance(v, dict) for v in value):
+        raise err(key, "must be an array of tables ([[" + key + "]])")
+    return value
+
+
+def _points(value, key: str, err) -> np.ndarray:
+    if value is None:
+        raise err(key, "missing")
+    try:
+        arr = np.asarray(value, dtype=float)
+    except (TypeError, ValueError):
+        raise err(key, "must be a list of [x, y] number pairs") from None
+    if arr.ndim != 2 or arr.shape[1] != 2 or not np.all(np.isfinite(arr)):
+        raise err(key, "must be a list of [x, y] number pairs")
+    return arr
+
+
+def _polygon(value, key: str, err) -> Polygon:
+    pts = _points(value, key, err)
+    if len(pts) < 3:
+        raise err(key, f"a polygon needs at least 3 points, got {len(pts)}")
+    poly = Polygon(pts)
+    if not poly.is_valid:
+        raise err(key, f"invalid polygon: {shapely.is_valid_reason(poly)}")
+    if poly.area <= 0:
+        raise err(key, "polygon has zero area")
+    return shapely.orient_polygons(poly) if hasattr(shapely, "orient_polygons") else poly
+
+
+def _camera(cam, err) -> Camera:
+    if not isinstance(cam, dict):
+        raise err("camera", "must be a table")
+    _unknown(cam, _CAMERA_KEYS, "camera.", err)
+    for k in ("width", "height"):
+        if k not in cam:
+            raise err(f"camera.{k}", "missing")
+        if not isinstance(cam[k], int) or cam[k] <= 0:
+            raise err(f"camera.{k}", f"must be a positive integer, got {cam[k]!r}")
+    fps = cam.get("fps", 10.0)
+    if not isinstance(fps, (int, float)) or fps <= 0:
+        raise err("camera.fps", f"must be a positive number, got {fps!r}")
+    if "homography" in cam and "points" in cam:
+        raise err("camera", "give either 'homography' or 'points', not both")
+    if "homography" in cam:
+        h = np.asarray(cam["homography"], dtype=float) if _is_matrix(cam["homography"]) else None
+        if h is None or h.shape != (3, 3) or not np.all(np.isfinite(h)):
+            raise err("camera.homography", "must be a 3x3 matrix of numbers (pixel -> world)")
+        if abs(np.linalg.det(h)) < 1e-12:
+            raise err("camera.homography", "is singular")
+    elif "points" in cam:
+        pts = cam["points"]
+        if not isinstance(pts, dict) or set(pts) != {"pixel", "world"}:
+            raise err("camera.points", "must be a table with 'pixel' and 'world' lists of 4 points")
+        px = _points(pts["pixel"], "camera.points.pixel", err)
+        wd = _points(pts["world"], "camera.points.world", err)
+        if len(px) != 4 or len(wd) != 4:
+            raise err("camera.points", "needs exactly 4 pixel and 4 world points")
+        import cv2
+
+        h = cv2.getPerspectiveTransform(px.astype(np.float32), wd.astype(np.float32)).astype(float)
+    else:
+        raise err("camera.homography", "missing; give 'homography' (3x3) or 'points' (4 correspondences)")
+    t0 = cam.get("t0", 0.0)
+    if not isinstance(t0, (int, float)):
+        raise err("camera.t0", f"must be a number of seconds, got {t0!r}")
+    return Camera(int(cam["width"]), int(cam["height"]), float(fps), h, float(t0))
+
+
+def _is_matrix(v) -> bool:
+    return isinstance(v, list) and all(isinstance(r, list) for r in v)

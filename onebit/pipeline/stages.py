@@ -1,0 +1,386 @@
+"""The declared pipeline: every stage, in order, with what it needs and what it makes.
+
+::
+
+    crossings  beams.csv | crossings.csv   -> crossings, aborted, beam_events
+    truth      truth.csv                   -> truth, true_crossings, sim_crossings
+    camera     camera.mp4                  -> camera_truth, camera_detections
+    motion     motion.csv                  -> motion, frames, motion_suppressed
+    proximity  proximity.csv               -> proximity, proximity_frames, proximity_suppressed
+    correct    crossings                   -> corrected_crossings, correct_insertions, correct_initial
+    <tracker>  its TrackerSpec.needs       -> <tracker>_tracks, <tracker>_<table>...   (one per TRACKERS entry)
+    scores     everything above            -> crossing_matches, <tracker>_scores, ...
+
+Adding a tracker: its package under :mod:`onebit.trackers` (a ``TrackerSpec``), a scoring
+function in :mod:`onebit.scoring` (built on :mod:`onebit.scoring.association`; the MOT metrics
+of :mod:`onebit.scoring.mot` are added for every tracker), a ``log_run`` in :mod:`onebit.viz`
+-- and one :class:`TrackerEntry` line in :data:`TRACKERS` (``docs/extending.md``). No
+registry, no plugin loading: this file is the whole list.
+"""
+
+from __future__ import annotations
+
+from dataclasses import asdict, dataclass, field
+from typing import Any, Callable
+
+import polars as pl
+
+from onebit.core.config import config_from_mapping
+from onebit.core.errors import InputError, OnebitError
+from onebit.core.tables import REJECTS
+from onebit.core.units import config_in_site_units
+from onebit.pipeline.context import ReportRow, RunContext, Stage
+from onebit.readers.beams import BEAM_COLUMNS, decode_raw_beams
+from onebit.readers.camera import read_camera, truth_error
+from onebit.readers.motion import TOGGLE_COLUMNS, MotionConfig, motion_frames, read_motion, site_rules
+from onebit.readers.proximity import ProximityConfig, proximity_frames, read_proximity
+from onebit.readers.tables_csv import crossings_from_rows, true_crossings_columns, true_crossings_from_rows, truth_from_rows
+from onebit.scoring import beams as score_beams
+from onebit.scoring import clustertrack as score_clustertrack
+from onebit.scoring import findinghumo as score_findinghumo
+from onebit.scoring import intruder as score_intruder
+from onebit.scoring import istate as score_istate
+from onebit.scoring.crossings import ScoresConfig, score_crossings, true_crossings_from_truth, truth_regions
+from onebit.scoring.mot import GATES, Gate, mot_rows
+from onebit.trackers import beams, clustertrack, findinghumo, intruder, istate
+from onebit.trackers.base import ARTIFACTS, TrackerSpec
+from onebit.trackers.beams.correction import CorrectConfig, run_correction
+from onebit.viz import beams as viz_beams
+from onebit.viz import clustertrack as viz_clustertrack
+from onebit.viz import findinghumo as viz_findinghumo
+from onebit.viz import intruder as viz_intruder
+from onebit.viz import istate as viz_istate
+from onebit.viz.beams_correct import log_corrected_crossings
+from onebit.viz.events import log_crossings
+from onebit.viz.intruder import log_motion_states
+from onebit.viz.tracks import log_point_tracks, log_scores
+from onebit.viz.truth import log_truth
+
+#: ``score(tracker, tables, site, region_graph) -> (report rows, tables)``
+ScoreFn = Callable[..., tuple[list[ReportRow], dict[str, pl.DataFrame]]]
+#: ``log_run(rec, tracker, outputs, *, site, region_graph, config, tables)``
+VizFn = Callable[..., None]
+
+
+@dataclass(frozen=True)
+class TrackerEntry:
+    """One tracker in the pipeline: the tracker, how it is scored, how it is logged.
+
+    ``inputs`` maps an input name of the tracker to the tables that may feed it, first
+    present wins (the beams tracker reads the corrected crossings when the ``correct``
+    stage made them, else the decoded ones).
+    """
+
+    spec: TrackerSpec
+    score: ScoreFn
+    viz: VizFn | None = None
+    inputs: dict[str, tuple[str, ...]] = field(default_factory=dict)
+    #: the MOT gate of its tracks (:class:`onebit.scoring.mot.Gate`); ``None`` = no MOT rows
+    gate: Gate | None = None
+
+    @property
+    def name(self) -> str:
+        return self.spec.name
+
+
+#: Every tracker, in the order their stages run.
+TRACKERS: tuple[TrackerEntry, ...] = (
+    TrackerEntry(beams.SPEC, score_beams.score, viz_beams.log_run, {"crossings": ("corrected_crossings", "crossings")}, GATES["beams"]),
+    TrackerEntry(intruder.SPEC, score_intruder.score, viz_intruder.log_run, gate=GATES["intruder"]),
+    TrackerEntry(intruder.NAIVE_SPEC, score_intruder.score, viz_intruder.log_run, gate=GATES["intruder-naive"]),
+    TrackerEntry(clustertrack.SPEC, score_clustertrack.score, viz_clustertrack.log_run, gate=GATES["clustertrack"]),
+    *(TrackerEntry(spec, score_findinghumo.score, viz_findinghumo.log_run, gate=GATES[spec.name]) for spec in findinghumo.SPECS),
+    TrackerEntry(istate.SPEC, score_istate.score, viz_istate.log_run, gate=GATES["istate"]),
+)
+
+
+def tracker_names(entries: tuple[TrackerEntry, ...] = TRACKERS) -> tuple[str, ...]:
+    return tuple(e.name for e in entries)
+
+
+# --------------------------------------------------------------------------- reader stages
+
+
+def _crossings_available(ctx: RunContext) -> str | None:
+    if ctx.has_source("beams") or ctx.has_source("crossings"):
+        return None
+    return "no beams.csv, crossings.csv or /beams, /crossings MCAP channel in the dataset"
+
+
+def _crossings_work(ctx: RunContext) -> dict[str, pl.DataFrame]:
+    site = ctx.site
+    out: dict[str, pl.DataFrame] = {}
+    if ctx.has_source("beams"):
+        raw, path = ctx.source("beams", BEAM_COLUMNS)
+        dec = decode_raw_beams(raw, site.beam_ids, epoch=site.epoch, path=path)
+        ctx.add_rejects(dec.rejects)
+        out.update(crossings=dec.crossings, aborted=dec.aborted, beam_events=dec.events)
+        ctx.report += [
+            ("crossings", "decoded", float(dec.crossings.height), "crossings"),
+            ("crossings", "aborted", float(dec.aborted.height), "passes"),
+            ("crossings", "unfinished", float(dec.unfinished.height), "passes"),
+        ]
+        if ctx.has_source("crossings"):
+            ctx.report.append(("crossings", "ignored_crossings_csv", 1.0, "flag"))
+    else:
+        raw, path = ctx.source("crossings", ("t", "beam", "direction"))
+        cr, rej = crossings_from_rows(raw, site.beam_ids, epoch=site.epoch, path=path)
+        ctx.add_rejects(rej)
+        out["crossings"] = cr
+        ctx.report.append(("crossings", "decoded", float(cr.height), "crossings"))
+    return out
+
+
+def _crossings_viz(rec, ctx: RunContext, made: dict) -> None:
+    log_crossings(rec, made["crossings"], aborted=made.get("aborted"))
+
+
+def _truth_available(ctx: RunContext) -> str | None:
+    return None if ctx.has_source("truth") else "no truth.csv or /truth MCAP channel in the dataset"
+
+
+def _truth_work(ctx: RunContext) -> dict[str, pl.DataFrame]:
+    raw, path = ctx.source("truth", ("t", "target", "x", "y"))
+    truth, rej = truth_from_rows(raw, epoch=ctx.site.epoch, path=path)
+    ctx.add_rejects(rej)
+    truth = truth_regions(truth, ctx.region_graph)
+    out = {"truth": truth, "true_crossings": true_crossings_from_truth(truth, ctx.site, ctx.region_graph)}
+    if ctx.has_source("truth_crossings"):
+        raw, path = ctx.source("truth_crossings", true_crossings_columns(ctx.dataset / "truth_crossings.csv"))
+        sim_cr, rej = true_crossings_from_rows(raw, ctx.site.beam_ids, epoch=ctx.site.epoch, path=path)
+        ctx.add_rejects(rej)
+        out["sim_crossings"] = sim_cr
+    return out
+
+
+def _truth_viz(rec, ctx: RunContext, made: dict) -> None:
+    log_truth(rec, made["truth"])
+
+
+def _camera_available(ctx: RunContext) -> str | None:
+    if not (ctx.dataset / "camera.mp4").exists():
+        return "no camera.mp4 in the dataset"
+    if ctx.site.camera is None:
+        return "camera.mp4 present but site.toml has no [camera]"
+    return None
+
+
+def _camera_work(ctx: RunContext) -> dict[str, pl.DataFrame]:
+    res = read_camera(ctx.dataset / "camera.mp4", ctx.site)
+    ctx.add_rejects(res.rejects)
+    cam_truth = truth_regions(res.truth, ctx.region_graph)
+    ctx.report.append(("camera", "frames", float(res.frames), "frames"))
+    ctx.report.append(("camera", "tracks", float(cam_truth["target"].n_unique()) if cam_truth.height else 0.0, "tracks"))
+    if "truth" in ctx.tables:
+        err = truth_error(res.truth, ctx.tables["truth"], diagonal=ctx.site.diagonal)
+        ctx.report += [
+            ("camera", "truth_error", float(err["mean"]), ctx.site.units),
+            ("camera", "truth_error_rel", float(err["rel"]), "fraction of diagonal"),
+            ("camera", "missed", float(err["missed"]), "points"),
+        ]
+    return {"camera_truth": cam_truth, "camera_detections": res.detections}
+
+
+def _camera_viz(rec, ctx: RunContext, made: dict) -> None:
+    cam = made["camera_truth"]
+    log_point_tracks(rec, "camera", cam.with_columns(track=pl.col("target"), tracker=pl.lit("camera")))
+
+
+def _motion_available(ctx: RunContext) -> str | None:
+    if not ctx.has_source("motion"):
+        return "no motion.csv or /motion MCAP channel in the dataset"
+    if not ctx.site.motion_sensors:
+        return "motion log present but site.toml has no [[motion_sensors]]"
+    return None
+
+
+def _motion_work(ctx: RunContext) -> dict[str, pl.DataFrame]:
+    cfg = config_from_mapping(MotionConfig, ctx.config.get("motion"), section="motion")
+    ctx.config.setdefault("motion", {}).update({k: v for k, v in asdict(cfg).items() if v is not None})
+    site = ctx.site
+    ids = [m.id for m in site.motion_sensors]
+    raw, path = ctx.source("motion", TOGGLE_COLUMNS)
+    res = read_motion(raw, ids, epoch=site.epoch, path=path, rules=site_rules(site, cfg))
+    ctx.add_rejects(res.rejects)
+    frames = motion_frames(res.motion, ids, period=cfg.period)
+    ctx.report += [
+        ("motion", "edges", float(res.motion.height), "edges"),
+        ("motion", "suppressed", float(res.suppressed.height), "edges"),
+        ("motion", "rejected", float(res.rejects.height), "rows"),
+    ]
+    return {"motion": res.motion, "frames": frames, "motion_suppressed": res.suppressed}
+
+
+def _motion_viz(rec, ctx: RunContext, made: dict) -> None:
+    log_motion_states(rec, made["motion"], [m.id for m in ctx.site.motion_sensors])
+
+
+def _proximity_available(ctx: RunContext) -> str | None:
+    if not ctx.site.proximity_sensors:
+        return "site.toml has no proximity sensors"
+    if not ctx.has_source("proximity"):
+        return "no proximity.csv or /proximity MCAP channel in the dataset"
+    return None
+
+
+def _proximity_work(ctx: RunContext) -> dict[str, pl.DataFrame]:
+    cfg = config_from_mapping(ProximityConfig, ctx.section("proximity"), section="proximity")
+    ctx.config.setdefault("proximity", {}).update(asdict(cfg))
+    ids = [p.id for p in ctx.site.proximity_sensors]
+    raw, path = ctx.source("proximity", TOGGLE_COLUMNS)
+    res = read_proximity(raw, ids, epoch=ctx.site.epoch, path=path, rules=cfg.rules)
+    ctx.add_rejects(res.rejects)
+    frames = proximity_frames(
+        res.motion, ids, period=cfg.period, start=None if cfg.start < 0 else cfg.start, instants=cfg.instants or None
+    )
+    ctx.report += [
+        ("proximity", "edges", float(res.motion.height), "edges"),
+        ("proximity", "suppressed", float(res.suppressed.height), "edges"),
+        ("proximity", "rejected", float(res.rejects.height), "rows"),
+        ("proximity", "instants", float(frames["slot"].n_unique()) if frames.height else 0.0, "instants"),
+    ]
+    return {"proximity": res.motion, "proximity_frames": frames, "proximity_suppressed": res.suppressed}
+
+
+# --------------------------------------------------------------------------- correction (Bobadilla V)
+
+
+def _correct_available(ctx: RunContext) -> str | None:
+    if not ctx.site.beams:
+        return "site has no beams"
+    try:
+        section = ctx.section("correct")
+    except InputError:  # a broken run.toml: run the stage so it fails naming the file
+        return None
+    if section.get("enabled", True) is False:
+        return "disabled: [correct] enabled = false"
+    n = section.get("n")
+    if n is None and ctx.site.targets is None:
+        return "number of agents unknown: set site.toml targets or run.toml [correct] n"
+    return None
+
+
+def _correct_work(ctx: RunContext) -> dict[str, pl.DataFrame]:
+    cfg = config_from_mapping(CorrectConfig, ctx.section("correct"), section="correct")
+    n = cfg.n if cfg.n is not None else ctx.site.targets
+    ctx.config.setdefault("correct", {}).update({k: v for k, v in asdict(cfg).items() if v is not None} | {"n": n})
+    res = run_correction(ctx.tables["crossings"], ctx.region_graph, cfg, n)
+    ctx.report += res.report
+    return res.tables
+
+
+def _correct_viz(rec, ctx: RunContext, made: dict) -> None:
+    log_corrected_crossings(rec, made["corrected_crossings"], ctx.site)
+
+
+# --------------------------------------------------------------------------- trackers
+
+
+def tracker_config(entry: TrackerEntry, ctx: RunContext):
+    """The tracker's config from its ``run.toml`` section (``--config``, else the dataset's own
+    ``run.toml``: :meth:`RunContext.section`), its lengths in the site's units."""
+    cfg = config_from_mapping(entry.spec.config, ctx.section(entry.name), section=entry.name)
+    ctx.config.setdefault(entry.name, {}).update(asdict(cfg))
+    return config_in_site_units(cfg, ctx.site)
+
+
+def tracker_inputs(entry: TrackerEntry, ctx: RunContext) -> dict[str, Any]:
+    inputs: dict[str, Any] = {}
+    for key in entry.spec.needs:
+        sources = entry.inputs.get(key, (key,))
+        inputs[key] = next(ctx.tables[s] for s in sources if s in ctx.tables)
+    inputs.update({k: ctx.tables[k] for k in entry.spec.wants if k in ctx.tables})
+    inputs["region_graph"] = ctx.region_graph
+    return inputs
+
+
+def tracker_stage(entry: TrackerEntry) -> Stage:
+    name = entry.name
+    spec = entry.spec
+
+    def available(ctx: RunContext) -> str | None:
+        if name not in ctx.trackers:
+            return f"tracker '{name}' not selected (--trackers)"
+        for key in spec.needs:
+            if not any(s in ctx.tables for s in entry.inputs.get(key, (key,))):
+                return f"input table '{key}' not produced by an earlier stage"
+        return spec.available(ctx.site) if spec.available is not None else None
+
+    def work(ctx: RunContext) -> dict[str, Any]:
+        cfg = ctx.configs[name] = tracker_config(entry, ctx)
+        out = spec.run(tracker_inputs(entry, ctx), ctx.site, cfg)
+        made: dict[str, Any] = {f"{name}_{k}": v for k, v in out.items() if k != ARTIFACTS}
+        if ARTIFACTS in out:
+            made[ARTIFACTS] = out[ARTIFACTS]
+        return made
+
+    def viz(rec, ctx: RunContext, made: dict) -> None:
+        if entry.viz is None:
+            return
+        out = {k[len(name) + 1 :]: v for k, v in made.items() if k.startswith(f"{name}_")}
+        if ARTIFACTS in made:
+            out[ARTIFACTS] = made[ARTIFACTS]
+        entry.viz(rec, name, out, site=ctx.site, region_graph=ctx.region_graph, config=ctx.configs[name], tables=ctx.tables)
+
+    return Stage(name, (), (f"{name}_tracks",), available, work, viz)
+
+
+# --------------------------------------------------------------------------- scores
+
+
+def scores_stage(trackers: tuple[TrackerEntry, ...] = TRACKERS) -> Stage:
+    """The ``scores`` stage: crossings against the truth, then every tracker that ran ok: its
+    paper's metrics (``entry.score``) and the standard MOT metrics (:func:`onebit.scoring.mot.mot_rows`)."""
+
+    def work(ctx: RunContext) -> dict[str, pl.DataFrame]:
+        cfg = config_from_mapping(ScoresConfig, ctx.config.get("scores"), section="scores")
+        ctx.config.setdefault("scores", {}).update(asdict(cfg))
+        tables = dict(ctx.tables)
+        tables["timings"] = pl.DataFrame(
+            {"stage": list(ctx.seconds), "seconds": list(ctx.seconds.values())}, schema={"stage": pl.String, "seconds": pl.Float64}
+        )
+        rows, out = score_crossings(tables, cfg)
+        ctx.report += rows
+        tables.update(out)
+        for entry in trackers:
+            if entry.name not in ctx.trackers or not ctx.status.get(entry.name, "").startswith("ok"):
+                continue
+            try:  # one tracker's scoring failing (say, a sensor without a region) keeps the others'
+                rows, made = entry.score(entry.name, tables, ctx.site, ctx.region_graph)
+                rows = rows + mot_rows(entry.name, entry.gate, tables, ctx.site, ctx.region_graph)
+            except OnebitError as exc:
+                ctx.status[f"scores/{entry.name}"] = f"failed: {exc}"
+                continue
+            ctx.report += rows
+            out.update(made)
+            tables.update(made)
+        rej = ctx.tables.get("rejects", pl.DataFrame(schema=REJECTS))
+        ctx.report.append(("rejects", "rows", float(rej.height), "rows"))
+        out["timings"] = tables["timings"]
+        return out
+
+    def viz(rec, ctx: RunContext, made: dict) -> None:
+        for entry in trackers:
+            sc = made.get(f"{entry.name}_scores")
+            if sc is not None:
+                log_scores(rec, entry.name, sc)
+
+    return Stage("scores", (), ("crossing_matches", "timings"), lambda ctx: None, work, viz)
+
+
+# --------------------------------------------------------------------------- the list
+
+
+def stages(trackers: tuple[TrackerEntry, ...] = TRACKERS) -> list[Stage]:
+    """The declared pipeline, in order (module docstring)."""
+    return [
+        Stage("crossings", (), ("crossings", "aborted", "beam_events"), _crossings_available, _crossings_work, _crossings_viz),
+        Stage("truth", (), ("truth", "true_crossings", "sim_crossings"), _truth_available, _truth_work, _truth_viz),
+        Stage("camera", (), ("camera_truth", "camera_detections"), _camera_available, _camera_work, _camera_viz),
+        Stage("motion", (), ("motion", "frames", "motion_suppressed"), _motion_available, _motion_work, _motion_viz),
+        Stage("proximity", (), ("proximity", "proximity_frames", "proximity_suppressed"), _proximity_available, _proximity_work),
+        Stage("correct", ("crossings",), ("corrected_crossings", "correct_insertions", "correct_initial"), _correct_available,
+              _correct_work, _correct_viz),  # fmt: skip
+        *(tracker_stage(e) for e in trackers),
+        scores_stage(trackers),
+    ]

@@ -1,0 +1,212 @@
+"""Scores: truth -> true regions and crossings; reconstructed agents matched to true agents.
+
+* :func:`true_crossings_from_truth` -- truth positions -> the region each target is in at each
+  sample -> a crossing wherever the region changes (the beam is the one joining the two
+  regions, nearest to the two samples when several do, as b and c in the building).
+* :func:`match_crossings` -- observed crossings matched one-to-one to true crossings with the
+  same beam and direction, nearest in time within a tolerance.
+* :func:`assignment_scores` -- reconstructed agents matched one-to-one to true agents by
+  maximising the number of shared crossings (the one association,
+  :func:`onebit.scoring.association.associate`, with cost minus one per shared crossing).
+* :func:`region_scores` -- the region-level localisation error of every matched agent.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import polars as pl
+import shapely
+
+from onebit.core.config import check_range
+from onebit.core.region_graph import RegionGraph
+from onebit.core.site import Site
+from onebit.core.tables import SCORES, TRUE_CROSSINGS, conform
+from onebit.scoring.association import associate
+from onebit.scoring.correction import score_correction
+
+
+@dataclass(frozen=True, kw_only=True)
+class ScoresConfig:
+    """Scoring parameters.
+
+    crossing_tolerance_s : largest time difference between an observed crossing and the true
+        crossing it is matched to (seconds).
+    """
+
+    crossing_tolerance_s: float = 1.0
+
+    def __post_init__(self) -> None:
+        check_range(self, "crossing_tolerance_s", 0.0, None)
+
+
+def truth_regions(truth: pl.DataFrame, rg: RegionGraph) -> pl.DataFrame:
+    """Fill ``region`` of a truth table from the region graph (vectorised point-in-polygon)."""
+    names = np.asarray(list(rg.names) + [None], dtype=object)
+    idx = rg.region_index_of(truth["x"].to_numpy(), truth["y"].to_numpy())
+    return truth.with_columns(region=pl.Series(names[idx].tolist(), dtype=pl.String))
+
+
+def true_crossings_from_truth(truth: pl.DataFrame, site: Site, rg: RegionGraph) -> pl.DataFrame:
+    """Crossings implied by the truth positions (TRUE_CROSSINGS schema).
+
+    A sample outside every region (inside a wall, exactly on a beam) keeps the region of the
+    sample before it. Consecutive samples of one target in regions ``i != j`` give a crossing
+    at the mid time, on the beam ``beta`` with an edge ``i -> j`` nearest to the mid point.
+    """
+    if truth.height == 0:
+        return pl.DataFrame(schema=TRUE_CROSSINGS)
+    idx = rg.region_index_of(truth["x"].to_numpy(), truth["y"].to_numpy())
+    tr = truth.select("t", "target", "x", "y").with_columns(ridx=pl.Series(idx).replace(-1, None)).sort(["target", "t"])
+    tr = tr.with_columns(pl.col("ridx").forward_fill().over("target"))
+    prev = [pl.col(c).shift(1).over("target").alias(f"p_{c}") for c in ("t", "x", "y", "ridx")]
+    ch = tr.with_columns(prev).filter(pl.col("p_ridx").is_not_null() & (pl.col("ridx") != pl.col("p_ridx")))
+    if ch.height == 0:
+        return pl.DataFrame(schema=TRUE_CROSSINGS)
+    beams = list(rg.beam_source)
+    bidx = rg.index
+    fs = np.array([bidx[rg.beam_source[b]] for b in beams])
+    ft = np.array([bidx[rg.beam_target[b]] for b in beams])
+    i = ch["p_ridx"].to_numpy()[:, None]
+    j = ch["ridx"].to_numpy()[:, None]
+    fwd = (fs[None, :] == i) & (ft[None, :] == j)
+    bwd = (fs[None, :] == j) & (ft[None, :] == i)
+    mid = np.c_[(ch["x"] + ch["p_x"]).to_numpy() / 2, (ch["y"] + ch["p_y"]).to_numpy() / 2]
+    lines = np.array([site.beam(b).line for b in beams], dtype=object)
+    dist = shapely.distance(shapely.points(mid)[:, None], lines[None, :])
+    dist = np.where(fwd | bwd, dist, np.inf)
+    k = np.argmin(dist, axis=1)
+    found = np.isfinite(dist[np.arange(len(k)), k])
+    direction = np.where(fwd[np.arange(len(k)), k], 1, -1)
+    out = pl.DataFrame(
+        {
+            "t": ((ch["t"] + ch["p_t"]) / 2).to_numpy(),
+            "beam": np.asarray(beams, dtype=object)[k].tolist(),
+            "direction": direction.astype(np.int8),
+            "target": ch["target"],
+        }
+    ).filter(pl.Series(found))
+    return conform(out, TRUE_CROSSINGS).sort("t")
+
+
+def match_crossings(observed: pl.DataFrame, true: pl.DataFrame, tolerance: float) -> pl.DataFrame:
+    """Observed crossings with ``target`` and ``dt`` of the true crossing each one recovers.
+
+    Each observed crossing takes the nearest true crossing of the same beam and direction
+    within ``tolerance`` seconds; when two observed crossings take the same true one, the
+    nearer keeps it and the other stays unmatched (target null).
+    """
+    obs = observed.with_row_index("obs").sort("t")
+    tru = true.select("t", "beam", "direction", "target").with_row_index("true_id").with_columns(t_true=pl.col("t")).sort("t")
+    j = obs.join_asof(tru.drop("target"), on="t", by=["beam", "direction"], strategy="nearest", tolerance=tolerance, check_sortedness=False)
+    j = j.with_columns(dt=(pl.col("t") - pl.col("t_true")).abs())
+    best = pl.col("dt") == pl.col("dt").min().over("true_id")
+    first = pl.col("obs") == pl.col("obs").filter(best).min().over("true_id")
+    j = j.with_columns(pl.when(pl.col("true_id").is_not_null() & best & first).then(pl.col("true_id")).otherwise(None).alias("true_id"))
+    j = j.join(tru.select("true_id", "target"), on="true_id", how="left")
+    return j.sort("obs").drop("obs", "t_true")
+
+
+def assignment_scores(
+    matched: pl.DataFrame, assignment: pl.DataFrame
+) -> tuple[float, dict[str, str]]:
+    """Fraction of observed crossings attributed to the matched true agent, and the matching.
+
+    ``matched``: observed crossings in order with ``target`` (null when no true crossing
+    matched); ``assignment``: the same crossings in the same order with ``track``.
+    The agents are matched by the one association
+    (:func:`~onebit.scoring.association.associate`) with the per-crossing cost
+    :math:`c_s = -1` for every crossing a (track, target) pair shares, summed: minimum
+    :math:`\\sum C_{kg} = -` maximum number of shared crossings, gate :math:`\\gamma = 0`
+    (an agent sharing no crossing with a true agent stays unmatched). The accuracy is
+    :math:`-\\sum_{matched} C_{kg} / N_{crossings}`.
+    """
+    if assignment.height == 0:
+        return 1.0, {}
+    pairs = pl.DataFrame({"track": assignment["track"], "target": matched["target"].cast(pl.String)}).drop_nulls()
+    if pairs.height == 0:
+        return 0.0, {}
+    matching = associate(pairs.with_columns(cost=pl.lit(-1.0)), cost="cost", reduce="sum", gate=0.0)
+    mapping = dict(zip(matching["track"], matching["target"]))
+    return float(-matching["cost"].sum() / assignment.height), mapping
+
+
+def region_scores(
+    tracks: pl.DataFrame, truth: pl.DataFrame, mapping: dict[str, str], rg: RegionGraph, *, tracker: str
+) -> pl.DataFrame:
+    """Per truth sample of every matched target: the matched track's region against the truth.
+
+    ``error`` (world units) = distance from the true position to the track's region polygon
+    (0 when the true agent is inside the estimated region); ``hop_error`` = hops between the
+    estimated and the true region in the undirected region graph.
+    """
+    if not mapping or truth.height == 0 or tracks.height == 0:
+        return pl.DataFrame(schema=SCORES)
+    m = pl.DataFrame({"track": list(mapping), "target": list(mapping.values())})
+    est = tracks.select("track", "t", est_region="region").join(m, on="track").sort("t")
+    tru = truth_regions(truth.select("t", "target", "x", "y"), rg).drop_nulls("region").sort("t")
+    j = tru.join_asof(est, on="t", by="target", strategy="backward", check_sortedness=False).drop_nulls("est_region")
+    if j.height == 0:
+        return pl.DataFrame(schema=SCORES)
+    idx = rg.index
+    e = np.array([idx[r] for r in j["est_region"].to_list()])
+    g = np.array([idx[r] for r in j["region"].to_list()])
+    hops = rg.hop_distance()[e, g]
+    polys = np.asarray(rg.polygons, dtype=object)
+    err = shapely.distance(polys[e], shapely.points(j["x"].to_numpy(), j["y"].to_numpy()))
+    out = j.select("track", "target", "t").with_columns(
+        tracker=pl.lit(tracker), error=pl.Series(err, dtype=pl.Float64), hop_error=pl.Series(hops, dtype=pl.Int64)
+    )
+    return conform(out, SCORES)
+
+
+def error_summary(scores: pl.DataFrame, *, stage: str, unit: str) -> list[tuple[str, str, float, str]]:
+    """Mean, median, p90 error and the fraction within 1..4 hops, as report rows."""
+    if scores.height == 0:
+        return []
+    e = scores["error"]
+    rows = [
+        (stage, "error_mean", float(e.mean()), unit),
+        (stage, "error_median", float(e.median()), unit),
+        (stage, "error_p90", float(e.quantile(0.9, "linear")), unit),
+    ]
+    h = scores["hop_error"].drop_nulls()
+    if h.len():
+        rows.append((stage, "region_accuracy", float((h == 0).mean()), "fraction"))
+        rows.append((stage, "hop_error_mean", float(h.mean()), "hops"))
+        rows += [(stage, f"within_{k}_hops", float((h <= k).mean()), "fraction") for k in (1, 2, 3, 4)]
+    return rows
+
+
+def score_crossings(tables: dict, cfg: ScoresConfig) -> tuple[list[tuple[str, str, float, str]], dict[str, pl.DataFrame]]:
+    """Decoded crossings against the truth, and the correction's restored crossings.
+
+    Report: ``crossings/decoded_match`` (fraction of true crossings some observed crossing
+    recovers), ``crossings/true``, ``crossings/spurious``; with the ``correct`` stage, its
+    :func:`~onebit.scoring.correction.score_correction` rows; in simulation
+    ``truth/crossings_from_positions`` (fraction of the simulator's own crossing list that the
+    truth positions reproduce). Tables: ``crossing_matches`` (observed crossings with the true
+    target they recover), ``corrected_targets`` (per corrected crossing, its true target).
+    """
+    rows: list[tuple[str, str, float, str]] = []
+    out: dict[str, pl.DataFrame] = {}
+    t = tables
+    if "crossings" in t and "true_crossings" in t:
+        m = match_crossings(t["crossings"], t["true_crossings"], cfg.crossing_tolerance_s)
+        n_true = t["true_crossings"].height
+        recovered = m["true_id"].drop_nulls().n_unique()
+        rows.append(("crossings", "decoded_match", recovered / n_true if n_true else 1.0, "fraction"))
+        rows.append(("crossings", "true", float(n_true), "crossings"))
+        rows.append(("crossings", "spurious", float(m["true_id"].null_count()), "crossings"))
+        out["crossing_matches"] = m
+        if "corrected_crossings" in t:
+            c_rows, c_tables, targets = score_correction(t, m)
+            rows += c_rows
+            out.update(c_tables)
+            out["corrected_targets"] = targets
+    if "sim_crossings" in t and "true_crossings" in t:
+        m2 = match_crossings(t["true_crossings"], t["sim_crossings"], cfg.crossing_tolerance_s)
+        n = t["sim_crossings"].height
+        rows.append(("truth", "crossings_from_positions", m2["true_id"].drop_nulls().n_unique() / n if n else 1.0, "fraction"))
+    return rows, out

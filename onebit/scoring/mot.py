@@ -1,0 +1,350 @@
+"""Standard multi-target tracking metrics of every tracker, from maintained libraries.
+
+Beside each paper's own metrics (DESIGN.md, "Scores and reports"):
+
+* MOTA, MOTP, ID switches (CLEAR MOT, Bernardin & Stiefelhagen 2008) and IDF1 (Ristani et al.
+  2016) from ``motmetrics``;
+* HOTA, DetA, AssA (Luiten et al. 2021) from ``trackeval`` (``motmetrics`` 1.4.0 has no HOTA).
+
+Frames, objects, hypotheses
+---------------------------
+A frame is one of the tracker's sample times (the HMM slots, the particle filter's
+iterations, the CLUSTERTRACK instants); the objects of a frame are the targets with a truth
+sample within half the tracker's sample period, taken at the nearest time
+(:func:`~onebit.scoring.association.truth_at`); the hypotheses are the tracks with a sample at
+the frame. The beams tracker is event-driven (a row per crossing, the region held in between),
+so its frames are the truth's sample times and each agent holds its last region.
+
+Distance :math:`d` between an object and a hypothesis, by the space the tracks live in:
+
+* ``point``: Euclidean distance, site units;
+* ``node``: hops between the true node and the track's node on the sensor graph;
+* ``region``: hops between the true region and the track's region on the region graph.
+
+Gate and similarity
+-------------------
+Every tracker has one gate :math:`\\gamma` (:data:`GATES`, in the paper's unit). CLEAR and
+the ID measures match an object and a hypothesis only when :math:`d \\le \\gamma`
+(``motmetrics`` distance, ``NaN`` beyond the gate). HOTA needs a similarity in
+:math:`[0, 1]`:
+
+.. math::
+
+    s = \\max\\big(0,\\; 1 - d / (2\\gamma)\\big),
+
+so the gate sits at :math:`s = 0.5`, the MOT Challenge's IoU threshold (``trackeval``'s CLEAR
+default), and HOTA, averaged over :math:`\\alpha = 0.05, 0.10, \\dots, 0.95` as TrackEval
+reports it, integrates localisation from :math:`d \\le 0.1\\gamma` to :math:`d \\le 1.9\\gamma`.
+
+.. math::
+
+    \\mathrm{MOTA} = 1 - \\frac{\\sum_f (\\mathrm{FN}_f + \\mathrm{FP}_f + \\mathrm{IDSW}_f)}{\\sum_f \\mathrm{GT}_f},
+    \\quad
+    \\mathrm{MOTP} = \\frac{\\sum_{f, i} d_{f,i}}{\\sum_f c_f},
+    \\quad
+    \\mathrm{IDF1} = \\frac{2\\,\\mathrm{IDTP}}{2\\,\\mathrm{IDTP} + \\mathrm{IDFP} + \\mathrm{IDFN}},
+
+.. math::
+
+    \\mathrm{DetA}_\\alpha = \\frac{|\\mathrm{TP}|}{|\\mathrm{TP}| + |\\mathrm{FN}| + |\\mathrm{FP}|},
+    \\quad
+    \\mathrm{AssA}_\\alpha = \\frac{1}{|\\mathrm{TP}|} \\sum_{c \\in \\mathrm{TP}}
+        \\frac{|\\mathrm{TPA}(c)|}{|\\mathrm{TPA}(c)| + |\\mathrm{FNA}(c)| + |\\mathrm{FPA}(c)|},
+    \\quad
+    \\mathrm{HOTA}_\\alpha = \\sqrt{\\mathrm{DetA}_\\alpha \\mathrm{AssA}_\\alpha}.
+
+These metrics bring their own matchings by definition (per frame for CLEAR, global for IDF1,
+alignment-weighted for HOTA); the paper metrics use the one association of
+:mod:`onebit.scoring.association`.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Literal
+
+import motmetrics as mm
+import numpy as np
+import polars as pl
+from trackeval.metrics import HOTA
+
+from onebit.core.errors import OnebitError
+from onebit.core.region_graph import RegionGraph
+from onebit.core.site import Site
+from onebit.core.units import to_site_units
+from onebit.scoring.association import truth_at
+from onebit.scoring.crossings import truth_regions
+from onebit.scoring.findinghumo import truth_nodes
+from onebit.trackers.findinghumo.eatg import hop_matrix
+
+ReportRow = tuple[str, str, float, str]
+
+#: Frame tables of :func:`mot_metrics`.
+OBJECTS = pl.Schema({"t": pl.Float64, "target": pl.String})
+HYPOTHESES = pl.Schema({"t": pl.Float64, "track": pl.String})
+DISTANCES = pl.Schema({"t": pl.Float64, "target": pl.String, "track": pl.String, "distance": pl.Float64})
+
+
+@dataclass(frozen=True)
+class Gate:
+    """The MOT gate of one tracker.
+
+    space : where its tracks live: ``point`` (x, y), ``node`` (sensor-graph node) or
+        ``region`` (region-graph region).
+    size : the gate in ``unit``.
+    unit : ``cells`` (the tracker's grid cell), ``R`` (the CLUSTERTRACK sensing radius),
+        ``sensing radius`` (the site's median sensor radius), ``hops`` or ``m`` (metres,
+        converted to the site's units).
+    reason : why this gate, in the paper's terms.
+    """
+
+    space: Literal["point", "node", "region"]
+    size: float
+    unit: Literal["cells", "R", "sensing radius", "hops", "m"]
+    reason: str
+
+
+_CELLS = Gate(
+    "point", 2.0, "cells",
+    "Schiff & Goldberg score in grid cells; 'within two world-space cells' is their accuracy criterion "
+    "(VIII: perfect sensors put every estimate there) and the intruder's bounding prism is 2 cells wide",
+)
+_HOPS = Gate("node", 1.0, "hops", "De et al. score hops on the sensor graph; 1 hop = the adjacent sensor, the PIR's resolution")
+
+#: The papers' trackers' MOT gates (docs/metrics.md copies this table); the pipeline's stage
+#: list gives each tracker its gate (``TrackerEntry.gate``).
+GATES: dict[str, Gate] = {
+    "beams": Gate("region", 1.0, "hops", "Bobadilla et al. localise to a region; 1 hop = the adjacent region, one beam away"),
+    "intruder": _CELLS,
+    "intruder-naive": _CELLS,
+    "clustertrack": Gate("point", 1.0, "R", "Singh et al. report error in units of the sensing radius R; within R the target is resolved"),
+    "findinghumo": _HOPS,
+    "hmm1": _HOPS,
+    "hmm2": _HOPS,
+    "istate": Gate("point", 1.0, "sensing radius", "O'Kane's I-state has no unit of its own; a point summary within one sensing radius is what the sensors can tell apart"),
+}
+
+_METRICS = ("mota", "motp", "idf1", "num_switches", "num_misses", "num_false_positives", "num_objects")
+
+
+# --------------------------------------------------------------------------- the metrics
+
+
+def similarity(distance: np.ndarray, gate: float) -> np.ndarray:
+    """HOTA similarity :math:`s = \\max(0, 1 - d / (2\\gamma))`; 0 where ``distance`` is NaN."""
+    s = 1.0 - np.asarray(distance, float) / (2.0 * gate)
+    return np.clip(np.nan_to_num(s, nan=0.0), 0.0, 1.0)
+
+
+def frame_blocks(objects: pl.DataFrame, hypotheses: pl.DataFrame, distances: pl.DataFrame):
+    """The frames as the libraries take them: per frame the object ids, the hypothesis ids and
+    the (objects x hypotheses) distance matrix (NaN where no distance is given).
+
+    Ids are 0-based codes of the sorted target and track names (``trackeval`` wants
+    contiguous ids). Returns ``(frames, object_ids, hypothesis_ids, matrices)``.
+    """
+    targets = objects["target"].unique().sort()
+    tracks = hypotheses["track"].unique().sort()
+    o = objects.select("t", "target").unique().join(targets.to_frame().with_row_index("oi"), on="target")
+    h = hypotheses.select("t", "track").unique().join(tracks.to_frame().with_row_index("hi"), on="track")
+    frames = pl.concat([o["t"], h["t"]]).unique().sort()
+    o = o.sort("t", "oi")
+    h = h.sort("t", "hi")
+    full = (
+        o.join(h, on="t")  # every object x hypothesis of a frame
+        .join(distances.select("t", "target", "track", "distance"), on=["t", "target", "track"], how="left")
+        .sort("t", "oi", "hi")
+    )
+    fr = frames.to_numpy()
+    ob = np.searchsorted(o["t"].to_numpy(), fr, side="left"), np.searchsorted(o["t"].to_numpy(), fr, side="right")
+    hb = np.searchsorted(h["t"].to_numpy(), fr, side="left"), np.searchsorted(h["t"].to_numpy(), fr, side="right")
+    n_o, n_h = ob[1] - ob[0], hb[1] - hb[0]
+    db = np.r_[0, np.cumsum(n_o * n_h)]
+    oi, hi = o["oi"].to_numpy().astype(np.int64), h["hi"].to_numpy().astype(np.int64)
+    d = full["distance"].fill_null(np.nan).to_numpy().astype(float)
+    obj_ids = [oi[a:b] for a, b in zip(*ob)]
+    hyp_ids = [hi[a:b] for a, b in zip(*hb)]
+    mats = [d[db[f] : db[f + 1]].reshape(n_o[f], n_h[f]) for f in range(len(fr))]
+    return fr, obj_ids, hyp_ids, mats
+
+
+def mot_metrics(objects: pl.DataFrame, hypotheses: pl.DataFrame, distances: pl.DataFrame, *, gate: float) -> dict[str, float]:
+    """MOTA, MOTP, IDF1, ID switches (motmetrics) and HOTA, DetA, AssA (trackeval).
+
+    Parameters
+    ----------
+    objects : ``(t, target)``, the targets present at each frame (:data:`OBJECTS`).
+    hypotheses : ``(t, track)``, the tracks present at each frame (:data:`HYPOTHESES`).
+    distances : ``(t, target, track, distance)`` for object-hypothesis pairs of a frame
+        (:data:`DISTANCES`); a pair without a row cannot match.
+    gate : :math:`\\gamma`, largest distance of a CLEAR / ID match; the HOTA similarity is
+        :math:`\\max(0, 1 - d / 2\\gamma)` (module docstring).
+
+    Returns
+    -------
+    ``mota, motp, idf1, id_switches, misses, false_positives, objects, frames, hota, deta, assa``;
+    NaN where undefined (MOTP without a match).
+
+    The libraries take one frame at a time (``MOTAccumulator.update``, TrackEval's per-timestep
+    lists): the loop over frames is their interface; the frame arrays are built vectorised.
+    """
+    if not gate > 0:
+        raise OnebitError(f"mot_metrics: gate={gate!r}; expected a positive distance")
+    frames, obj_ids, hyp_ids, mats = frame_blocks(objects, hypotheses, distances)
+    acc = mm.MOTAccumulator(auto_id=False)
+    sims = []
+    for f, (o, h, d) in enumerate(zip(obj_ids, hyp_ids, mats)):  # the libraries' per-frame API
+        acc.update(o, h, np.where(d <= gate, d, np.nan), frameid=f)
+        sims.append(similarity(d, gate))
+    n_obj, n_hyp = sum(len(o) for o in obj_ids), sum(len(h) for h in hyp_ids)
+    if len(frames):
+        s = mm.metrics.create().compute(acc, metrics=list(_METRICS), name="run", return_dataframe=False)
+    else:
+        s = dict.fromkeys(_METRICS, 0)
+        s.update(mota=np.nan, motp=np.nan, idf1=np.nan)
+    data = {
+        "num_timesteps": len(frames),
+        "num_gt_ids": objects["target"].n_unique(),
+        "num_tracker_ids": hypotheses["track"].n_unique(),
+        "num_gt_dets": n_obj,
+        "num_tracker_dets": n_hyp,
+        "gt_ids": obj_ids,
+        "tracker_ids": hyp_ids,
+        "similarity_scores": sims,
+    }
+    hota = HOTA().eval_sequence(data)
+    return {
+        "mota": float(s["mota"]) if n_obj else float("nan"),  # 1 - FP / 0: undefined without truth
+        "motp": float(s["motp"]),
+        "idf1": float(s["idf1"]),
+        "id_switches": float(s["num_switches"]),
+        "misses": float(s["num_misses"]),
+        "false_positives": float(s["num_false_positives"]),
+        "objects": float(n_obj),
+        "frames": float(len(frames)),
+        "hota": float(np.mean(hota["HOTA"])),
+        "deta": float(np.mean(hota["DetA"])),
+        "assa": float(np.mean(hota["AssA"])),
+    }
+
+
+# --------------------------------------------------------------------------- frames of a tracker
+
+
+def _period(t: pl.Series) -> float:
+    u = t.unique().sort().to_numpy()
+    return float(np.median(np.diff(u))) if len(u) > 1 else 1.0
+
+
+def point_frames(tracks: pl.DataFrame, truth: pl.DataFrame) -> tuple[pl.DataFrame, pl.DataFrame, pl.DataFrame]:
+    """Objects, hypotheses and Euclidean distances of point tracks (``y`` null = 1D, taken 0)."""
+    hyp = tracks.drop_nulls("x").select("t", "track", "x", pl.col("y").fill_null(0.0))
+    tol = _period(hyp["t"]) / 2 + 1e-9
+    obj = truth_at(hyp["t"].unique(), truth.drop_nulls("x").with_columns(pl.col("y").fill_null(0.0)), tolerance=tol)
+    dist = obj.join(hyp, on="t").select(
+        "t", "target", "track", distance=((pl.col("x") - pl.col("true_x")) ** 2 + (pl.col("y") - pl.col("true_y")) ** 2).sqrt()
+    )
+    return obj.select(list(OBJECTS)), hyp.select(list(HYPOTHESES)), dist
+
+
+def node_frames(tracks: pl.DataFrame, truth: pl.DataFrame, site: Site) -> tuple[pl.DataFrame, pl.DataFrame, pl.DataFrame]:
+    """Objects, hypotheses and hop distances of sensor-graph node tracks (unreachable: no pair)."""
+    g = site.sensor_graph
+    hops = hop_matrix(g.nodes, g.edges).astype(float)
+    hops[hops > len(g.nodes)] = np.nan
+    hyp = tracks.drop_nulls("node").select("t", "track", "node")
+    tol = _period(hyp["t"]) / 2 + 1e-9
+    obj = truth_at(hyp["t"].unique(), truth_nodes(truth, site).drop_nulls("node"), tolerance=tol, columns=("node",))
+    return obj.select(list(OBJECTS)), hyp.select(list(HYPOTHESES)), _hop_pairs(obj, hyp, "node", list(g.nodes), hops)
+
+
+def region_frames(tracks: pl.DataFrame, truth: pl.DataFrame, rg: RegionGraph) -> tuple[pl.DataFrame, pl.DataFrame, pl.DataFrame]:
+    """Objects, hypotheses and hop distances of region tracks held between their rows.
+
+    Frames = the truth's sample times; each track holds the region of its last row at or
+    before the frame (from its first row on).
+    """
+    tru = truth_regions(truth.select("t", "target", "x", "y"), rg).drop_nulls("region")
+    obj = tru.select("t", "target", true_region="region").sort("t")
+    names = tracks["track"].unique().sort()
+    grid = pl.DataFrame({"t": obj["t"].unique().sort()}).join(names.to_frame(), how="cross").sort("t")
+    est = tracks.drop_nulls("region").select("t", "track", "region").sort("t")
+    hyp = grid.join_asof(est, on="t", by="track", strategy="backward", check_sortedness=False).drop_nulls("region")
+    hops = rg.hop_distance().astype(float)
+    hops[hops < 0] = np.nan
+    return obj.select(list(OBJECTS)), hyp.select(list(HYPOTHESES)), _hop_pairs(obj, hyp, "region", list(rg.names), hops)
+
+
+def _hop_pairs(obj: pl.DataFrame, hyp: pl.DataFrame, col: str, names: list[str], hops: np.ndarray) -> pl.DataFrame:
+    """``(t, target, track, distance)``: hops between the object's ``true_<col>`` and the hypothesis' ``col``."""
+    pairs = obj.join(hyp, on="t")
+    code = dict(zip(names, range(len(names))))
+    i = pairs[f"true_{col}"].replace_strict(code, default=-1, return_dtype=pl.Int64).to_numpy()
+    j = pairs[col].replace_strict(code, default=-1, return_dtype=pl.Int64).to_numpy()
+    d = np.where((i >= 0) & (j >= 0), hops[np.maximum(i, 0), np.maximum(j, 0)], np.nan)
+    return pairs.select("t", "target", "track").with_columns(distance=pl.Series(d, dtype=pl.Float64).fill_nan(None)).drop_nulls("distance")
+
+
+def sensing_radius(site: Site) -> float | None:
+    """Median sensing radius of the site's sensors: a proximity sensor's ``R_o``, a motion
+    sensor's ``range`` or the radius of the disc of its field of view's area."""
+    r = [p.r_outer for p in site.proximity_sensors]
+    for m in site.motion_sensors:
+        if m.fov is not None:
+            r.append(float(np.sqrt(m.fov.area / np.pi)))
+        elif m.range is not None:
+            r.append(float(m.range))
+    return float(np.median(r)) if r else None
+
+
+def gate_distance(tracker: str, gate: Gate, tables: dict, site: Site) -> float | None:
+    """:math:`\\gamma` in the distance's unit (site units for points, hops otherwise), or
+    ``None`` when the unit is unknown (no cell, no R, no sensor)."""
+    if gate.unit == "hops":
+        return gate.size
+    if gate.unit == "m":
+        return float(to_site_units(gate.size, "m", site.units))
+    if gate.unit == "cells":
+        it = tables.get(f"{tracker}_iterations")
+        cell = float(it["cell"][0]) if it is not None and it.height and "cell" in it.columns else 1.0
+        return gate.size * cell
+    if gate.unit == "R":
+        params = tables.get(f"{tracker}_params")
+        return gate.size * float(params["R"][0]) if params is not None and params.height else None
+    radius = sensing_radius(site)
+    return gate.size * radius if radius else None
+
+
+def mot_rows(tracker: str, gate: Gate | None, tables: dict, site: Site, region_graph: RegionGraph | None) -> list[ReportRow]:
+    """The MOT report rows of one tracker: ``mota``, ``motp``, ``idf1``, ``id_switches``,
+    ``hota``, ``deta``, ``assa``, ``mot_gate``, ``mot_misses``, ``mot_false_positives``,
+    ``mot_frames``. None without truth, without tracks or without a gate."""
+    tracks, truth = tables.get(f"{tracker}_tracks"), tables.get("truth")
+    if gate is None or tracks is None or truth is None or truth.height == 0:
+        return []
+    g = gate_distance(tracker, gate, tables, site)
+    if g is None or (gate.space == "region" and region_graph is None):
+        return []
+    if gate.space == "point":
+        obj, hyp, dist = point_frames(tracks, truth)
+        unit = site.units
+    elif gate.space == "node":
+        obj, hyp, dist = node_frames(tracks, truth, site)
+        unit = "hops"
+    else:
+        obj, hyp, dist = region_frames(tracks, truth, region_graph)
+        unit = "hops"
+    m = mot_metrics(obj, hyp, dist, gate=g)
+    return [
+        (tracker, "mota", m["mota"], "fraction"),
+        (tracker, "motp", m["motp"], unit),
+        (tracker, "idf1", m["idf1"], "fraction"),
+        (tracker, "id_switches", m["id_switches"], "switches"),
+        (tracker, "hota", m["hota"], "fraction"),
+        (tracker, "deta", m["deta"], "fraction"),
+        (tracker, "assa", m["assa"], "fraction"),
+        (tracker, "mot_gate", g, unit),
+        (tracker, "mot_misses", m["misses"], "target-frames"),
+        (tracker, "mot_false_positives", m["false_positives"], "track-frames"),
+        (tracker, "mot_frames", m["frames"], "frames"),
+    ]

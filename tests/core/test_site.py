@@ -1,0 +1,161 @@
+"""site.toml validation and the region decomposition."""
+
+from __future__ import annotations
+
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from onebit.core.region_graph import build_region_graph
+from onebit.core.site import load_site, site_from_dict
+from onebit.datasets.builtin import builtin_site_path
+from onebit.core.errors import SiteError
+
+BASE = """
+name = "t"
+units = "m"
+[boundary]
+polygon = [[0, 0], [10, 0], [10, 4], [0, 4]]
+[[beams]]
+id = "a"
+segment = [[5, 0], [5, 4]]
+forward = "right"
+spacing = 0.1
+"""
+
+
+def _load(tmp_path, text):
+    p = tmp_path / "site.toml"
+    p.write_text(text)
+    return load_site(p)
+
+
+def test_minimal_site_two_regions(tmp_path):
+    site = _load(tmp_path, BASE)
+    rg = build_region_graph(site)
+    assert rg.names == ("r1", "r2")
+    # segment (5,0)->(5,4) points up; its right side is +x, so forward goes r1 (left) -> r2
+    assert rg.endpoints("a", 1) == ("r1", "r2")
+
+
+@pytest.mark.parametrize(
+    "edit, key",
+    [
+        (lambda t: t.replace('units = "m"', 'units = "parsec"'), "units"),
+        (lambda t: t.replace("segment = [[5, 0], [5, 4]]", "segment = [[5, 1], [5, 4]]"), "segment"),
+        (lambda t: t.replace("[[0, 0], [10, 0], [10, 4], [0, 4]]", "[[0, 0], [10, 4], [10, 0], [0, 4]]"), "boundary.polygon"),
+        (lambda t: t + "colour = 3\n", "colour"),
+        (lambda t: t.replace('id = "a"\n', ""), "id"),
+        (lambda t: t.replace('forward = "right"', 'forward = "up"'), "forward"),
+        (lambda t: t.replace("[boundary]\npolygon = [[0, 0], [10, 0], [10, 4], [0, 4]]", ""), "boundary"),
+        (lambda t: t + "[camera]\nwidth = 10\nheight = 10\n", "camera.homography"),
+        (lambda t: t.replace("units", "units = = "), "TOML"),
+    ],
+)
+def test_broken_site_names_the_key(tmp_path, edit, key):
+    with pytest.raises(SiteError) as exc:
+        _load(tmp_path, edit(BASE))
+    msg = str(exc.value)
+    assert "site.toml" in msg and key in msg
+
+
+def test_crossing_beams_are_refused():
+    data = {
+        "boundary": {"polygon": [[0, 0], [10, 0], [10, 10], [0, 10]]},
+        "beams": [
+            {"id": "a", "segment": [[5, 0], [5, 10]]},
+            {"id": "b", "segment": [[0, 5], [10, 5]]},
+        ],
+    }
+    with pytest.raises(SiteError, match="crosses beam 'a'"):
+        site_from_dict(data)
+
+
+def test_builtin_sites_load():
+    for name in ("building", "lab"):
+        site = load_site(builtin_site_path(name))
+        assert site.camera is not None
+
+
+@settings(max_examples=40, deadline=None)
+@given(
+    w=st.floats(2, 50),
+    h=st.floats(2, 50),
+    cuts=st.lists(st.floats(0.05, 0.95), min_size=1, max_size=5, unique=True),
+)
+def test_k_parallel_beams_make_k_plus_1_regions_in_a_chain(w, h, cuts):
+    """k disjoint wall-to-wall beams across a rectangle split it into a chain of k+1 regions."""
+    cuts = sorted(cuts)
+    if min((b - a for a, b in zip(cuts, cuts[1:])), default=1.0) * w < 1e-3:
+        return
+    data = {
+        "boundary": {"polygon": [[0, 0], [w, 0], [w, h], [0, h]]},
+        "beams": [{"id": f"b{i}", "segment": [[c * w, 0], [c * w, h]], "forward": "right"} for i, c in enumerate(cuts)],
+    }
+    rg = build_region_graph(site_from_dict(data))
+    assert len(rg.names) == len(cuts) + 1
+    assert rg.graph.number_of_edges() == 2 * len(cuts)
+    assert abs(sum(p.area for p in rg.polygons) - w * h) < 1e-4 * w * h  # minus the thin slits cut along the beams
+    # forward crossings go left to right along the chain
+    order = [rg.beam_source[f"b{i}"] for i in range(len(cuts))] + [rg.beam_target[f"b{len(cuts) - 1}"]]
+    assert len(set(order)) == len(cuts) + 1
+
+
+# --------------------------------------------------------------------------- units and sensors (one sensor model)
+
+
+@pytest.mark.parametrize("units", ['"parsec"', "3", '["m"]', '"M"'])
+def test_units_must_be_a_known_unit(tmp_path, units):
+    with pytest.raises(SiteError) as exc:
+        _load(tmp_path, BASE.replace('units = "m"', f"units = {units}"))
+    assert "field 'units'" in str(exc.value)
+
+
+@pytest.mark.parametrize("units", ["m", "cm", "mm", "ft", "in"])
+def test_every_unit_of_the_unit_table_loads(tmp_path, units):
+    assert _load(tmp_path, BASE.replace('units = "m"', f'units = "{units}"')).units == units
+
+
+def test_units_default_to_metres(tmp_path):
+    assert _load(tmp_path, BASE.replace('units = "m"\n', "")).units == "m"
+
+
+def test_motion_sensor_type_is_none_unless_declared(tmp_path):
+    text = BASE + '[[motion_sensors]]\nid = "m"\nposition = [1, 1]\nrange = 1.5\n[[motion_sensors]]\nid = "n"\nposition = [8, 2]\ntype = "pir"\n'
+    site = _load(tmp_path, text)
+    assert [m.type for m in site.motion_sensors] == [None, "pir"]
+    regions = site.detection_regions
+    assert list(regions) == ["m", "n", "a"]
+    assert regions["m"].radius == 1.5 and regions["n"].extent is not None and regions["a"].kind == "beam"
+
+
+def test_a_sensor_without_a_region_loads_and_fails_when_its_region_is_needed(tmp_path):
+    site = _load(tmp_path, BASE + '[[motion_sensors]]\nid = "m"\nposition = [1, 1]\n')
+    with pytest.raises(SiteError) as exc:
+        site.detection_regions
+    assert "field 'motion_sensors[0] (id 'm')'" in str(exc.value) and "site.toml" in str(exc.value)
+
+
+@settings(max_examples=30, deadline=None)
+@given(
+    sensors=st.lists(
+        st.tuples(st.floats(0.5, 9.5), st.floats(0.5, 3.5), st.one_of(st.none(), st.floats(0.1, 5.0)), st.booleans()),
+        min_size=1,
+        max_size=6,
+    )
+)
+def test_loaded_motion_sensors_have_the_regions_they_declare(sensors):
+    ms = []
+    for i, (x, y, rng, with_fov) in enumerate(sensors):
+        m = {"id": f"s{i}", "position": [x, y]}
+        if rng is not None:
+            m["range"] = rng
+        if with_fov or rng is None:
+            m["fov"] = [[x - 0.5, y - 0.5], [x + 0.5, y - 0.5], [x + 0.5, y + 0.5], [x - 0.5, y + 0.5]]
+        ms.append(m)
+    site = site_from_dict({"units": "cm", "boundary": {"polygon": [[0, 0], [10, 0], [10, 4], [0, 4]]}, "motion_sensors": ms})
+    regions = site.detection_regions
+    for m in ms:
+        r = regions[m["id"]]
+        assert r.radius == m.get("range") and (r.fov is not None) == ("fov" in m)
+        assert r.covers_xy([m["position"][0]], [m["position"][1]]).all()  # every region holds its sensor here

@@ -1,0 +1,149 @@
+"""End to end: simulate -> onebit run -> report, .rrd files, failures and MCAP input."""
+
+from __future__ import annotations
+
+import shutil
+
+import polars as pl
+import pytest
+
+from onebit.datasets.builtin import builtin_site_path
+from onebit.datasets.beams_sim import write_beams_dataset
+from onebit.cli import main
+from onebit.pipeline.report import load_report, metric
+from onebit.pipeline.runner import run_pipeline
+from onebit.viz.inspect import entity_paths, store_ids, verify
+
+
+@pytest.fixture(scope="module")
+def lab_run(tmp_path_factory):
+    root = tmp_path_factory.mktemp("lab")
+    data = write_beams_dataset(root / "data", "beams-lab", seed=3, duration=60.0, agents=2, drop=0.0, camera=True)
+    res = run_pipeline(data, root / "run")
+    return data, res
+
+
+def test_lab_run_without_drops_recovers_everything(lab_run):
+    _, res = lab_run
+    assert res.ok, res.status
+    rep = res.report
+    assert metric(rep, "crossings/decoded_match") == 1.0
+    assert metric(rep, "crossings/spurious") == 0.0
+    assert metric(rep, "beams/agent_count_error") == 0.0
+    assert metric(rep, "camera/truth_error_rel") < 0.02
+    assert metric(rep, "rejects/rows") == 0.0
+    acc = metric(rep, "beams/assignment_accuracy")
+    assert 0.0 <= acc <= 1.0
+    # the truth positions reproduce the simulator's own crossing list
+    assert metric(rep, "truth/crossings_from_positions") == 1.0
+
+
+def test_run_folder_contents(lab_run):
+    _, res = lab_run
+    out = res.out
+    for name in ("crossings", "truth", "beams_tracks", "beams_assignment", "beams_agents", "camera_truth", "rejects"):
+        assert (out / "tables" / f"{name}.parquet").exists(), name
+    report = pl.read_csv(out / "report.csv")
+    assert report.columns[:4] == ["stage", "metric", "value", "unit"]
+    assert load_report(out).height == report.height
+    run_toml = (out / "run.toml").read_text()
+    assert 'policy = "fifo"' in run_toml and "[stages]" in run_toml
+    assert not list(out.rglob("*.tmp")) and not list(out.rglob("*.partial"))
+    tracks = pl.read_parquet(out / "tables" / "beams_tracks.parquet")
+    assert tracks["x"].null_count() == tracks.height and tracks["region"].null_count() == 0
+
+
+def test_rrd_files_verify_and_hold_site_truth_tracks(lab_run):
+    _, res = lab_run
+    rrds = sorted((res.out / "rrd").glob("*.rrd"))
+    assert {p.stem for p in rrds} >= {"crossings", "truth", "camera", "beams", "scores"}
+    ids = set()
+    paths: set[str] = set()
+    for p in rrds:
+        verify(p)
+        ids.update(store_ids(p))
+        paths |= entity_paths(p)
+    assert len({rid for _, rid in ids}) == 1  # one recording id across the stages
+    for want in ("site/boundary", "site/beams/a", "site/regions/r1", "truth/agent1", "beams/tracks/agent1", "sensors/a"):
+        assert any(q == want or q.startswith(want + "/") for q in paths), want
+    assert any(q.startswith("beams/occupancy/") for q in paths)
+
+
+def test_cli_report_and_logs_info(lab_run, capsys):
+    data, res = lab_run
+    assert main(["report", str(res.out)]) == 0
+    out = capsys.readouterr().out
+    assert "crossings/decoded_match" in out and "beams/assignment_accuracy" in out
+    assert main(["logs", "info", str(data / "beams.csv")]) == 0
+    assert "beams.csv" in capsys.readouterr().out
+
+
+def test_failing_stage_keeps_the_others(lab_run, tmp_path, capsys):
+    data, _ = lab_run
+    bad = tmp_path / "data"
+    shutil.copytree(data, bad)
+    (bad / "camera.mp4").write_bytes(b"\x00\x01not a video" * 100)
+    code = main(["run", str(bad), "--out", str(tmp_path / "run")])
+    assert code == 1
+    text = capsys.readouterr().out
+    assert "camera: FAILED" in text and "camera.mp4" in text
+    out = tmp_path / "run"
+    assert (out / "tables" / "beams_tracks.parquet").exists()
+    assert not (out / "rrd" / "camera.rrd").exists()
+    rep = load_report(out)
+    assert metric(rep, "crossings/decoded_match") == 1.0
+    assert 'camera = "failed:' in (out / "run.toml").read_text()
+
+
+def test_skipped_stages_say_why(tmp_path):
+    site = builtin_site_path("lab")
+    d = tmp_path / "data"
+    d.mkdir()
+    shutil.copy(site, d / "site.toml")
+    (d / "crossings.csv").write_text("t,beam,direction\n1,d,1\n2,c,1\n3,q,1\n")
+    res = run_pipeline(d, tmp_path / "run")
+    assert res.status["truth"].startswith("skipped: no truth.csv")
+    assert res.status["camera"].startswith("skipped: no camera.mp4")
+    assert res.status["beams"].startswith("ok")
+    assert metric(res.report, "rejects/rows") == 1.0
+    rej = pl.read_parquet(tmp_path / "run" / "tables" / "rejects.parquet")
+    assert rej.row(0)[:2] == ("crossings.csv", 4)
+
+
+def test_mcap_dataset_gives_the_same_crossings(lab_run, tmp_path):
+    data, res = lab_run
+    d = tmp_path / "data"
+    d.mkdir()
+    shutil.copy(data / "site.toml", d / "site.toml")
+    assert main(["logs", "convert", str(data), str(d / "recording.mcap")]) == 0
+    r2 = run_pipeline(d, tmp_path / "run")
+    assert r2.ok, r2.status
+    a = pl.read_parquet(res.out / "tables" / "crossings.parquet")
+    b = pl.read_parquet(tmp_path / "run" / "tables" / "crossings.parquet")
+    assert a.equals(b)
+    # a truncated recording keeps what came before the cut and names the file in rejects
+    raw = (d / "recording.mcap").read_bytes()
+    (d / "recording.mcap").write_bytes(raw[: len(raw) * 2 // 3])
+    r3 = run_pipeline(d, tmp_path / "run3")
+    rej = pl.read_parquet(tmp_path / "run3" / "tables" / "rejects.parquet")
+    assert rej.filter(pl.col("reason").str.contains("truncated"))["source"].to_list() == ["recording.mcap"]
+    assert metric(r3.report, "rejects/rows") >= 1.0
+    assert 0 < pl.read_parquet(tmp_path / "run3" / "tables" / "beam_events.parquet").height
+
+
+def test_drops_reduce_decoded_match(tmp_path):
+    data = write_beams_dataset(tmp_path / "data", "beams-building", seed=5, duration=120.0, drop=0.3, camera=False)
+    res = run_pipeline(data, tmp_path / "run")
+    sim = pl.read_csv(data / "truth_crossings.csv")
+    dropped = sim["dropped"].sum() / sim.height
+    assert 0 < dropped < 1
+    assert metric(res.report, "crossings/decoded_match") == pytest.approx(1 - dropped, abs=1e-9)
+
+
+def test_broken_site_is_a_clear_cli_error(tmp_path, capsys):
+    d = tmp_path / "data"
+    d.mkdir()
+    (d / "site.toml").write_text("[boundary]\npolygon = [[0, 0], [1, 0]]\n")
+    assert main(["run", str(d), "--out", str(tmp_path / "run")]) == 2
+    err = capsys.readouterr().err
+    assert "site.toml" in err and "boundary.polygon" in err

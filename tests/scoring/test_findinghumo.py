@@ -1,0 +1,35 @@
+"""HMM scoring: tracks matched to users by minimum summed hop error; a missed slot = diameter."""
+
+from __future__ import annotations
+
+import polars as pl
+import pytest
+
+from onebit.core.tables import SCORES
+from onebit.scoring.findinghumo import score
+from onebit.trackers.findinghumo.eatg import hop_matrix
+
+
+def test_users_take_the_track_of_least_summed_hops_and_missed_slots_cost_the_diameter(hallway_site):
+    site = hallway_site
+    g = site.sensor_graph
+    hops = hop_matrix(g.nodes, g.edges)
+    diameter = int(hops[hops <= len(g.nodes)].max())
+    a, b = g.edges[0]
+    far = g.nodes[int(hops[g.nodes.index(a)].argmax())]
+    xy = {m.id: m.position for m in site.motion_sensors}
+    truth = pl.DataFrame(
+        {"t": [0.5, 1.5, 2.5] * 2, "target": ["u1"] * 3 + ["u2"] * 3,
+         "x": [xy[a][0]] * 3 + [xy[far][0]] * 3, "y": [xy[a][1]] * 3 + [xy[far][1]] * 3}
+    )  # fmt: skip
+    # k1 sits on u2's node; k2 on u1's node but misses the last slot
+    tracks = pl.DataFrame({"tracker": "hmm1", "track": ["k1"] * 3 + ["k2"] * 2, "t": [0.5, 1.5, 2.5, 0.5, 1.5], "node": [far] * 3 + [a, b]})
+    rows, made = score("hmm1", {"hmm1_tracks": tracks, "truth": truth}, site)
+    m = {r[1]: r[2] for r in rows}
+    assert m["users_true"] == 2 and m["users_decoded"] == 2
+    assert m["hop_error/u2"] == 0.0
+    assert m["hop_error/u1"] == pytest.approx((0 + 1 + diameter) / 3)
+    assert m["hop_error"] == pytest.approx((0 + 1 + diameter) / 6)
+    assert m["slots_exact"] == pytest.approx(4 / 6)
+    sc = made["hmm1_scores"]
+    assert sc.schema == SCORES and dict(sc.select("track", "target").unique().iter_rows()) == {"k1": "u2", "k2": "u1"}

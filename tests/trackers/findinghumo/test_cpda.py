@@ -1,0 +1,137 @@
+"""CPDA: the paper's worked example (section III-C) and flow conservation; EATG invariants."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from onebit.datasets.builtin import builtin_site
+from onebit.trackers.findinghumo.cpda import colocation_events, cpda, interaction_graph
+from onebit.trackers.findinghumo.eatg import hop_matrix, layout_eatg, trained_eatg
+
+
+@pytest.fixture(scope="module")
+def eatg():
+    site = builtin_site("hallway")
+    g = site.sensor_graph
+    return layout_eatg(g.nodes, hop_matrix(g.nodes, g.edges))
+
+
+def _paths(eatg, seqs):
+    idx = eatg.index
+    return np.array([[idx[str(n)] for n in s] for s in seqs])
+
+
+def _names(eatg, paths):
+    return [[int(eatg.nodes[i]) for i in row] for row in paths]
+
+
+def test_paper_worked_example(eatg):
+    decoded = [
+        [97, 96, 95, 99, 111, 114],
+        [114, 114, 111, 99, 111, 110],
+        [97, 96, 95, 99, 95, 96],
+    ]
+    paths = _paths(eatg, decoded)
+    # the interaction graph: 99 has incoming 95, 111 and outgoing 111, 95; 111 has 99 -> 114, 110
+    gi = interaction_graph(paths, eatg.nodes)
+    assert set(gi.predecessors("99")) == {"95", "111"} and set(gi.successors("99")) == {"111", "95"}
+    assert set(gi.successors("111")) >= {"114", "110", "99"}
+    # the inference prefers continuing through the kitchen over turning back
+    i = eatg.index
+    assert eatg.a2[i["111"], i["95"]] > eatg.a2[i["111"], i["111"]]
+    res = cpda(paths, eatg.a2, horizon=2 * 5)
+    assert _names(eatg, res.paths) == [
+        [97, 96, 95, 99, 111, 114],
+        [114, 114, 111, 99, 95, 96],
+        [97, 96, 95, 99, 111, 110],
+    ]
+    assert len(res.switches) == 1 and eatg.nodes[res.switches[0][1]] == "99"
+    # a second run is stable: nothing left to switch
+    again = cpda(res.paths, eatg.a2, horizon=10)
+    assert again.switches == [] and np.array_equal(again.paths, res.paths)
+
+
+def _random_walks(eatg, rng, k, d):
+    adj = eatg.hops == 1
+    n = len(eatg.nodes)
+    paths = np.zeros((k, d), dtype=np.int64)
+    paths[:, 0] = rng.integers(0, n, size=k)
+    for t in range(1, d):
+        for u in range(k):
+            nb = np.flatnonzero(adj[paths[u, t - 1]])
+            paths[u, t] = paths[u, t - 1] if rng.random() < 0.4 else rng.choice(nb)
+    return paths
+
+
+@settings(max_examples=30, deadline=None)
+@given(seed=st.integers(0, 10_000), k=st.integers(2, 5), adjacent=st.booleans())
+def test_flow_conservation_and_continuity(eatg, seed, k, adjacent):
+    rng = np.random.default_rng(seed)
+    # force crossings: every user passes the kitchen 99 at slot 6
+    paths = _random_walks(eatg, rng, k, 14)
+    i99 = eatg.index["99"]
+    paths[:, 6] = i99
+    paths[:, 5] = rng.choice([eatg.index["95"], eatg.index["111"], i99], size=k)
+    paths[:, 7] = rng.choice([eatg.index["95"], eatg.index["111"], i99], size=k)
+    for t in range(8, 14):  # continue as walks from slot 7
+        for u in range(k):
+            nb = np.flatnonzero(eatg.hops[paths[u, t - 1]] <= 1)
+            paths[u, t] = rng.choice(nb)
+    for t in range(4, -1, -1):
+        for u in range(k):
+            nb = np.flatnonzero(eatg.hops[paths[u, t + 1]] <= 1)
+            paths[u, t] = rng.choice(nb)
+    before = paths.copy()
+    hops = eatg.hops if adjacent else None
+    res = cpda(paths, eatg.a2, horizon=10, hops=hops)
+    out = res.paths
+    # continuity: every corrected path still moves at most one hop per slot
+    assert np.all(eatg.hops[out[:, :-1], out[:, 1:]] <= 1)
+    # flow conservation: at every slot the multiset of occupied nodes is unchanged
+    np.testing.assert_array_equal(np.sort(out, axis=0), np.sort(before, axis=0))
+    # at every crossover event, as many paths leave the node as entered it
+    for c, users in colocation_events(before, np.zeros(len(eatg.nodes), bool)):
+        j = before[users[0], c]
+        assert (before[:, c] == j).sum() == (out[:, c] == j).sum()
+    # and the result is a fixed point
+    assert cpda(out, eatg.a2, horizon=10, hops=hops).switches == []
+
+
+def test_layout_eatg_is_stochastic_and_local(eatg):
+    assert np.allclose(eatg.a1.sum(axis=1), 1) and np.allclose(eatg.a2.sum(axis=1), 1)
+    assert np.all(eatg.a1[eatg.hops > 1] == 0)
+    off = ~np.eye(len(eatg.nodes), dtype=bool)
+    assert np.all(eatg.a2[off & (eatg.hops != 2)] == 0)
+    i = eatg.index
+    # 2-hop edge: 95 reaches 111 through the kitchen
+    assert eatg.a2[i["95"], i["111"]] > 0
+    g = eatg.to_networkx()
+    assert "a1" in g.edges["96", "94"] and "a1" not in g.edges["96", "93"] and "a2" in g.edges["96", "93"]
+    tab = eatg.table()
+    assert set(tab["kind"].unique()) == {"a1", "a2"}
+
+
+def test_trained_eatg_learns_walking_direction(eatg):
+    # one user walks 97 -> 96 -> 95 -> 99 -> 111 -> 110 repeatedly, 3 slots per node
+    i = eatg.index
+    route = ["97", "96", "95", "99", "111", "110"]
+    n = len(eatg.nodes)
+    slots = []
+    for _ in range(6):
+        for node in route:
+            for _ in range(3):
+                row = np.zeros(n, bool)
+                row[i[node]] = True
+                slots.append(row)
+        slots.append(np.zeros(n, bool))
+    act = np.array(slots)
+    tr = trained_eatg(act, eatg.nodes, eatg.hops, horizon=8)
+    assert np.allclose(tr.a1.sum(axis=1), 1) and np.allclose(tr.a2.sum(axis=1), 1)
+    # the trained 2-hop weight 95 -> 111 grows above the layout's, 95 -> 94 shrinks
+    assert tr.a2[i["95"], i["111"]] > eatg.a2[i["95"], i["111"]]
+    assert tr.a2[i["96"], i["99"]] > tr.a2[i["96"], i["92"]]
+    # staying dominates a' at 3 slots per node
+    assert tr.a1[i["99"], i["99"]] > tr.a1[i["99"], i["95"]]

@@ -1,0 +1,173 @@
+"""The ``istate`` tracker stage: end to end on the ``istate-room`` scenario, and run() on
+motion, proximity and crossing tables directly."""
+
+from __future__ import annotations
+
+import numpy as np
+import polars as pl
+import pytest
+import shapely
+
+from onebit.datasets.okane_sim import write_room_dataset
+from onebit.core.site import load_site, site_from_dict
+from onebit.core.errors import ConfigError
+from onebit.pipeline.report import metric
+from onebit.pipeline.runner import run_pipeline
+from onebit.core.tables import TRACKS
+from onebit.trackers.istate import SPEC
+from onebit.core.config import config_from_mapping
+from onebit.trackers.istate.core import IState, contains
+from onebit.scoring.istate import score
+from onebit.trackers.istate.stage import IStateConfig, run
+from onebit.viz.inspect import entity_paths, verify
+
+
+@pytest.fixture(scope="module")
+def room_run(tmp_path_factory):
+    root = tmp_path_factory.mktemp("istate")
+    data = write_room_dataset(root / "data", seed=4, duration=90.0, n=2)
+    res = run_pipeline(data, root / "run", trackers=("istate",), config={"istate": {"max_elements": 6}})
+    return data, res
+
+
+def test_pipeline_containment_is_one_without_false_positives(room_run):
+    _, res = room_run
+    assert res.ok, res.status
+    rep = res.report
+    assert metric(rep, "istate/containment") == 1.0
+    assert metric(rep, "istate/scored_stages") >= 80
+    assert 1.0 <= metric(rep, "istate/elements_mean") <= metric(rep, "istate/elements_max") <= 6
+    # knowledge narrower than the whole free space (2 copies of ~91 m^2 would be W^2)
+    site = load_site(res.out.parent / "data" / "site.toml")
+    assert 0 < metric(rep, "istate/area_mean") < site.free_space.area
+    assert metric(rep, "motion/edges") > 0  # the motion reader fed the tracker
+
+
+def test_pipeline_tables_and_recording(room_run):
+    _, res = room_run
+    tables = res.out / "tables"
+    tracks = pl.read_parquet(tables / "istate_tracks.parquet")
+    assert tracks.schema == TRACKS
+    for name in ("istate_summary", "istate_regions", "istate_detections", "istate_containment"):
+        assert (tables / f"{name}.parquet").exists(), name
+    rrd = res.out / "rrd" / "istate.rrd"
+    verify(rrd)
+    ents = entity_paths(rrd)
+    assert {"istate/elements", "istate/area", "istate/istate/0/0", "istate/istate/0/1", "istate/sensing/m1"} <= ents
+
+
+def _room_tables(seed: int, n: int, drop: float, tmp_path):
+    data = write_room_dataset(tmp_path / f"d{seed}", seed=seed, duration=60.0, n=n, drop=drop)
+    site = load_site(data / "site.toml")
+    raw = pl.read_csv(data / "motion.csv")
+    motion = raw.select(pl.col("t").cast(pl.Float64), "sensor", on=pl.col("value") == 1)
+    return site, motion, pl.read_csv(data / "truth.csv")
+
+
+@pytest.mark.parametrize("shape,negatives,drop", [("exact", False, 0.3), ("rect", True, 0.0), ("disk", False, 0.0)])
+def test_run_direct_containment_with_false_negatives(tmp_path, shape, negatives, drop):
+    site, motion, truth = _room_tables(7, 3, drop, tmp_path)
+    cfg = IStateConfig(shape=shape, reliable_negatives=negatives, max_elements=5)
+    out = run({"motion": motion}, site, cfg)
+    rows, tables = score("istate", {"istate_summary": out["summary"], "istate_regions": out["regions"], "truth": truth}, site)
+    m = {r[1]: r[2] for r in rows}
+    assert m["containment"] == 1.0 and m["scored_stages"] > 50
+    assert m["elements_max"] <= 5
+    # every stage's I-state really contains the truth (recomputed, independent of score())
+    regs = out["regions"]
+    k = int(out["summary"]["stage"][len(out["summary"]) // 2])
+    tk = float(out["summary"]["t"][k])
+    g = shapely.from_wkb(regs.filter(pl.col("stage") == k)["wkb"].to_numpy()).reshape(-1, 3)
+    x = truth.filter((pl.col("t") - tk).abs() < 1e-6).sort("target").select("x", "y").to_numpy()
+    assert contains(IState(g), x)
+
+
+def test_proximity_and_crossings_as_sensing_regions():
+    """A corridor with a beam and two proximity sensors; one target walks through."""
+    site = site_from_dict(
+        {
+            "boundary": {"polygon": [[0, 0], [20, 0], [20, 4], [0, 4]]},
+            "beams": [{"id": "b", "segment": [[10, 0], [10, 4]], "forward": "left", "spacing": 0.1}],
+            "proximity_sensors": [{"id": "p1", "position": [4, 2], "radius": 1.5}, {"id": "p2", "position": [16, 2], "r_inner": 1.0, "r_outer": 2.0}],
+            "targets": 1,
+        }
+    )
+    t = np.arange(0, 20.01, 0.1)
+    xy = np.column_stack([1 + 0.9 * t, np.full(len(t), 2.0)])
+    truth = pl.DataFrame({"t": t, "target": "a", "x": xy[:, 0], "y": xy[:, 1]})
+    d1 = np.hypot(xy[:, 0] - 4, 0) <= 1.5
+    d2 = np.hypot(xy[:, 0] - 16, 0) <= 2.0
+    edges = []
+    for sid, on in (("p1", d1), ("p2", d2)):
+        ch = np.flatnonzero(np.diff(np.r_[False, on].astype(int)) != 0)
+        edges.append(pl.DataFrame({"t": t[ch], "sensor": sid, "on": on[ch]}))
+    prox = pl.concat(edges).sort("t")
+    t_cross = (10 - 1) / 0.9
+    crossings = pl.DataFrame({"t": [t_cross], "beam": ["b"], "direction": [1]}, schema={"t": pl.Float64, "beam": pl.String, "direction": pl.Int8})
+    out = run({"proximity": prox, "crossings": crossings}, site, IStateConfig(max_speed=1.0, reliable_negatives=True))
+    rows, _ = score("istate", {"istate_summary": out["summary"], "istate_regions": out["regions"], "truth": truth}, site)
+    m = {r[1]: r[2] for r in rows}
+    assert m["containment"] == 1.0
+    det = out["detections"]
+    assert set(det["sensor"]) == {"p1", "p2", "b"}
+    # right after the crossing the target is pinned near the beam: a small region
+    k = int(np.ceil(t_cross))
+    after = out["summary"].filter(pl.col("t") == float(k))
+    assert after["area"][0] < 0.15 * site.free_space.area
+
+
+def test_level_sampled_readings_use_the_log_resolution_as_latency():
+    """Readings of every sensor at whole seconds (not edges): the off reading comes up to 1 s
+    after the target left, and the automatic latency (the log's 1 s resolution) keeps the
+    truth inside; a zero latency does not."""
+    site = site_from_dict(
+        {
+            "boundary": {"polygon": [[0, 0], [12, 0], [12, 3], [0, 3]]},
+            "proximity_sensors": [{"id": f"p{i}", "position": [1.5 + 3 * i, 1.5], "radius": 1.0} for i in range(4)],
+            "targets": 1,
+        }
+    )
+    t = np.arange(0.0, 12.0, 1.0)
+    x = 0.35 + 0.97 * t
+    truth = pl.DataFrame({"t": t, "target": "a", "x": x, "y": np.full(len(t), 1.5)})
+    sensors = [f"p{i}" for i in range(4)]
+    on = np.abs(x[:, None] - (1.5 + 3 * np.arange(4))[None, :]) <= 1.0
+    levels = pl.DataFrame({"t": np.repeat(t, 4), "sensor": sensors * len(t), "on": on.ravel()})
+    got = {}
+    for auto in (True, False):
+        out = run({"proximity": levels}, site, IStateConfig(max_speed=1.0, latency_auto=auto, shape="rect"))
+        rows, _ = score("istate", {"istate_summary": out["summary"], "istate_regions": out["regions"], "truth": truth}, site)
+        got[auto] = {r[1]: r[2] for r in rows}["containment"]
+    assert got[True] == 1.0 and got[False] < 1.0
+
+
+def test_config_validation_names_the_field():
+    with pytest.raises(ConfigError, match="shape"):
+        IStateConfig(shape="hexagon")
+    with pytest.raises(ConfigError, match="period_s"):
+        IStateConfig(period_s=0)
+    with pytest.raises(ConfigError, match="unknown field"):
+        config_from_mapping(IStateConfig, {"M": 3}, section="istate")
+
+
+def _corridor():
+    return {"boundary": {"polygon": [[0, 0], [5, 0], [5, 5], [0, 5]]}, "proximity_sensors": [{"id": "p", "position": [2, 2], "radius": 1}]}
+
+
+def test_unknown_target_count_is_an_error():
+    site = site_from_dict({"boundary": {"polygon": [[0, 0], [5, 0], [5, 5], [0, 5]]}, "proximity_sensors": [{"id": "p", "position": [2, 2], "radius": 1}]})
+    with pytest.raises(ConfigError, match="targets"):
+        run({}, site, IStateConfig())
+    assert "number of targets" in SPEC.available(site)
+    assert SPEC.available(site_from_dict({**_corridor(), "targets": 1})) is None
+    bare = site_from_dict({"boundary": {"polygon": [[0, 0], [5, 0], [5, 5], [0, 5]]}})
+    assert "no binary sensors" in SPEC.available(bare)
+
+
+def test_deterministic_and_empty_input(tmp_path):
+    site, motion, _ = _room_tables(2, 2, 0.0, tmp_path)
+    a = run({"motion": motion}, site, IStateConfig())
+    b = run({"motion": motion}, site, IStateConfig())
+    assert a["summary"].equals(b["summary"]) and a["regions"].equals(b["regions"])
+    empty = run({"motion": motion.clear()}, site, IStateConfig())
+    assert empty["tracks"].height == 0 and empty["summary"].height == 0

@@ -1,0 +1,269 @@
+"""onebit.viz: recordings are written atomically, verify, and hold the DESIGN entity paths."""
+
+from __future__ import annotations
+
+import subprocess
+
+import numpy as np
+import polars as pl
+import pytest
+import rerun as rr
+
+from onebit.core import tables
+from onebit.viz import (
+    color_of,
+    colors_of,
+    log_crossings,
+    log_occupancy,
+    log_point_tracks,
+    log_region_tracks,
+    log_scores,
+    log_site,
+    log_truth,
+    make_blueprint,
+    open_recording,
+    paths,
+    send_blueprint,
+    stage_recording,
+)
+from onebit.viz import inspect as rrd
+from onebit.viz._series import paths_so_far, update_indices
+from onebit.viz.tracks import region_positions
+
+RUN_ID = "run-test-0001"
+
+
+@pytest.fixture(autouse=True)
+def strict_rerun():
+    """Make Rerun raise on bad data instead of warning."""
+    before = rr.strict_mode()
+    rr.set_strict_mode(True)
+    yield
+    rr.set_strict_mode(before)
+
+
+def crossings_frame() -> pl.DataFrame:
+    return pl.DataFrame(
+        {"t": [1.0, 2.5, 4.0, 6.0], "beam": ["a", "b", "a", "c"], "direction": [1, -1, -1, 1]},
+        schema=tables.CROSSINGS,
+    )
+
+
+def aborted_frame() -> pl.DataFrame:
+    return pl.DataFrame({"t": [3.0], "beam": ["a"], "side": [-1]}, schema=tables.ABORTED)
+
+
+def truth_frame() -> pl.DataFrame:
+    t = np.arange(0.0, 10.0, 0.5)
+    return pl.DataFrame(
+        {
+            "t": np.r_[t, t],
+            "target": ["A"] * len(t) + ["B"] * len(t),
+            "x": np.r_[0.5 + 0.4 * t, 5.0 - 0.4 * t],
+            "y": np.r_[np.full(len(t), 3.5), np.full(len(t), 0.5)],
+        }
+    )
+
+
+def region_tracks_frame() -> pl.DataFrame:
+    return tables.conform(
+        pl.DataFrame(
+            {
+                "tracker": ["beams"] * 4,
+                "track": ["u1", "u1", "u2", "u2"],
+                "t": [0.0, 1.0, 0.0, 4.0],
+                "region": ["r5", "r4", "r4", "r5"],
+            }
+        ),
+        tables.TRACKS,
+    ).sort("t")
+
+
+def occupancy_frame() -> pl.DataFrame:
+    return pl.DataFrame({"t": [0.0, 1.0, 4.0], "region": ["r4", "r4", "r4"], "count": [1, 2, 1]})
+
+
+def scores_frame() -> pl.DataFrame:
+    return pl.DataFrame({"tracker": ["beams"] * 3, "track": ["u1"] * 3, "t": [0.0, 1.0, 2.0], "error": [0.1, 0.5, 0.0]})
+
+
+def write_full(out_dir, site, region_graph, *, stage="beams", recording_id=RUN_ID):
+    with stage_recording(out_dir, stage, recording_id) as rec:
+        send_blueprint(rec, trackers=["beams"])
+        log_site(rec, site, region_graph)
+        log_crossings(rec, crossings_frame(), aborted=aborted_frame())
+        log_truth(rec, truth_frame())
+        log_region_tracks(rec, "beams", region_tracks_frame(), region_graph)
+        log_point_tracks(rec, "particles", pl.DataFrame({"track": ["p"], "t": [0.0], "x": [1.0], "y": [1.0]}))
+        log_occupancy(rec, "beams", occupancy_frame())
+        log_scores(rec, "beams", scores_frame())
+    return out_dir / "rrd" / f"{stage}.rrd"
+
+
+def test_stage_recording_holds_design_paths(tmp_path, lab):
+    site, region_graph = lab
+    path = write_full(tmp_path, site, region_graph)
+    assert path.is_file()
+    assert not list(path.parent.glob(".*partial")), "temp file left behind"
+    rrd.verify(path)
+    found = rrd.entity_paths(path)
+    expected = {
+        "site/boundary",
+        "site/obstacles/0",
+        "site/obstacles/1",
+        "site/beams/a",
+        "site/beams/d",
+        "site/regions/r1",
+        "site/regions/r5",
+        "truth/A",
+        "truth/A/path",
+        "truth/B",
+        "sensors/a",
+        "sensors/b",
+        "sensors/c",
+        "beams/tracks/u1",
+        "beams/tracks/u1/path",
+        "beams/tracks/u2",
+        "beams/occupancy/r4",
+        "particles/tracks/p",
+        "scores/beams/u1",
+    }
+    assert expected <= found, expected - found
+    assert rrd.store_ids(path) == [("onebit", RUN_ID)]
+
+
+def test_cli_print_shows_paths_and_ids(tmp_path, lab):
+    site, region_graph = lab
+    path = write_full(tmp_path, site, region_graph)
+    out = subprocess.run(
+        [str(rrd.rerun_binary()), "rrd", "print", "--verbose", str(path)], capture_output=True, text=True, check=True
+    ).stdout
+    assert RUN_ID in out and '"onebit"' in out
+    assert rrd._entity_paths_cli(path) == rrd.entity_paths(path)
+    assert rrd._store_ids_cli(path) == rrd.store_ids(path) == [("onebit", RUN_ID)]
+
+
+def test_stages_share_recording_id(tmp_path, lab):
+    site, region_graph = lab
+    with stage_recording(tmp_path, "site", RUN_ID) as rec:
+        log_site(rec, site, region_graph)
+    with stage_recording(tmp_path, "truth", RUN_ID) as rec:
+        log_truth(rec, truth_frame())
+    ids = [rrd.store_ids(tmp_path / "rrd" / f"{s}.rrd") for s in ("site", "truth")]
+    assert ids[0] == ids[1] == [("onebit", RUN_ID)]
+    assert "truth/A" in rrd.entity_paths(tmp_path / "rrd" / "truth.rrd")
+    assert "truth/A" not in rrd.entity_paths(tmp_path / "rrd" / "site.rrd")
+
+
+def test_failed_stage_leaves_no_file(tmp_path):
+    with pytest.raises(RuntimeError, match="boom"):
+        with stage_recording(tmp_path, "broken", RUN_ID) as rec:
+            log_truth(rec, truth_frame())
+            raise RuntimeError("boom")
+    assert list((tmp_path / "rrd").iterdir()) == []
+
+
+def test_empty_frames_log_nothing(tmp_path, lab):
+    site, region_graph = lab
+    with stage_recording(tmp_path, "empty", RUN_ID) as rec:
+        log_crossings(rec, tables.empty(tables.CROSSINGS), aborted=tables.empty(tables.ABORTED))
+        log_crossings(rec, None)
+        log_truth(rec, tables.empty(tables.TRUTH))
+        log_region_tracks(rec, "beams", tables.empty(tables.TRACKS), region_graph)
+        log_point_tracks(rec, "beams", tables.empty(tables.TRACKS))
+        log_occupancy(rec, "beams", pl.DataFrame(schema={"t": pl.Float64, "region": pl.String, "count": pl.Int64}))
+        log_scores(rec, "beams", tables.empty(tables.SCORES))
+    path = tmp_path / "rrd" / "empty.rrd"
+    rrd.verify(path)
+    assert rrd.entity_paths(path) == set()
+
+
+def test_unknown_region_is_named(tmp_path, lab):
+    _, region_graph = lab
+    bad = region_tracks_frame().with_columns(region=pl.lit("nowhere"))
+    with pytest.raises(ValueError, match="nowhere"):
+        with stage_recording(tmp_path, "bad", RUN_ID) as rec:
+            log_region_tracks(rec, "beams", bad, region_graph)
+
+
+def test_missing_column_is_named(tmp_path):
+    with pytest.raises(ValueError, match="direction"):
+        with stage_recording(tmp_path, "bad", RUN_ID) as rec:
+            log_crossings(rec, pl.DataFrame({"t": [0.0], "beam": ["a"]}))
+
+
+def test_verify_rejects_garbage(tmp_path):
+    bad = tmp_path / "bad.rrd"
+    bad.write_bytes(b"not a recording")
+    with pytest.raises(RuntimeError):
+        rrd.verify(bad)
+    with pytest.raises(FileNotFoundError):
+        rrd.verify(tmp_path / "absent.rrd")
+
+
+def test_open_recording_requires_id(tmp_path):
+    with pytest.raises(ValueError, match="recording_id"):
+        open_recording(tmp_path / "x.rrd", recording_id="")
+
+
+def test_paths_escape_ids():
+    assert paths.site_beam("a") == "site/beams/a"
+    assert paths.track("beams", "u1") == "beams/tracks/u1"
+    assert paths.occupancy("beams", "r1") == "beams/occupancy/r1"
+    assert paths.score("beams", "u1") == "scores/beams/u1"
+    assert paths.truth_path("A") == "truth/A/path"
+    assert paths.istate("istate", "e", 3) == "istate/istate/e/3"
+    assert paths.sensor("x/y") == "sensors/x\\/y"
+
+
+def test_odd_ids_round_trip(tmp_path):
+    odd = pl.DataFrame({"t": [0.0, 1.0], "beam": ["x/y", "a b^-1"], "direction": [1, -1]}, schema=tables.CROSSINGS)
+    with stage_recording(tmp_path, "odd", RUN_ID) as rec:
+        log_crossings(rec, odd)
+    assert rrd.entity_paths(tmp_path / "rrd" / "odd.rrd") == {paths.sensor("x/y"), paths.sensor("a b^-1")}
+
+
+def test_colors_are_stable():
+    assert color_of("agent-1") == color_of("agent-1")
+    c = colors_of(["r1", "r2", "r1"], alpha=100)
+    assert c.shape == (3, 4) and c.dtype == np.uint8
+    assert (c[0] == c[2]).all() and c[0, 3] == 100
+    assert tuple(c[0]) == color_of("r1", alpha=100)
+
+
+def test_paths_so_far_is_bounded_and_ends_at_current():
+    xy = np.c_[np.arange(5000.0), np.zeros(5000)]
+    at = update_indices(len(xy), 200)
+    assert len(at) == 200 and at[0] == 0 and at[-1] == 4999
+    strips = paths_so_far(xy, at, max_vertices=100)
+    assert all(len(s) <= 101 for s in strips)
+    assert all((s[-1] == xy[i]).all() for s, i in zip(strips, at))
+    assert (strips[-1][0] == xy[0]).all()
+
+
+def test_region_positions_stay_inside(lab):
+    _, region_graph = lab
+    regions = np.array(region_graph.names)
+    for slot in range(6):
+        xy = region_positions(region_graph, regions, slot)
+        assert (region_graph.region_of(xy[:, 0], xy[:, 1]) == regions).all()
+    a, b = region_positions(region_graph, regions[:1], 0), region_positions(region_graph, regions[:1], 1)
+    assert not np.allclose(a, b)
+
+
+def _views(container):
+    for c in container.contents:
+        if hasattr(c, "contents") and not hasattr(c, "origin"):
+            yield from _views(c)
+        else:
+            yield c
+
+
+def test_blueprint_shows_each_tracker_in_the_site_view():
+    views = {v.name: v for v in _views(make_blueprint(trackers=["beams", "intruder"]).root_container)}
+    assert {"site", "occupancy", "error", "sensors"} <= set(views)
+    site = views["site"].contents
+    assert {"site/**", "truth/**", "beams/**", "intruder/**"} <= set(site)
+    assert "-beams/occupancy/**" in site  # occupancy is a time series, not a map layer
+    empty = {v.name: v for v in _views(make_blueprint(trackers=[]).root_container)}
+    assert not any("beams" in c for c in empty["site"].contents)
