@@ -3,6 +3,7 @@ PY ?= python3
 VENV := .venv
 BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed
+RAY_STAMP := $(VENV)/.ray-installed
 BUILD := build
 
 .PHONY: install demo test bench clean
@@ -15,6 +16,7 @@ $(STAMP): pyproject.toml
 	$(BIN)/python -m pip install --quiet -e '.[test]'
 	$(BIN)/python -m pip install --quiet --no-deps 'trackeval>=1.3,<2'
 	$(BIN)/rerun analytics disable >/dev/null 2>&1 || true
+	$(BIN)/python -m benchmarks.warm_kernels  # compile the numba kernels once (cached): not on a run's critical path
 	touch $(STAMP)
 
 # demo: one simulated dataset per paper; each run writes OUT/rrd/*.rrd, OUT/report.csv and prints the report.
@@ -31,13 +33,18 @@ demo: install
 	$(BIN)/onebit simulate istate-room $(BUILD)/demo/istate-room --seed 7
 	$(BIN)/onebit run $(BUILD)/demo/istate-room --out $(BUILD)/demo/istate-room-run
 
+# the ray extra (onebit run-many / experiment --executor ray); the executor tests use it.
+$(RAY_STAMP): $(STAMP)
+	$(BIN)/python -m pip install --quiet -e '.[test,ray]'
+	touch $(RAY_STAMP)
+
 # test: the layers contract (import-linter, pyproject.toml) and the test suite.
-test: install
+test: install $(RAY_STAMP)
 	$(BIN)/lint-imports --no-cache
 	RERUN_ANALYTICS=0 $(BIN)/python -m pytest
 
 bench: install
-	$(BIN)/python -m pip install --quiet -e '.[test,bench]'
+	$(BIN)/python -m pip install --quiet -e '.[test,bench,ray]'
 	$(BIN)/python -m benchmarks
 
 clean:

@@ -13,6 +13,7 @@ import time
 import traceback
 
 BENCHMARKS = (
+    ("bench_table", "issue #16 table: every row, ours vs peer or floor, ratio, growth -> benchmarks/results.csv"),
     ("bench_reader", "raw beam log reader"),
     ("bench_assignment", "Algorithm 1 agent assignment"),
     ("bench_camera", "camera reader"),
@@ -21,6 +22,7 @@ BENCHMARKS = (
     ("bench_intruder", "intruder SIR particle filter vs Stone Soup particle predictor/updater"),
     ("bench_findinghumo", "FindingHuMo Viterbi vs hmmlearn, decoder time per slot, 2nd-order memory"),
     ("bench_istate", "O'Kane I-state filter step, matching vs direct communication update"),
+    ("bench_runmany", "run-many over 16 datasets and the O'Kane study: serial vs local pool vs Ray"),
 )
 OPTIONAL = {"bench_camera"}
 

@@ -59,7 +59,7 @@ def scenario(name: str, refractory: float, duration: float = 60.0, seed: int = 0
 def ours(site, dep, fired, blind, n, seed=0):
     room = Room(site.free_space)
     t0 = time.process_time()
-    res = run_filter(fired, blind, dep, room, MOTION, n_particles=n, half_w=HALF, half_d=HALF, rng=np.random.default_rng(seed))
+    res = run_filter(fired, blind, dep, room, MOTION, n_particles=n, half_w=HALF, half_d=HALF, rng=np.random.default_rng(seed), compiled=True)
     return (time.process_time() - t0) / len(fired), res.estimates
 
 
@@ -169,7 +169,8 @@ def mean_error(est, truth, t_end):
 
 def memory_per_particle(site, dep, fired, blind, n):
     tracemalloc.start()
-    run_filter(fired[:2], blind[:2], dep, Room(site.free_space), MOTION, n_particles=n, half_w=HALF, half_d=HALF, rng=np.random.default_rng(0))
+    run_filter(fired[:2], blind[:2], dep, Room(site.free_space), MOTION, n_particles=n, half_w=HALF, half_d=HALF, rng=np.random.default_rng(0),
+               compiled=True)
     _, peak = tracemalloc.get_traced_memory()
     tracemalloc.stop()
     return peak / n

@@ -15,16 +15,44 @@ The public API::
 
 from __future__ import annotations
 
+import importlib
 from collections.abc import Iterable, Mapping
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
-from onebit.core.site import Site, load_site
-from onebit.pipeline.runner import RunResult, load_run_config, run_pipeline
+if TYPE_CHECKING:  # for type checkers only; at run time these names load on first use
+    from onebit.core.site import Site, load_site
+    from onebit.pipeline.runner import RunResult
 
 __version__ = "0.1.0"
 
 __all__ = ["RunResult", "Site", "__version__", "load_site", "run"]
+
+#: Public names defined in submodules, loaded on first use (PEP 562 module ``__getattr__``).
+#: ``import onebit`` then costs nothing: the pipeline -- polars, shapely, scipy, numba, rerun,
+#: OpenCV, motmetrics -- is imported when ``onebit.run``/``onebit.load_site`` is first
+#: touched, not by every ``import onebit`` (a CLI start-up, a test collecting). This is the
+#: one place onebit imports its own modules lazily, by name through ``importlib``, and only
+#: for the public API re-exports; every module below imports at its top (the layers contract
+#: and ``tests/test_onebit.py`` hold that).
+_LAZY = {
+    "Site": "onebit.core.site",
+    "load_site": "onebit.core.site",
+    "RunResult": "onebit.pipeline.runner",
+}
+
+
+def __getattr__(name: str) -> Any:
+    module = _LAZY.get(name)
+    if module is None:
+        raise AttributeError(f"module 'onebit' has no attribute {name!r}")
+    value = getattr(importlib.import_module(module), name)
+    globals()[name] = value  # later lookups skip __getattr__
+    return value
+
+
+def __dir__() -> list[str]:
+    return sorted(set(globals()) | set(_LAZY))
 
 
 def run(
@@ -48,5 +76,6 @@ def run(
     -------
     RunResult with ``report`` (polars), ``status`` per stage and ``ok``.
     """
-    cfg = load_run_config(config) if isinstance(config, (str, Path)) else dict(config or {})
-    return run_pipeline(dataset, out, trackers=tuple(trackers) if trackers is not None else None, config=cfg)
+    runner = importlib.import_module("onebit.pipeline.runner")  # lazy: see _LAZY
+    cfg = runner.load_run_config(config) if isinstance(config, (str, Path)) else dict(config or {})
+    return runner.run_pipeline(dataset, out, trackers=tuple(trackers) if trackers is not None else None, config=cfg)

@@ -1,21 +1,30 @@
-"""The ``onebit`` command line: run, report, simulate, logs info / logs convert."""
+"""The ``onebit`` command line: run, run-many, report, simulate, experiment, import (CASAS, trajectories), logs info / logs convert."""
 
 from __future__ import annotations
 
 import argparse
 import sys
+import tempfile
+import traceback
 from pathlib import Path
 
 import polars as pl
 
-from onebit.core.errors import ConfigError, InputError, OnebitError
-from onebit.datasets.catalogue import all_scenarios, get_scenario
-from onebit.datasets.scenario import parse_params
+from onebit.core.config import load_toml
+from onebit.core.errors import ConfigError, InputError, OnebitError, bounded
+from onebit.core.site import load_site
+from onebit.datasets.catalogue import IN_PLACE, all_scenarios, get_scenario
+from onebit.datasets.importers import import_casas, import_trajectories
+from onebit.datasets.scenario import parse_params, simulate_into
 from onebit.experiments import get_experiment
-from onebit.pipeline.report import format_report, load_report
+from onebit.pipeline.executors import EXECUTORS, make_executor
+from onebit.pipeline.progress import Spinner
+from onebit.pipeline.report import check_run_folder, format_report, load_report
+from onebit.pipeline.runmany import format_summary, run_many
 from onebit.pipeline.runner import load_run_config, run_pipeline
 from onebit.readers.loginfo import format_log_info, log_info
 from onebit.readers.mcap_io import csv_folder_to_mcap, mcap_to_csv_folder
+from onebit.readers.trajectories import TrajectoryFormat
 from onebit.trackers.beams.verify import parse_story, verify_path
 
 
@@ -26,6 +35,34 @@ def _cmd_run(args) -> int:
     res = run_pipeline(args.dataset, args.out, trackers=trackers, config=config, echo=print)
     print(format_report(res.report, title=f"report of {args.out}"))
     print(f"Rerun recordings: {Path(args.out) / 'rrd'}/*.rrd   (open later with: rerun {Path(args.out) / 'rrd'}/*.rrd)")
+    failed = [name for name, state in res.status.items() if state.startswith("failed")]
+    for why in ([f"stage(s) failed: {', '.join(failed)} (see {Path(args.out) / 'run.toml'})"] if failed else []) + res.problems:
+        print(f"onebit: run not ok: {why}", file=sys.stderr)
+    return 0 if res.ok else 1
+
+
+def _executor(args):
+    """The executor of ``--executor/--workers/--ray-address`` (run-many, experiment)."""
+    return make_executor(args.executor, workers=args.workers, address=args.ray_address)
+
+
+def _add_executor_options(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--executor", choices=EXECUTORS, default="local",
+                   help="where the tasks run: serial (this process), local (a process pool, default) or ray")
+    p.add_argument("--workers", type=int, default=None,
+                   help="processes of the local pool / CPUs of a local Ray instance (default: one per core); "
+                        "with --ray-address: at most N tasks at a time (default: the cluster's CPUs)")
+    p.add_argument("--ray-address", default=None, metavar="ADDR",
+                   help="join a running Ray cluster (e.g. auto or HEAD:6379; see 'ray start --head'); "
+                        "default: start a local Ray instance")
+
+
+def _cmd_run_many(args) -> int:
+    trackers = tuple(t.strip() for t in args.trackers.split(",")) if args.trackers else None
+    config = load_run_config(args.config)
+    with _executor(args) as ex:
+        res = run_many(args.datasets, args.out, trackers=trackers, config=config, executor=ex, echo=print)
+    print(format_summary(res))
     return 0 if res.ok else 1
 
 
@@ -40,15 +77,24 @@ def _cmd_simulate(args) -> int:
             print(f"{name:28s} {sc.help}")
         return 0
     sc = get_scenario(args.scenario)
-    out = sc.write(
-        args.dataset,
-        seed=args.seed,
-        duration=args.duration,
-        agents=args.agents,
-        drop=args.drop,
-        camera=not args.no_camera,
-        params=parse_params(args.param),
-    )
+    if args.scenario in IN_PLACE:  # from-truth: adds the logs to the folder's own site.toml and truth.csv
+        with Spinner(f"simulating {args.scenario} in {args.dataset}"):
+            sc.write(Path(args.dataset), seed=args.seed, duration=args.duration, agents=args.agents, drop=args.drop,
+                     camera=not args.no_camera, params=parse_params(args.param))  # fmt: skip
+        print(f"wrote the sensor logs of {args.dataset}/site.toml from its truth.csv (seed {args.seed}); "
+              f"now: onebit run {args.dataset} --out OUT")  # fmt: skip
+        return 0
+    with Spinner(f"simulating {args.scenario} into {args.dataset}"):
+        out = simulate_into(
+            sc,
+            args.dataset,
+            seed=args.seed,
+            duration=args.duration,
+            agents=args.agents,
+            drop=args.drop,
+            camera=not args.no_camera,
+            params=parse_params(args.param),
+        )
     dur = f", {args.duration:g} s" if args.duration is not None else ""
     print(f"wrote {args.scenario} dataset to {out} (seed {args.seed}{dur})")
     return 0
@@ -56,7 +102,8 @@ def _cmd_simulate(args) -> int:
 
 def _cmd_experiment(args) -> int:
     mod = get_experiment(args.name)
-    out = mod.run(Path(args.out), seed=args.seed, trials=args.trials, quick=args.quick, echo=print)
+    with _executor(args) as ex:
+        out = mod.run(Path(args.out), seed=args.seed, trials=args.trials, quick=args.quick, echo=print, executor=ex)
     print(f"experiment {args.name}: results in {out}")
     return 0
 
@@ -78,12 +125,55 @@ def _cmd_logs_convert(args) -> int:
     return 0
 
 
+def _cmd_import_casas(args) -> int:
+    res = import_casas(args.log, args.dataset, layout=args.layout, targets=args.targets, window_s=args.window,
+                       min_count=args.min_count, min_share=args.min_share, spacing_m=args.spacing)  # fmt: skip
+    c = res.counts
+    print(f"imported {args.log} -> {args.dataset}: {c['events']} events ({c['motion_csv']} motion/door in motion.csv, "
+          f"{c['other_csv']} others in other.csv, {c['annotations']} annotated), {c['rejected']} rejected lines, "
+          f"{c['reordered']} out of order (sorted); {c['sensors']} sensors, {c['edges']} edges "
+          f"({res.info['graph']['source']} graph, positions: {res.info['layout']['positions']}); see import.toml")  # fmt: skip
+    return 0
+
+
+def _cmd_import_trajectories(args) -> int:
+    fmt = TrajectoryFormat(
+        delimiter={"tab": "\t", "space": " "}.get(args.delimiter, args.delimiter), time=args.time_column,
+        track=args.track_column, x=args.x_column, y=args.y_column, time_unit=args.time_unit, scale=args.scale,
+        offset=(args.offset_x, args.offset_y), flip_x=args.flip_x, flip_y=args.flip_y, swap_xy=args.swap_xy,
+        join=tuple(tuple(i.strip() for i in j.split(",")) for j in args.join or []),
+    )  # fmt: skip
+    res = import_trajectories(args.file, args.dataset, fmt)
+    c = res.counts
+    print(f"imported {args.file} -> {args.dataset}/truth.csv: {c['positions']} positions of {c['tracks']} tracks, "
+          f"{c['rejected']} rejected rows{' (truth_rejects.csv)' if c['rejected'] else ''}; see truth_import.toml")  # fmt: skip
+    return 0
+
+
 def verify_run(out: str | Path, story: str, **scores: float) -> pl.DataFrame:
-    """:func:`verify_path` on the ``beams_assignment`` table of a finished run folder ``out``."""
+    """:func:`verify_path` on the ``beams_assignment`` table of a finished run folder ``out``.
+
+    A story label naming a beam the run's site does not have is a ``ValueError`` naming it
+    and the beams there are (when the site can be found from the run's ``run.toml``)."""
+    if Path(out).is_dir():
+        check_run_folder(out)  # refuses a folder an interrupted run left INCOMPLETE
     path = Path(out) / "tables" / "beams_assignment.parquet"
     if not path.exists():
         raise InputError("no beams_assignment table: run the beams tracker first (onebit run)", file=path)
+    beams = _run_beams(Path(out))
+    unknown = sorted({tok.removesuffix("^-1") for tok in parse_story(story)} - set(beams)) if beams else []
+    if unknown:
+        raise ValueError(f"label(s) {', '.join(map(repr, unknown))} name no beam of the run; its beams are {', '.join(beams)}")
     return verify_path(story, pl.read_parquet(path), **scores)
+
+
+def _run_beams(out: Path) -> list[str]:
+    """The beam ids of the run's site (its ``run.toml`` names the dataset), or ``[]`` if unknown."""
+    try:
+        dataset = Path(str(load_toml(out / "run.toml", error=InputError).get("dataset", "")))
+        return list(load_site(dataset / "site.toml").beam_ids)
+    except (OnebitError, OSError):
+        return []
 
 
 def _cmd_verify_path(args) -> int:
@@ -115,6 +205,15 @@ def build_parser() -> argparse.ArgumentParser:
     r.add_argument("--config", help="run.toml with one [section] per stage")
     r.set_defaults(func=_cmd_run)
 
+    rm = sub.add_parser("run-many", help="run the pipeline on many dataset folders (process pool or Ray)")
+    rm.add_argument("datasets", nargs="+", metavar="DATASET",
+                    help="dataset folders, globs ('data/*/floor*') or files listing one folder per line")
+    rm.add_argument("--out", required=True, help="folder for one run folder per dataset and summary.parquet/.csv")
+    rm.add_argument("--trackers", help="comma-separated tracker names (default: all)")
+    rm.add_argument("--config", help="run.toml with one [section] per stage, for every dataset")
+    _add_executor_options(rm)
+    rm.set_defaults(func=_cmd_run_many)
+
     rp = sub.add_parser("report", help="print the report of a finished run")
     rp.add_argument("out")
     rp.set_defaults(func=_cmd_report)
@@ -137,6 +236,7 @@ def build_parser() -> argparse.ArgumentParser:
     e.add_argument("--seed", type=int, default=0)
     e.add_argument("--trials", type=int, default=None, help="trials per setting (default: the paper's)")
     e.add_argument("--quick", action="store_true", help="a reduced study (smoke test)")
+    _add_executor_options(e)
     e.set_defaults(func=_cmd_experiment)
 
     vp = sub.add_parser("verify-path", help="is a story (crossing labels) plausible? Smith-Waterman vs a beams run")
@@ -146,6 +246,36 @@ def build_parser() -> argparse.ArgumentParser:
     vp.add_argument("--mismatch", type=float, default=-1.0, help="score of a mismatching label (<= 0)")
     vp.add_argument("--gap", type=float, default=1.0, help="penalty of a gap (> 0)")
     vp.set_defaults(func=_cmd_verify_path)
+
+    im = sub.add_parser("import", help="make a dataset folder from the field's own recordings (CASAS, trajectories)")
+    isub = im.add_subparsers(dest="import_command", required=True)
+    ic = isub.add_parser("casas", help="a CASAS smart-home log (.txt) -> motion.csv, other.csv, annotations.csv, site.toml")
+    ic.add_argument("log")
+    ic.add_argument("dataset")
+    ic.add_argument("--layout", help="layout.toml: sensor positions (and edges); without it the graph is learned from the log")
+    ic.add_argument("--targets", type=int, default=None, help="the most residents present at once (site.toml targets)")
+    ic.add_argument("--window", type=float, default=5.0, help="learned graph: s between two sensors' ON for a transition")
+    ic.add_argument("--min-count", type=int, default=3, help="learned graph: transitions an edge needs")
+    ic.add_argument("--min-share", type=float, default=0.1, help="learned graph: share of the less busy sensor's transitions")
+    ic.add_argument("--spacing", type=float, default=3.0, help="force layout: edge length (m)")
+    ic.set_defaults(func=_cmd_import_casas)
+    it = isub.add_parser("trajectories", help="a people-counter / indoor-positioning export -> truth.csv")
+    it.add_argument("file")
+    it.add_argument("dataset")
+    it.add_argument("--delimiter", default=None, help="',', ';', 'tab', '|' or 'space' (default: sniffed from the header)")
+    it.add_argument("--time-column", default=None, help="default: t, time, timestamp, ts, ...")
+    it.add_argument("--track-column", default=None, help="default: track, id, track_id, person_id, ...")
+    it.add_argument("--x-column", default=None)
+    it.add_argument("--y-column", default=None)
+    it.add_argument("--time-unit", default="auto", choices=("auto", "s", "ms", "us", "iso"))
+    it.add_argument("--scale", type=float, default=1.0, help="x, y times this (0.001: mm -> m)")
+    it.add_argument("--offset-x", type=float, default=0.0, help="added to x after scaling")
+    it.add_argument("--offset-y", type=float, default=0.0, help="added to y after scaling")
+    it.add_argument("--flip-x", action="store_true", help="negate x (before the offset)")
+    it.add_argument("--flip-y", action="store_true", help="negate y (before the offset)")
+    it.add_argument("--swap-xy", action="store_true", help="swap the x and y columns")
+    it.add_argument("--join", action="append", metavar="A,B", help="track ids that are one person (repeatable)")
+    it.set_defaults(func=_cmd_import_trajectories)
 
     lg = sub.add_parser("logs", help="inspect or convert raw logs")
     lsub = lg.add_subparsers(dest="logs_command", required=True)
@@ -166,6 +296,20 @@ def main(argv: list[str] | None = None) -> int:
     except OnebitError as exc:
         print(f"onebit: error: {exc}", file=sys.stderr)
         return 2
+    except KeyboardInterrupt:
+        print("onebit: interrupted (folders being written were left as they were before)", file=sys.stderr)
+        return 130
+    except Exception as exc:  # a bug (or the system: disk full): one line, the traceback kept for a bug report
+        what = "error" if isinstance(exc, OSError) else "internal error"
+        print(f"onebit: {what}: {bounded(f'{type(exc).__name__}: {exc}')}", file=sys.stderr)
+        notes = [n for n in getattr(exc, "__notes__", []) if n.startswith("onebit:")]
+        if notes:
+            print(notes[0], file=sys.stderr)
+        else:
+            with tempfile.NamedTemporaryFile("w", prefix="onebit-traceback-", suffix=".txt", delete=False) as fh:
+                fh.write("".join(traceback.format_exception(exc)))
+            print(f"onebit: the traceback is in {fh.name}; please attach it to a bug report", file=sys.stderr)
+        return 1
 
 
 if __name__ == "__main__":

@@ -4,10 +4,13 @@ and what is allowed (:class:`~onebit.core.errors.ConfigError`)."""
 
 from __future__ import annotations
 
+import math
+import tomllib
 from dataclasses import fields
+from pathlib import Path
 from typing import Any
 
-from onebit.core.errors import ConfigError
+from onebit.core.errors import ConfigError, InputError
 
 
 def config_from_mapping(cls: type, values: dict[str, Any] | None, *, section: str):
@@ -27,8 +30,33 @@ def check_choice(obj, name: str, allowed: tuple) -> None:
 
 
 def check_range(obj, name: str, lo=None, hi=None, *, types=(int, float)) -> None:
+    """``obj.name`` is a number of ``types`` (never a bool), finite, in ``[lo, hi]``."""
     value = getattr(obj, name)
     ok = isinstance(value, types) and not isinstance(value, bool)
+    ok = ok and (not isinstance(value, float) or math.isfinite(value))
     ok = ok and (lo is None or value >= lo) and (hi is None or value <= hi)
     if not ok:
         raise ConfigError(f"{type(obj).__name__}.{name} = {value!r}; allowed range: [{lo}, {hi}]")
+
+
+def load_toml(path: str | Path, *, error: type[InputError] = InputError) -> dict[str, Any]:
+    """Parse a user's TOML file (``site.toml``, ``run.toml``); every problem is an ``error``
+    (an :class:`InputError` subclass) naming the file and, where known, the line: unreadable,
+    not UTF-8 (the byte, line and column), not TOML, or nested too deeply to parse."""
+    path = Path(path)
+    try:
+        data = path.read_bytes()
+    except OSError as exc:
+        raise error(f"cannot read: {exc.strerror or exc}", file=path) from None
+    try:
+        text = data.decode("utf-8")
+    except UnicodeDecodeError as exc:
+        line = data.count(b"\n", 0, exc.start) + 1
+        col = exc.start - (data.rfind(b"\n", 0, exc.start) + 1) + 1
+        raise error(f"not UTF-8 text: byte 0x{data[exc.start]:02X} at column {col}", file=path, line=line) from None
+    try:
+        return tomllib.loads(text)
+    except tomllib.TOMLDecodeError as exc:
+        raise error(f"not valid TOML: {exc}", file=path) from None
+    except RecursionError:
+        raise error("not valid TOML here: arrays or tables nested too deeply to read", file=path) from None

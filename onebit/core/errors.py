@@ -1,12 +1,39 @@
-"""Errors raised on bad user input: each names the file, the line (when there is one) and the field."""
+"""Errors raised on bad user input: each names the file, the line (when there is one) and the field.
+
+Every message is bounded (:func:`bounded`): a value quoted from user input (a 50 MB line, a
+huge TOML string) is cut to :data:`MAX_QUOTE` characters and a whole message to
+:data:`MAX_MESSAGE`, with the full length stated, so no error floods a console or a
+``run.toml``.
+"""
 
 from __future__ import annotations
 
 from pathlib import Path
 
+#: Characters of raw user text (a rejected line, a bad value) quoted in a reject or a message.
+MAX_QUOTE = 200
+#: Characters of a whole error message.
+MAX_MESSAGE = 2000
+
+
+def bounded(text: str, limit: int = MAX_QUOTE) -> str:
+    """``text`` cut to ``limit`` characters, stating the full length when it was cut.
+
+    >>> bounded("x" * 300, 10)
+    'xxxxxxxxxx... (300 characters)'
+    """
+    text = str(text)
+    return text if len(text) <= limit else f"{text[:limit]}... ({len(text)} characters)"
+
 
 class OnebitError(Exception):
-    """Base class of every error onebit raises about its input or configuration."""
+    """Base class of every error onebit raises about its input or configuration.
+
+    The message is bounded to :data:`MAX_MESSAGE` characters (:func:`bounded`).
+    """
+
+    def __init__(self, message: object = "", *args: object) -> None:
+        super().__init__(bounded(str(message), MAX_MESSAGE), *args)
 
 
 class InputError(OnebitError):
@@ -23,7 +50,7 @@ class InputError(OnebitError):
         line: int | None = None,
         field: str | None = None,
     ) -> None:
-        self.reason = reason
+        self.reason = reason = bounded(reason, MAX_MESSAGE)
         self.file = None if file is None else str(file)
         self.line = line
         self.field = field

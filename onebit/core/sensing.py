@@ -95,6 +95,20 @@ BUILTIN_TYPES: dict[str, dict] = {
 #: Default sampling resolution of a characterisation, metres (converted to the site's units).
 DEFAULT_RESOLUTION_M = 1.0
 
+#: Radius of a person's body when ``site.toml`` gives no ``body_radius``, metres: a walker's
+#: shoulders are ~0.45 m wide, and a beam crossing is logged with the centre ~0.2 m past it.
+DEFAULT_BODY_RADIUS_M = 0.2
+
+
+def body_radius(site: "Site") -> float:
+    """The radius of a target's body in the site's units: ``site.toml``'s ``body_radius``, else
+    :data:`DEFAULT_BODY_RADIUS_M` converted. The one value simulators (a beam is blocked while
+    a body overlaps a pair), the beam reader's geometry (:func:`onebit.readers.beams.crossing_reach`)
+    and trackers (istate's beam regions) use."""
+    if getattr(site, "body_radius", None) is not None:
+        return float(site.body_radius)
+    return DEFAULT_BODY_RADIUS_M * units_per_metre(site.units)
+
 
 # --------------------------------------------------------------------------- sensor types
 

@@ -23,8 +23,8 @@ and clears ``b`` last (paper Figs. 5-7).
 from __future__ import annotations
 
 import math
-import tomllib
 from dataclasses import dataclass, field
+from datetime import datetime
 from functools import cached_property
 from pathlib import Path
 
@@ -32,7 +32,8 @@ import numpy as np
 import shapely
 from shapely.geometry import LineString, Point, Polygon
 
-from onebit.core.errors import SiteError
+from onebit.core.config import load_toml
+from onebit.core.errors import SiteError, bounded
 from onebit.core.sensing import build_detection_regions
 from onebit.core.units import METRES_PER_UNIT
 
@@ -41,7 +42,7 @@ TOUCH_TOL = 1e-6
 
 _TOP_KEYS = {
     "name", "units", "epoch", "boundary", "obstacles", "beams", "regions", "camera",
-    "targets", "motion_sensors", "proximity_sensors", "sensor_graph", "sensor_types",
+    "targets", "motion_sensors", "proximity_sensors", "sensor_graph", "sensor_types", "body_radius",
 }
 _MOTION_KEYS = {"id", "position", "heading", "type", "refractory", "fov", "range"}
 _PROXIMITY_KEYS = {"id", "position", "radius", "r_inner", "r_outer"}
@@ -198,6 +199,10 @@ class Site:
     proximity_sensors: tuple[ProximitySensor, ...] = ()
     sensor_graph: SensorGraph | None = None
     sensor_types: dict = field(default_factory=dict, repr=False)  # raw tables, validated by their user
+    #: radius of a target's body (site units; ``None`` = 0.2 m): a beam is blocked while the
+    #: body overlaps a pair, so a crossing is logged with the centre up to ``spacing / 2 +
+    #: body_radius`` past the beam (:func:`onebit.core.sensing.body_radius`)
+    body_radius: float | None = None
 
     @property
     def free_space(self):
@@ -230,15 +235,7 @@ class Site:
 def load_site(path: str | Path) -> Site:
     """Load and validate ``site.toml``; raise :class:`SiteError` naming the key on any problem."""
     path = Path(path)
-    try:
-        text = path.read_text(encoding="utf-8")
-    except OSError as exc:
-        raise SiteError(f"cannot read site file: {exc.strerror}", file=path) from None
-    try:
-        data = tomllib.loads(text)
-    except tomllib.TOMLDecodeError as exc:
-        raise SiteError(f"not valid TOML: {exc}", file=path) from None
-    return site_from_dict(data, source=str(path))
+    return site_from_dict(load_toml(path, error=SiteError), source=str(path))
 
 
 def site_from_dict(data: dict, *, source: str = "<site>") -> Site:
@@ -248,13 +245,15 @@ def site_from_dict(data: dict, *, source: str = "<site>") -> Site:
         return SiteError(reason, file=source, field=key)
 
     _unknown(data, _TOP_KEYS, "", err)
-    name = str(data.get("name", Path(source).parent.name or "site"))
+    name = _name(data.get("name", Path(source).parent.name or "site"), "name", err)
     units = data.get("units", "m")
     if not isinstance(units, str) or units not in _UNITS:
         raise err("units", f"unknown unit {units!r}; expected one of {sorted(_UNITS)}")
     epoch = data.get("epoch")
     if epoch is not None and not isinstance(epoch, str):
         epoch = epoch.isoformat() if hasattr(epoch, "isoformat") else str(epoch)
+    if epoch is not None:
+        _check_epoch(epoch, err)
 
     if "boundary" not in data:
         raise err("boundary", "missing; the site needs a boundary polygon")
@@ -272,7 +271,7 @@ def site_from_dict(data: dict, *, source: str = "<site>") -> Site:
         if not boundary.buffer(TOUCH_TOL).contains(poly):
             raise err(key + ".polygon", "obstacle is not inside the boundary")
         obstacles.append(poly)
-        obstacle_names.append(str(ob.get("name", i)))
+        obstacle_names.append(_name(ob.get("name", i), key + ".name", err))
     free = shapely.difference(boundary, shapely.union_all(obstacles)) if obstacles else boundary
     walls = shapely.union_all([boundary.exterior, *[o.boundary for o in obstacles]])
 
@@ -283,7 +282,7 @@ def site_from_dict(data: dict, *, source: str = "<site>") -> Site:
         _unknown(bm, _BEAM_KEYS, key + ".", err)
         if "id" not in bm:
             raise err(key + ".id", "missing")
-        bid = str(bm["id"])
+        bid = _name(bm["id"], key + ".id", err)
         key = f"beams[{i}] (id {bid!r})"
         if bid in seen:
             raise err(key + ".id", "duplicate beam id")
@@ -304,9 +303,9 @@ def site_from_dict(data: dict, *, source: str = "<site>") -> Site:
         forward = bm.get("forward", "left")
         if forward not in ("left", "right"):
             raise err(key + ".forward", f"must be 'left' or 'right', got {forward!r}")
-        spacing = bm.get("spacing", 0.0)
-        if not isinstance(spacing, (int, float)) or spacing < 0:
-            raise err(key + ".spacing", f"must be a non-negative number, got {spacing!r}")
+        spacing = _number(bm.get("spacing", 0.0), key + ".spacing", err, lo=0.0)
+        if "capacity" in bm:
+            _integer(bm["capacity"], key + ".capacity", err, lo=0)
         beams.append(Beam(bid, tuple(pts[0]), tuple(pts[1]), forward, float(spacing)))
     for i in range(len(beams)):
         for j in range(i + 1, len(beams)):
@@ -325,9 +324,9 @@ def site_from_dict(data: dict, *, source: str = "<site>") -> Site:
         if not free.contains(Point(pts[0])):
             raise err(key + ".point", f"{tuple(pts[0])} is not in the free space")
         cap = rg.get("capacity")
-        if cap is not None and (not isinstance(cap, int) or cap < 0):
-            raise err(key + ".capacity", f"must be a non-negative integer, got {cap!r}")
-        regions.append(RegionSpec(str(rg["name"]), tuple(pts[0]), cap))
+        if cap is not None:
+            cap = _integer(cap, key + ".capacity", err, lo=0)
+        regions.append(RegionSpec(_name(rg["name"], key + ".name", err), tuple(pts[0]), cap))
     if len({r.name for r in regions}) != len(regions):
         raise err("regions", "duplicate region name")
 
@@ -338,6 +337,7 @@ def site_from_dict(data: dict, *, source: str = "<site>") -> Site:
     targets = data.get("targets")
     if targets is not None and (not isinstance(targets, int) or isinstance(targets, bool) or targets < 0):
         raise err("targets", f"must be a non-negative integer, got {targets!r}")
+    body = _number(data["body_radius"], "body_radius", err, lo=0.0) if "body_radius" in data else None
     sensor_ids: set[str] = set(seen)
     motion = [_motion_sensor(ms, i, boundary, sensor_ids, err) for i, ms in enumerate(_list_of_tables(data.get("motion_sensors", []), "motion_sensors", err))]
     prox = [_proximity_sensor(ps, i, sensor_ids, err) for i, ps in enumerate(_list_of_tables(data.get("proximity_sensors", []), "proximity_sensors", err))]
@@ -362,12 +362,18 @@ def site_from_dict(data: dict, *, source: str = "<site>") -> Site:
         proximity_sensors=tuple(prox),
         sensor_graph=graph,
         sensor_types=stypes,
+        body_radius=body,
     )
+
+
+def _shown(value) -> str:
+    """A user's value as quoted in a message (bounded: :func:`onebit.core.errors.bounded`)."""
+    return bounded(repr(value))
 
 
 def _number(value, key: str, err, *, lo: float | None = None, positive: bool = False) -> float:
     if not isinstance(value, (int, float)) or isinstance(value, bool) or not math.isfinite(value):
-        raise err(key, f"must be a number, got {value!r}")
+        raise err(key, f"must be a finite number, got {_shown(value)}")
     if positive and value <= 0:
         raise err(key, f"must be positive, got {value!r}")
     if lo is not None and value < lo:
@@ -375,10 +381,37 @@ def _number(value, key: str, err, *, lo: float | None = None, positive: bool = F
     return float(value)
 
 
+def _integer(value, key: str, err, *, lo: int | None = None) -> int:
+    """An integer (never a bool, never a float) of at least ``lo``."""
+    if not isinstance(value, int) or isinstance(value, bool):
+        raise err(key, f"must be an integer, got {_shown(value)}")
+    if lo is not None and value < lo:
+        raise err(key, f"must be at least {lo}, got {value!r}")
+    return value
+
+
+def _name(value, key: str, err) -> str:
+    """An id or name: a non-empty string, or an integer (kept as its decimal text)."""
+    if isinstance(value, bool) or not isinstance(value, (str, int)):
+        raise err(key, f"must be a string (or an integer), got {_shown(value)}")
+    text = str(value)
+    if not text.strip():
+        raise err(key, "must not be empty")
+    return text
+
+
+def _check_epoch(epoch: str, err) -> None:
+    """The epoch is an ISO 8601 date or date-time (``2024-05-01T08:00:00Z``)."""
+    try:
+        datetime.fromisoformat(epoch.replace("Z", "+00:00"))
+    except ValueError:
+        raise err("epoch", f"not an ISO 8601 date or date-time (e.g. 2024-05-01T08:00:00Z), got {_shown(epoch)}") from None
+
+
 def _sensor_id(table: dict, key: str, seen: set[str], err) -> str:
     if "id" not in table:
         raise err(key + ".id", "missing")
-    sid = str(table["id"])
+    sid = _name(table["id"], key + ".id", err)
     if sid in seen:
         raise err(key + ".id", f"duplicate sensor id {sid!r}")
     seen.add(sid)
@@ -394,7 +427,7 @@ def _motion_sensor(ms: dict, i: int, boundary: Polygon, seen: set[str], err) -> 
     heading = _number(ms.get("heading", 0.0), key + ".heading", err)
     typ = ms.get("type")
     if typ is not None and not isinstance(typ, str):
-        raise err(key + ".type", f"must be a string, got {typ!r}")
+        raise err(key + ".type", f"must be a string, got {_shown(typ)}")
     refr = _number(ms.get("refractory", 0.0), key + ".refractory", err, lo=0.0)
     fov = _polygon(ms["fov"], key + ".fov", err) if "fov" in ms else None
     rng = _number(ms["range"], key + ".range", err, positive=True) if "range" in ms else None
@@ -511,11 +544,8 @@ def _camera(cam, err) -> Camera:
     for k in ("width", "height"):
         if k not in cam:
             raise err(f"camera.{k}", "missing")
-        if not isinstance(cam[k], int) or cam[k] <= 0:
-            raise err(f"camera.{k}", f"must be a positive integer, got {cam[k]!r}")
-    fps = cam.get("fps", 10.0)
-    if not isinstance(fps, (int, float)) or fps <= 0:
-        raise err("camera.fps", f"must be a positive number, got {fps!r}")
+        _integer(cam[k], f"camera.{k}", err, lo=1)
+    fps = _number(cam.get("fps", 10.0), "camera.fps", err, positive=True)
     if "homography" in cam and "points" in cam:
         raise err("camera", "give either 'homography' or 'points', not both")
     if "homography" in cam:
@@ -537,9 +567,7 @@ def _camera(cam, err) -> Camera:
         h = cv2.getPerspectiveTransform(px.astype(np.float32), wd.astype(np.float32)).astype(float)
     else:
         raise err("camera.homography", "missing; give 'homography' (3x3) or 'points' (4 correspondences)")
-    t0 = cam.get("t0", 0.0)
-    if not isinstance(t0, (int, float)):
-        raise err("camera.t0", f"must be a number of seconds, got {t0!r}")
+    t0 = _number(cam.get("t0", 0.0), "camera.t0", err)
     return Camera(int(cam["width"]), int(cam["height"]), float(fps), h, float(t0))
 
 

@@ -1,18 +1,37 @@
 """Atomic output writing for run folders, datasets and studies: every file is written to a
 temporary file in the same folder and renamed over its target only when complete
 (:func:`atomic_path`), so an interrupted run never leaves a half-written file. This is the
-one place that does it; every writer of onebit goes through it."""
+one place that does it; every writer of onebit goes through it.
+
+A whole folder is replaced the same way (:func:`folder_transaction`): its new entries are
+written into a fresh work folder inside it and swapped in when complete, so the folder holds
+either its previous complete content or the new one -- or, if a process dies during the
+swap itself, an ``INCOMPLETE`` marker that says so. Temporary files and work folders of
+processes that died are removed (:func:`remove_stale_temps`, :func:`folder_transaction`).
+"""
 
 from __future__ import annotations
 
+import fcntl
 import os
+import re
 import shutil
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from pathlib import Path
 from typing import Any
 
 import polars as pl
+
+from onebit.core.errors import InputError
+
+#: Name of the marker file of a folder whose entries are being swapped (or whose swap was cut).
+INCOMPLETE = "INCOMPLETE"
+#: Prefix of the work folder (``.onebit-work-<pid>``) and of the folder holding the entries
+#: being replaced (``.onebit-old-<pid>``) inside a folder under :func:`folder_transaction`.
+WORK_PREFIX = ".onebit-work-"
+OLD_PREFIX = ".onebit-old-"
+_TEMP_NAME = re.compile(r"^\.(?P<name>.+)\.(?P<pid>\d+)(?:\.tmp(?:\.[^.]+)?|\.partial)$")
 
 
 def temp_path(path: str | Path, *, suffix: str = ".tmp") -> Path:
@@ -94,3 +113,146 @@ def to_toml(data: dict[str, Any]) -> str:
 
 def _key(k: str) -> str:
     return k if k.replace("_", "").replace("-", "").isalnum() else f'"{k}"'
+
+
+# --------------------------------------------------------------------------- stale temporaries
+
+
+def pid_alive(pid: int) -> bool:
+    """Whether a process ``pid`` exists (one of another user counts as alive)."""
+    if pid <= 0:
+        return False
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except PermissionError:
+        return True
+    return True
+
+
+def remove_stale_temps(folder: str | Path) -> list[Path]:
+    """Delete the temporary files (:func:`temp_path` names: ``.<name>.<pid>.tmp``,
+    ``.<name>.<pid>.partial``, ...) under ``folder`` whose process no longer runs.
+
+    Returns the files removed. A file of a live process (or of another user's) is kept.
+    """
+    folder = Path(folder)
+    removed: list[Path] = []
+    if not folder.is_dir():
+        return removed
+    for root, dirs, files in os.walk(folder):
+        for name in files:
+            m = _TEMP_NAME.match(name)
+            if m and int(m["pid"]) != os.getpid() and not pid_alive(int(m["pid"])):
+                p = Path(root) / name
+                p.unlink(missing_ok=True)
+                removed.append(p)
+    return removed
+
+
+# --------------------------------------------------------------------------- folder transactions
+
+
+@contextmanager
+def folder_lock(folder: str | Path) -> Iterator[None]:
+    """Hold an exclusive lock on ``folder`` (``flock`` on the folder itself; released when the
+    process ends, however it ends). Another process holding it is an :class:`InputError`."""
+    folder = Path(folder)
+    fd = os.open(folder, os.O_RDONLY)
+    try:
+        try:
+            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except BlockingIOError:
+            raise InputError("another onebit process is writing this folder; wait for it to finish", file=folder) from None
+        except OSError:  # a file system without locks (some network mounts): go on unlocked
+            pass
+        yield
+    finally:
+        os.close(fd)
+
+
+def _work_debris(folder: Path) -> list[Path]:
+    return [p for p in folder.iterdir() if p.name.startswith((WORK_PREFIX, OLD_PREFIX))]
+
+
+def prepare_folder(folder: str | Path) -> Path:
+    """Create ``folder`` (and its parents) for writing; an existing file there, or a folder
+    that cannot be created, is an :class:`InputError` naming it."""
+    folder = Path(folder)
+    if folder.exists() and not folder.is_dir():
+        raise InputError("exists and is not a folder; give a folder to write into", file=folder)
+    try:
+        folder.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise InputError(f"cannot create the folder: {exc.strerror or exc}", file=folder) from None
+    return folder
+
+
+@contextmanager
+def folder_transaction(folder: str | Path, *, replaces: Callable[[str], bool] = lambda name: True) -> Iterator[Path]:
+    """Replace entries of ``folder`` as one transaction: yield a fresh, empty work folder
+    (``folder/.onebit-work-<pid>``) to write into; when the block succeeds, the entries of
+    ``folder`` that ``replaces(name)`` selects are replaced by the work folder's entries.
+
+    Protocol (every step a rename inside ``folder``, so one file system):
+
+    1. lock ``folder`` (:func:`folder_lock`); remove work folders and temporary files that
+       dead processes left (the lock says no live process is using them);
+    2. the caller writes everything into the work folder; on any error the work folder is
+       deleted and ``folder`` is untouched;
+    3. on success: write ``folder/INCOMPLETE``, move the replaced entries into
+       ``.onebit-old-<pid>``, move the new entries in, delete ``INCOMPLETE`` (the commit
+       point), delete the old entries.
+
+    So at any moment ``folder`` holds its previous entries, or the new ones, or is marked
+    ``INCOMPLETE`` (a process killed during step 3); never a mixture without the marker.
+    The work and old folders (``.onebit-work-*``, ``.onebit-old-*``) are never replaced.
+    """
+    folder = prepare_folder(folder)
+    with folder_lock(folder):
+        for debris in _work_debris(folder):
+            shutil.rmtree(debris, ignore_errors=True)
+        remove_stale_temps(folder)
+        work = folder / f"{WORK_PREFIX}{os.getpid()}"
+        work.mkdir()
+        try:
+            yield work
+        except BaseException:
+            shutil.rmtree(work, ignore_errors=True)
+            raise
+        _swap_in(folder, work, replaces)
+
+
+def _swap_in(folder: Path, work: Path, replaces: Callable[[str], bool]) -> None:
+    marker = folder / INCOMPLETE
+    write_text(
+        "This folder is incomplete: onebit was interrupted while it replaced the folder's\n"
+        "previous content with a new one, so it may hold a mixture of both. Write it again\n"
+        "(the same onebit command); onebit refuses to read it until then.\n",
+        marker,
+    )
+    old = folder / f"{OLD_PREFIX}{os.getpid()}"
+    old.mkdir(exist_ok=True)
+    new_names = {p.name for p in work.iterdir()}
+    for entry in sorted(folder.iterdir()):
+        if entry.name.startswith((WORK_PREFIX, OLD_PREFIX)) or entry.name == INCOMPLETE:
+            continue
+        if replaces(entry.name) or entry.name in new_names:
+            os.replace(entry, old / entry.name)
+    for entry in sorted(work.iterdir()):
+        os.replace(entry, folder / entry.name)
+    marker.unlink()
+    shutil.rmtree(old, ignore_errors=True)
+    shutil.rmtree(work, ignore_errors=True)
+
+
+def is_incomplete(folder: str | Path) -> bool:
+    """Whether ``folder`` carries the ``INCOMPLETE`` marker of a cut :func:`folder_transaction`."""
+    return (Path(folder) / INCOMPLETE).exists()
+
+
+def in_progress(folder: str | Path) -> bool:
+    """Whether ``folder`` holds a work folder of a :func:`folder_transaction` (running or dead)."""
+    folder = Path(folder)
+    return folder.is_dir() and any(p.name.startswith(WORK_PREFIX) for p in folder.iterdir())

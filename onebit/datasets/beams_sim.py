@@ -30,16 +30,19 @@ from shapely.geometry import LineString, Point
 
 from onebit.datasets.scenario import Scenario
 from onebit.core.region_graph import RegionGraph, build_region_graph
+from onebit.core.sensing import body_radius
 from onebit.core.site import Site, load_site
 from onebit.datasets.builtin import builtin_site_path
-from onebit.core.writers import write_text as _atomic_text, write_csv as _atomic_csv, copy_file as _atomic_copy
+from onebit.core.writers import write_text as _atomic_text, write_csv as _atomic_csv
 from onebit.core.errors import ConfigError
 from onebit.datasets.camera_render import render_overhead_video
 
-#: Built-in scenarios: site, default agent count, speed range (units/s), agent radius (units).
+#: Built-in scenarios: site, default agent count, speed range (units/s). An agent's radius is
+#: the site's ``body_radius`` (lab 0.15 ft, building 0.25 m): the one value the beam reader's
+#: geometry and the trackers use too.
 SCENARIOS = {
-    "beams-lab": dict(site="lab", agents=2, speed=(0.6, 1.2), radius=0.15, start="same"),
-    "beams-building": dict(site="building", agents=3, speed=(0.8, 1.5), radius=0.25, start="random"),
+    "beams-lab": dict(site="lab", agents=2, speed=(0.6, 1.2), start="same"),
+    "beams-building": dict(site="building", agents=3, speed=(0.8, 1.5), start="random"),
 }
 
 
@@ -301,11 +304,11 @@ def write_beams_dataset(
         agents=agents or sc["agents"],
         drop=drop,
         speed=sc["speed"],
-        radius=sc["radius"],
+        radius=body_radius(site),
         start=sc["start"],
     )
     sim = simulate_beams(site, cfg, seed=seed)
-    _atomic_copy(site_path, out / "site.toml")
+    _atomic_text(with_targets(site_path.read_text(encoding="utf-8"), cfg.agents), out / "site.toml")
     _atomic_csv(sim.beam_events.with_columns(pl.col("blocked").cast(pl.Int8)), out / "beams.csv")
     cam = site.camera
     fps = cam.fps if cam else 10.0
@@ -322,6 +325,13 @@ def write_beams_dataset(
 
         render_overhead_video(out / "camera.mp4", site, frames, seed=seed, radius=cfg.radius)
     return out
+
+
+def with_targets(site_text: str, n: int) -> str:
+    """``site.toml`` text with ``targets = n`` (the simulated agents: the most present at once)."""
+    lines = site_text.splitlines()
+    k = next((i for i, ln in enumerate(lines) if ln.startswith("units")), 0)
+    return "\n".join(lines[: k + 1] + [f"targets = {n}                    # agents simulated (the most present at once)"] + lines[k + 1 :]) + "\n"
 
 
 def initial_condition_toml(start_regions: dict[str, str]) -> str:

@@ -6,7 +6,7 @@ Adding a simulator: give its module ``SCENARIO_SPECS`` and list it here.
 from __future__ import annotations
 
 from onebit.core.errors import ConfigError
-from onebit.datasets import beams_sim, hallway_sim, okane_sim, pir_sim, proximity_sim
+from onebit.datasets import beams_sim, from_truth, hallway_sim, okane_sim, pir_sim, proximity_sim
 from onebit.datasets.scenario import Scenario
 
 SCENARIOS: dict[str, Scenario] = {
@@ -15,7 +15,12 @@ SCENARIOS: dict[str, Scenario] = {
     **proximity_sim.SCENARIO_SPECS,
     **hallway_sim.SCENARIO_SPECS,
     **okane_sim.SCENARIO_SPECS,
+    **from_truth.SCENARIO_SPECS,
 }
+
+#: Scenarios that add logs to an existing dataset folder (its site.toml and truth.csv) instead
+#: of writing a new one: ``onebit simulate`` calls them on the folder itself.
+IN_PLACE = frozenset({from_truth.NAME})
 
 
 def all_scenarios() -> dict[str, Scenario]:

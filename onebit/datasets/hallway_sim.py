@@ -30,6 +30,7 @@ sensing are vectorised over samples, users and nodes.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -42,7 +43,7 @@ from onebit.core.sensing import covers, current_node, detection_regions
 from onebit.core.site import Site, load_site
 from onebit.datasets.builtin import builtin_site_path
 from onebit.core.errors import ConfigError
-from onebit.core.writers import write_csv as _atomic_csv, copy_file as _atomic_copy
+from onebit.core.writers import write_csv as _atomic_csv, write_text as _atomic_text
 
 WEST = ("92", "93", "94", "96", "97", "95")
 EAST = ("99", "110", "114", "117", "106", "118", "100", "111", "101")
@@ -249,7 +250,16 @@ def write_hallway_dataset(
     site = load_site(site_path)
     cfg = HallwaySimConfig(duration=duration, users=users, drop=drop, exits=exits, walk=walk)
     sim = simulate_hallway(site, cfg, seed=seed)
-    _atomic_copy(site_path, out / "site.toml")
+    text = site_path.read_text(encoding="utf-8").replace('units = "m"', f'units = "m"\ntargets = {users}                    # users simulated (the most present at once)', 1)
+    _atomic_text(text, out / "site.toml")
+    # what a tracker may know: a reading lags the user by the PIR's hold plus a node's clock
+    # offset (and a 10 Hz sample); users walk at most speed[1] * (1 + speed_jitter)
+    top = math.ceil(cfg.speed[1] * (1.0 + cfg.speed_jitter) * 10) / 10
+    _atomic_text(
+        "# Written by the simulator: what a tracker may know of these sensors and users.\n"
+        f"[istate]\nlatency_s = {cfg.hold + cfg.clock_offset + 1.0 / cfg.rate_hz:g}\nmax_speed = {top:g}\n",
+        out / "run.toml",
+    )
     _atomic_csv(sim.toggles, out / "motion.csv")
     _atomic_csv(sim.samples.with_columns(pl.col("t").round(3)), out / "truth.csv")
     return out

@@ -1,10 +1,16 @@
 """The papers' studies behind ``onebit experiment NAME OUT``.
 
 Each module in :data:`EXPERIMENTS` (name -> module) defines
-``run(out: Path, *, seed: int, trials: int | None, quick: bool, echo) -> Path``: it simulates
-the paper's scenarios, runs the trackers, and writes a polars table (``results.parquet`` and
-``results.csv``) plus PNG plots into ``out``; it returns ``out``. ``trials=None`` means the
-paper's number of trials; ``quick`` a reduced study for smoke tests.
+``run(out: Path, *, seed: int, trials: int | None, quick: bool, echo, executor) -> Path``: it
+simulates the paper's scenarios, runs the trackers, and writes a polars table
+(``results.parquet`` and ``results.csv``), ``timings.csv`` and, for some, PNG plots into
+``out``; it returns ``out``. ``trials=None`` means the paper's number of trials (or seeds);
+``quick`` a reduced study for smoke tests; ``executor`` (:mod:`onebit.pipeline.executors`,
+default serial) runs the trials as independent tasks -- in this process, a local process
+pool or Ray -- with the same tables on every executor (:mod:`onebit.experiments.trials`).
+
+``correct`` and ``findinghumo`` are the seed sweeps of ``docs/beams-correct.md`` and
+``docs/findinghumo.md``: they run the whole pipeline per seed.
 """
 
 from __future__ import annotations
@@ -12,9 +18,11 @@ from __future__ import annotations
 from types import ModuleType
 
 from onebit.core.errors import ConfigError
-from onebit.experiments import okane, schiff, singh
+from onebit.experiments import correct, findinghumo, okane, schiff, singh
 
-EXPERIMENTS: dict[str, ModuleType] = {"singh": singh, "schiff": schiff, "okane": okane}
+EXPERIMENTS: dict[str, ModuleType] = {
+    "singh": singh, "schiff": schiff, "okane": okane, "correct": correct, "findinghumo": findinghumo,
+}  # fmt: skip
 
 
 def get_experiment(name: str) -> ModuleType:

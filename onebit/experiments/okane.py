@@ -4,19 +4,18 @@ For m = 1..4 trackers and n = 1..5 targets, ``trials`` trials (paper: 10) of
 :func:`onebit.datasets.okane_sim.simulate_active` in the Fig. 9 environment, 1000 stages,
 M = 10, rectangle regions, the first m targets starting near a tracker. Per trial: the final
 performance P (Eq. 1, mean distance from each target to its nearest tracker), mean/max
-elements, the fraction of (stage, tracker) I-states containing the true state, seconds.
+elements, the fraction of (stage, tracker) I-states containing the true state.
 
 Writes ``results.parquet``/``results.csv`` (one row per trial), ``summary.csv`` (mean and
-standard deviation over trials per (m, n)), ``P_vs_m.png`` and ``README.md`` with the
-paper's qualitative findings beside ours. Trials run in a process pool of
-``min(2, cpu_count)`` workers.
+standard deviation over trials per (m, n)), ``P_vs_m.png``, ``timings.csv`` (seconds and
+worker per trial) and ``README.md`` with the paper's qualitative findings beside ours. The
+trials are independent tasks on the executor given (``--executor serial|local|ray``, see
+:mod:`onebit.experiments.trials`); the tables are the same on every executor.
 """
 
 from __future__ import annotations
 
-import os
 import time
-from concurrent.futures import ProcessPoolExecutor
 from dataclasses import replace
 from pathlib import Path
 
@@ -25,6 +24,8 @@ import polars as pl
 
 from onebit.core import writers
 from onebit.datasets.okane_sim import ActiveConfig, fig9_environment, simulate_active
+from onebit.experiments.trials import resolve_executor, run_trials, write_timings
+from onebit.pipeline.executors import Executor
 from onebit.trackers.istate.stage import REGIONS
 from onebit.viz.istate import log_active_tracking
 from onebit.viz.recording import close_recording, open_recording
@@ -35,8 +36,8 @@ QUICK = dict(trackers=(1, 2), targets=(1, 3), stages=40, max_elements=10)
 
 
 def _trial(args) -> dict:
+    """One trial (a task): simulate, return the row of ``results`` (no wall-clock time)."""
     cfg, seed, trial = args
-    t0 = time.perf_counter()
     res = simulate_active(cfg, seed=seed)
     return {
         "trackers": cfg.trackers,
@@ -48,11 +49,20 @@ def _trial(args) -> dict:
         "elements_mean": float(res.elements.mean()),
         "elements_max": int(res.elements.max()),
         "containment": float(res.contained.mean()),
-        "seconds": time.perf_counter() - t0,
     }
 
 
-def run(out: Path, *, seed: int = 0, trials: int | None = None, quick: bool = False, echo=print, workers: int | None = None) -> Path:
+def _label(job) -> str:
+    cfg, _, k = job
+    return f"m={cfg.trackers} n={cfg.targets} trial {k}"
+
+
+def run(
+    out: Path, *, seed: int = 0, trials: int | None = None, quick: bool = False, echo=print,
+    executor: Executor | None = None, workers: int | None = None,
+) -> Path:  # fmt: skip
+    """The study; ``executor`` runs the trials (default: serial; ``workers`` > 1 without an
+    executor: a local pool of that size)."""
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     grid = QUICK if quick else PAPER
@@ -64,33 +74,23 @@ def run(out: Path, *, seed: int = 0, trials: int | None = None, quick: bool = Fa
         for n in grid["targets"]
         for k in range(trials)
     ]
-    workers = workers or min(2, os.cpu_count() or 1)
-    echo(f"okane: {len(jobs)} trials of {grid['stages']} stages on {workers} worker(s)")
+    executor = resolve_executor(executor, workers)
+    echo(f"okane: {len(jobs)} trials of {grid['stages']} stages")
     t0 = time.perf_counter()
-    rows = []
-    if workers > 1:
-        with ProcessPoolExecutor(max_workers=workers) as ex:
-            for r in ex.map(_trial, jobs):
-                rows.append(r)
-                echo(f"  m={r['trackers']} n={r['targets']} trial {r['trial']}: P = {r['P']:.2f} ({r['seconds']:.1f} s)")
-    else:
-        for j in jobs:
-            r = _trial(j)
-            rows.append(r)
-            echo(f"  m={r['trackers']} n={r['targets']} trial {r['trial']}: P = {r['P']:.2f} ({r['seconds']:.1f} s)")
+    rows, timings = run_trials(_trial, jobs, executor=executor, label=_label, echo=echo, study="okane")
     wall = time.perf_counter() - t0
     results = pl.DataFrame(rows).sort("trackers", "targets", "trial")
     _write(results, out / "results.parquet", out / "results.csv")
+    write_timings(timings, out)
     summary = results.group_by("trackers", "targets").agg(
         P_mean=pl.col("P").mean(),
         P_std=pl.col("P").std(),
         elements_mean=pl.col("elements_mean").mean(),
         containment=pl.col("containment").min(),
-        seconds=pl.col("seconds").mean(),
     ).sort("trackers", "targets")
     writers.write_csv(summary, out / "summary.csv")
     _plot(summary, out / "P_vs_m.png")
-    _readme(summary, out / "README.md", wall=wall, trials=trials, stages=grid["stages"], workers=workers)
+    _readme(summary, out / "README.md", wall=wall, trials=trials, stages=grid["stages"], where=executor.describe())
     record_trial(out / "rrd" / "okane.rrd", replace(base, trackers=2, targets=3, stages=min(grid["stages"], 300)), seed=seed)
     echo(f"okane: {wall:.0f} s wall clock")
     return out
@@ -184,7 +184,7 @@ def qualitative(summary: pl.DataFrame) -> dict[str, float]:
     }
 
 
-def _readme(summary: pl.DataFrame, path: Path, *, wall: float, trials: int, stages: int, workers: int) -> None:
+def _readme(summary: pl.DataFrame, path: Path, *, wall: float, trials: int, stages: int, where: str) -> None:
     q = qualitative(summary)
     table = ["| m | n | P (mean ± sd) | elements | containment |", "|---|---|---|---|---|"]
     for r in summary.iter_rows(named=True):
@@ -192,7 +192,7 @@ def _readme(summary: pl.DataFrame, path: Path, *, wall: float, trials: int, stag
         table.append(f"| {r['trackers']} | {r['targets']} | {r['P_mean']:.2f} ± {sd:.2f} | {r['elements_mean']:.2f} | {r['containment']:.3f} |")
     text = f"""# O'Kane active tracking study (Fig. 9)
 
-{trials} trial(s) per setting, {stages} stages, M = 10, rectangle regions; {wall:.0f} s wall clock on {workers} worker(s).
+{trials} trial(s) per setting, {stages} stages, M = 10, rectangle regions; {wall:.0f} s wall clock on {where}.
 
 ## Paper (section VIII) beside ours
 

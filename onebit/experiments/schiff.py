@@ -11,7 +11,10 @@ Writes ``results.parquet`` / ``results.csv`` (scenario, refractory, estimator, m
 median error, fraction within 1..4 cells, iterations), ``errors.parquet`` (every iteration's
 error) and PNG plots: ``fig3_naive_error_over_time.png``, ``fig4-7_<scenario>.png`` (error
 distributions per refractory period), ``fig8_sensor_count.png`` and
-``fig9_imperfect_error_over_time.png``.
+``fig9_imperfect_error_over_time.png``. Every (sensor set, refractory period, trajectory) is
+an independent task on the executor given (``--executor serial|local|ray``, see
+:mod:`onebit.experiments.trials`); the tables are the same on every executor, the seconds per
+task go to ``timings.csv``.
 """
 
 from __future__ import annotations
@@ -23,6 +26,8 @@ import numpy as np
 import polars as pl
 
 from onebit.datasets.pir_sim import simulate
+from onebit.experiments.trials import run_trials, write_timings
+from onebit.pipeline.executors import Executor
 from onebit.core.site import site_from_dict
 from onebit.core import writers as outputs
 from onebit.readers.motion import MotionConfig, site_rules
@@ -68,8 +73,8 @@ def one_run(scenario: str, refractory: float, trial: int, *, seed: int, duration
     inputs = {"motion": read.motion}
     out = []
     for name, tracks in (
-        ("intruder", run_intruder(inputs, site, IntruderConfig(particles=particles, seed=seed + trial, end=duration))["tracks"]),
-        ("naive", run_naive(inputs, site, NaiveConfig(end=duration))["tracks"]),
+        ("intruder", run_intruder(inputs, site, IntruderConfig(particles=particles, seed=seed + trial, start=0.0, end=duration))["tracks"]),
+        ("naive", run_naive(inputs, site, NaiveConfig(start=0.0, end=duration))["tracks"]),
     ):
         sc = match_errors(tracks, sim.truth, tolerance=1.0)
         out.append(
@@ -78,6 +83,16 @@ def one_run(scenario: str, refractory: float, trial: int, *, seed: int, duration
             )
         )
     return pl.concat(out)
+
+
+def _one_run_task(job: tuple) -> pl.DataFrame:
+    """A task: :func:`one_run` on ``(scenario, refractory, trial, seed, duration, particles)``."""
+    scenario, refractory, trial, seed, duration, particles = job
+    return one_run(scenario, refractory, trial, seed=seed, duration=duration, particles=particles)
+
+
+def _label(job: tuple) -> str:
+    return f"{job[0]} refractory {job[1]:g} s trajectory {job[2]}"
 
 
 def summarise(errors: pl.DataFrame) -> pl.DataFrame:
@@ -154,6 +169,7 @@ def plot(errors: pl.DataFrame, out: Path) -> list[Path]:
 def run_study(
     out: Path, *, seed: int = 0, trials: int | None = None, quick: bool = False, echo=print,
     scenarios: tuple[str, ...] | None = None, refractory: tuple[float, ...] | None = None,
+    executor: Executor | None = None,
 ) -> Path:  # fmt: skip
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
@@ -167,13 +183,9 @@ def run_study(
         refractory = refractory or REFRACTORY
         trials = trials or TRIALS
         duration, particles = DURATION, 1000
-    parts = []
     started = time.time()
-    for sc in scenarios:
-        for f in refractory:
-            t0 = time.time()
-            parts += [one_run(sc, f, k, seed=seed, duration=duration, particles=particles) for k in range(trials)]
-            echo(f"  {sc:16s} refractory {f:4g} s: {trials} trajectories in {time.time() - t0:.1f} s")
+    jobs = [(sc, f, k, seed, duration, particles) for sc in scenarios for f in refractory for k in range(trials)]
+    parts, timings = run_trials(_one_run_task, jobs, executor=executor, label=_label, echo=echo, study="schiff")
     errors = pl.concat(parts)
     # the naive baseline does not depend on the sensors: keep one copy per trajectory
     naive = errors.filter(pl.col("estimator") == "naive").unique(["trial", "t"], keep="first", maintain_order=True)
@@ -183,11 +195,12 @@ def run_study(
     outputs.write_parquet(errors, out / "errors.parquet")
     outputs.write_parquet(results, out / "results.parquet")
     outputs.write_csv(results, out / "results.csv")
+    write_timings(timings, out)
     plot(errors, out)
     echo(f"schiff study: {results.height} rows in {time.time() - started:.0f} s -> {out}/results.csv")
     return out
 
 
-def run(out: Path, *, seed: int = 0, trials: int | None = None, quick: bool = False, echo=print) -> Path:
+def run(out: Path, *, seed: int = 0, trials: int | None = None, quick: bool = False, echo=print, executor: Executor | None = None) -> Path:
     """The registered entry point (see :mod:`onebit.experiments`)."""
-    return run_study(out, seed=seed, trials=trials, quick=quick, echo=echo)
+    return run_study(out, seed=seed, trials=trials, quick=quick, echo=echo, executor=executor)

@@ -11,7 +11,10 @@ Per trial: mean localisation error in R (mean over targets of the mean distance 
 nearest track), targets found (tracks matched one-to-one to targets within D_0 on average),
 spurious tracks, tracks, reruns. Writes ``results.parquet`` / ``results.csv`` (one row per
 trial), ``summary.csv`` (per setting, with the paper's numbers) and ``error_vs_density.png``,
-``found_spurious.png``. ``quick`` runs 3 trials on fewer settings.
+``found_spurious.png``, and ``timings.csv``. ``quick`` runs 3 trials on fewer settings. Every
+(setting, seed) is an independent task on the executor given (``--executor
+serial|local|ray``, see :mod:`onebit.experiments.trials`); the tables are the same on every
+executor.
 """
 
 from __future__ import annotations
@@ -25,6 +28,8 @@ from shapely.geometry import box
 
 from onebit.datasets.proximity_sim import make_world
 from onebit.core import writers as outputs
+from onebit.experiments.trials import run_trials, write_timings
+from onebit.pipeline.executors import Executor
 from onebit.trackers.clustertrack.algorithm import clustertrack, rules_of_thumb, trajectory_distance
 from onebit.trackers.clustertrack.feasible import SensorArray
 from onebit.trackers.clustertrack.space import FeasibleSpace
@@ -56,7 +61,17 @@ def one_trial(name: str, seed: int, params: dict, *, H: int = 25, m_o_r: float =
     }
 
 
-def run(out: Path, *, seed: int = 0, trials: int | None = None, quick: bool = False, echo=print) -> Path:
+def _trial_task(job: tuple) -> dict:
+    """A task: one trial of a setting, ``(label, scenario, rho_R, params, seed)`` -> its row."""
+    label, scen, rho, params, s = job
+    return {"setting": label, "scenario": scen, "rho_R": rho, "seed": s, **one_trial(scen, s, params)}
+
+
+def _label(job: tuple) -> str:
+    return f"{job[0]} rho R = {job[2]:g} seed {job[4]}"
+
+
+def run(out: Path, *, seed: int = 0, trials: int | None = None, quick: bool = False, echo=print, executor: Executor | None = None) -> Path:
     import matplotlib
 
     matplotlib.use("Agg")
@@ -72,15 +87,13 @@ def run(out: Path, *, seed: int = 0, trials: int | None = None, quick: bool = Fa
         for a, b in ((0.7, 1.3), (0.5, 1.5))
     ]
     settings.append(("pir-line", "pir-line", 1.25, {}))
-    rows = []
-    for label, scen, rho, params in settings:  # per setting and trial: independent simulations
-        for k in range(n):
-            r = one_trial(scen, seed + k, params)
-            rows.append({"setting": label, "scenario": scen, "rho_R": rho, "seed": seed + k, **r})
-        echo(f"  {label} rho R = {rho}: mean error {np.mean([x['error_R'] for x in rows[-n:]]):.3f} R")
+    # per setting and trial: independent simulations
+    jobs = [(label, scen, rho, params, seed + k) for label, scen, rho, params in settings for k in range(n)]
+    rows, timings = run_trials(_trial_task, jobs, executor=executor, label=_label, echo=echo, study="singh")
     res = pl.DataFrame(rows)
     outputs.write_parquet(res, out / "results.parquet")
     outputs.write_csv(res, out / "results.csv")
+    write_timings(timings, out)
     summary = (
         res.group_by("setting", "rho_R", maintain_order=True)
         .agg(
@@ -118,7 +131,8 @@ def run(out: Path, *, seed: int = 0, trials: int | None = None, quick: bool = Fa
     ax.set_title("CLUSTERTRACK: error vs sensor density (Fig. 6a)")
     ax.legend()
     fig.tight_layout()
-    fig.savefig(out / "error_vs_density.png", dpi=110)
+    with outputs.atomic_path(out / "error_vs_density.png", suffix=".tmp.png") as tmp:
+        fig.savefig(tmp, dpi=110)
     plt.close(fig)
 
     fig, ax = plt.subplots(figsize=(7, 4))
@@ -130,6 +144,7 @@ def run(out: Path, *, seed: int = 0, trials: int | None = None, quick: bool = Fa
     ax.set_xticks(xs, lab, fontsize=7)
     ax.legend(fontsize=7)
     fig.tight_layout()
-    fig.savefig(out / "found_spurious.png", dpi=110)
+    with outputs.atomic_path(out / "found_spurious.png", suffix=".tmp.png") as tmp:
+        fig.savefig(tmp, dpi=110)
     plt.close(fig)
     return out

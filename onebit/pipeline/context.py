@@ -2,13 +2,13 @@
 
 from __future__ import annotations
 
-import tomllib
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Callable
 
 import polars as pl
 
+from onebit.core.config import load_toml
 from onebit.core.errors import InputError
 from onebit.core.region_graph import RegionGraph
 from onebit.core.site import Site
@@ -17,6 +17,10 @@ from onebit.readers.rows import RawRows, read_csv_rows
 
 #: A report row: (stage, metric, value, unit).
 ReportRow = tuple[str, str, float, str]
+
+
+def _no_progress(done: int, total: int) -> None:
+    pass
 
 
 @dataclass
@@ -38,6 +42,11 @@ class RunContext:
     seconds: dict[str, float] = field(default_factory=dict)
     #: each tracker's resolved config (lengths in the site's units), for its viz function
     configs: dict[str, Any] = field(default_factory=dict)
+    #: ``progress(done, total)`` of the running stage: the runner forwards it to its bar;
+    #: trackers get it in their inputs (:data:`onebit.trackers.base.PROGRESS`)
+    progress: Callable[[int, int], None] = _no_progress
+    #: the sections of the dataset's own ``run.toml`` (``None``: read it on first use)
+    dataset_sections: dict[str, Any] | None = None
 
     def source(self, stem: str, columns: tuple[str, ...]) -> tuple[RawRows, Path | None] | None:
         """String rows of ``<stem>.csv`` in the dataset, else of the MCAP channel ``/<stem>``."""
@@ -61,14 +70,17 @@ class RunContext:
         own ``run.toml`` (simulators write known initial conditions there), else empty."""
         if name in self.config:
             return dict(self.config[name] or {})
-        p = self.dataset / "run.toml"
-        if p.exists():
-            try:
-                section = tomllib.loads(p.read_text(encoding="utf-8")).get(name, {})
-            except tomllib.TOMLDecodeError as exc:  # a broken run.toml is reported, never ignored
-                raise InputError(f"not valid TOML: {exc}", file=p) from None
-            return dict(section) if isinstance(section, dict) else {}
-        return {}
+        if self.dataset_sections is None:
+            self.dataset_sections = dataset_run_config(self.dataset)
+        section = self.dataset_sections.get(name, {})
+        return dict(section) if isinstance(section, dict) else {}
+
+
+def dataset_run_config(dataset: Path) -> dict[str, Any]:
+    """The dataset's own ``run.toml`` (simulators write known initial conditions there), or
+    ``{}``; a broken one is an :class:`InputError` naming it, never ignored."""
+    p = Path(dataset) / "run.toml"
+    return load_toml(p, error=InputError) if p.exists() else {}
 
 
 @dataclass(frozen=True)
@@ -86,3 +98,5 @@ class Stage:
     available: Callable[[RunContext], str | None]
     work: Callable[[RunContext], dict[str, Any]]
     viz: Callable[[Any, RunContext, dict[str, Any]], None] | None = None
+    #: the config class of its ``run.toml`` section (a frozen dataclass), checked when the run starts
+    config: type | None = None

@@ -7,15 +7,40 @@ from pathlib import Path
 
 import polars as pl
 
+from onebit.core import writers
 from onebit.core.errors import InputError
 
 
-def load_report(out_dir: str | Path) -> pl.DataFrame:
+def check_run_folder(out_dir: str | Path) -> Path:
+    """``out_dir`` is a folder and not marked ``INCOMPLETE`` (a run killed while swapping its
+    results in, so it may mix two runs); else an :class:`InputError` naming it."""
     out = Path(out_dir)
+    if not out.is_dir():
+        raise InputError("no such run folder" if not out.exists() else "is a file, not a run folder", file=out)
+    if writers.is_incomplete(out):
+        raise InputError("incomplete run folder: a run was interrupted while it replaced the folder's content, so "
+                         "it may mix two runs; run 'onebit run DATASET --out' into it again", file=out)  # fmt: skip
+    return out
+
+
+def load_report(out_dir: str | Path) -> pl.DataFrame:
+    """The report of a finished run folder; refuses a folder whose run was cut short.
+
+    Raises :class:`InputError` naming the folder when it is not a folder, is marked
+    ``INCOMPLETE`` (a run killed while swapping its results in), or has no report (no run
+    finished there; a run may be writing it now, or was killed before it finished).
+    """
+    out = check_run_folder(out_dir)
     for name in ("report.parquet", "report.csv"):
         p = out / name
         if p.exists():
-            return pl.read_parquet(p) if p.suffix == ".parquet" else pl.read_csv(p)
+            try:
+                return pl.read_parquet(p) if p.suffix == ".parquet" else pl.read_csv(p)
+            except (pl.exceptions.PolarsError, OSError) as exc:
+                raise InputError(f"cannot read the report: {type(exc).__name__}", file=p) from None
+    if writers.in_progress(out):
+        raise InputError("no finished run here yet: a run is writing this folder now, or was killed before it "
+                         "finished (then run it again)", file=out)  # fmt: skip
     raise InputError("no report.parquet or report.csv: is this a finished run folder?", file=out)
 
 

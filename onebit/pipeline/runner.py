@@ -1,41 +1,63 @@
 """The runner: runs the declared stage list (:mod:`onebit.pipeline.stages`) on a dataset.
 
-``run_pipeline(dataset, out)`` loads the site, then runs every stage whose inputs exist, in
-order. Each stage writes its tables to ``OUT/tables/<name>.parquet`` and its Rerun recording
-to ``OUT/rrd/<stage>.rrd`` (same application and recording id for all stages) as soon as it
-finishes, atomically; a stage that fails is recorded in ``OUT/run.toml`` with its error and
-the others' outputs stay. Stages that depend on a missing or failed input are skipped with
-the reason. The runner times every stage (``timings`` table); stages never read the clock.
+``run_pipeline(dataset, out)`` checks its inputs, loads the site, then runs every stage whose
+inputs exist, in order. Stages that depend on a missing or failed input are skipped with the
+reason; a stage that fails is recorded in ``run.toml`` with its error and the others' outputs
+stay. The runner times every stage (``timings`` table); stages never read the clock.
+
+A run is one transaction (:func:`onebit.core.writers.folder_transaction`): every file of the
+run (``tables/``, ``rrd/``, ``logs/``, ``report.*``, ``run.toml``) is written into a fresh
+work folder ``OUT/.onebit-work-<pid>`` and swapped in when the run ends, so ``OUT`` holds
+either the previous complete run or this one -- never a mixture (a kill during the swap
+itself leaves ``OUT/INCOMPLETE``, which ``onebit report`` refuses). A failed stage of this run
+therefore never sits beside an older run's outputs, and the work folders and ``.partial``
+files of runs that died are removed by the next run into ``OUT``.
+
+Checked before anything is written: the dataset folder (exists, was not cut while being
+simulated, no symlink leading out of it), ``OUT`` (not a file, not the dataset or inside it,
+empty or a run folder), ``site.toml``, every ``run.toml`` section (a known stage, valid values)
+of ``--config`` and of the dataset's own ``run.toml``, and the ``--trackers`` names.
+
+Nothing useful done does not look like success: a run where every stage was skipped is an
+error (and ``OUT`` is left as it was), and a tracker asked for by name that could not run
+makes the run not ``ok``.
 """
 
 from __future__ import annotations
 
-import os
-import sys
+import copy
 import time
-import tomllib
 import traceback
 import uuid
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Callable
 
 import polars as pl
-from rich.progress import Progress
 
 from onebit.core import writers as outputs
-from onebit.core.errors import ConfigError, InputError, OnebitError
+from onebit.core.config import config_from_mapping, load_toml
+from onebit.core.errors import ConfigError, InputError, OnebitError, bounded
 from onebit.core.region_graph import build_region_graph
 from onebit.core.site import load_site
 from onebit.core.tables import REJECTS, REPORT
-from onebit.pipeline.context import RunContext
+from onebit.pipeline.context import RunContext, Stage, dataset_run_config
+from onebit.pipeline.progress import ProgressSink, progress_sink
 from onebit.pipeline.stages import TRACKERS, TrackerEntry, stages
 from onebit.readers.mcap_io import read_mcap
 from onebit.readers.rows import RawRows
 from onebit.trackers.base import ARTIFACTS
-from onebit.viz.blueprint import send_blueprint
-from onebit.viz.recording import stage_recording
+from onebit.viz.blueprint import save_run_blueprint
+from onebit.viz.recording import rerun_enabled, stage_recording
 from onebit.viz.site import log_site
+
+#: The entries of a run folder; a new run replaces exactly these (other entries are kept).
+RUN_ENTRIES = ("tables", "rrd", "logs", "report.parquet", "report.csv", "run.toml")
+#: Sections a run record (``OUT/run.toml``) holds besides the stage configs; a run record
+#: given as ``--config`` (to repeat a run) contributes only its stage sections.
+RUN_RECORD_SECTIONS = ("stages", "summary", "time", "problems")
+#: Files of a dataset folder the runner reads (a symlink among them must stay inside the folder).
+_DATASET_SUFFIXES = (".csv", ".mcap", ".toml", ".mp4")
 
 
 # --------------------------------------------------------------------------- running
@@ -47,19 +69,104 @@ class RunResult:
     status: dict[str, str]
     report: pl.DataFrame
     ok: bool
+    #: why the run is not ``ok`` beyond a stage's status (a tracker asked for by name did not run)
+    problems: list[str] = field(default_factory=list)
+
+
+def _is_run_record(data: dict[str, Any]) -> bool:
+    return "recording_id" in data and isinstance(data.get("stages"), dict)
 
 
 def load_run_config(path: str | Path | None) -> dict[str, Any]:
+    """The sections of a ``run.toml`` given as ``--config`` (checked by :func:`check_sections`
+    when the run starts). A run record (``OUT/run.toml`` of an earlier run) gives its stage
+    sections only, so a run can be repeated with ``--config OUT/run.toml``."""
     if path is None:
         return {}
-    path = Path(path)
-    try:
-        data = tomllib.loads(path.read_text(encoding="utf-8"))
-    except OSError as exc:
-        raise InputError(f"cannot read config: {exc.strerror}", file=path) from None
-    except tomllib.TOMLDecodeError as exc:
-        raise InputError(f"not valid TOML: {exc}", file=path) from None
-    return {k: v for k, v in data.items() if isinstance(v, dict)}
+    data = load_toml(path, error=InputError)
+    if _is_run_record(data):
+        return {k: v for k, v in data.items() if isinstance(v, dict) and k not in RUN_RECORD_SECTIONS}
+    return data
+
+
+def check_sections(sections: dict[str, Any], stage_list: list[Stage], *, source: str | Path) -> None:
+    """Every section names a stage of ``stage_list`` and holds valid values for its config.
+
+    Raises :class:`ConfigError` naming ``source``, the section and, for an unknown one, the
+    known sections (the stage names, from the stage list).
+    """
+    known = {st.name: st for st in stage_list}
+    record = _is_run_record(sections)
+    for name, values in sections.items():
+        if record and (name in RUN_RECORD_SECTIONS or not isinstance(values, dict)):
+            continue
+        if not isinstance(values, dict):
+            raise ConfigError(f"{source}: '{name}' is outside any section; put it under the [stage] it configures "
+                              f"(sections: {sorted(known)})")  # fmt: skip
+        if name not in known:
+            raise ConfigError(f"{source}: unknown section [{name}]; known sections: {sorted(known)}")
+        cls = known[name].config
+        if cls is not None:
+            try:
+                config_from_mapping(cls, values, section=name)
+            except (ConfigError, TypeError, ValueError) as exc:
+                what = str(exc) if str(exc).startswith(f"[{name}]") else f"[{name}] {exc}"
+                raise ConfigError(f"{source}: {what}") from None
+
+
+def check_dataset(dataset: Path) -> Path:
+    """The dataset folder can be read: it exists, no interrupted ``onebit simulate`` left it
+    ``INCOMPLETE``, and no file the runner reads is a symlink leading outside it."""
+    if not dataset.is_dir():
+        raise InputError("dataset folder does not exist" if not dataset.exists() else "is not a folder", file=dataset)
+    if outputs.is_incomplete(dataset):
+        raise InputError("the dataset is incomplete (a simulation into it was interrupted); simulate it again", file=dataset)
+    root = dataset.resolve()
+    for entry in sorted(dataset.iterdir()):
+        if entry.is_symlink() and entry.suffix.lower() in _DATASET_SUFFIXES:
+            target = entry.resolve()
+            if root not in target.parents:
+                raise InputError(f"is a symlink to {target}, outside the dataset folder; copy the file in instead", file=entry)
+    return root
+
+
+def check_out(out: Path, dataset: Path) -> str | None:
+    """``OUT`` can take this run: it is not a file, does not overlap the dataset, and is empty
+    or a run folder (then its run's entries are replaced). Returns what will be replaced
+    (a sentence for the console) or ``None``."""
+    if out.exists() and not out.is_dir():
+        raise InputError("OUT is a file, not a folder; give a folder for the run (it is created if needed)", file=out)
+    out_r, data_r = out.resolve(), dataset.resolve()
+    if out_r == data_r or data_r in out_r.parents:
+        raise InputError(
+            f"OUT is {'the dataset folder' if out_r == data_r else 'inside the dataset folder'} {dataset}; the run would "
+            "write among the dataset's own files (its run.toml holds the simulation's initial condition); give another folder",
+            file=out,
+        )
+    if out_r in data_r.parents:
+        raise InputError(f"the dataset {dataset} is inside OUT; give an OUT folder outside the dataset", file=out)
+    if not out.is_dir():
+        return None
+    visible = sorted(p.name for p in out.iterdir() if not p.name.startswith("."))
+    if not visible:
+        return None
+    if outputs.is_incomplete(out):
+        return "OUT holds an interrupted run (INCOMPLETE): replacing it"
+    record: dict[str, Any] = {}
+    if (out / "run.toml").is_file():
+        try:
+            record = load_toml(out / "run.toml", error=InputError)
+        except InputError:
+            record = {}
+    ours = [n for n in visible if n in RUN_ENTRIES]
+    if not _is_run_record(record) and len(ours) < len(visible):
+        foreign = [n for n in visible if n not in RUN_ENTRIES]
+        shown = ", ".join(foreign[:5]) + (f" and {len(foreign) - 5} more" if len(foreign) > 5 else "")
+        raise InputError(f"OUT is not empty and is not a onebit run folder (it holds {shown}); "
+                         "give an empty or new folder, or an earlier run's folder", file=out)  # fmt: skip
+    what = f"the previous run (recording {record['recording_id']})" if _is_run_record(record) else f"the run files {ours}"
+    kept = [n for n in visible if n not in RUN_ENTRIES]
+    return f"OUT holds {what}: replacing it" + (f"; keeping {kept} (not onebit's)" if kept else "")
 
 
 def run_pipeline(
@@ -69,49 +176,75 @@ def run_pipeline(
     trackers: tuple[str, ...] | None = None,
     config: dict[str, Any] | None = None,
     tracker_entries: tuple[TrackerEntry, ...] = TRACKERS,
-    progress: bool | None = None,
+    progress: bool | ProgressSink | None = None,
     echo: Callable[[str], None] | None = None,
 ) -> RunResult:
-    """Run every available stage on ``dataset``, writing the run folder ``out``.
+    """Run every available stage on ``dataset``, writing the run folder ``out`` as one transaction.
 
-    ``trackers`` selects trackers by name (default: all); ``config`` holds ``run.toml``
-    sections; ``tracker_entries`` is the tracker list of the stage list (a test or an
-    extension may pass its own, see ``docs/extending.md``).
+    ``trackers`` selects trackers by name (default: all; a tracker named here that cannot
+    run makes the run not ``ok``); ``config`` holds ``run.toml`` sections; ``tracker_entries``
+    is the tracker list of the stage list (a test or an extension may pass its own, see
+    ``docs/extending.md``); ``progress``: a bar on a terminal (``None``), ``True``/``False``,
+    or a :class:`~onebit.pipeline.progress.ProgressSink`.
+
+    Raises :class:`OnebitError` (``out`` untouched) for bad input found before or instead of
+    any work: dataset, ``OUT``, site, config, tracker names, or every stage skipped.
     """
     dataset, out = Path(dataset), Path(out)
     echo = echo or (lambda s: None)
-    if not dataset.is_dir():
-        raise InputError("dataset folder does not exist", file=dataset)
+    check_dataset(dataset)
+    replacing = check_out(out, dataset)
     site = load_site(dataset / "site.toml")
-    rg = build_region_graph(site)
+    stage_list = stages(tracker_entries)
+    config = copy.deepcopy(dict(config or {}))  # stages add their resolved values: never the caller's dicts
+    check_sections(config, stage_list, source="--config")
+    dataset_sections = dataset_run_config(dataset)
+    check_sections(dataset_sections, stage_list, source=dataset / "run.toml")
     known = [e.name for e in tracker_entries]
-    trackers = tuple(trackers) if trackers else tuple(known)
-    for tr in trackers:
+    requested = tuple(trackers) if trackers else ()
+    for tr in requested:
         if tr not in known:
             raise ConfigError(f"--trackers: unknown tracker {tr!r}; known: {sorted(known)}")
-    ctx = RunContext(dataset, out, site, rg, dict(config or {}), trackers=trackers)
-    (out / "tables").mkdir(parents=True, exist_ok=True)
-    (out / "rrd").mkdir(parents=True, exist_ok=True)
+    trackers = requested or tuple(known)
+    rg = build_region_graph(site)
+    if replacing:
+        echo(f"  {replacing}")
+    sink = progress_sink(progress)
+    crash: BaseException | None = None
+    try:
+        with outputs.folder_transaction(out, replaces=RUN_ENTRIES.__contains__) as work:
+            ctx = RunContext(dataset, work, site, rg, config, trackers=trackers, progress=sink.step, dataset_sections=dataset_sections)
+            try:
+                with rerun_enabled():  # recordings are written whatever RERUN says (viz.recording)
+                    result = _run_stages(ctx, stage_list, requested, known, sink=sink, echo=echo)
+            except OnebitError:
+                raise
+            except Exception as exc:  # a bug, not bad input: keep what was done and the traceback
+                crash = exc
+                result = _record_crash(ctx, exc)
+    finally:
+        sink.close()
+    if crash is not None:
+        crash.add_note(f"onebit: the run was recorded as failed; traceback in {out / 'logs' / 'run.traceback.txt'}")
+        raise crash
+    status, report, ok, problems = result
+    return RunResult(out, status, report, ok, problems)
+
+
+def _run_stages(
+    ctx: RunContext, stage_list: list[Stage], requested: tuple[str, ...], tracker_names: list[str], *, sink: ProgressSink,
+    echo: Callable[[str], None],
+) -> tuple[dict[str, str], pl.DataFrame, bool, list[str]]:
+    """Run the stages into ``ctx.out`` (the work folder) and write the run's record there."""
+    work, dataset, site = ctx.out, ctx.dataset, ctx.site
+    (work / "tables").mkdir(parents=True, exist_ok=True)
+    (work / "rrd").mkdir(parents=True, exist_ok=True)
     recording_id = str(uuid.uuid4())
     status = ctx.status
-
-    mcaps = sorted(dataset.glob("*.mcap"))
-    if mcaps:
-        for mp in mcaps:
-            try:
-                contents = read_mcap(mp)
-            except OnebitError as exc:
-                status[f"mcap:{mp.name}"] = f"failed: {exc}"
-                echo(f"  {mp.name}: failed: {exc}")
-                continue
-            ctx.add_rejects(contents.rejects)
-            for topic, frame in contents.channels.items():
-                ctx.mcap_channels.setdefault(topic, RawRows(f"{mp.name}:{topic}", frame, pl.DataFrame(schema=REJECTS)))
-
-    stage_list = stages(tracker_entries)
-    bar = _progress(progress, len(stage_list))
+    _read_mcaps(ctx, echo)
     started = time.time()
-    for st in stage_list:
+    for i, st in enumerate(stage_list):
+        sink.stage(st.name, i, len(stage_list))
         missing = [n for n in st.needs if n not in ctx.tables]
         reason = st.available(ctx)
         if reason is None and missing:
@@ -119,13 +252,11 @@ def run_pipeline(
         if reason is not None:
             status[st.name] = f"skipped: {reason}"
             echo(f"  {st.name}: skipped ({reason})")
-            bar.advance(st.name)
             continue
         t0 = time.perf_counter()
         try:
-            with stage_recording(out, st.name, recording_id) as rec:
-                log_site(rec, site, rg)
-                send_blueprint(rec, trackers=list(trackers))
+            with stage_recording(work, st.name, recording_id) as rec:
+                log_site(rec, site, ctx.region_graph)
                 made = st.work(ctx)
                 ctx.seconds[st.name] = time.perf_counter() - t0
                 if st.viz is not None:
@@ -133,71 +264,85 @@ def run_pipeline(
         except OnebitError as exc:
             status[st.name] = f"failed: {exc}"
             echo(f"  {st.name}: FAILED: {exc}")
-            bar.advance(st.name)
             continue
         except Exception as exc:  # a bug, not bad input: keep the other stages, keep the traceback
             tb = traceback.format_exc(limit=8)
-            status[st.name] = f"failed: {type(exc).__name__}: {exc}"
-            outputs.write_text(tb, out / "logs" / f"{st.name}.traceback.txt")
-            echo(f"  {st.name}: FAILED with {type(exc).__name__}: {exc} (traceback in logs/{st.name}.traceback.txt)")
-            bar.advance(st.name)
+            status[st.name] = bounded(f"failed: {type(exc).__name__}: {exc}", 2000)
+            outputs.write_text(tb, work / "logs" / f"{st.name}.traceback.txt")
+            echo(f"  {st.name}: FAILED with {bounded(f'{type(exc).__name__}: {exc}')} (traceback in logs/{st.name}.traceback.txt)")
             continue
         for name, df in made.items():
             if name == ARTIFACTS:  # in-memory results for the stage's viz only
                 continue
             ctx.tables[name] = df
-            outputs.write_parquet(df, out / "tables" / f"{name}.parquet")
+            outputs.write_parquet(df, work / "tables" / f"{name}.parquet")
         status[st.name] = f"ok ({ctx.seconds[st.name]:.2f} s)"
         echo(f"  {st.name}: ok")
         for part, state in status.items():  # parts of a stage that failed on their own (scores/<tracker>)
             if part.startswith(f"{st.name}/"):
                 echo(f"  {part}: {state}")
-        bar.advance(st.name)
-    bar.close()
 
+    # nothing useful done: no stage read or corrected any input (trackers and scores on nothing do not count)
+    data_stages = [st.name for st in stage_list if st.name not in {*tracker_names, "scores"}]
+    if all(status.get(n, "").startswith("skipped") for n in data_stages):
+        why = "; ".join(f"{n}: {s}" for n, s in status.items() if n in data_stages or n.startswith("mcap:"))
+        raise InputError(f"nothing to do: no input could be read ({why}); OUT was left as it was", file=dataset)
+    problems = [
+        f"tracker '{tr}' was asked for (--trackers) but did not run: {status.get(tr, 'not run')[len('skipped: '):]}"
+        for tr in requested
+        if status.get(tr, "").startswith("skipped")
+    ]
+    for p in problems:
+        echo(f"  {p}")
+    save_run_blueprint(work / "rrd", units=site.units)  # the viewer layout of what the stages logged
     rejects = ctx.tables.get("rejects", pl.DataFrame(schema=REJECTS))
-    outputs.write_parquet(rejects, out / "tables" / "rejects.parquet")
+    outputs.write_parquet(rejects, work / "tables" / "rejects.parquet")
     report = pl.DataFrame(ctx.report, schema=REPORT, orient="row")
-    outputs.write_parquet(report, out / "report.parquet")
-    outputs.write_csv(report, out / "report.csv")
-    ok = all(not s.startswith("failed") for s in status.values())
+    outputs.write_parquet(report, work / "report.parquet")
+    outputs.write_csv(report, work / "report.csv")
+    ok = all(not s.startswith("failed") for s in status.values()) and not problems
+    _write_record(ctx, recording_id=recording_id, seconds=time.time() - started, ok=ok, problems=problems, rejects=rejects.height)
+    return status, report, ok, problems
+
+
+def _read_mcaps(ctx: RunContext, echo: Callable[[str], None]) -> None:
+    """Every ``*.mcap`` of the dataset: its channels become sources, its rejects rejects."""
+    for mp in sorted(ctx.dataset.glob("*.mcap")):
+        try:
+            contents = read_mcap(mp)
+        except OnebitError as exc:
+            ctx.status[f"mcap:{mp.name}"] = f"failed: {exc}"
+            echo(f"  {mp.name}: failed: {exc}")
+            continue
+        ctx.add_rejects(contents.rejects)
+        for topic, frame in contents.channels.items():
+            ctx.mcap_channels.setdefault(topic, RawRows(f"{mp.name}:{topic}", frame, pl.DataFrame(schema=REJECTS)))
+
+
+def _write_record(ctx: RunContext, *, recording_id: str, seconds: float, ok: bool, problems: list[str], rejects: int) -> None:
+    """``run.toml``: dataset, recording id, each stage's status, problems and the resolved config."""
     run_doc = {
-        "dataset": str(dataset.resolve()),
+        "dataset": str(ctx.dataset.resolve()),
         "recording_id": recording_id,
-        "site": site.name,
-        "trackers": list(trackers),
-        "seconds": round(time.time() - started, 3),
+        "site": ctx.site.name,
+        "trackers": list(ctx.trackers),
+        "seconds": round(seconds, 3),
         "ok": ok,
-        "stages": status,
-        "summary": {"rejects": rejects.height, "tables": sorted(ctx.tables)},
+        "problems": list(problems),
+        "stages": ctx.status,
+        "summary": {"rejects": rejects, "tables": sorted(ctx.tables)},
         **{k: v for k, v in ctx.config.items() if isinstance(v, dict)},
     }
-    outputs.write_text(outputs.to_toml(run_doc), out / "run.toml")
-    return RunResult(out, status, report, ok)
+    outputs.write_text(outputs.to_toml(run_doc), ctx.out / "run.toml")
 
 
-class _NoBar:
-    def advance(self, name: str) -> None:
-        pass
-
-    def close(self) -> None:
-        pass
-
-
-class _RichBar:
-    def __init__(self, total: int) -> None:
-        self.p = Progress(transient=True)
-        self.p.start()
-        self.task = self.p.add_task("stages", total=total)
-
-    def advance(self, name: str) -> None:
-        self.p.update(self.task, advance=1, description=name)
-
-    def close(self) -> None:
-        self.p.stop()
-
-
-def _progress(progress: bool | None, total: int):
-    if progress is None:
-        progress = sys.stderr.isatty() and not os.environ.get("CI")
-    return _RichBar(total) if progress else _NoBar()
+def _record_crash(ctx: RunContext, exc: BaseException) -> tuple[dict[str, str], pl.DataFrame, bool, list[str]]:
+    """Record a run the runner itself could not finish (a bug): ``logs/run.traceback.txt`` and
+    a ``run.toml`` with ``ok = false`` and the error, beside what the stages wrote."""
+    problem = bounded(f"the runner failed: {type(exc).__name__}: {exc}", 2000)
+    outputs.write_text("".join(traceback.format_exception(exc)), ctx.out / "logs" / "run.traceback.txt")
+    report = pl.DataFrame(ctx.report, schema=REPORT, orient="row")
+    outputs.write_parquet(report, ctx.out / "report.parquet")
+    outputs.write_csv(report, ctx.out / "report.csv")
+    _write_record(ctx, recording_id="", seconds=0.0, ok=False, problems=[problem], rejects=0)
+    return ctx.status, report, False, [problem]

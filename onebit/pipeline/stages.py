@@ -35,6 +35,7 @@ from onebit.readers.camera import read_camera, truth_error
 from onebit.readers.motion import TOGGLE_COLUMNS, MotionConfig, motion_frames, read_motion, site_rules
 from onebit.readers.proximity import ProximityConfig, proximity_frames, read_proximity
 from onebit.readers.tables_csv import crossings_from_rows, true_crossings_columns, true_crossings_from_rows, truth_from_rows
+from onebit.readers.timebase import TimeOrigin, time_origin
 from onebit.scoring import beams as score_beams
 from onebit.scoring import clustertrack as score_clustertrack
 from onebit.scoring import findinghumo as score_findinghumo
@@ -42,8 +43,9 @@ from onebit.scoring import intruder as score_intruder
 from onebit.scoring import istate as score_istate
 from onebit.scoring.crossings import ScoresConfig, score_crossings, true_crossings_from_truth, truth_regions
 from onebit.scoring.mot import GATES, Gate, mot_rows
+from onebit.scoring.serve import CannotServe
 from onebit.trackers import beams, clustertrack, findinghumo, intruder, istate
-from onebit.trackers.base import ARTIFACTS, TrackerSpec
+from onebit.trackers.base import ARTIFACTS, PROGRESS, TrackerSpec
 from onebit.trackers.beams.correction import CorrectConfig, run_correction
 from onebit.viz import beams as viz_beams
 from onebit.viz import clustertrack as viz_clustertrack
@@ -98,6 +100,38 @@ def tracker_names(entries: tuple[TrackerEntry, ...] = TRACKERS) -> tuple[str, ..
     return tuple(e.name for e in entries)
 
 
+# --------------------------------------------------------------------------- the time base
+
+#: The raw logs whose stamps set a run's time origin, with the columns read from them.
+TIME_SOURCES = ("beams", "crossings", "truth", "truth_crossings", "motion", "proximity")
+
+
+def run_time_origin(ctx: RunContext) -> TimeOrigin:
+    """The run's one time origin (:mod:`onebit.readers.timebase`), computed on first use from
+    the ``t`` stamps of every raw log of the dataset (CSV or MCAP channel) and kept on ``ctx``
+    (``ctx.time_origin``): ``site.toml``'s ``epoch`` if set, else the data's own start; lone
+    stamps far from the rest fall outside its window and are rejected by every reader. A log
+    whose header cannot be read is left out here (its own stage reports it). Raises
+    :class:`~onebit.core.errors.InputError` on an absurd span. It goes to ``run.toml`` as the
+    ``[time]`` table (source, origin as ISO and as the logs' number, span, lone stamps)."""
+    cached = getattr(ctx, "time_origin", None)
+    if isinstance(cached, TimeOrigin):
+        return cached
+    frames: dict[str, pl.DataFrame] = {}
+    for stem in TIME_SOURCES:
+        if not ctx.has_source(stem):
+            continue
+        try:
+            raw, _ = ctx.source(stem, ("t",))
+        except InputError:
+            continue
+        frames[raw.source] = raw.frame
+    origin = time_origin(frames, epoch=ctx.site.epoch)
+    ctx.time_origin = origin
+    ctx.config["time"] = origin.as_dict()  # the run record's [time] (runner.RUN_RECORD_SECTIONS)
+    return origin
+
+
 # --------------------------------------------------------------------------- reader stages
 
 
@@ -112,7 +146,7 @@ def _crossings_work(ctx: RunContext) -> dict[str, pl.DataFrame]:
     out: dict[str, pl.DataFrame] = {}
     if ctx.has_source("beams"):
         raw, path = ctx.source("beams", BEAM_COLUMNS)
-        dec = decode_raw_beams(raw, site.beam_ids, epoch=site.epoch, path=path)
+        dec = decode_raw_beams(raw, site.beam_ids, epoch=run_time_origin(ctx), path=path)
         ctx.add_rejects(dec.rejects)
         out.update(crossings=dec.crossings, aborted=dec.aborted, beam_events=dec.events)
         ctx.report += [
@@ -124,7 +158,7 @@ def _crossings_work(ctx: RunContext) -> dict[str, pl.DataFrame]:
             ctx.report.append(("crossings", "ignored_crossings_csv", 1.0, "flag"))
     else:
         raw, path = ctx.source("crossings", ("t", "beam", "direction"))
-        cr, rej = crossings_from_rows(raw, site.beam_ids, epoch=site.epoch, path=path)
+        cr, rej = crossings_from_rows(raw, site.beam_ids, epoch=run_time_origin(ctx), path=path)
         ctx.add_rejects(rej)
         out["crossings"] = cr
         ctx.report.append(("crossings", "decoded", float(cr.height), "crossings"))
@@ -132,7 +166,7 @@ def _crossings_work(ctx: RunContext) -> dict[str, pl.DataFrame]:
 
 
 def _crossings_viz(rec, ctx: RunContext, made: dict) -> None:
-    log_crossings(rec, made["crossings"], aborted=made.get("aborted"))
+    log_crossings(rec, made["crossings"], aborted=made.get("aborted"), site=ctx.site)
 
 
 def _truth_available(ctx: RunContext) -> str | None:
@@ -141,20 +175,20 @@ def _truth_available(ctx: RunContext) -> str | None:
 
 def _truth_work(ctx: RunContext) -> dict[str, pl.DataFrame]:
     raw, path = ctx.source("truth", ("t", "target", "x", "y"))
-    truth, rej = truth_from_rows(raw, epoch=ctx.site.epoch, path=path)
+    truth, rej = truth_from_rows(raw, epoch=run_time_origin(ctx), path=path)
     ctx.add_rejects(rej)
     truth = truth_regions(truth, ctx.region_graph)
     out = {"truth": truth, "true_crossings": true_crossings_from_truth(truth, ctx.site, ctx.region_graph)}
     if ctx.has_source("truth_crossings"):
         raw, path = ctx.source("truth_crossings", true_crossings_columns(ctx.dataset / "truth_crossings.csv"))
-        sim_cr, rej = true_crossings_from_rows(raw, ctx.site.beam_ids, epoch=ctx.site.epoch, path=path)
+        sim_cr, rej = true_crossings_from_rows(raw, ctx.site.beam_ids, epoch=run_time_origin(ctx), path=path)
         ctx.add_rejects(rej)
         out["sim_crossings"] = sim_cr
     return out
 
 
 def _truth_viz(rec, ctx: RunContext, made: dict) -> None:
-    log_truth(rec, made["truth"])
+    log_truth(rec, made["truth"], diagonal=ctx.site.diagonal)
 
 
 def _camera_available(ctx: RunContext) -> str | None:
@@ -168,17 +202,19 @@ def _camera_available(ctx: RunContext) -> str | None:
 def _camera_work(ctx: RunContext) -> dict[str, pl.DataFrame]:
     res = read_camera(ctx.dataset / "camera.mp4", ctx.site)
     ctx.add_rejects(res.rejects)
-    cam_truth = truth_regions(res.truth, ctx.region_graph)
+    shift = run_time_origin(ctx).numeric  # camera.t0 is on the logs' clock: on the run's time base too
+    detections = res.detections.with_columns(pl.col("t") - shift) if shift else res.detections
+    cam_truth = truth_regions(res.truth.with_columns(pl.col("t") - shift) if shift else res.truth, ctx.region_graph)
     ctx.report.append(("camera", "frames", float(res.frames), "frames"))
     ctx.report.append(("camera", "tracks", float(cam_truth["target"].n_unique()) if cam_truth.height else 0.0, "tracks"))
     if "truth" in ctx.tables:
-        err = truth_error(res.truth, ctx.tables["truth"], diagonal=ctx.site.diagonal)
+        err = truth_error(cam_truth.select(res.truth.columns), ctx.tables["truth"], diagonal=ctx.site.diagonal)
         ctx.report += [
             ("camera", "truth_error", float(err["mean"]), ctx.site.units),
             ("camera", "truth_error_rel", float(err["rel"]), "fraction of diagonal"),
             ("camera", "missed", float(err["missed"]), "points"),
         ]
-    return {"camera_truth": cam_truth, "camera_detections": res.detections}
+    return {"camera_truth": cam_truth, "camera_detections": detections}
 
 
 def _camera_viz(rec, ctx: RunContext, made: dict) -> None:
@@ -200,7 +236,7 @@ def _motion_work(ctx: RunContext) -> dict[str, pl.DataFrame]:
     site = ctx.site
     ids = [m.id for m in site.motion_sensors]
     raw, path = ctx.source("motion", TOGGLE_COLUMNS)
-    res = read_motion(raw, ids, epoch=site.epoch, path=path, rules=site_rules(site, cfg))
+    res = read_motion(raw, ids, epoch=run_time_origin(ctx), path=path, rules=site_rules(site, cfg))
     ctx.add_rejects(res.rejects)
     frames = motion_frames(res.motion, ids, period=cfg.period)
     ctx.report += [
@@ -228,7 +264,7 @@ def _proximity_work(ctx: RunContext) -> dict[str, pl.DataFrame]:
     ctx.config.setdefault("proximity", {}).update(asdict(cfg))
     ids = [p.id for p in ctx.site.proximity_sensors]
     raw, path = ctx.source("proximity", TOGGLE_COLUMNS)
-    res = read_proximity(raw, ids, epoch=ctx.site.epoch, path=path, rules=cfg.rules)
+    res = read_proximity(raw, ids, epoch=run_time_origin(ctx), path=path, rules=cfg.rules)
     ctx.add_rejects(res.rejects)
     frames = proximity_frames(
         res.motion, ids, period=cfg.period, start=None if cfg.start < 0 else cfg.start, instants=cfg.instants or None
@@ -291,6 +327,7 @@ def tracker_inputs(entry: TrackerEntry, ctx: RunContext) -> dict[str, Any]:
         inputs[key] = next(ctx.tables[s] for s in sources if s in ctx.tables)
     inputs.update({k: ctx.tables[k] for k in entry.spec.wants if k in ctx.tables})
     inputs["region_graph"] = ctx.region_graph
+    inputs[PROGRESS] = ctx.progress
     return inputs
 
 
@@ -322,7 +359,7 @@ def tracker_stage(entry: TrackerEntry) -> Stage:
             out[ARTIFACTS] = made[ARTIFACTS]
         entry.viz(rec, name, out, site=ctx.site, region_graph=ctx.region_graph, config=ctx.configs[name], tables=ctx.tables)
 
-    return Stage(name, (), (f"{name}_tracks",), available, work, viz)
+    return Stage(name, (), (f"{name}_tracks",), available, work, viz, config=spec.config)
 
 
 # --------------------------------------------------------------------------- scores
@@ -348,6 +385,10 @@ def scores_stage(trackers: tuple[TrackerEntry, ...] = TRACKERS) -> Stage:
             try:  # one tracker's scoring failing (say, a sensor without a region) keeps the others'
                 rows, made = entry.score(entry.name, tables, ctx.site, ctx.region_graph)
                 rows = rows + mot_rows(entry.name, entry.gate, tables, ctx.site, ctx.region_graph)
+            except CannotServe as exc:  # the tracker's model does not fit the data: a flag, no number
+                ctx.status[f"scores/{entry.name}"] = f"cannot serve the data: {exc}"
+                ctx.report.append((entry.name, "cannot_serve", 1.0, "flag"))
+                continue
             except OnebitError as exc:
                 ctx.status[f"scores/{entry.name}"] = f"failed: {exc}"
                 continue
@@ -363,9 +404,11 @@ def scores_stage(trackers: tuple[TrackerEntry, ...] = TRACKERS) -> Stage:
         for entry in trackers:
             sc = made.get(f"{entry.name}_scores")
             if sc is not None:
-                log_scores(rec, entry.name, sc)
+                tracks = ctx.tables.get(f"{entry.name}_tracks")
+                ids = tracks["track"].drop_nulls().unique().to_list() if tracks is not None and "track" in tracks.columns else None
+                log_scores(rec, entry.name, sc, track_ids=ids)
 
-    return Stage("scores", (), ("crossing_matches", "timings"), lambda ctx: None, work, viz)
+    return Stage("scores", (), ("crossing_matches", "timings"), lambda ctx: None, work, viz, config=ScoresConfig)
 
 
 # --------------------------------------------------------------------------- the list
@@ -377,10 +420,11 @@ def stages(trackers: tuple[TrackerEntry, ...] = TRACKERS) -> list[Stage]:
         Stage("crossings", (), ("crossings", "aborted", "beam_events"), _crossings_available, _crossings_work, _crossings_viz),
         Stage("truth", (), ("truth", "true_crossings", "sim_crossings"), _truth_available, _truth_work, _truth_viz),
         Stage("camera", (), ("camera_truth", "camera_detections"), _camera_available, _camera_work, _camera_viz),
-        Stage("motion", (), ("motion", "frames", "motion_suppressed"), _motion_available, _motion_work, _motion_viz),
-        Stage("proximity", (), ("proximity", "proximity_frames", "proximity_suppressed"), _proximity_available, _proximity_work),
+        Stage("motion", (), ("motion", "frames", "motion_suppressed"), _motion_available, _motion_work, _motion_viz, config=MotionConfig),
+        Stage("proximity", (), ("proximity", "proximity_frames", "proximity_suppressed"), _proximity_available, _proximity_work,
+              config=ProximityConfig),  # fmt: skip
         Stage("correct", ("crossings",), ("corrected_crossings", "correct_insertions", "correct_initial"), _correct_available,
-              _correct_work, _correct_viz),  # fmt: skip
+              _correct_work, _correct_viz, config=CorrectConfig),  # fmt: skip
         *(tracker_stage(e) for e in trackers),
         scores_stage(trackers),
     ]

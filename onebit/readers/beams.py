@@ -26,8 +26,11 @@ from __future__ import annotations
 from dataclasses import dataclass
 from pathlib import Path
 
+import numpy as np
 import polars as pl
 
+from onebit.core.sensing import body_radius
+from onebit.readers import kernels
 from onebit.readers.rows import RawRows, make_rejects, parse_choice, parse_name, parse_time, read_csv_rows, type_rows
 from onebit.core.tables import ABORTED, BEAM_EVENTS, CROSSINGS, REJECTS, conform
 from onebit.readers.rows import raw_lines
@@ -52,17 +55,66 @@ def read_beam_events(raw: RawRows, beam_ids: tuple[str, ...], *, epoch: str | No
         "t": parse_time("t", epoch, raw.frame),
         "beam": parse_name("beam", beam_ids, "beam"),
         "pair": parse_choice("pair", {"a": "a", "b": "b", "A": "a", "B": "b"}, pl.String),
-        "blocked": parse_choice("blocked", {"1": True, "0": False, "true": True, "false": False}, pl.Boolean),
+        "blocked": parse_choice(
+            "blocked", {"1": True, "0": False, "true": True, "false": False, "on": True, "off": False}, pl.Boolean, case_insensitive=True
+        ),
     }
     return type_rows(raw, parsers, key=("t", "beam", "pair", "blocked"), path=path)
 
 
-def decode_passes(events: pl.DataFrame, source: str = "beams.csv") -> BeamDecode:
+def decode_passes(events: pl.DataFrame, source: str = "beams.csv", *, compiled: bool | None = None) -> BeamDecode:
     """Decode accepted beam events (``line``, t, beam, pair, blocked; sorted by t) into crossings.
 
     Edges that do not change their pair's state (blocked while already blocked, or clear
-    while clear) cannot come from a body and are rejected with their line.
+    while clear) cannot come from a body and are rejected with their line. The machine runs
+    as one compiled pass over the events (:func:`onebit.readers.kernels.beam_passes`); the
+    tables are built from its result with polars, as :func:`decode_passes_reference` (the
+    polars window version, its test oracle) builds them. ``compiled=None`` uses the kernel
+    from :data:`~onebit.readers.kernels.MIN_ROWS` events on, the reference below (same result).
     """
+    if not (events.height >= kernels.MIN_ROWS if compiled is None else compiled):
+        return decode_passes_reference(events, source)
+    ev = events.sort(["t", "line"])
+    names = ev["beam"].unique(maintain_order=True)
+    code = ev["beam"].replace_strict(names, range(len(names)), return_dtype=pl.Int64).to_numpy().astype(np.int64)
+    reject, pass_first, close, first_pair = kernels.beam_passes(
+        code, (ev["pair"] == "b").to_numpy().astype(np.int8), ev["blocked"].to_numpy().astype(np.bool_), len(names)
+    )
+    ev = ev.with_columns(_reject=pl.Series(reject), _first=pl.Series(pass_first), _close=pl.Series(close),
+                         _opener=pl.Series(first_pair))  # fmt: skip
+    bad = ev.filter(pl.col("_reject") > 0).with_columns(
+        pl.when(pl.col("_reject") == kernels.ALREADY_BLOCKED)
+        .then(pl.format("pair {} of beam {} already blocked (no state change)", pl.col("pair"), pl.col("beam")))
+        .otherwise(pl.format("pair {} of beam {} already clear (no state change)", pl.col("pair"), pl.col("beam")))
+        .alias("_reason")
+    )
+    rejects = make_rejects(bad.sort("line"), source, None)
+    ev = ev.filter(pl.col("_reject") == 0)
+    # one row per pass, in the order passes start (polars' group order in the reference)
+    ends = ev.with_row_index("_k").group_by("_first", maintain_order=True).agg(
+        pl.col("beam").last(), pl.col("pair").last().alias("last"), pl.col("_close").last().alias("closed"),
+        pl.col("t").last(), pl.col("_opener").last(),
+    ).sort("_first")
+    passes = ends.with_columns(first=pl.when(pl.col("closed")).then(pl.when(pl.col("_opener") == 1).then(pl.lit("b")).otherwise(pl.lit("a"))))
+    closed = passes.filter(pl.col("closed"))
+    crossing = closed.filter(pl.col("first") != pl.col("last")).with_columns(
+        direction=pl.when(pl.col("first") == "a").then(1).otherwise(-1).cast(pl.Int8)
+    )
+    crossings = conform(crossing, CROSSINGS).sort(["t", "beam"], maintain_order=True)
+    aborted = conform(
+        closed.filter(pl.col("first") == pl.col("last")).with_columns(
+            side=pl.when(pl.col("first") == "a").then(-1).otherwise(1).cast(pl.Int8)
+        ),
+        ABORTED,
+    ).sort("t")
+    unfinished = passes.filter(~pl.col("closed")).select("t", "beam")
+    return BeamDecode(conform(ev, BEAM_EVENTS), crossings, aborted, unfinished, rejects)
+
+
+def decode_passes_reference(events: pl.DataFrame, source: str = "beams.csv") -> BeamDecode:
+    """:func:`decode_passes` with polars window expressions only (forward-filled pair states,
+    passes numbered by a cumulative sum of idle states): the plain reference of the compiled
+    pass machine and its test oracle."""
     ev = events.sort(["t", "line"])
     prev = pl.col("blocked").shift(1).over(["beam", "pair"]).fill_null(False)
     ev = ev.with_columns(
@@ -134,3 +186,12 @@ def decode_raw_beams(raw: RawRows, beam_ids, *, epoch=None, path: Path | None = 
             fixed = fixed.with_columns(pl.Series("raw", [text.get(i) for i in lines], dtype=pl.String))
         rejects = pl.concat([rejects, fixed.select(REJECTS.names())]).sort("line")
     return BeamDecode(out.events, out.crossings, out.aborted, out.unfinished, rejects)
+
+
+def crossing_reach(site, beam_id: str) -> float:
+    """How far (site units) from the beam's segment the centre of a body may be at the time of
+    one of its crossings: a crossing is logged at its last edge, when the body has just cleared
+    the far pair, so the centre is ``spacing / 2 + body_radius`` past the segment (and no
+    further while any pair is blocked). Trackers that place a target at a crossing use this
+    reach, never a constant of their own (:func:`onebit.core.sensing.body_radius`)."""
+    return site.beam(beam_id).spacing / 2.0 + body_radius(site)

@@ -6,10 +6,15 @@ linked frame to frame by minimum-cost assignment.
 
 Pipeline
 --------
-1. **Decode** every frame with ``cv2.VideoCapture`` (FFmpeg) into a grey ``(K, H, W)`` uint8
-   stack (memory ``K * H * W`` bytes). A file that cannot be opened or yields no frame raises
-   :class:`~onebit.core.errors.InputError`; a decode that stops before the frame count the
-   container declares keeps the frames so far and adds a ``rejects`` row.
+1. **Decode** the frames with ``cv2.VideoCapture`` (FFmpeg) as grey uint8, twice, never
+   holding the video: the first pass counts the frames and keeps only what steps 2-4 need
+   (each frame's brightness and the ``BG_SAMPLES`` background frames), the second finds the
+   blobs frame by frame (step 5). Memory is ``O(BG_SAMPLES * H * W)``, independent of the
+   video's length (holding the ``(K, H, W)`` stack cost ``2 K H W`` bytes at its peak); a
+   second decode costs less than the copy of the stack did. A file that cannot be opened or
+   yields no frame raises :class:`~onebit.core.errors.InputError`; a decode that stops before
+   the frame count the container declares keeps the frames so far and adds a ``rejects``
+   row. (:func:`decode_frames` still returns the whole stack, for small videos and tests.)
 2. **Lighting**: each frame's brightness is ``m_k = median(I_k)`` (on a 4x subsampled grid;
    the agents are a small fraction of the image so the median is the floor's). Frames are
    normalised to a common level, ``J_k = c_k I_k`` with ``c_k = m_ref / m_k`` and
@@ -120,11 +125,11 @@ def read_camera(
     for name, value in (("min_area_px", min_area_px), ("gate", gate), ("max_gap", max_gap)):
         if value is not None and not value > 0:
             raise InputError(f"must be positive, got {value!r}", field=name)
-    stack, rejects = decode_frames(path, camera)
-    gains = frame_gains(stack)
-    background = background_model(stack, gains)
-    tau = noise_threshold(stack, gains, background)
-    frame, uv, area = find_blobs(stack, gains, background, tau)
+    n, med, samples, idx, rejects = _first_pass(path, camera)
+    gains = _gains(med)
+    background = _background(samples, gains[idx])
+    tau = _threshold(samples, gains[idx], background)
+    frame, uv, area = _blobs_pass(path, camera, n, gains, background, tau)
     keep = area >= (default_min_area(area) if min_area_px is None else float(min_area_px))
     frame, uv, area = frame[keep], uv[keep], area[keep]
     xy = camera.pixel_to_world(uv) if len(uv) else np.zeros((0, 2))
@@ -141,7 +146,7 @@ def read_camera(
         .with_columns(pl.format("cam{}", pl.col("track") + 1).alias("target")),
         TRUTH,
     )
-    return CameraResult(truth=truth, detections=detections, rejects=rejects, frames=len(stack))
+    return CameraResult(truth=truth, detections=detections, rejects=rejects, frames=n)
 
 
 # --------------------------------------------------------------------------- decoding
@@ -175,44 +180,95 @@ def _check_size(width: int, height: int, camera: Camera, path: Path) -> None:
     )
 
 
-def decode_frames(path: Path, camera: Camera) -> tuple[np.ndarray, pl.DataFrame]:
-    """Decode every frame as grey uint8; return the ``(K, H, W)`` stack and ``rejects``.
+class _Decode:
+    """Grey frames of a video, one at a time (:meth:`frames`); after the iteration ``count``
+    is the number decoded and ``problem`` why decoding stopped early (``None`` if it did not).
 
     Decoding is inherently sequential. If it stops before the frame count the container
-    declares (or OpenCV raises mid-stream) the frames decoded so far are kept and one
-    ``rejects`` row records where and why.
+    declares (or OpenCV raises mid-stream) the frames decoded so far are kept and the
+    problem says where and why.
     """
-    if not path.is_file():
-        raise InputError("video file not found", file=path)
-    cap = cv2.VideoCapture(str(path), cv2.CAP_FFMPEG)
-    try:
-        if not cap.isOpened():
-            raise InputError("not a readable video: OpenCV/FFmpeg cannot open it (corrupt, truncated or not a video)", file=path)
-        declared = int(cap.get(cv2.CAP_PROP_FRAME_COUNT) or 0)
-        frames: list[np.ndarray] = []
-        problem: str | None = None
-        while True:
-            try:
-                ok, img = cap.read()
-            except cv2.error as exc:
-                problem = f"decoding failed: {str(exc).strip().splitlines()[-1]}"
-                break
-            if not ok or img is None:
-                break
-            if not frames:
-                _check_size(img.shape[1], img.shape[0], camera, path)
-            elif img.shape[:2] != frames[0].shape:
-                problem = f"frame size changed to {img.shape[1]}x{img.shape[0]}"
-                break
-            frames.append(cv2.cvtColor(img, cv2.COLOR_BGR2GRAY) if img.ndim == 3 else img)
-    finally:
-        cap.release()
-    if not frames:
-        raise InputError("video has no decodable frames", file=path)
-    if problem is None and declared > len(frames):
-        problem = f"decoding stopped after {len(frames)} of {declared} frames the container declares"
-    rows = [] if problem is None else [(path.name, len(frames), problem, None)]
-    return np.stack(frames), rejects_frame(rows) if rows else pl.DataFrame(schema=REJECTS)
+
+    def __init__(self, path: Path, camera: Camera) -> None:
+        self.path, self.camera = path, camera
+        self.count = 0
+        self.declared = 0
+        self.problem: str | None = None
+
+    def frames(self, limit: int | None = None):
+        path = self.path
+        if not path.is_file():
+            raise InputError("video file not found", file=path)
+        cap = cv2.VideoCapture(str(path), cv2.CAP_FFMPEG)
+        shape = None
+        try:
+            if not cap.isOpened():
+                raise InputError("not a readable video: OpenCV/FFmpeg cannot open it (corrupt, truncated or not a video)", file=path)
+            self.declared = int(cap.get(cv2.CAP_PROP_FRAME_COUNT) or 0)
+            while limit is None or self.count < limit:
+                try:
+                    ok, img = cap.read()
+                except cv2.error as exc:
+                    self.problem = f"decoding failed: {str(exc).strip().splitlines()[-1]}"
+                    break
+                if not ok or img is None:
+                    break
+                if shape is None:
+                    _check_size(img.shape[1], img.shape[0], self.camera, path)
+                    shape = img.shape[:2]
+                elif img.shape[:2] != shape:
+                    self.problem = f"frame size changed to {img.shape[1]}x{img.shape[0]}"
+                    break
+                self.count += 1
+                yield cv2.cvtColor(img, cv2.COLOR_BGR2GRAY) if img.ndim == 3 else img
+        finally:
+            cap.release()
+        if self.count == 0:
+            raise InputError("video has no decodable frames", file=path)
+        if self.problem is None and self.declared > self.count and limit is None:
+            self.problem = f"decoding stopped after {self.count} of {self.declared} frames the container declares"
+
+    def rejects(self) -> pl.DataFrame:
+        rows = [] if self.problem is None else [(self.path.name, self.count, self.problem, None)]
+        return rejects_frame(rows) if rows else pl.DataFrame(schema=REJECTS)
+
+
+def decode_frames(path: Path, camera: Camera) -> tuple[np.ndarray, pl.DataFrame]:
+    """Decode every frame as grey uint8; return the ``(K, H, W)`` stack and ``rejects``
+    (memory ``K H W``: :func:`read_camera` streams instead)."""
+    dec = _Decode(Path(path), camera)
+    frames = list(dec.frames())
+    return np.stack(frames), dec.rejects()
+
+
+def _first_pass(path: Path, camera: Camera):
+    """First decode: ``(n, med (n,), samples (s, H, W), idx (s,), rejects)`` -- the frame count,
+    each frame's brightness ``m_k`` (:func:`frame_gains`) and the background sample frames
+    ``_sample_indices(n)``. The samples are picked from the frame count the container
+    declares; when the decoded count differs, a further decode fetches the right ones."""
+    dec = _Decode(path, camera)
+    want: set[int] = set()
+    med: list[float] = []
+    kept: dict[int, np.ndarray] = {}
+    for k, img in enumerate(dec.frames()):
+        if k == 0 and dec.declared > 0:
+            want = set(_sample_indices(dec.declared).tolist())
+        med.append(_brightness(img))
+        if k in want:
+            kept[k] = img
+    n = dec.count
+    idx = _sample_indices(n)
+    if any(int(k) not in kept for k in idx):  # the container's count was wrong: fetch the samples
+        need = set(idx.tolist())
+        kept = {k: img for k, img in enumerate(_Decode(path, camera).frames(limit=n)) if k in need}
+    samples = np.stack([kept[int(k)] for k in idx])
+    return n, np.asarray(med, dtype=np.float32), samples, idx, dec.rejects()
+
+
+def _blobs_pass(path: Path, camera: Camera, n: int, gains: np.ndarray, background: np.ndarray, tau: float):
+    """Second decode: :func:`find_blobs` frame by frame over the first ``n`` frames."""
+    found = [_blobs_of(foreground_mask(img, float(g), background, tau)) for img, g in zip(_Decode(path, camera).frames(limit=n), gains)]
+    return _collect_blobs(found)
 
 
 # --------------------------------------------------------------------------- background
@@ -224,8 +280,17 @@ def frame_gains(stack: np.ndarray) -> np.ndarray:
     ``m_k`` is the median grey level of frame ``k`` on a 4x subsampled grid and
     ``m_ref = median_k m_k``.
     """
-    med = np.median(stack[:, ::4, ::4].reshape(len(stack), -1), axis=1).astype(np.float32)
-    med = np.maximum(med, 1.0)
+    return _gains(np.median(stack[:, ::4, ::4].reshape(len(stack), -1), axis=1).astype(np.float32))
+
+
+def _brightness(frame: np.ndarray) -> float:
+    """``m_k``: the median grey level of one frame on a 4x subsampled grid (as :func:`frame_gains`)."""
+    return float(np.float32(np.median(frame[::4, ::4].reshape(-1))))
+
+
+def _gains(med: np.ndarray) -> np.ndarray:
+    """``m_ref / m_k`` from the frames' brightness ``med (K,)`` float32."""
+    med = np.maximum(np.asarray(med, dtype=np.float32), 1.0)
     return (np.median(med) / med).astype(np.float32)
 
 
@@ -245,7 +310,12 @@ def _lower_median(a: np.ndarray, axis: int | None = None) -> np.ndarray:
 def background_model(stack: np.ndarray, gains: np.ndarray) -> np.ndarray:
     """Per-pixel (lower) median of the brightness-normalised sample frames, ``B`` (float32, ``(H, W)``)."""
     idx = _sample_indices(len(stack))
-    return _lower_median(stack[idx].astype(np.float32) * gains[idx, None, None], axis=0)
+    return _background(stack[idx], gains[idx])
+
+
+def _background(samples: np.ndarray, gains: np.ndarray) -> np.ndarray:
+    """:func:`background_model` from the sample frames and their gains."""
+    return _lower_median(samples.astype(np.float32) * gains[:, None, None], axis=0)
 
 
 def noise_threshold(stack: np.ndarray, gains: np.ndarray, background: np.ndarray) -> float:
@@ -254,7 +324,12 @@ def noise_threshold(stack: np.ndarray, gains: np.ndarray, background: np.ndarray
     ``J - B`` is taken over the background samples on a 2x subsampled pixel grid.
     """
     idx = _sample_indices(len(stack))
-    resid = stack[idx, ::2, ::2].astype(np.float32) * gains[idx, None, None] - background[::2, ::2]
+    return _threshold(stack[idx], gains[idx], background)
+
+
+def _threshold(samples: np.ndarray, gains: np.ndarray, background: np.ndarray) -> float:
+    """:func:`noise_threshold` from the sample frames and their gains."""
+    resid = samples[:, ::2, ::2].astype(np.float32) * gains[:, None, None] - background[::2, ::2]
     sigma = 1.4826 * float(_lower_median(np.abs(resid - _lower_median(resid))))
     return max(TAU_MIN, TAU_SIGMAS * sigma)
 
@@ -293,7 +368,12 @@ def find_blobs(
     One OpenCV pass per frame (mask, morphology, connected components); the pixel work is
     inside OpenCV, the loop is over frames only.
     """
-    found = [_blobs_of(foreground_mask(img, float(g), background, tau)) for img, g in zip(stack, gains)]
+    return _collect_blobs([_blobs_of(foreground_mask(img, float(g), background, tau)) for img, g in zip(stack, gains)])
+
+
+def _collect_blobs(found: list) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Per-frame ``(centroids, areas)`` -> frame index, centroid, area of the blobs of at least
+    ``MIN_AREA_ABS`` pixels."""
     frame = np.repeat(np.arange(len(found), dtype=np.int64), [len(a) for _, a in found])
     uv = np.concatenate([c for c, _ in found]).reshape(-1, 2)
     area = np.concatenate([a for _, a in found]).astype(np.int64)

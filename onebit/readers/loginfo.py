@@ -1,7 +1,9 @@
 """``onebit logs info``: what a raw log holds -- channels, sensors, time span, rates, rejects.
 
-Works on any raw-log CSV or Parquet file, on an ``.mcap`` recording (one row per channel)
-and on a folder (every ``*.csv``, ``*.parquet`` and ``*.mcap`` in it).
+Works on any raw-log CSV or Parquet file, on an ``.mcap`` recording (one row per channel),
+on a CASAS smart-home log ``*.txt`` (:mod:`onebit.readers.casas`: one row for the whole log,
+then one per kind of sensor -- motion, door, temperature, other) and on a folder (every
+``*.csv``, ``*.parquet``, ``*.mcap`` and ``*.txt`` in it).
 """
 
 from __future__ import annotations
@@ -12,7 +14,9 @@ from pathlib import Path
 import polars as pl
 
 from onebit.core.errors import InputError
+from onebit.readers.casas import read_casas
 from onebit.readers.mcap_io import read_mcap
+from onebit.readers.rows import csv_header, read_csv_rows
 
 #: Schema of the :func:`log_info` frame.
 LOG_INFO = pl.Schema(
@@ -34,8 +38,7 @@ ID_COLUMNS = ("beam", "sensor", "target")
 #: How many ids :func:`log_info` lists before eliding the rest.
 MAX_IDS = 10
 
-_EXTRA = "__extra__"
-_SUFFIXES = (".csv", ".parquet", ".mcap")
+_SUFFIXES = (".csv", ".parquet", ".mcap", ".txt")
 
 
 def _parse_t(values: pl.Series) -> pl.Series:
@@ -93,29 +96,14 @@ def _summarise(source: str, df: pl.DataFrame, bad_rows: int, extra_rejects: int 
 
 
 def _csv_rows(path: Path) -> list[dict]:
-    try:
-        header = [h.strip() for h in pl.read_csv(path, n_rows=0, infer_schema=False).columns]
-    except pl.exceptions.NoDataError:
+    """One summary of a CSV log, read by the CSV layer of :mod:`onebit.readers.rows` (a bad
+    line counts as a reject, it never fails the file)."""
+    header = csv_header(path)[0]
+    if not header:
         return [_summarise(path.name, pl.DataFrame(), 0)]
-    except (pl.exceptions.PolarsError, OSError, UnicodeDecodeError) as exc:
-        raise InputError(f"cannot read CSV header: {exc}", file=path, line=1) from None
-    names = [h if h != _EXTRA else h + "_" for h in header]
-    try:
-        df = pl.read_csv(
-            path,
-            has_header=False,
-            skip_rows=1,
-            schema={**{n: pl.String for n in names}, _EXTRA: pl.String},
-            missing_columns="insert",
-            truncate_ragged_lines=True,
-        )
-    except (pl.exceptions.PolarsError, OSError) as exc:
-        raise InputError(f"cannot parse CSV: {exc}", file=path) from None
-    df = df.filter(~pl.all_horizontal(pl.all().is_null()))
-    n_fields = pl.sum_horizontal([pl.col(n).is_not_null().cast(pl.Int32) for n in names])
-    bad = pl.col(_EXTRA).is_not_null() | (pl.col(names[-1]).is_null() & (n_fields < len(names)))
-    malformed = df.filter(bad).height
-    return [_summarise(path.name, df.filter(~bad).drop(_EXTRA), malformed)]
+    names = tuple(dict.fromkeys(h for h in header if h))
+    raw = read_csv_rows(path, names)
+    return [_summarise(path.name, raw.frame.drop("line", "raw"), raw.rejects.height)]
 
 
 def _parquet_rows(path: Path) -> list[dict]:
@@ -138,13 +126,25 @@ def _mcap_rows(path: Path) -> list[dict]:
     return rows
 
 
+def _casas_rows(path: Path) -> list[dict]:
+    """The whole log (with its rejected lines), then one row per kind of sensor; times are
+    seconds since the log's first second."""
+    log = read_casas(path)
+    ev = log.events.with_columns(t=pl.col("t").cast(pl.String))
+    rows = [_summarise(path.name, ev.select("t", "sensor"), 0, log.rejects.height)]
+    for kind in sorted(ev["kind"].unique().to_list()):
+        rows.append(_summarise(f"{path.name}:{kind}", ev.filter(pl.col("kind") == kind).select("t", "sensor"), 0))
+    return rows
+
+
 def log_info(path: str | Path) -> pl.DataFrame:
     """Summarise a raw log: one row per file (CSV/Parquet) or per channel (MCAP).
 
     Parameters
     ----------
     path
-        A ``*.csv`` or ``*.parquet`` raw log, an ``.mcap`` recording, or a folder of them.
+        A ``*.csv`` or ``*.parquet`` raw log, an ``.mcap`` recording, a CASAS log ``*.txt``,
+        or a folder of them.
 
     Returns
     -------
@@ -183,8 +183,10 @@ def log_info(path: str | Path) -> pl.DataFrame:
         rows = _parquet_rows(path)
     elif suffix == ".mcap":
         rows = _mcap_rows(path)
+    elif suffix == ".txt":
+        rows = _casas_rows(path)
     else:
-        raise InputError(f"unsupported file type '{path.suffix}'; expected .csv, .parquet or .mcap", file=path)
+        raise InputError(f"unsupported file type '{path.suffix}'; expected .csv, .parquet, .mcap or .txt (CASAS)", file=path)
     return pl.DataFrame(rows, schema=LOG_INFO, orient="row") if rows else pl.DataFrame(schema=LOG_INFO)
 
 

@@ -4,9 +4,11 @@ A raw PIR log is a list of state changes (``value`` 1 = on, 0 = off) per sensor,
 faults of cheap relays. The reader works in three passes, all polars expressions over the
 whole log (no Python loop over rows):
 
-1. **Typing** (:func:`onebit.readers.rows.type_rows`): malformed ``t`` / ``value``, an unknown
-   sensor, a row identical to an earlier one (duplicate) and a row whose ``t`` is earlier
-   than an accepted row before it (out of order) go to ``rejects``.
+1. **Typing** (:func:`onebit.readers.rows.check_rows`): malformed ``t`` / ``value`` (any
+   spelling of :data:`TOGGLE_VALUES`), an unknown sensor, a row identical to an earlier one
+   (duplicate) and a row whose ``t`` is more than ``tolerance`` (1 s) earlier than an accepted
+   row before it (out of order) go to ``rejects``; rows less far out of order are sorted into
+   place and counted (``reordered``).
 2. **State changes.** Every sensor starts off. An edge that does not change its sensor's state
    (``1`` while already on, ``0`` while already off) cannot be a transition and goes to
    ``rejects`` ("no state change"). Removing every edge equal to its predecessor leaves an
@@ -52,17 +54,34 @@ from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, fields
 from pathlib import Path
 
+import numpy as np
 import polars as pl
 
 from onebit.core.errors import ConfigError
-from onebit.readers.rows import RawRows, make_rejects, parse_choice, parse_name, parse_time, read_csv_rows, type_rows
+from onebit.readers import kernels
+from onebit.readers.rows import (
+    REORDER_TOLERANCE_S,
+    RawRows,
+    check_rows,
+    make_rejects,
+    parse_choice,
+    parse_name,
+    parse_time,
+    read_csv_rows,
+)
+from onebit.readers.timebase import TimeOrigin
 from onebit.core.tables import FRAMES, MOTION, REJECTS, conform
 
 #: Columns of a toggle log.
 TOGGLE_COLUMNS = ("t", "sensor", "value")
 
-#: Accepted spellings of a toggle value.
-TOGGLE_VALUES = {"1": True, "0": False, "true": True, "false": False, "on": True, "off": False, "True": True, "False": False}
+#: Accepted spellings of a toggle value, in any letter case: ``1``/``0``, ``on``/``off``,
+#: ``true``/``false``, ``open``/``close`` (door sensors, CASAS ``D###``: open = activity),
+#: ``present``/``absent`` (presence sensors); an unreadable value is a reject naming them.
+TOGGLE_VALUES = {
+    "1": True, "0": False, "1.0": True, "0.0": False, "on": True, "off": False, "true": True, "false": False,
+    "open": True, "close": False, "closed": False, "present": True, "absent": False,
+}  # fmt: skip
 
 #: Tolerance (s) of the debounce comparisons, so a gap of exactly the window counts as inside it
 #: despite floating-point rounding of the time stamps.
@@ -121,15 +140,17 @@ class MotionRead:
     motion: pl.DataFrame  # MOTION schema (t, sensor, on), accepted edges, sorted by t
     rejects: pl.DataFrame  # REJECTS schema (source, line, reason, raw)
     suppressed: pl.DataFrame  # SUPPRESSED: t, sensor, on, rule, line
+    reordered: int = 0  # accepted rows that came out of order (within the tolerance) and were sorted
 
 
 def read_motion(
     raw: RawRows,
     sensors: Sequence[str],
     *,
-    epoch: str | None = None,
+    epoch: str | TimeOrigin | None = None,
     path: Path | None = None,
     rules: DebounceRules | Mapping[str, DebounceRules] | None = None,
+    tolerance: float = REORDER_TOLERANCE_S,
 ) -> MotionRead:
     """Type, check and debounce the string rows of a toggle log (CSV or an MCAP channel).
 
@@ -137,8 +158,11 @@ def read_motion(
     ----------
     raw : string rows with columns ``t``, ``sensor``, ``value`` (see ``read_csv_rows``).
     sensors : the known sensor ids; any other id is rejected.
-    epoch : the site's epoch, for ISO wall-clock stamps.
+    epoch : the run's :class:`~onebit.readers.timebase.TimeOrigin`, or the site's epoch (for
+        ISO wall-clock stamps) when the reader is used on its own.
     path : the CSV file, so rejects carry the raw line text.
+    tolerance : rows at most this many seconds out of order are sorted into place and counted
+        (``reordered``), not rejected.
     rules : one :class:`DebounceRules` for every sensor, or a mapping sensor id -> rules
         (sensors not in it get no-op rules; see :func:`rules_by_type`).
 
@@ -148,9 +172,10 @@ def read_motion(
     parsers = {
         "t": parse_time("t", epoch, raw.frame),
         "sensor": parse_name("sensor", sensors, "sensor"),
-        "value": parse_choice("value", TOGGLE_VALUES, pl.Boolean),
+        "value": parse_choice("value", TOGGLE_VALUES, pl.Boolean, case_insensitive=True),
     }
-    ok, rejects = type_rows(raw, parsers, key=("t", "sensor", "value"), path=path)
+    typed = check_rows(raw, parsers, key=("t", "sensor", "value"), path=path, tolerance=tolerance)
+    ok, rejects = typed.accepted, typed.rejects
     ok = ok.rename({"value": "on"}).sort(["t", "line"])
 
     # pass 2: edges that do not change their sensor's state (every sensor starts off)
@@ -174,7 +199,7 @@ def read_motion(
     # pass 3: debounce on the alternating sequence
     edges, suppressed = debounce(edges, sensors, rules)
     motion = conform(edges, MOTION)
-    return MotionRead(motion, rejects.select(REJECTS.names()).cast(dict(REJECTS)), suppressed)
+    return MotionRead(motion, rejects.select(REJECTS.names()).cast(dict(REJECTS)), suppressed, typed.reordered)
 
 
 #: The same reader under the name the proximity sensors use (``proximity.csv``: t, sensor, value).
@@ -205,11 +230,47 @@ def debounce(
     edges: pl.DataFrame,
     sensors: Sequence[str],
     rules: DebounceRules | Mapping[str, DebounceRules] | None,
+    *,
+    compiled: bool | None = None,
 ) -> tuple[pl.DataFrame, pl.DataFrame]:
     """Apply the chatter and minimum-on rules to alternating edges (``line``, t, sensor, on).
 
     Returns ``(kept, suppressed)``; ``kept`` is sorted by ``t`` (file order within a stamp).
+    The rules run as one compiled pass per rule over the edges
+    (:func:`onebit.readers.kernels.debounce_masks`); :func:`debounce_reference` (polars
+    window expressions) is its plain reference and test oracle. ``compiled=None`` uses the
+    kernel from :data:`~onebit.readers.kernels.MIN_ROWS` edges on, the reference below.
     """
+    if not (edges.height >= kernels.MIN_ROWS if compiled is None else compiled):
+        return debounce_reference(edges, sensors, rules)
+    table = _rules_frame(sensors, rules)
+    ev = edges.sort(["t", "line"]).join(table, on="sensor", how="left").with_columns(
+        pl.col("_chatter").fill_null(0.0), pl.col("_min_on").fill_null(0.0)
+    )
+    names = ev["sensor"].unique(maintain_order=True)
+    code = ev["sensor"].replace_strict(names, range(len(names)), return_dtype=pl.Int64).to_numpy().astype(np.int64)
+    per = ev.group_by(pl.Series("_code", code), maintain_order=True).agg(pl.col("_chatter").first(), pl.col("_min_on").first())
+    chat, short = kernels.debounce_masks(
+        code, ev["on"].to_numpy().astype(np.bool_), ev["t"].to_numpy().astype(np.float64),
+        per["_chatter"].to_numpy().astype(np.float64), per["_min_on"].to_numpy().astype(np.float64), len(names), TIME_EPS,
+    )  # fmt: skip
+    ev = ev.with_columns(_chat=pl.Series(chat), _short=pl.Series(short))
+    sup_chat = ev.filter(pl.col("_chat")).with_columns(rule=pl.lit("chatter"))
+    sup_short = ev.filter(pl.col("_short")).with_columns(rule=pl.lit("min_on"))
+    kept = ev.filter(~pl.col("_chat") & ~pl.col("_short")).select("line", "t", "sensor", "on").sort(["t", "line"])
+    suppressed = conform(pl.concat([sup_chat.drop("_short", strict=False), sup_short], how="diagonal"), SUPPRESSED).sort(
+        ["t", "line"]
+    )
+    return kept, suppressed
+
+
+def debounce_reference(
+    edges: pl.DataFrame,
+    sensors: Sequence[str],
+    rules: DebounceRules | Mapping[str, DebounceRules] | None,
+) -> tuple[pl.DataFrame, pl.DataFrame]:
+    """:func:`debounce` with polars window expressions (``shift`` over each sensor): the plain
+    reference of the compiled kernel and its test oracle."""
     table = _rules_frame(sensors, rules)
     ev = edges.sort(["t", "line"]).join(table, on="sensor", how="left").with_columns(
         pl.col("_chatter").fill_null(0.0), pl.col("_min_on").fill_null(0.0)
@@ -246,7 +307,7 @@ def read_motion_csv(
     path: str | Path,
     sensors: Sequence[str],
     *,
-    epoch: str | None = None,
+    epoch: str | TimeOrigin | None = None,
     rules: DebounceRules | Mapping[str, DebounceRules] | None = None,
 ) -> MotionRead:
     """Read ``motion.csv`` (or ``proximity.csv``): the whole toggle reader for one file."""
@@ -344,6 +405,62 @@ def refractory_state(frames: pl.DataFrame, refractory: Mapping[str, float], *, p
     prev_beta = beta.shift(1).over("sensor", order_by="slot").fill_null(0.0)
     df = df.with_columns(beta=beta).with_columns(blind=prev_beta > 0)
     return df.drop("_f", "_last").sort(["slot"], maintain_order=True)
+
+
+# --------------------------------------------------------------------------- empty room
+
+#: Schema of :func:`silent_stretches`.
+SILENT = pl.Schema({"t_start": pl.Float64, "t_end": pl.Float64})
+
+#: Default ``absent_after`` of the trackers (s): a stretch this long with every sensor off and
+#: no event is taken as nobody present (a walker trips a sensor every few seconds; a PIR's hold
+#: keeps it on while someone moves under it).
+ABSENT_AFTER_S = 60.0
+
+
+def silent_stretches(events: Sequence[pl.DataFrame], *, min_s: float) -> pl.DataFrame:
+    """Stretches of at least ``min_s`` seconds in which no sensor is on and nothing happens.
+
+    ``events``: tables with ``t`` and ``sensor`` and either ``on`` (toggle edges: MOTION,
+    PROXIMITY) or no ``on`` (instantaneous events such as crossings). Every sensor starts off;
+    the number of sensors on after each edge is a cumulative sum of +-1 over the edges in time
+    order (vectorised; repeated states count once). A gap between two consecutive events
+    during which that number is 0, of length ``>= min_s``, is silent: nobody is present (or
+    nobody the sensors can see). The stretch before the first and after the last event is
+    outside the data and not reported. ``min_s <= 0`` gives no stretch.
+    """
+    parts = []
+    for df in events:
+        if df is None or df.height == 0:
+            continue
+        if "on" in df.columns:
+            e = df.select("t", "sensor", "on").sort("t", maintain_order=True)
+            e = e.filter(pl.col("on") != pl.col("on").shift(1, fill_value=False).over("sensor"))
+            parts.append(e.select("t", pl.when(pl.col("on")).then(1).otherwise(-1).cast(pl.Int64).alias("d")))
+        else:
+            parts.append(df.select("t", pl.lit(0, pl.Int64).alias("d")))
+    if min_s <= 0 or not parts:
+        return pl.DataFrame(schema=SILENT)
+    ev = pl.concat(parts).sort("t", maintain_order=True).with_columns(n_on=pl.col("d").cum_sum())
+    gaps = ev.select(
+        t_start=pl.col("t"),
+        t_end=pl.col("t").shift(-1),
+        n_on=pl.col("n_on"),
+    ).filter((pl.col("n_on") <= 0) & pl.col("t_end").is_not_null() & (pl.col("t_end") - pl.col("t_start") >= min_s))
+    return gaps.select("t_start", "t_end").cast(dict(SILENT))
+
+
+def outside_silence(tracks: pl.DataFrame, silent: pl.DataFrame) -> pl.DataFrame:
+    """``tracks`` (any table with ``t``) without the rows strictly inside a silent stretch."""
+    if silent.height == 0 or tracks.height == 0:
+        return tracks
+    marked = (
+        tracks.with_row_index("_row")
+        .sort("t")
+        .join_asof(silent.sort("t_start"), left_on="t", right_on="t_start", strategy="backward", check_sortedness=False)
+    )
+    keep = marked.filter(~((pl.col("t") > pl.col("t_start")) & (pl.col("t") < pl.col("t_end"))).fill_null(False))
+    return keep.sort("_row").select(tracks.columns)
 
 
 # --------------------------------------------------------------------------- reader config

@@ -62,7 +62,7 @@ def read_proximity(raw: RawRows, sensors: Sequence[str], *, epoch=None, path: Pa
                    rules: DebounceRules | None = None) -> MotionRead:
     """Type, check and debounce a proximity toggle log; ``motion`` holds PROXIMITY rows."""
     res = read_motion(raw, sensors, epoch=epoch, path=path, rules=rules)
-    return MotionRead(conform(res.motion, PROXIMITY), res.rejects, res.suppressed)
+    return MotionRead(conform(res.motion, PROXIMITY), res.rejects, res.suppressed, res.reordered)
 
 
 def read_proximity_csv(path: str | Path, sensors: Sequence[str], *, epoch=None, rules: DebounceRules | None = None) -> MotionRead:

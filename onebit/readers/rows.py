@@ -1,23 +1,55 @@
 """Row-level reading shared by every CSV/MCAP reader: raw string rows -> typed rows + rejects.
 
-A reader first gets its rows as all-string columns with a ``line`` column (CSV: the file's
-line number, header = line 1; MCAP: the message's index in its channel), then types and
-checks them with polars expressions. A row that fails any check goes to ``rejects`` with the
-first reason that applies; nothing is dropped silently.
+A reader first gets its rows as all-string columns with a ``line`` column and a ``raw``
+column (CSV: the file's physical line number, header = line 1, and the line's text; MCAP:
+the message's index in its channel and its JSON text), then types and checks them with
+polars expressions. A row that fails any check goes to ``rejects`` with the first reason that
+applies; nothing is dropped silently.
+
+The CSV layer (:func:`read_csv_rows`) works on physical lines, so one bad byte, one stray
+quote or one ragged line costs that line alone:
+
+1. **Physical lines** (:func:`physical_lines`): the file's bytes are split at ``\\n`` (a
+   trailing ``\\r`` is dropped, a UTF-8 byte-order mark at the start too); line ``k`` is what
+   an editor shows as line ``k``. A line with bytes that are not UTF-8 is rejected naming
+   the byte and its column; its raw text shows them as U+FFFD.
+2. **Shape** (polars regular expressions over all lines at once): a line whose quotes do not
+   pair up, or whose quote does not enclose a whole field (``"..."``, ``""`` for a quote
+   inside), or whose number of fields differs from the header's, is rejected. A quoted field
+   never spans lines: a quote left open is the line's fault, and the next line is read as a
+   line of its own (onebit's logs hold numbers and names, never line breaks).
+3. **Fields**: the lines that passed are split by polars' CSV parser. Each line carries its
+   number into the parser as an extra first field, so a line number can never drift.
+
+Blank lines (empty, or spaces and tabs only) are not rows: accepted + rejected (+ suppressed,
+for toggle logs) = the non-blank lines after the header. The raw text and the reason of every
+reject are cut to :data:`onebit.core.errors.MAX_QUOTE` characters with the full length stated.
 """
 
 from __future__ import annotations
 
+import codecs
+import io
+from contextvars import ContextVar
 from dataclasses import dataclass
-from datetime import datetime, timezone
+import math
 from pathlib import Path
 
+import numpy as np
 import polars as pl
 
-from onebit.core.errors import InputError
+from onebit.core.errors import MAX_QUOTE, InputError
 from onebit.core.tables import REJECTS
+from onebit.readers.timebase import MAX_GAP_S, TimeOrigin, column_origin
 
 EXTRA = "__extra__"
+#: The field separator and the quote character of onebit's CSV logs.
+SEPARATOR, QUOTE = ",", '"'
+_QUOTED = r'"(?:[^"]|"")*"'
+_FIELD = rf'(?:[^",]*|{_QUOTED})'
+#: A line that is one well-formed CSV record: every quote opens or closes a whole field.
+_RECORD = rf"^{_FIELD}(?:,{_FIELD})*$"
+_BLANK = r"^[ \t]*$"
 
 
 @dataclass(frozen=True)
@@ -29,53 +61,217 @@ class RawRows:
     rejects: pl.DataFrame
 
 
+# --------------------------------------------------------------------------- physical lines
+
+_BAD_BYTES: ContextVar[list[int]] = ContextVar("onebit_bad_bytes")
+
+
+def _note_bad_byte(exc: UnicodeError) -> tuple[str, int]:
+    """Decoding error handler: note where the invalid sequence starts, put U+FFFD there."""
+    _BAD_BYTES.get().append(exc.start)
+    return "\ufffd", exc.end
+
+
+codecs.register_error("onebit.note_bad_byte", _note_bad_byte)
+
+
+def read_bytes(path: str | Path) -> bytes:
+    """The bytes of a user file; an unreadable one is an :class:`InputError` naming it."""
+    path = Path(path)
+    try:
+        return path.read_bytes()
+    except IsADirectoryError:
+        raise InputError("is a folder, not a file", file=path) from None
+    except OSError as exc:
+        raise InputError(f"cannot read: {exc.strerror or exc}", file=path) from None
+
+
+def _decode(data: bytes) -> tuple[str, np.ndarray]:
+    """Text of ``data`` (invalid UTF-8 as U+FFFD) and the byte offsets where invalid sequences start."""
+    try:
+        return data.decode("utf-8"), np.empty(0, dtype=np.int64)
+    except UnicodeDecodeError:
+        pass
+    token = _BAD_BYTES.set([])
+    try:  # the handler runs once per invalid sequence, not per line
+        text = data.decode("utf-8", errors="onebit.note_bad_byte")
+        return text, np.asarray(_BAD_BYTES.get(), dtype=np.int64)
+    finally:
+        _BAD_BYTES.reset(token)
+
+
+def physical_lines(data: bytes) -> pl.DataFrame:
+    """Every physical line of a text file's bytes: ``line`` (1-based), ``text`` (without its
+    ``\\n`` / ``\\r\\n``) and ``_reason`` (why the line is not text, else null).
+
+    A line holding bytes that are not UTF-8 gets ``_reason`` naming the first such byte and
+    its column (1-based, in bytes); its ``text`` shows invalid sequences as U+FFFD.
+    """
+    text, bad = _decode(data)
+    if text.startswith("\ufeff"):  # a UTF-8 byte-order mark (spreadsheet exports) is not data
+        text = text[1:]
+    if text == "":
+        return pl.DataFrame(schema={"line": pl.Int64, "text": pl.String, "_reason": pl.String})
+    parts = pl.Series("text", [text]).str.split("\n").explode()
+    if text.endswith("\n"):
+        parts = parts.slice(0, parts.len() - 1)
+    lines = pl.DataFrame({"text": parts}).with_row_index("line", offset=1).select(
+        pl.col("line").cast(pl.Int64), pl.col("text").str.strip_suffix("\r")
+    )
+    if bad.size == 0:
+        return lines.with_columns(pl.lit(None, pl.String).alias("_reason"))
+    newlines = np.flatnonzero(np.frombuffer(data, dtype=np.uint8) == 0x0A)
+    line_of = np.searchsorted(newlines, bad, side="left") + 1
+    first_line, first = np.unique(line_of, return_index=True)
+    at = bad[first]
+    starts = np.r_[0, newlines + 1]
+    column = at - starts[first_line - 1] + 1
+    byte = np.frombuffer(data, dtype=np.uint8)[at]
+    why = [f"not UTF-8 text: byte 0x{b:02X} at column {c}" for b, c in zip(byte.tolist(), column.tolist())]  # bad lines only
+    reasons = pl.DataFrame({"line": first_line.astype(np.int64), "_reason": why}, schema={"line": pl.Int64, "_reason": pl.String})
+    return lines.join(reasons, on="line", how="left")
+
+
+def _bounded(col: str, limit: int = MAX_QUOTE) -> pl.Expr:
+    """``col`` cut to ``limit`` characters, stating the full length (:func:`onebit.core.errors.bounded`)."""
+    n = pl.col(col).str.len_chars()
+    return (
+        pl.when(n > limit)
+        .then(pl.format("{}... ({} characters)", pl.col(col).str.slice(0, limit), n))
+        .otherwise(pl.col(col))
+        .alias(col)
+    )
+
+
+# --------------------------------------------------------------------------- CSV rows
+
+
+def _split_fields(lines: pl.DataFrame, n: int) -> pl.DataFrame:
+    """Split well-formed lines (``line``, ``text``; each exactly ``n`` fields) with polars' CSV
+    parser; the line number rides along as a first field. Returns ``line`` + ``_f0.._f{n-1}``."""
+    schema = {"line": pl.Int64, **{f"_f{i}": pl.String for i in range(n)}}
+    if lines.height == 0:
+        return pl.DataFrame(schema=schema)
+    body = lines.select(pl.format("{},{}", pl.col("line"), pl.col("text")).str.join("\n")).item()
+    return pl.read_csv(
+        io.BytesIO(body.encode("utf-8")),
+        has_header=False,
+        schema=schema,
+        quote_char=QUOTE,
+        separator=SEPARATOR,
+        comment_prefix=None,
+        raise_if_empty=False,
+    )
+
+
+def _n_fields() -> pl.Expr:
+    """Fields of a line (``text``) with well-formed quotes: separators outside quoted fields, plus one."""
+    text = pl.col("text")
+    unquoted = pl.when(text.str.contains(QUOTE, literal=True)).then(text.str.replace_all(_QUOTED, "")).otherwise(text)
+    return unquoted.str.count_matches(SEPARATOR, literal=True) + 1
+
+
+def _quote_problem() -> pl.Expr:
+    """The reason a line (``text``, ``_reason`` from decoding) is not text with well-formed quotes, else null."""
+    text = pl.col("text")
+    return (
+        pl.when(pl.col("_reason").is_not_null())
+        .then(pl.col("_reason"))
+        .when(text.str.count_matches(QUOTE, literal=True) % 2 == 1)
+        .then(pl.lit("unbalanced quote: a quoted field does not close on its line"))
+        .when(text.str.contains(QUOTE, literal=True) & ~text.str.contains(_RECORD))
+        .then(pl.lit('stray quote: a quote must enclose a whole field ("...", with "" for a quote inside)'))
+        .otherwise(None)
+    )
+
+
+def _line_shape(n: int) -> pl.Expr:
+    """The reason a line is not one record of ``n`` fields, else null (the first that applies)."""
+    fields = _n_fields()
+    return pl.coalesce(
+        _quote_problem(),
+        pl.when(fields > n).then(pl.format("too many fields ({} of {})", fields, pl.lit(n))),
+        pl.when(fields < n).then(pl.format("too few fields ({} of {})", fields, pl.lit(n))),
+    )
+
+
+#: The most fields a CSV header may have: a header wider than this is not a sensor log's.
+MAX_HEADER_FIELDS = 1000
+
+
+def csv_header(path: str | Path) -> tuple[list[str], int, pl.DataFrame]:
+    """The header of a CSV file: its field names (stripped), its line number and the lines after it
+    (``line``, ``text``, ``_reason``; blank lines left out).
+
+    The header is the first non-blank line; a header that is not UTF-8 or not one well-formed
+    record is an :class:`InputError` naming the file and the line. An empty file gives ``[]``.
+    """
+    path = Path(path)
+    lines = physical_lines(read_bytes(path))
+    lines = lines.filter(~pl.col("text").str.contains(_BLANK) | pl.col("_reason").is_not_null())
+    if lines.height == 0:
+        return [], 0, lines
+    head = lines.head(1).with_columns(_quote_problem().alias("_reason"), _n_fields().alias("_n"))
+    line, why, n = head.select("line", "_reason", "_n").row(0)
+    if why is not None:
+        raise InputError(f"cannot read the CSV header: {why}", file=path, line=line)
+    if n > MAX_HEADER_FIELDS:
+        raise InputError(
+            f"cannot read the CSV header: {n} fields, more than the {MAX_HEADER_FIELDS} a sensor log can have "
+            "(is this a CSV file?)", file=path, line=line)
+    names = [str(v or "").strip() for v in _split_fields(head, n).drop("line").row(0)]
+    return names, line, lines.slice(1)
+
+
 def read_csv_rows(path: str | Path, columns: tuple[str, ...]) -> RawRows:
     """Read a CSV whose header names at least ``columns`` (any order, extra columns ignored).
 
-    Rows with too few or too many fields are rejected (polars reads them with
-    ``truncate_ragged_lines`` and an extra sentinel column); blank lines are skipped.
+    Returns the rows whose line is one well-formed record with as many fields as the header,
+    as String columns ``columns`` plus ``line`` (physical line number) and ``raw`` (its
+    text); every other non-blank line is in ``rejects`` (module docstring). A file that
+    cannot be read, a bad header or a missing column is an :class:`InputError`.
     """
     path = Path(path)
     source = path.name
-    try:
-        header = pl.read_csv(path, n_rows=0, infer_schema=False).columns
-    except pl.exceptions.NoDataError:
+    header, header_line, body = csv_header(path)
+    if not header:
         return RawRows(source, _empty_rows(columns), pl.DataFrame(schema=REJECTS))
-    except (pl.exceptions.ComputeError, OSError, UnicodeDecodeError) as exc:
-        raise InputError(f"cannot read CSV header: {exc}", file=path, line=1) from None
-    header = [h.strip() for h in header]
     for col in columns:
         if col not in header:
-            raise InputError(f"missing column; the header has {header}", file=path, line=1, field=col)
-    names = [h if h not in (EXTRA, "line", "raw") else f"{h}_" for h in header] + [EXTRA]
-    try:
-        df = pl.read_csv(
-            path,
-            has_header=False,
-            skip_rows=1,
-            schema={n: pl.String for n in names},
-            missing_columns="insert",
-            truncate_ragged_lines=True,
-        )
-    except (pl.exceptions.ComputeError, OSError) as exc:
-        raise InputError(f"cannot parse CSV: {exc}", file=path) from None
-    df = df.with_row_index("line", offset=2).with_columns(pl.col("line").cast(pl.Int64))
-    fields = [n for n in names if n != EXTRA]
-    blank = pl.all_horizontal([pl.col(n).is_null() for n in names])
-    df = df.filter(~blank)
-    n_fields = pl.sum_horizontal([pl.col(n).is_not_null().cast(pl.Int32) for n in fields])
-    reason = (
-        pl.when(pl.col(EXTRA).is_not_null())
-        .then(pl.lit(f"too many fields (expected {len(fields)})"))
-        .when(pl.col(fields[-1]).is_null() & (n_fields < len(fields)))
-        .then(pl.format("too few fields ({} of {})", n_fields, pl.lit(len(fields))))
-        .otherwise(None)
+            raise InputError(f"missing column; the header has {header}", file=path, line=header_line, field=col)
+        if header.count(col) > 1:
+            raise InputError("column named twice in the header", file=path, line=header_line, field=col)
+    n = len(header)
+    quoted = pl.col("text").str.contains(QUOTE, literal=True)
+    body = body.with_columns(quoted.alias("_quoted"))
+    # quote-free lines (nearly all): the shape is the separator count, the split a plain split
+    plain = body.filter(~pl.col("_quoted"))
+    fields = pl.col("text").str.count_matches(SEPARATOR, literal=True) + 1
+    plain = plain.with_columns(
+        pl.coalesce(
+            "_reason",
+            pl.when(fields > n).then(pl.format("too many fields ({} of {})", fields, pl.lit(n))),
+            pl.when(fields < n).then(pl.format("too few fields ({} of {})", fields, pl.lit(n))),
+        ).alias("_reason")
     )
-    df = df.with_columns(reason.alias("_reason"))
-    bad = df.filter(pl.col("_reason").is_not_null())
-    good = df.filter(pl.col("_reason").is_null()).select("line", *columns)
-    rejects = make_rejects(bad, source, path)
-    return RawRows(source, good.with_columns(pl.lit(None, pl.String).alias("raw")), rejects)
+    quoted_lines = body.filter(pl.col("_quoted")).with_columns(_line_shape(n).alias("_reason"))
+    bad = pl.concat([plain, quoted_lines]).filter(pl.col("_reason").is_not_null())
+    plain = plain.filter(pl.col("_reason").is_null())
+    width = max(header.index(c) for c in columns) + 1  # split only as far as the last wanted field
+    split = plain.select(pl.col("text").str.split_exact(SEPARATOR, width - 1).struct.rename_fields([f"_f{i}" for i in range(width)]).struct.unnest())
+    frame = plain.select("line", pl.col("text").alias("raw")).hstack(split.select([f"_f{header.index(c)}" for c in columns]))
+    frame = frame.rename({f"_f{header.index(c)}": c for c in columns})
+    quoted_lines = quoted_lines.filter(pl.col("_reason").is_null())
+    if quoted_lines.height:  # lines with quoted fields: polars' CSV parser splits them
+        parsed = _split_fields(quoted_lines, n).select("line", *[pl.col(f"_f{header.index(c)}").fill_null("").alias(c) for c in columns])
+        both = quoted_lines.select("line", pl.col("text").alias("raw")).join(parsed, on="line", how="left")
+        lost = both.filter(~pl.col("line").is_in(parsed["line"].implode()))
+        if lost.height:  # the parser did not return the line: never dropped silently
+            bad = pl.concat([bad, lost.select("line", "raw", pl.lit("cannot be split into fields").alias("_reason"))], how="diagonal_relaxed")
+        frame = pl.concat([frame, both.filter(pl.col("line").is_in(parsed["line"].implode()))], how="diagonal_relaxed").sort("line")
+    frame = frame.select("line", *columns, "raw")
+    bad = bad.rename({"text": "raw"}, strict=False).select("line", "raw", "_reason").sort("line")
+    return RawRows(source, frame, make_rejects(bad, source, None))
 
 
 def _empty_rows(columns) -> pl.DataFrame:
@@ -83,23 +279,21 @@ def _empty_rows(columns) -> pl.DataFrame:
 
 
 def raw_lines(path: Path, lines: list[int]) -> dict[int, str]:
-    """The text of the given 1-based line numbers (read only when there are rejects)."""
-    want = set(lines)
-    out: dict[int, str] = {}
-    if not want:
-        return out
-    last = max(want)
-    with open(path, encoding="utf-8", errors="replace") as fh:
-        for i, text in enumerate(fh, start=1):
-            if i in want:
-                out[i] = text.rstrip("\r\n")
-            if i >= last:
-                break
-    return out
+    """The text of the given 1-based physical line numbers, each cut to
+    :data:`~onebit.core.errors.MAX_QUOTE` characters (read only when there are rejects)."""
+    if not lines:
+        return {}
+    try:
+        data = read_bytes(path)
+    except InputError:
+        return {}
+    found = physical_lines(data).filter(pl.col("line").is_in(list(set(lines)))).select("line", _bounded("text"))
+    return dict(found.iter_rows())
 
 
 def make_rejects(bad: pl.DataFrame, source: str, path: Path | None) -> pl.DataFrame:
-    """Build ``rejects`` rows from a frame with ``line``, ``_reason`` and optionally ``raw``."""
+    """Build ``rejects`` rows from a frame with ``line``, ``_reason`` and optionally ``raw``;
+    the raw text and the reason are cut to :data:`~onebit.core.errors.MAX_QUOTE` characters."""
     if bad.height == 0:
         return pl.DataFrame(schema=REJECTS)
     if "raw" in bad.columns and bad["raw"].null_count() < bad.height:
@@ -114,43 +308,33 @@ def make_rejects(bad: pl.DataFrame, source: str, path: Path | None) -> pl.DataFr
             "source": pl.Series([source] * bad.height, dtype=pl.String),
             "line": bad["line"].cast(pl.Int64),
             "reason": bad["_reason"].cast(pl.String),
-            "raw": raw,
+            "raw": raw.cast(pl.String),
         },
         schema=REJECTS,
-    )
+    ).with_columns(_bounded("reason"), _bounded("raw"))
 
 
 # --------------------------------------------------------------------------- typing rows
 
 
-def parse_time(col: str, epoch: str | None, frame: pl.DataFrame | None = None) -> tuple[pl.Expr, pl.Expr]:
-    """Expression for ``t`` (seconds since the epoch) from numbers or ISO wall-clock strings.
+def parse_time(col: str, epoch: "str | TimeOrigin | None", frame: pl.DataFrame | None = None) -> tuple[pl.Expr, pl.Expr]:
+    """Expression for ``t`` (seconds since the time origin) from numbers or ISO wall-clock strings.
 
-    Returns ``(t, reason)``; ``reason`` is null where the value parsed. ISO strings are
-    measured from the site's ``epoch``; without one, from midnight UTC of the earliest stamp.
+    Returns ``(t, reason)``; ``reason`` is null where the value parsed. ``epoch`` is the run's
+    :class:`~onebit.readers.timebase.TimeOrigin` (the pipeline's: one origin for every
+    table) or, for a reader used on its own, the site's ``epoch`` string or ``None``: then
+    numbers are taken as they are and ISO strings are measured from the epoch, else from the
+    column's own first stamp (floored to a second) -- never from midnight. A stamp outside the
+    origin's window (a lone stamp far from the rest, :mod:`onebit.readers.timebase`) is rejected.
     """
+    origin = epoch if isinstance(epoch, TimeOrigin) else column_origin(frame, col, epoch)
     s = pl.col(col).str.strip_chars()
-    num = s.cast(pl.Float64, strict=False)
-    if frame is not None and frame.height and not frame.select((num.is_null() & pl.col(col).is_not_null()).any()).item():
-        # every value is a number: leave out ISO parsing, the costly part
-        reason = (
-            pl.when(pl.col(col).is_null() | (s == ""))
-            .then(pl.lit(f"field '{col}': missing"))
-            .when(~num.is_finite())
-            .then(pl.format("field '{}': not finite: '{}'", pl.lit(col), s))
-            .otherwise(None)
-        )
-        return num, reason
-    iso = s.str.to_datetime(time_unit="us", time_zone="UTC", strict=False)
-    if epoch is not None:
-        ep = datetime.fromisoformat(str(epoch).replace("Z", "+00:00"))
-        if ep.tzinfo is None:
-            ep = ep.replace(tzinfo=timezone.utc)
-        ep_expr = pl.lit(ep).cast(pl.Datetime("us", "UTC"))
-    else:
-        ep_expr = iso.min().dt.truncate("1d")
-    from_iso = (iso - ep_expr).dt.total_microseconds().cast(pl.Float64) / 1e6
-    t = pl.coalesce(num, from_iso)
+    numbers_only = (
+        frame is not None
+        and frame.height > 0
+        and not frame.select((s.cast(pl.Float64, strict=False).is_null() & pl.col(col).is_not_null()).any()).item()
+    )
+    t = origin.t_expr(col, numbers_only=numbers_only)
     reason = (
         pl.when(pl.col(col).is_null() | (s == ""))
         .then(pl.lit(f"field '{col}': missing"))
@@ -158,9 +342,17 @@ def parse_time(col: str, epoch: str | None, frame: pl.DataFrame | None = None) -
         .then(pl.format("field '{}': not a number or ISO time: '{}'", pl.lit(col), s))
         .when(~t.is_finite())
         .then(pl.format("field '{}': not finite: '{}'", pl.lit(col), s))
-        .otherwise(None)
     )
-    return t, reason
+    if math.isfinite(origin.lo) or math.isfinite(origin.hi):
+        lo, hi = origin.lo, origin.hi  # the window was found in float Unix seconds: 1 ms slack
+        reason = reason.when((t < lo - 1e-3) | (t > hi + 1e-3)).then(
+            pl.format(
+                "field '{}': '{}' is a lone time stamp far from the rest of the data (accepted span {} .. {} s "
+                "after the time origin; gaps over {} days cut it off)",
+                pl.lit(col), s, pl.lit(round(lo, 6)), pl.lit(round(hi, 6)), pl.lit(MAX_GAP_S / 86400),
+            )
+        )
+    return t, reason.otherwise(None)
 
 
 def parse_float(col: str) -> tuple[pl.Expr, pl.Expr]:
@@ -176,10 +368,16 @@ def parse_float(col: str) -> tuple[pl.Expr, pl.Expr]:
     return v, reason
 
 
-def parse_choice(col: str, mapping: dict[str, object], dtype: pl.DataType) -> tuple[pl.Expr, pl.Expr]:
-    """Map string values through ``mapping``; anything else is rejected naming the allowed values."""
+def parse_choice(
+    col: str, mapping: dict[str, object], dtype: pl.DataType, *, case_insensitive: bool = False
+) -> tuple[pl.Expr, pl.Expr]:
+    """Map string values through ``mapping``; anything else is rejected naming the allowed values.
+
+    With ``case_insensitive`` the value is lower-cased first (``mapping``'s keys are lower case).
+    """
     s = pl.col(col).str.strip_chars()
-    v = s.replace_strict(list(mapping), list(mapping.values()), default=None, return_dtype=dtype)
+    key = s.str.to_lowercase() if case_insensitive else s
+    v = key.replace_strict(list(mapping), list(mapping.values()), default=None, return_dtype=dtype)
     allowed = "|".join(mapping)
     reason = (
         pl.when(pl.col(col).is_null() | (s == ""))
@@ -200,19 +398,39 @@ def parse_name(col: str, known: tuple[str, ...] | None, what: str) -> tuple[pl.E
     return s, reason.otherwise(None)
 
 
-def type_rows(
+#: Toggle logs (motion, proximity, CASAS): rows up to this many seconds earlier than an
+#: accepted row before them are sorted into place, not rejected (CASAS logs are up to 0.7 s
+#: out of order: sensors' clocks and the gateway's queue); a row further back is rejected as
+#: going backwards. Raw beam events, crossings and truth keep a strict order (tolerance 0):
+#: a beam pass takes a tenth of a second, so a reordered edge would change the decoding.
+REORDER_TOLERANCE_S = 1.0
+
+
+@dataclass(frozen=True)
+class TypedRows:
+    """What :func:`check_rows` made of string rows: ``accepted`` (sorted by ``t``, file order
+    within a stamp, with ``line``), ``rejects`` and how many accepted rows were out of order
+    within the tolerance and sorted into place (``reordered``)."""
+
+    accepted: pl.DataFrame
+    rejects: pl.DataFrame
+    reordered: int = 0
+
+
+def check_rows(
     raw: RawRows,
     parsers: dict[str, tuple[pl.Expr, pl.Expr]],
     *,
     key: tuple[str, ...],
     path: Path | None = None,
-) -> tuple[pl.DataFrame, pl.DataFrame]:
+    tolerance: float = 0.0,
+) -> TypedRows:
     """Apply ``parsers`` (column -> (value, reason)), then the ordering checks, and split.
 
     Checks, in order: each field's own reason; a row identical in ``key`` to an earlier row
-    is a duplicate; a row whose ``t`` is earlier than an accepted row before it goes backwards.
-    Returns ``(accepted, rejects)``; ``accepted`` is sorted by ``t`` (stable in file order)
-    and keeps ``line``.
+    is a duplicate; a row whose ``t`` is more than ``tolerance`` seconds earlier than an
+    accepted row before it goes backwards. Rows less far back are accepted, sorted into
+    place and counted (``reordered``).
     """
     df = raw.frame
     value_exprs = [v.alias(c) for c, (v, _) in parsers.items()]
@@ -227,14 +445,33 @@ def type_rows(
     ok = ok.filter(pl.col("_reason").is_null()).sort("line")
     prev_max = pl.col("t").cum_max().shift(1)
     ok = ok.with_columns(
-        pl.when(pl.col("t") < prev_max)
-        .then(pl.format("timestamp goes backwards ({} after {})", pl.col("t"), prev_max))
+        pl.when(pl.col("t") < prev_max - tolerance)
+        .then(
+            pl.format("timestamp goes backwards ({} after {})", pl.col("t"), prev_max)
+            if tolerance <= 0
+            else pl.format("timestamp goes backwards ({} after {}, more than {} s)", pl.col("t"), prev_max, pl.lit(tolerance))
+        )
         .otherwise(None)
-        .alias("_reason")
+        .alias("_reason"),
+        (pl.col("t") < prev_max).fill_null(False).alias("_late"),
     )
     back = ok.filter(pl.col("_reason").is_not_null())
     ok = ok.filter(pl.col("_reason").is_null())
-    bad = pl.concat([typed.filter(pl.col("_reason").is_not_null()), dup, back], how="vertical_relaxed").sort("line")
+    reordered = int(ok["_late"].sum()) if ok.height else 0
+    bad = pl.concat([typed.filter(pl.col("_reason").is_not_null()), dup, back.drop("_late")], how="vertical_relaxed").sort("line")
     rejects = pl.concat([raw.rejects, make_rejects(bad, raw.source, path)]).sort("line")
-    accepted = ok.select("line", *parsers.keys())
-    return accepted, rejects
+    accepted = ok.select("line", *parsers.keys()).sort(["t", "line"])
+    return TypedRows(accepted, rejects, reordered)
+
+
+def type_rows(
+    raw: RawRows,
+    parsers: dict[str, tuple[pl.Expr, pl.Expr]],
+    *,
+    key: tuple[str, ...],
+    path: Path | None = None,
+    tolerance: float = 0.0,
+) -> tuple[pl.DataFrame, pl.DataFrame]:
+    """:func:`check_rows` as ``(accepted, rejects)``."""
+    res = check_rows(raw, parsers, key=key, path=path, tolerance=tolerance)
+    return res.accepted, res.rejects

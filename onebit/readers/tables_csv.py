@@ -6,7 +6,8 @@ from pathlib import Path
 
 import polars as pl
 
-from onebit.readers.rows import RawRows, parse_choice, parse_float, parse_name, parse_time, read_csv_rows, type_rows
+from onebit.core.errors import InputError
+from onebit.readers.rows import RawRows, csv_header, parse_choice, parse_float, parse_name, parse_time, read_csv_rows, type_rows
 from onebit.core.tables import CROSSINGS, TRUE_CROSSINGS, TRUTH, conform
 
 _FLAG = {"0": False, "1": True, "false": False, "true": True}
@@ -43,8 +44,8 @@ def true_crossings_columns(path: Path) -> tuple[str, ...]:
     """Columns to read from ``truth_crossings.csv``: TRUE_CROSSINGS, plus ``dropped`` if the header has it."""
     base = tuple(TRUE_CROSSINGS.names())
     try:
-        header = [h.strip() for h in pl.read_csv(path, n_rows=0, infer_schema=False).columns]
-    except (OSError, pl.exceptions.PolarsError):
+        header = csv_header(path)[0]
+    except InputError:
         return base  # absent or unreadable: read_csv_rows reports it
     return base + ("dropped",) if "dropped" in header else base
 

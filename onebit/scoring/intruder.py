@@ -8,6 +8,7 @@ import polars as pl
 from onebit.core.site import Site
 from onebit.core.tables import SCORES, conform
 from onebit.scoring.association import associate, matched_pairs, pair_samples
+from onebit.scoring.serve import CannotServe, targets_at_once
 
 # --------------------------------------------------------------------------- scoring
 
@@ -49,11 +50,20 @@ def error_rows(scores: pl.DataFrame, *, stage: str, cell: float) -> list[tuple[s
 
 
 def score(tracker: str, tables: dict, site: Site, region_graph=None) -> tuple[list[tuple[str, str, float, str]], dict]:
-    """Report rows (:func:`error_rows`) and ``<tracker>_scores`` of ``intruder`` / ``intruder-naive``."""
+    """Report rows (:func:`error_rows`) and ``<tracker>_scores`` of ``intruder`` / ``intruder-naive``.
+
+    Raises :class:`~onebit.scoring.serve.CannotServe` when the truth has more than one target
+    at once: a single-target filter's error against several people means nothing."""
     tracks = tables.get(f"{tracker}_tracks")
     truth = tables.get("truth")
     if tracks is None or truth is None:
         return [], {}
+    at_once = targets_at_once(truth)
+    if at_once > 1:
+        raise CannotServe(
+            f"the truth has {at_once} targets at once; the filter tracks a single intruder (Schiff & Goldberg) -- "
+            "declare 'targets' in site.toml to skip it, and use findinghumo or istate for several people"
+        )
     it = tables.get(f"{tracker}_iterations")
     cell = float(it["cell"][0]) if it is not None and it.height else 1.0
     t = tracks["t"].sort().to_numpy()

@@ -7,7 +7,8 @@ import polars as pl
 import shapely
 
 from onebit.core.site import Site
-from onebit.trackers.istate.core import IState, contains
+from onebit.scoring.serve import CannotServe
+from onebit.trackers.istate.core import has_perfect_matching
 
 NAME = "istate"
 
@@ -16,9 +17,16 @@ NAME = "istate"
 
 def score(tracker: str, tables: dict, site: Site, region_graph=None) -> tuple[list[tuple[str, str, float, str]], dict]:
     """``istate/containment``: fraction of scored stages whose I-state contains the true joint
-    state (truth at the stage time, all n targets present); ``elements_mean``/``_max``;
-    ``area_mean`` (mean area of the union of the regions within the free space);
-    ``scored_stages``."""
+    state; ``elements_mean``/``_max``; ``area_mean`` (mean area of the union of the regions
+    within the free space); ``scored_stages``.
+
+    ``targets`` is the most targets present at once (:mod:`onebit.scoring.serve`), so the
+    truth may hold more ids than ``n`` over the run and fewer than ``n`` at a stage: a stage
+    is scored when at least one target is present (truth within a twentieth of a period of
+    the stage time), and contains the present ones when they lie in distinct regions of one
+    element (the absent targets' regions are free: a matching that saturates the present
+    targets). A stage with more targets present than ``n`` cannot be held by the I-state:
+    :class:`~onebit.scoring.serve.CannotServe`, naming the first such time."""
     summ = tables.get(f"{NAME}_summary")
     regs = tables.get(f"{NAME}_regions")
     if summ is None or regs is None:
@@ -28,30 +36,52 @@ def score(tracker: str, tables: dict, site: Site, region_graph=None) -> tuple[li
         (NAME, "elements_max", float(summ["elements"].max()) if summ.height else 0.0, "elements"),
         (NAME, "area_mean", float(summ["area"].mean()) if summ.height else 0.0, f"{site.units}^2"),
     ]
+    empty = summ.filter(pl.col("elements") == 0).height
+    if empty:  # the readings contradict n targets under the sensing model (a wrong n, a lagging sensor)
+        rows.append((NAME, "empty_stages", empty / summ.height, "fraction"))
     truth = tables.get("truth")
     if truth is None or truth.height == 0 or summ.height == 0:
         return rows, {}
-    n = int(regs["k"].max()) + 1 if regs.height else 0
-    targets = truth["target"].unique().sort().to_list()
-    if n and len(targets) != n:
-        rows.append((NAME, "target_count_mismatch", float(len(targets) - n), "targets"))
+    tracks = tables.get(f"{NAME}_tracks")
+    if regs.height:
+        n = int(regs["k"].max()) + 1
+    elif tracks is not None and tracks.height:
+        n = int(tracks["track"].n_unique())
+    else:
+        n = int(site.targets or 0)
+    if n == 0:
         return rows, {}
+    targets = truth["target"].unique().sort().to_list()
     tol = 1e-6 + 0.05 * (float(summ["t"].diff().median() or 1.0))
     stages = summ.select("t", "stage").sort("t")
     pos = []
-    for tgt in targets:  # one as-of join per target (n is small)
+    for tgt in targets:  # one as-of join per target (a few)
         tt = truth.filter(pl.col("target") == tgt).select("t", "x", "y").sort("t")
         pos.append(stages.join_asof(tt, on="t", strategy="nearest", tolerance=tol).select("x", "y").to_numpy())
-    pos = np.stack(pos, axis=1)  # (K, n, 2)
-    ok_truth = ~np.isnan(pos).any(axis=(1, 2))
+    pos = np.stack(pos, axis=1)  # (K, T, 2), NaN where a target is absent
+    present = ~np.isnan(pos).any(axis=2)  # (K, T)
+    count = present.sum(axis=1)
+    over = np.flatnonzero(count > n)
+    if over.size:
+        k = int(over[0])
+        raise CannotServe(
+            f"the truth has {int(count[k])} targets at t = {float(stages['t'][k]):g} s but the I-state holds n = {n} "
+            f"('targets' in site.toml, or [istate] targets): it must be the most targets present at once"
+        )
+    ok_truth = count > 0
     geoms = shapely.from_wkb(regs["wkb"].to_numpy())
     st_idx = regs["stage"].to_numpy()
     bounds = np.searchsorted(st_idx, stages["stage"].to_numpy())
     bounds = np.r_[bounds, len(st_idx)]
     inside = np.zeros(len(stages), dtype=bool)
     for s in np.flatnonzero(ok_truth):  # one I-state per stage
-        g = geoms[bounds[s] : bounds[s + 1]]
-        inside[s] = len(g) > 0 and contains(IState(g.reshape(-1, n)), pos[s])
+        g = geoms[bounds[s] : bounds[s + 1]].reshape(-1, n)
+        if len(g) == 0:
+            continue
+        pts = pos[s, present[s]]  # (m, 2), m <= n
+        adj = shapely.intersects_xy(g[:, :, None], pts[None, None, :, 0], pts[None, None, :, 1])  # (E, n, m)
+        free = np.ones(adj.shape[:2] + (n - pts.shape[0],), dtype=bool)  # absent targets fit any region
+        inside[s] = bool(has_perfect_matching(np.concatenate([adj, free], axis=2)).any())
     scored = int(ok_truth.sum())
     rows += [
         (NAME, "containment", float(inside[ok_truth].mean()) if scored else float("nan"), "fraction"),

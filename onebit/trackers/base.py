@@ -24,6 +24,24 @@ from typing import Any, Callable
 #: Key of the in-memory results a tracker hands to its viz function (never saved as a table).
 ARTIFACTS = "artifacts"
 
+#: Key in ``inputs`` of an optional ``progress(done, total)`` callback: a tracker with a long
+#: loop (filter iterations, HMM windows) calls it after each step. The runner supplies it (a
+#: bar on a terminal); it does no I/O the tracker can see, so the tracker stays pure.
+PROGRESS = "progress"
+
+#: ``progress(done, total)``
+Progress = Callable[[int, int], None]
+
+
+def _ignore(done: int, total: int) -> None:
+    pass
+
+
+def progress_of(inputs: dict) -> Progress:
+    """The ``progress`` callback of ``inputs``, or one that does nothing."""
+    cb = inputs.get(PROGRESS)
+    return cb if callable(cb) else _ignore
+
 
 @dataclass(frozen=True)
 class TrackerSpec:

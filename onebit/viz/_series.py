@@ -1,4 +1,4 @@
-"""Small pure converters shared by the loggers: frames -> numpy columns, paths so far."""
+"""Small pure converters shared by the loggers: frames -> numpy columns, rings, thinning."""
 
 from __future__ import annotations
 
@@ -49,19 +49,3 @@ def update_indices(n: int, max_updates: int) -> np.ndarray:
         return np.zeros(0, dtype=np.int64)
     k = min(n, max(1, max_updates))
     return np.unique(np.linspace(0, n - 1, k).round().astype(np.int64))
-
-
-def paths_so_far(xy: np.ndarray, at: np.ndarray, *, max_vertices: int) -> list[np.ndarray]:
-    """Path so far at each sample index in ``at``: the samples up to it, decimated.
-
-    The whole path is first thinned to at most ``max_vertices`` evenly spaced vertices; the
-    strip at index ``i`` holds the thinned vertices before ``i`` and sample ``i`` itself, so it
-    always ends at the current position. Memory is ``O(len(at) * max_vertices)``.
-    """
-    n = len(xy)
-    keep = update_indices(n, max_vertices)
-    out = []
-    for i in at:
-        j = int(np.searchsorted(keep, i, side="left"))
-        out.append(np.vstack([xy[keep[:j]], xy[i : i + 1]]))
-    return out

@@ -1,15 +1,17 @@
-"""Rerun logging of the ``beams`` tracker's extras: agent region paths, ambiguous and
-unexplained crossings. (Occupancy per region goes through :func:`onebit.viz.tracks.log_occupancy`.)
+"""Rerun logging of the ``beams`` tracker (Bobadilla et al.): agents known only to a region.
 
-Entities:
+Entities (``<tracker>`` = ``beams``):
 
-* ``<tracker>/tracks/<track>/regions`` -- the agent's whole region path as one static line
-  strip through the regions' display points (the same points, offsets and colour,
-  :func:`onebit.viz.colors.color_of` of the track id, as ``<tracker>/tracks/<track>`` in every
-  stage), labelled with its crossing string;
+* ``<tracker>/tracks/<track>`` -- each reconstructed agent now, a dot labelled ``"track k"``
+  near its region's label; ``.../region`` the region it is in, outlined in its colour (the
+  paper's estimate *is* that region); ``.../trail`` its recent moves; ``.../regions`` the whole
+  region path (hidden by default) -- see :func:`onebit.viz.tracks.log_region_tracks`;
+* ``<tracker>/occupancy/<region>`` -- agents per region (a step series);
+* ``<tracker>/assignments`` -- the crossing log of the method: one line per explained,
+  unambiguous crossing, ``"#3 b^-1  r4 -> r3: track 1"``;
 * ``<tracker>/<kind>`` (kind = ``ambiguous`` or ``unexplained``) -- a marker on the beam's
-  midpoint at the time of each marked crossing, and ``<tracker>/<kind>/log`` a text log
-  (``"#12 c^-1 agent2"``, or the reason for an unexplained one).
+  midpoint at the time of each such crossing, and ``<tracker>/<kind>/log`` its log line
+  (FIFO and LIFO disagree on the agent / the reason it cannot be explained).
 """
 
 from __future__ import annotations
@@ -21,35 +23,19 @@ import shapely
 
 from onebit.core.region_graph import RegionGraph
 from onebit.core.site import Site
-from onebit.viz.tracks import log_occupancy, log_region_tracks
 from onebit.viz import colors, paths
 from onebit.viz._series import is_empty, require
-from onebit.viz.tracks import region_positions
+from onebit.viz.frame import log_world_frame
+from onebit.viz.tracks import (
+    log_occupancy,
+    log_region_tracks,
+    track_colors,
+    track_labels,
+)
 
 MARK_RADIUS = rr.Radius.ui_points(9.0)
-PATH_WIDTH = rr.Radius.ui_points(2.0)
-_MARK_COLOR = {"ambiguous": colors.WARNING, "unexplained": (200, 0, 200, 255)}
-
-
-def log_agent_region_paths(rec: rr.RecordingStream, tracker: str, agents: pl.DataFrame | None, region_graph: RegionGraph) -> None:
-    """Static line strip of each agent's region path (``agents``: track, regions, crossings)."""
-    if is_empty(agents):
-        return
-    require(agents, ("track", "regions"), name="agents")
-    rows = agents.drop_nulls("track").sort("track")
-    for slot, row in enumerate(rows.iter_rows(named=True)):  # one entity per agent (few agents)
-        regions = np.asarray((row["regions"] or "").split(), dtype=object)
-        if len(regions) == 0:
-            continue
-        xy = region_positions(region_graph, regions, slot)
-        label = row.get("crossings") or row["track"]
-        rec.log(
-            paths.join(paths.track(tracker, row["track"]), "regions"),
-            rr.LineStrips2D(
-                [xy], colors=colors.color_of(row["track"], alpha=160), radii=PATH_WIDTH, labels=[f"{row['track']}: {label}"]
-            ),
-            static=True,
-        )
+_MARK_COLOR = {"ambiguous": colors.WARNING, "unexplained": (230, 0, 230, 255)}
+_MARK_TEXT = {"ambiguous": "ambiguous", "unexplained": "unexplained"}
 
 
 def beam_midpoints(site: Site, beams: list[str] | pl.Series) -> np.ndarray:
@@ -73,41 +59,85 @@ def beam_midpoints(site: Site, beams: list[str] | pl.Series) -> np.ndarray:
     return mids[k].astype(np.float64).reshape(-1, 2)
 
 
-def log_marked_crossings(rec: rr.RecordingStream, tracker: str, kind: str, marked: pl.DataFrame | None, site: Site) -> None:
+def _crossing_label() -> pl.Expr:
+    return pl.when(pl.col("direction") > 0).then(pl.col("beam")).otherwise(pl.col("beam") + "^-1")
+
+
+def _track_label(labels: dict[str, str]) -> pl.Expr:
+    return pl.col("track").replace_strict(labels, default="no track", return_dtype=pl.String)
+
+
+def log_assignments(rec: rr.RecordingStream, tracker: str, assignment: pl.DataFrame | None, labels: dict[str, str]) -> None:
+    """``<tracker>/assignments``: a log line per explained, unambiguous crossing, in its track's colour."""
+    if is_empty(assignment):
+        return
+    require(assignment, ("t", "beam", "direction", "track"), name="assignment")
+    a = assignment.with_row_index("crossing").sort("t", maintain_order=True)
+    if "ambiguous" in a.columns:
+        a = a.filter(~pl.col("ambiguous").fill_null(False))
+    a = a.filter(pl.col("track").is_not_null())
+    if a.height == 0:
+        return
+    move = pl.format("  {} -> {}", pl.col("source"), pl.col("region")) if {"source", "region"} <= set(a.columns) else pl.lit("")
+    text = a.select(pl.format("#{} {}{}: {}", pl.col("crossing"), _crossing_label(), move, _track_label(labels)).alias("s"))
+    shades = track_colors(tracker, labels)
+    color = np.array([shades.get(str(k), colors.WARNING) for k in a["track"].to_list()], np.uint8).reshape(-1, 4)
+    rec.send_columns(
+        paths.join(paths.tracker_root(tracker), "assignments"),
+        indexes=[paths.time_column(a["t"].to_numpy())],
+        columns=rr.TextLog.columns(text=text["s"].to_list(), level=[rr.TextLogLevel.INFO] * a.height, color=color),
+    )
+
+
+def log_marked_crossings(
+    rec: rr.RecordingStream, tracker: str, kind: str, marked: pl.DataFrame | None, site: Site, labels: dict[str, str] | None = None
+) -> None:
     """A marker on the beam and a text line at the time of each crossing in ``marked``
-    (t, beam, direction and optionally crossing, track, reason), one ``send_columns`` each."""
+    (t, beam, direction and optionally crossing, track, source, region, reason), one
+    ``send_columns`` each."""
     if is_empty(marked):
         return
     require(marked, ("t", "beam", "direction"), name=kind)
     m = marked.sort("t")
     if "crossing" not in m.columns:
         m = m.with_row_index("crossing")
-    label = pl.when(pl.col("direction") > 0).then(pl.col("beam")).otherwise(pl.col("beam") + "^-1")
-    extra = pl.col("reason") if "reason" in m.columns else pl.col("track").fill_null("") if "track" in m.columns else pl.lit("")
-    text = m.select(pl.format("#{} {} {}", pl.col("crossing"), label, extra).alias("text"))["text"].to_list()
+    if "reason" in m.columns:
+        extra = pl.col("reason").fill_null("")
+    elif "track" in m.columns:
+        extra = pl.format("{} (FIFO and LIFO disagree)", _track_label(labels or {}))
+    else:
+        extra = pl.lit("")
+    text = m.select(pl.format("#{} {} {}: {}", pl.col("crossing"), _crossing_label(), pl.lit(kind), extra).alias("text"))
     t = m["t"].to_numpy()
     xy = beam_midpoints(site, m["beam"])
     entity = paths.join(paths.tracker_root(tracker), kind)
     color = _MARK_COLOR.get(kind, colors.WARNING)
-    rec.log(entity, rr.Points2D.from_fields(radii=MARK_RADIUS, colors=color, draw_order=40.0), static=True)
+    log_world_frame(rec, entity)
+    rec.log(entity, rr.Points2D.from_fields(radii=MARK_RADIUS, colors=color, show_labels=True, draw_order=40.0), static=True)
+    marks = m.select(pl.format("{} {}", _crossing_label(), pl.lit(_MARK_TEXT.get(kind, kind))).alias("s"))["s"].to_list()
     rec.send_columns(
         entity,
         indexes=[paths.time_column(t)],
-        columns=rr.Points2D.columns(positions=xy, labels=text).partition(np.ones(len(t), dtype=np.int64)),
+        columns=rr.Points2D.columns(positions=xy, labels=marks).partition(np.ones(len(t), dtype=np.int64)),
     )
     level = rr.TextLogLevel.WARN if kind == "unexplained" else rr.TextLogLevel.INFO
     rec.send_columns(
         paths.join(entity, "log"),
         indexes=[paths.time_column(t)],
-        columns=rr.TextLog.columns(text=text, level=[level] * len(t), color=np.tile(np.asarray(color, np.uint8), (len(t), 1))),
+        columns=rr.TextLog.columns(text=text["text"].to_list(), level=[level] * len(t), color=np.tile(np.asarray(color, np.uint8), (len(t), 1))),
     )
 
 
 def log_run(rec: rr.RecordingStream, tracker: str, out: dict, *, site: Site, region_graph: RegionGraph, config, tables: dict) -> None:
-    """Everything the ``beams`` tracker produced: region tracks, occupancy, agents' region
-    paths, ambiguous and unexplained crossings."""
-    log_region_tracks(rec, tracker, out["tracks"], region_graph)
+    """Everything the ``beams`` tracker produced: region tracks (dot, trail, current region,
+    whole region path), occupancy, the assignment log, ambiguous and unexplained crossings."""
+    tracks = out["tracks"]
+    labels = track_labels(tracker, tracks["track"].drop_nulls().unique().to_list() if not is_empty(tracks) else [])
+    log_region_tracks(rec, tracker, tracks, region_graph)
     log_occupancy(rec, tracker, out["occupancy"])
-    log_agent_region_paths(rec, tracker, out["agents"], region_graph)
-    log_marked_crossings(rec, tracker, "ambiguous", out["assignment"].filter(pl.col("ambiguous")), site)
-    log_marked_crossings(rec, tracker, "unexplained", out["unexplained"], site)
+    assignment = out["assignment"]
+    log_assignments(rec, tracker, assignment, labels)
+    if not is_empty(assignment) and "ambiguous" in assignment.columns:
+        marked = assignment.with_row_index("crossing").filter(pl.col("ambiguous"))
+        log_marked_crossings(rec, tracker, "ambiguous", marked, site, labels)
+    log_marked_crossings(rec, tracker, "unexplained", out["unexplained"], site, labels)

@@ -2,10 +2,12 @@
 
 Entities (timeline ``t``):
 
-* ``correct/crossings/observed`` -- Points2D at the crossed beam's midpoint, small, grey;
+* ``correct/crossings/observed`` -- Points2D at the crossed beam's midpoint, small, grey
+  (hidden by default in the blueprint: the crossing log and the flashing beams show them);
 * ``correct/crossings/inserted`` -- Points2D at the inserted crossing's beam, large, magenta,
-  labelled ``"a^-1 inserted"``;
-* ``correct/log`` -- a TextLog line per inserted crossing (level WARN) and per observed one (INFO).
+  labelled ``"a^-1 inserted"``, shown for a trail window after its time;
+* ``correct/log`` -- a TextLog line (level WARN) per inserted crossing, in the crossing log
+  beside the observed ones (``sensors/<beam>``).
 
 Each entity is sent with one ``send_columns`` call (one point per time step).
 """
@@ -20,6 +22,7 @@ from onebit.core.site import Site
 from onebit.viz import paths
 from onebit.viz._series import is_empty, require
 from onebit.viz.beams import beam_midpoints
+from onebit.viz.frame import log_world_frame
 
 ROOT = "correct"
 OBSERVED = (150, 150, 150, 255)
@@ -50,9 +53,10 @@ def log_corrected_crossings(rec: rr.RecordingStream, corrected: pl.DataFrame | N
     if is_empty(corrected):
         return
     require(corrected, ("t", "beam", "direction", "inserted"), name="corrected crossings")
+    log_world_frame(rec, ROOT)
     for inserted, entity, color, radius, suffix in (
-        (False, observed_path(), OBSERVED, 0.15, ""),
-        (True, inserted_path(), INSERTED, 0.4, " inserted"),
+        (False, observed_path(), OBSERVED, rr.Radius.ui_points(4.0), ""),
+        (True, inserted_path(), INSERTED, rr.Radius.ui_points(9.0), " inserted"),
     ):
         g = corrected.filter(pl.col("inserted") == inserted).sort("t", maintain_order=True)
         if g.height == 0:
@@ -68,19 +72,15 @@ def log_corrected_crossings(rec: rr.RecordingStream, corrected: pl.DataFrame | N
                 labels=_labels(g, suffix),
             ).partition(np.ones(g.height, dtype=np.int64)),
         )
-    flag = corrected["inserted"].to_numpy()
-    text = corrected.select(
-        (
-            pl.when(pl.col("direction") > 0).then(pl.col("beam")).otherwise(pl.col("beam") + "^-1")
-            + pl.when(pl.col("inserted")).then(pl.lit(" inserted")).otherwise(pl.lit(" observed"))
-        ).alias("s")
-    )["s"].to_list()
+    ins = corrected.filter(pl.col("inserted")).sort("t", maintain_order=True)
+    if ins.height == 0:
+        return
     rec.send_columns(
         log_path(),
-        indexes=[paths.time_column(corrected["t"].to_numpy())],
+        indexes=[paths.time_column(ins["t"].to_numpy())],
         columns=rr.TextLog.columns(
-            text=text,
-            level=np.where(flag, rr.TextLogLevel.WARN, rr.TextLogLevel.INFO).tolist(),
-            color=np.where(flag[:, None], np.asarray(INSERTED, np.uint8), np.asarray(OBSERVED, np.uint8)).astype(np.uint8),
+            text=_labels(ins, " inserted (missed crossing restored by the counting automaton)"),
+            level=[rr.TextLogLevel.WARN] * ins.height,
+            color=np.tile(np.asarray(INSERTED, np.uint8), (ins.height, 1)),
         ),
     )

@@ -1,16 +1,22 @@
-"""Rerun logging of the ``clustertrack`` stage (everything bulk goes through ``send_columns``).
+"""Rerun logging of the ``clustertrack`` stage (Singh et al.): everything bulk goes through
+``send_columns``.
 
 Entities (``<tracker>`` = ``clustertrack``):
 
-* ``<tracker>/sensors/outer`` and ``.../inner``: every proximity sensor as a disk of radius
-  R_o (and R_i when it differs), coloured by its state at each instant (on: red, off: grey).
-* ``<tracker>/feasible``: F at each instant -- segments on the line (1-D) or the F cells
-  coloured by component (2-D).
-* ``<tracker>/particles``: the surviving particles' current positions, coloured by cluster.
-* ``<tracker>/tracks/<track>``: the final tracks (with their paths).
-* ``<tracker>/space_time/...``: 1-D only, the paper's figures: a static time-by-position
-  plane (x = position, y = instant index * ``row``) with F as segments, the truth and the
-  tracks as polylines.
+* ``<tracker>/space_time/...`` (1-D sites) -- the paper's picture: a static diagram with
+  position along the line to the right and **time upwards**, with labelled axes
+  (``axes``, ``axes/labels``: ``"position x (ft)"``, ``"time t (s)"``, ticks), the feasible
+  space F of every instant as bands (``feasible``), the true paths (``truth/<target>``, neutral),
+  the tracks (``tracks/<track>``, the tracker's colour, labelled ``"track k"``) and a line at the
+  current instant (``now``) that moves with the time cursor;
+* ``<tracker>/count/<series>`` -- the counting bound over time (Scalars, targets):
+  ``lower_bound`` (Theorem 4), ``components`` (of F) and ``true`` (targets in the truth);
+* ``<tracker>/sensors/outer`` and ``.../inner`` -- every proximity sensor at each instant: a red
+  disk of radius R_o (and R_i when it differs) when on, a small grey dot when off;
+* ``<tracker>/feasible`` -- F at each instant: segments on the line (1-D) or the F cells
+  coloured by component (2-D);
+* ``<tracker>/particles`` -- the surviving particles now, coloured by cluster;
+* ``<tracker>/tracks/<track>`` -- the tracks now (dot, trail, hidden path; :mod:`onebit.viz.tracks`).
 """
 
 from __future__ import annotations
@@ -20,10 +26,18 @@ import polars as pl
 import rerun as rr
 
 from onebit.viz import colors, paths
-from onebit.viz.tracks import log_point_tracks
+from onebit.viz._series import is_empty
+from onebit.viz.frame import log_world_frame
+from onebit.viz.tracks import log_point_tracks, track_colors, track_labels
 
-ON = (220, 40, 40, 110)
-OFF = (150, 150, 150, 50)
+#: A sensor that is on is a disk of its sensing radius (R_o; R_i darker inside when it differs),
+#: one that is off a small dot: the union of the disks is where the targets can be.
+ON = (120, 35, 35, 255)
+ON_INNER = (160, 45, 45, 255)
+OFF = (110, 110, 115, 255)
+OFF_DOT = 0.08
+FEASIBLE = (60, 130, 230, 150)
+AXIS = (200, 200, 200, 255)
 
 
 def _instants(times: np.ndarray, t: np.ndarray) -> np.ndarray:
@@ -37,28 +51,163 @@ def _colors_by_id(ids: pl.Series, *, alpha: int) -> np.ndarray:
     return colors.colors_of(u.tolist(), alpha=alpha)[inv.ravel()]
 
 
+def nice_step(span: float, *, ticks: int = 6) -> float:
+    """A round tick step (1, 2 or 5 times a power of ten) giving about ``ticks`` ticks over ``span``."""
+    if not np.isfinite(span) or span <= 0:
+        return 1.0
+    raw = span / ticks
+    p = 10.0 ** np.floor(np.log10(raw))
+    return float(min((m * p for m in (1.0, 2.0, 5.0, 10.0)), key=lambda s: abs(s - raw)))
+
+
+class SpaceTime:
+    """The mapping of (position, time) to the diagram's plane: ``x`` as is, ``y = (t - t0) * scale``.
+
+    ``scale`` makes the diagram about 0.6 times as tall as it is wide.
+    """
+
+    def __init__(self, x_lo: float, x_hi: float, times: np.ndarray) -> None:
+        self.x_lo, self.x_hi = float(x_lo), float(x_hi)
+        self.t0 = float(times[0]) if times.size else 0.0
+        duration = float(times[-1] - times[0]) if times.size > 1 else 1.0
+        self.duration = duration if duration > 0 else 1.0
+        self.scale = 0.6 * (self.x_hi - self.x_lo) / self.duration
+        self.row = self.scale * (float(np.median(np.diff(times))) if times.size > 1 else 1.0)
+
+    def y(self, t: np.ndarray | float) -> np.ndarray:
+        return (np.asarray(t, np.float64) - self.t0) * self.scale
+
+
+def log_axes(rec: rr.RecordingStream, base: str, st: SpaceTime, units: str) -> None:
+    """Static axes of the diagram with ticks and their labels, and the axis titles."""
+    width = st.x_hi - st.x_lo
+    pad = 0.03 * width
+    top = st.y(st.t0 + st.duration)
+    tick = 0.015 * width
+    x_step, t_step = nice_step(width), nice_step(st.duration)
+    xs = np.arange(np.ceil(st.x_lo / x_step) * x_step, st.x_hi + 1e-9, x_step)
+    ts = np.arange(0.0, st.duration + 1e-9, t_step)
+    y0, x0 = -pad, st.x_lo - pad
+    strips = [np.array([[x0, y0], [st.x_hi, y0]]), np.array([[x0, y0], [x0, top + st.row]])]
+    strips += [np.array([[x, y0], [x, y0 - tick]]) for x in xs]
+    strips += [np.array([[x0, st.y(st.t0 + s)], [x0 - tick, st.y(st.t0 + s)]]) for s in ts]
+    rec.log(paths.join(base, "axes"), rr.LineStrips2D(strips, colors=AXIS, radii=rr.Radius.ui_points(1.0)), static=True)
+    pos = [[x, y0 - 3 * tick] for x in xs] + [[x0 - 5 * tick, st.y(st.t0 + s)] for s in ts]
+    text = [f"{x + 0.0:g}" for x in np.round(xs, 9)] + [f"{st.t0 + s + 0.0:g} s" for s in np.round(ts, 9)]
+    pos += [[(st.x_lo + st.x_hi) / 2, y0 - 8 * tick], [x0 - 5 * tick, top + st.row + 3 * tick]]
+    text += [f"position x along the line ({units}) \u2192", "time t (s) \u2191"]
+    rec.log(
+        paths.join(base, "axes", "labels"),
+        rr.Points2D(pos, labels=text, radii=0.0, colors=AXIS, show_labels=True),
+        static=True,
+    )
+
+
+def log_space_time(
+    rec: rr.RecordingStream,
+    tracker: str,
+    site,
+    times: np.ndarray,
+    *,
+    feasible: pl.DataFrame | None,
+    tracks: pl.DataFrame | None,
+    truth: pl.DataFrame | None,
+) -> None:
+    """The 1-D space-time diagram (module docstring)."""
+    if times.size == 0:
+        return
+    minx, _, maxx, _ = site.boundary.bounds
+    st = SpaceTime(minx, maxx, times)
+    base = paths.join(paths.tracker_root(tracker), "space_time")
+    log_world_frame(rec, base)
+    log_axes(rec, base, st, site.units)
+    if not is_empty(feasible):
+        f = feasible.sort("t")
+        y = st.y(f["t"].to_numpy())
+        strips = np.stack([np.c_[f["lo"].to_numpy(), y], np.c_[f["hi"].to_numpy(), y]], axis=1)
+        rec.log(
+            paths.join(base, "feasible"),
+            rr.LineStrips2D(list(strips), radii=0.4 * st.row, colors=FEASIBLE, labels=["feasible space F"], show_labels=False),
+            static=True,
+        )
+    if not is_empty(truth):
+        for ident, g in truth.sort("t").partition_by("target", as_dict=True, maintain_order=True).items():
+            rec.log(
+                paths.join(base, "truth", paths.part(ident[0])),
+                rr.LineStrips2D([np.c_[g["x"].to_numpy(), st.y(g["t"].to_numpy())]], radii=rr.Radius.ui_points(1.0),
+                                colors=colors.TRUTH_TRAIL, labels=[f"true {ident[0]}"], show_labels=False),
+                static=True,
+            )  # fmt: skip
+    if not is_empty(tracks):
+        labels = track_labels(tracker, tracks["track"].unique().to_list())
+        shades = track_colors(tracker, labels)
+        for ident, g in tracks.sort("t").partition_by("track", as_dict=True, maintain_order=True).items():
+            tid = str(ident[0])
+            rec.log(
+                paths.join(base, "tracks", paths.part(tid)),
+                rr.LineStrips2D([np.c_[g["x"].to_numpy(), st.y(g["t"].to_numpy())]], radii=rr.Radius.ui_points(2.0),
+                                colors=shades[tid], labels=[labels[tid]], show_labels=True),
+                static=True,
+            )  # fmt: skip
+    now = paths.join(base, "now")
+    y = st.y(times)
+    rec.log(now, rr.LineStrips2D.from_fields(colors=(255, 255, 255, 200), radii=rr.Radius.ui_points(1.0), draw_order=30.0), static=True)
+    rec.send_columns(
+        now,
+        indexes=[paths.time_column(times)],
+        columns=rr.LineStrips2D.columns(strips=[np.array([[st.x_lo, yy], [st.x_hi, yy]]) for yy in y]),
+    )
+
+
+def log_counts(rec: rr.RecordingStream, tracker: str, counts: pl.DataFrame | None, truth: pl.DataFrame | None) -> None:
+    """The counting bound over time (targets): Theorem 4's lower bound, F's components and,
+    with the truth, the true number of targets at each instant."""
+    if is_empty(counts):
+        return
+    c = counts.sort("t")
+    t = c["t"].to_numpy()
+    series = [("lower_bound", "lower bound (Theorem 4)", (255, 160, 40), c["lower_bound"]),
+              ("components", "components of F", (60, 130, 230), c["components"])]  # fmt: skip
+    if not is_empty(truth):
+        n_true = truth.group_by("t").agg(pl.col("target").n_unique().alias("n"))
+        true = c.select("t").join(n_true, on="t", how="left")["n"].fill_null(0)
+        series.append(("true", "true targets", colors.TRUTH[:3], true))
+    for key, name, color, values in series:
+        entity = paths.join(paths.tracker_root(tracker), "count", key)
+        rec.log(
+            entity,
+            rr.SeriesLines(colors=color, names=[name], widths=[2.0], interpolation_mode=rr.components.InterpolationMode.StepAfter),
+            static=True,
+        )
+        rec.send_columns(entity, indexes=[paths.time_column(t)], columns=rr.Scalars.columns(scalars=values.cast(pl.Float64).to_numpy()))
+
+
 def log_sensor_states(rec: rr.RecordingStream, tracker: str, site, frames_on: np.ndarray, times: np.ndarray) -> None:
-    """Sensors as disks (R_o, and R_i when smaller) coloured by their state per instant."""
+    """Sensors per instant: on = a disk of radius R_o (and R_i when smaller), off = a small dot."""
     ps = site.proximity_sensors
     if not ps or times.size == 0:
         return
+    log_world_frame(rec, paths.tracker_root(tracker))
     xy = np.array([p.position for p in ps], float)
     n, T = len(ps), times.size
-    col = np.where(frames_on.reshape(T, n, 1), np.array(ON, np.uint8), np.array(OFF, np.uint8)).reshape(T * n, 4)
-    for name, r in (("outer", [p.r_outer for p in ps]), ("inner", [p.r_inner for p in ps])):
+    on = frames_on.reshape(T, n)
+    for name, r, color in (("outer", [p.r_outer for p in ps], ON), ("inner", [p.r_inner for p in ps], ON_INNER)):
         if name == "inner" and all(p.r_inner == p.r_outer for p in ps):
             continue
         ent = paths.join(paths.tracker_root(tracker), "sensors", name)
-        rec.log(ent, rr.Points2D.from_fields(radii=np.asarray(r, np.float32), draw_order=1.0), static=True)
+        r = np.asarray(r, np.float32)
+        radii = np.where(on, r[None, :], OFF_DOT * r[None, :]).astype(np.float32).ravel()
+        col = np.where(on[..., None], np.array(color, np.uint8), np.array(OFF, np.uint8)).reshape(T * n, 4)
+        rec.log(ent, rr.Points2D.from_fields(draw_order=1.0 if name == "outer" else 1.5), static=True)
         rec.send_columns(
             ent,
             indexes=[paths.time_column(times)],
-            columns=rr.Points2D.columns(positions=np.tile(xy, (T, 1)), colors=col).partition([n] * T),
+            columns=rr.Points2D.columns(positions=np.tile(xy, (T, 1)), colors=col, radii=radii).partition([n] * T),
         )
 
 
-def log_feasible_1d(rec: rr.RecordingStream, tracker: str, feasible: pl.DataFrame, times: np.ndarray, *, row: float) -> None:
-    """F per instant as segments on y = 0, and all instants on the time-by-position plane."""
+def log_feasible_1d(rec: rr.RecordingStream, tracker: str, feasible: pl.DataFrame, times: np.ndarray) -> None:
+    """F per instant as segments on the line (y = 0)."""
     if feasible.height == 0:
         return
     f = feasible.sort("t")
@@ -67,12 +216,9 @@ def log_feasible_1d(rec: rr.RecordingStream, tracker: str, feasible: pl.DataFram
     strips = np.stack([np.c_[lo, np.zeros_like(lo)], np.c_[hi, np.zeros_like(hi)]], axis=1)
     counts = np.bincount(k, minlength=times.size)
     ent = paths.join(paths.tracker_root(tracker), "feasible")
-    rec.log(ent, rr.LineStrips2D.from_fields(radii=0.08, colors=(40, 120, 220, 200), draw_order=5.0), static=True)
+    log_world_frame(rec, ent)
+    rec.log(ent, rr.LineStrips2D.from_fields(radii=rr.Radius.ui_points(5.0), colors=FEASIBLE, draw_order=5.0), static=True)
     rec.send_columns(ent, indexes=[paths.time_column(times)], columns=rr.LineStrips2D.columns(strips=list(strips)).partition(counts.tolist()))
-    st = strips.copy()
-    st[:, :, 1] = (k * row)[:, None]
-    rec.log(paths.join(paths.tracker_root(tracker), "space_time", "feasible"),
-            rr.LineStrips2D(list(st), radii=0.05, colors=(40, 120, 220, 160)), static=True)
 
 
 def log_feasible_2d(rec: rr.RecordingStream, tracker: str, cells: pl.DataFrame, times: np.ndarray, cell: float) -> None:
@@ -83,6 +229,7 @@ def log_feasible_2d(rec: rr.RecordingStream, tracker: str, cells: pl.DataFrame, 
     k = _instants(times, c["t"].to_numpy())
     counts = np.bincount(k, minlength=times.size)
     ent = paths.join(paths.tracker_root(tracker), "feasible")
+    log_world_frame(rec, ent)
     rec.log(ent, rr.Points2D.from_fields(radii=cell / 2, draw_order=4.0), static=True)
     rec.send_columns(
         ent,
@@ -99,7 +246,8 @@ def log_particles(rec: rr.RecordingStream, tracker: str, particles: pl.DataFrame
     k = _instants(times, p["t"].to_numpy())
     counts = np.bincount(k, minlength=times.size)
     ent = paths.particles(tracker)
-    rec.log(ent, rr.Points2D.from_fields(radii=0.06, draw_order=20.0), static=True)
+    log_world_frame(rec, ent)
+    rec.log(ent, rr.Points2D.from_fields(radii=rr.Radius.ui_points(2.5), draw_order=20.0), static=True)
     rec.send_columns(
         ent,
         indexes=[paths.time_column(times)],
@@ -107,37 +255,24 @@ def log_particles(rec: rr.RecordingStream, tracker: str, particles: pl.DataFrame
     )
 
 
-def log_space_time(rec: rr.RecordingStream, tracker: str, tracks: pl.DataFrame, truth: pl.DataFrame | None, times: np.ndarray, *, row: float) -> None:
-    """Tracks (and the truth when given) as polylines on the time-by-position plane."""
-    base = paths.join(paths.tracker_root(tracker), "space_time")
-    for name, df, key, width in (("tracks", tracks, "track", 0.06), ("truth", truth, "target", 0.04)):
-        if df is None or df.height == 0:
-            continue
-        for ident, g in df.sort("t").partition_by(key, as_dict=True, maintain_order=True).items():  # one strip per track
-            k = _instants(times, g["t"].to_numpy())
-            strip = np.c_[g["x"].to_numpy(), k * row]
-            rec.log(paths.join(base, name, paths.part(ident[0])), rr.LineStrips2D([strip], radii=width, colors=colors.color_of(ident[0])), static=True)
-
-
 def log_clustertrack(rec: rr.RecordingStream, tracker: str, site, out: dict, times: np.ndarray, *, frames_on: np.ndarray | None = None,
                      cells: pl.DataFrame | None = None, cell: float = 0.1, truth: pl.DataFrame | None = None) -> None:
     """Everything the stage produced (see the module docstring)."""
-    minx, _, maxx, _ = site.boundary.bounds
-    row = max((maxx - minx) / max(times.size, 1) / 2.0, 0.2)
     if frames_on is not None:
         log_sensor_states(rec, tracker, site, frames_on, times)
     if "feasible" in out:
-        log_feasible_1d(rec, tracker, out["feasible"], times, row=row)
-        log_space_time(rec, tracker, out["tracks"], truth, times, row=row)
+        log_feasible_1d(rec, tracker, out["feasible"], times)
+        log_space_time(rec, tracker, site, times, feasible=out["feasible"], tracks=out["tracks"], truth=truth)
     elif cells is not None:
         log_feasible_2d(rec, tracker, cells, times, cell)
+    log_counts(rec, tracker, out.get("counts"), truth)
     log_particles(rec, tracker, out["particles"], times)
     log_point_tracks(rec, tracker, out["tracks"])
 
 
 def log_run(rec: rr.RecordingStream, tracker: str, out: dict, *, site, region_graph, config, tables: dict) -> None:
     """Everything CLUSTERTRACK produced (see the module docstring); the truth joins the
-    space-time view when the run has it."""
+    space-time diagram and the count plot when the run has it."""
     art = out.get("artifacts")
     if art is None:
         return

@@ -1,12 +1,22 @@
-"""Stable per-id colours: an id is hashed (CRC-32, not Python's salted ``hash``) into a fixed
-palette, so an agent, track or region keeps its colour in every stage and every run."""
+"""Colours of a recording.
+
+* Ids (regions, element slots, sensors) are hashed (CRC-32, not Python's salted ``hash``) into
+  a fixed palette, so an id keeps its colour in every stage and every run (:func:`color_of`).
+* **Truth is neutral** (:data:`TRUTH`: light grey rings and trails) and **every estimate is in
+  its tracker's colour** (:func:`track_color`: shades of
+  :data:`onebit.viz.families.TRACKER_RGB`), so a true target and an estimate never share a
+  colour, whatever their ids.
+"""
 
 from __future__ import annotations
 
+import colorsys
 import zlib
 from collections.abc import Iterable
 
 import numpy as np
+
+from onebit.viz.families import TRACKER_RGB
 
 #: Fixed palette (Tableau 20 order: the 10 strong colours, then their light partners).
 PALETTE: np.ndarray = np.array(
@@ -20,12 +30,23 @@ PALETTE: np.ndarray = np.array(
 )  # fmt: skip
 
 #: Colours of the static site drawing (RGBA).
-WALL = (60, 60, 60, 255)
-OBSTACLE = (110, 80, 60, 255)
+WALL = (150, 150, 150, 255)
+OBSTACLE = (150, 120, 95, 255)
 BEAM = (220, 30, 30, 255)
-FORWARD = (40, 160, 60, 255)
-BACKWARD = (230, 120, 20, 255)
-WARNING = (200, 160, 0, 255)
+FORWARD = (40, 200, 80, 255)
+BACKWARD = (240, 140, 30, 255)
+WARNING = (230, 190, 0, 255)
+
+#: Background of the map views (the blueprint sets it; opaque overlays such as the I-state
+#: fill are composited onto it, since Rerun draws images opaque).
+MAP_BACKGROUND = (16, 16, 20, 255)
+
+#: Ground truth: a hollow ring with its label below, and its trail, all neutral.
+TRUTH = (235, 235, 235, 255)
+TRUTH_TRAIL = (200, 200, 200, 170)
+
+#: A sensor firing now (state timelines, detections).
+FIRING = (255, 60, 50, 255)
 
 
 def palette_index(key: object) -> int:
@@ -52,3 +73,33 @@ def colors_of(keys: Iterable[object], *, alpha: int = 255) -> np.ndarray:
     out[:, :3] = PALETTE[idx]
     out[:, 3] = alpha
     return out
+
+
+def tracker_color(tracker: str, *, alpha: int = 255) -> tuple[int, int, int, int]:
+    """RGBA colour of a tracker (:data:`~onebit.viz.families.TRACKER_RGB`; a palette colour
+    for a tracker not listed there)."""
+    rgb = TRACKER_RGB.get(tracker)
+    if rgb is None:
+        return color_of(tracker, alpha=alpha)
+    return (*rgb, int(alpha))
+
+
+def track_color(tracker: str, index: int, count: int, *, alpha: int = 255) -> tuple[int, int, int, int]:
+    """RGBA colour of the ``index``-th of ``count`` tracks of ``tracker``: the tracker's colour
+    turned a little round the colour wheel and made darker (first) to lighter (last), so the
+    tracks of one tracker are told apart and still read as that tracker's.
+
+    Examples
+    --------
+    >>> track_color("beams", 0, 1) == tracker_color("beams")
+    True
+    """
+    r, g, b, _ = tracker_color(tracker)
+    if count <= 1:
+        return (r, g, b, int(alpha))
+    s = index / (count - 1) - 0.5  # -0.5 (first) .. 0.5 (last)
+    h, l, sat = colorsys.rgb_to_hls(r / 255, g / 255, b / 255)
+    h = (h + 0.09 * s) % 1.0
+    l = min(max(l + 0.3 * s, 0.35), 0.85)
+    r, g, b = (round(255 * c) for c in colorsys.hls_to_rgb(h, l, sat))
+    return (r, g, b, int(alpha))

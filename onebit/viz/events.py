@@ -1,4 +1,11 @@
-"""Beam crossings and aborted passes as text logs and scalars on ``sensors/<beam>``."""
+"""Beam crossings and aborted passes on ``sensors/<beam>``.
+
+* ``sensors/<beam>`` -- a :class:`rerun.TextLog` line per crossing (``"a forward"``,
+  ``"a^-1 backward"``, coloured by direction) and per aborted pass (level WARN): the crossing log;
+* ``sensors/<beam>/crossed`` (when the site is given) -- the beam's segment at the time of each
+  crossing, green forward / orange backward; the blueprint shows it for a couple of seconds
+  after the crossing, so on the map a beam flashes when it is crossed.
+"""
 
 from __future__ import annotations
 
@@ -6,8 +13,12 @@ import numpy as np
 import polars as pl
 import rerun as rr
 
+from onebit.core.site import Site
 from onebit.viz import colors, paths
 from onebit.viz._series import groups, is_empty, require
+from onebit.viz.frame import log_world_frame
+
+CROSSED_WIDTH = rr.Radius.ui_points(4.0)
 
 
 def crossing_texts(crossings: pl.DataFrame) -> pl.Series:
@@ -26,35 +37,44 @@ def log_crossings(
     *,
     entity_prefix: str = paths.SENSORS,
     aborted: pl.DataFrame | None = None,
+    site: Site | None = None,
 ) -> None:
     """Log crossings ``(t, beam, direction)`` and aborted passes ``(t, beam, side)``.
 
     Per beam, on ``<entity_prefix>/<beam>``: a :class:`rerun.TextLog` (level INFO, coloured by
-    direction) and a :class:`rerun.Scalars` of the direction (+1 / -1), in one
-    ``send_columns`` call each; aborted passes as a TextLog of level WARN. Empty or ``None``
-    frames log nothing.
+    direction) in one ``send_columns`` call, aborted passes as a TextLog of level WARN; with
+    ``site``, the crossed beam's segment on ``<entity_prefix>/<beam>/crossed``. Empty or
+    ``None`` frames log nothing.
     """
     if not is_empty(crossings):
         require(crossings, ("t", "beam", "direction"), name="crossings")
+        known = set(site.beam_ids) if site is not None else set()
         for beam, g in groups(crossings, "beam"):
             entity = paths.sensor(beam, prefix=entity_prefix)
             direction = g["direction"].cast(pl.Float64).to_numpy()
             color = np.where(direction[:, None] > 0, colors.FORWARD, colors.BACKWARD).astype(np.uint8)
-            rec.log(
-                entity,
-                rr.SeriesPoints(colors=colors.color_of(beam), names=[beam], markers=["circle"], marker_sizes=[3.0]),
-                static=True,
-            )
+            t = paths.time_column(g["t"].to_numpy())
             rec.send_columns(
                 entity,
-                indexes=[paths.time_column(g["t"].to_numpy())],
-                columns=[
-                    *rr.TextLog.columns(
-                        text=crossing_texts(g).to_list(), level=[rr.TextLogLevel.INFO] * g.height, color=color
-                    ),
-                    *rr.Scalars.columns(scalars=direction),
-                ],
+                indexes=[t],
+                columns=rr.TextLog.columns(
+                    text=crossing_texts(g).to_list(), level=[rr.TextLogLevel.INFO] * g.height, color=color
+                ),
             )
+            if beam in known:
+                b = site.beam(beam)
+                log_world_frame(rec, entity_prefix)
+                segment = np.array([b.p0, b.p1], np.float64)
+                rec.log(
+                    paths.sensor_crossed(beam, prefix=entity_prefix),
+                    rr.LineStrips2D.from_fields(radii=CROSSED_WIDTH, labels=[beam], show_labels=False, draw_order=22.0),
+                    static=True,
+                )
+                rec.send_columns(
+                    paths.sensor_crossed(beam, prefix=entity_prefix),
+                    indexes=[t],
+                    columns=rr.LineStrips2D.columns(strips=[segment] * g.height, colors=color),
+                )
     if not is_empty(aborted):
         require(aborted, ("t", "beam", "side"), name="aborted")
         for beam, g in groups(aborted, "beam"):

@@ -4,11 +4,12 @@ Entity paths (under the tracker's root)::
 
     <tracker>/eatg/nodes            the sensor graph's nodes with their ids (static)
     <tracker>/eatg/a1               1-hop EATG edges, width by a' (static)
-    <tracker>/eatg/a2               2-hop EATG edges, width by a'' (static)
-    <tracker>/activations           active nodes of every slot (Points2D per slot)
-    <tracker>/tracks/<user>         decoded user position (node) and its path so far
-    <tracker>/decoded/<user>        the whole decoded node sequence as a line strip (static)
-    <tracker>/switches              CPDA switches: node and the users re-paired, at their slot
+    <tracker>/eatg/a2               2-hop EATG edges, width by a'' (static, hidden by default)
+    <tracker>/activations           active nodes of every slot (red halos, one partition per slot)
+    <tracker>/tracks/<user>         each decoded track now: a dot in a shade of the tracker's
+                                    colour labelled "track k", its trail and hidden path
+    <tracker>/decoded/<user>        the whole decoded node sequence (static, hidden by default)
+    <tracker>/switches              CPDA switches: node and the tracks re-paired, at their slot
 
 Bulk series go through one ``send_columns`` each.
 """
@@ -19,9 +20,14 @@ import numpy as np
 import polars as pl
 import rerun as rr
 
-from onebit.viz import colors, paths
+from onebit.viz import paths
 from onebit.viz._series import groups, is_empty
-from onebit.viz.tracks import log_point_tracks
+from onebit.viz.frame import log_world_frame
+from onebit.viz.tracks import log_point_tracks, track_colors, track_labels
+
+NODE = (170, 170, 170, 255)
+ACTIVE = (200, 45, 40, 255)
+SWITCH = (255, 230, 0, 255)
 
 
 def _node_xy(site, nodes) -> np.ndarray:
@@ -32,16 +38,21 @@ def _node_xy(site, nodes) -> np.ndarray:
 def log_eatg(rec: rr.RecordingStream, tracker: str, eatg, site) -> None:
     """The sensor graph and the EATG weights as static line strips (width by weight)."""
     root = paths.tracker_root(tracker)
+    log_world_frame(rec, root)
     xy = _node_xy(site, eatg.nodes)
-    rec.log(paths.join(root, "eatg", "nodes"), rr.Points2D(xy, labels=list(eatg.nodes), radii=0.35, colors=(200, 200, 200)), static=True)
-    for kind, mat, col in (("a1", eatg.a1, (90, 160, 255)), ("a2", eatg.a2, (255, 170, 60))):
+    rec.log(
+        paths.join(root, "eatg", "nodes"),
+        rr.Points2D(xy, labels=list(eatg.nodes), radii=rr.Radius.ui_points(3.0), colors=NODE, show_labels=True, draw_order=10.0),
+        static=True,
+    )
+    for kind, mat, col in (("a1", eatg.a1, (120, 150, 190, 200)), ("a2", eatg.a2, (200, 150, 90, 150))):
         w = np.triu(mat + mat.T, k=1) / 2.0
         i, j = np.nonzero(w)
         if i.size == 0:
             continue
         strips = np.stack([xy[i], xy[j]], axis=1)
-        radii = 0.03 + 0.25 * w[i, j] / w[i, j].max()
-        rec.log(paths.join(root, "eatg", kind), rr.LineStrips2D(strips, radii=radii, colors=col), static=True)
+        radii = -(0.5 + 3.0 * w[i, j] / w[i, j].max())  # UI points, width by weight
+        rec.log(paths.join(root, "eatg", kind), rr.LineStrips2D(strips, radii=radii, colors=col, draw_order=2.0), static=True)
 
 
 def log_activations(rec: rr.RecordingStream, tracker: str, active: np.ndarray, site, nodes, t0: float, period: float) -> None:
@@ -49,38 +60,53 @@ def log_activations(rec: rr.RecordingStream, tracker: str, active: np.ndarray, s
     if active.size == 0:
         return
     xy = _node_xy(site, nodes)
-    s, j = np.nonzero(active)
+    _, j = np.nonzero(active)
     lengths = active.sum(axis=1).astype(np.int64)
     t = t0 + np.arange(active.shape[0]) * period
-    rec.send_columns(
-        paths.join(paths.tracker_root(tracker), "activations"),
-        indexes=[paths.time_column(t)],
-        columns=rr.Points2D.columns(positions=xy[j], radii=np.full(j.size, 0.9, np.float32), colors=np.tile([255, 60, 60, 90], (j.size, 1))).partition(lengths),
-    )
+    entity = paths.join(paths.tracker_root(tracker), "activations")
+    log_world_frame(rec, entity)
+    rec.log(entity, rr.Points2D.from_fields(radii=rr.Radius.ui_points(8.0), colors=ACTIVE, draw_order=9.0), static=True)
+    rec.send_columns(entity, indexes=[paths.time_column(t)], columns=rr.Points2D.columns(positions=xy[j]).partition(lengths))
 
 
 def log_decoded(rec: rr.RecordingStream, tracker: str, tracks: pl.DataFrame | None) -> None:
-    """Each decoded user: moving point + path so far, and its whole node sequence (static)."""
+    """Each decoded track: the dot now with its trail (:func:`log_point_tracks`) and its whole
+    node sequence (static, hidden by default in the blueprint)."""
     if is_empty(tracks):
         return
     log_point_tracks(rec, tracker, tracks)
+    labels = track_labels(tracker, tracks["track"].drop_nulls().unique().to_list())
+    shades = track_colors(tracker, labels)
     for user, g in groups(tracks.drop_nulls(["x", "y"]), "track"):
         xy = g.select("x", "y").to_numpy()
-        rec.log(paths.decoded(tracker, user), rr.LineStrips2D([xy], colors=colors.color_of(user), radii=0.12), static=True)
+        rec.log(
+            paths.decoded(tracker, user),
+            rr.LineStrips2D([xy], colors=shades[user], radii=rr.Radius.ui_points(2.0), labels=[f"{labels[user]}: whole decoded path"]),
+            static=True,
+        )
+
+
+def _one_based(indices: str) -> str:
+    """``"0 1 2"`` (decoder user indices) -> ``"1 2 3"`` (the ``track k`` labels)."""
+    return " ".join(str(int(i) + 1) if i.lstrip("-").isdigit() else i for i in str(indices).split())
 
 
 def log_switches(rec: rr.RecordingStream, tracker: str, switches: pl.DataFrame | None, site, nodes, t0: float, period: float) -> None:
-    """CPDA switches as labelled points at the node and slot where they happened."""
+    """CPDA switches as labelled points at the node and slot where they happened (shown for a
+    trail window after their slot)."""
     if is_empty(switches):
         return
     pos = {m.id: m.position for m in site.motion_sensors}
     xy = np.array([pos[n] for n in switches["node"].to_list()], dtype=float).reshape(-1, 2)
     t = t0 + (switches["slot"].to_numpy() + 0.5) * period
-    labels = [f"CPDA {u} -> {p}" for u, p in zip(switches["users"].to_list(), switches["pairing"].to_list())]
+    labels = [f"CPDA switch: tracks {_one_based(u)} -> {_one_based(p)}" for u, p in zip(switches["users"].to_list(), switches["pairing"].to_list())]
+    entity = paths.join(paths.tracker_root(tracker), "switches")
+    log_world_frame(rec, entity)
+    rec.log(entity, rr.Points2D.from_fields(radii=rr.Radius.ui_points(11.0), colors=SWITCH, show_labels=True, draw_order=8.0), static=True)
     rec.send_columns(
-        paths.join(paths.tracker_root(tracker), "switches"),
+        entity,
         indexes=[paths.time_column(t)],
-        columns=rr.Points2D.columns(positions=xy, labels=labels, radii=np.full(len(t), 1.2, np.float32), colors=np.tile([255, 230, 0, 200], (len(t), 1))).partition(np.ones(len(t), dtype=np.int64)),
+        columns=rr.Points2D.columns(positions=xy, labels=labels).partition(np.ones(len(t), dtype=np.int64)),
     )
 
 

@@ -1,8 +1,10 @@
-"""Reading back ``.rrd`` files: which entities and stores they hold, and whether they verify.
+"""Reading back ``.rrd`` and ``.rbl`` files: which entities (with which archetypes) and
+stores they hold, what a blueprint's views show, and whether a file verifies.
 
-Used by tests (here and end-to-end) to check recordings without a viewer. Entity paths and
-store ids are read with the SDK's :class:`rerun.chunk.RrdReader`; if that is unavailable,
-``rerun rrd print --verbose`` output is parsed. :func:`verify` runs ``rerun rrd verify``.
+Used by the blueprint builder (:func:`onebit.viz.blueprint.save_run_blueprint` reads what a
+run logged) and by tests to check recordings without a viewer. Entity paths and store ids are
+read with the SDK's :class:`rerun.chunk.RrdReader`; if that is unavailable, ``rerun rrd print
+--verbose`` output is parsed. :func:`verify` runs ``rerun rrd verify``.
 """
 
 from __future__ import annotations
@@ -11,6 +13,9 @@ import re
 import shutil
 import subprocess
 import sys
+import uuid
+from collections.abc import Iterable
+from dataclasses import dataclass, field
 from pathlib import Path
 
 _CHUNK_LINE = re.compile(r"^Chunk\(.*?\) with \d+ rows \(.*?\) - (?P<path>.+?) - data columns:")
@@ -90,3 +95,212 @@ def verify(rrd_path: str | Path) -> None:
         raise RuntimeError(
             f"rerun rrd verify {rrd_path} failed (exit {proc.returncode}): {(proc.stderr or proc.stdout).strip()}"
         )
+
+
+# --------------------------------------------------------------------------- archetypes
+
+
+def _reader(path: str | Path):
+    from rerun.chunk import RrdReader  # the SDK's reader (rerun-sdk >= 0.30)
+
+    return RrdReader(str(path))
+
+
+def scalar_ranges(rrd_paths: str | Path | Iterable[str | Path]) -> dict[str, tuple[float, float]]:
+    """``{entity path: (min, max)}`` of the Scalars each entity logged (NaNs ignored)."""
+    import pyarrow.compute as pc
+
+    files = [rrd_paths] if isinstance(rrd_paths, (str, Path)) else list(rrd_paths)
+    out: dict[str, tuple[float, float]] = {}
+    for f in files:
+        for chunk in _reader(f).stream():
+            rb = chunk.to_record_batch()
+            if "Scalars:scalars" not in rb.schema.names:
+                continue
+            values = pc.list_flatten(rb.column("Scalars:scalars"))
+            mm = pc.min_max(values)
+            lo, hi = mm["min"].as_py(), mm["max"].as_py()
+            if lo is None:
+                continue
+            path = _clean(chunk.entity_path)
+            old = out.get(path, (lo, hi))
+            out[path] = (min(old[0], lo), max(old[1], hi))
+    return out
+
+
+def entity_archetypes(rrd_paths: str | Path | Iterable[str | Path]) -> dict[str, frozenset[str]]:
+    """``{entity path: archetype names}`` over the first recording store of each file, e.g.
+    ``{"truth/A": {"Ellipses2D", "Points2D"}, "sensors/p1": {"StateChange", "StateConfiguration"}}``.
+
+    Paths have no leading ``/`` and are escaped as built by :mod:`onebit.viz.paths`; Rerun's
+    internal ``__properties`` is left out.
+    """
+    files = [rrd_paths] if isinstance(rrd_paths, (str, Path)) else list(rrd_paths)
+    found: dict[str, set[str]] = {}
+    for f in files:
+        for chunk in _reader(f).stream():
+            path = _clean(chunk.entity_path)
+            if not path or _is_internal(path):
+                continue
+            kinds = found.setdefault(path, set())
+            for fld in chunk.to_record_batch().schema:
+                arch = (fld.metadata or {}).get(b"rerun:archetype")
+                if arch:
+                    kinds.add(arch.decode().rsplit(".", 1)[-1])
+    return {p: frozenset(k) for p, k in found.items()}
+
+
+# --------------------------------------------------------------------------- blueprints
+
+
+@dataclass(frozen=True)
+class ViewInfo:
+    """One view of a blueprint as read back from the file."""
+
+    name: str
+    kind: str  # Rerun's class identifier: "2D", "TimeSeries", "TextLog", "StateTimeline", ...
+    origin: str
+    query: tuple[str, ...]
+    #: entity path -> {"visible": bool} and/or {"time_range": (start_s, end_s)}
+    overrides: dict[str, dict] = field(default_factory=dict)
+
+
+def _first(rb, name: str):
+    if name not in rb.schema.names:
+        return None
+    vals = [v for v in rb.column(name).to_pylist() if v is not None]
+    if not vals:
+        return None
+    v = vals[-1]
+    return v[0] if isinstance(v, list) and len(v) == 1 else v
+
+
+def blueprint_views(path: str | Path) -> list[ViewInfo]:
+    """Every view of the (first) blueprint store of ``path`` (an ``.rbl``, or an ``.rrd`` that
+    holds a blueprint), with its contents query and its per-entity overrides."""
+    reader = _reader(path)
+    stores = reader.blueprints()
+    if not stores:
+        raise ValueError(f"{path} holds no blueprint")
+    views: dict[str, dict] = {}
+    for chunk in reader.stream(store=stores[0]):
+        ep = _clean(chunk.entity_path)
+        parts = ep.split("/")
+        if len(parts) < 2 or parts[0] != "view":
+            continue
+        v = views.setdefault(parts[1], {"overrides": {}})
+        rb = chunk.to_record_batch()
+        if len(parts) == 2:
+            v["name"] = _first(rb, "ViewBlueprint:display_name") or ""
+            v["kind"] = _first(rb, "ViewBlueprint:class_identifier") or ""
+            v["origin"] = _clean(_first(rb, "ViewBlueprint:space_origin") or "/")
+        elif parts[2:] == ["ViewContents"]:
+            q = rb.column("ViewContents:query").to_pylist()[-1] if "ViewContents:query" in rb.schema.names else []
+            v["query"] = tuple(q or ())
+        elif parts[2:4] == ["ViewContents", "overrides"] and parts[-1] == "visualizers":
+            entity = "/".join(parts[4:-1])
+            o = v["overrides"].setdefault(entity, {})
+            vis = _first(rb, "EntityBehavior:visible")
+            if vis is not None:
+                o["visible"] = bool(vis)
+            ranges = _first(rb, "VisibleTimeRanges:ranges")
+            if ranges:
+                r = ranges[0] if isinstance(ranges, list) else ranges
+                o["time_range"] = (r["range"]["start"] / 1e9, r["range"]["end"] / 1e9)
+    return [
+        ViewInfo(v.get("name", ""), v.get("kind", ""), v.get("origin", ""), v.get("query", ()), v["overrides"])
+        for v in views.values()
+    ]
+
+
+def _rule(expr: str) -> tuple[bool, str, bool]:
+    """``(include, path, subtree)`` of one query expression (``"+ a/**"``, ``"- a"``, ``"a"``)."""
+    e = expr.strip()
+    include = not e.startswith("-")
+    e = e.lstrip("+-").strip()
+    subtree = e.endswith("/**") or e == "**"
+    e = e[:-3] if e.endswith("/**") else ("" if e == "**" else e)
+    return include, _clean(e), subtree
+
+
+def query_rules(query: Iterable[str], *, origin: str = "/") -> list[tuple[bool, str, bool]]:
+    """Parsed rules of a contents query, ``$origin`` replaced by ``origin``."""
+    origin = _clean(origin)
+    out = []
+    for expr in query:
+        expr = expr.replace("$origin", "/" + origin if origin else "")
+        out.append(_rule(expr))
+    return out
+
+
+def rule_base(rule: tuple[bool, str, bool]) -> str:
+    """The entity path a rule names (``""`` = the root)."""
+    return rule[1]
+
+
+def query_includes(query: Iterable[str], path: str, *, origin: str = "/") -> bool:
+    """Whether Rerun's entity query ``query`` includes ``path``: the most specific matching rule
+    wins (deeper paths, then an exact rule over a subtree rule), the last of equals; no match
+    excludes (https://rerun.io/docs/reference/entity-queries)."""
+    path = _clean(path)
+    best: tuple[tuple[int, int], bool] | None = None
+    for include, base, subtree in query_rules(query, origin=origin):
+        if subtree:
+            hit = base == "" or path == base or path.startswith(base + "/")
+        else:
+            hit = path == base
+        if not hit:
+            continue
+        key = (len(base.split("/")) if base else 0, 0 if subtree else 1)
+        if best is None or key >= best[0]:
+            best = (key, include)
+    return bool(best and best[1])
+
+
+def component_rows(rrd_paths: str | Path | Iterable[str | Path], entity: str, component: str) -> list:
+    """Every row of ``component`` (e.g. ``"Points2D:labels"``) logged on ``entity``, static rows
+    first, as Python values (one list per row)."""
+    files = [rrd_paths] if isinstance(rrd_paths, (str, Path)) else list(rrd_paths)
+    static, timed = [], []
+    for f in files:
+        for chunk in _reader(f).stream():
+            if _clean(chunk.entity_path) != _clean(entity):
+                continue
+            rb = chunk.to_record_batch()
+            if component in rb.schema.names:
+                (static if chunk.is_static else timed).extend(rb.column(component).to_pylist())
+    return static + timed
+
+
+def blueprint_tabs(path: str | Path) -> list[str]:
+    """Names of the children of a blueprint's root container, in order (the tabs of a layout
+    whose root is a ``Tabs`` container); the root container's own name first when it has one."""
+    reader = _reader(path)
+    stores = reader.blueprints()
+    if not stores:
+        raise ValueError(f"{path} holds no blueprint")
+    containers: dict[str, dict] = {}
+    views: dict[str, str] = {}
+    root = None
+    for chunk in reader.stream(store=stores[0]):
+        ep = _clean(chunk.entity_path)
+        rb = chunk.to_record_batch()
+        if ep == "viewport":
+            rid = _first(rb, "ViewportBlueprint:root_container")
+            if rid is not None:
+                root = str(uuid.UUID(bytes=bytes(rid)))
+        elif ep.startswith("container/") and ep.count("/") == 1:
+            c = containers.setdefault(ep.split("/")[1], {})
+            c["name"] = _first(rb, "ContainerBlueprint:display_name") or c.get("name", "")
+            if "ContainerBlueprint:contents" in rb.schema.names:
+                c["contents"] = rb.column("ContainerBlueprint:contents").to_pylist()[-1] or []
+        elif ep.startswith("view/") and ep.count("/") == 1:
+            views[ep.split("/")[1]] = _first(rb, "ViewBlueprint:display_name") or ""
+    if root is None or root not in containers:
+        return []
+
+    def name(ref: str) -> str:
+        kind, _, ident = ref.partition("/")
+        return containers.get(ident, {}).get("name", "") if kind == "container" else views.get(ident, "")
+
+    return [name(ref) for ref in containers[root].get("contents", [])]

@@ -2,13 +2,18 @@
 
 Entities::
 
-    sensors/<id>                         on/off state of each motion sensor over time (Scalars 0/1)
-    site/sensors/<id>/coverage           each deployed sensor's detection grid as a heat map (static)
-    <tracker>/sensors/<id>               field of view coloured by state: firing, refractory, idle
-    <tracker>/particles                  particles every iteration, coloured by weight
-    <tracker>/estimate                   the estimate and its bounding box
+    sensors/<id>                         on/off state of each motion sensor over time (StateChange)
+    site/sensors/<id>/coverage           each deployed sensor's detection grid as a heat map
+                                         (static; hidden by default in the blueprint)
+    <tracker>/sensors/<id>               field of view of each sensor that fired in the iteration
+                                         (red); nothing when it did not (site/sensors marks
+                                         every sensor, dimmed)
+    <tracker>/particles                  particles every iteration, coloured by weight (dim
+                                         purple = low, bright yellow = high)
+    <tracker>/estimate                   the estimate's bounding box, in the tracker's colour
+    <tracker>/tracks/<track>             the estimate (dot, trail, hidden path; onebit.viz.tracks)
     <tracker>/camera                     the camera's view cone towards the estimate
-    scores/<tracker>/<track>             error (see :mod:`onebit.viz.tracks`)
+    scores/<tracker>/<track>             distance from the truth (site units; onebit.viz.tracks)
 
 Bulk data (every iteration's particles) goes through ``send_columns`` with partitioned
 component columns, never one ``log`` per iteration.
@@ -22,18 +27,23 @@ import numpy as np
 import polars as pl
 import rerun as rr
 
-from onebit.viz.tracks import log_point_tracks
 from onebit.viz import colors, paths
 from onebit.viz._series import is_empty
+from onebit.viz.frame import log_world_frame
+from onebit.viz.tracks import log_point_tracks
 
-#: Colours of a sensor's state.
-FIRING = (230, 40, 40, 140)
-REFRACTORY = (240, 170, 30, 110)
-IDLE = (120, 120, 120, 50)
+#: Colour and width of the field of view of a sensor that fired (the others are not drawn).
+FIRING = (235, 70, 60, 255)
+FOV_WIDTH = rr.Radius.ui_points(1.25)
+
+#: The two states of a binary sensor in the state timeline, and their colours.
+ON, OFF = "on", "off"
+STATES = rr.StateConfiguration(values=[ON, OFF], colors=[colors.FIRING[:3], (60, 60, 60)])
 
 
 def log_motion_states(rec: rr.RecordingStream, motion: pl.DataFrame | None, sensors: Sequence[str]) -> None:
-    """Each sensor's state (1 on, 0 off) as a step series on ``sensors/<id>`` from its edges."""
+    """Each sensor's on/off state over time on ``sensors/<id>`` (:class:`rerun.StateChange` at
+    each accepted edge, shown as bands in a state timeline)."""
     if is_empty(motion):
         return
     for sid in sensors:
@@ -41,13 +51,9 @@ def log_motion_states(rec: rr.RecordingStream, motion: pl.DataFrame | None, sens
         if g.height == 0:
             continue
         entity = paths.sensor(sid)
-        rec.log(entity, rr.SeriesLines(colors=colors.color_of(sid), names=[sid]), static=True)
-        t = g["t"].to_numpy()
-        v = g["on"].cast(pl.Float64).to_numpy()
-        # a step: the previous value just before each edge, then the new value
-        tt = np.repeat(t, 2)
-        vv = np.c_[1.0 - v, v].ravel()
-        rec.send_columns(entity, indexes=[paths.time_column(tt)], columns=rr.Scalars.columns(scalars=vv))
+        rec.log(entity, STATES, static=True)
+        state = np.where(g["on"].to_numpy(), ON, OFF).tolist()
+        rec.send_columns(entity, indexes=[paths.time_column(g["t"].to_numpy())], columns=rr.StateChange.columns(state=state))
 
 
 def _exterior(poly) -> np.ndarray | None:
@@ -58,20 +64,21 @@ def _exterior(poly) -> np.ndarray | None:
     return np.asarray(poly.coords)[:, :2] if hasattr(poly, "coords") else None
 
 
-def weight_colors(w: np.ndarray, *, alpha: int = 200) -> np.ndarray:
-    """``(..., 4)`` RGBA colours of weights: blue (lowest in its iteration) to red (highest).
+#: Particle colour ramp by weight: dim purple (lowest) -> bright yellow (highest), alpha rising.
+_LOW = np.array([110, 80, 190, 110], float)
+_HIGH = np.array([255, 235, 90, 230], float)
+
+
+def weight_colors(w: np.ndarray) -> np.ndarray:
+    """``(..., 4)`` RGBA colours of weights: dim translucent purple (lowest in its iteration)
+    to bright opaque yellow (highest), so the weighty particles stand out.
 
     ``w`` is ``(T, L)``; each iteration is scaled by its own maximum.
     """
     w = np.asarray(w, float)
     top = np.max(w, axis=-1, keepdims=True)
-    s = np.divide(w, top, out=np.zeros_like(w), where=top > 0)
-    out = np.empty(w.shape + (4,), np.uint8)
-    out[..., 0] = (40 + 215 * s).astype(np.uint8)
-    out[..., 1] = (60 * (1 - s)).astype(np.uint8)
-    out[..., 2] = (220 * (1 - s) + 20).astype(np.uint8)
-    out[..., 3] = alpha
-    return out
+    s = np.divide(w, top, out=np.zeros_like(w), where=top > 0)[..., None]
+    return np.round(_LOW + (_HIGH - _LOW) * np.sqrt(s)).astype(np.uint8)
 
 
 def log_coverage(rec: rr.RecordingStream, dep) -> None:
@@ -86,6 +93,7 @@ def log_coverage(rec: rr.RecordingStream, dep) -> None:
         col = np.zeros((len(q), 4), np.uint8)
         col[:, 0], col[:, 1], col[:, 2] = 230, (160 * (1 - q)).astype(np.uint8), 30
         col[:, 3] = (30 + 120 * q).astype(np.uint8)
+        log_world_frame(rec, paths.SITE)
         rec.log(
             paths.join(paths.site_sensor(sid), "coverage"),
             rr.Boxes2D(centers=centers, half_sizes=np.full((len(q), 2), g.cell / 2), colors=col, draw_order=5.0),
@@ -96,19 +104,35 @@ def log_coverage(rec: rr.RecordingStream, dep) -> None:
 def log_sensor_states(
     rec: rr.RecordingStream, tracker: str, dep, t: np.ndarray, fired: np.ndarray, blind: np.ndarray
 ) -> None:
-    """Each sensor's field of view (hull of its coverage) on ``<tracker>/sensors/<id>``, its colour
-    per iteration: firing (red), refractory (orange) or idle (grey)."""
+    """The field of view (hull of its coverage, simplified) of each sensor that fired in an
+    iteration, bright red, on ``<tracker>/sensors/<id>``; nothing in iterations it did not fire.
+
+    Every sensor keeps its dim mark on ``site/sensors`` and its on/off state in the state
+    timeline, so the room stays readable and the wedges drawn are the ones the filter is using
+    now (``fired``, S_i; ``blind`` is not drawn). Rerun draws a transparent line dark, not
+    invisible, so an idle sensor gets no strip at all.
+    """
     if len(t) == 0:
         return
+    log_world_frame(rec, paths.tracker_root(tracker))
+    tolerance = 0.005 * max(dep.grid.cell * max(dep.q.shape[1:]), 1e-9)
     for i, sid in enumerate(dep.ids):
-        ring = _exterior(dep.hulls[i])
+        hull = dep.hulls[i]
+        ring = _exterior(hull.simplify(tolerance) if hull is not None and not hull.is_empty else hull)
         if ring is None:
             continue
         entity = paths.join(paths.tracker_root(tracker), "sensors", paths.part(sid))
-        rec.log(entity, rr.LineStrips2D([ring], radii=rr.Radius.ui_points(2.0), labels=[sid], draw_order=12.0), static=True)
-        col = np.where(fired[:, i, None], np.array(FIRING, np.uint8), np.where(blind[:, i, None], np.array(REFRACTORY, np.uint8), np.array(IDLE, np.uint8)))
-        col[:, 3] = 255
-        rec.send_columns(entity, indexes=[paths.time_column(t)], columns=rr.LineStrips2D.columns(colors=col.astype(np.uint8)))
+        rec.log(
+            entity,
+            rr.LineStrips2D.from_fields(colors=FIRING, radii=FOV_WIDTH, labels=[f"{sid} fired"], show_labels=False, draw_order=12.0),
+            static=True,
+        )
+        on = fired[:, i].astype(bool)
+        rec.send_columns(
+            entity,
+            indexes=[paths.time_column(t)],
+            columns=rr.LineStrips2D.columns(strips=[ring] * int(on.sum())).partition(on.astype(np.int64)),
+        )
 
 
 def log_particles(rec: rr.RecordingStream, tracker: str, t: np.ndarray, xy: np.ndarray, w: np.ndarray) -> None:
@@ -117,6 +141,7 @@ def log_particles(rec: rr.RecordingStream, tracker: str, t: np.ndarray, xy: np.n
         return
     T, L = w.shape
     entity = paths.particles(tracker)
+    log_world_frame(rec, entity)
     rec.log(entity, rr.Points2D.from_fields(radii=rr.Radius.ui_points(2.5), draw_order=20.0), static=True)
     rec.send_columns(
         entity,
@@ -128,11 +153,12 @@ def log_particles(rec: rr.RecordingStream, tracker: str, t: np.ndarray, xy: np.n
 def log_estimate(
     rec: rr.RecordingStream, tracker: str, t: np.ndarray, est: np.ndarray, width: float, depth: float
 ) -> None:
-    """The estimate and its bounding box on ``<tracker>/estimate``."""
+    """The estimate's bounding box (the body the likelihood uses) on ``<tracker>/estimate``."""
     if len(t) == 0:
         return
     entity = paths.join(paths.tracker_root(tracker), "estimate")
-    rec.log(entity, rr.Boxes2D.from_fields(colors=colors.color_of(tracker), radii=rr.Radius.ui_points(2.0), draw_order=28.0), static=True)
+    log_world_frame(rec, entity)
+    rec.log(entity, rr.Boxes2D.from_fields(colors=colors.tracker_color(tracker), radii=rr.Radius.ui_points(1.5), draw_order=29.0), static=True)
     rec.send_columns(
         entity,
         indexes=[paths.time_column(t)],
@@ -163,7 +189,8 @@ def log_camera_cone(
     a = cam + reach[:, None] * np.c_[np.cos(pan - half), np.sin(pan - half)]
     b = cam + reach[:, None] * np.c_[np.cos(pan + half), np.sin(pan + half)]
     strips = [np.vstack([a[k], cam, b[k]]) for k in range(len(t))]  # one 3-vertex strip per iteration
-    rec.log(entity, rr.LineStrips2D.from_fields(colors=(40, 170, 90, 255), radii=rr.Radius.ui_points(1.5), draw_order=26.0), static=True)
+    log_world_frame(rec, entity)
+    rec.log(entity, rr.LineStrips2D.from_fields(colors=(70, 110, 130, 255), radii=rr.Radius.ui_points(1.0), draw_order=26.0), static=True)
     rec.send_columns(entity, indexes=[paths.time_column(t)], columns=rr.LineStrips2D.columns(strips=strips))
 
 

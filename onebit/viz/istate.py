@@ -1,27 +1,51 @@
 """Rerun logging of O'Kane I-states and active tracking.
 
-Entities (all through ``send_columns``, one call per entity):
+An I-state is a union of elements; each element is a product of n regions (one target in
+each). Entities (all through ``send_columns``, one call per entity):
 
+* ``<tracker>/istate/fill`` -- every element's regions **filled**, one colour per element slot
+  blended onto the map background, as one image per stage placed under the site drawing
+  (Rerun's 2D views have no filled polygon and draw images opaque; a PNG of flat colours
+  costs a few kB per stage);
 * ``<tracker>/istate/<element>/<k>`` -- region ``k`` of element slot ``element`` at every
-  stage as line strips (its boundary rings), one distinct colour per element slot; a stage
-  where the slot is unused holds no strips;
-* ``<tracker>/sensing/<sensor>`` -- static sensing regions; ``<tracker>/detections`` the
-  regions with reading 1 at each stage;
-* ``<tracker>/elements``, ``<tracker>/area`` (and ``<tracker>/P`` for active tracking) -- Scalars;
+  stage, **outlined** in the slot's colour; a stage where the slot is unused holds no strips;
+* ``<tracker>/sensing/<sensor>`` -- static sensing regions, dim; ``<tracker>/detections`` the
+  regions reading 1 at each stage, bright red;
+* ``<tracker>/elements`` (count) and ``<tracker>/area`` (site units squared) -- Scalars, one
+  plot each (and ``<tracker>/P`` for active tracking);
+* ``<tracker>/tracks/<track>`` -- the point summary used for scoring (:mod:`onebit.viz.tracks`);
 * active tracking: ``<tracker>/trackers/<j>`` points, ``.../sensing`` the 9 squares,
   ``.../destination``; ``<tracker>/links`` communication links; ``truth/<target>``.
 """
 
 from __future__ import annotations
 
+import cv2
 import numpy as np
 import polars as pl
 import rerun as rr
 import shapely
 
-from onebit.viz.tracks import log_point_tracks
 from onebit.viz import colors, paths
 from onebit.viz._series import rings
+from onebit.viz.frame import log_world_frame
+from onebit.viz.tracks import log_point_tracks
+from onebit.viz.truth import log_truth
+
+#: Element slot colours: the palette's strong colours, grey and brown last.
+_ELEMENT_ORDER = (0, 1, 2, 3, 4, 6, 8, 9, 5, 7)
+#: Opacity of one element's fill (overlapping elements add up).
+FILL_ALPHA = 0.25
+#: Long side of the fill image in pixels.
+FILL_PIXELS = 360
+OUTLINE_WIDTH = rr.Radius.ui_points(1.5)
+SENSING = (150, 150, 150, 90)
+
+
+def element_color(e: int, *, alpha: int = 255) -> tuple[int, int, int, int]:
+    """Colour of element slot ``e``: distinct for the first ten slots."""
+    r, g, b = (int(c) for c in colors.PALETTE[_ELEMENT_ORDER[e % len(_ELEMENT_ORDER)]])
+    return (r, g, b, int(alpha))
 
 
 def _strips_per_stage(geoms: np.ndarray) -> tuple[list[np.ndarray], list[int]]:
@@ -33,29 +57,107 @@ def _strips_per_stage(geoms: np.ndarray) -> tuple[list[np.ndarray], list[int]]:
     return strips, counts
 
 
-def _series(rec: rr.RecordingStream, entity: str, name: str, t: np.ndarray, values: np.ndarray) -> None:
-    rec.log(entity, rr.SeriesLines(colors=colors.color_of(name), names=[name]), static=True)
+def _series(rec: rr.RecordingStream, entity: str, name: str, color, t: np.ndarray, values: np.ndarray, *, step: bool = True) -> None:
+    mode = rr.components.InterpolationMode.StepAfter if step else None
+    rec.log(entity, rr.SeriesLines(colors=color, names=[name], widths=[2.0], interpolation_mode=mode), static=True)
     rec.send_columns(entity, indexes=[paths.time_column(t)], columns=rr.Scalars.columns(scalars=np.asarray(values, float)))
 
 
-def log_istate_regions(rec: rr.RecordingStream, tracker: str, regions: pl.DataFrame, times: np.ndarray) -> None:
-    """Every (element slot, k) of the ``regions`` table (t, stage, element, k, wkb) over ``times``."""
-    if regions.height == 0:
-        return
+class FillRaster:
+    """The pixel grid of the fill image: ``cell`` world units per pixel from ``(x0, y0)``;
+    pixel row ``r`` covers ``y0 + r * cell`` (rows grow with y, the frame flips them on screen)."""
+
+    def __init__(self, bounds: tuple[float, float, float, float], *, pixels: int = FILL_PIXELS) -> None:
+        minx, miny, maxx, maxy = bounds
+        span = max(maxx - minx, maxy - miny, 1e-9)
+        self.cell = span / pixels
+        self.x0, self.y0 = float(minx), float(miny)
+        self.width = max(1, int(np.ceil((maxx - minx) / self.cell)))
+        self.height = max(1, int(np.ceil((maxy - miny) / self.cell)))
+
+    def transform(self) -> rr.Transform3D:
+        return rr.Transform3D(translation=[self.x0, self.y0, 0.0], scale=[self.cell, self.cell, 1.0])
+
+    def mask(self, geom) -> np.ndarray:
+        """``(height, width)`` uint8 mask of a polygon (holes cut out) or multipolygon."""
+        m = np.zeros((self.height, self.width), np.uint8)
+        for g in getattr(geom, "geoms", [geom]):
+            if g.geom_type != "Polygon" or g.is_empty:
+                continue
+            ext = self._pixels(np.asarray(g.exterior.coords)[:, :2])
+            cv2.fillPoly(m, [ext], 1, lineType=cv2.LINE_8, shift=4)
+            for ring in g.interiors:
+                cv2.fillPoly(m, [self._pixels(np.asarray(ring.coords)[:, :2])], 0, lineType=cv2.LINE_8, shift=4)
+        return m
+
+    def _pixels(self, xy: np.ndarray) -> np.ndarray:
+        return np.round((xy - [self.x0, self.y0]) / self.cell * 16.0).astype(np.int32)  # shift = 4
+
+
+def fill_images(grid: np.ndarray, raster: FillRaster, *, background=colors.MAP_BACKGROUND) -> list[bytes]:
+    """One RGB PNG per stage of ``grid`` (``(E, n, K)`` geometries or ``None``): every region of
+    every element filled in the element's colour at :data:`FILL_ALPHA` over ``background`` and
+    over each other (a region inside another of the product shows brighter); pixels of no
+    element are the background."""
+    E, _, K = grid.shape
+    out = []
+    bg = np.asarray(background[:3], np.float32)
+    for s in range(K):  # one image per stage; the elements of a stage are few (cap M)
+        rgb = np.empty((raster.height, raster.width, 3), np.float32)
+        rgb[:] = bg
+        for e in range(E):
+            c = np.asarray(element_color(e)[:3], np.float32)
+            for g in grid[e, :, s]:  # each region of the element on its own: nested ones show
+                if g is None or g.is_empty:
+                    continue
+                m = raster.mask(g).astype(bool)
+                rgb[m] = c * FILL_ALPHA + rgb[m] * (1 - FILL_ALPHA)
+        ok, png = cv2.imencode(".png", rgb[..., ::-1].round().clip(0, 255).astype(np.uint8))
+        if not ok:  # pragma: no cover - OpenCV always encodes a valid array
+            raise RuntimeError("OpenCV could not encode an I-state fill image")
+        out.append(png.tobytes())
+    return out
+
+
+def _region_grid(regions: pl.DataFrame, K: int) -> np.ndarray:
     n = int(regions["k"].max()) + 1
     E = int(regions["element"].max()) + 1
-    K = len(times)
     grid = np.full((E, n, K), None, dtype=object)
     geoms = shapely.from_wkb(regions["wkb"].to_numpy())
     grid[regions["element"].to_numpy(), regions["k"].to_numpy(), regions["stage"].to_numpy()] = geoms
+    return grid
+
+
+def log_istate_regions(
+    rec: rr.RecordingStream, tracker: str, regions: pl.DataFrame, times: np.ndarray, *, bounds=None, fill: bool = True
+) -> None:
+    """Every (element slot, k) of the ``regions`` table (t, stage, element, k, wkb) over ``times``:
+    outlines per slot and region, and (``fill``) one fill image per stage over ``bounds``
+    (minx, miny, maxx, maxy; default: the regions' own bounds)."""
+    if regions.height == 0:
+        return
+    log_world_frame(rec, paths.tracker_root(tracker))
+    K = len(times)
+    grid = _region_grid(regions, K)
+    E, n, _ = grid.shape
     tc = paths.time_column(times)
     for e in range(E):
-        col = colors.color_of(f"element{e}", alpha=200)
+        col = element_color(e, alpha=230)
         for k in range(n):
             strips, counts = _strips_per_stage(grid[e, k])
             ent = paths.istate(tracker, str(e), k)
-            rec.log(ent, rr.LineStrips2D.from_fields(colors=[col]), static=True)
+            rec.log(ent, rr.LineStrips2D.from_fields(colors=[col], radii=OUTLINE_WIDTH, labels=[f"element {e + 1}"],
+                                                     show_labels=False, draw_order=15.0), static=True)  # fmt: skip
             rec.send_columns(ent, indexes=[tc], columns=rr.LineStrips2D.columns(strips=strips).partition(counts))
+    if not fill:
+        return
+    if bounds is None:
+        bounds = shapely.union_all([g for g in grid.ravel() if g is not None]).bounds
+    raster = FillRaster(bounds)
+    ent = paths.join(paths.tracker_root(tracker), "istate", "fill")
+    rec.log(ent, raster.transform(), static=True)
+    rec.log(ent, rr.EncodedImage.from_fields(media_type="image/png", draw_order=-5.0), static=True)
+    rec.send_columns(ent, indexes=[tc], columns=rr.EncodedImage.columns(blob=fill_images(grid, raster)))
 
 
 def log_istate_run(
@@ -68,30 +170,31 @@ def log_istate_run(
     sensing: dict | None = None,
     detections: pl.DataFrame | None = None,
 ) -> None:
-    """The ``istate`` stage: I-state regions, sensing regions, detections, element count and area."""
+    """The ``istate`` stage: I-state regions (filled and outlined), sensing regions, detections,
+    element count and area."""
+    root = paths.tracker_root(tracker)
+    log_world_frame(rec, root)
     for sid, g in (sensing or {}).items():
         rec.log(
-            paths.join(paths.tracker_root(tracker), "sensing", paths.part(sid)),
-            rr.LineStrips2D(rings(g), colors=[(120, 120, 120, 160)]),
+            paths.join(root, "sensing", paths.part(sid)),
+            rr.LineStrips2D(rings(g), colors=[SENSING], radii=rr.Radius.ui_points(1.0), labels=[str(sid)], show_labels=False),
             static=True,
         )
     if summary.height == 0:
         return
     times = summary["t"].to_numpy()
-    log_istate_regions(rec, tracker, regions, times)
-    root = paths.tracker_root(tracker)
-    _series(rec, paths.join(root, "elements"), "elements", times, summary["elements"].to_numpy())
-    _series(rec, paths.join(root, "area"), "area", times, summary["area"].to_numpy())
+    bounds = site.boundary.bounds if site is not None else None
+    log_istate_regions(rec, tracker, regions, times, bounds=bounds)
+    _series(rec, paths.join(root, "elements"), "elements in the I-state", (255, 235, 130), times, summary["elements"].to_numpy())
+    _series(rec, paths.join(root, "area"), "area of the I-state", (120, 200, 255), times, summary["area"].to_numpy())
     if detections is not None and detections.height and sensing:
-        counts = detections.group_by("stage").agg(pl.len()).sort("stage")
-        full = np.zeros(len(times), dtype=np.int64)
-        full[counts["stage"].to_numpy()] = counts["len"].to_numpy()
-        strips = [s for sid in detections.sort("stage", maintain_order=True)["sensor"] for s in rings(sensing[sid])]
-        per = [len(rings(sensing[sid])) for sid in detections.sort("stage", maintain_order=True)["sensor"]]
+        d = detections.sort("stage", maintain_order=True)
+        strips = [s for sid in d["sensor"] for s in rings(sensing[sid])]
+        per = [len(rings(sensing[sid])) for sid in d["sensor"]]
         lens = np.zeros(len(times), dtype=np.int64)
-        np.add.at(lens, detections.sort("stage", maintain_order=True)["stage"].to_numpy(), per)
+        np.add.at(lens, d["stage"].to_numpy(), per)
         ent = paths.join(root, "detections")
-        rec.log(ent, rr.LineStrips2D.from_fields(colors=[(255, 60, 60, 255)], radii=[0.04]), static=True)
+        rec.log(ent, rr.LineStrips2D.from_fields(colors=[colors.FIRING], radii=rr.Radius.ui_points(2.5), draw_order=18.0), static=True)
         rec.send_columns(ent, indexes=[paths.time_column(times)], columns=rr.LineStrips2D.columns(strips=strips).partition(lens))
 
 
@@ -119,35 +222,39 @@ def log_active_tracking(
     """
     tc = paths.time_column(times)
     root = paths.tracker_root(tracker)
+    log_world_frame(rec, root)
     if free_space is not None:
+        log_world_frame(rec, paths.SITE)
         rec.log(paths.join(paths.SITE, "free_space"), rr.LineStrips2D(rings(free_space), colors=[colors.WALL]), static=True)
-    for i in range(targets.shape[1]):
-        ent = paths.truth(f"target{i + 1}")
-        rec.log(ent, rr.Points2D.from_fields(colors=[colors.color_of(f"target{i + 1}")], radii=[0.8]), static=True)
-        rec.send_columns(ent, indexes=[tc], columns=rr.Points2D.columns(positions=targets[:, i]))
+    K, n = targets.shape[:2]
+    truth = pl.DataFrame(
+        {"t": np.repeat(times, n), "target": [f"target{i + 1}" for i in range(n)] * K,
+         "x": targets[:, :, 0].ravel(), "y": targets[:, :, 1].ravel()}
+    )  # fmt: skip
+    log_truth(rec, truth, diagonal=None)
     for j in range(trackers.shape[1]):
         base = paths.join(root, "trackers", paths.part(j))
         col = colors.color_of(f"tracker{j}")
-        rec.log(base, rr.Points2D.from_fields(colors=[col], radii=[1.2]), static=True)
+        rec.log(base, rr.Points2D.from_fields(colors=[col], radii=rr.Radius.ui_points(6.0), labels=[f"tracker {j + 1}"], show_labels=True), static=True)
         rec.send_columns(base, indexes=[tc], columns=rr.Points2D.columns(positions=trackers[:, j]))
-        rec.log(paths.join(base, "destination"), rr.Points2D.from_fields(colors=[col], radii=[0.6]), static=True)
+        rec.log(paths.join(base, "destination"), rr.Points2D.from_fields(colors=[col], radii=rr.Radius.ui_points(3.0)), static=True)
         rec.send_columns(paths.join(base, "destination"), indexes=[tc], columns=rr.Points2D.columns(positions=destinations[:, j]))
         strips, counts = _strips_per_stage(sensing[:, j])
         rec.log(paths.join(base, "sensing"), rr.LineStrips2D.from_fields(colors=[col]), static=True)
         rec.send_columns(paths.join(base, "sensing"), indexes=[tc], columns=rr.LineStrips2D.columns(strips=strips).partition(counts))
-        _series(rec, paths.join(root, "elements", paths.part(j)), f"tracker{j}", times, elements[:, j])
+        _series(rec, paths.join(root, "elements", paths.part(j)), f"tracker {j + 1}", col, times, elements[:, j])
     lens = [len(seg) for seg in links]
     strips = [s for seg in links for s in seg]
     rec.log(paths.join(root, "links"), rr.LineStrips2D.from_fields(colors=[(0, 160, 255, 255)]), static=True)
     rec.send_columns(paths.join(root, "links"), indexes=[tc], columns=rr.LineStrips2D.columns(strips=strips).partition(lens))
-    _series(rec, paths.join(root, "P"), "P", times, performance)
+    _series(rec, paths.join(root, "P"), "P (Eq. 1)", (255, 160, 40), times, performance, step=False)
     if regions is not None:
         log_istate_regions(rec, tracker, regions, times)
 
 
 def log_run(rec: rr.RecordingStream, tracker: str, out: dict, *, site, region_graph, config, tables: dict) -> None:
-    """Everything the I-state filter produced: regions, sensing regions, detections, element
-    count and area, and the point summary."""
+    """Everything the I-state filter produced: regions (filled and outlined), sensing regions,
+    detections, element count and area, and the point summary."""
     log_istate_run(
         rec, tracker, out["regions"], out["summary"], site=site,
         sensing=out["artifacts"]["sensing"], detections=out["detections"],

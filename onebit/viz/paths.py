@@ -2,15 +2,26 @@
 
 Every path a stage logs to is built here, so the layout lives in one place::
 
-    site/boundary, site/obstacles/<i>, site/beams/<id>, site/sensors/<id>, site/regions/<name>
-    truth/<target>                      points over time; truth/<target>/path the path so far
-    sensors/<id>                        on/off state over time, crossing events as text
-    <tracker>/particles                 Points2D, radius or colour by weight
-    <tracker>/istate/<element>/<k>      polygons of an I-state element
-    <tracker>/tracks/<track>            estimated position; <tracker>/tracks/<track>/path its path
+    site/boundary, site/obstacles/<i>, site/beams/<id>, site/regions/<name>
+    site/sensors                        every sensor's dim mark; site/sensors/<id>/coverage heat maps
+    truth/<target>                      position now (hollow ring); .../trail recent segments;
+                                        .../path the whole path (static, hidden by default)
+    sensors/<id>                        on/off state over time (StateChange), crossing events as
+                                        text; sensors/<beam>/crossed the beam flashing when crossed
+    <tracker>/particles                 Points2D, colour by weight
+    <tracker>/istate/<element>/<k>      polygons of an I-state element; <tracker>/istate/fill the
+                                        elements filled, as an image placed over the site
+    <tracker>/tracks/<track>            estimate now (a dot in the tracker's colour, labelled
+                                        "track k"); .../trail and .../path as for the truth
     <tracker>/occupancy/<region>        agents per region as Scalars
     <tracker>/decoded/<user>            decoded node sequence as a line strip over the graph
-    scores/<tracker>/<track>            error as Scalars
+    scores/<tracker>/<track>            error as Scalars (hops or site units, one unit per plot)
+
+A **trail** is one short segment per sample (from the previous position to this one), logged
+at the sample's time; the blueprint shows each trail through a visible time range that ends at
+the time cursor (:data:`onebit.viz.trails.TRAIL_S` seconds by default), so the trail moves
+with the cursor and nothing re-logs a growing history. Spatial roots carry a static
+``Transform3D`` flipping y (:mod:`onebit.viz.frame`): the world's y axis points up on screen.
 
 Each id is one path part, escaped with :func:`rerun.escape_entity_path_part`, so an id holding
 ``/``, a space or ``^`` stays one part (``"a^-1"`` becomes ``a\\^-1``).
@@ -75,12 +86,27 @@ def truth(target: str, *, prefix: str = TRUTH) -> str:
 
 
 def truth_path(target: str, *, prefix: str = TRUTH) -> str:
-    """The path so far of ``target``: a child of :func:`truth`."""
-    return join(truth(target, prefix=prefix), "path")
+    """The whole path of ``target`` (static, hidden by default): a child of :func:`truth`."""
+    return full_path(truth(target, prefix=prefix))
+
+
+def trail(entity: str) -> str:
+    """The recent-window trail of a moving ``entity``: ``<entity>/trail``."""
+    return join(entity, "trail")
+
+
+def full_path(entity: str) -> str:
+    """The whole path of a moving ``entity`` (static): ``<entity>/path``."""
+    return join(entity, "path")
 
 
 def sensor(sensor_id: str, *, prefix: str = SENSORS) -> str:
     return join(prefix, part(sensor_id))
+
+
+def sensor_crossed(beam: str, *, prefix: str = SENSORS) -> str:
+    """A beam drawn on the map at the time of each crossing: ``sensors/<beam>/crossed``."""
+    return join(sensor(beam, prefix=prefix), "crossed")
 
 
 # --------------------------------------------------------------------------- trackers
@@ -95,8 +121,18 @@ def track(tracker: str, track_id: str) -> str:
 
 
 def track_path(tracker: str, track_id: str) -> str:
-    """The path so far of one track: a child of :func:`track`."""
-    return join(track(tracker, track_id), "path")
+    """The whole path of one track (static, hidden by default): a child of :func:`track`."""
+    return full_path(track(tracker, track_id))
+
+
+def track_region(tracker: str, track_id: str) -> str:
+    """The region a region-level track is in now, outlined in its colour."""
+    return join(track(tracker, track_id), "region")
+
+
+def track_region_path(tracker: str, track_id: str) -> str:
+    """The whole region path of a region-level track (static, hidden by default)."""
+    return join(track(tracker, track_id), "regions")
 
 
 def occupancy(tracker: str, region: str) -> str:

@@ -9,15 +9,40 @@ application id and recording id, so opening them together overlays them in one r
 from __future__ import annotations
 
 import contextlib
+import os
+import threading
 from collections.abc import Iterator
 from pathlib import Path
 
 import rerun as rr
 
 from onebit.core import writers
+from onebit.core.errors import OnebitError
 
 #: Application id of every onebit recording.
 APPLICATION_ID = "onebit"
+
+
+_ENV_LOCK = threading.RLock()
+
+
+@contextlib.contextmanager
+def rerun_enabled() -> Iterator[None]:
+    """Rerun's ``RERUN`` environment variable (``RERUN=0``/``off``) turns its logging off in the
+    whole process, and a disabled stream writes no file. onebit only writes files (nothing
+    is streamed or spawned), so its recordings are written regardless: inside this block the
+    variable is ``1`` (the SDK reads it when a stream is created); it is restored after.
+    :func:`open_recording` uses it; the runner holds it around a whole run (blueprints too)."""
+    with _ENV_LOCK:
+        old = os.environ.get("RERUN")
+        if old is None:
+            yield
+            return
+        os.environ["RERUN"] = "1"
+        try:
+            yield
+        finally:
+            os.environ["RERUN"] = old
 
 
 def temp_path(path: str | Path) -> Path:
@@ -37,8 +62,12 @@ def open_recording(
         raise ValueError(f"recording_id must be a non-empty string, got {recording_id!r}")
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
-    rec = rr.RecordingStream(application_id, recording_id=recording_id)
-    rec.save(temp_path(path))
+    with rerun_enabled():
+        rec = rr.RecordingStream(application_id, recording_id=recording_id)
+        rec.save(temp_path(path))
+    if not rec.is_enabled():  # pragma: no cover - only if the SDK stops honouring the override
+        raise OnebitError(f"{path}: Rerun logging is turned off in this process (RERUN={os.environ.get('RERUN')!r}), "
+                          "so no recording can be written; unset RERUN")  # fmt: skip
     return rec
 
 
@@ -49,7 +78,7 @@ def close_recording(rec: rr.RecordingStream, path: str | Path) -> Path:
     rec.disconnect()
     tmp = temp_path(path)
     if not tmp.exists():
-        raise FileNotFoundError(f"no recording was opened for {path} (missing temp file {tmp})")
+        raise OnebitError(f"{path}: Rerun wrote no recording (its temporary file {tmp.name} is missing)")
     return writers.commit(tmp, path)
 
 

@@ -2,8 +2,9 @@
 
 Regions are drawn as a translucent outline (:class:`rerun.LineStrips2D`) in the region's
 colour plus a labelled :class:`rerun.Points2D` at ``representative_point()`` on the same
-entity. Rerun 0.41 has no filled 2D polygon archetype, and a triangulated
-:class:`rerun.Mesh3D` would only show in a 3D view, not in the 2D site view.
+entity. Rerun 0.41 has no filled 2D polygon archetype (a triangulated :class:`rerun.Mesh3D`
+shows only in 3D views); where a fill matters (I-states) it is an image placed over the site
+(:mod:`onebit.viz.istate`). The ``site`` root carries the y-up frame (:mod:`onebit.viz.frame`).
 """
 
 from __future__ import annotations
@@ -15,15 +16,18 @@ from onebit.core.region_graph import RegionGraph
 from onebit.core.site import Site
 from onebit.viz import colors, paths
 from onebit.viz._series import rings
+from onebit.viz.frame import log_world_frame
 
 #: Line widths in UI points (independent of the site's units).
 WALL_WIDTH = rr.Radius.ui_points(1.5)
 BEAM_WIDTH = rr.Radius.ui_points(1.5)
 REGION_WIDTH = rr.Radius.ui_points(1.0)
-LABEL_RADIUS = rr.Radius.ui_points(3.0)
+LABEL_RADIUS = rr.Radius.ui_points(1.0)
 
-#: Alpha of region outlines.
-REGION_ALPHA = 110
+#: Region outlines and labels are neutral and dim: the regions' own colours are kept for the
+#: occupancy plot, and a colour on the map means an agent (its current region, outlined).
+REGION_COLOR = (150, 150, 150, 110)
+REGION_LABEL = (170, 170, 170, 255)
 
 
 def beam_arrow(site: Site, beam_id: str) -> tuple[np.ndarray, np.ndarray]:
@@ -38,9 +42,11 @@ def log_site(rec: rr.RecordingStream, site: Site, region_graph: RegionGraph | No
     """Log ``site`` (and the regions of ``region_graph``) as static geometry.
 
     Entities: ``site/boundary``, ``site/obstacles/<i>``, ``site/beams/<id>`` (segment and an
-    arrow to the forward side labelled with the beam id), ``site/regions/<name>``. Without a
-    region graph, the site's named region points are logged as labelled points.
+    arrow to the forward side labelled with the beam id), ``site/regions/<name>`` and
+    ``site/sensors`` (every sensor's dim mark, :func:`log_sensor_marks`). Without a region graph, the site's named
+    region points are logged as labelled points.
     """
+    log_world_frame(rec, paths.SITE)
     rec.log(
         paths.site_boundary(),
         rr.LineStrips2D(rings(site.boundary), radii=WALL_WIDTH, colors=colors.WALL, labels=[site.name], show_labels=False),
@@ -69,12 +75,9 @@ def log_site(rec: rr.RecordingStream, site: Site, region_graph: RegionGraph | No
             outline = rings(poly)
             rec.log(
                 paths.site_region(name),
-                rr.LineStrips2D(
-                    outline, radii=REGION_WIDTH, colors=colors.color_of(name, alpha=REGION_ALPHA), draw_order=5.0
-                ),
+                rr.LineStrips2D(outline, radii=REGION_WIDTH, colors=REGION_COLOR, draw_order=5.0),
                 rr.Points2D(
-                    [[rp.x, rp.y]], radii=LABEL_RADIUS, colors=colors.color_of(name, alpha=REGION_ALPHA),
-                    labels=[name], show_labels=True, draw_order=6.0,
+                    [[rp.x, rp.y]], radii=LABEL_RADIUS, colors=REGION_LABEL, labels=[name], show_labels=True, draw_order=6.0,
                 ),
                 static=True,
             )
@@ -83,8 +86,42 @@ def log_site(rec: rr.RecordingStream, site: Site, region_graph: RegionGraph | No
             rec.log(
                 paths.site_region(spec.name),
                 rr.Points2D(
-                    [spec.point], radii=LABEL_RADIUS, colors=colors.color_of(spec.name, alpha=REGION_ALPHA),
-                    labels=[spec.name], show_labels=True, draw_order=6.0,
+                    [spec.point], radii=LABEL_RADIUS, colors=REGION_LABEL, labels=[spec.name], show_labels=True, draw_order=6.0,
                 ),
                 static=True,
             )
+    log_sensor_marks(rec, site)
+
+
+#: Sensor marks: dim, so the map stays readable; the families highlight the sensors that fire.
+SENSOR_MARK = (130, 130, 130, 200)
+
+
+def log_sensor_marks(rec: rr.RecordingStream, site: Site) -> None:
+    """Every sensor's dim mark on the one entity ``site/sensors`` (static; the id shows on
+    hover): a motion sensor is a short arrow along its heading, a proximity sensor a dot.
+
+    One entity for all sensors, not one per sensor: a static log is a chunk of its own in the
+    file, and the site is drawn in every stage's recording.
+    """
+    length = 0.025 * site.diagonal
+    entity = paths.join(paths.SITE, "sensors")
+    parts = []
+    if site.motion_sensors:
+        a = np.radians([m.heading for m in site.motion_sensors])
+        parts.append(
+            rr.Arrows2D(
+                origins=[m.position for m in site.motion_sensors], vectors=np.c_[np.cos(a), np.sin(a)] * length,
+                radii=rr.Radius.ui_points(1.0), colors=SENSOR_MARK, labels=[m.id for m in site.motion_sensors],
+                show_labels=False, draw_order=11.0,
+            )
+        )  # fmt: skip
+    if site.proximity_sensors:
+        parts.append(
+            rr.Points2D(
+                [p.position for p in site.proximity_sensors], radii=rr.Radius.ui_points(2.0), colors=SENSOR_MARK,
+                labels=[p.id for p in site.proximity_sensors], show_labels=False, draw_order=11.0,
+            )
+        )  # fmt: skip
+    if parts:
+        rec.log(entity, *parts, static=True)

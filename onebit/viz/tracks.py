@@ -1,11 +1,28 @@
 """Tracker output: tracks, per-region occupancy and localisation error.
 
-Entities: ``<tracker>/tracks/<track>`` (a point over time) and ``<tracker>/tracks/<track>/path``
-(its decimated path so far, see :mod:`onebit.viz.truth`), ``<tracker>/occupancy/<region>``
-and ``scores/<tracker>/<track>`` (Scalars). Everything goes through ``send_columns``.
+Entities:
+
+* ``<tracker>/tracks/<track>`` -- the estimate now: a dot in a shade of the tracker's colour
+  (:func:`onebit.viz.colors.track_color`) labelled ``"track k"`` (``k`` = rank of the id in
+  natural order), or ``"<tracker> estimate"`` for a tracker with one track. An estimate never
+  carries a target's name: a tracker cannot know which true target it follows (the scores'
+  association does, and the error plot says so: ``"track 1 ~ agent2"``). The table ids stay
+  as they are (``agent1``, ``user2``, ``c3``) in the entity paths and tables;
+* ``.../trail`` and ``.../path`` -- the recent trail and the hidden whole path
+  (:mod:`onebit.viz.trails`); region-level tracks (``beams``) also have ``.../region`` (the
+  region the track is in now, outlined in its colour) and ``.../regions`` (the whole region
+  path, hidden) instead of ``.../path``;
+* ``<tracker>/occupancy/<region>`` -- agents per region (Scalars, a step series);
+* ``scores/<tracker>/<track>`` -- error of each track against its matched target (Scalars):
+  hops for region and graph trackers, site units for the others
+  (:func:`onebit.viz.families.error_column`).
+
+Everything goes through ``send_columns``.
 """
 
 from __future__ import annotations
+
+import re
 
 import numpy as np
 import polars as pl
@@ -14,13 +31,44 @@ import shapely
 
 from onebit.core.region_graph import RegionGraph
 from onebit.viz import colors, paths
-from onebit.viz._series import groups, is_empty, only_tracker, require
-from onebit.viz.truth import MAX_PATH_UPDATES, MAX_PATH_VERTICES, log_moving_points
+from onebit.viz._series import groups, is_empty, only_tracker, require, rings
+from onebit.viz.families import error_column
+from onebit.viz.frame import log_world_frame
+from onebit.viz.trails import log_dot, log_moving, log_trail
 
 #: Offset of a track's point from its region's representative point, as a fraction of the
 #: region's size (square root of its area).
 TRACK_OFFSET = 0.2
 _GOLDEN_ANGLE = np.pi * (3.0 - np.sqrt(5.0))
+REGION_WIDTH = rr.Radius.ui_points(3.0)
+
+
+def natural_key(value: str) -> list:
+    """Sort key that orders ``"track2"`` before ``"track10"``."""
+    return [int(p) if p.isdigit() else p for p in re.split(r"(\d+)", str(value))]
+
+
+def track_labels(tracker: str, track_ids) -> dict[str, str]:
+    """Display name of each track id: ``"track k"`` by natural order of the ids, or
+    ``"<tracker> estimate"`` when the tracker has a single track.
+
+    Examples
+    --------
+    >>> track_labels("beams", ["agent2", "agent10", "agent1"])
+    {'agent1': 'track 1', 'agent2': 'track 2', 'agent10': 'track 3'}
+    >>> track_labels("intruder", ["intruder"])
+    {'intruder': 'intruder estimate'}
+    """
+    ids = sorted({str(i) for i in track_ids if i is not None}, key=natural_key)
+    if len(ids) == 1:
+        return {ids[0]: f"{tracker} estimate"}
+    return {tid: f"track {k + 1}" for k, tid in enumerate(ids)}
+
+
+def track_colors(tracker: str, track_ids) -> dict[str, tuple[int, int, int, int]]:
+    """Colour of each track id: shades of the tracker's colour in the order of :func:`track_labels`."""
+    ids = sorted({str(i) for i in track_ids if i is not None}, key=natural_key)
+    return {tid: colors.track_color(tracker, k, len(ids)) for k, tid in enumerate(ids)}
 
 
 def region_anchors(region_graph: RegionGraph) -> tuple[np.ndarray, np.ndarray]:
@@ -51,50 +99,60 @@ def region_positions(region_graph: RegionGraph, regions: np.ndarray, slot: int) 
     return np.where(inside[:, None], xy, rp[k])
 
 
+def log_current_region(
+    rec: rr.RecordingStream, entity: str, t: np.ndarray, regions: np.ndarray, region_graph: RegionGraph, *, color
+) -> None:
+    """``entity``: the outline of the region a track is in, from each time it enters one."""
+    idx = region_graph.index
+    outlines = [rings(region_graph.polygons[idx[r]]) for r in regions]
+    rec.log(entity, rr.LineStrips2D.from_fields(colors=color, radii=REGION_WIDTH, draw_order=8.0), static=True)
+    rec.send_columns(
+        entity,
+        indexes=[paths.time_column(t)],
+        columns=rr.LineStrips2D.columns(strips=[s for o in outlines for s in o]).partition([len(o) for o in outlines]),
+    )
+
+
 def log_region_tracks(
-    rec: rr.RecordingStream,
-    tracker: str,
-    tracks: pl.DataFrame | None,
-    region_graph: RegionGraph,
-    *,
-    max_path_updates: int = MAX_PATH_UPDATES,
-    max_path_vertices: int = MAX_PATH_VERTICES,
+    rec: rr.RecordingStream, tracker: str, tracks: pl.DataFrame | None, region_graph: RegionGraph
 ) -> None:
     """Log region-level tracks ``(track, t, region)``: row = the region a track entered at ``t``.
 
-    Each track is a point at its region's representative point (offset per track so tracks in
-    one region do not overlap) on ``<tracker>/tracks/<track>``, and its region path on
-    ``.../path``. Rows of other trackers (when a ``tracker`` column exists) and rows with a
-    null region are skipped; a region not in ``region_graph`` raises ``ValueError``.
+    Per track: a labelled dot at its region's representative point (offset per track so tracks
+    in one region do not overlap) on ``<tracker>/tracks/<track>``, its trail, the region it is
+    in now outlined in its colour (``.../region``) and its whole region path, hidden
+    (``.../regions``). Rows of other trackers (when a ``tracker`` column exists) and rows with
+    a null region are skipped; a region not in ``region_graph`` raises ``ValueError``.
     """
     if is_empty(tracks):
         return
     require(tracks, ("track", "t", "region"), name="tracks")
     tracks = only_tracker(tracks, tracker).drop_nulls(["t", "region"])
+    if tracks.height == 0:
+        return
+    log_world_frame(rec, paths.tracker_root(tracker))
+    labels = track_labels(tracker, tracks["track"].unique().to_list())
+    shades = track_colors(tracker, labels)
     for slot, (track, g) in enumerate(groups(tracks, "track")):
-        xy = region_positions(region_graph, g["region"].to_numpy(), slot)
-        log_moving_points(
-            rec,
-            paths.track(tracker, track),
-            paths.track_path(tracker, track),
-            track,
-            g["t"].to_numpy(),
-            xy,
-            max_path_updates=max_path_updates,
-            max_path_vertices=max_path_vertices,
-            alpha=220,
-        )
+        regions = g["region"].to_numpy()
+        t = g["t"].to_numpy()
+        xy = region_positions(region_graph, regions, slot)
+        entity = paths.track(tracker, track)
+        log_dot(rec, entity, t, xy, color=shades[track], label=labels[track])
+        log_trail(rec, entity, t, xy, color=shades[track])
+        log_current_region(rec, paths.track_region(tracker, track), t, regions, region_graph, color=shades[track])
+        if len(xy) >= 2:
+            rec.log(
+                paths.track_region_path(tracker, track),
+                rr.LineStrips2D([xy], colors=(*shades[track][:3], 150), radii=rr.Radius.ui_points(1.0),
+                                labels=[f"{labels[track]}: whole region path"], show_labels=False, draw_order=20.0),
+                static=True,
+            )  # fmt: skip
 
 
-def log_point_tracks(
-    rec: rr.RecordingStream,
-    tracker: str,
-    tracks: pl.DataFrame | None,
-    *,
-    max_path_updates: int = MAX_PATH_UPDATES,
-    max_path_vertices: int = MAX_PATH_VERTICES,
-) -> None:
-    """Log tracks with positions ``(track, t, x, y)`` on ``<tracker>/tracks/<track>`` (+ ``/path``).
+def log_point_tracks(rec: rr.RecordingStream, tracker: str, tracks: pl.DataFrame | None) -> None:
+    """Log tracks with positions ``(track, t, x, y)`` on ``<tracker>/tracks/<track>`` (+ ``/trail``,
+    ``/path``), each a dot in a shade of the tracker's colour labelled ``"track k"``.
 
     Rows with a null ``x`` or ``y`` and rows of other trackers are skipped.
     """
@@ -102,42 +160,72 @@ def log_point_tracks(
         return
     require(tracks, ("track", "t", "x", "y"), name="tracks")
     tracks = only_tracker(tracks, tracker).drop_nulls(["t", "x", "y"])
+    if tracks.height == 0:
+        return
+    log_world_frame(rec, paths.tracker_root(tracker))
+    labels = track_labels(tracker, tracks["track"].unique().to_list())
+    shades = track_colors(tracker, labels)
     for track, g in groups(tracks, "track"):
-        log_moving_points(
+        log_moving(
             rec,
             paths.track(tracker, track),
-            paths.track_path(tracker, track),
-            track,
             g["t"].to_numpy(),
             g.select("x", "y").to_numpy().astype(np.float64),
-            max_path_updates=max_path_updates,
-            max_path_vertices=max_path_vertices,
-            alpha=220,
+            label=labels[track],
+            color=shades[track],
         )
 
 
-def _log_series(rec: rr.RecordingStream, entity: str, name: str, t: np.ndarray, values: np.ndarray) -> None:
-    rec.log(entity, rr.SeriesLines(colors=colors.color_of(name), names=[name]), static=True)
+def _log_series(rec: rr.RecordingStream, entity: str, name: str, color, t: np.ndarray, values: np.ndarray, *, step: bool) -> None:
+    style = rr.SeriesLines(
+        colors=color, names=[name], widths=[2.0],
+        interpolation_mode=rr.components.InterpolationMode.StepAfter if step else None,
+    )  # fmt: skip
+    rec.log(entity, style, static=True)
     rec.send_columns(entity, indexes=[paths.time_column(t)], columns=rr.Scalars.columns(scalars=values))
 
 
 def log_occupancy(rec: rr.RecordingStream, tracker: str, occupancy: pl.DataFrame | None) -> None:
-    """Log agents per region ``(t, region, count)`` as Scalars on ``<tracker>/occupancy/<region>``."""
+    """Log agents per region ``(t, region, count)`` as step Scalars on ``<tracker>/occupancy/<region>``."""
     if is_empty(occupancy):
         return
     require(occupancy, ("t", "region", "count"), name="occupancy")
     occupancy = only_tracker(occupancy, tracker).drop_nulls(["t", "count"])
     for region, g in groups(occupancy, "region"):
         _log_series(
-            rec, paths.occupancy(tracker, region), region, g["t"].to_numpy(), g["count"].cast(pl.Float64).to_numpy()
-        )
+            rec, paths.occupancy(tracker, region), region, colors.color_of(region), g["t"].to_numpy(),
+            g["count"].cast(pl.Float64).to_numpy(), step=True,
+        )  # fmt: skip
 
 
-def log_scores(rec: rr.RecordingStream, tracker: str, scores: pl.DataFrame | None) -> None:
-    """Log localisation error ``(track, t, error)`` as Scalars on ``scores/<tracker>/<track>``."""
+def log_scores(
+    rec: rr.RecordingStream, tracker: str, scores: pl.DataFrame | None, *, track_ids=None
+) -> None:
+    """Log each track's error ``(track, t, error | hop_error[, target])`` as Scalars on
+    ``scores/<tracker>/<track>``: ``hop_error`` (hops) for region and graph trackers, else
+    ``error`` (site units) -- one unit per tracker, named in its plot's title.
+
+    Series are named ``"track k ~ <target>"`` (the target the scoring matched it to) in the
+    track's colour; ``track_ids`` (all ids of the tracker's tracks) keeps the ``k`` the same as
+    on the map when some track has no score.
+    """
     if is_empty(scores):
         return
-    require(scores, ("track", "t", "error"), name="scores")
-    scores = only_tracker(scores, tracker).drop_nulls(["t", "error"])
+    column = error_column(tracker)
+    if column not in scores.columns:
+        column = "error"
+    require(scores, ("track", "t", column), name="scores")
+    scores = only_tracker(scores, tracker).drop_nulls(["t", column])
+    if scores.height == 0:
+        return
+    ids = list(track_ids) if track_ids is not None else []
+    ids += scores["track"].unique().to_list()
+    labels = track_labels(tracker, ids)
+    shades = track_colors(tracker, labels)
     for track, g in groups(scores, "track"):
-        _log_series(rec, paths.score(tracker, track), track, g["t"].to_numpy(), g["error"].cast(pl.Float64).to_numpy())
+        targets = g["target"].drop_nulls().unique().sort().to_list() if "target" in g.columns else []
+        name = f"{labels[track]} ~ {'/'.join(map(str, targets))}" if targets else labels[track]
+        _log_series(
+            rec, paths.score(tracker, track), name, shades[track], g["t"].to_numpy(), g[column].cast(pl.Float64).to_numpy(),
+            step=False,
+        )  # fmt: skip

@@ -159,3 +159,92 @@ def test_loaded_motion_sensors_have_the_regions_they_declare(sensors):
         r = regions[m["id"]]
         assert r.radius == m.get("range") and (r.fov is not None) == ("fov" in m)
         assert r.covers_xy([m["position"][0]], [m["position"][1]]).all()  # every region holds its sensor here
+
+
+# --------------------------------------------------------------------------- every value checked at load
+
+CAMERA = """
+[camera]
+width = 640
+height = 480
+fps = 10.0
+homography = [[0.01, 0, 0], [0, 0.01, 0], [0, 0, 1]]
+"""
+
+
+@pytest.mark.parametrize(
+    "text, key",
+    [
+        (BASE.replace("spacing = 0.1", "spacing = nan"), "beams[0] (id 'a').spacing"),
+        (BASE.replace("spacing = 0.1", "spacing = inf"), "beams[0] (id 'a').spacing"),
+        (BASE.replace("spacing = 0.1", 'spacing = "0.1"'), "beams[0] (id 'a').spacing"),
+        (BASE.replace('id = "a"', "id = true"), "beams[0].id"),
+        (BASE.replace('id = "a"', "id = 1.5"), "beams[0].id"),
+        (BASE.replace('name = "t"', "name = [1, 2]"), "name"),
+        (BASE + CAMERA.replace("width = 640", "width = true"), "camera.width"),
+        (BASE + CAMERA.replace("width = 640", "width = 640.0"), "camera.width"),
+        (BASE + CAMERA.replace("fps = 10.0", "fps = nan"), "camera.fps"),
+        (BASE + CAMERA.replace("fps = 10.0", "fps = -inf"), "camera.fps"),
+        (BASE + CAMERA + "t0 = nan\n", "camera.t0"),
+        ('epoch = "yesterday"\n' + BASE, "epoch"),
+        ("epoch = 12:00:00\n" + BASE, "epoch"),
+        (BASE + '[[regions]]\nname = "r"\npoint = [1, 1]\ncapacity = true\n', "regions[0].capacity"),
+        (BASE + '[[regions]]\nname = ""\npoint = [1, 1]\n', "regions[0].name"),
+        (BASE.replace('forward = "right"', 'forward = "right"\ncapacity = -1'), "beams[0] (id 'a').capacity"),
+    ],
+)
+def test_bad_values_are_refused_at_load_naming_the_key(tmp_path, text, key):
+    with pytest.raises(SiteError) as info:
+        _load(tmp_path, text)
+    assert f"field '{key}'" in str(info.value)
+
+
+def test_good_epoch_and_camera_load(tmp_path):
+    site = _load(tmp_path, 'epoch = "2024-05-01T08:00:00Z"\n' + BASE + CAMERA)
+    assert site.epoch == "2024-05-01T08:00:00Z" and site.camera.fps == 10.0
+    assert _load(tmp_path, "epoch = 2024-05-01T08:00:00Z\n" + BASE).epoch.startswith("2024-05-01T08:00:00")
+
+
+def test_not_utf8_and_deep_nesting_are_site_errors(tmp_path):
+    p = tmp_path / "site.toml"
+    p.write_bytes(BASE.encode().replace(b'name = "t"', b'name = "t\xff"'))
+    with pytest.raises(SiteError, match=r"site\.toml:2: not UTF-8 text: byte 0xFF at column 10"):
+        load_site(p)
+    p.write_text("x = " + "[" * 20000 + "]" * 20000 + "\n" + BASE)
+    with pytest.raises(SiteError, match="nested too deeply"):
+        load_site(p)
+    p.write_text(BASE.replace('name = "t"', 'name = "' + "n" * 100_000 + '"\nbogus = 1'))
+    with pytest.raises(SiteError) as info:
+        load_site(p)
+    assert len(str(info.value)) < 3000
+
+
+@st.composite
+def _mutated_site(draw) -> bytes:
+    data = bytearray((BASE + CAMERA).encode())
+    for _ in range(draw(st.integers(1, 4))):
+        pos = draw(st.integers(0, len(data)))
+        op = draw(st.sampled_from(["flip", "insert", "delete", "nest", "huge"]))
+        if op == "flip" and data:
+            data[min(pos, len(data) - 1)] ^= 1 << draw(st.integers(0, 7))
+        elif op == "insert":
+            data[pos:pos] = draw(st.sampled_from([b'"', b"[", b"]", b"\n", b"=", b"\xff", b"nan", b"inf", b"true", b"{", b"#"]))
+        elif op == "delete":
+            del data[pos : pos + draw(st.integers(1, 6))]
+        elif op == "nest":
+            k = draw(st.sampled_from([3, 500, 5000]))
+            data[pos:pos] = b"x = " + b"[" * k + b"]" * k + b"\n"
+        else:
+            data[pos:pos] = b"y" * 50_000
+    return bytes(data)
+
+
+@settings(max_examples=120, deadline=None)
+@given(blob=st.one_of(st.binary(max_size=300), _mutated_site()))
+def test_site_fuzz_only_site_errors_and_bounded(tmp_path_factory, blob):
+    p = tmp_path_factory.mktemp("site") / "site.toml"
+    p.write_bytes(blob)
+    try:
+        load_site(p)
+    except SiteError as exc:
+        assert len(str(exc)) <= 2300

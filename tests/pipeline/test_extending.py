@@ -90,8 +90,10 @@ def test_its_config_section_is_validated_and_recorded(data, tmp_path):
     crossings = pl.read_parquet(tmp_path / "a" / "tables" / "crossings.parquet")
     assert np.allclose(tracks["t"].to_numpy(), crossings.sort("t")["t"].to_numpy() + 2.0)
     assert "delay = 2.0" in (tmp_path / "a" / "run.toml").read_text()
-    bad = run_pipeline(data, tmp_path / "b", trackers=(NAME,), tracker_entries=(*TRACKERS, ENTRY), config={NAME: {"dealy": 1}})
-    assert bad.status[NAME].startswith("failed") and "dealy" in bad.status[NAME] and not bad.ok
+    # refused when the run starts (nothing written), naming the section and the field
+    with pytest.raises(ConfigError, match=rf"\[{NAME}\] unknown field 'dealy'"):
+        run_pipeline(data, tmp_path / "b", trackers=(NAME,), tracker_entries=(*TRACKERS, ENTRY), config={NAME: {"dealy": 1}})
+    assert not (tmp_path / "b" / "run.toml").exists()
 
 
 def test_unknown_tracker_names_the_known_ones(data, tmp_path):

@@ -3,15 +3,20 @@
 from __future__ import annotations
 
 import shutil
+import tomllib
 
 import polars as pl
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from onebit.datasets.builtin import builtin_site_path
 from onebit.datasets.beams_sim import write_beams_dataset
 from onebit.cli import main
 from onebit.pipeline.report import load_report, metric
-from onebit.pipeline.runner import run_pipeline
+from onebit.core.errors import MAX_MESSAGE, ConfigError, OnebitError
+from onebit.pipeline.runner import check_sections, load_run_config, run_pipeline
+from onebit.pipeline.stages import stages, tracker_names
 from onebit.viz.inspect import entity_paths, store_ids, verify
 
 
@@ -147,3 +152,69 @@ def test_broken_site_is_a_clear_cli_error(tmp_path, capsys):
     assert main(["run", str(d), "--out", str(tmp_path / "run")]) == 2
     err = capsys.readouterr().err
     assert "site.toml" in err and "boundary.polygon" in err
+
+
+# --------------------------------------------------------------------------- inputs checked before anything is written
+
+
+def test_known_sections_are_the_stage_names(tmp_path):
+    names = [st.name for st in stages()]
+    assert {"motion", "proximity", "correct", "scores", *tracker_names()} <= set(names)
+    with pytest.raises(ConfigError) as info:
+        check_sections({"beam": {"policy": "lifo"}}, stages(), source="run.toml")
+    assert "unknown section [beam]" in str(info.value) and str(sorted(names)) in str(info.value)
+    check_sections({"beams": {"policy": "lifo"}, "scores": {}}, stages(), source="run.toml")
+
+
+def test_a_run_record_as_config_gives_its_stage_sections(lab_run, tmp_path):
+    _, res = lab_run
+    cfg = load_run_config(res.out / "run.toml")
+    assert "stages" not in cfg and "summary" not in cfg and cfg["beams"]["policy"] == "fifo"
+    check_sections(cfg, stages(), source="run.toml")
+
+
+def test_reusing_out_says_what_it_replaces_and_mixes_nothing(lab_run, tmp_path):
+    data, _ = lab_run
+    out = tmp_path / "run"
+    said: list[str] = []
+    run_pipeline(data, out, trackers=("beams",), echo=said.append)
+    first = tomllib.loads((out / "run.toml").read_text())["recording_id"]
+    (out / "notes.txt").write_text("mine")
+    run_pipeline(data, out, trackers=("beams",), config={"correct": {"enabled": False}}, echo=said.append)
+    assert any(f"the previous run (recording {first}): replacing it" in s and "notes.txt" in s for s in said)
+    rid = tomllib.loads((out / "run.toml").read_text())["recording_id"]
+    assert rid != first and not (out / "tables" / "corrected_crossings.parquet").exists()
+    assert {rec for p in (out / "rrd").glob("*.rrd") for _, rec in store_ids(p)} == {rid}
+    assert (out / "notes.txt").read_text() == "mine"
+
+
+VALID_RUN_TOML = b'[beams]\npolicy = "lifo"\n[scores]\ncrossing_tolerance_s = 0.5\n[correct]\nenabled = false\n'
+
+
+@st.composite
+def _mutated_run_toml(draw) -> bytes:
+    data = bytearray(VALID_RUN_TOML)
+    for _ in range(draw(st.integers(1, 4))):
+        pos = draw(st.integers(0, len(data)))
+        op = draw(st.sampled_from(["flip", "insert", "delete", "nest"]))
+        if op == "flip" and data:
+            data[min(pos, len(data) - 1)] ^= 1 << draw(st.integers(0, 7))
+        elif op == "insert":
+            data[pos:pos] = draw(st.sampled_from([b"[", b"]", b'"', b"\n", b"\xff", b"nan", b"-inf", b"= 1", b"[beam]\n", b"x" * 5000]))
+        elif op == "delete":
+            del data[pos : pos + draw(st.integers(1, 6))]
+        else:
+            k = draw(st.sampled_from([3, 3000]))
+            data[pos:pos] = b"\nz = " + b"[" * k + b"]" * k + b"\n"
+    return bytes(data)
+
+
+@settings(max_examples=100, deadline=None)
+@given(blob=st.one_of(st.binary(max_size=200), _mutated_run_toml()))
+def test_run_toml_fuzz_only_onebit_errors_and_bounded(tmp_path_factory, blob):
+    p = tmp_path_factory.mktemp("cfg") / "run.toml"
+    p.write_bytes(blob)
+    try:
+        check_sections(load_run_config(p), stages(), source=p)
+    except OnebitError as exc:
+        assert len(str(exc)) <= MAX_MESSAGE + 200

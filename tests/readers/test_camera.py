@@ -238,3 +238,21 @@ def test_video_without_agents_gives_empty_tables(site, tmp_path):
     assert res.frames == 20
     assert res.truth.height == 0 and res.truth.schema == TRUTH
     assert res.detections.height == 0
+
+
+def test_streamed_reader_equals_the_whole_stack_pipeline(site, rendered):
+    """read_camera decodes twice and never holds the video; the helpers on the whole stack
+    (decode_frames, frame_gains, background_model, noise_threshold, find_blobs) give the
+    same detections."""
+    from onebit.readers.camera import background_model, decode_frames, find_blobs, frame_gains, noise_threshold
+
+    path, _, _ = rendered
+    res = read_camera(path, site)
+    stack, rejects = decode_frames(path, site.camera)
+    gains = frame_gains(stack)
+    bg = background_model(stack, gains)
+    frame, uv, area = find_blobs(stack, gains, bg, noise_threshold(stack, gains, bg))
+    keep = area >= max(6, 0.25 * float(np.median(area)))
+    assert res.frames == len(stack) and res.rejects.equals(rejects)
+    np.testing.assert_array_equal(res.detections["frame"].to_numpy(), frame[keep])
+    np.testing.assert_array_equal(res.detections["area"].to_numpy(), area[keep])

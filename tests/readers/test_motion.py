@@ -141,7 +141,7 @@ def test_rejects_name_line_field_and_reason():
         (1.0, "p1", 1),  # no state change
         (2.0, "p9", 1),  # unknown sensor
         (3.0, "p1", 7),  # bad value
-        (0.5, "p2", 1),  # backwards
+        (-0.5, "p2", 1),  # backwards (more than the 1 s reorder tolerance)
         (4.0, "p1", 0),
         (4.0, "p1", 0),  # duplicate
     ]
@@ -293,5 +293,5 @@ def test_motion_stage_reads_debounces_and_reports(tmp_path: Path):
     assert fr["fired"].to_list() == [True, True, False, False]
 
     assert {"sensors/p1", "sensors/p2"} <= entity_paths(tmp_path / "run" / "rrd" / "motion.rrd")
-    bad = run_pipeline(data, tmp_path / "run2", trackers=("beams",), config={"motion": {"period": -1}})
-    assert bad.status["motion"].startswith("failed") and "period" in bad.status["motion"]
+    with pytest.raises(ConfigError, match=r"\[motion\].*period"):  # refused when the run starts
+        run_pipeline(data, tmp_path / "run2", trackers=("beams",), config={"motion": {"period": -1}})

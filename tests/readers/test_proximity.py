@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import numpy as np
+import pytest
 import polars as pl
 from hypothesis import given, settings
 from hypothesis import strategies as st
@@ -12,7 +13,7 @@ from onebit.readers.proximity import ProximityConfig, proximity_frames, read_pro
 from onebit.core.tables import FRAMES, PROXIMITY
 from onebit.pipeline.report import metric
 from onebit.pipeline.runner import run_pipeline
-from onebit.core.errors import ConfigError
+from onebit.core.errors import ConfigError, InputError
 
 
 def frames_matrix(frames: pl.DataFrame, ids: list[str]) -> np.ndarray:
@@ -84,10 +85,9 @@ def test_config_rejects_non_finite_values_naming_the_field():
             ProximityConfig(**{field: bad})
 
 
-def test_broken_dataset_run_toml_fails_the_stage_naming_the_file(tmp_path):
+def test_broken_dataset_run_toml_is_refused_naming_the_file(tmp_path):
 
     d = SCENARIO_SPECS["pir-line"].write(tmp_path / "pir", seed=1, params={})
     (d / "run.toml").write_text("[proximity\nperiod = 1.0\n")
-    res = run_pipeline(d, tmp_path / "run", trackers=())
-    assert res.status["proximity"].startswith("failed"), res.status
-    assert "run.toml" in res.status["proximity"] and "TOML" in res.status["proximity"]
+    with pytest.raises(InputError, match=r"run\.toml.*TOML"):  # checked when the run starts
+        run_pipeline(d, tmp_path / "run", trackers=())

@@ -23,7 +23,7 @@ from onebit.core.tables import TRACKS
 from onebit.datasets.catalogue import get_scenario
 from onebit.pipeline.runner import run_pipeline
 from onebit.pipeline.stages import TRACKERS
-from onebit.trackers.base import ARTIFACTS
+from onebit.trackers.base import ARTIFACTS, PROGRESS
 
 #: the dataset each tracker is checked on: scenario, duration, params
 DATASETS = {
@@ -131,3 +131,22 @@ def test_empty_inputs_give_empty_outputs_of_the_same_schema(runs, name, tmp_path
     rec.save(str(tmp_path / "empty.rrd"))
     entry.viz(rec, name, out, site=site, region_graph=inputs["region_graph"], config=spec.config(), tables=tables)
     rec.flush()
+
+
+#: trackers with a long loop that must report progress (filter iterations, HMM windows)
+REPORTS_PROGRESS = {"intruder", "findinghumo", "hmm1", "hmm2"}
+
+
+@pytest.mark.parametrize("name", sorted(TRACKER_DATA))
+def test_a_progress_callback_changes_nothing_and_counts_up(runs, name):
+    spec = ENTRIES[name].spec
+    run = runs[TRACKER_DATA[name]]
+    site = load_site(run.parent / TRACKER_DATA[name] / "site.toml")
+    inputs = _inputs(run, spec, site)
+    calls: list[tuple[int, int]] = []
+    plain = _tables(spec.run(dict(inputs), site, spec.config()))
+    told = _tables(spec.run({**inputs, PROGRESS: lambda done, total: calls.append((done, total))}, site, spec.config()))
+    assert plain.keys() == told.keys() and all(plain[k].equals(told[k]) for k in plain), name
+    assert all(0 <= d <= t for d, t in calls) and [d for d, _ in calls] == sorted(d for d, _ in calls)
+    if name in REPORTS_PROGRESS:
+        assert len(calls) > 1 and calls[-1][0] == calls[-1][1], (name, calls[-3:])

@@ -20,14 +20,13 @@ from onebit.viz import (
     log_scores,
     log_site,
     log_truth,
-    make_blueprint,
     open_recording,
     paths,
-    send_blueprint,
+    save_run_blueprint,
     stage_recording,
 )
 from onebit.viz import inspect as rrd
-from onebit.viz._series import paths_so_far, update_indices
+from onebit.viz._series import update_indices
 from onebit.viz.tracks import region_positions
 
 RUN_ID = "run-test-0001"
@@ -89,14 +88,14 @@ def scores_frame() -> pl.DataFrame:
 
 def write_full(out_dir, site, region_graph, *, stage="beams", recording_id=RUN_ID):
     with stage_recording(out_dir, stage, recording_id) as rec:
-        send_blueprint(rec, trackers=["beams"])
         log_site(rec, site, region_graph)
-        log_crossings(rec, crossings_frame(), aborted=aborted_frame())
+        log_crossings(rec, crossings_frame(), aborted=aborted_frame(), site=site)
         log_truth(rec, truth_frame())
         log_region_tracks(rec, "beams", region_tracks_frame(), region_graph)
         log_point_tracks(rec, "particles", pl.DataFrame({"track": ["p"], "t": [0.0], "x": [1.0], "y": [1.0]}))
         log_occupancy(rec, "beams", occupancy_frame())
         log_scores(rec, "beams", scores_frame())
+    save_run_blueprint(out_dir / "rrd", units=site.units)
     return out_dir / "rrd" / f"{stage}.rrd"
 
 
@@ -116,13 +115,17 @@ def test_stage_recording_holds_design_paths(tmp_path, lab):
         "site/regions/r1",
         "site/regions/r5",
         "truth/A",
+        "truth/A/trail",
         "truth/A/path",
         "truth/B",
         "sensors/a",
+        "sensors/a/crossed",
         "sensors/b",
         "sensors/c",
         "beams/tracks/u1",
-        "beams/tracks/u1/path",
+        "beams/tracks/u1/trail",
+        "beams/tracks/u1/region",
+        "beams/tracks/u1/regions",
         "beams/tracks/u2",
         "beams/occupancy/r4",
         "particles/tracks/p",
@@ -130,6 +133,11 @@ def test_stage_recording_holds_design_paths(tmp_path, lab):
     }
     assert expected <= found, expected - found
     assert rrd.store_ids(path) == [("onebit", RUN_ID)]
+    # the run's blueprint: a file and a recording of the run that holds only the layout
+    assert (path.parent / "blueprint.rbl").is_file()
+    assert rrd.store_ids(path.parent / "_blueprint.rrd") == [("onebit", RUN_ID)]
+    assert rrd.entity_paths(path.parent / "_blueprint.rrd") == set()
+    rrd.verify(path.parent / "_blueprint.rrd")
 
 
 def test_cli_print_shows_paths_and_ids(tmp_path, lab):
@@ -212,6 +220,9 @@ def test_paths_escape_ids():
     assert paths.occupancy("beams", "r1") == "beams/occupancy/r1"
     assert paths.score("beams", "u1") == "scores/beams/u1"
     assert paths.truth_path("A") == "truth/A/path"
+    assert paths.trail(paths.truth("A")) == "truth/A/trail"
+    assert paths.track_region("beams", "u1") == "beams/tracks/u1/region"
+    assert paths.sensor_crossed("a") == "sensors/a/crossed"
     assert paths.istate("istate", "e", 3) == "istate/istate/e/3"
     assert paths.sensor("x/y") == "sensors/x\\/y"
 
@@ -231,14 +242,10 @@ def test_colors_are_stable():
     assert tuple(c[0]) == color_of("r1", alpha=100)
 
 
-def test_paths_so_far_is_bounded_and_ends_at_current():
-    xy = np.c_[np.arange(5000.0), np.zeros(5000)]
-    at = update_indices(len(xy), 200)
-    assert len(at) == 200 and at[0] == 0 and at[-1] == 4999
-    strips = paths_so_far(xy, at, max_vertices=100)
-    assert all(len(s) <= 101 for s in strips)
-    assert all((s[-1] == xy[i]).all() for s, i in zip(strips, at))
-    assert (strips[-1][0] == xy[0]).all()
+def test_update_indices_are_spread_and_end_at_the_last():
+    at = update_indices(5000, 200)
+    assert len(at) == 200 and at[0] == 0 and at[-1] == 4999 and (np.diff(at) > 0).all()
+    assert update_indices(0, 10).size == 0
 
 
 def test_region_positions_stay_inside(lab):
@@ -249,21 +256,3 @@ def test_region_positions_stay_inside(lab):
         assert (region_graph.region_of(xy[:, 0], xy[:, 1]) == regions).all()
     a, b = region_positions(region_graph, regions[:1], 0), region_positions(region_graph, regions[:1], 1)
     assert not np.allclose(a, b)
-
-
-def _views(container):
-    for c in container.contents:
-        if hasattr(c, "contents") and not hasattr(c, "origin"):
-            yield from _views(c)
-        else:
-            yield c
-
-
-def test_blueprint_shows_each_tracker_in_the_site_view():
-    views = {v.name: v for v in _views(make_blueprint(trackers=["beams", "intruder"]).root_container)}
-    assert {"site", "occupancy", "error", "sensors"} <= set(views)
-    site = views["site"].contents
-    assert {"site/**", "truth/**", "beams/**", "intruder/**"} <= set(site)
-    assert "-beams/occupancy/**" in site  # occupancy is a time series, not a map layer
-    empty = {v.name: v for v in _views(make_blueprint(trackers=[]).root_container)}
-    assert not any("beams" in c for c in empty["site"].contents)

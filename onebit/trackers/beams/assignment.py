@@ -12,8 +12,9 @@ region ``r`` keeps a queue ``Q_r`` of the agents currently in it (all empty at t
 Time O(|y| + |R|), space O(|y| + |R|) here (queues hold agent ids, not copies of strings).
 
 This algorithm is inherently sequential: the agent chosen for crossing ``j`` depends on every
-queue operation before it, so it is one pass over the string with O(1) deque operations;
-the inputs are converted to plain integer lists first so the loop does no numpy indexing.
+queue operation before it, so it is one compiled pass over the string
+(:mod:`onebit.trackers.beams.kernels`, queues as linked lists, O(1) per operation); the
+plain Python pass (:func:`assign_agents_reference`, deques) is its reference and test oracle.
 
 Proposition 3.1: with either policy the number of agents is the minimum that explains ``y``,
 ``sum_r max(0, max_k (exits_r(k) - entries_r(k)))`` over prefixes ``k``
@@ -60,7 +61,14 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from onebit.trackers.beams import kernels
+
 POLICIES = ("fifo", "lifo")
+
+#: Crossings from which :func:`assign_agents` runs the compiled pass by default (base,
+#: with variations): below them the Python pass takes less than numba's start in a fresh
+#: process (0.3-1 s, once per process).
+COMPILED_MIN = {False: 200_000, True: 5_000}
 
 
 @dataclass(frozen=True)
@@ -134,6 +142,7 @@ def assign_agents(
     policy: str = "fifo",
     constraints: Constraints | None = None,
     times: np.ndarray | None = None,
+    compiled: bool | None = None,
 ) -> Assignment:
     """Run Algorithm 1 on crossings given as region indices ``source[j] -> target[j]``.
 
@@ -144,6 +153,9 @@ def assign_agents(
     policy : ``"fifo"`` (agent waiting longest leaves first) or ``"lifo"`` (last in, first out).
     constraints : the section IV variations; ``None`` runs the base algorithm.
     times : (m,) crossing times in seconds, needed by ``constraints.min_traversal`` (E).
+    compiled : run the compiled pass (:mod:`onebit.trackers.beams.kernels`); ``None`` = from
+        :data:`COMPILED_MIN` crossings on (below it the Python pass, :func:`assign_agents_reference`,
+        is as fast as starting numba in a fresh process). Same result either way.
 
     Examples
     --------
@@ -154,8 +166,35 @@ def assign_agents(
     """
     if policy not in POLICIES:
         raise ValueError(f"policy must be one of {POLICIES}, got {policy!r}")
-    if constraints is not None and not constraints.trivial:
+    constrained = constraints is not None and not constraints.trivial
+    if compiled is None:
+        compiled = len(source) >= COMPILED_MIN[constrained]
+    if not compiled:
+        return assign_agents_reference(source, target, n_regions, policy=policy, constraints=constraints, times=times)
+    if constrained:
         return _assign_constrained(source, target, n_regions, policy, constraints, times)
+    src = np.ascontiguousarray(source, dtype=np.int64)
+    tgt = np.ascontiguousarray(target, dtype=np.int64)
+    out, initial = kernels.assign_base(src, tgt, int(n_regions), policy == "lifo")
+    n = len(initial)
+    return Assignment(out, n, initial, team=np.full(n, -1, np.int64))
+
+
+def assign_agents_reference(
+    source: np.ndarray,
+    target: np.ndarray,
+    n_regions: int,
+    *,
+    policy: str = "fifo",
+    constraints: Constraints | None = None,
+    times: np.ndarray | None = None,
+) -> Assignment:
+    """:func:`assign_agents` as a plain Python pass (deques / lists as region queues): the
+    reference of the compiled kernels and their test oracle (same arguments, same result)."""
+    if policy not in POLICIES:
+        raise ValueError(f"policy must be one of {POLICIES}, got {policy!r}")
+    if constraints is not None and not constraints.trivial:
+        return assign_constrained_reference(source, target, n_regions, policy, constraints, times)
     src = np.asarray(source, dtype=np.int64).tolist()
     tgt = np.asarray(target, dtype=np.int64).tolist()
     queues = [deque() for _ in range(n_regions)]
@@ -178,7 +217,63 @@ def assign_agents(
 
 
 def _assign_constrained(source, target, n_regions: int, policy: str, c: Constraints, times) -> Assignment:
-    """Algorithm 1 with the variations of :class:`Constraints` (see the module docstring).
+    """Algorithm 1 with the variations of :class:`Constraints` (see the module docstring):
+    the compiled :func:`onebit.trackers.beams.kernels.assign_constrained`, then the reasons
+    of the unexplained crossings written in words. Same result as
+    :func:`assign_constrained_reference`.
+    """
+    src = np.ascontiguousarray(source, dtype=np.int64)
+    tgt = np.ascontiguousarray(target, dtype=np.int64)
+    m = len(src)
+    p = int(n_regions)
+    names = list(c.region_names) if c.region_names is not None else [f"r{i}" for i in range(p)]
+    cap = np.asarray(c.capacity, np.int64) if c.capacity is not None else np.full(p, -1, np.int64)
+    tau = np.asarray(c.min_traversal, np.float64) if c.min_traversal is not None else np.zeros(p)
+    use_time = bool(np.any(tau > 0))
+    if use_time:
+        if times is None or len(times) != m:
+            raise ValueError("min_traversal (variation E) needs one time stamp per crossing")
+        tt = np.ascontiguousarray(times, dtype=np.float64)
+    else:
+        tt = np.zeros(m)
+    team_cap = np.asarray(c.team_capacity, np.int64).reshape(p, -1) if c.team_capacity is not None else np.zeros((p, 0), np.int64)
+    rank = np.asarray(c.team_rank, np.int64) if c.team_rank is not None else np.zeros(0, np.int64)
+    n_teams = team_cap.shape[1] if c.team_capacity is not None else (len(rank) if c.team_rank is not None else 0)
+    if c.initial_region is not None:
+        init = np.asarray(c.initial_region, np.int64)
+        tm = np.asarray(c.team, np.int64) if c.team is not None else np.full(len(init), -1, np.int64)
+        if len(tm) != len(init):
+            raise ValueError(f"team has {len(tm)} entries but initial_region has {len(init)}")
+    else:
+        init, tm = np.zeros(0, np.int64), np.zeros(0, np.int64)
+    max_agents = len(init) if c.initial_region is not None else int(c.max_agents)
+    out, initial, team, un, code, why, why_order, q_len = kernels.assign_constrained(
+        src, tgt, p, policy == "lifo", np.ascontiguousarray(cap), np.ascontiguousarray(tau), use_time, tt,
+        int(c.max_track_length), bool(c.prefer_short), np.ascontiguousarray(team_cap),
+        c.team_capacity is not None, np.ascontiguousarray(rank), c.team_rank is not None, int(n_teams),
+        np.ascontiguousarray(init), np.ascontiguousarray(tm), c.initial_region is not None, int(max_agents),
+    )  # fmt: skip
+    reasons = []
+    for j, k, w, wo, ql in zip(un.tolist(), code.tolist(), why.tolist(), why_order.tolist(), q_len.tolist()):
+        s, t = int(src[j]), int(tgt[j])
+        if k == kernels.CAPACITY:
+            reasons.append(f"capacity of {names[t]} ({cap[t]}) reached")
+        elif k == kernels.NO_ELIGIBLE:
+            met = sorted((o, r) for r, o in enumerate(wo) if o >= 0)
+            detail = ", ".join(f"{w[r]} {kernels.WHY[r]}" for _, r in met)
+            reasons.append(f"no eligible agent among the {ql} in {names[s]} ({detail})")
+        elif k == kernels.LENGTH_ONE:
+            reasons.append(f"no agent in {names[s]}; a new one would exceed max_track_length 1")
+        elif k == kernels.ALL_KNOWN:
+            reasons.append(f"no agent in {names[s]} and all {max_agents} agents are known")
+        else:
+            reasons.append(f"no agent in {names[s]} and no room for a new one (capacity {cap[s]})")
+    return Assignment(out, len(initial), initial, un, tuple(reasons), team)
+
+
+def assign_constrained_reference(source, target, n_regions: int, policy: str, c: Constraints, times) -> Assignment:
+    """Algorithm 1 with the variations of :class:`Constraints` (see the module docstring) as
+    a plain Python pass: the reference of the compiled kernel and its test oracle.
 
     Inherently sequential, one pass; Line 5 scans ``Q_source`` when B, D or E is active.
     """

@@ -89,10 +89,14 @@ import numpy as np
 from scipy.sparse import csr_matrix
 from scipy.sparse.csgraph import shortest_path
 
+from onebit.trackers.beams import kernels
 from onebit.trackers.beams.assignment import region_deficits, region_events
 
 PLACEMENTS = ("earliest", "latest", "midpoint")
 _FAR = 10**6  # hop distance standing for "unreachable"
+
+#: Crossings from which :func:`correct` runs the compiled DP by default.
+COMPILED_MIN = 2_000
 
 
 # --------------------------------------------------------------------------- I_C
@@ -336,6 +340,7 @@ def correct(
     window: int = 4096,
     max_chunk: int = 8192,
     times=None,
+    compiled: bool | None = None,
 ) -> Correction:
     """Fewest inserted crossings that put ``source -> target`` in ``L(M_C)``.
 
@@ -350,6 +355,10 @@ def correct(
     window : how many crossings back an insertion may be moved.
     times : (m,) sorted times of the observed crossings; ``"midpoint"`` then works in time and
         gives every inserted crossing one (``Correction.time``), otherwise it works on ranks.
+    compiled : the DP as one compiled pass over the string
+        (:func:`onebit.trackers.beams.kernels.correction_dp`); ``False`` runs the numpy
+        reference (same result); ``None`` = compiled from :data:`COMPILED_MIN` crossings on
+        (below it the reference is faster than starting numba in a fresh process).
     """
     if placement not in PLACEMENTS:
         raise ValueError(f"placement must be one of {PLACEMENTS}, got {placement!r}")
@@ -376,66 +385,19 @@ def correct(
     H = np.where(edges.hops >= 0, edges.hops, _FAR)
     diam = max(edges.diameter, 1)
 
-    E = start.astype(np.int32)
-    cost = np.zeros(len(E), dtype=np.int64)
-    node = np.arange(len(E), dtype=np.int64)  # start nodes 0..K0-1 (no parent)
-    par: list[np.ndarray] = [np.full(len(E), -1, dtype=np.int64)]
-    npos: list[np.ndarray] = [np.full(len(E), -1, dtype=np.int64)]
-    nreg: list[np.ndarray] = [np.full(len(E), -1, dtype=np.int64)]
-    n_nodes = len(E)
-    E, cost, node = _merge_and_prune(E, cost, node, diam)
-    peak, events = len(E), 0
-    i, L = 0, 64
-    while i < m:
-        hi = min(m, i + L)
-        s, t = src[i:hi], tgt[i:hi]
-        c = np.cumsum(crossing_deltas(s, t, p), axis=0)
-        cpre_s = np.r_[0, c[:-1][np.arange(len(s) - 1), s[1:]]] if len(s) > 1 else np.zeros(1, np.int32)
-        before = E[:, s] + cpre_s[None, :]  # (K, l) agents in the source region before crossing k
-        bad_any = (before < 1).any(axis=0)
-        if not bad_any.any():
-            E = E + c[-1]
-            i, L = hi, min(2 * L, max_chunk)
-            continue
-        k = int(np.argmax(bad_any))
-        if k:
-            E = E + c[k - 1]
-        pos, sk, tk = i + k, int(s[k]), int(t[k])
-        deficit = E[:, sk] < 1
-        okE = E[~deficit].copy()
-        okE[:, sk] -= 1
-        okE[:, tk] += 1
-        dE = E[deficit]
-        rows, rs = np.nonzero(dE >= 1)
-        reach = H[rs, sk] < _FAR
-        rows, rs = rows[reach], rs[reach]
-        newE = dE[rows].copy()
-        newE[np.arange(len(rows)), rs] -= 1
-        newE[:, tk] += 1
-        newcost = cost[deficit][rows] + H[rs, sk]
-        newnode = np.arange(n_nodes, n_nodes + len(rows), dtype=np.int64)
-        par.append(node[deficit][rows])
-        npos.append(np.full(len(rows), pos, dtype=np.int64))
-        nreg.append(rs.astype(np.int64))
-        n_nodes += len(rows)
-        E = np.concatenate([okE, newE])
-        cost = np.concatenate([cost[~deficit], newcost])
-        node = np.concatenate([node[~deficit], newnode])
-        if len(E) == 0:
-            raise ValueError(f"crossing {pos} cannot be explained: no agent can reach its source region")
-        E, cost, node = _merge_and_prune(E, cost, node, diam)
-        peak, events = max(peak, len(E)), events + 1
-        i, L = pos + 1, 64
-
-    best = int(np.lexsort((node, cost))[0])
-    parent = np.concatenate(par)
-    position = np.concatenate(npos)
-    region = np.concatenate(nreg)
-    blocks: list[tuple[int, int]] = []  # (position, source region r) of each insertion block
-    q = int(node[best])
-    while parent[q] >= 0:
-        blocks.append((int(position[q]), int(region[q])))
-        q = int(parent[q])
+    if compiled if compiled is not None else m >= COMPILED_MIN:
+        best, parent, position, region, q, peak, events, bad = kernels.correction_dp(
+            src, tgt, np.ascontiguousarray(start, dtype=np.int64), np.ascontiguousarray(H, dtype=np.int64), _FAR, int(diam)
+        )
+        if bad >= 0:
+            raise ValueError(f"crossing {bad} cannot be explained: no agent can reach its source region")
+        blocks = []
+        node_q = int(best)
+        while parent[node_q] >= 0:
+            blocks.append((int(position[node_q]), int(region[node_q])))
+            node_q = int(parent[node_q])
+    else:
+        blocks, q, peak, events = _correction_dp_reference(src, tgt, start, H, diam, max_chunk)
     eta0 = start[q].astype(np.int64)
     blocks.reverse()
 
@@ -541,6 +503,77 @@ def place_insertions(S, T, inserted, obs, edge, initial, *, window: int = 4096, 
     if times is None:
         tau_out[:] = np.nan
     return S, T, inserted, obs, edge, tau_out
+
+
+def _correction_dp_reference(src, tgt, start, H, diam, max_chunk: int = 8192):
+    """The dynamic programme of :func:`correct` vectorised in numpy over the live count states
+    and over runs of crossings without deficits: the reference of the compiled
+    :func:`onebit.trackers.beams.kernels.correction_dp` and its test oracle. Returns
+    ``(blocks, start index, peak states, events)`` with ``blocks`` the (position, source
+    region) of each insertion block, last first."""
+    p = start.shape[1]
+    m = len(src)
+    E = start.astype(np.int32)
+    cost = np.zeros(len(E), dtype=np.int64)
+    node = np.arange(len(E), dtype=np.int64)  # start nodes 0..K0-1 (no parent)
+    par: list[np.ndarray] = [np.full(len(E), -1, dtype=np.int64)]
+    npos: list[np.ndarray] = [np.full(len(E), -1, dtype=np.int64)]
+    nreg: list[np.ndarray] = [np.full(len(E), -1, dtype=np.int64)]
+    n_nodes = len(E)
+    E, cost, node = _merge_and_prune(E, cost, node, diam)
+    peak, events = len(E), 0
+    i, L = 0, 64
+    while i < m:
+        hi = min(m, i + L)
+        s, t = src[i:hi], tgt[i:hi]
+        c = np.cumsum(crossing_deltas(s, t, p), axis=0)
+        cpre_s = np.r_[0, c[:-1][np.arange(len(s) - 1), s[1:]]] if len(s) > 1 else np.zeros(1, np.int32)
+        before = E[:, s] + cpre_s[None, :]  # (K, l) agents in the source region before crossing k
+        bad_any = (before < 1).any(axis=0)
+        if not bad_any.any():
+            E = E + c[-1]
+            i, L = hi, min(2 * L, max_chunk)
+            continue
+        k = int(np.argmax(bad_any))
+        if k:
+            E = E + c[k - 1]
+        pos, sk, tk = i + k, int(s[k]), int(t[k])
+        deficit = E[:, sk] < 1
+        okE = E[~deficit].copy()
+        okE[:, sk] -= 1
+        okE[:, tk] += 1
+        dE = E[deficit]
+        rows, rs = np.nonzero(dE >= 1)
+        reach = H[rs, sk] < _FAR
+        rows, rs = rows[reach], rs[reach]
+        newE = dE[rows].copy()
+        newE[np.arange(len(rows)), rs] -= 1
+        newE[:, tk] += 1
+        newcost = cost[deficit][rows] + H[rs, sk]
+        newnode = np.arange(n_nodes, n_nodes + len(rows), dtype=np.int64)
+        par.append(node[deficit][rows])
+        npos.append(np.full(len(rows), pos, dtype=np.int64))
+        nreg.append(rs.astype(np.int64))
+        n_nodes += len(rows)
+        E = np.concatenate([okE, newE])
+        cost = np.concatenate([cost[~deficit], newcost])
+        node = np.concatenate([node[~deficit], newnode])
+        if len(E) == 0:
+            raise ValueError(f"crossing {pos} cannot be explained: no agent can reach its source region")
+        E, cost, node = _merge_and_prune(E, cost, node, diam)
+        peak, events = max(peak, len(E)), events + 1
+        i, L = pos + 1, 64
+
+    best = int(np.lexsort((node, cost))[0])
+    parent = np.concatenate(par)
+    position = np.concatenate(npos)
+    region = np.concatenate(nreg)
+    blocks: list[tuple[int, int]] = []  # (position, source region r) of each insertion block
+    q = int(node[best])
+    while parent[q] >= 0:
+        blocks.append((int(position[q]), int(region[q])))
+        q = int(parent[q])
+    return blocks, q, peak, events
 
 
 def min_insertions_bfs(src, tgt, edges: RegionEdges, starts) -> int:

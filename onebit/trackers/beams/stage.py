@@ -40,7 +40,8 @@ class BeamsConfig:
     prefer_short_tracks : IV-B, region queues ordered by regions visited, shortest first.
     initial_regions : IV-C, the initial region of every agent (n = its length); no other
         agent is created. Empty = unknown.
-    max_agents : when ``initial_regions`` is empty, most agents that may be created; 0 = unbounded.
+    max_agents : when ``initial_regions`` is empty, most agents that may be created; 0 = the
+        site's ``targets`` (the most agents present at once), unbounded when it does not say.
     teams : IV-D, the team of every agent of ``initial_regions`` (same length). Empty = none.
     team_names : IV-D, the m teams, in the order of the ``team_capacity`` tuples and of the
         exit priority.
@@ -157,7 +158,7 @@ class BeamsConfig:
             max_track_length=self.max_track_length,
             prefer_short=self.prefer_short_tracks,
             initial_region=init,
-            max_agents=self.max_agents,
+            max_agents=self.max_agents or (site.targets or 0),
             team=team,
             team_capacity=tcap,
             team_rank=rank,

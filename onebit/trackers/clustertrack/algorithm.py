@@ -41,6 +41,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from onebit.trackers.clustertrack import kernels
 from onebit.trackers.clustertrack.space import FeasibleSpace
 
 
@@ -94,15 +95,17 @@ def _norm(v: np.ndarray) -> np.ndarray:
     return np.sqrt(np.sum(v * v, axis=-1))
 
 
-def scan_clusters(cost: np.ndarray, parent: np.ndarray, x: np.ndarray, pd: np.ndarray, steps: int,
-                  *, H: int, K: int, L: int, D0: float, rng: np.random.Generator):
-    """Steps 3-18 of Algorithm 1 over candidates ``(parent, x)`` with ``cost``.
+#: Candidates to scan from which :func:`scan_clusters` runs the compiled scan by default.
+SCAN_COMPILED_MIN = 1_000
 
-    ``pd (K_prev, K_prev)``: summed distances between the parents over the earlier steps;
-    ``steps`` = t (length of a candidate trajectory). Returns ``(kept, label, is_head,
-    n_scanned)``: candidate indices kept (in scan order), their cluster ids (0.. in order of
-    foundation), whether each is its cluster's head, and how many were scanned.
-    """
+#: A pass of :func:`cluster_track` uses the compiled scan from ``steps x L`` = this on: below
+#: it the numpy scan costs less than starting numba in a fresh process (~0.3-1 s, once).
+PASS_COMPILED_MIN = 200_000
+
+
+def scan_order(cost: np.ndarray, L: int, rng: np.random.Generator) -> np.ndarray:
+    """The candidates to scan, in scan order: the ``L`` cheapest, by increasing cost, ties
+    in a random order (one random permutation of all candidates, then a stable sort)."""
     n = cost.size
     perm = rng.permutation(n)
     lim = min(L, n)
@@ -111,7 +114,44 @@ def scan_clusters(cost: np.ndarray, parent: np.ndarray, x: np.ndarray, pd: np.nd
         sel = perm[part]
     else:
         sel = perm
-    order = sel[np.argsort(cost[sel], kind="stable")]
+    return sel[np.argsort(cost[sel], kind="stable")]
+
+
+def scan_clusters(cost: np.ndarray, parent: np.ndarray, x: np.ndarray, pd: np.ndarray, steps: int,
+                  *, H: int, K: int, L: int, D0: float, rng: np.random.Generator, compiled: bool | None = None):
+    """Steps 3-18 of Algorithm 1 over candidates ``(parent, x)`` with ``cost``.
+
+    ``pd (K_prev, K_prev)``: summed distances between the parents over the earlier steps;
+    ``steps`` = t (length of a candidate trajectory). Returns ``(kept, label, is_head,
+    n_scanned)``: candidate indices kept (in scan order), their cluster ids (0.. in order of
+    foundation), whether each is its cluster's head, and how many were scanned.
+
+    The order (:func:`scan_order`) is numpy; the scan itself, sequential by nature, is the
+    compiled :func:`onebit.trackers.clustertrack.kernels.scan_sorted`, which stops at the
+    ``K``-th kept candidate (:func:`scan_clusters_reference` is its numpy reference).
+    ``compiled=None``: the kernel from :data:`SCAN_COMPILED_MIN` candidates to scan on
+    (below, the numpy scan; same result).
+    """
+    if not (min(L, cost.size) >= SCAN_COMPILED_MIN if compiled is None else compiled):
+        return scan_clusters_reference(cost, parent, x, pd, steps, H=H, K=K, L=L, D0=D0, rng=rng)
+    order = scan_order(cost, L, rng)
+    par = np.ascontiguousarray(parent[order], dtype=np.int64)
+    xs = np.ascontiguousarray(x[order], dtype=np.float64).reshape(order.size, -1)
+    k, lab, head, scanned = kernels.scan_sorted(par, xs, np.ascontiguousarray(pd, dtype=np.float64), float(steps), int(H), int(K), float(D0))
+    return order[k], lab, head, int(scanned)
+
+
+def scan_clusters_reference(cost: np.ndarray, parent: np.ndarray, x: np.ndarray, pd: np.ndarray, steps: int,
+                  *, H: int, K: int, L: int, D0: float, rng: np.random.Generator):
+    """Steps 3-18 of Algorithm 1, vectorised in numpy (once per cluster head over every later
+    candidate): the plain reference of :func:`scan_clusters` and its test oracle.
+
+    ``pd (K_prev, K_prev)``: summed distances between the parents over the earlier steps;
+    ``steps`` = t (length of a candidate trajectory). Returns ``(kept, label, is_head,
+    n_scanned)``: candidate indices kept (in scan order), their cluster ids (0.. in order of
+    foundation), whether each is its cluster's head, and how many were scanned.
+    """
+    order = scan_order(cost, L, rng)
     par, xs = parent[order], x[order]
     m = order.size
     dmin = np.full(m, np.inf)
@@ -158,9 +198,17 @@ def scan_clusters(cost: np.ndarray, parent: np.ndarray, x: np.ndarray, pd: np.nd
 
 
 def cluster_track(space: FeasibleSpace, p: Params, rng: np.random.Generator, *, record: bool = False) -> RunResult:
-    """One pass of Algorithm 1 over the space's steps (sequential in time by nature)."""
+    """One pass of Algorithm 1 over the space's steps (sequential in time by nature).
+
+    Memory and time linear in the number of steps: a particle carries only what the next
+    step needs -- its last two positions (for the cost increment), its cost and its summed
+    distances to the others (``pd``) -- and each step stores its survivors' positions and
+    parents, from which the final tracks are traced back once. (Copying every surviving
+    trajectory at every step, ``O(K t)`` per step, made a pass ``O(K T^2)``.)
+    """
     T, dim = space.T, space.dim
-    traj = np.zeros((1, 0, dim))  # K_{t-1} particles x t-1 steps
+    last1 = np.zeros((1, dim))  # position at step - 1 of each of the K_{t-1} particles
+    last2 = np.zeros((1, dim))  # position at step - 2
     cost = np.zeros(1)
     pd = np.zeros((1, 1))
     kept_n = np.zeros(T, dtype=np.int64)
@@ -169,28 +217,33 @@ def cluster_track(space: FeasibleSpace, p: Params, rng: np.random.Generator, *, 
     cand_n = np.zeros(T, dtype=np.int64)
     max_cluster = np.zeros(T, dtype=np.int64)
     particles = []
+    pos_hist: list[np.ndarray] = []  # per step: survivors' positions (K_t, dim)
+    par_hist: list[np.ndarray] = []  # per step: survivors' parents (indices into the step before)
     label = np.zeros(1, dtype=np.int64)
     is_head = np.ones(1, dtype=bool)
+    compiled = T * p.L >= PASS_COMPILED_MIN
     for step in range(T):
-        kprev = traj.shape[0]
+        kprev = cost.size
         m_t = max(1, int(round(p.m_o * space.size(step))))
-        x = space.sample(step, kprev * m_t, rng).reshape(kprev * m_t, dim)
-        if x.shape[0] == 0:  # F empty (inconsistent readings): keep the particles where they are
-            x = traj[:, -1, :] if step > 0 else np.zeros((1, dim))
+        x = space.sample(step, kprev * m_t, rng).reshape(-1, dim)
+        if x.shape[0] == 0:  # F empty (nobody anywhere, or inconsistent readings): keep the particles where they are
+            x = last1 if step > 0 else np.zeros((1, dim))
             m_t = 1
         parent = np.repeat(np.arange(kprev), m_t)
         if step >= 2:
-            inc = _norm(x + traj[parent, step - 2] - 2.0 * traj[parent, step - 1])
+            inc = _norm(x + last2[parent] - 2.0 * last1[parent])
         else:
             inc = np.zeros(x.shape[0])
         c = cost[parent] + inc
         kept, label, is_head, scanned = scan_clusters(
-            c, parent, x, pd, step + 1, H=p.H, K=p.K, L=p.L, D0=p.D0, rng=rng
+            c, parent, x, pd, step + 1, H=p.H, K=p.K, L=p.L, D0=p.D0, rng=rng, compiled=compiled
         )
         par = parent[kept]
         xk = x[kept]
         pd = pd[np.ix_(par, par)] + _norm(xk[:, None, :] - xk[None, :, :])
-        traj = np.concatenate([traj[par], xk[:, None, :]], axis=1)
+        last2, last1 = last1[par], xk
+        pos_hist.append(xk)
+        par_hist.append(par)
         cost = c[kept]
         kept_n[step], scanned_n[step], cand_n[step] = kept.size, scanned, c.size
         clusters_n[step] = np.unique(label).size
@@ -199,7 +252,10 @@ def cluster_track(space: FeasibleSpace, p: Params, rng: np.random.Generator, *, 
             particles.append((xk.copy(), label.copy(), cost.copy()))
     heads = np.flatnonzero(is_head)
     tracks = np.empty((heads.size, T, dim))
-    tracks[:, space.order, :] = traj[heads]
+    idx = heads
+    for s in range(T - 1, -1, -1):  # trace the heads back, step by step
+        tracks[:, space.order[s], :] = pos_hist[s][idx]
+        idx = par_hist[s][idx]
     if record:
         # particles were recorded in step order; store them by original instant
         by_t = [None] * T
@@ -215,16 +271,17 @@ def trajectory_distance(a: np.ndarray, b: np.ndarray) -> np.ndarray:
 
 
 def usage(space: FeasibleSpace, tracks: np.ndarray) -> list[np.ndarray]:
-    """Per original instant: number of tracks in each component of F."""
-    out = []
-    for t in range(space.sizes_all.size):
-        nc = space.comp_bounds_all[t].size
-        if tracks.shape[0] == 0 or nc == 0:
-            out.append(np.zeros(nc, dtype=np.int64))
-            continue
-        c = space.component_of(t, tracks[:, t, :])
-        out.append(np.bincount(c[c >= 0], minlength=nc)[:nc].astype(np.int64))
-    return out
+    """Per original instant: number of tracks in each component of F (every instant at once:
+    :meth:`FeasibleSpace.components_of`, one ``bincount`` over instant x component)."""
+    T = space.sizes_all.size
+    nc = np.array([b.size for b in space.comp_bounds_all], dtype=np.int64)
+    off = np.cumsum(nc) - nc
+    counts = np.zeros(int(nc.sum()), dtype=np.int64)
+    if tracks.shape[0] and counts.size:
+        c = space.components_of(tracks)
+        inside = (c >= 0) & (c < nc[None, :])
+        counts = np.bincount((off[None, :] + c)[inside], minlength=counts.size).astype(np.int64)
+    return [counts[off[t] : off[t] + nc[t]] for t in range(T)]
 
 
 def underused(space: FeasibleSpace, tracks: np.ndarray) -> tuple[int, int, int] | None:
@@ -362,14 +419,19 @@ class Consensus:
 
 
 def consensus(space: FeasibleSpace, p: Params, seeds: list[int], *, ratio: float = 10.0, min_support: float = 0.5,
-              max_reruns: int = 10, high_cost: float = 10.0) -> Consensus:
+              max_reruns: int = 10, high_cost: float = 10.0, known: dict[int, TrackResult] | None = None) -> Consensus:
     """Run CLUSTERTRACK once per seed, drop tracks costing more than ``ratio`` times the
     cheapest, cluster the rest (Algorithm 1's criterion) and count the clusters that hold a
     track from at least ``min_support`` of the runs (the paper's "biased by the number of
-    trajectories in each cluster")."""
+    trajectories in each cluster").
+
+    ``known``: runs already made with these arguments (``clustertrack(space, p,
+    default_rng(seed), max_reruns=max_reruns, high_cost=high_cost)``, e.g. the stage's own
+    run), by seed; they are used as they are instead of being run again (same result)."""
+    known = known or {}
     all_t, all_c, all_r = [], [], []
     for k, s in enumerate(seeds):  # independent runs (one per seed)
-        r = clustertrack(space, p, np.random.default_rng(s), max_reruns=max_reruns, high_cost=high_cost)
+        r = known[s] if s in known else clustertrack(space, p, np.random.default_rng(s), max_reruns=max_reruns, high_cost=high_cost)
         all_t.append(r.tracks)
         all_c.append(r.costs)
         all_r.append(np.full(r.costs.size, k))

@@ -165,6 +165,30 @@ class FeasibleSpace:
             best = np.where(best < 0, val, best)
         return best
 
+    def components_of(self, tracks: np.ndarray) -> np.ndarray:
+        """``(N, T)`` component index (0-based, -1 outside F) of every track ``(N, T, dim)`` at
+        every original instant: :meth:`component_of` for all instants at once (2-D: one
+        vectorised lookup over tracks x instants; 1-D: one interval search per instant)."""
+        N, T = tracks.shape[0], self.sizes_all.size
+        out = np.full((N, T), -1, dtype=np.int64)
+        if N == 0 or T == 0:
+            return out
+        if self.dim == 1:
+            for t in range(T):  # a different set of intervals per instant
+                out[:, t] = self.f1d[t].component_of(tracks[:, t, 0])
+            return out
+        r = self.raster
+        j = np.floor((tracks[..., 0] - r.x0) / r.cell).astype(np.int64)
+        i = np.floor((tracks[..., 1] - r.y0) / r.cell).astype(np.int64)
+        lab = self.labels.reshape(T, r.height, r.width)
+        tt = np.broadcast_to(np.arange(T)[None, :], (N, T))
+        for di, dj in ((0, 0), (0, 1), (1, 0), (0, -1), (-1, 0), (1, 1), (1, -1), (-1, 1), (-1, -1)):
+            ii, jj = i + di, j + dj
+            ok = (ii >= 0) & (ii < r.height) & (jj >= 0) & (jj < r.width)
+            val = np.where(ok, lab[tt, np.clip(ii, 0, r.height - 1), np.clip(jj, 0, r.width - 1)], 0) - 1
+            out = np.where(out < 0, val, out)
+        return out
+
     @property
     def max_lower_bound(self) -> int:
         return int(self.bounds_all.max()) if self.bounds_all.size else 0

@@ -195,6 +195,11 @@ def run(inputs: dict, site: Site, config: ClusterTrackConfig) -> dict[str, pl.Da
         ),
         TRACKS,
     ).sort(["t", "track"], maintain_order=True)
+    # an instant whose F is empty has no feasible position at all (every sensor off over a
+    # fully covered site: nobody is there; or readings no target explains): no track rows there
+    nowhere = np.array([cb.size == 0 for cb in space.comp_bounds_all], dtype=bool)
+    if nowhere.any():
+        tracks = tracks.filter(~pl.col("t").is_in(times[nowhere].tolist()))
     info = pl.DataFrame({"track": names, "cost": res.costs, "origin": res.origin}, schema={"track": pl.String, "cost": pl.Float64, "origin": pl.Int64})
     ncomp = np.array([cb.size for cb in space.comp_bounds_all], dtype=np.int64)
     counts = pl.DataFrame({"t": times, "size": space.sizes_all, "components": ncomp, "lower_bound": space.bounds_all})
@@ -231,7 +236,8 @@ def run(inputs: dict, site: Site, config: ClusterTrackConfig) -> dict[str, pl.Da
     if config.consensus_runs > 0:
         seeds = list(range(config.seed, config.seed + config.consensus_runs))
         cons = consensus(space, p, seeds, ratio=config.consensus_ratio, min_support=config.consensus_support,
-                         max_reruns=config.reruns, high_cost=config.rerun_cost_ratio)
+                         max_reruns=config.reruns, high_cost=config.rerun_cost_ratio,
+                         known={config.seed: res} if config.reruns > 0 else None)  # the run above is seed's run
         count_consensus = cons.count
         out["consensus"] = pl.DataFrame({"run": cons.run, "cluster": cons.cluster, "cost": cons.costs,
                                          "support": cons.support[cons.cluster] if cons.cluster.size else np.zeros(0)})

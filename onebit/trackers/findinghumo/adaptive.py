@@ -71,13 +71,19 @@ the rest is look-ahead). Per window:
 
 The baselines ``hmm1`` / ``hmm2`` run the same loop with the full state set and a fixed order
 (``mode = "full1"`` / ``"full2"``); ``offline`` uses one window spanning the whole run.
-The window loop is inherently sequential (each window starts from the previous one's users).
+The window loop is inherently sequential (each window starts from the previous one's users),
+and so is the coordinate ascent inside a window: every restart of it (all user orders, sweeps
+and users, the Viterbi recursions included) runs as one compiled call
+(:func:`onebit.trackers.findinghumo.kernels.coordinate_ascent`, ``DecoderParams.compiled``);
+:func:`coordinate_ascent_reference` with the numpy decoders of
+:mod:`onebit.trackers.findinghumo.viterbi` is its plain reference and test oracle.
 """
 
 from __future__ import annotations
 
 import itertools
 import math
+from collections.abc import Callable
 from dataclasses import dataclass, field
 
 import networkx as nx
@@ -87,6 +93,7 @@ from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import connected_components
 
 from onebit.trackers.findinghumo.eatg import Eatg, onsets
+from onebit.trackers.findinghumo.kernels import coordinate_ascent, emission_tables
 from onebit.trackers.findinghumo.viterbi import log_safe, viterbi_first_order, viterbi_motion_second_order
 
 MODES = ("adaptive", "full1", "full2")
@@ -111,6 +118,7 @@ class DecoderParams:
     offline: bool = False
     resume: int = 10  # slots after an exit in which an entry at the same door continues that user
     restarts: int = 6  # coordinate-ascent restarts (all user orders when K! <= restarts, else rotations); best joint likelihood wins
+    compiled: bool = True  # the coordinate ascent as one numba kernel (kernels.coordinate_ascent); False = the numpy reference
 
 
 @dataclass
@@ -218,17 +226,25 @@ def decode_users(
     on = obs[:, states]  # (L, S)
     log_a1 = restricted_first(eatg.a1, states)
     log_a2 = second_order_tensor(eatg.a1, eatg.a2, states) if order == 2 else None
-    best, best_score = None, -np.inf
     if math.factorial(k) <= params.restarts:  # every order: the result does not depend on the labels
         orders = [list(o) for o in itertools.permutations(range(k))]
     else:  # the users' decoding order rotated
         orders = [[(u + r) % k for u in range(k)] for r in range(min(k, params.restarts))]
-    for order_u in orders:
-        decoded, score = _coordinate_ascent(
-            on, pos, prefixes, starts, entry_nodes, order_u, order=order, log_a1=log_a1, log_a2=log_a2, params=params
+    if params.compiled:
+        pre = [[pos[q] for q in p] for p in prefixes]
+        entries = [pos[e] if not p and e >= 0 else -1 for p, e in zip(prefixes, entry_nodes)]
+        table = emission_tables(k, params.p_hit, params.p_false, emission_gain)
+        best, _ = coordinate_ascent(
+            on, pre, starts, entries, orders, order=order, log_a1=log_a1, log_a2=log_a2, table=table, sweeps=params.sweeps
         )
-        if best is None or score > best_score + 1e-9:
-            best, best_score = decoded, score
+    else:
+        best, best_score = None, -np.inf
+        for order_u in orders:
+            decoded, score = coordinate_ascent_reference(
+                on, pos, prefixes, starts, entry_nodes, order_u, order=order, log_a1=log_a1, log_a2=log_a2, params=params
+            )
+            if best is None or score > best_score + 1e-9:
+                best, best_score = decoded, score
     decoded = best
     have = decoded >= 0
     out[have] = states[decoded[have]]
@@ -242,9 +258,13 @@ def joint_emission(on: np.ndarray, claims: np.ndarray, p_hit: float, p_false: fl
     return float(np.where(on, np.log(p_on), np.log1p(-p_on)).sum())
 
 
-def _coordinate_ascent(on, pos, prefixes, starts, entry_nodes, order_u, *, order, log_a1, log_a2, params):
+def coordinate_ascent_reference(on, pos, prefixes, starts, entry_nodes, order_u, *, order, log_a1, log_a2, params):
     """Explain-away sweeps over the users in the order ``order_u``; returns the (K, L) state
-    positions and the joint log-likelihood ``sum_u log P(path_u) + joint_emission``."""
+    positions and the joint log-likelihood ``sum_u log P(path_u) + joint_emission``.
+
+    The plain numpy reference (one numpy Viterbi per user and sweep) of the compiled
+    :func:`onebit.trackers.findinghumo.kernels.coordinate_ascent`, which runs every order of a
+    window in one call; the tests check both give the same paths on random windows."""
     k = len(prefixes)
     n_slots, s = on.shape
     claims = np.zeros((n_slots, s), dtype=np.int64)
@@ -288,8 +308,12 @@ def decode_run(
     *,
     signatures: list[tuple[int, int]] = (),
     params: DecoderParams = DecoderParams(),
+    progress: Callable[[int, int], None] | None = None,
 ) -> DecodeResult:
-    """Decode every user's node path from slot activity ``active`` (D, N) bool."""
+    """Decode every user's node path from slot activity ``active`` (D, N) bool.
+
+    ``progress(done, total)``, when given, is called after each window with the slots
+    decoded so far and the number of slots (:data:`onebit.trackers.base.PROGRESS`)."""
     active = np.asarray(active, bool)
     n_slots, n = active.shape
     hops = eatg.hops
@@ -367,6 +391,8 @@ def decode_run(
             dormant[u] = (acc, int(rows[u][acc - 1]))
         windows.append(dict(slot=s, k=k, k_now=k_now, sig_in=len(entries), sig_out=len(gone), **info))
         s = acc
+        if progress is not None:
+            progress(s, n_slots)
     paths = np.array(rows, dtype=np.int64).reshape(len(rows), n_slots)
     return DecodeResult(paths, windows)
 

@@ -23,12 +23,12 @@ import polars as pl
 
 from onebit.core.site import Site
 from onebit.core.tables import MOTION, TRACKS, check_schema, conform
-from onebit.trackers.base import ARTIFACTS, TrackerSpec
+from onebit.trackers.base import ARTIFACTS, PROGRESS, TrackerSpec
 from onebit.core.config import check_choice, check_range
 from onebit.trackers.findinghumo.adaptive import DecoderParams, decode_run
 from onebit.trackers.findinghumo.cpda import cpda, switches_table
 from onebit.trackers.findinghumo.eatg import Eatg, hop_matrix, layout_eatg, trained_eatg
-from onebit.readers.motion import motion_frames
+from onebit.readers.motion import ABSENT_AFTER_S, motion_frames, outside_silence, silent_stretches
 
 
 #: One row per HMM window: first slot, users K (and K now), entry/exit signatures, HMM order,
@@ -63,6 +63,10 @@ class HmmConfig:
     restarts : coordinate-ascent runs per window over different user decoding orders (every
         order when K! <= restarts, else rotations); the highest joint log-likelihood is kept.
     offline : decode the whole run as one window (the paper's offline baselines).
+    absent_after : s; the empty room: no track row inside a stretch this long in which every
+        sensor is off and nothing fires (nobody present); 0 = users stay where they were.
+    max_users : the most users reported at once (:func:`cap_users`); 0 = the site's
+        ``targets`` (the most people present at once), no cap when the site does not say.
     """
 
     period: float = 1.0
@@ -78,6 +82,8 @@ class HmmConfig:
     sweeps: int = 3
     restarts: int = 6
     offline: bool = False
+    absent_after: float = ABSENT_AFTER_S
+    max_users: int = 0
 
     def __post_init__(self) -> None:
         check_range(self, "period", 1e-3, None)
@@ -93,6 +99,8 @@ class HmmConfig:
         check_range(self, "sweeps", 1, 20, types=(int,))
         check_range(self, "restarts", 1, 20, types=(int,))
         check_choice(self, "offline", (False, True))
+        check_range(self, "absent_after", 0.0, 1e12)
+        check_range(self, "max_users", 0, 10_000, types=(int,))
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -192,25 +200,88 @@ def _run(name: str, mode: str, inputs: dict, site: Site, cfg: HmmConfig) -> dict
     active, t0 = slot_activity(motion, nodes, cfg.period, cfg.sampling)
     eatg = build_eatg(site, active, cfg)
     idx = eatg.index
-    sigs = [(idx[a], idx[b]) for a, b in g.signatures if a in idx and b in idx]
+    sigs = [(idx[a], idx[b]) for a, b in door_signatures(g) if a in idx and b in idx]
     params = DecoderParams(
         mode=mode, d_max=cfg.d_max, tau=cfg.tau, p_hit=cfg.p_hit, p_false=cfg.p_false, sweeps=cfg.sweeps, restarts=cfg.restarts, offline=cfg.offline
     )
-    res = decode_run(active, eatg, signatures=sigs, params=params)
+    res = decode_run(active, eatg, signatures=sigs, params=params, progress=inputs.get(PROGRESS))
     paths = res.paths
     out: dict[str, pl.DataFrame] = {}
+    cap = cfg.max_users or (site.targets or 0)
+    silent = silent_stretches([motion.filter(pl.col("sensor").is_in(list(nodes)))], min_s=cfg.absent_after)
     if isinstance(cfg, FindingHumoConfig):
         feature = np.isin(np.asarray(nodes), list(g.entries) + list(g.exits))
         cp = cpda(paths, eatg.a2, horizon=cfg.c_windows * cfg.d_max, feature=feature, hops=eatg.hops, max_passes=cfg.cpda_passes)
-        out["decoded_hmm"] = _tracks(name, res.paths, nodes, site, t0, cfg.period).drop("tracker")
+        decoded = cap_users(res.paths, active, eatg.hops, cap)
+        out["decoded_hmm"] = outside_silence(_tracks(name, decoded, nodes, site, t0, cfg.period), silent).drop("tracker")
         paths = cp.paths
         out["switches"] = switches_table(cp, nodes)
-    tracks = _tracks(name, paths, nodes, site, t0, cfg.period)
+    paths = cap_users(paths, active, eatg.hops, cap)
+    tracks = outside_silence(_tracks(name, paths, nodes, site, t0, cfg.period), silent)  # the empty room: no track
     out["tracks"] = tracks
     out["eatg"] = eatg.table()
     out["windows"] = pl.DataFrame(res.windows, schema=WINDOWS, orient="row") if res.windows else pl.DataFrame(schema=WINDOWS)
     out["decoder"] = pl.DataFrame({"slots": [int(active.shape[0])], "users": [int(paths.shape[0])]})
     out[ARTIFACTS] = {"eatg": eatg, "active": active, "nodes": nodes, "t0": t0, "period": cfg.period}
+    return out
+
+
+def door_signatures(g) -> list[tuple[str, str]]:
+    """The graph's entry/exit signatures ``(outer, inner)``: its own, else one per door node
+    (an ``entries``/``exits`` node) and each of its neighbours that is not a door -- so a
+    site that only names its doors (``D###`` sensors of a CASAS home) gets the paper's
+    ``Sig_in`` / ``Sig_out`` logic."""
+    if g.signatures:
+        return list(g.signatures)
+    doors = list(dict.fromkeys([*g.entries, *g.exits]))
+    nbr: dict[str, list[str]] = {}
+    for a, b in g.edges:
+        nbr.setdefault(a, []).append(b)
+        nbr.setdefault(b, []).append(a)
+    return [(d, n) for d in doors for n in sorted(set(nbr.get(d, ()))) if n not in doors]
+
+
+def cap_users(paths: np.ndarray, active: np.ndarray, hops: np.ndarray, cap: int) -> np.ndarray:
+    """At most ``cap`` users at a time: ``(U, D)`` decoded node paths -> ``(min(U, cap), D)``.
+
+    The decoder's user count ``K = max(K_pre + Sig_in - Sig_out, K_now)`` can only grow by
+    ``K_now`` (independent active nodes) without an exit signature to bring it down: one
+    resident whose PIRs hold ``ON`` a few seconds after she passed shows two nodes two hops
+    apart, a "second user" that then stays for the rest of the log. When the number of
+    people is known (``targets``), ``cap`` identities are kept: at each slot the present
+    users are ranked by whether their node is active now, then by how recently it was, then
+    by whether an identity already holds them; the first ``cap`` are reported. An identity
+    keeps its user while the user is kept; a newly kept user takes the free identity whose
+    last node is nearest in hops to it. ``cap <= 0`` or ``U <= cap`` returns ``paths``.
+    Sequential over slots (each depends on the last); vectorised over users within one.
+    """
+    U, D = paths.shape
+    if cap <= 0 or U <= cap:
+        return paths
+    out = np.full((cap, D), -1, dtype=np.int64)
+    holder = np.full(cap, -1, dtype=np.int64)  # identity -> decoded user
+    last_node = np.full(cap, -1, dtype=np.int64)
+    seen = np.full(U, -1, dtype=np.int64)  # last slot each user's node was active
+    users = np.arange(U)
+    for s in range(D):
+        node = paths[:, s]
+        here = node >= 0
+        lit = here & active[s, np.clip(node, 0, None)]
+        seen = np.where(lit, s, seen)
+        held = np.isin(users, holder)
+        order = np.lexsort((~held, -seen, ~lit))  # active now, then recently, then already held
+        keep = [int(u) for u in order if here[u]][:cap]
+        holder = np.where(np.isin(holder, keep), holder, -1)
+        for u in keep:
+            if u in holder:
+                continue
+            free = np.flatnonzero(holder < 0)
+            near = [hops[last_node[i], node[u]] if last_node[i] >= 0 else 0 for i in free]
+            i = int(free[int(np.argmin(near))])
+            holder[i] = u
+        ok = holder >= 0
+        out[ok, s] = node[holder[ok]]
+        last_node = np.where(ok, out[:, s], last_node)
     return out
 
 

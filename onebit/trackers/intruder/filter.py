@@ -46,21 +46,34 @@ and speed (world units / s). One iteration tau (``t_P`` seconds):
    SIR), or only when the effective sample size ``1 / sum w^2`` falls below
    ``ess_threshold * N``.
 
-The loop over iterations is inherently sequential (each step needs the previous posterior);
-everything inside an iteration is numpy over particles and sensors. The prior is uniform in
-position (over the room), orientation and speed; every sensor starts out of its refractory
-period.
+The loop over iterations is inherently sequential (each step needs the previous posterior),
+and so is the rejection sampling of step 1. :func:`run_filter` runs them as one compiled
+kernel (:mod:`onebit.trackers.intruder.kernels`: propagate, likelihood, estimate and
+resampling fused per particle, the same random numbers in the same order); the named numpy
+steps above, run by :func:`run_filter_reference` (vectorised over particles and sensors), are
+its plain reference and the test oracle. The prior is uniform in position (over the room),
+orientation and speed; every sensor starts out of its refractory period.
 """
 
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
 
 from onebit.models.motion import Motion, Particles, Room, prior, propagate
-from onebit.models.pir import Deployment, WorldGrid, log_weights
+from onebit.models.pir import PROB_FLOOR, Deployment, WorldGrid, log_weights
+from onebit.trackers.intruder import kernels
+
+#: Particle-iterations from which :func:`run_filter` runs the compiled kernel by default.
+COMPILED_MIN = 500_000
+
+#: Particles kept for the recordings over a whole run (all iterations together): 4 M particles
+#: = 96 MB of positions and weights. A 2-day log (10^5 iterations) would otherwise keep 10^8.
+LOG_BUDGET = 4_000_000
+
 
 def normalise(logw: np.ndarray) -> np.ndarray:
     w = np.exp(logw - logw.max())
@@ -126,6 +139,10 @@ class FilterResult:
     spread: np.ndarray  # (T,) weighted RMS distance of particles from their mean
 
 
+#: Slices of the iterations a box-room run is cut into when progress is reported.
+PROGRESS_CHUNKS = 100
+
+
 def run_filter(
     fired: np.ndarray,
     blind: np.ndarray,
@@ -141,8 +158,111 @@ def run_filter(
     resample_when: str = "always",
     ess_threshold: float = 0.5,
     log_particles: int = 0,
+    progress: Callable[[int, int], None] | None = None,
+    compiled: bool | None = None,
 ) -> FilterResult:
     """Run the SIR filter over ``T`` iterations: ``fired``, ``blind`` are ``(T, n)`` booleans.
+
+    Sequential over iterations by nature: one compiled kernel per run in a box room (every
+    step fused per particle, :mod:`onebit.trackers.intruder.kernels`); in any other room
+    the propagation's rejection test needs shapely, so :func:`~onebit.models.motion.propagate`
+    runs in numpy and the kernel does the rest of each iteration. Same result as
+    :func:`run_filter_reference` for the same ``rng`` (the test oracle). Memory is the particles
+    and the recordings' sample, ``log_particles`` per iteration within :data:`LOG_BUDGET` for the
+    whole run (:func:`logged_per_iteration`), so it does not grow with the log beyond ``O(T)``.
+
+    ``compiled=None`` runs the kernel from :data:`COMPILED_MIN` particle-iterations on and
+    :func:`run_filter_reference` below (a short run costs less in numpy than numba's start in
+    a fresh process, ~0.3-1 s once); the result is the same either way.
+
+    ``progress(done, total)``, when given, is called with the iterations done so far (in a
+    box room the kernel then runs in :data:`PROGRESS_CHUNKS` consecutive slices of the
+    iterations: the state lives in the particle arrays and ``rng``, and the weights after a
+    resampling are exactly ``1/N``, so the result is the same).
+    """
+    T = fired.shape[0]
+    if not (T * n_particles >= COMPILED_MIN if compiled is None else compiled):
+        return run_filter_reference(
+            fired, blind, dep, room, motion, n_particles=n_particles, half_w=half_w, half_d=half_d, rng=rng,
+            resample=resample, resample_when=resample_when, ess_threshold=ess_threshold, log_particles=log_particles,
+            progress=progress,
+        )  # fmt: skip
+    cxs, cys = dep.grid.centres()
+    mask = np.ascontiguousarray(room.contains(cxs.ravel(), cys.ravel()).reshape(cxs.shape))
+    p = prior(n_particles, room, motion, rng)
+    L = logged_per_iteration(log_particles, n_particles, T)
+    res = FilterResult(
+        np.zeros((T, 2)), np.zeros(T), np.zeros(T, np.int64), np.zeros(T, np.int64), np.zeros(T, bool),
+        np.zeros((T, L, 2)), np.zeros((T, L)), np.zeros(T),
+    )  # fmt: skip
+    if T == 0:
+        return res
+    pick = np.linspace(0, n_particles - 1, L).round().astype(np.int64) if L else np.zeros(0, np.int64)
+    g = dep.grid
+    grid = np.array([g.x0, g.y0, g.cell, g.nx, g.ny], dtype=np.float64)
+    ptr, sensor, q = kernels.cell_lists(dep.q)
+    p0 = np.asarray(dep.p0, dtype=np.float64)
+    # 1 - p0 as the reference divides by it: exp(log1p(-p0)) (math.exp, as log_p_silent)
+    a = np.array([math.exp(v) for v in np.log1p(-np.minimum(p0, 1 - PROB_FLOOR))], dtype=np.float64)
+    xi = np.asarray(dep.xi, dtype=np.float64)
+    fired = np.ascontiguousarray(fired, dtype=np.bool_)
+    blind = np.ascontiguousarray(blind, dtype=np.bool_)
+    systematic, always = resample == "systematic", resample_when == "always"
+    x, y, theta, v, w = (np.ascontiguousarray(c, dtype=np.float64) for c in (p.x, p.y, p.theta, p.v, p.w))
+    common = (grid, ptr, sensor, q, p0, xi, a, float(half_w), float(half_d), mask, systematic, always, float(ess_threshold), pick)
+    outs = (res.estimates, res.ess, res.resampled, res.logged_xy, res.logged_w, res.spread)
+    if room.is_box:
+        mot = np.array([motion.period, motion.v_max, motion.speed_sigma, motion.turn_scale, motion.max_retries], dtype=np.float64)
+        step = T if progress is None else max(1, -(-T // PROGRESS_CHUNKS))
+        for a in range(0, T, step):
+            b = min(a + step, T)
+            kernels._run_box(
+                x, y, theta, v, w, rng, fired[a:b], blind[a:b], mot, np.asarray(room.bounds, dtype=np.float64), *common,
+                res.estimates[a:b], res.ess[a:b], res.redraws[a:b], res.clamped[a:b], res.resampled[a:b],
+                res.logged_xy[a:b], res.logged_w[a:b], res.spread[a:b],
+            )  # fmt: skip
+            if progress is not None:
+                progress(b, T)
+        return res
+    uniform = False
+    for k in range(T):  # sequential: each iteration needs the previous posterior
+        p, res.redraws[k], res.clamped[k] = propagate(Particles(x, y, theta, v, w), room, motion, rng)
+        x, y, theta, v, w = (np.ascontiguousarray(c, dtype=np.float64) for c in (p.x, p.y, p.theta, p.v, p.w))
+        uniform = kernels._update_one(k, x, y, theta, v, w, uniform, rng, fired[k], blind[k], *common, *outs)
+        if progress is not None:
+            progress(k + 1, T)
+    return res
+
+
+def logged_per_iteration(log_particles: int, n_particles: int, iterations: int) -> int:
+    """Particles kept per iteration for the recordings: ``log_particles`` (at most the
+    particles), fewer on long runs so that all iterations together keep at most
+    :data:`LOG_BUDGET` (memory bounded whatever the log's length; at least one per iteration)."""
+    L = min(log_particles, n_particles)
+    if L and iterations * L > LOG_BUDGET:
+        L = max(1, LOG_BUDGET // iterations)
+    return L
+
+
+def run_filter_reference(
+    fired: np.ndarray,
+    blind: np.ndarray,
+    dep: Deployment,
+    room: Room,
+    motion: Motion,
+    *,
+    n_particles: int,
+    half_w: float,
+    half_d: float,
+    rng: np.random.Generator,
+    resample: str = "systematic",
+    resample_when: str = "always",
+    ess_threshold: float = 0.5,
+    log_particles: int = 0,
+    progress: Callable[[int, int], None] | None = None,
+) -> FilterResult:
+    """The SIR filter step by step with the named numpy functions of this module: the plain
+    reference (and test oracle) of :func:`run_filter`, same arguments and same result.
 
     Sequential over iterations by nature; vectorised over particles and sensors within one.
     """
@@ -150,7 +270,7 @@ def run_filter(
     cxs, cys = dep.grid.centres()
     mask = room.contains(cxs.ravel(), cys.ravel()).reshape(cxs.shape)
     p = prior(n_particles, room, motion, rng)
-    L = min(log_particles, n_particles)
+    L = logged_per_iteration(log_particles, n_particles, T)
     res = FilterResult(
         np.zeros((T, 2)), np.zeros(T), np.zeros(T, np.int64), np.zeros(T, np.int64), np.zeros(T, bool),
         np.zeros((T, L, 2)), np.zeros((T, L)), np.zeros(T),
@@ -173,4 +293,6 @@ def run_filter(
             idx = draw(p.w, rng)
             p = Particles(p.x[idx], p.y[idx], p.theta[idx], p.v[idx], np.full(n_particles, 1.0 / n_particles))
             res.resampled[k] = True
+        if progress is not None:
+            progress(k + 1, T)
     return res

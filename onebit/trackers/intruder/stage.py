@@ -18,6 +18,7 @@ deployed grid q_ij of every sensor: sensor, ix, iy, x, y, p_detect).
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -26,9 +27,9 @@ import polars as pl
 from onebit.core.site import Site
 from onebit.core.errors import ConfigError
 from onebit.core.units import length
-from onebit.readers.motion import motion_frames, refractory_state
+from onebit.readers.motion import ABSENT_AFTER_S, motion_frames, outside_silence, refractory_state, silent_stretches
 from onebit.core.tables import TRACKS, check_schema, conform, MOTION
-from onebit.trackers.base import ARTIFACTS, TrackerSpec
+from onebit.trackers.base import ARTIFACTS, PROGRESS, TrackerSpec
 from onebit.core.config import check_choice, check_range
 from onebit.trackers.intruder.camera import pan_tilt_zoom
 from onebit.models.motion import Motion, Room
@@ -56,13 +57,14 @@ class IntruderConfig:
     ess_threshold: float = 0.5  #: fraction of particles, for resample_when = "ess"
     max_retries: int = 50  #: rejection-sampling rounds before a particle is left in place
     seed: int = 0  #: random seed
-    start: float = 0.0  #: time the intruder enters (s); iteration k ends at start + (k+1) t_P
+    start: float | None = None  #: time the intruder enters (s); iteration k ends at start + (k+1) t_P; None = the start of the slot (a multiple of t_P) holding the first edge
     end: float | None = None  #: time it leaves (s); None = the slot of the last edge
     log_particles: int = 1000  #: particles per iteration sent to Rerun
     box_height: float = 1.0  #: intruder bounding prism height, cells (for camera pointing)
     camera_position: list[float] | None = length(None)  #: [x, y, z] of the pan-tilt-zoom camera, m (converted to site units); None = no camera table
     camera_fov: float = 60.0  #: horizontal field of view of the camera at zoom 1, degrees
     camera_aspect: float = 4.0 / 3.0  #: image width / height
+    absent_after: float = ABSENT_AFTER_S  #: s; no estimate inside a stretch this long with every sensor off and no edge (nobody present); 0 = always estimate
 
     def __post_init__(self) -> None:
         check_range(self, "particles", 1, None, types=(int,))
@@ -79,13 +81,15 @@ class IntruderConfig:
         check_range(self, "ess_threshold", 0.0, 1.0)
         check_range(self, "max_retries", 1, None, types=(int,))
         check_range(self, "seed", 0, None, types=(int,))
-        check_range(self, "start", None, None)
+        if self.start is not None:
+            check_range(self, "start", None, None)
         if self.end is not None:
             check_range(self, "end", self.start, None)
         check_range(self, "log_particles", 0, None, types=(int,))
         check_range(self, "box_height", 1e-6, None)
         check_range(self, "camera_fov", 1e-3, 179.0)
         check_range(self, "camera_aspect", 1e-3, None)
+        check_range(self, "absent_after", 0.0, 1e12)
         cp = self.camera_position
         if cp is not None and not (
             isinstance(cp, (list, tuple)) and len(cp) == 3
@@ -100,13 +104,16 @@ class NaiveConfig:
 
     period: float = 2.0  #: t_P, seconds per iteration
     cell: float = length(1.0)  #: size of a cell, m (converted to site units; for the error in cells)
-    start: float = 0.0  #: time the intruder enters (s)
+    start: float | None = None  #: time the intruder enters (s); None = the start of the slot holding the first edge
     end: float | None = None  #: time it leaves (s); None = the slot of the last edge
+    absent_after: float = ABSENT_AFTER_S  #: s; no estimate inside a silent stretch this long (see IntruderConfig)
 
     def __post_init__(self) -> None:
         check_range(self, "period", 1e-6, None)
         check_range(self, "cell", 1e-9, None)
-        check_range(self, "start", None, None)
+        check_range(self, "absent_after", 0.0, 1e12)
+        if self.start is not None:
+            check_range(self, "start", None, None)
         if self.end is not None:
             check_range(self, "end", self.start, None)
 
@@ -121,9 +128,17 @@ def available(site: Site) -> str | None:
     return None
 
 
-def observations(motion: pl.DataFrame, site: Site, *, period: float, start: float, end: float | None):
-    """``(fired, blind, t_end)``: ``(T, n)`` S_i and B_i per iteration and each iteration's end time."""
+def observations(motion: pl.DataFrame, site: Site, *, period: float, start: float | None, end: float | None):
+    """``(fired, blind, t_end)``: ``(T, n)`` S_i and B_i per iteration and each iteration's end time.
+
+    Iterations cover ``[start, end)``; ``start = None`` is the start of the slot (a multiple
+    of ``period``) holding the first edge, so the slots span the data, wherever its time
+    origin is (a log of Unix seconds read with an early ``epoch`` never builds slots from 1970).
+    """
     ids = [m.id for m in site.motion_sensors]
+    if start is None:
+        first = motion["t"].min() if motion.height else None
+        start = math.floor(first / period) * period if first is not None else (0.0 if end is None else min(0.0, end))
     motion = motion.filter(pl.col("t") >= start)
     if motion.height == 0 and end is None:  # nothing observed and no end given: no iteration to run
         return np.zeros((0, len(ids)), bool), np.zeros((0, len(ids)), bool), np.zeros(0)
@@ -179,9 +194,10 @@ def run(inputs: dict, site: Site, config: IntruderConfig) -> dict[str, pl.DataFr
         fired, blind, dep, room, mot,
         n_particles=config.particles, half_w=config.box_width * c / 2, half_d=config.box_depth * c / 2,
         rng=np.random.default_rng(config.seed), resample=config.resample, resample_when=config.resample_when,
-        ess_threshold=config.ess_threshold, log_particles=config.log_particles,
+        ess_threshold=config.ess_threshold, log_particles=config.log_particles, progress=inputs.get(PROGRESS),
     )  # fmt: skip
-    tracks = track_frame(NAME, t_end, res.estimates)
+    # the empty room: no estimate inside a stretch where every sensor is off and nothing fires
+    tracks = outside_silence(track_frame(NAME, t_end, res.estimates), silent_stretches([motion], min_s=config.absent_after))
     iterations = pl.DataFrame(
         {
             "t": t_end,
@@ -217,7 +233,7 @@ def run_naive(inputs: dict, site: Site, config: NaiveConfig) -> dict[str, pl.Dat
     _, _, t_end = observations(motion, site, period=config.period, start=config.start, end=config.end)
     centre = site.boundary.centroid
     xy = np.tile([centre.x, centre.y], (len(t_end), 1)).reshape(-1, 2)
-    tracks = track_frame(NAIVE, t_end, xy)
+    tracks = outside_silence(track_frame(NAIVE, t_end, xy), silent_stretches([motion], min_s=config.absent_after))
     return {"tracks": tracks, "iterations": pl.DataFrame({"t": t_end, "cell": np.full(len(t_end), config.cell)})}
 
 

@@ -27,6 +27,15 @@ Operations (each named after the paper's step):
   non-empty-intersection graph); :func:`communicate_bruteforce` is the direct
   ``O(M^2 n!)`` formula it replaces, kept as the reference.
 
+Pairwise work done once. The cap and the clean-up compare regions pairwise across elements
+(``E x E x n x n`` pairs), but an observation update copies every element ``n`` times with
+one region replaced, so most of those pairs repeat (the same two regions in many element
+pairs, and again at every detection of the stage). :class:`PairMemo` keeps the exact
+result of every region-pair operation (intersection area, covering) keyed by the two
+regions' WKB, so each distinct ordered pair is computed by shapely once per filter step and
+the results are bit-for-bit those of computing every pair (the same GEOS call on the same
+coordinates); the cap's first similarity matrix skips the element with itself.
+
 Soundness. Every operation returns a superset of the exact result (the containment
 guarantee of the paper). Shapely approximates round buffers by inscribed polygons, so every
 buffer that must *contain* a disk is made with the circumscribing radius
@@ -60,6 +69,10 @@ DISK_GRID = 1e-6
 
 #: Largest number of elements whose pairwise similarities the cap computes at once.
 CAP_CHUNK = 128
+
+#: Similarities computed per round of the cap's branch and bound (largest upper bounds first):
+#: small, since the first exact values usually rule the rest out (measured: 2 is fastest).
+SETTLE_BATCH = 2
 
 #: Largest ``n`` for which matchings are found by enumerating the ``n!`` permutations in numpy.
 PERM_TABLE_MAX_N = 5
@@ -200,6 +213,96 @@ def void(geoms) -> np.ndarray:
 def _bounds(regions: np.ndarray) -> np.ndarray:
     """``(..., 4)`` bounds, NaN for empty geometries."""
     return shapely.bounds(regions)
+
+
+class PairMemo:
+    """Exact results of region-pair operations, keyed by the two regions' WKB (module
+    docstring, "Pairwise work done once").
+
+    Regions get an integer id per distinct WKB; ``area[(a, b)] = area(a cap b)`` and
+    ``covers[(a, b)] = a covers b`` by ids. Equal WKB means equal coordinates, so the same
+    GEOS operation gives the same bits: looking a pair up instead of recomputing it never
+    changes a result. One memo lives for one filter
+    step (:func:`info_state_update`); functions given none use a fresh one.
+    """
+
+    def __init__(self) -> None:
+        self.area: dict[tuple[int, int], float] = {}  # (region id, region id) -> area of the intersection
+        self.covers: dict[tuple[int, int], bool] = {}  # (region id, region id) -> the first covers the second
+        self._rid: dict[bytes, int] = {}  # WKB -> region id (equal WKB, equal id)
+        self._obj: dict[int, tuple[object, int]] = {}  # id(geometry) -> (geometry, kept alive so its id stays its own; region id)
+        self._norm: dict[int, tuple[object, bytes]] = {}  # id(geometry) -> (geometry, WKB of its normalised form)
+        self.computed = 0  # pairs sent to shapely
+        self.looked_up = 0  # pairs answered from the memo or by a duplicate in the same call
+
+    def keys(self, geoms: np.ndarray) -> np.ndarray:
+        """Region id of each geometry (int64, same shape): equal WKB <=> equal id. Each
+        geometry object is encoded once."""
+        flat = np.asarray(geoms, dtype=object).ravel()
+        out = np.empty(len(flat), dtype=np.int64)
+        new = []
+        for p, g in enumerate(flat):
+            hit = self._obj.get(id(g))
+            if hit is None:
+                new.append(p)
+            else:
+                out[p] = hit[1]
+        if new:
+            new = np.asarray(new, dtype=np.int64)
+            for p, g, w in zip(new.tolist(), flat[new].tolist(), shapely.to_wkb(flat[new]).tolist()):
+                rid = self._rid.setdefault(w, len(self._rid))
+                self._obj[id(g)] = (g, rid)
+                out[p] = rid
+        return out.reshape(np.shape(geoms))
+
+    def normalized(self, geoms: np.ndarray) -> np.ndarray:
+        """``shapely.to_wkb(shapely.normalize(geoms))`` (1-d), each geometry object encoded once."""
+        out = np.empty(len(geoms), dtype=object)
+        new = []
+        for p, g in enumerate(geoms):
+            hit = self._norm.get(id(g))
+            if hit is None:
+                new.append(p)
+            else:
+                out[p] = hit[1]
+        if new:
+            new = np.asarray(new, dtype=np.int64)
+            for p, g, w in zip(new.tolist(), geoms[new].tolist(), shapely.to_wkb(shapely.normalize(geoms[new])).tolist()):
+                self._norm[id(g)] = (g, w)
+                out[p] = w
+        return out
+
+    def pairs(self, left: np.ndarray, right: np.ndarray, kl: np.ndarray, kr: np.ndarray, table: dict, op, dtype) -> np.ndarray:
+        """``op(left[p], right[p])`` for every pair ``p`` (1-d object arrays with their region
+        ids ``kl``, ``kr``), each distinct ``(kl[p], kr[p])`` computed once (vectorised over the
+        new ones) or looked up in ``table``."""
+        m = len(left)
+        if m == 0:
+            return np.zeros(0, dtype=dtype)
+        code = kl.astype(np.int64) * (1 << 31) + kr
+        codes, first, back = np.unique(code, return_index=True, return_inverse=True)
+        keys = [divmod(c, 1 << 31) for c in codes.tolist()]
+        vals = np.empty(len(keys), dtype=dtype)
+        miss = []
+        for u, key in enumerate(keys):
+            v = table.get(key)
+            if v is None:
+                miss.append(u)
+            else:
+                vals[u] = v
+        if miss:
+            miss = np.asarray(miss, dtype=np.int64)
+            got = np.asarray(op(left[first[miss]], right[first[miss]]), dtype=dtype)
+            vals[miss] = got
+            for u, v in zip(miss.tolist(), got.tolist()):
+                table[keys[u]] = v
+        self.computed += len(miss)
+        self.looked_up += m - len(miss)
+        return vals[back.ravel()]
+
+
+def _intersection_area(a, b) -> np.ndarray:
+    return shapely.area(shapely.intersection(a, b))
 
 
 # --------------------------------------------------------------------------- perfect matchings
@@ -345,7 +448,7 @@ def negative_update(istate: IState, sensing: BaseGeometry, *, shape: str = "exac
 # --------------------------------------------------------------------------- clean-up
 
 
-def canonical(istate: IState, *, shape: str = "exact") -> IState:
+def canonical(istate: IState, *, shape: str = "exact", memo: PairMemo | None = None) -> IState:
     """Canonical form: empty elements dropped, regions of each element in lexicographic order
     of their normalised WKB (of their bounds, for ``rect``), elements in lexicographic order,
     duplicates removed.
@@ -362,7 +465,9 @@ def canonical(istate: IState, *, shape: str = "exact") -> IState:
     if shape == "rect":  # a box is identified by its bounds
         _, inv = np.unique(_bounds(r.ravel()), axis=0, return_inverse=True)
     else:
-        _, inv = np.unique(shapely.to_wkb(shapely.normalize(r.ravel())), return_inverse=True)
+        flat = r.ravel()
+        wkb = shapely.to_wkb(shapely.normalize(flat)) if memo is None else memo.normalized(flat)
+        _, inv = np.unique(wkb, return_inverse=True)
     ids = inv.reshape(r.shape)
     order = np.argsort(ids, axis=1, kind="stable")
     ids = np.take_along_axis(ids, order, axis=1)
@@ -371,11 +476,14 @@ def canonical(istate: IState, *, shape: str = "exact") -> IState:
     return IState(r[first])
 
 
-def covers_pairs(regions: np.ndarray, a: np.ndarray, b: np.ndarray, *, shape: str = "exact") -> np.ndarray:
+def covers_pairs(
+    regions: np.ndarray, a: np.ndarray, b: np.ndarray, *, shape: str = "exact", memo: PairMemo | None = None
+) -> np.ndarray:
     """``cov[p, k, l]``: region ``l`` of element ``b[p]`` covers region ``k`` of element ``a[p]``.
 
     Only region pairs whose bounding boxes nest are tested with ``shapely.covers`` (for
-    ``rect`` regions bounding-box nesting *is* covering)."""
+    ``rect`` regions bounding-box nesting *is* covering), each distinct pair once
+    (:class:`PairMemo`)."""
     bnd = _bounds(regions)  # (E, n, 4)
     ba = bnd[a][:, :, None, :]
     bb = bnd[b][:, None, :, :]
@@ -384,7 +492,9 @@ def covers_pairs(regions: np.ndarray, a: np.ndarray, b: np.ndarray, *, shape: st
         return nest
     cov = np.zeros_like(nest)
     p, k, l = np.nonzero(nest)
-    cov[p, k, l] = shapely.covers(regions[b[p], l], regions[a[p], k])
+    memo = PairMemo() if memo is None else memo
+    key = memo.keys(regions)
+    cov[p, k, l] = memo.pairs(regions[b[p], l], regions[a[p], k], key[b[p], l], key[a[p], k], memo.covers, shapely.covers, bool)
     return cov
 
 
@@ -395,7 +505,7 @@ def covers_matrix(regions: np.ndarray, *, shape: str = "exact") -> np.ndarray:
     return covers_pairs(regions, a, b, shape=shape).reshape(E, E, regions.shape[1], regions.shape[1])
 
 
-def remove_dominated(istate: IState, *, shape: str = "exact") -> IState:
+def remove_dominated(istate: IState, *, shape: str = "exact", memo: PairMemo | None = None) -> IState:
     """Remove every element dominated by another (section VI-A, fourth clean-up step).
 
     ``E_b`` dominates ``E_a`` iff the containment bipartite graph (region ``k`` of ``E_a`` --
@@ -428,24 +538,28 @@ def remove_dominated(istate: IState, *, shape: str = "exact") -> IState:
         a, b = a[keep], b[keep]
         for c in range(0, len(a), 65536):  # candidate pairs in chunks: memory O(65536 n^2)
             aa, bb_ = a[c : c + 65536], b[c : c + 65536]
-            dom[aa, bb_] = has_perfect_matching(covers_pairs(r, aa, bb_, shape=shape))
+            dom[aa, bb_] = has_perfect_matching(covers_pairs(r, aa, bb_, shape=shape, memo=memo))
     idx = np.arange(E)
     beaten = dom & (~dom.T | (idx[None, :] < idx[:, None]))
     return IState(r[~beaten.any(axis=1)])
 
 
-def clean_up(istate: IState, *, shape: str = "exact") -> IState:
+def clean_up(istate: IState, *, shape: str = "exact", memo: PairMemo | None = None) -> IState:
     """The four clean-up steps of section VI-A: canonical order, duplicates and empty elements
     removed, dominated elements removed."""
-    return remove_dominated(canonical(istate, shape=shape), shape=shape)
+    return remove_dominated(canonical(istate, shape=shape, memo=memo), shape=shape, memo=memo)
 
 
 # --------------------------------------------------------------------------- the cap M
 
 
-def overlap_areas(a: np.ndarray, b: np.ndarray, *, shape: str = "exact") -> np.ndarray:
+def overlap_areas(
+    a: np.ndarray, b: np.ndarray, *, shape: str = "exact", memo: PairMemo | None = None, skip_same: bool = False
+) -> np.ndarray:
     """``ov[i, j, k, l] = area(R^(a_i)_k cap R^(b_j)_l)`` for elements ``a (Ea, n)`` and ``b (Eb, n)``;
-    only pairs with intersecting bounding boxes are intersected (numpy for ``rect``)."""
+    only pairs with intersecting bounding boxes are intersected (numpy for ``rect``), each
+    distinct ordered region pair once (:class:`PairMemo`). ``skip_same`` (``a`` is ``b``):
+    the element with itself (``i == j``) is left 0, the cap never merges an element with itself."""
     ba = _bounds(a)[:, None, :, None, :]
     bb = _bounds(b)[None, :, None, :, :]
     w = np.minimum(ba[..., 2], bb[..., 2]) - np.maximum(ba[..., 0], bb[..., 0])
@@ -456,7 +570,13 @@ def overlap_areas(a: np.ndarray, b: np.ndarray, *, shape: str = "exact") -> np.n
         return box
     ov = np.zeros_like(box)
     i, j, k, l = np.nonzero(box > 0)
-    ov[i, j, k, l] = shapely.area(shapely.intersection(a[i, k], b[j, l]))
+    if skip_same:
+        keep = i != j
+        i, j, k, l = i[keep], j[keep], k[keep], l[keep]
+    memo = PairMemo() if memo is None else memo
+    ka = memo.keys(a)
+    kb = ka if b is a else memo.keys(b)
+    ov[i, j, k, l] = memo.pairs(a[i, k], b[j, l], ka[i, k], kb[j, l], memo.area, _intersection_area, np.float64)
     return ov
 
 
@@ -490,8 +610,136 @@ def merge_elements(a: np.ndarray, b: np.ndarray, tau: np.ndarray, *, shape: str 
     return np.asarray(constrain(shapely.union(a, b[tau]), shape), dtype=object)
 
 
-def cap_elements(istate: IState, max_elements: int, *, shape: str = "exact") -> IState:
+def cap_elements(istate: IState, max_elements: int, *, shape: str = "exact", memo: PairMemo | None = None) -> IState:
     """Merge until at most ``M`` elements remain (section VI-A).
+
+    Similarity of two elements = their total pairwise region overlap under the pairing of
+    regions that maximises it, ``sim(a, b) = max_tau sum_k area(R^(a)_k cap R^(b)_tau(k))``
+    (the paper's "total pairwise overlap" needs a pairing of the unordered regions; we use
+    the best one). The most similar pair is replaced by :func:`merge_elements` along that
+    pairing; the new element's similarities are recomputed against the others. Inherently
+    sequential over merges; each merge is vectorised. Above ``CAP_CHUNK`` elements (after a
+    communication update) chunks of ``CAP_CHUNK`` are capped first, then their union: the
+    pairwise similarity matrix stays ``O(CAP_CHUNK^2 n^2)``.
+
+    Only the similarities that can decide a merge are computed (branch and bound). The
+    bounding boxes give, in numpy, an upper bound of every similarity,
+    ``ub(a, b) = max_tau sum_k |box(R^(a)_k) cap box(R^(b)_tau(k))| >= sim(a, b)``; a merge
+    picks the first largest similarity (row-major, as ``argmax``), so exact values are needed
+    only for pairs whose bound reaches the largest exact value known -- computed in
+    descending order of their bound until no unknown bound reaches it. The others cannot
+    be the largest (nor tie with it). Region pairs already intersected (in this call or,
+    through ``memo``, earlier in the filter step) are looked up. The result is the one of
+    :func:`cap_elements_reference`, which computes every similarity (the test oracle): each
+    exact value is computed the same way, in the same orientation.
+    """
+    E, n = istate.regions.shape
+    if E <= max_elements:
+        return istate
+    memo = PairMemo() if memo is None else memo
+    if E > CAP_CHUNK:  # hierarchical: cap chunks of CAP_CHUNK first (each merge is a superset)
+        parts = [
+            cap_elements(IState(istate.regions[i : i + CAP_CHUNK]), max_elements, shape=shape, memo=memo).regions
+            for i in range(0, E, CAP_CHUNK)
+        ]
+        return cap_elements(clean_up(IState(np.vstack(parts)), shape=shape, memo=memo), max_elements, shape=shape, memo=memo)
+    if shape == "rect":  # box overlaps are the exact similarities: nothing to bound
+        return cap_elements_reference(istate, max_elements, shape=shape, memo=memo)
+    regs = [row for row in istate.regions]
+    sim = np.full((E, E), -np.inf)
+    tau = np.zeros((E, E, n), dtype=np.int64)
+    known = np.eye(E, dtype=bool)  # the diagonal is -inf: never merged with itself
+    ub, _ = best_pairing(_box_overlaps(istate.regions, istate.regions))
+    ub = _slack(ub)
+    last = np.zeros(E, dtype=np.int64)  # merge step that last replaced each element (0: an input element)
+    alive = np.ones(E, dtype=bool)
+    step = 0
+    while alive.sum() > max_elements:
+        live = alive[:, None] & alive[None, :]
+        while True:  # settle: every pair that could be the argmax gets its exact similarity
+            todo = live & ~known
+            if not todo.any():
+                break
+            best = sim[live & known].max(initial=-np.inf)
+            ci, cj = np.nonzero(todo & (ub >= best))
+            if ci.size == 0:
+                break
+            if ci.size > SETTLE_BATCH:  # largest bounds first, a few at a time
+                top = np.argsort(-ub[ci, cj], kind="stable")[:SETTLE_BATCH]
+                ci, cj = ci[top], cj[top]
+            _exact_similarities(regs, ci, cj, last, sim, tau, known, shape=shape, memo=memo)
+        masked = np.where(live & known, sim, -np.inf)
+        i, j = np.unravel_index(np.argmax(masked), masked.shape)
+        merged = merge_elements(regs[i], regs[j], tau[i, j], shape=shape)
+        alive[j] = False
+        regs[i] = merged
+        step += 1
+        last[i] = step
+        others = np.flatnonzero(alive)
+        others = others[others != i]
+        if len(others):  # the merged element's similarities are unknown again
+            b, _ = best_pairing(_box_overlaps(merged[None, :], np.stack([regs[o] for o in others])))
+            ub[i, others] = ub[others, i] = _slack(b[0])
+            known[i, others] = known[others, i] = False
+    out = IState(np.stack([regs[k] for k in np.flatnonzero(alive)]))
+    return clean_up(out, shape=shape, memo=memo)
+
+
+def _box_overlaps(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """``(Ea, Eb, n, n)`` areas of the intersections of the regions' bounding boxes (0 for
+    boxes that do not overlap or empty regions): each bounds the region overlap from above."""
+    ba = _bounds(a)[:, None, :, None, :]
+    bb = _bounds(b)[None, :, None, :, :]
+    w = np.minimum(ba[..., 2], bb[..., 2]) - np.maximum(ba[..., 0], bb[..., 0])
+    h = np.minimum(ba[..., 3], bb[..., 3]) - np.maximum(ba[..., 1], bb[..., 1])
+    return np.nan_to_num(np.where((w > 0) & (h > 0), w * h, 0.0))
+
+
+def _slack(ub: np.ndarray) -> np.ndarray:
+    """An upper bound made safe against round-off of the exact areas it bounds."""
+    return ub * (1 + 1e-7) + 1e-12
+
+
+def _exact_similarities(regs, ci, cj, last, sim, tau, known, *, shape, memo) -> None:
+    """Exact ``sim``/``tau`` of the element pairs ``(ci, cj)``, in the orientation
+    :func:`cap_elements_reference` computes them: input elements ``a -> b``; a pair with a
+    merged element from the merged element (the one merged last) to the other, the reverse
+    entry the same similarity with the inverse pairing."""
+    flip = last[cj] > last[ci]  # the merged side (merged last) goes first
+    src = np.where(flip, cj, ci)
+    dst = np.where(flip, ci, cj)
+    merged = np.maximum(last[ci], last[cj]) > 0
+    key = np.where(merged, np.minimum(src, dst) * len(regs) + np.maximum(src, dst), ci * len(regs) + cj)
+    _, first = np.unique(np.where(merged, key, -1 - key), return_index=True)  # one computation per merged pair
+    src, dst, merged = src[first], dst[first], merged[first]
+    left = np.stack([regs[a] for a in src])
+    right = np.stack([regs[b] for b in dst])
+    s, t = best_pairing(_aligned_overlaps(left, right, shape=shape, memo=memo))
+    sim[src, dst], tau[src, dst], known[src, dst] = s, t, True
+    m = merged
+    sim[dst[m], src[m]], tau[dst[m], src[m]], known[dst[m], src[m]] = s[m], np.argsort(t[m], axis=1), True
+
+
+def _aligned_overlaps(a: np.ndarray, b: np.ndarray, *, shape: str, memo: PairMemo) -> np.ndarray:
+    """``ov[p, k, l] = area(a[p, k] cap b[p, l])`` for aligned element pairs ``a, b (P, n)``
+    (:func:`overlap_areas` of each pair, through the memo)."""
+    ba = _bounds(a)[:, :, None, :]
+    bb = _bounds(b)[:, None, :, :]
+    w = np.minimum(ba[..., 2], bb[..., 2]) - np.maximum(ba[..., 0], bb[..., 0])
+    h = np.minimum(ba[..., 3], bb[..., 3]) - np.maximum(ba[..., 1], bb[..., 1])
+    box = np.nan_to_num(np.where((w > 0) & (h > 0), w * h, 0.0))
+    ov = np.zeros_like(box)
+    p, k, l = np.nonzero(box > 0)
+    ka, kb = memo.keys(a), memo.keys(b)
+    ov[p, k, l] = memo.pairs(a[p, k], b[p, l], ka[p, k], kb[p, l], memo.area, _intersection_area, np.float64)
+    return ov
+
+
+def cap_elements_reference(
+    istate: IState, max_elements: int, *, shape: str = "exact", memo: PairMemo | None = None
+) -> IState:
+    """Merge until at most ``M`` elements remain (section VI-A), every similarity computed:
+    the plain reference of :func:`cap_elements` (and the test oracle; same result).
 
     Similarity of two elements = their total pairwise region overlap under the pairing of
     regions that maximises it, ``sim(a, b) = max_tau sum_k area(R^(a)_k cap R^(b)_tau(k))``
@@ -500,16 +748,22 @@ def cap_elements(istate: IState, max_elements: int, *, shape: str = "exact") -> 
     pairing; the new element's similarities are computed incrementally. Inherently
     sequential over merges; each merge is vectorised. Above ``CAP_CHUNK`` elements (after a
     communication update) chunks of ``CAP_CHUNK`` are capped first, then their union: the
-    pairwise similarity matrix stays ``O(CAP_CHUNK^2 n^2)``.
+    pairwise similarity matrix stays ``O(CAP_CHUNK^2 n^2)``. Region pairs already intersected
+    (in this call or, through ``memo``, earlier in the filter step) are looked up.
     """
     E, n = istate.regions.shape
     if E <= max_elements:
         return istate
     if E > CAP_CHUNK:  # hierarchical: cap chunks of CAP_CHUNK first (each merge is a superset)
-        parts = [cap_elements(IState(istate.regions[i : i + CAP_CHUNK]), max_elements, shape=shape).regions for i in range(0, E, CAP_CHUNK)]
-        return cap_elements(clean_up(IState(np.vstack(parts)), shape=shape), max_elements, shape=shape)
+        memo = PairMemo() if memo is None else memo
+        parts = [
+            cap_elements_reference(IState(istate.regions[i : i + CAP_CHUNK]), max_elements, shape=shape, memo=memo).regions
+            for i in range(0, E, CAP_CHUNK)
+        ]
+        return cap_elements_reference(clean_up(IState(np.vstack(parts)), shape=shape, memo=memo), max_elements, shape=shape, memo=memo)
     regs = [row for row in istate.regions]
-    ov = overlap_areas(istate.regions, istate.regions, shape=shape)
+    memo = PairMemo() if memo is None else memo
+    ov = overlap_areas(istate.regions, istate.regions, shape=shape, memo=memo, skip_same=True)
     sim, tau = best_pairing(ov)
     sim = sim.astype(float)
     np.fill_diagonal(sim, -np.inf)
@@ -524,14 +778,14 @@ def cap_elements(istate: IState, max_elements: int, *, shape: str = "exact") -> 
         others = others[others != i]
         if len(others):
             stack = np.stack([regs[o] for o in others])
-            ov_new = overlap_areas(merged[None, :], stack, shape=shape)[0]  # (len(others), n, n)
+            ov_new = overlap_areas(merged[None, :], stack, shape=shape, memo=memo)[0]  # (len(others), n, n)
             s_new, t_new = best_pairing(ov_new)
             sim[i, others] = s_new
             tau[i, others] = t_new
             sim[others, i] = s_new
             tau[others, i] = np.argsort(t_new, axis=1)  # inverse pairing
     out = IState(np.stack([regs[k] for k in np.flatnonzero(alive)]))
-    return clean_up(out, shape=shape)
+    return clean_up(out, shape=shape, memo=memo)
 
 
 # --------------------------------------------------------------------------- query
@@ -657,10 +911,11 @@ def info_state_update(
     the paper) is subtracted. Sequential over sensing regions (each depends on the last).
     """
     eta = forward_project(istate, step, free_space, shape=shape, substeps=substeps)
+    memo = PairMemo()  # region pairs of this step, shared by every clean-up and cap below
     for s in detections:
-        eta = clean_up(observation_update(eta, s, shape=shape), shape=shape)
+        eta = clean_up(observation_update(eta, s, shape=shape), shape=shape, memo=memo)
         if max_elements is not None:
-            eta = cap_elements(eta, max_elements, shape=shape)
+            eta = cap_elements(eta, max_elements, shape=shape, memo=memo)
     for s in negatives:
-        eta = clean_up(negative_update(eta, s, shape=shape), shape=shape)
+        eta = clean_up(negative_update(eta, s, shape=shape), shape=shape, memo=memo)
     return eta

@@ -3,8 +3,9 @@
 The dataset's sensors are treated as fixed trackers that share one I-state (they always
 communicate); each senses its detection region of the site (:mod:`onebit.core.sensing`: a
 motion sensor's ``fov``, ``range`` disk and type extent intersected, a proximity sensor's
-disk of radius ``R_o``, a beam as a thin region -- the segment grown by half its pair
-spacing, here plus ``beam_width``). Lengths and speeds of the config are in metres (m/s)
+disk of radius ``R_o``, a beam as a thin region -- the segment grown by how far a body's
+centre can be from it at a crossing, half its pair spacing plus the site's body radius
+(:func:`onebit.readers.beams.crossing_reach`), plus ``beam_width``). Lengths and speeds of the config are in metres (m/s)
 and reach the stage in the site's units (:func:`onebit.core.units.config_in_site_units`).
 Readings are sampled at stage times ``t_k = k T`` (``T = period_s``) and the filter of
 :mod:`onebit.trackers.istate.core` runs.
@@ -40,9 +41,10 @@ from scipy.optimize import linear_sum_assignment
 
 from onebit.core.site import Site
 from onebit.core.errors import ConfigError
-from onebit.core.sensing import detection_regions
+from onebit.core.sensing import body_radius, detection_regions
 from onebit.core.units import length
 from onebit.core.tables import CROSSINGS, MOTION, PROXIMITY, TRACKS, check_schema, conform
+from onebit.readers.motion import ABSENT_AFTER_S, outside_silence, silent_stretches
 from onebit.trackers.base import ARTIFACTS, TrackerSpec
 from onebit.core.config import check_choice, check_range
 from onebit.trackers.istate.core import SHAPES, IState, disk, grow, info_state_update, shrink
@@ -81,8 +83,13 @@ class IStateConfig:
     latency_auto : use ``max(latency_s, resolution)``, where the resolution is the smallest
         positive gap between distinct reading times of the motion/proximity logs (0.1 s for
         a 10 Hz log, 1 s for readings at whole seconds).
-    beam_width : half-width added to a beam's thin region besides half its pair spacing, m.
+    beam_width : extra half-width of a beam's region, m, beyond its reach at a crossing (half
+        its pair spacing plus the site's ``body_radius``: a crossing is logged when the body
+        has cleared the beam, its centre that far past it).
     substeps : rounds of grow-and-clip in the motion update (more follow obstacles tighter).
+    absent_after : s; the empty room: no point summary (track row) inside a stretch this long
+        in which every sensor is off and nothing happens; 0 = always one. The I-state itself
+        is unchanged.
     """
 
     period_s: float = 1.0
@@ -93,8 +100,9 @@ class IStateConfig:
     reliable_negatives: bool = False
     latency_s: float = 0.0
     latency_auto: bool = True
-    beam_width: float = length(0.05, unit="m")
+    beam_width: float = length(0.0, unit="m")
     substeps: int = 1
+    absent_after: float = ABSENT_AFTER_S
 
     def __post_init__(self) -> None:
         check_range(self, "period_s", 1e-6, None)
@@ -107,6 +115,7 @@ class IStateConfig:
         check_choice(self, "latency_auto", (True, False))
         check_range(self, "beam_width", 0.0, None)
         check_range(self, "substeps", 1, 100, types=(int,))
+        check_range(self, "absent_after", 0.0, 1e12)
 
 
 # --------------------------------------------------------------------------- sensing regions
@@ -129,13 +138,13 @@ def sensing_regions(site: Site, config: IStateConfig) -> SensingRegions:
     and type extent intersected; a proximity sensor's disk ``R_o``; a beam's segment grown by
     half its pair spacing), as polygons that contain them (round parts grown by the
     circumscribing radius, :func:`~onebit.trackers.istate.core.grow`), a beam's grown further
-    by ``beam_width``. Negatives clear a subset: a motion sensor's region with its disk
+    by the site's body radius (where the centre is when the crossing is logged) and ``beam_width``. Negatives clear a subset: a motion sensor's region with its disk
     inscribed, a proximity sensor's inscribed disk ``R_i``; a beam clears nothing. A motion
     sensor without a usable region raises :class:`~onebit.core.errors.SiteError`."""
     ids, pos, neg, kind = [], [], [], []
     for r in detection_regions(site).values():
         polys = [g for g in (r.fov, r.extent) if g is not None]
-        extra = config.beam_width if r.kind == "beam" else 0.0
+        extra = body_radius(site) + config.beam_width if r.kind == "beam" else 0.0
         outer = polys + ([grow(r.core, r.radius + extra)] if r.radius is not None else [])
         ids.append(r.sensor), kind.append(r.kind), pos.append(_intersect(outer))
         if r.kind == "motion":
@@ -229,8 +238,10 @@ def state_readings(edges: pl.DataFrame, times: np.ndarray, period: float, hold: 
     )
 
 
-def crossing_readings(crossings: pl.DataFrame, times: np.ndarray, period: float, speed: float) -> pl.DataFrame:
-    """Beam detections: the latest crossing of each beam in each stage, inflated by ``v (t_k - t_c)``."""
+def crossing_readings(crossings: pl.DataFrame, times: np.ndarray, period: float, speed: float, hold: float = 0.0) -> pl.DataFrame:
+    """Beam detections: the latest crossing of each beam in each stage, inflated by
+    ``v (t_k - t_c + hold)`` (``hold``: how late the crossing's stamp may be, the raw log's
+    sampling interval)."""
     if crossings.height == 0 or len(times) == 0:
         return pl.DataFrame(schema={"stage": pl.Int64, "sensor": pl.String, "detect": pl.Boolean, "inflation": pl.Float64, "negative": pl.Boolean})
     t0 = float(times[0])
@@ -240,7 +251,7 @@ def crossing_readings(crossings: pl.DataFrame, times: np.ndarray, period: float,
         .filter(pl.col("stage") < len(times))
         .group_by("stage", pl.col("beam").alias("sensor"))
         .agg(tc=pl.col("t").max())
-        .with_columns(inflation=speed * (pl.lit(tk).gather(pl.col("stage")) - pl.col("tc")), detect=pl.lit(True), negative=pl.lit(False))
+        .with_columns(inflation=speed * (pl.lit(tk).gather(pl.col("stage")) - pl.col("tc") + hold), detect=pl.lit(True), negative=pl.lit(False))
         .select("stage", "sensor", "detect", "inflation", "negative")
     )
 
@@ -279,8 +290,11 @@ def run(inputs: dict, site: Site, config: IStateConfig) -> dict[str, pl.DataFram
     if config.latency_auto and levels is not None:
         latency = max(latency, time_resolution(levels["t"]))
     readings = [state_readings(levels, times, T, latency, v)] if tables else []
-    if cross is not None:
-        readings.append(crossing_readings(cross, times, T, v))
+    if cross is not None:  # a crossing's stamp lags the body by up to the raw beam log's sampling interval
+        events = inputs.get("beam_events")
+        stamps = events["t"] if events is not None and events.height else cross["t"]
+        lag = max(config.latency_s, time_resolution(stamps)) if config.latency_auto else config.latency_s
+        readings.append(crossing_readings(cross, times, T, v, lag))
     rd = pl.concat(readings) if readings else pl.DataFrame(schema={"stage": pl.Int64, "sensor": pl.String, "detect": pl.Boolean, "inflation": pl.Float64, "negative": pl.Boolean})
     rd = rd.with_columns(idx=pl.col("sensor").replace_strict(index, return_dtype=pl.Int64)).sort("stage", "idx")
 
@@ -345,6 +359,8 @@ def run(inputs: dict, site: Site, config: IStateConfig) -> dict[str, pl.DataFram
         ),
         TRACKS,
     ).with_columns(pl.col("x").fill_nan(None), pl.col("y").fill_nan(None))
+    silent = silent_stretches([*tables, *([cross] if cross is not None else [])], min_s=config.absent_after)
+    tracks = outside_silence(tracks, silent)  # the empty room: no point summary where nobody is
     detections = pl.DataFrame(
         {"t": times[det_stage] if len(times) else [], "stage": det_stage, "sensor": det["sensor"], "inflation": det["inflation"]},
         schema=DETECTIONS,
@@ -369,7 +385,7 @@ def _point_summary(eta: IState, prev: np.ndarray | None, n: int) -> np.ndarray:
 SPEC = TrackerSpec(
     name=NAME,
     needs=(),
-    wants=("motion", "proximity", "crossings"),
+    wants=("motion", "proximity", "crossings", "beam_events"),
     config=IStateConfig,
     run=run,
     available=available,

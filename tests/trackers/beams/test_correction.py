@@ -8,7 +8,7 @@ import polars as pl
 import pytest
 
 from onebit.datasets.beams_sim import write_beams_dataset
-from onebit.core.errors import ConfigError
+from onebit.core.errors import ConfigError, InputError
 from onebit.pipeline.report import metric
 from onebit.pipeline.runner import run_pipeline
 from onebit.scoring.correction import recovered_matches
@@ -112,6 +112,8 @@ def test_dataset_run_toml_gives_the_known_initial_condition(tmp_path):
 def test_stage_skipped_without_agent_count(tmp_path):
     data = write_beams_dataset(tmp_path / "d", "beams-lab", seed=0, duration=30.0, camera=False)
     (data / "run.toml").unlink()  # no known n: neither site.toml targets nor a [correct] section
+    site = (data / "site.toml").read_text()  # the simulator declares its agents as targets: drop them
+    (data / "site.toml").write_text("\n".join(ln for ln in site.splitlines() if not ln.startswith("targets")) + "\n")
     res = run_pipeline(data, tmp_path / "r", trackers=("beams",))
     assert res.status["correct"].startswith("skipped") and "[correct] n" in res.status["correct"]
     res2 = run_pipeline(data, tmp_path / "r2", trackers=("beams",), config={"correct": {"n": 2, "start_region": "nowhere"}})
@@ -230,14 +232,11 @@ def test_dropped_crossings_recovered_on_average(twenty_seeds):
     assert float(np.mean(df["recovered"].to_numpy())) >= 0.9, df
 
 
-def test_broken_dataset_run_toml_fails_the_stage_naming_the_file(tmp_path):
-    """A dataset whose run.toml is not TOML: every stage that reads it (correct, the trackers)
-    fails with the file named, the reader stages go on (no exception escapes the pipeline)."""
+def test_broken_dataset_run_toml_is_refused_naming_the_file(tmp_path):
+    """A dataset whose run.toml is not TOML is refused when the run starts, naming the file;
+    nothing is written (every input is checked before any work)."""
     data = write_beams_dataset(tmp_path / "d", "beams-building", seed=0, duration=30.0, drop=0.0, camera=False)
     (data / "run.toml").write_text("[correct\nn = 3\n")
-    res = run_pipeline(data, tmp_path / "run", trackers=("beams",))
-    assert res.status["correct"].startswith("failed"), res.status
-    assert "run.toml" in res.status["correct"] and "TOML" in res.status["correct"]
-    assert res.status["beams"].startswith("failed") and "run.toml" in res.status["beams"], res.status
-    assert res.status["crossings"].startswith("ok") and res.status["truth"].startswith("ok")
-    assert not res.ok
+    with pytest.raises(InputError, match=r"run\.toml: not valid TOML"):
+        run_pipeline(data, tmp_path / "run", trackers=("beams",))
+    assert not (tmp_path / "run" / "run.toml").exists()

@@ -1,0 +1,85 @@
+"""Compile every numba kernel once, with the argument types the pipeline uses, so numba's
+on-disk cache (``cache=True``) holds them: ``make install`` runs this, and a run (``make demo``,
+``onebit run``) then loads compiled code in milliseconds instead of compiling on its critical
+path. Prints the time each kernel module took (cold: compiled; warm: loaded from the cache).
+
+Run with ``python -m benchmarks.warm_kernels``.
+"""
+
+from __future__ import annotations
+
+import time
+
+import numpy as np
+import polars as pl
+import shapely
+
+
+def findinghumo() -> None:
+    from onebit.trackers.findinghumo.adaptive import DecoderParams, decode_run
+    from onebit.trackers.findinghumo.eatg import hop_matrix, layout_eatg
+
+    nodes = ("a", "b", "c", "d")
+    eatg = layout_eatg(nodes, hop_matrix(nodes, (("a", "b"), ("b", "c"), ("c", "d"))))
+    act = np.eye(4, dtype=bool)[[0, 1, 2, 3, 2, 1]] | np.eye(4, dtype=bool)[[3, 3, 0, 0, 0, 0]]
+    for mode in ("adaptive", "full1", "full2"):
+        decode_run(act, eatg, params=DecoderParams(mode=mode, d_max=3, tau=2))
+
+
+def intruder() -> None:
+    from onebit.models.motion import Motion, Room
+    from onebit.models.pir import Deployment, WorldGrid
+    from onebit.trackers.intruder.filter import run_filter
+
+    q = np.zeros((2, 4, 4))
+    q[0, :2, :2] = q[1, 2:, 2:] = 0.8
+    dep = Deployment(("s0", "s1"), WorldGrid(0.0, 0.0, 1.0, 4, 4), q, np.zeros(2), np.full(2, 1e-6), np.zeros(2), np.array([4, 4]), ())
+    fired = np.array([[True, False], [False, True]])
+    motion = Motion(2.0, 4.0, 1.5, 4.0, 50)
+    for room in (Room(shapely.box(0, 0, 4, 4)), Room(shapely.box(0, 0, 4, 4).difference(shapely.box(1.5, 1.5, 2.5, 2.5)))):
+        for resample in ("systematic", "multinomial"):
+            run_filter(fired, ~fired, dep, room, motion, n_particles=20, half_w=1.0, half_d=1.0, rng=np.random.default_rng(0),
+                       resample=resample, log_particles=5, compiled=True)  # fmt: skip
+
+
+def beams() -> None:
+    from onebit.trackers.beams.assignment import Constraints, assign_agents
+    from onebit.trackers.beams.counting import RegionEdges, correct
+
+    src, tgt = np.array([0, 1, 2, 1]), np.array([1, 2, 1, 0])
+    assign_agents(src, tgt, 3, compiled=True)
+    assign_agents(src, tgt, 3, constraints=Constraints(max_track_length=9, min_traversal=np.full(3, 0.5)), times=np.arange(4.0), compiled=True)
+    edges = RegionEdges.from_arrays([0, 1, 1, 2], [1, 0, 2, 1], 3)
+    correct(np.array([1, 2]), np.array([2, 1]), edges, n_agents=1, compiled=True)
+
+
+def clustertrack() -> None:
+    from onebit.trackers.clustertrack.algorithm import scan_clusters
+
+    for dim in (1, 2):
+        x = np.random.default_rng(0).random((6, dim))
+        scan_clusters(np.arange(6.0), np.repeat(np.arange(2), 3), x, np.zeros((2, 2)), 2, H=2, K=4, L=6, D0=0.5,
+                      rng=np.random.default_rng(0), compiled=True)  # fmt: skip
+
+
+def readers() -> None:
+    from onebit.readers.beams import decode_passes
+    from onebit.readers.motion import DebounceRules, debounce
+
+    ev = pl.DataFrame({"line": [2, 3, 4, 5], "t": [0.0, 0.1, 0.2, 0.3], "beam": "a", "pair": ["a", "b", "a", "b"], "blocked": [True, True, False, False]})
+    decode_passes(ev, compiled=True)
+    edges = pl.DataFrame({"line": [2, 3], "t": [0.0, 1.0], "sensor": "s", "on": [True, False]})
+    debounce(edges, ["s"], DebounceRules(chatter_window=0.1, min_on=0.1), compiled=True)
+
+
+def main() -> None:
+    t_all = time.perf_counter()
+    for warm in (findinghumo, intruder, beams, clustertrack, readers):
+        t0 = time.perf_counter()
+        warm()
+        print(f"kernels: {warm.__name__:<13} {time.perf_counter() - t0:6.2f} s", flush=True)
+    print(f"all kernels compiled or loaded from numba's cache in {time.perf_counter() - t_all:.1f} s")
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,474 @@
+"""Importers: the field's own recordings -> onebit dataset folders.
+
+``onebit import casas LOG DATASET_DIR [--layout layout.toml] [--targets N]``
+    (:func:`import_casas`) -- a CASAS smart-home log (:mod:`onebit.readers.casas`) becomes::
+
+        site.toml        motion sensors (M### and the D### doors), their sensor graph, epoch
+        motion.csv       t, sensor, value (ON/OFF, OPEN/CLOSE as logged), stamp, log_line
+        other.csv        every other sensor's events (temperature, lights, ...), nothing lost
+        annotations.csv  the annotated lines (activity labels), with their sensor and value
+        rejects.csv      the lines the reader rejected, with their reasons (when there are any)
+        import.toml      what was done: counts, time origin, how the graph and positions were found
+
+    ``t`` is seconds since ``site.toml``'s ``epoch``, the log's first second.
+
+``onebit import trajectories FILE DATASET_DIR`` (:func:`import_trajectories`) -- a
+people-counter or indoor-positioning export becomes ``truth.csv`` (see
+:mod:`onebit.readers.trajectories`), and a ``site.toml`` holding the walks' bounding box
+when the folder has none yet.
+
+Sensor graph and positions of a CASAS home
+-----------------------------------------
+With a layout file (``--layout``), positions (and, if it gives them, the edges) come from it.
+Without one the graph is **learned from the log** (:func:`learn_sensor_graph`): take the
+``ON``/``OPEN`` events of the motion and door sensors in time order; each two consecutive ones
+from different sensors, ``dt <= window_s`` (5 s) apart, are one *transition* between them
+(either direction). Sensors ``a`` and ``b`` are adjacent when they have at least
+``min_count`` (3) transitions and those are at least ``min_share`` (10 %) of the transitions
+of the less busy of the two -- a person walking trips neighbouring sensors one after the
+other, while a skipped sensor (a missed detection) or two people in different rooms make
+rarer pairs. Components left apart are joined by the edges of a maximum spanning forest of
+the transition counts (the most frequent transitions between them). Nodes get positions from
+a force layout of that graph (``networkx.spring_layout``, seeded; edge length ``spacing_m``,
+3 m) -- **not measured**: ``import.toml`` says ``positions = "force layout"`` and
+``site.toml`` says so in its header. Door sensors (``D###``) are the graph's entry and exit
+nodes, with an entry signature ``door -> neighbour`` for each neighbour (FindingHuMo's
+``Sig_in``; the reverse is an exit).
+"""
+
+from __future__ import annotations
+
+import math
+import re
+import tomllib
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import networkx as nx
+import numpy as np
+import polars as pl
+
+from onebit.core.errors import InputError
+from onebit.core.site import load_site, site_from_dict
+from onebit.core.tables import REJECTS
+from onebit.core.writers import to_toml, write_csv, write_text
+from onebit.readers.casas import TOGGLE_KINDS, CasasLog, read_casas
+from onebit.readers.trajectories import TrajectoryFormat, read_trajectories
+
+#: Defaults of the learned-graph rule (module docstring).
+WINDOW_S = 5.0
+MIN_COUNT = 3
+MIN_SHARE = 0.1
+SPACING_M = 3.0
+
+_LAYOUT_KEYS = {"units", "targets", "boundary", "range", "sensors", "graph", "name"}
+
+
+@dataclass(frozen=True)
+class Layout:
+    """A layout file: sensor positions (site units), optional edges, boundary, range, targets."""
+
+    positions: dict[str, tuple[float, float]]
+    edges: tuple[tuple[str, str], ...] | None = None
+    boundary: list | None = None
+    range: float | None = None
+    units: str = "m"
+    targets: int | None = None
+    name: str | None = None
+    source: str = "layout.toml"
+
+
+@dataclass
+class ImportSummary:
+    """What an import wrote (also in ``import.toml``)."""
+
+    dataset: Path
+    counts: dict[str, int] = field(default_factory=dict)
+    info: dict = field(default_factory=dict)
+
+
+# --------------------------------------------------------------------------- the graph
+
+
+def transitions(events: pl.DataFrame, *, window_s: float = WINDOW_S) -> pl.DataFrame:
+    """Transition counts ``(a, b, n)`` (``a < b``) between consecutive ON events of different
+    sensors at most ``window_s`` apart (``events``: t, sensor, on; sorted by t)."""
+    on = events.filter(pl.col("on")).select("t", "sensor").sort("t", maintain_order=True)
+    pairs = on.with_columns(nxt=pl.col("sensor").shift(-1), dt=pl.col("t").shift(-1) - pl.col("t")).filter(
+        pl.col("nxt").is_not_null() & (pl.col("nxt") != pl.col("sensor")) & (pl.col("dt") <= window_s)
+    )
+    a = pl.min_horizontal("sensor", "nxt")
+    b = pl.max_horizontal("sensor", "nxt")
+    return pairs.group_by(a.alias("a"), b.alias("b")).agg(n=pl.len().cast(pl.Int64)).sort("a", "b")
+
+
+def learn_sensor_graph(
+    events: pl.DataFrame,
+    nodes: list[str],
+    *,
+    window_s: float = WINDOW_S,
+    min_count: int = MIN_COUNT,
+    min_share: float = MIN_SHARE,
+) -> tuple[list[tuple[str, str]], pl.DataFrame]:
+    """Edges of the sensor graph learned from ON events (module docstring), and the
+    transition table with columns a, b, n, share, kept (``"rule"``, ``"joins components"``
+    or null)."""
+    tr = transitions(events, window_s=window_s)
+    busy = pl.concat([tr.select(pl.col("a").alias("s"), "n"), tr.select(pl.col("b").alias("s"), "n")]).group_by("s").agg(
+        total=pl.col("n").sum()
+    )
+    tr = (
+        tr.join(busy.rename({"s": "a", "total": "ta"}), on="a")
+        .join(busy.rename({"s": "b", "total": "tb"}), on="b")
+        .with_columns(share=pl.col("n") / pl.min_horizontal("ta", "tb"))
+        .with_columns(kept=pl.when((pl.col("n") >= min_count) & (pl.col("share") >= min_share)).then(pl.lit("rule")))
+        .drop("ta", "tb")
+        .sort("a", "b")
+    )
+    g = nx.Graph()
+    g.add_nodes_from(nodes)
+    g.add_edges_from(tr.filter(pl.col("kept").is_not_null()).select("a", "b").rows())
+    counts = nx.Graph()
+    counts.add_nodes_from(nodes)
+    counts.add_weighted_edges_from(tr.select("a", "b", "n").rows())
+    joins = set()
+    for a, b in nx.maximum_spanning_edges(counts, data=False):  # the most frequent transitions first
+        if not nx.has_path(g, a, b):
+            g.add_edge(a, b)
+            joins.add((min(a, b), max(a, b)))
+    if joins:
+        j = pl.DataFrame(sorted(joins), schema={"a": pl.String, "b": pl.String}, orient="row").with_columns(_join=pl.lit(True))
+        tr = tr.join(j, on=["a", "b"], how="left").with_columns(
+            kept=pl.when(pl.col("_join")).then(pl.lit("joins components")).otherwise(pl.col("kept"))
+        ).drop("_join")
+    edges = sorted((min(a, b), max(a, b)) for a, b in g.edges())
+    return edges, tr
+
+
+def force_layout(nodes: list[str], edges: list[tuple[str, str]], *, spacing: float = SPACING_M, seed: int = 0) -> dict[str, tuple[float, float]]:
+    """Positions from a seeded force layout, scaled so the median edge is ``spacing`` long and
+    moved so every position is at least ``spacing`` from the axes."""
+    g = nx.Graph()
+    g.add_nodes_from(nodes)
+    g.add_edges_from(edges)
+    if len(nodes) == 1:
+        return {nodes[0]: (spacing, spacing)}
+    pos = nx.spring_layout(g, seed=seed, iterations=300)
+    xy = np.array([pos[n] for n in nodes], dtype=float)
+    if edges:
+        idx = {n: i for i, n in enumerate(nodes)}
+        lengths = np.array([np.hypot(*(xy[idx[a]] - xy[idx[b]])) for a, b in edges])
+        med = float(np.median(lengths[lengths > 0])) if np.any(lengths > 0) else 1.0
+    else:
+        med = float(np.median(np.hypot(*(xy - xy.mean(axis=0)).T))) or 1.0
+    xy = xy / med * spacing
+    xy = xy - xy.min(axis=0) + spacing
+    return {n: (round(float(x), 3), round(float(y), 3)) for n, (x, y) in zip(nodes, xy)}
+
+
+# --------------------------------------------------------------------------- layout files
+
+
+def load_layout(path: str | Path) -> Layout:
+    """Read a layout file (``--layout``)::
+
+        units = "m"                       # optional (default m)
+        targets = 1                       # optional: people in the home at most
+        range = 1.5                       # optional: each sensor's detection radius
+        boundary = [[0, 0], [25, 0], [25, 10], [0, 10]]   # optional, else the positions' box
+        [sensors]                         # required: a position for every sensor of the log
+        M001 = [1.5, 2.0]
+        D001 = [0.0, 2.0]
+        [graph]                           # optional: the edges (else learned from the log)
+        edges = [["D001", "M001"], ["M001", "M002"]]
+
+    Errors name the file and the key."""
+    path = Path(path)
+    try:
+        data = tomllib.loads(path.read_text(encoding="utf-8"))
+    except OSError as exc:
+        raise InputError(f"cannot read layout file: {exc.strerror}", file=path) from None
+    except (tomllib.TOMLDecodeError, UnicodeDecodeError) as exc:
+        raise InputError(f"not valid TOML: {exc}", file=path) from None
+    for k in data:
+        if k not in _LAYOUT_KEYS:
+            raise InputError(f"unknown key; allowed keys are {sorted(_LAYOUT_KEYS)}", file=path, field=k)
+    sensors = data.get("sensors")
+    if not isinstance(sensors, dict) or not sensors:
+        raise InputError("missing; a [sensors] table with a position [x, y] per sensor id", file=path, field="sensors")
+    positions = {}
+    for sid, p in sensors.items():
+        if not (isinstance(p, list) and len(p) == 2 and all(isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v) for v in p)):
+            raise InputError(f"must be [x, y] (two numbers), got {p!r}", file=path, field=f"sensors.{sid}")
+        positions[str(sid)] = (float(p[0]), float(p[1]))
+    edges = None
+    graph = data.get("graph", {})
+    if not isinstance(graph, dict):
+        raise InputError("must be a table with 'edges'", file=path, field="graph")
+    if "edges" in graph:
+        e = graph["edges"]
+        if not isinstance(e, list) or not all(isinstance(x, list) and len(x) == 2 for x in e):
+            raise InputError("must be a list of [sensor, sensor] pairs", file=path, field="graph.edges")
+        for k, (a, b) in enumerate(e):
+            for n in (a, b):
+                if str(n) not in positions:
+                    raise InputError(f"sensor {n!r} has no position in [sensors]", file=path, field=f"graph.edges[{k}]")
+        edges = tuple((str(a), str(b)) for a, b in e)
+    rng = data.get("range")
+    if rng is not None and (isinstance(rng, bool) or not isinstance(rng, (int, float)) or not rng > 0):
+        raise InputError(f"must be a positive number, got {rng!r}", file=path, field="range")
+    targets = data.get("targets")
+    if targets is not None and (isinstance(targets, bool) or not isinstance(targets, int) or targets < 0):
+        raise InputError(f"must be a non-negative integer, got {targets!r}", file=path, field="targets")
+    return Layout(positions, edges, data.get("boundary"), None if rng is None else float(rng), str(data.get("units", "m")),
+                  targets, data.get("name"), str(path))  # fmt: skip
+
+
+# --------------------------------------------------------------------------- site.toml
+
+
+def _v(x) -> str:
+    if isinstance(x, bool):
+        return "true" if x else "false"
+    if isinstance(x, (int, float)):
+        return repr(round(float(x), 6)) if isinstance(x, float) else str(x)
+    if isinstance(x, (list, tuple)):
+        return "[" + ", ".join(_v(y) for y in x) + "]"
+    return '"' + str(x).replace("\\", "\\\\").replace('"', '\\"') + '"'
+
+
+def graph_site_toml(
+    *,
+    name: str,
+    units: str,
+    positions: dict[str, tuple[float, float]],
+    edges: list[tuple[str, str]],
+    doors: list[str],
+    sensor_range: float,
+    boundary: list | None = None,
+    epoch: str | None = None,
+    targets: int | None = None,
+    header: str = "",
+) -> str:
+    """``site.toml`` of a sensor-graph home: motion sensors (doors included) with a detection
+    disk of ``sensor_range``, the graph, doors as entries/exits with ``door -> neighbour``
+    signatures, the boundary (else the positions' box grown by twice the range)."""
+    xy = np.array(list(positions.values()), dtype=float)
+    if boundary is None:
+        m = 2.0 * sensor_range
+        (x0, y0), (x1, y1) = xy.min(axis=0) - m, xy.max(axis=0) + m
+        boundary = [[x0, y0], [x1, y0], [x1, y1], [x0, y1]]
+    g = nx.Graph(edges)
+    sigs = [[d, n] for d in doors if d in g for n in sorted(g.neighbors(d)) if n not in doors]
+    lines = [header.rstrip("\n")] if header else []
+    lines += [f"name = {_v(name)}", f"units = {_v(units)}"]
+    if epoch is not None:
+        lines.append(f"epoch = {_v(epoch)}")
+    if targets is not None:
+        lines.append(f"targets = {int(targets)}")
+    lines += ["", "[boundary]", f"polygon = {_v([[float(a), float(b)] for a, b in boundary])}", ""]
+    for sid, (x, y) in positions.items():
+        lines += ["[[motion_sensors]]", f"id = {_v(sid)}", f"position = {_v([x, y])}", f"range = {_v(float(sensor_range))}", ""]
+    lines += [
+        "[sensor_graph]",
+        f"edges = {_v([list(e) for e in edges])}",
+        f"entries = {_v(doors)}",
+        f"exits = {_v(doors)}",
+        f"signatures = {_v(sigs)}",
+        "",
+    ]
+    return "\n".join(lines)
+
+
+# --------------------------------------------------------------------------- CASAS
+
+
+def import_casas(
+    log: str | Path,
+    dataset: str | Path,
+    *,
+    layout: str | Path | None = None,
+    targets: int | None = None,
+    window_s: float = WINDOW_S,
+    min_count: int = MIN_COUNT,
+    min_share: float = MIN_SHARE,
+    spacing_m: float = SPACING_M,
+) -> ImportSummary:
+    """Write a dataset folder from a CASAS log (module docstring); every file atomically."""
+    log, out = Path(log), Path(dataset)
+    if not log.is_file():
+        raise InputError("no such CASAS log", file=log)
+    for name, v, lo in (("--window", window_s, 0.0), ("--spacing", spacing_m, 0.0), ("--min-share", min_share, -1e-12)):
+        if not (isinstance(v, (int, float)) and math.isfinite(v) and v > lo):
+            raise InputError(f"{name} = {v!r}: must be a positive number")
+    if targets is not None and targets < 0:
+        raise InputError(f"--targets = {targets!r}: must be >= 0")
+    lay = load_layout(layout) if layout is not None else None
+    res: CasasLog = read_casas(log)
+    ev = res.events
+    toggles = ev.filter(pl.col("kind").is_in(list(TOGGLE_KINDS)))
+    others = ev.filter(~pl.col("kind").is_in(list(TOGGLE_KINDS)))
+    notes = ev.filter(pl.col("annotation").is_not_null())
+    nodes = sorted(toggles["sensor"].unique().to_list(), key=_natural)
+    if not nodes:
+        raise InputError("no motion (M###) or door (D###) events in the log: nothing to track", file=log)
+    doors = [n for n in nodes if toggles.filter(pl.col("sensor") == n)["kind"][0] == "door"]
+
+    trans = pl.DataFrame()
+    if lay is not None:
+        missing = [n for n in nodes if n not in lay.positions]
+        if missing:
+            raise InputError(f"sensor(s) {missing} of the log have no position in [sensors]", file=lay.source, field="sensors")
+        positions = {n: lay.positions[n] for n in sorted(lay.positions, key=_natural)}
+        edges = sorted({(min(a, b), max(a, b)) for a, b in lay.edges}) if lay.edges is not None else None
+        units, how = lay.units, "layout file"
+    else:
+        positions, edges, units, how = None, None, "m", "force layout"
+    graph_how = "layout file"
+    if edges is None:
+        edges, trans = learn_sensor_graph(toggles, nodes, window_s=window_s, min_count=min_count, min_share=min_share)
+        graph_how = "learned"
+    if positions is None:
+        positions = force_layout(nodes, edges, spacing=spacing_m)
+    all_nodes = list(positions)
+    doors = [n for n in all_nodes if n in doors]
+    spacing = _median_edge(positions, edges) or spacing_m
+    sensor_range = lay.range if lay is not None and lay.range is not None else round(spacing / 2.0, 3)
+    epoch = _epoch_text(res)
+    header = (
+        f"# Imported from the CASAS log {log.name} by 'onebit import casas' (see import.toml).\n"
+        + (
+            "# Sensor positions: a force layout of the sensor graph learned from the log -- NOT measured.\n"
+            if how == "force layout"
+            else f"# Sensor positions from the layout file {Path(lay.source).name}.\n"
+        )
+        + f"# Sensor graph: {graph_how}; doors are the entry/exit nodes.\n"
+    )
+    text = graph_site_toml(
+        name=(lay.name if lay is not None and lay.name else log.stem), units=units, positions=positions, edges=edges,
+        doors=doors, sensor_range=sensor_range, boundary=lay.boundary if lay is not None else None, epoch=epoch,
+        targets=targets if targets is not None else (lay.targets if lay is not None else None), header=header,
+    )  # fmt: skip
+    site_from_dict(tomllib.loads(text), source=str(out / "site.toml"))  # refuse to write a site that would not load
+    out.mkdir(parents=True, exist_ok=True)
+    write_text(text, out / "site.toml")
+    t = pl.col("t").round(6)
+    write_csv(toggles.select(t, "sensor", "value", "stamp", pl.col("line").alias("log_line")), out / "motion.csv")
+    if others.height:
+        write_csv(others.select(t, "sensor", "kind", "value", "stamp", pl.col("line").alias("log_line")), out / "other.csv")
+    if notes.height:
+        write_csv(notes.select(t, "sensor", "value", "annotation", "stamp", pl.col("line").alias("log_line")), out / "annotations.csv")
+    if res.rejects.height:
+        write_csv(res.rejects.select(REJECTS.names()), out / "rejects.csv")
+    if trans.height:
+        write_csv(trans, out / "transitions.csv")
+    counts = {
+        "lines": res.lines,
+        "events": ev.height,
+        "rejected": res.rejects.height,
+        "reordered": res.reordered,
+        **{f"kind_{k}": v for k, v in res.kind_counts().items()},
+        "motion_csv": toggles.height,
+        "other_csv": others.height,
+        "annotations": notes.height,
+        "sensors": len(all_nodes),
+        "doors": len(doors),
+        "edges": len(edges),
+    }
+    info = {
+        "source": {"file": str(log.resolve()), "format": "casas"},
+        "counts": counts,
+        "time": res.origin.as_dict(),
+        "graph": {
+            "source": graph_how,
+            "rule": (
+                f"consecutive ON/OPEN events of two sensors at most window_s apart are a transition; an edge needs "
+                f">= min_count transitions making >= min_share of the less busy sensor's; components joined by a "
+                f"maximum spanning forest of the counts (transitions.csv)" if graph_how == "learned" else "from the layout file"
+            ),
+            "window_s": window_s,
+            "min_count": min_count,
+            "min_share": min_share,
+        },
+        "layout": {"positions": how, "spacing": round(spacing, 3), "range": sensor_range},
+    }
+    write_text(to_toml(info), out / "import.toml")
+    return ImportSummary(out, counts, info)
+
+
+def _median_edge(positions: dict, edges: list) -> float | None:
+    d = [math.dist(positions[a], positions[b]) for a, b in edges if a in positions and b in positions]
+    d = [x for x in d if x > 0]
+    return float(np.median(d)) if d else None
+
+
+def _epoch_text(res: CasasLog) -> str | None:
+    o = res.origin
+    if o.source == "none":
+        return None
+    return o.as_dict()["origin"].removesuffix("Z")
+
+
+def _natural(s: str):
+    return [int(p) if p.isdigit() else p for p in re.split(r"(\d+)", s)]
+
+
+# --------------------------------------------------------------------------- trajectories
+
+
+def import_trajectories(file: str | Path, dataset: str | Path, fmt: TrajectoryFormat | None = None) -> ImportSummary:
+    """Write ``truth.csv`` of ``dataset`` from a trajectory export (module docstring).
+
+    ``t`` is measured from the dataset's ``site.toml`` ``epoch`` when it has one, else from
+    the export's first second; a new ``site.toml`` (only when the folder has none) holds the
+    walks' bounding box grown by 1 site unit, ``units = "m"``, no sensors yet, and the epoch
+    when the export's times are absolute (ISO, or numbers from 1e8 s on: Unix time)."""
+    file, out = Path(file), Path(dataset)
+    if not file.is_file():
+        raise InputError("no such trajectory file", file=file)
+    site_path = out / "site.toml"
+    site = load_site(site_path) if site_path.exists() else None
+    res = read_trajectories(file, fmt, epoch=site.epoch if site is not None else None)
+    if res.truth.height == 0:
+        raise InputError(f"no readable position (rejected: {res.rejects.height} rows; first: "
+                         f"{res.rejects['reason'][0] if res.rejects.height else 'none'})", file=file)  # fmt: skip
+    out.mkdir(parents=True, exist_ok=True)
+    made_site = site is None
+    if made_site:
+        tr = res.truth
+        x0, x1 = float(tr["x"].min()) - 1.0, float(tr["x"].max()) + 1.0
+        y0, y1 = float(tr["y"].min()) - 1.0, float(tr["y"].max()) + 1.0
+        absolute = res.time_unit == "iso" or abs(res.origin.origin) >= 1e8
+        lines = [
+            f"# Written by 'onebit import trajectories' from {file.name}: the walks' bounding box.",
+            "# Add the sensors to plan (beams, motion_sensors, proximity_sensors), then: onebit simulate from-truth DIR",
+            f"name = {_v(out.name or 'trajectories')}",
+            'units = "m"',
+        ]
+        if absolute:
+            lines.append(f"epoch = {_v(res.origin.as_dict()['origin'].removesuffix('Z'))}")
+        lines += ["", "[boundary]", f"polygon = {_v([[x0, y0], [x1, y0], [x1, y1], [x0, y1]])}", ""]
+        text = "\n".join(lines)
+        site_from_dict(tomllib.loads(text), source=str(site_path))
+        write_text(text, site_path)
+    write_csv(res.truth.select("t", "target", "x", "y"), out / "truth.csv")
+    if res.rejects.height:
+        write_csv(res.rejects, out / "truth_rejects.csv")
+    counts = {
+        "rows": res.truth.height + res.rejects.height,
+        "positions": res.truth.height,
+        "rejected": res.rejects.height,
+        "tracks": res.truth["target"].n_unique(),
+        "joined_rows": res.joined,
+    }
+    fmt = fmt or TrajectoryFormat()
+    info = {
+        "source": {"file": str(file.resolve()), "format": "trajectories", "columns": res.columns, "time_unit": res.time_unit},
+        "counts": counts,
+        "time": res.origin.as_dict(),
+        "transform": {"scale": fmt.scale, "offset": list(fmt.offset), "flip_x": fmt.flip_x, "flip_y": fmt.flip_y,
+                      "swap_xy": fmt.swap_xy, "join": [",".join(g) for g in fmt.join]},
+        "site": {"written": made_site},
+    }  # fmt: skip
+    write_text(to_toml(info), out / "truth_import.toml")
+    return ImportSummary(out, counts, info)

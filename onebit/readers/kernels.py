@@ -1,0 +1,124 @@
+"""Compiled (numba) state machines of the readers: the directional-beam pass decoder
+(Bobadilla et al., Fig. 7) and the PIR debounce.
+
+Both walk the accepted events once in time order with a little state per beam or sensor --
+inherently sequential per beam / sensor -- so they are compiled loops
+(``numba.njit(cache=True)``, :mod:`onebit.core.compiled`); they only classify rows (which edge is a no-change, which
+passes close, which edges a debounce rule suppresses), and the readers build their tables
+from the result with polars. Each keeps the polars expression version it replaces as its
+plain reference and test oracle (``tests/readers/test_kernels.py``: equal crossings, aborted
+and unfinished passes, rejects, kept and suppressed edges on random logs):
+
+=============================  ===============================================================
+kernel                         reference
+=============================  ===============================================================
+:func:`beam_passes`            :func:`onebit.readers.beams.decode_passes_reference`
+:func:`debounce_masks`         :func:`onebit.readers.motion.debounce_reference`
+=============================  ===============================================================
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from onebit.core.compiled import kernel
+
+#: Rows from which the readers use the kernels (``compiled=None``). Below it the polars
+#: reference is as fast, and a fresh process would pay numba's start (0.3-1 s, once) for it.
+MIN_ROWS = 20_000
+
+#: No-change reasons of :func:`beam_passes` (0 = accepted).
+ALREADY_BLOCKED, ALREADY_CLEAR = 1, 2
+
+
+@kernel
+def beam_passes(beam, pair, blocked, n_beams):
+    """Decode events sorted by time (``beam`` index, ``pair`` 0 = a / 1 = b, ``blocked``).
+
+    An edge that leaves its pair's state unchanged is rejected (``reject`` code, see
+    :data:`ALREADY_BLOCKED`); the others drive each beam's pass machine: a pass runs from
+    the first edge after an idle state (both pairs clear) to the edge that makes the beam
+    idle again. Returns ``(reject (m,), pass_first (m,), close (m,), first_pair (m,))``:
+    for every accepted edge the index of the first edge of its pass; ``close`` marks the
+    edges that close a pass and ``first_pair`` (on those) the pair that opened it. A pass
+    without a closing edge is still open at the end of the log (unfinished).
+    """
+    m = beam.shape[0]
+    reject = np.zeros(m, dtype=np.int8)
+    pass_first = np.full(m, -1, dtype=np.int64)
+    close = np.zeros(m, dtype=np.bool_)
+    first_pair = np.full(m, -1, dtype=np.int8)
+    state = np.zeros((n_beams, 2), dtype=np.bool_)
+    opened = np.full(n_beams, -1, dtype=np.int64)  # first edge of the open pass of each beam
+    opener = np.zeros(n_beams, dtype=np.int8)
+    for k in range(m):  # time order; each beam's machine only sees its own edges
+        b, q, v = beam[k], pair[k], blocked[k]
+        if state[b, q] == v:  # no state change: not an edge a body makes
+            reject[k] = ALREADY_BLOCKED if v else ALREADY_CLEAR
+            continue
+        state[b, q] = v
+        if opened[b] < 0:
+            opened[b] = k
+            opener[b] = q
+        pass_first[k] = opened[b]
+        if not state[b, 0] and not state[b, 1]:  # idle again: the pass closes here
+            close[k] = True
+            first_pair[k] = opener[b]
+            opened[b] = -1
+    return reject, pass_first, close, first_pair
+
+
+@kernel
+def debounce_masks(sensor, on, t, chatter, min_on, n_sensors, eps):
+    """The PIR debounce on alternating edges sorted by time (``sensor`` index, ``on``, ``t``;
+    per sensor ``chatter`` window and ``min_on`` time, 0 = off).
+
+    Chatter: an off edge followed by an on edge of the same sensor within the window drops
+    both. Then, on the remaining edges, minimum on-time: an on edge followed by an off edge
+    sooner than ``min_on`` drops both. Returns ``(chat (m,), short (m,))`` masks.
+    """
+    m = sensor.shape[0]
+    chat = np.zeros(m, dtype=np.bool_)
+    short = np.zeros(m, dtype=np.bool_)
+    prev = np.full(m, -1, dtype=np.int64)
+    nxt = np.full(m, -1, dtype=np.int64)
+    last = np.full(n_sensors, -1, dtype=np.int64)
+    for k in range(m):  # neighbours within each sensor's sequence
+        s = sensor[k]
+        if last[s] >= 0:
+            prev[k] = last[s]
+            nxt[last[s]] = k
+        last[s] = k
+    for k in range(m):
+        w = chatter[sensor[k]]
+        if w <= 0:
+            continue
+        if not on[k]:
+            j = nxt[k]
+            chat[k] = j >= 0 and on[j] and t[j] - t[k] <= w + eps
+        else:
+            j = prev[k]
+            chat[k] = j >= 0 and not on[j] and t[k] - t[j] <= w + eps
+    last[:] = -1
+    for k in range(m):  # neighbours again, among the edges chatter left
+        if chat[k]:
+            continue
+        s = sensor[k]
+        prev[k] = last[s]
+        nxt[k] = -1
+        if last[s] >= 0:
+            nxt[last[s]] = k
+        last[s] = k
+    for k in range(m):
+        if chat[k]:
+            continue
+        mo = min_on[sensor[k]]
+        if mo <= 0:
+            continue
+        if on[k]:
+            j = nxt[k]
+            short[k] = j >= 0 and not on[j] and t[j] - t[k] < mo - eps
+        else:
+            j = prev[k]
+            short[k] = j >= 0 and on[j] and t[k] - t[j] < mo - eps
+    return chat, short

@@ -1,0 +1,242 @@
+"""The time base of a run: one origin for every table, chosen once from the raw logs.
+
+Every canonical table carries ``t`` = seconds since the run's **time origin**. Raw logs give
+their stamps either as numbers (seconds: relative, or Unix seconds like ``1.7e9``) or as ISO
+wall-clock strings (``2010-11-04 00:03:50.209589``, ``2024-05-01T10:00:00Z``, an offset
+``+01:00``; naive times are taken as they are written, i.e. as UTC). On one common
+"absolute" scale -- numbers as written, ISO stamps as Unix seconds -- the origin is:
+
+* ``epoch`` set in ``site.toml``: the epoch. ISO stamps are measured from it; numbers are
+  seconds since it and are taken as they are (``source = "epoch"``);
+* otherwise the **data's own start**: the earliest stamp of all the run's logs, floored to a
+  whole second (``source = "data"``). Numbers and ISO stamps are both measured from it, so
+  ``t`` starts within the first second whatever the logs' clock (relative seconds starting
+  at 0 keep their values).
+
+Absurd spans
+------------
+A lone stamp far from the rest (a row with ``t = 1e11`` in a log of Unix seconds, a stray
+``0`` among them) would stretch every slot array a tracker builds over the span. The stamps
+of all logs, sorted, are cut into clusters wherever two consecutive stamps are more than
+``max_gap_s`` apart (default one day: a smart-home log may be silent all night). Clusters at
+either end of the time line holding at most ``max(1, lone_fraction * n)`` of the ``n``
+stamps (default 1 %) are *lone*: their rows are rejected by the readers (``rejects``, with a
+reason naming the field ``t`` and the accepted window), the rest is the accepted window
+``[lo, hi]``. If what remains still spans more than ``max_span_s`` (default 366 days: two
+large clusters from different clocks, say), the run stops with an
+:class:`~onebit.core.errors.InputError` naming the file, the line and the field of the
+stamps at both ends. Nothing here allocates anything sized by the span.
+
+The runner calls :func:`run_time_origin` once per run (every source of the dataset, before
+the first reader stage), passes the :class:`TimeOrigin` as ``epoch=`` to every reader and
+records :meth:`TimeOrigin.as_dict` in ``run.toml`` (``[time]``).
+
+Examples
+--------
+>>> import polars as pl
+>>> o = time_origin({"motion.csv": pl.DataFrame({"line": [2, 3, 4], "t": ["1700000000.5", "1700000010", "1e11"]})})
+>>> o.source, o.origin, o.lo, o.hi, o.lone
+('data', 1700000000.0, 0.5, 10.0, 1)
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping
+from dataclasses import dataclass
+from datetime import datetime, timezone
+
+import polars as pl
+
+from onebit.core.errors import InputError
+
+#: Formats tried, in order, on an ISO stamp (after ``T`` -> space and ``Z`` -> ``+00:00``).
+ISO_FORMATS = ("%Y-%m-%d %H:%M:%S%.f", "%Y-%m-%d %H:%M:%S%.f%z", "%Y-%m-%d %H:%M", "%Y-%m-%d %H:%M%z")
+
+#: Consecutive stamps further apart than this (s) start a new cluster.
+MAX_GAP_S = 86_400.0
+#: A cluster at either end with at most this fraction of the stamps (and at least 1) is lone.
+LONE_FRACTION = 0.01
+#: A run whose accepted stamps span more than this (s) is refused.
+MAX_SPAN_S = 366 * 86_400.0
+
+
+def iso_unix_us(expr: pl.Expr) -> pl.Expr:
+    """Unix microseconds (Int64) of ISO wall-clock strings; null where the string is not one."""
+    s = (
+        expr.str.strip_chars()
+        .str.replace(r"^(\d{4}-\d{2}-\d{2})[Tt ]+(\d)", "${1} ${2}")
+        .str.replace(r"[Zz]$", "+00:00")
+    )
+    parsed = [s.str.to_datetime(f, time_unit="us", time_zone="UTC", strict=False) for f in ISO_FORMATS]
+    return pl.coalesce(parsed).dt.epoch("us")
+
+
+def iso_unix(expr: pl.Expr) -> pl.Expr:
+    """Unix seconds (Float64) of ISO wall-clock strings; null where the string is not one."""
+    return iso_unix_us(expr).cast(pl.Float64) / 1e6
+
+
+def number(expr: pl.Expr) -> pl.Expr:
+    """Float64 of numeric strings (null otherwise; ``nan``/``inf`` stay, the caller rejects them)."""
+    return expr.str.strip_chars().cast(pl.Float64, strict=False)
+
+
+def epoch_unix(epoch: str) -> float:
+    """Unix seconds of ``site.toml``'s ``epoch`` (naive = UTC)."""
+    try:
+        ep = datetime.fromisoformat(str(epoch).strip().replace("Z", "+00:00"))
+    except ValueError:
+        raise InputError(f"not an ISO date/time: {epoch!r}", field="epoch") from None
+    if ep.tzinfo is None:
+        ep = ep.replace(tzinfo=timezone.utc)
+    return ep.timestamp()
+
+
+def _iso_text(unix: float) -> str:
+    try:
+        return datetime.fromtimestamp(unix, tz=timezone.utc).isoformat().replace("+00:00", "Z")
+    except (OverflowError, OSError, ValueError):  # beyond the calendar: the number itself
+        return repr(unix)
+
+
+@dataclass(frozen=True)
+class TimeOrigin:
+    """Where ``t = 0`` is, and which stamps are accepted (module docstring).
+
+    origin : the absolute value (numbers as written, ISO as Unix seconds) at ``t = 0`` for
+        the data's own start; for an epoch, the epoch's Unix seconds.
+    numeric : subtracted from numeric stamps (the origin, or 0 with an epoch).
+    iso : subtracted from the Unix seconds of ISO stamps (the origin or the epoch); ``None``
+        = each column's own first ISO stamp floored to a second (a reader used on its own).
+    lo, hi : the accepted window of ``t``; stamps outside it are lone and rejected.
+    source : ``"epoch"``, ``"data"`` or ``"none"`` (no stamp parsed).
+    lone : stamps left out of the window; span_s : ``hi - lo``.
+    """
+
+    origin: float = 0.0
+    numeric: float = 0.0
+    iso: float | None = None
+    lo: float = -math.inf
+    hi: float = math.inf
+    source: str = "none"
+    lone: int = 0
+
+    @property
+    def span_s(self) -> float:
+        return self.hi - self.lo if math.isfinite(self.hi - self.lo) else 0.0
+
+    def as_dict(self) -> dict:
+        """The ``[time]`` table of ``run.toml``."""
+        out = {"source": self.source, "origin_s": self.origin, "span_s": self.span_s, "lone_stamps": self.lone}
+        if self.iso is not None or self.source != "none":
+            out["origin"] = _iso_text(self.iso if self.iso is not None else self.origin)
+        if math.isfinite(self.lo):
+            out["t_min"], out["t_max"] = self.lo, self.hi
+        return out
+
+    def t_expr(self, col: str, *, numbers_only: bool = False) -> pl.Expr:
+        """``t`` of the string column ``col``: numbers minus ``numeric``, ISO minus ``iso``
+        (``numbers_only``: the column holds no ISO stamp, skip ISO parsing)."""
+        s = pl.col(col)
+        if numbers_only:
+            return number(s) - self.numeric
+        iso = iso_unix_us(s)  # integer microseconds: no rounding of Unix seconds in a float
+        if self.iso is not None and not abs(self.iso) < 9e12:  # beyond any date: float arithmetic, no overflow
+            return pl.coalesce(number(s) - self.numeric, iso.cast(pl.Float64) / 1e6 - self.iso)
+        ref = pl.lit(round(self.iso * 1e6), pl.Int64) if self.iso is not None else (iso.min() // 1_000_000) * 1_000_000
+        return pl.coalesce(number(s) - self.numeric, (iso - ref).cast(pl.Float64) / 1e6)
+
+
+def _stamps(sources: Mapping[str, pl.DataFrame], col: str) -> pl.DataFrame:
+    """(source, line, abs, text) of every finite stamp: numbers as written, ISO as Unix seconds."""
+    parts = []
+    for name, df in sources.items():
+        if df is None or col not in df.columns or df.height == 0:
+            continue
+        line = pl.col("line").cast(pl.Int64) if "line" in df.columns else pl.int_range(1, pl.len() + 1, dtype=pl.Int64)
+        s = df.select(
+            pl.lit(name, pl.String).alias("source"), line.alias("line"), pl.col(col).cast(pl.String).alias("text")
+        ).with_columns(number(pl.col("text")).alias("abs"))
+        todo = s.filter(pl.col("abs").is_null() & pl.col("text").is_not_null())
+        if todo.height:  # ISO parsing only where a stamp is not a number (the costly part)
+            s = pl.concat([s.filter(pl.col("abs").is_not_null()), todo.with_columns(iso_unix(pl.col("text")).alias("abs"))])
+        parts.append(s.filter(pl.col("abs").is_finite()).select("source", "line", "abs", "text"))
+    if not parts:
+        return pl.DataFrame(schema={"source": pl.String, "line": pl.Int64, "abs": pl.Float64, "text": pl.String})
+    return pl.concat(parts).sort("abs")
+
+
+def time_origin(
+    sources: Mapping[str, pl.DataFrame],
+    *,
+    epoch: str | None = None,
+    col: str = "t",
+    max_gap_s: float = MAX_GAP_S,
+    lone_fraction: float = LONE_FRACTION,
+    max_span_s: float = MAX_SPAN_S,
+) -> TimeOrigin:
+    """The run's :class:`TimeOrigin` from the string stamps of every source (module docstring).
+
+    ``sources`` maps a source name (``motion.csv``, ``rec.mcap:/motion``) to a frame with the
+    string column ``col`` and, when known, ``line``. Raises :class:`InputError` when the
+    accepted stamps span more than ``max_span_s``, naming both ends' file, line and field.
+    """
+    st = _stamps(sources, col)
+    n = st.height
+    if epoch is not None:
+        e = epoch_unix(epoch)
+        # in t units: numbers as written, ISO minus the epoch
+        st = st.with_columns(pl.col("abs") - pl.when(number(pl.col("text")).is_null()).then(e).otherwise(0.0))
+        st = st.sort("abs")
+    if n == 0:
+        if epoch is not None:
+            return TimeOrigin(origin=epoch_unix(epoch), numeric=0.0, iso=epoch_unix(epoch), source="epoch")
+        return TimeOrigin()
+    v = st["abs"]
+    gap = v.diff().fill_null(0.0)
+    cluster = (gap > max_gap_s).cum_sum()
+    sizes = st.with_columns(cluster=cluster).group_by("cluster").agg(pl.len().alias("n")).sort("cluster")["n"].to_list()
+    limit = max(1, int(lone_fraction * n))
+    first, last = 0, len(sizes) - 1
+    while first < last and sizes[first] <= limit:
+        first += 1
+    while last > first and sizes[last] <= limit:
+        last -= 1
+    keep = st.with_columns(cluster=cluster).filter(pl.col("cluster").is_between(first, last))
+    lo_abs, hi_abs = float(keep["abs"][0]), float(keep["abs"][-1])
+    if hi_abs - lo_abs > max_span_s:
+        a, b = keep.row(0, named=True), keep.row(keep.height - 1, named=True)
+        raise InputError(
+            f"the logs span {(hi_abs - lo_abs) / 86400:.1f} days, from {a['text']!r} here to {b['text']!r} at "
+            f"{b['source']}:{b['line']} (more than {max_span_s / 86400:g} days): mixed clocks (relative seconds "
+            "and Unix seconds or ISO times?) -- give every log the same clock, or set 'epoch' in site.toml",
+            file=a["source"],
+            line=a["line"],
+            field=col,
+        )
+    lone = n - keep.height
+    if epoch is not None:
+        e = epoch_unix(epoch)
+        return TimeOrigin(origin=e, numeric=0.0, iso=e, lo=lo_abs, hi=hi_abs, source="epoch", lone=lone)
+    origin = float(math.floor(lo_abs))
+    return TimeOrigin(origin=origin, numeric=origin, iso=origin, lo=lo_abs - origin, hi=hi_abs - origin, source="data", lone=lone)
+
+
+def column_origin(frame: pl.DataFrame | None, col: str, epoch: str | None) -> TimeOrigin:
+    """The origin a reader used on its own applies to one column (no run around it): numbers
+    as written (offset 0), ISO from ``epoch`` or from the column's own first stamp, and the
+    lone-stamp window of :func:`time_origin` over this column alone."""
+    if frame is None or frame.height == 0 or col not in frame.columns:
+        return TimeOrigin(iso=epoch_unix(epoch) if epoch is not None else None)
+    o = time_origin({"": frame}, epoch=epoch, col=col, max_span_s=math.inf)
+    if o.source != "data":
+        return o if o.source == "epoch" else TimeOrigin()
+    has_numbers = frame.select(number(pl.col(col).cast(pl.String)).is_not_null().any()).item()
+    if not has_numbers:  # ISO stamps only: from the column's own start
+        return o
+    # numbers keep their values (ISO stamps, if any, count from the column's first second)
+    has_iso = frame.select(iso_unix(pl.col(col).cast(pl.String)).is_not_null().any()).item()
+    if has_iso:
+        return TimeOrigin(origin=0.0, numeric=0.0, iso=None, source="data")
+    return TimeOrigin(origin=0.0, numeric=0.0, iso=None, lo=o.lo + o.origin, hi=o.hi + o.origin, source="data", lone=o.lone)

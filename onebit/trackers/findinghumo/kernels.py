@@ -1,0 +1,360 @@
+"""Compiled (numba) kernels of the FindingHuMo decoders: the Viterbi recursions and the whole
+explain-away coordinate ascent of the Adaptive-HMM.
+
+The Viterbi recursion is inherently sequential in time (slot ``d`` needs the scores of slot
+``d - 1``) and so is the coordinate ascent (each user is re-decoded with the others fixed),
+so they are compiled loops (``numba.njit(cache=True)``, :mod:`onebit.core.compiled`) rather than numpy broadcasting. Each
+kernel keeps its plain numpy reference implementation as the test oracle:
+
+=======================================  ====================================================
+kernel                                   reference (``tests/trackers/findinghumo/test_kernels.py``)
+=======================================  ====================================================
+:func:`viterbi_first_order`              :func:`onebit.trackers.findinghumo.viterbi.viterbi_first_order`
+:func:`viterbi_second_order`             :func:`onebit.trackers.findinghumo.viterbi.viterbi_second_order`
+:func:`viterbi_motion_second_order`      :func:`onebit.trackers.findinghumo.viterbi.viterbi_motion_second_order`
+:func:`coordinate_ascent`                :func:`onebit.trackers.findinghumo.adaptive.coordinate_ascent_reference`
+=======================================  ====================================================
+
+Equal outputs: the kernels do the same additions in the same order as the references and
+break ties the same way (the first maximal index, numpy's ``argmax``), so paths are identical
+and scores equal to the last bit; only the coordinate ascent's joint log-likelihood is summed
+in a different order than numpy's pairwise sum (equal to ~1e-12). No transcendental function
+is evaluated inside a kernel: the emission gains (logs of powers) are tabulated once per call
+by the reference's own numpy function (:func:`emission_tables`), so the kernels never differ
+from numpy's SIMD ``log`` by an ulp.
+
+The equations are those of :mod:`onebit.trackers.findinghumo.viterbi` (Algorithms 4 and 5,
+and the distinct-node second-order context) and :mod:`onebit.trackers.findinghumo.adaptive`
+(section 4 of its docstring).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from onebit.core.compiled import kernel
+
+NEG_INF = -np.inf
+
+
+# --------------------------------------------------------------------------- first order
+
+
+@kernel
+def _viterbi1(log_pi, log_a, log_b):
+    """First-order Viterbi (Algorithm 4); ``log_b (D, S)``. Returns ``(path (D,), log_prob)``.
+
+    The inner loops run over (previous state i, state j) row by row of ``log_a`` so the
+    access is contiguous; ``>`` with ``i`` ascending keeps the first maximal ``i``.
+    """
+    n_slots, n_states = log_b.shape
+    path = np.zeros(n_slots, dtype=np.int64)
+    if n_slots == 0:
+        return path, 0.0
+    psi = np.empty((n_slots, n_states), dtype=np.int32)  # every row written before it is read
+    delta = np.empty(n_states)
+    for j in range(n_states):
+        delta[j] = log_pi[j] + log_b[0, j]
+    best = np.empty(n_states)
+    for d in range(1, n_slots):  # sequential in time by construction
+        arg = psi[d]
+        di = delta[0]
+        for j in range(n_states):
+            best[j] = di + log_a[0, j]
+            arg[j] = 0
+        for i in range(1, n_states):
+            di = delta[i]
+            row = log_a[i]
+            for j in range(n_states):
+                v = di + row[j]
+                if v > best[j]:
+                    best[j] = v
+                    arg[j] = i
+        for j in range(n_states):
+            delta[j] = best[j] + log_b[d, j]
+    last = 0
+    for j in range(1, n_states):
+        if delta[j] > delta[last]:
+            last = j
+    path[n_slots - 1] = last
+    for d in range(n_slots - 1, 0, -1):
+        path[d - 1] = psi[d, path[d]]
+    return path, delta[last]
+
+
+def viterbi_first_order(log_pi: np.ndarray, log_a: np.ndarray, log_b: np.ndarray) -> tuple[np.ndarray, float]:
+    """Compiled :func:`onebit.trackers.findinghumo.viterbi.viterbi_first_order` (same inputs,
+    same outputs): ``log_pi (S,)``, ``log_a (S, S)``, ``log_b (D, S)`` -> ``(path (D,), log_prob)``."""
+    path, lp = _viterbi1(_f64(log_pi), _f64(log_a, 2), _f64(log_b, 2))
+    return path, float(lp)
+
+
+# --------------------------------------------------------------------------- second order
+
+
+@kernel
+def _viterbi2(log_pi, log_a1, log_a2, log_b):
+    """Second-order Viterbi over state pairs (Algorithm 5)."""
+    n_slots, n_states = log_b.shape
+    path = np.zeros(n_slots, dtype=np.int64)
+    if n_slots == 0:
+        return path, 0.0
+    if n_slots == 1:
+        j = 0
+        for k in range(1, n_states):
+            if log_pi[k] + log_b[0, k] > log_pi[j] + log_b[0, j]:
+                j = k
+        path[0] = j
+        return path, log_pi[j] + log_b[0, j]
+    delta = np.empty((n_states, n_states))
+    for a in range(n_states):
+        d0 = log_pi[a] + log_b[0, a]
+        for b in range(n_states):
+            delta[a, b] = d0 + log_a1[a, b] + log_b[1, b]
+    psi = np.zeros((n_slots, n_states, n_states), dtype=np.int64)
+    best = np.empty((n_states, n_states))
+    for d in range(2, n_slots):  # sequential in time by construction
+        arg = psi[d]
+        for jp in range(n_states):
+            for j in range(n_states):
+                best[jp, j] = delta[0, jp] + log_a2[0, jp, j]
+                arg[jp, j] = 0
+        for jpp in range(1, n_states):
+            for jp in range(n_states):
+                dv = delta[jpp, jp]
+                row = log_a2[jpp, jp]
+                for j in range(n_states):
+                    v = dv + row[j]
+                    if v > best[jp, j]:
+                        best[jp, j] = v
+                        arg[jp, j] = jpp
+        for jp in range(n_states):
+            for j in range(n_states):
+                delta[jp, j] = best[jp, j] + log_b[d, j]
+    prev, last = 0, 0
+    for a in range(n_states):
+        for b in range(n_states):
+            if delta[a, b] > delta[prev, last]:
+                prev, last = a, b
+    path[n_slots - 1], path[n_slots - 2] = last, prev
+    for d in range(n_slots - 1, 1, -1):
+        path[d - 2] = psi[d, path[d - 1], path[d]]
+    return path, delta[prev, last]
+
+
+def viterbi_second_order(
+    log_pi: np.ndarray, log_a1: np.ndarray, log_a2: np.ndarray, log_b: np.ndarray
+) -> tuple[np.ndarray, float]:
+    """Compiled :func:`onebit.trackers.findinghumo.viterbi.viterbi_second_order` (same I/O)."""
+    path, lp = _viterbi2(_f64(log_pi), _f64(log_a1, 2), _f64(log_a2, 3), _f64(log_b, 2))
+    return path, float(lp)
+
+
+@kernel
+def _viterbi_motion2(log_pi, log_stay, log_move, log_b):
+    """Second-order Viterbi over (previous distinct node, current node) pairs."""
+    n_slots, n_states = log_b.shape
+    path = np.zeros(n_slots, dtype=np.int64)
+    if n_slots == 0:
+        return path, 0.0
+    delta = np.full((n_states, n_states), NEG_INF)
+    for j in range(n_states):
+        delta[j, j] = log_pi[j] + log_b[0, j]
+    back = np.full((n_slots, n_states, n_states), -1, dtype=np.int64)
+    best = np.empty((n_states, n_states))
+    arg = np.empty((n_states, n_states), dtype=np.int64)
+    new = np.empty((n_states, n_states))
+    for d in range(1, n_slots):  # sequential in time by construction
+        for j in range(n_states):
+            dv = delta[0, j]
+            row = log_move[0, j]
+            for k in range(n_states):
+                best[j, k] = dv + row[k]
+                arg[j, k] = 0
+        for p in range(1, n_states):
+            for j in range(n_states):
+                dv = delta[p, j]
+                row = log_move[p, j]
+                for k in range(n_states):
+                    v = dv + row[k]
+                    if v > best[j, k]:
+                        best[j, k] = v
+                        arg[j, k] = p
+        bd = back[d]
+        for j in range(n_states):
+            for k in range(n_states):
+                stay = delta[j, k] + log_stay[k]
+                move = NEG_INF if j == k else best[j, k]
+                if move > stay:
+                    bd[j, k] = arg[j, k]
+                    new[j, k] = move + log_b[d, k]
+                else:
+                    new[j, k] = stay + log_b[d, k]
+        for j in range(n_states):
+            for k in range(n_states):
+                delta[j, k] = new[j, k]
+    x, y = 0, 0
+    for a in range(n_states):
+        for b in range(n_states):
+            if delta[a, b] > delta[x, y]:
+                x, y = a, b
+    score = delta[x, y]
+    path[n_slots - 1] = y
+    for d in range(n_slots - 1, 0, -1):
+        b = back[d, x, y]
+        if b >= 0:
+            x, y = b, x
+        path[d - 1] = y
+    return path, score
+
+
+def viterbi_motion_second_order(
+    log_pi: np.ndarray, log_stay: np.ndarray, log_move: np.ndarray, log_b: np.ndarray
+) -> tuple[np.ndarray, float]:
+    """Compiled :func:`onebit.trackers.findinghumo.viterbi.viterbi_motion_second_order` (same I/O)."""
+    path, lp = _viterbi_motion2(_f64(log_pi), _f64(log_stay), _f64(log_move, 3), _f64(log_b, 2))
+    return path, float(lp)
+
+
+# --------------------------------------------------------------------------- coordinate ascent
+
+
+def emission_tables(k: int, p_hit: float, p_false: float, gain) -> np.ndarray:
+    """``(4, k + 2)`` table over the claim count ``c = 0..k+1`` of the noisy-OR emission model:
+    rows ``gain(on)``, ``gain(off)`` (``gain`` = the reference's
+    :func:`~onebit.trackers.findinghumo.adaptive.emission_gain`, evaluated by numpy) and
+    ``log P(on | c)``, ``log P(off | c)`` (the terms of the joint emission)."""
+    c = np.arange(k + 2, dtype=np.int64)[None, :]
+    on = np.ones_like(c, dtype=bool)
+    cf = c.astype(float)
+    p_on = np.where(cf > 0, 1.0 - (1.0 - p_hit) ** cf, p_false)
+    return np.vstack(
+        [gain(on, c, p_hit, p_false), gain(~on, c, p_hit, p_false), np.log(p_on), np.log1p(-p_on)]
+    ).astype(np.float64)
+
+
+@kernel
+def _ascent_one_order(on, pre, n_pre, starts, entry, order_u, order, log_a1, log_stay, log_a2, table, sweeps, decoded):
+    """Explain-away sweeps over the users in ``order_u``; fills ``decoded (K, L)`` and returns the
+    joint log-likelihood (see :func:`coordinate_ascent`)."""
+    n_slots, s = on.shape
+    k = pre.shape[0]
+    claims = np.zeros((n_slots, s), dtype=np.int64)
+    for u in range(k):
+        for t in range(n_slots):
+            decoded[u, t] = -1
+    trans = np.zeros(k)
+    for _ in range(max(sweeps, 1)):
+        for oi in range(order_u.shape[0]):
+            u = order_u[oi]
+            st = starts[u]
+            if st >= n_slots:
+                continue
+            for t in range(n_slots):
+                if decoded[u, t] >= 0:
+                    claims[t, decoded[u, t]] -= 1
+            npre = n_pre[u]
+            rows = npre + n_slots - st
+            log_b = np.empty((rows, s))
+            for r in range(npre):
+                for j in range(s):
+                    log_b[r, j] = NEG_INF
+                log_b[r, pre[u, r]] = 0.0
+            for t in range(st, n_slots):
+                r = npre + t - st
+                for j in range(s):
+                    c = claims[t, j]
+                    log_b[r, j] = table[0, c] if on[t, j] else table[1, c]
+            log_pi = np.zeros(s)
+            if npre == 0 and entry[u] >= 0:
+                for j in range(s):
+                    log_pi[j] = NEG_INF
+                log_pi[entry[u]] = 0.0
+            if order == 2:
+                path, score = _viterbi_motion2(log_pi, log_stay, log_a2, log_b)
+            else:
+                path, score = _viterbi1(log_pi, log_a1, log_b)
+            emis_sum = 0.0
+            for t in range(st, n_slots):
+                emis_sum += log_b[npre + t - st, path[npre + t - st]]
+            trans[u] = score - emis_sum
+            for t in range(n_slots):
+                decoded[u, t] = -1
+            for t in range(st, n_slots):
+                q = path[npre + t - st]
+                decoded[u, t] = q
+                claims[t, q] += 1
+    total = 0.0
+    for u in range(k):
+        total += trans[u]
+    joint = 0.0
+    for t in range(n_slots):
+        for j in range(s):
+            c = claims[t, j]
+            joint += table[2, c] if on[t, j] else table[3, c]
+    return total + joint
+
+
+@kernel
+def _coordinate_ascent(on, pre, n_pre, starts, entry, orders, order, log_a1, log_stay, log_a2, table, sweeps):
+    k = pre.shape[0]
+    n_slots = on.shape[0]
+    best = np.full((k, n_slots), -1, dtype=np.int64)
+    cur = np.empty((k, n_slots), dtype=np.int64)
+    best_score = NEG_INF
+    found = False
+    for r in range(orders.shape[0]):
+        score = _ascent_one_order(on, pre, n_pre, starts, entry, orders[r], order, log_a1, log_stay, log_a2, table, sweeps, cur)
+        if not found or score > best_score + 1e-9:
+            found = True
+            best_score = score
+            best[:, :] = cur
+    return best, best_score
+
+
+def coordinate_ascent(
+    on: np.ndarray,
+    prefixes: list[list[int]],
+    starts: list[int],
+    entries: list[int],
+    orders: list[list[int]],
+    *,
+    order: int,
+    log_a1: np.ndarray,
+    log_a2: np.ndarray | None,
+    table: np.ndarray,
+    sweeps: int,
+) -> tuple[np.ndarray, float]:
+    """Every restart of the explain-away coordinate ascent in one compiled call.
+
+    ``on (L, S)`` window activity on the state set; per user ``prefixes`` (0-2 state
+    positions clamped before slot 0), ``starts`` (first window slot) and ``entries`` (entry
+    state position or -1); ``orders`` the user orders to run; ``table`` from
+    :func:`emission_tables`. Returns the ``(K, L)`` state positions of the order with the
+    highest joint log-likelihood (first of equals within 1e-9) and that likelihood, as
+    :func:`~onebit.trackers.findinghumo.adaptive.coordinate_ascent_reference` run over the same
+    orders.
+    """
+    k = len(prefixes)
+    pre = np.zeros((k, 2), dtype=np.int64)
+    n_pre = np.zeros(k, dtype=np.int64)
+    for u, p in enumerate(prefixes):
+        n_pre[u] = len(p)
+        pre[u, : len(p)] = p
+    s = on.shape[1]
+    a2 = np.zeros((1, 1, 1)) if log_a2 is None else _f64(log_a2, 3)
+    a1 = _f64(log_a1, 2)
+    best, score = _coordinate_ascent(
+        np.ascontiguousarray(on, dtype=np.bool_), pre, n_pre, np.asarray(starts, dtype=np.int64),
+        np.asarray(entries, dtype=np.int64), np.asarray(orders, dtype=np.int64).reshape(-1, k), int(order),
+        a1, np.ascontiguousarray(np.diag(a1)) if s else np.zeros(0), a2, table, int(sweeps),
+    )  # fmt: skip
+    return best, float(score)
+
+
+def _f64(a, ndim: int = 1) -> np.ndarray:
+    """A C-contiguous float64 array of ``ndim`` dimensions (one compiled signature per kernel)."""
+    out = np.ascontiguousarray(a, dtype=np.float64)
+    if out.ndim != ndim:
+        raise ValueError(f"expected a {ndim}-d array, got shape {out.shape}")
+    return out

@@ -1,0 +1,390 @@
+"""The SIR particle filter's iteration as one compiled (numba) kernel: propagate, weigh,
+estimate and resample fused, with no ``(N, K)`` or ``(n, N)`` temporaries.
+
+The loop over iterations is inherently sequential (each needs the previous posterior) and so
+is the rejection sampling of the intruder model (a particle is redrawn until it lands), so
+they are compiled loops (``numba.njit(cache=True)``, :mod:`onebit.core.compiled`). Everything follows the named numpy
+steps that stay the plain reference implementation and the test oracle
+(``tests/trackers/intruder/test_kernels.py``; same seed -> same particles, estimates and
+resampling, ESS and spread to 1e-9):
+
+=====================================  ==================================================
+fused here                             reference
+=====================================  ==================================================
+propagate (box rooms)                  :func:`onebit.models.motion.propagate`
+log-likelihood                         :func:`onebit.models.pir.log_weights`
+normalise, ESS, spread                 :func:`onebit.trackers.intruder.filter.normalise`, ...
+estimate                               :func:`onebit.trackers.intruder.filter.estimate_cell`
+systematic / multinomial resampling    :func:`onebit.trackers.intruder.filter.systematic_resample`, ...
+=====================================  ==================================================
+
+Same random numbers. The kernel draws from the run's ``numpy.random.Generator`` (numba
+shares its bit generator and implements the same algorithms) in the reference's order:
+per rejection round all the speed noises of the particles still to place, then all their
+orientation noises; one uniform for systematic resampling (``N`` for multinomial).
+
+Likelihood without temporaries. Section VII-B.2 of the paper (see
+:mod:`onebit.trackers.intruder.filter`)::
+
+    log P(S_i = 0 | x) = xi_i log(1 - p0_i) + sum_{k touched, q_ik > 0} log(L_ik / (1 - p0_i))
+
+Only cells of a sensor's region ``R_i`` under the particle's box change the sensor's
+factor, so the deployment is stored per cell (a CSR list of the sensors whose ``q_ik > 0``)
+and each particle visits its ``K`` touched cells once, accumulating per sensor
+``D_i = prod_k (L_ik / (1 - p0_i)) - 1`` (``D <- D + d + D d``, exact for small factors, so
+``-expm1(log1p(D) + ...)`` keeps the precision of the reference's sum of logs). A sensor
+whose region the box misses contributes the constant of an empty neighbourhood, summed
+once per iteration. The factors of the silent sensors are multiplied and take one ``log``
+per particle; a fired sensor takes ``log(-expm1(.))``. Blind sensors are left out (they add
+the same constant to every particle), as in the reference.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from onebit.core.compiled import kernel
+
+PROB_FLOOR = 1e-12
+LOG_FLOOR = math.log(PROB_FLOOR)
+TWO_PI = 2 * math.pi
+
+
+# --------------------------------------------------------------------------- propagate
+
+
+@kernel
+def _propagate_box(x, y, theta, v, rng, period, v_max, speed_sigma, turn_scale, max_retries, box):
+    """:func:`onebit.models.motion.propagate` in a box room, in place; returns (redraws, clamped).
+
+    The particles still to place are kept packed (old position, orientation, speed and the
+    orientation noise scale ``min(pi, turn_scale / v)``, computed once) so every rejection
+    round reads them in order."""
+    n = x.shape[0]
+    idx = np.arange(n)
+    ox, oy, oth, ov = x.copy(), y.copy(), theta.copy(), v.copy()
+    sg = np.empty(n)
+    for p in range(n):
+        sg[p] = min(math.pi, turn_scale / max(v[p], 1e-9))
+        v[p] = 0.0  # a particle never placed stays with speed 0
+    m = n
+    redraws = 0
+    bx0, by0, bx1, by1 = box[0], box[1], box[2], box[3]
+    for _ in range(max_retries):
+        if m == 0:
+            break
+        dv = rng.normal(0.0, speed_sigma, m)
+        dth = rng.normal(0.0, 1.0, m)
+        keep = 0
+        for a in range(m):
+            vv = ov[a] + dv[a]
+            th = oth[a] + dth[a] * sg[a]
+            if vv >= 0.0 and vv <= v_max:
+                step = vv * period
+                px = ox[a] + step * math.cos(th)
+                py = oy[a] + step * math.sin(th)
+                if px >= bx0 and px <= bx1 and py >= by0 and py <= by1:
+                    p = idx[a]
+                    x[p], y[p], theta[p], v[p] = px, py, th, vv
+                    continue
+            idx[keep], ox[keep], oy[keep], oth[keep], ov[keep], sg[keep] = idx[a], ox[a], oy[a], oth[a], ov[a], sg[a]
+            keep += 1
+        redraws += keep  # rejected proposals of this round
+        m = keep
+    # the rest stay at their old (valid) position (x, y, theta untouched) with speed 0
+    for p in range(n):
+        theta[p] = np.mod(theta[p], TWO_PI)
+    return redraws, m
+
+
+# --------------------------------------------------------------------------- weights
+
+
+@kernel
+def _log_likelihood(x, y, fired, blind, grid, cell_ptr, cell_sensor, cell_q, p0, xi, a, half_w, half_d, out):
+    """``out[p] = log P(E | x_p)`` over the live sensors (:func:`onebit.models.pir.log_weights`).
+
+    Per live sensor ``i`` with ``c_i = xi_i log(1 - p0_i)``, the product ``F_i`` of its
+    touched cells' ratios and ``D_i = F_i - 1`` (module docstring): silent,
+    ``log P = max(c_i + log F_i, log floor)``; fired,
+    ``log P = log clip(-expm1(c_i + log F_i)) = log clip(h_i - (1 - h_i) D_i)`` with
+    ``h_i = -expm1(c_i)`` (both terms >= 0: no cancellation; ``D_i`` from its own recursion
+    when ``F_i > 1/2``, where ``F_i - 1`` would cancel). Each sensor's probability is taken
+    relative to its value with no touched cell (ratio exactly 1) and the ratios are
+    multiplied, so a particle costs one ``log``.
+    """
+    n = p0.shape[0]
+    N = x.shape[0]
+    x0, y0, c, nx, ny = grid[0], grid[1], grid[2], int(grid[3]), int(grid[4])
+    live = np.empty(n, dtype=np.int64)
+    n_live = 0
+    for i in range(n):
+        if not blind[i]:
+            live[n_live] = i
+            n_live += 1
+    if n_live == 0:
+        for p in range(N):
+            out[p] = 0.0
+        return
+    # per sensor, relative to no touched cell (F = 1, D = 0): fired, factor
+    # clip(alpha + beta D) * gamma; silent, max(F, lo)
+    alpha = np.empty(n)
+    beta = np.empty(n)
+    lo = np.empty(n)
+    gamma = np.empty(n)
+    ci = np.empty(n)
+    slow = np.zeros(n, dtype=np.bool_)
+    base = 0.0
+    for i in range(n):
+        ci[i] = xi[i] * math.log1p(-min(p0[i], 1.0 - PROB_FLOOR))
+        if fired[i]:
+            hc = -math.expm1(ci[i])
+            p_empty = min(max(hc, PROB_FLOOR), 1.0)
+            alpha[i], beta[i], lo[i], gamma[i] = hc, -(1.0 - hc), PROB_FLOOR, 1.0 / p_empty
+            const = math.log(p_empty)
+        else:
+            alpha[i], beta[i], lo[i], gamma[i] = 1.0, 1.0, math.exp(LOG_FLOOR - ci[i]), 1.0
+            slow[i] = ci[i] < LOG_FLOOR  # the floor binds with no touched cell: summed in logs
+            const = max(ci[i], LOG_FLOOR)
+        if not blind[i]:
+            base += const
+    # the live sensors' entries per cell
+    n_cells = cell_ptr.shape[0] - 1
+    lptr = np.zeros(n_cells + 1, dtype=np.int64)
+    nnz = 0
+    for e in range(cell_sensor.shape[0]):
+        if not blind[cell_sensor[e]]:
+            nnz += 1
+    lsen = np.empty(nnz, dtype=np.int64)
+    lomp = np.empty(nnz)
+    lqq = np.empty(nnz)
+    linv = np.empty(nnz)
+    m = 0
+    for cell in range(n_cells):
+        for e in range(cell_ptr[cell], cell_ptr[cell + 1]):
+            i = cell_sensor[e]
+            if blind[i]:
+                continue
+            lsen[m] = i
+            lomp[m] = 1.0 - p0[i]
+            lqq[m] = max(cell_q[e], p0[i]) - p0[i]
+            linv[m] = 1.0 / a[i]
+            m += 1
+        lptr[cell + 1] = m
+    kx = int(math.ceil(2 * half_w / c)) + 1
+    ky = int(math.ceil(2 * half_d / c)) + 1
+    ox = np.empty(kx)
+    oy = np.empty(ky)
+    D = np.zeros(n)
+    F = np.ones(n)
+    for p in range(N):
+        xp, yp = x[p], y[p]
+        ix0 = int(math.floor((xp - half_w - x0) / c))
+        iy0 = int(math.floor((yp - half_d - y0) / c))
+        for b in range(kx):
+            ix = ix0 + b
+            left = x0 + ix * c
+            o = min(xp + half_w, left + c) - max(xp - half_w, left)
+            ox[b] = min(max(o, 0.0), c) / c if 0 <= ix < nx else 0.0
+        for b in range(ky):
+            iy = iy0 + b
+            bottom = y0 + iy * c
+            o = min(yp + half_d, bottom + c) - max(yp - half_d, bottom)
+            oy[b] = min(max(o, 0.0), c) / c if 0 <= iy < ny else 0.0
+        for by in range(ky):
+            if oy[by] == 0.0:
+                continue
+            row = (iy0 + by) * nx + ix0
+            for bx in range(kx):
+                V = oy[by] * ox[bx]
+                if V == 0.0:
+                    continue
+                cell = row + bx
+                for e in range(lptr[cell], lptr[cell + 1]):
+                    i = lsen[e]
+                    r = max(lomp[e] - V * lqq[e], PROB_FLOOR) * linv[e]
+                    d = r - 1.0
+                    Di = D[i]
+                    D[i] = Di + d + Di * d  # (1 + D)(1 + d) - 1: precise near a product of 1
+                    F[i] *= r  # the product itself: precise when it is small
+        acc = base
+        prod = 1.0
+        for t in range(n_live):
+            i = live[t]
+            Fi = F[i]
+            Di = D[i] if Fi > 0.5 else Fi - 1.0
+            D[i], F[i] = 0.0, 1.0
+            if fired[i]:
+                prod *= min(max(alpha[i] + beta[i] * Di, PROB_FLOOR), 1.0) * gamma[i]
+            elif slow[i]:
+                acc += max(ci[i] + math.log(Fi), LOG_FLOOR) - LOG_FLOOR
+            else:
+                prod *= max(Fi, lo[i])
+            if prod < 1e-200 or prod > 1e200:
+                acc += math.log(prod)
+                prod = 1.0
+        out[p] = acc + math.log(prod)
+
+
+# --------------------------------------------------------------------------- estimate, resample
+
+
+@kernel
+def _estimate(x, y, w, grid, half_w, half_d, mask, d):
+    """:func:`onebit.trackers.intruder.filter.estimate_cell` (difference array in the same
+    order of additions as its four ``np.add.at``); ``d`` is ``(ny + 1, nx + 1)`` scratch."""
+    x0, y0, c, nx, ny = grid[0], grid[1], grid[2], int(grid[3]), int(grid[4])
+    N = x.shape[0]
+    ilo = np.empty(N, dtype=np.int64)
+    ihi = np.empty(N, dtype=np.int64)
+    jlo = np.empty(N, dtype=np.int64)
+    jhi = np.empty(N, dtype=np.int64)
+    for p in range(N):
+        ilo[p] = int(min(max(math.ceil((x[p] - half_w - x0) / c - 0.5 - 1e-12), 0.0), float(nx)))
+        ihi[p] = int(min(max(math.floor((x[p] + half_w - x0) / c - 0.5 + 1e-12), -1.0), float(nx - 1)))
+        jlo[p] = int(min(max(math.ceil((y[p] - half_d - y0) / c - 0.5 - 1e-12), 0.0), float(ny)))
+        jhi[p] = int(min(max(math.floor((y[p] + half_d - y0) / c - 0.5 + 1e-12), -1.0), float(ny - 1)))
+    d[:, :] = 0.0
+    for p in range(N):
+        if ilo[p] <= ihi[p] and jlo[p] <= jhi[p]:
+            d[jlo[p], ilo[p]] += w[p]
+    for p in range(N):
+        if ilo[p] <= ihi[p] and jlo[p] <= jhi[p]:
+            d[jlo[p], ihi[p] + 1] += -w[p]
+    for p in range(N):
+        if ilo[p] <= ihi[p] and jlo[p] <= jhi[p]:
+            d[jhi[p] + 1, ilo[p]] += -w[p]
+    for p in range(N):
+        if ilo[p] <= ihi[p] and jlo[p] <= jhi[p]:
+            d[jhi[p] + 1, ihi[p] + 1] += w[p]
+    for j in range(1, ny + 1):
+        for i in range(nx + 1):
+            d[j, i] = d[j - 1, i] + d[j, i]
+    for j in range(ny + 1):
+        for i in range(1, nx + 1):
+            d[j, i] = d[j, i - 1] + d[j, i]
+    bj, bi = 0, 0
+    best = -np.inf
+    first = True
+    for j in range(ny):
+        for i in range(nx):
+            val = d[j, i] if mask[j, i] else -np.inf
+            if first or val > best:
+                best, bj, bi, first = val, j, i, False
+    return x0 + (bi + 0.5) * c, y0 + (bj + 0.5) * c
+
+
+@kernel
+def _resample(w, rng, systematic, idx):
+    """Systematic (one uniform) or multinomial (``N`` uniforms) resampling indices into ``idx``."""
+    n = w.shape[0]
+    cs = np.empty(n)
+    s = 0.0
+    for i in range(n):
+        s += w[i]
+        cs[i] = s
+    if systematic:
+        r = rng.random()
+        j = 0
+        for i in range(n):
+            u = (r + i) / n
+            while j < n and cs[j] < u:
+                j += 1
+            idx[i] = min(j, n - 1)
+    else:
+        us = rng.random(n)
+        for i in range(n):
+            idx[i] = min(np.searchsorted(cs, us[i]), n - 1)
+
+
+@kernel
+def _update(k, x, y, theta, v, w, uniform, rng, fired, blind, grid, cell_ptr, cell_sensor, cell_q, p0, xi, a,
+            half_w, half_d, mask, systematic, always, ess_threshold, pick,
+            lw, scratch, idx, est, ess, resampled, logged_xy, logged_w, spread):
+    """Weigh, estimate, log and resample after the propagation of iteration ``k``; returns
+    whether the weights are uniform afterwards."""
+    N = x.shape[0]
+    _log_likelihood(x, y, fired, blind, grid, cell_ptr, cell_sensor, cell_q, p0, xi, a, half_w, half_d, lw)
+    mx = -np.inf
+    for p in range(N):
+        lw[p] += math.log(1.0 / N) if uniform else math.log(max(w[p], 1e-300))
+        if lw[p] > mx:
+            mx = lw[p]
+    tot = 0.0
+    for p in range(N):
+        w[p] = math.exp(lw[p] - mx)
+        tot += w[p]
+    s2 = 0.0
+    for p in range(N):
+        w[p] = w[p] / tot
+        s2 += w[p] * w[p]
+    ess[k] = 1.0 / s2
+    ex, ey = _estimate(x, y, w, grid, half_w, half_d, mask, scratch)
+    est[k, 0], est[k, 1] = ex, ey
+    mxw, myw = 0.0, 0.0
+    for p in range(N):
+        mxw += w[p] * x[p]
+        myw += w[p] * y[p]
+    sp = 0.0
+    for p in range(N):
+        sp += w[p] * ((x[p] - mxw) ** 2 + (y[p] - myw) ** 2)
+    spread[k] = math.sqrt(sp)
+    for j in range(pick.shape[0]):
+        logged_xy[k, j, 0], logged_xy[k, j, 1] = x[pick[j]], y[pick[j]]
+        logged_w[k, j] = w[pick[j]]
+    if always or ess[k] < ess_threshold * N:
+        _resample(w, rng, systematic, idx)
+        for arr in (x, y, theta, v):
+            tmp = arr[idx]
+            arr[:] = tmp
+        for p in range(N):
+            w[p] = 1.0 / N
+        resampled[k] = True
+        return True
+    return False
+
+
+@kernel
+def _run_box(x, y, theta, v, w, rng, fired, blind, motion, box, grid, cell_ptr, cell_sensor, cell_q, p0, xi, a,
+             half_w, half_d, mask, systematic, always, ess_threshold, pick,
+             est, ess, redraws, clamped, resampled, logged_xy, logged_w, spread):
+    """Every iteration in a box room: propagate then :func:`_update` (see the module docstring)."""
+    N = x.shape[0]
+    lw = np.empty(N)
+    scratch = np.empty((int(grid[4]) + 1, int(grid[3]) + 1))
+    idx = np.empty(N, dtype=np.int64)
+    uniform = False
+    for k in range(fired.shape[0]):  # sequential: each iteration needs the previous posterior
+        r, c = _propagate_box(x, y, theta, v, rng, motion[0], motion[1], motion[2], motion[3], int(motion[4]), box)
+        redraws[k], clamped[k] = r, c
+        uniform = _update(k, x, y, theta, v, w, uniform, rng, fired[k], blind[k], grid, cell_ptr, cell_sensor, cell_q,
+                          p0, xi, a, half_w, half_d, mask, systematic, always, ess_threshold, pick,
+                          lw, scratch, idx, est, ess, resampled, logged_xy, logged_w, spread)
+
+
+@kernel
+def _update_one(k, x, y, theta, v, w, uniform, rng, fired, blind, grid, cell_ptr, cell_sensor, cell_q, p0, xi, a,
+                half_w, half_d, mask, systematic, always, ess_threshold, pick,
+                est, ess, resampled, logged_xy, logged_w, spread):
+    """:func:`_update` for one iteration of a room that is not a box (propagated outside)."""
+    N = x.shape[0]
+    return _update(k, x, y, theta, v, w, uniform, rng, fired, blind, grid, cell_ptr, cell_sensor, cell_q, p0, xi, a,
+                   half_w, half_d, mask, systematic, always, ess_threshold, pick,
+                   np.empty(N), np.empty((int(grid[4]) + 1, int(grid[3]) + 1)), np.empty(N, dtype=np.int64),
+                   est, ess, resampled, logged_xy, logged_w, spread)
+
+
+# --------------------------------------------------------------------------- the deployment per cell
+
+
+def cell_lists(q: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The deployed grids ``q (n, ny, nx)`` per cell: CSR ``(ptr (ny nx + 1,), sensor, q)``
+    listing, for every cell (row-major), the sensors with ``q_ik > 0`` in sensor order."""
+    n = q.shape[0]
+    flat = q.reshape(n, int(np.prod(q.shape[1:])))
+    cell, sensor = np.nonzero(flat.T)  # row-major over (cell, sensor): sensors in order per cell
+    ptr = np.zeros(flat.shape[1] + 1, dtype=np.int64)
+    np.add.at(ptr, cell + 1, 1)
+    return np.cumsum(ptr), sensor.astype(np.int64), flat[sensor, cell].astype(np.float64)

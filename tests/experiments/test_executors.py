@@ -1,0 +1,98 @@
+"""The studies on every executor: serial, a local process pool and Ray give equal tables;
+the executors keep the items' order, report failing tasks, and the CLI takes the options."""
+
+from __future__ import annotations
+
+import math
+import os
+
+import polars as pl
+import pytest
+
+from onebit.cli import main
+from onebit.experiments import EXPERIMENTS, get_experiment
+from onebit.experiments.trials import StudyError, run_trials
+from onebit.pipeline.executors import LocalPoolExecutor, RayExecutor, SerialExecutor
+
+ray = pytest.importorskip("ray", reason="the ray extra (pip install 'onebit[ray]'; make test installs it)")
+
+#: (study, trials) small enough for a test; each study's own `quick` grid otherwise.
+STUDIES = (("okane", 1), ("singh", 1), ("schiff", 1), ("correct", 2), ("findinghumo", 2))
+
+
+@pytest.fixture(scope="module")
+def ray_local():
+    os.environ["RAY_USAGE_STATS_ENABLED"] = "0"
+    ray.init(address="local", num_cpus=2, include_dashboard=False, object_store_memory=100 * 1024**2, log_to_driver=False,
+             logging_level="ERROR")  # fmt: skip
+    yield ray
+    ray.shutdown()
+
+
+def _executors():
+    return {"serial": SerialExecutor(), "local": LocalPoolExecutor(workers=2), "ray": RayExecutor(workers=2)}
+
+
+@pytest.mark.parametrize("kind", ["serial", "local", "ray"])
+def test_map_keeps_the_order_and_reports_a_failing_task_without_stopping(kind, ray_local):
+    with _executors()[kind] as ex:
+        out = ex.map(math.sqrt, [16.0, -1.0, 9.0, 4.0])
+    assert [o.index for o in out] == [0, 1, 2, 3]
+    assert [o.value for o in out] == [4.0, None, 3.0, 2.0]
+    assert [o.ok for o in out] == [True, False, True, True]
+    assert out[1].error == "ValueError: math domain error" and "Traceback" in out[1].traceback
+
+
+def test_a_failed_trial_fails_the_study_naming_it():
+    with pytest.raises(StudyError, match=r"1 of 3 trial\(s\) failed:\n  x = -1.0: ValueError: math domain error"):
+        run_trials(math.sqrt, [1.0, -1.0, 4.0], executor=None, label=lambda x: f"x = {x}", echo=lambda s: None, study="t")
+    values, timings = run_trials(math.sqrt, [1.0, 4.0], executor=None, label=str, echo=lambda s: None, study="t")
+    assert values == [1.0, 2.0] and timings["trial"].to_list() == ["1.0", "4.0"]
+
+
+@pytest.fixture(scope="module")
+def studies(tmp_path_factory, ray_local):
+    """Every small study on every executor: {(study, executor): output folder}."""
+    root = tmp_path_factory.mktemp("studies")
+    outs = {}
+    for kind, ex in _executors().items():
+        with ex:
+            for name, trials in STUDIES:
+                outs[(name, kind)] = get_experiment(name).run(
+                    root / f"{name}-{kind}", seed=0, trials=trials, quick=True, echo=lambda s: None, executor=ex
+                )
+    return outs
+
+
+@pytest.mark.parametrize("name", [s for s, _ in STUDIES])
+def test_serial_local_pool_and_ray_give_equal_tables(studies, name):
+    serial = studies[(name, "serial")]
+    tables = ["results.parquet", *(["summary.csv"] if (serial / "summary.csv").exists() else [])]
+    for kind in ("local", "ray"):
+        other = studies[(name, kind)]
+        for t in tables:
+            read = pl.read_parquet if t.endswith(".parquet") else pl.read_csv
+            a, b = read(serial / t), read(other / t)
+            assert a.height > 0 and a.equals(b), (name, kind, t)
+        timings = pl.read_csv(other / "timings.csv")
+        assert timings.height == pl.read_csv(serial / "timings.csv").height and (timings["seconds"] >= 0).all()
+
+
+def test_the_seed_sweeps_are_experiments(studies):
+    assert {"correct", "findinghumo"} <= set(EXPERIMENTS)
+    fh = pl.read_parquet(studies[("findinghumo", "serial")] / "results.parquet")
+    assert fh.height == 2 * 3 and set(fh["tracker"]) == {"findinghumo", "hmm1", "hmm2"}
+    assert (fh["users_true"] == 3).all() and (fh["hop_error"] >= 0).all()
+    corr = pl.read_parquet(studies[("correct", "serial")] / "results.parquet")
+    assert corr["seed"].to_list() == [0, 1]
+    assert ((corr["restored"] <= corr["dropped"]) & (corr["restored"] <= corr["inserted"])).all()
+    summary = pl.read_csv(studies[("correct", "serial")] / "summary.csv")
+    assert summary["seeds"][0] == 2
+
+
+def test_cli_experiment_takes_the_executor_options(tmp_path, capsys):
+    assert main(["experiment", "okane", str(tmp_path / "ok"), "--quick", "--trials", "1", "--executor", "local", "--workers", "2"]) == 0
+    assert "local process pool, 2 worker(s)" in capsys.readouterr().out
+    assert pl.read_parquet(tmp_path / "ok" / "results.parquet").height == 4
+    assert main(["experiment", "okane", str(tmp_path / "x"), "--quick", "--ray-address", "auto"]) == 2
+    assert "--ray-address: only with --executor ray" in capsys.readouterr().err

@@ -1,0 +1,79 @@
+"""The readers' compiled state machines against the polars window versions they replace, on
+random logs: the beam-pass decoder (crossings, aborted, unfinished passes, no-change rejects)
+and the PIR debounce (kept and suppressed edges)."""
+
+from __future__ import annotations
+
+import numpy as np
+import polars as pl
+import pytest
+
+from onebit.readers import beams as B
+from onebit.readers import motion as M
+
+
+def _beam_log(rng, n, *, clean):
+    """Raw beam events: clean passes on 3 beams (some aborted, some left open), or random
+    edges (no-change edges, interleaved pairs), with ties in time."""
+    if clean:
+        rows = []
+        t = 0.0
+        for _ in range(n // 4):
+            beam = str(rng.choice(["a", "b", "c"]))
+            first, other = ("a", "b") if rng.random() < 0.5 else ("b", "a")
+            seq = [(first, True), (other, True), (first, False), (other, False)]
+            if rng.random() < 0.2:
+                seq = [(first, True), (other, True), (other, False), (first, False)]
+            if rng.random() < 0.05:
+                seq = seq[: int(rng.integers(1, 4))]
+            for pair, blocked in seq:
+                t += float(rng.choice([0.0, 0.1, 0.5]))
+                rows.append((round(t, 1), beam, pair, blocked))
+        f = pl.DataFrame(rows, schema={"t": pl.Float64, "beam": pl.String, "pair": pl.String, "blocked": pl.Boolean}, orient="row")
+    else:
+        f = pl.DataFrame(
+            {
+                "t": np.sort(rng.uniform(0, 100, n)).round(1),
+                "beam": rng.choice(["a", "b", "c"], n),
+                "pair": rng.choice(["a", "b"], n),
+                "blocked": rng.random(n) < 0.5,
+            }
+        )
+    return f.with_columns(line=pl.int_range(2, f.height + 2, dtype=pl.Int64)).select("line", "t", "beam", "pair", "blocked")
+
+
+@pytest.mark.parametrize("seed", range(12))
+@pytest.mark.parametrize("clean", [True, False])
+def test_beam_pass_kernel_equals_reference(seed, clean):
+    rng = np.random.default_rng(seed)
+    f = _beam_log(rng, int(rng.integers(0, 1500)), clean=clean)
+    a, b = B.decode_passes(f, compiled=True), B.decode_passes_reference(f)
+    for k in ("events", "crossings", "aborted", "unfinished", "rejects"):
+        assert getattr(a, k).equals(getattr(b, k)), k
+
+
+def test_beam_pass_kernel_on_an_empty_log():
+    f = _beam_log(np.random.default_rng(0), 0, clean=False)
+    a, b = B.decode_passes(f, compiled=True), B.decode_passes_reference(f)
+    assert a.crossings.height == 0 and a.crossings.equals(b.crossings) and a.rejects.equals(b.rejects)
+
+
+@pytest.mark.parametrize("seed", range(20))
+def test_debounce_kernel_equals_reference(seed):
+    rng = np.random.default_rng(seed)
+    sensors = ["s1", "s2", "s3", "s4"]
+    n = int(rng.integers(0, 1500))
+    df = pl.DataFrame(
+        {
+            "line": np.arange(2, n + 2, dtype=np.int64),
+            "t": np.sort(rng.uniform(0, 60, n)).round(int(rng.integers(1, 4))),
+            "sensor": rng.choice(sensors, n),
+        }
+    ).with_columns(on=(pl.int_range(pl.len()).over("sensor") % 2 == 0))
+    rules = {
+        s: M.DebounceRules(chatter_window=float(rng.choice([0, 0.1, 0.3, 1.0])), min_on=float(rng.choice([0, 0.2, 0.5, 2.0])))
+        for s in sensors[:3]
+    }
+    kept, sup = M.debounce(df, sensors, rules, compiled=True)
+    kept_ref, sup_ref = M.debounce_reference(df, sensors, rules)
+    assert kept.equals(kept_ref) and sup.equals(sup_ref)

@@ -1,0 +1,74 @@
+"""CLUSTERTRACK's compiled scan and linear-time passes against the numpy versions they
+replace: the scan kernel equals the vectorised numpy scan on random inputs (ties, 1-D and
+2-D), the per-instant usage equals a loop over instants, and a whole run keeps its result."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from shapely.geometry import box
+
+from onebit.datasets.proximity_sim import make_world
+from onebit.trackers.clustertrack.algorithm import (
+    _norm,
+    clustertrack,
+    consensus,
+    rules_of_thumb,
+    scan_clusters,
+    scan_clusters_reference,
+    usage,
+)
+from onebit.trackers.clustertrack.feasible import SensorArray
+from onebit.trackers.clustertrack.space import FeasibleSpace
+
+
+@pytest.mark.parametrize("seed", range(60))
+def test_scan_kernel_equals_numpy_scan(seed):
+    rng = np.random.default_rng(seed)
+    dim = int(rng.integers(1, 3))
+    t = int(rng.integers(1, 6))
+    kprev, m = int(rng.integers(1, 15)), int(rng.integers(1, 30))
+    prev = rng.uniform(0, 5, size=(kprev, max(t - 1, 1), dim))
+    pd = np.sum(_norm(prev[:, None] - prev[None, :])[..., None], axis=(2, 3)) if t > 1 else np.zeros((kprev, kprev))
+    parent = np.repeat(np.arange(kprev), m)
+    x = rng.uniform(0, 5, size=(kprev * m, dim))
+    # ties (all costs 0 at t <= 2) broken by the random permutation, or distinct costs
+    cost = np.zeros(kprev * m) if seed % 3 == 0 else rng.random(kprev * m).round(int(rng.integers(1, 4)))
+    kw = dict(H=int(rng.integers(1, 8)), K=int(rng.integers(1, 60)), L=int(rng.integers(1, 400)), D0=float(rng.uniform(0.05, 3.0)))
+    a = scan_clusters(cost, parent, x, pd, t, rng=np.random.default_rng(seed), compiled=True, **kw)
+    b = scan_clusters_reference(cost, parent, x, pd, t, rng=np.random.default_rng(seed), **kw)
+    for u, v in zip(a, b):
+        np.testing.assert_array_equal(u, v)
+
+
+def _space(name, seed, **params):
+    w = make_world(name, seed=seed, params=params)
+    sa = SensorArray(tuple(f"p{i}" for i in range(len(w.sensor_xy))), w.sensor_xy, w.r_inner, w.r_outer)
+    dim = 1 if sa.is_1d else 2
+    return FeasibleSpace.build(w.on, np.arange(w.on.shape[0], dtype=float), sa, box(*w.boundary), dim=dim, cell=0.25), sa.radius
+
+
+@pytest.mark.parametrize("name", ["proximity-line", "proximity-grid"])
+def test_usage_equals_a_loop_over_instants(name):
+    sp, R = _space(name, 3)
+    rng = np.random.default_rng(0)
+    lo, hi = (sp.raster.x0, sp.raster.x0 + sp.raster.width * sp.raster.cell) if sp.dim == 2 else (-2, 20)
+    tracks = rng.uniform(lo, hi, size=(7, sp.T, sp.dim))
+    got = usage(sp, tracks)
+    for t in range(sp.T):
+        nc = sp.comp_bounds_all[t].size
+        c = sp.component_of(t, tracks[:, t, :])
+        want = np.bincount(c[c >= 0], minlength=nc)[:nc]
+        np.testing.assert_array_equal(got[t], want)
+        np.testing.assert_array_equal(sp.components_of(tracks)[:, t], c)
+
+
+def test_consensus_reuses_a_known_run():
+    sp, R = _space("proximity-line", 1)
+    p = rules_of_thumb(sp, H=10, m_o=8.0 / R)
+    first = clustertrack(sp, p, np.random.default_rng(4))
+    a = consensus(sp, p, [4, 5], known={4: first})
+    b = consensus(sp, p, [4, 5])
+    np.testing.assert_array_equal(a.tracks, b.tracks)
+    np.testing.assert_array_equal(a.cluster, b.cluster)
+    assert a.count == b.count

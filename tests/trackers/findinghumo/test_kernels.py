@@ -1,0 +1,137 @@
+"""Compiled FindingHuMo kernels against their plain numpy references on random inputs:
+equal paths, equal scores (to 1e-9), equal decoded runs."""
+
+from __future__ import annotations
+
+import networkx as nx
+import numpy as np
+import pytest
+
+from onebit.trackers.findinghumo import kernels, viterbi
+from onebit.trackers.findinghumo.adaptive import DecoderParams, decode_run, decode_users
+from onebit.trackers.findinghumo.eatg import hop_matrix, layout_eatg, trained_eatg
+
+
+def _log_model(rng, s, d, *, sparse):
+    """Random log-space model; ``sparse`` puts -inf in about a third of the transitions and
+    emissions, as the restricted models of the decoder do."""
+    log_pi = np.log(rng.dirichlet(np.ones(s)))
+    log_a = np.log(rng.dirichlet(np.ones(s), size=s))
+    log_b = np.log(rng.random((d, s)) + 1e-3)
+    if sparse:
+        log_a[rng.random((s, s)) < 0.33] = -np.inf
+        log_b[rng.random((d, s)) < 0.33] = -np.inf
+        log_pi[rng.random(s) < 0.33] = -np.inf
+    return log_pi, log_a, log_b
+
+
+@pytest.mark.parametrize("seed", range(8))
+@pytest.mark.parametrize("s", [1, 2, 5, 17])
+def test_first_order_kernel_equals_reference(seed, s):
+    rng = np.random.default_rng(seed)
+    for d in (0, 1, 2, 9):
+        args = _log_model(rng, s, d, sparse=seed % 2 == 1)
+        p_ref, lp_ref = viterbi.viterbi_first_order(*args)
+        p, lp = kernels.viterbi_first_order(*args)
+        np.testing.assert_array_equal(p, p_ref)
+        assert lp == pytest.approx(lp_ref, rel=1e-9, abs=1e-9) or (np.isneginf(lp) and np.isneginf(lp_ref))
+
+
+def test_first_order_kernel_ties_take_the_first_state():
+    path, lp = kernels.viterbi_first_order(np.zeros(4), np.zeros((4, 4)), np.zeros((6, 4)))
+    assert path.tolist() == [0] * 6 and lp == 0.0
+    path, _ = kernels.viterbi_first_order(np.full(3, -np.inf), np.zeros((3, 3)), np.zeros((2, 3)))
+    assert path.tolist() == viterbi.viterbi_first_order(np.full(3, -np.inf), np.zeros((3, 3)), np.zeros((2, 3)))[0].tolist()
+
+
+@pytest.mark.parametrize("seed", range(6))
+@pytest.mark.parametrize("s", [1, 3, 8])
+def test_second_order_kernels_equal_reference(seed, s):
+    rng = np.random.default_rng(100 + seed)
+    for d in (0, 1, 2, 3, 8):
+        log_pi, log_a1, log_b = _log_model(rng, s, d, sparse=seed % 2 == 0)
+        log_a2 = np.log(rng.dirichlet(np.ones(s), size=(s, s)))
+        if seed % 2 == 0:
+            log_a2[rng.random((s, s, s)) < 0.3] = -np.inf
+        p_ref, lp_ref = viterbi.viterbi_second_order(log_pi, log_a1, log_a2, log_b)
+        p, lp = kernels.viterbi_second_order(log_pi, log_a1, log_a2, log_b)
+        np.testing.assert_array_equal(p, p_ref)
+        assert lp == lp_ref or abs(lp - lp_ref) <= 1e-9 * max(1.0, abs(lp_ref))
+        log_stay = np.diag(log_a1).copy()
+        p_ref, lp_ref = viterbi.viterbi_motion_second_order(log_pi, log_stay, log_a2, log_b)
+        p, lp = kernels.viterbi_motion_second_order(log_pi, log_stay, log_a2, log_b)
+        np.testing.assert_array_equal(p, p_ref)
+        assert lp == lp_ref or abs(lp - lp_ref) <= 1e-9 * max(1.0, abs(lp_ref))
+
+
+def _random_graph(rng, n):
+    """A connected random corridor graph of ``n`` nodes (a tree plus a few chords)."""
+    g = nx.random_labeled_tree(n, seed=int(rng.integers(1 << 30))) if hasattr(nx, "random_labeled_tree") else nx.random_tree(n, seed=int(rng.integers(1 << 30)))
+    for _ in range(n // 4):
+        a, b = rng.integers(0, n, 2)
+        if a != b:
+            g.add_edge(int(a), int(b))
+    nodes = tuple(str(i) for i in range(n))
+    edges = tuple((str(a), str(b)) for a, b in g.edges)
+    return nodes, edges
+
+
+@pytest.mark.parametrize("seed", range(6))
+@pytest.mark.parametrize("order", [1, 2])
+def test_coordinate_ascent_kernel_equals_reference(seed, order):
+    """decode_users (all restarts of the coordinate ascent) with the kernel and with the numpy
+    reference, on random windows, users, prefixes, late starts and entry nodes."""
+    rng = np.random.default_rng(seed)
+    nodes, edges = _random_graph(rng, 12)
+    hops = hop_matrix(nodes, edges)
+    act = rng.random((60, len(nodes))) < 0.2
+    eatg = trained_eatg(act, nodes, hops, horizon=5) if seed % 2 else layout_eatg(nodes, hops)
+    for trial in range(8):
+        k = int(rng.integers(1, 5))
+        L = int(rng.integers(1, 7))
+        states = np.sort(rng.choice(len(nodes), size=int(rng.integers(2, len(nodes) + 1)), replace=False))
+        obs = rng.random((L, len(nodes))) < 0.3
+        prefixes = [[int(v) for v in rng.choice(states, size=int(rng.integers(0, 3)), replace=False)] for _ in range(k)]
+        starts = [int(rng.integers(0, L + 1)) if not p else 0 for p in prefixes]
+        entries = [int(rng.choice(states)) if rng.random() < 0.5 else -1 for _ in range(k)]
+        for restarts, sweeps in ((6, 3), (2, 1), (1, 2)):
+            kw = dict(order=order, eatg=eatg)
+            ref = decode_users(obs, states, prefixes, starts, entries, params=DecoderParams(restarts=restarts, sweeps=sweeps, compiled=False), **kw)
+            new = decode_users(obs, states, prefixes, starts, entries, params=DecoderParams(restarts=restarts, sweeps=sweeps), **kw)
+            np.testing.assert_array_equal(new, ref, err_msg=f"trial {trial}, k={k}, L={L}, restarts={restarts}")
+
+
+@pytest.mark.parametrize("mode", ["adaptive", "full1", "full2"])
+def test_decode_run_compiled_equals_reference(mode):
+    rng = np.random.default_rng(3)
+    nodes, edges = _random_graph(rng, 16)
+    hops = hop_matrix(nodes, edges)
+    eatg = layout_eatg(nodes, hops)
+    pos = rng.integers(0, len(nodes), 3)
+    act = np.zeros((50, len(nodes)), bool)
+    for t in range(50):  # three random walkers with misses and false alarms
+        for u in range(3):
+            if rng.random() < 0.4:
+                nb = np.flatnonzero(hops[pos[u]] == 1)
+                pos[u] = rng.choice(nb) if nb.size else pos[u]
+        act[t, pos] = rng.random(3) < 0.9
+    act |= rng.random(act.shape) < 0.02
+    sigs = [(0, int(np.flatnonzero(hops[0] == 1)[0]))]
+    ref = decode_run(act, eatg, signatures=sigs, params=DecoderParams(mode=mode, compiled=False))
+    new = decode_run(act, eatg, signatures=sigs, params=DecoderParams(mode=mode))
+    np.testing.assert_array_equal(new.paths, ref.paths)
+    assert new.windows == ref.windows
+
+
+def test_emission_table_matches_the_reference_gain():
+    from onebit.trackers.findinghumo.adaptive import emission_gain, joint_emission
+
+    table = kernels.emission_tables(5, 0.9, 0.05, emission_gain)
+    c = np.arange(7)[None, :]
+    on = np.ones_like(c, bool)
+    np.testing.assert_array_equal(table[0], emission_gain(on, c, 0.9, 0.05)[0])
+    np.testing.assert_array_equal(table[1], emission_gain(~on, c, 0.9, 0.05)[0])
+    for cc in range(7):
+        claims = np.array([[cc]])
+        assert table[2, cc] == joint_emission(np.array([[True]]), claims, 0.9, 0.05)
+        assert table[3, cc] == joint_emission(np.array([[False]]), claims, 0.9, 0.05)

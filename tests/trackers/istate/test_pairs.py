@@ -1,0 +1,88 @@
+"""The I-state filter's pairwise work done once: the memo of region-pair results and the
+branch-and-bound cap give bit-for-bit the results of computing every pair."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+import shapely
+from shapely.geometry import Point, box
+
+from onebit.trackers.istate.core import (
+    IState,
+    PairMemo,
+    cap_elements,
+    cap_elements_reference,
+    clean_up,
+    info_state_update,
+    observation_update,
+    overlap_areas,
+    same_elements,
+)
+
+FREE = shapely.difference(box(0, 0, 10, 8), box(4, 3, 5, 5))
+
+
+def _istate(rng, E, n, shape="exact"):
+    rows = []
+    for _ in range(E):
+        c = rng.uniform([0, 0], [10, 8], (n, 2))
+        r = rng.uniform(0.8, 3.0, n)
+        if shape == "rect":
+            rows.append([box(x - s, y - s * 0.7, x + s, y + s * 0.7) for (x, y), s in zip(c, r)])
+        elif shape == "disk":
+            rows.append([Point(x, y).buffer(s, quad_segs=4) for (x, y), s in zip(c, r)])
+        else:
+            rows.append([shapely.intersection(Point(x, y).buffer(s, quad_segs=4), FREE) for (x, y), s in zip(c, r)])
+    return IState.from_elements(rows)
+
+
+def _wkb(eta):
+    return shapely.to_wkb(eta.regions.ravel()).tolist()
+
+
+@pytest.mark.parametrize("seed", range(8))
+@pytest.mark.parametrize("shape", ["exact", "disk"])
+def test_cap_branch_and_bound_equals_reference(seed, shape):
+    rng = np.random.default_rng(seed)
+    n = int(rng.integers(1, 4))
+    eta = _istate(rng, int(rng.integers(3, 30)), n, shape)
+    # copies sharing regions, as an observation update makes them
+    eta = observation_update(eta, box(*rng.uniform([0, 0, 5, 4], [5, 4, 10, 8])))
+    for M in (1, 2, 5):
+        a = cap_elements(eta, M, shape="exact")
+        b = cap_elements_reference(eta, M, shape="exact")
+        assert a.regions.shape == b.regions.shape and _wkb(a) == _wkb(b)
+
+
+def test_overlap_areas_with_a_memo_are_the_same_bits():
+    rng = np.random.default_rng(1)
+    a = _istate(rng, 12, 3)
+    b = IState(np.vstack([a.regions[:4], _istate(rng, 5, 3).regions, a.regions[:4]]))  # repeated rows
+    fresh = overlap_areas(a.regions, b.regions)
+    memo = PairMemo()
+    once = overlap_areas(a.regions, b.regions, memo=memo)
+    computed = memo.computed
+    assert memo.looked_up > 0  # the repeated rows repeat region pairs within the call
+    again = overlap_areas(a.regions, b.regions, memo=memo)  # every pair looked up
+    assert np.array_equal(fresh, once) and np.array_equal(once, again)
+    assert memo.computed == computed
+    # equal geometries in different objects share one id
+    copy = shapely.from_wkb(shapely.to_wkb(a.regions))
+    assert np.array_equal(memo.keys(copy), memo.keys(a.regions))
+
+
+def test_filter_steps_are_unchanged_by_the_memo():
+    """A few filter steps (motion, observations, clean-up, cap) against the same steps with
+    every clean-up and cap run on its own (no shared memo, every similarity computed)."""
+    rng = np.random.default_rng(3)
+    sensing = [box(x - 1.5, y - 1.5, x + 1.5, y + 1.5) for x, y in rng.uniform([0, 0], [10, 8], (6, 2))]
+    eta = IState.initial(FREE, 2)
+    ref = eta
+    for k in range(6):
+        det = [sensing[i] for i in rng.choice(6, size=int(rng.integers(1, 3)), replace=False)]
+        eta = info_state_update(eta, det, step=0.6 if k else 0.0, free_space=FREE, max_elements=4)
+        ref = info_state_update(ref, [], step=0.6 if k else 0.0, free_space=FREE, max_elements=4)
+        for s in det:
+            ref = cap_elements_reference(clean_up(observation_update(ref, s)), 4)
+        assert _wkb(eta) == _wkb(ref) and same_elements(eta, ref)

@@ -1,0 +1,57 @@
+"""onebit.viz.inspect: reading blueprints back and Rerun's entity-query rules."""
+
+from __future__ import annotations
+
+import rerun.blueprint as rrb
+
+from onebit.pipeline.stages import tracker_names
+from onebit.viz import colors
+from onebit.viz import inspect as rrd
+from onebit.viz.blueprint import save_blueprint
+from onebit.viz.families import FAMILY_OF, TRACKER_RGB
+
+
+def test_query_rules_follow_rerun_docs():
+    """The example of https://rerun.io/docs/reference/entity-queries."""
+    q = ["+ /world/**", "- /world", "- /world/car/**", "+ /world/car/driver"]
+    assert rrd.query_includes(q, "world/car/driver")
+    assert not rrd.query_includes(q, "world/car/hood")
+    assert not rrd.query_includes(q, "world")
+    assert rrd.query_includes(q, "world/house")
+    assert not rrd.query_includes(q, "elsewhere")
+    assert rrd.query_includes(["$origin/**"], "a/b/c", origin="/a")
+    assert not rrd.query_includes(["$origin/**"], "b", origin="/a")
+
+
+def test_blueprint_read_back(tmp_path):
+    bp = rrb.Blueprint(
+        rrb.Tabs(
+            rrb.Horizontal(
+                rrb.Spatial2DView(
+                    name="map (m)", origin="/", contents=["+ truth/a", "+ truth/a/trail", "+ truth/a/path"],
+                    overrides={
+                        "truth/a/path": [rrb.EntityBehavior(visible=False)],
+                        "truth/a/trail": [rrb.VisibleTimeRanges([rrb.VisibleTimeRange(
+                            "t", start=rrb.TimeRangeBoundary.cursor_relative(seconds=-10.0),
+                            end=rrb.TimeRangeBoundary.cursor_relative(seconds=0.0))])],
+                    },
+                ),
+                name="first",
+            ),
+            rrb.TimeSeriesView(name="error (m)", origin="/", contents=["+ scores/x/a"]),
+        ),
+    )  # fmt: skip
+    path = save_blueprint(bp, tmp_path / "b.rbl")
+    views = {v.name: v for v in rrd.blueprint_views(path)}
+    assert views["map (m)"].kind == "2D" and views["error (m)"].kind == "TimeSeries"
+    assert views["map (m)"].overrides == {"truth/a/path": {"visible": False}, "truth/a/trail": {"time_range": (-10.0, 0.0)}}
+    assert rrd.blueprint_tabs(path) == ["first", "error (m)"]
+
+
+def test_every_tracker_has_a_family_and_a_colour_apart_from_truth():
+    assert set(tracker_names()) <= set(FAMILY_OF)
+    assert set(FAMILY_OF) <= set(TRACKER_RGB)
+    truth = colors.TRUTH[:3]
+    shades = [colors.track_color(t, k, 3)[:3] for t in FAMILY_OF for k in range(3)]
+    assert truth not in shades
+    assert len({colors.track_color("findinghumo", k, 3) for k in range(3)}) == 3
