@@ -46,11 +46,13 @@ import numpy as np
 import polars as pl
 import shapely
 
+from onebit.core.config import check_range
 from onebit.core.errors import ConfigError, InputError
 from onebit.core.sensing import body_radius, detection_regions
 from onebit.core.site import Site, load_site
 from onebit.core.units import units_per_metre
 from onebit.core.writers import to_toml, write_csv, write_text
+from onebit.datasets import kernels
 from onebit.datasets.scenario import Scenario
 from onebit.readers.tables_csv import read_truth_csv
 from onebit.readers.timebase import iso_unix, number
@@ -72,9 +74,7 @@ class FromTruthConfig:
     def __post_init__(self) -> None:
         for name, lo, hi in (("rate_hz", 1e-3, 1e4), ("max_gap_s", 0.0, 1e9), ("hold_s", 0.0, 1e6),
                              ("p_detect", 0.0, 1.0), ("p_ring", 0.0, 1.0), ("drop", 0.0, 1.0)):  # fmt: skip
-            v = getattr(self, name)
-            if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v) or not lo <= v <= hi:
-                raise ConfigError(f"from-truth: {name} = {v!r}; allowed range: [{lo}, {hi}]")
+            check_range(self, name, lo, hi)
         if self.p_detect <= 0:
             raise ConfigError("from-truth: p_detect = 0 would never detect anyone; allowed range: (0, 1]")
 
@@ -194,18 +194,8 @@ def pir_events(site: Site, times: np.ndarray, xy: np.ndarray, cfg: FromTruthConf
     refr = np.array([m.refractory for m in site.motion_sensors], dtype=float)
     if np.any(refr > 0) and on.any():
         col, start, end = _runs(on)
-        keep_s, keep_e = start.copy(), end.copy()
-        keep = np.ones(col.size, dtype=bool)
-        blind = np.full(len(ids), -np.inf)
-        dt = 1.0 / cfg.rate_hz
-        for k in range(col.size):  # sequential: a period's fate depends on the last one kept
-            i = col[k]
-            ready = int(math.ceil((blind[i] - times[0]) / dt - 1e-9)) if np.isfinite(blind[i]) else 0
-            if end[k] <= ready:
-                keep[k] = False
-                continue
-            keep_s[k] = max(start[k], ready)
-            blind[i] = times[min(end[k], K - 1)] + refr[i]
+        keep, keep_s = kernels.pir_refractory(col, start, end, times, refr, 1.0 / cfg.rate_hz)
+        keep_e = end
         on = np.zeros_like(on)
         delta = np.zeros((K + 1, len(ids)), dtype=np.int64)
         np.add.at(delta, (keep_s[keep], col[keep]), 1)
@@ -213,6 +203,22 @@ def pir_events(site: Site, times: np.ndarray, xy: np.ndarray, cfg: FromTruthConf
         on = np.cumsum(delta, axis=0)[:-1] > 0
     on = _drop_runs(on, rng, cfg.drop)
     return _edges(times, on, ids)
+
+
+def pir_refractory_reference(col, start, end, times, refr, dt):
+    """The plain loop of :func:`onebit.datasets.kernels.pir_refractory` (its test oracle)."""
+    K = times.shape[0]
+    keep, keep_s = np.ones(col.size, dtype=bool), start.copy()
+    blind = np.full(refr.shape[0], -np.inf)
+    for k in range(col.size):  # sequential: a period's fate depends on the last one kept
+        i = col[k]
+        ready = int(math.ceil((blind[i] - times[0]) / dt - 1e-9)) if np.isfinite(blind[i]) else 0
+        if end[k] <= ready:
+            keep[k] = False
+            continue
+        keep_s[k] = max(start[k], ready)
+        blind[i] = times[min(end[k], K - 1)] + refr[i]
+    return keep, keep_s
 
 
 def proximity_events(site: Site, times: np.ndarray, xy: np.ndarray, cfg: FromTruthConfig, rng: np.random.Generator) -> pl.DataFrame:

@@ -382,9 +382,9 @@ def import_casas(
         "graph": {
             "source": graph_how,
             "rule": (
-                f"consecutive ON/OPEN events of two sensors at most window_s apart are a transition; an edge needs "
-                f">= min_count transitions making >= min_share of the less busy sensor's; components joined by a "
-                f"maximum spanning forest of the counts (transitions.csv)" if graph_how == "learned" else "from the layout file"
+                "consecutive ON/OPEN events of two sensors at most window_s apart are a transition; an edge needs "
+                ">= min_count transitions making >= min_share of the less busy sensor's; components joined by a "
+                "maximum spanning forest of the counts (transitions.csv)" if graph_how == "learned" else "from the layout file"
             ),
             "window_s": window_s,
             "min_count": min_count,
