@@ -34,7 +34,8 @@ sequential (each switch changes the paths the next event sees).
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+import itertools
+from dataclasses import dataclass, field
 
 import numpy as np
 import polars as pl
@@ -52,6 +53,7 @@ class CpdaResult:
     paths: np.ndarray  # (K, D) corrected
     switches: list[tuple[int, int, tuple[int, ...], tuple[int, ...]]]  # (slot, node, users, sigma)
     passes: int
+    decisions: list[dict] = field(default_factory=list)  # every event looked at (see :func:`decisions_table`)
 
 
 def interaction_graph(paths: np.ndarray, nodes: tuple[str, ...]):
@@ -148,6 +150,7 @@ def cpda(
     feature = np.zeros(n, bool) if feature is None else np.asarray(feature, bool)
     log_a2 = log_safe(a2)
     switches = []
+    decisions: list[dict] = []
     passes = 0
     for passes in range(1, max_passes + 1):
         changed = False
@@ -175,6 +178,7 @@ def cpda(
             cost = cost - 1e-9 * np.eye(m)
             r, col = linear_sum_assignment(cost)
             sigma = col[np.argsort(r)]
+            decisions.append(_decision(passes, c, at, users, ins, outs, cost, sigma))
             if np.array_equal(sigma, np.arange(m)):
                 continue
             tails = paths[users[sigma], c + 1 :].copy()
@@ -183,7 +187,60 @@ def cpda(
             changed = True
         if not changed:
             break
-    return CpdaResult(paths, switches, passes)
+    return CpdaResult(paths, switches, passes, decisions)
+
+
+def pairing_probabilities(cost: np.ndarray) -> tuple[list[tuple[int, ...]], np.ndarray]:
+    """Every pairing ``sigma`` of an event (a permutation of its ``m`` <= 4 users) and its
+    posterior ``P(sigma) ∝ prod_u a''(in_u, out_sigma(u)) = exp(-sum_u cost[u, sigma(u)])``
+    (forbidden pairings, cost >= 1e12, get 0)."""
+    m = cost.shape[0]
+    perms = list(itertools.permutations(range(m)))
+    c = np.array([sum(cost[u, p[u]] for u in range(m)) for p in perms])
+    logp = np.where(c >= 1e12, -np.inf, -c)
+    top = logp.max()
+    if not np.isfinite(top):
+        return perms, np.full(len(perms), 1.0 / len(perms))
+    w = np.exp(logp - top)
+    return perms, w / w.sum()
+
+
+def _decision(pass_no, c, at, users, ins, outs, cost, sigma) -> dict:
+    perms, prob = pairing_probabilities(cost) if len(users) <= 4 else ([tuple(sigma.tolist())], np.ones(1))
+    return {
+        "pass": int(pass_no), "slot": int(c), "nodes": tuple(int(x) for x in at), "users": tuple(int(u) for u in users),
+        "ins": tuple(int(x) for x in ins), "outs": tuple(int(x) for x in outs), "sigma": tuple(int(x) for x in sigma),
+        "perms": perms, "prob": prob,
+    }  # fmt: skip
+
+
+DECISIONS = pl.Schema({
+    "pass": pl.Int64, "slot": pl.Int64, "node": pl.String, "users": pl.String, "ins": pl.String, "outs": pl.String,
+    "pairing": pl.String, "switched": pl.Boolean, "p_chosen": pl.Float64, "p_keep": pl.Float64, "alternatives": pl.String,
+})  # fmt: skip
+
+
+def decisions_table(result: CpdaResult, nodes: tuple[str, ...]) -> pl.DataFrame:
+    """One row per co-location event CPDA decided: the users there, their incoming and
+    outgoing nodes (``-`` unknown), the pairing chosen (user ``users[i]`` continues on the
+    tail of ``pairing[i]``), whether it switched, its posterior, the posterior of keeping the
+    HMM's pairing, and every alternative as ``"pairing:probability"``."""
+    name = lambda j: nodes[j] if j >= 0 else "-"  # noqa: E731
+    rows = []
+    for d in result.decisions:
+        users = d["users"]
+        alts = "; ".join(
+            f"{' '.join(str(users[i]) for i in p)}:{pr:.3f}" for p, pr in zip(d["perms"], d["prob"])
+        )
+        ident = tuple(range(len(users)))
+        p_of = dict(zip(d["perms"], d["prob"].tolist()))
+        rows.append((
+            d["pass"], d["slot"], " ".join(name(j) for j in d["nodes"]), " ".join(map(str, users)),
+            " ".join(name(j) for j in d["ins"]), " ".join(name(j) for j in d["outs"]),
+            " ".join(str(users[i]) for i in d["sigma"]), d["sigma"] != ident,
+            float(p_of.get(d["sigma"], 1.0)), float(p_of.get(ident, 1.0)), alts,
+        ))  # fmt: skip
+    return pl.DataFrame(rows, schema=DECISIONS, orient="row")
 
 
 def switches_table(result: CpdaResult, nodes: tuple[str, ...], slot0: int = 0) -> pl.DataFrame:

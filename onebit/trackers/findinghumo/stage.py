@@ -11,7 +11,8 @@ Outputs (tables ``<tracker>_<key>``): ``tracks`` (TRACKS; one row per user and s
 slot's mid time, ``node`` and its x/y), ``eatg`` (kind, src, dst, weight, hops), ``windows``
 (per HMM window: slot, K, K_now, Sig_in, Sig_out, order, states, overlap), ``decoder``
 (slots, seconds), and for ``findinghumo`` ``switches`` (CPDA switches: slot, node, users,
-pairing).
+pairing) and ``cpda`` (every co-location event CPDA decided, with the alternatives'
+posteriors, :func:`~onebit.trackers.findinghumo.cpda.decisions_table`).
 """
 
 from __future__ import annotations
@@ -26,7 +27,7 @@ from onebit.core.tables import MOTION, TRACKS, check_schema, conform
 from onebit.trackers.base import ARTIFACTS, PROGRESS, TrackerSpec
 from onebit.core.config import check_choice, check_range
 from onebit.trackers.findinghumo.adaptive import DecoderParams, decode_run
-from onebit.trackers.findinghumo.cpda import cpda, switches_table
+from onebit.trackers.findinghumo.cpda import cpda, decisions_table, switches_table
 from onebit.trackers.findinghumo.eatg import Eatg, hop_matrix, layout_eatg, trained_eatg
 from onebit.readers.motion import ABSENT_AFTER_S, motion_frames, outside_silence, silent_stretches
 
@@ -216,13 +217,17 @@ def _run(name: str, mode: str, inputs: dict, site: Site, cfg: HmmConfig) -> dict
         out["decoded_hmm"] = outside_silence(_tracks(name, decoded, nodes, site, t0, cfg.period), silent).drop("tracker")
         paths = cp.paths
         out["switches"] = switches_table(cp, nodes)
+        out["cpda"] = decisions_table(cp, nodes)
+        out["decoded_paths"] = res.paths  # artifacts below: the Adaptive-HMM output CPDA started from
     paths = cap_users(paths, active, eatg.hops, cap)
     tracks = outside_silence(_tracks(name, paths, nodes, site, t0, cfg.period), silent)  # the empty room: no track
     out["tracks"] = tracks
     out["eatg"] = eatg.table()
     out["windows"] = pl.DataFrame(res.windows, schema=WINDOWS, orient="row") if res.windows else pl.DataFrame(schema=WINDOWS)
     out["decoder"] = pl.DataFrame({"slots": [int(active.shape[0])], "users": [int(paths.shape[0])]})
-    out[ARTIFACTS] = {"eatg": eatg, "active": active, "nodes": nodes, "t0": t0, "period": cfg.period}
+    out[ARTIFACTS] = {"eatg": eatg, "active": active, "nodes": nodes, "t0": t0, "period": cfg.period, "paths": paths}
+    if "decoded_paths" in out:
+        out[ARTIFACTS]["decoded_paths"] = out.pop("decoded_paths")
     return out
 
 
