@@ -19,11 +19,13 @@ follow other users. For each swap the table gives:
   nodes of the tracks that followed them before (``track_nodes``);
 * ``meet``: the users were within 1 hop of each other (truth) within ``+-MEET_SLOTS`` slots --
   a co-location, where binary sensors cannot tell who is who -- and ``kind``: at that meeting
-  (truth) ``crossing`` (they came from different nodes and left to different nodes:
-  resolvable by the direction prior a''), ``same-in`` (they arrived from the same node, left
-  apart), ``same-out`` (arrived apart, left together), ``co-walk`` (same node before and after:
-  the observations are symmetric in the users -- no method using only the motion log can
-  tell them apart), ``none`` (no meeting: a decoding error away from other users);
+  (truth; over the run of slots they stay within 1 hop, one node either side) ``co-walk``
+  (they passed two or more nodes in the same order: walking together, or one overtaking the
+  other; the activations are those of one group, and who is who only shows in timing),
+  ``crossing`` (two or more common nodes in opposite orders, or different nodes before and
+  after: resolvable by the direction prior a''), ``same-in`` (arrived from the same node,
+  left apart: a'' is symmetric in the users, only dwell/pace can tell), ``same-out``
+  (arrived apart, left together), ``none`` (no meeting: a decoding error away from other users);
 * ``event``: the interaction graph of the HMM output (before CPDA for ``findinghumo``) holds a
   co-location event of these tracks within ``+-MEET_SLOTS`` slots, and for ``findinghumo``
   ``cpda``: what CPDA decided there (``switch`` / ``keep``, with the posterior of the pairing
@@ -163,12 +165,22 @@ def meeting_kind(true: np.ndarray, users: tuple[int, int], slot: int, hops: np.n
             k += step
         return int(row[k]) if 0 <= k < d else -1
 
+    seq_a, seq_b = _distinct(ta[max(0, s0 - 1) : s1 + 2]), _distinct(tb[max(0, s0 - 1) : s1 + 2])
+    common = [j for j in seq_a if j in seq_b]
+    if len(common) >= 2:  # both walked over the same nodes: in the same order, or against each other
+        order_b = [seq_b.index(j) for j in common]
+        return True, "co-walk" if order_b == sorted(order_b) else "crossing"
     in_a, in_b = other(ta, s0, -1), other(tb, s0, -1)
     out_a, out_b = other(ta, s1, 1), other(tb, s1, 1)
     same_in = in_a == in_b or in_a < 0 or in_b < 0
     same_out = out_a == out_b or out_a < 0 or out_b < 0
     kind = {(False, False): "crossing", (True, False): "same-in", (False, True): "same-out", (True, True): "co-walk"}[(same_in, same_out)]
     return True, kind
+
+
+def _distinct(row: np.ndarray) -> list[int]:
+    r = row[row >= 0]
+    return r[np.concatenate([[True], r[1:] != r[:-1]])].tolist() if r.size else []
 
 
 def diagnose_seed(job: tuple[int, float, int, float, str]) -> tuple[list[dict], list[dict]]:
@@ -220,7 +232,7 @@ def _cpda_at(decisions: pl.DataFrame | None, slot: int) -> str:
     the posteriors of the chosen and of the HMM's pairing; ``-`` when it saw no event."""
     if decisions is None or decisions.height == 0:
         return "-"
-    near = decisions.filter((pl.col("slot") - slot).abs() <= MEET_SLOTS)
+    near = decisions.filter((pl.col("slot") - slot).abs() <= MEET_SLOTS, pl.col("pass") == pl.col("pass").max())
     if near.height == 0:
         return "-"
     return "; ".join(
