@@ -149,7 +149,7 @@ def readers(t: Table) -> None:
 def viterbi(t: Table) -> None:
     from hmmlearn import _hmmc
 
-    from onebit.trackers.findinghumo import kernels, viterbi as ref
+    from onebit.models.graph_hmm import kernels, viterbi as ref
 
     rng = np.random.default_rng(0)
     D = 10_000
@@ -196,8 +196,8 @@ def compile_times(t: Table) -> None:
     """First call of each kernel module in a fresh process: cold numba cache (compilation)
     and warm cache (what a second ``onebit run`` pays)."""
     calls = {
-        "findinghumo": "import numpy as np\nfrom onebit.trackers.findinghumo.adaptive import DecoderParams, decode_run\n"
-        "from onebit.trackers.findinghumo.eatg import hop_matrix, layout_eatg\n"
+        "findinghumo": "import numpy as np\nfrom onebit.models.graph_hmm.adaptive import DecoderParams, decode_run\n"
+        "from onebit.models.graph_hmm.eatg import hop_matrix, layout_eatg\n"
         "n=('a','b','c');e=layout_eatg(n,hop_matrix(n,(('a','b'),('b','c'))))\n"
         "T=__import__('time').perf_counter()\n"
         "decode_run(np.eye(3,dtype=bool)[[0,1,2,1]],e,params=DecoderParams(mode='full2'));decode_run(np.eye(3,dtype=bool)[[0,1]],e,params=DecoderParams(mode='full1'))",
@@ -233,7 +233,7 @@ def findinghumo_stage(t: Table) -> None:
     from onebit.core.site import load_site
     from onebit.readers.motion import read_motion_csv
     from onebit.trackers.findinghumo import stage as S
-    from onebit.trackers.findinghumo.adaptive import DecoderParams
+    from onebit.models.graph_hmm.adaptive import DecoderParams
 
     durations = _sizes((150.0, 600.0, 1500.0), (150.0, 300.0))
     ours = []

@@ -53,7 +53,7 @@ from onebit.pipeline.stages import TRACKERS as ENTRIES
 from onebit.readers.motion import read_motion_csv
 from onebit.scoring.findinghumo import score, truth_nodes
 from onebit.trackers.findinghumo.cpda import colocation_events
-from onebit.trackers.findinghumo.eatg import hop_matrix
+from onebit.models.graph_hmm.eatg import hop_matrix
 
 TRACKERS = ("hmm1", "hmm2", "findinghumo")
 SEEDS = 20

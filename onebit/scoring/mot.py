@@ -75,7 +75,7 @@ from onebit.core.units import to_site_units
 from onebit.scoring.association import truth_at
 from onebit.scoring.crossings import truth_regions
 from onebit.scoring.findinghumo import truth_nodes
-from onebit.trackers.findinghumo.eatg import hop_matrix
+from onebit.models.graph_hmm.eatg import hop_matrix
 
 ReportRow = tuple[str, str, float, str]
 

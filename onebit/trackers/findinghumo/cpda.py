@@ -42,7 +42,7 @@ import polars as pl
 from scipy.sparse import csr_matrix
 from scipy.sparse.csgraph import connected_components
 
-from onebit.trackers.findinghumo.viterbi import log_safe
+from onebit.models.graph_hmm.viterbi import log_safe
 
 SWITCHES = pl.Schema({"slot": pl.Int64, "node": pl.String, "users": pl.String, "pairing": pl.String})
 

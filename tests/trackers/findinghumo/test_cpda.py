@@ -9,7 +9,7 @@ from hypothesis import strategies as st
 
 from onebit.datasets.builtin import builtin_site
 from onebit.trackers.findinghumo.cpda import colocation_events, cpda, interaction_graph
-from onebit.trackers.findinghumo.eatg import hop_matrix, layout_eatg, trained_eatg
+from onebit.models.graph_hmm.eatg import hop_matrix, layout_eatg, trained_eatg
 
 
 @pytest.fixture(scope="module")

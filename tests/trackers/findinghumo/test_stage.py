@@ -15,8 +15,8 @@ from onebit.pipeline.report import metric
 from onebit.pipeline.runner import run_pipeline
 from onebit.readers.motion import read_motion_csv
 from onebit.core.tables import MOTION, TRACKS
-from onebit.trackers.findinghumo.adaptive import DecoderParams, decode_run, decode_users, max_independent
-from onebit.trackers.findinghumo.eatg import hop_matrix, layout_eatg
+from onebit.models.graph_hmm.adaptive import DecoderParams, decode_run, decode_users, max_independent
+from onebit.models.graph_hmm.eatg import hop_matrix, layout_eatg
 from onebit.trackers.findinghumo.stage import FindingHumoConfig, HmmConfig, build_eatg, run_findinghumo, slot_activity
 from onebit.viz.inspect import entity_paths
 
