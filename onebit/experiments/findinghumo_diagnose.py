@@ -55,7 +55,7 @@ from onebit.scoring.findinghumo import score, truth_nodes
 from onebit.trackers.findinghumo.cpda import colocation_events
 from onebit.models.graph_hmm.eatg import hop_matrix
 
-TRACKERS = ("hmm1", "hmm2", "findinghumo")
+TRACKERS = ("hmm1", "hmm2", "findinghumo", "findinghumo-flow")
 SEEDS = 20
 DURATION = 150.0
 USERS = 3

@@ -121,6 +121,7 @@ GATES: dict[str, Gate] = {
     "findinghumo": _HOPS,
     "hmm1": _HOPS,
     "hmm2": _HOPS,
+    "findinghumo-flow": _HOPS,
     "istate": Gate("point", 1.0, "sensing radius", "O'Kane's I-state has no unit of its own; a point summary within one sensing radius is what the sensors can tell apart"),
 }
 
