@@ -158,6 +158,34 @@ def fragments(paths: np.ndarray, meets: list[Meeting]) -> list[Fragment]:
     return out
 
 
+def meeting_joins(paths: np.ndarray, frags: list[Fragment], meets: list[Meeting], hops: np.ndarray) -> list[tuple[int, int, int, int]]:
+    """Every allowed join at a meeting's cut slot: ``(f, g, cut, last node of f)`` for ``f``
+    ending and ``g`` starting at the cut, ``g``'s first node within one hop of ``f``'s last."""
+    by_end = {(f.track, f.end): i for i, f in enumerate(frags)}
+    by_start = {(f.track, f.start): i for i, f in enumerate(frags)}
+    out = []
+    for m in meets:
+        ins = [by_end[(u, m.cut)] for u in m.tracks if (u, m.cut) in by_end]
+        outs = [by_start[(u, m.cut)] for u in m.tracks if (u, m.cut) in by_start]
+        for f in ins:
+            last = int(paths[frags[f].track, m.cut - 1])
+            out.extend((f, g, m.cut, last) for g in outs if hops[last, paths[frags[g].track, m.cut]] <= 1)
+    return out
+
+
+def assemble(paths: np.ndarray, frags: list[Fragment], succ: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The identities' paths (K, D) from the chains of ``succ``, and each fragment's identity."""
+    ident = np.full(len(frags), -1, dtype=np.int64)
+    found = chains(succ)
+    out = np.full((len(found), paths.shape[1]), -1, dtype=np.int64)
+    for k, ch in enumerate(found):
+        for f in ch:
+            fr = frags[f]
+            ident[f] = k
+            out[k, fr.start : fr.end] = paths[fr.track, fr.start : fr.end]
+    return out, ident
+
+
 def visits(row: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Distinct nodes of a path piece (absent slots dropped) and their dwell in slots."""
     r = row[row >= 0]

@@ -26,7 +26,7 @@ from onebit.models.graph_hmm.viterbi import log_safe
 from onebit.readers.motion import outside_silence
 from onebit.trackers.base import ARTIFACTS, PROGRESS, TrackerSpec
 from onebit.trackers.findinghumo_flow.association import (
-    BIRTH, Fragment, chains, dwell_means, fragments, join_cost, meetings, min_cost_cover, pace, visits,
+    BIRTH, Fragment, assemble, dwell_means, fragments, join_cost, meeting_joins, meetings, min_cost_cover, pace, visits,
 )
 
 NAME = "findinghumo-flow"
@@ -86,23 +86,13 @@ def associate_paths(
     mu = dwell_means(paths, meets) if turn_dwell else None
     vis = [visits(paths[f.track, f.start : f.end]) for f in frags]
     paces = [pace(*v) for v in vis]
-    by_end: dict[tuple[int, int], int] = {(f.track, f.end): i for i, f in enumerate(frags)}
-    by_start: dict[tuple[int, int], int] = {(f.track, f.start): i for i, f in enumerate(frags)}
     joins: dict[tuple[int, int], float] = {}
     where: dict[tuple[int, int], tuple[int, int]] = {}
-    for m in meets:
-        ins = [by_end[(u, m.cut)] for u in m.tracks if (u, m.cut) in by_end]
-        outs = [by_start[(u, m.cut)] for u in m.tracks if (u, m.cut) in by_start]
-        for f in ins:
-            last = paths[frags[f].track, m.cut - 1]
-            for g in outs:
-                first = paths[frags[g].track, m.cut]
-                if hops[last, first] > 1:
-                    continue
-                c = join_cost(vis[f], vis[g], log_a2, mu, pace_sigma, paces[f], paces[g])
-                if np.isfinite(c):  # a'' = 0: the EATG says the joined path cannot happen
-                    joins[(f, g)] = c + switch_cost * (frags[f].track != frags[g].track)
-                    where[(f, g)] = (m.cut, int(last))
+    for f, g, cut, last in meeting_joins(paths, frags, meets, hops):
+        c = join_cost(vis[f], vis[g], log_a2, mu, pace_sigma, paces[f], paces[g])
+        if np.isfinite(c):  # a'' = 0: the EATG says the joined path cannot happen
+            joins[(f, g)] = c + switch_cost * (frags[f].track != frags[g].track)
+            where[(f, g)] = (cut, last)
     first_slot = np.array([f.start for f in frags])
     last_slot = np.array([f.end for f in frags])
     first_node = np.array([paths[f.track, f.start] for f in frags])
@@ -133,13 +123,7 @@ def associate_paths(
                 joins[(int(f), int(g))] = c
                 where[(int(f), int(g))] = (int(first_slot[g]), int(last_node[f]))
     succ, _ = min_cost_cover(len(frags), birth, death, joins)
-    ident = np.full(len(frags), -1, dtype=np.int64)
-    out = np.full((max(len(chains(succ)), 0), d), -1, dtype=np.int64)
-    for k, ch in enumerate(chains(succ)):
-        for f in ch:
-            fr = frags[f]
-            ident[f] = k
-            out[k, fr.start : fr.end] = paths[fr.track, fr.start : fr.end]
+    out, ident = assemble(paths, frags, succ)
     rows = [(s, j, f, g, c, bool(succ[f] == g)) for (f, g), c in joins.items() for s, j in [where[(f, g)]]]
     return out, frags, ident, rows
 
