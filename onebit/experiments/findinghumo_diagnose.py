@@ -29,7 +29,8 @@ follow other users. For each swap the table gives:
 * ``event``: the interaction graph of the HMM output (before CPDA for ``findinghumo``) holds a
   co-location event of these tracks within ``+-MEET_SLOTS`` slots, and for ``findinghumo``
   ``cpda``: what CPDA decided there (``switch`` / ``keep``, with the posterior of the pairing
-  chosen and of keeping the HMM's pairing).
+  chosen and of keeping the HMM's pairing); ``cpda_tie``: one of those decisions had another
+  pairing as probable as the HMM's -- the paper's CPT a'' cannot choose there.
 
 A bound per seed and tracker: ``slot_error``, the identity-free error of its positions (the
 best matching of every slot on its own): no relabelling of its tracks -- CPDA, the flow, any
@@ -71,7 +72,8 @@ MIN_RUN = 4
 
 SWAPS = pl.Schema({
     "seed": pl.Int64, "tracker": pl.String, "slot": pl.Int64, "users": pl.String, "true_nodes": pl.String,
-    "track_nodes": pl.String, "meet": pl.Boolean, "kind": pl.String, "event": pl.Boolean, "cpda": pl.String,
+    "track_nodes": pl.String, "meet": pl.Boolean, "kind": pl.String, "event": pl.Boolean, "cpda_tie": pl.Boolean,
+    "cpda": pl.String,
 })  # fmt: skip
 RESULTS = pl.Schema({
     "seed": pl.Int64, "tracker": pl.String, "hop_error": pl.Float64, "slot_error": pl.Float64, "swaps": pl.Int64,
@@ -227,7 +229,7 @@ def diagnose_seed(job: tuple[int, float, int, float, str]) -> tuple[list[dict], 
                 "seed": seed, "tracker": name, "slot": s, "users": " ".join(targets[v] for v in changed),
                 "true_nodes": " ".join(nodes[true[v, s]] for v in changed),
                 "track_nodes": " ".join(nodes[est[assign[s - 1][v], s]] if est[assign[s - 1][v], s] >= 0 else "-" for v in changed),
-                "meet": meet, "kind": kind, "event": bool(ev), "cpda": _cpda_at(decisions, s),
+                "meet": meet, "kind": kind, "event": bool(ev), "cpda_tie": _cpda_tie(decisions, s), "cpda": _cpda_at(decisions, s),
             })  # fmt: skip
         results.append({"seed": seed, "tracker": name, "hop_error": float(hop), "slot_error": slot_error(true, est, hops, diameter), "swaps": n_swaps})
     return results, swaps
@@ -250,6 +252,19 @@ def slot_error(true: np.ndarray, est: np.ndarray, hops: np.ndarray, miss: int) -
     return tot / n if n else 0.0
 
 
+def _cpda_tie(decisions: pl.DataFrame | None, slot: int) -> bool | None:
+    """Whether a CPDA decision within ``MEET_SLOTS`` of ``slot`` (last pass) had another pairing
+    as probable as keeping the HMM's (within 0.02): a'' cannot choose there."""
+    if decisions is None:
+        return None
+    near = decisions.filter((pl.col("slot") - slot).abs() <= MEET_SLOTS, pl.col("pass") == pl.col("pass").max())
+    for keep, alts in near.select("p_keep", "alternatives").iter_rows():
+        probs = [float(a.rsplit(":", 1)[1]) for a in alts.split("; ")][1:]  # the identity is listed first
+        if any(abs(p - keep) < 0.02 for p in probs):
+            return True
+    return False
+
+
 def _cpda_at(decisions: pl.DataFrame | None, slot: int) -> str:
     """What CPDA decided within ``MEET_SLOTS`` of ``slot`` (last pass): ``switch``/``keep`` with
     the posteriors of the chosen and of the HMM's pairing; ``-`` when it saw no event."""
@@ -269,6 +284,7 @@ def summarise(results: pl.DataFrame, swaps: pl.DataFrame) -> pl.DataFrame:
     per = swaps.group_by("tracker").agg(
         *(pl.col("kind").eq(k).sum().cast(pl.Int64).alias(k) for k in kinds),
         at_event=pl.col("event").sum().cast(pl.Int64),
+        cpda_tie=pl.col("cpda_tie").sum().cast(pl.Int64),
     )
     return (
         results.group_by("tracker", maintain_order=True)
@@ -279,6 +295,28 @@ def summarise(results: pl.DataFrame, swaps: pl.DataFrame) -> pl.DataFrame:
         .join(per, on="tracker", how="left")
         .fill_null(0)
     )
+
+
+#: trackers whose every swap is listed in ``diagnosis.md`` (the issue's table)
+LISTED = ("hmm2", "findinghumo", "findinghumo-flow")
+
+
+def markdown_table(df: pl.DataFrame) -> str:
+    """A polars frame as a Markdown table (floats to 3 decimals)."""
+    cells = [[f"{v:.3f}" if isinstance(v, float) else ("" if v is None else str(v)) for v in row] for row in df.iter_rows()]
+    lines = ["| " + " | ".join(df.columns) + " |", "|" + " --- |" * len(df.columns)]
+    lines += ["| " + " | ".join(c.replace("|", "/") for c in row) + " |" for row in cells]
+    return "\n".join(lines) + "\n"
+
+
+def markdown(summary: pl.DataFrame, swaps: pl.DataFrame, *, seeds: tuple[int, int], duration: float) -> str:
+    """``diagnosis.md``: the summary and every swap of the :data:`LISTED` trackers."""
+    head = (
+        f"Seeds {seeds[0]}-{seeds[1]}, hallway, {USERS} users, {duration:g} s, drop {DROP}; "
+        "written by `onebit experiment findinghumo-diagnose OUT` (onebit/experiments/findinghumo_diagnose.py).\n\n"
+    )
+    listed = swaps.filter(pl.col("tracker").is_in(LISTED)).sort("tracker", "seed", "slot")
+    return head + markdown_table(summary) + "\n" + markdown_table(listed)
 
 
 def run(
@@ -298,6 +336,7 @@ def run(
     writers.write_csv(results, out / "results.csv")
     writers.write_csv(swaps, out / "swaps.csv")
     writers.write_csv(summary, out / "summary.csv")
+    writers.write_text(markdown(summary, swaps, seeds=(seed, seed + n - 1), duration=duration), out / "diagnosis.md")
     write_timings(timings, out)
     echo(format_table(summary))
     return out
