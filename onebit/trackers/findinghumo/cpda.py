@@ -10,26 +10,30 @@ Input: the decoded node paths of the ``K`` users over the last ``C`` HMM windows
    one where two or more paths are present in the same slot (a crossover): which incoming
    path continues on which outgoing segment is ambiguous there. Each such meeting is an event
    ``(c, j)``: the last slot ``c`` of a run of slots in which the same set of users is at ``j``.
-3. *Inference* at each event: every path ``u`` there has an incoming node ``in_u`` (the last
-   node before ``j`` within the CPDA horizon ``W = C d_max`` slots) and an outgoing segment
-   starting at ``out_u`` (the first node after ``j`` within ``W``). The node state
-   ``Y(j, u) = {in_u, out_sigma(u)}`` is chosen by maximising the joint probability of the
-   pairing, with the paper's conditional probability table ``P(Y(j,u) = {j2, j3} | j2) = a''(j2, j3)``::
+3. *Inference* at each event (:func:`pair_meeting`): the users of a meeting are together in
+   slots ``s0 .. c`` (at one node, or with ``hops`` at adjacent nodes). Every path ``u`` has an
+   incoming node ``in_u`` (before the meeting) and an outgoing node ``out_u`` (after it). The
+   node state ``Y(j, u) = {in_u, out_sigma(u)}`` -- path ``u`` continues on the tail of path
+   ``sigma(u)`` -- is chosen by maximising the joint probability of the pairing under the
+   paper's conditional probability table ``P(Y(j,u) = {j2, j3} | j2) = a''(j2, j3)``::
 
-       sigma* = argmax_sigma  prod_u a''(in_u, out_sigma(u))
+       sigma* = argmax_sigma  prod_u a''(in_u, out_sigma(u))          (one meeting node)
 
-   over permutations ``sigma`` of the paths at ``j``. A permutation pairs every incoming path
-   with exactly one outgoing segment, so *flow conservation* (as many paths leave ``j`` as
-   enter it) holds by construction. The maximisation is a linear assignment on
-   ``-log a''`` (``scipy.optimize.linear_sum_assignment``); ties keep the HMM's pairing
-   (a ``1e-9`` bonus on the identity). An unknown ``in`` or ``out`` (path starts, ends or does
-   not move within ``W``) contributes a factor 1.
-4. *Switch*: where ``sigma*`` differs from the HMM output, the path tails after ``c`` are
-   exchanged: ``path_u[c+1:] <- path_sigma(u)[c+1:]``.
+   over all permutations ``sigma`` of the meeting's paths (``m!`` for ``m <= MAX_MEETING``).
+   In general each pairing is scored by the a'' product along the whole joined paths
+   (the terms away from the meeting are common to all pairings), which covers meetings on
+   adjacent nodes and lets one meeting's decision see the others it shares nodes with. A
+   permutation pairs every incoming path with exactly one outgoing one, so *flow
+   conservation* holds by construction. Ties keep the HMM's pairing. Every decision is
+   recorded with all alternatives' posteriors (:func:`decisions_table`).
+4. *Switch*: where ``sigma*`` differs from the HMM output, the path tails are exchanged at the
+   slot ``b`` inside the meeting where the joined paths stay continuous (one hop per slot) and
+   score best: ``path_u[b:] <- path_sigma(u)[b:]``.
 
 Events are handled in time order; a switch relabels the later slots, so the pass is repeated
-until no switch happens (at most ``max_passes``). The loop over events is inherently
-sequential (each switch changes the paths the next event sees).
+until no switch happens (at most ``max_passes``); every switch raises the joint probability of
+all paths, so this ends. The loop over events is inherently sequential (each switch changes the
+paths the next event sees); a meeting has 2-3 users, so its pairings are few.
 """
 
 from __future__ import annotations

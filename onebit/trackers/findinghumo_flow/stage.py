@@ -3,8 +3,8 @@ fragments by a minimum-cost flow (:mod:`onebit.trackers.findinghumo_flow.associa
 
 Decode the users as the HMM trackers do (:func:`onebit.models.graph_hmm.decoding.decode_motion`;
 ``decoder`` picks the second-order full-state HMM or the Adaptive-HMM), cut the decoded paths
-at every meeting, learn the dwell of passing and turning visits from the decoded paths, chain
-the fragments over the whole run by a minimum-cost flow, and report one track per chain.
+at every meeting, chain the fragments over the whole run by a minimum-cost flow, and report
+one track per chain (at most the site's ``targets`` at a time, as the HMM trackers).
 
 Outputs (tables ``findinghumo-flow_<key>``): ``tracks`` (TRACKS), ``fragments`` (fragment,
 track, start, end, identity), ``joins`` (every allowed join at a meeting's cut slot: slot,
