@@ -232,8 +232,9 @@ def findinghumo_stage(t: Table) -> None:
     from onebit.datasets.hallway_sim import write_hallway_dataset
     from onebit.core.site import load_site
     from onebit.readers.motion import read_motion_csv
-    from onebit.trackers.findinghumo import stage as S
+    from onebit.models.graph_hmm import decoding
     from onebit.models.graph_hmm.adaptive import DecoderParams
+    from onebit.trackers.findinghumo import stage as S
 
     durations = _sizes((150.0, 600.0, 1500.0), (150.0, 300.0))
     ours = []
@@ -246,7 +247,7 @@ def findinghumo_stage(t: Table) -> None:
             run = lambda: S.run_findinghumo({"motion": mo}, site, cfg)  # noqa: E731
             run()
             to, out = best(run, 3, clock=time.process_time)
-            with patched(S, "DecoderParams", functools.partial(DecoderParams, compiled=False)):
+            with patched(decoding, "DecoderParams", functools.partial(DecoderParams, compiled=False)):
                 tr, ref = best(run, 2, clock=time.process_time)
             assert out["tracks"].equals(ref["tracks"]), "compiled and reference decoders differ"
             ours.append(to)
