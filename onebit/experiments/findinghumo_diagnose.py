@@ -18,14 +18,14 @@ follow other users. For each swap the table gives:
 * ``slot``, the true ``users`` whose track changed, their true nodes (``true_nodes``) and the
   nodes of the tracks that followed them before (``track_nodes``);
 * ``meet``: the users were within 1 hop of each other (truth) within ``+-MEET_SLOTS`` slots --
-  a co-location, where binary sensors cannot tell who is who -- and ``kind``: at that meeting
-  (truth; over the run of slots they stay within 1 hop, one node either side) ``co-walk``
-  (they passed two or more nodes in the same order: walking together, or one overtaking the
-  other; the activations are those of one group, and who is who only shows in timing),
-  ``crossing`` (two or more common nodes in opposite orders, or different nodes before and
-  after: resolvable by the direction prior a''), ``same-in`` (arrived from the same node,
-  left apart: a'' is symmetric in the users, only dwell/pace can tell), ``same-out``
-  (arrived apart, left together), ``none`` (no meeting: a decoding error away from other users);
+  a co-location, where binary sensors cannot tell who is who -- and ``kind``, from the true
+  moves within ``KIND_SLOTS`` slots of the swap: ``co-walk`` (they walked an edge the same way:
+  together, or one following or overtaking the other; the activations are those of one
+  group, and who is who only shows in timing), ``crossing`` (they walked an edge against each
+  other, or came from different nodes and left to different nodes: resolvable in principle
+  by the direction prior a''), ``same-in`` (arrived from the same node, left apart: a'' is
+  symmetric in the users), ``same-out`` (arrived apart, left together), ``none`` (no
+  meeting: a decoding error away from other users);
 * ``event``: the interaction graph of the HMM output (before CPDA for ``findinghumo``) holds a
   co-location event of these tracks within ``+-MEET_SLOTS`` slots, and for ``findinghumo``
   ``cpda``: what CPDA decided there (``switch`` / ``keep``, with the posterior of the pairing
@@ -67,6 +67,8 @@ USERS = 3
 DROP = 0.02
 #: a swap is "at" a meeting / interaction-graph event when one lies within this many slots
 MEET_SLOTS = 3
+#: a swap's kind is read from the true moves this many slots either side of it
+KIND_SLOTS = 6
 #: an assignment held for fewer slots than this is a lag, not a swap (:func:`slot_assignments`)
 MIN_RUN = 4
 
@@ -173,11 +175,13 @@ def meeting_kind(true: np.ndarray, users: tuple[int, int], slot: int, hops: np.n
             k += step
         return int(row[k]) if 0 <= k < d else -1
 
-    seq_a, seq_b = _distinct(ta[max(0, s0 - 1) : s1 + 2]), _distinct(tb[max(0, s0 - 1) : s1 + 2])
-    common = [j for j in seq_a if j in seq_b]
-    if len(common) >= 2:  # both walked over the same nodes: in the same order, or against each other
-        order_b = [seq_b.index(j) for j in common]
-        return True, "co-walk" if order_b == sorted(order_b) else "crossing"
+    # walked the same edges the same way (co-walk), or against each other (crossing), near the swap
+    w0, w1 = max(0, slot - KIND_SLOTS), min(d, slot + KIND_SLOTS + 1)
+    ea, eb = _moves(ta[w0:w1]), _moves(tb[w0:w1])
+    same, opposite = len(ea & eb), len(ea & {(y, x) for x, y in eb})
+    if same or opposite:
+        return True, "co-walk" if same >= opposite else "crossing"
+    s0, s1 = max(s0, w0), min(s1, w1 - 1)
     in_a, in_b = other(ta, s0, -1), other(tb, s0, -1)
     out_a, out_b = other(ta, s1, 1), other(tb, s1, 1)
     same_in = in_a == in_b or in_a < 0 or in_b < 0
@@ -186,9 +190,11 @@ def meeting_kind(true: np.ndarray, users: tuple[int, int], slot: int, hops: np.n
     return True, kind
 
 
-def _distinct(row: np.ndarray) -> list[int]:
+def _moves(row: np.ndarray) -> set[tuple[int, int]]:
+    """Directed node changes ``(from, to)`` of a true path piece."""
     r = row[row >= 0]
-    return r[np.concatenate([[True], r[1:] != r[:-1]])].tolist() if r.size else []
+    step = np.flatnonzero(r[1:] != r[:-1])
+    return {(int(r[k]), int(r[k + 1])) for k in step}
 
 
 def diagnose_seed(job: tuple[int, float, int, float, str]) -> tuple[list[dict], list[dict]]:
