@@ -2,8 +2,9 @@
 
 The diagnosis behind ``docs/findinghumo.md`` (issue #15). For each seed of the issue's setting
 (the hallway, 3 users, 150 s, drop 0.02; seeds ``seed .. seed + trials - 1``, default 0-19),
-the dataset is simulated in memory and the trackers (:data:`TRACKERS`) are run as stage
-functions on it; their tracks are scored with the pipeline's own scorer
+the dataset is simulated into a temporary folder and read back as the pipeline reads it, the
+trackers (:data:`TRACKERS`) are run as stage functions on it, and their tracks are scored
+with the pipeline's own scorer
 (:func:`onebit.scoring.findinghumo.score`, the ``hop_error`` of ``onebit report``).
 
 Identity swaps. Let ``n_v(s)`` be the true node of user ``v`` at slot ``s`` (the truth sample
