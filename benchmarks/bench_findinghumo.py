@@ -27,8 +27,8 @@ def _best(fn, repeat=3):
 def viterbi_vs_hmmlearn(n_slots: int = 1000) -> None:
     from hmmlearn import _hmmc
 
-    from onebit.trackers.findinghumo import kernels
-    from onebit.trackers.findinghumo.viterbi import viterbi_first_order, viterbi_first_order_batch
+    from onebit.models.graph_hmm import kernels
+    from onebit.models.graph_hmm.viterbi import viterbi_first_order, viterbi_first_order_batch
 
     print(f"first-order Viterbi, {n_slots} slots: ours (compiled kernel; numpy reference beside) vs hmmlearn _hmmc.viterbi (C++)")
     print(f"{'states':>7} {'ours ms':>9} {'hmmlearn ms':>12} {'ratio':>7} {'numpy ref ms':>13} {'batch of 10 numpy/each ms':>26}")
@@ -72,8 +72,8 @@ def _walk_activity(hops: np.ndarray, users: int, n_slots: int, rng) -> np.ndarra
 
 
 def decoder_scaling(n_slots: int = 40) -> None:
-    from onebit.trackers.findinghumo.adaptive import DecoderParams, decode_run
-    from onebit.trackers.findinghumo.eatg import hop_matrix, layout_eatg
+    from onebit.models.graph_hmm.adaptive import DecoderParams, decode_run
+    from onebit.models.graph_hmm.eatg import hop_matrix, layout_eatg
 
     print(f"\ndecoder time per slot (ms), {n_slots} slots, grid corridors, 2 sweeps, 1 restart (the default 6 restarts")
     print("cost up to 6x); real time is 1000 ms per slot")
@@ -95,7 +95,7 @@ def decoder_scaling(n_slots: int = 40) -> None:
 
 
 def second_order_memory() -> None:
-    from onebit.trackers.findinghumo.viterbi import viterbi_motion_second_order
+    from onebit.models.graph_hmm.viterbi import viterbi_motion_second_order
 
     print("\nsecond-order (distinct-node context) Viterbi memory (window of 7 slots; peak traced by tracemalloc)")
     print(f"{'states':>7} {'peak MiB':>9} {'model S^3 MiB':>14}")

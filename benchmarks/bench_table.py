@@ -149,7 +149,7 @@ def readers(t: Table) -> None:
 def viterbi(t: Table) -> None:
     from hmmlearn import _hmmc
 
-    from onebit.trackers.findinghumo import kernels, viterbi as ref
+    from onebit.models.graph_hmm import kernels, viterbi as ref
 
     rng = np.random.default_rng(0)
     D = 10_000
@@ -196,8 +196,8 @@ def compile_times(t: Table) -> None:
     """First call of each kernel module in a fresh process: cold numba cache (compilation)
     and warm cache (what a second ``onebit run`` pays)."""
     calls = {
-        "findinghumo": "import numpy as np\nfrom onebit.trackers.findinghumo.adaptive import DecoderParams, decode_run\n"
-        "from onebit.trackers.findinghumo.eatg import hop_matrix, layout_eatg\n"
+        "findinghumo": "import numpy as np\nfrom onebit.models.graph_hmm.adaptive import DecoderParams, decode_run\n"
+        "from onebit.models.graph_hmm.eatg import hop_matrix, layout_eatg\n"
         "n=('a','b','c');e=layout_eatg(n,hop_matrix(n,(('a','b'),('b','c'))))\n"
         "T=__import__('time').perf_counter()\n"
         "decode_run(np.eye(3,dtype=bool)[[0,1,2,1]],e,params=DecoderParams(mode='full2'));decode_run(np.eye(3,dtype=bool)[[0,1]],e,params=DecoderParams(mode='full1'))",
@@ -232,8 +232,9 @@ def findinghumo_stage(t: Table) -> None:
     from onebit.datasets.hallway_sim import write_hallway_dataset
     from onebit.core.site import load_site
     from onebit.readers.motion import read_motion_csv
+    from onebit.models.graph_hmm import decoding
+    from onebit.models.graph_hmm.adaptive import DecoderParams
     from onebit.trackers.findinghumo import stage as S
-    from onebit.trackers.findinghumo.adaptive import DecoderParams
 
     durations = _sizes((150.0, 600.0, 1500.0), (150.0, 300.0))
     ours = []
@@ -246,7 +247,7 @@ def findinghumo_stage(t: Table) -> None:
             run = lambda: S.run_findinghumo({"motion": mo}, site, cfg)  # noqa: E731
             run()
             to, out = best(run, 3, clock=time.process_time)
-            with patched(S, "DecoderParams", functools.partial(DecoderParams, compiled=False)):
+            with patched(decoding, "DecoderParams", functools.partial(DecoderParams, compiled=False)):
                 tr, ref = best(run, 2, clock=time.process_time)
             assert out["tracks"].equals(ref["tracks"]), "compiled and reference decoders differ"
             ours.append(to)

@@ -16,8 +16,8 @@ import shapely
 
 
 def findinghumo() -> None:
-    from onebit.trackers.findinghumo.adaptive import DecoderParams, decode_run
-    from onebit.trackers.findinghumo.eatg import hop_matrix, layout_eatg
+    from onebit.models.graph_hmm.adaptive import DecoderParams, decode_run
+    from onebit.models.graph_hmm.eatg import hop_matrix, layout_eatg
 
     nodes = ("a", "b", "c", "d")
     eatg = layout_eatg(nodes, hop_matrix(nodes, (("a", "b"), ("b", "c"), ("c", "d"))))

@@ -27,7 +27,7 @@ def test_public_names_load_on_first_use():
 
 
 def test_kernel_modules_import_numba_only_when_a_kernel_runs():
-    mods = _modules_after("import onebit.readers.beams, onebit.trackers.findinghumo.adaptive, onebit.trackers.beams.assignment")
+    mods = _modules_after("import onebit.readers.beams, onebit.models.graph_hmm.adaptive, onebit.trackers.beams.assignment")
     assert "numba" not in mods
     mods = _modules_after("import numpy as np\nfrom onebit.trackers.beams.assignment import assign_agents\nassign_agents(np.array([0]), np.array([1]), 2, compiled=True)")
     assert "numba" in mods

@@ -2,11 +2,11 @@
 
 The seed sweep behind ``docs/findinghumo.md`` (the issue's acceptance setting): for each seed
 the hallway (``onebit simulate hallway``), 3 users, 150 s, drop 0.02, is run through the
-pipeline with the ``findinghumo``, ``hmm1`` and ``hmm2`` trackers, as ``onebit run --trackers
-findinghumo,hmm1,hmm2`` would. Per seed and tracker: the hop error (whole-run matching of
+pipeline with the ``findinghumo``, ``findinghumo-flow``, ``hmm1`` and ``hmm2`` trackers, as
+``onebit run --trackers findinghumo,findinghumo-flow,hmm1,hmm2`` would. Per seed and tracker: the hop error (whole-run matching of
 decoded users to true users), users decoded and true, exact slots, IDF1 and identity switches.
 
-Default: 5 seeds (``seed`` .. ``seed + 4``; ``--trials`` sets the count); ``quick``: 2 seeds
+Default: 20 seeds (``seed`` .. ``seed + 19``, the issue's setting; ``--trials`` sets the count); ``quick``: 2 seeds
 of 60 s. Every seed is an independent task on the executor given (``--executor
 serial|local|ray``, see :mod:`onebit.experiments.trials`), simulated and run in a temporary
 folder of the worker; the tables are the same on every executor. Writes ``results.parquet``
@@ -28,14 +28,14 @@ from onebit.pipeline.executors import Executor
 from onebit.pipeline.report import metric
 from onebit.pipeline.runner import run_pipeline
 
-TRACKERS = ("findinghumo", "hmm1", "hmm2")
-SEEDS = 5
+TRACKERS = ("findinghumo", "findinghumo-flow", "hmm1", "hmm2")
+SEEDS = 20
 DURATION = 150.0
 USERS = 3
 DROP = 0.02
 QUICK = dict(seeds=2, duration=60.0)
 #: The paper's hop errors with 3 users (De et al., the runs it reports).
-PAPER = {"findinghumo": "0.00", "hmm2": "0.08-0.35", "hmm1": "0.75-2.74"}
+PAPER = {"findinghumo": "0.00", "hmm2": "0.08-0.35", "hmm1": "0.75-2.74", "findinghumo-flow": "-"}
 METRICS = ("hop_error", "users_true", "users_decoded", "slots_exact", "idf1", "id_switches")
 
 RESULT_SCHEMA = pl.Schema({"seed": pl.Int64, "tracker": pl.String, **{m: pl.Float64 for m in METRICS}})

@@ -44,7 +44,7 @@ from onebit.scoring import istate as score_istate
 from onebit.scoring.crossings import ScoresConfig, score_crossings, true_crossings_from_truth, truth_regions
 from onebit.scoring.mot import GATES, Gate, mot_rows
 from onebit.scoring.serve import CannotServe
-from onebit.trackers import beams, clustertrack, findinghumo, intruder, istate
+from onebit.trackers import beams, clustertrack, findinghumo, findinghumo_flow, intruder, istate
 from onebit.trackers.base import ARTIFACTS, PROGRESS, TrackerSpec
 from onebit.trackers.beams.correction import CorrectConfig, run_correction
 from onebit.viz import beams as viz_beams
@@ -92,6 +92,7 @@ TRACKERS: tuple[TrackerEntry, ...] = (
     TrackerEntry(intruder.NAIVE_SPEC, score_intruder.score, viz_intruder.log_run, gate=GATES["intruder-naive"]),
     TrackerEntry(clustertrack.SPEC, score_clustertrack.score, viz_clustertrack.log_run, gate=GATES["clustertrack"]),
     *(TrackerEntry(spec, score_findinghumo.score, viz_findinghumo.log_run, gate=GATES[spec.name]) for spec in findinghumo.SPECS),
+    TrackerEntry(findinghumo_flow.SPEC, score_findinghumo.score, viz_findinghumo.log_run, gate=GATES["findinghumo-flow"]),
     TrackerEntry(istate.SPEC, score_istate.score, viz_istate.log_run, gate=GATES["istate"]),
 )
 

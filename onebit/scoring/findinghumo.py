@@ -22,7 +22,7 @@ from onebit.core.sensing import current_node, detection_regions
 from onebit.core.site import Site
 from onebit.core.tables import SCORES, conform
 from onebit.scoring.association import associate, matched_pairs, pair_samples
-from onebit.trackers.findinghumo.eatg import hop_matrix
+from onebit.models.graph_hmm.eatg import hop_matrix
 
 
 def truth_nodes(truth: pl.DataFrame, site: Site) -> pl.DataFrame:

@@ -75,7 +75,7 @@ from onebit.core.units import to_site_units
 from onebit.scoring.association import truth_at
 from onebit.scoring.crossings import truth_regions
 from onebit.scoring.findinghumo import truth_nodes
-from onebit.trackers.findinghumo.eatg import hop_matrix
+from onebit.models.graph_hmm.eatg import hop_matrix
 
 ReportRow = tuple[str, str, float, str]
 
@@ -121,6 +121,7 @@ GATES: dict[str, Gate] = {
     "findinghumo": _HOPS,
     "hmm1": _HOPS,
     "hmm2": _HOPS,
+    "findinghumo-flow": _HOPS,
     "istate": Gate("point", 1.0, "sensing radius", "O'Kane's I-state has no unit of its own; a point summary within one sensing radius is what the sensors can tell apart"),
 }
 

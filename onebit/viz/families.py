@@ -22,6 +22,7 @@ FAMILY_OF: dict[str, str] = {
     "findinghumo": "findinghumo",
     "hmm1": "findinghumo",
     "hmm2": "findinghumo",
+    "findinghumo-flow": "findinghumo",
     "istate": "istate",
 }
 
@@ -39,13 +40,14 @@ TRACKER_RGB: dict[str, tuple[int, int, int]] = {
     "findinghumo": (255, 200, 60),
     "hmm1": (90, 200, 255),
     "hmm2": (240, 110, 200),
+    "findinghumo-flow": (120, 240, 200),
     "istate": (255, 235, 130),
     "camera": (165, 165, 165),
 }
 
 #: Score column (``SCORES``) and unit of each tracker's error plot; every other tracker shows
 #: ``error`` in the site's units. Region and graph trackers are scored in hops, the papers' unit.
-HOP_TRACKERS: frozenset[str] = frozenset({"beams", "findinghumo", "hmm1", "hmm2"})
+HOP_TRACKERS: frozenset[str] = frozenset({"beams", "findinghumo", "hmm1", "hmm2", "findinghumo-flow"})
 
 
 def family(tracker: str) -> str | None:

@@ -10,6 +10,10 @@ Entity paths (under the tracker's root)::
                                     colour labelled "track k", its trail and hidden path
     <tracker>/decoded/<user>        the whole decoded node sequence (static, hidden by default)
     <tracker>/switches              CPDA switches: node and the tracks re-paired, at their slot
+    <tracker>/cpda                  (findinghumo) every CPDA decision at its co-location node and
+                                    slot: the pairing chosen and every alternative's probability
+    <tracker>/joins                 (findinghumo-flow) the joins chosen by the flow at each
+                                    meeting's cut slot, with the alternatives' probabilities
 
 Bulk series go through one ``send_columns`` each.
 """
@@ -28,6 +32,7 @@ from onebit.viz.tracks import log_point_tracks, track_colors, track_labels
 NODE = (170, 170, 170, 255)
 ACTIVE = (200, 45, 40, 255)
 SWITCH = (255, 230, 0, 255)
+DECISION = (80, 220, 255, 255)
 
 
 def _node_xy(site, nodes) -> np.ndarray:
@@ -110,6 +115,53 @@ def log_switches(rec: rr.RecordingStream, tracker: str, switches: pl.DataFrame |
     )
 
 
+def _log_labelled_points(rec: rr.RecordingStream, entity: str, xy: np.ndarray, t: np.ndarray, labels: list[str], color) -> None:
+    log_world_frame(rec, entity)
+    rec.log(entity, rr.Points2D.from_fields(radii=rr.Radius.ui_points(9.0), colors=color, show_labels=True, draw_order=8.5), static=True)
+    order = np.argsort(t, kind="stable")
+    ts, first = np.unique(t[order], return_index=True)
+    lengths = np.diff(np.append(first, len(order)))
+    rec.send_columns(
+        entity,
+        indexes=[paths.time_column(ts)],
+        columns=rr.Points2D.columns(positions=xy[order], labels=[labels[i] for i in order]).partition(lengths),
+    )
+
+
+def log_cpda(rec: rr.RecordingStream, tracker: str, decisions: pl.DataFrame | None, site, t0: float, period: float) -> None:
+    """Every CPDA decision (last pass) at its co-location node and slot, labelled with the
+    pairing chosen and each alternative's probability."""
+    if is_empty(decisions):
+        return
+    last = decisions.filter(pl.col("pass") == pl.col("pass").max())
+    pos = {m.id: m.position for m in site.motion_sensors}
+    xy = np.array([pos[n.split()[0]] for n in last["node"].to_list()], dtype=float).reshape(-1, 2)
+    t = t0 + (last["slot"].to_numpy() + 0.5) * period
+    labels = [
+        f"CPDA {'switch' if sw else 'keep'} tracks {_one_based(u)} -> {_one_based(p)} (p={pc:.2f}); alternatives: "
+        + "; ".join(f"{_one_based(a.split(':')[0])}: {a.split(':')[1]}" for a in alts.split("; "))
+        for u, p, sw, pc, alts in last.select("users", "pairing", "switched", "p_chosen", "alternatives").iter_rows()
+    ]
+    _log_labelled_points(rec, paths.join(paths.tracker_root(tracker), "cpda"), xy, t, labels, DECISION)
+
+
+def log_joins(rec: rr.RecordingStream, tracker: str, joins: pl.DataFrame | None, site, t0: float, period: float) -> None:
+    """The flow's chosen joins at each meeting's cut slot and node, labelled with the
+    probability of every alternative join of the same incoming fragment."""
+    if is_empty(joins):
+        return
+    chosen = joins.filter(pl.col("chosen"))
+    if chosen.height == 0:
+        return
+    alts = joins.group_by("src").agg(pl.format("{}: {}", "dst", pl.col("probability").round(2)).str.join("; ").alias("alts"))
+    chosen = chosen.join(alts, on="src", how="left")
+    pos = {m.id: m.position for m in site.motion_sensors}
+    xy = np.array([pos[n] for n in chosen["node"].to_list()], dtype=float).reshape(-1, 2)
+    t = t0 + (chosen["slot"].to_numpy() + 0.5) * period
+    labels = [f"join fragment {a} -> {b} (p={p:.2f}); alternatives {al}" for a, b, p, al in chosen.select("src", "dst", "probability", "alts").iter_rows()]
+    _log_labelled_points(rec, paths.join(paths.tracker_root(tracker), "joins"), xy, t, labels, DECISION)
+
+
 def log_run(rec: rr.RecordingStream, tracker: str, out: dict, *, site, region_graph, config, tables: dict) -> None:
     """Everything an HMM tracker produced: the EATG, active nodes per slot, decoded paths and
     (FindingHuMo) the CPDA switches."""
@@ -119,3 +171,7 @@ def log_run(rec: rr.RecordingStream, tracker: str, out: dict, *, site, region_gr
     log_decoded(rec, tracker, out["tracks"])
     if "switches" in out:
         log_switches(rec, tracker, out["switches"], site, art["nodes"], art["t0"], art["period"])
+    if "cpda" in out:
+        log_cpda(rec, tracker, out["cpda"], site, art["t0"], art["period"])
+    if "joins" in out:
+        log_joins(rec, tracker, out["joins"], site, art["t0"], art["period"])

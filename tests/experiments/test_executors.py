@@ -81,7 +81,7 @@ def test_serial_local_pool_and_ray_give_equal_tables(studies, name):
 def test_the_seed_sweeps_are_experiments(studies):
     assert {"correct", "findinghumo"} <= set(EXPERIMENTS)
     fh = pl.read_parquet(studies[("findinghumo", "serial")] / "results.parquet")
-    assert fh.height == 2 * 3 and set(fh["tracker"]) == {"findinghumo", "hmm1", "hmm2"}
+    assert fh.height == 2 * 4 and set(fh["tracker"]) == {"findinghumo", "findinghumo-flow", "hmm1", "hmm2"}
     assert (fh["users_true"] == 3).all() and (fh["hop_error"] >= 0).all()
     corr = pl.read_parquet(studies[("correct", "serial")] / "results.parquet")
     assert corr["seed"].to_list() == [0, 1]

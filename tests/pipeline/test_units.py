@@ -156,6 +156,7 @@ COMPARED = {
     ("hallway", "findinghumo"): "exact",
     ("hallway", "hmm1"): "exact",
     ("hallway", "hmm2"): "exact",
+    ("hallway", "findinghumo-flow"): "exact",
     ("hallway", "istate"): "guarantee",
     ("istate-room", "istate"): "close",
 }
@@ -166,7 +167,7 @@ CONFIG = {
     "clustertrack": {"consensus_runs": 2, "reruns": 1},
 }
 
-EVERY_TRACKER = ("beams", "intruder", "intruder-naive", "clustertrack", "findinghumo", "hmm1", "hmm2", "istate")
+EVERY_TRACKER = ("beams", "intruder", "intruder-naive", "clustertrack", "findinghumo", "hmm1", "hmm2", "findinghumo-flow", "istate")
 GUARANTEE_ROWS = ("containment", "scored_stages", "area_mean")
 
 

@@ -7,7 +7,7 @@ import pytest
 
 from onebit.core.tables import SCORES
 from onebit.scoring.findinghumo import score
-from onebit.trackers.findinghumo.eatg import hop_matrix
+from onebit.models.graph_hmm.eatg import hop_matrix
 
 
 def test_users_take_the_track_of_least_summed_hops_and_missed_slots_cost_the_diameter(hallway_site):

@@ -41,6 +41,7 @@ TRACKER_DATA = {
     "findinghumo": "hallway",
     "hmm1": "hallway",
     "hmm2": "hallway",
+    "findinghumo-flow": "hallway",
     "istate": "istate-room",
 }
 
@@ -134,7 +135,7 @@ def test_empty_inputs_give_empty_outputs_of_the_same_schema(runs, name, tmp_path
 
 
 #: trackers with a long loop that must report progress (filter iterations, HMM windows)
-REPORTS_PROGRESS = {"intruder", "findinghumo", "hmm1", "hmm2"}
+REPORTS_PROGRESS = {"intruder", "findinghumo", "hmm1", "hmm2", "findinghumo-flow"}
 
 
 @pytest.mark.parametrize("name", sorted(TRACKER_DATA))

@@ -33,6 +33,7 @@ KIND = {
     "findinghumo": "hallway",
     "hmm1": "hallway",
     "hmm2": "hallway",
+    "findinghumo-flow": "hallway",
     "istate": "istate-room",
 }
 

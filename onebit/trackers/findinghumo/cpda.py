@@ -10,39 +10,43 @@ Input: the decoded node paths of the ``K`` users over the last ``C`` HMM windows
    one where two or more paths are present in the same slot (a crossover): which incoming
    path continues on which outgoing segment is ambiguous there. Each such meeting is an event
    ``(c, j)``: the last slot ``c`` of a run of slots in which the same set of users is at ``j``.
-3. *Inference* at each event: every path ``u`` there has an incoming node ``in_u`` (the last
-   node before ``j`` within the CPDA horizon ``W = C d_max`` slots) and an outgoing segment
-   starting at ``out_u`` (the first node after ``j`` within ``W``). The node state
-   ``Y(j, u) = {in_u, out_sigma(u)}`` is chosen by maximising the joint probability of the
-   pairing, with the paper's conditional probability table ``P(Y(j,u) = {j2, j3} | j2) = a''(j2, j3)``::
+3. *Inference* at each event (:func:`pair_meeting`): the users of a meeting are together in
+   slots ``s0 .. c`` (at one node, or with ``hops`` at adjacent nodes). Every path ``u`` has an
+   incoming node ``in_u`` (before the meeting) and an outgoing node ``out_u`` (after it). The
+   node state ``Y(j, u) = {in_u, out_sigma(u)}`` -- path ``u`` continues on the tail of path
+   ``sigma(u)`` -- is chosen by maximising the joint probability of the pairing under the
+   paper's conditional probability table ``P(Y(j,u) = {j2, j3} | j2) = a''(j2, j3)``::
 
-       sigma* = argmax_sigma  prod_u a''(in_u, out_sigma(u))
+       sigma* = argmax_sigma  prod_u a''(in_u, out_sigma(u))          (one meeting node)
 
-   over permutations ``sigma`` of the paths at ``j``. A permutation pairs every incoming path
-   with exactly one outgoing segment, so *flow conservation* (as many paths leave ``j`` as
-   enter it) holds by construction. The maximisation is a linear assignment on
-   ``-log a''`` (``scipy.optimize.linear_sum_assignment``); ties keep the HMM's pairing
-   (a ``1e-9`` bonus on the identity). An unknown ``in`` or ``out`` (path starts, ends or does
-   not move within ``W``) contributes a factor 1.
-4. *Switch*: where ``sigma*`` differs from the HMM output, the path tails after ``c`` are
-   exchanged: ``path_u[c+1:] <- path_sigma(u)[c+1:]``.
+   over all permutations ``sigma`` of the meeting's paths (``m!`` for ``m <= MAX_MEETING``).
+   In general each pairing is scored by the a'' product along the whole joined paths
+   (the terms away from the meeting are common to all pairings), which covers meetings on
+   adjacent nodes and lets one meeting's decision see the others it shares nodes with. A
+   permutation pairs every incoming path with exactly one outgoing one, so *flow
+   conservation* holds by construction. Ties keep the HMM's pairing. Every decision is
+   recorded with all alternatives' posteriors (:func:`decisions_table`).
+4. *Switch*: where ``sigma*`` differs from the HMM output, the path tails are exchanged at the
+   slot ``b`` inside the meeting where the joined paths stay continuous (one hop per slot) and
+   score best: ``path_u[b:] <- path_sigma(u)[b:]``.
 
 Events are handled in time order; a switch relabels the later slots, so the pass is repeated
-until no switch happens (at most ``max_passes``). The loop over events is inherently
-sequential (each switch changes the paths the next event sees).
+until no switch happens (at most ``max_passes``); every switch raises the joint probability of
+all paths, so this ends. The loop over events is inherently sequential (each switch changes the
+paths the next event sees); a meeting has 2-3 users, so its pairings are few.
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+import itertools
+from dataclasses import dataclass, field
 
 import numpy as np
 import polars as pl
-from scipy.optimize import linear_sum_assignment
 from scipy.sparse import csr_matrix
 from scipy.sparse.csgraph import connected_components
 
-from onebit.trackers.findinghumo.viterbi import log_safe
+from onebit.models.graph_hmm.viterbi import log_safe
 
 SWITCHES = pl.Schema({"slot": pl.Int64, "node": pl.String, "users": pl.String, "pairing": pl.String})
 
@@ -52,6 +56,7 @@ class CpdaResult:
     paths: np.ndarray  # (K, D) corrected
     switches: list[tuple[int, int, tuple[int, ...], tuple[int, ...]]]  # (slot, node, users, sigma)
     passes: int
+    decisions: list[dict] = field(default_factory=list)  # every event looked at (see :func:`decisions_table`)
 
 
 def interaction_graph(paths: np.ndarray, nodes: tuple[str, ...]):
@@ -119,11 +124,75 @@ def _connected(adj: np.ndarray) -> bool:
     return connected_components(csr_matrix(adj), directed=False)[0] == 1
 
 
-def junction_score(seq: list[int], log_a2: np.ndarray) -> float:
-    """Sum of ``log a''(s_i, s_{i+2})`` over the distinct-node sequence ``seq`` (unknowns dropped)."""
-    s = [x for x in seq if x >= 0]
-    s = [x for i, x in enumerate(s) if i == 0 or x != s[i - 1]]
-    return float(sum(log_a2[s[i], s[i + 2]] for i in range(len(s) - 2)))
+def junction_score(seq, log_a2: np.ndarray) -> float:
+    """Sum of ``log a''(s_i, s_{i+2})`` over the distinct-node sequence of ``seq`` (unknowns,
+    ``-1``, dropped): the log probability of a path under the paper's CPT
+    ``P(Y(j,u) = {j2, j3} | j2) = a''(j2, j3)`` at every node it passes."""
+    s = np.asarray(seq, dtype=np.int64)
+    s = s[s >= 0]
+    if s.size < 3:
+        return 0.0
+    s = s[np.concatenate([[True], s[1:] != s[:-1]])]
+    return float(log_a2[s[:-2], s[2:]].sum()) if s.size >= 3 else 0.0
+
+
+def meeting_start(paths: np.ndarray, users: np.ndarray, c: int, hops: np.ndarray | None) -> int:
+    """First slot ``s0`` of the run of slots ending at ``c`` in which the users of one event
+    stay together (all present; at one node, or with ``hops`` one connected group within 1 hop)."""
+    s0 = c
+    while s0 > 0:
+        at = paths[users, s0 - 1]
+        if (at < 0).any():
+            break
+        if hops is None and (at != at[0]).any():
+            break
+        if hops is not None and not _connected(hops[np.ix_(at, at)] <= 1):
+            break
+        s0 -= 1
+    return s0
+
+
+#: the most users of one meeting whose pairings are enumerated (m! pairings); larger meetings are kept
+MAX_MEETING = 5
+
+
+def pair_meeting(
+    paths: np.ndarray, users: np.ndarray, s0: int, c: int, log_a2: np.ndarray, hops: np.ndarray | None
+) -> tuple[list[tuple[int, ...]], np.ndarray, np.ndarray]:
+    """Every pairing of one meeting with its log joint probability and its switching slot.
+
+    The meeting: users ``users`` together in slots ``s0..c``. Pairing ``sigma`` continues user
+    ``u`` on the tail of user ``sigma(u)``, switched at a slot ``b`` in ``s0+1 .. c+1``
+    (``path_u[b:] <- path_sigma(u)[b:]``). Its log joint probability is that of the joined
+    paths under the paper's CPT ``P(Y(j,u) = {j2, j3} | j2) = a''(j2, j3)`` at every node they
+    pass (:func:`junction_score` of each whole joined path)::
+
+        log P(sigma, b) = sum_u junction_score(path_u[:b] ++ path_sigma(u)[b:])
+
+    Only the terms around the switch differ between pairings -- at a one-node meeting that is
+    the paper's ``a''(in_u, out_sigma(u))`` -- but scoring the whole paths makes one meeting's
+    decision account for the others it shares nodes with. A switching slot at which a joined
+    path would jump (consecutive nodes more than one hop apart, with ``hops``) is not allowed;
+    a pairing with no allowed slot gets ``-inf``. Per pairing the best slot is kept (the
+    latest among equals). Returns (pairings, the identity first; log P; switching slot).
+    """
+    m = users.size
+    d = paths.shape[1]
+    perms = list(itertools.permutations(range(m)))
+    logp = np.full(len(perms), -np.inf)
+    slot = np.full(len(perms), c + 1, dtype=np.int64)
+    rows = paths[users]
+    logp[0] = sum(junction_score(r, log_a2) for r in rows)
+    for k, p in enumerate(perms[1:], start=1):  # m <= MAX_MEETING users, a few slots: tiny
+        for b in range(c + 1, s0, -1):
+            if hops is not None and b < d and any(
+                rows[u, b - 1] >= 0 and rows[p[u], b] >= 0 and hops[rows[u, b - 1], rows[p[u], b]] > 1 for u in range(m)
+            ):
+                continue
+            score = sum(junction_score(np.concatenate([rows[u, :b], rows[p[u], b:]]), log_a2) for u in range(m))
+            if score > logp[k] + 1e-9:
+                logp[k], slot[k] = score, b
+    return perms, logp, slot
 
 
 def cpda(
@@ -138,52 +207,98 @@ def cpda(
     """Disambiguate crossovers in ``paths`` (K, D) with the 2-hop weights ``a2`` = A'' (N, N).
 
     With ``hops`` (the 1-hop graph's hop matrix) users meeting at adjacent nodes are also
-    considered; pairing ``u -> v`` there joins ``u``'s path up to its node ``m_u`` with ``v``'s
-    tail from ``m_v``, scored by :func:`junction_score` of ``[in_u, m_u, m_v, out_v]`` (for
-    ``m_u = m_v`` this is the paper's ``a''(in_u, out_v)``); a pairing whose joined path
-    would jump (``m_u`` more than one hop from ``m_v`` or from ``v``'s next node) is not allowed.
+    considered. Each meeting's pairing is chosen by :func:`pair_meeting` (the joint probability
+    of the joined paths under a''); the HMM's pairing is kept unless another is strictly more
+    probable, so every switch raises the joint probability of all paths and the passes end
+    (at a fixed point when ``max_passes`` allows). ``horizon`` (``C d_max`` slots) bounds how
+    far back and on the incoming / outgoing nodes recorded with a decision are looked for.
     """
     paths = np.array(paths, dtype=np.int64, copy=True)
     n = a2.shape[0]
     feature = np.zeros(n, bool) if feature is None else np.asarray(feature, bool)
     log_a2 = log_safe(a2)
     switches = []
+    decisions: list[dict] = []
     passes = 0
     for passes in range(1, max_passes + 1):
         changed = False
         for c, group in colocation_events(paths, feature, hops):
             users = np.asarray(group)
             at = paths[users, c]
-            if (at < 0).any():
+            if (at < 0).any() or users.size > MAX_MEETING:
                 continue
             # events are listed before the pass; an earlier switch may have moved these users apart
             if (hops is None and (at != at[0]).any()) or (hops is not None and not _connected(hops[np.ix_(at, at)] <= 1)):
                 continue
             d = paths.shape[1]
-            lo, hi = max(0, c - horizon), min(d, c + 1 + horizon)
-            ins = [_neighbour_node(paths[u], m, c, lo - 1, -1) for u, m in zip(users, at)]
+            s0 = meeting_start(paths, users, c, hops)
+            lo, hi = max(0, s0 - horizon), min(d, c + 1 + horizon)
+            ins = [_neighbour_node(paths[u], paths[u, s0], s0, lo - 1, -1) for u in users]
             outs = [_neighbour_node(paths[u], m, c + 1, hi, 1) for u, m in zip(users, at)]
-            m = users.size
-            nxt = paths[users, c + 1] if c + 1 < d else np.full(m, -1)
-            cost = np.zeros((m, m))
-            for a in range(m):  # m is the size of one meeting (2-3 users): tiny
-                for b in range(m):
-                    if hops is not None and (hops[at[a], at[b]] > 1 or (nxt[b] >= 0 and hops[at[a], nxt[b]] > 1)):
-                        cost[a, b] = 1e12  # not allowed: the joined path would jump
-                    else:
-                        cost[a, b] = min(-junction_score([ins[a], at[a], at[b], outs[b]], log_a2), 1e6)
-            cost = cost - 1e-9 * np.eye(m)
-            r, col = linear_sum_assignment(cost)
-            sigma = col[np.argsort(r)]
-            if np.array_equal(sigma, np.arange(m)):
+            perms, logp, slot = pair_meeting(paths, users, s0, c, log_a2, hops)
+            ident = 0  # permutations() lists the identity first
+            best = int(np.argmax(logp))
+            if not np.isfinite(logp[best]) or logp[best] <= logp[ident] + 1e-9:
+                best = ident
+            sigma = np.asarray(perms[best])
+            decisions.append(_decision(passes, c, at, users, ins, outs, perms, logp, best))
+            if best == ident:
                 continue
-            tails = paths[users[sigma], c + 1 :].copy()
-            paths[users, c + 1 :] = tails
-            switches.append((int(c), int(at[0]), tuple(users.tolist()), tuple(users[sigma].tolist())))
+            b = int(slot[best])
+            paths[users, b:] = paths[users[sigma], b:].copy()
+            switches.append((int(b - 1), int(at[0]), tuple(users.tolist()), tuple(users[sigma].tolist())))
             changed = True
         if not changed:
             break
-    return CpdaResult(paths, switches, passes)
+    return CpdaResult(paths, switches, passes, decisions)
+
+
+def pairing_probabilities(logp: np.ndarray) -> np.ndarray:
+    """Posterior of each pairing of a meeting, ``P(sigma) ∝ exp(log P(sigma))`` (forbidden
+    pairings, ``-inf``, get 0; uniform when every pairing is forbidden)."""
+    logp = np.asarray(logp, float)
+    top = logp.max() if logp.size else -np.inf
+    if not np.isfinite(top):
+        return np.full(logp.size, 1.0 / max(logp.size, 1))
+    w = np.exp(logp - top)
+    return w / w.sum()
+
+
+def _decision(pass_no, c, at, users, ins, outs, perms, logp, best) -> dict:
+    return {
+        "pass": int(pass_no), "slot": int(c), "nodes": tuple(int(x) for x in at), "users": tuple(int(u) for u in users),
+        "ins": tuple(int(x) for x in ins), "outs": tuple(int(x) for x in outs), "sigma": tuple(int(x) for x in perms[best]),
+        "perms": perms, "prob": pairing_probabilities(logp),
+    }  # fmt: skip
+
+
+DECISIONS = pl.Schema({
+    "pass": pl.Int64, "slot": pl.Int64, "node": pl.String, "users": pl.String, "ins": pl.String, "outs": pl.String,
+    "pairing": pl.String, "switched": pl.Boolean, "p_chosen": pl.Float64, "p_keep": pl.Float64, "alternatives": pl.String,
+})  # fmt: skip
+
+
+def decisions_table(result: CpdaResult, nodes: tuple[str, ...]) -> pl.DataFrame:
+    """One row per co-location event CPDA decided: the users there, their incoming and
+    outgoing nodes (``-`` unknown), the pairing chosen (user ``users[i]`` continues on the
+    tail of ``pairing[i]``), whether it switched, its posterior, the posterior of keeping the
+    HMM's pairing, and every alternative as ``"pairing:probability"``."""
+    name = lambda j: nodes[j] if j >= 0 else "-"  # noqa: E731
+    rows = []
+    for d in result.decisions:
+        users = d["users"]
+        alts = "; ".join(
+            f"{' '.join(str(users[i]) for i in p)}:{pr:.3f}" for p, pr in zip(d["perms"], d["prob"])
+        )
+        ident = tuple(range(len(users)))
+        p_of = dict(zip(d["perms"], d["prob"].tolist()))
+        rows.append((
+            d["pass"], d["slot"], " ".join(name(j) for j in d["nodes"]), " ".join(map(str, users)),
+            " ".join(name(j) for j in d["ins"]), " ".join(name(j) for j in d["outs"]),
+            " ".join(str(users[i]) for i in d["sigma"]), d["sigma"] != ident,
+            float(p_of.get(d["sigma"], 1.0)), float(p_of.get(ident, 1.0)), alts,
+        ))  # fmt: skip
+    return pl.DataFrame(rows, schema=DECISIONS, orient="row")
 
 
 def switches_table(result: CpdaResult, nodes: tuple[str, ...], slot0: int = 0) -> pl.DataFrame:

@@ -9,7 +9,7 @@ from hypothesis import strategies as st
 
 from onebit.datasets.builtin import builtin_site
 from onebit.trackers.findinghumo.cpda import colocation_events, cpda, interaction_graph
-from onebit.trackers.findinghumo.eatg import hop_matrix, layout_eatg, trained_eatg
+from onebit.models.graph_hmm.eatg import hop_matrix, layout_eatg, trained_eatg
 
 
 @pytest.fixture(scope="module")
@@ -135,3 +135,21 @@ def test_trained_eatg_learns_walking_direction(eatg):
     assert tr.a2[i["96"], i["99"]] > tr.a2[i["96"], i["92"]]
     # staying dominates a' at 3 slots per node
     assert tr.a1[i["99"], i["99"]] > tr.a1[i["99"], i["95"]]
+
+
+def test_crossing_on_an_edge_is_switched_inside_the_meeting(eatg):
+    """Two users cross on the edge 99-111 between slots; the decoder bounced both back, so the
+    paths never share a node. CPDA switches them inside the meeting (where the joined paths
+    stay continuous) and records the alternatives' posteriors."""
+    decoded = [
+        [96, 95, 95, 99, 99, 99, 95, 95, 96],
+        [117, 110, 110, 111, 111, 111, 110, 110, 117],
+    ]
+    paths = _paths(eatg, decoded)
+    res = cpda(paths, eatg.a2, horizon=10, hops=eatg.hops)
+    out = _names(eatg, res.paths)
+    assert out[0][0] == 96 and out[0][-1] == 117 and out[1][0] == 117 and out[1][-1] == 96
+    assert np.all(eatg.hops[res.paths[:, :-1], res.paths[:, 1:]] <= 1)
+    assert len(res.switches) == 1
+    dec = res.decisions[0]
+    assert np.isclose(dec["prob"].sum(), 1.0) and dec["sigma"] == (1, 0) and dec["prob"][1] > dec["prob"][0]

@@ -9,7 +9,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from onebit.trackers.findinghumo.viterbi import (
+from onebit.models.graph_hmm.viterbi import (
     log_safe,
     viterbi_first_order,
     viterbi_first_order_batch,

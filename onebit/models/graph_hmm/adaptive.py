@@ -33,7 +33,7 @@ the rest is look-ahead). Per window:
    the last node different from ``j2``, however many slots it dwelt at ``j2`` -- not the
    node at slot ``t - 2``: with 1-s slots a user dwells ~4 slots per node, and the slot-literal
    context would forget the direction after one slot of dwelling
-   (:func:`~onebit.trackers.findinghumo.viterbi.viterbi_motion_second_order`; ``a''`` is
+   (:func:`~onebit.models.graph_hmm.viterbi.viterbi_motion_second_order`; ``a''`` is
    trained on trigger sequences, i.e. on exactly these distinct-node sequences)::
 
        a(j3, j2, j2) = a'(j2, j2)                                       (stay)
@@ -74,9 +74,9 @@ The baselines ``hmm1`` / ``hmm2`` run the same loop with the full state set and 
 The window loop is inherently sequential (each window starts from the previous one's users),
 and so is the coordinate ascent inside a window: every restart of it (all user orders, sweeps
 and users, the Viterbi recursions included) runs as one compiled call
-(:func:`onebit.trackers.findinghumo.kernels.coordinate_ascent`, ``DecoderParams.compiled``);
+(:func:`onebit.models.graph_hmm.kernels.coordinate_ascent`, ``DecoderParams.compiled``);
 :func:`coordinate_ascent_reference` with the numpy decoders of
-:mod:`onebit.trackers.findinghumo.viterbi` is its plain reference and test oracle.
+:mod:`onebit.models.graph_hmm.viterbi` is its plain reference and test oracle.
 """
 
 from __future__ import annotations
@@ -92,9 +92,9 @@ from scipy.optimize import linear_sum_assignment
 from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import connected_components
 
-from onebit.trackers.findinghumo.eatg import Eatg, onsets
-from onebit.trackers.findinghumo.kernels import coordinate_ascent, emission_tables
-from onebit.trackers.findinghumo.viterbi import log_safe, viterbi_first_order, viterbi_motion_second_order
+from onebit.models.graph_hmm.eatg import Eatg, onsets
+from onebit.models.graph_hmm.kernels import coordinate_ascent, emission_tables
+from onebit.models.graph_hmm.viterbi import log_safe, viterbi_first_order, viterbi_motion_second_order
 
 MODES = ("adaptive", "full1", "full2")
 
@@ -263,7 +263,7 @@ def coordinate_ascent_reference(on, pos, prefixes, starts, entry_nodes, order_u,
     positions and the joint log-likelihood ``sum_u log P(path_u) + joint_emission``.
 
     The plain numpy reference (one numpy Viterbi per user and sweep) of the compiled
-    :func:`onebit.trackers.findinghumo.kernels.coordinate_ascent`, which runs every order of a
+    :func:`onebit.models.graph_hmm.kernels.coordinate_ascent`, which runs every order of a
     window in one call; the tests check both give the same paths on random windows."""
     k = len(prefixes)
     n_slots, s = on.shape

@@ -7,12 +7,12 @@ so they are compiled loops (``numba.njit(cache=True)``, :mod:`onebit.core.compil
 kernel keeps its plain numpy reference implementation as the test oracle:
 
 =======================================  ====================================================
-kernel                                   reference (``tests/trackers/findinghumo/test_kernels.py``)
+kernel                                   reference (``tests/models/graph_hmm/test_kernels.py``)
 =======================================  ====================================================
-:func:`viterbi_first_order`              :func:`onebit.trackers.findinghumo.viterbi.viterbi_first_order`
-:func:`viterbi_second_order`             :func:`onebit.trackers.findinghumo.viterbi.viterbi_second_order`
-:func:`viterbi_motion_second_order`      :func:`onebit.trackers.findinghumo.viterbi.viterbi_motion_second_order`
-:func:`coordinate_ascent`                :func:`onebit.trackers.findinghumo.adaptive.coordinate_ascent_reference`
+:func:`viterbi_first_order`              :func:`onebit.models.graph_hmm.viterbi.viterbi_first_order`
+:func:`viterbi_second_order`             :func:`onebit.models.graph_hmm.viterbi.viterbi_second_order`
+:func:`viterbi_motion_second_order`      :func:`onebit.models.graph_hmm.viterbi.viterbi_motion_second_order`
+:func:`coordinate_ascent`                :func:`onebit.models.graph_hmm.adaptive.coordinate_ascent_reference`
 =======================================  ====================================================
 
 Equal outputs: the kernels do the same additions in the same order as the references and
@@ -23,8 +23,8 @@ is evaluated inside a kernel: the emission gains (logs of powers) are tabulated 
 by the reference's own numpy function (:func:`emission_tables`), so the kernels never differ
 from numpy's SIMD ``log`` by an ulp.
 
-The equations are those of :mod:`onebit.trackers.findinghumo.viterbi` (Algorithms 4 and 5,
-and the distinct-node second-order context) and :mod:`onebit.trackers.findinghumo.adaptive`
+The equations are those of :mod:`onebit.models.graph_hmm.viterbi` (Algorithms 4 and 5,
+and the distinct-node second-order context) and :mod:`onebit.models.graph_hmm.adaptive`
 (section 4 of its docstring).
 """
 
@@ -83,7 +83,7 @@ def _viterbi1(log_pi, log_a, log_b):
 
 
 def viterbi_first_order(log_pi: np.ndarray, log_a: np.ndarray, log_b: np.ndarray) -> tuple[np.ndarray, float]:
-    """Compiled :func:`onebit.trackers.findinghumo.viterbi.viterbi_first_order` (same inputs,
+    """Compiled :func:`onebit.models.graph_hmm.viterbi.viterbi_first_order` (same inputs,
     same outputs): ``log_pi (S,)``, ``log_a (S, S)``, ``log_b (D, S)`` -> ``(path (D,), log_prob)``."""
     path, lp = _viterbi1(_f64(log_pi), _f64(log_a, 2), _f64(log_b, 2))
     return path, float(lp)
@@ -145,7 +145,7 @@ def _viterbi2(log_pi, log_a1, log_a2, log_b):
 def viterbi_second_order(
     log_pi: np.ndarray, log_a1: np.ndarray, log_a2: np.ndarray, log_b: np.ndarray
 ) -> tuple[np.ndarray, float]:
-    """Compiled :func:`onebit.trackers.findinghumo.viterbi.viterbi_second_order` (same I/O)."""
+    """Compiled :func:`onebit.models.graph_hmm.viterbi.viterbi_second_order` (same I/O)."""
     path, lp = _viterbi2(_f64(log_pi), _f64(log_a1, 2), _f64(log_a2, 3), _f64(log_b, 2))
     return path, float(lp)
 
@@ -211,7 +211,7 @@ def _viterbi_motion2(log_pi, log_stay, log_move, log_b):
 def viterbi_motion_second_order(
     log_pi: np.ndarray, log_stay: np.ndarray, log_move: np.ndarray, log_b: np.ndarray
 ) -> tuple[np.ndarray, float]:
-    """Compiled :func:`onebit.trackers.findinghumo.viterbi.viterbi_motion_second_order` (same I/O)."""
+    """Compiled :func:`onebit.models.graph_hmm.viterbi.viterbi_motion_second_order` (same I/O)."""
     path, lp = _viterbi_motion2(_f64(log_pi), _f64(log_stay), _f64(log_move, 3), _f64(log_b, 2))
     return path, float(lp)
 
@@ -222,7 +222,7 @@ def viterbi_motion_second_order(
 def emission_tables(k: int, p_hit: float, p_false: float, gain) -> np.ndarray:
     """``(4, k + 2)`` table over the claim count ``c = 0..k+1`` of the noisy-OR emission model:
     rows ``gain(on)``, ``gain(off)`` (``gain`` = the reference's
-    :func:`~onebit.trackers.findinghumo.adaptive.emission_gain`, evaluated by numpy) and
+    :func:`~onebit.models.graph_hmm.adaptive.emission_gain`, evaluated by numpy) and
     ``log P(on | c)``, ``log P(off | c)`` (the terms of the joint emission)."""
     c = np.arange(k + 2, dtype=np.int64)[None, :]
     on = np.ones_like(c, dtype=bool)
@@ -332,7 +332,7 @@ def coordinate_ascent(
     state position or -1); ``orders`` the user orders to run; ``table`` from
     :func:`emission_tables`. Returns the ``(K, L)`` state positions of the order with the
     highest joint log-likelihood (first of equals within 1e-9) and that likelihood, as
-    :func:`~onebit.trackers.findinghumo.adaptive.coordinate_ascent_reference` run over the same
+    :func:`~onebit.models.graph_hmm.adaptive.coordinate_ascent_reference` run over the same
     orders.
     """
     k = len(prefixes)

@@ -7,9 +7,9 @@ import networkx as nx
 import numpy as np
 import pytest
 
-from onebit.trackers.findinghumo import kernels, viterbi
-from onebit.trackers.findinghumo.adaptive import DecoderParams, decode_run, decode_users
-from onebit.trackers.findinghumo.eatg import hop_matrix, layout_eatg, trained_eatg
+from onebit.models.graph_hmm import kernels, viterbi
+from onebit.models.graph_hmm.adaptive import DecoderParams, decode_run, decode_users
+from onebit.models.graph_hmm.eatg import hop_matrix, layout_eatg, trained_eatg
 
 
 def _log_model(rng, s, d, *, sparse):
@@ -124,7 +124,7 @@ def test_decode_run_compiled_equals_reference(mode):
 
 
 def test_emission_table_matches_the_reference_gain():
-    from onebit.trackers.findinghumo.adaptive import emission_gain, joint_emission
+    from onebit.models.graph_hmm.adaptive import emission_gain, joint_emission
 
     table = kernels.emission_tables(5, 0.9, 0.05, emission_gain)
     c = np.arange(7)[None, :]

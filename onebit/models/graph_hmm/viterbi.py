@@ -4,7 +4,7 @@ Both decoders are max-product dynamic programmes vectorised over the states with
 broadcasting; the recursion over time slots is inherently sequential (slot ``d`` needs the
 scores of slot ``d - 1``) and is the only Python loop. These numpy decoders are the plain
 references (and test oracles) of the compiled kernels the trackers run,
-:mod:`onebit.trackers.findinghumo.kernels` (same inputs, same paths).
+:mod:`onebit.models.graph_hmm.kernels` (same inputs, same paths).
 
 First order (Algorithm 4, Rabiner [20])::
 
