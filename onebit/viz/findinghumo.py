@@ -128,6 +128,19 @@ def _log_labelled_points(rec: rr.RecordingStream, entity: str, xy: np.ndarray, t
     )
 
 
+def _cpda_label(users: str, pairing: str, switched: bool, p_chosen: float, alternatives: str, most: int = 3) -> str:
+    """A CPDA decision as a short multi-line label: the pairing chosen and its probability,
+    then the other pairings, most probable first (at most ``most``; the rest counted)."""
+    alts = [(perm, float(prob)) for perm, prob in (a.rsplit(":", 1) for a in alternatives.split("; ") if ":" in a)]
+    others = sorted((a for a in alts if a[0] != pairing), key=lambda a: -a[1])
+    lines = [f"CPDA {'switch' if switched else 'keep'}: tracks {_one_based(users)} -> {_one_based(pairing)} (p={p_chosen:.2f})"]
+    lines += [f"  or {_one_based(perm)}: p={prob:.2f}" for perm, prob in others[:most]]
+    if len(others) > most:
+        rest = others[most][1]
+        lines.append(f"  (+{len(others) - most} more, p " + ("< 0.01)" if rest < 0.005 else f"<= {rest:.2f})"))
+    return "\n".join(lines)
+
+
 def log_cpda(rec: rr.RecordingStream, tracker: str, decisions: pl.DataFrame | None, site, t0: float, period: float) -> None:
     """Every CPDA decision (last pass) at its co-location node and slot, labelled with the
     pairing chosen and each alternative's probability."""
@@ -138,8 +151,7 @@ def log_cpda(rec: rr.RecordingStream, tracker: str, decisions: pl.DataFrame | No
     xy = np.array([pos[n.split()[0]] for n in last["node"].to_list()], dtype=float).reshape(-1, 2)
     t = t0 + (last["slot"].to_numpy() + 0.5) * period
     labels = [
-        f"CPDA {'switch' if sw else 'keep'} tracks {_one_based(u)} -> {_one_based(p)} (p={pc:.2f}); alternatives: "
-        + "; ".join(f"{_one_based(a.split(':')[0])}: {a.split(':')[1]}" for a in alts.split("; "))
+        _cpda_label(u, p, sw, pc, alts)
         for u, p, sw, pc, alts in last.select("users", "pairing", "switched", "p_chosen", "alternatives").iter_rows()
     ]
     _log_labelled_points(rec, paths.join(paths.tracker_root(tracker), "cpda"), xy, t, labels, DECISION)
