@@ -278,16 +278,17 @@ def _empty_rows(columns) -> pl.DataFrame:
     return pl.DataFrame(schema={"line": pl.Int64, **{c: pl.String for c in columns}, "raw": pl.String})
 
 
-def raw_lines(path: Path, lines: list[int]) -> dict[int, str]:
-    """The text of the given 1-based physical line numbers, each cut to
-    :data:`~onebit.core.errors.MAX_QUOTE` characters (read only when there are rejects)."""
+def raw_lines(path: Path, lines: list[int], *, limit: int | None = MAX_QUOTE) -> dict[int, str]:
+    """The text of the given 1-based physical line numbers, each cut to ``limit`` characters
+    (:data:`~onebit.core.errors.MAX_QUOTE`; ``None``: whole) (read only when there are rejects)."""
     if not lines:
         return {}
     try:
         data = read_bytes(path)
     except InputError:
         return {}
-    found = physical_lines(data).filter(pl.col("line").is_in(list(set(lines)))).select("line", _bounded("text"))
+    found = physical_lines(data).filter(pl.col("line").is_in(list(set(lines))))
+    found = found.select("line", "text" if limit is None else _bounded("text", limit))
     return dict(found.iter_rows())
 
 
@@ -437,30 +438,86 @@ def check_rows(
     reasons = [r for _, r in parsers.values()]
     typed = df.with_columns(pl.coalesce(reasons).alias("_reason")).with_columns(value_exprs)
     ok = typed.filter(pl.col("_reason").is_null())
-    first_line = pl.col("line").min().over(list(key))
-    ok = ok.with_columns(
-        pl.when(pl.col("line") != first_line).then(pl.format("duplicate of line {}", first_line)).otherwise(None).alias("_reason")
-    )
+    return order_checks(ok, key=key, tolerance=tolerance, field_bad=typed.filter(pl.col("_reason").is_not_null()),
+                        prior=raw.rejects, source=raw.source, path=path, columns=tuple(parsers))  # fmt: skip
+
+
+def duplicate_of(ok: pl.DataFrame, key: tuple[str, ...]) -> pl.Series:
+    """For every row of ``ok`` (``line`` + the ``key`` columns, ``t`` among them), the first
+    ``line`` of an earlier row with the same ``key``, else null: found by one sort on the key and
+    a comparison of neighbours (no window over the key). Rows whose ``t`` no other row has
+    cannot be duplicates; when ``t`` never decreases in file order (the usual log) only the
+    runs of equal ``t`` are sorted."""
+    idx = pl.int_range(pl.len(), dtype=pl.Int64).alias("_i")
+    cand = ok.select(idx, "line", *key)
+    t = ok["t"]
+    if t.len() > 1 and (t.diff().slice(1) >= 0).all():
+        tie = (t == t.shift(1)).fill_null(False) | (t == t.shift(-1)).fill_null(False)
+        cand = cand.filter(tie)
+    cand = cand.sort([*key, "line"])
+    same = pl.all_horizontal([pl.col(k).eq_missing(pl.col(k).shift(1)) for k in key]).fill_null(False)
+    cand = cand.with_columns(pl.when(same).then(None).otherwise(pl.col("line")).forward_fill().alias("_first"))
+    cand = cand.filter(pl.col("_first") != pl.col("line"))
+    out = pl.Series("_dup", [None] * ok.height, dtype=pl.Int64)
+    if cand.height:
+        out = out.scatter(cand["_i"], cand["_first"])
+    return out
+
+
+def order_checks(
+    ok: pl.DataFrame,
+    *,
+    key: tuple[str, ...],
+    tolerance: float,
+    columns: tuple[str, ...],
+    source: str,
+    path: Path | None,
+    field_bad: pl.DataFrame | None = None,
+    prior: pl.DataFrame | None = None,
+) -> TypedRows:
+    """The ordering checks of :func:`check_rows` on rows whose fields all parsed (``ok``: ``line``
+    + typed ``columns``, in file order): duplicates (:func:`duplicate_of`), then rows going
+    backwards by more than ``tolerance``. ``field_bad`` (rows rejected by their fields, with
+    ``_reason``) and ``prior`` (rejects already made) join the rejects."""
+    ok = ok.with_columns(duplicate_of(ok, key).alias("_dup"))
+    ok = ok.with_columns(pl.when(pl.col("_dup").is_not_null()).then(pl.format("duplicate of line {}", pl.col("_dup"))).alias("_reason"))
+    ok = ok.drop("_dup")
     dup = ok.filter(pl.col("_reason").is_not_null())
-    ok = ok.filter(pl.col("_reason").is_null()).sort("line")
-    prev_max = pl.col("t").cum_max().shift(1)
-    ok = ok.with_columns(
-        pl.when(pl.col("t") < prev_max - tolerance)
-        .then(
-            pl.format("timestamp goes backwards ({} after {})", pl.col("t"), prev_max)
-            if tolerance <= 0
-            else pl.format("timestamp goes backwards ({} after {}, more than {} s)", pl.col("t"), prev_max, pl.lit(tolerance))
-        )
-        .otherwise(None)
-        .alias("_reason"),
-        (pl.col("t") < prev_max).fill_null(False).alias("_late"),
-    )
-    back = ok.filter(pl.col("_reason").is_not_null())
     ok = ok.filter(pl.col("_reason").is_null())
-    reordered = int(ok["_late"].sum()) if ok.height else 0
-    bad = pl.concat([typed.filter(pl.col("_reason").is_not_null()), dup, back.drop("_late")], how="vertical_relaxed").sort("line")
-    rejects = pl.concat([raw.rejects, make_rejects(bad, raw.source, path)]).sort("line")
-    accepted = ok.select("line", *parsers.keys()).sort(["t", "line"])
+    t = ok["t"]
+    if ok.height < 2 or (t.diff().slice(1) >= 0).all():  # never earlier than a row before it
+        back = ok.clear()
+        reordered = 0
+    else:
+        ok = ok.sort("line")
+        prev_max = pl.col("t").cum_max().shift(1)
+        ok = ok.with_columns(
+            pl.when(pl.col("t") < prev_max - tolerance)
+            .then(
+                pl.format("timestamp goes backwards ({} after {})", pl.col("t"), prev_max)
+                if tolerance <= 0
+                else pl.format("timestamp goes backwards ({} after {}, more than {} s)", pl.col("t"), prev_max, pl.lit(tolerance))
+            )
+            .otherwise(None)
+            .alias("_reason"),
+            (pl.col("t") < prev_max).fill_null(False).alias("_late"),
+        )
+        back = ok.filter(pl.col("_reason").is_not_null()).drop("_late")
+        ok = ok.filter(pl.col("_reason").is_null())
+        reordered = int(ok["_late"].sum()) if ok.height else 0
+    parts = [p for p in (field_bad, dup, back) if p is not None and p.height]
+    if parts:
+        bad = pl.concat(parts, how="vertical_relaxed").sort("line")
+        if path is not None and "raw" not in bad.columns:  # rows of the fast path: their text read back
+            text = raw_lines(path, bad["line"].to_list(), limit=None)
+            bad = bad.with_columns(pl.Series("raw", [text.get(i) for i in bad["line"].to_list()], dtype=pl.String))
+        made = make_rejects(bad, source, path)
+    else:
+        made = pl.DataFrame(schema=REJECTS)
+    rejects = made if prior is None else pl.concat([prior, made]).sort("line")
+    accepted = ok.select("line", *columns)
+    if reordered or not (accepted.height < 2 or (accepted["t"].diff().slice(1) >= 0).all()):
+        accepted = accepted.sort(["t", "line"])
     return TypedRows(accepted, rejects, reordered)
 
 
