@@ -40,7 +40,7 @@ import polars as pl
 
 from onebit.core.errors import MAX_QUOTE, InputError
 from onebit.core.tables import REJECTS
-from onebit.readers.timebase import MAX_GAP_S, TimeOrigin, column_origin
+from onebit.readers.timebase import MAX_GAP_S, TimeOrigin, column_origin, number_column_origin
 
 EXTRA = "__extra__"
 #: The field separator and the quote character of onebit's CSV logs.
@@ -272,6 +272,64 @@ def read_csv_rows(path: str | Path, columns: tuple[str, ...]) -> RawRows:
     frame = frame.select("line", *columns, "raw")
     bad = bad.rename({"text": "raw"}, strict=False).select("line", "raw", "_reason").sort("line")
     return RawRows(source, frame, make_rejects(bad, source, None))
+
+
+def read_clean_csv(path: str | Path, dtypes: dict[str, pl.DataType]) -> pl.DataFrame | None:
+    """The fast path of a clean CSV: one typed ``pl.read_csv`` of the whole file, or ``None``
+    when the file is not clean and :func:`read_csv_rows` must name its bad lines.
+
+    ``dtypes`` maps each wanted column to the type its every field must parse as (an ``Enum``
+    for names and spellings: a value outside it fails the read). The file is clean when it is
+    UTF-8 without a byte-order mark, quotes or carriage returns, its first line is the header
+    (at most :data:`MAX_HEADER_FIELDS` names, each wanted column once), and every later line
+    is one record whose wanted fields parse and are not empty. Then the typed read has exactly
+    one row per line after the header (a blank or short line gives a null, a long line fails
+    the read), and line numbers are the row index + 2. Returns ``line`` + the wanted columns.
+    """
+    try:
+        data = read_bytes(path)
+    except InputError:
+        return None
+    if not data or b'"' in data or b"\r" in data or data.startswith(codecs.BOM_UTF8):
+        return None
+    if not data.isascii():
+        try:
+            data.decode("utf-8")
+        except UnicodeDecodeError:
+            return None
+    end = data.find(b"\n")
+    if end <= 0:  # no data line, or a blank first line
+        return None
+    header = [name.strip() for name in data[:end].decode("utf-8").split(SEPARATOR)]
+    if len(header) > MAX_HEADER_FIELDS or any(header.count(c) != 1 for c in dtypes):
+        return None
+    n_lines = data.count(b"\n") + (not data.endswith(b"\n")) - 1
+    schema = {f"_f{i}": dtypes.get(name, pl.String) for i, name in enumerate(header)}
+    try:
+        frame = pl.read_csv(
+            data, has_header=False, skip_rows=1, schema=schema, columns=[header.index(c) for c in dtypes],
+            separator=SEPARATOR, quote_char=None, comment_prefix=None, raise_if_empty=False, truncate_ragged_lines=False,
+        )  # fmt: skip
+    except (pl.exceptions.ComputeError, pl.exceptions.PolarsError):
+        return None
+    if frame.height != n_lines or frame.null_count().sum_horizontal().item():
+        return None
+    frame = frame.rename({f"_f{header.index(c)}": c for c in dtypes}).select(*dtypes)
+    return frame.with_columns(pl.int_range(2, frame.height + 2, dtype=pl.Int64).alias("line")).select("line", *dtypes)
+
+
+def clean_time(t: pl.Series, epoch: "str | TimeOrigin | None") -> pl.Series | None:
+    """``t`` of a clean numeric column (Float64 stamps) as :func:`parse_time` computes it, or
+    ``None`` when a stamp would be rejected (not finite, or a lone stamp outside the window)."""
+    if not t.is_finite().all():
+        return None
+    origin = number_column_origin(t, epoch)
+    out = t - origin.numeric
+    if (math.isfinite(origin.lo) or math.isfinite(origin.hi)) and (
+        (out < origin.lo - 1e-3) | (out > origin.hi + 1e-3)
+    ).any():
+        return None
+    return out.alias("t")
 
 
 def _empty_rows(columns) -> pl.DataFrame:
