@@ -62,11 +62,15 @@ from onebit.readers import kernels
 from onebit.readers.rows import (
     REORDER_TOLERANCE_S,
     RawRows,
+    TypedRows,
     check_rows,
+    clean_time,
     make_rejects,
+    order_checks,
     parse_choice,
     parse_name,
     parse_time,
+    read_clean_csv,
     read_csv_rows,
 )
 from onebit.readers.timebase import TimeOrigin
@@ -175,6 +179,18 @@ def read_motion(
         "value": parse_choice("value", TOGGLE_VALUES, pl.Boolean, case_insensitive=True),
     }
     typed = check_rows(raw, parsers, key=("t", "sensor", "value"), path=path, tolerance=tolerance)
+    return toggle_edges(typed, sensors, source=raw.source, path=path, rules=rules)
+
+
+def toggle_edges(
+    typed: TypedRows,
+    sensors: tuple[str, ...],
+    *,
+    source: str,
+    path: Path | None,
+    rules: DebounceRules | Mapping[str, DebounceRules] | None,
+) -> MotionRead:
+    """Passes 2 and 3 of :func:`read_motion` on typed and checked rows (``t``, ``sensor``, ``value``)."""
     ok, rejects = typed.accepted, typed.rejects
     ok = ok.rename({"value": "on"}).sort(["t", "line"])
 
@@ -192,7 +208,7 @@ def read_motion(
     )
     same = ok.filter(pl.col("_reason").is_not_null())
     if same.height:
-        more = make_rejects(same, raw.source, path)
+        more = make_rejects(same, source, path)
         rejects = pl.concat([rejects, more]).sort("line")
     edges = ok.filter(pl.col("_reason").is_null()).drop("_reason")
 
@@ -312,7 +328,30 @@ def read_motion_csv(
 ) -> MotionRead:
     """Read ``motion.csv`` (or ``proximity.csv``): the whole toggle reader for one file."""
     path = Path(path)
-    return read_motion(read_csv_rows(path, TOGGLE_COLUMNS), sensors, epoch=epoch, path=path, rules=rules)
+    sensors = tuple(sensors)
+    typed = clean_toggle_rows(path, sensors, epoch=epoch)
+    if typed is None:
+        return read_motion(read_csv_rows(path, TOGGLE_COLUMNS), sensors, epoch=epoch, path=path, rules=rules)
+    return toggle_edges(typed, sensors, source=path.name, path=path, rules=rules)
+
+
+def clean_toggle_rows(
+    path: Path, sensors: tuple[str, ...], *, epoch: str | TimeOrigin | None = None, tolerance: float = REORDER_TOLERANCE_S
+) -> TypedRows | None:
+    """Pass 1 of :func:`read_motion` for a clean toggle log (:func:`~onebit.readers.rows.read_clean_csv`:
+    numeric ``t``, known sensors, values spelled as in :data:`TOGGLE_VALUES`, lower case),
+    typed by one ``pl.read_csv``; ``None`` when a row would be rejected by its fields (the
+    row-by-row path names it). Duplicates and rows out of order are found as for any file."""
+    spellings = list(TOGGLE_VALUES)
+    frame = read_clean_csv(path, {"t": pl.Float64, "sensor": pl.Enum(list(dict.fromkeys(sensors))), "value": pl.Enum(spellings)})
+    if frame is None:
+        return None
+    t = clean_time(frame["t"], epoch)
+    if t is None:
+        return None
+    on = pl.Series([TOGGLE_VALUES[v] for v in spellings], dtype=pl.Boolean)
+    frame = frame.with_columns(t, pl.col("sensor").cast(pl.String), on.gather(frame["value"].to_physical()).alias("value"))
+    return order_checks(frame, key=TOGGLE_COLUMNS, tolerance=tolerance, columns=TOGGLE_COLUMNS, source=path.name, path=path)
 
 
 def motion_frames(
