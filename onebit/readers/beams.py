@@ -86,10 +86,15 @@ def decode_passes(events: pl.DataFrame, source: str = "beams.csv", *, compiled: 
     if not (events.height >= kernels.MIN_ROWS if compiled is None else compiled):
         return decode_passes_reference(events, source)
     ev = events.sort(["t", "line"])
-    names = ev["beam"].unique(maintain_order=True)
-    code = ev["beam"].replace_strict(names, range(len(names)), return_dtype=pl.Int64).to_numpy().astype(np.int64)
+    if isinstance(ev.schema["beam"], pl.Enum):  # the clean path's beams: their codes are the enum's
+        code = ev["beam"].to_physical().to_numpy().astype(np.int64)
+        n_beams = ev.schema["beam"].categories.len()
+    else:
+        names = ev["beam"].unique(maintain_order=True)
+        code = ev["beam"].replace_strict(names, range(len(names)), return_dtype=pl.Int64).to_numpy().astype(np.int64)
+        n_beams = len(names)
     reject, pass_first, close, first_pair = kernels.beam_passes(
-        code, (ev["pair"] == "b").to_numpy().astype(np.int8), ev["blocked"].to_numpy().astype(np.bool_), len(names)
+        code, (ev["pair"] == "b").to_numpy().astype(np.int8), ev["blocked"].to_numpy().astype(np.bool_), n_beams
     )
     ev = ev.with_columns(_reject=pl.Series(reject), _first=pl.Series(pass_first), _close=pl.Series(close),
                          _opener=pl.Series(first_pair))  # fmt: skip
@@ -123,7 +128,7 @@ def decode_passes(events: pl.DataFrame, source: str = "beams.csv", *, compiled: 
         ),
         ABORTED,
     ).sort("t")
-    unfinished = passes.filter(~pl.col("closed")).select("t", "beam")
+    unfinished = passes.filter(~pl.col("closed")).select("t", pl.col("beam").cast(pl.String))
     return BeamDecode(conform(ev, BEAM_EVENTS), crossings, aborted, unfinished, rejects)
 
 
@@ -178,7 +183,7 @@ def decode_passes_reference(events: pl.DataFrame, source: str = "beams.csv") -> 
         ),
         ABORTED,
     ).sort("t")
-    unfinished = passes.filter(~pl.col("closed")).select("t", "beam")
+    unfinished = passes.filter(~pl.col("closed")).select("t", pl.col("beam").cast(pl.String))
     return BeamDecode(conform(ev, BEAM_EVENTS), crossings, aborted, unfinished, rejects)
 
 
@@ -209,7 +214,8 @@ def clean_beam_events(path: Path, beam_ids: tuple[str, ...], *, epoch=None) -> t
     t = clean_time(frame["t"], epoch)
     if t is None:
         return None
-    frame = frame.with_columns(t, pl.col("beam").cast(pl.String), pl.col("pair").cast(pl.String), pl.col("blocked").to_physical() == 1)
+    # beam and pair stay enums (the decoder's codes); every output table casts them to String
+    frame = frame.with_columns(t, pl.col("blocked").to_physical() == 1)
     res = order_checks(frame, key=BEAM_COLUMNS, tolerance=0.0, columns=BEAM_COLUMNS, source=path.name, path=path)
     return res.accepted, res.rejects
 

@@ -192,7 +192,7 @@ def toggle_edges(
 ) -> MotionRead:
     """Passes 2 and 3 of :func:`read_motion` on typed and checked rows (``t``, ``sensor``, ``value``)."""
     ok, rejects = typed.accepted, typed.rejects
-    ok = ok.rename({"value": "on"}).sort(["t", "line"])
+    ok = ok.rename({"value": "on"})  # sorted by t, file order within a stamp (TypedRows)
 
     # pass 2: edges that do not change their sensor's state (every sensor starts off)
     prev = pl.col("on").shift(1).over("sensor").fill_null(False)
@@ -260,20 +260,24 @@ def debounce(
     if not (edges.height >= kernels.MIN_ROWS if compiled is None else compiled):
         return debounce_reference(edges, sensors, rules)
     table = _rules_frame(sensors, rules)
-    ev = edges.sort(["t", "line"]).join(table, on="sensor", how="left").with_columns(
-        pl.col("_chatter").fill_null(0.0), pl.col("_min_on").fill_null(0.0)
-    )
-    names = ev["sensor"].unique(maintain_order=True)
-    code = ev["sensor"].replace_strict(names, range(len(names)), return_dtype=pl.Int64).to_numpy().astype(np.int64)
-    per = ev.group_by(pl.Series("_code", code), maintain_order=True).agg(pl.col("_chatter").first(), pl.col("_min_on").first())
+    ev = edges.sort(["t", "line"])
+    if isinstance(ev.schema["sensor"], pl.Enum):  # the clean path's sensors: their codes are the enum's
+        names = ev.schema["sensor"].categories.to_list()
+        code = ev["sensor"].to_physical().to_numpy().astype(np.int64)
+    else:
+        names = ev["sensor"].unique(maintain_order=True).to_list()
+        code = ev["sensor"].replace_strict(names, range(len(names)), return_dtype=pl.Int64).to_numpy().astype(np.int64)
+    chatter = dict(zip(table["sensor"].to_list(), table["_chatter"].to_list()))
+    min_on = dict(zip(table["sensor"].to_list(), table["_min_on"].to_list()))
     chat, short = kernels.debounce_masks(
         code, ev["on"].to_numpy().astype(np.bool_), ev["t"].to_numpy().astype(np.float64),
-        per["_chatter"].to_numpy().astype(np.float64), per["_min_on"].to_numpy().astype(np.float64), len(names), TIME_EPS,
+        np.array([chatter.get(n, 0.0) for n in names], dtype=np.float64), np.array([min_on.get(n, 0.0) for n in names], dtype=np.float64),
+        len(names), TIME_EPS,
     )  # fmt: skip
     ev = ev.with_columns(_chat=pl.Series(chat), _short=pl.Series(short))
     sup_chat = ev.filter(pl.col("_chat")).with_columns(rule=pl.lit("chatter"))
     sup_short = ev.filter(pl.col("_short")).with_columns(rule=pl.lit("min_on"))
-    kept = ev.filter(~pl.col("_chat") & ~pl.col("_short")).select("line", "t", "sensor", "on").sort(["t", "line"])
+    kept = ev.filter(~pl.col("_chat") & ~pl.col("_short")).select("line", "t", "sensor", "on")  # still sorted by t, line
     suppressed = conform(pl.concat([sup_chat.drop("_short", strict=False), sup_short], how="diagonal"), SUPPRESSED).sort(
         ["t", "line"]
     )
@@ -288,7 +292,7 @@ def debounce_reference(
     """:func:`debounce` with polars window expressions (``shift`` over each sensor): the plain
     reference of the compiled kernel and its test oracle."""
     table = _rules_frame(sensors, rules)
-    ev = edges.sort(["t", "line"]).join(table, on="sensor", how="left").with_columns(
+    ev = edges.with_columns(pl.col("sensor").cast(pl.String)).sort(["t", "line"]).join(table, on="sensor", how="left").with_columns(
         pl.col("_chatter").fill_null(0.0), pl.col("_min_on").fill_null(0.0)
     )
     nxt_t = pl.col("t").shift(-1).over("sensor", order_by=["t", "line"])
@@ -350,7 +354,8 @@ def clean_toggle_rows(
     if t is None:
         return None
     on = pl.Series([TOGGLE_VALUES[v] for v in spellings], dtype=pl.Boolean)
-    frame = frame.with_columns(t, pl.col("sensor").cast(pl.String), on.gather(frame["value"].to_physical()).alias("value"))
+    # sensor stays an enum (the debounce's codes); every output table casts it to String
+    frame = frame.with_columns(t, on.gather(frame["value"].to_physical()).alias("value"))
     return order_checks(frame, key=TOGGLE_COLUMNS, tolerance=tolerance, columns=TOGGLE_COLUMNS, source=path.name, path=path)
 
 
