@@ -20,11 +20,12 @@ Rows (the goal of each is printed beside it):
 ``ONEBIT_BENCH_QUICK=1`` runs every row on small sizes (a smoke test of the benchmark).
 Tests never assert on time; this module does not either (it only prints and records).
 
-Run with ``python -m benchmarks.bench_table``.
+Run with ``python -m benchmarks.bench_table`` (``--rows readers,startup`` for some rows only).
 """
 
 from __future__ import annotations
 
+import argparse
 import functools
 import os
 import subprocess
@@ -515,11 +516,20 @@ ROWS = (readers, viterbi, compile_times, findinghumo_stage, particle_filter, int
         startup, algorithm1, demo)  # fmt: skip
 
 
-def main() -> None:
+def main(argv: list[str] | None = None) -> None:
+    parser = argparse.ArgumentParser(prog="python -m benchmarks.bench_table", description=__doc__.split("\n\n")[0])
+    parser.add_argument("--rows", default="", help="comma-separated rows to run (default: all): " + ", ".join(r.__name__ for r in ROWS))
+    args = parser.parse_args(argv)
+    wanted = [w.strip() for w in args.rows.split(",") if w.strip()]
+    unknown = sorted(set(wanted) - {r.__name__ for r in ROWS})
+    if unknown:
+        parser.error(f"unknown rows {unknown}; the rows are {[r.__name__ for r in ROWS]}")
     table = Table()
     print(HEADER)
     failed = []
     for row in ROWS:
+        if wanted and row.__name__ not in wanted:
+            continue
         t0 = time.perf_counter()
         try:
             row(table)
