@@ -191,7 +191,7 @@ def number_column_origin(values: pl.Series, epoch: "str | TimeOrigin | None") ->
         return epoch
     if values.len() == 0:
         return TimeOrigin(iso=epoch_unix(epoch) if epoch is not None else None)
-    v = values.sort()
+    v = values if values.len() < 2 or (values.diff().slice(1) >= 0).all() else values.sort()  # logs are mostly in order
     i0, i1 = _kept_span(v, MAX_GAP_S, LONE_FRACTION)
     lo_abs, hi_abs = float(v[i0]), float(v[i1 - 1])
     lone = v.len() - (i1 - i0)
