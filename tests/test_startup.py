@@ -41,7 +41,7 @@ def test_kernel_modules_import_numba_only_when_a_kernel_runs():
 
 
 #: Heavy third-party modules the CLI must not import before a command needs them.
-HEAVY = {"rerun", "cv2", "scipy.optimize", "scipy.sparse", "scipy.spatial", "numba", "motmetrics", "trackeval", "pandas",
+HEAVY = {"rerun", "cv2", "networkx", "scipy.optimize", "scipy.sparse", "scipy.spatial", "numba", "motmetrics", "trackeval", "pandas",
          "matplotlib", "ray", "hypothesis"}  # fmt: skip
 
 

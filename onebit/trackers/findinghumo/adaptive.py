@@ -86,7 +86,6 @@ import math
 from collections.abc import Callable
 from dataclasses import dataclass, field
 
-import networkx as nx
 import numpy as np
 
 from onebit.trackers.findinghumo.eatg import Eatg, onsets
@@ -94,6 +93,7 @@ from onebit.trackers.findinghumo.kernels import coordinate_ascent, emission_tabl
 from onebit.trackers.findinghumo.viterbi import log_safe, viterbi_first_order, viterbi_motion_second_order
 from onebit.core.lazy import lazy_module
 
+nx = lazy_module("networkx")
 _optimize = lazy_module("scipy.optimize")
 _csgraph = lazy_module("scipy.sparse.csgraph")
 _sparse = lazy_module("scipy.sparse")

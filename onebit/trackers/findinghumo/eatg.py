@@ -33,11 +33,11 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-import networkx as nx
 import numpy as np
 import polars as pl
 from onebit.core.lazy import lazy_module
 
+nx = lazy_module("networkx")
 _csgraph = lazy_module("scipy.sparse.csgraph")
 _sparse = lazy_module("scipy.sparse")
 

@@ -25,7 +25,6 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-import networkx as nx
 import numpy as np
 import shapely
 from shapely.geometry.base import BaseGeometry
@@ -33,6 +32,7 @@ from shapely.geometry.base import BaseGeometry
 from onebit.trackers.istate.core import IState
 from onebit.core.lazy import lazy_module
 
+nx = lazy_module("networkx")
 _optimize = lazy_module("scipy.optimize")
 _csgraph = lazy_module("scipy.sparse.csgraph")
 

@@ -49,12 +49,12 @@ import math
 from dataclasses import dataclass
 from functools import lru_cache
 
-import networkx as nx
 import numpy as np
 import shapely
 from shapely.geometry.base import BaseGeometry
 from onebit.core.lazy import lazy_module
 
+nx = lazy_module("networkx")
 _optimize = lazy_module("scipy.optimize")
 
 #: Region shapes: exact polygons, or the smallest axis-aligned rectangle / disk containing them.
