@@ -21,6 +21,13 @@ quote or one ragged line costs that line alone:
 3. **Fields**: the lines that passed are split by polars' CSV parser. Each line carries its
    number into the parser as an extra first field, so a line number can never drift.
 
+**Clean files** skip all three: :func:`read_clean_csv` types the whole file with one
+``pl.read_csv`` (names and spellings as ``Enum`` columns) when it is UTF-8 without quotes,
+carriage returns or a byte-order mark and every line after the header is one record whose
+fields parse; its line numbers are then the row index + 2. The readers use it first and fall
+back to the physical-line path, which names every bad line, when it returns ``None``;
+``tests/readers/test_clean_path.py`` holds both paths to equal frames and rejects.
+
 Blank lines (empty, or spaces and tabs only) are not rows: accepted + rejected (+ suppressed,
 for toggle logs) = the non-blank lines after the header. The raw text and the reason of every
 reject are cut to :data:`onebit.core.errors.MAX_QUOTE` characters with the full length stated.
