@@ -507,6 +507,12 @@ def check_rows(
                         prior=raw.rejects, source=raw.source, path=path, columns=tuple(parsers))  # fmt: skip
 
 
+def in_time_order(t: pl.Series) -> bool:
+    """Whether ``t`` never decreases (one pass in numpy; nulls and NaN are never in order)."""
+    v = t.to_numpy()
+    return bool(v.size < 2 or (v[1:] >= v[:-1]).all())
+
+
 def duplicate_of(ok: pl.DataFrame, key: tuple[str, ...]) -> pl.Series:
     """For every row of ``ok`` (``line`` + the ``key`` columns, ``t`` among them), the first
     ``line`` of an earlier row with the same ``key``, else null: found by one sort on the key and
@@ -516,14 +522,14 @@ def duplicate_of(ok: pl.DataFrame, key: tuple[str, ...]) -> pl.Series:
     idx = pl.int_range(pl.len(), dtype=pl.Int64).alias("_i")
     cand = ok.select(idx, "line", *key)
     t = ok["t"]
-    if t.len() > 1 and (t.diff().slice(1) >= 0).all():
+    if in_time_order(t):
         tie = (t == t.shift(1)).fill_null(False) | (t == t.shift(-1)).fill_null(False)
         cand = cand.filter(tie)
     cand = cand.sort([*key, "line"])
     same = pl.all_horizontal([pl.col(k).eq_missing(pl.col(k).shift(1)) for k in key]).fill_null(False)
     cand = cand.with_columns(pl.when(same).then(None).otherwise(pl.col("line")).forward_fill().alias("_first"))
     cand = cand.filter(pl.col("_first") != pl.col("line"))
-    out = pl.Series("_dup", [None] * ok.height, dtype=pl.Int64)
+    out = pl.Series("_dup", [], dtype=pl.Int64).extend_constant(None, ok.height)
     if cand.height:
         out = out.scatter(cand["_i"], cand["_first"])
     return out
@@ -549,8 +555,7 @@ def order_checks(
     ok = ok.drop("_dup")
     dup = ok.filter(pl.col("_reason").is_not_null())
     ok = ok.filter(pl.col("_reason").is_null())
-    t = ok["t"]
-    if ok.height < 2 or (t.diff().slice(1) >= 0).all():  # never earlier than a row before it
+    if in_time_order(ok["t"]):  # never earlier than a row before it
         back = ok.clear()
         reordered = 0
     else:
@@ -581,7 +586,7 @@ def order_checks(
         made = pl.DataFrame(schema=REJECTS)
     rejects = made if prior is None else pl.concat([prior, made]).sort("line")
     accepted = ok.select("line", *columns)
-    if reordered or not (accepted.height < 2 or (accepted["t"].diff().slice(1) >= 0).all()):
+    if reordered or not in_time_order(accepted["t"]):
         accepted = accepted.sort(["t", "line"])
     return TypedRows(accepted, rejects, reordered)
 

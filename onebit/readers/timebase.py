@@ -46,6 +46,7 @@ from collections.abc import Mapping
 from dataclasses import dataclass
 from datetime import datetime, timezone
 
+import numpy as np
 import polars as pl
 
 from onebit.core.errors import InputError
@@ -170,9 +171,10 @@ def _stamps(sources: Mapping[str, pl.DataFrame], col: str) -> pl.DataFrame:
 def _kept_span(v: pl.Series, max_gap_s: float, lone_fraction: float) -> tuple[int, int]:
     """``[i0, i1)``: the stamps of sorted ``v`` (non-empty) left once the lone clusters at either
     end are cut off (module docstring)."""
-    n = v.len()
-    cut = (v.diff() > max_gap_s).arg_true()  # a cluster starts at each of these indices
-    bounds = [0, *cut.to_list(), n]
+    a = v.to_numpy()
+    n = a.size
+    cut = np.flatnonzero(np.diff(a) > max_gap_s) + 1  # a cluster starts at each of these indices
+    bounds = [0, *cut.tolist(), n]
     sizes = [b - a for a, b in zip(bounds[:-1], bounds[1:])]
     limit = max(1, int(lone_fraction * n))
     first, last = 0, len(sizes) - 1
@@ -191,7 +193,8 @@ def number_column_origin(values: pl.Series, epoch: "str | TimeOrigin | None") ->
         return epoch
     if values.len() == 0:
         return TimeOrigin(iso=epoch_unix(epoch) if epoch is not None else None)
-    v = values if values.len() < 2 or (values.diff().slice(1) >= 0).all() else values.sort()  # logs are mostly in order
+    a = values.to_numpy()
+    v = values if a.size < 2 or (a[1:] >= a[:-1]).all() else values.sort()  # logs are mostly in order
     i0, i1 = _kept_span(v, MAX_GAP_S, LONE_FRACTION)
     lo_abs, hi_abs = float(v[i0]), float(v[i1 - 1])
     lone = v.len() - (i1 - i0)
