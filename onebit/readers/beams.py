@@ -34,6 +34,7 @@ from onebit.readers import kernels
 from onebit.core.tables import ABORTED, BEAM_EVENTS, CROSSINGS, REJECTS, conform
 from onebit.readers.rows import (
     RawRows,
+    by_time,
     clean_time,
     make_rejects,
     order_checks,
@@ -85,7 +86,7 @@ def decode_passes(events: pl.DataFrame, source: str = "beams.csv", *, compiled: 
     """
     if not (events.height >= kernels.MIN_ROWS if compiled is None else compiled):
         return decode_passes_reference(events, source)
-    ev = events.sort(["t", "line"])
+    ev = by_time(events)
     if isinstance(ev.schema["beam"], pl.Enum):  # the clean path's beams: their codes are the enum's
         code = ev["beam"].to_physical().to_numpy().astype(np.int64)
         n_beams = ev.schema["beam"].categories.len()

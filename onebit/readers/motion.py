@@ -63,6 +63,7 @@ from onebit.readers.rows import (
     REORDER_TOLERANCE_S,
     RawRows,
     TypedRows,
+    by_time,
     check_rows,
     clean_time,
     make_rejects,
@@ -260,7 +261,7 @@ def debounce(
     if not (edges.height >= kernels.MIN_ROWS if compiled is None else compiled):
         return debounce_reference(edges, sensors, rules)
     table = _rules_frame(sensors, rules)
-    ev = edges.sort(["t", "line"])
+    ev = by_time(edges)
     if isinstance(ev.schema["sensor"], pl.Enum):  # the clean path's sensors: their codes are the enum's
         names = ev.schema["sensor"].categories.to_list()
         code = ev["sensor"].to_physical().to_numpy().astype(np.int64)

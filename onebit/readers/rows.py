@@ -513,6 +513,14 @@ def in_time_order(t: pl.Series) -> bool:
     return bool(v.size < 2 or (v[1:] >= v[:-1]).all())
 
 
+def by_time(rows: pl.DataFrame) -> pl.DataFrame:
+    """``rows`` sorted by ``t``, then ``line`` (file order within a stamp); no sort when both
+    already increase (the accepted rows of a log written in time order)."""
+    if in_time_order(rows["t"]) and in_time_order(rows["line"]):
+        return rows
+    return rows.sort(["t", "line"])
+
+
 def duplicate_of(ok: pl.DataFrame, key: tuple[str, ...]) -> pl.Series:
     """For every row of ``ok`` (``line`` + the ``key`` columns, ``t`` among them), the first
     ``line`` of an earlier row with the same ``key``, else null: found by one sort on the key and
