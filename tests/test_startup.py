@@ -6,6 +6,13 @@ from __future__ import annotations
 import subprocess
 import sys
 
+import cv2
+import numpy as np
+import rerun as rr
+
+from onebit.readers import camera
+from onebit.viz.radii import ui_points
+
 
 def _modules_after(code: str) -> set[str]:
     out = subprocess.run(
@@ -31,3 +38,28 @@ def test_kernel_modules_import_numba_only_when_a_kernel_runs():
     assert "numba" not in mods
     mods = _modules_after("import numpy as np\nfrom onebit.trackers.beams.assignment import assign_agents\nassign_agents(np.array([0]), np.array([1]), 2, compiled=True)")
     assert "numba" in mods
+
+
+#: Heavy third-party modules the CLI must not import before a command needs them.
+HEAVY = {"rerun", "cv2", "networkx", "scipy.optimize", "scipy.sparse", "scipy.spatial", "numba", "motmetrics", "trackeval", "pandas",
+         "matplotlib", "ray", "hypothesis"}  # fmt: skip
+
+
+def test_import_cli_imports_no_heavy_module():
+    mods = _modules_after("import onebit.cli")
+    assert "onebit.pipeline.runner" in mods  # the CLI did load the pipeline ...
+    assert not mods & HEAVY, sorted(mods & HEAVY)  # ... and none of the heavy modules
+
+
+def test_lazy_modules_import_on_first_use():
+    mods = _modules_after("from onebit.core.lazy import lazy_module\nrr = lazy_module('rerun')")
+    assert "rerun" not in mods
+    mods = _modules_after("from onebit.core.lazy import lazy_module\nrr = lazy_module('rerun')\nrr.RecordingStream")
+    assert "rerun" in mods
+
+
+def test_ui_points_and_structuring_elements_match_their_libraries():
+    for r in (0.75, 1.0, 1.5, 4.5, 9.0):
+        assert ui_points(r) == rr.Radius.ui_points(r) and ui_points(r).dtype == np.float32
+    assert np.array_equal(camera._OPEN, cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (3, 3)))
+    assert np.array_equal(camera._CLOSE, cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (5, 5)))

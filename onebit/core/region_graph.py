@@ -10,7 +10,6 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-import networkx as nx
 import numpy as np
 import polars as pl
 import shapely
@@ -18,6 +17,9 @@ from shapely.geometry import Point, Polygon
 
 from onebit.core.site import Site
 from onebit.core.errors import SiteError
+from onebit.core.lazy import lazy_module
+
+nx = lazy_module("networkx")
 
 #: Half-width of the cut made along each beam, relative to the site's diagonal.
 _CUT_REL = 1e-7

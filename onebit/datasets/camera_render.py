@@ -41,13 +41,15 @@ import contextlib
 from collections.abc import Iterator
 from pathlib import Path
 
-import cv2
 import numpy as np
 import polars as pl
 
 from onebit.core.site import Camera, Site
 from onebit.core.writers import atomic_path
 from onebit.core.errors import InputError, OnebitError
+from onebit.core.lazy import lazy_module
+
+cv2 = lazy_module("cv2")
 
 #: Grey level of the floor.
 FLOOR = 200.0

@@ -34,7 +34,6 @@ import math
 from dataclasses import dataclass
 from pathlib import Path
 
-import networkx as nx
 import numpy as np
 import polars as pl
 
@@ -44,6 +43,9 @@ from onebit.core.site import Site, load_site
 from onebit.datasets.builtin import builtin_site_path
 from onebit.core.errors import ConfigError
 from onebit.core.writers import write_csv as _atomic_csv, write_text as _atomic_text
+from onebit.core.lazy import lazy_module
+
+nx = lazy_module("networkx")
 
 WEST = ("92", "93", "94", "96", "97", "95")
 EAST = ("99", "110", "114", "117", "106", "118", "100", "111", "101")

@@ -44,7 +44,6 @@ import tomllib
 from dataclasses import dataclass, field
 from pathlib import Path
 
-import networkx as nx
 import numpy as np
 import polars as pl
 
@@ -54,6 +53,9 @@ from onebit.core.tables import REJECTS
 from onebit.core.writers import to_toml, write_csv, write_text
 from onebit.readers.casas import TOGGLE_KINDS, CasasLog, read_casas
 from onebit.readers.trajectories import TrajectoryFormat, read_trajectories
+from onebit.core.lazy import lazy_module
+
+nx = lazy_module("networkx")
 
 #: Defaults of the learned-graph rule (module docstring).
 WINDOW_S = 5.0

@@ -22,7 +22,6 @@ from __future__ import annotations
 from dataclasses import dataclass
 from pathlib import Path
 
-import networkx as nx
 import numpy as np
 import polars as pl
 import shapely
@@ -42,6 +41,9 @@ from onebit.trackers.istate.core import IState, cap_elements, communicate, info_
 from onebit.core.writers import write_text as _atomic_text, write_csv as _atomic_csv
 from onebit.trackers.istate.core import contains
 from onebit.core.config import check_choice, check_range
+from onebit.core.lazy import lazy_module
+
+nx = lazy_module("networkx")
 
 # --------------------------------------------------------------------------- environments
 

@@ -48,7 +48,6 @@ from pathlib import Path
 
 import numpy as np
 import polars as pl
-from scipy.optimize import linear_sum_assignment
 
 from onebit.core import writers
 from onebit.core.site import Site, load_site
@@ -59,6 +58,9 @@ from onebit.pipeline.stages import TRACKERS as ENTRIES
 from onebit.readers.motion import read_motion_csv
 from onebit.scoring.findinghumo import score, truth_nodes
 from onebit.models.graph_hmm.eatg import hop_matrix
+from onebit.core.lazy import lazy_module
+
+_optimize = lazy_module("scipy.optimize")
 from onebit.trackers.findinghumo.cpda import colocation_events
 
 TRACKERS = ("hmm1", "hmm2", "findinghumo", "findinghumo-flow")
@@ -139,7 +141,7 @@ def slot_assignments(true: np.ndarray, est: np.ndarray, hops: np.ndarray, miss: 
         cost = np.where(tn[:, None] >= 0, cost, 0).astype(float)
         if prev is not None:
             cost = cost - 1e-3 * (np.arange(u)[None, :] == prev[:, None])
-        r, c = linear_sum_assignment(cost)
+        r, c = _optimize.linear_sum_assignment(cost)
         a = np.full(v, -1, dtype=np.int64)
         a[r] = c
         out[s] = a
@@ -253,7 +255,7 @@ def slot_error(true: np.ndarray, est: np.ndarray, hops: np.ndarray, miss: int) -
             continue
         en = est[:, s]
         cost = np.where(en[None, :] >= 0, hops[tn[:, None], np.maximum(en, 0)[None, :]], miss).astype(float)
-        r, c = linear_sum_assignment(cost)
+        r, c = _optimize.linear_sum_assignment(cost)
         tot += float(cost[r, c].sum()) + miss * (tn.size - r.size)
         n += tn.size
     return tot / n if n else 0.0

@@ -23,7 +23,6 @@ from pathlib import Path
 
 import numpy as np
 import polars as pl
-from scipy.optimize import linear_sum_assignment
 from shapely.geometry import box
 
 from onebit.datasets.proximity_sim import make_world
@@ -33,6 +32,9 @@ from onebit.pipeline.executors import Executor
 from onebit.trackers.clustertrack.algorithm import clustertrack, rules_of_thumb, trajectory_distance
 from onebit.trackers.clustertrack.feasible import SensorArray
 from onebit.trackers.clustertrack.space import FeasibleSpace
+from onebit.core.lazy import lazy_module
+
+_optimize = lazy_module("scipy.optimize")
 
 #: The paper's numbers (mean error in R; fraction of pir-line runs catching both people).
 PAPER = {("ideal", 1.0): 0.238, ("nonideal 0.7/1.3", 1.0): 0.287, ("nonideal 0.5/1.5", 1.0): 0.377, ("pir-line", 1.25): 0.7162}
@@ -48,7 +50,7 @@ def one_trial(name: str, seed: int, params: dict, *, H: int = 25, m_o_r: float =
     p = rules_of_thumb(sp, H=H, m_o=m_o_r / R)
     res = clustertrack(sp, p, np.random.default_rng(seed))
     D = trajectory_distance(w.truth[:, :, :1], res.tracks)
-    a, b = linear_sum_assignment(D)
+    a, b = _optimize.linear_sum_assignment(D)
     found = int(np.sum(D[a, b] <= p.D0))
     return {
         "error_R": float(D.min(axis=1).mean() / R),

@@ -30,10 +30,10 @@ from onebit.core.errors import InputError, OnebitError
 from onebit.core.tables import REJECTS
 from onebit.core.units import config_in_site_units
 from onebit.pipeline.context import ReportRow, RunContext, Stage
-from onebit.readers.beams import BEAM_COLUMNS, decode_raw_beams
+from onebit.readers.beams import BEAM_COLUMNS, decode_beam_log, decode_raw_beams
 from onebit.readers.camera import read_camera, truth_error
-from onebit.readers.motion import TOGGLE_COLUMNS, MotionConfig, motion_frames, read_motion, site_rules
-from onebit.readers.proximity import ProximityConfig, proximity_frames, read_proximity
+from onebit.readers.motion import TOGGLE_COLUMNS, MotionConfig, motion_frames, read_motion, read_motion_csv, site_rules
+from onebit.readers.proximity import ProximityConfig, proximity_frames, read_proximity, read_proximity_csv
 from onebit.readers.tables_csv import crossings_from_rows, true_crossings_columns, true_crossings_from_rows, truth_from_rows
 from onebit.readers.timebase import TimeOrigin, time_origin
 from onebit.scoring import beams as score_beams
@@ -146,8 +146,12 @@ def _crossings_work(ctx: RunContext) -> dict[str, pl.DataFrame]:
     site = ctx.site
     out: dict[str, pl.DataFrame] = {}
     if ctx.has_source("beams"):
-        raw, path = ctx.source("beams", BEAM_COLUMNS)
-        dec = decode_raw_beams(raw, site.beam_ids, epoch=run_time_origin(ctx), path=path)
+        csv = ctx.dataset / "beams.csv"
+        if csv.exists():  # a clean file is typed in one read (decode_beam_log), else line by line
+            dec = decode_beam_log(csv, site.beam_ids, epoch=run_time_origin(ctx))
+        else:
+            raw, path = ctx.source("beams", BEAM_COLUMNS)
+            dec = decode_raw_beams(raw, site.beam_ids, epoch=run_time_origin(ctx), path=path)
         ctx.add_rejects(dec.rejects)
         out.update(crossings=dec.crossings, aborted=dec.aborted, beam_events=dec.events)
         ctx.report += [
@@ -236,8 +240,12 @@ def _motion_work(ctx: RunContext) -> dict[str, pl.DataFrame]:
     ctx.config.setdefault("motion", {}).update({k: v for k, v in asdict(cfg).items() if v is not None})
     site = ctx.site
     ids = [m.id for m in site.motion_sensors]
-    raw, path = ctx.source("motion", TOGGLE_COLUMNS)
-    res = read_motion(raw, ids, epoch=run_time_origin(ctx), path=path, rules=site_rules(site, cfg))
+    csv = ctx.dataset / "motion.csv"
+    if csv.exists():  # a clean file is typed in one read (read_motion_csv), else line by line
+        res = read_motion_csv(csv, ids, epoch=run_time_origin(ctx), rules=site_rules(site, cfg))
+    else:
+        raw, path = ctx.source("motion", TOGGLE_COLUMNS)
+        res = read_motion(raw, ids, epoch=run_time_origin(ctx), path=path, rules=site_rules(site, cfg))
     ctx.add_rejects(res.rejects)
     frames = motion_frames(res.motion, ids, period=cfg.period)
     ctx.report += [
@@ -264,8 +272,12 @@ def _proximity_work(ctx: RunContext) -> dict[str, pl.DataFrame]:
     cfg = config_from_mapping(ProximityConfig, ctx.section("proximity"), section="proximity")
     ctx.config.setdefault("proximity", {}).update(asdict(cfg))
     ids = [p.id for p in ctx.site.proximity_sensors]
-    raw, path = ctx.source("proximity", TOGGLE_COLUMNS)
-    res = read_proximity(raw, ids, epoch=run_time_origin(ctx), path=path, rules=cfg.rules)
+    csv = ctx.dataset / "proximity.csv"
+    if csv.exists():  # a clean file is typed in one read (read_proximity_csv), else line by line
+        res = read_proximity_csv(csv, ids, epoch=run_time_origin(ctx), rules=cfg.rules)
+    else:
+        raw, path = ctx.source("proximity", TOGGLE_COLUMNS)
+        res = read_proximity(raw, ids, epoch=run_time_origin(ctx), path=path, rules=cfg.rules)
     ctx.add_rejects(res.rejects)
     frames = proximity_frames(
         res.motion, ids, period=cfg.period, start=None if cfg.start < 0 else cfg.start, instants=cfg.instants or None

@@ -31,9 +31,21 @@ import polars as pl
 
 from onebit.core.sensing import body_radius
 from onebit.readers import kernels
-from onebit.readers.rows import RawRows, make_rejects, parse_choice, parse_name, parse_time, read_csv_rows, type_rows
 from onebit.core.tables import ABORTED, BEAM_EVENTS, CROSSINGS, REJECTS, conform
-from onebit.readers.rows import raw_lines
+from onebit.readers.rows import (
+    RawRows,
+    by_time,
+    clean_time,
+    make_rejects,
+    order_checks,
+    parse_choice,
+    parse_name,
+    parse_time,
+    raw_lines,
+    read_clean_csv,
+    read_csv_rows,
+    type_rows,
+)
 
 BEAM_COLUMNS = ("t", "beam", "pair", "blocked")
 
@@ -74,11 +86,16 @@ def decode_passes(events: pl.DataFrame, source: str = "beams.csv", *, compiled: 
     """
     if not (events.height >= kernels.MIN_ROWS if compiled is None else compiled):
         return decode_passes_reference(events, source)
-    ev = events.sort(["t", "line"])
-    names = ev["beam"].unique(maintain_order=True)
-    code = ev["beam"].replace_strict(names, range(len(names)), return_dtype=pl.Int64).to_numpy().astype(np.int64)
+    ev = by_time(events)
+    if isinstance(ev.schema["beam"], pl.Enum):  # the clean path's beams: their codes are the enum's
+        code = ev["beam"].to_physical().to_numpy().astype(np.int64)
+        n_beams = ev.schema["beam"].categories.len()
+    else:
+        names = ev["beam"].unique(maintain_order=True)
+        code = ev["beam"].replace_strict(names, range(len(names)), return_dtype=pl.Int64).to_numpy().astype(np.int64)
+        n_beams = len(names)
     reject, pass_first, close, first_pair = kernels.beam_passes(
-        code, (ev["pair"] == "b").to_numpy().astype(np.int8), ev["blocked"].to_numpy().astype(np.bool_), len(names)
+        code, (ev["pair"] == "b").to_numpy().astype(np.int8), ev["blocked"].to_numpy().astype(np.bool_), n_beams
     )
     ev = ev.with_columns(_reject=pl.Series(reject), _first=pl.Series(pass_first), _close=pl.Series(close),
                          _opener=pl.Series(first_pair))  # fmt: skip
@@ -90,11 +107,16 @@ def decode_passes(events: pl.DataFrame, source: str = "beams.csv", *, compiled: 
     )
     rejects = make_rejects(bad.sort("line"), source, None)
     ev = ev.filter(pl.col("_reject") == 0)
-    # one row per pass, in the order passes start (polars' group order in the reference)
-    ends = ev.with_row_index("_k").group_by("_first", maintain_order=True).agg(
-        pl.col("beam").last(), pl.col("pair").last().alias("last"), pl.col("_close").last().alias("closed"),
-        pl.col("t").last(), pl.col("_opener").last(),
-    ).sort("_first")
+    # one row per pass, in the order passes start (polars' group order in the reference): the
+    # closing edge of each closed pass, and the last edge of each pass still open at the end
+    has_close = np.zeros(reject.shape[0], dtype=np.bool_)
+    has_close[pass_first[close]] = True
+    open_rows = ev.filter(~pl.Series(has_close[ev["_first"].to_numpy()]))
+    cols = (pl.col("beam"), pl.col("pair").alias("last"), pl.col("_close").alias("closed"), pl.col("t"), pl.col("_opener"))
+    ends = pl.concat([
+        ev.filter(pl.col("_close")).select("_first", *cols),
+        open_rows.group_by("_first", maintain_order=True).agg(c.last() for c in cols),
+    ]).sort("_first")  # fmt: skip
     passes = ends.with_columns(first=pl.when(pl.col("closed")).then(pl.when(pl.col("_opener") == 1).then(pl.lit("b")).otherwise(pl.lit("a"))))
     closed = passes.filter(pl.col("closed"))
     crossing = closed.filter(pl.col("first") != pl.col("last")).with_columns(
@@ -107,7 +129,7 @@ def decode_passes(events: pl.DataFrame, source: str = "beams.csv", *, compiled: 
         ),
         ABORTED,
     ).sort("t")
-    unfinished = passes.filter(~pl.col("closed")).select("t", "beam")
+    unfinished = passes.filter(~pl.col("closed")).select("t", pl.col("beam").cast(pl.String))
     return BeamDecode(conform(ev, BEAM_EVENTS), crossings, aborted, unfinished, rejects)
 
 
@@ -162,26 +184,55 @@ def decode_passes_reference(events: pl.DataFrame, source: str = "beams.csv") -> 
         ),
         ABORTED,
     ).sort("t")
-    unfinished = passes.filter(~pl.col("closed")).select("t", "beam")
+    unfinished = passes.filter(~pl.col("closed")).select("t", pl.col("beam").cast(pl.String))
     return BeamDecode(conform(ev, BEAM_EVENTS), crossings, aborted, unfinished, rejects)
 
 
 def decode_beam_log(path: str | Path, beam_ids: tuple[str, ...], *, epoch: str | None = None) -> BeamDecode:
-    """Read ``beams.csv`` and decode it: the whole raw-beam reader."""
+    """Read ``beams.csv`` and decode it: the whole raw-beam reader.
+
+    A clean file (:func:`clean_beam_events`) is typed by one ``pl.read_csv``; any other goes
+    through the row-by-row CSV layer, which names each bad line. Both give the same result."""
     path = Path(path)
-    raw = read_csv_rows(path, BEAM_COLUMNS)
-    return decode_raw_beams(raw, beam_ids, epoch=epoch, path=path)
+    clean = clean_beam_events(path, tuple(beam_ids), epoch=epoch)
+    if clean is None:
+        raw = read_csv_rows(path, BEAM_COLUMNS)
+        return decode_raw_beams(raw, beam_ids, epoch=epoch, path=path)
+    events, rejects = clean
+    return _decode_events(events, rejects, path.name, path)
+
+
+def clean_beam_events(path: Path, beam_ids: tuple[str, ...], *, epoch=None) -> tuple[pl.DataFrame, pl.DataFrame] | None:
+    """:func:`read_beam_events` of a clean ``beams.csv`` (:func:`~onebit.readers.rows.read_clean_csv`:
+    numeric ``t``, known beams, pairs ``a``/``b``, ``blocked`` ``0``/``1`` as written), as
+    ``(events, rejects)``; ``None`` when a row would be rejected by its fields (the row-by-row
+    path names it). Duplicates and rows going backwards are found as for any file."""
+    frame = read_clean_csv(
+        path, {"t": pl.Float64, "beam": pl.Enum(list(dict.fromkeys(beam_ids))), "pair": pl.Enum(["a", "b"]), "blocked": pl.Enum(["0", "1"])}
+    )
+    if frame is None:
+        return None
+    t = clean_time(frame["t"], epoch)
+    if t is None:
+        return None
+    # beam and pair stay enums (the decoder's codes); every output table casts them to String
+    frame = frame.with_columns(t, pl.col("blocked").to_physical() == 1)
+    res = order_checks(frame, key=BEAM_COLUMNS, tolerance=0.0, columns=BEAM_COLUMNS, source=path.name, path=path)
+    return res.accepted, res.rejects
 
 
 def decode_raw_beams(raw: RawRows, beam_ids, *, epoch=None, path: Path | None = None) -> BeamDecode:
     """Decode string rows (from CSV or an MCAP channel) of raw beam events."""
     events, rejects = read_beam_events(raw, tuple(beam_ids), epoch=epoch, path=path)
-    out = decode_passes(events, raw.source)
+    return _decode_events(events, rejects, raw.source, path)
+
+
+def _decode_events(events: pl.DataFrame, rejects: pl.DataFrame, source: str, path: Path | None) -> BeamDecode:
+    out = decode_passes(events, source)
     if out.rejects.height:
         fixed = out.rejects.join(events.select("line"), on="line", how="left")
         lines = fixed["line"].to_list()
         if path is not None:
-
             text = raw_lines(path, lines)
             fixed = fixed.with_columns(pl.Series("raw", [text.get(i) for i in lines], dtype=pl.String))
         rejects = pl.concat([rejects, fixed.select(REJECTS.names())]).sort("line")

@@ -39,15 +39,17 @@ from __future__ import annotations
 from dataclasses import dataclass
 from pathlib import Path
 
-import cv2
 import numpy as np
 import polars as pl
-from scipy.optimize import linear_sum_assignment
-from scipy.spatial.distance import cdist
 
 from onebit.core.site import Camera, Site
 from onebit.core.errors import InputError
 from onebit.core.tables import REJECTS, TRUTH, conform, rejects_frame
+from onebit.core.lazy import lazy_module
+
+cv2 = lazy_module("cv2")
+_distance = lazy_module("scipy.spatial.distance")
+_optimize = lazy_module("scipy.optimize")
 
 #: Frames sampled for the background median (odd, so the median is one sample).
 BG_SAMPLES = 41
@@ -336,8 +338,8 @@ def _threshold(samples: np.ndarray, gains: np.ndarray, background: np.ndarray) -
 
 # --------------------------------------------------------------------------- blobs
 
-_OPEN = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (3, 3))
-_CLOSE = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (5, 5))
+_OPEN = np.array([[0, 1, 0], [1, 1, 1], [0, 1, 0]], dtype=np.uint8)  # cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (3, 3))
+_CLOSE = np.array([[0, 0, 1, 0, 0], [1, 1, 1, 1, 1], [1, 1, 1, 1, 1], [1, 1, 1, 1, 1], [0, 0, 1, 0, 0]], dtype=np.uint8)  # cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (5, 5))
 
 
 def foreground_mask(frame: np.ndarray, gain: float, background: np.ndarray, tau: float) -> np.ndarray:
@@ -417,8 +419,8 @@ def link_tracks(frame: np.ndarray, xy: np.ndarray, *, gate: float, max_gap: int)
         live = np.flatnonzero(k - last_frame[:n_tracks] <= max_gap)
         assigned = np.full(e - s, -1, np.int64)
         if live.size:
-            cost = cdist(xy[s:e], last_xy[live])
-            rows, cols = linear_sum_assignment(cost)
+            cost = _distance.cdist(xy[s:e], last_xy[live])
+            rows, cols = _optimize.linear_sum_assignment(cost)
             ok = cost[rows, cols] <= gate * (k - last_frame[live[cols]])
             assigned[rows[ok]] = live[cols[ok]]
         born = np.flatnonzero(assigned < 0)
@@ -439,7 +441,7 @@ def match_frames(camera_truth: pl.DataFrame, truth: pl.DataFrame, *, period: flo
     Each camera time is joined to the nearest truth time within ``period / 2`` (``period``
     defaults to the median step between distinct truth times). In every joined frame the
     camera points ``c_i`` and true points ``q_j`` are matched by
-    ``linear_sum_assignment(|c_i - q_j|)``.
+    ``_optimize.linear_sum_assignment(|c_i - q_j|)``.
 
     Returns
     -------
@@ -470,8 +472,8 @@ def match_frames(camera_truth: pl.DataFrame, truth: pl.DataFrame, *, period: flo
     ce, te = np.searchsorted(cam_t, frames, "right"), np.searchsorted(tru_t, frames, "right")
     out_t, out_c, out_q, out_e = [], [], [], []
     for f, c0, c1, q0, q1 in zip(frames, cb, ce, tb, te):  # one assignment per frame
-        cost = cdist(cam_xy[c0:c1], tru_xy[q0:q1])
-        r, c = linear_sum_assignment(cost)
+        cost = _distance.cdist(cam_xy[c0:c1], tru_xy[q0:q1])
+        r, c = _optimize.linear_sum_assignment(cost)
         lone_c = np.setdiff1d(np.arange(c1 - c0), r)
         lone_q = np.setdiff1d(np.arange(q1 - q0), c)
         m = len(r) + len(lone_c) + len(lone_q)

@@ -62,11 +62,16 @@ from onebit.readers import kernels
 from onebit.readers.rows import (
     REORDER_TOLERANCE_S,
     RawRows,
+    TypedRows,
+    by_time,
     check_rows,
+    clean_time,
     make_rejects,
+    order_checks,
     parse_choice,
     parse_name,
     parse_time,
+    read_clean_csv,
     read_csv_rows,
 )
 from onebit.readers.timebase import TimeOrigin
@@ -175,8 +180,20 @@ def read_motion(
         "value": parse_choice("value", TOGGLE_VALUES, pl.Boolean, case_insensitive=True),
     }
     typed = check_rows(raw, parsers, key=("t", "sensor", "value"), path=path, tolerance=tolerance)
+    return toggle_edges(typed, sensors, source=raw.source, path=path, rules=rules)
+
+
+def toggle_edges(
+    typed: TypedRows,
+    sensors: tuple[str, ...],
+    *,
+    source: str,
+    path: Path | None,
+    rules: DebounceRules | Mapping[str, DebounceRules] | None,
+) -> MotionRead:
+    """Passes 2 and 3 of :func:`read_motion` on typed and checked rows (``t``, ``sensor``, ``value``)."""
     ok, rejects = typed.accepted, typed.rejects
-    ok = ok.rename({"value": "on"}).sort(["t", "line"])
+    ok = ok.rename({"value": "on"})  # sorted by t, file order within a stamp (TypedRows)
 
     # pass 2: edges that do not change their sensor's state (every sensor starts off)
     prev = pl.col("on").shift(1).over("sensor").fill_null(False)
@@ -192,7 +209,7 @@ def read_motion(
     )
     same = ok.filter(pl.col("_reason").is_not_null())
     if same.height:
-        more = make_rejects(same, raw.source, path)
+        more = make_rejects(same, source, path)
         rejects = pl.concat([rejects, more]).sort("line")
     edges = ok.filter(pl.col("_reason").is_null()).drop("_reason")
 
@@ -244,20 +261,24 @@ def debounce(
     if not (edges.height >= kernels.MIN_ROWS if compiled is None else compiled):
         return debounce_reference(edges, sensors, rules)
     table = _rules_frame(sensors, rules)
-    ev = edges.sort(["t", "line"]).join(table, on="sensor", how="left").with_columns(
-        pl.col("_chatter").fill_null(0.0), pl.col("_min_on").fill_null(0.0)
-    )
-    names = ev["sensor"].unique(maintain_order=True)
-    code = ev["sensor"].replace_strict(names, range(len(names)), return_dtype=pl.Int64).to_numpy().astype(np.int64)
-    per = ev.group_by(pl.Series("_code", code), maintain_order=True).agg(pl.col("_chatter").first(), pl.col("_min_on").first())
+    ev = by_time(edges)
+    if isinstance(ev.schema["sensor"], pl.Enum):  # the clean path's sensors: their codes are the enum's
+        names = ev.schema["sensor"].categories.to_list()
+        code = ev["sensor"].to_physical().to_numpy().astype(np.int64)
+    else:
+        names = ev["sensor"].unique(maintain_order=True).to_list()
+        code = ev["sensor"].replace_strict(names, range(len(names)), return_dtype=pl.Int64).to_numpy().astype(np.int64)
+    chatter = dict(zip(table["sensor"].to_list(), table["_chatter"].to_list()))
+    min_on = dict(zip(table["sensor"].to_list(), table["_min_on"].to_list()))
     chat, short = kernels.debounce_masks(
         code, ev["on"].to_numpy().astype(np.bool_), ev["t"].to_numpy().astype(np.float64),
-        per["_chatter"].to_numpy().astype(np.float64), per["_min_on"].to_numpy().astype(np.float64), len(names), TIME_EPS,
+        np.array([chatter.get(n, 0.0) for n in names], dtype=np.float64), np.array([min_on.get(n, 0.0) for n in names], dtype=np.float64),
+        len(names), TIME_EPS,
     )  # fmt: skip
     ev = ev.with_columns(_chat=pl.Series(chat), _short=pl.Series(short))
     sup_chat = ev.filter(pl.col("_chat")).with_columns(rule=pl.lit("chatter"))
     sup_short = ev.filter(pl.col("_short")).with_columns(rule=pl.lit("min_on"))
-    kept = ev.filter(~pl.col("_chat") & ~pl.col("_short")).select("line", "t", "sensor", "on").sort(["t", "line"])
+    kept = ev.filter(~pl.col("_chat") & ~pl.col("_short")).select("line", "t", "sensor", "on")  # still sorted by t, line
     suppressed = conform(pl.concat([sup_chat.drop("_short", strict=False), sup_short], how="diagonal"), SUPPRESSED).sort(
         ["t", "line"]
     )
@@ -272,7 +293,7 @@ def debounce_reference(
     """:func:`debounce` with polars window expressions (``shift`` over each sensor): the plain
     reference of the compiled kernel and its test oracle."""
     table = _rules_frame(sensors, rules)
-    ev = edges.sort(["t", "line"]).join(table, on="sensor", how="left").with_columns(
+    ev = edges.with_columns(pl.col("sensor").cast(pl.String)).sort(["t", "line"]).join(table, on="sensor", how="left").with_columns(
         pl.col("_chatter").fill_null(0.0), pl.col("_min_on").fill_null(0.0)
     )
     nxt_t = pl.col("t").shift(-1).over("sensor", order_by=["t", "line"])
@@ -312,7 +333,31 @@ def read_motion_csv(
 ) -> MotionRead:
     """Read ``motion.csv`` (or ``proximity.csv``): the whole toggle reader for one file."""
     path = Path(path)
-    return read_motion(read_csv_rows(path, TOGGLE_COLUMNS), sensors, epoch=epoch, path=path, rules=rules)
+    sensors = tuple(sensors)
+    typed = clean_toggle_rows(path, sensors, epoch=epoch)
+    if typed is None:
+        return read_motion(read_csv_rows(path, TOGGLE_COLUMNS), sensors, epoch=epoch, path=path, rules=rules)
+    return toggle_edges(typed, sensors, source=path.name, path=path, rules=rules)
+
+
+def clean_toggle_rows(
+    path: Path, sensors: tuple[str, ...], *, epoch: str | TimeOrigin | None = None, tolerance: float = REORDER_TOLERANCE_S
+) -> TypedRows | None:
+    """Pass 1 of :func:`read_motion` for a clean toggle log (:func:`~onebit.readers.rows.read_clean_csv`:
+    numeric ``t``, known sensors, values spelled as in :data:`TOGGLE_VALUES`, lower case),
+    typed by one ``pl.read_csv``; ``None`` when a row would be rejected by its fields (the
+    row-by-row path names it). Duplicates and rows out of order are found as for any file."""
+    spellings = list(TOGGLE_VALUES)
+    frame = read_clean_csv(path, {"t": pl.Float64, "sensor": pl.Enum(list(dict.fromkeys(sensors))), "value": pl.Enum(spellings)})
+    if frame is None:
+        return None
+    t = clean_time(frame["t"], epoch)
+    if t is None:
+        return None
+    on = pl.Series([TOGGLE_VALUES[v] for v in spellings], dtype=pl.Boolean)
+    # sensor stays an enum (the debounce's codes); every output table casts it to String
+    frame = frame.with_columns(t, on.gather(frame["value"].to_physical()).alias("value"))
+    return order_checks(frame, key=TOGGLE_COLUMNS, tolerance=tolerance, columns=TOGGLE_COLUMNS, source=path.name, path=path)
 
 
 def motion_frames(

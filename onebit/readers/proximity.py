@@ -17,8 +17,8 @@ from pathlib import Path
 import polars as pl
 
 from onebit.core.errors import ConfigError
-from onebit.readers.motion import TOGGLE_COLUMNS, DebounceRules, MotionRead, read_motion
-from onebit.readers.rows import RawRows, read_csv_rows
+from onebit.readers.motion import TOGGLE_COLUMNS, DebounceRules, MotionRead, read_motion, read_motion_csv
+from onebit.readers.rows import RawRows
 from onebit.core.tables import FRAMES, PROXIMITY, conform
 from onebit.core.config import check_range
 
@@ -66,8 +66,9 @@ def read_proximity(raw: RawRows, sensors: Sequence[str], *, epoch=None, path: Pa
 
 
 def read_proximity_csv(path: str | Path, sensors: Sequence[str], *, epoch=None, rules: DebounceRules | None = None) -> MotionRead:
-    path = Path(path)
-    return read_proximity(read_csv_rows(path, TOGGLE_COLUMNS), sensors, epoch=epoch, path=path, rules=rules)
+    """:func:`read_proximity` of ``proximity.csv`` (a clean file typed in one read, :func:`read_motion_csv`)."""
+    res = read_motion_csv(Path(path), sensors, epoch=epoch, rules=rules)
+    return MotionRead(conform(res.motion, PROXIMITY), res.rejects, res.suppressed, res.reordered)
 
 
 def proximity_frames(proximity: pl.DataFrame, sensors: Sequence[str], *, period: float, start: float | None = None,

@@ -21,6 +21,13 @@ quote or one ragged line costs that line alone:
 3. **Fields**: the lines that passed are split by polars' CSV parser. Each line carries its
    number into the parser as an extra first field, so a line number can never drift.
 
+**Clean files** skip all three: :func:`read_clean_csv` types the whole file with one
+``pl.read_csv`` (names and spellings as ``Enum`` columns) when it is UTF-8 without quotes,
+carriage returns or a byte-order mark and every line after the header is one record whose
+fields parse; its line numbers are then the row index + 2. The readers use it first and fall
+back to the physical-line path, which names every bad line, when it returns ``None``;
+``tests/readers/test_clean_path.py`` holds both paths to equal frames and rejects.
+
 Blank lines (empty, or spaces and tabs only) are not rows: accepted + rejected (+ suppressed,
 for toggle logs) = the non-blank lines after the header. The raw text and the reason of every
 reject are cut to :data:`onebit.core.errors.MAX_QUOTE` characters with the full length stated.
@@ -40,7 +47,7 @@ import polars as pl
 
 from onebit.core.errors import MAX_QUOTE, InputError
 from onebit.core.tables import REJECTS
-from onebit.readers.timebase import MAX_GAP_S, TimeOrigin, column_origin
+from onebit.readers.timebase import MAX_GAP_S, TimeOrigin, column_origin, number_column_origin
 
 EXTRA = "__extra__"
 #: The field separator and the quote character of onebit's CSV logs.
@@ -274,20 +281,79 @@ def read_csv_rows(path: str | Path, columns: tuple[str, ...]) -> RawRows:
     return RawRows(source, frame, make_rejects(bad, source, None))
 
 
+def read_clean_csv(path: str | Path, dtypes: dict[str, pl.DataType]) -> pl.DataFrame | None:
+    """The fast path of a clean CSV: one typed ``pl.read_csv`` of the whole file, or ``None``
+    when the file is not clean and :func:`read_csv_rows` must name its bad lines.
+
+    ``dtypes`` maps each wanted column to the type its every field must parse as (an ``Enum``
+    for names and spellings: a value outside it fails the read). The file is clean when it is
+    UTF-8 without a byte-order mark, quotes or carriage returns, its first line is the header
+    (at most :data:`MAX_HEADER_FIELDS` names, each wanted column once), and every later line
+    is one record whose wanted fields parse and are not empty. Then the typed read has exactly
+    one row per line after the header (a blank or short line gives a null, a long line fails
+    the read), and line numbers are the row index + 2. Returns ``line`` + the wanted columns.
+    """
+    try:
+        data = read_bytes(path)
+    except InputError:
+        return None
+    if not data or b'"' in data or b"\r" in data or data.startswith(codecs.BOM_UTF8):
+        return None
+    if not data.isascii():
+        try:
+            data.decode("utf-8")
+        except UnicodeDecodeError:
+            return None
+    end = data.find(b"\n")
+    if end <= 0:  # no data line, or a blank first line
+        return None
+    header = [name.strip() for name in data[:end].decode("utf-8").split(SEPARATOR)]
+    if len(header) > MAX_HEADER_FIELDS or any(header.count(c) != 1 for c in dtypes):
+        return None
+    n_lines = data.count(b"\n") + (not data.endswith(b"\n")) - 1
+    schema = {f"_f{i}": dtypes.get(name, pl.String) for i, name in enumerate(header)}
+    try:
+        frame = pl.read_csv(
+            data, has_header=False, skip_rows=1, schema=schema, columns=[header.index(c) for c in dtypes],
+            separator=SEPARATOR, quote_char=None, comment_prefix=None, raise_if_empty=False, truncate_ragged_lines=False,
+        )  # fmt: skip
+    except (pl.exceptions.ComputeError, pl.exceptions.PolarsError):
+        return None
+    if frame.height != n_lines or frame.null_count().sum_horizontal().item():
+        return None
+    frame = frame.rename({f"_f{header.index(c)}": c for c in dtypes}).select(*dtypes)
+    return frame.with_columns(pl.int_range(2, frame.height + 2, dtype=pl.Int64).alias("line")).select("line", *dtypes)
+
+
+def clean_time(t: pl.Series, epoch: "str | TimeOrigin | None") -> pl.Series | None:
+    """``t`` of a clean numeric column (Float64 stamps) as :func:`parse_time` computes it, or
+    ``None`` when a stamp would be rejected (not finite, or a lone stamp outside the window)."""
+    if not t.is_finite().all():
+        return None
+    origin = number_column_origin(t, epoch)
+    out = t - origin.numeric
+    if (math.isfinite(origin.lo) or math.isfinite(origin.hi)) and (
+        (out < origin.lo - 1e-3) | (out > origin.hi + 1e-3)
+    ).any():
+        return None
+    return out.alias("t")
+
+
 def _empty_rows(columns) -> pl.DataFrame:
     return pl.DataFrame(schema={"line": pl.Int64, **{c: pl.String for c in columns}, "raw": pl.String})
 
 
-def raw_lines(path: Path, lines: list[int]) -> dict[int, str]:
-    """The text of the given 1-based physical line numbers, each cut to
-    :data:`~onebit.core.errors.MAX_QUOTE` characters (read only when there are rejects)."""
+def raw_lines(path: Path, lines: list[int], *, limit: int | None = MAX_QUOTE) -> dict[int, str]:
+    """The text of the given 1-based physical line numbers, each cut to ``limit`` characters
+    (:data:`~onebit.core.errors.MAX_QUOTE`; ``None``: whole) (read only when there are rejects)."""
     if not lines:
         return {}
     try:
         data = read_bytes(path)
     except InputError:
         return {}
-    found = physical_lines(data).filter(pl.col("line").is_in(list(set(lines)))).select("line", _bounded("text"))
+    found = physical_lines(data).filter(pl.col("line").is_in(list(set(lines))))
+    found = found.select("line", "text" if limit is None else _bounded("text", limit))
     return dict(found.iter_rows())
 
 
@@ -437,30 +503,99 @@ def check_rows(
     reasons = [r for _, r in parsers.values()]
     typed = df.with_columns(pl.coalesce(reasons).alias("_reason")).with_columns(value_exprs)
     ok = typed.filter(pl.col("_reason").is_null())
-    first_line = pl.col("line").min().over(list(key))
-    ok = ok.with_columns(
-        pl.when(pl.col("line") != first_line).then(pl.format("duplicate of line {}", first_line)).otherwise(None).alias("_reason")
-    )
+    return order_checks(ok, key=key, tolerance=tolerance, field_bad=typed.filter(pl.col("_reason").is_not_null()),
+                        prior=raw.rejects, source=raw.source, path=path, columns=tuple(parsers))  # fmt: skip
+
+
+def in_time_order(t: pl.Series) -> bool:
+    """Whether ``t`` never decreases (one pass in numpy; nulls and NaN are never in order)."""
+    v = t.to_numpy()
+    return bool(v.size < 2 or (v[1:] >= v[:-1]).all())
+
+
+def by_time(rows: pl.DataFrame) -> pl.DataFrame:
+    """``rows`` sorted by ``t``, then ``line`` (file order within a stamp); no sort when both
+    already increase (the accepted rows of a log written in time order)."""
+    if in_time_order(rows["t"]) and in_time_order(rows["line"]):
+        return rows
+    return rows.sort(["t", "line"])
+
+
+def duplicate_of(ok: pl.DataFrame, key: tuple[str, ...]) -> pl.Series:
+    """For every row of ``ok`` (``line`` + the ``key`` columns, ``t`` among them), the first
+    ``line`` of an earlier row with the same ``key``, else null: found by one sort on the key and
+    a comparison of neighbours (no window over the key). Rows whose ``t`` no other row has
+    cannot be duplicates; when ``t`` never decreases in file order (the usual log) only the
+    runs of equal ``t`` are sorted."""
+    idx = pl.int_range(pl.len(), dtype=pl.Int64).alias("_i")
+    cand = ok.select(idx, "line", *key)
+    t = ok["t"]
+    if in_time_order(t):
+        tie = (t == t.shift(1)).fill_null(False) | (t == t.shift(-1)).fill_null(False)
+        cand = cand.filter(tie)
+    cand = cand.sort([*key, "line"])
+    same = pl.all_horizontal([pl.col(k).eq_missing(pl.col(k).shift(1)) for k in key]).fill_null(False)
+    cand = cand.with_columns(pl.when(same).then(None).otherwise(pl.col("line")).forward_fill().alias("_first"))
+    cand = cand.filter(pl.col("_first") != pl.col("line"))
+    out = pl.Series("_dup", [], dtype=pl.Int64).extend_constant(None, ok.height)
+    if cand.height:
+        out = out.scatter(cand["_i"], cand["_first"])
+    return out
+
+
+def order_checks(
+    ok: pl.DataFrame,
+    *,
+    key: tuple[str, ...],
+    tolerance: float,
+    columns: tuple[str, ...],
+    source: str,
+    path: Path | None,
+    field_bad: pl.DataFrame | None = None,
+    prior: pl.DataFrame | None = None,
+) -> TypedRows:
+    """The ordering checks of :func:`check_rows` on rows whose fields all parsed (``ok``: ``line``
+    + typed ``columns``, in file order): duplicates (:func:`duplicate_of`), then rows going
+    backwards by more than ``tolerance``. ``field_bad`` (rows rejected by their fields, with
+    ``_reason``) and ``prior`` (rejects already made) join the rejects."""
+    ok = ok.with_columns(duplicate_of(ok, key).alias("_dup"))
+    ok = ok.with_columns(pl.when(pl.col("_dup").is_not_null()).then(pl.format("duplicate of line {}", pl.col("_dup"))).alias("_reason"))
+    ok = ok.drop("_dup")
     dup = ok.filter(pl.col("_reason").is_not_null())
-    ok = ok.filter(pl.col("_reason").is_null()).sort("line")
-    prev_max = pl.col("t").cum_max().shift(1)
-    ok = ok.with_columns(
-        pl.when(pl.col("t") < prev_max - tolerance)
-        .then(
-            pl.format("timestamp goes backwards ({} after {})", pl.col("t"), prev_max)
-            if tolerance <= 0
-            else pl.format("timestamp goes backwards ({} after {}, more than {} s)", pl.col("t"), prev_max, pl.lit(tolerance))
-        )
-        .otherwise(None)
-        .alias("_reason"),
-        (pl.col("t") < prev_max).fill_null(False).alias("_late"),
-    )
-    back = ok.filter(pl.col("_reason").is_not_null())
     ok = ok.filter(pl.col("_reason").is_null())
-    reordered = int(ok["_late"].sum()) if ok.height else 0
-    bad = pl.concat([typed.filter(pl.col("_reason").is_not_null()), dup, back.drop("_late")], how="vertical_relaxed").sort("line")
-    rejects = pl.concat([raw.rejects, make_rejects(bad, raw.source, path)]).sort("line")
-    accepted = ok.select("line", *parsers.keys()).sort(["t", "line"])
+    if in_time_order(ok["t"]):  # never earlier than a row before it
+        back = ok.clear()
+        reordered = 0
+    else:
+        ok = ok.sort("line")
+        prev_max = pl.col("t").cum_max().shift(1)
+        ok = ok.with_columns(
+            pl.when(pl.col("t") < prev_max - tolerance)
+            .then(
+                pl.format("timestamp goes backwards ({} after {})", pl.col("t"), prev_max)
+                if tolerance <= 0
+                else pl.format("timestamp goes backwards ({} after {}, more than {} s)", pl.col("t"), prev_max, pl.lit(tolerance))
+            )
+            .otherwise(None)
+            .alias("_reason"),
+            (pl.col("t") < prev_max).fill_null(False).alias("_late"),
+        )
+        back = ok.filter(pl.col("_reason").is_not_null()).drop("_late")
+        ok = ok.filter(pl.col("_reason").is_null())
+        reordered = int(ok["_late"].sum()) if ok.height else 0
+    parts = [p for p in (field_bad, dup, back) if p is not None and p.height]
+    if parts:
+        bad = pl.concat(parts, how="vertical_relaxed").sort("line")
+        if path is not None and "raw" not in bad.columns:  # rows of the fast path: their text read back
+            text = raw_lines(path, bad["line"].to_list(), limit=None)
+            bad = bad.with_columns(pl.Series("raw", [text.get(i) for i in bad["line"].to_list()], dtype=pl.String))
+        made = make_rejects(bad, source, path)
+    else:
+        made = pl.DataFrame(schema=REJECTS)
+    rejects = made if prior is None else pl.concat([prior, made]).sort("line")
+    accepted = ok.select("line", *columns)
+    if reordered or not in_time_order(accepted["t"]):
+        accepted = accepted.sort(["t", "line"])
     return TypedRows(accepted, rejects, reordered)
 
 

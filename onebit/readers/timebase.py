@@ -46,6 +46,7 @@ from collections.abc import Mapping
 from dataclasses import dataclass
 from datetime import datetime, timezone
 
+import numpy as np
 import polars as pl
 
 from onebit.core.errors import InputError
@@ -167,6 +168,44 @@ def _stamps(sources: Mapping[str, pl.DataFrame], col: str) -> pl.DataFrame:
     return pl.concat(parts).sort("abs")
 
 
+def _kept_span(v: pl.Series, max_gap_s: float, lone_fraction: float) -> tuple[int, int]:
+    """``[i0, i1)``: the stamps of sorted ``v`` (non-empty) left once the lone clusters at either
+    end are cut off (module docstring)."""
+    a = v.to_numpy()
+    n = a.size
+    cut = np.flatnonzero(np.diff(a) > max_gap_s) + 1  # a cluster starts at each of these indices
+    bounds = [0, *cut.tolist(), n]
+    sizes = [b - a for a, b in zip(bounds[:-1], bounds[1:])]
+    limit = max(1, int(lone_fraction * n))
+    first, last = 0, len(sizes) - 1
+    while first < last and sizes[first] <= limit:
+        first += 1
+    while last > first and sizes[last] <= limit:
+        last -= 1
+    return bounds[first], bounds[last + 1]
+
+
+def number_column_origin(values: pl.Series, epoch: "str | TimeOrigin | None") -> TimeOrigin:
+    """:func:`column_origin` of a column whose stamps are all finite numbers, from their values
+    (Float64): what :func:`~onebit.readers.rows.parse_time` applies to a clean numeric log
+    without parsing its strings again. A :class:`TimeOrigin` is returned as it is."""
+    if isinstance(epoch, TimeOrigin):
+        return epoch
+    if values.len() == 0:
+        return TimeOrigin(iso=epoch_unix(epoch) if epoch is not None else None)
+    a = values.to_numpy()
+    v = values if a.size < 2 or (a[1:] >= a[:-1]).all() else values.sort()  # logs are mostly in order
+    i0, i1 = _kept_span(v, MAX_GAP_S, LONE_FRACTION)
+    lo_abs, hi_abs = float(v[i0]), float(v[i1 - 1])
+    lone = v.len() - (i1 - i0)
+    if epoch is not None:
+        e = epoch_unix(epoch)
+        return TimeOrigin(origin=e, numeric=0.0, iso=e, lo=lo_abs, hi=hi_abs, source="epoch", lone=lone)
+    origin = float(math.floor(lo_abs))
+    lo, hi = lo_abs - origin, hi_abs - origin  # as time_origin, then column_origin, compute them
+    return TimeOrigin(origin=0.0, numeric=0.0, iso=None, lo=lo + origin, hi=hi + origin, source="data", lone=lone)
+
+
 def time_origin(
     sources: Mapping[str, pl.DataFrame],
     *,
@@ -193,17 +232,8 @@ def time_origin(
         if epoch is not None:
             return TimeOrigin(origin=epoch_unix(epoch), numeric=0.0, iso=epoch_unix(epoch), source="epoch")
         return TimeOrigin()
-    v = st["abs"]
-    gap = v.diff().fill_null(0.0)
-    cluster = (gap > max_gap_s).cum_sum()
-    sizes = st.with_columns(cluster=cluster).group_by("cluster").agg(pl.len().alias("n")).sort("cluster")["n"].to_list()
-    limit = max(1, int(lone_fraction * n))
-    first, last = 0, len(sizes) - 1
-    while first < last and sizes[first] <= limit:
-        first += 1
-    while last > first and sizes[last] <= limit:
-        last -= 1
-    keep = st.with_columns(cluster=cluster).filter(pl.col("cluster").is_between(first, last))
+    i0, i1 = _kept_span(st["abs"], max_gap_s, lone_fraction)
+    keep = st.slice(i0, i1 - i0)
     lo_abs, hi_abs = float(keep["abs"][0]), float(keep["abs"][-1])
     if hi_abs - lo_abs > max_span_s:
         a, b = keep.row(0, named=True), keep.row(keep.height - 1, named=True)

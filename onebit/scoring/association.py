@@ -52,9 +52,11 @@ from typing import Literal
 
 import numpy as np
 import polars as pl
-from scipy.optimize import linear_sum_assignment
 
 from onebit.core.errors import OnebitError
+from onebit.core.lazy import lazy_module
+
+_optimize = lazy_module("scipy.optimize")
 
 #: Columns of :func:`associate`'s result.
 ASSOCIATION = pl.Schema({"track": pl.String, "target": pl.String, "cost": pl.Float64, "samples": pl.UInt32})
@@ -190,7 +192,7 @@ def associate(
     else:
         ok = finite & (C <= gate)
         W = np.where(ok, C, gate)
-    r, c = linear_sum_assignment(W)
+    r, c = _optimize.linear_sum_assignment(W)
     m = ok[r, c]
     out = pl.DataFrame({"track": tracks["track"].gather(r[m]), "target": targets["target"].gather(c[m])})
     return out.join(C_long, on=["track", "target"], how="left").select(list(ASSOCIATION)).sort("track")

@@ -5,7 +5,9 @@ from __future__ import annotations
 
 import numpy as np
 import polars as pl
-from scipy.optimize import linear_sum_assignment
+from onebit.core.lazy import lazy_module
+
+_optimize = lazy_module("scipy.optimize")
 
 def recovered_matches(corrected: pl.DataFrame, sim_crossings: pl.DataFrame) -> pl.DataFrame:
     """Dropped true crossings matched one-to-one to inserted crossings.
@@ -39,7 +41,7 @@ def recovered_matches(corrected: pl.DataFrame, sim_crossings: pl.DataFrame) -> p
     dt = np.abs(pairs["t_ins"].to_numpy() - pairs["t"].to_numpy())
     w = np.zeros((len(d_ids), len(r_ids)))
     w[di, ri] = 1.0 + 1.0 / (1.0 + dt)  # one restored crossing outweighs any time difference
-    a, b = linear_sum_assignment(w, maximize=True)
+    a, b = _optimize.linear_sum_assignment(w, maximize=True)
     ok = w[a, b] > 0
     got = pl.DataFrame({"drop_id": d_ids[a[ok]].astype(np.uint32), "inserted_row": r_ids[b[ok]].astype(np.int64)})
     return drops.join(got, on="drop_id", how="left").select("t", "beam", "direction", "target", "inserted_row")

@@ -63,10 +63,8 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Literal
 
-import motmetrics as mm
 import numpy as np
 import polars as pl
-from trackeval.metrics import HOTA
 
 from onebit.core.errors import OnebitError
 from onebit.core.region_graph import RegionGraph
@@ -76,6 +74,10 @@ from onebit.scoring.association import truth_at
 from onebit.scoring.crossings import truth_regions
 from onebit.scoring.findinghumo import truth_nodes
 from onebit.models.graph_hmm.eatg import hop_matrix
+from onebit.core.lazy import lazy_module
+
+mm = lazy_module("motmetrics")
+_trackeval_metrics = lazy_module("trackeval.metrics")
 
 ReportRow = tuple[str, str, float, str]
 
@@ -213,7 +215,7 @@ def mot_metrics(objects: pl.DataFrame, hypotheses: pl.DataFrame, distances: pl.D
         "tracker_ids": hyp_ids,
         "similarity_scores": sims,
     }
-    hota = HOTA().eval_sequence(data)
+    hota = _trackeval_metrics.HOTA().eval_sequence(data)
     return {
         "mota": float(s["mota"]) if n_obj else float("nan"),  # 1 - FP / 0: undefined without truth
         "motp": float(s["motp"]),

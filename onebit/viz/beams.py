@@ -18,7 +18,6 @@ from __future__ import annotations
 
 import numpy as np
 import polars as pl
-import rerun as rr
 import shapely
 
 from onebit.core.region_graph import RegionGraph
@@ -32,8 +31,12 @@ from onebit.viz.tracks import (
     track_colors,
     track_labels,
 )
+from onebit.core.lazy import lazy_module
+from onebit.viz.radii import ui_points
 
-MARK_RADIUS = rr.Radius.ui_points(9.0)
+rr = lazy_module("rerun")
+
+MARK_RADIUS = ui_points(9.0)
 _MARK_COLOR = {"ambiguous": colors.WARNING, "unexplained": (230, 0, 230, 255)}
 _MARK_TEXT = {"ambiguous": "ambiguous", "unexplained": "unexplained"}
 

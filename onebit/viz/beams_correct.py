@@ -16,13 +16,15 @@ from __future__ import annotations
 
 import numpy as np
 import polars as pl
-import rerun as rr
 
 from onebit.core.site import Site
 from onebit.viz import paths
 from onebit.viz._series import is_empty, require
 from onebit.viz.beams import beam_midpoints
 from onebit.viz.frame import log_world_frame
+from onebit.core.lazy import lazy_module
+
+rr = lazy_module("rerun")
 
 ROOT = "correct"
 OBSERVED = (150, 150, 150, 255)

@@ -41,7 +41,6 @@ from __future__ import annotations
 from collections.abc import Iterable, Mapping
 from pathlib import Path
 
-import rerun.blueprint as rrb
 
 from onebit.core import writers
 from onebit.viz import colors, paths
@@ -50,6 +49,9 @@ from onebit.viz.inspect import entity_archetypes, scalar_ranges, store_ids
 from onebit.viz.recording import APPLICATION_ID, close_recording, open_recording
 from onebit.viz.tracks import natural_key
 from onebit.viz.trails import TRAIL_S
+from onebit.core.lazy import lazy_module
+
+rrb = lazy_module("rerun.blueprint")
 
 #: File name of the run's blueprint, next to the recordings.
 BLUEPRINT_FILE = "blueprint.rbl"

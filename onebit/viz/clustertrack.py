@@ -23,12 +23,14 @@ from __future__ import annotations
 
 import numpy as np
 import polars as pl
-import rerun as rr
 
 from onebit.viz import colors, paths
 from onebit.viz._series import is_empty
 from onebit.viz.frame import log_world_frame
 from onebit.viz.tracks import log_point_tracks, track_colors, track_labels
+from onebit.core.lazy import lazy_module
+
+rr = lazy_module("rerun")
 
 #: A sensor that is on is a disk of its sensing radius (R_o; R_i darker inside when it differs),
 #: one that is off a small dot: the union of the disks is where the targets can be.

@@ -11,14 +11,17 @@ from __future__ import annotations
 
 import numpy as np
 import polars as pl
-import rerun as rr
 
 from onebit.core.site import Site
 from onebit.viz import colors, paths
 from onebit.viz._series import groups, is_empty, require
 from onebit.viz.frame import log_world_frame
+from onebit.core.lazy import lazy_module
+from onebit.viz.radii import ui_points
 
-CROSSED_WIDTH = rr.Radius.ui_points(4.0)
+rr = lazy_module("rerun")
+
+CROSSED_WIDTH = ui_points(4.0)
 
 
 def crossing_texts(crossings: pl.DataFrame) -> pl.Series:

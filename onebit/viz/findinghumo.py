@@ -22,12 +22,14 @@ from __future__ import annotations
 
 import numpy as np
 import polars as pl
-import rerun as rr
 
 from onebit.viz import paths
 from onebit.viz._series import groups, is_empty
 from onebit.viz.frame import log_world_frame
 from onebit.viz.tracks import log_point_tracks, track_colors, track_labels
+from onebit.core.lazy import lazy_module
+
+rr = lazy_module("rerun")
 
 NODE = (170, 170, 170, 255)
 ACTIVE = (200, 45, 40, 255)

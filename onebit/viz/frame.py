@@ -8,13 +8,15 @@ shows world coordinates and labels stay upright. Logging it again is harmless (s
 """
 
 from __future__ import annotations
+from onebit.core.lazy import lazy_module
 
-import rerun as rr
+rr = lazy_module("rerun")
 
-#: Mirror y: world (y up) -> Rerun 2D view (y down).
-Y_UP = rr.Transform3D(scale=[1.0, -1.0, 1.0])
+
+#: The world frame: y points up (a flip of the image-like y of site coordinates).
+Y_UP_SCALE = (1.0, -1.0, 1.0)
 
 
 def log_world_frame(rec: rr.RecordingStream, root: str) -> None:
     """Put the map geometry under ``root`` (one path part, e.g. ``"truth"``) in the y-up frame."""
-    rec.log(root.split("/")[0], Y_UP, static=True)
+    rec.log(root.split("/")[0], rr.Transform3D(scale=list(Y_UP_SCALE)), static=True)

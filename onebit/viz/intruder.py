@@ -21,24 +21,34 @@ component columns, never one ``log`` per iteration.
 
 from __future__ import annotations
 
+import functools
+
 from collections.abc import Sequence
 
 import numpy as np
 import polars as pl
-import rerun as rr
 
 from onebit.viz import colors, paths
 from onebit.viz._series import is_empty
 from onebit.viz.frame import log_world_frame
 from onebit.viz.tracks import log_point_tracks
+from onebit.core.lazy import lazy_module
+from onebit.viz.radii import ui_points
+
+rr = lazy_module("rerun")
 
 #: Colour and width of the field of view of a sensor that fired (the others are not drawn).
 FIRING = (235, 70, 60, 255)
-FOV_WIDTH = rr.Radius.ui_points(1.25)
+FOV_WIDTH = ui_points(1.25)
 
 #: The two states of a binary sensor in the state timeline, and their colours.
 ON, OFF = "on", "off"
-STATES = rr.StateConfiguration(values=[ON, OFF], colors=[colors.FIRING[:3], (60, 60, 60)])
+
+
+@functools.cache
+def _states():
+    """The on / off state configuration of the sensor timelines (built on first use: rerun is imported lazily)."""
+    return rr.StateConfiguration(values=[ON, OFF], colors=[colors.FIRING[:3], (60, 60, 60)])
 
 
 def log_motion_states(rec: rr.RecordingStream, motion: pl.DataFrame | None, sensors: Sequence[str]) -> None:
@@ -51,7 +61,7 @@ def log_motion_states(rec: rr.RecordingStream, motion: pl.DataFrame | None, sens
         if g.height == 0:
             continue
         entity = paths.sensor(sid)
-        rec.log(entity, STATES, static=True)
+        rec.log(entity, _states(), static=True)
         state = np.where(g["on"].to_numpy(), ON, OFF).tolist()
         rec.send_columns(entity, indexes=[paths.time_column(g["t"].to_numpy())], columns=rr.StateChange.columns(state=state))
 

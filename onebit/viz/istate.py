@@ -20,10 +20,8 @@ each). Entities (all through ``send_columns``, one call per entity):
 
 from __future__ import annotations
 
-import cv2
 import numpy as np
 import polars as pl
-import rerun as rr
 import shapely
 
 from onebit.viz import colors, paths
@@ -31,6 +29,11 @@ from onebit.viz._series import rings
 from onebit.viz.frame import log_world_frame
 from onebit.viz.tracks import log_point_tracks
 from onebit.viz.truth import log_truth
+from onebit.core.lazy import lazy_module
+from onebit.viz.radii import ui_points
+
+rr = lazy_module("rerun")
+cv2 = lazy_module("cv2")
 
 #: Element slot colours: the palette's strong colours, grey and brown last.
 _ELEMENT_ORDER = (0, 1, 2, 3, 4, 6, 8, 9, 5, 7)
@@ -38,7 +41,7 @@ _ELEMENT_ORDER = (0, 1, 2, 3, 4, 6, 8, 9, 5, 7)
 FILL_ALPHA = 0.25
 #: Long side of the fill image in pixels.
 FILL_PIXELS = 360
-OUTLINE_WIDTH = rr.Radius.ui_points(1.5)
+OUTLINE_WIDTH = ui_points(1.5)
 SENSING = (150, 150, 150, 90)
 
 

@@ -34,7 +34,9 @@ from __future__ import annotations
 from collections.abc import Iterable
 
 import numpy as np
-import rerun as rr
+from onebit.core.lazy import lazy_module
+
+rr = lazy_module("rerun")
 
 #: Name of the one time line: seconds since the dataset epoch, as a duration.
 TIMELINE = "t"

@@ -14,10 +14,12 @@ import threading
 from collections.abc import Iterator
 from pathlib import Path
 
-import rerun as rr
 
 from onebit.core import writers
 from onebit.core.errors import OnebitError
+from onebit.core.lazy import lazy_module
+
+rr = lazy_module("rerun")
 
 #: Application id of every onebit recording.
 APPLICATION_ID = "onebit"

@@ -10,19 +10,22 @@ shows only in 3D views); where a fill matters (I-states) it is an image placed o
 from __future__ import annotations
 
 import numpy as np
-import rerun as rr
 
 from onebit.core.region_graph import RegionGraph
 from onebit.core.site import Site
 from onebit.viz import colors, paths
 from onebit.viz._series import rings
 from onebit.viz.frame import log_world_frame
+from onebit.core.lazy import lazy_module
+from onebit.viz.radii import ui_points
+
+rr = lazy_module("rerun")
 
 #: Line widths in UI points (independent of the site's units).
-WALL_WIDTH = rr.Radius.ui_points(1.5)
-BEAM_WIDTH = rr.Radius.ui_points(1.5)
-REGION_WIDTH = rr.Radius.ui_points(1.0)
-LABEL_RADIUS = rr.Radius.ui_points(1.0)
+WALL_WIDTH = ui_points(1.5)
+BEAM_WIDTH = ui_points(1.5)
+REGION_WIDTH = ui_points(1.0)
+LABEL_RADIUS = ui_points(1.0)
 
 #: Region outlines and labels are neutral and dim: the regions' own colours are kept for the
 #: occupancy plot, and a colour on the map means an agent (its current region, outlined).

@@ -26,7 +26,6 @@ import re
 
 import numpy as np
 import polars as pl
-import rerun as rr
 import shapely
 
 from onebit.core.region_graph import RegionGraph
@@ -35,12 +34,16 @@ from onebit.viz._series import groups, is_empty, only_tracker, require, rings
 from onebit.viz.families import error_column
 from onebit.viz.frame import log_world_frame
 from onebit.viz.trails import log_dot, log_moving, log_trail
+from onebit.core.lazy import lazy_module
+from onebit.viz.radii import ui_points
+
+rr = lazy_module("rerun")
 
 #: Offset of a track's point from its region's representative point, as a fraction of the
 #: region's size (square root of its area).
 TRACK_OFFSET = 0.2
 _GOLDEN_ANGLE = np.pi * (3.0 - np.sqrt(5.0))
-REGION_WIDTH = rr.Radius.ui_points(3.0)
+REGION_WIDTH = ui_points(3.0)
 
 
 def natural_key(value: str) -> list:

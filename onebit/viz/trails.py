@@ -21,22 +21,25 @@ second of each demo run).
 from __future__ import annotations
 
 import numpy as np
-import rerun as rr
 
 from onebit.viz import colors, paths
 from onebit.viz._series import update_indices
+from onebit.core.lazy import lazy_module
+from onebit.viz.radii import ui_points
+
+rr = lazy_module("rerun")
 
 #: Default trail window (s): the visible time range of every ``.../trail`` entity.
 TRAIL_S = 10.0
 #: The static full path is thinned to at most this many vertices.
 MAX_PATH_VERTICES = 5000
 
-DOT_RADIUS = rr.Radius.ui_points(4.5)
-TRAIL_WIDTH = rr.Radius.ui_points(1.5)
-TRUTH_TRAIL_WIDTH = rr.Radius.ui_points(1.0)
-PATH_WIDTH = rr.Radius.ui_points(1.0)
-RING_WIDTH = rr.Radius.ui_points(1.5)
-LABEL_ANCHOR = rr.Radius.ui_points(0.75)
+DOT_RADIUS = ui_points(4.5)
+TRAIL_WIDTH = ui_points(1.5)
+TRUTH_TRAIL_WIDTH = ui_points(1.0)
+PATH_WIDTH = ui_points(1.0)
+RING_WIDTH = ui_points(1.5)
+LABEL_ANCHOR = ui_points(0.75)
 #: Where a truth label hangs, in ring radii from the ring's centre (left of the ring).
 LABEL_OFFSET = np.array([-3.4, 0.7])
 

@@ -86,15 +86,17 @@ import math
 from collections.abc import Callable
 from dataclasses import dataclass, field
 
-import networkx as nx
 import numpy as np
-from scipy.optimize import linear_sum_assignment
-from scipy.sparse import coo_matrix
-from scipy.sparse.csgraph import connected_components
 
+from onebit.core.lazy import lazy_module
 from onebit.models.graph_hmm.eatg import Eatg, onsets
 from onebit.models.graph_hmm.kernels import coordinate_ascent, emission_tables
 from onebit.models.graph_hmm.viterbi import log_safe, viterbi_first_order, viterbi_motion_second_order
+
+nx = lazy_module("networkx")
+_optimize = lazy_module("scipy.optimize")
+_csgraph = lazy_module("scipy.sparse.csgraph")
+_sparse = lazy_module("scipy.sparse")
 
 MODES = ("adaptive", "full1", "full2")
 
@@ -175,7 +177,7 @@ def motion_components(obs: np.ndarray, hops: np.ndarray) -> tuple[np.ndarray, np
         return t, j, t
     near = (np.abs(t[:, None] - t[None, :]) <= 1) & (hops[j[:, None], j[None, :]] <= 1)
     r, c = np.nonzero(near)
-    _, lab = connected_components(coo_matrix((np.ones(r.size), (r, c)), shape=(t.size, t.size)), directed=False)
+    _, lab = _csgraph.connected_components(_sparse.coo_matrix((np.ones(r.size), (r, c)), shape=(t.size, t.size)), directed=False)
     return t, j, lab
 
 
@@ -459,7 +461,7 @@ def _adaptive_window(obs, prefixes, starts, entry_nodes, eatg: Eatg, params: Dec
     pairs = [(i, int(np.flatnonzero(near[i])[0])) for i in range(k) if near[i].any()]
     if free_users and free_comps:  # users without a nearby component (new, uniform start) take the rest
         cost = np.array([[0.0 if anchor[i] < 0 else hops[anchor[i], comp_nodes[c]].min() for c in free_comps] for i in free_users])
-        r, cc = linear_sum_assignment(cost)
+        r, cc = _optimize.linear_sum_assignment(cost)
         pairs += [(free_users[a], free_comps[b]) for a, b in zip(r, cc)]
     paired = {i for i, _ in pairs}
     states_total = 0

@@ -33,11 +33,13 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-import networkx as nx
 import numpy as np
 import polars as pl
-from scipy.sparse import csr_matrix
-from scipy.sparse.csgraph import shortest_path
+from onebit.core.lazy import lazy_module
+
+nx = lazy_module("networkx")
+_csgraph = lazy_module("scipy.sparse.csgraph")
+_sparse = lazy_module("scipy.sparse")
 
 
 @dataclass(frozen=True)
@@ -88,8 +90,8 @@ def hop_matrix(nodes: tuple[str, ...], edges) -> np.ndarray:
     idx = {n: i for i, n in enumerate(nodes)}
     n = len(nodes)
     e = np.array([(idx[a], idx[b]) for a, b in edges], dtype=np.int64).reshape(-1, 2)
-    adj = csr_matrix((np.ones(len(e)), (e[:, 0], e[:, 1])), shape=(n, n))
-    d = shortest_path(adj, directed=False, unweighted=True)
+    adj = _sparse.csr_matrix((np.ones(len(e)), (e[:, 0], e[:, 1])), shape=(n, n))
+    d = _csgraph.shortest_path(adj, directed=False, unweighted=True)
     d[~np.isfinite(d)] = n + 1
     return d.astype(np.int64)
 

@@ -86,11 +86,13 @@ from dataclasses import dataclass
 from math import comb
 
 import numpy as np
-from scipy.sparse import csr_matrix
-from scipy.sparse.csgraph import shortest_path
 
 from onebit.trackers.beams import kernels
 from onebit.trackers.beams.assignment import region_deficits, region_events
+from onebit.core.lazy import lazy_module
+
+_csgraph = lazy_module("scipy.sparse.csgraph")
+_sparse = lazy_module("scipy.sparse")
 
 PLACEMENTS = ("earliest", "latest", "midpoint")
 _FAR = 10**6  # hop distance standing for "unreachable"
@@ -256,8 +258,8 @@ class RegionEdges:
     def from_arrays(cls, edge_source, edge_target, n_regions: int, *, beams=(), directions=()) -> "RegionEdges":
         es = np.asarray(edge_source, dtype=np.int64)
         et = np.asarray(edge_target, dtype=np.int64)
-        adj = csr_matrix((np.ones(len(es)), (es, et)), shape=(n_regions, n_regions))
-        dist, pred = shortest_path(adj, method="D", unweighted=True, return_predecessors=True)
+        adj = _sparse.csr_matrix((np.ones(len(es)), (es, et)), shape=(n_regions, n_regions))
+        dist, pred = _csgraph.shortest_path(adj, method="D", unweighted=True, return_predecessors=True)
         hops = np.where(np.isfinite(dist), dist, -1).astype(np.int64)
         first = np.full((n_regions, n_regions), -1, dtype=np.int64)
         order = np.arange(len(es))[::-1]  # assign in reverse so the lowest index wins

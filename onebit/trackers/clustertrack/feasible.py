@@ -22,10 +22,12 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-import cv2
 import numpy as np
 
 from onebit.core.sensing import detection_regions
+from onebit.core.lazy import lazy_module
+
+cv2 = lazy_module("cv2")
 
 #: Lengths below this (world units) are treated as empty.
 EPS = 1e-9

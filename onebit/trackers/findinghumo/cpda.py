@@ -43,10 +43,12 @@ from dataclasses import dataclass, field
 
 import numpy as np
 import polars as pl
-from scipy.sparse import csr_matrix
-from scipy.sparse.csgraph import connected_components
 
+from onebit.core.lazy import lazy_module
 from onebit.models.graph_hmm.viterbi import log_safe
+
+_csgraph = lazy_module("scipy.sparse.csgraph")
+_sparse = lazy_module("scipy.sparse")
 
 SWITCHES = pl.Schema({"slot": pl.Int64, "node": pl.String, "users": pl.String, "pairing": pl.String})
 
@@ -101,7 +103,7 @@ def colocation_events(paths: np.ndarray, feature: np.ndarray, hops: np.ndarray |
     ends = (meet & ~nxt).any(axis=(0, 1)) | (meet != nxt).any(axis=(0, 1)) & meet.any(axis=(0, 1))
     events = []
     for c in np.flatnonzero(ends).tolist():  # per event slot: groups = connected components
-        _, lab = connected_components(csr_matrix(meet[:, :, c]), directed=False)
+        _, lab = _csgraph.connected_components(_sparse.csr_matrix(meet[:, :, c]), directed=False)
         for g in np.unique(lab):
             users = np.flatnonzero(lab == g)
             if users.size >= 2:
@@ -121,7 +123,7 @@ def _neighbour_node(row: np.ndarray, node: int, start: int, stop: int, step: int
 
 def _connected(adj: np.ndarray) -> bool:
     """Whether the users of a meeting (adjacency ``adj`` between their nodes) still form one group."""
-    return connected_components(csr_matrix(adj), directed=False)[0] == 1
+    return _csgraph.connected_components(_sparse.csr_matrix(adj), directed=False)[0] == 1
 
 
 def junction_score(seq, log_a2: np.ndarray) -> float:

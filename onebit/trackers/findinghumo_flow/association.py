@@ -55,10 +55,13 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
-import networkx as nx
 import numpy as np
-from scipy.sparse import coo_matrix
-from scipy.sparse.csgraph import connected_components
+
+from onebit.core.lazy import lazy_module
+
+_nx = lazy_module("networkx")
+_csgraph = lazy_module("scipy.sparse.csgraph")
+_sparse = lazy_module("scipy.sparse")
 
 #: reward for covering a fragment (larger than any chain cost)
 BIG = 1e6
@@ -101,8 +104,8 @@ def meetings(paths: np.ndarray, hops: np.ndarray, feature: np.ndarray) -> list[M
     c = contact(paths, hops, feature)
     a, b, s = np.nonzero(c)
     vid = lambda uu, ss: ss * n_u + uu  # noqa: E731
-    g = coo_matrix((np.ones(a.size), (vid(a, s), vid(b, s))), shape=(n_u * d, n_u * d))
-    _, lab = connected_components(g, directed=False)
+    g = _sparse.coo_matrix((np.ones(a.size), (vid(a, s), vid(b, s))), shape=(n_u * d, n_u * d))
+    _, lab = _csgraph.connected_components(g, directed=False)
     lab = lab.reshape(d, n_u)  # (slot, track)
     inside = c.any(axis=1).T  # (slot, track): in contact with someone
     groups: list[tuple[int, tuple[int, ...]]] = []
@@ -253,7 +256,7 @@ def min_cost_cover(n: int, birth: np.ndarray, death: np.ndarray, joins: dict[tup
     Returns ``succ`` (n,) -- the fragment following each one, ``-1`` at a chain's end -- and
     the total cost (without the coverage rewards).
     """
-    g = nx.DiGraph()
+    g = _nx.DiGraph()
     g.add_node("s", demand=-n)
     g.add_node("t", demand=n)
     g.add_edge("s", "t", capacity=n, weight=0)
@@ -264,7 +267,7 @@ def min_cost_cover(n: int, birth: np.ndarray, death: np.ndarray, joins: dict[tup
         g.add_edge(("o", f), "t", capacity=1, weight=w(death[f]))
     for (f, h), c in joins.items():
         g.add_edge(("o", f), ("i", h), capacity=1, weight=w(c))
-    flow = nx.min_cost_flow(g)
+    flow = _nx.min_cost_flow(g)
     succ = np.full(n, -1, dtype=np.int64)
     total = 0.0
     for f in range(n):

@@ -25,14 +25,16 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-import networkx as nx
 import numpy as np
 import shapely
-from scipy.optimize import linear_sum_assignment
-from scipy.sparse.csgraph import shortest_path
 from shapely.geometry.base import BaseGeometry
 
 from onebit.trackers.istate.core import IState
+from onebit.core.lazy import lazy_module
+
+nx = lazy_module("networkx")
+_optimize = lazy_module("scipy.optimize")
+_csgraph = lazy_module("scipy.sparse.csgraph")
 
 
 # --------------------------------------------------------------------------- shortest paths
@@ -67,7 +69,7 @@ class ShortestPaths:
         from scipy.sparse import csr_matrix
 
         m = np.where(np.isfinite(w), w, 0.0)
-        self.dist, self.pred = shortest_path(csr_matrix(m), directed=False, return_predecessors=True) if N else (np.zeros((0, 0)), np.zeros((0, 0), int))
+        self.dist, self.pred = _csgraph.shortest_path(csr_matrix(m), directed=False, return_predecessors=True) if N else (np.zeros((0, 0)), np.zeros((0, 0), int))
 
     def _visible(self, p: np.ndarray) -> np.ndarray:
         if len(self.nodes) == 0:
@@ -215,7 +217,7 @@ def match_destinations(worst_distance: np.ndarray) -> np.ndarray:
     """Section VII-B: the minimum-weight perfect matching of trackers to destinations on the
     complete bipartite graph with weights = the largest possible distance
     (``worst_distance[j, d]``); returns the destination of each tracker."""
-    r, c = linear_sum_assignment(worst_distance)
+    r, c = _optimize.linear_sum_assignment(worst_distance)
     out = np.empty(worst_distance.shape[0], dtype=np.int64)
     out[r] = c
     return out

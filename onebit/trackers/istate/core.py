@@ -49,11 +49,13 @@ import math
 from dataclasses import dataclass
 from functools import lru_cache
 
-import networkx as nx
 import numpy as np
 import shapely
-from scipy.optimize import linear_sum_assignment
 from shapely.geometry.base import BaseGeometry
+from onebit.core.lazy import lazy_module
+
+nx = lazy_module("networkx")
+_optimize = lazy_module("scipy.optimize")
 
 #: Region shapes: exact polygons, or the smallest axis-aligned rectangle / disk containing them.
 SHAPES = ("exact", "rect", "disk")
@@ -597,7 +599,7 @@ def best_pairing(ov: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     vals = np.empty(len(flat))
     taus = np.empty((len(flat), n), dtype=np.int64)
     for p, m in enumerate(flat):
-        r, c = linear_sum_assignment(m, maximize=True)
+        r, c = _optimize.linear_sum_assignment(m, maximize=True)
         vals[p], taus[p, r] = m[r, c].sum(), c
     return vals.reshape(lead), taus.reshape(*lead, n)
 

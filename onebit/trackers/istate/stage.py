@@ -37,7 +37,6 @@ from dataclasses import dataclass
 import numpy as np
 import polars as pl
 import shapely
-from scipy.optimize import linear_sum_assignment
 
 from onebit.core.site import Site
 from onebit.core.errors import ConfigError
@@ -48,6 +47,9 @@ from onebit.readers.motion import ABSENT_AFTER_S, outside_silence, silent_stretc
 from onebit.trackers.base import ARTIFACTS, TrackerSpec
 from onebit.core.config import check_choice, check_range
 from onebit.trackers.istate.core import SHAPES, IState, disk, grow, info_state_update, shrink
+from onebit.core.lazy import lazy_module
+
+_optimize = lazy_module("scipy.optimize")
 
 NAME = "istate"
 
@@ -378,7 +380,7 @@ def _point_summary(eta: IState, prev: np.ndarray | None, n: int) -> np.ndarray:
     if prev is None or np.isnan(prev).any() or len(xy) != n:
         return xy if len(xy) == n else np.full((n, 2), np.nan)
     cost = np.hypot(*(prev[:, None, :] - xy[None, :, :]).transpose(2, 0, 1))
-    r, c = linear_sum_assignment(cost)
+    r, c = _optimize.linear_sum_assignment(cost)
     return xy[c[np.argsort(r)]]
 
 
