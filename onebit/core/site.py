@@ -572,4 +572,10 @@ def _camera(cam, err) -> Camera:
 
 
 def _is_matrix(v) -> bool:
-    return isinstance(v, list) and all(isinstance(r, list) for r in v)
+    """A non-empty list of equally long lists of numbers (never bools)."""
+    return (
+        isinstance(v, list)
+        and len(v) > 0
+        and all(isinstance(r, list) and len(r) == len(v[0]) for r in v)
+        and all(isinstance(x, (int, float)) and not isinstance(x, bool) for r in v for x in r)
+    )

@@ -248,3 +248,13 @@ def test_site_fuzz_only_site_errors_and_bounded(tmp_path_factory, blob):
         load_site(p)
     except SiteError as exc:
         assert len(str(exc)) <= 2300
+
+
+@pytest.mark.parametrize("h", ["[[0.0],[0,0.0],[]]", "[[1,0,0],[0,1,0],[0,0,true]]", "[]", '[[1,0,0],[0,1,0],[0,0,"1"]]'])
+def test_ragged_or_mistyped_homography_is_a_site_error(tmp_path, h):
+    # found by the site fuzz test: a ragged matrix reached numpy and raised a ValueError
+    p = tmp_path / "site.toml"
+    p.write_text('name="t"\nunits="m"\n[boundary]\npolygon=[[0,0],[10,0],[10,4],[0,4]]\n'
+                 f"[camera]\nwidth=6\nheight=4\nfps=10\nhomography={h}\n")  # fmt: skip
+    with pytest.raises(SiteError, match=r"camera\.homography"):
+        load_site(p)
