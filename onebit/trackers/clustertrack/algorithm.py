@@ -92,7 +92,12 @@ class RunResult:
 
 
 def _norm(v: np.ndarray) -> np.ndarray:
-    return np.sqrt(np.sum(v * v, axis=-1))
+    """Euclidean norm over the last axis: ``np.sqrt(np.sum(v * v, axis=-1))`` with the squares
+    added in the same order, without numpy's slow reduction over a length-1 or -2 axis."""
+    s = v[..., 0] * v[..., 0]
+    for q in range(1, v.shape[-1]):
+        s = s + v[..., q] * v[..., q]
+    return np.sqrt(s)
 
 
 #: Candidates to scan from which :func:`scan_clusters` runs the compiled scan by default.
@@ -106,14 +111,7 @@ PASS_COMPILED_MIN = 200_000
 def scan_order(cost: np.ndarray, L: int, rng: np.random.Generator) -> np.ndarray:
     """The candidates to scan, in scan order: the ``L`` cheapest, by increasing cost, ties
     in a random order (one random permutation of all candidates, then a stable sort)."""
-    n = cost.size
-    perm = rng.permutation(n)
-    lim = min(L, n)
-    if lim < n:
-        part = np.argpartition(cost[perm], lim - 1)[:lim]
-        sel = perm[part]
-    else:
-        sel = perm
+    sel = scan_selection(cost, L, rng)
     return sel[np.argsort(cost[sel], kind="stable")]
 
 
@@ -134,11 +132,52 @@ def scan_clusters(cost: np.ndarray, parent: np.ndarray, x: np.ndarray, pd: np.nd
     """
     if not (min(L, cost.size) >= SCAN_COMPILED_MIN if compiled is None else compiled):
         return scan_clusters_reference(cost, parent, x, pd, steps, H=H, K=K, L=L, D0=D0, rng=rng)
-    order = scan_order(cost, L, rng)
-    par = np.ascontiguousarray(parent[order], dtype=np.int64)
-    xs = np.ascontiguousarray(x[order], dtype=np.float64).reshape(order.size, -1)
-    k, lab, head, scanned = kernels.scan_sorted(par, xs, np.ascontiguousarray(pd, dtype=np.float64), float(steps), int(H), int(K), float(D0))
-    return order[k], lab, head, int(scanned)
+    sel = scan_selection(cost, L, rng)
+    key = cost[sel]
+    pdc = np.ascontiguousarray(pd, dtype=np.float64)
+    x2 = x.reshape(x.shape[0], -1)
+    first = min(sel.size, SCAN_PREFIX * max(int(K), 1))
+    while True:  # the scan order's first `first` candidates; more only if the scan needs them
+        order = sel[ordered_prefix(key, first)]
+        par = np.ascontiguousarray(parent[order], dtype=np.int64)
+        xs = np.ascontiguousarray(x2[order], dtype=np.float64)
+        k, lab, head, scanned = kernels.scan_sorted(par, xs, pdc, float(steps), int(H), int(K), float(D0))
+        if k.size >= K or first >= sel.size:
+            return order[k], lab, head, int(scanned)
+        first = sel.size
+
+
+#: :func:`scan_clusters` orders the first ``SCAN_PREFIX x K`` candidates (then all of them if the
+#: scan has not kept ``K`` by then): a rerun keeps its ``K`` from the first few dozen of
+#: thousands of candidates, which then need no full sort.
+SCAN_PREFIX = 4
+
+
+def scan_selection(cost: np.ndarray, L: int, rng: np.random.Generator) -> np.ndarray:
+    """The candidates :func:`scan_order` scans, before it sorts them (same random numbers):
+    one random permutation of all candidates, cut to the ``L`` cheapest."""
+    n = cost.size
+    perm = rng.permutation(n)
+    lim = min(L, n)
+    if lim < n:
+        return perm[np.argpartition(cost[perm], lim - 1)[:lim]]
+    return perm
+
+
+def ordered_prefix(key: np.ndarray, k: int) -> np.ndarray:
+    """The first ``k`` of ``np.argsort(key, kind="stable")`` in O(len(key) + k log k): every
+    position with a key below the ``k``-th smallest value, then the first positions holding
+    that value, sorted by key then position."""
+    n = key.size
+    if k >= n:
+        return np.argsort(key, kind="stable")
+    if k <= 0:
+        return np.zeros(0, dtype=np.int64)
+    v = np.partition(key, k - 1)[k - 1]
+    below = np.flatnonzero(key < v)
+    at = np.flatnonzero(key == v)[: k - below.size]
+    idx = np.sort(np.concatenate([below, at]))  # by position (the two are disjoint)
+    return idx[np.argsort(key[idx], kind="stable")]
 
 
 def scan_clusters_reference(cost: np.ndarray, parent: np.ndarray, x: np.ndarray, pd: np.ndarray, steps: int,
@@ -230,11 +269,11 @@ def cluster_track(space: FeasibleSpace, p: Params, rng: np.random.Generator, *, 
             x = last1 if step > 0 else np.zeros((1, dim))
             m_t = 1
         parent = np.repeat(np.arange(kprev), m_t)
-        if step >= 2:
-            inc = _norm(x + last2[parent] - 2.0 * last1[parent])
+        if step >= 2:  # ||x + x[n-1] - 2 x[n]|| with the parent's positions broadcast over its m_t children
+            inc = _norm(x.reshape(kprev, m_t, dim) + last2[:, None, :] - (2.0 * last1)[:, None, :]).reshape(-1)
         else:
             inc = np.zeros(x.shape[0])
-        c = cost[parent] + inc
+        c = np.repeat(cost, m_t) + inc
         kept, label, is_head, scanned = scan_clusters(
             c, parent, x, pd, step + 1, H=p.H, K=p.K, L=p.L, D0=p.D0, rng=rng, compiled=compiled
         )

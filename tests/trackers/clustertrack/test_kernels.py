@@ -13,9 +13,12 @@ from onebit.trackers.clustertrack.algorithm import (
     _norm,
     clustertrack,
     consensus,
+    ordered_prefix,
     rules_of_thumb,
     scan_clusters,
     scan_clusters_reference,
+    scan_order,
+    scan_selection,
     usage,
 )
 from onebit.trackers.clustertrack.feasible import SensorArray
@@ -72,3 +75,22 @@ def test_consensus_reuses_a_known_run():
     np.testing.assert_array_equal(a.tracks, b.tracks)
     np.testing.assert_array_equal(a.cluster, b.cluster)
     assert a.count == b.count
+
+
+@pytest.mark.parametrize("seed", range(30))
+def test_ordered_prefix_is_the_start_of_the_stable_argsort(seed):
+    rng = np.random.default_rng(seed)
+    n = int(rng.integers(1, 300))
+    key = rng.integers(0, int(rng.integers(1, 20)), n).astype(float) if seed % 2 else rng.random(n)  # many ties, or none
+    full = np.argsort(key, kind="stable")
+    for k in (0, 1, int(rng.integers(1, n + 1)), n, n + 5):
+        np.testing.assert_array_equal(ordered_prefix(key, k), full[: max(0, min(k, n))])
+
+
+@pytest.mark.parametrize("seed", range(10))
+def test_scan_order_is_the_selection_sorted_by_cost(seed):
+    rng = np.random.default_rng(seed)
+    cost = rng.integers(0, 5, 200).astype(float)
+    L = int(rng.integers(1, 250))
+    sel = scan_selection(cost, L, np.random.default_rng(seed))
+    np.testing.assert_array_equal(scan_order(cost, L, np.random.default_rng(seed)), sel[np.argsort(cost[sel], kind="stable")])
