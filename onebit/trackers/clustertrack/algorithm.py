@@ -269,17 +269,16 @@ def cluster_track(space: FeasibleSpace, p: Params, rng: np.random.Generator, *, 
             x = last1 if step > 0 else np.zeros((1, dim))
             m_t = 1
         parent = np.repeat(np.arange(kprev), m_t)
-        if step >= 2:  # ||x + x[n-1] - 2 x[n]|| with the parent's positions broadcast over its m_t children
-            inc = _norm(x.reshape(kprev, m_t, dim) + last2[:, None, :] - (2.0 * last1)[:, None, :]).reshape(-1)
+        if compiled:
+            c = kernels.candidate_costs(np.ascontiguousarray(x, dtype=np.float64), last1, last2, cost, m_t, step >= 2)
         else:
-            inc = np.zeros(x.shape[0])
-        c = np.repeat(cost, m_t) + inc
+            c = candidate_costs_reference(x, last1, last2, cost, m_t, step >= 2)
         kept, label, is_head, scanned = scan_clusters(
             c, parent, x, pd, step + 1, H=p.H, K=p.K, L=p.L, D0=p.D0, rng=rng, compiled=compiled
         )
         par = parent[kept]
         xk = x[kept]
-        pd = pd[np.ix_(par, par)] + _norm(xk[:, None, :] - xk[None, :, :])
+        pd = kernels.summed_distances(pd, par, xk) if compiled else summed_distances_reference(pd, par, xk)
         last2, last1 = last1[par], xk
         pos_hist.append(xk)
         par_hist.append(par)
@@ -302,6 +301,26 @@ def cluster_track(space: FeasibleSpace, p: Params, rng: np.random.Generator, *, 
             by_t[int(space.order[s])] = item
         particles = by_t
     return RunResult(tracks, cost[heads], kept_n, scanned_n, clusters_n, cand_n, particles, max_cluster)
+
+
+def candidate_costs_reference(x: np.ndarray, last1: np.ndarray, last2: np.ndarray, cost: np.ndarray, m_t: int,
+                              curvature: bool) -> np.ndarray:
+    """Cost of every candidate, ``(K m_t,)``: candidate ``a m_t + j`` extends particle ``a``
+    (last positions ``last1[a]``, ``last2[a]``, cost ``cost[a]``) by ``x[a m_t + j]``; it adds
+    the change in velocity ``||x + x[n-1] - 2 x[n]||`` when ``curvature`` (from the third
+    instant on). Plain reference of :func:`onebit.trackers.clustertrack.kernels.candidate_costs`."""
+    kprev, dim = cost.size, x.shape[-1]
+    if not curvature:
+        return np.repeat(cost, m_t) + np.zeros(x.shape[0])
+    inc = _norm(x.reshape(kprev, m_t, dim) + last2[:, None, :] - (2.0 * last1)[:, None, :]).reshape(-1)
+    return np.repeat(cost, m_t) + inc
+
+
+def summed_distances_reference(pd: np.ndarray, par: np.ndarray, xk: np.ndarray) -> np.ndarray:
+    """Summed distances between the kept particles ``(k, k)``: their parents' (``pd``) plus this
+    instant's ``||xk_a - xk_b||``. Plain reference of
+    :func:`onebit.trackers.clustertrack.kernels.summed_distances`."""
+    return pd[np.ix_(par, par)] + _norm(xk[:, None, :] - xk[None, :, :])
 
 
 def trajectory_distance(a: np.ndarray, b: np.ndarray) -> np.ndarray:
