@@ -59,43 +59,53 @@ TWO_PI = 2 * math.pi
 def _propagate_box(x, y, theta, v, rng, period, v_max, speed_sigma, turn_scale, max_retries, box):
     """:func:`onebit.models.motion.propagate` in a box room, in place; returns (redraws, clamped).
 
-    The particles still to place are kept packed (old position, orientation, speed and the
-    orientation noise scale ``min(pi, turn_scale / v)``, computed once) so every rejection
-    round reads them in order."""
+    The first round reads the particles where they are and writes an accepted proposal over
+    its particle (whose old state no other particle needs); only the rejected ones are packed
+    (old position, orientation, speed and the orientation noise scale ``min(pi, turn_scale / v)``)
+    for the next rounds, which read them in order. A proposal's orientation is reduced to
+    ``[0, 2 pi)`` when it is accepted; a particle never placed keeps its position and
+    orientation (reduced, as the reference does for every particle) with speed 0."""
     n = x.shape[0]
-    idx = np.arange(n)
-    ox, oy, oth, ov = x.copy(), y.copy(), theta.copy(), v.copy()
+    idx = np.empty(n, dtype=np.int64)
+    ox = np.empty(n)
+    oy = np.empty(n)
+    oth = np.empty(n)
+    ov = np.empty(n)
     sg = np.empty(n)
-    for p in range(n):
-        sg[p] = min(math.pi, turn_scale / max(v[p], 1e-9))
-        v[p] = 0.0  # a particle never placed stays with speed 0
+    bx0, by0, bx1, by1 = box[0], box[1], box[2], box[3]
     m = n
     redraws = 0
-    bx0, by0, bx1, by1 = box[0], box[1], box[2], box[3]
-    for _ in range(max_retries):
+    for rnd in range(max_retries):
         if m == 0:
             break
         dv = rng.normal(0.0, speed_sigma, m)
         dth = rng.normal(0.0, 1.0, m)
         keep = 0
+        first = rnd == 0
         for a in range(m):
-            vv = ov[a] + dv[a]
-            th = oth[a] + dth[a] * sg[a]
+            if first:  # the particle itself, not yet packed
+                p, px0, py0, th0, v0 = a, x[a], y[a], theta[a], v[a]
+                s = min(math.pi, turn_scale / max(v0, 1e-9))
+            else:
+                p, px0, py0, th0, v0, s = idx[a], ox[a], oy[a], oth[a], ov[a], sg[a]
+            vv = v0 + dv[a]
+            th = th0 + dth[a] * s
             if vv >= 0.0 and vv <= v_max:
                 step = vv * period
-                px = ox[a] + step * math.cos(th)
-                py = oy[a] + step * math.sin(th)
+                px = px0 + step * math.cos(th)
+                py = py0 + step * math.sin(th)
                 if px >= bx0 and px <= bx1 and py >= by0 and py <= by1:
-                    p = idx[a]
-                    x[p], y[p], theta[p], v[p] = px, py, th, vv
+                    x[p], y[p], theta[p], v[p] = px, py, np.mod(th, TWO_PI), vv
                     continue
-            idx[keep], ox[keep], oy[keep], oth[keep], ov[keep], sg[keep] = idx[a], ox[a], oy[a], oth[a], ov[a], sg[a]
+            idx[keep], ox[keep], oy[keep], oth[keep], ov[keep], sg[keep] = p, px0, py0, th0, v0, s
             keep += 1
         redraws += keep  # rejected proposals of this round
         m = keep
-    # the rest stay at their old (valid) position (x, y, theta untouched) with speed 0
-    for p in range(n):
+    # the rest stay at their old (valid) position with speed 0
+    for a in range(m):
+        p = idx[a] if max_retries > 0 else a  # no round: none was packed
         theta[p] = np.mod(theta[p], TWO_PI)
+        v[p] = 0.0
     return redraws, m
 
 

@@ -149,3 +149,19 @@ def test_prior_unchanged():
     a = prior(100, room, MOTION, np.random.default_rng(3))
     b = prior(100, room, MOTION, np.random.default_rng(3))
     np.testing.assert_array_equal(a.x, b.x)
+
+
+@pytest.mark.parametrize("retries", [0, 1, 3])
+def test_propagation_with_few_rounds_equals_reference(retries):
+    """Few rejection rounds: many particles are never placed (kept with speed 0)."""
+    rng = np.random.default_rng(retries)
+    dep = _random_deployment(rng, 5)
+    motion = Motion(period=2.0, v_max=4.0, speed_sigma=1.5, turn_scale=4.0, max_retries=retries)
+    fired = rng.random((6, 5)) < 0.3
+    blind = np.zeros((6, 5), bool)
+    room = Room(shapely.box(0, 0, 10, 8))
+    kw = dict(n_particles=400, half_w=1.0, half_d=1.0, log_particles=400)
+    _same(
+        run_filter(fired, blind, dep, room, motion, rng=np.random.default_rng(1), compiled=True, **kw),
+        run_filter_reference(fired, blind, dep, room, motion, rng=np.random.default_rng(1), **kw),
+    )
