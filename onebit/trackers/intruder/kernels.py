@@ -56,7 +56,7 @@ TWO_PI = 2 * math.pi
 
 
 @kernel
-def _propagate_box(x, y, theta, v, rng, period, v_max, speed_sigma, turn_scale, max_retries, box):
+def _propagate_box(x, y, theta, v, rng, period, v_max, speed_sigma, turn_scale, max_retries, box, idx, pack):
     """:func:`onebit.models.motion.propagate` in a box room, in place; returns (redraws, clamped).
 
     The first round reads the particles where they are and writes an accepted proposal over
@@ -64,14 +64,11 @@ def _propagate_box(x, y, theta, v, rng, period, v_max, speed_sigma, turn_scale, 
     (old position, orientation, speed and the orientation noise scale ``min(pi, turn_scale / v)``)
     for the next rounds, which read them in order. A proposal's orientation is reduced to
     ``[0, 2 pi)`` when it is accepted; a particle never placed keeps its position and
-    orientation (reduced, as the reference does for every particle) with speed 0."""
+    orientation (reduced, as the reference does for every particle) with speed 0.
+
+    ``idx (N,)`` and ``pack (5, N)`` are workspace (kept by the caller across iterations)."""
     n = x.shape[0]
-    idx = np.empty(n, dtype=np.int64)
-    ox = np.empty(n)
-    oy = np.empty(n)
-    oth = np.empty(n)
-    ov = np.empty(n)
-    sg = np.empty(n)
+    ox, oy, oth, ov, sg = pack[0], pack[1], pack[2], pack[3], pack[4]
     bx0, by0, bx1, by1 = box[0], box[1], box[2], box[3]
     m = n
     redraws = 0
@@ -242,15 +239,13 @@ def _log_likelihood(x, y, fired, blind, grid, cell_ptr, cell_sensor, cell_q, p0,
 
 
 @kernel
-def _estimate(x, y, w, grid, half_w, half_d, mask, d):
+def _estimate(x, y, w, grid, half_w, half_d, mask, d, cells):
     """:func:`onebit.trackers.intruder.filter.estimate_cell` (difference array in the same
-    order of additions as its four ``np.add.at``); ``d`` is ``(ny + 1, nx + 1)`` scratch."""
+    order of additions as its four ``np.add.at``); ``d`` is ``(ny + 1, nx + 1)`` scratch,
+    ``cells`` ``(4, N)`` int64 scratch."""
     x0, y0, c, nx, ny = grid[0], grid[1], grid[2], int(grid[3]), int(grid[4])
     N = x.shape[0]
-    ilo = np.empty(N, dtype=np.int64)
-    ihi = np.empty(N, dtype=np.int64)
-    jlo = np.empty(N, dtype=np.int64)
-    jhi = np.empty(N, dtype=np.int64)
+    ilo, ihi, jlo, jhi = cells[0], cells[1], cells[2], cells[3]
     for p in range(N):
         ilo[p] = int(min(max(math.ceil((x[p] - half_w - x0) / c - 0.5 - 1e-12), 0.0), float(nx)))
         ihi[p] = int(min(max(math.floor((x[p] + half_w - x0) / c - 0.5 + 1e-12), -1.0), float(nx - 1)))
@@ -287,10 +282,10 @@ def _estimate(x, y, w, grid, half_w, half_d, mask, d):
 
 
 @kernel
-def _resample(w, rng, systematic, idx):
-    """Systematic (one uniform) or multinomial (``N`` uniforms) resampling indices into ``idx``."""
+def _resample(w, rng, systematic, idx, cs):
+    """Systematic (one uniform) or multinomial (``N`` uniforms) resampling indices into ``idx``
+    (``cs``: ``(N,)`` scratch for the cumulative weights)."""
     n = w.shape[0]
-    cs = np.empty(n)
     s = 0.0
     for i in range(n):
         s += w[i]
@@ -312,14 +307,16 @@ def _resample(w, rng, systematic, idx):
 @kernel
 def _update(k, x, y, theta, v, w, uniform, rng, fired, blind, grid, cell_ptr, cell_sensor, cell_q, p0, xi, a,
             half_w, half_d, mask, systematic, always, ess_threshold, pick,
-            lw, scratch, idx, est, ess, resampled, logged_xy, logged_w, spread):
+            lw, scratch, idx, est, ess, resampled, logged_xy, logged_w, spread, cells, buf):
     """Weigh, estimate, log and resample after the propagation of iteration ``k``; returns
-    whether the weights are uniform afterwards."""
+    whether the weights are uniform afterwards. ``lw``, ``idx``, ``buf`` ``(N,)``, ``cells``
+    ``(4, N)`` and ``scratch`` are workspace."""
     N = x.shape[0]
     _log_likelihood(x, y, fired, blind, grid, cell_ptr, cell_sensor, cell_q, p0, xi, a, half_w, half_d, lw)
     mx = -np.inf
+    log_uniform = math.log(1.0 / N)
     for p in range(N):
-        lw[p] += math.log(1.0 / N) if uniform else math.log(max(w[p], 1e-300))
+        lw[p] += log_uniform if uniform else math.log(max(w[p], 1e-300))
         if lw[p] > mx:
             mx = lw[p]
     tot = 0.0
@@ -327,16 +324,15 @@ def _update(k, x, y, theta, v, w, uniform, rng, fired, blind, grid, cell_ptr, ce
         w[p] = math.exp(lw[p] - mx)
         tot += w[p]
     s2 = 0.0
+    mxw, myw = 0.0, 0.0
     for p in range(N):
         w[p] = w[p] / tot
         s2 += w[p] * w[p]
-    ess[k] = 1.0 / s2
-    ex, ey = _estimate(x, y, w, grid, half_w, half_d, mask, scratch)
-    est[k, 0], est[k, 1] = ex, ey
-    mxw, myw = 0.0, 0.0
-    for p in range(N):
         mxw += w[p] * x[p]
         myw += w[p] * y[p]
+    ess[k] = 1.0 / s2
+    ex, ey = _estimate(x, y, w, grid, half_w, half_d, mask, scratch, cells)
+    est[k, 0], est[k, 1] = ex, ey
     sp = 0.0
     for p in range(N):
         sp += w[p] * ((x[p] - mxw) ** 2 + (y[p] - myw) ** 2)
@@ -345,10 +341,11 @@ def _update(k, x, y, theta, v, w, uniform, rng, fired, blind, grid, cell_ptr, ce
         logged_xy[k, j, 0], logged_xy[k, j, 1] = x[pick[j]], y[pick[j]]
         logged_w[k, j] = w[pick[j]]
     if always or ess[k] < ess_threshold * N:
-        _resample(w, rng, systematic, idx)
+        _resample(w, rng, systematic, idx, buf)
         for arr in (x, y, theta, v):
-            tmp = arr[idx]
-            arr[:] = tmp
+            for p in range(N):
+                buf[p] = arr[idx[p]]
+            arr[:] = buf
         for p in range(N):
             w[p] = 1.0 / N
         resampled[k] = True
@@ -360,18 +357,22 @@ def _update(k, x, y, theta, v, w, uniform, rng, fired, blind, grid, cell_ptr, ce
 def _run_box(x, y, theta, v, w, rng, fired, blind, motion, box, grid, cell_ptr, cell_sensor, cell_q, p0, xi, a,
              half_w, half_d, mask, systematic, always, ess_threshold, pick,
              est, ess, redraws, clamped, resampled, logged_xy, logged_w, spread):
-    """Every iteration in a box room: propagate then :func:`_update` (see the module docstring)."""
+    """Every iteration in a box room: propagate then :func:`_update` (see the module docstring),
+    with one workspace for the whole run (no allocation per iteration)."""
     N = x.shape[0]
     lw = np.empty(N)
     scratch = np.empty((int(grid[4]) + 1, int(grid[3]) + 1))
     idx = np.empty(N, dtype=np.int64)
+    buf = np.empty(N)
+    cells = np.empty((4, N), dtype=np.int64)
+    pack = np.empty((5, N))
     uniform = False
     for k in range(fired.shape[0]):  # sequential: each iteration needs the previous posterior
-        r, c = _propagate_box(x, y, theta, v, rng, motion[0], motion[1], motion[2], motion[3], int(motion[4]), box)
+        r, c = _propagate_box(x, y, theta, v, rng, motion[0], motion[1], motion[2], motion[3], int(motion[4]), box, idx, pack)
         redraws[k], clamped[k] = r, c
         uniform = _update(k, x, y, theta, v, w, uniform, rng, fired[k], blind[k], grid, cell_ptr, cell_sensor, cell_q,
                           p0, xi, a, half_w, half_d, mask, systematic, always, ess_threshold, pick,
-                          lw, scratch, idx, est, ess, resampled, logged_xy, logged_w, spread)
+                          lw, scratch, idx, est, ess, resampled, logged_xy, logged_w, spread, cells, buf)
 
 
 @kernel
@@ -383,7 +384,7 @@ def _update_one(k, x, y, theta, v, w, uniform, rng, fired, blind, grid, cell_ptr
     return _update(k, x, y, theta, v, w, uniform, rng, fired, blind, grid, cell_ptr, cell_sensor, cell_q, p0, xi, a,
                    half_w, half_d, mask, systematic, always, ess_threshold, pick,
                    np.empty(N), np.empty((int(grid[4]) + 1, int(grid[3]) + 1)), np.empty(N, dtype=np.int64),
-                   est, ess, resampled, logged_xy, logged_w, spread)
+                   est, ess, resampled, logged_xy, logged_w, spread, np.empty((4, N), dtype=np.int64), np.empty(N))
 
 
 # --------------------------------------------------------------------------- the deployment per cell
