@@ -56,7 +56,7 @@ TWO_PI = 2 * math.pi
 
 
 @kernel
-def _propagate_box(x, y, theta, v, rng, period, v_max, speed_sigma, turn_scale, max_retries, box, idx, pack):
+def _propagate_box(x, y, theta, v, rng, period, v_max, speed_sigma, turn_scale, max_retries, box, idx, pack, noise):
     """:func:`onebit.models.motion.propagate` in a box room, in place; returns (redraws, clamped).
 
     The first round reads the particles where they are and writes an accepted proposal over
@@ -66,17 +66,22 @@ def _propagate_box(x, y, theta, v, rng, period, v_max, speed_sigma, turn_scale, 
     ``[0, 2 pi)`` when it is accepted; a particle never placed keeps its position and
     orientation (reduced, as the reference does for every particle) with speed 0.
 
-    ``idx (N,)`` and ``pack (5, N)`` are workspace (kept by the caller across iterations)."""
+    ``idx (N,)``, ``pack (5, N)`` and ``noise (2, N)`` are workspace (kept by the caller across
+    iterations); a round's noises are drawn one by one into ``noise``, the same numbers as
+    ``rng.normal(0, sigma, m)``."""
     n = x.shape[0]
     ox, oy, oth, ov, sg = pack[0], pack[1], pack[2], pack[3], pack[4]
+    dv, dth = noise[0], noise[1]
     bx0, by0, bx1, by1 = box[0], box[1], box[2], box[3]
     m = n
     redraws = 0
     for rnd in range(max_retries):
         if m == 0:
             break
-        dv = rng.normal(0.0, speed_sigma, m)
-        dth = rng.normal(0.0, 1.0, m)
+        for a in range(m):  # all the speed noises of the round, then all the orientation noises
+            dv[a] = rng.normal(0.0, speed_sigma)
+        for a in range(m):
+            dth[a] = rng.normal(0.0, 1.0)
         keep = 0
         first = rnd == 0
         for a in range(m):
@@ -366,9 +371,10 @@ def _run_box(x, y, theta, v, w, rng, fired, blind, motion, box, grid, cell_ptr, 
     buf = np.empty(N)
     cells = np.empty((4, N), dtype=np.int64)
     pack = np.empty((5, N))
+    noise = np.empty((2, N))
     uniform = False
     for k in range(fired.shape[0]):  # sequential: each iteration needs the previous posterior
-        r, c = _propagate_box(x, y, theta, v, rng, motion[0], motion[1], motion[2], motion[3], int(motion[4]), box, idx, pack)
+        r, c = _propagate_box(x, y, theta, v, rng, motion[0], motion[1], motion[2], motion[3], int(motion[4]), box, idx, pack, noise)
         redraws[k], clamped[k] = r, c
         uniform = _update(k, x, y, theta, v, w, uniform, rng, fired[k], blind[k], grid, cell_ptr, cell_sensor, cell_q,
                           p0, xi, a, half_w, half_d, mask, systematic, always, ess_threshold, pick,
