@@ -23,7 +23,10 @@ whose running minimum is >= D_0 (the minimum only over heads founded before it, 
 sequential scan). The trajectory part of D is kept as a matrix of summed distances between
 surviving particles, updated per instant as ``PD_t = PD_{t-1}[parent, parent] + ||x_a - x_b||``,
 so D costs O(1) per pair. Cluster ranks come from one stable sort; the H cap and the K / L
-stops are cumulative sums.
+stops are cumulative sums. The compiled pass (:mod:`onebit.trackers.clustertrack.kernels`)
+computes the candidates' costs and the survivors' summed distances in one loop each, and
+sorts only the start of the scan order the scan reaches (a rerun, ``K = H q``, keeps its
+``K`` within the first few dozen of ``K m_t`` candidates).
 
 Ties in cost (every cost is 0 for t <= 2) are broken in a random order, so the first
 instants keep a random subset rather than the first particles generated.
@@ -126,7 +129,10 @@ def scan_clusters(cost: np.ndarray, parent: np.ndarray, x: np.ndarray, pd: np.nd
 
     The order (:func:`scan_order`) is numpy; the scan itself, sequential by nature, is the
     compiled :func:`onebit.trackers.clustertrack.kernels.scan_sorted`, which stops at the
-    ``K``-th kept candidate (:func:`scan_clusters_reference` is its numpy reference).
+    ``K``-th kept candidate (:func:`scan_clusters_reference` is its numpy reference). Only
+    the start of the order is sorted (:func:`ordered_prefix`, the first ``SCAN_PREFIX x K``;
+    all of it if the scan has not kept ``K`` by then): an Appendix B rerun keeps its ``K``
+    among the first few dozen of thousands of candidates.
     ``compiled=None``: the kernel from :data:`SCAN_COMPILED_MIN` candidates to scan on
     (below, the numpy scan; same result).
     """
