@@ -29,8 +29,12 @@ Likelihood without temporaries. Section VII-B.2 of the paper (see
     log P(S_i = 0 | x) = xi_i log(1 - p0_i) + sum_{k touched, q_ik > 0} log(L_ik / (1 - p0_i))
 
 Only cells of a sensor's region ``R_i`` under the particle's box change the sensor's
-factor, so the deployment is stored per cell (a CSR list of the sensors whose ``q_ik > 0``)
-and each particle visits its ``K`` touched cells once, accumulating per sensor
+factor, so the deployment is stored per cell (a CSR list of the sensors whose ``q_ik > 0``).
+Particles whose boxes start in the same cell touch the same block of cells, so they are
+grouped by that cell (a counting sort) and each cell's entries are applied to a batch of up
+to 256 of them at once (a loop over particles the compiler vectorises; a particle whose box
+misses the cell takes the factor 1 exactly). Each particle thus meets its ``K`` touched
+cells once, in the same order as alone, accumulating per sensor
 ``D_i = prod_k (L_ik / (1 - p0_i)) - 1`` (``D <- D + d + D d``, exact for small factors, so
 ``-expm1(log1p(D) + ...)`` keeps the precision of the reference's sum of logs). A sensor
 whose region the box misses contributes the constant of an empty neighbourhood, summed
@@ -187,57 +191,101 @@ def _log_likelihood(x, y, fired, blind, grid, cell_ptr, cell_sensor, cell_q, p0,
         lptr[cell + 1] = m
     kx = int(math.ceil(2 * half_w / c)) + 1
     ky = int(math.ceil(2 * half_d / c)) + 1
+    # particles by the first cell (ix0, iy0) of their box: those sharing it touch the same
+    # kx x ky block of cells, so each cell's entries are applied to a batch of them at once
+    # (a loop over particles the compiler vectorises); origins with no cell of the block in
+    # the grid touch nothing
+    gx, gy = nx + kx - 1, ny + ky - 1
+    org = np.empty(N, dtype=np.int64)
+    count = np.zeros(gx * gy + 2, dtype=np.int64)
+    for p in range(N):
+        jx = int(math.floor((x[p] - half_w - x0) / c)) + kx - 1
+        jy = int(math.floor((y[p] - half_d - y0) / c)) + ky - 1
+        o = jy * gx + jx if 0 <= jx < gx and 0 <= jy < gy else gx * gy
+        org[p] = o
+        count[o + 2] += 1
+    for o in range(gx * gy + 1):
+        count[o + 2] += count[o + 1]
+    order = np.empty(N, dtype=np.int64)
+    for p in range(N):
+        o = org[p] + 1
+        order[count[o]] = p
+        count[o] += 1
+    # origin o's particles: order[count[o]:count[o + 1]] (o = gx gy: no cell of the block in the grid)
+    CH = 256
+    Vs = np.empty((kx * ky, CH))
+    F = np.ones((n, CH))
+    D = np.zeros((n, CH))
     ox = np.empty(kx)
     oy = np.empty(ky)
-    D = np.zeros(n)
-    F = np.ones(n)
-    for p in range(N):
-        xp, yp = x[p], y[p]
-        ix0 = int(math.floor((xp - half_w - x0) / c))
-        iy0 = int(math.floor((yp - half_d - y0) / c))
-        for b in range(kx):
-            ix = ix0 + b
-            left = x0 + ix * c
-            o = min(xp + half_w, left + c) - max(xp - half_w, left)
-            ox[b] = min(max(o, 0.0), c) / c if 0 <= ix < nx else 0.0
-        for b in range(ky):
-            iy = iy0 + b
-            bottom = y0 + iy * c
-            o = min(yp + half_d, bottom + c) - max(yp - half_d, bottom)
-            oy[b] = min(max(o, 0.0), c) / c if 0 <= iy < ny else 0.0
-        for by in range(ky):
-            if oy[by] == 0.0:
-                continue
-            row = (iy0 + by) * nx + ix0
-            for bx in range(kx):
-                V = oy[by] * ox[bx]
-                if V == 0.0:
-                    continue
-                cell = row + bx
-                for e in range(lptr[cell], lptr[cell + 1]):
-                    i = lsen[e]
-                    r = max(lomp[e] - V * lqq[e], PROB_FLOOR) * linv[e]
-                    d = r - 1.0
-                    Di = D[i]
-                    D[i] = Di + d + Di * d  # (1 + D)(1 + d) - 1: precise near a product of 1
-                    F[i] *= r  # the product itself: precise when it is small
-        acc = base
-        prod = 1.0
-        for t in range(n_live):
-            i = live[t]
-            Fi = F[i]
-            Di = D[i] if Fi > 0.5 else Fi - 1.0
-            D[i], F[i] = 0.0, 1.0
-            if fired[i]:
-                prod *= min(max(alpha[i] + beta[i] * Di, PROB_FLOOR), 1.0) * gamma[i]
-            elif slow[i]:
-                acc += max(ci[i] + math.log(Fi), LOG_FLOOR) - LOG_FLOOR
-            else:
-                prod *= max(Fi, lo[i])
-            if prod < 1e-200 or prod > 1e200:
-                acc += math.log(prod)
+    touched = np.zeros(n, dtype=np.bool_)
+    for o in range(gx * gy + 1):
+        lo_o, hi_o = count[o], count[o + 1]
+        for b0 in range(lo_o, hi_o, CH):
+            m = min(CH, hi_o - b0)
+            if o < gx * gy:
+                ix0, iy0 = o % gx - (kx - 1), o // gx - (ky - 1)
+                for j in range(m):  # each particle's fractions of the block's cells
+                    p = order[b0 + j]
+                    xp, yp = x[p], y[p]
+                    for b in range(kx):
+                        ix = ix0 + b
+                        left = x0 + ix * c
+                        ov = min(xp + half_w, left + c) - max(xp - half_w, left)
+                        ox[b] = min(max(ov, 0.0), c) / c if 0 <= ix < nx else 0.0
+                    for b in range(ky):
+                        iy = iy0 + b
+                        bottom = y0 + iy * c
+                        ov = min(yp + half_d, bottom + c) - max(yp - half_d, bottom)
+                        oy[b] = min(max(ov, 0.0), c) / c if 0 <= iy < ny else 0.0
+                    for by in range(ky):
+                        for bx in range(kx):
+                            Vs[by * kx + bx, j] = oy[by] * ox[bx]
+                for by in range(ky):
+                    iy = iy0 + by
+                    if iy < 0 or iy >= ny:
+                        continue
+                    for bx in range(kx):
+                        ix = ix0 + bx
+                        if ix < 0 or ix >= nx:
+                            continue
+                        cell = iy * nx + ix
+                        Vb = Vs[by * kx + bx]
+                        for e in range(lptr[cell], lptr[cell + 1]):
+                            i = lsen[e]
+                            touched[i] = True
+                            Fi, Di = F[i], D[i]
+                            le, lq, li = lomp[e], lqq[e], linv[e]
+                            for j in range(m):  # a particle whose box misses the cell (V = 0): factor 1
+                                V = Vb[j]
+                                r = max(le - V * lq, PROB_FLOOR) * li if V != 0.0 else 1.0
+                                d = r - 1.0
+                                Di[j] = Di[j] + d + Di[j] * d  # (1 + D)(1 + d) - 1: precise near a product of 1
+                                Fi[j] *= r  # the product itself: precise when it is small
+            for j in range(m):
+                p = order[b0 + j]
+                acc = base
                 prod = 1.0
-        out[p] = acc + math.log(prod)
+                for t in range(n_live):
+                    i = live[t]
+                    Fi = F[i, j]
+                    Di = D[i, j] if Fi > 0.5 else Fi - 1.0
+                    if fired[i]:
+                        prod *= min(max(alpha[i] + beta[i] * Di, PROB_FLOOR), 1.0) * gamma[i]
+                    elif slow[i]:
+                        acc += max(ci[i] + math.log(Fi), LOG_FLOOR) - LOG_FLOOR
+                    else:
+                        prod *= max(Fi, lo[i])
+                    if prod < 1e-200 or prod > 1e200:
+                        acc += math.log(prod)
+                        prod = 1.0
+                out[p] = acc + math.log(prod)
+            for i in range(n):  # reset what this batch touched
+                if touched[i]:
+                    touched[i] = False
+                    for j in range(m):
+                        F[i, j] = 1.0
+                        D[i, j] = 0.0
 
 
 # --------------------------------------------------------------------------- estimate, resample
