@@ -60,22 +60,27 @@ TWO_PI = 2 * math.pi
 
 
 @kernel
-def _propagate_box(x, y, theta, v, rng, period, v_max, speed_sigma, turn_scale, max_retries, box, idx, pack, noise):
+def _propagate_box(x, y, theta, v, rng, period, v_max, speed_sigma, turn_scale, max_retries, box, idx, pack, noise,
+                   work, cand):
     """:func:`onebit.models.motion.propagate` in a box room, in place; returns (redraws, clamped).
 
-    The first round reads the particles where they are and writes an accepted proposal over
-    its particle (whose old state no other particle needs); only the rejected ones are packed
-    (old position, orientation, speed and the orientation noise scale ``min(pi, turn_scale / v)``)
-    for the next rounds, which read them in order. A proposal's orientation is reduced to
-    ``[0, 2 pi)`` when it is accepted; a particle never placed keeps its position and
-    orientation (reduced, as the reference does for every particle) with speed 0.
+    Each rejection round runs in three passes with few unpredictable branches: the proposals'
+    speeds and orientations (the ones with an admissible speed listed), the positions of
+    those (``cos``/``sin`` only for them) and the room test, then in particle order the
+    accepted ones written over their particle and the rejected ones packed (old position,
+    orientation, speed and the orientation noise scale ``min(pi, turn_scale / v)``) for the
+    next round, which reads them in order. The first round reads the particles where they
+    are (a particle's old state is needed by no other). A proposal's orientation is reduced
+    to ``[0, 2 pi)``; a particle never placed keeps its position and orientation (reduced, as
+    the reference does for every particle) with speed 0.
 
-    ``idx (N,)``, ``pack (5, N)`` and ``noise (2, N)`` are workspace (kept by the caller across
-    iterations); a round's noises are drawn one by one into ``noise``, the same numbers as
-    ``rng.normal(0, sigma, m)``."""
+    ``idx``, ``cand`` ``(N,)`` int64, ``pack (5, N)``, ``noise (2, N)`` and ``work (6, N)``
+    are workspace (kept by the caller across iterations); a round's noises are drawn one by
+    one into ``noise``, the same numbers as ``rng.normal(0, sigma, m)``."""
     n = x.shape[0]
     ox, oy, oth, ov, sg = pack[0], pack[1], pack[2], pack[3], pack[4]
     dv, dth = noise[0], noise[1]
+    tv, tt, pxa, pya, tha, acc = work[0], work[1], work[2], work[3], work[4], work[5]
     bx0, by0, bx1, by1 = box[0], box[1], box[2], box[3]
     m = n
     redraws = 0
@@ -86,25 +91,41 @@ def _propagate_box(x, y, theta, v, rng, period, v_max, speed_sigma, turn_scale, 
             dv[a] = rng.normal(0.0, speed_sigma)
         for a in range(m):
             dth[a] = rng.normal(0.0, 1.0)
-        keep = 0
         first = rnd == 0
-        for a in range(m):
+        k = 0
+        for a in range(m):  # proposals; the ones with an admissible speed listed in `cand`
             if first:  # the particle itself, not yet packed
-                p, px0, py0, th0, v0 = a, x[a], y[a], theta[a], v[a]
-                s = min(math.pi, turn_scale / max(v0, 1e-9))
+                v0, th0 = v[a], theta[a]
+                sg[a] = min(math.pi, turn_scale / max(v0, 1e-9))
             else:
-                p, px0, py0, th0, v0, s = idx[a], ox[a], oy[a], oth[a], ov[a], sg[a]
+                v0, th0 = ov[a], oth[a]
             vv = v0 + dv[a]
-            th = th0 + dth[a] * s
-            if vv >= 0.0 and vv <= v_max:
-                step = vv * period
-                px = px0 + step * math.cos(th)
-                py = py0 + step * math.sin(th)
-                if px >= bx0 and px <= bx1 and py >= by0 and py <= by1:
-                    x[p], y[p], theta[p], v[p] = px, py, np.mod(th, TWO_PI), vv
-                    continue
-            idx[keep], ox[keep], oy[keep], oth[keep], ov[keep], sg[keep] = p, px0, py0, th0, v0, s
-            keep += 1
+            tv[a] = vv
+            tt[a] = th0 + dth[a] * sg[a]
+            acc[a] = 0.0
+            cand[k] = a
+            k += int(vv >= 0.0 and vv <= v_max)
+        for j in range(k):  # positions of those, and the room test
+            a = cand[j]
+            step = tv[a] * period
+            th = tt[a]
+            px = (x[a] if first else ox[a]) + step * math.cos(th)
+            py = (y[a] if first else oy[a]) + step * math.sin(th)
+            pxa[a], pya[a], tha[a] = px, py, np.mod(th, TWO_PI)
+            acc[a] = 1.0 if (px >= bx0 and px <= bx1 and py >= by0 and py <= by1) else 0.0
+        keep = 0
+        for a in range(m):  # in particle order: pack every proposal's particle, keep the rejected
+            ok = acc[a] != 0.0
+            if first:
+                p, px0, py0, th0, v0 = a, x[a], y[a], theta[a], v[a]
+            else:
+                p, px0, py0, th0, v0 = idx[a], ox[a], oy[a], oth[a], ov[a]
+            idx[keep], ox[keep], oy[keep], oth[keep], ov[keep], sg[keep] = p, px0, py0, th0, v0, sg[a]
+            x[p] = pxa[a] if ok else px0
+            y[p] = pya[a] if ok else py0
+            theta[p] = tha[a] if ok else th0
+            v[p] = tv[a] if ok else v0
+            keep += int(not ok)
         redraws += keep  # rejected proposals of this round
         m = keep
     # the rest stay at their old (valid) position with speed 0
@@ -420,9 +441,12 @@ def _run_box(x, y, theta, v, w, rng, fired, blind, motion, box, grid, cell_ptr, 
     cells = np.empty((4, N), dtype=np.int64)
     pack = np.empty((5, N))
     noise = np.empty((2, N))
+    work = np.empty((6, N))
+    cand = np.empty(N, dtype=np.int64)
     uniform = False
     for k in range(fired.shape[0]):  # sequential: each iteration needs the previous posterior
-        r, c = _propagate_box(x, y, theta, v, rng, motion[0], motion[1], motion[2], motion[3], int(motion[4]), box, idx, pack, noise)
+        r, c = _propagate_box(x, y, theta, v, rng, motion[0], motion[1], motion[2], motion[3], int(motion[4]), box, idx, pack, noise,
+                              work, cand)
         redraws[k], clamped[k] = r, c
         uniform = _update(k, x, y, theta, v, w, uniform, rng, fired[k], blind[k], grid, cell_ptr, cell_sensor, cell_q,
                           p0, xi, a, half_w, half_d, mask, systematic, always, ess_threshold, pick,
