@@ -31,7 +31,8 @@ Likelihood without temporaries. Section VII-B.2 of the paper (see
 Only cells of a sensor's region ``R_i`` under the particle's box change the sensor's
 factor, so the deployment is stored per cell (a CSR list of the sensors whose ``q_ik > 0``).
 Particles whose boxes start in the same cell touch the same block of cells, so they are
-grouped by that cell (a counting sort) and each cell's entries are applied to a batch of up
+grouped by that cell (a counting sort, within windows of 16384 consecutive particles whose
+coordinates stay in cache at any N) and each cell's entries are applied to a batch of up
 to 256 of them at once (a loop over particles the compiler vectorises; a particle whose box
 misses the cell takes the factor 1 exactly). Each particle thus meets its ``K`` touched
 cells once, in the same order as alone, accumulating per sensor
@@ -217,22 +218,10 @@ def _log_likelihood(x, y, fired, blind, grid, cell_ptr, cell_sensor, cell_q, p0,
     # (a loop over particles the compiler vectorises); origins with no cell of the block in
     # the grid touch nothing
     gx, gy = nx + kx - 1, ny + ky - 1
-    org = np.empty(N, dtype=np.int64)
+    WINDOW = 16384  # particles sorted together: their coordinates stay in cache at any N
+    org = np.empty(WINDOW, dtype=np.int64)
+    order = np.empty(WINDOW, dtype=np.int64)
     count = np.zeros(gx * gy + 2, dtype=np.int64)
-    for p in range(N):
-        jx = int(math.floor((x[p] - half_w - x0) / c)) + kx - 1
-        jy = int(math.floor((y[p] - half_d - y0) / c)) + ky - 1
-        o = jy * gx + jx if 0 <= jx < gx and 0 <= jy < gy else gx * gy
-        org[p] = o
-        count[o + 2] += 1
-    for o in range(gx * gy + 1):
-        count[o + 2] += count[o + 1]
-    order = np.empty(N, dtype=np.int64)
-    for p in range(N):
-        o = org[p] + 1
-        order[count[o]] = p
-        count[o] += 1
-    # origin o's particles: order[count[o]:count[o + 1]] (o = gx gy: no cell of the block in the grid)
     CH = 256
     Vs = np.empty((kx * ky, CH))
     F = np.ones((n, CH))
@@ -240,6 +229,35 @@ def _log_likelihood(x, y, fired, blind, grid, cell_ptr, cell_sensor, cell_q, p0,
     ox = np.empty(kx)
     oy = np.empty(ky)
     touched = np.zeros(n, dtype=np.bool_)
+    for w0 in range(0, N, WINDOW):
+        _likelihood_window(x, y, w0, min(N, w0 + WINDOW), org, order, count, gx, gy, kx, ky, x0, y0, c, nx, ny,
+                           half_w, half_d, lptr, lsen, lomp, lqq, linv, Vs, F, D, ox, oy, touched, n_live, live,
+                           base, fired, slow, alpha, beta, gamma, lo, ci, out)
+
+
+@kernel
+def _likelihood_window(x, y, w0, w1, org, order, count, gx, gy, kx, ky, x0, y0, c, nx, ny, half_w, half_d,
+                       lptr, lsen, lomp, lqq, linv, Vs, F, D, ox, oy, touched, n_live, live,
+                       base, fired, slow, alpha, beta, gamma, lo, ci, out):
+    """:func:`_log_likelihood` for particles ``w0:w1``: grouped by the first cell of their box
+    (a counting sort), then each cell's entries applied to a batch of them at once."""
+    n = F.shape[0]
+    CH = F.shape[1]
+    for o in range(gx * gy + 2):
+        count[o] = 0
+    for p in range(w0, w1):
+        jx = int(math.floor((x[p] - half_w - x0) / c)) + kx - 1
+        jy = int(math.floor((y[p] - half_d - y0) / c)) + ky - 1
+        o = jy * gx + jx if 0 <= jx < gx and 0 <= jy < gy else gx * gy
+        org[p - w0] = o
+        count[o + 2] += 1
+    for o in range(gx * gy + 1):
+        count[o + 2] += count[o + 1]
+    for p in range(w0, w1):
+        o = org[p - w0] + 1
+        order[count[o]] = p
+        count[o] += 1
+    # origin o's particles: order[count[o]:count[o + 1]] (o = gx gy: no cell of the block in the grid)
     for o in range(gx * gy + 1):
         lo_o, hi_o = count[o], count[o + 1]
         for b0 in range(lo_o, hi_o, CH):
