@@ -243,6 +243,8 @@ def _likelihood_window(x, y, w0, w1, org, order, count, gx, gy, kx, ky, x0, y0, 
     (a counting sort), then each cell's entries applied to a batch of them at once."""
     n = F.shape[0]
     CH = F.shape[1]
+    acc_b = np.empty(CH)
+    prod_b = np.empty(CH)
     for o in range(gx * gy + 2):
         count[o] = 0
     for p in range(w0, w1):
@@ -301,7 +303,11 @@ def _likelihood_window(x, y, w0, w1, org, order, count, gx, gy, kx, ky, x0, y0, 
                                 d = r - 1.0
                                 Di[j] = Di[j] + d + Di[j] * d  # (1 + D)(1 + d) - 1: precise near a product of 1
                                 Fi[j] *= r  # the product itself: precise when it is small
-            for j in range(m):
+            if n_live <= 16:  # sensor by sensor over the batch (the rescaling below never triggers)
+                _combine_batch(F, D, m, n_live, live, base, fired, slow, alpha, beta, gamma, lo, ci, acc_b, prod_b)
+                for j in range(m):
+                    out[order[b0 + j]] = acc_b[j] + math.log(prod_b[j])
+            for j in range(m if n_live > 16 else 0):
                 p = order[b0 + j]
                 acc = base
                 prod = 1.0
@@ -325,6 +331,37 @@ def _likelihood_window(x, y, w0, w1, org, order, count, gx, gy, kx, ky, x0, y0, 
                     for j in range(m):
                         F[i, j] = 1.0
                         D[i, j] = 0.0
+
+
+@kernel
+def _combine_batch(F, D, m, n_live, live, base, fired, slow, alpha, beta, gamma, lo, ci, acc, prod):
+    """The per-particle combination of :func:`_log_likelihood` for a batch of ``m`` particles,
+    sensor by sensor (loops over the batch the compiler vectorises): ``acc[j] + log(prod[j])``
+    is particle ``j``'s log-likelihood, with the same operations in the same order as one
+    particle at a time. Each factor lies in ``[1e-12, 1e12]`` (a fired sensor's probability
+    ratio is at most ``1 / p_empty <= 1e12``, a silent one's at most 1), so with at most 16 live
+    sensors the product stays within ``[1e-192, 1e192]``: the rescaling of the one-particle
+    loop (at 1e-200 / 1e200) never happens, and is left out."""
+    for j in range(m):
+        acc[j] = base
+        prod[j] = 1.0
+    for t in range(n_live):
+        i = live[t]
+        Fr, Dr = F[i], D[i]
+        if fired[i]:
+            al, be, ga = alpha[i], beta[i], gamma[i]
+            for j in range(m):
+                Fi = Fr[j]
+                Di = Dr[j] if Fi > 0.5 else Fi - 1.0
+                prod[j] *= min(max(al + be * Di, PROB_FLOOR), 1.0) * ga
+        elif slow[i]:
+            cc = ci[i]
+            for j in range(m):
+                acc[j] += max(cc + math.log(Fr[j]), LOG_FLOOR) - LOG_FLOOR
+        else:
+            lw = lo[i]
+            for j in range(m):
+                prod[j] *= max(Fr[j], lw)
 
 
 # --------------------------------------------------------------------------- estimate, resample

@@ -165,3 +165,21 @@ def test_propagation_with_few_rounds_equals_reference(retries):
         run_filter(fired, blind, dep, room, motion, rng=np.random.default_rng(1), compiled=True, **kw),
         run_filter_reference(fired, blind, dep, room, motion, rng=np.random.default_rng(1), **kw),
     )
+
+
+@pytest.mark.parametrize("n_sensors", [16, 17, 24])
+def test_log_likelihood_equals_reference_with_many_live_sensors(n_sensors):
+    """Up to 16 live sensors the batch is combined sensor by sensor, above one particle at a time."""
+    rng = np.random.default_rng(n_sensors)
+    dep = _random_deployment(rng, n_sensors)
+    n = 2000
+    x, y = rng.uniform(-0.5, 10.5, n), rng.uniform(-0.5, 8.5, n)
+    g = dep.grid
+    grid = np.array([g.x0, g.y0, g.cell, g.nx, g.ny], float)
+    ptr, sensor, q = kernels.cell_lists(dep.q)
+    a = np.array([math.exp(v) for v in np.log1p(-np.minimum(dep.p0, 1 - 1e-12))])
+    for fired in (rng.random(n_sensors) < 0.5, np.ones(n_sensors, bool), np.zeros(n_sensors, bool)):
+        blind = np.zeros(n_sensors, bool)
+        out = np.empty(n)
+        kernels._log_likelihood(x, y, fired, blind, grid, ptr, sensor, q, dep.p0, dep.xi.astype(float), a, 1.0, 1.0, out)
+        np.testing.assert_allclose(out, log_weights(x, y, fired, blind, dep, 1.0, 1.0), rtol=1e-9, atol=1e-9)
