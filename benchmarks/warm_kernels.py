@@ -54,12 +54,15 @@ def beams() -> None:
 
 
 def clustertrack() -> None:
+    from onebit.trackers.clustertrack import kernels
     from onebit.trackers.clustertrack.algorithm import scan_clusters
 
     for dim in (1, 2):
         x = np.random.default_rng(0).random((6, dim))
         scan_clusters(np.arange(6.0), np.repeat(np.arange(2), 3), x, np.zeros((2, 2)), 2, H=2, K=4, L=6, D0=0.5,
                       rng=np.random.default_rng(0), compiled=True)  # fmt: skip
+        kernels.candidate_costs(x, x[:2], x[:2], np.zeros(2), 3, True)
+        kernels.summed_distances(np.zeros((2, 2)), np.arange(2), x[:2])
 
 
 def readers() -> None:

@@ -23,7 +23,10 @@ whose running minimum is >= D_0 (the minimum only over heads founded before it, 
 sequential scan). The trajectory part of D is kept as a matrix of summed distances between
 surviving particles, updated per instant as ``PD_t = PD_{t-1}[parent, parent] + ||x_a - x_b||``,
 so D costs O(1) per pair. Cluster ranks come from one stable sort; the H cap and the K / L
-stops are cumulative sums.
+stops are cumulative sums. The compiled pass (:mod:`onebit.trackers.clustertrack.kernels`)
+computes the candidates' costs and the survivors' summed distances in one loop each, and
+sorts only the start of the scan order the scan reaches (a rerun, ``K = H q``, keeps its
+``K`` within the first few dozen of ``K m_t`` candidates).
 
 Ties in cost (every cost is 0 for t <= 2) are broken in a random order, so the first
 instants keep a random subset rather than the first particles generated.
@@ -92,7 +95,12 @@ class RunResult:
 
 
 def _norm(v: np.ndarray) -> np.ndarray:
-    return np.sqrt(np.sum(v * v, axis=-1))
+    """Euclidean norm over the last axis: ``np.sqrt(np.sum(v * v, axis=-1))`` with the squares
+    added in the same order, without numpy's slow reduction over a length-1 or -2 axis."""
+    s = v[..., 0] * v[..., 0]
+    for q in range(1, v.shape[-1]):
+        s = s + v[..., q] * v[..., q]
+    return np.sqrt(s)
 
 
 #: Candidates to scan from which :func:`scan_clusters` runs the compiled scan by default.
@@ -106,14 +114,7 @@ PASS_COMPILED_MIN = 200_000
 def scan_order(cost: np.ndarray, L: int, rng: np.random.Generator) -> np.ndarray:
     """The candidates to scan, in scan order: the ``L`` cheapest, by increasing cost, ties
     in a random order (one random permutation of all candidates, then a stable sort)."""
-    n = cost.size
-    perm = rng.permutation(n)
-    lim = min(L, n)
-    if lim < n:
-        part = np.argpartition(cost[perm], lim - 1)[:lim]
-        sel = perm[part]
-    else:
-        sel = perm
+    sel = scan_selection(cost, L, rng)
     return sel[np.argsort(cost[sel], kind="stable")]
 
 
@@ -128,17 +129,61 @@ def scan_clusters(cost: np.ndarray, parent: np.ndarray, x: np.ndarray, pd: np.nd
 
     The order (:func:`scan_order`) is numpy; the scan itself, sequential by nature, is the
     compiled :func:`onebit.trackers.clustertrack.kernels.scan_sorted`, which stops at the
-    ``K``-th kept candidate (:func:`scan_clusters_reference` is its numpy reference).
+    ``K``-th kept candidate (:func:`scan_clusters_reference` is its numpy reference). Only
+    the start of the order is sorted (:func:`ordered_prefix`, the first ``SCAN_PREFIX x K``;
+    all of it if the scan has not kept ``K`` by then): an Appendix B rerun keeps its ``K``
+    among the first few dozen of thousands of candidates.
     ``compiled=None``: the kernel from :data:`SCAN_COMPILED_MIN` candidates to scan on
     (below, the numpy scan; same result).
     """
     if not (min(L, cost.size) >= SCAN_COMPILED_MIN if compiled is None else compiled):
         return scan_clusters_reference(cost, parent, x, pd, steps, H=H, K=K, L=L, D0=D0, rng=rng)
-    order = scan_order(cost, L, rng)
-    par = np.ascontiguousarray(parent[order], dtype=np.int64)
-    xs = np.ascontiguousarray(x[order], dtype=np.float64).reshape(order.size, -1)
-    k, lab, head, scanned = kernels.scan_sorted(par, xs, np.ascontiguousarray(pd, dtype=np.float64), float(steps), int(H), int(K), float(D0))
-    return order[k], lab, head, int(scanned)
+    sel = scan_selection(cost, L, rng)
+    key = cost[sel]
+    pdc = np.ascontiguousarray(pd, dtype=np.float64)
+    x2 = x.reshape(x.shape[0], -1)
+    first = min(sel.size, SCAN_PREFIX * max(int(K), 1))
+    while True:  # the scan order's first `first` candidates; more only if the scan needs them
+        order = sel[ordered_prefix(key, first)]
+        par = np.ascontiguousarray(parent[order], dtype=np.int64)
+        xs = np.ascontiguousarray(x2[order], dtype=np.float64)
+        k, lab, head, scanned = kernels.scan_sorted(par, xs, pdc, float(steps), int(H), int(K), float(D0))
+        if k.size >= K or first >= sel.size:
+            return order[k], lab, head, int(scanned)
+        first = sel.size
+
+
+#: :func:`scan_clusters` orders the first ``SCAN_PREFIX x K`` candidates (then all of them if the
+#: scan has not kept ``K`` by then): a rerun keeps its ``K`` from the first few dozen of
+#: thousands of candidates, which then need no full sort.
+SCAN_PREFIX = 4
+
+
+def scan_selection(cost: np.ndarray, L: int, rng: np.random.Generator) -> np.ndarray:
+    """The candidates :func:`scan_order` scans, before it sorts them (same random numbers):
+    one random permutation of all candidates, cut to the ``L`` cheapest."""
+    n = cost.size
+    perm = rng.permutation(n)
+    lim = min(L, n)
+    if lim < n:
+        return perm[np.argpartition(cost[perm], lim - 1)[:lim]]
+    return perm
+
+
+def ordered_prefix(key: np.ndarray, k: int) -> np.ndarray:
+    """The first ``k`` of ``np.argsort(key, kind="stable")`` in O(len(key) + k log k): every
+    position with a key below the ``k``-th smallest value, then the first positions holding
+    that value, sorted by key then position."""
+    n = key.size
+    if k >= n:
+        return np.argsort(key, kind="stable")
+    if k <= 0:
+        return np.zeros(0, dtype=np.int64)
+    v = np.partition(key, k - 1)[k - 1]
+    below = np.flatnonzero(key < v)
+    at = np.flatnonzero(key == v)[: k - below.size]
+    idx = np.sort(np.concatenate([below, at]))  # by position (the two are disjoint)
+    return idx[np.argsort(key[idx], kind="stable")]
 
 
 def scan_clusters_reference(cost: np.ndarray, parent: np.ndarray, x: np.ndarray, pd: np.ndarray, steps: int,
@@ -230,17 +275,16 @@ def cluster_track(space: FeasibleSpace, p: Params, rng: np.random.Generator, *, 
             x = last1 if step > 0 else np.zeros((1, dim))
             m_t = 1
         parent = np.repeat(np.arange(kprev), m_t)
-        if step >= 2:
-            inc = _norm(x + last2[parent] - 2.0 * last1[parent])
+        if compiled:
+            c = kernels.candidate_costs(np.ascontiguousarray(x, dtype=np.float64), last1, last2, cost, m_t, step >= 2)
         else:
-            inc = np.zeros(x.shape[0])
-        c = cost[parent] + inc
+            c = candidate_costs_reference(x, last1, last2, cost, m_t, step >= 2)
         kept, label, is_head, scanned = scan_clusters(
             c, parent, x, pd, step + 1, H=p.H, K=p.K, L=p.L, D0=p.D0, rng=rng, compiled=compiled
         )
         par = parent[kept]
         xk = x[kept]
-        pd = pd[np.ix_(par, par)] + _norm(xk[:, None, :] - xk[None, :, :])
+        pd = kernels.summed_distances(pd, par, xk) if compiled else summed_distances_reference(pd, par, xk)
         last2, last1 = last1[par], xk
         pos_hist.append(xk)
         par_hist.append(par)
@@ -263,6 +307,26 @@ def cluster_track(space: FeasibleSpace, p: Params, rng: np.random.Generator, *, 
             by_t[int(space.order[s])] = item
         particles = by_t
     return RunResult(tracks, cost[heads], kept_n, scanned_n, clusters_n, cand_n, particles, max_cluster)
+
+
+def candidate_costs_reference(x: np.ndarray, last1: np.ndarray, last2: np.ndarray, cost: np.ndarray, m_t: int,
+                              curvature: bool) -> np.ndarray:
+    """Cost of every candidate, ``(K m_t,)``: candidate ``a m_t + j`` extends particle ``a``
+    (last positions ``last1[a]``, ``last2[a]``, cost ``cost[a]``) by ``x[a m_t + j]``; it adds
+    the change in velocity ``||x + x[n-1] - 2 x[n]||`` when ``curvature`` (from the third
+    instant on). Plain reference of :func:`onebit.trackers.clustertrack.kernels.candidate_costs`."""
+    kprev, dim = cost.size, x.shape[-1]
+    if not curvature:
+        return np.repeat(cost, m_t) + np.zeros(x.shape[0])
+    inc = _norm(x.reshape(kprev, m_t, dim) + last2[:, None, :] - (2.0 * last1)[:, None, :]).reshape(-1)
+    return np.repeat(cost, m_t) + inc
+
+
+def summed_distances_reference(pd: np.ndarray, par: np.ndarray, xk: np.ndarray) -> np.ndarray:
+    """Summed distances between the kept particles ``(k, k)``: their parents' (``pd``) plus this
+    instant's ``||xk_a - xk_b||``. Plain reference of
+    :func:`onebit.trackers.clustertrack.kernels.summed_distances`."""
+    return pd[np.ix_(par, par)] + _norm(xk[:, None, :] - xk[None, :, :])
 
 
 def trajectory_distance(a: np.ndarray, b: np.ndarray) -> np.ndarray:

@@ -278,4 +278,7 @@ def sample_raster(mask: np.ndarray, raster: Raster, n: int, rng: np.random.Gener
 
 def _centres_of(raster: Raster, k: np.ndarray) -> np.ndarray:
     i, j = np.divmod(k, raster.width)
-    return np.c_[raster.x0 + (j + 0.5) * raster.cell, raster.y0 + (i + 0.5) * raster.cell]
+    out = np.empty((k.size, 2))
+    out[:, 0] = raster.x0 + (j + 0.5) * raster.cell
+    out[:, 1] = raster.y0 + (i + 0.5) * raster.cell
+    return out

@@ -68,3 +68,42 @@ def scan_sorted(par, xs, pd, steps, H, K, D0):
             scanned = r + 1
             break
     return kept[:nk], label[:nk], is_head[:nk], scanned
+
+
+@kernel
+def candidate_costs(x, last1, last2, cost, m_t, curvature):
+    """Cost of every candidate (section 4.2.1): candidate ``a m_t + j`` extends particle ``a``
+    by ``x[a m_t + j]``; its cost is ``cost[a] + ||x + x[n-1] - 2 x[n]||`` (``curvature``) or
+    ``cost[a]`` (the first two instants). The plain reference is
+    :func:`onebit.trackers.clustertrack.algorithm.candidate_costs_reference` (same operations in
+    the same order: equal costs)."""
+    n, dim = x.shape[0], x.shape[1]
+    out = np.empty(n)
+    for r in range(n):
+        a = r // m_t
+        if curvature:
+            s = 0.0
+            for q in range(dim):
+                v = (x[r, q] + last2[a, q]) - 2.0 * last1[a, q]
+                s = v * v if q == 0 else s + v * v
+            out[r] = cost[a] + math.sqrt(s)
+        else:
+            out[r] = cost[a] + 0.0
+    return out
+
+
+@kernel
+def summed_distances(pd, par, xk):
+    """``pd[par][:, par] + ||xk_a - xk_b||`` for the kept particles (their summed distances up to
+    this instant); reference
+    :func:`onebit.trackers.clustertrack.algorithm.summed_distances_reference`."""
+    k, dim = xk.shape[0], xk.shape[1]
+    out = np.empty((k, k))
+    for a in range(k):
+        for b in range(k):
+            s = 0.0
+            for q in range(dim):
+                v = xk[a, q] - xk[b, q]
+                s = v * v if q == 0 else s + v * v
+            out[a, b] = pd[par[a], par[b]] + math.sqrt(s)
+    return out

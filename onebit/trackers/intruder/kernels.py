@@ -29,8 +29,13 @@ Likelihood without temporaries. Section VII-B.2 of the paper (see
     log P(S_i = 0 | x) = xi_i log(1 - p0_i) + sum_{k touched, q_ik > 0} log(L_ik / (1 - p0_i))
 
 Only cells of a sensor's region ``R_i`` under the particle's box change the sensor's
-factor, so the deployment is stored per cell (a CSR list of the sensors whose ``q_ik > 0``)
-and each particle visits its ``K`` touched cells once, accumulating per sensor
+factor, so the deployment is stored per cell (a CSR list of the sensors whose ``q_ik > 0``).
+Particles whose boxes start in the same cell touch the same block of cells, so they are
+grouped by that cell (a counting sort, within windows of 16384 consecutive particles whose
+coordinates stay in cache at any N) and each cell's entries are applied to a batch of up
+to 256 of them at once (a loop over particles the compiler vectorises; a particle whose box
+misses the cell takes the factor 1 exactly). Each particle thus meets its ``K`` touched
+cells once, in the same order as alone, accumulating per sensor
 ``D_i = prod_k (L_ik / (1 - p0_i)) - 1`` (``D <- D + d + D d``, exact for small factors, so
 ``-expm1(log1p(D) + ...)`` keeps the precision of the reference's sum of logs). A sensor
 whose region the box misses contributes the constant of an empty neighbourhood, summed
@@ -56,46 +61,79 @@ TWO_PI = 2 * math.pi
 
 
 @kernel
-def _propagate_box(x, y, theta, v, rng, period, v_max, speed_sigma, turn_scale, max_retries, box):
+def _propagate_box(x, y, theta, v, rng, period, v_max, speed_sigma, turn_scale, max_retries, box, idx, pack, noise,
+                   work, cand):
     """:func:`onebit.models.motion.propagate` in a box room, in place; returns (redraws, clamped).
 
-    The particles still to place are kept packed (old position, orientation, speed and the
-    orientation noise scale ``min(pi, turn_scale / v)``, computed once) so every rejection
-    round reads them in order."""
+    Each rejection round runs in three passes with few unpredictable branches: the proposals'
+    speeds and orientations (the ones with an admissible speed listed), the positions of
+    those (``cos``/``sin`` only for them) and the room test, then in particle order the
+    accepted ones written over their particle and the rejected ones packed (old position,
+    orientation, speed and the orientation noise scale ``min(pi, turn_scale / v)``) for the
+    next round, which reads them in order. The first round reads the particles where they
+    are (a particle's old state is needed by no other). A proposal's orientation is reduced
+    to ``[0, 2 pi)``; a particle never placed keeps its position and orientation (reduced, as
+    the reference does for every particle) with speed 0.
+
+    ``idx``, ``cand`` ``(N,)`` int64, ``pack (5, N)``, ``noise (2, N)`` and ``work (6, N)``
+    are workspace (kept by the caller across iterations); a round's noises are drawn one by
+    one into ``noise``, the same numbers as ``rng.normal(0, sigma, m)``."""
     n = x.shape[0]
-    idx = np.arange(n)
-    ox, oy, oth, ov = x.copy(), y.copy(), theta.copy(), v.copy()
-    sg = np.empty(n)
-    for p in range(n):
-        sg[p] = min(math.pi, turn_scale / max(v[p], 1e-9))
-        v[p] = 0.0  # a particle never placed stays with speed 0
+    ox, oy, oth, ov, sg = pack[0], pack[1], pack[2], pack[3], pack[4]
+    dv, dth = noise[0], noise[1]
+    tv, tt, pxa, pya, tha, acc = work[0], work[1], work[2], work[3], work[4], work[5]
+    bx0, by0, bx1, by1 = box[0], box[1], box[2], box[3]
     m = n
     redraws = 0
-    bx0, by0, bx1, by1 = box[0], box[1], box[2], box[3]
-    for _ in range(max_retries):
+    for rnd in range(max_retries):
         if m == 0:
             break
-        dv = rng.normal(0.0, speed_sigma, m)
-        dth = rng.normal(0.0, 1.0, m)
-        keep = 0
+        for a in range(m):  # all the speed noises of the round, then all the orientation noises
+            dv[a] = rng.normal(0.0, speed_sigma)
         for a in range(m):
-            vv = ov[a] + dv[a]
-            th = oth[a] + dth[a] * sg[a]
-            if vv >= 0.0 and vv <= v_max:
-                step = vv * period
-                px = ox[a] + step * math.cos(th)
-                py = oy[a] + step * math.sin(th)
-                if px >= bx0 and px <= bx1 and py >= by0 and py <= by1:
-                    p = idx[a]
-                    x[p], y[p], theta[p], v[p] = px, py, th, vv
-                    continue
-            idx[keep], ox[keep], oy[keep], oth[keep], ov[keep], sg[keep] = idx[a], ox[a], oy[a], oth[a], ov[a], sg[a]
-            keep += 1
+            dth[a] = rng.normal(0.0, 1.0)
+        first = rnd == 0
+        k = 0
+        for a in range(m):  # proposals; the ones with an admissible speed listed in `cand`
+            if first:  # the particle itself, not yet packed
+                v0, th0 = v[a], theta[a]
+                sg[a] = min(math.pi, turn_scale / max(v0, 1e-9))
+            else:
+                v0, th0 = ov[a], oth[a]
+            vv = v0 + dv[a]
+            tv[a] = vv
+            tt[a] = th0 + dth[a] * sg[a]
+            acc[a] = 0.0
+            cand[k] = a
+            k += int(vv >= 0.0 and vv <= v_max)
+        for j in range(k):  # positions of those, and the room test
+            a = cand[j]
+            step = tv[a] * period
+            th = tt[a]
+            px = (x[a] if first else ox[a]) + step * math.cos(th)
+            py = (y[a] if first else oy[a]) + step * math.sin(th)
+            pxa[a], pya[a], tha[a] = px, py, np.mod(th, TWO_PI)
+            acc[a] = 1.0 if (px >= bx0 and px <= bx1 and py >= by0 and py <= by1) else 0.0
+        keep = 0
+        for a in range(m):  # in particle order: pack every proposal's particle, keep the rejected
+            ok = acc[a] != 0.0
+            if first:
+                p, px0, py0, th0, v0 = a, x[a], y[a], theta[a], v[a]
+            else:
+                p, px0, py0, th0, v0 = idx[a], ox[a], oy[a], oth[a], ov[a]
+            idx[keep], ox[keep], oy[keep], oth[keep], ov[keep], sg[keep] = p, px0, py0, th0, v0, sg[a]
+            x[p] = pxa[a] if ok else px0
+            y[p] = pya[a] if ok else py0
+            theta[p] = tha[a] if ok else th0
+            v[p] = tv[a] if ok else v0
+            keep += int(not ok)
         redraws += keep  # rejected proposals of this round
         m = keep
-    # the rest stay at their old (valid) position (x, y, theta untouched) with speed 0
-    for p in range(n):
+    # the rest stay at their old (valid) position with speed 0
+    for a in range(m):
+        p = idx[a] if max_retries > 0 else a  # no round: none was packed
         theta[p] = np.mod(theta[p], TWO_PI)
+        v[p] = 0.0
     return redraws, m
 
 
@@ -175,72 +213,168 @@ def _log_likelihood(x, y, fired, blind, grid, cell_ptr, cell_sensor, cell_q, p0,
         lptr[cell + 1] = m
     kx = int(math.ceil(2 * half_w / c)) + 1
     ky = int(math.ceil(2 * half_d / c)) + 1
+    # particles by the first cell (ix0, iy0) of their box: those sharing it touch the same
+    # kx x ky block of cells, so each cell's entries are applied to a batch of them at once
+    # (a loop over particles the compiler vectorises); origins with no cell of the block in
+    # the grid touch nothing
+    gx, gy = nx + kx - 1, ny + ky - 1
+    WINDOW = 16384  # particles sorted together: their coordinates stay in cache at any N
+    org = np.empty(WINDOW, dtype=np.int64)
+    order = np.empty(WINDOW, dtype=np.int64)
+    count = np.zeros(gx * gy + 2, dtype=np.int64)
+    CH = 256
+    Vs = np.empty((kx * ky, CH))
+    F = np.ones((n, CH))
+    D = np.zeros((n, CH))
     ox = np.empty(kx)
     oy = np.empty(ky)
-    D = np.zeros(n)
-    F = np.ones(n)
-    for p in range(N):
-        xp, yp = x[p], y[p]
-        ix0 = int(math.floor((xp - half_w - x0) / c))
-        iy0 = int(math.floor((yp - half_d - y0) / c))
-        for b in range(kx):
-            ix = ix0 + b
-            left = x0 + ix * c
-            o = min(xp + half_w, left + c) - max(xp - half_w, left)
-            ox[b] = min(max(o, 0.0), c) / c if 0 <= ix < nx else 0.0
-        for b in range(ky):
-            iy = iy0 + b
-            bottom = y0 + iy * c
-            o = min(yp + half_d, bottom + c) - max(yp - half_d, bottom)
-            oy[b] = min(max(o, 0.0), c) / c if 0 <= iy < ny else 0.0
-        for by in range(ky):
-            if oy[by] == 0.0:
-                continue
-            row = (iy0 + by) * nx + ix0
-            for bx in range(kx):
-                V = oy[by] * ox[bx]
-                if V == 0.0:
-                    continue
-                cell = row + bx
-                for e in range(lptr[cell], lptr[cell + 1]):
-                    i = lsen[e]
-                    r = max(lomp[e] - V * lqq[e], PROB_FLOOR) * linv[e]
-                    d = r - 1.0
-                    Di = D[i]
-                    D[i] = Di + d + Di * d  # (1 + D)(1 + d) - 1: precise near a product of 1
-                    F[i] *= r  # the product itself: precise when it is small
-        acc = base
-        prod = 1.0
-        for t in range(n_live):
-            i = live[t]
-            Fi = F[i]
-            Di = D[i] if Fi > 0.5 else Fi - 1.0
-            D[i], F[i] = 0.0, 1.0
-            if fired[i]:
-                prod *= min(max(alpha[i] + beta[i] * Di, PROB_FLOOR), 1.0) * gamma[i]
-            elif slow[i]:
-                acc += max(ci[i] + math.log(Fi), LOG_FLOOR) - LOG_FLOOR
-            else:
-                prod *= max(Fi, lo[i])
-            if prod < 1e-200 or prod > 1e200:
-                acc += math.log(prod)
+    touched = np.zeros(n, dtype=np.bool_)
+    for w0 in range(0, N, WINDOW):
+        _likelihood_window(x, y, w0, min(N, w0 + WINDOW), org, order, count, gx, gy, kx, ky, x0, y0, c, nx, ny,
+                           half_w, half_d, lptr, lsen, lomp, lqq, linv, Vs, F, D, ox, oy, touched, n_live, live,
+                           base, fired, slow, alpha, beta, gamma, lo, ci, out)
+
+
+@kernel
+def _likelihood_window(x, y, w0, w1, org, order, count, gx, gy, kx, ky, x0, y0, c, nx, ny, half_w, half_d,
+                       lptr, lsen, lomp, lqq, linv, Vs, F, D, ox, oy, touched, n_live, live,
+                       base, fired, slow, alpha, beta, gamma, lo, ci, out):
+    """:func:`_log_likelihood` for particles ``w0:w1``: grouped by the first cell of their box
+    (a counting sort), then each cell's entries applied to a batch of them at once."""
+    n = F.shape[0]
+    CH = F.shape[1]
+    acc_b = np.empty(CH)
+    prod_b = np.empty(CH)
+    for o in range(gx * gy + 2):
+        count[o] = 0
+    for p in range(w0, w1):
+        jx = int(math.floor((x[p] - half_w - x0) / c)) + kx - 1
+        jy = int(math.floor((y[p] - half_d - y0) / c)) + ky - 1
+        o = jy * gx + jx if 0 <= jx < gx and 0 <= jy < gy else gx * gy
+        org[p - w0] = o
+        count[o + 2] += 1
+    for o in range(gx * gy + 1):
+        count[o + 2] += count[o + 1]
+    for p in range(w0, w1):
+        o = org[p - w0] + 1
+        order[count[o]] = p
+        count[o] += 1
+    # origin o's particles: order[count[o]:count[o + 1]] (o = gx gy: no cell of the block in the grid)
+    for o in range(gx * gy + 1):
+        lo_o, hi_o = count[o], count[o + 1]
+        for b0 in range(lo_o, hi_o, CH):
+            m = min(CH, hi_o - b0)
+            if o < gx * gy:
+                ix0, iy0 = o % gx - (kx - 1), o // gx - (ky - 1)
+                for j in range(m):  # each particle's fractions of the block's cells
+                    p = order[b0 + j]
+                    xp, yp = x[p], y[p]
+                    for b in range(kx):
+                        ix = ix0 + b
+                        left = x0 + ix * c
+                        ov = min(xp + half_w, left + c) - max(xp - half_w, left)
+                        ox[b] = min(max(ov, 0.0), c) / c if 0 <= ix < nx else 0.0
+                    for b in range(ky):
+                        iy = iy0 + b
+                        bottom = y0 + iy * c
+                        ov = min(yp + half_d, bottom + c) - max(yp - half_d, bottom)
+                        oy[b] = min(max(ov, 0.0), c) / c if 0 <= iy < ny else 0.0
+                    for by in range(ky):
+                        for bx in range(kx):
+                            Vs[by * kx + bx, j] = oy[by] * ox[bx]
+                for by in range(ky):
+                    iy = iy0 + by
+                    if iy < 0 or iy >= ny:
+                        continue
+                    for bx in range(kx):
+                        ix = ix0 + bx
+                        if ix < 0 or ix >= nx:
+                            continue
+                        cell = iy * nx + ix
+                        Vb = Vs[by * kx + bx]
+                        for e in range(lptr[cell], lptr[cell + 1]):
+                            i = lsen[e]
+                            touched[i] = True
+                            Fi, Di = F[i], D[i]
+                            le, lq, li = lomp[e], lqq[e], linv[e]
+                            for j in range(m):  # a particle whose box misses the cell (V = 0): factor 1
+                                V = Vb[j]
+                                r = max(le - V * lq, PROB_FLOOR) * li if V != 0.0 else 1.0
+                                d = r - 1.0
+                                Di[j] = Di[j] + d + Di[j] * d  # (1 + D)(1 + d) - 1: precise near a product of 1
+                                Fi[j] *= r  # the product itself: precise when it is small
+            if n_live <= 16:  # sensor by sensor over the batch (the rescaling below never triggers)
+                _combine_batch(F, D, m, n_live, live, base, fired, slow, alpha, beta, gamma, lo, ci, acc_b, prod_b)
+                for j in range(m):
+                    out[order[b0 + j]] = acc_b[j] + math.log(prod_b[j])
+            for j in range(m if n_live > 16 else 0):
+                p = order[b0 + j]
+                acc = base
                 prod = 1.0
-        out[p] = acc + math.log(prod)
+                for t in range(n_live):
+                    i = live[t]
+                    Fi = F[i, j]
+                    Di = D[i, j] if Fi > 0.5 else Fi - 1.0
+                    if fired[i]:
+                        prod *= min(max(alpha[i] + beta[i] * Di, PROB_FLOOR), 1.0) * gamma[i]
+                    elif slow[i]:
+                        acc += max(ci[i] + math.log(Fi), LOG_FLOOR) - LOG_FLOOR
+                    else:
+                        prod *= max(Fi, lo[i])
+                    if prod < 1e-200 or prod > 1e200:
+                        acc += math.log(prod)
+                        prod = 1.0
+                out[p] = acc + math.log(prod)
+            for i in range(n):  # reset what this batch touched
+                if touched[i]:
+                    touched[i] = False
+                    for j in range(m):
+                        F[i, j] = 1.0
+                        D[i, j] = 0.0
+
+
+@kernel
+def _combine_batch(F, D, m, n_live, live, base, fired, slow, alpha, beta, gamma, lo, ci, acc, prod):
+    """The per-particle combination of :func:`_log_likelihood` for a batch of ``m`` particles,
+    sensor by sensor (loops over the batch the compiler vectorises): ``acc[j] + log(prod[j])``
+    is particle ``j``'s log-likelihood, with the same operations in the same order as one
+    particle at a time. Each factor lies in ``[1e-12, 1e12]`` (a fired sensor's probability
+    ratio is at most ``1 / p_empty <= 1e12``, a silent one's at most 1), so with at most 16 live
+    sensors the product stays within ``[1e-192, 1e192]``: the rescaling of the one-particle
+    loop (at 1e-200 / 1e200) never happens, and is left out."""
+    for j in range(m):
+        acc[j] = base
+        prod[j] = 1.0
+    for t in range(n_live):
+        i = live[t]
+        Fr, Dr = F[i], D[i]
+        if fired[i]:
+            al, be, ga = alpha[i], beta[i], gamma[i]
+            for j in range(m):
+                Fi = Fr[j]
+                Di = Dr[j] if Fi > 0.5 else Fi - 1.0
+                prod[j] *= min(max(al + be * Di, PROB_FLOOR), 1.0) * ga
+        elif slow[i]:
+            cc = ci[i]
+            for j in range(m):
+                acc[j] += max(cc + math.log(Fr[j]), LOG_FLOOR) - LOG_FLOOR
+        else:
+            lw = lo[i]
+            for j in range(m):
+                prod[j] *= max(Fr[j], lw)
 
 
 # --------------------------------------------------------------------------- estimate, resample
 
 
 @kernel
-def _estimate(x, y, w, grid, half_w, half_d, mask, d):
+def _estimate(x, y, w, grid, half_w, half_d, mask, d, cells):
     """:func:`onebit.trackers.intruder.filter.estimate_cell` (difference array in the same
-    order of additions as its four ``np.add.at``); ``d`` is ``(ny + 1, nx + 1)`` scratch."""
+    order of additions as its four ``np.add.at``); ``d`` is ``(ny + 1, nx + 1)`` scratch,
+    ``cells`` ``(4, N)`` int64 scratch."""
     x0, y0, c, nx, ny = grid[0], grid[1], grid[2], int(grid[3]), int(grid[4])
     N = x.shape[0]
-    ilo = np.empty(N, dtype=np.int64)
-    ihi = np.empty(N, dtype=np.int64)
-    jlo = np.empty(N, dtype=np.int64)
-    jhi = np.empty(N, dtype=np.int64)
+    ilo, ihi, jlo, jhi = cells[0], cells[1], cells[2], cells[3]
     for p in range(N):
         ilo[p] = int(min(max(math.ceil((x[p] - half_w - x0) / c - 0.5 - 1e-12), 0.0), float(nx)))
         ihi[p] = int(min(max(math.floor((x[p] + half_w - x0) / c - 0.5 + 1e-12), -1.0), float(nx - 1)))
@@ -277,10 +411,10 @@ def _estimate(x, y, w, grid, half_w, half_d, mask, d):
 
 
 @kernel
-def _resample(w, rng, systematic, idx):
-    """Systematic (one uniform) or multinomial (``N`` uniforms) resampling indices into ``idx``."""
+def _resample(w, rng, systematic, idx, cs):
+    """Systematic (one uniform) or multinomial (``N`` uniforms) resampling indices into ``idx``
+    (``cs``: ``(N,)`` scratch for the cumulative weights)."""
     n = w.shape[0]
-    cs = np.empty(n)
     s = 0.0
     for i in range(n):
         s += w[i]
@@ -302,14 +436,16 @@ def _resample(w, rng, systematic, idx):
 @kernel
 def _update(k, x, y, theta, v, w, uniform, rng, fired, blind, grid, cell_ptr, cell_sensor, cell_q, p0, xi, a,
             half_w, half_d, mask, systematic, always, ess_threshold, pick,
-            lw, scratch, idx, est, ess, resampled, logged_xy, logged_w, spread):
+            lw, scratch, idx, est, ess, resampled, logged_xy, logged_w, spread, cells, buf):
     """Weigh, estimate, log and resample after the propagation of iteration ``k``; returns
-    whether the weights are uniform afterwards."""
+    whether the weights are uniform afterwards. ``lw``, ``idx``, ``buf`` ``(N,)``, ``cells``
+    ``(4, N)`` and ``scratch`` are workspace."""
     N = x.shape[0]
     _log_likelihood(x, y, fired, blind, grid, cell_ptr, cell_sensor, cell_q, p0, xi, a, half_w, half_d, lw)
     mx = -np.inf
+    log_uniform = math.log(1.0 / N)
     for p in range(N):
-        lw[p] += math.log(1.0 / N) if uniform else math.log(max(w[p], 1e-300))
+        lw[p] += log_uniform if uniform else math.log(max(w[p], 1e-300))
         if lw[p] > mx:
             mx = lw[p]
     tot = 0.0
@@ -317,16 +453,15 @@ def _update(k, x, y, theta, v, w, uniform, rng, fired, blind, grid, cell_ptr, ce
         w[p] = math.exp(lw[p] - mx)
         tot += w[p]
     s2 = 0.0
+    mxw, myw = 0.0, 0.0
     for p in range(N):
         w[p] = w[p] / tot
         s2 += w[p] * w[p]
-    ess[k] = 1.0 / s2
-    ex, ey = _estimate(x, y, w, grid, half_w, half_d, mask, scratch)
-    est[k, 0], est[k, 1] = ex, ey
-    mxw, myw = 0.0, 0.0
-    for p in range(N):
         mxw += w[p] * x[p]
         myw += w[p] * y[p]
+    ess[k] = 1.0 / s2
+    ex, ey = _estimate(x, y, w, grid, half_w, half_d, mask, scratch, cells)
+    est[k, 0], est[k, 1] = ex, ey
     sp = 0.0
     for p in range(N):
         sp += w[p] * ((x[p] - mxw) ** 2 + (y[p] - myw) ** 2)
@@ -335,10 +470,11 @@ def _update(k, x, y, theta, v, w, uniform, rng, fired, blind, grid, cell_ptr, ce
         logged_xy[k, j, 0], logged_xy[k, j, 1] = x[pick[j]], y[pick[j]]
         logged_w[k, j] = w[pick[j]]
     if always or ess[k] < ess_threshold * N:
-        _resample(w, rng, systematic, idx)
+        _resample(w, rng, systematic, idx, buf)
         for arr in (x, y, theta, v):
-            tmp = arr[idx]
-            arr[:] = tmp
+            for p in range(N):
+                buf[p] = arr[idx[p]]
+            arr[:] = buf
         for p in range(N):
             w[p] = 1.0 / N
         resampled[k] = True
@@ -350,18 +486,26 @@ def _update(k, x, y, theta, v, w, uniform, rng, fired, blind, grid, cell_ptr, ce
 def _run_box(x, y, theta, v, w, rng, fired, blind, motion, box, grid, cell_ptr, cell_sensor, cell_q, p0, xi, a,
              half_w, half_d, mask, systematic, always, ess_threshold, pick,
              est, ess, redraws, clamped, resampled, logged_xy, logged_w, spread):
-    """Every iteration in a box room: propagate then :func:`_update` (see the module docstring)."""
+    """Every iteration in a box room: propagate then :func:`_update` (see the module docstring),
+    with one workspace for the whole run (no allocation per iteration)."""
     N = x.shape[0]
     lw = np.empty(N)
     scratch = np.empty((int(grid[4]) + 1, int(grid[3]) + 1))
     idx = np.empty(N, dtype=np.int64)
+    buf = np.empty(N)
+    cells = np.empty((4, N), dtype=np.int64)
+    pack = np.empty((5, N))
+    noise = np.empty((2, N))
+    work = np.empty((6, N))
+    cand = np.empty(N, dtype=np.int64)
     uniform = False
     for k in range(fired.shape[0]):  # sequential: each iteration needs the previous posterior
-        r, c = _propagate_box(x, y, theta, v, rng, motion[0], motion[1], motion[2], motion[3], int(motion[4]), box)
+        r, c = _propagate_box(x, y, theta, v, rng, motion[0], motion[1], motion[2], motion[3], int(motion[4]), box, idx, pack, noise,
+                              work, cand)
         redraws[k], clamped[k] = r, c
         uniform = _update(k, x, y, theta, v, w, uniform, rng, fired[k], blind[k], grid, cell_ptr, cell_sensor, cell_q,
                           p0, xi, a, half_w, half_d, mask, systematic, always, ess_threshold, pick,
-                          lw, scratch, idx, est, ess, resampled, logged_xy, logged_w, spread)
+                          lw, scratch, idx, est, ess, resampled, logged_xy, logged_w, spread, cells, buf)
 
 
 @kernel
@@ -373,7 +517,7 @@ def _update_one(k, x, y, theta, v, w, uniform, rng, fired, blind, grid, cell_ptr
     return _update(k, x, y, theta, v, w, uniform, rng, fired, blind, grid, cell_ptr, cell_sensor, cell_q, p0, xi, a,
                    half_w, half_d, mask, systematic, always, ess_threshold, pick,
                    np.empty(N), np.empty((int(grid[4]) + 1, int(grid[3]) + 1)), np.empty(N, dtype=np.int64),
-                   est, ess, resampled, logged_xy, logged_w, spread)
+                   est, ess, resampled, logged_xy, logged_w, spread, np.empty((4, N), dtype=np.int64), np.empty(N))
 
 
 # --------------------------------------------------------------------------- the deployment per cell

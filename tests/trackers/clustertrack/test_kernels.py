@@ -9,13 +9,20 @@ import pytest
 from shapely.geometry import box
 
 from onebit.datasets.proximity_sim import make_world
+from onebit.trackers.clustertrack import algorithm, kernels
 from onebit.trackers.clustertrack.algorithm import (
     _norm,
+    candidate_costs_reference,
+    cluster_track,
     clustertrack,
     consensus,
+    ordered_prefix,
     rules_of_thumb,
     scan_clusters,
     scan_clusters_reference,
+    scan_order,
+    scan_selection,
+    summed_distances_reference,
     usage,
 )
 from onebit.trackers.clustertrack.feasible import SensorArray
@@ -72,3 +79,50 @@ def test_consensus_reuses_a_known_run():
     np.testing.assert_array_equal(a.tracks, b.tracks)
     np.testing.assert_array_equal(a.cluster, b.cluster)
     assert a.count == b.count
+
+
+@pytest.mark.parametrize("seed", range(30))
+def test_ordered_prefix_is_the_start_of_the_stable_argsort(seed):
+    rng = np.random.default_rng(seed)
+    n = int(rng.integers(1, 300))
+    key = rng.integers(0, int(rng.integers(1, 20)), n).astype(float) if seed % 2 else rng.random(n)  # many ties, or none
+    full = np.argsort(key, kind="stable")
+    for k in (0, 1, int(rng.integers(1, n + 1)), n, n + 5):
+        np.testing.assert_array_equal(ordered_prefix(key, k), full[: max(0, min(k, n))])
+
+
+@pytest.mark.parametrize("seed", range(10))
+def test_scan_order_is_the_selection_sorted_by_cost(seed):
+    rng = np.random.default_rng(seed)
+    cost = rng.integers(0, 5, 200).astype(float)
+    L = int(rng.integers(1, 250))
+    sel = scan_selection(cost, L, np.random.default_rng(seed))
+    np.testing.assert_array_equal(scan_order(cost, L, np.random.default_rng(seed)), sel[np.argsort(cost[sel], kind="stable")])
+
+
+@pytest.mark.parametrize("seed", range(20))
+def test_cost_and_distance_kernels_equal_numpy(seed):
+    rng = np.random.default_rng(seed)
+    dim, kprev, m_t = int(rng.integers(1, 3)), int(rng.integers(1, 12)), int(rng.integers(1, 9))
+    x = rng.uniform(-5, 5, (kprev * m_t, dim))
+    last1, last2, cost = rng.uniform(-5, 5, (kprev, dim)), rng.uniform(-5, 5, (kprev, dim)), rng.random(kprev) * 10
+    for curvature in (False, True):
+        np.testing.assert_array_equal(kernels.candidate_costs(x, last1, last2, cost, m_t, curvature),
+                                      candidate_costs_reference(x, last1, last2, cost, m_t, curvature))  # fmt: skip
+    pd = rng.random((kprev, kprev)) * 20
+    par = rng.integers(0, kprev, int(rng.integers(1, 15)))
+    xk = rng.uniform(-5, 5, (par.size, dim))
+    np.testing.assert_array_equal(kernels.summed_distances(pd, par, xk), summed_distances_reference(pd, par, xk))
+
+
+@pytest.mark.parametrize("name", ["proximity-line", "proximity-grid"])
+def test_compiled_pass_equals_numpy_pass(name, monkeypatch):
+    sp, R = _space(name, 2)
+    p = rules_of_thumb(sp, H=10, m_o=8.0 / R)
+    monkeypatch.setattr(algorithm, "PASS_COMPILED_MIN", 0)
+    a = cluster_track(sp, p, np.random.default_rng(3))
+    monkeypatch.setattr(algorithm, "PASS_COMPILED_MIN", 10**12)
+    b = cluster_track(sp, p, np.random.default_rng(3))
+    np.testing.assert_array_equal(a.tracks, b.tracks)
+    np.testing.assert_array_equal(a.costs, b.costs)
+    np.testing.assert_array_equal(a.scanned, b.scanned)

@@ -149,3 +149,37 @@ def test_prior_unchanged():
     a = prior(100, room, MOTION, np.random.default_rng(3))
     b = prior(100, room, MOTION, np.random.default_rng(3))
     np.testing.assert_array_equal(a.x, b.x)
+
+
+@pytest.mark.parametrize("retries", [0, 1, 3])
+def test_propagation_with_few_rounds_equals_reference(retries):
+    """Few rejection rounds: many particles are never placed (kept with speed 0)."""
+    rng = np.random.default_rng(retries)
+    dep = _random_deployment(rng, 5)
+    motion = Motion(period=2.0, v_max=4.0, speed_sigma=1.5, turn_scale=4.0, max_retries=retries)
+    fired = rng.random((6, 5)) < 0.3
+    blind = np.zeros((6, 5), bool)
+    room = Room(shapely.box(0, 0, 10, 8))
+    kw = dict(n_particles=400, half_w=1.0, half_d=1.0, log_particles=400)
+    _same(
+        run_filter(fired, blind, dep, room, motion, rng=np.random.default_rng(1), compiled=True, **kw),
+        run_filter_reference(fired, blind, dep, room, motion, rng=np.random.default_rng(1), **kw),
+    )
+
+
+@pytest.mark.parametrize("n_sensors", [16, 17, 24])
+def test_log_likelihood_equals_reference_with_many_live_sensors(n_sensors):
+    """Up to 16 live sensors the batch is combined sensor by sensor, above one particle at a time."""
+    rng = np.random.default_rng(n_sensors)
+    dep = _random_deployment(rng, n_sensors)
+    n = 2000
+    x, y = rng.uniform(-0.5, 10.5, n), rng.uniform(-0.5, 8.5, n)
+    g = dep.grid
+    grid = np.array([g.x0, g.y0, g.cell, g.nx, g.ny], float)
+    ptr, sensor, q = kernels.cell_lists(dep.q)
+    a = np.array([math.exp(v) for v in np.log1p(-np.minimum(dep.p0, 1 - 1e-12))])
+    for fired in (rng.random(n_sensors) < 0.5, np.ones(n_sensors, bool), np.zeros(n_sensors, bool)):
+        blind = np.zeros(n_sensors, bool)
+        out = np.empty(n)
+        kernels._log_likelihood(x, y, fired, blind, grid, ptr, sensor, q, dep.p0, dep.xi.astype(float), a, 1.0, 1.0, out)
+        np.testing.assert_allclose(out, log_weights(x, y, fired, blind, dep, 1.0, 1.0), rtol=1e-9, atol=1e-9)
