@@ -354,6 +354,8 @@ def tracker_stage(entry: TrackerEntry) -> Stage:
         for key in spec.needs:
             if not any(s in ctx.tables for s in entry.inputs.get(key, (key,))):
                 return f"input table '{key}' not produced by an earlier stage"
+        if not spec.needs and spec.wants and not any(k in ctx.tables for k in spec.wants):
+            return f"none of its input tables ({', '.join(spec.wants)}) was produced by an earlier stage"
         return spec.available(ctx.site) if spec.available is not None else None
 
     def work(ctx: RunContext) -> dict[str, Any]:

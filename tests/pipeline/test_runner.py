@@ -115,6 +115,21 @@ def test_skipped_stages_say_why(tmp_path):
     assert rej.row(0)[:2] == ("crossings.csv", 4)
 
 
+def test_a_tracker_whose_every_input_failed_is_skipped_not_run_on_nothing(lab_run, tmp_path):
+    # istate reads any of motion, proximity, crossings, beam_events; when the only one the
+    # dataset has fails, istate must say so instead of reporting 0 elements and 0 m^2
+    data, _ = lab_run
+    bad = tmp_path / "data"
+    shutil.copytree(data, bad)
+    site = (bad / "site.toml").read_text()
+    if "targets" not in site:
+        (bad / "site.toml").write_text("targets = 2\n" + site)
+    (bad / "beams.csv").write_text("t,beam,pair,blocked\n1,a,a,1\n1e11,a,b,1\n5,a,a,0\n" + "".join(f"{1.7e9 + i},a,a,{i % 2}\n" for i in range(400)))
+    res = run_pipeline(bad, tmp_path / "run", trackers=["istate"])
+    assert res.status["crossings"].startswith("failed")
+    assert res.status["istate"] == "skipped: none of its input tables (motion, proximity, crossings, beam_events) was produced by an earlier stage"
+
+
 def test_mcap_dataset_gives_the_same_crossings(lab_run, tmp_path):
     data, res = lab_run
     d = tmp_path / "data"
