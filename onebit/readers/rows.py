@@ -559,7 +559,10 @@ def order_checks(
     backwards by more than ``tolerance``. ``field_bad`` (rows rejected by their fields, with
     ``_reason``) and ``prior`` (rejects already made) join the rejects."""
     ok = ok.with_columns(duplicate_of(ok, key).alias("_dup"))
-    ok = ok.with_columns(pl.when(pl.col("_dup").is_not_null()).then(pl.format("duplicate of line {}", pl.col("_dup"))).alias("_reason"))
+    same = " and ".join(", ".join(key).rsplit(", ", 1))  # ("t", "target") -> "t and target"
+    ok = ok.with_columns(
+        pl.when(pl.col("_dup").is_not_null()).then(pl.format("duplicate of line {} (same {})", pl.col("_dup"), pl.lit(same))).alias("_reason")
+    )
     ok = ok.drop("_dup")
     dup = ok.filter(pl.col("_reason").is_not_null())
     ok = ok.filter(pl.col("_reason").is_null())

@@ -64,7 +64,7 @@ def test_duplicates_after_a_join_and_a_lone_stamp_are_rejected(tmp_path):
     p = _write(tmp_path, "t,id,x,y\n0,a,0,0\n0,b,1,1\n1,a,0,1\n1e9,a,9,9\n")
     r = read_trajectories(p, TrajectoryFormat(join=(("a", "b"),)))
     rej = dict(zip(r.rejects["line"].to_list(), r.rejects["reason"].to_list()))
-    assert "duplicate of line 2" in rej[3] and "lone time stamp" in rej[5]
+    assert "duplicate of line 2 (same t and target)" in rej[3] and "lone time stamp" in rej[5]
     assert r.truth.height == 2
 
 
