@@ -29,7 +29,7 @@ paths). Every logged entity is in some view: what no family shows goes to a last
 Trails (``.../trail``) get a visible time range ``[cursor - trail_s, cursor]``; whole paths,
 heat maps, the camera's tracks and the 2-hop EATG edges are in their views but hidden (tick
 their eye in the blueprint panel); one-off events (a crossed beam, an inserted or ambiguous
-crossing, a CPDA switch) stay visible for a short window after their time.
+crossing, a CPDA decision) stay visible for a short window after their time (``FLASH_S``, ``DECISION_S``).
 
 Stage recordings carry no blueprint of their own (it depends on what every stage logged): the
 one layout is written once the stages are done, as ``blueprint.rbl`` and, sent with the run, as
@@ -62,6 +62,10 @@ BLUEPRINT_FILE = "blueprint.rbl"
 BLUEPRINT_RECORDING = "_blueprint.rrd"
 #: How long a one-off event stays on the map after its time (s).
 FLASH_S = 2.0
+#: How long a decision label (a CPDA pairing, a flow join, a switch) stays on the map after its
+#: slot (s): long enough to read, short enough that the labels of the next meetings along a
+#: corridor do not pile up on it (at the 10 s trail window three overlapped, see docs/viewing.md).
+DECISION_S = 3.0
 
 SPATIAL = frozenset({"Points2D", "LineStrips2D", "Boxes2D", "Ellipses2D", "Arrows2D", "EncodedImage", "Image"})
 FRAME = frozenset({"Transform3D"})
@@ -259,7 +263,7 @@ class Planner:
         root = paths.tracker_root(tracker)
         graph = [p for p in self.L.under(root, SPATIAL | FRAME)]
         hidden = [*self.L.under(paths.join(root, "decoded")), *self.L.frame(paths.join(root, "eatg", "a2")), *self.sensor_marks()]
-        windows = {p: self.trail_s for name in ("switches", "cpda", "joins") for p in self.L.frame(paths.join(root, name))}
+        windows = {p: min(DECISION_S, self.trail_s) for name in ("switches", "cpda", "joins") for p in self.L.frame(paths.join(root, name))}
         entities = [*self.site(), *self.truth(), *graph]
         what = {"findinghumo": "sensor graph, CPDA decisions", "findinghumo-flow": "sensor graph, flow joins"}.get(tracker, "sensor graph, baseline decoder")
         site = self.map_view(f"{what} ({self.units}): active nodes, decoded tracks, truth", entities, hidden=hidden, windows=windows)
