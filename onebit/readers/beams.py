@@ -118,6 +118,14 @@ def decode_passes(events: pl.DataFrame, source: str = "beams.csv", *, compiled: 
         open_rows.group_by("_first", maintain_order=True).agg(c.last() for c in cols),
     ]).sort("_first")  # fmt: skip
     passes = ends.with_columns(first=pl.when(pl.col("closed")).then(pl.when(pl.col("_opener") == 1).then(pl.lit("b")).otherwise(pl.lit("a"))))
+    return _decoded(ev, passes, rejects)
+
+
+def _decoded(ev: pl.DataFrame, passes: pl.DataFrame, rejects: pl.DataFrame) -> BeamDecode:
+    """The reader's tables from the accepted events and their passes (``beam``, ``first`` /
+    ``last`` pair, ``closed``, ``t`` of the last edge): a closed pass that left by the other
+    pair is a crossing (``a`` first: forward), one that left by the pair it entered is aborted,
+    an open one is unfinished."""
     closed = passes.filter(pl.col("closed"))
     crossing = closed.filter(pl.col("first") != pl.col("last")).with_columns(
         direction=pl.when(pl.col("first") == "a").then(1).otherwise(-1).cast(pl.Int8)
@@ -173,19 +181,7 @@ def decode_passes_reference(events: pl.DataFrame, source: str = "beams.csv") -> 
         closed=pl.col("idle").last(),
         t=pl.col("t").last(),
     )
-    closed = passes.filter(pl.col("closed"))
-    crossing = closed.filter(pl.col("first") != pl.col("last")).with_columns(
-        direction=pl.when(pl.col("first") == "a").then(1).otherwise(-1).cast(pl.Int8)
-    )
-    crossings = conform(crossing, CROSSINGS).sort(["t", "beam"], maintain_order=True)
-    aborted = conform(
-        closed.filter(pl.col("first") == pl.col("last")).with_columns(
-            side=pl.when(pl.col("first") == "a").then(-1).otherwise(1).cast(pl.Int8)
-        ),
-        ABORTED,
-    ).sort("t")
-    unfinished = passes.filter(~pl.col("closed")).select("t", pl.col("beam").cast(pl.String))
-    return BeamDecode(conform(ev, BEAM_EVENTS), crossings, aborted, unfinished, rejects)
+    return _decoded(ev, passes, rejects)
 
 
 def decode_beam_log(path: str | Path, beam_ids: tuple[str, ...], *, epoch: str | None = None) -> BeamDecode:

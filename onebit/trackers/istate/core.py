@@ -217,6 +217,26 @@ def _bounds(regions: np.ndarray) -> np.ndarray:
     return shapely.bounds(regions)
 
 
+def _encode_once(cache: dict, geoms: np.ndarray, encode, dtype) -> np.ndarray:
+    """``encode`` of each geometry of ``geoms`` (1-d object array), computed once per geometry
+    object: ``cache`` maps ``id(geometry)`` to ``(geometry, value)`` (the geometry kept alive so
+    its id stays its own); ``encode(new)`` maps the array of uncached geometries to a list of values."""
+    out = np.empty(len(geoms), dtype=dtype)
+    new = []
+    for p, g in enumerate(geoms):
+        hit = cache.get(id(g))
+        if hit is None:
+            new.append(p)
+        else:
+            out[p] = hit[1]
+    if new:
+        new = np.asarray(new, dtype=np.int64)
+        for p, g, v in zip(new.tolist(), geoms[new].tolist(), encode(geoms[new])):
+            cache[id(g)] = (g, v)
+            out[p] = v
+    return out
+
+
 class PairMemo:
     """Exact results of region-pair operations, keyed by the two regions' WKB (module
     docstring, "Pairwise work done once").
@@ -241,38 +261,15 @@ class PairMemo:
         """Region id of each geometry (int64, same shape): equal WKB <=> equal id. Each
         geometry object is encoded once."""
         flat = np.asarray(geoms, dtype=object).ravel()
-        out = np.empty(len(flat), dtype=np.int64)
-        new = []
-        for p, g in enumerate(flat):
-            hit = self._obj.get(id(g))
-            if hit is None:
-                new.append(p)
-            else:
-                out[p] = hit[1]
-        if new:
-            new = np.asarray(new, dtype=np.int64)
-            for p, g, w in zip(new.tolist(), flat[new].tolist(), shapely.to_wkb(flat[new]).tolist()):
-                rid = self._rid.setdefault(w, len(self._rid))
-                self._obj[id(g)] = (g, rid)
-                out[p] = rid
-        return out.reshape(np.shape(geoms))
+
+        def encode(new: np.ndarray) -> list:
+            return [self._rid.setdefault(w, len(self._rid)) for w in shapely.to_wkb(new).tolist()]
+
+        return _encode_once(self._obj, flat, encode, np.int64).reshape(np.shape(geoms))
 
     def normalized(self, geoms: np.ndarray) -> np.ndarray:
         """``shapely.to_wkb(shapely.normalize(geoms))`` (1-d), each geometry object encoded once."""
-        out = np.empty(len(geoms), dtype=object)
-        new = []
-        for p, g in enumerate(geoms):
-            hit = self._norm.get(id(g))
-            if hit is None:
-                new.append(p)
-            else:
-                out[p] = hit[1]
-        if new:
-            new = np.asarray(new, dtype=np.int64)
-            for p, g, w in zip(new.tolist(), geoms[new].tolist(), shapely.to_wkb(shapely.normalize(geoms[new])).tolist()):
-                self._norm[id(g)] = (g, w)
-                out[p] = w
-        return out
+        return _encode_once(self._norm, geoms, lambda new: shapely.to_wkb(shapely.normalize(new)).tolist(), object)
 
     def pairs(self, left: np.ndarray, right: np.ndarray, kl: np.ndarray, kr: np.ndarray, table: dict, op, dtype) -> np.ndarray:
         """``op(left[p], right[p])`` for every pair ``p`` (1-d object arrays with their region
