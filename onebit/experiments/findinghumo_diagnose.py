@@ -43,6 +43,7 @@ swaps) and ``summary.csv`` (per tracker: mean hop error, swaps by kind) and prin
 
 from __future__ import annotations
 
+import math
 import tempfile
 from pathlib import Path
 
@@ -58,6 +59,8 @@ from onebit.pipeline.stages import TRACKERS as ENTRIES
 from onebit.readers.motion import read_motion_csv
 from onebit.scoring.findinghumo import score, truth_nodes
 from onebit.models.graph_hmm.eatg import hop_matrix
+from onebit.models.graph_hmm.likelihood import exchange_margin, tie_relabelling
+from onebit.models.graph_hmm.decoding import tracks_table
 from onebit.core.lazy import lazy_module
 
 _optimize = lazy_module("scipy.optimize")
@@ -74,11 +77,16 @@ MEET_SLOTS = 3
 KIND_SLOTS = 6
 #: an assignment held for fewer slots than this is a lag, not a swap (:func:`slot_assignments`)
 MIN_RUN = 4
+#: a swap's ``margin`` (nats) beyond which the model tells truth from the exchange: a factor 3
+DECIDES = math.log(3.0)
+#: the pseudo-tracker of :func:`model_floor` and its number of random tie-breaks per seed
+FLOOR = "model-ties"
+FLOOR_DRAWS = 20
 
 SWAPS = pl.Schema({
     "seed": pl.Int64, "tracker": pl.String, "slot": pl.Int64, "users": pl.String, "true_nodes": pl.String,
     "track_nodes": pl.String, "meet": pl.Boolean, "kind": pl.String, "event": pl.Boolean, "cpda_tie": pl.Boolean,
-    "cpda": pl.String,
+    "cpda": pl.String, "margin": pl.Float64, "model": pl.String,
 })  # fmt: skip
 RESULTS = pl.Schema({
     "seed": pl.Int64, "tracker": pl.String, "hop_error": pl.Float64, "slot_error": pl.Float64, "swaps": pl.Int64,
@@ -224,6 +232,8 @@ def diagnose_seed(job: tuple[int, float, int, float, str]) -> tuple[list[dict], 
         feature = np.isin(np.asarray(nodes), list(g.entries) + list(g.exits))
         events = colocation_events(hmm_paths, feature, hops)
         decisions = out.get("cpda")
+        cfg = spec.config()
+        p_hit, p_false = getattr(cfg, "p_hit", 0.9), getattr(cfg, "p_false", 0.05)
         n_swaps = 0
         for s in range(1, d):
             changed = np.flatnonzero((assign[s] != assign[s - 1]) & (true[:, s] >= 0) & (true[:, s - 1] >= 0))
@@ -234,14 +244,47 @@ def diagnose_seed(job: tuple[int, float, int, float, str]) -> tuple[list[dict], 
             meet, kind = meeting_kind(true, pair, s, hops)
             tracks_before = {int(assign[s - 1][v]) for v in changed}
             ev = [c for c, grp in events if abs(c - s) <= MEET_SLOTS and len(tracks_before & set(grp)) >= 2]
+            cand = [e for e in range(max(1, s - 2 * MEET_SLOTS), min(d, s + MEET_SLOTS + 1)) if (true[list(pair), e] >= 0).all()]
+            margin, _ = exchange_margin(true, pair[0], pair[1], cand, art["active"], art["eatg"], p_hit=p_hit, p_false=p_false)
             swaps.append({
                 "seed": seed, "tracker": name, "slot": s, "users": " ".join(targets[v] for v in changed),
                 "true_nodes": " ".join(nodes[true[v, s]] for v in changed),
                 "track_nodes": " ".join(nodes[est[assign[s - 1][v], s]] if est[assign[s - 1][v], s] >= 0 else "-" for v in changed),
                 "meet": meet, "kind": kind, "event": bool(ev), "cpda_tie": _cpda_tie(decisions, s), "cpda": _cpda_at(decisions, s),
+                "margin": margin, "model": model_verdict(margin),
             })  # fmt: skip
         results.append({"seed": seed, "tracker": name, "hop_error": float(hop), "slot_error": slot_error(true, est, hops, diameter), "swaps": n_swaps})
+    results.append(model_floor(seed, site, truth, true, art, p_hit, p_false))
     return results, swaps
+
+
+def model_floor(seed: int, site: Site, truth: pl.DataFrame, true: np.ndarray, art: dict, p_hit: float, p_false: float) -> dict:
+    """The ``model-ties`` row: the hop error of the *true* slot paths relabelled at every
+    co-location by the most probable pairing under the decoders' model, exact ties broken by
+    chance (:func:`onebit.models.graph_hmm.likelihood.tie_relabelling`), mean over
+    :data:`FLOOR_DRAWS` draws (seeded by the seed). Positions are exact; what remains is the
+    identity error no maximiser of that model can avoid on these observations."""
+    rng = np.random.default_rng(seed)
+    nodes = site.sensor_graph.nodes
+    errs, changed = [], []
+    for _ in range(FLOOR_DRAWS):
+        x, c = tie_relabelling(true, art["active"], art["eatg"], p_hit=p_hit, p_false=p_false, rng=rng)
+        tracks = tracks_table(FLOOR, x, nodes, site, art["t0"], art["period"])
+        rows, _ = score(FLOOR, {f"{FLOOR}_tracks": tracks, "truth": truth}, site)
+        errs.append(next(v for _, m, v, _ in rows if m == "hop_error"))
+        changed.append(c)
+    return {"seed": seed, "tracker": FLOOR, "hop_error": float(np.mean(errs)), "slot_error": 0.0, "swaps": int(round(np.mean(changed)))}
+
+
+def model_verdict(margin: float) -> str:
+    """``truth``: the decoders' model prefers the true labelling to every exchange of the two
+    users' tails near the swap by more than :data:`DECIDES` (a better search could fix the
+    swap); ``tie``: within that factor -- the model cannot tell who is who, so no decoder,
+    CPDA or association maximising it can be relied on there; ``swap``: the model prefers the
+    exchange (it is wrong there); ``impossible``: the true paths have probability 0 under it."""
+    if not np.isfinite(margin) and margin < 0:
+        return "impossible"
+    return "truth" if margin > DECIDES else "swap" if margin < -DECIDES else "tie"
 
 
 def slot_error(true: np.ndarray, est: np.ndarray, hops: np.ndarray, miss: int) -> float:
@@ -294,6 +337,7 @@ def summarise(results: pl.DataFrame, swaps: pl.DataFrame) -> pl.DataFrame:
         *(pl.col("kind").eq(k).sum().cast(pl.Int64).alias(k) for k in kinds),
         at_event=pl.col("event").sum().cast(pl.Int64),
         cpda_tie=pl.col("cpda_tie").sum().cast(pl.Int64),
+        **{f"model_{k}": pl.col("model").eq(k).sum().cast(pl.Int64) for k in ("truth", "tie", "swap", "impossible")},
     )
     return (
         results.group_by("tracker", maintain_order=True)

@@ -49,8 +49,31 @@ def test_meeting_kinds():
 def test_quick_study_writes_its_tables(tmp_path):
     out = fd.run(tmp_path / "d", quick=True, echo=lambda *_: None)
     res = pl.read_csv(out / "results.csv")
-    assert set(res["tracker"]) == set(fd.TRACKERS) and res.height == 2 * len(fd.TRACKERS)
+    assert set(res["tracker"]) == set(fd.TRACKERS) | {fd.FLOOR} and res.height == 2 * (len(fd.TRACKERS) + 1)
     assert (res["slot_error"] <= res["hop_error"] + 1e-9).all()  # the identity-free floor
+    assert (res.filter(pl.col("tracker") == fd.FLOOR)["slot_error"] == 0).all()  # the model floor has exact positions
     swaps = pl.read_csv(out / "swaps.csv")
     assert set(swaps.columns) == set(fd.SWAPS)
+    assert set(swaps["model"]) <= {"truth", "tie", "swap", "impossible"}
     assert (out / "diagnosis.md").read_text().startswith("Seeds 0-1")
+
+
+def test_the_model_floor_is_zero_without_meetings_and_positive_at_a_shared_arrival():
+    """With the true paths and no two users ever on one node nothing is relabelled; with two
+    users arriving together and leaving apart the draw flips a coin (the model ties)."""
+    from onebit.models.graph_hmm.eatg import layout_eatg
+    from onebit.models.graph_hmm.likelihood import tie_relabelling
+
+    idx, hops = _hallway()
+    g = builtin_site("hallway").sensor_graph
+    eatg = layout_eatg(g.nodes, hops)
+    active = np.zeros((8, len(g.nodes)), bool)
+    apart = _rows(idx, [[97, 96, 95, 99, 111, 110, 117, 117], [93, 93, 94, 96, 97, 104, 103, 103]])
+    rng = np.random.default_rng(1)
+    x, changed = tie_relabelling(apart, active, eatg, p_hit=0.9, p_false=0.05, rng=rng)
+    assert changed == 0 and (x == apart).all()
+    together = _rows(idx, [[95, 99, 111, 111, 110, 117, 117, 117], [95, 99, 111, 111, 114, 101, 101, 101]])
+    drawn = [tie_relabelling(together, active, eatg, p_hit=0.9, p_false=0.05, rng=rng)[0] for _ in range(16)]
+    swapped = [bool((d[0, 4:] == together[1, 4:]).all()) for d in drawn]
+    assert any(swapped) and not all(swapped)
+    assert fd.slot_error(together, drawn[swapped.index(True)], hops, 8) == 0.0  # positions stay exact
