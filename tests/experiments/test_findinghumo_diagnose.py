@@ -77,3 +77,19 @@ def test_the_model_floor_is_zero_without_meetings_and_positive_at_a_shared_arriv
     swapped = [bool((d[0, 4:] == together[1, 4:]).all()) for d in drawn]
     assert any(swapped) and not all(swapped)
     assert fd.slot_error(together, drawn[swapped.index(True)], hops, 8) == 0.0  # positions stay exact
+
+
+def test_issue_15_what_is_reached_on_the_first_20_seeds():
+    """Issue #15's setting (hallway, 3 users, 150 s, drop 0.02, seeds 0-19): the measured means
+    are findinghumo 0.593 < hmm2 0.613 < hmm1 1.413 hops, and the model-ties floor (true
+    positions, model-optimal labels, exact ties by chance) 0.440 -- above the issue's 0.1,
+    which is why that is not reached (docs/findinghumo.md)."""
+    rows = []
+    for seed in range(20):
+        res, _ = fd.diagnose_seed((seed, fd.DURATION, fd.USERS, fd.DROP, "routes"))
+        rows += res
+    mean = pl.DataFrame(rows).group_by("tracker").agg(pl.col("hop_error").mean())
+    m = dict(zip(mean["tracker"], mean["hop_error"]))
+    assert m["findinghumo"] < m["hmm2"] < m["hmm1"], m
+    assert m["model-ties"] > 0.3, m  # the floor of any maximiser of the model: far above 0.1
+    assert m["findinghumo-flow"] < m["hmm2"], m

@@ -27,6 +27,10 @@ WINDOWS = pl.Schema({
 })  # fmt: skip
 
 
+#: where the joint re-decoding of meetings runs (:attr:`HmmConfig.joint`)
+JOINT = ("off", "before-cpda", "after-cpda")
+
+
 @dataclass(frozen=True, kw_only=True)
 class HmmConfig:
     """Shared configuration of the HMM trackers (``run.toml`` sections ``[findinghumo]``,
@@ -55,6 +59,11 @@ class HmmConfig:
         sensor is off and nothing fires (nobody present); 0 = users stay where they were.
     max_users : the most users reported at once (:func:`cap_users`); 0 = the site's
         ``targets`` (the most people present at once), no cap when the site does not say.
+    joint : re-decode every meeting of two users jointly (beyond the paper,
+        :mod:`onebit.models.graph_hmm.joint`); ``"off"``, ``"before-cpda"`` (on the HMM's
+        output, what CPDA then starts from) or ``"after-cpda"``. The baselines ``hmm1`` /
+        ``hmm2`` default to ``"off"`` (the paper's full-state HMMs as it describes them).
+    joint_pad : slots a joint re-decoding window extends either side of a meeting.
     """
 
     period: float = 1.0
@@ -72,6 +81,8 @@ class HmmConfig:
     offline: bool = False
     absent_after: float = ABSENT_AFTER_S
     max_users: int = 0
+    joint: str = "off"
+    joint_pad: int = 4
 
     def __post_init__(self) -> None:
         check_range(self, "period", 1e-3, None)
@@ -89,6 +100,8 @@ class HmmConfig:
         check_choice(self, "offline", (False, True))
         check_range(self, "absent_after", 0.0, 1e12)
         check_range(self, "max_users", 0, 10_000, types=(int,))
+        check_choice(self, "joint", JOINT)
+        check_range(self, "joint_pad", 0, 100, types=(int,))
 
 
 def available(site: Site) -> str | None:

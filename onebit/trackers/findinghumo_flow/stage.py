@@ -21,6 +21,7 @@ import polars as pl
 
 from onebit.core.config import check_choice, check_range
 from onebit.core.site import Site
+from onebit.models.graph_hmm.joint import joint_table, redecode_meetings
 from onebit.models.graph_hmm.decoding import HmmConfig, available, cap_users, decode_motion, tracks_table, windows_table
 from onebit.models.graph_hmm.viterbi import log_safe
 from onebit.readers.motion import outside_silence
@@ -52,6 +53,7 @@ class FlowConfig(HmmConfig):
         0.60 hops -- users here also pause where they do not turn, see docs/findinghumo.md).
     """
 
+    joint: str = "before-cpda"  # here: on the HMM's paths, before the association (0.464 vs 0.501 after it, seeds 0-19)
     decoder: str = "full2"
     pace_sigma: float = 0.35
     max_gap: int = 10
@@ -139,10 +141,16 @@ def run_flow(inputs: dict, site: Site, config: FlowConfig) -> dict:
     feature = np.isin(arr, list(g.entries) + list(g.exits))
     entries = np.isin(arr, list(g.entries))
     exits = np.isin(arr, list(g.exits))
+    decoded = run.result.paths
+    joint_log: list[dict] = []
+    if cfg.joint == "before-cpda":  # on the HMM's paths, before the association
+        decoded, joint_log = redecode_meetings(decoded, run.active, eatg, p_hit=cfg.p_hit, p_false=cfg.p_false, pad=cfg.joint_pad)
     paths, frags, ident, joins = associate_paths(
-        run.result.paths, eatg.hops, eatg.a1, eatg.a2, feature, entries, exits, pace_sigma=cfg.pace_sigma, max_gap=cfg.max_gap,
+        decoded, eatg.hops, eatg.a1, eatg.a2, feature, entries, exits, pace_sigma=cfg.pace_sigma, max_gap=cfg.max_gap,
         run_start=cfg.d_max,
     )
+    if cfg.joint == "after-cpda":  # on the associated paths
+        paths, joint_log = redecode_meetings(paths, run.active, eatg, p_hit=cfg.p_hit, p_false=cfg.p_false, pad=cfg.joint_pad)
     cap = cfg.max_users or (site.targets or 0)
     paths = cap_users(paths, run.active, eatg.hops, cap)
     tracks = outside_silence(tracks_table(NAME, paths, nodes, site, run.t0, cfg.period), run.silent)
@@ -155,6 +163,7 @@ def run_flow(inputs: dict, site: Site, config: FlowConfig) -> dict:
         "fragments": frag_table,
         "joins": join_table,
         "eatg": eatg.table(),
+        **({"joint": joint_table(joint_log, nodes, run.t0, cfg.period)} if cfg.joint != "off" else {}),
         "windows": windows_table(run.result),
         "decoder": pl.DataFrame({"slots": [int(run.active.shape[0])], "users": [int(paths.shape[0])]}),
         ARTIFACTS: {

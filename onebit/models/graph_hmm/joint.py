@@ -1,0 +1,213 @@
+"""Joint re-decoding of two users through a meeting (beyond the paper; issue #15).
+
+The window decoder (:mod:`onebit.models.graph_hmm.adaptive`) decodes users one at a time
+(coordinate ascent); where two users meet, the first one decoded takes the activations that
+suit it and the other gets what is left, so the pair can leave the meeting on each other's
+path even where the model itself tells them apart (a head-on crossing). Here the two users'
+states are decoded *together* over the meeting, with everyone else held fixed.
+
+User state ``s = (x, c)``: node ``x`` and the node ``c`` it came from (``-1`` before its first
+move), the context of the second-order transition ``a(c, x, y)``
+(:func:`~onebit.models.graph_hmm.adaptive.second_order_tensor`). Moves: stay
+``(x, c) -> (x, c)`` with ``log a(c|x, x, x)``, or step to a neighbour ``y``:
+``(x, c) -> (y, x)`` with ``log a(c|x, x, y)`` (``c|x``: ``c``, or ``x`` when unknown). The
+pair's state is ``(s_1, s_2)`` (``S^2`` states, ``S = sum_x (deg x + 1)``); the Viterbi
+recursion over the window ``t = w0 .. w1``::
+
+    delta_t(s_1, s_2) = max_{p_1, p_2} delta_{t-1}(p_1, p_2) + log a(p_1 -> s_1) + log a(p_2 -> s_2)
+                        + e_t(x(s_1), x(s_2)),
+    e_t(j, k) = g_t(j) + [j = k] h_t(j) + [j != k] g_t(k),
+
+with ``g_t(j) = log P(b_j(t) | c_j + 1) - log P(b_j(t) | c_j)`` and
+``h_t(j) = log P(b_j(t) | c_j + 2) - log P(b_j(t) | c_j + 1)`` the noisy-OR gains over the
+``c_j`` other users fixed at ``j`` (adaptive module docstring, item 4). It starts from the two
+users' states at ``w0 - 1`` and ends by the move into each pairing of the two tails after
+``w1``: ``(tail_a, tail_b)`` or exchanged. Each candidate (either pairing of the tails) is
+then scored with the exact joint log-likelihood of all paths
+(:func:`~onebit.models.graph_hmm.likelihood.model_log_likelihood`) and kept only when it
+beats the current paths, so a re-decoding never lowers ``log L``.
+
+Cost per meeting: ``O(W S^2 K^2)`` with ``K <= 1 + max deg + 1`` predecessors per user state
+(hallway: S = 62, ~10^5 per slot), vectorised in numpy over the pair states.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import polars as pl
+
+from onebit.models.graph_hmm.adaptive import second_order_tensor
+from onebit.models.graph_hmm.eatg import Eatg
+from onebit.models.graph_hmm.likelihood import came_from, claims, model_log_likelihood
+
+
+class PairSpace:
+    """The user states ``(x, c)`` of a graph and each state's predecessors with their log
+    transition probabilities (module docstring)."""
+
+    def __init__(self, hops: np.ndarray, log_a: np.ndarray):
+        n = hops.shape[0]
+        xs, cs = [], []
+        for x in range(n):  # graph-sized set-up, once per run
+            for c in [-1, *np.flatnonzero(hops[x] == 1).tolist()]:
+                xs.append(x)
+                cs.append(c)
+        self.x = np.array(xs, np.int64)
+        self.c = np.array(cs, np.int64)
+        index = {(x, c): i for i, (x, c) in enumerate(zip(xs, cs))}
+        self.index = index
+        preds: list[list[tuple[int, float]]] = []
+        for x, c in zip(xs, cs):
+            p = [(index[(x, c)], float(log_a[c if c >= 0 else x, x, x]))]  # stay
+            if c >= 0:  # arrived from c: any state at c moved here
+                for i in np.flatnonzero(self.x == c):
+                    cc = int(self.c[i])
+                    p.append((int(i), float(log_a[cc if cc >= 0 else c, c, x])))
+            preds.append(p)
+        k = max(len(p) for p in preds)
+        self.pred = np.zeros((len(xs), k), np.int64)
+        self.lp = np.full((len(xs), k), -np.inf)
+        for i, p in enumerate(preds):
+            self.pred[i, : len(p)] = [a for a, _ in p]
+            self.lp[i, : len(p)] = [b for _, b in p]
+        self.log_a = log_a
+
+    def state(self, x: int, c: int) -> int:
+        return self.index[(int(x), int(c) if c >= 0 and (int(x), int(c)) in self.index else -1)]
+
+
+def _gains(active: np.ndarray, others: np.ndarray, p_hit: float, p_false: float) -> tuple[np.ndarray, np.ndarray]:
+    """(W, N) ``g`` and ``h`` of the module docstring."""
+
+    def logp(c):
+        p_on = np.where(c > 0, 1.0 - (1.0 - p_hit) ** c, p_false)
+        return np.where(active, np.log(p_on), np.log1p(-p_on))
+
+    c0 = others.astype(float)
+    l0, l1, l2 = logp(c0), logp(c0 + 1), logp(c0 + 2)
+    return l1 - l0, l2 - l1
+
+
+def decode_pair(space: PairSpace, start: tuple[int, int], active: np.ndarray, others: np.ndarray, ends, *, p_hit: float, p_false: float):
+    """Joint Viterbi of two users over a window (module docstring).
+
+    ``start``: the two users' states at the slot before the window; ``active`` ``(W, N)`` and
+    ``others`` ``(W, N)`` (users at each node other than the pair); ``ends``: a list of
+    ``(y_1, y_2)`` first nodes after the window (``-1``: none) to finish into. Returns one
+    ``(2, W)`` node array per end, or ``None`` where no path reaches it."""
+    s = space.x.size
+    g, h = _gains(active, others, p_hit, p_false)
+    delta = np.full((s, s), -np.inf)
+    delta[start[0], start[1]] = 0.0
+    psi = np.zeros((active.shape[0], s, s), np.int64)
+    pred, lp = space.pred, space.lp
+    k = pred.shape[1]
+    xs = space.x
+    same = xs[:, None] == xs[None, :]
+    for t in range(active.shape[0]):  # sequential: the Viterbi recursion over the window's slots
+        cand = delta[pred[:, :, None, None], pred[None, None, :, :]] + lp[:, :, None, None] + lp[None, None, :, :]
+        cand = cand.transpose(0, 2, 1, 3).reshape(s, s, k * k)
+        best = cand.argmax(axis=2)
+        e = g[t][xs][:, None] + np.where(same, h[t][xs][:, None], g[t][xs][None, :])
+        delta = np.take_along_axis(cand, best[:, :, None], axis=2)[:, :, 0] + e
+        psi[t] = best
+    out = []
+    for y1, y2 in ends:
+        term = delta.copy()
+        for u, y in ((0, y1), (1, y2)):
+            if y < 0:
+                continue
+            ctx = np.where(space.c >= 0, space.c, xs)
+            step = space.log_a[ctx, xs, y]  # the move from the window's last state into the tail
+            term = term + (step[:, None] if u == 0 else step[None, :])
+        if not np.isfinite(term.max()):
+            out.append(None)
+            continue
+        a, b = np.unravel_index(int(term.argmax()), term.shape)
+        path = np.zeros((2, active.shape[0]), np.int64)
+        for t in range(active.shape[0] - 1, -1, -1):  # backtrack
+            path[0, t], path[1, t] = xs[a], xs[b]
+            kk = psi[t, a, b]
+            a, b = pred[a, kk // k], pred[b, kk % k]
+        out.append(path)
+    return out
+
+
+def meetings(paths: np.ndarray, hops: np.ndarray, *, pad: int) -> list[tuple[int, int, int, int]]:
+    """``(u, v, w0, w1)``: every maximal run of slots where users ``u < v`` are within one hop of
+    each other, padded by ``pad`` slots each side (clipped to the run and to where both are
+    present)."""
+    u_n, d = paths.shape
+    out = []
+    for u in range(u_n):  # a handful of users: pairs
+        for v in range(u + 1, u_n):
+            a, b = paths[u], paths[v]
+            both = (a >= 0) & (b >= 0)
+            near = both & (hops[np.maximum(a, 0), np.maximum(b, 0)] <= 1)
+            if not near.any():
+                continue
+            edges = np.diff(np.concatenate([[0], near.astype(np.int8), [0]]))
+            for s0, s1 in zip(np.flatnonzero(edges == 1), np.flatnonzero(edges == -1) - 1):
+                w0, w1 = max(1, s0 - pad), min(d - 1, s1 + pad)
+                while w0 < s0 and not both[w0 - 1]:
+                    w0 += 1
+                while w1 > s1 and not both[w1]:
+                    w1 -= 1
+                if both[w0 - 1 : w1 + 1].all():
+                    out.append((u, v, int(w0), int(w1)))
+    return sorted(out, key=lambda m: m[2])
+
+
+def redecode_meetings(
+    paths: np.ndarray, active: np.ndarray, eatg: Eatg, *, p_hit: float, p_false: float, pad: int = 4
+) -> tuple[np.ndarray, list[dict]]:
+    """Every meeting of two users (:func:`meetings`, in slot order) jointly re-decoded
+    (:func:`decode_pair`), either pairing of the tails, the candidate of highest exact
+    ``log L`` kept when it beats the current paths. Returns the paths and one record per
+    meeting (slots, users, gain in ``log L``, whether the tails were exchanged)."""
+    n = len(eatg.nodes)
+    log_a = second_order_tensor(eatg.a1, eatg.a2, np.arange(n))
+    space = PairSpace(eatg.hops, log_a)
+    x = np.array(paths, dtype=np.int64, copy=True)
+    cur = model_log_likelihood(x, active, eatg, p_hit=p_hit, p_false=p_false, log_a=log_a)
+    log = []
+    for u, v, w0, w1 in meetings(x, eatg.hops, pad=pad):  # sequential: each re-decoding changes the paths the next one sees
+        ctx = came_from(x[[u, v], : w0])
+        start = (space.state(x[u, w0 - 1], ctx[0, -1]), space.state(x[v, w0 - 1], ctx[1, -1]))
+        rest = np.delete(x[:, w0 : w1 + 1], [u, v], axis=0)
+        others = claims(rest, n)
+        nxt = (int(x[u, w1 + 1]), int(x[v, w1 + 1])) if w1 + 1 < x.shape[1] else (-1, -1)
+        ends = [nxt, (nxt[1], nxt[0])]
+        best, pick = cur, None
+        for swap, path in enumerate(decode_pair(space, start, active[w0 : w1 + 1], others, ends, p_hit=p_hit, p_false=p_false)):
+            if path is None:
+                continue
+            y = x.copy()
+            y[[u, v], w0 : w1 + 1] = path
+            if swap:
+                y[u, w1 + 1 :], y[v, w1 + 1 :] = x[v, w1 + 1 :], x[u, w1 + 1 :]
+            ll = model_log_likelihood(y, active, eatg, p_hit=p_hit, p_false=p_false, log_a=log_a)
+            if ll > best + 1e-9:
+                best, pick = ll, (y, bool(swap))
+        log.append({"slot": w0, "end": w1, "users": (u, v), "gain": best - cur, "exchanged": bool(pick and pick[1])})
+        if pick is not None:
+            x, cur = pick[0], best
+    return x, log
+
+
+#: one row per meeting re-decoded jointly: its window, the two decoded users, the gain in
+#: ``log L`` of the kept candidate (0 when the paths were kept) and whether the tails were exchanged
+JOINT = pl.Schema({
+    "slot": pl.Int64, "end": pl.Int64, "t": pl.Float64, "track_a": pl.String, "track_b": pl.String,
+    "gain": pl.Float64, "exchanged": pl.Boolean,
+})  # fmt: skip
+
+
+def joint_table(log: list[dict], nodes, t0: float, period: float) -> pl.DataFrame:
+    """The records of :func:`redecode_meetings` as a :data:`JOINT` table (tracks named as in
+    the tracks table, ``user<k+1>``)."""
+    rows = [
+        (r["slot"], r["end"], t0 + (r["slot"] + 0.5) * period, f"user{r['users'][0] + 1}", f"user{r['users'][1] + 1}", float(r["gain"]), r["exchanged"])
+        for r in log
+    ]
+    return pl.DataFrame(rows, schema=JOINT, orient="row")
