@@ -263,7 +263,7 @@ class Planner:
         root = paths.tracker_root(tracker)
         graph = [p for p in self.L.under(root, SPATIAL | FRAME)]
         hidden = [*self.L.under(paths.join(root, "decoded")), *self.L.frame(paths.join(root, "eatg", "a2")), *self.sensor_marks()]
-        windows = {p: min(DECISION_S, self.trail_s) for name in ("switches", "cpda", "joins") for p in self.L.frame(paths.join(root, name))}
+        windows = {p: min(DECISION_S, self.trail_s) for name in ("switches", "cpda", "joins", "joint") for p in self.L.frame(paths.join(root, name))}
         entities = [*self.site(), *self.truth(), *graph]
         what = {"findinghumo": "sensor graph, CPDA decisions", "findinghumo-flow": "sensor graph, flow joins"}.get(tracker, "sensor graph, baseline decoder")
         site = self.map_view(f"{what} ({self.units}): active nodes, decoded tracks, truth", entities, hidden=hidden, windows=windows)

@@ -14,6 +14,8 @@ Entity paths (under the tracker's root)::
                                     slot: the pairing chosen and every alternative's probability
     <tracker>/joins                 (findinghumo-flow) the joins chosen by the flow at each
                                     meeting's cut slot, with the alternatives' probabilities
+    <tracker>/joint                 every meeting the joint re-decoding changed, at a node of
+                                    the pair from the meeting's first slot: tracks, gain in log L
 
 Bulk series go through one ``send_columns`` each.
 """
@@ -176,6 +178,24 @@ def log_joins(rec: rr.RecordingStream, tracker: str, joins: pl.DataFrame | None,
     _log_labelled_points(rec, paths.join(paths.tracker_root(tracker), "joins"), xy, t, labels, DECISION)
 
 
+def log_joint(rec: rr.RecordingStream, tracker: str, joint: pl.DataFrame | None, site) -> None:
+    """The meetings the joint re-decoding changed (gain > 0), labelled with the two tracks,
+    the gain in the joint log-likelihood and whether their tails were exchanged."""
+    if is_empty(joint):
+        return
+    changed = joint.filter(pl.col("gain") > 0)
+    if changed.height == 0:
+        return
+    pos = {m.id: m.position for m in site.motion_sensors}
+    xy = np.array([pos[n] for n in changed["node"].to_list()], dtype=float).reshape(-1, 2)
+    t = changed["t"].to_numpy()
+    labels = [
+        f"joint: users {a[4:]},{b[4:]} +{g:.1f} nats{' (exchanged)' if ex else ''}"
+        for a, b, g, ex in changed.select("track_a", "track_b", "gain", "exchanged").iter_rows()
+    ]
+    _log_labelled_points(rec, paths.join(paths.tracker_root(tracker), "joint"), xy, t, labels, DECISION)
+
+
 def log_run(rec: rr.RecordingStream, tracker: str, out: dict, *, site, region_graph, config, tables: dict) -> None:
     """Everything an HMM tracker produced: the EATG, active nodes per slot, decoded paths and
     (FindingHuMo) the CPDA switches."""
@@ -189,3 +209,5 @@ def log_run(rec: rr.RecordingStream, tracker: str, out: dict, *, site, region_gr
         log_cpda(rec, tracker, out["cpda"], site, art["t0"], art["period"])
     if "joins" in out:
         log_joins(rec, tracker, out["joins"], site, art["t0"], art["period"])
+    if "joint" in out:
+        log_joint(rec, tracker, out["joint"], site)

@@ -189,25 +189,29 @@ def redecode_meetings(
             ll = model_log_likelihood(y, active, eatg, p_hit=p_hit, p_false=p_false, log_a=log_a)
             if ll > best + 1e-9:
                 best, pick = ll, (y, bool(swap))
-        log.append({"slot": w0, "end": w1, "users": (u, v), "gain": best - cur, "exchanged": bool(pick and pick[1])})
         if pick is not None:
-            x, cur = pick[0], best
+            x = pick[0]
+        mid = (w0 + w1) // 2
+        log.append({"slot": w0, "end": w1, "users": (u, v), "gain": best - cur, "exchanged": bool(pick and pick[1]), "node": int(x[u, mid])})
+        cur = best
     return x, log
 
 
 #: one row per meeting re-decoded jointly: its window, the two decoded users, the gain in
-#: ``log L`` of the kept candidate (0 when the paths were kept) and whether the tails were exchanged
+#: ``log L`` of the kept candidate (0 when the paths were kept), whether the tails were exchanged,
+#: and the node of ``track_a`` at the window's middle slot (where the viewer shows it)
 JOINT = pl.Schema({
     "slot": pl.Int64, "end": pl.Int64, "t": pl.Float64, "track_a": pl.String, "track_b": pl.String,
-    "gain": pl.Float64, "exchanged": pl.Boolean,
+    "gain": pl.Float64, "exchanged": pl.Boolean, "node": pl.String,
 })  # fmt: skip
 
 
 def joint_table(log: list[dict], nodes, t0: float, period: float) -> pl.DataFrame:
-    """The records of :func:`redecode_meetings` as a :data:`JOINT` table (tracks named as in
-    the tracks table, ``user<k+1>``)."""
+    """The records of :func:`redecode_meetings` as a :data:`JOINT` table (the decoder's users
+    named ``user<k+1>`` as in the tracks table; where the user cap (``max_users`` / the site's
+    ``targets``) drops users, the tracks table renumbers what it keeps)."""
     rows = [
-        (r["slot"], r["end"], t0 + (r["slot"] + 0.5) * period, f"user{r['users'][0] + 1}", f"user{r['users'][1] + 1}", float(r["gain"]), r["exchanged"])
+        (r["slot"], r["end"], t0 + (r["slot"] + 0.5) * period, f"user{r['users'][0] + 1}", f"user{r['users'][1] + 1}", float(r["gain"]), r["exchanged"], nodes[r["node"]])
         for r in log
     ]
     return pl.DataFrame(rows, schema=JOINT, orient="row")

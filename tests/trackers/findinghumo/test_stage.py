@@ -224,3 +224,22 @@ def test_user_walking_through_the_door_keeps_its_identity(hallway):
         res = decode_run(active, eatg, signatures=sigs, params=DecoderParams(mode=mode))
         assert res.paths.shape[0] == 1, mode
         assert [eatg.nodes[j] for j in res.paths[0]] == seq, mode
+
+
+def test_joint_redecoding_is_tabled_and_logged(hallway_runs):
+    """Every meeting the joint re-decoding considered is in ``findinghumo_joint`` (gain >= 0:
+    it never lowers the model's log-likelihood), and each one it changed is a labelled point
+    in the recording under ``findinghumo/joint``; the baselines do not run it."""
+    from onebit.viz.inspect import component_rows
+
+    changed = 0
+    for seed, r in hallway_runs.items():
+        joint = pl.read_parquet(r.out / "tables" / "findinghumo_joint.parquet")
+        assert joint.height > 0 and (joint["gain"] >= 0).all()
+        assert not (r.out / "tables" / "hmm2_joint.parquet").exists()
+        n = int((joint["gain"] > 0).sum())
+        if n:
+            labels = [x for row in component_rows(r.out / "rrd" / "findinghumo.rrd", "findinghumo/joint", "Points2D:labels") for x in (row or [])]
+            assert len(labels) == n and all(lb.startswith("joint: users ") for lb in labels), labels
+        changed += n
+    assert changed > 0
