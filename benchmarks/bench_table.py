@@ -234,6 +234,7 @@ def findinghumo_stage(t: Table) -> None:
     from onebit.core.site import load_site
     from onebit.readers.motion import read_motion_csv
     from onebit.models.graph_hmm import decoding
+    from onebit.models.graph_hmm import joint
     from onebit.models.graph_hmm.adaptive import DecoderParams
     from onebit.trackers.findinghumo import stage as S
 
@@ -248,7 +249,8 @@ def findinghumo_stage(t: Table) -> None:
             run = lambda: S.run_findinghumo({"motion": mo}, site, cfg)  # noqa: E731
             run()
             to, out = best(run, 3, clock=time.process_time)
-            with patched(decoding, "DecoderParams", functools.partial(DecoderParams, compiled=False)):
+            with patched(decoding, "DecoderParams", functools.partial(DecoderParams, compiled=False)), \
+                    patched(joint, "_pair_viterbi", joint.pair_viterbi_reference):
                 tr, ref = best(run, 2, clock=time.process_time)
             assert out["tracks"].equals(ref["tracks"]), "compiled and reference decoders differ"
             ours.append(to)

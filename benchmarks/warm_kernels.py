@@ -24,6 +24,9 @@ def findinghumo() -> None:
     act = np.eye(4, dtype=bool)[[0, 1, 2, 3, 2, 1]] | np.eye(4, dtype=bool)[[3, 3, 0, 0, 0, 0]]
     for mode in ("adaptive", "full1", "full2"):
         decode_run(act, eatg, params=DecoderParams(mode=mode, d_max=3, tau=2))
+    from onebit.models.graph_hmm.joint import redecode_meetings
+
+    redecode_meetings(np.array([[0, 1, 2, 2], [2, 2, 1, 0]]), act[:4], eatg, p_hit=0.9, p_false=0.05, pad=1)
 
 
 def intruder() -> None:

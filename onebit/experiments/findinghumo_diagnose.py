@@ -27,7 +27,7 @@ follow other users. For each swap the table gives:
   by the direction prior a''), ``same-in`` (arrived from the same node, left apart: a'' is
   symmetric in the users), ``same-out`` (arrived apart, left together), ``none`` (no
   meeting: a decoding error away from other users);
-* ``event``: the interaction graph of the HMM output (before CPDA for ``findinghumo``) holds a
+* ``event``: the interaction graph of the paths CPDA (``findinghumo``) or the flow started from holds a
   co-location event of these tracks within ``+-MEET_SLOTS`` slots, and for ``findinghumo``
   ``cpda``: what CPDA decided there (``switch`` / ``keep``, with the posterior of the pairing
   chosen and of keeping the HMM's pairing); ``cpda_tie``: one of those decisions had another

@@ -28,17 +28,22 @@ then scored with the exact joint log-likelihood of all paths
 beats the current paths, so a re-decoding never lowers ``log L``.
 
 Cost per meeting: ``O(W S^2 K^2)`` with ``K <= 1 + max deg + 1`` predecessors per user state
-(hallway: S = 62, ~10^5 per slot), vectorised in numpy over the pair states.
+(hallway: S = 62, ~10^5 per slot). The recursion is sequential over the window's slots and
+runs compiled (:func:`_pair_viterbi`, numba); :func:`pair_viterbi_reference`, vectorised in
+numpy over the pair states, is its plain reference and test oracle.
 """
 
 from __future__ import annotations
 
+import functools
+
 import numpy as np
 import polars as pl
 
-from onebit.models.graph_hmm.adaptive import second_order_tensor
+from onebit.core.compiled import kernel
+from onebit.models.graph_hmm.adaptive import joint_emission, second_order_tensor
 from onebit.models.graph_hmm.eatg import Eatg
-from onebit.models.graph_hmm.likelihood import came_from, claims, model_log_likelihood
+from onebit.models.graph_hmm.likelihood import came_from, claims, path_log_prior
 
 
 class PairSpace:
@@ -88,29 +93,89 @@ def _gains(active: np.ndarray, others: np.ndarray, p_hit: float, p_false: float)
     return l1 - l0, l2 - l1
 
 
-def decode_pair(space: PairSpace, start: tuple[int, int], active: np.ndarray, others: np.ndarray, ends, *, p_hit: float, p_false: float):
+def pair_viterbi_reference(delta, pred, lp, xs, g, h):
+    """The pair recursion of the module docstring over ``W`` slots from ``delta (S, S)``:
+    returns the last ``delta`` and the back-pointers ``psi (W, S, S)`` (``k_2 K + k_1``, the
+    predecessors' columns in ``pred``; among equal predecessor pairs the first in that order),
+    vectorised over the pair states."""
+    s, k = pred.shape
+    psi = np.zeros((g.shape[0], s, s), np.int64)
+    same = xs[:, None] == xs[None, :]
+    for t in range(g.shape[0]):  # sequential: the Viterbi recursion over the window's slots
+        cand = (delta[pred[:, :, None, None], pred[None, None, :, :]] + lp[:, :, None, None]) + lp[None, None, :, :]
+        cand = cand.transpose(0, 2, 3, 1).reshape(s, s, k * k)  # (a, b, k2 * K + k1)
+        best = cand.argmax(axis=2)
+        e = g[t][xs][:, None] + np.where(same, h[t][xs][:, None], g[t][xs][None, :])
+        delta = np.take_along_axis(cand, best[:, :, None], axis=2)[:, :, 0] + e
+        psi[t] = best
+    return delta, psi
+
+
+@kernel
+def _pair_viterbi(delta, pred, lp, xs, g, h):
+    """Compiled :func:`pair_viterbi_reference` (same outputs), separated: first the best first
+    user's predecessor for every (state, predecessor state of the second user),
+    ``m(a, q) = max_k1 delta(pred(a, k1), q) + lp(a, k1)``, then
+    ``delta'(a, b) = max_k2 m(a, pred(b, k2)) + lp(b, k2)`` -- ``2 S^2 K`` operations per slot
+    instead of ``S^2 K^2``; ties go to the first ``k2``, then the first ``k1``, as in the
+    reference's ``argmax`` over ``k_2 K + k_1``."""
+    s, k = pred.shape
+    w = g.shape[0]
+    psi = np.zeros((w, s, s), np.int64)
+    cur = delta.copy()
+    nxt = np.empty((s, s))
+    m = np.empty((s, s))
+    am = np.zeros((s, s), np.int64)
+    for t in range(w):
+        for a in range(s):
+            for q in range(s):
+                best = -np.inf
+                arg = 0
+                for k1 in range(k):
+                    v = cur[pred[a, k1], q] + lp[a, k1]
+                    if v > best:
+                        best = v
+                        arg = k1
+                m[a, q] = best
+                am[a, q] = arg
+        for a in range(s):
+            for b in range(s):
+                best = -np.inf
+                arg = 0
+                for k2 in range(k):
+                    q = pred[b, k2]
+                    v = m[a, q] + lp[b, k2]
+                    if v > best:
+                        best = v
+                        arg = k2 * k + am[a, q]
+                if xs[a] == xs[b]:
+                    e = g[t, xs[a]] + h[t, xs[a]]
+                else:
+                    e = g[t, xs[a]] + g[t, xs[b]]
+                nxt[a, b] = best + e
+                psi[t, a, b] = arg
+        cur, nxt = nxt, cur
+    return cur, psi
+
+
+def decode_pair(
+    space: PairSpace, start: tuple[int, int], active: np.ndarray, others: np.ndarray, ends, *, p_hit: float, p_false: float,
+    compiled: bool = True,
+):
     """Joint Viterbi of two users over a window (module docstring).
 
     ``start``: the two users' states at the slot before the window; ``active`` ``(W, N)`` and
     ``others`` ``(W, N)`` (users at each node other than the pair); ``ends``: a list of
     ``(y_1, y_2)`` first nodes after the window (``-1``: none) to finish into. Returns one
-    ``(2, W)`` node array per end, or ``None`` where no path reaches it."""
+    ``(2, W)`` node array per end, or ``None`` where no path reaches it. ``compiled=False``
+    runs the numpy reference recursion."""
     s = space.x.size
     g, h = _gains(active, others, p_hit, p_false)
-    delta = np.full((s, s), -np.inf)
-    delta[start[0], start[1]] = 0.0
-    psi = np.zeros((active.shape[0], s, s), np.int64)
-    pred, lp = space.pred, space.lp
-    k = pred.shape[1]
-    xs = space.x
-    same = xs[:, None] == xs[None, :]
-    for t in range(active.shape[0]):  # sequential: the Viterbi recursion over the window's slots
-        cand = delta[pred[:, :, None, None], pred[None, None, :, :]] + lp[:, :, None, None] + lp[None, None, :, :]
-        cand = cand.transpose(0, 2, 1, 3).reshape(s, s, k * k)
-        best = cand.argmax(axis=2)
-        e = g[t][xs][:, None] + np.where(same, h[t][xs][:, None], g[t][xs][None, :])
-        delta = np.take_along_axis(cand, best[:, :, None], axis=2)[:, :, 0] + e
-        psi[t] = best
+    delta0 = np.full((s, s), -np.inf)
+    delta0[start[0], start[1]] = 0.0
+    pred, k, xs = space.pred, space.pred.shape[1], space.x
+    run = _pair_viterbi if compiled else pair_viterbi_reference
+    delta, psi = run(delta0, pred, space.lp, xs, np.ascontiguousarray(g), np.ascontiguousarray(h))
     out = []
     for y1, y2 in ends:
         term = delta.copy()
@@ -127,8 +192,8 @@ def decode_pair(space: PairSpace, start: tuple[int, int], active: np.ndarray, ot
         path = np.zeros((2, active.shape[0]), np.int64)
         for t in range(active.shape[0] - 1, -1, -1):  # backtrack
             path[0, t], path[1, t] = xs[a], xs[b]
-            kk = psi[t, a, b]
-            a, b = pred[a, kk // k], pred[b, kk % k]
+            kk = psi[t, a, b]  # k2 * K + k1
+            a, b = pred[a, kk % k], pred[b, kk // k]
         out.append(path)
     return out
 
@@ -159,7 +224,7 @@ def meetings(paths: np.ndarray, hops: np.ndarray, *, pad: int) -> list[tuple[int
 
 
 def redecode_meetings(
-    paths: np.ndarray, active: np.ndarray, eatg: Eatg, *, p_hit: float, p_false: float, pad: int = 4
+    paths: np.ndarray, active: np.ndarray, eatg: Eatg, *, p_hit: float, p_false: float, pad: int = 4, compiled: bool = True
 ) -> tuple[np.ndarray, list[dict]]:
     """Every meeting of two users (:func:`meetings`, in slot order) jointly re-decoded
     (:func:`decode_pair`), either pairing of the tails, the candidate of highest exact
@@ -169,32 +234,60 @@ def redecode_meetings(
     log_a = second_order_tensor(eatg.a1, eatg.a2, np.arange(n))
     space = PairSpace(eatg.hops, log_a)
     x = np.array(paths, dtype=np.int64, copy=True)
-    cur = model_log_likelihood(x, active, eatg, p_hit=p_hit, p_false=p_false, log_a=log_a)
+    d = x.shape[1]
     log = []
     for u, v, w0, w1 in meetings(x, eatg.hops, pad=pad):  # sequential: each re-decoding changes the paths the next one sees
-        ctx = came_from(x[[u, v], : w0])
-        start = (space.state(x[u, w0 - 1], ctx[0, -1]), space.state(x[v, w0 - 1], ctx[1, -1]))
+        ctx = came_from(x[[u, v], :w0])[:, -1]
+        start = (space.state(x[u, w0 - 1], ctx[0]), space.state(x[v, w0 - 1], ctx[1]))
         rest = np.delete(x[:, w0 : w1 + 1], [u, v], axis=0)
         others = claims(rest, n)
-        nxt = (int(x[u, w1 + 1]), int(x[v, w1 + 1])) if w1 + 1 < x.shape[1] else (-1, -1)
+        nxt = (int(x[u, w1 + 1]), int(x[v, w1 + 1])) if w1 + 1 < d else (-1, -1)
         ends = [nxt, (nxt[1], nxt[0])]
+        b = _settled(x[[u, v]], w1)
+        local = functools.partial(_local_log_likelihood, rows=(u, v), a=w0 - 1, b=b, w=(w0, w1), ctx0=ctx, active=active, n=n,
+                                  log_a=log_a, p_hit=p_hit, p_false=p_false)  # fmt: skip
+        cur = local(x)
         best, pick = cur, None
-        for swap, path in enumerate(decode_pair(space, start, active[w0 : w1 + 1], others, ends, p_hit=p_hit, p_false=p_false)):
+        for swap, path in enumerate(decode_pair(space, start, active[w0 : w1 + 1], others, ends, p_hit=p_hit, p_false=p_false, compiled=compiled)):
             if path is None:
                 continue
             y = x.copy()
             y[[u, v], w0 : w1 + 1] = path
             if swap:
                 y[u, w1 + 1 :], y[v, w1 + 1 :] = x[v, w1 + 1 :], x[u, w1 + 1 :]
-            ll = model_log_likelihood(y, active, eatg, p_hit=p_hit, p_false=p_false, log_a=log_a)
+            ll = local(y)
             if ll > best + 1e-9:
                 best, pick = ll, (y, bool(swap))
         if pick is not None:
             x = pick[0]
         mid = (w0 + w1) // 2
         log.append({"slot": w0, "end": w1, "users": (u, v), "gain": best - cur, "exchanged": bool(pick and pick[1]), "node": int(x[u, mid])})
-        cur = best
     return x, log
+
+
+def _settled(rows: np.ndarray, w1: int) -> int:
+    """The last slot whose transition can depend on the window ending at ``w1``: for each of
+    the two users the slot of its first node change after ``w1`` (from there its came-from
+    context is its tail's own), the later of the two; the run's end if one never changes."""
+    d = rows.shape[1]
+    out = w1 + 1
+    for r in rows:  # the two users
+        tail = r[w1 + 1 :]
+        ch = np.flatnonzero(tail[1:] != tail[:-1])
+        out = max(out, (w1 + 2 + int(ch[0])) if ch.size else d - 1)
+    return min(out, d - 1)
+
+
+def _local_log_likelihood(x, *, rows, a, b, w, ctx0, active, n, log_a, p_hit, p_false) -> float:
+    """The part of :func:`~onebit.models.graph_hmm.likelihood.model_log_likelihood` that a
+    re-decoding of ``rows`` inside the window ``w`` (tails possibly exchanged after it) can
+    change: the two users' transitions from slot ``a`` (context ``ctx0``) to ``b``
+    (:func:`_settled`) and the emissions of the window's slots. Two labellings that agree
+    outside differ in the full ``log L`` by exactly the difference of this."""
+    seg = x[list(rows), a : b + 1]
+    prior = path_log_prior(seg, log_a, ctx0)
+    w0, w1 = w
+    return prior + joint_emission(active[w0 : w1 + 1], claims(x[:, w0 : w1 + 1], n), p_hit, p_false)
 
 
 #: one row per meeting re-decoded jointly: its window, the two decoded users, the gain in

@@ -29,10 +29,11 @@ from onebit.models.graph_hmm.adaptive import joint_emission, second_order_tensor
 from onebit.models.graph_hmm.eatg import Eatg
 
 
-def came_from(paths: np.ndarray) -> np.ndarray:
+def came_from(paths: np.ndarray, ctx0: np.ndarray | None = None) -> np.ndarray:
     """(U, D) the node each user came from before its current dwell (``-1`` when unknown):
     at a node change ``x(t) != x(t-1)`` it is ``x(t-1)``, carried forward while the user
-    dwells; an absent slot (``-1``) forgets it."""
+    dwells; an absent slot (``-1``) forgets it. ``ctx0`` (U,): the context at slot 0 when
+    ``paths`` is a slice of longer paths (default: unknown)."""
     paths = np.asarray(paths, dtype=np.int64)
     u, d = paths.shape
     prev = np.concatenate([np.full((u, 1), -1, np.int64), paths[:, :-1]], axis=1)
@@ -40,17 +41,20 @@ def came_from(paths: np.ndarray) -> np.ndarray:
     reset = (paths < 0) | ((paths != prev) & ~change)  # absent, or the first slot after an absence
     mark = change | reset
     val = np.where(change, prev, -1)
+    if ctx0 is not None:
+        val[:, 0] = np.where(paths[:, 0] >= 0, ctx0, -1)
     # forward fill ``val`` from the last marked slot of each row (slot 0 is always marked)
     pos = np.where(mark, np.arange(d)[None, :], 0)
     np.maximum.accumulate(pos, axis=1, out=pos)
     return np.take_along_axis(val, pos, axis=1)
 
 
-def path_log_prior(paths: np.ndarray, log_a: np.ndarray) -> float:
+def path_log_prior(paths: np.ndarray, log_a: np.ndarray, ctx0: np.ndarray | None = None) -> float:
     """``sum_u sum_t log a(c_u(t-1), x_u(t-1), x_u(t))`` over slots where the user is present
-    at ``t - 1`` and ``t`` (``log_a`` the ``(N, N, N)`` tensor ``log a(j3, j2, j1)``)."""
+    at ``t - 1`` and ``t`` (``log_a`` the ``(N, N, N)`` tensor ``log a(j3, j2, j1)``; ``ctx0``
+    as in :func:`came_from`)."""
     paths = np.asarray(paths, dtype=np.int64)
-    ctx = came_from(paths)
+    ctx = came_from(paths, ctx0)
     j2, j1 = paths[:, :-1], paths[:, 1:]
     ok = (j2 >= 0) & (j1 >= 0)
     j3 = np.where(ctx[:, :-1] >= 0, ctx[:, :-1], j2)

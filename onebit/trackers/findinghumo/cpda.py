@@ -47,8 +47,6 @@ import polars as pl
 from onebit.core.lazy import lazy_module
 from onebit.models.graph_hmm.viterbi import log_safe
 
-_csgraph = lazy_module("scipy.sparse.csgraph")
-_sparse = lazy_module("scipy.sparse")
 
 SWITCHES = pl.Schema({"slot": pl.Int64, "node": pl.String, "users": pl.String, "pairing": pl.String})
 
@@ -103,7 +101,7 @@ def colocation_events(paths: np.ndarray, feature: np.ndarray, hops: np.ndarray |
     ends = (meet & ~nxt).any(axis=(0, 1)) | (meet != nxt).any(axis=(0, 1)) & meet.any(axis=(0, 1))
     events = []
     for c in np.flatnonzero(ends).tolist():  # per event slot: groups = connected components
-        _, lab = _csgraph.connected_components(_sparse.csr_matrix(meet[:, :, c]), directed=False)
+        lab = _component_labels(meet[:, :, c])
         for g in np.unique(lab):
             users = np.flatnonzero(lab == g)
             if users.size >= 2:
@@ -121,9 +119,31 @@ def _neighbour_node(row: np.ndarray, node: int, start: int, stop: int, step: int
     return int(seg[diff[0]])
 
 
+def _component_labels(adj: np.ndarray) -> np.ndarray:
+    """Connected-component label of each of a handful of users (``adj`` (k, k) bool, read as
+    undirected): the smallest index reachable, by boolean reachability products -- no sparse
+    graph built for a matrix this small."""
+    a = np.asarray(adj, dtype=bool)
+    reach = a | a.T | np.eye(a.shape[0], dtype=bool)
+    for _ in range(max(1, int(np.ceil(np.log2(max(a.shape[0], 2)))))):  # squaring: paths of length 2^i
+        reach = (reach.astype(np.int64) @ reach.astype(np.int64)) > 0
+    return reach.argmax(axis=1)
+
+
 def _connected(adj: np.ndarray) -> bool:
-    """Whether the users of a meeting (adjacency ``adj`` between their nodes) still form one group."""
-    return _csgraph.connected_components(_sparse.csr_matrix(adj), directed=False)[0] == 1
+    """Whether the users of a meeting (adjacency ``adj`` between their nodes, a handful) still
+    form one group: the nodes reached from the first by repeated boolean products (at most
+    ``m - 1`` steps), without building a sparse graph for a 2-5 node matrix."""
+    a = np.asarray(adj, dtype=bool)
+    a = a | a.T
+    reach = a[0].copy()
+    reach[0] = True
+    for _ in range(a.shape[0] - 1):  # m - 1 <= 4 expansions
+        nxt = reach | a[reach].any(axis=0)
+        if (nxt == reach).all():
+            break
+        reach = nxt
+    return bool(reach.all())
 
 
 def junction_score(seq, log_a2: np.ndarray) -> float:
@@ -158,10 +178,93 @@ def meeting_start(paths: np.ndarray, users: np.ndarray, c: int, hops: np.ndarray
 MAX_MEETING = 5
 
 
+def _ends(row: np.ndarray, b: int) -> tuple[int, int, int, int]:
+    """``(h2, h1, t1, t2)``: the last two distinct known nodes of ``row[:b]`` (``h1`` the last)
+    and the first two of ``row[b:]`` (``t1`` the first); ``-1`` where there are fewer."""
+    out = []
+    for seq in (row[:b][::-1], row[b:]):  # walk out from the junction
+        got: list[int] = []
+        for x in seq:
+            if x >= 0 and (not got or x != got[-1]):
+                got.append(int(x))
+                if len(got) == 2:
+                    break
+        out.append(got + [-1] * (2 - len(got)))
+    (h1, h2), (t1, t2) = out
+    return h2, h1, t1, t2
+
+
+def _cross(h2: int, h1: int, t1: int, t2: int, log_a2: np.ndarray) -> float:
+    """The :func:`junction_score` terms of ``head ++ tail`` that span the junction (the
+    distinct-node triples with nodes on both sides): with ``h1 == t1`` the sequences merge
+    there and only ``a''(h2, t2)`` spans it; else ``a''(h2, t1) + a''(h1, t2)``."""
+    if h1 < 0 or t1 < 0:
+        return 0.0
+    if h1 == t1:
+        return float(log_a2[h2, t2]) if h2 >= 0 and t2 >= 0 else 0.0
+    return (float(log_a2[h2, t1]) if h2 >= 0 else 0.0) + (float(log_a2[h1, t2]) if t2 >= 0 else 0.0)
+
+
 def pair_meeting(
     paths: np.ndarray, users: np.ndarray, s0: int, c: int, log_a2: np.ndarray, hops: np.ndarray | None
 ) -> tuple[list[tuple[int, ...]], np.ndarray, np.ndarray]:
     """Every pairing of one meeting with its log joint probability and its switching slot.
+
+    The meeting: users ``users`` together in slots ``s0..c``. Pairing ``sigma`` continues user
+    ``u`` on the tail of user ``sigma(u)``, switched at a slot ``b`` in ``s0+1 .. c+1``
+    (``path_u[b:] <- path_sigma(u)[b:]``). Its log joint probability is that of the joined
+    paths under the paper's CPT ``P(Y(j,u) = {j2, j3} | j2) = a''(j2, j3)`` at every node they
+    pass (:func:`junction_score` of each whole joined path)::
+
+        log P(sigma, b) = sum_u junction_score(path_u[:b] ++ path_sigma(u)[b:])
+
+    Only the terms around the switch differ between pairings -- at a one-node meeting that is
+    the paper's ``a''(in_u, out_sigma(u))`` -- but scoring the whole paths makes one meeting's
+    decision account for the others it shares nodes with. Computed without rescoring whole
+    paths: the heads ``path_u[:b]`` and tails ``path_u[b:]`` are the same multiset for every
+    pairing, so with ``X(sigma, b) = sum_u cross(head_u, tail_sigma(u))`` the terms spanning the
+    junction (:func:`_cross`)::
+
+        log P(sigma, b) - log P(identity) = X(sigma, b) - X(identity, b)
+
+    returned relative to the identity (``logp[0] = 0``; posteriors and decisions use only
+    differences), so a meeting costs nothing in the run's length. Exact:
+    :func:`pair_meeting_reference` scores every joined path whole and is the test oracle. A switching slot at which a joined
+    path would jump (consecutive nodes more than one hop apart, with ``hops``) is not allowed;
+    a pairing with no allowed slot gets ``-inf``. Per pairing the best slot is kept (the
+    latest among equals). Returns (pairings, the identity first; log P; switching slot).
+    """
+    m = users.size
+    d = paths.shape[1]
+    perms = list(itertools.permutations(range(m)))
+    logp = np.full(len(perms), -np.inf)
+    slot = np.full(len(perms), c + 1, dtype=np.int64)
+    rows = paths[users]
+    logp[0] = 0.0  # log P relative to the HMM's pairing: the whole paths' common terms cancel
+    slots = list(range(c + 1, s0, -1))
+    ends = {b: [_ends(rows[u], b) for u in range(m)] for b in slots}  # (h2, h1, t1, t2) per user
+    base = {b: logp[0] - sum(_cross(e[0], e[1], e[2], e[3], log_a2) for e in ends[b]) for b in slots}
+    for k, p in enumerate(perms[1:], start=1):  # m <= MAX_MEETING users, a few slots: tiny
+        for b in slots:
+            if hops is not None and b < d and any(
+                rows[u, b - 1] >= 0 and rows[p[u], b] >= 0 and hops[rows[u, b - 1], rows[p[u], b]] > 1 for u in range(m)
+            ):
+                continue
+            e = ends[b]
+            score = base[b] + sum(_cross(e[u][0], e[u][1], e[p[u]][2], e[p[u]][3], log_a2) for u in range(m))
+            if score > logp[k] + 1e-9:
+                logp[k], slot[k] = score, b
+    return perms, logp, slot
+
+
+
+
+def pair_meeting_reference(
+    paths: np.ndarray, users: np.ndarray, s0: int, c: int, log_a2: np.ndarray, hops: np.ndarray | None
+) -> tuple[list[tuple[int, ...]], np.ndarray, np.ndarray]:
+    """:func:`pair_meeting` the plain way, every joined path scored whole (``O(D)`` per
+    pairing and slot): the test oracle. Every pairing of one meeting with its log joint
+    probability and its switching slot.
 
     The meeting: users ``users`` together in slots ``s0..c``. Pairing ``sigma`` continues user
     ``u`` on the tail of user ``sigma(u)``, switched at a slot ``b`` in ``s0+1 .. c+1``
@@ -239,7 +342,14 @@ def cpda(
             outs = [_neighbour_node(paths[u], m, c + 1, hi, 1) for u, m in zip(users, at)]
             perms, logp, slot = pair_meeting(paths, users, s0, c, log_a2, hops)
             ident = 0  # permutations() lists the identity first
-            best = int(np.argmax(logp))
+            # among the most probable pairings (equal within 1e-9: rounding does not pick), the one
+            # that re-pairs the fewest users -- the HMM's pairing kept where it can be -- then the first
+            if np.isfinite(logp.max()):
+                top = np.flatnonzero(logp >= logp.max() - 1e-9)
+                moved = [sum(int(i != j) for i, j in enumerate(perms[k])) for k in top]
+                best = int(top[int(np.argmin(moved))])
+            else:
+                best = ident
             if not np.isfinite(logp[best]) or logp[best] <= logp[ident] + 1e-9:
                 best = ident
             sigma = np.asarray(perms[best])

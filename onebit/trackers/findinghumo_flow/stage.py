@@ -168,7 +168,7 @@ def run_flow(inputs: dict, site: Site, config: FlowConfig) -> dict:
         "decoder": pl.DataFrame({"slots": [int(run.active.shape[0])], "users": [int(paths.shape[0])]}),
         ARTIFACTS: {
             "eatg": eatg, "active": run.active, "nodes": nodes, "t0": run.t0, "period": cfg.period, "paths": paths,
-            "decoded_paths": run.result.paths,
+            "decoded_paths": decoded,  # what the association started from
         },
     }  # fmt: skip
 

@@ -130,3 +130,75 @@ def test_meetings_are_runs_within_one_hop_padded():
     paths = _rows([[97, 96, 95, 99, 111, 110, 117, 117], [93, 94, 96, 95, 99, 111, 110, 110]])
     (m,) = meetings(paths, EATG.hops, pad=1)
     assert m[:2] == (0, 1) and m[2] >= 1 and m[3] <= 7
+
+
+@settings(max_examples=30, deadline=None)
+@given(data=st.data())
+def test_compiled_pair_recursion_equals_the_numpy_reference(data):
+    from onebit.models.graph_hmm.joint import _pair_viterbi, pair_viterbi_reference
+
+    w = data.draw(st.integers(1, 5))
+    s = SPACE.x.size
+    seed = data.draw(st.integers(0, 2**32 - 1))
+    rng = np.random.default_rng(seed)
+    delta = np.where(rng.random((s, s)) < 0.05, rng.normal(size=(s, s)), -np.inf)
+    g, h = rng.normal(size=(w, N)), rng.normal(size=(w, N))
+    d1, p1 = _pair_viterbi(delta, SPACE.pred, SPACE.lp, SPACE.x, g, h)
+    d0, p0 = pair_viterbi_reference(delta, SPACE.pred, SPACE.lp, SPACE.x, g, h)
+    np.testing.assert_allclose(d1, d0, rtol=0, atol=1e-9)
+    ok = np.isfinite(d0)
+    np.testing.assert_array_equal(p1[-1][ok], p0[-1][ok])
+
+
+@settings(max_examples=40, deadline=None)
+@given(data=st.data())
+def test_the_local_log_likelihood_difference_is_the_full_difference(data):
+    """What a re-decoding compares (the pair's transitions up to where their tails settle, the
+    window's emissions) differs between two labellings exactly as the full log L does."""
+    from onebit.models.graph_hmm.joint import _local_log_likelihood, _settled
+    from onebit.models.graph_hmm.likelihood import came_from
+
+    d = data.draw(st.integers(8, 16))
+    users = data.draw(st.integers(2, 3))
+    paths = np.zeros((users, d), np.int64)
+    for u in range(users):
+        x = data.draw(st.integers(0, N - 1))
+        for t in range(d):
+            if data.draw(st.integers(0, 2)) == 0:
+                mv = _moves(x)
+                x = mv[data.draw(st.integers(0, len(mv) - 1))]
+            paths[u, t] = x
+    w0 = data.draw(st.integers(1, d - 3))
+    w1 = data.draw(st.integers(w0, d - 2))
+    y = paths.copy()
+    for t in range(w0, w1 + 1):  # any re-decoded window for users 0 and 1 (jumps allowed: -inf both ways)
+        y[0, t] = data.draw(st.integers(0, N - 1))
+        y[1, t] = data.draw(st.integers(0, N - 1))
+    if data.draw(st.booleans()):
+        y[0, w1 + 1 :], y[1, w1 + 1 :] = paths[1, w1 + 1 :], paths[0, w1 + 1 :]
+    active = np.array(data.draw(st.lists(st.booleans(), min_size=d * N, max_size=d * N))).reshape(d, N)
+    ctx = came_from(paths[[0, 1], :w0])[:, -1]
+    kw = dict(rows=(0, 1), a=w0 - 1, b=_settled(paths[[0, 1]], w1), w=(w0, w1), ctx0=ctx, active=active, n=N, log_a=LOG_A, p_hit=0.9, p_false=0.05)
+    full = [model_log_likelihood(p, active, EATG, p_hit=0.9, p_false=0.05) for p in (paths, y)]
+    local = [_local_log_likelihood(p, **kw) for p in (paths, y)]
+    if np.isfinite(full).all():
+        assert np.isclose(local[1] - local[0], full[1] - full[0])
+    else:
+        assert np.isfinite(local).tolist() == np.isfinite(full).tolist()
+
+
+def test_gains_add_up_to_the_full_log_likelihood_change_on_a_simulated_run():
+    """On a real decoding (hallway, 3 users, seed 25): each kept re-decoding's gain is its exact
+    change of the full log L, so they sum to log L(after) - log L(before) > 0."""
+    from onebit.experiments.findinghumo_diagnose import simulate
+    from onebit.models.graph_hmm.decoding import decode_motion
+    from onebit.trackers.findinghumo.stage import FindingHumoConfig
+
+    site, motion, _ = simulate(25)
+    cfg = FindingHumoConfig()
+    run = decode_motion("full2", {"motion": motion}, site, cfg)
+    before = run.result.paths
+    after, log = redecode_meetings(before, run.active, run.eatg, p_hit=cfg.p_hit, p_false=cfg.p_false)
+    full = [model_log_likelihood(p, run.active, run.eatg, p_hit=cfg.p_hit, p_false=cfg.p_false) for p in (before, after)]
+    gains = sum(r["gain"] for r in log)
+    assert gains > 0 and np.isclose(full[1] - full[0], gains), (full, gains)

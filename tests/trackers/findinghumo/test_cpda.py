@@ -153,3 +153,55 @@ def test_crossing_on_an_edge_is_switched_inside_the_meeting(eatg):
     assert len(res.switches) == 1
     dec = res.decisions[0]
     assert np.isclose(dec["prob"].sum(), 1.0) and dec["sigma"] == (1, 0) and dec["prob"][1] > dec["prob"][0]
+
+
+@settings(max_examples=200, deadline=None)
+@given(m=st.integers(1, 6), data=st.data())
+def test_connected_equals_connected_components(m, data):
+    from scipy.sparse import csr_matrix
+    from scipy.sparse.csgraph import connected_components
+
+    from onebit.trackers.findinghumo.cpda import _connected
+
+    adj = np.array(data.draw(st.lists(st.booleans(), min_size=m * m, max_size=m * m))).reshape(m, m)
+    assert _connected(adj) == (connected_components(csr_matrix(adj), directed=False)[0] == 1)
+
+
+@settings(max_examples=150, deadline=None)
+@given(data=st.data())
+def test_pair_meeting_equals_scoring_every_joined_path_whole(data):
+    from onebit.trackers.findinghumo.cpda import pair_meeting, pair_meeting_reference
+
+    n = data.draw(st.integers(3, 6))
+    m = data.draw(st.integers(2, 3))
+    d = data.draw(st.integers(4, 14))
+    rng = np.random.default_rng(data.draw(st.integers(0, 2**32 - 1)))
+    paths = rng.integers(-1, n, size=(m + 1, d))
+    paths = np.where(rng.random((m + 1, d)) < 0.6, np.maximum.accumulate(np.arange(d)[None, :] * 0 + paths[:, :1], axis=1), paths)
+    log_a2 = np.log(rng.dirichlet(np.ones(n), size=n))
+    hops = None if data.draw(st.booleans()) else rng.integers(0, 3, size=(n, n))
+    users = np.arange(m)
+    c = data.draw(st.integers(1, d - 2))
+    s0 = data.draw(st.integers(0, c))
+    p1, l1, b1 = pair_meeting(paths, users, s0, c, log_a2, hops)
+    p0, l0, b0 = pair_meeting_reference(paths, users, s0, c, log_a2, hops)
+    assert p1 == p0
+    assert l1[0] == 0.0  # relative to the HMM's pairing
+    np.testing.assert_allclose(l1, l0 - l0[0], rtol=0, atol=1e-9)
+    np.testing.assert_array_equal(b1[np.isfinite(l0)], b0[np.isfinite(l0)])
+
+
+@settings(max_examples=200, deadline=None)
+@given(m=st.integers(1, 7), data=st.data())
+def test_component_labels_equal_connected_components(m, data):
+    from scipy.sparse import csr_matrix
+    from scipy.sparse.csgraph import connected_components
+
+    from onebit.trackers.findinghumo.cpda import _component_labels
+
+    adj = np.array(data.draw(st.lists(st.booleans(), min_size=m * m, max_size=m * m))).reshape(m, m)
+    n, lab = connected_components(csr_matrix(adj), directed=False)
+    ours = _component_labels(adj)
+    # the same partition: users share a label in one exactly when they do in the other
+    assert ((ours[:, None] == ours[None, :]) == (lab[:, None] == lab[None, :])).all()
+    assert len(np.unique(ours)) == n
