@@ -74,7 +74,7 @@ class Table:
         ]
         tmp = path.with_suffix(".csv.tmp")
         with open(tmp, "w", newline="") as fh:
-            w = csv.DictWriter(fh, fieldnames=COLUMNS)
+            w = csv.DictWriter(fh, fieldnames=COLUMNS, lineterminator="\n")
             w.writeheader()
             w.writerows(rows)
         os.replace(tmp, path)
