@@ -347,7 +347,8 @@ def istate(t: Table) -> None:
             to, out = best(run, 2, clock=time.process_time)
             tr = None
             if n <= 80 or not QUICK:
-                with patched(core, "cap_elements", core.cap_elements_reference), patched(core, "PairMemo", _every_pair_memo()):
+                every = _every_pair_memo()  # the stage's run-wide memo and any a function makes
+                with patched(core, "cap_elements", core.cap_elements_reference), patched(core, "PairMemo", every), patched(S, "PairMemo", every):
                     tr, ref = best(run, 1, clock=time.process_time)
                 assert out["regions"].equals(ref["regions"]), "istate differs from its every-pair reference"
             ours.append(to)

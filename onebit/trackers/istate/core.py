@@ -76,6 +76,10 @@ CAP_CHUNK = 128
 #: small, since the first exact values usually rule the rest out (measured: 2 is fastest).
 SETTLE_BATCH = 2
 
+#: Entries (region-pair results and region ids) a :class:`PairMemo` keeps across filter steps
+#: before it starts afresh (~200 bytes each).
+MEMO_CAPACITY = 1 << 18
+
 #: Largest ``n`` for which matchings are found by enumerating the ``n!`` permutations in numpy.
 PERM_TABLE_MAX_N = 5
 
@@ -244,11 +248,16 @@ class PairMemo:
     Regions get an integer id per distinct WKB; ``area[(a, b)] = area(a cap b)`` and
     ``covers[(a, b)] = a covers b`` by ids. Equal WKB means equal coordinates, so the same
     GEOS operation gives the same bits: looking a pair up instead of recomputing it never
-    changes a result. One memo lives for one filter
-    step (:func:`info_state_update`); functions given none use a fresh one.
+    changes a result. A memo may live for a whole run (the stage passes one to every
+    :func:`info_state_update`): regions recur across filter steps -- the free space ``W``
+    while a target is unobserved, a sensing region clipped to it at each of its detections
+    -- so most region pairs of a step were met in an earlier one (proximity-line: 60 % of
+    the intersections, 66 % of the coverings). :meth:`new_step` bounds its memory.
+    Functions given none use a fresh one.
     """
 
-    def __init__(self) -> None:
+    def __init__(self, capacity: int = MEMO_CAPACITY) -> None:
+        self.capacity = capacity  # entries (pairs and region ids) kept across steps before starting afresh
         self.area: dict[tuple[int, int], float] = {}  # (region id, region id) -> area of the intersection
         self.covers: dict[tuple[int, int], bool] = {}  # (region id, region id) -> the first covers the second
         self._rid: dict[bytes, int] = {}  # WKB -> region id (equal WKB, equal id)
@@ -256,6 +265,18 @@ class PairMemo:
         self._norm: dict[int, tuple[object, bytes]] = {}  # id(geometry) -> (geometry, WKB of its normalised form)
         self.computed = 0  # pairs sent to shapely
         self.looked_up = 0  # pairs answered from the memo or by a duplicate in the same call
+
+    def new_step(self) -> None:
+        """Between filter steps: the per-object caches are dropped (the last step's geometry
+        objects are gone; they were kept alive only so their ids stay their own); the region
+        ids and pair results stay, all dropped together (ids restart) once they hold more
+        than ``capacity`` entries."""
+        self._obj.clear()
+        self._norm.clear()
+        if len(self.area) + len(self.covers) + len(self._rid) > self.capacity:
+            self.area.clear()
+            self.covers.clear()
+            self._rid.clear()
 
     def keys(self, geoms: np.ndarray) -> np.ndarray:
         """Region id of each geometry (int64, same shape): equal WKB <=> equal id. Each
@@ -899,6 +920,7 @@ def info_state_update(
     max_elements: int | None = 10,
     negatives=(),
     substeps: int = 1,
+    memo: PairMemo | None = None,
 ) -> IState:
     """INFOSTATEUPDATE (Algorithm 1) followed by the clean-up and the cap.
 
@@ -908,9 +930,15 @@ def info_state_update(
     region, the paper's "on-the-fly" variant, so the element count stays below ``M n``);
     finally each region of ``negatives`` (sensors without false negatives reading 0, beyond
     the paper) is subtracted. Sequential over sensing regions (each depends on the last).
+    ``memo``: region-pair results shared by every clean-up and cap of the step and, when the
+    caller passes the same memo to every step, across steps (:class:`PairMemo`); the result
+    is the same bits with or without it.
     """
     eta = forward_project(istate, step, free_space, shape=shape, substeps=substeps)
-    memo = PairMemo()  # region pairs of this step, shared by every clean-up and cap below
+    if memo is None:
+        memo = PairMemo()
+    else:
+        memo.new_step()
     for s in detections:
         eta = clean_up(observation_update(eta, s, shape=shape), shape=shape, memo=memo)
         if max_elements is not None:

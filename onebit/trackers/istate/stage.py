@@ -46,7 +46,7 @@ from onebit.core.tables import CROSSINGS, MOTION, PROXIMITY, TRACKS, check_schem
 from onebit.readers.motion import ABSENT_AFTER_S, outside_silence, silent_stretches
 from onebit.trackers.base import ARTIFACTS, TrackerSpec
 from onebit.core.config import check_choice, check_range
-from onebit.trackers.istate.core import SHAPES, IState, disk, grow, info_state_update, shrink
+from onebit.trackers.istate.core import SHAPES, IState, PairMemo, disk, grow, info_state_update, shrink
 from onebit.core.lazy import lazy_module
 
 _optimize = lazy_module("scipy.optimize")
@@ -317,6 +317,7 @@ def run(inputs: dict, site: Site, config: IStateConfig) -> dict[str, pl.DataFram
     cap = config.max_elements or None
     reg_rows, summ, track_xy = [], [], np.zeros((len(times), n, 2))
     prev = None
+    memo = PairMemo()  # region-pair results of the whole run (regions recur across stages)
     for k, tk in enumerate(times):  # inherently sequential: the I-state of stage k depends on k-1
         eta = info_state_update(
             eta,
@@ -327,6 +328,7 @@ def run(inputs: dict, site: Site, config: IStateConfig) -> dict[str, pl.DataFram
             max_elements=cap,
             negatives=neg_geom[neg_bounds[k] : neg_bounds[k + 1]],
             substeps=config.substeps,
+            memo=memo,
         )
         E = eta.size
         areas = shapely.area(eta.regions)

@@ -86,3 +86,29 @@ def test_filter_steps_are_unchanged_by_the_memo():
         for s in det:
             ref = cap_elements_reference(clean_up(observation_update(ref, s)), 4)
         assert _wkb(eta) == _wkb(ref) and same_elements(eta, ref)
+
+
+
+def test_a_memo_kept_across_steps_gives_the_same_bits():
+    """One memo passed to every filter step (as the stage does; regions recur across steps)
+    gives the results of a fresh memo per step, also when it starts afresh (small capacity),
+    and computes fewer pairs."""
+    rng = np.random.default_rng(5)
+    sensing = [box(x - 1.5, y - 1.5, x + 1.5, y + 1.5) for x, y in rng.uniform([0, 0], [10, 8], (6, 2))]
+    steps = [[sensing[i] for i in rng.choice(6, size=int(rng.integers(1, 4)), replace=False)] for _ in range(10)]
+    ref = IState.initial(FREE, 3)
+    refs = []
+    for k, det in enumerate(steps):
+        ref = info_state_update(ref, det, step=0.5 if k else 0.0, free_space=FREE, max_elements=3)
+        refs.append(_wkb(ref))
+    computed = {}
+    for capacity in (0, 30, 1 << 18):
+        memo = PairMemo(capacity=capacity)
+        eta = IState.initial(FREE, 3)
+        for k, det in enumerate(steps):
+            eta = info_state_update(eta, det, step=0.5 if k else 0.0, free_space=FREE, max_elements=3, memo=memo)
+            assert _wkb(eta) == refs[k]
+            if capacity == 0:  # dropped at every step
+                assert len(memo.area) + len(memo.covers) + len(memo._rid) < 2000
+        computed[capacity] = memo.computed
+    assert computed[1 << 18] < computed[0]
