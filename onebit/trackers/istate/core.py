@@ -260,6 +260,7 @@ class PairMemo:
         self.capacity = capacity  # entries (pairs and region ids) kept across steps before starting afresh
         self.area: dict[tuple[int, int], float] = {}  # (region id, region id) -> area of the intersection
         self.covers: dict[tuple[int, int], bool] = {}  # (region id, region id) -> the first covers the second
+        self._tables: dict[object, dict] = {}  # name -> (region id, region id) -> geometry (see geometries)
         self._rid: dict[bytes, int] = {}  # WKB -> region id (equal WKB, equal id)
         self._obj: dict[int, tuple[object, int]] = {}  # id(geometry) -> (geometry, kept alive so its id stays its own; region id)
         self._norm: dict[int, tuple[object, bytes]] = {}  # id(geometry) -> (geometry, WKB of its normalised form)
@@ -267,16 +268,33 @@ class PairMemo:
         self.looked_up = 0  # pairs answered from the memo or by a duplicate in the same call
 
     def new_step(self) -> None:
-        """Between filter steps: the per-object caches are dropped (the last step's geometry
-        objects are gone; they were kept alive only so their ids stay their own); the region
-        ids and pair results stay, all dropped together (ids restart) once they hold more
-        than ``capacity`` entries."""
-        self._obj.clear()
-        self._norm.clear()
-        if len(self.area) + len(self.covers) + len(self._rid) > self.capacity:
-            self.area.clear()
-            self.covers.clear()
-            self._rid.clear()
+        """Between filter steps: everything stays (region ids, pair results, the geometries of
+        :meth:`geometries`, the per-object caches) until it holds more than ``capacity``
+        entries; then all is dropped together (region ids restart)."""
+        held = len(self.area) + len(self.covers) + len(self._rid) + len(self._obj) + len(self._norm)
+        if held + sum(len(t) for t in self._tables.values()) > self.capacity:
+            for d in (self.area, self.covers, self._rid, self._obj, self._norm):
+                d.clear()
+            self._tables.clear()
+
+    def geometries(self, left: np.ndarray, right, name, op) -> np.ndarray:
+        """``op(left, right)`` elementwise for a geometry-valued elementwise ``op`` (``left`` an
+        object array, ``right`` one like it or a single geometry), each distinct pair of regions
+        computed once in the table ``name`` (a hashable naming ``op`` and any parameters it
+        closes over) and the same geometry object returned for it every time."""
+        shp = np.shape(left)
+        left = np.asarray(left, dtype=object).ravel()
+        kl = self.keys(left)
+        if isinstance(right, np.ndarray):
+            right = right.ravel()
+            kr = self.keys(right)
+        else:  # one geometry against every left one
+            one = np.empty(1, dtype=object)
+            one[0] = right
+            kr = np.full(len(left), self.keys(one)[0])
+            right = np.empty(len(left), dtype=object)
+            right.fill(one[0])
+        return self.pairs(left, right, kl, kr, self._tables.setdefault(name, {}), op, object).reshape(shp)
 
     def keys(self, geoms: np.ndarray) -> np.ndarray:
         """Region id of each geometry (int64, same shape): equal WKB <=> equal id. Each
@@ -299,26 +317,20 @@ class PairMemo:
         m = len(left)
         if m == 0:
             return np.zeros(0, dtype=dtype)
-        code = kl.astype(np.int64) * (1 << 31) + kr
-        codes, first, back = np.unique(code, return_index=True, return_inverse=True)
-        keys = [divmod(c, 1 << 31) for c in codes.tolist()]
-        vals = np.empty(len(keys), dtype=dtype)
-        miss = []
-        for u, key in enumerate(keys):
-            v = table.get(key)
-            if v is None:
-                miss.append(u)
-            else:
-                vals[u] = v
-        if miss:
-            miss = np.asarray(miss, dtype=np.int64)
-            got = np.asarray(op(left[first[miss]], right[first[miss]]), dtype=dtype)
-            vals[miss] = got
-            for u, v in zip(miss.tolist(), got.tolist()):
-                table[keys[u]] = v
-        self.computed += len(miss)
-        self.looked_up += m - len(miss)
-        return vals[back.ravel()]
+        codes = (kl.astype(np.int64) * (1 << 31) + kr).tolist()  # one int per ordered pair of region ids
+        vals = list(map(table.get, codes))
+        todo: dict[int, int] = {}  # code of a pair not in the table -> its first position
+        for p, v in enumerate(vals):
+            if v is None and codes[p] not in todo:
+                todo[codes[p]] = p
+        if todo:
+            first = np.fromiter(todo.values(), dtype=np.int64, count=len(todo))
+            got = np.asarray(op(left[first], right[first]), dtype=dtype).tolist()
+            table.update(zip(todo, got))
+            vals = list(map(table.__getitem__, codes))
+        self.computed += len(todo)
+        self.looked_up += m - len(todo)
+        return np.fromiter(vals, dtype=dtype, count=m)
 
 
 def _intersection_area(a, b) -> np.ndarray:
@@ -398,7 +410,9 @@ def enumerate_perfect_matchings(adj: np.ndarray) -> tuple[np.ndarray, np.ndarray
 # --------------------------------------------------------------------------- Algorithm 1
 
 
-def forward_project(istate: IState, step: float, free_space: BaseGeometry, *, shape: str = "exact", substeps: int = 1) -> IState:
+def forward_project(
+    istate: IState, step: float, free_space: BaseGeometry, *, shape: str = "exact", substeps: int = 1, memo: PairMemo | None = None
+) -> IState:
     """Motion update (Algorithm 1, lines 1-5): every region ``R <- F(R)``.
 
     ``F(R) = (R (+) B(s_tgt)) cap W_free``, computed as ``substeps`` rounds of growing by
@@ -407,32 +421,41 @@ def forward_project(istate: IState, step: float, free_space: BaseGeometry, *, sh
     smallest rectangle containing ``R (+) B(d)``). Each
     round is a superset of the points reachable within that distance, so the result contains
     the exact forward projection (the geodesic ball among obstacles); more rounds follow the
-    obstacles more tightly. By Lemma 1, ``F(U_i prod R) = U_i prod F(R)``.
+    obstacles more tightly. By Lemma 1, ``F(U_i prod R) = U_i prod F(R)``. With a ``memo``
+    each distinct region is projected once (:meth:`PairMemo.geometries`).
     """
     if istate.size == 0 or step <= 0:
         return istate
-    r = istate.regions
-    for _ in range(max(1, substeps)):
-        d = step / max(1, substeps)
-        if shape == "rect":  # the smallest rectangle containing R (+) B(d) is R expanded by d
-            b = shapely.bounds(r)
-            grown = shapely.box(b[..., 0] - d, b[..., 1] - d, b[..., 2] + d, b[..., 3] + d)
-        else:
-            grown = grow(r, d)
-        r = shapely.intersection(grown, free_space)
-    r = np.asarray(constrain(r, shape), dtype=object).reshape(istate.regions.shape)
+
+    def project(r, free):
+        for _ in range(max(1, substeps)):
+            d = step / max(1, substeps)
+            if shape == "rect":  # the smallest rectangle containing R (+) B(d) is R expanded by d
+                b = shapely.bounds(r)
+                grown = shapely.box(b[..., 0] - d, b[..., 1] - d, b[..., 2] + d, b[..., 3] + d)
+            else:
+                grown = grow(r, d)
+            r = shapely.intersection(grown, free)
+        return constrain(r, shape)
+
+    if memo is None:
+        r = project(istate.regions, free_space)
+    else:
+        r = memo.geometries(istate.regions, free_space, ("forward", float(step), substeps, shape), project)
+    r = np.asarray(r, dtype=object).reshape(istate.regions.shape)
     # a region that was only an over-approximation inside an obstacle can vanish: the element
     # is then empty and is dropped (before a later step could turn it into a missing region)
     return IState(r[~void(r).any(axis=1)])
 
 
-def observation_update(istate: IState, sensing: BaseGeometry, *, shape: str = "exact") -> IState:
+def observation_update(istate: IState, sensing: BaseGeometry, *, shape: str = "exact", memo: PairMemo | None = None) -> IState:
     """Observation update for one sensing region ``S`` with reading 1 (Algorithm 1, lines 9-15).
 
     Eq. (4): ``eta' = U_i U_j R^(i)_1 x .. x (R^(i)_j cap S) x .. x R^(i)_n`` -- every
     element is replaced by ``n`` elements, the ``j``-th intersecting its ``j``-th region
     with ``S``. Elements with an empty region are dropped at once (the paper's on-the-fly
-    optimisation of line 12). Vectorised over the ``E * n`` new elements.
+    optimisation of line 12). Vectorised over the ``E * n`` new elements; with a ``memo``
+    each distinct region is intersected with ``S`` once (:meth:`PairMemo.geometries`).
     """
     E, n = istate.regions.shape
     if E == 0:
@@ -448,19 +471,24 @@ def observation_update(istate: IState, sensing: BaseGeometry, *, shape: str = "e
         new = np.full(len(rows), shapely.Polygon(), dtype=object)
         new[ok] = shapely.box(lo[ok, 0], lo[ok, 1], hi[ok, 0], hi[ok, 1])
         rep[rows, cols] = new
-    else:
+    elif memo is None:
         rep[rows, cols] = constrain(shapely.intersection(rep[rows, cols], sensing), shape)
+    else:  # rep[rows, cols] is istate.regions.ravel()
+        cut = lambda a, b: constrain(shapely.intersection(a, b), shape)  # noqa: E731
+        rep[rows, cols] = memo.geometries(istate.regions.ravel(), sensing, ("observe", shape), cut)
     keep = ~void(rep[rows, cols])
     return IState(rep[keep])
 
 
-def negative_update(istate: IState, sensing: BaseGeometry, *, shape: str = "exact") -> IState:
+def negative_update(istate: IState, sensing: BaseGeometry, *, shape: str = "exact", memo: PairMemo | None = None) -> IState:
     """*Beyond the paper*: a reading 0 from a sensor without false negatives, ``R <- R \\ S``
     for every region (no target is in ``S``). Elements with an emptied region are dropped.
     Under ``rect``/``disk`` the difference is over-approximated like every other result."""
     if istate.size == 0:
         return istate
-    r = np.asarray(constrain(shapely.difference(istate.regions, sensing), shape), dtype=object).reshape(istate.regions.shape)
+    cut = lambda a, b: constrain(shapely.difference(a, b), shape)  # noqa: E731
+    r = cut(istate.regions, sensing) if memo is None else memo.geometries(istate.regions, sensing, ("negative", shape), cut)
+    r = np.asarray(r, dtype=object).reshape(istate.regions.shape)
     keep = ~void(r).any(axis=1)
     return IState(r[keep])
 
@@ -622,12 +650,14 @@ def best_pairing(ov: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return vals.reshape(lead), taus.reshape(*lead, n)
 
 
-def merge_elements(a: np.ndarray, b: np.ndarray, tau: np.ndarray, *, shape: str = "exact") -> np.ndarray:
+def merge_elements(a: np.ndarray, b: np.ndarray, tau: np.ndarray, *, shape: str = "exact", memo: PairMemo | None = None) -> np.ndarray:
     """Region-wise union ``(R^(a)_k cup R^(b)_tau(k))_k`` of two elements.
 
     For any pairing ``tau`` the result contains both elements' products (``prod_k R^(a)_k``
-    and ``prod_k R^(b)_tau(k)`` are sub-products of it), so the merge never shrinks the set."""
-    return np.asarray(constrain(shapely.union(a, b[tau]), shape), dtype=object)
+    and ``prod_k R^(b)_tau(k)`` are sub-products of it), so the merge never shrinks the set.
+    With a ``memo`` each distinct region pair is united once (:meth:`PairMemo.geometries`)."""
+    join = lambda x, y: constrain(shapely.union(x, y), shape)  # noqa: E731
+    return np.asarray(join(a, b[tau]) if memo is None else memo.geometries(a, b[tau], ("merge", shape), join), dtype=object)
 
 
 def cap_elements(istate: IState, max_elements: int, *, shape: str = "exact", memo: PairMemo | None = None) -> IState:
@@ -690,7 +720,7 @@ def cap_elements(istate: IState, max_elements: int, *, shape: str = "exact", mem
             _exact_similarities(regs, ci, cj, last, sim, tau, known, shape=shape, memo=memo)
         masked = np.where(live & known, sim, -np.inf)
         i, j = np.unravel_index(np.argmax(masked), masked.shape)
-        merged = merge_elements(regs[i], regs[j], tau[i, j], shape=shape)
+        merged = merge_elements(regs[i], regs[j], tau[i, j], shape=shape, memo=memo)
         alive[j] = False
         regs[i] = merged
         step += 1
@@ -791,7 +821,7 @@ def cap_elements_reference(
     while alive.sum() > max_elements:
         masked = np.where(alive[:, None] & alive[None, :], sim, -np.inf)
         i, j = np.unravel_index(np.argmax(masked), masked.shape)
-        merged = merge_elements(regs[i], regs[j], tau[i, j], shape=shape)
+        merged = merge_elements(regs[i], regs[j], tau[i, j], shape=shape, memo=memo)
         alive[j] = False
         regs[i] = merged
         others = np.flatnonzero(alive)
@@ -934,15 +964,15 @@ def info_state_update(
     caller passes the same memo to every step, across steps (:class:`PairMemo`); the result
     is the same bits with or without it.
     """
-    eta = forward_project(istate, step, free_space, shape=shape, substeps=substeps)
     if memo is None:
         memo = PairMemo()
     else:
         memo.new_step()
+    eta = forward_project(istate, step, free_space, shape=shape, substeps=substeps, memo=memo)
     for s in detections:
-        eta = clean_up(observation_update(eta, s, shape=shape), shape=shape, memo=memo)
+        eta = clean_up(observation_update(eta, s, shape=shape, memo=memo), shape=shape, memo=memo)
         if max_elements is not None:
             eta = cap_elements(eta, max_elements, shape=shape, memo=memo)
     for s in negatives:
-        eta = clean_up(negative_update(eta, s, shape=shape), shape=shape, memo=memo)
+        eta = clean_up(negative_update(eta, s, shape=shape, memo=memo), shape=shape, memo=memo)
     return eta

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from hypothesis import given, settings, strategies as st
 import shapely
 from shapely.geometry import Point, box
 
@@ -112,3 +113,29 @@ def test_a_memo_kept_across_steps_gives_the_same_bits():
                 assert len(memo.area) + len(memo.covers) + len(memo._rid) < 2000
         computed[capacity] = memo.computed
     assert computed[1 << 18] < computed[0]
+
+
+class _EveryPair(PairMemo):
+    """Remembers nothing: every region pair and every region's projection, intersection and
+    union is computed (the reference of the memo)."""
+
+    def pairs(self, left, right, kl, kr, table, op, dtype):
+        return np.asarray(op(left, right), dtype=dtype) if len(left) else np.zeros(0, dtype=dtype)
+
+
+@settings(max_examples=12, deadline=None)
+@given(seed=st.integers(0, 2**32 - 1), shape=st.sampled_from(["exact", "disk", "rect"]), n=st.integers(1, 3))
+def test_a_run_wide_memo_equals_computing_everything(seed, shape, n):
+    """Filter steps sharing one memo (pair results, projected, intersected and merged regions
+    looked up by WKB across steps) give the bits of steps that compute everything."""
+    rng = np.random.default_rng(seed)
+    sensing = [shapely.intersection(Point(x, y).buffer(1.8, quad_segs=4), FREE) for x, y in rng.uniform([0, 0], [10, 8], (5, 2))]
+    steps = [[sensing[i] for i in rng.choice(5, size=int(rng.integers(0, 4)), replace=False)] for _ in range(8)]
+    negatives = [[box(*rng.uniform([0, 0], [9, 7]), *rng.uniform([9, 7], [10, 8]))] if rng.random() < 0.2 else [] for _ in steps]
+    memo = PairMemo()
+    eta = ref = IState.initial(FREE, n)
+    for k, det in enumerate(steps):
+        kw = dict(step=0.6 if k else 0.0, free_space=FREE, shape=shape, max_elements=3, negatives=negatives[k])
+        eta = info_state_update(eta, det, memo=memo, **kw)
+        ref = info_state_update(ref, det, memo=_EveryPair(), **kw)
+        assert _wkb(eta) == _wkb(ref)
