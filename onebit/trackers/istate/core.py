@@ -737,12 +737,14 @@ def cap_elements(istate: IState, max_elements: int, *, shape: str = "exact", mem
 
 def _box_overlaps(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     """``(Ea, Eb, n, n)`` areas of the intersections of the regions' bounding boxes (0 for
-    boxes that do not overlap or empty regions): each bounds the region overlap from above."""
+    boxes that do not overlap or empty regions), capped by the smaller of the two regions'
+    areas: each bounds the region overlap from above."""
     ba = _bounds(a)[:, None, :, None, :]
     bb = _bounds(b)[None, :, None, :, :]
     w = np.minimum(ba[..., 2], bb[..., 2]) - np.maximum(ba[..., 0], bb[..., 0])
     h = np.minimum(ba[..., 3], bb[..., 3]) - np.maximum(ba[..., 1], bb[..., 1])
-    return np.nan_to_num(np.where((w > 0) & (h > 0), w * h, 0.0))
+    small = np.minimum(shapely.area(a)[:, None, :, None], shapely.area(b)[None, :, None, :])
+    return np.nan_to_num(np.where((w > 0) & (h > 0), np.minimum(w * h, small), 0.0))
 
 
 def _slack(ub: np.ndarray) -> np.ndarray:
