@@ -322,6 +322,8 @@ def _every_pair_memo():
     from onebit.trackers.istate.core import PairMemo
 
     class EveryPair(PairMemo):
+        remember_steps = False  # every observation step computed too
+
         def pairs(self, left, right, kl, kr, table, op, dtype):
             self.computed += len(left)
             return np.asarray(op(left, right), dtype=dtype) if len(left) else np.zeros(0, dtype=dtype)

@@ -256,6 +256,10 @@ class PairMemo:
     Functions given none use a fresh one.
     """
 
+    #: Whether :meth:`recall` remembers whole observation steps (a reference that computes
+    #: everything turns it off).
+    remember_steps = True
+
     def __init__(self, capacity: int = MEMO_CAPACITY) -> None:
         self.capacity = capacity  # entries (pairs and region ids) kept across steps before starting afresh
         self.area: dict[tuple[int, int], float] = {}  # (region id, region id) -> area of the intersection
@@ -276,6 +280,24 @@ class PairMemo:
             for d in (self.area, self.covers, self._rid, self._obj, self._norm):
                 d.clear()
             self._tables.clear()
+
+    def recall(self, istate: IState, region, name, op) -> IState:
+        """``op(istate, region)`` (an I-state), computed once per distinct input -- the
+        regions' ids in order and the region's id -- in the table ``name`` (naming ``op`` and
+        its parameters); not remembered when ``remember_steps`` is false."""
+        if not self.remember_steps:
+            return op(istate, region)
+        one = np.empty(1, dtype=object)
+        one[0] = region
+        key = (istate.regions.shape, int(self.keys(one)[0]), self.keys(istate.regions).tobytes())
+        table = self._tables.setdefault(("recall", name), {})
+        out = table.get(key)
+        if out is None:
+            out = table[key] = op(istate, region)
+            self.computed += 1
+        else:
+            self.looked_up += 1
+        return out
 
     def geometries(self, left: np.ndarray, right, name, op) -> np.ndarray:
         """``op(left, right)`` elementwise for a geometry-valued elementwise ``op`` (``left`` an
@@ -963,18 +985,29 @@ def info_state_update(
     finally each region of ``negatives`` (sensors without false negatives reading 0, beyond
     the paper) is subtracted. Sequential over sensing regions (each depends on the last).
     ``memo``: region-pair results shared by every clean-up and cap of the step and, when the
-    caller passes the same memo to every step, across steps (:class:`PairMemo`); the result
-    is the same bits with or without it.
+    caller passes the same memo to every step, across steps (:class:`PairMemo`). Each
+    observation (update, clean-up, cap) and each negative is a function of the I-state it
+    starts from and its sensing region, so it is looked up when both recur
+    (:meth:`PairMemo.recall`): an I-state at a fixed point of the motion and observation
+    updates -- a target staying within a sensor's reach -- comes back stage after stage
+    (proximity-line: half of the observations). The result is the same bits with or without
+    the memo.
     """
     if memo is None:
         memo = PairMemo()
     else:
         memo.new_step()
     eta = forward_project(istate, step, free_space, shape=shape, substeps=substeps, memo=memo)
-    for s in detections:
+
+    def observe(eta, s):
         eta = clean_up(observation_update(eta, s, shape=shape, memo=memo), shape=shape, memo=memo)
-        if max_elements is not None:
-            eta = cap_elements(eta, max_elements, shape=shape, memo=memo)
+        return eta if max_elements is None else cap_elements(eta, max_elements, shape=shape, memo=memo)
+
+    def subtract(eta, s):
+        return clean_up(negative_update(eta, s, shape=shape, memo=memo), shape=shape, memo=memo)
+
+    for s in detections:
+        eta = memo.recall(eta, s, ("observe", shape, max_elements), observe)
     for s in negatives:
-        eta = clean_up(negative_update(eta, s, shape=shape, memo=memo), shape=shape, memo=memo)
+        eta = memo.recall(eta, s, ("negative", shape), subtract)
     return eta

@@ -117,7 +117,9 @@ def test_a_memo_kept_across_steps_gives_the_same_bits():
 
 class _EveryPair(PairMemo):
     """Remembers nothing: every region pair and every region's projection, intersection and
-    union is computed (the reference of the memo)."""
+    union is computed, no observation step is recalled (the reference of the memo)."""
+
+    remember_steps = False
 
     def pairs(self, left, right, kl, kr, table, op, dtype):
         return np.asarray(op(left, right), dtype=dtype) if len(left) else np.zeros(0, dtype=dtype)
@@ -139,3 +141,20 @@ def test_a_run_wide_memo_equals_computing_everything(seed, shape, n):
         eta = info_state_update(eta, det, memo=memo, **kw)
         ref = info_state_update(ref, det, memo=_EveryPair(), **kw)
         assert _wkb(eta) == _wkb(ref)
+
+
+@pytest.mark.parametrize("shape", ["exact", "disk", "rect"])
+def test_observations_at_a_fixed_point_are_recalled(shape):
+    """Targets staying in the reach of the same sensors: the I-state comes back stage after
+    stage, its observation steps are looked up -- and equal the computed ones."""
+    s1 = shapely.intersection(Point(2, 2).buffer(2.0, quad_segs=4), FREE)
+    s2 = shapely.intersection(Point(7, 6).buffer(1.5, quad_segs=4), FREE)
+    memo = PairMemo()
+    eta = ref = IState.initial(FREE, 2)
+    for k in range(6):
+        kw = dict(step=0.3 if k else 0.0, free_space=FREE, shape=shape, max_elements=3)
+        eta = info_state_update(eta, [s1, s2], memo=memo, **kw)
+        ref = info_state_update(ref, [s1, s2], memo=_EveryPair(), **kw)
+        assert _wkb(eta) == _wkb(ref)
+    computed = sum(len(t) for name, t in memo._tables.items() if name[0] == "recall")
+    assert computed < 6 * 2  # some of the 12 observations recalled
