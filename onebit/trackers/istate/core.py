@@ -225,20 +225,14 @@ def _encode_once(cache: dict, geoms: np.ndarray, encode, dtype) -> np.ndarray:
     """``encode`` of each geometry of ``geoms`` (1-d object array), computed once per geometry
     object: ``cache`` maps ``id(geometry)`` to ``(geometry, value)`` (the geometry kept alive so
     its id stays its own); ``encode(new)`` maps the array of uncached geometries to a list of values."""
-    out = np.empty(len(geoms), dtype=dtype)
-    new = []
-    for p, g in enumerate(geoms):
-        hit = cache.get(id(g))
-        if hit is None:
-            new.append(p)
-        else:
-            out[p] = hit[1]
+    objs = geoms.tolist()
+    hits = list(map(cache.get, map(id, objs)))
+    new = [p for p, h in enumerate(hits) if h is None]
     if new:
-        new = np.asarray(new, dtype=np.int64)
-        for p, g, v in zip(new.tolist(), geoms[new].tolist(), encode(geoms[new])):
-            cache[id(g)] = (g, v)
-            out[p] = v
-    return out
+        for p, v in zip(new, encode(geoms[new])):
+            g = objs[p]
+            cache[id(g)] = hits[p] = (g, v)
+    return np.fromiter((h[1] for h in hits), dtype=dtype, count=len(hits))
 
 
 class PairMemo:
@@ -281,10 +275,10 @@ class PairMemo:
                 d.clear()
             self._tables.clear()
 
-    def recall(self, istate: IState, region, name, op) -> IState:
-        """``op(istate, region)`` (an I-state), computed once per distinct input -- the
-        regions' ids in order and the region's id -- in the table ``name`` (naming ``op`` and
-        its parameters); not remembered when ``remember_steps`` is false."""
+    def recall(self, istate: IState, region, name, op):
+        """``op(istate, region)`` (an I-state, an area), computed once per distinct input --
+        the regions' ids in order and the region's id -- in the table ``name`` (naming ``op``
+        and its parameters); not remembered when ``remember_steps`` is false."""
         if not self.remember_steps:
             return op(istate, region)
         one = np.empty(1, dtype=object)
