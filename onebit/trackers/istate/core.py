@@ -438,7 +438,7 @@ def forward_project(
     round is a superset of the points reachable within that distance, so the result contains
     the exact forward projection (the geodesic ball among obstacles); more rounds follow the
     obstacles more tightly. By Lemma 1, ``F(U_i prod R) = U_i prod F(R)``. With a ``memo``
-    each distinct region is projected once (:meth:`PairMemo.geometries`).
+    each distinct region is projected once (:meth:`PairMemo.geometries`; not boxes, cheaper to redo).
     """
     if istate.size == 0 or step <= 0:
         return istate
@@ -454,7 +454,7 @@ def forward_project(
             r = shapely.intersection(grown, free)
         return constrain(r, shape)
 
-    if memo is None:
+    if memo is None or shape == "rect":  # boxes: cheaper to grow and clip than to look up
         r = project(istate.regions, free_space)
     else:
         r = memo.geometries(istate.regions, free_space, ("forward", float(step), substeps, shape), project)
@@ -536,8 +536,19 @@ def canonical(istate: IState, *, shape: str = "exact", memo: PairMemo | None = N
     order = np.argsort(ids, axis=1, kind="stable")
     ids = np.take_along_axis(ids, order, axis=1)
     r = np.take_along_axis(r, order, axis=1)
-    _, first = np.unique(ids, axis=0, return_index=True)  # sorted unique rows: canonical order
+    codes = _row_codes(ids)
+    _, first = np.unique(codes, axis=0 if codes.ndim > 1 else None, return_index=True)  # sorted unique rows: canonical order
     return IState(r[first])
+
+
+def _row_codes(ids: np.ndarray) -> np.ndarray:
+    """Rows of non-negative ints ``(E, n)`` as one int64 each, in the same lexicographic order
+    (base ``max + 1`` digits) when that fits in 62 bits; else the rows themselves."""
+    base = int(ids.max(initial=0)) + 1
+    n = ids.shape[1]
+    if n * math.log2(base) >= 62:
+        return ids
+    return ids.astype(np.int64) @ (base ** np.arange(n - 1, -1, -1, dtype=np.int64))
 
 
 def covers_pairs(
@@ -673,7 +684,8 @@ def merge_elements(a: np.ndarray, b: np.ndarray, tau: np.ndarray, *, shape: str 
     and ``prod_k R^(b)_tau(k)`` are sub-products of it), so the merge never shrinks the set.
     With a ``memo`` each distinct region pair is united once (:meth:`PairMemo.geometries`)."""
     join = lambda x, y: constrain(shapely.union(x, y), shape)  # noqa: E731
-    return np.asarray(join(a, b[tau]) if memo is None else memo.geometries(a, b[tau], ("merge", shape), join), dtype=object)
+    fresh = memo is None or shape == "rect"  # boxes: cheaper to unite than to look up
+    return np.asarray(join(a, b[tau]) if fresh else memo.geometries(a, b[tau], ("merge", shape), join), dtype=object)
 
 
 def cap_elements(istate: IState, max_elements: int, *, shape: str = "exact", memo: PairMemo | None = None) -> IState:
@@ -987,10 +999,12 @@ def info_state_update(
     (proximity-line: half of the observations). The result is the same bits with or without
     the memo.
     """
-    if memo is None:
+    if memo is None:  # a memo for this step only: no earlier observation to recall
         memo = PairMemo()
+        recall = lambda eta, s, name, op: op(eta, s)  # noqa: E731
     else:
         memo.new_step()
+        recall = memo.recall
     eta = forward_project(istate, step, free_space, shape=shape, substeps=substeps, memo=memo)
 
     def observe(eta, s):
@@ -1001,7 +1015,7 @@ def info_state_update(
         return clean_up(negative_update(eta, s, shape=shape, memo=memo), shape=shape, memo=memo)
 
     for s in detections:
-        eta = memo.recall(eta, s, ("observe", shape, max_elements), observe)
+        eta = recall(eta, s, ("observe", shape, max_elements), observe)
     for s in negatives:
-        eta = memo.recall(eta, s, ("negative", shape), subtract)
+        eta = recall(eta, s, ("negative", shape), subtract)
     return eta

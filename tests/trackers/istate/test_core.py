@@ -233,3 +233,16 @@ def test_region_vanishing_in_an_obstacle_empties_its_element_and_never_becomes_m
     assert constrain(np.array([None], dtype=object), "rect")[0].is_empty
     capped = cap_elements(IState.from_elements([[box(i, 0, i + 1, 1), box(5, 5, 6, 6)] for i in range(6)]), 2, shape="rect")
     assert not any(g is None for g in capped.regions.ravel())
+
+
+@settings(max_examples=60, deadline=None)
+@given(st.integers(1, 8), st.integers(1, 40), st.integers(1, 500), st.integers(0, 2**32 - 1))
+def test_row_codes_keep_the_lexicographic_order_of_rows(n, E, hi, seed):
+    """Unique rows by their int codes: the same rows in the same order as numpy's unique rows."""
+    from onebit.trackers.istate.core import _row_codes
+
+    ids = np.random.default_rng(seed).integers(0, hi, (E, n))
+    codes = _row_codes(ids)
+    _, a = np.unique(codes, axis=0 if codes.ndim > 1 else None, return_index=True)
+    _, b = np.unique(ids, axis=0, return_index=True)
+    assert np.array_equal(a, b)  # the first of equal rows, as numpy picks it
