@@ -76,9 +76,10 @@ CAP_CHUNK = 128
 #: small, since the first exact values usually rule the rest out (measured: 2 is fastest).
 SETTLE_BATCH = 2
 
-#: Entries (region-pair results and region ids) a :class:`PairMemo` keeps across filter steps
-#: before it starts afresh (~200 bytes each).
-MEMO_CAPACITY = 1 << 18
+#: Entries (region ids, region-pair results, region geometries, recalled steps) a
+#: :class:`PairMemo` keeps across filter steps before it starts afresh (proximity-line 320
+#: instants ends with ~33k).
+MEMO_CAPACITY = 1 << 17
 
 #: Largest ``n`` for which matchings are found by enumerating the ``n!`` permutations in numpy.
 PERM_TABLE_MAX_N = 5
