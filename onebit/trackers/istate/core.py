@@ -32,9 +32,14 @@ Pairwise work done once. The cap and the clean-up compare regions pairwise acros
 one region replaced, so most of those pairs repeat (the same two regions in many element
 pairs, and again at every detection of the stage). :class:`PairMemo` keeps the exact
 result of every region-pair operation (intersection area, covering) keyed by the two
-regions' WKB, so each distinct ordered pair is computed by shapely once per filter step and
-the results are bit-for-bit those of computing every pair (the same GEOS call on the same
-coordinates); the cap's first similarity matrix skips the element with itself.
+regions' WKB, so each distinct ordered pair is computed by shapely once and the results are
+bit-for-bit those of computing every pair (the same GEOS call on the same coordinates); the
+cap's first similarity matrix skips the element with itself. The stage keeps one memo for
+the whole run: regions recur across stages too (the free space while a target is
+unobserved, a sensing region clipped to it at each detection), so the memo also keeps each
+distinct region's projection, intersection with a sensing region and merge union, and whole
+observation steps by the I-state they start from (an I-state at a fixed point -- a target
+staying within a sensor's reach -- comes back stage after stage).
 
 Soundness. Every operation returns a superset of the exact result (the containment
 guarantee of the paper). Shapely approximates round buffers by inscribed polygons, so every
