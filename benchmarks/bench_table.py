@@ -328,6 +328,9 @@ def _every_pair_memo():
             self.computed += len(left)
             return np.asarray(op(left, right), dtype=dtype) if len(left) else np.zeros(0, dtype=dtype)
 
+        def geometries(self, left, right, name, op):  # every region projected, intersected, united (no ids made)
+            return np.asarray(op(left, right), dtype=object)
+
     return EveryPair
 
 
