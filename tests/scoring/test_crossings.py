@@ -4,7 +4,8 @@ from __future__ import annotations
 
 import polars as pl
 import pytest
-from hypothesis import given, settings, strategies as st
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from onebit.scoring.crossings import assignment_scores
 
@@ -109,10 +110,10 @@ def test_polygon_distance_xy_is_shapelys_distance(seed):
 def test_region_index_of_is_the_first_containing_region(seed, building):
     """The bounding-box prefilter changes nothing: the first region (in order) whose polygon
     contains each point, -1 for none; overlapping polygons and points on boundaries included."""
+    from dataclasses import replace
+
     import numpy as np
     import shapely
-
-    from dataclasses import replace
 
     _, rg = building
     rng = np.random.default_rng(seed)
