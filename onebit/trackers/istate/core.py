@@ -565,10 +565,7 @@ def covers_pairs(
     Only region pairs whose bounding boxes nest are tested with ``shapely.covers`` (for
     ``rect`` regions bounding-box nesting *is* covering), each distinct pair once
     (:class:`PairMemo`)."""
-    bnd = _bounds(regions)  # (E, n, 4)
-    ba = bnd[a][:, :, None, :]
-    bb = bnd[b][:, None, :, :]
-    nest = (bb[..., 0] <= ba[..., 0]) & (bb[..., 1] <= ba[..., 1]) & (bb[..., 2] >= ba[..., 2]) & (bb[..., 3] >= ba[..., 3])
+    nest = _nested_boxes(_bounds(regions), a, b)
     if shape == "rect":
         return nest
     cov = np.zeros_like(nest)
@@ -577,6 +574,14 @@ def covers_pairs(
     key = memo.keys(regions)
     cov[p, k, l] = memo.pairs(regions[b[p], l], regions[a[p], k], key[b[p], l], key[a[p], k], memo.covers, shapely.covers, bool)
     return cov
+
+
+def _nested_boxes(bnd: np.ndarray, a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """``nest[p, k, l]``: the bounding box of region ``l`` of element ``b[p]`` contains that of
+    region ``k`` of element ``a[p]`` (``bnd (E, n, 4)`` the regions' bounds)."""
+    ba = bnd[a][:, :, None, :]
+    bb = bnd[b][:, None, :, :]
+    return (bb[..., 0] <= ba[..., 0]) & (bb[..., 1] <= ba[..., 1]) & (bb[..., 2] >= ba[..., 2]) & (bb[..., 3] >= ba[..., 3])
 
 
 def covers_matrix(regions: np.ndarray, *, shape: str = "exact") -> np.ndarray:
@@ -619,6 +624,9 @@ def remove_dominated(istate: IState, *, shape: str = "exact", memo: PairMemo | N
         a, b = a[keep], b[keep]
         for c in range(0, len(a), 65536):  # candidate pairs in chunks: memory O(65536 n^2)
             aa, bb_ = a[c : c + 65536], b[c : c + 65536]
+            if shape != "rect":  # a covering nests the boxes: no perfect matching of nested boxes, none of coverings
+                ok = has_perfect_matching(_nested_boxes(bnd, aa, bb_))
+                aa, bb_ = aa[ok], bb_[ok]
             dom[aa, bb_] = has_perfect_matching(covers_pairs(r, aa, bb_, shape=shape, memo=memo))
     idx = np.arange(E)
     beaten = dom & (~dom.T | (idx[None, :] < idx[:, None]))
