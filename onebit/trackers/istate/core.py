@@ -245,8 +245,8 @@ class PairMemo:
     """Exact results of region-pair operations, keyed by the two regions' WKB (module
     docstring, "Pairwise work done once").
 
-    Regions get an integer id per distinct WKB; ``area[(a, b)] = area(a cap b)`` and
-    ``covers[(a, b)] = a covers b`` by ids. Equal WKB means equal coordinates, so the same
+    Regions get an integer id per distinct WKB; ``area[code(a, b)] = area(a cap b)`` and
+    ``covers[code(a, b)] = a covers b`` by ids (``code(a, b) = a * 2**31 + b``). Equal WKB means equal coordinates, so the same
     GEOS operation gives the same bits: looking a pair up instead of recomputing it never
     changes a result. A memo may live for a whole run (the stage passes one to every
     :func:`info_state_update`): regions recur across filter steps -- the free space ``W``
@@ -261,10 +261,10 @@ class PairMemo:
     remember_steps = True
 
     def __init__(self, capacity: int = MEMO_CAPACITY) -> None:
-        self.capacity = capacity  # entries (pairs and region ids) kept across steps before starting afresh
-        self.area: dict[tuple[int, int], float] = {}  # (region id, region id) -> area of the intersection
-        self.covers: dict[tuple[int, int], bool] = {}  # (region id, region id) -> the first covers the second
-        self._tables: dict[object, dict] = {}  # name -> (region id, region id) -> geometry (see geometries)
+        self.capacity = capacity  # entries kept across steps before starting afresh (region ids stay < 2**31)
+        self.area: dict[int, float] = {}  # code of (region id, region id) -> area of the intersection
+        self.covers: dict[int, bool] = {}  # code of (region id, region id) -> the first covers the second
+        self._tables: dict[object, dict] = {}  # name -> code of a region pair -> geometry (geometries); input -> result (recall)
         self._rid: dict[bytes, int] = {}  # WKB -> region id (equal WKB, equal id)
         self._obj: dict[int, tuple[object, int]] = {}  # id(geometry) -> (geometry, kept alive so its id stays its own; region id)
         self._norm: dict[int, tuple[object, bytes]] = {}  # id(geometry) -> (geometry, WKB of its normalised form)
