@@ -294,6 +294,8 @@ class PairMemo:
         out = table.get(key)
         if out is None:
             out = table[key] = op(istate, region)
+            if isinstance(out, IState):  # handed out again: nobody may change it in place
+                out.regions.flags.writeable = False
             self.computed += 1
         else:
             self.looked_up += 1
