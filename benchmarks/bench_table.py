@@ -324,9 +324,14 @@ def _every_pair_memo():
     from onebit.trackers.istate.core import PairMemo
 
     class EveryPair(PairMemo):
+        remember_steps = False  # every observation step computed too
+
         def pairs(self, left, right, kl, kr, table, op, dtype):
             self.computed += len(left)
             return np.asarray(op(left, right), dtype=dtype) if len(left) else np.zeros(0, dtype=dtype)
+
+        def geometries(self, left, right, name, op):  # every region projected, intersected, united (no ids made)
+            return np.asarray(op(left, right), dtype=object)
 
     return EveryPair
 
@@ -349,7 +354,8 @@ def istate(t: Table) -> None:
             to, out = best(run, 2, clock=time.process_time)
             tr = None
             if n <= 80 or not QUICK:
-                with patched(core, "cap_elements", core.cap_elements_reference), patched(core, "PairMemo", _every_pair_memo()):
+                every = _every_pair_memo()  # the stage's run-wide memo and any a function makes
+                with patched(core, "cap_elements", core.cap_elements_reference), patched(core, "PairMemo", every), patched(S, "PairMemo", every):
                     tr, ref = best(run, 1, clock=time.process_time)
                 assert out["regions"].equals(ref["regions"]), "istate differs from its every-pair reference"
             ours.append(to)

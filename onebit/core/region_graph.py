@@ -80,14 +80,20 @@ class RegionGraph:
         return out
 
     def region_index_of(self, x: np.ndarray, y: np.ndarray) -> np.ndarray:
-        """Index of the region containing each point, -1 where none does."""
+        """Index of the region containing each point, -1 where none does (the first region
+        containing it). Only the points not yet placed and within a region's bounding box are
+        tested against its polygon."""
         x = np.asarray(x, float)
         y = np.asarray(y, float)
+        shape = x.shape
+        x, y = x.ravel(), y.ravel()
         out = np.full(x.shape, -1, dtype=np.int64)
         for i, poly in enumerate(self.polygons):
-            inside = shapely.contains_xy(poly, x, y) & (out < 0)
-            out[inside] = i
-        return out
+            x0, y0, x1, y1 = shapely.bounds(poly)
+            cand = np.flatnonzero((out < 0) & (x >= x0) & (x <= x1) & (y >= y0) & (y <= y1))
+            if cand.size:
+                out[cand[shapely.contains_xy(poly, x[cand], y[cand])]] = i
+        return out.reshape(shape)
 
     def hop_distance(self) -> np.ndarray:
         """All-pairs hop distance between regions in the undirected region graph (p x p)."""

@@ -4,6 +4,8 @@ from __future__ import annotations
 
 import polars as pl
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from onebit.scoring.crossings import assignment_scores
 
@@ -61,3 +63,68 @@ def test_vectorised_region_scores_equal_the_row_by_row_reference(building, seed)
     a = region_scores(tracks, truth, mapping, rg, tracker="beams")
     b = region_scores_reference(tracks, truth, mapping, rg, tracker="beams")
     assert a.height > 0 and a.equals(b)
+
+
+def _random_polygons(rng):
+    """Polygons of several kinds: boxes, a rotated ring with a hole, a multipolygon, a
+    triangle with a repeated vertex (a zero-length segment), an empty polygon."""
+    import numpy as np
+    import shapely
+    from shapely.geometry import MultiPolygon, Polygon, box
+
+    cx, cy = rng.uniform(-5, 5, 2)
+    outer = [(cx + 3 * np.cos(a), cy + 3 * np.sin(a)) for a in np.sort(rng.uniform(0, 2 * np.pi, 7))]
+    ring = shapely.buffer(Polygon(outer), 0)
+    holed = shapely.difference(ring, box(cx - 0.5, cy - 0.5, cx + 0.5, cy + 0.5))
+    x0, y0 = rng.uniform(-6, 6, 2)
+    tri = Polygon([(x0, y0), (x0 + 2, y0), (x0 + 2, y0), (x0 + 1, y0 + 1.7)])
+    multi = MultiPolygon([box(*rng.uniform(-8, -2, 2), *rng.uniform(-1, 0, 2)), box(*rng.uniform(1, 2, 2), *rng.uniform(3, 8, 2))])
+    return np.array([box(*rng.uniform(-6, 0, 2), *rng.uniform(0.1, 6, 2)), holed, multi, tri, Polygon()], dtype=object)
+
+
+@settings(max_examples=40, deadline=None)
+@given(seed=st.integers(0, 2**32 - 1))
+def test_polygon_distance_xy_is_shapelys_distance(seed):
+    """Random points -- inside, outside, on vertices, on edges (segment points), at a vertex's
+    projection -- against polygons with holes, parts and repeated vertices: the same bits as
+    ``shapely.distance`` of point geometries."""
+    import numpy as np
+    import shapely
+
+    from onebit.scoring.crossings import polygon_distance_xy
+
+    rng = np.random.default_rng(seed)
+    polys = _random_polygons(rng)
+    coords = shapely.get_coordinates(shapely.boundary(polys[:4]))
+    t = rng.uniform(0, 1, (50, 1))
+    a, b = coords[rng.integers(0, len(coords), 50)], coords[rng.integers(0, len(coords), 50)]
+    pts = np.vstack([rng.uniform(-12, 12, (300, 2)), coords, a + t * (b - a), coords + rng.normal(0, 1e-9, coords.shape)])
+    which = rng.integers(0, len(polys), len(pts))
+    ours = polygon_distance_xy(polys, which, pts[:, 0], pts[:, 1])
+    ref = shapely.distance(polys[which], shapely.points(pts))
+    assert np.array_equal(ours, ref, equal_nan=True)
+
+
+@settings(max_examples=30, deadline=None)
+@given(seed=st.integers(0, 2**32 - 1))
+def test_region_index_of_is_the_first_containing_region(seed, building):
+    """The bounding-box prefilter changes nothing: the first region (in order) whose polygon
+    contains each point, -1 for none; overlapping polygons and points on boundaries included."""
+    from dataclasses import replace
+
+    import numpy as np
+    import shapely
+
+    _, rg = building
+    rng = np.random.default_rng(seed)
+    polys = list(rg.polygons) + list(_random_polygons(rng))
+    g = replace(rg, polygons=tuple(polys))
+    bounds = shapely.bounds(np.array(polys, dtype=object))
+    edges = shapely.get_coordinates(shapely.boundary(np.array(polys[:-1], dtype=object)))
+    lo, hi = np.nanmin(bounds[:, :2], axis=0) - 1, np.nanmax(bounds[:, 2:], axis=0) + 1
+    pts = np.vstack([rng.uniform(lo, hi, (500, 2)), edges, [[np.nan, 0.0]]])
+    ref = np.full(len(pts), -1)
+    for i in range(len(polys) - 1, -1, -1):
+        ref[shapely.contains_xy(polys[i], pts[:, 0], pts[:, 1])] = i
+    assert np.array_equal(g.region_index_of(pts[:, 0], pts[:, 1]), ref)
+    assert np.array_equal(g.region_index_of(pts[:, 0].reshape(-1, 1), pts[:, 1].reshape(-1, 1)), ref.reshape(-1, 1))

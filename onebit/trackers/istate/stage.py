@@ -46,7 +46,7 @@ from onebit.core.tables import CROSSINGS, MOTION, PROXIMITY, TRACKS, check_schem
 from onebit.readers.motion import ABSENT_AFTER_S, outside_silence, silent_stretches
 from onebit.trackers.base import ARTIFACTS, TrackerSpec
 from onebit.core.config import check_choice, check_range
-from onebit.trackers.istate.core import SHAPES, IState, disk, grow, info_state_update, shrink
+from onebit.trackers.istate.core import SHAPES, IState, PairMemo, disk, grow, info_state_update, shrink
 from onebit.core.lazy import lazy_module
 
 _optimize = lazy_module("scipy.optimize")
@@ -317,6 +317,7 @@ def run(inputs: dict, site: Site, config: IStateConfig) -> dict[str, pl.DataFram
     cap = config.max_elements or None
     reg_rows, summ, track_xy = [], [], np.zeros((len(times), n, 2))
     prev = None
+    memo = PairMemo()  # region-pair results of the whole run (regions recur across stages)
     for k, tk in enumerate(times):  # inherently sequential: the I-state of stage k depends on k-1
         eta = info_state_update(
             eta,
@@ -327,27 +328,16 @@ def run(inputs: dict, site: Site, config: IStateConfig) -> dict[str, pl.DataFram
             max_elements=cap,
             negatives=neg_geom[neg_bounds[k] : neg_bounds[k + 1]],
             substeps=config.substeps,
+            memo=memo,
         )
         E = eta.size
-        areas = shapely.area(eta.regions)
-        reg_rows.append(
-            pl.DataFrame(
-                {
-                    "t": np.full(E * n, tk),
-                    "stage": np.full(E * n, k, dtype=np.int64),
-                    "element": np.repeat(np.arange(E, dtype=np.int64), n),
-                    "k": np.tile(np.arange(n, dtype=np.int64), E),
-                    "area": areas.ravel(),
-                    "wkb": shapely.to_wkb(eta.regions.ravel()),
-                },
-                schema=REGIONS,
-            )
-        )
-        summ.append((float(tk), k, E, eta.total_area(free), int(det_bounds[k + 1] - det_bounds[k])))
+        reg_rows.append(eta.regions.ravel())
+        area = memo.recall(eta, free, "total_area", IState.total_area)  # the I-state recurs at a fixed point
+        summ.append((float(tk), k, E, area, int(det_bounds[k + 1] - det_bounds[k])))
         track_xy[k] = prev = _point_summary(eta, prev, n)
 
     summary = pl.DataFrame(summ, schema=SUMMARY, orient="row")
-    regions = pl.concat(reg_rows) if reg_rows else pl.DataFrame(schema=REGIONS)
+    regions = _regions_table(times, reg_rows, n)
     K = len(times)
     tracks = conform(
         pl.DataFrame(
@@ -369,6 +359,27 @@ def run(inputs: dict, site: Site, config: IStateConfig) -> dict[str, pl.DataFram
     )
     artifacts = {"sensing": dict(zip(sr.ids, sr.positive))}
     return {"tracks": tracks, "summary": summary, "regions": regions, "detections": detections, ARTIFACTS: artifacts}
+
+
+def _regions_table(times: np.ndarray, regions: list, n: int) -> pl.DataFrame:
+    """The ``regions`` table (REGIONS) of the stages' flattened ``(E_k n,)`` region arrays:
+    one row per region, built once for the run."""
+    if not regions:
+        return pl.DataFrame(schema=REGIONS)
+    sizes = np.array([len(r) for r in regions], dtype=np.int64)  # E_k n
+    flat = np.concatenate(regions) if sizes.sum() else np.zeros(0, dtype=object)
+    within = np.arange(len(flat), dtype=np.int64) - np.repeat(np.cumsum(sizes) - sizes, sizes)  # position in its stage
+    return pl.DataFrame(
+        {
+            "t": np.repeat(np.asarray(times, dtype=float), sizes),
+            "stage": np.repeat(np.arange(len(regions), dtype=np.int64), sizes),
+            "element": within // n,
+            "k": within % n,
+            "area": shapely.area(flat).astype(float),
+            "wkb": shapely.to_wkb(flat),
+        },
+        schema=REGIONS,
+    )
 
 
 def _point_summary(eta: IState, prev: np.ndarray | None, n: int) -> np.ndarray:

@@ -233,3 +233,47 @@ def test_region_vanishing_in_an_obstacle_empties_its_element_and_never_becomes_m
     assert constrain(np.array([None], dtype=object), "rect")[0].is_empty
     capped = cap_elements(IState.from_elements([[box(i, 0, i + 1, 1), box(5, 5, 6, 6)] for i in range(6)]), 2, shape="rect")
     assert not any(g is None for g in capped.regions.ravel())
+
+
+@settings(max_examples=60, deadline=None)
+@given(st.integers(1, 8), st.integers(1, 40), st.integers(1, 500), st.integers(0, 2**32 - 1))
+def test_row_codes_keep_the_lexicographic_order_of_rows(n, E, hi, seed):
+    """Unique rows by their int codes: the same rows in the same order as numpy's unique rows."""
+    from onebit.trackers.istate.core import _row_codes
+
+    ids = np.random.default_rng(seed).integers(0, hi, (E, n))
+    codes = _row_codes(ids)
+    _, a = np.unique(codes, axis=0 if codes.ndim > 1 else None, return_index=True)
+    _, b = np.unique(ids, axis=0, return_index=True)
+    assert np.array_equal(a, b)  # the first of equal rows, as numpy picks it
+
+
+def _remove_dominated_plain(eta: IState) -> IState:
+    """The definition: every element pair's containment graph (shapely.covers on every region
+    pair), a perfect matching, strict or earlier-index domination removes."""
+    r = eta.regions
+    E, n = r.shape
+    cov = shapely.covers(r[None, :, None, :], r[:, None, :, None])  # cov[a, b, k, l]: R^b_l covers R^a_k
+    dom = has_perfect_matching(cov) & ~np.eye(E, dtype=bool)
+    idx = np.arange(E)
+    beaten = dom & (~dom.T | (idx[None, :] < idx[:, None]))
+    return IState(r[~beaten.any(axis=1)])
+
+
+@settings(max_examples=25, deadline=None)
+@given(st.integers(0, 2**32 - 1), st.integers(1, 4), st.integers(2, 25))
+def test_remove_dominated_equals_the_plain_definition(seed, n, E):
+    """The prefilters (element boxes, sorted areas, a perfect matching of nested region boxes)
+    and the memo change nothing: the elements the plain every-pair definition keeps. Elements
+    are copies sharing regions (as an observation update makes them), some shrunk."""
+    rng = np.random.default_rng(seed)
+    base = [shapely.intersection(Point(*rng.uniform([0, 0], [10, 8])).buffer(rng.uniform(0.5, 3), quad_segs=4), FREE) for _ in range(6)]
+    rows = [[base[i] for i in rng.integers(0, len(base), n)] for _ in range(E)]
+    for row in rows:  # some regions cut (subsets of a shared region)
+        k = int(rng.integers(0, n))
+        if rng.random() < 0.5:
+            row[k] = shapely.intersection(row[k], box(*rng.uniform([0, 0], [5, 4]), *rng.uniform([5, 4], [10, 8])))
+    eta = canonical(IState.from_elements(rows))
+    assert [shapely.to_wkb(x) for x in remove_dominated(eta).regions.ravel()] == [
+        shapely.to_wkb(x) for x in _remove_dominated_plain(eta).regions.ravel()
+    ]

@@ -171,3 +171,31 @@ def test_deterministic_and_empty_input(tmp_path):
     assert a["summary"].equals(b["summary"]) and a["regions"].equals(b["regions"])
     empty = run({"motion": motion.clear()}, site, IStateConfig())
     assert empty["tracks"].height == 0 and empty["summary"].height == 0
+
+
+def test_regions_table_is_the_stages_rows_in_order():
+    """The run's regions table built at once equals one frame per stage, concatenated (stages
+    with no element included)."""
+    from onebit.trackers.istate.stage import REGIONS, _regions_table
+
+    rng = np.random.default_rng(0)
+    n = 2
+    times = np.array([0.0, 1.0, 2.0, 3.0])
+    stages = [np.array([shapely.box(*rng.uniform(0, 1, 2), *rng.uniform(2, 3, 2)) for _ in range(E * n)], dtype=object) for E in (1, 0, 3, 2)]
+    frames = [
+        pl.DataFrame(
+            {
+                "t": np.full(len(r), tk),
+                "stage": np.full(len(r), k, dtype=np.int64),
+                "element": np.repeat(np.arange(len(r) // n, dtype=np.int64), n),
+                "k": np.tile(np.arange(n, dtype=np.int64), len(r) // n),
+                "area": shapely.area(r),
+                "wkb": shapely.to_wkb(r),
+            },
+            schema=REGIONS,
+        )
+        for k, (tk, r) in enumerate(zip(times, stages))
+    ]
+    assert _regions_table(times, stages, n).equals(pl.concat(frames))
+    assert _regions_table(times[:1], [stages[1]], n).equals(frames[1].clear())
+    assert _regions_table(times[:0], [], n).equals(pl.DataFrame(schema=REGIONS))
