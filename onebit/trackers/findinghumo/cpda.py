@@ -235,20 +235,14 @@ def pair_meeting(
     latest among equals). Returns (pairings, the identity first; log P; switching slot).
     """
     m = users.size
-    d = paths.shape[1]
-    perms = list(itertools.permutations(range(m)))
-    logp = np.full(len(perms), -np.inf)
-    slot = np.full(len(perms), c + 1, dtype=np.int64)
-    rows = paths[users]
+    perms, logp, slot, rows = _pairings(paths, users, c)
     logp[0] = 0.0  # log P relative to the HMM's pairing: the whole paths' common terms cancel
     slots = list(range(c + 1, s0, -1))
     ends = {b: [_ends(rows[u], b) for u in range(m)] for b in slots}  # (h2, h1, t1, t2) per user
     base = {b: logp[0] - sum(_cross(e[0], e[1], e[2], e[3], log_a2) for e in ends[b]) for b in slots}
     for k, p in enumerate(perms[1:], start=1):  # m <= MAX_MEETING users, a few slots: tiny
         for b in slots:
-            if hops is not None and b < d and any(
-                rows[u, b - 1] >= 0 and rows[p[u], b] >= 0 and hops[rows[u, b - 1], rows[p[u], b]] > 1 for u in range(m)
-            ):
+            if _jumps(rows, p, b, hops):
                 continue
             e = ends[b]
             score = base[b] + sum(_cross(e[u][0], e[u][1], e[p[u]][2], e[p[u]][3], log_a2) for u in range(m))
@@ -257,47 +251,37 @@ def pair_meeting(
     return perms, logp, slot
 
 
-
-
 def pair_meeting_reference(
     paths: np.ndarray, users: np.ndarray, s0: int, c: int, log_a2: np.ndarray, hops: np.ndarray | None
 ) -> tuple[list[tuple[int, ...]], np.ndarray, np.ndarray]:
-    """:func:`pair_meeting` the plain way, every joined path scored whole (``O(D)`` per
-    pairing and slot): the test oracle. Every pairing of one meeting with its log joint
-    probability and its switching slot.
-
-    The meeting: users ``users`` together in slots ``s0..c``. Pairing ``sigma`` continues user
-    ``u`` on the tail of user ``sigma(u)``, switched at a slot ``b`` in ``s0+1 .. c+1``
-    (``path_u[b:] <- path_sigma(u)[b:]``). Its log joint probability is that of the joined
-    paths under the paper's CPT ``P(Y(j,u) = {j2, j3} | j2) = a''(j2, j3)`` at every node they
-    pass (:func:`junction_score` of each whole joined path)::
-
-        log P(sigma, b) = sum_u junction_score(path_u[:b] ++ path_sigma(u)[b:])
-
-    Only the terms around the switch differ between pairings -- at a one-node meeting that is
-    the paper's ``a''(in_u, out_sigma(u))`` -- but scoring the whole paths makes one meeting's
-    decision account for the others it shares nodes with. A switching slot at which a joined
-    path would jump (consecutive nodes more than one hop apart, with ``hops``) is not allowed;
-    a pairing with no allowed slot gets ``-inf``. Per pairing the best slot is kept (the
-    latest among equals). Returns (pairings, the identity first; log P; switching slot).
-    """
-    m = users.size
-    d = paths.shape[1]
-    perms = list(itertools.permutations(range(m)))
-    logp = np.full(len(perms), -np.inf)
-    slot = np.full(len(perms), c + 1, dtype=np.int64)
-    rows = paths[users]
+    """:func:`pair_meeting` the plain way, the test oracle: every joined path scored whole
+    (``O(D)`` per pairing and slot), ``log P(sigma, b) = sum_u junction_score(path_u[:b] ++
+    path_sigma(u)[b:])`` in absolute terms (``logp[0]`` is the HMM pairing's own)."""
+    perms, logp, slot, rows = _pairings(paths, users, c)
     logp[0] = sum(junction_score(r, log_a2) for r in rows)
     for k, p in enumerate(perms[1:], start=1):  # m <= MAX_MEETING users, a few slots: tiny
         for b in range(c + 1, s0, -1):
-            if hops is not None and b < d and any(
-                rows[u, b - 1] >= 0 and rows[p[u], b] >= 0 and hops[rows[u, b - 1], rows[p[u], b]] > 1 for u in range(m)
-            ):
+            if _jumps(rows, p, b, hops):
                 continue
-            score = sum(junction_score(np.concatenate([rows[u, :b], rows[p[u], b:]]), log_a2) for u in range(m))
+            score = sum(junction_score(np.concatenate([rows[u, :b], rows[p[u], b:]]), log_a2) for u in range(len(p)))
             if score > logp[k] + 1e-9:
                 logp[k], slot[k] = score, b
     return perms, logp, slot
+
+
+def _pairings(paths: np.ndarray, users: np.ndarray, c: int):
+    """Every pairing of a meeting's users (the identity first), their log P to fill (``-inf``),
+    their switching slots (``c + 1``) and the users' paths."""
+    perms = list(itertools.permutations(range(users.size)))
+    return perms, np.full(len(perms), -np.inf), np.full(len(perms), c + 1, dtype=np.int64), paths[users]
+
+
+def _jumps(rows: np.ndarray, p, b: int, hops: np.ndarray | None) -> bool:
+    """Whether switching to pairing ``p`` at slot ``b`` makes a joined path jump (consecutive
+    known nodes more than one hop apart)."""
+    if hops is None or b >= rows.shape[1]:
+        return False
+    return any(rows[u, b - 1] >= 0 and rows[p[u], b] >= 0 and hops[rows[u, b - 1], rows[p[u], b]] > 1 for u in range(len(p)))
 
 
 def cpda(
