@@ -34,7 +34,9 @@ from onebit.readers import kernels
 from onebit.core.tables import ABORTED, BEAM_EVENTS, CROSSINGS, REJECTS, conform
 from onebit.readers.rows import (
     RawRows,
+    TypedRows,
     by_time,
+    check_split,
     clean_time,
     make_rejects,
     order_checks,
@@ -44,6 +46,7 @@ from onebit.readers.rows import (
     raw_lines,
     read_clean_csv,
     read_csv_rows,
+    read_typed_csv,
     type_rows,
 )
 
@@ -61,17 +64,37 @@ class BeamDecode:
     rejects: pl.DataFrame  # REJECTS
 
 
-def read_beam_events(raw: RawRows, beam_ids: tuple[str, ...], *, epoch: str | None = None, path: Path | None = None):
-    """Type and check raw beam rows: ``t``, known ``beam``, ``pair`` in a|b, ``blocked`` in 0|1."""
-    parsers = {
-        "t": parse_time("t", epoch, raw.frame),
+def _beam_parsers(beam_ids: tuple[str, ...], epoch, frame: pl.DataFrame) -> dict[str, tuple[pl.Expr, pl.Expr]]:
+    return {
+        "t": parse_time("t", epoch, frame),
         "beam": parse_name("beam", beam_ids, "beam"),
         "pair": parse_choice("pair", {"a": "a", "b": "b", "A": "a", "B": "b"}, pl.String),
         "blocked": parse_choice(
             "blocked", {"1": True, "0": False, "true": True, "false": False, "on": True, "off": False}, pl.Boolean, case_insensitive=True
         ),
     }
-    return type_rows(raw, parsers, key=("t", "beam", "pair", "blocked"), path=path)
+
+
+def read_beam_events(raw: RawRows, beam_ids: tuple[str, ...], *, epoch: str | None = None, path: Path | None = None):
+    """Type and check raw beam rows: ``t``, known ``beam``, ``pair`` in a|b, ``blocked`` in 0|1."""
+    return type_rows(raw, _beam_parsers(beam_ids, epoch, raw.frame), key=("t", "beam", "pair", "blocked"), path=path)
+
+
+def _beam_dtypes(beam_ids: tuple[str, ...]) -> dict[str, pl.DataType]:
+    """The typed read of ``beams.csv``: numeric ``t``, known beams, pairs ``a``/``b``, ``blocked`` ``0``/``1``."""
+    return {"t": pl.Float64, "beam": pl.Enum(list(dict.fromkeys(beam_ids))), "pair": pl.Enum(["a", "b"]), "blocked": pl.Enum(["0", "1"])}
+
+
+def typed_beam_events(path: Path, beam_ids: tuple[str, ...], *, epoch=None) -> TypedRows | None:
+    """:func:`read_beam_events` of ``beams.csv`` by one typed read (:func:`~onebit.readers.rows.read_typed_csv`),
+    the lines it cannot take typed row by row; ``None`` when the header is not a plain first
+    line (the row-by-row path reads the file). Beam and pair stay enums (the decoder's codes)."""
+    split = read_typed_csv(path, _beam_dtypes(beam_ids))
+    if split is None:
+        return None
+    good = split.good.with_columns(pl.col("blocked").to_physical() == 1)
+    return check_split(split, good, lambda origin, frame: _beam_parsers(beam_ids, origin, frame),
+                       epoch=epoch, key=BEAM_COLUMNS, tolerance=0.0, path=path)  # fmt: skip
 
 
 def decode_passes(events: pl.DataFrame, source: str = "beams.csv", *, compiled: bool | None = None) -> BeamDecode:
@@ -187,15 +210,15 @@ def decode_passes_reference(events: pl.DataFrame, source: str = "beams.csv") -> 
 def decode_beam_log(path: str | Path, beam_ids: tuple[str, ...], *, epoch: str | None = None) -> BeamDecode:
     """Read ``beams.csv`` and decode it: the whole raw-beam reader.
 
-    A clean file (:func:`clean_beam_events`) is typed by one ``pl.read_csv``; any other goes
-    through the row-by-row CSV layer, which names each bad line. Both give the same result."""
+    The file is typed by one ``pl.read_csv`` (:func:`typed_beam_events`); only the lines it
+    cannot take go through the row-by-row CSV layer, which names each bad line. The result is
+    the row-by-row path's on the whole file (:func:`decode_raw_beams`)."""
     path = Path(path)
-    clean = clean_beam_events(path, tuple(beam_ids), epoch=epoch)
-    if clean is None:
+    typed = typed_beam_events(path, tuple(beam_ids), epoch=epoch)
+    if typed is None:
         raw = read_csv_rows(path, BEAM_COLUMNS)
         return decode_raw_beams(raw, beam_ids, epoch=epoch, path=path)
-    events, rejects = clean
-    return _decode_events(events, rejects, path.name, path)
+    return _decode_events(typed.accepted, typed.rejects, path.name, path)
 
 
 def clean_beam_events(path: Path, beam_ids: tuple[str, ...], *, epoch=None) -> tuple[pl.DataFrame, pl.DataFrame] | None:

@@ -65,6 +65,7 @@ from onebit.readers.rows import (
     TypedRows,
     by_time,
     check_rows,
+    check_split,
     clean_time,
     make_rejects,
     order_checks,
@@ -73,6 +74,7 @@ from onebit.readers.rows import (
     parse_time,
     read_clean_csv,
     read_csv_rows,
+    read_typed_csv,
 )
 from onebit.readers.timebase import TimeOrigin
 from onebit.core.tables import FRAMES, MOTION, REJECTS, conform
@@ -174,13 +176,16 @@ def read_motion(
     The reasons never name the sensor kind, so the same reader serves ``proximity.csv``.
     """
     sensors = tuple(sensors)
-    parsers = {
-        "t": parse_time("t", epoch, raw.frame),
+    typed = check_rows(raw, _toggle_parsers(sensors, epoch, raw.frame), key=("t", "sensor", "value"), path=path, tolerance=tolerance)
+    return toggle_edges(typed, sensors, source=raw.source, path=path, rules=rules)
+
+
+def _toggle_parsers(sensors: tuple[str, ...], epoch, frame: pl.DataFrame) -> dict[str, tuple[pl.Expr, pl.Expr]]:
+    return {
+        "t": parse_time("t", epoch, frame),
         "sensor": parse_name("sensor", sensors, "sensor"),
         "value": parse_choice("value", TOGGLE_VALUES, pl.Boolean, case_insensitive=True),
     }
-    typed = check_rows(raw, parsers, key=("t", "sensor", "value"), path=path, tolerance=tolerance)
-    return toggle_edges(typed, sensors, source=raw.source, path=path, rules=rules)
 
 
 def toggle_edges(
@@ -334,10 +339,28 @@ def read_motion_csv(
     """Read ``motion.csv`` (or ``proximity.csv``): the whole toggle reader for one file."""
     path = Path(path)
     sensors = tuple(sensors)
-    typed = clean_toggle_rows(path, sensors, epoch=epoch)
+    typed = typed_toggle_rows(path, sensors, epoch=epoch)
     if typed is None:
         return read_motion(read_csv_rows(path, TOGGLE_COLUMNS), sensors, epoch=epoch, path=path, rules=rules)
     return toggle_edges(typed, sensors, source=path.name, path=path, rules=rules)
+
+
+def typed_toggle_rows(
+    path: Path, sensors: tuple[str, ...], *, epoch: str | TimeOrigin | None = None, tolerance: float = REORDER_TOLERANCE_S
+) -> TypedRows | None:
+    """Pass 1 of :func:`read_motion` for a toggle log typed by one ``pl.read_csv``
+    (:func:`~onebit.readers.rows.read_typed_csv`: numeric ``t``, known sensors, values spelled
+    as in :data:`TOGGLE_VALUES`, lower case); the lines it cannot take are typed row by row.
+    ``None`` when the header is not a plain first line (the row-by-row path reads the file).
+    The sensor stays an enum (the debounce's codes); every output table casts it to String."""
+    spellings = list(TOGGLE_VALUES)
+    split = read_typed_csv(path, {"t": pl.Float64, "sensor": pl.Enum(list(dict.fromkeys(sensors))), "value": pl.Enum(spellings)})
+    if split is None:
+        return None
+    on = pl.Series([TOGGLE_VALUES[v] for v in spellings], dtype=pl.Boolean)
+    good = split.good.with_columns(on.gather(split.good["value"].to_physical()).alias("value"))
+    return check_split(split, good, lambda origin, frame: _toggle_parsers(sensors, origin, frame),
+                       key=TOGGLE_COLUMNS, tolerance=tolerance, epoch=epoch, path=path)  # fmt: skip
 
 
 def clean_toggle_rows(

@@ -41,13 +41,14 @@ from contextvars import ContextVar
 from dataclasses import dataclass
 import math
 from pathlib import Path
+from typing import Callable
 
 import numpy as np
 import polars as pl
 
 from onebit.core.errors import MAX_QUOTE, InputError
 from onebit.core.tables import REJECTS
-from onebit.readers.timebase import MAX_GAP_S, TimeOrigin, column_origin, number_column_origin
+from onebit.readers.timebase import MAX_GAP_S, TimeOrigin, column_origin, number_column_origin, parts_origin
 
 EXTRA = "__extra__"
 #: The field separator and the quote character of onebit's CSV logs.
@@ -239,15 +240,26 @@ def read_csv_rows(path: str | Path, columns: tuple[str, ...]) -> RawRows:
     cannot be read, a bad header or a missing column is an :class:`InputError`.
     """
     path = Path(path)
-    source = path.name
     header, header_line, body = csv_header(path)
     if not header:
-        return RawRows(source, _empty_rows(columns), pl.DataFrame(schema=REJECTS))
+        return RawRows(path.name, _empty_rows(columns), pl.DataFrame(schema=REJECTS))
+    _check_columns(path, header, header_line, columns)
+    return rows_of_lines(body, header, columns, path.name)
+
+
+def _check_columns(path: Path, header: list[str], header_line: int, columns) -> None:
     for col in columns:
         if col not in header:
             raise InputError(f"missing column; the header has {header}", file=path, line=header_line, field=col)
         if header.count(col) > 1:
             raise InputError("column named twice in the header", file=path, line=header_line, field=col)
+
+
+def rows_of_lines(body: pl.DataFrame, header: list[str], columns: tuple[str, ...], source: str) -> RawRows:
+    """Steps 2 and 3 of the CSV layer (module docstring) on non-blank lines after the header
+    (``line``, ``text``, ``_reason``): the :class:`RawRows` of the well-formed ones, every
+    other line a reject. :func:`read_csv_rows` runs it on every line of a file,
+    :func:`read_typed_csv` on the lines its typed read could not take."""
     n = len(header)
     quoted = pl.col("text").str.contains(QUOTE, literal=True)
     body = body.with_columns(quoted.alias("_quoted"))
@@ -325,6 +337,183 @@ def read_clean_csv(path: str | Path, dtypes: dict[str, pl.DataType]) -> pl.DataF
     return frame.with_columns(pl.int_range(2, frame.height + 2, dtype=pl.Int64).alias("line")).select("line", *dtypes)
 
 
+@dataclass(frozen=True)
+class TypedSplit:
+    """A CSV file cut in two by :func:`read_typed_csv`.
+
+    good : ``line`` + the wanted columns, typed by one ``pl.read_csv`` (the read's dtypes:
+        ``Enum`` names, finite ``Float64`` numbers): rows whose line is one plain record of
+        the header's width and whose every wanted field parsed as written.
+    rest : the :class:`RawRows` of every other non-blank line after the header (string rows of
+        the well-formed ones, a reject for each of the others): what the row-by-row path types.
+    data, nl : the file's bytes and, when computed, their newline offsets (:func:`newlines`).
+    """
+
+    good: pl.DataFrame
+    rest: RawRows
+    header: list[str]
+    data: bytes
+    nl: np.ndarray | None = None
+
+    def demote(self, lines: pl.Series) -> "TypedSplit":
+        """The split with the good rows of ``lines`` moved to ``rest`` (as string rows), for a
+        check the typed read cannot make (a time stamp outside the accepted window)."""
+        if lines.len() == 0:
+            return self
+        nl = self.nl if self.nl is not None else newlines(self.data)
+        moved = rows_of_lines(line_texts(self.data, lines.to_list(), nl), self.header, tuple(self.rest.frame.columns[1:-1]), self.rest.source)
+        frame = pl.concat([self.rest.frame, moved.frame]).sort("line")
+        rejects = pl.concat([self.rest.rejects, moved.rejects]).sort("line")
+        good = self.good.filter(~pl.col("line").is_in(lines.implode()))
+        return TypedSplit(good, RawRows(self.rest.source, frame, rejects), self.header, self.data, nl)
+
+
+def _typed_read(data: bytes, header: list[str], dtypes: dict[str, pl.DataType], *, tolerant: bool) -> pl.DataFrame:
+    """One ``pl.read_csv`` of the lines after the header (quotes taken as data): the wanted
+    columns typed (``tolerant``: names read as strings and cast, a field that does not parse
+    is null, a long line is cut) and, when not wanted, the header's last column (a line too
+    short to reach it has a null there). May raise a polars error (not tolerant: any bad field)."""
+    n = len(header)
+    cols = sorted({header.index(c) for c in dtypes} | ({n - 1} if tolerant else set()))
+    read_as = {c: (pl.String if tolerant and isinstance(d, pl.Enum) else d) for c, d in dtypes.items()}
+    schema = {f"_f{i}": read_as.get(name, pl.String) for i, name in enumerate(header)}
+    frame = pl.read_csv(
+        data, has_header=False, skip_rows=1, schema=schema, columns=cols, separator=SEPARATOR, quote_char=None,
+        comment_prefix=None, raise_if_empty=False, truncate_ragged_lines=tolerant, ignore_errors=tolerant,
+    )  # fmt: skip
+    frame = frame.rename({f"_f{i}": (header[i] if header[i] in dtypes else "_last") for i in cols})
+    if tolerant:
+        frame = frame.with_columns(pl.col(c).cast(d, strict=False) for c, d in dtypes.items() if isinstance(d, pl.Enum))
+    return frame
+
+
+def _parsed(frame: pl.DataFrame, dtypes: dict[str, pl.DataType]) -> pl.Expr:
+    """Rows whose every wanted field parsed (not null; numbers finite) and that reach the last column."""
+    ok = [pl.col(c).is_not_null() for c in dtypes] + [pl.col(c).is_finite() for c, d in dtypes.items() if d.is_float()]
+    if "_last" in frame.columns:
+        ok.append(pl.col("_last").is_not_null())
+    return pl.all_horizontal(ok)
+
+
+def _odd_lines(data: bytes) -> tuple[bytes, np.ndarray]:
+    """What the typed read can take of ``data``: ``\\r\\n`` line ends made ``\\n``, and every
+    line holding a quote, a carriage return or bytes that are not UTF-8 emptied (the row-by-row
+    path reads it). Returns the bytes (same lines, same numbers) and the emptied lines' numbers."""
+    work = data.replace(b"\r\n", b"\n") if b"\r" in data else data
+    arr = np.frombuffer(work, dtype=np.uint8)
+    at = []
+    if b"\r" in work:
+        at.append(np.flatnonzero(arr == 0x0D))
+    if b'"' in work:
+        at.append(np.flatnonzero(arr == 0x22))
+    if not work.isascii():
+        at.append(_decode(work)[1])
+    if not at:
+        return work, np.empty(0, dtype=np.int64)
+    nl = newlines(work)
+    odd = np.unique(np.searchsorted(nl, np.concatenate(at), side="left") + 1)
+    if odd.size == 0:
+        return work, odd
+    starts = np.r_[0, nl + 1][odd - 1].tolist()
+    ends = np.r_[nl, len(work)][odd - 1].tolist()
+    parts, pos = [], 0
+    for s, e in zip(starts, ends):
+        parts.append(work[pos:s])
+        pos = e
+    parts.append(work[pos:])
+    return b"".join(parts), odd
+
+
+def _commas(data: bytes, nl: np.ndarray, lines: np.ndarray) -> np.ndarray:
+    """Separators on each of the given 1-based lines of ``data``."""
+    if lines.size > _FEW_LINES:
+        is_sep = (np.frombuffer(data, dtype=np.uint8) == ord(SEPARATOR)).astype(np.int32)
+        per_line = np.add.reduceat(np.r_[is_sep, 0], np.r_[0, nl + 1])[: nl.size + 1]
+        per_line[np.r_[0, nl + 1] >= len(data)] = 0
+        return per_line[lines - 1]
+    starts = np.r_[0, nl + 1][lines - 1].tolist()
+    ends = np.r_[nl, len(data)][lines - 1].tolist()
+    return np.array([data.count(SEPARATOR.encode(), s, e) for s, e in zip(starts, ends)], dtype=np.int64)
+
+
+def read_typed_csv(path: str | Path, dtypes: dict[str, pl.DataType], *, strict_first: bool = True) -> TypedSplit | None:
+    """Read a CSV by one typed ``pl.read_csv``, leaving to the row-by-row path only the lines it
+    cannot take (:class:`TypedSplit`); ``None`` when the header is not a plain first line naming
+    each wanted column once (then :func:`read_csv_rows` reads the file, or names its fault).
+
+    ``dtypes`` maps each wanted column to the type its fields parse as when the row is good
+    (an ``Enum`` for names and spellings). A clean file (UTF-8, no quotes or carriage
+    returns, every line one record whose fields parse: the usual log) is typed by one strict
+    read (``strict_first``). Any other file is read once more, tolerantly: a field that does
+    not parse is null and marks its line, and so does a line holding a quote, a carriage return
+    (but in a ``\\r\\n`` line end) or bytes that are not UTF-8, or a line too short to
+    reach the header's last column. Lines with too many fields are found by counting
+    separators: all of them when their total differs from what the good lines must hold, else
+    only on the marked lines. Each marked line is then cut out of the file and goes through
+    :func:`rows_of_lines`, which names its fault or splits its fields (blank lines are not rows).
+    A good row's line number is its row index + 2: an emptied line stays a (null) row.
+    """
+    path = Path(path)
+    try:
+        data = read_bytes(path)
+    except InputError:
+        return None
+    if not data or data.startswith(codecs.BOM_UTF8):
+        return None
+    end = data.find(b"\n")
+    if end <= 0:  # no data line, or a blank first line
+        return None
+    head = data[:end].removesuffix(b"\r")
+    if b'"' in head or b"\r" in head:
+        return None
+    try:
+        head_text = head.decode("utf-8")
+    except UnicodeDecodeError:
+        return None
+    header = [name.strip() for name in head_text.split(SEPARATOR)]
+    if len(header) > MAX_HEADER_FIELDS or any(header.count(c) != 1 for c in dtypes) or not head_text.strip(" \t"):
+        return None
+    n = len(header)
+    n_lines = int(np.count_nonzero(np.frombuffer(data, dtype=np.uint8) == 0x0A)) + (not data.endswith(b"\n")) - 1
+    columns = tuple(dtypes)
+    empty_rest = RawRows(path.name, _empty_rows(columns), pl.DataFrame(schema=REJECTS))
+    plain = b'"' not in data and b"\r" not in data
+    if strict_first and plain:
+        try:
+            frame = _typed_read(data, header, dtypes, tolerant=False)
+        except pl.exceptions.PolarsError:
+            frame = None
+        if frame is not None and frame.height == n_lines and frame.select(_parsed(frame, dtypes).all()).item():
+            frame = frame.with_columns(pl.int_range(2, frame.height + 2, dtype=pl.Int64).alias("line")).select("line", *columns)
+            return TypedSplit(frame, empty_rest, header, data)
+    work, odd = _odd_lines(data)
+    if odd.size and odd[0] == 1:
+        return None
+    try:
+        frame = _typed_read(work, header, dtypes, tolerant=True)
+    except pl.exceptions.PolarsError:
+        return None
+    if frame.height != n_lines:  # never guess which row is which line
+        return None
+    frame = frame.with_columns(pl.int_range(2, frame.height + 2, dtype=pl.Int64).alias("line"), _parsed(frame, dtypes).alias("_ok"))
+    marked = frame.filter(~pl.col("_ok"))["line"].to_numpy()
+    n_good = frame.height - marked.size
+    wnl = newlines(work)
+    total = int(np.count_nonzero(np.frombuffer(work, dtype=np.uint8) == ord(SEPARATOR))) - head_text.count(SEPARATOR)
+    if total - int(_commas(work, wnl, marked).sum()) != (n - 1) * n_good:  # some good-looking line is too long
+        every = np.arange(2, n_lines + 2, dtype=np.int64)
+        long = every[(_commas(work, wnl, every) != n - 1) & frame["_ok"].to_numpy()]
+        marked = np.union1d(marked, long)
+        frame = frame.with_columns(pl.col("_ok") & ~pl.col("line").is_in(pl.Series(long).implode()))
+    good = frame.filter(pl.col("_ok")).select("line", *columns)
+    if marked.size == 0:
+        return TypedSplit(good, empty_rest, header, data)
+    nl = wnl if work is data else newlines(data)
+    lines = line_texts(data, marked, nl)
+    lines = lines.filter(~pl.col("text").str.contains(_BLANK) | pl.col("_reason").is_not_null())
+    return TypedSplit(good, rows_of_lines(lines, header, columns, path.name), header, data, nl)
+
+
 def clean_time(t: pl.Series, epoch: "str | TimeOrigin | None") -> pl.Series | None:
     """``t`` of a clean numeric column (Float64 stamps) as :func:`parse_time` computes it, or
     ``None`` when a stamp would be rejected (not finite, or a lone stamp outside the window)."""
@@ -343,16 +532,59 @@ def _empty_rows(columns) -> pl.DataFrame:
     return pl.DataFrame(schema={"line": pl.Int64, **{c: pl.String for c in columns}, "raw": pl.String})
 
 
-def raw_lines(path: Path, lines: list[int], *, limit: int | None = MAX_QUOTE) -> dict[int, str]:
+def newlines(data: bytes) -> np.ndarray:
+    """Byte offsets of every ``\\n`` of ``data``: line ``k`` (1-based) runs from just after the
+    ``(k-1)``-th to the ``k``-th (or to the end of the data)."""
+    return np.flatnonzero(np.frombuffer(data, dtype=np.uint8) == 0x0A)
+
+
+#: Above this many lines :func:`line_texts` splits the whole file (:func:`physical_lines`)
+#: instead of cutting the lines out one by one.
+_FEW_LINES = 20_000
+
+
+def line_texts(data: bytes, lines, nl: np.ndarray | None = None) -> pl.DataFrame:
+    """The rows of :func:`physical_lines` (``line``, ``text``, ``_reason``) for the given 1-based
+    line numbers only (each once, in order; numbers past the end are left out), cut out of
+    ``data`` at its newlines (``nl``: :func:`newlines`, when already known): what naming a few
+    bad lines of a large file costs, instead of splitting all of it."""
+    want = np.unique(np.asarray(list(lines), dtype=np.int64))
+    schema = {"line": pl.Int64, "text": pl.String, "_reason": pl.String}
+    if want.size > _FEW_LINES:
+        return physical_lines(data).filter(pl.col("line").is_in(pl.Series(want).implode()))
+    if nl is None:
+        nl = newlines(data)
+    n_lines = nl.size + (len(data) > 0 and not data.endswith(b"\n"))
+    want = want[(want >= 1) & (want <= n_lines)]
+    starts = np.r_[0, nl + 1][want - 1].tolist()
+    ends = np.r_[nl, len(data)][want - 1].tolist()
+    texts, reasons = [], []
+    for k, s, e in zip(want.tolist(), starts, ends):  # the named lines only
+        raw = data[s:e]
+        try:
+            text, why = raw.decode("utf-8"), None
+        except UnicodeDecodeError as exc:  # as physical_lines: U+FFFD per invalid sequence, the first one named
+            text = raw.decode("utf-8", errors="replace")
+            why = f"not UTF-8 text: byte 0x{raw[exc.start]:02X} at column {exc.start + 1}"
+        if k == 1 and text.startswith("\ufeff"):
+            text = text[1:]
+        texts.append(text[:-1] if text.endswith("\r") else text)
+        reasons.append(why)
+    return pl.DataFrame({"line": want, "text": texts, "_reason": reasons}, schema=schema)
+
+
+def raw_lines(path: Path, lines: list[int], *, limit: int | None = MAX_QUOTE, data: bytes | None = None) -> dict[int, str]:
     """The text of the given 1-based physical line numbers, each cut to ``limit`` characters
-    (:data:`~onebit.core.errors.MAX_QUOTE`; ``None``: whole) (read only when there are rejects)."""
+    (:data:`~onebit.core.errors.MAX_QUOTE`; ``None``: whole) (read only when there are rejects;
+    ``data``: the file's bytes, when already read)."""
     if not lines:
         return {}
-    try:
-        data = read_bytes(path)
-    except InputError:
-        return {}
-    found = physical_lines(data).filter(pl.col("line").is_in(list(set(lines))))
+    if data is None:
+        try:
+            data = read_bytes(path)
+        except InputError:
+            return {}
+    found = line_texts(data, lines)
     found = found.select("line", "text" if limit is None else _bounded("text", limit))
     return dict(found.iter_rows())
 
@@ -553,44 +785,42 @@ def order_checks(
     path: Path | None,
     field_bad: pl.DataFrame | None = None,
     prior: pl.DataFrame | None = None,
+    data: bytes | None = None,
 ) -> TypedRows:
     """The ordering checks of :func:`check_rows` on rows whose fields all parsed (``ok``: ``line``
     + typed ``columns``, in file order): duplicates (:func:`duplicate_of`), then rows going
     backwards by more than ``tolerance``. ``field_bad`` (rows rejected by their fields, with
-    ``_reason``) and ``prior`` (rejects already made) join the rejects."""
-    ok = ok.with_columns(duplicate_of(ok, key).alias("_dup"))
-    same = " and ".join(", ".join(key).rsplit(", ", 1))  # ("t", "target") -> "t and target"
-    ok = ok.with_columns(
-        pl.when(pl.col("_dup").is_not_null()).then(pl.format("duplicate of line {} (same {})", pl.col("_dup"), pl.lit(same))).alias("_reason")
-    )
-    ok = ok.drop("_dup")
-    dup = ok.filter(pl.col("_reason").is_not_null())
-    ok = ok.filter(pl.col("_reason").is_null())
-    if in_time_order(ok["t"]):  # never earlier than a row before it
-        back = ok.clear()
-        reordered = 0
-    else:
-        ok = ok.sort("line")
-        prev_max = pl.col("t").cum_max().shift(1)
-        ok = ok.with_columns(
-            pl.when(pl.col("t") < prev_max - tolerance)
-            .then(
-                pl.format("timestamp goes backwards ({} after {})", pl.col("t"), prev_max)
+    ``_reason``) and ``prior`` (rejects already made) join the rejects. Reasons are formatted
+    for the rejected rows only; rows without ``raw`` get their line's text from ``path``
+    (``data``: its bytes, when already read)."""
+    parts = [field_bad] if field_bad is not None and field_bad.height else []
+    dup_of = duplicate_of(ok, key)
+    if dup_of.null_count() < ok.height:
+        same = " and ".join(", ".join(key).rsplit(", ", 1))  # ("t", "target") -> "t and target"
+        ok = ok.with_columns(dup_of.alias("_dup"))
+        dup = ok.filter(pl.col("_dup").is_not_null()).rechunk()
+        parts.append(dup.with_columns(pl.format("duplicate of line {} (same {})", pl.col("_dup"), pl.lit(same)).alias("_reason")))
+        ok = ok.filter(pl.col("_dup").is_null()).drop("_dup")
+    reordered = 0
+    if not in_time_order(ok["t"]):  # some row is earlier than a row before it
+        ok = ok.sort("line").with_columns(pl.col("t").cum_max().shift(1).alias("_prev"))
+        back = (pl.col("t") < pl.col("_prev") - tolerance).fill_null(False)
+        late = ok.filter(back).rechunk()  # (polars 2.1 panics formatting a filtered frame's floats otherwise)
+        if late.height:
+            why = (
+                pl.format("timestamp goes backwards ({} after {})", pl.col("t"), pl.col("_prev"))
                 if tolerance <= 0
-                else pl.format("timestamp goes backwards ({} after {}, more than {} s)", pl.col("t"), prev_max, pl.lit(tolerance))
+                else pl.format("timestamp goes backwards ({} after {}, more than {} s)", pl.col("t"), pl.col("_prev"), pl.lit(tolerance))
             )
-            .otherwise(None)
-            .alias("_reason"),
-            (pl.col("t") < prev_max).fill_null(False).alias("_late"),
-        )
-        back = ok.filter(pl.col("_reason").is_not_null()).drop("_late")
-        ok = ok.filter(pl.col("_reason").is_null())
-        reordered = int(ok["_late"].sum()) if ok.height else 0
-    parts = [p for p in (field_bad, dup, back) if p is not None and p.height]
+            parts.append(late.with_columns(why.alias("_reason")))
+            ok = ok.filter(~back)
+        reordered = int(ok.select((pl.col("t") < pl.col("_prev")).fill_null(False).sum()).item())
+        ok = ok.drop("_prev")
     if parts:
-        bad = pl.concat(parts, how="vertical_relaxed").sort("line")
-        if path is not None and "raw" not in bad.columns:  # rows of the fast path: their text read back
-            text = raw_lines(path, bad["line"].to_list(), limit=None)
+        with_raw = all("raw" in p.columns for p in parts)
+        bad = pl.concat([p.select("line", "_reason", *(["raw"] if with_raw else [])) for p in parts]).sort("line")
+        if path is not None and not with_raw:  # rows of the typed read: their text read back
+            text = raw_lines(path, bad["line"].to_list(), limit=None, data=data)
             bad = bad.with_columns(pl.Series("raw", [text.get(i) for i in bad["line"].to_list()], dtype=pl.String))
         made = make_rejects(bad, source, path)
     else:
@@ -600,6 +830,46 @@ def order_checks(
     if reordered or not in_time_order(accepted["t"]):
         accepted = accepted.sort(["t", "line"])
     return TypedRows(accepted, rejects, reordered)
+
+
+def check_split(
+    split: TypedSplit,
+    good: pl.DataFrame,
+    parsers: Callable[[TimeOrigin, pl.DataFrame], dict[str, tuple[pl.Expr, pl.Expr]]],
+    *,
+    epoch: "str | TimeOrigin | None",
+    key: tuple[str, ...],
+    tolerance: float,
+    path: Path,
+) -> TypedRows:
+    """:func:`check_rows` of a file read by :func:`read_typed_csv`: ``good`` (the split's good
+    rows with numeric ``t`` as written, the other columns in the types the readers decode) and
+    the rest typed row by row by ``parsers(origin, frame)``, whose values are cast to ``good``'s
+    types; then the ordering checks over both. The time origin is the one the row-by-row path
+    finds over all the rows (:func:`~onebit.readers.timebase.parts_origin`); good rows whose
+    stamp falls outside its window go to the row-by-row side, which names them."""
+    origin = epoch if isinstance(epoch, TimeOrigin) else parts_origin(good["t"], split.rest.frame["t"], epoch)
+    if math.isfinite(origin.lo) or math.isfinite(origin.hi):
+        t = good["t"] - origin.numeric
+        lone = (t < origin.lo - 1e-3) | (t > origin.hi + 1e-3)
+        if lone.any():
+            out = good.filter(lone)["line"]
+            split = split.demote(out)
+            good = good.filter(~lone)
+    good = good.with_columns(pl.col("t") - origin.numeric) if origin.numeric else good
+    rest = split.rest
+    columns = tuple(good.columns[1:])
+    if rest.frame.height == 0:
+        return order_checks(good, key=key, tolerance=tolerance, columns=columns, source=rest.source, path=path,
+                            prior=rest.rejects if rest.rejects.height else None, data=split.data)  # fmt: skip
+    p = parsers(origin, rest.frame)
+    typed = rest.frame.drop("raw").with_columns(pl.coalesce([r for _, r in p.values()]).alias("_reason")).with_columns(
+        v.alias(c) for c, (v, _) in p.items()
+    )
+    fine = typed.filter(pl.col("_reason").is_null()).select("line", *[pl.col(c).cast(good.schema[c]) for c in columns])
+    ok = pl.concat([good, fine]).sort("line") if fine.height else good
+    return order_checks(ok, key=key, tolerance=tolerance, columns=columns, source=rest.source, path=path,
+                        field_bad=typed.filter(pl.col("_reason").is_not_null()), prior=rest.rejects, data=split.data)  # fmt: skip
 
 
 def type_rows(
