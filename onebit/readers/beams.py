@@ -33,6 +33,7 @@ from onebit.core.sensing import body_radius
 from onebit.readers import kernels
 from onebit.core.tables import ABORTED, BEAM_EVENTS, CROSSINGS, REJECTS, conform
 from onebit.readers.rows import (
+    FileLines,
     RawRows,
     TypedRows,
     by_time,
@@ -218,7 +219,7 @@ def decode_beam_log(path: str | Path, beam_ids: tuple[str, ...], *, epoch: str |
     if typed is None:
         raw = read_csv_rows(path, BEAM_COLUMNS)
         return decode_raw_beams(raw, beam_ids, epoch=epoch, path=path)
-    return _decode_events(typed.accepted, typed.rejects, path.name, path)
+    return _decode_events(typed.accepted, typed.rejects, path.name, path, typed.file)
 
 
 def clean_beam_events(path: Path, beam_ids: tuple[str, ...], *, epoch=None) -> tuple[pl.DataFrame, pl.DataFrame] | None:
@@ -246,13 +247,13 @@ def decode_raw_beams(raw: RawRows, beam_ids, *, epoch=None, path: Path | None = 
     return _decode_events(events, rejects, raw.source, path)
 
 
-def _decode_events(events: pl.DataFrame, rejects: pl.DataFrame, source: str, path: Path | None) -> BeamDecode:
+def _decode_events(events: pl.DataFrame, rejects: pl.DataFrame, source: str, path: Path | None, file: FileLines | None = None) -> BeamDecode:
     out = decode_passes(events, source)
     if out.rejects.height:
         fixed = out.rejects.join(events.select("line"), on="line", how="left")
         lines = fixed["line"].to_list()
         if path is not None:
-            text = raw_lines(path, lines)
+            text = raw_lines(path, lines, data=file)
             fixed = fixed.with_columns(pl.Series("raw", [text.get(i) for i in lines], dtype=pl.String))
         rejects = pl.concat([rejects, fixed.select(REJECTS.names())]).sort("line")
     return BeamDecode(out.events, out.crossings, out.aborted, out.unfinished, rejects)

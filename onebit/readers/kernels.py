@@ -122,3 +122,32 @@ def debounce_masks(sensor, on, t, chatter, min_on, n_sensors, eps):
             j = prev[k]
             short[k] = j >= 0 and on[j] and t[k] - t[j] < mo - eps
     return chat, short
+
+
+@kernel
+def separators_per_line(buf, sep):
+    """How many ``sep`` bytes each line of ``buf`` (uint8; lines end at ``\\n``) holds: one
+    entry per line, the text after the last ``\\n`` being a line (empty at the end of a file
+    that ends with one). One pass over the bytes; the numpy reference is
+    :func:`separators_per_line_reference`."""
+    n_lines = 1
+    for i in range(buf.shape[0]):
+        if buf[i] == 10:
+            n_lines += 1
+    out = np.zeros(n_lines, dtype=np.int64)
+    k = 0
+    for i in range(buf.shape[0]):
+        c = buf[i]
+        if c == 10:
+            k += 1
+        elif c == sep:
+            out[k] += 1
+    return out
+
+
+def separators_per_line_reference(buf: np.ndarray, sep: int) -> np.ndarray:
+    """:func:`separators_per_line` with numpy (sorted positions, one ``searchsorted``): its test oracle."""
+    nl = np.flatnonzero(buf == 10)
+    at = np.flatnonzero(buf == sep)
+    before = np.searchsorted(at, np.concatenate([nl, [buf.shape[0]]]), side="left")
+    return np.diff(np.concatenate([[0], before])).astype(np.int64)

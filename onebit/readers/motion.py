@@ -214,7 +214,7 @@ def toggle_edges(
     )
     same = ok.filter(pl.col("_reason").is_not_null())
     if same.height:
-        more = make_rejects(same, source, path)
+        more = make_rejects(same, source, path, typed.file)
         rejects = pl.concat([rejects, more]).sort("line")
     edges = ok.filter(pl.col("_reason").is_null()).drop("_reason")
 

@@ -38,6 +38,7 @@ from __future__ import annotations
 import codecs
 import io
 from contextvars import ContextVar
+import dataclasses
 from dataclasses import dataclass
 import math
 from pathlib import Path
@@ -48,6 +49,7 @@ import polars as pl
 
 from onebit.core.errors import MAX_QUOTE, InputError
 from onebit.core.tables import REJECTS
+from onebit.readers import kernels
 from onebit.readers.timebase import MAX_GAP_S, TimeOrigin, column_origin, number_column_origin, parts_origin
 
 EXTRA = "__extra__"
@@ -346,35 +348,35 @@ class TypedSplit:
         the header's width and whose every wanted field parsed as written.
     rest : the :class:`RawRows` of every other non-blank line after the header (string rows of
         the well-formed ones, a reject for each of the others): what the row-by-row path types.
-    data, nl : the file's bytes and, when computed, their newline offsets (:func:`newlines`).
+    file : the file's :class:`FileLines` (the text of a line, to name it).
     """
 
     good: pl.DataFrame
     rest: RawRows
     header: list[str]
-    data: bytes
-    nl: np.ndarray | None = None
+    file: FileLines
 
     def demote(self, lines: pl.Series) -> "TypedSplit":
         """The split with the good rows of ``lines`` moved to ``rest`` (as string rows), for a
         check the typed read cannot make (a time stamp outside the accepted window)."""
         if lines.len() == 0:
             return self
-        nl = self.nl if self.nl is not None else newlines(self.data)
-        moved = rows_of_lines(line_texts(self.data, lines.to_list(), nl), self.header, tuple(self.rest.frame.columns[1:-1]), self.rest.source)
+        columns = tuple(self.rest.frame.columns[1:-1])
+        moved = rows_of_lines(self.file.lines(lines.to_numpy()), self.header, columns, self.rest.source)
         frame = pl.concat([self.rest.frame, moved.frame]).sort("line")
         rejects = pl.concat([self.rest.rejects, moved.rejects]).sort("line")
         good = self.good.filter(~pl.col("line").is_in(lines.implode()))
-        return TypedSplit(good, RawRows(self.rest.source, frame, rejects), self.header, self.data, nl)
+        return TypedSplit(good, RawRows(self.rest.source, frame, rejects), self.header, self.file)
 
 
 def _typed_read(data: bytes, header: list[str], dtypes: dict[str, pl.DataType], *, tolerant: bool) -> pl.DataFrame:
     """One ``pl.read_csv`` of the lines after the header (quotes taken as data): the wanted
     columns typed (``tolerant``: names read as strings and cast, a field that does not parse
-    is null, a long line is cut) and, when not wanted, the header's last column (a line too
-    short to reach it has a null there). May raise a polars error (not tolerant: any bad field)."""
+    is null, a long line is cut) and, when not wanted, the header's last column as ``_last``
+    (a line too short to reach it has a null there). May raise a polars error (not tolerant:
+    any field that does not parse, or a long line)."""
     n = len(header)
-    cols = sorted({header.index(c) for c in dtypes} | ({n - 1} if tolerant else set()))
+    cols = sorted({header.index(c) for c in dtypes} | {n - 1})
     read_as = {c: (pl.String if tolerant and isinstance(d, pl.Enum) else d) for c, d in dtypes.items()}
     schema = {f"_f{i}": read_as.get(name, pl.String) for i, name in enumerate(header)}
     frame = pl.read_csv(
@@ -395,11 +397,10 @@ def _parsed(frame: pl.DataFrame, dtypes: dict[str, pl.DataType]) -> pl.Expr:
     return pl.all_horizontal(ok)
 
 
-def _odd_lines(data: bytes) -> tuple[bytes, np.ndarray]:
-    """What the typed read can take of ``data``: ``\\r\\n`` line ends made ``\\n``, and every
-    line holding a quote, a carriage return or bytes that are not UTF-8 emptied (the row-by-row
-    path reads it). Returns the bytes (same lines, same numbers) and the emptied lines' numbers."""
-    work = data.replace(b"\r\n", b"\n") if b"\r" in data else data
+def _odd_lines(work: bytes, nl: np.ndarray) -> np.ndarray:
+    """The 1-based numbers of the lines of ``work`` (``\\r\\n`` line ends already made ``\\n``;
+    ``nl``: its newlines) that hold a quote, a carriage return or, when ``work`` is not UTF-8,
+    any byte that is not ASCII: the row-by-row path reads them."""
     arr = np.frombuffer(work, dtype=np.uint8)
     at = []
     if b"\r" in work:
@@ -407,36 +408,36 @@ def _odd_lines(data: bytes) -> tuple[bytes, np.ndarray]:
     if b'"' in work:
         at.append(np.flatnonzero(arr == 0x22))
     if not work.isascii():
-        at.append(_decode(work)[1])
+        try:
+            work.decode("utf-8")
+        except UnicodeDecodeError:
+            at.append(np.flatnonzero(arr >= 0x80))
     if not at:
-        return work, np.empty(0, dtype=np.int64)
-    nl = newlines(work)
-    odd = np.unique(np.searchsorted(nl, np.concatenate(at), side="left") + 1)
-    if odd.size == 0:
-        return work, odd
-    starts = np.r_[0, nl + 1][odd - 1].tolist()
-    ends = np.r_[nl, len(work)][odd - 1].tolist()
+        return np.empty(0, dtype=np.int64)
+    return np.unique(np.searchsorted(nl, np.concatenate(at), side="left") + 1)
+
+
+def _emptied(work: bytes, nl: np.ndarray, lines: np.ndarray) -> bytes:
+    """``work`` with the given lines emptied (same lines, same numbers)."""
+    starts, ends = _bounds(nl, len(work), lines)
     parts, pos = [], 0
     for s, e in zip(starts, ends):
         parts.append(work[pos:s])
         pos = e
     parts.append(work[pos:])
-    return b"".join(parts), odd
+    return b"".join(parts)
 
 
-def _commas(data: bytes, nl: np.ndarray, lines: np.ndarray) -> np.ndarray:
-    """Separators on each of the given 1-based lines of ``data``."""
+def _commas(work: bytes, nl: np.ndarray, lines: np.ndarray) -> int:
+    """Separators on the given 1-based lines of ``work``, in all."""
     if lines.size > _FEW_LINES:
-        is_sep = (np.frombuffer(data, dtype=np.uint8) == ord(SEPARATOR)).astype(np.int32)
-        per_line = np.add.reduceat(np.r_[is_sep, 0], np.r_[0, nl + 1])[: nl.size + 1]
-        per_line[np.r_[0, nl + 1] >= len(data)] = 0
-        return per_line[lines - 1]
-    starts = np.r_[0, nl + 1][lines - 1].tolist()
-    ends = np.r_[nl, len(data)][lines - 1].tolist()
-    return np.array([data.count(SEPARATOR.encode(), s, e) for s, e in zip(starts, ends)], dtype=np.int64)
+        return int(kernels.separators_per_line(np.frombuffer(work, dtype=np.uint8), ord(SEPARATOR))[lines - 1].sum())
+    starts, ends = _bounds(nl, len(work), lines)
+    sep = SEPARATOR.encode()
+    return sum(work.count(sep, s, e) for s, e in zip(starts, ends))
 
 
-def read_typed_csv(path: str | Path, dtypes: dict[str, pl.DataType], *, strict_first: bool = True) -> TypedSplit | None:
+def read_typed_csv(path: str | Path, dtypes: dict[str, pl.DataType]) -> TypedSplit | None:
     """Read a CSV by one typed ``pl.read_csv``, leaving to the row-by-row path only the lines it
     cannot take (:class:`TypedSplit`); ``None`` when the header is not a plain first line naming
     each wanted column once (then :func:`read_csv_rows` reads the file, or names its fault).
@@ -444,14 +445,16 @@ def read_typed_csv(path: str | Path, dtypes: dict[str, pl.DataType], *, strict_f
     ``dtypes`` maps each wanted column to the type its fields parse as when the row is good
     (an ``Enum`` for names and spellings). A clean file (UTF-8, no quotes or carriage
     returns, every line one record whose fields parse: the usual log) is typed by one strict
-    read (``strict_first``). Any other file is read once more, tolerantly: a field that does
-    not parse is null and marks its line, and so does a line holding a quote, a carriage return
-    (but in a ``\\r\\n`` line end) or bytes that are not UTF-8, or a line too short to
-    reach the header's last column. Lines with too many fields are found by counting
-    separators: all of them when their total differs from what the good lines must hold, else
-    only on the marked lines. Each marked line is then cut out of the file and goes through
-    :func:`rows_of_lines`, which names its fault or splits its fields (blank lines are not rows).
-    A good row's line number is its row index + 2: an emptied line stays a (null) row.
+    read. Any other file is read once more, tolerantly: a field that does not parse is null
+    and marks its line, and so does a line holding a quote, a carriage return (but in a
+    ``\\r\\n`` line end) or, in a file that is not UTF-8, a byte that is not ASCII (such
+    lines are emptied for the read), and a line too short to reach the header's last column.
+    Lines with too many fields are found by counting separators: on every line
+    (:func:`~onebit.readers.kernels.separators_per_line`) when the total of the unmarked lines
+    is more than their width allows, else never. Each marked line is then cut out of the file
+    and goes through :func:`rows_of_lines`, which names its fault or splits its fields (blank
+    lines are not rows). A row's line number is its row index + 2 (an emptied or blank line
+    is a null row of the read).
     """
     path = Path(path)
     try:
@@ -476,42 +479,49 @@ def read_typed_csv(path: str | Path, dtypes: dict[str, pl.DataType], *, strict_f
     n = len(header)
     n_lines = int(np.count_nonzero(np.frombuffer(data, dtype=np.uint8) == 0x0A)) + (not data.endswith(b"\n")) - 1
     columns = tuple(dtypes)
+    file = FileLines(data)
     empty_rest = RawRows(path.name, _empty_rows(columns), pl.DataFrame(schema=REJECTS))
     plain = b'"' not in data and b"\r" not in data
-    if strict_first and plain:
+    if plain and (data.isascii() or _utf8(data)):
         try:
             frame = _typed_read(data, header, dtypes, tolerant=False)
         except pl.exceptions.PolarsError:
             frame = None
         if frame is not None and frame.height == n_lines and frame.select(_parsed(frame, dtypes).all()).item():
             frame = frame.with_columns(pl.int_range(2, frame.height + 2, dtype=pl.Int64).alias("line")).select("line", *columns)
-            return TypedSplit(frame, empty_rest, header, data)
-    work, odd = _odd_lines(data)
+            return TypedSplit(frame, empty_rest, header, file)
+    work = data.replace(b"\r\n", b"\n") if b"\r" in data else data
+    wfile = file if work is data else FileLines(work)
+    odd = _odd_lines(work, wfile.nl) if not plain or not work.isascii() else np.empty(0, dtype=np.int64)
     if odd.size and odd[0] == 1:
         return None
     try:
-        frame = _typed_read(work, header, dtypes, tolerant=True)
+        frame = _typed_read(_emptied(work, wfile.nl, odd) if odd.size else work, header, dtypes, tolerant=True)
     except pl.exceptions.PolarsError:
         return None
     if frame.height != n_lines:  # never guess which row is which line
         return None
     frame = frame.with_columns(pl.int_range(2, frame.height + 2, dtype=pl.Int64).alias("line"), _parsed(frame, dtypes).alias("_ok"))
     marked = frame.filter(~pl.col("_ok"))["line"].to_numpy()
-    n_good = frame.height - marked.size
-    wnl = newlines(work)
     total = int(np.count_nonzero(np.frombuffer(work, dtype=np.uint8) == ord(SEPARATOR))) - head_text.count(SEPARATOR)
-    if total - int(_commas(work, wnl, marked).sum()) != (n - 1) * n_good:  # some good-looking line is too long
-        every = np.arange(2, n_lines + 2, dtype=np.int64)
-        long = every[(_commas(work, wnl, every) != n - 1) & frame["_ok"].to_numpy()]
-        marked = np.union1d(marked, long)
-        frame = frame.with_columns(pl.col("_ok") & ~pl.col("line").is_in(pl.Series(long).implode()))
+    if total - _commas(work, wfile.nl, marked) != (n - 1) * (frame.height - marked.size):  # a good-looking line is too long
+        per_line = kernels.separators_per_line(np.frombuffer(work, dtype=np.uint8), ord(SEPARATOR))[1 : n_lines + 1]
+        frame = frame.with_columns(pl.col("_ok") & pl.Series(per_line == n - 1))
+        marked = frame.filter(~pl.col("_ok"))["line"].to_numpy()
     good = frame.filter(pl.col("_ok")).select("line", *columns)
     if marked.size == 0:
-        return TypedSplit(good, empty_rest, header, data)
-    nl = wnl if work is data else newlines(data)
-    lines = line_texts(data, marked, nl)
+        return TypedSplit(good, empty_rest, header, file)
+    lines = file.lines(marked)
     lines = lines.filter(~pl.col("text").str.contains(_BLANK) | pl.col("_reason").is_not_null())
-    return TypedSplit(good, rows_of_lines(lines, header, columns, path.name), header, data, nl)
+    return TypedSplit(good, rows_of_lines(lines, header, columns, path.name), header, file)
+
+
+def _utf8(data: bytes) -> bool:
+    try:
+        data.decode("utf-8")
+    except UnicodeDecodeError:
+        return False
+    return True
 
 
 def clean_time(t: pl.Series, epoch: "str | TimeOrigin | None") -> pl.Series | None:
@@ -543,12 +553,21 @@ def newlines(data: bytes) -> np.ndarray:
 _FEW_LINES = 20_000
 
 
+def _bounds(nl: np.ndarray, size: int, lines: np.ndarray) -> tuple[list[int], list[int]]:
+    """Start and end byte offsets of the given 1-based lines (``nl``: :func:`newlines`; ``size``: bytes)."""
+    if nl.size == 0:
+        return [0] * lines.size, [size] * lines.size
+    starts = np.where(lines > 1, nl[np.clip(lines - 2, 0, nl.size - 1)] + 1, 0)
+    ends = np.where(lines - 1 < nl.size, nl[np.clip(lines - 1, 0, nl.size - 1)], size)
+    return starts.tolist(), ends.tolist()
+
+
 def line_texts(data: bytes, lines, nl: np.ndarray | None = None) -> pl.DataFrame:
     """The rows of :func:`physical_lines` (``line``, ``text``, ``_reason``) for the given 1-based
     line numbers only (each once, in order; numbers past the end are left out), cut out of
     ``data`` at its newlines (``nl``: :func:`newlines`, when already known): what naming a few
     bad lines of a large file costs, instead of splitting all of it."""
-    want = np.unique(np.asarray(list(lines), dtype=np.int64))
+    want = np.unique(np.asarray(lines, dtype=np.int64))
     schema = {"line": pl.Int64, "text": pl.String, "_reason": pl.String}
     if want.size > _FEW_LINES:
         return physical_lines(data).filter(pl.col("line").is_in(pl.Series(want).implode()))
@@ -556,8 +575,7 @@ def line_texts(data: bytes, lines, nl: np.ndarray | None = None) -> pl.DataFrame
         nl = newlines(data)
     n_lines = nl.size + (len(data) > 0 and not data.endswith(b"\n"))
     want = want[(want >= 1) & (want <= n_lines)]
-    starts = np.r_[0, nl + 1][want - 1].tolist()
-    ends = np.r_[nl, len(data)][want - 1].tolist()
+    starts, ends = _bounds(nl, len(data), want)
     texts, reasons = [], []
     for k, s, e in zip(want.tolist(), starts, ends):  # the named lines only
         raw = data[s:e]
@@ -573,31 +591,56 @@ def line_texts(data: bytes, lines, nl: np.ndarray | None = None) -> pl.DataFrame
     return pl.DataFrame({"line": want, "text": texts, "_reason": reasons}, schema=schema)
 
 
-def raw_lines(path: Path, lines: list[int], *, limit: int | None = MAX_QUOTE, data: bytes | None = None) -> dict[int, str]:
+class FileLines:
+    """A file's bytes and, once needed, their newline offsets: the text of any line by number."""
+
+    def __init__(self, data: bytes) -> None:
+        self.data = data
+        self._nl: np.ndarray | None = None
+
+    @property
+    def nl(self) -> np.ndarray:
+        if self._nl is None:
+            self._nl = newlines(self.data)
+        return self._nl
+
+    def lines(self, lines) -> pl.DataFrame:
+        """:func:`line_texts` of these lines."""
+        lines = np.asarray(lines, dtype=np.int64)
+        return line_texts(self.data, lines, None if lines.size > _FEW_LINES else self.nl)
+
+    def texts(self, lines, *, limit: int | None = MAX_QUOTE) -> dict[int, str]:
+        """The text of each of these lines, cut to ``limit`` characters (``None``: whole)."""
+        if len(lines) == 0:
+            return {}
+        found = self.lines(lines)
+        return dict(found.select("line", "text" if limit is None else _bounded("text", limit)).iter_rows())
+
+
+def raw_lines(path: Path, lines: list[int], *, limit: int | None = MAX_QUOTE, data: FileLines | None = None) -> dict[int, str]:
     """The text of the given 1-based physical line numbers, each cut to ``limit`` characters
     (:data:`~onebit.core.errors.MAX_QUOTE`; ``None``: whole) (read only when there are rejects;
-    ``data``: the file's bytes, when already read)."""
+    ``data``: the file's :class:`FileLines`, when already read)."""
     if not lines:
         return {}
     if data is None:
         try:
-            data = read_bytes(path)
+            data = FileLines(read_bytes(path))
         except InputError:
             return {}
-    found = line_texts(data, lines)
-    found = found.select("line", "text" if limit is None else _bounded("text", limit))
-    return dict(found.iter_rows())
+    return data.texts(lines, limit=limit)
 
 
-def make_rejects(bad: pl.DataFrame, source: str, path: Path | None) -> pl.DataFrame:
+def make_rejects(bad: pl.DataFrame, source: str, path: Path | None, file: FileLines | None = None) -> pl.DataFrame:
     """Build ``rejects`` rows from a frame with ``line``, ``_reason`` and optionally ``raw``;
-    the raw text and the reason are cut to :data:`~onebit.core.errors.MAX_QUOTE` characters."""
+    the raw text and the reason are cut to :data:`~onebit.core.errors.MAX_QUOTE` characters
+    (``file``: the CSV's :class:`FileLines`, when already read)."""
     if bad.height == 0:
         return pl.DataFrame(schema=REJECTS)
     if "raw" in bad.columns and bad["raw"].null_count() < bad.height:
         raw = bad["raw"]
     elif path is not None and path.suffix.lower() == ".csv":
-        text = raw_lines(path, bad["line"].to_list())
+        text = raw_lines(path, bad["line"].to_list(), data=file)
         raw = pl.Series([text.get(i) for i in bad["line"].to_list()], dtype=pl.String)
     else:
         raw = pl.Series([None] * bad.height, dtype=pl.String)
@@ -708,11 +751,13 @@ REORDER_TOLERANCE_S = 1.0
 class TypedRows:
     """What :func:`check_rows` made of string rows: ``accepted`` (sorted by ``t``, file order
     within a stamp, with ``line``), ``rejects`` and how many accepted rows were out of order
-    within the tolerance and sorted into place (``reordered``)."""
+    within the tolerance and sorted into place (``reordered``); ``file``: the CSV's
+    :class:`FileLines` when read whole (to name more lines)."""
 
     accepted: pl.DataFrame
     rejects: pl.DataFrame
     reordered: int = 0
+    file: "FileLines | None" = None
 
 
 def check_rows(
@@ -785,14 +830,14 @@ def order_checks(
     path: Path | None,
     field_bad: pl.DataFrame | None = None,
     prior: pl.DataFrame | None = None,
-    data: bytes | None = None,
+    data: FileLines | None = None,
 ) -> TypedRows:
     """The ordering checks of :func:`check_rows` on rows whose fields all parsed (``ok``: ``line``
     + typed ``columns``, in file order): duplicates (:func:`duplicate_of`), then rows going
     backwards by more than ``tolerance``. ``field_bad`` (rows rejected by their fields, with
     ``_reason``) and ``prior`` (rejects already made) join the rejects. Reasons are formatted
     for the rejected rows only; rows without ``raw`` get their line's text from ``path``
-    (``data``: its bytes, when already read)."""
+    (``data``: its :class:`FileLines`, when already read)."""
     parts = [field_bad] if field_bad is not None and field_bad.height else []
     dup_of = duplicate_of(ok, key)
     if dup_of.null_count() < ok.height:
@@ -860,16 +905,18 @@ def check_split(
     rest = split.rest
     columns = tuple(good.columns[1:])
     if rest.frame.height == 0:
-        return order_checks(good, key=key, tolerance=tolerance, columns=columns, source=rest.source, path=path,
-                            prior=rest.rejects if rest.rejects.height else None, data=split.data)  # fmt: skip
-    p = parsers(origin, rest.frame)
-    typed = rest.frame.drop("raw").with_columns(pl.coalesce([r for _, r in p.values()]).alias("_reason")).with_columns(
-        v.alias(c) for c, (v, _) in p.items()
-    )
-    fine = typed.filter(pl.col("_reason").is_null()).select("line", *[pl.col(c).cast(good.schema[c]) for c in columns])
-    ok = pl.concat([good, fine]).sort("line") if fine.height else good
-    return order_checks(ok, key=key, tolerance=tolerance, columns=columns, source=rest.source, path=path,
-                        field_bad=typed.filter(pl.col("_reason").is_not_null()), prior=rest.rejects, data=split.data)  # fmt: skip
+        res = order_checks(good, key=key, tolerance=tolerance, columns=columns, source=rest.source, path=path,
+                           prior=rest.rejects if rest.rejects.height else None, data=split.file)  # fmt: skip
+    else:
+        p = parsers(origin, rest.frame)
+        typed = rest.frame.drop("raw").with_columns(pl.coalesce([r for _, r in p.values()]).alias("_reason")).with_columns(
+            v.alias(c) for c, (v, _) in p.items()
+        )
+        fine = typed.filter(pl.col("_reason").is_null()).select("line", *[pl.col(c).cast(good.schema[c]) for c in columns])
+        ok = pl.concat([good, fine]).sort("line") if fine.height else good
+        res = order_checks(ok, key=key, tolerance=tolerance, columns=columns, source=rest.source, path=path,
+                           field_bad=typed.filter(pl.col("_reason").is_not_null()), prior=rest.rejects, data=split.file)  # fmt: skip
+    return dataclasses.replace(res, file=split.file)
 
 
 def type_rows(
