@@ -111,38 +111,60 @@ def decode_passes(events: pl.DataFrame, source: str = "beams.csv", *, compiled: 
     if not (events.height >= kernels.MIN_ROWS if compiled is None else compiled):
         return decode_passes_reference(events, source)
     ev = by_time(events)
-    if isinstance(ev.schema["beam"], pl.Enum):  # the clean path's beams: their codes are the enum's
+    if isinstance(ev.schema["beam"], pl.Enum):  # the typed read's beams: their codes are the enum's
+        names = pl.Series(ev.schema["beam"].categories, dtype=pl.String)
         code = ev["beam"].to_physical().to_numpy().astype(np.int64)
-        n_beams = ev.schema["beam"].categories.len()
     else:
         names = ev["beam"].unique(maintain_order=True)
         code = ev["beam"].replace_strict(names, range(len(names)), return_dtype=pl.Int64).to_numpy().astype(np.int64)
-        n_beams = len(names)
-    reject, pass_first, close, first_pair = kernels.beam_passes(
-        code, (ev["pair"] == "b").to_numpy().astype(np.int8), ev["blocked"].to_numpy().astype(np.bool_), n_beams
+    if ev.schema["pair"] == pl.Enum(["a", "b"]):
+        pair = ev["pair"].to_physical().to_numpy().astype(np.int8)
+    else:
+        pair = (ev["pair"] == "b").to_numpy().astype(np.int8)
+    reject, pass_first, close, first_pair, last = kernels.beam_passes(code, pair, ev["blocked"].to_numpy().astype(np.bool_), len(names))
+    t = ev["t"].to_numpy()
+    pairs = pl.Series(["a", "b"], dtype=pl.String)
+    bad = np.flatnonzero(reject)
+    if bad.size:  # reasons for the rejected edges only
+        rej = ev[bad].rechunk().with_columns(
+            pl.when(pl.Series(reject[bad]) == kernels.ALREADY_BLOCKED)
+            .then(pl.format("pair {} of beam {} already blocked (no state change)", pl.col("pair"), pl.col("beam")))
+            .otherwise(pl.format("pair {} of beam {} already clear (no state change)", pl.col("pair"), pl.col("beam")))
+            .alias("_reason")
+        )
+        rejects = make_rejects(rej.sort("line"), source, None)
+        keep = np.flatnonzero(reject == 0)
+        events_out = ev[keep]
+        code_ok, pair_ok = code[keep], pair[keep]
+    else:
+        rejects = make_rejects(ev.clear().with_columns(pl.lit(None, pl.String).alias("_reason")), source, None)
+        events_out, code_ok, pair_ok = ev, code, pair
+    events_out = pl.DataFrame(
+        {"t": events_out["t"], "beam": names.gather(code_ok), "pair": pairs.gather(pair_ok), "blocked": events_out["blocked"]}, schema=BEAM_EVENTS
     )
-    ev = ev.with_columns(_reject=pl.Series(reject), _first=pl.Series(pass_first), _close=pl.Series(close),
-                         _opener=pl.Series(first_pair))  # fmt: skip
-    bad = ev.filter(pl.col("_reject") > 0).with_columns(
-        pl.when(pl.col("_reject") == kernels.ALREADY_BLOCKED)
-        .then(pl.format("pair {} of beam {} already blocked (no state change)", pl.col("pair"), pl.col("beam")))
-        .otherwise(pl.format("pair {} of beam {} already clear (no state change)", pl.col("pair"), pl.col("beam")))
-        .alias("_reason")
+    # closed passes at their closing edge (time order); a crossing leaves by the other pair
+    ends = np.flatnonzero(close)
+    opener, leaver = first_pair[ends], pair[ends]
+    cross = ends[opener != leaver]
+    crossings = pl.DataFrame(
+        {"t": t[cross], "beam": names.gather(code[cross]), "direction": np.where(opener[opener != leaver] == 0, 1, -1).astype(np.int8)},
+        schema=CROSSINGS,
     )
-    rejects = make_rejects(bad.sort("line"), source, None)
-    ev = ev.filter(pl.col("_reject") == 0)
-    # one row per pass, in the order passes start (polars' group order in the reference): the
-    # closing edge of each closed pass, and the last edge of each pass still open at the end
-    has_close = np.zeros(reject.shape[0], dtype=np.bool_)
-    has_close[pass_first[close]] = True
-    open_rows = ev.filter(~pl.Series(has_close[ev["_first"].to_numpy()]))
-    cols = (pl.col("beam"), pl.col("pair").alias("last"), pl.col("_close").alias("closed"), pl.col("t"), pl.col("_opener"))
-    ends = pl.concat([
-        ev.filter(pl.col("_close")).select("_first", *cols),
-        open_rows.group_by("_first", maintain_order=True).agg(c.last() for c in cols),
-    ]).sort("_first")  # fmt: skip
-    passes = ends.with_columns(first=pl.when(pl.col("closed")).then(pl.when(pl.col("_opener") == 1).then(pl.lit("b")).otherwise(pl.lit("a"))))
-    return _decoded(ev, passes, rejects)
+    tc = t[cross]
+    if tc.size > 1 and not (tc[1:] > tc[:-1]).all():  # ties in t: beams in order, else as the passes started
+        crossings = crossings.sort(["t", "beam"], maintain_order=True)
+    # start-and-return passes: in the order they started (as the reference's groups), then by t
+    ab = ends[opener == leaver]
+    ab = ab[np.argsort(pass_first[ab], kind="stable")]
+    aborted = pl.DataFrame(
+        {"t": t[ab], "beam": names.gather(code[ab]), "side": np.where(first_pair[ab] == 0, -1, 1).astype(np.int8)}, schema=ABORTED
+    ).sort("t")
+    # a pass still open at the end holds its beam's last edge, which does not close it
+    op = last[(last >= 0)]
+    op = op[~close[op]]
+    op = op[np.argsort(pass_first[op], kind="stable")]
+    unfinished = pl.DataFrame({"t": t[op], "beam": names.gather(code[op])}, schema={"t": pl.Float64, "beam": pl.String})
+    return BeamDecode(events_out, crossings, aborted, unfinished, rejects)
 
 
 def _decoded(ev: pl.DataFrame, passes: pl.DataFrame, rejects: pl.DataFrame) -> BeamDecode:

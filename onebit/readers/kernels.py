@@ -38,10 +38,12 @@ def beam_passes(beam, pair, blocked, n_beams):
     An edge that leaves its pair's state unchanged is rejected (``reject`` code, see
     :data:`ALREADY_BLOCKED`); the others drive each beam's pass machine: a pass runs from
     the first edge after an idle state (both pairs clear) to the edge that makes the beam
-    idle again. Returns ``(reject (m,), pass_first (m,), close (m,), first_pair (m,))``:
-    for every accepted edge the index of the first edge of its pass; ``close`` marks the
-    edges that close a pass and ``first_pair`` (on those) the pair that opened it. A pass
-    without a closing edge is still open at the end of the log (unfinished).
+    idle again. Returns ``(reject (m,), pass_first (m,), close (m,), first_pair (m,), last
+    (n_beams,))``: for every accepted edge the index of the first edge of its pass; ``close``
+    marks the edges that close a pass and ``first_pair`` (on those) the pair that opened it;
+    ``last`` is each beam's last accepted edge (-1: none). A pass without a closing edge is
+    still open at the end of the log (unfinished): the one holding its beam's last edge, if
+    that edge does not close it.
     """
     m = beam.shape[0]
     reject = np.zeros(m, dtype=np.int8)
@@ -51,12 +53,14 @@ def beam_passes(beam, pair, blocked, n_beams):
     state = np.zeros((n_beams, 2), dtype=np.bool_)
     opened = np.full(n_beams, -1, dtype=np.int64)  # first edge of the open pass of each beam
     opener = np.zeros(n_beams, dtype=np.int8)
+    last = np.full(n_beams, -1, dtype=np.int64)
     for k in range(m):  # time order; each beam's machine only sees its own edges
         b, q, v = beam[k], pair[k], blocked[k]
         if state[b, q] == v:  # no state change: not an edge a body makes
             reject[k] = ALREADY_BLOCKED if v else ALREADY_CLEAR
             continue
         state[b, q] = v
+        last[b] = k
         if opened[b] < 0:
             opened[b] = k
             opener[b] = q
@@ -65,7 +69,7 @@ def beam_passes(beam, pair, blocked, n_beams):
             close[k] = True
             first_pair[k] = opener[b]
             opened[b] = -1
-    return reject, pass_first, close, first_pair
+    return reject, pass_first, close, first_pair, last
 
 
 @kernel
@@ -151,3 +155,19 @@ def separators_per_line_reference(buf: np.ndarray, sep: int) -> np.ndarray:
     at = np.flatnonzero(buf == sep)
     before = np.searchsorted(at, np.concatenate([nl, [buf.shape[0]]]), side="left")
     return np.diff(np.concatenate([[0], before])).astype(np.int64)
+
+
+@kernel
+def toggle_repeats(sensor, on, n_sensors):
+    """Edges of a toggle log in time order (``sensor`` index, ``on``) that do not change their
+    sensor's state (every sensor starts off): ``on`` equal to the sensor's previous edge.
+    The reference is the polars window expression in :func:`onebit.readers.motion.toggle_edges`
+    (``shift(1).over("sensor")``)."""
+    m = sensor.shape[0]
+    same = np.zeros(m, dtype=np.bool_)
+    state = np.zeros(n_sensors, dtype=np.bool_)
+    for k in range(m):
+        s = sensor[k]
+        same[k] = on[k] == state[s]
+        state[s] = on[k]
+    return same

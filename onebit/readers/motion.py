@@ -201,27 +201,41 @@ def toggle_edges(
     ok = ok.rename({"value": "on"})  # sorted by t, file order within a stamp (TypedRows)
 
     # pass 2: edges that do not change their sensor's state (every sensor starts off)
-    prev = pl.col("on").shift(1).over("sensor").fill_null(False)
-    ok = ok.with_columns(
-        pl.when(pl.col("on") == prev)
-        .then(
+    same = repeats(ok)
+    if same.any():  # reasons for those edges only
+        rep = ok.filter(same).rechunk().with_columns(
             pl.when(pl.col("on"))
             .then(pl.format("no state change: sensor {} already on", pl.col("sensor")))
             .otherwise(pl.format("no state change: sensor {} already off", pl.col("sensor")))
+            .alias("_reason")
         )
-        .otherwise(None)
-        .alias("_reason")
-    )
-    same = ok.filter(pl.col("_reason").is_not_null())
-    if same.height:
-        more = make_rejects(same, source, path, typed.file)
+        more = make_rejects(rep, source, path, typed.file)
         rejects = pl.concat([rejects, more]).sort("line")
-    edges = ok.filter(pl.col("_reason").is_null()).drop("_reason")
+        ok = ok.filter(~same)
 
     # pass 3: debounce on the alternating sequence
-    edges, suppressed = debounce(edges, sensors, rules)
-    motion = conform(edges, MOTION)
+    edges, suppressed = debounce(ok, sensors, rules)
+    if isinstance(edges.schema["sensor"], pl.Enum):  # the typed read's codes: names gathered, not cast row by row
+        names = pl.Series(edges.schema["sensor"].categories, dtype=pl.String)
+        motion = pl.DataFrame({"t": edges["t"], "sensor": names.gather(edges["sensor"].to_physical()), "on": edges["on"]}, schema=MOTION)
+    else:
+        motion = conform(edges, MOTION)
     return MotionRead(motion, rejects.select(REJECTS.names()).cast(dict(REJECTS)), suppressed, typed.reordered)
+
+
+def repeats(ok: pl.DataFrame, *, compiled: bool | None = None) -> pl.Series:
+    """Which edges (``sensor``, ``on``; in time order) repeat their sensor's state: one compiled
+    pass (:func:`onebit.readers.kernels.toggle_repeats`) from
+    :data:`~onebit.readers.kernels.MIN_ROWS` edges on (``compiled=None``), else its reference,
+    a polars ``shift`` over each sensor (same result)."""
+    if not (ok.height >= kernels.MIN_ROWS if compiled is None else compiled):
+        return ok.select(pl.col("on") == pl.col("on").shift(1).over("sensor").fill_null(False)).to_series()
+    if isinstance(ok.schema["sensor"], pl.Enum):
+        code, n = ok["sensor"].to_physical().to_numpy().astype(np.int64), ok.schema["sensor"].categories.len()
+    else:
+        names = ok["sensor"].unique(maintain_order=True)
+        code, n = ok["sensor"].replace_strict(names, range(len(names)), return_dtype=pl.Int64).to_numpy().astype(np.int64), len(names)
+    return pl.Series(kernels.toggle_repeats(code, ok["on"].to_numpy().astype(np.bool_), max(n, 1)))
 
 
 #: The same reader under the name the proximity sensors use (``proximity.csv``: t, sensor, value).
@@ -280,13 +294,10 @@ def debounce(
         np.array([chatter.get(n, 0.0) for n in names], dtype=np.float64), np.array([min_on.get(n, 0.0) for n in names], dtype=np.float64),
         len(names), TIME_EPS,
     )  # fmt: skip
-    ev = ev.with_columns(_chat=pl.Series(chat), _short=pl.Series(short))
-    sup_chat = ev.filter(pl.col("_chat")).with_columns(rule=pl.lit("chatter"))
-    sup_short = ev.filter(pl.col("_short")).with_columns(rule=pl.lit("min_on"))
-    kept = ev.filter(~pl.col("_chat") & ~pl.col("_short")).select("line", "t", "sensor", "on")  # still sorted by t, line
-    suppressed = conform(pl.concat([sup_chat.drop("_short", strict=False), sup_short], how="diagonal"), SUPPRESSED).sort(
-        ["t", "line"]
-    )
+    ev = ev.select("line", "t", "sensor", "on")
+    kept = ev.filter(pl.Series(~(chat | short)))  # still sorted by t, line
+    sup = [ev[np.flatnonzero(m)].with_columns(rule=pl.lit(r)) for m, r in ((chat, "chatter"), (short, "min_on"))]
+    suppressed = conform(pl.concat(sup), SUPPRESSED).sort(["t", "line"])
     return kept, suppressed
 
 
