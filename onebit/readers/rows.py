@@ -379,10 +379,14 @@ def _typed_read(data: bytes, header: list[str], dtypes: dict[str, pl.DataType], 
     cols = sorted({header.index(c) for c in dtypes} | {n - 1})
     read_as = {c: (pl.String if tolerant and isinstance(d, pl.Enum) else d) for c, d in dtypes.items()}
     schema = {f"_f{i}": read_as.get(name, pl.String) for i, name in enumerate(header)}
+    # polars takes the file's width from its first line: the tolerant read starts at the header
+    # (as wide as the schema) and drops it, since a first data line may be short or long
     frame = pl.read_csv(
-        data, has_header=False, skip_rows=1, schema=schema, columns=cols, separator=SEPARATOR, quote_char=None,
-        comment_prefix=None, raise_if_empty=False, truncate_ragged_lines=tolerant, ignore_errors=tolerant,
+        data, has_header=False, skip_rows=0 if tolerant else 1, schema=schema, columns=cols, separator=SEPARATOR,
+        quote_char=None, comment_prefix=None, raise_if_empty=False, truncate_ragged_lines=tolerant, ignore_errors=tolerant,
     )  # fmt: skip
+    if tolerant:
+        frame = frame.slice(1)
     frame = frame.rename({f"_f{i}": (header[i] if header[i] in dtypes else "_last") for i in cols})
     if tolerant:
         frame = frame.with_columns(pl.col(c).cast(d, strict=False) for c, d in dtypes.items() if isinstance(d, pl.Enum))
@@ -418,11 +422,13 @@ def _odd_lines(work: bytes, nl: np.ndarray) -> np.ndarray:
 
 
 def _emptied(work: bytes, nl: np.ndarray, lines: np.ndarray) -> bytes:
-    """``work`` with the given lines emptied (same lines, same numbers)."""
+    """``work`` with each of the given lines made one space (same lines, same numbers: a last
+    line without a newline stays a line; the typed read sees a blank line)."""
     starts, ends = _bounds(nl, len(work), lines)
     parts, pos = [], 0
     for s, e in zip(starts, ends):
         parts.append(work[pos:s])
+        parts.append(b" ")
         pos = e
     parts.append(work[pos:])
     return b"".join(parts)
@@ -448,7 +454,7 @@ def read_typed_csv(path: str | Path, dtypes: dict[str, pl.DataType]) -> TypedSpl
     read. Any other file is read once more, tolerantly: a field that does not parse is null
     and marks its line, and so does a line holding a quote, a carriage return (but in a
     ``\\r\\n`` line end) or, in a file that is not UTF-8, a byte that is not ASCII (such
-    lines are emptied for the read), and a line too short to reach the header's last column.
+    lines are blanked for the read), and a line too short to reach the header's last column.
     Lines with too many fields are found by counting separators: on every line
     (:func:`~onebit.readers.kernels.separators_per_line`) when the total of the unmarked lines
     is more than their width allows, else never. Each marked line is then cut out of the file

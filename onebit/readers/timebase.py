@@ -266,9 +266,12 @@ def parts_origin(numbers: pl.Series, strings: pl.Series, epoch: str | None) -> T
     iso_v = todo.to_frame("s").select(iso_unix(pl.col("s"))).to_series().drop_nulls()
     iso_v = iso_v.filter(iso_v.is_finite())
     e = epoch_unix(epoch) if epoch is not None else None
-    parts = [numbers.cast(pl.Float64).to_numpy(), num.filter(num.is_finite()).to_numpy()]
-    iso_abs = iso_v.to_numpy() - (e if e is not None else 0.0)
-    a = np.sort(np.concatenate([*parts, iso_abs]))
+    a = numbers.cast(pl.Float64).to_numpy()
+    more = np.concatenate([num.filter(num.is_finite()).to_numpy(), iso_v.to_numpy() - (e if e is not None else 0.0)])
+    if more.size:
+        a = np.concatenate([a, more])
+    if a.size > 1 and not (a[1:] >= a[:-1]).all():  # logs are mostly in order: no sort then
+        a = np.sort(a)
     n = a.size
     if n == 0:
         o = TimeOrigin(origin=e, numeric=0.0, iso=e, source="epoch") if e is not None else TimeOrigin()
