@@ -810,17 +810,22 @@ def duplicate_of(ok: pl.DataFrame, key: tuple[str, ...]) -> pl.Series:
     a comparison of neighbours (no window over the key). Rows whose ``t`` no other row has
     cannot be duplicates; when ``t`` never decreases in file order (the usual log) only the
     runs of equal ``t`` are sorted."""
+    out = pl.Series("_dup", [], dtype=pl.Int64).extend_constant(None, ok.height)
     idx = pl.int_range(pl.len(), dtype=pl.Int64).alias("_i")
     cand = ok.select(idx, "line", *key)
-    t = ok["t"]
-    if in_time_order(t):
-        tie = (t == t.shift(1)).fill_null(False) | (t == t.shift(-1)).fill_null(False)
-        cand = cand.filter(tie)
+    v = ok["t"].to_numpy()
+    if v.size < 2 or (v[1:] >= v[:-1]).all():
+        eq = v[1:] == v[:-1]
+        if not eq.any():  # no two rows share a stamp: no duplicate
+            return out
+        tie = np.zeros(v.size, dtype=np.bool_)
+        tie[1:] |= eq
+        tie[:-1] |= eq
+        cand = cand.filter(pl.Series(tie))
     cand = cand.sort([*key, "line"])
     same = pl.all_horizontal([pl.col(k).eq_missing(pl.col(k).shift(1)) for k in key]).fill_null(False)
     cand = cand.with_columns(pl.when(same).then(None).otherwise(pl.col("line")).forward_fill().alias("_first"))
     cand = cand.filter(pl.col("_first") != pl.col("line"))
-    out = pl.Series("_dup", [], dtype=pl.Int64).extend_constant(None, ok.height)
     if cand.height:
         out = out.scatter(cand["_i"], cand["_first"])
     return out
