@@ -394,8 +394,10 @@ def _typed_read(data: bytes, header: list[str], dtypes: dict[str, pl.DataType], 
 
 
 def _parsed(frame: pl.DataFrame, dtypes: dict[str, pl.DataType]) -> pl.Expr:
-    """Rows whose every wanted field parsed (not null; numbers finite) and that reach the last column."""
+    """Rows whose every wanted field parsed (not null; numbers finite; free names without
+    surrounding blanks, as the row-by-row path strips them) and that reach the last column."""
     ok = [pl.col(c).is_not_null() for c in dtypes] + [pl.col(c).is_finite() for c, d in dtypes.items() if d.is_float()]
+    ok += [pl.col(c).str.strip_chars() == pl.col(c) for c, d in dtypes.items() if d == pl.String]  # names as written
     if "_last" in frame.columns:
         ok.append(pl.col("_last").is_not_null())
     return pl.all_horizontal(ok)

@@ -190,3 +190,54 @@ def test_parts_origin_equals_column_origin(stamps, cut, epoch):
     numbers = num.filter(typed)
     strings = col.filter(~typed)
     assert parts_origin(numbers, strings, epoch) == column_origin(pl.DataFrame({"t": col}), "t", epoch)
+
+
+# --------------------------------------------------------------------------- canonical tables
+
+
+@st.composite
+def table_file(draw, header: str, fields) -> bytes:
+    lines = []
+    for _ in range(draw(st.integers(0, 30))):
+        if draw(st.integers(0, 9)) == 0:
+            lines.append(draw(BAD_LINES))
+        else:
+            lines.append(",".join(draw(f) for f in fields))
+    if lines and draw(st.booleans()):
+        lines.insert(draw(st.integers(0, len(lines))), draw(st.sampled_from(lines)))
+    return ("\n".join([header, *lines]) + draw(st.sampled_from(["\n", ""]))).encode("utf-8", errors="surrogateescape")
+
+
+NAMES = st.sampled_from(["w1", "w2", "w1", " w2", "w3 ", ""])
+NUMBERS = st.sampled_from(["0", "1.5", "-2", "nan", "x", "", " 3", "1e3"])
+DIRECTIONS = st.sampled_from(["1", "-1", "+1", "f", "b", "forward", "backward", "F", "0", ""])
+
+
+@SETTINGS
+@given(blob=table_file("t,target,x,y", [STAMPS, NAMES, NUMBERS, NUMBERS]), epoch=EPOCHS)
+def test_messy_truth_gives_the_row_by_row_result(tmp_path_factory, blob, epoch):
+    from onebit.readers.tables_csv import read_truth_csv, truth_from_rows
+
+    path = Path(tmp_path_factory.mktemp("truth")) / "truth.csv"
+    path.write_bytes(blob)
+    fast = read_truth_csv(path, epoch=epoch)
+    slow = truth_from_rows(read_csv_rows(path, ("t", "target", "x", "y")), epoch=epoch, path=path)
+    for a, b in zip(fast, slow):
+        assert a.schema == b.schema and a.equals(b), (a, b)
+
+
+@SETTINGS
+@given(blob=table_file("t,beam,direction,target", [STAMPS, st.sampled_from(["a", "b", "zz", " a"]), DIRECTIONS, NAMES]), epoch=EPOCHS)
+def test_messy_crossings_give_the_row_by_row_result(tmp_path_factory, blob, epoch):
+    from onebit.readers.tables_csv import crossings_from_rows, read_crossings_csv, read_true_crossings_csv, true_crossings_from_rows
+
+    path = Path(tmp_path_factory.mktemp("crossings")) / "crossings.csv"
+    path.write_bytes(blob)
+    fast = read_crossings_csv(path, BEAMS, epoch=epoch)
+    slow = crossings_from_rows(read_csv_rows(path, ("t", "beam", "direction")), BEAMS, epoch=epoch, path=path)
+    for a, b in zip(fast, slow):
+        assert a.schema == b.schema and a.equals(b), (a, b)
+    fast = read_true_crossings_csv(path, BEAMS, epoch=epoch)
+    slow = true_crossings_from_rows(read_csv_rows(path, ("t", "beam", "direction", "target")), BEAMS, epoch=epoch, path=path)
+    for a, b in zip(fast, slow):
+        assert a.schema == b.schema and a.equals(b), (a, b)
