@@ -47,25 +47,29 @@ def beam_passes(beam, pair, blocked, n_beams):
     """
     m = beam.shape[0]
     reject = np.zeros(m, dtype=np.int8)
-    pass_first = np.full(m, -1, dtype=np.int64)
+    pass_first = np.empty(m, dtype=np.int64)
     close = np.zeros(m, dtype=np.bool_)
     first_pair = np.full(m, -1, dtype=np.int8)
-    state = np.zeros((n_beams, 2), dtype=np.bool_)
+    state = np.zeros(2 * n_beams, dtype=np.bool_)  # pair q of beam b at 2 b + q
     opened = np.full(n_beams, -1, dtype=np.int64)  # first edge of the open pass of each beam
     opener = np.zeros(n_beams, dtype=np.int8)
     last = np.full(n_beams, -1, dtype=np.int64)
     for k in range(m):  # time order; each beam's machine only sees its own edges
         b, q, v = beam[k], pair[k], blocked[k]
-        if state[b, q] == v:  # no state change: not an edge a body makes
+        i = 2 * b + q
+        if state[i] == v:  # no state change: not an edge a body makes
             reject[k] = ALREADY_BLOCKED if v else ALREADY_CLEAR
+            pass_first[k] = -1
             continue
-        state[b, q] = v
+        state[i] = v
         last[b] = k
-        if opened[b] < 0:
+        o = opened[b]
+        if o < 0:
+            o = k
             opened[b] = k
             opener[b] = q
-        pass_first[k] = opened[b]
-        if not state[b, 0] and not state[b, 1]:  # idle again: the pass closes here
+        pass_first[k] = o
+        if not (state[2 * b] | state[2 * b + 1]):  # idle again: the pass closes here
             close[k] = True
             first_pair[k] = opener[b]
             opened[b] = -1
@@ -84,47 +88,26 @@ def debounce_masks(sensor, on, t, chatter, min_on, n_sensors, eps):
     m = sensor.shape[0]
     chat = np.zeros(m, dtype=np.bool_)
     short = np.zeros(m, dtype=np.bool_)
-    prev = np.full(m, -1, dtype=np.int64)
-    nxt = np.full(m, -1, dtype=np.int64)
     last = np.full(n_sensors, -1, dtype=np.int64)
-    for k in range(m):  # neighbours within each sensor's sequence
+    for k in range(m):  # chatter: each (off, on) pair of neighbours in a sensor's sequence
         s = sensor[k]
-        if last[s] >= 0:
-            prev[k] = last[s]
-            nxt[last[s]] = k
+        j = last[s]
         last[s] = k
-    for k in range(m):
-        w = chatter[sensor[k]]
-        if w <= 0:
-            continue
-        if not on[k]:
-            j = nxt[k]
-            chat[k] = j >= 0 and on[j] and t[j] - t[k] <= w + eps
-        else:
-            j = prev[k]
-            chat[k] = j >= 0 and not on[j] and t[k] - t[j] <= w + eps
+        w = chatter[s]
+        if j >= 0 and w > 0 and on[k] and not on[j] and t[k] - t[j] <= w + eps:
+            chat[j] = True
+            chat[k] = True
     last[:] = -1
-    for k in range(m):  # neighbours again, among the edges chatter left
+    for k in range(m):  # minimum on-time: (on, off) neighbours among the edges chatter left
         if chat[k]:
             continue
         s = sensor[k]
-        prev[k] = last[s]
-        nxt[k] = -1
-        if last[s] >= 0:
-            nxt[last[s]] = k
+        j = last[s]
         last[s] = k
-    for k in range(m):
-        if chat[k]:
-            continue
-        mo = min_on[sensor[k]]
-        if mo <= 0:
-            continue
-        if on[k]:
-            j = nxt[k]
-            short[k] = j >= 0 and not on[j] and t[j] - t[k] < mo - eps
-        else:
-            j = prev[k]
-            short[k] = j >= 0 and on[j] and t[k] - t[j] < mo - eps
+        mo = min_on[s]
+        if j >= 0 and mo > 0 and on[j] and not on[k] and t[k] - t[j] < mo - eps:
+            short[j] = True
+            short[k] = True
     return chat, short
 
 
