@@ -21,12 +21,18 @@ quote or one ragged line costs that line alone:
 3. **Fields**: the lines that passed are split by polars' CSV parser. Each line carries its
    number into the parser as an extra first field, so a line number can never drift.
 
-**Clean files** skip all three: :func:`read_clean_csv` types the whole file with one
-``pl.read_csv`` (names and spellings as ``Enum`` columns) when it is UTF-8 without quotes,
-carriage returns or a byte-order mark and every line after the header is one record whose
-fields parse; its line numbers are then the row index + 2. The readers use it first and fall
-back to the physical-line path, which names every bad line, when it returns ``None``;
-``tests/readers/test_clean_path.py`` holds both paths to equal frames and rejects.
+**Large files** go through all three only where they must: :func:`read_typed_csv` types the
+whole file with one ``pl.read_csv`` (names and spellings as ``Enum`` columns, numbers as
+``Float64``) and hands to the physical-line path only the lines that read cannot take: a line
+with a field that does not parse, a quote, a stray carriage return, bytes that are not UTF-8,
+too few fields (the header's last column is null) or too many (found by counting separators,
+on every line only when their total disagrees). A clean file is one strict read; a file with a
+few bad lines costs one more (tolerant) read and the bad lines alone. Its good rows' line
+numbers are the row index + 2 (a line taken out is blanked, not removed, so it stays a row).
+:func:`check_split` then types the other lines row by row, with the time origin the whole
+file gives (:func:`~onebit.readers.timebase.parts_origin`), and checks duplicates and order
+over both. ``tests/readers/test_typed_split.py`` and ``test_clean_path.py`` hold it to the
+row-by-row path's frames and rejects on messy files.
 
 Blank lines (empty, or spaces and tabs only) are not rows: accepted + rejected (+ suppressed,
 for toggle logs) = the non-blank lines after the header. The raw text and the reason of every
@@ -296,8 +302,9 @@ def rows_of_lines(body: pl.DataFrame, header: list[str], columns: tuple[str, ...
 
 
 def read_clean_csv(path: str | Path, dtypes: dict[str, pl.DataType]) -> pl.DataFrame | None:
-    """The fast path of a clean CSV: one typed ``pl.read_csv`` of the whole file, or ``None``
-    when the file is not clean and :func:`read_csv_rows` must name its bad lines.
+    """The strict test of a clean CSV: one typed ``pl.read_csv`` of the whole file, or ``None``
+    when the file is not clean (the readers use :func:`read_typed_csv`, which also takes a
+    file with bad lines; this is the narrower check of ``clean_beam_events`` / ``clean_toggle_rows``).
 
     ``dtypes`` maps each wanted column to the type its every field must parse as (an ``Enum``
     for names and spellings: a value outside it fails the read). The file is clean when it is
