@@ -138,7 +138,9 @@ def decode_passes(events: pl.DataFrame, source: str = "beams.csv", *, compiled: 
         code_ok, pair_ok = code[keep], pair[keep]
     else:
         rejects = make_rejects(ev.clear().with_columns(pl.lit(None, pl.String).alias("_reason")), source, None)
-        events_out, code_ok, pair_ok = ev, code, pair
+        events_out = ev
+        code_ok = ev["beam"].to_physical() if isinstance(ev.schema["beam"], pl.Enum) else code  # no copy of the codes
+        pair_ok = ev["pair"].to_physical() if ev.schema["pair"] == pl.Enum(["a", "b"]) else pair
     events_out = pl.DataFrame(
         {"t": events_out["t"], "beam": names.gather(code_ok), "pair": pairs.gather(pair_ok), "blocked": events_out["blocked"]}, schema=BEAM_EVENTS
     )
