@@ -5,7 +5,8 @@ exponent of ours over the sizes (10^4 to 10^6 events where the row has events), 
 
 Rows (the goal of each is printed beside it):
 
-* beams.csv and motion.csv readers vs ``pl.read_csv`` (the floor);
+* beams.csv and motion.csv readers vs ``pl.read_csv`` (the floor), and the same logs with 5 bad
+  lines (only those typed row by row) vs the clean log's ``pl.read_csv``;
 * first-order Viterbi vs hmmlearn's C++ (``_hmmc.viterbi``), and the first-call cost of the
   compiled kernels (cold numba cache, warm cache);
 * the trackers' call shape (7-slot windows) and the findinghumo stage vs its numpy reference;
