@@ -446,10 +446,18 @@ def _emptied(work: bytes, nl: np.ndarray, lines: np.ndarray) -> bytes:
 def _commas(work: bytes, nl: np.ndarray, lines: np.ndarray) -> int:
     """Separators on the given 1-based lines of ``work``, in all."""
     if lines.size > _FEW_LINES:
-        return int(kernels.separators_per_line(np.frombuffer(work, dtype=np.uint8), ord(SEPARATOR))[lines - 1].sum())
+        return int(_separators_per_line(work, nl.size + 1)[lines - 1].sum())
     starts, ends = _bounds(nl, len(work), lines)
     sep = SEPARATOR.encode()
     return sum(work.count(sep, s, e) for s, e in zip(starts, ends))
+
+
+def _separators_per_line(work: bytes, n_lines: int) -> np.ndarray:
+    """Separators on every line of ``work``: compiled from :data:`~onebit.readers.kernels.MIN_ROWS`
+    lines on, else its numpy reference (a small file never pays numba's start)."""
+    buf = np.frombuffer(work, dtype=np.uint8)
+    count = kernels.separators_per_line if n_lines >= kernels.MIN_ROWS else kernels.separators_per_line_reference
+    return count(buf, ord(SEPARATOR))
 
 
 def read_typed_csv(path: str | Path, dtypes: dict[str, pl.DataType]) -> TypedSplit | None:
@@ -520,7 +528,7 @@ def read_typed_csv(path: str | Path, dtypes: dict[str, pl.DataType]) -> TypedSpl
     marked = frame.filter(~pl.col("_ok"))["line"].to_numpy()
     total = int(np.count_nonzero(np.frombuffer(work, dtype=np.uint8) == ord(SEPARATOR))) - head_text.count(SEPARATOR)
     if total - _commas(work, wfile.nl, marked) != (n - 1) * (frame.height - marked.size):  # a good-looking line is too long
-        per_line = kernels.separators_per_line(np.frombuffer(work, dtype=np.uint8), ord(SEPARATOR))[1 : n_lines + 1]
+        per_line = _separators_per_line(work, n_lines)[1 : n_lines + 1]
         frame = frame.with_columns(pl.col("_ok") & pl.Series(per_line == n - 1))
         marked = frame.filter(~pl.col("_ok"))["line"].to_numpy()
     good = frame.filter(pl.col("_ok")).select("line", *columns)
