@@ -296,8 +296,10 @@ def debounce(
     )  # fmt: skip
     ev = ev.select("line", "t", "sensor", "on")
     kept = ev.filter(pl.Series(~(chat | short)))  # still sorted by t, line
-    sup = [ev[np.flatnonzero(m)].with_columns(rule=pl.lit(r)) for m, r in ((chat, "chatter"), (short, "min_on"))]
-    suppressed = conform(pl.concat(sup), SUPPRESSED).sort(["t", "line"])
+    sup = [ev[np.flatnonzero(m)].with_columns(rule=pl.lit(r)) for m, r in ((chat, "chatter"), (short, "min_on")) if m.any()]
+    suppressed = conform(pl.concat(sup) if sup else ev.clear().with_columns(rule=pl.lit("", pl.String)), SUPPRESSED)
+    if len(sup) > 1:  # one rule's edges alone are in time order already (the rows of ev are)
+        suppressed = suppressed.sort(["t", "line"])
     return kept, suppressed
 
 
