@@ -30,8 +30,8 @@ import numpy as np
 import polars as pl
 
 from onebit.core.sensing import body_radius
-from onebit.readers import kernels
 from onebit.core.tables import ABORTED, BEAM_EVENTS, CROSSINGS, REJECTS, conform
+from onebit.readers import kernels
 from onebit.readers.rows import (
     FileLines,
     RawRows,

@@ -58,6 +58,7 @@ import numpy as np
 import polars as pl
 
 from onebit.core.errors import ConfigError
+from onebit.core.tables import FRAMES, MOTION, REJECTS, conform
 from onebit.readers import kernels
 from onebit.readers.rows import (
     REORDER_TOLERANCE_S,
@@ -77,7 +78,6 @@ from onebit.readers.rows import (
     read_typed_csv,
 )
 from onebit.readers.timebase import TimeOrigin
-from onebit.core.tables import FRAMES, MOTION, REJECTS, conform
 
 #: Columns of a toggle log.
 TOGGLE_COLUMNS = ("t", "sensor", "value")
@@ -116,7 +116,7 @@ class DebounceRules:
             object.__setattr__(self, f.name, float(v))
 
     @classmethod
-    def from_mapping(cls, data: Mapping[str, object] | None, *, section: str = "motion") -> "DebounceRules":
+    def from_mapping(cls, data: Mapping[str, object] | None, *, section: str = "motion") -> DebounceRules:
         """Rules from a config table (e.g. run.toml ``[motion]``); other keys are ignored."""
         data = dict(data or {})
         names = {f.name for f in fields(cls)}

@@ -42,13 +42,13 @@ reject are cut to :data:`onebit.core.errors.MAX_QUOTE` characters with the full 
 from __future__ import annotations
 
 import codecs
-import io
-from contextvars import ContextVar
 import dataclasses
-from dataclasses import dataclass
+import io
 import math
+from collections.abc import Callable
+from contextvars import ContextVar
+from dataclasses import dataclass
 from pathlib import Path
-from typing import Callable
 
 import numpy as np
 import polars as pl
@@ -56,7 +56,13 @@ import polars as pl
 from onebit.core.errors import MAX_QUOTE, InputError
 from onebit.core.tables import REJECTS
 from onebit.readers import kernels
-from onebit.readers.timebase import MAX_GAP_S, TimeOrigin, column_origin, number_column_origin, parts_origin
+from onebit.readers.timebase import (
+    MAX_GAP_S,
+    TimeOrigin,
+    column_origin,
+    number_column_origin,
+    parts_origin,
+)
 
 EXTRA = "__extra__"
 #: The field separator and the quote character of onebit's CSV logs.
@@ -363,7 +369,7 @@ class TypedSplit:
     header: list[str]
     file: FileLines
 
-    def demote(self, lines: pl.Series) -> "TypedSplit":
+    def demote(self, lines: pl.Series) -> TypedSplit:
         """The split with the good rows of ``lines`` moved to ``rest`` (as string rows), for a
         check the typed read cannot make (a time stamp outside the accepted window)."""
         if lines.len() == 0:
@@ -547,7 +553,7 @@ def _utf8(data: bytes) -> bool:
     return True
 
 
-def clean_time(t: pl.Series, epoch: "str | TimeOrigin | None") -> pl.Series | None:
+def clean_time(t: pl.Series, epoch: str | TimeOrigin | None) -> pl.Series | None:
     """``t`` of a clean numeric column (Float64 stamps) as :func:`parse_time` computes it, or
     ``None`` when a stamp would be rejected (not finite, or a lone stamp outside the window)."""
     if not t.is_finite().all():
@@ -609,7 +615,7 @@ def line_texts(data: bytes, lines, nl: np.ndarray | None = None) -> pl.DataFrame
             why = f"not UTF-8 text: byte 0x{raw[exc.start]:02X} at column {exc.start + 1}"
         if k == 1 and text.startswith("\ufeff"):
             text = text[1:]
-        texts.append(text[:-1] if text.endswith("\r") else text)
+        texts.append(text.removesuffix("\r"))
         reasons.append(why)
     return pl.DataFrame({"line": want, "text": texts, "_reason": reasons}, schema=schema)
 
@@ -681,7 +687,7 @@ def make_rejects(bad: pl.DataFrame, source: str, path: Path | None, file: FileLi
 # --------------------------------------------------------------------------- typing rows
 
 
-def parse_time(col: str, epoch: "str | TimeOrigin | None", frame: pl.DataFrame | None = None) -> tuple[pl.Expr, pl.Expr]:
+def parse_time(col: str, epoch: str | TimeOrigin | None, frame: pl.DataFrame | None = None) -> tuple[pl.Expr, pl.Expr]:
     """Expression for ``t`` (seconds since the time origin) from numbers or ISO wall-clock strings.
 
     Returns ``(t, reason)``; ``reason`` is null where the value parsed. ``epoch`` is the run's
@@ -780,7 +786,7 @@ class TypedRows:
     accepted: pl.DataFrame
     rejects: pl.DataFrame
     reordered: int = 0
-    file: "FileLines | None" = None
+    file: FileLines | None = None
 
 
 def check_rows(
@@ -910,7 +916,7 @@ def check_split(
     good: pl.DataFrame,
     parsers: Callable[[TimeOrigin, pl.DataFrame], dict[str, tuple[pl.Expr, pl.Expr]]],
     *,
-    epoch: "str | TimeOrigin | None",
+    epoch: str | TimeOrigin | None,
     key: tuple[str, ...],
     tolerance: float,
     path: Path,

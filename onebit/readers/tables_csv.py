@@ -7,6 +7,7 @@ from pathlib import Path
 import polars as pl
 
 from onebit.core.errors import InputError
+from onebit.core.tables import CROSSINGS, TRUE_CROSSINGS, TRUTH, conform
 from onebit.readers.rows import (
     RawRows,
     TypedRows,
@@ -20,7 +21,6 @@ from onebit.readers.rows import (
     read_typed_csv,
     type_rows,
 )
-from onebit.core.tables import CROSSINGS, TRUE_CROSSINGS, TRUTH, conform
 
 _FLAG = {"0": False, "1": True, "false": False, "true": True}
 _DIRECTION = {"1": 1, "+1": 1, "-1": -1, "f": 1, "b": -1, "forward": 1, "backward": -1}

@@ -14,9 +14,26 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from onebit.readers import kernels
-from onebit.readers.beams import BEAM_COLUMNS, _beam_dtypes, decode_beam_log, decode_raw_beams
-from onebit.readers.motion import TOGGLE_COLUMNS, TOGGLE_VALUES, DebounceRules, read_motion, read_motion_csv, repeats
-from onebit.readers.rows import line_texts, physical_lines, read_csv_rows, read_typed_csv
+from onebit.readers.beams import (
+    BEAM_COLUMNS,
+    _beam_dtypes,
+    decode_beam_log,
+    decode_raw_beams,
+)
+from onebit.readers.motion import (
+    TOGGLE_COLUMNS,
+    TOGGLE_VALUES,
+    DebounceRules,
+    read_motion,
+    read_motion_csv,
+    repeats,
+)
+from onebit.readers.rows import (
+    line_texts,
+    physical_lines,
+    read_csv_rows,
+    read_typed_csv,
+)
 from onebit.readers.timebase import TimeOrigin, column_origin, parts_origin
 
 BEAMS = ("a", "b", "c")
@@ -229,7 +246,12 @@ def test_messy_truth_gives_the_row_by_row_result(tmp_path_factory, blob, epoch):
 @SETTINGS
 @given(blob=table_file("t,beam,direction,target", [STAMPS, st.sampled_from(["a", "b", "zz", " a"]), DIRECTIONS, NAMES]), epoch=EPOCHS)
 def test_messy_crossings_give_the_row_by_row_result(tmp_path_factory, blob, epoch):
-    from onebit.readers.tables_csv import crossings_from_rows, read_crossings_csv, read_true_crossings_csv, true_crossings_from_rows
+    from onebit.readers.tables_csv import (
+        crossings_from_rows,
+        read_crossings_csv,
+        read_true_crossings_csv,
+        true_crossings_from_rows,
+    )
 
     path = Path(tmp_path_factory.mktemp("crossings")) / "crossings.csv"
     path.write_bytes(blob)
