@@ -83,31 +83,39 @@ def debounce_masks(sensor, on, t, chatter, min_on, n_sensors, eps):
 
     Chatter: an off edge followed by an on edge of the same sensor within the window drops
     both. Then, on the remaining edges, minimum on-time: an on edge followed by an off edge
-    sooner than ``min_on`` drops both. Returns ``(chat (m,), short (m,))`` masks.
+    sooner than ``min_on`` drops both. Returns ``(chat (m,), short (m,))`` masks. One pass:
+    an edge's chatter mark is final once its sensor's next edge is seen, and from then on it
+    feeds that sensor's minimum on-time rule (per sensor, in order, as a second pass would).
     """
     m = sensor.shape[0]
     chat = np.zeros(m, dtype=np.bool_)
     short = np.zeros(m, dtype=np.bool_)
-    last = np.full(n_sensors, -1, dtype=np.int64)
-    for k in range(m):  # chatter: each (off, on) pair of neighbours in a sensor's sequence
-        s = sensor[k]
-        j = last[s]
-        last[s] = k
-        w = chatter[s]
-        if j >= 0 and w > 0 and on[k] and not on[j] and t[k] - t[j] <= w + eps:
-            chat[j] = True
-            chat[k] = True
-    last[:] = -1
-    for k in range(m):  # minimum on-time: (on, off) neighbours among the edges chatter left
-        if chat[k]:
+    last = np.full(n_sensors, -1, dtype=np.int64)  # each sensor's previous edge
+    kept = np.full(n_sensors, -1, dtype=np.int64)  # each sensor's last edge chatter left
+    for k in range(m + n_sensors):  # one pass; then each sensor's last edge
+        if k < m:
+            s = sensor[k]
+            j = last[s]
+            last[s] = k
+            if j < 0:
+                continue
+            w = chatter[s]  # chatter: each (off, on) pair of neighbours in a sensor's sequence
+            if w > 0 and on[k] and not on[j] and t[k] - t[j] <= w + eps:
+                chat[j] = True
+                chat[k] = True
+        else:
+            s = k - m
+            j = last[s]
+            if j < 0:
+                continue
+        if chat[j]:  # j's next edge is seen: whether chatter drops it is final
             continue
-        s = sensor[k]
-        j = last[s]
-        last[s] = k
+        i = kept[s]  # minimum on-time: (on, off) neighbours among the edges chatter left
+        kept[s] = j
         mo = min_on[s]
-        if j >= 0 and mo > 0 and on[j] and not on[k] and t[k] - t[j] < mo - eps:
+        if i >= 0 and mo > 0 and on[i] and not on[j] and t[j] - t[i] < mo - eps:
+            short[i] = True
             short[j] = True
-            short[k] = True
     return chat, short
 
 
