@@ -416,6 +416,16 @@ def _parsed(frame: pl.DataFrame, dtypes: dict[str, pl.DataType]) -> pl.Expr:
     return pl.all_horizontal(ok)
 
 
+def _all_parsed(frame: pl.DataFrame, dtypes: dict[str, pl.DataType]) -> bool:
+    """Whether every row is :func:`_parsed` (nulls from the columns' counts, no row scan)."""
+    if sum(frame.null_count().row(0)):
+        return False
+    if any(not frame[c].is_finite().all() for c, d in dtypes.items() if d.is_float()):
+        return False
+    strings = [c for c, d in dtypes.items() if d == pl.String]
+    return not strings or frame.select(_parsed(frame.select(strings), {c: pl.String for c in strings}).all()).item()
+
+
 def _odd_lines(work: bytes, nl: np.ndarray) -> np.ndarray:
     """The 1-based numbers of the lines of ``work`` (``\\r\\n`` line ends already made ``\\n``;
     ``nl``: its newlines) that hold a quote, a carriage return or, when ``work`` is not UTF-8,
@@ -516,7 +526,7 @@ def read_typed_csv(path: str | Path, dtypes: dict[str, pl.DataType]) -> TypedSpl
             frame = _typed_read(data, header, dtypes, tolerant=False)
         except pl.exceptions.PolarsError:
             frame = None
-        if frame is not None and frame.height == n_lines and frame.select(_parsed(frame, dtypes).all()).item():
+        if frame is not None and frame.height == n_lines and _all_parsed(frame, dtypes):
             frame = frame.with_columns(pl.int_range(2, frame.height + 2, dtype=pl.Int64).alias("line")).select("line", *columns)
             return TypedSplit(frame, empty_rest, header, file)
     work = data.replace(b"\r\n", b"\n") if b"\r" in data else data
