@@ -30,11 +30,14 @@ import numpy as np
 import polars as pl
 
 from onebit.core.sensing import body_radius
-from onebit.readers import kernels
 from onebit.core.tables import ABORTED, BEAM_EVENTS, CROSSINGS, REJECTS, conform
+from onebit.readers import kernels
 from onebit.readers.rows import (
+    FileLines,
     RawRows,
+    TypedRows,
     by_time,
+    check_split,
     clean_time,
     make_rejects,
     order_checks,
@@ -44,6 +47,7 @@ from onebit.readers.rows import (
     raw_lines,
     read_clean_csv,
     read_csv_rows,
+    read_typed_csv,
     type_rows,
 )
 
@@ -61,17 +65,37 @@ class BeamDecode:
     rejects: pl.DataFrame  # REJECTS
 
 
-def read_beam_events(raw: RawRows, beam_ids: tuple[str, ...], *, epoch: str | None = None, path: Path | None = None):
-    """Type and check raw beam rows: ``t``, known ``beam``, ``pair`` in a|b, ``blocked`` in 0|1."""
-    parsers = {
-        "t": parse_time("t", epoch, raw.frame),
+def _beam_parsers(beam_ids: tuple[str, ...], epoch, frame: pl.DataFrame) -> dict[str, tuple[pl.Expr, pl.Expr]]:
+    return {
+        "t": parse_time("t", epoch, frame),
         "beam": parse_name("beam", beam_ids, "beam"),
         "pair": parse_choice("pair", {"a": "a", "b": "b", "A": "a", "B": "b"}, pl.String),
         "blocked": parse_choice(
             "blocked", {"1": True, "0": False, "true": True, "false": False, "on": True, "off": False}, pl.Boolean, case_insensitive=True
         ),
     }
-    return type_rows(raw, parsers, key=("t", "beam", "pair", "blocked"), path=path)
+
+
+def read_beam_events(raw: RawRows, beam_ids: tuple[str, ...], *, epoch: str | None = None, path: Path | None = None):
+    """Type and check raw beam rows: ``t``, known ``beam``, ``pair`` in a|b, ``blocked`` in 0|1."""
+    return type_rows(raw, _beam_parsers(beam_ids, epoch, raw.frame), key=("t", "beam", "pair", "blocked"), path=path)
+
+
+def _beam_dtypes(beam_ids: tuple[str, ...]) -> dict[str, pl.DataType]:
+    """The typed read of ``beams.csv``: numeric ``t``, known beams, pairs ``a``/``b``, ``blocked`` ``0``/``1``."""
+    return {"t": pl.Float64, "beam": pl.Enum(list(dict.fromkeys(beam_ids))), "pair": pl.Enum(["a", "b"]), "blocked": pl.Enum(["0", "1"])}
+
+
+def typed_beam_events(path: Path, beam_ids: tuple[str, ...], *, epoch=None) -> TypedRows | None:
+    """:func:`read_beam_events` of ``beams.csv`` by one typed read (:func:`~onebit.readers.rows.read_typed_csv`),
+    the lines it cannot take typed row by row; ``None`` when the header is not a plain first
+    line (the row-by-row path reads the file). Beam and pair stay enums (the decoder's codes)."""
+    split = read_typed_csv(path, _beam_dtypes(beam_ids))
+    if split is None:
+        return None
+    good = split.good.with_columns(pl.col("blocked").to_physical() == 1)
+    return check_split(split, good, lambda origin, frame: _beam_parsers(beam_ids, origin, frame),
+                       epoch=epoch, key=BEAM_COLUMNS, tolerance=0.0, path=path)  # fmt: skip
 
 
 def decode_passes(events: pl.DataFrame, source: str = "beams.csv", *, compiled: bool | None = None) -> BeamDecode:
@@ -87,38 +111,62 @@ def decode_passes(events: pl.DataFrame, source: str = "beams.csv", *, compiled: 
     if not (events.height >= kernels.MIN_ROWS if compiled is None else compiled):
         return decode_passes_reference(events, source)
     ev = by_time(events)
-    if isinstance(ev.schema["beam"], pl.Enum):  # the clean path's beams: their codes are the enum's
+    if isinstance(ev.schema["beam"], pl.Enum):  # the typed read's beams: their codes are the enum's
+        names = pl.Series(ev.schema["beam"].categories, dtype=pl.String)
         code = ev["beam"].to_physical().to_numpy().astype(np.int64)
-        n_beams = ev.schema["beam"].categories.len()
     else:
         names = ev["beam"].unique(maintain_order=True)
         code = ev["beam"].replace_strict(names, range(len(names)), return_dtype=pl.Int64).to_numpy().astype(np.int64)
-        n_beams = len(names)
-    reject, pass_first, close, first_pair = kernels.beam_passes(
-        code, (ev["pair"] == "b").to_numpy().astype(np.int8), ev["blocked"].to_numpy().astype(np.bool_), n_beams
+    if ev.schema["pair"] == pl.Enum(["a", "b"]):
+        pair = ev["pair"].to_physical().to_numpy().astype(np.int8)
+    else:
+        pair = (ev["pair"] == "b").to_numpy().astype(np.int8)
+    reject, pass_first, close, first_pair, last = kernels.beam_passes(code, pair, ev["blocked"].to_numpy().astype(np.bool_), len(names))
+    t = ev["t"].to_numpy()
+    pairs = pl.Series(["a", "b"], dtype=pl.String)
+    bad = np.flatnonzero(reject)
+    if bad.size:  # reasons for the rejected edges only
+        rej = ev[bad].rechunk().with_columns(
+            pl.when(pl.Series(reject[bad]) == kernels.ALREADY_BLOCKED)
+            .then(pl.format("pair {} of beam {} already blocked (no state change)", pl.col("pair"), pl.col("beam")))
+            .otherwise(pl.format("pair {} of beam {} already clear (no state change)", pl.col("pair"), pl.col("beam")))
+            .alias("_reason")
+        )
+        rejects = make_rejects(rej.sort("line"), source, None)
+        keep = np.flatnonzero(reject == 0)
+        events_out = ev[keep]
+        code_ok, pair_ok = code[keep], pair[keep]
+    else:
+        rejects = make_rejects(ev.clear().with_columns(pl.lit(None, pl.String).alias("_reason")), source, None)
+        events_out = ev
+        code_ok = ev["beam"].to_physical() if isinstance(ev.schema["beam"], pl.Enum) else code  # no copy of the codes
+        pair_ok = ev["pair"].to_physical() if ev.schema["pair"] == pl.Enum(["a", "b"]) else pair
+    events_out = pl.DataFrame(
+        {"t": events_out["t"], "beam": names.gather(code_ok), "pair": pairs.gather(pair_ok), "blocked": events_out["blocked"]}, schema=BEAM_EVENTS
     )
-    ev = ev.with_columns(_reject=pl.Series(reject), _first=pl.Series(pass_first), _close=pl.Series(close),
-                         _opener=pl.Series(first_pair))  # fmt: skip
-    bad = ev.filter(pl.col("_reject") > 0).with_columns(
-        pl.when(pl.col("_reject") == kernels.ALREADY_BLOCKED)
-        .then(pl.format("pair {} of beam {} already blocked (no state change)", pl.col("pair"), pl.col("beam")))
-        .otherwise(pl.format("pair {} of beam {} already clear (no state change)", pl.col("pair"), pl.col("beam")))
-        .alias("_reason")
+    # closed passes at their closing edge (time order); a crossing leaves by the other pair
+    ends = np.flatnonzero(close)
+    opener, leaver = first_pair[ends], pair[ends]
+    cross = ends[opener != leaver]
+    crossings = pl.DataFrame(
+        {"t": t[cross], "beam": names.gather(code[cross]), "direction": np.where(opener[opener != leaver] == 0, 1, -1).astype(np.int8)},
+        schema=CROSSINGS,
     )
-    rejects = make_rejects(bad.sort("line"), source, None)
-    ev = ev.filter(pl.col("_reject") == 0)
-    # one row per pass, in the order passes start (polars' group order in the reference): the
-    # closing edge of each closed pass, and the last edge of each pass still open at the end
-    has_close = np.zeros(reject.shape[0], dtype=np.bool_)
-    has_close[pass_first[close]] = True
-    open_rows = ev.filter(~pl.Series(has_close[ev["_first"].to_numpy()]))
-    cols = (pl.col("beam"), pl.col("pair").alias("last"), pl.col("_close").alias("closed"), pl.col("t"), pl.col("_opener"))
-    ends = pl.concat([
-        ev.filter(pl.col("_close")).select("_first", *cols),
-        open_rows.group_by("_first", maintain_order=True).agg(c.last() for c in cols),
-    ]).sort("_first")  # fmt: skip
-    passes = ends.with_columns(first=pl.when(pl.col("closed")).then(pl.when(pl.col("_opener") == 1).then(pl.lit("b")).otherwise(pl.lit("a"))))
-    return _decoded(ev, passes, rejects)
+    tc = t[cross]
+    if tc.size > 1 and not (tc[1:] > tc[:-1]).all():  # ties in t: beams in order, else as the passes started
+        crossings = crossings.sort(["t", "beam"], maintain_order=True)
+    # start-and-return passes: in the order they started (as the reference's groups), then by t
+    ab = ends[opener == leaver]
+    ab = ab[np.argsort(pass_first[ab], kind="stable")]
+    aborted = pl.DataFrame(
+        {"t": t[ab], "beam": names.gather(code[ab]), "side": np.where(first_pair[ab] == 0, -1, 1).astype(np.int8)}, schema=ABORTED
+    ).sort("t")
+    # a pass still open at the end holds its beam's last edge, which does not close it
+    op = last[(last >= 0)]
+    op = op[~close[op]]
+    op = op[np.argsort(pass_first[op], kind="stable")]
+    unfinished = pl.DataFrame({"t": t[op], "beam": names.gather(code[op])}, schema={"t": pl.Float64, "beam": pl.String})
+    return BeamDecode(events_out, crossings, aborted, unfinished, rejects)
 
 
 def _decoded(ev: pl.DataFrame, passes: pl.DataFrame, rejects: pl.DataFrame) -> BeamDecode:
@@ -187,15 +235,15 @@ def decode_passes_reference(events: pl.DataFrame, source: str = "beams.csv") -> 
 def decode_beam_log(path: str | Path, beam_ids: tuple[str, ...], *, epoch: str | None = None) -> BeamDecode:
     """Read ``beams.csv`` and decode it: the whole raw-beam reader.
 
-    A clean file (:func:`clean_beam_events`) is typed by one ``pl.read_csv``; any other goes
-    through the row-by-row CSV layer, which names each bad line. Both give the same result."""
+    The file is typed by one ``pl.read_csv`` (:func:`typed_beam_events`); only the lines it
+    cannot take go through the row-by-row CSV layer, which names each bad line. The result is
+    the row-by-row path's on the whole file (:func:`decode_raw_beams`)."""
     path = Path(path)
-    clean = clean_beam_events(path, tuple(beam_ids), epoch=epoch)
-    if clean is None:
+    typed = typed_beam_events(path, tuple(beam_ids), epoch=epoch)
+    if typed is None:
         raw = read_csv_rows(path, BEAM_COLUMNS)
         return decode_raw_beams(raw, beam_ids, epoch=epoch, path=path)
-    events, rejects = clean
-    return _decode_events(events, rejects, path.name, path)
+    return _decode_events(typed.accepted, typed.rejects, path.name, path, typed.file)
 
 
 def clean_beam_events(path: Path, beam_ids: tuple[str, ...], *, epoch=None) -> tuple[pl.DataFrame, pl.DataFrame] | None:
@@ -223,13 +271,13 @@ def decode_raw_beams(raw: RawRows, beam_ids, *, epoch=None, path: Path | None = 
     return _decode_events(events, rejects, raw.source, path)
 
 
-def _decode_events(events: pl.DataFrame, rejects: pl.DataFrame, source: str, path: Path | None) -> BeamDecode:
+def _decode_events(events: pl.DataFrame, rejects: pl.DataFrame, source: str, path: Path | None, file: FileLines | None = None) -> BeamDecode:
     out = decode_passes(events, source)
     if out.rejects.height:
         fixed = out.rejects.join(events.select("line"), on="line", how="left")
         lines = fixed["line"].to_list()
         if path is not None:
-            text = raw_lines(path, lines)
+            text = raw_lines(path, lines, data=file)
             fixed = fixed.with_columns(pl.Series("raw", [text.get(i) for i in lines], dtype=pl.String))
         rejects = pl.concat([rejects, fixed.select(REJECTS.names())]).sort("line")
     return BeamDecode(out.events, out.crossings, out.aborted, out.unfinished, rejects)

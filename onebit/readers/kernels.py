@@ -38,34 +38,42 @@ def beam_passes(beam, pair, blocked, n_beams):
     An edge that leaves its pair's state unchanged is rejected (``reject`` code, see
     :data:`ALREADY_BLOCKED`); the others drive each beam's pass machine: a pass runs from
     the first edge after an idle state (both pairs clear) to the edge that makes the beam
-    idle again. Returns ``(reject (m,), pass_first (m,), close (m,), first_pair (m,))``:
-    for every accepted edge the index of the first edge of its pass; ``close`` marks the
-    edges that close a pass and ``first_pair`` (on those) the pair that opened it. A pass
-    without a closing edge is still open at the end of the log (unfinished).
+    idle again. Returns ``(reject (m,), pass_first (m,), close (m,), first_pair (m,), last
+    (n_beams,))``: for every accepted edge the index of the first edge of its pass; ``close``
+    marks the edges that close a pass and ``first_pair`` (on those) the pair that opened it;
+    ``last`` is each beam's last accepted edge (-1: none). A pass without a closing edge is
+    still open at the end of the log (unfinished): the one holding its beam's last edge, if
+    that edge does not close it.
     """
     m = beam.shape[0]
     reject = np.zeros(m, dtype=np.int8)
-    pass_first = np.full(m, -1, dtype=np.int64)
+    pass_first = np.empty(m, dtype=np.int64)
     close = np.zeros(m, dtype=np.bool_)
     first_pair = np.full(m, -1, dtype=np.int8)
-    state = np.zeros((n_beams, 2), dtype=np.bool_)
+    state = np.zeros(2 * n_beams, dtype=np.bool_)  # pair q of beam b at 2 b + q
     opened = np.full(n_beams, -1, dtype=np.int64)  # first edge of the open pass of each beam
     opener = np.zeros(n_beams, dtype=np.int8)
+    last = np.full(n_beams, -1, dtype=np.int64)
     for k in range(m):  # time order; each beam's machine only sees its own edges
         b, q, v = beam[k], pair[k], blocked[k]
-        if state[b, q] == v:  # no state change: not an edge a body makes
+        i = 2 * b + q
+        if state[i] == v:  # no state change: not an edge a body makes
             reject[k] = ALREADY_BLOCKED if v else ALREADY_CLEAR
+            pass_first[k] = -1
             continue
-        state[b, q] = v
-        if opened[b] < 0:
+        state[i] = v
+        last[b] = k
+        o = opened[b]
+        if o < 0:
+            o = k
             opened[b] = k
             opener[b] = q
-        pass_first[k] = opened[b]
-        if not state[b, 0] and not state[b, 1]:  # idle again: the pass closes here
+        pass_first[k] = o
+        if not (state[2 * b] | state[2 * b + 1]):  # idle again: the pass closes here
             close[k] = True
             first_pair[k] = opener[b]
             opened[b] = -1
-    return reject, pass_first, close, first_pair
+    return reject, pass_first, close, first_pair, last
 
 
 @kernel
@@ -75,50 +83,82 @@ def debounce_masks(sensor, on, t, chatter, min_on, n_sensors, eps):
 
     Chatter: an off edge followed by an on edge of the same sensor within the window drops
     both. Then, on the remaining edges, minimum on-time: an on edge followed by an off edge
-    sooner than ``min_on`` drops both. Returns ``(chat (m,), short (m,))`` masks.
+    sooner than ``min_on`` drops both. Returns ``(chat (m,), short (m,))`` masks. One pass:
+    an edge's chatter mark is final once its sensor's next edge is seen, and from then on it
+    feeds that sensor's minimum on-time rule (per sensor, in order, as a second pass would).
     """
     m = sensor.shape[0]
     chat = np.zeros(m, dtype=np.bool_)
     short = np.zeros(m, dtype=np.bool_)
-    prev = np.full(m, -1, dtype=np.int64)
-    nxt = np.full(m, -1, dtype=np.int64)
-    last = np.full(n_sensors, -1, dtype=np.int64)
-    for k in range(m):  # neighbours within each sensor's sequence
-        s = sensor[k]
-        if last[s] >= 0:
-            prev[k] = last[s]
-            nxt[last[s]] = k
-        last[s] = k
-    for k in range(m):
-        w = chatter[sensor[k]]
-        if w <= 0:
-            continue
-        if not on[k]:
-            j = nxt[k]
-            chat[k] = j >= 0 and on[j] and t[j] - t[k] <= w + eps
+    last = np.full(n_sensors, -1, dtype=np.int64)  # each sensor's previous edge
+    kept = np.full(n_sensors, -1, dtype=np.int64)  # each sensor's last edge chatter left
+    for k in range(m + n_sensors):  # one pass; then each sensor's last edge
+        if k < m:
+            s = sensor[k]
+            j = last[s]
+            last[s] = k
+            if j < 0:
+                continue
+            w = chatter[s]  # chatter: each (off, on) pair of neighbours in a sensor's sequence
+            if w > 0 and on[k] and not on[j] and t[k] - t[j] <= w + eps:
+                chat[j] = True
+                chat[k] = True
         else:
-            j = prev[k]
-            chat[k] = j >= 0 and not on[j] and t[k] - t[j] <= w + eps
-    last[:] = -1
-    for k in range(m):  # neighbours again, among the edges chatter left
-        if chat[k]:
+            s = k - m
+            j = last[s]
+            if j < 0:
+                continue
+        if chat[j]:  # j's next edge is seen: whether chatter drops it is final
             continue
-        s = sensor[k]
-        prev[k] = last[s]
-        nxt[k] = -1
-        if last[s] >= 0:
-            nxt[last[s]] = k
-        last[s] = k
-    for k in range(m):
-        if chat[k]:
-            continue
-        mo = min_on[sensor[k]]
-        if mo <= 0:
-            continue
-        if on[k]:
-            j = nxt[k]
-            short[k] = j >= 0 and not on[j] and t[j] - t[k] < mo - eps
-        else:
-            j = prev[k]
-            short[k] = j >= 0 and on[j] and t[k] - t[j] < mo - eps
+        i = kept[s]  # minimum on-time: (on, off) neighbours among the edges chatter left
+        kept[s] = j
+        mo = min_on[s]
+        if i >= 0 and mo > 0 and on[i] and not on[j] and t[j] - t[i] < mo - eps:
+            short[i] = True
+            short[j] = True
     return chat, short
+
+
+@kernel
+def separators_per_line(buf, sep):
+    """How many ``sep`` bytes each line of ``buf`` (uint8; lines end at ``\\n``) holds: one
+    entry per line, the text after the last ``\\n`` being a line (empty at the end of a file
+    that ends with one). One pass over the bytes; the numpy reference is
+    :func:`separators_per_line_reference`."""
+    n_lines = 1
+    for i in range(buf.shape[0]):
+        if buf[i] == 10:
+            n_lines += 1
+    out = np.zeros(n_lines, dtype=np.int64)
+    k = 0
+    for i in range(buf.shape[0]):
+        c = buf[i]
+        if c == 10:
+            k += 1
+        elif c == sep:
+            out[k] += 1
+    return out
+
+
+def separators_per_line_reference(buf: np.ndarray, sep: int) -> np.ndarray:
+    """:func:`separators_per_line` with numpy (sorted positions, one ``searchsorted``): its test oracle."""
+    nl = np.flatnonzero(buf == 10)
+    at = np.flatnonzero(buf == sep)
+    before = np.searchsorted(at, np.concatenate([nl, [buf.shape[0]]]), side="left")
+    return np.diff(np.concatenate([[0], before])).astype(np.int64)
+
+
+@kernel
+def toggle_repeats(sensor, on, n_sensors):
+    """Edges of a toggle log in time order (``sensor`` index, ``on``) that do not change their
+    sensor's state (every sensor starts off): ``on`` equal to the sensor's previous edge.
+    The reference is the polars window expression in :func:`onebit.readers.motion.toggle_edges`
+    (``shift(1).over("sensor")``)."""
+    m = sensor.shape[0]
+    same = np.zeros(m, dtype=np.bool_)
+    state = np.zeros(n_sensors, dtype=np.bool_)
+    for k in range(m):
+        s = sensor[k]
+        same[k] = on[k] == state[s]
+        state[s] = on[k]
+    return same

@@ -58,6 +58,7 @@ import numpy as np
 import polars as pl
 
 from onebit.core.errors import ConfigError
+from onebit.core.tables import FRAMES, MOTION, REJECTS, conform
 from onebit.readers import kernels
 from onebit.readers.rows import (
     REORDER_TOLERANCE_S,
@@ -65,6 +66,7 @@ from onebit.readers.rows import (
     TypedRows,
     by_time,
     check_rows,
+    check_split,
     clean_time,
     make_rejects,
     order_checks,
@@ -73,9 +75,9 @@ from onebit.readers.rows import (
     parse_time,
     read_clean_csv,
     read_csv_rows,
+    read_typed_csv,
 )
 from onebit.readers.timebase import TimeOrigin
-from onebit.core.tables import FRAMES, MOTION, REJECTS, conform
 
 #: Columns of a toggle log.
 TOGGLE_COLUMNS = ("t", "sensor", "value")
@@ -114,7 +116,7 @@ class DebounceRules:
             object.__setattr__(self, f.name, float(v))
 
     @classmethod
-    def from_mapping(cls, data: Mapping[str, object] | None, *, section: str = "motion") -> "DebounceRules":
+    def from_mapping(cls, data: Mapping[str, object] | None, *, section: str = "motion") -> DebounceRules:
         """Rules from a config table (e.g. run.toml ``[motion]``); other keys are ignored."""
         data = dict(data or {})
         names = {f.name for f in fields(cls)}
@@ -174,13 +176,16 @@ def read_motion(
     The reasons never name the sensor kind, so the same reader serves ``proximity.csv``.
     """
     sensors = tuple(sensors)
-    parsers = {
-        "t": parse_time("t", epoch, raw.frame),
+    typed = check_rows(raw, _toggle_parsers(sensors, epoch, raw.frame), key=("t", "sensor", "value"), path=path, tolerance=tolerance)
+    return toggle_edges(typed, sensors, source=raw.source, path=path, rules=rules)
+
+
+def _toggle_parsers(sensors: tuple[str, ...], epoch, frame: pl.DataFrame) -> dict[str, tuple[pl.Expr, pl.Expr]]:
+    return {
+        "t": parse_time("t", epoch, frame),
         "sensor": parse_name("sensor", sensors, "sensor"),
         "value": parse_choice("value", TOGGLE_VALUES, pl.Boolean, case_insensitive=True),
     }
-    typed = check_rows(raw, parsers, key=("t", "sensor", "value"), path=path, tolerance=tolerance)
-    return toggle_edges(typed, sensors, source=raw.source, path=path, rules=rules)
 
 
 def toggle_edges(
@@ -196,27 +201,41 @@ def toggle_edges(
     ok = ok.rename({"value": "on"})  # sorted by t, file order within a stamp (TypedRows)
 
     # pass 2: edges that do not change their sensor's state (every sensor starts off)
-    prev = pl.col("on").shift(1).over("sensor").fill_null(False)
-    ok = ok.with_columns(
-        pl.when(pl.col("on") == prev)
-        .then(
+    same = repeats(ok)
+    if same.any():  # reasons for those edges only
+        rep = ok.filter(same).rechunk().with_columns(
             pl.when(pl.col("on"))
             .then(pl.format("no state change: sensor {} already on", pl.col("sensor")))
             .otherwise(pl.format("no state change: sensor {} already off", pl.col("sensor")))
+            .alias("_reason")
         )
-        .otherwise(None)
-        .alias("_reason")
-    )
-    same = ok.filter(pl.col("_reason").is_not_null())
-    if same.height:
-        more = make_rejects(same, source, path)
+        more = make_rejects(rep, source, path, typed.file)
         rejects = pl.concat([rejects, more]).sort("line")
-    edges = ok.filter(pl.col("_reason").is_null()).drop("_reason")
+        ok = ok.filter(~same)
 
     # pass 3: debounce on the alternating sequence
-    edges, suppressed = debounce(edges, sensors, rules)
-    motion = conform(edges, MOTION)
+    edges, suppressed = debounce(ok, sensors, rules)
+    if isinstance(edges.schema["sensor"], pl.Enum):  # the typed read's codes: names gathered, not cast row by row
+        names = pl.Series(edges.schema["sensor"].categories, dtype=pl.String)
+        motion = pl.DataFrame({"t": edges["t"], "sensor": names.gather(edges["sensor"].to_physical()), "on": edges["on"]}, schema=MOTION)
+    else:
+        motion = conform(edges, MOTION)
     return MotionRead(motion, rejects.select(REJECTS.names()).cast(dict(REJECTS)), suppressed, typed.reordered)
+
+
+def repeats(ok: pl.DataFrame, *, compiled: bool | None = None) -> pl.Series:
+    """Which edges (``sensor``, ``on``; in time order) repeat their sensor's state: one compiled
+    pass (:func:`onebit.readers.kernels.toggle_repeats`) from
+    :data:`~onebit.readers.kernels.MIN_ROWS` edges on (``compiled=None``), else its reference,
+    a polars ``shift`` over each sensor (same result)."""
+    if not (ok.height >= kernels.MIN_ROWS if compiled is None else compiled):
+        return ok.select(pl.col("on") == pl.col("on").shift(1).over("sensor").fill_null(False)).to_series()
+    if isinstance(ok.schema["sensor"], pl.Enum):
+        code, n = ok["sensor"].to_physical().to_numpy().astype(np.int64), ok.schema["sensor"].categories.len()
+    else:
+        names = ok["sensor"].unique(maintain_order=True)
+        code, n = ok["sensor"].replace_strict(names, range(len(names)), return_dtype=pl.Int64).to_numpy().astype(np.int64), len(names)
+    return pl.Series(kernels.toggle_repeats(code, ok["on"].to_numpy().astype(np.bool_), max(n, 1)))
 
 
 #: The same reader under the name the proximity sensors use (``proximity.csv``: t, sensor, value).
@@ -275,13 +294,12 @@ def debounce(
         np.array([chatter.get(n, 0.0) for n in names], dtype=np.float64), np.array([min_on.get(n, 0.0) for n in names], dtype=np.float64),
         len(names), TIME_EPS,
     )  # fmt: skip
-    ev = ev.with_columns(_chat=pl.Series(chat), _short=pl.Series(short))
-    sup_chat = ev.filter(pl.col("_chat")).with_columns(rule=pl.lit("chatter"))
-    sup_short = ev.filter(pl.col("_short")).with_columns(rule=pl.lit("min_on"))
-    kept = ev.filter(~pl.col("_chat") & ~pl.col("_short")).select("line", "t", "sensor", "on")  # still sorted by t, line
-    suppressed = conform(pl.concat([sup_chat.drop("_short", strict=False), sup_short], how="diagonal"), SUPPRESSED).sort(
-        ["t", "line"]
-    )
+    ev = ev.select("line", "t", "sensor", "on")
+    kept = ev.filter(pl.Series(~(chat | short)))  # still sorted by t, line
+    sup = [ev[np.flatnonzero(m)].with_columns(rule=pl.lit(r)) for m, r in ((chat, "chatter"), (short, "min_on")) if m.any()]
+    suppressed = conform(pl.concat(sup) if sup else ev.clear().with_columns(rule=pl.lit("", pl.String)), SUPPRESSED)
+    if len(sup) > 1:  # one rule's edges alone are in time order already (the rows of ev are)
+        suppressed = suppressed.sort(["t", "line"])
     return kept, suppressed
 
 
@@ -334,10 +352,28 @@ def read_motion_csv(
     """Read ``motion.csv`` (or ``proximity.csv``): the whole toggle reader for one file."""
     path = Path(path)
     sensors = tuple(sensors)
-    typed = clean_toggle_rows(path, sensors, epoch=epoch)
+    typed = typed_toggle_rows(path, sensors, epoch=epoch)
     if typed is None:
         return read_motion(read_csv_rows(path, TOGGLE_COLUMNS), sensors, epoch=epoch, path=path, rules=rules)
     return toggle_edges(typed, sensors, source=path.name, path=path, rules=rules)
+
+
+def typed_toggle_rows(
+    path: Path, sensors: tuple[str, ...], *, epoch: str | TimeOrigin | None = None, tolerance: float = REORDER_TOLERANCE_S
+) -> TypedRows | None:
+    """Pass 1 of :func:`read_motion` for a toggle log typed by one ``pl.read_csv``
+    (:func:`~onebit.readers.rows.read_typed_csv`: numeric ``t``, known sensors, values spelled
+    as in :data:`TOGGLE_VALUES`, lower case); the lines it cannot take are typed row by row.
+    ``None`` when the header is not a plain first line (the row-by-row path reads the file).
+    The sensor stays an enum (the debounce's codes); every output table casts it to String."""
+    spellings = list(TOGGLE_VALUES)
+    split = read_typed_csv(path, {"t": pl.Float64, "sensor": pl.Enum(list(dict.fromkeys(sensors))), "value": pl.Enum(spellings)})
+    if split is None:
+        return None
+    on = pl.Series([TOGGLE_VALUES[v] for v in spellings], dtype=pl.Boolean)
+    good = split.good.with_columns(on.gather(split.good["value"].to_physical()).alias("value"))
+    return check_split(split, good, lambda origin, frame: _toggle_parsers(sensors, origin, frame),
+                       key=TOGGLE_COLUMNS, tolerance=tolerance, epoch=epoch, path=path)  # fmt: skip
 
 
 def clean_toggle_rows(

@@ -21,12 +21,18 @@ quote or one ragged line costs that line alone:
 3. **Fields**: the lines that passed are split by polars' CSV parser. Each line carries its
    number into the parser as an extra first field, so a line number can never drift.
 
-**Clean files** skip all three: :func:`read_clean_csv` types the whole file with one
-``pl.read_csv`` (names and spellings as ``Enum`` columns) when it is UTF-8 without quotes,
-carriage returns or a byte-order mark and every line after the header is one record whose
-fields parse; its line numbers are then the row index + 2. The readers use it first and fall
-back to the physical-line path, which names every bad line, when it returns ``None``;
-``tests/readers/test_clean_path.py`` holds both paths to equal frames and rejects.
+**Large files** go through all three only where they must: :func:`read_typed_csv` types the
+whole file with one ``pl.read_csv`` (names and spellings as ``Enum`` columns, numbers as
+``Float64``) and hands to the physical-line path only the lines that read cannot take: a line
+with a field that does not parse, a quote, a stray carriage return, bytes that are not UTF-8,
+too few fields (the header's last column is null) or too many (found by counting separators,
+on every line only when their total disagrees). A clean file is one strict read; a file with a
+few bad lines costs one more (tolerant) read and the bad lines alone. Its good rows' line
+numbers are the row index + 2 (a line taken out is blanked, not removed, so it stays a row).
+:func:`check_split` then types the other lines row by row, with the time origin the whole
+file gives (:func:`~onebit.readers.timebase.parts_origin`), and checks duplicates and order
+over both. ``tests/readers/test_typed_split.py`` and ``test_clean_path.py`` hold it to the
+row-by-row path's frames and rejects on messy files.
 
 Blank lines (empty, or spaces and tabs only) are not rows: accepted + rejected (+ suppressed,
 for toggle logs) = the non-blank lines after the header. The raw text and the reason of every
@@ -36,10 +42,12 @@ reject are cut to :data:`onebit.core.errors.MAX_QUOTE` characters with the full 
 from __future__ import annotations
 
 import codecs
+import dataclasses
 import io
+import math
+from collections.abc import Callable
 from contextvars import ContextVar
 from dataclasses import dataclass
-import math
 from pathlib import Path
 
 import numpy as np
@@ -47,7 +55,14 @@ import polars as pl
 
 from onebit.core.errors import MAX_QUOTE, InputError
 from onebit.core.tables import REJECTS
-from onebit.readers.timebase import MAX_GAP_S, TimeOrigin, column_origin, number_column_origin
+from onebit.readers import kernels
+from onebit.readers.timebase import (
+    MAX_GAP_S,
+    TimeOrigin,
+    column_origin,
+    number_column_origin,
+    parts_origin,
+)
 
 EXTRA = "__extra__"
 #: The field separator and the quote character of onebit's CSV logs.
@@ -239,15 +254,26 @@ def read_csv_rows(path: str | Path, columns: tuple[str, ...]) -> RawRows:
     cannot be read, a bad header or a missing column is an :class:`InputError`.
     """
     path = Path(path)
-    source = path.name
     header, header_line, body = csv_header(path)
     if not header:
-        return RawRows(source, _empty_rows(columns), pl.DataFrame(schema=REJECTS))
+        return RawRows(path.name, _empty_rows(columns), pl.DataFrame(schema=REJECTS))
+    _check_columns(path, header, header_line, columns)
+    return rows_of_lines(body, header, columns, path.name)
+
+
+def _check_columns(path: Path, header: list[str], header_line: int, columns) -> None:
     for col in columns:
         if col not in header:
             raise InputError(f"missing column; the header has {header}", file=path, line=header_line, field=col)
         if header.count(col) > 1:
             raise InputError("column named twice in the header", file=path, line=header_line, field=col)
+
+
+def rows_of_lines(body: pl.DataFrame, header: list[str], columns: tuple[str, ...], source: str) -> RawRows:
+    """Steps 2 and 3 of the CSV layer (module docstring) on non-blank lines after the header
+    (``line``, ``text``, ``_reason``): the :class:`RawRows` of the well-formed ones, every
+    other line a reject. :func:`read_csv_rows` runs it on every line of a file,
+    :func:`read_typed_csv` on the lines its typed read could not take."""
     n = len(header)
     quoted = pl.col("text").str.contains(QUOTE, literal=True)
     body = body.with_columns(quoted.alias("_quoted"))
@@ -282,8 +308,9 @@ def read_csv_rows(path: str | Path, columns: tuple[str, ...]) -> RawRows:
 
 
 def read_clean_csv(path: str | Path, dtypes: dict[str, pl.DataType]) -> pl.DataFrame | None:
-    """The fast path of a clean CSV: one typed ``pl.read_csv`` of the whole file, or ``None``
-    when the file is not clean and :func:`read_csv_rows` must name its bad lines.
+    """The strict test of a clean CSV: one typed ``pl.read_csv`` of the whole file, or ``None``
+    when the file is not clean (the readers use :func:`read_typed_csv`, which also takes a
+    file with bad lines; this is the narrower check of ``clean_beam_events`` / ``clean_toggle_rows``).
 
     ``dtypes`` maps each wanted column to the type its every field must parse as (an ``Enum``
     for names and spellings: a value outside it fails the read). The file is clean when it is
@@ -325,7 +352,218 @@ def read_clean_csv(path: str | Path, dtypes: dict[str, pl.DataType]) -> pl.DataF
     return frame.with_columns(pl.int_range(2, frame.height + 2, dtype=pl.Int64).alias("line")).select("line", *dtypes)
 
 
-def clean_time(t: pl.Series, epoch: "str | TimeOrigin | None") -> pl.Series | None:
+@dataclass(frozen=True)
+class TypedSplit:
+    """A CSV file cut in two by :func:`read_typed_csv`.
+
+    good : ``line`` + the wanted columns, typed by one ``pl.read_csv`` (the read's dtypes:
+        ``Enum`` names, finite ``Float64`` numbers): rows whose line is one plain record of
+        the header's width and whose every wanted field parsed as written.
+    rest : the :class:`RawRows` of every other non-blank line after the header (string rows of
+        the well-formed ones, a reject for each of the others): what the row-by-row path types.
+    file : the file's :class:`FileLines` (the text of a line, to name it).
+    """
+
+    good: pl.DataFrame
+    rest: RawRows
+    header: list[str]
+    file: FileLines
+
+    def demote(self, lines: pl.Series) -> TypedSplit:
+        """The split with the good rows of ``lines`` moved to ``rest`` (as string rows), for a
+        check the typed read cannot make (a time stamp outside the accepted window)."""
+        if lines.len() == 0:
+            return self
+        columns = tuple(self.rest.frame.columns[1:-1])
+        moved = rows_of_lines(self.file.lines(lines.to_numpy()), self.header, columns, self.rest.source)
+        frame = pl.concat([self.rest.frame, moved.frame]).sort("line")
+        rejects = pl.concat([self.rest.rejects, moved.rejects]).sort("line")
+        good = self.good.filter(~pl.col("line").is_in(lines.implode()))
+        return TypedSplit(good, RawRows(self.rest.source, frame, rejects), self.header, self.file)
+
+
+def _typed_read(data: bytes, header: list[str], dtypes: dict[str, pl.DataType], *, tolerant: bool) -> pl.DataFrame:
+    """One ``pl.read_csv`` of the lines after the header (quotes taken as data): the wanted
+    columns typed (``tolerant``: names read as strings and cast, a field that does not parse
+    is null, a long line is cut) and, when not wanted, the header's last column as ``_last``
+    (a line too short to reach it has a null there). May raise a polars error (not tolerant:
+    any field that does not parse, or a long line)."""
+    n = len(header)
+    cols = sorted({header.index(c) for c in dtypes} | {n - 1})
+    read_as = {c: (pl.String if tolerant and isinstance(d, pl.Enum) else d) for c, d in dtypes.items()}
+    schema = {f"_f{i}": read_as.get(name, pl.String) for i, name in enumerate(header)}
+    # polars takes the file's width from its first line: the tolerant read starts at the header
+    # (as wide as the schema) and drops it, since a first data line may be short or long
+    frame = pl.read_csv(
+        data, has_header=False, skip_rows=0 if tolerant else 1, schema=schema, columns=cols, separator=SEPARATOR,
+        quote_char=None, comment_prefix=None, raise_if_empty=False, truncate_ragged_lines=tolerant, ignore_errors=tolerant,
+    )  # fmt: skip
+    if tolerant:
+        frame = frame.slice(1)
+    frame = frame.rename({f"_f{i}": (header[i] if header[i] in dtypes else "_last") for i in cols})
+    if tolerant:
+        frame = frame.with_columns(pl.col(c).cast(d, strict=False) for c, d in dtypes.items() if isinstance(d, pl.Enum))
+    return frame
+
+
+def _parsed(frame: pl.DataFrame, dtypes: dict[str, pl.DataType]) -> pl.Expr:
+    """Rows whose every wanted field parsed (not null; numbers finite; free names without
+    surrounding blanks, as the row-by-row path strips them) and that reach the last column."""
+    ok = [pl.col(c).is_not_null() for c in dtypes] + [pl.col(c).is_finite() for c, d in dtypes.items() if d.is_float()]
+    ok += [pl.col(c).str.strip_chars() == pl.col(c) for c, d in dtypes.items() if d == pl.String]  # names as written
+    if "_last" in frame.columns:
+        ok.append(pl.col("_last").is_not_null())
+    return pl.all_horizontal(ok)
+
+
+def _all_parsed(frame: pl.DataFrame, dtypes: dict[str, pl.DataType]) -> bool:
+    """Whether every row is :func:`_parsed` (nulls from the columns' counts, no row scan)."""
+    if sum(frame.null_count().row(0)):
+        return False
+    if any(not frame[c].is_finite().all() for c, d in dtypes.items() if d.is_float()):
+        return False
+    strings = [c for c, d in dtypes.items() if d == pl.String]
+    return not strings or frame.select(_parsed(frame.select(strings), {c: pl.String for c in strings}).all()).item()
+
+
+def _odd_lines(work: bytes, nl: np.ndarray) -> np.ndarray:
+    """The 1-based numbers of the lines of ``work`` (``\\r\\n`` line ends already made ``\\n``;
+    ``nl``: its newlines) that hold a quote, a carriage return or, when ``work`` is not UTF-8,
+    any byte that is not ASCII: the row-by-row path reads them."""
+    arr = np.frombuffer(work, dtype=np.uint8)
+    at = []
+    if b"\r" in work:
+        at.append(np.flatnonzero(arr == 0x0D))
+    if b'"' in work:
+        at.append(np.flatnonzero(arr == 0x22))
+    if not work.isascii():
+        try:
+            work.decode("utf-8")
+        except UnicodeDecodeError:
+            at.append(np.flatnonzero(arr >= 0x80))
+    if not at:
+        return np.empty(0, dtype=np.int64)
+    return np.unique(np.searchsorted(nl, np.concatenate(at), side="left") + 1)
+
+
+def _emptied(work: bytes, nl: np.ndarray, lines: np.ndarray) -> bytes:
+    """``work`` with each of the given lines made one space (same lines, same numbers: a last
+    line without a newline stays a line; the typed read sees a blank line)."""
+    starts, ends = _bounds(nl, len(work), lines)
+    parts, pos = [], 0
+    for s, e in zip(starts, ends):
+        parts.append(work[pos:s])
+        parts.append(b" ")
+        pos = e
+    parts.append(work[pos:])
+    return b"".join(parts)
+
+
+def _commas(work: bytes, nl: np.ndarray, lines: np.ndarray) -> int:
+    """Separators on the given 1-based lines of ``work``, in all."""
+    if lines.size > _FEW_LINES:
+        return int(_separators_per_line(work, nl.size + 1)[lines - 1].sum())
+    starts, ends = _bounds(nl, len(work), lines)
+    sep = SEPARATOR.encode()
+    return sum(work.count(sep, s, e) for s, e in zip(starts, ends))
+
+
+def _separators_per_line(work: bytes, n_lines: int) -> np.ndarray:
+    """Separators on every line of ``work``: compiled from :data:`~onebit.readers.kernels.MIN_ROWS`
+    lines on, else its numpy reference (a small file never pays numba's start)."""
+    buf = np.frombuffer(work, dtype=np.uint8)
+    count = kernels.separators_per_line if n_lines >= kernels.MIN_ROWS else kernels.separators_per_line_reference
+    return count(buf, ord(SEPARATOR))
+
+
+def read_typed_csv(path: str | Path, dtypes: dict[str, pl.DataType]) -> TypedSplit | None:
+    """Read a CSV by one typed ``pl.read_csv``, leaving to the row-by-row path only the lines it
+    cannot take (:class:`TypedSplit`); ``None`` when the header is not a plain first line naming
+    each wanted column once (then :func:`read_csv_rows` reads the file, or names its fault).
+
+    ``dtypes`` maps each wanted column to the type its fields parse as when the row is good
+    (an ``Enum`` for names and spellings). A clean file (UTF-8, no quotes or carriage
+    returns, every line one record whose fields parse: the usual log) is typed by one strict
+    read. Any other file is read once more, tolerantly: a field that does not parse is null
+    and marks its line, and so does a line holding a quote, a carriage return (but in a
+    ``\\r\\n`` line end) or, in a file that is not UTF-8, a byte that is not ASCII (such
+    lines are blanked for the read), and a line too short to reach the header's last column.
+    Lines with too many fields are found by counting separators: on every line
+    (:func:`~onebit.readers.kernels.separators_per_line`) when the total of the unmarked lines
+    is more than their width allows, else never. Each marked line is then cut out of the file
+    and goes through :func:`rows_of_lines`, which names its fault or splits its fields (blank
+    lines are not rows). A row's line number is its row index + 2 (an emptied or blank line
+    is a null row of the read).
+    """
+    path = Path(path)
+    try:
+        data = read_bytes(path)
+    except InputError:
+        return None
+    if not data or data.startswith(codecs.BOM_UTF8):
+        return None
+    end = data.find(b"\n")
+    if end <= 0:  # no data line, or a blank first line
+        return None
+    head = data[:end].removesuffix(b"\r")
+    if b'"' in head or b"\r" in head:
+        return None
+    try:
+        head_text = head.decode("utf-8")
+    except UnicodeDecodeError:
+        return None
+    header = [name.strip() for name in head_text.split(SEPARATOR)]
+    if len(header) > MAX_HEADER_FIELDS or any(header.count(c) != 1 for c in dtypes) or not head_text.strip(" \t"):
+        return None
+    n = len(header)
+    n_lines = int(np.count_nonzero(np.frombuffer(data, dtype=np.uint8) == 0x0A)) + (not data.endswith(b"\n")) - 1
+    columns = tuple(dtypes)
+    file = FileLines(data)
+    empty_rest = RawRows(path.name, _empty_rows(columns), pl.DataFrame(schema=REJECTS))
+    plain = b'"' not in data and b"\r" not in data
+    if plain and (data.isascii() or _utf8(data)):
+        try:
+            frame = _typed_read(data, header, dtypes, tolerant=False)
+        except pl.exceptions.PolarsError:
+            frame = None
+        if frame is not None and frame.height == n_lines and _all_parsed(frame, dtypes):
+            frame = frame.with_columns(pl.int_range(2, frame.height + 2, dtype=pl.Int64).alias("line")).select("line", *columns)
+            return TypedSplit(frame, empty_rest, header, file)
+    work = data.replace(b"\r\n", b"\n") if b"\r" in data else data
+    wfile = file if work is data else FileLines(work)
+    odd = _odd_lines(work, wfile.nl) if not plain or not work.isascii() else np.empty(0, dtype=np.int64)
+    if odd.size and odd[0] == 1:
+        return None
+    try:
+        frame = _typed_read(_emptied(work, wfile.nl, odd) if odd.size else work, header, dtypes, tolerant=True)
+    except pl.exceptions.PolarsError:
+        return None
+    if frame.height != n_lines:  # never guess which row is which line
+        return None
+    frame = frame.with_columns(pl.int_range(2, frame.height + 2, dtype=pl.Int64).alias("line"), _parsed(frame, dtypes).alias("_ok"))
+    marked = frame.filter(~pl.col("_ok"))["line"].to_numpy()
+    total = int(np.count_nonzero(np.frombuffer(work, dtype=np.uint8) == ord(SEPARATOR))) - head_text.count(SEPARATOR)
+    if total - _commas(work, wfile.nl, marked) != (n - 1) * (frame.height - marked.size):  # a good-looking line is too long
+        per_line = _separators_per_line(work, n_lines)[1 : n_lines + 1]
+        frame = frame.with_columns(pl.col("_ok") & pl.Series(per_line == n - 1))
+        marked = frame.filter(~pl.col("_ok"))["line"].to_numpy()
+    good = frame.filter(pl.col("_ok")).select("line", *columns)
+    if marked.size == 0:
+        return TypedSplit(good, empty_rest, header, file)
+    lines = file.lines(marked)
+    lines = lines.filter(~pl.col("text").str.contains(_BLANK) | pl.col("_reason").is_not_null())
+    return TypedSplit(good, rows_of_lines(lines, header, columns, path.name), header, file)
+
+
+def _utf8(data: bytes) -> bool:
+    try:
+        data.decode("utf-8")
+    except UnicodeDecodeError:
+        return False
+    return True
+
+
+def clean_time(t: pl.Series, epoch: str | TimeOrigin | None) -> pl.Series | None:
     """``t`` of a clean numeric column (Float64 stamps) as :func:`parse_time` computes it, or
     ``None`` when a stamp would be rejected (not finite, or a lone stamp outside the window)."""
     if not t.is_finite().all():
@@ -343,29 +581,105 @@ def _empty_rows(columns) -> pl.DataFrame:
     return pl.DataFrame(schema={"line": pl.Int64, **{c: pl.String for c in columns}, "raw": pl.String})
 
 
-def raw_lines(path: Path, lines: list[int], *, limit: int | None = MAX_QUOTE) -> dict[int, str]:
+def newlines(data: bytes) -> np.ndarray:
+    """Byte offsets of every ``\\n`` of ``data``: line ``k`` (1-based) runs from just after the
+    ``(k-1)``-th to the ``k``-th (or to the end of the data)."""
+    return np.flatnonzero(np.frombuffer(data, dtype=np.uint8) == 0x0A)
+
+
+#: Above this many lines :func:`line_texts` splits the whole file (:func:`physical_lines`)
+#: instead of cutting the lines out one by one.
+_FEW_LINES = 20_000
+
+
+def _bounds(nl: np.ndarray, size: int, lines: np.ndarray) -> tuple[list[int], list[int]]:
+    """Start and end byte offsets of the given 1-based lines (``nl``: :func:`newlines`; ``size``: bytes)."""
+    if nl.size == 0:
+        return [0] * lines.size, [size] * lines.size
+    starts = np.where(lines > 1, nl[np.clip(lines - 2, 0, nl.size - 1)] + 1, 0)
+    ends = np.where(lines - 1 < nl.size, nl[np.clip(lines - 1, 0, nl.size - 1)], size)
+    return starts.tolist(), ends.tolist()
+
+
+def line_texts(data: bytes, lines, nl: np.ndarray | None = None) -> pl.DataFrame:
+    """The rows of :func:`physical_lines` (``line``, ``text``, ``_reason``) for the given 1-based
+    line numbers only (each once, in order; numbers past the end are left out), cut out of
+    ``data`` at its newlines (``nl``: :func:`newlines`, when already known): what naming a few
+    bad lines of a large file costs, instead of splitting all of it."""
+    want = np.unique(np.asarray(lines, dtype=np.int64))
+    schema = {"line": pl.Int64, "text": pl.String, "_reason": pl.String}
+    if want.size > _FEW_LINES:
+        return physical_lines(data).filter(pl.col("line").is_in(pl.Series(want).implode()))
+    if nl is None:
+        nl = newlines(data)
+    n_lines = nl.size + (len(data) > 0 and not data.endswith(b"\n"))
+    want = want[(want >= 1) & (want <= n_lines)]
+    starts, ends = _bounds(nl, len(data), want)
+    texts, reasons = [], []
+    for k, s, e in zip(want.tolist(), starts, ends):  # the named lines only
+        raw = data[s:e]
+        try:
+            text, why = raw.decode("utf-8"), None
+        except UnicodeDecodeError as exc:  # as physical_lines: U+FFFD per invalid sequence, the first one named
+            text = raw.decode("utf-8", errors="replace")
+            why = f"not UTF-8 text: byte 0x{raw[exc.start]:02X} at column {exc.start + 1}"
+        if k == 1 and text.startswith("\ufeff"):
+            text = text[1:]
+        texts.append(text.removesuffix("\r"))
+        reasons.append(why)
+    return pl.DataFrame({"line": want, "text": texts, "_reason": reasons}, schema=schema)
+
+
+class FileLines:
+    """A file's bytes and, once needed, their newline offsets: the text of any line by number."""
+
+    def __init__(self, data: bytes) -> None:
+        self.data = data
+        self._nl: np.ndarray | None = None
+
+    @property
+    def nl(self) -> np.ndarray:
+        if self._nl is None:
+            self._nl = newlines(self.data)
+        return self._nl
+
+    def lines(self, lines) -> pl.DataFrame:
+        """:func:`line_texts` of these lines."""
+        lines = np.asarray(lines, dtype=np.int64)
+        return line_texts(self.data, lines, None if lines.size > _FEW_LINES else self.nl)
+
+    def texts(self, lines, *, limit: int | None = MAX_QUOTE) -> dict[int, str]:
+        """The text of each of these lines, cut to ``limit`` characters (``None``: whole)."""
+        if len(lines) == 0:
+            return {}
+        found = self.lines(lines)
+        return dict(found.select("line", "text" if limit is None else _bounded("text", limit)).iter_rows())
+
+
+def raw_lines(path: Path, lines: list[int], *, limit: int | None = MAX_QUOTE, data: FileLines | None = None) -> dict[int, str]:
     """The text of the given 1-based physical line numbers, each cut to ``limit`` characters
-    (:data:`~onebit.core.errors.MAX_QUOTE`; ``None``: whole) (read only when there are rejects)."""
+    (:data:`~onebit.core.errors.MAX_QUOTE`; ``None``: whole) (read only when there are rejects;
+    ``data``: the file's :class:`FileLines`, when already read)."""
     if not lines:
         return {}
-    try:
-        data = read_bytes(path)
-    except InputError:
-        return {}
-    found = physical_lines(data).filter(pl.col("line").is_in(list(set(lines))))
-    found = found.select("line", "text" if limit is None else _bounded("text", limit))
-    return dict(found.iter_rows())
+    if data is None:
+        try:
+            data = FileLines(read_bytes(path))
+        except InputError:
+            return {}
+    return data.texts(lines, limit=limit)
 
 
-def make_rejects(bad: pl.DataFrame, source: str, path: Path | None) -> pl.DataFrame:
+def make_rejects(bad: pl.DataFrame, source: str, path: Path | None, file: FileLines | None = None) -> pl.DataFrame:
     """Build ``rejects`` rows from a frame with ``line``, ``_reason`` and optionally ``raw``;
-    the raw text and the reason are cut to :data:`~onebit.core.errors.MAX_QUOTE` characters."""
+    the raw text and the reason are cut to :data:`~onebit.core.errors.MAX_QUOTE` characters
+    (``file``: the CSV's :class:`FileLines`, when already read)."""
     if bad.height == 0:
         return pl.DataFrame(schema=REJECTS)
     if "raw" in bad.columns and bad["raw"].null_count() < bad.height:
         raw = bad["raw"]
     elif path is not None and path.suffix.lower() == ".csv":
-        text = raw_lines(path, bad["line"].to_list())
+        text = raw_lines(path, bad["line"].to_list(), data=file)
         raw = pl.Series([text.get(i) for i in bad["line"].to_list()], dtype=pl.String)
     else:
         raw = pl.Series([None] * bad.height, dtype=pl.String)
@@ -383,7 +697,7 @@ def make_rejects(bad: pl.DataFrame, source: str, path: Path | None) -> pl.DataFr
 # --------------------------------------------------------------------------- typing rows
 
 
-def parse_time(col: str, epoch: "str | TimeOrigin | None", frame: pl.DataFrame | None = None) -> tuple[pl.Expr, pl.Expr]:
+def parse_time(col: str, epoch: str | TimeOrigin | None, frame: pl.DataFrame | None = None) -> tuple[pl.Expr, pl.Expr]:
     """Expression for ``t`` (seconds since the time origin) from numbers or ISO wall-clock strings.
 
     Returns ``(t, reason)``; ``reason`` is null where the value parsed. ``epoch`` is the run's
@@ -476,11 +790,13 @@ REORDER_TOLERANCE_S = 1.0
 class TypedRows:
     """What :func:`check_rows` made of string rows: ``accepted`` (sorted by ``t``, file order
     within a stamp, with ``line``), ``rejects`` and how many accepted rows were out of order
-    within the tolerance and sorted into place (``reordered``)."""
+    within the tolerance and sorted into place (``reordered``); ``file``: the CSV's
+    :class:`FileLines` when read whole (to name more lines)."""
 
     accepted: pl.DataFrame
     rejects: pl.DataFrame
     reordered: int = 0
+    file: FileLines | None = None
 
 
 def check_rows(
@@ -527,17 +843,22 @@ def duplicate_of(ok: pl.DataFrame, key: tuple[str, ...]) -> pl.Series:
     a comparison of neighbours (no window over the key). Rows whose ``t`` no other row has
     cannot be duplicates; when ``t`` never decreases in file order (the usual log) only the
     runs of equal ``t`` are sorted."""
+    out = pl.Series("_dup", [], dtype=pl.Int64).extend_constant(None, ok.height)
     idx = pl.int_range(pl.len(), dtype=pl.Int64).alias("_i")
     cand = ok.select(idx, "line", *key)
-    t = ok["t"]
-    if in_time_order(t):
-        tie = (t == t.shift(1)).fill_null(False) | (t == t.shift(-1)).fill_null(False)
-        cand = cand.filter(tie)
+    v = ok["t"].to_numpy()
+    if v.size < 2 or (v[1:] >= v[:-1]).all():
+        eq = v[1:] == v[:-1]
+        if not eq.any():  # no two rows share a stamp: no duplicate
+            return out
+        tie = np.zeros(v.size, dtype=np.bool_)
+        tie[1:] |= eq
+        tie[:-1] |= eq
+        cand = cand.filter(pl.Series(tie))
     cand = cand.sort([*key, "line"])
     same = pl.all_horizontal([pl.col(k).eq_missing(pl.col(k).shift(1)) for k in key]).fill_null(False)
     cand = cand.with_columns(pl.when(same).then(None).otherwise(pl.col("line")).forward_fill().alias("_first"))
     cand = cand.filter(pl.col("_first") != pl.col("line"))
-    out = pl.Series("_dup", [], dtype=pl.Int64).extend_constant(None, ok.height)
     if cand.height:
         out = out.scatter(cand["_i"], cand["_first"])
     return out
@@ -553,44 +874,42 @@ def order_checks(
     path: Path | None,
     field_bad: pl.DataFrame | None = None,
     prior: pl.DataFrame | None = None,
+    data: FileLines | None = None,
 ) -> TypedRows:
     """The ordering checks of :func:`check_rows` on rows whose fields all parsed (``ok``: ``line``
     + typed ``columns``, in file order): duplicates (:func:`duplicate_of`), then rows going
     backwards by more than ``tolerance``. ``field_bad`` (rows rejected by their fields, with
-    ``_reason``) and ``prior`` (rejects already made) join the rejects."""
-    ok = ok.with_columns(duplicate_of(ok, key).alias("_dup"))
-    same = " and ".join(", ".join(key).rsplit(", ", 1))  # ("t", "target") -> "t and target"
-    ok = ok.with_columns(
-        pl.when(pl.col("_dup").is_not_null()).then(pl.format("duplicate of line {} (same {})", pl.col("_dup"), pl.lit(same))).alias("_reason")
-    )
-    ok = ok.drop("_dup")
-    dup = ok.filter(pl.col("_reason").is_not_null())
-    ok = ok.filter(pl.col("_reason").is_null())
-    if in_time_order(ok["t"]):  # never earlier than a row before it
-        back = ok.clear()
-        reordered = 0
-    else:
-        ok = ok.sort("line")
-        prev_max = pl.col("t").cum_max().shift(1)
-        ok = ok.with_columns(
-            pl.when(pl.col("t") < prev_max - tolerance)
-            .then(
-                pl.format("timestamp goes backwards ({} after {})", pl.col("t"), prev_max)
+    ``_reason``) and ``prior`` (rejects already made) join the rejects. Reasons are formatted
+    for the rejected rows only; rows without ``raw`` get their line's text from ``path``
+    (``data``: its :class:`FileLines`, when already read)."""
+    parts = [field_bad] if field_bad is not None and field_bad.height else []
+    dup_of = duplicate_of(ok, key)
+    if dup_of.null_count() < ok.height:
+        same = " and ".join(", ".join(key).rsplit(", ", 1))  # ("t", "target") -> "t and target"
+        ok = ok.with_columns(dup_of.alias("_dup"))
+        dup = ok.filter(pl.col("_dup").is_not_null()).rechunk()
+        parts.append(dup.with_columns(pl.format("duplicate of line {} (same {})", pl.col("_dup"), pl.lit(same)).alias("_reason")))
+        ok = ok.filter(pl.col("_dup").is_null()).drop("_dup")
+    reordered = 0
+    if not in_time_order(ok["t"]):  # some row is earlier than a row before it
+        ok = ok.sort("line").with_columns(pl.col("t").cum_max().shift(1).alias("_prev"))
+        back = (pl.col("t") < pl.col("_prev") - tolerance).fill_null(False)
+        late = ok.filter(back).rechunk()  # (polars 2.1 panics formatting a filtered frame's floats otherwise)
+        if late.height:
+            why = (
+                pl.format("timestamp goes backwards ({} after {})", pl.col("t"), pl.col("_prev"))
                 if tolerance <= 0
-                else pl.format("timestamp goes backwards ({} after {}, more than {} s)", pl.col("t"), prev_max, pl.lit(tolerance))
+                else pl.format("timestamp goes backwards ({} after {}, more than {} s)", pl.col("t"), pl.col("_prev"), pl.lit(tolerance))
             )
-            .otherwise(None)
-            .alias("_reason"),
-            (pl.col("t") < prev_max).fill_null(False).alias("_late"),
-        )
-        back = ok.filter(pl.col("_reason").is_not_null()).drop("_late")
-        ok = ok.filter(pl.col("_reason").is_null())
-        reordered = int(ok["_late"].sum()) if ok.height else 0
-    parts = [p for p in (field_bad, dup, back) if p is not None and p.height]
+            parts.append(late.with_columns(why.alias("_reason")))
+            ok = ok.filter(~back)
+        reordered = int(ok.select((pl.col("t") < pl.col("_prev")).fill_null(False).sum()).item())
+        ok = ok.drop("_prev")
     if parts:
-        bad = pl.concat(parts, how="vertical_relaxed").sort("line")
-        if path is not None and "raw" not in bad.columns:  # rows of the fast path: their text read back
-            text = raw_lines(path, bad["line"].to_list(), limit=None)
+        with_raw = all("raw" in p.columns for p in parts)
+        bad = pl.concat([p.select("line", "_reason", *(["raw"] if with_raw else [])) for p in parts]).sort("line")
+        if path is not None and not with_raw:  # rows of the typed read: their text read back
+            text = raw_lines(path, bad["line"].to_list(), limit=None, data=data)
             bad = bad.with_columns(pl.Series("raw", [text.get(i) for i in bad["line"].to_list()], dtype=pl.String))
         made = make_rejects(bad, source, path)
     else:
@@ -600,6 +919,48 @@ def order_checks(
     if reordered or not in_time_order(accepted["t"]):
         accepted = accepted.sort(["t", "line"])
     return TypedRows(accepted, rejects, reordered)
+
+
+def check_split(
+    split: TypedSplit,
+    good: pl.DataFrame,
+    parsers: Callable[[TimeOrigin, pl.DataFrame], dict[str, tuple[pl.Expr, pl.Expr]]],
+    *,
+    epoch: str | TimeOrigin | None,
+    key: tuple[str, ...],
+    tolerance: float,
+    path: Path,
+) -> TypedRows:
+    """:func:`check_rows` of a file read by :func:`read_typed_csv`: ``good`` (the split's good
+    rows with numeric ``t`` as written, the other columns in the types the readers decode) and
+    the rest typed row by row by ``parsers(origin, frame)``, whose values are cast to ``good``'s
+    types; then the ordering checks over both. The time origin is the one the row-by-row path
+    finds over all the rows (:func:`~onebit.readers.timebase.parts_origin`); good rows whose
+    stamp falls outside its window go to the row-by-row side, which names them."""
+    origin = epoch if isinstance(epoch, TimeOrigin) else parts_origin(good["t"], split.rest.frame["t"], epoch)
+    if math.isfinite(origin.lo) or math.isfinite(origin.hi):
+        t = good["t"] - origin.numeric
+        lone = (t < origin.lo - 1e-3) | (t > origin.hi + 1e-3)
+        if lone.any():
+            out = good.filter(lone)["line"]
+            split = split.demote(out)
+            good = good.filter(~lone)
+    good = good.with_columns(pl.col("t") - origin.numeric) if origin.numeric else good
+    rest = split.rest
+    columns = tuple(good.columns[1:])
+    if rest.frame.height == 0:
+        res = order_checks(good, key=key, tolerance=tolerance, columns=columns, source=rest.source, path=path,
+                           prior=rest.rejects if rest.rejects.height else None, data=split.file)  # fmt: skip
+    else:
+        p = parsers(origin, rest.frame)
+        typed = rest.frame.drop("raw").with_columns(pl.coalesce([r for _, r in p.values()]).alias("_reason")).with_columns(
+            v.alias(c) for c, (v, _) in p.items()
+        )
+        fine = typed.filter(pl.col("_reason").is_null()).select("line", *[pl.col(c).cast(good.schema[c]) for c in columns])
+        ok = pl.concat([good, fine]).sort("line") if fine.height else good
+        res = order_checks(ok, key=key, tolerance=tolerance, columns=columns, source=rest.source, path=path,
+                           field_bad=typed.filter(pl.col("_reason").is_not_null()), prior=rest.rejects, data=split.file)  # fmt: skip
+    return dataclasses.replace(res, file=split.file)
 
 
 def type_rows(

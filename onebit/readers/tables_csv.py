@@ -7,32 +7,45 @@ from pathlib import Path
 import polars as pl
 
 from onebit.core.errors import InputError
-from onebit.readers.rows import RawRows, csv_header, parse_choice, parse_float, parse_name, parse_time, read_csv_rows, type_rows
 from onebit.core.tables import CROSSINGS, TRUE_CROSSINGS, TRUTH, conform
+from onebit.readers.rows import (
+    RawRows,
+    TypedRows,
+    check_split,
+    csv_header,
+    parse_choice,
+    parse_float,
+    parse_name,
+    parse_time,
+    read_csv_rows,
+    read_typed_csv,
+    type_rows,
+)
 
 _FLAG = {"0": False, "1": True, "false": False, "true": True}
 _DIRECTION = {"1": 1, "+1": 1, "-1": -1, "f": 1, "b": -1, "forward": 1, "backward": -1}
 
 
-def crossings_from_rows(raw: RawRows, beam_ids, *, epoch=None, path: Path | None = None):
-    """Type crossing rows: t, known beam, direction +1|-1. Returns ``(crossings, rejects)``."""
+def _crossing_parsers(beam_ids, epoch, frame: pl.DataFrame, *, target: bool = False) -> dict:
     parsers = {
-        "t": parse_time("t", epoch, raw.frame),
+        "t": parse_time("t", epoch, frame),
         "beam": parse_name("beam", tuple(beam_ids), "beam"),
         "direction": parse_choice("direction", _DIRECTION, pl.Int8),
     }
-    ok, rej = type_rows(raw, parsers, key=("t", "beam", "direction"), path=path)
+    if target:
+        parsers["target"] = parse_name("target", None, "target")
+    return parsers
+
+
+def crossings_from_rows(raw: RawRows, beam_ids, *, epoch=None, path: Path | None = None):
+    """Type crossing rows: t, known beam, direction +1|-1. Returns ``(crossings, rejects)``."""
+    ok, rej = type_rows(raw, _crossing_parsers(beam_ids, epoch, raw.frame), key=("t", "beam", "direction"), path=path)
     return conform(ok, CROSSINGS), rej
 
 
 def true_crossings_from_rows(raw: RawRows, beam_ids, *, epoch=None, path: Path | None = None):
     """Type true-crossing rows; a ``dropped`` column (simulator flag 0|1), when read, is kept."""
-    parsers = {
-        "t": parse_time("t", epoch, raw.frame),
-        "beam": parse_name("beam", tuple(beam_ids), "beam"),
-        "direction": parse_choice("direction", _DIRECTION, pl.Int8),
-        "target": parse_name("target", None, "target"),
-    }
+    parsers = _crossing_parsers(beam_ids, epoch, raw.frame, target=True)
     if "dropped" in raw.frame.columns:
         parsers["dropped"] = parse_choice("dropped", _FLAG, pl.Boolean)
     ok, rej = type_rows(raw, parsers, key=("t", "beam", "direction", "target"), path=path)
@@ -50,31 +63,64 @@ def true_crossings_columns(path: Path) -> tuple[str, ...]:
     return base + ("dropped",) if "dropped" in header else base
 
 
+def _truth_parsers(epoch, frame: pl.DataFrame) -> dict:
+    return {"t": parse_time("t", epoch, frame), "target": parse_name("target", None, "target"), "x": parse_float("x"), "y": parse_float("y")}
+
+
 def truth_from_rows(raw: RawRows, *, epoch=None, path: Path | None = None):
     """Type truth rows: t, target, x, y (world units). Returns ``(truth, rejects)``.
 
     Time order is checked per file; a target may appear at most once per time stamp.
     """
-    parsers = {
-        "t": parse_time("t", epoch, raw.frame),
-        "target": parse_name("target", None, "target"),
-        "x": parse_float("x"),
-        "y": parse_float("y"),
-    }
-    ok, rej = type_rows(raw, parsers, key=("t", "target"), path=path)
+    ok, rej = type_rows(raw, _truth_parsers(epoch, raw.frame), key=("t", "target"), path=path)
     return conform(ok, TRUTH), rej
 
 
+#: The typed read of a direction: its spellings (``_DIRECTION``) as an enum, and their values.
+_DIRECTION_ENUM = pl.Enum(list(_DIRECTION))
+_DIRECTION_VALUES = pl.Series(list(_DIRECTION.values()), dtype=pl.Int8)
+
+
+def _typed_crossings(path: Path, beam_ids, *, epoch, target: bool) -> TypedRows | None:
+    """Crossing rows of ``path`` by one typed read, the lines it cannot take typed row by row
+    (:func:`~onebit.readers.rows.read_typed_csv`); ``None``: the row-by-row path reads the file."""
+    beam_ids = tuple(beam_ids)
+    dtypes = {"t": pl.Float64, "beam": pl.Enum(list(dict.fromkeys(beam_ids))), "direction": _DIRECTION_ENUM}
+    if target:
+        dtypes["target"] = pl.String
+    split = read_typed_csv(path, dtypes)
+    if split is None:
+        return None
+    good = split.good.with_columns(_DIRECTION_VALUES.gather(split.good["direction"].to_physical()).alias("direction"))
+    key = ("t", "beam", "direction", "target") if target else ("t", "beam", "direction")
+    return check_split(split, good, lambda origin, frame: _crossing_parsers(beam_ids, origin, frame, target=target),
+                       epoch=epoch, key=key, tolerance=0.0, path=path)  # fmt: skip
+
+
 def read_crossings_csv(path, beam_ids, *, epoch=None):
+    """``crossings.csv``: typed in one read, only the lines that read cannot take row by row
+    (same result as :func:`crossings_from_rows` of :func:`~onebit.readers.rows.read_csv_rows`)."""
     path = Path(path)
-    return crossings_from_rows(read_csv_rows(path, ("t", "beam", "direction")), beam_ids, epoch=epoch, path=path)
+    typed = _typed_crossings(path, beam_ids, epoch=epoch, target=False)
+    if typed is None:
+        return crossings_from_rows(read_csv_rows(path, ("t", "beam", "direction")), beam_ids, epoch=epoch, path=path)
+    return conform(typed.accepted, CROSSINGS), typed.rejects
 
 
 def read_true_crossings_csv(path, beam_ids, *, epoch=None):
+    """``truth_crossings.csv`` (t, beam, direction, target), as :func:`read_crossings_csv`."""
     path = Path(path)
-    return true_crossings_from_rows(read_csv_rows(path, ("t", "beam", "direction", "target")), beam_ids, epoch=epoch, path=path)
+    typed = _typed_crossings(path, beam_ids, epoch=epoch, target=True)
+    if typed is None:
+        return true_crossings_from_rows(read_csv_rows(path, ("t", "beam", "direction", "target")), beam_ids, epoch=epoch, path=path)
+    return conform(typed.accepted, TRUE_CROSSINGS), typed.rejects
 
 
 def read_truth_csv(path, *, epoch=None):
+    """``truth.csv`` (t, target, x, y), as :func:`read_crossings_csv`."""
     path = Path(path)
-    return truth_from_rows(read_csv_rows(path, ("t", "target", "x", "y")), epoch=epoch, path=path)
+    split = read_typed_csv(path, {"t": pl.Float64, "target": pl.String, "x": pl.Float64, "y": pl.Float64})
+    if split is None:
+        return truth_from_rows(read_csv_rows(path, ("t", "target", "x", "y")), epoch=epoch, path=path)
+    typed = check_split(split, split.good, _truth_parsers, epoch=epoch, key=("t", "target"), tolerance=0.0, path=path)
+    return conform(typed.accepted, TRUTH), typed.rejects

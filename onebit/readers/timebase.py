@@ -253,6 +253,46 @@ def time_origin(
     return TimeOrigin(origin=origin, numeric=origin, iso=origin, lo=lo_abs - origin, hi=hi_abs - origin, source="data", lone=lone)
 
 
+def parts_origin(numbers: pl.Series, strings: pl.Series, epoch: str | None) -> TimeOrigin:
+    """:func:`column_origin` of a column given in two parts: ``numbers``, stamps already parsed
+    (finite Float64: the typed read's good rows) and ``strings``, the other stamps as written
+    (the rows the row-by-row path types). Same result as :func:`column_origin` of all the
+    stamps as strings, without turning the numbers back into text."""
+    if numbers.len() == 0 and strings.len() == 0:
+        return TimeOrigin(iso=epoch_unix(epoch) if epoch is not None else None)
+    text = strings.cast(pl.String)
+    num = text.str.strip_chars().cast(pl.Float64, strict=False)
+    todo = text.filter(num.is_null() & text.is_not_null())  # ISO parsing only where a stamp is not a number
+    iso_v = todo.to_frame("s").select(iso_unix(pl.col("s"))).to_series().drop_nulls()
+    iso_v = iso_v.filter(iso_v.is_finite())
+    e = epoch_unix(epoch) if epoch is not None else None
+    a = numbers.cast(pl.Float64).to_numpy()
+    more = np.concatenate([num.filter(num.is_finite()).to_numpy(), iso_v.to_numpy() - (e if e is not None else 0.0)])
+    if more.size:
+        a = np.concatenate([a, more])
+    if a.size > 1 and not (a[1:] >= a[:-1]).all():  # logs are mostly in order: no sort then
+        a = np.sort(a)
+    n = a.size
+    if n == 0:
+        o = TimeOrigin(origin=e, numeric=0.0, iso=e, source="epoch") if e is not None else TimeOrigin()
+    else:
+        i0, i1 = _kept_span(pl.Series(a), MAX_GAP_S, LONE_FRACTION)
+        lo_abs, hi_abs = float(a[i0]), float(a[i1 - 1])
+        lone = n - (i1 - i0)
+        if e is not None:
+            o = TimeOrigin(origin=e, numeric=0.0, iso=e, lo=lo_abs, hi=hi_abs, source="epoch", lone=lone)
+        else:
+            origin = float(math.floor(lo_abs))
+            o = TimeOrigin(origin=origin, numeric=origin, iso=origin, lo=lo_abs - origin, hi=hi_abs - origin, source="data", lone=lone)
+    if o.source != "data":
+        return o if o.source == "epoch" else TimeOrigin()
+    if numbers.len() == 0 and num.null_count() == num.len():  # ISO stamps only: from the column's own start
+        return o
+    if iso_v.len():  # numbers keep their values, ISO stamps count from the column's first second
+        return TimeOrigin(origin=0.0, numeric=0.0, iso=None, source="data")
+    return TimeOrigin(origin=0.0, numeric=0.0, iso=None, lo=o.lo + o.origin, hi=o.hi + o.origin, source="data", lone=o.lone)
+
+
 def column_origin(frame: pl.DataFrame | None, col: str, epoch: str | None) -> TimeOrigin:
     """The origin a reader used on its own applies to one column (no run around it): numbers
     as written (offset 0), ISO from ``epoch`` or from the column's own first stamp, and the

@@ -1,0 +1,265 @@
+"""The typed read with row-by-row naming of the lines it cannot take (``read_typed_csv`` +
+``check_split``) against the row-by-row path on the whole file: identical tables and rejects
+on messy files (bad lines of every kind, ON/OFF spellings, ISO and Unix stamps, rows out of
+order, duplicates), and the pieces it is built of against their references."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import polars as pl
+import pytest
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
+
+from onebit.readers import kernels
+from onebit.readers.beams import (
+    BEAM_COLUMNS,
+    _beam_dtypes,
+    decode_beam_log,
+    decode_raw_beams,
+)
+from onebit.readers.motion import (
+    TOGGLE_COLUMNS,
+    TOGGLE_VALUES,
+    DebounceRules,
+    read_motion,
+    read_motion_csv,
+    repeats,
+)
+from onebit.readers.rows import (
+    line_texts,
+    physical_lines,
+    read_csv_rows,
+    read_typed_csv,
+)
+from onebit.readers.timebase import TimeOrigin, column_origin, parts_origin
+
+BEAMS = ("a", "b", "c")
+SENSORS = ("p1", "p2", "p3")
+SETTINGS = settings(max_examples=60, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture, HealthCheck.too_slow])
+
+
+def _same_beams(path: Path, epoch=None):
+    fast = decode_beam_log(path, BEAMS, epoch=epoch)
+    slow = decode_raw_beams(read_csv_rows(path, BEAM_COLUMNS), BEAMS, epoch=epoch, path=path)
+    for name in ("events", "crossings", "aborted", "unfinished", "rejects"):
+        a, b = getattr(fast, name), getattr(slow, name)
+        assert a.schema == b.schema and a.equals(b), (name, a, b)
+    return fast
+
+
+def _same_toggles(path: Path, epoch=None):
+    rules = DebounceRules(chatter_window=0.4, min_on=0.2)
+    fast = read_motion_csv(path, SENSORS, epoch=epoch, rules=rules)
+    slow = read_motion(read_csv_rows(path, TOGGLE_COLUMNS), SENSORS, epoch=epoch, path=path, rules=rules)
+    for name in ("motion", "rejects", "suppressed"):
+        a, b = getattr(fast, name), getattr(slow, name)
+        assert a.schema == b.schema and a.equals(b), (name, a, b)
+    assert fast.reordered == slow.reordered
+    return fast
+
+
+# --------------------------------------------------------------------------- messy files
+
+STAMPS = st.one_of(
+    st.sampled_from(["0", "0.5", "1", "1.5", "2", "2.5", "3", "10", "10.25", "1e11", "-1", "nan", "inf", "abc", "", " 2 ", "1.0 "]),
+    st.floats(0, 20, allow_nan=False).map(lambda v: f"{round(v, 1)}"),
+    st.floats(0, 20, allow_nan=False).map(lambda v: f"{1.7e9 + round(v, 1)}"),
+    st.sampled_from(["2024-05-01T10:00:00Z", "2024-05-01 10:00:01.5", "2024-05-01T10:00:03+00:00", "2024-05-01 10:00"]),
+)
+BAD_LINES = st.sampled_from(
+    ["", "   ", "\t", "1,a", "1,a,b,1,x", "1,a,b,1,", ",,,", '"1",a,b,1', '1,"a,b",b,1', '1,a"b,a,1', '1,"a', "1,a,b,1\r",
+     "1\r,a,b,1", "1,\xff,a,1", "1,a,a,1\udcff", "\x00", "t,beam,pair,blocked", "é,a,a,1", "1,a,a,1,é"]
+)  # fmt: skip
+
+
+@st.composite
+def beam_file(draw) -> bytes:
+    n = draw(st.integers(0, 40))
+    lines = []
+    for _ in range(n):
+        if draw(st.integers(0, 9)) == 0:
+            lines.append(draw(BAD_LINES))
+        else:
+            t = draw(STAMPS)
+            beam = draw(st.sampled_from(["a", "b", "c", "a", "b", "zz", " a", "A"]))
+            pair = draw(st.sampled_from(["a", "b", "a", "b", "A", "B", "c"]))
+            blocked = draw(st.sampled_from(["0", "1", "0", "1", "on", "OFF", "true", "2", "01"]))
+            lines.append(f"{t},{beam},{pair},{blocked}")
+    if lines and draw(st.booleans()):  # duplicates
+        lines.insert(draw(st.integers(0, len(lines))), draw(st.sampled_from(lines)))
+    end = draw(st.sampled_from(["\n", "", "\r\n"]))
+    sep = "\r\n" if end == "\r\n" else "\n"
+    return (sep.join(["t,beam,pair,blocked", *lines]) + end).encode("utf-8", errors="surrogateescape")
+
+
+@st.composite
+def toggle_file(draw) -> bytes:
+    n = draw(st.integers(0, 40))
+    lines = []
+    values = [*TOGGLE_VALUES, "ON", "Off", "2", "yes", ""]
+    for _ in range(n):
+        if draw(st.integers(0, 9)) == 0:
+            lines.append(draw(BAD_LINES).replace("1,a,b,1", "1,p1,1"))
+        else:
+            t = draw(STAMPS)
+            sensor = draw(st.sampled_from(["p1", "p2", "p3", "p1", "zz", " p2"]))
+            lines.append(f"{t},{sensor},{draw(st.sampled_from(values))}")
+    if lines and draw(st.booleans()):
+        lines.insert(draw(st.integers(0, len(lines))), draw(st.sampled_from(lines)))
+    return ("\n".join(["t,sensor,value", *lines]) + draw(st.sampled_from(["\n", ""]))).encode("utf-8", errors="surrogateescape")
+
+
+EPOCHS = st.sampled_from([None, "2024-05-01T09:59:00Z", TimeOrigin(origin=0.0, numeric=0.0, iso=1714557600.0, lo=0.0, hi=30.0, source="data")])
+
+
+@SETTINGS
+@given(blob=beam_file(), epoch=EPOCHS)
+def test_messy_beam_logs_give_the_row_by_row_result(tmp_path_factory, blob, epoch):
+    path = Path(tmp_path_factory.mktemp("beams")) / "beams.csv"
+    path.write_bytes(blob)
+    if b"\n" in blob.rstrip(b"\r\n"):  # a data line: the typed read takes the file
+        assert read_typed_csv(path, _beam_dtypes(BEAMS)) is not None
+    _same_beams(path, epoch)
+
+
+@SETTINGS
+@given(blob=toggle_file(), epoch=EPOCHS)
+def test_messy_toggle_logs_give_the_row_by_row_result(tmp_path_factory, blob, epoch):
+    path = Path(tmp_path_factory.mktemp("motion")) / "motion.csv"
+    path.write_bytes(blob)
+    _same_toggles(path, epoch)
+
+
+def _beam_rows(rng, n):
+    t = np.round(np.cumsum(rng.exponential(0.05, n)), 3)
+    return [f"{t[k]},{rng.choice(BEAMS)},{rng.choice(['a', 'b'])},{rng.integers(0, 2)}" for k in range(n)]
+
+
+@pytest.mark.parametrize("bad", ["1,a,b,1,x", "1,zz,a,1", '1,"a",a,1', "1,a,a,1\udcff", "nan,a,a,1", "1,a", "   ", "1e11,a,a,1"])
+def test_a_few_bad_lines_in_a_large_file(tmp_path, bad):
+    """Past the kernels' MIN_ROWS, with the long-line count on every line: only the bad lines
+    are typed row by row, the result is the row-by-row path's."""
+    rng = np.random.default_rng(1)
+    rows = _beam_rows(rng, 25_000)
+    for k in (3, 12_000, 24_990):
+        rows.insert(k, bad)
+    path = tmp_path / "beams.csv"
+    path.write_bytes(("\n".join(["t,beam,pair,blocked", *rows]) + "\n").encode("utf-8", errors="surrogateescape"))
+    split = read_typed_csv(path, _beam_dtypes(BEAMS))
+    assert split is not None and split.good.height >= 25_000 - 3
+    out = _same_beams(path)
+    assert out.rejects.height >= (0 if bad == "   " else 3)
+
+
+def test_extra_columns_and_a_short_line_in_a_large_file(tmp_path):
+    rng = np.random.default_rng(2)
+    rows = [f"{r},note" for r in _beam_rows(rng, 25_000)]
+    rows[100] = rows[100].rsplit(",", 1)[0]  # too few fields: only the unwanted last one is missing
+    rows[200] = rows[200] + ",more"
+    path = tmp_path / "beams.csv"
+    path.write_text("\n".join(["t,beam,pair,blocked,note", *rows]) + "\n")
+    out = _same_beams(path)
+    shape = out.rejects.filter(pl.col("reason").str.contains("fields"))
+    assert shape["line"].to_list() == [102, 202] and shape["reason"].to_list() == ["too few fields (4 of 5)", "too many fields (6 of 5)"]
+
+
+# --------------------------------------------------------------------------- the pieces
+
+
+@settings(max_examples=150, deadline=None)
+@given(blob=st.binary(max_size=300), extra=st.lists(st.integers(-2, 40), max_size=12))
+def test_line_texts_are_physical_lines(blob, extra):
+    every = physical_lines(blob)
+    want = sorted(set(every["line"].to_list()[::2] + extra))
+    assert line_texts(blob, want).equals(every.filter(pl.col("line").is_in(want)))
+
+
+@settings(max_examples=150, deadline=None)
+@given(blob=st.binary(max_size=300).map(lambda b: b.replace(b"\x01", b",")))
+def test_separator_kernel_equals_reference(blob):
+    buf = np.frombuffer(blob, dtype=np.uint8)
+    assert np.array_equal(kernels.separators_per_line(buf, ord(",")), kernels.separators_per_line_reference(buf, ord(",")))
+
+
+@settings(max_examples=100, deadline=None)
+@given(st.lists(st.tuples(st.sampled_from(["p1", "p2", "p3"]), st.booleans()), max_size=60))
+def test_repeat_kernel_equals_reference(edges):
+    ok = pl.DataFrame(edges, schema={"sensor": pl.String, "on": pl.Boolean}, orient="row")
+    assert repeats(ok, compiled=True).equals(repeats(ok, compiled=False))
+    enum = ok.with_columns(pl.col("sensor").cast(pl.Enum(list(SENSORS))))
+    assert repeats(enum, compiled=True).equals(repeats(ok, compiled=False))
+
+
+@settings(max_examples=150, deadline=None)
+@given(
+    stamps=st.lists(st.one_of(st.floats(-5, 30, allow_nan=False).map(lambda v: repr(round(v, 2))), STAMPS), max_size=30),
+    cut=st.integers(0, 30),
+    epoch=st.sampled_from([None, "2024-05-01T09:59:00Z"]),
+)
+def test_parts_origin_equals_column_origin(stamps, cut, epoch):
+    """Numbers parsed by the typed read plus the rest as strings give the origin of the whole column."""
+    col = pl.Series("t", stamps, dtype=pl.String)
+    num = col.str.strip_chars().cast(pl.Float64, strict=False)
+    typed = num.is_finite().fill_null(False) & (pl.int_range(0, col.len(), eager=True) < cut)  # any subset of the finite numbers
+    numbers = num.filter(typed)
+    strings = col.filter(~typed)
+    assert parts_origin(numbers, strings, epoch) == column_origin(pl.DataFrame({"t": col}), "t", epoch)
+
+
+# --------------------------------------------------------------------------- canonical tables
+
+
+@st.composite
+def table_file(draw, header: str, fields) -> bytes:
+    lines = []
+    for _ in range(draw(st.integers(0, 30))):
+        if draw(st.integers(0, 9)) == 0:
+            lines.append(draw(BAD_LINES))
+        else:
+            lines.append(",".join(draw(f) for f in fields))
+    if lines and draw(st.booleans()):
+        lines.insert(draw(st.integers(0, len(lines))), draw(st.sampled_from(lines)))
+    return ("\n".join([header, *lines]) + draw(st.sampled_from(["\n", ""]))).encode("utf-8", errors="surrogateescape")
+
+
+NAMES = st.sampled_from(["w1", "w2", "w1", " w2", "w3 ", ""])
+NUMBERS = st.sampled_from(["0", "1.5", "-2", "nan", "x", "", " 3", "1e3"])
+DIRECTIONS = st.sampled_from(["1", "-1", "+1", "f", "b", "forward", "backward", "F", "0", ""])
+
+
+@SETTINGS
+@given(blob=table_file("t,target,x,y", [STAMPS, NAMES, NUMBERS, NUMBERS]), epoch=EPOCHS)
+def test_messy_truth_gives_the_row_by_row_result(tmp_path_factory, blob, epoch):
+    from onebit.readers.tables_csv import read_truth_csv, truth_from_rows
+
+    path = Path(tmp_path_factory.mktemp("truth")) / "truth.csv"
+    path.write_bytes(blob)
+    fast = read_truth_csv(path, epoch=epoch)
+    slow = truth_from_rows(read_csv_rows(path, ("t", "target", "x", "y")), epoch=epoch, path=path)
+    for a, b in zip(fast, slow):
+        assert a.schema == b.schema and a.equals(b), (a, b)
+
+
+@SETTINGS
+@given(blob=table_file("t,beam,direction,target", [STAMPS, st.sampled_from(["a", "b", "zz", " a"]), DIRECTIONS, NAMES]), epoch=EPOCHS)
+def test_messy_crossings_give_the_row_by_row_result(tmp_path_factory, blob, epoch):
+    from onebit.readers.tables_csv import (
+        crossings_from_rows,
+        read_crossings_csv,
+        read_true_crossings_csv,
+        true_crossings_from_rows,
+    )
+
+    path = Path(tmp_path_factory.mktemp("crossings")) / "crossings.csv"
+    path.write_bytes(blob)
+    fast = read_crossings_csv(path, BEAMS, epoch=epoch)
+    slow = crossings_from_rows(read_csv_rows(path, ("t", "beam", "direction")), BEAMS, epoch=epoch, path=path)
+    for a, b in zip(fast, slow):
+        assert a.schema == b.schema and a.equals(b), (a, b)
+    fast = read_true_crossings_csv(path, BEAMS, epoch=epoch)
+    slow = true_crossings_from_rows(read_csv_rows(path, ("t", "beam", "direction", "target")), BEAMS, epoch=epoch, path=path)
+    for a, b in zip(fast, slow):
+        assert a.schema == b.schema and a.equals(b), (a, b)
