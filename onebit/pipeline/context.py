@@ -13,7 +13,7 @@ from onebit.core.errors import InputError
 from onebit.core.region_graph import RegionGraph
 from onebit.core.site import Site
 from onebit.core.tables import REJECTS
-from onebit.readers.rows import RawRows, read_csv_rows
+from onebit.readers.rows import RawRows, read_csv_column, read_csv_rows
 
 #: A report row: (stage, metric, value, unit).
 ReportRow = tuple[str, str, float, str]
@@ -55,6 +55,17 @@ class RunContext:
             return read_csv_rows(p, columns), p
         if f"/{stem}" in self.mcap_channels:
             return self.mcap_channels[f"/{stem}"], None
+        return None
+
+    def stamps(self, stem: str) -> tuple[str, pl.DataFrame] | None:
+        """(source name, ``line`` + String ``t``) of ``<stem>.csv`` (typed in one read when it
+        can, :func:`~onebit.readers.rows.read_csv_column`), else of the MCAP channel."""
+        p = self.dataset / f"{stem}.csv"
+        if p.exists():
+            return p.name, read_csv_column(p, "t")
+        if f"/{stem}" in self.mcap_channels:
+            raw = self.mcap_channels[f"/{stem}"]
+            return raw.source, raw.frame
         return None
 
     def has_source(self, stem: str) -> bool:

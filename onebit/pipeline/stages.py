@@ -123,10 +123,10 @@ def run_time_origin(ctx: RunContext) -> TimeOrigin:
         if not ctx.has_source(stem):
             continue
         try:
-            raw, _ = ctx.source(stem, ("t",))
+            name, frame = ctx.stamps(stem)
         except InputError:
             continue
-        frames[raw.source] = raw.frame
+        frames[name] = frame
     origin = time_origin(frames, epoch=ctx.site.epoch)
     ctx.time_origin = origin
     ctx.config["time"] = origin.as_dict()  # the run record's [time] (runner.RUN_RECORD_SECTIONS)

@@ -263,3 +263,43 @@ def test_messy_crossings_give_the_row_by_row_result(tmp_path_factory, blob, epoc
     slow = true_crossings_from_rows(read_csv_rows(path, ("t", "beam", "direction", "target")), BEAMS, epoch=epoch, path=path)
     for a, b in zip(fast, slow):
         assert a.schema == b.schema and a.equals(b), (a, b)
+
+
+@SETTINGS
+@given(blob=st.one_of(beam_file(), toggle_file()))
+def test_one_column_read_gives_the_row_by_row_stamps_and_origin(tmp_path_factory, blob):
+    """The run's time origin reads only ``t`` (``read_csv_column``): the same (line, t) rows as
+    the row-by-row path, hence the same origin."""
+    from onebit.readers.rows import read_csv_column
+    from onebit.readers.timebase import time_origin
+
+    path = Path(tmp_path_factory.mktemp("stamps")) / "log.csv"
+    path.write_bytes(blob)
+    fast = read_csv_column(path, "t")
+    slow = read_csv_rows(path, ("t",)).frame.select("line", "t")
+    assert fast.equals(slow), (fast, slow)
+
+    def origin(frame):
+        try:
+            return time_origin({"log.csv": frame})
+        except Exception as exc:  # an absurd span: the same error, naming the same lines
+            return repr(exc)
+
+    assert origin(fast) == origin(slow)
+
+
+@pytest.mark.parametrize("header,long", [
+    ("t,sensor,value,a,b", "2,p1,1,x,y,z"),  # columns after the wanted ones, not read
+    ("t,a,sensor,value", "2,x,p1,1,z"),  # a column between them
+])  # fmt: skip
+def test_a_long_line_is_rejected_when_some_columns_are_not_read(tmp_path, header, long):
+    """The strict typed read does not notice a long line when it does not read every column:
+    the separators are counted then, and the line goes row by row, rejected as there."""
+    width = header.count(",") + 1
+    rows = [",".join(["0", "p1", "1"] + ["x"] * (width - 3)), long, ",".join(["3", "p1", "0"] + ["x"] * (width - 3))]
+    if header.startswith("t,a,"):
+        rows = ["0,x,p1,1", long, "3,x,p1,0"]
+    path = tmp_path / "motion.csv"
+    path.write_text("\n".join([header, *rows]) + "\n")
+    res = _same_toggles(path)
+    assert res.rejects.height == 1 and "too many fields" in res.rejects["reason"][0]
