@@ -34,7 +34,10 @@ from onebit.readers.beams import BEAM_COLUMNS, decode_beam_log, decode_raw_beams
 from onebit.readers.camera import read_camera, truth_error
 from onebit.readers.motion import TOGGLE_COLUMNS, MotionConfig, motion_frames, read_motion, read_motion_csv, site_rules
 from onebit.readers.proximity import ProximityConfig, proximity_frames, read_proximity, read_proximity_csv
-from onebit.readers.tables_csv import crossings_from_rows, true_crossings_columns, true_crossings_from_rows, truth_from_rows
+from onebit.readers.tables_csv import (
+    crossings_from_rows, read_crossings_csv, read_true_crossings_csv, read_truth_csv, true_crossings_columns, true_crossings_from_rows,
+    truth_from_rows,
+)
 from onebit.readers.timebase import TimeOrigin, time_origin
 from onebit.scoring import beams as score_beams
 from onebit.scoring import clustertrack as score_clustertrack
@@ -162,8 +165,12 @@ def _crossings_work(ctx: RunContext) -> dict[str, pl.DataFrame]:
         if ctx.has_source("crossings"):
             ctx.report.append(("crossings", "ignored_crossings_csv", 1.0, "flag"))
     else:
-        raw, path = ctx.source("crossings", ("t", "beam", "direction"))
-        cr, rej = crossings_from_rows(raw, site.beam_ids, epoch=run_time_origin(ctx), path=path)
+        csv = ctx.dataset / "crossings.csv"
+        if csv.exists():  # typed in one read, only the lines it cannot take row by row
+            cr, rej = read_crossings_csv(csv, site.beam_ids, epoch=run_time_origin(ctx))
+        else:
+            raw, path = ctx.source("crossings", ("t", "beam", "direction"))
+            cr, rej = crossings_from_rows(raw, site.beam_ids, epoch=run_time_origin(ctx), path=path)
         ctx.add_rejects(rej)
         out["crossings"] = cr
         ctx.report.append(("crossings", "decoded", float(cr.height), "crossings"))
@@ -179,14 +186,23 @@ def _truth_available(ctx: RunContext) -> str | None:
 
 
 def _truth_work(ctx: RunContext) -> dict[str, pl.DataFrame]:
-    raw, path = ctx.source("truth", ("t", "target", "x", "y"))
-    truth, rej = truth_from_rows(raw, epoch=run_time_origin(ctx), path=path)
+    csv = ctx.dataset / "truth.csv"
+    if csv.exists():  # typed in one read, only the lines it cannot take row by row
+        truth, rej = read_truth_csv(csv, epoch=run_time_origin(ctx))
+    else:
+        raw, path = ctx.source("truth", ("t", "target", "x", "y"))
+        truth, rej = truth_from_rows(raw, epoch=run_time_origin(ctx), path=path)
     ctx.add_rejects(rej)
     truth = truth_regions(truth, ctx.region_graph)
     out = {"truth": truth, "true_crossings": true_crossings_from_truth(truth, ctx.site, ctx.region_graph)}
     if ctx.has_source("truth_crossings"):
-        raw, path = ctx.source("truth_crossings", true_crossings_columns(ctx.dataset / "truth_crossings.csv"))
-        sim_cr, rej = true_crossings_from_rows(raw, ctx.site.beam_ids, epoch=run_time_origin(ctx), path=path)
+        csv = ctx.dataset / "truth_crossings.csv"
+        columns = true_crossings_columns(csv)
+        if csv.exists() and "dropped" not in columns:  # typed in one read, as truth.csv
+            sim_cr, rej = read_true_crossings_csv(csv, ctx.site.beam_ids, epoch=run_time_origin(ctx))
+        else:
+            raw, path = ctx.source("truth_crossings", columns)
+            sim_cr, rej = true_crossings_from_rows(raw, ctx.site.beam_ids, epoch=run_time_origin(ctx), path=path)
         ctx.add_rejects(rej)
         out["sim_crossings"] = sim_cr
     return out
