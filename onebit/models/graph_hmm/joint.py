@@ -43,7 +43,7 @@ import polars as pl
 from onebit.core.compiled import kernel
 from onebit.models.graph_hmm.adaptive import joint_emission, second_order_tensor
 from onebit.models.graph_hmm.eatg import Eatg
-from onebit.models.graph_hmm.likelihood import came_from, claims, path_log_prior
+from onebit.models.graph_hmm.likelihood import claims, path_log_prior
 
 
 class PairSpace:
@@ -237,32 +237,69 @@ def redecode_meetings(
     d = x.shape[1]
     log = []
     for u, v, w0, w1 in meetings(x, eatg.hops, pad=pad):  # sequential: each re-decoding changes the paths the next one sees
-        ctx = came_from(x[[u, v], :w0])[:, -1]
-        start = (space.state(x[u, w0 - 1], ctx[0]), space.state(x[v, w0 - 1], ctx[1]))
-        rest = np.delete(x[:, w0 : w1 + 1], [u, v], axis=0)
-        others = claims(rest, n)
+        a = w0 - 1
+        ctx = np.array([_context(x[u], a), _context(x[v], a)], dtype=np.int64)
+        start = (space.state(x[u, a], ctx[0]), space.state(x[v, a], ctx[1]))
+        others = claims(np.delete(x[:, w0 : w1 + 1], [u, v], axis=0), n)
         nxt = (int(x[u, w1 + 1]), int(x[v, w1 + 1])) if w1 + 1 < d else (-1, -1)
         ends = [nxt, (nxt[1], nxt[0])]
-        b = _settled(x[[u, v]], w1)
-        local = functools.partial(_local_log_likelihood, rows=(u, v), a=w0 - 1, b=b, w=(w0, w1), ctx0=ctx, active=active, n=n,
+        b = min(max(w1 + 1, _first_change(x[u], w1 + 1), _first_change(x[v], w1 + 1)), d - 1)
+        seg = x[[u, v], a : b + 1]  # the pair from the slot before the window to where their tails settle
+        k0, k1 = w0 - a, w1 + 1 - a  # the window inside ``seg``
+        score = functools.partial(_segment_log_likelihood, ctx0=ctx, window=(k0, k1), others=others, active=active[w0 : w1 + 1],
                                   log_a=log_a, p_hit=p_hit, p_false=p_false)  # fmt: skip
-        cur = local(x)
+        cur = score(seg)
         best, pick = cur, None
         for swap, path in enumerate(decode_pair(space, start, active[w0 : w1 + 1], others, ends, p_hit=p_hit, p_false=p_false, compiled=compiled)):
             if path is None:
                 continue
-            y = x.copy()
-            y[[u, v], w0 : w1 + 1] = path
+            y = seg.copy()
+            y[:, k0:k1] = path
             if swap:
-                y[u, w1 + 1 :], y[v, w1 + 1 :] = x[v, w1 + 1 :], x[u, w1 + 1 :]
-            ll = local(y)
+                y[:, k1:] = seg[::-1, k1:]
+            ll = score(y)
             if ll > best + 1e-9:
-                best, pick = ll, (y, bool(swap))
+                best, pick = ll, (path, bool(swap))
         if pick is not None:
-            x = pick[0]
+            x[[u, v], w0 : w1 + 1] = pick[0]
+            if pick[1]:  # the tails change hands: from here on each follows the other's path
+                x[u, w1 + 1 :], x[v, w1 + 1 :] = x[v, w1 + 1 :].copy(), x[u, w1 + 1 :].copy()
         mid = (w0 + w1) // 2
         log.append({"slot": w0, "end": w1, "users": (u, v), "gain": best - cur, "exchanged": bool(pick and pick[1]), "node": int(x[u, mid])})
     return x, log
+
+
+def _context(row: np.ndarray, t: int) -> int:
+    """The node ``row`` came from before its dwell at slot ``t`` (``-1``: unknown or absent;
+    :func:`~onebit.models.graph_hmm.likelihood.came_from` at ``t``), looking back in growing
+    steps so a meeting costs its dwell, not the run."""
+    here = row[t]
+    if here < 0:
+        return -1
+    step, hi = 64, t
+    while hi > 0:
+        lo = max(0, hi - step)
+        diff = np.flatnonzero(row[lo:hi] != here)
+        if diff.size:
+            return int(row[lo + diff[-1]])  # -1 when the user was absent there
+        hi, step = lo, step * 4
+    return -1
+
+
+def _first_change(row: np.ndarray, t: int) -> int:
+    """The first slot after ``t`` at which ``row`` changes node (``len(row) - 1`` if never),
+    looking ahead in growing steps."""
+    d = row.size
+    if t >= d - 1:
+        return d - 1
+    step, lo = 64, t
+    while lo < d - 1:
+        hi = min(d, lo + step + 1)
+        diff = np.flatnonzero(row[lo + 1 : hi] != row[lo : hi - 1])
+        if diff.size:
+            return lo + 1 + int(diff[0])
+        lo, step = hi - 1, step * 4
+    return d - 1
 
 
 def _settled(rows: np.ndarray, w1: int) -> int:
@@ -270,12 +307,18 @@ def _settled(rows: np.ndarray, w1: int) -> int:
     the two users the slot of its first node change after ``w1`` (from there its came-from
     context is its tail's own), the later of the two; the run's end if one never changes."""
     d = rows.shape[1]
-    out = w1 + 1
-    for r in rows:  # the two users
-        tail = r[w1 + 1 :]
-        ch = np.flatnonzero(tail[1:] != tail[:-1])
-        out = max(out, (w1 + 2 + int(ch[0])) if ch.size else d - 1)
-    return min(out, d - 1)
+    return min(max(w1 + 1, *(_first_change(r, w1 + 1) for r in rows)), d - 1)
+
+
+def _segment_log_likelihood(seg, *, ctx0, window, others, active, log_a, p_hit, p_false) -> float:
+    """:func:`_local_log_likelihood` on the pair's segment ``seg`` (2, b - a + 1) from slot ``a``
+    (contexts ``ctx0``), the window at columns ``window`` and the other users' ``claims`` there."""
+    k0, k1 = window
+    inside = others.copy()
+    for r in seg[:, k0:k1]:  # the two users
+        ok = r >= 0
+        inside[np.flatnonzero(ok), r[ok]] += 1
+    return path_log_prior(seg, log_a, ctx0) + joint_emission(active, inside, p_hit, p_false)
 
 
 def _local_log_likelihood(x, *, rows, a, b, w, ctx0, active, n, log_a, p_hit, p_false) -> float:
@@ -284,10 +327,12 @@ def _local_log_likelihood(x, *, rows, a, b, w, ctx0, active, n, log_a, p_hit, p_
     change: the two users' transitions from slot ``a`` (context ``ctx0``) to ``b``
     (:func:`_settled`) and the emissions of the window's slots. Two labellings that agree
     outside differ in the full ``log L`` by exactly the difference of this."""
-    seg = x[list(rows), a : b + 1]
-    prior = path_log_prior(seg, log_a, ctx0)
     w0, w1 = w
-    return prior + joint_emission(active[w0 : w1 + 1], claims(x[:, w0 : w1 + 1], n), p_hit, p_false)
+    others = claims(np.delete(x[:, w0 : w1 + 1], list(rows), axis=0), n)
+    return _segment_log_likelihood(
+        x[list(rows), a : b + 1], ctx0=ctx0, window=(w0 - a, w1 + 1 - a), others=others, active=active[w0 : w1 + 1],
+        log_a=log_a, p_hit=p_hit, p_false=p_false,
+    )
 
 
 #: one row per meeting re-decoded jointly: its window, the two decoded users, the gain in

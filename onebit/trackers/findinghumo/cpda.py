@@ -263,7 +263,7 @@ def pair_meeting_reference(
         for b in range(c + 1, s0, -1):
             if _jumps(rows, p, b, hops):
                 continue
-            score = sum(junction_score(np.concatenate([rows[u, :b], rows[p[u], b:]]), log_a2) for u in range(len(p)))
+            score = sum(junction_score(np.concatenate([rows[u][:b], rows[p[u]][b:]]), log_a2) for u in range(len(p)))
             if score > logp[k] + 1e-9:
                 logp[k], slot[k] = score, b
     return perms, logp, slot
@@ -271,17 +271,18 @@ def pair_meeting_reference(
 
 def _pairings(paths: np.ndarray, users: np.ndarray, c: int):
     """Every pairing of a meeting's users (the identity first), their log P to fill (``-inf``),
-    their switching slots (``c + 1``) and the users' paths."""
+    their switching slots (``c + 1``) and the users' paths (views: a meeting costs its own
+    slots, not the run's)."""
     perms = list(itertools.permutations(range(users.size)))
-    return perms, np.full(len(perms), -np.inf), np.full(len(perms), c + 1, dtype=np.int64), paths[users]
+    return perms, np.full(len(perms), -np.inf), np.full(len(perms), c + 1, dtype=np.int64), [paths[u] for u in users]
 
 
 def _jumps(rows: np.ndarray, p, b: int, hops: np.ndarray | None) -> bool:
     """Whether switching to pairing ``p`` at slot ``b`` makes a joined path jump (consecutive
     known nodes more than one hop apart)."""
-    if hops is None or b >= rows.shape[1]:
+    if hops is None or b >= len(rows[0]):
         return False
-    return any(rows[u, b - 1] >= 0 and rows[p[u], b] >= 0 and hops[rows[u, b - 1], rows[p[u], b]] > 1 for u in range(len(p)))
+    return any(rows[u][b - 1] >= 0 and rows[p[u]][b] >= 0 and hops[rows[u][b - 1], rows[p[u]][b]] > 1 for u in range(len(p)))
 
 
 def cpda(

@@ -202,3 +202,17 @@ def test_gains_add_up_to_the_full_log_likelihood_change_on_a_simulated_run():
     full = [model_log_likelihood(p, run.active, run.eatg, p_hit=cfg.p_hit, p_false=cfg.p_false) for p in (before, after)]
     gains = sum(r["gain"] for r in log)
     assert gains > 0 and np.isclose(full[1] - full[0], gains), (full, gains)
+
+
+@settings(max_examples=200, deadline=None)
+@given(row=st.lists(st.integers(-1, 3), min_size=1, max_size=400).map(lambda r: np.repeat(np.array(r, np.int64), 3)), data=st.data())
+def test_bounded_context_and_change_searches_equal_the_whole_row(row, data):
+    """The meeting's start context and its tails' first moves are found looking a growing way
+    back / ahead (a meeting costs its dwell, not the run): the same as over the whole row."""
+    from onebit.models.graph_hmm.joint import _context, _first_change
+    from onebit.models.graph_hmm.likelihood import came_from
+
+    t = data.draw(st.integers(0, row.size - 1))
+    assert _context(row, t) == int(came_from(row[None, : t + 1])[0, -1])
+    ch = np.flatnonzero(row[t + 1 :] != row[t:-1])
+    assert _first_change(row, t) == (t + 1 + int(ch[0]) if ch.size else row.size - 1)
