@@ -37,6 +37,8 @@ NODE = (170, 170, 170, 255)
 ACTIVE = (200, 45, 40, 255)
 SWITCH = (255, 230, 0, 255)
 DECISION = (80, 220, 255, 255)
+#: how far (fraction of the site's diagonal) a joint re-decoding mark sits from its node
+JOINT_OFFSET = 0.06
 
 
 def _node_xy(site, nodes) -> np.ndarray:
@@ -188,6 +190,9 @@ def log_joint(rec: rr.RecordingStream, tracker: str, joint: pl.DataFrame | None,
         return
     pos = {m.id: m.position for m in site.motion_sensors}
     xy = np.array([pos[n] for n in changed["node"].to_list()], dtype=float).reshape(-1, 2)
+    # CPDA labels its decisions at the same nodes and slots: the joint mark sits a little off
+    # the node (JOINT_OFFSET of the site's diagonal) so the two labels do not overprint
+    xy = xy + np.array([0.0, -JOINT_OFFSET * site.diagonal])
     t = changed["t"].to_numpy()
     labels = [
         f"joint: users {a[4:]},{b[4:]} +{g:.1f} nats{' (exchanged)' if ex else ''}"
