@@ -156,7 +156,8 @@ def run(inputs: dict, site: Site, config: ResidentsConfig) -> dict[str, pl.DataF
     names = np.array([f"person{k + 1}" for k in range(max(res.people, 1))], dtype=object)
     on_tracks = on.select("row", "t", "sensor").with_columns(track=pl.Series(names[res.track].tolist() if len(t) else [], dtype=pl.String))
     off = motion.filter(~pl.col("on")).select("row", "t", "sensor")
-    off = off.sort("t").join_asof(on_tracks.select("t", "sensor", "track").sort("t"), on="t", by="sensor", strategy="backward")
+    off = off.sort("t").join_asof(on_tracks.select("t", "sensor", "track").sort("t"), on="t", by="sensor", strategy="backward",
+                                                                    check_sortedness=False)  # both sorted by t just above
     events = pl.concat([on_tracks, off.select(on_tracks.columns)]).sort("row").select(EVENTS.names())
     tracks = tracks_table(t, node, res, names, home, config)
     decoder = pl.DataFrame(
@@ -195,7 +196,7 @@ def tracks_table(t: np.ndarray, node: np.ndarray, res: Attribution, names: np.nd
     for p in range(res.people):
         mine = np.flatnonzero(res.track == p)
         ts = np.arange(start[p], end[p] + 1e-9, cfg.period)
-        ts = np.union1d(ts, t[mine])
+        ts = np.union1d(np.union1d(ts, [end[p]]), t[mine])
         k = node[mine[np.searchsorted(t[mine], ts, side="right") - 1]]
         frames.append(pl.DataFrame({"track": names[p], "t": ts, "x": home.xy[k, 0], "y": home.xy[k, 1],
                                     "node": np.asarray(home.nodes, dtype=object)[k].tolist()},
