@@ -252,7 +252,7 @@ def _motion_available(ctx: RunContext) -> str | None:
 
 
 def _motion_work(ctx: RunContext) -> dict[str, pl.DataFrame]:
-    cfg = config_from_mapping(MotionConfig, ctx.config.get("motion"), section="motion")
+    cfg = config_from_mapping(MotionConfig, ctx.section("motion"), section="motion")
     ctx.config.setdefault("motion", {}).update({k: v for k, v in asdict(cfg).items() if v is not None})
     site = ctx.site
     ids = [m.id for m in site.motion_sensors]
@@ -401,7 +401,7 @@ def scores_stage(trackers: tuple[TrackerEntry, ...] = TRACKERS) -> Stage:
     paper's metrics (``entry.score``) and the standard MOT metrics (:func:`onebit.scoring.mot.mot_rows`)."""
 
     def work(ctx: RunContext) -> dict[str, pl.DataFrame]:
-        cfg = config_from_mapping(ScoresConfig, ctx.config.get("scores"), section="scores")
+        cfg = config_from_mapping(ScoresConfig, ctx.section("scores"), section="scores")
         ctx.config.setdefault("scores", {}).update(asdict(cfg))
         tables = dict(ctx.tables)
         tables["timings"] = pl.DataFrame(
