@@ -51,7 +51,7 @@ from onebit.core.errors import InputError
 from onebit.core.site import load_site, site_from_dict
 from onebit.core.tables import REJECTS
 from onebit.core.writers import to_toml, write_csv, write_text
-from onebit.readers.casas import TOGGLE_KINDS, CasasLog, read_casas
+from onebit.readers.casas import ALL_KINDS, DEFAULT_HOLD_S, MIN_HOLD_SAMPLES, TOGGLE_KINDS, CasasLog, read_casas, repair_lost_offs
 from onebit.readers.trajectories import TrajectoryFormat, read_trajectories
 from onebit.core.lazy import lazy_module
 
@@ -63,7 +63,7 @@ MIN_COUNT = 3
 MIN_SHARE = 0.1
 SPACING_M = 3.0
 
-_LAYOUT_KEYS = {"units", "targets", "boundary", "range", "sensors", "graph", "name"}
+_LAYOUT_KEYS = {"units", "targets", "boundary", "range", "sensors", "graph", "name", "doors", "kinds"}
 
 
 @dataclass(frozen=True)
@@ -78,6 +78,14 @@ class Layout:
     targets: int | None = None
     name: str | None = None
     source: str = "layout.toml"
+    #: sensor id -> kind (:data:`onebit.readers.casas.ALL_KINDS`); doors are ``"door"``
+    kinds: dict[str, str] = field(default_factory=dict)
+    #: keep only the sensors the log has (a floor plan of a whole building), else every one placed
+    only_logged: bool = False
+    #: ``graph(positions) -> edges`` when the edges come from geometry (else None)
+    graph: object = None
+    #: how ``graph`` finds the edges (import.toml)
+    graph_rule: str = ""
 
 
 @dataclass
@@ -183,6 +191,9 @@ def load_layout(path: str | Path) -> Layout:
         D001 = [0.0, 2.0]
         [graph]                           # optional: the edges (else learned from the log)
         edges = [["D001", "M001"], ["M001", "M002"]]
+        doors = ["D001"]                  # optional: contacts that are doors to the outside (entry/exit)
+        [kinds]                           # optional: a sensor's kind (named sensors, overrides)
+        Bedroom = "motion"
 
     Errors name the file and the key."""
     path = Path(path)
@@ -222,8 +233,26 @@ def load_layout(path: str | Path) -> Layout:
     targets = data.get("targets")
     if targets is not None and (isinstance(targets, bool) or not isinstance(targets, int) or targets < 0):
         raise InputError(f"must be a non-negative integer, got {targets!r}", file=path, field="targets")
+    kinds = _layout_kinds(data, path)
     return Layout(positions, edges, data.get("boundary"), None if rng is None else float(rng), str(data.get("units", "m")),
-                  targets, data.get("name"), str(path))  # fmt: skip
+                  targets, data.get("name"), str(path), kinds)  # fmt: skip
+
+
+def _layout_kinds(data: dict, path) -> dict[str, str]:
+    """``[kinds]`` and ``doors`` of a layout as sensor id -> kind (errors name the key)."""
+    kinds = data.get("kinds", {})
+    if not isinstance(kinds, dict):
+        raise InputError("must be a table: sensor id = kind", file=path, field="kinds")
+    out = {}
+    for sid, k in kinds.items():
+        if k not in ALL_KINDS:
+            raise InputError(f"unknown kind {k!r}; one of {list(ALL_KINDS)}", file=path, field=f"kinds.{sid}")
+        out[str(sid)] = str(k)
+    doors = data.get("doors", [])
+    if not isinstance(doors, list) or not all(isinstance(d, str) for d in doors):
+        raise InputError("must be a list of sensor ids", file=path, field="doors")
+    out.update({d: "door" for d in doors})
+    return out
 
 
 # --------------------------------------------------------------------------- site.toml
@@ -291,49 +320,69 @@ def import_casas(
     *,
     layout: str | Path | None = None,
     targets: int | None = None,
+    doors: tuple[str, ...] | list[str] = (),
     window_s: float = WINDOW_S,
     min_count: int = MIN_COUNT,
     min_share: float = MIN_SHARE,
     spacing_m: float = SPACING_M,
+    hold_s: float = DEFAULT_HOLD_S,
+    hold_samples: int = MIN_HOLD_SAMPLES,
 ) -> ImportSummary:
-    """Write a dataset folder from a CASAS log (module docstring); every file atomically."""
+    """Write a dataset folder from a CASAS log (module docstring); every file atomically.
+
+    ``doors``: contact sensors that are doors to the outside (entry/exit nodes), beside the
+    layout's; every other contact (cupboards, appliances) is an ordinary node. ``hold_s`` /
+    ``hold_samples``: the lost-OFF repair (:func:`onebit.readers.casas.repair_lost_offs`)."""
     log, out = Path(log), Path(dataset)
     if not log.is_file():
         raise InputError("no such CASAS log", file=log)
-    for name, v, lo in (("--window", window_s, 0.0), ("--spacing", spacing_m, 0.0), ("--min-share", min_share, -1e-12)):
+    for name, v, lo in (("--window", window_s, 0.0), ("--spacing", spacing_m, 0.0), ("--min-share", min_share, -1e-12), ("--hold", hold_s, 0.0)):
         if not (isinstance(v, (int, float)) and math.isfinite(v) and v > lo):
             raise InputError(f"{name} = {v!r}: must be a positive number")
     if targets is not None and targets < 0:
         raise InputError(f"--targets = {targets!r}: must be >= 0")
+    if not isinstance(hold_samples, int) or hold_samples < 1:
+        raise InputError(f"--hold-samples = {hold_samples!r}: must be an integer >= 1")
     lay = load_layout(layout) if layout is not None else None
-    res: CasasLog = read_casas(log)
+    kinds = dict(lay.kinds) if lay is not None else {}
+    kinds.update({d: "door" for d in doors})
+    res: CasasLog = read_casas(log, kinds=kinds or None)
     ev = res.events
-    toggles = ev.filter(pl.col("kind").is_in(list(TOGGLE_KINDS)))
-    others = ev.filter(~pl.col("kind").is_in(list(TOGGLE_KINDS)))
-    notes = ev.filter(pl.col("annotation").is_not_null())
+    unplaced: list[str] = []
+    if lay is not None:  # graph sensors the layout does not place: kept in other.csv, named in import.toml
+        graph_ids = ev.filter(pl.col("kind").is_in(list(TOGGLE_KINDS)))["sensor"].unique().to_list()
+        unplaced = sorted((n for n in graph_ids if n not in lay.positions), key=_natural)
+    in_graph = pl.col("kind").is_in(list(TOGGLE_KINDS)) & ~pl.col("sensor").is_in(unplaced)
+    toggles_logged = ev.filter(in_graph)
+    others = ev.filter(~in_graph)
+    toggles, repairs = repair_lost_offs(toggles_logged, default_hold_s=hold_s, min_samples=hold_samples)
+    notes = ev.filter(pl.col("annotation").is_not_null() | pl.col("residents").is_not_null())
+    truth_events = toggles_logged.filter(pl.col("on") & pl.col("residents").is_not_null())
     nodes = sorted(toggles["sensor"].unique().to_list(), key=_natural)
     if not nodes:
-        raise InputError("no motion (M###) or door (D###) events in the log: nothing to track", file=log)
-    doors = [n for n in nodes if toggles.filter(pl.col("sensor") == n)["kind"][0] == "door"]
+        raise InputError("no motion (M###), contact (D###) or named motion sensor events in the log: nothing to track", file=log)
+    missing_doors = [d for d in doors if d not in nodes]
+    if missing_doors:
+        raise InputError(f"--doors {missing_doors}: no such contact sensor among the log's graph sensors {nodes}", file=log)
+    door_ids = sorted(toggles.filter(pl.col("kind") == "door")["sensor"].unique().to_list(), key=_natural)
 
     trans = pl.DataFrame()
     if lay is not None:
-        missing = [n for n in nodes if n not in lay.positions]
-        if missing:
-            raise InputError(f"sensor(s) {missing} of the log have no position in [sensors]", file=lay.source, field="sensors")
-        positions = {n: lay.positions[n] for n in sorted(lay.positions, key=_natural)}
+        positions = {n: lay.positions[n] for n in sorted(lay.positions, key=_natural) if n in nodes or not lay.only_logged}
         edges = sorted({(min(a, b), max(a, b)) for a, b in lay.edges}) if lay.edges is not None else None
         units, how = lay.units, "layout file"
     else:
         positions, edges, units, how = None, None, "m", "force layout"
     graph_how = "layout file"
+    if edges is None and lay is not None and lay.graph is not None:
+        edges, graph_how = lay.graph(positions), "geometry"
     if edges is None:
         edges, trans = learn_sensor_graph(toggles, nodes, window_s=window_s, min_count=min_count, min_share=min_share)
         graph_how = "learned"
     if positions is None:
         positions = force_layout(nodes, edges, spacing=spacing_m)
     all_nodes = list(positions)
-    doors = [n for n in all_nodes if n in doors]
+    door_ids = [n for n in all_nodes if n in door_ids]
     spacing = _median_edge(positions, edges) or spacing_m
     sensor_range = lay.range if lay is not None and lay.range is not None else round(spacing / 2.0, 3)
     epoch = _epoch_text(res)
@@ -344,24 +393,33 @@ def import_casas(
             if how == "force layout"
             else f"# Sensor positions from the layout file {Path(lay.source).name}.\n"
         )
-        + f"# Sensor graph: {graph_how}; doors are the entry/exit nodes.\n"
+        + f"# Sensor graph: {graph_how}; entry/exit nodes: the doors a layout or --doors declares ({len(door_ids)}), "
+        "never cupboard or appliance contacts.\n"
     )
     text = graph_site_toml(
         name=(lay.name if lay is not None and lay.name else log.stem), units=units, positions=positions, edges=edges,
-        doors=doors, sensor_range=sensor_range, boundary=lay.boundary if lay is not None else None, epoch=epoch,
+        doors=door_ids, sensor_range=sensor_range, boundary=lay.boundary if lay is not None else None, epoch=epoch,
         targets=targets if targets is not None else (lay.targets if lay is not None else None), header=header,
     )  # fmt: skip
     site_from_dict(tomllib.loads(text), source=str(out / "site.toml"))  # refuse to write a site that would not load
     out.mkdir(parents=True, exist_ok=True)
     write_text(text, out / "site.toml")
     t = pl.col("t").round(6)
-    write_csv(toggles.select(t, "sensor", "value", "stamp", pl.col("line").alias("log_line")), out / "motion.csv")
+    write_csv(
+        toggles.select(t, "sensor", "value", "stamp", pl.col("line").alias("log_line"), pl.col("repaired").cast(pl.Int8)), out / "motion.csv"
+    )
+    write_csv(truth_events.select(t, "sensor", "residents"), out / "truth_events.csv") if truth_events.height else None
     if others.height:
         write_csv(others.select(t, "sensor", "kind", "value", "stamp", pl.col("line").alias("log_line")), out / "other.csv")
     if notes.height:
-        write_csv(notes.select(t, "sensor", "value", "annotation", "stamp", pl.col("line").alias("log_line")), out / "annotations.csv")
+        write_csv(notes.select(t, "sensor", "value", "annotation", "residents", "tasks", "activity", "activity_edge", "stamp",
+                               pl.col("line").alias("log_line")), out / "annotations.csv")  # fmt: skip
     if res.rejects.height:
         write_csv(res.rejects.select(REJECTS.names()), out / "rejects.csv")
+    if res.annotation_problems.height:
+        write_csv(res.annotation_problems.select(REJECTS.names()), out / "annotation_problems.csv")
+    if repairs.height:
+        write_csv(repairs, out / "lost_offs.csv")
     if trans.height:
         write_csv(trans, out / "transitions.csv")
     counts = {
@@ -371,14 +429,18 @@ def import_casas(
         "reordered": res.reordered,
         **{f"kind_{k}": v for k, v in res.kind_counts().items()},
         "motion_csv": toggles.height,
+        "lost_off_repaired": repairs.height,
         "other_csv": others.height,
         "annotations": notes.height,
+        "annotation_problems": res.annotation_problems.height,
+        "truth_events": truth_events.height,
         "sensors": len(all_nodes),
-        "doors": len(doors),
+        "unplaced_sensors": len(unplaced),
+        "doors": len(door_ids),
         "edges": len(edges),
     }
     info = {
-        "source": {"file": str(log.resolve()), "format": "casas"},
+        "source": {"file": str(log.resolve()), "format": "casas-csv" if log.suffix.lower() == ".csv" else "casas"},
         "counts": counts,
         "time": res.origin.as_dict(),
         "graph": {
@@ -386,14 +448,25 @@ def import_casas(
             "rule": (
                 "consecutive ON/OPEN events of two sensors at most window_s apart are a transition; an edge needs "
                 ">= min_count transitions making >= min_share of the less busy sensor's; components joined by a "
-                "maximum spanning forest of the counts (transitions.csv)" if graph_how == "learned" else "from the layout file"
+                "maximum spanning forest of the counts (transitions.csv)" if graph_how == "learned" else
+                (lay.graph_rule if graph_how == "geometry" else "from the layout file")
             ),
             "window_s": window_s,
             "min_count": min_count,
             "min_share": min_share,
         },
-        "layout": {"positions": how, "spacing": round(spacing, 3), "range": sensor_range},
-    }
+        "doors": {"entries_exits": door_ids, "rule": "only contacts declared doors by the layout or --doors; other contacts are ordinary nodes"},
+        "lost_off": {
+            "rule": "a repeated ON more than the sensor's hold time after the previous ON gets an OFF at t_prev + hold "
+                    "(hold = median on-duration with >= hold_samples samples, else hold_s); lost_offs.csv lists them",
+            "hold_s": hold_s,
+            "hold_samples": hold_samples,
+            "repaired": repairs.height,
+        },
+        "truth_events": {"rule": "ON/OPEN events of graph sensors with resident annotations: t, sensor, residents (ids sorted, ';')",
+                         "rows": truth_events.height},
+        "layout": {"positions": how, "spacing": round(spacing, 3), "range": sensor_range, "unplaced": unplaced},
+    }  # fmt: skip
     write_text(to_toml(info), out / "import.toml")
     return ImportSummary(out, counts, info)
 
