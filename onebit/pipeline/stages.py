@@ -46,6 +46,7 @@ from onebit.scoring import findinghumo as score_findinghumo
 from onebit.scoring import intruder as score_intruder
 from onebit.scoring import istate as score_istate
 from onebit.scoring.crossings import ScoresConfig, score_crossings, true_crossings_from_truth, truth_regions
+from onebit.scoring.identity import baseline_rows, graph_hops, identity_scores
 from onebit.scoring.mot import GATES, Gate, mot_rows
 from onebit.scoring.serve import CannotServe
 from onebit.trackers import beams, clustertrack, findinghumo, findinghumo_flow, intruder, istate
@@ -446,6 +447,14 @@ def scores_stage(trackers: tuple[TrackerEntry, ...] = TRACKERS) -> Stage:
             ctx.report += rows
             out.update(made)
             tables.update(made)
+        te = tables.get("truth_events")
+        if te is not None and te.height:  # identity per event: every tracker that wrote <tracker>_events, and the baselines
+            for entry in trackers:
+                ev = tables.get(f"{entry.name}_events")
+                if ev is None or not ctx.status.get(entry.name, "").startswith("ok"):
+                    continue
+                ctx.report += identity_scores(te, ev, tracks=tables.get(f"{entry.name}_tracks")).rows(entry.name)
+            ctx.report += baseline_rows(te, graph_hops(ctx.site))
         rej = ctx.tables.get("rejects", pl.DataFrame(schema=REJECTS))
         ctx.report.append(("rejects", "rows", float(rej.height), "rows"))
         out["timings"] = tables["timings"]
