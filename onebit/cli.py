@@ -129,7 +129,7 @@ def _cmd_import_casas(args) -> int:
     doors = tuple(d.strip() for d in args.doors.split(",") if d.strip()) if args.doors else ()
     res = import_casas(args.log, args.dataset, layout=args.layout, targets=args.targets, doors=doors, window_s=args.window,
                        min_count=args.min_count, min_share=args.min_share, spacing_m=args.spacing, hold_s=args.hold,
-                       hold_samples=args.hold_samples)  # fmt: skip
+                       hold_samples=args.hold_samples, scale=args.scale, rooms=args.rooms, graph_radius=args.graph_radius)  # fmt: skip
     c = res.counts
     print(f"imported {args.log} -> {args.dataset}: {c['events']} events ({c['motion_csv']} motion/contact in motion.csv, "
           f"{c['lost_off_repaired']} lost OFFs repaired, {c['other_csv']} others in other.csv, {c['annotations']} annotated, "
@@ -255,7 +255,12 @@ def build_parser() -> argparse.ArgumentParser:
     ic = isub.add_parser("casas", help="a CASAS smart-home log (.txt, or pymrt events.csv) -> motion.csv, truth_events.csv, other.csv, annotations.csv, site.toml")
     ic.add_argument("log")
     ic.add_argument("dataset")
-    ic.add_argument("--layout", help="layout.toml: sensor positions (and edges); without it the graph is learned from the log")
+    ic.add_argument("--layout", help="layout.toml (positions, edges), or a floor plan sensors.json / sensors.csv / pymrt site.json "
+                    "(pixels or normalised, with --scale; edges from geometry); without it the graph is learned from the log")
+    ic.add_argument("--rooms", default=None, help="floor plan rooms (JSON: rectangles or polygons, in the plan's coordinates)")
+    ic.add_argument("--scale", type=float, default=None, help="floor plan: metres per pixel (or per plan width for normalised coordinates)")
+    ic.add_argument("--graph-radius", type=float, default=None, help="floor plan graph: link sensors within this many metres "
+                    "(default: the smallest distance that keeps the graph connected)")
     ic.add_argument("--targets", type=int, default=None, help="the most residents present at once (site.toml targets)")
     ic.add_argument("--window", type=float, default=5.0, help="learned graph: s between two sensors' ON for a transition")
     ic.add_argument("--min-count", type=int, default=3, help="learned graph: transitions an edge needs")
