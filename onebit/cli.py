@@ -126,11 +126,14 @@ def _cmd_logs_convert(args) -> int:
 
 
 def _cmd_import_casas(args) -> int:
-    res = import_casas(args.log, args.dataset, layout=args.layout, targets=args.targets, window_s=args.window,
-                       min_count=args.min_count, min_share=args.min_share, spacing_m=args.spacing)  # fmt: skip
+    doors = tuple(d.strip() for d in args.doors.split(",") if d.strip()) if args.doors else ()
+    res = import_casas(args.log, args.dataset, layout=args.layout, targets=args.targets, doors=doors, window_s=args.window,
+                       min_count=args.min_count, min_share=args.min_share, spacing_m=args.spacing, hold_s=args.hold,
+                       hold_samples=args.hold_samples, scale=args.scale, rooms=args.rooms, graph_radius=args.graph_radius)  # fmt: skip
     c = res.counts
-    print(f"imported {args.log} -> {args.dataset}: {c['events']} events ({c['motion_csv']} motion/door in motion.csv, "
-          f"{c['other_csv']} others in other.csv, {c['annotations']} annotated), {c['rejected']} rejected lines, "
+    print(f"imported {args.log} -> {args.dataset}: {c['events']} events ({c['motion_csv']} motion/contact in motion.csv, "
+          f"{c['lost_off_repaired']} lost OFFs repaired, {c['other_csv']} others in other.csv, {c['annotations']} annotated, "
+          f"{c['truth_events']} resident-labelled in truth_events.csv), {c['rejected']} rejected lines, "
           f"{c['reordered']} out of order (sorted); {c['sensors']} sensors, {c['edges']} edges "
           f"({res.info['graph']['source']} graph, positions: {res.info['layout']['positions']}); see import.toml")  # fmt: skip
     return 0
@@ -249,15 +252,23 @@ def build_parser() -> argparse.ArgumentParser:
 
     im = sub.add_parser("import", help="make a dataset folder from the field's own recordings (CASAS, trajectories)")
     isub = im.add_subparsers(dest="import_command", required=True)
-    ic = isub.add_parser("casas", help="a CASAS smart-home log (.txt) -> motion.csv, other.csv, annotations.csv, site.toml")
+    ic = isub.add_parser("casas", help="a CASAS smart-home log (.txt, or pymrt events.csv) -> motion.csv, truth_events.csv, other.csv, annotations.csv, site.toml")
     ic.add_argument("log")
     ic.add_argument("dataset")
-    ic.add_argument("--layout", help="layout.toml: sensor positions (and edges); without it the graph is learned from the log")
+    ic.add_argument("--layout", help="layout.toml (positions, edges), or a floor plan sensors.json / sensors.csv / pymrt site.json "
+                    "(pixels or normalised, with --scale; edges from geometry); without it the graph is learned from the log")
+    ic.add_argument("--rooms", default=None, help="floor plan rooms (JSON: rectangles or polygons, in the plan's coordinates)")
+    ic.add_argument("--scale", type=float, default=None, help="floor plan: metres per pixel (or per plan width for normalised coordinates)")
+    ic.add_argument("--graph-radius", type=float, default=None, help="floor plan graph: link sensors within this many metres "
+                    "(default: the smallest distance that keeps the graph connected)")
     ic.add_argument("--targets", type=int, default=None, help="the most residents present at once (site.toml targets)")
     ic.add_argument("--window", type=float, default=5.0, help="learned graph: s between two sensors' ON for a transition")
     ic.add_argument("--min-count", type=int, default=3, help="learned graph: transitions an edge needs")
     ic.add_argument("--min-share", type=float, default=0.1, help="learned graph: share of the less busy sensor's transitions")
     ic.add_argument("--spacing", type=float, default=3.0, help="force layout: edge length (m)")
+    ic.add_argument("--doors", default=None, help="comma-separated contact ids that are doors to the outside (entry/exit nodes)")
+    ic.add_argument("--hold", type=float, default=5.0, help="lost OFF repair: hold time (s) of a sensor with too few on-durations")
+    ic.add_argument("--hold-samples", type=int, default=5, help="lost OFF repair: on-durations a sensor needs for its own (median) hold time")
     ic.set_defaults(func=_cmd_import_casas)
     it = isub.add_parser("trajectories", help="a people-counter / indoor-positioning export -> truth.csv")
     it.add_argument("file")
