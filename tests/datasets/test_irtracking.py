@@ -71,3 +71,22 @@ def test_missing_coordinates_and_bad_options(tmp_path, files):
         import_irtracking(files.readings, tmp_path / "ds", targets=0)
     with pytest.raises(InputError, match="field 'r_inner'"):
         import_irtracking(files.readings, tmp_path / "ds", radius=1.0, r_inner=2.0)
+
+
+def test_imported_dataset_runs_from_its_frame_log(files, tmp_path):
+    """The frames stage serves every tracker's tables from frames.csv: levels at every frame,
+    motion edges and proximity frames of the binary sensors declared once."""
+    from onebit.pipeline.report import metric
+    from onebit.pipeline.runner import run_pipeline
+
+    ds = tmp_path / "ds"
+    import_irtracking(files.readings, ds, truth=files.truth, radius=0.8, targets=3)
+    res = run_pipeline(ds, tmp_path / "run", trackers=["istate"])
+    assert res.status["frames"].startswith("ok") and res.status["motion"].startswith("skipped")
+    lv = pl.read_parquet(tmp_path / "run" / "tables" / "levels.parquet")
+    n = len(files.sensors_mm)
+    assert lv.height == 30 * n and int(lv["on"].sum()) == sum(len(v) for v in files.active.values())
+    pf = pl.read_parquet(tmp_path / "run" / "tables" / "proximity_frames.parquet")
+    assert pf.height == lv.height
+    assert metric(res.report, "frames/frames") == 30 and metric(res.report, "frames/rejected") == 0
+    assert res.status["istate"].startswith("ok")
