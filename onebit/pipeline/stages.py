@@ -482,7 +482,7 @@ def scores_stage(trackers: tuple[TrackerEntry, ...] = TRACKERS) -> Stage:
                 continue
             try:  # one tracker's scoring failing (say, a sensor without a region) keeps the others'
                 rows, made = entry.score(entry.name, tables, ctx.site, ctx.region_graph)
-                rows = rows + mot_rows(entry.name, entry.gate, tables, ctx.site, ctx.region_graph)
+                rows = rows + mot_rows(entry.name, entry.gate, tables, ctx.site, ctx.region_graph, gates_m=cfg.gates_m)
             except CannotServe as exc:  # the tracker's model does not fit the data: a flag, no number
                 ctx.status[f"scores/{entry.name}"] = f"cannot serve the data: {exc}"
                 ctx.report.append((entry.name, "cannot_serve", 1.0, "flag"))
