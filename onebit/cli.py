@@ -33,9 +33,12 @@ def _cmd_run(args) -> int:
     trackers = tuple(t.strip() for t in args.trackers.split(",")) if args.trackers else None
     config = load_run_config(args.config)
     print(f"onebit run {args.dataset} -> {args.out}")
-    res = run_pipeline(args.dataset, args.out, trackers=trackers, config=config, echo=print)
+    res = run_pipeline(args.dataset, args.out, trackers=trackers, config=config, echo=print, rrd=not args.no_rrd)
     print(format_report(res.report, title=f"report of {args.out}"))
-    print(f"Rerun recordings: {Path(args.out) / 'rrd'}/*.rrd   (open later with: rerun {Path(args.out) / 'rrd'}/*.rrd)")
+    if args.no_rrd:
+        print("Rerun recordings: none (--no-rrd)")
+    else:
+        print(f"Rerun recordings: {Path(args.out) / 'rrd'}/*.rrd   (open later with: rerun {Path(args.out) / 'rrd'}/*.rrd)")
     failed = [name for name, state in res.status.items() if state.startswith("failed")]
     for why in ([f"stage(s) failed: {', '.join(failed)} (see {Path(args.out) / 'run.toml'})"] if failed else []) + res.problems:
         print(f"onebit: run not ok: {why}", file=sys.stderr)
@@ -62,7 +65,7 @@ def _cmd_run_many(args) -> int:
     trackers = tuple(t.strip() for t in args.trackers.split(",")) if args.trackers else None
     config = load_run_config(args.config)
     with _executor(args) as ex:
-        res = run_many(args.datasets, args.out, trackers=trackers, config=config, executor=ex, echo=print)
+        res = run_many(args.datasets, args.out, trackers=trackers, config=config, executor=ex, echo=print, rrd=not args.no_rrd)
     print(format_summary(res))
     return 0 if res.ok else 1
 
@@ -218,6 +221,8 @@ def build_parser() -> argparse.ArgumentParser:
     r.add_argument("--out", required=True, help="run folder to write")
     r.add_argument("--trackers", help="comma-separated tracker names (default: all)")
     r.add_argument("--config", help="run.toml with one [section] per stage")
+    r.add_argument("--no-rrd", action="store_true",
+                   help="write no Rerun recordings (rrd/): the same tables and report, faster (batch sweeps)")
     r.set_defaults(func=_cmd_run)
 
     rm = sub.add_parser("run-many", help="run the pipeline on many dataset folders (process pool or Ray)")
@@ -226,6 +231,7 @@ def build_parser() -> argparse.ArgumentParser:
     rm.add_argument("--out", required=True, help="folder for one run folder per dataset and summary.parquet/.csv")
     rm.add_argument("--trackers", help="comma-separated tracker names (default: all)")
     rm.add_argument("--config", help="run.toml with one [section] per stage, for every dataset")
+    rm.add_argument("--no-rrd", action="store_true", help="write no Rerun recordings (as onebit run --no-rrd)")
     _add_executor_options(rm)
     rm.set_defaults(func=_cmd_run_many)
 
