@@ -23,7 +23,7 @@ from onebit.pipeline.report import check_run_folder, format_report, load_report
 from onebit.pipeline.runmany import format_summary, run_many
 from onebit.pipeline.runner import load_run_config, run_pipeline
 from onebit.readers.loginfo import format_log_info, log_info
-from onebit.readers.mcap_io import csv_folder_to_mcap, mcap_to_csv_folder
+from onebit.readers.mcap_io import csv_folder_to_mcap, load_topic_map, mcap_to_csv_folder
 from onebit.readers.trajectories import TrajectoryFormat
 from onebit.trackers.beams.verify import parse_story, verify_path
 
@@ -113,12 +113,35 @@ def _cmd_logs_info(args) -> int:
     return 0
 
 
+def _run_tracks(run: Path) -> "pl.DataFrame":
+    """Every ``tables/<tracker>_tracks.parquet`` of a run folder, as view input (lined up
+    with the raw logs' own stamps by the run's ``[time]`` origin)."""
+    import polars as pl
+
+    from onebit.core.config import load_toml
+    from onebit.readers.mcap_io import tracks_for_views
+
+    parts = sorted((run / "tables").glob("*_tracks.parquet"))
+    if not parts:
+        raise OnebitError(f"--run {run}: no tables/*_tracks.parquet (not a finished run folder?)")
+    tracks = pl.concat([pl.read_parquet(p).select("tracker", "track", "t", "x", "y") for p in parts])
+    time = load_toml(run / "run.toml").get("time", {}) if (run / "run.toml").is_file() else {}
+    offset = float(time.get("origin_s", 0.0)) if time.get("source") == "data" else 0.0
+    return tracks_for_views(tracks, offset_s=offset)
+
+
 def _cmd_logs_convert(args) -> int:
     src, dst = Path(args.src), Path(args.dst)
     if src.suffix.lower() == ".mcap":
-        mcap_to_csv_folder(src, dst)
+        topic_map = load_topic_map(args.topics) if args.topics else None
+        conv = mcap_to_csv_folder(src, dst, topic_map=topic_map)
+        if conv.rejects.height:
+            print(f"  {conv.rejects.height} message(s) not carried over:")
+            for source, line, reason in conv.rejects.select("source", "line", "reason").head(10).iter_rows():
+                print(f"    {source}{'' if line is None else f':{line}'}: {reason}")
     elif dst.suffix.lower() == ".mcap":
-        csv_folder_to_mcap(src, dst)
+        tracks = _run_tracks(Path(args.run)) if args.run else None
+        csv_folder_to_mcap(src, dst, views=not args.no_views, tracks=tracks)
     else:
         raise OnebitError("one of IN and OUT must be an .mcap file")
     print(f"converted {src} -> {dst}")
@@ -282,9 +305,12 @@ def build_parser() -> argparse.ArgumentParser:
     li = lsub.add_parser("info", help="channels, sensors, time span, rates and rejects of a log")
     li.add_argument("file")
     li.set_defaults(func=_cmd_logs_info)
-    lc = lsub.add_parser("convert", help="CSV/Parquet folder <-> MCAP")
+    lc = lsub.add_parser("convert", help="CSV/Parquet folder <-> MCAP (chunked, zstd, raw channels + Foxglove views)")
     lc.add_argument("src")
     lc.add_argument("dst")
+    lc.add_argument("--no-views", action="store_true", help="raw channels only (no Foxglove SceneUpdate/PointCloud/Log views)")
+    lc.add_argument("--run", metavar="RUN", help="a run folder of this dataset: add its tracks as views")
+    lc.add_argument("--topics", metavar="TOML", help="MCAP -> CSV: mcap_topics.toml mapping ROS 2 Bool topics to sensors")
     lc.set_defaults(func=_cmd_logs_convert)
     return p
 

@@ -44,7 +44,7 @@ from onebit.core.tables import REJECTS, REPORT
 from onebit.pipeline.context import RunContext, Stage, dataset_run_config
 from onebit.pipeline.progress import ProgressSink, progress_sink
 from onebit.pipeline.stages import TRACKERS, TrackerEntry, stages
-from onebit.readers.mcap_io import read_mcap
+from onebit.readers.mcap_io import load_topic_map, read_mcap
 from onebit.readers.rows import RawRows
 from onebit.trackers.base import ARTIFACTS
 from onebit.viz.blueprint import save_run_blueprint
@@ -306,10 +306,12 @@ def _run_stages(
 
 
 def _read_mcaps(ctx: RunContext, echo: Callable[[str], None]) -> None:
-    """Every ``*.mcap`` of the dataset: its channels become sources, its rejects rejects."""
+    """Every ``*.mcap`` of the dataset: its channels become sources, its rejects rejects; the
+    dataset's ``mcap_topics.toml`` maps foreign boolean topics (ROS 2 bags) to sensors."""
+    topics = ctx.dataset / "mcap_topics.toml"
     for mp in sorted(ctx.dataset.glob("*.mcap")):
         try:
-            contents = read_mcap(mp)
+            contents = read_mcap(mp, topic_map=load_topic_map(topics) if topics.is_file() else None)
         except OnebitError as exc:
             ctx.status[f"mcap:{mp.name}"] = f"failed: {exc}"
             echo(f"  {mp.name}: failed: {exc}")
