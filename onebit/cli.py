@@ -1,4 +1,4 @@
-"""The ``onebit`` command line: run, run-many, report, simulate, experiment, import (CASAS, trajectories), logs info / logs convert."""
+"""The ``onebit`` command line: run, follow, compare, run-many, report, simulate, experiment, import (CASAS, trajectories), logs info / logs convert."""
 
 from __future__ import annotations
 
@@ -39,6 +39,24 @@ def _cmd_run(args) -> int:
     for why in ([f"stage(s) failed: {', '.join(failed)} (see {Path(args.out) / 'run.toml'})"] if failed else []) + res.problems:
         print(f"onebit: run not ok: {why}", file=sys.stderr)
     return 0 if res.ok else 1
+
+
+def _cmd_follow(args) -> int:
+    from onebit.pipeline.follow import FollowConfig, follow, parse_speed
+
+    trackers = tuple(t.strip() for t in args.trackers.split(",")) if args.trackers else None
+    config = load_run_config(args.config)
+    options = FollowConfig(replay=parse_speed(args.replay) if args.replay else None, poll=args.poll, idle=args.idle, settle=args.settle)
+    how = f"replay at {options.replay:g}x" if options.replay else f"following the growing logs (ends after {options.idle:g} s idle)"
+    print(f"onebit follow {args.dataset} -> {args.out}: {how}")
+    res = follow(args.dataset, args.out, trackers=trackers, config=config, options=options, connect=args.connect,
+                 serve_web=args.serve_web, echo=print)  # fmt: skip
+    print(format_report(res.run.report, title=f"report of {args.out}"))
+    print(format_report(res.report, title=f"follow: online trackers ({res.live})"))
+    print(f"Rerun: {res.live / 'rrd' / 'follow.rrd'} (live stream), {Path(args.out) / 'rrd'}/*.rrd (batch run)")
+    for why in res.run.problems:
+        print(f"onebit: run not ok: {why}", file=sys.stderr)
+    return 0 if res.run.ok else 1
 
 
 def _executor(args):
@@ -227,6 +245,20 @@ def build_parser() -> argparse.ArgumentParser:
     r.add_argument("--trackers", help="comma-separated tracker names (default: all)")
     r.add_argument("--config", help="run.toml with one [section] per stage")
     r.set_defaults(func=_cmd_run)
+
+    fo = sub.add_parser("follow", help="follow a dataset's logs as they grow (or replay them), publish estimates live, end with the batch run")
+    fo.add_argument("dataset")
+    fo.add_argument("--out", required=True, help="run folder: OUT/live/ holds the live tables, stream and report")
+    fo.add_argument("--replay", metavar="SPEED", help="replay a finished log at SPEED (e.g. 20x) instead of following growth")
+    fo.add_argument("--trackers", help="comma-separated tracker names (default: all)")
+    fo.add_argument("--config", help="run.toml with one [section] per stage")
+    fo.add_argument("--poll", type=float, default=0.25, help="seconds between polls: the publication cadence (default 0.25)")
+    fo.add_argument("--idle", type=float, default=10.0, help="seconds without a new line that end a live run (default 10)")
+    fo.add_argument("--settle", type=float, default=None, help="seconds before an event is final (default: the readers' look-ahead)")
+    fo.add_argument("--connect", metavar="URL", nargs="?", const="rerun+http://127.0.0.1:9876/proxy",
+                    help="also stream to a Rerun viewer that is open (default URL rerun+http://127.0.0.1:9876/proxy)")
+    fo.add_argument("--serve-web", action="store_true", help="also serve the stream to a web viewer (prints its URL)")
+    fo.set_defaults(func=_cmd_follow)
 
     rm = sub.add_parser("run-many", help="run the pipeline on many dataset folders (process pool or Ray)")
     rm.add_argument("datasets", nargs="+", metavar="DATASET",
