@@ -1,4 +1,4 @@
-"""The ``onebit`` command line: run, run-many, report, simulate, experiment, import (CASAS, trajectories), logs info / logs convert."""
+"""The ``onebit`` command line: run, follow, compare, run-many, report, simulate, experiment, import (CASAS, trajectories), logs info / logs convert."""
 
 from __future__ import annotations
 
@@ -24,7 +24,7 @@ from onebit.pipeline.report import check_run_folder, format_report, load_report
 from onebit.pipeline.runmany import format_summary, run_many
 from onebit.pipeline.runner import load_run_config, run_pipeline
 from onebit.readers.loginfo import format_log_info, log_info
-from onebit.readers.mcap_io import csv_folder_to_mcap, mcap_to_csv_folder
+from onebit.readers.mcap_io import csv_folder_to_mcap, load_topic_map, mcap_to_csv_folder
 from onebit.readers.trajectories import TrajectoryFormat
 from onebit.trackers.beams.verify import parse_story, verify_path
 
@@ -43,6 +43,24 @@ def _cmd_run(args) -> int:
     for why in ([f"stage(s) failed: {', '.join(failed)} (see {Path(args.out) / 'run.toml'})"] if failed else []) + res.problems:
         print(f"onebit: run not ok: {why}", file=sys.stderr)
     return 0 if res.ok else 1
+
+
+def _cmd_follow(args) -> int:
+    from onebit.pipeline.follow import FollowConfig, follow, parse_speed
+
+    trackers = tuple(t.strip() for t in args.trackers.split(",")) if args.trackers else None
+    config = load_run_config(args.config)
+    options = FollowConfig(replay=parse_speed(args.replay) if args.replay else None, poll=args.poll, idle=args.idle, settle=args.settle)
+    how = f"replay at {options.replay:g}x" if options.replay else f"following the growing logs (ends after {options.idle:g} s idle)"
+    print(f"onebit follow {args.dataset} -> {args.out}: {how}")
+    res = follow(args.dataset, args.out, trackers=trackers, config=config, options=options, connect=args.connect,
+                 serve_web=args.serve_web, echo=print)  # fmt: skip
+    print(format_report(res.run.report, title=f"report of {args.out}"))
+    print(format_report(res.report, title=f"follow: online trackers ({res.live})"))
+    print(f"Rerun: {res.live / 'rrd' / 'follow.rrd'} (live stream), {Path(args.out) / 'rrd'}/*.rrd (batch run)")
+    for why in res.run.problems:
+        print(f"onebit: run not ok: {why}", file=sys.stderr)
+    return 0 if res.run.ok else 1
 
 
 def _executor(args):
@@ -117,12 +135,35 @@ def _cmd_logs_info(args) -> int:
     return 0
 
 
+def _run_tracks(run: Path) -> "pl.DataFrame":
+    """Every ``tables/<tracker>_tracks.parquet`` of a run folder, as view input (lined up
+    with the raw logs' own stamps by the run's ``[time]`` origin)."""
+    import polars as pl
+
+    from onebit.core.config import load_toml
+    from onebit.readers.mcap_io import tracks_for_views
+
+    parts = sorted((run / "tables").glob("*_tracks.parquet"))
+    if not parts:
+        raise OnebitError(f"--run {run}: no tables/*_tracks.parquet (not a finished run folder?)")
+    tracks = pl.concat([pl.read_parquet(p).select("tracker", "track", "t", "x", "y") for p in parts])
+    time = load_toml(run / "run.toml").get("time", {}) if (run / "run.toml").is_file() else {}
+    offset = float(time.get("origin_s", 0.0)) if time.get("source") == "data" else 0.0
+    return tracks_for_views(tracks, offset_s=offset)
+
+
 def _cmd_logs_convert(args) -> int:
     src, dst = Path(args.src), Path(args.dst)
     if src.suffix.lower() == ".mcap":
-        mcap_to_csv_folder(src, dst)
+        topic_map = load_topic_map(args.topics) if args.topics else None
+        conv = mcap_to_csv_folder(src, dst, topic_map=topic_map)
+        if conv.rejects.height:
+            print(f"  {conv.rejects.height} message(s) not carried over:")
+            for source, line, reason in conv.rejects.select("source", "line", "reason").head(10).iter_rows():
+                print(f"    {source}{'' if line is None else f':{line}'}: {reason}")
     elif dst.suffix.lower() == ".mcap":
-        csv_folder_to_mcap(src, dst)
+        tracks = _run_tracks(Path(args.run)) if args.run else None
+        csv_folder_to_mcap(src, dst, views=not args.no_views, tracks=tracks)
     else:
         raise OnebitError("one of IN and OUT must be an .mcap file")
     print(f"converted {src} -> {dst}")
@@ -225,6 +266,20 @@ def build_parser() -> argparse.ArgumentParser:
                    help="write no Rerun recordings (rrd/): the same tables and report, faster (batch sweeps)")
     r.set_defaults(func=_cmd_run)
 
+    fo = sub.add_parser("follow", help="follow a dataset's logs as they grow (or replay them), publish estimates live, end with the batch run")
+    fo.add_argument("dataset")
+    fo.add_argument("--out", required=True, help="run folder: OUT/live/ holds the live tables, stream and report")
+    fo.add_argument("--replay", metavar="SPEED", help="replay a finished log at SPEED (e.g. 20x) instead of following growth")
+    fo.add_argument("--trackers", help="comma-separated tracker names (default: all)")
+    fo.add_argument("--config", help="run.toml with one [section] per stage")
+    fo.add_argument("--poll", type=float, default=0.25, help="seconds between polls: the publication cadence (default 0.25)")
+    fo.add_argument("--idle", type=float, default=10.0, help="seconds without a new line that end a live run (default 10)")
+    fo.add_argument("--settle", type=float, default=None, help="seconds before an event is final (default: the readers' look-ahead)")
+    fo.add_argument("--connect", metavar="URL", nargs="?", const="rerun+http://127.0.0.1:9876/proxy",
+                    help="also stream to a Rerun viewer that is open (default URL rerun+http://127.0.0.1:9876/proxy)")
+    fo.add_argument("--serve-web", action="store_true", help="also serve the stream to a web viewer (prints its URL)")
+    fo.set_defaults(func=_cmd_follow)
+
     rm = sub.add_parser("run-many", help="run the pipeline on many dataset folders (process pool or Ray)")
     rm.add_argument("datasets", nargs="+", metavar="DATASET",
                     help="dataset folders, globs ('data/*/floor*') or files listing one folder per line")
@@ -322,9 +377,12 @@ def build_parser() -> argparse.ArgumentParser:
     li = lsub.add_parser("info", help="channels, sensors, time span, rates and rejects of a log")
     li.add_argument("file")
     li.set_defaults(func=_cmd_logs_info)
-    lc = lsub.add_parser("convert", help="CSV/Parquet folder <-> MCAP")
+    lc = lsub.add_parser("convert", help="CSV/Parquet folder <-> MCAP (chunked, zstd, raw channels + Foxglove views)")
     lc.add_argument("src")
     lc.add_argument("dst")
+    lc.add_argument("--no-views", action="store_true", help="raw channels only (no Foxglove SceneUpdate/PointCloud/Log views)")
+    lc.add_argument("--run", metavar="RUN", help="a run folder of this dataset: add its tracks as views")
+    lc.add_argument("--topics", metavar="TOML", help="MCAP -> CSV: mcap_topics.toml mapping ROS 2 Bool topics to sensors")
     lc.set_defaults(func=_cmd_logs_convert)
     return p
 
