@@ -27,6 +27,9 @@ from onebit.readers.loginfo import format_log_info, log_info
 from onebit.readers.mcap_io import csv_folder_to_mcap, load_topic_map, mcap_to_csv_folder
 from onebit.readers.trajectories import TrajectoryFormat
 from onebit.trackers.beams.verify import parse_story, verify_path
+from onebit.pipeline.follow import FollowConfig, follow, parse_speed
+from onebit.core.config import load_toml
+from onebit.readers.mcap_io import tracks_for_views
 
 
 def _cmd_run(args) -> int:
@@ -46,8 +49,6 @@ def _cmd_run(args) -> int:
 
 
 def _cmd_follow(args) -> int:
-    from onebit.pipeline.follow import FollowConfig, follow, parse_speed
-
     trackers = tuple(t.strip() for t in args.trackers.split(",")) if args.trackers else None
     config = load_run_config(args.config)
     options = FollowConfig(replay=parse_speed(args.replay) if args.replay else None, poll=args.poll, idle=args.idle, settle=args.settle)
@@ -140,8 +141,6 @@ def _run_tracks(run: Path) -> "pl.DataFrame":
     with the raw logs' own stamps by the run's ``[time]`` origin)."""
     import polars as pl
 
-    from onebit.core.config import load_toml
-    from onebit.readers.mcap_io import tracks_for_views
 
     parts = sorted((run / "tables").glob("*_tracks.parquet"))
     if not parts:

@@ -54,6 +54,7 @@ from onebit.core.writers import to_toml, write_csv, write_text
 from onebit.readers.casas import ALL_KINDS, DEFAULT_HOLD_S, MIN_HOLD_SAMPLES, TOGGLE_KINDS, CasasLog, read_casas, repair_lost_offs
 from onebit.readers.trajectories import TrajectoryFormat, read_trajectories
 from onebit.core.lazy import lazy_module
+from onebit.core.sensor_graph import geometric_sensor_graph
 
 nx = lazy_module("networkx")
 
@@ -301,8 +302,6 @@ def load_floor_plan(
     import json
 
     import shapely
-
-    from onebit.core.sensor_graph import geometric_sensor_graph
 
     path = Path(path)
     if path.suffix.lower() == ".csv":
