@@ -58,8 +58,8 @@ class ResidentsConfig:
     beam : states kept per event (0 = all: the exact minimum of (1)). Default 1 (each event
         committed to its cheapest continuation): measured better than the exact minimum on
         the real sessions (docs/residents.md).
-    distance : ``"straight"`` (between sensor positions) or ``"graph"`` (shortest paths
-        over the site's sensor graph).
+    distance : ``"graph"`` (shortest paths over the site's sensor graph, each edge as long as
+        the straight line between its sensors) or ``"straight"`` (between sensor positions).
     period : seconds between two rows of a person in ``tracks``.
     exit_after_s : silence after a last event at an exit node after which the person has left.
     """
@@ -75,7 +75,7 @@ class ResidentsConfig:
     start_window_s: float = 60.0
     max_people: int = 4
     beam: int = 1
-    distance: str = "straight"
+    distance: str = "graph"
     period: float = 1.0
     exit_after_s: float = 60.0
 
@@ -190,14 +190,17 @@ def presence(t: np.ndarray, node: np.ndarray, res: Attribution, home: Home, cfg:
 
 
 def tracks_table(t: np.ndarray, node: np.ndarray, res: Attribution, names: np.ndarray, home: Home, cfg: ResidentsConfig) -> pl.DataFrame:
-    """Every person every ``period`` s while present, at the node of their latest event."""
+    """Every person on one grid of ``period`` s from the first event, while present, at the
+    node of their latest event at or before the grid time."""
     frames = []
     start, end = presence(t, node, res, home, cfg)
+    grid = float(t[0]) + cfg.period * np.arange(int(np.floor((t[-1] - t[0]) / cfg.period)) + 1) if len(t) else np.zeros(0)
     for p in range(res.people):
         mine = np.flatnonzero(res.track == p)
-        ts = np.arange(start[p], end[p] + 1e-9, cfg.period)
-        ts = np.union1d(np.union1d(ts, [end[p]]), t[mine])
-        k = node[mine[np.searchsorted(t[mine], ts, side="right") - 1]]
+        ts = grid[(grid >= start[p] - 1e-9) & (grid <= end[p] + 1e-9)]
+        if ts.size == 0:  # present between two grid times: its first one after the start
+            ts = grid[np.searchsorted(grid, start[p]) :][:1]
+        k = node[mine[np.maximum(np.searchsorted(t[mine], ts + 1e-9, side="right") - 1, 0)]]
         frames.append(pl.DataFrame({"track": names[p], "t": ts, "x": home.xy[k, 0], "y": home.xy[k, 1],
                                     "node": np.asarray(home.nodes, dtype=object)[k].tolist()},
                                    schema_overrides={"node": pl.String, "track": pl.String}))  # fmt: skip
