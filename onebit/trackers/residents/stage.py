@@ -70,7 +70,7 @@ class ResidentsConfig:
     silence_weight: float = 0.0
     silence_tau_s: float = 10.0
     stay: float = 0.0
-    birth_door: float = 4.0
+    birth_door: float = 6.0
     birth_inside: float = 15.0
     start_window_s: float = 60.0
     max_people: int = 4
