@@ -22,7 +22,10 @@ Each tab opens on what its paper is about (:mod:`onebit.viz.families`):
 * **istate** -- the I-state's elements filled and outlined over the site with the sensing
   regions reading 1 now and the true positions (all sensing regions and the point summaries'
   trails hidden);
-  element count, area and error.
+  element count, area and error;
+* **residents** -- each person at the sensor of their latest event with their trail, every
+  motion event in the colour of the person it was given to; error per track (where there is
+  truth); the people present; sensor states.
 
 Views that would be empty are not created and every view names only logged entities (exact
 paths). Every logged entity is in some view: what no family shows goes to a last tab, "more".
