@@ -102,9 +102,18 @@ def _cmd_simulate(args) -> int:
 
 
 def _cmd_experiment(args) -> int:
+    import inspect
+
     mod = get_experiment(args.name)
+    extra = {}
+    params = inspect.signature(mod.run).parameters
+    for key, value in (("data", args.data), ("trackers", tuple(args.trackers.split(",")) if args.trackers else None)):
+        if value is not None:
+            if key not in params:
+                raise ConfigError(f"experiment {args.name!r} takes no --{key}")
+            extra[key] = value
     with _executor(args) as ex:
-        out = mod.run(Path(args.out), seed=args.seed, trials=args.trials, quick=args.quick, echo=print, executor=ex)
+        out = mod.run(Path(args.out), seed=args.seed, trials=args.trials, quick=args.quick, echo=print, executor=ex, **extra)
     print(f"experiment {args.name}: results in {out}")
     return 0
 
@@ -248,6 +257,8 @@ def build_parser() -> argparse.ArgumentParser:
     e.add_argument("--seed", type=int, default=0)
     e.add_argument("--trials", type=int, default=None, help="trials per setting (default: the paper's)")
     e.add_argument("--quick", action="store_true", help="a reduced study (smoke test)")
+    e.add_argument("--data", default=None, help="ceiling: the irtracking recordings (a clone of antonmil/irtracking)")
+    e.add_argument("--trackers", default=None, help="ceiling: onebit trackers to run, comma-separated (default: every positional one)")
     _add_executor_options(e)
     e.set_defaults(func=_cmd_experiment)
 
