@@ -7,6 +7,11 @@ import pytest
 
 from onebit.cli import main
 from onebit.core.errors import InputError
+from onebit.core.site import load_site
+from onebit.datasets.irtracking import import_irtracking
+from onebit.readers.frames import read_frames_csv
+from onebit.readers.tables_csv import read_truth_csv
+from onebit.scoring.mot import metric_gate_rows
 from onebit.datasets.irtracking_sim import write_irtracking
 from onebit.experiments import ceiling
 
@@ -49,12 +54,6 @@ def test_stonesoup_baseline_follows_one_walker(tmp_path):
     """The Stone Soup peer (``.[bench]``): one walker under the array is one track near the truth."""
     pytest.importorskip("stonesoup")
     stonesoup_ceiling = pytest.importorskip("benchmarks.stonesoup_ceiling")
-    from onebit.core.site import load_site
-    from onebit.datasets.irtracking import import_irtracking
-    from onebit.readers.frames import read_frames_csv
-    from onebit.readers.tables_csv import read_truth_csv
-    from onebit.scoring.mot import metric_gate_rows
-
     f = write_irtracking(tmp_path / "data", frames=40, people=1, seed=2, radius_mm=900.0)
     import_irtracking(f.readings, tmp_path / "ds", truth=f.truth, radius=0.9, targets=1)
     site = load_site(tmp_path / "ds" / "site.toml")
