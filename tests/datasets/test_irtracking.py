@@ -5,6 +5,7 @@ from __future__ import annotations
 import re
 import tomllib
 
+import networkx as nx
 import polars as pl
 import pytest
 
@@ -36,6 +37,9 @@ def test_import_writes_site_frames_truth(files, tmp_path):
     assert site.binary_sensors[0].r_outer == 0.8
     assert site.targets == DEFAULT_TARGETS  # never the truth's count (3)
     assert site.boundary.bounds == (0.0, 0.0, 8.0, 14.0)
+    g = site.sensor_graph  # from the geometry: the smallest distance that keeps the array connected (a 1.5 m grid here)
+    assert len(g.nodes) == n and len(g.edges) > 0 and all(a in g.nodes and b in g.nodes for a, b in g.edges)
+    assert nx.is_connected(g.to_networkx())
     frames = pl.read_csv(out / "frames.csv", schema_overrides={"active": pl.String})
     assert frames["t"].to_list() == [0.5 * k for k in range(30)]
     for k, row in enumerate(frames.iter_rows(named=True), start=1):
