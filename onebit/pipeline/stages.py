@@ -33,7 +33,7 @@ from onebit.core.tables import REJECTS
 from onebit.core.units import config_in_site_units
 from onebit.pipeline.context import ReportRow, RunContext, Stage
 from onebit.readers.beams import BEAM_COLUMNS, decode_beam_log, decode_raw_beams
-from onebit.readers.frames import edges_of_levels, frame_log_layout, read_frame_rows, read_frames_csv
+from onebit.readers.frames import edges_of_levels, read_frames_csv
 from onebit.readers.camera import read_camera, truth_error
 from onebit.readers.motion import TOGGLE_COLUMNS, MotionConfig, motion_frames, read_motion, read_motion_csv, site_rules
 from onebit.readers.proximity import ProximityConfig, proximity_frames, read_proximity, read_proximity_csv
@@ -272,8 +272,8 @@ def _frame_sensor_ids(site) -> list[str]:
 
 
 def _frames_available(ctx: RunContext) -> str | None:
-    if not ctx.has_source("frames"):
-        return "no frames.csv or /frames MCAP channel in the dataset"
+    if not (ctx.dataset / "frames.csv").exists():
+        return "no frames.csv in the dataset (frame logs are not read from MCAP)"
     if not _frame_sensor_ids(ctx.site):
         return "frame log present but site.toml declares no binary sensors (binary_sensors, motion_sensors, proximity_sensors)"
     return None
@@ -287,14 +287,7 @@ def _frames_work(ctx: RunContext) -> dict[str, pl.DataFrame]:
     sensors; a binary sensor's edges are in ``motion`` once)."""
     site = ctx.site
     ids = _frame_sensor_ids(site)
-    csv = ctx.dataset / "frames.csv"
-    if csv.exists():
-        log = read_frames_csv(csv, ids, epoch=run_time_origin(ctx))
-    else:
-        raw = ctx.mcap_channels["/frames"]
-        layout = frame_log_layout(list(raw.frame.columns), file=raw.source, line=None)
-        cols = tuple(c for c in raw.frame.columns if c not in ("t", "line", "raw")) if layout == "wide" else ()
-        log = read_frame_rows(raw, ids, layout=layout, epoch=run_time_origin(ctx), columns=cols)
+    log = read_frames_csv(ctx.dataset / "frames.csv", ids, epoch=run_time_origin(ctx))
     ctx.add_rejects(log.rejects)
     levels = log.levels
     motion_ids = [m.id for m in site.motion_sensors]
@@ -326,7 +319,7 @@ def _frames_viz(rec, ctx: RunContext, made: dict) -> None:
 
 
 def _motion_available(ctx: RunContext) -> str | None:
-    if ctx.has_source("frames"):
+    if (ctx.dataset / "frames.csv").exists():
         return "the readings come from the frame log (frames.csv)"
     if not ctx.has_source("motion"):
         return "no motion.csv or /motion MCAP channel in the dataset"
@@ -362,7 +355,7 @@ def _motion_viz(rec, ctx: RunContext, made: dict) -> None:
 
 
 def _proximity_available(ctx: RunContext) -> str | None:
-    if ctx.has_source("frames"):
+    if (ctx.dataset / "frames.csv").exists():
         return "the readings come from the frame log (frames.csv)"
     if not ctx.site.proximity_sensors:
         return "site.toml has no proximity sensors"
@@ -443,6 +436,8 @@ def tracker_inputs(entry: TrackerEntry, ctx: RunContext) -> dict[str, Any]:
         sources = entry.inputs.get(key, (key,))
         inputs[key] = next(ctx.tables[s] for s in sources if s in ctx.tables)
     inputs.update({k: ctx.tables[k] for k in entry.spec.wants if k in ctx.tables})
+    if "levels" in ctx.tables:  # a frame log: every sensor's reading at every frame, for any tracker that reads it
+        inputs.setdefault("levels", ctx.tables["levels"])
     inputs["region_graph"] = ctx.region_graph
     inputs[PROGRESS] = ctx.progress
     return inputs
