@@ -372,7 +372,11 @@ def tracker_stage(entry: TrackerEntry) -> Stage:
                 return f"input table '{key}' not produced by an earlier stage"
         if not spec.needs and spec.wants and not any(k in ctx.tables for k in spec.wants):
             return f"none of its input tables ({', '.join(spec.wants)}) was produced by an earlier stage"
-        return spec.available(ctx.site) if spec.available is not None else None
+        reason = spec.available(ctx.site) if spec.available is not None else None
+        if reason is None and spec.fits is not None:  # the inputs' size against the tracker's bound
+            cfg = config_in_site_units(config_from_mapping(spec.config, ctx.section(name), section=name), ctx.site)
+            reason = spec.fits(tracker_inputs(entry, ctx), ctx.site, cfg)
+        return reason
 
     def work(ctx: RunContext) -> dict[str, Any]:
         cfg = ctx.configs[name] = tracker_config(entry, ctx)
