@@ -76,6 +76,7 @@ from onebit.readers.rows import (
     read_clean_csv,
     read_csv_rows,
     read_typed_csv,
+    TypedSplit,
 )
 from onebit.readers.timebase import TimeOrigin
 
@@ -348,18 +349,26 @@ def read_motion_csv(
     *,
     epoch: str | TimeOrigin | None = None,
     rules: DebounceRules | Mapping[str, DebounceRules] | None = None,
+    split: TypedSplit | None = None,
 ) -> MotionRead:
-    """Read ``motion.csv`` (or ``proximity.csv``): the whole toggle reader for one file."""
+    """Read ``motion.csv`` (or ``proximity.csv``): the whole toggle reader for one file.
+    ``split``: its typed read (:func:`toggle_dtypes`) when the caller made it already."""
     path = Path(path)
     sensors = tuple(sensors)
-    typed = typed_toggle_rows(path, sensors, epoch=epoch)
+    typed = typed_toggle_rows(path, sensors, epoch=epoch, split=split)
     if typed is None:
         return read_motion(read_csv_rows(path, TOGGLE_COLUMNS), sensors, epoch=epoch, path=path, rules=rules)
     return toggle_edges(typed, sensors, source=path.name, path=path, rules=rules)
 
 
+def toggle_dtypes(sensors: Sequence[str]) -> dict[str, pl.DataType]:
+    """The typed read of a toggle log: numeric ``t``, known sensors, values as :data:`TOGGLE_VALUES` spells them."""
+    return {"t": pl.Float64, "sensor": pl.Enum(list(dict.fromkeys(sensors))), "value": pl.Enum(list(TOGGLE_VALUES))}
+
+
 def typed_toggle_rows(
-    path: Path, sensors: tuple[str, ...], *, epoch: str | TimeOrigin | None = None, tolerance: float = REORDER_TOLERANCE_S
+    path: Path, sensors: tuple[str, ...], *, epoch: str | TimeOrigin | None = None, tolerance: float = REORDER_TOLERANCE_S,
+    split: TypedSplit | None = None,
 ) -> TypedRows | None:
     """Pass 1 of :func:`read_motion` for a toggle log typed by one ``pl.read_csv``
     (:func:`~onebit.readers.rows.read_typed_csv`: numeric ``t``, known sensors, values spelled
@@ -367,7 +376,7 @@ def typed_toggle_rows(
     ``None`` when the header is not a plain first line (the row-by-row path reads the file).
     The sensor stays an enum (the debounce's codes); every output table casts it to String."""
     spellings = list(TOGGLE_VALUES)
-    split = read_typed_csv(path, {"t": pl.Float64, "sensor": pl.Enum(list(dict.fromkeys(sensors))), "value": pl.Enum(spellings)})
+    split = split if split is not None else read_typed_csv(path, toggle_dtypes(sensors))
     if split is None:
         return None
     on = pl.Series([TOGGLE_VALUES[v] for v in spellings], dtype=pl.Boolean)
