@@ -44,7 +44,7 @@ from onebit.core.tables import REJECTS, REPORT
 from onebit.pipeline.context import RunContext, Stage, dataset_run_config
 from onebit.pipeline.progress import ProgressSink, progress_sink
 from onebit.pipeline.stages import TRACKERS, TrackerEntry, stages
-from onebit.readers.mcap_io import read_mcap
+from onebit.readers.mcap_io import load_topic_map, read_mcap
 from onebit.readers.rows import RawRows
 from onebit.trackers.base import ARTIFACTS
 from onebit.viz.blueprint import save_run_blueprint
@@ -53,6 +53,9 @@ from onebit.viz.site import log_site
 
 #: The entries of a run folder; a new run replaces exactly these (other entries are kept).
 RUN_ENTRIES = ("tables", "rrd", "logs", "report.parquet", "report.csv", "run.toml")
+#: onebit's entries of a run folder that a run keeps as they are: ``live`` (``onebit follow``'s
+#: published rows, stream and report, :mod:`onebit.pipeline.follow`).
+KEPT_ENTRIES = ("live",)
 #: Sections a run record (``OUT/run.toml``) holds besides the stage configs; a run record
 #: given as ``--config`` (to repeat a run) contributes only its stage sections.
 RUN_RECORD_SECTIONS = ("stages", "summary", "time", "problems", "timing")
@@ -159,13 +162,15 @@ def check_out(out: Path, dataset: Path) -> str | None:
         except InputError:
             record = {}
     ours = [n for n in visible if n in RUN_ENTRIES]
-    if not _is_run_record(record) and len(ours) < len(visible):
-        foreign = [n for n in visible if n not in RUN_ENTRIES]
+    if not _is_run_record(record) and len(ours) + sum(n in KEPT_ENTRIES for n in visible) < len(visible):
+        foreign = [n for n in visible if n not in RUN_ENTRIES and n not in KEPT_ENTRIES]
         shown = ", ".join(foreign[:5]) + (f" and {len(foreign) - 5} more" if len(foreign) > 5 else "")
         raise InputError(f"OUT is not empty and is not a onebit run folder (it holds {shown}); "
                          "give an empty or new folder, or an earlier run's folder", file=out)  # fmt: skip
     what = f"the previous run (recording {record['recording_id']})" if _is_run_record(record) else f"the run files {ours}"
-    kept = [n for n in visible if n not in RUN_ENTRIES]
+    kept = [n for n in visible if n not in RUN_ENTRIES and n not in KEPT_ENTRIES]
+    if not ours and not _is_run_record(record):
+        return None
     return f"OUT holds {what}: replacing it" + (f"; keeping {kept} (not onebit's)" if kept else "")
 
 
@@ -333,10 +338,12 @@ def _run_stages(
 
 
 def _read_mcaps(ctx: RunContext, echo: Callable[[str], None]) -> None:
-    """Every ``*.mcap`` of the dataset: its channels become sources, its rejects rejects."""
+    """Every ``*.mcap`` of the dataset: its channels become sources, its rejects rejects; the
+    dataset's ``mcap_topics.toml`` maps foreign boolean topics (ROS 2 bags) to sensors."""
+    topics = ctx.dataset / "mcap_topics.toml"
     for mp in sorted(ctx.dataset.glob("*.mcap")):
         try:
-            contents = read_mcap(mp)
+            contents = read_mcap(mp, topic_map=load_topic_map(topics) if topics.is_file() else None)
         except OnebitError as exc:
             ctx.status[f"mcap:{mp.name}"] = f"failed: {exc}"
             echo(f"  {mp.name}: failed: {exc}")

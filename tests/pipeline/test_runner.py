@@ -235,6 +235,21 @@ def test_run_toml_fuzz_only_onebit_errors_and_bounded(tmp_path_factory, blob):
         assert len(str(exc)) <= MAX_MESSAGE + 200
 
 
+def test_a_dataset_run_toml_motion_and_scores_sections_are_used(tmp_path):
+    """Issue #26: ``[motion]`` and ``[scores]`` of the dataset's own ``run.toml`` were validated but
+    ignored (``ctx.config.get`` instead of the section), so ``period = 0.5`` ran at 1.0."""
+    d = tmp_path / "data"
+    d.mkdir()
+    shutil.copy(builtin_site_path("hallway"), d / "site.toml")
+    (d / "motion.csv").write_text("t,sensor,value\n0,104,1\n1.6,104,0\n2.1,103,1\n3.7,103,0\n4.2,102,1\n5.8,102,0\n")
+    (d / "run.toml").write_text("[motion]\nperiod = 0.5\n")
+    res = run_pipeline(d, tmp_path / "run", trackers=["hmm1"])
+    assert res.status["motion"].startswith("ok")
+    frames = pl.read_parquet(tmp_path / "run" / "tables" / "frames.parquet")
+    assert frames["slot"].max() >= 10  # 6 s at 0.5 s slots, not 1.0 s
+    assert tomllib.loads((tmp_path / "run" / "run.toml").read_text())["motion"]["period"] == 0.5
+
+
 def test_no_rrd_writes_the_same_tables_and_report_without_recordings(lab_run, tmp_path, capsys):
     data, res = lab_run
     out = tmp_path / "norrd"
