@@ -29,6 +29,7 @@ from pathlib import Path
 import numpy as np
 import polars as pl
 
+from onebit.core.compiled import numba_loaded
 from onebit.core.sensing import body_radius
 from onebit.core.tables import ABORTED, BEAM_EVENTS, CROSSINGS, REJECTS, conform
 from onebit.readers import kernels
@@ -109,7 +110,9 @@ def decode_passes(events: pl.DataFrame, source: str = "beams.csv", *, compiled: 
 
     Edges that do not change their pair's state (blocked while already blocked, or clear
     while clear) cannot come from a body and are rejected with their line. The machine runs
-    as one compiled pass over the events (:func:`onebit.readers.kernels.beam_passes`); the
+    as one compiled pass over the events (:func:`onebit.readers.kernels.beam_passes`) when numba
+    is loaded in the process already (:func:`onebit.core.compiled.numba_loaded`), else as its numpy version (:func:`~onebit.readers.kernels.beam_passes_vectorised`:
+    a process that runs no other kernel does not pay numba's load for the reader); the
     tables are built from its result with polars, as :func:`decode_passes_reference` (the
     polars window version, its test oracle) builds them. ``compiled=None`` uses the kernel
     from :data:`~onebit.readers.kernels.MIN_ROWS` events on, the reference below (same result).
@@ -127,7 +130,9 @@ def decode_passes(events: pl.DataFrame, source: str = "beams.csv", *, compiled: 
         pair = ev["pair"].to_physical().to_numpy().astype(np.int8)
     else:
         pair = (ev["pair"] == "b").to_numpy().astype(np.int8)
-    reject, pass_first, close, first_pair, last = kernels.beam_passes(code, pair, ev["blocked"].to_numpy().astype(np.bool_), len(names))
+    # ``compiled=None``: numba's load only when a kernel paid it already, else the numpy version
+    passes = kernels.beam_passes if compiled or numba_loaded() else kernels.beam_passes_vectorised
+    reject, pass_first, close, first_pair, last = passes(code, pair, ev["blocked"].to_numpy().astype(np.bool_), len(names))
     t = ev["t"].to_numpy()
     pairs = pl.Series(["a", "b"], dtype=pl.String)
     bad = np.flatnonzero(reject)

@@ -77,3 +77,20 @@ def test_debounce_kernel_equals_reference(seed):
     kept, sup = M.debounce(df, sensors, rules, compiled=True)
     kept_ref, sup_ref = M.debounce_reference(df, sensors, rules)
     assert kept.equals(kept_ref) and sup.equals(sup_ref)
+
+
+@pytest.mark.parametrize("seed", range(12))
+@pytest.mark.parametrize("clean", [True, False])
+def test_vectorised_beam_passes_equal_the_kernel(seed, clean):
+    """The numpy version (used while numba is not loaded) gives the kernel's five arrays."""
+    from onebit.readers import kernels as K
+
+    rng = np.random.default_rng(100 + seed)
+    f = _beam_log(rng, int(rng.integers(0, 1500)), clean=clean).sort(["t", "line"])
+    code = f["beam"].replace_strict(["a", "b", "c"], [0, 1, 2], return_dtype=pl.Int64).to_numpy()
+    pair = (f["pair"] == "b").to_numpy().astype(np.int8)
+    blocked = f["blocked"].to_numpy().astype(np.bool_)
+    want = K.beam_passes.py_func(code, pair, blocked, 3)
+    got = K.beam_passes_vectorised(code, pair, blocked, 3)
+    for name, w, g in zip(("reject", "pass_first", "close", "first_pair", "last"), want, got):
+        assert np.array_equal(w, g) and w.dtype == g.dtype, name
