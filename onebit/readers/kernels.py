@@ -209,6 +209,61 @@ def separators_per_line_reference(buf: np.ndarray, sep: int) -> np.ndarray:
     return np.diff(np.concatenate([[0], before])).astype(np.int64)
 
 
+def _by_sensor(sensor, n_sensors):
+    """Stable order of the rows by sensor (time order within a sensor): a radix sort on 16-bit codes."""
+    small = np.int16 if n_sensors < np.iinfo(np.int16).max else np.int64
+    return np.argsort(np.asarray(sensor).astype(small), kind="stable")
+
+
+def toggle_repeats_vectorised(sensor, on, n_sensors):
+    """:func:`toggle_repeats` with numpy (used while numba is not loaded, as
+    :func:`beam_passes_vectorised`): per sensor, ``on`` equal to its previous edge's (off before the first)."""
+    on = np.asarray(on, np.bool_)
+    m = on.shape[0]
+    same = np.zeros(m, dtype=np.bool_)
+    if m == 0:
+        return same
+    order = _by_sensor(sensor, n_sensors)
+    s_, o_ = np.asarray(sensor)[order], on[order]
+    prev = np.zeros(m, dtype=np.bool_)
+    prev[1:] = o_[:-1]
+    prev[np.flatnonzero(s_[1:] != s_[:-1]) + 1] = False
+    same[order] = o_ == prev
+    return same
+
+
+def debounce_masks_vectorised(sensor, on, t, chatter, min_on, n_sensors, eps):
+    """:func:`debounce_masks` with numpy (used while numba is not loaded): chatter marks each
+    (off, on) pair of neighbours in a sensor's sequence within its window; the minimum on-time
+    rule marks each (on, off) pair of neighbours among the edges chatter left, sooner than
+    ``min_on`` (the marks do not cascade, as in the kernel)."""
+    sensor = np.asarray(sensor)
+    on = np.asarray(on, np.bool_)
+    t = np.asarray(t, np.float64)
+    m = on.shape[0]
+    chat = np.zeros(m, dtype=np.bool_)
+    short = np.zeros(m, dtype=np.bool_)
+    if m < 2:
+        return chat, short
+    order = _by_sensor(sensor, n_sensors)
+    s_, o_, t_ = sensor[order], on[order], t[order]
+    w = np.asarray(chatter, np.float64)[s_[1:]]
+    pair = (s_[1:] == s_[:-1]) & (w > 0) & o_[1:] & ~o_[:-1] & (t_[1:] - t_[:-1] <= w + eps)
+    cs = np.zeros(m, dtype=np.bool_)
+    cs[1:] |= pair
+    cs[:-1] |= pair
+    ko = np.flatnonzero(~cs)
+    s2, o2, t2 = s_[ko], o_[ko], t_[ko]
+    mo = np.asarray(min_on, np.float64)[s2[1:]]
+    pair2 = (s2[1:] == s2[:-1]) & (mo > 0) & o2[:-1] & ~o2[1:] & (t2[1:] - t2[:-1] < mo - eps)
+    ss = np.zeros(m, dtype=np.bool_)
+    ss[ko[1:][pair2]] = True
+    ss[ko[:-1][pair2]] = True
+    chat[order] = cs
+    short[order] = ss
+    return chat, short
+
+
 @kernel
 def toggle_repeats(sensor, on, n_sensors):
     """Edges of a toggle log in time order (``sensor`` index, ``on``) that do not change their

@@ -60,6 +60,7 @@ from pathlib import Path
 import numpy as np
 import polars as pl
 
+from onebit.core.compiled import numba_loaded
 from onebit.core.errors import ConfigError
 from onebit.core.tables import FRAMES, MOTION, REJECTS, conform
 from onebit.readers import kernels
@@ -248,7 +249,8 @@ def repeats(ok: pl.DataFrame, *, compiled: bool | None = None) -> pl.Series:
     else:
         names = ok["sensor"].unique(maintain_order=True)
         code, n = ok["sensor"].replace_strict(names, range(len(names)), return_dtype=pl.Int64).to_numpy().astype(np.int64), len(names)
-    return pl.Series(kernels.toggle_repeats(code, ok["on"].to_numpy().astype(np.bool_), max(n, 1)))
+    run = kernels.toggle_repeats if compiled or numba_loaded() else kernels.toggle_repeats_vectorised  # numba's load only when paid already
+    return pl.Series(run(code, ok["on"].to_numpy().astype(np.bool_), max(n, 1)))
 
 
 #: The same reader under the name the proximity sensors use (``proximity.csv``: t, sensor, value).
@@ -302,7 +304,8 @@ def debounce(
         code = ev["sensor"].replace_strict(names, range(len(names)), return_dtype=pl.Int64).to_numpy().astype(np.int64)
     chatter = dict(zip(table["sensor"].to_list(), table["_chatter"].to_list()))
     min_on = dict(zip(table["sensor"].to_list(), table["_min_on"].to_list()))
-    chat, short = kernels.debounce_masks(
+    masks = kernels.debounce_masks if compiled or numba_loaded() else kernels.debounce_masks_vectorised  # numba's load only when paid already
+    chat, short = masks(
         code, ev["on"].to_numpy().astype(np.bool_), ev["t"].to_numpy().astype(np.float64),
         np.array([chatter.get(n, 0.0) for n in names], dtype=np.float64), np.array([min_on.get(n, 0.0) for n in names], dtype=np.float64),
         len(names), TIME_EPS,
