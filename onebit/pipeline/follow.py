@@ -14,17 +14,20 @@ Two ways in:
 Released lines are appended to a snapshot of the dataset (a temporary folder with the
 dataset's ``*.toml``), and every poll the pipeline's own reader stages (``crossings``,
 ``motion``, ``proximity``, ``correct``: :mod:`onebit.pipeline.stages`) read it with the time
-origin fixed once (the whole log's in a replay, the first poll's when live) -- the same
-readers and the same rejects as ``onebit run``.
+origin fixed once (the whole log's in a replay; when live, the first poll's, with its window
+of accepted stamps left open ahead, so a lone stamp far in the future is rejected only by the
+final batch run) -- the same readers and the same rejects as ``onebit run``.
 
 Trackers online (:data:`ONLINE`):
 
 * ``intruder`` -- per iteration, incrementally: :mod:`onebit.trackers.intruder.online` keeps the
   particle filter's posterior and steps it over each slot once it is final;
 * ``intruder-naive`` -- per iteration, ``beams`` -- per crossing: re-run on the settled prefix
-  of their input whenever a new settled event arrives; the rows up to that event are published
-  (``beams`` assigns the fewest agents over the whole string, so a later crossing can change
-  an earlier assignment: the final report says whether the published rows equal the batch's).
+  of their input whenever a new settled event arrives; the rows up to that event not published
+  before are published (a re-run may add a row dated earlier: ``beams`` gives an agent created
+  at a later crossing its initial region at the first crossing's time; and it could change an
+  earlier assignment, which is never un-published: the final report says whether the published
+  rows equal the batch's).
 
 Every other tracker is batch-only and runs at the end. An event at ``e`` is *settled* once the
 horizon passes ``e + settle``, ``settle`` = the readers' look-ahead (1 s of reordering plus
@@ -50,6 +53,7 @@ simulated clock); trackers never read it.
 
 from __future__ import annotations
 
+import dataclasses
 import math
 import re
 import shutil
@@ -74,7 +78,7 @@ from onebit.pipeline.runner import RunResult, check_dataset, check_out, check_se
 from onebit.pipeline.stages import TIME_SOURCES, TRACKERS, run_time_origin, stages, tracker_config
 from onebit.readers.motion import MotionConfig, site_rules
 from onebit.readers.rows import REORDER_TOLERANCE_S
-from onebit.readers.timebase import TimeOrigin
+from onebit.readers.timebase import MAX_GAP_S, TimeOrigin
 from onebit.trackers.base import ARTIFACTS, PROGRESS
 from onebit.trackers.intruder import online as intruder_online
 
@@ -372,6 +376,7 @@ def follow(
             echo(f"  batch-only (run at the end): {', '.join(batch_only)}")
         intruder_state = None
         published: dict[str, float] = {n: -math.inf for n in online}
+        sent: dict[str, pl.DataFrame] = {}
         logged_edges = 0
         last_growth = clock()
         polls = 0
@@ -416,8 +421,10 @@ def follow(
                     new = True
                 if new:
                     last_growth = now
-                    if origin is None:
-                        origin = run_time_origin(RunContext(data, scratch, site, rg, {}, trackers=chosen))
+                    if origin is None:  # the first lines fix t = 0; the window of accepted stamps stays open ahead
+                        first = run_time_origin(RunContext(data, scratch, site, rg, {}, trackers=chosen))
+                        lo = first.lo - MAX_GAP_S if math.isfinite(first.lo) else first.lo
+                        origin = dataclasses.replace(first, lo=lo, hi=math.inf)
                     for src in sources.values():
                         fresh = src.lines[src.released :]
                         if fresh:
@@ -467,8 +474,12 @@ def follow(
                     if inputs is None:
                         continue
                     res = entry.spec.run(inputs, site, tracker_config(entry, ctx))
-                    tracks = res["tracks"]
-                    rows = tracks.filter((pl.col("t") > published[name]) & (pl.col("t") <= last))
+                    upto = res["tracks"].filter(pl.col("t") <= last)
+                    # rows not published yet (a re-run may add rows dated earlier: beams gives an agent
+                    # created at a later crossing its initial region at the first crossing's time)
+                    seen = sent.get(name)
+                    rows = upto if seen is None else upto.join(seen, on=upto.columns, how="anti", nulls_equal=True)
+                    sent[name] = upto if seen is None else pl.concat([seen, rows])
                     published[name] = last
                     pub.estimates(name, rows)
             if final:
