@@ -59,6 +59,18 @@ def _cmd_follow(args) -> int:
     return 0 if res.run.ok else 1
 
 
+def _cmd_compare(args) -> int:
+    from onebit.viz.compare import compare_runs
+
+    labels = tuple(args.labels.split(",", 1)) if args.labels else None
+    if labels is not None and len(labels) != 2:
+        raise ConfigError(f"--labels {args.labels!r}: expected two names, A,B")
+    res = compare_runs(args.run_a, args.run_b, args.out, labels=labels)
+    print(f"compared {args.run_a} (A/) and {args.run_b} (B/): {res.views} views side by side, {sum(res.chunks.values())} chunks")
+    print(f"open with: rerun {res.rrd} {res.blueprint}")
+    return 0
+
+
 def _executor(args):
     """The executor of ``--executor/--workers/--ray-address`` (run-many, experiment)."""
     return make_executor(args.executor, workers=args.workers, address=args.ray_address)
@@ -259,6 +271,13 @@ def build_parser() -> argparse.ArgumentParser:
                     help="also stream to a Rerun viewer that is open (default URL rerun+http://127.0.0.1:9876/proxy)")
     fo.add_argument("--serve-web", action="store_true", help="also serve the stream to a web viewer (prints its URL)")
     fo.set_defaults(func=_cmd_follow)
+
+    cp = sub.add_parser("compare", help="two runs side by side on one timeline (one .rrd with A/ and B/, and a blueprint)")
+    cp.add_argument("run_a")
+    cp.add_argument("run_b")
+    cp.add_argument("--out", default="compare.rrd", help="recording to write (default compare.rrd; the blueprint goes next to it as .rbl)")
+    cp.add_argument("--labels", metavar="A,B", help="names of the two sides in the view titles (default: the folder names)")
+    cp.set_defaults(func=_cmd_compare)
 
     rm = sub.add_parser("run-many", help="run the pipeline on many dataset folders (process pool or Ray)")
     rm.add_argument("datasets", nargs="+", metavar="DATASET",
