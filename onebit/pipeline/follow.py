@@ -87,9 +87,20 @@ ONLINE: dict[str, str] = {
     "intruder": "per iteration (incremental particle filter)",
     "intruder-naive": "per iteration",
     "beams": "per crossing (re-run on the settled prefix)",
+    "istate": "per stage (re-run on the settled prefix)",
+    "findinghumo": "per window (re-run on the settled prefix)",
+    "hmm1": "per window (re-run on the settled prefix)",
+    "hmm2": "per window (re-run on the settled prefix)",
 }
 #: The input table whose settled events close the rows of a re-run-on-prefix tracker.
-_PREFIX_EVENTS = {"intruder-naive": "motion", "beams": "crossings"}
+_PREFIX_EVENTS = {
+    "intruder-naive": ("motion",),
+    "beams": ("corrected_crossings", "crossings"),
+    "istate": ("motion", "proximity", "crossings"),
+    "findinghumo": ("motion",),
+    "hmm1": ("motion",),
+    "hmm2": ("motion",),
+}
 #: Reader stages run on every poll (truth and camera only at the end, by the batch run).
 _READER_STAGES = ("crossings", "motion", "proximity", "correct")
 #: Subfolder of OUT with the live outputs (kept by later runs into OUT).
@@ -274,7 +285,10 @@ def _inputs(entry, tables: dict, region_graph, *, until: float | None) -> dict[s
             return None
         df = tables[src]
         inputs[key] = df if until is None or "t" not in df.columns else df.filter(pl.col("t") <= until)
-    inputs.update({k: tables[k] for k in entry.spec.wants if k in tables})
+    for k in entry.spec.wants:
+        if k in tables:
+            df = tables[k]
+            inputs[k] = df if until is None or "t" not in df.columns else df.filter(pl.col("t") <= until)
     inputs["region_graph"] = region_graph
     inputs[PROGRESS] = lambda done, total: None
     return inputs
@@ -458,9 +472,7 @@ def follow(
                         if "camera" in rows:
                             pub.table(f"{name}_camera", rows["camera"])
                         continue
-                    events = tables.get(_PREFIX_EVENTS[name])
-                    if name == "beams":
-                        events = tables.get("corrected_crossings", events)
+                    events = next((tables[k] for k in _PREFIX_EVENTS[name] if k in tables), None)
                     if events is None or events.height == 0:
                         continue
                     until = None if final else horizon - settle
@@ -477,8 +489,11 @@ def follow(
                     upto = res["tracks"].filter(pl.col("t") <= last)
                     # rows not published yet (a re-run may add rows dated earlier: beams gives an agent
                     # created at a later crossing its initial region at the first crossing's time)
+                    # an estimate is published once: a later re-run's value for the same
+                    # (track, t, region, node) is not re-published (the final report compares)
                     seen = sent.get(name)
-                    rows = upto if seen is None else upto.join(seen, on=upto.columns, how="anti", nulls_equal=True)
+                    key = [c for c in upto.columns if c not in ("x", "y")]
+                    rows = upto if seen is None else upto.join(seen.select(key), on=key, how="anti", nulls_equal=True)
                     sent[name] = upto if seen is None else pl.concat([seen, rows])
                     published[name] = last
                     pub.estimates(name, rows)
@@ -516,6 +531,14 @@ def _follow_report(out: Path, live: Path, online: list[str], pub: _Publisher, po
             cols = batch.columns
             same = a.select(cols).sort(["track", "t"], maintain_order=True).equals(batch.sort(["track", "t"], maintain_order=True))
             rows.append((name, "online_equals_batch", 1.0 if same else 0.0, "flag"))
+            if not same:  # how far apart: rows only one side has, and positions of the rows both have
+                key = [c for c in cols if c not in ("x", "y")]
+                rows.append((name, "online_rows_not_in_batch", float(a.join(batch, on=key, how="anti", nulls_equal=True).height), "rows"))
+                rows.append((name, "batch_rows_not_online", float(batch.join(a, on=key, how="anti", nulls_equal=True).height), "rows"))
+                both = a.join(batch, on=key, how="inner", nulls_equal=True, suffix="_batch")
+                if both.height and "x" in cols:
+                    gap = ((pl.col("x") - pl.col("x_batch")) ** 2 + (pl.col("y") - pl.col("y_batch")) ** 2).sqrt()
+                    rows.append((name, "max_position_difference", float(both.select(gap.max()).item() or 0.0), "site units"))
         d = delays.filter(pl.col("tracker") == name)["delay_s"].to_numpy()
         if len(d):
             rows += [
