@@ -12,8 +12,8 @@ once per run, side by side, on the shared timeline ``t``::
 
     rerun compare.rrd compare.rbl
 
-Per-entity overrides of the runs' views (trail windows, hidden coverage maps) are not
-carried over: each side shows its view's entities with Rerun's defaults.
+The spatial views keep their per-entity overrides (trail windows, hidden coverage maps) on
+both sides; other view properties (backgrounds, axis ranges) take Rerun's defaults.
 """
 
 from __future__ import annotations
@@ -73,9 +73,32 @@ def _query(view: ViewInfo, prefix: str) -> list[str]:
     return out
 
 
+def _overrides(view: ViewInfo, prefix: str) -> dict[str, list] | None:
+    """The view's per-entity visibility and trail windows (cursor-relative time ranges on ``t``)."""
+    from onebit.viz import paths
+
+    out: dict[str, list] = {}
+    for entity, o in view.overrides.items():
+        target = _prefixed(entity, prefix)
+        if "visible" in o:
+            out.setdefault(target, []).append(rrb.EntityBehavior(visible=o["visible"]))
+        if "time_range" in o:
+            start, end = o["time_range"]
+            out.setdefault(target, []).append(
+                rrb.VisibleTimeRanges([
+                    rrb.VisibleTimeRange(
+                        paths.TIMELINE, start=rrb.TimeRangeBoundary.cursor_relative(seconds=float(start)),
+                        end=rrb.TimeRangeBoundary.cursor_relative(seconds=float(end)),
+                    )
+                ])
+            )  # fmt: skip
+    return out or None
+
+
 def _view(view: ViewInfo, prefix: str, label: str):
     cls = getattr(rrb, _VIEW_CLASSES[view.kind])
-    return cls(name=f"{label}: {view.name}", origin=_prefixed(view.origin, prefix), contents=_query(view, prefix))
+    kw = {"overrides": _overrides(view, prefix)} if view.kind in ("2D", "3D") else {}
+    return cls(name=f"{label}: {view.name}", origin=_prefixed(view.origin, prefix), contents=_query(view, prefix), **kw)
 
 
 def compare_blueprint(views_a: list[ViewInfo], views_b: list[ViewInfo], *, labels: tuple[str, str], prefixes: tuple[str, str] = ("A", "B")):

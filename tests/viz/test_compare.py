@@ -46,6 +46,8 @@ def test_compare_puts_both_runs_on_one_recording_with_paired_views(two_runs, tmp
             assert g.origin == f"{side}/{view.origin}".rstrip("/")
             want = [(inc, f"{side}/{base}".rstrip("/"), sub) for inc, base, sub in query_rules(view.query, origin=view.origin)]
             assert query_rules(g.query, origin=g.origin) == want
+            if view.kind == "2D":  # trail windows and hidden entities carried to both sides
+                assert g.overrides == {f"{side}/{e}": o for e, o in view.overrides.items()}
     # the blueprint is also inside the recording
     assert blueprint_views(res.rrd)
 
