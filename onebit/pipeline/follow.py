@@ -525,6 +525,8 @@ def _follow_report(out: Path, live: Path, online: list[str], pub: _Publisher, po
         got = read_live_table(live, f"{name}_tracks")
         batch_path = out / "tables" / f"{name}_tracks.parquet"
         batch = pl.read_parquet(batch_path) if batch_path.is_file() else None
+        if got is None and batch is None:  # its inputs never appeared (a site without beams, say)
+            continue
         rows.append((name, "online_estimates", float(got.height if got is not None else 0), "rows"))
         if batch is not None:
             a = got if got is not None else batch.clear()
