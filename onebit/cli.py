@@ -15,6 +15,7 @@ from onebit.core.errors import ConfigError, InputError, OnebitError, bounded
 from onebit.core.site import load_site
 from onebit.datasets.catalogue import IN_PLACE, all_scenarios, get_scenario
 from onebit.datasets.importers import import_casas, import_trajectories
+from onebit.datasets.irtracking import DEFAULT_RADIUS_M, PERIOD_S, import_irtracking
 from onebit.datasets.scenario import parse_params, simulate_into
 from onebit.experiments import get_experiment
 from onebit.pipeline.executors import EXECUTORS, make_executor
@@ -26,15 +27,21 @@ from onebit.readers.loginfo import format_log_info, log_info
 from onebit.readers.mcap_io import csv_folder_to_mcap, load_topic_map, mcap_to_csv_folder
 from onebit.readers.trajectories import TrajectoryFormat
 from onebit.trackers.beams.verify import parse_story, verify_path
+from onebit.pipeline.follow import FollowConfig, follow, parse_speed
+from onebit.core.config import load_toml
+from onebit.readers.mcap_io import tracks_for_views
 
 
 def _cmd_run(args) -> int:
     trackers = tuple(t.strip() for t in args.trackers.split(",")) if args.trackers else None
     config = load_run_config(args.config)
     print(f"onebit run {args.dataset} -> {args.out}")
-    res = run_pipeline(args.dataset, args.out, trackers=trackers, config=config, echo=print)
+    res = run_pipeline(args.dataset, args.out, trackers=trackers, config=config, echo=print, rrd=not args.no_rrd)
     print(format_report(res.report, title=f"report of {args.out}"))
-    print(f"Rerun recordings: {Path(args.out) / 'rrd'}/*.rrd   (open later with: rerun {Path(args.out) / 'rrd'}/*.rrd)")
+    if args.no_rrd:
+        print("Rerun recordings: none (--no-rrd)")
+    else:
+        print(f"Rerun recordings: {Path(args.out) / 'rrd'}/*.rrd   (open later with: rerun {Path(args.out) / 'rrd'}/*.rrd)")
     failed = [name for name, state in res.status.items() if state.startswith("failed")]
     for why in ([f"stage(s) failed: {', '.join(failed)} (see {Path(args.out) / 'run.toml'})"] if failed else []) + res.problems:
         print(f"onebit: run not ok: {why}", file=sys.stderr)
@@ -42,8 +49,6 @@ def _cmd_run(args) -> int:
 
 
 def _cmd_follow(args) -> int:
-    from onebit.pipeline.follow import FollowConfig, follow, parse_speed
-
     trackers = tuple(t.strip() for t in args.trackers.split(",")) if args.trackers else None
     config = load_run_config(args.config)
     options = FollowConfig(replay=parse_speed(args.replay) if args.replay else None, poll=args.poll, idle=args.idle, settle=args.settle)
@@ -91,7 +96,7 @@ def _cmd_run_many(args) -> int:
     trackers = tuple(t.strip() for t in args.trackers.split(",")) if args.trackers else None
     config = load_run_config(args.config)
     with _executor(args) as ex:
-        res = run_many(args.datasets, args.out, trackers=trackers, config=config, executor=ex, echo=print)
+        res = run_many(args.datasets, args.out, trackers=trackers, config=config, executor=ex, echo=print, rrd=not args.no_rrd)
     print(format_summary(res))
     return 0 if res.ok else 1
 
@@ -148,8 +153,6 @@ def _run_tracks(run: Path) -> "pl.DataFrame":
     with the raw logs' own stamps by the run's ``[time]`` origin)."""
     import polars as pl
 
-    from onebit.core.config import load_toml
-    from onebit.readers.mcap_io import tracks_for_views
 
     parts = sorted((run / "tables").glob("*_tracks.parquet"))
     if not parts:
@@ -179,13 +182,27 @@ def _cmd_logs_convert(args) -> int:
 
 
 def _cmd_import_casas(args) -> int:
-    res = import_casas(args.log, args.dataset, layout=args.layout, targets=args.targets, window_s=args.window,
-                       min_count=args.min_count, min_share=args.min_share, spacing_m=args.spacing)  # fmt: skip
+    doors = tuple(d.strip() for d in args.doors.split(",") if d.strip()) if args.doors else ()
+    res = import_casas(args.log, args.dataset, layout=args.layout, targets=args.targets, doors=doors, window_s=args.window,
+                       min_count=args.min_count, min_share=args.min_share, spacing_m=args.spacing, hold_s=args.hold,
+                       hold_samples=args.hold_samples, scale=args.scale, rooms=args.rooms, graph_radius=args.graph_radius)  # fmt: skip
     c = res.counts
-    print(f"imported {args.log} -> {args.dataset}: {c['events']} events ({c['motion_csv']} motion/door in motion.csv, "
-          f"{c['other_csv']} others in other.csv, {c['annotations']} annotated), {c['rejected']} rejected lines, "
+    print(f"imported {args.log} -> {args.dataset}: {c['events']} events ({c['motion_csv']} motion/contact in motion.csv, "
+          f"{c['lost_off_repaired']} lost OFFs repaired, {c['other_csv']} others in other.csv, {c['annotations']} annotated, "
+          f"{c['truth_events']} resident-labelled in truth_events.csv), {c['rejected']} rejected lines, "
           f"{c['reordered']} out of order (sorted); {c['sensors']} sensors, {c['edges']} edges "
           f"({res.info['graph']['source']} graph, positions: {res.info['layout']['positions']}); see import.toml")  # fmt: skip
+    return 0
+
+
+def _cmd_import_irtracking(args) -> int:
+    res = import_irtracking(args.readings, args.dataset, truth=args.truth, coordinates=args.coordinates, period=args.period,
+                            radius=args.radius, r_inner=args.r_inner, targets=args.targets, name=args.name)  # fmt: skip
+    c = res.info["counts"]
+    truth = f", truth.csv ({c['truth_rows']} positions of {c['truth_targets']} people)" if "truth_rows" in c else ""
+    print(f"imported {args.readings} -> {args.dataset}: site.toml ({c['sensors']} sensors), frames.csv ({c['frames']} frames, "
+          f"{c['active_readings']} active readings){truth}; {c['rejected']} rejected{' (rejects.csv)' if c['rejected'] else ''}; "
+          "see import.toml")  # fmt: skip
     return 0
 
 
@@ -256,6 +273,8 @@ def build_parser() -> argparse.ArgumentParser:
     r.add_argument("--out", required=True, help="run folder to write")
     r.add_argument("--trackers", help="comma-separated tracker names (default: all)")
     r.add_argument("--config", help="run.toml with one [section] per stage")
+    r.add_argument("--no-rrd", action="store_true",
+                   help="write no Rerun recordings (rrd/): the same tables and report, faster (batch sweeps)")
     r.set_defaults(func=_cmd_run)
 
     fo = sub.add_parser("follow", help="follow a dataset's logs as they grow (or replay them), publish estimates live, end with the batch run")
@@ -285,6 +304,7 @@ def build_parser() -> argparse.ArgumentParser:
     rm.add_argument("--out", required=True, help="folder for one run folder per dataset and summary.parquet/.csv")
     rm.add_argument("--trackers", help="comma-separated tracker names (default: all)")
     rm.add_argument("--config", help="run.toml with one [section] per stage, for every dataset")
+    rm.add_argument("--no-rrd", action="store_true", help="write no Rerun recordings (as onebit run --no-rrd)")
     _add_executor_options(rm)
     rm.set_defaults(func=_cmd_run_many)
 
@@ -323,16 +343,35 @@ def build_parser() -> argparse.ArgumentParser:
 
     im = sub.add_parser("import", help="make a dataset folder from the field's own recordings (CASAS, trajectories)")
     isub = im.add_subparsers(dest="import_command", required=True)
-    ic = isub.add_parser("casas", help="a CASAS smart-home log (.txt) -> motion.csv, other.csv, annotations.csv, site.toml")
+    ic = isub.add_parser("casas", help="a CASAS smart-home log (.txt, or pymrt events.csv) -> motion.csv, truth_events.csv, other.csv, annotations.csv, site.toml")
     ic.add_argument("log")
     ic.add_argument("dataset")
-    ic.add_argument("--layout", help="layout.toml: sensor positions (and edges); without it the graph is learned from the log")
+    ic.add_argument("--layout", help="layout.toml (positions, edges), or a floor plan sensors.json / sensors.csv / pymrt site.json "
+                    "(pixels or normalised, with --scale; edges from geometry); without it the graph is learned from the log")
+    ic.add_argument("--rooms", default=None, help="floor plan rooms (JSON: rectangles or polygons, in the plan's coordinates)")
+    ic.add_argument("--scale", type=float, default=None, help="floor plan: metres per pixel (or per plan width for normalised coordinates)")
+    ic.add_argument("--graph-radius", type=float, default=None, help="floor plan graph: link sensors within this many metres "
+                    "(default: the smallest distance that keeps the graph connected)")
     ic.add_argument("--targets", type=int, default=None, help="the most residents present at once (site.toml targets)")
     ic.add_argument("--window", type=float, default=5.0, help="learned graph: s between two sensors' ON for a transition")
     ic.add_argument("--min-count", type=int, default=3, help="learned graph: transitions an edge needs")
     ic.add_argument("--min-share", type=float, default=0.1, help="learned graph: share of the less busy sensor's transitions")
     ic.add_argument("--spacing", type=float, default=3.0, help="force layout: edge length (m)")
+    ic.add_argument("--doors", default=None, help="comma-separated contact ids that are doors to the outside (entry/exit nodes)")
+    ic.add_argument("--hold", type=float, default=5.0, help="lost OFF repair: hold time (s) of a sensor with too few on-durations")
+    ic.add_argument("--hold-samples", type=int, default=5, help="lost OFF repair: on-durations a sensor needs for its own (median) hold time")
     ic.set_defaults(func=_cmd_import_casas)
+    ir = isub.add_parser("irtracking", help="Milan et al.'s ceiling IR array (SEQ.txt or SEQ.xml detections) -> site.toml, frames.csv, truth.csv")
+    ir.add_argument("readings", help="SEQ.txt (one line of 50 channels per frame) or SEQ.xml (CVML detections)")
+    ir.add_argument("dataset")
+    ir.add_argument("--truth", default=None, help="SEQ_gt.xml (CVML, pixels x 25 = mm) -> truth.csv")
+    ir.add_argument("--coordinates", default=None, help="getSensorCoordinates.m (default: next to the readings or up to two folders above)")
+    ir.add_argument("--period", type=float, default=PERIOD_S, help="seconds between frames (2 Hz)")
+    ir.add_argument("--radius", type=float, default=DEFAULT_RADIUS_M, help="footprint radius of a sensor, m")
+    ir.add_argument("--r-inner", type=float, default=None, help="radius a reading 0 clears, m (default: --radius)")
+    ir.add_argument("--targets", type=int, default=None, help="most people present at once (default 6, the recordings' most)")
+    ir.add_argument("--name", default=None, help="site name (default: the readings' file name)")
+    ir.set_defaults(func=_cmd_import_irtracking)
     it = isub.add_parser("trajectories", help="a people-counter / indoor-positioning export -> truth.csv")
     it.add_argument("file")
     it.add_argument("dataset")

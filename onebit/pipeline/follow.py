@@ -81,6 +81,7 @@ from onebit.readers.rows import REORDER_TOLERANCE_S
 from onebit.readers.timebase import MAX_GAP_S, TimeOrigin
 from onebit.trackers.base import ARTIFACTS, PROGRESS
 from onebit.trackers.intruder import online as intruder_online
+from onebit.viz import live as viz_live
 
 #: Trackers that run while the log grows, and how often they publish.
 ONLINE: dict[str, str] = {
@@ -230,8 +231,6 @@ class _Publisher:
         outputs.write_parquet(df, self.tables / name / f"part-{k:06d}.parquet")
 
     def estimates(self, tracker: str, tracks: pl.DataFrame) -> None:
-        from onebit.viz import live as viz_live
-
         if tracks is None or tracks.height == 0:
             return
         now = self.clock()
@@ -312,8 +311,6 @@ def follow(
     Raises :class:`OnebitError` for bad input found before anything is followed (dataset,
     ``OUT``, site, config, tracker names, no CSV log to follow).
     """
-    from onebit.viz import live as viz_live
-
     dataset, out = Path(dataset), Path(out)
     echo = echo or (lambda s: None)
     check_dataset(dataset)

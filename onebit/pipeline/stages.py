@@ -4,8 +4,10 @@
 
     crossings  beams.csv | crossings.csv   -> crossings, aborted, beam_events
     truth      truth.csv                   -> truth, true_crossings, sim_crossings
+    truth_events truth_events.csv          -> truth_events (per-event identity truth: t, sensor, residents)
     camera     camera.mp4                  -> camera_truth, camera_detections
-    motion     motion.csv                  -> motion, frames, motion_suppressed
+    frames     frames.csv (frame-sampled)  -> levels, motion, frames, proximity, proximity_frames
+    motion     motion.csv                  -> motion, frames, motion_suppressed   (skipped with frames.csv)
     proximity  proximity.csv               -> proximity, proximity_frames, proximity_suppressed
     correct    crossings                   -> corrected_crossings, correct_insertions, correct_initial
     <tracker>  its TrackerSpec.needs       -> <tracker>_tracks, <tracker>_<table>...   (one per TRACKERS entry)
@@ -31,12 +33,13 @@ from onebit.core.tables import REJECTS
 from onebit.core.units import config_in_site_units
 from onebit.pipeline.context import ReportRow, RunContext, Stage
 from onebit.readers.beams import BEAM_COLUMNS, decode_beam_log, decode_raw_beams
+from onebit.readers.frames import edges_of_levels, frame_log_layout, read_frame_rows, read_frames_csv
 from onebit.readers.camera import read_camera, truth_error
 from onebit.readers.motion import TOGGLE_COLUMNS, MotionConfig, motion_frames, read_motion, read_motion_csv, site_rules
 from onebit.readers.proximity import ProximityConfig, proximity_frames, read_proximity, read_proximity_csv
 from onebit.readers.tables_csv import (
-    crossings_from_rows, read_crossings_csv, read_true_crossings_csv, read_truth_csv, true_crossings_columns, true_crossings_from_rows,
-    truth_from_rows,
+    crossings_from_rows, read_crossings_csv, read_true_crossings_csv, read_truth_csv, read_truth_events_csv, true_crossings_columns,
+    true_crossings_from_rows, truth_events_from_rows, truth_from_rows,
 )
 from onebit.readers.timebase import TimeOrigin, time_origin
 from onebit.scoring import beams as score_beams
@@ -45,6 +48,7 @@ from onebit.scoring import findinghumo as score_findinghumo
 from onebit.scoring import intruder as score_intruder
 from onebit.scoring import istate as score_istate
 from onebit.scoring.crossings import ScoresConfig, score_crossings, true_crossings_from_truth, truth_regions
+from onebit.scoring.identity import baseline_rows, graph_hops, identity_scores
 from onebit.scoring.mot import GATES, Gate, mot_rows
 from onebit.scoring.serve import CannotServe
 from onebit.trackers import beams, clustertrack, findinghumo, findinghumo_flow, intruder, istate
@@ -107,7 +111,7 @@ def tracker_names(entries: tuple[TrackerEntry, ...] = TRACKERS) -> tuple[str, ..
 # --------------------------------------------------------------------------- the time base
 
 #: The raw logs whose stamps set a run's time origin, with the columns read from them.
-TIME_SOURCES = ("beams", "crossings", "truth", "truth_crossings", "motion", "proximity")
+TIME_SOURCES = ("beams", "crossings", "truth", "truth_crossings", "truth_events", "motion", "proximity", "frames")
 
 
 def run_time_origin(ctx: RunContext) -> TimeOrigin:
@@ -212,6 +216,25 @@ def _truth_viz(rec, ctx: RunContext, made: dict) -> None:
     log_truth(rec, made["truth"], diagonal=ctx.site.diagonal)
 
 
+def _truth_events_available(ctx: RunContext) -> str | None:
+    return None if ctx.has_source("truth_events") else "no truth_events.csv or /truth_events MCAP channel in the dataset"
+
+
+def _truth_events_work(ctx: RunContext) -> dict[str, pl.DataFrame]:
+    csv = ctx.dataset / "truth_events.csv"
+    if csv.exists():
+        te, rej = read_truth_events_csv(csv, epoch=run_time_origin(ctx))
+    else:
+        raw, path = ctx.source("truth_events", ("t", "sensor", "residents"))
+        te, rej = truth_events_from_rows(raw, epoch=run_time_origin(ctx), path=path)
+    ctx.add_rejects(rej)
+    ctx.report += [
+        ("truth_events", "events", float(te.height), "events"),
+        ("truth_events", "residents", float(te["residents"].str.split(";").explode().n_unique()) if te.height else 0.0, "residents"),
+    ]
+    return {"truth_events": te}
+
+
 def _camera_available(ctx: RunContext) -> str | None:
     if not (ctx.dataset / "camera.mp4").exists():
         return "no camera.mp4 in the dataset"
@@ -243,7 +266,68 @@ def _camera_viz(rec, ctx: RunContext, made: dict) -> None:
     log_point_tracks(rec, "camera", cam.with_columns(track=pl.col("target"), tracker=pl.lit("camera")))
 
 
+def _frame_sensor_ids(site) -> list[str]:
+    """Every binary sensor a frame log may list: motion, then proximity sensors (each id once)."""
+    return list(dict.fromkeys([m.id for m in site.motion_sensors] + [p.id for p in site.proximity_sensors]))
+
+
+def _frames_available(ctx: RunContext) -> str | None:
+    if not ctx.has_source("frames"):
+        return "no frames.csv or /frames MCAP channel in the dataset"
+    if not _frame_sensor_ids(ctx.site):
+        return "frame log present but site.toml declares no binary sensors (binary_sensors, motion_sensors, proximity_sensors)"
+    return None
+
+
+def _frames_work(ctx: RunContext) -> dict[str, pl.DataFrame]:
+    """A frame-sampled log (:mod:`onebit.readers.frames`) -> ``levels`` (every frame x every
+    sensor) and, from them, what the trackers read: ``motion`` (toggle edges of the motion and
+    binary sensors) and ``frames`` (their levels), ``proximity_frames`` (the proximity and
+    binary sensors' levels at every frame) and ``proximity`` (edges of the proximity-only
+    sensors; a binary sensor's edges are in ``motion`` once)."""
+    site = ctx.site
+    ids = _frame_sensor_ids(site)
+    csv = ctx.dataset / "frames.csv"
+    if csv.exists():
+        log = read_frames_csv(csv, ids, epoch=run_time_origin(ctx))
+    else:
+        raw = ctx.mcap_channels["/frames"]
+        layout = frame_log_layout(list(raw.frame.columns), file=raw.source, line=None)
+        cols = tuple(c for c in raw.frame.columns if c not in ("t", "line", "raw")) if layout == "wide" else ()
+        log = read_frame_rows(raw, ids, layout=layout, epoch=run_time_origin(ctx), columns=cols)
+    ctx.add_rejects(log.rejects)
+    levels = log.levels
+    motion_ids = [m.id for m in site.motion_sensors]
+    prox_ids = [p.id for p in site.proximity_sensors]
+    prox_only = [p for p in prox_ids if p not in set(motion_ids)]
+    out = {"levels": levels}
+    if motion_ids:
+        out["motion"] = edges_of_levels(levels, motion_ids)
+        out["frames"] = levels.filter(pl.col("sensor").is_in(motion_ids))
+    if prox_ids:
+        out["proximity_frames"] = levels.filter(pl.col("sensor").is_in(prox_ids))
+        out["proximity"] = edges_of_levels(levels, prox_only)
+    ctx.report += [
+        ("frames", "frames", float(log.frames), "frames"),
+        ("frames", "period", float(log.period) if log.period is not None else float("nan"), "s"),
+        ("frames", "on_readings", float(levels["on"].sum()) if levels.height else 0.0, "readings"),
+        ("frames", "unlisted", float(log.unlisted), "readings"),
+        ("frames", "rejected", float(log.rejects.height), "rows"),
+    ]
+    for stem in ("motion", "proximity"):
+        if ctx.has_source(stem):  # one source of readings per sensor: the frame log
+            ctx.report.append(("frames", f"ignored_{stem}_csv", 1.0, "flag"))
+    return out
+
+
+def _frames_viz(rec, ctx: RunContext, made: dict) -> None:
+    if "motion" in made:
+        log_motion_states(rec, made["motion"], [m.id for m in ctx.site.motion_sensors])
+
+
 def _motion_available(ctx: RunContext) -> str | None:
+    if ctx.has_source("frames"):
+        return "the readings come from the frame log (frames.csv)"
     if not ctx.has_source("motion"):
         return "no motion.csv or /motion MCAP channel in the dataset"
     if not ctx.site.motion_sensors:
@@ -258,15 +342,16 @@ def _motion_work(ctx: RunContext) -> dict[str, pl.DataFrame]:
     ids = [m.id for m in site.motion_sensors]
     csv = ctx.dataset / "motion.csv"
     if csv.exists():  # a clean file is typed in one read (read_motion_csv), else line by line
-        res = read_motion_csv(csv, ids, epoch=run_time_origin(ctx), rules=site_rules(site, cfg))
+        res = read_motion_csv(csv, ids, epoch=run_time_origin(ctx), rules=site_rules(site, cfg), held=site.level_sensors)
     else:
         raw, path = ctx.source("motion", TOGGLE_COLUMNS)
-        res = read_motion(raw, ids, epoch=run_time_origin(ctx), path=path, rules=site_rules(site, cfg))
+        res = read_motion(raw, ids, epoch=run_time_origin(ctx), path=path, rules=site_rules(site, cfg), held=site.level_sensors)
     ctx.add_rejects(res.rejects)
     frames = motion_frames(res.motion, ids, period=cfg.period)
     ctx.report += [
         ("motion", "edges", float(res.motion.height), "edges"),
         ("motion", "suppressed", float(res.suppressed.height), "edges"),
+        ("motion", "held", float(res.held), "rows"),
         ("motion", "rejected", float(res.rejects.height), "rows"),
     ]
     return {"motion": res.motion, "frames": frames, "motion_suppressed": res.suppressed}
@@ -277,6 +362,8 @@ def _motion_viz(rec, ctx: RunContext, made: dict) -> None:
 
 
 def _proximity_available(ctx: RunContext) -> str | None:
+    if ctx.has_source("frames"):
+        return "the readings come from the frame log (frames.csv)"
     if not ctx.site.proximity_sensors:
         return "site.toml has no proximity sensors"
     if not ctx.has_source("proximity"):
@@ -290,10 +377,10 @@ def _proximity_work(ctx: RunContext) -> dict[str, pl.DataFrame]:
     ids = [p.id for p in ctx.site.proximity_sensors]
     csv = ctx.dataset / "proximity.csv"
     if csv.exists():  # a clean file is typed in one read (read_proximity_csv), else line by line
-        res = read_proximity_csv(csv, ids, epoch=run_time_origin(ctx), rules=cfg.rules)
+        res = read_proximity_csv(csv, ids, epoch=run_time_origin(ctx), rules=cfg.rules, held=ctx.site.level_sensors)
     else:
         raw, path = ctx.source("proximity", TOGGLE_COLUMNS)
-        res = read_proximity(raw, ids, epoch=run_time_origin(ctx), path=path, rules=cfg.rules)
+        res = read_proximity(raw, ids, epoch=run_time_origin(ctx), path=path, rules=cfg.rules, held=ctx.site.level_sensors)
     ctx.add_rejects(res.rejects)
     frames = proximity_frames(
         res.motion, ids, period=cfg.period, start=None if cfg.start < 0 else cfg.start, instants=cfg.instants or None
@@ -301,6 +388,7 @@ def _proximity_work(ctx: RunContext) -> dict[str, pl.DataFrame]:
     ctx.report += [
         ("proximity", "edges", float(res.motion.height), "edges"),
         ("proximity", "suppressed", float(res.suppressed.height), "edges"),
+        ("proximity", "held", float(res.held), "rows"),
         ("proximity", "rejected", float(res.rejects.height), "rows"),
         ("proximity", "instants", float(frames["slot"].n_unique()) if frames.height else 0.0, "instants"),
     ]
@@ -415,7 +503,7 @@ def scores_stage(trackers: tuple[TrackerEntry, ...] = TRACKERS) -> Stage:
                 continue
             try:  # one tracker's scoring failing (say, a sensor without a region) keeps the others'
                 rows, made = entry.score(entry.name, tables, ctx.site, ctx.region_graph)
-                rows = rows + mot_rows(entry.name, entry.gate, tables, ctx.site, ctx.region_graph)
+                rows = rows + mot_rows(entry.name, entry.gate, tables, ctx.site, ctx.region_graph, gates_m=cfg.gates_m)
             except CannotServe as exc:  # the tracker's model does not fit the data: a flag, no number
                 ctx.status[f"scores/{entry.name}"] = f"cannot serve the data: {exc}"
                 ctx.report.append((entry.name, "cannot_serve", 1.0, "flag"))
@@ -426,6 +514,14 @@ def scores_stage(trackers: tuple[TrackerEntry, ...] = TRACKERS) -> Stage:
             ctx.report += rows
             out.update(made)
             tables.update(made)
+        te = tables.get("truth_events")
+        if te is not None and te.height:  # identity per event: every tracker that wrote <tracker>_events, and the baselines
+            for entry in trackers:
+                ev = tables.get(f"{entry.name}_events")
+                if ev is None or not ctx.status.get(entry.name, "").startswith("ok"):
+                    continue
+                ctx.report += identity_scores(te, ev, tracks=tables.get(f"{entry.name}_tracks")).rows(entry.name)
+            ctx.report += baseline_rows(te, graph_hops(ctx.site))
         rej = ctx.tables.get("rejects", pl.DataFrame(schema=REJECTS))
         ctx.report.append(("rejects", "rows", float(rej.height), "rows"))
         out["timings"] = tables["timings"]
@@ -450,7 +546,9 @@ def stages(trackers: tuple[TrackerEntry, ...] = TRACKERS) -> list[Stage]:
     return [
         Stage("crossings", (), ("crossings", "aborted", "beam_events"), _crossings_available, _crossings_work, _crossings_viz),
         Stage("truth", (), ("truth", "true_crossings", "sim_crossings"), _truth_available, _truth_work, _truth_viz),
+        Stage("truth_events", (), ("truth_events",), _truth_events_available, _truth_events_work),
         Stage("camera", (), ("camera_truth", "camera_detections"), _camera_available, _camera_work, _camera_viz),
+        Stage("frames", (), ("levels", "motion", "frames", "proximity", "proximity_frames"), _frames_available, _frames_work, _frames_viz),
         Stage("motion", (), ("motion", "frames", "motion_suppressed"), _motion_available, _motion_work, _motion_viz, config=MotionConfig),
         Stage("proximity", (), ("proximity", "proximity_frames", "proximity_suppressed"), _proximity_available, _proximity_work,
               config=ProximityConfig),  # fmt: skip

@@ -43,6 +43,8 @@ from onebit.core.writers import atomic_path
 from onebit.core.tables import REJECTS
 from onebit.readers.mcap_views import VIEW_TOPICS, ViewMessage
 from onebit.readers.timebase import iso_unix_us
+from onebit.readers import mcap_views
+from onebit.core.site import load_site
 
 #: Bytes of uncompressed messages per chunk.
 CHUNK_SIZE = 1024 * 1024
@@ -227,29 +229,27 @@ _TOGGLE_WORDS = {
 
 def _views(per_topic: dict[str, pl.DataFrame], site, tracks: pl.DataFrame | None) -> list[ViewMessage]:
     """The typed view messages (:mod:`onebit.readers.mcap_views`) of the raw channels."""
-    from onebit.readers import mcap_views as views
-
     out: list[ViewMessage] = []
     starts = [int(m["log_time"].min()) for m in per_topic.values() if m.height]
     if tracks is not None and tracks.height:
         starts.append(int(tracks["log_time"].min()))
     if site is not None:
-        out += views.site_views(site, min(starts) if starts else 0)
+        out += mcap_views.site_views(site, min(starts) if starts else 0)
     toggles = [
         per_topic[t].select("log_time", "sensor", pl.col("value").str.to_lowercase().replace_strict(_TOGGLE_WORDS, default=None).alias("on"))
         for t in ("/motion", "/proximity")
         if t in per_topic
     ]
     if toggles:
-        out += views.toggle_views(pl.concat(toggles).sort("log_time", maintain_order=True), site)
+        out += mcap_views.toggle_views(pl.concat(toggles).sort("log_time", maintain_order=True), site)
     if "/truth" in per_topic:
         truth = per_topic["/truth"].select(
             "log_time", pl.col("target").alias("id"),
             pl.col("x").cast(pl.Float64, strict=False), pl.col("y").cast(pl.Float64, strict=False),
         )  # fmt: skip
-        out += views.position_views(truth.drop_nulls(), kind="truth", site=site)
+        out += mcap_views.position_views(truth.drop_nulls(), kind="truth", site=site)
     if tracks is not None and tracks.height:
-        out += views.position_views(tracks.drop_nulls(["x", "y"]), kind="tracks", site=site)
+        out += mcap_views.position_views(tracks.drop_nulls(["x", "y"]), kind="tracks", site=site)
     lines = []
     for topic, text in (
         ("/motion", pl.format("{} {}", "sensor", "value")),
@@ -260,7 +260,7 @@ def _views(per_topic: dict[str, pl.DataFrame], site, tracks: pl.DataFrame | None
         if topic in per_topic and per_topic[topic].height:
             lines.append(per_topic[topic].select("log_time", pl.lit(topic.lstrip("/")).alias("name"), text.fill_null("?").alias("text")))
     if lines:
-        out += views.event_views(pl.concat(lines).sort("log_time", maintain_order=True))
+        out += mcap_views.event_views(pl.concat(lines).sort("log_time", maintain_order=True))
     return out
 
 
@@ -740,8 +740,6 @@ def csv_folder_to_mcap(
     tables = {topic: _read_table_as_strings(by_topic[topic]) for topic in CHANNELS if topic in by_topic}
     folder = src if src.is_dir() else src.parent
     if site is None and views and (folder / "site.toml").is_file():
-        from onebit.core.site import load_site
-
         site = load_site(folder / "site.toml")
     write_mcap(out_path, tables, site=site, views=views, tracks=tracks)
     return Conversion(written=[out_path])
