@@ -28,6 +28,7 @@ from onebit.readers.mcap_io import csv_folder_to_mcap, load_topic_map, mcap_to_c
 from onebit.readers.trajectories import TrajectoryFormat
 from onebit.trackers.beams.verify import parse_story, verify_path
 from onebit.pipeline.follow import FollowConfig, follow, parse_speed
+from onebit.viz.compare import compare_runs
 from onebit.core.config import load_toml
 from onebit.readers.mcap_io import tracks_for_views
 
@@ -65,8 +66,6 @@ def _cmd_follow(args) -> int:
 
 
 def _cmd_compare(args) -> int:
-    from onebit.viz.compare import compare_runs
-
     labels = tuple(args.labels.split(",", 1)) if args.labels else None
     if labels is not None and len(labels) != 2:
         raise ConfigError(f"--labels {args.labels!r}: expected two names, A,B")

@@ -24,6 +24,7 @@ from pathlib import Path
 
 from onebit.core.errors import InputError
 from onebit.core.lazy import lazy_module
+from onebit.viz import paths
 from onebit.viz.blueprint import save_blueprint
 from onebit.viz.inspect import ViewInfo, blueprint_views, query_rules
 from onebit.viz.recording import close_recording, discard_recording, open_recording, rerun_enabled
@@ -75,8 +76,6 @@ def _query(view: ViewInfo, prefix: str) -> list[str]:
 
 def _overrides(view: ViewInfo, prefix: str) -> dict[str, list] | None:
     """The view's per-entity visibility and trail windows (cursor-relative time ranges on ``t``)."""
-    from onebit.viz import paths
-
     out: dict[str, list] = {}
     for entity, o in view.overrides.items():
         target = _prefixed(entity, prefix)
