@@ -5,8 +5,10 @@ Two ways in:
 * **live** -- the dataset's CSV logs (``motion.csv``, ``beams.csv``, ``crossings.csv``,
   ``proximity.csv``, ``truth.csv``, ``truth_crossings.csv``) are tailed: every poll reads the
   lines appended since the last one. A last line without its newline is being written: it is
-  left for the next poll, never rejected. A log that shrinks is an error naming it. The *horizon*
-  (the log time known so far) is the latest stamp read.
+  left for the next poll, never rejected. A log that shrinks is an error naming it. A growing
+  ``.mcap`` (chunked, as loggers write them) is re-read when it grew, keeping every complete
+  chunk (and the ``mcap_topics.toml`` map of ROS 2 topics). The *horizon* (the log time known
+  so far) is the latest stamp read.
 * **replay** (``--replay 20x``) -- a finished log is played back at 20 times its own pace: a
   line is released when a virtual clock ``t0 + speed * (wall - wall0)`` passes its stamp; the
   horizon is that clock.
@@ -76,7 +78,10 @@ from onebit.core.site import load_site
 from onebit.pipeline.context import RunContext, dataset_run_config
 from onebit.pipeline.runner import RunResult, check_dataset, check_out, check_sections, run_pipeline
 from onebit.pipeline.stages import TIME_SOURCES, TRACKERS, run_time_origin, stages, tracker_config
+from onebit.core.tables import REJECTS
+from onebit.readers.mcap_io import load_topic_map, read_mcap
 from onebit.readers.motion import MotionConfig, site_rules
+from onebit.readers.rows import RawRows
 from onebit.readers.rows import REORDER_TOLERANCE_S
 from onebit.readers.timebase import MAX_GAP_S, TimeOrigin
 from onebit.trackers.base import ARTIFACTS, PROGRESS
@@ -208,6 +213,83 @@ def _complete_lines(data: bytes) -> tuple[list[bytes], int]:
     return data[: end + 1].splitlines(keepends=True), end + 1
 
 
+@dataclass
+class _McapSource:
+    """One ``.mcap`` of the dataset being followed: its raw channels as read so far.
+
+    Replay: the whole file is read once and each channel's rows are released by their stamps.
+    Live: the file is re-read when it grew; :func:`onebit.readers.mcap_io.read_mcap` keeps
+    every complete chunk of a file still being written (its missing footer is not a reject
+    here: the final batch run reads the file as it is then).
+    """
+
+    path: Path
+    topic_map: dict | None
+    frames: dict[str, pl.DataFrame] = field(default_factory=dict)
+    release: dict[str, np.ndarray] = field(default_factory=dict)
+    released: dict[str, int] = field(default_factory=dict)
+    size: int = 0
+    last_t: float = -math.inf
+
+    def load_all(self, origin: TimeOrigin) -> None:
+        self.frames = read_mcap(self.path, topic_map=self.topic_map).channels
+        for topic, frame in self.frames.items():
+            t = frame.select(origin.t_expr("t").alias("t"))["t"].cast(pl.Float64).fill_nan(None)
+            filled = t.fill_null(strategy="forward").fill_null(-math.inf).to_numpy()
+            self.release[topic] = np.maximum.accumulate(filled) if len(filled) else filled
+            self.released[topic] = 0
+
+    def replay(self, horizon: float) -> bool:
+        new = False
+        for topic, rel in self.release.items():
+            n = int(np.searchsorted(rel, horizon, side="right"))
+            if n > self.released[topic]:
+                self.released[topic], new = n, True
+        return new
+
+    def done(self) -> bool:
+        return all(self.released[t] == len(r) for t, r in self.release.items())
+
+    def poll(self) -> bool:
+        try:
+            size = self.path.stat().st_size
+        except OSError:
+            return False
+        if size < self.size:
+            raise InputError(f"the recording shrank from {self.size} to {size} bytes while followed", file=self.path)
+        if size == self.size:
+            return False
+        try:
+            frames = read_mcap(self.path, topic_map=self.topic_map).channels
+        except InputError:  # not even the magic yet: an empty file being created
+            return False
+        self.size = size
+        grew = any(f.height > self.released.get(t, 0) for t, f in frames.items())
+        self.frames = frames
+        self.released = {t: f.height for t, f in frames.items()}
+        return grew
+
+    def stamps(self, origin: TimeOrigin) -> None:
+        for topic, frame in self.frames.items():
+            if frame.height:
+                t = frame.select(origin.t_expr("t").alias("t"))["t"].cast(pl.Float64).fill_nan(None).max()
+                if t is not None and math.isfinite(t):
+                    self.last_t = max(self.last_t, float(t))
+
+    def rows(self) -> dict[str, RawRows]:
+        empty = pl.DataFrame(schema=REJECTS)
+        return {topic: RawRows(f"{self.path.name}:{topic}", f.head(self.released.get(topic, 0)), empty) for topic, f in self.frames.items()}
+
+
+def _channels(mcaps: list[_McapSource]) -> dict[str, RawRows]:
+    """Topic -> rows released so far; the first file holding a topic wins (as in ``onebit run``)."""
+    out: dict[str, RawRows] = {}
+    for m in mcaps:
+        for topic, rows in m.rows().items():
+            out.setdefault(topic, rows)
+    return out
+
+
 # --------------------------------------------------------------------------- the loop
 
 
@@ -256,9 +338,12 @@ def _settle(site, sections: dict) -> float:
     return REORDER_TOLERANCE_S + max(windows)
 
 
-def _read_prefix(snapshot: Path, scratch: Path, site, rg, sections: dict, trackers: tuple[str, ...], origin: TimeOrigin | None, stage_list) -> RunContext:
-    """The reader stages on the snapshot: a context whose ``tables`` hold what they made."""
+def _read_prefix(snapshot: Path, scratch: Path, site, rg, sections: dict, trackers: tuple[str, ...], origin: TimeOrigin | None, stage_list,
+                 mcap_channels: dict[str, RawRows]) -> RunContext:  # fmt: skip
+    """The reader stages on the snapshot (and the MCAP rows released): a context whose
+    ``tables`` hold what they made."""
     ctx = RunContext(snapshot, scratch, site, rg, {k: dict(v) for k, v in sections.items() if isinstance(v, dict)}, trackers=trackers)
+    ctx.mcap_channels = dict(mcap_channels)
     if origin is not None:
         ctx.time_origin = origin
     for st in stage_list:
@@ -329,9 +414,11 @@ def follow(
             raise ConfigError(f"--trackers: unknown tracker {tr!r}; known: {sorted(known)}")
     chosen = tuple(trackers) if trackers else tuple(known)
     logs = [stem for stem in TIME_SOURCES if (dataset / f"{stem}.csv").is_file()]
-    if not logs:
-        raise InputError("no CSV log to follow (motion.csv, beams.csv, crossings.csv, proximity.csv, truth.csv); "
-                         "an MCAP recording is read by 'onebit run', not followed", file=dataset)  # fmt: skip
+    topics = dataset / "mcap_topics.toml"
+    topic_map = load_topic_map(topics) if topics.is_file() else None
+    mcaps = [_McapSource(p, topic_map) for p in sorted(dataset.glob("*.mcap"))]
+    if not logs and not mcaps:
+        raise InputError("no log to follow (motion.csv, beams.csv, crossings.csv, proximity.csv, truth.csv or an .mcap)", file=dataset)
     settle = options.settle if options.settle is not None else _settle(site, merged)
 
     live = out / LIVE
@@ -349,7 +436,12 @@ def follow(
         origin: TimeOrigin | None = None
         if options.replay is not None:  # the whole log is known: its origin, every line's release time
             full = RunContext(dataset, scratch, site, rg, {}, trackers=chosen)
+            for m in mcaps:
+                for topic, frame in read_mcap(m.path, topic_map=topic_map).channels.items():
+                    full.mcap_channels.setdefault(topic, RawRows(f"{m.path.name}:{topic}", frame, pl.DataFrame(schema=REJECTS)))
             origin = run_time_origin(full)
+            for m in mcaps:
+                m.load_all(origin)
             for src in sources.values():
                 raw = src.path.read_bytes()
                 head, _, body = raw.partition(b"\n")
@@ -361,6 +453,7 @@ def follow(
                 filled = pl.Series(t).fill_nan(None).fill_null(strategy="forward").fill_null(-math.inf).to_numpy()
                 src.release = np.maximum.accumulate(filled) if len(filled) else filled
         starts = [s.release[0] for s in sources.values() if len(s.release) and math.isfinite(s.release[0])]
+        starts += [r[0] for m in mcaps for r in m.release.values() if len(r) and math.isfinite(r[0])]
         t0 = min(starts) if starts else 0.0
         wall0 = clock()
         history: list[tuple[float, float]] = []  # live: (horizon, wall) at each poll
@@ -403,9 +496,12 @@ def follow(
                     if n > src.released:
                         src.write(src.lines[src.released : n])
                         src.released, new = n, True
-                final = all(s.released == len(s.lines) for s in sources.values())
+                for m in mcaps:
+                    new = m.replay(horizon) or new
+                final = all(s.released == len(s.lines) for s in sources.values()) and all(m.done() for m in mcaps)
                 if final:
                     horizon = max([horizon, *(s.release[-1] for s in sources.values() if len(s.release))])
+                    horizon = max([horizon, *(r[-1] for m in mcaps for r in m.release.values() if len(r))])
             else:
                 for src in sources.values():
                     try:
@@ -430,10 +526,14 @@ def follow(
                     src.write(lines)
                     src.lines.extend(lines)
                     new = True
+                for m in mcaps:
+                    new = m.poll() or new
                 if new:
                     last_growth = now
                     if origin is None:  # the first lines fix t = 0; the window of accepted stamps stays open ahead
-                        first = run_time_origin(RunContext(data, scratch, site, rg, {}, trackers=chosen))
+                        first_ctx = RunContext(data, scratch, site, rg, {}, trackers=chosen)
+                        first_ctx.mcap_channels = _channels(mcaps)
+                        first = run_time_origin(first_ctx)
                         lo = first.lo - MAX_GAP_S if math.isfinite(first.lo) else first.lo
                         origin = dataclasses.replace(first, lo=lo, hi=math.inf)
                     for src in sources.values():
@@ -444,12 +544,14 @@ def follow(
                             if len(t):
                                 src.last_t = max(src.last_t, float(t.max()))
                             src.released = len(src.lines)
-                    horizon = max(s.last_t for s in sources.values())
+                    for m in mcaps:
+                        m.stamps(origin)
+                    horizon = max([*(s.last_t for s in sources.values()), *(m.last_t for m in mcaps)])
                     history.append((horizon, now))
                 final = now - last_growth >= options.idle
             polls += 1
             if new or final:
-                ctx = _read_prefix(data, scratch, site, rg, merged, chosen, origin, stage_list)
+                ctx = _read_prefix(data, scratch, site, rg, merged, chosen, origin, stage_list, _channels(mcaps))
                 tables = ctx.tables
                 if "motion" in tables:
                     settled = tables["motion"].filter(pl.col("t") <= horizon - settle) if not final else tables["motion"]
@@ -500,6 +602,8 @@ def follow(
         viz_live.close_live(rec)
         echo(f"  followed {polls} polls; final batch run")
         final_data = dataset if options.replay is not None else data
+        for m in mcaps if options.replay is None else ():  # the recordings as they are now
+            shutil.copy(m.path, data / m.path.name)
         run = run_pipeline(final_data, out, trackers=trackers, config=config, progress=False, echo=echo)
         report = _follow_report(out, live, online, pub, polls, batch_only)
         outputs.write_parquet(report, live / "report.parquet")

@@ -153,6 +153,47 @@ def test_a_crash_leaves_every_published_table_readable(pir, tmp_path):
     assert metric(res.report, "intruder/online_equals_batch") == 1.0
 
 
+def _mcap_dataset(src, d, monkeypatch) -> bytes:
+    """``d`` with ``src``'s site and its motion log as a chunked MCAP of small chunks (a logger's
+    file); returns the file's bytes."""
+    from onebit.readers import mcap_io
+
+    d.mkdir()
+    (d / "site.toml").write_bytes((src / "site.toml").read_bytes())
+    monkeypatch.setattr(mcap_io, "CHUNK_SIZE", 2048)
+    motion = pl.read_csv(src / "motion.csv", infer_schema=False)
+    mcap_io.write_mcap(d / "recording.mcap", {"/motion": motion}, views=False)
+    return (d / "recording.mcap").read_bytes()
+
+
+def test_mcap_replay_and_growing_mcap_equal_batch(pir, tmp_path, monkeypatch):
+    _, src = pir
+    ref = run_pipeline(src, tmp_path / "batch", trackers=("intruder",), progress=False)
+    want = pl.read_parquet(ref.out / "tables" / "intruder_tracks.parquet")
+    # a replay of the recording
+    d = tmp_path / "rec"
+    data = _mcap_dataset(src, d, monkeypatch)
+    clock = SimClock()
+    res = follow(d, tmp_path / "out", trackers=("intruder",), options=FollowConfig(replay=20.0, poll=0.2), clock=clock.clock, sleep=clock.sleep)
+    assert len(list((res.live / "tables" / "intruder_tracks").glob("part-*.parquet"))) >= 5
+    assert _equal(read_live_table(res.live, "intruder_tracks"), want)
+    # the same file being written: its bytes appear in pieces that cut chunks in the middle
+    g = tmp_path / "growing"
+    g.mkdir()
+    (g / "site.toml").write_bytes((src / "site.toml").read_bytes())
+    step = max(1, len(data) // 25)
+    (g / "recording.mcap").write_bytes(data[:step])
+
+    def grow(k: int) -> None:
+        (g / "recording.mcap").write_bytes(data[: (k + 1) * step])
+
+    clock = SimClock(grow)
+    res = follow(g, tmp_path / "out2", trackers=("intruder",), options=FollowConfig(poll=0.1, idle=1.0), clock=clock.clock, sleep=clock.sleep)
+    assert len(list((res.live / "tables" / "intruder_tracks").glob("part-*.parquet"))) >= 5
+    assert _equal(read_live_table(res.live, "intruder_tracks"), want)
+    assert metric(res.run.report, "rejects/rows") == 0.0
+
+
 def test_options_are_checked():
     assert parse_speed("20x") == 20.0 and parse_speed("0.5X") == 0.5 and parse_speed("3") == 3.0
     for bad in ("fast", "0x", "-2x", ""):
@@ -169,5 +210,5 @@ def test_nothing_to_follow_is_an_error(tmp_path, pir):
     d = tmp_path / "d"
     d.mkdir()
     (d / "site.toml").write_bytes((src / "site.toml").read_bytes())
-    with pytest.raises(InputError, match="no CSV log to follow"):
+    with pytest.raises(InputError, match="no log to follow"):
         follow(d, tmp_path / "out")
