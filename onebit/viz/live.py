@@ -24,6 +24,8 @@ from onebit.viz.site import log_site
 
 rr = lazy_module("rerun")
 
+#: port of the web viewer of ``--serve-web`` (Rerun's default)
+WEB_PORT = 9090
 #: entity of the delay series, one Scalars per tracker: follow/delay/<tracker>
 DELAY_ROOT = "follow/delay"
 ON, OFF = 1, 0
@@ -48,7 +50,8 @@ def open_live(path: str | Path, *, recording_id: str, connect: str | None = None
             url = server.uri
         rec.set_sinks(*sinks)
         if serve_web:
-            rr.serve_web_viewer(connect_to=url, open_browser=False)
+            rr.serve_web_viewer(web_port=WEB_PORT, connect_to=url, open_browser=False)
+            url = f"http://localhost:{WEB_PORT} (the page connects to {url.replace('0.0.0.0', 'localhost')})"
     return rec, url
 
 
