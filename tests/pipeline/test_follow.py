@@ -151,6 +151,11 @@ def test_a_crash_leaves_every_published_table_readable(pir, tmp_path):
     clock = SimClock()
     res = follow(data, tmp_path / "out", trackers=("intruder",), options=FollowConfig(replay=50.0, poll=0.5), clock=clock.clock, sleep=clock.sleep)
     assert metric(res.report, "intruder/online_equals_batch") == 1.0
+    # a plain run into the same OUT replaces the run's files and keeps the live folder
+    before = read_live_table(live, "intruder_tracks")
+    assert run_pipeline(data, tmp_path / "out", trackers=("intruder-naive",), progress=False).ok
+    assert read_live_table(live, "intruder_tracks").equals(before)
+    assert not (tmp_path / "out" / "tables" / "intruder_tracks.parquet").exists()
 
 
 def _mcap_dataset(src, d, monkeypatch) -> bytes:
