@@ -135,9 +135,25 @@ def _cmd_simulate(args) -> int:
 
 
 def _cmd_experiment(args) -> int:
+    import inspect
+
     mod = get_experiment(args.name)
+    extra = {}
+    if args.name == "residents":  # a folder of real sessions, not a simulation
+        extra = dict(results=Path(args.results) if args.results else None,
+                     trackers=tuple(t.strip() for t in args.trackers.split(",") if t.strip()) if args.trackers else None,
+                     layout=args.layout, rooms=args.rooms, scale=args.scale, graph_radius=args.graph_radius, targets=args.targets,
+                     doors=tuple(d.strip() for d in args.doors.split(",") if d.strip()) if args.doors else ())  # fmt: skip
+    else:
+        params = inspect.signature(mod.run).parameters
+        trackers = tuple(t.strip() for t in args.trackers.split(",") if t.strip()) if args.trackers else None
+        for key, value in (("data", args.data), ("trackers", trackers)):
+            if value is not None:
+                if key not in params:
+                    raise ConfigError(f"experiment {args.name!r} takes no --{key}")
+                extra[key] = value
     with _executor(args) as ex:
-        out = mod.run(Path(args.out), seed=args.seed, trials=args.trials, quick=args.quick, echo=print, executor=ex)
+        out = mod.run(Path(args.out), seed=args.seed, trials=args.trials, quick=args.quick, echo=print, executor=ex, **extra)
     print(f"experiment {args.name}: results in {out}")
     return 0
 
@@ -324,11 +340,21 @@ def build_parser() -> argparse.ArgumentParser:
     s.set_defaults(func=_cmd_simulate)
 
     e = sub.add_parser("experiment", help="reproduce a paper's study: simulate, run, tabulate, plot")
-    e.add_argument("name", help="schiff, singh, okane, ...")
+    e.add_argument("name", help="schiff, singh, okane, ..., residents (OUT = a folder of CASAS sessions)")
     e.add_argument("out")
+    e.add_argument("--results", default=None, help="residents: results folder (default OUT/residents-study)")
+    e.add_argument("--trackers", default=None, help="residents, ceiling: comma-separated trackers (default: residents hmm1,hmm2,findinghumo,"
+                   "findinghumo-flow; ceiling every positional one)")
+    e.add_argument("--layout", default=None, help="residents: floor plan / layout for every session (as import casas)")
+    e.add_argument("--rooms", default=None, help="residents: floor plan rooms JSON")
+    e.add_argument("--scale", type=float, default=None, help="residents: floor plan metres per pixel")
+    e.add_argument("--graph-radius", type=float, default=None, help="residents: floor plan graph radius (m)")
+    e.add_argument("--targets", type=int, default=None, help="residents: site.toml targets for every session")
+    e.add_argument("--doors", default=None, help="residents: contacts that are doors to the outside")
     e.add_argument("--seed", type=int, default=0)
     e.add_argument("--trials", type=int, default=None, help="trials per setting (default: the paper's)")
     e.add_argument("--quick", action="store_true", help="a reduced study (smoke test)")
+    e.add_argument("--data", default=None, help="ceiling: the irtracking recordings (a clone of antonmil/irtracking)")
     _add_executor_options(e)
     e.set_defaults(func=_cmd_experiment)
 

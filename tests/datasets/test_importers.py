@@ -80,6 +80,12 @@ def test_one_resident_decodes_as_one_user(imported, tmp_path):
         tracks = pl.read_parquet(tmp_path / "run" / "tables" / f"{name}_tracks.parquet")
         assert tracks["track"].n_unique() == 1, name
         assert metric(res.report, f"{name}/users_decoded") == 1.0
+    # every ON edge is attributed (one user, always somewhere): <tracker>_events, the contract of issue 22
+    on_edges = pl.read_parquet(tmp_path / "run" / "tables" / "motion.parquet").filter("on").height
+    for name in ("findinghumo", "hmm1", "hmm2"):
+        ev = pl.read_parquet(tmp_path / "run" / "tables" / f"{name}_events.parquet")
+        assert ev.schema == pl.Schema({"t": pl.Float64, "sensor": pl.String, "track": pl.String})
+        assert ev.height == on_edges and ev["track"].null_count() < 0.2 * on_edges, name
     # the track follows the activity: mostly at the sensor that fired last
     tracks = pl.read_parquet(tmp_path / "run" / "tables" / "findinghumo_tracks.parquet").sort("t")
     on = pl.read_parquet(tmp_path / "run" / "tables" / "motion.parquet").filter("on").sort("t")

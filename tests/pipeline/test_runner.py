@@ -286,3 +286,16 @@ def test_run_record_times_work_recording_and_writing_of_every_stage(lab_run, tmp
     assert timing["entered_unix"] <= (res.out / "run.toml").stat().st_mtime
     # a run record given back as --config ignores the timing (not a stage section)
     assert "timing" not in load_run_config(res.out / "run.toml")
+
+
+def test_istate_beyond_its_stage_bound_is_skipped_saying_why(lab_run, tmp_path):
+    data, full = lab_run
+    assert full.status["istate"].startswith("ok")  # 60 s = 61 stages: within the default bound
+    res = run_pipeline(data, tmp_path / "bounded", config={"istate": {"max_stages": 10}}, rrd=False)
+    reason = res.status["istate"]
+    assert reason.startswith("skipped") and "max_stages = 10" in reason and "stages of period_s = 1 s" in reason
+    assert res.ok  # not asked for by name: the others ran, the run is ok
+    asked = run_pipeline(data, tmp_path / "asked", trackers=("istate",), config={"istate": {"max_stages": 10}}, rrd=False)
+    assert not asked.ok and any("max_stages" in p for p in asked.problems)
+    lifted = run_pipeline(data, tmp_path / "lifted", trackers=("istate",), config={"istate": {"max_stages": 0}}, rrd=False)
+    assert lifted.status["istate"].startswith("ok")
