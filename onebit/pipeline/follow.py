@@ -473,6 +473,7 @@ def follow(
 
         entries = {e.name: e for e in TRACKERS}
         online = [n for n in ONLINE if n in chosen and (entries[n].spec.available is None or entries[n].spec.available(site) is None)]
+        viz_live.send_live_blueprint(rec, online)
         batch_only = [n for n in chosen if n not in online]
         for n in online:
             echo(f"  {n}: online, {ONLINE[n]}")

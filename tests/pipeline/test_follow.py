@@ -16,6 +16,7 @@ from onebit.datasets.catalogue import get_scenario
 from onebit.pipeline.follow import FollowConfig, follow, parse_speed, read_live_table
 from onebit.pipeline.report import metric
 from onebit.pipeline.runner import run_pipeline
+from onebit.viz.inspect import blueprint_views, entity_paths
 
 
 class SimClock:
@@ -82,7 +83,12 @@ def test_replay_equals_batch_and_reports_delay(pir, tmp_path):
     )
     delays = read_live_table(res.live, "delays")
     assert delays.height == sum(metric(res.report, f"{n}/online_estimates") for n in ("intruder", "intruder-naive"))
-    assert (res.live / "rrd" / "follow.rrd").stat().st_size > 0
+    # the stream: the batch recordings' entity paths, the delays, its own layout
+    rrd = res.live / "rrd" / "follow.rrd"
+    paths = entity_paths(rrd)
+    assert {"intruder/tracks/intruder", "intruder-naive/tracks/intruder-naive", "follow/delay/intruder", "site/boundary"} <= paths
+    assert any(p.startswith("sensors/") for p in paths)
+    assert {v.kind for v in blueprint_views(rrd)} == {"2D", "StateTimeline", "TimeSeries"}
     # the follow's own final run is the batch run: same report rows as onebit run's
     a = res.run.report.filter(pl.col("stage").is_in(["intruder", "intruder-naive"]))
     b = batch.report.filter(pl.col("stage").is_in(["intruder", "intruder-naive"]))
@@ -151,6 +157,11 @@ def test_a_crash_leaves_every_published_table_readable(pir, tmp_path):
     clock = SimClock()
     res = follow(data, tmp_path / "out", trackers=("intruder",), options=FollowConfig(replay=50.0, poll=0.5), clock=clock.clock, sleep=clock.sleep)
     assert metric(res.report, "intruder/online_equals_batch") == 1.0
+    # a plain run into the same OUT replaces the run's files and keeps the live folder
+    before = read_live_table(live, "intruder_tracks")
+    assert run_pipeline(data, tmp_path / "out", trackers=("intruder-naive",), progress=False).ok
+    assert read_live_table(live, "intruder_tracks").equals(before)
+    assert not (tmp_path / "out" / "tables" / "intruder_tracks.parquet").exists()
 
 
 def _mcap_dataset(src, d, monkeypatch) -> bytes:
