@@ -32,10 +32,11 @@ from onebit.core.errors import InputError, OnebitError
 from onebit.core.tables import REJECTS
 from onebit.core.units import config_in_site_units
 from onebit.pipeline.context import ReportRow, RunContext, Stage
-from onebit.readers.beams import BEAM_COLUMNS, decode_beam_log, decode_raw_beams
-from onebit.readers.frames import edges_of_levels, frame_log_layout, read_frame_rows, read_frames_csv
+from onebit.readers.beams import BEAM_COLUMNS, beam_dtypes, decode_beam_log, decode_raw_beams
+from onebit.readers.frames import edges_of_levels, read_frames_csv
 from onebit.readers.camera import read_camera, truth_error
-from onebit.readers.motion import TOGGLE_COLUMNS, MotionConfig, motion_frames, read_motion, read_motion_csv, site_rules
+from onebit.readers.motion import TOGGLE_COLUMNS, MotionConfig, motion_frames, read_motion, read_motion_csv, site_rules, toggle_dtypes
+from onebit.readers.rows import read_typed_csv
 from onebit.readers.proximity import ProximityConfig, proximity_frames, read_proximity, read_proximity_csv
 from onebit.readers.tables_csv import (
     crossings_from_rows, read_crossings_csv, read_true_crossings_csv, read_truth_csv, read_truth_events_csv, true_crossings_columns,
@@ -128,9 +129,14 @@ def run_time_origin(ctx: RunContext) -> TimeOrigin:
     cached = getattr(ctx, "time_origin", None)
     if isinstance(cached, TimeOrigin):
         return cached
-    frames: dict[str, pl.DataFrame] = {}
+    frames: dict[str, pl.DataFrame | list[pl.DataFrame]] = {}
     for stem in TIME_SOURCES:
         if not ctx.has_source(stem):
+            continue
+        split = _typed_read(ctx, stem)
+        if split is not None:  # read once, typed: its stamps here, the rest by the reader stage
+            ctx.typed_reads[stem] = split
+            frames[f"{stem}.csv"] = [split.good.select("line", "t"), split.rest.frame.select("line", "t")]
             continue
         try:
             name, frame = ctx.stamps(stem)
@@ -141,6 +147,22 @@ def run_time_origin(ctx: RunContext) -> TimeOrigin:
     ctx.time_origin = origin
     ctx.config["time"] = origin.as_dict()  # the run record's [time] (runner.RUN_RECORD_SECTIONS)
     return origin
+
+
+def _typed_read(ctx: RunContext, stem: str):
+    """The typed read (:func:`~onebit.readers.rows.read_typed_csv`) of ``<stem>.csv`` in the
+    reader stage's types, for the logs whose reader takes it (beams, motion, proximity), else
+    ``None`` (no such CSV, another log, or a file the typed read cannot take)."""
+    csv = ctx.dataset / f"{stem}.csv"
+    if stem not in ("beams", "motion", "proximity") or not csv.exists():
+        return None
+    if stem == "beams":
+        ids = list(ctx.site.beam_ids)
+    else:
+        ids = [m.id for m in (ctx.site.motion_sensors if stem == "motion" else ctx.site.proximity_sensors)]
+    if not ids:  # its stage will not read it: the stamps alone
+        return None
+    return read_typed_csv(csv, beam_dtypes(tuple(ids)) if stem == "beams" else toggle_dtypes(ids))
 
 
 # --------------------------------------------------------------------------- reader stages
@@ -158,7 +180,7 @@ def _crossings_work(ctx: RunContext) -> dict[str, pl.DataFrame]:
     if ctx.has_source("beams"):
         csv = ctx.dataset / "beams.csv"
         if csv.exists():  # a clean file is typed in one read (decode_beam_log), else line by line
-            dec = decode_beam_log(csv, site.beam_ids, epoch=run_time_origin(ctx))
+            dec = decode_beam_log(csv, site.beam_ids, epoch=run_time_origin(ctx), split=ctx.typed_reads.pop("beams", None))
         else:
             raw, path = ctx.source("beams", BEAM_COLUMNS)
             dec = decode_raw_beams(raw, site.beam_ids, epoch=run_time_origin(ctx), path=path)
@@ -275,8 +297,8 @@ def _frame_sensor_ids(site) -> list[str]:
 
 
 def _frames_available(ctx: RunContext) -> str | None:
-    if not ctx.has_source("frames"):
-        return "no frames.csv or /frames MCAP channel in the dataset"
+    if not (ctx.dataset / "frames.csv").exists():
+        return "no frames.csv in the dataset (frame logs are not read from MCAP)"
     if not _frame_sensor_ids(ctx.site):
         return "frame log present but site.toml declares no binary sensors (binary_sensors, motion_sensors, proximity_sensors)"
     return None
@@ -290,14 +312,7 @@ def _frames_work(ctx: RunContext) -> dict[str, pl.DataFrame]:
     sensors; a binary sensor's edges are in ``motion`` once)."""
     site = ctx.site
     ids = _frame_sensor_ids(site)
-    csv = ctx.dataset / "frames.csv"
-    if csv.exists():
-        log = read_frames_csv(csv, ids, epoch=run_time_origin(ctx))
-    else:
-        raw = ctx.mcap_channels["/frames"]
-        layout = frame_log_layout(list(raw.frame.columns), file=raw.source, line=None)
-        cols = tuple(c for c in raw.frame.columns if c not in ("t", "line", "raw")) if layout == "wide" else ()
-        log = read_frame_rows(raw, ids, layout=layout, epoch=run_time_origin(ctx), columns=cols)
+    log = read_frames_csv(ctx.dataset / "frames.csv", ids, epoch=run_time_origin(ctx))
     ctx.add_rejects(log.rejects)
     levels = log.levels
     motion_ids = [m.id for m in site.motion_sensors]
@@ -329,7 +344,7 @@ def _frames_viz(rec, ctx: RunContext, made: dict) -> None:
 
 
 def _motion_available(ctx: RunContext) -> str | None:
-    if ctx.has_source("frames"):
+    if (ctx.dataset / "frames.csv").exists():
         return "the readings come from the frame log (frames.csv)"
     if not ctx.has_source("motion"):
         return "no motion.csv or /motion MCAP channel in the dataset"
@@ -345,7 +360,8 @@ def _motion_work(ctx: RunContext) -> dict[str, pl.DataFrame]:
     ids = [m.id for m in site.motion_sensors]
     csv = ctx.dataset / "motion.csv"
     if csv.exists():  # a clean file is typed in one read (read_motion_csv), else line by line
-        res = read_motion_csv(csv, ids, epoch=run_time_origin(ctx), rules=site_rules(site, cfg), held=site.level_sensors)
+        res = read_motion_csv(csv, ids, epoch=run_time_origin(ctx), rules=site_rules(site, cfg), held=site.level_sensors,
+                              split=ctx.typed_reads.pop("motion", None))
     else:
         raw, path = ctx.source("motion", TOGGLE_COLUMNS)
         res = read_motion(raw, ids, epoch=run_time_origin(ctx), path=path, rules=site_rules(site, cfg), held=site.level_sensors)
@@ -365,7 +381,7 @@ def _motion_viz(rec, ctx: RunContext, made: dict) -> None:
 
 
 def _proximity_available(ctx: RunContext) -> str | None:
-    if ctx.has_source("frames"):
+    if (ctx.dataset / "frames.csv").exists():
         return "the readings come from the frame log (frames.csv)"
     if not ctx.site.proximity_sensors:
         return "site.toml has no proximity sensors"
@@ -380,7 +396,8 @@ def _proximity_work(ctx: RunContext) -> dict[str, pl.DataFrame]:
     ids = [p.id for p in ctx.site.proximity_sensors]
     csv = ctx.dataset / "proximity.csv"
     if csv.exists():  # a clean file is typed in one read (read_proximity_csv), else line by line
-        res = read_proximity_csv(csv, ids, epoch=run_time_origin(ctx), rules=cfg.rules, held=ctx.site.level_sensors)
+        res = read_proximity_csv(csv, ids, epoch=run_time_origin(ctx), rules=cfg.rules, held=ctx.site.level_sensors,
+                                 split=ctx.typed_reads.pop("proximity", None))
     else:
         raw, path = ctx.source("proximity", TOGGLE_COLUMNS)
         res = read_proximity(raw, ids, epoch=run_time_origin(ctx), path=path, rules=cfg.rules, held=ctx.site.level_sensors)
@@ -446,6 +463,8 @@ def tracker_inputs(entry: TrackerEntry, ctx: RunContext) -> dict[str, Any]:
         sources = entry.inputs.get(key, (key,))
         inputs[key] = next(ctx.tables[s] for s in sources if s in ctx.tables)
     inputs.update({k: ctx.tables[k] for k in entry.spec.wants if k in ctx.tables})
+    if "levels" in ctx.tables:  # a frame log: every sensor's reading at every frame, for any tracker that reads it
+        inputs.setdefault("levels", ctx.tables["levels"])
     inputs["region_graph"] = ctx.region_graph
     inputs[PROGRESS] = ctx.progress
     return inputs
@@ -463,7 +482,11 @@ def tracker_stage(entry: TrackerEntry) -> Stage:
                 return f"input table '{key}' not produced by an earlier stage"
         if not spec.needs and spec.wants and not any(k in ctx.tables for k in spec.wants):
             return f"none of its input tables ({', '.join(spec.wants)}) was produced by an earlier stage"
-        return spec.available(ctx.site) if spec.available is not None else None
+        reason = spec.available(ctx.site) if spec.available is not None else None
+        if reason is None and spec.fits is not None:  # the inputs' size against the tracker's bound
+            cfg = config_in_site_units(config_from_mapping(spec.config, ctx.section(name), section=name), ctx.site)
+            reason = spec.fits(tracker_inputs(entry, ctx), ctx.site, cfg)
+        return reason
 
     def work(ctx: RunContext) -> dict[str, Any]:
         cfg = ctx.configs[name] = tracker_config(entry, ctx)

@@ -25,7 +25,7 @@ from onebit.readers.mcap_io import (
     tracks_for_views,
     write_mcap,
 )
-from onebit.readers.mcap_views import VIEW_TOPICS, message_classes
+from onebit.readers.mcap_views import MARKER_POINTS, VIEW_TOPICS, message_classes
 
 SITE = """name = "room"
 units = "m"
@@ -117,9 +117,11 @@ def test_view_schemas_are_foxgloves_own_and_messages_decode(tmp_path):
     ]  # fmt: skip
     assert [m[3] for m in msgs["/events"]] == [5 * 10**8, 15 * 10**8, 17 * 10**8, 2 * 10**9, 3_250_000_000, 4 * 10**9]
     clouds = [classes["foxglove.PointCloud"].FromString(m[4]) for m in msgs["/points/sensors"]]
-    assert len(clouds) == 5 and all(len(c.data) == 2 * c.point_stride for c in clouds)
-    # the colour bytes of m1 (point 0) follow its toggles: on, off, off, off, on
+    n = MARKER_POINTS  # each sensor is a ring of points
+    assert len(clouds) == 5 and all(len(c.data) == 2 * n * c.point_stride for c in clouds)
+    # the colour bytes of m1 (its ring's points) follow its toggles: on, off, off, off, on
     on = [c.data[12:16] for c in clouds]
+    assert all(c.data[12:16] == c.data[(n - 1) * 16 + 12 : (n - 1) * 16 + 16] for c in clouds)
     assert on[0] == on[4] and on[1] == on[2] == on[3] and on[0] != on[1]
     truth = [classes["foxglove.SceneUpdate"].FromString(m[4]) for m in msgs["/foxglove/truth"]]
     assert [(u.entities[0].id, u.entities[0].spheres[0].pose.position.x) for u in truth] == [("truth/p1", 1.0), ("truth/p1", 2.0), ("truth/p1", 4.5)]
