@@ -63,7 +63,7 @@ def tracks_from_pred(pred: np.ndarray) -> np.ndarray:
 
 def attribution_cost(pred: np.ndarray, move, birth: np.ndarray, *, stay: float | None = None) -> float:
     """Cost (1) of an attribution: ``move(j, i)`` for every link, ``birth[i]`` for every birth,
-    plus the who-fires term (6) of each event when ``stay`` is given -- written event by event
+    plus the who-fires term (5) of each event when ``stay`` is given -- written event by event
     from its definition (the decoder's test oracle)."""
     total = 0.0
     track = tracks_from_pred(pred)
@@ -88,7 +88,7 @@ def decode_events(
     ``move_row(J, i) -> costs`` gives ``c(J[...], i)`` for an integer array ``J`` of earlier
     event indices (all ``>= 0``); ``birth[i]`` is ``b(i)``. ``beam``: states kept per event
     (``None`` = all, exact; ``1``: each event is committed to its cheapest continuation, an
-    online assignment). ``stay``: the who-fires term of eq. (6) (:func:`who_fires`; ``None``
+    online assignment). ``stay``: the who-fires term of eq. (5) (:func:`who_fires`; ``None``
     = off). ``progress(done, total)`` is called every 1000 events.
     """
     n = len(birth)
@@ -152,7 +152,7 @@ def decode_events(
 
 
 def who_fires(states: np.ndarray, i: int, stay: float) -> np.ndarray:
-    """Eq. (6) of the model for every state (rows of last event indices) and move (columns: the
+    """Eq. (5) of the model for every state (rows of last event indices) and move (columns: the
     person of that column fires event ``i``; the last column: a new person): ``-ln stay`` for
     the person who fired event ``i - 1`` when others are present, ``-ln((1 - stay) / (n - 1))``
     for another of the ``n`` present, ``-ln((1 - stay) / n)`` for a newcomer. ``(B, K + 1)``."""

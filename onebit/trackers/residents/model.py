@@ -42,14 +42,14 @@ in the first ``start_window_s`` of the log (people already home when it starts),
 A person's silence costs nothing beyond (3): tracks persist while silent (dwelling), and a
 person who left through a door comes back through it (``d`` from the door is small).
 
-Who fires (eq. 6, optional, ``rho > 0``). People take turns unevenly: the person who fired the
+Who fires (eq. 5, optional, ``rho > 0``). People take turns unevenly: the person who fired the
 last event usually fires the next one too. With ``n`` people present, the person of event
 ``i - 1`` fires event ``i`` with probability ``rho``, each other one with ``(1 - rho) / (n -
 1)``, a newcomer with ``(1 - rho) / n``::
 
     f(i) = -ln rho                      same person as event i - 1 (0 when n = 1)
            -ln((1 - rho) / (n - 1))     another person present
-           -ln((1 - rho) / n)           a birth                                      (6)
+           -ln((1 - rho) / n)           a birth                                      (5)
 
 It is the Occam factor of the number of people: a second person costs ``-ln rho`` on every
 event the first one keeps firing, so a track that only steals a few of one person's returns

@@ -42,7 +42,7 @@ DECODER = pl.Schema({"events": pl.Int64, "people": pl.Int64, "cost": pl.Float64,
 
 @dataclass(frozen=True, kw_only=True)
 class ResidentsConfig:
-    """``[residents]``: the model's constants (eq. 2-6 of the model module) and the search's.
+    """``[residents]``: the model's constants (eq. 2-5 of the model module) and the search's.
 
     l0 : spread of the next sensor a person fires (about a sensor's footprint), metres.
     speed : walking speed at which the spread grows with silence, metres per second. Default 0:
@@ -50,7 +50,7 @@ class ResidentsConfig:
         silence than after a short one (docs/residents.md, "what the data says").
     l_max : largest spread (a room), metres (used when ``speed > 0``).
     silence_weight, silence_tau_s : ``w`` and ``tau`` of the silence term of eq. (3) (0: off).
-    stay : ``rho`` of the who-fires term (6) (0: off).
+    stay : ``rho`` of the who-fires term (5) (0: off).
     birth_door, birth_inside : cost (nats) of a new person at a door or at the log's start /
         anywhere else.
     start_window_s : seconds from the first event during which people already home appear.

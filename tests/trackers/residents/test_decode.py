@@ -85,7 +85,7 @@ def test_two_people_far_apart_are_two_tracks_and_one_person_is_one():
     def row1(J, i):
         return move_cost(D, one_place[J], np.full(len(J), one_place[i]), t[i] - t[J], l0=1.0, v=0.0, l_max=1.0, w=0.0, tau=1.0)
 
-    # one person pacing between two sensors 1 m apart: without the who-fires term (6) two
+    # one person pacing between two sensors 1 m apart: without the who-fires term (5) two
     # people parked at the two sensors explain it more cheaply (the Occam factor is missing);
     # with it, one person
     assert decode_events(row1, birth, people=4, beam=None).people == 2

@@ -113,7 +113,7 @@ def test_tables_follow_their_schemas_and_off_edges_follow_their_on():
 
 def test_a_person_whose_last_event_is_at_a_door_leaves():
     site, ids = corridor_home(doors=("M01",))
-    ev = [(float(k), ids[4 - k]) for k in range(5)] + [(300.0, ids[10]), (302.0, ids[11])]  # walks out, another comes... far
+    ev = [(float(k), ids[4 - k]) for k in range(5)] + [(300.0, ids[10]), (302.0, ids[11])]  # walks out at M01; later someone far inside
     out = run({"motion": motion_log(ev)}, site, ResidentsConfig(exit_after_s=30.0, birth_inside=2.0))
     tr = out["tracks"]
     first = tr.filter(pl.col("track") == "person1")
