@@ -11,9 +11,9 @@ Outputs (tables ``residents_<key>``):
 
 * ``events`` -- t, sensor, track: which person each motion edge was attributed to (null for an
   ``OFF`` with no ``ON`` before it);
-* ``tracks`` (TRACKS) -- each person every ``period`` seconds from their first event, at the
-  node (and x, y) of their latest event: present while silent; gone after their last event
-  only when it was at an entry/exit node (they left) and ``exit_after_s`` passed;
+* ``tracks`` (TRACKS) -- each person every ``period`` seconds while present, at the node (and
+  x, y) of their latest event: present while silent; gone ``exit_after_s`` after an event at an
+  exit node that is followed by a longer silence (they left), back at their next event;
 * ``people`` -- t, present: the number of people present over time (at each event);
 * ``decoder`` -- events, people, cost, beam, states (mean kept per event).
 """
@@ -173,33 +173,42 @@ def run(inputs: dict, site: Site, config: ResidentsConfig) -> dict[str, pl.DataF
     }
 
 
-def presence(t: np.ndarray, node: np.ndarray, res: Attribution, home: Home, cfg: ResidentsConfig) -> tuple[np.ndarray, np.ndarray]:
-    """Each person's ``(start, end)`` time: first event to the log's end, or to their last
-    event plus ``exit_after_s`` when that event was at an exit node (they left)."""
-    P = res.people
-    start = np.full(P, np.inf)
-    end = np.full(P, -np.inf)
-    last = np.full(P, -1, dtype=np.int64)
-    np.minimum.at(start, res.track, t)
-    np.maximum.at(end, res.track, t)
-    last[res.track] = np.arange(len(t))  # the last event of each person (events are in time order)
+def presence(t: np.ndarray, node: np.ndarray, res: Attribution, home: Home, cfg: ResidentsConfig) -> list[np.ndarray]:
+    """Each person's presence intervals, ``(n, 2)`` arrays of ``[start, end]`` times: from their
+    first event on; a person whose event at an exit node is followed by more than
+    ``exit_after_s`` of silence left ``exit_after_s`` after it and is back at their next event;
+    present to the log's end otherwise (dwelling while silent)."""
     t_end = float(t[-1]) if len(t) else 0.0
-    left = home.exit[node[last]] if P else np.zeros(0, bool)
-    end = np.where(left, np.minimum(end + cfg.exit_after_s, t_end), t_end)
-    return start, end
+    out = []
+    for p in range(res.people):
+        mine = np.flatnonzero(res.track == p)
+        tp, gone = t[mine], home.exit[node[mine]]
+        gap = np.diff(np.append(tp, np.inf))  # silence after each event (inf after the last)
+        leaves = gone & (gap > cfg.exit_after_s)
+        leaves[-1] = gone[-1]  # after the last event: they left if it was at an exit
+        ends = np.flatnonzero(leaves)
+        starts = np.r_[0, ends[:-1] + 1] if ends.size else np.array([0])
+        seg_end = np.minimum(tp[ends] + cfg.exit_after_s, t_end)
+        if not leaves[-1]:  # still in at the end of the log
+            starts = np.r_[starts, ends[-1] + 1] if ends.size else starts
+            seg_end = np.r_[seg_end, t_end]
+        out.append(np.column_stack([tp[starts], seg_end]))
+    return out
 
 
 def tracks_table(t: np.ndarray, node: np.ndarray, res: Attribution, names: np.ndarray, home: Home, cfg: ResidentsConfig) -> pl.DataFrame:
     """Every person on one grid of ``period`` s from the first event, while present, at the
     node of their latest event at or before the grid time."""
     frames = []
-    start, end = presence(t, node, res, home, cfg)
     grid = float(t[0]) + cfg.period * np.arange(int(np.floor((t[-1] - t[0]) / cfg.period)) + 1) if len(t) else np.zeros(0)
-    for p in range(res.people):
+    for p, spans in enumerate(presence(t, node, res, home, cfg)):
         mine = np.flatnonzero(res.track == p)
-        ts = grid[(grid >= start[p] - 1e-9) & (grid <= end[p] + 1e-9)]
+        inside = np.zeros(grid.size, bool)
+        for a, b in spans:
+            inside |= (grid >= a - 1e-9) & (grid <= b + 1e-9)
+        ts = grid[inside]
         if ts.size == 0:  # present between two grid times: its first one after the start
-            ts = grid[np.searchsorted(grid, start[p]) :][:1]
+            ts = grid[np.searchsorted(grid, spans[0, 0]) :][:1]
         k = node[mine[np.maximum(np.searchsorted(t[mine], ts + 1e-9, side="right") - 1, 0)]]
         frames.append(pl.DataFrame({"track": names[p], "t": ts, "x": home.xy[k, 0], "y": home.xy[k, 1],
                                     "node": np.asarray(home.nodes, dtype=object)[k].tolist()},
@@ -210,9 +219,13 @@ def tracks_table(t: np.ndarray, node: np.ndarray, res: Attribution, names: np.nd
 
 def people_table(t: np.ndarray, node: np.ndarray, res: Attribution, home: Home, cfg: ResidentsConfig) -> pl.DataFrame:
     """The number of people present at each event's time (their presence intervals)."""
-    start, end = presence(t, node, res, home, cfg)
-    present = ((start[None, :] <= t[:, None]) & (t[:, None] <= end[None, :])).sum(axis=1) if len(t) else np.zeros(0, int)
-    return pl.DataFrame({"t": t, "present": present.astype(np.int64)}, schema=PEOPLE)
+    present = np.zeros(len(t), dtype=np.int64)
+    for spans in presence(t, node, res, home, cfg):
+        inside = np.zeros(len(t), bool)
+        for a, b in spans:
+            inside |= (t >= a) & (t <= b)
+        present += inside
+    return pl.DataFrame({"t": t, "present": present}, schema=PEOPLE)
 
 
 SPEC = TrackerSpec(

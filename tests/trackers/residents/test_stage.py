@@ -120,6 +120,18 @@ def test_a_person_whose_last_event_is_at_a_door_leaves():
     assert 30.0 <= first["t"].max() <= 4.0 + 30.0 + 1e-9  # gone 30 s after its last event at the door
 
 
+def test_a_person_who_left_through_the_door_is_absent_until_they_come_back():
+    site, ids = corridor_home(doors=("M01",))
+    ev = [(float(k), ids[4 - k]) for k in range(5)]  # walks out through the door M01 at t = 4
+    ev += [(200.0, ids[0]), (201.0, ids[1]), (202.0, ids[2]), (400.0, ids[2])]  # back in at t = 200
+    out = run({"motion": motion_log(ev)}, site, ResidentsConfig(exit_after_s=30.0))
+    assert out["decoder"]["people"][0] == 1  # the same person came back through the door
+    t = out["tracks"]["t"].to_numpy()
+    assert t.max() == pytest.approx(400.0) and not np.any((t > 34.0 + 1e-9) & (t < 200.0 - 1e-9))  # away in between
+    people = out["people"]
+    assert people.filter(pl.col("t") == 200.0)["present"][0] == 1
+
+
 def test_empty_motion_gives_empty_tables():
     site, _ = corridor_home()
     out = run({"motion": pl.DataFrame(schema=MOTION)}, site, ResidentsConfig())
