@@ -156,8 +156,9 @@ def run(inputs: dict, site: Site, config: ResidentsConfig) -> dict[str, pl.DataF
     names = np.array([f"person{k + 1}" for k in range(max(res.people, 1))], dtype=object)
     on_tracks = on.select("row", "t", "sensor").with_columns(track=pl.Series(names[res.track].tolist() if len(t) else [], dtype=pl.String))
     off = motion.filter(~pl.col("on")).select("row", "t", "sensor")
-    off = off.sort("t").join_asof(on_tracks.select("t", "sensor", "track").sort("t"), on="t", by="sensor", strategy="backward",
-                                                                    check_sortedness=False)  # both sorted by t just above
+    off = off.sort("t").join_asof(  # an OFF edge: the person of its sensor's last ON (both sorted by t here)
+        on_tracks.select("t", "sensor", "track").sort("t"), on="t", by="sensor", strategy="backward", check_sortedness=False
+    )
     events = pl.concat([on_tracks, off.select(on_tracks.columns)]).sort("row").select(EVENTS.names())
     tracks = tracks_table(t, node, res, names, home, config)
     decoder = pl.DataFrame(
