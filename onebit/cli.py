@@ -28,6 +28,7 @@ from onebit.readers.mcap_io import csv_folder_to_mcap, load_topic_map, mcap_to_c
 from onebit.readers.trajectories import TrajectoryFormat
 from onebit.trackers.beams.verify import parse_story, verify_path
 from onebit.pipeline.follow import FollowConfig, follow, parse_speed
+from onebit.viz.compare import compare_runs
 from onebit.core.config import load_toml
 from onebit.readers.mcap_io import tracks_for_views
 
@@ -62,6 +63,16 @@ def _cmd_follow(args) -> int:
     for why in res.run.problems:
         print(f"onebit: run not ok: {why}", file=sys.stderr)
     return 0 if res.run.ok else 1
+
+
+def _cmd_compare(args) -> int:
+    labels = tuple(args.labels.split(",", 1)) if args.labels else None
+    if labels is not None and len(labels) != 2:
+        raise ConfigError(f"--labels {args.labels!r}: expected two names, A,B")
+    res = compare_runs(args.run_a, args.run_b, args.out, labels=labels)
+    print(f"compared {args.run_a} (A/) and {args.run_b} (B/): {res.views} views side by side, {sum(res.chunks.values())} chunks")
+    print(f"open with: rerun {res.rrd} {res.blueprint}")
+    return 0
 
 
 def _executor(args):
@@ -294,6 +305,13 @@ def build_parser() -> argparse.ArgumentParser:
                     help="also stream to a Rerun viewer that is open (default URL rerun+http://127.0.0.1:9876/proxy)")
     fo.add_argument("--serve-web", action="store_true", help="also serve the stream to a web viewer (prints its URL)")
     fo.set_defaults(func=_cmd_follow)
+
+    cp = sub.add_parser("compare", help="two runs side by side on one timeline (one .rrd with A/ and B/, and a blueprint)")
+    cp.add_argument("run_a")
+    cp.add_argument("run_b")
+    cp.add_argument("--out", default="compare.rrd", help="recording to write (default compare.rrd; the blueprint goes next to it as .rbl)")
+    cp.add_argument("--labels", metavar="A,B", help="names of the two sides in the view titles (default: the folder names)")
+    cp.set_defaults(func=_cmd_compare)
 
     rm = sub.add_parser("run-many", help="run the pipeline on many dataset folders (process pool or Ray)")
     rm.add_argument("datasets", nargs="+", metavar="DATASET",

@@ -47,6 +47,9 @@ class RunContext:
     progress: Callable[[int, int], None] = _no_progress
     #: the sections of the dataset's own ``run.toml`` (``None``: read it on first use)
     dataset_sections: dict[str, Any] | None = None
+    #: typed reads of the dataset's CSV logs made for the time origin, by stem (``beams``,
+    #: ``motion``, ``proximity``), taken by their reader stage: each file is read once
+    typed_reads: dict[str, Any] = field(default_factory=dict)
 
     def source(self, stem: str, columns: tuple[str, ...]) -> tuple[RawRows, Path | None] | None:
         """String rows of ``<stem>.csv`` in the dataset, else of the MCAP channel ``/<stem>``."""

@@ -32,10 +32,11 @@ from onebit.core.errors import InputError, OnebitError
 from onebit.core.tables import REJECTS
 from onebit.core.units import config_in_site_units
 from onebit.pipeline.context import ReportRow, RunContext, Stage
-from onebit.readers.beams import BEAM_COLUMNS, decode_beam_log, decode_raw_beams
+from onebit.readers.beams import BEAM_COLUMNS, beam_dtypes, decode_beam_log, decode_raw_beams
 from onebit.readers.frames import edges_of_levels, read_frames_csv
 from onebit.readers.camera import read_camera, truth_error
-from onebit.readers.motion import TOGGLE_COLUMNS, MotionConfig, motion_frames, read_motion, read_motion_csv, site_rules
+from onebit.readers.motion import TOGGLE_COLUMNS, MotionConfig, motion_frames, read_motion, read_motion_csv, site_rules, toggle_dtypes
+from onebit.readers.rows import read_typed_csv
 from onebit.readers.proximity import ProximityConfig, proximity_frames, read_proximity, read_proximity_csv
 from onebit.readers.tables_csv import (
     crossings_from_rows, read_crossings_csv, read_true_crossings_csv, read_truth_csv, read_truth_events_csv, true_crossings_columns,
@@ -125,9 +126,14 @@ def run_time_origin(ctx: RunContext) -> TimeOrigin:
     cached = getattr(ctx, "time_origin", None)
     if isinstance(cached, TimeOrigin):
         return cached
-    frames: dict[str, pl.DataFrame] = {}
+    frames: dict[str, pl.DataFrame | list[pl.DataFrame]] = {}
     for stem in TIME_SOURCES:
         if not ctx.has_source(stem):
+            continue
+        split = _typed_read(ctx, stem)
+        if split is not None:  # read once, typed: its stamps here, the rest by the reader stage
+            ctx.typed_reads[stem] = split
+            frames[f"{stem}.csv"] = [split.good.select("line", "t"), split.rest.frame.select("line", "t")]
             continue
         try:
             name, frame = ctx.stamps(stem)
@@ -138,6 +144,22 @@ def run_time_origin(ctx: RunContext) -> TimeOrigin:
     ctx.time_origin = origin
     ctx.config["time"] = origin.as_dict()  # the run record's [time] (runner.RUN_RECORD_SECTIONS)
     return origin
+
+
+def _typed_read(ctx: RunContext, stem: str):
+    """The typed read (:func:`~onebit.readers.rows.read_typed_csv`) of ``<stem>.csv`` in the
+    reader stage's types, for the logs whose reader takes it (beams, motion, proximity), else
+    ``None`` (no such CSV, another log, or a file the typed read cannot take)."""
+    csv = ctx.dataset / f"{stem}.csv"
+    if stem not in ("beams", "motion", "proximity") or not csv.exists():
+        return None
+    if stem == "beams":
+        ids = list(ctx.site.beam_ids)
+    else:
+        ids = [m.id for m in (ctx.site.motion_sensors if stem == "motion" else ctx.site.proximity_sensors)]
+    if not ids:  # its stage will not read it: the stamps alone
+        return None
+    return read_typed_csv(csv, beam_dtypes(tuple(ids)) if stem == "beams" else toggle_dtypes(ids))
 
 
 # --------------------------------------------------------------------------- reader stages
@@ -155,7 +177,7 @@ def _crossings_work(ctx: RunContext) -> dict[str, pl.DataFrame]:
     if ctx.has_source("beams"):
         csv = ctx.dataset / "beams.csv"
         if csv.exists():  # a clean file is typed in one read (decode_beam_log), else line by line
-            dec = decode_beam_log(csv, site.beam_ids, epoch=run_time_origin(ctx))
+            dec = decode_beam_log(csv, site.beam_ids, epoch=run_time_origin(ctx), split=ctx.typed_reads.pop("beams", None))
         else:
             raw, path = ctx.source("beams", BEAM_COLUMNS)
             dec = decode_raw_beams(raw, site.beam_ids, epoch=run_time_origin(ctx), path=path)
@@ -335,7 +357,8 @@ def _motion_work(ctx: RunContext) -> dict[str, pl.DataFrame]:
     ids = [m.id for m in site.motion_sensors]
     csv = ctx.dataset / "motion.csv"
     if csv.exists():  # a clean file is typed in one read (read_motion_csv), else line by line
-        res = read_motion_csv(csv, ids, epoch=run_time_origin(ctx), rules=site_rules(site, cfg), held=site.level_sensors)
+        res = read_motion_csv(csv, ids, epoch=run_time_origin(ctx), rules=site_rules(site, cfg), held=site.level_sensors,
+                              split=ctx.typed_reads.pop("motion", None))
     else:
         raw, path = ctx.source("motion", TOGGLE_COLUMNS)
         res = read_motion(raw, ids, epoch=run_time_origin(ctx), path=path, rules=site_rules(site, cfg), held=site.level_sensors)
@@ -370,7 +393,8 @@ def _proximity_work(ctx: RunContext) -> dict[str, pl.DataFrame]:
     ids = [p.id for p in ctx.site.proximity_sensors]
     csv = ctx.dataset / "proximity.csv"
     if csv.exists():  # a clean file is typed in one read (read_proximity_csv), else line by line
-        res = read_proximity_csv(csv, ids, epoch=run_time_origin(ctx), rules=cfg.rules, held=ctx.site.level_sensors)
+        res = read_proximity_csv(csv, ids, epoch=run_time_origin(ctx), rules=cfg.rules, held=ctx.site.level_sensors,
+                                 split=ctx.typed_reads.pop("proximity", None))
     else:
         raw, path = ctx.source("proximity", TOGGLE_COLUMNS)
         res = read_proximity(raw, ids, epoch=run_time_origin(ctx), path=path, rules=cfg.rules, held=ctx.site.level_sensors)
@@ -455,7 +479,11 @@ def tracker_stage(entry: TrackerEntry) -> Stage:
                 return f"input table '{key}' not produced by an earlier stage"
         if not spec.needs and spec.wants and not any(k in ctx.tables for k in spec.wants):
             return f"none of its input tables ({', '.join(spec.wants)}) was produced by an earlier stage"
-        return spec.available(ctx.site) if spec.available is not None else None
+        reason = spec.available(ctx.site) if spec.available is not None else None
+        if reason is None and spec.fits is not None:  # the inputs' size against the tracker's bound
+            cfg = config_in_site_units(config_from_mapping(spec.config, ctx.section(name), section=name), ctx.site)
+            reason = spec.fits(tracker_inputs(entry, ctx), ctx.site, cfg)
+        return reason
 
     def work(ctx: RunContext) -> dict[str, Any]:
         cfg = ctx.configs[name] = tracker_config(entry, ctx)

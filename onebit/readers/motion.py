@@ -60,6 +60,7 @@ from pathlib import Path
 import numpy as np
 import polars as pl
 
+from onebit.core.compiled import numba_loaded
 from onebit.core.errors import ConfigError
 from onebit.core.tables import FRAMES, MOTION, REJECTS, conform
 from onebit.readers import kernels
@@ -79,6 +80,7 @@ from onebit.readers.rows import (
     read_clean_csv,
     read_csv_rows,
     read_typed_csv,
+    TypedSplit,
 )
 from onebit.readers.timebase import TimeOrigin
 
@@ -247,7 +249,8 @@ def repeats(ok: pl.DataFrame, *, compiled: bool | None = None) -> pl.Series:
     else:
         names = ok["sensor"].unique(maintain_order=True)
         code, n = ok["sensor"].replace_strict(names, range(len(names)), return_dtype=pl.Int64).to_numpy().astype(np.int64), len(names)
-    return pl.Series(kernels.toggle_repeats(code, ok["on"].to_numpy().astype(np.bool_), max(n, 1)))
+    run = kernels.toggle_repeats if compiled or numba_loaded() else kernels.toggle_repeats_vectorised  # numba's load only when paid already
+    return pl.Series(run(code, ok["on"].to_numpy().astype(np.bool_), max(n, 1)))
 
 
 #: The same reader under the name the proximity sensors use (``proximity.csv``: t, sensor, value).
@@ -301,7 +304,8 @@ def debounce(
         code = ev["sensor"].replace_strict(names, range(len(names)), return_dtype=pl.Int64).to_numpy().astype(np.int64)
     chatter = dict(zip(table["sensor"].to_list(), table["_chatter"].to_list()))
     min_on = dict(zip(table["sensor"].to_list(), table["_min_on"].to_list()))
-    chat, short = kernels.debounce_masks(
+    masks = kernels.debounce_masks if compiled or numba_loaded() else kernels.debounce_masks_vectorised  # numba's load only when paid already
+    chat, short = masks(
         code, ev["on"].to_numpy().astype(np.bool_), ev["t"].to_numpy().astype(np.float64),
         np.array([chatter.get(n, 0.0) for n in names], dtype=np.float64), np.array([min_on.get(n, 0.0) for n in names], dtype=np.float64),
         len(names), TIME_EPS,
@@ -361,18 +365,26 @@ def read_motion_csv(
     epoch: str | TimeOrigin | None = None,
     rules: DebounceRules | Mapping[str, DebounceRules] | None = None,
     held: frozenset[str] | set[str] = frozenset(),
+    split: TypedSplit | None = None,
 ) -> MotionRead:
-    """Read ``motion.csv`` (or ``proximity.csv``): the whole toggle reader for one file."""
+    """Read ``motion.csv`` (or ``proximity.csv``): the whole toggle reader for one file.
+    ``split``: its typed read (:func:`toggle_dtypes`) when the caller made it already."""
     path = Path(path)
     sensors = tuple(sensors)
-    typed = typed_toggle_rows(path, sensors, epoch=epoch)
+    typed = typed_toggle_rows(path, sensors, epoch=epoch, split=split)
     if typed is None:
         return read_motion(read_csv_rows(path, TOGGLE_COLUMNS), sensors, epoch=epoch, path=path, rules=rules, held=held)
     return toggle_edges(typed, sensors, source=path.name, path=path, rules=rules, held=held)
 
 
+def toggle_dtypes(sensors: Sequence[str]) -> dict[str, pl.DataType]:
+    """The typed read of a toggle log: numeric ``t``, known sensors, values as :data:`TOGGLE_VALUES` spells them."""
+    return {"t": pl.Float64, "sensor": pl.Enum(list(dict.fromkeys(sensors))), "value": pl.Enum(list(TOGGLE_VALUES))}
+
+
 def typed_toggle_rows(
-    path: Path, sensors: tuple[str, ...], *, epoch: str | TimeOrigin | None = None, tolerance: float = REORDER_TOLERANCE_S
+    path: Path, sensors: tuple[str, ...], *, epoch: str | TimeOrigin | None = None, tolerance: float = REORDER_TOLERANCE_S,
+    split: TypedSplit | None = None,
 ) -> TypedRows | None:
     """Pass 1 of :func:`read_motion` for a toggle log typed by one ``pl.read_csv``
     (:func:`~onebit.readers.rows.read_typed_csv`: numeric ``t``, known sensors, values spelled
@@ -380,7 +392,7 @@ def typed_toggle_rows(
     ``None`` when the header is not a plain first line (the row-by-row path reads the file).
     The sensor stays an enum (the debounce's codes); every output table casts it to String."""
     spellings = list(TOGGLE_VALUES)
-    split = read_typed_csv(path, {"t": pl.Float64, "sensor": pl.Enum(list(dict.fromkeys(sensors))), "value": pl.Enum(spellings)})
+    split = split if split is not None else read_typed_csv(path, toggle_dtypes(sensors))
     if split is None:
         return None
     on = pl.Series([TOGGLE_VALUES[v] for v in spellings], dtype=pl.Boolean)

@@ -6,6 +6,7 @@ import shutil
 import tomllib
 
 import polars as pl
+from mcap.reader import make_reader
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
@@ -141,9 +142,12 @@ def test_mcap_dataset_gives_the_same_crossings(lab_run, tmp_path):
     a = pl.read_parquet(res.out / "tables" / "crossings.parquet")
     b = pl.read_parquet(tmp_path / "run" / "tables" / "crossings.parquet")
     assert a.equals(b)
-    # a truncated recording keeps what came before the cut and names the file in rejects
+    # a truncated recording keeps the complete chunks before the cut and names the file in rejects
     raw = (d / "recording.mcap").read_bytes()
-    (d / "recording.mcap").write_bytes(raw[: len(raw) * 2 // 3])
+    with open(d / "recording.mcap", "rb") as fh:
+        chunks = make_reader(fh).get_summary().chunk_indexes
+    assert len(chunks) >= 2  # chunked (1 MiB of messages each), zstd
+    (d / "recording.mcap").write_bytes(raw[: chunks[1].chunk_start_offset + (chunks[1].chunk_length // 2)])
     r3 = run_pipeline(d, tmp_path / "run3")
     rej = pl.read_parquet(tmp_path / "run3" / "tables" / "rejects.parquet")
     assert rej.filter(pl.col("reason").str.contains("truncated"))["source"].to_list() == ["recording.mcap"]
@@ -282,3 +286,16 @@ def test_run_record_times_work_recording_and_writing_of_every_stage(lab_run, tmp
     assert timing["entered_unix"] <= (res.out / "run.toml").stat().st_mtime
     # a run record given back as --config ignores the timing (not a stage section)
     assert "timing" not in load_run_config(res.out / "run.toml")
+
+
+def test_istate_beyond_its_stage_bound_is_skipped_saying_why(lab_run, tmp_path):
+    data, full = lab_run
+    assert full.status["istate"].startswith("ok")  # 60 s = 61 stages: within the default bound
+    res = run_pipeline(data, tmp_path / "bounded", config={"istate": {"max_stages": 10}}, rrd=False)
+    reason = res.status["istate"]
+    assert reason.startswith("skipped") and "max_stages = 10" in reason and "stages of period_s = 1 s" in reason
+    assert res.ok  # not asked for by name: the others ran, the run is ok
+    asked = run_pipeline(data, tmp_path / "asked", trackers=("istate",), config={"istate": {"max_stages": 10}}, rrd=False)
+    assert not asked.ok and any("max_stages" in p for p in asked.problems)
+    lifted = run_pipeline(data, tmp_path / "lifted", trackers=("istate",), config={"istate": {"max_stages": 0}}, rrd=False)
+    assert lifted.status["istate"].startswith("ok")

@@ -92,6 +92,10 @@ class IStateConfig:
     absent_after : s; the empty room: no point summary (track row) inside a stretch this long
         in which every sensor is off and nothing happens; 0 = always one. The I-state itself
         is unchanged.
+    max_stages : the most stages (``span / period_s``) the pipeline runs the filter on; a
+        longer log skips the stage, saying so (the set-based filter costs ~0.3 ms per stage
+        and its recording ~1-10 ms more, whatever happens in the stage: a 10^6-row beams log
+        of 5 days is 460 000 stages). 0 = no bound.
     """
 
     period_s: float = 1.0
@@ -105,6 +109,7 @@ class IStateConfig:
     beam_width: float = length(0.0, unit="m")
     substeps: int = 1
     absent_after: float = ABSENT_AFTER_S
+    max_stages: int = 20_000
 
     def __post_init__(self) -> None:
         check_range(self, "period_s", 1e-6, None)
@@ -118,6 +123,7 @@ class IStateConfig:
         check_range(self, "beam_width", 0.0, None)
         check_range(self, "substeps", 1, 100, types=(int,))
         check_range(self, "absent_after", 0.0, 1e12)
+        check_range(self, "max_stages", 0, None, types=(int,))
 
 
 # --------------------------------------------------------------------------- sensing regions
@@ -175,6 +181,23 @@ def available(site: Site) -> str | None:
     if site.targets is None:
         return "site.toml does not give the number of targets ('targets'); the I-state is over W^n"
     return None
+
+
+def fits(inputs: dict, site: Site, config: IStateConfig) -> str | None:
+    """Reason to skip the filter on these inputs, or ``None``: the stages ``k T`` from the first
+    to the last reading (:func:`stage_times`) exceed ``config.max_stages`` (0 = no bound)."""
+    if not config.max_stages:
+        return None
+    ts = [inputs[k]["t"] for k in ("motion", "proximity", "crossings") if k in inputs and inputs[k].height]
+    if not ts:
+        return None
+    lo, hi = float(min(t.min() for t in ts)), float(max(t.max() for t in ts))
+    stages = int(np.ceil(hi / config.period_s - 1e-9)) - int(np.floor(lo / config.period_s + 1e-9)) + 1
+    if stages <= config.max_stages:
+        return None
+    return (f"the logs span {hi - lo:,.0f} s = {stages:,} stages of period_s = {config.period_s:g} s, more than "
+            f"max_stages = {config.max_stages:,} (the filter and its recording cost about 1-10 ms per stage); "
+            "set [istate] max_stages = 0 (no bound) or a longer period_s in --config to run it")  # fmt: skip
 
 
 # --------------------------------------------------------------------------- sampling
@@ -405,5 +428,6 @@ SPEC = TrackerSpec(
     config=IStateConfig,
     run=run,
     available=available,
+    fits=fits,
     help="O'Kane set-based I-state filter over binary sensors (union of products)",
 )
