@@ -28,6 +28,7 @@ from onebit.readers.mcap_io import csv_folder_to_mcap, load_topic_map, mcap_to_c
 from onebit.readers.trajectories import TrajectoryFormat
 from onebit.trackers.beams.verify import parse_story, verify_path
 from onebit.pipeline.follow import FollowConfig, follow, parse_speed
+from onebit.viz.compare import compare_runs
 from onebit.core.config import load_toml
 from onebit.readers.mcap_io import tracks_for_views
 
@@ -62,6 +63,16 @@ def _cmd_follow(args) -> int:
     for why in res.run.problems:
         print(f"onebit: run not ok: {why}", file=sys.stderr)
     return 0 if res.run.ok else 1
+
+
+def _cmd_compare(args) -> int:
+    labels = tuple(args.labels.split(",", 1)) if args.labels else None
+    if labels is not None and len(labels) != 2:
+        raise ConfigError(f"--labels {args.labels!r}: expected two names, A,B")
+    res = compare_runs(args.run_a, args.run_b, args.out, labels=labels)
+    print(f"compared {args.run_a} (A/) and {args.run_b} (B/): {res.views} views side by side, {sum(res.chunks.values())} chunks")
+    print(f"open with: rerun {res.rrd} {res.blueprint}")
+    return 0
 
 
 def _executor(args):
@@ -124,9 +135,25 @@ def _cmd_simulate(args) -> int:
 
 
 def _cmd_experiment(args) -> int:
+    import inspect
+
     mod = get_experiment(args.name)
+    extra = {}
+    if args.name == "residents":  # a folder of real sessions, not a simulation
+        extra = dict(results=Path(args.results) if args.results else None,
+                     trackers=tuple(t.strip() for t in args.trackers.split(",") if t.strip()) if args.trackers else None,
+                     layout=args.layout, rooms=args.rooms, scale=args.scale, graph_radius=args.graph_radius, targets=args.targets,
+                     doors=tuple(d.strip() for d in args.doors.split(",") if d.strip()) if args.doors else ())  # fmt: skip
+    else:
+        params = inspect.signature(mod.run).parameters
+        trackers = tuple(t.strip() for t in args.trackers.split(",") if t.strip()) if args.trackers else None
+        for key, value in (("data", args.data), ("trackers", trackers)):
+            if value is not None:
+                if key not in params:
+                    raise ConfigError(f"experiment {args.name!r} takes no --{key}")
+                extra[key] = value
     with _executor(args) as ex:
-        out = mod.run(Path(args.out), seed=args.seed, trials=args.trials, quick=args.quick, echo=print, executor=ex)
+        out = mod.run(Path(args.out), seed=args.seed, trials=args.trials, quick=args.quick, echo=print, executor=ex, **extra)
     print(f"experiment {args.name}: results in {out}")
     return 0
 
@@ -279,6 +306,13 @@ def build_parser() -> argparse.ArgumentParser:
     fo.add_argument("--serve-web", action="store_true", help="also serve the stream to a web viewer (prints its URL)")
     fo.set_defaults(func=_cmd_follow)
 
+    cp = sub.add_parser("compare", help="two runs side by side on one timeline (one .rrd with A/ and B/, and a blueprint)")
+    cp.add_argument("run_a")
+    cp.add_argument("run_b")
+    cp.add_argument("--out", default="compare.rrd", help="recording to write (default compare.rrd; the blueprint goes next to it as .rbl)")
+    cp.add_argument("--labels", metavar="A,B", help="names of the two sides in the view titles (default: the folder names)")
+    cp.set_defaults(func=_cmd_compare)
+
     rm = sub.add_parser("run-many", help="run the pipeline on many dataset folders (process pool or Ray)")
     rm.add_argument("datasets", nargs="+", metavar="DATASET",
                     help="dataset folders, globs ('data/*/floor*') or files listing one folder per line")
@@ -306,11 +340,21 @@ def build_parser() -> argparse.ArgumentParser:
     s.set_defaults(func=_cmd_simulate)
 
     e = sub.add_parser("experiment", help="reproduce a paper's study: simulate, run, tabulate, plot")
-    e.add_argument("name", help="schiff, singh, okane, ...")
+    e.add_argument("name", help="schiff, singh, okane, ..., residents (OUT = a folder of CASAS sessions)")
     e.add_argument("out")
+    e.add_argument("--results", default=None, help="residents: results folder (default OUT/residents-study)")
+    e.add_argument("--trackers", default=None, help="residents, ceiling: comma-separated trackers (default: residents: residents,hmm1,hmm2,findinghumo,"
+                   "findinghumo-flow; ceiling every positional one)")
+    e.add_argument("--layout", default=None, help="residents: floor plan / layout for every session (as import casas)")
+    e.add_argument("--rooms", default=None, help="residents: floor plan rooms JSON")
+    e.add_argument("--scale", type=float, default=None, help="residents: floor plan metres per pixel")
+    e.add_argument("--graph-radius", type=float, default=None, help="residents: floor plan graph radius (m)")
+    e.add_argument("--targets", type=int, default=None, help="residents: site.toml targets for every session")
+    e.add_argument("--doors", default=None, help="residents: contacts that are doors to the outside")
     e.add_argument("--seed", type=int, default=0)
     e.add_argument("--trials", type=int, default=None, help="trials per setting (default: the paper's)")
     e.add_argument("--quick", action="store_true", help="a reduced study (smoke test)")
+    e.add_argument("--data", default=None, help="ceiling: the irtracking recordings (a clone of antonmil/irtracking)")
     _add_executor_options(e)
     e.set_defaults(func=_cmd_experiment)
 

@@ -33,7 +33,7 @@ from onebit.core.tables import REJECTS
 from onebit.core.units import config_in_site_units
 from onebit.pipeline.context import ReportRow, RunContext, Stage
 from onebit.readers.beams import BEAM_COLUMNS, beam_dtypes, decode_beam_log, decode_raw_beams
-from onebit.readers.frames import edges_of_levels, frame_log_layout, read_frame_rows, read_frames_csv
+from onebit.readers.frames import edges_of_levels, read_frames_csv
 from onebit.readers.camera import read_camera, truth_error
 from onebit.readers.motion import TOGGLE_COLUMNS, MotionConfig, motion_frames, read_motion, read_motion_csv, site_rules, toggle_dtypes
 from onebit.readers.rows import read_typed_csv
@@ -48,11 +48,12 @@ from onebit.scoring import clustertrack as score_clustertrack
 from onebit.scoring import findinghumo as score_findinghumo
 from onebit.scoring import intruder as score_intruder
 from onebit.scoring import istate as score_istate
+from onebit.scoring import residents as score_residents
 from onebit.scoring.crossings import ScoresConfig, score_crossings, true_crossings_from_truth, truth_regions
 from onebit.scoring.identity import baseline_rows, graph_hops, identity_scores
 from onebit.scoring.mot import GATES, Gate, mot_rows
 from onebit.scoring.serve import CannotServe
-from onebit.trackers import beams, clustertrack, findinghumo, findinghumo_flow, intruder, istate
+from onebit.trackers import beams, clustertrack, findinghumo, findinghumo_flow, intruder, istate, residents
 from onebit.trackers.base import ARTIFACTS, PROGRESS, TrackerSpec
 from onebit.trackers.beams.correction import CorrectConfig, run_correction
 from onebit.viz import beams as viz_beams
@@ -60,6 +61,7 @@ from onebit.viz import clustertrack as viz_clustertrack
 from onebit.viz import findinghumo as viz_findinghumo
 from onebit.viz import intruder as viz_intruder
 from onebit.viz import istate as viz_istate
+from onebit.viz import residents as viz_residents
 from onebit.viz.beams_correct import log_corrected_crossings
 from onebit.viz.events import log_crossings
 from onebit.viz.intruder import log_motion_states
@@ -102,6 +104,7 @@ TRACKERS: tuple[TrackerEntry, ...] = (
     *(TrackerEntry(spec, score_findinghumo.score, viz_findinghumo.log_run, gate=GATES[spec.name]) for spec in findinghumo.SPECS),
     TrackerEntry(findinghumo_flow.SPEC, score_findinghumo.score, viz_findinghumo.log_run, gate=GATES["findinghumo-flow"]),
     TrackerEntry(istate.SPEC, score_istate.score, viz_istate.log_run, gate=GATES["istate"]),
+    TrackerEntry(residents.SPEC, score_residents.score, viz_residents.log_run, gate=GATES["residents"]),
 )
 
 
@@ -294,8 +297,8 @@ def _frame_sensor_ids(site) -> list[str]:
 
 
 def _frames_available(ctx: RunContext) -> str | None:
-    if not ctx.has_source("frames"):
-        return "no frames.csv or /frames MCAP channel in the dataset"
+    if not (ctx.dataset / "frames.csv").exists():
+        return "no frames.csv in the dataset (frame logs are not read from MCAP)"
     if not _frame_sensor_ids(ctx.site):
         return "frame log present but site.toml declares no binary sensors (binary_sensors, motion_sensors, proximity_sensors)"
     return None
@@ -309,14 +312,7 @@ def _frames_work(ctx: RunContext) -> dict[str, pl.DataFrame]:
     sensors; a binary sensor's edges are in ``motion`` once)."""
     site = ctx.site
     ids = _frame_sensor_ids(site)
-    csv = ctx.dataset / "frames.csv"
-    if csv.exists():
-        log = read_frames_csv(csv, ids, epoch=run_time_origin(ctx))
-    else:
-        raw = ctx.mcap_channels["/frames"]
-        layout = frame_log_layout(list(raw.frame.columns), file=raw.source, line=None)
-        cols = tuple(c for c in raw.frame.columns if c not in ("t", "line", "raw")) if layout == "wide" else ()
-        log = read_frame_rows(raw, ids, layout=layout, epoch=run_time_origin(ctx), columns=cols)
+    log = read_frames_csv(ctx.dataset / "frames.csv", ids, epoch=run_time_origin(ctx))
     ctx.add_rejects(log.rejects)
     levels = log.levels
     motion_ids = [m.id for m in site.motion_sensors]
@@ -348,7 +344,7 @@ def _frames_viz(rec, ctx: RunContext, made: dict) -> None:
 
 
 def _motion_available(ctx: RunContext) -> str | None:
-    if ctx.has_source("frames"):
+    if (ctx.dataset / "frames.csv").exists():
         return "the readings come from the frame log (frames.csv)"
     if not ctx.has_source("motion"):
         return "no motion.csv or /motion MCAP channel in the dataset"
@@ -385,7 +381,7 @@ def _motion_viz(rec, ctx: RunContext, made: dict) -> None:
 
 
 def _proximity_available(ctx: RunContext) -> str | None:
-    if ctx.has_source("frames"):
+    if (ctx.dataset / "frames.csv").exists():
         return "the readings come from the frame log (frames.csv)"
     if not ctx.site.proximity_sensors:
         return "site.toml has no proximity sensors"
@@ -467,6 +463,8 @@ def tracker_inputs(entry: TrackerEntry, ctx: RunContext) -> dict[str, Any]:
         sources = entry.inputs.get(key, (key,))
         inputs[key] = next(ctx.tables[s] for s in sources if s in ctx.tables)
     inputs.update({k: ctx.tables[k] for k in entry.spec.wants if k in ctx.tables})
+    if "levels" in ctx.tables:  # a frame log: every sensor's reading at every frame, for any tracker that reads it
+        inputs.setdefault("levels", ctx.tables["levels"])
     inputs["region_graph"] = ctx.region_graph
     inputs[PROGRESS] = ctx.progress
     return inputs

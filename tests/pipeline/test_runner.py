@@ -6,6 +6,7 @@ import shutil
 import tomllib
 
 import polars as pl
+from mcap.reader import make_reader
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
@@ -141,9 +142,12 @@ def test_mcap_dataset_gives_the_same_crossings(lab_run, tmp_path):
     a = pl.read_parquet(res.out / "tables" / "crossings.parquet")
     b = pl.read_parquet(tmp_path / "run" / "tables" / "crossings.parquet")
     assert a.equals(b)
-    # a truncated recording keeps what came before the cut and names the file in rejects
+    # a truncated recording keeps the complete chunks before the cut and names the file in rejects
     raw = (d / "recording.mcap").read_bytes()
-    (d / "recording.mcap").write_bytes(raw[: len(raw) * 2 // 3])
+    with open(d / "recording.mcap", "rb") as fh:
+        chunks = make_reader(fh).get_summary().chunk_indexes
+    assert len(chunks) >= 2  # chunked (1 MiB of messages each), zstd
+    (d / "recording.mcap").write_bytes(raw[: chunks[1].chunk_start_offset + (chunks[1].chunk_length // 2)])
     r3 = run_pipeline(d, tmp_path / "run3")
     rej = pl.read_parquet(tmp_path / "run3" / "tables" / "rejects.parquet")
     assert rej.filter(pl.col("reason").str.contains("truncated"))["source"].to_list() == ["recording.mcap"]

@@ -9,9 +9,11 @@ import polars as pl
 import pytest
 from trackeval.metrics import CLEAR, HOTA, Identity
 
-from onebit.core.errors import OnebitError
+from onebit.core.errors import ConfigError, OnebitError
+from onebit.core.site import site_from_dict
 from onebit.core.tables import TRUTH
 from onebit.pipeline.stages import TRACKERS
+from onebit.scoring.crossings import ScoresConfig
 from onebit.scoring.mot import GATES, mot_metrics, mot_rows, node_frames, point_frames, region_frames, similarity
 
 ALPHAS = np.arange(0.05, 0.99, 0.05)
@@ -209,10 +211,6 @@ def test_tracks_where_nobody_is_present_are_false_positives(hallway_site):
 
 def test_metric_gates_are_configurable_and_in_world_units(hallway_site):
     """The gates are metres, converted to the site's units; [scores] gates_m sets them."""
-    from onebit.core.errors import ConfigError
-    from onebit.core.site import site_from_dict
-    from onebit.scoring.crossings import ScoresConfig
-
     feet = site_from_dict({"units": "ft", "boundary": {"polygon": [[0, 0], [30, 0], [30, 30], [0, 30]]}})
     truth = _truth([(float(t), "a", 10.0, 10.0) for t in range(10)])
     off = 1.2 / 0.3048  # 1.2 m in feet
