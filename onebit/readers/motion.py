@@ -458,6 +458,63 @@ def motion_frames(
         n = max(int(math.ceil((t1 - t0) / period - 1e-12)), 0)
     if n == 0 or not sensors:
         return pl.DataFrame(schema=FRAMES)
+    return _frames_arrays(ev, sensors, t0=t0, period=period, n=n)
+
+
+def _frames_arrays(ev: pl.DataFrame, sensors: list[str], *, t0: float, period: float, n: int) -> pl.DataFrame:
+    """The FRAMES table of :func:`motion_frames` with numpy, one sensor at a time: the state at
+    each slot start is the sensor's last edge at or before it (``searchsorted``), a slot fired
+    when a rising edge falls in it; the whole grid is built as flat arrays (slot-major, sensors
+    in order), never joined. Equal to :func:`motion_frames_reference` (tested)."""
+    k = len(sensors)
+    slot_t = t0 + np.arange(n, dtype=np.int64).astype(np.float64) * period
+    state = np.zeros((n, k), dtype=np.bool_)
+    fired = np.zeros((n, k), dtype=np.bool_)
+    code = ev["sensor"].replace_strict(sensors, list(range(k)), return_dtype=pl.Int64).to_numpy()
+    t_all = ev["t"].to_numpy().astype(np.float64)
+    on_all = ev["on"].to_numpy().astype(np.bool_)
+    for i in range(k):
+        sel = code == i
+        if not sel.any():
+            continue
+        t, on = t_all[sel], on_all[sel]
+        last = np.searchsorted(t, slot_t, side="right") - 1  # the last edge at or before each slot start
+        state[:, i] = np.where(last >= 0, on[np.maximum(last, 0)], False)
+        slot = np.floor((t - t0) / period).astype(np.int64)
+        rising = on & (slot >= 0) & (slot < n)
+        fired[slot[rising], i] = True
+    names = pl.Series("sensor", sensors, dtype=pl.String)
+    return pl.DataFrame(
+        {
+            "slot": np.repeat(np.arange(n, dtype=np.int64), k),
+            "t": np.repeat(slot_t, k),
+            "sensor": names.gather(np.tile(np.arange(k), n)),
+            "on": (state | fired).ravel(),
+            "fired": fired.ravel(),
+        },
+        schema=FRAMES,
+    )
+
+
+def motion_frames_reference(
+    motion: pl.DataFrame, sensors: Sequence[str], *, period: float, t0: float | None = None, t1: float | None = None
+) -> pl.DataFrame:
+    """:func:`motion_frames` by polars joins (a cross join of slots and sensors, an as-of join
+    for the state, a join for the rising edges): its plain reference and test oracle."""
+    sensors = list(dict.fromkeys(sensors))
+    ev = motion.select("t", "sensor", "on").filter(pl.col("sensor").is_in(sensors)).sort("t", maintain_order=True)
+    if t0 is None:
+        if ev.height == 0 and t1 is None:
+            return pl.DataFrame(schema=FRAMES)
+        first = float(ev["t"].min()) if ev.height else 0.0
+        t0 = math.floor(first / period) * period
+    if t1 is None:
+        last = float(ev["t"].max()) if ev.height else t0
+        n = max(int(math.floor((last - t0) / period)) + 1, 1)
+    else:
+        n = max(int(math.ceil((t1 - t0) / period - 1e-12)), 0)
+    if n == 0 or not sensors:
+        return pl.DataFrame(schema=FRAMES)
     grid = (
         pl.DataFrame({"slot": pl.arange(0, n, eager=True).cast(pl.Int64)})
         .join(pl.DataFrame({"sensor": sensors}, schema={"sensor": pl.String}), how="cross")
