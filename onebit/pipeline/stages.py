@@ -13,6 +13,9 @@
     <tracker>  its TrackerSpec.needs       -> <tracker>_tracks, <tracker>_<table>...   (one per TRACKERS entry)
     scores     everything above            -> crossing_matches, <tracker>_scores, ...
 
+Each stage's ``makes`` is checked by the runner (:func:`onebit.pipeline.context.check_made`):
+a stage returning a table it does not declare, or one an earlier stage made, fails.
+
 Adding a tracker: its package under :mod:`onebit.trackers` (a ``TrackerSpec``), a scoring
 function in :mod:`onebit.scoring` (built on :mod:`onebit.scoring.association`; the MOT metrics
 of :mod:`onebit.scoring.mot` are added for every tracker), a ``log_run`` in :mod:`onebit.viz`
@@ -22,7 +25,7 @@ registry, no plugin loading: this file is the whole list.
 
 from __future__ import annotations
 
-from dataclasses import asdict, dataclass, field
+from dataclasses import dataclass, field
 from typing import Any, Callable
 
 import polars as pl
@@ -123,9 +126,8 @@ def run_time_origin(ctx: RunContext) -> TimeOrigin:
     whose header cannot be read is left out here (its own stage reports it). Raises
     :class:`~onebit.core.errors.InputError` on an absurd span. It goes to ``run.toml`` as the
     ``[time]`` table (source, origin as ISO and as the logs' number, span, lone stamps)."""
-    cached = getattr(ctx, "time_origin", None)
-    if isinstance(cached, TimeOrigin):
-        return cached
+    if ctx.time_origin is not None:
+        return ctx.time_origin
     frames: dict[str, pl.DataFrame | list[pl.DataFrame]] = {}
     for stem in TIME_SOURCES:
         if not ctx.has_source(stem):
@@ -142,7 +144,6 @@ def run_time_origin(ctx: RunContext) -> TimeOrigin:
         frames[name] = frame
     origin = time_origin(frames, epoch=ctx.site.epoch)
     ctx.time_origin = origin
-    ctx.config["time"] = origin.as_dict()  # the run record's [time] (runner.RUN_RECORD_SECTIONS)
     return origin
 
 
@@ -352,7 +353,7 @@ def _motion_available(ctx: RunContext) -> str | None:
 
 def _motion_work(ctx: RunContext) -> dict[str, pl.DataFrame]:
     cfg = config_from_mapping(MotionConfig, ctx.section("motion"), section="motion")
-    ctx.config.setdefault("motion", {}).update({k: v for k, v in asdict(cfg).items() if v is not None})
+    ctx.record("motion", cfg)
     site = ctx.site
     ids = [m.id for m in site.motion_sensors]
     csv = ctx.dataset / "motion.csv"
@@ -389,7 +390,7 @@ def _proximity_available(ctx: RunContext) -> str | None:
 
 def _proximity_work(ctx: RunContext) -> dict[str, pl.DataFrame]:
     cfg = config_from_mapping(ProximityConfig, ctx.section("proximity"), section="proximity")
-    ctx.config.setdefault("proximity", {}).update(asdict(cfg))
+    ctx.record("proximity", cfg)
     ids = [p.id for p in ctx.site.proximity_sensors]
     csv = ctx.dataset / "proximity.csv"
     if csv.exists():  # a clean file is typed in one read (read_proximity_csv), else line by line
@@ -433,7 +434,7 @@ def _correct_available(ctx: RunContext) -> str | None:
 def _correct_work(ctx: RunContext) -> dict[str, pl.DataFrame]:
     cfg = config_from_mapping(CorrectConfig, ctx.section("correct"), section="correct")
     n = cfg.n if cfg.n is not None else ctx.site.targets
-    ctx.config.setdefault("correct", {}).update({k: v for k, v in asdict(cfg).items() if v is not None} | {"n": n})
+    ctx.record("correct", cfg, n=n)
     res = run_correction(ctx.tables["crossings"], ctx.region_graph, cfg, n)
     ctx.report += res.report
     return res.tables
@@ -450,7 +451,7 @@ def tracker_config(entry: TrackerEntry, ctx: RunContext):
     """The tracker's config from its ``run.toml`` section (``--config``, else the dataset's own
     ``run.toml``: :meth:`RunContext.section`), its lengths in the site's units."""
     cfg = config_from_mapping(entry.spec.config, ctx.section(entry.name), section=entry.name)
-    ctx.config.setdefault(entry.name, {}).update(asdict(cfg))
+    ctx.record(entry.name, cfg)
     return config_in_site_units(cfg, ctx.site)
 
 
@@ -501,7 +502,7 @@ def tracker_stage(entry: TrackerEntry) -> Stage:
             out[ARTIFACTS] = made[ARTIFACTS]
         entry.viz(rec, name, out, site=ctx.site, region_graph=ctx.region_graph, config=ctx.configs[name], tables=ctx.tables)
 
-    return Stage(name, (), (f"{name}_tracks",), available, work, viz, config=spec.config)
+    return Stage(name, (), (f"{name}_tracks", f"{name}_*"), available, work, viz, config=spec.config)
 
 
 # --------------------------------------------------------------------------- scores
@@ -513,7 +514,7 @@ def scores_stage(trackers: tuple[TrackerEntry, ...] = TRACKERS) -> Stage:
 
     def work(ctx: RunContext) -> dict[str, pl.DataFrame]:
         cfg = config_from_mapping(ScoresConfig, ctx.section("scores"), section="scores")
-        ctx.config.setdefault("scores", {}).update(asdict(cfg))
+        ctx.record("scores", cfg)
         tables = dict(ctx.tables)
         tables["timings"] = pl.DataFrame(
             {"stage": list(ctx.seconds), "seconds": list(ctx.seconds.values())}, schema={"stage": pl.String, "seconds": pl.Float64}
@@ -558,7 +559,8 @@ def scores_stage(trackers: tuple[TrackerEntry, ...] = TRACKERS) -> Stage:
                 ids = tracks["track"].drop_nulls().unique().to_list() if tracks is not None and "track" in tracks.columns else None
                 log_scores(rec, entry.name, sc, track_ids=ids)
 
-    return Stage("scores", (), ("crossing_matches", "timings"), lambda ctx: None, work, viz, config=ScoresConfig)
+    makes = ("crossing_matches", "corrected_targets", "correct_recovered", "timings", *(f"{e.name}_*" for e in trackers))
+    return Stage("scores", (), makes, lambda ctx: None, work, viz, config=ScoresConfig)
 
 
 # --------------------------------------------------------------------------- the list
