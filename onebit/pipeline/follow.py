@@ -8,7 +8,8 @@ Two ways in:
   left for the next poll, never rejected. A log that shrinks is an error naming it. A growing
   ``.mcap`` (chunked, as loggers write them) is re-read when it grew, keeping every complete
   chunk (and the ``mcap_topics.toml`` map of ROS 2 topics). The *horizon* (the log time known
-  so far) is the latest stamp read.
+  so far) is the earliest of the sensor logs' latest stamps (a log that runs ahead does not
+  make another's events final; ``truth.csv`` does not count).
 * **replay** (``--replay 20x``) -- a finished log is played back at 20 times its own pace: a
   line is released when a virtual clock ``t0 + speed * (wall - wall0)`` passes its stamp; the
   horizon is that clock.
@@ -109,6 +110,8 @@ _PREFIX_EVENTS = {
 }
 #: Reader stages run on every poll (truth and camera only at the end, by the batch run).
 _READER_STAGES = ("crossings", "motion", "proximity", "correct")
+#: Logs that are ground truth, not sensor input: they do not hold the live horizon back.
+_TRUTH_LOGS = ("truth", "truth_crossings")
 #: Subfolder of OUT with the live outputs (kept by later runs into OUT).
 LIVE = "live"
 
@@ -547,7 +550,13 @@ def follow(
                             src.released = len(src.lines)
                     for m in mcaps:
                         m.stamps(origin)
-                    horizon = max([*(s.last_t for s in sources.values()), *(m.last_t for m in mcaps)])
+                    # every sensor log must have passed a time before it is known: the horizon is
+                    # the earliest of their latest stamps (ground truth logs do not hold it back)
+                    known = [s.last_t for k, s in sources.items() if k not in _TRUTH_LOGS and math.isfinite(s.last_t)]
+                    known += [m.last_t for m in mcaps if math.isfinite(m.last_t)]
+                    if not known:
+                        known = [s.last_t for s in sources.values()]
+                    horizon = min(known) if known else -math.inf
                     history.append((horizon, now))
                 final = now - last_growth >= options.idle
             polls += 1

@@ -125,9 +125,21 @@ def test_growing_log_waits_for_a_cut_line_and_ends_when_idle(pir, tmp_path):
     (d / "site.toml").write_bytes((src / "site.toml").read_bytes())
     text = (src / "motion.csv").read_bytes()
     header, body = text.split(b"\n", 1)
-    # grow the log in pieces that cut lines in the middle (the follower must wait for the newline)
-    pieces = [body[i : i + 97] for i in range(0, len(body), 97)]
+    # a logger writing a little out of order: where two lines < 0.9 s apart straddle a slot
+    # boundary (2 s), the later one comes first (the reader sorts rows up to 1 s late into place)
+    lines = body.splitlines(keepends=True)
+    t = [float(ln.split(b",")[0]) for ln in lines]
+    swapped = 0
+    for i in range(len(lines) - 1):
+        if t[i] < t[i + 1] < t[i] + 0.9 and int(t[i] // 2) != int(t[i + 1] // 2) and (i == 0 or t[i - 1] <= t[i]):
+            lines[i], lines[i + 1], t[i], t[i + 1] = lines[i + 1], lines[i], t[i + 1], t[i]
+            swapped += 1
+    assert swapped >= 3
+    # grow the log line by line, each line in two halves (the follower must wait for the newline)
+    pieces = [half for ln in lines for half in (ln[: len(ln) // 2], ln[len(ln) // 2 :])]
     (d / "motion.csv").write_bytes(header + b"\n" + pieces[0])
+    # the ground truth is all there from the start: it must not make the motion log's slots final
+    (d / "truth.csv").write_bytes((src / "truth.csv").read_bytes())
 
     def grow(k: int) -> None:
         if k < len(pieces):
@@ -135,10 +147,18 @@ def test_growing_log_waits_for_a_cut_line_and_ends_when_idle(pir, tmp_path):
                 fh.write(pieces[k])
 
     clock = SimClock(grow)
-    res = follow(d, tmp_path / "out", trackers=("intruder",), options=FollowConfig(poll=0.1, idle=2.0), clock=clock.clock, sleep=clock.sleep)
+    # relay chatter: an off edge followed within 1.5 s by an on edge is suppressed, so an edge is
+    # final only 1.5 s (+ 1 s of reordering) after it -- the follow must wait that long
+    config = {"motion": {"chatter_window": 1.5}}
+    res = follow(d, tmp_path / "out", trackers=("intruder",), config=config, options=FollowConfig(poll=0.1, idle=2.0), clock=clock.clock, sleep=clock.sleep)
     assert clock.sleeps >= len(pieces)  # it ran until the log stopped growing, then idle
     assert metric(res.run.report, "rejects/rows") == 0.0  # no cut line was ever read as a row
-    ref = run_pipeline(src, tmp_path / "batch", trackers=("intruder",), progress=False)
+    assert metric(res.run.report, "motion/suppressed") > 0
+    whole = tmp_path / "whole"  # the same log, complete, in one batch run
+    whole.mkdir()
+    for name in ("site.toml", "motion.csv", "truth.csv"):
+        (whole / name).write_bytes((d / name).read_bytes())
+    ref = run_pipeline(whole, tmp_path / "batch", trackers=("intruder",), config=config, progress=False)
     assert _equal(read_live_table(res.live, "intruder_tracks"), pl.read_parquet(ref.out / "tables" / "intruder_tracks.parquet"))
     assert metric(res.report, "intruder/online_equals_batch") == 1.0
 

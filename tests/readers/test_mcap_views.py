@@ -130,6 +130,32 @@ def test_view_schemas_are_foxgloves_own_and_messages_decode(tmp_path):
     assert {"site/boundary", "site/beams/b1", "site/sensors/m1", "site/sensors/m2"} <= ids
 
 
+def _fields(fds) -> dict[str, list]:
+    """Every message of a FileDescriptorSet: full name -> (field name, number, type, label)."""
+    return {f"{f.package}.{m.name}": sorted((x.name, x.number, x.type, x.label) for x in m.field) for f in fds.file for m in f.message_type}
+
+
+def test_view_schemas_match_the_foxglove_sdk(tmp_path):
+    """The schemas written are the Foxglove SDK's (``foxglove-sdk``, its ``foxglove.messages``):
+    the same messages with the same fields, and bytes one side encodes the other decodes."""
+    from google.protobuf.descriptor_pb2 import FileDescriptorSet
+
+    messages = pytest.importorskip("foxglove.messages", reason="foxglove-sdk (the test extra) not installed")
+    out = tmp_path / "rec.mcap"
+    csv_folder_to_mcap(_dataset(tmp_path / "d"), out)
+    with open(out, "rb") as fh:
+        schemas = {s.name: s for s in make_reader(fh).get_summary().schemas.values() if s.encoding == "protobuf"}
+    assert set(schemas) == {"foxglove.SceneUpdate", "foxglove.PointCloud", "foxglove.Log"}
+    for name, schema in schemas.items():
+        sdk = getattr(messages, name.split(".")[1]).get_schema()
+        assert (sdk.name, sdk.encoding) == (name, "protobuf")
+        ours, theirs = _fields(FileDescriptorSet.FromString(schema.data)), _fields(FileDescriptorSet.FromString(sdk.data))
+        assert ours == theirs and name in ours, name
+    classes = message_classes()
+    log = classes["foxglove.Log"].FromString(messages.Log(message="m1 on", name="motion", level=messages.LogLevel.Info).encode())
+    assert (log.message, log.name) == ("m1 on", "motion")
+
+
 def test_round_trip_with_views_is_exact_and_views_are_skipped(tmp_path):
     src = _dataset(tmp_path / "d")
     out = tmp_path / "rec.mcap"
