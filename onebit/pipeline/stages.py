@@ -6,8 +6,8 @@
     truth      truth.csv                   -> truth, true_crossings, sim_crossings
     truth_events truth_events.csv          -> truth_events (per-event identity truth: t, sensor, residents)
     camera     camera.mp4                  -> camera_truth, camera_detections
-    frames     frames.csv (frame-sampled)  -> levels, motion, frames, proximity, proximity_frames
-    motion     motion.csv                  -> motion, frames, motion_suppressed   (skipped with frames.csv)
+    frames     frames.csv (frame-sampled)  -> levels, motion, proximity, proximity_frames
+    motion     motion.csv                  -> motion, motion_suppressed   (skipped with frames.csv)
     proximity  proximity.csv               -> proximity, proximity_frames, proximity_suppressed
     correct    crossings                   -> corrected_crossings, correct_insertions, correct_initial
     <tracker>  its TrackerSpec.needs       -> <tracker>_tracks, <tracker>_<table>...   (one per TRACKERS entry)
@@ -38,7 +38,7 @@ from onebit.pipeline.context import ReportRow, RunContext, Stage
 from onebit.readers.beams import BEAM_COLUMNS, beam_dtypes, decode_beam_log, decode_raw_beams
 from onebit.readers.frames import edges_of_levels, read_frames_csv
 from onebit.readers.camera import read_camera, truth_error
-from onebit.readers.motion import TOGGLE_COLUMNS, MotionConfig, motion_frames, read_motion, read_motion_csv, site_rules, toggle_dtypes
+from onebit.readers.motion import TOGGLE_COLUMNS, MotionConfig, read_motion, read_motion_csv, site_rules, toggle_dtypes
 from onebit.readers.rows import read_typed_csv
 from onebit.readers.proximity import ProximityConfig, proximity_frames, read_proximity, read_proximity_csv
 from onebit.readers.tables_csv import (
@@ -305,7 +305,7 @@ def _frames_available(ctx: RunContext) -> str | None:
 def _frames_work(ctx: RunContext) -> dict[str, pl.DataFrame]:
     """A frame-sampled log (:mod:`onebit.readers.frames`) -> ``levels`` (every frame x every
     sensor) and, from them, what the trackers read: ``motion`` (toggle edges of the motion and
-    binary sensors) and ``frames`` (their levels), ``proximity_frames`` (the proximity and
+    binary sensors), ``proximity_frames`` (the proximity and
     binary sensors' levels at every frame) and ``proximity`` (edges of the proximity-only
     sensors; a binary sensor's edges are in ``motion`` once)."""
     site = ctx.site
@@ -319,7 +319,6 @@ def _frames_work(ctx: RunContext) -> dict[str, pl.DataFrame]:
     out = {"levels": levels}
     if motion_ids:
         out["motion"] = edges_of_levels(levels, motion_ids)
-        out["frames"] = levels.filter(pl.col("sensor").is_in(motion_ids))
     if prox_ids:
         out["proximity_frames"] = levels.filter(pl.col("sensor").is_in(prox_ids))
         out["proximity"] = edges_of_levels(levels, prox_only)
@@ -364,14 +363,13 @@ def _motion_work(ctx: RunContext) -> dict[str, pl.DataFrame]:
         raw, path = ctx.source("motion", TOGGLE_COLUMNS)
         res = read_motion(raw, ids, epoch=run_time_origin(ctx), path=path, rules=site_rules(site, cfg), held=site.level_sensors)
     ctx.add_rejects(res.rejects)
-    frames = motion_frames(res.motion, ids, period=cfg.period)
     ctx.report += [
         ("motion", "edges", float(res.motion.height), "edges"),
         ("motion", "suppressed", float(res.suppressed.height), "edges"),
         ("motion", "held", float(res.held), "rows"),
         ("motion", "rejected", float(res.rejects.height), "rows"),
     ]
-    return {"motion": res.motion, "frames": frames, "motion_suppressed": res.suppressed}
+    return {"motion": res.motion, "motion_suppressed": res.suppressed}
 
 
 def _motion_viz(rec, ctx: RunContext, made: dict) -> None:
@@ -573,8 +571,8 @@ def stages(trackers: tuple[TrackerEntry, ...] = TRACKERS) -> list[Stage]:
         Stage("truth", (), ("truth", "true_crossings", "sim_crossings"), _truth_available, _truth_work, _truth_viz),
         Stage("truth_events", (), ("truth_events",), _truth_events_available, _truth_events_work),
         Stage("camera", (), ("camera_truth", "camera_detections"), _camera_available, _camera_work, _camera_viz),
-        Stage("frames", (), ("levels", "motion", "frames", "proximity", "proximity_frames"), _frames_available, _frames_work, _frames_viz),
-        Stage("motion", (), ("motion", "frames", "motion_suppressed"), _motion_available, _motion_work, _motion_viz, config=MotionConfig),
+        Stage("frames", (), ("levels", "motion", "proximity", "proximity_frames"), _frames_available, _frames_work, _frames_viz),
+        Stage("motion", (), ("motion", "motion_suppressed"), _motion_available, _motion_work, _motion_viz, config=MotionConfig),
         Stage("proximity", (), ("proximity", "proximity_frames", "proximity_suppressed"), _proximity_available, _proximity_work,
               config=ProximityConfig),  # fmt: skip
         Stage("correct", ("crossings",), ("corrected_crossings", "correct_insertions", "correct_initial"), _correct_available,

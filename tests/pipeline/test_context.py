@@ -60,36 +60,36 @@ def test_every_declared_stage_keeps_its_declaration(hallway, tmp_path):
 
 def test_a_stage_returning_an_undeclared_table_fails_clearly(hallway, tmp_path, monkeypatch):
     def sneaky(ctx):
-        return {"levels_copy": ctx.tables["frames"]}
+        return {"motion_copy": ctx.tables["motion"]}
 
-    extra = Stage("sneaky", ("frames",), ("levels",), lambda ctx: None, sneaky)
+    extra = Stage("sneaky", ("motion",), ("levels",), lambda ctx: None, sneaky)
     monkeypatch.setattr(runner, "stages", lambda entries: [*stages(entries), extra])
     res = run_pipeline(hallway, tmp_path / "run", trackers=["hmm1"])
     assert not res.ok
-    assert "returned table(s) ['levels_copy'] it does not declare (makes = ['levels'])" in res.status["sneaky"]
+    assert "returned table(s) ['motion_copy'] it does not declare (makes = ['levels'])" in res.status["sneaky"]
     assert res.status["hmm1"].startswith("ok")  # the other stages keep their outputs
-    assert not (tmp_path / "run" / "tables" / "levels_copy.parquet").exists()
+    assert not (tmp_path / "run" / "tables" / "motion_copy.parquet").exists()
     assert (tmp_path / "run" / "logs" / "sneaky.traceback.txt").exists()
 
 
 def test_a_stage_resolves_its_config_beside_the_given_one(hallway, tmp_path):
     site = load_site(hallway / "site.toml")
-    given = {"motion": {"period": 0.5}}
+    given = {"motion": {"chatter_window": 0.5}}
     ctx = RunContext(hallway, tmp_path, site, build_region_graph(site), given)
     motion = next(st for st in stages() if st.name == "motion")
     assert ctx.time_origin is None
     made = motion.work(ctx)
-    assert ctx.config == {"motion": {"period": 0.5}}  # read, never written to
-    assert ctx.resolved["motion"]["period"] == 0.5 and "chatter_window" not in ctx.resolved["motion"]  # None: not set
+    assert ctx.config == {"motion": {"chatter_window": 0.5}}  # read, never written to
+    assert ctx.resolved["motion"] == {"chatter_window": 0.5}  # min_on None: from the sensor type, not written
     assert isinstance(ctx.time_origin, TimeOrigin)  # found on first use, kept on the context
-    assert made["frames"]["slot"].max() >= 10
+    assert made["motion"].height == 6
 
 
 def test_the_run_record_holds_the_resolved_sections_and_the_time_origin(hallway, tmp_path):
-    res = run_pipeline(hallway, tmp_path / "run", trackers=["hmm1"], config={"motion": {"period": 0.5}})
+    res = run_pipeline(hallway, tmp_path / "run", trackers=["hmm1"], config={"motion": {"chatter_window": 0.5}})
     record = tomllib.loads((tmp_path / "run" / "run.toml").read_text())
     assert res.ok
-    assert record["motion"]["period"] == 0.5 and "hmm1" in record and "scores" in record
+    assert record["motion"]["chatter_window"] == 0.5 and "hmm1" in record and "scores" in record
     assert record["time"]["source"]
     again = run_pipeline(hallway, tmp_path / "again", trackers=["hmm1"], config=runner.load_run_config(tmp_path / "run" / "run.toml"))
     assert tomllib.loads((tmp_path / "again" / "run.toml").read_text())["hmm1"] == record["hmm1"]
