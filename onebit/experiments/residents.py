@@ -26,6 +26,7 @@ from pathlib import Path
 import polars as pl
 
 from onebit.core.errors import InputError
+from onebit.core.writers import write_csv, write_parquet
 from onebit.datasets.importers import import_casas
 from onebit.pipeline.runner import run_pipeline
 
@@ -121,10 +122,8 @@ def run(
                                         for r in new))  # fmt: skip
     df = with_means(pl.DataFrame(rows, schema=RESULTS, orient="row"))
     res_dir.mkdir(parents=True, exist_ok=True)
-    from onebit.core.writers import write_csv
-
     write_csv(df, res_dir / "results.csv")
-    df.write_parquet(res_dir / "results.parquet")
+    write_parquet(df, res_dir / "results.parquet")
     with pl.Config(tbl_rows=-1, tbl_cols=-1, tbl_width_chars=200, float_precision=3, tbl_hide_dataframe_shape=True):
         echo(str(df))
         wide = df.pivot(on="method", index="session", values="accuracy")
