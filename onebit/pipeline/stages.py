@@ -73,6 +73,9 @@ from onebit.viz.truth import log_truth
 ScoreFn = Callable[..., tuple[list[ReportRow], dict[str, pl.DataFrame]]]
 #: ``log_run(rec, tracker, outputs, *, site, region_graph, config, tables)``
 VizFn = Callable[..., None]
+#: ``metric(tracker, tables, site, region_graph) -> report rows``: a metric the scores stage
+#: adds for every tracker that ran (``[]`` when the run lacks what it needs)
+MetricFn = Callable[[str, dict[str, pl.DataFrame], Any, Any], list[ReportRow]]
 
 
 @dataclass(frozen=True)
@@ -506,9 +509,24 @@ def tracker_stage(entry: TrackerEntry) -> Stage:
 # --------------------------------------------------------------------------- scores
 
 
-def scores_stage(trackers: tuple[TrackerEntry, ...] = TRACKERS) -> Stage:
+def identity_metric(tracker: str, tables: dict[str, pl.DataFrame], site, region_graph) -> list[ReportRow]:
+    """Identity per event (:func:`onebit.scoring.identity.identity_scores`, docs/metrics.md) of a
+    tracker that wrote ``<tracker>_events``, when the dataset has ``truth_events``."""
+    te, ev = tables.get("truth_events"), tables.get(f"{tracker}_events")
+    if te is None or not te.height or ev is None:
+        return []
+    return identity_scores(te, ev, tracks=tables.get(f"{tracker}_tracks")).rows(tracker)
+
+
+#: The metrics of every tracker beyond its own (``TrackerEntry.score``) and the MOT rows: one
+#: line per metric (docs/extending.md, "A report metric").
+METRICS: tuple[MetricFn, ...] = (identity_metric,)
+
+
+def scores_stage(trackers: tuple[TrackerEntry, ...] = TRACKERS, metrics: tuple[MetricFn, ...] | None = None) -> Stage:
     """The ``scores`` stage: crossings against the truth, then every tracker that ran ok: its
-    paper's metrics (``entry.score``) and the standard MOT metrics (:func:`onebit.scoring.mot.mot_rows`)."""
+    paper's metrics (``entry.score``), the standard MOT metrics (:func:`onebit.scoring.mot.mot_rows`)
+    and every metric of ``metrics`` (default :data:`METRICS`), then the identity baselines."""
 
     def work(ctx: RunContext) -> dict[str, pl.DataFrame]:
         cfg = config_from_mapping(ScoresConfig, ctx.section("scores"), section="scores")
@@ -536,13 +554,16 @@ def scores_stage(trackers: tuple[TrackerEntry, ...] = TRACKERS) -> Stage:
             ctx.report += rows
             out.update(made)
             tables.update(made)
+        for entry in trackers:  # the metrics of every tracker (METRICS)
+            if entry.name not in ctx.trackers or not ctx.status.get(entry.name, "").startswith("ok"):
+                continue
+            for fn in METRICS if metrics is None else metrics:
+                try:
+                    ctx.report += fn(entry.name, tables, ctx.site, ctx.region_graph)
+                except OnebitError as exc:
+                    ctx.status[f"scores/{entry.name}"] = f"failed: {exc}"
         te = tables.get("truth_events")
-        if te is not None and te.height:  # identity per event: every tracker that wrote <tracker>_events, and the baselines
-            for entry in trackers:
-                ev = tables.get(f"{entry.name}_events")
-                if ev is None or not ctx.status.get(entry.name, "").startswith("ok"):
-                    continue
-                ctx.report += identity_scores(te, ev, tracks=tables.get(f"{entry.name}_tracks")).rows(entry.name)
+        if te is not None and te.height:  # what a tracker's identity per event is compared with
             ctx.report += baseline_rows(te, graph_hops(ctx.site))
         rej = ctx.tables.get("rejects", pl.DataFrame(schema=REJECTS))
         ctx.report.append(("rejects", "rows", float(rej.height), "rows"))
