@@ -360,7 +360,7 @@ def _add_experiment_command(sub) -> None:
     e.add_argument("name", help="schiff, singh, okane, ..., residents (OUT = a folder of CASAS sessions)")
     e.add_argument("out")
     e.add_argument("--results", default=None, help="residents: results folder (default OUT/residents-study)")
-    e.add_argument("--trackers", default=None, help="residents, ceiling: comma-separated trackers (default: residents hmm1,hmm2,findinghumo,"
+    e.add_argument("--trackers", default=None, help="residents, ceiling: comma-separated trackers (default: residents: residents,hmm1,hmm2,findinghumo,"
                    "findinghumo-flow; ceiling every positional one)")
     e.add_argument("--layout", default=None, help="residents: floor plan / layout for every session (as import casas)")
     e.add_argument("--rooms", default=None, help="residents: floor plan rooms JSON")

@@ -25,9 +25,11 @@ Without one the graph is **learned from the log** (:func:`learn_sensor_graph`): 
 from different sensors, ``dt <= window_s`` (5 s) apart, are one *transition* between them
 (either direction). Sensors ``a`` and ``b`` are adjacent when they have at least
 ``min_count`` (3) transitions and those are at least ``min_share`` (10 %) of the transitions
-of the less busy of the two -- a person walking trips neighbouring sensors one after the
-other, while a skipped sensor (a missed detection) or two people in different rooms make
-rarer pairs. Components left apart are joined by the edges of a maximum spanning forest of
+of the less busy of the two, and their *lift* (their count over the count chance would give
+if the two sensors' transitions were independent) is at least ``min_lift`` (2) -- a person
+walking trips neighbouring sensors one after the other far more often than chance, while a
+skipped sensor (a missed detection) makes rarer pairs and two people moving at once in two
+rooms interleave their events about as chance would (lift ~ 1): they do not link the rooms. Components left apart are joined by the edges of a maximum spanning forest of
 the transition counts (the most frequent transitions between them). Nodes get positions from
 a force layout of that graph (``networkx.spring_layout``, seeded; edge length ``spacing_m``,
 3 m) -- **not measured**: ``import.toml`` says ``positions = "force layout"`` and
@@ -62,6 +64,7 @@ nx = lazy_module("networkx")
 WINDOW_S = 5.0
 MIN_COUNT = 3
 MIN_SHARE = 0.1
+MIN_LIFT = 2.0
 SPACING_M = 3.0
 #: Floor-plan rooms closer than this (m, a wall's thickness) are neighbours (a doorway is assumed).
 ROOM_TOUCH_M = 0.3
@@ -122,10 +125,17 @@ def learn_sensor_graph(
     window_s: float = WINDOW_S,
     min_count: int = MIN_COUNT,
     min_share: float = MIN_SHARE,
+    min_lift: float = MIN_LIFT,
 ) -> tuple[list[tuple[str, str]], pl.DataFrame]:
     """Edges of the sensor graph learned from ON events (module docstring), and the
-    transition table with columns a, b, n, share, kept (``"rule"``, ``"joins components"``
-    or null)."""
+    transition table with columns a, b, n, share, lift, kept (``"rule"``, ``"joins
+    components"`` or null).
+
+    ``lift = n / E``, ``E = n_a n_b / (2 T)``: the pair's transitions over what chance would
+    give if the two sensors' transitions were independent (``n_a``: transitions touching
+    ``a``, ``T``: all transitions). Two people moving at once in two rooms interleave their
+    events about as chance would (lift ~ 1); a walker makes neighbours follow each other far
+    more often than that, so an edge needs ``lift >= min_lift`` too."""
     tr = transitions(events, window_s=window_s)
     busy = pl.concat([tr.select(pl.col("a").alias("s"), "n"), tr.select(pl.col("b").alias("s"), "n")]).group_by("s").agg(
         total=pl.col("n").sum()
@@ -133,8 +143,10 @@ def learn_sensor_graph(
     tr = (
         tr.join(busy.rename({"s": "a", "total": "ta"}), on="a")
         .join(busy.rename({"s": "b", "total": "tb"}), on="b")
-        .with_columns(share=pl.col("n") / pl.min_horizontal("ta", "tb"))
-        .with_columns(kept=pl.when((pl.col("n") >= min_count) & (pl.col("share") >= min_share)).then(pl.lit("rule")))
+        .with_columns(share=pl.col("n") / pl.min_horizontal("ta", "tb"), lift=pl.col("n") * 2.0 * pl.col("n").sum() / (pl.col("ta") * pl.col("tb")))
+        .with_columns(
+            kept=pl.when((pl.col("n") >= min_count) & (pl.col("share") >= min_share) & (pl.col("lift") >= min_lift)).then(pl.lit("rule"))
+        )
         .drop("ta", "tb")
         .sort("a", "b")
     )
@@ -641,7 +653,8 @@ def _casas_graph(parts: _CasasParts, lay: Layout | None, *, window_s, min_count,
     sensor_range = lay.range if lay is not None and lay.range is not None else round(spacing / 2.0, 3)
     rule = (
         "consecutive ON/OPEN events of two sensors at most window_s apart are a transition; an edge needs "
-        ">= min_count transitions making >= min_share of the less busy sensor's; components joined by a "
+        ">= min_count transitions making >= min_share of the less busy sensor's, at least min_lift times what "
+        "chance would give; components joined by a "
         "maximum spanning forest of the counts (transitions.csv)" if graph_how == "learned" else
         (lay.graph_rule if graph_how == "geometry" else "from the layout file")
     )  # fmt: skip
@@ -704,6 +717,7 @@ def _casas_record(log: Path, res: CasasLog, parts: _CasasParts, g: _CasasGraph, 
             "window_s": window_s,
             "min_count": min_count,
             "min_share": min_share,
+            "min_lift": MIN_LIFT,
         },
         "doors": {"entries_exits": door_ids, "rule": "only contacts declared doors by the layout or --doors; other contacts are ordinary nodes"},
         "lost_off": {

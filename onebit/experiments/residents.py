@@ -31,7 +31,7 @@ from onebit.datasets.importers import import_casas
 from onebit.pipeline.runner import run_pipeline
 
 #: The multi-person trackers that write ``<tracker>_events`` (the default ``--trackers``).
-DEFAULT_TRACKERS = ("hmm1", "hmm2", "findinghumo", "findinghumo-flow")
+DEFAULT_TRACKERS = ("residents", "hmm1", "hmm2", "findinghumo", "findinghumo-flow")
 #: The baselines' report stages and their names here.
 BASELINES = {"identity-busier": "baseline-busier", "identity-nearest": "baseline-nearest"}
 

@@ -51,11 +51,12 @@ from onebit.scoring import clustertrack as score_clustertrack
 from onebit.scoring import findinghumo as score_findinghumo
 from onebit.scoring import intruder as score_intruder
 from onebit.scoring import istate as score_istate
+from onebit.scoring import residents as score_residents
 from onebit.scoring.crossings import ScoresConfig, score_crossings, true_crossings_from_truth, truth_regions
 from onebit.scoring.identity import baseline_rows, graph_hops, identity_scores
 from onebit.scoring.mot import GATES, Gate, mot_rows
 from onebit.scoring.serve import CannotServe
-from onebit.trackers import beams, clustertrack, findinghumo, findinghumo_flow, intruder, istate
+from onebit.trackers import beams, clustertrack, findinghumo, findinghumo_flow, intruder, istate, residents
 from onebit.trackers.base import ARTIFACTS, PROGRESS, TrackerSpec
 from onebit.trackers.beams.correction import CorrectConfig, run_correction
 from onebit.viz import beams as viz_beams
@@ -63,6 +64,7 @@ from onebit.viz import clustertrack as viz_clustertrack
 from onebit.viz import findinghumo as viz_findinghumo
 from onebit.viz import intruder as viz_intruder
 from onebit.viz import istate as viz_istate
+from onebit.viz import residents as viz_residents
 from onebit.viz.beams_correct import log_corrected_crossings
 from onebit.viz.events import log_crossings
 from onebit.viz.intruder import log_motion_states
@@ -108,6 +110,7 @@ TRACKERS: tuple[TrackerEntry, ...] = (
     *(TrackerEntry(spec, score_findinghumo.score, viz_findinghumo.log_run, gate=GATES[spec.name]) for spec in findinghumo.SPECS),
     TrackerEntry(findinghumo_flow.SPEC, score_findinghumo.score, viz_findinghumo.log_run, gate=GATES["findinghumo-flow"]),
     TrackerEntry(istate.SPEC, score_istate.score, viz_istate.log_run, gate=GATES["istate"]),
+    TrackerEntry(residents.SPEC, score_residents.score, viz_residents.log_run, gate=GATES["residents"]),
 )
 
 

@@ -140,6 +140,7 @@ GATES: dict[str, Gate] = {
     "hmm1": _HOPS,
     "hmm2": _HOPS,
     "findinghumo-flow": _HOPS,
+    "residents": Gate("point", 1.0, "sensing radius", "the residents tracker places each person at the sensor of their latest event: within one sensing radius the sensor covers them"),
     "istate": Gate("point", 1.0, "sensing radius", "O'Kane's I-state has no unit of its own; a point summary within one sensing radius is what the sensors can tell apart"),
 }
 

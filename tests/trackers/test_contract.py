@@ -43,6 +43,7 @@ TRACKER_DATA = {
     "hmm2": "hallway",
     "findinghumo-flow": "hallway",
     "istate": "istate-room",
+    "residents": "hallway",
 }
 
 ENTRIES = {e.name: e for e in TRACKERS}
