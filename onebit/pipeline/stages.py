@@ -54,7 +54,7 @@ from onebit.scoring import istate as score_istate
 from onebit.scoring import residents as score_residents
 from onebit.scoring.crossings import ScoresConfig, score_crossings, true_crossings_from_truth, truth_regions
 from onebit.scoring.identity import baseline_rows, graph_hops, identity_scores
-from onebit.scoring.mot import GATES, Gate, mot_rows
+from onebit.scoring.mot import Gate, mot_rows
 from onebit.scoring.serve import CannotServe
 from onebit.trackers import beams, clustertrack, findinghumo, findinghumo_flow, intruder, istate, residents
 from onebit.trackers.base import ARTIFACTS, PROGRESS, TrackerSpec
@@ -82,7 +82,8 @@ MetricFn = Callable[[str, dict[str, pl.DataFrame], Any, Any], list[ReportRow]]
 
 @dataclass(frozen=True)
 class TrackerEntry:
-    """One tracker in the pipeline: the tracker, how it is scored, how it is logged.
+    """One tracker in the pipeline, declared once: the tracker, how it is scored, its MOT gate,
+    how it is logged and the scenario it is tested on.
 
     ``inputs`` maps an input name of the tracker to the tables that may feed it, first
     present wins (the beams tracker reads the corrected crossings when the ``correct``
@@ -95,23 +96,44 @@ class TrackerEntry:
     inputs: dict[str, tuple[str, ...]] = field(default_factory=dict)
     #: the MOT gate of its tracks (:class:`onebit.scoring.mot.Gate`); ``None`` = no MOT rows
     gate: Gate | None = None
+    #: the built-in scenario (``onebit simulate NAME``) the tests run it on: the contract tests
+    #: of the trackers and of the scorers (``None``: no scenario serves it)
+    scenario: str | None = None
 
     @property
     def name(self) -> str:
         return self.spec.name
 
 
+#: The MOT gates the papers share (``TrackerEntry.gate``; docs/metrics.md, "Standard MOT metrics").
+CELLS_GATE = Gate(
+    "point", 2.0, "cells",
+    "Schiff & Goldberg score in grid cells; 'within two world-space cells' is their accuracy criterion "
+    "(VIII: perfect sensors put every estimate there) and the intruder's bounding prism is 2 cells wide",
+)
+HOPS_GATE = Gate("node", 1.0, "hops", "De et al. score hops on the sensor graph; 1 hop = the adjacent sensor, the PIR's resolution")
+
 #: Every tracker, in the order their stages run.
 TRACKERS: tuple[TrackerEntry, ...] = (
-    TrackerEntry(beams.SPEC, score_beams.score, viz_beams.log_run, {"crossings": ("corrected_crossings", "crossings")}, GATES["beams"]),
-    TrackerEntry(intruder.SPEC, score_intruder.score, viz_intruder.log_run, gate=GATES["intruder"]),
-    TrackerEntry(intruder.NAIVE_SPEC, score_intruder.score, viz_intruder.log_run, gate=GATES["intruder-naive"]),
-    TrackerEntry(clustertrack.SPEC, score_clustertrack.score, viz_clustertrack.log_run, gate=GATES["clustertrack"]),
-    *(TrackerEntry(spec, score_findinghumo.score, viz_findinghumo.log_run, gate=GATES[spec.name]) for spec in findinghumo.SPECS),
-    TrackerEntry(findinghumo_flow.SPEC, score_findinghumo.score, viz_findinghumo.log_run, gate=GATES["findinghumo-flow"]),
-    TrackerEntry(istate.SPEC, score_istate.score, viz_istate.log_run, gate=GATES["istate"]),
-    TrackerEntry(residents.SPEC, score_residents.score, viz_residents.log_run, gate=GATES["residents"]),
-)
+    TrackerEntry(beams.SPEC, score_beams.score, viz_beams.log_run, {"crossings": ("corrected_crossings", "crossings")},
+                 Gate("region", 1.0, "hops", "Bobadilla et al. localise to a region; 1 hop = the adjacent region, one beam away"),
+                 scenario="beams-lab"),
+    TrackerEntry(intruder.SPEC, score_intruder.score, viz_intruder.log_run, gate=CELLS_GATE, scenario="pir14"),
+    TrackerEntry(intruder.NAIVE_SPEC, score_intruder.score, viz_intruder.log_run, gate=CELLS_GATE, scenario="pir14"),
+    TrackerEntry(clustertrack.SPEC, score_clustertrack.score, viz_clustertrack.log_run,
+                 gate=Gate("point", 1.0, "R", "Singh et al. report error in units of the sensing radius R; within R the target is resolved"),
+                 scenario="proximity-line"),
+    *(TrackerEntry(spec, score_findinghumo.score, viz_findinghumo.log_run, gate=HOPS_GATE, scenario="hallway") for spec in findinghumo.SPECS),
+    TrackerEntry(findinghumo_flow.SPEC, score_findinghumo.score, viz_findinghumo.log_run, gate=HOPS_GATE, scenario="hallway"),
+    TrackerEntry(istate.SPEC, score_istate.score, viz_istate.log_run,
+                 gate=Gate("point", 1.0, "sensing radius", "O'Kane's I-state has no unit of its own; a point summary within one "
+                           "sensing radius is what the sensors can tell apart"),
+                 scenario="istate-room"),
+    TrackerEntry(residents.SPEC, score_residents.score, viz_residents.log_run,
+                 gate=Gate("point", 1.0, "sensing radius", "the residents tracker places each person at the sensor of their latest "
+                           "event: within one sensing radius the sensor covers them"),
+                 scenario="hallway"),
+)  # fmt: skip
 
 
 def tracker_names(entries: tuple[TrackerEntry, ...] = TRACKERS) -> tuple[str, ...]:
