@@ -12,7 +12,7 @@ import pytest
 from onebit.cli import main
 from onebit.core.errors import InputError
 from onebit.core.site import load_site
-from onebit.datasets.casas_sim import EDGES, LAYOUT, write_casas_log
+from onebit._testing.casas_sim import EDGES, LAYOUT, write_casas_log
 from onebit.datasets.importers import import_casas, learn_sensor_graph
 from onebit.pipeline.report import metric
 from onebit.pipeline.runner import run_pipeline

@@ -16,7 +16,7 @@ from onebit.core.site import Site
 from onebit.core.tables import MOTION, TRACKS, check_schema, conform
 from onebit.models.graph_hmm.adaptive import DecodeResult, DecoderParams, decode_run
 from onebit.models.graph_hmm.eatg import Eatg, hop_matrix, layout_eatg, trained_eatg
-from onebit.readers.motion import ABSENT_AFTER_S, motion_frames, silent_stretches
+from onebit.core.frames import ABSENT_AFTER_S, motion_frames, silent_stretches
 
 
 #: One row per HMM window: first slot, users K (and K now), entry/exit signatures, HMM order,
