@@ -19,7 +19,8 @@ people were seen and
     d(u_0(i), u_1(i)) <= meet                   (they are together: a meeting)           (H1)
     or |c(u_0(i) -> s_i) - c(u_1(i) -> s_i)| <= margin   (either could have fired i)
 
-with ``c`` the motion cost of the decoder (eq. 3 of the model module; ``margin = 0``: off).
+with ``c`` the motion cost of the decoder from a person's last node (eq. 3 of the model
+module at the spread ``l0``, without the silence term; ``margin = 0``: off).
 The cuts split the events into *intervals*; inside one the decoded fragments are kept, only
 their names may be exchanged.
 

@@ -5,7 +5,9 @@ Every motion ``ON`` edge at a sensor with a position is an event; the decoder
 of :mod:`onebit.trackers.residents.model` (dwell-aware motion on the sensor graph, penalised
 births): the number of people is its answer, at most ``targets`` of ``site.toml`` when given
 (the decoder's own bound), else at most ``max_people``. An ``OFF`` edge goes to the person of
-its sensor's last ``ON``.
+its sensor's last ``ON``. With ``habits`` (off by default: no gain measured on the real
+sessions, docs/residents.md), two decoded people are then re-oriented between their meetings
+by their sensor habits, learned without labels (:mod:`onebit.trackers.residents.habits`).
 
 Outputs (tables ``residents_<key>``):
 
