@@ -40,6 +40,7 @@ from onebit.readers.tables_csv import (
 )
 from onebit.readers.timebase import TimeOrigin, time_origin
 from onebit.scoring import beams as score_beams
+from onebit.scoring import binpf as score_binpf
 from onebit.scoring import clustertrack as score_clustertrack
 from onebit.scoring import findinghumo as score_findinghumo
 from onebit.scoring import intruder as score_intruder
@@ -47,10 +48,11 @@ from onebit.scoring import istate as score_istate
 from onebit.scoring.crossings import ScoresConfig, score_crossings, true_crossings_from_truth, truth_regions
 from onebit.scoring.mot import GATES, Gate, mot_rows
 from onebit.scoring.serve import CannotServe
-from onebit.trackers import beams, clustertrack, findinghumo, findinghumo_flow, intruder, istate
+from onebit.trackers import beams, binpf, clustertrack, findinghumo, findinghumo_flow, intruder, istate
 from onebit.trackers.base import ARTIFACTS, PROGRESS, TrackerSpec
 from onebit.trackers.beams.correction import CorrectConfig, run_correction
 from onebit.viz import beams as viz_beams
+from onebit.viz import binpf as viz_binpf
 from onebit.viz import clustertrack as viz_clustertrack
 from onebit.viz import findinghumo as viz_findinghumo
 from onebit.viz import intruder as viz_intruder
@@ -94,6 +96,7 @@ TRACKERS: tuple[TrackerEntry, ...] = (
     TrackerEntry(intruder.SPEC, score_intruder.score, viz_intruder.log_run, gate=GATES["intruder"]),
     TrackerEntry(intruder.NAIVE_SPEC, score_intruder.score, viz_intruder.log_run, gate=GATES["intruder-naive"]),
     TrackerEntry(clustertrack.SPEC, score_clustertrack.score, viz_clustertrack.log_run, gate=GATES["clustertrack"]),
+    TrackerEntry(binpf.SPEC, score_binpf.score, viz_binpf.log_run, gate=GATES["binpf"]),
     *(TrackerEntry(spec, score_findinghumo.score, viz_findinghumo.log_run, gate=GATES[spec.name]) for spec in findinghumo.SPECS),
     TrackerEntry(findinghumo_flow.SPEC, score_findinghumo.score, viz_findinghumo.log_run, gate=GATES["findinghumo-flow"]),
     TrackerEntry(istate.SPEC, score_istate.score, viz_istate.log_run, gate=GATES["istate"]),

@@ -124,6 +124,7 @@ GATES: dict[str, Gate] = {
     "hmm1": _HOPS,
     "hmm2": _HOPS,
     "findinghumo-flow": _HOPS,
+    "binpf": Gate("point", 1.0, "m", "beyond the papers: a metric gate in world units; 1 m is about half the spacing of a ceiling array (Milan et al. score at 1.5 m)"),
     "istate": Gate("point", 1.0, "sensing radius", "O'Kane's I-state has no unit of its own; a point summary within one sensing radius is what the sensors can tell apart"),
 }
 

@@ -42,6 +42,7 @@ TRACKER_RGB: dict[str, tuple[int, int, int]] = {
     "hmm2": (240, 110, 200),
     "findinghumo-flow": (120, 240, 200),
     "istate": (255, 235, 130),
+    "binpf": (255, 110, 90),
     "camera": (165, 165, 165),
 }
 

@@ -30,6 +30,7 @@ DATASETS = {
     "beams-lab": ("beams-lab", 40.0, {}),
     "pir14": ("pir14", 40.0, {}),
     "proximity-line": ("proximity-line", None, {}),
+    "proximity-grid": ("proximity-grid", None, {}),
     "hallway": ("hallway", 40.0, {}),
     "istate-room": ("istate-room", 20.0, {}),
 }
@@ -38,6 +39,7 @@ TRACKER_DATA = {
     "intruder": "pir14",
     "intruder-naive": "pir14",
     "clustertrack": "proximity-line",
+    "binpf": "proximity-grid",
     "findinghumo": "hallway",
     "hmm1": "hallway",
     "hmm2": "hallway",
