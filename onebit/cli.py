@@ -15,6 +15,7 @@ from onebit.core.errors import ConfigError, InputError, OnebitError, bounded
 from onebit.core.site import load_site
 from onebit.datasets.catalogue import IN_PLACE, all_scenarios, get_scenario
 from onebit.datasets.importers import import_casas, import_trajectories
+from onebit.datasets.irtracking import DEFAULT_RADIUS_M, PERIOD_S, import_irtracking
 from onebit.datasets.scenario import parse_params, simulate_into
 from onebit.experiments import get_experiment
 from onebit.pipeline.executors import EXECUTORS, make_executor
@@ -133,6 +134,17 @@ def _cmd_import_casas(args) -> int:
           f"{c['other_csv']} others in other.csv, {c['annotations']} annotated), {c['rejected']} rejected lines, "
           f"{c['reordered']} out of order (sorted); {c['sensors']} sensors, {c['edges']} edges "
           f"({res.info['graph']['source']} graph, positions: {res.info['layout']['positions']}); see import.toml")  # fmt: skip
+    return 0
+
+
+def _cmd_import_irtracking(args) -> int:
+    res = import_irtracking(args.readings, args.dataset, truth=args.truth, coordinates=args.coordinates, period=args.period,
+                            radius=args.radius, r_inner=args.r_inner, targets=args.targets, name=args.name)  # fmt: skip
+    c = res.info["counts"]
+    truth = f", truth.csv ({c['truth_rows']} positions of {c['truth_targets']} people)" if "truth_rows" in c else ""
+    print(f"imported {args.readings} -> {args.dataset}: site.toml ({c['sensors']} sensors), frames.csv ({c['frames']} frames, "
+          f"{c['active_readings']} active readings){truth}; {c['rejected']} rejected{' (rejects.csv)' if c['rejected'] else ''}; "
+          "see import.toml")  # fmt: skip
     return 0
 
 
@@ -259,6 +271,17 @@ def build_parser() -> argparse.ArgumentParser:
     ic.add_argument("--min-share", type=float, default=0.1, help="learned graph: share of the less busy sensor's transitions")
     ic.add_argument("--spacing", type=float, default=3.0, help="force layout: edge length (m)")
     ic.set_defaults(func=_cmd_import_casas)
+    ir = isub.add_parser("irtracking", help="Milan et al.'s ceiling IR array (SEQ.txt or SEQ.xml detections) -> site.toml, frames.csv, truth.csv")
+    ir.add_argument("readings", help="SEQ.txt (one line of 50 channels per frame) or SEQ.xml (CVML detections)")
+    ir.add_argument("dataset")
+    ir.add_argument("--truth", default=None, help="SEQ_gt.xml (CVML, pixels x 25 = mm) -> truth.csv")
+    ir.add_argument("--coordinates", default=None, help="getSensorCoordinates.m (default: next to the readings or up to two folders above)")
+    ir.add_argument("--period", type=float, default=PERIOD_S, help="seconds between frames (2 Hz)")
+    ir.add_argument("--radius", type=float, default=DEFAULT_RADIUS_M, help="footprint radius of a sensor, m")
+    ir.add_argument("--r-inner", type=float, default=None, help="radius a reading 0 clears, m (default: --radius)")
+    ir.add_argument("--targets", type=int, default=None, help="most people present at once (default 6, the recordings' most)")
+    ir.add_argument("--name", default=None, help="site name (default: the readings' file name)")
+    ir.set_defaults(func=_cmd_import_irtracking)
     it = isub.add_parser("trajectories", help="a people-counter / indoor-positioning export -> truth.csv")
     it.add_argument("file")
     it.add_argument("dataset")

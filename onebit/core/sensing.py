@@ -24,6 +24,9 @@ with each condition present only when the site declares it. The test is exact fo
   and the extent ``E_i`` of its ``type``; at least one of the three is required;
 * **proximity sensor**: the disk of radius ``R_o`` (``r_outer``); ``inner_radius`` is ``R_i``,
   the open disk an off reading clears;
+* **binary sensor** (``[[binary_sensors]]``, declared once, listed as a motion and a proximity
+  sensor too): one region of kind ``binary``, the disk ``R_o`` intersected with its ``fov`` and
+  its type's extent; ``inner_radius`` is ``R_i``;
 * **directional beam**: the segment grown by half its pair ``spacing`` (the two
   emitter-detector pairs run ``spacing`` apart; its end caps lie on walls). With spacing 0
   the region is the segment itself.
@@ -252,7 +255,7 @@ class DetectionRegion:
     """
 
     sensor: str
-    kind: str  # "motion" | "proximity" | "beam"
+    kind: str  # "motion" | "proximity" | "binary" | "beam"
     position: tuple[float, float]
     fov: Polygon | None = None
     radius: float | None = None
@@ -260,6 +263,8 @@ class DetectionRegion:
     extent: BaseGeometry | None = None
     type: str | None = None
     inner_radius: float | None = None
+    #: what a reading means (:data:`onebit.core.site.SIGNALS`): ``level`` = held on is presence
+    signal: str = "edge"
 
     @property
     def core(self) -> BaseGeometry:
@@ -322,6 +327,7 @@ def build_detection_regions(site: "Site") -> dict[str, DetectionRegion]:
     """Build the regions of :func:`detection_regions` (uncached)."""
     out: dict[str, DetectionRegion] = {}
     tables = site.sensor_types if isinstance(site.sensor_types, dict) else {}
+    binary = {b.id: b for b in getattr(site, "binary_sensors", ())}
     for i, m in enumerate(site.motion_sensors):
         key = f"motion_sensors[{i}] (id {m.id!r})"
         extent = None
@@ -337,13 +343,18 @@ def build_detection_regions(site: "Site") -> dict[str, DetectionRegion]:
                 file=site.source,
                 field=key,
             )
-        reg = DetectionRegion(m.id, "motion", m.position, fov=m.fov, radius=m.range, extent=extent, type=m.type)
+        b = binary.get(m.id)
+        reg = DetectionRegion(
+            m.id, "motion" if b is None else "binary", m.position, fov=m.fov, radius=m.range, extent=extent, type=m.type,
+            inner_radius=None if b is None else b.r_inner, signal=getattr(m, "signal", "edge"),
+        )
         if reg.geometry.is_empty:
             declared = [k for k, v in (("fov", m.fov), ("range", m.range), (f"type {m.type!r}", extent)) if v is not None]
             raise SiteError(f"empty detection region: {' and '.join(declared)} do not overlap", file=site.source, field=key)
         out[m.id] = reg
     for p in site.proximity_sensors:
-        out[p.id] = DetectionRegion(p.id, "proximity", p.position, radius=p.r_outer, inner_radius=p.r_inner)
+        if p.id not in binary:  # a binary sensor's one region is made above
+            out[p.id] = DetectionRegion(p.id, "proximity", p.position, radius=p.r_outer, inner_radius=p.r_inner, signal=p.signal)
     for b in site.beams:
         mid = b.line.interpolate(0.5, normalized=True)
         out[b.id] = DetectionRegion(b.id, "beam", (mid.x, mid.y), radius=b.spacing / 2.0, axis=b.line)

@@ -42,9 +42,15 @@ TOUCH_TOL = 1e-6
 
 _TOP_KEYS = {
     "name", "units", "epoch", "boundary", "obstacles", "beams", "regions", "camera",
-    "targets", "motion_sensors", "proximity_sensors", "sensor_graph", "sensor_types", "body_radius",
+    "targets", "motion_sensors", "proximity_sensors", "binary_sensors", "sensor_graph", "sensor_types", "body_radius",
 }
-_MOTION_KEYS = {"id", "position", "heading", "type", "refractory", "fov", "range"}
+_MOTION_KEYS = {"id", "position", "heading", "type", "refractory", "fov", "range", "signal"}
+_BINARY_KEYS = {"id", "position", "radius", "r_inner", "r_outer", "fov", "type", "refractory", "signal"}
+#: What a binary reading means (``signal`` of a sensor or of its ``[sensor_types]`` table):
+#: ``level`` -- on while a target is in the footprint (a sensor held on is presence: ceiling
+#: IR, pressure mats, proximity sensors); ``edge`` -- an on is an event (motion began in the
+#: footprint: a PIR's trigger), a sensor held on says nothing more after its rising edge.
+SIGNALS = ("level", "edge")
 _PROXIMITY_KEYS = {"id", "position", "radius", "r_inner", "r_outer"}
 _GRAPH_KEYS = {"edges", "entries", "exits", "signatures"}
 _BOUNDARY_KEYS = {"polygon"}
@@ -141,6 +147,7 @@ class MotionSensor:
     refractory: float = 0.0
     fov: Polygon | None = None
     range: float | None = None
+    signal: str = "edge"  #: what a reading means (:data:`SIGNALS`); a PIR's is ``edge``
 
 
 @dataclass(frozen=True)
@@ -152,6 +159,37 @@ class ProximitySensor:
     position: tuple[float, float]
     r_inner: float
     r_outer: float
+    signal: str = "level"  #: what a reading means (:data:`SIGNALS`)
+
+
+@dataclass(frozen=True)
+class BinarySensor:
+    """A binary sensor declared once (``[[binary_sensors]]``) with its footprint, serving every
+    tracker that can use it: motion trackers see it as a :class:`MotionSensor` (detection disk
+    of radius ``r_outer``, ``fov`` and ``type`` as given), proximity trackers as a
+    :class:`ProximitySensor` (``R_i = r_inner``, ``R_o = r_outer``), the I-state filter as one
+    sensing region. ``signal`` says what a reading means (:data:`SIGNALS`; default ``level``:
+    on while someone is in the footprint), from the sensor, else its type's ``signal``.
+
+    The footprint is the disk of radius ``r_outer`` around ``position`` (``radius`` sets
+    ``r_inner = r_outer``), intersected with ``fov`` when given: a reading 1 means a target in
+    it; a reading 0 means none within ``r_inner`` (for a ``level`` sensor).
+    """
+
+    id: str
+    position: tuple[float, float]
+    r_inner: float
+    r_outer: float
+    fov: Polygon | None = None
+    type: str | None = None
+    refractory: float = 0.0
+    signal: str = "level"
+
+    def as_motion(self) -> MotionSensor:
+        return MotionSensor(self.id, self.position, 0.0, self.type, self.refractory, self.fov, self.r_outer, self.signal)
+
+    def as_proximity(self) -> ProximitySensor:
+        return ProximitySensor(self.id, self.position, self.r_inner, self.r_outer, self.signal)
 
 
 @dataclass(frozen=True)
@@ -197,6 +235,9 @@ class Site:
     targets: int | None = None
     motion_sensors: tuple[MotionSensor, ...] = ()
     proximity_sensors: tuple[ProximitySensor, ...] = ()
+    #: sensors declared once in ``[[binary_sensors]]``; each is also in ``motion_sensors`` and
+    #: ``proximity_sensors`` (same id), so every tracker that can use it sees it
+    binary_sensors: tuple[BinarySensor, ...] = ()
     sensor_graph: SensorGraph | None = None
     sensor_types: dict = field(default_factory=dict, repr=False)  # raw tables, validated by their user
     #: radius of a target's body (site units; ``None`` = 0.2 m): a beam is blocked while the
@@ -207,6 +248,23 @@ class Site:
     @property
     def free_space(self):
         return shapely.difference(self.boundary, shapely.union_all(list(self.obstacles))) if self.obstacles else self.boundary
+
+    @cached_property
+    def signals(self) -> dict[str, str]:
+        """What each binary sensor's reading means, by id (:data:`SIGNALS`): ``level`` (held on
+        = presence) or ``edge`` (an on is an event). Beams are left out (their events are crossings)."""
+        out = {m.id: m.signal for m in self.motion_sensors}
+        out.update({p.id: p.signal for p in self.proximity_sensors})
+        return out
+
+    @property
+    def level_sensors(self) -> frozenset[str]:
+        """Ids of the sensors whose reading is a level (held on = presence)."""
+        return frozenset(k for k, v in self.signals.items() if v == "level")
+
+    @property
+    def binary_ids(self) -> frozenset[str]:
+        return frozenset(b.id for b in self.binary_sensors)
 
     @property
     def beam_ids(self) -> tuple[str, ...]:
@@ -339,12 +397,15 @@ def site_from_dict(data: dict, *, source: str = "<site>") -> Site:
         raise err("targets", f"must be a non-negative integer, got {targets!r}")
     body = _number(data["body_radius"], "body_radius", err, lo=0.0) if "body_radius" in data else None
     sensor_ids: set[str] = set(seen)
-    motion = [_motion_sensor(ms, i, boundary, sensor_ids, err) for i, ms in enumerate(_list_of_tables(data.get("motion_sensors", []), "motion_sensors", err))]
-    prox = [_proximity_sensor(ps, i, sensor_ids, err) for i, ps in enumerate(_list_of_tables(data.get("proximity_sensors", []), "proximity_sensors", err))]
-    graph = _sensor_graph(data["sensor_graph"], {m.id for m in motion}, err) if "sensor_graph" in data else None
     stypes = data.get("sensor_types", {})
     if not isinstance(stypes, dict) or not all(isinstance(v, dict) for v in stypes.values()):
         raise err("sensor_types", "must be a table of tables ([sensor_types.<name>])")
+    motion = [_motion_sensor(ms, i, boundary, sensor_ids, err, stypes) for i, ms in enumerate(_list_of_tables(data.get("motion_sensors", []), "motion_sensors", err))]
+    prox = [_proximity_sensor(ps, i, sensor_ids, err) for i, ps in enumerate(_list_of_tables(data.get("proximity_sensors", []), "proximity_sensors", err))]
+    binary = [_binary_sensor(bs, i, sensor_ids, err, stypes) for i, bs in enumerate(_list_of_tables(data.get("binary_sensors", []), "binary_sensors", err))]
+    motion += [b.as_motion() for b in binary]
+    prox += [b.as_proximity() for b in binary]
+    graph = _sensor_graph(data["sensor_graph"], {m.id for m in motion}, err) if "sensor_graph" in data else None
 
     return Site(
         name=name,
@@ -360,6 +421,7 @@ def site_from_dict(data: dict, *, source: str = "<site>") -> Site:
         targets=targets,
         motion_sensors=tuple(motion),
         proximity_sensors=tuple(prox),
+        binary_sensors=tuple(binary),
         sensor_graph=graph,
         sensor_types=stypes,
         body_radius=body,
@@ -418,7 +480,46 @@ def _sensor_id(table: dict, key: str, seen: set[str], err) -> str:
     return sid
 
 
-def _motion_sensor(ms: dict, i: int, boundary: Polygon, seen: set[str], err) -> MotionSensor:
+def _signal(table: dict, typ: str | None, stypes: dict, key: str, default: str, err) -> str:
+    """The sensor's ``signal``, else its type table's, else ``default`` (:data:`SIGNALS`)."""
+    if "signal" in table:
+        value, where = table["signal"], key + ".signal"
+    elif typ is not None and isinstance(stypes.get(typ), dict) and "signal" in stypes[typ]:
+        value, where = stypes[typ]["signal"], f"sensor_types.{typ}.signal"
+    else:
+        return default
+    if value not in SIGNALS:
+        raise err(where, f"must be one of {list(SIGNALS)} (level: held on = presence; edge: an on is an event), got {_shown(value)}")
+    return value
+
+
+def _binary_sensor(bs: dict, i: int, seen: set[str], err, stypes: dict) -> BinarySensor:
+    key = f"binary_sensors[{i}]"
+    _unknown(bs, _BINARY_KEYS, key + ".", err)
+    sid = _sensor_id(bs, key, seen, err)
+    key = f"binary_sensors[{i}] (id {sid!r})"
+    pos = _points([bs.get("position")] if bs.get("position") is not None else None, key + ".position", err)[0]
+    if "radius" in bs:
+        if "r_inner" in bs or "r_outer" in bs:
+            raise err(key + ".radius", "give either 'radius' or 'r_inner'/'r_outer', not both")
+        r_in = r_out = _number(bs["radius"], key + ".radius", err, positive=True)
+    elif "r_outer" in bs:
+        r_out = _number(bs["r_outer"], key + ".r_outer", err, positive=True)
+        r_in = _number(bs.get("r_inner", r_out), key + ".r_inner", err, lo=0.0)
+        if r_in > r_out:
+            raise err(key + ".r_inner", f"r_inner {r_in} exceeds r_outer {r_out}")
+    else:
+        raise err(key + ".radius", "missing; the footprint needs 'radius' (or 'r_outer' and optionally 'r_inner')")
+    typ = bs.get("type")
+    if typ is not None and not isinstance(typ, str):
+        raise err(key + ".type", f"must be a string, got {_shown(typ)}")
+    fov = _polygon(bs["fov"], key + ".fov", err) if "fov" in bs else None
+    refr = _number(bs.get("refractory", 0.0), key + ".refractory", err, lo=0.0)
+    signal = _signal(bs, typ, stypes, key, "level", err)
+    return BinarySensor(sid, (float(pos[0]), float(pos[1])), r_in, r_out, fov, typ, refr, signal)
+
+
+def _motion_sensor(ms: dict, i: int, boundary: Polygon, seen: set[str], err, stypes: dict | None = None) -> MotionSensor:
     key = f"motion_sensors[{i}]"
     _unknown(ms, _MOTION_KEYS, key + ".", err)
     sid = _sensor_id(ms, key, seen, err)
@@ -431,7 +532,8 @@ def _motion_sensor(ms: dict, i: int, boundary: Polygon, seen: set[str], err) -> 
     refr = _number(ms.get("refractory", 0.0), key + ".refractory", err, lo=0.0)
     fov = _polygon(ms["fov"], key + ".fov", err) if "fov" in ms else None
     rng = _number(ms["range"], key + ".range", err, positive=True) if "range" in ms else None
-    return MotionSensor(sid, (float(pos[0]), float(pos[1])), heading, typ, refr, fov, rng)
+    signal = _signal(ms, typ, stypes or {}, key, "edge", err)
+    return MotionSensor(sid, (float(pos[0]), float(pos[1])), heading, typ, refr, fov, rng, signal)
 
 
 def _proximity_sensor(ps: dict, i: int, seen: set[str], err) -> ProximitySensor:

@@ -77,7 +77,7 @@ __all__ = [
 ]  # fmt: skip
 
 #: Keys of a ``[sensor_types.<name>]`` table: geometry, rates and the reader's debounce keys.
-TYPE_KEYS = GEOMETRY_KEYS | {"peak", "falloff", "false_positive", "p_fire_refractory", "chatter_window", "min_on"}
+TYPE_KEYS = GEOMETRY_KEYS | {"peak", "falloff", "false_positive", "p_fire_refractory", "chatter_window", "min_on", "signal"}
 
 IDW_POWER = 2.0
 

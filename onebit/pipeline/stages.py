@@ -5,7 +5,8 @@
     crossings  beams.csv | crossings.csv   -> crossings, aborted, beam_events
     truth      truth.csv                   -> truth, true_crossings, sim_crossings
     camera     camera.mp4                  -> camera_truth, camera_detections
-    motion     motion.csv                  -> motion, frames, motion_suppressed
+    frames     frames.csv (frame-sampled)  -> levels, motion, frames, proximity, proximity_frames
+    motion     motion.csv                  -> motion, frames, motion_suppressed   (skipped with frames.csv)
     proximity  proximity.csv               -> proximity, proximity_frames, proximity_suppressed
     correct    crossings                   -> corrected_crossings, correct_insertions, correct_initial
     <tracker>  its TrackerSpec.needs       -> <tracker>_tracks, <tracker>_<table>...   (one per TRACKERS entry)
@@ -31,6 +32,7 @@ from onebit.core.tables import REJECTS
 from onebit.core.units import config_in_site_units
 from onebit.pipeline.context import ReportRow, RunContext, Stage
 from onebit.readers.beams import BEAM_COLUMNS, decode_beam_log, decode_raw_beams
+from onebit.readers.frames import edges_of_levels, frame_log_layout, read_frame_rows, read_frames_csv
 from onebit.readers.camera import read_camera, truth_error
 from onebit.readers.motion import TOGGLE_COLUMNS, MotionConfig, motion_frames, read_motion, read_motion_csv, site_rules
 from onebit.readers.proximity import ProximityConfig, proximity_frames, read_proximity, read_proximity_csv
@@ -110,7 +112,7 @@ def tracker_names(entries: tuple[TrackerEntry, ...] = TRACKERS) -> tuple[str, ..
 # --------------------------------------------------------------------------- the time base
 
 #: The raw logs whose stamps set a run's time origin, with the columns read from them.
-TIME_SOURCES = ("beams", "crossings", "truth", "truth_crossings", "motion", "proximity")
+TIME_SOURCES = ("beams", "crossings", "truth", "truth_crossings", "motion", "proximity", "frames")
 
 
 def run_time_origin(ctx: RunContext) -> TimeOrigin:
@@ -246,7 +248,68 @@ def _camera_viz(rec, ctx: RunContext, made: dict) -> None:
     log_point_tracks(rec, "camera", cam.with_columns(track=pl.col("target"), tracker=pl.lit("camera")))
 
 
+def _frame_sensor_ids(site) -> list[str]:
+    """Every binary sensor a frame log may list: motion, then proximity sensors (each id once)."""
+    return list(dict.fromkeys([m.id for m in site.motion_sensors] + [p.id for p in site.proximity_sensors]))
+
+
+def _frames_available(ctx: RunContext) -> str | None:
+    if not ctx.has_source("frames"):
+        return "no frames.csv or /frames MCAP channel in the dataset"
+    if not _frame_sensor_ids(ctx.site):
+        return "frame log present but site.toml declares no binary sensors (binary_sensors, motion_sensors, proximity_sensors)"
+    return None
+
+
+def _frames_work(ctx: RunContext) -> dict[str, pl.DataFrame]:
+    """A frame-sampled log (:mod:`onebit.readers.frames`) -> ``levels`` (every frame x every
+    sensor) and, from them, what the trackers read: ``motion`` (toggle edges of the motion and
+    binary sensors) and ``frames`` (their levels), ``proximity_frames`` (the proximity and
+    binary sensors' levels at every frame) and ``proximity`` (edges of the proximity-only
+    sensors; a binary sensor's edges are in ``motion`` once)."""
+    site = ctx.site
+    ids = _frame_sensor_ids(site)
+    csv = ctx.dataset / "frames.csv"
+    if csv.exists():
+        log = read_frames_csv(csv, ids, epoch=run_time_origin(ctx))
+    else:
+        raw = ctx.mcap_channels["/frames"]
+        layout = frame_log_layout(list(raw.frame.columns), file=raw.source, line=None)
+        cols = tuple(c for c in raw.frame.columns if c not in ("t", "line", "raw")) if layout == "wide" else ()
+        log = read_frame_rows(raw, ids, layout=layout, epoch=run_time_origin(ctx), columns=cols)
+    ctx.add_rejects(log.rejects)
+    levels = log.levels
+    motion_ids = [m.id for m in site.motion_sensors]
+    prox_ids = [p.id for p in site.proximity_sensors]
+    prox_only = [p for p in prox_ids if p not in set(motion_ids)]
+    out = {"levels": levels}
+    if motion_ids:
+        out["motion"] = edges_of_levels(levels, motion_ids)
+        out["frames"] = levels.filter(pl.col("sensor").is_in(motion_ids))
+    if prox_ids:
+        out["proximity_frames"] = levels.filter(pl.col("sensor").is_in(prox_ids))
+        out["proximity"] = edges_of_levels(levels, prox_only)
+    ctx.report += [
+        ("frames", "frames", float(log.frames), "frames"),
+        ("frames", "period", float(log.period) if log.period is not None else float("nan"), "s"),
+        ("frames", "on_readings", float(levels["on"].sum()) if levels.height else 0.0, "readings"),
+        ("frames", "unlisted", float(log.unlisted), "readings"),
+        ("frames", "rejected", float(log.rejects.height), "rows"),
+    ]
+    for stem in ("motion", "proximity"):
+        if ctx.has_source(stem):  # one source of readings per sensor: the frame log
+            ctx.report.append(("frames", f"ignored_{stem}_csv", 1.0, "flag"))
+    return out
+
+
+def _frames_viz(rec, ctx: RunContext, made: dict) -> None:
+    if "motion" in made:
+        log_motion_states(rec, made["motion"], [m.id for m in ctx.site.motion_sensors])
+
+
 def _motion_available(ctx: RunContext) -> str | None:
+    if ctx.has_source("frames"):
+        return "the readings come from the frame log (frames.csv)"
     if not ctx.has_source("motion"):
         return "no motion.csv or /motion MCAP channel in the dataset"
     if not ctx.site.motion_sensors:
@@ -261,15 +324,16 @@ def _motion_work(ctx: RunContext) -> dict[str, pl.DataFrame]:
     ids = [m.id for m in site.motion_sensors]
     csv = ctx.dataset / "motion.csv"
     if csv.exists():  # a clean file is typed in one read (read_motion_csv), else line by line
-        res = read_motion_csv(csv, ids, epoch=run_time_origin(ctx), rules=site_rules(site, cfg))
+        res = read_motion_csv(csv, ids, epoch=run_time_origin(ctx), rules=site_rules(site, cfg), held=site.level_sensors)
     else:
         raw, path = ctx.source("motion", TOGGLE_COLUMNS)
-        res = read_motion(raw, ids, epoch=run_time_origin(ctx), path=path, rules=site_rules(site, cfg))
+        res = read_motion(raw, ids, epoch=run_time_origin(ctx), path=path, rules=site_rules(site, cfg), held=site.level_sensors)
     ctx.add_rejects(res.rejects)
     frames = motion_frames(res.motion, ids, period=cfg.period)
     ctx.report += [
         ("motion", "edges", float(res.motion.height), "edges"),
         ("motion", "suppressed", float(res.suppressed.height), "edges"),
+        ("motion", "held", float(res.held), "rows"),
         ("motion", "rejected", float(res.rejects.height), "rows"),
     ]
     return {"motion": res.motion, "frames": frames, "motion_suppressed": res.suppressed}
@@ -280,6 +344,8 @@ def _motion_viz(rec, ctx: RunContext, made: dict) -> None:
 
 
 def _proximity_available(ctx: RunContext) -> str | None:
+    if ctx.has_source("frames"):
+        return "the readings come from the frame log (frames.csv)"
     if not ctx.site.proximity_sensors:
         return "site.toml has no proximity sensors"
     if not ctx.has_source("proximity"):
@@ -293,10 +359,10 @@ def _proximity_work(ctx: RunContext) -> dict[str, pl.DataFrame]:
     ids = [p.id for p in ctx.site.proximity_sensors]
     csv = ctx.dataset / "proximity.csv"
     if csv.exists():  # a clean file is typed in one read (read_proximity_csv), else line by line
-        res = read_proximity_csv(csv, ids, epoch=run_time_origin(ctx), rules=cfg.rules)
+        res = read_proximity_csv(csv, ids, epoch=run_time_origin(ctx), rules=cfg.rules, held=ctx.site.level_sensors)
     else:
         raw, path = ctx.source("proximity", TOGGLE_COLUMNS)
-        res = read_proximity(raw, ids, epoch=run_time_origin(ctx), path=path, rules=cfg.rules)
+        res = read_proximity(raw, ids, epoch=run_time_origin(ctx), path=path, rules=cfg.rules, held=ctx.site.level_sensors)
     ctx.add_rejects(res.rejects)
     frames = proximity_frames(
         res.motion, ids, period=cfg.period, start=None if cfg.start < 0 else cfg.start, instants=cfg.instants or None
@@ -304,6 +370,7 @@ def _proximity_work(ctx: RunContext) -> dict[str, pl.DataFrame]:
     ctx.report += [
         ("proximity", "edges", float(res.motion.height), "edges"),
         ("proximity", "suppressed", float(res.suppressed.height), "edges"),
+        ("proximity", "held", float(res.held), "rows"),
         ("proximity", "rejected", float(res.rejects.height), "rows"),
         ("proximity", "instants", float(frames["slot"].n_unique()) if frames.height else 0.0, "instants"),
     ]
@@ -454,6 +521,7 @@ def stages(trackers: tuple[TrackerEntry, ...] = TRACKERS) -> list[Stage]:
         Stage("crossings", (), ("crossings", "aborted", "beam_events"), _crossings_available, _crossings_work, _crossings_viz),
         Stage("truth", (), ("truth", "true_crossings", "sim_crossings"), _truth_available, _truth_work, _truth_viz),
         Stage("camera", (), ("camera_truth", "camera_detections"), _camera_available, _camera_work, _camera_viz),
+        Stage("frames", (), ("levels", "motion", "frames", "proximity", "proximity_frames"), _frames_available, _frames_work, _frames_viz),
         Stage("motion", (), ("motion", "frames", "motion_suppressed"), _motion_available, _motion_work, _motion_viz, config=MotionConfig),
         Stage("proximity", (), ("proximity", "proximity_frames", "proximity_suppressed"), _proximity_available, _proximity_work,
               config=ProximityConfig),  # fmt: skip

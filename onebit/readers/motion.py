@@ -11,7 +11,10 @@ whole log (no Python loop over rows):
    place and counted (``reordered``).
 2. **State changes.** Every sensor starts off. An edge that does not change its sensor's state
    (``1`` while already on, ``0`` while already off) cannot be a transition and goes to
-   ``rejects`` ("no state change"). Removing every edge equal to its predecessor leaves an
+   ``rejects`` ("no state change") -- unless the sensor's reading is a *level* (``held``: a
+   sensor held on is presence, :data:`onebit.core.site.SIGNALS`): a level log may repeat its
+   state at every sample (one 0/1 per sensor per frame), so a repeat is a held state, counted
+   (``MotionRead.held``) and dropped as carrying no edge. Removing every edge equal to its predecessor leaves an
    alternating sequence ``on, off, on, ...`` per sensor (a run-length compression), so one
    pass suffices.
 3. **Debounce** (:class:`DebounceRules`, per sensor or per sensor type), on that alternating
@@ -27,7 +30,7 @@ whole log (no Python loop over rows):
    Each rule removes (off, on) or (on, off) pairs of consecutive edges, so the sequence stays
    alternating; removing a short on-pulse only lengthens off-gaps, so it never creates new
    chatter, and one pass of each rule is exact. Suppressed edges go to ``suppressed`` with
-   the rule's name; nothing is lost: accepted + rejected + suppressed = input rows.
+   the rule's name; nothing is lost: accepted + rejected + suppressed + held = input rows.
 
 :func:`motion_frames` samples accepted edges on a grid of slots of length ``period`` (the
 paper's processing period t_P): ``on`` = the sensor was on at some time in the slot,
@@ -148,6 +151,7 @@ class MotionRead:
     rejects: pl.DataFrame  # REJECTS schema (source, line, reason, raw)
     suppressed: pl.DataFrame  # SUPPRESSED: t, sensor, on, rule, line
     reordered: int = 0  # accepted rows that came out of order (within the tolerance) and were sorted
+    held: int = 0  # repeats of a level sensor's state (a sampled log): no edge, not a fault
 
 
 def read_motion(
@@ -158,6 +162,7 @@ def read_motion(
     path: Path | None = None,
     rules: DebounceRules | Mapping[str, DebounceRules] | None = None,
     tolerance: float = REORDER_TOLERANCE_S,
+    held: frozenset[str] | set[str] = frozenset(),
 ) -> MotionRead:
     """Type, check and debounce the string rows of a toggle log (CSV or an MCAP channel).
 
@@ -172,12 +177,13 @@ def read_motion(
         (``reordered``), not rejected.
     rules : one :class:`DebounceRules` for every sensor, or a mapping sensor id -> rules
         (sensors not in it get no-op rules; see :func:`rules_by_type`).
+    held : the sensors whose reading is a level: a repeated state is a held state (counted), not a reject.
 
     The reasons never name the sensor kind, so the same reader serves ``proximity.csv``.
     """
     sensors = tuple(sensors)
     typed = check_rows(raw, _toggle_parsers(sensors, epoch, raw.frame), key=("t", "sensor", "value"), path=path, tolerance=tolerance)
-    return toggle_edges(typed, sensors, source=raw.source, path=path, rules=rules)
+    return toggle_edges(typed, sensors, source=raw.source, path=path, rules=rules, held=held)
 
 
 def _toggle_parsers(sensors: tuple[str, ...], epoch, frame: pl.DataFrame) -> dict[str, tuple[pl.Expr, pl.Expr]]:
@@ -195,6 +201,7 @@ def toggle_edges(
     source: str,
     path: Path | None,
     rules: DebounceRules | Mapping[str, DebounceRules] | None,
+    held: frozenset[str] | set[str] = frozenset(),
 ) -> MotionRead:
     """Passes 2 and 3 of :func:`read_motion` on typed and checked rows (``t``, ``sensor``, ``value``)."""
     ok, rejects = typed.accepted, typed.rejects
@@ -202,6 +209,11 @@ def toggle_edges(
 
     # pass 2: edges that do not change their sensor's state (every sensor starts off)
     same = repeats(ok)
+    n_held = 0
+    if held and same.any():  # a level sensor's repeated state is a held state: no edge, no fault
+        is_held = ok.select(pl.col("sensor").cast(pl.String).is_in(list(held))).to_series() & same
+        n_held = int(is_held.sum())
+        ok, same = ok.filter(~is_held), same.filter(~is_held)
     if same.any():  # reasons for those edges only
         rep = ok.filter(same).rechunk().with_columns(
             pl.when(pl.col("on"))
@@ -220,7 +232,7 @@ def toggle_edges(
         motion = pl.DataFrame({"t": edges["t"], "sensor": names.gather(edges["sensor"].to_physical()), "on": edges["on"]}, schema=MOTION)
     else:
         motion = conform(edges, MOTION)
-    return MotionRead(motion, rejects.select(REJECTS.names()).cast(dict(REJECTS)), suppressed, typed.reordered)
+    return MotionRead(motion, rejects.select(REJECTS.names()).cast(dict(REJECTS)), suppressed, typed.reordered, n_held)
 
 
 def repeats(ok: pl.DataFrame, *, compiled: bool | None = None) -> pl.Series:
@@ -348,14 +360,15 @@ def read_motion_csv(
     *,
     epoch: str | TimeOrigin | None = None,
     rules: DebounceRules | Mapping[str, DebounceRules] | None = None,
+    held: frozenset[str] | set[str] = frozenset(),
 ) -> MotionRead:
     """Read ``motion.csv`` (or ``proximity.csv``): the whole toggle reader for one file."""
     path = Path(path)
     sensors = tuple(sensors)
     typed = typed_toggle_rows(path, sensors, epoch=epoch)
     if typed is None:
-        return read_motion(read_csv_rows(path, TOGGLE_COLUMNS), sensors, epoch=epoch, path=path, rules=rules)
-    return toggle_edges(typed, sensors, source=path.name, path=path, rules=rules)
+        return read_motion(read_csv_rows(path, TOGGLE_COLUMNS), sensors, epoch=epoch, path=path, rules=rules, held=held)
+    return toggle_edges(typed, sensors, source=path.name, path=path, rules=rules, held=held)
 
 
 def typed_toggle_rows(

@@ -59,16 +59,18 @@ class ProximityConfig:
 
 
 def read_proximity(raw: RawRows, sensors: Sequence[str], *, epoch=None, path: Path | None = None,
-                   rules: DebounceRules | None = None) -> MotionRead:
-    """Type, check and debounce a proximity toggle log; ``motion`` holds PROXIMITY rows."""
-    res = read_motion(raw, sensors, epoch=epoch, path=path, rules=rules)
-    return MotionRead(conform(res.motion, PROXIMITY), res.rejects, res.suppressed, res.reordered)
+                   rules: DebounceRules | None = None, held: frozenset[str] = frozenset()) -> MotionRead:
+    """Type, check and debounce a proximity toggle log; ``motion`` holds PROXIMITY rows
+    (``held``: level sensors, whose repeated states are held states, :func:`read_motion`)."""
+    res = read_motion(raw, sensors, epoch=epoch, path=path, rules=rules, held=held)
+    return MotionRead(conform(res.motion, PROXIMITY), res.rejects, res.suppressed, res.reordered, res.held)
 
 
-def read_proximity_csv(path: str | Path, sensors: Sequence[str], *, epoch=None, rules: DebounceRules | None = None) -> MotionRead:
+def read_proximity_csv(path: str | Path, sensors: Sequence[str], *, epoch=None, rules: DebounceRules | None = None,
+                       held: frozenset[str] = frozenset()) -> MotionRead:
     """:func:`read_proximity` of ``proximity.csv`` (a clean file typed in one read, :func:`read_motion_csv`)."""
-    res = read_motion_csv(Path(path), sensors, epoch=epoch, rules=rules)
-    return MotionRead(conform(res.motion, PROXIMITY), res.rejects, res.suppressed, res.reordered)
+    res = read_motion_csv(Path(path), sensors, epoch=epoch, rules=rules, held=held)
+    return MotionRead(conform(res.motion, PROXIMITY), res.rejects, res.suppressed, res.reordered, res.held)
 
 
 def proximity_frames(proximity: pl.DataFrame, sensors: Sequence[str], *, period: float, start: float | None = None,

@@ -141,7 +141,8 @@ def sensing_regions(site: Site, config: IStateConfig) -> SensingRegions:
     half its pair spacing), as polygons that contain them (round parts grown by the
     circumscribing radius, :func:`~onebit.trackers.istate.core.grow`), a beam's grown further
     by the site's body radius (where the centre is when the crossing is logged) and ``beam_width``. Negatives clear a subset: a motion sensor's region with its disk
-    inscribed, a proximity sensor's inscribed disk ``R_i``; a beam clears nothing. A motion
+    inscribed, a proximity sensor's inscribed disk ``R_i``, a binary sensor's (``[[binary_sensors]]``)
+    inscribed disk ``R_i`` within its ``fov``; a beam clears nothing. A motion
     sensor without a usable region raises :class:`~onebit.core.errors.SiteError`."""
     ids, pos, neg, kind = [], [], [], []
     for r in detection_regions(site).values():
@@ -153,6 +154,8 @@ def sensing_regions(site: Site, config: IStateConfig) -> SensingRegions:
             neg.append(_intersect(polys + ([disk(r.position, r.radius, outer=False)] if r.radius is not None else [])))
         elif r.kind == "proximity" and r.inner_radius:
             neg.append(disk(r.position, r.inner_radius, outer=False))
+        elif r.kind == "binary" and r.inner_radius:  # a binary sensor's 0 clears its inner disk R_i (within its fov)
+            neg.append(_intersect(polys + [disk(r.position, r.inner_radius, outer=False)]))
         else:
             neg.append(shapely.Polygon())
     obj = lambda xs: np.array(xs + [None], dtype=object)[:-1]  # noqa: E731 -- 1-d object array
