@@ -268,7 +268,12 @@ def raster_components(mask: np.ndarray, raster: Raster) -> tuple[int, np.ndarray
 
 def sample_raster(mask: np.ndarray, raster: Raster, n: int, rng: np.random.Generator) -> np.ndarray:
     """``n`` points uniform on the F cells: a cell uniformly, then uniform inside it."""
-    cells = np.flatnonzero(mask)
+    return sample_cells(np.flatnonzero(mask), raster, n, rng)
+
+
+def sample_cells(cells: np.ndarray, raster: Raster, n: int, rng: np.random.Generator) -> np.ndarray:
+    """``n`` points uniform on the raster cells ``cells`` (flat indices; same draws as
+    :func:`sample_raster` on their mask): the cost grows with n and |F|, not the grid."""
     if n <= 0 or cells.size == 0:
         return np.zeros((0, 2))
     k = cells[rng.integers(0, cells.size, size=n)]

@@ -23,7 +23,7 @@ from onebit.trackers.clustertrack.feasible import (
     make_raster,
     raster_components,
     sample_intervals,
-    sample_raster,
+    sample_cells,
 )
 
 
@@ -47,6 +47,7 @@ class FeasibleSpace:
     order: np.ndarray = field(default=None)  # (T',) original instant of each step
     only: tuple = ()  # ((t, c), ...)
     minimal_targets: tuple = ()  # T arrays: positions of a minimal target set (1-D, Theorem 4)
+    cells: tuple = ()  # T arrays: the F cells of each instant (2-D), so sampling costs |F|, not the grid
 
     # ----------------------------------------------------------------- construction
 
@@ -98,6 +99,7 @@ class FeasibleSpace:
             masks=masks,
             labels=labels,
             order=np.arange(T),
+            cells=tuple(np.flatnonzero(m) for m in masks),
         )
 
     # ----------------------------------------------------------------- views
@@ -141,8 +143,10 @@ class FeasibleSpace:
             if c is not None:
                 iv = iv[c : c + 1]
             return sample_intervals(iv, n, rng)[:, None]
-        mask = self.masks[t] if c is None else self.labels[t] == c + 1
-        return sample_raster(mask, self.raster, n, rng)
+        cells = self.cells[t]
+        if c is not None:
+            cells = cells[self.labels[t][cells] == c + 1]
+        return sample_cells(cells, self.raster, n, rng)
 
     def component_of(self, t: int, pts: np.ndarray) -> np.ndarray:
         """Component index (0-based) of points ``(m, dim)`` at original instant ``t``; -1 outside F.
