@@ -22,7 +22,7 @@ from onebit.trackers.base import ARTIFACTS
 ENTRIES = {e.name: e for e in TRACKERS}
 #: the scenario each tracker is scored on
 SCENARIO = {
-    "beams": "beams-lab", "intruder": "pir14", "intruder-naive": "pir14", "clustertrack": "proximity-line",
+    "beams": "beams-lab", "intruder": "pir14", "intruder-naive": "pir14", "clustertrack": "proximity-line", "binpf": "proximity-line",
     "findinghumo": "hallway", "hmm1": "hallway", "hmm2": "hallway", "findinghumo-flow": "hallway", "istate": "istate-room",
 }  # fmt: skip
 #: empty tables of the canonical schemas, for every input a tracker may take

@@ -59,7 +59,8 @@ REGIONS = pl.Schema(
 )
 #: Schema of ``istate_summary``: one row per stage.
 SUMMARY = pl.Schema(
-    {"t": pl.Float64, "stage": pl.Int64, "elements": pl.Int64, "area": pl.Float64, "detections": pl.Int64}
+    {"t": pl.Float64, "stage": pl.Int64, "elements": pl.Int64, "area": pl.Float64, "detections": pl.Int64,
+     "rejected": pl.Int64, "area_share": pl.Float64}
 )
 #: Schema of ``istate_detections``: the sensing regions with reading 1 used at each stage.
 DETECTIONS = pl.Schema({"t": pl.Float64, "stage": pl.Int64, "sensor": pl.String, "inflation": pl.Float64})
@@ -92,6 +93,10 @@ class IStateConfig:
     absent_after : s; the empty room: no point summary (track row) inside a stretch this long
         in which every sensor is off and nothing happens; 0 = always one. The I-state itself
         is unchanged.
+    contradictions : what a reading that no joint state explains does (a spurious or late
+        firing, a footprint larger than declared): ``reject`` (default) keeps the I-state and
+        counts the reading (``summary.rejected``); ``empty`` is the paper's filter, whose
+        I-state then stays empty for the rest of the run.
     """
 
     period_s: float = 1.0
@@ -105,8 +110,10 @@ class IStateConfig:
     beam_width: float = length(0.0, unit="m")
     substeps: int = 1
     absent_after: float = ABSENT_AFTER_S
+    contradictions: str = "reject"
 
     def __post_init__(self) -> None:
+        check_choice(self, "contradictions", ("reject", "empty"))
         check_range(self, "period_s", 1e-6, None)
         check_range(self, "max_speed", 0.0, None)
         check_range(self, "targets", 0, 8, types=(int,))
@@ -271,7 +278,8 @@ def run(inputs: dict, site: Site, config: IStateConfig) -> dict[str, pl.DataFram
     (PROXIMITY), ``crossings`` (CROSSINGS). Outputs: ``tracks`` (TRACKS; a point summary:
     the centroids of the regions of the element of smallest total area, identities kept
     from stage to stage by ``linear_sum_assignment`` on centroid distance), ``summary``
-    (t, stage, elements, area of the union of all regions within the free space, detections), ``regions`` (every
+    (t, stage, elements, area of the union of all regions within the free space, detections,
+    rejected = readings rejected as contradicting the I-state, area_share = area / free space), ``regions`` (every
     region as WKB, for scoring and replay) and ``detections``.
     """
     n = config.targets or (site.targets or 0)
@@ -321,7 +329,9 @@ def run(inputs: dict, site: Site, config: IStateConfig) -> dict[str, pl.DataFram
     reg_rows, summ, track_xy = [], [], np.zeros((len(times), n, 2))
     prev = None
     memo = PairMemo()  # region-pair results of the whole run (regions recur across stages)
+    free_area = float(free.area) or 1.0
     for k, tk in enumerate(times):  # inherently sequential: the I-state of stage k depends on k-1
+        rejected: list | None = [] if config.contradictions == "reject" else None
         eta = info_state_update(
             eta,
             det_geom[det_bounds[k] : det_bounds[k + 1]],
@@ -332,11 +342,12 @@ def run(inputs: dict, site: Site, config: IStateConfig) -> dict[str, pl.DataFram
             negatives=neg_geom[neg_bounds[k] : neg_bounds[k + 1]],
             substeps=config.substeps,
             memo=memo,
+            rejected=rejected,
         )
         E = eta.size
         reg_rows.append(eta.regions.ravel())
         area = memo.recall(eta, free, "total_area", IState.total_area)  # the I-state recurs at a fixed point
-        summ.append((float(tk), k, E, area, int(det_bounds[k + 1] - det_bounds[k])))
+        summ.append((float(tk), k, E, area, int(det_bounds[k + 1] - det_bounds[k]), len(rejected or ()), area / free_area))
         track_xy[k] = prev = _point_summary(eta, prev, n)
 
     summary = pl.DataFrame(summ, schema=SUMMARY, orient="row")
