@@ -61,6 +61,7 @@ def run(
     *,
     trackers: Iterable[str] | None = None,
     config: Mapping[str, Any] | str | Path | None = None,
+    rrd: bool = True,
 ) -> RunResult:
     """Run the pipeline on a dataset folder and write the run folder ``out``.
 
@@ -71,6 +72,8 @@ def run(
     trackers : tracker names (default: every tracker whose inputs exist).
     config : ``run.toml`` sections as a mapping ``{"beams": {"policy": "lifo"}}``, or the path
         of a ``run.toml``.
+    rrd : write the Rerun recordings (``out/rrd/``); ``False`` skips them and every viz call
+        (the tables and the report are the same): for batch sweeps (``onebit run --no-rrd``).
 
     Returns
     -------
@@ -78,4 +81,4 @@ def run(
     """
     runner = importlib.import_module("onebit.pipeline.runner")  # lazy: see _LAZY
     cfg = runner.load_run_config(config) if isinstance(config, (str, Path)) else dict(config or {})
-    return runner.run_pipeline(dataset, out, trackers=tuple(trackers) if trackers is not None else None, config=cfg)
+    return runner.run_pipeline(dataset, out, trackers=tuple(trackers) if trackers is not None else None, config=cfg, rrd=rrd)

@@ -1,4 +1,4 @@
-"""The ``onebit`` command line: run, run-many, report, simulate, experiment, import (CASAS, trajectories), logs info / logs convert."""
+"""The ``onebit`` command line: run, follow, compare, run-many, report, simulate, experiment, import (CASAS, trajectories), logs info / logs convert."""
 
 from __future__ import annotations
 
@@ -24,22 +24,44 @@ from onebit.pipeline.report import check_run_folder, format_report, load_report
 from onebit.pipeline.runmany import format_summary, run_many
 from onebit.pipeline.runner import load_run_config, run_pipeline
 from onebit.readers.loginfo import format_log_info, log_info
-from onebit.readers.mcap_io import csv_folder_to_mcap, mcap_to_csv_folder
+from onebit.readers.mcap_io import csv_folder_to_mcap, load_topic_map, mcap_to_csv_folder
 from onebit.readers.trajectories import TrajectoryFormat
 from onebit.trackers.beams.verify import parse_story, verify_path
+from onebit.pipeline.follow import FollowConfig, follow, parse_speed
+from onebit.core.config import load_toml
+from onebit.readers.mcap_io import tracks_for_views
 
 
 def _cmd_run(args) -> int:
     trackers = tuple(t.strip() for t in args.trackers.split(",")) if args.trackers else None
     config = load_run_config(args.config)
     print(f"onebit run {args.dataset} -> {args.out}")
-    res = run_pipeline(args.dataset, args.out, trackers=trackers, config=config, echo=print)
+    res = run_pipeline(args.dataset, args.out, trackers=trackers, config=config, echo=print, rrd=not args.no_rrd)
     print(format_report(res.report, title=f"report of {args.out}"))
-    print(f"Rerun recordings: {Path(args.out) / 'rrd'}/*.rrd   (open later with: rerun {Path(args.out) / 'rrd'}/*.rrd)")
+    if args.no_rrd:
+        print("Rerun recordings: none (--no-rrd)")
+    else:
+        print(f"Rerun recordings: {Path(args.out) / 'rrd'}/*.rrd   (open later with: rerun {Path(args.out) / 'rrd'}/*.rrd)")
     failed = [name for name, state in res.status.items() if state.startswith("failed")]
     for why in ([f"stage(s) failed: {', '.join(failed)} (see {Path(args.out) / 'run.toml'})"] if failed else []) + res.problems:
         print(f"onebit: run not ok: {why}", file=sys.stderr)
     return 0 if res.ok else 1
+
+
+def _cmd_follow(args) -> int:
+    trackers = tuple(t.strip() for t in args.trackers.split(",")) if args.trackers else None
+    config = load_run_config(args.config)
+    options = FollowConfig(replay=parse_speed(args.replay) if args.replay else None, poll=args.poll, idle=args.idle, settle=args.settle)
+    how = f"replay at {options.replay:g}x" if options.replay else f"following the growing logs (ends after {options.idle:g} s idle)"
+    print(f"onebit follow {args.dataset} -> {args.out}: {how}")
+    res = follow(args.dataset, args.out, trackers=trackers, config=config, options=options, connect=args.connect,
+                 serve_web=args.serve_web, echo=print)  # fmt: skip
+    print(format_report(res.run.report, title=f"report of {args.out}"))
+    print(format_report(res.report, title=f"follow: online trackers ({res.live})"))
+    print(f"Rerun: {res.live / 'rrd' / 'follow.rrd'} (live stream), {Path(args.out) / 'rrd'}/*.rrd (batch run)")
+    for why in res.run.problems:
+        print(f"onebit: run not ok: {why}", file=sys.stderr)
+    return 0 if res.run.ok else 1
 
 
 def _executor(args):
@@ -62,7 +84,7 @@ def _cmd_run_many(args) -> int:
     trackers = tuple(t.strip() for t in args.trackers.split(",")) if args.trackers else None
     config = load_run_config(args.config)
     with _executor(args) as ex:
-        res = run_many(args.datasets, args.out, trackers=trackers, config=config, executor=ex, echo=print)
+        res = run_many(args.datasets, args.out, trackers=trackers, config=config, executor=ex, echo=print, rrd=not args.no_rrd)
     print(format_summary(res))
     return 0 if res.ok else 1
 
@@ -102,9 +124,18 @@ def _cmd_simulate(args) -> int:
 
 
 def _cmd_experiment(args) -> int:
+    import inspect
+
     mod = get_experiment(args.name)
+    extra = {}
+    params = inspect.signature(mod.run).parameters
+    for key, value in (("data", args.data), ("trackers", tuple(args.trackers.split(",")) if args.trackers else None)):
+        if value is not None:
+            if key not in params:
+                raise ConfigError(f"experiment {args.name!r} takes no --{key}")
+            extra[key] = value
     with _executor(args) as ex:
-        out = mod.run(Path(args.out), seed=args.seed, trials=args.trials, quick=args.quick, echo=print, executor=ex)
+        out = mod.run(Path(args.out), seed=args.seed, trials=args.trials, quick=args.quick, echo=print, executor=ex, **extra)
     print(f"experiment {args.name}: results in {out}")
     return 0
 
@@ -114,12 +145,33 @@ def _cmd_logs_info(args) -> int:
     return 0
 
 
+def _run_tracks(run: Path) -> "pl.DataFrame":
+    """Every ``tables/<tracker>_tracks.parquet`` of a run folder, as view input (lined up
+    with the raw logs' own stamps by the run's ``[time]`` origin)."""
+    import polars as pl
+
+
+    parts = sorted((run / "tables").glob("*_tracks.parquet"))
+    if not parts:
+        raise OnebitError(f"--run {run}: no tables/*_tracks.parquet (not a finished run folder?)")
+    tracks = pl.concat([pl.read_parquet(p).select("tracker", "track", "t", "x", "y") for p in parts])
+    time = load_toml(run / "run.toml").get("time", {}) if (run / "run.toml").is_file() else {}
+    offset = float(time.get("origin_s", 0.0)) if time.get("source") == "data" else 0.0
+    return tracks_for_views(tracks, offset_s=offset)
+
+
 def _cmd_logs_convert(args) -> int:
     src, dst = Path(args.src), Path(args.dst)
     if src.suffix.lower() == ".mcap":
-        mcap_to_csv_folder(src, dst)
+        topic_map = load_topic_map(args.topics) if args.topics else None
+        conv = mcap_to_csv_folder(src, dst, topic_map=topic_map)
+        if conv.rejects.height:
+            print(f"  {conv.rejects.height} message(s) not carried over:")
+            for source, line, reason in conv.rejects.select("source", "line", "reason").head(10).iter_rows():
+                print(f"    {source}{'' if line is None else f':{line}'}: {reason}")
     elif dst.suffix.lower() == ".mcap":
-        csv_folder_to_mcap(src, dst)
+        tracks = _run_tracks(Path(args.run)) if args.run else None
+        csv_folder_to_mcap(src, dst, views=not args.no_views, tracks=tracks)
     else:
         raise OnebitError("one of IN and OUT must be an .mcap file")
     print(f"converted {src} -> {dst}")
@@ -127,11 +179,14 @@ def _cmd_logs_convert(args) -> int:
 
 
 def _cmd_import_casas(args) -> int:
-    res = import_casas(args.log, args.dataset, layout=args.layout, targets=args.targets, window_s=args.window,
-                       min_count=args.min_count, min_share=args.min_share, spacing_m=args.spacing)  # fmt: skip
+    doors = tuple(d.strip() for d in args.doors.split(",") if d.strip()) if args.doors else ()
+    res = import_casas(args.log, args.dataset, layout=args.layout, targets=args.targets, doors=doors, window_s=args.window,
+                       min_count=args.min_count, min_share=args.min_share, spacing_m=args.spacing, hold_s=args.hold,
+                       hold_samples=args.hold_samples, scale=args.scale, rooms=args.rooms, graph_radius=args.graph_radius)  # fmt: skip
     c = res.counts
-    print(f"imported {args.log} -> {args.dataset}: {c['events']} events ({c['motion_csv']} motion/door in motion.csv, "
-          f"{c['other_csv']} others in other.csv, {c['annotations']} annotated), {c['rejected']} rejected lines, "
+    print(f"imported {args.log} -> {args.dataset}: {c['events']} events ({c['motion_csv']} motion/contact in motion.csv, "
+          f"{c['lost_off_repaired']} lost OFFs repaired, {c['other_csv']} others in other.csv, {c['annotations']} annotated, "
+          f"{c['truth_events']} resident-labelled in truth_events.csv), {c['rejected']} rejected lines, "
           f"{c['reordered']} out of order (sorted); {c['sensors']} sensors, {c['edges']} edges "
           f"({res.info['graph']['source']} graph, positions: {res.info['layout']['positions']}); see import.toml")  # fmt: skip
     return 0
@@ -215,7 +270,23 @@ def build_parser() -> argparse.ArgumentParser:
     r.add_argument("--out", required=True, help="run folder to write")
     r.add_argument("--trackers", help="comma-separated tracker names (default: all)")
     r.add_argument("--config", help="run.toml with one [section] per stage")
+    r.add_argument("--no-rrd", action="store_true",
+                   help="write no Rerun recordings (rrd/): the same tables and report, faster (batch sweeps)")
     r.set_defaults(func=_cmd_run)
+
+    fo = sub.add_parser("follow", help="follow a dataset's logs as they grow (or replay them), publish estimates live, end with the batch run")
+    fo.add_argument("dataset")
+    fo.add_argument("--out", required=True, help="run folder: OUT/live/ holds the live tables, stream and report")
+    fo.add_argument("--replay", metavar="SPEED", help="replay a finished log at SPEED (e.g. 20x) instead of following growth")
+    fo.add_argument("--trackers", help="comma-separated tracker names (default: all)")
+    fo.add_argument("--config", help="run.toml with one [section] per stage")
+    fo.add_argument("--poll", type=float, default=0.25, help="seconds between polls: the publication cadence (default 0.25)")
+    fo.add_argument("--idle", type=float, default=10.0, help="seconds without a new line that end a live run (default 10)")
+    fo.add_argument("--settle", type=float, default=None, help="seconds before an event is final (default: the readers' look-ahead)")
+    fo.add_argument("--connect", metavar="URL", nargs="?", const="rerun+http://127.0.0.1:9876/proxy",
+                    help="also stream to a Rerun viewer that is open (default URL rerun+http://127.0.0.1:9876/proxy)")
+    fo.add_argument("--serve-web", action="store_true", help="also serve the stream to a web viewer (prints its URL)")
+    fo.set_defaults(func=_cmd_follow)
 
     rm = sub.add_parser("run-many", help="run the pipeline on many dataset folders (process pool or Ray)")
     rm.add_argument("datasets", nargs="+", metavar="DATASET",
@@ -223,6 +294,7 @@ def build_parser() -> argparse.ArgumentParser:
     rm.add_argument("--out", required=True, help="folder for one run folder per dataset and summary.parquet/.csv")
     rm.add_argument("--trackers", help="comma-separated tracker names (default: all)")
     rm.add_argument("--config", help="run.toml with one [section] per stage, for every dataset")
+    rm.add_argument("--no-rrd", action="store_true", help="write no Rerun recordings (as onebit run --no-rrd)")
     _add_executor_options(rm)
     rm.set_defaults(func=_cmd_run_many)
 
@@ -248,6 +320,8 @@ def build_parser() -> argparse.ArgumentParser:
     e.add_argument("--seed", type=int, default=0)
     e.add_argument("--trials", type=int, default=None, help="trials per setting (default: the paper's)")
     e.add_argument("--quick", action="store_true", help="a reduced study (smoke test)")
+    e.add_argument("--data", default=None, help="ceiling: the irtracking recordings (a clone of antonmil/irtracking)")
+    e.add_argument("--trackers", default=None, help="ceiling: onebit trackers to run, comma-separated (default: every positional one)")
     _add_executor_options(e)
     e.set_defaults(func=_cmd_experiment)
 
@@ -261,15 +335,23 @@ def build_parser() -> argparse.ArgumentParser:
 
     im = sub.add_parser("import", help="make a dataset folder from the field's own recordings (CASAS, trajectories)")
     isub = im.add_subparsers(dest="import_command", required=True)
-    ic = isub.add_parser("casas", help="a CASAS smart-home log (.txt) -> motion.csv, other.csv, annotations.csv, site.toml")
+    ic = isub.add_parser("casas", help="a CASAS smart-home log (.txt, or pymrt events.csv) -> motion.csv, truth_events.csv, other.csv, annotations.csv, site.toml")
     ic.add_argument("log")
     ic.add_argument("dataset")
-    ic.add_argument("--layout", help="layout.toml: sensor positions (and edges); without it the graph is learned from the log")
+    ic.add_argument("--layout", help="layout.toml (positions, edges), or a floor plan sensors.json / sensors.csv / pymrt site.json "
+                    "(pixels or normalised, with --scale; edges from geometry); without it the graph is learned from the log")
+    ic.add_argument("--rooms", default=None, help="floor plan rooms (JSON: rectangles or polygons, in the plan's coordinates)")
+    ic.add_argument("--scale", type=float, default=None, help="floor plan: metres per pixel (or per plan width for normalised coordinates)")
+    ic.add_argument("--graph-radius", type=float, default=None, help="floor plan graph: link sensors within this many metres "
+                    "(default: the smallest distance that keeps the graph connected)")
     ic.add_argument("--targets", type=int, default=None, help="the most residents present at once (site.toml targets)")
     ic.add_argument("--window", type=float, default=5.0, help="learned graph: s between two sensors' ON for a transition")
     ic.add_argument("--min-count", type=int, default=3, help="learned graph: transitions an edge needs")
     ic.add_argument("--min-share", type=float, default=0.1, help="learned graph: share of the less busy sensor's transitions")
     ic.add_argument("--spacing", type=float, default=3.0, help="force layout: edge length (m)")
+    ic.add_argument("--doors", default=None, help="comma-separated contact ids that are doors to the outside (entry/exit nodes)")
+    ic.add_argument("--hold", type=float, default=5.0, help="lost OFF repair: hold time (s) of a sensor with too few on-durations")
+    ic.add_argument("--hold-samples", type=int, default=5, help="lost OFF repair: on-durations a sensor needs for its own (median) hold time")
     ic.set_defaults(func=_cmd_import_casas)
     ir = isub.add_parser("irtracking", help="Milan et al.'s ceiling IR array (SEQ.txt or SEQ.xml detections) -> site.toml, frames.csv, truth.csv")
     ir.add_argument("readings", help="SEQ.txt (one line of 50 channels per frame) or SEQ.xml (CVML detections)")
@@ -305,9 +387,12 @@ def build_parser() -> argparse.ArgumentParser:
     li = lsub.add_parser("info", help="channels, sensors, time span, rates and rejects of a log")
     li.add_argument("file")
     li.set_defaults(func=_cmd_logs_info)
-    lc = lsub.add_parser("convert", help="CSV/Parquet folder <-> MCAP")
+    lc = lsub.add_parser("convert", help="CSV/Parquet folder <-> MCAP (chunked, zstd, raw channels + Foxglove views)")
     lc.add_argument("src")
     lc.add_argument("dst")
+    lc.add_argument("--no-views", action="store_true", help="raw channels only (no Foxglove SceneUpdate/PointCloud/Log views)")
+    lc.add_argument("--run", metavar="RUN", help="a run folder of this dataset: add its tracks as views")
+    lc.add_argument("--topics", metavar="TOML", help="MCAP -> CSV: mcap_topics.toml mapping ROS 2 Bool topics to sensors")
     lc.set_defaults(func=_cmd_logs_convert)
     return p
 

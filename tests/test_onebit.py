@@ -35,6 +35,30 @@ def test_no_function_level_imports_of_onebit():
     assert found == [], "\n".join(found)
 
 
+def _dynamic_rerun_imports(path: Path) -> list[str]:
+    """Calls that import rerun by name at run time (``lazy_module("rerun")``,
+    ``importlib.import_module("rerun.blueprint")``, ``__import__("rerun")``): import-linter
+    sees only import statements, so "only viz imports rerun" needs this too."""
+    found = []
+    for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"))):
+        if isinstance(node, ast.Call) and node.args and isinstance(node.args[0], ast.Constant):
+            name = node.func.attr if isinstance(node.func, ast.Attribute) else getattr(node.func, "id", "")
+            arg = node.args[0].value
+            if name in {"lazy_module", "import_module", "__import__"} and isinstance(arg, str) and arg.split(".")[0] == "rerun":
+                found.append(f"{path}:{node.lineno}: {name}({arg!r})")
+    return found
+
+
+def test_only_viz_imports_rerun_lazily_too(tmp_path):
+    outside = [p for p in sorted(PACKAGE.rglob("*.py")) if "viz" not in p.relative_to(PACKAGE).parts[:1]]
+    found = [f for p in outside for f in _dynamic_rerun_imports(p)]
+    assert found == [], "\n".join(found)
+    assert any(_dynamic_rerun_imports(p) for p in (PACKAGE / "viz").rglob("*.py"))  # the check sees what viz does
+    bad = tmp_path / "bad.py"
+    bad.write_text('from onebit.core.lazy import lazy_module\nrr = lazy_module("rerun")\n')
+    assert len(_dynamic_rerun_imports(bad)) == 1
+
+
 def test_public_api_runs_a_dataset(tmp_path):
     data = write_beams_dataset(tmp_path / "d", "beams-lab", seed=3, duration=40.0, camera=False)
     site = onebit.load_site(data / "site.toml")

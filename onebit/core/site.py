@@ -30,11 +30,13 @@ from pathlib import Path
 
 import numpy as np
 import shapely
+
 from shapely.geometry import LineString, Point, Polygon
 
 from onebit.core.config import load_toml
 from onebit.core.errors import SiteError, bounded
 from onebit.core.sensing import build_detection_regions
+from onebit.core.sensor_graph import geometric_sensor_graph
 from onebit.core.units import METRES_PER_UNIT
 
 #: Tolerance (world units) for "a beam end touches the boundary or an obstacle".
@@ -52,7 +54,7 @@ _BINARY_KEYS = {"id", "position", "radius", "r_inner", "r_outer", "fov", "type",
 #: footprint: a PIR's trigger), a sensor held on says nothing more after its rising edge.
 SIGNALS = ("level", "edge")
 _PROXIMITY_KEYS = {"id", "position", "radius", "r_inner", "r_outer"}
-_GRAPH_KEYS = {"edges", "entries", "exits", "signatures"}
+_GRAPH_KEYS = {"edges", "entries", "exits", "signatures", "geometry"}
 _BOUNDARY_KEYS = {"polygon"}
 _OBSTACLE_KEYS = {"name", "polygon"}
 _BEAM_KEYS = {"id", "segment", "forward", "spacing", "capacity"}
@@ -405,7 +407,8 @@ def site_from_dict(data: dict, *, source: str = "<site>") -> Site:
     binary = [_binary_sensor(bs, i, sensor_ids, err, stypes) for i, bs in enumerate(_list_of_tables(data.get("binary_sensors", []), "binary_sensors", err))]
     motion += [b.as_motion() for b in binary]
     prox += [b.as_proximity() for b in binary]
-    graph = _sensor_graph(data["sensor_graph"], {m.id for m in motion}, err) if "sensor_graph" in data else None
+    graph = _sensor_graph(data["sensor_graph"], {m.id for m in motion}, err, motion=motion,
+                          walls=shapely.union_all([boundary.exterior, *obstacles]), source=source) if "sensor_graph" in data else None  # fmt: skip
 
     return Site(
         name=name,
@@ -556,11 +559,24 @@ def _proximity_sensor(ps: dict, i: int, seen: set[str], err) -> ProximitySensor:
     return ProximitySensor(sid, (float(pos[0]), float(pos[1])), r_in, r_out)
 
 
-def _sensor_graph(g, motion_ids: set[str], err) -> SensorGraph:
+def _sensor_graph(g, motion_ids: set[str], err, *, motion=(), walls=None, source: str = "<site>") -> SensorGraph:
     if not isinstance(g, dict):
         raise err("sensor_graph", "must be a table")
     _unknown(g, _GRAPH_KEYS, "sensor_graph.", err)
     edges = g.get("edges", [])
+    if "geometry" in g:  # the edges from the sensors' positions (onebit.core.sensor_graph), walls = boundary + obstacles
+        geo = g["geometry"]
+        if "edges" in g:
+            raise err("sensor_graph.geometry", "give either 'edges' or 'geometry', not both")
+        if geo == "connected":
+            radius = None
+        elif isinstance(geo, (int, float)) and not isinstance(geo, bool) and math.isfinite(geo) and geo > 0:
+            radius = float(geo)
+        else:
+            raise err("sensor_graph.geometry", f"must be \"connected\" (the smallest distance that keeps the graph connected) or a positive distance, got {_shown(geo)}")
+        gg = geometric_sensor_graph({m.id: m.position for m in motion}, radius=radius, walls=walls)
+        gg.require_connected(source=source, field="sensor_graph.geometry")
+        edges = [list(e) for e in gg.edges]
     if not isinstance(edges, list) or not all(isinstance(e, list) and len(e) == 2 for e in edges):
         raise err("sensor_graph.edges", "must be a list of [node, node] pairs")
     edges_t = tuple((str(a), str(b)) for a, b in edges)

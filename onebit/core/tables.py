@@ -37,6 +37,14 @@ TRUTH = pl.Schema(
     {"t": pl.Float64, "target": pl.String, "x": pl.Float64, "y": pl.Float64, "region": pl.String, "node": pl.String}
 )
 
+#: Per-event identity truth (CASAS resident annotations, ``truth_events.csv``): which
+#: resident(s) caused each firing (ON/OPEN) of a graph sensor; ``residents`` = resident ids
+#: sorted as text and joined with ``;`` ("1", "1;2"). ``t`` on the run's time base (as motion).
+TRUTH_EVENTS = pl.Schema({"t": pl.Float64, "sensor": pl.String, "residents": pl.String})
+
+#: ``<tracker>_events``: the track each motion firing (ON edge) was attributed to (null: none).
+TRACKER_EVENTS = pl.Schema({"t": pl.Float64, "sensor": pl.String, "track": pl.String})
+
 #: Estimated tracks of every tracker.
 TRACKS = pl.Schema(
     {

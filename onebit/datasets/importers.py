@@ -51,9 +51,10 @@ from onebit.core.errors import InputError
 from onebit.core.site import load_site, site_from_dict
 from onebit.core.tables import REJECTS
 from onebit.core.writers import to_toml, write_csv, write_text
-from onebit.readers.casas import TOGGLE_KINDS, CasasLog, read_casas
+from onebit.readers.casas import ALL_KINDS, DEFAULT_HOLD_S, MIN_HOLD_SAMPLES, TOGGLE_KINDS, CasasLog, read_casas, repair_lost_offs
 from onebit.readers.trajectories import TrajectoryFormat, read_trajectories
 from onebit.core.lazy import lazy_module
+from onebit.core.sensor_graph import geometric_sensor_graph
 
 nx = lazy_module("networkx")
 
@@ -62,8 +63,10 @@ WINDOW_S = 5.0
 MIN_COUNT = 3
 MIN_SHARE = 0.1
 SPACING_M = 3.0
+#: Floor-plan rooms closer than this (m, a wall's thickness) are neighbours (a doorway is assumed).
+ROOM_TOUCH_M = 0.3
 
-_LAYOUT_KEYS = {"units", "targets", "boundary", "range", "sensors", "graph", "name"}
+_LAYOUT_KEYS = {"units", "targets", "boundary", "range", "sensors", "graph", "name", "doors", "kinds"}
 
 
 @dataclass(frozen=True)
@@ -78,6 +81,14 @@ class Layout:
     targets: int | None = None
     name: str | None = None
     source: str = "layout.toml"
+    #: sensor id -> kind (:data:`onebit.readers.casas.ALL_KINDS`); doors are ``"door"``
+    kinds: dict[str, str] = field(default_factory=dict)
+    #: keep only the sensors the log has (a floor plan of a whole building), else every one placed
+    only_logged: bool = False
+    #: ``graph(positions) -> edges`` when the edges come from geometry (else None)
+    graph: object = None
+    #: how ``graph`` finds the edges (import.toml)
+    graph_rule: str = ""
 
 
 @dataclass
@@ -171,6 +182,167 @@ def force_layout(nodes: list[str], edges: list[tuple[str, str]], *, spacing: flo
 # --------------------------------------------------------------------------- layout files
 
 
+def _id_key(sid: str):
+    """An id's match key: letters + the number without leading zeros (``M17`` = ``M017``)."""
+    m = re.fullmatch(r"([A-Za-z]+)0*(\d+)(.*)", sid)
+    return (m.group(1).upper(), int(m.group(2)), m.group(3)) if m else (sid,)
+
+
+def match_ids(layout_ids, log_ids) -> dict[str, str]:
+    """layout id -> log id, by exact id else by :func:`_id_key` (``M017`` in a floor plan is
+    the log's ``M17``); ids the log does not have keep their own name."""
+    log_ids = list(log_ids)
+    exact = set(log_ids)
+    by_key = {_id_key(i): i for i in log_ids}
+    return {i: (i if i in exact else by_key.get(_id_key(i), i)) for i in layout_ids}
+
+
+def _json_positions(data, path) -> tuple[dict[str, tuple[float, float]], dict[str, str], bool]:
+    """Positions (as written), kinds and whether they are normalised, from a floor-plan JSON:
+    ``{"M001": {"x": 483, "y": 264}, ...}`` (pixels), ``{"M001": [x, y]}``, or a pymrt /
+    pyActLearn ``site.json`` (``{"sensors": [{"name": "M001", "locX": 0.4, "locY": 0.3,
+    "types": [...]}]}``: ``locX``/``locY`` normalised to the plan)."""
+    kinds: dict[str, str] = {}
+    if isinstance(data, dict) and isinstance(data.get("sensors"), list):
+        pos, norm = {}, True
+        for k, sen in enumerate(data["sensors"]):
+            if not isinstance(sen, dict) or "name" not in sen or not all(isinstance(sen.get(c), (int, float)) for c in ("locX", "locY")):
+                raise InputError("a sensor needs 'name', 'locX', 'locY' (numbers)", file=path, field=f"sensors[{k}]")
+            pos[str(sen["name"])] = (float(sen["locX"]), float(sen["locY"]))
+            types = " ".join(map(str, sen.get("types", []) or [sen.get("type", "")])).lower()
+            if "door" in types:
+                kinds[str(sen["name"])] = "contact"
+            elif "motion" in types:
+                kinds[str(sen["name"])] = "motion"
+            norm = norm and 0.0 <= sen["locX"] <= 1.0 and 0.0 <= sen["locY"] <= 1.0
+        return pos, kinds, norm
+    if not isinstance(data, dict) or not data:
+        raise InputError("expected an object of sensor id -> {x, y} (or [x, y]), or a site.json with 'sensors'", file=path)
+    pos = {}
+    for sid, v in data.items():
+        if isinstance(v, dict) and all(isinstance(v.get(c), (int, float)) for c in ("x", "y")):
+            pos[str(sid)] = (float(v["x"]), float(v["y"]))
+        elif isinstance(v, list) and len(v) == 2 and all(isinstance(c, (int, float)) for c in v):
+            pos[str(sid)] = (float(v[0]), float(v[1]))
+        else:
+            raise InputError(f"must be {{\"x\": .., \"y\": ..}} or [x, y], got {v!r}", file=path, field=str(sid))
+    xy = np.array(list(pos.values()))
+    return pos, kinds, bool(((xy >= 0) & (xy <= 1)).all())
+
+
+def _csv_positions(path) -> tuple[dict[str, tuple[float, float]], dict[str, str], bool]:
+    """A CSV floor plan: a header with ``id`` (or ``sensor``/``name``), ``x``, ``y`` (or
+    ``locX``/``locY``) and optionally ``kind``."""
+    df = pl.read_csv(path, infer_schema=False)
+    low = {c.lower(): c for c in df.columns}
+    idc = next((low[c] for c in ("id", "sensor", "name") if c in low), None)
+    xc = next((low[c] for c in ("x", "locx") if c in low), None)
+    yc = next((low[c] for c in ("y", "locy") if c in low), None)
+    if idc is None or xc is None or yc is None:
+        raise InputError(f"needs columns id (or sensor/name), x, y (or locX, locY); has {df.columns}", file=path)
+    x = df[xc].str.strip_chars().cast(pl.Float64, strict=False)
+    y = df[yc].str.strip_chars().cast(pl.Float64, strict=False)
+    bad = (x.is_null() | y.is_null()).arg_true().to_list()
+    if bad:
+        raise InputError(f"x/y not a number: {df.row(bad[0])}", file=path, line=bad[0] + 2)
+    pos = {str(i): (float(a), float(b)) for i, a, b in zip(df[idc].to_list(), x.to_list(), y.to_list())}
+    kinds = {str(i): str(k) for i, k in zip(df[idc].to_list(), df[low["kind"]].to_list())} if "kind" in low else {}
+    xy = np.array(list(pos.values()))
+    return pos, kinds, bool(((xy >= 0) & (xy <= 1)).all())
+
+
+def load_rooms(path: str | Path) -> dict[str, object]:
+    """Rooms of a floor plan (JSON): name -> a list of rectangles ``{"top_left": {"x", "y"},
+    "width", "height"}`` (their union: the CASAS Kyoto labelling tool's ``partitions.json``), or
+    name -> a polygon ``[[x, y], ...]``, in the sensors' coordinates (before scaling)."""
+    import json
+
+    from shapely.geometry import Polygon, box
+
+    path = Path(path)
+    try:
+        data = json.loads(path.read_text(encoding="utf-8"))
+    except (OSError, ValueError) as exc:
+        raise InputError(f"cannot read rooms JSON: {exc}", file=path) from None
+    if not isinstance(data, dict):
+        raise InputError("expected an object: room name -> rectangles or polygon", file=path)
+    rooms = {}
+    for name, v in data.items():
+        try:
+            if isinstance(v, list) and v and isinstance(v[0], dict):
+                parts = [box(r["top_left"]["x"], r["top_left"]["y"], r["top_left"]["x"] + r["width"], r["top_left"]["y"] + r["height"]) for r in v]
+                import shapely
+
+                rooms[str(name)] = shapely.union_all(parts)
+            else:
+                rooms[str(name)] = Polygon([(float(a), float(b)) for a, b in v])
+        except (KeyError, TypeError, ValueError) as exc:
+            raise InputError(f"not a list of rectangles or a polygon: {exc}", file=path, field=str(name)) from None
+        if rooms[str(name)].is_empty or not rooms[str(name)].is_valid:
+            raise InputError("empty or invalid room geometry", file=path, field=str(name))
+    return rooms
+
+
+def load_floor_plan(
+    path: str | Path,
+    *,
+    scale: float | None = None,
+    rooms: str | Path | None = None,
+    radius: float | None = None,
+    range_m: float | None = None,
+) -> Layout:
+    """A floor-plan layout (``--layout sensors.json|sensors.csv [--rooms R] [--scale S]``):
+    sensor positions in pixels or normalised units (:func:`_json_positions`,
+    :func:`_csv_positions`) times ``scale`` (site units per pixel / per plan width; required
+    unless the coordinates are already metres -- pass ``--scale 1`` then), the image's y axis
+    (down) flipped to the world's (up); rooms (:func:`load_rooms`) in the same coordinates.
+    The edges come from geometry (:func:`onebit.core.sensor_graph.geometric_sensor_graph`:
+    neighbours within ``radius``, or the smallest distance that keeps the graph connected, and
+    the rooms respected) over the sensors the log has (``only_logged``)."""
+    import json
+
+    import shapely
+
+    path = Path(path)
+    if path.suffix.lower() == ".csv":
+        pos, kinds, norm = _csv_positions(path)
+    else:
+        try:
+            data = json.loads(path.read_text(encoding="utf-8"))
+        except (OSError, ValueError) as exc:
+            raise InputError(f"cannot read floor-plan JSON: {exc}", file=path) from None
+        pos, kinds, norm = _json_positions(data, path)
+    if scale is None:
+        raise InputError("--scale is needed with a floor plan: metres per pixel (or per plan width for normalised "
+                         f"coordinates{', as these are' if norm else ''}); --scale 1 if the numbers are metres", file=path)  # fmt: skip
+    if not (math.isfinite(scale) and scale > 0):
+        raise InputError(f"--scale = {scale!r}: must be a positive number")
+
+    def world(x: float, y: float) -> tuple[float, float]:
+        return (round(x * scale, 6), round(-y * scale, 6))
+
+    positions = {k: world(*v) for k, v in pos.items()}
+    room_polys = {}
+    if rooms is not None:
+        room_polys = {k: shapely.affinity.scale(p, xfact=scale, yfact=-scale, origin=(0, 0)) for k, p in load_rooms(rooms).items()}
+
+    def graph(placed: dict[str, tuple[float, float]]):
+        gg = geometric_sensor_graph(placed, radius=radius, rooms=room_polys or None, touch_tol=ROOM_TOUCH_M, join_components=radius is not None)
+        gg.require_connected(source=str(path), field="sensors (graph from geometry)")
+        return list(gg.edges)
+
+    rule = ("geometry: " + (f"neighbours within {radius} m, components joined by their shortest allowed pairs" if radius
+                            else "the smallest distance that keeps the graph connected")
+            + (f", rooms of {Path(rooms).name} respected (same room, or rooms within {ROOM_TOUCH_M} m: a wall with a doorway)" if rooms else ""))  # fmt: skip
+    xy = np.array(list(positions.values())) if positions else np.zeros((0, 2))
+    boundary = None
+    if room_polys:
+        x0, y0, x1, y1 = shapely.union_all(list(room_polys.values())).bounds
+        lo, hi = np.minimum([x0, y0], xy.min(axis=0)), np.maximum([x1, y1], xy.max(axis=0))
+        boundary = [[lo[0], lo[1]], [hi[0], lo[1]], [hi[0], hi[1]], [lo[0], hi[1]]]
+    return Layout(positions, None, boundary, range_m, "m", None, path.stem, str(path), kinds, True, graph, rule)
+
+
 def load_layout(path: str | Path) -> Layout:
     """Read a layout file (``--layout``)::
 
@@ -183,6 +355,9 @@ def load_layout(path: str | Path) -> Layout:
         D001 = [0.0, 2.0]
         [graph]                           # optional: the edges (else learned from the log)
         edges = [["D001", "M001"], ["M001", "M002"]]
+        doors = ["D001"]                  # optional: contacts that are doors to the outside (entry/exit)
+        [kinds]                           # optional: a sensor's kind (named sensors, overrides)
+        Bedroom = "motion"
 
     Errors name the file and the key."""
     path = Path(path)
@@ -222,8 +397,26 @@ def load_layout(path: str | Path) -> Layout:
     targets = data.get("targets")
     if targets is not None and (isinstance(targets, bool) or not isinstance(targets, int) or targets < 0):
         raise InputError(f"must be a non-negative integer, got {targets!r}", file=path, field="targets")
+    kinds = _layout_kinds(data, path)
     return Layout(positions, edges, data.get("boundary"), None if rng is None else float(rng), str(data.get("units", "m")),
-                  targets, data.get("name"), str(path))  # fmt: skip
+                  targets, data.get("name"), str(path), kinds)  # fmt: skip
+
+
+def _layout_kinds(data: dict, path) -> dict[str, str]:
+    """``[kinds]`` and ``doors`` of a layout as sensor id -> kind (errors name the key)."""
+    kinds = data.get("kinds", {})
+    if not isinstance(kinds, dict):
+        raise InputError("must be a table: sensor id = kind", file=path, field="kinds")
+    out = {}
+    for sid, k in kinds.items():
+        if k not in ALL_KINDS:
+            raise InputError(f"unknown kind {k!r}; one of {list(ALL_KINDS)}", file=path, field=f"kinds.{sid}")
+        out[str(sid)] = str(k)
+    doors = data.get("doors", [])
+    if not isinstance(doors, list) or not all(isinstance(d, str) for d in doors):
+        raise InputError("must be a list of sensor ids", file=path, field="doors")
+    out.update({d: "door" for d in doors})
+    return out
 
 
 # --------------------------------------------------------------------------- site.toml
@@ -291,49 +484,76 @@ def import_casas(
     *,
     layout: str | Path | None = None,
     targets: int | None = None,
+    doors: tuple[str, ...] | list[str] = (),
     window_s: float = WINDOW_S,
     min_count: int = MIN_COUNT,
     min_share: float = MIN_SHARE,
     spacing_m: float = SPACING_M,
+    hold_s: float = DEFAULT_HOLD_S,
+    hold_samples: int = MIN_HOLD_SAMPLES,
+    scale: float | None = None,
+    rooms: str | Path | None = None,
+    graph_radius: float | None = None,
 ) -> ImportSummary:
-    """Write a dataset folder from a CASAS log (module docstring); every file atomically."""
+    """Write a dataset folder from a CASAS log (module docstring); every file atomically.
+
+    ``doors``: contact sensors that are doors to the outside (entry/exit nodes), beside the
+    layout's; every other contact (cupboards, appliances) is an ordinary node. ``hold_s`` /
+    ``hold_samples``: the lost-OFF repair (:func:`onebit.readers.casas.repair_lost_offs`)."""
     log, out = Path(log), Path(dataset)
     if not log.is_file():
         raise InputError("no such CASAS log", file=log)
-    for name, v, lo in (("--window", window_s, 0.0), ("--spacing", spacing_m, 0.0), ("--min-share", min_share, -1e-12)):
+    for name, v, lo in (("--window", window_s, 0.0), ("--spacing", spacing_m, 0.0), ("--min-share", min_share, -1e-12), ("--hold", hold_s, 0.0)):
         if not (isinstance(v, (int, float)) and math.isfinite(v) and v > lo):
             raise InputError(f"{name} = {v!r}: must be a positive number")
     if targets is not None and targets < 0:
         raise InputError(f"--targets = {targets!r}: must be >= 0")
-    lay = load_layout(layout) if layout is not None else None
-    res: CasasLog = read_casas(log)
+    if not isinstance(hold_samples, int) or hold_samples < 1:
+        raise InputError(f"--hold-samples = {hold_samples!r}: must be an integer >= 1")
+    lay = None
+    if layout is not None:
+        lay = load_layout(layout) if Path(layout).suffix.lower() == ".toml" else load_floor_plan(
+            layout, scale=scale, rooms=rooms, radius=graph_radius)
+        lay = _renamed(lay, read_casas(log).events["sensor"].unique().to_list())
+    kinds = dict(lay.kinds) if lay is not None else {}
+    kinds.update({d: "door" for d in doors})
+    res: CasasLog = read_casas(log, kinds=kinds or None)
     ev = res.events
-    toggles = ev.filter(pl.col("kind").is_in(list(TOGGLE_KINDS)))
-    others = ev.filter(~pl.col("kind").is_in(list(TOGGLE_KINDS)))
-    notes = ev.filter(pl.col("annotation").is_not_null())
+    unplaced: list[str] = []
+    if lay is not None:  # graph sensors the layout does not place: kept in other.csv, named in import.toml
+        graph_ids = ev.filter(pl.col("kind").is_in(list(TOGGLE_KINDS)))["sensor"].unique().to_list()
+        unplaced = sorted((n for n in graph_ids if n not in lay.positions), key=_natural)
+    in_graph = pl.col("kind").is_in(list(TOGGLE_KINDS)) & ~pl.col("sensor").is_in(unplaced)
+    toggles_logged = ev.filter(in_graph)
+    others = ev.filter(~in_graph)
+    toggles, repairs = repair_lost_offs(toggles_logged, default_hold_s=hold_s, min_samples=hold_samples)
+    notes = ev.filter(pl.col("annotation").is_not_null() | pl.col("residents").is_not_null())
+    truth_events = toggles_logged.filter(pl.col("on") & pl.col("residents").is_not_null())
     nodes = sorted(toggles["sensor"].unique().to_list(), key=_natural)
     if not nodes:
-        raise InputError("no motion (M###) or door (D###) events in the log: nothing to track", file=log)
-    doors = [n for n in nodes if toggles.filter(pl.col("sensor") == n)["kind"][0] == "door"]
+        raise InputError("no motion (M###), contact (D###) or named motion sensor events in the log: nothing to track", file=log)
+    missing_doors = [d for d in doors if d not in nodes]
+    if missing_doors:
+        raise InputError(f"--doors {missing_doors}: no such contact sensor among the log's graph sensors {nodes}", file=log)
+    door_ids = sorted(toggles.filter(pl.col("kind") == "door")["sensor"].unique().to_list(), key=_natural)
 
     trans = pl.DataFrame()
     if lay is not None:
-        missing = [n for n in nodes if n not in lay.positions]
-        if missing:
-            raise InputError(f"sensor(s) {missing} of the log have no position in [sensors]", file=lay.source, field="sensors")
-        positions = {n: lay.positions[n] for n in sorted(lay.positions, key=_natural)}
+        positions = {n: lay.positions[n] for n in sorted(lay.positions, key=_natural) if n in nodes or not lay.only_logged}
         edges = sorted({(min(a, b), max(a, b)) for a, b in lay.edges}) if lay.edges is not None else None
         units, how = lay.units, "layout file"
     else:
         positions, edges, units, how = None, None, "m", "force layout"
     graph_how = "layout file"
+    if edges is None and lay is not None and lay.graph is not None:
+        edges, graph_how = lay.graph(positions), "geometry"
     if edges is None:
         edges, trans = learn_sensor_graph(toggles, nodes, window_s=window_s, min_count=min_count, min_share=min_share)
         graph_how = "learned"
     if positions is None:
         positions = force_layout(nodes, edges, spacing=spacing_m)
     all_nodes = list(positions)
-    doors = [n for n in all_nodes if n in doors]
+    door_ids = [n for n in all_nodes if n in door_ids]
     spacing = _median_edge(positions, edges) or spacing_m
     sensor_range = lay.range if lay is not None and lay.range is not None else round(spacing / 2.0, 3)
     epoch = _epoch_text(res)
@@ -344,24 +564,33 @@ def import_casas(
             if how == "force layout"
             else f"# Sensor positions from the layout file {Path(lay.source).name}.\n"
         )
-        + f"# Sensor graph: {graph_how}; doors are the entry/exit nodes.\n"
+        + f"# Sensor graph: {graph_how}; entry/exit nodes: the doors a layout or --doors declares ({len(door_ids)}), "
+        "never cupboard or appliance contacts.\n"
     )
     text = graph_site_toml(
         name=(lay.name if lay is not None and lay.name else log.stem), units=units, positions=positions, edges=edges,
-        doors=doors, sensor_range=sensor_range, boundary=lay.boundary if lay is not None else None, epoch=epoch,
+        doors=door_ids, sensor_range=sensor_range, boundary=lay.boundary if lay is not None else None, epoch=epoch,
         targets=targets if targets is not None else (lay.targets if lay is not None else None), header=header,
     )  # fmt: skip
     site_from_dict(tomllib.loads(text), source=str(out / "site.toml"))  # refuse to write a site that would not load
     out.mkdir(parents=True, exist_ok=True)
     write_text(text, out / "site.toml")
     t = pl.col("t").round(6)
-    write_csv(toggles.select(t, "sensor", "value", "stamp", pl.col("line").alias("log_line")), out / "motion.csv")
+    write_csv(
+        toggles.select(t, "sensor", "value", "stamp", pl.col("line").alias("log_line"), pl.col("repaired").cast(pl.Int8)), out / "motion.csv"
+    )
+    write_csv(truth_events.select(t, "sensor", "residents"), out / "truth_events.csv") if truth_events.height else None
     if others.height:
         write_csv(others.select(t, "sensor", "kind", "value", "stamp", pl.col("line").alias("log_line")), out / "other.csv")
     if notes.height:
-        write_csv(notes.select(t, "sensor", "value", "annotation", "stamp", pl.col("line").alias("log_line")), out / "annotations.csv")
+        write_csv(notes.select(t, "sensor", "value", "annotation", "residents", "tasks", "activity", "activity_edge", "stamp",
+                               pl.col("line").alias("log_line")), out / "annotations.csv")  # fmt: skip
     if res.rejects.height:
         write_csv(res.rejects.select(REJECTS.names()), out / "rejects.csv")
+    if res.annotation_problems.height:
+        write_csv(res.annotation_problems.select(REJECTS.names()), out / "annotation_problems.csv")
+    if repairs.height:
+        write_csv(repairs, out / "lost_offs.csv")
     if trans.height:
         write_csv(trans, out / "transitions.csv")
     counts = {
@@ -371,14 +600,18 @@ def import_casas(
         "reordered": res.reordered,
         **{f"kind_{k}": v for k, v in res.kind_counts().items()},
         "motion_csv": toggles.height,
+        "lost_off_repaired": repairs.height,
         "other_csv": others.height,
         "annotations": notes.height,
+        "annotation_problems": res.annotation_problems.height,
+        "truth_events": truth_events.height,
         "sensors": len(all_nodes),
-        "doors": len(doors),
+        "unplaced_sensors": len(unplaced),
+        "doors": len(door_ids),
         "edges": len(edges),
     }
     info = {
-        "source": {"file": str(log.resolve()), "format": "casas"},
+        "source": {"file": str(log.resolve()), "format": "casas-csv" if log.suffix.lower() == ".csv" else "casas"},
         "counts": counts,
         "time": res.origin.as_dict(),
         "graph": {
@@ -386,16 +619,39 @@ def import_casas(
             "rule": (
                 "consecutive ON/OPEN events of two sensors at most window_s apart are a transition; an edge needs "
                 ">= min_count transitions making >= min_share of the less busy sensor's; components joined by a "
-                "maximum spanning forest of the counts (transitions.csv)" if graph_how == "learned" else "from the layout file"
+                "maximum spanning forest of the counts (transitions.csv)" if graph_how == "learned" else
+                (lay.graph_rule if graph_how == "geometry" else "from the layout file")
             ),
             "window_s": window_s,
             "min_count": min_count,
             "min_share": min_share,
         },
-        "layout": {"positions": how, "spacing": round(spacing, 3), "range": sensor_range},
-    }
+        "doors": {"entries_exits": door_ids, "rule": "only contacts declared doors by the layout or --doors; other contacts are ordinary nodes"},
+        "lost_off": {
+            "rule": "a repeated ON more than the sensor's hold time after the previous ON gets an OFF at t_prev + hold "
+                    "(hold = median on-duration with >= hold_samples samples, else hold_s); lost_offs.csv lists them",
+            "hold_s": hold_s,
+            "hold_samples": hold_samples,
+            "repaired": repairs.height,
+        },
+        "truth_events": {"rule": "ON/OPEN events of graph sensors with resident annotations: t, sensor, residents (ids sorted, ';')",
+                         "rows": truth_events.height},
+        "layout": {"positions": how, "spacing": round(spacing, 3), "range": sensor_range, "unplaced": unplaced},
+    }  # fmt: skip
     write_text(to_toml(info), out / "import.toml")
     return ImportSummary(out, counts, info)
+
+
+def _renamed(lay: Layout, log_ids) -> Layout:
+    """``lay`` with its ids renamed to the log's (:func:`match_ids`: ``M017`` -> ``M17``)."""
+    ren = match_ids(list(lay.positions), log_ids)
+    if all(k == v for k, v in ren.items()):
+        return lay
+    from dataclasses import replace
+
+    edges = tuple((ren.get(a, a), ren.get(b, b)) for a, b in lay.edges) if lay.edges is not None else None
+    return replace(lay, positions={ren[k]: v for k, v in lay.positions.items()}, edges=edges,
+                   kinds={ren.get(k, k): v for k, v in lay.kinds.items()})  # fmt: skip
 
 
 def _median_edge(positions: dict, edges: list) -> float | None:

@@ -12,6 +12,8 @@ pool or Ray -- with the same tables on every executor (:mod:`onebit.experiments.
 ``correct`` and ``findinghumo`` are the seed sweeps of ``docs/beams-correct.md`` and
 ``docs/findinghumo.md``: they run the whole pipeline per seed; ``findinghumo-diagnose`` lists
 every identity swap of the HMM trackers over 20 seeds (the diagnosis table of that note).
+``ceiling`` runs every positional tracker and the baselines on the real ceiling array of
+Milan et al. (``--data DIR``: the irtracking recordings; :mod:`onebit.experiments.ceiling`).
 """
 
 from __future__ import annotations
@@ -19,11 +21,11 @@ from __future__ import annotations
 from types import ModuleType
 
 from onebit.core.errors import ConfigError
-from onebit.experiments import correct, findinghumo, findinghumo_diagnose, okane, schiff, singh
+from onebit.experiments import ceiling, correct, findinghumo, findinghumo_diagnose, okane, schiff, singh
 
 EXPERIMENTS: dict[str, ModuleType] = {
     "singh": singh, "schiff": schiff, "okane": okane, "correct": correct, "findinghumo": findinghumo,
-    "findinghumo-diagnose": findinghumo_diagnose,
+    "findinghumo-diagnose": findinghumo_diagnose, "ceiling": ceiling,
 }  # fmt: skip
 
 

@@ -1,7 +1,7 @@
 """``onebit experiment okane OUT``: O'Kane's active-tracking study (section VIII, Fig. 9).
 
 For m = 1..4 trackers and n = 1..5 targets, ``trials`` trials (paper: 10) of
-:func:`onebit.datasets.okane_sim.simulate_active` in the Fig. 9 environment, 1000 stages,
+:func:`onebit.experiments.okane_active.simulate_active` in the Fig. 9 environment, 1000 stages,
 M = 10, rectangle regions, the first m targets starting near a tracker. Per trial: the final
 performance P (Eq. 1, mean distance from each target to its nearest tracker), mean/max
 elements, the fraction of (stage, tracker) I-states containing the true state.
@@ -23,7 +23,8 @@ import numpy as np
 import polars as pl
 
 from onebit.core import writers
-from onebit.datasets.okane_sim import ActiveConfig, fig9_environment, simulate_active
+from onebit.datasets.okane_sim import fig9_environment
+from onebit.experiments.okane_active import ActiveConfig, simulate_active
 from onebit.experiments.trials import resolve_executor, run_trials, write_timings
 from onebit.pipeline.executors import Executor
 from onebit.trackers.istate.stage import REGIONS

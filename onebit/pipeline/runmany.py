@@ -76,6 +76,8 @@ class DatasetJob:
     token: str
     trackers: tuple[str, ...] | None = None
     config: dict[str, Any] = field(default_factory=dict)
+    #: write the Rerun recordings (``--no-rrd``: ``False``)
+    rrd: bool = True
 
 
 @dataclass
@@ -197,7 +199,7 @@ def run_dataset(job: DatasetJob) -> dict[str, Any]:
     tmp = partial_name(final, job.token)
     shutil.rmtree(tmp, ignore_errors=True)
     try:
-        res = run_pipeline(job.dataset, tmp, trackers=job.trackers, config=dict(job.config), progress=False)
+        res = run_pipeline(job.dataset, tmp, trackers=job.trackers, config=dict(job.config), progress=False, rrd=job.rrd)
         commit_folder(tmp, final)
     except BaseException:
         shutil.rmtree(tmp, ignore_errors=True)
@@ -216,10 +218,12 @@ def run_many(
     config: dict[str, Any] | None = None,
     executor: Executor | None = None,
     echo: Callable[[str], None] | None = None,
+    rrd: bool = True,
 ) -> RunManyResult:
     """Run the pipeline on every dataset folder on ``executor`` (default: serial) and write
     ``out`` (see the module docstring). ``datasets`` takes what :func:`find_datasets` takes.
-    ``result.ok`` is true when every dataset ran and every stage of every run succeeded."""
+    ``result.ok`` is true when every dataset ran and every stage of every run succeeded;
+    ``rrd=False`` (``--no-rrd``) writes no Rerun recordings."""
     echo = echo or (lambda s: None)
     executor = executor or SerialExecutor()
     out = Path(os.path.abspath(out))  # workers (Ray) may run in another working folder
@@ -228,7 +232,7 @@ def run_many(
     out.mkdir(parents=True, exist_ok=True)
     token = uuid.uuid4().hex[:10]
     jobs = [
-        DatasetJob(str(d), n, str(out / n), token, tuple(trackers) if trackers is not None else None, dict(config or {}))
+        DatasetJob(str(d), n, str(out / n), token, tuple(trackers) if trackers is not None else None, dict(config or {}), rrd)
         for d, n in zip(folders, names)
     ]
     echo(f"onebit run-many: {len(jobs)} dataset(s) -> {out} on {executor.describe()}")

@@ -44,7 +44,7 @@ from onebit.core.tables import REJECTS, REPORT
 from onebit.pipeline.context import RunContext, Stage, dataset_run_config
 from onebit.pipeline.progress import ProgressSink, progress_sink
 from onebit.pipeline.stages import TRACKERS, TrackerEntry, stages
-from onebit.readers.mcap_io import read_mcap
+from onebit.readers.mcap_io import load_topic_map, read_mcap
 from onebit.readers.rows import RawRows
 from onebit.trackers.base import ARTIFACTS
 from onebit.viz.blueprint import save_run_blueprint
@@ -53,9 +53,12 @@ from onebit.viz.site import log_site
 
 #: The entries of a run folder; a new run replaces exactly these (other entries are kept).
 RUN_ENTRIES = ("tables", "rrd", "logs", "report.parquet", "report.csv", "run.toml")
+#: onebit's entries of a run folder that a run keeps as they are: ``live`` (``onebit follow``'s
+#: published rows, stream and report, :mod:`onebit.pipeline.follow`).
+KEPT_ENTRIES = ("live",)
 #: Sections a run record (``OUT/run.toml``) holds besides the stage configs; a run record
 #: given as ``--config`` (to repeat a run) contributes only its stage sections.
-RUN_RECORD_SECTIONS = ("stages", "summary", "time", "problems")
+RUN_RECORD_SECTIONS = ("stages", "summary", "time", "problems", "timing")
 #: Files of a dataset folder the runner reads (a symlink among them must stay inside the folder).
 _DATASET_SUFFIXES = (".csv", ".mcap", ".toml", ".mp4")
 
@@ -159,13 +162,15 @@ def check_out(out: Path, dataset: Path) -> str | None:
         except InputError:
             record = {}
     ours = [n for n in visible if n in RUN_ENTRIES]
-    if not _is_run_record(record) and len(ours) < len(visible):
-        foreign = [n for n in visible if n not in RUN_ENTRIES]
+    if not _is_run_record(record) and len(ours) + sum(n in KEPT_ENTRIES for n in visible) < len(visible):
+        foreign = [n for n in visible if n not in RUN_ENTRIES and n not in KEPT_ENTRIES]
         shown = ", ".join(foreign[:5]) + (f" and {len(foreign) - 5} more" if len(foreign) > 5 else "")
         raise InputError(f"OUT is not empty and is not a onebit run folder (it holds {shown}); "
                          "give an empty or new folder, or an earlier run's folder", file=out)  # fmt: skip
     what = f"the previous run (recording {record['recording_id']})" if _is_run_record(record) else f"the run files {ours}"
-    kept = [n for n in visible if n not in RUN_ENTRIES]
+    kept = [n for n in visible if n not in RUN_ENTRIES and n not in KEPT_ENTRIES]
+    if not ours and not _is_run_record(record):
+        return None
     return f"OUT holds {what}: replacing it" + (f"; keeping {kept} (not onebit's)" if kept else "")
 
 
@@ -178,6 +183,7 @@ def run_pipeline(
     tracker_entries: tuple[TrackerEntry, ...] = TRACKERS,
     progress: bool | ProgressSink | None = None,
     echo: Callable[[str], None] | None = None,
+    rrd: bool = True,
 ) -> RunResult:
     """Run every available stage on ``dataset``, writing the run folder ``out`` as one transaction.
 
@@ -185,11 +191,21 @@ def run_pipeline(
     run makes the run not ``ok``); ``config`` holds ``run.toml`` sections; ``tracker_entries``
     is the tracker list of the stage list (a test or an extension may pass its own, see
     ``docs/extending.md``); ``progress``: a bar on a terminal (``None``), ``True``/``False``,
-    or a :class:`~onebit.pipeline.progress.ProgressSink`.
+    or a :class:`~onebit.pipeline.progress.ProgressSink`; ``rrd=False`` (``--no-rrd``) writes
+    no Rerun recordings (no ``rrd/`` folder, no viz calls): the tables, report and run record
+    are the same, for batch sweeps where nobody will open the recordings.
+
+    The run record ``run.toml`` holds, besides each stage's status, a ``[timing]`` table: per
+    stage the seconds of its work (``work_s``, as in its status), of its recording (``viz_s``:
+    opening the ``.rrd``, the site and the stage's viz call, closing it) and of writing its
+    tables (``write_s``); ``blueprint_s``, ``run_s`` (stages to record) and ``entered_unix``
+    (the wall clock when this function was called: a caller that knows when its process
+    started gets the start-up from it).
 
     Raises :class:`OnebitError` (``out`` untouched) for bad input found before or instead of
     any work: dataset, ``OUT``, site, config, tracker names, or every stage skipped.
     """
+    entered = time.time()
     dataset, out = Path(dataset), Path(out)
     echo = echo or (lambda s: None)
     check_dataset(dataset)
@@ -216,7 +232,7 @@ def run_pipeline(
             ctx = RunContext(dataset, work, site, rg, config, trackers=trackers, progress=sink.step, dataset_sections=dataset_sections)
             try:
                 with rerun_enabled():  # recordings are written whatever RERUN says (viz.recording)
-                    result = _run_stages(ctx, stage_list, requested, known, sink=sink, echo=echo)
+                    result = _run_stages(ctx, stage_list, requested, known, sink=sink, echo=echo, rrd=rrd, entered=entered)
             except OnebitError:
                 raise
             except Exception as exc:  # a bug, not bad input: keep what was done and the traceback
@@ -233,14 +249,20 @@ def run_pipeline(
 
 def _run_stages(
     ctx: RunContext, stage_list: list[Stage], requested: tuple[str, ...], tracker_names: list[str], *, sink: ProgressSink,
-    echo: Callable[[str], None],
+    echo: Callable[[str], None], rrd: bool = True, entered: float | None = None,
 ) -> tuple[dict[str, str], pl.DataFrame, bool, list[str]]:
-    """Run the stages into ``ctx.out`` (the work folder) and write the run's record there."""
+    """Run the stages into ``ctx.out`` (the work folder) and write the run's record there.
+
+    A stage's work runs first, then (``rrd``) its recording is written: opened, the site
+    logged, the stage's viz called, closed; a failure in either leaves no ``.rrd`` of the
+    stage. Work, recording and table writing are timed apart (``timing`` of ``run.toml``)."""
     work, dataset, site = ctx.out, ctx.dataset, ctx.site
     (work / "tables").mkdir(parents=True, exist_ok=True)
-    (work / "rrd").mkdir(parents=True, exist_ok=True)
+    if rrd:
+        (work / "rrd").mkdir(parents=True, exist_ok=True)
     recording_id = str(uuid.uuid4())
     status = ctx.status
+    timing: dict[str, Any] = {"entered_unix": round(entered if entered is not None else time.time(), 6), "rrd": rrd}
     _read_mcaps(ctx, echo)
     started = time.time()
     for i, st in enumerate(stage_list):
@@ -255,12 +277,15 @@ def _run_stages(
             continue
         t0 = time.perf_counter()
         try:
-            with stage_recording(work, st.name, recording_id) as rec:
-                log_site(rec, site, ctx.region_graph)
-                made = st.work(ctx)
-                ctx.seconds[st.name] = time.perf_counter() - t0
-                if st.viz is not None:
-                    st.viz(rec, ctx, made)
+            made = st.work(ctx)
+            ctx.seconds[st.name] = time.perf_counter() - t0
+            t1 = time.perf_counter()
+            if rrd:
+                with stage_recording(work, st.name, recording_id) as rec:
+                    log_site(rec, site, ctx.region_graph)
+                    if st.viz is not None:
+                        st.viz(rec, ctx, made)
+            timing[st.name] = {"work_s": round(ctx.seconds[st.name], 6), "viz_s": round(time.perf_counter() - t1, 6)}
         except OnebitError as exc:
             status[st.name] = f"failed: {exc}"
             echo(f"  {st.name}: FAILED: {exc}")
@@ -271,11 +296,13 @@ def _run_stages(
             outputs.write_text(tb, work / "logs" / f"{st.name}.traceback.txt")
             echo(f"  {st.name}: FAILED with {bounded(f'{type(exc).__name__}: {exc}')} (traceback in logs/{st.name}.traceback.txt)")
             continue
+        t2 = time.perf_counter()
         for name, df in made.items():
             if name == ARTIFACTS:  # in-memory results for the stage's viz only
                 continue
             ctx.tables[name] = df
             outputs.write_parquet(df, work / "tables" / f"{name}.parquet")
+        timing[st.name]["write_s"] = round(time.perf_counter() - t2, 6)
         status[st.name] = f"ok ({ctx.seconds[st.name]:.2f} s)"
         echo(f"  {st.name}: ok")
         for part, state in status.items():  # parts of a stage that failed on their own (scores/<tracker>)
@@ -294,22 +321,29 @@ def _run_stages(
     ]
     for p in problems:
         echo(f"  {p}")
-    save_run_blueprint(work / "rrd", units=site.units)  # the viewer layout of what the stages logged
+    t3 = time.perf_counter()
+    if rrd:
+        save_run_blueprint(work / "rrd", units=site.units)  # the viewer layout of what the stages logged
+    timing["blueprint_s"] = round(time.perf_counter() - t3, 6)
     rejects = ctx.tables.get("rejects", pl.DataFrame(schema=REJECTS))
     outputs.write_parquet(rejects, work / "tables" / "rejects.parquet")
     report = pl.DataFrame(ctx.report, schema=REPORT, orient="row")
     outputs.write_parquet(report, work / "report.parquet")
     outputs.write_csv(report, work / "report.csv")
     ok = all(not s.startswith("failed") for s in status.values()) and not problems
-    _write_record(ctx, recording_id=recording_id, seconds=time.time() - started, ok=ok, problems=problems, rejects=rejects.height)
+    timing["run_s"] = round(time.time() - started, 6)
+    _write_record(ctx, recording_id=recording_id, seconds=time.time() - started, ok=ok, problems=problems, rejects=rejects.height,
+                  timing=timing)  # fmt: skip
     return status, report, ok, problems
 
 
 def _read_mcaps(ctx: RunContext, echo: Callable[[str], None]) -> None:
-    """Every ``*.mcap`` of the dataset: its channels become sources, its rejects rejects."""
+    """Every ``*.mcap`` of the dataset: its channels become sources, its rejects rejects; the
+    dataset's ``mcap_topics.toml`` maps foreign boolean topics (ROS 2 bags) to sensors."""
+    topics = ctx.dataset / "mcap_topics.toml"
     for mp in sorted(ctx.dataset.glob("*.mcap")):
         try:
-            contents = read_mcap(mp)
+            contents = read_mcap(mp, topic_map=load_topic_map(topics) if topics.is_file() else None)
         except OnebitError as exc:
             ctx.status[f"mcap:{mp.name}"] = f"failed: {exc}"
             echo(f"  {mp.name}: failed: {exc}")
@@ -319,8 +353,10 @@ def _read_mcaps(ctx: RunContext, echo: Callable[[str], None]) -> None:
             ctx.mcap_channels.setdefault(topic, RawRows(f"{mp.name}:{topic}", frame, pl.DataFrame(schema=REJECTS)))
 
 
-def _write_record(ctx: RunContext, *, recording_id: str, seconds: float, ok: bool, problems: list[str], rejects: int) -> None:
-    """``run.toml``: dataset, recording id, each stage's status, problems and the resolved config."""
+def _write_record(
+    ctx: RunContext, *, recording_id: str, seconds: float, ok: bool, problems: list[str], rejects: int, timing: dict | None = None
+) -> None:
+    """``run.toml``: dataset, recording id, each stage's status, problems, timing and the resolved config."""
     run_doc = {
         "dataset": str(ctx.dataset.resolve()),
         "recording_id": recording_id,
@@ -331,6 +367,7 @@ def _write_record(ctx: RunContext, *, recording_id: str, seconds: float, ok: boo
         "problems": list(problems),
         "stages": ctx.status,
         "summary": {"rejects": rejects, "tables": sorted(ctx.tables)},
+        **({"timing": timing} if timing is not None else {}),
         **{k: v for k, v in ctx.config.items() if isinstance(v, dict)},
     }
     outputs.write_text(outputs.to_toml(run_doc), ctx.out / "run.toml")

@@ -4,6 +4,7 @@
 
     crossings  beams.csv | crossings.csv   -> crossings, aborted, beam_events
     truth      truth.csv                   -> truth, true_crossings, sim_crossings
+    truth_events truth_events.csv          -> truth_events (per-event identity truth: t, sensor, residents)
     camera     camera.mp4                  -> camera_truth, camera_detections
     frames     frames.csv (frame-sampled)  -> levels, motion, frames, proximity, proximity_frames
     motion     motion.csv                  -> motion, frames, motion_suppressed   (skipped with frames.csv)
@@ -37,8 +38,8 @@ from onebit.readers.camera import read_camera, truth_error
 from onebit.readers.motion import TOGGLE_COLUMNS, MotionConfig, motion_frames, read_motion, read_motion_csv, site_rules
 from onebit.readers.proximity import ProximityConfig, proximity_frames, read_proximity, read_proximity_csv
 from onebit.readers.tables_csv import (
-    crossings_from_rows, read_crossings_csv, read_true_crossings_csv, read_truth_csv, true_crossings_columns, true_crossings_from_rows,
-    truth_from_rows,
+    crossings_from_rows, read_crossings_csv, read_true_crossings_csv, read_truth_csv, read_truth_events_csv, true_crossings_columns,
+    true_crossings_from_rows, truth_events_from_rows, truth_from_rows,
 )
 from onebit.readers.timebase import TimeOrigin, time_origin
 from onebit.scoring import beams as score_beams
@@ -48,6 +49,7 @@ from onebit.scoring import findinghumo as score_findinghumo
 from onebit.scoring import intruder as score_intruder
 from onebit.scoring import istate as score_istate
 from onebit.scoring.crossings import ScoresConfig, score_crossings, true_crossings_from_truth, truth_regions
+from onebit.scoring.identity import baseline_rows, graph_hops, identity_scores
 from onebit.scoring.mot import GATES, Gate, mot_rows
 from onebit.scoring.serve import CannotServe
 from onebit.trackers import beams, binpf, clustertrack, findinghumo, findinghumo_flow, intruder, istate
@@ -112,7 +114,7 @@ def tracker_names(entries: tuple[TrackerEntry, ...] = TRACKERS) -> tuple[str, ..
 # --------------------------------------------------------------------------- the time base
 
 #: The raw logs whose stamps set a run's time origin, with the columns read from them.
-TIME_SOURCES = ("beams", "crossings", "truth", "truth_crossings", "motion", "proximity", "frames")
+TIME_SOURCES = ("beams", "crossings", "truth", "truth_crossings", "truth_events", "motion", "proximity", "frames")
 
 
 def run_time_origin(ctx: RunContext) -> TimeOrigin:
@@ -217,6 +219,25 @@ def _truth_viz(rec, ctx: RunContext, made: dict) -> None:
     log_truth(rec, made["truth"], diagonal=ctx.site.diagonal)
 
 
+def _truth_events_available(ctx: RunContext) -> str | None:
+    return None if ctx.has_source("truth_events") else "no truth_events.csv or /truth_events MCAP channel in the dataset"
+
+
+def _truth_events_work(ctx: RunContext) -> dict[str, pl.DataFrame]:
+    csv = ctx.dataset / "truth_events.csv"
+    if csv.exists():
+        te, rej = read_truth_events_csv(csv, epoch=run_time_origin(ctx))
+    else:
+        raw, path = ctx.source("truth_events", ("t", "sensor", "residents"))
+        te, rej = truth_events_from_rows(raw, epoch=run_time_origin(ctx), path=path)
+    ctx.add_rejects(rej)
+    ctx.report += [
+        ("truth_events", "events", float(te.height), "events"),
+        ("truth_events", "residents", float(te["residents"].str.split(";").explode().n_unique()) if te.height else 0.0, "residents"),
+    ]
+    return {"truth_events": te}
+
+
 def _camera_available(ctx: RunContext) -> str | None:
     if not (ctx.dataset / "camera.mp4").exists():
         return "no camera.mp4 in the dataset"
@@ -318,7 +339,7 @@ def _motion_available(ctx: RunContext) -> str | None:
 
 
 def _motion_work(ctx: RunContext) -> dict[str, pl.DataFrame]:
-    cfg = config_from_mapping(MotionConfig, ctx.config.get("motion"), section="motion")
+    cfg = config_from_mapping(MotionConfig, ctx.section("motion"), section="motion")
     ctx.config.setdefault("motion", {}).update({k: v for k, v in asdict(cfg).items() if v is not None})
     site = ctx.site
     ids = [m.id for m in site.motion_sensors]
@@ -471,7 +492,7 @@ def scores_stage(trackers: tuple[TrackerEntry, ...] = TRACKERS) -> Stage:
     paper's metrics (``entry.score``) and the standard MOT metrics (:func:`onebit.scoring.mot.mot_rows`)."""
 
     def work(ctx: RunContext) -> dict[str, pl.DataFrame]:
-        cfg = config_from_mapping(ScoresConfig, ctx.config.get("scores"), section="scores")
+        cfg = config_from_mapping(ScoresConfig, ctx.section("scores"), section="scores")
         ctx.config.setdefault("scores", {}).update(asdict(cfg))
         tables = dict(ctx.tables)
         tables["timings"] = pl.DataFrame(
@@ -485,7 +506,7 @@ def scores_stage(trackers: tuple[TrackerEntry, ...] = TRACKERS) -> Stage:
                 continue
             try:  # one tracker's scoring failing (say, a sensor without a region) keeps the others'
                 rows, made = entry.score(entry.name, tables, ctx.site, ctx.region_graph)
-                rows = rows + mot_rows(entry.name, entry.gate, tables, ctx.site, ctx.region_graph)
+                rows = rows + mot_rows(entry.name, entry.gate, tables, ctx.site, ctx.region_graph, gates_m=cfg.gates_m)
             except CannotServe as exc:  # the tracker's model does not fit the data: a flag, no number
                 ctx.status[f"scores/{entry.name}"] = f"cannot serve the data: {exc}"
                 ctx.report.append((entry.name, "cannot_serve", 1.0, "flag"))
@@ -496,6 +517,14 @@ def scores_stage(trackers: tuple[TrackerEntry, ...] = TRACKERS) -> Stage:
             ctx.report += rows
             out.update(made)
             tables.update(made)
+        te = tables.get("truth_events")
+        if te is not None and te.height:  # identity per event: every tracker that wrote <tracker>_events, and the baselines
+            for entry in trackers:
+                ev = tables.get(f"{entry.name}_events")
+                if ev is None or not ctx.status.get(entry.name, "").startswith("ok"):
+                    continue
+                ctx.report += identity_scores(te, ev, tracks=tables.get(f"{entry.name}_tracks")).rows(entry.name)
+            ctx.report += baseline_rows(te, graph_hops(ctx.site))
         rej = ctx.tables.get("rejects", pl.DataFrame(schema=REJECTS))
         ctx.report.append(("rejects", "rows", float(rej.height), "rows"))
         out["timings"] = tables["timings"]
@@ -520,6 +549,7 @@ def stages(trackers: tuple[TrackerEntry, ...] = TRACKERS) -> list[Stage]:
     return [
         Stage("crossings", (), ("crossings", "aborted", "beam_events"), _crossings_available, _crossings_work, _crossings_viz),
         Stage("truth", (), ("truth", "true_crossings", "sim_crossings"), _truth_available, _truth_work, _truth_viz),
+        Stage("truth_events", (), ("truth_events",), _truth_events_available, _truth_events_work),
         Stage("camera", (), ("camera_truth", "camera_detections"), _camera_available, _camera_work, _camera_viz),
         Stage("frames", (), ("levels", "motion", "frames", "proximity", "proximity_frames"), _frames_available, _frames_work, _frames_viz),
         Stage("motion", (), ("motion", "frames", "motion_suppressed"), _motion_available, _motion_work, _motion_viz, config=MotionConfig),

@@ -14,7 +14,7 @@ from pathlib import Path
 import polars as pl
 
 from onebit.core.errors import InputError
-from onebit.readers.casas import read_casas
+from onebit.readers.casas import TOGGLE_KINDS, read_casas, repair_lost_offs
 from onebit.readers.mcap_io import read_mcap
 from onebit.readers.rows import csv_header, read_csv_rows
 
@@ -127,13 +127,25 @@ def _mcap_rows(path: Path) -> list[dict]:
 
 
 def _casas_rows(path: Path) -> list[dict]:
-    """The whole log (with its rejected lines), then one row per kind of sensor; times are
-    seconds since the log's first second."""
+    """The whole log (with its rejected lines), then one row per kind of sensor, then
+    ``:resident-labelled`` (events annotated with their resident(s); ``sensors`` = distinct
+    residents' sets), ``:annotation-problems`` (events kept whose annotation did not read) and
+    ``:lost-off`` (the OFFs :func:`~onebit.readers.casas.repair_lost_offs` would insert, at
+    their times) when there are any; times are seconds since the log's first second."""
     log = read_casas(path)
     ev = log.events.with_columns(t=pl.col("t").cast(pl.String))
     rows = [_summarise(path.name, ev.select("t", "sensor"), 0, log.rejects.height)]
     for kind in sorted(ev["kind"].unique().to_list()):
         rows.append(_summarise(f"{path.name}:{kind}", ev.filter(pl.col("kind") == kind).select("t", "sensor"), 0))
+    labelled = ev.filter(pl.col("residents").is_not_null())
+    if labelled.height:
+        rows.append(_summarise(f"{path.name}:resident-labelled", labelled.select("t", pl.col("residents").alias("sensor")), 0))
+    if log.annotation_problems.height:
+        probs = log.events.join(log.annotation_problems.select("line"), on="line").with_columns(t=pl.col("t").cast(pl.String))
+        rows.append(_summarise(f"{path.name}:annotation-problems", probs.select("t", "sensor"), 0))
+    _, lost = repair_lost_offs(log.events.filter(pl.col("kind").is_in(list(TOGGLE_KINDS))))
+    if lost.height:
+        rows.append(_summarise(f"{path.name}:lost-off", lost.select(pl.col("t_off").cast(pl.String).alias("t"), "sensor"), 0))
     return rows
 
 

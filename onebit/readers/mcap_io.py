@@ -1,10 +1,24 @@
-"""Raw logs as MCAP: one JSON channel per source, and conversion to and from CSV folders.
+"""Raw logs as MCAP: one JSON channel per source, typed view channels, conversion to and from CSV.
 
 A dataset's raw logs (``beams.csv``, ``crossings.csv``, ...) may arrive as one
 ``recording.mcap`` with one channel per source. The topic is ``"/" + <CSV stem>``, messages
 are JSON objects with the CSV's columns (one message per row), ``log_time`` =
-``publish_time`` = ``round(t * 1e9)`` ns when ``t`` is a non-negative finite number (else
-the message's 0-based index in its channel), and each channel has a JSON schema.
+``publish_time`` = ``round(t * 1e9)`` ns when ``t`` is a non-negative finite number, the
+Unix nanoseconds of an ISO stamp, else the message's 0-based index in its channel; each
+channel has a JSON schema (``onebit.<stem>``). These raw channels are what round-trips.
+
+Files are written with the ``mcap`` library: chunked (1 MiB), zstd-compressed, with chunk
+and message indexes, statistics and a summary (``mcap info`` / ``rerun mcap info`` show them).
+Beside the raw channels :func:`write_mcap` adds the typed view channels of
+:mod:`onebit.readers.mcap_views` (Foxglove's ``SceneUpdate``, ``PointCloud`` and ``Log``
+schemas, protobuf-encoded) so that Foxglove and ``rerun file.mcap`` draw the site, the sensors'
+states, the truth and a run's tracks; the reader skips them (they are derived, counted in
+``McapContents.views``).
+
+MCAP from other tools: ROS 2 bags with one boolean per message (``std_msgs/msg/Bool`` or any
+CDR message with a boolean field) become toggle rows through a small topic map
+(:func:`load_topic_map`, a dataset's ``mcap_topics.toml``): topic -> sensor id, kind
+(``motion`` | ``proximity``) and field. ``t`` is the message's log time in Unix seconds.
 
 :func:`read_mcap` delivers each channel as all-string columns plus ``line`` and ``raw``, the
 same shape the CSV readers produce (see :mod:`onebit.readers.rows`), so the same
@@ -23,9 +37,17 @@ from typing import IO
 
 import polars as pl
 
+from onebit.core.config import load_toml
 from onebit.core.errors import InputError
 from onebit.core.writers import atomic_path
 from onebit.core.tables import REJECTS
+from onebit.readers.mcap_views import VIEW_TOPICS, ViewMessage
+from onebit.readers.timebase import iso_unix_us
+from onebit.readers import mcap_views
+from onebit.core.site import load_site
+
+#: Bytes of uncompressed messages per chunk.
+CHUNK_SIZE = 1024 * 1024
 
 #: Topic -> column names of each raw-log channel (topic = "/" + the CSV file's stem).
 CHANNELS: dict[str, tuple[str, ...]] = {
@@ -56,11 +78,77 @@ class McapContents:
         Messages not accepted, in the :data:`onebit.core.tables.REJECTS` schema.
     truncated
         True when the file ended before its footer (the data before the cut is kept).
+    views
+        Topic -> messages skipped because they are derived views (:data:`VIEW_TOPICS`, or any
+        protobuf channel): what the writer added for viewers, not input.
     """
 
     channels: dict[str, pl.DataFrame]
     rejects: pl.DataFrame
     truncated: bool
+    views: dict[str, int] = field(default_factory=dict)
+
+
+#: Toggle channels a mapped ROS 2 topic may feed (``kind`` of :class:`TopicMapping`).
+TOGGLE_KINDS = ("motion", "proximity")
+
+
+@dataclass(frozen=True, kw_only=True)
+class TopicMapping:
+    """How the messages of one foreign topic become toggle rows (``mcap_topics.toml``).
+
+    sensor : the sensor id the rows get (a sensor of ``site.toml``).
+    kind : ``motion`` or ``proximity``: the channel the rows join.
+    field : the message's boolean field (``std_msgs/msg/Bool``: ``data``).
+    """
+
+    sensor: str
+    kind: str
+    field: str = "data"
+
+    def __post_init__(self) -> None:
+        if not isinstance(self.sensor, str) or not self.sensor.strip():
+            raise InputError(f"TopicMapping.sensor = {self.sensor!r}: must be a non-empty sensor id")
+        if self.kind not in TOGGLE_KINDS:
+            raise InputError(f"TopicMapping.kind = {self.kind!r}: must be one of {list(TOGGLE_KINDS)}")
+        if not isinstance(self.field, str) or not self.field:
+            raise InputError(f"TopicMapping.field = {self.field!r}: must be a field name")
+
+
+def load_topic_map(path: str | Path) -> dict[str, TopicMapping]:
+    """The ``[topics."<topic>"]`` tables of a ``mcap_topics.toml``::
+
+        [topics."/hall/pir1"]
+        sensor = "m1"          # sensor id in site.toml
+        kind = "motion"        # motion | proximity
+        field = "data"         # the boolean field (default: data, as in std_msgs/msg/Bool)
+
+    Raises :class:`InputError` naming the file and the topic for anything else.
+    """
+    path = Path(path)
+    data = load_toml(path, error=InputError)
+    extra = [k for k in data if k != "topics"]
+    if extra:
+        raise InputError(f"unknown key(s) {extra}; expected only [topics.\"<topic>\"] tables", file=path)
+    topics = data.get("topics", {})
+    if not isinstance(topics, dict):
+        raise InputError("'topics' must be a table of [topics.\"<topic>\"] tables", file=path)
+    out: dict[str, TopicMapping] = {}
+    for topic, values in topics.items():
+        if not isinstance(values, dict):
+            raise InputError(f"[topics.\"{topic}\"] must be a table with sensor, kind[, field]", file=path)
+        unknown = [k for k in values if k not in ("sensor", "kind", "field")]
+        if unknown:
+            raise InputError(f"[topics.\"{topic}\"]: unknown key(s) {unknown}; expected sensor, kind, field", file=path)
+        try:
+            out[topic] = TopicMapping(**values)
+        except TypeError:
+            raise InputError(f"[topics.\"{topic}\"]: needs sensor and kind", file=path) from None
+        except InputError as exc:
+            raise InputError(f"[topics.\"{topic}\"]: {exc}", file=path) from None
+        if topic in CHANNELS:
+            raise InputError(f"[topics.\"{topic}\"]: {topic} is one of onebit's own channels", file=path)
+    return out
 
 
 @dataclass(frozen=True)
@@ -95,8 +183,24 @@ def _json_type(dtype: pl.DataType) -> list[str]:
     return ["string", "null"]
 
 
+def _log_time(df: pl.DataFrame) -> pl.Expr:
+    """``log_time`` (ns) of each row: ``round(t * 1e9)`` for a non-negative finite number, the
+    Unix ns of an ISO stamp, else the row's 0-based index."""
+    if df.schema["t"] == pl.String:
+        t = pl.col("t").str.strip_chars().cast(pl.Float64, strict=False)
+        iso = iso_unix_us(pl.col("t")) * 1000
+    else:
+        t = pl.col("t").cast(pl.Float64, strict=False)
+        iso = pl.lit(None, pl.Int64)
+    ns = (t * 1e9).round(0)
+    index = pl.int_range(pl.len(), dtype=pl.Int64)
+    ok = ns.is_not_null() & ns.is_finite() & (ns >= 0) & (ns < 2**63)
+    return pl.when(ok).then(ns.cast(pl.Int64, strict=False)).when(iso.is_not_null() & (iso >= 0)).then(iso).otherwise(index)
+
+
 def _channel_messages(topic: str, df: pl.DataFrame) -> pl.DataFrame:
-    """One row per message of ``topic``: ``log_time``, ``key`` (merge order), ``data`` (JSON)."""
+    """One row per message of ``topic``: ``log_time``, ``key`` (merge order), ``data`` (JSON)
+    and the channel's columns as strings (for the views)."""
     columns = CHANNELS[topic]
     missing = [c for c in columns if c not in df.columns]
     extra = [c for c in df.columns if c not in columns and c not in _IGNORED_COLUMNS]
@@ -107,22 +211,79 @@ def _channel_messages(topic: str, df: pl.DataFrame) -> pl.DataFrame:
         )
     df = df.select(columns)
     if df.height == 0:
-        return pl.DataFrame(schema={"log_time": pl.Int64, "key": pl.Int64, "data": pl.String})
-    if df.schema["t"] == pl.String:
-        t = pl.col("t").str.strip_chars().cast(pl.Float64, strict=False)
-    else:
-        t = pl.col("t").cast(pl.Float64, strict=False)
-    ns = (t * 1e9).round(0)
-    index = pl.int_range(pl.len(), dtype=pl.Int64)
-    ok = ns.is_not_null() & ns.is_finite() & (ns >= 0) & (ns < 2**63)
-    log_time = pl.when(ok).then(ns.cast(pl.Int64, strict=False)).otherwise(index)
+        return pl.DataFrame(
+            schema={"log_time": pl.Int64, "data": pl.String, **{c: pl.String for c in columns}, "key": pl.Int64}
+        )
     return df.select(
-        log_time.alias("log_time"),
+        _log_time(df).alias("log_time"),
         pl.struct(columns).struct.json_encode().alias("data"),
+        *(pl.col(c).cast(pl.String).str.strip_chars().alias(c) for c in columns),
     ).with_columns(pl.col("log_time").cum_max().alias("key"))
 
 
-def write_mcap(path: str | Path, tables: dict[str, pl.DataFrame]) -> None:
+_TOGGLE_WORDS = {
+    "1": True, "0": False, "1.0": True, "0.0": False, "on": True, "off": False, "true": True, "false": False,
+    "open": True, "close": False, "closed": False, "present": True, "absent": False,
+}  # fmt: skip
+
+
+def _views(per_topic: dict[str, pl.DataFrame], site, tracks: pl.DataFrame | None) -> list[ViewMessage]:
+    """The typed view messages (:mod:`onebit.readers.mcap_views`) of the raw channels."""
+    out: list[ViewMessage] = []
+    starts = [int(m["log_time"].min()) for m in per_topic.values() if m.height]
+    if tracks is not None and tracks.height:
+        starts.append(int(tracks["log_time"].min()))
+    if site is not None:
+        out += mcap_views.site_views(site, min(starts) if starts else 0)
+    toggles = [
+        per_topic[t].select("log_time", "sensor", pl.col("value").str.to_lowercase().replace_strict(_TOGGLE_WORDS, default=None).alias("on"))
+        for t in ("/motion", "/proximity")
+        if t in per_topic
+    ]
+    if toggles:
+        out += mcap_views.toggle_views(pl.concat(toggles).sort("log_time", maintain_order=True), site)
+    if "/truth" in per_topic:
+        truth = per_topic["/truth"].select(
+            "log_time", pl.col("target").alias("id"),
+            pl.col("x").cast(pl.Float64, strict=False), pl.col("y").cast(pl.Float64, strict=False),
+        )  # fmt: skip
+        out += mcap_views.position_views(truth.drop_nulls(), kind="truth", site=site)
+    if tracks is not None and tracks.height:
+        out += mcap_views.position_views(tracks.drop_nulls(["x", "y"]), kind="tracks", site=site)
+    lines = []
+    for topic, text in (
+        ("/motion", pl.format("{} {}", "sensor", "value")),
+        ("/proximity", pl.format("{} {}", "sensor", "value")),
+        ("/crossings", pl.format("{} crossed {}", "beam", "direction")),
+        ("/beams", pl.format("{} pair {} blocked={}", "beam", "pair", "blocked")),
+    ):
+        if topic in per_topic and per_topic[topic].height:
+            lines.append(per_topic[topic].select("log_time", pl.lit(topic.lstrip("/")).alias("name"), text.fill_null("?").alias("text")))
+    if lines:
+        out += mcap_views.event_views(pl.concat(lines).sort("log_time", maintain_order=True))
+    return out
+
+
+def tracks_for_views(tracks: pl.DataFrame, *, offset_s: float = 0.0) -> pl.DataFrame:
+    """A run's ``tracks`` (TRACKS schema, ``t`` in run seconds) as view input: ``log_time`` =
+    ``round((t + offset_s) * 1e9)`` (``offset_s``: the run's time origin in the logs' own
+    seconds, so the tracks line up with the raw messages), ``id`` = ``tracker/track``."""
+    return tracks.select(
+        ((pl.col("t") + offset_s) * 1e9).round(0).cast(pl.Int64).alias("log_time"),
+        pl.format("{}/{}", "tracker", "track").alias("id"),
+        pl.col("x").cast(pl.Float64),
+        pl.col("y").cast(pl.Float64),
+    ).filter(pl.col("log_time") >= 0)
+
+
+def write_mcap(
+    path: str | Path,
+    tables: dict[str, pl.DataFrame],
+    *,
+    site=None,
+    views: bool = True,
+    tracks: pl.DataFrame | None = None,
+) -> None:
     """Write raw-log tables as one MCAP file, atomically.
 
     Parameters
@@ -133,13 +294,22 @@ def write_mcap(path: str | Path, tables: dict[str, pl.DataFrame]) -> None:
         Topic (a key of :data:`CHANNELS`) -> frame with exactly that channel's columns (any
         dtypes; string columns stay JSON strings, numbers stay numbers, nulls become JSON
         ``null``). Columns named ``line`` / ``raw`` (from :func:`read_mcap`) are ignored.
+    site
+        The :class:`~onebit.core.site.Site` of the logs, for the site and sensor views
+        (``None``: no site, no sensor spheres; the truth, tracks and event views are kept).
+    views
+        Add the typed view channels (:mod:`onebit.readers.mcap_views`); ``False`` writes
+        the raw channels only.
+    tracks
+        Estimates to show (:func:`tracks_for_views`: ``log_time``, ``id``, ``x``, ``y``).
 
     Notes
     -----
     One JSON schema and one channel per topic, then every message merged across channels in
     time order (each channel's own row order is kept, so a row out of order in the input is
-    still out of order in the file). Messages are written unchunked and uncompressed, so a
-    file cut short loses at most the message being written.
+    still out of order in the file); the view messages are merged in by log time. Chunked
+    (:data:`CHUNK_SIZE`), zstd, with chunk and message indexes and a summary. The file is
+    written to a temp file and renamed, so an interrupted write never leaves a half file.
 
     Raises
     ------
@@ -147,14 +317,16 @@ def write_mcap(path: str | Path, tables: dict[str, pl.DataFrame]) -> None:
         An unknown topic or a frame whose columns do not match the channel.
     """
     from mcap.writer import CompressionType, Writer
+    from mcap_protobuf.schema import register_schema
 
     path = Path(path)
     unknown = [t for t in tables if t not in CHANNELS]
     if unknown:
         raise InputError(f"unknown topic(s) {unknown}; known: {list(CHANNELS)}", file=path)
     per_topic = {topic: _channel_messages(topic, df) for topic, df in tables.items()}
+    view_msgs = _views(per_topic, site, tracks) if views else []
     with _atomic(path) as fh:
-        writer = Writer(fh, compression=CompressionType.NONE, use_chunking=False)
+        writer = Writer(fh, chunk_size=CHUNK_SIZE, compression=CompressionType.ZSTD, use_chunking=True)
         writer.start(profile="", library="onebit")
         ids: dict[str, int] = {}
         for order, (topic, df) in enumerate(tables.items()):
@@ -171,23 +343,46 @@ def write_mcap(path: str | Path, tables: dict[str, pl.DataFrame]) -> None:
                 data=json.dumps(schema).encode(),
             )
             ids[topic] = writer.register_channel(topic=topic, message_encoding="json", schema_id=sid)
+        view_ids: dict[str, int] = {}
+        schema_ids: dict[type, int] = {}
+        for m in view_msgs:
+            if m.topic not in view_ids:
+                cls = type(m.message)
+                if cls not in schema_ids:
+                    schema_ids[cls] = register_schema(writer, cls)
+                view_ids[m.topic] = writer.register_channel(topic=m.topic, message_encoding="protobuf", schema_id=schema_ids[cls])
         frames = [
-            m.with_columns(
+            m.select("log_time", "key", "data").with_columns(
                 pl.lit(ids[topic], pl.Int64).alias("channel"),
                 pl.lit(order, pl.Int64).alias("order"),
                 pl.int_range(pl.len(), dtype=pl.Int64).alias("seq"),
             )
             for order, (topic, m) in enumerate(per_topic.items())
         ]
-        if frames:
-            merged = pl.concat(frames).sort(["key", "order", "seq"], maintain_order=True)
-            for channel, log_time, seq, data in zip(
-                merged["channel"].to_list(),
-                merged["log_time"].to_list(),
-                merged["seq"].to_list(),
-                merged["data"].to_list(),
-                strict=True,
-            ):
+        raw = pl.concat(frames).sort(["key", "order", "seq"], maintain_order=True) if frames else None
+        view_seq: dict[str, int] = {}
+
+        def write_views_until(limit: int | None, start: int) -> int:
+            """Write view messages from ``start`` with log_time <= limit (all when None)."""
+            i = start
+            while i < len(view_msgs) and (limit is None or view_msgs[i].log_time <= limit):
+                m = view_msgs[i]
+                seq = view_seq[m.topic] = view_seq.get(m.topic, -1) + 1
+                writer.add_message(
+                    channel_id=view_ids[m.topic], log_time=m.log_time, publish_time=m.log_time,
+                    sequence=seq & 0xFFFFFFFF, data=m.message.SerializeToString(),
+                )  # fmt: skip
+                i += 1
+            return i
+
+        view_msgs.sort(key=lambda m: m.log_time)  # stable: each view channel keeps its order
+        done = 0
+        if raw is not None:
+            for channel, key, log_time, seq, data in zip(
+                raw["channel"].to_list(), raw["key"].to_list(), raw["log_time"].to_list(),
+                raw["seq"].to_list(), raw["data"].to_list(), strict=True,
+            ):  # fmt: skip
+                done = write_views_until(key - 1, done)
                 writer.add_message(
                     channel_id=channel,
                     log_time=log_time,
@@ -195,6 +390,7 @@ def write_mcap(path: str | Path, tables: dict[str, pl.DataFrame]) -> None:
                     sequence=seq & 0xFFFFFFFF,
                     data=data.encode(),
                 )
+        write_views_until(None, done)
         writer.finish()
 
 
@@ -227,13 +423,19 @@ def _check_magic(path: Path) -> int:
     return size
 
 
-def read_mcap(path: str | Path) -> McapContents:
+def read_mcap(path: str | Path, *, topic_map: dict[str, TopicMapping] | None = None) -> McapContents:
     """Read every raw-log channel of an MCAP file as string rows, keeping what precedes a cut.
 
     Parameters
     ----------
     path
         The ``.mcap`` file.
+    topic_map
+        Foreign topics -> :class:`TopicMapping` (:func:`load_topic_map`): their messages (ROS 2
+        ``cdr``, decoded with ``mcap-ros2-support`` from the file's own message definition, or
+        JSON) become rows of ``/motion`` / ``/proximity`` with ``t`` = log time in Unix
+        seconds, ``value`` = the boolean field as ``1``/``0`` and ``raw`` = ``<topic>:
+        <field>=<value>``; a message without that boolean field is a reject.
 
     Returns
     -------
@@ -253,7 +455,10 @@ def read_mcap(path: str | Path) -> McapContents:
     Messages go to ``rejects`` (source ``"<file>:<topic>"``, line = index in the channel,
     raw = the text) when they are not UTF-8 JSON objects, lack a field of the channel,
     carry a field it does not have, are on a channel whose message encoding is not JSON,
-    or are on a topic not in :data:`CHANNELS` (or on an undeclared channel id). JSON
+    or are on a JSON topic not in :data:`CHANNELS` (or on an undeclared channel id). A
+    non-JSON channel that is neither a view nor mapped gives one reject for the channel,
+    counting its messages (a ROS 2 bag's camera is not a one-bit log). View channels
+    (:data:`VIEW_TOPICS`, protobuf) are skipped and counted in ``views``. JSON
     strings are kept as they are, numbers go through ``str()``, booleans/arrays/objects
     through ``json.dumps`` and ``null`` becomes a null.
 
@@ -263,13 +468,19 @@ def read_mcap(path: str | Path) -> McapContents:
         The file is missing, empty or not MCAP (bad magic).
     """
     from mcap.stream_reader import StreamReader
-    from mcap.records import Channel, Footer, Message
+    from mcap.records import Channel, Footer, Message, Schema
 
     path = Path(path)
     size = _check_magic(path)
     name = path.name
+    topic_map = dict(topic_map or {})
 
     topics: dict[int, tuple[str, str]] = {}  # channel id -> (topic, message encoding)
+    channel_schema: dict[int, int] = {}
+    schemas: dict[int, Schema] = {}
+    decoders: dict[int, object] = {}
+    views: dict[str, int] = {}
+    unmapped: dict[str, list] = {}  # topic -> [count, encoding, schema name]
     cols: dict[str, dict[str, list]] = {}
     counts: dict[str, int] = {}
     rejects: list[tuple[str, int | None, str, str | None]] = []
@@ -305,12 +516,43 @@ def read_mcap(path: str | Path) -> McapContents:
             good_end = fh.tell()
             if isinstance(record, Footer):
                 saw_footer = True
+            elif isinstance(record, Schema):
+                schemas[record.id] = record
             elif isinstance(record, Channel):
                 topics[record.id] = (record.topic, record.message_encoding)
+                channel_schema[record.id] = record.schema_id
                 new_channel(record.topic)
+                mapping = topic_map.get(record.topic)
+                if mapping is not None:
+                    new_channel("/" + mapping.kind)
             elif isinstance(record, Message):
                 n_messages += 1
                 topic, encoding = topics.get(record.channel_id, (f"channel {record.channel_id}", "json"))
+                if topic in VIEW_TOPICS or encoding.lower() == "protobuf":
+                    views[topic] = views.get(topic, 0) + 1
+                    continue
+                mapping = topic_map.get(topic)
+                if mapping is not None:
+                    target = "/" + mapping.kind
+                    source = f"{name}:{topic}"
+                    counts[topic] = counts.get(topic, 0) + 1
+                    value, why = _mapped_value(record, encoding, mapping, schemas.get(channel_schema.get(record.channel_id, 0)), decoders)
+                    if why is not None:
+                        rejects.append((source, counts[topic], why, bytes(record.data).hex()[:200]))
+                        continue
+                    out = cols[target]
+                    line = counts[target] = counts.get(target, 0) + 1
+                    out["t"].append(f"{record.log_time / 1e9:.9f}")
+                    out["sensor"].append(mapping.sensor)
+                    out["value"].append("1" if value else "0")
+                    out["line"].append(line)
+                    out["raw"].append(f"{topic}: {mapping.field}={value}")
+                    continue
+                if encoding.lower() != "json" and topic not in CHANNELS:
+                    sch = schemas.get(channel_schema.get(record.channel_id, 0))
+                    entry = unmapped.setdefault(topic, [0, encoding, sch.name if sch is not None else ""])
+                    entry[0] += 1
+                    continue
                 line = counts[topic] = counts.get(topic, 0) + 1
                 text = bytes(record.data).decode("utf-8", errors="replace")
                 source = f"{name}:{topic}"
@@ -352,6 +594,13 @@ def read_mcap(path: str | Path) -> McapContents:
         if not truncated and not saw_footer:  # pragma: no cover - StreamReader stops only at the footer
             truncated = True
             rejects.append((name, n_messages + 1, f"truncated: no footer (read {good_end} of {size} bytes)", None))
+    for topic, (n, encoding, schema_name) in unmapped.items():
+        rejects.append((
+            f"{name}:{topic}", None,
+            f"{n} message(s) in encoding '{encoding}'{f' ({schema_name})' if schema_name else ''} on a topic that is not "
+            "a onebit channel and not mapped: map a boolean topic to a sensor in mcap_topics.toml",
+            None,
+        ))  # fmt: skip
 
     channels = {
         topic: pl.DataFrame(
@@ -361,7 +610,38 @@ def read_mcap(path: str | Path) -> McapContents:
         for topic, data in cols.items()
     }
     rejects_df = pl.DataFrame(rejects, schema=REJECTS, orient="row")
-    return McapContents(channels=channels, rejects=rejects_df, truncated=truncated)
+    return McapContents(channels=channels, rejects=rejects_df, truncated=truncated, views=views)
+
+
+def _mapped_value(record, encoding: str, mapping: TopicMapping, schema, decoders: dict) -> tuple[bool | None, str | None]:
+    """The boolean ``mapping.field`` of a mapped message, or ``(None, reason)``."""
+    enc = encoding.lower()
+    if enc == "cdr":
+        if schema is None:
+            return None, "cdr message without a schema (message definition) in the file"
+        dec = decoders.get(schema.id)
+        if dec is None:
+            from mcap_ros2.decoder import DecoderFactory
+
+            dec = decoders[schema.id] = DecoderFactory().decoder_for("cdr", schema)
+            if dec is None:
+                return None, f"schema {schema.name!r} ({schema.encoding}) cannot be decoded as ROS 2"
+        try:
+            obj = dec(bytes(record.data))
+        except Exception as exc:  # noqa: BLE001 - any CDR decoding failure is this message's reject
+            return None, f"not decodable as {schema.name}: {type(exc).__name__}: {exc}"
+        value = getattr(obj, mapping.field, None)
+    elif enc == "json":
+        try:
+            obj = json.loads(record.data)
+        except (ValueError, UnicodeDecodeError) as exc:
+            return None, f"not valid JSON: {exc}"
+        value = obj.get(mapping.field) if isinstance(obj, dict) else None
+    else:
+        return None, f"message encoding '{encoding}' is not cdr or json"
+    if not isinstance(value, bool):
+        return None, f"field '{mapping.field}' is {type(value).__name__}, not a boolean"
+    return value, None
 
 
 # --------------------------------------------------------------------------- conversion
@@ -398,8 +678,15 @@ def _read_table_as_strings(path: Path) -> pl.DataFrame:
     return df.select(wanted)
 
 
-def csv_folder_to_mcap(folder_or_file: str | Path, out_path: str | Path) -> Conversion:
-    """Convert raw-log CSV/Parquet files to one MCAP file.
+def csv_folder_to_mcap(
+    folder_or_file: str | Path,
+    out_path: str | Path,
+    *,
+    views: bool = True,
+    site=None,
+    tracks: pl.DataFrame | None = None,
+) -> Conversion:
+    """Convert raw-log CSV/Parquet files to one MCAP file (:func:`write_mcap`).
 
     Parameters
     ----------
@@ -408,6 +695,13 @@ def csv_folder_to_mcap(folder_or_file: str | Path, out_path: str | Path) -> Conv
         one such file.
     out_path
         The ``.mcap`` to write (atomically).
+    views
+        Add the typed view channels (:mod:`onebit.readers.mcap_views`).
+    site
+        The site for the views; ``None`` = the folder's ``site.toml`` when there is one.
+    tracks
+        Estimates for the ``/foxglove/tracks`` and ``/points/tracks`` views
+        (:func:`tracks_for_views`).
 
     Returns
     -------
@@ -444,17 +738,22 @@ def csv_folder_to_mcap(folder_or_file: str | Path, out_path: str | Path) -> Conv
     if not by_topic:
         raise InputError("no raw-log CSV or Parquet files found", file=src)
     tables = {topic: _read_table_as_strings(by_topic[topic]) for topic in CHANNELS if topic in by_topic}
-    write_mcap(out_path, tables)
+    folder = src if src.is_dir() else src.parent
+    if site is None and views and (folder / "site.toml").is_file():
+        site = load_site(folder / "site.toml")
+    write_mcap(out_path, tables, site=site, views=views, tracks=tracks)
     return Conversion(written=[out_path])
 
 
-def mcap_to_csv_folder(mcap_path: str | Path, out_dir: str | Path) -> Conversion:
+def mcap_to_csv_folder(mcap_path: str | Path, out_dir: str | Path, *, topic_map: dict[str, TopicMapping] | None = None) -> Conversion:
     """Write each raw-log channel of an MCAP file to ``<out_dir>/<stem>.csv``.
 
     Parameters
     ----------
     mcap_path
         The ``.mcap`` to read (see :func:`read_mcap`; a truncated file converts what it holds).
+    topic_map
+        Foreign boolean topics -> sensors (:func:`load_topic_map`), passed to :func:`read_mcap`.
     out_dir
         Folder to write into (created if needed); each CSV is written atomically with the
         columns in :data:`CHANNELS` order, nulls as empty fields.
@@ -465,7 +764,7 @@ def mcap_to_csv_folder(mcap_path: str | Path, out_dir: str | Path) -> Conversion
         The CSV paths written and the reader's rejects (messages that could not be carried
         over, and the truncation if any) for the caller to report.
     """
-    contents = read_mcap(mcap_path)
+    contents = read_mcap(mcap_path, topic_map=topic_map)
     out_dir = Path(out_dir)
     written = []
     for topic in CHANNELS:

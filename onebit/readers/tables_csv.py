@@ -1,4 +1,4 @@
-"""Readers of already-canonical logs: ``crossings.csv``, ``truth.csv``, ``truth_crossings.csv``."""
+"""Readers of already-canonical logs: ``crossings.csv``, ``truth.csv``, ``truth_crossings.csv``, ``truth_events.csv``."""
 
 from __future__ import annotations
 
@@ -7,7 +7,7 @@ from pathlib import Path
 import polars as pl
 
 from onebit.core.errors import InputError
-from onebit.core.tables import CROSSINGS, TRUE_CROSSINGS, TRUTH, conform
+from onebit.core.tables import CROSSINGS, TRUE_CROSSINGS, TRUTH, TRUTH_EVENTS, conform
 from onebit.readers.rows import (
     RawRows,
     TypedRows,
@@ -124,3 +124,30 @@ def read_truth_csv(path, *, epoch=None):
         return truth_from_rows(read_csv_rows(path, ("t", "target", "x", "y")), epoch=epoch, path=path)
     typed = check_split(split, split.good, _truth_parsers, epoch=epoch, key=("t", "target"), tolerance=0.0, path=path)
     return conform(typed.accepted, TRUTH), typed.rejects
+
+
+def _residents(col: str) -> tuple[pl.Expr, pl.Expr]:
+    """Resident ids separated by ``;`` (spaces and empty ids dropped), sorted as text and
+    joined with ``;`` -- the canonical ``residents`` of :data:`~onebit.core.tables.TRUTH_EVENTS`."""
+    ids = pl.col(col).str.split(";").list.eval(pl.element().str.strip_chars()).list.filter(pl.element() != "")
+    value = ids.list.unique().list.sort().list.join(";")
+    reason = pl.when(pl.col(col).is_null() | (value == "")).then(pl.lit(f"field '{col}': no resident id"))
+    return value, reason.otherwise(None)
+
+
+def truth_events_from_rows(raw: RawRows, *, epoch=None, path: Path | None = None):
+    """Type ``truth_events.csv`` rows: t, sensor, residents (``1;2``). Returns ``(truth_events, rejects)``.
+
+    The log is a toggle log (CASAS stamps are up to 0.7 s out of order): rows up to 1 s back
+    are sorted into place; an identical (t, sensor) row is a duplicate."""
+    parsers = {"t": parse_time("t", epoch, raw.frame), "sensor": parse_name("sensor", None, "sensor"), "residents": _residents("residents")}
+    ok, rej = type_rows(raw, parsers, key=("t", "sensor"), path=path, tolerance=1.0)
+    return conform(ok, TRUTH_EVENTS), rej
+
+
+def read_truth_events_csv(path, *, epoch=None):
+    """``truth_events.csv`` (t, sensor, residents): the per-event identity truth written by
+    ``onebit import casas`` (the CASAS resident annotations), as :data:`~onebit.core.tables.TRUTH_EVENTS`.
+    Returns ``(truth_events, rejects)``; every line not taken is a reject with its reason."""
+    path = Path(path)
+    return truth_events_from_rows(read_csv_rows(path, tuple(TRUTH_EVENTS.names())), epoch=epoch, path=path)

@@ -13,6 +13,7 @@
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -20,6 +21,7 @@ import polars as pl
 import shapely
 
 from onebit.core.config import check_range
+from onebit.core.errors import ConfigError
 from onebit.core.region_graph import RegionGraph
 from onebit.core.site import Site
 from onebit.core.tables import SCORES, TRUE_CROSSINGS, conform
@@ -33,12 +35,24 @@ class ScoresConfig:
 
     crossing_tolerance_s : largest time difference between an observed crossing and the true
         crossing it is matched to (seconds).
+    gates_m : the metric gates (metres) at which every tracker with positions gets MOTA,
+        IDF1, HOTA, ... (rows ``mota@1m``; :mod:`onebit.scoring.mot`); the irtracking
+        authors score at 1.5 m.
     """
 
     crossing_tolerance_s: float = 1.0
+    gates_m: tuple[float, ...] = (1.0,)
 
     def __post_init__(self) -> None:
         check_range(self, "crossing_tolerance_s", 0.0, None)
+        g = self.gates_m
+        if isinstance(g, (int, float)) and not isinstance(g, bool):
+            g = (g,)
+        if not isinstance(g, (list, tuple)) or not all(
+            isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v) and v > 0 for v in g
+        ):
+            raise ConfigError(f"ScoresConfig.gates_m = {self.gates_m!r}; expected a list of positive distances in metres, e.g. [1.0, 1.5]")
+        object.__setattr__(self, "gates_m", tuple(float(v) for v in dict.fromkeys(g)))
 
 
 def truth_regions(truth: pl.DataFrame, rg: RegionGraph) -> pl.DataFrame:

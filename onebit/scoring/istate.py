@@ -18,7 +18,8 @@ NAME = "istate"
 def score(tracker: str, tables: dict, site: Site, region_graph=None) -> tuple[list[tuple[str, str, float, str]], dict]:
     """``istate/containment``: fraction of scored stages whose I-state contains the true joint
     state; ``elements_mean``/``_max``; ``area_mean`` (mean area of the union of the regions
-    within the free space); ``scored_stages``.
+    within the free space) and ``area_share`` (that area over the free space's: always beside
+    the containment); ``scored_stages``.
 
     ``targets`` is the most targets present at once (:mod:`onebit.scoring.serve`), so the
     truth may hold more ids than ``n`` over the run and fewer than ``n`` at a stage: a stage
@@ -31,10 +32,14 @@ def score(tracker: str, tables: dict, site: Site, region_graph=None) -> tuple[li
     regs = tables.get(f"{NAME}_regions")
     if summ is None or regs is None:
         return [], {}
+    free_area = float(site.free_space.area)
     rows = [
         (NAME, "elements_mean", float(summ["elements"].mean()) if summ.height else 0.0, "elements"),
         (NAME, "elements_max", float(summ["elements"].max()) if summ.height else 0.0, "elements"),
         (NAME, "area_mean", float(summ["area"].mean()) if summ.height else 0.0, f"{site.units}^2"),
+        # the I-state's size beside its containment: a filter that keeps the truth by covering
+        # the whole room says little (containment 1.0 at area_share 1.0 is the trivial I-state)
+        (NAME, "area_share", float(summ["area"].mean()) / free_area if summ.height and free_area > 0 else float("nan"), "fraction of free space"),
     ]
     if "area_share" in summ.columns:  # how much of the room the I-state leaves open: containment is only as good as this
         rows.append((NAME, "area_share_mean", float(summ["area_share"].mean()) if summ.height else 0.0, "fraction of free space"))

@@ -6,14 +6,30 @@ Beside each paper's own metrics (DESIGN.md, "Scores and reports"):
   2016) from ``motmetrics``;
 * HOTA, DetA, AssA (Luiten et al. 2021) from ``trackeval`` (``motmetrics`` 1.4.0 has no HOTA).
 
-Frames, objects, hypotheses
----------------------------
-A frame is one of the tracker's sample times (the HMM slots, the particle filter's
-iterations, the CLUSTERTRACK instants); the objects of a frame are the targets with a truth
-sample within half the tracker's sample period, taken at the nearest time
-(:func:`~onebit.scoring.association.truth_at`); the hypotheses are the tracks with a sample at
-the frame. The beams tracker is event-driven (a row per crossing, the region held in between),
-so its frames are the truth's sample times and each agent holds its last region.
+Frames, objects, hypotheses: every frame is scored
+--------------------------------------------------
+The frames are **every truth frame** (each distinct ``t`` of the truth), plus each tracker
+sample time with no truth frame within half the truth's period (there the truth says nobody is
+present, so every track is a false positive). The objects of a frame are the targets with a
+truth sample within half the truth's period, at the nearest time
+(:func:`~onebit.scoring.association.truth_at`); the hypotheses are the tracks of the
+tracker's sample nearest to the frame within half the tracker's own period (its median gap
+between sample times: an estimate holds for its slot). A frame with truth and no estimate
+therefore counts every present target as a miss -- a tracker silent while people are present
+scores MOTA <= 0, never NaN or a score over the few frames it spoke. The beams tracker is
+event-driven (a row per crossing, the region held in between), so each agent holds its last
+region at every truth frame.
+
+Count error: at every frame ``|#hypotheses - #objects|``; ``count_error`` is its mean over the
+frames (people per frame), ``max_tracks`` the most hypotheses at one frame.
+
+Metric gates
+------------
+Beside its paper's gate, every tracker whose tracks have positions (``x``, ``y``) is scored at
+metric gates in world units (``[scores] gates_m``, default ``[1.0]`` metre; the irtracking
+authors' protocol is 1.5 m): rows ``mota@1m``, ``idf1@1m``, ``hota@1m``, ``motp@1m``, ...,
+the same for every tracker, so trackers of different papers compare. The paper-gate rows keep
+their names (``mota``, ``idf1``, ...) and carry their gate in the unit (``fraction @ 1 hops``).
 
 Distance :math:`d` between an object and a hypothesis, by the space the tracks live in:
 
@@ -240,11 +256,45 @@ def _period(t: pl.Series) -> float:
     return float(np.median(np.diff(u))) if len(u) > 1 else 1.0
 
 
+def scoring_frames(truth_t: pl.Series, hyp_t: pl.Series) -> tuple[pl.Series, float, float]:
+    """The frames of the module docstring: every truth time, plus each hypothesis time with no
+    truth time within half the truth's period. Returns ``(frames, truth_tol, hyp_tol)``: the
+    half periods (+1e-9) within which a frame takes the truth's and the tracker's nearest sample."""
+    tt = truth_t.unique().sort()
+    ht = hyp_t.unique().sort()
+    tol_o = (_period(tt) if tt.len() > 1 else _period(ht)) / 2 + 1e-9
+    tol_h = (_period(ht) if ht.len() > 1 else _period(tt)) / 2 + 1e-9
+    if tt.len() == 0:
+        return ht.cast(pl.Float64), tol_o, tol_h
+    lone = (
+        pl.DataFrame({"t": ht.cast(pl.Float64)})
+        .join_asof(pl.DataFrame({"t_o": tt.cast(pl.Float64)}), left_on="t", right_on="t_o", strategy="nearest",
+                   tolerance=tol_o, check_sortedness=False)  # fmt: skip
+        .filter(pl.col("t_o").is_null())["t"]
+    )
+    return pl.concat([tt.cast(pl.Float64), lone]).unique().sort(), tol_o, tol_h
+
+
+def hypotheses_at(frames: pl.Series, hyp: pl.DataFrame, tolerance: float) -> pl.DataFrame:
+    """The rows of ``hyp`` (``t``, ``track``, ...) of the tracker's sample time nearest to each
+    frame within ``tolerance``, stamped with the frame's ``t`` (none where it has no sample)."""
+    if hyp.height == 0 or frames.len() == 0:
+        return hyp.clear()
+    ht = hyp.select(pl.col("t").alias("t_h")).unique().sort("t_h")
+    pick = pl.DataFrame({"t": frames.cast(pl.Float64)}).sort("t").join_asof(
+        ht, left_on="t", right_on="t_h", strategy="nearest", tolerance=tolerance, check_sortedness=False
+    ).drop_nulls("t_h")
+    return pick.join(hyp.rename({"t": "t_h"}), on="t_h").drop("t_h").select(hyp.columns).sort("t", "track")
+
+
 def point_frames(tracks: pl.DataFrame, truth: pl.DataFrame) -> tuple[pl.DataFrame, pl.DataFrame, pl.DataFrame]:
-    """Objects, hypotheses and Euclidean distances of point tracks (``y`` null = 1D, taken 0)."""
+    """Objects, hypotheses and Euclidean distances of point tracks at every frame (module
+    docstring: :func:`scoring_frames`; ``y`` null = 1D, taken 0)."""
     hyp = tracks.drop_nulls("x").select("t", "track", "x", pl.col("y").fill_null(0.0))
-    tol = _period(hyp["t"]) / 2 + 1e-9
-    obj = truth_at(hyp["t"].unique(), truth.drop_nulls("x").with_columns(pl.col("y").fill_null(0.0)), tolerance=tol)
+    tru = truth.drop_nulls("x").with_columns(pl.col("y").fill_null(0.0))
+    frames, tol_o, tol_h = scoring_frames(tru["t"], hyp["t"])
+    obj = truth_at(frames, tru, tolerance=tol_o)
+    hyp = hypotheses_at(frames, hyp, tol_h)
     dist = obj.join(hyp, on="t").select(
         "t", "target", "track", distance=((pl.col("x") - pl.col("true_x")) ** 2 + (pl.col("y") - pl.col("true_y")) ** 2).sqrt()
     )
@@ -252,14 +302,30 @@ def point_frames(tracks: pl.DataFrame, truth: pl.DataFrame) -> tuple[pl.DataFram
 
 
 def node_frames(tracks: pl.DataFrame, truth: pl.DataFrame, site: Site) -> tuple[pl.DataFrame, pl.DataFrame, pl.DataFrame]:
-    """Objects, hypotheses and hop distances of sensor-graph node tracks (unreachable: no pair)."""
+    """Objects, hypotheses and hop distances of sensor-graph node tracks at every frame
+    (:func:`scoring_frames`; unreachable nodes: no pair)."""
     g = site.sensor_graph
     hops = hop_matrix(g.nodes, g.edges).astype(float)
     hops[hops > len(g.nodes)] = np.nan
     hyp = tracks.drop_nulls("node").select("t", "track", "node")
-    tol = _period(hyp["t"]) / 2 + 1e-9
-    obj = truth_at(hyp["t"].unique(), truth_nodes(truth, site).drop_nulls("node"), tolerance=tol, columns=("node",))
+    tru = truth_nodes(truth, site).drop_nulls("node")
+    frames, tol_o, tol_h = scoring_frames(tru["t"], hyp["t"])
+    obj = truth_at(frames, tru, tolerance=tol_o, columns=("node",))
+    hyp = hypotheses_at(frames, hyp, tol_h)
     return obj.select(list(OBJECTS)), hyp.select(list(HYPOTHESES)), _hop_pairs(obj, hyp, "node", list(g.nodes), hops)
+
+
+def count_errors(objects: pl.DataFrame, hypotheses: pl.DataFrame) -> pl.DataFrame:
+    """Per frame (every frame of either table): ``objects``, ``hypotheses`` and
+    ``error = |hypotheses - objects|`` (people)."""
+    o = objects.group_by("t").agg(objects=pl.len())
+    h = hypotheses.group_by("t").agg(hypotheses=pl.len())
+    return (
+        o.join(h, on="t", how="full", coalesce=True)
+        .with_columns(pl.col("objects").fill_null(0).cast(pl.Int64), pl.col("hypotheses").fill_null(0).cast(pl.Int64))
+        .with_columns(error=(pl.col("hypotheses") - pl.col("objects")).abs())
+        .sort("t")
+    )
 
 
 def region_frames(tracks: pl.DataFrame, truth: pl.DataFrame, rg: RegionGraph) -> tuple[pl.DataFrame, pl.DataFrame, pl.DataFrame]:
@@ -319,16 +385,67 @@ def gate_distance(tracker: str, gate: Gate, tables: dict, site: Site) -> float |
     return gate.size * radius if radius else None
 
 
-def mot_rows(tracker: str, gate: Gate | None, tables: dict, site: Site, region_graph: RegionGraph | None) -> list[ReportRow]:
-    """The MOT report rows of one tracker: ``mota``, ``motp``, ``idf1``, ``id_switches``,
-    ``hota``, ``deta``, ``assa``, ``mot_gate``, ``mot_misses``, ``mot_false_positives``,
-    ``mot_frames``. None without truth, without tracks or without a gate."""
-    tracks, truth = tables.get(f"{tracker}_tracks"), tables.get("truth")
-    if gate is None or tracks is None or truth is None or truth.height == 0:
+#: Default metric gates (metres) of every positional tracker (``[scores] gates_m``).
+METRIC_GATES_M = (1.0,)
+
+
+def gate_label(size_m: float) -> str:
+    """``1m``, ``1.5m``: the suffix of the metric-gate rows (``mota@1.5m``)."""
+    return f"{float(size_m):g}m"
+
+
+def metric_gate_rows(tracker: str, tracks: pl.DataFrame, truth: pl.DataFrame, site: Site, gates_m: tuple[float, ...]) -> list[ReportRow]:
+    """MOTA, MOTP, IDF1, ID switches, HOTA, misses and false positives at each metric gate
+    (metres, converted to the site's units), every frame scored; ``count_error`` and
+    ``max_tracks`` once. Empty when the tracks have rows but none with a position (a tracker
+    that answers in nodes or regions only); a tracker with no row at all is scored (all misses)."""
+    if not gates_m or "x" not in tracks.columns or (tracks.height and tracks["x"].null_count() == tracks.height):
         return []
+    obj, hyp, dist = point_frames(tracks, truth)
+    ce = count_errors(obj, hyp)
+    rows: list[ReportRow] = [
+        (tracker, "count_error", float(ce["error"].mean()) if ce.height else float("nan"), "people/frame"),
+        (tracker, "max_tracks", float(ce["hypotheses"].max()) if ce.height else 0.0, "tracks"),
+    ]
+    for g_m in gates_m:
+        g = float(to_site_units(g_m, "m", site.units))
+        m = mot_metrics(obj, hyp, dist, gate=g)
+        lab = gate_label(g_m)
+        rows += [
+            (tracker, f"mota@{lab}", m["mota"], "fraction"),
+            (tracker, f"idf1@{lab}", m["idf1"], "fraction"),
+            (tracker, f"hota@{lab}", m["hota"], "fraction"),
+            (tracker, f"motp@{lab}", m["motp"], site.units),
+            (tracker, f"id_switches@{lab}", m["id_switches"], "switches"),
+            (tracker, f"misses@{lab}", m["misses"], "target-frames"),
+            (tracker, f"false_positives@{lab}", m["false_positives"], "track-frames"),
+        ]
+    return rows
+
+
+def mot_rows(
+    tracker: str,
+    gate: Gate | None,
+    tables: dict,
+    site: Site,
+    region_graph: RegionGraph | None,
+    *,
+    gates_m: tuple[float, ...] = METRIC_GATES_M,
+) -> list[ReportRow]:
+    """The MOT report rows of one tracker at its paper's gate: ``mota``, ``motp``, ``idf1``,
+    ``id_switches``, ``hota``, ``deta``, ``assa`` (unit ``fraction @ <gate> <unit>``),
+    ``mot_gate``, ``mot_misses``, ``mot_false_positives``, ``mot_frames``; then, for tracks
+    with positions, the metric-gate rows (:func:`metric_gate_rows`). Every frame is scored
+    (module docstring). None without truth or without tracks."""
+    tracks, truth = tables.get(f"{tracker}_tracks"), tables.get("truth")
+    if tracks is None or truth is None or truth.height == 0:
+        return []
+    metric = metric_gate_rows(tracker, tracks, truth, site, tuple(gates_m))
+    if gate is None:
+        return metric
     g = gate_distance(tracker, gate, tables, site)
     if g is None or (gate.space == "region" and region_graph is None):
-        return []
+        return metric
     if gate.space == "point":
         obj, hyp, dist = point_frames(tracks, truth)
         unit = site.units
@@ -339,16 +456,22 @@ def mot_rows(tracker: str, gate: Gate | None, tables: dict, site: Site, region_g
         obj, hyp, dist = region_frames(tracks, truth, region_graph)
         unit = "hops"
     m = mot_metrics(obj, hyp, dist, gate=g)
-    return [
-        (tracker, "mota", m["mota"], "fraction"),
+    frac = f"fraction @ {gate.size:g} {gate.unit}"
+    rows = [
+        (tracker, "mota", m["mota"], frac),
         (tracker, "motp", m["motp"], unit),
-        (tracker, "idf1", m["idf1"], "fraction"),
+        (tracker, "idf1", m["idf1"], frac),
         (tracker, "id_switches", m["id_switches"], "switches"),
-        (tracker, "hota", m["hota"], "fraction"),
-        (tracker, "deta", m["deta"], "fraction"),
-        (tracker, "assa", m["assa"], "fraction"),
+        (tracker, "hota", m["hota"], frac),
+        (tracker, "deta", m["deta"], frac),
+        (tracker, "assa", m["assa"], frac),
         (tracker, "mot_gate", g, unit),
         (tracker, "mot_misses", m["misses"], "target-frames"),
         (tracker, "mot_false_positives", m["false_positives"], "track-frames"),
         (tracker, "mot_frames", m["frames"], "frames"),
     ]
+    if not metric and gate.space != "point":
+        ce = count_errors(obj, hyp)
+        metric = [(tracker, "count_error", float(ce["error"].mean()) if ce.height else float("nan"), "people/frame"),
+                  (tracker, "max_tracks", float(ce["hypotheses"].max()) if ce.height else 0.0, "tracks")]  # fmt: skip
+    return rows + metric

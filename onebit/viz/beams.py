@@ -23,7 +23,7 @@ import shapely
 from onebit.core.region_graph import RegionGraph
 from onebit.core.site import Site
 from onebit.viz import colors, paths
-from onebit.viz._series import is_empty, require
+from onebit.viz._series import is_empty, repeat_text, require, text_array
 from onebit.viz.frame import log_world_frame
 from onebit.viz.tracks import (
     log_occupancy,
@@ -84,11 +84,13 @@ def log_assignments(rec: rr.RecordingStream, tracker: str, assignment: pl.DataFr
     move = pl.format("  {} -> {}", pl.col("source"), pl.col("region")) if {"source", "region"} <= set(a.columns) else pl.lit("")
     text = a.select(pl.format("#{} {}{}: {}", pl.col("crossing"), _crossing_label(), move, _track_label(labels)).alias("s"))
     shades = track_colors(tracker, labels)
-    color = np.array([shades.get(str(k), colors.WARNING) for k in a["track"].to_list()], np.uint8).reshape(-1, 4)
+    ids = list(shades)
+    palette = np.array([*shades.values(), colors.WARNING], np.uint8).reshape(-1, 4)
+    k = a["track"].cast(pl.String).replace_strict(ids, list(range(len(ids))), default=len(ids), return_dtype=pl.Int64).to_numpy()
     rec.send_columns(
         paths.join(paths.tracker_root(tracker), "assignments"),
         indexes=[paths.time_column(a["t"].to_numpy())],
-        columns=rr.TextLog.columns(text=text["s"].to_list(), level=[rr.TextLogLevel.INFO] * a.height, color=color),
+        columns=rr.TextLog.columns(text=text_array(text["s"]), level=repeat_text("INFO", a.height), color=palette[k]),
     )
 
 
@@ -117,17 +119,17 @@ def log_marked_crossings(
     color = _MARK_COLOR.get(kind, colors.WARNING)
     log_world_frame(rec, entity)
     rec.log(entity, rr.Points2D.from_fields(radii=MARK_RADIUS, colors=color, show_labels=True, draw_order=40.0), static=True)
-    marks = m.select(pl.format("{} {}", _crossing_label(), pl.lit(_MARK_TEXT.get(kind, kind))).alias("s"))["s"].to_list()
+    marks = text_array(m.select(pl.format("{} {}", _crossing_label(), pl.lit(_MARK_TEXT.get(kind, kind))).alias("s"))["s"])
     rec.send_columns(
         entity,
         indexes=[paths.time_column(t)],
         columns=rr.Points2D.columns(positions=xy, labels=marks).partition(np.ones(len(t), dtype=np.int64)),
     )
-    level = rr.TextLogLevel.WARN if kind == "unexplained" else rr.TextLogLevel.INFO
+    level = "WARN" if kind == "unexplained" else "INFO"
     rec.send_columns(
         paths.join(entity, "log"),
         indexes=[paths.time_column(t)],
-        columns=rr.TextLog.columns(text=text["text"].to_list(), level=[level] * len(t), color=np.tile(np.asarray(color, np.uint8), (len(t), 1))),
+        columns=rr.TextLog.columns(text=text_array(text["text"]), level=repeat_text(level, len(t)), color=np.tile(np.asarray(color, np.uint8), (len(t), 1))),
     )
 
 

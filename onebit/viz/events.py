@@ -14,7 +14,7 @@ import polars as pl
 
 from onebit.core.site import Site
 from onebit.viz import colors, paths
-from onebit.viz._series import groups, is_empty, require
+from onebit.viz._series import groups, is_empty, repeat_text, require, strips_array, text_array
 from onebit.viz.frame import log_world_frame
 from onebit.core.lazy import lazy_module
 from onebit.viz.radii import ui_points
@@ -60,9 +60,7 @@ def log_crossings(
             rec.send_columns(
                 entity,
                 indexes=[t],
-                columns=rr.TextLog.columns(
-                    text=crossing_texts(g).to_list(), level=[rr.TextLogLevel.INFO] * g.height, color=color
-                ),
+                columns=rr.TextLog.columns(text=text_array(crossing_texts(g)), level=repeat_text("INFO", g.height), color=color),
             )
             if beam in known:
                 b = site.beam(beam)
@@ -76,7 +74,7 @@ def log_crossings(
                 rec.send_columns(
                     paths.sensor_crossed(beam, prefix=entity_prefix),
                     indexes=[t],
-                    columns=rr.LineStrips2D.columns(strips=[segment] * g.height, colors=color),
+                    columns=rr.LineStrips2D.columns(strips=strips_array(np.tile(segment, (g.height, 1)), 2), colors=color),
                 )
     if not is_empty(aborted):
         require(aborted, ("t", "beam", "side"), name="aborted")
@@ -88,8 +86,8 @@ def log_crossings(
                 paths.sensor(beam, prefix=entity_prefix),
                 indexes=[paths.time_column(g["t"].to_numpy())],
                 columns=rr.TextLog.columns(
-                    text=texts.to_list(),
-                    level=[rr.TextLogLevel.WARN] * g.height,
+                    text=text_array(texts),
+                    level=repeat_text("WARN", g.height),
                     color=np.tile(np.asarray(colors.WARNING, np.uint8), (g.height, 1)),
                 ),
             )

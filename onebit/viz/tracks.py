@@ -30,7 +30,7 @@ import shapely
 
 from onebit.core.region_graph import RegionGraph
 from onebit.viz import colors, paths
-from onebit.viz._series import groups, is_empty, only_tracker, require, rings
+from onebit.viz._series import groups, is_empty, only_tracker, region_outlines, require, ring_table, strips_array
 from onebit.viz.families import error_column
 from onebit.viz.frame import log_world_frame
 from onebit.viz.trails import log_dot, log_moving, log_trail
@@ -81,38 +81,41 @@ def region_anchors(region_graph: RegionGraph) -> tuple[np.ndarray, np.ndarray]:
     return rp.reshape(-1, 2), size
 
 
+def region_indices(region_graph: RegionGraph, regions) -> np.ndarray:
+    """``(n,)`` index in ``region_graph`` of each region name; a name not in it raises
+    ``ValueError`` naming it (vectorised with polars: no Python work per row)."""
+    names = pl.Series("region", regions, dtype=pl.String)
+    known = list(region_graph.names)
+    unknown = names.filter(~names.is_in(known)).unique().sort().to_list()
+    if unknown:
+        raise ValueError(f"tracks name region(s) {unknown} not in the region graph; regions are {known}")
+    return names.replace_strict(known, list(range(len(known))), return_dtype=pl.Int64).to_numpy()
+
+
 def region_positions(region_graph: RegionGraph, regions: np.ndarray, slot: int) -> np.ndarray:
     """``(n, 2)`` display positions of a track in ``regions`` (names): each region's
     representative point, offset by a small per-track vector (``slot`` picks the direction),
     falling back to the representative point where the offset point would leave the region."""
-    idx = region_graph.index
-    unknown = sorted({str(r) for r in regions if r not in idx})
-    if unknown:
-        raise ValueError(f"tracks name region(s) {unknown} not in the region graph; regions are {list(region_graph.names)}")
-    k = np.fromiter((idx[r] for r in regions), dtype=np.int64, count=len(regions))
+    k = region_indices(region_graph, regions)
     rp, size = region_anchors(region_graph)
     angle = slot * _GOLDEN_ANGLE
     direction = np.array([np.cos(angle), np.sin(angle)])
-    xy = rp[k] + (TRACK_OFFSET * size[k])[:, None] * direction
-    inside = np.zeros(len(k), dtype=bool)
-    for i, poly in enumerate(region_graph.polygons):
-        sel = k == i
-        if sel.any():
-            inside[sel] = shapely.contains_xy(poly, xy[sel, 0], xy[sel, 1])
-    return np.where(inside[:, None], xy, rp[k])
+    xy = rp + (TRACK_OFFSET * size)[:, None] * direction  # per region, then gathered per row
+    inside = np.array([shapely.contains_xy(poly, *p) for poly, p in zip(region_graph.polygons, xy)], dtype=bool).reshape(-1)
+    return np.where(inside[:, None], xy, rp)[k].reshape(-1, 2)
 
 
 def log_current_region(
     rec: rr.RecordingStream, entity: str, t: np.ndarray, regions: np.ndarray, region_graph: RegionGraph, *, color
 ) -> None:
-    """``entity``: the outline of the region a track is in, from each time it enters one."""
-    idx = region_graph.index
-    outlines = [rings(region_graph.polygons[idx[r]]) for r in regions]
+    """``entity``: the outline of the region a track is in, from each time it enters one
+    (one row per entry holding the region's rings, gathered from the rings of every region)."""
+    points, lengths, per_row = region_outlines(ring_table(region_graph.polygons), region_indices(region_graph, regions))
     rec.log(entity, rr.LineStrips2D.from_fields(colors=color, radii=REGION_WIDTH, draw_order=8.0), static=True)
     rec.send_columns(
         entity,
         indexes=[paths.time_column(t)],
-        columns=rr.LineStrips2D.columns(strips=[s for o in outlines for s in o]).partition([len(o) for o in outlines]),
+        columns=rr.LineStrips2D.columns(strips=strips_array(points, lengths)).partition(per_row),
     )
 
 

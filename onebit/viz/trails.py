@@ -23,7 +23,7 @@ from __future__ import annotations
 import numpy as np
 
 from onebit.viz import colors, paths
-from onebit.viz._series import update_indices
+from onebit.viz._series import strips_array, update_indices
 from onebit.core.lazy import lazy_module
 from onebit.viz.radii import ui_points
 
@@ -66,7 +66,7 @@ def log_trail(
         return
     trail = paths.trail(entity)
     rec.log(trail, rr.LineStrips2D.from_fields(colors=color, radii=width, draw_order=TRAIL_ORDER), static=True)
-    rec.send_columns(trail, indexes=[paths.time_column(np.asarray(t)[1:])], columns=rr.LineStrips2D.columns(strips=list(seg)))
+    rec.send_columns(trail, indexes=[paths.time_column(np.asarray(t)[1:])], columns=rr.LineStrips2D.columns(strips=strips_array(seg, 2)))
 
 
 def log_full_path(

@@ -27,18 +27,18 @@ def home(tmp_path_factory) -> Path:
 @pytest.fixture(scope="module")
 def imported(home, tmp_path_factory) -> Path:
     out = tmp_path_factory.mktemp("casas-ds") / "home"
-    assert main(["import", "casas", str(home), str(out), "--targets", "1"]) == 0
+    assert main(["import", "casas", str(home), str(out), "--targets", "1", "--doors", "D001"]) == 0
     return out
 
 
 def test_the_dataset_folder_loses_nothing(home, imported):
     log = read_casas(home)
-    motion = pl.read_csv(imported / "motion.csv")
+    motion = pl.read_csv(imported / "motion.csv").filter(pl.col("repaired") == 0)  # lines of the log, not inserted OFFs
     other = pl.read_csv(imported / "other.csv")
     notes = pl.read_csv(imported / "annotations.csv")
     assert motion.height + other.height + log.rejects.height == log.lines
     assert set(motion["sensor"]) == {k for k in LAYOUT}  # the M### and D### sensors
-    assert set(other["kind"]) == {"temperature", "other"}
+    assert set(other["kind"]) == {"temperature", "light"}
     assert notes["annotation"].str.contains("Enter_Home").any()
     info = tomllib.loads((imported / "import.toml").read_text())
     assert info["counts"]["reordered"] == log.reordered > 0
@@ -50,7 +50,7 @@ def test_the_learned_graph_is_the_hallway(imported):
     site = load_site(imported / "site.toml")
     g = site.sensor_graph
     assert {tuple(sorted(e)) for e in g.edges} == {tuple(sorted(e)) for e in EDGES}
-    assert set(g.entries) == set(g.exits) == {"D001", "D002"}
+    assert set(g.entries) == set(g.exits) == {"D001"}  # the closet contact D002 is an ordinary node, not a way out
     assert ("D001", "M001") in g.signatures
     assert site.targets == 1 and site.epoch == "2011-06-15T08:00:00"
 
@@ -96,9 +96,11 @@ def test_a_layout_file_gives_positions_and_edges(home, tmp_path):
     site = load_site(tmp_path / "ds" / "site.toml")
     assert {m.id: m.position for m in site.motion_sensors} == {k: tuple(map(float, v)) for k, v in LAYOUT.items()}
     assert s.info["graph"]["source"] == "layout file" and s.info["layout"]["positions"] == "layout file"
-    lay.write_text('[sensors]\nM001 = [0, 0]\n')
-    with pytest.raises(InputError, match=r"layout.toml: field 'sensors': sensor\(s\) \['D001'"):
-        import_casas(home, tmp_path / "ds2", layout=lay)
+    lay.write_text('[sensors]\nM001 = [0, 0]\nM002 = [3, 0]\n')  # the others are not placed: kept in other.csv, named
+    s2 = import_casas(home, tmp_path / "ds2", layout=lay)
+    assert s2.info["layout"]["unplaced"] == sorted(set(LAYOUT) - {"M001", "M002"}, key=lambda n: (n[0], int(n[1:])))
+    assert set(pl.read_csv(tmp_path / "ds2" / "motion.csv")["sensor"]) == {"M001", "M002"}
+    assert "M003" in set(pl.read_csv(tmp_path / "ds2" / "other.csv")["sensor"])
     lay.write_text('[sensors]\nM001 = "here"\n')
     with pytest.raises(InputError, match="sensors.M001"):
         import_casas(home, tmp_path / "ds3", layout=lay)

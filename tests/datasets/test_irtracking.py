@@ -13,6 +13,8 @@ from onebit.core.errors import InputError
 from onebit.core.site import load_site
 from onebit.datasets.irtracking import DEFAULT_TARGETS, import_irtracking
 from onebit.datasets.irtracking_sim import write_irtracking
+from onebit.pipeline.report import metric
+from onebit.pipeline.runner import run_pipeline
 
 
 @pytest.fixture(scope="module")
@@ -76,9 +78,6 @@ def test_missing_coordinates_and_bad_options(tmp_path, files):
 def test_imported_dataset_runs_from_its_frame_log(files, tmp_path):
     """The frames stage serves every tracker's tables from frames.csv: levels at every frame,
     motion edges and proximity frames of the binary sensors declared once."""
-    from onebit.pipeline.report import metric
-    from onebit.pipeline.runner import run_pipeline
-
     ds = tmp_path / "ds"
     import_irtracking(files.readings, ds, truth=files.truth, radius=0.8, targets=3)
     res = run_pipeline(ds, tmp_path / "run", trackers=["istate"])

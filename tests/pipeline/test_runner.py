@@ -233,3 +233,52 @@ def test_run_toml_fuzz_only_onebit_errors_and_bounded(tmp_path_factory, blob):
         check_sections(load_run_config(p), stages(), source=p)
     except OnebitError as exc:
         assert len(str(exc)) <= MAX_MESSAGE + 200
+
+
+def test_a_dataset_run_toml_motion_and_scores_sections_are_used(tmp_path):
+    """Issue #26: ``[motion]`` and ``[scores]`` of the dataset's own ``run.toml`` were validated but
+    ignored (``ctx.config.get`` instead of the section), so ``period = 0.5`` ran at 1.0."""
+    d = tmp_path / "data"
+    d.mkdir()
+    shutil.copy(builtin_site_path("hallway"), d / "site.toml")
+    (d / "motion.csv").write_text("t,sensor,value\n0,104,1\n1.6,104,0\n2.1,103,1\n3.7,103,0\n4.2,102,1\n5.8,102,0\n")
+    (d / "run.toml").write_text("[motion]\nperiod = 0.5\n")
+    res = run_pipeline(d, tmp_path / "run", trackers=["hmm1"])
+    assert res.status["motion"].startswith("ok")
+    frames = pl.read_parquet(tmp_path / "run" / "tables" / "frames.parquet")
+    assert frames["slot"].max() >= 10  # 6 s at 0.5 s slots, not 1.0 s
+    assert tomllib.loads((tmp_path / "run" / "run.toml").read_text())["motion"]["period"] == 0.5
+
+
+def test_no_rrd_writes_the_same_tables_and_report_without_recordings(lab_run, tmp_path, capsys):
+    data, res = lab_run
+    out = tmp_path / "norrd"
+    assert main(["run", str(data), "--out", str(out), "--no-rrd"]) == 0
+    assert "Rerun recordings: none (--no-rrd)" in capsys.readouterr().out
+    assert not (out / "rrd").exists()
+    names = sorted(p.name for p in (res.out / "tables").glob("*.parquet"))
+    assert sorted(p.name for p in (out / "tables").glob("*.parquet")) == names
+    for name in names:
+        if name == "timings.parquet":  # seconds differ from run to run
+            continue
+        assert pl.read_parquet(out / "tables" / name).equals(pl.read_parquet(res.out / "tables" / name)), name
+    ours, theirs = load_report(out), load_report(res.out)
+    seconds = pl.col("unit") != "s"
+    assert ours.filter(seconds).equals(theirs.filter(seconds))
+    record = tomllib.loads((out / "run.toml").read_text())
+    assert record["timing"]["rrd"] is False
+    assert all(v["viz_s"] < 0.01 for k, v in record["timing"].items() if isinstance(v, dict))
+
+
+def test_run_record_times_work_recording_and_writing_of_every_stage(lab_run, tmp_path):
+    _, res = lab_run
+    record = tomllib.loads((res.out / "run.toml").read_text())
+    timing = record["timing"]
+    ran = [name for name, state in record["stages"].items() if state.startswith("ok")]
+    assert set(ran) <= set(timing) and timing["rrd"] is True
+    for name in ran:
+        assert {"work_s", "viz_s", "write_s"} <= set(timing[name]) and min(timing[name].values()) >= 0.0
+        assert f"({timing[name]['work_s']:.2f} s)" in record["stages"][name]  # the status shows the work alone
+    assert timing["entered_unix"] <= (res.out / "run.toml").stat().st_mtime
+    # a run record given back as --config ignores the timing (not a stage section)
+    assert "timing" not in load_run_config(res.out / "run.toml")

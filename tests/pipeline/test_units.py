@@ -253,7 +253,10 @@ def test_report_rows_scale_with_the_units(runs, scenario):
         if va is None or (isinstance(va, float) and math.isnan(va)):
             assert vb is None or math.isnan(vb), (row_a, row_b)
             continue
-        rel = 1e-6 if mode == "exact" or scale == 1.0 else 1e-3
+        # close: the point summary moves by up to 1 cm, so what depends on it continuously (HOTA's
+        # similarity at the metric gates, every truth frame scored) agrees to rel 1e-3 as lengths do
+        smooth = row_a["metric"].startswith(("hota", "deta", "assa"))
+        rel = 1e-6 if mode == "exact" or (scale == 1.0 and not smooth) else 1e-3
         assert vb == pytest.approx(va * scale, rel=rel, abs=1e-9 * scale), (row_a, row_b)
 
 

@@ -14,13 +14,15 @@ from onebit.datasets.casas_sim import write_casas_log
 from onebit.readers.casas import read_casas
 from onebit.readers.loginfo import log_info
 
+KIND_ROWS = {"motion", "contact", "door", "temperature", "item", "light", "analog", "other"}
+
 LOG = (
     "2010-11-04 00:03:50.209589\tM003\tON\tSleeping begin\n"  # line 1
     "2010-11-04 00:03:49.9\tM004\tON\n"  # line 2: 0.31 s out of order (sorted, counted)
     "2010-11-04 00:03:51\tD001\tOPEN\n"  # line 3
     "\n"  # line 4: blank (skipped)
     "2010-11-04 00:03:52.5 T001 21.5\n"  # line 5: spaces, temperature
-    "2010-11-04 00:03:53\tLS001\t13\n"  # line 6: other
+    "2010-11-04 00:03:53\tLS001\t13\n"  # line 6: a light (L###)
     "2010-11-04 00:03:54\tM003\tmaybe\n"  # line 7: unreadable motion value
     "2010-11-04\tM003\n"  # line 8: too few fields
     "2010-13-04 00:03:55\tM003\tOFF\n"  # line 9: no such month
@@ -28,7 +30,7 @@ LOG = (
     "2010-11-04 00:03:56\tD001\tCLOSE\n"  # line 11
     "2010-11-04 00:03:56\tD001\tCLOSE\n"  # line 12: duplicate
     "2011-11-04 00:03:57\tM003\tOFF\n"  # line 13: a year later, alone
-    "2010-11-04 00:03:58\tm005\toff\tSleeping end\n"  # line 14: not an M### id (other), value kept
+    "2010-11-04 00:03:58\tm005\toff\tSleeping end\n"  # line 14: not a CASAS id: a named sensor, motion by its value
 )
 
 
@@ -45,10 +47,11 @@ def test_events_kinds_annotations_and_rejects(tmp_path):
     ev = {r["line"]: r for r in log.events.iter_rows(named=True)}
     assert set(ev) == {1, 2, 3, 5, 6, 11, 14}
     assert ev[1]["kind"] == "motion" and ev[1]["on"] is True and ev[1]["annotation"] == "Sleeping begin"
-    assert ev[3]["kind"] == "door" and ev[3]["on"] is True
+    assert ev[3]["kind"] == "contact" and ev[3]["on"] is True  # a D### contact is no door unless a layout says so
     assert ev[11]["on"] is False  # CLOSE
     assert ev[5]["kind"] == "temperature" and ev[5]["value"] == "21.5" and ev[5]["on"] is None
-    assert ev[6]["kind"] == "other" and ev[14]["kind"] == "other"
+    assert ev[6]["kind"] == "light" and ev[14]["kind"] == "motion" and ev[14]["on"] is False
+    assert ev[1]["activity"] == "Sleeping" and ev[1]["activity_edge"] == "begin" and ev[1]["residents"] is None
     # time: seconds since the log's first second; sorted, the late line counted
     assert log.origin.source == "data"
     assert ev[1]["t"] - ev[2]["t"] == pytest.approx(0.309589, abs=1e-6)
@@ -81,7 +84,7 @@ def test_the_fixture_home(tmp_path):
     log = read_casas(p)
     assert 250 <= log.lines <= 500 and log.rejects.height == 0
     counts = log.kind_counts()
-    assert counts["motion"] > 200 and counts["door"] >= 6 and counts["temperature"] > 5
+    assert counts["motion"] > 200 and counts["contact"] >= 6 and counts["temperature"] > 5
     assert log.reordered > 0  # stamps out of order by up to 0.7 s are sorted, not rejected
     on = log.events.filter(pl.col("kind") == "motion").sort("t")
     repeated = on.filter(pl.col("on") & (pl.col("on").shift(1).over("sensor") == True))  # noqa: E712
@@ -92,9 +95,9 @@ def test_logs_info_describes_a_casas_log(tmp_path):
     p = write_casas_log(tmp_path / "home.txt", seed=1)
     info = log_info(p)
     by = {r["source"]: r for r in info.iter_rows(named=True)}
-    assert set(by) == {"home.txt", "home.txt:motion", "home.txt:door", "home.txt:temperature", "home.txt:other"}
-    assert by["home.txt:motion"]["sensors"] == 10 and by["home.txt:door"]["sensors"] == 2
-    assert by["home.txt"]["rows"] == sum(by[k]["rows"] for k in by if ":" in k)
+    assert {"home.txt", "home.txt:motion", "home.txt:contact", "home.txt:temperature", "home.txt:light"} <= set(by)
+    assert by["home.txt:motion"]["sensors"] == 10 and by["home.txt:contact"]["sensors"] == 2
+    assert by["home.txt"]["rows"] == sum(by[k]["rows"] for k in by if ":" in k and k.split(":")[1] in KIND_ROWS)
     assert by["home.txt"]["span_s"] > 300 and by["home.txt:motion"]["rate_hz"] > 0
 
 

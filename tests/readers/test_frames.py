@@ -11,6 +11,7 @@ from hypothesis import strategies as st
 from onebit.core.errors import InputError
 from onebit.core.tables import FRAMES
 from onebit.readers.frames import edges_of_levels, frame_log_layout, read_frames_csv
+from onebit.readers.motion import read_motion_csv
 
 SENSORS = ["a", "b", "c"]
 
@@ -102,8 +103,6 @@ def test_empty_log(tmp_path):
 def test_a_sampled_toggle_log_of_level_sensors_is_not_rejected(tmp_path):
     """One 0/1 per sensor per frame in motion.csv: for level sensors the repeats are held
     states (counted), for edge sensors (a PIR's trigger) they stay rejects."""
-    from onebit.readers.motion import read_motion_csv
-
     p = tmp_path / "motion.csv"
     grid = [[1, 0], [1, 0], [1, 1], [0, 1], [0, 0], [0, 0]]
     p.write_text("t,sensor,value\n" + "".join(f"{k},{s},{v}\n" for k, row in enumerate(grid) for s, v in zip("ab", row)))

@@ -228,7 +228,9 @@ def redecode_meetings(
 ) -> tuple[np.ndarray, list[dict]]:
     """Every meeting of two users (:func:`meetings`, in slot order) jointly re-decoded
     (:func:`decode_pair`), either pairing of the tails, the candidate of highest exact
-    ``log L`` kept when it beats the current paths. Returns the paths and one record per
+    ``log L`` kept when it beats the current paths. After an accepted change the meetings
+    still ahead are listed again on the changed paths (issue #22: a list made once on the
+    initial paths named users absent after an exchange of tails). Returns the paths and one record per
     meeting (slots, users, gain in ``log L``, whether the tails were exchanged)."""
     n = len(eatg.nodes)
     log_a = second_order_tensor(eatg.a1, eatg.a2, np.arange(n))
@@ -236,7 +238,10 @@ def redecode_meetings(
     x = np.array(paths, dtype=np.int64, copy=True)
     d = x.shape[1]
     log = []
-    for u, v, w0, w1 in meetings(x, eatg.hops, pad=pad):  # sequential: each re-decoding changes the paths the next one sees
+    queue, done = meetings(x, eatg.hops, pad=pad), set()
+    while queue:  # sequential: each re-decoding changes the paths the next one sees
+        u, v, w0, w1 = queue.pop(0)
+        done.add((u, v, w0))
         a = w0 - 1
         ctx = np.array([_context(x[u], a), _context(x[v], a)], dtype=np.int64)
         start = (space.state(x[u, a], ctx[0]), space.state(x[v, a], ctx[1]))
@@ -264,6 +269,9 @@ def redecode_meetings(
             x[[u, v], w0 : w1 + 1] = pick[0]
             if pick[1]:  # the tails change hands: from here on each follows the other's path
                 x[u, w1 + 1 :], x[v, w1 + 1 :] = x[v, w1 + 1 :].copy(), x[u, w1 + 1 :].copy()
+            # the paths changed from w0 on: the later meetings are those of the new paths (a user
+            # whose tail went to the other may no longer be present at a meeting listed before)
+            queue = [m for m in meetings(x, eatg.hops, pad=pad) if m[2] >= w0 and (m[0], m[1], m[2]) not in done]
         mid = (w0 + w1) // 2
         log.append({"slot": w0, "end": w1, "users": (u, v), "gain": best - cur, "exchanged": bool(pick and pick[1]), "node": int(x[u, mid])})
     return x, log

@@ -10,7 +10,8 @@ online on the same windows (or ``offline = true``: one window over the whole run
 Outputs (tables ``<tracker>_<key>``): ``tracks`` (TRACKS; one row per user and slot at the
 slot's mid time, ``node`` and its x/y), ``eatg`` (kind, src, dst, weight, hops), ``windows``
 (per HMM window: slot, K, K_now, Sig_in, Sig_out, order, states, overlap), ``decoder``
-(slots, seconds), and for ``findinghumo`` ``switches`` (CPDA switches: slot, node, users,
+(slots, seconds), ``events`` (TRACKER_EVENTS: the track each ON edge went to,
+:func:`onebit.trackers.attribution.attribute_events`), and for ``findinghumo`` ``switches`` (CPDA switches: slot, node, users,
 pairing) and ``cpda`` (every co-location event CPDA decided, with the alternatives'
 posteriors, :func:`~onebit.trackers.findinghumo.cpda.decisions_table`).
 """
@@ -30,6 +31,7 @@ from onebit.models.graph_hmm.decoding import (
 )
 from onebit.models.graph_hmm.joint import joint_table, redecode_meetings
 from onebit.readers.motion import outside_silence
+from onebit.trackers.attribution import attribute_events
 from onebit.trackers.base import ARTIFACTS, PROGRESS, TrackerSpec
 from onebit.trackers.findinghumo.cpda import cpda, decisions_table, switches_table
 
@@ -88,6 +90,7 @@ def _run(name: str, mode: str, inputs: dict, site: Site, cfg: HmmConfig) -> dict
     paths = cap_users(paths, active, eatg.hops, cap)
     tracks = outside_silence(tracks_table(name, paths, nodes, site, t0, cfg.period), silent)  # the empty room: no track
     out["tracks"] = tracks
+    out["events"] = attribute_events(inputs["motion"], tracks, nodes, eatg.hops, t0=t0, period=cfg.period)
     out["eatg"] = eatg.table()
     out["windows"] = windows_table(res)
     out["decoder"] = pl.DataFrame({"slots": [int(active.shape[0])], "users": [int(paths.shape[0])]})

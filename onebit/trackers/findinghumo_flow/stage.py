@@ -25,6 +25,7 @@ from onebit.models.graph_hmm.joint import joint_table, redecode_meetings
 from onebit.models.graph_hmm.decoding import HmmConfig, available, cap_users, decode_motion, tracks_table, windows_table
 from onebit.models.graph_hmm.viterbi import log_safe
 from onebit.readers.motion import outside_silence
+from onebit.trackers.attribution import attribute_events
 from onebit.trackers.base import ARTIFACTS, PROGRESS, TrackerSpec
 from onebit.trackers.findinghumo_flow.association import (
     BIRTH, Fragment, assemble, dwell_means, fragments, join_cost, meeting_joins, meetings, min_cost_cover, pace, visits,
@@ -160,6 +161,7 @@ def run_flow(inputs: dict, site: Site, config: FlowConfig) -> dict:
     join_table = _joins_table(joins, nodes)
     return {
         "tracks": tracks,
+        "events": attribute_events(inputs["motion"], tracks, nodes, eatg.hops, t0=run.t0, period=cfg.period),
         "fragments": frag_table,
         "joins": join_table,
         "eatg": eatg.table(),

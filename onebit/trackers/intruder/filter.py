@@ -276,23 +276,67 @@ def run_filter_reference(
         np.zeros((T, L, 2)), np.zeros((T, L)), np.zeros(T),
     )  # fmt: skip
     pick = np.linspace(0, n_particles - 1, L).round().astype(np.int64) if L else np.zeros(0, np.int64)
-    draw = systematic_resample if resample == "systematic" else multinomial_resample
     for k in range(T):
-        p, redraws, clamped = propagate(p, room, motion, rng)
-        lw = np.log(np.maximum(p.w, 1e-300)) + log_weights(p.x, p.y, fired[k], blind[k], dep, half_w, half_d)
-        p.w = normalise(lw)
-        res.ess[k] = effective_sample_size(p.w)
-        res.redraws[k], res.clamped[k] = redraws, clamped
-        res.estimates[k] = estimate_cell(p.x, p.y, p.w, dep.grid, half_w, half_d, mask)
-        mx, my = float(np.dot(p.w, p.x)), float(np.dot(p.w, p.y))
-        res.spread[k] = math.sqrt(float(np.dot(p.w, (p.x - mx) ** 2 + (p.y - my) ** 2)))
+        p, step = filter_step(
+            p, fired[k], blind[k], dep, room, motion, half_w=half_w, half_d=half_d, mask=mask, rng=rng,
+            resample=resample, resample_when=resample_when, ess_threshold=ess_threshold, pick=pick,
+        )  # fmt: skip
+        res.estimates[k], res.ess[k], res.redraws[k], res.clamped[k] = step.estimate, step.ess, step.redraws, step.clamped
+        res.spread[k], res.resampled[k] = step.spread, step.resampled
         if L:
-            res.logged_xy[k] = np.c_[p.x[pick], p.y[pick]]
-            res.logged_w[k] = p.w[pick]
-        if resample_when == "always" or res.ess[k] < ess_threshold * n_particles:
-            idx = draw(p.w, rng)
-            p = Particles(p.x[idx], p.y[idx], p.theta[idx], p.v[idx], np.full(n_particles, 1.0 / n_particles))
-            res.resampled[k] = True
+            res.logged_xy[k], res.logged_w[k] = step.logged_xy, step.logged_w
         if progress is not None:
             progress(k + 1, T)
     return res
+
+
+@dataclass
+class Step:
+    """What one iteration of :func:`filter_step` reports (a row of :class:`FilterResult`)."""
+
+    estimate: tuple[float, float]
+    ess: float
+    redraws: int
+    clamped: int
+    resampled: bool
+    spread: float
+    logged_xy: np.ndarray
+    logged_w: np.ndarray
+
+
+def filter_step(
+    p: Particles,
+    fired_k: np.ndarray,
+    blind_k: np.ndarray,
+    dep: Deployment,
+    room: Room,
+    motion: Motion,
+    *,
+    half_w: float,
+    half_d: float,
+    mask: np.ndarray,
+    rng: np.random.Generator,
+    resample: str = "systematic",
+    resample_when: str = "always",
+    ess_threshold: float = 0.5,
+    pick: np.ndarray | None = None,
+) -> tuple[Particles, Step]:
+    """One SIR iteration (steps 1-4 of the module docstring) on the posterior ``p`` of the
+    previous one: the loop body of :func:`run_filter_reference`, and the online tracker's step
+    (:mod:`onebit.trackers.intruder.online`). Returns the new posterior and the iteration's row."""
+    n_particles = len(p.x)
+    p, redraws, clamped = propagate(p, room, motion, rng)
+    lw = np.log(np.maximum(p.w, 1e-300)) + log_weights(p.x, p.y, fired_k, blind_k, dep, half_w, half_d)
+    p.w = normalise(lw)
+    ess = effective_sample_size(p.w)
+    estimate = estimate_cell(p.x, p.y, p.w, dep.grid, half_w, half_d, mask)
+    mx, my = float(np.dot(p.w, p.x)), float(np.dot(p.w, p.y))
+    spread = math.sqrt(float(np.dot(p.w, (p.x - mx) ** 2 + (p.y - my) ** 2)))
+    pick = np.zeros(0, np.int64) if pick is None else pick
+    logged_xy, logged_w = np.c_[p.x[pick], p.y[pick]], p.w[pick]
+    resampled = resample_when == "always" or ess < ess_threshold * n_particles
+    if resampled:
+        draw = systematic_resample if resample == "systematic" else multinomial_resample
+        idx = draw(p.w, rng)
+        p = Particles(p.x[idx], p.y[idx], p.theta[idx], p.v[idx], np.full(n_particles, 1.0 / n_particles))
+    return p, Step(estimate, ess, redraws, clamped, resampled, spread, logged_xy, logged_w)

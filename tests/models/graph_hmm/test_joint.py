@@ -216,3 +216,30 @@ def test_bounded_context_and_change_searches_equal_the_whole_row(row, data):
     assert _context(row, t) == int(came_from(row[None, : t + 1])[0, -1])
     ch = np.flatnonzero(row[t + 1 :] != row[t:-1])
     assert _first_change(row, t) == (t + 1 + int(ch[0]) if ch.size else row.size - 1)
+
+
+def test_a_meeting_after_an_exchange_of_tails_is_listed_on_the_new_paths():
+    """Regression (issue #22, real CASAS logs: ``KeyError: (-1, -1)``): meetings were listed once on
+    the initial paths; after an exchange of tails, a later meeting named a user who had left."""
+    truth = _rows([
+        [97, 97, 96, 96, 96, 95, 95, 95, 99, 99, 99, 111, 111, 111],
+        [111, 111, 111, 99, 99, 99, 95, 95, 95, 96, 96, 96, 97, 97],
+    ])  # fmt: skip
+    d = 24
+    x = np.full((3, d), -1, np.int64)
+    x[:2, :14] = np.where(np.arange(14)[None, :] < 7, truth, truth[::-1])  # bounced at 95
+    x[1, 14:] = IDX["111"]  # user 1 (on the bounced path) stays at 111; user 0 leaves after slot 13
+    x[2, 15:] = [IDX[str(n)] for n in [117, 110, 111, 111, 111, 110, 117, 117, 117]]  # a third user meets user 1 there
+    active = np.zeros((d, N), bool)
+    active[:14] = _crossing_activity([[EATG.nodes[j] for j in r] for r in truth])
+    for u in (1, 2):
+        on = x[u, 14:] >= 0
+        active[14 + np.flatnonzero(on), x[u, 14:][on]] = True
+    assert (1, 2) in [m[:2] for m in meetings(x, EATG.hops, pad=4)]  # listed on the initial paths
+    fixed, log = redecode_meetings(x, active, EATG, p_hit=0.9, p_false=0.05)
+    assert log[0]["exchanged"]  # the crossing is walked through: user 1 now leaves after slot 13
+    assert (fixed[1, 14:] == -1).all()
+    later = [r for r in log if r["slot"] >= 14]
+    assert later and all(r["users"] == (0, 2) for r in later)  # the later meeting is user 0's now
+    before = model_log_likelihood(x, active, EATG, p_hit=0.9, p_false=0.05)
+    assert model_log_likelihood(fixed, active, EATG, p_hit=0.9, p_false=0.05) >= before

@@ -8,7 +8,8 @@ import pytest
 import shapely
 from shapely.geometry import Point, box
 
-from onebit.datasets.okane_sim import ActiveConfig, fig9_environment, sensing_squares, simulate_active
+from onebit.datasets.okane_sim import fig9_environment
+from onebit.experiments.okane_active import ActiveConfig, sensing_squares, simulate_active
 from onebit.experiments.okane import qualitative, run as run_experiment
 from onebit.trackers.istate.active import (
     ShortestPaths,

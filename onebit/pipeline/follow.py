@@ -1,0 +1,512 @@
+"""``onebit follow``: read a dataset's logs as they grow, publish each estimate with a bounded delay.
+
+Two ways in:
+
+* **live** -- the dataset's CSV logs (``motion.csv``, ``beams.csv``, ``crossings.csv``,
+  ``proximity.csv``, ``truth.csv``, ``truth_crossings.csv``) are tailed: every poll reads the
+  lines appended since the last one. A last line without its newline is being written: it is
+  left for the next poll, never rejected. A log that shrinks is an error naming it. The *horizon*
+  (the log time known so far) is the latest stamp read.
+* **replay** (``--replay 20x``) -- a finished log is played back at 20 times its own pace: a
+  line is released when a virtual clock ``t0 + speed * (wall - wall0)`` passes its stamp; the
+  horizon is that clock.
+
+Released lines are appended to a snapshot of the dataset (a temporary folder with the
+dataset's ``*.toml``), and every poll the pipeline's own reader stages (``crossings``,
+``motion``, ``proximity``, ``correct``: :mod:`onebit.pipeline.stages`) read it with the time
+origin fixed once (the whole log's in a replay, the first poll's when live) -- the same
+readers and the same rejects as ``onebit run``.
+
+Trackers online (:data:`ONLINE`):
+
+* ``intruder`` -- per iteration, incrementally: :mod:`onebit.trackers.intruder.online` keeps the
+  particle filter's posterior and steps it over each slot once it is final;
+* ``intruder-naive`` -- per iteration, ``beams`` -- per crossing: re-run on the settled prefix
+  of their input whenever a new settled event arrives; the rows up to that event are published
+  (``beams`` assigns the fewest agents over the whole string, so a later crossing can change
+  an earlier assignment: the final report says whether the published rows equal the batch's).
+
+Every other tracker is batch-only and runs at the end. An event at ``e`` is *settled* once the
+horizon passes ``e + settle``, ``settle`` = the readers' look-ahead (1 s of reordering plus
+the longest debounce window of the site's sensors).
+
+Outputs, beside the run folder that the final batch run writes (``onebit run`` on the data
+followed, so ``OUT/report.*``, ``OUT/tables``, ``OUT/rrd`` are the batch run's):
+
+* ``OUT/live/tables/<table>/part-NNNNNN.parquet`` -- the published rows, one part per poll,
+  each written to a temp file and renamed, so a crash leaves every table readable
+  (``pl.read_parquet("OUT/live/tables/intruder_tracks/*.parquet")``): ``<tracker>_tracks``,
+  ``intruder_iterations``, ``intruder_camera`` (the pan-tilt-zoom command of every iteration,
+  with ``[intruder] camera_position``) and ``delays`` (tracker, t, delay_s);
+* ``OUT/live/rrd/follow.rrd`` -- the Rerun stream as it grows (plus ``--connect`` /
+  ``--serve-web``);
+* ``OUT/live/report.csv`` / ``.parquet`` -- per online tracker: estimates published, delay p50 /
+  p99 / max (s, wall clock, from the moment the log reached the estimate's time to its
+  publication) and whether the published rows equal the batch run's.
+
+The follow loop owns the clock (``clock`` / ``sleep`` can be injected: tests replay with a
+simulated clock); trackers never read it.
+"""
+
+from __future__ import annotations
+
+import math
+import re
+import shutil
+import tempfile
+import time
+import uuid
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import polars as pl
+
+from onebit.core import writers as outputs
+from onebit.core.config import config_from_mapping
+from onebit.core.errors import ConfigError, InputError, OnebitError
+from onebit.core.region_graph import build_region_graph
+from onebit.core.site import load_site
+from onebit.pipeline.context import RunContext, dataset_run_config
+from onebit.pipeline.runner import RunResult, check_dataset, check_out, check_sections, run_pipeline
+from onebit.pipeline.stages import TIME_SOURCES, TRACKERS, run_time_origin, stages, tracker_config
+from onebit.readers.motion import MotionConfig, site_rules
+from onebit.readers.rows import REORDER_TOLERANCE_S
+from onebit.readers.timebase import TimeOrigin
+from onebit.trackers.base import ARTIFACTS, PROGRESS
+from onebit.trackers.intruder import online as intruder_online
+from onebit.viz import live as viz_live
+
+#: Trackers that run while the log grows, and how often they publish.
+ONLINE: dict[str, str] = {
+    "intruder": "per iteration (incremental particle filter)",
+    "intruder-naive": "per iteration",
+    "beams": "per crossing (re-run on the settled prefix)",
+}
+#: The input table whose settled events close the rows of a re-run-on-prefix tracker.
+_PREFIX_EVENTS = {"intruder-naive": "motion", "beams": "crossings"}
+#: Reader stages run on every poll (truth and camera only at the end, by the batch run).
+_READER_STAGES = ("crossings", "motion", "proximity", "correct")
+#: Subfolder of OUT with the live outputs (kept by later runs into OUT).
+LIVE = "live"
+
+
+@dataclass(frozen=True, kw_only=True)
+class FollowConfig:
+    """How ``onebit follow`` reads and publishes.
+
+    replay : speed factor of a replay (``--replay 20x`` -> 20.0); ``None`` = follow growing logs.
+    poll : seconds between polls: the publication cadence (a bound on the delay added by the loop).
+    idle : seconds without a new line that end a live run.
+    settle : seconds an event must be in the past before it is final; ``None`` = the readers'
+        look-ahead (1 s reordering + the longest debounce window).
+    """
+
+    replay: float | None = None
+    poll: float = 0.25
+    idle: float = 10.0
+    settle: float | None = None
+
+    def __post_init__(self) -> None:
+        if self.replay is not None and not (isinstance(self.replay, (int, float)) and math.isfinite(self.replay) and self.replay > 0):
+            raise ConfigError(f"FollowConfig.replay = {self.replay!r}; a speed factor > 0 (e.g. 20 for --replay 20x)")
+        for name, lo in (("poll", 1e-4), ("idle", 0.0)):
+            v = getattr(self, name)
+            if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v) or v < lo:
+                raise ConfigError(f"FollowConfig.{name} = {v!r}; allowed range: [{lo}, inf) seconds")
+        if self.settle is not None and (not isinstance(self.settle, (int, float)) or not math.isfinite(self.settle) or self.settle < 0):
+            raise ConfigError(f"FollowConfig.settle = {self.settle!r}; allowed range: [0, inf) seconds")
+
+
+def parse_speed(text: str) -> float:
+    """``"20x"`` / ``"20"`` / ``"0.5x"`` -> the speed factor; anything else is a :class:`ConfigError`."""
+    m = re.fullmatch(r"\s*([0-9]*\.?[0-9]+(?:[eE][+-]?[0-9]+)?)\s*[xX]?\s*", str(text))
+    if not m or not float(m.group(1)) > 0:
+        raise ConfigError(f"--replay {text!r}: expected a speed such as 20x (20 times real time)")
+    return float(m.group(1))
+
+
+@dataclass
+class FollowResult:
+    """What :func:`follow` did: the final batch run, the follow report and the live folder."""
+
+    run: RunResult
+    report: pl.DataFrame
+    live: Path
+    batch_only: list[str] = field(default_factory=list)
+
+
+# --------------------------------------------------------------------------- sources
+
+
+@dataclass
+class _Source:
+    """One CSV log being followed: what was released into the snapshot so far."""
+
+    stem: str
+    path: Path
+    snapshot: Path
+    header: bytes | None = None
+    t_col: int = 0
+    offset: int = 0  # live: bytes of the original consumed (complete lines only)
+    lines: list[bytes] = field(default_factory=list)  # replay: every data line
+    release: np.ndarray = field(default_factory=lambda: np.zeros(0))  # replay: log time each line is released at
+    released: int = 0
+    last_t: float = -math.inf  # latest stamp released (live horizon)
+
+    def write(self, lines: list[bytes]) -> None:
+        if not lines:
+            return
+        with open(self.snapshot, "ab") as fh:
+            if fh.tell() == 0:
+                fh.write(self.header if self.header.endswith(b"\n") else self.header + b"\n")
+            for ln in lines:
+                fh.write(ln if ln.endswith(b"\n") else ln + b"\n")
+
+
+def _header_t_column(header: bytes, path: Path) -> int:
+    names = [c.strip().strip('"') for c in header.decode("utf-8", errors="replace").rstrip("\r\n").split(",")]
+    if "t" not in names:
+        raise InputError(f"no 't' column in the header {names}", file=path, line=1)
+    return names.index("t")
+
+
+def _stamps(lines: list[bytes], col: int, origin: TimeOrigin) -> np.ndarray:
+    """``t`` (run seconds) of each line's field ``col``; NaN where it does not parse."""
+    if not lines:
+        return np.zeros(0)
+    fields = []
+    for ln in lines:
+        parts = ln.decode("utf-8", errors="replace").rstrip("\r\n").split(",")
+        fields.append(parts[col].strip().strip('"') if col < len(parts) else None)
+    t = pl.DataFrame({"t": fields}, schema={"t": pl.String}).select(origin.t_expr("t").alias("t"))["t"]
+    return t.cast(pl.Float64).fill_null(float("nan")).to_numpy()
+
+
+def _complete_lines(data: bytes) -> tuple[list[bytes], int]:
+    """The complete lines of ``data`` and the bytes they take (a line without its newline is left)."""
+    end = data.rfind(b"\n")
+    if end < 0:
+        return [], 0
+    return data[: end + 1].splitlines(keepends=True), end + 1
+
+
+# --------------------------------------------------------------------------- the loop
+
+
+class _Publisher:
+    """Appends published rows as parquet parts, logs them to the stream, measures delays."""
+
+    def __init__(self, live: Path, rec, wall_at: Callable[[float], float], clock: Callable[[], float]):
+        self.tables = live / "tables"
+        self.rec = rec
+        self.wall_at = wall_at
+        self.clock = clock
+        self.parts: dict[str, int] = {}
+        self.delays: list[pl.DataFrame] = []
+        self.counts: dict[str, int] = {}
+
+    def table(self, name: str, df: pl.DataFrame) -> None:
+        if df is None or df.height == 0:
+            return
+        k = self.parts.get(name, 0)
+        self.parts[name] = k + 1
+        outputs.write_parquet(df, self.tables / name / f"part-{k:06d}.parquet")
+
+    def estimates(self, tracker: str, tracks: pl.DataFrame) -> None:
+        if tracks is None or tracks.height == 0:
+            return
+        now = self.clock()
+        t = tracks["t"].to_numpy()
+        delay = np.array([max(0.0, now - self.wall_at(float(x))) for x in t])
+        self.table(f"{tracker}_tracks", tracks)
+        d = pl.DataFrame({"tracker": [tracker] * len(t), "t": t, "delay_s": delay}, schema={"tracker": pl.String, "t": pl.Float64, "delay_s": pl.Float64})
+        self.table("delays", d)
+        self.delays.append(d)
+        self.counts[tracker] = self.counts.get(tracker, 0) + len(t)
+        if self.rec is not None:
+            viz_live.log_estimates(self.rec, tracker, tracks)
+            viz_live.log_delays(self.rec, tracker, t, delay)
+
+
+def _settle(site, sections: dict) -> float:
+    """The readers' look-ahead: reordering tolerance + the longest debounce window."""
+    cfg = config_from_mapping(MotionConfig, sections.get("motion", {}), section="motion")
+    windows = [0.0]
+    if site.motion_sensors:
+        for r in site_rules(site, cfg).values():
+            windows += [r.chatter_window, r.min_on]
+    return REORDER_TOLERANCE_S + max(windows)
+
+
+def _read_prefix(snapshot: Path, scratch: Path, site, rg, sections: dict, trackers: tuple[str, ...], origin: TimeOrigin | None, stage_list) -> RunContext:
+    """The reader stages on the snapshot: a context whose ``tables`` hold what they made."""
+    ctx = RunContext(snapshot, scratch, site, rg, {k: dict(v) for k, v in sections.items() if isinstance(v, dict)}, trackers=trackers)
+    if origin is not None:
+        ctx.time_origin = origin
+    for st in stage_list:
+        if st.name not in _READER_STAGES:
+            continue
+        if any(n not in ctx.tables for n in st.needs) or st.available(ctx) is not None:
+            continue
+        try:
+            made = st.work(ctx)
+        except OnebitError as exc:
+            ctx.status[st.name] = f"failed: {exc}"
+            continue
+        ctx.tables.update({k: v for k, v in made.items() if k != ARTIFACTS})
+    return ctx
+
+
+def _inputs(entry, tables: dict, region_graph, *, until: float | None) -> dict[str, Any] | None:
+    """A tracker's inputs from ``tables``, each cut at ``t <= until`` (``None``: whole)."""
+    inputs: dict[str, Any] = {}
+    for key in entry.spec.needs:
+        src = next((s for s in entry.inputs.get(key, (key,)) if s in tables), None)
+        if src is None:
+            return None
+        df = tables[src]
+        inputs[key] = df if until is None or "t" not in df.columns else df.filter(pl.col("t") <= until)
+    inputs.update({k: tables[k] for k in entry.spec.wants if k in tables})
+    inputs["region_graph"] = region_graph
+    inputs[PROGRESS] = lambda done, total: None
+    return inputs
+
+
+def follow(
+    dataset: str | Path,
+    out: str | Path,
+    *,
+    trackers: tuple[str, ...] | None = None,
+    config: dict[str, Any] | None = None,
+    options: FollowConfig = FollowConfig(),
+    connect: str | None = None,
+    serve_web: bool = False,
+    echo: Callable[[str], None] | None = None,
+    clock: Callable[[], float] = time.monotonic,
+    sleep: Callable[[float], None] = time.sleep,
+) -> FollowResult:
+    """Follow ``dataset`` (module docstring) and end with the batch run into ``out``.
+
+    Raises :class:`OnebitError` for bad input found before anything is followed (dataset,
+    ``OUT``, site, config, tracker names, no CSV log to follow).
+    """
+    dataset, out = Path(dataset), Path(out)
+    echo = echo or (lambda s: None)
+    check_dataset(dataset)
+    check_out(out, dataset)
+    site = load_site(dataset / "site.toml")
+    rg = build_region_graph(site)
+    stage_list = stages(TRACKERS)
+    sections = dict(config or {})
+    check_sections(sections, stage_list, source="--config")
+    dataset_sections = dataset_run_config(dataset)
+    check_sections(dataset_sections, stage_list, source=dataset / "run.toml")
+    merged = {**dataset_sections, **sections}
+    known = [e.name for e in TRACKERS]
+    for tr in trackers or ():
+        if tr not in known:
+            raise ConfigError(f"--trackers: unknown tracker {tr!r}; known: {sorted(known)}")
+    chosen = tuple(trackers) if trackers else tuple(known)
+    logs = [stem for stem in TIME_SOURCES if (dataset / f"{stem}.csv").is_file()]
+    if not logs:
+        raise InputError("no CSV log to follow (motion.csv, beams.csv, crossings.csv, proximity.csv, truth.csv); "
+                         "an MCAP recording is read by 'onebit run', not followed", file=dataset)  # fmt: skip
+    settle = options.settle if options.settle is not None else _settle(site, merged)
+
+    live = out / LIVE
+    shutil.rmtree(live, ignore_errors=True)  # a previous follow's live outputs
+    live.mkdir(parents=True)
+    snapshot = Path(tempfile.mkdtemp(prefix="onebit-follow-"))
+    scratch = snapshot / ".scratch"
+    data = snapshot / "data"
+    data.mkdir()
+    scratch.mkdir()
+    try:
+        for p in dataset.glob("*.toml"):
+            shutil.copy(p, data / p.name)
+        sources = {stem: _Source(stem, dataset / f"{stem}.csv", data / f"{stem}.csv") for stem in logs}
+        origin: TimeOrigin | None = None
+        if options.replay is not None:  # the whole log is known: its origin, every line's release time
+            full = RunContext(dataset, scratch, site, rg, {}, trackers=chosen)
+            origin = run_time_origin(full)
+            for src in sources.values():
+                raw = src.path.read_bytes()
+                head, _, body = raw.partition(b"\n")
+                src.header = head + b"\n"
+                src.t_col = _header_t_column(src.header, src.path)
+                src.lines = body.splitlines(keepends=True)
+                t = _stamps(src.lines, src.t_col, origin)
+                # in file order: a line without a readable stamp goes with the line before it
+                filled = pl.Series(t).fill_nan(None).fill_null(strategy="forward").fill_null(-math.inf).to_numpy()
+                src.release = np.maximum.accumulate(filled) if len(filled) else filled
+        starts = [s.release[0] for s in sources.values() if len(s.release) and math.isfinite(s.release[0])]
+        t0 = min(starts) if starts else 0.0
+        wall0 = clock()
+        history: list[tuple[float, float]] = []  # live: (horizon, wall) at each poll
+
+        def wall_at(t: float) -> float:
+            if options.replay is not None:
+                return wall0 + (t - t0) / options.replay
+            i = next((w for h, w in history if h >= t), None)
+            return i if i is not None else clock()
+
+        recording_id = str(uuid.uuid4())
+        rec, url = viz_live.open_live(live / "rrd" / "follow.rrd", recording_id=recording_id, connect=connect, serve_web=serve_web)
+        if url:
+            echo(f"  web viewer: {url}")
+        viz_live.log_live_site(rec, site, rg)
+        pub = _Publisher(live, rec, wall_at, clock)
+
+        entries = {e.name: e for e in TRACKERS}
+        online = [n for n in ONLINE if n in chosen and (entries[n].spec.available is None or entries[n].spec.available(site) is None)]
+        batch_only = [n for n in chosen if n not in online]
+        for n in online:
+            echo(f"  {n}: online, {ONLINE[n]}")
+        if batch_only:
+            echo(f"  batch-only (run at the end): {', '.join(batch_only)}")
+        intruder_state = None
+        published: dict[str, float] = {n: -math.inf for n in online}
+        logged_edges = 0
+        last_growth = clock()
+        polls = 0
+        horizon = -math.inf
+        final = False
+        while True:
+            now = clock()
+            new = False
+            if options.replay is not None:
+                horizon = t0 + (now - wall0) * options.replay
+                for src in sources.values():
+                    n = int(np.searchsorted(src.release, horizon, side="right"))
+                    if n > src.released:
+                        src.write(src.lines[src.released : n])
+                        src.released, new = n, True
+                final = all(s.released == len(s.lines) for s in sources.values())
+                if final:
+                    horizon = max([horizon, *(s.release[-1] for s in sources.values() if len(s.release))])
+            else:
+                for src in sources.values():
+                    try:
+                        size = src.path.stat().st_size
+                    except OSError:
+                        continue
+                    if size < src.offset:
+                        raise InputError(f"the log shrank from {src.offset} to {size} bytes while followed (rotated or rewritten?)", file=src.path)
+                    if size == src.offset:
+                        continue
+                    with open(src.path, "rb") as fh:
+                        fh.seek(src.offset)
+                        chunk = fh.read(size - src.offset)
+                    lines, used = _complete_lines(chunk)
+                    if not lines:
+                        continue  # a line being written: wait for its newline
+                    src.offset += used
+                    if src.header is None:
+                        src.header, lines = lines[0], lines[1:]
+                        src.t_col = _header_t_column(src.header, src.path)
+                        src.snapshot.write_bytes(src.header if src.header.endswith(b"\n") else src.header + b"\n")
+                    src.write(lines)
+                    src.lines.extend(lines)
+                    new = True
+                if new:
+                    last_growth = now
+                    if origin is None:
+                        origin = run_time_origin(RunContext(data, scratch, site, rg, {}, trackers=chosen))
+                    for src in sources.values():
+                        fresh = src.lines[src.released :]
+                        if fresh:
+                            t = _stamps(fresh, src.t_col, origin)
+                            t = t[np.isfinite(t)]
+                            if len(t):
+                                src.last_t = max(src.last_t, float(t.max()))
+                            src.released = len(src.lines)
+                    horizon = max(s.last_t for s in sources.values())
+                    history.append((horizon, now))
+                final = now - last_growth >= options.idle
+            polls += 1
+            if new or final:
+                ctx = _read_prefix(data, scratch, site, rg, merged, chosen, origin, stage_list)
+                tables = ctx.tables
+                if "motion" in tables:
+                    settled = tables["motion"].filter(pl.col("t") <= horizon - settle) if not final else tables["motion"]
+                    if settled.height > logged_edges:
+                        viz_live.log_states(rec, settled.slice(logged_edges))
+                        logged_edges = settled.height
+                for name in online:
+                    entry = entries[name]
+                    if name == "intruder":
+                        if "motion" not in tables:
+                            continue
+                        if intruder_state is None:
+                            intruder_state = intruder_online.start(site, tracker_config(entry, ctx))
+                        rows = intruder_online.advance(intruder_state, tables["motion"], horizon=horizon, settle=settle, final=final)
+                        pub.estimates(name, rows["tracks"])
+                        pub.table(f"{name}_iterations", rows["iterations"])
+                        if "camera" in rows:
+                            pub.table(f"{name}_camera", rows["camera"])
+                        continue
+                    events = tables.get(_PREFIX_EVENTS[name])
+                    if name == "beams":
+                        events = tables.get("corrected_crossings", events)
+                    if events is None or events.height == 0:
+                        continue
+                    until = None if final else horizon - settle
+                    ev = events if until is None else events.filter(pl.col("t") <= until)
+                    if ev.height == 0:
+                        continue
+                    last = math.inf if final else float(ev["t"].max())
+                    if last <= published[name]:
+                        continue
+                    inputs = _inputs(entry, tables, rg, until=until)
+                    if inputs is None:
+                        continue
+                    res = entry.spec.run(inputs, site, tracker_config(entry, ctx))
+                    tracks = res["tracks"]
+                    rows = tracks.filter((pl.col("t") > published[name]) & (pl.col("t") <= last))
+                    published[name] = last
+                    pub.estimates(name, rows)
+            if final:
+                break
+            sleep(options.poll)
+        viz_live.close_live(rec)
+        echo(f"  followed {polls} polls; final batch run")
+        final_data = dataset if options.replay is not None else data
+        run = run_pipeline(final_data, out, trackers=trackers, config=config, progress=False, echo=echo)
+        report = _follow_report(out, live, online, pub, polls, batch_only)
+        outputs.write_parquet(report, live / "report.parquet")
+        outputs.write_csv(report, live / "report.csv")
+        return FollowResult(run=run, report=report, live=live, batch_only=batch_only)
+    finally:
+        shutil.rmtree(snapshot, ignore_errors=True)
+
+
+def read_live_table(live: str | Path, name: str) -> pl.DataFrame | None:
+    """Every part of ``OUT/live/tables/<name>/`` in order (``None`` when nothing was published)."""
+    parts = sorted((Path(live) / "tables" / name).glob("part-*.parquet"))
+    return pl.concat([pl.read_parquet(p) for p in parts]) if parts else None
+
+
+def _follow_report(out: Path, live: Path, online: list[str], pub: _Publisher, polls: int, batch_only: list[str]) -> pl.DataFrame:
+    rows: list[tuple[str, str, float, str]] = [("follow", "polls", float(polls), "polls"), ("follow", "batch_only_trackers", float(len(batch_only)), "trackers")]
+    delays = pl.concat(pub.delays) if pub.delays else pl.DataFrame(schema={"tracker": pl.String, "t": pl.Float64, "delay_s": pl.Float64})
+    for name in online:
+        got = read_live_table(live, f"{name}_tracks")
+        batch_path = out / "tables" / f"{name}_tracks.parquet"
+        batch = pl.read_parquet(batch_path) if batch_path.is_file() else None
+        rows.append((name, "online_estimates", float(got.height if got is not None else 0), "rows"))
+        if batch is not None:
+            a = got if got is not None else batch.clear()
+            cols = batch.columns
+            same = a.select(cols).sort(["track", "t"], maintain_order=True).equals(batch.sort(["track", "t"], maintain_order=True))
+            rows.append((name, "online_equals_batch", 1.0 if same else 0.0, "flag"))
+        d = delays.filter(pl.col("tracker") == name)["delay_s"].to_numpy()
+        if len(d):
+            rows += [
+                (name, "delay_p50", float(np.percentile(d, 50)), "s"),
+                (name, "delay_p99", float(np.percentile(d, 99)), "s"),
+                (name, "delay_max", float(d.max()), "s"),
+            ]
+    return pl.DataFrame(rows, schema={"stage": pl.String, "metric": pl.String, "value": pl.Float64, "unit": pl.String}, orient="row")

@@ -1,0 +1,245 @@
+"""Identity per event: who is who at home (issue 22 item 3; definitions in docs/metrics.md).
+
+Inputs: ``truth_events`` (:data:`~onebit.core.tables.TRUTH_EVENTS`: t, sensor, residents
+``"1"``/``"1;2"``) and a tracker's ``<tracker>_events``
+(:data:`~onebit.core.tables.TRACKER_EVENTS`: t, sensor, track or null). A truth event is
+matched to the tracker event of the same sensor within ``match_tol_s`` (1 ms) of it; one with
+no match, or matched to a null track, is *unattributed* and counts as wrong everywhere.
+
+* **accuracy** -- the share of truth events whose track, under the best one-to-one relabelling
+  ``m`` of tracks to residents, names one of the event's residents::
+
+      acc = max_m  (1/E) sum_e [ m(track_e) in residents_e ]
+
+  ``m`` is found by the Hungarian method (``scipy.optimize.linear_sum_assignment``) on
+  ``G[track, r]`` = events of the track that name ``r`` (an event names each resident once,
+  so ``sum_track G[track, m(track)]`` counts each event at most once). Tracks left without a
+  resident (more tracks than residents) score 0.
+* **ARI** -- the adjusted Rand index (Hubert & Arabie 1985) between the resident of each
+  single-resident truth event and its track; an unattributed event is a cluster of its own
+  (it agrees with nothing). 1 = the same partition, ~0 = chance::
+
+      ARI = (sum_ij C(n_ij, 2) - [sum_i C(a_i, 2) sum_j C(b_j, 2)] / C(n, 2))
+            / (1/2 [sum_i C(a_i, 2) + sum_j C(b_j, 2)] - [sum_i C(a_i, 2) sum_j C(b_j, 2)] / C(n, 2))
+
+* **switches per hour** -- per resident, its single-resident events in time order that were
+  attributed (unattributed ones skipped); a switch is a change of track between consecutive
+  ones; summed over residents, per hour of the truth's span.
+* **count error** -- per minute of the truth's span, ``|n_est - n_true|`` averaged: ``n_true``
+  the time-averaged number of residents present (a resident is present from its first to its
+  last labelled event, except in gaps between its events longer than ``absent_after_s``,
+  600 s); ``n_est`` the tracker's time-averaged number of tracks (rows of its TRACKS table
+  in the minute x the slot length / 60 s), or a constant for a baseline.
+
+Baselines, scored by the same functions (:func:`baseline_events`):
+
+* ``busier`` -- every event to one track: accuracy = the share of events naming the busier
+  resident (the one named by most events).
+* ``nearest`` -- a greedy online tracker a user would write first: ``K`` pseudo-tracks (``K`` =
+  the number of residents in the truth: told, not estimated); each event, in time order, goes to
+  the pseudo-track whose most recent event is at the nearest sensor (sensor-graph hops; ties:
+  the most recently used); while fewer than ``K`` exist, an event more than 1 hop from every
+  pseudo-track's last sensor starts a new one.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import polars as pl
+
+from onebit.core.tables import TRACKER_EVENTS, TRUTH_EVENTS
+
+#: A truth event and a tracker event of the same sensor this close (s) are the same event.
+MATCH_TOL_S = 1e-3
+#: A resident absent this long between two of its events (s) is not counted present in between.
+ABSENT_AFTER_S = 600.0
+
+
+@dataclass(frozen=True)
+class IdentityScores:
+    """The identity metrics of one tracker (or baseline) on one truth (module docstring)."""
+
+    accuracy: float
+    ari: float
+    switches_per_hour: float
+    count_error: float | None
+    events: int
+    attributed: float
+    mapping: dict[str, str]
+
+    def rows(self, stage: str) -> list[tuple[str, str, float, str]]:
+        out = [
+            (stage, "identity_accuracy", self.accuracy, "fraction of events"),
+            (stage, "identity_ari", self.ari, "ARI"),
+            (stage, "identity_switches_per_hour", self.switches_per_hour, "switches/h"),
+            (stage, "identity_attributed", self.attributed, "fraction of events"),
+            (stage, "identity_events", float(self.events), "events"),
+        ]
+        if self.count_error is not None:
+            out.append((stage, "count_error_per_minute", self.count_error, "people"))
+        return out
+
+
+def matched(truth_events: pl.DataFrame, tracker_events: pl.DataFrame, *, tol: float = MATCH_TOL_S) -> pl.DataFrame:
+    """Truth events (t, sensor, residents) with the ``track`` of the tracker event of the same
+    sensor nearest in time within ``tol`` (null: unattributed), sorted by t."""
+    te = truth_events.select(list(TRUTH_EVENTS)).sort("t")
+    ev = tracker_events.select(list(TRACKER_EVENTS)).filter(pl.col("track").is_not_null()).sort("t")
+    if te.height == 0:
+        return te.with_columns(track=pl.lit(None, pl.String))
+    return te.join_asof(ev.rename({"t": "_t"}).with_columns(t=pl.col("_t")), on="t", by="sensor", strategy="nearest", check_sortedness=False,
+                        tolerance=tol).drop("_t")  # fmt: skip
+
+
+def relabelling(m: pl.DataFrame) -> tuple[dict[str, str], int]:
+    """The best one-to-one map track -> resident (Hungarian) and the events it gets right."""
+    from scipy.optimize import linear_sum_assignment
+
+    att = m.filter(pl.col("track").is_not_null())
+    if att.height == 0:
+        return {}, 0
+    pairs = att.with_columns(r=pl.col("residents").str.split(";")).explode("r").group_by("track", "r").len()
+    tracks = sorted(pairs["track"].unique().to_list())
+    res = sorted(pairs["r"].unique().to_list())
+    g = np.zeros((len(tracks), len(res)), dtype=np.int64)
+    ti = {t: i for i, t in enumerate(tracks)}
+    ri = {r: i for i, r in enumerate(res)}
+    for t, r, n in pairs.iter_rows():
+        g[ti[t], ri[r]] = n
+    rows, cols = linear_sum_assignment(g, maximize=True)
+    mapping = {tracks[i]: res[j] for i, j in zip(rows, cols) if g[i, j] > 0}
+    return mapping, int(sum(g[i, j] for i, j in zip(rows, cols)))
+
+
+def adjusted_rand_index(a: np.ndarray, b: np.ndarray) -> float:
+    """ARI of two labelings (integer arrays of equal length; module docstring). 1.0 when both
+    are one cluster or all singletons identically; 0 for fewer than 2 items."""
+    n = a.size
+    if n < 2:
+        return 0.0
+    _, ai = np.unique(a, return_inverse=True)
+    _, bi = np.unique(b, return_inverse=True)
+    cont = np.zeros((ai.max() + 1, bi.max() + 1), dtype=np.float64)
+    np.add.at(cont, (ai, bi), 1.0)
+
+    def c2(x):
+        return x * (x - 1) / 2.0
+
+    s_ij = c2(cont).sum()
+    s_a = c2(cont.sum(axis=1)).sum()
+    s_b = c2(cont.sum(axis=0)).sum()
+    expected = s_a * s_b / c2(n)
+    top = 0.5 * (s_a + s_b)
+    if top == expected:
+        return 1.0 if s_ij == expected else 0.0
+    return float((s_ij - expected) / (top - expected))
+
+
+def presence_count(truth_events: pl.DataFrame, minutes: np.ndarray, *, absent_after_s: float = ABSENT_AFTER_S) -> np.ndarray:
+    """Time-averaged number of residents present in each minute starting at ``minutes`` (s)."""
+    single = truth_events.with_columns(r=pl.col("residents").str.split(";")).explode("r").sort("r", "t")
+    out = np.zeros(minutes.size)
+    for _, grp in single.group_by("r", maintain_order=True):
+        t = grp["t"].to_numpy()
+        gaps = np.flatnonzero(np.diff(t) > absent_after_s)
+        starts = np.r_[t[0], t[gaps + 1]]
+        ends = np.r_[t[gaps], t[-1]]
+        for s, e in zip(starts, ends):
+            out += np.clip(np.minimum(minutes + 60.0, e) - np.maximum(minutes, s), 0.0, 60.0) / 60.0
+    return out
+
+
+def track_count(tracks: pl.DataFrame, minutes: np.ndarray) -> np.ndarray:
+    """Time-averaged number of tracks in each minute: rows of TRACKS in it x slot length / 60."""
+    if tracks.height == 0:
+        return np.zeros(minutes.size)
+    ts = np.unique(tracks["t"].to_numpy())
+    period = float(np.min(np.diff(ts))) if ts.size > 1 else 60.0
+    k = np.floor((tracks["t"].to_numpy() - minutes[0]) / 60.0).astype(np.int64)
+    k = k[(k >= 0) & (k < minutes.size)]
+    return np.bincount(k, minlength=minutes.size) * period / 60.0
+
+
+def identity_scores(
+    truth_events: pl.DataFrame,
+    tracker_events: pl.DataFrame,
+    *,
+    tracks: pl.DataFrame | None = None,
+    constant_count: float | None = None,
+    absent_after_s: float = ABSENT_AFTER_S,
+) -> IdentityScores:
+    """Every identity metric (module docstring) of one tracker's events against the truth;
+    the count error from its ``tracks`` (or a baseline's ``constant_count``; neither: None)."""
+    m = matched(truth_events, tracker_events)
+    e = m.height
+    mapping, right = relabelling(m)
+    acc = right / e if e else 0.0
+    single = m.filter(~pl.col("residents").str.contains(";"))
+    codes = {t: i for i, t in enumerate(sorted(single["track"].drop_nulls().unique().to_list()))}
+    tr = single["track"].to_list()
+    lone = len(codes)
+    b = np.array([codes[t] if t is not None else lone + i for i, t in enumerate(tr)], dtype=np.int64)
+    ari = adjusted_rand_index(single["residents"].to_numpy(), b) if single.height else 0.0
+    sw = 0
+    for _, grp in single.filter(pl.col("track").is_not_null()).group_by("residents", maintain_order=True):
+        seq = grp.sort("t")["track"].to_numpy()
+        sw += int((seq[1:] != seq[:-1]).sum())
+    span_h = (float(m["t"].max()) - float(m["t"].min())) / 3600.0 if e > 1 else 0.0
+    count_err = None
+    if e and (tracks is not None or constant_count is not None):
+        t0 = float(np.floor(m["t"].min()))
+        minutes = np.arange(t0, float(m["t"].max()), 60.0) if m["t"].max() > t0 else np.array([t0])
+        true_n = presence_count(m, minutes, absent_after_s=absent_after_s)
+        est = np.full(minutes.size, float(constant_count)) if tracks is None else track_count(tracks, minutes)
+        count_err = float(np.mean(np.abs(est - true_n)))
+    return IdentityScores(
+        accuracy=float(acc), ari=float(ari), switches_per_hour=(sw / span_h if span_h > 0 else 0.0), count_error=count_err, events=e,
+        attributed=float(m["track"].is_not_null().mean()) if e else 0.0, mapping=mapping,
+    )  # fmt: skip
+
+
+def busier_events(truth_events: pl.DataFrame) -> pl.DataFrame:
+    """Baseline ``busier``: every truth event to one pseudo-track."""
+    return truth_events.select("t", "sensor", pl.lit("all").alias("track")).select(list(TRACKER_EVENTS))
+
+
+def nearest_events(truth_events: pl.DataFrame, hops: dict[tuple[str, str], int], k: int) -> pl.DataFrame:
+    """Baseline ``nearest`` (module docstring): an inherently sequential greedy pass over the
+    events in time order. ``hops[(a, b)]``: graph hops between sensors (absent: unreachable)."""
+    ev = truth_events.sort("t")
+    last: list[str] = []  # last sensor of each pseudo-track
+    used: list[int] = []  # event index of its last use
+    out = []
+    far = 10**9
+    for i, s in enumerate(ev["sensor"].to_list()):
+        d = [0 if s == x else hops.get((s, x), far) for x in last]
+        if not last or (len(last) < k and min(d) > 1):
+            last.append(s)
+            used.append(i)
+            out.append(f"p{len(last)}")
+            continue
+        best = min(range(len(last)), key=lambda j: (d[j], -used[j]))
+        last[best], used[best] = s, i
+        out.append(f"p{best + 1}")
+    return ev.select("t", "sensor").with_columns(track=pl.Series(out, dtype=pl.String)).select(list(TRACKER_EVENTS))
+
+
+def baseline_rows(truth_events: pl.DataFrame, hops: dict[tuple[str, str], int]) -> list[tuple[str, str, float, str]]:
+    """Report rows of both baselines (``identity-busier``, ``identity-nearest``)."""
+    k = max(1, truth_events["residents"].str.split(";").explode().n_unique())
+    busy = identity_scores(truth_events, busier_events(truth_events), constant_count=1.0)
+    near = identity_scores(truth_events, nearest_events(truth_events, hops, k), constant_count=float(k))
+    return busy.rows("identity-busier") + near.rows("identity-nearest")
+
+
+def graph_hops(site) -> dict[tuple[str, str], int]:
+    """``(a, b) -> hops`` of the site's sensor graph (empty without one)."""
+    g = site.sensor_graph
+    if g is None:
+        return {}
+    import networkx as nx
+
+    graph = g.to_networkx()
+    return {(a, b): int(d) for a, row in nx.all_pairs_shortest_path_length(graph) for b, d in row.items()}

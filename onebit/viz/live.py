@@ -1,0 +1,98 @@
+"""The Rerun stream of ``onebit follow``: estimates as they are published, to a file and a viewer.
+
+A live stream has one recording id (the follow run's), the same entity paths as the batch
+recordings (``<tracker>/tracks/<track>``, ``sensors/<id>``, ``site/...``), and goes to an
+``.rrd`` always -- written as it grows, so a crash leaves the data logged so far -- and,
+when asked, to a viewer a user has open (``--connect``, a gRPC URL such as
+``rerun+http://127.0.0.1:9876/proxy``) or to a web viewer this process serves
+(``--serve-web``). Each publication is a handful of rows: they are sent with
+``send_columns`` (one call per track), never one ``log`` per row.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import polars as pl
+
+from onebit.core.lazy import lazy_module
+from onebit.viz import colors, paths
+from onebit.viz.frame import log_world_frame
+from onebit.viz.recording import APPLICATION_ID, rerun_enabled
+from onebit.viz.site import log_site
+
+rr = lazy_module("rerun")
+
+#: entity of the delay series, one Scalars per tracker: follow/delay/<tracker>
+DELAY_ROOT = "follow/delay"
+ON, OFF = 1, 0
+
+
+def open_live(path: str | Path, *, recording_id: str, connect: str | None = None, serve_web: bool = False) -> tuple[rr.RecordingStream, str | None]:
+    """A recording stream writing ``path`` as it grows, plus a viewer connection if asked.
+
+    Returns the stream and the URL a browser opens (``serve_web``) or ``None``.
+    """
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    with rerun_enabled():
+        rec = rr.RecordingStream(APPLICATION_ID, recording_id=recording_id)
+        sinks = [rr.FileSink(str(path))]
+        if connect:
+            sinks.append(rr.GrpcSink(connect))
+        url = None
+        if serve_web:
+            server = rr.GrpcServerSink()
+            sinks.append(server)
+            url = server.uri
+        rec.set_sinks(*sinks)
+        if serve_web:
+            rr.serve_web_viewer(connect_to=url, open_browser=False)
+    return rec, url
+
+
+def log_live_site(rec: rr.RecordingStream, site, region_graph) -> None:
+    """The site once (static), as in every stage recording."""
+    log_site(rec, site, region_graph)
+
+
+def log_states(rec: rr.RecordingStream, edges: pl.DataFrame) -> None:
+    """New accepted toggle edges (``t``, ``sensor``, ``on``) on ``sensors/<id>`` as state changes."""
+    if edges is None or edges.height == 0:
+        return
+    for (sid,), g in edges.sort("t").group_by("sensor", maintain_order=True):
+        state = np.where(g["on"].to_numpy(), ON, OFF).tolist()
+        rec.send_columns(paths.sensor(str(sid)), indexes=[paths.time_column(g["t"].to_numpy())], columns=rr.StateChange.columns(state=state))
+
+
+def log_estimates(rec: rr.RecordingStream, tracker: str, rows: pl.DataFrame) -> None:
+    """Newly published track rows (``track``, ``t``, ``x``, ``y``) as points on
+    ``<tracker>/tracks/<track>``; rows without a position are skipped."""
+    if rows is None or rows.height == 0 or "x" not in rows.columns:
+        return
+    rows = rows.drop_nulls(["t", "x", "y"])
+    if rows.height == 0:
+        return
+    log_world_frame(rec, paths.tracker_root(tracker))
+    color = colors.tracker_color(tracker)
+    for (track,), g in rows.sort("t").group_by("track", maintain_order=True):
+        xy = g.select("x", "y").to_numpy().astype(np.float64)
+        rec.send_columns(
+            paths.track(tracker, str(track)),
+            indexes=[paths.time_column(g["t"].to_numpy())],
+            columns=rr.Points2D.columns(positions=xy, colors=[color] * len(xy), radii=[-4.0] * len(xy)),
+        )
+
+
+def log_delays(rec: rr.RecordingStream, tracker: str, t: np.ndarray, delay_s: np.ndarray) -> None:
+    """The publication delay (s) of each estimate on ``follow/delay/<tracker>`` over ``t``."""
+    if len(t) == 0:
+        return
+    rec.send_columns(f"{DELAY_ROOT}/{paths.part(tracker)}", indexes=[paths.time_column(t)], columns=rr.Scalars.columns(scalars=np.asarray(delay_s, dtype=np.float64)))
+
+
+def close_live(rec: rr.RecordingStream) -> None:
+    """Flush and close every sink."""
+    rec.flush()
+    rec.disconnect()
