@@ -70,8 +70,11 @@ and particle :math:`n` is weighted by :math:`e^{\\ell_i^{(n)}}` and resampled
 :math:`d_s \\approx 0` and need no special case.
 
 *Measurement-driven birth.* After the existing tracks' update, an on sensor is
-unexplained when the updated tracks trigger it with probability below ``birth_explained``:
-:math:`1 - \\prod_j q_{js} < \\beta`. Unexplained on sensors within ``birth_link`` of each
+unexplained when the updated tracks' particles -- whatever their existence -- trigger it with
+probability below ``birth_explained``: :math:`1 - \\prod_j (1 - \\bar d_{js}) < \\beta` (a
+tentative track by a firing gathers that firing's evidence over the frames; were its low
+:math:`r_j` counted, a twin would be born beside it every frame and the two would split the
+evidence and never be confirmed). Unexplained on sensors within ``birth_link`` of each
 other form one group; each group gives a tentative track with existence ``birth_r`` and
 particles drawn uniformly in the footprints of the group's sensors, zero-mean velocities;
 the newborn are then updated on the same frame by Eqs. (4)-(5), the existing tracks
@@ -116,7 +119,7 @@ class FilterParams:
     accel_sigma: float = 0.8
     survival: float = 0.98
     birth_r: float = 0.2
-    birth_explained: float = 0.5
+    birth_explained: float = 0.3
     birth_link: float = 1.8
     birth_speed: float = 0.3
     r_confirm: float = 0.8
@@ -308,8 +311,9 @@ def run_filter(
         if len(r):  # existing tracks first: they get the first chance to explain the frame
             ell, r = observation_update(x, r, z, sensors, radii, p)
             x, hist = resampled(ell, x, hist)
-        # birth from the on sensors the updated tracks leave unexplained
-        q = 1.0 - r[:, None] * footprint_probability(x[..., :2], sensors, radii, pd=p.pd, edge=p.edge).mean(axis=1) if len(r) else np.zeros((0, S))
+        # birth from the on sensors the updated tracks' particles leave unexplained (whatever
+        # their existence: a tentative track near a firing gathers its evidence, no twin is born)
+        q = 1.0 - footprint_probability(x[..., :2], sensors, radii, pd=p.pd, edge=p.edge).mean(axis=1) if len(r) else np.zeros((0, S))
         groups = birth_groups(z, q, sensors, p)
         room = p.max_tracks - len(r)
         if groups and room > 0:

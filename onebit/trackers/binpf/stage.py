@@ -9,10 +9,13 @@ itself (:mod:`onebit.trackers.binpf.filter`, the equations).
 
 Outputs (tables ``binpf_<key>``):
 
-- ``tracks`` (TRACKS): one row per reported track per frame (``track`` = ``b<label>``).
+- ``tracks`` (TRACKS): one row per reported track per frame (``track`` = ``b<label>``),
+  after joining tracklets across short gaps (:mod:`onebit.trackers.binpf.link`; the filled
+  frames are interpolated).
 - ``existence``: frame, t, track, x, y, r, reported -- every live Bernoulli component.
-- ``frames``: t, on (sensors on), live, reported, births, deaths, merges, count = the
-  expected number of people :math:`\\sum_i r_i`.
+- ``frames``: t, on (sensors on), live, births, deaths, merges, reported (tracks in
+  ``tracks`` at the frame), count = the expected number of people :math:`\\sum_i r_i`.
+- ``links``: joins (tracklets joined).
 """
 
 from __future__ import annotations
@@ -22,12 +25,13 @@ from dataclasses import dataclass
 import numpy as np
 import polars as pl
 
-from onebit.core.config import check_range
+from onebit.core.config import check_choice, check_range
 from onebit.core.site import Site
 from onebit.core.tables import FRAMES, TRACKS, check_schema, conform
 from onebit.core.units import length
 from onebit.trackers.base import ARTIFACTS, TrackerSpec, progress_of
 from onebit.trackers.binpf.filter import FilterParams, run_filter
+from onebit.trackers.binpf.link import link_tracklets
 
 NAME = "binpf"
 
@@ -48,7 +52,7 @@ class BinPFConfig:
     survival: float = 0.98  #: p_s, probability a person stays from one frame to the next
     silent: float = 0.2  #: epsilon, probability a present person triggers nothing in a frame (Eq. 4')
     birth_r: float = 0.2  #: existence of a newborn track
-    birth_explained: float = 0.5  #: an on sensor the tracks trigger with less than this is unexplained
+    birth_explained: float = 0.3  #: an on sensor the tracks trigger with less than this is unexplained
     birth_link: float = length(1.8)  #: unexplained on sensors closer than this give one newborn, m
     birth_speed: float = length(0.3, unit="m/s")  #: std of a newborn particle's velocity, m/s
     r_confirm: float = 0.8  #: a track is confirmed once its existence reaches this
@@ -56,6 +60,10 @@ class BinPFConfig:
     r_out: float = 0.5  #: a confirmed track is reported while its existence is at least this
     merge_distance: float = length(0.4)  #: two tracks closer than this are merged, m
     smooth_lag: int = 4  #: frames of fixed-lag smoothing of the positions (particle genealogy); 0 = filter only
+    link: bool = True  #: join tracklets across short gaps (one min-cost assignment, :mod:`onebit.trackers.binpf.link`)
+    link_gap: int = 6  #: g_max, most missing frames a join bridges
+    link_speed: float = length(1.5, unit="m/s")  #: v_max, walking speed a join may assume, m/s
+    link_slack: float = length(1.0)  #: rho, extra distance a join allows (about a footprint), m
     targets: int = 0  #: most people reported at once; 0 = the site's ``targets`` (none: no bound)
     max_tracks: int = 0  #: most live tracks (tentative included); 0 = bound + 1 (8 without a bound): spare tentative tracks churn
     seed: int = 0  #: random seed
@@ -81,6 +89,10 @@ class BinPFConfig:
         check_range(self, "r_out", self.r_delete, 1.0)
         check_range(self, "merge_distance", 0.0, 1e9)
         check_range(self, "smooth_lag", 0, 1000, types=(int,))
+        check_choice(self, "link", (True, False))
+        check_range(self, "link_gap", 0, 10**6, types=(int,))
+        check_range(self, "link_speed", 0.0, 1e6)
+        check_range(self, "link_slack", 0.0, 1e9)
         check_range(self, "targets", 0, 10**4, types=(int,))
         check_range(self, "max_tracks", 0, 10**4, types=(int,))
         check_range(self, "seed", 0, None, types=(int,))
@@ -139,13 +151,20 @@ def run(inputs: dict, site: Site, config: BinPFConfig) -> dict:
                 "reported": pl.Boolean},
     )  # fmt: skip
     rep = existence.filter(pl.col("reported"))
-    tracks = conform(rep.select(pl.lit(NAME).alias("tracker"), "track", "t", "x", "y"), TRACKS)
-    count = existence.group_by("frame").agg(pl.col("r").sum().alias("count"), pl.col("reported").sum().cast(pl.Int64).alias("reported"))
+    f, lab, x, y = rep["frame"].to_numpy(), rep["track"].to_numpy().astype(str), rep["x"].to_numpy(), rep["y"].to_numpy()
+    joins = 0
+    if config.link and rep.height:
+        f, lab, x, y, joins = link_tracklets(f, lab, x, y, period=p.period, max_gap=config.link_gap, max_speed=config.link_speed,
+                                             slack=config.link_slack, max_out=bound)  # fmt: skip
+    tracks = conform(pl.DataFrame({"tracker": [NAME] * len(f), "track": lab.astype(object), "t": times[f] if len(f) else np.zeros(0),
+                                   "x": x, "y": y}, schema_overrides={"track": pl.String}), TRACKS)  # fmt: skip
+    reported_per_frame = np.bincount(f, minlength=len(times)).astype(np.int64) if len(times) else np.zeros(0, np.int64)
+    count = existence.group_by("frame").agg(pl.col("r").sum().alias("count"))
     per_frame = (
         pl.DataFrame({"frame": np.arange(len(times)), "t": times, "on": on.sum(axis=1).astype(np.int64), "live": res.live,
-                      "births": res.births, "deaths": res.deaths, "merges": res.merges})
+                      "births": res.births, "deaths": res.deaths, "merges": res.merges, "reported": reported_per_frame})
         .join(count, on="frame", how="left")
-        .with_columns(pl.col("count").fill_null(0.0), pl.col("reported").fill_null(0))
+        .with_columns(pl.col("count").fill_null(0.0))
         .drop("frame")
     )  # fmt: skip
     artifacts = {
@@ -153,7 +172,7 @@ def run(inputs: dict, site: Site, config: BinPFConfig) -> dict:
         "particles_xy": res.particles_xy, "particles_t": times[res.particles_frame] if res.particles_frame.size else np.zeros(0),
         "particles_track": np.char.add("b", res.particles_label.astype(str)) if res.particles_label.size else np.zeros(0, dtype=str),
     }  # fmt: skip
-    return {"tracks": tracks, "existence": existence, "frames": per_frame, ARTIFACTS: artifacts}
+    return {"tracks": tracks, "existence": existence, "frames": per_frame, "links": pl.DataFrame({"joins": [joins]}), ARTIFACTS: artifacts}
 
 
 SPEC = TrackerSpec(
