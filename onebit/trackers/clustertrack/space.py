@@ -23,7 +23,7 @@ from onebit.trackers.clustertrack.feasible import (
     make_raster,
     raster_components,
     sample_intervals,
-    sample_cells,
+    sample_cell_centres,
 )
 
 
@@ -48,6 +48,7 @@ class FeasibleSpace:
     only: tuple = ()  # ((t, c), ...)
     minimal_targets: tuple = ()  # T arrays: positions of a minimal target set (1-D, Theorem 4)
     cells: tuple = ()  # T arrays: the F cells of each instant (2-D), so sampling costs |F|, not the grid
+    cell_xy: tuple = ()  # T arrays (|F|, 2): their centres
 
     # ----------------------------------------------------------------- construction
 
@@ -99,7 +100,8 @@ class FeasibleSpace:
             masks=masks,
             labels=labels,
             order=np.arange(T),
-            cells=tuple(np.flatnonzero(m) for m in masks),
+            cells=(cells := tuple(np.flatnonzero(m) for m in masks)),
+            cell_xy=tuple(raster.centres_of(c) for c in cells),
         )
 
     # ----------------------------------------------------------------- views
@@ -143,10 +145,10 @@ class FeasibleSpace:
             if c is not None:
                 iv = iv[c : c + 1]
             return sample_intervals(iv, n, rng)[:, None]
-        cells = self.cells[t]
+        xy = self.cell_xy[t]
         if c is not None:
-            cells = cells[self.labels[t][cells] == c + 1]
-        return sample_cells(cells, self.raster, n, rng)
+            xy = xy[self.labels[t][self.cells[t]] == c + 1]
+        return sample_cell_centres(xy, self.raster.cell, n, rng)
 
     def component_of(self, t: int, pts: np.ndarray) -> np.ndarray:
         """Component index (0-based) of points ``(m, dim)`` at original instant ``t``; -1 outside F.
