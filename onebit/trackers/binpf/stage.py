@@ -50,18 +50,18 @@ class BinPFConfig:
     damping: float = 0.8  #: a, velocity kept from one frame to the next
     accel_sigma: float = length(0.8, unit="m/s")  #: sigma_v, velocity noise per sqrt(s), m/s per sqrt(s)
     survival: float = 0.98  #: p_s, probability a person stays from one frame to the next
-    silent: float = 0.2  #: epsilon, probability a present person triggers nothing in a frame (Eq. 4')
-    birth_r: float = 0.2  #: existence of a newborn track
+    silent: float = 0.3  #: epsilon, probability a present person triggers nothing in a frame (Eq. 4')
+    birth_r: float = 0.1  #: existence of a newborn track
     birth_explained: float = 0.3  #: an on sensor the tracks trigger with less than this is unexplained
     birth_link: float = length(1.8)  #: unexplained on sensors closer than this give one newborn, m
     birth_speed: float = length(0.3, unit="m/s")  #: std of a newborn particle's velocity, m/s
-    r_confirm: float = 0.8  #: a track is confirmed once its existence reaches this
+    r_confirm: float = 0.9  #: a track is confirmed once its existence reaches this
     r_delete: float = 0.05  #: a track is deleted when its existence falls below this
     r_out: float = 0.5  #: a confirmed track is reported while its existence is at least this
     merge_distance: float = length(0.4)  #: two tracks closer than this are merged, m
     smooth_lag: int = 4  #: frames of fixed-lag smoothing of the positions (particle genealogy); 0 = filter only
     link: bool = True  #: join tracklets across short gaps (one min-cost assignment, :mod:`onebit.trackers.binpf.link`)
-    link_gap: int = 6  #: g_max, most missing frames a join bridges
+    link_gap: int = 10  #: g_max, most missing frames a join bridges
     link_speed: float = length(1.5, unit="m/s")  #: v_max, walking speed a join may assume, m/s
     link_slack: float = length(1.0)  #: rho, extra distance a join allows (about a footprint), m
     targets: int = 0  #: most people reported at once; 0 = the site's ``targets`` (none: no bound)
