@@ -124,7 +124,7 @@ class FilterParams:
     birth_speed: float = 0.3
     r_confirm: float = 0.9
     r_delete: float = 0.05
-    r_out: float = 0.5
+    r_out: float = 0.65
     merge_distance: float = 0.4
     silent: float = 0.3
     smooth_lag: int = 4

@@ -57,7 +57,7 @@ class BinPFConfig:
     birth_speed: float = length(0.3, unit="m/s")  #: std of a newborn particle's velocity, m/s
     r_confirm: float = 0.9  #: a track is confirmed once its existence reaches this
     r_delete: float = 0.05  #: a track is deleted when its existence falls below this
-    r_out: float = 0.5  #: a confirmed track is reported while its existence is at least this
+    r_out: float = 0.65  #: a confirmed track is reported while its existence is at least this
     merge_distance: float = length(0.4)  #: two tracks closer than this are merged, m
     smooth_lag: int = 4  #: frames of fixed-lag smoothing of the positions (particle genealogy); 0 = filter only
     link: bool = True  #: join tracklets across short gaps (one min-cost assignment, :mod:`onebit.trackers.binpf.link`)
