@@ -281,6 +281,17 @@ class Planner:
         site, as the sensor-graph trackers' tab shows theirs (plus the people present)."""
         return self.findinghumo(tracker)
 
+    def binpf(self, tracker: str) -> rrb.Container | None:
+        """The binary-array particle filter (beyond the papers): the sensors on, the particles
+        and the people over the site; the estimated count against the truth; the error."""
+        root = paths.tracker_root(tracker)
+        entities = [*self.site(), *self.truth(), *self.L.under(root, SPATIAL | FRAME)]
+        site = self.map_view(f"site now ({self.units}): sensors on, particles, people, truth", entities)
+        count = self.count_view("number of people: expected and reported (count)", self.L.under(paths.join(root, "count"), SERIES))
+        error = self.error_view([tracker], "distance of each person from their target")
+        states = self.view("state", "sensors: on / off", self.states())
+        return _tab(f"{tracker}: people from the array", site, [count, error, states])
+
     def istate(self, tracker: str) -> rrb.Container | None:
         root = paths.tracker_root(tracker)
         entities = [*self.site(), *self.truth(), *self.L.under(root, SPATIAL | FRAME)]

@@ -25,10 +25,11 @@ FAMILY_OF: dict[str, str] = {
     "findinghumo-flow": "findinghumo",
     "istate": "istate",
     "residents": "residents",
+    "binpf": "binpf",
 }
 
 #: Families in the order of their tabs; the first present is the tab a run opens on.
-FAMILY_ORDER: tuple[str, ...] = ("beams", "clustertrack", "findinghumo", "intruder", "istate", "residents")
+FAMILY_ORDER: tuple[str, ...] = ("beams", "clustertrack", "findinghumo", "intruder", "istate", "residents", "binpf")
 
 #: Each tracker's colour (RGB): its estimates, trails, boxes and error series are drawn in
 #: shades of it; truth is always neutral (:data:`onebit.viz.colors.TRUTH`). Chosen apart from
