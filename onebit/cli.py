@@ -143,8 +143,11 @@ def _cmd_experiment(args) -> int:
         extra = dict(results=Path(args.results) if args.results else None,
                      trackers=tuple(t.strip() for t in args.trackers.split(",") if t.strip()) if args.trackers else None,
                      layout=args.layout, rooms=args.rooms, scale=args.scale, graph_radius=args.graph_radius, targets=args.targets,
-                     doors=tuple(d.strip() for d in args.doors.split(",") if d.strip()) if args.doors else ())  # fmt: skip
+                     doors=tuple(d.strip() for d in args.doors.split(",") if d.strip()) if args.doors else (),
+                     config=load_run_config(args.config))  # fmt: skip
     else:
+        if args.config is not None:
+            raise ConfigError(f"experiment {args.name!r} takes no --config")
         params = inspect.signature(mod.run).parameters
         trackers = tuple(t.strip() for t in args.trackers.split(",") if t.strip()) if args.trackers else None
         for key, value in (("data", args.data), ("trackers", trackers)):
@@ -368,6 +371,7 @@ def _add_experiment_command(sub) -> None:
     e.add_argument("--graph-radius", type=float, default=None, help="residents: floor plan graph radius (m)")
     e.add_argument("--targets", type=int, default=None, help="residents: site.toml targets for every session")
     e.add_argument("--doors", default=None, help="residents: contacts that are doors to the outside")
+    e.add_argument("--config", default=None, help="residents: run.toml with one [section] per stage, for every session")
     e.add_argument("--seed", type=int, default=0)
     e.add_argument("--trials", type=int, default=None, help="trials per setting (default: the paper's)")
     e.add_argument("--quick", action="store_true", help="a reduced study (smoke test)")

@@ -9,19 +9,21 @@ oracle                                 the shipped step it checks
 :func:`region_scores_reference`        :func:`onebit.scoring.crossings.region_scores`
 :func:`pair_meeting_reference`         :func:`onebit.trackers.findinghumo.cpda.pair_meeting`
 :func:`scan_clusters_direct`           :func:`onebit.trackers.clustertrack.algorithm.scan_clusters`
+:func:`motion_frames_reference`        :func:`onebit.core.frames.motion_frames`
 =====================================  =========================================================
 """
 
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 
 import numpy as np
 import polars as pl
 import shapely
 
 from onebit.core.region_graph import RegionGraph
-from onebit.core.tables import SCORES, conform
+from onebit.core.tables import FRAMES, SCORES, conform
 from onebit.scoring.crossings import truth_regions
 from onebit.trackers.findinghumo.cpda import _jumps, _pairings, junction_score
 from onebit.viz import colors
@@ -139,3 +141,48 @@ def scan_clusters_direct(order: np.ndarray, traj: np.ndarray, *, H: int, K: int,
         kept.append(int(i))
         label.append(len(heads) - 1)
     return np.asarray(kept, dtype=np.int64), np.asarray(label, dtype=np.int64), scanned
+
+
+def motion_frames_reference(
+    motion: pl.DataFrame, sensors: Sequence[str], *, period: float, t0: float | None = None, t1: float | None = None
+) -> pl.DataFrame:
+    """:func:`motion_frames` by polars joins (a cross join of slots and sensors, an as-of join
+    for the state, a join for the rising edges): its plain reference and test oracle."""
+    sensors = list(dict.fromkeys(sensors))
+    ev = motion.select("t", "sensor", "on").filter(pl.col("sensor").is_in(sensors)).sort("t", maintain_order=True)
+    if t0 is None:
+        if ev.height == 0 and t1 is None:
+            return pl.DataFrame(schema=FRAMES)
+        first = float(ev["t"].min()) if ev.height else 0.0
+        t0 = math.floor(first / period) * period
+    if t1 is None:
+        last = float(ev["t"].max()) if ev.height else t0
+        n = max(int(math.floor((last - t0) / period)) + 1, 1)
+    else:
+        n = max(int(math.ceil((t1 - t0) / period - 1e-12)), 0)
+    if n == 0 or not sensors:
+        return pl.DataFrame(schema=FRAMES)
+    grid = (
+        pl.DataFrame({"slot": pl.arange(0, n, eager=True).cast(pl.Int64)})
+        .join(pl.DataFrame({"sensor": sensors}, schema={"sensor": pl.String}), how="cross")
+        .with_columns(t=pl.lit(t0) + pl.col("slot").cast(pl.Float64) * period)
+    )
+    ev = ev.with_columns(slot=((pl.col("t") - t0) / period).floor().cast(pl.Int64))
+    fired = ev.filter(pl.col("on") & (pl.col("slot") >= 0) & (pl.col("slot") < n)).group_by("sensor", "slot").agg(
+        fired=pl.lit(True)
+    )
+    state = grid.sort("t").join_asof(
+        ev.select("t", "sensor", pl.col("on").alias("state")).sort("t"),
+        on="t",
+        by="sensor",
+        strategy="backward",
+        check_sortedness=False,  # both sides are sorted by t just above
+    )
+    out = (
+        state.join(fired, on=["sensor", "slot"], how="left")
+        .with_columns(pl.col("fired").fill_null(False), pl.col("state").fill_null(False))
+        .with_columns(on=pl.col("state") | pl.col("fired"))
+    )
+    order = pl.DataFrame({"sensor": sensors, "_k": list(range(len(sensors)))}, schema={"sensor": pl.String, "_k": pl.Int64})
+    out = out.join(order, on="sensor").sort(["slot", "_k"])
+    return conform(out, FRAMES)

@@ -17,6 +17,7 @@ from __future__ import annotations
 import math
 from collections.abc import Mapping, Sequence
 
+import numpy as np
 import polars as pl
 
 from onebit.core.errors import ConfigError
@@ -60,30 +61,42 @@ def motion_frames(
         n = max(int(math.ceil((t1 - t0) / period - 1e-12)), 0)
     if n == 0 or not sensors:
         return pl.DataFrame(schema=FRAMES)
-    grid = (
-        pl.DataFrame({"slot": pl.arange(0, n, eager=True).cast(pl.Int64)})
-        .join(pl.DataFrame({"sensor": sensors}, schema={"sensor": pl.String}), how="cross")
-        .with_columns(t=pl.lit(t0) + pl.col("slot").cast(pl.Float64) * period)
+    return _frames_arrays(ev, sensors, t0=t0, period=period, n=n)
+
+
+def _frames_arrays(ev: pl.DataFrame, sensors: list[str], *, t0: float, period: float, n: int) -> pl.DataFrame:
+    """The FRAMES table of :func:`motion_frames` with numpy, one sensor at a time: the state at
+    each slot start is the sensor's last edge at or before it (``searchsorted``), a slot fired
+    when a rising edge falls in it; the whole grid is built as flat arrays (slot-major, sensors
+    in order), never joined. Equal to :func:`onebit._testing.oracles.motion_frames_reference` (tested)."""
+    k = len(sensors)
+    slot_t = t0 + np.arange(n, dtype=np.int64).astype(np.float64) * period
+    state = np.zeros((n, k), dtype=np.bool_)
+    fired = np.zeros((n, k), dtype=np.bool_)
+    code = ev["sensor"].replace_strict(sensors, list(range(k)), return_dtype=pl.Int64).to_numpy()
+    t_all = ev["t"].to_numpy().astype(np.float64)
+    on_all = ev["on"].to_numpy().astype(np.bool_)
+    for i in range(k):
+        sel = code == i
+        if not sel.any():
+            continue
+        t, on = t_all[sel], on_all[sel]
+        last = np.searchsorted(t, slot_t, side="right") - 1  # the last edge at or before each slot start
+        state[:, i] = np.where(last >= 0, on[np.maximum(last, 0)], False)
+        slot = np.floor((t - t0) / period).astype(np.int64)
+        rising = on & (slot >= 0) & (slot < n)
+        fired[slot[rising], i] = True
+    names = pl.Series("sensor", sensors, dtype=pl.String)
+    return pl.DataFrame(
+        {
+            "slot": np.repeat(np.arange(n, dtype=np.int64), k),
+            "t": np.repeat(slot_t, k),
+            "sensor": names.gather(np.tile(np.arange(k), n)),
+            "on": (state | fired).ravel(),
+            "fired": fired.ravel(),
+        },
+        schema=FRAMES,
     )
-    ev = ev.with_columns(slot=((pl.col("t") - t0) / period).floor().cast(pl.Int64))
-    fired = ev.filter(pl.col("on") & (pl.col("slot") >= 0) & (pl.col("slot") < n)).group_by("sensor", "slot").agg(
-        fired=pl.lit(True)
-    )
-    state = grid.sort("t").join_asof(
-        ev.select("t", "sensor", pl.col("on").alias("state")).sort("t"),
-        on="t",
-        by="sensor",
-        strategy="backward",
-        check_sortedness=False,  # both sides are sorted by t just above
-    )
-    out = (
-        state.join(fired, on=["sensor", "slot"], how="left")
-        .with_columns(pl.col("fired").fill_null(False), pl.col("state").fill_null(False))
-        .with_columns(on=pl.col("state") | pl.col("fired"))
-    )
-    order = pl.DataFrame({"sensor": sensors, "_k": list(range(len(sensors)))}, schema={"sensor": pl.String, "_k": pl.Int64})
-    out = out.join(order, on="sensor").sort(["slot", "_k"])
-    return conform(out, FRAMES)
 
 
 def refractory_state(frames: pl.DataFrame, refractory: Mapping[str, float], *, period: float) -> pl.DataFrame:

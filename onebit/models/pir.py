@@ -297,10 +297,14 @@ def deploy_one(ms: MotionSensor, st: SensorType, grid: WorldGrid, region: Detect
     return q, shapely.convex_hull(footprint)
 
 
-def deploy(site: Site, cell: float, types: dict[str, SensorType] | None = None) -> Deployment:
+def deploy(site: Site, cell: float, types: dict[str, SensorType] | None = None, *, false_alarm: float = 0.0) -> Deployment:
     """Deploy every motion sensor of ``site`` on the world grid of ``cell`` (section VI),
     each restricted to its detection region (:func:`onebit.core.sensing.detection_regions`;
-    a sensor without a usable region raises :class:`SiteError` naming it)."""
+    a sensor without a usable region raises :class:`SiteError` naming it).
+
+    ``false_alarm`` is the h of a sensor whose characterisation does not state one: no type,
+    or a ``[sensor_types]`` table of the site without ``false_positive``. The built-in types
+    keep their own (the paper's simulated sensors)."""
     grid = WorldGrid.of_site(site, cell)
     regions = detection_regions(site)
     types = dict(types or {})
@@ -318,7 +322,10 @@ def deploy(site: Site, cell: float, types: dict[str, SensorType] | None = None) 
         n_nz = int((q > 0).sum())
         qs.append(q)
         xi.append(n_nz)
-        p0.append(1.0 - (1.0 - st.false_positive) ** (1.0 / max(n_nz, 1)))
+        h = st.false_positive
+        if ms.type is None or (ms.type in tables and "false_positive" not in tables[ms.type]):
+            h = false_alarm  # the sensor's characterisation says nothing: the caller's default
+        p0.append(1.0 - (1.0 - h) ** (1.0 / max(n_nz, 1)))
         rho.append(st.p_fire_refractory)
         f.append(ms.refractory)
         hulls.append(hull)

@@ -47,6 +47,7 @@ from onebit.readers.tables_csv import (
 )
 from onebit.readers.timebase import TimeOrigin, time_origin
 from onebit.scoring import beams as score_beams
+from onebit.scoring import binpf as score_binpf
 from onebit.scoring import clustertrack as score_clustertrack
 from onebit.scoring import findinghumo as score_findinghumo
 from onebit.scoring import intruder as score_intruder
@@ -56,10 +57,11 @@ from onebit.scoring.crossings import ScoresConfig, score_crossings, true_crossin
 from onebit.scoring.identity import baseline_rows, graph_hops, identity_scores
 from onebit.scoring.mot import Gate, mot_rows
 from onebit.scoring.serve import CannotServe
-from onebit.trackers import beams, clustertrack, findinghumo, findinghumo_flow, intruder, istate, residents
+from onebit.trackers import beams, binpf, clustertrack, findinghumo, findinghumo_flow, intruder, istate, residents
 from onebit.trackers.base import ARTIFACTS, PROGRESS, TrackerSpec
 from onebit.trackers.beams.correction import CorrectConfig, run_correction
 from onebit.viz import beams as viz_beams
+from onebit.viz import binpf as viz_binpf
 from onebit.viz import clustertrack as viz_clustertrack
 from onebit.viz import findinghumo as viz_findinghumo
 from onebit.viz import intruder as viz_intruder
@@ -123,6 +125,10 @@ TRACKERS: tuple[TrackerEntry, ...] = (
     TrackerEntry(clustertrack.SPEC, score_clustertrack.score, viz_clustertrack.log_run,
                  gate=Gate("point", 1.0, "R", "Singh et al. report error in units of the sensing radius R; within R the target is resolved"),
                  scenario="proximity-line"),
+    TrackerEntry(binpf.SPEC, score_binpf.score, viz_binpf.log_run,
+                 gate=Gate("point", 1.0, "m", "beyond the papers: a metric gate in world units; 1 m is about half the spacing of a ceiling "
+                           "array (Milan et al. score at 1.5 m)"),
+                 scenario="proximity-grid"),
     *(TrackerEntry(spec, score_findinghumo.score, viz_findinghumo.log_run, gate=HOPS_GATE, scenario="hallway") for spec in findinghumo.SPECS),
     TrackerEntry(findinghumo_flow.SPEC, score_findinghumo.score, viz_findinghumo.log_run, gate=HOPS_GATE, scenario="hallway"),
     TrackerEntry(istate.SPEC, score_istate.score, viz_istate.log_run,

@@ -41,6 +41,11 @@ def score(tracker: str, tables: dict, site: Site, region_graph=None) -> tuple[li
         # the whole room says little (containment 1.0 at area_share 1.0 is the trivial I-state)
         (NAME, "area_share", float(summ["area"].mean()) / free_area if summ.height and free_area > 0 else float("nan"), "fraction of free space"),
     ]
+    if "area_share" in summ.columns:  # how much of the room the I-state leaves open: containment is only as good as this
+        rows.append((NAME, "area_share_mean", float(summ["area_share"].mean()) if summ.height else 0.0, "fraction of free space"))
+    if "rejected" in summ.columns:
+        rows.append((NAME, "rejected_readings", float(summ["rejected"].sum()), "readings"))
+        rows.append((NAME, "stages_with_rejects", float((summ["rejected"] > 0).sum()), "stages"))
     empty = summ.filter(pl.col("elements") == 0).height
     if empty:  # the readings contradict n targets under the sensing model (a wrong n, a lagging sensor)
         rows.append((NAME, "empty_stages", empty / summ.height, "fraction"))
@@ -92,5 +97,8 @@ def score(tracker: str, tables: dict, site: Site, region_graph=None) -> tuple[li
         (NAME, "containment", float(inside[ok_truth].mean()) if scored else float("nan"), "fraction"),
         (NAME, "scored_stages", float(scored), "stages"),
     ]
+    if "area_share" in summ.columns and scored:  # containment next to the share of the room it takes
+        share = summ.sort("t")["area_share"].to_numpy()[ok_truth]
+        rows.append((NAME, "area_share_scored", float(share.mean()), "fraction of free space"))
     out = stages.with_columns(contains=pl.Series(inside), scored=pl.Series(ok_truth))
     return rows, {f"{NAME}_containment": out}

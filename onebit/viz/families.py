@@ -44,6 +44,7 @@ TRACKER_RGB: dict[str, tuple[int, int, int]] = {
     "findinghumo-flow": (120, 240, 200),
     "istate": (255, 235, 130),
     "residents": (255, 140, 120),
+    "binpf": (255, 110, 90),
     "camera": (165, 165, 165),
 }
 

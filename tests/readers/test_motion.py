@@ -11,7 +11,9 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
+from onebit._testing.oracles import motion_frames_reference
 from onebit.core.errors import ConfigError
+from onebit.core.frames import motion_frames
 from onebit.readers.motion import (
     DebounceRules,
     read_motion,
@@ -221,3 +223,25 @@ def test_motion_stage_reads_debounces_and_reports(tmp_path: Path):
     assert {"sensors/p1", "sensors/p2"} <= entity_paths(tmp_path / "run" / "rrd" / "motion.rrd")
     with pytest.raises(ConfigError, match=r"\[motion\].*chatter_window"):  # refused when the run starts
         run_pipeline(data, tmp_path / "run2", trackers=("beams",), config={"motion": {"chatter_window": -1}})
+
+
+@settings(max_examples=60, deadline=None)
+@given(
+    st.lists(st.tuples(st.sampled_from(["m1", "m2", "m3"]), st.integers(0, 400)), max_size=60, unique=True),
+    st.sampled_from([0.5, 1.0, 2.5]),
+    st.sampled_from([None, (-3.0, 50.0), (10.0, 90.0)]),
+)
+def test_frames_by_arrays_equal_the_join_reference(edges, period, window):
+    """The numpy FRAMES builder gives the polars-join reference's table (state at each slot
+    start, rising edges in the slot), with and without an explicit slot window."""
+    rows = sorted((t / 10.0, s) for s, t in edges)
+    on, state = [], {}
+    for _, s in rows:  # alternating per sensor, starting on
+        state[s] = not state.get(s, False)
+        on.append(state[s])
+    motion = pl.DataFrame({"t": [t for t, _ in rows], "sensor": [s for _, s in rows], "on": on},
+                          schema={"t": pl.Float64, "sensor": pl.String, "on": pl.Boolean})  # fmt: skip
+    kw = {} if window is None else {"t0": window[0], "t1": window[1]}
+    got = motion_frames(motion, ["m1", "m2", "m3", "m4"], period=period, **kw)
+    want = motion_frames_reference(motion, ["m1", "m2", "m3", "m4"], period=period, **kw)
+    assert got.equals(want)

@@ -30,6 +30,7 @@ DATASETS = {
     "beams-lab": ("beams-lab", 40.0, {}),
     "pir14": ("pir14", 40.0, {}),
     "proximity-line": ("proximity-line", None, {}),
+    "proximity-grid": ("proximity-grid", None, {}),
     "hallway": ("hallway", 40.0, {}),
     "istate-room": ("istate-room", 20.0, {}),
 }

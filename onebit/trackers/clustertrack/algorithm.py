@@ -377,7 +377,8 @@ class TrackResult:
 
 
 def clustertrack(space: FeasibleSpace, p: Params, rng: np.random.Generator, *, max_reruns: int = 10,
-                 rerun: bool = True, record: bool = False, hard_limit: int = 40, high_cost: float = 10.0) -> TrackResult:
+                 rerun: bool = True, record: bool = False, hard_limit: int = 40, high_cost: float = 10.0,
+                 max_tracks: int = 0) -> TrackResult:
     """Algorithm 1, then Appendix B: rerun through under-used components.
 
     While some instant t_o has a component c_o holding fewer tracks than its lower bound,
@@ -400,17 +401,30 @@ def clustertrack(space: FeasibleSpace, p: Params, rng: np.random.Generator, *, m
     ``K = H Q_hat`` (that space is F at every instant but t_o, so its particles must carry
     every target there), and its q cheapest new tracks replace the first attempt's when it
     yields any. ``high_cost = 0`` keeps the paper-literal single attempt.
+
+    Bound. ``max_tracks`` > 0 (the stage passes min(``targets``, Q_hat), the count the
+    algorithm itself estimates) caps the result: no rerun starts once that many tracks exist,
+    a rerun adds at most the missing number, and a first pass with more clusters keeps its
+    ``max_tracks`` cheapest. A track spans every instant, so this is also the most tracks
+    at once. Real readings (spurious firings) raise the per-component lower bounds far past
+    the people present; without the cap every such component drew a rerun and a track
+    (11-38 tracks for 3-6 people).
     """
     first = cluster_track(space, p, rng, record=record)
     tracks, costs = first.tracks, first.costs
+    if max_tracks > 0 and costs.size > max_tracks:
+        best = np.sort(np.argsort(costs, kind="stable")[:max_tracks])
+        tracks, costs = tracks[best], costs[best]
     origin = np.zeros(costs.size, dtype=np.int64)
     n = 0
     T = space.sizes_all.size
-    while rerun and n < hard_limit:
+    while rerun and n < hard_limit and (max_tracks <= 0 or costs.size < max_tracks):
         u = underused(space, tracks)
         if u is None:
             break
         t_o, c_o, q = u
+        if max_tracks > 0:
+            q = min(q, max_tracks - costs.size)
         n += 1
         sub = space.restricted(t_o, c_o)
         if t_o > T / 2:
@@ -483,7 +497,8 @@ class Consensus:
 
 
 def consensus(space: FeasibleSpace, p: Params, seeds: list[int], *, ratio: float = 10.0, min_support: float = 0.5,
-              max_reruns: int = 10, high_cost: float = 10.0, known: dict[int, TrackResult] | None = None) -> Consensus:
+              max_reruns: int = 10, high_cost: float = 10.0, known: dict[int, TrackResult] | None = None,
+              max_tracks: int = 0) -> Consensus:
     """Run CLUSTERTRACK once per seed, drop tracks costing more than ``ratio`` times the
     cheapest, cluster the rest (Algorithm 1's criterion) and count the clusters that hold a
     track from at least ``min_support`` of the runs (the paper's "biased by the number of
@@ -495,7 +510,8 @@ def consensus(space: FeasibleSpace, p: Params, seeds: list[int], *, ratio: float
     known = known or {}
     all_t, all_c, all_r = [], [], []
     for k, s in enumerate(seeds):  # independent runs (one per seed)
-        r = known[s] if s in known else clustertrack(space, p, np.random.default_rng(s), max_reruns=max_reruns, high_cost=high_cost)
+        r = known[s] if s in known else clustertrack(space, p, np.random.default_rng(s), max_reruns=max_reruns, high_cost=high_cost,
+                                                     max_tracks=max_tracks)
         all_t.append(r.tracks)
         all_c.append(r.costs)
         all_r.append(np.full(r.costs.size, k))

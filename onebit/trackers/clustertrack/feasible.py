@@ -216,6 +216,10 @@ class Raster:
     height: int
     inside: np.ndarray  # (h*w,) bool, the cell centre is inside the site boundary
 
+    def centres_of(self, k: np.ndarray) -> np.ndarray:
+        """``(len(k), 2)`` centres of the cells with flat indices ``k``."""
+        return _centres_of(self, np.asarray(k, dtype=np.int64))
+
     @property
     def centres(self) -> np.ndarray:
         j, i = np.meshgrid(np.arange(self.width), np.arange(self.height))
@@ -268,12 +272,27 @@ def raster_components(mask: np.ndarray, raster: Raster) -> tuple[int, np.ndarray
 
 def sample_raster(mask: np.ndarray, raster: Raster, n: int, rng: np.random.Generator) -> np.ndarray:
     """``n`` points uniform on the F cells: a cell uniformly, then uniform inside it."""
-    cells = np.flatnonzero(mask)
+    return sample_cells(np.flatnonzero(mask), raster, n, rng)
+
+
+def sample_cells(cells: np.ndarray, raster: Raster, n: int, rng: np.random.Generator) -> np.ndarray:
+    """``n`` points uniform on the raster cells ``cells`` (flat indices; same draws as
+    :func:`sample_raster` on their mask): the cost grows with n and |F|, not the grid."""
     if n <= 0 or cells.size == 0:
         return np.zeros((0, 2))
     k = cells[rng.integers(0, cells.size, size=n)]
     c = _centres_of(raster, k)
     return c + (rng.random((n, 2)) - 0.5) * raster.cell
+
+
+def sample_cell_centres(xy: np.ndarray, cell: float, n: int, rng: np.random.Generator) -> np.ndarray:
+    """``n`` points uniform on the cells of centres ``xy (m, 2)``: the same draws as
+    :func:`sample_cells` on those cells (a cell uniformly, then uniform inside it), with the
+    centres looked up once per instant instead of recomputed per draw."""
+    if n <= 0 or len(xy) == 0:
+        return np.zeros((0, 2))
+    c = xy[rng.integers(0, len(xy), size=n)]
+    return c + (rng.random((n, 2)) - 0.5) * cell
 
 
 def _centres_of(raster: Raster, k: np.ndarray) -> np.ndarray:

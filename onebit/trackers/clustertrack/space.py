@@ -23,7 +23,7 @@ from onebit.trackers.clustertrack.feasible import (
     make_raster,
     raster_components,
     sample_intervals,
-    sample_raster,
+    sample_cell_centres,
 )
 
 
@@ -47,6 +47,8 @@ class FeasibleSpace:
     order: np.ndarray = field(default=None)  # (T',) original instant of each step
     only: tuple = ()  # ((t, c), ...)
     minimal_targets: tuple = ()  # T arrays: positions of a minimal target set (1-D, Theorem 4)
+    cells: tuple = ()  # T arrays: the F cells of each instant (2-D), so sampling costs |F|, not the grid
+    cell_xy: tuple = ()  # T arrays (|F|, 2): their centres
 
     # ----------------------------------------------------------------- construction
 
@@ -98,6 +100,8 @@ class FeasibleSpace:
             masks=masks,
             labels=labels,
             order=np.arange(T),
+            cells=(cells := tuple(np.flatnonzero(m) for m in masks)),
+            cell_xy=tuple(raster.centres_of(c) for c in cells),
         )
 
     # ----------------------------------------------------------------- views
@@ -141,8 +145,10 @@ class FeasibleSpace:
             if c is not None:
                 iv = iv[c : c + 1]
             return sample_intervals(iv, n, rng)[:, None]
-        mask = self.masks[t] if c is None else self.labels[t] == c + 1
-        return sample_raster(mask, self.raster, n, rng)
+        xy = self.cell_xy[t]
+        if c is not None:
+            xy = xy[self.labels[t][self.cells[t]] == c + 1]
+        return sample_cell_centres(xy, self.raster.cell, n, rng)
 
     def component_of(self, t: int, pts: np.ndarray) -> np.ndarray:
         """Component index (0-based) of points ``(m, dim)`` at original instant ``t``; -1 outside F.

@@ -65,9 +65,12 @@ class IntruderConfig:
     camera_fov: float = 60.0  #: horizontal field of view of the camera at zoom 1, degrees
     camera_aspect: float = 4.0 / 3.0  #: image width / height
     absent_after: float = ABSENT_AFTER_S  #: s; no estimate inside a stretch this long with every sensor off and no edge (nobody present); 0 = always estimate
+    false_alarm: float = 0.02  #: h of a sensor whose type states no false_positive (no type, or a site table without it): P(it fires in an iteration with nobody in its region). Real ceiling IR: ~0.03 per 2 s; 0 = the paper's perfect sensors
+    held: bool = True  #: a level sensor (signal = "level") held on through an iteration fires in it (presence), not only on a rising edge
 
     def __post_init__(self) -> None:
         check_range(self, "particles", 1, None, types=(int,))
+        check_range(self, "false_alarm", 0.0, 0.999)
         check_range(self, "period", 1e-6, None)
         check_range(self, "v_max", 0.0, None)
         check_range(self, "speed_sigma", 0.0, None)
@@ -128,8 +131,13 @@ def available(site: Site) -> str | None:
     return None
 
 
-def observations(motion: pl.DataFrame, site: Site, *, period: float, start: float | None, end: float | None):
+def observations(motion: pl.DataFrame, site: Site, *, period: float, start: float | None, end: float | None, held: bool = False):
     """``(fired, blind, t_end)``: ``(T, n)`` S_i and B_i per iteration and each iteration's end time.
+
+    ``S_i`` is a rising edge in the iteration; with ``held``, a sensor whose ``signal`` is
+    ``level`` (on while someone is under it) also fires in every iteration it is on at the
+    start of (``on`` of :func:`onebit.readers.motion.motion_frames`): a person standing under
+    a ceiling sensor is presence evidence, not absence.
 
     Iterations cover ``[start, end)``; ``start = None`` is the start of the slot (a multiple
     of ``period``) holding the first edge, so the slots span the data, wherever its time
@@ -150,6 +158,10 @@ def observations(motion: pl.DataFrame, site: Site, *, period: float, start: floa
     st = st.join(order, on="sensor").sort(["slot", "_k"])
     T = st["slot"].n_unique()
     fired = st["fired"].to_numpy().reshape(T, len(ids))
+    if held:
+        level = np.array([m.signal == "level" for m in site.motion_sensors], dtype=bool)
+        on = st["on"].to_numpy().reshape(T, len(ids)).astype(bool)
+        fired = fired | (on & level[None, :])
     blind = st["blind"].to_numpy().reshape(T, len(ids))
     t_end = start + (np.arange(T) + 1) * period
     return fired, blind, t_end
@@ -185,8 +197,8 @@ def run(inputs: dict, site: Site, config: IntruderConfig) -> dict[str, pl.DataFr
     """The ``intruder`` stage: PIR edges -> the SIR filter's estimated cell per iteration."""
     motion = check_schema(inputs["motion"], MOTION, name="motion")
     c = config.cell
-    dep = deploy(site, c)
-    fired, blind, t_end = observations(motion, site, period=config.period, start=config.start, end=config.end)
+    dep = deploy(site, c, false_alarm=config.false_alarm)
+    fired, blind, t_end = observations(motion, site, period=config.period, start=config.start, end=config.end, held=config.held)
     room = Room(site.free_space)
     turn = config.v_max if config.turn_scale is None else config.turn_scale
     mot = Motion(config.period, config.v_max * c, config.speed_sigma * c, turn * c, config.max_retries)

@@ -997,8 +997,17 @@ def info_state_update(
     negatives=(),
     substeps: int = 1,
     memo: PairMemo | None = None,
+    rejected: list | None = None,
 ) -> IState:
     """INFOSTATEUPDATE (Algorithm 1) followed by the clean-up and the cap.
+
+    Outlier-tolerant observations (beyond the paper). When ``rejected`` is a list, a reading
+    that would leave the I-state *empty* -- no joint state of n targets explains it together
+    with every earlier reading: a spurious firing, a footprint larger than declared, a
+    reading that arrived late -- is rejected instead: the I-state is kept as it was before
+    that reading and the reading's index (in ``detections``, then ``len(detections) + j``
+    for the ``j``-th negative) is appended to ``rejected``. Without it (``None``, the paper's
+    filter) such a reading empties the I-state, and an empty I-state stays empty for good.
 
     Motion update with ``step = s_tgt``; then, for each sensing region in ``detections``
     (readings 1), :func:`observation_update` followed by :func:`clean_up` and -- when
@@ -1030,8 +1039,16 @@ def info_state_update(
     def subtract(eta, s):
         return clean_up(negative_update(eta, s, shape=shape, memo=memo), shape=shape, memo=memo)
 
-    for s in detections:
-        eta = recall(eta, s, ("observe", shape, max_elements), observe)
-    for s in negatives:
-        eta = recall(eta, s, ("negative", shape), subtract)
+    for i, s in enumerate(detections):
+        new = recall(eta, s, ("observe", shape, max_elements), observe)
+        if rejected is not None and new.size == 0 and eta.size > 0:
+            rejected.append(i)
+            continue
+        eta = new
+    for j, s in enumerate(negatives):
+        new = recall(eta, s, ("negative", shape), subtract)
+        if rejected is not None and new.size == 0 and eta.size > 0:
+            rejected.append(len(detections) + j)
+            continue
+        eta = new
     return eta

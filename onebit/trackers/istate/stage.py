@@ -59,7 +59,8 @@ REGIONS = pl.Schema(
 )
 #: Schema of ``istate_summary``: one row per stage.
 SUMMARY = pl.Schema(
-    {"t": pl.Float64, "stage": pl.Int64, "elements": pl.Int64, "area": pl.Float64, "detections": pl.Int64}
+    {"t": pl.Float64, "stage": pl.Int64, "elements": pl.Int64, "area": pl.Float64, "detections": pl.Int64,
+     "rejected": pl.Int64, "area_share": pl.Float64}
 )
 #: Schema of ``istate_detections``: the sensing regions with reading 1 used at each stage.
 DETECTIONS = pl.Schema({"t": pl.Float64, "stage": pl.Int64, "sensor": pl.String, "inflation": pl.Float64})
@@ -96,6 +97,10 @@ class IStateConfig:
         longer log skips the stage, saying so (the set-based filter costs ~0.3 ms per stage
         and its recording ~1-10 ms more, whatever happens in the stage: a 10^6-row beams log
         of 5 days is 460 000 stages). 0 = no bound.
+    contradictions : what a reading that no joint state explains does (a spurious or late
+        firing, a footprint larger than declared): ``reject`` (default) keeps the I-state and
+        counts the reading (``summary.rejected``); ``empty`` is the paper's filter, whose
+        I-state then stays empty for the rest of the run.
     """
 
     period_s: float = 1.0
@@ -110,8 +115,10 @@ class IStateConfig:
     substeps: int = 1
     absent_after: float = ABSENT_AFTER_S
     max_stages: int = 20_000
+    contradictions: str = "reject"
 
     def __post_init__(self) -> None:
+        check_choice(self, "contradictions", ("reject", "empty"))
         check_range(self, "period_s", 1e-6, None)
         check_range(self, "max_speed", 0.0, None)
         check_range(self, "targets", 0, 8, types=(int,))
@@ -294,7 +301,8 @@ def run(inputs: dict, site: Site, config: IStateConfig) -> dict[str, pl.DataFram
     (PROXIMITY), ``crossings`` (CROSSINGS). Outputs: ``tracks`` (TRACKS; a point summary:
     the centroids of the regions of the element of smallest total area, identities kept
     from stage to stage by ``linear_sum_assignment`` on centroid distance), ``summary``
-    (t, stage, elements, area of the union of all regions within the free space, detections), ``regions`` (every
+    (t, stage, elements, area of the union of all regions within the free space, detections,
+    rejected = readings rejected as contradicting the I-state, area_share = area / free space), ``regions`` (every
     region as WKB, for scoring and replay) and ``detections``.
     """
     n = config.targets or (site.targets or 0)
@@ -344,7 +352,9 @@ def run(inputs: dict, site: Site, config: IStateConfig) -> dict[str, pl.DataFram
     reg_rows, summ, track_xy = [], [], np.zeros((len(times), n, 2))
     prev = None
     memo = PairMemo()  # region-pair results of the whole run (regions recur across stages)
+    free_area = float(free.area) or 1.0
     for k, tk in enumerate(times):  # inherently sequential: the I-state of stage k depends on k-1
+        rejected: list | None = [] if config.contradictions == "reject" else None
         eta = info_state_update(
             eta,
             det_geom[det_bounds[k] : det_bounds[k + 1]],
@@ -355,11 +365,12 @@ def run(inputs: dict, site: Site, config: IStateConfig) -> dict[str, pl.DataFram
             negatives=neg_geom[neg_bounds[k] : neg_bounds[k + 1]],
             substeps=config.substeps,
             memo=memo,
+            rejected=rejected,
         )
         E = eta.size
         reg_rows.append(eta.regions.ravel())
         area = memo.recall(eta, free, "total_area", IState.total_area)  # the I-state recurs at a fixed point
-        summ.append((float(tk), k, E, area, int(det_bounds[k + 1] - det_bounds[k])))
+        summ.append((float(tk), k, E, area, int(det_bounds[k + 1] - det_bounds[k]), len(rejected or ()), area / free_area))
         track_xy[k] = prev = _point_summary(eta, prev, n)
 
     summary = pl.DataFrame(summ, schema=SUMMARY, orient="row")

@@ -61,6 +61,19 @@ def tracks_from_pred(pred: np.ndarray) -> np.ndarray:
     return track
 
 
+def preds_from_tracks(track: np.ndarray) -> np.ndarray:
+    """Predecessor of every event (the previous event of its track, ``-1``: the track's first).
+
+    >>> preds_from_tracks(np.array([0, 1, 0, 0, 1])).tolist()
+    [-1, -1, 0, 2, 1]
+    """
+    pred = np.full(len(track), -1, dtype=np.int64)
+    order = np.lexsort((np.arange(len(track)), track))
+    same = track[order][1:] == track[order][:-1]
+    pred[order[1:][same]] = order[:-1][same]
+    return pred
+
+
 def attribution_cost(pred: np.ndarray, move, birth: np.ndarray, *, stay: float | None = None) -> float:
     """Cost (1) of an attribution: ``move(j, i)`` for every link, ``birth[i]`` for every birth,
     plus the who-fires term (5) of each event when ``stay`` is given -- written event by event

@@ -5,7 +5,9 @@ Every motion ``ON`` edge at a sensor with a position is an event; the decoder
 of :mod:`onebit.trackers.residents.model` (dwell-aware motion on the sensor graph, penalised
 births): the number of people is its answer, at most ``targets`` of ``site.toml`` when given
 (the decoder's own bound), else at most ``max_people``. An ``OFF`` edge goes to the person of
-its sensor's last ``ON``.
+its sensor's last ``ON``. With ``habits`` (off by default: no gain measured on the real
+sessions, docs/residents.md), two decoded people are then re-oriented between their meetings
+by their sensor habits, learned without labels (:mod:`onebit.trackers.residents.habits`).
 
 Outputs (tables ``residents_<key>``):
 
@@ -30,7 +32,8 @@ from onebit.core.site import Site
 from onebit.core.tables import MOTION, TRACKS, check_schema, conform
 from onebit.core.units import length
 from onebit.trackers.base import ARTIFACTS, TrackerSpec, progress_of
-from onebit.trackers.residents.decode import Attribution, decode_events
+from onebit.trackers.residents.decode import Attribution, attribution_cost, decode_events, preds_from_tracks, tracks_from_pred
+from onebit.trackers.residents.habits import meeting_cuts, reorient
 from onebit.trackers.residents.model import birth_cost, move_cost, node_distances
 
 NAME = "residents"
@@ -62,7 +65,15 @@ class ResidentsConfig:
         the straight line between its sensors) or ``"straight"`` (between sensor positions).
     period : seconds between two rows of a person in ``tracks``.
     exit_after_s : silence after a last event at an exit node after which the person has left.
-    """
+    habits : re-orient two decoded people between their meetings by their sensor habits, learned
+        without labels (:mod:`onebit.trackers.residents.habits`; only when two people are decoded).
+    meet : two people this close (metres, the decoder's distance) may have swapped (eq. H1).
+    habit_margin : also a possible swap where the two people's motion costs for an event differ
+        by at most this (nats; 0: off) (eq. H1).
+    habit_alpha : Dirichlet pseudo-count per sensor of the habits (eq. H3).
+    habit_switch : cost (nats) of a swap at a meeting (``lambda`` of eq. H2).
+    habit_restarts : random starting orientations of the hard EM besides the decoder's.
+"""
 
     l0: float = length(1.0)
     speed: float = length(0.0, unit="m/s")
@@ -78,6 +89,12 @@ class ResidentsConfig:
     distance: str = "graph"
     period: float = 1.0
     exit_after_s: float = 60.0
+    habits: bool = False
+    meet: float = length(2.5)
+    habit_margin: float = 0.0
+    habit_alpha: float = 1.0
+    habit_switch: float = 0.0
+    habit_restarts: int = 8
 
     def __post_init__(self) -> None:
         check_range(self, "l0", 1e-9, None)
@@ -94,6 +111,11 @@ class ResidentsConfig:
         check_choice(self, "distance", ("graph", "straight"))
         check_range(self, "period", 1e-6, None)
         check_range(self, "exit_after_s", 0.0, None)
+        check_range(self, "meet", 0.0, None)
+        check_range(self, "habit_margin", 0.0, None)
+        check_range(self, "habit_alpha", 1e-6, None)
+        check_range(self, "habit_switch", 0.0, None)
+        check_range(self, "habit_restarts", 0, 1000, types=(int,))
 
 
 def available(site: Site) -> str | None:
@@ -139,7 +161,23 @@ def attribute(t: np.ndarray, node: np.ndarray, home: Home, cfg: ResidentsConfig,
         return move_cost(home.dist, node[J], np.full(len(J), node[i]), t[i] - t[J], l0=cfg.l0, v=cfg.speed, l_max=cfg.l_max,
                          w=cfg.silence_weight, tau=cfg.silence_tau_s)  # fmt: skip
 
-    return decode_events(move_row, birth, people=people, beam=cfg.beam or None, stay=cfg.stay or None, progress=progress)
+    res = decode_events(move_row, birth, people=people, beam=cfg.beam or None, stay=cfg.stay or None, progress=progress)
+    if not cfg.habits or res.people != 2:
+        return res
+
+    def move_to(src: np.ndarray, i: int) -> np.ndarray:
+        return move_cost(home.dist, src, np.full(len(src), node[i]), np.zeros(len(src)), l0=cfg.l0, v=cfg.speed, l_max=cfg.l_max,
+                         w=0.0, tau=cfg.silence_tau_s)  # fmt: skip
+
+    cut = meeting_cuts(node, res.track, home.dist, meet=cfg.meet, margin=cfg.habit_margin, move_cost=move_to)
+    track = reorient(node, res.track, cut, len(home.nodes), alpha=cfg.habit_alpha, switch=cfg.habit_switch, restarts=cfg.habit_restarts)
+    pred = preds_from_tracks(track)
+
+    def move_one(j: int, i: int) -> float:
+        return float(move_row(np.array([j]), i)[0])
+
+    cost = attribution_cost(pred, move_one, birth, stay=cfg.stay or None)
+    return Attribution(pred, tracks_from_pred(pred), cost, int((pred < 0).sum()), res.states)
 
 
 def run(inputs: dict, site: Site, config: ResidentsConfig) -> dict[str, pl.DataFrame]:

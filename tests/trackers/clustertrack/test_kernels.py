@@ -126,3 +126,16 @@ def test_compiled_pass_equals_numpy_pass(name, monkeypatch):
     np.testing.assert_array_equal(a.tracks, b.tracks)
     np.testing.assert_array_equal(a.costs, b.costs)
     np.testing.assert_array_equal(a.scanned, b.scanned)
+
+
+def test_sampling_from_listed_cell_centres_draws_what_the_mask_sampler_draws():
+    from shapely.geometry import box as _box
+
+    from onebit.trackers.clustertrack.feasible import make_raster, sample_cell_centres, sample_raster
+
+    r = make_raster(_box(0, 0, 8, 14), 0.1)
+    mask = np.zeros(r.width * r.height, dtype=bool)
+    mask[np.random.default_rng(1).choice(mask.size, 500, replace=False)] = True
+    a = sample_raster(mask, r, 1000, np.random.default_rng(3))
+    b = sample_cell_centres(r.centres_of(np.flatnonzero(mask)), r.cell, 1000, np.random.default_rng(3))
+    np.testing.assert_array_equal(a, b)

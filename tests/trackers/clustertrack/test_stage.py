@@ -225,3 +225,25 @@ def test_ten_targets_reruns_are_not_monopolised_by_jump_trajectories():
     # the retained rerun tracks pass through the component they were run for: bounds hold
     for t, u in enumerate(usage(sp, fixed.tracks)):
         assert np.all(u >= sp.comp_bounds_all[t])
+
+
+def test_tracks_never_exceed_targets_nor_the_count_estimate():
+    """Spurious firings raise per-component lower bounds; Appendix B reruns must still stop at
+    min(targets, Q_hat) tracks (issue 23: 11-38 tracks for 3-6 people)."""
+    from onebit.core.site import site_from_dict
+    from onebit.trackers.clustertrack.stage import ClusterTrackConfig, run
+
+    rng = np.random.default_rng(5)
+    xy = [(1.0 + 1.5 * i, 1.0 + 1.5 * j) for i in range(5) for j in range(5)]
+    site = site_from_dict({"boundary": {"polygon": [[0, 0], [8, 0], [8, 8], [0, 8]]}, "units": "m", "targets": 2,
+                           "proximity_sensors": [{"id": f"s{k}", "position": list(p), "radius": 0.9} for k, p in enumerate(xy)]})
+    T = 12
+    on = rng.random((T, len(xy))) < 0.12  # scattered spurious firings: many components per instant
+    frames = pl.DataFrame({"slot": np.repeat(np.arange(T), len(xy)), "t": np.repeat(np.arange(T) * 0.5, len(xy)),
+                           "sensor": [f"s{k}" for k in range(len(xy))] * T, "on": on.ravel(), "fired": on.ravel()},
+                          schema={"slot": pl.Int64, "t": pl.Float64, "sensor": pl.String, "on": pl.Boolean, "fired": pl.Boolean})
+    for targets, bound in ((0, 2), (1, 1)):
+        out = run({"proximity_frames": frames}, site, ClusterTrackConfig(consensus_runs=2, targets=targets, h_2d=10, m_o_r2=10.0))
+        q_hat = int(out["params"]["Q_hat"][0])
+        n = out["tracks"].group_by("t").len()["len"].max()
+        assert q_hat >= 2 and n <= min(bound, q_hat)

@@ -277,3 +277,25 @@ def test_remove_dominated_equals_the_plain_definition(seed, n, E):
     assert [shapely.to_wkb(x) for x in remove_dominated(eta).regions.ravel()] == [
         shapely.to_wkb(x) for x in _remove_dominated_plain(eta).regions.ravel()
     ]
+
+
+def test_a_contradicting_reading_is_rejected_and_counted_not_emptying_the_istate():
+    """Issue 23: one target seen at the left, then -- in the same stage -- a firing at the far
+    right no single target can explain. The paper's filter empties the I-state for good; the
+    outlier-tolerant update keeps it, names the reading, and the next consistent reading
+    updates it as usual."""
+    from shapely.geometry import Point, box as sbox
+
+    free = sbox(0, 0, 10, 2)
+    left, right = Point(1, 1).buffer(0.8), Point(9, 1).buffer(0.8)
+    eta0 = IState.initial(free, 1)
+    paper = info_state_update(eta0, [left, right], step=0.0, free_space=free)
+    assert paper.size == 0
+    assert info_state_update(paper, [left], step=1.0, free_space=free).size == 0  # empty stays empty
+    rejected: list = []
+    eta = info_state_update(eta0, [left, right], step=0.0, free_space=free, rejected=rejected)
+    assert rejected == [1] and eta.size > 0
+    assert all(r.contains(Point(1, 1)) for r in eta.regions[:, 0])
+    again: list = []
+    nxt = info_state_update(eta, [Point(1.5, 1).buffer(0.8)], step=0.5, free_space=free, rejected=again)
+    assert again == [] and nxt.size > 0

@@ -12,7 +12,10 @@ import pytest
 from onebit.core.errors import ConfigError
 from onebit.core.site import site_from_dict
 from onebit.core.tables import MOTION, TRACKS
+from onebit.trackers.base import ARTIFACTS
 from onebit.trackers.residents import ResidentsConfig, run
+from onebit.trackers.residents.decode import attribution_cost
+from onebit.trackers.residents.model import move_cost
 from onebit.trackers.residents.stage import EVENTS
 
 
@@ -142,5 +145,37 @@ def test_empty_motion_gives_empty_tables():
 
 @pytest.mark.parametrize("field,value", [("l0", 0.0), ("beam", -1), ("distance", "manhattan"), ("stay", 1.0), ("max_people", 0)])
 def test_config_errors_name_the_field(field, value):
+    with pytest.raises(ConfigError, match=field):
+        ResidentsConfig(**{field: value})
+
+
+@pytest.mark.parametrize("seed", [0, 1])
+def test_habits_keep_two_residents_apart_and_report_the_cost_of_their_attribution(seed):
+    site, motion, who = _two_residents(seed)
+    cfg = ResidentsConfig(habits=True, meet=30.0)  # every event a cut: each one oriented by habit alone
+    out = run({"motion": motion}, site, cfg)
+    on = out["events"].join(motion.with_row_index("row").filter("on").select("t", "sensor"), on=["t", "sensor"], how="semi")
+    pairs = {(who[(t, s)], tr) for (t, s, tr) in on.rows()}
+    assert len(pairs) == 2 and len({tr for _, tr in pairs}) == 2  # the two ends' habits differ: still no mixing
+    # the decoder's cost is that of the attribution it reports (eq. 1), not the one before re-orientation
+    art = out[ARTIFACTS]
+    t, node, track = art["t"], art["node"], art["track"]
+    ids = list(art["nodes"])
+    pos = {m.id: m.position for m in site.motion_sensors}
+    D = np.abs(np.subtract.outer([pos[i][0] for i in ids], [pos[i][0] for i in ids]))
+    pred = np.full(len(t), -1)
+    for p in np.unique(track):
+        mine = np.flatnonzero(track == p)
+        pred[mine[1:]] = mine[:-1]
+    birth = np.where(t - t[0] <= cfg.start_window_s, cfg.birth_door, cfg.birth_inside)
+
+    def move(j, i):
+        return float(move_cost(D, node[[j]], node[[i]], t[[i]] - t[[j]], l0=cfg.l0, v=0.0, l_max=cfg.l_max, w=0.0, tau=1.0)[0])
+
+    assert out["decoder"]["cost"][0] == pytest.approx(attribution_cost(pred, move, birth), rel=1e-9)
+
+
+@pytest.mark.parametrize("field,value", [("meet", -1.0), ("habit_alpha", 0.0), ("habit_restarts", -1), ("habit_switch", -0.5)])
+def test_habit_config_errors_name_the_field(field, value):
     with pytest.raises(ConfigError, match=field):
         ResidentsConfig(**{field: value})

@@ -1,0 +1,181 @@
+"""The ``binpf`` stage: frames of a binary sensor array -> labelled tracks of several people.
+
+Input: ``proximity_frames`` (FRAMES: slot, t, sensor, on -- each sensor's *level* at every
+frame, so a sensor held on is presence). The site's proximity sensors give the positions
+:math:`p_s` and the footprint radii :math:`R_s` (``r_outer``); ``radius`` overrides them.
+The frame period is the frames' own spacing. ``targets`` in ``site.toml`` (or the config's
+``targets``) bounds the number of people reported at once; the filter estimates the count
+itself (:mod:`onebit.trackers.binpf.filter`, the equations).
+
+Outputs (tables ``binpf_<key>``):
+
+- ``tracks`` (TRACKS): one row per reported track per frame (``track`` = ``b<label>``),
+  after joining tracklets across short gaps (:mod:`onebit.trackers.binpf.link`; the filled
+  frames are interpolated).
+- ``existence``: frame, t, track, x, y, r, reported -- every live Bernoulli component.
+- ``frames``: t, on (sensors on), live, births, deaths, merges, reported (tracks in
+  ``tracks`` at the frame), count = the expected number of people :math:`\\sum_i r_i`.
+- ``links``: joins (tracklets joined).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import polars as pl
+
+from onebit.core.config import check_choice, check_range
+from onebit.core.site import Site
+from onebit.core.tables import FRAMES, TRACKS, check_schema, conform
+from onebit.core.units import length
+from onebit.trackers.base import ARTIFACTS, TrackerSpec, progress_of
+from onebit.trackers.binpf.filter import FilterParams, run_filter
+from onebit.trackers.binpf.link import link_tracklets
+
+NAME = "binpf"
+
+
+@dataclass(frozen=True, kw_only=True)
+class BinPFConfig:
+    """``run.toml`` ``[binpf]``. Defaults fit the real ceiling IR array of Milan et al. (fitted
+    by maximum likelihood of Eq. (2) on its development sequence: :math:`p_d` 0.74, soft edge
+    0.31 m, :math:`p_f` 0.008; see ``docs/binpf.md``)."""
+
+    particles: int = 300  #: particles per track
+    pd: float = 0.75  #: p_d, probability a person well inside a footprint triggers the sensor in a frame
+    pf: float = 0.01  #: p_f, probability a sensor is on with nobody near (false alarm) per frame
+    edge: float = length(0.3)  #: w, width of the footprint's soft edge, m (0 = hard disk)
+    radius: float | None = length(None)  #: footprint radius R_s for every sensor, m; None = each sensor's r_outer
+    damping: float = 0.8  #: a, velocity kept from one frame to the next
+    accel_sigma: float = length(0.8, unit="m/s")  #: sigma_v, velocity noise per sqrt(s), m/s per sqrt(s)
+    survival: float = 0.98  #: p_s, probability a person stays from one frame to the next
+    silent: float = 0.3  #: epsilon, probability a present person triggers nothing in a frame (Eq. 4')
+    birth_r: float = 0.1  #: existence of a newborn track
+    birth_explained: float = 0.3  #: an on sensor the tracks trigger with less than this is unexplained
+    birth_link: float = length(1.8)  #: unexplained on sensors closer than this give one newborn, m
+    birth_speed: float = length(0.3, unit="m/s")  #: std of a newborn particle's velocity, m/s
+    r_confirm: float = 0.9  #: a track is confirmed once its existence reaches this
+    r_delete: float = 0.05  #: a track is deleted when its existence falls below this
+    r_out: float = 0.65  #: a confirmed track is reported while its existence is at least this
+    merge_distance: float = length(0.4)  #: two tracks closer than this are merged, m
+    smooth_lag: int = 4  #: frames of fixed-lag smoothing of the positions (particle genealogy); 0 = filter only
+    link: bool = True  #: join tracklets across short gaps (one min-cost assignment, :mod:`onebit.trackers.binpf.link`)
+    link_gap: int = 10  #: g_max, most missing frames a join bridges
+    link_speed: float = length(1.5, unit="m/s")  #: v_max, walking speed a join may assume, m/s
+    link_slack: float = length(1.0)  #: rho, extra distance a join allows (about a footprint), m
+    targets: int = 0  #: most people reported at once; 0 = the site's ``targets`` (none: no bound)
+    max_tracks: int = 0  #: most live tracks (tentative included); 0 = bound + 1 (8 without a bound): spare tentative tracks churn
+    seed: int = 0  #: random seed
+    log_particles: int = 50  #: particles per track and frame sent to Rerun
+
+    def __post_init__(self) -> None:
+        check_range(self, "particles", 1, 10**6, types=(int,))
+        check_range(self, "pd", 1e-6, 1.0)
+        check_range(self, "pf", 1e-9, 0.5)
+        check_range(self, "edge", 0.0, 1e6)
+        if self.radius is not None:
+            check_range(self, "radius", 1e-9, 1e9)
+        check_range(self, "damping", 0.0, 1.0)
+        check_range(self, "accel_sigma", 0.0, 1e6)
+        check_range(self, "survival", 1e-6, 1.0)
+        check_range(self, "silent", 0.0, 0.999)
+        check_range(self, "birth_r", 1e-6, 0.999)
+        check_range(self, "birth_explained", 0.0, 1.0)
+        check_range(self, "birth_link", 0.0, 1e9)
+        check_range(self, "birth_speed", 0.0, 1e6)
+        check_range(self, "r_confirm", 0.0, 1.0)
+        check_range(self, "r_delete", 0.0, self.r_confirm)
+        check_range(self, "r_out", self.r_delete, 1.0)
+        check_range(self, "merge_distance", 0.0, 1e9)
+        check_range(self, "smooth_lag", 0, 1000, types=(int,))
+        check_choice(self, "link", (True, False))
+        check_range(self, "link_gap", 0, 10**6, types=(int,))
+        check_range(self, "link_speed", 0.0, 1e6)
+        check_range(self, "link_slack", 0.0, 1e9)
+        check_range(self, "targets", 0, 10**4, types=(int,))
+        check_range(self, "max_tracks", 0, 10**4, types=(int,))
+        check_range(self, "seed", 0, None, types=(int,))
+        check_range(self, "log_particles", 0, 10**6, types=(int,))
+
+
+def available(site: Site) -> str | None:
+    return None if site.proximity_sensors else "site has no proximity sensors (binary sensors with a position and a radius)"
+
+
+def frame_levels(frames: pl.DataFrame, ids: tuple[str, ...]) -> tuple[np.ndarray, np.ndarray]:
+    """``(times (T,), on (T, S))``: each sensor's level per frame, sensors in site order, a
+    sensor without a row in a frame off."""
+    frames = frames.filter(pl.col("sensor").is_in(list(ids)))
+    slots = frames.select("slot", "t").unique("slot").sort("slot")
+    if slots.height == 0:
+        return np.zeros(0), np.zeros((0, len(ids)), dtype=bool)
+    k = np.searchsorted(slots["slot"].to_numpy(), frames["slot"].to_numpy())
+    col = frames["sensor"].replace_strict(list(ids), list(range(len(ids))), return_dtype=pl.Int64).to_numpy()
+    on = np.zeros((slots.height, len(ids)), dtype=bool)
+    on[k, col] = frames["on"].to_numpy()
+    return slots["t"].to_numpy().astype(float), on
+
+
+def frame_period(times: np.ndarray) -> float:
+    """The frames' spacing: the median difference of consecutive frame times (1.0 for < 2 frames)."""
+    d = np.diff(times)
+    d = d[d > 0]
+    return float(np.median(d)) if d.size else 1.0
+
+
+def run(inputs: dict, site: Site, config: BinPFConfig) -> dict:
+    """The ``binpf`` stage (see the module docstring)."""
+    frames = check_schema(inputs["proximity_frames"], FRAMES, name="proximity_frames")
+    ids = tuple(s.id for s in site.proximity_sensors)
+    sensors = np.array([s.position for s in site.proximity_sensors], dtype=float).reshape(-1, 2)
+    radii = np.array([config.radius or s.r_outer for s in site.proximity_sensors], dtype=float)
+    times, on = frame_levels(frames, ids)
+    bound = config.targets or (site.targets or 0)
+    max_tracks = config.max_tracks or (bound + 1 if bound else 8)
+    p = FilterParams(
+        particles=config.particles, pd=config.pd, pf=config.pf, edge=config.edge, period=frame_period(times),
+        damping=config.damping, accel_sigma=config.accel_sigma, survival=config.survival, silent=config.silent,
+        birth_r=config.birth_r, birth_explained=config.birth_explained, birth_link=config.birth_link,
+        birth_speed=config.birth_speed, r_confirm=config.r_confirm, r_delete=config.r_delete, r_out=config.r_out,
+        merge_distance=config.merge_distance, smooth_lag=config.smooth_lag, max_tracks=max_tracks, max_out=bound,
+    )  # fmt: skip
+    minx, miny, maxx, maxy = site.boundary.bounds
+    res = run_filter(on, sensors, radii, np.array([minx, miny]), np.array([maxx, maxy]), p,
+                     seed=config.seed, log_particles=config.log_particles, progress=progress_of(inputs))  # fmt: skip
+    track = np.char.add("b", res.label.astype(str)) if res.label.size else np.zeros(0, dtype=str)
+    t = times[res.frame] if res.frame.size else np.zeros(0)
+    existence = pl.DataFrame(
+        {"frame": res.frame, "t": t, "track": track.astype(object), "x": res.x, "y": res.y, "r": res.r, "reported": res.reported},
+        schema={"frame": pl.Int64, "t": pl.Float64, "track": pl.String, "x": pl.Float64, "y": pl.Float64, "r": pl.Float64,
+                "reported": pl.Boolean},
+    )  # fmt: skip
+    rep = existence.filter(pl.col("reported"))
+    f, lab, x, y = rep["frame"].to_numpy(), rep["track"].to_numpy().astype(str), rep["x"].to_numpy(), rep["y"].to_numpy()
+    joins = 0
+    if config.link and rep.height:
+        f, lab, x, y, joins = link_tracklets(f, lab, x, y, period=p.period, max_gap=config.link_gap, max_speed=config.link_speed,
+                                             slack=config.link_slack, max_out=bound)  # fmt: skip
+    tracks = conform(pl.DataFrame({"tracker": [NAME] * len(f), "track": lab.astype(object), "t": times[f] if len(f) else np.zeros(0),
+                                   "x": x, "y": y}, schema_overrides={"track": pl.String}), TRACKS)  # fmt: skip
+    reported_per_frame = np.bincount(f, minlength=len(times)).astype(np.int64) if len(times) else np.zeros(0, np.int64)
+    count = existence.group_by("frame").agg(pl.col("r").sum().alias("count"))
+    per_frame = (
+        pl.DataFrame({"frame": np.arange(len(times)), "t": times, "on": on.sum(axis=1).astype(np.int64), "live": res.live,
+                      "births": res.births, "deaths": res.deaths, "merges": res.merges, "reported": reported_per_frame})
+        .join(count, on="frame", how="left")
+        .with_columns(pl.col("count").fill_null(0.0))
+        .drop("frame")
+    )  # fmt: skip
+    artifacts = {
+        "times": times, "on": on, "sensors": sensors, "radii": radii, "ids": ids,
+        "particles_xy": res.particles_xy, "particles_t": times[res.particles_frame] if res.particles_frame.size else np.zeros(0),
+        "particles_track": np.char.add("b", res.particles_label.astype(str)) if res.particles_label.size else np.zeros(0, dtype=str),
+    }  # fmt: skip
+    return {"tracks": tracks, "existence": existence, "frames": per_frame, "links": pl.DataFrame({"joins": [joins]}), ARTIFACTS: artifacts}
+
+
+SPEC = TrackerSpec(
+    name=NAME, needs=("proximity_frames",), config=BinPFConfig, run=run, available=available,
+    help="beyond the papers: labelled multi-Bernoulli particle filter for arrays of binary sensors (soft footprint, false alarms, held sensors)",
+)  # fmt: skip

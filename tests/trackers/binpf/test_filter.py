@@ -1,0 +1,184 @@
+"""binpf's filter: each equation against a brute-force version on tiny cases, and the run's
+invariants (bounded counts, existences in [0, 1], determinism, no tracks from silence)."""
+
+from __future__ import annotations
+
+import itertools
+
+import numpy as np
+import pytest
+
+from onebit.trackers.binpf.filter import (
+    FilterParams, birth_groups, footprint_probability, frame_probability_off, observation_update, others_miss, predict,
+    run_filter, systematic_resample,
+)  # fmt: skip
+
+SENSORS = np.array([[0.0, 0.0], [1.5, 0.0], [3.0, 0.0], [0.0, 1.5], [1.5, 1.5], [3.0, 1.5]])
+RADII = np.full(len(SENSORS), 1.0)
+LO, HI = np.array([-1.0, -1.0]), np.array([4.0, 2.5])
+
+
+def test_footprint_is_the_hard_disk_without_an_edge_and_halves_at_the_radius():
+    xy = np.array([[0.0, 0.0], [0.99, 0.0], [1.01, 0.0]])
+    hard = footprint_probability(xy, SENSORS[:1], RADII[:1], pd=0.9, edge=0.0)[:, 0]
+    assert hard.tolist() == [0.9, 0.9, 0.0]
+    soft = footprint_probability(np.array([[1.0, 0.0]]), SENSORS[:1], RADII[:1], pd=0.9, edge=0.3)
+    assert soft[0, 0] == pytest.approx(0.45)
+    d = np.linspace(0, 4, 50)
+    prof = footprint_probability(np.c_[d, np.zeros_like(d)], SENSORS[:1], RADII[:1], pd=0.8, edge=0.3)[:, 0]
+    assert np.all(np.diff(prof) <= 0) and prof.max() <= 0.8
+
+
+def test_frame_probability_off_equals_the_enumeration_of_who_triggers():
+    people = np.array([[0.2, 0.1], [1.2, 0.4], [2.9, 1.4]])
+    pd, pf, edge = 0.7, 0.05, 0.3
+    d = footprint_probability(people, SENSORS, RADII, pd=pd, edge=edge)
+    got = frame_probability_off(people, SENSORS, RADII, pd=pd, pf=pf, edge=edge)
+    for s in range(len(SENSORS)):
+        p_off = 0.0  # sum over every outcome (each person, and the false alarm, triggers or not)
+        for bits in itertools.product([0, 1], repeat=len(people) + 1):
+            probs = [d[i, s] if b else 1 - d[i, s] for i, b in enumerate(bits[:-1])] + [pf if bits[-1] else 1 - pf]
+            if not any(bits):
+                p_off += float(np.prod(probs))
+        assert got[s] == pytest.approx(p_off)
+
+
+def test_others_miss_is_the_product_over_the_other_tracks_even_with_zeros():
+    rng = np.random.default_rng(1)
+    q = rng.random((4, 5))
+    q[1, 2] = 0.0
+    q[3, 2] = 0.0
+    m = others_miss(q, 0.1)
+    for i in range(4):
+        ref = 0.9 * np.prod(np.delete(q, i, axis=0), axis=0)
+        np.testing.assert_allclose(m[i], ref)
+    assert others_miss(q[:1], 0.1).tolist() == [[0.9] * 5]
+
+
+def _brute_update(x, r, z, p):
+    """Eqs. (4), (4'), (5) with explicit loops over tracks, particles and sensors."""
+    I, N = x.shape[:2]
+    S = len(z)
+    ell = np.zeros((I, N))
+    r_new = np.zeros(I)
+    d = np.array([[[footprint_probability(x[i, n, :2][None], SENSORS[s][None], RADII[s:s + 1], pd=p.pd, edge=p.edge)[0, 0]
+                    for s in range(S)] for n in range(N)] for i in range(I)])  # fmt: skip
+    for i in range(I):
+        ell0 = 0.0
+        for s in range(S):
+            m = 1 - p.pf
+            for j in range(I):
+                if j != i:
+                    m *= 1 - r[j] * d[j, :, s].mean()
+            ell0 += np.log(1 - m if z[s] else m)
+            for n in range(N):
+                off = m * (1 - d[i, n, s])
+                ell[i, n] += np.log(1 - off if z[s] else off)
+        like = (1 - p.silent) * np.exp(ell[i]) + p.silent * np.exp(ell0)
+        ell[i] = np.log(like)
+        L = np.mean(like) / np.exp(ell0)
+        r_new[i] = r[i] * L / (r[i] * L + 1 - r[i])
+    return ell, r_new
+
+
+@pytest.mark.parametrize("silent", [0.0, 0.2])
+def test_observation_update_equals_the_loops(silent):
+    rng = np.random.default_rng(3)
+    p = FilterParams(pd=0.8, pf=0.02, edge=0.3, silent=silent)
+    x = np.concatenate([rng.uniform([-0.5, -0.5], [3.5, 2.0], (3, 4, 2)), rng.normal(size=(3, 4, 2))], axis=-1)
+    r = np.array([0.3, 0.9, 0.6])
+    z = np.array([True, False, False, True, False, True])
+    ell, r_new = observation_update(x, r, z, SENSORS, RADII, p)
+    ell_ref, r_ref = _brute_update(x, r, z, p)
+    np.testing.assert_allclose(r_new, r_ref, rtol=1e-9)
+    # weights are defined up to a per-track constant
+    np.testing.assert_allclose(ell - ell.max(1, keepdims=True), ell_ref - ell_ref.max(1, keepdims=True), atol=1e-9)
+
+
+def test_a_contradicting_frame_lowers_existence_by_at_most_the_silent_factor():
+    """Eq. (4'): every sensor over a sure track off (or a far firing) cannot zero it."""
+    p = FilterParams(pd=0.99, pf=1e-6, edge=0.0, silent=0.2)
+    x = np.zeros((1, 20, 4))
+    x[0, :, :2] = [0.1, 0.1]  # under sensor 0
+    z = np.zeros(len(SENSORS), bool)
+    z[2] = True  # only a far sensor fires
+    _, r = observation_update(x, np.array([0.9]), z, SENSORS, RADII, p)
+    assert r[0] >= 0.9 * 0.2 / (0.9 * 0.2 + 0.1) - 1e-12
+    _, r0 = observation_update(x, np.array([0.9]), z, SENSORS, RADII, FilterParams(pd=0.99, pf=1e-6, edge=0.0, silent=0.0))
+    assert r0[0] < 0.1  # without it the one reading all but empties the track (L = 1 - p_d)
+
+
+def test_systematic_resampling_keeps_counts_within_one_of_the_weights():
+    rng = np.random.default_rng(0)
+    w = np.array([[0.5, 0.25, 0.125, 0.125], [1.0, 0.0, 0.0, 0.0]])
+    idx = systematic_resample(np.log(np.maximum(w, 1e-300)), rng)
+    for i in range(2):
+        counts = np.bincount(idx[i], minlength=4)
+        assert np.all(np.abs(counts - 4 * w[i]) < 1)
+
+
+def test_prediction_stays_in_the_box_and_decays_existence():
+    rng = np.random.default_rng(0)
+    x = np.zeros((2, 100, 4))
+    x[..., 2:] = 50.0  # far too fast: clipped at the wall
+    x2, r2 = predict(x, np.array([1.0, 0.5]), rng, FilterParams(survival=0.9), LO, HI)
+    assert np.all(x2[..., :2] >= LO) and np.all(x2[..., :2] <= HI)
+    np.testing.assert_allclose(r2, [0.9, 0.45])
+
+
+def test_birth_groups_join_unexplained_neighbours_only():
+    z = np.array([True, True, False, False, False, True])
+    groups = birth_groups(z, np.ones((0, 6)), SENSORS, FilterParams(birth_link=1.6))
+    assert sorted(map(sorted, (g.tolist() for g in groups))) == [[0, 1], [5]]
+    q = np.ones((1, 6))
+    q[0, 5] = 0.1  # a track triggers sensor 5 with probability 0.9: explained
+    groups = birth_groups(z, q, SENSORS, FilterParams(birth_link=1.6, birth_explained=0.5))
+    assert sorted(map(sorted, (g.tolist() for g in groups))) == [[0, 1]]
+
+
+def _walk(T=40, seed=0, pd=0.95, pf=0.002):
+    """Two people walking along the two rows of sensors in opposite directions; levels from Eq. (2)."""
+    rng = np.random.default_rng(seed)
+    t = np.arange(T) / (T - 1)
+    people = np.stack([np.c_[3.0 * t, np.zeros(T)], np.c_[3.0 * (1 - t), np.full(T, 1.5)]], axis=1)  # (T, 2, 2)
+    p_off = np.stack([frame_probability_off(people[k], SENSORS, RADII, pd=pd, pf=pf, edge=0.1) for k in range(T)])
+    return people, rng.random(p_off.shape) > p_off
+
+
+def test_two_walkers_are_followed_and_the_count_is_bounded():
+    people, on = _walk()
+    p = FilterParams(particles=200, pd=0.95, pf=0.002, edge=0.1, period=0.5, max_out=2, max_tracks=6)
+    res = run_filter(on, SENSORS, RADII, LO, HI, p, seed=1)
+    assert np.all((res.r >= 0) & (res.r <= 1))
+    rep_per_frame = np.bincount(res.frame[res.reported], minlength=len(on))
+    assert rep_per_frame.max() <= 2 and res.live.max() <= 6
+    hits = 0
+    for k in range(10, len(on)):
+        m = (res.frame == k) & res.reported
+        est = np.c_[res.x[m], res.y[m]]
+        if len(est):
+            d = np.sqrt(((people[k][:, None] - est[None]) ** 2).sum(-1))
+            hits += int((d.min(axis=1) < 1.0).sum())
+    assert hits >= 0.7 * 2 * (len(on) - 10)
+
+
+def test_the_bound_holds_with_more_people_than_targets():
+    people, on = _walk(seed=2)
+    res = run_filter(on, SENSORS, RADII, LO, HI, FilterParams(particles=100, max_out=1, max_tracks=3), seed=0)
+    assert np.bincount(res.frame[res.reported], minlength=len(on)).max() <= 1
+    assert res.live.max() <= 3
+
+
+def test_silence_gives_no_tracks_and_empty_input_no_rows():
+    res = run_filter(np.zeros((10, 6), bool), SENSORS, RADII, LO, HI, FilterParams(particles=50), seed=0)
+    assert res.label.size == 0 and res.births.sum() == 0 and res.live.tolist() == [0] * 10
+    res = run_filter(np.zeros((0, 6), bool), SENSORS, RADII, LO, HI, FilterParams(particles=50), seed=0)
+    assert res.frame.size == 0 and res.live.size == 0
+
+
+def test_same_seed_same_result():
+    _, on = _walk(T=20)
+    a = run_filter(on, SENSORS, RADII, LO, HI, FilterParams(particles=50), seed=4)
+    b = run_filter(on, SENSORS, RADII, LO, HI, FilterParams(particles=50), seed=4)
+    np.testing.assert_array_equal(a.x, b.x)
+    np.testing.assert_array_equal(a.label, b.label)
