@@ -128,7 +128,7 @@ TRACKERS: tuple[TrackerEntry, ...] = (
     TrackerEntry(binpf.SPEC, score_binpf.score, viz_binpf.log_run,
                  gate=Gate("point", 1.0, "m", "beyond the papers: a metric gate in world units; 1 m is about half the spacing of a ceiling "
                            "array (Milan et al. score at 1.5 m)"),
-                 scenario="proximity-line"),
+                 scenario="proximity-grid"),
     *(TrackerEntry(spec, score_findinghumo.score, viz_findinghumo.log_run, gate=HOPS_GATE, scenario="hallway") for spec in findinghumo.SPECS),
     TrackerEntry(findinghumo_flow.SPEC, score_findinghumo.score, viz_findinghumo.log_run, gate=HOPS_GATE, scenario="hallway"),
     TrackerEntry(istate.SPEC, score_istate.score, viz_istate.log_run,

@@ -12,7 +12,7 @@ from onebit.datasets.builtin import builtin_site
 from onebit.datasets.catalogue import get_scenario
 
 #: the scenario each tracker runs on in the demo (``Makefile``), short
-SCENARIOS = {"beams-lab": 20.0, "pir14": 20.0, "proximity-line": None, "hallway": 20.0, "istate-room": 20.0}
+SCENARIOS = {"beams-lab": 20.0, "pir14": 20.0, "proximity-line": None, "proximity-grid": None, "hallway": 20.0, "istate-room": 20.0}
 
 
 @pytest.fixture(scope="session")
