@@ -72,7 +72,7 @@ class OnlineIntruder:
 def start(site: Site, config: IntruderConfig) -> OnlineIntruder:
     """A fresh online filter for ``site`` (``config`` in the site's units, as the batch stage gets it)."""
     c = config.cell
-    dep = deploy(site, c)
+    dep = deploy(site, c, false_alarm=config.false_alarm)  # as the batch stage deploys
     room = Room(site.free_space)
     turn = config.v_max if config.turn_scale is None else config.turn_scale
     mot = Motion(config.period, config.v_max * c, config.speed_sigma * c, turn * c, config.max_retries)
@@ -124,7 +124,7 @@ def advance(state: OnlineIntruder, motion: pl.DataFrame, *, horizon: float, sett
         elif settled.height:
             state.start = math.floor(settled["t"].min() / cfg.period) * cfg.period
     if final:
-        fired, blind, t_end = observations(motion, state.site, period=cfg.period, start=cfg.start, end=cfg.end)
+        fired, blind, t_end = observations(motion, state.site, period=cfg.period, start=cfg.start, end=cfg.end, held=cfg.held)
         todo = len(t_end)
         state.ended = True
     else:
@@ -140,7 +140,8 @@ def advance(state: OnlineIntruder, motion: pl.DataFrame, *, horizon: float, sett
         if todo <= state.done:
             return out
         # the slots' firings from the settled edges; every slot is closed by a later settled edge
-        fired, blind, t_end = observations(settled, state.site, period=cfg.period, start=state.start, end=state.start + todo * cfg.period)
+        fired, blind, t_end = observations(settled, state.site, period=cfg.period, start=state.start, end=state.start + todo * cfg.period,
+                                           held=cfg.held)  # fmt: skip
         todo = min(todo, len(t_end))
     k0 = state.done
     if todo <= k0:
