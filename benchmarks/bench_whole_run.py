@@ -26,7 +26,9 @@ logs of that kind).
 
 Rows go to ``benchmarks/results.csv`` (row ``whole run``) with the growth exponent over the
 sizes. ``python -m benchmarks.bench_whole_run [--sizes 1e4,1e5,1e6] [--kinds beams,motion,...]
-[--timeout 600]``; ``make bench`` runs it with the defaults. Run it under ``nice`` on a shared
+[--timeout 600] [--baseline CHECKOUT]`` (``--baseline``: each recorded run also with the
+onebit of an earlier commit's checkout, after one run to fill its kernels' cache, and ours
+again right after it: the before/after row); ``make bench`` runs it with the defaults. Run it under ``nice`` on a shared
 machine; it takes minutes.
 """
 
@@ -97,8 +99,9 @@ def read_csv_cold(path: Path) -> float:
     return float(subprocess.run([sys.executable, "-c", code], check=True, capture_output=True, text=True).stdout.strip())
 
 
-def cold_run(dataset: Path, out: Path, trackers: str | None, *, rrd: bool, timeout: float) -> dict:
-    """One ``onebit run`` process: wall, start-up, per-stage work and viz seconds, or ``killed``."""
+def cold_run(dataset: Path, out: Path, trackers: str | None, *, rrd: bool, timeout: float, code: Path | None = None) -> dict:
+    """One ``onebit run`` process: wall, start-up, per-stage work and viz seconds, or ``killed``;
+    ``code``: run the onebit of that checkout (``PYTHONPATH``) instead of this one."""
     cmd = [sys.executable, "-m", "onebit.cli", "run", str(dataset), "--out", str(out)]
     cmd += ["--trackers", trackers] if trackers else []
     cmd += [] if rrd else ["--no-rrd"]
@@ -106,7 +109,8 @@ def cold_run(dataset: Path, out: Path, trackers: str | None, *, rrd: bool, timeo
     spawned = time.time()
     t0 = time.perf_counter()
     try:
-        proc = subprocess.run(cmd, capture_output=True, text=True, timeout=timeout)
+        env = {**os.environ, "PYTHONPATH": str(code)} if code is not None else None
+        proc = subprocess.run(cmd, capture_output=True, text=True, timeout=timeout, env=env, cwd=code)  # -m imports from the cwd first
     except subprocess.TimeoutExpired:
         return {"killed": True, "wall": timeout, "cmd": cmd}
     wall = time.perf_counter() - t0
@@ -122,11 +126,20 @@ def cold_run(dataset: Path, out: Path, trackers: str | None, *, rrd: bool, timeo
     }  # fmt: skip
 
 
+def _commit_of(checkout: Path) -> str:
+    try:
+        return subprocess.run(["git", "rev-parse", "--short", "HEAD"], cwd=checkout, capture_output=True, text=True, timeout=10).stdout.strip() or str(checkout)
+    except (OSError, subprocess.SubprocessError):
+        return str(checkout)
+
+
 def main(argv: list[str] | None = None) -> None:
     ap = argparse.ArgumentParser(prog="python -m benchmarks.bench_whole_run")
     ap.add_argument("--sizes", default=",".join(f"{s:g}" for s in SIZES), help="rows of the tiled logs (comma-separated)")
     ap.add_argument("--kinds", default=",".join(KINDS))
     ap.add_argument("--timeout", type=float, default=600.0, help="s; a run taking longer is killed and reported so")
+    ap.add_argument("--baseline", type=Path, default=None, metavar="CHECKOUT",
+                    help="also run each recorded run with the onebit of this checkout (an earlier commit): the before/after rows")
     args = ap.parse_args(argv)
     sizes = tuple(int(float(s)) for s in args.sizes.split(","))
     kinds = tuple(k.strip() for k in args.kinds.split(","))
@@ -145,6 +158,14 @@ def main(argv: list[str] | None = None) -> None:
             off = cold_run(data, root / "out-norrd", trackers, rrd=False, timeout=args.timeout)
             on = off if off["killed"] else cold_run(data, root / "out", trackers, rrd=True, timeout=args.timeout)
             floor = read_csv_cold(data / LOG[kind])
+            if args.baseline is not None and not on["killed"]:
+                warm = cold_run(data, root / "out-base", trackers, rrd=True, timeout=args.timeout, code=args.baseline)  # its kernels' cache
+                base = warm if warm["killed"] else cold_run(data, root / "out-base", trackers, rrd=True, timeout=args.timeout, code=args.baseline)
+                again = cold_run(data, root / "out", trackers, rrd=True, timeout=args.timeout)  # right after, in the same conditions
+                ours = min(on["wall"], again["wall"])
+                print(f"  {kind} {n} rows: baseline {base['wall']:.1f} s{' (killed)' if base['killed'] else ''}, ours {ours:.1f} s", flush=True)
+                table.add(Result(ROW, f"{what}, {n:.0e} rows: wall, this commit vs {_commit_of(args.baseline)}", n, "s wall", ours,
+                                 base["wall"], f"the same run at {_commit_of(args.baseline)}" + (" (killed)" if base["killed"] else "")))  # fmt: skip
             runs.setdefault(kind, []).append((n, what, on, off, floor))
             if on["killed"]:
                 killed.add(kind)

@@ -143,8 +143,11 @@ def _cmd_experiment(args) -> int:
         extra = dict(results=Path(args.results) if args.results else None,
                      trackers=tuple(t.strip() for t in args.trackers.split(",") if t.strip()) if args.trackers else None,
                      layout=args.layout, rooms=args.rooms, scale=args.scale, graph_radius=args.graph_radius, targets=args.targets,
-                     doors=tuple(d.strip() for d in args.doors.split(",") if d.strip()) if args.doors else ())  # fmt: skip
+                     doors=tuple(d.strip() for d in args.doors.split(",") if d.strip()) if args.doors else (),
+                     config=load_run_config(args.config))  # fmt: skip
     else:
+        if args.config is not None:
+            raise ConfigError(f"experiment {args.name!r} takes no --config")
         params = inspect.signature(mod.run).parameters
         trackers = tuple(t.strip() for t in args.trackers.split(",") if t.strip()) if args.trackers else None
         for key, value in (("data", args.data), ("trackers", trackers)):
@@ -280,9 +283,20 @@ def _cmd_verify_path(args) -> int:
 
 
 def build_parser() -> argparse.ArgumentParser:
+    """The ``onebit`` command line: one step per group of subcommands."""
     p = argparse.ArgumentParser(prog="onebit", description="Tracking from one-bit sensors.")
     sub = p.add_subparsers(dest="command", required=True)
+    _add_run_commands(sub)
+    _add_simulate_command(sub)
+    _add_experiment_command(sub)
+    _add_verify_path_command(sub)
+    _add_import_commands(sub)
+    _add_logs_commands(sub)
+    return p
 
+
+def _add_run_commands(sub) -> None:
+    """``run``, ``follow``, ``compare``, ``run-many`` and ``report``: running the pipeline and reading its runs."""
     r = sub.add_parser("run", help="run every stage whose inputs exist on a dataset folder")
     r.add_argument("dataset")
     r.add_argument("--out", required=True, help="run folder to write")
@@ -327,6 +341,9 @@ def build_parser() -> argparse.ArgumentParser:
     rp.add_argument("out")
     rp.set_defaults(func=_cmd_report)
 
+
+def _add_simulate_command(sub) -> None:
+    """``simulate``: a scenario's dataset folder with ground truth."""
     s = sub.add_parser("simulate", help="write a simulated dataset folder with ground truth")
     s.add_argument("scenario", help="scenario name ('onebit simulate list DIR' lists them)")
     s.add_argument("dataset")
@@ -339,11 +356,14 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("--param", action="append", metavar="KEY=VALUE", help="scenario-specific option (repeatable)")
     s.set_defaults(func=_cmd_simulate)
 
+
+def _add_experiment_command(sub) -> None:
+    """``experiment``: a paper's study."""
     e = sub.add_parser("experiment", help="reproduce a paper's study: simulate, run, tabulate, plot")
     e.add_argument("name", help="schiff, singh, okane, ..., residents (OUT = a folder of CASAS sessions)")
     e.add_argument("out")
     e.add_argument("--results", default=None, help="residents: results folder (default OUT/residents-study)")
-    e.add_argument("--trackers", default=None, help="residents, ceiling: comma-separated trackers (default: residents hmm1,hmm2,findinghumo,"
+    e.add_argument("--trackers", default=None, help="residents, ceiling: comma-separated trackers (default: residents: residents,hmm1,hmm2,findinghumo,"
                    "findinghumo-flow; ceiling every positional one)")
     e.add_argument("--layout", default=None, help="residents: floor plan / layout for every session (as import casas)")
     e.add_argument("--rooms", default=None, help="residents: floor plan rooms JSON")
@@ -351,6 +371,7 @@ def build_parser() -> argparse.ArgumentParser:
     e.add_argument("--graph-radius", type=float, default=None, help="residents: floor plan graph radius (m)")
     e.add_argument("--targets", type=int, default=None, help="residents: site.toml targets for every session")
     e.add_argument("--doors", default=None, help="residents: contacts that are doors to the outside")
+    e.add_argument("--config", default=None, help="residents: run.toml with one [section] per stage, for every session")
     e.add_argument("--seed", type=int, default=0)
     e.add_argument("--trials", type=int, default=None, help="trials per setting (default: the paper's)")
     e.add_argument("--quick", action="store_true", help="a reduced study (smoke test)")
@@ -358,6 +379,9 @@ def build_parser() -> argparse.ArgumentParser:
     _add_executor_options(e)
     e.set_defaults(func=_cmd_experiment)
 
+
+def _add_verify_path_command(sub) -> None:
+    """``verify-path``: a story's plausibility against a beams run."""
     vp = sub.add_parser("verify-path", help="is a story (crossing labels) plausible? Smith-Waterman vs a beams run")
     vp.add_argument("out", help="run folder of a finished 'onebit run' with the beams tracker")
     vp.add_argument("--story", required=True, help='crossing labels, e.g. "a b^-1 c"')
@@ -366,6 +390,9 @@ def build_parser() -> argparse.ArgumentParser:
     vp.add_argument("--gap", type=float, default=1.0, help="penalty of a gap (> 0)")
     vp.set_defaults(func=_cmd_verify_path)
 
+
+def _add_import_commands(sub) -> None:
+    """``import casas|irtracking|trajectories``: dataset folders from the field's own recordings."""
     im = sub.add_parser("import", help="make a dataset folder from the field's own recordings (CASAS, trajectories)")
     isub = im.add_subparsers(dest="import_command", required=True)
     ic = isub.add_parser("casas", help="a CASAS smart-home log (.txt, or pymrt events.csv) -> motion.csv, truth_events.csv, other.csv, annotations.csv, site.toml")
@@ -415,6 +442,9 @@ def build_parser() -> argparse.ArgumentParser:
     it.add_argument("--join", action="append", metavar="A,B", help="track ids that are one person (repeatable)")
     it.set_defaults(func=_cmd_import_trajectories)
 
+
+def _add_logs_commands(sub) -> None:
+    """``logs info|convert``: inspecting and converting raw logs."""
     lg = sub.add_parser("logs", help="inspect or convert raw logs")
     lsub = lg.add_subparsers(dest="logs_command", required=True)
     li = lsub.add_parser("info", help="channels, sensors, time span, rates and rejects of a log")
@@ -427,7 +457,6 @@ def build_parser() -> argparse.ArgumentParser:
     lc.add_argument("--run", metavar="RUN", help="a run folder of this dataset: add its tracks as views")
     lc.add_argument("--topics", metavar="TOML", help="MCAP -> CSV: mcap_topics.toml mapping ROS 2 Bool topics to sensors")
     lc.set_defaults(func=_cmd_logs_convert)
-    return p
 
 
 def main(argv: list[str] | None = None) -> int:

@@ -31,7 +31,7 @@ from onebit.datasets.importers import import_casas
 from onebit.pipeline.runner import run_pipeline
 
 #: The multi-person trackers that write ``<tracker>_events`` (the default ``--trackers``).
-DEFAULT_TRACKERS = ("hmm1", "hmm2", "findinghumo", "findinghumo-flow")
+DEFAULT_TRACKERS = ("residents", "hmm1", "hmm2", "findinghumo", "findinghumo-flow")
 #: The baselines' report stages and their names here.
 BASELINES = {"identity-busier": "baseline-busier", "identity-nearest": "baseline-nearest"}
 
@@ -97,9 +97,12 @@ def run(
     graph_radius: float | None = None,
     targets: int | None = None,
     doors: tuple[str, ...] = (),
+    config: dict | None = None,
 ) -> Path:
     """The study (module docstring); ``out`` is the folder of session files. ``quick``: the
-    first two sessions; ``trials``: the first ``trials`` sessions. Returns the results folder."""
+    first two sessions; ``trials``: the first ``trials`` sessions; ``config``: the stage
+    sections of a ``run.toml`` (e.g. ``{"residents": {"habits": True}}``), for every session.
+    Returns the results folder."""
     folder = Path(out)
     res_dir = Path(results) if results is not None else folder / "residents-study"
     trackers = tuple(trackers or DEFAULT_TRACKERS)
@@ -113,7 +116,7 @@ def run(
         ds = res_dir / "datasets" / f.stem
         import_casas(f, ds, layout=layout, rooms=rooms, scale=scale, graph_radius=graph_radius, targets=targets, doors=doors)
         run_dir = res_dir / "runs" / f.stem
-        res = run_pipeline(ds, run_dir, trackers=trackers, progress=False)
+        res = run_pipeline(ds, run_dir, trackers=trackers, config=config, progress=False)
         tpath = run_dir / "tables" / "timings.parquet"
         timings = pl.read_parquet(tpath) if tpath.exists() else None
         new = session_rows(f.stem, res.report, res.status, trackers, timings)

@@ -100,26 +100,6 @@ class FillRaster:
         return np.round((xy - [self.x0, self.y0]) / self.cell * 16.0).astype(np.int32)  # shift = 4
 
 
-def fill_images_reference(grid: np.ndarray, raster: FillRaster, *, background=colors.MAP_BACKGROUND) -> list[bytes]:
-    """:func:`fill_images` blending every region into a float image pixel by pixel: the plain
-    reference (and test oracle) of the label-table version."""
-    E, _, K = grid.shape
-    out = []
-    bg = np.asarray(background[:3], np.float32)
-    for s in range(K):  # one image per stage; the elements of a stage are few (cap M)
-        rgb = np.empty((raster.height, raster.width, 3), np.float32)
-        rgb[:] = bg
-        for e in range(E):
-            c = np.asarray(element_color(e)[:3], np.float32)
-            for g in grid[e, :, s]:  # each region of the element on its own: nested ones show
-                if g is None or g.is_empty:
-                    continue
-                m = raster.mask(g).astype(bool)
-                rgb[m] = c * FILL_ALPHA + rgb[m] * (1 - FILL_ALPHA)
-        out.append(_png(rgb.round().clip(0, 255).astype(np.uint8)))
-    return out
-
-
 def _png(rgb: np.ndarray) -> bytes:
     ok, png = cv2.imencode(".png", np.ascontiguousarray(rgb[..., ::-1]))
     if not ok:  # pragma: no cover - OpenCV always encodes a valid array
@@ -135,7 +115,7 @@ def fill_images(grid: np.ndarray, raster: FillRaster, *, background=colors.MAP_B
 
     A pixel's colour depends only on which regions cover it, in drawing order, so the image is
     drawn as a label per pixel (which regions so far) and a small table of label colours,
-    blended as :func:`fill_images_reference` blends each pixel (equal images, tested): per
+    blended as :func:`onebit._testing.oracles.fill_images_reference` blends each pixel (equal images, tested): per
     region one mask and one table lookup, no float image. ``keys`` (one hashable per stage,
     e.g. the stage's region WKBs) reuses the PNG of an earlier stage with the same key: an
     unobserved I-state that has filled the free space stays the same for many stages.

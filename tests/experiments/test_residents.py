@@ -46,3 +46,21 @@ def test_the_study_table(tmp_path):
     # the nearest-previous-event baseline separates two people who never meet
     assert ok.filter(pl.col("method") == "baseline-nearest")["accuracy"].min() > 0.8  # they meet only at M03-M04
     assert (res / "runs" / "P01" / "tables" / "hmm1_events.parquet").exists()
+
+
+def test_a_config_reaches_every_session_and_a_bad_one_is_refused(tmp_path):
+    dev = tmp_path / "dev"
+    dev.mkdir()
+    _session(dev / "P01.txt", 0)
+    lay = tmp_path / "line.toml"
+    lay.write_text("[sensors]\n" + "".join(f"M{k:02d} = [{2.0 * k}, 0.0]\n" for k in range(1, 7)))
+    cfg = tmp_path / "run.toml"
+    cfg.write_text("[residents]\nhabits = true\nmeet = 3.0\n")
+    res = tmp_path / "res"
+    assert main(["experiment", "residents", str(dev), "--results", str(res), "--trackers", "residents", "--layout", str(lay), "--targets", "2",
+                 "--config", str(cfg)]) == 0  # fmt: skip
+    rec = (res / "runs" / "P01" / "run.toml").read_text()
+    assert "habits = true" in rec and "meet = 3.0" in rec
+    cfg.write_text("[residents]\nhabit_alpha = 0.0\n")
+    assert main(["experiment", "residents", str(dev), "--results", str(tmp_path / "bad"), "--trackers", "residents", "--layout", str(lay),
+                 "--config", str(cfg)]) != 0  # fmt: skip

@@ -241,17 +241,19 @@ def test_run_toml_fuzz_only_onebit_errors_and_bounded(tmp_path_factory, blob):
 
 def test_a_dataset_run_toml_motion_and_scores_sections_are_used(tmp_path):
     """Issue #26: ``[motion]`` and ``[scores]`` of the dataset's own ``run.toml`` were validated but
-    ignored (``ctx.config.get`` instead of the section), so ``period = 0.5`` ran at 1.0."""
+    ignored (``ctx.config.get`` instead of the section), so ``period = 0.5`` ran at 1.0 (the
+    ``frames`` table it sized is gone; ``chatter_window`` shows the same)."""
     d = tmp_path / "data"
     d.mkdir()
     shutil.copy(builtin_site_path("hallway"), d / "site.toml")
     (d / "motion.csv").write_text("t,sensor,value\n0,104,1\n1.6,104,0\n2.1,103,1\n3.7,103,0\n4.2,102,1\n5.8,102,0\n")
-    (d / "run.toml").write_text("[motion]\nperiod = 0.5\n")
+    (d / "run.toml").write_text("[motion]\nchatter_window = 0.6\n")  # 1.6 off -> 2.1 on of 104/103: not the same sensor
     res = run_pipeline(d, tmp_path / "run", trackers=["hmm1"])
     assert res.status["motion"].startswith("ok")
-    frames = pl.read_parquet(tmp_path / "run" / "tables" / "frames.parquet")
-    assert frames["slot"].max() >= 10  # 6 s at 0.5 s slots, not 1.0 s
-    assert tomllib.loads((tmp_path / "run" / "run.toml").read_text())["motion"]["period"] == 0.5
+    assert tomllib.loads((tmp_path / "run" / "run.toml").read_text())["motion"]["chatter_window"] == 0.6
+    (d / "motion.csv").write_text("t,sensor,value\n0,104,1\n1.6,104,0\n2.1,104,1\n3.7,104,0\n")
+    res = run_pipeline(d, tmp_path / "run2", trackers=["hmm1"])
+    assert metric(res.report, "motion/suppressed") == 2.0  # the 1.6 off / 2.1 on pair: within 0.6 s
 
 
 def test_no_rrd_writes_the_same_tables_and_report_without_recordings(lab_run, tmp_path, capsys):

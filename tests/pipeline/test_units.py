@@ -23,6 +23,7 @@ import pytest
 from onebit.core.units import METRES_PER_UNIT
 from onebit.datasets.catalogue import get_scenario
 from onebit.pipeline.runner import run_pipeline
+from onebit.pipeline.stages import TRACKERS
 
 # --------------------------------------------------------------------------- rewriting a dataset in cm
 
@@ -145,20 +146,15 @@ SCENARIOS = {
 #: regions, normalised WKB bytes, which is not scale invariant), counts exactly;
 #: ``guarantee`` -- several ambiguous elements: which ones survive the cap is decided by that
 #: order, so only the guarantee is compared (containment, scored stages, area of the union).
-COMPARED = {
-    ("beams-lab", "beams"): "exact",
-    ("beams-lab", "istate"): "guarantee",
-    ("pir14", "intruder"): "exact",
-    ("pir14", "intruder-naive"): "exact",
+#: every tracker on the scenario its TrackerEntry names, exactly unless named here
+CLOSENESS = {"istate": "close"}
+COMPARED = {(e.scenario, e.name): CLOSENESS.get(e.name, "exact") for e in TRACKERS} | {
+    ("beams-lab", "istate"): "guarantee",  # and the I-state filter on every other scenario
     ("pir14", "istate"): "close",
-    ("proximity-line", "clustertrack"): "exact",
     ("proximity-line", "istate"): "guarantee",
-    ("hallway", "findinghumo"): "exact",
-    ("hallway", "hmm1"): "exact",
-    ("hallway", "hmm2"): "exact",
-    ("hallway", "findinghumo-flow"): "exact",
     ("hallway", "istate"): "guarantee",
-    ("istate-room", "istate"): "close",
+    ("pir14", "residents"): "exact",  # and the residents tracker on every site with motion sensors
+    ("istate-room", "residents"): "exact",
 }
 
 #: one run.toml for both runs, lengths in metres; small enough to keep the test fast
@@ -167,7 +163,7 @@ CONFIG = {
     "clustertrack": {"consensus_runs": 2, "reruns": 1},
 }
 
-EVERY_TRACKER = ("beams", "intruder", "intruder-naive", "clustertrack", "findinghumo", "hmm1", "hmm2", "findinghumo-flow", "istate")
+EVERY_TRACKER = tuple(e.name for e in TRACKERS)
 GUARANTEE_ROWS = ("containment", "scored_stages", "area_mean")
 
 

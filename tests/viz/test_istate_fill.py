@@ -7,7 +7,8 @@ import shapely
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from onebit.viz.istate import FillRaster, fill_images, fill_images_reference
+from onebit._testing.oracles import fill_images_reference
+from onebit.viz.istate import FillRaster, fill_images
 
 
 def _box(x0, y0, w, h):

@@ -43,7 +43,7 @@ from onebit.core.errors import ConfigError
 from onebit.core.sensing import body_radius, detection_regions
 from onebit.core.units import length
 from onebit.core.tables import CROSSINGS, MOTION, PROXIMITY, TRACKS, check_schema, conform
-from onebit.readers.motion import ABSENT_AFTER_S, outside_silence, silent_stretches
+from onebit.core.frames import ABSENT_AFTER_S, outside_silence, silent_stretches
 from onebit.trackers.base import ARTIFACTS, TrackerSpec
 from onebit.core.config import check_choice, check_range
 from onebit.trackers.istate.core import SHAPES, IState, PairMemo, disk, grow, info_state_update, shrink
