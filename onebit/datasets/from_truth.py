@@ -17,6 +17,11 @@ this layout track these walks?" with the usual report. It reads ``site.toml`` an
 * ``proximity.csv`` (t, sensor, value): on while a target is within ``R_i``; between ``R_i``
   and ``R_o`` (the two-radius model) on with probability ``p_ring``, drawn once per visit of
   the ring;
+* ``frames.csv`` (t, active) for ``[[binary_sensors]]`` (a ceiling array read every frame):
+  every ``1 / frame_hz`` s (2 Hz), a sensor is active when a target is within its ``R_i``,
+  or in the ring up to ``R_o`` with probability ``p_ring`` (drawn per frame), each active
+  reading kept with probability ``p_detect``. A site mixing binary sensors with other motion
+  or proximity sensors is refused: a run reads the binary readings from one source;
 * ``from_truth.toml``: what was simulated (options, seed, counts);
 * ``run.toml`` ``[istate]``: what a tracker may know of these sensors and walks, added to the
   folder's own ``run.toml`` where it does not set them already: ``latency_s`` (the PIR's hold
@@ -32,7 +37,7 @@ sensors; the PIR's refractory rule is sequential over its on-periods (each depen
 last one kept). Deterministic for a seed.
 
 Options (``--param key=value``): ``rate_hz``, ``max_gap_s``, ``hold_s``, ``p_detect``,
-``p_ring``.
+``p_ring``, ``frame_hz``.
 """
 
 from __future__ import annotations
@@ -70,10 +75,11 @@ class FromTruthConfig:
     p_detect: float = 1.0
     p_ring: float = 0.5
     drop: float = 0.0
+    frame_hz: float = 2.0
 
     def __post_init__(self) -> None:
         for name, lo, hi in (("rate_hz", 1e-3, 1e4), ("max_gap_s", 0.0, 1e9), ("hold_s", 0.0, 1e6),
-                             ("p_detect", 0.0, 1.0), ("p_ring", 0.0, 1.0), ("drop", 0.0, 1.0)):  # fmt: skip
+                             ("p_detect", 0.0, 1.0), ("p_ring", 0.0, 1.0), ("drop", 0.0, 1.0), ("frame_hz", 1e-3, 1e4)):  # fmt: skip
             check_range(self, name, lo, hi)
         if self.p_detect <= 0:
             raise ConfigError("from-truth: p_detect = 0 would never detect anyone; allowed range: (0, 1]")
@@ -227,6 +233,25 @@ def proximity_events(site: Site, times: np.ndarray, xy: np.ndarray, cfg: FromTru
     return _edges(times, on, ids)
 
 
+def binary_frames(site: Site, times: np.ndarray, xy: np.ndarray, cfg: FromTruthConfig, rng: np.random.Generator) -> pl.DataFrame:
+    """``frames.csv`` rows (t, active) of the site's ``[[binary_sensors]]`` (module docstring):
+    the dense grid's samples every ``round(rate_hz / frame_hz)`` steps are the frames."""
+    bs = site.binary_sensors
+    step = max(1, int(round(cfg.rate_hz / cfg.frame_hz)))
+    k = np.arange(0, len(times), step)
+    pos = np.array([b.position for b in bs], dtype=float).reshape(-1, 2)
+    d = np.hypot(xy[k, :, None, 0] - pos[None, None, :, 0], xy[k, :, None, 1] - pos[None, None, :, 1])  # (F, n, m)
+    d = np.nan_to_num(d, nan=np.inf)
+    r_in = np.array([b.r_inner for b in bs])
+    r_out = np.array([b.r_outer for b in bs])
+    sure = (d <= r_in).any(axis=1)
+    ring = ((d > r_in) & (d <= r_out)).any(axis=1) & ~sure & (rng.random(sure.shape) < cfg.p_ring)
+    on = (sure | ring) & (rng.random(sure.shape) < cfg.p_detect)
+    ids = np.array([b.id for b in bs], dtype=object)
+    active = [" ".join(ids[row]) for row in on]  # one string per frame
+    return pl.DataFrame({"t": np.round(times[k], 9), "active": active}, schema={"t": pl.Float64, "active": pl.String})
+
+
 # --------------------------------------------------------------------------- the folder
 
 
@@ -261,6 +286,10 @@ def simulate_from_truth(dataset: str | Path, *, seed: int = 0, cfg: FromTruthCon
     if not (site.beams or site.motion_sensors or site.proximity_sensors):
         raise InputError("the site declares no sensor (beams, motion_sensors, proximity_sensors) to simulate",
                          file=dataset / "site.toml")  # fmt: skip
+    if site.binary_sensors and (set(m.id for m in site.motion_sensors) | set(p.id for p in site.proximity_sensors)) - site.binary_ids:
+        raise InputError("the site mixes [[binary_sensors]] with other motion or proximity sensors: a run reads the binary readings "
+                         "from one source (frames.csv), so declare them all as binary sensors or none", file=dataset / "site.toml",
+                         field="binary_sensors")  # fmt: skip
     truth = read_truth(dataset, site)
     rng = np.random.default_rng(seed)
     times, xy, targets = dense_positions(truth, cfg)
@@ -270,11 +299,15 @@ def simulate_from_truth(dataset: str | Path, *, seed: int = 0, cfg: FromTruthCon
         ev = beam_events(site, times, xy, cfg, rng)
         write_csv(ev, dataset / "beams.csv")
         counts["beam_events"] = ev.height
-    if site.motion_sensors:
+    if site.binary_sensors:
+        fr = binary_frames(site, times, xy, cfg, rng)
+        write_csv(fr, dataset / "frames.csv")
+        counts["frames"] = fr.height
+    elif site.motion_sensors:
         ev = pir_events(site, times, xy, cfg, rng)
         write_csv(ev, dataset / "motion.csv")
         counts["motion_edges"] = ev.height
-    if site.proximity_sensors:
+    if site.proximity_sensors and not site.binary_sensors:
         ev = proximity_events(site, times, xy, cfg, rng)
         write_csv(ev, dataset / "proximity.csv")
         counts["proximity_edges"] = ev.height
@@ -325,7 +358,7 @@ def _float(params: dict, key: str, default: float) -> float:
 
 def _write(dataset, *, seed: int, duration=None, agents=None, drop: float = 0.0, camera: bool = False, params: dict | None = None) -> Path:
     params = dict(params or {})
-    known = ("rate_hz", "max_gap_s", "hold_s", "p_detect", "p_ring")
+    known = ("rate_hz", "max_gap_s", "hold_s", "p_detect", "p_ring", "frame_hz")
     unknown = sorted(set(params) - set(known))
     if unknown:
         raise ConfigError(f"scenario {NAME!r}: unknown --param {unknown}; known: {list(known)}")
@@ -339,7 +372,7 @@ def _write(dataset, *, seed: int, duration=None, agents=None, drop: float = 0.0,
 SCENARIO_SPECS = {
     NAME: Scenario(
         NAME,
-        "the logs of the folder's site.toml sensors (beams with body width, PIR fov/refractory, proximity) from its truth.csv",
+        "the logs of the folder's site.toml sensors (beams with body width, PIR fov/refractory, proximity, binary frames) from its truth.csv",
         _write,
     )
 }

@@ -36,7 +36,7 @@ from onebit.core.tables import REJECTS
 from onebit.core.units import config_in_site_units
 from onebit.pipeline.context import ReportRow, RunContext, Stage
 from onebit.readers.beams import BEAM_COLUMNS, beam_dtypes, decode_beam_log, decode_raw_beams
-from onebit.readers.frames import edges_of_levels, read_frames_csv
+from onebit.readers.frames import edges_of_levels, read_frame_rows, read_frames_csv
 from onebit.readers.camera import read_camera, truth_error
 from onebit.readers.motion import TOGGLE_COLUMNS, MotionConfig, read_motion, read_motion_csv, site_rules, toggle_dtypes
 from onebit.readers.rows import read_typed_csv
@@ -329,8 +329,8 @@ def _frame_sensor_ids(site) -> list[str]:
 
 
 def _frames_available(ctx: RunContext) -> str | None:
-    if not (ctx.dataset / "frames.csv").exists():
-        return "no frames.csv in the dataset (frame logs are not read from MCAP)"
+    if not ctx.has_source("frames"):
+        return "no frames.csv or /frames MCAP channel in the dataset"
     if not _frame_sensor_ids(ctx.site):
         return "frame log present but site.toml declares no binary sensors (binary_sensors, motion_sensors, proximity_sensors)"
     return None
@@ -344,7 +344,11 @@ def _frames_work(ctx: RunContext) -> dict[str, pl.DataFrame]:
     sensors; a binary sensor's edges are in ``motion`` once)."""
     site = ctx.site
     ids = _frame_sensor_ids(site)
-    log = read_frames_csv(ctx.dataset / "frames.csv", ids, epoch=run_time_origin(ctx))
+    csv = ctx.dataset / "frames.csv"
+    if csv.exists():
+        log = read_frames_csv(csv, ids, epoch=run_time_origin(ctx))
+    else:  # the MCAP channel /frames: the list layout (t, active)
+        log = read_frame_rows(ctx.mcap_channels["/frames"], ids, layout="list", epoch=run_time_origin(ctx))
     ctx.add_rejects(log.rejects)
     levels = log.levels
     motion_ids = [m.id for m in site.motion_sensors]
@@ -375,8 +379,8 @@ def _frames_viz(rec, ctx: RunContext, made: dict) -> None:
 
 
 def _motion_available(ctx: RunContext) -> str | None:
-    if (ctx.dataset / "frames.csv").exists():
-        return "the readings come from the frame log (frames.csv)"
+    if ctx.has_source("frames"):
+        return "the readings come from the frame log (frames.csv or /frames)"
     if not ctx.has_source("motion"):
         return "no motion.csv or /motion MCAP channel in the dataset"
     if not ctx.site.motion_sensors:
@@ -411,8 +415,8 @@ def _motion_viz(rec, ctx: RunContext, made: dict) -> None:
 
 
 def _proximity_available(ctx: RunContext) -> str | None:
-    if (ctx.dataset / "frames.csv").exists():
-        return "the readings come from the frame log (frames.csv)"
+    if ctx.has_source("frames"):
+        return "the readings come from the frame log (frames.csv or /frames)"
     if not ctx.site.proximity_sensors:
         return "site.toml has no proximity sensors"
     if not ctx.has_source("proximity"):

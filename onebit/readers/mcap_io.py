@@ -57,6 +57,7 @@ CHANNELS: dict[str, tuple[str, ...]] = {
     "/truth_crossings": ("t", "beam", "direction", "target", "dropped"),  # dropped: simulator flag 0|1
     "/motion": ("t", "sensor", "value"),
     "/proximity": ("t", "sensor", "value"),
+    "/frames": ("t", "active"),  # a frame-sampled log, list layout (onebit.readers.frames)
 }
 
 MAGIC = b"\x89MCAP0\r\n"

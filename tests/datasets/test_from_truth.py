@@ -15,6 +15,8 @@ from onebit.core.sensing import detection_regions
 from onebit.core.site import load_site
 from onebit.datasets.catalogue import get_scenario
 from onebit.datasets.from_truth import FromTruthConfig, simulate_from_truth
+from onebit.datasets.irtracking import import_irtracking
+from onebit.datasets.irtracking_sim import write_irtracking
 from onebit.pipeline.report import metric
 from onebit.pipeline.runner import run_pipeline
 from onebit.readers.motion import read_motion_csv
@@ -97,3 +99,29 @@ def test_bad_folders_and_options(tmp_path):
     with pytest.raises(ConfigError, match="p_detect"):
         FromTruthConfig(p_detect=0.0)
     assert main(["simulate", "from-truth", str(tmp_path), "--param", "speed=3"]) == 2
+
+
+def test_binary_sensors_from_truth_write_a_frame_log(tmp_path):
+    """[[binary_sensors]]: frames.csv at frame_hz, a sensor active when someone is within R_i
+    (p_detect 1), the same sets the truth gives at those times; a mixed site is refused."""
+    files = write_irtracking(tmp_path / "data", frames=24, people=2, seed=5)
+    d = tmp_path / "ds"
+    import_irtracking(files.readings, d, truth=files.truth, radius=0.8, targets=2)
+    (d / "frames.csv").unlink()
+    assert main(["simulate", "from-truth", str(d), "--seed", "1", "--param", "frame_hz=2"]) == 0
+    assert not (d / "motion.csv").exists() and not (d / "proximity.csv").exists()
+    site = load_site(d / "site.toml")
+    frames = pl.read_csv(d / "frames.csv", schema_overrides={"active": pl.String})
+    truth = pl.read_csv(d / "truth.csv", schema_overrides={"target": pl.String})
+    pos = {b.id: b.position for b in site.binary_sensors}
+    assert np.allclose(np.diff(frames["t"].to_numpy()), 0.5)
+    for t, active in frames.iter_rows():
+        here = truth.filter(pl.col("t").is_between(t - 1e-6, t + 1e-6))
+        want = {s for s, (x, y) in pos.items() if any(np.hypot(x - a, y - b) <= 0.8 for a, b in here.select("x", "y").rows())}
+        assert set((active or "").split()) == want, t
+    res = run_pipeline(d, tmp_path / "run", trackers=("istate",))
+    assert res.status["frames"].startswith("ok") and metric(res.report, "frames/frames") == frames.height
+    text = (d / "site.toml").read_text() + '\n[[motion_sensors]]\nid = "pir"\nposition = [1.0, 1.0]\nrange = 2.0\n'
+    (d / "site.toml").write_text(text)
+    with pytest.raises(InputError, match="mixes"):
+        simulate_from_truth(d)

@@ -110,3 +110,19 @@ def test_every_tracker_gets_the_levels(files, tmp_path):
     ctx = RunContext(ds, tmp_path / "x", site, None, {}, tables=tables)
     for entry in TRACKERS:
         assert tracker_inputs(entry, ctx)["levels"] is lv, entry.name
+
+
+def test_a_frame_log_in_mcap_reads_as_the_csv(files, tmp_path):
+    """``onebit logs convert`` puts frames.csv on the /frames channel; a run reads the same levels."""
+    ds = tmp_path / "ds"
+    import_irtracking(files.readings, ds, truth=files.truth, radius=0.8, targets=3)
+    mc = tmp_path / "mc"
+    mc.mkdir()
+    (mc / "site.toml").write_text((ds / "site.toml").read_text())
+    assert main(["logs", "convert", str(ds), str(mc / "recording.mcap")]) == 0
+    a = run_pipeline(ds, tmp_path / "run-csv", trackers=["istate"])
+    b = run_pipeline(mc, tmp_path / "run-mcap", trackers=["istate"])
+    assert b.status["frames"].startswith("ok") and b.status["motion"].startswith("skipped")
+    la = pl.read_parquet(tmp_path / "run-csv" / "tables" / "levels.parquet")
+    lb = pl.read_parquet(tmp_path / "run-mcap" / "tables" / "levels.parquet")
+    assert la.equals(lb)
