@@ -23,6 +23,7 @@ BENCHMARKS = (
     ("bench_findinghumo", "FindingHuMo Viterbi vs hmmlearn, decoder time per slot, 2nd-order memory"),
     ("bench_istate", "O'Kane I-state filter step, matching vs direct communication update"),
     ("bench_runmany", "run-many over 16 datasets and the O'Kane study: serial vs local pool vs Ray"),
+    ("bench_whole_run", "cold onebit run on 1e4-1e6-row beams/motion/proximity logs and a 24-h home log: stages, viz, start-up vs --no-rrd and pl.read_csv"),
 )
 OPTIONAL = {"bench_camera"}
 

@@ -14,7 +14,7 @@ import tracemalloc
 import numpy as np
 
 from onebit.trackers.clustertrack.algorithm import _norm, scan_clusters
-from onebit.trackers.clustertrack.direct import scan_clusters_direct
+from onebit._testing.oracles import scan_clusters_direct
 
 
 def instant(H: int, m_o_r: float, Q: int, t: int = 10, seed: int = 0):

@@ -444,7 +444,8 @@ def region_scores(t: Table) -> None:
     from onebit.core.site import load_site
     from onebit.datasets.beams_sim import write_beams_dataset
     from onebit.readers.beams import decode_beam_log
-    from onebit.scoring.crossings import assignment_scores, match_crossings, region_scores as ours_fn, region_scores_reference
+    from onebit._testing.oracles import region_scores_reference
+    from onebit.scoring.crossings import assignment_scores, match_crossings, region_scores as ours_fn
     from onebit.scoring.crossings import true_crossings_from_truth
     from onebit.trackers.beams import BeamsConfig, run as run_beams
 

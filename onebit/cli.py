@@ -28,6 +28,7 @@ from onebit.readers.mcap_io import csv_folder_to_mcap, load_topic_map, mcap_to_c
 from onebit.readers.trajectories import TrajectoryFormat
 from onebit.trackers.beams.verify import parse_story, verify_path
 from onebit.pipeline.follow import FollowConfig, follow, parse_speed
+from onebit.viz.compare import compare_runs
 from onebit.core.config import load_toml
 from onebit.readers.mcap_io import tracks_for_views
 
@@ -62,6 +63,16 @@ def _cmd_follow(args) -> int:
     for why in res.run.problems:
         print(f"onebit: run not ok: {why}", file=sys.stderr)
     return 0 if res.run.ok else 1
+
+
+def _cmd_compare(args) -> int:
+    labels = tuple(args.labels.split(",", 1)) if args.labels else None
+    if labels is not None and len(labels) != 2:
+        raise ConfigError(f"--labels {args.labels!r}: expected two names, A,B")
+    res = compare_runs(args.run_a, args.run_b, args.out, labels=labels)
+    print(f"compared {args.run_a} (A/) and {args.run_b} (B/): {res.views} views side by side, {sum(res.chunks.values())} chunks")
+    print(f"open with: rerun {res.rrd} {res.blueprint}")
+    return 0
 
 
 def _executor(args):
@@ -128,12 +139,22 @@ def _cmd_experiment(args) -> int:
 
     mod = get_experiment(args.name)
     extra = {}
-    params = inspect.signature(mod.run).parameters
-    for key, value in (("data", args.data), ("trackers", tuple(args.trackers.split(",")) if args.trackers else None)):
-        if value is not None:
-            if key not in params:
-                raise ConfigError(f"experiment {args.name!r} takes no --{key}")
-            extra[key] = value
+    if args.name == "residents":  # a folder of real sessions, not a simulation
+        extra = dict(results=Path(args.results) if args.results else None,
+                     trackers=tuple(t.strip() for t in args.trackers.split(",") if t.strip()) if args.trackers else None,
+                     layout=args.layout, rooms=args.rooms, scale=args.scale, graph_radius=args.graph_radius, targets=args.targets,
+                     doors=tuple(d.strip() for d in args.doors.split(",") if d.strip()) if args.doors else (),
+                     config=load_run_config(args.config))  # fmt: skip
+    else:
+        if args.config is not None:
+            raise ConfigError(f"experiment {args.name!r} takes no --config")
+        params = inspect.signature(mod.run).parameters
+        trackers = tuple(t.strip() for t in args.trackers.split(",") if t.strip()) if args.trackers else None
+        for key, value in (("data", args.data), ("trackers", trackers)):
+            if value is not None:
+                if key not in params:
+                    raise ConfigError(f"experiment {args.name!r} takes no --{key}")
+                extra[key] = value
     with _executor(args) as ex:
         out = mod.run(Path(args.out), seed=args.seed, trials=args.trials, quick=args.quick, echo=print, executor=ex, **extra)
     print(f"experiment {args.name}: results in {out}")
@@ -262,9 +283,20 @@ def _cmd_verify_path(args) -> int:
 
 
 def build_parser() -> argparse.ArgumentParser:
+    """The ``onebit`` command line: one step per group of subcommands."""
     p = argparse.ArgumentParser(prog="onebit", description="Tracking from one-bit sensors.")
     sub = p.add_subparsers(dest="command", required=True)
+    _add_run_commands(sub)
+    _add_simulate_command(sub)
+    _add_experiment_command(sub)
+    _add_verify_path_command(sub)
+    _add_import_commands(sub)
+    _add_logs_commands(sub)
+    return p
 
+
+def _add_run_commands(sub) -> None:
+    """``run``, ``follow``, ``compare``, ``run-many`` and ``report``: running the pipeline and reading its runs."""
     r = sub.add_parser("run", help="run every stage whose inputs exist on a dataset folder")
     r.add_argument("dataset")
     r.add_argument("--out", required=True, help="run folder to write")
@@ -288,6 +320,13 @@ def build_parser() -> argparse.ArgumentParser:
     fo.add_argument("--serve-web", action="store_true", help="also serve the stream to a web viewer (prints its URL)")
     fo.set_defaults(func=_cmd_follow)
 
+    cp = sub.add_parser("compare", help="two runs side by side on one timeline (one .rrd with A/ and B/, and a blueprint)")
+    cp.add_argument("run_a")
+    cp.add_argument("run_b")
+    cp.add_argument("--out", default="compare.rrd", help="recording to write (default compare.rrd; the blueprint goes next to it as .rbl)")
+    cp.add_argument("--labels", metavar="A,B", help="names of the two sides in the view titles (default: the folder names)")
+    cp.set_defaults(func=_cmd_compare)
+
     rm = sub.add_parser("run-many", help="run the pipeline on many dataset folders (process pool or Ray)")
     rm.add_argument("datasets", nargs="+", metavar="DATASET",
                     help="dataset folders, globs ('data/*/floor*') or files listing one folder per line")
@@ -302,6 +341,9 @@ def build_parser() -> argparse.ArgumentParser:
     rp.add_argument("out")
     rp.set_defaults(func=_cmd_report)
 
+
+def _add_simulate_command(sub) -> None:
+    """``simulate``: a scenario's dataset folder with ground truth."""
     s = sub.add_parser("simulate", help="write a simulated dataset folder with ground truth")
     s.add_argument("scenario", help="scenario name ('onebit simulate list DIR' lists them)")
     s.add_argument("dataset")
@@ -314,17 +356,32 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("--param", action="append", metavar="KEY=VALUE", help="scenario-specific option (repeatable)")
     s.set_defaults(func=_cmd_simulate)
 
+
+def _add_experiment_command(sub) -> None:
+    """``experiment``: a paper's study."""
     e = sub.add_parser("experiment", help="reproduce a paper's study: simulate, run, tabulate, plot")
-    e.add_argument("name", help="schiff, singh, okane, ...")
+    e.add_argument("name", help="schiff, singh, okane, ..., residents (OUT = a folder of CASAS sessions)")
     e.add_argument("out")
+    e.add_argument("--results", default=None, help="residents: results folder (default OUT/residents-study)")
+    e.add_argument("--trackers", default=None, help="residents, ceiling: comma-separated trackers (default: residents: residents,hmm1,hmm2,findinghumo,"
+                   "findinghumo-flow; ceiling every positional one)")
+    e.add_argument("--layout", default=None, help="residents: floor plan / layout for every session (as import casas)")
+    e.add_argument("--rooms", default=None, help="residents: floor plan rooms JSON")
+    e.add_argument("--scale", type=float, default=None, help="residents: floor plan metres per pixel")
+    e.add_argument("--graph-radius", type=float, default=None, help="residents: floor plan graph radius (m)")
+    e.add_argument("--targets", type=int, default=None, help="residents: site.toml targets for every session")
+    e.add_argument("--doors", default=None, help="residents: contacts that are doors to the outside")
+    e.add_argument("--config", default=None, help="residents: run.toml with one [section] per stage, for every session")
     e.add_argument("--seed", type=int, default=0)
     e.add_argument("--trials", type=int, default=None, help="trials per setting (default: the paper's)")
     e.add_argument("--quick", action="store_true", help="a reduced study (smoke test)")
     e.add_argument("--data", default=None, help="ceiling: the irtracking recordings (a clone of antonmil/irtracking)")
-    e.add_argument("--trackers", default=None, help="ceiling: onebit trackers to run, comma-separated (default: every positional one)")
     _add_executor_options(e)
     e.set_defaults(func=_cmd_experiment)
 
+
+def _add_verify_path_command(sub) -> None:
+    """``verify-path``: a story's plausibility against a beams run."""
     vp = sub.add_parser("verify-path", help="is a story (crossing labels) plausible? Smith-Waterman vs a beams run")
     vp.add_argument("out", help="run folder of a finished 'onebit run' with the beams tracker")
     vp.add_argument("--story", required=True, help='crossing labels, e.g. "a b^-1 c"')
@@ -333,6 +390,9 @@ def build_parser() -> argparse.ArgumentParser:
     vp.add_argument("--gap", type=float, default=1.0, help="penalty of a gap (> 0)")
     vp.set_defaults(func=_cmd_verify_path)
 
+
+def _add_import_commands(sub) -> None:
+    """``import casas|irtracking|trajectories``: dataset folders from the field's own recordings."""
     im = sub.add_parser("import", help="make a dataset folder from the field's own recordings (CASAS, trajectories)")
     isub = im.add_subparsers(dest="import_command", required=True)
     ic = isub.add_parser("casas", help="a CASAS smart-home log (.txt, or pymrt events.csv) -> motion.csv, truth_events.csv, other.csv, annotations.csv, site.toml")
@@ -382,6 +442,9 @@ def build_parser() -> argparse.ArgumentParser:
     it.add_argument("--join", action="append", metavar="A,B", help="track ids that are one person (repeatable)")
     it.set_defaults(func=_cmd_import_trajectories)
 
+
+def _add_logs_commands(sub) -> None:
+    """``logs info|convert``: inspecting and converting raw logs."""
     lg = sub.add_parser("logs", help="inspect or convert raw logs")
     lsub = lg.add_subparsers(dest="logs_command", required=True)
     li = lsub.add_parser("info", help="channels, sensors, time span, rates and rejects of a log")
@@ -394,7 +457,6 @@ def build_parser() -> argparse.ArgumentParser:
     lc.add_argument("--run", metavar="RUN", help="a run folder of this dataset: add its tracks as views")
     lc.add_argument("--topics", metavar="TOML", help="MCAP -> CSV: mcap_topics.toml mapping ROS 2 Bool topics to sensors")
     lc.set_defaults(func=_cmd_logs_convert)
-    return p
 
 
 def main(argv: list[str] | None = None) -> int:

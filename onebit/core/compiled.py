@@ -47,6 +47,17 @@ class Kernel:
         return self.dispatcher(*args)
 
 
+def numba_loaded() -> bool:
+    """Whether a kernel module has been turned into numba dispatchers in this process (numba
+    imported and its compiler set up): then one more kernel costs milliseconds to load, not
+    the 0.3-0.5 s of the first. A caller with a vectorised numpy path beside a kernel uses it
+    while this is false."""
+    return _STATE["loaded"]
+
+
+_STATE = {"loaded": False}
+
+
 def kernel(fn: Callable[..., Any]) -> Kernel:
     """Mark ``fn`` (a module-level function in numba's nopython subset) as a compiled kernel."""
     return Kernel(fn)
@@ -55,6 +66,7 @@ def kernel(fn: Callable[..., Any]) -> Kernel:
 def _compile_module(name: str) -> None:
     import numba  # deferred: a process that runs no kernel never imports it
 
+    _STATE["loaded"] = True
     module = sys.modules[name]
     for attr, value in list(vars(module).items()):
         if isinstance(value, Kernel) and value._dispatcher is None:

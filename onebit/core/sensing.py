@@ -41,9 +41,11 @@ A sensor type (a ``[sensor_types.<name>]`` table, or a built-in type of
     kind = "pir-triangle"   E = {(u, v): 0 <= u <= range, |v| <= u tan(fov / 2)}   (a triangle)
     kind = "beam"           E = [0, length] x [-width / 2, width / 2]   (the segment when width = 0)
     kind = "grid"           E = convex hull of the samples (u, v) with eta > 0
+    kind = "polygon"        E = the polygon [[u, v], ...] itself (any footprint: a floor mat, a
+                            door's contact strip, a ceiling sensor's disk drawn as a polygon)
 
 A table declares a geometry when it has ``kind`` or one of the geometry keys; then every key
-its kind needs is required (``range`` and ``fov``; ``length``; ``samples``) -- there is no
+its kind needs is required (``range`` and ``fov``; ``length``; ``samples``; ``polygon``) -- there is no
 default extent. ``resolution`` (the spacing of the characterisation's samples) defaults to
 1 m in the site's units; a beam's ``width`` to its resolution (the paper's "10 x 1 x 1"
 beam: each sample stands for a resolution-sized block on its axis). A table with only
@@ -78,10 +80,10 @@ if TYPE_CHECKING:
 QUAD_SEGS = 32
 
 #: Sensor-type kinds with a geometric extent.
-KINDS = ("pir-triangle", "beam", "grid")
+KINDS = ("pir-triangle", "beam", "grid", "polygon")
 
 #: Keys of a ``[sensor_types.<name>]`` table that describe its geometry.
-GEOMETRY_KEYS = frozenset({"kind", "range", "fov", "length", "width", "resolution", "samples"})
+GEOMETRY_KEYS = frozenset({"kind", "range", "fov", "length", "width", "resolution", "samples", "polygon"})
 
 #: Keys whose value is a length (scaled with the units; ``samples`` scales its u and v).
 LENGTH_KEYS = frozenset({"range", "length", "width", "resolution"})
@@ -117,7 +119,7 @@ def body_radius(site: "Site") -> float:
 
 
 def scale_type_table(table: Mapping, factor: float) -> dict:
-    """A copy of a sensor-type table with every length (and the u, v of ``samples``) times ``factor``."""
+    """A copy of a sensor-type table with every length (and the u, v of ``samples`` and ``polygon``) times ``factor``."""
     out = dict(table)
     for k in LENGTH_KEYS & set(out):
         out[k] = out[k] * factor
@@ -125,6 +127,8 @@ def scale_type_table(table: Mapping, factor: float) -> dict:
         s = np.asarray(out["samples"], dtype=float).reshape(-1, 3).copy()
         s[:, :2] *= factor
         out["samples"] = s.tolist()
+    if "polygon" in out:
+        out["polygon"] = (np.asarray(out["polygon"], dtype=float) * factor).tolist()
     return out
 
 
@@ -148,7 +152,8 @@ class TypeGeometry:
     """The validated geometry of a sensor type, in the sensor's frame (site units).
 
     ``range``/``fov`` (degrees) for ``pir-triangle``; ``length``/``width`` for ``beam``;
-    ``samples`` ``(k, 3)`` (u, v, eta) for ``grid``; ``resolution`` is the sample spacing of
+    ``samples`` ``(k, 3)`` (u, v, eta) for ``grid``; ``polygon`` ``(k, 2)`` (u, v) for
+    ``polygon``; ``resolution`` is the sample spacing of
     the characterisation (:mod:`onebit.models.pir`).
     """
 
@@ -160,6 +165,7 @@ class TypeGeometry:
     length: float | None = None
     width: float = 0.0
     samples: np.ndarray | None = None
+    polygon: np.ndarray | None = None
 
     @cached_property
     def extent(self) -> BaseGeometry:
@@ -171,6 +177,8 @@ class TypeGeometry:
             if self.width > 0:
                 return shapely.box(0.0, -self.width / 2, self.length, self.width / 2)
             return LineString([(0.0, 0.0), (self.length, 0.0)])
+        if self.kind == "polygon":
+            return Polygon(self.polygon)
         pts = self.samples[self.samples[:, 2] > 0, :2]
         return shapely.convex_hull(shapely.multipoints(pts))
 
@@ -214,7 +222,7 @@ def type_geometry(name: str, table: Mapping, *, units: str = "m", source: str = 
 
     kind = table.get("kind")
     if kind is None:  # implied by the keys present
-        kind = "grid" if "samples" in table else "beam" if "length" in table else "pir-triangle"
+        kind = "grid" if "samples" in table else "polygon" if "polygon" in table else "beam" if "length" in table else "pir-triangle"
     if kind not in KINDS:
         raise err("kind", f"{kind!r} is not one of {list(KINDS)}")
     res = num("resolution", 0.0, default=DEFAULT_RESOLUTION_M * units_per_metre(units))
@@ -228,6 +236,8 @@ def type_geometry(name: str, table: Mapping, *, units: str = "m", source: str = 
                 raise err("width", f"must be a non-negative number, got {w!r}")
             width = float(w)
         return TypeGeometry(name, kind, res, length=num("length", 0.0), width=width)
+    if kind == "polygon":
+        return TypeGeometry(name, kind, res, polygon=_footprint(table.get("polygon"), err))
     if "samples" not in table:
         raise err("samples", "missing; a 'grid' sensor type needs samples = [[u, v, eta], ...]")
     try:
@@ -239,6 +249,23 @@ def type_geometry(name: str, table: Mapping, *, units: str = "m", source: str = 
     if not np.any(samples[:, 2] > 0):
         raise err("samples", "every eta is 0: the sensor can never detect")
     return TypeGeometry(name, kind, res, samples=samples)
+
+
+def _footprint(value, err) -> np.ndarray:
+    """The ``polygon`` of a ``kind = "polygon"`` type: at least 3 finite ``[u, v]`` points
+    forming a simple polygon of positive area (sensor frame, site units)."""
+    if value is None:
+        raise err("polygon", "missing; a 'polygon' sensor type needs polygon = [[u, v], ...] (sensor frame)")
+    try:
+        pts = np.asarray(value, dtype=float).reshape(-1, 2)
+    except (TypeError, ValueError):
+        raise err("polygon", "must be a list of [u, v] pairs") from None
+    if len(pts) < 3 or not np.all(np.isfinite(pts)):
+        raise err("polygon", f"needs at least 3 finite [u, v] points, got {len(pts)}")
+    poly = Polygon(pts)
+    if not poly.is_valid or poly.area <= 0:
+        raise err("polygon", "is not a simple polygon of positive area (edges cross, or the points are on a line)")
+    return pts
 
 
 # --------------------------------------------------------------------------- regions

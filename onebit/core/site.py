@@ -299,7 +299,9 @@ def load_site(path: str | Path) -> Site:
 
 
 def site_from_dict(data: dict, *, source: str = "<site>") -> Site:
-    """Validate a parsed ``site.toml`` mapping into a :class:`Site`."""
+    """Validate a parsed ``site.toml`` mapping into a :class:`Site`: the top keys, then the
+    floor (boundary, obstacles), the beams, the regions, the camera and the sensors, each
+    checked by its own step naming the key of anything wrong."""
 
     def err(key: str, reason: str) -> SiteError:
         return SiteError(reason, file=source, field=key)
@@ -309,12 +311,56 @@ def site_from_dict(data: dict, *, source: str = "<site>") -> Site:
     units = data.get("units", "m")
     if not isinstance(units, str) or units not in _UNITS:
         raise err("units", f"unknown unit {units!r}; expected one of {sorted(_UNITS)}")
-    epoch = data.get("epoch")
+    epoch = _site_epoch(data.get("epoch"), err)
+    boundary, obstacles, obstacle_names = _floor(data, err)
+    free = shapely.difference(boundary, shapely.union_all(obstacles)) if obstacles else boundary
+    beams = _beams(data.get("beams", []), free, shapely.union_all([boundary.exterior, *[o.boundary for o in obstacles]]), err)
+    regions = _regions(data.get("regions", []), free, err)
+    camera = _camera(data["camera"], err) if "camera" in data else None
+    targets = data.get("targets")
+    if targets is not None and (not isinstance(targets, int) or isinstance(targets, bool) or targets < 0):
+        raise err("targets", f"must be a non-negative integer, got {targets!r}")
+    body = _number(data["body_radius"], "body_radius", err, lo=0.0) if "body_radius" in data else None
+    stypes = data.get("sensor_types", {})
+    if not isinstance(stypes, dict) or not all(isinstance(v, dict) for v in stypes.values()):
+        raise err("sensor_types", "must be a table of tables ([sensor_types.<name>])")
+    motion, prox, binary = _sensors(data, boundary, {b.id for b in beams}, stypes, err)
+    graph = _sensor_graph(data["sensor_graph"], {m.id for m in motion}, err, motion=motion,
+                          walls=shapely.union_all([boundary.exterior, *obstacles]), source=source) if "sensor_graph" in data else None  # fmt: skip
+
+    return Site(
+        name=name,
+        units=units,
+        boundary=boundary,
+        obstacles=tuple(obstacles),
+        obstacle_names=tuple(obstacle_names),
+        beams=tuple(beams),
+        regions=tuple(regions),
+        camera=camera,
+        epoch=epoch,
+        source=source,
+        targets=targets,
+        motion_sensors=tuple(motion),
+        proximity_sensors=tuple(prox),
+        binary_sensors=tuple(binary),
+        sensor_graph=graph,
+        sensor_types=stypes,
+        body_radius=body,
+    )
+
+
+def _site_epoch(epoch, err) -> str | None:
+    """``epoch`` as ISO text (a TOML date-time is written back as ISO), checked; ``None`` when unset."""
     if epoch is not None and not isinstance(epoch, str):
         epoch = epoch.isoformat() if hasattr(epoch, "isoformat") else str(epoch)
     if epoch is not None:
         _check_epoch(epoch, err)
+    return epoch
 
+
+def _floor(data: dict, err) -> tuple[Polygon, list[Polygon], list[str]]:
+    """``[boundary]`` and ``[[obstacles]]``: the boundary polygon, the obstacles (each inside
+    it) and their names."""
     if "boundary" not in data:
         raise err("boundary", "missing; the site needs a boundary polygon")
     bnd = data["boundary"]
@@ -322,7 +368,6 @@ def site_from_dict(data: dict, *, source: str = "<site>") -> Site:
         raise err("boundary", "must be a table with a 'polygon' key")
     _unknown(bnd, _BOUNDARY_KEYS, "boundary.", err)
     boundary = _polygon(bnd.get("polygon"), "boundary.polygon", err)
-
     obstacles, obstacle_names = [], []
     for i, ob in enumerate(_list_of_tables(data.get("obstacles", []), "obstacles", err)):
         key = f"obstacles[{i}]"
@@ -332,12 +377,15 @@ def site_from_dict(data: dict, *, source: str = "<site>") -> Site:
             raise err(key + ".polygon", "obstacle is not inside the boundary")
         obstacles.append(poly)
         obstacle_names.append(_name(ob.get("name", i), key + ".name", err))
-    free = shapely.difference(boundary, shapely.union_all(obstacles)) if obstacles else boundary
-    walls = shapely.union_all([boundary.exterior, *[o.boundary for o in obstacles]])
+    return boundary, obstacles, obstacle_names
 
+
+def _beams(tables, free, walls, err) -> list[Beam]:
+    """``[[beams]]``: each a segment from wall to wall through the free space, ids unique,
+    beams pairwise disjoint (they may meet at an end)."""
     beams: list[Beam] = []
     seen: set[str] = set()
-    for i, bm in enumerate(_list_of_tables(data.get("beams", []), "beams", err)):
+    for i, bm in enumerate(_list_of_tables(tables, "beams", err)):
         key = f"beams[{i}]"
         _unknown(bm, _BEAM_KEYS, key + ".", err)
         if "id" not in bm:
@@ -373,9 +421,13 @@ def site_from_dict(data: dict, *, source: str = "<site>") -> Site:
             inter = li.intersection(lj)
             if not inter.is_empty and (inter.length > 0 or not _at_end(inter, beams[i]) or not _at_end(inter, beams[j])):
                 raise err(f"beams[{j}] (id {beams[j].id!r}).segment", f"crosses beam {beams[i].id!r}; beams must be pairwise disjoint")
+    return beams
 
+
+def _regions(tables, free, err) -> list[RegionSpec]:
+    """``[[regions]]``: named points in the free space (names unique), optional capacity."""
     regions: list[RegionSpec] = []
-    for i, rg in enumerate(_list_of_tables(data.get("regions", []), "regions", err)):
+    for i, rg in enumerate(_list_of_tables(tables, "regions", err)):
         key = f"regions[{i}]"
         _unknown(rg, _REGION_KEYS, key + ".", err)
         if "name" not in rg:
@@ -389,46 +441,17 @@ def site_from_dict(data: dict, *, source: str = "<site>") -> Site:
         regions.append(RegionSpec(_name(rg["name"], key + ".name", err), tuple(pts[0]), cap))
     if len({r.name for r in regions}) != len(regions):
         raise err("regions", "duplicate region name")
+    return regions
 
-    camera = None
-    if "camera" in data:
-        camera = _camera(data["camera"], err)
 
-    targets = data.get("targets")
-    if targets is not None and (not isinstance(targets, int) or isinstance(targets, bool) or targets < 0):
-        raise err("targets", f"must be a non-negative integer, got {targets!r}")
-    body = _number(data["body_radius"], "body_radius", err, lo=0.0) if "body_radius" in data else None
-    sensor_ids: set[str] = set(seen)
-    stypes = data.get("sensor_types", {})
-    if not isinstance(stypes, dict) or not all(isinstance(v, dict) for v in stypes.values()):
-        raise err("sensor_types", "must be a table of tables ([sensor_types.<name>])")
-    motion = [_motion_sensor(ms, i, boundary, sensor_ids, err, stypes) for i, ms in enumerate(_list_of_tables(data.get("motion_sensors", []), "motion_sensors", err))]
-    prox = [_proximity_sensor(ps, i, sensor_ids, err) for i, ps in enumerate(_list_of_tables(data.get("proximity_sensors", []), "proximity_sensors", err))]
-    binary = [_binary_sensor(bs, i, sensor_ids, err, stypes) for i, bs in enumerate(_list_of_tables(data.get("binary_sensors", []), "binary_sensors", err))]
-    motion += [b.as_motion() for b in binary]
-    prox += [b.as_proximity() for b in binary]
-    graph = _sensor_graph(data["sensor_graph"], {m.id for m in motion}, err, motion=motion,
-                          walls=shapely.union_all([boundary.exterior, *obstacles]), source=source) if "sensor_graph" in data else None  # fmt: skip
-
-    return Site(
-        name=name,
-        units=units,
-        boundary=boundary,
-        obstacles=tuple(obstacles),
-        obstacle_names=tuple(obstacle_names),
-        beams=tuple(beams),
-        regions=tuple(regions),
-        camera=camera,
-        epoch=epoch,
-        source=source,
-        targets=targets,
-        motion_sensors=tuple(motion),
-        proximity_sensors=tuple(prox),
-        binary_sensors=tuple(binary),
-        sensor_graph=graph,
-        sensor_types=stypes,
-        body_radius=body,
-    )
+def _sensors(data: dict, boundary, beam_ids: set[str], stypes: dict, err):
+    """``[[motion_sensors]]``, ``[[proximity_sensors]]`` and ``[[binary_sensors]]`` (a binary
+    sensor is listed as a motion and a proximity sensor too); every id unique, beams' included."""
+    ids = set(beam_ids)
+    motion = [_motion_sensor(ms, i, boundary, ids, err, stypes) for i, ms in enumerate(_list_of_tables(data.get("motion_sensors", []), "motion_sensors", err))]
+    prox = [_proximity_sensor(ps, i, ids, err) for i, ps in enumerate(_list_of_tables(data.get("proximity_sensors", []), "proximity_sensors", err))]
+    binary = [_binary_sensor(bs, i, ids, err, stypes) for i, bs in enumerate(_list_of_tables(data.get("binary_sensors", []), "binary_sensors", err))]
+    return motion + [b.as_motion() for b in binary], prox + [b.as_proximity() for b in binary], binary
 
 
 def _shown(value) -> str:

@@ -6,7 +6,7 @@ Adding a simulator: give its module ``SCENARIO_SPECS`` and list it here.
 from __future__ import annotations
 
 from onebit.core.errors import ConfigError
-from onebit.datasets import beams_sim, from_truth, hallway_sim, okane_sim, pir_sim, proximity_sim
+from onebit.datasets import beams_sim, from_truth, hallway_sim, home_sim, okane_sim, pir_sim, proximity_sim
 from onebit.datasets.scenario import Scenario
 
 SCENARIOS: dict[str, Scenario] = {
@@ -14,6 +14,7 @@ SCENARIOS: dict[str, Scenario] = {
     **pir_sim.SCENARIO_SPECS,
     **proximity_sim.SCENARIO_SPECS,
     **hallway_sim.SCENARIO_SPECS,
+    **home_sim.SCENARIO_SPECS,
     **okane_sim.SCENARIO_SPECS,
     **from_truth.SCENARIO_SPECS,
 }

@@ -205,22 +205,6 @@ def pir_events(site: Site, times: np.ndarray, xy: np.ndarray, cfg: FromTruthConf
     return _edges(times, on, ids)
 
 
-def pir_refractory_reference(col, start, end, times, refr, dt):
-    """The plain loop of :func:`onebit.datasets.kernels.pir_refractory` (its test oracle)."""
-    K = times.shape[0]
-    keep, keep_s = np.ones(col.size, dtype=bool), start.copy()
-    blind = np.full(refr.shape[0], -np.inf)
-    for k in range(col.size):  # sequential: a period's fate depends on the last one kept
-        i = col[k]
-        ready = int(math.ceil((blind[i] - times[0]) / dt - 1e-9)) if np.isfinite(blind[i]) else 0
-        if end[k] <= ready:
-            keep[k] = False
-            continue
-        keep_s[k] = max(start[k], ready)
-        blind[i] = times[min(end[k], K - 1)] + refr[i]
-    return keep, keep_s
-
-
 def proximity_events(site: Site, times: np.ndarray, xy: np.ndarray, cfg: FromTruthConfig, rng: np.random.Generator) -> pl.DataFrame:
     """Proximity toggles: on within ``R_i``; in the ring up to ``R_o`` with probability ``p_ring`` per visit."""
     ps = site.proximity_sensors

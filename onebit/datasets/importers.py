@@ -25,9 +25,11 @@ Without one the graph is **learned from the log** (:func:`learn_sensor_graph`): 
 from different sensors, ``dt <= window_s`` (5 s) apart, are one *transition* between them
 (either direction). Sensors ``a`` and ``b`` are adjacent when they have at least
 ``min_count`` (3) transitions and those are at least ``min_share`` (10 %) of the transitions
-of the less busy of the two -- a person walking trips neighbouring sensors one after the
-other, while a skipped sensor (a missed detection) or two people in different rooms make
-rarer pairs. Components left apart are joined by the edges of a maximum spanning forest of
+of the less busy of the two, and their *lift* (their count over the count chance would give
+if the two sensors' transitions were independent) is at least ``min_lift`` (2) -- a person
+walking trips neighbouring sensors one after the other far more often than chance, while a
+skipped sensor (a missed detection) makes rarer pairs and two people moving at once in two
+rooms interleave their events about as chance would (lift ~ 1): they do not link the rooms. Components left apart are joined by the edges of a maximum spanning forest of
 the transition counts (the most frequent transitions between them). Nodes get positions from
 a force layout of that graph (``networkx.spring_layout``, seeded; edge length ``spacing_m``,
 3 m) -- **not measured**: ``import.toml`` says ``positions = "force layout"`` and
@@ -62,6 +64,7 @@ nx = lazy_module("networkx")
 WINDOW_S = 5.0
 MIN_COUNT = 3
 MIN_SHARE = 0.1
+MIN_LIFT = 2.0
 SPACING_M = 3.0
 #: Floor-plan rooms closer than this (m, a wall's thickness) are neighbours (a doorway is assumed).
 ROOM_TOUCH_M = 0.3
@@ -122,10 +125,17 @@ def learn_sensor_graph(
     window_s: float = WINDOW_S,
     min_count: int = MIN_COUNT,
     min_share: float = MIN_SHARE,
+    min_lift: float = MIN_LIFT,
 ) -> tuple[list[tuple[str, str]], pl.DataFrame]:
     """Edges of the sensor graph learned from ON events (module docstring), and the
-    transition table with columns a, b, n, share, kept (``"rule"``, ``"joins components"``
-    or null)."""
+    transition table with columns a, b, n, share, lift, kept (``"rule"``, ``"joins
+    components"`` or null).
+
+    ``lift = n / E``, ``E = n_a n_b / (2 T)``: the pair's transitions over what chance would
+    give if the two sensors' transitions were independent (``n_a``: transitions touching
+    ``a``, ``T``: all transitions). Two people moving at once in two rooms interleave their
+    events about as chance would (lift ~ 1); a walker makes neighbours follow each other far
+    more often than that, so an edge needs ``lift >= min_lift`` too."""
     tr = transitions(events, window_s=window_s)
     busy = pl.concat([tr.select(pl.col("a").alias("s"), "n"), tr.select(pl.col("b").alias("s"), "n")]).group_by("s").agg(
         total=pl.col("n").sum()
@@ -133,8 +143,10 @@ def learn_sensor_graph(
     tr = (
         tr.join(busy.rename({"s": "a", "total": "ta"}), on="a")
         .join(busy.rename({"s": "b", "total": "tb"}), on="b")
-        .with_columns(share=pl.col("n") / pl.min_horizontal("ta", "tb"))
-        .with_columns(kept=pl.when((pl.col("n") >= min_count) & (pl.col("share") >= min_share)).then(pl.lit("rule")))
+        .with_columns(share=pl.col("n") / pl.min_horizontal("ta", "tb"), lift=pl.col("n") * 2.0 * pl.col("n").sum() / (pl.col("ta") * pl.col("tb")))
+        .with_columns(
+            kept=pl.when((pl.col("n") >= min_count) & (pl.col("share") >= min_share) & (pl.col("lift") >= min_lift)).then(pl.lit("rule"))
+        )
         .drop("ta", "tb")
         .sort("a", "b")
     )
@@ -499,8 +511,53 @@ def import_casas(
 
     ``doors``: contact sensors that are doors to the outside (entry/exit nodes), beside the
     layout's; every other contact (cupboards, appliances) is an ordinary node. ``hold_s`` /
-    ``hold_samples``: the lost-OFF repair (:func:`onebit.readers.casas.repair_lost_offs`)."""
+    ``hold_samples``: the lost-OFF repair (:func:`onebit.readers.casas.repair_lost_offs`).
+
+    Steps: the arguments checked, the layout read (if any), the log read and split
+    (:func:`_casas_parts`), the sensor graph and positions found (:func:`_casas_graph`), the
+    site written only if it loads, then the tables and ``import.toml`` (:func:`_casas_record`)."""
     log, out = Path(log), Path(dataset)
+    _check_casas_args(log, targets=targets, window_s=window_s, spacing_m=spacing_m, min_share=min_share, hold_s=hold_s,
+                      hold_samples=hold_samples)  # fmt: skip
+    lay = None
+    if layout is not None:
+        lay = load_layout(layout) if Path(layout).suffix.lower() == ".toml" else load_floor_plan(
+            layout, scale=scale, rooms=rooms, radius=graph_radius)
+        lay = _renamed(lay, read_casas(log).events["sensor"].unique().to_list())
+    kinds = dict(lay.kinds) if lay is not None else {}
+    kinds.update({d: "door" for d in doors})
+    res: CasasLog = read_casas(log, kinds=kinds or None)
+    parts = _casas_parts(res, lay, log, doors=doors, hold_s=hold_s, hold_samples=hold_samples)
+    g = _casas_graph(parts, lay, window_s=window_s, min_count=min_count, min_share=min_share, spacing_m=spacing_m)
+    door_ids = [n for n in g.positions if n in parts.door_ids]
+    epoch = _epoch_text(res)
+    header = (
+        f"# Imported from the CASAS log {log.name} by 'onebit import casas' (see import.toml).\n"
+        + (
+            "# Sensor positions: a force layout of the sensor graph learned from the log -- NOT measured.\n"
+            if g.how == "force layout"
+            else f"# Sensor positions from the layout file {Path(lay.source).name}.\n"
+        )
+        + f"# Sensor graph: {g.graph_how}; entry/exit nodes: the doors a layout or --doors declares ({len(door_ids)}), "
+        "never cupboard or appliance contacts.\n"
+    )
+    text = graph_site_toml(
+        name=(lay.name if lay is not None and lay.name else log.stem), units=g.units, positions=g.positions, edges=g.edges,
+        doors=door_ids, sensor_range=g.sensor_range, boundary=lay.boundary if lay is not None else None, epoch=epoch,
+        targets=targets if targets is not None else (lay.targets if lay is not None else None), header=header,
+    )  # fmt: skip
+    site_from_dict(tomllib.loads(text), source=str(out / "site.toml"))  # refuse to write a site that would not load
+    out.mkdir(parents=True, exist_ok=True)
+    write_text(text, out / "site.toml")
+    _write_casas_tables(out, parts, res, g.transitions)
+    counts, info = _casas_record(log, res, parts, g, door_ids, window_s=window_s, min_count=min_count, min_share=min_share,
+                                 hold_s=hold_s, hold_samples=hold_samples)  # fmt: skip
+    write_text(to_toml(info), out / "import.toml")
+    return ImportSummary(out, counts, info)
+
+
+def _check_casas_args(log: Path, *, targets, window_s, spacing_m, min_share, hold_s, hold_samples) -> None:
+    """The log exists and every option is in range (the error names the option)."""
     if not log.is_file():
         raise InputError("no such CASAS log", file=log)
     for name, v, lo in (("--window", window_s, 0.0), ("--spacing", spacing_m, 0.0), ("--min-share", min_share, -1e-12), ("--hold", hold_s, 0.0)):
@@ -510,14 +567,27 @@ def import_casas(
         raise InputError(f"--targets = {targets!r}: must be >= 0")
     if not isinstance(hold_samples, int) or hold_samples < 1:
         raise InputError(f"--hold-samples = {hold_samples!r}: must be an integer >= 1")
-    lay = None
-    if layout is not None:
-        lay = load_layout(layout) if Path(layout).suffix.lower() == ".toml" else load_floor_plan(
-            layout, scale=scale, rooms=rooms, radius=graph_radius)
-        lay = _renamed(lay, read_casas(log).events["sensor"].unique().to_list())
-    kinds = dict(lay.kinds) if lay is not None else {}
-    kinds.update({d: "door" for d in doors})
-    res: CasasLog = read_casas(log, kinds=kinds or None)
+
+
+@dataclass(frozen=True)
+class _CasasParts:
+    """A CASAS log split into what the dataset folder holds (:func:`_casas_parts`)."""
+
+    events: pl.DataFrame  #: every event read
+    toggles: pl.DataFrame  #: the graph sensors' events, lost OFFs repaired (motion.csv)
+    others: pl.DataFrame  #: every other event (other.csv)
+    notes: pl.DataFrame  #: annotated lines (annotations.csv)
+    truth_events: pl.DataFrame  #: ON/OPEN events with residents (truth_events.csv)
+    repairs: pl.DataFrame  #: the OFFs added (lost_offs.csv)
+    nodes: list[str]  #: the graph sensors that fired
+    door_ids: list[str]  #: the doors among them
+    unplaced: list[str]  #: graph sensors a layout does not place (kept in other.csv)
+
+
+def _casas_parts(res: CasasLog, lay: Layout | None, log: Path, *, doors, hold_s: float, hold_samples: int) -> _CasasParts:
+    """Split the read log: graph sensors (motion, doors and named motion sensors the layout
+    places) to ``motion.csv`` with lost OFFs repaired, the rest to ``other.csv``; refuse a log
+    with no graph sensor and a ``--doors`` naming none."""
     ev = res.events
     unplaced: list[str] = []
     if lay is not None:  # graph sensors the layout does not place: kept in other.csv, named in import.toml
@@ -525,21 +595,48 @@ def import_casas(
         unplaced = sorted((n for n in graph_ids if n not in lay.positions), key=_natural)
     in_graph = pl.col("kind").is_in(list(TOGGLE_KINDS)) & ~pl.col("sensor").is_in(unplaced)
     toggles_logged = ev.filter(in_graph)
-    others = ev.filter(~in_graph)
     toggles, repairs = repair_lost_offs(toggles_logged, default_hold_s=hold_s, min_samples=hold_samples)
-    notes = ev.filter(pl.col("annotation").is_not_null() | pl.col("residents").is_not_null())
-    truth_events = toggles_logged.filter(pl.col("on") & pl.col("residents").is_not_null())
     nodes = sorted(toggles["sensor"].unique().to_list(), key=_natural)
     if not nodes:
         raise InputError("no motion (M###), contact (D###) or named motion sensor events in the log: nothing to track", file=log)
     missing_doors = [d for d in doors if d not in nodes]
     if missing_doors:
         raise InputError(f"--doors {missing_doors}: no such contact sensor among the log's graph sensors {nodes}", file=log)
-    door_ids = sorted(toggles.filter(pl.col("kind") == "door")["sensor"].unique().to_list(), key=_natural)
+    return _CasasParts(
+        events=ev,
+        toggles=toggles,
+        others=ev.filter(~in_graph),
+        notes=ev.filter(pl.col("annotation").is_not_null() | pl.col("residents").is_not_null()),
+        truth_events=toggles_logged.filter(pl.col("on") & pl.col("residents").is_not_null()),
+        repairs=repairs,
+        nodes=nodes,
+        door_ids=sorted(toggles.filter(pl.col("kind") == "door")["sensor"].unique().to_list(), key=_natural),
+        unplaced=unplaced,
+    )
 
+
+@dataclass(frozen=True)
+class _CasasGraph:
+    """The sensor graph and positions of an imported home (:func:`_casas_graph`)."""
+
+    positions: dict[str, tuple[float, float]]
+    edges: list
+    units: str
+    how: str  #: where the positions come from: "layout file" or "force layout"
+    graph_how: str  #: where the edges come from: "layout file", "geometry" or "learned"
+    rule: str  #: how the edges were found, in words (import.toml)
+    spacing: float  #: median edge length
+    sensor_range: float
+    transitions: pl.DataFrame  #: the counted transitions when the graph was learned, else empty
+
+
+def _casas_graph(parts: _CasasParts, lay: Layout | None, *, window_s, min_count, min_share, spacing_m) -> _CasasGraph:
+    """Positions and edges: the layout's when it gives them, edges from its geometry when it
+    can, else learned from the log (:func:`learn_sensor_graph`); positions without a layout are
+    a force layout (module docstring)."""
     trans = pl.DataFrame()
     if lay is not None:
-        positions = {n: lay.positions[n] for n in sorted(lay.positions, key=_natural) if n in nodes or not lay.only_logged}
+        positions = {n: lay.positions[n] for n in sorted(lay.positions, key=_natural) if n in parts.nodes or not lay.only_logged}
         edges = sorted({(min(a, b), max(a, b)) for a, b in lay.edges}) if lay.edges is not None else None
         units, how = lay.units, "layout file"
     else:
@@ -548,83 +645,79 @@ def import_casas(
     if edges is None and lay is not None and lay.graph is not None:
         edges, graph_how = lay.graph(positions), "geometry"
     if edges is None:
-        edges, trans = learn_sensor_graph(toggles, nodes, window_s=window_s, min_count=min_count, min_share=min_share)
+        edges, trans = learn_sensor_graph(parts.toggles, parts.nodes, window_s=window_s, min_count=min_count, min_share=min_share)
         graph_how = "learned"
     if positions is None:
-        positions = force_layout(nodes, edges, spacing=spacing_m)
-    all_nodes = list(positions)
-    door_ids = [n for n in all_nodes if n in door_ids]
+        positions = force_layout(parts.nodes, edges, spacing=spacing_m)
     spacing = _median_edge(positions, edges) or spacing_m
     sensor_range = lay.range if lay is not None and lay.range is not None else round(spacing / 2.0, 3)
-    epoch = _epoch_text(res)
-    header = (
-        f"# Imported from the CASAS log {log.name} by 'onebit import casas' (see import.toml).\n"
-        + (
-            "# Sensor positions: a force layout of the sensor graph learned from the log -- NOT measured.\n"
-            if how == "force layout"
-            else f"# Sensor positions from the layout file {Path(lay.source).name}.\n"
-        )
-        + f"# Sensor graph: {graph_how}; entry/exit nodes: the doors a layout or --doors declares ({len(door_ids)}), "
-        "never cupboard or appliance contacts.\n"
-    )
-    text = graph_site_toml(
-        name=(lay.name if lay is not None and lay.name else log.stem), units=units, positions=positions, edges=edges,
-        doors=door_ids, sensor_range=sensor_range, boundary=lay.boundary if lay is not None else None, epoch=epoch,
-        targets=targets if targets is not None else (lay.targets if lay is not None else None), header=header,
+    rule = (
+        "consecutive ON/OPEN events of two sensors at most window_s apart are a transition; an edge needs "
+        ">= min_count transitions making >= min_share of the less busy sensor's, at least min_lift times what "
+        "chance would give; components joined by a "
+        "maximum spanning forest of the counts (transitions.csv)" if graph_how == "learned" else
+        (lay.graph_rule if graph_how == "geometry" else "from the layout file")
     )  # fmt: skip
-    site_from_dict(tomllib.loads(text), source=str(out / "site.toml"))  # refuse to write a site that would not load
-    out.mkdir(parents=True, exist_ok=True)
-    write_text(text, out / "site.toml")
+    return _CasasGraph(positions, edges, units, how, graph_how, rule, spacing, sensor_range, trans)
+
+
+def _write_casas_tables(out: Path, parts: _CasasParts, res: CasasLog, trans: pl.DataFrame) -> None:
+    """``motion.csv`` and, when they have rows, ``truth_events.csv``, ``other.csv``,
+    ``annotations.csv``, ``rejects.csv``, ``annotation_problems.csv``, ``lost_offs.csv``,
+    ``transitions.csv`` (``t`` rounded to the microsecond)."""
     t = pl.col("t").round(6)
     write_csv(
-        toggles.select(t, "sensor", "value", "stamp", pl.col("line").alias("log_line"), pl.col("repaired").cast(pl.Int8)), out / "motion.csv"
+        parts.toggles.select(t, "sensor", "value", "stamp", pl.col("line").alias("log_line"), pl.col("repaired").cast(pl.Int8)),
+        out / "motion.csv",
     )
-    write_csv(truth_events.select(t, "sensor", "residents"), out / "truth_events.csv") if truth_events.height else None
-    if others.height:
-        write_csv(others.select(t, "sensor", "kind", "value", "stamp", pl.col("line").alias("log_line")), out / "other.csv")
-    if notes.height:
-        write_csv(notes.select(t, "sensor", "value", "annotation", "residents", "tasks", "activity", "activity_edge", "stamp",
-                               pl.col("line").alias("log_line")), out / "annotations.csv")  # fmt: skip
+    if parts.truth_events.height:
+        write_csv(parts.truth_events.select(t, "sensor", "residents"), out / "truth_events.csv")
+    if parts.others.height:
+        write_csv(parts.others.select(t, "sensor", "kind", "value", "stamp", pl.col("line").alias("log_line")), out / "other.csv")
+    if parts.notes.height:
+        write_csv(parts.notes.select(t, "sensor", "value", "annotation", "residents", "tasks", "activity", "activity_edge", "stamp",
+                                     pl.col("line").alias("log_line")), out / "annotations.csv")  # fmt: skip
     if res.rejects.height:
         write_csv(res.rejects.select(REJECTS.names()), out / "rejects.csv")
     if res.annotation_problems.height:
         write_csv(res.annotation_problems.select(REJECTS.names()), out / "annotation_problems.csv")
-    if repairs.height:
-        write_csv(repairs, out / "lost_offs.csv")
+    if parts.repairs.height:
+        write_csv(parts.repairs, out / "lost_offs.csv")
     if trans.height:
         write_csv(trans, out / "transitions.csv")
+
+
+def _casas_record(log: Path, res: CasasLog, parts: _CasasParts, g: _CasasGraph, door_ids: list[str], *, window_s, min_count,
+                  min_share, hold_s, hold_samples) -> tuple[dict, dict]:  # fmt: skip
+    """``(counts, import.toml)``: what was read, written, repaired and how the graph was found."""
     counts = {
         "lines": res.lines,
-        "events": ev.height,
+        "events": parts.events.height,
         "rejected": res.rejects.height,
         "reordered": res.reordered,
         **{f"kind_{k}": v for k, v in res.kind_counts().items()},
-        "motion_csv": toggles.height,
-        "lost_off_repaired": repairs.height,
-        "other_csv": others.height,
-        "annotations": notes.height,
+        "motion_csv": parts.toggles.height,
+        "lost_off_repaired": parts.repairs.height,
+        "other_csv": parts.others.height,
+        "annotations": parts.notes.height,
         "annotation_problems": res.annotation_problems.height,
-        "truth_events": truth_events.height,
-        "sensors": len(all_nodes),
-        "unplaced_sensors": len(unplaced),
+        "truth_events": parts.truth_events.height,
+        "sensors": len(g.positions),
+        "unplaced_sensors": len(parts.unplaced),
         "doors": len(door_ids),
-        "edges": len(edges),
+        "edges": len(g.edges),
     }
     info = {
         "source": {"file": str(log.resolve()), "format": "casas-csv" if log.suffix.lower() == ".csv" else "casas"},
         "counts": counts,
         "time": res.origin.as_dict(),
         "graph": {
-            "source": graph_how,
-            "rule": (
-                "consecutive ON/OPEN events of two sensors at most window_s apart are a transition; an edge needs "
-                ">= min_count transitions making >= min_share of the less busy sensor's; components joined by a "
-                "maximum spanning forest of the counts (transitions.csv)" if graph_how == "learned" else
-                (lay.graph_rule if graph_how == "geometry" else "from the layout file")
-            ),
+            "source": g.graph_how,
+            "rule": g.rule,
             "window_s": window_s,
             "min_count": min_count,
             "min_share": min_share,
+            "min_lift": MIN_LIFT,
         },
         "doors": {"entries_exits": door_ids, "rule": "only contacts declared doors by the layout or --doors; other contacts are ordinary nodes"},
         "lost_off": {
@@ -632,14 +725,13 @@ def import_casas(
                     "(hold = median on-duration with >= hold_samples samples, else hold_s); lost_offs.csv lists them",
             "hold_s": hold_s,
             "hold_samples": hold_samples,
-            "repaired": repairs.height,
+            "repaired": parts.repairs.height,
         },
         "truth_events": {"rule": "ON/OPEN events of graph sensors with resident annotations: t, sensor, residents (ids sorted, ';')",
-                         "rows": truth_events.height},
-        "layout": {"positions": how, "spacing": round(spacing, 3), "range": sensor_range, "unplaced": unplaced},
+                         "rows": parts.truth_events.height},
+        "layout": {"positions": g.how, "spacing": round(g.spacing, 3), "range": g.sensor_range, "unplaced": parts.unplaced},
     }  # fmt: skip
-    write_text(to_toml(info), out / "import.toml")
-    return ImportSummary(out, counts, info)
+    return counts, info
 
 
 def _renamed(lay: Layout, log_ids) -> Layout:

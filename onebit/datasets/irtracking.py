@@ -7,7 +7,10 @@ positions annotated by hand in CVML. The importer writes a dataset folder::
 
     site.toml     the room (boundary [0, 8] x [0, 14] m, the authors' tracking area), the 43
                   sensors declared once as [[binary_sensors]] (position in metres, footprint
-                  disk, signal = "level": a sensor held on is presence) and ``targets``
+                  disk, signal = "level": a sensor held on is presence), ``targets`` and a
+                  sensor graph from the geometry (``geometry = "connected"``: neighbours
+                  within the smallest distance that keeps the array connected; the authors'
+                  1.5 m rule splits it into pieces)
     frames.csv    one row per frame: t, active (the ids of the active sensors, space-separated)
     truth.csv     t, target, x, y in metres (with --truth)
     rejects.csv   every input line not taken, with its reason (when there are any)
@@ -155,6 +158,9 @@ def site_toml(xy_m: np.ndarray, *, name: str, radius: float, r_inner: float | No
         "",
         f'[sensor_types.{SENSOR_TYPE}]',
         'signal = "level"   # a sensor held on is presence under it',
+        "",
+        "[sensor_graph]     # for the graph trackers: neighbours within the smallest distance that keeps the array connected",
+        'geometry = "connected"',
     ]
     foot = f"radius = {radius!r}" if r_inner is None else f"r_outer = {radius!r}\nr_inner = {r_inner!r}"
     for i, (x, y) in enumerate(xy_m, start=1):

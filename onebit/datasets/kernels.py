@@ -4,7 +4,7 @@
 from when) depends on the last period kept on the same sensor -- inherently sequential per
 sensor -- so it is a compiled loop (``numba.njit(cache=True)``, :mod:`onebit.core.compiled`).
 Its plain reference and test oracle is
-:func:`onebit.datasets.from_truth.pir_refractory_reference` (``tests/datasets/test_kernels.py``).
+:func:`onebit._testing.oracles.pir_refractory_reference` (``tests/datasets/test_kernels.py``).
 """
 
 from __future__ import annotations

@@ -10,7 +10,8 @@ default serial) runs the trials as independent tasks -- in this process, a local
 pool or Ray -- with the same tables on every executor (:mod:`onebit.experiments.trials`).
 
 ``correct`` and ``findinghumo`` are the seed sweeps of ``docs/beams-correct.md`` and
-``docs/findinghumo.md``: they run the whole pipeline per seed; ``findinghumo-diagnose`` lists
+``docs/findinghumo.md``: they run the whole pipeline per seed; ``residents`` reads a folder of
+real CASAS sessions instead (``onebit experiment residents DIR``, :mod:`onebit.experiments.residents`); ``findinghumo-diagnose`` lists
 every identity swap of the HMM trackers over 20 seeds (the diagnosis table of that note).
 ``ceiling`` runs every positional tracker and the baselines on the real ceiling array of
 Milan et al. (``--data DIR``: the irtracking recordings; :mod:`onebit.experiments.ceiling`).
@@ -21,11 +22,11 @@ from __future__ import annotations
 from types import ModuleType
 
 from onebit.core.errors import ConfigError
-from onebit.experiments import ceiling, correct, findinghumo, findinghumo_diagnose, okane, schiff, singh
+from onebit.experiments import ceiling, correct, findinghumo, findinghumo_diagnose, okane, residents, schiff, singh
 
 EXPERIMENTS: dict[str, ModuleType] = {
     "singh": singh, "schiff": schiff, "okane": okane, "correct": correct, "findinghumo": findinghumo,
-    "findinghumo-diagnose": findinghumo_diagnose, "ceiling": ceiling,
+    "findinghumo-diagnose": findinghumo_diagnose, "residents": residents, "ceiling": ceiling,
 }  # fmt: skip
 
 

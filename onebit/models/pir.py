@@ -149,11 +149,27 @@ def sensor_type(name: str, table: dict | None = None, *, source: str = "site.tom
         v = (np.arange(n_v) - (n_v - 1) / 2) * (geo.width / n_v)
         uu, vv = (a.ravel() for a in np.meshgrid(u, v, indexing="ij"))
         samples = np.c_[uu, vv, np.full_like(uu, peak)]
+    elif geo.kind == "polygon":  # every grid point of the footprint, at the peak (one at its centroid if it is tiny)
+        samples = _footprint_samples(geo.extent, res, peak)
     else:
         samples = geo.samples
     if not np.any(samples[:, 2] > 0):
         raise err("samples", "every eta is 0: the sensor can never detect")
     return SensorType(name, samples, h, rho, peak)
+
+
+def _footprint_samples(extent, res: float, peak: float) -> np.ndarray:
+    """``(k, 3)`` samples (u, v, ``peak``) at the points of a ``res`` grid inside ``extent``
+    (sensor frame); the centroid alone when no grid point falls inside."""
+    minx, miny, maxx, maxy = extent.bounds
+    us = np.arange(math.floor(minx / res) * res, maxx + res / 2, res)
+    vs = np.arange(math.floor(miny / res) * res, maxy + res / 2, res)
+    u, v = (a.ravel() for a in np.meshgrid(us, vs, indexing="ij"))
+    inside = shapely.contains_xy(extent, u, v)
+    if not inside.any():
+        c = extent.centroid
+        return np.array([[c.x, c.y, peak]])
+    return np.c_[u[inside], v[inside], np.full(int(inside.sum()), peak)]
 
 
 @dataclass(frozen=True)

@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import Any, Callable
 
@@ -14,6 +14,7 @@ from onebit.core.region_graph import RegionGraph
 from onebit.core.site import Site
 from onebit.core.tables import REJECTS
 from onebit.readers.rows import RawRows, read_csv_column, read_csv_rows
+from onebit.readers.timebase import TimeOrigin
 
 #: A report row: (stage, metric, value, unit).
 ReportRow = tuple[str, str, float, str]
@@ -26,7 +27,11 @@ def _no_progress(done: int, total: int) -> None:
 @dataclass
 class RunContext:
     """What the stages share during one run: the dataset, the site, the config sections, the
-    tables made so far, the report rows and each stage's status."""
+    tables made so far, the report rows and each stage's status.
+
+    ``config`` holds the ``--config`` sections as given and is only read (:meth:`section`);
+    what a stage resolved from its section (defaults filled in, ``n`` from the site) goes to
+    ``resolved``, which the runner writes to ``run.toml``."""
 
     dataset: Path
     out: Path
@@ -47,6 +52,19 @@ class RunContext:
     progress: Callable[[int, int], None] = _no_progress
     #: the sections of the dataset's own ``run.toml`` (``None``: read it on first use)
     dataset_sections: dict[str, Any] | None = None
+    #: typed reads of the dataset's CSV logs made for the time origin, by stem (``beams``,
+    #: ``motion``, ``proximity``), taken by their reader stage: each file is read once
+    typed_reads: dict[str, Any] = field(default_factory=dict)
+    #: the run's one time origin (:func:`onebit.pipeline.stages.run_time_origin` computes it
+    #: on first use; ``onebit follow`` sets it to the one of its first snapshot)
+    time_origin: TimeOrigin | None = None
+    #: each stage's config as it ran, by section (``run.toml``'s stage sections)
+    resolved: dict[str, dict[str, Any]] = field(default_factory=dict)
+
+    def record(self, section: str, cfg: Any, **extra: Any) -> None:
+        """Keep ``cfg`` (a config dataclass) as the resolved ``[section]`` of the run record:
+        its fields that are set (``None`` is left out: TOML has no null), then ``extra``."""
+        self.resolved[section] = {k: v for k, v in asdict(cfg).items() if v is not None} | extra
 
     def source(self, stem: str, columns: tuple[str, ...]) -> tuple[RawRows, Path | None] | None:
         """String rows of ``<stem>.csv`` in the dataset, else of the MCAP channel ``/<stem>``."""
@@ -101,6 +119,12 @@ class Stage:
     ``available(ctx)`` returns the reason to skip or ``None``; ``work(ctx)`` returns the tables
     it made (it may add report rows and rejects to ``ctx``); ``viz(rec, ctx, made)`` logs what
     it made to the stage's recording.
+
+    ``makes`` names every table the stage may return (it may return fewer: a log without
+    aborted passes has no ``aborted``); a name ending in ``_*`` declares every table of that
+    prefix (a tracker stage makes ``<tracker>_*``). The runner checks what ``work`` returned
+    (:func:`check_made`): a table not declared, one an earlier stage made, or a value that is
+    not a table fails the stage, naming them.
     """
 
     name: str
@@ -111,3 +135,30 @@ class Stage:
     viz: Callable[[Any, RunContext, dict[str, Any]], None] | None = None
     #: the config class of its ``run.toml`` section (a frozen dataclass), checked when the run starts
     config: type | None = None
+
+    def declares(self, table: str) -> bool:
+        """Whether ``table`` is among :attr:`makes` (by name, or by a ``prefix_*`` entry)."""
+        return any(table == m or (m.endswith("_*") and table.startswith(m[:-1])) for m in self.makes)
+
+
+class StageContractError(Exception):
+    """A stage returned what its declaration does not allow (a bug in the stage, not bad input)."""
+
+
+def check_made(stage: Stage, made: dict[str, Any], tables: dict[str, Any], *, extra: tuple[str, ...] = ()) -> None:
+    """Raise :class:`StageContractError` unless every table ``stage.work`` returned (``made``;
+    the keys in ``extra``, in-memory results for its viz, are not tables) is declared in
+    ``stage.makes``, is a polars frame, and was not made by an earlier stage (in ``tables``)."""
+    names = [k for k in made if k not in extra]
+    undeclared = [k for k in names if not stage.declares(k)]
+    if undeclared:
+        raise StageContractError(
+            f"stage '{stage.name}' returned table(s) {undeclared} it does not declare (makes = {list(stage.makes)}); "
+            "declare them in its Stage (onebit/pipeline/stages.py)"
+        )
+    not_frames = [f"{k} ({type(made[k]).__name__})" for k in names if not isinstance(made[k], pl.DataFrame)]
+    if not_frames:
+        raise StageContractError(f"stage '{stage.name}' returned non-table value(s) {not_frames}; a stage returns polars frames")
+    replaced = [k for k in names if k in tables]
+    if replaced:
+        raise StageContractError(f"stage '{stage.name}' returned table(s) {replaced} that an earlier stage made; a table has one maker")

@@ -5,8 +5,11 @@ Two ways in:
 * **live** -- the dataset's CSV logs (``motion.csv``, ``beams.csv``, ``crossings.csv``,
   ``proximity.csv``, ``truth.csv``, ``truth_crossings.csv``) are tailed: every poll reads the
   lines appended since the last one. A last line without its newline is being written: it is
-  left for the next poll, never rejected. A log that shrinks is an error naming it. The *horizon*
-  (the log time known so far) is the latest stamp read.
+  left for the next poll, never rejected. A log that shrinks is an error naming it. A growing
+  ``.mcap`` (chunked, as loggers write them) is re-read when it grew, keeping every complete
+  chunk (and the ``mcap_topics.toml`` map of ROS 2 topics). The *horizon* (the log time known
+  so far) is the earliest of the sensor logs' latest stamps (a log that runs ahead does not
+  make another's events final; ``truth.csv`` does not count).
 * **replay** (``--replay 20x``) -- a finished log is played back at 20 times its own pace: a
   line is released when a virtual clock ``t0 + speed * (wall - wall0)`` passes its stamp; the
   horizon is that clock.
@@ -14,17 +17,20 @@ Two ways in:
 Released lines are appended to a snapshot of the dataset (a temporary folder with the
 dataset's ``*.toml``), and every poll the pipeline's own reader stages (``crossings``,
 ``motion``, ``proximity``, ``correct``: :mod:`onebit.pipeline.stages`) read it with the time
-origin fixed once (the whole log's in a replay, the first poll's when live) -- the same
-readers and the same rejects as ``onebit run``.
+origin fixed once (the whole log's in a replay; when live, the first poll's, with its window
+of accepted stamps left open ahead, so a lone stamp far in the future is rejected only by the
+final batch run) -- the same readers and the same rejects as ``onebit run``.
 
 Trackers online (:data:`ONLINE`):
 
 * ``intruder`` -- per iteration, incrementally: :mod:`onebit.trackers.intruder.online` keeps the
   particle filter's posterior and steps it over each slot once it is final;
 * ``intruder-naive`` -- per iteration, ``beams`` -- per crossing: re-run on the settled prefix
-  of their input whenever a new settled event arrives; the rows up to that event are published
-  (``beams`` assigns the fewest agents over the whole string, so a later crossing can change
-  an earlier assignment: the final report says whether the published rows equal the batch's).
+  of their input whenever a new settled event arrives; the rows up to that event not published
+  before are published (a re-run may add a row dated earlier: ``beams`` gives an agent created
+  at a later crossing its initial region at the first crossing's time; and it could change an
+  earlier assignment, which is never un-published: the final report says whether the published
+  rows equal the batch's).
 
 Every other tracker is batch-only and runs at the end. An event at ``e`` is *settled* once the
 horizon passes ``e + settle``, ``settle`` = the readers' look-ahead (1 s of reordering plus
@@ -50,6 +56,7 @@ simulated clock); trackers never read it.
 
 from __future__ import annotations
 
+import dataclasses
 import math
 import re
 import shutil
@@ -72,9 +79,12 @@ from onebit.core.site import load_site
 from onebit.pipeline.context import RunContext, dataset_run_config
 from onebit.pipeline.runner import RunResult, check_dataset, check_out, check_sections, run_pipeline
 from onebit.pipeline.stages import TIME_SOURCES, TRACKERS, run_time_origin, stages, tracker_config
+from onebit.core.tables import REJECTS
+from onebit.readers.mcap_io import load_topic_map, read_mcap
 from onebit.readers.motion import MotionConfig, site_rules
+from onebit.readers.rows import RawRows
 from onebit.readers.rows import REORDER_TOLERANCE_S
-from onebit.readers.timebase import TimeOrigin
+from onebit.readers.timebase import MAX_GAP_S, TimeOrigin
 from onebit.trackers.base import ARTIFACTS, PROGRESS
 from onebit.trackers.intruder import online as intruder_online
 from onebit.viz import live as viz_live
@@ -84,11 +94,24 @@ ONLINE: dict[str, str] = {
     "intruder": "per iteration (incremental particle filter)",
     "intruder-naive": "per iteration",
     "beams": "per crossing (re-run on the settled prefix)",
+    "istate": "per stage (re-run on the settled prefix)",
+    "findinghumo": "per window (re-run on the settled prefix)",
+    "hmm1": "per window (re-run on the settled prefix)",
+    "hmm2": "per window (re-run on the settled prefix)",
 }
 #: The input table whose settled events close the rows of a re-run-on-prefix tracker.
-_PREFIX_EVENTS = {"intruder-naive": "motion", "beams": "crossings"}
+_PREFIX_EVENTS = {
+    "intruder-naive": ("motion",),
+    "beams": ("corrected_crossings", "crossings"),
+    "istate": ("motion", "proximity", "crossings"),
+    "findinghumo": ("motion",),
+    "hmm1": ("motion",),
+    "hmm2": ("motion",),
+}
 #: Reader stages run on every poll (truth and camera only at the end, by the batch run).
 _READER_STAGES = ("crossings", "motion", "proximity", "correct")
+#: Logs that are ground truth, not sensor input: they do not hold the live horizon back.
+_TRUTH_LOGS = ("truth", "truth_crossings")
 #: Subfolder of OUT with the live outputs (kept by later runs into OUT).
 LIVE = "live"
 
@@ -193,6 +216,83 @@ def _complete_lines(data: bytes) -> tuple[list[bytes], int]:
     return data[: end + 1].splitlines(keepends=True), end + 1
 
 
+@dataclass
+class _McapSource:
+    """One ``.mcap`` of the dataset being followed: its raw channels as read so far.
+
+    Replay: the whole file is read once and each channel's rows are released by their stamps.
+    Live: the file is re-read when it grew; :func:`onebit.readers.mcap_io.read_mcap` keeps
+    every complete chunk of a file still being written (its missing footer is not a reject
+    here: the final batch run reads the file as it is then).
+    """
+
+    path: Path
+    topic_map: dict | None
+    frames: dict[str, pl.DataFrame] = field(default_factory=dict)
+    release: dict[str, np.ndarray] = field(default_factory=dict)
+    released: dict[str, int] = field(default_factory=dict)
+    size: int = 0
+    last_t: float = -math.inf
+
+    def load_all(self, origin: TimeOrigin) -> None:
+        self.frames = read_mcap(self.path, topic_map=self.topic_map).channels
+        for topic, frame in self.frames.items():
+            t = frame.select(origin.t_expr("t").alias("t"))["t"].cast(pl.Float64).fill_nan(None)
+            filled = t.fill_null(strategy="forward").fill_null(-math.inf).to_numpy()
+            self.release[topic] = np.maximum.accumulate(filled) if len(filled) else filled
+            self.released[topic] = 0
+
+    def replay(self, horizon: float) -> bool:
+        new = False
+        for topic, rel in self.release.items():
+            n = int(np.searchsorted(rel, horizon, side="right"))
+            if n > self.released[topic]:
+                self.released[topic], new = n, True
+        return new
+
+    def done(self) -> bool:
+        return all(self.released[t] == len(r) for t, r in self.release.items())
+
+    def poll(self) -> bool:
+        try:
+            size = self.path.stat().st_size
+        except OSError:
+            return False
+        if size < self.size:
+            raise InputError(f"the recording shrank from {self.size} to {size} bytes while followed", file=self.path)
+        if size == self.size:
+            return False
+        try:
+            frames = read_mcap(self.path, topic_map=self.topic_map).channels
+        except InputError:  # not even the magic yet: an empty file being created
+            return False
+        self.size = size
+        grew = any(f.height > self.released.get(t, 0) for t, f in frames.items())
+        self.frames = frames
+        self.released = {t: f.height for t, f in frames.items()}
+        return grew
+
+    def stamps(self, origin: TimeOrigin) -> None:
+        for topic, frame in self.frames.items():
+            if frame.height:
+                t = frame.select(origin.t_expr("t").alias("t"))["t"].cast(pl.Float64).fill_nan(None).max()
+                if t is not None and math.isfinite(t):
+                    self.last_t = max(self.last_t, float(t))
+
+    def rows(self) -> dict[str, RawRows]:
+        empty = pl.DataFrame(schema=REJECTS)
+        return {topic: RawRows(f"{self.path.name}:{topic}", f.head(self.released.get(topic, 0)), empty) for topic, f in self.frames.items()}
+
+
+def _channels(mcaps: list[_McapSource]) -> dict[str, RawRows]:
+    """Topic -> rows released so far; the first file holding a topic wins (as in ``onebit run``)."""
+    out: dict[str, RawRows] = {}
+    for m in mcaps:
+        for topic, rows in m.rows().items():
+            out.setdefault(topic, rows)
+    return out
+
+
 # --------------------------------------------------------------------------- the loop
 
 
@@ -241,9 +341,12 @@ def _settle(site, sections: dict) -> float:
     return REORDER_TOLERANCE_S + max(windows)
 
 
-def _read_prefix(snapshot: Path, scratch: Path, site, rg, sections: dict, trackers: tuple[str, ...], origin: TimeOrigin | None, stage_list) -> RunContext:
-    """The reader stages on the snapshot: a context whose ``tables`` hold what they made."""
+def _read_prefix(snapshot: Path, scratch: Path, site, rg, sections: dict, trackers: tuple[str, ...], origin: TimeOrigin | None, stage_list,
+                 mcap_channels: dict[str, RawRows]) -> RunContext:  # fmt: skip
+    """The reader stages on the snapshot (and the MCAP rows released): a context whose
+    ``tables`` hold what they made."""
     ctx = RunContext(snapshot, scratch, site, rg, {k: dict(v) for k, v in sections.items() if isinstance(v, dict)}, trackers=trackers)
+    ctx.mcap_channels = dict(mcap_channels)
     if origin is not None:
         ctx.time_origin = origin
     for st in stage_list:
@@ -269,7 +372,10 @@ def _inputs(entry, tables: dict, region_graph, *, until: float | None) -> dict[s
             return None
         df = tables[src]
         inputs[key] = df if until is None or "t" not in df.columns else df.filter(pl.col("t") <= until)
-    inputs.update({k: tables[k] for k in entry.spec.wants if k in tables})
+    for k in entry.spec.wants:
+        if k in tables:
+            df = tables[k]
+            inputs[k] = df if until is None or "t" not in df.columns else df.filter(pl.col("t") <= until)
     inputs["region_graph"] = region_graph
     inputs[PROGRESS] = lambda done, total: None
     return inputs
@@ -311,9 +417,11 @@ def follow(
             raise ConfigError(f"--trackers: unknown tracker {tr!r}; known: {sorted(known)}")
     chosen = tuple(trackers) if trackers else tuple(known)
     logs = [stem for stem in TIME_SOURCES if (dataset / f"{stem}.csv").is_file()]
-    if not logs:
-        raise InputError("no CSV log to follow (motion.csv, beams.csv, crossings.csv, proximity.csv, truth.csv); "
-                         "an MCAP recording is read by 'onebit run', not followed", file=dataset)  # fmt: skip
+    topics = dataset / "mcap_topics.toml"
+    topic_map = load_topic_map(topics) if topics.is_file() else None
+    mcaps = [_McapSource(p, topic_map) for p in sorted(dataset.glob("*.mcap"))]
+    if not logs and not mcaps:
+        raise InputError("no log to follow (motion.csv, beams.csv, crossings.csv, proximity.csv, truth.csv or an .mcap)", file=dataset)
     settle = options.settle if options.settle is not None else _settle(site, merged)
 
     live = out / LIVE
@@ -331,7 +439,12 @@ def follow(
         origin: TimeOrigin | None = None
         if options.replay is not None:  # the whole log is known: its origin, every line's release time
             full = RunContext(dataset, scratch, site, rg, {}, trackers=chosen)
+            for m in mcaps:
+                for topic, frame in read_mcap(m.path, topic_map=topic_map).channels.items():
+                    full.mcap_channels.setdefault(topic, RawRows(f"{m.path.name}:{topic}", frame, pl.DataFrame(schema=REJECTS)))
             origin = run_time_origin(full)
+            for m in mcaps:
+                m.load_all(origin)
             for src in sources.values():
                 raw = src.path.read_bytes()
                 head, _, body = raw.partition(b"\n")
@@ -343,6 +456,7 @@ def follow(
                 filled = pl.Series(t).fill_nan(None).fill_null(strategy="forward").fill_null(-math.inf).to_numpy()
                 src.release = np.maximum.accumulate(filled) if len(filled) else filled
         starts = [s.release[0] for s in sources.values() if len(s.release) and math.isfinite(s.release[0])]
+        starts += [r[0] for m in mcaps for r in m.release.values() if len(r) and math.isfinite(r[0])]
         t0 = min(starts) if starts else 0.0
         wall0 = clock()
         history: list[tuple[float, float]] = []  # live: (horizon, wall) at each poll
@@ -362,6 +476,7 @@ def follow(
 
         entries = {e.name: e for e in TRACKERS}
         online = [n for n in ONLINE if n in chosen and (entries[n].spec.available is None or entries[n].spec.available(site) is None)]
+        viz_live.send_live_blueprint(rec, online)
         batch_only = [n for n in chosen if n not in online]
         for n in online:
             echo(f"  {n}: online, {ONLINE[n]}")
@@ -369,6 +484,7 @@ def follow(
             echo(f"  batch-only (run at the end): {', '.join(batch_only)}")
         intruder_state = None
         published: dict[str, float] = {n: -math.inf for n in online}
+        sent: dict[str, pl.DataFrame] = {}
         logged_edges = 0
         last_growth = clock()
         polls = 0
@@ -384,9 +500,12 @@ def follow(
                     if n > src.released:
                         src.write(src.lines[src.released : n])
                         src.released, new = n, True
-                final = all(s.released == len(s.lines) for s in sources.values())
+                for m in mcaps:
+                    new = m.replay(horizon) or new
+                final = all(s.released == len(s.lines) for s in sources.values()) and all(m.done() for m in mcaps)
                 if final:
                     horizon = max([horizon, *(s.release[-1] for s in sources.values() if len(s.release))])
+                    horizon = max([horizon, *(r[-1] for m in mcaps for r in m.release.values() if len(r))])
             else:
                 for src in sources.values():
                     try:
@@ -411,10 +530,16 @@ def follow(
                     src.write(lines)
                     src.lines.extend(lines)
                     new = True
+                for m in mcaps:
+                    new = m.poll() or new
                 if new:
                     last_growth = now
-                    if origin is None:
-                        origin = run_time_origin(RunContext(data, scratch, site, rg, {}, trackers=chosen))
+                    if origin is None:  # the first lines fix t = 0; the window of accepted stamps stays open ahead
+                        first_ctx = RunContext(data, scratch, site, rg, {}, trackers=chosen)
+                        first_ctx.mcap_channels = _channels(mcaps)
+                        first = run_time_origin(first_ctx)
+                        lo = first.lo - MAX_GAP_S if math.isfinite(first.lo) else first.lo
+                        origin = dataclasses.replace(first, lo=lo, hi=math.inf)
                     for src in sources.values():
                         fresh = src.lines[src.released :]
                         if fresh:
@@ -423,12 +548,20 @@ def follow(
                             if len(t):
                                 src.last_t = max(src.last_t, float(t.max()))
                             src.released = len(src.lines)
-                    horizon = max(s.last_t for s in sources.values())
+                    for m in mcaps:
+                        m.stamps(origin)
+                    # every sensor log must have passed a time before it is known: the horizon is
+                    # the earliest of their latest stamps (ground truth logs do not hold it back)
+                    known = [s.last_t for k, s in sources.items() if k not in _TRUTH_LOGS and math.isfinite(s.last_t)]
+                    known += [m.last_t for m in mcaps if math.isfinite(m.last_t)]
+                    if not known:
+                        known = [s.last_t for s in sources.values()]
+                    horizon = min(known) if known else -math.inf
                     history.append((horizon, now))
                 final = now - last_growth >= options.idle
             polls += 1
             if new or final:
-                ctx = _read_prefix(data, scratch, site, rg, merged, chosen, origin, stage_list)
+                ctx = _read_prefix(data, scratch, site, rg, merged, chosen, origin, stage_list, _channels(mcaps))
                 tables = ctx.tables
                 if "motion" in tables:
                     settled = tables["motion"].filter(pl.col("t") <= horizon - settle) if not final else tables["motion"]
@@ -448,9 +581,7 @@ def follow(
                         if "camera" in rows:
                             pub.table(f"{name}_camera", rows["camera"])
                         continue
-                    events = tables.get(_PREFIX_EVENTS[name])
-                    if name == "beams":
-                        events = tables.get("corrected_crossings", events)
+                    events = next((tables[k] for k in _PREFIX_EVENTS[name] if k in tables), None)
                     if events is None or events.height == 0:
                         continue
                     until = None if final else horizon - settle
@@ -464,8 +595,15 @@ def follow(
                     if inputs is None:
                         continue
                     res = entry.spec.run(inputs, site, tracker_config(entry, ctx))
-                    tracks = res["tracks"]
-                    rows = tracks.filter((pl.col("t") > published[name]) & (pl.col("t") <= last))
+                    upto = res["tracks"].filter(pl.col("t") <= last)
+                    # rows not published yet (a re-run may add rows dated earlier: beams gives an agent
+                    # created at a later crossing its initial region at the first crossing's time)
+                    # an estimate is published once: a later re-run's value for the same
+                    # (track, t, region, node) is not re-published (the final report compares)
+                    seen = sent.get(name)
+                    key = [c for c in upto.columns if c not in ("x", "y")]
+                    rows = upto if seen is None else upto.join(seen.select(key), on=key, how="anti", nulls_equal=True)
+                    sent[name] = upto if seen is None else pl.concat([seen, rows])
                     published[name] = last
                     pub.estimates(name, rows)
             if final:
@@ -474,6 +612,8 @@ def follow(
         viz_live.close_live(rec)
         echo(f"  followed {polls} polls; final batch run")
         final_data = dataset if options.replay is not None else data
+        for m in mcaps if options.replay is None else ():  # the recordings as they are now
+            shutil.copy(m.path, data / m.path.name)
         run = run_pipeline(final_data, out, trackers=trackers, config=config, progress=False, echo=echo)
         report = _follow_report(out, live, online, pub, polls, batch_only)
         outputs.write_parquet(report, live / "report.parquet")
@@ -496,12 +636,22 @@ def _follow_report(out: Path, live: Path, online: list[str], pub: _Publisher, po
         got = read_live_table(live, f"{name}_tracks")
         batch_path = out / "tables" / f"{name}_tracks.parquet"
         batch = pl.read_parquet(batch_path) if batch_path.is_file() else None
+        if got is None and batch is None:  # its inputs never appeared (a site without beams, say)
+            continue
         rows.append((name, "online_estimates", float(got.height if got is not None else 0), "rows"))
         if batch is not None:
             a = got if got is not None else batch.clear()
             cols = batch.columns
             same = a.select(cols).sort(["track", "t"], maintain_order=True).equals(batch.sort(["track", "t"], maintain_order=True))
             rows.append((name, "online_equals_batch", 1.0 if same else 0.0, "flag"))
+            if not same:  # how far apart: rows only one side has, and positions of the rows both have
+                key = [c for c in cols if c not in ("x", "y")]
+                rows.append((name, "online_rows_not_in_batch", float(a.join(batch, on=key, how="anti", nulls_equal=True).height), "rows"))
+                rows.append((name, "batch_rows_not_online", float(batch.join(a, on=key, how="anti", nulls_equal=True).height), "rows"))
+                both = a.join(batch, on=key, how="inner", nulls_equal=True, suffix="_batch")
+                if both.height and "x" in cols:
+                    gap = ((pl.col("x") - pl.col("x_batch")) ** 2 + (pl.col("y") - pl.col("y_batch")) ** 2).sqrt()
+                    rows.append((name, "max_position_difference", float(both.select(gap.max()).item() or 0.0), "site units"))
         d = delays.filter(pl.col("tracker") == name)["delay_s"].to_numpy()
         if len(d):
             rows += [

@@ -41,7 +41,7 @@ from onebit.core.errors import ConfigError, InputError, OnebitError, bounded
 from onebit.core.region_graph import build_region_graph
 from onebit.core.site import load_site
 from onebit.core.tables import REJECTS, REPORT
-from onebit.pipeline.context import RunContext, Stage, dataset_run_config
+from onebit.pipeline.context import RunContext, Stage, check_made, dataset_run_config
 from onebit.pipeline.progress import ProgressSink, progress_sink
 from onebit.pipeline.stages import TRACKERS, TrackerEntry, stages
 from onebit.readers.mcap_io import load_topic_map, read_mcap
@@ -212,7 +212,7 @@ def run_pipeline(
     replacing = check_out(out, dataset)
     site = load_site(dataset / "site.toml")
     stage_list = stages(tracker_entries)
-    config = copy.deepcopy(dict(config or {}))  # stages add their resolved values: never the caller's dicts
+    config = copy.deepcopy(dict(config or {}))  # the run reads it (RunContext.config); never the caller's dicts
     check_sections(config, stage_list, source="--config")
     dataset_sections = dataset_run_config(dataset)
     check_sections(dataset_sections, stage_list, source=dataset / "run.toml")
@@ -279,6 +279,7 @@ def _run_stages(
         try:
             made = st.work(ctx)
             ctx.seconds[st.name] = time.perf_counter() - t0
+            check_made(st, made, ctx.tables, extra=(ARTIFACTS,))
             t1 = time.perf_counter()
             if rrd:
                 with stage_recording(work, st.name, recording_id) as rec:
@@ -368,7 +369,9 @@ def _write_record(
         "stages": ctx.status,
         "summary": {"rejects": rejects, "tables": sorted(ctx.tables)},
         **({"timing": timing} if timing is not None else {}),
-        **{k: v for k, v in ctx.config.items() if isinstance(v, dict)},
+        **({"time": ctx.time_origin.as_dict()} if ctx.time_origin is not None else {}),
+        **{k: v for k, v in ctx.config.items() if isinstance(v, dict)},  # --config's sections, as given
+        **ctx.resolved,  # each stage that ran: its section as it ran
     }
     outputs.write_text(outputs.to_toml(run_doc), ctx.out / "run.toml")
 

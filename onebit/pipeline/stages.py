@@ -6,12 +6,15 @@
     truth      truth.csv                   -> truth, true_crossings, sim_crossings
     truth_events truth_events.csv          -> truth_events (per-event identity truth: t, sensor, residents)
     camera     camera.mp4                  -> camera_truth, camera_detections
-    frames     frames.csv (frame-sampled)  -> levels, motion, frames, proximity, proximity_frames
-    motion     motion.csv                  -> motion, frames, motion_suppressed   (skipped with frames.csv)
+    frames     frames.csv (frame-sampled)  -> levels, motion, proximity, proximity_frames
+    motion     motion.csv                  -> motion, motion_suppressed   (skipped with frames.csv)
     proximity  proximity.csv               -> proximity, proximity_frames, proximity_suppressed
     correct    crossings                   -> corrected_crossings, correct_insertions, correct_initial
     <tracker>  its TrackerSpec.needs       -> <tracker>_tracks, <tracker>_<table>...   (one per TRACKERS entry)
     scores     everything above            -> crossing_matches, <tracker>_scores, ...
+
+Each stage's ``makes`` is checked by the runner (:func:`onebit.pipeline.context.check_made`):
+a stage returning a table it does not declare, or one an earlier stage made, fails.
 
 Adding a tracker: its package under :mod:`onebit.trackers` (a ``TrackerSpec``), a scoring
 function in :mod:`onebit.scoring` (built on :mod:`onebit.scoring.association`; the MOT metrics
@@ -22,7 +25,7 @@ registry, no plugin loading: this file is the whole list.
 
 from __future__ import annotations
 
-from dataclasses import asdict, dataclass, field
+from dataclasses import dataclass, field
 from typing import Any, Callable
 
 import polars as pl
@@ -32,10 +35,11 @@ from onebit.core.errors import InputError, OnebitError
 from onebit.core.tables import REJECTS
 from onebit.core.units import config_in_site_units
 from onebit.pipeline.context import ReportRow, RunContext, Stage
-from onebit.readers.beams import BEAM_COLUMNS, decode_beam_log, decode_raw_beams
-from onebit.readers.frames import edges_of_levels, frame_log_layout, read_frame_rows, read_frames_csv
+from onebit.readers.beams import BEAM_COLUMNS, beam_dtypes, decode_beam_log, decode_raw_beams
+from onebit.readers.frames import edges_of_levels, read_frames_csv
 from onebit.readers.camera import read_camera, truth_error
-from onebit.readers.motion import TOGGLE_COLUMNS, MotionConfig, motion_frames, read_motion, read_motion_csv, site_rules
+from onebit.readers.motion import TOGGLE_COLUMNS, MotionConfig, read_motion, read_motion_csv, site_rules, toggle_dtypes
+from onebit.readers.rows import read_typed_csv
 from onebit.readers.proximity import ProximityConfig, proximity_frames, read_proximity, read_proximity_csv
 from onebit.readers.tables_csv import (
     crossings_from_rows, read_crossings_csv, read_true_crossings_csv, read_truth_csv, read_truth_events_csv, true_crossings_columns,
@@ -48,11 +52,12 @@ from onebit.scoring import clustertrack as score_clustertrack
 from onebit.scoring import findinghumo as score_findinghumo
 from onebit.scoring import intruder as score_intruder
 from onebit.scoring import istate as score_istate
+from onebit.scoring import residents as score_residents
 from onebit.scoring.crossings import ScoresConfig, score_crossings, true_crossings_from_truth, truth_regions
 from onebit.scoring.identity import baseline_rows, graph_hops, identity_scores
-from onebit.scoring.mot import GATES, Gate, mot_rows
+from onebit.scoring.mot import Gate, mot_rows
 from onebit.scoring.serve import CannotServe
-from onebit.trackers import beams, binpf, clustertrack, findinghumo, findinghumo_flow, intruder, istate
+from onebit.trackers import beams, binpf, clustertrack, findinghumo, findinghumo_flow, intruder, istate, residents
 from onebit.trackers.base import ARTIFACTS, PROGRESS, TrackerSpec
 from onebit.trackers.beams.correction import CorrectConfig, run_correction
 from onebit.viz import beams as viz_beams
@@ -61,6 +66,7 @@ from onebit.viz import clustertrack as viz_clustertrack
 from onebit.viz import findinghumo as viz_findinghumo
 from onebit.viz import intruder as viz_intruder
 from onebit.viz import istate as viz_istate
+from onebit.viz import residents as viz_residents
 from onebit.viz.beams_correct import log_corrected_crossings
 from onebit.viz.events import log_crossings
 from onebit.viz.intruder import log_motion_states
@@ -71,11 +77,15 @@ from onebit.viz.truth import log_truth
 ScoreFn = Callable[..., tuple[list[ReportRow], dict[str, pl.DataFrame]]]
 #: ``log_run(rec, tracker, outputs, *, site, region_graph, config, tables)``
 VizFn = Callable[..., None]
+#: ``metric(tracker, tables, site, region_graph) -> report rows``: a metric the scores stage
+#: adds for every tracker that ran (``[]`` when the run lacks what it needs)
+MetricFn = Callable[[str, dict[str, pl.DataFrame], Any, Any], list[ReportRow]]
 
 
 @dataclass(frozen=True)
 class TrackerEntry:
-    """One tracker in the pipeline: the tracker, how it is scored, how it is logged.
+    """One tracker in the pipeline, declared once: the tracker, how it is scored, its MOT gate,
+    how it is logged and the scenario it is tested on.
 
     ``inputs`` maps an input name of the tracker to the tables that may feed it, first
     present wins (the beams tracker reads the corrected crossings when the ``correct``
@@ -88,23 +98,48 @@ class TrackerEntry:
     inputs: dict[str, tuple[str, ...]] = field(default_factory=dict)
     #: the MOT gate of its tracks (:class:`onebit.scoring.mot.Gate`); ``None`` = no MOT rows
     gate: Gate | None = None
+    #: the built-in scenario (``onebit simulate NAME``) the tests run it on: the contract tests
+    #: of the trackers and of the scorers (``None``: no scenario serves it)
+    scenario: str | None = None
 
     @property
     def name(self) -> str:
         return self.spec.name
 
 
+#: The MOT gates the papers share (``TrackerEntry.gate``; docs/metrics.md, "Standard MOT metrics").
+CELLS_GATE = Gate(
+    "point", 2.0, "cells",
+    "Schiff & Goldberg score in grid cells; 'within two world-space cells' is their accuracy criterion "
+    "(VIII: perfect sensors put every estimate there) and the intruder's bounding prism is 2 cells wide",
+)
+HOPS_GATE = Gate("node", 1.0, "hops", "De et al. score hops on the sensor graph; 1 hop = the adjacent sensor, the PIR's resolution")
+
 #: Every tracker, in the order their stages run.
 TRACKERS: tuple[TrackerEntry, ...] = (
-    TrackerEntry(beams.SPEC, score_beams.score, viz_beams.log_run, {"crossings": ("corrected_crossings", "crossings")}, GATES["beams"]),
-    TrackerEntry(intruder.SPEC, score_intruder.score, viz_intruder.log_run, gate=GATES["intruder"]),
-    TrackerEntry(intruder.NAIVE_SPEC, score_intruder.score, viz_intruder.log_run, gate=GATES["intruder-naive"]),
-    TrackerEntry(clustertrack.SPEC, score_clustertrack.score, viz_clustertrack.log_run, gate=GATES["clustertrack"]),
-    TrackerEntry(binpf.SPEC, score_binpf.score, viz_binpf.log_run, gate=GATES["binpf"]),
-    *(TrackerEntry(spec, score_findinghumo.score, viz_findinghumo.log_run, gate=GATES[spec.name]) for spec in findinghumo.SPECS),
-    TrackerEntry(findinghumo_flow.SPEC, score_findinghumo.score, viz_findinghumo.log_run, gate=GATES["findinghumo-flow"]),
-    TrackerEntry(istate.SPEC, score_istate.score, viz_istate.log_run, gate=GATES["istate"]),
-)
+    TrackerEntry(beams.SPEC, score_beams.score, viz_beams.log_run, {"crossings": ("corrected_crossings", "crossings")},
+                 Gate("region", 1.0, "hops", "Bobadilla et al. localise to a region; 1 hop = the adjacent region, one beam away"),
+                 scenario="beams-lab"),
+    TrackerEntry(intruder.SPEC, score_intruder.score, viz_intruder.log_run, gate=CELLS_GATE, scenario="pir14"),
+    TrackerEntry(intruder.NAIVE_SPEC, score_intruder.score, viz_intruder.log_run, gate=CELLS_GATE, scenario="pir14"),
+    TrackerEntry(clustertrack.SPEC, score_clustertrack.score, viz_clustertrack.log_run,
+                 gate=Gate("point", 1.0, "R", "Singh et al. report error in units of the sensing radius R; within R the target is resolved"),
+                 scenario="proximity-line"),
+    TrackerEntry(binpf.SPEC, score_binpf.score, viz_binpf.log_run,
+                 gate=Gate("point", 1.0, "m", "beyond the papers: a metric gate in world units; 1 m is about half the spacing of a ceiling "
+                           "array (Milan et al. score at 1.5 m)"),
+                 scenario="proximity-line"),
+    *(TrackerEntry(spec, score_findinghumo.score, viz_findinghumo.log_run, gate=HOPS_GATE, scenario="hallway") for spec in findinghumo.SPECS),
+    TrackerEntry(findinghumo_flow.SPEC, score_findinghumo.score, viz_findinghumo.log_run, gate=HOPS_GATE, scenario="hallway"),
+    TrackerEntry(istate.SPEC, score_istate.score, viz_istate.log_run,
+                 gate=Gate("point", 1.0, "sensing radius", "O'Kane's I-state has no unit of its own; a point summary within one "
+                           "sensing radius is what the sensors can tell apart"),
+                 scenario="istate-room"),
+    TrackerEntry(residents.SPEC, score_residents.score, viz_residents.log_run,
+                 gate=Gate("point", 1.0, "sensing radius", "the residents tracker places each person at the sensor of their latest "
+                           "event: within one sensing radius the sensor covers them"),
+                 scenario="hallway"),
+)  # fmt: skip
 
 
 def tracker_names(entries: tuple[TrackerEntry, ...] = TRACKERS) -> tuple[str, ...]:
@@ -125,12 +160,16 @@ def run_time_origin(ctx: RunContext) -> TimeOrigin:
     whose header cannot be read is left out here (its own stage reports it). Raises
     :class:`~onebit.core.errors.InputError` on an absurd span. It goes to ``run.toml`` as the
     ``[time]`` table (source, origin as ISO and as the logs' number, span, lone stamps)."""
-    cached = getattr(ctx, "time_origin", None)
-    if isinstance(cached, TimeOrigin):
-        return cached
-    frames: dict[str, pl.DataFrame] = {}
+    if ctx.time_origin is not None:
+        return ctx.time_origin
+    frames: dict[str, pl.DataFrame | list[pl.DataFrame]] = {}
     for stem in TIME_SOURCES:
         if not ctx.has_source(stem):
+            continue
+        split = _typed_read(ctx, stem)
+        if split is not None:  # read once, typed: its stamps here, the rest by the reader stage
+            ctx.typed_reads[stem] = split
+            frames[f"{stem}.csv"] = [split.good.select("line", "t"), split.rest.frame.select("line", "t")]
             continue
         try:
             name, frame = ctx.stamps(stem)
@@ -139,8 +178,23 @@ def run_time_origin(ctx: RunContext) -> TimeOrigin:
         frames[name] = frame
     origin = time_origin(frames, epoch=ctx.site.epoch)
     ctx.time_origin = origin
-    ctx.config["time"] = origin.as_dict()  # the run record's [time] (runner.RUN_RECORD_SECTIONS)
     return origin
+
+
+def _typed_read(ctx: RunContext, stem: str):
+    """The typed read (:func:`~onebit.readers.rows.read_typed_csv`) of ``<stem>.csv`` in the
+    reader stage's types, for the logs whose reader takes it (beams, motion, proximity), else
+    ``None`` (no such CSV, another log, or a file the typed read cannot take)."""
+    csv = ctx.dataset / f"{stem}.csv"
+    if stem not in ("beams", "motion", "proximity") or not csv.exists():
+        return None
+    if stem == "beams":
+        ids = list(ctx.site.beam_ids)
+    else:
+        ids = [m.id for m in (ctx.site.motion_sensors if stem == "motion" else ctx.site.proximity_sensors)]
+    if not ids:  # its stage will not read it: the stamps alone
+        return None
+    return read_typed_csv(csv, beam_dtypes(tuple(ids)) if stem == "beams" else toggle_dtypes(ids))
 
 
 # --------------------------------------------------------------------------- reader stages
@@ -158,7 +212,7 @@ def _crossings_work(ctx: RunContext) -> dict[str, pl.DataFrame]:
     if ctx.has_source("beams"):
         csv = ctx.dataset / "beams.csv"
         if csv.exists():  # a clean file is typed in one read (decode_beam_log), else line by line
-            dec = decode_beam_log(csv, site.beam_ids, epoch=run_time_origin(ctx))
+            dec = decode_beam_log(csv, site.beam_ids, epoch=run_time_origin(ctx), split=ctx.typed_reads.pop("beams", None))
         else:
             raw, path = ctx.source("beams", BEAM_COLUMNS)
             dec = decode_raw_beams(raw, site.beam_ids, epoch=run_time_origin(ctx), path=path)
@@ -275,8 +329,8 @@ def _frame_sensor_ids(site) -> list[str]:
 
 
 def _frames_available(ctx: RunContext) -> str | None:
-    if not ctx.has_source("frames"):
-        return "no frames.csv or /frames MCAP channel in the dataset"
+    if not (ctx.dataset / "frames.csv").exists():
+        return "no frames.csv in the dataset (frame logs are not read from MCAP)"
     if not _frame_sensor_ids(ctx.site):
         return "frame log present but site.toml declares no binary sensors (binary_sensors, motion_sensors, proximity_sensors)"
     return None
@@ -285,19 +339,12 @@ def _frames_available(ctx: RunContext) -> str | None:
 def _frames_work(ctx: RunContext) -> dict[str, pl.DataFrame]:
     """A frame-sampled log (:mod:`onebit.readers.frames`) -> ``levels`` (every frame x every
     sensor) and, from them, what the trackers read: ``motion`` (toggle edges of the motion and
-    binary sensors) and ``frames`` (their levels), ``proximity_frames`` (the proximity and
+    binary sensors), ``proximity_frames`` (the proximity and
     binary sensors' levels at every frame) and ``proximity`` (edges of the proximity-only
     sensors; a binary sensor's edges are in ``motion`` once)."""
     site = ctx.site
     ids = _frame_sensor_ids(site)
-    csv = ctx.dataset / "frames.csv"
-    if csv.exists():
-        log = read_frames_csv(csv, ids, epoch=run_time_origin(ctx))
-    else:
-        raw = ctx.mcap_channels["/frames"]
-        layout = frame_log_layout(list(raw.frame.columns), file=raw.source, line=None)
-        cols = tuple(c for c in raw.frame.columns if c not in ("t", "line", "raw")) if layout == "wide" else ()
-        log = read_frame_rows(raw, ids, layout=layout, epoch=run_time_origin(ctx), columns=cols)
+    log = read_frames_csv(ctx.dataset / "frames.csv", ids, epoch=run_time_origin(ctx))
     ctx.add_rejects(log.rejects)
     levels = log.levels
     motion_ids = [m.id for m in site.motion_sensors]
@@ -306,7 +353,6 @@ def _frames_work(ctx: RunContext) -> dict[str, pl.DataFrame]:
     out = {"levels": levels}
     if motion_ids:
         out["motion"] = edges_of_levels(levels, motion_ids)
-        out["frames"] = levels.filter(pl.col("sensor").is_in(motion_ids))
     if prox_ids:
         out["proximity_frames"] = levels.filter(pl.col("sensor").is_in(prox_ids))
         out["proximity"] = edges_of_levels(levels, prox_only)
@@ -329,7 +375,7 @@ def _frames_viz(rec, ctx: RunContext, made: dict) -> None:
 
 
 def _motion_available(ctx: RunContext) -> str | None:
-    if ctx.has_source("frames"):
+    if (ctx.dataset / "frames.csv").exists():
         return "the readings come from the frame log (frames.csv)"
     if not ctx.has_source("motion"):
         return "no motion.csv or /motion MCAP channel in the dataset"
@@ -340,24 +386,24 @@ def _motion_available(ctx: RunContext) -> str | None:
 
 def _motion_work(ctx: RunContext) -> dict[str, pl.DataFrame]:
     cfg = config_from_mapping(MotionConfig, ctx.section("motion"), section="motion")
-    ctx.config.setdefault("motion", {}).update({k: v for k, v in asdict(cfg).items() if v is not None})
+    ctx.record("motion", cfg)
     site = ctx.site
     ids = [m.id for m in site.motion_sensors]
     csv = ctx.dataset / "motion.csv"
     if csv.exists():  # a clean file is typed in one read (read_motion_csv), else line by line
-        res = read_motion_csv(csv, ids, epoch=run_time_origin(ctx), rules=site_rules(site, cfg), held=site.level_sensors)
+        res = read_motion_csv(csv, ids, epoch=run_time_origin(ctx), rules=site_rules(site, cfg), held=site.level_sensors,
+                              split=ctx.typed_reads.pop("motion", None))
     else:
         raw, path = ctx.source("motion", TOGGLE_COLUMNS)
         res = read_motion(raw, ids, epoch=run_time_origin(ctx), path=path, rules=site_rules(site, cfg), held=site.level_sensors)
     ctx.add_rejects(res.rejects)
-    frames = motion_frames(res.motion, ids, period=cfg.period)
     ctx.report += [
         ("motion", "edges", float(res.motion.height), "edges"),
         ("motion", "suppressed", float(res.suppressed.height), "edges"),
         ("motion", "held", float(res.held), "rows"),
         ("motion", "rejected", float(res.rejects.height), "rows"),
     ]
-    return {"motion": res.motion, "frames": frames, "motion_suppressed": res.suppressed}
+    return {"motion": res.motion, "motion_suppressed": res.suppressed}
 
 
 def _motion_viz(rec, ctx: RunContext, made: dict) -> None:
@@ -365,7 +411,7 @@ def _motion_viz(rec, ctx: RunContext, made: dict) -> None:
 
 
 def _proximity_available(ctx: RunContext) -> str | None:
-    if ctx.has_source("frames"):
+    if (ctx.dataset / "frames.csv").exists():
         return "the readings come from the frame log (frames.csv)"
     if not ctx.site.proximity_sensors:
         return "site.toml has no proximity sensors"
@@ -376,11 +422,12 @@ def _proximity_available(ctx: RunContext) -> str | None:
 
 def _proximity_work(ctx: RunContext) -> dict[str, pl.DataFrame]:
     cfg = config_from_mapping(ProximityConfig, ctx.section("proximity"), section="proximity")
-    ctx.config.setdefault("proximity", {}).update(asdict(cfg))
+    ctx.record("proximity", cfg)
     ids = [p.id for p in ctx.site.proximity_sensors]
     csv = ctx.dataset / "proximity.csv"
     if csv.exists():  # a clean file is typed in one read (read_proximity_csv), else line by line
-        res = read_proximity_csv(csv, ids, epoch=run_time_origin(ctx), rules=cfg.rules, held=ctx.site.level_sensors)
+        res = read_proximity_csv(csv, ids, epoch=run_time_origin(ctx), rules=cfg.rules, held=ctx.site.level_sensors,
+                                 split=ctx.typed_reads.pop("proximity", None))
     else:
         raw, path = ctx.source("proximity", TOGGLE_COLUMNS)
         res = read_proximity(raw, ids, epoch=run_time_origin(ctx), path=path, rules=cfg.rules, held=ctx.site.level_sensors)
@@ -419,7 +466,7 @@ def _correct_available(ctx: RunContext) -> str | None:
 def _correct_work(ctx: RunContext) -> dict[str, pl.DataFrame]:
     cfg = config_from_mapping(CorrectConfig, ctx.section("correct"), section="correct")
     n = cfg.n if cfg.n is not None else ctx.site.targets
-    ctx.config.setdefault("correct", {}).update({k: v for k, v in asdict(cfg).items() if v is not None} | {"n": n})
+    ctx.record("correct", cfg, n=n)
     res = run_correction(ctx.tables["crossings"], ctx.region_graph, cfg, n)
     ctx.report += res.report
     return res.tables
@@ -436,7 +483,7 @@ def tracker_config(entry: TrackerEntry, ctx: RunContext):
     """The tracker's config from its ``run.toml`` section (``--config``, else the dataset's own
     ``run.toml``: :meth:`RunContext.section`), its lengths in the site's units."""
     cfg = config_from_mapping(entry.spec.config, ctx.section(entry.name), section=entry.name)
-    ctx.config.setdefault(entry.name, {}).update(asdict(cfg))
+    ctx.record(entry.name, cfg)
     return config_in_site_units(cfg, ctx.site)
 
 
@@ -446,6 +493,8 @@ def tracker_inputs(entry: TrackerEntry, ctx: RunContext) -> dict[str, Any]:
         sources = entry.inputs.get(key, (key,))
         inputs[key] = next(ctx.tables[s] for s in sources if s in ctx.tables)
     inputs.update({k: ctx.tables[k] for k in entry.spec.wants if k in ctx.tables})
+    if "levels" in ctx.tables:  # a frame log: every sensor's reading at every frame, for any tracker that reads it
+        inputs.setdefault("levels", ctx.tables["levels"])
     inputs["region_graph"] = ctx.region_graph
     inputs[PROGRESS] = ctx.progress
     return inputs
@@ -463,7 +512,11 @@ def tracker_stage(entry: TrackerEntry) -> Stage:
                 return f"input table '{key}' not produced by an earlier stage"
         if not spec.needs and spec.wants and not any(k in ctx.tables for k in spec.wants):
             return f"none of its input tables ({', '.join(spec.wants)}) was produced by an earlier stage"
-        return spec.available(ctx.site) if spec.available is not None else None
+        reason = spec.available(ctx.site) if spec.available is not None else None
+        if reason is None and spec.fits is not None:  # the inputs' size against the tracker's bound
+            cfg = config_in_site_units(config_from_mapping(spec.config, ctx.section(name), section=name), ctx.site)
+            reason = spec.fits(tracker_inputs(entry, ctx), ctx.site, cfg)
+        return reason
 
     def work(ctx: RunContext) -> dict[str, Any]:
         cfg = ctx.configs[name] = tracker_config(entry, ctx)
@@ -481,19 +534,34 @@ def tracker_stage(entry: TrackerEntry) -> Stage:
             out[ARTIFACTS] = made[ARTIFACTS]
         entry.viz(rec, name, out, site=ctx.site, region_graph=ctx.region_graph, config=ctx.configs[name], tables=ctx.tables)
 
-    return Stage(name, (), (f"{name}_tracks",), available, work, viz, config=spec.config)
+    return Stage(name, (), (f"{name}_tracks", f"{name}_*"), available, work, viz, config=spec.config)
 
 
 # --------------------------------------------------------------------------- scores
 
 
-def scores_stage(trackers: tuple[TrackerEntry, ...] = TRACKERS) -> Stage:
+def identity_metric(tracker: str, tables: dict[str, pl.DataFrame], site, region_graph) -> list[ReportRow]:
+    """Identity per event (:func:`onebit.scoring.identity.identity_scores`, docs/metrics.md) of a
+    tracker that wrote ``<tracker>_events``, when the dataset has ``truth_events``."""
+    te, ev = tables.get("truth_events"), tables.get(f"{tracker}_events")
+    if te is None or not te.height or ev is None:
+        return []
+    return identity_scores(te, ev, tracks=tables.get(f"{tracker}_tracks")).rows(tracker)
+
+
+#: The metrics of every tracker beyond its own (``TrackerEntry.score``) and the MOT rows: one
+#: line per metric (docs/extending.md, "A report metric").
+METRICS: tuple[MetricFn, ...] = (identity_metric,)
+
+
+def scores_stage(trackers: tuple[TrackerEntry, ...] = TRACKERS, metrics: tuple[MetricFn, ...] | None = None) -> Stage:
     """The ``scores`` stage: crossings against the truth, then every tracker that ran ok: its
-    paper's metrics (``entry.score``) and the standard MOT metrics (:func:`onebit.scoring.mot.mot_rows`)."""
+    paper's metrics (``entry.score``), the standard MOT metrics (:func:`onebit.scoring.mot.mot_rows`)
+    and every metric of ``metrics`` (default :data:`METRICS`), then the identity baselines."""
 
     def work(ctx: RunContext) -> dict[str, pl.DataFrame]:
         cfg = config_from_mapping(ScoresConfig, ctx.section("scores"), section="scores")
-        ctx.config.setdefault("scores", {}).update(asdict(cfg))
+        ctx.record("scores", cfg)
         tables = dict(ctx.tables)
         tables["timings"] = pl.DataFrame(
             {"stage": list(ctx.seconds), "seconds": list(ctx.seconds.values())}, schema={"stage": pl.String, "seconds": pl.Float64}
@@ -517,13 +585,16 @@ def scores_stage(trackers: tuple[TrackerEntry, ...] = TRACKERS) -> Stage:
             ctx.report += rows
             out.update(made)
             tables.update(made)
+        for entry in trackers:  # the metrics of every tracker (METRICS)
+            if entry.name not in ctx.trackers or not ctx.status.get(entry.name, "").startswith("ok"):
+                continue
+            for fn in METRICS if metrics is None else metrics:
+                try:
+                    ctx.report += fn(entry.name, tables, ctx.site, ctx.region_graph)
+                except OnebitError as exc:
+                    ctx.status[f"scores/{entry.name}"] = f"failed: {exc}"
         te = tables.get("truth_events")
-        if te is not None and te.height:  # identity per event: every tracker that wrote <tracker>_events, and the baselines
-            for entry in trackers:
-                ev = tables.get(f"{entry.name}_events")
-                if ev is None or not ctx.status.get(entry.name, "").startswith("ok"):
-                    continue
-                ctx.report += identity_scores(te, ev, tracks=tables.get(f"{entry.name}_tracks")).rows(entry.name)
+        if te is not None and te.height:  # what a tracker's identity per event is compared with
             ctx.report += baseline_rows(te, graph_hops(ctx.site))
         rej = ctx.tables.get("rejects", pl.DataFrame(schema=REJECTS))
         ctx.report.append(("rejects", "rows", float(rej.height), "rows"))
@@ -538,7 +609,8 @@ def scores_stage(trackers: tuple[TrackerEntry, ...] = TRACKERS) -> Stage:
                 ids = tracks["track"].drop_nulls().unique().to_list() if tracks is not None and "track" in tracks.columns else None
                 log_scores(rec, entry.name, sc, track_ids=ids)
 
-    return Stage("scores", (), ("crossing_matches", "timings"), lambda ctx: None, work, viz, config=ScoresConfig)
+    makes = ("crossing_matches", "corrected_targets", "correct_recovered", "timings", *(f"{e.name}_*" for e in trackers))
+    return Stage("scores", (), makes, lambda ctx: None, work, viz, config=ScoresConfig)
 
 
 # --------------------------------------------------------------------------- the list
@@ -551,8 +623,8 @@ def stages(trackers: tuple[TrackerEntry, ...] = TRACKERS) -> list[Stage]:
         Stage("truth", (), ("truth", "true_crossings", "sim_crossings"), _truth_available, _truth_work, _truth_viz),
         Stage("truth_events", (), ("truth_events",), _truth_events_available, _truth_events_work),
         Stage("camera", (), ("camera_truth", "camera_detections"), _camera_available, _camera_work, _camera_viz),
-        Stage("frames", (), ("levels", "motion", "frames", "proximity", "proximity_frames"), _frames_available, _frames_work, _frames_viz),
-        Stage("motion", (), ("motion", "frames", "motion_suppressed"), _motion_available, _motion_work, _motion_viz, config=MotionConfig),
+        Stage("frames", (), ("levels", "motion", "proximity", "proximity_frames"), _frames_available, _frames_work, _frames_viz),
+        Stage("motion", (), ("motion", "motion_suppressed"), _motion_available, _motion_work, _motion_viz, config=MotionConfig),
         Stage("proximity", (), ("proximity", "proximity_frames", "proximity_suppressed"), _proximity_available, _proximity_work,
               config=ProximityConfig),  # fmt: skip
         Stage("correct", ("crossings",), ("corrected_crossings", "correct_insertions", "correct_initial"), _correct_available,

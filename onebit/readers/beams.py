@@ -29,6 +29,7 @@ from pathlib import Path
 import numpy as np
 import polars as pl
 
+from onebit.core.compiled import numba_loaded
 from onebit.core.sensing import body_radius
 from onebit.core.tables import ABORTED, BEAM_EVENTS, CROSSINGS, REJECTS, conform
 from onebit.readers import kernels
@@ -47,6 +48,7 @@ from onebit.readers.rows import (
     raw_lines,
     read_clean_csv,
     read_csv_rows,
+    TypedSplit,
     read_typed_csv,
     type_rows,
 )
@@ -81,16 +83,21 @@ def read_beam_events(raw: RawRows, beam_ids: tuple[str, ...], *, epoch: str | No
     return type_rows(raw, _beam_parsers(beam_ids, epoch, raw.frame), key=("t", "beam", "pair", "blocked"), path=path)
 
 
-def _beam_dtypes(beam_ids: tuple[str, ...]) -> dict[str, pl.DataType]:
+def beam_dtypes(beam_ids: tuple[str, ...]) -> dict[str, pl.DataType]:
     """The typed read of ``beams.csv``: numeric ``t``, known beams, pairs ``a``/``b``, ``blocked`` ``0``/``1``."""
     return {"t": pl.Float64, "beam": pl.Enum(list(dict.fromkeys(beam_ids))), "pair": pl.Enum(["a", "b"]), "blocked": pl.Enum(["0", "1"])}
 
 
-def typed_beam_events(path: Path, beam_ids: tuple[str, ...], *, epoch=None) -> TypedRows | None:
+_beam_dtypes = beam_dtypes  # the earlier private name
+
+
+def typed_beam_events(path: Path, beam_ids: tuple[str, ...], *, epoch=None, split: TypedSplit | None = None) -> TypedRows | None:
     """:func:`read_beam_events` of ``beams.csv`` by one typed read (:func:`~onebit.readers.rows.read_typed_csv`),
     the lines it cannot take typed row by row; ``None`` when the header is not a plain first
-    line (the row-by-row path reads the file). Beam and pair stay enums (the decoder's codes)."""
-    split = read_typed_csv(path, _beam_dtypes(beam_ids))
+    line (the row-by-row path reads the file). Beam and pair stay enums (the decoder's codes).
+    ``split``: that read already made (with :func:`beam_dtypes`; the runner reads the file
+    once for the time origin and the reader)."""
+    split = split if split is not None else read_typed_csv(path, beam_dtypes(beam_ids))
     if split is None:
         return None
     good = split.good.with_columns(pl.col("blocked").to_physical() == 1)
@@ -103,7 +110,9 @@ def decode_passes(events: pl.DataFrame, source: str = "beams.csv", *, compiled: 
 
     Edges that do not change their pair's state (blocked while already blocked, or clear
     while clear) cannot come from a body and are rejected with their line. The machine runs
-    as one compiled pass over the events (:func:`onebit.readers.kernels.beam_passes`); the
+    as one compiled pass over the events (:func:`onebit.readers.kernels.beam_passes`) when numba
+    is loaded in the process already (:func:`onebit.core.compiled.numba_loaded`), else as its numpy version (:func:`~onebit.readers.kernels.beam_passes_vectorised`:
+    a process that runs no other kernel does not pay numba's load for the reader); the
     tables are built from its result with polars, as :func:`decode_passes_reference` (the
     polars window version, its test oracle) builds them. ``compiled=None`` uses the kernel
     from :data:`~onebit.readers.kernels.MIN_ROWS` events on, the reference below (same result).
@@ -121,7 +130,9 @@ def decode_passes(events: pl.DataFrame, source: str = "beams.csv", *, compiled: 
         pair = ev["pair"].to_physical().to_numpy().astype(np.int8)
     else:
         pair = (ev["pair"] == "b").to_numpy().astype(np.int8)
-    reject, pass_first, close, first_pair, last = kernels.beam_passes(code, pair, ev["blocked"].to_numpy().astype(np.bool_), len(names))
+    # ``compiled=None``: numba's load only when a kernel paid it already, else the numpy version
+    passes = kernels.beam_passes if compiled or numba_loaded() else kernels.beam_passes_vectorised
+    reject, pass_first, close, first_pair, last = passes(code, pair, ev["blocked"].to_numpy().astype(np.bool_), len(names))
     t = ev["t"].to_numpy()
     pairs = pl.Series(["a", "b"], dtype=pl.String)
     bad = np.flatnonzero(reject)
@@ -232,14 +243,14 @@ def decode_passes_reference(events: pl.DataFrame, source: str = "beams.csv") -> 
     return _decoded(ev, passes, rejects)
 
 
-def decode_beam_log(path: str | Path, beam_ids: tuple[str, ...], *, epoch: str | None = None) -> BeamDecode:
+def decode_beam_log(path: str | Path, beam_ids: tuple[str, ...], *, epoch: str | None = None, split: TypedSplit | None = None) -> BeamDecode:
     """Read ``beams.csv`` and decode it: the whole raw-beam reader.
 
     The file is typed by one ``pl.read_csv`` (:func:`typed_beam_events`); only the lines it
     cannot take go through the row-by-row CSV layer, which names each bad line. The result is
     the row-by-row path's on the whole file (:func:`decode_raw_beams`)."""
     path = Path(path)
-    typed = typed_beam_events(path, tuple(beam_ids), epoch=epoch)
+    typed = typed_beam_events(path, tuple(beam_ids), epoch=epoch, split=split)
     if typed is None:
         raw = read_csv_rows(path, BEAM_COLUMNS)
         return decode_raw_beams(raw, beam_ids, epoch=epoch, path=path)

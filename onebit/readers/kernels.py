@@ -76,6 +76,67 @@ def beam_passes(beam, pair, blocked, n_beams):
     return reject, pass_first, close, first_pair, last
 
 
+def beam_passes_vectorised(beam, pair, blocked, n_beams):
+    """:func:`beam_passes` with numpy array operations (two stable sorts, forward fills by
+    ``maximum.accumulate``): the same five arrays, without numba. A reader uses it in a process
+    where numba is not loaded yet (loading it costs 0.3-0.5 s, ten times this at 10^6 edges),
+    the kernel where numba is loaded already (tests: equal on random logs).
+
+    No-change edges: a pair's state before an edge is its previous edge's value (an accepted
+    edge sets it, a rejected one had it already), so edge ``k`` of pair ``(b, q)`` is rejected
+    iff ``blocked[k]`` equals the pair's previous ``blocked`` (``False`` before the first). The
+    accepted edges of each beam, in time order: ``a_k``, ``b_k`` the last value of each pair
+    at or before ``k``; the beam is idle after ``k`` iff ``not (a_k or b_k)``; a pass starts at
+    a beam's first edge and after each idle edge, and closes at an idle edge.
+    """
+    beam = np.asarray(beam, np.int64)
+    pair = np.asarray(pair, np.int8)
+    blocked = np.asarray(blocked, np.bool_)
+    m = beam.shape[0]
+    reject = np.zeros(m, dtype=np.int8)
+    pass_first = np.full(m, -1, dtype=np.int64)
+    close = np.zeros(m, dtype=np.bool_)
+    first_pair = np.full(m, -1, dtype=np.int8)
+    last = np.full(n_beams, -1, dtype=np.int64)
+    if m == 0:
+        return reject, pass_first, close, first_pair, last
+    small = np.int16 if 2 * n_beams < np.iinfo(np.int16).max else np.int64  # 16-bit keys: numpy's stable sort is a radix sort
+    g = (beam * 2 + pair).astype(small)
+    order = np.argsort(g, kind="stable")  # per (beam, pair), in time order
+    gs, vs = g[order], blocked[order]
+    prev = np.zeros(m, dtype=np.bool_)
+    prev[1:] = vs[:-1]
+    prev[np.flatnonzero(np.diff(gs)) + 1] = False  # each pair starts clear
+    same = vs == prev
+    reject[order[same]] = np.where(vs[same], ALREADY_BLOCKED, ALREADY_CLEAR)
+    acc = np.flatnonzero(reject == 0)
+    if acc.size == 0:
+        return reject, pass_first, close, first_pair, last
+    idx = acc[np.argsort(beam[acc].astype(small), kind="stable")]  # accepted edges per beam, in time order
+    b, q, v = beam[idx], pair[idx], blocked[idx]
+    n = idx.size
+    pos = np.arange(n)
+    start = np.ones(n, dtype=np.bool_)
+    start[1:] = b[1:] != b[:-1]
+    first = np.maximum.accumulate(np.where(start, pos, 0))  # the beam's first position
+
+    def state(of_pair):  # the pair's value after each edge: its last edge so far in the beam, else clear
+        at = np.maximum.accumulate(np.where(q == of_pair, pos, -1))
+        return np.where(at >= first, v[np.maximum(at, 0)], False)
+
+    idle = ~(state(0) | state(1))
+    opens = start.copy()
+    opens[1:] |= idle[:-1]
+    opened = np.maximum.accumulate(np.where(opens, pos, 0))
+    pass_first[idx] = idx[opened]
+    close[idx] = idle
+    first_pair[idx[idle]] = q[opened[idle]]
+    end = np.ones(n, dtype=np.bool_)
+    end[:-1] = b[:-1] != b[1:]
+    last[b[end]] = idx[end]
+    return reject, pass_first, close, first_pair, last
+
+
 @kernel
 def debounce_masks(sensor, on, t, chatter, min_on, n_sensors, eps):
     """The PIR debounce on alternating edges sorted by time (``sensor`` index, ``on``, ``t``;
@@ -146,6 +207,61 @@ def separators_per_line_reference(buf: np.ndarray, sep: int) -> np.ndarray:
     at = np.flatnonzero(buf == sep)
     before = np.searchsorted(at, np.concatenate([nl, [buf.shape[0]]]), side="left")
     return np.diff(np.concatenate([[0], before])).astype(np.int64)
+
+
+def _by_sensor(sensor, n_sensors):
+    """Stable order of the rows by sensor (time order within a sensor): a radix sort on 16-bit codes."""
+    small = np.int16 if n_sensors < np.iinfo(np.int16).max else np.int64
+    return np.argsort(np.asarray(sensor).astype(small), kind="stable")
+
+
+def toggle_repeats_vectorised(sensor, on, n_sensors):
+    """:func:`toggle_repeats` with numpy (used while numba is not loaded, as
+    :func:`beam_passes_vectorised`): per sensor, ``on`` equal to its previous edge's (off before the first)."""
+    on = np.asarray(on, np.bool_)
+    m = on.shape[0]
+    same = np.zeros(m, dtype=np.bool_)
+    if m == 0:
+        return same
+    order = _by_sensor(sensor, n_sensors)
+    s_, o_ = np.asarray(sensor)[order], on[order]
+    prev = np.zeros(m, dtype=np.bool_)
+    prev[1:] = o_[:-1]
+    prev[np.flatnonzero(s_[1:] != s_[:-1]) + 1] = False
+    same[order] = o_ == prev
+    return same
+
+
+def debounce_masks_vectorised(sensor, on, t, chatter, min_on, n_sensors, eps):
+    """:func:`debounce_masks` with numpy (used while numba is not loaded): chatter marks each
+    (off, on) pair of neighbours in a sensor's sequence within its window; the minimum on-time
+    rule marks each (on, off) pair of neighbours among the edges chatter left, sooner than
+    ``min_on`` (the marks do not cascade, as in the kernel)."""
+    sensor = np.asarray(sensor)
+    on = np.asarray(on, np.bool_)
+    t = np.asarray(t, np.float64)
+    m = on.shape[0]
+    chat = np.zeros(m, dtype=np.bool_)
+    short = np.zeros(m, dtype=np.bool_)
+    if m < 2:
+        return chat, short
+    order = _by_sensor(sensor, n_sensors)
+    s_, o_, t_ = sensor[order], on[order], t[order]
+    w = np.asarray(chatter, np.float64)[s_[1:]]
+    pair = (s_[1:] == s_[:-1]) & (w > 0) & o_[1:] & ~o_[:-1] & (t_[1:] - t_[:-1] <= w + eps)
+    cs = np.zeros(m, dtype=np.bool_)
+    cs[1:] |= pair
+    cs[:-1] |= pair
+    ko = np.flatnonzero(~cs)
+    s2, o2, t2 = s_[ko], o_[ko], t_[ko]
+    mo = np.asarray(min_on, np.float64)[s2[1:]]
+    pair2 = (s2[1:] == s2[:-1]) & (mo > 0) & o2[:-1] & ~o2[1:] & (t2[1:] - t2[:-1] < mo - eps)
+    ss = np.zeros(m, dtype=np.bool_)
+    ss[ko[1:][pair2]] = True
+    ss[ko[:-1][pair2]] = True
+    chat[order] = cs
+    short[order] = ss
+    return chat, short
 
 
 @kernel

@@ -1,20 +1,22 @@
 """``onebit logs info``: what a raw log holds -- channels, sensors, time span, rates, rejects.
 
 Works on any raw-log CSV or Parquet file, on an ``.mcap`` recording (one row per channel),
-on a CASAS smart-home log ``*.txt`` (:mod:`onebit.readers.casas`: one row for the whole log,
-then one per kind of sensor -- motion, door, temperature, other) and on a folder (every
+on a CASAS smart-home log ``*.txt`` or pymrt ``events.csv`` (:mod:`onebit.readers.casas`: one
+row for the whole log, then one per kind of sensor -- motion, contact, temperature, ... -- then
+the resident-labelled events, the annotation problems and the lost OFFs) and on a folder (every
 ``*.csv``, ``*.parquet``, ``*.mcap`` and ``*.txt`` in it).
 """
 
 from __future__ import annotations
 
 import io
+import re
 from pathlib import Path
 
 import polars as pl
 
 from onebit.core.errors import InputError
-from onebit.readers.casas import TOGGLE_KINDS, read_casas, repair_lost_offs
+from onebit.readers.casas import CSV_COLUMNS, TOGGLE_KINDS, read_casas, repair_lost_offs
 from onebit.readers.mcap_io import read_mcap
 from onebit.readers.rows import csv_header, read_csv_rows
 
@@ -126,6 +128,20 @@ def _mcap_rows(path: Path) -> list[dict]:
     return rows
 
 
+def _is_casas_csv(path: Path) -> bool:
+    """A pymrt ``events.csv`` (:func:`onebit.readers.casas.read_casas_csv`): no ``t`` column and
+    either a header naming a time, a sensor and a message column, or none (a date-time first)."""
+    try:
+        header = [h.lower() for h in csv_header(path)[0]]
+    except InputError:
+        return False
+    if not header or "t" in header:
+        return False
+    if re.match(r"^\d{4}-\d{1,2}-\d{1,2}[ Tt_]\d", header[0]):
+        return True
+    return all(any(n in header for n in CSV_COLUMNS[c]) for c in ("time", "sensor", "message"))
+
+
 def _casas_rows(path: Path) -> list[dict]:
     """The whole log (with its rejected lines), then one row per kind of sensor, then
     ``:resident-labelled`` (events annotated with their resident(s); ``sensors`` = distinct
@@ -190,7 +206,7 @@ def log_info(path: str | Path) -> pl.DataFrame:
         raise InputError("no such file", file=path)
     suffix = path.suffix.lower()
     if suffix == ".csv":
-        rows = _csv_rows(path)
+        rows = _casas_rows(path) if _is_casas_csv(path) else _csv_rows(path)
     elif suffix == ".parquet":
         rows = _parquet_rows(path)
     elif suffix == ".mcap":

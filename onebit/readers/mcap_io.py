@@ -38,7 +38,7 @@ from typing import IO
 import polars as pl
 
 from onebit.core.config import load_toml
-from onebit.core.errors import InputError
+from onebit.core.errors import InputError, bounded
 from onebit.core.writers import atomic_path
 from onebit.core.tables import REJECTS
 from onebit.readers.mcap_views import VIEW_TOPICS, ViewMessage
@@ -609,7 +609,8 @@ def read_mcap(path: str | Path, *, topic_map: dict[str, TopicMapping] | None = N
         )
         for topic, data in cols.items()
     }
-    rejects_df = pl.DataFrame(rejects, schema=REJECTS, orient="row")
+    rejects = [(src, line, None if why is None else bounded(why), None if raw is None else bounded(raw)) for src, line, why, raw in rejects]
+    rejects_df = pl.DataFrame(rejects, schema=REJECTS, orient="row")  # reasons and raw text quoted bounded, as every reader's
     return McapContents(channels=channels, rejects=rejects_df, truncated=truncated, views=views)
 
 

@@ -163,6 +163,22 @@ def point_cloud(ns: int, xy: np.ndarray, rgba: np.ndarray):
     return pc
 
 
+#: Points of a marker in the point clouds: a PointCloud has no point size (Rerun draws each point
+#: a pixel or two wide), so a sensor is a ring and a position a disc of points, 1.5 % of the
+#: site's diagonal across.
+MARKER_POINTS = 16
+
+
+def markers(xy: np.ndarray, rgba: np.ndarray, radius: float, *, filled: bool) -> tuple[np.ndarray, np.ndarray]:
+    """Each of the ``(n, 2)`` positions as :data:`MARKER_POINTS` points on a circle of ``radius``
+    (``filled``: plus a ring at half the radius and the centre); colours repeated per point."""
+    a = np.linspace(0.0, 2 * np.pi, MARKER_POINTS, endpoint=False)
+    ring = np.c_[np.cos(a), np.sin(a)] * radius
+    shape = np.vstack([ring, ring * 0.5, [[0.0, 0.0]]]) if filled else ring
+    pts = (np.asarray(xy, dtype=float)[:, None, :] + shape[None, :, :]).reshape(-1, 2)
+    return pts, np.repeat(np.asarray(rgba, dtype=float), len(shape), axis=0)
+
+
 def _log(ns: int, name: str, text: str):
     from foxglove_schemas_protobuf.Log_pb2 import Log
 
@@ -241,7 +257,7 @@ def toggle_views(events: pl.DataFrame, site) -> Iterator[ViewMessage]:
         _sphere(_entity(up, f"sensors/{sensor}", ns), xy[i, 0], xy[i, 1], size, _ON if on else _OFF)
         yield ViewMessage("/foxglove/sensors", ns, up)
         rgba = np.where(state[:, None], np.array(_ON), np.array(_OFF))
-        yield ViewMessage("/points/sensors", ns, point_cloud(ns, xy, rgba))
+        yield ViewMessage("/points/sensors", ns, point_cloud(ns, *markers(xy, rgba, size * 0.3, filled=False)))
 
 
 def position_views(points: pl.DataFrame, *, kind: str, site) -> Iterator[ViewMessage]:
@@ -263,7 +279,7 @@ def position_views(points: pl.DataFrame, *, kind: str, site) -> Iterator[ViewMes
             _text(e, x, y, str(ident), size)
         yield ViewMessage(f"/foxglove/{kind}", ns, up)
         xy = group.select("x", "y").to_numpy()
-        yield ViewMessage(f"/points/{kind}", ns, point_cloud(ns, xy, np.tile(rgba, (len(xy), 1))))
+        yield ViewMessage(f"/points/{kind}", ns, point_cloud(ns, *markers(xy, np.tile(rgba, (len(xy), 1)), size * 0.25, filled=True)))
 
 
 def event_views(lines: pl.DataFrame) -> Iterator[ViewMessage]:

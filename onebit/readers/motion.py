@@ -32,9 +32,8 @@ whole log (no Python loop over rows):
    chatter, and one pass of each rule is exact. Suppressed edges go to ``suppressed`` with
    the rule's name; nothing is lost: accepted + rejected + suppressed + held = input rows.
 
-:func:`motion_frames` samples accepted edges on a grid of slots of length ``period`` (the
-paper's processing period t_P): ``on`` = the sensor was on at some time in the slot,
-``fired`` = a rising edge in the slot (Schiff & Goldberg's S_i = 1 for the iteration).
+The trackers sample the accepted edges on slots of their own period with
+:func:`onebit.core.frames.motion_frames` (the base layer: no tracker imports a reader).
 
 Examples
 --------
@@ -60,8 +59,9 @@ from pathlib import Path
 import numpy as np
 import polars as pl
 
+from onebit.core.compiled import numba_loaded
 from onebit.core.errors import ConfigError
-from onebit.core.tables import FRAMES, MOTION, REJECTS, conform
+from onebit.core.tables import MOTION, REJECTS, conform
 from onebit.readers import kernels
 from onebit.readers.rows import (
     REORDER_TOLERANCE_S,
@@ -79,6 +79,7 @@ from onebit.readers.rows import (
     read_clean_csv,
     read_csv_rows,
     read_typed_csv,
+    TypedSplit,
 )
 from onebit.readers.timebase import TimeOrigin
 
@@ -247,7 +248,8 @@ def repeats(ok: pl.DataFrame, *, compiled: bool | None = None) -> pl.Series:
     else:
         names = ok["sensor"].unique(maintain_order=True)
         code, n = ok["sensor"].replace_strict(names, range(len(names)), return_dtype=pl.Int64).to_numpy().astype(np.int64), len(names)
-    return pl.Series(kernels.toggle_repeats(code, ok["on"].to_numpy().astype(np.bool_), max(n, 1)))
+    run = kernels.toggle_repeats if compiled or numba_loaded() else kernels.toggle_repeats_vectorised  # numba's load only when paid already
+    return pl.Series(run(code, ok["on"].to_numpy().astype(np.bool_), max(n, 1)))
 
 
 #: The same reader under the name the proximity sensors use (``proximity.csv``: t, sensor, value).
@@ -301,7 +303,8 @@ def debounce(
         code = ev["sensor"].replace_strict(names, range(len(names)), return_dtype=pl.Int64).to_numpy().astype(np.int64)
     chatter = dict(zip(table["sensor"].to_list(), table["_chatter"].to_list()))
     min_on = dict(zip(table["sensor"].to_list(), table["_min_on"].to_list()))
-    chat, short = kernels.debounce_masks(
+    masks = kernels.debounce_masks if compiled or numba_loaded() else kernels.debounce_masks_vectorised  # numba's load only when paid already
+    chat, short = masks(
         code, ev["on"].to_numpy().astype(np.bool_), ev["t"].to_numpy().astype(np.float64),
         np.array([chatter.get(n, 0.0) for n in names], dtype=np.float64), np.array([min_on.get(n, 0.0) for n in names], dtype=np.float64),
         len(names), TIME_EPS,
@@ -361,18 +364,26 @@ def read_motion_csv(
     epoch: str | TimeOrigin | None = None,
     rules: DebounceRules | Mapping[str, DebounceRules] | None = None,
     held: frozenset[str] | set[str] = frozenset(),
+    split: TypedSplit | None = None,
 ) -> MotionRead:
-    """Read ``motion.csv`` (or ``proximity.csv``): the whole toggle reader for one file."""
+    """Read ``motion.csv`` (or ``proximity.csv``): the whole toggle reader for one file.
+    ``split``: its typed read (:func:`toggle_dtypes`) when the caller made it already."""
     path = Path(path)
     sensors = tuple(sensors)
-    typed = typed_toggle_rows(path, sensors, epoch=epoch)
+    typed = typed_toggle_rows(path, sensors, epoch=epoch, split=split)
     if typed is None:
         return read_motion(read_csv_rows(path, TOGGLE_COLUMNS), sensors, epoch=epoch, path=path, rules=rules, held=held)
     return toggle_edges(typed, sensors, source=path.name, path=path, rules=rules, held=held)
 
 
+def toggle_dtypes(sensors: Sequence[str]) -> dict[str, pl.DataType]:
+    """The typed read of a toggle log: numeric ``t``, known sensors, values as :data:`TOGGLE_VALUES` spells them."""
+    return {"t": pl.Float64, "sensor": pl.Enum(list(dict.fromkeys(sensors))), "value": pl.Enum(list(TOGGLE_VALUES))}
+
+
 def typed_toggle_rows(
-    path: Path, sensors: tuple[str, ...], *, epoch: str | TimeOrigin | None = None, tolerance: float = REORDER_TOLERANCE_S
+    path: Path, sensors: tuple[str, ...], *, epoch: str | TimeOrigin | None = None, tolerance: float = REORDER_TOLERANCE_S,
+    split: TypedSplit | None = None,
 ) -> TypedRows | None:
     """Pass 1 of :func:`read_motion` for a toggle log typed by one ``pl.read_csv``
     (:func:`~onebit.readers.rows.read_typed_csv`: numeric ``t``, known sensors, values spelled
@@ -380,7 +391,7 @@ def typed_toggle_rows(
     ``None`` when the header is not a plain first line (the row-by-row path reads the file).
     The sensor stays an enum (the debounce's codes); every output table casts it to String."""
     spellings = list(TOGGLE_VALUES)
-    split = read_typed_csv(path, {"t": pl.Float64, "sensor": pl.Enum(list(dict.fromkeys(sensors))), "value": pl.Enum(spellings)})
+    split = split if split is not None else read_typed_csv(path, toggle_dtypes(sensors))
     if split is None:
         return None
     on = pl.Series([TOGGLE_VALUES[v] for v in spellings], dtype=pl.Boolean)
@@ -409,174 +420,21 @@ def clean_toggle_rows(
     return order_checks(frame, key=TOGGLE_COLUMNS, tolerance=tolerance, columns=TOGGLE_COLUMNS, source=path.name, path=path)
 
 
-def motion_frames(
-    motion: pl.DataFrame,
-    sensors: Sequence[str],
-    *,
-    period: float,
-    t0: float | None = None,
-    t1: float | None = None,
-) -> pl.DataFrame:
-    """Sample accepted edges (MOTION) on slots of length ``period``: a FRAMES table.
-
-    Slot ``k`` covers ``[t0 + k*period, t0 + (k+1)*period)`` and ``t`` is its start. For
-    every slot x sensor (sensor-major order within a slot)::
-
-        on    = state at the slot start (after edges at exactly that time) or a rising edge in the slot
-        fired = a rising edge (off -> on) in the slot
-
-    ``t0`` defaults to ``floor(first edge / period) * period`` (slots stay aligned on
-    multiples of ``period``), the number of slots to the one holding the last edge; with
-    ``t1`` given, slots cover ``[t0, t1)`` (``ceil((t1 - t0) / period)`` slots). Every
-    sensor starts off; edges before ``t0`` set the state at the first slot.
-    """
-    if not (isinstance(period, (int, float)) and math.isfinite(period) and period > 0):
-        raise ConfigError(f"period = {period!r}: must be a finite number > 0 (seconds)")
-    sensors = list(dict.fromkeys(sensors))
-    ev = motion.select("t", "sensor", "on").filter(pl.col("sensor").is_in(sensors)).sort("t", maintain_order=True)
-    if t0 is None:
-        if ev.height == 0 and t1 is None:
-            return pl.DataFrame(schema=FRAMES)
-        first = float(ev["t"].min()) if ev.height else 0.0
-        t0 = math.floor(first / period) * period
-    if t1 is None:
-        last = float(ev["t"].max()) if ev.height else t0
-        n = max(int(math.floor((last - t0) / period)) + 1, 1)
-    else:
-        n = max(int(math.ceil((t1 - t0) / period - 1e-12)), 0)
-    if n == 0 or not sensors:
-        return pl.DataFrame(schema=FRAMES)
-    grid = (
-        pl.DataFrame({"slot": pl.arange(0, n, eager=True).cast(pl.Int64)})
-        .join(pl.DataFrame({"sensor": sensors}, schema={"sensor": pl.String}), how="cross")
-        .with_columns(t=pl.lit(t0) + pl.col("slot").cast(pl.Float64) * period)
-    )
-    ev = ev.with_columns(slot=((pl.col("t") - t0) / period).floor().cast(pl.Int64))
-    fired = ev.filter(pl.col("on") & (pl.col("slot") >= 0) & (pl.col("slot") < n)).group_by("sensor", "slot").agg(
-        fired=pl.lit(True)
-    )
-    state = grid.sort("t").join_asof(
-        ev.select("t", "sensor", pl.col("on").alias("state")).sort("t"),
-        on="t",
-        by="sensor",
-        strategy="backward",
-        check_sortedness=False,  # both sides are sorted by t just above
-    )
-    out = (
-        state.join(fired, on=["sensor", "slot"], how="left")
-        .with_columns(pl.col("fired").fill_null(False), pl.col("state").fill_null(False))
-        .with_columns(on=pl.col("state") | pl.col("fired"))
-    )
-    order = pl.DataFrame({"sensor": sensors, "_k": list(range(len(sensors)))}, schema={"sensor": pl.String, "_k": pl.Int64})
-    out = out.join(order, on="sensor").sort(["slot", "_k"])
-    return conform(out, FRAMES)
-
-
-def refractory_state(frames: pl.DataFrame, refractory: Mapping[str, float], *, period: float) -> pl.DataFrame:
-    """The paper's trigger semantics per slot: ``beta`` (remaining blind time) and ``B``.
-
-    Schiff & Goldberg, section VII-B.1, with S = ``fired``::
-
-        beta_{i,tau} = f_i                          if S_{i,tau} = 1
-                     = max(0, beta_{i,tau-1} - t_P) otherwise,      beta_{i,0} = 0
-
-    and ``blind`` = (beta_{i,tau-1} > 0): the sensor is in its refractory period during slot
-    tau because it fired in an earlier slot less than f_i seconds before (B_{i,tau} = 1).
-    Closed form (no recursion): with ``last`` the latest earlier slot where the sensor fired,
-    ``beta_{i,tau-1} = max(0, f_i - (tau - 1 - last) * t_P)``, computed with a forward fill.
-    Returns frames + columns ``beta`` (after the slot) and ``blind``.
-    """
-    ref = pl.DataFrame(
-        {"sensor": list(refractory), "_f": [float(v) for v in refractory.values()]},
-        schema={"sensor": pl.String, "_f": pl.Float64},
-    )
-    df = frames.join(ref, on="sensor", how="left").with_columns(pl.col("_f").fill_null(0.0))
-    last_fire = pl.when(pl.col("fired")).then(pl.col("slot")).otherwise(None).forward_fill().over("sensor", order_by="slot")
-    df = df.with_columns(_last=last_fire)
-    beta = pl.when(pl.col("_last").is_null()).then(0.0).otherwise(
-        (pl.col("_f") - (pl.col("slot") - pl.col("_last")).cast(pl.Float64) * period).clip(lower_bound=0.0)
-    )
-    prev_beta = beta.shift(1).over("sensor", order_by="slot").fill_null(0.0)
-    df = df.with_columns(beta=beta).with_columns(blind=prev_beta > 0)
-    return df.drop("_f", "_last").sort(["slot"], maintain_order=True)
-
-
-# --------------------------------------------------------------------------- empty room
-
-#: Schema of :func:`silent_stretches`.
-SILENT = pl.Schema({"t_start": pl.Float64, "t_end": pl.Float64})
-
-#: Default ``absent_after`` of the trackers (s): a stretch this long with every sensor off and
-#: no event is taken as nobody present (a walker trips a sensor every few seconds; a PIR's hold
-#: keeps it on while someone moves under it).
-ABSENT_AFTER_S = 60.0
-
-
-def silent_stretches(events: Sequence[pl.DataFrame], *, min_s: float) -> pl.DataFrame:
-    """Stretches of at least ``min_s`` seconds in which no sensor is on and nothing happens.
-
-    ``events``: tables with ``t`` and ``sensor`` and either ``on`` (toggle edges: MOTION,
-    PROXIMITY) or no ``on`` (instantaneous events such as crossings). Every sensor starts off;
-    the number of sensors on after each edge is a cumulative sum of +-1 over the edges in time
-    order (vectorised; repeated states count once). A gap between two consecutive events
-    during which that number is 0, of length ``>= min_s``, is silent: nobody is present (or
-    nobody the sensors can see). The stretch before the first and after the last event is
-    outside the data and not reported. ``min_s <= 0`` gives no stretch.
-    """
-    parts = []
-    for df in events:
-        if df is None or df.height == 0:
-            continue
-        if "on" in df.columns:
-            e = df.select("t", "sensor", "on").sort("t", maintain_order=True)
-            e = e.filter(pl.col("on") != pl.col("on").shift(1, fill_value=False).over("sensor"))
-            parts.append(e.select("t", pl.when(pl.col("on")).then(1).otherwise(-1).cast(pl.Int64).alias("d")))
-        else:
-            parts.append(df.select("t", pl.lit(0, pl.Int64).alias("d")))
-    if min_s <= 0 or not parts:
-        return pl.DataFrame(schema=SILENT)
-    ev = pl.concat(parts).sort("t", maintain_order=True).with_columns(n_on=pl.col("d").cum_sum())
-    gaps = ev.select(
-        t_start=pl.col("t"),
-        t_end=pl.col("t").shift(-1),
-        n_on=pl.col("n_on"),
-    ).filter((pl.col("n_on") <= 0) & pl.col("t_end").is_not_null() & (pl.col("t_end") - pl.col("t_start") >= min_s))
-    return gaps.select("t_start", "t_end").cast(dict(SILENT))
-
-
-def outside_silence(tracks: pl.DataFrame, silent: pl.DataFrame) -> pl.DataFrame:
-    """``tracks`` (any table with ``t``) without the rows strictly inside a silent stretch."""
-    if silent.height == 0 or tracks.height == 0:
-        return tracks
-    marked = (
-        tracks.with_row_index("_row")
-        .sort("t")
-        .join_asof(silent.sort("t_start"), left_on="t", right_on="t_start", strategy="backward", check_sortedness=False)
-    )
-    keep = marked.filter(~((pl.col("t") > pl.col("t_start")) & (pl.col("t") < pl.col("t_end"))).fill_null(False))
-    return keep.sort("_row").select(tracks.columns)
-
-
 # --------------------------------------------------------------------------- reader config
 
 
 @dataclass(frozen=True, kw_only=True)
 class MotionConfig:
-    """``run.toml`` ``[motion]``.
+    """``run.toml`` ``[motion]``: the debounce of every motion sensor.
 
-    period : slot length of the ``frames`` table (s).
     chatter_window : relay-chatter window (s) for every sensor; ``None`` = from the sensor type.
     min_on : minimum on-time (s) for every sensor; ``None`` = from the sensor type.
     """
 
-    period: float = 1.0
     chatter_window: float | None = None
     min_on: float | None = None
 
     def __post_init__(self) -> None:
-        p = self.period
-        if isinstance(p, bool) or not isinstance(p, (int, float)) or not math.isfinite(p) or p <= 0:
-            raise ConfigError(f"MotionConfig.period = {p!r}; allowed range: (0, inf) seconds")
         for name in ("chatter_window", "min_on"):
             v = getattr(self, name)
             if v is not None and (isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v) or v < 0):

@@ -67,9 +67,10 @@ def read_proximity(raw: RawRows, sensors: Sequence[str], *, epoch=None, path: Pa
 
 
 def read_proximity_csv(path: str | Path, sensors: Sequence[str], *, epoch=None, rules: DebounceRules | None = None,
-                       held: frozenset[str] = frozenset()) -> MotionRead:
-    """:func:`read_proximity` of ``proximity.csv`` (a clean file typed in one read, :func:`read_motion_csv`)."""
-    res = read_motion_csv(Path(path), sensors, epoch=epoch, rules=rules, held=held)
+                       held: frozenset[str] = frozenset(), split=None) -> MotionRead:
+    """:func:`read_proximity` of ``proximity.csv`` (a clean file typed in one read, :func:`read_motion_csv`;
+    ``split``: that read, when the caller made it already)."""
+    res = read_motion_csv(Path(path), sensors, epoch=epoch, rules=rules, held=held, split=split)
     return MotionRead(conform(res.motion, PROXIMITY), res.rejects, res.suppressed, res.reordered, res.held)
 
 

@@ -149,22 +149,31 @@ class TimeOrigin:
         return pl.coalesce(number(s) - self.numeric, (iso - ref).cast(pl.Float64) / 1e6)
 
 
-def _stamps(sources: Mapping[str, pl.DataFrame], col: str) -> pl.DataFrame:
-    """(source, line, abs, text) of every finite stamp: numbers as written, ISO as Unix seconds."""
+def _stamps(sources: Mapping[str, pl.DataFrame | list[pl.DataFrame]], col: str) -> pl.DataFrame:
+    """(source, line, abs, text, iso) of every finite stamp: numbers as written, ISO as Unix
+    seconds. A source is a frame or a list of frames (a typed read's good rows with a numeric
+    ``col`` and its other rows as strings); a numeric ``col`` is taken as it is (``text`` null)."""
     parts = []
-    for name, df in sources.items():
-        if df is None or col not in df.columns or df.height == 0:
-            continue
-        line = pl.col("line").cast(pl.Int64) if "line" in df.columns else pl.int_range(1, pl.len() + 1, dtype=pl.Int64)
-        s = df.select(
-            pl.lit(name, pl.String).alias("source"), line.alias("line"), pl.col(col).cast(pl.String).alias("text")
-        ).with_columns(number(pl.col("text")).alias("abs"))
-        todo = s.filter(pl.col("abs").is_null() & pl.col("text").is_not_null())
-        if todo.height:  # ISO parsing only where a stamp is not a number (the costly part)
-            s = pl.concat([s.filter(pl.col("abs").is_not_null()), todo.with_columns(iso_unix(pl.col("text")).alias("abs"))])
-        parts.append(s.filter(pl.col("abs").is_finite()).select("source", "line", "abs", "text"))
+    for name, frames in sources.items():
+        for df in frames if isinstance(frames, list) else [frames]:
+            if df is None or col not in df.columns or df.height == 0:
+                continue
+            line = pl.col("line").cast(pl.Int64) if "line" in df.columns else pl.int_range(1, pl.len() + 1, dtype=pl.Int64)
+            if df.schema[col].is_numeric():  # already parsed (a typed read): no text, no ISO
+                s = df.select(pl.lit(name, pl.String).alias("source"), line.alias("line"), pl.lit(None, pl.String).alias("text"),
+                              pl.col(col).cast(pl.Float64).alias("abs"), pl.lit(False).alias("iso"))  # fmt: skip
+                parts.append(s.filter(pl.col("abs").is_finite()).select("source", "line", "abs", "text", "iso"))
+                continue
+            s = df.select(
+                pl.lit(name, pl.String).alias("source"), line.alias("line"), pl.col(col).cast(pl.String).alias("text")
+            ).with_columns(number(pl.col("text")).alias("abs"))
+            s = s.with_columns(iso=pl.col("abs").is_null() & pl.col("text").is_not_null())
+            todo = s.filter(pl.col("iso"))
+            if todo.height:  # ISO parsing only where a stamp is not a number (the costly part)
+                s = pl.concat([s.filter(~pl.col("iso")), todo.with_columns(iso_unix(pl.col("text")).alias("abs"))])
+            parts.append(s.filter(pl.col("abs").is_finite()).select("source", "line", "abs", "text", "iso"))
     if not parts:
-        return pl.DataFrame(schema={"source": pl.String, "line": pl.Int64, "abs": pl.Float64, "text": pl.String})
+        return pl.DataFrame(schema={"source": pl.String, "line": pl.Int64, "abs": pl.Float64, "text": pl.String, "iso": pl.Boolean})
     return pl.concat(parts).sort("abs")
 
 
@@ -218,7 +227,9 @@ def time_origin(
     """The run's :class:`TimeOrigin` from the string stamps of every source (module docstring).
 
     ``sources`` maps a source name (``motion.csv``, ``rec.mcap:/motion``) to a frame with the
-    string column ``col`` and, when known, ``line``. Raises :class:`InputError` when the
+    string column ``col`` and, when known, ``line`` -- or to a list of frames, where ``col``
+    may be numeric (the good rows of a typed read, :func:`~onebit.readers.rows.read_typed_csv`:
+    the same numbers the strings give, without turning them back into text). Raises :class:`InputError` when the
     accepted stamps span more than ``max_span_s``, naming both ends' file, line and field.
     """
     st = _stamps(sources, col)
@@ -226,7 +237,7 @@ def time_origin(
     if epoch is not None:
         e = epoch_unix(epoch)
         # in t units: numbers as written, ISO minus the epoch
-        st = st.with_columns(pl.col("abs") - pl.when(number(pl.col("text")).is_null()).then(e).otherwise(0.0))
+        st = st.with_columns(pl.col("abs") - pl.when(pl.col("iso")).then(e).otherwise(0.0))
         st = st.sort("abs")
     if n == 0:
         if epoch is not None:
@@ -237,6 +248,8 @@ def time_origin(
     lo_abs, hi_abs = float(keep["abs"][0]), float(keep["abs"][-1])
     if hi_abs - lo_abs > max_span_s:
         a, b = keep.row(0, named=True), keep.row(keep.height - 1, named=True)
+        for r in (a, b):  # a stamp of a typed read has no text: its number as written
+            r["text"] = r["text"] if r["text"] is not None else repr(r["abs"])
         raise InputError(
             f"the logs span {(hi_abs - lo_abs) / 86400:.1f} days, from {a['text']!r} here to {b['text']!r} at "
             f"{b['source']}:{b['line']} (more than {max_span_s / 86400:g} days): mixed clocks (relative seconds "

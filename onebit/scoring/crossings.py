@@ -159,7 +159,7 @@ def region_scores(
     gather, and a shapely distance is computed only for samples outside the estimated region
     (a sample inside its true region, when that is the estimated one, is at distance 0 --
     exactly what shapely returns), without making point geometries
-    (:func:`polygon_distance_xy`). Same output as :func:`region_scores_reference`.
+    (:func:`polygon_distance_xy`). Same output as :func:`onebit._testing.oracles.region_scores_reference`.
     """
     if not mapping or truth.height == 0 or tracks.height == 0:
         return pl.DataFrame(schema=SCORES)
@@ -239,31 +239,6 @@ def _point_segment_distance(px: np.ndarray, py: np.ndarray, ax: float, ay: float
     s = ((ay - py) * dx - (ax - px) * dy) / len2
     mid = np.abs(s) * np.sqrt(len2)
     return np.where(r <= 0.0, da, np.where(r >= 1.0, db, mid))
-
-
-def region_scores_reference(
-    tracks: pl.DataFrame, truth: pl.DataFrame, mapping: dict[str, str], rg: RegionGraph, *, tracker: str
-) -> pl.DataFrame:
-    """:func:`region_scores` computed row by row (region names looked up per sample, a shapely
-    distance for every sample): its plain reference and test oracle."""
-    if not mapping or truth.height == 0 or tracks.height == 0:
-        return pl.DataFrame(schema=SCORES)
-    m = pl.DataFrame({"track": list(mapping), "target": list(mapping.values())})
-    est = tracks.select("track", "t", est_region="region").join(m, on="track").sort("t")
-    tru = truth_regions(truth.select("t", "target", "x", "y"), rg).drop_nulls("region").sort("t")
-    j = tru.join_asof(est, on="t", by="target", strategy="backward", check_sortedness=False).drop_nulls("est_region")
-    if j.height == 0:
-        return pl.DataFrame(schema=SCORES)
-    idx = rg.index
-    e = np.array([idx[r] for r in j["est_region"].to_list()])
-    g = np.array([idx[r] for r in j["region"].to_list()])
-    hops = rg.hop_distance()[e, g]
-    polys = np.asarray(rg.polygons, dtype=object)
-    err = shapely.distance(polys[e], shapely.points(j["x"].to_numpy(), j["y"].to_numpy()))
-    out = j.select("track", "target", "t").with_columns(
-        tracker=pl.lit(tracker), error=pl.Series(err, dtype=pl.Float64), hop_error=pl.Series(hops, dtype=pl.Int64)
-    )
-    return conform(out, SCORES)
 
 
 def error_summary(scores: pl.DataFrame, *, stage: str, unit: str) -> list[tuple[str, str, float, str]]:

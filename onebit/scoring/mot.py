@@ -39,7 +39,8 @@ Distance :math:`d` between an object and a hypothesis, by the space the tracks l
 
 Gate and similarity
 -------------------
-Every tracker has one gate :math:`\\gamma` (:data:`GATES`, in the paper's unit). CLEAR and
+Every tracker has one gate :math:`\\gamma` (in the paper's unit), declared with it in the
+pipeline's stage list (``TrackerEntry.gate``, :mod:`onebit.pipeline.stages`). CLEAR and
 the ID measures match an object and a hypothesis only when :math:`d \\le \\gamma`
 (``motmetrics`` distance, ``NaN`` beyond the gate). HOTA needs a similarity in
 :math:`[0, 1]`:
@@ -121,28 +122,6 @@ class Gate:
     unit: Literal["cells", "R", "sensing radius", "hops", "m"]
     reason: str
 
-
-_CELLS = Gate(
-    "point", 2.0, "cells",
-    "Schiff & Goldberg score in grid cells; 'within two world-space cells' is their accuracy criterion "
-    "(VIII: perfect sensors put every estimate there) and the intruder's bounding prism is 2 cells wide",
-)
-_HOPS = Gate("node", 1.0, "hops", "De et al. score hops on the sensor graph; 1 hop = the adjacent sensor, the PIR's resolution")
-
-#: The papers' trackers' MOT gates (docs/metrics.md copies this table); the pipeline's stage
-#: list gives each tracker its gate (``TrackerEntry.gate``).
-GATES: dict[str, Gate] = {
-    "beams": Gate("region", 1.0, "hops", "Bobadilla et al. localise to a region; 1 hop = the adjacent region, one beam away"),
-    "intruder": _CELLS,
-    "intruder-naive": _CELLS,
-    "clustertrack": Gate("point", 1.0, "R", "Singh et al. report error in units of the sensing radius R; within R the target is resolved"),
-    "findinghumo": _HOPS,
-    "hmm1": _HOPS,
-    "hmm2": _HOPS,
-    "findinghumo-flow": _HOPS,
-    "binpf": Gate("point", 1.0, "m", "beyond the papers: a metric gate in world units; 1 m is about half the spacing of a ceiling array (Milan et al. score at 1.5 m)"),
-    "istate": Gate("point", 1.0, "sensing radius", "O'Kane's I-state has no unit of its own; a point summary within one sensing radius is what the sensors can tell apart"),
-}
 
 _METRICS = ("mota", "motp", "idf1", "num_switches", "num_misses", "num_false_positives", "num_objects")
 

@@ -56,3 +56,7 @@ class TrackerSpec:
     help: str = ""
     #: optional input tables: passed in ``inputs`` when an earlier stage produced them.
     wants: tuple[str, ...] = ()
+    #: ``fits(inputs, site, config) -> reason to skip or None``: whether this run's inputs are
+    #: within what the tracker can do in a sensible time (istate: its stage count), checked by
+    #: the pipeline before the run; the reason names the setting that lifts the bound.
+    fits: Callable[..., str | None] | None = None

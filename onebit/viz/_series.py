@@ -47,10 +47,20 @@ def only_tracker(df: pl.DataFrame, tracker: str) -> pl.DataFrame:
 
 
 def groups(df: pl.DataFrame, key: str) -> list[tuple[str, pl.DataFrame]]:
-    """``(key value, rows sorted by t)`` for each value of ``key``, in sorted key order."""
+    """``(key value, rows sorted by t)`` for each value of ``key``, in sorted key order.
+
+    One hash partition by ``key`` (rows keep their order), then each part sorted by ``t``
+    only where it is not in order already (the readers' and trackers' tables are): no sort of
+    the whole frame on a string key (0.7 s at 10^6 rows)."""
     df = df.filter(pl.col(key).is_not_null())
-    parts = df.sort([key, "t"]).partition_by(key, as_dict=True, maintain_order=True)
-    return [(str(k[0]), g) for k, g in parts.items()]
+    parts = df.partition_by(key, as_dict=True, maintain_order=True)
+    out = []
+    for k, g in sorted(parts.items(), key=lambda kv: kv[0][0]):
+        t = g["t"].to_numpy()
+        if t.size > 1 and not (t[1:] >= t[:-1]).all():
+            g = g.sort("t", maintain_order=True)
+        out.append((str(k[0]), g))
+    return out
 
 
 def rings(geom: BaseGeometry) -> list[np.ndarray]:

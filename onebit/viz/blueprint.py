@@ -22,7 +22,10 @@ Each tab opens on what its paper is about (:mod:`onebit.viz.families`):
 * **istate** -- the I-state's elements filled and outlined over the site with the sensing
   regions reading 1 now and the true positions (all sensing regions and the point summaries'
   trails hidden);
-  element count, area and error.
+  element count, area and error;
+* **residents** -- each person at the sensor of their latest event with their trail, every
+  motion event in the colour of the person it was given to; error per track (where there is
+  truth); the people present; sensor states.
 
 Views that would be empty are not created and every view names only logged entities (exact
 paths). Every logged entity is in some view: what no family shows goes to a last tab, "more".
@@ -265,11 +268,29 @@ class Planner:
         hidden = [*self.L.under(paths.join(root, "decoded")), *self.L.frame(paths.join(root, "eatg", "a2")), *self.sensor_marks()]
         windows = {p: min(DECISION_S, self.trail_s) for name in ("switches", "cpda", "joins", "joint") for p in self.L.frame(paths.join(root, name))}
         entities = [*self.site(), *self.truth(), *graph]
-        what = {"findinghumo": "sensor graph, CPDA decisions", "findinghumo-flow": "sensor graph, flow joins"}.get(tracker, "sensor graph, baseline decoder")
+        what = {"findinghumo": "sensor graph, CPDA decisions", "findinghumo-flow": "sensor graph, flow joins",
+                "residents": "people and the events attributed to them"}.get(tracker, "sensor graph, baseline decoder")  # fmt: skip
         site = self.map_view(f"{what} ({self.units}): active nodes, decoded tracks, truth", entities, hidden=hidden, windows=windows)
         error = self.error_view([tracker], "hop error of each decoded track")
         states = self.view("state", "motion sensors: on / off", self.states())
-        return _tab(f"{tracker}: decoded paths", site, [error, states])
+        people = self.count_view("people present (count)", self.L.under(paths.join(root, "people"), SERIES))
+        return _tab(f"{tracker}: decoded paths", site, [error, people, states])
+
+    def residents(self, tracker: str) -> rrb.Container | None:
+        """The residents tracker (beyond the papers): its people and attributed events over the
+        site, as the sensor-graph trackers' tab shows theirs (plus the people present)."""
+        return self.findinghumo(tracker)
+
+    def binpf(self, tracker: str) -> rrb.Container | None:
+        """The binary-array particle filter (beyond the papers): the sensors on, the particles
+        and the people over the site; the estimated count against the truth; the error."""
+        root = paths.tracker_root(tracker)
+        entities = [*self.site(), *self.truth(), *self.L.under(root, SPATIAL | FRAME)]
+        site = self.map_view(f"site now ({self.units}): sensors on, particles, people, truth", entities)
+        count = self.count_view("number of people: expected and reported (count)", self.L.under(paths.join(root, "count"), SERIES))
+        error = self.error_view([tracker], "distance of each person from their target")
+        states = self.view("state", "sensors: on / off", self.states())
+        return _tab(f"{tracker}: people from the array", site, [count, error, states])
 
     def istate(self, tracker: str) -> rrb.Container | None:
         root = paths.tracker_root(tracker)

@@ -25,7 +25,7 @@ import numpy as np
 import polars as pl
 
 from onebit.viz import colors, paths
-from onebit.viz._series import is_empty
+from onebit.viz._series import is_empty, strips_array
 from onebit.viz.frame import log_world_frame
 from onebit.viz.tracks import log_point_tracks, track_colors, track_labels
 from onebit.core.lazy import lazy_module
@@ -129,7 +129,7 @@ def log_space_time(
         strips = np.stack([np.c_[f["lo"].to_numpy(), y], np.c_[f["hi"].to_numpy(), y]], axis=1)
         rec.log(
             paths.join(base, "feasible"),
-            rr.LineStrips2D(list(strips), radii=0.4 * st.row, colors=FEASIBLE, labels=["feasible space F"], show_labels=False),
+            rr.LineStrips2D(strips_array(strips, 2), radii=0.4 * st.row, colors=FEASIBLE, labels=["feasible space F"], show_labels=False),
             static=True,
         )
     if not is_empty(truth):
@@ -157,7 +157,7 @@ def log_space_time(
     rec.send_columns(
         now,
         indexes=[paths.time_column(times)],
-        columns=rr.LineStrips2D.columns(strips=[np.array([[st.x_lo, yy], [st.x_hi, yy]]) for yy in y]),
+        columns=rr.LineStrips2D.columns(strips=strips_array(np.stack([np.c_[np.full_like(y, st.x_lo), y], np.c_[np.full_like(y, st.x_hi), y]], axis=1), 2)),
     )
 
 
@@ -220,7 +220,7 @@ def log_feasible_1d(rec: rr.RecordingStream, tracker: str, feasible: pl.DataFram
     ent = paths.join(paths.tracker_root(tracker), "feasible")
     log_world_frame(rec, ent)
     rec.log(ent, rr.LineStrips2D.from_fields(radii=rr.Radius.ui_points(5.0), colors=FEASIBLE, draw_order=5.0), static=True)
-    rec.send_columns(ent, indexes=[paths.time_column(times)], columns=rr.LineStrips2D.columns(strips=list(strips)).partition(counts.tolist()))
+    rec.send_columns(ent, indexes=[paths.time_column(times)], columns=rr.LineStrips2D.columns(strips=strips_array(strips, 2)).partition(counts))
 
 
 def log_feasible_2d(rec: rr.RecordingStream, tracker: str, cells: pl.DataFrame, times: np.ndarray, cell: float) -> None:

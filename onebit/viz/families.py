@@ -24,10 +24,12 @@ FAMILY_OF: dict[str, str] = {
     "hmm2": "findinghumo",
     "findinghumo-flow": "findinghumo",
     "istate": "istate",
+    "residents": "residents",
+    "binpf": "binpf",
 }
 
 #: Families in the order of their tabs; the first present is the tab a run opens on.
-FAMILY_ORDER: tuple[str, ...] = ("beams", "clustertrack", "findinghumo", "intruder", "istate")
+FAMILY_ORDER: tuple[str, ...] = ("beams", "clustertrack", "findinghumo", "intruder", "istate", "residents", "binpf")
 
 #: Each tracker's colour (RGB): its estimates, trails, boxes and error series are drawn in
 #: shades of it; truth is always neutral (:data:`onebit.viz.colors.TRUTH`). Chosen apart from
@@ -42,6 +44,7 @@ TRACKER_RGB: dict[str, tuple[int, int, int]] = {
     "hmm2": (240, 110, 200),
     "findinghumo-flow": (120, 240, 200),
     "istate": (255, 235, 130),
+    "residents": (255, 140, 120),
     "binpf": (255, 110, 90),
     "camera": (165, 165, 165),
 }

@@ -107,13 +107,20 @@ def _reader(path: str | Path):
 
 
 def scalar_ranges(rrd_paths: str | Path | Iterable[str | Path]) -> dict[str, tuple[float, float]]:
-    """``{entity path: (min, max)}`` of the Scalars each entity logged (NaNs ignored)."""
+    """``{entity path: (min, max)}`` of the Scalars each entity logged (NaNs ignored), over the
+    first recording store of each file; only the chunks holding Scalars are read."""
     import pyarrow.compute as pc
 
     files = [rrd_paths] if isinstance(rrd_paths, (str, Path)) else list(rrd_paths)
     out: dict[str, tuple[float, float]] = {}
     for f in files:
-        for chunk in _reader(f).stream():
+        reader = _reader(f)
+        if not reader.recordings():
+            continue
+        store = reader.store()  # lazy: only the chunks holding Scalars are loaded
+        if not any(c.component == "Scalars:scalars" for c in store.schema().component_columns()):
+            continue
+        for chunk in store.stream().filter(components="Scalars:scalars"):
             rb = chunk.to_record_batch()
             if "Scalars:scalars" not in rb.schema.names:
                 continue
@@ -138,16 +145,35 @@ def entity_archetypes(rrd_paths: str | Path | Iterable[str | Path]) -> dict[str,
     files = [rrd_paths] if isinstance(rrd_paths, (str, Path)) else list(rrd_paths)
     found: dict[str, set[str]] = {}
     for f in files:
-        for chunk in _reader(f).stream():
-            path = _clean(chunk.entity_path)
-            if not path or _is_internal(path):
+        reader = _reader(f)
+        try:  # the store's schema: read from the file's chunk index, no chunk loaded (ms, not s)
+            columns = reader.store().schema().component_columns() if reader.recordings() else []
+        except (AttributeError, TypeError, ValueError):  # pragma: no cover - an SDK without the lazy store
+            columns = None
+        if columns is None:  # pragma: no cover
+            _archetypes_by_chunks(reader, found)
+            continue
+        for col in columns:
+            path = _clean(col.entity_path)
+            if col.is_property or not path or _is_internal(path):
                 continue
             kinds = found.setdefault(path, set())
-            for fld in chunk.to_record_batch().schema:
-                arch = (fld.metadata or {}).get(b"rerun:archetype")
-                if arch:
-                    kinds.add(arch.decode().rsplit(".", 1)[-1])
+            if col.archetype:
+                kinds.add(str(col.archetype).rsplit(".", 1)[-1])
     return {p: frozenset(k) for p, k in found.items()}
+
+
+def _archetypes_by_chunks(reader, found: dict[str, set[str]]) -> None:
+    """:func:`entity_archetypes` of one file by reading every chunk (the SDK's schema unavailable)."""
+    for chunk in reader.stream():
+        path = _clean(chunk.entity_path)
+        if not path or _is_internal(path):
+            continue
+        kinds = found.setdefault(path, set())
+        for fld in chunk.to_record_batch().schema:
+            arch = (fld.metadata or {}).get(b"rerun:archetype")
+            if arch:
+                kinds.add(arch.decode().rsplit(".", 1)[-1])
 
 
 # --------------------------------------------------------------------------- blueprints

@@ -29,7 +29,7 @@ import numpy as np
 import polars as pl
 
 from onebit.viz import colors, paths
-from onebit.viz._series import is_empty
+from onebit.viz._series import groups, is_empty, strips_array, text_array
 from onebit.viz.frame import log_world_frame
 from onebit.viz.tracks import log_point_tracks
 from onebit.core.lazy import lazy_module
@@ -56,13 +56,13 @@ def log_motion_states(rec: rr.RecordingStream, motion: pl.DataFrame | None, sens
     each accepted edge, shown as bands in a state timeline)."""
     if is_empty(motion):
         return
-    for sid in sensors:
-        g = motion.filter(pl.col("sensor") == sid).sort("t")
-        if g.height == 0:
+    known = set(map(str, sensors))
+    for sid, g in groups(motion, "sensor"):  # one partition of the log per sensor, not a filter each
+        if sid not in known:
             continue
         entity = paths.sensor(sid)
         rec.log(entity, _states(), static=True)
-        state = np.where(g["on"].to_numpy(), ON, OFF).tolist()
+        state = text_array(pl.select(pl.when(g["on"]).then(pl.lit(ON)).otherwise(pl.lit(OFF))).to_series())
         rec.send_columns(entity, indexes=[paths.time_column(g["t"].to_numpy())], columns=rr.StateChange.columns(state=state))
 
 
@@ -138,10 +138,11 @@ def log_sensor_states(
             static=True,
         )
         on = fired[:, i].astype(bool)
+        k = int(on.sum())
         rec.send_columns(
             entity,
             indexes=[paths.time_column(t)],
-            columns=rr.LineStrips2D.columns(strips=[ring] * int(on.sum())).partition(on.astype(np.int64)),
+            columns=rr.LineStrips2D.columns(strips=strips_array(np.tile(ring, (k, 1)), np.full(k, len(ring)))).partition(on.astype(np.int64)),
         )
 
 
@@ -198,10 +199,10 @@ def log_camera_cone(
     reach = np.linalg.norm(est - cam, axis=1) * 1.15
     a = cam + reach[:, None] * np.c_[np.cos(pan - half), np.sin(pan - half)]
     b = cam + reach[:, None] * np.c_[np.cos(pan + half), np.sin(pan + half)]
-    strips = [np.vstack([a[k], cam, b[k]]) for k in range(len(t))]  # one 3-vertex strip per iteration
+    strips = np.stack([a, np.broadcast_to(cam, a.shape), b], axis=1)  # one 3-vertex strip per iteration
     log_world_frame(rec, entity)
     rec.log(entity, rr.LineStrips2D.from_fields(colors=(70, 110, 130, 255), radii=rr.Radius.ui_points(1.0), draw_order=26.0), static=True)
-    rec.send_columns(entity, indexes=[paths.time_column(t)], columns=rr.LineStrips2D.columns(strips=strips))
+    rec.send_columns(entity, indexes=[paths.time_column(t)], columns=rr.LineStrips2D.columns(strips=strips_array(strips, 3)))
 
 
 def log_run(rec: rr.RecordingStream, tracker: str, out: dict, *, site, region_graph, config, tables: dict) -> None:

@@ -25,7 +25,7 @@ import polars as pl
 import shapely
 
 from onebit.viz import colors, paths
-from onebit.viz._series import rings
+from onebit.viz._series import rings, strips_array
 from onebit.viz.frame import log_world_frame
 from onebit.viz.tracks import log_point_tracks
 from onebit.viz.truth import log_truth
@@ -51,13 +51,16 @@ def element_color(e: int, *, alpha: int = 255) -> tuple[int, int, int, int]:
     return (r, g, b, int(alpha))
 
 
-def _strips_per_stage(geoms: np.ndarray) -> tuple[list[np.ndarray], list[int]]:
+def _strips_per_stage(geoms: np.ndarray):
+    """The rings of one geometry per stage (``None`` = absent) as one ``LineStrip2D`` Arrow
+    array and the number of strips per stage (for ``.partition``)."""
     strips, counts = [], []
-    for g in geoms:  # one geometry per stage (None = absent)
+    for g in geoms:
         rs = [] if g is None or g.is_empty else rings(g)
         strips.extend(rs)
         counts.append(len(rs))
-    return strips, counts
+    points = np.concatenate(strips) if strips else np.zeros((0, 2))
+    return strips_array(points, [len(r) for r in strips]), counts
 
 
 def _series(rec: rr.RecordingStream, entity: str, name: str, color, t: np.ndarray, values: np.ndarray, *, step: bool = True) -> None:
@@ -97,28 +100,54 @@ class FillRaster:
         return np.round((xy - [self.x0, self.y0]) / self.cell * 16.0).astype(np.int32)  # shift = 4
 
 
-def fill_images(grid: np.ndarray, raster: FillRaster, *, background=colors.MAP_BACKGROUND) -> list[bytes]:
+def _png(rgb: np.ndarray) -> bytes:
+    ok, png = cv2.imencode(".png", np.ascontiguousarray(rgb[..., ::-1]))
+    if not ok:  # pragma: no cover - OpenCV always encodes a valid array
+        raise RuntimeError("OpenCV could not encode an I-state fill image")
+    return png.tobytes()
+
+
+def fill_images(grid: np.ndarray, raster: FillRaster, *, background=colors.MAP_BACKGROUND, keys=None) -> list[bytes]:
     """One RGB PNG per stage of ``grid`` (``(E, n, K)`` geometries or ``None``): every region of
     every element filled in the element's colour at :data:`FILL_ALPHA` over ``background`` and
     over each other (a region inside another of the product shows brighter); pixels of no
-    element are the background."""
+    element are the background.
+
+    A pixel's colour depends only on which regions cover it, in drawing order, so the image is
+    drawn as a label per pixel (which regions so far) and a small table of label colours,
+    blended as :func:`onebit._testing.oracles.fill_images_reference` blends each pixel (equal images, tested): per
+    region one mask and one table lookup, no float image. ``keys`` (one hashable per stage,
+    e.g. the stage's region WKBs) reuses the PNG of an earlier stage with the same key: an
+    unobserved I-state that has filled the free space stays the same for many stages.
+    """
     E, _, K = grid.shape
-    out = []
     bg = np.asarray(background[:3], np.float32)
-    for s in range(K):  # one image per stage; the elements of a stage are few (cap M)
-        rgb = np.empty((raster.height, raster.width, 3), np.float32)
-        rgb[:] = bg
+    elem = [np.asarray(element_color(e)[:3], np.float32) for e in range(E)]
+    done: dict = {}
+    out = []
+    for s in range(K):
+        key = keys[s] if keys is not None else None
+        if key is not None and key in done:
+            out.append(done[key])
+            continue
+        label = np.zeros((raster.height, raster.width), np.int32)  # 0 = background
+        table = [bg]
         for e in range(E):
-            c = np.asarray(element_color(e)[:3], np.float32)
-            for g in grid[e, :, s]:  # each region of the element on its own: nested ones show
+            for g in grid[e, :, s]:
                 if g is None or g.is_empty:
                     continue
                 m = raster.mask(g).astype(bool)
-                rgb[m] = c * FILL_ALPHA + rgb[m] * (1 - FILL_ALPHA)
-        ok, png = cv2.imencode(".png", rgb[..., ::-1].round().clip(0, 255).astype(np.uint8))
-        if not ok:  # pragma: no cover - OpenCV always encodes a valid array
-            raise RuntimeError("OpenCV could not encode an I-state fill image")
-        out.append(png.tobytes())
+                under = label[m]
+                present = np.flatnonzero(np.bincount(under, minlength=len(table)))
+                remap = np.arange(len(table), dtype=np.int32)
+                remap[present] = len(table) + np.arange(len(present), dtype=np.int32)
+                table += [elem[e] * FILL_ALPHA + table[i] * (1 - FILL_ALPHA) for i in present]
+                label[m] = remap[under]
+        lut = np.stack(table).round().clip(0, 255).astype(np.uint8)
+        png = _png(lut[label])
+        if key is not None:
+            done[key] = png
+        out.append(png)
     return out
 
 
@@ -129,6 +158,15 @@ def _region_grid(regions: pl.DataFrame, K: int) -> np.ndarray:
     geoms = shapely.from_wkb(regions["wkb"].to_numpy())
     grid[regions["element"].to_numpy(), regions["k"].to_numpy(), regions["stage"].to_numpy()] = geoms
     return grid
+
+
+def _stage_keys(regions: pl.DataFrame, K: int) -> list:
+    """One key per stage: its (element, k, WKB) triples, equal for stages with the same regions."""
+    keys: list = [()] * K
+    g = regions.sort(["stage", "element", "k"]).group_by("stage", maintain_order=True).agg("element", "k", "wkb")
+    for stage, e, k, w in g.iter_rows():
+        keys[stage] = tuple(zip(e, k, w))
+    return keys
 
 
 def log_istate_regions(
@@ -160,7 +198,7 @@ def log_istate_regions(
     ent = paths.join(paths.tracker_root(tracker), "istate", "fill")
     rec.log(ent, raster.transform(), static=True)
     rec.log(ent, rr.EncodedImage.from_fields(media_type="image/png", draw_order=-5.0), static=True)
-    rec.send_columns(ent, indexes=[tc], columns=rr.EncodedImage.columns(blob=fill_images(grid, raster)))
+    rec.send_columns(ent, indexes=[tc], columns=rr.EncodedImage.columns(blob=fill_images(grid, raster, keys=_stage_keys(regions, K))))
 
 
 def log_istate_run(

@@ -19,14 +19,17 @@ import polars as pl
 from onebit.core.lazy import lazy_module
 from onebit.viz import colors, paths
 from onebit.viz.frame import log_world_frame
+from onebit.viz.intruder import log_motion_states
 from onebit.viz.recording import APPLICATION_ID, rerun_enabled
 from onebit.viz.site import log_site
 
 rr = lazy_module("rerun")
+rrb = lazy_module("rerun.blueprint")
 
+#: port of the web viewer of ``--serve-web`` (Rerun's default)
+WEB_PORT = 9090
 #: entity of the delay series, one Scalars per tracker: follow/delay/<tracker>
 DELAY_ROOT = "follow/delay"
-ON, OFF = 1, 0
 
 
 def open_live(path: str | Path, *, recording_id: str, connect: str | None = None, serve_web: bool = False) -> tuple[rr.RecordingStream, str | None]:
@@ -48,7 +51,8 @@ def open_live(path: str | Path, *, recording_id: str, connect: str | None = None
             url = server.uri
         rec.set_sinks(*sinks)
         if serve_web:
-            rr.serve_web_viewer(connect_to=url, open_browser=False)
+            rr.serve_web_viewer(web_port=WEB_PORT, connect_to=url, open_browser=False)
+            url = f"http://localhost:{WEB_PORT} (the page connects to {url.replace('0.0.0.0', 'localhost')})"
     return rec, url
 
 
@@ -58,12 +62,28 @@ def log_live_site(rec: rr.RecordingStream, site, region_graph) -> None:
 
 
 def log_states(rec: rr.RecordingStream, edges: pl.DataFrame) -> None:
-    """New accepted toggle edges (``t``, ``sensor``, ``on``) on ``sensors/<id>`` as state changes."""
+    """New accepted toggle edges (``t``, ``sensor``, ``on``) on ``sensors/<id>`` as on / off
+    state changes, styled as in the batch recordings (:func:`onebit.viz.intruder.log_motion_states`)."""
     if edges is None or edges.height == 0:
         return
-    for (sid,), g in edges.sort("t").group_by("sensor", maintain_order=True):
-        state = np.where(g["on"].to_numpy(), ON, OFF).tolist()
-        rec.send_columns(paths.sensor(str(sid)), indexes=[paths.time_column(g["t"].to_numpy())], columns=rr.StateChange.columns(state=state))
+    log_motion_states(rec, edges, sorted(edges["sensor"].unique().to_list()))
+
+
+def live_blueprint(trackers: list[str]) -> rrb.Blueprint:
+    """The stream's layout: the site with the estimates as published, the sensors' states and
+    the publication delay of every tracker on one plot."""
+    return rrb.Blueprint(
+        rrb.Horizontal(
+            rrb.Spatial2DView(name="site: estimates as they are published", origin="/",
+                              contents=["+ site/**", *[f"+ {paths.tracker_root(t)}/**" for t in trackers]]),  # fmt: skip
+            rrb.Vertical(
+                rrb.StateTimelineView(name="sensors: on / off", origin="/", contents=["+ sensors/**"]),
+                rrb.TimeSeriesView(name="publication delay (s, wall clock)", origin="/", contents=[f"+ {DELAY_ROOT}/**"]),
+            ),
+            column_shares=[3, 2],
+        ),
+        collapse_panels=True,
+    )
 
 
 def log_estimates(rec: rr.RecordingStream, tracker: str, rows: pl.DataFrame) -> None:
@@ -90,6 +110,11 @@ def log_delays(rec: rr.RecordingStream, tracker: str, t: np.ndarray, delay_s: np
     if len(t) == 0:
         return
     rec.send_columns(f"{DELAY_ROOT}/{paths.part(tracker)}", indexes=[paths.time_column(t)], columns=rr.Scalars.columns(scalars=np.asarray(delay_s, dtype=np.float64)))
+
+
+def send_live_blueprint(rec: rr.RecordingStream, trackers: list[str]) -> None:
+    """Send :func:`live_blueprint` with the stream (the viewer opens on it)."""
+    rec.send_blueprint(live_blueprint(trackers), make_active=True, make_default=True)
 
 
 def close_live(rec: rr.RecordingStream) -> None:

@@ -5,6 +5,7 @@ from __future__ import annotations
 import re
 import tomllib
 
+import networkx as nx
 import polars as pl
 import pytest
 
@@ -14,7 +15,10 @@ from onebit.core.site import load_site
 from onebit.datasets.irtracking import DEFAULT_TARGETS, import_irtracking
 from onebit.datasets.irtracking_sim import write_irtracking
 from onebit.pipeline.report import metric
+from onebit.pipeline.context import RunContext
 from onebit.pipeline.runner import run_pipeline
+from onebit.pipeline.stages import TRACKERS, tracker_inputs
+from onebit.core.tables import CROSSINGS, MOTION
 
 
 @pytest.fixture(scope="module")
@@ -33,6 +37,9 @@ def test_import_writes_site_frames_truth(files, tmp_path):
     assert site.binary_sensors[0].r_outer == 0.8
     assert site.targets == DEFAULT_TARGETS  # never the truth's count (3)
     assert site.boundary.bounds == (0.0, 0.0, 8.0, 14.0)
+    g = site.sensor_graph  # from the geometry: the smallest distance that keeps the array connected (a 1.5 m grid here)
+    assert len(g.nodes) == n and len(g.edges) > 0 and all(a in g.nodes and b in g.nodes for a, b in g.edges)
+    assert nx.is_connected(g.to_networkx())
     frames = pl.read_csv(out / "frames.csv", schema_overrides={"active": pl.String})
     assert frames["t"].to_list() == [0.5 * k for k in range(30)]
     for k, row in enumerate(frames.iter_rows(named=True), start=1):
@@ -89,3 +96,17 @@ def test_imported_dataset_runs_from_its_frame_log(files, tmp_path):
     assert pf.height == lv.height
     assert metric(res.report, "frames/frames") == 30 and metric(res.report, "frames/rejected") == 0
     assert res.status["istate"].startswith("ok")
+
+
+def test_every_tracker_gets_the_levels(files, tmp_path):
+    """A frame log's levels reach every tracker's inputs; the proximity stage says why it skipped."""
+    ds = tmp_path / "ds"
+    import_irtracking(files.readings, ds, radius=0.8, targets=3)
+    res = run_pipeline(ds, tmp_path / "run", trackers=["istate"])
+    assert res.status["proximity"].startswith("skipped") and "frame log" in res.status["proximity"]
+    site = load_site(ds / "site.toml")
+    lv = pl.read_parquet(tmp_path / "run" / "tables" / "levels.parquet")
+    tables = {"levels": lv, "motion": pl.DataFrame(schema=MOTION), "proximity_frames": lv, "crossings": pl.DataFrame(schema=CROSSINGS)}
+    ctx = RunContext(ds, tmp_path / "x", site, None, {}, tables=tables)
+    for entry in TRACKERS:
+        assert tracker_inputs(entry, ctx)["levels"] is lv, entry.name

@@ -6,7 +6,8 @@ import numpy as np
 import pytest
 
 from onebit.datasets import kernels
-from onebit.datasets.from_truth import _runs, pir_refractory_reference
+from onebit._testing.oracles import pir_refractory_reference
+from onebit.datasets.from_truth import _runs
 
 
 @pytest.mark.parametrize("seed", range(6))

@@ -1,19 +1,33 @@
-"""docs/extending.md, followed: a small dummy tracker added to the stage list runs end to end.
+"""docs/extending.md, followed: each of its guides done once, the way it says.
 
-The tracker ``last-beam`` puts its one agent at the midpoint of the beam it last crossed.
-It is declared exactly as docs/extending.md says (a TrackerSpec with a frozen config, a
-scorer, a viz function, one TrackerEntry) and passed to the runner beside the built-in ones.
+* **A tracker**: ``last-beam`` puts its one agent at the midpoint of the beam it last crossed.
+  It is declared exactly as the guide says (a TrackerSpec with a frozen config, a scorer, a viz
+  function, one TrackerEntry) and passed to the runner beside the built-in ones.
+* **A report metric**: one function of ``(tracker, tables, site, region_graph)`` and one line
+  in ``METRICS``: every tracker that ran gets its row.
+* **An input format**: an importer for a small foreign export (JSON lines of door contacts)
+  writes the canonical files; ``onebit run`` reads them as any dataset.
+* **A sensor kind**: a floor mat, declared in ``site.toml`` alone (a ``kind = "polygon"``
+  sensor type): simulated from walks, read, and tracked without a line of code.
 """
 
 from __future__ import annotations
 
+import json
 from dataclasses import dataclass
 
 import numpy as np
 import polars as pl
 import pytest
+import shapely
 
 from onebit.core.config import check_range
+from onebit.core.site import load_site
+from onebit.core.writers import to_toml, write_csv, write_text
+from onebit.datasets.from_truth import FromTruthConfig, simulate_from_truth
+from onebit.datasets.importers import graph_site_toml
+from onebit.pipeline import stages as stage_list
+from onebit.cli import main
 from onebit.core.errors import ConfigError
 from onebit.core.site import Site
 from onebit.core.tables import CROSSINGS, TRACKS, check_schema, conform
@@ -99,3 +113,117 @@ def test_its_config_section_is_validated_and_recorded(data, tmp_path):
 def test_unknown_tracker_names_the_known_ones(data, tmp_path):
     with pytest.raises(ConfigError, match=NAME):
         run_pipeline(data, tmp_path / "c", trackers=("nope",), tracker_entries=(*TRACKERS, ENTRY))
+
+
+# --------------------------------------------------------------------------- a report metric
+
+
+def estimates_per_minute(tracker: str, tables: dict, site: Site, region_graph) -> list:
+    """Estimates per minute of the run's span (``[]`` without tracks)."""
+    tracks = tables.get(f"{tracker}_tracks")
+    if tracks is None or tracks.height < 2:
+        return []
+    minutes = (tracks["t"].max() - tracks["t"].min()) / 60.0
+    return [(tracker, "estimates_per_minute", tracks.height / minutes if minutes > 0 else float("nan"), "estimates/min")]
+
+
+def test_a_metric_line_reports_it_for_every_tracker_that_ran(data, tmp_path, monkeypatch, capsys):
+    monkeypatch.setattr(stage_list, "METRICS", (*stage_list.METRICS, estimates_per_minute))
+    res = run_pipeline(data, tmp_path / "m", trackers=("beams", NAME), tracker_entries=(*TRACKERS, ENTRY))
+    assert res.ok, res.status
+    for tracker in ("beams", NAME):
+        tracks = pl.read_parquet(tmp_path / "m" / "tables" / f"{tracker}_tracks.parquet")
+        span = (tracks["t"].max() - tracks["t"].min()) / 60.0
+        assert metric(res.report, f"{tracker}/estimates_per_minute") == pytest.approx(tracks.height / span)
+    assert main(["report", str(tmp_path / "m")]) == 0
+    assert "estimates_per_minute" in capsys.readouterr().out
+
+
+# --------------------------------------------------------------------------- an input format (an importer)
+
+DOORS = {"front": (0.0, 2.0), "hall": (3.0, 2.0), "kitchen": (6.0, 2.0)}
+
+
+def import_doorlog(file, dataset) -> dict:
+    """A JSON-lines export of door contacts (``{"ts_ms": ..., "door": ..., "open": true}``) ->
+    ``site.toml`` (the doors in a row, each next to the next), ``motion.csv``, ``rejects.csv``
+    and ``import.toml``. Lines it cannot read are kept with their line number and reason."""
+    rows, rejects = [], []
+    for line_no, text in enumerate(open(file, encoding="utf-8"), start=1):
+        try:
+            rec = json.loads(text)
+            rows.append((rec["ts_ms"] / 1000.0, str(rec["door"]), 1 if rec["open"] else 0))
+        except (ValueError, KeyError, TypeError) as exc:
+            rejects.append((str(file), line_no, "line", f"not a door record: {type(exc).__name__}: {exc}", text.strip()))
+    ids = list(DOORS)
+    site = graph_site_toml(name="doorlog", units="m", positions=DOORS, edges=list(zip(ids, ids[1:])), doors=["front"],
+                           sensor_range=1.0)  # fmt: skip
+    write_text(site, dataset / "site.toml")
+    write_csv(pl.DataFrame(rows, schema=["t", "sensor", "value"], orient="row"), dataset / "motion.csv")
+    write_csv(pl.DataFrame(rejects, schema=["file", "line", "field", "reason", "raw"], orient="row"), dataset / "rejects.csv")
+    counts = {"lines": len(rows) + len(rejects), "events": len(rows), "rejected": len(rejects)}
+    write_text(to_toml({"source": {"file": str(file), "format": "doorlog"}, "counts": counts}), dataset / "import.toml")
+    return counts
+
+
+def test_an_importer_writes_a_dataset_any_run_reads(tmp_path):
+    export = tmp_path / "doors.jsonl"
+    walk = [(0, "front", True), (1500, "front", False), (2500, "hall", True), (4000, "hall", False), (5000, "kitchen", True),
+            (6500, "kitchen", False)]  # fmt: skip
+    lines = [json.dumps({"ts_ms": t, "door": d, "open": o}) for t, d, o in walk]
+    export.write_text("\n".join(lines[:3] + ["{broken"] + lines[3:]) + "\n")
+    (tmp_path / "d").mkdir()
+    counts = import_doorlog(export, tmp_path / "d")
+    assert counts == {"lines": 7, "events": 6, "rejected": 1}
+    assert load_site(tmp_path / "d" / "site.toml").sensor_graph is not None
+    res = run_pipeline(tmp_path / "d", tmp_path / "run", trackers=("hmm1",))
+    assert res.ok, res.status
+    assert metric(res.report, "motion/edges") == 6.0
+    tracks = pl.read_parquet(tmp_path / "run" / "tables" / "hmm1_tracks.parquet")
+    assert tracks.height > 0 and set(tracks["node"].drop_nulls()) <= set(DOORS)
+    rejected = pl.read_csv(tmp_path / "d" / "rejects.csv")
+    assert rejected["line"].to_list() == [4]
+
+
+# --------------------------------------------------------------------------- a sensor kind (site.toml alone)
+
+MAT_SITE = """name = "mats"
+units = "m"
+targets = 1
+[boundary]
+polygon = [[0, 0], [10, 0], [10, 4], [0, 4]]
+[sensor_types.mat]        # a pressure mat: 1 m x 2 m, on while someone stands on it
+kind = "polygon"
+polygon = [[-0.5, -1.0], [0.5, -1.0], [0.5, 1.0], [-0.5, 1.0]]
+signal = "level"
+resolution = 0.25
+[[motion_sensors]]
+id = "mat1"
+position = [3.0, 2.0]
+type = "mat"
+[[motion_sensors]]
+id = "mat2"
+position = [7.0, 2.0]
+heading = 90.0
+type = "mat"
+"""
+
+
+def test_a_new_sensor_kind_is_declared_in_site_toml_alone(tmp_path):
+    d = tmp_path / "mats"
+    d.mkdir()
+    (d / "site.toml").write_text(MAT_SITE)
+    t = np.arange(0.0, 9.01, 0.25)  # one walker along y = 2 at 1 m/s, from x = 0.5
+    write_csv(pl.DataFrame({"t": t, "target": "w", "x": 0.5 + t, "y": 2.0}), d / "truth.csv")
+    site = load_site(d / "site.toml")
+    regions = site.detection_regions
+    assert regions["mat1"].geometry.equals(shapely.box(2.5, 1.0, 3.5, 3.0))
+    assert regions["mat2"].geometry.equals(shapely.box(6.0, 1.5, 8.0, 2.5))  # turned by its heading
+    simulate_from_truth(d, seed=0, cfg=FromTruthConfig(hold_s=0.0))
+    motion = pl.read_csv(d / "motion.csv").sort("t")
+    on = {s: motion.filter((pl.col("sensor") == s) & (pl.col("value") == 1))["t"].to_list() for s in ("mat1", "mat2")}
+    assert on["mat1"] == pytest.approx([2.0], abs=0.06) and on["mat2"] == pytest.approx([5.5], abs=0.06)  # the walker steps on
+    res = run_pipeline(d, tmp_path / "run", trackers=("intruder",))
+    assert res.ok, res.status
+    tracks = pl.read_parquet(tmp_path / "run" / "tables" / "intruder_tracks.parquet")
+    assert tracks.height > 0 and tracks["x"].is_not_null().any()

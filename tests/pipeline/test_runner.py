@@ -6,6 +6,7 @@ import shutil
 import tomllib
 
 import polars as pl
+from mcap.reader import make_reader
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
@@ -141,9 +142,12 @@ def test_mcap_dataset_gives_the_same_crossings(lab_run, tmp_path):
     a = pl.read_parquet(res.out / "tables" / "crossings.parquet")
     b = pl.read_parquet(tmp_path / "run" / "tables" / "crossings.parquet")
     assert a.equals(b)
-    # a truncated recording keeps what came before the cut and names the file in rejects
+    # a truncated recording keeps the complete chunks before the cut and names the file in rejects
     raw = (d / "recording.mcap").read_bytes()
-    (d / "recording.mcap").write_bytes(raw[: len(raw) * 2 // 3])
+    with open(d / "recording.mcap", "rb") as fh:
+        chunks = make_reader(fh).get_summary().chunk_indexes
+    assert len(chunks) >= 2  # chunked (1 MiB of messages each), zstd
+    (d / "recording.mcap").write_bytes(raw[: chunks[1].chunk_start_offset + (chunks[1].chunk_length // 2)])
     r3 = run_pipeline(d, tmp_path / "run3")
     rej = pl.read_parquet(tmp_path / "run3" / "tables" / "rejects.parquet")
     assert rej.filter(pl.col("reason").str.contains("truncated"))["source"].to_list() == ["recording.mcap"]
@@ -237,17 +241,19 @@ def test_run_toml_fuzz_only_onebit_errors_and_bounded(tmp_path_factory, blob):
 
 def test_a_dataset_run_toml_motion_and_scores_sections_are_used(tmp_path):
     """Issue #26: ``[motion]`` and ``[scores]`` of the dataset's own ``run.toml`` were validated but
-    ignored (``ctx.config.get`` instead of the section), so ``period = 0.5`` ran at 1.0."""
+    ignored (``ctx.config.get`` instead of the section), so ``period = 0.5`` ran at 1.0 (the
+    ``frames`` table it sized is gone; ``chatter_window`` shows the same)."""
     d = tmp_path / "data"
     d.mkdir()
     shutil.copy(builtin_site_path("hallway"), d / "site.toml")
     (d / "motion.csv").write_text("t,sensor,value\n0,104,1\n1.6,104,0\n2.1,103,1\n3.7,103,0\n4.2,102,1\n5.8,102,0\n")
-    (d / "run.toml").write_text("[motion]\nperiod = 0.5\n")
+    (d / "run.toml").write_text("[motion]\nchatter_window = 0.6\n")  # 1.6 off -> 2.1 on of 104/103: not the same sensor
     res = run_pipeline(d, tmp_path / "run", trackers=["hmm1"])
     assert res.status["motion"].startswith("ok")
-    frames = pl.read_parquet(tmp_path / "run" / "tables" / "frames.parquet")
-    assert frames["slot"].max() >= 10  # 6 s at 0.5 s slots, not 1.0 s
-    assert tomllib.loads((tmp_path / "run" / "run.toml").read_text())["motion"]["period"] == 0.5
+    assert tomllib.loads((tmp_path / "run" / "run.toml").read_text())["motion"]["chatter_window"] == 0.6
+    (d / "motion.csv").write_text("t,sensor,value\n0,104,1\n1.6,104,0\n2.1,104,1\n3.7,104,0\n")
+    res = run_pipeline(d, tmp_path / "run2", trackers=["hmm1"])
+    assert metric(res.report, "motion/suppressed") == 2.0  # the 1.6 off / 2.1 on pair: within 0.6 s
 
 
 def test_no_rrd_writes_the_same_tables_and_report_without_recordings(lab_run, tmp_path, capsys):
@@ -282,3 +288,16 @@ def test_run_record_times_work_recording_and_writing_of_every_stage(lab_run, tmp
     assert timing["entered_unix"] <= (res.out / "run.toml").stat().st_mtime
     # a run record given back as --config ignores the timing (not a stage section)
     assert "timing" not in load_run_config(res.out / "run.toml")
+
+
+def test_istate_beyond_its_stage_bound_is_skipped_saying_why(lab_run, tmp_path):
+    data, full = lab_run
+    assert full.status["istate"].startswith("ok")  # 60 s = 61 stages: within the default bound
+    res = run_pipeline(data, tmp_path / "bounded", config={"istate": {"max_stages": 10}}, rrd=False)
+    reason = res.status["istate"]
+    assert reason.startswith("skipped") and "max_stages = 10" in reason and "stages of period_s = 1 s" in reason
+    assert res.ok  # not asked for by name: the others ran, the run is ok
+    asked = run_pipeline(data, tmp_path / "asked", trackers=("istate",), config={"istate": {"max_stages": 10}}, rrd=False)
+    assert not asked.ok and any("max_stages" in p for p in asked.problems)
+    lifted = run_pipeline(data, tmp_path / "lifted", trackers=("istate",), config={"istate": {"max_stages": 0}}, rrd=False)
+    assert lifted.status["istate"].startswith("ok")

@@ -23,6 +23,7 @@ import pytest
 from onebit.core.units import METRES_PER_UNIT
 from onebit.datasets.catalogue import get_scenario
 from onebit.pipeline.runner import run_pipeline
+from onebit.pipeline.stages import TRACKERS
 
 # --------------------------------------------------------------------------- rewriting a dataset in cm
 
@@ -135,6 +136,7 @@ SCENARIOS = {
     "proximity-line": dict(),
     "hallway": dict(duration=30.0, agents=2),
     "istate-room": dict(duration=20.0),
+    "proximity-grid": dict(),
 }
 
 #: (scenario, tracker) -> how closely the cm run must reproduce the m run:
@@ -145,20 +147,18 @@ SCENARIOS = {
 #: regions, normalised WKB bytes, which is not scale invariant), counts exactly;
 #: ``guarantee`` -- several ambiguous elements: which ones survive the cap is decided by that
 #: order, so only the guarantee is compared (containment, scored stages, area of the union).
-COMPARED = {
-    ("beams-lab", "beams"): "exact",
-    ("beams-lab", "istate"): "guarantee",
-    ("pir14", "intruder"): "exact",
-    ("pir14", "intruder-naive"): "exact",
+#: every tracker on the scenario its TrackerEntry names, exactly unless named here
+CLOSENESS = {"istate": "close"}
+COMPARED = {(e.scenario, e.name): CLOSENESS.get(e.name, "exact") for e in TRACKERS} | {
+    ("beams-lab", "istate"): "guarantee",  # and the I-state filter on every other scenario
     ("pir14", "istate"): "close",
-    ("proximity-line", "clustertrack"): "exact",
     ("proximity-line", "istate"): "guarantee",
-    ("hallway", "findinghumo"): "exact",
-    ("hallway", "hmm1"): "exact",
-    ("hallway", "hmm2"): "exact",
-    ("hallway", "findinghumo-flow"): "exact",
     ("hallway", "istate"): "guarantee",
-    ("istate-room", "istate"): "close",
+    ("proximity-grid", "istate"): "guarantee",
+    ("proximity-grid", "clustertrack"): "exact",  # and CLUSTERTRACK on the 2-D grid too
+    ("pir14", "residents"): "exact",  # and the residents tracker on every site with motion sensors
+    ("istate-room", "residents"): "exact",
+    ("proximity-line", "binpf"): "exact",  # and the binary particle filter on every proximity site
 }
 
 #: one run.toml for both runs, lengths in metres; small enough to keep the test fast
@@ -167,7 +167,14 @@ CONFIG = {
     "clustertrack": {"consensus_runs": 2, "reruns": 1},
 }
 
-EVERY_TRACKER = ("beams", "intruder", "intruder-naive", "clustertrack", "findinghumo", "hmm1", "hmm2", "findinghumo-flow", "istate")
+EVERY_TRACKER = tuple(e.name for e in TRACKERS)
+#: known failures, each a finding to fix (strict: the test says so when it is fixed)
+UNITS_BUG = pytest.mark.xfail(
+    strict=True,
+    reason="clustertrack on the 2-D proximity grid is not unit-free: deterministic in one unit, but the cm run "
+    "differs from the m run (mean_error_R 0.133 vs 0.226); found when the compared pairs came from TrackerEntry.scenario",
+)
+KNOWN = {("proximity-grid", "clustertrack"): UNITS_BUG, "proximity-grid": UNITS_BUG}
 GUARANTEE_ROWS = ("containment", "scored_stages", "area_mean")
 
 
@@ -185,6 +192,11 @@ def runs(tmp_path_factory):
         b = run_pipeline(base / "cm", base / "run-cm", config=CONFIG)
         out[name] = (k, a, b)
     return out
+
+
+def test_every_tracker_has_its_scenario_written():
+    for e in TRACKERS:  # a clear failure, not a KeyError in the fixture's users
+        assert e.scenario in SCENARIOS, (e.name, e.scenario)
 
 
 def test_every_tracker_is_compared(runs):
@@ -205,7 +217,7 @@ def _point_sets(df: pl.DataFrame, k: float = 1.0) -> np.ndarray:
     return df.select("t", pl.col("x") * k, pl.col("y") * k).sort("t", "x", "y").select("x", "y").to_numpy()
 
 
-@pytest.mark.parametrize("scenario, tracker", list(COMPARED))
+@pytest.mark.parametrize("scenario, tracker", [pytest.param(*p, marks=KNOWN.get(p, ())) for p in COMPARED])
 def test_tracks_scale_with_the_units(runs, scenario, tracker):
     k, a, b = runs[scenario]
     mode = COMPARED[scenario, tracker]
@@ -227,7 +239,7 @@ def test_tracks_scale_with_the_units(runs, scenario, tracker):
         assert ta[c].to_list() == tb[c].to_list(), c
 
 
-@pytest.mark.parametrize("scenario", list(SCENARIOS))
+@pytest.mark.parametrize("scenario", [pytest.param(n, marks=KNOWN.get(n, ())) for n in SCENARIOS])
 def test_report_rows_scale_with_the_units(runs, scenario):
     k, a, b = runs[scenario]
     src_units = tomllib.loads((a.out.parent / "m" / "site.toml").read_text()).get("units", "m")

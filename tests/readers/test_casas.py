@@ -10,7 +10,7 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from onebit.core.errors import OnebitError
-from onebit.datasets.casas_sim import write_casas_log
+from onebit._testing.casas_sim import write_casas_log
 from onebit.readers.casas import read_casas
 from onebit.readers.loginfo import log_info
 

@@ -149,7 +149,7 @@ def test_every_written_variant_reads_back(tmp_path, events):
     """Any mix of the variants reads back every event with its value and residents, nothing rejected."""
     lines, want = [], []
     for k, (sensor, on, pairs, form, twice) in enumerate(events):
-        stamp = f"2012-03-0{1 + k // 20} 10:{k % 60:02d}:{k % 60:02d}.{k:06d}"
+        stamp = f"2012-03-01 10:{k:02d}:{k % 60:02d}.{k:06d}"  # increasing, minutes apart (a day's gap would cut a lone stamp off)
         d, t = stamp.split(" ")
         when = {"two": f"{d} {t}", "one": f"{d}T{t}", "tab": f"{d}\t{t}"}[form]
         value = ("OPEN" if on else "CLOSE") if sensor.startswith("D") else ("ON" if on else "OFF")
@@ -189,3 +189,16 @@ def test_import_writes_the_identity_truth_and_no_cupboard_doors(tmp_path, doors)
     assert set(te["residents"].cast(pl.String)) <= {"1", "2", "1;2"}
     site = load_site(tmp_path / f"ds{len(doors)}" / "site.toml")
     assert set(site.sensor_graph.entries) == set(doors)  # the cupboard D07 is a way out only when declared
+
+
+def test_logs_info_counts_labels_and_lost_offs(tmp_path):
+    from onebit.readers.loginfo import log_info
+
+    text = ADLMR + "2008-11-10\t14:40:00.0\tM22\tON 2 2\n2008-11-10\t14:50:00.0\tM22\tON 2 2\n"  # a lost OFF between
+    by = {r["source"]: r for r in log_info(_write(tmp_path, text)).iter_rows(named=True)}
+    assert by["log.txt:resident-labelled"]["rows"] == 8 and by["log.txt:resident-labelled"]["sensors"] == 3  # "1", "2", "1;2"
+    assert by["log.txt:annotation-problems"]["rows"] == 1
+    assert by["log.txt:lost-off"]["rows"] == 1  # the second ON of M22 ten minutes later
+    csv = _write(tmp_path, "time,sensor,message,residents,activity\n2009-06-10 03:20:59-07:00,M037,ON,R1,\n2009-06-10 03:21:00-07:00,M037,OFF,R1,\n", "events.csv")
+    by = {r["source"]: r for r in log_info(csv).iter_rows(named=True)}
+    assert by["events.csv"]["rows"] == 2 and by["events.csv:motion"]["sensors"] == 1

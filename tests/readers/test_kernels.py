@@ -77,3 +77,40 @@ def test_debounce_kernel_equals_reference(seed):
     kept, sup = M.debounce(df, sensors, rules, compiled=True)
     kept_ref, sup_ref = M.debounce_reference(df, sensors, rules)
     assert kept.equals(kept_ref) and sup.equals(sup_ref)
+
+
+@pytest.mark.parametrize("seed", range(12))
+@pytest.mark.parametrize("clean", [True, False])
+def test_vectorised_beam_passes_equal_the_kernel(seed, clean):
+    """The numpy version (used while numba is not loaded) gives the kernel's five arrays."""
+    from onebit.readers import kernels as K
+
+    rng = np.random.default_rng(100 + seed)
+    f = _beam_log(rng, int(rng.integers(0, 1500)), clean=clean).sort(["t", "line"])
+    code = f["beam"].replace_strict(["a", "b", "c"], [0, 1, 2], return_dtype=pl.Int64).to_numpy()
+    pair = (f["pair"] == "b").to_numpy().astype(np.int8)
+    blocked = f["blocked"].to_numpy().astype(np.bool_)
+    want = K.beam_passes.py_func(code, pair, blocked, 3)
+    got = K.beam_passes_vectorised(code, pair, blocked, 3)
+    for name, w, g in zip(("reject", "pass_first", "close", "first_pair", "last"), want, got):
+        assert np.array_equal(w, g) and w.dtype == g.dtype, name
+
+
+@pytest.mark.parametrize("seed", range(10))
+def test_vectorised_toggle_repeats_and_debounce_equal_the_kernels(seed):
+    """The numpy versions (used while numba is not loaded) give the kernels' masks."""
+    from onebit.readers import kernels as K
+
+    rng = np.random.default_rng(200 + seed)
+    n, ns = int(rng.integers(0, 800)), 4
+    sensor = rng.integers(0, ns, n).astype(np.int64)
+    on = rng.random(n) < 0.5
+    t = np.sort(rng.uniform(0, 60, n).round(1))
+    assert np.array_equal(K.toggle_repeats.py_func(sensor, on, ns), K.toggle_repeats_vectorised(sensor, on, ns))
+    alt = ~K.toggle_repeats.py_func(sensor, on, ns)  # the debounce sees alternating edges
+    s2, o2, t2 = sensor[alt], on[alt], t[alt]
+    chatter = rng.choice([0.0, 0.5, 2.0], ns)
+    min_on = rng.choice([0.0, 1.0, 3.0], ns)
+    want = K.debounce_masks.py_func(s2, o2, t2, chatter, min_on, ns, 1e-9)
+    got = K.debounce_masks_vectorised(s2, o2, t2, chatter, min_on, ns, 1e-9)
+    assert np.array_equal(want[0], got[0]) and np.array_equal(want[1], got[1])

@@ -25,7 +25,7 @@ from onebit.readers.mcap_io import (
     tracks_for_views,
     write_mcap,
 )
-from onebit.readers.mcap_views import VIEW_TOPICS, message_classes
+from onebit.readers.mcap_views import MARKER_POINTS, VIEW_TOPICS, message_classes
 
 SITE = """name = "room"
 units = "m"
@@ -117,15 +117,43 @@ def test_view_schemas_are_foxgloves_own_and_messages_decode(tmp_path):
     ]  # fmt: skip
     assert [m[3] for m in msgs["/events"]] == [5 * 10**8, 15 * 10**8, 17 * 10**8, 2 * 10**9, 3_250_000_000, 4 * 10**9]
     clouds = [classes["foxglove.PointCloud"].FromString(m[4]) for m in msgs["/points/sensors"]]
-    assert len(clouds) == 5 and all(len(c.data) == 2 * c.point_stride for c in clouds)
-    # the colour bytes of m1 (point 0) follow its toggles: on, off, off, off, on
+    n = MARKER_POINTS  # each sensor is a ring of points
+    assert len(clouds) == 5 and all(len(c.data) == 2 * n * c.point_stride for c in clouds)
+    # the colour bytes of m1 (its ring's points) follow its toggles: on, off, off, off, on
     on = [c.data[12:16] for c in clouds]
+    assert all(c.data[12:16] == c.data[(n - 1) * 16 + 12 : (n - 1) * 16 + 16] for c in clouds)
     assert on[0] == on[4] and on[1] == on[2] == on[3] and on[0] != on[1]
     truth = [classes["foxglove.SceneUpdate"].FromString(m[4]) for m in msgs["/foxglove/truth"]]
     assert [(u.entities[0].id, u.entities[0].spheres[0].pose.position.x) for u in truth] == [("truth/p1", 1.0), ("truth/p1", 2.0), ("truth/p1", 4.5)]
     site = classes["foxglove.SceneUpdate"].FromString(msgs["/foxglove/site"][0][4])
     ids = {e.id for e in site.entities}
     assert {"site/boundary", "site/beams/b1", "site/sensors/m1", "site/sensors/m2"} <= ids
+
+
+def _fields(fds) -> dict[str, list]:
+    """Every message of a FileDescriptorSet: full name -> (field name, number, type, label)."""
+    return {f"{f.package}.{m.name}": sorted((x.name, x.number, x.type, x.label) for x in m.field) for f in fds.file for m in f.message_type}
+
+
+def test_view_schemas_match_the_foxglove_sdk(tmp_path):
+    """The schemas written are the Foxglove SDK's (``foxglove-sdk``, its ``foxglove.messages``):
+    the same messages with the same fields, and bytes one side encodes the other decodes."""
+    from google.protobuf.descriptor_pb2 import FileDescriptorSet
+
+    messages = pytest.importorskip("foxglove.messages", reason="foxglove-sdk (the test extra) not installed")
+    out = tmp_path / "rec.mcap"
+    csv_folder_to_mcap(_dataset(tmp_path / "d"), out)
+    with open(out, "rb") as fh:
+        schemas = {s.name: s for s in make_reader(fh).get_summary().schemas.values() if s.encoding == "protobuf"}
+    assert set(schemas) == {"foxglove.SceneUpdate", "foxglove.PointCloud", "foxglove.Log"}
+    for name, schema in schemas.items():
+        sdk = getattr(messages, name.split(".")[1]).get_schema()
+        assert (sdk.name, sdk.encoding) == (name, "protobuf")
+        ours, theirs = _fields(FileDescriptorSet.FromString(schema.data)), _fields(FileDescriptorSet.FromString(sdk.data))
+        assert ours == theirs and name in ours, name
+    classes = message_classes()
+    log = classes["foxglove.Log"].FromString(messages.Log(message="m1 on", name="motion", level=messages.LogLevel.Info).encode())
+    assert (log.message, log.name) == ("m1 on", "motion")
 
 
 def test_round_trip_with_views_is_exact_and_views_are_skipped(tmp_path):

@@ -1,4 +1,4 @@
-"""The PIR toggle reader: typing, no-change edges, debounce rules, frames and refractory state."""
+"""The PIR toggle reader: typing, no-change edges, debounce rules (slots: tests/core/test_frames.py)."""
 
 from __future__ import annotations
 
@@ -11,13 +11,13 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
+from onebit._testing.oracles import motion_frames_reference
 from onebit.core.errors import ConfigError
+from onebit.core.frames import motion_frames
 from onebit.readers.motion import (
     DebounceRules,
-    motion_frames,
     read_motion,
     read_motion_csv,
-    refractory_state,
     rules_by_type,
 )
 from onebit.readers.rows import RawRows
@@ -180,77 +180,6 @@ def test_rules_validated_naming_the_field(bad):
         DebounceRules(**bad)
 
 
-# --------------------------------------------------------------------------- frames
-
-
-def frames_reference(edges, sensors, period, t0, n):
-    """Per slot and sensor by brute force: state at slot start, any rising edge in the slot."""
-    out = []
-    for k in range(n):
-        a, b = t0 + k * period, t0 + (k + 1) * period
-        for s in sensors:
-            mine = [(t, on) for t, ss, on in edges if ss == s]
-            state = False
-            for t, on in mine:
-                if t <= a:
-                    state = on
-            fired = any(on and a <= t < b for t, on in mine)
-            out.append((k, s, state or fired, fired))
-    return out
-
-
-@given(
-    st.lists(st.tuples(st.floats(0, 30).map(lambda v: round(v, 2)), st.sampled_from(SENSORS)), max_size=30),
-    st.sampled_from([0.5, 1.0, 2.0]),
-)
-@settings(max_examples=80, deadline=None)
-def test_frames_match_brute_force(stamps, period):
-    rows = sorted(stamps)
-    # make an alternating log per sensor from the time stamps
-    count = {s: 0 for s in SENSORS}
-    edges = []
-    for t, s in rows:
-        edges.append((t, s, count[s] % 2 == 0))
-        count[s] += 1
-    motion = pl.DataFrame(edges, schema=MOTION, orient="row")
-    fr = motion_frames(motion, SENSORS, period=period, t0=0.0, t1=32.0)
-    assert fr.schema == FRAMES
-    n = math.ceil(32.0 / period)
-    assert fr.height == n * len(SENSORS)
-    got = list(zip(fr["slot"].to_list(), fr["sensor"].to_list(), fr["on"].to_list(), fr["fired"].to_list()))
-    assert got == frames_reference(edges, SENSORS, period, 0.0, n)
-    assert fr["t"].to_list() == pytest.approx([k * period for k in range(n) for _ in SENSORS])
-
-
-def test_frames_default_span_is_aligned():
-    motion = pl.DataFrame([(5.3, "p1", True), (9.9, "p1", False)], schema=MOTION, orient="row")
-    fr = motion_frames(motion, ["p1"], period=2.0)
-    assert fr["t"].to_list() == [4.0, 6.0, 8.0]
-    assert fr["fired"].to_list() == [True, False, False] and fr["on"].to_list() == [True, True, True]
-    assert motion_frames(motion.clear(), ["p1"], period=2.0).height == 0
-    with pytest.raises(ConfigError, match="period"):
-        motion_frames(motion, ["p1"], period=0.0)
-
-
-@given(st.lists(st.booleans(), max_size=40), st.sampled_from([0.0, 2.0, 4.0, 5.0, 16.0]))
-@settings(max_examples=80, deadline=None)
-def test_refractory_state_follows_the_recursion(fired, f):
-    period = 2.0
-    frames = pl.DataFrame(
-        {"slot": list(range(len(fired))), "t": [k * period for k in range(len(fired))], "sensor": ["p1"] * len(fired),
-         "on": fired, "fired": fired},
-        schema=FRAMES,
-    )
-    st_ = refractory_state(frames, {"p1": f}, period=period)
-    beta, want_beta, want_blind = 0.0, [], []
-    for s in fired:  # beta_tau = f if S else max(0, beta_{tau-1} - t_P); blind = beta_{tau-1} > 0
-        want_blind.append(beta > 0)
-        beta = f if s else max(0.0, beta - period)
-        want_beta.append(beta)
-    assert st_["beta"].to_list() == pytest.approx(want_beta)
-    assert st_["blind"].to_list() == want_blind
-
-
 # --------------------------------------------------------------------------- the pipeline stage
 
 SITE = """name = "room"
@@ -278,20 +207,41 @@ def test_motion_stage_reads_debounces_and_reports(tmp_path: Path):
     (data / "motion.csv").write_text(
         "t,sensor,value\n0.5,p1,1\n0.7,p2,1\n1.0,p1,0\n1.05,p1,1\n2.5,p1,0\n3.0,p2,0\n3.2,p2,0\n4.0,p3,1\n"
     )
-    res = run_pipeline(data, tmp_path / "run", trackers=("beams",), config={"motion": {"period": 2.0}})
+    res = run_pipeline(data, tmp_path / "run", trackers=("beams",), config={"motion": {"chatter_window": 0.1}})
     assert res.status["motion"].startswith("ok"), res.status
     assert metric(res.report, "motion/edges") == 4.0
     assert metric(res.report, "motion/suppressed") == 2.0
-    frames = pl.read_parquet(tmp_path / "run" / "tables" / "frames.parquet")
-    assert frames.schema == FRAMES and frames["t"].unique().sort().to_list() == [0.0, 2.0]
     rejects = pl.read_parquet(tmp_path / "run" / "tables" / "rejects.parquet")
     assert sorted(rejects["line"].to_list()) == [8, 9]
     # p1: on 0.5, off 2.5 (the 1.0 off / 1.05 on chatter pair suppressed); p2: on 0.7, off 3.0
-    fr = frames.sort(["slot", "sensor"])
-    assert fr["sensor"].to_list() == ["p1", "p2", "p1", "p2"]
-    assert fr["on"].to_list() == [True, True, True, True]
-    assert fr["fired"].to_list() == [True, True, False, False]
+    motion = pl.read_parquet(tmp_path / "run" / "tables" / "motion.parquet").sort("t")
+    assert motion.schema == MOTION
+    assert list(zip(motion["t"], motion["sensor"], motion["on"])) == [(0.5, "p1", True), (0.7, "p2", True), (2.5, "p1", False),
+                                                                      (3.0, "p2", False)]  # fmt: skip
+    assert not (tmp_path / "run" / "tables" / "frames.parquet").exists()  # each tracker samples its own slots
 
     assert {"sensors/p1", "sensors/p2"} <= entity_paths(tmp_path / "run" / "rrd" / "motion.rrd")
-    with pytest.raises(ConfigError, match=r"\[motion\].*period"):  # refused when the run starts
-        run_pipeline(data, tmp_path / "run2", trackers=("beams",), config={"motion": {"period": -1}})
+    with pytest.raises(ConfigError, match=r"\[motion\].*chatter_window"):  # refused when the run starts
+        run_pipeline(data, tmp_path / "run2", trackers=("beams",), config={"motion": {"chatter_window": -1}})
+
+
+@settings(max_examples=60, deadline=None)
+@given(
+    st.lists(st.tuples(st.sampled_from(["m1", "m2", "m3"]), st.integers(0, 400)), max_size=60, unique=True),
+    st.sampled_from([0.5, 1.0, 2.5]),
+    st.sampled_from([None, (-3.0, 50.0), (10.0, 90.0)]),
+)
+def test_frames_by_arrays_equal_the_join_reference(edges, period, window):
+    """The numpy FRAMES builder gives the polars-join reference's table (state at each slot
+    start, rising edges in the slot), with and without an explicit slot window."""
+    rows = sorted((t / 10.0, s) for s, t in edges)
+    on, state = [], {}
+    for _, s in rows:  # alternating per sensor, starting on
+        state[s] = not state.get(s, False)
+        on.append(state[s])
+    motion = pl.DataFrame({"t": [t for t, _ in rows], "sensor": [s for _, s in rows], "on": on},
+                          schema={"t": pl.Float64, "sensor": pl.String, "on": pl.Boolean})  # fmt: skip
+    kw = {} if window is None else {"t0": window[0], "t1": window[1]}
+    got = motion_frames(motion, ["m1", "m2", "m3", "m4"], period=period, **kw)
+    want = motion_frames_reference(motion, ["m1", "m2", "m3", "m4"], period=period, **kw)
+    assert got.equals(want)

@@ -6,6 +6,8 @@ import tomllib
 
 import polars as pl
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from onebit.core.errors import InputError
 from onebit.datasets.catalogue import get_scenario
@@ -84,3 +86,26 @@ def test_a_run_on_wall_clock_logs_builds_slots_from_the_data_not_from_1970(tmp_p
     assert time_doc["source"] == "data" and time_doc["t_min"] == 0.0
     assert time_doc["origin"] == ("2023-11-14T22:13:20Z" if clock == "unix" else "2024-05-01T23:59:30Z")
     assert res.report.filter(pl.col("stage") == "intruder").equals(ref.report.filter(pl.col("stage") == "intruder"))
+
+
+@settings(max_examples=40, deadline=None)
+@given(
+    st.lists(st.floats(0, 1e6, allow_nan=False), min_size=1, max_size=30),
+    st.lists(st.sampled_from(["12.5", "2024-05-01T10:00:00Z", "bad", "1e11", " 7 "]), max_size=4),
+    st.sampled_from([None, "2024-05-01T00:00:00Z"]),
+)
+def test_a_typed_reads_numbers_give_the_origin_their_strings_give(numbers, rest, epoch):
+    """The runner reads a log once, typed: the good rows' numeric ``t`` and the other rows'
+    strings give the same origin as every stamp as a string (one read instead of two)."""
+    text = [repr(v) for v in numbers]
+    good = pl.DataFrame({"line": range(2, 2 + len(numbers)), "t": numbers}, schema={"line": pl.Int64, "t": pl.Float64})
+    others = pl.DataFrame({"line": range(100, 100 + len(rest)), "t": rest}, schema={"line": pl.Int64, "t": pl.String})
+    strings = pl.concat([good.with_columns(pl.Series("t", text)), others])
+    try:
+        want = time_origin({"log.csv": strings}, epoch=epoch)
+    except InputError as exc:
+        with pytest.raises(InputError) as got:
+            time_origin({"log.csv": [good, others]}, epoch=epoch)
+        assert (got.value.file, got.value.line) == (exc.file, exc.line)
+        return
+    assert time_origin({"log.csv": [good, others]}, epoch=epoch) == want

@@ -14,9 +14,12 @@ from onebit.core.site import site_from_dict
 from onebit.core.tables import TRUTH
 from onebit.pipeline.stages import TRACKERS
 from onebit.scoring.crossings import ScoresConfig
-from onebit.scoring.mot import GATES, mot_metrics, mot_rows, node_frames, point_frames, region_frames, similarity
+from onebit.scoring.mot import mot_metrics, mot_rows, node_frames, point_frames, region_frames, similarity
 
 ALPHAS = np.arange(0.05, 0.99, 0.05)
+
+#: each tracker's gate, as its TrackerEntry declares it
+GATE = {e.name: e.gate for e in TRACKERS}
 
 
 def scene():
@@ -152,10 +155,10 @@ def test_empty_frames_give_nan_or_zero_never_an_error():
 
 
 def test_every_tracker_has_a_gate_with_a_reason():
-    assert {e.name for e in TRACKERS} == set(GATES)
-    for name, g in GATES.items():
-        assert g.size > 0 and g.reason, name
-        assert (g.unit == "hops") == (g.space in ("node", "region")), name
+    for e in TRACKERS:
+        g = e.gate
+        assert g is not None and g.size > 0 and g.reason, e.name
+        assert (g.unit == "hops") == (g.space in ("node", "region")), e.name
 
 
 def _truth(rows):
@@ -175,7 +178,7 @@ def test_point_frames_score_every_truth_frame(hallway_site):
     assert hyp["t"].to_list() == pytest.approx(held)
     d = dict(zip(dist["t"].to_list(), dist["distance"].to_list()))
     assert d[3.0] == pytest.approx(1.5) and d[4.0] == pytest.approx(0.5) and d[7.0] == pytest.approx(1.0)
-    rows = dict((r[1], r[2]) for r in mot_rows("intruder", GATES["intruder"], {"intruder_tracks": tracks, "truth": truth}, hallway_site, None))
+    rows = dict((r[1], r[2]) for r in mot_rows("intruder", GATE["intruder"], {"intruder_tracks": tracks, "truth": truth}, hallway_site, None))
     assert rows["mot_frames"] == 101 and rows["mot_misses"] == 101 - 81
     assert rows["mota"] == pytest.approx(1 - 20 / 101) and rows["mot_gate"] == 2.0
     # at 1 m the frames 1.5 m and 1.1-1.4 m off the 4.5 estimate are misses and false positives
@@ -189,7 +192,7 @@ def test_a_silent_tracker_scores_every_miss(hallway_site):
     miss, MOTA <= 0 (never NaN, never a score over the few frames it spoke)."""
     truth = _truth([(t / 2, g, 5.0 + t / 4, 5.0 + k) for t in range(40) for k, g in enumerate("ab")])
     silent = pl.DataFrame(schema={"track": pl.String, "t": pl.Float64, "x": pl.Float64, "y": pl.Float64})
-    rows = dict((r[1], r[2]) for r in mot_rows("istate", GATES["istate"], {"istate_tracks": silent, "truth": truth}, hallway_site, None))
+    rows = dict((r[1], r[2]) for r in mot_rows("istate", GATE["istate"], {"istate_tracks": silent, "truth": truth}, hallway_site, None))
     assert rows["mota@1m"] <= 0 and rows["misses@1m"] == truth.height == 80 and rows["false_positives@1m"] == 0
     assert rows["count_error"] == 2.0
     # a tracker that speaks at 4 of the 40 frames is scored on all 40
@@ -230,7 +233,7 @@ def test_metric_gates_are_configurable_and_in_world_units(hallway_site):
 def test_paper_gate_rows_say_their_gate(hallway_site):
     truth = _truth([(float(t), "a", 1.0, 1.0) for t in range(3)])
     tracks = pl.DataFrame({"track": ["k"] * 3, "t": [0.0, 1.0, 2.0], "x": [1.0] * 3, "y": [1.0] * 3})
-    units = {r[1]: r[3] for r in mot_rows("intruder", GATES["intruder"], {"intruder_tracks": tracks, "truth": truth}, hallway_site, None)}
+    units = {r[1]: r[3] for r in mot_rows("intruder", GATE["intruder"], {"intruder_tracks": tracks, "truth": truth}, hallway_site, None)}
     assert units["mota"] == "fraction @ 2 cells" and units["mota@1m"] == "fraction"
 
 

@@ -4,10 +4,16 @@ The run's slot activity ``B`` (D, N) bool is decoded in windows of ``d_max`` slo
 slide by ``tau`` (the decoded states of the first ``tau`` slots of a window are accepted,
 the rest is look-ahead). Per window:
 
-1. **User count** (III-B3): ``K = max(K_pre + Sig_in - Sig_out, K_now)``. ``K_now`` is the
-   largest number of nodes triggered in one slot that are pairwise at least 2 hops apart
-   (a maximum independent set of the active nodes in the 1-hop graph; exact, by
-   ``networkx.max_weight_clique`` on the complement -- active sets are small). ``Sig_in``
+1. **User count** (III-B3): ``K = max(K_pre + Sig_in - Sig_out, K_now)``, at most
+   ``max_users`` when it is given (the site's ``targets``: a bound inside the decoder, so
+   that no more users than that are ever decoded). ``K_now`` is the largest number of nodes
+   triggered in one slot that are pairwise at least 2 hops apart (a maximum independent set
+   in the 1-hop graph; exact, by ``networkx.max_weight_clique`` on the complement -- active
+   sets are small). *Triggered* (``count = "fresh"``, the default) is a node that turned on
+   in this slot or the ``fresh_slots - 1`` before it: a motion sensor stays on for seconds
+   after the person left it (and a real log loses OFFs), so counting every node *on*
+   (``count = "on"``, the paper's literal reading) makes one walker several users that never
+   leave -- a one-resident CASAS log decoded 5 users that way, 1 with fresh onsets. ``Sig_in``
    counts entry signatures ``outer -> inner`` (an onset at ``outer`` followed by activity at
    ``inner`` in the window) with no known user within 1 hop of ``outer``; ``Sig_out`` counts
    users whose decoded path ends ``inner -> outer`` with ``outer`` silent afterwards in the
@@ -119,6 +125,9 @@ class DecoderParams:
     sweeps: int = 3
     offline: bool = False
     resume: int = 10  # slots after an exit in which an entry at the same door continues that user
+    max_users: int = 0  # the most users decoded at once (a bound inside the decoder; 0 = none)
+    count: str = "fresh"  # K_now over nodes turned on in the last fresh_slots slots ("fresh") or every node on ("on")
+    fresh_slots: int = 2
     restarts: int = 6  # coordinate-ascent restarts (all user orders when K! <= restarts, else rotations); best joint likelihood wins
     compiled: bool = True  # the coordinate ascent as one numba kernel (kernels.coordinate_ascent); False = the numpy reference
 
@@ -322,6 +331,7 @@ def decode_run(
     adj = hops == 1
     mis_cache: dict = {}
     ons = onsets(active)
+    fresh = recent_onsets(ons, params.fresh_slots)
     users: list[_User] = []
     rows: list[np.ndarray] = []  # per user, full-length path
     alive: list[int] = []  # indices into users of present users
@@ -335,7 +345,8 @@ def decode_run(
         e = min(s + d_max, n_slots)
         acc = e if e == n_slots else min(s + tau, n_slots)
         obs = active[s:e]
-        k_now = max((max_independent(np.flatnonzero(row), adj, mis_cache) for row in obs), default=0)
+        counted = obs if params.count == "on" else fresh[s:e]
+        k_now = max((max_independent(np.flatnonzero(row), adj, mis_cache) for row in counted), default=0)
         last = {u: _last_nodes(rows[u], s) for u in alive}
         # entry signatures: onset at outer, then inner active later in the window, nobody near outer
         entries = []
@@ -351,6 +362,8 @@ def decode_run(
         entries = sorted({(t, o) for t, o in entries})  # one entry per onset, whatever the signature
         k_pre = len(alive)
         k = max(k_pre + len(entries), k_now)
+        if params.max_users > 0:  # the bound holds inside the decoder: never more users than it
+            k = min(k, max(params.max_users, k_pre))
         new = []
         for i in range(k - k_pre):
             t0, node = entries[i] if i < len(entries) else (0, -1)
@@ -397,6 +410,18 @@ def decode_run(
             progress(s, n_slots)
     paths = np.array(rows, dtype=np.int64).reshape(len(rows), n_slots)
     return DecodeResult(paths, windows)
+
+
+def recent_onsets(ons: np.ndarray, slots: int) -> np.ndarray:
+    """(D, N) bool: the node turned on in this slot or one of the ``slots - 1`` before it.
+
+    >>> recent_onsets(np.array([[1], [0], [0], [1]], bool), 2)[:, 0].tolist()
+    [True, True, False, True]
+    """
+    out = ons.copy()
+    for k in range(1, max(int(slots), 1)):
+        out[k:] |= ons[:-k]
+    return out
 
 
 def _last_nodes(row: np.ndarray, s: int) -> list[int]:

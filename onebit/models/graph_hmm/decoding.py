@@ -16,7 +16,7 @@ from onebit.core.site import Site
 from onebit.core.tables import MOTION, TRACKS, check_schema, conform
 from onebit.models.graph_hmm.adaptive import DecodeResult, DecoderParams, decode_run
 from onebit.models.graph_hmm.eatg import Eatg, hop_matrix, layout_eatg, trained_eatg
-from onebit.readers.motion import ABSENT_AFTER_S, motion_frames, silent_stretches
+from onebit.core.frames import ABSENT_AFTER_S, motion_frames, silent_stretches
 
 
 #: One row per HMM window: first slot, users K (and K now), entry/exit signatures, HMM order,
@@ -57,8 +57,14 @@ class HmmConfig:
     offline : decode the whole run as one window (the paper's offline baselines).
     absent_after : s; the empty room: no track row inside a stretch this long in which every
         sensor is off and nothing fires (nobody present); 0 = users stay where they were.
-    max_users : the most users reported at once (:func:`cap_users`); 0 = the site's
-        ``targets`` (the most people present at once), no cap when the site does not say.
+    max_users : the most users at once; 0 = the site's ``targets`` (the most people present at
+        once), no bound when the site does not say. It bounds the decoder itself (a window
+        never decodes more users, :func:`~onebit.models.graph_hmm.adaptive.decode_run`) and
+        the output (:func:`cap_users`, which then has nothing left to cut).
+    count : what ``K_now`` counts (:mod:`onebit.models.graph_hmm.adaptive`, item 1):
+        ``"fresh"`` -- nodes that turned on in the last ``fresh_slots`` slots -- or ``"on"``
+        -- every node on (the paper's literal reading; lingering sensors become users).
+    fresh_slots : slots an onset counts as fresh for ``K_now``.
     joint : re-decode every meeting of two users jointly (beyond the paper,
         :mod:`onebit.models.graph_hmm.joint`); ``"off"``, ``"before-cpda"`` (on the HMM's
         output, what CPDA then starts from) or ``"after-cpda"``. The baselines ``hmm1`` /
@@ -81,6 +87,8 @@ class HmmConfig:
     offline: bool = False
     absent_after: float = ABSENT_AFTER_S
     max_users: int = 0
+    count: str = "fresh"
+    fresh_slots: int = 2
     joint: str = "off"
     joint_pad: int = 4
 
@@ -100,6 +108,8 @@ class HmmConfig:
         check_choice(self, "offline", (False, True))
         check_range(self, "absent_after", 0.0, 1e12)
         check_range(self, "max_users", 0, 10_000, types=(int,))
+        check_choice(self, "count", ("fresh", "on"))
+        check_range(self, "fresh_slots", 1, 1000, types=(int,))
         check_choice(self, "joint", JOINT)
         check_range(self, "joint_pad", 0, 100, types=(int,))
 
@@ -203,11 +213,17 @@ def decode_motion(mode: str, inputs: dict, site: Site, cfg: HmmConfig, *, progre
     idx = eatg.index
     sigs = [(idx[a], idx[b]) for a, b in door_signatures(g) if a in idx and b in idx]
     params = DecoderParams(
-        mode=mode, d_max=cfg.d_max, tau=cfg.tau, p_hit=cfg.p_hit, p_false=cfg.p_false, sweeps=cfg.sweeps, restarts=cfg.restarts, offline=cfg.offline
-    )
+        mode=mode, d_max=cfg.d_max, tau=cfg.tau, p_hit=cfg.p_hit, p_false=cfg.p_false, sweeps=cfg.sweeps, restarts=cfg.restarts,
+        offline=cfg.offline, max_users=user_bound(site, cfg), count=cfg.count, fresh_slots=cfg.fresh_slots,
+    )  # fmt: skip
     res = decode_run(active, eatg, signatures=sigs, params=params, progress=progress)
     silent = silent_stretches([motion.filter(pl.col("sensor").is_in(list(nodes)))], min_s=cfg.absent_after)
     return DecodedRun(active, t0, eatg, res, sigs, silent)
+
+
+def user_bound(site: Site, cfg: HmmConfig) -> int:
+    """The most users decoded at once: ``max_users``, else the site's ``targets``, else 0 (none)."""
+    return int(cfg.max_users or (site.targets or 0))
 
 
 def windows_table(res: DecodeResult) -> pl.DataFrame:

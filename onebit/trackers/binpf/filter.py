@@ -100,8 +100,10 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.sparse import csr_matrix
-from scipy.sparse.csgraph import connected_components
+from onebit.core.lazy import lazy_module
+
+_sparse = lazy_module("scipy.sparse")  # loaded when a run filters, not when the CLI starts
+_csgraph = lazy_module("scipy.sparse.csgraph")
 
 _TINY = 1e-12
 
@@ -234,7 +236,7 @@ def birth_groups(z: np.ndarray, q: np.ndarray, sensors: np.ndarray, p: FilterPar
         return []
     pts = sensors[cand]
     adj = np.sqrt(((pts[:, None] - pts[None]) ** 2).sum(-1)) <= p.birth_link
-    k, lab = connected_components(csr_matrix(adj), directed=False)
+    k, lab = _csgraph.connected_components(_sparse.csr_matrix(adj), directed=False)
     return [cand[lab == g] for g in range(k)]
 
 

@@ -28,7 +28,9 @@ fewer than ``max_out`` tracks are reported there, so the bound still holds.
 from __future__ import annotations
 
 import numpy as np
-from scipy.optimize import linear_sum_assignment
+from onebit.core.lazy import lazy_module
+
+_optimize = lazy_module("scipy.optimize")  # loaded when a run links, not when the CLI starts
 
 
 def tracklet_ends(frame: np.ndarray, label: np.ndarray, x: np.ndarray, y: np.ndarray):
@@ -60,7 +62,7 @@ def best_joins(cost: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     if not finite.any():
         return np.zeros(0, np.int64), np.zeros(0, np.int64)
     big = cost[finite].sum() + 1.0
-    r, c = linear_sum_assignment(np.where(finite, cost, big))
+    r, c = _optimize.linear_sum_assignment(np.where(finite, cost, big))
     keep = finite[r, c]
     return r[keep], c[keep]
 

@@ -229,7 +229,7 @@ def pair_meeting(
 
     returned relative to the identity (``logp[0] = 0``; posteriors and decisions use only
     differences), so a meeting costs nothing in the run's length. Exact:
-    :func:`pair_meeting_reference` scores every joined path whole and is the test oracle. A switching slot at which a joined
+    :func:`onebit._testing.oracles.pair_meeting_reference` scores every joined path whole and is the test oracle. A switching slot at which a joined
     path would jump (consecutive nodes more than one hop apart, with ``hops``) is not allowed;
     a pairing with no allowed slot gets ``-inf``. Per pairing the best slot is kept (the
     latest among equals). Returns (pairings, the identity first; log P; switching slot).
@@ -246,24 +246,6 @@ def pair_meeting(
                 continue
             e = ends[b]
             score = base[b] + sum(_cross(e[u][0], e[u][1], e[p[u]][2], e[p[u]][3], log_a2) for u in range(m))
-            if score > logp[k] + 1e-9:
-                logp[k], slot[k] = score, b
-    return perms, logp, slot
-
-
-def pair_meeting_reference(
-    paths: np.ndarray, users: np.ndarray, s0: int, c: int, log_a2: np.ndarray, hops: np.ndarray | None
-) -> tuple[list[tuple[int, ...]], np.ndarray, np.ndarray]:
-    """:func:`pair_meeting` the plain way, the test oracle: every joined path scored whole
-    (``O(D)`` per pairing and slot), ``log P(sigma, b) = sum_u junction_score(path_u[:b] ++
-    path_sigma(u)[b:])`` in absolute terms (``logp[0]`` is the HMM pairing's own)."""
-    perms, logp, slot, rows = _pairings(paths, users, c)
-    logp[0] = sum(junction_score(r, log_a2) for r in rows)
-    for k, p in enumerate(perms[1:], start=1):  # m <= MAX_MEETING users, a few slots: tiny
-        for b in range(c + 1, s0, -1):
-            if _jumps(rows, p, b, hops):
-                continue
-            score = sum(junction_score(np.concatenate([rows[u][:b], rows[p[u]][b:]]), log_a2) for u in range(len(p)))
             if score > logp[k] + 1e-9:
                 logp[k], slot[k] = score, b
     return perms, logp, slot

@@ -30,7 +30,7 @@ from onebit.models.graph_hmm.decoding import (
     windows_table,
 )
 from onebit.models.graph_hmm.joint import joint_table, redecode_meetings
-from onebit.readers.motion import outside_silence
+from onebit.core.frames import outside_silence
 from onebit.trackers.attribution import attribute_events
 from onebit.trackers.base import ARTIFACTS, PROGRESS, TrackerSpec
 from onebit.trackers.findinghumo.cpda import cpda, decisions_table, switches_table

@@ -24,7 +24,7 @@ from onebit.core.site import Site
 from onebit.models.graph_hmm.joint import joint_table, redecode_meetings
 from onebit.models.graph_hmm.decoding import HmmConfig, available, cap_users, decode_motion, tracks_table, windows_table
 from onebit.models.graph_hmm.viterbi import log_safe
-from onebit.readers.motion import outside_silence
+from onebit.core.frames import outside_silence
 from onebit.trackers.attribution import attribute_events
 from onebit.trackers.base import ARTIFACTS, PROGRESS, TrackerSpec
 from onebit.trackers.findinghumo_flow.association import (

@@ -41,7 +41,7 @@ import polars as pl
 from onebit.core.site import Site
 from onebit.models.motion import Motion, Particles, Room, prior
 from onebit.models.pir import Deployment, deploy
-from onebit.readers.motion import outside_silence, silent_stretches
+from onebit.core.frames import outside_silence, silent_stretches
 from onebit.trackers.intruder.camera import pan_tilt_zoom
 from onebit.trackers.intruder.filter import filter_step
 from onebit.trackers.intruder.stage import NAME, IntruderConfig, observations, track_frame

@@ -1,8 +1,8 @@
 """Trackers ``intruder`` (the SIR particle filter) and ``intruder-naive`` (the room centre).
 
 Input: the ``motion`` table (accepted PIR edges). The tracker slots it at its own period
-``t_P`` (:func:`onebit.readers.motion.motion_frames`), takes S_i = ``fired`` and the
-refractory state B_i from :func:`onebit.readers.motion.refractory_state` with each sensor's
+``t_P`` (:func:`onebit.core.frames.motion_frames`), takes S_i = ``fired`` and the
+refractory state B_i from :func:`onebit.core.frames.refractory_state` with each sensor's
 ``refractory`` (f_i) from ``site.toml``, and estimates the intruder's cell at the end of every
 iteration (``t = start + (k + 1) t_P``). Lengths in the config are in **cells** (the paper's
 units) and converted to world units with ``cell``, the size of a cell: given in metres and
@@ -27,7 +27,7 @@ import polars as pl
 from onebit.core.site import Site
 from onebit.core.errors import ConfigError
 from onebit.core.units import length
-from onebit.readers.motion import ABSENT_AFTER_S, motion_frames, outside_silence, refractory_state, silent_stretches
+from onebit.core.frames import ABSENT_AFTER_S, motion_frames, outside_silence, refractory_state, silent_stretches
 from onebit.core.tables import TRACKS, check_schema, conform, MOTION
 from onebit.trackers.base import ARTIFACTS, PROGRESS, TrackerSpec
 from onebit.core.config import check_choice, check_range

@@ -43,7 +43,7 @@ from onebit.core.errors import ConfigError
 from onebit.core.sensing import body_radius, detection_regions
 from onebit.core.units import length
 from onebit.core.tables import CROSSINGS, MOTION, PROXIMITY, TRACKS, check_schema, conform
-from onebit.readers.motion import ABSENT_AFTER_S, outside_silence, silent_stretches
+from onebit.core.frames import ABSENT_AFTER_S, outside_silence, silent_stretches
 from onebit.trackers.base import ARTIFACTS, TrackerSpec
 from onebit.core.config import check_choice, check_range
 from onebit.trackers.istate.core import SHAPES, IState, PairMemo, disk, grow, info_state_update, shrink
@@ -93,6 +93,10 @@ class IStateConfig:
     absent_after : s; the empty room: no point summary (track row) inside a stretch this long
         in which every sensor is off and nothing happens; 0 = always one. The I-state itself
         is unchanged.
+    max_stages : the most stages (``span / period_s``) the pipeline runs the filter on; a
+        longer log skips the stage, saying so (the set-based filter costs ~0.3 ms per stage
+        and its recording ~1-10 ms more, whatever happens in the stage: a 10^6-row beams log
+        of 5 days is 460 000 stages). 0 = no bound.
     contradictions : what a reading that no joint state explains does (a spurious or late
         firing, a footprint larger than declared): ``reject`` (default) keeps the I-state and
         counts the reading (``summary.rejected``); ``empty`` is the paper's filter, whose
@@ -110,6 +114,7 @@ class IStateConfig:
     beam_width: float = length(0.0, unit="m")
     substeps: int = 1
     absent_after: float = ABSENT_AFTER_S
+    max_stages: int = 20_000
     contradictions: str = "reject"
 
     def __post_init__(self) -> None:
@@ -125,6 +130,7 @@ class IStateConfig:
         check_range(self, "beam_width", 0.0, None)
         check_range(self, "substeps", 1, 100, types=(int,))
         check_range(self, "absent_after", 0.0, 1e12)
+        check_range(self, "max_stages", 0, None, types=(int,))
 
 
 # --------------------------------------------------------------------------- sensing regions
@@ -182,6 +188,23 @@ def available(site: Site) -> str | None:
     if site.targets is None:
         return "site.toml does not give the number of targets ('targets'); the I-state is over W^n"
     return None
+
+
+def fits(inputs: dict, site: Site, config: IStateConfig) -> str | None:
+    """Reason to skip the filter on these inputs, or ``None``: the stages ``k T`` from the first
+    to the last reading (:func:`stage_times`) exceed ``config.max_stages`` (0 = no bound)."""
+    if not config.max_stages:
+        return None
+    ts = [inputs[k]["t"] for k in ("motion", "proximity", "crossings") if k in inputs and inputs[k].height]
+    if not ts:
+        return None
+    lo, hi = float(min(t.min() for t in ts)), float(max(t.max() for t in ts))
+    stages = int(np.ceil(hi / config.period_s - 1e-9)) - int(np.floor(lo / config.period_s + 1e-9)) + 1
+    if stages <= config.max_stages:
+        return None
+    return (f"the logs span {hi - lo:,.0f} s = {stages:,} stages of period_s = {config.period_s:g} s, more than "
+            f"max_stages = {config.max_stages:,} (the filter and its recording cost about 1-10 ms per stage); "
+            "set [istate] max_stages = 0 (no bound) or a longer period_s in --config to run it")  # fmt: skip
 
 
 # --------------------------------------------------------------------------- sampling
@@ -416,5 +439,6 @@ SPEC = TrackerSpec(
     config=IStateConfig,
     run=run,
     available=available,
+    fits=fits,
     help="O'Kane set-based I-state filter over binary sensors (union of products)",
 )

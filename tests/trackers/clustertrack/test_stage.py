@@ -21,7 +21,7 @@ from onebit.trackers.clustertrack.algorithm import (
     trajectory_distance,
     usage,
 )
-from onebit.trackers.clustertrack.direct import scan_clusters_direct
+from onebit._testing.oracles import scan_clusters_direct
 from onebit.trackers.clustertrack.feasible import SensorArray
 from onebit.trackers.clustertrack.space import FeasibleSpace
 from onebit.trackers.clustertrack.stage import ClusterTrackConfig, run

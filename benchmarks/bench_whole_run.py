@@ -1,0 +1,204 @@
+"""Whole runs as a user times them: cold ``onebit run`` processes on 10^4-10^6-row logs of each
+sensor kind and on a 24-hour home log, with the time of each stage, of the recordings and of
+start-up, beside their floors.
+
+Datasets (built once in a temporary folder, never in the repository):
+
+* **beams**: ``onebit simulate beams-lab`` (seed 7, 180 s, 2 agents), its ``beams.csv``
+  repeated end to end (each copy shifted past the last) to N rows; ``--trackers beams``
+  (the issue's run: crossings, correct, beams, scores);
+* **motion**: ``pir14`` (seed 7) ``motion.csv`` repeated to N rows; ``--trackers intruder``;
+* **proximity**: ``proximity-line`` (seed 7) ``proximity.csv`` repeated to N rows;
+  ``--trackers clustertrack``;
+* **home**: ``onebit simulate home`` (seed 1): 24 hours, 50 PIRs, 2 residents; every
+  tracker whose inputs exist (a default ``onebit run``).
+
+Each run is a fresh process (``python -m onebit.cli run DIR --out OUT ...``) timed from
+outside (wall); its ``run.toml`` ``[timing]`` gives each stage's work and recording seconds
+and the wall clock when the runner was entered, so **start-up** = entry - process start
+(imports, argument parsing). **viz** = the recordings: every stage's ``viz_s`` (open the
+``.rrd``, log the site, the stage's viz call, close) plus the blueprint. Floors beside each:
+the same run with ``--no-rrd`` (the recordings' cost is the difference), and ``pl.read_csv``
+of the same log in a fresh process (the read alone, after ``import polars``: the reader
+stages' floor). A run longer than ``--timeout`` s is killed and reported so (the
+``--no-rrd`` run goes first; when it is killed the recorded run is not tried, nor the larger
+logs of that kind).
+
+Rows go to ``benchmarks/results.csv`` (row ``whole run``) with the growth exponent over the
+sizes. ``python -m benchmarks.bench_whole_run [--sizes 1e4,1e5,1e6] [--kinds beams,motion,...]
+[--timeout 600] [--baseline CHECKOUT]`` (``--baseline``: each recorded run also with the
+onebit of an earlier commit's checkout, after one run to fill its kernels' cache, and ours
+again right after it: the before/after row); ``make bench`` runs it with the defaults. Run it under ``nice`` on a shared
+machine; it takes minutes.
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import shutil
+import subprocess
+import sys
+import tempfile
+import time
+import tomllib
+from pathlib import Path
+
+import polars as pl
+
+from benchmarks.results import Result, Table, growth
+
+SIZES = (10_000, 100_000, 1_000_000)
+KINDS = ("beams", "motion", "proximity", "home")
+TRACKERS = {"beams": "beams", "motion": "intruder", "proximity": "clustertrack", "home": None}
+LOG = {"beams": "beams.csv", "motion": "motion.csv", "proximity": "proximity.csv", "home": "motion.csv"}
+READER_STAGE = {"beams": "crossings", "motion": "motion", "proximity": "proximity", "home": "motion"}
+ROW = "whole run (cold onebit run)"
+
+
+def _simulate(scenario: str, out: Path, *args: str) -> Path:
+    subprocess.run([sys.executable, "-m", "onebit.cli", "simulate", scenario, str(out), *args], check=True,
+                   capture_output=True, text=True)  # fmt: skip
+    return out
+
+
+def tile_log(src: Path, dst: Path, log: str, rows: int) -> Path:
+    """``dst``: ``src``'s ``site.toml`` and its ``log`` repeated end to end to ``rows`` rows
+    (copy ``i`` shifted by ``i`` times the log's span rounded up to whole seconds, plus one)."""
+    dst.mkdir(parents=True, exist_ok=True)
+    shutil.copy(src / "site.toml", dst / "site.toml")
+    df = pl.read_csv(src / log)
+    period = float(int(df["t"].max()) + 2)
+    copies = -(-rows // df.height)
+    pl.concat([df.with_columns(pl.col("t") + i * period) for i in range(copies)]).head(rows).write_csv(dst / log)
+    return dst
+
+
+def datasets(root: Path, kinds, sizes) -> list[tuple[str, int, Path]]:
+    """``(kind, rows, folder)`` of every dataset of the benchmark, built under ``root``."""
+    out = []
+    base = {
+        "beams": lambda: _simulate("beams-lab", root / "src-beams", "--seed", "7", "--duration", "180", "--agents", "2", "--no-camera"),
+        "motion": lambda: _simulate("pir14", root / "src-motion", "--seed", "7", "--no-camera"),
+        "proximity": lambda: _simulate("proximity-line", root / "src-proximity", "--seed", "7", "--no-camera"),
+    }
+    for kind in kinds:
+        if kind == "home":
+            d = _simulate("home", root / "home-24h", "--seed", "1")
+            out.append((kind, pl.read_csv(d / "motion.csv").height, d))
+            continue
+        src = base[kind]()
+        for n in sizes:
+            out.append((kind, n, tile_log(src, root / f"{kind}-{n}", LOG[kind], n)))
+    return out
+
+
+def read_csv_cold(path: Path) -> float:
+    """Seconds of ``pl.read_csv(path)`` in a fresh process (after ``import polars``)."""
+    code = f"import time, polars as pl\nt = time.perf_counter(); pl.read_csv({str(path)!r})\nprint(time.perf_counter() - t)"
+    return float(subprocess.run([sys.executable, "-c", code], check=True, capture_output=True, text=True).stdout.strip())
+
+
+def cold_run(dataset: Path, out: Path, trackers: str | None, *, rrd: bool, timeout: float, code: Path | None = None) -> dict:
+    """One ``onebit run`` process: wall, start-up, per-stage work and viz seconds, or ``killed``;
+    ``code``: run the onebit of that checkout (``PYTHONPATH``) instead of this one."""
+    cmd = [sys.executable, "-m", "onebit.cli", "run", str(dataset), "--out", str(out)]
+    cmd += ["--trackers", trackers] if trackers else []
+    cmd += [] if rrd else ["--no-rrd"]
+    shutil.rmtree(out, ignore_errors=True)
+    spawned = time.time()
+    t0 = time.perf_counter()
+    try:
+        env = {**os.environ, "PYTHONPATH": str(code)} if code is not None else None
+        proc = subprocess.run(cmd, capture_output=True, text=True, timeout=timeout, env=env, cwd=code)  # -m imports from the cwd first
+    except subprocess.TimeoutExpired:
+        return {"killed": True, "wall": timeout, "cmd": cmd}
+    wall = time.perf_counter() - t0
+    if not (out / "run.toml").exists():
+        raise RuntimeError(f"{' '.join(cmd)} failed:\n{proc.stderr[-2000:]}")
+    record = tomllib.loads((out / "run.toml").read_text())
+    timing = record.get("timing", {})
+    stages = {k: v for k, v in timing.items() if isinstance(v, dict)}
+    viz = sum(v.get("viz_s", 0.0) for v in stages.values()) + timing.get("blueprint_s", 0.0)
+    return {
+        "killed": False, "wall": wall, "startup": timing.get("entered_unix", spawned) - spawned, "viz": viz,
+        "stages": stages, "status": record.get("stages", {}), "cmd": cmd,
+    }  # fmt: skip
+
+
+def _commit_of(checkout: Path) -> str:
+    try:
+        return subprocess.run(["git", "rev-parse", "--short", "HEAD"], cwd=checkout, capture_output=True, text=True, timeout=10).stdout.strip() or str(checkout)
+    except (OSError, subprocess.SubprocessError):
+        return str(checkout)
+
+
+def main(argv: list[str] | None = None) -> None:
+    ap = argparse.ArgumentParser(prog="python -m benchmarks.bench_whole_run")
+    ap.add_argument("--sizes", default=",".join(f"{s:g}" for s in SIZES), help="rows of the tiled logs (comma-separated)")
+    ap.add_argument("--kinds", default=",".join(KINDS))
+    ap.add_argument("--timeout", type=float, default=600.0, help="s; a run taking longer is killed and reported so")
+    ap.add_argument("--baseline", type=Path, default=None, metavar="CHECKOUT",
+                    help="also run each recorded run with the onebit of this checkout (an earlier commit): the before/after rows")
+    args = ap.parse_args(argv)
+    sizes = tuple(int(float(s)) for s in args.sizes.split(","))
+    kinds = tuple(k.strip() for k in args.kinds.split(","))
+    print(f"load average {os.getloadavg()}", flush=True)
+    table = Table()
+    with tempfile.TemporaryDirectory(prefix="onebit-whole-run-") as tmp:
+        root = Path(tmp)
+        runs: dict[str, list] = {}
+        killed: set[str] = set()
+        for kind, n, data in datasets(root, kinds, sizes):
+            if kind in killed:  # a smaller log of this kind already ran past the timeout
+                print(f"  {kind} {n} rows: not run (a smaller log was killed at the timeout)", flush=True)
+                continue
+            trackers = TRACKERS[kind]
+            what = f"{kind} --trackers {trackers}" if trackers else f"{kind} (24 h, 50 PIRs, 2 residents), every tracker"
+            off = cold_run(data, root / "out-norrd", trackers, rrd=False, timeout=args.timeout)
+            on = off if off["killed"] else cold_run(data, root / "out", trackers, rrd=True, timeout=args.timeout)
+            floor = read_csv_cold(data / LOG[kind])
+            if args.baseline is not None and not on["killed"]:
+                warm = cold_run(data, root / "out-base", trackers, rrd=True, timeout=args.timeout, code=args.baseline)  # its kernels' cache
+                base = warm if warm["killed"] else cold_run(data, root / "out-base", trackers, rrd=True, timeout=args.timeout, code=args.baseline)
+                again = cold_run(data, root / "out", trackers, rrd=True, timeout=args.timeout)  # right after, in the same conditions
+                ours = min(on["wall"], again["wall"])
+                print(f"  {kind} {n} rows: baseline {base['wall']:.1f} s{' (killed)' if base['killed'] else ''}, ours {ours:.1f} s", flush=True)
+                table.add(Result(ROW, f"{what}, {n:.0e} rows: wall, this commit vs {_commit_of(args.baseline)}", n, "s wall", ours,
+                                 base["wall"], f"the same run at {_commit_of(args.baseline)}" + (" (killed)" if base["killed"] else "")))  # fmt: skip
+            runs.setdefault(kind, []).append((n, what, on, off, floor))
+            if on["killed"]:
+                killed.add(kind)
+            print(f"  {kind} {n} rows: wall {on['wall']:.1f} s{' (killed)' if on['killed'] else ''}, --no-rrd "
+                  f"{off['wall']:.1f} s, read_csv {floor:.3f} s", flush=True)  # fmt: skip
+        for kind, items in runs.items():
+            ns = [n for n, *_ in items]
+            walls = [on["wall"] for _, _, on, _, _ in items if not on["killed"]]
+            g_wall = growth([n for n, _, on, _, _ in items if not on["killed"]], walls)
+            for n, what, on, off, floor in items:
+                killed = " (killed at the timeout)" if on["killed"] else ""
+                goal = "< 10 s at 1e6 rows" if kind == "beams" else ""
+                met = (on["wall"] < 10.0 and not on["killed"]) if kind == "beams" and n >= 1_000_000 else None
+                table.add(Result(ROW, f"{what}, {n:.0e} rows: wall{killed}", n, "s wall", on["wall"], off["wall"],
+                                 "the same run --no-rrd", g_wall, goal, met))  # fmt: skip
+                if on["killed"]:
+                    continue
+                table.add(Result(ROW, f"{what}, {n:.0e} rows: start-up", n, "s wall", on["startup"], on["wall"],
+                                 "the whole run", None, "imports and checks before the first stage"))  # fmt: skip
+                share = on["viz"] / on["wall"] if on["wall"] else None
+                table.add(Result(ROW, f"{what}, {n:.0e} rows: viz (recordings)", n, "s wall", on["viz"], on["wall"],
+                                 "the whole run", growth(ns, [r[2].get("viz", 0) for r in items if not r[2]["killed"]]),
+                                 "<= 20 % of the run", share is not None and share <= 0.20))  # fmt: skip
+                for stage, t in on["stages"].items():
+                    reader = stage == READER_STAGE[kind]
+                    table.add(Result(
+                        ROW, f"{what}, {n:.0e} rows: stage {stage}", n, "s wall", t["work_s"],
+                        floor if reader else None, "pl.read_csv of the log (fresh process)" if reader else "",
+                        growth(ns, [r[2]["stages"].get(stage, {}).get("work_s", 0) for r in items if not r[2]["killed"]]),
+                        "<= 2x pl.read_csv (cold)" if reader else "", (t["work_s"] <= 2 * floor) if reader else None,
+                    ))  # fmt: skip
+    table.write()
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,66 @@
+"""``onebit experiment residents DIR`` on a folder of two small written sessions (issue 22 item 5)."""
+
+from __future__ import annotations
+
+import numpy as np
+import polars as pl
+
+from onebit.cli import main
+
+
+def _session(path, seed: int) -> None:
+    """Two residents walking back and forth at opposite ends of a 6-sensor line, annotated."""
+    rng = np.random.default_rng(seed)
+    lines, t = [], 0.0
+    pos = {1: 0, 2: 5}
+    for _ in range(120):
+        r = int(rng.integers(1, 3))
+        pos[r] = int(np.clip(pos[r] + rng.choice([-1, 1]), 0, 2) if r == 1 else np.clip(pos[r] + rng.choice([-1, 1]), 3, 5))
+        s = f"M{pos[r] + 1:02d}"
+        t += float(rng.uniform(1.0, 3.0))
+        for dt, v in ((0.0, "ON"), (0.8, "OFF")):
+            sec = t + dt
+            lines.append(f"2008-11-10\t14:{int(sec // 60):02d}:{sec % 60:09.6f}\t{s}\t{v} {r} 1")
+    lines.sort(key=lambda x: x.split("\t")[1])
+    path.write_text("\n".join(lines) + "\n")
+
+
+def test_the_study_table(tmp_path):
+    dev = tmp_path / "dev"
+    dev.mkdir()
+    _session(dev / "P01.txt", 0)
+    _session(dev / "P02.txt", 1)
+    (dev / "README").write_text("not a session")
+    res = tmp_path / "res"
+    lay = tmp_path / "line.toml"  # the true line of sensors (a learned graph links what the two fire in turn)
+    lay.write_text("[sensors]\n" + "".join(f"M{k:02d} = [{2.0 * k}, 0.0]\n" for k in range(1, 7))
+                   + "[graph]\nedges = [" + ", ".join(f'["M{k:02d}", "M{k + 1:02d}"]' for k in range(1, 6)) + "]\n")
+    assert main(["experiment", "residents", str(dev), "--results", str(res), "--trackers", "hmm1", "--layout", str(lay)]) == 0
+    df = pl.read_csv(res / "results.csv")
+    assert df["session"].to_list() == ["P01"] * 3 + ["P02"] * 3 + ["mean"] * 3
+    assert set(df["method"]) == {"hmm1", "baseline-busier", "baseline-nearest"}
+    ok = df.filter(pl.col("session") != "mean")
+    assert ok["accuracy"].is_between(0, 1).all() and (ok["events"] == 120).all()
+    mean = df.filter((pl.col("session") == "mean") & (pl.col("method") == "baseline-busier"))["accuracy"][0]
+    assert abs(mean - ok.filter(pl.col("method") == "baseline-busier")["accuracy"].mean()) < 1e-9
+    # the nearest-previous-event baseline separates two people who never meet
+    assert ok.filter(pl.col("method") == "baseline-nearest")["accuracy"].min() > 0.8  # they meet only at M03-M04
+    assert (res / "runs" / "P01" / "tables" / "hmm1_events.parquet").exists()
+
+
+def test_a_config_reaches_every_session_and_a_bad_one_is_refused(tmp_path):
+    dev = tmp_path / "dev"
+    dev.mkdir()
+    _session(dev / "P01.txt", 0)
+    lay = tmp_path / "line.toml"
+    lay.write_text("[sensors]\n" + "".join(f"M{k:02d} = [{2.0 * k}, 0.0]\n" for k in range(1, 7)))
+    cfg = tmp_path / "run.toml"
+    cfg.write_text("[residents]\nhabits = true\nmeet = 3.0\n")
+    res = tmp_path / "res"
+    assert main(["experiment", "residents", str(dev), "--results", str(res), "--trackers", "residents", "--layout", str(lay), "--targets", "2",
+                 "--config", str(cfg)]) == 0  # fmt: skip
+    rec = (res / "runs" / "P01" / "run.toml").read_text()
+    assert "habits = true" in rec and "meet = 3.0" in rec
+    cfg.write_text("[residents]\nhabit_alpha = 0.0\n")
+    assert main(["experiment", "residents", str(dev), "--results", str(tmp_path / "bad"), "--trackers", "residents", "--layout", str(lay),
+                 "--config", str(cfg)]) != 0  # fmt: skip

@@ -1,0 +1,245 @@
+"""``onebit follow``: a replayed demo scenario ends with the batch run's tables for the online
+trackers and reports the delay; a growing log is followed (a cut last line is waited for, not
+rejected); a crash leaves every published table readable. The clock is simulated (replays
+are deterministic; no test asserts on time)."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import polars as pl
+import pytest
+
+from onebit.core.errors import ConfigError, InputError
+from onebit.datasets.catalogue import get_scenario
+from onebit.pipeline.follow import FollowConfig, follow, parse_speed, read_live_table
+from onebit.pipeline.report import metric
+from onebit.pipeline.runner import run_pipeline
+from onebit.viz.inspect import blueprint_views, entity_paths
+
+
+class SimClock:
+    """A simulated wall clock: ``sleep`` advances it, ``on_sleep`` may grow the logs."""
+
+    def __init__(self, on_sleep=None, *, crash_after: int | None = None):
+        self.now = 1000.0
+        self.sleeps = 0
+        self.on_sleep = on_sleep
+        self.crash_after = crash_after
+
+    def clock(self) -> float:
+        return self.now
+
+    def sleep(self, dt: float) -> None:
+        self.sleeps += 1
+        if self.crash_after is not None and self.sleeps > self.crash_after:
+            raise KeyboardInterrupt("simulated crash")
+        self.now += dt
+        if self.on_sleep is not None:
+            self.on_sleep(self.sleeps)
+
+
+@pytest.fixture(scope="module")
+def pir(tmp_path_factory):
+    root = tmp_path_factory.mktemp("pir")
+    data = get_scenario("pir14").write(root / "d", seed=5, duration=60.0, agents=None, drop=0.0, camera=False, params={"refractory": 4})
+    return root, data
+
+
+def _equal(live: pl.DataFrame, batch: pl.DataFrame) -> bool:
+    return live.select(batch.columns).sort(["track", "t"], maintain_order=True).equals(batch.sort(["track", "t"], maintain_order=True))
+
+
+def test_replay_equals_batch_and_reports_delay(pir, tmp_path):
+    _, data = pir
+    clock = SimClock()
+    out = tmp_path / "out"
+    config = {"intruder": {"camera_position": [5.0, 2.0, 3.0]}}  # the paper's pan-tilt-zoom camera
+    res = follow(data, out, trackers=("intruder", "intruder-naive"), config=config, options=FollowConfig(replay=20.0, poll=0.2),
+                 clock=clock.clock, sleep=clock.sleep)  # fmt: skip
+    assert res.run.ok, res.run.status
+    # an independent batch run of the same dataset: the online rows equal its tables
+    batch = run_pipeline(data, tmp_path / "batch", trackers=("intruder", "intruder-naive"), config=config, progress=False)
+    cam = read_live_table(res.live, "intruder_camera")
+    assert cam.height > 10 and cam.equals(pl.read_parquet(batch.out / "tables" / "intruder_camera.parquet"))
+    for name in ("intruder", "intruder-naive"):
+        live = read_live_table(res.live, f"{name}_tracks")
+        ref = pl.read_parquet(batch.out / "tables" / f"{name}_tracks.parquet")
+        assert ref.height > 10
+        assert _equal(live, ref), name
+        assert metric(res.report, f"{name}/online_equals_batch") == 1.0
+        assert metric(res.report, f"{name}/online_estimates") == ref.height
+        p50, p99 = metric(res.report, f"{name}/delay_p50"), metric(res.report, f"{name}/delay_p99")
+        assert 0.0 <= p50 <= p99 and math.isfinite(p99)
+    # published while the log grew: many parts, in time order, not one batch at the end
+    parts = sorted((res.live / "tables" / "intruder_tracks").glob("part-*.parquet"))
+    assert len(parts) >= 5
+    firsts = [pl.read_parquet(p)["t"].min() for p in parts]
+    assert firsts == sorted(firsts)
+    it = read_live_table(res.live, "intruder_iterations")
+    assert it.equals(pl.read_parquet(batch.out / "tables" / "intruder_iterations.parquet").select(it.columns)) or np.allclose(
+        it["ess"].to_numpy(), pl.read_parquet(batch.out / "tables" / "intruder_iterations.parquet")["ess"].to_numpy()
+    )
+    delays = read_live_table(res.live, "delays")
+    assert delays.height == sum(metric(res.report, f"{n}/online_estimates") for n in ("intruder", "intruder-naive"))
+    # the stream: the batch recordings' entity paths, the delays, its own layout
+    rrd = res.live / "rrd" / "follow.rrd"
+    paths = entity_paths(rrd)
+    assert {"intruder/tracks/intruder", "intruder-naive/tracks/intruder-naive", "follow/delay/intruder", "site/boundary"} <= paths
+    assert any(p.startswith("sensors/") for p in paths)
+    assert {v.kind for v in blueprint_views(rrd)} == {"2D", "StateTimeline", "TimeSeries"}
+    # the follow's own final run is the batch run: same report rows as onebit run's
+    a = res.run.report.filter(pl.col("stage").is_in(["intruder", "intruder-naive"]))
+    b = batch.report.filter(pl.col("stage").is_in(["intruder", "intruder-naive"]))
+    assert a.equals(b)
+
+
+def test_beams_replay_equals_batch(tmp_path):
+    data = get_scenario("beams-lab").write(tmp_path / "d", seed=3, duration=60.0, agents=2, drop=0.0, camera=False, params={})
+    clock = SimClock()
+    res = follow(data, tmp_path / "out", trackers=("beams",), options=FollowConfig(replay=10.0, poll=0.25), clock=clock.clock, sleep=clock.sleep)
+    live = read_live_table(res.live, "beams_tracks")
+    ref = pl.read_parquet(tmp_path / "out" / "tables" / "beams_tracks.parquet")
+    assert ref.height > 5 and _equal(live, ref)
+    assert metric(res.report, "beams/online_equals_batch") == 1.0
+    assert len(list((res.live / "tables" / "beams_tracks").glob("part-*.parquet"))) >= 3
+
+
+def test_istate_replay_equals_batch_with_a_fixed_latency(tmp_path):
+    """O'Kane's filter is online by design; its default raises latency_s to the whole log's time
+    resolution, which a prefix cannot know: with latency_auto = false the rows are equal."""
+    data = get_scenario("istate-room").write(tmp_path / "d", seed=2, duration=30.0, agents=None, drop=0.0, camera=False, params={})
+    clock = SimClock()
+    res = follow(data, tmp_path / "out", trackers=("istate",), config={"istate": {"latency_auto": False}},
+                 options=FollowConfig(replay=10.0, poll=0.5), clock=clock.clock, sleep=clock.sleep)  # fmt: skip
+    ref = pl.read_parquet(tmp_path / "out" / "tables" / "istate_tracks.parquet")
+    assert ref.height > 10 and _equal(read_live_table(res.live, "istate_tracks"), ref)
+    assert metric(res.report, "istate/online_equals_batch") == 1.0
+
+
+def test_growing_log_waits_for_a_cut_line_and_ends_when_idle(pir, tmp_path):
+    _, src = pir
+    d = tmp_path / "live"
+    d.mkdir()
+    (d / "site.toml").write_bytes((src / "site.toml").read_bytes())
+    text = (src / "motion.csv").read_bytes()
+    header, body = text.split(b"\n", 1)
+    # a logger writing a little out of order: where two lines < 0.9 s apart straddle a slot
+    # boundary (2 s), the later one comes first (the reader sorts rows up to 1 s late into place)
+    lines = body.splitlines(keepends=True)
+    t = [float(ln.split(b",")[0]) for ln in lines]
+    swapped = 0
+    for i in range(len(lines) - 1):
+        if t[i] < t[i + 1] < t[i] + 0.9 and int(t[i] // 2) != int(t[i + 1] // 2) and (i == 0 or t[i - 1] <= t[i]):
+            lines[i], lines[i + 1], t[i], t[i + 1] = lines[i + 1], lines[i], t[i + 1], t[i]
+            swapped += 1
+    assert swapped >= 3
+    # grow the log line by line, each line in two halves (the follower must wait for the newline)
+    pieces = [half for ln in lines for half in (ln[: len(ln) // 2], ln[len(ln) // 2 :])]
+    (d / "motion.csv").write_bytes(header + b"\n" + pieces[0])
+    # the ground truth is all there from the start: it must not make the motion log's slots final
+    (d / "truth.csv").write_bytes((src / "truth.csv").read_bytes())
+
+    def grow(k: int) -> None:
+        if k < len(pieces):
+            with open(d / "motion.csv", "ab") as fh:
+                fh.write(pieces[k])
+
+    clock = SimClock(grow)
+    # relay chatter: an off edge followed within 1.5 s by an on edge is suppressed, so an edge is
+    # final only 1.5 s (+ 1 s of reordering) after it -- the follow must wait that long
+    config = {"motion": {"chatter_window": 1.5}}
+    res = follow(d, tmp_path / "out", trackers=("intruder",), config=config, options=FollowConfig(poll=0.1, idle=2.0), clock=clock.clock, sleep=clock.sleep)
+    assert clock.sleeps >= len(pieces)  # it ran until the log stopped growing, then idle
+    assert metric(res.run.report, "rejects/rows") == 0.0  # no cut line was ever read as a row
+    assert metric(res.run.report, "motion/suppressed") > 0
+    whole = tmp_path / "whole"  # the same log, complete, in one batch run
+    whole.mkdir()
+    for name in ("site.toml", "motion.csv", "truth.csv"):
+        (whole / name).write_bytes((d / name).read_bytes())
+    ref = run_pipeline(whole, tmp_path / "batch", trackers=("intruder",), config=config, progress=False)
+    assert _equal(read_live_table(res.live, "intruder_tracks"), pl.read_parquet(ref.out / "tables" / "intruder_tracks.parquet"))
+    assert metric(res.report, "intruder/online_equals_batch") == 1.0
+
+
+def test_a_crash_leaves_every_published_table_readable(pir, tmp_path):
+    _, data = pir
+    clock = SimClock(crash_after=8)
+    with pytest.raises(KeyboardInterrupt):
+        follow(data, tmp_path / "out", trackers=("intruder",), options=FollowConfig(replay=10.0, poll=0.5), clock=clock.clock, sleep=clock.sleep)
+    live = tmp_path / "out" / "live"
+    tracks = read_live_table(live, "intruder_tracks")
+    assert tracks is not None and 0 < tracks.height
+    assert not list(live.rglob("*.partial")) and not list(live.rglob("*.tmp*"))
+    assert read_live_table(live, "delays").height == tracks.height
+    # a later follow into the same OUT replaces the live folder and runs
+    clock = SimClock()
+    res = follow(data, tmp_path / "out", trackers=("intruder",), options=FollowConfig(replay=50.0, poll=0.5), clock=clock.clock, sleep=clock.sleep)
+    assert metric(res.report, "intruder/online_equals_batch") == 1.0
+    # a plain run into the same OUT replaces the run's files and keeps the live folder
+    before = read_live_table(live, "intruder_tracks")
+    assert run_pipeline(data, tmp_path / "out", trackers=("intruder-naive",), progress=False).ok
+    assert read_live_table(live, "intruder_tracks").equals(before)
+    assert not (tmp_path / "out" / "tables" / "intruder_tracks.parquet").exists()
+
+
+def _mcap_dataset(src, d, monkeypatch) -> bytes:
+    """``d`` with ``src``'s site and its motion log as a chunked MCAP of small chunks (a logger's
+    file); returns the file's bytes."""
+    from onebit.readers import mcap_io
+
+    d.mkdir()
+    (d / "site.toml").write_bytes((src / "site.toml").read_bytes())
+    monkeypatch.setattr(mcap_io, "CHUNK_SIZE", 2048)
+    motion = pl.read_csv(src / "motion.csv", infer_schema=False)
+    mcap_io.write_mcap(d / "recording.mcap", {"/motion": motion}, views=False)
+    return (d / "recording.mcap").read_bytes()
+
+
+def test_mcap_replay_and_growing_mcap_equal_batch(pir, tmp_path, monkeypatch):
+    _, src = pir
+    ref = run_pipeline(src, tmp_path / "batch", trackers=("intruder",), progress=False)
+    want = pl.read_parquet(ref.out / "tables" / "intruder_tracks.parquet")
+    # a replay of the recording
+    d = tmp_path / "rec"
+    data = _mcap_dataset(src, d, monkeypatch)
+    clock = SimClock()
+    res = follow(d, tmp_path / "out", trackers=("intruder",), options=FollowConfig(replay=20.0, poll=0.2), clock=clock.clock, sleep=clock.sleep)
+    assert len(list((res.live / "tables" / "intruder_tracks").glob("part-*.parquet"))) >= 5
+    assert _equal(read_live_table(res.live, "intruder_tracks"), want)
+    # the same file being written: its bytes appear in pieces that cut chunks in the middle
+    g = tmp_path / "growing"
+    g.mkdir()
+    (g / "site.toml").write_bytes((src / "site.toml").read_bytes())
+    step = max(1, len(data) // 25)
+    (g / "recording.mcap").write_bytes(data[:step])
+
+    def grow(k: int) -> None:
+        (g / "recording.mcap").write_bytes(data[: (k + 1) * step])
+
+    clock = SimClock(grow)
+    res = follow(g, tmp_path / "out2", trackers=("intruder",), options=FollowConfig(poll=0.1, idle=1.0), clock=clock.clock, sleep=clock.sleep)
+    assert len(list((res.live / "tables" / "intruder_tracks").glob("part-*.parquet"))) >= 5
+    assert _equal(read_live_table(res.live, "intruder_tracks"), want)
+    assert metric(res.run.report, "rejects/rows") == 0.0
+
+
+def test_options_are_checked():
+    assert parse_speed("20x") == 20.0 and parse_speed("0.5X") == 0.5 and parse_speed("3") == 3.0
+    for bad in ("fast", "0x", "-2x", ""):
+        with pytest.raises(ConfigError, match="--replay"):
+            parse_speed(bad)
+    with pytest.raises(ConfigError, match="poll"):
+        FollowConfig(poll=0)
+    with pytest.raises(ConfigError, match="replay"):
+        FollowConfig(replay=-1.0)
+
+
+def test_nothing_to_follow_is_an_error(tmp_path, pir):
+    _, src = pir
+    d = tmp_path / "d"
+    d.mkdir()
+    (d / "site.toml").write_bytes((src / "site.toml").read_bytes())
+    with pytest.raises(InputError, match="no log to follow"):
+        follow(d, tmp_path / "out")

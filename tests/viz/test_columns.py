@@ -1,0 +1,95 @@
+"""The Arrow columns the loggers build from flat arrays equal Rerun's own per-item conversion,
+and what they log reads back from the .rrd as the rows of the frame (no object per row)."""
+
+from __future__ import annotations
+
+import numpy as np
+import polars as pl
+import pyarrow as pa
+import rerun as rr
+from hypothesis import given, settings
+from hypothesis import strategies as st
+from rerun.chunk import RrdReader
+
+from onebit.viz import paths
+from onebit.viz._series import gather_ranges, region_outlines, repeat_text, ring_table, rings, strips_array, text_array
+from onebit.viz.events import log_crossings
+from onebit.viz.recording import stage_recording
+from onebit.viz.tracks import log_current_region, region_indices
+
+
+@settings(max_examples=60, deadline=None)
+@given(st.lists(st.integers(0, 5), max_size=12), st.integers(0, 2**31))
+def test_strips_array_equals_rerun_per_strip_conversion(lengths, seed):
+    rng = np.random.default_rng(seed)
+    points = rng.normal(size=(sum(lengths), 2)) * 100
+    strips = np.split(points, np.cumsum(lengths)[:-1]) if lengths else []
+    ours = strips_array(points, lengths)
+    assert ours.equals(rr.components.LineStrip2DBatch(strips).as_arrow_array())
+    assert rr.LineStrips2D.columns(strips=ours).partition(np.ones(len(lengths), np.int64)) is not None
+
+
+@settings(max_examples=60, deadline=None)
+@given(st.lists(st.text(max_size=6), max_size=10), st.text(max_size=5), st.integers(0, 20))
+def test_text_arrays_equal_rerun_string_conversion(values, word, n):
+    assert text_array(pl.Series(values, dtype=pl.String)).equals(rr.components.TextBatch(values).as_arrow_array())
+    assert text_array(values).equals(rr.components.TextBatch(values).as_arrow_array())
+    assert repeat_text(word, n).equals(pa.array([word] * n, type=pa.utf8()))
+
+
+@given(st.lists(st.tuples(st.integers(0, 50), st.integers(0, 4)), max_size=10))
+def test_gather_ranges_is_concatenated_aranges(pairs):
+    starts = np.array([a for a, _ in pairs], np.int64)
+    lengths = np.array([b for _, b in pairs], np.int64)
+    want = np.concatenate([np.arange(a, a + b) for a, b in pairs]) if pairs else np.zeros(0)
+    assert gather_ranges(starts, lengths).tolist() == want.tolist()
+
+
+def _rows(rrd, entity: str, column: str) -> list[tuple[float, object]]:
+    """(t seconds, value) of ``column`` on ``entity`` over the file's chunks, sorted by t."""
+    out = []
+    for chunk in RrdReader(str(rrd)).stream():
+        if chunk.entity_path.lstrip("/") != entity or chunk.is_static:
+            continue
+        rb = chunk.to_record_batch()
+        if column not in rb.schema.names:
+            continue
+        t = rb.column("t").cast(pa.int64()).to_pylist()
+        out += [(ns / 1e9, v) for ns, v in zip(t, rb.column(column).to_pylist())]
+    return sorted(out, key=lambda r: r[0])
+
+
+def test_current_region_rows_hold_the_rings_of_the_region_entered(tmp_path, lab):
+    site, rg = lab
+    regions = np.array([rg.names[i % len(rg.names)] for i in (0, 2, 1, 4, 0)])
+    t = np.array([1.0, 2.5, 4.0, 7.0, 9.5])
+    with stage_recording(tmp_path, "beams", "run-1") as rec:
+        log_current_region(rec, "beams/tracks/a/region", t, regions, rg, color=(255, 0, 0, 255))
+    rows = _rows(tmp_path / "rrd" / "beams.rrd", "beams/tracks/a/region", "LineStrips2D:strips")
+    assert [r[0] for r in rows] == t.tolist()
+    table = ring_table(rg.polygons)
+    for (_, strips), name in zip(rows, regions):
+        want = rings(rg.polygons[rg.index[name]])
+        assert len(strips) == len(want)
+        for got, ring in zip(strips, want):
+            assert np.allclose(np.array(got), ring.astype(np.float32))
+    pts, lengths, per_row = region_outlines(table, region_indices(rg, regions))
+    assert per_row.sum() == len(lengths) and lengths.sum() == len(pts)
+
+
+def test_crossings_log_one_text_row_and_one_flash_per_crossing(tmp_path, lab):
+    site, _ = lab
+    beam = site.beam_ids[0]
+    cr = pl.DataFrame({"t": [0.5, 1.5, 3.0], "beam": [beam] * 3, "direction": [1, -1, 1]}, schema={"t": pl.Float64, "beam": pl.String, "direction": pl.Int8})
+    with stage_recording(tmp_path, "crossings", "run-1") as rec:
+        log_crossings(rec, cr, site=site)
+    rrd = tmp_path / "rrd" / "crossings.rrd"
+    texts = _rows(rrd, paths.sensor(beam), "TextLog:text")
+    assert texts == [(0.5, [f"{beam} forward"]), (1.5, [f"{beam}^-1 backward"]), (3.0, [f"{beam} forward"])]
+    levels = _rows(rrd, paths.sensor(beam), "TextLog:level")
+    assert [v for _, v in levels] == [["INFO"]] * 3
+    flashes = _rows(rrd, paths.sensor_crossed(beam), "LineStrips2D:strips")
+    b = site.beam(beam)
+    assert [r[0] for r in flashes] == [0.5, 1.5, 3.0]
+    for _, strips in flashes:
+        assert np.allclose(np.array(strips[0]), np.array([b.p0, b.p1], np.float32))
