@@ -38,8 +38,10 @@ $(RAY_STAMP): $(STAMP)
 	$(BIN)/python -m pip install --quiet -e '.[test,ray]'
 	touch $(RAY_STAMP)
 
-# test: the layers contract (import-linter, pyproject.toml) and the test suite.
+# test: lint and format (ruff), the layers contract (import-linter, pyproject.toml) and the test suite.
 test: install $(RAY_STAMP)
+	$(BIN)/ruff check .
+	$(BIN)/ruff format --check .
 	$(BIN)/lint-imports --no-cache
 	RERUN_ANALYTICS=0 $(BIN)/python -m pytest
 

@@ -23,7 +23,10 @@ BENCHMARKS = (
     ("bench_findinghumo", "FindingHuMo Viterbi vs hmmlearn, decoder time per slot, 2nd-order memory"),
     ("bench_istate", "O'Kane I-state filter step, matching vs direct communication update"),
     ("bench_runmany", "run-many over 16 datasets and the O'Kane study: serial vs local pool vs Ray"),
-    ("bench_whole_run", "cold onebit run on 1e4-1e6-row beams/motion/proximity logs and a 24-h home log: stages, viz, start-up vs --no-rrd and pl.read_csv"),
+    (
+        "bench_whole_run",
+        "cold onebit run on 1e4-1e6-row beams/motion/proximity logs and a 24-h home log: stages, viz, start-up vs --no-rrd and pl.read_csv",
+    ),
 )
 OPTIONAL = {"bench_camera"}
 
@@ -49,7 +52,9 @@ def main() -> int:
             traceback.print_exc()
             failed.append(name)
         print(f"({name}: {time.perf_counter() - t0:.1f} s)", flush=True)
-    print(f"\nall benchmarks: {time.perf_counter() - t_all:.1f} s" + (f"; FAILED: {', '.join(failed)}" if failed else ""))
+    print(
+        f"\nall benchmarks: {time.perf_counter() - t_all:.1f} s" + (f"; FAILED: {', '.join(failed)}" if failed else "")
+    )
     return 1 if failed else 0
 
 

@@ -30,7 +30,6 @@ Run with ``python -m benchmarks.bench_assignment``.
 
 from __future__ import annotations
 
-
 import numpy as np
 import polars as pl
 
@@ -84,7 +83,6 @@ def peer_assign(labels: list[str], ends: dict[str, tuple[str, str]], policy: str
         agents.append(agent)
         queues.setdefault(tgt, []).append(agent)
     return agents, n
-
 
 
 def main() -> None:
@@ -156,12 +154,18 @@ def variations(rg: RegionGraph) -> None:
         times = np.arange(m, dtype=np.float64)  # one crossing per second: every tau = 0.5 s is met
         t_base, base = _best_of(lambda: assign_agents(src, tgt, n_regions, policy="fifo"), 3)
         cons = all_variations(src, tgt, n_regions, base.initial_region)
-        t_all, res = _best_of(lambda: assign_agents(src, tgt, n_regions, policy="fifo", constraints=cons, times=times), 3)
+        t_all, res = _best_of(
+            lambda: assign_agents(src, tgt, n_regions, policy="fifo", constraints=cons, times=times), 3
+        )
         assert len(res.unexplained) == 0 and res.n_agents == base.n_agents, "non-binding constraints must explain all"
         growth = f"{t_all / prev:.1f}" if prev else "-"
         prev = t_all
-        print(f"{m:>9} {t_base:>8.3f} {t_all:>8.3f} {t_all / t_base:>8.2f} {growth:>7} {res.n_agents:>6} {len(res.unexplained):>7}")
-    print("A-E/base: cost of the variations over the base algorithm; growth: A-E time over the previous m (10 = linear).")
+        print(
+            f"{m:>9} {t_base:>8.3f} {t_all:>8.3f} {t_all / t_base:>8.2f} {growth:>7} {res.n_agents:>6} {len(res.unexplained):>7}"
+        )
+    print(
+        "A-E/base: cost of the variations over the base algorithm; growth: A-E time over the previous m (10 = linear)."
+    )
 
 
 if __name__ == "__main__":

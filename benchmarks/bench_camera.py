@@ -24,9 +24,9 @@ import cv2
 import numpy as np
 import polars as pl
 
-from onebit.datasets.camera_render import render_overhead_video
 from onebit.core.site import Site
 from onebit.datasets.builtin import builtin_site
+from onebit.datasets.camera_render import render_overhead_video
 from onebit.readers.camera import read_camera, truth_error
 
 SIZES = (100, 300, 1000)
@@ -38,7 +38,9 @@ def lab_truth(site: Site, n_frames: int) -> pl.DataFrame:
     cam = site.camera
     t = cam.t0 + np.arange(n_frames) / cam.fps
     phase = 2 * np.pi * t / 8.0
-    a = pl.DataFrame({"t": t, "target": "a", "x": 0.5 + 4.5 * np.abs((t / 10.0) % 2.0 - 1.0), "y": np.full_like(t, 3.5)})
+    a = pl.DataFrame(
+        {"t": t, "target": "a", "x": 0.5 + 4.5 * np.abs((t / 10.0) % 2.0 - 1.0), "y": np.full_like(t, 3.5)}
+    )
     b = pl.DataFrame({"t": t, "target": "b", "x": 4.6 + 0.6 * np.cos(phase), "y": 1.2 + 0.6 * np.sin(phase)})
     return pl.concat([a, b]).sort("t", "target")
 

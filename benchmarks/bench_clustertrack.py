@@ -13,8 +13,8 @@ import tracemalloc
 
 import numpy as np
 
-from onebit.trackers.clustertrack.algorithm import _norm, scan_clusters
 from onebit._testing.oracles import scan_clusters_direct
+from onebit.trackers.clustertrack.algorithm import _norm, scan_clusters
 
 
 def instant(H: int, m_o_r: float, Q: int, t: int = 10, seed: int = 0):
@@ -45,9 +45,32 @@ def timed(fn):
 def compare(H: int, m_o_r: float, Q: int) -> tuple[float, float]:
     c = instant(H, m_o_r, Q)
     # numba's start (and the compiled scan, from its cache) outside the timing
-    scan_clusters(c["cost"], c["parent"], c["x"], c["pd"], c["t"], H=c["H"], K=c["K"], L=c["L"], D0=c["D0"], rng=np.random.default_rng(0))
-    ours, t_ours, m_ours = timed(lambda: scan_clusters(c["cost"], c["parent"], c["x"], c["pd"], c["t"], H=c["H"], K=c["K"],
-                                                       L=c["L"], D0=c["D0"], rng=np.random.default_rng(0)))
+    scan_clusters(
+        c["cost"],
+        c["parent"],
+        c["x"],
+        c["pd"],
+        c["t"],
+        H=c["H"],
+        K=c["K"],
+        L=c["L"],
+        D0=c["D0"],
+        rng=np.random.default_rng(0),
+    )
+    ours, t_ours, m_ours = timed(
+        lambda: scan_clusters(
+            c["cost"],
+            c["parent"],
+            c["x"],
+            c["pd"],
+            c["t"],
+            H=c["H"],
+            K=c["K"],
+            L=c["L"],
+            D0=c["D0"],
+            rng=np.random.default_rng(0),
+        )
+    )
 
     def direct():
         order = np.argsort(c["cost"])
@@ -57,9 +80,11 @@ def compare(H: int, m_o_r: float, Q: int) -> tuple[float, float]:
     ref, t_ref, m_ref = timed(direct)
     assert np.array_equal(ours[0], ref[0]), "vectorised scan differs from the direct Algorithm 1"
     n = c["cost"].size
-    print(f"  H={H:3d} m_oR={m_o_r:4.0f} Q={Q:2d}  candidates={n:7d}  L={c['L']:6d}  "
-          f"ours {t_ours * 1e3:8.1f} ms {m_ours / 1e6:7.1f} MB   direct {t_ref * 1e3:9.1f} ms {m_ref / 1e6:7.1f} MB   "
-          f"ratio {t_ref / t_ours:6.1f}x")
+    print(
+        f"  H={H:3d} m_oR={m_o_r:4.0f} Q={Q:2d}  candidates={n:7d}  L={c['L']:6d}  "
+        f"ours {t_ours * 1e3:8.1f} ms {m_ours / 1e6:7.1f} MB   direct {t_ref * 1e3:9.1f} ms {m_ref / 1e6:7.1f} MB   "
+        f"ratio {t_ref / t_ours:6.1f}x"
+    )
     return t_ours, t_ref
 
 
@@ -68,16 +93,13 @@ def main() -> None:
     for H, m, Q in ((10, 15, 5), (25, 15, 5), (50, 15, 5), (25, 5, 5), (25, 30, 5), (25, 15, 2), (25, 15, 10)):
         compare(H, m, Q)
     print("whole tracker (feasible spaces + Algorithm 1 + Appendix B) per instant on proximity-line:")
+    from scipy.optimize import linear_sum_assignment
     from shapely.geometry import box
 
     from onebit.datasets.proximity_sim import make_world
-    from onebit.trackers.clustertrack.algorithm import clustertrack, rules_of_thumb
+    from onebit.trackers.clustertrack.algorithm import clustertrack, rules_of_thumb, trajectory_distance
     from onebit.trackers.clustertrack.feasible import SensorArray
     from onebit.trackers.clustertrack.space import FeasibleSpace
-
-    from scipy.optimize import linear_sum_assignment
-
-    from onebit.trackers.clustertrack.algorithm import trajectory_distance
 
     print("  (paper-literal rerun = high_cost 0: every Appendix B rerun with K = H q only)")
     for Q in (2, 5, 10):
@@ -92,8 +114,10 @@ def main() -> None:
             D = trajectory_distance(w.truth[:, :, :1], r.tracks)
             a, b = linear_sum_assignment(D)
             found = int(np.sum(D[a, b] <= p.D0))
-            print(f"  Q={Q:2d} {label:20s}: {dt / 20 * 1e3:7.1f} ms per instant ({r.reruns} reruns, {r.tracks.shape[0]} tracks,"
-                  f" {found}/{Q} targets found, {r.tracks.shape[0] - found} spurious)")
+            print(
+                f"  Q={Q:2d} {label:20s}: {dt / 20 * 1e3:7.1f} ms per instant ({r.reruns} reruns, {r.tracks.shape[0]} tracks,"
+                f" {found}/{Q} targets found, {r.tracks.shape[0] - found} spurious)"
+            )
 
 
 if __name__ == "__main__":

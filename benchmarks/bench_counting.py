@@ -84,9 +84,13 @@ def main() -> None:
     edges = RegionEdges.from_region_graph(build_region_graph(builtin_site("building")))
     src, tgt, _ = dropped_walks(edges, 100, 2)
     correct(src, tgt, edges, n_agents=2, compiled=True)  # numba's start and the cached DP, outside the timing
-    print(f"building: {edges.n_regions} regions, {len(edges.edge_source)} labelled edges, drop {DROP:.0%}, eta_0 unknown")
-    print(f"{'m':>7} {'n':>2} {'|I_C|':>5} {'dropped':>7} {'inserted':>8} {'ours s':>8} {'ours MB':>8} {'peak K':>6} "
-          f"{'growth':>6} {'peer s':>8} {'peer MB':>8} {'peer/ours':>9}")  # fmt: skip
+    print(
+        f"building: {edges.n_regions} regions, {len(edges.edge_source)} labelled edges, drop {DROP:.0%}, eta_0 unknown"
+    )
+    print(
+        f"{'m':>7} {'n':>2} {'|I_C|':>5} {'dropped':>7} {'inserted':>8} {'ours s':>8} {'ours MB':>8} {'peak K':>6} "
+        f"{'growth':>6} {'peer s':>8} {'peer MB':>8} {'peer/ours':>9}"
+    )
     prev: dict[int, float] = {}
     for n in AGENTS:
         for m in SIZES:
@@ -101,9 +105,11 @@ def main() -> None:
                 mb_peer = _peak_mb(lambda: peer_bfs(src, tgt, edges, n)) if m <= 1_000 else float("nan")
                 assert cost == res.cost, f"peer found {cost} insertions, ours {res.cost} (m={m}, n={n})"
                 peer = (f"{t_peer:.3f}", f"{mb_peer:.1f}", f"{t_peer / t_ours:.0f}x")
-            print(f"{len(src):>7} {n:>2} {count_space_size(edges.n_regions, n):>5} {nd:>7} {res.cost:>8} "
-                  f"{t_ours:>8.3f} {mb_ours:>8.1f} {res.peak_states:>6} {growth:>6} {peer[0]:>8} {peer[1]:>8} {peer[2]:>9}",
-                  flush=True)  # fmt: skip
+            print(
+                f"{len(src):>7} {n:>2} {count_space_size(edges.n_regions, n):>5} {nd:>7} {res.cost:>8} "
+                f"{t_ours:>8.3f} {mb_ours:>8.1f} {res.peak_states:>6} {growth:>6} {peer[0]:>8} {peer[1]:>8} {peer[2]:>9}",
+                flush=True,
+            )
 
 
 if __name__ == "__main__":

@@ -30,8 +30,12 @@ def viterbi_vs_hmmlearn(n_slots: int = 1000) -> None:
     from onebit.models.graph_hmm import kernels
     from onebit.models.graph_hmm.viterbi import viterbi_first_order, viterbi_first_order_batch
 
-    print(f"first-order Viterbi, {n_slots} slots: ours (compiled kernel; numpy reference beside) vs hmmlearn _hmmc.viterbi (C++)")
-    print(f"{'states':>7} {'ours ms':>9} {'hmmlearn ms':>12} {'ratio':>7} {'numpy ref ms':>13} {'batch of 10 numpy/each ms':>26}")
+    print(
+        f"first-order Viterbi, {n_slots} slots: ours (compiled kernel; numpy reference beside) vs hmmlearn _hmmc.viterbi (C++)"
+    )
+    print(
+        f"{'states':>7} {'ours ms':>9} {'hmmlearn ms':>12} {'ratio':>7} {'numpy ref ms':>13} {'batch of 10 numpy/each ms':>26}"
+    )
     rng = np.random.default_rng(0)
     for s in (5, 20, 50, 100, 200, 400):
         pi = np.log(rng.dirichlet(np.ones(s)))
@@ -42,10 +46,14 @@ def viterbi_vs_hmmlearn(n_slots: int = 1000) -> None:
         t_np, (p_np, _) = _best(lambda: viterbi_first_order(pi, a, b))
         pi_p, a_p = np.exp(pi), np.exp(a)  # _hmmc.viterbi takes probabilities and log frame probabilities
         t_ref, (lp_ref, p_ref) = _best(lambda: _hmmc.viterbi(pi_p, a_p, b))
-        assert np.array_equal(p_ours, p_ref) and np.array_equal(p_np, p_ref) and abs(lp - lp_ref) < 1e-6 * abs(lp_ref), "paths differ"
+        assert (
+            np.array_equal(p_ours, p_ref) and np.array_equal(p_np, p_ref) and abs(lp - lp_ref) < 1e-6 * abs(lp_ref)
+        ), "paths differ"
         bb = np.broadcast_to(b, (10, n_slots, s)).copy()
         t_batch, _ = _best(lambda: viterbi_first_order_batch(np.broadcast_to(pi, (10, s)), a, bb), repeat=1)
-        print(f"{s:>7} {t_ours * 1e3:>9.2f} {t_ref * 1e3:>12.2f} {t_ours / t_ref:>7.2f} {t_np * 1e3:>13.2f} {t_batch * 1e3 / 10:>26.2f}")
+        print(
+            f"{s:>7} {t_ours * 1e3:>9.2f} {t_ref * 1e3:>12.2f} {t_ours / t_ref:>7.2f} {t_np * 1e3:>13.2f} {t_batch * 1e3 / 10:>26.2f}"
+        )
 
 
 def _grid_site(n_nodes: int):

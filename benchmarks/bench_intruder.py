@@ -34,13 +34,12 @@ import tracemalloc
 import numpy as np
 import polars as pl
 
-from onebit.datasets.pir_sim import simulate
 from onebit.core.site import site_from_dict
+from onebit.datasets.pir_sim import simulate
 from onebit.experiments.schiff import toggles_as_rows
-from onebit.readers.motion import MotionConfig, site_rules
-from onebit.readers.motion import read_motion
 from onebit.models.motion import Motion, Room
 from onebit.models.pir import deploy, log_weights
+from onebit.readers.motion import MotionConfig, read_motion, site_rules
 from onebit.trackers.intruder.filter import estimate_cell, run_filter
 from onebit.trackers.intruder.stage import observations
 
@@ -51,7 +50,9 @@ HALF = 1.0
 def scenario(name: str, refractory: float, duration: float = 60.0, seed: int = 0):
     d, sim = simulate(name, seed=seed, duration=duration, refractory=refractory)
     site = site_from_dict(d)
-    read = read_motion(toggles_as_rows(sim.toggles), [m.id for m in site.motion_sensors], rules=site_rules(site, MotionConfig()))
+    read = read_motion(
+        toggles_as_rows(sim.toggles), [m.id for m in site.motion_sensors], rules=site_rules(site, MotionConfig())
+    )
     fired, blind, t_end = observations(read.motion, site, period=2.0, start=0.0, end=duration)
     return site, deploy(site, 1.0), fired, blind, t_end, sim.truth
 
@@ -59,7 +60,18 @@ def scenario(name: str, refractory: float, duration: float = 60.0, seed: int = 0
 def ours(site, dep, fired, blind, n, seed=0):
     room = Room(site.free_space)
     t0 = time.process_time()
-    res = run_filter(fired, blind, dep, room, MOTION, n_particles=n, half_w=HALF, half_d=HALF, rng=np.random.default_rng(seed), compiled=True)
+    res = run_filter(
+        fired,
+        blind,
+        dep,
+        room,
+        MOTION,
+        n_particles=n,
+        half_w=HALF,
+        half_d=HALF,
+        rng=np.random.default_rng(seed),
+        compiled=True,
+    )
     return (time.process_time() - t0) / len(fired), res.estimates
 
 
@@ -184,8 +196,18 @@ def mean_error(est, truth, t_end):
 
 def memory_per_particle(site, dep, fired, blind, n):
     tracemalloc.start()
-    run_filter(fired[:2], blind[:2], dep, Room(site.free_space), MOTION, n_particles=n, half_w=HALF, half_d=HALF, rng=np.random.default_rng(0),
-               compiled=True)
+    run_filter(
+        fired[:2],
+        blind[:2],
+        dep,
+        Room(site.free_space),
+        MOTION,
+        n_particles=n,
+        half_w=HALF,
+        half_d=HALF,
+        rng=np.random.default_rng(0),
+        compiled=True,
+    )
     _, peak = tracemalloc.get_traced_memory()
     tracemalloc.stop()
     return peak / n
@@ -194,7 +216,9 @@ def memory_per_particle(site, dep, fired, blind, n):
 def main() -> None:
     site, dep, fired, blind, t_end, truth = scenario("pir14", 4.0, duration=60.0)
     print(f"pir14, 4 s refractory, {len(t_end)} iterations of 2 s, {len(dep.ids)} sensors")
-    print(f"{'particles':>10} {'ours ms/step':>13} {'stonesoup ms/step':>18} {'ratio':>7} {'ours err':>9} {'peer err':>9}")
+    print(
+        f"{'particles':>10} {'ours ms/step':>13} {'stonesoup ms/step':>18} {'ratio':>7} {'ours err':>9} {'peer err':>9}"
+    )
     for n in (1_000, 10_000, 100_000):
         reps = fired if n < 100_000 else fired[:5]
         to, eo = ours(site, dep, reps, blind[: len(reps)], n)
@@ -210,14 +234,19 @@ def main() -> None:
         k = 20 if n < 100_000 else 3
         to, _ = ours(site, dep, fired[:k], blind[:k], n)
         base = base or to / n
-        print(f"  {n:>9} particles: {to * 1e3:9.2f} ms/step  ({to / n * 1e9:7.1f} ns/particle, x{to / n / base:4.2f} of 10^3's per-particle cost)", flush=True)
+        print(
+            f"  {n:>9} particles: {to * 1e3:9.2f} ms/step  ({to / n * 1e9:7.1f} ns/particle, x{to / n / base:4.2f} of 10^3's per-particle cost)",
+            flush=True,
+        )
     print("\nstep time vs sensors (10^4 particles):")
     for name in ("pir4", "pir8", "pir14", "beams22"):
         s2, d2, f2, b2, _, _ = scenario(name, 4.0, duration=20.0)
         to, _ = ours(s2, d2, f2, b2, 10_000)
         print(f"  {name:8s} {len(d2.ids):3d} sensors: {to * 1e3:8.2f} ms/step")
     for n in (10_000, 100_000):
-        print(f"memory: {memory_per_particle(site, dep, fired, blind, n):.0f} bytes per particle at {n} particles (peak traced, one step)")
+        print(
+            f"memory: {memory_per_particle(site, dep, fired, blind, n):.0f} bytes per particle at {n} particles (peak traced, one step)"
+        )
 
 
 if __name__ == "__main__":

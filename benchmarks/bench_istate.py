@@ -119,7 +119,9 @@ def bench_communication() -> None:
             assert same_elements(fast, slow), f"n = {n}: matching result differs from the direct formula"
             tf = _timeit(lambda: communicate(a, b, shape=shape))
             ts = _timeit(lambda: communicate_bruteforce(a, b, shape=shape), repeat=1 if n == 5 else 3)
-            print(f"{shape:>6} {n:>3} {a.size:>3} {b.size:>3} {fast.size:>5} {tf * 1e3:>12.2f} {ts * 1e3:>10.2f} {ts / tf:>6.1f}x")
+            print(
+                f"{shape:>6} {n:>3} {a.size:>3} {b.size:>3} {fast.size:>5} {tf * 1e3:>12.2f} {ts * 1e3:>10.2f} {ts / tf:>6.1f}x"
+            )
 
 
 def observation_loop(eta: IState, sensing) -> IState:

@@ -67,9 +67,11 @@ def generate_beam_log(n_rows: int, beam_ids: tuple[str, ...], *, seed: int = SEE
     steps = 0.05 + rng.exponential(0.1, (n_pass, 3))
     length = gap + steps.sum(axis=1)
     # passes on the same beam follow one another: start = per-beam cumulative length + gap
-    per_beam = pl.DataFrame({"beam": beam, "length": length}).select(
-        (pl.col("length").cum_sum().over("beam") - pl.col("length")).alias("start")
-    )["start"].to_numpy()
+    per_beam = (
+        pl.DataFrame({"beam": beam, "length": length})
+        .select((pl.col("length").cum_sum().over("beam") - pl.col("length")).alias("start"))["start"]
+        .to_numpy()
+    )
     start = per_beam + gap
     offsets = np.concatenate([np.zeros((n_pass, 1)), np.cumsum(steps, axis=1)], axis=1)
     t = (start[:, None] + offsets).ravel()

@@ -53,7 +53,17 @@ def simulate_datasets(root: Path) -> list[Path]:
     for name, duration, drop, params in DATASETS:
         for seed in SEEDS:
             sc = get_scenario(name)
-            out.append(sc.write(root / f"{name}-{seed}", seed=seed, duration=duration, agents=None, drop=drop, camera=False, params=params))
+            out.append(
+                sc.write(
+                    root / f"{name}-{seed}",
+                    seed=seed,
+                    duration=duration,
+                    agents=None,
+                    drop=drop,
+                    camera=False,
+                    params=params,
+                )
+            )
     return out
 
 
@@ -95,8 +105,10 @@ def bench_run_many(cores: int) -> None:
         for label, wall, busy, _ in runs:
             print(f"{label:40s} {wall:8.1f} {serial / wall:8.2f}x {busy:8.1f} {busy / wall:10.2f}")
         longest = ref.datasets.sort("seconds", descending=True).row(0, named=True)
-        print(f"longest single dataset (serial): {longest['dataset']} {longest['seconds']:.1f} s "
-              f"-- no executor finishes before it")  # fmt: skip
+        print(
+            f"longest single dataset (serial): {longest['dataset']} {longest['seconds']:.1f} s "
+            f"-- no executor finishes before it"
+        )
 
 
 def bench_okane(trials: int, cores: int) -> None:
@@ -108,19 +120,27 @@ def bench_okane(trials: int, cores: int) -> None:
         secs = pl.read_csv(out / "timings.csv")["seconds"]
         busy, longest = float(secs.sum()), float(secs.max())
         n = pl.read_parquet(out / "results.parquet").height
-    print(f"\nO'Kane study, paper settings (1000 stages, M = 10), {trials} trial(s) per setting = {n} trials, "
-          f"ray local {cores} CPUs ({_load()})")  # fmt: skip
-    print(f"wall {wall:.0f} s (incl. Ray start and the Rerun recording of one trial); busy {busy:.0f} s; "
-          f"busy/wall {busy / wall:.2f}; trial mean {busy / n:.1f} s, longest {longest:.1f} s")  # fmt: skip
+    print(
+        f"\nO'Kane study, paper settings (1000 stages, M = 10), {trials} trial(s) per setting = {n} trials, "
+        f"ray local {cores} CPUs ({_load()})"
+    )
+    print(
+        f"wall {wall:.0f} s (incl. Ray start and the Rerun recording of one trial); busy {busy:.0f} s; "
+        f"busy/wall {busy / wall:.2f}; trial mean {busy / n:.1f} s, longest {longest:.1f} s"
+    )
     if trials < PAPER_OKANE_TRIALS:
         scale = PAPER_OKANE_TRIALS / trials
-        print(f"the paper's {PAPER_OKANE_TRIALS} trials per setting: ~{wall * scale / 60:.0f} min on {cores} cores "
-              f"(~{busy * scale / 60:.0f} min on one)")  # fmt: skip
+        print(
+            f"the paper's {PAPER_OKANE_TRIALS} trials per setting: ~{wall * scale / 60:.0f} min on {cores} cores "
+            f"(~{busy * scale / 60:.0f} min on one)"
+        )
 
 
 def main(argv: list[str] | None = None) -> None:
     p = argparse.ArgumentParser(prog="python -m benchmarks.bench_runmany")
-    p.add_argument("--okane-trials", type=int, default=1, help="trials per setting of the O'Kane study (0: skip; paper: 10)")
+    p.add_argument(
+        "--okane-trials", type=int, default=1, help="trials per setting of the O'Kane study (0: skip; paper: 10)"
+    )
     p.add_argument("--cores", type=int, default=os.cpu_count() or 1, help="workers of the pool / CPUs of Ray")
     p.add_argument("--skip-run-many", action="store_true")
     args = p.parse_args(argv or [])

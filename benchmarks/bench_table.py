@@ -72,7 +72,7 @@ def toggle_log(n_rows: int, sensors, *, seed: int = 0, rate: float = 5.0, chatte
     periods = max(1, n_rows // (2 * n) // 1)
     dur = n_rows / rate
     rows = []
-    for i, s in enumerate(sensors):  # one vectorised draw per sensor
+    for _i, s in enumerate(sensors):  # one vectorised draw per sensor
         gap = rng.exponential(dur / periods / 2, periods)
         on_t = np.cumsum(gap + rng.uniform(0.3, 2.0, periods))
         off_t = on_t + rng.uniform(0.2, 1.5, periods)
@@ -82,7 +82,9 @@ def toggle_log(n_rows: int, sensors, *, seed: int = 0, rate: float = 5.0, chatte
         f_off = on_t[fl] + chatter * 0.3
         f_on = f_off + chatter * 0.2
         t = np.concatenate([on_t, off_t, f_off, f_on])
-        v = np.concatenate([np.ones(on_t.size), np.zeros(off_t.size), np.zeros(f_off.size), np.ones(f_on.size)]).astype(np.int8)
+        v = np.concatenate([np.ones(on_t.size), np.zeros(off_t.size), np.zeros(f_off.size), np.ones(f_on.size)]).astype(
+            np.int8
+        )
         rows.append(pl.DataFrame({"t": t.round(3), "sensor": s, "value": v}))
     return pl.concat(rows).sort("t", maintain_order=True)
 
@@ -152,10 +154,25 @@ def readers(t: Table) -> None:
     with tempfile.TemporaryDirectory() as tmp:
         for what, make, read, bad in (
             ("beams.csv reader", lambda n: generate_beam_log(n, beams)[0], lambda p: decode_beam_log(p, beams), 0),
-            ("motion.csv reader (debounce)", lambda n: toggle_log(n, sensors), lambda p: read_motion_csv(p, sensors, rules=rules), 0),
+            (
+                "motion.csv reader (debounce)",
+                lambda n: toggle_log(n, sensors),
+                lambda p: read_motion_csv(p, sensors, rules=rules),
+                0,
+            ),
             # the same logs with 5 bad lines: only those are typed row by row (floor: the clean file's read)
-            ("beams.csv reader, 5 bad lines", lambda n: generate_beam_log(n, beams)[0], lambda p: decode_beam_log(p, beams), 5),
-            ("motion.csv reader, 5 bad lines", lambda n: toggle_log(n, sensors), lambda p: read_motion_csv(p, sensors, rules=rules), 5),
+            (
+                "beams.csv reader, 5 bad lines",
+                lambda n: generate_beam_log(n, beams)[0],
+                lambda p: decode_beam_log(p, beams),
+                5,
+            ),
+            (
+                "motion.csv reader, 5 bad lines",
+                lambda n: toggle_log(n, sensors),
+                lambda p: read_motion_csv(p, sensors, rules=rules),
+                5,
+            ),
         ):
             ours, peers = [], []
             for n in sizes:
@@ -181,14 +198,27 @@ def readers(t: Table) -> None:
                 peers.append(tp)
             g = growth(sizes, ours)
             for n, to, tp in zip(sizes, ours, peers):
-                t.add(Result(what, f"{what} {n:.0e} rows", n, "s", to, tp, "pl.read_csv" + (" of the clean log" if bad else ""), g,
-                             "<= 1.5x pl.read_csv, linear", to / tp <= 1.5))  # fmt: skip
+                t.add(
+                    Result(
+                        what,
+                        f"{what} {n:.0e} rows",
+                        n,
+                        "s",
+                        to,
+                        tp,
+                        "pl.read_csv" + (" of the clean log" if bad else ""),
+                        g,
+                        "<= 1.5x pl.read_csv, linear",
+                        to / tp <= 1.5,
+                    )
+                )
 
 
 def viterbi(t: Table) -> None:
     from hmmlearn import _hmmc
 
-    from onebit.models.graph_hmm import kernels, viterbi as ref
+    from onebit.models.graph_hmm import kernels
+    from onebit.models.graph_hmm import viterbi as ref
 
     rng = np.random.default_rng(0)
     D = 10_000
@@ -201,8 +231,20 @@ def viterbi(t: Table) -> None:
         pi_p, a_p = np.exp(pi), np.exp(a)
         tp, (lp_h, p_h) = best(lambda: _hmmc.viterbi(pi_p, a_p, b), 5, clock=time.process_time)
         assert np.array_equal(p, p_h), "paths differ from hmmlearn"
-        t.add(Result("first-order Viterbi", f"viterbi 1e4 steps, {s} states", s, "s cpu", to, tp, "hmmlearn _hmmc.viterbi (C++)",
-                     None, "<= 1.0x hmmlearn", to <= tp))  # fmt: skip
+        t.add(
+            Result(
+                "first-order Viterbi",
+                f"viterbi 1e4 steps, {s} states",
+                s,
+                "s cpu",
+                to,
+                tp,
+                "hmmlearn _hmmc.viterbi (C++)",
+                None,
+                "<= 1.0x hmmlearn",
+                to <= tp,
+            )
+        )
     steps = _sizes((10_000, 100_000, 1_000_000), (10_000, 100_000))
     pi = np.log(rng.dirichlet(np.ones(20)))
     a = np.log(rng.dirichlet(np.ones(20), size=20))
@@ -212,7 +254,20 @@ def viterbi(t: Table) -> None:
         times.append(best(lambda: kernels.viterbi_first_order(pi, a, b), 3, clock=time.process_time)[0])
     g = growth(steps, times)
     for d, to in zip(steps, times):
-        t.add(Result("first-order Viterbi", "viterbi 20 states, steps", d, "s cpu", to, None, "", g, "linear in steps", g is not None and g < 1.2))
+        t.add(
+            Result(
+                "first-order Viterbi",
+                "viterbi 20 states, steps",
+                d,
+                "s cpu",
+                to,
+                None,
+                "",
+                g,
+                "linear in steps",
+                g is not None and g < 1.2,
+            )
+        )
     # the call shape of the trackers: 10^4 windows of 7 slots (reference = the numpy decoders)
     s, L, calls = 16, 7, _sizes(10_000, 2_000)
     logs = [np.log(rng.random((L, s)) + 1e-3) for _ in range(64)]
@@ -222,13 +277,29 @@ def viterbi(t: Table) -> None:
     stay = np.diag(a1).copy()
     for name, fk, fr in (
         ("1st order", lambda b: kernels.viterbi_first_order(pi, a1, b), lambda b: ref.viterbi_first_order(pi, a1, b)),
-        ("2nd order", lambda b: kernels.viterbi_motion_second_order(pi, stay, a2, b), lambda b: ref.viterbi_motion_second_order(pi, stay, a2, b)),
+        (
+            "2nd order",
+            lambda b: kernels.viterbi_motion_second_order(pi, stay, a2, b),
+            lambda b: ref.viterbi_motion_second_order(pi, stay, a2, b),
+        ),
     ):
         fk(logs[0])
         tk, _ = best(lambda: [fk(logs[i % 64]) for i in range(calls)], 3, clock=time.process_time)
         tr, _ = best(lambda: [fr(logs[i % 64]) for i in range(calls)], 2, clock=time.process_time)
-        t.add(Result("Viterbi call shape", f"7-slot window, {s} states, {name}", calls, "us/call", tk / calls * 1e6, tr / calls * 1e6,
-                     "numpy reference", None, "kernel 1-2 / 8-47 us per call", None))  # fmt: skip
+        t.add(
+            Result(
+                "Viterbi call shape",
+                f"7-slot window, {s} states, {name}",
+                calls,
+                "us/call",
+                tk / calls * 1e6,
+                tr / calls * 1e6,
+                "numpy reference",
+                None,
+                "kernel 1-2 / 8-47 us per call",
+                None,
+            )
+        )
 
 
 def compile_times(t: Table) -> None:
@@ -263,17 +334,28 @@ def compile_times(t: Table) -> None:
             for _ in range(2):  # cold, then warm
                 out = subprocess.run([PY, "-c", code], capture_output=True, text=True, env=env, cwd=ROOT)
                 got.append(float(out.stdout.split("FIRST_CALL")[-1]) if "FIRST_CALL" in out.stdout else float("nan"))
-            t.add(Result("first-call compile time", f"kernels: {name} (cold / warm cache)", 1, "s", got[0], got[1], "warm cache (second process)",
-                         None, "compile once per install (cache=True); warm start < 1 s", got[1] < 1.0))  # fmt: skip
+            t.add(
+                Result(
+                    "first-call compile time",
+                    f"kernels: {name} (cold / warm cache)",
+                    1,
+                    "s",
+                    got[0],
+                    got[1],
+                    "warm cache (second process)",
+                    None,
+                    "compile once per install (cache=True); warm start < 1 s",
+                    got[1] < 1.0,
+                )
+            )
 
 
 def findinghumo_stage(t: Table) -> None:
-    from onebit.datasets.hallway_sim import write_hallway_dataset
     from onebit.core.site import load_site
-    from onebit.readers.motion import read_motion_csv
-    from onebit.models.graph_hmm import decoding
-    from onebit.models.graph_hmm import joint
+    from onebit.datasets.hallway_sim import write_hallway_dataset
+    from onebit.models.graph_hmm import decoding, joint
     from onebit.models.graph_hmm.adaptive import DecoderParams
+    from onebit.readers.motion import read_motion_csv
     from onebit.trackers.findinghumo import stage as S
 
     durations = _sizes((150.0, 600.0, 1500.0), (150.0, 300.0))
@@ -287,13 +369,27 @@ def findinghumo_stage(t: Table) -> None:
             run = lambda: S.run_findinghumo({"motion": mo}, site, cfg)  # noqa: E731
             run()
             to, out = best(run, 3, clock=time.process_time)
-            with patched(decoding, "DecoderParams", functools.partial(DecoderParams, compiled=False)), \
-                    patched(joint, "_pair_viterbi", joint.pair_viterbi_reference):
+            with (
+                patched(decoding, "DecoderParams", functools.partial(DecoderParams, compiled=False)),
+                patched(joint, "_pair_viterbi", joint.pair_viterbi_reference),
+            ):
                 tr, ref = best(run, 2, clock=time.process_time)
             assert out["tracks"].equals(ref["tracks"]), "compiled and reference decoders differ"
             ours.append(to)
-            t.add(Result("findinghumo stage", f"findinghumo stage, hallway {dur:.0f} s", dur, "s cpu", to, tr, "numpy decoders (compiled=False)",
-                         None, ">= 5x faster", tr / to >= 5))  # fmt: skip
+            t.add(
+                Result(
+                    "findinghumo stage",
+                    f"findinghumo stage, hallway {dur:.0f} s",
+                    dur,
+                    "s cpu",
+                    to,
+                    tr,
+                    "numpy decoders (compiled=False)",
+                    None,
+                    ">= 5x faster",
+                    tr / to >= 5,
+                )
+            )
     g = growth(durations, ours)
     t.results[-1].growth = g
 
@@ -303,8 +399,9 @@ def particle_filter(t: Table) -> None:
     from benchmarks.bench_intruder import ours, ours_step, scenario
 
     try:
-        from benchmarks.bench_intruder import stonesoup_filter
         import stonesoup  # noqa: F401
+
+        from benchmarks.bench_intruder import stonesoup_filter
     except ImportError:
         stonesoup_filter = None
     site, dep, fired, blind, _, _ = scenario("pir14", 4.0, duration=60.0)
@@ -318,9 +415,20 @@ def particle_filter(t: Table) -> None:
         res.append((n, to, tp))
     g = growth([r[0] for r in res], [r[1] for r in res])
     for n, to, tp in res:
-        t.add(Result("SIR particle-filter step", f"SIR step, {n:.0e} particles (ns/particle)", n, "ns/particle cpu", to / n * 1e9,
-                     tp / n * 1e9 if tp else None, "Stone Soup ParticlePredictor/Updater", g, ">= 10x Stone Soup, flat ns/particle",
-                     (tp / to >= 10) if tp else None))  # fmt: skip
+        t.add(
+            Result(
+                "SIR particle-filter step",
+                f"SIR step, {n:.0e} particles (ns/particle)",
+                n,
+                "ns/particle cpu",
+                to / n * 1e9,
+                tp / n * 1e9 if tp else None,
+                "Stone Soup ParticlePredictor/Updater",
+                g,
+                ">= 10x Stone Soup, flat ns/particle",
+                (tp / to >= 10) if tp else None,
+            )
+        )
 
 
 def intruder_long(t: Table) -> None:
@@ -351,10 +459,34 @@ def intruder_long(t: Table) -> None:
     g = growth([r[0] for r in res], [r[1] for r in res])
     gm = growth([r[0] for r in res], [max(r[2] or 1.0, 1.0) for r in res])
     for n, secs, mb in res:
-        t.add(Result("intruder on a long motion log", f"intruder stage, {n:.0e}-row log", n, "s cpu", secs, None, "", g,
-                     "< 60 s at 1e6 rows", secs < 60 if n >= 10**6 else None))  # fmt: skip
-        t.add(Result("intruder on a long motion log", f"intruder stage peak MB, {n:.0e}-row log", n, "MB", mb or float("nan"), None, "",
-                     gm, "< 1 GB at 1e6 rows", (mb or 0) < 1000 if n >= 10**6 else None))  # fmt: skip
+        t.add(
+            Result(
+                "intruder on a long motion log",
+                f"intruder stage, {n:.0e}-row log",
+                n,
+                "s cpu",
+                secs,
+                None,
+                "",
+                g,
+                "< 60 s at 1e6 rows",
+                secs < 60 if n >= 10**6 else None,
+            )
+        )
+        t.add(
+            Result(
+                "intruder on a long motion log",
+                f"intruder stage peak MB, {n:.0e}-row log",
+                n,
+                "MB",
+                mb or float("nan"),
+                None,
+                "",
+                gm,
+                "< 1 GB at 1e6 rows",
+                (mb or 0) < 1000 if n >= 10**6 else None,
+            )
+        )
 
 
 def _every_pair_memo():
@@ -378,7 +510,8 @@ def istate(t: Table) -> None:
     from onebit.core.site import load_site
     from onebit.datasets.proximity_sim import SCENARIO_SPECS
     from onebit.readers.motion import read_motion_csv
-    from onebit.trackers.istate import core, stage as S
+    from onebit.trackers.istate import core
+    from onebit.trackers.istate import stage as S
 
     instants = _sizes((20, 80, 320), (20, 40))
     ours = []
@@ -393,14 +526,30 @@ def istate(t: Table) -> None:
             tr = None
             if n <= 80 or not QUICK:
                 every = _every_pair_memo()  # the stage's run-wide memo and any a function makes
-                with patched(core, "cap_elements", core.cap_elements_reference), patched(core, "PairMemo", every), patched(S, "PairMemo", every):
+                with (
+                    patched(core, "cap_elements", core.cap_elements_reference),
+                    patched(core, "PairMemo", every),
+                    patched(S, "PairMemo", every),
+                ):
                     tr, ref = best(run, 1, clock=time.process_time)
                 assert out["regions"].equals(ref["regions"]), "istate differs from its every-pair reference"
             ours.append(to)
-            t.add(Result("istate", f"istate proximity-line {n} instants", n, "s cpu", to, tr, "every region pair, full cap matrix",
-                         None, ">= 10x faster, linear in instants", (tr / to >= 10) if tr else None))  # fmt: skip
+            t.add(
+                Result(
+                    "istate",
+                    f"istate proximity-line {n} instants",
+                    n,
+                    "s cpu",
+                    to,
+                    tr,
+                    "every region pair, full cap matrix",
+                    None,
+                    ">= 10x faster, linear in instants",
+                    (tr / to >= 10) if tr else None,
+                )
+            )
     g = growth(instants, ours)
-    for r in t.results[-len(instants):]:
+    for r in t.results[-len(instants) :]:
         r.growth = g
 
 
@@ -408,20 +557,38 @@ def clustertrack(t: Table) -> None:
     from shapely.geometry import box
 
     from onebit.datasets.proximity_sim import make_world
-    from onebit.trackers.clustertrack.algorithm import clustertrack as run_ct, consensus
+    from onebit.trackers.clustertrack.algorithm import clustertrack as run_ct
+    from onebit.trackers.clustertrack.algorithm import consensus
     from onebit.trackers.clustertrack.feasible import SensorArray
-    from onebit.trackers.clustertrack.stage import ClusterTrackConfig, params_for
     from onebit.trackers.clustertrack.space import FeasibleSpace
+    from onebit.trackers.clustertrack.stage import ClusterTrackConfig, params_for
 
     def stage_like(w, cfg):
         """What the stage computes: feasible spaces, the run with Appendix B, the consensus."""
         sa = SensorArray(tuple(f"p{i}" for i in range(len(w.sensor_xy))), w.sensor_xy, w.r_inner, w.r_outer)
         dim = 1 if sa.is_1d else 2
-        sp = FeasibleSpace.build(w.on, np.arange(w.on.shape[0], dtype=float), sa, box(*w.boundary), dim=dim, cell=sa.radius / cfg.raster_per_r)
+        sp = FeasibleSpace.build(
+            w.on,
+            np.arange(w.on.shape[0], dtype=float),
+            sa,
+            box(*w.boundary),
+            dim=dim,
+            cell=sa.radius / cfg.raster_per_r,
+        )
         p = params_for(sp, sa.radius, cfg)
-        res = run_ct(sp, p, np.random.default_rng(cfg.seed), max_reruns=cfg.reruns, record=True, high_cost=cfg.rerun_cost_ratio)
-        consensus(sp, p, list(range(cfg.seed, cfg.seed + cfg.consensus_runs)), ratio=cfg.consensus_ratio, min_support=cfg.consensus_support,
-                  max_reruns=cfg.reruns, high_cost=cfg.rerun_cost_ratio, known={cfg.seed: res})  # fmt: skip
+        res = run_ct(
+            sp, p, np.random.default_rng(cfg.seed), max_reruns=cfg.reruns, record=True, high_cost=cfg.rerun_cost_ratio
+        )
+        consensus(
+            sp,
+            p,
+            list(range(cfg.seed, cfg.seed + cfg.consensus_runs)),
+            ratio=cfg.consensus_ratio,
+            min_support=cfg.consensus_support,
+            max_reruns=cfg.reruns,
+            high_cost=cfg.rerun_cost_ratio,
+            known={cfg.seed: res},
+        )
         return res
 
     cfg = ClusterTrackConfig()
@@ -432,22 +599,35 @@ def clustertrack(t: Table) -> None:
     for people in (1, 2):
         w = grid_people(people, instants=60 * minutes)
         to, res = best(lambda: stage_like(w, cfg), 1, clock=time.process_time)
-        t.add(Result("clustertrack 2-D", f"clustertrack 9x4 grid, {people} people, {minutes} min", people, "s cpu", to, tl,
-                     "proximity-line (the simulator's line scenario)", None, "< 10 s", to < 10))  # fmt: skip
+        t.add(
+            Result(
+                "clustertrack 2-D",
+                f"clustertrack 9x4 grid, {people} people, {minutes} min",
+                people,
+                "s cpu",
+                to,
+                tl,
+                "proximity-line (the simulator's line scenario)",
+                None,
+                "< 10 s",
+                to < 10,
+            )
+        )
 
 
 def region_scores(t: Table) -> None:
     """Scores of long simulated beams runs (beams-lab, 2 agents, truth at 10 Hz): the crossings
     decoded, assigned by the beams stage and matched to the truth as the pipeline does (not
     timed), then ``region_scores`` (timed) beside its row-by-row reference."""
+    from onebit._testing.oracles import region_scores_reference
     from onebit.core.region_graph import build_region_graph
     from onebit.core.site import load_site
     from onebit.datasets.beams_sim import write_beams_dataset
     from onebit.readers.beams import decode_beam_log
-    from onebit._testing.oracles import region_scores_reference
-    from onebit.scoring.crossings import assignment_scores, match_crossings, region_scores as ours_fn
-    from onebit.scoring.crossings import true_crossings_from_truth
-    from onebit.trackers.beams import BeamsConfig, run as run_beams
+    from onebit.scoring.crossings import assignment_scores, match_crossings, true_crossings_from_truth
+    from onebit.scoring.crossings import region_scores as ours_fn
+    from onebit.trackers.beams import BeamsConfig
+    from onebit.trackers.beams import run as run_beams
 
     sizes = _sizes((10_000, 100_000, 576_000), (10_000, 40_000))
     res = []
@@ -468,8 +648,20 @@ def region_scores(t: Table) -> None:
             res.append((truth.height, to, tr))
     g = growth([r[0] for r in res], [r[1] for r in res])
     for n, to, tr in res:
-        t.add(Result("region_scores", f"region_scores {n} truth rows", n, "s", to, tr, "row-by-row reference", g,
-                     "<= the issue's vectorised version (1.9 s vs 6.0 s: <= 0.32x the reference)", to / tr <= 0.32))  # fmt: skip
+        t.add(
+            Result(
+                "region_scores",
+                f"region_scores {n} truth rows",
+                n,
+                "s",
+                to,
+                tr,
+                "row-by-row reference",
+                g,
+                "<= the issue's vectorised version (1.9 s vs 6.0 s: <= 0.32x the reference)",
+                to / tr <= 0.32,
+            )
+        )
 
 
 def camera(t: Table) -> None:
@@ -486,15 +678,29 @@ def camera(t: Table) -> None:
             render_overhead_video(path, site, lab_truth(site, n), seed=0, radius=RADIUS)
             # the libraries the reader imports on first use (cv2, scipy) are loaded in the setup: their
             # code is not memory the reading holds
-            setup = ("from pathlib import Path\nimport cv2, scipy.optimize, scipy.spatial.distance\nfrom onebit.datasets.builtin import builtin_site\n"
-                     "from onebit.readers.camera import read_camera\nsite = builtin_site('lab')")
+            setup = (
+                "from pathlib import Path\nimport cv2, scipy.optimize, scipy.spatial.distance\nfrom onebit.datasets.builtin import builtin_site\n"
+                "from onebit.readers.camera import read_camera\nsite = builtin_site('lab')"
+            )
             mb = peak_mb(setup, f"read_camera(Path({str(path)!r}), site)")
             video_mb = n * site.camera.width * site.camera.height / 2**20
             res.append((n, mb or float("nan"), video_mb))
     g = growth([r[0] for r in res], [max(r[1], 1.0) for r in res])
     for n, mb, video in res:
-        t.add(Result("camera reader memory", f"camera reader peak MB, {n} frames", n, "MB", mb, video, "the decoded video (K H W bytes)", g,
-                     "independent of video length (growth ~0)", g is not None and g < 0.3))  # fmt: skip
+        t.add(
+            Result(
+                "camera reader memory",
+                f"camera reader peak MB, {n} frames",
+                n,
+                "MB",
+                mb,
+                video,
+                "the decoded video (K H W bytes)",
+                g,
+                "independent of video length (growth ~0)",
+                g is not None and g < 0.3,
+            )
+        )
 
 
 def startup(t: Table) -> None:
@@ -507,10 +713,17 @@ def startup(t: Table) -> None:
         return min(ts)
 
     floor = wall("import numpy, polars")
-    for what, code in (("import onebit", "import onebit"), ("import onebit; onebit.load_site", "import onebit; onebit.load_site"),
-                       ("import onebit.cli (the CLI)", "import onebit.cli")):  # fmt: skip
+    for what, code in (
+        ("import onebit", "import onebit"),
+        ("import onebit; onebit.load_site", "import onebit; onebit.load_site"),
+        ("import onebit.cli (the CLI)", "import onebit.cli"),
+    ):
         tw = wall(code)
-        t.add(Result("start-up", f"start-up: {what}", 1, "s wall", tw, floor, "import numpy, polars", None, "< 1 s", tw < 1.0))
+        t.add(
+            Result(
+                "start-up", f"start-up: {what}", 1, "s wall", tw, floor, "import numpy, polars", None, "< 1 s", tw < 1.0
+            )
+        )
 
 
 def algorithm1(t: Table) -> None:
@@ -533,8 +746,20 @@ def algorithm1(t: Table) -> None:
         res.append((m, ta, tb))
     g = growth([r[0] for r in res], [r[1] for r in res])
     for m, ta, tb in res:
-        t.add(Result("Algorithm 1 variations", f"Algorithm 1 A-E, {m:.0e} crossings", m, "s", ta, tb, "base Algorithm 1 (compiled)", g,
-                     "<= 2x base", ta / tb <= 2))  # fmt: skip
+        t.add(
+            Result(
+                "Algorithm 1 variations",
+                f"Algorithm 1 A-E, {m:.0e} crossings",
+                m,
+                "s",
+                ta,
+                tb,
+                "base Algorithm 1 (compiled)",
+                g,
+                "<= 2x base",
+                ta / tb <= 2,
+            )
+        )
 
 
 def demo(t: Table) -> None:
@@ -545,14 +770,17 @@ def demo(t: Table) -> None:
     with tempfile.TemporaryDirectory() as b:
         steps = [
             ["simulate", "beams-lab", f"{b}/beams-lab", "--seed", "7", "--duration", "180", "--agents", "2"],
-            ["run", f"{b}/beams-lab", "--out", f"{b}/run"], ["report", f"{b}/run"],
-            ["simulate", "pir14", f"{b}/pir14", "--seed", "7", "--param", "refractory=4"], ["run", f"{b}/pir14", "--out", f"{b}/pir14-run"],
+            ["run", f"{b}/beams-lab", "--out", f"{b}/run"],
+            ["report", f"{b}/run"],
+            ["simulate", "pir14", f"{b}/pir14", "--seed", "7", "--param", "refractory=4"],
+            ["run", f"{b}/pir14", "--out", f"{b}/pir14-run"],
             ["simulate", "proximity-line", f"{b}/proximity-line", "--seed", "7"],
             ["run", f"{b}/proximity-line", "--out", f"{b}/proximity-line-run"],
             ["simulate", "hallway", f"{b}/hallway", "--seed", "7", "--users", "3", "--duration", "150"],
             ["run", f"{b}/hallway", "--out", f"{b}/hallway-run"],
-            ["simulate", "istate-room", f"{b}/istate-room", "--seed", "7"], ["run", f"{b}/istate-room", "--out", f"{b}/istate-room-run"],
-        ]  # fmt: skip
+            ["simulate", "istate-room", f"{b}/istate-room", "--seed", "7"],
+            ["run", f"{b}/istate-room", "--out", f"{b}/istate-room-run"],
+        ]
         t0 = time.perf_counter()
         render = 0.0
         for s in steps:
@@ -561,16 +789,44 @@ def demo(t: Table) -> None:
             if s[:2] == ["simulate", "beams-lab"]:
                 render = time.perf_counter() - t1
         total = time.perf_counter() - t0
-    t.add(Result("make demo", "make demo (warm)", 1, "s wall", total, render, "simulate beams-lab (renders camera.mp4)", None, "< 45 s", total < 45))
+    t.add(
+        Result(
+            "make demo",
+            "make demo (warm)",
+            1,
+            "s wall",
+            total,
+            render,
+            "simulate beams-lab (renders camera.mp4)",
+            None,
+            "< 45 s",
+            total < 45,
+        )
+    )
 
 
-ROWS = (readers, viterbi, compile_times, findinghumo_stage, particle_filter, intruder_long, istate, clustertrack, region_scores, camera,
-        startup, algorithm1, demo)  # fmt: skip
+ROWS = (
+    readers,
+    viterbi,
+    compile_times,
+    findinghumo_stage,
+    particle_filter,
+    intruder_long,
+    istate,
+    clustertrack,
+    region_scores,
+    camera,
+    startup,
+    algorithm1,
+    demo,
+)
 
 
 def main(argv: list[str] | None = None) -> None:
     parser = argparse.ArgumentParser(prog="python -m benchmarks.bench_table", description=__doc__.split("\n\n")[0])
-    parser.add_argument("--rows", default="", help="comma-separated rows to run (default: all): " + ", ".join(r.__name__ for r in ROWS))
+    parser.add_argument(
+        "--rows", default="", help="comma-separated rows to run (default: all): " + ", ".join(r.__name__ for r in ROWS)
+    )
     args = parser.parse_args(argv)
     wanted = [w.strip() for w in args.rows.split(",") if w.strip()]
     unknown = sorted(set(wanted) - {r.__name__ for r in ROWS})
@@ -591,8 +847,10 @@ def main(argv: list[str] | None = None) -> None:
             traceback.print_exc()
             failed.append(f"{row.__name__}: {exc}")
         print(f"  ({row.__name__}: {time.perf_counter() - t0:.0f} s)", flush=True)
-    print("\nratio = ours / peer (below 1: ours is faster or smaller); growth = log-log slope of ours over the row's sizes "
-          "(1 = linear, 0 = flat)")  # fmt: skip
+    print(
+        "\nratio = ours / peer (below 1: ours is faster or smaller); growth = log-log slope of ours over the row's sizes "
+        "(1 = linear, 0 = flat)"
+    )
     if QUICK:
         print("(quick run: benchmarks/results.csv not written)")
     else:

@@ -57,8 +57,12 @@ ROW = "whole run (cold onebit run)"
 
 
 def _simulate(scenario: str, out: Path, *args: str) -> Path:
-    subprocess.run([sys.executable, "-m", "onebit.cli", "simulate", scenario, str(out), *args], check=True,
-                   capture_output=True, text=True)  # fmt: skip
+    subprocess.run(
+        [sys.executable, "-m", "onebit.cli", "simulate", scenario, str(out), *args],
+        check=True,
+        capture_output=True,
+        text=True,
+    )
     return out
 
 
@@ -78,7 +82,9 @@ def datasets(root: Path, kinds, sizes) -> list[tuple[str, int, Path]]:
     """``(kind, rows, folder)`` of every dataset of the benchmark, built under ``root``."""
     out = []
     base = {
-        "beams": lambda: _simulate("beams-lab", root / "src-beams", "--seed", "7", "--duration", "180", "--agents", "2", "--no-camera"),
+        "beams": lambda: _simulate(
+            "beams-lab", root / "src-beams", "--seed", "7", "--duration", "180", "--agents", "2", "--no-camera"
+        ),
         "motion": lambda: _simulate("pir14", root / "src-motion", "--seed", "7", "--no-camera"),
         "proximity": lambda: _simulate("proximity-line", root / "src-proximity", "--seed", "7", "--no-camera"),
     }
@@ -96,10 +102,14 @@ def datasets(root: Path, kinds, sizes) -> list[tuple[str, int, Path]]:
 def read_csv_cold(path: Path) -> float:
     """Seconds of ``pl.read_csv(path)`` in a fresh process (after ``import polars``)."""
     code = f"import time, polars as pl\nt = time.perf_counter(); pl.read_csv({str(path)!r})\nprint(time.perf_counter() - t)"
-    return float(subprocess.run([sys.executable, "-c", code], check=True, capture_output=True, text=True).stdout.strip())
+    return float(
+        subprocess.run([sys.executable, "-c", code], check=True, capture_output=True, text=True).stdout.strip()
+    )
 
 
-def cold_run(dataset: Path, out: Path, trackers: str | None, *, rrd: bool, timeout: float, code: Path | None = None) -> dict:
+def cold_run(
+    dataset: Path, out: Path, trackers: str | None, *, rrd: bool, timeout: float, code: Path | None = None
+) -> dict:
     """One ``onebit run`` process: wall, start-up, per-stage work and viz seconds, or ``killed``;
     ``code``: run the onebit of that checkout (``PYTHONPATH``) instead of this one."""
     cmd = [sys.executable, "-m", "onebit.cli", "run", str(dataset), "--out", str(out)]
@@ -110,7 +120,9 @@ def cold_run(dataset: Path, out: Path, trackers: str | None, *, rrd: bool, timeo
     t0 = time.perf_counter()
     try:
         env = {**os.environ, "PYTHONPATH": str(code)} if code is not None else None
-        proc = subprocess.run(cmd, capture_output=True, text=True, timeout=timeout, env=env, cwd=code)  # -m imports from the cwd first
+        proc = subprocess.run(
+            cmd, capture_output=True, text=True, timeout=timeout, env=env, cwd=code
+        )  # -m imports from the cwd first
     except subprocess.TimeoutExpired:
         return {"killed": True, "wall": timeout, "cmd": cmd}
     wall = time.perf_counter() - t0
@@ -121,25 +133,39 @@ def cold_run(dataset: Path, out: Path, trackers: str | None, *, rrd: bool, timeo
     stages = {k: v for k, v in timing.items() if isinstance(v, dict)}
     viz = sum(v.get("viz_s", 0.0) for v in stages.values()) + timing.get("blueprint_s", 0.0)
     return {
-        "killed": False, "wall": wall, "startup": timing.get("entered_unix", spawned) - spawned, "viz": viz,
-        "stages": stages, "status": record.get("stages", {}), "cmd": cmd,
-    }  # fmt: skip
+        "killed": False,
+        "wall": wall,
+        "startup": timing.get("entered_unix", spawned) - spawned,
+        "viz": viz,
+        "stages": stages,
+        "status": record.get("stages", {}),
+        "cmd": cmd,
+    }
 
 
 def _commit_of(checkout: Path) -> str:
     try:
-        return subprocess.run(["git", "rev-parse", "--short", "HEAD"], cwd=checkout, capture_output=True, text=True, timeout=10).stdout.strip() or str(checkout)
+        return subprocess.run(
+            ["git", "rev-parse", "--short", "HEAD"], cwd=checkout, capture_output=True, text=True, timeout=10
+        ).stdout.strip() or str(checkout)
     except (OSError, subprocess.SubprocessError):
         return str(checkout)
 
 
 def main(argv: list[str] | None = None) -> None:
     ap = argparse.ArgumentParser(prog="python -m benchmarks.bench_whole_run")
-    ap.add_argument("--sizes", default=",".join(f"{s:g}" for s in SIZES), help="rows of the tiled logs (comma-separated)")
+    ap.add_argument(
+        "--sizes", default=",".join(f"{s:g}" for s in SIZES), help="rows of the tiled logs (comma-separated)"
+    )
     ap.add_argument("--kinds", default=",".join(KINDS))
     ap.add_argument("--timeout", type=float, default=600.0, help="s; a run taking longer is killed and reported so")
-    ap.add_argument("--baseline", type=Path, default=None, metavar="CHECKOUT",
-                    help="also run each recorded run with the onebit of this checkout (an earlier commit): the before/after rows")
+    ap.add_argument(
+        "--baseline",
+        type=Path,
+        default=None,
+        metavar="CHECKOUT",
+        help="also run each recorded run with the onebit of this checkout (an earlier commit): the before/after rows",
+    )
     args = ap.parse_args(argv)
     sizes = tuple(int(float(s)) for s in args.sizes.split(","))
     kinds = tuple(k.strip() for k in args.kinds.split(","))
@@ -154,23 +180,48 @@ def main(argv: list[str] | None = None) -> None:
                 print(f"  {kind} {n} rows: not run (a smaller log was killed at the timeout)", flush=True)
                 continue
             trackers = TRACKERS[kind]
-            what = f"{kind} --trackers {trackers}" if trackers else f"{kind} (24 h, 50 PIRs, 2 residents), every tracker"
+            what = (
+                f"{kind} --trackers {trackers}" if trackers else f"{kind} (24 h, 50 PIRs, 2 residents), every tracker"
+            )
             off = cold_run(data, root / "out-norrd", trackers, rrd=False, timeout=args.timeout)
             on = off if off["killed"] else cold_run(data, root / "out", trackers, rrd=True, timeout=args.timeout)
             floor = read_csv_cold(data / LOG[kind])
             if args.baseline is not None and not on["killed"]:
-                warm = cold_run(data, root / "out-base", trackers, rrd=True, timeout=args.timeout, code=args.baseline)  # its kernels' cache
-                base = warm if warm["killed"] else cold_run(data, root / "out-base", trackers, rrd=True, timeout=args.timeout, code=args.baseline)
-                again = cold_run(data, root / "out", trackers, rrd=True, timeout=args.timeout)  # right after, in the same conditions
+                warm = cold_run(
+                    data, root / "out-base", trackers, rrd=True, timeout=args.timeout, code=args.baseline
+                )  # its kernels' cache
+                base = (
+                    warm
+                    if warm["killed"]
+                    else cold_run(data, root / "out-base", trackers, rrd=True, timeout=args.timeout, code=args.baseline)
+                )
+                again = cold_run(
+                    data, root / "out", trackers, rrd=True, timeout=args.timeout
+                )  # right after, in the same conditions
                 ours = min(on["wall"], again["wall"])
-                print(f"  {kind} {n} rows: baseline {base['wall']:.1f} s{' (killed)' if base['killed'] else ''}, ours {ours:.1f} s", flush=True)
-                table.add(Result(ROW, f"{what}, {n:.0e} rows: wall, this commit vs {_commit_of(args.baseline)}", n, "s wall", ours,
-                                 base["wall"], f"the same run at {_commit_of(args.baseline)}" + (" (killed)" if base["killed"] else "")))  # fmt: skip
+                print(
+                    f"  {kind} {n} rows: baseline {base['wall']:.1f} s{' (killed)' if base['killed'] else ''}, ours {ours:.1f} s",
+                    flush=True,
+                )
+                table.add(
+                    Result(
+                        ROW,
+                        f"{what}, {n:.0e} rows: wall, this commit vs {_commit_of(args.baseline)}",
+                        n,
+                        "s wall",
+                        ours,
+                        base["wall"],
+                        f"the same run at {_commit_of(args.baseline)}" + (" (killed)" if base["killed"] else ""),
+                    )
+                )
             runs.setdefault(kind, []).append((n, what, on, off, floor))
             if on["killed"]:
                 killed.add(kind)
-            print(f"  {kind} {n} rows: wall {on['wall']:.1f} s{' (killed)' if on['killed'] else ''}, --no-rrd "
-                  f"{off['wall']:.1f} s, read_csv {floor:.3f} s", flush=True)  # fmt: skip
+            print(
+                f"  {kind} {n} rows: wall {on['wall']:.1f} s{' (killed)' if on['killed'] else ''}, --no-rrd "
+                f"{off['wall']:.1f} s, read_csv {floor:.3f} s",
+                flush=True,
+            )
         for kind, items in runs.items():
             ns = [n for n, *_ in items]
             walls = [on["wall"] for _, _, on, _, _ in items if not on["killed"]]
@@ -179,24 +230,69 @@ def main(argv: list[str] | None = None) -> None:
                 killed = " (killed at the timeout)" if on["killed"] else ""
                 goal = "< 10 s at 1e6 rows" if kind == "beams" else ""
                 met = (on["wall"] < 10.0 and not on["killed"]) if kind == "beams" and n >= 1_000_000 else None
-                table.add(Result(ROW, f"{what}, {n:.0e} rows: wall{killed}", n, "s wall", on["wall"], off["wall"],
-                                 "the same run --no-rrd", g_wall, goal, met))  # fmt: skip
+                table.add(
+                    Result(
+                        ROW,
+                        f"{what}, {n:.0e} rows: wall{killed}",
+                        n,
+                        "s wall",
+                        on["wall"],
+                        off["wall"],
+                        "the same run --no-rrd",
+                        g_wall,
+                        goal,
+                        met,
+                    )
+                )
                 if on["killed"]:
                     continue
-                table.add(Result(ROW, f"{what}, {n:.0e} rows: start-up", n, "s wall", on["startup"], on["wall"],
-                                 "the whole run", None, "imports and checks before the first stage"))  # fmt: skip
+                table.add(
+                    Result(
+                        ROW,
+                        f"{what}, {n:.0e} rows: start-up",
+                        n,
+                        "s wall",
+                        on["startup"],
+                        on["wall"],
+                        "the whole run",
+                        None,
+                        "imports and checks before the first stage",
+                    )
+                )
                 share = on["viz"] / on["wall"] if on["wall"] else None
-                table.add(Result(ROW, f"{what}, {n:.0e} rows: viz (recordings)", n, "s wall", on["viz"], on["wall"],
-                                 "the whole run", growth(ns, [r[2].get("viz", 0) for r in items if not r[2]["killed"]]),
-                                 "<= 20 % of the run", share is not None and share <= 0.20))  # fmt: skip
+                table.add(
+                    Result(
+                        ROW,
+                        f"{what}, {n:.0e} rows: viz (recordings)",
+                        n,
+                        "s wall",
+                        on["viz"],
+                        on["wall"],
+                        "the whole run",
+                        growth(ns, [r[2].get("viz", 0) for r in items if not r[2]["killed"]]),
+                        "<= 20 % of the run",
+                        share is not None and share <= 0.20,
+                    )
+                )
                 for stage, t in on["stages"].items():
                     reader = stage == READER_STAGE[kind]
-                    table.add(Result(
-                        ROW, f"{what}, {n:.0e} rows: stage {stage}", n, "s wall", t["work_s"],
-                        floor if reader else None, "pl.read_csv of the log (fresh process)" if reader else "",
-                        growth(ns, [r[2]["stages"].get(stage, {}).get("work_s", 0) for r in items if not r[2]["killed"]]),
-                        "<= 2x pl.read_csv (cold)" if reader else "", (t["work_s"] <= 2 * floor) if reader else None,
-                    ))  # fmt: skip
+                    table.add(
+                        Result(
+                            ROW,
+                            f"{what}, {n:.0e} rows: stage {stage}",
+                            n,
+                            "s wall",
+                            t["work_s"],
+                            floor if reader else None,
+                            "pl.read_csv of the log (fresh process)" if reader else "",
+                            growth(
+                                ns,
+                                [r[2]["stages"].get(stage, {}).get("work_s", 0) for r in items if not r[2]["killed"]],
+                            ),
+                            "<= 2x pl.read_csv (cold)" if reader else "",
+                            (t["work_s"] <= 2 * floor) if reader else None,
+                        )
+                    )
     table.write()
 
 

@@ -21,7 +21,21 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 RESULTS_CSV = Path(__file__).with_name("results.csv")
-COLUMNS = ("row", "case", "size", "unit", "ours", "peer", "peer_name", "ratio", "growth", "goal", "met", "commit", "when")
+COLUMNS = (
+    "row",
+    "case",
+    "size",
+    "unit",
+    "ours",
+    "peer",
+    "peer_name",
+    "ratio",
+    "growth",
+    "goal",
+    "met",
+    "commit",
+    "when",
+)
 
 
 @dataclass
@@ -66,10 +80,20 @@ class Table:
         keep = [o for o in old if (o.get("row"), o.get("case"), o.get("size")) not in mine]
         rows = keep + [
             {
-                "row": r.row, "case": r.case, "size": _num(r.size), "unit": r.unit, "ours": _num(r.ours),
-                "peer": _num(r.peer), "peer_name": r.peer_name, "ratio": _num(r.ratio), "growth": _num(r.growth),
-                "goal": r.goal, "met": "" if r.met is None else str(bool(r.met)).lower(), "commit": commit, "when": when,
-            }  # fmt: skip
+                "row": r.row,
+                "case": r.case,
+                "size": _num(r.size),
+                "unit": r.unit,
+                "ours": _num(r.ours),
+                "peer": _num(r.peer),
+                "peer_name": r.peer_name,
+                "ratio": _num(r.ratio),
+                "growth": _num(r.growth),
+                "goal": r.goal,
+                "met": "" if r.met is None else str(bool(r.met)).lower(),
+                "commit": commit,
+                "when": when,
+            }
             for r in self.results
         ]
         tmp = path.with_suffix(".csv.tmp")
@@ -103,8 +127,16 @@ def _num(v) -> str:
 def _commit() -> str:
     try:  # read-only: which commit the numbers belong to (plus "+dirty" for uncommitted work)
         root = Path(__file__).resolve().parent.parent
-        head = subprocess.run(["git", "rev-parse", "--short", "HEAD"], cwd=root, capture_output=True, text=True, timeout=10).stdout.strip()
-        dirty = subprocess.run(["git", "status", "--porcelain", "--untracked-files=no"], cwd=root, capture_output=True, text=True, timeout=10).stdout.strip()
+        head = subprocess.run(
+            ["git", "rev-parse", "--short", "HEAD"], cwd=root, capture_output=True, text=True, timeout=10
+        ).stdout.strip()
+        dirty = subprocess.run(
+            ["git", "status", "--porcelain", "--untracked-files=no"],
+            cwd=root,
+            capture_output=True,
+            text=True,
+            timeout=10,
+        ).stdout.strip()
         return head + ("+dirty" if dirty else "")
     except (OSError, subprocess.SubprocessError):
         return ""
@@ -132,7 +164,7 @@ def best(fn, repeat: int = 3, budget: float = 20.0, clock=time.perf_counter):
     return b, out
 
 
-_PEAK_HEAD = """
+_PEAK_HEAD = r"""
 import re, sys
 def kib(key):
     with open("/proc/self/status") as fh:
@@ -153,9 +185,13 @@ def peak_mb(setup: str, call: str, timeout: float = 1800.0) -> float | None:
     (Linux: ``VmHWM`` reset through ``/proc/self/clear_refs``); ``None`` if unsupported."""
     try:
         out = subprocess.run(
-            [sys.executable, "-c", _PEAK_HEAD + setup + "\n" + _PEAK_RESET + call + "\n" + _PEAK_TAIL], capture_output=True, text=True, check=True, timeout=timeout,
+            [sys.executable, "-c", _PEAK_HEAD + setup + "\n" + _PEAK_RESET + call + "\n" + _PEAK_TAIL],
+            capture_output=True,
+            text=True,
+            check=True,
+            timeout=timeout,
             cwd=Path(__file__).resolve().parent.parent,
-        )  # fmt: skip
+        )
         m = re.search(r"PEAK_MB ([0-9.eE+-]+)", out.stdout)
         return float(m.group(1)) if m else None
     except (subprocess.SubprocessError, OSError, ValueError):

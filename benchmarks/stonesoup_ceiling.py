@@ -93,8 +93,14 @@ def _footprint(site: Site) -> float:
     return float(np.median(r)) if r else float(to_site_units(1.0, "m", site.units))
 
 
-def track(levels: pl.DataFrame, site: Site, config: StoneSoupConfig = StoneSoupConfig(), *, jpda: bool = False,
-          name: str = "stonesoup") -> pl.DataFrame:
+def track(
+    levels: pl.DataFrame,
+    site: Site,
+    config: StoneSoupConfig = StoneSoupConfig(),
+    *,
+    jpda: bool = False,
+    name: str = "stonesoup",
+) -> pl.DataFrame:
     """Stone Soup GNN (or JPDA) Kalman tracks of the firing sensors (module docstring): TRACKS
     rows of every state of every confirmed track (updates and the predictions between them)."""
     from stonesoup.dataassociator.neighbour import GNNWith2DAssignment
@@ -122,37 +128,67 @@ def track(levels: pl.DataFrame, site: Site, config: StoneSoupConfig = StoneSoupC
     updater = KalmanUpdater(measurement)
     minx, miny, maxx, maxy = site.boundary.bounds
     prior = GaussianState(
-        [[(minx + maxx) / 2], [0.0], [(miny + maxy) / 2], [0.0]], np.diag([(maxx - minx) ** 2, (1.5 * u) ** 2, (maxy - miny) ** 2, (1.5 * u) ** 2])
+        [[(minx + maxx) / 2], [0.0], [(miny + maxy) / 2], [0.0]],
+        np.diag([(maxx - minx) ** 2, (1.5 * u) ** 2, (maxy - miny) ** 2, (1.5 * u) ** 2]),
     )
     deleter = UpdateTimeStepsDeleter(time_steps_since_update=config.delete_after)
     init_hyp = DistanceHypothesiser(predictor, updater, Mahalanobis(), missed_distance=config.missed_distance)
     initiator = MultiMeasurementInitiator(
-        prior_state=prior, measurement_model=measurement, deleter=deleter,
-        data_associator=GNNWith2DAssignment(init_hyp), updater=updater, min_points=config.min_points,
-    )  # fmt: skip
+        prior_state=prior,
+        measurement_model=measurement,
+        deleter=deleter,
+        data_associator=GNNWith2DAssignment(init_hyp),
+        updater=updater,
+        min_points=config.min_points,
+    )
     frames = detections_of(levels, site)
     scans = [
-        (EPOCH + _dt.timedelta(seconds=t), {Detection(np.array([[x], [y]]), timestamp=EPOCH + _dt.timedelta(seconds=t),
-                                                      measurement_model=measurement) for x, y in xy})
+        (
+            EPOCH + _dt.timedelta(seconds=t),
+            {
+                Detection(
+                    np.array([[x], [y]]), timestamp=EPOCH + _dt.timedelta(seconds=t), measurement_model=measurement
+                )
+                for x, y in xy
+            },
+        )
         for t, xy in frames
-    ]  # fmt: skip
+    ]
     if jpda:
         density = config.clutter_per_frame / max(site.free_space.area, 1e-9)
         hyp = PDAHypothesiser(predictor, updater, clutter_spatial_density=density, prob_detect=config.prob_detect)
-        tracker = MultiTargetMixtureTracker(initiator=initiator, deleter=deleter, detector=scans, data_associator=JPDAwithEHM(hyp),
-                                            updater=updater)  # fmt: skip
+        tracker = MultiTargetMixtureTracker(
+            initiator=initiator, deleter=deleter, detector=scans, data_associator=JPDAwithEHM(hyp), updater=updater
+        )
     else:
         hyp = DistanceHypothesiser(predictor, updater, Mahalanobis(), missed_distance=config.missed_distance)
-        tracker = MultiTargetTracker(initiator=initiator, deleter=deleter, detector=scans, data_associator=GNNWith2DAssignment(hyp),
-                                     updater=updater)  # fmt: skip
+        tracker = MultiTargetTracker(
+            initiator=initiator,
+            deleter=deleter,
+            detector=scans,
+            data_associator=GNNWith2DAssignment(hyp),
+            updater=updater,
+        )
     every: set = set()
     for _, tracks in tracker:  # Stone Soup's trackers iterate over the scans
         every |= tracks
     rows = []
     for k, tr in enumerate(sorted(every, key=lambda tr: (tr.states[0].timestamp, tr.id))):
         for st in tr.states:
-            rows.append((name, f"{name}-{k}", (st.timestamp - EPOCH).total_seconds(), float(st.state_vector[0, 0]), float(st.state_vector[2, 0])))
-    df = pl.DataFrame(rows, schema={"tracker": pl.String, "track": pl.String, "t": pl.Float64, "x": pl.Float64, "y": pl.Float64}, orient="row")
+            rows.append(
+                (
+                    name,
+                    f"{name}-{k}",
+                    (st.timestamp - EPOCH).total_seconds(),
+                    float(st.state_vector[0, 0]),
+                    float(st.state_vector[2, 0]),
+                )
+            )
+    df = pl.DataFrame(
+        rows,
+        schema={"tracker": pl.String, "track": pl.String, "t": pl.Float64, "x": pl.Float64, "y": pl.Float64},
+        orient="row",
+    )
     return conform(df.unique(["track", "t"], keep="last", maintain_order=True).sort("t", "track"), TRACKS)
 
 

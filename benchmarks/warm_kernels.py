@@ -36,13 +36,37 @@ def intruder() -> None:
 
     q = np.zeros((2, 4, 4))
     q[0, :2, :2] = q[1, 2:, 2:] = 0.8
-    dep = Deployment(("s0", "s1"), WorldGrid(0.0, 0.0, 1.0, 4, 4), q, np.zeros(2), np.full(2, 1e-6), np.zeros(2), np.array([4, 4]), ())
+    dep = Deployment(
+        ("s0", "s1"),
+        WorldGrid(0.0, 0.0, 1.0, 4, 4),
+        q,
+        np.zeros(2),
+        np.full(2, 1e-6),
+        np.zeros(2),
+        np.array([4, 4]),
+        (),
+    )
     fired = np.array([[True, False], [False, True]])
     motion = Motion(2.0, 4.0, 1.5, 4.0, 50)
-    for room in (Room(shapely.box(0, 0, 4, 4)), Room(shapely.box(0, 0, 4, 4).difference(shapely.box(1.5, 1.5, 2.5, 2.5)))):
+    for room in (
+        Room(shapely.box(0, 0, 4, 4)),
+        Room(shapely.box(0, 0, 4, 4).difference(shapely.box(1.5, 1.5, 2.5, 2.5))),
+    ):
         for resample in ("systematic", "multinomial"):
-            run_filter(fired, ~fired, dep, room, motion, n_particles=20, half_w=1.0, half_d=1.0, rng=np.random.default_rng(0),
-                       resample=resample, log_particles=5, compiled=True)  # fmt: skip
+            run_filter(
+                fired,
+                ~fired,
+                dep,
+                room,
+                motion,
+                n_particles=20,
+                half_w=1.0,
+                half_d=1.0,
+                rng=np.random.default_rng(0),
+                resample=resample,
+                log_particles=5,
+                compiled=True,
+            )
 
 
 def beams() -> None:
@@ -51,7 +75,14 @@ def beams() -> None:
 
     src, tgt = np.array([0, 1, 2, 1]), np.array([1, 2, 1, 0])
     assign_agents(src, tgt, 3, compiled=True)
-    assign_agents(src, tgt, 3, constraints=Constraints(max_track_length=9, min_traversal=np.full(3, 0.5)), times=np.arange(4.0), compiled=True)
+    assign_agents(
+        src,
+        tgt,
+        3,
+        constraints=Constraints(max_track_length=9, min_traversal=np.full(3, 0.5)),
+        times=np.arange(4.0),
+        compiled=True,
+    )
     edges = RegionEdges.from_arrays([0, 1, 1, 2], [1, 0, 2, 1], 3)
     correct(np.array([1, 2]), np.array([2, 1]), edges, n_agents=1, compiled=True)
 
@@ -62,8 +93,19 @@ def clustertrack() -> None:
 
     for dim in (1, 2):
         x = np.random.default_rng(0).random((6, dim))
-        scan_clusters(np.arange(6.0), np.repeat(np.arange(2), 3), x, np.zeros((2, 2)), 2, H=2, K=4, L=6, D0=0.5,
-                      rng=np.random.default_rng(0), compiled=True)  # fmt: skip
+        scan_clusters(
+            np.arange(6.0),
+            np.repeat(np.arange(2), 3),
+            x,
+            np.zeros((2, 2)),
+            2,
+            H=2,
+            K=4,
+            L=6,
+            D0=0.5,
+            rng=np.random.default_rng(0),
+            compiled=True,
+        )
         kernels.candidate_costs(x, x[:2], x[:2], np.zeros(2), 3, True)
         kernels.summed_distances(np.zeros((2, 2)), np.arange(2), x[:2])
 
@@ -72,7 +114,15 @@ def readers() -> None:
     from onebit.readers.beams import decode_passes
     from onebit.readers.motion import DebounceRules, debounce
 
-    ev = pl.DataFrame({"line": [2, 3, 4, 5], "t": [0.0, 0.1, 0.2, 0.3], "beam": "a", "pair": ["a", "b", "a", "b"], "blocked": [True, True, False, False]})
+    ev = pl.DataFrame(
+        {
+            "line": [2, 3, 4, 5],
+            "t": [0.0, 0.1, 0.2, 0.3],
+            "beam": "a",
+            "pair": ["a", "b", "a", "b"],
+            "blocked": [True, True, False, False],
+        }
+    )
     decode_passes(ev, compiled=True)
     edges = pl.DataFrame({"line": [2, 3], "t": [0.0, 1.0], "sensor": "s", "on": [True, False]})
     debounce(edges, ["s"], DebounceRules(chatter_window=0.1, min_on=0.1), compiled=True)

@@ -81,4 +81,6 @@ def run(
     """
     runner = importlib.import_module("onebit.pipeline.runner")  # lazy: see _LAZY
     cfg = runner.load_run_config(config) if isinstance(config, (str, Path)) else dict(config or {})
-    return runner.run_pipeline(dataset, out, trackers=tuple(trackers) if trackers is not None else None, config=cfg, rrd=rrd)
+    return runner.run_pipeline(
+        dataset, out, trackers=tuple(trackers) if trackers is not None else None, config=cfg, rrd=rrd
+    )

@@ -19,18 +19,16 @@ from onebit.datasets.irtracking import DEFAULT_RADIUS_M, PERIOD_S, import_irtrac
 from onebit.datasets.scenario import parse_params, simulate_into
 from onebit.experiments import get_experiment
 from onebit.pipeline.executors import EXECUTORS, make_executor
+from onebit.pipeline.follow import FollowConfig, follow, parse_speed
 from onebit.pipeline.progress import Spinner
 from onebit.pipeline.report import check_run_folder, format_report, load_report
 from onebit.pipeline.runmany import format_summary, run_many
 from onebit.pipeline.runner import load_run_config, run_pipeline
 from onebit.readers.loginfo import format_log_info, log_info
-from onebit.readers.mcap_io import csv_folder_to_mcap, load_topic_map, mcap_to_csv_folder
+from onebit.readers.mcap_io import csv_folder_to_mcap, load_topic_map, mcap_to_csv_folder, tracks_for_views
 from onebit.readers.trajectories import TrajectoryFormat
 from onebit.trackers.beams.verify import parse_story, verify_path
-from onebit.pipeline.follow import FollowConfig, follow, parse_speed
 from onebit.viz.compare import compare_runs
-from onebit.core.config import load_toml
-from onebit.readers.mcap_io import tracks_for_views
 
 
 def _cmd_run(args) -> int:
@@ -42,9 +40,13 @@ def _cmd_run(args) -> int:
     if args.no_rrd:
         print("Rerun recordings: none (--no-rrd)")
     else:
-        print(f"Rerun recordings: {Path(args.out) / 'rrd'}/*.rrd   (open later with: rerun {Path(args.out) / 'rrd'}/*.rrd)")
+        print(
+            f"Rerun recordings: {Path(args.out) / 'rrd'}/*.rrd   (open later with: rerun {Path(args.out) / 'rrd'}/*.rrd)"
+        )
     failed = [name for name, state in res.status.items() if state.startswith("failed")]
-    for why in ([f"stage(s) failed: {', '.join(failed)} (see {Path(args.out) / 'run.toml'})"] if failed else []) + res.problems:
+    for why in (
+        [f"stage(s) failed: {', '.join(failed)} (see {Path(args.out) / 'run.toml'})"] if failed else []
+    ) + res.problems:
         print(f"onebit: run not ok: {why}", file=sys.stderr)
     return 0 if res.ok else 1
 
@@ -52,11 +54,25 @@ def _cmd_run(args) -> int:
 def _cmd_follow(args) -> int:
     trackers = tuple(t.strip() for t in args.trackers.split(",")) if args.trackers else None
     config = load_run_config(args.config)
-    options = FollowConfig(replay=parse_speed(args.replay) if args.replay else None, poll=args.poll, idle=args.idle, settle=args.settle)
-    how = f"replay at {options.replay:g}x" if options.replay else f"following the growing logs (ends after {options.idle:g} s idle)"
+    options = FollowConfig(
+        replay=parse_speed(args.replay) if args.replay else None, poll=args.poll, idle=args.idle, settle=args.settle
+    )
+    how = (
+        f"replay at {options.replay:g}x"
+        if options.replay
+        else f"following the growing logs (ends after {options.idle:g} s idle)"
+    )
     print(f"onebit follow {args.dataset} -> {args.out}: {how}")
-    res = follow(args.dataset, args.out, trackers=trackers, config=config, options=options, connect=args.connect,
-                 serve_web=args.serve_web, echo=print)  # fmt: skip
+    res = follow(
+        args.dataset,
+        args.out,
+        trackers=trackers,
+        config=config,
+        options=options,
+        connect=args.connect,
+        serve_web=args.serve_web,
+        echo=print,
+    )
     print(format_report(res.run.report, title=f"report of {args.out}"))
     print(format_report(res.report, title=f"follow: online trackers ({res.live})"))
     print(f"Rerun: {res.live / 'rrd' / 'follow.rrd'} (live stream), {Path(args.out) / 'rrd'}/*.rrd (batch run)")
@@ -70,7 +86,9 @@ def _cmd_compare(args) -> int:
     if labels is not None and len(labels) != 2:
         raise ConfigError(f"--labels {args.labels!r}: expected two names, A,B")
     res = compare_runs(args.run_a, args.run_b, args.out, labels=labels)
-    print(f"compared {args.run_a} (A/) and {args.run_b} (B/): {res.views} views side by side, {sum(res.chunks.values())} chunks")
+    print(
+        f"compared {args.run_a} (A/) and {args.run_b} (B/): {res.views} views side by side, {sum(res.chunks.values())} chunks"
+    )
     print(f"open with: rerun {res.rrd} {res.blueprint}")
     return 0
 
@@ -81,21 +99,35 @@ def _executor(args):
 
 
 def _add_executor_options(p: argparse.ArgumentParser) -> None:
-    p.add_argument("--executor", choices=EXECUTORS, default="local",
-                   help="where the tasks run: serial (this process), local (a process pool, default) or ray")
-    p.add_argument("--workers", type=int, default=None,
-                   help="processes of the local pool / CPUs of a local Ray instance (default: one per core); "
-                        "with --ray-address: at most N tasks at a time (default: the cluster's CPUs)")
-    p.add_argument("--ray-address", default=None, metavar="ADDR",
-                   help="join a running Ray cluster (e.g. auto or HEAD:6379; see 'ray start --head'); "
-                        "default: start a local Ray instance")
+    p.add_argument(
+        "--executor",
+        choices=EXECUTORS,
+        default="local",
+        help="where the tasks run: serial (this process), local (a process pool, default) or ray",
+    )
+    p.add_argument(
+        "--workers",
+        type=int,
+        default=None,
+        help="processes of the local pool / CPUs of a local Ray instance (default: one per core); "
+        "with --ray-address: at most N tasks at a time (default: the cluster's CPUs)",
+    )
+    p.add_argument(
+        "--ray-address",
+        default=None,
+        metavar="ADDR",
+        help="join a running Ray cluster (e.g. auto or HEAD:6379; see 'ray start --head'); "
+        "default: start a local Ray instance",
+    )
 
 
 def _cmd_run_many(args) -> int:
     trackers = tuple(t.strip() for t in args.trackers.split(",")) if args.trackers else None
     config = load_run_config(args.config)
     with _executor(args) as ex:
-        res = run_many(args.datasets, args.out, trackers=trackers, config=config, executor=ex, echo=print, rrd=not args.no_rrd)
+        res = run_many(
+            args.datasets, args.out, trackers=trackers, config=config, executor=ex, echo=print, rrd=not args.no_rrd
+        )
     print(format_summary(res))
     return 0 if res.ok else 1
 
@@ -113,10 +145,19 @@ def _cmd_simulate(args) -> int:
     sc = get_scenario(args.scenario)
     if args.scenario in IN_PLACE:  # from-truth: adds the logs to the folder's own site.toml and truth.csv
         with Spinner(f"simulating {args.scenario} in {args.dataset}"):
-            sc.write(Path(args.dataset), seed=args.seed, duration=args.duration, agents=args.agents, drop=args.drop,
-                     camera=not args.no_camera, params=parse_params(args.param))  # fmt: skip
-        print(f"wrote the sensor logs of {args.dataset}/site.toml from its truth.csv (seed {args.seed}); "
-              f"now: onebit run {args.dataset} --out OUT")  # fmt: skip
+            sc.write(
+                Path(args.dataset),
+                seed=args.seed,
+                duration=args.duration,
+                agents=args.agents,
+                drop=args.drop,
+                camera=not args.no_camera,
+                params=parse_params(args.param),
+            )
+        print(
+            f"wrote the sensor logs of {args.dataset}/site.toml from its truth.csv (seed {args.seed}); "
+            f"now: onebit run {args.dataset} --out OUT"
+        )
         return 0
     with Spinner(f"simulating {args.scenario} into {args.dataset}"):
         out = simulate_into(
@@ -140,11 +181,17 @@ def _cmd_experiment(args) -> int:
     mod = get_experiment(args.name)
     extra = {}
     if args.name == "residents":  # a folder of real sessions, not a simulation
-        extra = dict(results=Path(args.results) if args.results else None,
-                     trackers=tuple(t.strip() for t in args.trackers.split(",") if t.strip()) if args.trackers else None,
-                     layout=args.layout, rooms=args.rooms, scale=args.scale, graph_radius=args.graph_radius, targets=args.targets,
-                     doors=tuple(d.strip() for d in args.doors.split(",") if d.strip()) if args.doors else (),
-                     config=load_run_config(args.config))  # fmt: skip
+        extra = dict(
+            results=Path(args.results) if args.results else None,
+            trackers=tuple(t.strip() for t in args.trackers.split(",") if t.strip()) if args.trackers else None,
+            layout=args.layout,
+            rooms=args.rooms,
+            scale=args.scale,
+            graph_radius=args.graph_radius,
+            targets=args.targets,
+            doors=tuple(d.strip() for d in args.doors.split(",") if d.strip()) if args.doors else (),
+            config=load_run_config(args.config),
+        )
     else:
         if args.config is not None:
             raise ConfigError(f"experiment {args.name!r} takes no --config")
@@ -156,7 +203,9 @@ def _cmd_experiment(args) -> int:
                     raise ConfigError(f"experiment {args.name!r} takes no --{key}")
                 extra[key] = value
     with _executor(args) as ex:
-        out = mod.run(Path(args.out), seed=args.seed, trials=args.trials, quick=args.quick, echo=print, executor=ex, **extra)
+        out = mod.run(
+            Path(args.out), seed=args.seed, trials=args.trials, quick=args.quick, echo=print, executor=ex, **extra
+        )
     print(f"experiment {args.name}: results in {out}")
     return 0
 
@@ -166,11 +215,10 @@ def _cmd_logs_info(args) -> int:
     return 0
 
 
-def _run_tracks(run: Path) -> "pl.DataFrame":
+def _run_tracks(run: Path) -> pl.DataFrame:
     """Every ``tables/<tracker>_tracks.parquet`` of a run folder, as view input (lined up
     with the raw logs' own stamps by the run's ``[time]`` origin)."""
     import polars as pl
-
 
     parts = sorted((run / "tables").glob("*_tracks.parquet"))
     if not parts:
@@ -201,40 +249,76 @@ def _cmd_logs_convert(args) -> int:
 
 def _cmd_import_casas(args) -> int:
     doors = tuple(d.strip() for d in args.doors.split(",") if d.strip()) if args.doors else ()
-    res = import_casas(args.log, args.dataset, layout=args.layout, targets=args.targets, doors=doors, window_s=args.window,
-                       min_count=args.min_count, min_share=args.min_share, spacing_m=args.spacing, hold_s=args.hold,
-                       hold_samples=args.hold_samples, scale=args.scale, rooms=args.rooms, graph_radius=args.graph_radius)  # fmt: skip
+    res = import_casas(
+        args.log,
+        args.dataset,
+        layout=args.layout,
+        targets=args.targets,
+        doors=doors,
+        window_s=args.window,
+        min_count=args.min_count,
+        min_share=args.min_share,
+        spacing_m=args.spacing,
+        hold_s=args.hold,
+        hold_samples=args.hold_samples,
+        scale=args.scale,
+        rooms=args.rooms,
+        graph_radius=args.graph_radius,
+    )
     c = res.counts
-    print(f"imported {args.log} -> {args.dataset}: {c['events']} events ({c['motion_csv']} motion/contact in motion.csv, "
-          f"{c['lost_off_repaired']} lost OFFs repaired, {c['other_csv']} others in other.csv, {c['annotations']} annotated, "
-          f"{c['truth_events']} resident-labelled in truth_events.csv), {c['rejected']} rejected lines, "
-          f"{c['reordered']} out of order (sorted); {c['sensors']} sensors, {c['edges']} edges "
-          f"({res.info['graph']['source']} graph, positions: {res.info['layout']['positions']}); see import.toml")  # fmt: skip
+    print(
+        f"imported {args.log} -> {args.dataset}: {c['events']} events ({c['motion_csv']} motion/contact in motion.csv, "
+        f"{c['lost_off_repaired']} lost OFFs repaired, {c['other_csv']} others in other.csv, {c['annotations']} annotated, "
+        f"{c['truth_events']} resident-labelled in truth_events.csv), {c['rejected']} rejected lines, "
+        f"{c['reordered']} out of order (sorted); {c['sensors']} sensors, {c['edges']} edges "
+        f"({res.info['graph']['source']} graph, positions: {res.info['layout']['positions']}); see import.toml"
+    )
     return 0
 
 
 def _cmd_import_irtracking(args) -> int:
-    res = import_irtracking(args.readings, args.dataset, truth=args.truth, coordinates=args.coordinates, period=args.period,
-                            radius=args.radius, r_inner=args.r_inner, targets=args.targets, name=args.name)  # fmt: skip
+    res = import_irtracking(
+        args.readings,
+        args.dataset,
+        truth=args.truth,
+        coordinates=args.coordinates,
+        period=args.period,
+        radius=args.radius,
+        r_inner=args.r_inner,
+        targets=args.targets,
+        name=args.name,
+    )
     c = res.info["counts"]
     truth = f", truth.csv ({c['truth_rows']} positions of {c['truth_targets']} people)" if "truth_rows" in c else ""
-    print(f"imported {args.readings} -> {args.dataset}: site.toml ({c['sensors']} sensors), frames.csv ({c['frames']} frames, "
-          f"{c['active_readings']} active readings){truth}; {c['rejected']} rejected{' (rejects.csv)' if c['rejected'] else ''}; "
-          "see import.toml")  # fmt: skip
+    print(
+        f"imported {args.readings} -> {args.dataset}: site.toml ({c['sensors']} sensors), frames.csv ({c['frames']} frames, "
+        f"{c['active_readings']} active readings){truth}; {c['rejected']} rejected{' (rejects.csv)' if c['rejected'] else ''}; "
+        "see import.toml"
+    )
     return 0
 
 
 def _cmd_import_trajectories(args) -> int:
     fmt = TrajectoryFormat(
-        delimiter={"tab": "\t", "space": " "}.get(args.delimiter, args.delimiter), time=args.time_column,
-        track=args.track_column, x=args.x_column, y=args.y_column, time_unit=args.time_unit, scale=args.scale,
-        offset=(args.offset_x, args.offset_y), flip_x=args.flip_x, flip_y=args.flip_y, swap_xy=args.swap_xy,
+        delimiter={"tab": "\t", "space": " "}.get(args.delimiter, args.delimiter),
+        time=args.time_column,
+        track=args.track_column,
+        x=args.x_column,
+        y=args.y_column,
+        time_unit=args.time_unit,
+        scale=args.scale,
+        offset=(args.offset_x, args.offset_y),
+        flip_x=args.flip_x,
+        flip_y=args.flip_y,
+        swap_xy=args.swap_xy,
         join=tuple(tuple(i.strip() for i in j.split(",")) for j in args.join or []),
-    )  # fmt: skip
+    )
     res = import_trajectories(args.file, args.dataset, fmt)
     c = res.counts
-    print(f"imported {args.file} -> {args.dataset}/truth.csv: {c['positions']} positions of {c['tracks']} tracks, "
-          f"{c['rejected']} rejected rows{' (truth_rejects.csv)' if c['rejected'] else ''}; see truth_import.toml")  # fmt: skip
+    print(
+        f"imported {args.file} -> {args.dataset}/truth.csv: {c['positions']} positions of {c['tracks']} tracks, "
+        f"{c['rejected']} rejected rows{' (truth_rejects.csv)' if c['rejected'] else ''}; see truth_import.toml"
+    )
     return 0
 
 
@@ -251,7 +335,9 @@ def verify_run(out: str | Path, story: str, **scores: float) -> pl.DataFrame:
     beams = _run_beams(Path(out))
     unknown = sorted({tok.removesuffix("^-1") for tok in parse_story(story)} - set(beams)) if beams else []
     if unknown:
-        raise ValueError(f"label(s) {', '.join(map(repr, unknown))} name no beam of the run; its beams are {', '.join(beams)}")
+        raise ValueError(
+            f"label(s) {', '.join(map(repr, unknown))} name no beam of the run; its beams are {', '.join(beams)}"
+        )
     return verify_path(story, pl.read_parquet(path), **scores)
 
 
@@ -277,8 +363,10 @@ def _cmd_verify_path(args) -> int:
     obs = res.filter(pl.col("target") == "observation")
     ok = bool(obs["plausible"][0]) if obs.height else False
     plausible_agents = res.filter((pl.col("target") != "observation") & pl.col("plausible"))["target"].to_list()
-    print(f"plausible against the observation string: {'yes' if ok else 'no'}; "
-          f"agents whose reconstructed path contains it: {', '.join(plausible_agents) or 'none'}")
+    print(
+        f"plausible against the observation string: {'yes' if ok else 'no'}; "
+        f"agents whose reconstructed path contains it: {', '.join(plausible_agents) or 'none'}"
+    )
     return 0 if ok else 1
 
 
@@ -302,34 +390,65 @@ def _add_run_commands(sub) -> None:
     r.add_argument("--out", required=True, help="run folder to write")
     r.add_argument("--trackers", help="comma-separated tracker names (default: all)")
     r.add_argument("--config", help="run.toml with one [section] per stage")
-    r.add_argument("--no-rrd", action="store_true",
-                   help="write no Rerun recordings (rrd/): the same tables and report, faster (batch sweeps)")
+    r.add_argument(
+        "--no-rrd",
+        action="store_true",
+        help="write no Rerun recordings (rrd/): the same tables and report, faster (batch sweeps)",
+    )
     r.set_defaults(func=_cmd_run)
 
-    fo = sub.add_parser("follow", help="follow a dataset's logs as they grow (or replay them), publish estimates live, end with the batch run")
+    fo = sub.add_parser(
+        "follow",
+        help="follow a dataset's logs as they grow (or replay them), publish estimates live, end with the batch run",
+    )
     fo.add_argument("dataset")
     fo.add_argument("--out", required=True, help="run folder: OUT/live/ holds the live tables, stream and report")
-    fo.add_argument("--replay", metavar="SPEED", help="replay a finished log at SPEED (e.g. 20x) instead of following growth")
+    fo.add_argument(
+        "--replay", metavar="SPEED", help="replay a finished log at SPEED (e.g. 20x) instead of following growth"
+    )
     fo.add_argument("--trackers", help="comma-separated tracker names (default: all)")
     fo.add_argument("--config", help="run.toml with one [section] per stage")
-    fo.add_argument("--poll", type=float, default=0.25, help="seconds between polls: the publication cadence (default 0.25)")
-    fo.add_argument("--idle", type=float, default=10.0, help="seconds without a new line that end a live run (default 10)")
-    fo.add_argument("--settle", type=float, default=None, help="seconds before an event is final (default: the readers' look-ahead)")
-    fo.add_argument("--connect", metavar="URL", nargs="?", const="rerun+http://127.0.0.1:9876/proxy",
-                    help="also stream to a Rerun viewer that is open (default URL rerun+http://127.0.0.1:9876/proxy)")
+    fo.add_argument(
+        "--poll", type=float, default=0.25, help="seconds between polls: the publication cadence (default 0.25)"
+    )
+    fo.add_argument(
+        "--idle", type=float, default=10.0, help="seconds without a new line that end a live run (default 10)"
+    )
+    fo.add_argument(
+        "--settle", type=float, default=None, help="seconds before an event is final (default: the readers' look-ahead)"
+    )
+    fo.add_argument(
+        "--connect",
+        metavar="URL",
+        nargs="?",
+        const="rerun+http://127.0.0.1:9876/proxy",
+        help="also stream to a Rerun viewer that is open (default URL rerun+http://127.0.0.1:9876/proxy)",
+    )
     fo.add_argument("--serve-web", action="store_true", help="also serve the stream to a web viewer (prints its URL)")
     fo.set_defaults(func=_cmd_follow)
 
-    cp = sub.add_parser("compare", help="two runs side by side on one timeline (one .rrd with A/ and B/, and a blueprint)")
+    cp = sub.add_parser(
+        "compare", help="two runs side by side on one timeline (one .rrd with A/ and B/, and a blueprint)"
+    )
     cp.add_argument("run_a")
     cp.add_argument("run_b")
-    cp.add_argument("--out", default="compare.rrd", help="recording to write (default compare.rrd; the blueprint goes next to it as .rbl)")
-    cp.add_argument("--labels", metavar="A,B", help="names of the two sides in the view titles (default: the folder names)")
+    cp.add_argument(
+        "--out",
+        default="compare.rrd",
+        help="recording to write (default compare.rrd; the blueprint goes next to it as .rbl)",
+    )
+    cp.add_argument(
+        "--labels", metavar="A,B", help="names of the two sides in the view titles (default: the folder names)"
+    )
     cp.set_defaults(func=_cmd_compare)
 
     rm = sub.add_parser("run-many", help="run the pipeline on many dataset folders (process pool or Ray)")
-    rm.add_argument("datasets", nargs="+", metavar="DATASET",
-                    help="dataset folders, globs ('data/*/floor*') or files listing one folder per line")
+    rm.add_argument(
+        "datasets",
+        nargs="+",
+        metavar="DATASET",
+        help="dataset folders, globs ('data/*/floor*') or files listing one folder per line",
+    )
     rm.add_argument("--out", required=True, help="folder for one run folder per dataset and summary.parquet/.csv")
     rm.add_argument("--trackers", help="comma-separated tracker names (default: all)")
     rm.add_argument("--config", help="run.toml with one [section] per stage, for every dataset")
@@ -349,8 +468,15 @@ def _add_simulate_command(sub) -> None:
     s.add_argument("dataset")
     s.add_argument("--seed", type=int, default=0)
     s.add_argument("--duration", type=float, default=None, help="seconds (default: the scenario's)")
-    s.add_argument("--agents", "--users", "--targets", dest="agents", type=int, default=None,
-                   help="number of agents / users / targets (default: the scenario's)")
+    s.add_argument(
+        "--agents",
+        "--users",
+        "--targets",
+        dest="agents",
+        type=int,
+        default=None,
+        help="number of agents / users / targets (default: the scenario's)",
+    )
     s.add_argument("--drop", type=float, default=0.0, help="probability that a crossing / reading is lost")
     s.add_argument("--no-camera", action="store_true", help="do not render camera.mp4")
     s.add_argument("--param", action="append", metavar="KEY=VALUE", help="scenario-specific option (repeatable)")
@@ -363,8 +489,12 @@ def _add_experiment_command(sub) -> None:
     e.add_argument("name", help="schiff, singh, okane, ..., residents (OUT = a folder of CASAS sessions)")
     e.add_argument("out")
     e.add_argument("--results", default=None, help="residents: results folder (default OUT/residents-study)")
-    e.add_argument("--trackers", default=None, help="residents, ceiling: comma-separated trackers (default: residents: residents,hmm1,hmm2,findinghumo,"
-                   "findinghumo-flow; ceiling every positional one)")
+    e.add_argument(
+        "--trackers",
+        default=None,
+        help="residents, ceiling: comma-separated trackers (default: residents: residents,hmm1,hmm2,findinghumo,"
+        "findinghumo-flow; ceiling every positional one)",
+    )
     e.add_argument("--layout", default=None, help="residents: floor plan / layout for every session (as import casas)")
     e.add_argument("--rooms", default=None, help="residents: floor plan rooms JSON")
     e.add_argument("--scale", type=float, default=None, help="residents: floor plan metres per pixel")
@@ -395,39 +525,81 @@ def _add_import_commands(sub) -> None:
     """``import casas|irtracking|trajectories``: dataset folders from the field's own recordings."""
     im = sub.add_parser("import", help="make a dataset folder from the field's own recordings (CASAS, trajectories)")
     isub = im.add_subparsers(dest="import_command", required=True)
-    ic = isub.add_parser("casas", help="a CASAS smart-home log (.txt, or pymrt events.csv) -> motion.csv, truth_events.csv, other.csv, annotations.csv, site.toml")
+    ic = isub.add_parser(
+        "casas",
+        help="a CASAS smart-home log (.txt, or pymrt events.csv) -> motion.csv, truth_events.csv, other.csv, annotations.csv, site.toml",
+    )
     ic.add_argument("log")
     ic.add_argument("dataset")
-    ic.add_argument("--layout", help="layout.toml (positions, edges), or a floor plan sensors.json / sensors.csv / pymrt site.json "
-                    "(pixels or normalised, with --scale; edges from geometry); without it the graph is learned from the log")
-    ic.add_argument("--rooms", default=None, help="floor plan rooms (JSON: rectangles or polygons, in the plan's coordinates)")
-    ic.add_argument("--scale", type=float, default=None, help="floor plan: metres per pixel (or per plan width for normalised coordinates)")
-    ic.add_argument("--graph-radius", type=float, default=None, help="floor plan graph: link sensors within this many metres "
-                    "(default: the smallest distance that keeps the graph connected)")
+    ic.add_argument(
+        "--layout",
+        help="layout.toml (positions, edges), or a floor plan sensors.json / sensors.csv / pymrt site.json "
+        "(pixels or normalised, with --scale; edges from geometry); without it the graph is learned from the log",
+    )
+    ic.add_argument(
+        "--rooms", default=None, help="floor plan rooms (JSON: rectangles or polygons, in the plan's coordinates)"
+    )
+    ic.add_argument(
+        "--scale",
+        type=float,
+        default=None,
+        help="floor plan: metres per pixel (or per plan width for normalised coordinates)",
+    )
+    ic.add_argument(
+        "--graph-radius",
+        type=float,
+        default=None,
+        help="floor plan graph: link sensors within this many metres "
+        "(default: the smallest distance that keeps the graph connected)",
+    )
     ic.add_argument("--targets", type=int, default=None, help="the most residents present at once (site.toml targets)")
-    ic.add_argument("--window", type=float, default=5.0, help="learned graph: s between two sensors' ON for a transition")
+    ic.add_argument(
+        "--window", type=float, default=5.0, help="learned graph: s between two sensors' ON for a transition"
+    )
     ic.add_argument("--min-count", type=int, default=3, help="learned graph: transitions an edge needs")
-    ic.add_argument("--min-share", type=float, default=0.1, help="learned graph: share of the less busy sensor's transitions")
+    ic.add_argument(
+        "--min-share", type=float, default=0.1, help="learned graph: share of the less busy sensor's transitions"
+    )
     ic.add_argument("--spacing", type=float, default=3.0, help="force layout: edge length (m)")
-    ic.add_argument("--doors", default=None, help="comma-separated contact ids that are doors to the outside (entry/exit nodes)")
-    ic.add_argument("--hold", type=float, default=5.0, help="lost OFF repair: hold time (s) of a sensor with too few on-durations")
-    ic.add_argument("--hold-samples", type=int, default=5, help="lost OFF repair: on-durations a sensor needs for its own (median) hold time")
+    ic.add_argument(
+        "--doors", default=None, help="comma-separated contact ids that are doors to the outside (entry/exit nodes)"
+    )
+    ic.add_argument(
+        "--hold", type=float, default=5.0, help="lost OFF repair: hold time (s) of a sensor with too few on-durations"
+    )
+    ic.add_argument(
+        "--hold-samples",
+        type=int,
+        default=5,
+        help="lost OFF repair: on-durations a sensor needs for its own (median) hold time",
+    )
     ic.set_defaults(func=_cmd_import_casas)
-    ir = isub.add_parser("irtracking", help="Milan et al.'s ceiling IR array (SEQ.txt or SEQ.xml detections) -> site.toml, frames.csv, truth.csv")
+    ir = isub.add_parser(
+        "irtracking",
+        help="Milan et al.'s ceiling IR array (SEQ.txt or SEQ.xml detections) -> site.toml, frames.csv, truth.csv",
+    )
     ir.add_argument("readings", help="SEQ.txt (one line of 50 channels per frame) or SEQ.xml (CVML detections)")
     ir.add_argument("dataset")
     ir.add_argument("--truth", default=None, help="SEQ_gt.xml (CVML, pixels x 25 = mm) -> truth.csv")
-    ir.add_argument("--coordinates", default=None, help="getSensorCoordinates.m (default: next to the readings or up to two folders above)")
+    ir.add_argument(
+        "--coordinates",
+        default=None,
+        help="getSensorCoordinates.m (default: next to the readings or up to two folders above)",
+    )
     ir.add_argument("--period", type=float, default=PERIOD_S, help="seconds between frames (2 Hz)")
     ir.add_argument("--radius", type=float, default=DEFAULT_RADIUS_M, help="footprint radius of a sensor, m")
     ir.add_argument("--r-inner", type=float, default=None, help="radius a reading 0 clears, m (default: --radius)")
-    ir.add_argument("--targets", type=int, default=None, help="most people present at once (default 6, the recordings' most)")
+    ir.add_argument(
+        "--targets", type=int, default=None, help="most people present at once (default 6, the recordings' most)"
+    )
     ir.add_argument("--name", default=None, help="site name (default: the readings' file name)")
     ir.set_defaults(func=_cmd_import_irtracking)
     it = isub.add_parser("trajectories", help="a people-counter / indoor-positioning export -> truth.csv")
     it.add_argument("file")
     it.add_argument("dataset")
-    it.add_argument("--delimiter", default=None, help="',', ';', 'tab', '|' or 'space' (default: sniffed from the header)")
+    it.add_argument(
+        "--delimiter", default=None, help="',', ';', 'tab', '|' or 'space' (default: sniffed from the header)"
+    )
     it.add_argument("--time-column", default=None, help="default: t, time, timestamp, ts, ...")
     it.add_argument("--track-column", default=None, help="default: track, id, track_id, person_id, ...")
     it.add_argument("--x-column", default=None)
@@ -453,9 +625,13 @@ def _add_logs_commands(sub) -> None:
     lc = lsub.add_parser("convert", help="CSV/Parquet folder <-> MCAP (chunked, zstd, raw channels + Foxglove views)")
     lc.add_argument("src")
     lc.add_argument("dst")
-    lc.add_argument("--no-views", action="store_true", help="raw channels only (no Foxglove SceneUpdate/PointCloud/Log views)")
+    lc.add_argument(
+        "--no-views", action="store_true", help="raw channels only (no Foxglove SceneUpdate/PointCloud/Log views)"
+    )
     lc.add_argument("--run", metavar="RUN", help="a run folder of this dataset: add its tracks as views")
-    lc.add_argument("--topics", metavar="TOML", help="MCAP -> CSV: mcap_topics.toml mapping ROS 2 Bool topics to sensors")
+    lc.add_argument(
+        "--topics", metavar="TOML", help="MCAP -> CSV: mcap_topics.toml mapping ROS 2 Bool topics to sensors"
+    )
     lc.set_defaults(func=_cmd_logs_convert)
 
 

@@ -19,7 +19,9 @@ from onebit.pipeline import runner
 
 @pytest.fixture(scope="module")
 def lab(tmp_path_factory) -> Path:
-    return write_beams_dataset(tmp_path_factory.mktemp("lab") / "data", "beams-lab", seed=4, duration=30.0, agents=2, camera=False)
+    return write_beams_dataset(
+        tmp_path_factory.mktemp("lab") / "data", "beams-lab", seed=4, duration=30.0, agents=2, camera=False
+    )
 
 
 @pytest.fixture
@@ -81,9 +83,13 @@ def test_rerun_disabled_in_the_environment_still_writes_recordings(data, tmp_pat
 def test_misspelt_section_names_the_known_ones(data, tmp_path, capsys, where):
     bad = tmp_path / "run.toml" if where == "config" else data / "run.toml"
     bad.write_text('[beam]\npolicy = "lifo"\n')
-    argv = ["run", data, "--out", tmp_path / "run", "--trackers", "beams"] + (["--config", bad] if where == "config" else [])
+    argv = ["run", data, "--out", tmp_path / "run", "--trackers", "beams"] + (
+        ["--config", bad] if where == "config" else []
+    )
     code, _, err = run_cli(capsys, *argv)
-    assert code == 2 and "unknown section [beam]" in err and "'beams'" in err and "'scores'" in err and "'correct'" in err
+    assert (
+        code == 2 and "unknown section [beam]" in err and "'beams'" in err and "'scores'" in err and "'correct'" in err
+    )
     assert not (tmp_path / "run").exists()
 
 
@@ -95,14 +101,16 @@ def test_top_level_key_and_bad_value_in_config(data, tmp_path, capsys):
     cfg.write_text("[scores]\ncrossing_tolerance_s = nan\n")
     code, _, err = run_cli(capsys, "run", data, "--out", tmp_path / "run", "--config", cfg)
     assert code == 2 and "[scores]" in err and "crossing_tolerance_s" in err
-    cfg.write_bytes(b"[beams]\npolicy = \"\xff\"\n")
+    cfg.write_bytes(b'[beams]\npolicy = "\xff"\n')
     code, _, err = run_cli(capsys, "run", data, "--out", tmp_path / "run", "--config", cfg)
     assert code == 2 and "not UTF-8" in err and "c.toml:2" in err
 
 
 def test_a_finished_run_toml_repeats_the_run(data, tmp_path, capsys):
     assert run_cli(capsys, "run", data, "--out", tmp_path / "a", "--trackers", "beams")[0] == 0
-    code, _, _ = run_cli(capsys, "run", data, "--out", tmp_path / "b", "--trackers", "beams", "--config", tmp_path / "a" / "run.toml")
+    code, _, _ = run_cli(
+        capsys, "run", data, "--out", tmp_path / "b", "--trackers", "beams", "--config", tmp_path / "a" / "run.toml"
+    )
     assert code == 0 and 'policy = "fifo"' in (tmp_path / "b" / "run.toml").read_text()
 
 
@@ -176,7 +184,7 @@ def test_report_refuses_incomplete_and_unfinished_folders(data, tmp_path, capsys
 
 def test_site_that_is_not_utf8_or_has_nan_fps(data, tmp_path, capsys):
     site = (data / "site.toml").read_bytes()
-    (data / "site.toml").write_bytes(site + b'\n# caf\xe9\n')
+    (data / "site.toml").write_bytes(site + b"\n# caf\xe9\n")
     code, _, err = run_cli(capsys, "run", data, "--out", tmp_path / "run")
     assert code == 2 and "not UTF-8" in err
     (data / "site.toml").write_bytes(site.replace(b"fps = ", b"fps = nan #"))

@@ -44,7 +44,11 @@ def _dynamic_rerun_imports(path: Path) -> list[str]:
         if isinstance(node, ast.Call) and node.args and isinstance(node.args[0], ast.Constant):
             name = node.func.attr if isinstance(node.func, ast.Attribute) else getattr(node.func, "id", "")
             arg = node.args[0].value
-            if name in {"lazy_module", "import_module", "__import__"} and isinstance(arg, str) and arg.split(".")[0] == "rerun":
+            if (
+                name in {"lazy_module", "import_module", "__import__"}
+                and isinstance(arg, str)
+                and arg.split(".")[0] == "rerun"
+            ):
                 found.append(f"{path}:{node.lineno}: {name}({arg!r})")
     return found
 

@@ -17,8 +17,10 @@ from onebit.viz.radii import ui_points
 def _modules_after(code: str) -> set[str]:
     out = subprocess.run(
         [sys.executable, "-c", code + "\nimport sys\nprint(' '.join(sorted(sys.modules)))"],
-        capture_output=True, text=True, check=True,
-    )  # fmt: skip
+        capture_output=True,
+        text=True,
+        check=True,
+    )
     return set(out.stdout.split())
 
 
@@ -34,15 +36,32 @@ def test_public_names_load_on_first_use():
 
 
 def test_kernel_modules_import_numba_only_when_a_kernel_runs():
-    mods = _modules_after("import onebit.readers.beams, onebit.models.graph_hmm.adaptive, onebit.trackers.beams.assignment")
+    mods = _modules_after(
+        "import onebit.readers.beams, onebit.models.graph_hmm.adaptive, onebit.trackers.beams.assignment"
+    )
     assert "numba" not in mods
-    mods = _modules_after("import numpy as np\nfrom onebit.trackers.beams.assignment import assign_agents\nassign_agents(np.array([0]), np.array([1]), 2, compiled=True)")
+    mods = _modules_after(
+        "import numpy as np\nfrom onebit.trackers.beams.assignment import assign_agents\nassign_agents(np.array([0]), np.array([1]), 2, compiled=True)"
+    )
     assert "numba" in mods
 
 
 #: Heavy third-party modules the CLI must not import before a command needs them.
-HEAVY = {"rerun", "cv2", "networkx", "scipy.optimize", "scipy.sparse", "scipy.spatial", "numba", "motmetrics", "trackeval", "pandas",
-         "matplotlib", "ray", "hypothesis"}  # fmt: skip
+HEAVY = {
+    "rerun",
+    "cv2",
+    "networkx",
+    "scipy.optimize",
+    "scipy.sparse",
+    "scipy.spatial",
+    "numba",
+    "motmetrics",
+    "trackeval",
+    "pandas",
+    "matplotlib",
+    "ray",
+    "hypothesis",
+}
 
 
 def test_import_cli_imports_no_heavy_module():

@@ -33,7 +33,12 @@ LAYOUT: dict[str, tuple[float, float]] = {
     "D002": (22.5, 2.0),
 }
 #: Hallway adjacency (the true sensor graph).
-EDGES = [(f"M{k:03d}", f"M{k + 1:03d}") for k in range(1, 8)] + [("M005", "M009"), ("M009", "M010"), ("D001", "M001"), ("M008", "D002")]
+EDGES = [(f"M{k:03d}", f"M{k + 1:03d}") for k in range(1, 8)] + [
+    ("M005", "M009"),
+    ("M009", "M010"),
+    ("D001", "M001"),
+    ("M008", "D002"),
+]
 ZONE = 1.5  # m: a PIR sees the resident within this distance
 START = datetime(2011, 6, 15, 8, 0, 0)
 
@@ -54,7 +59,7 @@ def _route(rng: np.random.Generator) -> list[str]:
             seq = hall[here - 1 : k] if k >= here else hall[k - 1 : here][::-1]
             path += seq[1:]
             here = k
-    seq = hall[: here][::-1]
+    seq = hall[:here][::-1]
     path += seq[1:] + ["D001"]
     out = [path[0]]
     for n in path[1:]:

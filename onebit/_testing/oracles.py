@@ -168,8 +168,10 @@ def motion_frames_reference(
         .with_columns(t=pl.lit(t0) + pl.col("slot").cast(pl.Float64) * period)
     )
     ev = ev.with_columns(slot=((pl.col("t") - t0) / period).floor().cast(pl.Int64))
-    fired = ev.filter(pl.col("on") & (pl.col("slot") >= 0) & (pl.col("slot") < n)).group_by("sensor", "slot").agg(
-        fired=pl.lit(True)
+    fired = (
+        ev.filter(pl.col("on") & (pl.col("slot") >= 0) & (pl.col("slot") < n))
+        .group_by("sensor", "slot")
+        .agg(fired=pl.lit(True))
     )
     state = grid.sort("t").join_asof(
         ev.select("t", "sensor", pl.col("on").alias("state")).sort("t"),
@@ -183,6 +185,8 @@ def motion_frames_reference(
         .with_columns(pl.col("fired").fill_null(False), pl.col("state").fill_null(False))
         .with_columns(on=pl.col("state") | pl.col("fired"))
     )
-    order = pl.DataFrame({"sensor": sensors, "_k": list(range(len(sensors)))}, schema={"sensor": pl.String, "_k": pl.Int64})
+    order = pl.DataFrame(
+        {"sensor": sensors, "_k": list(range(len(sensors)))}, schema={"sensor": pl.String, "_k": pl.Int64}
+    )
     out = out.join(order, on="sensor").sort(["slot", "_k"])
     return conform(out, FRAMES)

@@ -21,7 +21,7 @@ import numpy as np
 import polars as pl
 
 from onebit.core.errors import ConfigError
-from onebit.core.tables import FRAMES, conform
+from onebit.core.tables import FRAMES
 
 
 def motion_frames(
@@ -118,10 +118,14 @@ def refractory_state(frames: pl.DataFrame, refractory: Mapping[str, float], *, p
         schema={"sensor": pl.String, "_f": pl.Float64},
     )
     df = frames.join(ref, on="sensor", how="left").with_columns(pl.col("_f").fill_null(0.0))
-    last_fire = pl.when(pl.col("fired")).then(pl.col("slot")).otherwise(None).forward_fill().over("sensor", order_by="slot")
+    last_fire = (
+        pl.when(pl.col("fired")).then(pl.col("slot")).otherwise(None).forward_fill().over("sensor", order_by="slot")
+    )
     df = df.with_columns(_last=last_fire)
-    beta = pl.when(pl.col("_last").is_null()).then(0.0).otherwise(
-        (pl.col("_f") - (pl.col("slot") - pl.col("_last")).cast(pl.Float64) * period).clip(lower_bound=0.0)
+    beta = (
+        pl.when(pl.col("_last").is_null())
+        .then(0.0)
+        .otherwise((pl.col("_f") - (pl.col("slot") - pl.col("_last")).cast(pl.Float64) * period).clip(lower_bound=0.0))
     )
     prev_beta = beta.shift(1).over("sensor", order_by="slot").fill_null(0.0)
     df = df.with_columns(beta=beta).with_columns(blind=prev_beta > 0)

@@ -15,9 +15,9 @@ import polars as pl
 import shapely
 from shapely.geometry import Point, Polygon
 
-from onebit.core.site import Site
 from onebit.core.errors import SiteError
 from onebit.core.lazy import lazy_module
+from onebit.core.site import Site
 
 nx = lazy_module("networkx")
 
@@ -60,7 +60,9 @@ class RegionGraph:
         fwd_s = np.array([idx[self.beam_source[b]] for b in ids], dtype=np.int64)
         fwd_t = np.array([idx[self.beam_target[b]] for b in ids], dtype=np.int64)
         k = (
-            (beams if isinstance(beams, pl.Series) else pl.Series(beams, dtype=pl.String)).replace_strict(ids, list(range(len(ids))), return_dtype=pl.Int64).to_numpy()
+            (beams if isinstance(beams, pl.Series) else pl.Series(beams, dtype=pl.String))
+            .replace_strict(ids, list(range(len(ids))), return_dtype=pl.Int64)
+            .to_numpy()
             if len(beams)
             else np.zeros(0, np.int64)
         )
@@ -128,7 +130,9 @@ def build_region_graph(site: Site) -> RegionGraph:
     for spec in site.regions:
         hits = [i for i, p in enumerate(polys) if p.contains(Point(spec.point))]
         if not hits:
-            raise SiteError(f"point {spec.point} lies on a beam", file=site.source, field=f"regions ({spec.name}).point")
+            raise SiteError(
+                f"point {spec.point} lies on a beam", file=site.source, field=f"regions ({spec.name}).point"
+            )
         i = hits[0]
         if names[i] is not None:
             raise SiteError(
@@ -161,7 +165,9 @@ def build_region_graph(site: Site) -> RegionGraph:
             back = back if back is not None else _containing(polys_t, mid - n * probe * scale)
             front = front if front is not None else _containing(polys_t, mid + n * probe * scale)
         if back is None or front is None:
-            raise SiteError("cannot find the regions on both sides of the beam", file=site.source, field=f"beams ({b.id})")
+            raise SiteError(
+                "cannot find the regions on both sides of the beam", file=site.source, field=f"beams ({b.id})"
+            )
         if back == front:
             raise SiteError(
                 "both sides of the beam lie in one region; a beam must separate two regions",

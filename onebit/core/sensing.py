@@ -93,7 +93,14 @@ LENGTH_KEYS = frozenset({"range", "length", "width", "resolution"})
 #: (Schiff & Goldberg section VIII; one cell = 1 m).
 BUILTIN_TYPES: dict[str, dict] = {
     "pir": {"kind": "pir-triangle", "range": 8.0, "fov": 60.0, "resolution": 2.0},
-    "pir-imperfect": {"kind": "pir-triangle", "range": 8.0, "fov": 60.0, "resolution": 2.0, "falloff": 0.6, "false_positive": 0.25},
+    "pir-imperfect": {
+        "kind": "pir-triangle",
+        "range": 8.0,
+        "fov": 60.0,
+        "resolution": 2.0,
+        "falloff": 0.6,
+        "false_positive": 0.25,
+    },
     "beam": {"kind": "beam", "length": 10.0, "resolution": 1.0},
 }
 
@@ -105,7 +112,7 @@ DEFAULT_RESOLUTION_M = 1.0
 DEFAULT_BODY_RADIUS_M = 0.2
 
 
-def body_radius(site: "Site") -> float:
+def body_radius(site: Site) -> float:
     """The radius of a target's body in the site's units: ``site.toml``'s ``body_radius``, else
     :data:`DEFAULT_BODY_RADIUS_M` converted. The one value simulators (a beam is blocked while
     a body overlaps a pair), the beam reader's geometry (:func:`onebit.readers.beams.crossing_reach`)
@@ -132,7 +139,9 @@ def scale_type_table(table: Mapping, factor: float) -> dict:
     return out
 
 
-def type_table(name: str, site_types: Mapping | None, *, units: str = "m", source: str = "site.toml", field: str | None = None) -> dict:
+def type_table(
+    name: str, site_types: Mapping | None, *, units: str = "m", source: str = "site.toml", field: str | None = None
+) -> dict:
     """The raw table of sensor type ``name`` in site units: the site's ``[sensor_types.<name>]``,
     else the built-in type of that name converted from metres. Unknown names raise
     :class:`SiteError` (naming ``field``, default ``sensor_types.<name>``)."""
@@ -190,7 +199,7 @@ class TypeGeometry:
 def sensor_to_world(uv: np.ndarray, position: tuple[float, float], heading: float) -> np.ndarray:
     """``(k, 2)`` sensor-frame points (u, v) in world coordinates::
 
-        x = x_s + u cos(h) - v sin(h),   y = y_s + u sin(h) + v cos(h)
+    x = x_s + u cos(h) - v sin(h),   y = y_s + u sin(h) + v cos(h)
     """
     th = math.radians(heading)
     c, s = math.cos(th), math.sin(th)
@@ -222,7 +231,15 @@ def type_geometry(name: str, table: Mapping, *, units: str = "m", source: str = 
 
     kind = table.get("kind")
     if kind is None:  # implied by the keys present
-        kind = "grid" if "samples" in table else "polygon" if "polygon" in table else "beam" if "length" in table else "pir-triangle"
+        kind = (
+            "grid"
+            if "samples" in table
+            else "polygon"
+            if "polygon" in table
+            else "beam"
+            if "length" in table
+            else "pir-triangle"
+        )
     if kind not in KINDS:
         raise err("kind", f"{kind!r} is not one of {list(KINDS)}")
     res = num("resolution", 0.0, default=DEFAULT_RESOLUTION_M * units_per_metre(units))
@@ -340,7 +357,7 @@ def _intersect(parts: list[BaseGeometry]) -> BaseGeometry:
     return out
 
 
-def detection_regions(site: "Site") -> dict[str, DetectionRegion]:
+def detection_regions(site: Site) -> dict[str, DetectionRegion]:
     """Every sensor's :class:`DetectionRegion` by sensor id (motion, proximity, beams, in site
     order), built once per site and cached on it (:attr:`Site.detection_regions`).
 
@@ -350,7 +367,7 @@ def detection_regions(site: "Site") -> dict[str, DetectionRegion]:
     return site.detection_regions
 
 
-def build_detection_regions(site: "Site") -> dict[str, DetectionRegion]:
+def build_detection_regions(site: Site) -> dict[str, DetectionRegion]:
     """Build the regions of :func:`detection_regions` (uncached)."""
     out: dict[str, DetectionRegion] = {}
     tables = site.sensor_types if isinstance(site.sensor_types, dict) else {}
@@ -372,16 +389,29 @@ def build_detection_regions(site: "Site") -> dict[str, DetectionRegion]:
             )
         b = binary.get(m.id)
         reg = DetectionRegion(
-            m.id, "motion" if b is None else "binary", m.position, fov=m.fov, radius=m.range, extent=extent, type=m.type,
-            inner_radius=None if b is None else b.r_inner, signal=getattr(m, "signal", "edge"),
+            m.id,
+            "motion" if b is None else "binary",
+            m.position,
+            fov=m.fov,
+            radius=m.range,
+            extent=extent,
+            type=m.type,
+            inner_radius=None if b is None else b.r_inner,
+            signal=getattr(m, "signal", "edge"),
         )
         if reg.geometry.is_empty:
-            declared = [k for k, v in (("fov", m.fov), ("range", m.range), (f"type {m.type!r}", extent)) if v is not None]
-            raise SiteError(f"empty detection region: {' and '.join(declared)} do not overlap", file=site.source, field=key)
+            declared = [
+                k for k, v in (("fov", m.fov), ("range", m.range), (f"type {m.type!r}", extent)) if v is not None
+            ]
+            raise SiteError(
+                f"empty detection region: {' and '.join(declared)} do not overlap", file=site.source, field=key
+            )
         out[m.id] = reg
     for p in site.proximity_sensors:
         if p.id not in binary:  # a binary sensor's one region is made above
-            out[p.id] = DetectionRegion(p.id, "proximity", p.position, radius=p.r_outer, inner_radius=p.r_inner, signal=p.signal)
+            out[p.id] = DetectionRegion(
+                p.id, "proximity", p.position, radius=p.r_outer, inner_radius=p.r_inner, signal=p.signal
+            )
     for b in site.beams:
         mid = b.line.interpolate(0.5, normalized=True)
         out[b.id] = DetectionRegion(b.id, "beam", (mid.x, mid.y), radius=b.spacing / 2.0, axis=b.line)

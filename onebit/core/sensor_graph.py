@@ -71,8 +71,10 @@ class GeometricGraph:
             parts = "; ".join("{" + ", ".join(c[:6]) + (", ..." if len(c) > 6 else "") + "}" for c in self.components)
             raise SiteError(
                 f"the sensor graph from geometry ({self.rule}) is not connected: {len(self.components)} components {parts}; "
-                "give a larger radius, fewer walls, or the edges", file=source, field=field,
-            )  # fmt: skip
+                "give a larger radius, fewer walls, or the edges",
+                file=source,
+                field=field,
+            )
         return self
 
 
@@ -99,8 +101,16 @@ def _allowed_pairs(
         if room_of is not None:
             ri, rj = room_of[i], room_of[j]
             same = (ri == rj) | (ri < 0) | (rj < 0)
-            near = touching[np.maximum(ri, 0), np.maximum(rj, 0)] & (ri >= 0) & (rj >= 0) if touching is not None else np.zeros_like(same)
-            through = shapely.intersects(segs, openings) if openings is not None and not openings.is_empty else np.zeros_like(same)
+            near = (
+                touching[np.maximum(ri, 0), np.maximum(rj, 0)] & (ri >= 0) & (rj >= 0)
+                if touching is not None
+                else np.zeros_like(same)
+            )
+            through = (
+                shapely.intersects(segs, openings)
+                if openings is not None and not openings.is_empty
+                else np.zeros_like(same)
+            )
             ok &= same | near | through
     return i[ok], j[ok], d[ok]
 
@@ -162,7 +172,9 @@ def geometric_sensor_graph(
         for r, poly in enumerate(polys):
             inside = shapely.covers(poly, shapely.points(xy)) & (room_of < 0)
             room_of[inside] = r
-        touching = np.array([[shapely.distance(a, b) <= touch_tol for b in polys] for a in polys], dtype=bool).reshape(len(polys), len(polys))
+        touching = np.array([[shapely.distance(a, b) <= touch_tol for b in polys] for a in polys], dtype=bool).reshape(
+            len(polys), len(polys)
+        )
     if openings is not None and not isinstance(openings, BaseGeometry):
         openings = shapely.union_all(list(openings)) if len(openings) else None
     i, j, d = _allowed_pairs(xy, walls, room_of, touching, openings)
@@ -190,8 +202,11 @@ def geometric_sensor_graph(
     i, j = i[keep], j[keep]
     comps = _components(n, i, j) if n else []
     edges = tuple(sorted((nodes[a], nodes[b]) for a, b in zip(i.tolist(), j.tolist())))
-    how = (f"neighbours within {r:.3g}" + (" (the smallest distance that keeps the graph connected)" if radius is None else "")
-           + (", no edge through a wall" if walls is not None else "")
-           + (", rooms: same or touching room, or through an opening" if rooms else "")
-           + (f", components joined by their {len(joins)} shortest allowed pairs" if join_components else ""))  # fmt: skip
+    how = (
+        f"neighbours within {r:.3g}"
+        + (" (the smallest distance that keeps the graph connected)" if radius is None else "")
+        + (", no edge through a wall" if walls is not None else "")
+        + (", rooms: same or touching room, or through an opening" if rooms else "")
+        + (f", components joined by their {len(joins)} shortest allowed pairs" if join_components else "")
+    )
     return GeometricGraph(nodes, edges, r, tuple(tuple(nodes[k] for k in c) for c in comps), how, tuple(sorted(joins)))

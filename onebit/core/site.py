@@ -30,7 +30,6 @@ from pathlib import Path
 
 import numpy as np
 import shapely
-
 from shapely.geometry import LineString, Point, Polygon
 
 from onebit.core.config import load_toml
@@ -43,8 +42,21 @@ from onebit.core.units import METRES_PER_UNIT
 TOUCH_TOL = 1e-6
 
 _TOP_KEYS = {
-    "name", "units", "epoch", "boundary", "obstacles", "beams", "regions", "camera",
-    "targets", "motion_sensors", "proximity_sensors", "binary_sensors", "sensor_graph", "sensor_types", "body_radius",
+    "name",
+    "units",
+    "epoch",
+    "boundary",
+    "obstacles",
+    "beams",
+    "regions",
+    "camera",
+    "targets",
+    "motion_sensors",
+    "proximity_sensors",
+    "binary_sensors",
+    "sensor_graph",
+    "sensor_types",
+    "body_radius",
 }
 _MOTION_KEYS = {"id", "position", "heading", "type", "refractory", "fov", "range", "signal"}
 _BINARY_KEYS = {"id", "position", "radius", "r_inner", "r_outer", "fov", "type", "refractory", "signal"}
@@ -188,7 +200,9 @@ class BinarySensor:
     signal: str = "level"
 
     def as_motion(self) -> MotionSensor:
-        return MotionSensor(self.id, self.position, 0.0, self.type, self.refractory, self.fov, self.r_outer, self.signal)
+        return MotionSensor(
+            self.id, self.position, 0.0, self.type, self.refractory, self.fov, self.r_outer, self.signal
+        )
 
     def as_proximity(self) -> ProximitySensor:
         return ProximitySensor(self.id, self.position, self.r_inner, self.r_outer, self.signal)
@@ -208,7 +222,7 @@ class SensorGraph:
     exits: tuple[str, ...] = ()
     signatures: tuple[tuple[str, str], ...] = ()
 
-    def to_networkx(self, site: "Site | None" = None):
+    def to_networkx(self, site: Site | None = None):
         """Undirected ``networkx.Graph``; node attribute ``pos`` when ``site`` is given."""
         import networkx as nx
 
@@ -249,7 +263,11 @@ class Site:
 
     @property
     def free_space(self):
-        return shapely.difference(self.boundary, shapely.union_all(list(self.obstacles))) if self.obstacles else self.boundary
+        return (
+            shapely.difference(self.boundary, shapely.union_all(list(self.obstacles)))
+            if self.obstacles
+            else self.boundary
+        )
 
     @cached_property
     def signals(self) -> dict[str, str]:
@@ -314,7 +332,9 @@ def site_from_dict(data: dict, *, source: str = "<site>") -> Site:
     epoch = _site_epoch(data.get("epoch"), err)
     boundary, obstacles, obstacle_names = _floor(data, err)
     free = shapely.difference(boundary, shapely.union_all(obstacles)) if obstacles else boundary
-    beams = _beams(data.get("beams", []), free, shapely.union_all([boundary.exterior, *[o.boundary for o in obstacles]]), err)
+    beams = _beams(
+        data.get("beams", []), free, shapely.union_all([boundary.exterior, *[o.boundary for o in obstacles]]), err
+    )
     regions = _regions(data.get("regions", []), free, err)
     camera = _camera(data["camera"], err) if "camera" in data else None
     targets = data.get("targets")
@@ -325,8 +345,18 @@ def site_from_dict(data: dict, *, source: str = "<site>") -> Site:
     if not isinstance(stypes, dict) or not all(isinstance(v, dict) for v in stypes.values()):
         raise err("sensor_types", "must be a table of tables ([sensor_types.<name>])")
     motion, prox, binary = _sensors(data, boundary, {b.id for b in beams}, stypes, err)
-    graph = _sensor_graph(data["sensor_graph"], {m.id for m in motion}, err, motion=motion,
-                          walls=shapely.union_all([boundary.exterior, *obstacles]), source=source) if "sensor_graph" in data else None  # fmt: skip
+    graph = (
+        _sensor_graph(
+            data["sensor_graph"],
+            {m.id for m in motion},
+            err,
+            motion=motion,
+            walls=shapely.union_all([boundary.exterior, *obstacles]),
+            source=source,
+        )
+        if "sensor_graph" in data
+        else None
+    )
 
     return Site(
         name=name,
@@ -419,8 +449,13 @@ def _beams(tables, free, walls, err) -> list[Beam]:
         for j in range(i + 1, len(beams)):
             li, lj = beams[i].line, beams[j].line
             inter = li.intersection(lj)
-            if not inter.is_empty and (inter.length > 0 or not _at_end(inter, beams[i]) or not _at_end(inter, beams[j])):
-                raise err(f"beams[{j}] (id {beams[j].id!r}).segment", f"crosses beam {beams[i].id!r}; beams must be pairwise disjoint")
+            if not inter.is_empty and (
+                inter.length > 0 or not _at_end(inter, beams[i]) or not _at_end(inter, beams[j])
+            ):
+                raise err(
+                    f"beams[{j}] (id {beams[j].id!r}).segment",
+                    f"crosses beam {beams[i].id!r}; beams must be pairwise disjoint",
+                )
     return beams
 
 
@@ -448,9 +483,18 @@ def _sensors(data: dict, boundary, beam_ids: set[str], stypes: dict, err):
     """``[[motion_sensors]]``, ``[[proximity_sensors]]`` and ``[[binary_sensors]]`` (a binary
     sensor is listed as a motion and a proximity sensor too); every id unique, beams' included."""
     ids = set(beam_ids)
-    motion = [_motion_sensor(ms, i, boundary, ids, err, stypes) for i, ms in enumerate(_list_of_tables(data.get("motion_sensors", []), "motion_sensors", err))]
-    prox = [_proximity_sensor(ps, i, ids, err) for i, ps in enumerate(_list_of_tables(data.get("proximity_sensors", []), "proximity_sensors", err))]
-    binary = [_binary_sensor(bs, i, ids, err, stypes) for i, bs in enumerate(_list_of_tables(data.get("binary_sensors", []), "binary_sensors", err))]
+    motion = [
+        _motion_sensor(ms, i, boundary, ids, err, stypes)
+        for i, ms in enumerate(_list_of_tables(data.get("motion_sensors", []), "motion_sensors", err))
+    ]
+    prox = [
+        _proximity_sensor(ps, i, ids, err)
+        for i, ps in enumerate(_list_of_tables(data.get("proximity_sensors", []), "proximity_sensors", err))
+    ]
+    binary = [
+        _binary_sensor(bs, i, ids, err, stypes)
+        for i, bs in enumerate(_list_of_tables(data.get("binary_sensors", []), "binary_sensors", err))
+    ]
     return motion + [b.as_motion() for b in binary], prox + [b.as_proximity() for b in binary], binary
 
 
@@ -493,7 +537,9 @@ def _check_epoch(epoch: str, err) -> None:
     try:
         datetime.fromisoformat(epoch.replace("Z", "+00:00"))
     except ValueError:
-        raise err("epoch", f"not an ISO 8601 date or date-time (e.g. 2024-05-01T08:00:00Z), got {_shown(epoch)}") from None
+        raise err(
+            "epoch", f"not an ISO 8601 date or date-time (e.g. 2024-05-01T08:00:00Z), got {_shown(epoch)}"
+        ) from None
 
 
 def _sensor_id(table: dict, key: str, seen: set[str], err) -> str:
@@ -515,7 +561,10 @@ def _signal(table: dict, typ: str | None, stypes: dict, key: str, default: str, 
     else:
         return default
     if value not in SIGNALS:
-        raise err(where, f"must be one of {list(SIGNALS)} (level: held on = presence; edge: an on is an event), got {_shown(value)}")
+        raise err(
+            where,
+            f"must be one of {list(SIGNALS)} (level: held on = presence; edge: an on is an event), got {_shown(value)}",
+        )
     return value
 
 
@@ -545,7 +594,9 @@ def _binary_sensor(bs: dict, i: int, seen: set[str], err, stypes: dict) -> Binar
     return BinarySensor(sid, (float(pos[0]), float(pos[1])), r_in, r_out, fov, typ, refr, signal)
 
 
-def _motion_sensor(ms: dict, i: int, boundary: Polygon, seen: set[str], err, stypes: dict | None = None) -> MotionSensor:
+def _motion_sensor(
+    ms: dict, i: int, boundary: Polygon, seen: set[str], err, stypes: dict | None = None
+) -> MotionSensor:
     key = f"motion_sensors[{i}]"
     _unknown(ms, _MOTION_KEYS, key + ".", err)
     sid = _sensor_id(ms, key, seen, err)
@@ -587,7 +638,9 @@ def _sensor_graph(g, motion_ids: set[str], err, *, motion=(), walls=None, source
         raise err("sensor_graph", "must be a table")
     _unknown(g, _GRAPH_KEYS, "sensor_graph.", err)
     edges = g.get("edges", [])
-    if "geometry" in g:  # the edges from the sensors' positions (onebit.core.sensor_graph), walls = boundary + obstacles
+    if (
+        "geometry" in g
+    ):  # the edges from the sensors' positions (onebit.core.sensor_graph), walls = boundary + obstacles
         geo = g["geometry"]
         if "edges" in g:
             raise err("sensor_graph.geometry", "give either 'edges' or 'geometry', not both")
@@ -596,7 +649,10 @@ def _sensor_graph(g, motion_ids: set[str], err, *, motion=(), walls=None, source
         elif isinstance(geo, (int, float)) and not isinstance(geo, bool) and math.isfinite(geo) and geo > 0:
             radius = float(geo)
         else:
-            raise err("sensor_graph.geometry", f"must be \"connected\" (the smallest distance that keeps the graph connected) or a positive distance, got {_shown(geo)}")
+            raise err(
+                "sensor_graph.geometry",
+                f'must be "connected" (the smallest distance that keeps the graph connected) or a positive distance, got {_shown(geo)}',
+            )
         gg = geometric_sensor_graph({m.id: m.position for m in motion}, radius=radius, walls=walls)
         gg.require_connected(source=source, field="sensor_graph.geometry")
         edges = [list(e) for e in gg.edges]

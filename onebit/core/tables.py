@@ -85,8 +85,7 @@ def empty(schema: pl.Schema) -> pl.DataFrame:
 def conform(df: pl.DataFrame, schema: pl.Schema) -> pl.DataFrame:
     """Select and cast ``df`` to ``schema``, adding absent nullable columns as nulls."""
     exprs = [
-        (pl.col(name) if name in df.columns else pl.lit(None)).cast(dtype).alias(name)
-        for name, dtype in schema.items()
+        (pl.col(name) if name in df.columns else pl.lit(None)).cast(dtype).alias(name) for name, dtype in schema.items()
     ]
     return df.select(exprs)
 

@@ -141,7 +141,7 @@ def remove_stale_temps(folder: str | Path) -> list[Path]:
     removed: list[Path] = []
     if not folder.is_dir():
         return removed
-    for root, dirs, files in os.walk(folder):
+    for root, _dirs, files in os.walk(folder):
         for name in files:
             m = _TEMP_NAME.match(name)
             if m and int(m["pid"]) != os.getpid() and not pid_alive(int(m["pid"])):
@@ -164,7 +164,9 @@ def folder_lock(folder: str | Path) -> Iterator[None]:
         try:
             fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
         except BlockingIOError:
-            raise InputError("another onebit process is writing this folder; wait for it to finish", file=folder) from None
+            raise InputError(
+                "another onebit process is writing this folder; wait for it to finish", file=folder
+            ) from None
         except OSError:  # a file system without locks (some network mounts): go on unlocked
             pass
         yield

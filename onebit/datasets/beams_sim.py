@@ -28,14 +28,15 @@ import polars as pl
 import shapely
 from shapely.geometry import LineString, Point
 
-from onebit.datasets.scenario import Scenario
+from onebit.core.errors import ConfigError
 from onebit.core.region_graph import RegionGraph, build_region_graph
 from onebit.core.sensing import body_radius
 from onebit.core.site import Site, load_site
+from onebit.core.writers import write_csv as _atomic_csv
+from onebit.core.writers import write_text as _atomic_text
 from onebit.datasets.builtin import builtin_site_path
-from onebit.core.writers import write_text as _atomic_text, write_csv as _atomic_csv
-from onebit.core.errors import ConfigError
 from onebit.datasets.camera_render import render_overhead_video
+from onebit.datasets.scenario import Scenario
 
 #: Built-in scenarios: site, default agent count, speed range (units/s). An agent's radius is
 #: the site's ``body_radius`` (lab 0.15 ft, building 0.25 m): the one value the beam reader's
@@ -292,7 +293,6 @@ def write_beams_dataset(
     ``camera``, an overhead ``camera.mp4``. Every file is written atomically.
     """
     if scenario not in SCENARIOS:
-
         raise ConfigError(f"unknown scenario {scenario!r}; known: {sorted(SCENARIOS)}")
     sc = SCENARIOS[scenario]
     out = Path(out_dir)
@@ -322,7 +322,6 @@ def write_beams_dataset(
     _atomic_csv(tc, out / "truth_crossings.csv")
     _atomic_text(initial_condition_toml(sim.start_regions or {}), out / "run.toml")
     if camera and cam is not None:
-
         render_overhead_video(out / "camera.mp4", site, frames, seed=seed, radius=cfg.radius)
     return out
 
@@ -331,7 +330,14 @@ def with_targets(site_text: str, n: int) -> str:
     """``site.toml`` text with ``targets = n`` (the simulated agents: the most present at once)."""
     lines = site_text.splitlines()
     k = next((i for i, ln in enumerate(lines) if ln.startswith("units")), 0)
-    return "\n".join(lines[: k + 1] + [f"targets = {n}                    # agents simulated (the most present at once)"] + lines[k + 1 :]) + "\n"
+    return (
+        "\n".join(
+            lines[: k + 1]
+            + [f"targets = {n}                    # agents simulated (the most present at once)"]
+            + lines[k + 1 :]
+        )
+        + "\n"
+    )
 
 
 def initial_condition_toml(start_regions: dict[str, str]) -> str:
@@ -351,9 +357,16 @@ def initial_condition_toml(start_regions: dict[str, str]) -> str:
 def _scenario_writer(name: str):
     def write(dataset, *, seed: int, duration: float, agents: int | None, drop: float, camera: bool, params: dict):
         if params:
-
             raise ConfigError(f"scenario {name!r} takes no --param options, got {sorted(params)}")
-        return write_beams_dataset(dataset, name, seed=seed, duration=180.0 if duration is None else duration, agents=agents, drop=drop, camera=camera)
+        return write_beams_dataset(
+            dataset,
+            name,
+            seed=seed,
+            duration=180.0 if duration is None else duration,
+            agents=agents,
+            drop=drop,
+            camera=camera,
+        )
 
     return write
 

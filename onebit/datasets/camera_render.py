@@ -44,10 +44,10 @@ from pathlib import Path
 import numpy as np
 import polars as pl
 
-from onebit.core.site import Camera, Site
-from onebit.core.writers import atomic_path
 from onebit.core.errors import InputError, OnebitError
 from onebit.core.lazy import lazy_module
+from onebit.core.site import Camera, Site
+from onebit.core.writers import atomic_path
 
 cv2 = lazy_module("cv2")
 
@@ -230,7 +230,9 @@ def _atomic_writer(path: Path, camera: Camera) -> Iterator[cv2.VideoWriter]:
     (:func:`onebit.core.writers.atomic_path`; the temp name keeps the extension OpenCV needs)."""
     with atomic_path(path, suffix=f".tmp{path.suffix or '.mp4'}") as tmp:
         width, height = encoded_size(camera)
-        writer = cv2.VideoWriter(str(tmp), cv2.CAP_FFMPEG, cv2.VideoWriter_fourcc(*FOURCC), float(camera.fps), (width, height))
+        writer = cv2.VideoWriter(
+            str(tmp), cv2.CAP_FFMPEG, cv2.VideoWriter_fourcc(*FOURCC), float(camera.fps), (width, height)
+        )
         if not writer.isOpened():
             raise OnebitError(f"{path}: OpenCV cannot open a '{FOURCC}' video writer")
         try:

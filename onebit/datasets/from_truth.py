@@ -78,8 +78,15 @@ class FromTruthConfig:
     frame_hz: float = 2.0
 
     def __post_init__(self) -> None:
-        for name, lo, hi in (("rate_hz", 1e-3, 1e4), ("max_gap_s", 0.0, 1e9), ("hold_s", 0.0, 1e6),
-                             ("p_detect", 0.0, 1.0), ("p_ring", 0.0, 1.0), ("drop", 0.0, 1.0), ("frame_hz", 1e-3, 1e4)):  # fmt: skip
+        for name, lo, hi in (
+            ("rate_hz", 1e-3, 1e4),
+            ("max_gap_s", 0.0, 1e9),
+            ("hold_s", 0.0, 1e6),
+            ("p_detect", 0.0, 1.0),
+            ("p_ring", 0.0, 1.0),
+            ("drop", 0.0, 1.0),
+            ("frame_hz", 1e-3, 1e4),
+        ):
             check_range(self, name, lo, hi)
         if self.p_detect <= 0:
             raise ConfigError("from-truth: p_detect = 0 would never detect anyone; allowed range: (0, 1]")
@@ -145,7 +152,11 @@ def _edges(times: np.ndarray, on: np.ndarray, ids: list[str], value: str = "valu
     prev = np.vstack([np.zeros((1, on.shape[1]), bool), on[:-1]])
     k, c = np.nonzero(on != prev)
     return pl.DataFrame(
-        {"t": np.round(times[k], 6), "sensor": np.asarray(ids, dtype=object)[c].tolist() if len(c) else [], value: on[k, c].astype(np.int8)},
+        {
+            "t": np.round(times[k], 6),
+            "sensor": np.asarray(ids, dtype=object)[c].tolist() if len(c) else [],
+            value: on[k, c].astype(np.int8),
+        },
         schema={"t": pl.Float64, "sensor": pl.String, value: pl.Int8},
     ).sort("t", "sensor", maintain_order=True)
 
@@ -160,7 +171,9 @@ def _segment_distance(xy: np.ndarray, a: np.ndarray, b: np.ndarray) -> np.ndarra
     return np.hypot(*np.moveaxis(xy - (a + u[..., None] * ab), -1, 0))
 
 
-def beam_events(site: Site, times: np.ndarray, xy: np.ndarray, cfg: FromTruthConfig, rng: np.random.Generator) -> pl.DataFrame:
+def beam_events(
+    site: Site, times: np.ndarray, xy: np.ndarray, cfg: FromTruthConfig, rng: np.random.Generator
+) -> pl.DataFrame:
     """Raw pair events of every beam: blocked while a body overlaps the pair (module docstring)."""
     r = body_radius(site)
     parts = []
@@ -180,7 +193,9 @@ def beam_events(site: Site, times: np.ndarray, xy: np.ndarray, cfg: FromTruthCon
     return pl.concat(parts).sort("t", "beam", "pair", maintain_order=True)
 
 
-def pir_events(site: Site, times: np.ndarray, xy: np.ndarray, cfg: FromTruthConfig, rng: np.random.Generator) -> pl.DataFrame:
+def pir_events(
+    site: Site, times: np.ndarray, xy: np.ndarray, cfg: FromTruthConfig, rng: np.random.Generator
+) -> pl.DataFrame:
     """PIR toggles: triggered in the detection region, held ``hold_s``, then refractory."""
     regions = detection_regions(site)
     ids = [m.id for m in site.motion_sensors]
@@ -211,7 +226,9 @@ def pir_events(site: Site, times: np.ndarray, xy: np.ndarray, cfg: FromTruthConf
     return _edges(times, on, ids)
 
 
-def proximity_events(site: Site, times: np.ndarray, xy: np.ndarray, cfg: FromTruthConfig, rng: np.random.Generator) -> pl.DataFrame:
+def proximity_events(
+    site: Site, times: np.ndarray, xy: np.ndarray, cfg: FromTruthConfig, rng: np.random.Generator
+) -> pl.DataFrame:
     """Proximity toggles: on within ``R_i``; in the ring up to ``R_o`` with probability ``p_ring`` per visit."""
     ps = site.proximity_sensors
     ids = [p.id for p in ps]
@@ -233,7 +250,9 @@ def proximity_events(site: Site, times: np.ndarray, xy: np.ndarray, cfg: FromTru
     return _edges(times, on, ids)
 
 
-def binary_frames(site: Site, times: np.ndarray, xy: np.ndarray, cfg: FromTruthConfig, rng: np.random.Generator) -> pl.DataFrame:
+def binary_frames(
+    site: Site, times: np.ndarray, xy: np.ndarray, cfg: FromTruthConfig, rng: np.random.Generator
+) -> pl.DataFrame:
     """``frames.csv`` rows (t, active) of the site's ``[[binary_sensors]]`` (module docstring):
     the dense grid's samples every ``round(rate_hz / frame_hz)`` steps are the frames."""
     bs = site.binary_sensors
@@ -268,8 +287,11 @@ def read_truth(dataset: Path, site: Site) -> pl.DataFrame:
     if "t" in head.columns and site.epoch is None:
         iso = head.select((number(pl.col("t")).is_null() & iso_unix(pl.col("t")).is_not_null()).any()).item()
         if iso:
-            raise InputError("ISO time stamps need an 'epoch' in site.toml: the logs are written in seconds since it",
-                             file=path, field="t")  # fmt: skip
+            raise InputError(
+                "ISO time stamps need an 'epoch' in site.toml: the logs are written in seconds since it",
+                file=path,
+                field="t",
+            )
     truth, rejects = read_truth_csv(path, epoch=site.epoch)
     if truth.height == 0:
         raise InputError(f"no readable truth row ({rejects.height} rejected)", file=path)
@@ -281,19 +303,31 @@ def simulate_from_truth(dataset: str | Path, *, seed: int = 0, cfg: FromTruthCon
     dataset = Path(dataset)
     cfg = cfg or FromTruthConfig()
     if not (dataset / "site.toml").exists():
-        raise InputError("no site.toml: the folder needs the site (boundary and sensors) to simulate", file=dataset / "site.toml")
+        raise InputError(
+            "no site.toml: the folder needs the site (boundary and sensors) to simulate", file=dataset / "site.toml"
+        )
     site = load_site(dataset / "site.toml")
     if not (site.beams or site.motion_sensors or site.proximity_sensors):
-        raise InputError("the site declares no sensor (beams, motion_sensors, proximity_sensors) to simulate",
-                         file=dataset / "site.toml")  # fmt: skip
-    if site.binary_sensors and (set(m.id for m in site.motion_sensors) | set(p.id for p in site.proximity_sensors)) - site.binary_ids:
-        raise InputError("the site mixes [[binary_sensors]] with other motion or proximity sensors: a run reads the binary readings "
-                         "from one source (frames.csv), so declare them all as binary sensors or none", file=dataset / "site.toml",
-                         field="binary_sensors")  # fmt: skip
+        raise InputError(
+            "the site declares no sensor (beams, motion_sensors, proximity_sensors) to simulate",
+            file=dataset / "site.toml",
+        )
+    if (
+        site.binary_sensors
+        and (set(m.id for m in site.motion_sensors) | set(p.id for p in site.proximity_sensors)) - site.binary_ids
+    ):
+        raise InputError(
+            "the site mixes [[binary_sensors]] with other motion or proximity sensors: a run reads the binary readings "
+            "from one source (frames.csv), so declare them all as binary sensors or none",
+            file=dataset / "site.toml",
+            field="binary_sensors",
+        )
     truth = read_truth(dataset, site)
     rng = np.random.default_rng(seed)
     times, xy, targets = dense_positions(truth, cfg)
-    outside = ~np.isnan(xy[:, :, 0]) & ~shapely.contains_xy(site.boundary.buffer(1e-9), np.nan_to_num(xy[:, :, 0]), np.nan_to_num(xy[:, :, 1]))
+    outside = ~np.isnan(xy[:, :, 0]) & ~shapely.contains_xy(
+        site.boundary.buffer(1e-9), np.nan_to_num(xy[:, :, 0]), np.nan_to_num(xy[:, :, 1])
+    )
     counts = {"targets": len(targets), "samples": int(len(times)), "outside_boundary": int(outside.sum())}
     if site.beams:
         ev = beam_events(site, times, xy, cfg, rng)
@@ -313,8 +347,11 @@ def simulate_from_truth(dataset: str | Path, *, seed: int = 0, cfg: FromTruthCon
         counts["proximity_edges"] = ev.height
     known = tracker_knowledge(times, xy, site, cfg)
     update_run_toml(dataset / "run.toml", {"istate": known})
-    doc = {"simulated": {"scenario": NAME, "seed": seed, "body_radius": body_radius(site), "units": site.units},
-           "options": asdict(cfg), "counts": counts}  # fmt: skip
+    doc = {
+        "simulated": {"scenario": NAME, "seed": seed, "body_radius": body_radius(site), "units": site.units},
+        "options": asdict(cfg),
+        "counts": counts,
+    }
     write_text(to_toml(doc), dataset / "from_truth.toml")
     return counts
 
@@ -356,7 +393,16 @@ def _float(params: dict, key: str, default: float) -> float:
         raise ConfigError(f"--param {key}={params[key]!r}: expected a number") from None
 
 
-def _write(dataset, *, seed: int, duration=None, agents=None, drop: float = 0.0, camera: bool = False, params: dict | None = None) -> Path:
+def _write(
+    dataset,
+    *,
+    seed: int,
+    duration=None,
+    agents=None,
+    drop: float = 0.0,
+    camera: bool = False,
+    params: dict | None = None,
+) -> Path:
     params = dict(params or {})
     known = ("rate_hz", "max_gap_s", "hold_s", "p_detect", "p_ring", "frame_hz")
     unknown = sorted(set(params) - set(known))

@@ -37,13 +37,14 @@ from pathlib import Path
 import numpy as np
 import polars as pl
 
-from onebit.datasets.scenario import Scenario
+from onebit.core.errors import ConfigError
+from onebit.core.lazy import lazy_module
 from onebit.core.sensing import covers, current_node, detection_regions
 from onebit.core.site import Site, load_site
+from onebit.core.writers import write_csv as _atomic_csv
+from onebit.core.writers import write_text as _atomic_text
 from onebit.datasets.builtin import builtin_site_path
-from onebit.core.errors import ConfigError
-from onebit.core.writers import write_csv as _atomic_csv, write_text as _atomic_text
-from onebit.core.lazy import lazy_module
+from onebit.datasets.scenario import Scenario
 
 nx = lazy_module("networkx")
 
@@ -70,7 +71,9 @@ class HallwaySimConfig:
     pause: tuple[float, float] = (0.0, 4.0)  #: pause at a destination (s)
     enter_gap: tuple[float, float] = (2.0, 8.0)  #: time between two users entering (s)
     exits: int = 0  #: users that leave through the door before the end
-    walk: str = "routes"  #: "routes": each user paces its own west-east route; "random": random destinations from the door
+    walk: str = (
+        "routes"  #: "routes": each user paces its own west-east route; "random": random destinations from the door
+    )
     rate_hz: float = 10.0
     p_detect: float = 0.85
     hold: float = 0.6
@@ -100,7 +103,9 @@ class HallwaySimulation:
     toggles: pl.DataFrame  # t, sensor, value (raw log, with offsets and drops)
 
 
-def _plan_user(g: nx.Graph, pos: dict, cfg: HallwaySimConfig, rng: np.random.Generator, t_in: float, leave_at: float | None):
+def _plan_user(
+    g: nx.Graph, pos: dict, cfg: HallwaySimConfig, rng: np.random.Generator, t_in: float, leave_at: float | None
+):
     """Waypoints (t, x, y) of one user: enter at the door, alternate wings, maybe leave."""
     speed = rng.uniform(*cfg.speed)
     t = t_in
@@ -135,8 +140,15 @@ def _plan_user(g: nx.Graph, pos: dict, cfg: HallwaySimConfig, rng: np.random.Gen
     return np.array(way), (t if leave_at is not None else None)
 
 
-def _plan_route_user(g: nx.Graph, pos: dict, cfg: HallwaySimConfig, rng: np.random.Generator, t_in: float,
-                     leave_at: float | None, route: list[str]):
+def _plan_route_user(
+    g: nx.Graph,
+    pos: dict,
+    cfg: HallwaySimConfig,
+    rng: np.random.Generator,
+    t_in: float,
+    leave_at: float | None,
+    route: list[str],
+):
     """Waypoints (t, x, y) of one user pacing ``route`` back and forth (the paper's scripted
     experiment, section IV-B: users "repeatedly move through the space in overlapping paths"),
     pausing at the ends; a leaver walks to the door at ``leave_at`` and leaves."""
@@ -207,7 +219,9 @@ def simulate_hallway(site: Site, cfg: HallwaySimConfig, *, seed: int) -> Hallway
     samples = pl.concat(frames).sort(["t", "target"])
     xy = samples.select("x", "y").to_numpy()
     cur = current_node(xy, samples["target"].to_numpy(), regions)
-    samples = samples.with_columns(node=pl.Series(np.asarray(ids + [None], dtype=object)[cur].tolist(), dtype=pl.String))
+    samples = samples.with_columns(
+        node=pl.Series(np.asarray(ids + [None], dtype=object)[cur].tolist(), dtype=pl.String)
+    )
 
     # sensing: per sample index and node, any user inside the node's region and detected
     k = np.rint(samples["t"].to_numpy() * cfg.rate_hz).astype(np.int64)
@@ -232,7 +246,13 @@ def simulate_hallway(site: Site, cfg: HallwaySimConfig, *, seed: int) -> Hallway
     offset = rng.uniform(-cfg.clock_offset, cfg.clock_offset, size=len(ids))
     t_edge = np.minimum(edge_t, len(times)) / cfg.rate_hz + offset[edge_n]
     toggles = (
-        pl.DataFrame({"t": np.maximum(t_edge, 0.0), "sensor": np.asarray(ids, dtype=object)[edge_n].tolist(), "value": value.astype(np.int8)})
+        pl.DataFrame(
+            {
+                "t": np.maximum(t_edge, 0.0),
+                "sensor": np.asarray(ids, dtype=object)[edge_n].tolist(),
+                "value": value.astype(np.int8),
+            }
+        )
         .filter(pl.Series(keep))
         .sort(["t", "sensor"])
         .with_columns(pl.col("t").round(3))
@@ -241,7 +261,13 @@ def simulate_hallway(site: Site, cfg: HallwaySimConfig, *, seed: int) -> Hallway
 
 
 def write_hallway_dataset(
-    out_dir: str | Path, *, seed: int = 0, duration: float = 150.0, users: int = 3, drop: float = 0.02, exits: int = 0,
+    out_dir: str | Path,
+    *,
+    seed: int = 0,
+    duration: float = 150.0,
+    users: int = 3,
+    drop: float = 0.02,
+    exits: int = 0,
     walk: str = "routes",
 ) -> Path:
     """Simulate the ``hallway`` scenario and write ``site.toml``, ``motion.csv``, ``truth.csv``
@@ -252,7 +278,11 @@ def write_hallway_dataset(
     site = load_site(site_path)
     cfg = HallwaySimConfig(duration=duration, users=users, drop=drop, exits=exits, walk=walk)
     sim = simulate_hallway(site, cfg, seed=seed)
-    text = site_path.read_text(encoding="utf-8").replace('units = "m"', f'units = "m"\ntargets = {users}                    # users simulated (the most present at once)', 1)
+    text = site_path.read_text(encoding="utf-8").replace(
+        'units = "m"',
+        f'units = "m"\ntargets = {users}                    # users simulated (the most present at once)',
+        1,
+    )
     _atomic_text(text, out / "site.toml")
     # what a tracker may know: a reading lags the user by the PIR's hold plus a node's clock
     # offset (and a 10 Hz sample); users walk at most speed[1] * (1 + speed_jitter)

@@ -31,11 +31,12 @@ import numpy as np
 import polars as pl
 
 from onebit.core.errors import ConfigError
+from onebit.core.lazy import lazy_module
 from onebit.core.sensing import covers, current_node, detection_regions
 from onebit.core.site import Site, load_site
-from onebit.core.writers import write_csv as _atomic_csv, write_text as _atomic_text
+from onebit.core.writers import write_csv as _atomic_csv
+from onebit.core.writers import write_text as _atomic_text
 from onebit.datasets.scenario import Scenario
-from onebit.core.lazy import lazy_module
 
 nx = lazy_module("networkx")
 
@@ -51,7 +52,9 @@ _NIGHT = (0.86, 0.1, 0.02, 0.01, 0.01)
 _MEAL = (0.05, 0.1, 0.6, 0.2, 0.05)
 _DAY = (0.05, 0.1, 0.15, 0.25, 0.45)
 _EVENING = (0.1, 0.1, 0.2, 0.55, 0.05)
-HOURLY = tuple(_NIGHT if h < 7 or h >= 23 else _MEAL if h in (7, 12, 13, 19) else _EVENING if h >= 20 else _DAY for h in range(24))
+HOURLY = tuple(
+    _NIGHT if h < 7 or h >= 23 else _MEAL if h in (7, 12, 13, 19) else _EVENING if h >= 20 else _DAY for h in range(24)
+)
 #: Mean dwell (s) per room by day / night.
 DWELL_DAY = {"bedroom": 900.0, "bathroom": 300.0, "kitchen": 900.0, "living": 1800.0, "office": 2400.0}
 #: At night (23-7 h) moves inside a room come this many times less often.
@@ -196,7 +199,9 @@ def simulate_home(site: Site, cfg: HomeSimConfig, *, seed: int) -> HomeSimulatio
     move = np.concatenate(moving)
     xy = samples.select("x", "y").to_numpy()
     cur = current_node(xy, samples["target"].to_numpy(), regions)
-    samples = samples.with_columns(node=pl.Series(np.asarray(ids + [None], dtype=object)[cur].tolist(), dtype=pl.String))
+    samples = samples.with_columns(
+        node=pl.Series(np.asarray(ids + [None], dtype=object)[cur].tolist(), dtype=pl.String)
+    )
     k = np.tile(np.arange(len(times)), cfg.residents)
     p = np.where(move, cfg.p_detect, cfg.p_still)[:, None]
     det = covers(regions, xy) & (rng.random((len(xy), len(ids))) < p)
@@ -219,7 +224,13 @@ def simulate_home(site: Site, cfg: HomeSimConfig, *, seed: int) -> HomeSimulatio
         uniq, inv = np.unique(b, return_inverse=True)
         keep = (rng.random(len(uniq)) >= cfg.drop)[inv]
     toggles = (
-        pl.DataFrame({"t": edge_t / cfg.rate_hz, "sensor": np.asarray(ids, dtype=object)[edge_n].tolist(), "value": value.astype(np.int8)})
+        pl.DataFrame(
+            {
+                "t": edge_t / cfg.rate_hz,
+                "sensor": np.asarray(ids, dtype=object)[edge_n].tolist(),
+                "value": value.astype(np.int8),
+            }
+        )
         .filter(pl.Series(keep))
         .sort(["t", "sensor"])
         .with_columns(pl.col("t").round(3))
@@ -227,7 +238,9 @@ def simulate_home(site: Site, cfg: HomeSimConfig, *, seed: int) -> HomeSimulatio
     return HomeSimulation(samples.sort(["t", "target"]), toggles)
 
 
-def write_home_dataset(out_dir: str | Path, *, seed: int = 0, duration: float = 86_400.0, residents: int = 2, drop: float = 0.0) -> Path:
+def write_home_dataset(
+    out_dir: str | Path, *, seed: int = 0, duration: float = 86_400.0, residents: int = 2, drop: float = 0.0
+) -> Path:
     """Simulate the ``home`` scenario and write ``site.toml``, ``motion.csv``, ``truth.csv``."""
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
@@ -243,11 +256,18 @@ def _write(dataset, *, seed: int, duration, agents, drop: float, camera: bool, p
     if params:
         raise ConfigError(f"scenario 'home': unknown --param {sorted(params)}; it takes none")
     return write_home_dataset(
-        dataset, seed=seed, duration=86_400.0 if duration is None else duration, residents=2 if agents is None else agents,
+        dataset,
+        seed=seed,
+        duration=86_400.0 if duration is None else duration,
+        residents=2 if agents is None else agents,
         drop=0.0 if drop is None else drop,
-    )  # fmt: skip
+    )
 
 
 SCENARIO_SPECS = {
-    NAME: Scenario(NAME, "a home of 50 PIRs (hallway + 5 rooms), 2 residents over a day with dwell times (--duration s, --agents N)", _write)
+    NAME: Scenario(
+        NAME,
+        "a home of 50 PIRs (hallway + 5 rooms), 2 residents over a day with dwell times (--duration s, --agents N)",
+        _write,
+    )
 }

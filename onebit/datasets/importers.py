@@ -50,13 +50,21 @@ import numpy as np
 import polars as pl
 
 from onebit.core.errors import InputError
+from onebit.core.lazy import lazy_module
+from onebit.core.sensor_graph import geometric_sensor_graph
 from onebit.core.site import load_site, site_from_dict
 from onebit.core.tables import REJECTS
 from onebit.core.writers import to_toml, write_csv, write_text
-from onebit.readers.casas import ALL_KINDS, DEFAULT_HOLD_S, MIN_HOLD_SAMPLES, TOGGLE_KINDS, CasasLog, read_casas, repair_lost_offs
+from onebit.readers.casas import (
+    ALL_KINDS,
+    DEFAULT_HOLD_S,
+    MIN_HOLD_SAMPLES,
+    TOGGLE_KINDS,
+    CasasLog,
+    read_casas,
+    repair_lost_offs,
+)
 from onebit.readers.trajectories import TrajectoryFormat, read_trajectories
-from onebit.core.lazy import lazy_module
-from onebit.core.sensor_graph import geometric_sensor_graph
 
 nx = lazy_module("networkx")
 
@@ -137,15 +145,22 @@ def learn_sensor_graph(
     events about as chance would (lift ~ 1); a walker makes neighbours follow each other far
     more often than that, so an edge needs ``lift >= min_lift`` too."""
     tr = transitions(events, window_s=window_s)
-    busy = pl.concat([tr.select(pl.col("a").alias("s"), "n"), tr.select(pl.col("b").alias("s"), "n")]).group_by("s").agg(
-        total=pl.col("n").sum()
+    busy = (
+        pl.concat([tr.select(pl.col("a").alias("s"), "n"), tr.select(pl.col("b").alias("s"), "n")])
+        .group_by("s")
+        .agg(total=pl.col("n").sum())
     )
     tr = (
         tr.join(busy.rename({"s": "a", "total": "ta"}), on="a")
         .join(busy.rename({"s": "b", "total": "tb"}), on="b")
-        .with_columns(share=pl.col("n") / pl.min_horizontal("ta", "tb"), lift=pl.col("n") * 2.0 * pl.col("n").sum() / (pl.col("ta") * pl.col("tb")))
         .with_columns(
-            kept=pl.when((pl.col("n") >= min_count) & (pl.col("share") >= min_share) & (pl.col("lift") >= min_lift)).then(pl.lit("rule"))
+            share=pl.col("n") / pl.min_horizontal("ta", "tb"),
+            lift=pl.col("n") * 2.0 * pl.col("n").sum() / (pl.col("ta") * pl.col("tb")),
+        )
+        .with_columns(
+            kept=pl.when(
+                (pl.col("n") >= min_count) & (pl.col("share") >= min_share) & (pl.col("lift") >= min_lift)
+            ).then(pl.lit("rule"))
         )
         .drop("ta", "tb")
         .sort("a", "b")
@@ -162,15 +177,21 @@ def learn_sensor_graph(
             g.add_edge(a, b)
             joins.add((min(a, b), max(a, b)))
     if joins:
-        j = pl.DataFrame(sorted(joins), schema={"a": pl.String, "b": pl.String}, orient="row").with_columns(_join=pl.lit(True))
-        tr = tr.join(j, on=["a", "b"], how="left").with_columns(
-            kept=pl.when(pl.col("_join")).then(pl.lit("joins components")).otherwise(pl.col("kept"))
-        ).drop("_join")
+        j = pl.DataFrame(sorted(joins), schema={"a": pl.String, "b": pl.String}, orient="row").with_columns(
+            _join=pl.lit(True)
+        )
+        tr = (
+            tr.join(j, on=["a", "b"], how="left")
+            .with_columns(kept=pl.when(pl.col("_join")).then(pl.lit("joins components")).otherwise(pl.col("kept")))
+            .drop("_join")
+        )
     edges = sorted((min(a, b), max(a, b)) for a, b in g.edges())
     return edges, tr
 
 
-def force_layout(nodes: list[str], edges: list[tuple[str, str]], *, spacing: float = SPACING_M, seed: int = 0) -> dict[str, tuple[float, float]]:
+def force_layout(
+    nodes: list[str], edges: list[tuple[str, str]], *, spacing: float = SPACING_M, seed: int = 0
+) -> dict[str, tuple[float, float]]:
     """Positions from a seeded force layout, scaled so the median edge is ``spacing`` long and
     moved so every position is at least ``spacing`` from the axes."""
     g = nx.Graph()
@@ -218,7 +239,11 @@ def _json_positions(data, path) -> tuple[dict[str, tuple[float, float]], dict[st
     if isinstance(data, dict) and isinstance(data.get("sensors"), list):
         pos, norm = {}, True
         for k, sen in enumerate(data["sensors"]):
-            if not isinstance(sen, dict) or "name" not in sen or not all(isinstance(sen.get(c), (int, float)) for c in ("locX", "locY")):
+            if (
+                not isinstance(sen, dict)
+                or "name" not in sen
+                or not all(isinstance(sen.get(c), (int, float)) for c in ("locX", "locY"))
+            ):
                 raise InputError("a sensor needs 'name', 'locX', 'locY' (numbers)", file=path, field=f"sensors[{k}]")
             pos[str(sen["name"])] = (float(sen["locX"]), float(sen["locY"]))
             types = " ".join(map(str, sen.get("types", []) or [sen.get("type", "")])).lower()
@@ -229,7 +254,9 @@ def _json_positions(data, path) -> tuple[dict[str, tuple[float, float]], dict[st
             norm = norm and 0.0 <= sen["locX"] <= 1.0 and 0.0 <= sen["locY"] <= 1.0
         return pos, kinds, norm
     if not isinstance(data, dict) or not data:
-        raise InputError("expected an object of sensor id -> {x, y} (or [x, y]), or a site.json with 'sensors'", file=path)
+        raise InputError(
+            "expected an object of sensor id -> {x, y} (or [x, y]), or a site.json with 'sensors'", file=path
+        )
     pos = {}
     for sid, v in data.items():
         if isinstance(v, dict) and all(isinstance(v.get(c), (int, float)) for c in ("x", "y")):
@@ -237,7 +264,7 @@ def _json_positions(data, path) -> tuple[dict[str, tuple[float, float]], dict[st
         elif isinstance(v, list) and len(v) == 2 and all(isinstance(c, (int, float)) for c in v):
             pos[str(sid)] = (float(v[0]), float(v[1]))
         else:
-            raise InputError(f"must be {{\"x\": .., \"y\": ..}} or [x, y], got {v!r}", file=path, field=str(sid))
+            raise InputError(f'must be {{"x": .., "y": ..}} or [x, y], got {v!r}', file=path, field=str(sid))
     xy = np.array(list(pos.values()))
     return pos, kinds, bool(((xy >= 0) & (xy <= 1)).all())
 
@@ -282,7 +309,15 @@ def load_rooms(path: str | Path) -> dict[str, object]:
     for name, v in data.items():
         try:
             if isinstance(v, list) and v and isinstance(v[0], dict):
-                parts = [box(r["top_left"]["x"], r["top_left"]["y"], r["top_left"]["x"] + r["width"], r["top_left"]["y"] + r["height"]) for r in v]
+                parts = [
+                    box(
+                        r["top_left"]["x"],
+                        r["top_left"]["y"],
+                        r["top_left"]["x"] + r["width"],
+                        r["top_left"]["y"] + r["height"],
+                    )
+                    for r in v
+                ]
                 import shapely
 
                 rooms[str(name)] = shapely.union_all(parts)
@@ -325,8 +360,11 @@ def load_floor_plan(
             raise InputError(f"cannot read floor-plan JSON: {exc}", file=path) from None
         pos, kinds, norm = _json_positions(data, path)
     if scale is None:
-        raise InputError("--scale is needed with a floor plan: metres per pixel (or per plan width for normalised "
-                         f"coordinates{', as these are' if norm else ''}); --scale 1 if the numbers are metres", file=path)  # fmt: skip
+        raise InputError(
+            "--scale is needed with a floor plan: metres per pixel (or per plan width for normalised "
+            f"coordinates{', as these are' if norm else ''}); --scale 1 if the numbers are metres",
+            file=path,
+        )
     if not (math.isfinite(scale) and scale > 0):
         raise InputError(f"--scale = {scale!r}: must be a positive number")
 
@@ -336,16 +374,30 @@ def load_floor_plan(
     positions = {k: world(*v) for k, v in pos.items()}
     room_polys = {}
     if rooms is not None:
-        room_polys = {k: shapely.affinity.scale(p, xfact=scale, yfact=-scale, origin=(0, 0)) for k, p in load_rooms(rooms).items()}
+        room_polys = {
+            k: shapely.affinity.scale(p, xfact=scale, yfact=-scale, origin=(0, 0)) for k, p in load_rooms(rooms).items()
+        }
 
     def graph(placed: dict[str, tuple[float, float]]):
-        gg = geometric_sensor_graph(placed, radius=radius, rooms=room_polys or None, touch_tol=ROOM_TOUCH_M, join_components=radius is not None)
+        gg = geometric_sensor_graph(
+            placed, radius=radius, rooms=room_polys or None, touch_tol=ROOM_TOUCH_M, join_components=radius is not None
+        )
         gg.require_connected(source=str(path), field="sensors (graph from geometry)")
         return list(gg.edges)
 
-    rule = ("geometry: " + (f"neighbours within {radius} m, components joined by their shortest allowed pairs" if radius
-                            else "the smallest distance that keeps the graph connected")
-            + (f", rooms of {Path(rooms).name} respected (same room, or rooms within {ROOM_TOUCH_M} m: a wall with a doorway)" if rooms else ""))  # fmt: skip
+    rule = (
+        "geometry: "
+        + (
+            f"neighbours within {radius} m, components joined by their shortest allowed pairs"
+            if radius
+            else "the smallest distance that keeps the graph connected"
+        )
+        + (
+            f", rooms of {Path(rooms).name} respected (same room, or rooms within {ROOM_TOUCH_M} m: a wall with a doorway)"
+            if rooms
+            else ""
+        )
+    )
     xy = np.array(list(positions.values())) if positions else np.zeros((0, 2))
     boundary = None
     if room_polys:
@@ -387,7 +439,11 @@ def load_layout(path: str | Path) -> Layout:
         raise InputError("missing; a [sensors] table with a position [x, y] per sensor id", file=path, field="sensors")
     positions = {}
     for sid, p in sensors.items():
-        if not (isinstance(p, list) and len(p) == 2 and all(isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v) for v in p)):
+        if not (
+            isinstance(p, list)
+            and len(p) == 2
+            and all(isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v) for v in p)
+        ):
             raise InputError(f"must be [x, y] (two numbers), got {p!r}", file=path, field=f"sensors.{sid}")
         positions[str(sid)] = (float(p[0]), float(p[1]))
     edges = None
@@ -410,8 +466,17 @@ def load_layout(path: str | Path) -> Layout:
     if targets is not None and (isinstance(targets, bool) or not isinstance(targets, int) or targets < 0):
         raise InputError(f"must be a non-negative integer, got {targets!r}", file=path, field="targets")
     kinds = _layout_kinds(data, path)
-    return Layout(positions, edges, data.get("boundary"), None if rng is None else float(rng), str(data.get("units", "m")),
-                  targets, data.get("name"), str(path), kinds)  # fmt: skip
+    return Layout(
+        positions,
+        edges,
+        data.get("boundary"),
+        None if rng is None else float(rng),
+        str(data.get("units", "m")),
+        targets,
+        data.get("name"),
+        str(path),
+        kinds,
+    )
 
 
 def _layout_kinds(data: dict, path) -> dict[str, str]:
@@ -475,7 +540,13 @@ def graph_site_toml(
         lines.append(f"targets = {int(targets)}")
     lines += ["", "[boundary]", f"polygon = {_v([[float(a), float(b)] for a, b in boundary])}", ""]
     for sid, (x, y) in positions.items():
-        lines += ["[[motion_sensors]]", f"id = {_v(sid)}", f"position = {_v([x, y])}", f"range = {_v(float(sensor_range))}", ""]
+        lines += [
+            "[[motion_sensors]]",
+            f"id = {_v(sid)}",
+            f"position = {_v([x, y])}",
+            f"range = {_v(float(sensor_range))}",
+            "",
+        ]
     lines += [
         "[sensor_graph]",
         f"edges = {_v([list(e) for e in edges])}",
@@ -517,12 +588,22 @@ def import_casas(
     (:func:`_casas_parts`), the sensor graph and positions found (:func:`_casas_graph`), the
     site written only if it loads, then the tables and ``import.toml`` (:func:`_casas_record`)."""
     log, out = Path(log), Path(dataset)
-    _check_casas_args(log, targets=targets, window_s=window_s, spacing_m=spacing_m, min_share=min_share, hold_s=hold_s,
-                      hold_samples=hold_samples)  # fmt: skip
+    _check_casas_args(
+        log,
+        targets=targets,
+        window_s=window_s,
+        spacing_m=spacing_m,
+        min_share=min_share,
+        hold_s=hold_s,
+        hold_samples=hold_samples,
+    )
     lay = None
     if layout is not None:
-        lay = load_layout(layout) if Path(layout).suffix.lower() == ".toml" else load_floor_plan(
-            layout, scale=scale, rooms=rooms, radius=graph_radius)
+        lay = (
+            load_layout(layout)
+            if Path(layout).suffix.lower() == ".toml"
+            else load_floor_plan(layout, scale=scale, rooms=rooms, radius=graph_radius)
+        )
         lay = _renamed(lay, read_casas(log).events["sensor"].unique().to_list())
     kinds = dict(lay.kinds) if lay is not None else {}
     kinds.update({d: "door" for d in doors})
@@ -542,16 +623,33 @@ def import_casas(
         "never cupboard or appliance contacts.\n"
     )
     text = graph_site_toml(
-        name=(lay.name if lay is not None and lay.name else log.stem), units=g.units, positions=g.positions, edges=g.edges,
-        doors=door_ids, sensor_range=g.sensor_range, boundary=lay.boundary if lay is not None else None, epoch=epoch,
-        targets=targets if targets is not None else (lay.targets if lay is not None else None), header=header,
-    )  # fmt: skip
+        name=(lay.name if lay is not None and lay.name else log.stem),
+        units=g.units,
+        positions=g.positions,
+        edges=g.edges,
+        doors=door_ids,
+        sensor_range=g.sensor_range,
+        boundary=lay.boundary if lay is not None else None,
+        epoch=epoch,
+        targets=targets if targets is not None else (lay.targets if lay is not None else None),
+        header=header,
+    )
     site_from_dict(tomllib.loads(text), source=str(out / "site.toml"))  # refuse to write a site that would not load
     out.mkdir(parents=True, exist_ok=True)
     write_text(text, out / "site.toml")
     _write_casas_tables(out, parts, res, g.transitions)
-    counts, info = _casas_record(log, res, parts, g, door_ids, window_s=window_s, min_count=min_count, min_share=min_share,
-                                 hold_s=hold_s, hold_samples=hold_samples)  # fmt: skip
+    counts, info = _casas_record(
+        log,
+        res,
+        parts,
+        g,
+        door_ids,
+        window_s=window_s,
+        min_count=min_count,
+        min_share=min_share,
+        hold_s=hold_s,
+        hold_samples=hold_samples,
+    )
     write_text(to_toml(info), out / "import.toml")
     return ImportSummary(out, counts, info)
 
@@ -560,7 +658,12 @@ def _check_casas_args(log: Path, *, targets, window_s, spacing_m, min_share, hol
     """The log exists and every option is in range (the error names the option)."""
     if not log.is_file():
         raise InputError("no such CASAS log", file=log)
-    for name, v, lo in (("--window", window_s, 0.0), ("--spacing", spacing_m, 0.0), ("--min-share", min_share, -1e-12), ("--hold", hold_s, 0.0)):
+    for name, v, lo in (
+        ("--window", window_s, 0.0),
+        ("--spacing", spacing_m, 0.0),
+        ("--min-share", min_share, -1e-12),
+        ("--hold", hold_s, 0.0),
+    ):
         if not (isinstance(v, (int, float)) and math.isfinite(v) and v > lo):
             raise InputError(f"{name} = {v!r}: must be a positive number")
     if targets is not None and targets < 0:
@@ -584,7 +687,9 @@ class _CasasParts:
     unplaced: list[str]  #: graph sensors a layout does not place (kept in other.csv)
 
 
-def _casas_parts(res: CasasLog, lay: Layout | None, log: Path, *, doors, hold_s: float, hold_samples: int) -> _CasasParts:
+def _casas_parts(
+    res: CasasLog, lay: Layout | None, log: Path, *, doors, hold_s: float, hold_samples: int
+) -> _CasasParts:
     """Split the read log: graph sensors (motion, doors and named motion sensors the layout
     places) to ``motion.csv`` with lost OFFs repaired, the rest to ``other.csv``; refuse a log
     with no graph sensor and a ``--doors`` naming none."""
@@ -598,10 +703,14 @@ def _casas_parts(res: CasasLog, lay: Layout | None, log: Path, *, doors, hold_s:
     toggles, repairs = repair_lost_offs(toggles_logged, default_hold_s=hold_s, min_samples=hold_samples)
     nodes = sorted(toggles["sensor"].unique().to_list(), key=_natural)
     if not nodes:
-        raise InputError("no motion (M###), contact (D###) or named motion sensor events in the log: nothing to track", file=log)
+        raise InputError(
+            "no motion (M###), contact (D###) or named motion sensor events in the log: nothing to track", file=log
+        )
     missing_doors = [d for d in doors if d not in nodes]
     if missing_doors:
-        raise InputError(f"--doors {missing_doors}: no such contact sensor among the log's graph sensors {nodes}", file=log)
+        raise InputError(
+            f"--doors {missing_doors}: no such contact sensor among the log's graph sensors {nodes}", file=log
+        )
     return _CasasParts(
         events=ev,
         toggles=toggles,
@@ -636,7 +745,9 @@ def _casas_graph(parts: _CasasParts, lay: Layout | None, *, window_s, min_count,
     a force layout (module docstring)."""
     trans = pl.DataFrame()
     if lay is not None:
-        positions = {n: lay.positions[n] for n in sorted(lay.positions, key=_natural) if n in parts.nodes or not lay.only_logged}
+        positions = {
+            n: lay.positions[n] for n in sorted(lay.positions, key=_natural) if n in parts.nodes or not lay.only_logged
+        }
         edges = sorted({(min(a, b), max(a, b)) for a, b in lay.edges}) if lay.edges is not None else None
         units, how = lay.units, "layout file"
     else:
@@ -645,7 +756,9 @@ def _casas_graph(parts: _CasasParts, lay: Layout | None, *, window_s, min_count,
     if edges is None and lay is not None and lay.graph is not None:
         edges, graph_how = lay.graph(positions), "geometry"
     if edges is None:
-        edges, trans = learn_sensor_graph(parts.toggles, parts.nodes, window_s=window_s, min_count=min_count, min_share=min_share)
+        edges, trans = learn_sensor_graph(
+            parts.toggles, parts.nodes, window_s=window_s, min_count=min_count, min_share=min_share
+        )
         graph_how = "learned"
     if positions is None:
         positions = force_layout(parts.nodes, edges, spacing=spacing_m)
@@ -655,9 +768,10 @@ def _casas_graph(parts: _CasasParts, lay: Layout | None, *, window_s, min_count,
         "consecutive ON/OPEN events of two sensors at most window_s apart are a transition; an edge needs "
         ">= min_count transitions making >= min_share of the less busy sensor's, at least min_lift times what "
         "chance would give; components joined by a "
-        "maximum spanning forest of the counts (transitions.csv)" if graph_how == "learned" else
-        (lay.graph_rule if graph_how == "geometry" else "from the layout file")
-    )  # fmt: skip
+        "maximum spanning forest of the counts (transitions.csv)"
+        if graph_how == "learned"
+        else (lay.graph_rule if graph_how == "geometry" else "from the layout file")
+    )
     return _CasasGraph(positions, edges, units, how, graph_how, rule, spacing, sensor_range, trans)
 
 
@@ -667,16 +781,34 @@ def _write_casas_tables(out: Path, parts: _CasasParts, res: CasasLog, trans: pl.
     ``transitions.csv`` (``t`` rounded to the microsecond)."""
     t = pl.col("t").round(6)
     write_csv(
-        parts.toggles.select(t, "sensor", "value", "stamp", pl.col("line").alias("log_line"), pl.col("repaired").cast(pl.Int8)),
+        parts.toggles.select(
+            t, "sensor", "value", "stamp", pl.col("line").alias("log_line"), pl.col("repaired").cast(pl.Int8)
+        ),
         out / "motion.csv",
     )
     if parts.truth_events.height:
         write_csv(parts.truth_events.select(t, "sensor", "residents"), out / "truth_events.csv")
     if parts.others.height:
-        write_csv(parts.others.select(t, "sensor", "kind", "value", "stamp", pl.col("line").alias("log_line")), out / "other.csv")
+        write_csv(
+            parts.others.select(t, "sensor", "kind", "value", "stamp", pl.col("line").alias("log_line")),
+            out / "other.csv",
+        )
     if parts.notes.height:
-        write_csv(parts.notes.select(t, "sensor", "value", "annotation", "residents", "tasks", "activity", "activity_edge", "stamp",
-                                     pl.col("line").alias("log_line")), out / "annotations.csv")  # fmt: skip
+        write_csv(
+            parts.notes.select(
+                t,
+                "sensor",
+                "value",
+                "annotation",
+                "residents",
+                "tasks",
+                "activity",
+                "activity_edge",
+                "stamp",
+                pl.col("line").alias("log_line"),
+            ),
+            out / "annotations.csv",
+        )
     if res.rejects.height:
         write_csv(res.rejects.select(REJECTS.names()), out / "rejects.csv")
     if res.annotation_problems.height:
@@ -687,8 +819,19 @@ def _write_casas_tables(out: Path, parts: _CasasParts, res: CasasLog, trans: pl.
         write_csv(trans, out / "transitions.csv")
 
 
-def _casas_record(log: Path, res: CasasLog, parts: _CasasParts, g: _CasasGraph, door_ids: list[str], *, window_s, min_count,
-                  min_share, hold_s, hold_samples) -> tuple[dict, dict]:  # fmt: skip
+def _casas_record(
+    log: Path,
+    res: CasasLog,
+    parts: _CasasParts,
+    g: _CasasGraph,
+    door_ids: list[str],
+    *,
+    window_s,
+    min_count,
+    min_share,
+    hold_s,
+    hold_samples,
+) -> tuple[dict, dict]:
     """``(counts, import.toml)``: what was read, written, repaired and how the graph was found."""
     counts = {
         "lines": res.lines,
@@ -719,18 +862,28 @@ def _casas_record(log: Path, res: CasasLog, parts: _CasasParts, g: _CasasGraph, 
             "min_share": min_share,
             "min_lift": MIN_LIFT,
         },
-        "doors": {"entries_exits": door_ids, "rule": "only contacts declared doors by the layout or --doors; other contacts are ordinary nodes"},
+        "doors": {
+            "entries_exits": door_ids,
+            "rule": "only contacts declared doors by the layout or --doors; other contacts are ordinary nodes",
+        },
         "lost_off": {
             "rule": "a repeated ON more than the sensor's hold time after the previous ON gets an OFF at t_prev + hold "
-                    "(hold = median on-duration with >= hold_samples samples, else hold_s); lost_offs.csv lists them",
+            "(hold = median on-duration with >= hold_samples samples, else hold_s); lost_offs.csv lists them",
             "hold_s": hold_s,
             "hold_samples": hold_samples,
             "repaired": parts.repairs.height,
         },
-        "truth_events": {"rule": "ON/OPEN events of graph sensors with resident annotations: t, sensor, residents (ids sorted, ';')",
-                         "rows": parts.truth_events.height},
-        "layout": {"positions": g.how, "spacing": round(g.spacing, 3), "range": g.sensor_range, "unplaced": parts.unplaced},
-    }  # fmt: skip
+        "truth_events": {
+            "rule": "ON/OPEN events of graph sensors with resident annotations: t, sensor, residents (ids sorted, ';')",
+            "rows": parts.truth_events.height,
+        },
+        "layout": {
+            "positions": g.how,
+            "spacing": round(g.spacing, 3),
+            "range": g.sensor_range,
+            "unplaced": parts.unplaced,
+        },
+    }
     return counts, info
 
 
@@ -742,8 +895,12 @@ def _renamed(lay: Layout, log_ids) -> Layout:
     from dataclasses import replace
 
     edges = tuple((ren.get(a, a), ren.get(b, b)) for a, b in lay.edges) if lay.edges is not None else None
-    return replace(lay, positions={ren[k]: v for k, v in lay.positions.items()}, edges=edges,
-                   kinds={ren.get(k, k): v for k, v in lay.kinds.items()})  # fmt: skip
+    return replace(
+        lay,
+        positions={ren[k]: v for k, v in lay.positions.items()},
+        edges=edges,
+        kinds={ren.get(k, k): v for k, v in lay.kinds.items()},
+    )
 
 
 def _median_edge(positions: dict, edges: list) -> float | None:
@@ -780,8 +937,11 @@ def import_trajectories(file: str | Path, dataset: str | Path, fmt: TrajectoryFo
     site = load_site(site_path) if site_path.exists() else None
     res = read_trajectories(file, fmt, epoch=site.epoch if site is not None else None)
     if res.truth.height == 0:
-        raise InputError(f"no readable position (rejected: {res.rejects.height} rows; first: "
-                         f"{res.rejects['reason'][0] if res.rejects.height else 'none'})", file=file)  # fmt: skip
+        raise InputError(
+            f"no readable position (rejected: {res.rejects.height} rows; first: "
+            f"{res.rejects['reason'][0] if res.rejects.height else 'none'})",
+            file=file,
+        )
     out.mkdir(parents=True, exist_ok=True)
     made_site = site is None
     if made_site:
@@ -813,12 +973,23 @@ def import_trajectories(file: str | Path, dataset: str | Path, fmt: TrajectoryFo
     }
     fmt = fmt or TrajectoryFormat()
     info = {
-        "source": {"file": str(file.resolve()), "format": "trajectories", "columns": res.columns, "time_unit": res.time_unit},
+        "source": {
+            "file": str(file.resolve()),
+            "format": "trajectories",
+            "columns": res.columns,
+            "time_unit": res.time_unit,
+        },
         "counts": counts,
         "time": res.origin.as_dict(),
-        "transform": {"scale": fmt.scale, "offset": list(fmt.offset), "flip_x": fmt.flip_x, "flip_y": fmt.flip_y,
-                      "swap_xy": fmt.swap_xy, "join": [",".join(g) for g in fmt.join]},
+        "transform": {
+            "scale": fmt.scale,
+            "offset": list(fmt.offset),
+            "flip_x": fmt.flip_x,
+            "flip_y": fmt.flip_y,
+            "swap_xy": fmt.swap_xy,
+            "join": [",".join(g) for g in fmt.join],
+        },
         "site": {"written": made_site},
-    }  # fmt: skip
+    }
     write_text(to_toml(info), out / "truth_import.toml")
     return ImportSummary(out, counts, info)

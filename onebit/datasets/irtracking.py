@@ -78,11 +78,14 @@ def find_coordinates(readings: Path) -> Path:
         if cand.exists():
             return cand
     raise InputError(
-        f"no {COORDINATES_FILE} next to the readings or up to two folders above; give it with --coordinates", file=readings
+        f"no {COORDINATES_FILE} next to the readings or up to two folders above; give it with --coordinates",
+        file=readings,
     )
 
 
-def _active_from_detections(path: Path, xy_mm: np.ndarray, tolerance_mm: float) -> tuple[pl.DataFrame, tuple[int, ...], pl.DataFrame]:
+def _active_from_detections(
+    path: Path, xy_mm: np.ndarray, tolerance_mm: float
+) -> tuple[pl.DataFrame, tuple[int, ...], pl.DataFrame]:
     """Detections (CVML boxes at sensor positions) -> frame, sensor; boxes far from every sensor rejected."""
     cv = read_cvml(path)
     obj = cv.objects
@@ -99,8 +102,12 @@ def _active_from_detections(path: Path, xy_mm: np.ndarray, tolerance_mm: float) 
                 bad.select(
                     source=pl.lit(path.name),
                     line=pl.col("line"),
-                    reason=pl.format("box at ({}, {}) mm is not within {} mm of a sensor", pl.col("x").round(0), pl.col("y").round(0),
-                                     pl.lit(tolerance_mm)),  # fmt: skip
+                    reason=pl.format(
+                        "box at ({}, {}) mm is not within {} mm of a sensor",
+                        pl.col("x").round(0),
+                        pl.col("y").round(0),
+                        pl.lit(tolerance_mm),
+                    ),
                     raw=pl.lit(None, pl.String),
                 ).cast(dict(REJECTS))
             )
@@ -134,20 +141,33 @@ def truth_table(path: Path, period: float, first: int) -> tuple[pl.DataFrame, pl
     rej = [cv.rejects]
     if no_id.height:
         rej.append(
-            no_id.select(source=pl.lit(path.name), line=pl.col("line"), reason=pl.lit("object without an id (not a truth annotation)"),
-                         raw=pl.lit(None, pl.String)).cast(dict(REJECTS))  # fmt: skip
+            no_id.select(
+                source=pl.lit(path.name),
+                line=pl.col("line"),
+                reason=pl.lit("object without an id (not a truth annotation)"),
+                raw=pl.lit(None, pl.String),
+            ).cast(dict(REJECTS))
         )
-    truth = obj.filter(pl.col("object").is_not_null()).select(
-        t=(pl.col("frame") - first).cast(pl.Float64) * period, target=pl.col("object"), x=pl.col("x") / 1000.0, y=pl.col("y") / 1000.0
-    ).sort("t", "target")
+    truth = (
+        obj.filter(pl.col("object").is_not_null())
+        .select(
+            t=(pl.col("frame") - first).cast(pl.Float64) * period,
+            target=pl.col("object"),
+            x=pl.col("x") / 1000.0,
+            y=pl.col("y") / 1000.0,
+        )
+        .sort("t", "target")
+    )
     return truth, pl.concat(rej), len(cv.frames)
 
 
-def site_toml(xy_m: np.ndarray, *, name: str, radius: float, r_inner: float | None, targets: int, start: str | None) -> str:
+def site_toml(
+    xy_m: np.ndarray, *, name: str, radius: float, r_inner: float | None, targets: int, start: str | None
+) -> str:
     """The dataset's ``site.toml``: the room, the sensors declared once, ``targets``."""
     w, h = ROOM_M
     lines = [
-        f"# Imported by 'onebit import irtracking' (Milan et al.'s ceiling array; see import.toml).",
+        "# Imported by 'onebit import irtracking' (Milan et al.'s ceiling array; see import.toml).",
         f"# Recording start: {start or 'not given'}; t = 0 is the first frame.",
         f'name = "{name}"',
         'units = "m"',
@@ -156,7 +176,7 @@ def site_toml(xy_m: np.ndarray, *, name: str, radius: float, r_inner: float | No
         "[boundary]",
         f"polygon = [[0.0, 0.0], [{w!r}, 0.0], [{w!r}, {h!r}], [0.0, {h!r}]]",
         "",
-        f'[sensor_types.{SENSOR_TYPE}]',
+        f"[sensor_types.{SENSOR_TYPE}]",
         'signal = "level"   # a sensor held on is presence under it',
         "",
         "[sensor_graph]     # for the graph trackers: neighbours within the smallest distance that keeps the array connected",
@@ -164,7 +184,14 @@ def site_toml(xy_m: np.ndarray, *, name: str, radius: float, r_inner: float | No
     ]
     foot = f"radius = {radius!r}" if r_inner is None else f"r_outer = {radius!r}\nr_inner = {r_inner!r}"
     for i, (x, y) in enumerate(xy_m, start=1):
-        lines += ["", "[[binary_sensors]]", f'id = "{i}"', f"position = [{float(x)!r}, {float(y)!r}]", foot, f'type = "{SENSOR_TYPE}"']
+        lines += [
+            "",
+            "[[binary_sensors]]",
+            f'id = "{i}"',
+            f"position = [{float(x)!r}, {float(y)!r}]",
+            foot,
+            f'type = "{SENSOR_TYPE}"',
+        ]
     return "\n".join(lines) + "\n"
 
 
@@ -214,7 +241,11 @@ def import_irtracking(
     if truth is not None:
         truth_df, trej, truth_frames = truth_table(Path(truth), period, first)
         rejects = pl.concat([rejects, trej])
-        counts |= {"truth_frames": truth_frames, "truth_rows": truth_df.height, "truth_targets": truth_df["target"].n_unique()}
+        counts |= {
+            "truth_frames": truth_frames,
+            "truth_rows": truth_df.height,
+            "truth_targets": truth_df["target"].n_unique(),
+        }
     n_targets = targets if targets is not None else DEFAULT_TARGETS
     xy_m = xy_mm / 1000.0
     name = name or readings.stem
@@ -234,11 +265,22 @@ def import_irtracking(
         "rejected": rejects.height,
     }
     info = {
-        "source": {"readings": str(readings), "kind": source, "coordinates": str(coords), "truth": str(truth) if truth else ""},
+        "source": {
+            "readings": str(readings),
+            "kind": source,
+            "coordinates": str(coords),
+            "truth": str(truth) if truth else "",
+        },
         "time": {"period_s": float(period), "start": start or "", "t0_frame": int(first)},
-        "site": {"radius_m": float(radius), "r_inner_m": float(r_inner if r_inner is not None else radius), "targets": int(n_targets),
-                 "targets_from": "--targets" if targets is not None else f"default ({DEFAULT_TARGETS}: the recordings' most people)"},
+        "site": {
+            "radius_m": float(radius),
+            "r_inner_m": float(r_inner if r_inner is not None else radius),
+            "targets": int(n_targets),
+            "targets_from": "--targets"
+            if targets is not None
+            else f"default ({DEFAULT_TARGETS}: the recordings' most people)",
+        },
         "counts": counts,
-    }  # fmt: skip
+    }
     write_text(to_toml(info), out / "import.toml")
     return IrtrackingImport(out, info)

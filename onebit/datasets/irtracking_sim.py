@@ -40,8 +40,12 @@ def sensor_grid(cols: int, rows: int, spacing: float) -> np.ndarray:
 
 def coordinates_m(xy: np.ndarray) -> str:
     """``getSensorCoordinates.m`` for positions ``xy`` (mm), laid out as the authors' file."""
+
     def vec(v: np.ndarray) -> str:
-        rows = [" ".join(f"{int(round(a)):04d}" for a in v[i : i + 10]) + " ... % " + f"{i + 1}..{i + 10}" for i in range(0, len(v), 10)]
+        rows = [
+            " ".join(f"{int(round(a)):04d}" for a in v[i : i + 10]) + " ... % " + f"{i + 1}..{i + 10}"
+            for i in range(0, len(v), 10)
+        ]
         return "\n ".join(rows)
 
     return (
@@ -62,8 +66,11 @@ def cvml(frames: dict[int, list[tuple[str | None, float, float]]]) -> str:
             out.append("      <objectlist>")
             for oid, x, y in objs:
                 attr = f'id="{oid}"' if oid is not None else 'confidence="1"'
-                out += [f"         <object {attr}>", f'            <box h="28" w="28" xc="{x / PIXEL_MM:.4f}" yc="{y / PIXEL_MM:.4f}"/>',
-                        "         </object>"]  # fmt: skip
+                out += [
+                    f"         <object {attr}>",
+                    f'            <box h="28" w="28" xc="{x / PIXEL_MM:.4f}" yc="{y / PIXEL_MM:.4f}"/>',
+                    "         </object>",
+                ]
             out.append("      </objectlist>")
         out.append("   </frame>")
     out.append("</dataset>")
@@ -114,8 +121,15 @@ def write_irtracking(
             on[: len(xy)][near] = np.flatnonzero(near) + 1
         active[f] = [int(k) for k in np.flatnonzero(on) + 1]
         lines.append(" ".join(str(v) for v in on) + " ")
-    paths = IrtrackingFiles(folder / "getSensorCoordinates.m", folder / f"{name}.txt", folder / f"{name}_gt.xml",
-                            folder / f"{name}.xml", xy, truth, active)  # fmt: skip
+    paths = IrtrackingFiles(
+        folder / "getSensorCoordinates.m",
+        folder / f"{name}.txt",
+        folder / f"{name}_gt.xml",
+        folder / f"{name}.xml",
+        xy,
+        truth,
+        active,
+    )
     write_text(coordinates_m(xy), paths.coordinates)
     paths.readings.write_bytes(("\r\n".join(lines)).encode())
     write_text(cvml({f: [(str(p), *truth[f][p]) for p in truth[f]] for f in truth}), paths.truth)

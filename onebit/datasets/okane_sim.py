@@ -22,11 +22,11 @@ import polars as pl
 import shapely
 from shapely.geometry import box
 
-from onebit.datasets.scenario import Scenario
 from onebit.core.errors import ConfigError
+from onebit.core.writers import write_csv as _atomic_csv
+from onebit.core.writers import write_text as _atomic_text
+from onebit.datasets.scenario import Scenario
 from onebit.models.walking import ShortestPaths, advance
-from onebit.core.writers import write_text as _atomic_text, write_csv as _atomic_csv
-
 
 # --------------------------------------------------------------------------- environments
 
@@ -36,7 +36,13 @@ def fig9_environment() -> tuple[shapely.Polygon, list[shapely.Polygon]]:
     paper gives no coordinates; this is our reconstruction: blocks spread over the square
     leaving corridors between them)."""
     boundary = box(0, 0, 100, 100)
-    obstacles = [box(18, 18, 38, 34), box(60, 12, 74, 42), box(22, 60, 44, 80), box(62, 64, 86, 76), box(44, 44, 54, 54)]
+    obstacles = [
+        box(18, 18, 38, 34),
+        box(60, 12, 74, 42),
+        box(22, 60, 44, 80),
+        box(62, 64, 86, 76),
+        box(44, 44, 54, 54),
+    ]
     return boundary, obstacles
 
 
@@ -87,17 +93,36 @@ class TargetMotion:
 
 # --------------------------------------------------------------------------- istate-room dataset
 
-ROOM = dict(boundary=[[0, 0], [12, 0], [12, 8], [0, 8]], obstacles=[[[4, 2], [5, 2], [5, 5.5], [4, 5.5]], [[8, 4], [9.5, 4], [9.5, 8], [8, 8]]])
-ROOM_SENSORS = {"m1": (1.5, 1.5), "m2": (1.5, 6.0), "m3": (6.5, 1.2), "m4": (6.5, 5.5), "m5": (10.5, 1.5), "m6": (10.5, 5.5)}
+ROOM = dict(
+    boundary=[[0, 0], [12, 0], [12, 8], [0, 8]],
+    obstacles=[[[4, 2], [5, 2], [5, 5.5], [4, 5.5]], [[8, 4], [9.5, 4], [9.5, 8], [8, 8]]],
+)
+ROOM_SENSORS = {
+    "m1": (1.5, 1.5),
+    "m2": (1.5, 6.0),
+    "m3": (6.5, 1.2),
+    "m4": (6.5, 5.5),
+    "m5": (10.5, 1.5),
+    "m6": (10.5, 5.5),
+}
 ROOM_FOV = 1.0  # half side of each square field of view (m)
 
 
 def room_site_toml(n: int) -> str:
     """``site.toml`` of the ``istate-room`` scenario."""
+
     def poly(p):
         return "[" + ", ".join(f"[{x}, {y}]" for x, y in p) + "]"
 
-    lines = ['name = "istate-room"', 'units = "m"', f"targets = {n}", "", "[boundary]", f"polygon = {poly(ROOM['boundary'])}", ""]
+    lines = [
+        'name = "istate-room"',
+        'units = "m"',
+        f"targets = {n}",
+        "",
+        "[boundary]",
+        f"polygon = {poly(ROOM['boundary'])}",
+        "",
+    ]
     for i, ob in enumerate(ROOM["obstacles"]):
         lines += ["[[obstacles]]", f'name = "block{i + 1}"', f"polygon = {poly(ob)}", ""]
     for sid, (x, y) in ROOM_SENSORS.items():
@@ -122,10 +147,19 @@ def simulate_room(*, seed: int, duration: float, n: int, drop: float, rate_hz: f
     for k in range(1, K):  # sequential: each sample follows the last
         pos[k] = motion.move()
     t = np.arange(K) / rate_hz
-    truth = pl.DataFrame({"t": np.repeat(t, n), "target": np.tile([f"target{i + 1}" for i in range(n)], K), "x": pos[:, :, 0].ravel(), "y": pos[:, :, 1].ravel()})
+    truth = pl.DataFrame(
+        {
+            "t": np.repeat(t, n),
+            "target": np.tile([f"target{i + 1}" for i in range(n)], K),
+            "x": pos[:, :, 0].ravel(),
+            "y": pos[:, :, 1].ravel(),
+        }
+    )
     ids = list(ROOM_SENSORS)
     c = np.array([ROOM_SENSORS[s] for s in ids])
-    inside = (np.abs(pos[:, :, None, 0] - c[None, None, :, 0]) <= ROOM_FOV) & (np.abs(pos[:, :, None, 1] - c[None, None, :, 1]) <= ROOM_FOV)
+    inside = (np.abs(pos[:, :, None, 0] - c[None, None, :, 0]) <= ROOM_FOV) & (
+        np.abs(pos[:, :, None, 1] - c[None, None, :, 1]) <= ROOM_FOV
+    )
     on = inside.any(axis=1)  # (K, sensors)
     # drop whole on-periods with probability `drop` (false negatives)
     start = np.vstack([on[:1], on[1:] & ~on[:-1]])
@@ -134,7 +168,9 @@ def simulate_room(*, seed: int, duration: float, n: int, drop: float, rate_hz: f
     on = on & ~np.take_along_axis(dropped, period_id, axis=0)
     prev = np.vstack([np.zeros((1, len(ids)), bool), on[:-1]])
     kk, ss = np.nonzero(on != prev)
-    edges = pl.DataFrame({"t": t[kk], "sensor": np.asarray(ids)[ss], "value": on[kk, ss].astype(np.int8)}).sort("t", "sensor")
+    edges = pl.DataFrame({"t": t[kk], "sensor": np.asarray(ids)[ss], "value": on[kk, ss].astype(np.int8)}).sort(
+        "t", "sensor"
+    )
     return truth, edges
 
 
@@ -159,7 +195,9 @@ def write_room_dataset(out_dir, *, seed: int = 0, duration: float = 120.0, n: in
 def _write_room(dataset, *, seed: int, duration, agents, drop: float, camera: bool, params: dict) -> Path:
     if params:
         raise ConfigError(f"scenario 'istate-room' takes no --param options, got {sorted(params)}")
-    return write_room_dataset(dataset, seed=seed, duration=120.0 if duration is None else duration, n=agents or 2, drop=drop)
+    return write_room_dataset(
+        dataset, seed=seed, duration=120.0 if duration is None else duration, n=agents or 2, drop=drop
+    )
 
 
 def _specs():

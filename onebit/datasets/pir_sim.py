@@ -42,14 +42,12 @@ from pathlib import Path
 import numpy as np
 import polars as pl
 
-from onebit.datasets.scenario import Scenario
-from onebit.core.site import site_from_dict
 from onebit.core import writers
 from onebit.core.errors import ConfigError
-from onebit.models.motion import Motion
-from onebit.models.motion import Room, prior, propagate
-from onebit.models.pir import log_p_silent
-from onebit.models.pir import deploy
+from onebit.core.site import site_from_dict
+from onebit.datasets.scenario import Scenario
+from onebit.models.motion import Motion, Room, prior, propagate
+from onebit.models.pir import deploy, log_p_silent
 
 ROOM = 10.0
 PERIOD = 2.0
@@ -64,11 +62,21 @@ MIN_ON = 0.1
 #: 14 PIR poses (x, y, heading deg): the 4 corners looking at the centre, the 4 wall centres
 #: looking across, then 6 more along the walls. ``pirN`` takes the first N.
 PIR_POSES: tuple[tuple[float, float, float], ...] = (
-    (0.0, 0.0, 45.0), (10.0, 0.0, 135.0), (10.0, 10.0, 225.0), (0.0, 10.0, 315.0),
-    (5.0, 0.0, 90.0), (10.0, 5.0, 180.0), (5.0, 10.0, 270.0), (0.0, 5.0, 0.0),
-    (2.5, 0.0, 90.0), (10.0, 2.5, 180.0), (7.5, 10.0, 270.0), (0.0, 7.5, 0.0),
-    (7.5, 0.0, 90.0), (2.5, 10.0, 270.0),
-)  # fmt: skip
+    (0.0, 0.0, 45.0),
+    (10.0, 0.0, 135.0),
+    (10.0, 10.0, 225.0),
+    (0.0, 10.0, 315.0),
+    (5.0, 0.0, 90.0),
+    (10.0, 5.0, 180.0),
+    (5.0, 10.0, 270.0),
+    (0.0, 5.0, 0.0),
+    (2.5, 0.0, 90.0),
+    (10.0, 2.5, 180.0),
+    (7.5, 10.0, 270.0),
+    (0.0, 7.5, 0.0),
+    (7.5, 0.0, 90.0),
+    (2.5, 10.0, 270.0),
+)
 
 PIR_TYPE = {"kind": "pir-triangle", "range": 10.0, "fov": 60.0, "resolution": 2.0}
 PIR_IMPERFECT = {**PIR_TYPE, "falloff": 0.6, "false_positive": 0.25}
@@ -92,7 +100,9 @@ def site_dict(scenario: str, refractory: float = 0.0) -> dict:
         if n < 1 or n > len(PIR_POSES):
             raise ConfigError(f"scenario {scenario!r}: at most {len(PIR_POSES)} PIR sensors")
         sensors = [{"id": f"pir{k:02d}", "position": [x, y], "heading": h} for k, (x, y, h) in enumerate(PIR_POSES[:n])]
-        typ, table = ("pir-imperfect", {**PIR_IMPERFECT, **debounce}) if imperfect else ("pir", {**PIR_TYPE, **debounce})
+        typ, table = (
+            ("pir-imperfect", {**PIR_IMPERFECT, **debounce}) if imperfect else ("pir", {**PIR_TYPE, **debounce})
+        )
     else:
         raise ConfigError(f"unknown PIR scenario {scenario!r}; known: {list(SCENARIOS)}")
     for s in sensors:
@@ -178,7 +188,9 @@ def fire(rng: np.random.Generator, xy: np.ndarray, dep, *, drop: float = 0.0) ->
     return S, S & ~lost
 
 
-def toggle_log(rng: np.random.Generator, sent: np.ndarray, ids: tuple[str, ...], *, chatter: float, glitch: float) -> pl.DataFrame:
+def toggle_log(
+    rng: np.random.Generator, sent: np.ndarray, ids: tuple[str, ...], *, chatter: float, glitch: float
+) -> pl.DataFrame:
     """The raw toggle log of the delivered firings ``sent`` (T, n), with chatter and glitches."""
     T, n = sent.shape
     k, i = np.nonzero(sent)
@@ -202,10 +214,9 @@ def toggle_log(rng: np.random.Generator, sent: np.ndarray, ids: tuple[str, ...],
     rows_v += [np.ones(len(gk), np.int8), np.zeros(len(gk), np.int8)]
     t = np.round(np.concatenate(rows_t), 6)
     names = np.asarray(ids, dtype=object)[np.concatenate(rows_i)]
-    return (
-        pl.DataFrame({"t": t, "sensor": pl.Series(names.tolist(), dtype=pl.String), "value": np.concatenate(rows_v)})
-        .sort("t", "sensor")
-    )
+    return pl.DataFrame(
+        {"t": t, "sensor": pl.Series(names.tolist(), dtype=pl.String), "value": np.concatenate(rows_v)}
+    ).sort("t", "sensor")
 
 
 def simulate(
@@ -233,7 +244,11 @@ def simulate(
     truth = pl.DataFrame({"t": np.arange(n_steps + 1) * PERIOD, "target": "intruder", "x": xy[:, 0], "y": xy[:, 1]})
     k, i = np.nonzero(S)
     firings = pl.DataFrame(
-        {"t": (k + 1) * PERIOD, "sensor": pl.Series(np.asarray(dep.ids, dtype=object)[i].tolist(), dtype=pl.String), "slot": k}
+        {
+            "t": (k + 1) * PERIOD,
+            "sensor": pl.Series(np.asarray(dep.ids, dtype=object)[i].tolist(), dtype=pl.String),
+            "slot": k,
+        }
     )
     return d, Simulation(truth, firings, toggles)
 
@@ -277,19 +292,28 @@ def _float_param(params: dict, key: str, default: float, lo: float, hi: float | 
 
 
 def _writer(name: str):
-    def write(dataset, *, seed: int, duration: float | None, agents: int | None, drop: float, camera: bool, params: dict):
+    def write(
+        dataset, *, seed: int, duration: float | None, agents: int | None, drop: float, camera: bool, params: dict
+    ):
         unknown = set(params) - {"refractory", "chatter", "glitch"}
         if unknown:
-            raise ConfigError(f"scenario {name!r}: unknown --param {sorted(unknown)}; known: refractory, chatter, glitch")
+            raise ConfigError(
+                f"scenario {name!r}: unknown --param {sorted(unknown)}; known: refractory, chatter, glitch"
+            )
         if agents not in (None, 1):
             raise ConfigError(f"scenario {name!r} has exactly one intruder, got --agents {agents}")
         if not 0.0 <= drop <= 1.0:
             raise ConfigError(f"--drop {drop!r}: allowed range [0, 1]")
         return write_pir_dataset(
-            dataset, name, seed=seed, duration=180.0 if duration is None else float(duration),
-            refractory=_float_param(params, "refractory", 0.0, 0.0), drop=drop,
-            chatter=_float_param(params, "chatter", 0.3, 0.0, 1.0), glitch=_float_param(params, "glitch", 0.02, 0.0, 1.0),
-        )  # fmt: skip
+            dataset,
+            name,
+            seed=seed,
+            duration=180.0 if duration is None else float(duration),
+            refractory=_float_param(params, "refractory", 0.0, 0.0),
+            drop=drop,
+            chatter=_float_param(params, "chatter", 0.3, 0.0, 1.0),
+            glitch=_float_param(params, "glitch", 0.02, 0.0, 1.0),
+        )
 
     return write
 

@@ -40,9 +40,10 @@ from pathlib import Path
 import numpy as np
 import polars as pl
 
-from onebit.datasets.scenario import Scenario
 from onebit.core.errors import ConfigError
-from onebit.core.writers import write_text as _atomic_text, write_csv as _atomic_csv
+from onebit.core.writers import write_csv as _atomic_csv
+from onebit.core.writers import write_text as _atomic_text
+from onebit.datasets.scenario import Scenario
 
 #: Seconds between instants (the sampling period of the frames).
 PERIOD = 1.0
@@ -66,7 +67,9 @@ class ProximityWorld:
 # --------------------------------------------------------------------------- trajectories
 
 
-def jittered_constant_velocity(x0: np.ndarray, v: np.ndarray, T: int, rng: np.random.Generator, jitter: float = 0.2) -> np.ndarray:
+def jittered_constant_velocity(
+    x0: np.ndarray, v: np.ndarray, T: int, rng: np.random.Generator, jitter: float = 0.2
+) -> np.ndarray:
     """``(Q, T)``: x[t+1] = x[t] + v_q * U(1 - jitter, 1 + jitter) (section 5.1)."""
     steps = v[:, None] * rng.uniform(1 - jitter, 1 + jitter, size=(v.size, T - 1))
     return np.c_[x0, x0[:, None] + np.cumsum(steps, axis=1)]
@@ -109,8 +112,17 @@ def detect(d: np.ndarray, r_in: np.ndarray, r_out: np.ndarray, p_ring: float, rn
     return np.any(sure | (ring & (rng.random(d.shape) < p_ring)), axis=2)
 
 
-def line_world(name: str, x: np.ndarray, *, rho_r: float, alpha: float, beta: float, p_ring: float,
-               rng: np.random.Generator, margin: float = 2.0) -> ProximityWorld:
+def line_world(
+    name: str,
+    x: np.ndarray,
+    *,
+    rho_r: float,
+    alpha: float,
+    beta: float,
+    p_ring: float,
+    rng: np.random.Generator,
+    margin: float = 2.0,
+) -> ProximityWorld:
     """Sensors every 1/rho along the strip covering the targets (R = 1)."""
     lo = float(np.floor(x.min() - margin))
     hi = float(np.ceil(x.max() + margin))
@@ -287,7 +299,9 @@ def make_world(name: str, *, seed: int, targets: int | None = None, params: dict
     if alpha > 1.0 or beta < 1.0:
         raise ConfigError(f"--param alpha={alpha}, beta={beta}: need alpha <= 1 <= beta")
     x = line_targets(variant, Q, T, rng, scale=_float(params, "scale", 1.0, lo=0.0))
-    return line_world(name, x, rho_r=rho_r, alpha=alpha, beta=beta, p_ring=_float(params, "p_ring", 0.5, lo=-1e-12), rng=rng)
+    return line_world(
+        name, x, rho_r=rho_r, alpha=alpha, beta=beta, p_ring=_float(params, "p_ring", 0.5, lo=-1e-12), rng=rng
+    )
 
 
 def _writer(name: str):

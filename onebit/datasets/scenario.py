@@ -10,9 +10,9 @@ the scenario-specific ``--param key=value`` options as strings.
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Callable
 
 from onebit.core import writers
 from onebit.core.errors import ConfigError, InputError
@@ -21,10 +21,24 @@ from onebit.core.errors import ConfigError, InputError
 MARKER = ".onebit-dataset"
 #: Files a simulator writes; a folder holding only these (e.g. simulated before the marker
 #: existed) also counts as written by onebit.
-SIMULATED_FILES = frozenset({
-    "site.toml", "run.toml", "beams.csv", "crossings.csv", "truth.csv", "truth_crossings.csv", "truth_firings.csv",
-    "motion.csv", "proximity.csv", "camera.mp4", "recording.mcap", MARKER, writers.INCOMPLETE,
-})  # fmt: skip
+SIMULATED_FILES = frozenset(
+    {
+        "site.toml",
+        "run.toml",
+        "beams.csv",
+        "crossings.csv",
+        "truth.csv",
+        "truth_crossings.csv",
+        "truth_firings.csv",
+        "motion.csv",
+        "proximity.csv",
+        "camera.mp4",
+        "recording.mcap",
+        MARKER,
+        writers.INCOMPLETE,
+    }
+)
+
 
 @dataclass(frozen=True)
 class Scenario:
@@ -49,8 +63,12 @@ def check_simulation_args(*, seed, duration, agents, drop) -> None:
     scenario's), agents >= 1 (or the scenario's), a drop probability in [0, 1]."""
     if isinstance(seed, bool) or not isinstance(seed, int) or seed < 0:
         raise ConfigError(f"--seed {seed!r}: must be an integer >= 0")
-    if duration is not None and (isinstance(duration, bool) or not isinstance(duration, (int, float))
-                                 or not math.isfinite(duration) or duration <= 0):  # fmt: skip
+    if duration is not None and (
+        isinstance(duration, bool)
+        or not isinstance(duration, (int, float))
+        or not math.isfinite(duration)
+        or duration <= 0
+    ):
         raise ConfigError(f"--duration {duration!r}: must be a finite number of seconds > 0")
     if agents is not None and (isinstance(agents, bool) or not isinstance(agents, int) or agents < 1):
         raise ConfigError(f"--agents {agents!r}: must be an integer >= 1")
@@ -67,17 +85,22 @@ def check_dataset_target(dataset: str | Path) -> None:
         raise InputError("exists and is not a folder; give a folder for the dataset", file=dataset)
     if not dataset.is_dir():
         return
-    names = sorted(p.name for p in dataset.iterdir() if not p.name.startswith((writers.WORK_PREFIX, writers.OLD_PREFIX)))
+    names = sorted(
+        p.name for p in dataset.iterdir() if not p.name.startswith((writers.WORK_PREFIX, writers.OLD_PREFIX))
+    )
     if not names or MARKER in names or set(names) <= SIMULATED_FILES:
         return
     foreign = [n for n in names if n not in SIMULATED_FILES]
     shown = ", ".join(foreign[:5]) + (f" and {len(foreign) - 5} more" if len(foreign) > 5 else "")
-    raise InputError(f"not empty and not a dataset written by 'onebit simulate' (it holds {shown}); "
-                     "give an empty or new folder", file=dataset)  # fmt: skip
+    raise InputError(
+        f"not empty and not a dataset written by 'onebit simulate' (it holds {shown}); give an empty or new folder",
+        file=dataset,
+    )
 
 
-def simulate_into(scenario: Scenario, dataset: str | Path, *, seed: int, duration, agents, drop: float, camera: bool,
-                  params: dict) -> Path:  # fmt: skip
+def simulate_into(
+    scenario: Scenario, dataset: str | Path, *, seed: int, duration, agents, drop: float, camera: bool, params: dict
+) -> Path:
     """Write ``scenario`` into the folder ``dataset``, replacing it whole as one transaction
     (:func:`onebit.core.writers.folder_transaction`): the folder ends up holding exactly the
     new dataset (no stale ``camera.mp4`` or ``beams.csv`` of an earlier one), or, if the
@@ -88,5 +111,7 @@ def simulate_into(scenario: Scenario, dataset: str | Path, *, seed: int, duratio
     check_dataset_target(dataset)
     with writers.folder_transaction(dataset) as work:
         scenario.write(work, seed=seed, duration=duration, agents=agents, drop=drop, camera=camera, params=params)
-        writers.write_text(f'# written by onebit simulate\nscenario = "{scenario.name}"\nseed = {seed}\n', work / MARKER)
+        writers.write_text(
+            f'# written by onebit simulate\nscenario = "{scenario.name}"\nseed = {seed}\n', work / MARKER
+        )
     return dataset

@@ -25,9 +25,15 @@ from onebit.core.errors import ConfigError
 from onebit.experiments import ceiling, correct, findinghumo, findinghumo_diagnose, okane, residents, schiff, singh
 
 EXPERIMENTS: dict[str, ModuleType] = {
-    "singh": singh, "schiff": schiff, "okane": okane, "correct": correct, "findinghumo": findinghumo,
-    "findinghumo-diagnose": findinghumo_diagnose, "residents": residents, "ceiling": ceiling,
-}  # fmt: skip
+    "singh": singh,
+    "schiff": schiff,
+    "okane": okane,
+    "correct": correct,
+    "findinghumo": findinghumo,
+    "findinghumo-diagnose": findinghumo_diagnose,
+    "residents": residents,
+    "ceiling": ceiling,
+}
 
 
 def get_experiment(name: str) -> ModuleType:

@@ -52,7 +52,13 @@ GATES_M = (1.0, 1.5)
 POSITIONAL = tuple(e.name for e in TRACKERS if e.name != "beams")
 COLUMNS = ("mota@1m", "mota@1.5m", "idf1@1m", "idf1@1.5m", "count_error", "max_tracks")
 RESULT_SCHEMA = pl.Schema(
-    {"sequence": pl.String, "tracker": pl.String, "status": pl.String, **{c: pl.Float64 for c in COLUMNS}, "seconds": pl.Float64}
+    {
+        "sequence": pl.String,
+        "tracker": pl.String,
+        "status": pl.String,
+        **{c: pl.Float64 for c in COLUMNS},
+        "seconds": pl.Float64,
+    }
 )
 
 
@@ -91,15 +97,27 @@ def _stonesoup():
 
 
 def _row(sequence: str, tracker: str, status: str, rows: dict, seconds: float | None) -> dict:
-    return {"sequence": sequence, "tracker": tracker, "status": status, **{c: rows.get(c) for c in COLUMNS}, "seconds": seconds}
+    return {
+        "sequence": sequence,
+        "tracker": tracker,
+        "status": status,
+        **{c: rows.get(c) for c in COLUMNS},
+        "seconds": seconds,
+    }
 
 
 def one_sequence(data: Path, out: Path, name: str, *, trackers: tuple[str, ...], echo=print) -> list[dict]:
     readings, truth_xml = sequence_files(data, name)
     ds = out / "datasets" / name
     import_irtracking(readings, ds, truth=truth_xml)
-    res = run_pipeline(ds, out / "runs" / name, trackers=trackers, config={"scores": {"gates_m": list(GATES_M)}}, progress=False)
-    timings = pl.read_parquet(res.out / "tables" / "timings.parquet") if (res.out / "tables" / "timings.parquet").exists() else None
+    res = run_pipeline(
+        ds, out / "runs" / name, trackers=trackers, config={"scores": {"gates_m": list(GATES_M)}}, progress=False
+    )
+    timings = (
+        pl.read_parquet(res.out / "tables" / "timings.parquet")
+        if (res.out / "tables" / "timings.parquet").exists()
+        else None
+    )
     secs = dict(zip(timings["stage"], timings["seconds"])) if timings is not None else {}
     rows = []
     for tr in trackers:
@@ -112,7 +130,15 @@ def one_sequence(data: Path, out: Path, name: str, *, trackers: tuple[str, ...],
     t0 = time.perf_counter()
     centre = room_centre_tracks(levels["t"], site)
     sec = time.perf_counter() - t0
-    rows.append(_row(name, "room-centre", "ok", {r[1]: r[2] for r in metric_gate_rows("room-centre", centre, truth, site, GATES_M)}, sec))
+    rows.append(
+        _row(
+            name,
+            "room-centre",
+            "ok",
+            {r[1]: r[2] for r in metric_gate_rows("room-centre", centre, truth, site, GATES_M)},
+            sec,
+        )
+    )
     mod, why = _stonesoup()
     for label, jpda in (("stonesoup-gnn", False), ("stonesoup-jpda", True)):
         if mod is None:
@@ -121,18 +147,32 @@ def one_sequence(data: Path, out: Path, name: str, *, trackers: tuple[str, ...],
         t0 = time.perf_counter()
         tracks = mod.track(levels, site, jpda=jpda, name=label)
         sec = time.perf_counter() - t0
-        rows.append(_row(name, label, "ok", {r[1]: r[2] for r in metric_gate_rows(label, tracks, truth, site, GATES_M)}, sec))
+        rows.append(
+            _row(name, label, "ok", {r[1]: r[2] for r in metric_gate_rows(label, tracks, truth, site, GATES_M)}, sec)
+        )
     echo(f"  {name}: done")
     return rows
 
 
-def run(out: Path, *, seed: int = 0, trials: int | None = None, quick: bool = False, echo=print, executor: Executor | None = None,
-        data: str | Path | None = None, trackers: tuple[str, ...] | None = None) -> Path:  # fmt: skip
+def run(
+    out: Path,
+    *,
+    seed: int = 0,
+    trials: int | None = None,
+    quick: bool = False,
+    echo=print,
+    executor: Executor | None = None,
+    data: str | Path | None = None,
+    trackers: tuple[str, ...] | None = None,
+) -> Path:
     """The registered entry point (see :mod:`onebit.experiments`); ``data`` is the irtracking
     clone (``--data``); ``trackers`` picks onebit trackers (default :data:`POSITIONAL`).
     ``seed``/``trials``/``executor`` do not apply (the recordings are fixed; one pass)."""
     if data is None:
-        raise InputError("the ceiling experiment needs the irtracking recordings: onebit experiment ceiling OUT --data DIR", field="data")
+        raise InputError(
+            "the ceiling experiment needs the irtracking recordings: onebit experiment ceiling OUT --data DIR",
+            field="data",
+        )
     data, out = Path(data), Path(out)
     out.mkdir(parents=True, exist_ok=True)
     chosen = tuple(trackers) if trackers else POSITIONAL

@@ -36,10 +36,15 @@ QUICK = dict(seeds=3, duration=120.0)
 
 RESULT_SCHEMA = pl.Schema(
     {
-        "seed": pl.Int64, "dropped": pl.Float64, "inserted": pl.Float64, "restored": pl.Float64,
-        "recovered": pl.Float64, "accuracy_corrected": pl.Float64, "accuracy_uncorrected": pl.Float64,
+        "seed": pl.Int64,
+        "dropped": pl.Float64,
+        "inserted": pl.Float64,
+        "restored": pl.Float64,
+        "recovered": pl.Float64,
+        "accuracy_corrected": pl.Float64,
+        "accuracy_uncorrected": pl.Float64,
     }
-)  # fmt: skip
+)
 
 
 def one_seed(job: tuple[int, float, float]) -> dict:
@@ -47,9 +52,13 @@ def one_seed(job: tuple[int, float, float]) -> dict:
     seed, duration, drop = job
     with tempfile.TemporaryDirectory(prefix="onebit-correct-") as tmp:
         root = Path(tmp)
-        data = write_beams_dataset(root / "data", "beams-building", seed=seed, duration=duration, drop=drop, camera=False)
+        data = write_beams_dataset(
+            root / "data", "beams-building", seed=seed, duration=duration, drop=drop, camera=False
+        )
         on = run_pipeline(data, root / "on", trackers=("beams",), progress=False)
-        off = run_pipeline(data, root / "off", trackers=("beams",), config={"correct": {"enabled": False}}, progress=False)
+        off = run_pipeline(
+            data, root / "off", trackers=("beams",), config={"correct": {"enabled": False}}, progress=False
+        )
     if not (on.ok and off.ok):
         raise StudyError(f"seed {seed}: a stage failed: with correct {on.status}, without {off.status}")
     return {
@@ -77,14 +86,24 @@ def summarise(results: pl.DataFrame) -> pl.DataFrame:
     )
 
 
-def run(out: Path, *, seed: int = 0, trials: int | None = None, quick: bool = False, echo=print, executor: Executor | None = None) -> Path:
+def run(
+    out: Path,
+    *,
+    seed: int = 0,
+    trials: int | None = None,
+    quick: bool = False,
+    echo=print,
+    executor: Executor | None = None,
+) -> Path:
     """The registered entry point (see :mod:`onebit.experiments`)."""
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     n = trials or (QUICK["seeds"] if quick else SEEDS)
     duration = QUICK["duration"] if quick else DURATION
     jobs = [(seed + k, duration, DROP) for k in range(n)]
-    rows, timings = run_trials(one_seed, jobs, executor=executor, label=lambda j: f"seed {j[0]}", echo=echo, study="correct")
+    rows, timings = run_trials(
+        one_seed, jobs, executor=executor, label=lambda j: f"seed {j[0]}", echo=echo, study="correct"
+    )
     results = pl.DataFrame(rows, schema=RESULT_SCHEMA)
     summary = summarise(results)
     writers.write_parquet(results, out / "results.parquet")

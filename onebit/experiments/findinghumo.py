@@ -69,14 +69,24 @@ def summarise(results: pl.DataFrame) -> pl.DataFrame:
     )
 
 
-def run(out: Path, *, seed: int = 0, trials: int | None = None, quick: bool = False, echo=print, executor: Executor | None = None) -> Path:
+def run(
+    out: Path,
+    *,
+    seed: int = 0,
+    trials: int | None = None,
+    quick: bool = False,
+    echo=print,
+    executor: Executor | None = None,
+) -> Path:
     """The registered entry point (see :mod:`onebit.experiments`)."""
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     n = trials or (QUICK["seeds"] if quick else SEEDS)
     duration = QUICK["duration"] if quick else DURATION
     jobs = [(seed + k, duration, USERS, DROP) for k in range(n)]
-    per_seed, timings = run_trials(one_seed, jobs, executor=executor, label=lambda j: f"seed {j[0]}", echo=echo, study="findinghumo")
+    per_seed, timings = run_trials(
+        one_seed, jobs, executor=executor, label=lambda j: f"seed {j[0]}", echo=echo, study="findinghumo"
+    )
     results = pl.DataFrame([row for rows in per_seed for row in rows], schema=RESULT_SCHEMA)
     summary = summarise(results)
     writers.write_parquet(results, out / "results.parquet")

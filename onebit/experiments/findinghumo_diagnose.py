@@ -51,20 +51,20 @@ import numpy as np
 import polars as pl
 
 from onebit.core import writers
+from onebit.core.lazy import lazy_module
 from onebit.core.site import Site, load_site
 from onebit.datasets.hallway_sim import write_hallway_dataset
 from onebit.experiments.trials import format_table, run_trials, write_timings
+from onebit.models.graph_hmm.decoding import tracks_table
+from onebit.models.graph_hmm.eatg import hop_matrix
+from onebit.models.graph_hmm.likelihood import exchange_margin, tie_relabelling
 from onebit.pipeline.executors import Executor
 from onebit.pipeline.stages import TRACKERS as ENTRIES
 from onebit.readers.motion import read_motion_csv
 from onebit.scoring.findinghumo import score, truth_nodes
-from onebit.models.graph_hmm.eatg import hop_matrix
-from onebit.models.graph_hmm.likelihood import exchange_margin, tie_relabelling
-from onebit.models.graph_hmm.decoding import tracks_table
-from onebit.core.lazy import lazy_module
+from onebit.trackers.findinghumo.cpda import colocation_events
 
 _optimize = lazy_module("scipy.optimize")
-from onebit.trackers.findinghumo.cpda import colocation_events
 
 TRACKERS = ("hmm1", "hmm2", "findinghumo", "findinghumo-flow")
 SEEDS = 20
@@ -83,21 +83,41 @@ DECIDES = math.log(3.0)
 FLOOR = "model-ties"
 FLOOR_DRAWS = 20
 
-SWAPS = pl.Schema({
-    "seed": pl.Int64, "tracker": pl.String, "slot": pl.Int64, "users": pl.String, "true_nodes": pl.String,
-    "track_nodes": pl.String, "meet": pl.Boolean, "kind": pl.String, "event": pl.Boolean, "cpda_tie": pl.Boolean,
-    "cpda": pl.String, "margin": pl.Float64, "model": pl.String,
-})  # fmt: skip
-RESULTS = pl.Schema({
-    "seed": pl.Int64, "tracker": pl.String, "hop_error": pl.Float64, "slot_error": pl.Float64, "swaps": pl.Int64,
-})  # fmt: skip
+SWAPS = pl.Schema(
+    {
+        "seed": pl.Int64,
+        "tracker": pl.String,
+        "slot": pl.Int64,
+        "users": pl.String,
+        "true_nodes": pl.String,
+        "track_nodes": pl.String,
+        "meet": pl.Boolean,
+        "kind": pl.String,
+        "event": pl.Boolean,
+        "cpda_tie": pl.Boolean,
+        "cpda": pl.String,
+        "margin": pl.Float64,
+        "model": pl.String,
+    }
+)
+RESULTS = pl.Schema(
+    {
+        "seed": pl.Int64,
+        "tracker": pl.String,
+        "hop_error": pl.Float64,
+        "slot_error": pl.Float64,
+        "swaps": pl.Int64,
+    }
+)
 
 
 def simulate(seed: int, *, duration: float = DURATION, users: int = USERS, drop: float = DROP, walk: str = "routes"):
     """The hallway dataset of one seed (``onebit simulate hallway``), read back as the pipeline
     reads it: site (with ``targets``), motion, truth."""
     with tempfile.TemporaryDirectory(prefix="onebit-fh-diagnose-") as tmp:
-        data = write_hallway_dataset(Path(tmp) / "data", seed=seed, duration=duration, users=users, drop=drop, walk=walk)
+        data = write_hallway_dataset(
+            Path(tmp) / "data", seed=seed, duration=duration, users=users, drop=drop, walk=walk
+        )
         site = load_site(data / "site.toml")
         motion = read_motion_csv(data / "motion.csv", [m.id for m in site.motion_sensors]).motion
         truth = pl.read_csv(data / "truth.csv").select("t", "target", "x", "y")
@@ -145,7 +165,9 @@ def slot_assignments(true: np.ndarray, est: np.ndarray, hops: np.ndarray, miss: 
     prev = None
     for s in range(d):  # sequential: each slot's tie-break depends on the previous slot
         tn, en = true[:, s], est[:, s]
-        cost = np.where((tn[:, None] >= 0) & (en[None, :] >= 0), hops[np.maximum(tn, 0)[:, None], np.maximum(en, 0)[None, :]], miss)
+        cost = np.where(
+            (tn[:, None] >= 0) & (en[None, :] >= 0), hops[np.maximum(tn, 0)[:, None], np.maximum(en, 0)[None, :]], miss
+        )
         cost = np.where(tn[:, None] >= 0, cost, 0).astype(float)
         if prev is not None:
             cost = cost - 1e-3 * (np.arange(u)[None, :] == prev[:, None])
@@ -197,7 +219,9 @@ def meeting_kind(true: np.ndarray, users: tuple[int, int], slot: int, hops: np.n
     out_a, out_b = other(ta, s1, 1), other(tb, s1, 1)
     same_in = in_a == in_b or in_a < 0 or in_b < 0
     same_out = out_a == out_b or out_a < 0 or out_b < 0
-    kind = {(False, False): "crossing", (True, False): "same-in", (False, True): "same-out", (True, True): "co-walk"}[(same_in, same_out)]
+    kind = {(False, False): "crossing", (True, False): "same-in", (False, True): "same-out", (True, True): "co-walk"}[
+        (same_in, same_out)
+    ]
     return True, kind
 
 
@@ -244,21 +268,49 @@ def diagnose_seed(job: tuple[int, float, int, float, str]) -> tuple[list[dict], 
             meet, kind = meeting_kind(true, pair, s, hops)
             tracks_before = {int(assign[s - 1][v]) for v in changed}
             ev = [c for c, grp in events if abs(c - s) <= MEET_SLOTS and len(tracks_before & set(grp)) >= 2]
-            cand = [e for e in range(max(1, s - 2 * MEET_SLOTS), min(d, s + MEET_SLOTS + 1)) if (true[list(pair), e] >= 0).all()]
-            margin, _ = exchange_margin(true, pair[0], pair[1], cand, art["active"], art["eatg"], p_hit=p_hit, p_false=p_false)
-            swaps.append({
-                "seed": seed, "tracker": name, "slot": s, "users": " ".join(targets[v] for v in changed),
-                "true_nodes": " ".join(nodes[true[v, s]] for v in changed),
-                "track_nodes": " ".join(nodes[est[assign[s - 1][v], s]] if est[assign[s - 1][v], s] >= 0 else "-" for v in changed),
-                "meet": meet, "kind": kind, "event": bool(ev), "cpda_tie": _cpda_tie(decisions, s), "cpda": _cpda_at(decisions, s),
-                "margin": margin, "model": model_verdict(margin),
-            })  # fmt: skip
-        results.append({"seed": seed, "tracker": name, "hop_error": float(hop), "slot_error": slot_error(true, est, hops, diameter), "swaps": n_swaps})
+            cand = [
+                e
+                for e in range(max(1, s - 2 * MEET_SLOTS), min(d, s + MEET_SLOTS + 1))
+                if (true[list(pair), e] >= 0).all()
+            ]
+            margin, _ = exchange_margin(
+                true, pair[0], pair[1], cand, art["active"], art["eatg"], p_hit=p_hit, p_false=p_false
+            )
+            swaps.append(
+                {
+                    "seed": seed,
+                    "tracker": name,
+                    "slot": s,
+                    "users": " ".join(targets[v] for v in changed),
+                    "true_nodes": " ".join(nodes[true[v, s]] for v in changed),
+                    "track_nodes": " ".join(
+                        nodes[est[assign[s - 1][v], s]] if est[assign[s - 1][v], s] >= 0 else "-" for v in changed
+                    ),
+                    "meet": meet,
+                    "kind": kind,
+                    "event": bool(ev),
+                    "cpda_tie": _cpda_tie(decisions, s),
+                    "cpda": _cpda_at(decisions, s),
+                    "margin": margin,
+                    "model": model_verdict(margin),
+                }
+            )
+        results.append(
+            {
+                "seed": seed,
+                "tracker": name,
+                "hop_error": float(hop),
+                "slot_error": slot_error(true, est, hops, diameter),
+                "swaps": n_swaps,
+            }
+        )
     results.append(model_floor(seed, site, truth, true, art, p_hit, p_false))
     return results, swaps
 
 
-def model_floor(seed: int, site: Site, truth: pl.DataFrame, true: np.ndarray, art: dict, p_hit: float, p_false: float) -> dict:
+def model_floor(
+    seed: int, site: Site, truth: pl.DataFrame, true: np.ndarray, art: dict, p_hit: float, p_false: float
+) -> dict:
     """The ``model-ties`` row: the hop error of the *true* slot paths relabelled at every
     co-location by the most probable pairing under the decoders' model, exact ties broken by
     chance (:func:`onebit.models.graph_hmm.likelihood.tie_relabelling`), mean over
@@ -273,7 +325,13 @@ def model_floor(seed: int, site: Site, truth: pl.DataFrame, true: np.ndarray, ar
         rows, _ = score(FLOOR, {f"{FLOOR}_tracks": tracks, "truth": truth}, site)
         errs.append(next(v for _, m, v, _ in rows if m == "hop_error"))
         changed.append(c)
-    return {"seed": seed, "tracker": FLOOR, "hop_error": float(np.mean(errs)), "slot_error": 0.0, "swaps": int(round(np.mean(changed)))}
+    return {
+        "seed": seed,
+        "tracker": FLOOR,
+        "hop_error": float(np.mean(errs)),
+        "slot_error": 0.0,
+        "swaps": int(round(np.mean(changed))),
+    }
 
 
 def model_verdict(margin: float) -> str:
@@ -342,8 +400,11 @@ def summarise(results: pl.DataFrame, swaps: pl.DataFrame) -> pl.DataFrame:
     return (
         results.group_by("tracker", maintain_order=True)
         .agg(
-            seeds=pl.len().cast(pl.Int64), hop_error=pl.col("hop_error").mean(), hop_error_sd=pl.col("hop_error").std(),
-            slot_error=pl.col("slot_error").mean(), swaps=pl.col("swaps").sum(),
+            seeds=pl.len().cast(pl.Int64),
+            hop_error=pl.col("hop_error").mean(),
+            hop_error_sd=pl.col("hop_error").std(),
+            slot_error=pl.col("slot_error").mean(),
+            swaps=pl.col("swaps").sum(),
         )
         .join(per, on="tracker", how="left")
         .fill_null(0)
@@ -356,7 +417,9 @@ LISTED = ("hmm2", "findinghumo", "findinghumo-flow")
 
 def markdown_table(df: pl.DataFrame) -> str:
     """A polars frame as a Markdown table (floats to 3 decimals)."""
-    cells = [[f"{v:.3f}" if isinstance(v, float) else ("" if v is None else str(v)) for v in row] for row in df.iter_rows()]
+    cells = [
+        [f"{v:.3f}" if isinstance(v, float) else ("" if v is None else str(v)) for v in row] for row in df.iter_rows()
+    ]
     lines = ["| " + " | ".join(df.columns) + " |", "|" + " --- |" * len(df.columns)]
     lines += ["| " + " | ".join(c.replace("|", "/") for c in row) + " |" for row in cells]
     return "\n".join(lines) + "\n"
@@ -373,7 +436,13 @@ def markdown(summary: pl.DataFrame, swaps: pl.DataFrame, *, seeds: tuple[int, in
 
 
 def run(
-    out: Path, *, seed: int = 0, trials: int | None = None, quick: bool = False, echo=print, executor: Executor | None = None,
+    out: Path,
+    *,
+    seed: int = 0,
+    trials: int | None = None,
+    quick: bool = False,
+    echo=print,
+    executor: Executor | None = None,
     walk: str = "routes",
 ) -> Path:
     """The registered entry point (see :mod:`onebit.experiments`); ``quick``: 2 seeds of 60 s."""
@@ -382,7 +451,9 @@ def run(
     n = trials or (2 if quick else SEEDS)
     duration = 60.0 if quick else DURATION
     jobs = [(seed + k, duration, USERS, DROP, walk) for k in range(n)]
-    per_seed, timings = run_trials(diagnose_seed, jobs, executor=executor, label=lambda j: f"seed {j[0]}", echo=echo, study="findinghumo-diagnose")
+    per_seed, timings = run_trials(
+        diagnose_seed, jobs, executor=executor, label=lambda j: f"seed {j[0]}", echo=echo, study="findinghumo-diagnose"
+    )
     results = pl.DataFrame([r for rs, _ in per_seed for r in rs], schema=RESULTS)
     swaps = pl.DataFrame([w for _, ws in per_seed for w in ws], schema=SWAPS)
     summary = summarise(results, swaps)

@@ -59,9 +59,15 @@ def _label(job) -> str:
 
 
 def run(
-    out: Path, *, seed: int = 0, trials: int | None = None, quick: bool = False, echo=print,
-    executor: Executor | None = None, workers: int | None = None,
-) -> Path:  # fmt: skip
+    out: Path,
+    *,
+    seed: int = 0,
+    trials: int | None = None,
+    quick: bool = False,
+    echo=print,
+    executor: Executor | None = None,
+    workers: int | None = None,
+) -> Path:
     """The study; ``executor`` runs the trials (default: serial; ``workers`` > 1 without an
     executor: a local pool of that size)."""
     out = Path(out)
@@ -83,16 +89,22 @@ def run(
     results = pl.DataFrame(rows).sort("trackers", "targets", "trial")
     _write(results, out / "results.parquet", out / "results.csv")
     write_timings(timings, out)
-    summary = results.group_by("trackers", "targets").agg(
-        P_mean=pl.col("P").mean(),
-        P_std=pl.col("P").std(),
-        elements_mean=pl.col("elements_mean").mean(),
-        containment=pl.col("containment").min(),
-    ).sort("trackers", "targets")
+    summary = (
+        results.group_by("trackers", "targets")
+        .agg(
+            P_mean=pl.col("P").mean(),
+            P_std=pl.col("P").std(),
+            elements_mean=pl.col("elements_mean").mean(),
+            containment=pl.col("containment").min(),
+        )
+        .sort("trackers", "targets")
+    )
     writers.write_csv(summary, out / "summary.csv")
     _plot(summary, out / "P_vs_m.png")
     _readme(summary, out / "README.md", wall=wall, trials=trials, stages=grid["stages"], where=executor.describe())
-    record_trial(out / "rrd" / "okane.rrd", replace(base, trackers=2, targets=3, stages=min(grid["stages"], 300)), seed=seed)
+    record_trial(
+        out / "rrd" / "okane.rrd", replace(base, trackers=2, targets=3, stages=min(grid["stages"], 300)), seed=seed
+    )
     echo(f"okane: {wall:.0f} s wall clock")
     return out
 
@@ -103,7 +115,6 @@ def record_trial(path: Path, cfg: ActiveConfig, *, seed: int) -> Path:
     import uuid
 
     import shapely
-
 
     res = simulate_active(cfg, seed=seed, record_regions=True)
     K = len(res.performance)
@@ -157,7 +168,9 @@ def _plot(summary: pl.DataFrame, path: Path) -> None:
     fig, ax = plt.subplots(figsize=(6, 4))
     for (n,), g in summary.group_by("targets", maintain_order=True):
         g = g.sort("trackers")
-        ax.errorbar(g["trackers"], g["P_mean"], yerr=g["P_std"].fill_null(0.0), marker="o", capsize=3, label=f"n = {n} targets")
+        ax.errorbar(
+            g["trackers"], g["P_mean"], yerr=g["P_std"].fill_null(0.0), marker="o", capsize=3, label=f"n = {n} targets"
+        )
     ax.set_xticks(sorted(set(summary["trackers"].to_list())))
     ax.set_xlabel("trackers m")
     ax.set_ylabel("P (mean distance to nearest tracker)")
@@ -190,7 +203,9 @@ def _readme(summary: pl.DataFrame, path: Path, *, wall: float, trials: int, stag
     table = ["| m | n | P (mean ± sd) | elements | containment |", "|---|---|---|---|---|"]
     for r in summary.iter_rows(named=True):
         sd = r["P_std"] if r["P_std"] is not None else 0.0
-        table.append(f"| {r['trackers']} | {r['targets']} | {r['P_mean']:.2f} ± {sd:.2f} | {r['elements_mean']:.2f} | {r['containment']:.3f} |")
+        table.append(
+            f"| {r['trackers']} | {r['targets']} | {r['P_mean']:.2f} ± {sd:.2f} | {r['elements_mean']:.2f} | {r['containment']:.3f} |"
+        )
     text = f"""# O'Kane active tracking study (Fig. 9)
 
 {trials} trial(s) per setting, {stages} stages, M = 10, rectangle regions; {wall:.0f} s wall clock on {where}.
@@ -199,8 +214,8 @@ def _readme(summary: pl.DataFrame, path: Path, *, wall: float, trials: int, stag
 
 | finding | paper | ours |
 |---|---|---|
-| P improves (falls) with more trackers | "performance generally improves with ... more trackers" | {q['more_trackers_better']:.0%} of steps to the next m |
-| P improves with fewer targets | "performance generally improves with fewer targets" | {q['fewer_targets_better']:.0%} of steps to the previous n |
+| P improves (falls) with more trackers | "performance generally improves with ... more trackers" | {q["more_trackers_better"]:.0%} of steps to the next m |
+| P improves with fewer targets | "performance generally improves with fewer targets" | {q["fewer_targets_better"]:.0%} of steps to the previous n |
 | degrades when trackers outnumber targets | "performance degrades rapidly when the trackers outnumber the targets" | see the table: rows m > n |
 
 The paper reports no numbers we can compare with (Fig. 9 is a plot without a stated scale);

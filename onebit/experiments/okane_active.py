@@ -116,7 +116,14 @@ def simulate_active(cfg: ActiveConfig, *, seed: int, environment=None, record_re
             out_s[k, j] = shapely.union_all(sq)
             hit = shapely.contains_xy(sq[:, None], q[None, :, 0], q[None, :, 1]).any(axis=1)
             hit &= rng.random(9) >= cfg.p_miss
-            eta[j] = info_state_update(eta[j], sq[hit], step=cfg.s_tgt if k else 0.0, free_space=free, shape=cfg.shape, max_elements=cfg.max_elements)
+            eta[j] = info_state_update(
+                eta[j],
+                sq[hit],
+                step=cfg.s_tgt if k else 0.0,
+                free_space=free,
+                shape=cfg.shape,
+                max_elements=cfg.max_elements,
+            )
         # communication within r_c: each connected group shares one intersected I-state
         d = np.hypot(*(trk[:, None, :] - trk[None, :, :]).transpose(2, 0, 1))
         g = nx.Graph()
@@ -150,7 +157,9 @@ def simulate_active(cfg: ActiveConfig, *, seed: int, environment=None, record_re
         for j in range(m):
             dest = select_destinations(eta[j], free, m)
             possible = [
-                shapely.Point(trk[o]).buffer(1e-9) if o == j else shapely.Point(last_pos[j, o]).buffer(max(cfg.s_trk * (k - last_seen[j, o]), 1e-9), quad_segs=4)
+                shapely.Point(trk[o]).buffer(1e-9)
+                if o == j
+                else shapely.Point(last_pos[j, o]).buffer(max(cfg.s_trk * (k - last_seen[j, o]), 1e-9), quad_segs=4)
                 for o in range(m)
             ]
             mine = dest[match_destinations(worst_distances(possible, dest))[j]]

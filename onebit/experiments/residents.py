@@ -37,26 +37,43 @@ BASELINES = {"identity-busier": "baseline-busier", "identity-nearest": "baseline
 
 RESULTS = pl.Schema(
     {
-        "session": pl.String, "method": pl.String, "status": pl.String, "accuracy": pl.Float64, "ari": pl.Float64,
-        "switches_per_hour": pl.Float64, "count_error": pl.Float64, "attributed": pl.Float64, "events": pl.Float64,
+        "session": pl.String,
+        "method": pl.String,
+        "status": pl.String,
+        "accuracy": pl.Float64,
+        "ari": pl.Float64,
+        "switches_per_hour": pl.Float64,
+        "count_error": pl.Float64,
+        "attributed": pl.Float64,
+        "events": pl.Float64,
         "seconds": pl.Float64,
     }
-)  # fmt: skip
+)
 _METRICS = {
-    "identity_accuracy": "accuracy", "identity_ari": "ari", "identity_switches_per_hour": "switches_per_hour",
-    "count_error_per_minute": "count_error", "identity_attributed": "attributed", "identity_events": "events",
-}  # fmt: skip
+    "identity_accuracy": "accuracy",
+    "identity_ari": "ari",
+    "identity_switches_per_hour": "switches_per_hour",
+    "count_error_per_minute": "count_error",
+    "identity_attributed": "attributed",
+    "identity_events": "events",
+}
 
 
 def sessions(folder: Path) -> list[Path]:
     """The session files of ``folder``: ``*.txt`` and ``*.csv``, sorted by name (not README)."""
-    files = sorted(p for p in folder.iterdir() if p.is_file() and p.suffix.lower() in (".txt", ".csv") and not p.name.lower().startswith("readme"))
+    files = sorted(
+        p
+        for p in folder.iterdir()
+        if p.is_file() and p.suffix.lower() in (".txt", ".csv") and not p.name.lower().startswith("readme")
+    )
     if not files:
         raise InputError("no CASAS session files (*.txt, *.csv) in this folder", file=folder)
     return files
 
 
-def session_rows(session: str, report: pl.DataFrame, status: dict[str, str], trackers: tuple[str, ...], timings: pl.DataFrame | None) -> list[dict]:
+def session_rows(
+    session: str, report: pl.DataFrame, status: dict[str, str], trackers: tuple[str, ...], timings: pl.DataFrame | None
+) -> list[dict]:
     """One row per tracker and baseline of one session's run report."""
     rows = []
     for stage, method in [(t, t) for t in trackers] + list(BASELINES.items()):
@@ -65,7 +82,11 @@ def session_rows(session: str, report: pl.DataFrame, status: dict[str, str], tra
         for metric, col in _METRICS.items():
             v = sub.filter(pl.col("metric") == metric)["value"]
             row[col] = float(v[0]) if v.len() else None
-        secs = timings.filter(pl.col("stage") == stage)["seconds"] if timings is not None and stage in trackers else pl.Series([], dtype=pl.Float64)
+        secs = (
+            timings.filter(pl.col("stage") == stage)["seconds"]
+            if timings is not None and stage in trackers
+            else pl.Series([], dtype=pl.Float64)
+        )
         row["seconds"] = float(secs[0]) if secs.len() else None
         rows.append(row)
     return rows
@@ -75,9 +96,10 @@ def with_means(df: pl.DataFrame) -> pl.DataFrame:
     """``df`` and one ``session = "mean"`` row per method (means over the sessions it scored)."""
     num = [c for c, t in RESULTS.items() if t == pl.Float64]
     means = df.group_by("method", maintain_order=True).agg(
-        pl.lit("mean").alias("session"), pl.format("{}/{} ok", pl.col("accuracy").is_not_null().sum(), pl.len()).alias("status"),
+        pl.lit("mean").alias("session"),
+        pl.format("{}/{} ok", pl.col("accuracy").is_not_null().sum(), pl.len()).alias("status"),
         *[pl.col(c).mean() for c in num],
-    )  # fmt: skip
+    )
     return pl.concat([df, means.select(list(RESULTS))])
 
 
@@ -114,15 +136,21 @@ def run(
     rows: list[dict] = []
     for f in files:
         ds = res_dir / "datasets" / f.stem
-        import_casas(f, ds, layout=layout, rooms=rooms, scale=scale, graph_radius=graph_radius, targets=targets, doors=doors)
+        import_casas(
+            f, ds, layout=layout, rooms=rooms, scale=scale, graph_radius=graph_radius, targets=targets, doors=doors
+        )
         run_dir = res_dir / "runs" / f.stem
         res = run_pipeline(ds, run_dir, trackers=trackers, config=config, progress=False)
         tpath = run_dir / "tables" / "timings.parquet"
         timings = pl.read_parquet(tpath) if tpath.exists() else None
         new = session_rows(f.stem, res.report, res.status, trackers, timings)
         rows += new
-        echo(f"{f.stem}: " + ", ".join(f"{r['method']} {r['accuracy']:.3f}" if r["accuracy"] is not None else f"{r['method']} -"
-                                        for r in new))  # fmt: skip
+        echo(
+            f"{f.stem}: "
+            + ", ".join(
+                f"{r['method']} {r['accuracy']:.3f}" if r["accuracy"] is not None else f"{r['method']} -" for r in new
+            )
+        )
     df = with_means(pl.DataFrame(rows, schema=RESULTS, orient="row"))
     res_dir.mkdir(parents=True, exist_ok=True)
     write_csv(df, res_dir / "results.csv")

@@ -25,15 +25,14 @@ from pathlib import Path
 import numpy as np
 import polars as pl
 
+from onebit.core import writers as outputs
+from onebit.core.site import site_from_dict
+from onebit.core.tables import REJECTS
 from onebit.datasets.pir_sim import simulate
 from onebit.experiments.trials import run_trials, write_timings
 from onebit.pipeline.executors import Executor
-from onebit.core.site import site_from_dict
-from onebit.core import writers as outputs
-from onebit.readers.motion import MotionConfig, site_rules
-from onebit.readers.motion import read_motion
+from onebit.readers.motion import MotionConfig, read_motion, site_rules
 from onebit.readers.rows import RawRows
-from onebit.core.tables import REJECTS
 from onebit.scoring.intruder import match_errors
 from onebit.trackers.intruder.stage import IntruderConfig, NaiveConfig, run_naive
 from onebit.trackers.intruder.stage import run as run_intruder
@@ -45,11 +44,18 @@ DURATION = 180.0
 
 RESULT_SCHEMA = pl.Schema(
     {
-        "scenario": pl.String, "refractory": pl.Float64, "estimator": pl.String, "mean_error": pl.Float64,
-        "median_error": pl.Float64, "within_1": pl.Float64, "within_2": pl.Float64, "within_3": pl.Float64,
-        "within_4": pl.Float64, "iterations": pl.Int64,
+        "scenario": pl.String,
+        "refractory": pl.Float64,
+        "estimator": pl.String,
+        "mean_error": pl.Float64,
+        "median_error": pl.Float64,
+        "within_1": pl.Float64,
+        "within_2": pl.Float64,
+        "within_3": pl.Float64,
+        "within_4": pl.Float64,
+        "iterations": pl.Int64,
     }
-)  # fmt: skip
+)
 
 
 def toggles_as_rows(toggles: pl.DataFrame) -> RawRows:
@@ -62,9 +68,13 @@ def toggles_as_rows(toggles: pl.DataFrame) -> RawRows:
     return RawRows("motion.csv", frame, pl.DataFrame(schema=REJECTS))
 
 
-def one_run(scenario: str, refractory: float, trial: int, *, seed: int, duration: float, particles: int) -> pl.DataFrame:
+def one_run(
+    scenario: str, refractory: float, trial: int, *, seed: int, duration: float, particles: int
+) -> pl.DataFrame:
     """Errors (cells) of the filter and the baseline on one simulated trajectory."""
-    d, sim = simulate(scenario, seed=seed + 1000 * trial + 7, path_seed=seed + trial, duration=duration, refractory=refractory)
+    d, sim = simulate(
+        scenario, seed=seed + 1000 * trial + 7, path_seed=seed + trial, duration=duration, refractory=refractory
+    )
     site = site_from_dict(d, source=f"{scenario}/site.toml")
     ids = [m.id for m in site.motion_sensors]
     read = read_motion(toggles_as_rows(sim.toggles), ids, rules=site_rules(site, MotionConfig()))
@@ -73,7 +83,12 @@ def one_run(scenario: str, refractory: float, trial: int, *, seed: int, duration
     inputs = {"motion": read.motion}
     out = []
     for name, tracks in (
-        ("intruder", run_intruder(inputs, site, IntruderConfig(particles=particles, seed=seed + trial, start=0.0, end=duration))["tracks"]),
+        (
+            "intruder",
+            run_intruder(inputs, site, IntruderConfig(particles=particles, seed=seed + trial, start=0.0, end=duration))[
+                "tracks"
+            ],
+        ),
         ("naive", run_naive(inputs, site, NaiveConfig(start=0.0, end=duration))["tracks"]),
     ):
         sc = match_errors(tracks, sim.truth, tolerance=1.0)
@@ -100,9 +115,11 @@ def summarise(errors: pl.DataFrame) -> pl.DataFrame:
     return (
         errors.group_by("scenario", "refractory", "estimator", maintain_order=True)
         .agg(
-            mean_error=e.mean(), median_error=e.median(),
-            **{f"within_{k}": (e <= k).mean() for k in (1, 2, 3, 4)}, iterations=pl.len().cast(pl.Int64),
-        )  # fmt: skip
+            mean_error=e.mean(),
+            median_error=e.median(),
+            **{f"within_{k}": (e <= k).mean() for k in (1, 2, 3, 4)},
+            iterations=pl.len().cast(pl.Int64),
+        )
         .select(RESULT_SCHEMA.names())
         .cast(dict(RESULT_SCHEMA))
     )
@@ -137,7 +154,9 @@ def plot(errors: pl.DataFrame, out: Path) -> list[Path]:
     if naive.height:
         over_time(naive, "naive estimator: error over time (Fig. 3)", "fig3_naive_error_over_time.png")
     for fig_no, sc in (("fig5", "beams22"), ("fig6", "pir14"), ("fig7", "pir14-imperfect"), ("fig4", "naive")):
-        sel = naive if sc == "naive" else errors.filter((pl.col("scenario") == sc) & (pl.col("estimator") == "intruder"))
+        sel = (
+            naive if sc == "naive" else errors.filter((pl.col("scenario") == sc) & (pl.col("estimator") == "intruder"))
+        )
         if sel.height == 0:
             continue
         fig, ax = plt.subplots(figsize=(6, 3.5))
@@ -150,7 +169,11 @@ def plot(errors: pl.DataFrame, out: Path) -> list[Path]:
         ax.set(xlabel="error (cells)", ylabel="density", title=f"{sc}: distribution of error values")
         ax.legend()
         save(fig, f"{fig_no}_{sc}.png")
-    sel = errors.filter(pl.col("scenario").is_in(["pir4", "pir8", "pir14"]) & (pl.col("refractory") == 8.0) & (pl.col("estimator") == "intruder"))
+    sel = errors.filter(
+        pl.col("scenario").is_in(["pir4", "pir8", "pir14"])
+        & (pl.col("refractory") == 8.0)
+        & (pl.col("estimator") == "intruder")
+    )
     if sel.height:
         fig, ax = plt.subplots(figsize=(6, 3.5))
         for sc in ("pir4", "pir8", "pir14"):
@@ -160,17 +183,27 @@ def plot(errors: pl.DataFrame, out: Path) -> list[Path]:
         ax.set(xlabel="error (cells)", ylabel="density", title="number of motion sensors, 8 s refractory (Fig. 8)")
         ax.legend()
         save(fig, "fig8_sensor_count.png")
-    sel = errors.filter((pl.col("scenario") == "pir14-imperfect") & (pl.col("refractory") == 4.0) & (pl.col("estimator") == "intruder"))
+    sel = errors.filter(
+        (pl.col("scenario") == "pir14-imperfect") & (pl.col("refractory") == 4.0) & (pl.col("estimator") == "intruder")
+    )
     if sel.height:
-        over_time(sel, "14 imperfect sensors, 4 s refractory: error over time (Fig. 9)", "fig9_imperfect_error_over_time.png")
+        over_time(
+            sel, "14 imperfect sensors, 4 s refractory: error over time (Fig. 9)", "fig9_imperfect_error_over_time.png"
+        )
     return made
 
 
 def run_study(
-    out: Path, *, seed: int = 0, trials: int | None = None, quick: bool = False, echo=print,
-    scenarios: tuple[str, ...] | None = None, refractory: tuple[float, ...] | None = None,
+    out: Path,
+    *,
+    seed: int = 0,
+    trials: int | None = None,
+    quick: bool = False,
+    echo=print,
+    scenarios: tuple[str, ...] | None = None,
+    refractory: tuple[float, ...] | None = None,
     executor: Executor | None = None,
-) -> Path:  # fmt: skip
+) -> Path:
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     if quick:
@@ -201,6 +234,14 @@ def run_study(
     return out
 
 
-def run(out: Path, *, seed: int = 0, trials: int | None = None, quick: bool = False, echo=print, executor: Executor | None = None) -> Path:
+def run(
+    out: Path,
+    *,
+    seed: int = 0,
+    trials: int | None = None,
+    quick: bool = False,
+    echo=print,
+    executor: Executor | None = None,
+) -> Path:
     """The registered entry point (see :mod:`onebit.experiments`)."""
     return run_study(out, seed=seed, trials=trials, quick=quick, echo=echo, executor=executor)

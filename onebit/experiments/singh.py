@@ -25,19 +25,24 @@ import numpy as np
 import polars as pl
 from shapely.geometry import box
 
-from onebit.datasets.proximity_sim import make_world
 from onebit.core import writers as outputs
+from onebit.core.lazy import lazy_module
+from onebit.datasets.proximity_sim import make_world
 from onebit.experiments.trials import run_trials, write_timings
 from onebit.pipeline.executors import Executor
 from onebit.trackers.clustertrack.algorithm import clustertrack, rules_of_thumb, trajectory_distance
 from onebit.trackers.clustertrack.feasible import SensorArray
 from onebit.trackers.clustertrack.space import FeasibleSpace
-from onebit.core.lazy import lazy_module
 
 _optimize = lazy_module("scipy.optimize")
 
 #: The paper's numbers (mean error in R; fraction of pir-line runs catching both people).
-PAPER = {("ideal", 1.0): 0.238, ("nonideal 0.7/1.3", 1.0): 0.287, ("nonideal 0.5/1.5", 1.0): 0.377, ("pir-line", 1.25): 0.7162}
+PAPER = {
+    ("ideal", 1.0): 0.238,
+    ("nonideal 0.7/1.3", 1.0): 0.287,
+    ("nonideal 0.5/1.5", 1.0): 0.377,
+    ("pir-line", 1.25): 0.7162,
+}
 PAPER_PIR_BOTH = 0.65
 
 
@@ -73,7 +78,15 @@ def _label(job: tuple) -> str:
     return f"{job[0]} rho R = {job[2]:g} seed {job[4]}"
 
 
-def run(out: Path, *, seed: int = 0, trials: int | None = None, quick: bool = False, echo=print, executor: Executor | None = None) -> Path:
+def run(
+    out: Path,
+    *,
+    seed: int = 0,
+    trials: int | None = None,
+    quick: bool = False,
+    echo=print,
+    executor: Executor | None = None,
+) -> Path:
     import matplotlib
 
     matplotlib.use("Agg")

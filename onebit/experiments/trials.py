@@ -70,7 +70,10 @@ def run_trials(
         more = f"\n  ... and {len(bad) - 10} more" if len(bad) > 10 else ""
         tb = next((o.traceback for o in bad if o.traceback), None)
         raise StudyError(
-            f"{study}: {len(bad)} of {n} trial(s) failed:\n" + "\n".join(lines) + more + (f"\nfirst traceback:\n{tb}" if tb else "")
+            f"{study}: {len(bad)} of {n} trial(s) failed:\n"
+            + "\n".join(lines)
+            + more
+            + (f"\nfirst traceback:\n{tb}" if tb else "")
         )
     timings = pl.DataFrame(
         [{"trial": label(trials[o.index]), "seconds": o.seconds, "worker": o.worker} for o in outcomes], schema=TIMINGS

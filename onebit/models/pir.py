@@ -67,17 +67,47 @@ import numpy as np
 import shapely
 
 from onebit.core.errors import SiteError
-from onebit.core.sensing import BUILTIN_TYPES, GEOMETRY_KEYS, DetectionRegion, detection_regions, sensor_to_world, type_geometry, type_table
+from onebit.core.sensing import (
+    BUILTIN_TYPES,
+    GEOMETRY_KEYS,
+    DetectionRegion,
+    detection_regions,
+    sensor_to_world,
+    type_geometry,
+    type_table,
+)
 from onebit.core.site import MotionSensor, Site
 
 __all__ = [
-    "BUILTIN_TYPES", "TYPE_KEYS", "SensorType", "NO_TYPE", "sensor_type", "WorldGrid", "Deployment",
-    "characterisation_grid", "window_fraction", "deploy_one", "deploy", "box_cells", "log_p_silent",
-    "sensor_likelihood", "log_weights", "PROB_FLOOR", "CHUNK",
-]  # fmt: skip
+    "BUILTIN_TYPES",
+    "TYPE_KEYS",
+    "SensorType",
+    "NO_TYPE",
+    "sensor_type",
+    "WorldGrid",
+    "Deployment",
+    "characterisation_grid",
+    "window_fraction",
+    "deploy_one",
+    "deploy",
+    "box_cells",
+    "log_p_silent",
+    "sensor_likelihood",
+    "log_weights",
+    "PROB_FLOOR",
+    "CHUNK",
+]
 
 #: Keys of a ``[sensor_types.<name>]`` table: geometry, rates and the reader's debounce keys.
-TYPE_KEYS = GEOMETRY_KEYS | {"peak", "falloff", "false_positive", "p_fire_refractory", "chatter_window", "min_on", "signal"}
+TYPE_KEYS = GEOMETRY_KEYS | {
+    "peak",
+    "falloff",
+    "false_positive",
+    "p_fire_refractory",
+    "chatter_window",
+    "min_on",
+    "signal",
+}
 
 IDW_POWER = 2.0
 
@@ -183,7 +213,7 @@ class WorldGrid:
     ny: int
 
     @classmethod
-    def of_site(cls, site: Site, cell: float) -> "WorldGrid":
+    def of_site(cls, site: Site, cell: float) -> WorldGrid:
         minx, miny, maxx, maxy = site.boundary.bounds
         nx = max(1, math.ceil((maxx - minx) / cell - 1e-9))
         ny = max(1, math.ceil((maxy - miny) / cell - 1e-9))
@@ -222,7 +252,12 @@ class Deployment:
         for i in range(len(self.ids)):  # one entry per sensor
             iy, ix = np.nonzero(self.q[i])
             if len(ix):
-                out[i] = g.x0 + ix.min() * g.cell, g.y0 + iy.min() * g.cell, g.x0 + (ix.max() + 1) * g.cell, g.y0 + (iy.max() + 1) * g.cell
+                out[i] = (
+                    g.x0 + ix.min() * g.cell,
+                    g.y0 + iy.min() * g.cell,
+                    g.x0 + (ix.max() + 1) * g.cell,
+                    g.y0 + (iy.max() + 1) * g.cell,
+                )
         return out
 
 
@@ -265,8 +300,12 @@ def window_fraction(grid: WorldGrid, window) -> np.ndarray:
         return a
     c = grid.cell
     minx, miny, maxx, maxy = window.bounds
-    ix0, ix1 = (int(np.clip(k, 0, grid.nx)) for k in (math.floor((minx - grid.x0) / c), math.ceil((maxx - grid.x0) / c)))
-    iy0, iy1 = (int(np.clip(k, 0, grid.ny)) for k in (math.floor((miny - grid.y0) / c), math.ceil((maxy - grid.y0) / c)))
+    ix0, ix1 = (
+        int(np.clip(k, 0, grid.nx)) for k in (math.floor((minx - grid.x0) / c), math.ceil((maxx - grid.x0) / c))
+    )
+    iy0, iy1 = (
+        int(np.clip(k, 0, grid.ny)) for k in (math.floor((miny - grid.y0) / c), math.ceil((maxy - grid.y0) / c))
+    )
     if ix1 <= ix0 or iy1 <= iy0:
         return a
     ix, iy = np.meshgrid(np.arange(ix0, ix1), np.arange(iy0, iy1))
@@ -276,13 +315,18 @@ def window_fraction(grid: WorldGrid, window) -> np.ndarray:
     return a
 
 
-def deploy_one(ms: MotionSensor, st: SensorType, grid: WorldGrid, region: DetectionRegion | None = None) -> tuple[np.ndarray, object]:
+def deploy_one(
+    ms: MotionSensor, st: SensorType, grid: WorldGrid, region: DetectionRegion | None = None
+) -> tuple[np.ndarray, object]:
     """One sensor: ``(ny, nx)`` grid of ``q_ij`` and the convex hull (world) of its non-zero
     cells. ``q_ij = q^type_ij a_ij`` with the window of ``region`` (module docstring)."""
     window = region.window if region is not None else None
     if st.samples is None:
         if window is None:
-            raise SiteError(f"sensor {ms.id!r} has neither a characterisation nor a detection window", field=f"motion_sensors ({ms.id!r})")
+            raise SiteError(
+                f"sensor {ms.id!r} has neither a characterisation nor a detection window",
+                field=f"motion_sensors ({ms.id!r})",
+            )
         q = st.peak * window_fraction(grid, window)
     else:
         q = characterisation_grid(ms, st, grid)
@@ -297,7 +341,9 @@ def deploy_one(ms: MotionSensor, st: SensorType, grid: WorldGrid, region: Detect
     return q, shapely.convex_hull(footprint)
 
 
-def deploy(site: Site, cell: float, types: dict[str, SensorType] | None = None, *, false_alarm: float = 0.0) -> Deployment:
+def deploy(
+    site: Site, cell: float, types: dict[str, SensorType] | None = None, *, false_alarm: float = 0.0
+) -> Deployment:
     """Deploy every motion sensor of ``site`` on the world grid of ``cell`` (section VI),
     each restricted to its detection region (:func:`onebit.core.sensing.detection_regions`;
     a sensor without a usable region raises :class:`SiteError` naming it).
@@ -315,7 +361,13 @@ def deploy(site: Site, cell: float, types: dict[str, SensorType] | None = None, 
             st = NO_TYPE
         else:
             if ms.type not in types:
-                table = type_table(ms.type, tables, units=site.units, source=site.source, field=f"motion_sensors[{i}] (id {ms.id!r}).type")
+                table = type_table(
+                    ms.type,
+                    tables,
+                    units=site.units,
+                    source=site.source,
+                    field=f"motion_sensors[{i}] (id {ms.id!r}).type",
+                )
                 types[ms.type] = sensor_type(ms.type, table, source=site.source, units=site.units)
             st = types[ms.type]
         q, hull = deploy_one(ms, st, grid, regions[ms.id])
@@ -439,9 +491,15 @@ def log_weights(x, y, fired, blind, dep, half_w, half_d) -> np.ndarray:
     if not live.any():
         return np.zeros(len(x))
     sub = Deployment(
-        tuple(np.asarray(dep.ids)[live]), dep.grid, dep.q[live], dep.p0[live], dep.rho[live],
-        dep.refractory[live], dep.xi[live], (),
-    )  # fmt: skip
+        tuple(np.asarray(dep.ids)[live]),
+        dep.grid,
+        dep.q[live],
+        dep.p0[live],
+        dep.rho[live],
+        dep.refractory[live],
+        dep.xi[live],
+        (),
+    )
     ls = log_p_silent(x, y, sub, half_w, half_d)
     f = fired[live][:, None]
     p_fire = -np.expm1(ls)

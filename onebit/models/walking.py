@@ -45,7 +45,11 @@ class ShortestPaths:
         from scipy.sparse import csr_matrix
 
         m = np.where(np.isfinite(w), w, 0.0)
-        self.dist, self.pred = _csgraph.shortest_path(csr_matrix(m), directed=False, return_predecessors=True) if N else (np.zeros((0, 0)), np.zeros((0, 0), int))
+        self.dist, self.pred = (
+            _csgraph.shortest_path(csr_matrix(m), directed=False, return_predecessors=True)
+            if N
+            else (np.zeros((0, 0)), np.zeros((0, 0), int))
+        )
 
     def _visible(self, p: np.ndarray) -> np.ndarray:
         if len(self.nodes) == 0:
@@ -62,7 +66,11 @@ class ShortestPaths:
         if not vp.any() or not vq.any():
             return np.array([p])
         a, b = np.flatnonzero(vp), np.flatnonzero(vq)
-        cost = np.hypot(*(self.nodes[a] - p).T)[:, None] + self.dist[np.ix_(a, b)] + np.hypot(*(self.nodes[b] - q).T)[None, :]
+        cost = (
+            np.hypot(*(self.nodes[a] - p).T)[:, None]
+            + self.dist[np.ix_(a, b)]
+            + np.hypot(*(self.nodes[b] - q).T)[None, :]
+        )
         ia, ib = np.unravel_index(np.argmin(cost), cost.shape)
         if not np.isfinite(cost[ia, ib]):
             return np.array([p])

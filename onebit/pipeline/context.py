@@ -2,9 +2,10 @@
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
-from typing import Any, Callable
+from typing import Any
 
 import polars as pl
 
@@ -158,7 +159,11 @@ def check_made(stage: Stage, made: dict[str, Any], tables: dict[str, Any], *, ex
         )
     not_frames = [f"{k} ({type(made[k]).__name__})" for k in names if not isinstance(made[k], pl.DataFrame)]
     if not_frames:
-        raise StageContractError(f"stage '{stage.name}' returned non-table value(s) {not_frames}; a stage returns polars frames")
+        raise StageContractError(
+            f"stage '{stage.name}' returned non-table value(s) {not_frames}; a stage returns polars frames"
+        )
     replaced = [k for k in names if k in tables]
     if replaced:
-        raise StageContractError(f"stage '{stage.name}' returned table(s) {replaced} that an earlier stage made; a table has one maker")
+        raise StageContractError(
+            f"stage '{stage.name}' returned table(s) {replaced} that an earlier stage made; a table has one maker"
+        )

@@ -237,7 +237,9 @@ class RayExecutor(Executor):
 
     kind = "ray"
 
-    def __init__(self, *, workers: int | None = None, address: str | None = None, max_retries: int = MAX_RETRIES) -> None:
+    def __init__(
+        self, *, workers: int | None = None, address: str | None = None, max_retries: int = MAX_RETRIES
+    ) -> None:
         super().__init__(workers=workers, max_retries=max_retries)
         self.address = address
         self._ray = None
@@ -264,8 +266,12 @@ class RayExecutor(Executor):
                     ray.init(address=self.address, **opts)
                 else:
                     # "local": a new instance even when RAY_ADDRESS is set or a `ray start` cluster runs here
-                    ray.init(address="local", num_cpus=self.workers or os.cpu_count() or 1,
-                             object_store_memory=RAY_OBJECT_STORE, **opts)  # fmt: skip
+                    ray.init(
+                        address="local",
+                        num_cpus=self.workers or os.cpu_count() or 1,
+                        object_store_memory=RAY_OBJECT_STORE,
+                        **opts,
+                    )
             except (ConnectionError, RuntimeError, ValueError) as exc:
                 where = f"the Ray cluster at {self.address!r}" if self.address else "a local Ray instance"
                 hint = (
@@ -273,8 +279,9 @@ class RayExecutor(Executor):
                     " authentication, on by default in recent Ray versions, also needs"
                     " RAY_AUTH_MODE=token and its token -- 'ray get-auth-token' on the head -- in"
                     " RAY_AUTH_TOKEN or ~/.ray/auth_token; on the head node itself --ray-address auto works)"
-                    if self.address else ""
-                )  # fmt: skip
+                    if self.address
+                    else ""
+                )
                 raise ExecutorError(f"--executor ray: cannot start or join {where}{hint}: {exc}") from None
             self._started = True
         self._ray = ray
@@ -303,8 +310,12 @@ class RayExecutor(Executor):
                 i = inflight.pop(ref)
                 try:
                     o = replace(ray.get(ref), index=i)
-                except (ray.exceptions.WorkerCrashedError, ray.exceptions.NodeDiedError,
-                        ray.exceptions.LocalRayletDiedError, ray.exceptions.OutOfMemoryError) as exc:  # fmt: skip
+                except (
+                    ray.exceptions.WorkerCrashedError,
+                    ray.exceptions.NodeDiedError,
+                    ray.exceptions.LocalRayletDiedError,
+                    ray.exceptions.OutOfMemoryError,
+                ) as exc:
                     o = _died(i, self.max_retries + 1, type(exc).__name__)
                 except ray.exceptions.RayError as exc:
                     first = str(exc).strip().splitlines()[0] if str(exc).strip() else ""

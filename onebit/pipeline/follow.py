@@ -76,14 +76,13 @@ from onebit.core.config import config_from_mapping
 from onebit.core.errors import ConfigError, InputError, OnebitError
 from onebit.core.region_graph import build_region_graph
 from onebit.core.site import load_site
+from onebit.core.tables import REJECTS
 from onebit.pipeline.context import RunContext, dataset_run_config
 from onebit.pipeline.runner import RunResult, check_dataset, check_out, check_sections, run_pipeline
 from onebit.pipeline.stages import TIME_SOURCES, TRACKERS, run_time_origin, stages, tracker_config
-from onebit.core.tables import REJECTS
 from onebit.readers.mcap_io import load_topic_map, read_mcap
 from onebit.readers.motion import MotionConfig, site_rules
-from onebit.readers.rows import RawRows
-from onebit.readers.rows import REORDER_TOLERANCE_S
+from onebit.readers.rows import REORDER_TOLERANCE_S, RawRows
 from onebit.readers.timebase import MAX_GAP_S, TimeOrigin
 from onebit.trackers.base import ARTIFACTS, PROGRESS
 from onebit.trackers.intruder import online as intruder_online
@@ -133,13 +132,17 @@ class FollowConfig:
     settle: float | None = None
 
     def __post_init__(self) -> None:
-        if self.replay is not None and not (isinstance(self.replay, (int, float)) and math.isfinite(self.replay) and self.replay > 0):
+        if self.replay is not None and not (
+            isinstance(self.replay, (int, float)) and math.isfinite(self.replay) and self.replay > 0
+        ):
             raise ConfigError(f"FollowConfig.replay = {self.replay!r}; a speed factor > 0 (e.g. 20 for --replay 20x)")
         for name, lo in (("poll", 1e-4), ("idle", 0.0)):
             v = getattr(self, name)
             if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v) or v < lo:
                 raise ConfigError(f"FollowConfig.{name} = {v!r}; allowed range: [{lo}, inf) seconds")
-        if self.settle is not None and (not isinstance(self.settle, (int, float)) or not math.isfinite(self.settle) or self.settle < 0):
+        if self.settle is not None and (
+            not isinstance(self.settle, (int, float)) or not math.isfinite(self.settle) or self.settle < 0
+        ):
             raise ConfigError(f"FollowConfig.settle = {self.settle!r}; allowed range: [0, inf) seconds")
 
 
@@ -273,7 +276,7 @@ class _McapSource:
         return grew
 
     def stamps(self, origin: TimeOrigin) -> None:
-        for topic, frame in self.frames.items():
+        for _topic, frame in self.frames.items():
             if frame.height:
                 t = frame.select(origin.t_expr("t").alias("t"))["t"].cast(pl.Float64).fill_nan(None).max()
                 if t is not None and math.isfinite(t):
@@ -281,7 +284,10 @@ class _McapSource:
 
     def rows(self) -> dict[str, RawRows]:
         empty = pl.DataFrame(schema=REJECTS)
-        return {topic: RawRows(f"{self.path.name}:{topic}", f.head(self.released.get(topic, 0)), empty) for topic, f in self.frames.items()}
+        return {
+            topic: RawRows(f"{self.path.name}:{topic}", f.head(self.released.get(topic, 0)), empty)
+            for topic, f in self.frames.items()
+        }
 
 
 def _channels(mcaps: list[_McapSource]) -> dict[str, RawRows]:
@@ -322,7 +328,10 @@ class _Publisher:
         t = tracks["t"].to_numpy()
         delay = np.array([max(0.0, now - self.wall_at(float(x))) for x in t])
         self.table(f"{tracker}_tracks", tracks)
-        d = pl.DataFrame({"tracker": [tracker] * len(t), "t": t, "delay_s": delay}, schema={"tracker": pl.String, "t": pl.Float64, "delay_s": pl.Float64})
+        d = pl.DataFrame(
+            {"tracker": [tracker] * len(t), "t": t, "delay_s": delay},
+            schema={"tracker": pl.String, "t": pl.Float64, "delay_s": pl.Float64},
+        )
         self.table("delays", d)
         self.delays.append(d)
         self.counts[tracker] = self.counts.get(tracker, 0) + len(t)
@@ -341,11 +350,22 @@ def _settle(site, sections: dict) -> float:
     return REORDER_TOLERANCE_S + max(windows)
 
 
-def _read_prefix(snapshot: Path, scratch: Path, site, rg, sections: dict, trackers: tuple[str, ...], origin: TimeOrigin | None, stage_list,
-                 mcap_channels: dict[str, RawRows]) -> RunContext:  # fmt: skip
+def _read_prefix(
+    snapshot: Path,
+    scratch: Path,
+    site,
+    rg,
+    sections: dict,
+    trackers: tuple[str, ...],
+    origin: TimeOrigin | None,
+    stage_list,
+    mcap_channels: dict[str, RawRows],
+) -> RunContext:
     """The reader stages on the snapshot (and the MCAP rows released): a context whose
     ``tables`` hold what they made."""
-    ctx = RunContext(snapshot, scratch, site, rg, {k: dict(v) for k, v in sections.items() if isinstance(v, dict)}, trackers=trackers)
+    ctx = RunContext(
+        snapshot, scratch, site, rg, {k: dict(v) for k, v in sections.items() if isinstance(v, dict)}, trackers=trackers
+    )
     ctx.mcap_channels = dict(mcap_channels)
     if origin is not None:
         ctx.time_origin = origin
@@ -421,7 +441,10 @@ def follow(
     topic_map = load_topic_map(topics) if topics.is_file() else None
     mcaps = [_McapSource(p, topic_map) for p in sorted(dataset.glob("*.mcap"))]
     if not logs and not mcaps:
-        raise InputError("no log to follow (motion.csv, beams.csv, crossings.csv, proximity.csv, truth.csv or an .mcap)", file=dataset)
+        raise InputError(
+            "no log to follow (motion.csv, beams.csv, crossings.csv, proximity.csv, truth.csv or an .mcap)",
+            file=dataset,
+        )
     settle = options.settle if options.settle is not None else _settle(site, merged)
 
     live = out / LIVE
@@ -441,7 +464,9 @@ def follow(
             full = RunContext(dataset, scratch, site, rg, {}, trackers=chosen)
             for m in mcaps:
                 for topic, frame in read_mcap(m.path, topic_map=topic_map).channels.items():
-                    full.mcap_channels.setdefault(topic, RawRows(f"{m.path.name}:{topic}", frame, pl.DataFrame(schema=REJECTS)))
+                    full.mcap_channels.setdefault(
+                        topic, RawRows(f"{m.path.name}:{topic}", frame, pl.DataFrame(schema=REJECTS))
+                    )
             origin = run_time_origin(full)
             for m in mcaps:
                 m.load_all(origin)
@@ -468,14 +493,20 @@ def follow(
             return i if i is not None else clock()
 
         recording_id = str(uuid.uuid4())
-        rec, url = viz_live.open_live(live / "rrd" / "follow.rrd", recording_id=recording_id, connect=connect, serve_web=serve_web)
+        rec, url = viz_live.open_live(
+            live / "rrd" / "follow.rrd", recording_id=recording_id, connect=connect, serve_web=serve_web
+        )
         if url:
             echo(f"  web viewer: {url}")
         viz_live.log_live_site(rec, site, rg)
         pub = _Publisher(live, rec, wall_at, clock)
 
         entries = {e.name: e for e in TRACKERS}
-        online = [n for n in ONLINE if n in chosen and (entries[n].spec.available is None or entries[n].spec.available(site) is None)]
+        online = [
+            n
+            for n in ONLINE
+            if n in chosen and (entries[n].spec.available is None or entries[n].spec.available(site) is None)
+        ]
         viz_live.send_live_blueprint(rec, online)
         batch_only = [n for n in chosen if n not in online]
         for n in online:
@@ -513,7 +544,10 @@ def follow(
                     except OSError:
                         continue
                     if size < src.offset:
-                        raise InputError(f"the log shrank from {src.offset} to {size} bytes while followed (rotated or rewritten?)", file=src.path)
+                        raise InputError(
+                            f"the log shrank from {src.offset} to {size} bytes while followed (rotated or rewritten?)",
+                            file=src.path,
+                        )
                     if size == src.offset:
                         continue
                     with open(src.path, "rb") as fh:
@@ -564,7 +598,9 @@ def follow(
                 ctx = _read_prefix(data, scratch, site, rg, merged, chosen, origin, stage_list, _channels(mcaps))
                 tables = ctx.tables
                 if "motion" in tables:
-                    settled = tables["motion"].filter(pl.col("t") <= horizon - settle) if not final else tables["motion"]
+                    settled = (
+                        tables["motion"].filter(pl.col("t") <= horizon - settle) if not final else tables["motion"]
+                    )
                     if settled.height > logged_edges:
                         viz_live.log_states(rec, settled.slice(logged_edges))
                         logged_edges = settled.height
@@ -575,7 +611,9 @@ def follow(
                             continue
                         if intruder_state is None:
                             intruder_state = intruder_online.start(site, tracker_config(entry, ctx))
-                        rows = intruder_online.advance(intruder_state, tables["motion"], horizon=horizon, settle=settle, final=final)
+                        rows = intruder_online.advance(
+                            intruder_state, tables["motion"], horizon=horizon, settle=settle, final=final
+                        )
                         pub.estimates(name, rows["tracks"])
                         pub.table(f"{name}_iterations", rows["iterations"])
                         if "camera" in rows:
@@ -629,9 +667,18 @@ def read_live_table(live: str | Path, name: str) -> pl.DataFrame | None:
     return pl.concat([pl.read_parquet(p) for p in parts]) if parts else None
 
 
-def _follow_report(out: Path, live: Path, online: list[str], pub: _Publisher, polls: int, batch_only: list[str]) -> pl.DataFrame:
-    rows: list[tuple[str, str, float, str]] = [("follow", "polls", float(polls), "polls"), ("follow", "batch_only_trackers", float(len(batch_only)), "trackers")]
-    delays = pl.concat(pub.delays) if pub.delays else pl.DataFrame(schema={"tracker": pl.String, "t": pl.Float64, "delay_s": pl.Float64})
+def _follow_report(
+    out: Path, live: Path, online: list[str], pub: _Publisher, polls: int, batch_only: list[str]
+) -> pl.DataFrame:
+    rows: list[tuple[str, str, float, str]] = [
+        ("follow", "polls", float(polls), "polls"),
+        ("follow", "batch_only_trackers", float(len(batch_only)), "trackers"),
+    ]
+    delays = (
+        pl.concat(pub.delays)
+        if pub.delays
+        else pl.DataFrame(schema={"tracker": pl.String, "t": pl.Float64, "delay_s": pl.Float64})
+    )
     for name in online:
         got = read_live_table(live, f"{name}_tracks")
         batch_path = out / "tables" / f"{name}_tracks.parquet"
@@ -642,16 +689,36 @@ def _follow_report(out: Path, live: Path, online: list[str], pub: _Publisher, po
         if batch is not None:
             a = got if got is not None else batch.clear()
             cols = batch.columns
-            same = a.select(cols).sort(["track", "t"], maintain_order=True).equals(batch.sort(["track", "t"], maintain_order=True))
+            same = (
+                a.select(cols)
+                .sort(["track", "t"], maintain_order=True)
+                .equals(batch.sort(["track", "t"], maintain_order=True))
+            )
             rows.append((name, "online_equals_batch", 1.0 if same else 0.0, "flag"))
             if not same:  # how far apart: rows only one side has, and positions of the rows both have
                 key = [c for c in cols if c not in ("x", "y")]
-                rows.append((name, "online_rows_not_in_batch", float(a.join(batch, on=key, how="anti", nulls_equal=True).height), "rows"))
-                rows.append((name, "batch_rows_not_online", float(batch.join(a, on=key, how="anti", nulls_equal=True).height), "rows"))
+                rows.append(
+                    (
+                        name,
+                        "online_rows_not_in_batch",
+                        float(a.join(batch, on=key, how="anti", nulls_equal=True).height),
+                        "rows",
+                    )
+                )
+                rows.append(
+                    (
+                        name,
+                        "batch_rows_not_online",
+                        float(batch.join(a, on=key, how="anti", nulls_equal=True).height),
+                        "rows",
+                    )
+                )
                 both = a.join(batch, on=key, how="inner", nulls_equal=True, suffix="_batch")
                 if both.height and "x" in cols:
                     gap = ((pl.col("x") - pl.col("x_batch")) ** 2 + (pl.col("y") - pl.col("y_batch")) ** 2).sqrt()
-                    rows.append((name, "max_position_difference", float(both.select(gap.max()).item() or 0.0), "site units"))
+                    rows.append(
+                        (name, "max_position_difference", float(both.select(gap.max()).item() or 0.0), "site units")
+                    )
         d = delays.filter(pl.col("tracker") == name)["delay_s"].to_numpy()
         if len(d):
             rows += [
@@ -659,4 +726,6 @@ def _follow_report(out: Path, live: Path, online: list[str], pub: _Publisher, po
                 (name, "delay_p99", float(np.percentile(d, 99)), "s"),
                 (name, "delay_max", float(d.max()), "s"),
             ]
-    return pl.DataFrame(rows, schema={"stage": pl.String, "metric": pl.String, "value": pl.Float64, "unit": pl.String}, orient="row")
+    return pl.DataFrame(
+        rows, schema={"stage": pl.String, "metric": pl.String, "value": pl.Float64, "unit": pl.String}, orient="row"
+    )

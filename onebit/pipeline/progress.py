@@ -49,8 +49,13 @@ class RichBar:
 
     def __init__(self, title: str = "stages") -> None:
         self.p = Progress(
-            SpinnerColumn(), TextColumn("{task.description}"), BarColumn(), TaskProgressColumn(), TimeElapsedColumn(),
-            transient=True, console=Console(stderr=True),  # fmt: skip
+            SpinnerColumn(),
+            TextColumn("{task.description}"),
+            BarColumn(),
+            TaskProgressColumn(),
+            TimeElapsedColumn(),
+            transient=True,
+            console=Console(stderr=True),
         )
         self.p.start()
         self.task = self.p.add_task(title, total=None)
@@ -79,10 +84,15 @@ class Spinner:
         self.enabled = interactive() if enabled is None else enabled
         self.p: Progress | None = None
 
-    def __enter__(self) -> "Spinner":
+    def __enter__(self) -> Spinner:
         if self.enabled:
-            self.p = Progress(SpinnerColumn(), TextColumn("{task.description}"), TimeElapsedColumn(), transient=True,
-                              console=Console(stderr=True))
+            self.p = Progress(
+                SpinnerColumn(),
+                TextColumn("{task.description}"),
+                TimeElapsedColumn(),
+                transient=True,
+                console=Console(stderr=True),
+            )
             self.p.start()
             self.p.add_task(self.what, total=None)
         return self
@@ -97,7 +107,7 @@ def interactive() -> bool:
     return sys.stderr.isatty() and not os.environ.get("CI")
 
 
-def progress_sink(progress: "bool | ProgressSink | None") -> ProgressSink:
+def progress_sink(progress: bool | ProgressSink | None) -> ProgressSink:
     """The sink for ``run_pipeline(progress=...)``: ``None`` = a bar when :func:`interactive`,
     ``True`` / ``False`` = a bar / nothing, or a sink of the caller's."""
     if progress is None:

@@ -18,8 +18,11 @@ def check_run_folder(out_dir: str | Path) -> Path:
     if not out.is_dir():
         raise InputError("no such run folder" if not out.exists() else "is a file, not a run folder", file=out)
     if writers.is_incomplete(out):
-        raise InputError("incomplete run folder: a run was interrupted while it replaced the folder's content, so "
-                         "it may mix two runs; run 'onebit run DATASET --out' into it again", file=out)  # fmt: skip
+        raise InputError(
+            "incomplete run folder: a run was interrupted while it replaced the folder's content, so "
+            "it may mix two runs; run 'onebit run DATASET --out' into it again",
+            file=out,
+        )
     return out
 
 
@@ -39,8 +42,11 @@ def load_report(out_dir: str | Path) -> pl.DataFrame:
             except (pl.exceptions.PolarsError, OSError) as exc:
                 raise InputError(f"cannot read the report: {type(exc).__name__}", file=p) from None
     if writers.in_progress(out):
-        raise InputError("no finished run here yet: a run is writing this folder now, or was killed before it "
-                         "finished (then run it again)", file=out)  # fmt: skip
+        raise InputError(
+            "no finished run here yet: a run is writing this folder now, or was killed before it "
+            "finished (then run it again)",
+            file=out,
+        )
     raise InputError("no report.parquet or report.csv: is this a finished run folder?", file=out)
 
 

@@ -50,18 +50,28 @@ from onebit.pipeline.runner import run_pipeline
 #: ``OUT/summary.parquet``: one row per dataset x metric of its report.
 SUMMARY = pl.Schema(
     {
-        "dataset": pl.String, "status": pl.String, "error": pl.String,
-        "stage": pl.String, "metric": pl.String, "value": pl.Float64, "unit": pl.String,
+        "dataset": pl.String,
+        "status": pl.String,
+        "error": pl.String,
+        "stage": pl.String,
+        "metric": pl.String,
+        "value": pl.Float64,
+        "unit": pl.String,
     }
-)  # fmt: skip
+)
 
 #: Per dataset (printed, and in ``run-many.toml``): status, time and where it ran.
 DATASETS = pl.Schema(
     {
-        "dataset": pl.String, "status": pl.String, "error": pl.String, "run": pl.String,
-        "metrics": pl.Int64, "seconds": pl.Float64, "worker": pl.String,
+        "dataset": pl.String,
+        "status": pl.String,
+        "error": pl.String,
+        "run": pl.String,
+        "metrics": pl.Int64,
+        "seconds": pl.Float64,
+        "worker": pl.String,
     }
-)  # fmt: skip
+)
 
 GLOB_CHARS = frozenset("*?[")
 
@@ -93,7 +103,9 @@ class RunManyResult:
 # --------------------------------------------------------------------------- which datasets
 
 
-def find_datasets(specs: Iterable[str | Path], *, out: str | Path | None = None, echo: Callable[[str], None] | None = None) -> list[Path]:
+def find_datasets(
+    specs: Iterable[str | Path], *, out: str | Path | None = None, echo: Callable[[str], None] | None = None
+) -> list[Path]:
     """Dataset folders from command-line arguments: folders, globs (``'data/*/floor*'``,
     ``**`` allowed) and files listing one folder or glob per line (``#`` comments; relative
     lines are relative to the list file's folder). Glob matches that are not folders are left
@@ -199,7 +211,9 @@ def run_dataset(job: DatasetJob) -> dict[str, Any]:
     tmp = partial_name(final, job.token)
     shutil.rmtree(tmp, ignore_errors=True)
     try:
-        res = run_pipeline(job.dataset, tmp, trackers=job.trackers, config=dict(job.config), progress=False, rrd=job.rrd)
+        res = run_pipeline(
+            job.dataset, tmp, trackers=job.trackers, config=dict(job.config), progress=False, rrd=job.rrd
+        )
         commit_folder(tmp, final)
     except BaseException:
         shutil.rmtree(tmp, ignore_errors=True)
@@ -232,7 +246,9 @@ def run_many(
     out.mkdir(parents=True, exist_ok=True)
     token = uuid.uuid4().hex[:10]
     jobs = [
-        DatasetJob(str(d), n, str(out / n), token, tuple(trackers) if trackers is not None else None, dict(config or {}), rrd)
+        DatasetJob(
+            str(d), n, str(out / n), token, tuple(trackers) if trackers is not None else None, dict(config or {}), rrd
+        )
         for d, n in zip(folders, names)
     ]
     echo(f"onebit run-many: {len(jobs)} dataset(s) -> {out} on {executor.describe()}")
@@ -296,13 +312,33 @@ def _tables(jobs: Sequence[DatasetJob], outcomes: Sequence[TaskOutcome]) -> tupl
             status, error, report, run = "failed", o.error, None, None
         ident = dict(dataset=job.name, status=status, error=error)
         if report is not None and report.height:
-            parts.append(report.select(**{k: pl.lit(v, SUMMARY[k]) for k, v in ident.items()}, stage="stage", metric="metric",
-                                       value=pl.col("value").cast(pl.Float64), unit="unit"))  # fmt: skip
+            parts.append(
+                report.select(
+                    **{k: pl.lit(v, SUMMARY[k]) for k, v in ident.items()},
+                    stage="stage",
+                    metric="metric",
+                    value=pl.col("value").cast(pl.Float64),
+                    unit="unit",
+                )
+            )
         else:
-            parts.append(pl.DataFrame([ident], schema={k: SUMMARY[k] for k in ident}).with_columns(
-                stage=pl.lit(None, pl.String), metric=pl.lit(None, pl.String), value=pl.lit(None, pl.Float64), unit=pl.lit(None, pl.String)
-            ))  # fmt: skip
-        rows.append({**ident, "run": run, "metrics": report.height if report is not None else 0, "seconds": o.seconds, "worker": o.worker})
+            parts.append(
+                pl.DataFrame([ident], schema={k: SUMMARY[k] for k in ident}).with_columns(
+                    stage=pl.lit(None, pl.String),
+                    metric=pl.lit(None, pl.String),
+                    value=pl.lit(None, pl.Float64),
+                    unit=pl.lit(None, pl.String),
+                )
+            )
+        rows.append(
+            {
+                **ident,
+                "run": run,
+                "metrics": report.height if report is not None else 0,
+                "seconds": o.seconds,
+                "worker": o.worker,
+            }
+        )
     summary = pl.concat(parts).select(SUMMARY.names()).cast(dict(SUMMARY)) if parts else pl.DataFrame(schema=SUMMARY)
     return summary, pl.DataFrame(rows, schema=DATASETS)
 
@@ -310,7 +346,13 @@ def _tables(jobs: Sequence[DatasetJob], outcomes: Sequence[TaskOutcome]) -> tupl
 def format_summary(result: RunManyResult) -> str:
     """The printed table: one line per dataset (status, metrics, seconds, error)."""
     table = Table(title=f"run-many summary of {result.out} ({result.executor}, {result.seconds:.1f} s)")
-    for col, just in (("dataset", "left"), ("status", "left"), ("metrics", "right"), ("seconds", "right"), ("error", "left")):
+    for col, just in (
+        ("dataset", "left"),
+        ("status", "left"),
+        ("metrics", "right"),
+        ("seconds", "right"),
+        ("error", "left"),
+    ):
         table.add_column(col, justify=just)
     for r in result.datasets.iter_rows(named=True):
         table.add_row(r["dataset"], r["status"], str(r["metrics"]), f"{r['seconds']:.1f}", (r["error"] or "")[:200])

@@ -29,9 +29,10 @@ import copy
 import time
 import traceback
 import uuid
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Callable
+from typing import Any
 
 import polars as pl
 
@@ -104,8 +105,10 @@ def check_sections(sections: dict[str, Any], stage_list: list[Stage], *, source:
         if record and (name in RUN_RECORD_SECTIONS or not isinstance(values, dict)):
             continue
         if not isinstance(values, dict):
-            raise ConfigError(f"{source}: '{name}' is outside any section; put it under the [stage] it configures "
-                              f"(sections: {sorted(known)})")  # fmt: skip
+            raise ConfigError(
+                f"{source}: '{name}' is outside any section; put it under the [stage] it configures "
+                f"(sections: {sorted(known)})"
+            )
         if name not in known:
             raise ConfigError(f"{source}: unknown section [{name}]; known sections: {sorted(known)}")
         cls = known[name].config
@@ -123,13 +126,17 @@ def check_dataset(dataset: Path) -> Path:
     if not dataset.is_dir():
         raise InputError("dataset folder does not exist" if not dataset.exists() else "is not a folder", file=dataset)
     if outputs.is_incomplete(dataset):
-        raise InputError("the dataset is incomplete (a simulation into it was interrupted); simulate it again", file=dataset)
+        raise InputError(
+            "the dataset is incomplete (a simulation into it was interrupted); simulate it again", file=dataset
+        )
     root = dataset.resolve()
     for entry in sorted(dataset.iterdir()):
         if entry.is_symlink() and entry.suffix.lower() in _DATASET_SUFFIXES:
             target = entry.resolve()
             if root not in target.parents:
-                raise InputError(f"is a symlink to {target}, outside the dataset folder; copy the file in instead", file=entry)
+                raise InputError(
+                    f"is a symlink to {target}, outside the dataset folder; copy the file in instead", file=entry
+                )
     return root
 
 
@@ -165,9 +172,14 @@ def check_out(out: Path, dataset: Path) -> str | None:
     if not _is_run_record(record) and len(ours) + sum(n in KEPT_ENTRIES for n in visible) < len(visible):
         foreign = [n for n in visible if n not in RUN_ENTRIES and n not in KEPT_ENTRIES]
         shown = ", ".join(foreign[:5]) + (f" and {len(foreign) - 5} more" if len(foreign) > 5 else "")
-        raise InputError(f"OUT is not empty and is not a onebit run folder (it holds {shown}); "
-                         "give an empty or new folder, or an earlier run's folder", file=out)  # fmt: skip
-    what = f"the previous run (recording {record['recording_id']})" if _is_run_record(record) else f"the run files {ours}"
+        raise InputError(
+            f"OUT is not empty and is not a onebit run folder (it holds {shown}); "
+            "give an empty or new folder, or an earlier run's folder",
+            file=out,
+        )
+    what = (
+        f"the previous run (recording {record['recording_id']})" if _is_run_record(record) else f"the run files {ours}"
+    )
     kept = [n for n in visible if n not in RUN_ENTRIES and n not in KEPT_ENTRIES]
     if not ours and not _is_run_record(record):
         return None
@@ -229,10 +241,21 @@ def run_pipeline(
     crash: BaseException | None = None
     try:
         with outputs.folder_transaction(out, replaces=RUN_ENTRIES.__contains__) as work:
-            ctx = RunContext(dataset, work, site, rg, config, trackers=trackers, progress=sink.step, dataset_sections=dataset_sections)
+            ctx = RunContext(
+                dataset,
+                work,
+                site,
+                rg,
+                config,
+                trackers=trackers,
+                progress=sink.step,
+                dataset_sections=dataset_sections,
+            )
             try:
                 with rerun_enabled():  # recordings are written whatever RERUN says (viz.recording)
-                    result = _run_stages(ctx, stage_list, requested, known, sink=sink, echo=echo, rrd=rrd, entered=entered)
+                    result = _run_stages(
+                        ctx, stage_list, requested, known, sink=sink, echo=echo, rrd=rrd, entered=entered
+                    )
             except OnebitError:
                 raise
             except Exception as exc:  # a bug, not bad input: keep what was done and the traceback
@@ -248,8 +271,15 @@ def run_pipeline(
 
 
 def _run_stages(
-    ctx: RunContext, stage_list: list[Stage], requested: tuple[str, ...], tracker_names: list[str], *, sink: ProgressSink,
-    echo: Callable[[str], None], rrd: bool = True, entered: float | None = None,
+    ctx: RunContext,
+    stage_list: list[Stage],
+    requested: tuple[str, ...],
+    tracker_names: list[str],
+    *,
+    sink: ProgressSink,
+    echo: Callable[[str], None],
+    rrd: bool = True,
+    entered: float | None = None,
 ) -> tuple[dict[str, str], pl.DataFrame, bool, list[str]]:
     """Run the stages into ``ctx.out`` (the work folder) and write the run's record there.
 
@@ -295,7 +325,9 @@ def _run_stages(
             tb = traceback.format_exc(limit=8)
             status[st.name] = bounded(f"failed: {type(exc).__name__}: {exc}", 2000)
             outputs.write_text(tb, work / "logs" / f"{st.name}.traceback.txt")
-            echo(f"  {st.name}: FAILED with {bounded(f'{type(exc).__name__}: {exc}')} (traceback in logs/{st.name}.traceback.txt)")
+            echo(
+                f"  {st.name}: FAILED with {bounded(f'{type(exc).__name__}: {exc}')} (traceback in logs/{st.name}.traceback.txt)"
+            )
             continue
         t2 = time.perf_counter()
         for name, df in made.items():
@@ -316,7 +348,7 @@ def _run_stages(
         why = "; ".join(f"{n}: {s}" for n, s in status.items() if n in data_stages or n.startswith("mcap:"))
         raise InputError(f"nothing to do: no input could be read ({why}); OUT was left as it was", file=dataset)
     problems = [
-        f"tracker '{tr}' was asked for (--trackers) but did not run: {status.get(tr, 'not run')[len('skipped: '):]}"
+        f"tracker '{tr}' was asked for (--trackers) but did not run: {status.get(tr, 'not run')[len('skipped: ') :]}"
         for tr in requested
         if status.get(tr, "").startswith("skipped")
     ]
@@ -333,8 +365,15 @@ def _run_stages(
     outputs.write_csv(report, work / "report.csv")
     ok = all(not s.startswith("failed") for s in status.values()) and not problems
     timing["run_s"] = round(time.time() - started, 6)
-    _write_record(ctx, recording_id=recording_id, seconds=time.time() - started, ok=ok, problems=problems, rejects=rejects.height,
-                  timing=timing)  # fmt: skip
+    _write_record(
+        ctx,
+        recording_id=recording_id,
+        seconds=time.time() - started,
+        ok=ok,
+        problems=problems,
+        rejects=rejects.height,
+        timing=timing,
+    )
     return status, report, ok, problems
 
 
@@ -355,7 +394,14 @@ def _read_mcaps(ctx: RunContext, echo: Callable[[str], None]) -> None:
 
 
 def _write_record(
-    ctx: RunContext, *, recording_id: str, seconds: float, ok: bool, problems: list[str], rejects: int, timing: dict | None = None
+    ctx: RunContext,
+    *,
+    recording_id: str,
+    seconds: float,
+    ok: bool,
+    problems: list[str],
+    rejects: int,
+    timing: dict | None = None,
 ) -> None:
     """``run.toml``: dataset, recording id, each stage's status, problems, timing and the resolved config."""
     run_doc = {

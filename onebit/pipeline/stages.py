@@ -25,8 +25,9 @@ registry, no plugin loading: this file is the whole list.
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass, field
-from typing import Any, Callable
+from typing import Any
 
 import polars as pl
 
@@ -36,14 +37,21 @@ from onebit.core.tables import REJECTS
 from onebit.core.units import config_in_site_units
 from onebit.pipeline.context import ReportRow, RunContext, Stage
 from onebit.readers.beams import BEAM_COLUMNS, beam_dtypes, decode_beam_log, decode_raw_beams
-from onebit.readers.frames import edges_of_levels, read_frame_rows, read_frames_csv
 from onebit.readers.camera import read_camera, truth_error
+from onebit.readers.frames import edges_of_levels, read_frame_rows, read_frames_csv
 from onebit.readers.motion import TOGGLE_COLUMNS, MotionConfig, read_motion, read_motion_csv, site_rules, toggle_dtypes
-from onebit.readers.rows import read_typed_csv
 from onebit.readers.proximity import ProximityConfig, proximity_frames, read_proximity, read_proximity_csv
+from onebit.readers.rows import read_typed_csv
 from onebit.readers.tables_csv import (
-    crossings_from_rows, read_crossings_csv, read_true_crossings_csv, read_truth_csv, read_truth_events_csv, true_crossings_columns,
-    true_crossings_from_rows, truth_events_from_rows, truth_from_rows,
+    crossings_from_rows,
+    read_crossings_csv,
+    read_true_crossings_csv,
+    read_truth_csv,
+    read_truth_events_csv,
+    true_crossings_columns,
+    true_crossings_from_rows,
+    truth_events_from_rows,
+    truth_from_rows,
 )
 from onebit.readers.timebase import TimeOrigin, time_origin
 from onebit.scoring import beams as score_beams
@@ -109,37 +117,89 @@ class TrackerEntry:
 
 #: The MOT gates the papers share (``TrackerEntry.gate``; docs/metrics.md, "Standard MOT metrics").
 CELLS_GATE = Gate(
-    "point", 2.0, "cells",
+    "point",
+    2.0,
+    "cells",
     "Schiff & Goldberg score in grid cells; 'within two world-space cells' is their accuracy criterion "
     "(VIII: perfect sensors put every estimate there) and the intruder's bounding prism is 2 cells wide",
 )
-HOPS_GATE = Gate("node", 1.0, "hops", "De et al. score hops on the sensor graph; 1 hop = the adjacent sensor, the PIR's resolution")
+HOPS_GATE = Gate(
+    "node", 1.0, "hops", "De et al. score hops on the sensor graph; 1 hop = the adjacent sensor, the PIR's resolution"
+)
 
 #: Every tracker, in the order their stages run.
 TRACKERS: tuple[TrackerEntry, ...] = (
-    TrackerEntry(beams.SPEC, score_beams.score, viz_beams.log_run, {"crossings": ("corrected_crossings", "crossings")},
-                 Gate("region", 1.0, "hops", "Bobadilla et al. localise to a region; 1 hop = the adjacent region, one beam away"),
-                 scenario="beams-lab"),
+    TrackerEntry(
+        beams.SPEC,
+        score_beams.score,
+        viz_beams.log_run,
+        {"crossings": ("corrected_crossings", "crossings")},
+        Gate(
+            "region", 1.0, "hops", "Bobadilla et al. localise to a region; 1 hop = the adjacent region, one beam away"
+        ),
+        scenario="beams-lab",
+    ),
     TrackerEntry(intruder.SPEC, score_intruder.score, viz_intruder.log_run, gate=CELLS_GATE, scenario="pir14"),
     TrackerEntry(intruder.NAIVE_SPEC, score_intruder.score, viz_intruder.log_run, gate=CELLS_GATE, scenario="pir14"),
-    TrackerEntry(clustertrack.SPEC, score_clustertrack.score, viz_clustertrack.log_run,
-                 gate=Gate("point", 1.0, "R", "Singh et al. report error in units of the sensing radius R; within R the target is resolved"),
-                 scenario="proximity-line"),
-    TrackerEntry(binpf.SPEC, score_binpf.score, viz_binpf.log_run,
-                 gate=Gate("point", 1.0, "m", "beyond the papers: a metric gate in world units; 1 m is about half the spacing of a ceiling "
-                           "array (Milan et al. score at 1.5 m)"),
-                 scenario="proximity-grid"),
-    *(TrackerEntry(spec, score_findinghumo.score, viz_findinghumo.log_run, gate=HOPS_GATE, scenario="hallway") for spec in findinghumo.SPECS),
-    TrackerEntry(findinghumo_flow.SPEC, score_findinghumo.score, viz_findinghumo.log_run, gate=HOPS_GATE, scenario="hallway"),
-    TrackerEntry(istate.SPEC, score_istate.score, viz_istate.log_run,
-                 gate=Gate("point", 1.0, "sensing radius", "O'Kane's I-state has no unit of its own; a point summary within one "
-                           "sensing radius is what the sensors can tell apart"),
-                 scenario="istate-room"),
-    TrackerEntry(residents.SPEC, score_residents.score, viz_residents.log_run,
-                 gate=Gate("point", 1.0, "sensing radius", "the residents tracker places each person at the sensor of their latest "
-                           "event: within one sensing radius the sensor covers them"),
-                 scenario="hallway"),
-)  # fmt: skip
+    TrackerEntry(
+        clustertrack.SPEC,
+        score_clustertrack.score,
+        viz_clustertrack.log_run,
+        gate=Gate(
+            "point",
+            1.0,
+            "R",
+            "Singh et al. report error in units of the sensing radius R; within R the target is resolved",
+        ),
+        scenario="proximity-line",
+    ),
+    TrackerEntry(
+        binpf.SPEC,
+        score_binpf.score,
+        viz_binpf.log_run,
+        gate=Gate(
+            "point",
+            1.0,
+            "m",
+            "beyond the papers: a metric gate in world units; 1 m is about half the spacing of a ceiling "
+            "array (Milan et al. score at 1.5 m)",
+        ),
+        scenario="proximity-grid",
+    ),
+    *(
+        TrackerEntry(spec, score_findinghumo.score, viz_findinghumo.log_run, gate=HOPS_GATE, scenario="hallway")
+        for spec in findinghumo.SPECS
+    ),
+    TrackerEntry(
+        findinghumo_flow.SPEC, score_findinghumo.score, viz_findinghumo.log_run, gate=HOPS_GATE, scenario="hallway"
+    ),
+    TrackerEntry(
+        istate.SPEC,
+        score_istate.score,
+        viz_istate.log_run,
+        gate=Gate(
+            "point",
+            1.0,
+            "sensing radius",
+            "O'Kane's I-state has no unit of its own; a point summary within one "
+            "sensing radius is what the sensors can tell apart",
+        ),
+        scenario="istate-room",
+    ),
+    TrackerEntry(
+        residents.SPEC,
+        score_residents.score,
+        viz_residents.log_run,
+        gate=Gate(
+            "point",
+            1.0,
+            "sensing radius",
+            "the residents tracker places each person at the sensor of their latest "
+            "event: within one sensing radius the sensor covers them",
+        ),
+        scenario="hallway",
+    ),
+)
 
 
 def tracker_names(entries: tuple[TrackerEntry, ...] = TRACKERS) -> tuple[str, ...]:
@@ -212,7 +272,9 @@ def _crossings_work(ctx: RunContext) -> dict[str, pl.DataFrame]:
     if ctx.has_source("beams"):
         csv = ctx.dataset / "beams.csv"
         if csv.exists():  # a clean file is typed in one read (decode_beam_log), else line by line
-            dec = decode_beam_log(csv, site.beam_ids, epoch=run_time_origin(ctx), split=ctx.typed_reads.pop("beams", None))
+            dec = decode_beam_log(
+                csv, site.beam_ids, epoch=run_time_origin(ctx), split=ctx.typed_reads.pop("beams", None)
+            )
         else:
             raw, path = ctx.source("beams", BEAM_COLUMNS)
             dec = decode_raw_beams(raw, site.beam_ids, epoch=run_time_origin(ctx), path=path)
@@ -274,7 +336,9 @@ def _truth_viz(rec, ctx: RunContext, made: dict) -> None:
 
 
 def _truth_events_available(ctx: RunContext) -> str | None:
-    return None if ctx.has_source("truth_events") else "no truth_events.csv or /truth_events MCAP channel in the dataset"
+    return (
+        None if ctx.has_source("truth_events") else "no truth_events.csv or /truth_events MCAP channel in the dataset"
+    )
 
 
 def _truth_events_work(ctx: RunContext) -> dict[str, pl.DataFrame]:
@@ -287,7 +351,12 @@ def _truth_events_work(ctx: RunContext) -> dict[str, pl.DataFrame]:
     ctx.add_rejects(rej)
     ctx.report += [
         ("truth_events", "events", float(te.height), "events"),
-        ("truth_events", "residents", float(te["residents"].str.split(";").explode().n_unique()) if te.height else 0.0, "residents"),
+        (
+            "truth_events",
+            "residents",
+            float(te["residents"].str.split(";").explode().n_unique()) if te.height else 0.0,
+            "residents",
+        ),
     ]
     return {"truth_events": te}
 
@@ -307,7 +376,9 @@ def _camera_work(ctx: RunContext) -> dict[str, pl.DataFrame]:
     detections = res.detections.with_columns(pl.col("t") - shift) if shift else res.detections
     cam_truth = truth_regions(res.truth.with_columns(pl.col("t") - shift) if shift else res.truth, ctx.region_graph)
     ctx.report.append(("camera", "frames", float(res.frames), "frames"))
-    ctx.report.append(("camera", "tracks", float(cam_truth["target"].n_unique()) if cam_truth.height else 0.0, "tracks"))
+    ctx.report.append(
+        ("camera", "tracks", float(cam_truth["target"].n_unique()) if cam_truth.height else 0.0, "tracks")
+    )
     if "truth" in ctx.tables:
         err = truth_error(cam_truth.select(res.truth.columns), ctx.tables["truth"], diagonal=ctx.site.diagonal)
         ctx.report += [
@@ -395,11 +466,19 @@ def _motion_work(ctx: RunContext) -> dict[str, pl.DataFrame]:
     ids = [m.id for m in site.motion_sensors]
     csv = ctx.dataset / "motion.csv"
     if csv.exists():  # a clean file is typed in one read (read_motion_csv), else line by line
-        res = read_motion_csv(csv, ids, epoch=run_time_origin(ctx), rules=site_rules(site, cfg), held=site.level_sensors,
-                              split=ctx.typed_reads.pop("motion", None))
+        res = read_motion_csv(
+            csv,
+            ids,
+            epoch=run_time_origin(ctx),
+            rules=site_rules(site, cfg),
+            held=site.level_sensors,
+            split=ctx.typed_reads.pop("motion", None),
+        )
     else:
         raw, path = ctx.source("motion", TOGGLE_COLUMNS)
-        res = read_motion(raw, ids, epoch=run_time_origin(ctx), path=path, rules=site_rules(site, cfg), held=site.level_sensors)
+        res = read_motion(
+            raw, ids, epoch=run_time_origin(ctx), path=path, rules=site_rules(site, cfg), held=site.level_sensors
+        )
     ctx.add_rejects(res.rejects)
     ctx.report += [
         ("motion", "edges", float(res.motion.height), "edges"),
@@ -430,11 +509,19 @@ def _proximity_work(ctx: RunContext) -> dict[str, pl.DataFrame]:
     ids = [p.id for p in ctx.site.proximity_sensors]
     csv = ctx.dataset / "proximity.csv"
     if csv.exists():  # a clean file is typed in one read (read_proximity_csv), else line by line
-        res = read_proximity_csv(csv, ids, epoch=run_time_origin(ctx), rules=cfg.rules, held=ctx.site.level_sensors,
-                                 split=ctx.typed_reads.pop("proximity", None))
+        res = read_proximity_csv(
+            csv,
+            ids,
+            epoch=run_time_origin(ctx),
+            rules=cfg.rules,
+            held=ctx.site.level_sensors,
+            split=ctx.typed_reads.pop("proximity", None),
+        )
     else:
         raw, path = ctx.source("proximity", TOGGLE_COLUMNS)
-        res = read_proximity(raw, ids, epoch=run_time_origin(ctx), path=path, rules=cfg.rules, held=ctx.site.level_sensors)
+        res = read_proximity(
+            raw, ids, epoch=run_time_origin(ctx), path=path, rules=cfg.rules, held=ctx.site.level_sensors
+        )
     ctx.add_rejects(res.rejects)
     frames = proximity_frames(
         res.motion, ids, period=cfg.period, start=None if cfg.start < 0 else cfg.start, instants=cfg.instants or None
@@ -536,7 +623,9 @@ def tracker_stage(entry: TrackerEntry) -> Stage:
         out = {k[len(name) + 1 :]: v for k, v in made.items() if k.startswith(f"{name}_")}
         if ARTIFACTS in made:
             out[ARTIFACTS] = made[ARTIFACTS]
-        entry.viz(rec, name, out, site=ctx.site, region_graph=ctx.region_graph, config=ctx.configs[name], tables=ctx.tables)
+        entry.viz(
+            rec, name, out, site=ctx.site, region_graph=ctx.region_graph, config=ctx.configs[name], tables=ctx.tables
+        )
 
     return Stage(name, (), (f"{name}_tracks", f"{name}_*"), available, work, viz, config=spec.config)
 
@@ -568,7 +657,8 @@ def scores_stage(trackers: tuple[TrackerEntry, ...] = TRACKERS, metrics: tuple[M
         ctx.record("scores", cfg)
         tables = dict(ctx.tables)
         tables["timings"] = pl.DataFrame(
-            {"stage": list(ctx.seconds), "seconds": list(ctx.seconds.values())}, schema={"stage": pl.String, "seconds": pl.Float64}
+            {"stage": list(ctx.seconds), "seconds": list(ctx.seconds.values())},
+            schema={"stage": pl.String, "seconds": pl.Float64},
         )
         rows, out = score_crossings(tables, cfg)
         ctx.report += rows
@@ -610,10 +700,20 @@ def scores_stage(trackers: tuple[TrackerEntry, ...] = TRACKERS, metrics: tuple[M
             sc = made.get(f"{entry.name}_scores")
             if sc is not None:
                 tracks = ctx.tables.get(f"{entry.name}_tracks")
-                ids = tracks["track"].drop_nulls().unique().to_list() if tracks is not None and "track" in tracks.columns else None
+                ids = (
+                    tracks["track"].drop_nulls().unique().to_list()
+                    if tracks is not None and "track" in tracks.columns
+                    else None
+                )
                 log_scores(rec, entry.name, sc, track_ids=ids)
 
-    makes = ("crossing_matches", "corrected_targets", "correct_recovered", "timings", *(f"{e.name}_*" for e in trackers))
+    makes = (
+        "crossing_matches",
+        "corrected_targets",
+        "correct_recovered",
+        "timings",
+        *(f"{e.name}_*" for e in trackers),
+    )
     return Stage("scores", (), makes, lambda ctx: None, work, viz, config=ScoresConfig)
 
 
@@ -623,16 +723,51 @@ def scores_stage(trackers: tuple[TrackerEntry, ...] = TRACKERS, metrics: tuple[M
 def stages(trackers: tuple[TrackerEntry, ...] = TRACKERS) -> list[Stage]:
     """The declared pipeline, in order (module docstring)."""
     return [
-        Stage("crossings", (), ("crossings", "aborted", "beam_events"), _crossings_available, _crossings_work, _crossings_viz),
+        Stage(
+            "crossings",
+            (),
+            ("crossings", "aborted", "beam_events"),
+            _crossings_available,
+            _crossings_work,
+            _crossings_viz,
+        ),
         Stage("truth", (), ("truth", "true_crossings", "sim_crossings"), _truth_available, _truth_work, _truth_viz),
         Stage("truth_events", (), ("truth_events",), _truth_events_available, _truth_events_work),
         Stage("camera", (), ("camera_truth", "camera_detections"), _camera_available, _camera_work, _camera_viz),
-        Stage("frames", (), ("levels", "motion", "proximity", "proximity_frames"), _frames_available, _frames_work, _frames_viz),
-        Stage("motion", (), ("motion", "motion_suppressed"), _motion_available, _motion_work, _motion_viz, config=MotionConfig),
-        Stage("proximity", (), ("proximity", "proximity_frames", "proximity_suppressed"), _proximity_available, _proximity_work,
-              config=ProximityConfig),  # fmt: skip
-        Stage("correct", ("crossings",), ("corrected_crossings", "correct_insertions", "correct_initial"), _correct_available,
-              _correct_work, _correct_viz, config=CorrectConfig),  # fmt: skip
+        Stage(
+            "frames",
+            (),
+            ("levels", "motion", "proximity", "proximity_frames"),
+            _frames_available,
+            _frames_work,
+            _frames_viz,
+        ),
+        Stage(
+            "motion",
+            (),
+            ("motion", "motion_suppressed"),
+            _motion_available,
+            _motion_work,
+            _motion_viz,
+            config=MotionConfig,
+        ),
+        Stage(
+            "proximity",
+            (),
+            ("proximity", "proximity_frames", "proximity_suppressed"),
+            _proximity_available,
+            _proximity_work,
+            config=ProximityConfig,
+        ),
+        Stage(
+            "correct",
+            ("crossings",),
+            ("corrected_crossings", "correct_insertions", "correct_initial"),
+            _correct_available,
+            _correct_work,
+            _correct_viz,
+            config=CorrectConfig,
+        ),
         *(tracker_stage(e) for e in trackers),
         scores_stage(trackers),
     ]

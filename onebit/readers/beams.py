@@ -37,6 +37,7 @@ from onebit.readers.rows import (
     FileLines,
     RawRows,
     TypedRows,
+    TypedSplit,
     by_time,
     check_split,
     clean_time,
@@ -48,7 +49,6 @@ from onebit.readers.rows import (
     raw_lines,
     read_clean_csv,
     read_csv_rows,
-    TypedSplit,
     read_typed_csv,
     type_rows,
 )
@@ -73,7 +73,10 @@ def _beam_parsers(beam_ids: tuple[str, ...], epoch, frame: pl.DataFrame) -> dict
         "beam": parse_name("beam", beam_ids, "beam"),
         "pair": parse_choice("pair", {"a": "a", "b": "b", "A": "a", "B": "b"}, pl.String),
         "blocked": parse_choice(
-            "blocked", {"1": True, "0": False, "true": True, "false": False, "on": True, "off": False}, pl.Boolean, case_insensitive=True
+            "blocked",
+            {"1": True, "0": False, "true": True, "false": False, "on": True, "off": False},
+            pl.Boolean,
+            case_insensitive=True,
         ),
     }
 
@@ -85,13 +88,20 @@ def read_beam_events(raw: RawRows, beam_ids: tuple[str, ...], *, epoch: str | No
 
 def beam_dtypes(beam_ids: tuple[str, ...]) -> dict[str, pl.DataType]:
     """The typed read of ``beams.csv``: numeric ``t``, known beams, pairs ``a``/``b``, ``blocked`` ``0``/``1``."""
-    return {"t": pl.Float64, "beam": pl.Enum(list(dict.fromkeys(beam_ids))), "pair": pl.Enum(["a", "b"]), "blocked": pl.Enum(["0", "1"])}
+    return {
+        "t": pl.Float64,
+        "beam": pl.Enum(list(dict.fromkeys(beam_ids))),
+        "pair": pl.Enum(["a", "b"]),
+        "blocked": pl.Enum(["0", "1"]),
+    }
 
 
 _beam_dtypes = beam_dtypes  # the earlier private name
 
 
-def typed_beam_events(path: Path, beam_ids: tuple[str, ...], *, epoch=None, split: TypedSplit | None = None) -> TypedRows | None:
+def typed_beam_events(
+    path: Path, beam_ids: tuple[str, ...], *, epoch=None, split: TypedSplit | None = None
+) -> TypedRows | None:
     """:func:`read_beam_events` of ``beams.csv`` by one typed read (:func:`~onebit.readers.rows.read_typed_csv`),
     the lines it cannot take typed row by row; ``None`` when the header is not a plain first
     line (the row-by-row path reads the file). Beam and pair stay enums (the decoder's codes).
@@ -101,8 +111,15 @@ def typed_beam_events(path: Path, beam_ids: tuple[str, ...], *, epoch=None, spli
     if split is None:
         return None
     good = split.good.with_columns(pl.col("blocked").to_physical() == 1)
-    return check_split(split, good, lambda origin, frame: _beam_parsers(beam_ids, origin, frame),
-                       epoch=epoch, key=BEAM_COLUMNS, tolerance=0.0, path=path)  # fmt: skip
+    return check_split(
+        split,
+        good,
+        lambda origin, frame: _beam_parsers(beam_ids, origin, frame),
+        epoch=epoch,
+        key=BEAM_COLUMNS,
+        tolerance=0.0,
+        path=path,
+    )
 
 
 def decode_passes(events: pl.DataFrame, source: str = "beams.csv", *, compiled: bool | None = None) -> BeamDecode:
@@ -132,16 +149,24 @@ def decode_passes(events: pl.DataFrame, source: str = "beams.csv", *, compiled: 
         pair = (ev["pair"] == "b").to_numpy().astype(np.int8)
     # ``compiled=None``: numba's load only when a kernel paid it already, else the numpy version
     passes = kernels.beam_passes if compiled or numba_loaded() else kernels.beam_passes_vectorised
-    reject, pass_first, close, first_pair, last = passes(code, pair, ev["blocked"].to_numpy().astype(np.bool_), len(names))
+    reject, pass_first, close, first_pair, last = passes(
+        code, pair, ev["blocked"].to_numpy().astype(np.bool_), len(names)
+    )
     t = ev["t"].to_numpy()
     pairs = pl.Series(["a", "b"], dtype=pl.String)
     bad = np.flatnonzero(reject)
     if bad.size:  # reasons for the rejected edges only
-        rej = ev[bad].rechunk().with_columns(
-            pl.when(pl.Series(reject[bad]) == kernels.ALREADY_BLOCKED)
-            .then(pl.format("pair {} of beam {} already blocked (no state change)", pl.col("pair"), pl.col("beam")))
-            .otherwise(pl.format("pair {} of beam {} already clear (no state change)", pl.col("pair"), pl.col("beam")))
-            .alias("_reason")
+        rej = (
+            ev[bad]
+            .rechunk()
+            .with_columns(
+                pl.when(pl.Series(reject[bad]) == kernels.ALREADY_BLOCKED)
+                .then(pl.format("pair {} of beam {} already blocked (no state change)", pl.col("pair"), pl.col("beam")))
+                .otherwise(
+                    pl.format("pair {} of beam {} already clear (no state change)", pl.col("pair"), pl.col("beam"))
+                )
+                .alias("_reason")
+            )
         )
         rejects = make_rejects(rej.sort("line"), source, None)
         keep = np.flatnonzero(reject == 0)
@@ -153,14 +178,24 @@ def decode_passes(events: pl.DataFrame, source: str = "beams.csv", *, compiled: 
         code_ok = ev["beam"].to_physical() if isinstance(ev.schema["beam"], pl.Enum) else code  # no copy of the codes
         pair_ok = ev["pair"].to_physical() if ev.schema["pair"] == pl.Enum(["a", "b"]) else pair
     events_out = pl.DataFrame(
-        {"t": events_out["t"], "beam": names.gather(code_ok), "pair": pairs.gather(pair_ok), "blocked": events_out["blocked"]}, schema=BEAM_EVENTS
+        {
+            "t": events_out["t"],
+            "beam": names.gather(code_ok),
+            "pair": pairs.gather(pair_ok),
+            "blocked": events_out["blocked"],
+        },
+        schema=BEAM_EVENTS,
     )
     # closed passes at their closing edge (time order); a crossing leaves by the other pair
     ends = np.flatnonzero(close)
     opener, leaver = first_pair[ends], pair[ends]
     cross = ends[opener != leaver]
     crossings = pl.DataFrame(
-        {"t": t[cross], "beam": names.gather(code[cross]), "direction": np.where(opener[opener != leaver] == 0, 1, -1).astype(np.int8)},
+        {
+            "t": t[cross],
+            "beam": names.gather(code[cross]),
+            "direction": np.where(opener[opener != leaver] == 0, 1, -1).astype(np.int8),
+        },
         schema=CROSSINGS,
     )
     tc = t[cross]
@@ -170,7 +205,8 @@ def decode_passes(events: pl.DataFrame, source: str = "beams.csv", *, compiled: 
     ab = ends[opener == leaver]
     ab = ab[np.argsort(pass_first[ab], kind="stable")]
     aborted = pl.DataFrame(
-        {"t": t[ab], "beam": names.gather(code[ab]), "side": np.where(first_pair[ab] == 0, -1, 1).astype(np.int8)}, schema=ABORTED
+        {"t": t[ab], "beam": names.gather(code[ab]), "side": np.where(first_pair[ab] == 0, -1, 1).astype(np.int8)},
+        schema=ABORTED,
     ).sort("t")
     # a pass still open at the end holds its beam's last edge, which does not close it
     op = last[(last >= 0)]
@@ -221,7 +257,10 @@ def decode_passes_reference(events: pl.DataFrame, source: str = "beams.csv") -> 
     while bad.height:
         ev = ev.filter(pl.col("_reason").is_null())
         ev = ev.with_columns(
-            pl.when(pl.col("blocked") == prev).then(pl.lit("no state change after a rejected edge")).otherwise(None).alias("_reason")
+            pl.when(pl.col("blocked") == prev)
+            .then(pl.lit("no state change after a rejected edge"))
+            .otherwise(None)
+            .alias("_reason")
         )
         more = ev.filter(pl.col("_reason").is_not_null())
         if more.height == 0:
@@ -230,8 +269,22 @@ def decode_passes_reference(events: pl.DataFrame, source: str = "beams.csv") -> 
     rejects = make_rejects(bad.sort("line"), source, None)
     ev = ev.drop("_reason")
 
-    state_a = pl.when(pl.col("pair") == "a").then(pl.col("blocked")).otherwise(None).forward_fill().over("beam").fill_null(False)
-    state_b = pl.when(pl.col("pair") == "b").then(pl.col("blocked")).otherwise(None).forward_fill().over("beam").fill_null(False)
+    state_a = (
+        pl.when(pl.col("pair") == "a")
+        .then(pl.col("blocked"))
+        .otherwise(None)
+        .forward_fill()
+        .over("beam")
+        .fill_null(False)
+    )
+    state_b = (
+        pl.when(pl.col("pair") == "b")
+        .then(pl.col("blocked"))
+        .otherwise(None)
+        .forward_fill()
+        .over("beam")
+        .fill_null(False)
+    )
     ev = ev.with_columns(idle=~state_a & ~state_b)
     ev = ev.with_columns(passno=pl.col("idle").cast(pl.Int64).cum_sum().shift(1).fill_null(0).over("beam"))
     passes = ev.group_by(["beam", "passno"], maintain_order=True).agg(
@@ -243,7 +296,9 @@ def decode_passes_reference(events: pl.DataFrame, source: str = "beams.csv") -> 
     return _decoded(ev, passes, rejects)
 
 
-def decode_beam_log(path: str | Path, beam_ids: tuple[str, ...], *, epoch: str | None = None, split: TypedSplit | None = None) -> BeamDecode:
+def decode_beam_log(
+    path: str | Path, beam_ids: tuple[str, ...], *, epoch: str | None = None, split: TypedSplit | None = None
+) -> BeamDecode:
     """Read ``beams.csv`` and decode it: the whole raw-beam reader.
 
     The file is typed by one ``pl.read_csv`` (:func:`typed_beam_events`); only the lines it
@@ -263,7 +318,13 @@ def clean_beam_events(path: Path, beam_ids: tuple[str, ...], *, epoch=None) -> t
     ``(events, rejects)``; ``None`` when a row would be rejected by its fields (the row-by-row
     path names it). Duplicates and rows going backwards are found as for any file."""
     frame = read_clean_csv(
-        path, {"t": pl.Float64, "beam": pl.Enum(list(dict.fromkeys(beam_ids))), "pair": pl.Enum(["a", "b"]), "blocked": pl.Enum(["0", "1"])}
+        path,
+        {
+            "t": pl.Float64,
+            "beam": pl.Enum(list(dict.fromkeys(beam_ids))),
+            "pair": pl.Enum(["a", "b"]),
+            "blocked": pl.Enum(["0", "1"]),
+        },
     )
     if frame is None:
         return None
@@ -282,7 +343,9 @@ def decode_raw_beams(raw: RawRows, beam_ids, *, epoch=None, path: Path | None = 
     return _decode_events(events, rejects, raw.source, path)
 
 
-def _decode_events(events: pl.DataFrame, rejects: pl.DataFrame, source: str, path: Path | None, file: FileLines | None = None) -> BeamDecode:
+def _decode_events(
+    events: pl.DataFrame, rejects: pl.DataFrame, source: str, path: Path | None, file: FileLines | None = None
+) -> BeamDecode:
     out = decode_passes(events, source)
     if out.rejects.height:
         fixed = out.rejects.join(events.select("line"), on="line", how="left")

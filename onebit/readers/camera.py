@@ -42,10 +42,10 @@ from pathlib import Path
 import numpy as np
 import polars as pl
 
-from onebit.core.site import Camera, Site
 from onebit.core.errors import InputError
-from onebit.core.tables import REJECTS, TRUTH, conform, rejects_frame
 from onebit.core.lazy import lazy_module
+from onebit.core.site import Camera, Site
+from onebit.core.tables import REJECTS, TRUTH, conform, rejects_frame
 
 cv2 = lazy_module("cv2")
 _distance = lazy_module("scipy.spatial.distance")
@@ -139,9 +139,7 @@ def read_camera(
     gate = GATE_FRACTION * site.diagonal if gate is None else float(gate)
     max_gap = max(1, round(camera.fps)) if max_gap is None else int(max_gap)
     track = link_tracks(frame, xy, gate=gate, max_gap=max_gap)
-    detections = pl.DataFrame(
-        {"frame": frame, "t": t, "x": xy[:, 0], "y": xy[:, 1], "area": area}, schema=DETECTIONS
-    )
+    detections = pl.DataFrame({"frame": frame, "t": t, "x": xy[:, 0], "y": xy[:, 1], "area": area}, schema=DETECTIONS)
     truth = conform(
         detections.with_columns(pl.Series("track", track, pl.Int64))
         .sort("t", "track")
@@ -205,7 +203,9 @@ class _Decode:
         shape = None
         try:
             if not cap.isOpened():
-                raise InputError("not a readable video: OpenCV/FFmpeg cannot open it (corrupt, truncated or not a video)", file=path)
+                raise InputError(
+                    "not a readable video: OpenCV/FFmpeg cannot open it (corrupt, truncated or not a video)", file=path
+                )
             self.declared = int(cap.get(cv2.CAP_PROP_FRAME_COUNT) or 0)
             while limit is None or self.count < limit:
                 try:
@@ -269,7 +269,10 @@ def _first_pass(path: Path, camera: Camera):
 
 def _blobs_pass(path: Path, camera: Camera, n: int, gains: np.ndarray, background: np.ndarray, tau: float):
     """Second decode: :func:`find_blobs` frame by frame over the first ``n`` frames."""
-    found = [_blobs_of(foreground_mask(img, float(g), background, tau)) for img, g in zip(_Decode(path, camera).frames(limit=n), gains)]
+    found = [
+        _blobs_of(foreground_mask(img, float(g), background, tau))
+        for img, g in zip(_Decode(path, camera).frames(limit=n), gains)
+    ]
     return _collect_blobs(found)
 
 
@@ -338,8 +341,12 @@ def _threshold(samples: np.ndarray, gains: np.ndarray, background: np.ndarray) -
 
 # --------------------------------------------------------------------------- blobs
 
-_OPEN = np.array([[0, 1, 0], [1, 1, 1], [0, 1, 0]], dtype=np.uint8)  # cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (3, 3))
-_CLOSE = np.array([[0, 0, 1, 0, 0], [1, 1, 1, 1, 1], [1, 1, 1, 1, 1], [1, 1, 1, 1, 1], [0, 0, 1, 0, 0]], dtype=np.uint8)  # cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (5, 5))
+_OPEN = np.array(
+    [[0, 1, 0], [1, 1, 1], [0, 1, 0]], dtype=np.uint8
+)  # cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (3, 3))
+_CLOSE = np.array(
+    [[0, 0, 1, 0, 0], [1, 1, 1, 1, 1], [1, 1, 1, 1, 1], [1, 1, 1, 1, 1], [0, 0, 1, 0, 0]], dtype=np.uint8
+)  # cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (5, 5))
 
 
 def foreground_mask(frame: np.ndarray, gain: float, background: np.ndarray, tau: float) -> np.ndarray:

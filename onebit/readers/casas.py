@@ -80,7 +80,14 @@ from onebit.core.errors import InputError
 from onebit.core.tables import REJECTS
 from onebit.readers.motion import TOGGLE_VALUES
 from onebit.readers.rows import (
-    REORDER_TOLERANCE_S, RawRows, check_rows, csv_header, parse_name, parse_time, physical_lines, rows_of_lines,
+    REORDER_TOLERANCE_S,
+    RawRows,
+    check_rows,
+    csv_header,
+    parse_name,
+    parse_time,
+    physical_lines,
+    rows_of_lines,
 )
 from onebit.readers.timebase import TimeOrigin, time_origin
 
@@ -103,12 +110,14 @@ VALUED_TOGGLES = ("motion", "contact", "door", "item")
 #: Kinds written to ``motion.csv`` by the importer: the nodes of the sensor graph.
 TOGGLE_KINDS = ("motion", "contact", "door")
 #: Toggle spellings by family, for the kind of a named sensor.
-_FAMILIES = {"motion": ("on", "off", "1", "0", "true", "false"), "contact": ("open", "close", "closed"), "item": ("present", "absent")}
+_FAMILIES = {
+    "motion": ("on", "off", "1", "0", "true", "false"),
+    "contact": ("open", "close", "closed"),
+    "item": ("present", "absent"),
+}
 
 #: The date and time, in one field or two, and the rest of the line.
-DATETIME_RE = (
-    r"^\s*(\d{4}-\d{1,2}-\d{1,2})(?:[ \t]+|[Tt_])(\d{1,2}:\d{2}(?::\d{2}(?:\.\d+)?)?)((?:[Zz]|[+-]\d{2}:?\d{2})?)(?:[ \t]+(.*?))?\s*$"
-)
+DATETIME_RE = r"^\s*(\d{4}-\d{1,2}-\d{1,2})(?:[ \t]+|[Tt_])(\d{1,2}:\d{2}(?::\d{2}(?:\.\d+)?)?)((?:[Zz]|[+-]\d{2}:?\d{2})?)(?:[ \t]+(.*?))?\s*$"
 _NUMBER_RE = r"^[+-]?(\d+(\.\d*)?|\.\d+)([eE][+-]?\d+)?$"
 _PAIRS_RE = r"^((?:\d+\s+)*\d+)(?:\s+(.*))?$"
 _LABEL_RE = r'^(.*?)(?:[ _=]+"?(?i:(begin|end))"?)$'
@@ -133,7 +142,17 @@ EVENTS = pl.Schema(
 )
 
 #: Schema of :func:`repair_lost_offs`' ``repairs`` table.
-REPAIRS = pl.Schema({"sensor": pl.String, "t_on": pl.Float64, "t_off": pl.Float64, "t_next_on": pl.Float64, "hold_s": pl.Float64, "hold_from": pl.String, "line": pl.Int64})
+REPAIRS = pl.Schema(
+    {
+        "sensor": pl.String,
+        "t_on": pl.Float64,
+        "t_off": pl.Float64,
+        "t_next_on": pl.Float64,
+        "hold_s": pl.Float64,
+        "hold_from": pl.String,
+        "line": pl.Int64,
+    }
+)
 
 
 @dataclass(frozen=True)
@@ -191,7 +210,9 @@ def split_lines(lines: pl.DataFrame) -> pl.DataFrame:
     ``datetime_ok`` (the line starts with a date and time)."""
     g = pl.col("text").str.extract_groups(DATETIME_RE)
     tokens = pl.col("text").str.strip_chars().str.replace_all(r"[ \t]+", " ")
-    out = lines.with_columns(g.alias("_g"), tokens.str.split(" ").list.len().cast(pl.Int64).alias("n_fields")).with_columns(
+    out = lines.with_columns(
+        g.alias("_g"), tokens.str.split(" ").list.len().cast(pl.Int64).alias("n_fields")
+    ).with_columns(
         date=pl.col("_g").struct.field("1"),
         time=pl.col("_g").struct.field("2"),
         zone=pl.col("_g").struct.field("3"),
@@ -218,7 +239,11 @@ def _annotation_fields(frame: pl.DataFrame) -> pl.DataFrame:
     pairs = ann.str.extract_groups(_PAIRS_RE)
     out = frame.with_columns(_p=pairs).with_columns(
         _nums=pl.col("_p").struct.field("1").str.split(" "),
-        _label=pl.when(pl.col("_p").struct.field("1").is_null()).then(ann).otherwise(pl.col("_p").struct.field("2")).str.strip_chars().replace("", None),
+        _label=pl.when(pl.col("_p").struct.field("1").is_null())
+        .then(ann)
+        .otherwise(pl.col("_p").struct.field("2"))
+        .str.strip_chars()
+        .replace("", None),
     )
     n = pl.col("_nums").list.len()
     odd = pl.col("_nums").is_not_null() & (n % 2 == 1)
@@ -229,14 +254,20 @@ def _annotation_fields(frame: pl.DataFrame) -> pl.DataFrame:
         residents=pl.when(~odd).then(res),
         tasks=pl.when(~odd).then(tasks),
         _note_reason=pl.when(odd).then(
-            pl.format("annotation '{}': {} number(s), not resident/task pairs; the event is kept without residents", ann, n)
+            pl.format(
+                "annotation '{}': {} number(s), not resident/task pairs; the event is kept without residents", ann, n
+            )
         ),
         activity=pl.coalesce(lab.struct.field("1").str.strip_chars().replace("", None), pl.col("_label")),
         activity_edge=lab.struct.field("2").str.to_lowercase(),
     )
     if "residents_in" in out.columns:
-        given = pl.col("residents_in").str.strip_chars().str.split(";").list.eval(pl.element().str.strip_chars()).list.filter(
-            pl.element() != ""
+        given = (
+            pl.col("residents_in")
+            .str.strip_chars()
+            .str.split(";")
+            .list.eval(pl.element().str.strip_chars())
+            .list.filter(pl.element() != "")
         )
         joined = given.list.unique().list.sort().list.join(";").replace("", None)
         out = out.with_columns(residents=pl.coalesce(joined, "residents"))
@@ -256,7 +287,11 @@ def _named_kinds(frame: pl.DataFrame) -> pl.DataFrame:
         expr = expr.when(v.is_in(list(spellings))).then(pl.lit(kind))
     fam = expr.otherwise(pl.lit(OTHER))
     counts = named.group_by("sensor", fam.alias("_named")).len()
-    best = counts.sort(["sensor", "len", "_named"], descending=[False, True, False]).group_by("sensor", maintain_order=True).first()
+    best = (
+        counts.sort(["sensor", "len", "_named"], descending=[False, True, False])
+        .group_by("sensor", maintain_order=True)
+        .first()
+    )
     return best.select("sensor", "_named")
 
 
@@ -280,7 +315,9 @@ def _type_events(
     named = _named_kinds(frame)
     frame = frame.join(named, on="sensor", how="left").with_columns(kind=pl.coalesce("kind", "_named")).drop("_named")
     if kinds:
-        k = pl.DataFrame({"sensor": list(kinds), "_layout": list(kinds.values())}, schema={"sensor": pl.String, "_layout": pl.String})
+        k = pl.DataFrame(
+            {"sensor": list(kinds), "_layout": list(kinds.values())}, schema={"sensor": pl.String, "_layout": pl.String}
+        )
         frame = frame.join(k, on="sensor", how="left").with_columns(kind=pl.coalesce("_layout", "kind")).drop("_layout")
     frame = _annotation_fields(frame.with_columns(pl.col("kind").fill_null(OTHER)))
     if isinstance(epoch, TimeOrigin):
@@ -291,8 +328,18 @@ def _type_events(
     key = pl.col("value").str.strip_chars().str.to_lowercase()
     on = key.replace_strict(list(TOGGLE_VALUES), list(TOGGLE_VALUES.values()), default=None, return_dtype=pl.Boolean)
     toggle = pl.col("kind").is_in(list(VALUED_TOGGLES))
-    value_reason = pl.when(pl.col("value").is_null()).then(pl.lit("field 'value': missing")).when(toggle & on.is_null()).then(
-        pl.format("field 'value': '{}' is not a {} value (one of {})", pl.col("value"), pl.col("kind"), pl.lit("|".join(TOGGLE_VALUES)))
+    value_reason = (
+        pl.when(pl.col("value").is_null())
+        .then(pl.lit("field 'value': missing"))
+        .when(toggle & on.is_null())
+        .then(
+            pl.format(
+                "field 'value': '{}' is not a {} value (one of {})",
+                pl.col("value"),
+                pl.col("kind"),
+                pl.lit("|".join(TOGGLE_VALUES)),
+            )
+        )
     )
     parsers = {
         "t": (t_expr, pl.coalesce(pl.col("_shape"), t_reason)),
@@ -301,10 +348,38 @@ def _type_events(
         "kind": (pl.col("kind"), pl.lit(None, pl.String)),
         "value": (pl.col("value"), value_reason.otherwise(None)),
         "on": (pl.when(toggle).then(on), pl.lit(None, pl.String)),
-        **{c: (pl.col(c), pl.lit(None, pl.String)) for c in ("annotation", "residents", "tasks", "activity", "activity_edge", "location", "_note_reason", "raw")},
+        **{
+            c: (pl.col(c), pl.lit(None, pl.String))
+            for c in (
+                "annotation",
+                "residents",
+                "tasks",
+                "activity",
+                "activity_edge",
+                "location",
+                "_note_reason",
+                "raw",
+            )
+        },
     }
-    keep = ["line", "t", "date", "time", "sensor", "kind", "value", "annotation", "residents", "tasks", "activity", "activity_edge",
-            "location", "_note_reason", "_shape", "raw"]  # fmt: skip
+    keep = [
+        "line",
+        "t",
+        "date",
+        "time",
+        "sensor",
+        "kind",
+        "value",
+        "annotation",
+        "residents",
+        "tasks",
+        "activity",
+        "activity_edge",
+        "location",
+        "_note_reason",
+        "_shape",
+        "raw",
+    ]
     raw = RawRows(source, frame.select(keep), pl.DataFrame(schema=REJECTS))
     typed = check_rows(raw, parsers, key=("t", "sensor", "value", "annotation"), path=None, tolerance=tolerance)
     acc = typed.accepted
@@ -341,7 +416,9 @@ def read_casas(
         .when(pl.col("sensor").is_null() | pl.col("value").is_null())
         .then(pl.lit("too few fields: a sensor and its value must follow the date and time"))
     )
-    return _type_events(frame, path.name, epoch=epoch, tolerance=tolerance, kinds=kinds, shape=shape, n_lines=lines.height)
+    return _type_events(
+        frame, path.name, epoch=epoch, tolerance=tolerance, kinds=kinds, shape=shape, n_lines=lines.height
+    )
 
 
 #: Header names of a pymrt ``events.csv`` column (lower case), by the column they fill.
@@ -387,27 +464,57 @@ def read_casas_csv(
                 rename[hit] = col
         for need in ("time", "sensor", "message"):
             if need not in rename.values():
-                raise InputError(f"no '{need}' column; the header has {header} (expected names: {list(CSV_COLUMNS[need])})",
-                                 file=path, line=header_line)  # fmt: skip
+                raise InputError(
+                    f"no '{need}' column; the header has {header} (expected names: {list(CSV_COLUMNS[need])})",
+                    file=path,
+                    line=header_line,
+                )
         header = [rename.get(h, f"_unused{i}") for i, h in enumerate(header)]
         columns = tuple(c for c in CSV_COLUMNS if c in header)
-    rows = rows_of_lines(body, header, columns, source) if body.height else RawRows(source, pl.DataFrame(schema={c: pl.String for c in ("line", *columns, "raw")}), pl.DataFrame(schema=REJECTS))
+    rows = (
+        rows_of_lines(body, header, columns, source)
+        if body.height
+        else RawRows(
+            source, pl.DataFrame(schema={c: pl.String for c in ("line", *columns, "raw")}), pl.DataFrame(schema=REJECTS)
+        )
+    )
     f = rows.frame.with_columns(pl.col("line").cast(pl.Int64))
-    dt = pl.col("time").str.strip_chars().str.extract_groups(r"^(\d{4}-\d{1,2}-\d{1,2})[ Tt_](\d{1,2}:\d{2}(?::\d{2}(?:\.\d+)?)?)((?:[Zz]|[+-]\d{2}:?\d{2})?)$")
-    frame = f.with_columns(_g=dt).with_columns(
-        date=pl.col("_g").struct.field("1"),
-        time=pl.col("_g").struct.field("2"),
-        zone=pl.col("_g").struct.field("3"),
-        sensor=pl.col("sensor").str.strip_chars().replace("", None),
-        location=pl.lit(None, pl.String),
-        value=pl.col("message").str.strip_chars().replace("", None),
-        annotation=(pl.col("activity").str.strip_chars().replace("", None) if "activity" in columns else pl.lit(None, pl.String)),
-        residents_in=(pl.col("residents") if "residents" in columns else pl.lit(None, pl.String)),
-        _time_text=pl.col("time"),
-    ).drop("_g")
-    shape = pl.when(pl.col("date").is_null()).then(
-        pl.format("field 'time': not a date and time YYYY-MM-DD HH:MM:SS[.ffffff][+HH:MM]: '{}'", pl.col("_time_text"))
-    ).when(pl.col("sensor").is_null()).then(pl.lit("field 'sensor': missing"))
+    dt = (
+        pl.col("time")
+        .str.strip_chars()
+        .str.extract_groups(
+            r"^(\d{4}-\d{1,2}-\d{1,2})[ Tt_](\d{1,2}:\d{2}(?::\d{2}(?:\.\d+)?)?)((?:[Zz]|[+-]\d{2}:?\d{2})?)$"
+        )
+    )
+    frame = (
+        f.with_columns(_g=dt)
+        .with_columns(
+            date=pl.col("_g").struct.field("1"),
+            time=pl.col("_g").struct.field("2"),
+            zone=pl.col("_g").struct.field("3"),
+            sensor=pl.col("sensor").str.strip_chars().replace("", None),
+            location=pl.lit(None, pl.String),
+            value=pl.col("message").str.strip_chars().replace("", None),
+            annotation=(
+                pl.col("activity").str.strip_chars().replace("", None)
+                if "activity" in columns
+                else pl.lit(None, pl.String)
+            ),
+            residents_in=(pl.col("residents") if "residents" in columns else pl.lit(None, pl.String)),
+            _time_text=pl.col("time"),
+        )
+        .drop("_g")
+    )
+    shape = (
+        pl.when(pl.col("date").is_null())
+        .then(
+            pl.format(
+                "field 'time': not a date and time YYYY-MM-DD HH:MM:SS[.ffffff][+HH:MM]: '{}'", pl.col("_time_text")
+            )
+        )
+        .when(pl.col("sensor").is_null())
+        .then(pl.lit("field 'sensor': missing"))
+    )
     log = _type_events(frame, source, epoch=epoch, tolerance=tolerance, kinds=kinds, shape=shape, n_lines=body.height)
     if rows.rejects.height:
         rej = pl.concat([log.rejects, rows.rejects.select(REJECTS.names()).cast(dict(REJECTS))]).sort("line")
@@ -423,13 +530,17 @@ DEFAULT_HOLD_S = 5.0
 MIN_HOLD_SAMPLES = 5
 
 
-def hold_times(events: pl.DataFrame, *, default_hold_s: float = DEFAULT_HOLD_S, min_samples: int = MIN_HOLD_SAMPLES) -> pl.DataFrame:
+def hold_times(
+    events: pl.DataFrame, *, default_hold_s: float = DEFAULT_HOLD_S, min_samples: int = MIN_HOLD_SAMPLES
+) -> pl.DataFrame:
     """``sensor, hold_s, samples, hold_from`` of every sensor of ``events`` (t, sensor, on;
     toggles only): the median on-duration (``ON`` then ``OFF``) of the sensor when it has at
     least ``min_samples``, else ``default_hold_s`` (``hold_from`` says which)."""
     ev = events.filter(pl.col("on").is_not_null()).sort("sensor", "t", maintain_order=True)
     prev_on = pl.col("on").shift(1).over("sensor")
-    dur = ev.with_columns(d=(pl.col("t") - pl.col("t").shift(1).over("sensor"))).filter(~pl.col("on") & (prev_on == True))  # noqa: E712
+    dur = ev.with_columns(d=(pl.col("t") - pl.col("t").shift(1).over("sensor"))).filter(
+        ~pl.col("on") & prev_on.fill_null(False)
+    )
     stats = dur.group_by("sensor").agg(samples=pl.len().cast(pl.Int64), med=pl.col("d").median())
     sensors = ev.select("sensor").unique()
     out = sensors.join(stats, on="sensor", how="left").with_columns(pl.col("samples").fill_null(0))
@@ -459,19 +570,34 @@ def repair_lost_offs(
     if tog.height == 0:
         return events.with_columns(repaired=pl.lit(False)), pl.DataFrame(schema=REPAIRS)
     holds = hold_times(tog, default_hold_s=default_hold_s, min_samples=min_samples)
-    seq = tog.with_row_index("_i").sort("sensor", "t", "_i").join(holds.select("sensor", "hold_s", "hold_from"), on="sensor", how="left")
+    seq = (
+        tog.with_row_index("_i")
+        .sort("sensor", "t", "_i")
+        .join(holds.select("sensor", "hold_s", "hold_from"), on="sensor", how="left")
+    )
     nxt_on = pl.col("on").shift(-1).over("sensor")
     nxt_t = pl.col("t").shift(-1).over("sensor")
     lost = seq.with_columns(_nt=nxt_t, _non=nxt_on).filter(
         pl.col("on") & (pl.col("_non") == True) & (pl.col("_nt") - pl.col("t") > pl.col("hold_s"))  # noqa: E712
     )
     repairs = lost.select(
-        "sensor", pl.col("t").alias("t_on"), (pl.col("t") + pl.col("hold_s")).alias("t_off"), pl.col("_nt").alias("t_next_on"),
-        "hold_s", "hold_from", pl.col("line").cast(pl.Int64) if "line" in lost.columns else pl.lit(None, pl.Int64).alias("line"),
-    ).cast(dict(REPAIRS))  # fmt: skip
+        "sensor",
+        pl.col("t").alias("t_on"),
+        (pl.col("t") + pl.col("hold_s")).alias("t_off"),
+        pl.col("_nt").alias("t_next_on"),
+        "hold_s",
+        "hold_from",
+        pl.col("line").cast(pl.Int64) if "line" in lost.columns else pl.lit(None, pl.Int64).alias("line"),
+    ).cast(dict(REPAIRS))
     if lost.height == 0:
         return events.with_columns(repaired=pl.lit(False)), repairs
-    value = pl.when(pl.col("value").str.to_lowercase().is_in(["open", "close", "closed"])).then(pl.lit("CLOSE")).otherwise(pl.lit("OFF")) if "value" in events.columns else None
+    value = (
+        pl.when(pl.col("value").str.to_lowercase().is_in(["open", "close", "closed"]))
+        .then(pl.lit("CLOSE"))
+        .otherwise(pl.lit("OFF"))
+        if "value" in events.columns
+        else None
+    )
     ins = lost.drop("_i", "_nt", "_non", "hold_s", "hold_from").with_columns(
         t=pl.col("t") + lost["hold_s"], on=pl.lit(False)
     )
@@ -482,6 +608,8 @@ def repair_lost_offs(
     for col in ("annotation", "residents", "tasks", "activity", "activity_edge", "stamp"):
         if col in ins.columns:
             ins = ins.with_columns(pl.lit(None, events.schema[col]).alias(col))
-    out = pl.concat([events.with_columns(_rep=pl.lit(False)), ins.select(events.columns).with_columns(_rep=pl.lit(True))])
+    out = pl.concat(
+        [events.with_columns(_rep=pl.lit(False)), ins.select(events.columns).with_columns(_rep=pl.lit(True))]
+    )
     out = out.with_row_index("_k").sort("t", "_k").drop("_k").rename({"_rep": "repaired"})
     return out, repairs.sort("t_on")

@@ -105,8 +105,12 @@ def read_frames_csv(path: str | Path, sensors: Sequence[str], *, epoch: str | Ti
         columns = tuple(c for c in header if c.strip() != "t")
         unknown = [c for c in columns if c.strip() not in sensors]
         if unknown:
-            raise InputError(f"column {unknown[0]!r} is not a sensor of the site (known: {len(sensors)} sensors)", file=path,
-                             line=line, field=unknown[0])  # fmt: skip
+            raise InputError(
+                f"column {unknown[0]!r} is not a sensor of the site (known: {len(sensors)} sensors)",
+                file=path,
+                line=line,
+                field=unknown[0],
+            )
         raw = read_csv_rows(path, ("t", *columns))
     return read_frame_rows(raw, sensors, layout=layout, epoch=epoch, path=path, columns=columns)
 
@@ -128,13 +132,25 @@ def read_frame_rows(
     t_parser = parse_time("t", epoch, raw.frame)
     if layout == "list":
         frame = raw.frame.with_columns(
-            _ids=pl.col("active").fill_null("").str.strip_chars().str.replace_all(ID_SEPARATORS, " ").str.split(" ").list.eval(
-                pl.element().filter(pl.element() != "")
-            )
+            _ids=pl.col("active")
+            .fill_null("")
+            .str.strip_chars()
+            .str.replace_all(ID_SEPARATORS, " ")
+            .str.split(" ")
+            .list.eval(pl.element().filter(pl.element() != ""))
         )
         unknown = pl.col("_ids").list.eval(pl.element().filter(~pl.element().is_in(list(sensors)))).list.first()
-        reason = pl.when(unknown.is_not_null()).then(pl.format("field 'active': unknown sensor '{}'", unknown)).otherwise(None)
-        typed = check_rows(RawRows(raw.source, frame, raw.rejects), {"t": t_parser, "_ids": (pl.col("_ids"), reason)}, key=("t",), path=path)
+        reason = (
+            pl.when(unknown.is_not_null())
+            .then(pl.format("field 'active': unknown sensor '{}'", unknown))
+            .otherwise(None)
+        )
+        typed = check_rows(
+            RawRows(raw.source, frame, raw.rejects),
+            {"t": t_parser, "_ids": (pl.col("_ids"), reason)},
+            key=("t",),
+            path=path,
+        )
         ok = typed.accepted
         times = ok.select("t").unique(maintain_order=True)
         on = ok.select("t", pl.col("_ids").alias("sensor")).explode("sensor").drop_nulls("sensor").unique()
@@ -151,25 +167,35 @@ def read_frame_rows(
         on = ok.filter("value").select("t", "sensor")
         unlisted = times.height * len(sensors) - ok.height
     else:
-        parsers = {"t": t_parser} | {c: parse_choice(c, TOGGLE_VALUES, pl.Boolean, case_insensitive=True) for c in columns}
+        parsers = {"t": t_parser} | {
+            c: parse_choice(c, TOGGLE_VALUES, pl.Boolean, case_insensitive=True) for c in columns
+        }
         typed = check_rows(raw, parsers, key=("t",), path=path)
         ok = typed.accepted
         times = ok.select("t")
-        on = ok.unpivot(index="t", on=list(columns), variable_name="sensor", value_name="value").filter("value").select(
-            "t", pl.col("sensor").str.strip_chars()
-        ) if columns else pl.DataFrame(schema={"t": pl.Float64, "sensor": pl.String})
+        on = (
+            ok.unpivot(index="t", on=list(columns), variable_name="sensor", value_name="value")
+            .filter("value")
+            .select("t", pl.col("sensor").str.strip_chars())
+            if columns
+            else pl.DataFrame(schema={"t": pl.Float64, "sensor": pl.String})
+        )
         unlisted = times.height * len(set(sensors) - {c.strip() for c in columns})
     levels = levels_table(times["t"], on, sensors)
-    return FrameLog(levels, typed.rejects.select(REJECTS.names()).cast(dict(REJECTS)), layout, times.height, int(unlisted))
+    return FrameLog(
+        levels, typed.rejects.select(REJECTS.names()).cast(dict(REJECTS)), layout, times.height, int(unlisted)
+    )
 
 
 def _name_parser(sensors: tuple[str, ...]) -> tuple[pl.Expr, pl.Expr]:
     s = pl.col("sensor").str.strip_chars()
     reason = (
-        pl.when(pl.col("sensor").is_null() | (s == "")).then(pl.lit("field 'sensor': missing"))
-        .when(~s.is_in(list(sensors))).then(pl.format("field 'sensor': unknown sensor '{}'", s))
+        pl.when(pl.col("sensor").is_null() | (s == ""))
+        .then(pl.lit("field 'sensor': missing"))
+        .when(~s.is_in(list(sensors)))
+        .then(pl.format("field 'sensor': unknown sensor '{}'", s))
         .otherwise(None)
-    )  # fmt: skip
+    )
     return s, reason
 
 

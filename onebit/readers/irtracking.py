@@ -95,7 +95,9 @@ def read_readings_txt(path: str | Path, *, channels: int = CHANNELS, sensors: in
         if not parts:
             continue  # a blank line (the file's end) is no reading
         if len(parts) != channels:
-            rejects.append((path.name, no, f"{len(parts)} fields, expected {channels} (one per channel)", bounded(line)))
+            rejects.append(
+                (path.name, no, f"{len(parts)} fields, expected {channels} (one per channel)", bounded(line))
+            )
             continue
         try:
             rows.append([int(p) for p in parts])
@@ -145,7 +147,12 @@ def read_cvml(path: str | Path, *, pixel_mm: float = PIXEL_MM) -> Cvml:
         if name == "frame":
             num = attrs.get("number")
             if num is None or not re.fullmatch(r"\s*\d+\s*", num):
-                raise InputError(f"<frame> number {bounded(str(num), 40)!r} is not a whole number", file=path, line=line, field="number")
+                raise InputError(
+                    f"<frame> number {bounded(str(num), 40)!r} is not a whole number",
+                    file=path,
+                    line=line,
+                    field="number",
+                )
             n = int(num)
             if n in seen:
                 raise InputError(f"frame {n} appears twice", file=path, line=line, field="number")
@@ -186,7 +193,9 @@ def read_cvml(path: str | Path, *, pixel_mm: float = PIXEL_MM) -> Cvml:
     try:
         parser.Parse(data, True)
     except xml.parsers.expat.ExpatError as exc:
-        raise InputError(f"not well-formed XML: {xml.parsers.expat.ErrorString(exc.code)}", file=path, line=exc.lineno) from None
+        raise InputError(
+            f"not well-formed XML: {xml.parsers.expat.ErrorString(exc.code)}", file=path, line=exc.lineno
+        ) from None
     objects = pl.DataFrame(rows, schema=CVML_OBJECTS, orient="row")
     return Cvml(objects, tuple(frames), rejects_frame(rejects))
 
@@ -220,7 +229,9 @@ def read_sensor_coordinates(path: str | Path) -> np.ndarray:
         if name not in found:
             raise InputError(f"no vector '{name} = [...]' (sensor {name[0]} coordinates, mm)", file=path, field=name)
     if len(found["xc"]) != len(found["yc"]) or not found["xc"]:
-        raise InputError(f"xc has {len(found['xc'])} numbers, yc {len(found['yc'])}: one per sensor each", file=path, field="yc")
+        raise InputError(
+            f"xc has {len(found['xc'])} numbers, yc {len(found['yc'])}: one per sensor each", file=path, field="yc"
+        )
     xy = np.c_[found["xc"], found["yc"]]
     if not np.all(np.isfinite(xy)):
         raise InputError("a coordinate is not finite", file=path, field="xc")

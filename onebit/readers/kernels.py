@@ -100,7 +100,9 @@ def beam_passes_vectorised(beam, pair, blocked, n_beams):
     last = np.full(n_beams, -1, dtype=np.int64)
     if m == 0:
         return reject, pass_first, close, first_pair, last
-    small = np.int16 if 2 * n_beams < np.iinfo(np.int16).max else np.int64  # 16-bit keys: numpy's stable sort is a radix sort
+    small = (
+        np.int16 if 2 * n_beams < np.iinfo(np.int16).max else np.int64
+    )  # 16-bit keys: numpy's stable sort is a radix sort
     g = (beam * 2 + pair).astype(small)
     order = np.argsort(g, kind="stable")  # per (beam, pair), in time order
     gs, vs = g[order], blocked[order]

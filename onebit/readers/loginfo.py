@@ -155,13 +155,19 @@ def _casas_rows(path: Path) -> list[dict]:
         rows.append(_summarise(f"{path.name}:{kind}", ev.filter(pl.col("kind") == kind).select("t", "sensor"), 0))
     labelled = ev.filter(pl.col("residents").is_not_null())
     if labelled.height:
-        rows.append(_summarise(f"{path.name}:resident-labelled", labelled.select("t", pl.col("residents").alias("sensor")), 0))
+        rows.append(
+            _summarise(f"{path.name}:resident-labelled", labelled.select("t", pl.col("residents").alias("sensor")), 0)
+        )
     if log.annotation_problems.height:
-        probs = log.events.join(log.annotation_problems.select("line"), on="line").with_columns(t=pl.col("t").cast(pl.String))
+        probs = log.events.join(log.annotation_problems.select("line"), on="line").with_columns(
+            t=pl.col("t").cast(pl.String)
+        )
         rows.append(_summarise(f"{path.name}:annotation-problems", probs.select("t", "sensor"), 0))
     _, lost = repair_lost_offs(log.events.filter(pl.col("kind").is_in(list(TOGGLE_KINDS))))
     if lost.height:
-        rows.append(_summarise(f"{path.name}:lost-off", lost.select(pl.col("t_off").cast(pl.String).alias("t"), "sensor"), 0))
+        rows.append(
+            _summarise(f"{path.name}:lost-off", lost.select(pl.col("t_off").cast(pl.String).alias("t"), "sensor"), 0)
+        )
     return rows
 
 
@@ -214,7 +220,9 @@ def log_info(path: str | Path) -> pl.DataFrame:
     elif suffix == ".txt":
         rows = _casas_rows(path)
     else:
-        raise InputError(f"unsupported file type '{path.suffix}'; expected .csv, .parquet, .mcap or .txt (CASAS)", file=path)
+        raise InputError(
+            f"unsupported file type '{path.suffix}'; expected .csv, .parquet, .mcap or .txt (CASAS)", file=path
+        )
     return pl.DataFrame(rows, schema=LOG_INFO, orient="row") if rows else pl.DataFrame(schema=LOG_INFO)
 
 

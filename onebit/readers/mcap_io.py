@@ -39,12 +39,12 @@ import polars as pl
 
 from onebit.core.config import load_toml
 from onebit.core.errors import InputError, bounded
-from onebit.core.writers import atomic_path
+from onebit.core.site import load_site
 from onebit.core.tables import REJECTS
+from onebit.core.writers import atomic_path
+from onebit.readers import mcap_views
 from onebit.readers.mcap_views import VIEW_TOPICS, ViewMessage
 from onebit.readers.timebase import iso_unix_us
-from onebit.readers import mcap_views
-from onebit.core.site import load_site
 
 #: Bytes of uncompressed messages per chunk.
 CHUNK_SIZE = 1024 * 1024
@@ -130,25 +130,25 @@ def load_topic_map(path: str | Path) -> dict[str, TopicMapping]:
     data = load_toml(path, error=InputError)
     extra = [k for k in data if k != "topics"]
     if extra:
-        raise InputError(f"unknown key(s) {extra}; expected only [topics.\"<topic>\"] tables", file=path)
+        raise InputError(f'unknown key(s) {extra}; expected only [topics."<topic>"] tables', file=path)
     topics = data.get("topics", {})
     if not isinstance(topics, dict):
         raise InputError("'topics' must be a table of [topics.\"<topic>\"] tables", file=path)
     out: dict[str, TopicMapping] = {}
     for topic, values in topics.items():
         if not isinstance(values, dict):
-            raise InputError(f"[topics.\"{topic}\"] must be a table with sensor, kind[, field]", file=path)
+            raise InputError(f'[topics."{topic}"] must be a table with sensor, kind[, field]', file=path)
         unknown = [k for k in values if k not in ("sensor", "kind", "field")]
         if unknown:
-            raise InputError(f"[topics.\"{topic}\"]: unknown key(s) {unknown}; expected sensor, kind, field", file=path)
+            raise InputError(f'[topics."{topic}"]: unknown key(s) {unknown}; expected sensor, kind, field', file=path)
         try:
             out[topic] = TopicMapping(**values)
         except TypeError:
-            raise InputError(f"[topics.\"{topic}\"]: needs sensor and kind", file=path) from None
+            raise InputError(f'[topics."{topic}"]: needs sensor and kind', file=path) from None
         except InputError as exc:
-            raise InputError(f"[topics.\"{topic}\"]: {exc}", file=path) from None
+            raise InputError(f'[topics."{topic}"]: {exc}', file=path) from None
         if topic in CHANNELS:
-            raise InputError(f"[topics.\"{topic}\"]: {topic} is one of onebit's own channels", file=path)
+            raise InputError(f'[topics."{topic}"]: {topic} is one of onebit\'s own channels', file=path)
     return out
 
 
@@ -196,7 +196,13 @@ def _log_time(df: pl.DataFrame) -> pl.Expr:
     ns = (t * 1e9).round(0)
     index = pl.int_range(pl.len(), dtype=pl.Int64)
     ok = ns.is_not_null() & ns.is_finite() & (ns >= 0) & (ns < 2**63)
-    return pl.when(ok).then(ns.cast(pl.Int64, strict=False)).when(iso.is_not_null() & (iso >= 0)).then(iso).otherwise(index)
+    return (
+        pl.when(ok)
+        .then(ns.cast(pl.Int64, strict=False))
+        .when(iso.is_not_null() & (iso >= 0))
+        .then(iso)
+        .otherwise(index)
+    )
 
 
 def _channel_messages(topic: str, df: pl.DataFrame) -> pl.DataFrame:
@@ -207,8 +213,7 @@ def _channel_messages(topic: str, df: pl.DataFrame) -> pl.DataFrame:
     extra = [c for c in df.columns if c not in columns and c not in _IGNORED_COLUMNS]
     if missing or extra:
         raise InputError(
-            f"table for topic {topic} must have columns {list(columns)}; "
-            f"missing {missing}, unexpected {extra}"
+            f"table for topic {topic} must have columns {list(columns)}; missing {missing}, unexpected {extra}"
         )
     df = df.select(columns)
     if df.height == 0:
@@ -223,9 +228,20 @@ def _channel_messages(topic: str, df: pl.DataFrame) -> pl.DataFrame:
 
 
 _TOGGLE_WORDS = {
-    "1": True, "0": False, "1.0": True, "0.0": False, "on": True, "off": False, "true": True, "false": False,
-    "open": True, "close": False, "closed": False, "present": True, "absent": False,
-}  # fmt: skip
+    "1": True,
+    "0": False,
+    "1.0": True,
+    "0.0": False,
+    "on": True,
+    "off": False,
+    "true": True,
+    "false": False,
+    "open": True,
+    "close": False,
+    "closed": False,
+    "present": True,
+    "absent": False,
+}
 
 
 def _views(per_topic: dict[str, pl.DataFrame], site, tracks: pl.DataFrame | None) -> list[ViewMessage]:
@@ -237,7 +253,11 @@ def _views(per_topic: dict[str, pl.DataFrame], site, tracks: pl.DataFrame | None
     if site is not None:
         out += mcap_views.site_views(site, min(starts) if starts else 0)
     toggles = [
-        per_topic[t].select("log_time", "sensor", pl.col("value").str.to_lowercase().replace_strict(_TOGGLE_WORDS, default=None).alias("on"))
+        per_topic[t].select(
+            "log_time",
+            "sensor",
+            pl.col("value").str.to_lowercase().replace_strict(_TOGGLE_WORDS, default=None).alias("on"),
+        )
         for t in ("/motion", "/proximity")
         if t in per_topic
     ]
@@ -245,9 +265,11 @@ def _views(per_topic: dict[str, pl.DataFrame], site, tracks: pl.DataFrame | None
         out += mcap_views.toggle_views(pl.concat(toggles).sort("log_time", maintain_order=True), site)
     if "/truth" in per_topic:
         truth = per_topic["/truth"].select(
-            "log_time", pl.col("target").alias("id"),
-            pl.col("x").cast(pl.Float64, strict=False), pl.col("y").cast(pl.Float64, strict=False),
-        )  # fmt: skip
+            "log_time",
+            pl.col("target").alias("id"),
+            pl.col("x").cast(pl.Float64, strict=False),
+            pl.col("y").cast(pl.Float64, strict=False),
+        )
         out += mcap_views.position_views(truth.drop_nulls(), kind="truth", site=site)
     if tracks is not None and tracks.height:
         out += mcap_views.position_views(tracks.drop_nulls(["x", "y"]), kind="tracks", site=site)
@@ -259,7 +281,11 @@ def _views(per_topic: dict[str, pl.DataFrame], site, tracks: pl.DataFrame | None
         ("/beams", pl.format("{} pair {} blocked={}", "beam", "pair", "blocked")),
     ):
         if topic in per_topic and per_topic[topic].height:
-            lines.append(per_topic[topic].select("log_time", pl.lit(topic.lstrip("/")).alias("name"), text.fill_null("?").alias("text")))
+            lines.append(
+                per_topic[topic].select(
+                    "log_time", pl.lit(topic.lstrip("/")).alias("name"), text.fill_null("?").alias("text")
+                )
+            )
     if lines:
         out += mcap_views.event_views(pl.concat(lines).sort("log_time", maintain_order=True))
     return out
@@ -330,7 +356,7 @@ def write_mcap(
         writer = Writer(fh, chunk_size=CHUNK_SIZE, compression=CompressionType.ZSTD, use_chunking=True)
         writer.start(profile="", library="onebit")
         ids: dict[str, int] = {}
-        for order, (topic, df) in enumerate(tables.items()):
+        for _order, (topic, df) in enumerate(tables.items()):
             columns = CHANNELS[topic]
             schema = {
                 "type": "object",
@@ -351,7 +377,9 @@ def write_mcap(
                 cls = type(m.message)
                 if cls not in schema_ids:
                     schema_ids[cls] = register_schema(writer, cls)
-                view_ids[m.topic] = writer.register_channel(topic=m.topic, message_encoding="protobuf", schema_id=schema_ids[cls])
+                view_ids[m.topic] = writer.register_channel(
+                    topic=m.topic, message_encoding="protobuf", schema_id=schema_ids[cls]
+                )
         frames = [
             m.select("log_time", "key", "data").with_columns(
                 pl.lit(ids[topic], pl.Int64).alias("channel"),
@@ -370,9 +398,12 @@ def write_mcap(
                 m = view_msgs[i]
                 seq = view_seq[m.topic] = view_seq.get(m.topic, -1) + 1
                 writer.add_message(
-                    channel_id=view_ids[m.topic], log_time=m.log_time, publish_time=m.log_time,
-                    sequence=seq & 0xFFFFFFFF, data=m.message.SerializeToString(),
-                )  # fmt: skip
+                    channel_id=view_ids[m.topic],
+                    log_time=m.log_time,
+                    publish_time=m.log_time,
+                    sequence=seq & 0xFFFFFFFF,
+                    data=m.message.SerializeToString(),
+                )
                 i += 1
             return i
 
@@ -380,9 +411,13 @@ def write_mcap(
         done = 0
         if raw is not None:
             for channel, key, log_time, seq, data in zip(
-                raw["channel"].to_list(), raw["key"].to_list(), raw["log_time"].to_list(),
-                raw["seq"].to_list(), raw["data"].to_list(), strict=True,
-            ):  # fmt: skip
+                raw["channel"].to_list(),
+                raw["key"].to_list(),
+                raw["log_time"].to_list(),
+                raw["seq"].to_list(),
+                raw["data"].to_list(),
+                strict=True,
+            ):
                 done = write_views_until(key - 1, done)
                 writer.add_message(
                     channel_id=channel,
@@ -468,8 +503,8 @@ def read_mcap(path: str | Path, *, topic_map: dict[str, TopicMapping] | None = N
     InputError
         The file is missing, empty or not MCAP (bad magic).
     """
-    from mcap.stream_reader import StreamReader
     from mcap.records import Channel, Footer, Message, Schema
+    from mcap.stream_reader import StreamReader
 
     path = Path(path)
     size = _check_magic(path)
@@ -537,7 +572,9 @@ def read_mcap(path: str | Path, *, topic_map: dict[str, TopicMapping] | None = N
                     target = "/" + mapping.kind
                     source = f"{name}:{topic}"
                     counts[topic] = counts.get(topic, 0) + 1
-                    value, why = _mapped_value(record, encoding, mapping, schemas.get(channel_schema.get(record.channel_id, 0)), decoders)
+                    value, why = _mapped_value(
+                        record, encoding, mapping, schemas.get(channel_schema.get(record.channel_id, 0)), decoders
+                    )
                     if why is not None:
                         rejects.append((source, counts[topic], why, bytes(record.data).hex()[:200]))
                         continue
@@ -596,12 +633,15 @@ def read_mcap(path: str | Path, *, topic_map: dict[str, TopicMapping] | None = N
             truncated = True
             rejects.append((name, n_messages + 1, f"truncated: no footer (read {good_end} of {size} bytes)", None))
     for topic, (n, encoding, schema_name) in unmapped.items():
-        rejects.append((
-            f"{name}:{topic}", None,
-            f"{n} message(s) in encoding '{encoding}'{f' ({schema_name})' if schema_name else ''} on a topic that is not "
-            "a onebit channel and not mapped: map a boolean topic to a sensor in mcap_topics.toml",
-            None,
-        ))  # fmt: skip
+        rejects.append(
+            (
+                f"{name}:{topic}",
+                None,
+                f"{n} message(s) in encoding '{encoding}'{f' ({schema_name})' if schema_name else ''} on a topic that is not "
+                "a onebit channel and not mapped: map a boolean topic to a sensor in mcap_topics.toml",
+                None,
+            )
+        )
 
     channels = {
         topic: pl.DataFrame(
@@ -610,12 +650,19 @@ def read_mcap(path: str | Path, *, topic_map: dict[str, TopicMapping] | None = N
         )
         for topic, data in cols.items()
     }
-    rejects = [(src, line, None if why is None else bounded(why), None if raw is None else bounded(raw)) for src, line, why, raw in rejects]
-    rejects_df = pl.DataFrame(rejects, schema=REJECTS, orient="row")  # reasons and raw text quoted bounded, as every reader's
+    rejects = [
+        (src, line, None if why is None else bounded(why), None if raw is None else bounded(raw))
+        for src, line, why, raw in rejects
+    ]
+    rejects_df = pl.DataFrame(
+        rejects, schema=REJECTS, orient="row"
+    )  # reasons and raw text quoted bounded, as every reader's
     return McapContents(channels=channels, rejects=rejects_df, truncated=truncated, views=views)
 
 
-def _mapped_value(record, encoding: str, mapping: TopicMapping, schema, decoders: dict) -> tuple[bool | None, str | None]:
+def _mapped_value(
+    record, encoding: str, mapping: TopicMapping, schema, decoders: dict
+) -> tuple[bool | None, str | None]:
     """The boolean ``mapping.field`` of a mapped message, or ``(None, reason)``."""
     enc = encoding.lower()
     if enc == "cdr":
@@ -723,8 +770,7 @@ def csv_folder_to_mcap(
     elif src.is_file():
         if _topic_of(src) is None:
             raise InputError(
-                f"not a known raw log; expected one of "
-                f"{[t.lstrip('/') + '.csv' for t in CHANNELS]} (or .parquet)",
+                f"not a known raw log; expected one of {[t.lstrip('/') + '.csv' for t in CHANNELS]} (or .parquet)",
                 file=src,
             )
         files = [src]
@@ -747,7 +793,9 @@ def csv_folder_to_mcap(
     return Conversion(written=[out_path])
 
 
-def mcap_to_csv_folder(mcap_path: str | Path, out_dir: str | Path, *, topic_map: dict[str, TopicMapping] | None = None) -> Conversion:
+def mcap_to_csv_folder(
+    mcap_path: str | Path, out_dir: str | Path, *, topic_map: dict[str, TopicMapping] | None = None
+) -> Conversion:
     """Write each raw-log channel of an MCAP file to ``<out_dir>/<stem>.csv``.
 
     Parameters

@@ -153,10 +153,14 @@ def point_cloud(ns: int, xy: np.ndarray, rgba: np.ndarray):
     pc.pose.orientation.w = 1.0
     pc.point_stride = 16
     for name, offset, kind in (
-        ("x", 0, PackedElementField.FLOAT32), ("y", 4, PackedElementField.FLOAT32), ("z", 8, PackedElementField.FLOAT32),
-        ("red", 12, PackedElementField.UINT8), ("green", 13, PackedElementField.UINT8),
-        ("blue", 14, PackedElementField.UINT8), ("alpha", 15, PackedElementField.UINT8),
-    ):  # fmt: skip
+        ("x", 0, PackedElementField.FLOAT32),
+        ("y", 4, PackedElementField.FLOAT32),
+        ("z", 8, PackedElementField.FLOAT32),
+        ("red", 12, PackedElementField.UINT8),
+        ("green", 13, PackedElementField.UINT8),
+        ("blue", 14, PackedElementField.UINT8),
+        ("alpha", 15, PackedElementField.UINT8),
+    ):
         f = pc.fields.add()
         f.name, f.offset, f.type = name, offset, kind
     pc.data = rec.tobytes()
@@ -268,7 +272,9 @@ def position_views(points: pl.DataFrame, *, kind: str, site) -> Iterator[ViewMes
     rgba = _TRUTH if kind == "truth" else _TRACK
     size = max((site.diagonal if site is not None else 1.0) * 0.03, 1e-6)
     # float32 in the point cloud: positions beyond its range are not drawable
-    points = points.filter(pl.col("x").is_finite() & pl.col("y").is_finite() & (pl.col("x").abs() < 1e30) & (pl.col("y").abs() < 1e30))
+    points = points.filter(
+        pl.col("x").is_finite() & pl.col("y").is_finite() & (pl.col("x").abs() < 1e30) & (pl.col("y").abs() < 1e30)
+    )
     if points.height == 0:
         return
     for (ns,), group in points.sort("log_time", maintain_order=True).group_by("log_time", maintain_order=True):
@@ -279,7 +285,9 @@ def position_views(points: pl.DataFrame, *, kind: str, site) -> Iterator[ViewMes
             _text(e, x, y, str(ident), size)
         yield ViewMessage(f"/foxglove/{kind}", ns, up)
         xy = group.select("x", "y").to_numpy()
-        yield ViewMessage(f"/points/{kind}", ns, point_cloud(ns, *markers(xy, np.tile(rgba, (len(xy), 1)), size * 0.25, filled=True)))
+        yield ViewMessage(
+            f"/points/{kind}", ns, point_cloud(ns, *markers(xy, np.tile(rgba, (len(xy), 1)), size * 0.25, filled=True))
+        )
 
 
 def event_views(lines: pl.DataFrame) -> Iterator[ViewMessage]:

@@ -67,6 +67,7 @@ from onebit.readers.rows import (
     REORDER_TOLERANCE_S,
     RawRows,
     TypedRows,
+    TypedSplit,
     by_time,
     check_rows,
     check_split,
@@ -79,7 +80,6 @@ from onebit.readers.rows import (
     read_clean_csv,
     read_csv_rows,
     read_typed_csv,
-    TypedSplit,
 )
 from onebit.readers.timebase import TimeOrigin
 
@@ -90,9 +90,20 @@ TOGGLE_COLUMNS = ("t", "sensor", "value")
 #: ``true``/``false``, ``open``/``close`` (door sensors, CASAS ``D###``: open = activity),
 #: ``present``/``absent`` (presence sensors); an unreadable value is a reject naming them.
 TOGGLE_VALUES = {
-    "1": True, "0": False, "1.0": True, "0.0": False, "on": True, "off": False, "true": True, "false": False,
-    "open": True, "close": False, "closed": False, "present": True, "absent": False,
-}  # fmt: skip
+    "1": True,
+    "0": False,
+    "1.0": True,
+    "0.0": False,
+    "on": True,
+    "off": False,
+    "true": True,
+    "false": False,
+    "open": True,
+    "close": False,
+    "closed": False,
+    "present": True,
+    "absent": False,
+}
 
 #: Tolerance (s) of the debounce comparisons, so a gap of exactly the window counts as inside it
 #: despite floating-point rounding of the time stamps.
@@ -109,7 +120,9 @@ class DebounceRules:
     Every field is in seconds, finite and >= 0.
     """
 
-    chatter_window: float = 0.0  #: s; a 1->0 followed by 0->1 on the same sensor within this window: both edges suppressed
+    chatter_window: float = (
+        0.0  #: s; a 1->0 followed by 0->1 on the same sensor within this window: both edges suppressed
+    )
     min_on: float = 0.0  #: s; an on-period shorter than this is suppressed (both its edges)
 
     def __post_init__(self) -> None:
@@ -183,7 +196,9 @@ def read_motion(
     The reasons never name the sensor kind, so the same reader serves ``proximity.csv``.
     """
     sensors = tuple(sensors)
-    typed = check_rows(raw, _toggle_parsers(sensors, epoch, raw.frame), key=("t", "sensor", "value"), path=path, tolerance=tolerance)
+    typed = check_rows(
+        raw, _toggle_parsers(sensors, epoch, raw.frame), key=("t", "sensor", "value"), path=path, tolerance=tolerance
+    )
     return toggle_edges(typed, sensors, source=raw.source, path=path, rules=rules, held=held)
 
 
@@ -216,11 +231,15 @@ def toggle_edges(
         n_held = int(is_held.sum())
         ok, same = ok.filter(~is_held), same.filter(~is_held)
     if same.any():  # reasons for those edges only
-        rep = ok.filter(same).rechunk().with_columns(
-            pl.when(pl.col("on"))
-            .then(pl.format("no state change: sensor {} already on", pl.col("sensor")))
-            .otherwise(pl.format("no state change: sensor {} already off", pl.col("sensor")))
-            .alias("_reason")
+        rep = (
+            ok.filter(same)
+            .rechunk()
+            .with_columns(
+                pl.when(pl.col("on"))
+                .then(pl.format("no state change: sensor {} already on", pl.col("sensor")))
+                .otherwise(pl.format("no state change: sensor {} already off", pl.col("sensor")))
+                .alias("_reason")
+            )
         )
         more = make_rejects(rep, source, path, typed.file)
         rejects = pl.concat([rejects, more]).sort("line")
@@ -230,7 +249,9 @@ def toggle_edges(
     edges, suppressed = debounce(ok, sensors, rules)
     if isinstance(edges.schema["sensor"], pl.Enum):  # the typed read's codes: names gathered, not cast row by row
         names = pl.Series(edges.schema["sensor"].categories, dtype=pl.String)
-        motion = pl.DataFrame({"t": edges["t"], "sensor": names.gather(edges["sensor"].to_physical()), "on": edges["on"]}, schema=MOTION)
+        motion = pl.DataFrame(
+            {"t": edges["t"], "sensor": names.gather(edges["sensor"].to_physical()), "on": edges["on"]}, schema=MOTION
+        )
     else:
         motion = conform(edges, MOTION)
     return MotionRead(motion, rejects.select(REJECTS.names()).cast(dict(REJECTS)), suppressed, typed.reordered, n_held)
@@ -247,8 +268,13 @@ def repeats(ok: pl.DataFrame, *, compiled: bool | None = None) -> pl.Series:
         code, n = ok["sensor"].to_physical().to_numpy().astype(np.int64), ok.schema["sensor"].categories.len()
     else:
         names = ok["sensor"].unique(maintain_order=True)
-        code, n = ok["sensor"].replace_strict(names, range(len(names)), return_dtype=pl.Int64).to_numpy().astype(np.int64), len(names)
-    run = kernels.toggle_repeats if compiled or numba_loaded() else kernels.toggle_repeats_vectorised  # numba's load only when paid already
+        code, n = (
+            ok["sensor"].replace_strict(names, range(len(names)), return_dtype=pl.Int64).to_numpy().astype(np.int64),
+            len(names),
+        )
+    run = (
+        kernels.toggle_repeats if compiled or numba_loaded() else kernels.toggle_repeats_vectorised
+    )  # numba's load only when paid already
     return pl.Series(run(code, ok["on"].to_numpy().astype(np.bool_), max(n, 1)))
 
 
@@ -303,15 +329,23 @@ def debounce(
         code = ev["sensor"].replace_strict(names, range(len(names)), return_dtype=pl.Int64).to_numpy().astype(np.int64)
     chatter = dict(zip(table["sensor"].to_list(), table["_chatter"].to_list()))
     min_on = dict(zip(table["sensor"].to_list(), table["_min_on"].to_list()))
-    masks = kernels.debounce_masks if compiled or numba_loaded() else kernels.debounce_masks_vectorised  # numba's load only when paid already
+    masks = (
+        kernels.debounce_masks if compiled or numba_loaded() else kernels.debounce_masks_vectorised
+    )  # numba's load only when paid already
     chat, short = masks(
-        code, ev["on"].to_numpy().astype(np.bool_), ev["t"].to_numpy().astype(np.float64),
-        np.array([chatter.get(n, 0.0) for n in names], dtype=np.float64), np.array([min_on.get(n, 0.0) for n in names], dtype=np.float64),
-        len(names), TIME_EPS,
-    )  # fmt: skip
+        code,
+        ev["on"].to_numpy().astype(np.bool_),
+        ev["t"].to_numpy().astype(np.float64),
+        np.array([chatter.get(n, 0.0) for n in names], dtype=np.float64),
+        np.array([min_on.get(n, 0.0) for n in names], dtype=np.float64),
+        len(names),
+        TIME_EPS,
+    )
     ev = ev.select("line", "t", "sensor", "on")
     kept = ev.filter(pl.Series(~(chat | short)))  # still sorted by t, line
-    sup = [ev[np.flatnonzero(m)].with_columns(rule=pl.lit(r)) for m, r in ((chat, "chatter"), (short, "min_on")) if m.any()]
+    sup = [
+        ev[np.flatnonzero(m)].with_columns(rule=pl.lit(r)) for m, r in ((chat, "chatter"), (short, "min_on")) if m.any()
+    ]
     suppressed = conform(pl.concat(sup) if sup else ev.clear().with_columns(rule=pl.lit("", pl.String)), SUPPRESSED)
     if len(sup) > 1:  # one rule's edges alone are in time order already (the rows of ev are)
         suppressed = suppressed.sort(["t", "line"])
@@ -326,8 +360,11 @@ def debounce_reference(
     """:func:`debounce` with polars window expressions (``shift`` over each sensor): the plain
     reference of the compiled kernel and its test oracle."""
     table = _rules_frame(sensors, rules)
-    ev = edges.with_columns(pl.col("sensor").cast(pl.String)).sort(["t", "line"]).join(table, on="sensor", how="left").with_columns(
-        pl.col("_chatter").fill_null(0.0), pl.col("_min_on").fill_null(0.0)
+    ev = (
+        edges.with_columns(pl.col("sensor").cast(pl.String))
+        .sort(["t", "line"])
+        .join(table, on="sensor", how="left")
+        .with_columns(pl.col("_chatter").fill_null(0.0), pl.col("_min_on").fill_null(0.0))
     )
     nxt_t = pl.col("t").shift(-1).over("sensor", order_by=["t", "line"])
     prv_t = pl.col("t").shift(1).over("sensor", order_by=["t", "line"])
@@ -351,9 +388,9 @@ def debounce_reference(
     ev = ev.with_columns(short.fill_null(False).alias("_short"))
     sup_short = ev.filter(pl.col("_short")).with_columns(rule=pl.lit("min_on"))
     kept = ev.filter(~pl.col("_short")).select("line", "t", "sensor", "on").sort(["t", "line"])
-    suppressed = conform(pl.concat([sup_chat.drop("_short", strict=False), sup_short], how="diagonal"), SUPPRESSED).sort(
-        ["t", "line"]
-    )
+    suppressed = conform(
+        pl.concat([sup_chat.drop("_short", strict=False), sup_short], how="diagonal"), SUPPRESSED
+    ).sort(["t", "line"])
     return kept, suppressed
 
 
@@ -382,7 +419,11 @@ def toggle_dtypes(sensors: Sequence[str]) -> dict[str, pl.DataType]:
 
 
 def typed_toggle_rows(
-    path: Path, sensors: tuple[str, ...], *, epoch: str | TimeOrigin | None = None, tolerance: float = REORDER_TOLERANCE_S,
+    path: Path,
+    sensors: tuple[str, ...],
+    *,
+    epoch: str | TimeOrigin | None = None,
+    tolerance: float = REORDER_TOLERANCE_S,
     split: TypedSplit | None = None,
 ) -> TypedRows | None:
     """Pass 1 of :func:`read_motion` for a toggle log typed by one ``pl.read_csv``
@@ -396,19 +437,32 @@ def typed_toggle_rows(
         return None
     on = pl.Series([TOGGLE_VALUES[v] for v in spellings], dtype=pl.Boolean)
     good = split.good.with_columns(on.gather(split.good["value"].to_physical()).alias("value"))
-    return check_split(split, good, lambda origin, frame: _toggle_parsers(sensors, origin, frame),
-                       key=TOGGLE_COLUMNS, tolerance=tolerance, epoch=epoch, path=path)  # fmt: skip
+    return check_split(
+        split,
+        good,
+        lambda origin, frame: _toggle_parsers(sensors, origin, frame),
+        key=TOGGLE_COLUMNS,
+        tolerance=tolerance,
+        epoch=epoch,
+        path=path,
+    )
 
 
 def clean_toggle_rows(
-    path: Path, sensors: tuple[str, ...], *, epoch: str | TimeOrigin | None = None, tolerance: float = REORDER_TOLERANCE_S
+    path: Path,
+    sensors: tuple[str, ...],
+    *,
+    epoch: str | TimeOrigin | None = None,
+    tolerance: float = REORDER_TOLERANCE_S,
 ) -> TypedRows | None:
     """Pass 1 of :func:`read_motion` for a clean toggle log (:func:`~onebit.readers.rows.read_clean_csv`:
     numeric ``t``, known sensors, values spelled as in :data:`TOGGLE_VALUES`, lower case),
     typed by one ``pl.read_csv``; ``None`` when a row would be rejected by its fields (the
     row-by-row path names it). Duplicates and rows out of order are found as for any file."""
     spellings = list(TOGGLE_VALUES)
-    frame = read_clean_csv(path, {"t": pl.Float64, "sensor": pl.Enum(list(dict.fromkeys(sensors))), "value": pl.Enum(spellings)})
+    frame = read_clean_csv(
+        path, {"t": pl.Float64, "sensor": pl.Enum(list(dict.fromkeys(sensors))), "value": pl.Enum(spellings)}
+    )
     if frame is None:
         return None
     t = clean_time(frame["t"], epoch)
@@ -417,7 +471,9 @@ def clean_toggle_rows(
     on = pl.Series([TOGGLE_VALUES[v] for v in spellings], dtype=pl.Boolean)
     # sensor stays an enum (the debounce's codes); every output table casts it to String
     frame = frame.with_columns(t, on.gather(frame["value"].to_physical()).alias("value"))
-    return order_checks(frame, key=TOGGLE_COLUMNS, tolerance=tolerance, columns=TOGGLE_COLUMNS, source=path.name, path=path)
+    return order_checks(
+        frame, key=TOGGLE_COLUMNS, tolerance=tolerance, columns=TOGGLE_COLUMNS, source=path.name, path=path
+    )
 
 
 # --------------------------------------------------------------------------- reader config
@@ -437,7 +493,9 @@ class MotionConfig:
     def __post_init__(self) -> None:
         for name in ("chatter_window", "min_on"):
             v = getattr(self, name)
-            if v is not None and (isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v) or v < 0):
+            if v is not None and (
+                isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v) or v < 0
+            ):
                 raise ConfigError(f"MotionConfig.{name} = {v!r}; allowed range: [0, inf) seconds")
 
 

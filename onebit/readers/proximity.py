@@ -16,11 +16,11 @@ from pathlib import Path
 
 import polars as pl
 
+from onebit.core.config import check_range
 from onebit.core.errors import ConfigError
+from onebit.core.tables import FRAMES, PROXIMITY, conform
 from onebit.readers.motion import TOGGLE_COLUMNS, DebounceRules, MotionRead, read_motion, read_motion_csv
 from onebit.readers.rows import RawRows
-from onebit.core.tables import FRAMES, PROXIMITY, conform
-from onebit.core.config import check_range
 
 __all__ = ["ProximityConfig", "read_proximity", "read_proximity_csv", "proximity_frames", "TOGGLE_COLUMNS"]
 
@@ -58,24 +58,44 @@ class ProximityConfig:
         return DebounceRules(chatter_window=self.chatter_window, min_on=self.min_on)
 
 
-def read_proximity(raw: RawRows, sensors: Sequence[str], *, epoch=None, path: Path | None = None,
-                   rules: DebounceRules | None = None, held: frozenset[str] = frozenset()) -> MotionRead:
+def read_proximity(
+    raw: RawRows,
+    sensors: Sequence[str],
+    *,
+    epoch=None,
+    path: Path | None = None,
+    rules: DebounceRules | None = None,
+    held: frozenset[str] = frozenset(),
+) -> MotionRead:
     """Type, check and debounce a proximity toggle log; ``motion`` holds PROXIMITY rows
     (``held``: level sensors, whose repeated states are held states, :func:`read_motion`)."""
     res = read_motion(raw, sensors, epoch=epoch, path=path, rules=rules, held=held)
     return MotionRead(conform(res.motion, PROXIMITY), res.rejects, res.suppressed, res.reordered, res.held)
 
 
-def read_proximity_csv(path: str | Path, sensors: Sequence[str], *, epoch=None, rules: DebounceRules | None = None,
-                       held: frozenset[str] = frozenset(), split=None) -> MotionRead:
+def read_proximity_csv(
+    path: str | Path,
+    sensors: Sequence[str],
+    *,
+    epoch=None,
+    rules: DebounceRules | None = None,
+    held: frozenset[str] = frozenset(),
+    split=None,
+) -> MotionRead:
     """:func:`read_proximity` of ``proximity.csv`` (a clean file typed in one read, :func:`read_motion_csv`;
     ``split``: that read, when the caller made it already)."""
     res = read_motion_csv(Path(path), sensors, epoch=epoch, rules=rules, held=held, split=split)
     return MotionRead(conform(res.motion, PROXIMITY), res.rejects, res.suppressed, res.reordered, res.held)
 
 
-def proximity_frames(proximity: pl.DataFrame, sensors: Sequence[str], *, period: float, start: float | None = None,
-                     instants: int | None = None) -> pl.DataFrame:
+def proximity_frames(
+    proximity: pl.DataFrame,
+    sensors: Sequence[str],
+    *,
+    period: float,
+    start: float | None = None,
+    instants: int | None = None,
+) -> pl.DataFrame:
     """Readings at instants ``t_k = start + k * period`` (FRAMES: slot, t, sensor, on).
 
     ``on`` = the state after the sensor's last accepted edge at or before ``t_k`` (off before
@@ -95,7 +115,12 @@ def proximity_frames(proximity: pl.DataFrame, sensors: Sequence[str], *, period:
         return pl.DataFrame(schema=FRAMES)
     grid = (
         pl.DataFrame({"slot": pl.arange(0, instants, eager=True).cast(pl.Int64)})
-        .join(pl.DataFrame({"sensor": sensors, "_k": list(range(len(sensors)))}, schema={"sensor": pl.String, "_k": pl.Int64}), how="cross")
+        .join(
+            pl.DataFrame(
+                {"sensor": sensors, "_k": list(range(len(sensors)))}, schema={"sensor": pl.String, "_k": pl.Int64}
+            ),
+            how="cross",
+        )
         .with_columns(t=pl.lit(float(start)) + pl.col("slot").cast(pl.Float64) * period)
         .sort("t")
     )

@@ -137,8 +137,10 @@ def physical_lines(data: bytes) -> pl.DataFrame:
     parts = pl.Series("text", [text]).str.split("\n").explode()
     if text.endswith("\n"):
         parts = parts.slice(0, parts.len() - 1)
-    lines = pl.DataFrame({"text": parts}).with_row_index("line", offset=1).select(
-        pl.col("line").cast(pl.Int64), pl.col("text").str.strip_suffix("\r")
+    lines = (
+        pl.DataFrame({"text": parts})
+        .with_row_index("line", offset=1)
+        .select(pl.col("line").cast(pl.Int64), pl.col("text").str.strip_suffix("\r"))
     )
     if bad.size == 0:
         return lines.with_columns(pl.lit(None, pl.String).alias("_reason"))
@@ -149,8 +151,12 @@ def physical_lines(data: bytes) -> pl.DataFrame:
     starts = np.r_[0, newlines + 1]
     column = at - starts[first_line - 1] + 1
     byte = np.frombuffer(data, dtype=np.uint8)[at]
-    why = [f"not UTF-8 text: byte 0x{b:02X} at column {c}" for b, c in zip(byte.tolist(), column.tolist())]  # bad lines only
-    reasons = pl.DataFrame({"line": first_line.astype(np.int64), "_reason": why}, schema={"line": pl.Int64, "_reason": pl.String})
+    why = [
+        f"not UTF-8 text: byte 0x{b:02X} at column {c}" for b, c in zip(byte.tolist(), column.tolist())
+    ]  # bad lines only
+    reasons = pl.DataFrame(
+        {"line": first_line.astype(np.int64), "_reason": why}, schema={"line": pl.Int64, "_reason": pl.String}
+    )
     return lines.join(reasons, on="line", how="left")
 
 
@@ -240,7 +246,10 @@ def csv_header(path: str | Path) -> tuple[list[str], int, pl.DataFrame]:
     if n > MAX_HEADER_FIELDS:
         raise InputError(
             f"cannot read the CSV header: {n} fields, more than the {MAX_HEADER_FIELDS} a sensor log can have "
-            "(is this a CSV file?)", file=path, line=line)
+            "(is this a CSV file?)",
+            file=path,
+            line=line,
+        )
     names = [str(v or "").strip() for v in _split_fields(head, n).drop("line").row(0)]
     return names, line, lines.slice(1)
 
@@ -302,17 +311,31 @@ def rows_of_lines(body: pl.DataFrame, header: list[str], columns: tuple[str, ...
     bad = pl.concat([plain, quoted_lines]).filter(pl.col("_reason").is_not_null())
     plain = plain.filter(pl.col("_reason").is_null())
     width = max(header.index(c) for c in columns) + 1  # split only as far as the last wanted field
-    split = plain.select(pl.col("text").str.split_exact(SEPARATOR, width - 1).struct.rename_fields([f"_f{i}" for i in range(width)]).struct.unnest())
-    frame = plain.select("line", pl.col("text").alias("raw")).hstack(split.select([f"_f{header.index(c)}" for c in columns]))
+    split = plain.select(
+        pl.col("text")
+        .str.split_exact(SEPARATOR, width - 1)
+        .struct.rename_fields([f"_f{i}" for i in range(width)])
+        .struct.unnest()
+    )
+    frame = plain.select("line", pl.col("text").alias("raw")).hstack(
+        split.select([f"_f{header.index(c)}" for c in columns])
+    )
     frame = frame.rename({f"_f{header.index(c)}": c for c in columns})
     quoted_lines = quoted_lines.filter(pl.col("_reason").is_null())
     if quoted_lines.height:  # lines with quoted fields: polars' CSV parser splits them
-        parsed = _split_fields(quoted_lines, n).select("line", *[pl.col(f"_f{header.index(c)}").fill_null("").alias(c) for c in columns])
+        parsed = _split_fields(quoted_lines, n).select(
+            "line", *[pl.col(f"_f{header.index(c)}").fill_null("").alias(c) for c in columns]
+        )
         both = quoted_lines.select("line", pl.col("text").alias("raw")).join(parsed, on="line", how="left")
         lost = both.filter(~pl.col("line").is_in(parsed["line"].implode()))
         if lost.height:  # the parser did not return the line: never dropped silently
-            bad = pl.concat([bad, lost.select("line", "raw", pl.lit("cannot be split into fields").alias("_reason"))], how="diagonal_relaxed")
-        frame = pl.concat([frame, both.filter(pl.col("line").is_in(parsed["line"].implode()))], how="diagonal_relaxed").sort("line")
+            bad = pl.concat(
+                [bad, lost.select("line", "raw", pl.lit("cannot be split into fields").alias("_reason"))],
+                how="diagonal_relaxed",
+            )
+        frame = pl.concat(
+            [frame, both.filter(pl.col("line").is_in(parsed["line"].implode()))], how="diagonal_relaxed"
+        ).sort("line")
     frame = frame.select("line", *columns, "raw")
     bad = bad.rename({"text": "raw"}, strict=False).select("line", "raw", "_reason").sort("line")
     return RawRows(source, frame, make_rejects(bad, source, None))
@@ -352,9 +375,17 @@ def read_clean_csv(path: str | Path, dtypes: dict[str, pl.DataType]) -> pl.DataF
     schema = {f"_f{i}": dtypes.get(name, pl.String) for i, name in enumerate(header)}
     try:
         frame = pl.read_csv(
-            data, has_header=False, skip_rows=1, schema=schema, columns=[header.index(c) for c in dtypes],
-            separator=SEPARATOR, quote_char=None, comment_prefix=None, raise_if_empty=False, truncate_ragged_lines=False,
-        )  # fmt: skip
+            data,
+            has_header=False,
+            skip_rows=1,
+            schema=schema,
+            columns=[header.index(c) for c in dtypes],
+            separator=SEPARATOR,
+            quote_char=None,
+            comment_prefix=None,
+            raise_if_empty=False,
+            truncate_ragged_lines=False,
+        )
     except (pl.exceptions.ComputeError, pl.exceptions.PolarsError):
         return None
     if frame.height != n_lines or frame.null_count().sum_horizontal().item():
@@ -406,9 +437,18 @@ def _typed_read(data: bytes, header: list[str], dtypes: dict[str, pl.DataType], 
     # polars takes the file's width from its first line: the tolerant read starts at the header
     # (as wide as the schema) and drops it, since a first data line may be short or long
     frame = pl.read_csv(
-        data, has_header=False, skip_rows=0 if tolerant else 1, schema=schema, columns=cols, separator=SEPARATOR,
-        quote_char=None, comment_prefix=None, raise_if_empty=False, truncate_ragged_lines=tolerant, ignore_errors=tolerant,
-    )  # fmt: skip
+        data,
+        has_header=False,
+        skip_rows=0 if tolerant else 1,
+        schema=schema,
+        columns=cols,
+        separator=SEPARATOR,
+        quote_char=None,
+        comment_prefix=None,
+        raise_if_empty=False,
+        truncate_ragged_lines=tolerant,
+        ignore_errors=tolerant,
+    )
     if tolerant:
         frame = frame.slice(1)
     frame = frame.rename({f"_f{i}": (header[i] if header[i] in dtypes else "_last") for i in cols})
@@ -537,8 +577,15 @@ def read_typed_csv(path: str | Path, dtypes: dict[str, pl.DataType]) -> TypedSpl
             frame = _typed_read(data, header, dtypes, tolerant=False)
         except pl.exceptions.PolarsError:
             frame = None
-        if frame is not None and frame.height == n_lines and _all_parsed(frame, dtypes) and _widths_hold(data, header, dtypes, n_lines):
-            frame = frame.with_columns(pl.int_range(2, frame.height + 2, dtype=pl.Int64).alias("line")).select("line", *columns)
+        if (
+            frame is not None
+            and frame.height == n_lines
+            and _all_parsed(frame, dtypes)
+            and _widths_hold(data, header, dtypes, n_lines)
+        ):
+            frame = frame.with_columns(pl.int_range(2, frame.height + 2, dtype=pl.Int64).alias("line")).select(
+                "line", *columns
+            )
             return TypedSplit(frame, empty_rest, header, file)
     work = data.replace(b"\r\n", b"\n") if b"\r" in data else data
     wfile = file if work is data else FileLines(work)
@@ -551,10 +598,14 @@ def read_typed_csv(path: str | Path, dtypes: dict[str, pl.DataType]) -> TypedSpl
         return None
     if frame.height != n_lines:  # never guess which row is which line
         return None
-    frame = frame.with_columns(pl.int_range(2, frame.height + 2, dtype=pl.Int64).alias("line"), _parsed(frame, dtypes).alias("_ok"))
+    frame = frame.with_columns(
+        pl.int_range(2, frame.height + 2, dtype=pl.Int64).alias("line"), _parsed(frame, dtypes).alias("_ok")
+    )
     marked = frame.filter(~pl.col("_ok"))["line"].to_numpy()
     total = int(np.count_nonzero(np.frombuffer(work, dtype=np.uint8) == ord(SEPARATOR))) - head_text.count(SEPARATOR)
-    if total - _commas(work, wfile.nl, marked) != (n - 1) * (frame.height - marked.size):  # a good-looking line is too long
+    if total - _commas(work, wfile.nl, marked) != (n - 1) * (
+        frame.height - marked.size
+    ):  # a good-looking line is too long
         per_line = _separators_per_line(work, n_lines)[1 : n_lines + 1]
         frame = frame.with_columns(pl.col("_ok") & pl.Series(per_line == n - 1))
         marked = frame.filter(~pl.col("_ok"))["line"].to_numpy()
@@ -677,7 +728,9 @@ class FileLines:
         return dict(found.select("line", "text" if limit is None else _bounded("text", limit)).iter_rows())
 
 
-def raw_lines(path: Path, lines: list[int], *, limit: int | None = MAX_QUOTE, data: FileLines | None = None) -> dict[int, str]:
+def raw_lines(
+    path: Path, lines: list[int], *, limit: int | None = MAX_QUOTE, data: FileLines | None = None
+) -> dict[int, str]:
     """The text of the given 1-based physical line numbers, each cut to ``limit`` characters
     (:data:`~onebit.core.errors.MAX_QUOTE`; ``None``: whole) (read only when there are rejects;
     ``data``: the file's :class:`FileLines`, when already read)."""
@@ -750,7 +803,11 @@ def parse_time(col: str, epoch: str | TimeOrigin | None, frame: pl.DataFrame | N
             pl.format(
                 "field '{}': '{}' is a lone time stamp far from the rest of the data (accepted span {} .. {} s "
                 "after the time origin; gaps over {} days cut it off)",
-                pl.lit(col), s, pl.lit(round(lo, 6)), pl.lit(round(hi, 6)), pl.lit(MAX_GAP_S / 86400),
+                pl.lit(col),
+                s,
+                pl.lit(round(lo, 6)),
+                pl.lit(round(hi, 6)),
+                pl.lit(MAX_GAP_S / 86400),
             )
         )
     return t, reason.otherwise(None)
@@ -795,7 +852,9 @@ def parse_name(col: str, known: tuple[str, ...] | None, what: str) -> tuple[pl.E
     s = pl.col(col).str.strip_chars()
     reason = pl.when(pl.col(col).is_null() | (s == "")).then(pl.lit(f"field '{col}': missing"))
     if known is not None:
-        reason = reason.when(~s.is_in(list(known))).then(pl.format("field '{}': unknown {} '{}'", pl.lit(col), pl.lit(what), s))
+        reason = reason.when(~s.is_in(list(known))).then(
+            pl.format("field '{}': unknown {} '{}'", pl.lit(col), pl.lit(what), s)
+        )
     return s, reason.otherwise(None)
 
 
@@ -840,8 +899,16 @@ def check_rows(
     reasons = [r for _, r in parsers.values()]
     typed = df.with_columns(pl.coalesce(reasons).alias("_reason")).with_columns(value_exprs)
     ok = typed.filter(pl.col("_reason").is_null())
-    return order_checks(ok, key=key, tolerance=tolerance, field_bad=typed.filter(pl.col("_reason").is_not_null()),
-                        prior=raw.rejects, source=raw.source, path=path, columns=tuple(parsers))  # fmt: skip
+    return order_checks(
+        ok,
+        key=key,
+        tolerance=tolerance,
+        field_bad=typed.filter(pl.col("_reason").is_not_null()),
+        prior=raw.rejects,
+        source=raw.source,
+        path=path,
+        columns=tuple(parsers),
+    )
 
 
 def in_time_order(t: pl.Series) -> bool:
@@ -909,7 +976,9 @@ def order_checks(
         same = " and ".join(", ".join(key).rsplit(", ", 1))  # ("t", "target") -> "t and target"
         ok = ok.with_columns(dup_of.alias("_dup"))
         dup = ok.filter(pl.col("_dup").is_not_null()).rechunk()
-        parts.append(dup.with_columns(pl.format("duplicate of line {} (same {})", pl.col("_dup"), pl.lit(same)).alias("_reason")))
+        parts.append(
+            dup.with_columns(pl.format("duplicate of line {} (same {})", pl.col("_dup"), pl.lit(same)).alias("_reason"))
+        )
         ok = ok.filter(pl.col("_dup").is_null()).drop("_dup")
     reordered = 0
     if not in_time_order(ok["t"]):  # some row is earlier than a row before it
@@ -920,7 +989,12 @@ def order_checks(
             why = (
                 pl.format("timestamp goes backwards ({} after {})", pl.col("t"), pl.col("_prev"))
                 if tolerance <= 0
-                else pl.format("timestamp goes backwards ({} after {}, more than {} s)", pl.col("t"), pl.col("_prev"), pl.lit(tolerance))
+                else pl.format(
+                    "timestamp goes backwards ({} after {}, more than {} s)",
+                    pl.col("t"),
+                    pl.col("_prev"),
+                    pl.lit(tolerance),
+                )
             )
             parts.append(late.with_columns(why.alias("_reason")))
             ok = ok.filter(~back)
@@ -970,17 +1044,38 @@ def check_split(
     rest = split.rest
     columns = tuple(good.columns[1:])
     if rest.frame.height == 0:
-        res = order_checks(good, key=key, tolerance=tolerance, columns=columns, source=rest.source, path=path,
-                           prior=rest.rejects if rest.rejects.height else None, data=split.file)  # fmt: skip
+        res = order_checks(
+            good,
+            key=key,
+            tolerance=tolerance,
+            columns=columns,
+            source=rest.source,
+            path=path,
+            prior=rest.rejects if rest.rejects.height else None,
+            data=split.file,
+        )
     else:
         p = parsers(origin, rest.frame)
-        typed = rest.frame.drop("raw").with_columns(pl.coalesce([r for _, r in p.values()]).alias("_reason")).with_columns(
-            v.alias(c) for c, (v, _) in p.items()
+        typed = (
+            rest.frame.drop("raw")
+            .with_columns(pl.coalesce([r for _, r in p.values()]).alias("_reason"))
+            .with_columns(v.alias(c) for c, (v, _) in p.items())
         )
-        fine = typed.filter(pl.col("_reason").is_null()).select("line", *[pl.col(c).cast(good.schema[c]) for c in columns])
+        fine = typed.filter(pl.col("_reason").is_null()).select(
+            "line", *[pl.col(c).cast(good.schema[c]) for c in columns]
+        )
         ok = pl.concat([good, fine]).sort("line") if fine.height else good
-        res = order_checks(ok, key=key, tolerance=tolerance, columns=columns, source=rest.source, path=path,
-                           field_bad=typed.filter(pl.col("_reason").is_not_null()), prior=rest.rejects, data=split.file)  # fmt: skip
+        res = order_checks(
+            ok,
+            key=key,
+            tolerance=tolerance,
+            columns=columns,
+            source=rest.source,
+            path=path,
+            field_bad=typed.filter(pl.col("_reason").is_not_null()),
+            prior=rest.rejects,
+            data=split.file,
+        )
     return dataclasses.replace(res, file=split.file)
 
 

@@ -64,7 +64,12 @@ def true_crossings_columns(path: Path) -> tuple[str, ...]:
 
 
 def _truth_parsers(epoch, frame: pl.DataFrame) -> dict:
-    return {"t": parse_time("t", epoch, frame), "target": parse_name("target", None, "target"), "x": parse_float("x"), "y": parse_float("y")}
+    return {
+        "t": parse_time("t", epoch, frame),
+        "target": parse_name("target", None, "target"),
+        "x": parse_float("x"),
+        "y": parse_float("y"),
+    }
 
 
 def truth_from_rows(raw: RawRows, *, epoch=None, path: Path | None = None):
@@ -93,8 +98,15 @@ def _typed_crossings(path: Path, beam_ids, *, epoch, target: bool) -> TypedRows 
         return None
     good = split.good.with_columns(_DIRECTION_VALUES.gather(split.good["direction"].to_physical()).alias("direction"))
     key = ("t", "beam", "direction", "target") if target else ("t", "beam", "direction")
-    return check_split(split, good, lambda origin, frame: _crossing_parsers(beam_ids, origin, frame, target=target),
-                       epoch=epoch, key=key, tolerance=0.0, path=path)  # fmt: skip
+    return check_split(
+        split,
+        good,
+        lambda origin, frame: _crossing_parsers(beam_ids, origin, frame, target=target),
+        epoch=epoch,
+        key=key,
+        tolerance=0.0,
+        path=path,
+    )
 
 
 def read_crossings_csv(path, beam_ids, *, epoch=None):
@@ -112,7 +124,9 @@ def read_true_crossings_csv(path, beam_ids, *, epoch=None):
     path = Path(path)
     typed = _typed_crossings(path, beam_ids, epoch=epoch, target=True)
     if typed is None:
-        return true_crossings_from_rows(read_csv_rows(path, ("t", "beam", "direction", "target")), beam_ids, epoch=epoch, path=path)
+        return true_crossings_from_rows(
+            read_csv_rows(path, ("t", "beam", "direction", "target")), beam_ids, epoch=epoch, path=path
+        )
     return conform(typed.accepted, TRUE_CROSSINGS), typed.rejects
 
 
@@ -140,7 +154,11 @@ def truth_events_from_rows(raw: RawRows, *, epoch=None, path: Path | None = None
 
     The log is a toggle log (CASAS stamps are up to 0.7 s out of order): rows up to 1 s back
     are sorted into place; an identical (t, sensor) row is a duplicate."""
-    parsers = {"t": parse_time("t", epoch, raw.frame), "sensor": parse_name("sensor", None, "sensor"), "residents": _residents("residents")}
+    parsers = {
+        "t": parse_time("t", epoch, raw.frame),
+        "sensor": parse_name("sensor", None, "sensor"),
+        "residents": _residents("residents"),
+    }
     ok, rej = type_rows(raw, parsers, key=("t", "sensor"), path=path, tolerance=1.0)
     return conform(ok, TRUTH_EVENTS), rej
 

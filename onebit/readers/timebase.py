@@ -44,7 +44,7 @@ from __future__ import annotations
 import math
 from collections.abc import Mapping
 from dataclasses import dataclass
-from datetime import datetime, timezone
+from datetime import UTC, datetime
 
 import numpy as np
 import polars as pl
@@ -90,13 +90,13 @@ def epoch_unix(epoch: str) -> float:
     except ValueError:
         raise InputError(f"not an ISO date/time: {epoch!r}", field="epoch") from None
     if ep.tzinfo is None:
-        ep = ep.replace(tzinfo=timezone.utc)
+        ep = ep.replace(tzinfo=UTC)
     return ep.timestamp()
 
 
 def _iso_text(unix: float) -> str:
     try:
-        return datetime.fromtimestamp(unix, tz=timezone.utc).isoformat().replace("+00:00", "Z")
+        return datetime.fromtimestamp(unix, tz=UTC).isoformat().replace("+00:00", "Z")
     except (OverflowError, OSError, ValueError):  # beyond the calendar: the number itself
         return repr(unix)
 
@@ -158,10 +158,17 @@ def _stamps(sources: Mapping[str, pl.DataFrame | list[pl.DataFrame]], col: str) 
         for df in frames if isinstance(frames, list) else [frames]:
             if df is None or col not in df.columns or df.height == 0:
                 continue
-            line = pl.col("line").cast(pl.Int64) if "line" in df.columns else pl.int_range(1, pl.len() + 1, dtype=pl.Int64)
+            line = (
+                pl.col("line").cast(pl.Int64) if "line" in df.columns else pl.int_range(1, pl.len() + 1, dtype=pl.Int64)
+            )
             if df.schema[col].is_numeric():  # already parsed (a typed read): no text, no ISO
-                s = df.select(pl.lit(name, pl.String).alias("source"), line.alias("line"), pl.lit(None, pl.String).alias("text"),
-                              pl.col(col).cast(pl.Float64).alias("abs"), pl.lit(False).alias("iso"))  # fmt: skip
+                s = df.select(
+                    pl.lit(name, pl.String).alias("source"),
+                    line.alias("line"),
+                    pl.lit(None, pl.String).alias("text"),
+                    pl.col(col).cast(pl.Float64).alias("abs"),
+                    pl.lit(False).alias("iso"),
+                )
                 parts.append(s.filter(pl.col("abs").is_finite()).select("source", "line", "abs", "text", "iso"))
                 continue
             s = df.select(
@@ -173,7 +180,9 @@ def _stamps(sources: Mapping[str, pl.DataFrame | list[pl.DataFrame]], col: str) 
                 s = pl.concat([s.filter(~pl.col("iso")), todo.with_columns(iso_unix(pl.col("text")).alias("abs"))])
             parts.append(s.filter(pl.col("abs").is_finite()).select("source", "line", "abs", "text", "iso"))
     if not parts:
-        return pl.DataFrame(schema={"source": pl.String, "line": pl.Int64, "abs": pl.Float64, "text": pl.String, "iso": pl.Boolean})
+        return pl.DataFrame(
+            schema={"source": pl.String, "line": pl.Int64, "abs": pl.Float64, "text": pl.String, "iso": pl.Boolean}
+        )
     return pl.concat(parts).sort("abs")
 
 
@@ -194,7 +203,7 @@ def _kept_span(v: pl.Series, max_gap_s: float, lone_fraction: float) -> tuple[in
     return bounds[first], bounds[last + 1]
 
 
-def number_column_origin(values: pl.Series, epoch: "str | TimeOrigin | None") -> TimeOrigin:
+def number_column_origin(values: pl.Series, epoch: str | TimeOrigin | None) -> TimeOrigin:
     """:func:`column_origin` of a column whose stamps are all finite numbers, from their values
     (Float64): what :func:`~onebit.readers.rows.parse_time` applies to a clean numeric log
     without parsing its strings again. A :class:`TimeOrigin` is returned as it is."""
@@ -263,7 +272,9 @@ def time_origin(
         e = epoch_unix(epoch)
         return TimeOrigin(origin=e, numeric=0.0, iso=e, lo=lo_abs, hi=hi_abs, source="epoch", lone=lone)
     origin = float(math.floor(lo_abs))
-    return TimeOrigin(origin=origin, numeric=origin, iso=origin, lo=lo_abs - origin, hi=hi_abs - origin, source="data", lone=lone)
+    return TimeOrigin(
+        origin=origin, numeric=origin, iso=origin, lo=lo_abs - origin, hi=hi_abs - origin, source="data", lone=lone
+    )
 
 
 def parts_origin(numbers: pl.Series, strings: pl.Series, epoch: str | None) -> TimeOrigin:
@@ -296,14 +307,24 @@ def parts_origin(numbers: pl.Series, strings: pl.Series, epoch: str | None) -> T
             o = TimeOrigin(origin=e, numeric=0.0, iso=e, lo=lo_abs, hi=hi_abs, source="epoch", lone=lone)
         else:
             origin = float(math.floor(lo_abs))
-            o = TimeOrigin(origin=origin, numeric=origin, iso=origin, lo=lo_abs - origin, hi=hi_abs - origin, source="data", lone=lone)
+            o = TimeOrigin(
+                origin=origin,
+                numeric=origin,
+                iso=origin,
+                lo=lo_abs - origin,
+                hi=hi_abs - origin,
+                source="data",
+                lone=lone,
+            )
     if o.source != "data":
         return o if o.source == "epoch" else TimeOrigin()
     if numbers.len() == 0 and num.null_count() == num.len():  # ISO stamps only: from the column's own start
         return o
     if iso_v.len():  # numbers keep their values, ISO stamps count from the column's first second
         return TimeOrigin(origin=0.0, numeric=0.0, iso=None, source="data")
-    return TimeOrigin(origin=0.0, numeric=0.0, iso=None, lo=o.lo + o.origin, hi=o.hi + o.origin, source="data", lone=o.lone)
+    return TimeOrigin(
+        origin=0.0, numeric=0.0, iso=None, lo=o.lo + o.origin, hi=o.hi + o.origin, source="data", lone=o.lone
+    )
 
 
 def column_origin(frame: pl.DataFrame | None, col: str, epoch: str | None) -> TimeOrigin:
@@ -322,4 +343,6 @@ def column_origin(frame: pl.DataFrame | None, col: str, epoch: str | None) -> Ti
     has_iso = frame.select(iso_unix(pl.col(col).cast(pl.String)).is_not_null().any()).item()
     if has_iso:
         return TimeOrigin(origin=0.0, numeric=0.0, iso=None, source="data")
-    return TimeOrigin(origin=0.0, numeric=0.0, iso=None, lo=o.lo + o.origin, hi=o.hi + o.origin, source="data", lone=o.lone)
+    return TimeOrigin(
+        origin=0.0, numeric=0.0, iso=None, lo=o.lo + o.origin, hi=o.hi + o.origin, source="data", lone=o.lone
+    )

@@ -40,8 +40,32 @@ from onebit.readers.timebase import TimeOrigin, number, time_origin
 
 #: Header spellings tried for each column (lower case), in order.
 ALIASES: dict[str, tuple[str, ...]] = {
-    "time": ("t", "time", "timestamp", "ts", "time_ms", "timestamp_ms", "datetime", "date_time", "frame_time", "unix_time"),
-    "track": ("track", "target", "id", "track_id", "trackid", "person_id", "person", "object_id", "objectid", "tid", "pid", "tag"),
+    "time": (
+        "t",
+        "time",
+        "timestamp",
+        "ts",
+        "time_ms",
+        "timestamp_ms",
+        "datetime",
+        "date_time",
+        "frame_time",
+        "unix_time",
+    ),
+    "track": (
+        "track",
+        "target",
+        "id",
+        "track_id",
+        "trackid",
+        "person_id",
+        "person",
+        "object_id",
+        "objectid",
+        "tid",
+        "pid",
+        "tag",
+    ),
     "x": ("x", "pos_x", "x_m", "x_mm", "position_x", "px"),
     "y": ("y", "pos_y", "y_m", "y_mm", "position_y", "py"),
 }
@@ -69,18 +93,31 @@ class TrajectoryFormat:
 
     def __post_init__(self) -> None:
         if self.delimiter is not None and (not isinstance(self.delimiter, str) or len(self.delimiter) != 1):
-            raise ConfigError(f"TrajectoryFormat.delimiter = {self.delimiter!r}; must be one character (',', ';', '\\t', '|', ' ')")
+            raise ConfigError(
+                f"TrajectoryFormat.delimiter = {self.delimiter!r}; must be one character (',', ';', '\\t', '|', ' ')"
+            )
         if self.time_unit not in TIME_UNITS:
             raise ConfigError(f"TrajectoryFormat.time_unit = {self.time_unit!r}; allowed values: {list(TIME_UNITS)}")
-        if isinstance(self.scale, bool) or not isinstance(self.scale, (int, float)) or not math.isfinite(self.scale) or self.scale == 0:
+        if (
+            isinstance(self.scale, bool)
+            or not isinstance(self.scale, (int, float))
+            or not math.isfinite(self.scale)
+            or self.scale == 0
+        ):
             raise ConfigError(f"TrajectoryFormat.scale = {self.scale!r}; must be a finite non-zero number")
         off = self.offset
-        if not (isinstance(off, (list, tuple)) and len(off) == 2 and all(isinstance(v, (int, float)) and math.isfinite(v) for v in off)):
+        if not (
+            isinstance(off, (list, tuple))
+            and len(off) == 2
+            and all(isinstance(v, (int, float)) and math.isfinite(v) for v in off)
+        ):
             raise ConfigError(f"TrajectoryFormat.offset = {off!r}; must be [dx, dy] (two finite numbers)")
         seen: set[str] = set()
         for group in self.join:
             if len(group) < 2 or not all(isinstance(g, str) and g for g in group):
-                raise ConfigError(f"TrajectoryFormat.join: {group!r}; each group needs two or more track ids (e.g. --join a,b)")
+                raise ConfigError(
+                    f"TrajectoryFormat.join: {group!r}; each group needs two or more track ids (e.g. --join a,b)"
+                )
             if seen & set(group):
                 raise ConfigError(f"TrajectoryFormat.join: id(s) {sorted(seen & set(group))} in two groups")
             seen |= set(group)
@@ -108,7 +145,7 @@ def _read_strings(path: Path, delimiter: str | None) -> tuple[list[str], str, pl
     if head is None:
         raise InputError("empty file: no header line", file=path, line=1)
     if delimiter is None:
-        delimiter = max(DELIMITERS, key=lambda d: (len(head.split(d)) if d != " " else len(head.split())))
+        delimiter = max(DELIMITERS, key=lambda d: len(head.split(d)) if d != " " else len(head.split()))
     try:
         header = pl.read_csv(path, n_rows=0, infer_schema=False, separator=delimiter, encoding="utf8-lossy").columns
     except (pl.exceptions.PolarsError, OSError) as exc:
@@ -117,9 +154,16 @@ def _read_strings(path: Path, delimiter: str | None) -> tuple[list[str], str, pl
     names = [f"c{i}" for i in range(len(header))] + [_EXTRA]
     try:
         df = pl.read_csv(
-            path, has_header=False, skip_rows=1, separator=delimiter, schema={n: pl.String for n in names},
-            missing_columns="insert", truncate_ragged_lines=True, encoding="utf8-lossy", quote_char='"',
-        )  # fmt: skip
+            path,
+            has_header=False,
+            skip_rows=1,
+            separator=delimiter,
+            schema={n: pl.String for n in names},
+            missing_columns="insert",
+            truncate_ragged_lines=True,
+            encoding="utf8-lossy",
+            quote_char='"',
+        )
     except (pl.exceptions.PolarsError, OSError) as exc:
         raise InputError(f"cannot parse the file with delimiter {delimiter!r}: {exc}", file=path) from None
     df = df.with_row_index("line", offset=2).with_columns(pl.col("line").cast(pl.Int64))
@@ -153,11 +197,16 @@ def _column(header: list[str], wanted: str | None, role: str, path: Path) -> int
         if a in low:
             return low[a]
     raise InputError(
-        f"no {role} column among {header}; name it with --{role}-column (tried {list(ALIASES[role])})", file=path, line=1, field=role
+        f"no {role} column among {header}; name it with --{role}-column (tried {list(ALIASES[role])})",
+        file=path,
+        line=1,
+        field=role,
     )
 
 
-def read_trajectories(path: str | Path, fmt: TrajectoryFormat | None = None, *, epoch: str | TimeOrigin | None = None) -> TrajectoryRead:
+def read_trajectories(
+    path: str | Path, fmt: TrajectoryFormat | None = None, *, epoch: str | TimeOrigin | None = None
+) -> TrajectoryRead:
     """Read a trajectory export into the ``truth`` table (module docstring)."""
     path = Path(path)
     fmt = fmt or TrajectoryFormat()
@@ -184,9 +233,14 @@ def read_trajectories(path: str | Path, fmt: TrajectoryFormat | None = None, *, 
     if unit in ("ms", "us"):  # numbers in seconds, as strings: the time base reads them
         div = 1e3 if unit == "ms" else 1e6
         frame = frame.with_columns(
-            pl.when(number(pl.col("t")).is_not_null()).then((number(pl.col("t")) / div).cast(pl.String)).otherwise(pl.col("t")).alias("t")
+            pl.when(number(pl.col("t")).is_not_null())
+            .then((number(pl.col("t")) / div).cast(pl.String))
+            .otherwise(pl.col("t"))
+            .alias("t")
         )
-    origin = epoch if isinstance(epoch, TimeOrigin) else time_origin({path.name: frame.select("line", "t")}, epoch=epoch)
+    origin = (
+        epoch if isinstance(epoch, TimeOrigin) else time_origin({path.name: frame.select("line", "t")}, epoch=epoch)
+    )
     joined = 0
     if fmt.join:
         mapping = {old: g[0] for g in fmt.join for old in g[1:]}
@@ -212,6 +266,8 @@ def read_trajectories(path: str | Path, fmt: TrajectoryFormat | None = None, *, 
     if rejects.height and rejects["raw"].null_count():  # the text of each rejected line, whatever the suffix
         text = raw_lines(path, rejects["line"].drop_nulls().to_list())
         rejects = rejects.with_columns(
-            pl.coalesce(pl.col("raw"), pl.col("line").replace_strict(text, default=None, return_dtype=pl.String)).alias("raw")
+            pl.coalesce(pl.col("raw"), pl.col("line").replace_strict(text, default=None, return_dtype=pl.String)).alias(
+                "raw"
+            )
         )
     return TrajectoryRead(truth, rejects, origin, cols, unit, joined)

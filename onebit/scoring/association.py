@@ -63,7 +63,11 @@ ASSOCIATION = pl.Schema({"track": pl.String, "target": pl.String, "cost": pl.Flo
 
 
 def truth_at(
-    times: pl.Series | np.ndarray, truth: pl.DataFrame, *, tolerance: float | None, columns: tuple[str, ...] = ("x", "y")
+    times: pl.Series | np.ndarray,
+    truth: pl.DataFrame,
+    *,
+    tolerance: float | None,
+    columns: tuple[str, ...] = ("x", "y"),
 ) -> pl.DataFrame:
     """Each target's truth sample nearest to every time in ``times``.
 
@@ -88,7 +92,9 @@ def truth_at(
     parts = []
     for g in targets:  # one as-of join per target (a handful), each vectorised over the times
         tg = truth.filter(pl.col("target") == g).select("t", *sel).sort("t")
-        j = frames.join_asof(tg, left_on="t", right_on="t", strategy="nearest", tolerance=tolerance, check_sortedness=False)
+        j = frames.join_asof(
+            tg, left_on="t", right_on="t", strategy="nearest", tolerance=tolerance, check_sortedness=False
+        )
         parts.append(j.drop_nulls("t_truth").with_columns(target=pl.lit(g, dtype=pl.String)))
     if not parts:
         return pl.DataFrame(schema=schema)

@@ -17,7 +17,9 @@ def query_rows(tables: dict) -> list[tuple[str, str, float, str]]:
     a = tables.get("beams_assignment")
     if a is None:
         return rows
-    rows.append(("beams", "ambiguous_crossings", float(a["ambiguous"].sum()) if "ambiguous" in a.columns else 0.0, "crossings"))
+    rows.append(
+        ("beams", "ambiguous_crossings", float(a["ambiguous"].sum()) if "ambiguous" in a.columns else 0.0, "crossings")
+    )
     un = tables.get("beams_unexplained")
     rows.append(("beams", "unexplained_crossings", float(un.height) if un is not None else 0.0, "crossings"))
     visits = tables.get("beams_visits")
@@ -35,7 +37,9 @@ def query_rows(tables: dict) -> list[tuple[str, str, float, str]]:
     return rows
 
 
-def score(tracker: str, tables: dict, site: Site, region_graph: RegionGraph) -> tuple[list[tuple[str, str, float, str]], dict]:
+def score(
+    tracker: str, tables: dict, site: Site, region_graph: RegionGraph
+) -> tuple[list[tuple[str, str, float, str]], dict]:
     """Report rows and ``scores`` of the beams tracker.
 
     With truth: the agents are matched to the true agents by the crossings they share

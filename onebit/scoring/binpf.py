@@ -51,4 +51,6 @@ def score(tracker: str, tables: dict, site: Site, region_graph=None) -> tuple[li
         (NAME, "count_bias", float((rep - n).mean()), "people/frame"),
         (NAME, "count_expected_error", float(np.abs(frames["count"].to_numpy() - n).mean()), "people/frame"),
     ]
-    return rows, {f"{NAME}_counts": pl.DataFrame({"t": frames["t"], "true": n, "reported": rep, "expected": frames["count"]})}
+    return rows, {
+        f"{NAME}_counts": pl.DataFrame({"t": frames["t"], "true": n, "reported": rep, "expected": frames["count"]})
+    }

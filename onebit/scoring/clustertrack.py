@@ -44,7 +44,9 @@ def match_tracks(truth: pl.DataFrame, tracks: pl.DataFrame) -> tuple[list[str], 
     return targets, names, D, pairs
 
 
-def score(tracker: str, tables: dict, site: Site, region_graph=None) -> tuple[list[tuple[str, str, float, str]], dict[str, pl.DataFrame]]:
+def score(
+    tracker: str, tables: dict, site: Site, region_graph=None
+) -> tuple[list[tuple[str, str, float, str]], dict[str, pl.DataFrame]]:
     """Report rows: mean_error_R, targets_true, targets_found, spurious_tracks,
     count_lower_bound, count_consensus; table ``clustertrack_scores`` (SCORES).
 
@@ -76,7 +78,10 @@ def score(tracker: str, tables: dict, site: Site, region_graph=None) -> tuple[li
     # one association: minimum summed mean error, a pair matched only within D0 (a target "found")
     matched = associate(pairs, cost="err", reduce="mean", gate=D0)
     found = matched.height
-    rows += [(NAME, "targets_found", float(found), "targets"), (NAME, "spurious_tracks", float(len(names) - found), "tracks")]
+    rows += [
+        (NAME, "targets_found", float(found), "targets"),
+        (NAME, "spurious_tracks", float(len(names) - found), "tracks"),
+    ]
     sc = matched_pairs(pairs, matched).with_columns(tracker=pl.lit(NAME), error=pl.col("err"))
     sc = conform(sc, SCORES).sort(["t", "track"])
     rows.append((NAME, "error_mean_matched", float(sc["error"].mean()) if sc.height else float("nan"), site.units))

@@ -5,9 +5,11 @@ from __future__ import annotations
 
 import numpy as np
 import polars as pl
+
 from onebit.core.lazy import lazy_module
 
 _optimize = lazy_module("scipy.optimize")
+
 
 def recovered_matches(corrected: pl.DataFrame, sim_crossings: pl.DataFrame) -> pl.DataFrame:
     """Dropped true crossings matched one-to-one to inserted crossings.

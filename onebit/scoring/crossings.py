@@ -51,7 +51,9 @@ class ScoresConfig:
         if not isinstance(g, (list, tuple)) or not all(
             isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v) and v > 0 for v in g
         ):
-            raise ConfigError(f"ScoresConfig.gates_m = {self.gates_m!r}; expected a list of positive distances in metres, e.g. [1.0, 1.5]")
+            raise ConfigError(
+                f"ScoresConfig.gates_m = {self.gates_m!r}; expected a list of positive distances in metres, e.g. [1.0, 1.5]"
+            )
         object.__setattr__(self, "gates_m", tuple(float(v) for v in dict.fromkeys(g)))
 
 
@@ -112,19 +114,31 @@ def match_crossings(observed: pl.DataFrame, true: pl.DataFrame, tolerance: float
     nearer keeps it and the other stays unmatched (target null).
     """
     obs = observed.with_row_index("obs").sort("t")
-    tru = true.select("t", "beam", "direction", "target").with_row_index("true_id").with_columns(t_true=pl.col("t")).sort("t")
-    j = obs.join_asof(tru.drop("target"), on="t", by=["beam", "direction"], strategy="nearest", tolerance=tolerance, check_sortedness=False)
+    tru = (
+        true.select("t", "beam", "direction", "target")
+        .with_row_index("true_id")
+        .with_columns(t_true=pl.col("t"))
+        .sort("t")
+    )
+    j = obs.join_asof(
+        tru.drop("target"),
+        on="t",
+        by=["beam", "direction"],
+        strategy="nearest",
+        tolerance=tolerance,
+        check_sortedness=False,
+    )
     j = j.with_columns(dt=(pl.col("t") - pl.col("t_true")).abs())
     best = pl.col("dt") == pl.col("dt").min().over("true_id")
     first = pl.col("obs") == pl.col("obs").filter(best).min().over("true_id")
-    j = j.with_columns(pl.when(pl.col("true_id").is_not_null() & best & first).then(pl.col("true_id")).otherwise(None).alias("true_id"))
+    j = j.with_columns(
+        pl.when(pl.col("true_id").is_not_null() & best & first).then(pl.col("true_id")).otherwise(None).alias("true_id")
+    )
     j = j.join(tru.select("true_id", "target"), on="true_id", how="left")
     return j.sort("obs").drop("obs", "t_true")
 
 
-def assignment_scores(
-    matched: pl.DataFrame, assignment: pl.DataFrame
-) -> tuple[float, dict[str, str]]:
+def assignment_scores(matched: pl.DataFrame, assignment: pl.DataFrame) -> tuple[float, dict[str, str]]:
     """Fraction of observed crossings attributed to the matched true agent, and the matching.
 
     ``matched``: observed crossings in order with ``target`` (null when no true crossing
@@ -259,7 +273,9 @@ def error_summary(scores: pl.DataFrame, *, stage: str, unit: str) -> list[tuple[
     return rows
 
 
-def score_crossings(tables: dict, cfg: ScoresConfig) -> tuple[list[tuple[str, str, float, str]], dict[str, pl.DataFrame]]:
+def score_crossings(
+    tables: dict, cfg: ScoresConfig
+) -> tuple[list[tuple[str, str, float, str]], dict[str, pl.DataFrame]]:
     """Decoded crossings against the truth, and the correction's restored crossings.
 
     Report: ``crossings/decoded_match`` (fraction of true crossings some observed crossing
@@ -288,5 +304,7 @@ def score_crossings(tables: dict, cfg: ScoresConfig) -> tuple[list[tuple[str, st
     if "sim_crossings" in t and "true_crossings" in t:
         m2 = match_crossings(t["true_crossings"], t["sim_crossings"], cfg.crossing_tolerance_s)
         n = t["sim_crossings"].height
-        rows.append(("truth", "crossings_from_positions", m2["true_id"].drop_nulls().n_unique() / n if n else 1.0, "fraction"))
+        rows.append(
+            ("truth", "crossings_from_positions", m2["true_id"].drop_nulls().n_unique() / n if n else 1.0, "fraction")
+        )
     return rows, out

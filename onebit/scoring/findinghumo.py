@@ -21,8 +21,8 @@ import polars as pl
 from onebit.core.sensing import current_node, detection_regions
 from onebit.core.site import Site
 from onebit.core.tables import SCORES, conform
-from onebit.scoring.association import associate, matched_pairs, pair_samples
 from onebit.models.graph_hmm.eatg import hop_matrix
+from onebit.scoring.association import associate, matched_pairs, pair_samples
 
 
 def truth_nodes(truth: pl.DataFrame, site: Site) -> pl.DataFrame:
@@ -47,7 +47,9 @@ def score(name: str, tables: dict, site: Site, region_graph=None):
     tracks = tables.get(f"{name}_tracks")
     dec = tables.get(f"{name}_decoder")
     timings = tables.get("timings")
-    secs = timings.filter(pl.col("stage") == name)["seconds"] if timings is not None else pl.Series([], dtype=pl.Float64)
+    secs = (
+        timings.filter(pl.col("stage") == name)["seconds"] if timings is not None else pl.Series([], dtype=pl.Float64)
+    )
     if dec is not None and dec.height and dec["slots"][0] > 0 and secs.len():
         per_slot = float(secs[0]) / float(dec["slots"][0])  # the whole stage, timed by the runner
         rows.append((name, "decoder_seconds_per_slot", per_slot, "s"))
@@ -73,13 +75,22 @@ def score(name: str, tables: dict, site: Site, region_graph=None):
     slot_t = tracks["t"].unique().sort()
     period = float(np.median(np.diff(slot_t.to_numpy()))) if slot_t.len() > 1 else 1.0
     pairs = pair_samples(
-        tracks.select("track", "t", est="node"), tr, tolerance=period / 2 + 1e-9,
-        columns=("est",), truth_columns=("x", "y", "node"), complete=True,
+        tracks.select("track", "t", est="node"),
+        tr,
+        tolerance=period / 2 + 1e-9,
+        columns=("est",),
+        truth_columns=("x", "y", "node"),
+        complete=True,
     ).rename({"true_x": "x", "true_y": "y", "true_node": "node"})
     true_at = pairs.select("t", "target").unique()
     # hop error of every pair; a slot the track misses (or a node off the graph) = diameter
     ti = pairs["node"].replace_strict(list(idx), list(idx.values()), return_dtype=pl.Int64).to_numpy()
-    ei = pairs["est"].replace_strict(list(idx), list(idx.values()), default=-1, return_dtype=pl.Int64).fill_null(-1).to_numpy()
+    ei = (
+        pairs["est"]
+        .replace_strict(list(idx), list(idx.values()), default=-1, return_dtype=pl.Int64)
+        .fill_null(-1)
+        .to_numpy()
+    )
     h = np.where(ei >= 0, hops[ti, np.maximum(ei, 0)], diameter)
     pairs = pairs.with_columns(hop=pl.Series(h, dtype=pl.Int64))
     # one association: minimum summed hop error over the run, no gate (the paper's metric)

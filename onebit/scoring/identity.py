@@ -89,8 +89,14 @@ def matched(truth_events: pl.DataFrame, tracker_events: pl.DataFrame, *, tol: fl
     ev = tracker_events.select(list(TRACKER_EVENTS)).filter(pl.col("track").is_not_null()).sort("t")
     if te.height == 0:
         return te.with_columns(track=pl.lit(None, pl.String))
-    return te.join_asof(ev.rename({"t": "_t"}).with_columns(t=pl.col("_t")), on="t", by="sensor", strategy="nearest", check_sortedness=False,
-                        tolerance=tol).drop("_t")  # fmt: skip
+    return te.join_asof(
+        ev.rename({"t": "_t"}).with_columns(t=pl.col("_t")),
+        on="t",
+        by="sensor",
+        strategy="nearest",
+        check_sortedness=False,
+        tolerance=tol,
+    ).drop("_t")
 
 
 def relabelling(m: pl.DataFrame) -> tuple[dict[str, str], int]:
@@ -137,7 +143,9 @@ def adjusted_rand_index(a: np.ndarray, b: np.ndarray) -> float:
     return float((s_ij - expected) / (top - expected))
 
 
-def presence_count(truth_events: pl.DataFrame, minutes: np.ndarray, *, absent_after_s: float = ABSENT_AFTER_S) -> np.ndarray:
+def presence_count(
+    truth_events: pl.DataFrame, minutes: np.ndarray, *, absent_after_s: float = ABSENT_AFTER_S
+) -> np.ndarray:
     """Time-averaged number of residents present in each minute starting at ``minutes`` (s)."""
     single = truth_events.with_columns(r=pl.col("residents").str.split(";")).explode("r").sort("r", "t")
     out = np.zeros(minutes.size)
@@ -195,9 +203,14 @@ def identity_scores(
         est = np.full(minutes.size, float(constant_count)) if tracks is None else track_count(tracks, minutes)
         count_err = float(np.mean(np.abs(est - true_n)))
     return IdentityScores(
-        accuracy=float(acc), ari=float(ari), switches_per_hour=(sw / span_h if span_h > 0 else 0.0), count_error=count_err, events=e,
-        attributed=float(m["track"].is_not_null().mean()) if e else 0.0, mapping=mapping,
-    )  # fmt: skip
+        accuracy=float(acc),
+        ari=float(ari),
+        switches_per_hour=(sw / span_h if span_h > 0 else 0.0),
+        count_error=count_err,
+        events=e,
+        attributed=float(m["track"].is_not_null().mean()) if e else 0.0,
+        mapping=mapping,
+    )
 
 
 def busier_events(truth_events: pl.DataFrame) -> pl.DataFrame:

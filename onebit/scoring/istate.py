@@ -39,10 +39,24 @@ def score(tracker: str, tables: dict, site: Site, region_graph=None) -> tuple[li
         (NAME, "area_mean", float(summ["area"].mean()) if summ.height else 0.0, f"{site.units}^2"),
         # the I-state's size beside its containment: a filter that keeps the truth by covering
         # the whole room says little (containment 1.0 at area_share 1.0 is the trivial I-state)
-        (NAME, "area_share", float(summ["area"].mean()) / free_area if summ.height and free_area > 0 else float("nan"), "fraction of free space"),
+        (
+            NAME,
+            "area_share",
+            float(summ["area"].mean()) / free_area if summ.height and free_area > 0 else float("nan"),
+            "fraction of free space",
+        ),
     ]
-    if "area_share" in summ.columns:  # how much of the room the I-state leaves open: containment is only as good as this
-        rows.append((NAME, "area_share_mean", float(summ["area_share"].mean()) if summ.height else 0.0, "fraction of free space"))
+    if (
+        "area_share" in summ.columns
+    ):  # how much of the room the I-state leaves open: containment is only as good as this
+        rows.append(
+            (
+                NAME,
+                "area_share_mean",
+                float(summ["area_share"].mean()) if summ.height else 0.0,
+                "fraction of free space",
+            )
+        )
     if "rejected" in summ.columns:
         rows.append((NAME, "rejected_readings", float(summ["rejected"].sum()), "readings"))
         rows.append((NAME, "stages_with_rejects", float((summ["rejected"] > 0).sum()), "stages"))

@@ -84,14 +84,14 @@ import numpy as np
 import polars as pl
 
 from onebit.core.errors import OnebitError
+from onebit.core.lazy import lazy_module
 from onebit.core.region_graph import RegionGraph
 from onebit.core.site import Site
 from onebit.core.units import to_site_units
+from onebit.models.graph_hmm.eatg import hop_matrix
 from onebit.scoring.association import truth_at
 from onebit.scoring.crossings import truth_regions
 from onebit.scoring.findinghumo import truth_nodes
-from onebit.models.graph_hmm.eatg import hop_matrix
-from onebit.core.lazy import lazy_module
 
 mm = lazy_module("motmetrics")
 _trackeval_metrics = lazy_module("trackeval.metrics")
@@ -167,7 +167,9 @@ def frame_blocks(objects: pl.DataFrame, hypotheses: pl.DataFrame, distances: pl.
     return fr, obj_ids, hyp_ids, mats
 
 
-def mot_metrics(objects: pl.DataFrame, hypotheses: pl.DataFrame, distances: pl.DataFrame, *, gate: float) -> dict[str, float]:
+def mot_metrics(
+    objects: pl.DataFrame, hypotheses: pl.DataFrame, distances: pl.DataFrame, *, gate: float
+) -> dict[str, float]:
     """MOTA, MOTP, IDF1, ID switches (motmetrics) and HOTA, DetA, AssA (trackeval).
 
     Parameters
@@ -247,8 +249,14 @@ def scoring_frames(truth_t: pl.Series, hyp_t: pl.Series) -> tuple[pl.Series, flo
         return ht.cast(pl.Float64), tol_o, tol_h
     lone = (
         pl.DataFrame({"t": ht.cast(pl.Float64)})
-        .join_asof(pl.DataFrame({"t_o": tt.cast(pl.Float64)}), left_on="t", right_on="t_o", strategy="nearest",
-                   tolerance=tol_o, check_sortedness=False)  # fmt: skip
+        .join_asof(
+            pl.DataFrame({"t_o": tt.cast(pl.Float64)}),
+            left_on="t",
+            right_on="t_o",
+            strategy="nearest",
+            tolerance=tol_o,
+            check_sortedness=False,
+        )
         .filter(pl.col("t_o").is_null())["t"]
     )
     return pl.concat([tt.cast(pl.Float64), lone]).unique().sort(), tol_o, tol_h
@@ -260,9 +268,12 @@ def hypotheses_at(frames: pl.Series, hyp: pl.DataFrame, tolerance: float) -> pl.
     if hyp.height == 0 or frames.len() == 0:
         return hyp.clear()
     ht = hyp.select(pl.col("t").alias("t_h")).unique().sort("t_h")
-    pick = pl.DataFrame({"t": frames.cast(pl.Float64)}).sort("t").join_asof(
-        ht, left_on="t", right_on="t_h", strategy="nearest", tolerance=tolerance, check_sortedness=False
-    ).drop_nulls("t_h")
+    pick = (
+        pl.DataFrame({"t": frames.cast(pl.Float64)})
+        .sort("t")
+        .join_asof(ht, left_on="t", right_on="t_h", strategy="nearest", tolerance=tolerance, check_sortedness=False)
+        .drop_nulls("t_h")
+    )
     return pick.join(hyp.rename({"t": "t_h"}), on="t_h").drop("t_h").select(hyp.columns).sort("t", "track")
 
 
@@ -275,12 +286,17 @@ def point_frames(tracks: pl.DataFrame, truth: pl.DataFrame) -> tuple[pl.DataFram
     obj = truth_at(frames, tru, tolerance=tol_o)
     hyp = hypotheses_at(frames, hyp, tol_h)
     dist = obj.join(hyp, on="t").select(
-        "t", "target", "track", distance=((pl.col("x") - pl.col("true_x")) ** 2 + (pl.col("y") - pl.col("true_y")) ** 2).sqrt()
+        "t",
+        "target",
+        "track",
+        distance=((pl.col("x") - pl.col("true_x")) ** 2 + (pl.col("y") - pl.col("true_y")) ** 2).sqrt(),
     )
     return obj.select(list(OBJECTS)), hyp.select(list(HYPOTHESES)), dist
 
 
-def node_frames(tracks: pl.DataFrame, truth: pl.DataFrame, site: Site) -> tuple[pl.DataFrame, pl.DataFrame, pl.DataFrame]:
+def node_frames(
+    tracks: pl.DataFrame, truth: pl.DataFrame, site: Site
+) -> tuple[pl.DataFrame, pl.DataFrame, pl.DataFrame]:
     """Objects, hypotheses and hop distances of sensor-graph node tracks at every frame
     (:func:`scoring_frames`; unreachable nodes: no pair)."""
     g = site.sensor_graph
@@ -307,7 +323,9 @@ def count_errors(objects: pl.DataFrame, hypotheses: pl.DataFrame) -> pl.DataFram
     )
 
 
-def region_frames(tracks: pl.DataFrame, truth: pl.DataFrame, rg: RegionGraph) -> tuple[pl.DataFrame, pl.DataFrame, pl.DataFrame]:
+def region_frames(
+    tracks: pl.DataFrame, truth: pl.DataFrame, rg: RegionGraph
+) -> tuple[pl.DataFrame, pl.DataFrame, pl.DataFrame]:
     """Objects, hypotheses and hop distances of region tracks held between their rows.
 
     Frames = the truth's sample times; each track holds the region of its last row at or
@@ -331,7 +349,11 @@ def _hop_pairs(obj: pl.DataFrame, hyp: pl.DataFrame, col: str, names: list[str],
     i = pairs[f"true_{col}"].replace_strict(code, default=-1, return_dtype=pl.Int64).to_numpy()
     j = pairs[col].replace_strict(code, default=-1, return_dtype=pl.Int64).to_numpy()
     d = np.where((i >= 0) & (j >= 0), hops[np.maximum(i, 0), np.maximum(j, 0)], np.nan)
-    return pairs.select("t", "target", "track").with_columns(distance=pl.Series(d, dtype=pl.Float64).fill_nan(None)).drop_nulls("distance")
+    return (
+        pairs.select("t", "target", "track")
+        .with_columns(distance=pl.Series(d, dtype=pl.Float64).fill_nan(None))
+        .drop_nulls("distance")
+    )
 
 
 def sensing_radius(site: Site) -> float | None:
@@ -373,7 +395,9 @@ def gate_label(size_m: float) -> str:
     return f"{float(size_m):g}m"
 
 
-def metric_gate_rows(tracker: str, tracks: pl.DataFrame, truth: pl.DataFrame, site: Site, gates_m: tuple[float, ...]) -> list[ReportRow]:
+def metric_gate_rows(
+    tracker: str, tracks: pl.DataFrame, truth: pl.DataFrame, site: Site, gates_m: tuple[float, ...]
+) -> list[ReportRow]:
     """MOTA, MOTP, IDF1, ID switches, HOTA, misses and false positives at each metric gate
     (metres, converted to the site's units), every frame scored; ``count_error`` and
     ``max_tracks`` once. Empty when the tracks have rows but none with a position (a tracker
@@ -451,6 +475,8 @@ def mot_rows(
     ]
     if not metric and gate.space != "point":
         ce = count_errors(obj, hyp)
-        metric = [(tracker, "count_error", float(ce["error"].mean()) if ce.height else float("nan"), "people/frame"),
-                  (tracker, "max_tracks", float(ce["hypotheses"].max()) if ce.height else 0.0, "tracks")]  # fmt: skip
+        metric = [
+            (tracker, "count_error", float(ce["error"].mean()) if ce.height else float("nan"), "people/frame"),
+            (tracker, "max_tracks", float(ce["hypotheses"].max()) if ce.height else 0.0, "tracks"),
+        ]
     return rows + metric

@@ -18,8 +18,9 @@ declared in the pipeline's stage list (:mod:`onebit.pipeline.stages`), not regis
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Any, Callable
+from typing import Any
 
 #: Key of the in-memory results a tracker hands to its viz function (never saved as a table).
 ARTIFACTS = "artifacts"

@@ -20,19 +20,19 @@ import numpy as np
 import polars as pl
 import shapely
 
+from onebit.core.lazy import lazy_module
 from onebit.core.region_graph import RegionGraph
 from onebit.core.site import Site
 from onebit.viz import colors, paths
 from onebit.viz._series import is_empty, repeat_text, require, text_array
 from onebit.viz.frame import log_world_frame
+from onebit.viz.radii import ui_points
 from onebit.viz.tracks import (
     log_occupancy,
     log_region_tracks,
     track_colors,
     track_labels,
 )
-from onebit.core.lazy import lazy_module
-from onebit.viz.radii import ui_points
 
 rr = lazy_module("rerun")
 
@@ -70,7 +70,9 @@ def _track_label(labels: dict[str, str]) -> pl.Expr:
     return pl.col("track").replace_strict(labels, default="no track", return_dtype=pl.String)
 
 
-def log_assignments(rec: rr.RecordingStream, tracker: str, assignment: pl.DataFrame | None, labels: dict[str, str]) -> None:
+def log_assignments(
+    rec: rr.RecordingStream, tracker: str, assignment: pl.DataFrame | None, labels: dict[str, str]
+) -> None:
     """``<tracker>/assignments``: a log line per explained, unambiguous crossing, in its track's colour."""
     if is_empty(assignment):
         return
@@ -81,12 +83,23 @@ def log_assignments(rec: rr.RecordingStream, tracker: str, assignment: pl.DataFr
     a = a.filter(pl.col("track").is_not_null())
     if a.height == 0:
         return
-    move = pl.format("  {} -> {}", pl.col("source"), pl.col("region")) if {"source", "region"} <= set(a.columns) else pl.lit("")
-    text = a.select(pl.format("#{} {}{}: {}", pl.col("crossing"), _crossing_label(), move, _track_label(labels)).alias("s"))
+    move = (
+        pl.format("  {} -> {}", pl.col("source"), pl.col("region"))
+        if {"source", "region"} <= set(a.columns)
+        else pl.lit("")
+    )
+    text = a.select(
+        pl.format("#{} {}{}: {}", pl.col("crossing"), _crossing_label(), move, _track_label(labels)).alias("s")
+    )
     shades = track_colors(tracker, labels)
     ids = list(shades)
     palette = np.array([*shades.values(), colors.WARNING], np.uint8).reshape(-1, 4)
-    k = a["track"].cast(pl.String).replace_strict(ids, list(range(len(ids))), default=len(ids), return_dtype=pl.Int64).to_numpy()
+    k = (
+        a["track"]
+        .cast(pl.String)
+        .replace_strict(ids, list(range(len(ids))), default=len(ids), return_dtype=pl.Int64)
+        .to_numpy()
+    )
     rec.send_columns(
         paths.join(paths.tracker_root(tracker), "assignments"),
         indexes=[paths.time_column(a["t"].to_numpy())],
@@ -95,7 +108,12 @@ def log_assignments(rec: rr.RecordingStream, tracker: str, assignment: pl.DataFr
 
 
 def log_marked_crossings(
-    rec: rr.RecordingStream, tracker: str, kind: str, marked: pl.DataFrame | None, site: Site, labels: dict[str, str] | None = None
+    rec: rr.RecordingStream,
+    tracker: str,
+    kind: str,
+    marked: pl.DataFrame | None,
+    site: Site,
+    labels: dict[str, str] | None = None,
 ) -> None:
     """A marker on the beam and a text line at the time of each crossing in ``marked``
     (t, beam, direction and optionally crossing, track, source, region, reason), one
@@ -112,14 +130,20 @@ def log_marked_crossings(
         extra = pl.format("{} (FIFO and LIFO disagree)", _track_label(labels or {}))
     else:
         extra = pl.lit("")
-    text = m.select(pl.format("#{} {} {}: {}", pl.col("crossing"), _crossing_label(), pl.lit(kind), extra).alias("text"))
+    text = m.select(
+        pl.format("#{} {} {}: {}", pl.col("crossing"), _crossing_label(), pl.lit(kind), extra).alias("text")
+    )
     t = m["t"].to_numpy()
     xy = beam_midpoints(site, m["beam"])
     entity = paths.join(paths.tracker_root(tracker), kind)
     color = _MARK_COLOR.get(kind, colors.WARNING)
     log_world_frame(rec, entity)
-    rec.log(entity, rr.Points2D.from_fields(radii=MARK_RADIUS, colors=color, show_labels=True, draw_order=40.0), static=True)
-    marks = text_array(m.select(pl.format("{} {}", _crossing_label(), pl.lit(_MARK_TEXT.get(kind, kind))).alias("s"))["s"])
+    rec.log(
+        entity, rr.Points2D.from_fields(radii=MARK_RADIUS, colors=color, show_labels=True, draw_order=40.0), static=True
+    )
+    marks = text_array(
+        m.select(pl.format("{} {}", _crossing_label(), pl.lit(_MARK_TEXT.get(kind, kind))).alias("s"))["s"]
+    )
     rec.send_columns(
         entity,
         indexes=[paths.time_column(t)],
@@ -129,11 +153,17 @@ def log_marked_crossings(
     rec.send_columns(
         paths.join(entity, "log"),
         indexes=[paths.time_column(t)],
-        columns=rr.TextLog.columns(text=text_array(text["text"]), level=repeat_text(level, len(t)), color=np.tile(np.asarray(color, np.uint8), (len(t), 1))),
+        columns=rr.TextLog.columns(
+            text=text_array(text["text"]),
+            level=repeat_text(level, len(t)),
+            color=np.tile(np.asarray(color, np.uint8), (len(t), 1)),
+        ),
     )
 
 
-def log_run(rec: rr.RecordingStream, tracker: str, out: dict, *, site: Site, region_graph: RegionGraph, config, tables: dict) -> None:
+def log_run(
+    rec: rr.RecordingStream, tracker: str, out: dict, *, site: Site, region_graph: RegionGraph, config, tables: dict
+) -> None:
     """Everything the ``beams`` tracker produced: region tracks (dot, trail, current region,
     whole region path), occupancy, the assignment log, ambiguous and unexplained crossings."""
     tracks = out["tracks"]

@@ -17,12 +17,12 @@ from __future__ import annotations
 import numpy as np
 import polars as pl
 
+from onebit.core.lazy import lazy_module
 from onebit.core.site import Site
 from onebit.viz import paths
 from onebit.viz._series import is_empty, require
 from onebit.viz.beams import beam_midpoints
 from onebit.viz.frame import log_world_frame
-from onebit.core.lazy import lazy_module
 
 rr = lazy_module("rerun")
 
@@ -45,7 +45,9 @@ def log_path() -> str:
 
 def _labels(df: pl.DataFrame, suffix: str) -> list[str]:
     return df.select(
-        (pl.when(pl.col("direction") > 0).then(pl.col("beam")).otherwise(pl.col("beam") + "^-1") + pl.lit(suffix)).alias("s")
+        (
+            pl.when(pl.col("direction") > 0).then(pl.col("beam")).otherwise(pl.col("beam") + "^-1") + pl.lit(suffix)
+        ).alias("s")
     )["s"].to_list()
 
 

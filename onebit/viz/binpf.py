@@ -35,16 +35,21 @@ def log_footprints(rec, tracker: str, t: np.ndarray, on: np.ndarray, sensors: np
         return
     entity = paths.join(paths.tracker_root(tracker), "sensors", "on")
     log_world_frame(rec, entity)
-    rec.log(entity, rr.LineStrips2D.from_fields(colors=ON, radii=rr.Radius.ui_points(1.0), draw_order=15.0), static=True)
+    rec.log(
+        entity, rr.LineStrips2D.from_fields(colors=ON, radii=rr.Radius.ui_points(1.0), draw_order=15.0), static=True
+    )
     rings = [_circle(sensors[s], radii[s]) for s in range(len(sensors))]
     kk, ss = np.nonzero(on)
     rec.send_columns(
-        entity, indexes=[paths.time_column(t)],
+        entity,
+        indexes=[paths.time_column(t)],
         columns=rr.LineStrips2D.columns(strips=[rings[s] for s in ss]).partition(on.sum(axis=1).astype(np.int64)),
-    )  # fmt: skip
+    )
 
 
-def log_track_particles(rec, tracker: str, times: np.ndarray, pt: np.ndarray, xy: np.ndarray, track: np.ndarray) -> None:
+def log_track_particles(
+    rec, tracker: str, times: np.ndarray, pt: np.ndarray, xy: np.ndarray, track: np.ndarray
+) -> None:
     """Particles (``xy`` rows at times ``pt``, of ``track``) partitioned by frame."""
     if len(times) == 0 or len(xy) == 0:
         return
@@ -54,9 +59,12 @@ def log_track_particles(rec, tracker: str, times: np.ndarray, pt: np.ndarray, xy
     k = np.searchsorted(times, pt)
     lengths = np.bincount(k, minlength=len(times)).astype(np.int64)
     rec.send_columns(
-        entity, indexes=[paths.time_column(times)],
-        columns=rr.Points2D.columns(positions=xy, colors=colors.colors_of(track.tolist(), alpha=140)).partition(lengths),
-    )  # fmt: skip
+        entity,
+        indexes=[paths.time_column(times)],
+        columns=rr.Points2D.columns(positions=xy, colors=colors.colors_of(track.tolist(), alpha=140)).partition(
+            lengths
+        ),
+    )
 
 
 def log_counts(rec, tracker: str, frames: pl.DataFrame) -> None:
@@ -65,9 +73,10 @@ def log_counts(rec, tracker: str, frames: pl.DataFrame) -> None:
         return
     for name, col in (("expected", "count"), ("reported", "reported")):
         rec.send_columns(
-            paths.join(paths.tracker_root(tracker), "count", name), indexes=[paths.time_column(frames["t"].to_numpy())],
+            paths.join(paths.tracker_root(tracker), "count", name),
+            indexes=[paths.time_column(frames["t"].to_numpy())],
             columns=rr.Scalars.columns(scalars=frames[col].cast(pl.Float64).to_numpy()),
-        )  # fmt: skip
+        )
 
 
 def log_run(rec, tracker: str, out: dict, *, site, region_graph, config, tables: dict) -> None:

@@ -44,15 +44,14 @@ from __future__ import annotations
 from collections.abc import Iterable, Mapping
 from pathlib import Path
 
-
 from onebit.core import writers
+from onebit.core.lazy import lazy_module
 from onebit.viz import colors, paths
 from onebit.viz.families import FAMILY_ORDER, error_unit, family
 from onebit.viz.inspect import entity_archetypes, scalar_ranges, store_ids
 from onebit.viz.recording import APPLICATION_ID, close_recording, open_recording
 from onebit.viz.tracks import natural_key
 from onebit.viz.trails import TRAIL_S
-from onebit.core.lazy import lazy_module
 
 rrb = lazy_module("rerun.blueprint")
 
@@ -82,8 +81,12 @@ SHARED_ROOTS = frozenset({paths.SITE, paths.TRUTH, paths.SENSORS, paths.SCORES, 
 class Logged:
     """What a run's recordings hold: ``{entity path: archetype names}`` with small queries."""
 
-    def __init__(self, archetypes: Mapping[str, Iterable[str]], ranges: Mapping[str, tuple[float, float]] | None = None) -> None:
-        self.kinds: dict[str, frozenset[str]] = {p.strip("/"): frozenset(a) for p, a in archetypes.items() if p.strip("/")}
+    def __init__(
+        self, archetypes: Mapping[str, Iterable[str]], ranges: Mapping[str, tuple[float, float]] | None = None
+    ) -> None:
+        self.kinds: dict[str, frozenset[str]] = {
+            p.strip("/"): frozenset(a) for p, a in archetypes.items() if p.strip("/")
+        }
         #: (min, max) of each Scalars entity, when known: count plots start at 0 and fit the largest value
         self.ranges: dict[str, tuple[float, float]] = {p.strip("/"): r for p, r in (ranges or {}).items()}
 
@@ -141,15 +144,21 @@ class View:
             )
         if self.kind == "map":
             return rrb.Spatial2DView(
-                name=self.name, origin="/", contents=contents, overrides=overrides or None,
+                name=self.name,
+                origin="/",
+                contents=contents,
+                overrides=overrides or None,
                 background=rrb.Background(kind=rrb.BackgroundKind.SolidColor, color=colors.MAP_BACKGROUND),
-            )  # fmt: skip
+            )
         if self.kind == "series":
             axis = rrb.ScalarAxis(range=self.y_range) if self.y_range is not None else None
             return rrb.TimeSeriesView(
-                name=self.name, origin="/", contents=contents, axis_y=axis,
+                name=self.name,
+                origin="/",
+                contents=contents,
+                axis_y=axis,
                 plot_legend=rrb.PlotLegend(rrb.Corner2D.LeftTop, visible=True),
-            )  # fmt: skip
+            )
         if self.kind == "text":
             return rrb.TextLogView(name=self.name, origin="/", contents=contents)
         return rrb.StateTimelineView(name=self.name, origin="/", contents=contents)
@@ -221,17 +230,29 @@ class Planner:
         inserted = self.L.frame("correct/crossings/inserted")
         observed = self.L.frame("correct/crossings/observed")
         entities = [
-            *self.site(), *self.L.frame(paths.SENSORS), *crossed, *self.truth(), *self.L.frame(root),
-            *self.L.under(paths.join(root, "tracks")), *marks, *self.L.frame("correct"), *observed, *inserted, *camera,
-        ]  # fmt: skip
+            *self.site(),
+            *self.L.frame(paths.SENSORS),
+            *crossed,
+            *self.truth(),
+            *self.L.frame(root),
+            *self.L.under(paths.join(root, "tracks")),
+            *marks,
+            *self.L.frame("correct"),
+            *observed,
+            *inserted,
+            *camera,
+        ]
         windows = {p: FLASH_S for p in crossed} | {p: self.trail_s for p in [*marks, *inserted]}
-        site = self.map_view(f"regions, beams and agents ({self.units})", entities, hidden=[*camera, *observed], windows=windows)
+        site = self.map_view(
+            f"regions, beams and agents ({self.units})", entities, hidden=[*camera, *observed], windows=windows
+        )
         occupancy = self.count_view("agents per region (count)", self.L.under(paths.join(root, "occupancy"), SERIES))
         error = self.error_view([tracker], "error of each track: hops from its region to the true agent's")
         log = self.view(
-            "text", "crossing log",
+            "text",
+            "crossing log",
             [*self.L.under(paths.SENSORS, TEXT), *self.L.under(root, TEXT), *self.L.under("correct", TEXT)],
-        )  # fmt: skip
+        )
         return _tab(f"{tracker}: agents in regions", site, [occupancy, error, log])
 
     def intruder(self, trackers: list[str]) -> rrb.Container | None:
@@ -239,8 +260,9 @@ class Planner:
         for t in trackers:
             entities += self.L.under(paths.tracker_root(t), SPATIAL | FRAME)
         coverage = [p for p in entities if p.startswith(f"{paths.SITE}/sensors/")]
-        room = self.map_view(f"room ({self.units}): sensors firing, particles by weight, estimate vs truth", entities,
-                             hidden=coverage)  # fmt: skip
+        room = self.map_view(
+            f"room ({self.units}): sensors firing, particles by weight, estimate vs truth", entities, hidden=coverage
+        )
         error = self.error_view(trackers, "distance of the estimate from the truth")
         states = self.view("state", "motion sensors: on / off", self.states())
         return _tab(f"{trackers[0]}: particle filter", room, [error, states])
@@ -248,15 +270,27 @@ class Planner:
     def clustertrack(self, tracker: str) -> rrb.Container | None:
         root = paths.tracker_root(tracker)
         space_time = self.L.under(paths.join(root, "space_time"))
-        count = self.count_view("number of targets: counting bound vs truth (targets)", self.L.under(paths.join(root, "count"), SERIES))
+        count = self.count_view(
+            "number of targets: counting bound vs truth (targets)", self.L.under(paths.join(root, "count"), SERIES)
+        )
         error = self.error_view([tracker], "distance of each track from its target")
         now = [
-            *self.site(), *self.truth(), *self.L.frame(root),
-            *[p for p in self.L.under(root, SPATIAL | FRAME) if p != root and not p.startswith(paths.join(root, "space_time"))],
-        ]  # fmt: skip
+            *self.site(),
+            *self.truth(),
+            *self.L.frame(root),
+            *[
+                p
+                for p in self.L.under(root, SPATIAL | FRAME)
+                if p != root and not p.startswith(paths.join(root, "space_time"))
+            ],
+        ]
         if space_time:
-            diagram = self.map_view(f"space-time: position ({self.units}) to the right, time (s) up", [*self.L.frame(root), *space_time])
-            line = self.map_view(f"the line now ({self.units}): sensors on (red), feasible space (blue), particles, tracks", now)
+            diagram = self.map_view(
+                f"space-time: position ({self.units}) to the right, time (s) up", [*self.L.frame(root), *space_time]
+            )
+            line = self.map_view(
+                f"the line now ({self.units}): sensors on (red), feasible space (blue), particles, tracks", now
+            )
             top = _row([diagram, _column([count, error])], shares=[3, 2])
             return _named(_column([top, line], shares=[3, 1]), f"{tracker}: space-time")
         site = self.map_view(f"site now ({self.units}): sensors, feasible space, particles, tracks", now)
@@ -265,12 +299,25 @@ class Planner:
     def findinghumo(self, tracker: str) -> rrb.Container | None:
         root = paths.tracker_root(tracker)
         graph = [p for p in self.L.under(root, SPATIAL | FRAME)]
-        hidden = [*self.L.under(paths.join(root, "decoded")), *self.L.frame(paths.join(root, "eatg", "a2")), *self.sensor_marks()]
-        windows = {p: min(DECISION_S, self.trail_s) for name in ("switches", "cpda", "joins", "joint") for p in self.L.frame(paths.join(root, name))}
+        hidden = [
+            *self.L.under(paths.join(root, "decoded")),
+            *self.L.frame(paths.join(root, "eatg", "a2")),
+            *self.sensor_marks(),
+        ]
+        windows = {
+            p: min(DECISION_S, self.trail_s)
+            for name in ("switches", "cpda", "joins", "joint")
+            for p in self.L.frame(paths.join(root, name))
+        }
         entities = [*self.site(), *self.truth(), *graph]
-        what = {"findinghumo": "sensor graph, CPDA decisions", "findinghumo-flow": "sensor graph, flow joins",
-                "residents": "people and the events attributed to them"}.get(tracker, "sensor graph, baseline decoder")  # fmt: skip
-        site = self.map_view(f"{what} ({self.units}): active nodes, decoded tracks, truth", entities, hidden=hidden, windows=windows)
+        what = {
+            "findinghumo": "sensor graph, CPDA decisions",
+            "findinghumo-flow": "sensor graph, flow joins",
+            "residents": "people and the events attributed to them",
+        }.get(tracker, "sensor graph, baseline decoder")
+        site = self.map_view(
+            f"{what} ({self.units}): active nodes, decoded tracks, truth", entities, hidden=hidden, windows=windows
+        )
         error = self.error_view([tracker], "hop error of each decoded track")
         states = self.view("state", "motion sensors: on / off", self.states())
         people = self.count_view("people present (count)", self.L.under(paths.join(root, "people"), SERIES))
@@ -287,7 +334,9 @@ class Planner:
         root = paths.tracker_root(tracker)
         entities = [*self.site(), *self.truth(), *self.L.under(root, SPATIAL | FRAME)]
         site = self.map_view(f"site now ({self.units}): sensors on, particles, people, truth", entities)
-        count = self.count_view("number of people: expected and reported (count)", self.L.under(paths.join(root, "count"), SERIES))
+        count = self.count_view(
+            "number of people: expected and reported (count)", self.L.under(paths.join(root, "count"), SERIES)
+        )
         error = self.error_view([tracker], "distance of each person from their target")
         states = self.view("state", "sensors: on / off", self.states())
         return _tab(f"{tracker}: people from the array", site, [count, error, states])
@@ -300,11 +349,20 @@ class Planner:
         # every sensing region at once hides the elements (PIR wedges reach past the room): the
         # ones reading 1 now are drawn (detections), the rest can be ticked on
         sensing = self.L.under(paths.join(root, "sensing"))
-        site = self.map_view(f"I-state over the site ({self.units}): elements, detections, true positions", entities,
-                             hidden=[*summary_trails, *sensing])  # fmt: skip
-        elements = self.count_view("elements in the I-state (count)", self.L.under(paths.join(root, "elements"), SERIES))
-        area = self.view("series", f"area of the I-state ({self.units}\u00b2)", self.L.under(paths.join(root, "area"), SERIES))
-        perf = self.view("series", f"P: target to nearest tracker ({self.units})", self.L.under(paths.join(root, "P"), SERIES))
+        site = self.map_view(
+            f"I-state over the site ({self.units}): elements, detections, true positions",
+            entities,
+            hidden=[*summary_trails, *sensing],
+        )
+        elements = self.count_view(
+            "elements in the I-state (count)", self.L.under(paths.join(root, "elements"), SERIES)
+        )
+        area = self.view(
+            "series", f"area of the I-state ({self.units}\u00b2)", self.L.under(paths.join(root, "area"), SERIES)
+        )
+        perf = self.view(
+            "series", f"P: target to nearest tracker ({self.units})", self.L.under(paths.join(root, "P"), SERIES)
+        )
         error = self.error_view([tracker], "distance of the point summary from the truth")
         states = self.view("state", "sensors: on / off", self.states())
         return _tab(f"{tracker}: I-state", site, [elements, area, perf, error, states])
@@ -414,12 +472,26 @@ def make_blueprint(
         else:
             tabs.append(plan.generic(t))
     if not any(tabs):  # no tracker ran: the site with the truth and the sensors
-        site = plan.map_view(f"site ({units})", [*plan.site(), *plan.truth(), *logged.under(paths.SENSORS, SPATIAL | FRAME)])
-        tabs.append(_tab("site", site, [plan.view("text", "sensor log", logged.under(paths.SENSORS, TEXT)),
-                                        plan.view("state", "sensors: on / off", plan.states())]))  # fmt: skip
+        site = plan.map_view(
+            f"site ({units})", [*plan.site(), *plan.truth(), *logged.under(paths.SENSORS, SPATIAL | FRAME)]
+        )
+        tabs.append(
+            _tab(
+                "site",
+                site,
+                [
+                    plan.view("text", "sensor log", logged.under(paths.SENSORS, TEXT)),
+                    plan.view("state", "sensors: on / off", plan.states()),
+                ],
+            )
+        )
     tabs.append(plan.more())
     tabs = [t for t in tabs if t is not None]
-    root = rrb.Tabs(*tabs, active_tab=0) if tabs else rrb.Tabs(rrb.TextLogView(name="nothing was logged", origin="/", contents=[]))
+    root = (
+        rrb.Tabs(*tabs, active_tab=0)
+        if tabs
+        else rrb.Tabs(rrb.TextLogView(name="nothing was logged", origin="/", contents=[]))
+    )
     return rrb.Blueprint(
         root,
         rrb.BlueprintPanel(state="collapsed"),
@@ -438,7 +510,9 @@ def save_blueprint(blueprint: rrb.Blueprint, path: str | Path, *, application_id
     return path
 
 
-def send_run_blueprint(blueprint: rrb.Blueprint, path: str | Path, *, recording_id: str, application_id: str = APPLICATION_ID) -> Path:
+def send_run_blueprint(
+    blueprint: rrb.Blueprint, path: str | Path, *, recording_id: str, application_id: str = APPLICATION_ID
+) -> Path:
     """Write a recording of the run holding only ``blueprint`` (active and default) to ``path``."""
     rec = open_recording(path, recording_id=recording_id, application_id=application_id)
     try:

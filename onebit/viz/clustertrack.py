@@ -24,11 +24,11 @@ from __future__ import annotations
 import numpy as np
 import polars as pl
 
+from onebit.core.lazy import lazy_module
 from onebit.viz import colors, paths
 from onebit.viz._series import is_empty, strips_array
 from onebit.viz.frame import log_world_frame
 from onebit.viz.tracks import log_point_tracks, track_colors, track_labels
-from onebit.core.lazy import lazy_module
 
 rr = lazy_module("rerun")
 
@@ -129,17 +129,28 @@ def log_space_time(
         strips = np.stack([np.c_[f["lo"].to_numpy(), y], np.c_[f["hi"].to_numpy(), y]], axis=1)
         rec.log(
             paths.join(base, "feasible"),
-            rr.LineStrips2D(strips_array(strips, 2), radii=0.4 * st.row, colors=FEASIBLE, labels=["feasible space F"], show_labels=False),
+            rr.LineStrips2D(
+                strips_array(strips, 2),
+                radii=0.4 * st.row,
+                colors=FEASIBLE,
+                labels=["feasible space F"],
+                show_labels=False,
+            ),
             static=True,
         )
     if not is_empty(truth):
         for ident, g in truth.sort("t").partition_by("target", as_dict=True, maintain_order=True).items():
             rec.log(
                 paths.join(base, "truth", paths.part(ident[0])),
-                rr.LineStrips2D([np.c_[g["x"].to_numpy(), st.y(g["t"].to_numpy())]], radii=rr.Radius.ui_points(1.0),
-                                colors=colors.TRUTH_TRAIL, labels=[f"true {ident[0]}"], show_labels=False),
+                rr.LineStrips2D(
+                    [np.c_[g["x"].to_numpy(), st.y(g["t"].to_numpy())]],
+                    radii=rr.Radius.ui_points(1.0),
+                    colors=colors.TRUTH_TRAIL,
+                    labels=[f"true {ident[0]}"],
+                    show_labels=False,
+                ),
                 static=True,
-            )  # fmt: skip
+            )
     if not is_empty(tracks):
         labels = track_labels(tracker, tracks["track"].unique().to_list())
         shades = track_colors(tracker, labels)
@@ -147,17 +158,30 @@ def log_space_time(
             tid = str(ident[0])
             rec.log(
                 paths.join(base, "tracks", paths.part(tid)),
-                rr.LineStrips2D([np.c_[g["x"].to_numpy(), st.y(g["t"].to_numpy())]], radii=rr.Radius.ui_points(2.0),
-                                colors=shades[tid], labels=[labels[tid]], show_labels=True),
+                rr.LineStrips2D(
+                    [np.c_[g["x"].to_numpy(), st.y(g["t"].to_numpy())]],
+                    radii=rr.Radius.ui_points(2.0),
+                    colors=shades[tid],
+                    labels=[labels[tid]],
+                    show_labels=True,
+                ),
                 static=True,
-            )  # fmt: skip
+            )
     now = paths.join(base, "now")
     y = st.y(times)
-    rec.log(now, rr.LineStrips2D.from_fields(colors=(255, 255, 255, 200), radii=rr.Radius.ui_points(1.0), draw_order=30.0), static=True)
+    rec.log(
+        now,
+        rr.LineStrips2D.from_fields(colors=(255, 255, 255, 200), radii=rr.Radius.ui_points(1.0), draw_order=30.0),
+        static=True,
+    )
     rec.send_columns(
         now,
         indexes=[paths.time_column(times)],
-        columns=rr.LineStrips2D.columns(strips=strips_array(np.stack([np.c_[np.full_like(y, st.x_lo), y], np.c_[np.full_like(y, st.x_hi), y]], axis=1), 2)),
+        columns=rr.LineStrips2D.columns(
+            strips=strips_array(
+                np.stack([np.c_[np.full_like(y, st.x_lo), y], np.c_[np.full_like(y, st.x_hi), y]], axis=1), 2
+            )
+        ),
     )
 
 
@@ -168,8 +192,10 @@ def log_counts(rec: rr.RecordingStream, tracker: str, counts: pl.DataFrame | Non
         return
     c = counts.sort("t")
     t = c["t"].to_numpy()
-    series = [("lower_bound", "lower bound (Theorem 4)", (255, 160, 40), c["lower_bound"]),
-              ("components", "components of F", (60, 130, 230), c["components"])]  # fmt: skip
+    series = [
+        ("lower_bound", "lower bound (Theorem 4)", (255, 160, 40), c["lower_bound"]),
+        ("components", "components of F", (60, 130, 230), c["components"]),
+    ]
     if not is_empty(truth):
         n_true = truth.group_by("t").agg(pl.col("target").n_unique().alias("n"))
         true = c.select("t").join(n_true, on="t", how="left")["n"].fill_null(0)
@@ -178,10 +204,16 @@ def log_counts(rec: rr.RecordingStream, tracker: str, counts: pl.DataFrame | Non
         entity = paths.join(paths.tracker_root(tracker), "count", key)
         rec.log(
             entity,
-            rr.SeriesLines(colors=color, names=[name], widths=[2.0], interpolation_mode=rr.components.InterpolationMode.StepAfter),
+            rr.SeriesLines(
+                colors=color, names=[name], widths=[2.0], interpolation_mode=rr.components.InterpolationMode.StepAfter
+            ),
             static=True,
         )
-        rec.send_columns(entity, indexes=[paths.time_column(t)], columns=rr.Scalars.columns(scalars=values.cast(pl.Float64).to_numpy()))
+        rec.send_columns(
+            entity,
+            indexes=[paths.time_column(t)],
+            columns=rr.Scalars.columns(scalars=values.cast(pl.Float64).to_numpy()),
+        )
 
 
 def log_sensor_states(rec: rr.RecordingStream, tracker: str, site, frames_on: np.ndarray, times: np.ndarray) -> None:
@@ -219,8 +251,14 @@ def log_feasible_1d(rec: rr.RecordingStream, tracker: str, feasible: pl.DataFram
     counts = np.bincount(k, minlength=times.size)
     ent = paths.join(paths.tracker_root(tracker), "feasible")
     log_world_frame(rec, ent)
-    rec.log(ent, rr.LineStrips2D.from_fields(radii=rr.Radius.ui_points(5.0), colors=FEASIBLE, draw_order=5.0), static=True)
-    rec.send_columns(ent, indexes=[paths.time_column(times)], columns=rr.LineStrips2D.columns(strips=strips_array(strips, 2)).partition(counts))
+    rec.log(
+        ent, rr.LineStrips2D.from_fields(radii=rr.Radius.ui_points(5.0), colors=FEASIBLE, draw_order=5.0), static=True
+    )
+    rec.send_columns(
+        ent,
+        indexes=[paths.time_column(times)],
+        columns=rr.LineStrips2D.columns(strips=strips_array(strips, 2)).partition(counts),
+    )
 
 
 def log_feasible_2d(rec: rr.RecordingStream, tracker: str, cells: pl.DataFrame, times: np.ndarray, cell: float) -> None:
@@ -236,7 +274,9 @@ def log_feasible_2d(rec: rr.RecordingStream, tracker: str, cells: pl.DataFrame, 
     rec.send_columns(
         ent,
         indexes=[paths.time_column(times)],
-        columns=rr.Points2D.columns(positions=c.select("x", "y").to_numpy(), colors=_colors_by_id(c["component"], alpha=90)).partition(counts.tolist()),
+        columns=rr.Points2D.columns(
+            positions=c.select("x", "y").to_numpy(), colors=_colors_by_id(c["component"], alpha=90)
+        ).partition(counts.tolist()),
     )
 
 
@@ -253,12 +293,24 @@ def log_particles(rec: rr.RecordingStream, tracker: str, particles: pl.DataFrame
     rec.send_columns(
         ent,
         indexes=[paths.time_column(times)],
-        columns=rr.Points2D.columns(positions=p.select("x", "y").to_numpy(), colors=_colors_by_id(p["cluster"], alpha=160)).partition(counts.tolist()),
+        columns=rr.Points2D.columns(
+            positions=p.select("x", "y").to_numpy(), colors=_colors_by_id(p["cluster"], alpha=160)
+        ).partition(counts.tolist()),
     )
 
 
-def log_clustertrack(rec: rr.RecordingStream, tracker: str, site, out: dict, times: np.ndarray, *, frames_on: np.ndarray | None = None,
-                     cells: pl.DataFrame | None = None, cell: float = 0.1, truth: pl.DataFrame | None = None) -> None:
+def log_clustertrack(
+    rec: rr.RecordingStream,
+    tracker: str,
+    site,
+    out: dict,
+    times: np.ndarray,
+    *,
+    frames_on: np.ndarray | None = None,
+    cells: pl.DataFrame | None = None,
+    cell: float = 0.1,
+    truth: pl.DataFrame | None = None,
+) -> None:
     """Everything the stage produced (see the module docstring)."""
     if frames_on is not None:
         log_sensor_states(rec, tracker, site, frames_on, times)
@@ -282,4 +334,6 @@ def log_run(rec: rr.RecordingStream, tracker: str, out: dict, *, site, region_gr
     truth = tables.get("truth")
     if truth is not None:
         truth = truth.filter(pl.col("t").is_in(times.tolist()))
-    log_clustertrack(rec, tracker, site, out, times, frames_on=art["frames_on"], cells=art["cells"], cell=art["cell"], truth=truth)
+    log_clustertrack(
+        rec, tracker, site, out, times, frames_on=art["frames_on"], cells=art["cells"], cell=art["cell"], truth=truth
+    )

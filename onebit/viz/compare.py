@@ -84,13 +84,16 @@ def _overrides(view: ViewInfo, prefix: str) -> dict[str, list] | None:
         if "time_range" in o:
             start, end = o["time_range"]
             out.setdefault(target, []).append(
-                rrb.VisibleTimeRanges([
-                    rrb.VisibleTimeRange(
-                        paths.TIMELINE, start=rrb.TimeRangeBoundary.cursor_relative(seconds=float(start)),
-                        end=rrb.TimeRangeBoundary.cursor_relative(seconds=float(end)),
-                    )
-                ])
-            )  # fmt: skip
+                rrb.VisibleTimeRanges(
+                    [
+                        rrb.VisibleTimeRange(
+                            paths.TIMELINE,
+                            start=rrb.TimeRangeBoundary.cursor_relative(seconds=float(start)),
+                            end=rrb.TimeRangeBoundary.cursor_relative(seconds=float(end)),
+                        )
+                    ]
+                )
+            )
     return out or None
 
 
@@ -100,20 +103,27 @@ def _view(view: ViewInfo, prefix: str, label: str):
     return cls(name=f"{label}: {view.name}", origin=_prefixed(view.origin, prefix), contents=_query(view, prefix), **kw)
 
 
-def compare_blueprint(views_a: list[ViewInfo], views_b: list[ViewInfo], *, labels: tuple[str, str], prefixes: tuple[str, str] = ("A", "B")):
+def compare_blueprint(
+    views_a: list[ViewInfo], views_b: list[ViewInfo], *, labels: tuple[str, str], prefixes: tuple[str, str] = ("A", "B")
+):
     """One row per view name (A's views first, then B's that A lacks): the view for run A and the
     same view for run B side by side. Views of a kind without a blueprint class are left out."""
     by_name: dict[str, list[ViewInfo]] = {}
     for v in [*views_a, *views_b]:
         if v.kind in _VIEW_CLASSES and v.name not in by_name:
             by_name[v.name] = [v]
-    rows = [rrb.Horizontal(_view(v, prefixes[0], labels[0]), _view(v, prefixes[1], labels[1]), name=v.name) for (v,) in by_name.values()]
+    rows = [
+        rrb.Horizontal(_view(v, prefixes[0], labels[0]), _view(v, prefixes[1], labels[1]), name=v.name)
+        for (v,) in by_name.values()
+    ]
     if not rows:
         raise InputError("the runs' blueprints hold no view to repeat")
     return rrb.Blueprint(rrb.Vertical(*rows), collapse_panels=False), len(rows)
 
 
-def compare_runs(run_a: str | Path, run_b: str | Path, out: str | Path, *, labels: tuple[str, str] | None = None) -> Comparison:
+def compare_runs(
+    run_a: str | Path, run_b: str | Path, out: str | Path, *, labels: tuple[str, str] | None = None
+) -> Comparison:
     """Write ``out`` (``.rrd``: both runs' data under ``A/`` and ``B/`` in one recording, with
     the blueprint sent in) and ``out`` with suffix ``.rbl`` (the blueprint alone), atomically.
 

@@ -12,11 +12,11 @@ from __future__ import annotations
 import numpy as np
 import polars as pl
 
+from onebit.core.lazy import lazy_module
 from onebit.core.site import Site
 from onebit.viz import colors, paths
 from onebit.viz._series import groups, is_empty, repeat_text, require, strips_array, text_array
 from onebit.viz.frame import log_world_frame
-from onebit.core.lazy import lazy_module
 from onebit.viz.radii import ui_points
 
 rr = lazy_module("rerun")
@@ -60,7 +60,9 @@ def log_crossings(
             rec.send_columns(
                 entity,
                 indexes=[t],
-                columns=rr.TextLog.columns(text=text_array(crossing_texts(g)), level=repeat_text("INFO", g.height), color=color),
+                columns=rr.TextLog.columns(
+                    text=text_array(crossing_texts(g)), level=repeat_text("INFO", g.height), color=color
+                ),
             )
             if beam in known:
                 b = site.beam(beam)
@@ -74,7 +76,9 @@ def log_crossings(
                 rec.send_columns(
                     paths.sensor_crossed(beam, prefix=entity_prefix),
                     indexes=[t],
-                    columns=rr.LineStrips2D.columns(strips=strips_array(np.tile(segment, (g.height, 1)), 2), colors=color),
+                    columns=rr.LineStrips2D.columns(
+                        strips=strips_array(np.tile(segment, (g.height, 1)), 2), colors=color
+                    ),
                 )
     if not is_empty(aborted):
         require(aborted, ("t", "beam", "side"), name="aborted")

@@ -25,11 +25,11 @@ from __future__ import annotations
 import numpy as np
 import polars as pl
 
+from onebit.core.lazy import lazy_module
 from onebit.viz import paths
 from onebit.viz._series import groups, is_empty
 from onebit.viz.frame import log_world_frame
 from onebit.viz.tracks import log_point_tracks, track_colors, track_labels
-from onebit.core.lazy import lazy_module
 
 rr = lazy_module("rerun")
 
@@ -53,7 +53,9 @@ def log_eatg(rec: rr.RecordingStream, tracker: str, eatg, site) -> None:
     xy = _node_xy(site, eatg.nodes)
     rec.log(
         paths.join(root, "eatg", "nodes"),
-        rr.Points2D(xy, labels=list(eatg.nodes), radii=rr.Radius.ui_points(3.0), colors=NODE, show_labels=True, draw_order=10.0),
+        rr.Points2D(
+            xy, labels=list(eatg.nodes), radii=rr.Radius.ui_points(3.0), colors=NODE, show_labels=True, draw_order=10.0
+        ),
         static=True,
     )
     for kind, mat, col in (("a1", eatg.a1, (120, 150, 190, 200)), ("a2", eatg.a2, (200, 150, 90, 150))):
@@ -63,10 +65,16 @@ def log_eatg(rec: rr.RecordingStream, tracker: str, eatg, site) -> None:
             continue
         strips = np.stack([xy[i], xy[j]], axis=1)
         radii = -(0.5 + 3.0 * w[i, j] / w[i, j].max())  # UI points, width by weight
-        rec.log(paths.join(root, "eatg", kind), rr.LineStrips2D(strips, radii=radii, colors=col, draw_order=2.0), static=True)
+        rec.log(
+            paths.join(root, "eatg", kind),
+            rr.LineStrips2D(strips, radii=radii, colors=col, draw_order=2.0),
+            static=True,
+        )
 
 
-def log_activations(rec: rr.RecordingStream, tracker: str, active: np.ndarray, site, nodes, t0: float, period: float) -> None:
+def log_activations(
+    rec: rr.RecordingStream, tracker: str, active: np.ndarray, site, nodes, t0: float, period: float
+) -> None:
     """Active nodes of every slot as points (one partition per slot)."""
     if active.size == 0:
         return
@@ -77,7 +85,9 @@ def log_activations(rec: rr.RecordingStream, tracker: str, active: np.ndarray, s
     entity = paths.join(paths.tracker_root(tracker), "activations")
     log_world_frame(rec, entity)
     rec.log(entity, rr.Points2D.from_fields(radii=rr.Radius.ui_points(8.0), colors=ACTIVE, draw_order=9.0), static=True)
-    rec.send_columns(entity, indexes=[paths.time_column(t)], columns=rr.Points2D.columns(positions=xy[j]).partition(lengths))
+    rec.send_columns(
+        entity, indexes=[paths.time_column(t)], columns=rr.Points2D.columns(positions=xy[j]).partition(lengths)
+    )
 
 
 def log_decoded(rec: rr.RecordingStream, tracker: str, tracks: pl.DataFrame | None) -> None:
@@ -92,7 +102,12 @@ def log_decoded(rec: rr.RecordingStream, tracker: str, tracks: pl.DataFrame | No
         xy = g.select("x", "y").to_numpy()
         rec.log(
             paths.decoded(tracker, user),
-            rr.LineStrips2D([xy], colors=shades[user], radii=rr.Radius.ui_points(2.0), labels=[f"{labels[user]}: whole decoded path"]),
+            rr.LineStrips2D(
+                [xy],
+                colors=shades[user],
+                radii=rr.Radius.ui_points(2.0),
+                labels=[f"{labels[user]}: whole decoded path"],
+            ),
             static=True,
         )
 
@@ -102,7 +117,9 @@ def _one_based(indices: str) -> str:
     return " ".join(str(int(i) + 1) if i.lstrip("-").isdigit() else i for i in str(indices).split())
 
 
-def log_switches(rec: rr.RecordingStream, tracker: str, switches: pl.DataFrame | None, site, nodes, t0: float, period: float) -> None:
+def log_switches(
+    rec: rr.RecordingStream, tracker: str, switches: pl.DataFrame | None, site, nodes, t0: float, period: float
+) -> None:
     """CPDA switches as labelled points at the node and slot where they happened (shown for a
     trail window after their slot)."""
     if is_empty(switches):
@@ -110,10 +127,17 @@ def log_switches(rec: rr.RecordingStream, tracker: str, switches: pl.DataFrame |
     pos = {m.id: m.position for m in site.motion_sensors}
     xy = np.array([pos[n] for n in switches["node"].to_list()], dtype=float).reshape(-1, 2)
     t = t0 + (switches["slot"].to_numpy() + 0.5) * period
-    labels = [f"CPDA switch: tracks {_one_based(u)} -> {_one_based(p)}" for u, p in zip(switches["users"].to_list(), switches["pairing"].to_list())]
+    labels = [
+        f"CPDA switch: tracks {_one_based(u)} -> {_one_based(p)}"
+        for u, p in zip(switches["users"].to_list(), switches["pairing"].to_list())
+    ]
     entity = paths.join(paths.tracker_root(tracker), "switches")
     log_world_frame(rec, entity)
-    rec.log(entity, rr.Points2D.from_fields(radii=rr.Radius.ui_points(11.0), colors=SWITCH, show_labels=True, draw_order=8.0), static=True)
+    rec.log(
+        entity,
+        rr.Points2D.from_fields(radii=rr.Radius.ui_points(11.0), colors=SWITCH, show_labels=True, draw_order=8.0),
+        static=True,
+    )
     rec.send_columns(
         entity,
         indexes=[paths.time_column(t)],
@@ -121,9 +145,15 @@ def log_switches(rec: rr.RecordingStream, tracker: str, switches: pl.DataFrame |
     )
 
 
-def _log_labelled_points(rec: rr.RecordingStream, entity: str, xy: np.ndarray, t: np.ndarray, labels: list[str], color) -> None:
+def _log_labelled_points(
+    rec: rr.RecordingStream, entity: str, xy: np.ndarray, t: np.ndarray, labels: list[str], color
+) -> None:
     log_world_frame(rec, entity)
-    rec.log(entity, rr.Points2D.from_fields(radii=rr.Radius.ui_points(9.0), colors=color, show_labels=True, draw_order=8.5), static=True)
+    rec.log(
+        entity,
+        rr.Points2D.from_fields(radii=rr.Radius.ui_points(9.0), colors=color, show_labels=True, draw_order=8.5),
+        static=True,
+    )
     order = np.argsort(t, kind="stable")
     ts, first = np.unique(t[order], return_index=True)
     lengths = np.diff(np.append(first, len(order)))
@@ -139,7 +169,9 @@ def _cpda_label(users: str, pairing: str, switched: bool, p_chosen: float, alter
     then the other pairings, most probable first (at most ``most``; the rest counted)."""
     alts = [(perm, float(prob)) for perm, prob in (a.rsplit(":", 1) for a in alternatives.split("; ") if ":" in a)]
     others = sorted((a for a in alts if a[0] != pairing), key=lambda a: -a[1])
-    lines = [f"CPDA {'switch' if switched else 'keep'}: tracks {_one_based(users)} -> {_one_based(pairing)} (p={p_chosen:.2f})"]
+    lines = [
+        f"CPDA {'switch' if switched else 'keep'}: tracks {_one_based(users)} -> {_one_based(pairing)} (p={p_chosen:.2f})"
+    ]
     lines += [f"  or {_one_based(perm)}: p={prob:.2f}" for perm, prob in others[:most]]
     if len(others) > most:
         rest = others[most][1]
@@ -147,7 +179,9 @@ def _cpda_label(users: str, pairing: str, switched: bool, p_chosen: float, alter
     return "\n".join(lines)
 
 
-def log_cpda(rec: rr.RecordingStream, tracker: str, decisions: pl.DataFrame | None, site, t0: float, period: float) -> None:
+def log_cpda(
+    rec: rr.RecordingStream, tracker: str, decisions: pl.DataFrame | None, site, t0: float, period: float
+) -> None:
     """Every CPDA decision (last pass) at its co-location node and slot, labelled with the
     pairing chosen and each alternative's probability."""
     if is_empty(decisions):
@@ -163,7 +197,9 @@ def log_cpda(rec: rr.RecordingStream, tracker: str, decisions: pl.DataFrame | No
     _log_labelled_points(rec, paths.join(paths.tracker_root(tracker), "cpda"), xy, t, labels, DECISION)
 
 
-def log_joins(rec: rr.RecordingStream, tracker: str, joins: pl.DataFrame | None, site, t0: float, period: float) -> None:
+def log_joins(
+    rec: rr.RecordingStream, tracker: str, joins: pl.DataFrame | None, site, t0: float, period: float
+) -> None:
     """The flow's chosen joins at each meeting's cut slot and node, labelled with the
     probability of every alternative join of the same incoming fragment."""
     if is_empty(joins):
@@ -171,12 +207,17 @@ def log_joins(rec: rr.RecordingStream, tracker: str, joins: pl.DataFrame | None,
     chosen = joins.filter(pl.col("chosen"))
     if chosen.height == 0:
         return
-    alts = joins.group_by("src").agg(pl.format("{}: {}", "dst", pl.col("probability").round(2)).str.join("; ").alias("alts"))
+    alts = joins.group_by("src").agg(
+        pl.format("{}: {}", "dst", pl.col("probability").round(2)).str.join("; ").alias("alts")
+    )
     chosen = chosen.join(alts, on="src", how="left")
     pos = {m.id: m.position for m in site.motion_sensors}
     xy = np.array([pos[n] for n in chosen["node"].to_list()], dtype=float).reshape(-1, 2)
     t = t0 + (chosen["slot"].to_numpy() + 0.5) * period
-    labels = [f"join fragment {a} -> {b} (p={p:.2f}); alternatives {al}" for a, b, p, al in chosen.select("src", "dst", "probability", "alts").iter_rows()]
+    labels = [
+        f"join fragment {a} -> {b} (p={p:.2f}); alternatives {al}"
+        for a, b, p, al in chosen.select("src", "dst", "probability", "alts").iter_rows()
+    ]
     _log_labelled_points(rec, paths.join(paths.tracker_root(tracker), "joins"), xy, t, labels, DECISION)
 
 

@@ -8,6 +8,7 @@ shows world coordinates and labels stay upright. Logging it again is harmless (s
 """
 
 from __future__ import annotations
+
 from onebit.core.lazy import lazy_module
 
 rr = lazy_module("rerun")

@@ -22,18 +22,17 @@ component columns, never one ``log`` per iteration.
 from __future__ import annotations
 
 import functools
-
 from collections.abc import Sequence
 
 import numpy as np
 import polars as pl
 
+from onebit.core.lazy import lazy_module
 from onebit.viz import colors, paths
 from onebit.viz._series import groups, is_empty, strips_array, text_array
 from onebit.viz.frame import log_world_frame
-from onebit.viz.tracks import log_point_tracks
-from onebit.core.lazy import lazy_module
 from onebit.viz.radii import ui_points
+from onebit.viz.tracks import log_point_tracks
 
 rr = lazy_module("rerun")
 
@@ -63,7 +62,9 @@ def log_motion_states(rec: rr.RecordingStream, motion: pl.DataFrame | None, sens
         entity = paths.sensor(sid)
         rec.log(entity, _states(), static=True)
         state = text_array(pl.select(pl.when(g["on"]).then(pl.lit(ON)).otherwise(pl.lit(OFF))).to_series())
-        rec.send_columns(entity, indexes=[paths.time_column(g["t"].to_numpy())], columns=rr.StateChange.columns(state=state))
+        rec.send_columns(
+            entity, indexes=[paths.time_column(g["t"].to_numpy())], columns=rr.StateChange.columns(state=state)
+        )
 
 
 def _exterior(poly) -> np.ndarray | None:
@@ -134,7 +135,9 @@ def log_sensor_states(
         entity = paths.join(paths.tracker_root(tracker), "sensors", paths.part(sid))
         rec.log(
             entity,
-            rr.LineStrips2D.from_fields(colors=FIRING, radii=FOV_WIDTH, labels=[f"{sid} fired"], show_labels=False, draw_order=12.0),
+            rr.LineStrips2D.from_fields(
+                colors=FIRING, radii=FOV_WIDTH, labels=[f"{sid} fired"], show_labels=False, draw_order=12.0
+            ),
             static=True,
         )
         on = fired[:, i].astype(bool)
@@ -142,7 +145,9 @@ def log_sensor_states(
         rec.send_columns(
             entity,
             indexes=[paths.time_column(t)],
-            columns=rr.LineStrips2D.columns(strips=strips_array(np.tile(ring, (k, 1)), np.full(k, len(ring)))).partition(on.astype(np.int64)),
+            columns=rr.LineStrips2D.columns(
+                strips=strips_array(np.tile(ring, (k, 1)), np.full(k, len(ring)))
+            ).partition(on.astype(np.int64)),
         )
 
 
@@ -157,7 +162,9 @@ def log_particles(rec: rr.RecordingStream, tracker: str, t: np.ndarray, xy: np.n
     rec.send_columns(
         entity,
         indexes=[paths.time_column(t)],
-        columns=rr.Points2D.columns(positions=xy.reshape(-1, 2), colors=weight_colors(w).reshape(-1, 4)).partition([L] * T),
+        columns=rr.Points2D.columns(positions=xy.reshape(-1, 2), colors=weight_colors(w).reshape(-1, 4)).partition(
+            [L] * T
+        ),
     )
 
 
@@ -169,7 +176,11 @@ def log_estimate(
         return
     entity = paths.join(paths.tracker_root(tracker), "estimate")
     log_world_frame(rec, entity)
-    rec.log(entity, rr.Boxes2D.from_fields(colors=colors.tracker_color(tracker), radii=rr.Radius.ui_points(1.5), draw_order=29.0), static=True)
+    rec.log(
+        entity,
+        rr.Boxes2D.from_fields(colors=colors.tracker_color(tracker), radii=rr.Radius.ui_points(1.5), draw_order=29.0),
+        static=True,
+    )
     rec.send_columns(
         entity,
         indexes=[paths.time_column(t)],
@@ -201,8 +212,14 @@ def log_camera_cone(
     b = cam + reach[:, None] * np.c_[np.cos(pan + half), np.sin(pan + half)]
     strips = np.stack([a, np.broadcast_to(cam, a.shape), b], axis=1)  # one 3-vertex strip per iteration
     log_world_frame(rec, entity)
-    rec.log(entity, rr.LineStrips2D.from_fields(colors=(70, 110, 130, 255), radii=rr.Radius.ui_points(1.0), draw_order=26.0), static=True)
-    rec.send_columns(entity, indexes=[paths.time_column(t)], columns=rr.LineStrips2D.columns(strips=strips_array(strips, 3)))
+    rec.log(
+        entity,
+        rr.LineStrips2D.from_fields(colors=(70, 110, 130, 255), radii=rr.Radius.ui_points(1.0), draw_order=26.0),
+        static=True,
+    )
+    rec.send_columns(
+        entity, indexes=[paths.time_column(t)], columns=rr.LineStrips2D.columns(strips=strips_array(strips, 3))
+    )
 
 
 def log_run(rec: rr.RecordingStream, tracker: str, out: dict, *, site, region_graph, config, tables: dict) -> None:
@@ -216,5 +233,7 @@ def log_run(rec: rr.RecordingStream, tracker: str, out: dict, *, site, region_gr
         log_particles(rec, tracker, t_end, art["particles_xy"], art["particles_w"])
         log_estimate(rec, tracker, t_end, art["estimates"], *art["box"])
         if "camera" in out:
-            log_camera_cone(rec, tracker, tuple(config.camera_position), t_end, art["estimates"], out["camera"], config.camera_fov)
+            log_camera_cone(
+                rec, tracker, tuple(config.camera_position), t_end, art["estimates"], out["camera"], config.camera_fov
+            )
     log_point_tracks(rec, tracker, out["tracks"])

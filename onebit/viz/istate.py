@@ -24,13 +24,13 @@ import numpy as np
 import polars as pl
 import shapely
 
+from onebit.core.lazy import lazy_module
 from onebit.viz import colors, paths
 from onebit.viz._series import rings, strips_array
 from onebit.viz.frame import log_world_frame
+from onebit.viz.radii import ui_points
 from onebit.viz.tracks import log_point_tracks
 from onebit.viz.truth import log_truth
-from onebit.core.lazy import lazy_module
-from onebit.viz.radii import ui_points
 
 rr = lazy_module("rerun")
 cv2 = lazy_module("cv2")
@@ -63,10 +63,14 @@ def _strips_per_stage(geoms: np.ndarray):
     return strips_array(points, [len(r) for r in strips]), counts
 
 
-def _series(rec: rr.RecordingStream, entity: str, name: str, color, t: np.ndarray, values: np.ndarray, *, step: bool = True) -> None:
+def _series(
+    rec: rr.RecordingStream, entity: str, name: str, color, t: np.ndarray, values: np.ndarray, *, step: bool = True
+) -> None:
     mode = rr.components.InterpolationMode.StepAfter if step else None
     rec.log(entity, rr.SeriesLines(colors=color, names=[name], widths=[2.0], interpolation_mode=mode), static=True)
-    rec.send_columns(entity, indexes=[paths.time_column(t)], columns=rr.Scalars.columns(scalars=np.asarray(values, float)))
+    rec.send_columns(
+        entity, indexes=[paths.time_column(t)], columns=rr.Scalars.columns(scalars=np.asarray(values, float))
+    )
 
 
 class FillRaster:
@@ -187,8 +191,13 @@ def log_istate_regions(
         for k in range(n):
             strips, counts = _strips_per_stage(grid[e, k])
             ent = paths.istate(tracker, str(e), k)
-            rec.log(ent, rr.LineStrips2D.from_fields(colors=[col], radii=OUTLINE_WIDTH, labels=[f"element {e + 1}"],
-                                                     show_labels=False, draw_order=15.0), static=True)  # fmt: skip
+            rec.log(
+                ent,
+                rr.LineStrips2D.from_fields(
+                    colors=[col], radii=OUTLINE_WIDTH, labels=[f"element {e + 1}"], show_labels=False, draw_order=15.0
+                ),
+                static=True,
+            )
             rec.send_columns(ent, indexes=[tc], columns=rr.LineStrips2D.columns(strips=strips).partition(counts))
     if not fill:
         return
@@ -198,7 +207,9 @@ def log_istate_regions(
     ent = paths.join(paths.tracker_root(tracker), "istate", "fill")
     rec.log(ent, raster.transform(), static=True)
     rec.log(ent, rr.EncodedImage.from_fields(media_type="image/png", draw_order=-5.0), static=True)
-    rec.send_columns(ent, indexes=[tc], columns=rr.EncodedImage.columns(blob=fill_images(grid, raster, keys=_stage_keys(regions, K))))
+    rec.send_columns(
+        ent, indexes=[tc], columns=rr.EncodedImage.columns(blob=fill_images(grid, raster, keys=_stage_keys(regions, K)))
+    )
 
 
 def log_istate_run(
@@ -218,7 +229,9 @@ def log_istate_run(
     for sid, g in (sensing or {}).items():
         rec.log(
             paths.join(root, "sensing", paths.part(sid)),
-            rr.LineStrips2D(rings(g), colors=[SENSING], radii=rr.Radius.ui_points(1.0), labels=[str(sid)], show_labels=False),
+            rr.LineStrips2D(
+                rings(g), colors=[SENSING], radii=rr.Radius.ui_points(1.0), labels=[str(sid)], show_labels=False
+            ),
             static=True,
         )
     if summary.height == 0:
@@ -226,7 +239,14 @@ def log_istate_run(
     times = summary["t"].to_numpy()
     bounds = site.boundary.bounds if site is not None else None
     log_istate_regions(rec, tracker, regions, times, bounds=bounds)
-    _series(rec, paths.join(root, "elements"), "elements in the I-state", (255, 235, 130), times, summary["elements"].to_numpy())
+    _series(
+        rec,
+        paths.join(root, "elements"),
+        "elements in the I-state",
+        (255, 235, 130),
+        times,
+        summary["elements"].to_numpy(),
+    )
     _series(rec, paths.join(root, "area"), "area of the I-state", (120, 200, 255), times, summary["area"].to_numpy())
     if detections is not None and detections.height and sensing:
         d = detections.sort("stage", maintain_order=True)
@@ -235,8 +255,14 @@ def log_istate_run(
         lens = np.zeros(len(times), dtype=np.int64)
         np.add.at(lens, d["stage"].to_numpy(), per)
         ent = paths.join(root, "detections")
-        rec.log(ent, rr.LineStrips2D.from_fields(colors=[colors.FIRING], radii=rr.Radius.ui_points(2.5), draw_order=18.0), static=True)
-        rec.send_columns(ent, indexes=[paths.time_column(times)], columns=rr.LineStrips2D.columns(strips=strips).partition(lens))
+        rec.log(
+            ent,
+            rr.LineStrips2D.from_fields(colors=[colors.FIRING], radii=rr.Radius.ui_points(2.5), draw_order=18.0),
+            static=True,
+        )
+        rec.send_columns(
+            ent, indexes=[paths.time_column(times)], columns=rr.LineStrips2D.columns(strips=strips).partition(lens)
+        )
 
 
 def log_active_tracking(
@@ -266,28 +292,50 @@ def log_active_tracking(
     log_world_frame(rec, root)
     if free_space is not None:
         log_world_frame(rec, paths.SITE)
-        rec.log(paths.join(paths.SITE, "free_space"), rr.LineStrips2D(rings(free_space), colors=[colors.WALL]), static=True)
+        rec.log(
+            paths.join(paths.SITE, "free_space"), rr.LineStrips2D(rings(free_space), colors=[colors.WALL]), static=True
+        )
     K, n = targets.shape[:2]
     truth = pl.DataFrame(
-        {"t": np.repeat(times, n), "target": [f"target{i + 1}" for i in range(n)] * K,
-         "x": targets[:, :, 0].ravel(), "y": targets[:, :, 1].ravel()}
-    )  # fmt: skip
+        {
+            "t": np.repeat(times, n),
+            "target": [f"target{i + 1}" for i in range(n)] * K,
+            "x": targets[:, :, 0].ravel(),
+            "y": targets[:, :, 1].ravel(),
+        }
+    )
     log_truth(rec, truth, diagonal=None)
     for j in range(trackers.shape[1]):
         base = paths.join(root, "trackers", paths.part(j))
         col = colors.color_of(f"tracker{j}")
-        rec.log(base, rr.Points2D.from_fields(colors=[col], radii=rr.Radius.ui_points(6.0), labels=[f"tracker {j + 1}"], show_labels=True), static=True)
+        rec.log(
+            base,
+            rr.Points2D.from_fields(
+                colors=[col], radii=rr.Radius.ui_points(6.0), labels=[f"tracker {j + 1}"], show_labels=True
+            ),
+            static=True,
+        )
         rec.send_columns(base, indexes=[tc], columns=rr.Points2D.columns(positions=trackers[:, j]))
-        rec.log(paths.join(base, "destination"), rr.Points2D.from_fields(colors=[col], radii=rr.Radius.ui_points(3.0)), static=True)
-        rec.send_columns(paths.join(base, "destination"), indexes=[tc], columns=rr.Points2D.columns(positions=destinations[:, j]))
+        rec.log(
+            paths.join(base, "destination"),
+            rr.Points2D.from_fields(colors=[col], radii=rr.Radius.ui_points(3.0)),
+            static=True,
+        )
+        rec.send_columns(
+            paths.join(base, "destination"), indexes=[tc], columns=rr.Points2D.columns(positions=destinations[:, j])
+        )
         strips, counts = _strips_per_stage(sensing[:, j])
         rec.log(paths.join(base, "sensing"), rr.LineStrips2D.from_fields(colors=[col]), static=True)
-        rec.send_columns(paths.join(base, "sensing"), indexes=[tc], columns=rr.LineStrips2D.columns(strips=strips).partition(counts))
+        rec.send_columns(
+            paths.join(base, "sensing"), indexes=[tc], columns=rr.LineStrips2D.columns(strips=strips).partition(counts)
+        )
         _series(rec, paths.join(root, "elements", paths.part(j)), f"tracker {j + 1}", col, times, elements[:, j])
     lens = [len(seg) for seg in links]
     strips = [s for seg in links for s in seg]
     rec.log(paths.join(root, "links"), rr.LineStrips2D.from_fields(colors=[(0, 160, 255, 255)]), static=True)
-    rec.send_columns(paths.join(root, "links"), indexes=[tc], columns=rr.LineStrips2D.columns(strips=strips).partition(lens))
+    rec.send_columns(
+        paths.join(root, "links"), indexes=[tc], columns=rr.LineStrips2D.columns(strips=strips).partition(lens)
+    )
     _series(rec, paths.join(root, "P"), "P (Eq. 1)", (255, 160, 40), times, performance, step=False)
     if regions is not None:
         log_istate_regions(rec, tracker, regions, times)
@@ -297,7 +345,12 @@ def log_run(rec: rr.RecordingStream, tracker: str, out: dict, *, site, region_gr
     """Everything the I-state filter produced: regions (filled and outlined), sensing regions,
     detections, element count and area, and the point summary."""
     log_istate_run(
-        rec, tracker, out["regions"], out["summary"], site=site,
-        sensing=out["artifacts"]["sensing"], detections=out["detections"],
-    )  # fmt: skip
+        rec,
+        tracker,
+        out["regions"],
+        out["summary"],
+        site=site,
+        sensing=out["artifacts"]["sensing"],
+        detections=out["detections"],
+    )
     log_point_tracks(rec, tracker, out["tracks"])

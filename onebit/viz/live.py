@@ -32,7 +32,9 @@ WEB_PORT = 9090
 DELAY_ROOT = "follow/delay"
 
 
-def open_live(path: str | Path, *, recording_id: str, connect: str | None = None, serve_web: bool = False) -> tuple[rr.RecordingStream, str | None]:
+def open_live(
+    path: str | Path, *, recording_id: str, connect: str | None = None, serve_web: bool = False
+) -> tuple[rr.RecordingStream, str | None]:
     """A recording stream writing ``path`` as it grows, plus a viewer connection if asked.
 
     Returns the stream and the URL a browser opens (``serve_web``) or ``None``.
@@ -74,11 +76,16 @@ def live_blueprint(trackers: list[str]) -> rrb.Blueprint:
     the publication delay of every tracker on one plot."""
     return rrb.Blueprint(
         rrb.Horizontal(
-            rrb.Spatial2DView(name="site: estimates as they are published", origin="/",
-                              contents=["+ site/**", *[f"+ {paths.tracker_root(t)}/**" for t in trackers]]),  # fmt: skip
+            rrb.Spatial2DView(
+                name="site: estimates as they are published",
+                origin="/",
+                contents=["+ site/**", *[f"+ {paths.tracker_root(t)}/**" for t in trackers]],
+            ),
             rrb.Vertical(
                 rrb.StateTimelineView(name="sensors: on / off", origin="/", contents=["+ sensors/**"]),
-                rrb.TimeSeriesView(name="publication delay (s, wall clock)", origin="/", contents=[f"+ {DELAY_ROOT}/**"]),
+                rrb.TimeSeriesView(
+                    name="publication delay (s, wall clock)", origin="/", contents=[f"+ {DELAY_ROOT}/**"]
+                ),
             ),
             column_shares=[3, 2],
         ),
@@ -109,7 +116,11 @@ def log_delays(rec: rr.RecordingStream, tracker: str, t: np.ndarray, delay_s: np
     """The publication delay (s) of each estimate on ``follow/delay/<tracker>`` over ``t``."""
     if len(t) == 0:
         return
-    rec.send_columns(f"{DELAY_ROOT}/{paths.part(tracker)}", indexes=[paths.time_column(t)], columns=rr.Scalars.columns(scalars=np.asarray(delay_s, dtype=np.float64)))
+    rec.send_columns(
+        f"{DELAY_ROOT}/{paths.part(tracker)}",
+        indexes=[paths.time_column(t)],
+        columns=rr.Scalars.columns(scalars=np.asarray(delay_s, dtype=np.float64)),
+    )
 
 
 def send_live_blueprint(rec: rr.RecordingStream, trackers: list[str]) -> None:

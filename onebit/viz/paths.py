@@ -34,6 +34,7 @@ from __future__ import annotations
 from collections.abc import Iterable
 
 import numpy as np
+
 from onebit.core.lazy import lazy_module
 
 rr = lazy_module("rerun")

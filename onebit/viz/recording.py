@@ -14,7 +14,6 @@ import threading
 from collections.abc import Iterator
 from pathlib import Path
 
-
 from onebit.core import writers
 from onebit.core.errors import OnebitError
 from onebit.core.lazy import lazy_module
@@ -52,9 +51,7 @@ def temp_path(path: str | Path) -> Path:
     return writers.temp_path(path, suffix=".partial")
 
 
-def open_recording(
-    path: str | Path, *, recording_id: str, application_id: str = APPLICATION_ID
-) -> rr.RecordingStream:
+def open_recording(path: str | Path, *, recording_id: str, application_id: str = APPLICATION_ID) -> rr.RecordingStream:
     """A new recording stream saving to a temp file next to ``path``.
 
     Nothing is spawned and no network is used. Finish with :func:`close_recording`, which
@@ -68,8 +65,10 @@ def open_recording(
         rec = rr.RecordingStream(application_id, recording_id=recording_id)
         rec.save(temp_path(path))
     if not rec.is_enabled():  # pragma: no cover - only if the SDK stops honouring the override
-        raise OnebitError(f"{path}: Rerun logging is turned off in this process (RERUN={os.environ.get('RERUN')!r}), "
-                          "so no recording can be written; unset RERUN")  # fmt: skip
+        raise OnebitError(
+            f"{path}: Rerun logging is turned off in this process (RERUN={os.environ.get('RERUN')!r}), "
+            "so no recording can be written; unset RERUN"
+        )
     return rec
 
 

@@ -40,11 +40,15 @@ def log_events(rec: rr.RecordingStream, tracker: str, events: pl.DataFrame | Non
     labels = [f"{label[k]}: {s}" for k, s in zip(ev["track"].to_list(), ev["sensor"].to_list())]
     entity = paths.join(paths.tracker_root(tracker), "events")
     log_world_frame(rec, entity)
-    rec.log(entity, rr.Points2D.from_fields(radii=rr.Radius.ui_points(7.0), show_labels=False, draw_order=7.0), static=True)
+    rec.log(
+        entity, rr.Points2D.from_fields(radii=rr.Radius.ui_points(7.0), show_labels=False, draw_order=7.0), static=True
+    )
     rec.send_columns(
         entity,
         indexes=[paths.time_column(ev["t"].to_numpy())],
-        columns=rr.Points2D.columns(positions=xy, colors=cols, labels=labels).partition(np.ones(ev.height, dtype=np.int64)),
+        columns=rr.Points2D.columns(positions=xy, colors=cols, labels=labels).partition(
+            np.ones(ev.height, dtype=np.int64)
+        ),
     )
 
 
@@ -53,11 +57,16 @@ def log_people(rec: rr.RecordingStream, tracker: str, people: pl.DataFrame | Non
     if is_empty(people):
         return
     entity = paths.join(paths.tracker_root(tracker), "people")
-    rec.send_columns(entity, indexes=[paths.time_column(people["t"].to_numpy())],
-                     columns=rr.Scalars.columns(scalars=people["present"].to_numpy().astype(np.float64)))  # fmt: skip
+    rec.send_columns(
+        entity,
+        indexes=[paths.time_column(people["t"].to_numpy())],
+        columns=rr.Scalars.columns(scalars=people["present"].to_numpy().astype(np.float64)),
+    )
 
 
-def log_run(rec: rr.RecordingStream, tracker: str, out: dict, *, site, region_graph=None, config=None, tables=None) -> None:
+def log_run(
+    rec: rr.RecordingStream, tracker: str, out: dict, *, site, region_graph=None, config=None, tables=None
+) -> None:
     """The residents stage: people's tracks, the attributed events, the people present."""
     log_point_tracks(rec, tracker, out.get("tracks"))
     ev = out.get("events")

@@ -11,12 +11,12 @@ from __future__ import annotations
 
 import numpy as np
 
+from onebit.core.lazy import lazy_module
 from onebit.core.region_graph import RegionGraph
 from onebit.core.site import Site
 from onebit.viz import colors, paths
 from onebit.viz._series import rings
 from onebit.viz.frame import log_world_frame
-from onebit.core.lazy import lazy_module
 from onebit.viz.radii import ui_points
 
 rr = lazy_module("rerun")
@@ -52,7 +52,9 @@ def log_site(rec: rr.RecordingStream, site: Site, region_graph: RegionGraph | No
     log_world_frame(rec, paths.SITE)
     rec.log(
         paths.site_boundary(),
-        rr.LineStrips2D(rings(site.boundary), radii=WALL_WIDTH, colors=colors.WALL, labels=[site.name], show_labels=False),
+        rr.LineStrips2D(
+            rings(site.boundary), radii=WALL_WIDTH, colors=colors.WALL, labels=[site.name], show_labels=False
+        ),
         static=True,
     )
     for i, (poly, name) in enumerate(zip(site.obstacles, site.obstacle_names, strict=True)):
@@ -67,7 +69,12 @@ def log_site(rec: rr.RecordingStream, site: Site, region_graph: RegionGraph | No
             paths.site_beam(b.id),
             rr.LineStrips2D([np.array([b.p0, b.p1], float)], radii=BEAM_WIDTH, colors=colors.BEAM, draw_order=20.0),
             rr.Arrows2D(
-                origins=[origin], vectors=[vector], radii=BEAM_WIDTH, colors=colors.BEAM, labels=[b.id], show_labels=True,
+                origins=[origin],
+                vectors=[vector],
+                radii=BEAM_WIDTH,
+                colors=colors.BEAM,
+                labels=[b.id],
+                show_labels=True,
                 draw_order=20.0,
             ),
             static=True,
@@ -80,7 +87,12 @@ def log_site(rec: rr.RecordingStream, site: Site, region_graph: RegionGraph | No
                 paths.site_region(name),
                 rr.LineStrips2D(outline, radii=REGION_WIDTH, colors=REGION_COLOR, draw_order=5.0),
                 rr.Points2D(
-                    [[rp.x, rp.y]], radii=LABEL_RADIUS, colors=REGION_LABEL, labels=[name], show_labels=True, draw_order=6.0,
+                    [[rp.x, rp.y]],
+                    radii=LABEL_RADIUS,
+                    colors=REGION_LABEL,
+                    labels=[name],
+                    show_labels=True,
+                    draw_order=6.0,
                 ),
                 static=True,
             )
@@ -89,7 +101,12 @@ def log_site(rec: rr.RecordingStream, site: Site, region_graph: RegionGraph | No
             rec.log(
                 paths.site_region(spec.name),
                 rr.Points2D(
-                    [spec.point], radii=LABEL_RADIUS, colors=REGION_LABEL, labels=[spec.name], show_labels=True, draw_order=6.0,
+                    [spec.point],
+                    radii=LABEL_RADIUS,
+                    colors=REGION_LABEL,
+                    labels=[spec.name],
+                    show_labels=True,
+                    draw_order=6.0,
                 ),
                 static=True,
             )
@@ -114,17 +131,25 @@ def log_sensor_marks(rec: rr.RecordingStream, site: Site) -> None:
         a = np.radians([m.heading for m in site.motion_sensors])
         parts.append(
             rr.Arrows2D(
-                origins=[m.position for m in site.motion_sensors], vectors=np.c_[np.cos(a), np.sin(a)] * length,
-                radii=rr.Radius.ui_points(1.0), colors=SENSOR_MARK, labels=[m.id for m in site.motion_sensors],
-                show_labels=False, draw_order=11.0,
+                origins=[m.position for m in site.motion_sensors],
+                vectors=np.c_[np.cos(a), np.sin(a)] * length,
+                radii=rr.Radius.ui_points(1.0),
+                colors=SENSOR_MARK,
+                labels=[m.id for m in site.motion_sensors],
+                show_labels=False,
+                draw_order=11.0,
             )
-        )  # fmt: skip
+        )
     if site.proximity_sensors:
         parts.append(
             rr.Points2D(
-                [p.position for p in site.proximity_sensors], radii=rr.Radius.ui_points(2.0), colors=SENSOR_MARK,
-                labels=[p.id for p in site.proximity_sensors], show_labels=False, draw_order=11.0,
+                [p.position for p in site.proximity_sensors],
+                radii=rr.Radius.ui_points(2.0),
+                colors=SENSOR_MARK,
+                labels=[p.id for p in site.proximity_sensors],
+                show_labels=False,
+                draw_order=11.0,
             )
-        )  # fmt: skip
+        )
     if parts:
         rec.log(entity, *parts, static=True)

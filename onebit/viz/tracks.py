@@ -28,14 +28,14 @@ import numpy as np
 import polars as pl
 import shapely
 
+from onebit.core.lazy import lazy_module
 from onebit.core.region_graph import RegionGraph
 from onebit.viz import colors, paths
 from onebit.viz._series import groups, is_empty, only_tracker, region_outlines, require, ring_table, strips_array
 from onebit.viz.families import error_column
 from onebit.viz.frame import log_world_frame
-from onebit.viz.trails import log_dot, log_moving, log_trail
-from onebit.core.lazy import lazy_module
 from onebit.viz.radii import ui_points
+from onebit.viz.trails import log_dot, log_moving, log_trail
 
 rr = lazy_module("rerun")
 
@@ -101,7 +101,9 @@ def region_positions(region_graph: RegionGraph, regions: np.ndarray, slot: int) 
     angle = slot * _GOLDEN_ANGLE
     direction = np.array([np.cos(angle), np.sin(angle)])
     xy = rp + (TRACK_OFFSET * size)[:, None] * direction  # per region, then gathered per row
-    inside = np.array([shapely.contains_xy(poly, *p) for poly, p in zip(region_graph.polygons, xy)], dtype=bool).reshape(-1)
+    inside = np.array(
+        [shapely.contains_xy(poly, *p) for poly, p in zip(region_graph.polygons, xy)], dtype=bool
+    ).reshape(-1)
     return np.where(inside[:, None], xy, rp)[k].reshape(-1, 2)
 
 
@@ -150,10 +152,16 @@ def log_region_tracks(
         if len(xy) >= 2:
             rec.log(
                 paths.track_region_path(tracker, track),
-                rr.LineStrips2D([xy], colors=(*shades[track][:3], 150), radii=rr.Radius.ui_points(1.0),
-                                labels=[f"{labels[track]}: whole region path"], show_labels=False, draw_order=20.0),
+                rr.LineStrips2D(
+                    [xy],
+                    colors=(*shades[track][:3], 150),
+                    radii=rr.Radius.ui_points(1.0),
+                    labels=[f"{labels[track]}: whole region path"],
+                    show_labels=False,
+                    draw_order=20.0,
+                ),
                 static=True,
-            )  # fmt: skip
+            )
 
 
 def log_point_tracks(rec: rr.RecordingStream, tracker: str, tracks: pl.DataFrame | None) -> None:
@@ -182,11 +190,15 @@ def log_point_tracks(rec: rr.RecordingStream, tracker: str, tracks: pl.DataFrame
         )
 
 
-def _log_series(rec: rr.RecordingStream, entity: str, name: str, color, t: np.ndarray, values: np.ndarray, *, step: bool) -> None:
+def _log_series(
+    rec: rr.RecordingStream, entity: str, name: str, color, t: np.ndarray, values: np.ndarray, *, step: bool
+) -> None:
     style = rr.SeriesLines(
-        colors=color, names=[name], widths=[2.0],
+        colors=color,
+        names=[name],
+        widths=[2.0],
         interpolation_mode=rr.components.InterpolationMode.StepAfter if step else None,
-    )  # fmt: skip
+    )
     rec.log(entity, style, static=True)
     rec.send_columns(entity, indexes=[paths.time_column(t)], columns=rr.Scalars.columns(scalars=values))
 
@@ -199,14 +211,17 @@ def log_occupancy(rec: rr.RecordingStream, tracker: str, occupancy: pl.DataFrame
     occupancy = only_tracker(occupancy, tracker).drop_nulls(["t", "count"])
     for region, g in groups(occupancy, "region"):
         _log_series(
-            rec, paths.occupancy(tracker, region), region, colors.color_of(region), g["t"].to_numpy(),
-            g["count"].cast(pl.Float64).to_numpy(), step=True,
-        )  # fmt: skip
+            rec,
+            paths.occupancy(tracker, region),
+            region,
+            colors.color_of(region),
+            g["t"].to_numpy(),
+            g["count"].cast(pl.Float64).to_numpy(),
+            step=True,
+        )
 
 
-def log_scores(
-    rec: rr.RecordingStream, tracker: str, scores: pl.DataFrame | None, *, track_ids=None
-) -> None:
+def log_scores(rec: rr.RecordingStream, tracker: str, scores: pl.DataFrame | None, *, track_ids=None) -> None:
     """Log each track's error ``(track, t, error | hop_error[, target])`` as Scalars on
     ``scores/<tracker>/<track>``: ``hop_error`` (hops) for region and graph trackers, else
     ``error`` (site units) -- one unit per tracker, named in its plot's title.
@@ -232,6 +247,11 @@ def log_scores(
         targets = g["target"].drop_nulls().unique().sort().to_list() if "target" in g.columns else []
         name = f"{labels[track]} ~ {'/'.join(map(str, targets))}" if targets else labels[track]
         _log_series(
-            rec, paths.score(tracker, track), name, shades[track], g["t"].to_numpy(), g[column].cast(pl.Float64).to_numpy(),
+            rec,
+            paths.score(tracker, track),
+            name,
+            shades[track],
+            g["t"].to_numpy(),
+            g[column].cast(pl.Float64).to_numpy(),
             step=False,
-        )  # fmt: skip
+        )

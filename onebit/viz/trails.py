@@ -22,9 +22,9 @@ from __future__ import annotations
 
 import numpy as np
 
+from onebit.core.lazy import lazy_module
 from onebit.viz import colors, paths
 from onebit.viz._series import strips_array, update_indices
-from onebit.core.lazy import lazy_module
 from onebit.viz.radii import ui_points
 
 rr = lazy_module("rerun")
@@ -57,16 +57,18 @@ def segments(xy: np.ndarray) -> np.ndarray:
     return np.stack([xy[:-1], xy[1:]], axis=1)
 
 
-def log_trail(
-    rec: rr.RecordingStream, entity: str, t: np.ndarray, xy: np.ndarray, *, color, width=TRAIL_WIDTH
-) -> None:
+def log_trail(rec: rr.RecordingStream, entity: str, t: np.ndarray, xy: np.ndarray, *, color, width=TRAIL_WIDTH) -> None:
     """``<entity>/trail``: the segment ending at each sample ``i >= 1``, at time ``t[i]``."""
     seg = segments(xy)
     if len(seg) == 0:
         return
     trail = paths.trail(entity)
     rec.log(trail, rr.LineStrips2D.from_fields(colors=color, radii=width, draw_order=TRAIL_ORDER), static=True)
-    rec.send_columns(trail, indexes=[paths.time_column(np.asarray(t)[1:])], columns=rr.LineStrips2D.columns(strips=strips_array(seg, 2)))
+    rec.send_columns(
+        trail,
+        indexes=[paths.time_column(np.asarray(t)[1:])],
+        columns=rr.LineStrips2D.columns(strips=strips_array(seg, 2)),
+    )
 
 
 def log_full_path(

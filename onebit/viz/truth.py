@@ -10,11 +10,11 @@ from __future__ import annotations
 import numpy as np
 import polars as pl
 
+from onebit.core.lazy import lazy_module
 from onebit.viz import paths
 from onebit.viz._series import groups, is_empty, require
 from onebit.viz.frame import log_world_frame
 from onebit.viz.trails import log_moving, marker_size
-from onebit.core.lazy import lazy_module
 
 rr = lazy_module("rerun")
 

@@ -71,8 +71,13 @@ def test_frames_default_span_is_aligned():
 def test_refractory_state_follows_the_recursion(fired, f):
     period = 2.0
     frames = pl.DataFrame(
-        {"slot": list(range(len(fired))), "t": [k * period for k in range(len(fired))], "sensor": ["p1"] * len(fired),
-         "on": fired, "fired": fired},
+        {
+            "slot": list(range(len(fired))),
+            "t": [k * period for k in range(len(fired))],
+            "sensor": ["p1"] * len(fired),
+            "on": fired,
+            "fired": fired,
+        },
         schema=FRAMES,
     )
     st_ = refractory_state(frames, {"p1": f}, period=period)
@@ -93,8 +98,16 @@ def _edges(rows):
 
 
 def test_silent_stretches_are_the_long_gaps_with_every_sensor_off():
-    motion = _edges([(0.0, "p1", True), (5.0, "p1", False), (100.0, "p2", True), (101.0, "p2", False), (110.0, "p1", True),
-                     (120.0, "p1", False)])  # fmt: skip
+    motion = _edges(
+        [
+            (0.0, "p1", True),
+            (5.0, "p1", False),
+            (100.0, "p2", True),
+            (101.0, "p2", False),
+            (110.0, "p1", True),
+            (120.0, "p1", False),
+        ]
+    )
     crossings = pl.DataFrame({"t": [50.0], "sensor": ["b1"]})
     assert silent_stretches([motion], min_s=60.0).rows() == [(5.0, 100.0)]
     # an event without `on` (a crossing) breaks the silence; the stretch after the last event is not data

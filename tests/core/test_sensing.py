@@ -89,19 +89,34 @@ def test_fov_and_range_intersect(r, pts):
     site = make_site(motion=[{"id": "m", "position": [5.0, 5.0], "fov": fov, "range": r}])
     reg = detection_regions(site)["m"]
     xy = np.asarray(pts)
-    want = (xy[:, 0] >= 5) & (xy[:, 0] <= 10) & (xy[:, 1] >= 5) & (xy[:, 1] <= 10) & (np.hypot(xy[:, 0] - 5, xy[:, 1] - 5) <= r)
+    want = (
+        (xy[:, 0] >= 5)
+        & (xy[:, 0] <= 10)
+        & (xy[:, 1] >= 5)
+        & (xy[:, 1] <= 10)
+        & (np.hypot(xy[:, 0] - 5, xy[:, 1] - 5) <= r)
+    )
     np.testing.assert_array_equal(reg.covers_xy(xy[:, 0], xy[:, 1]), want)
     assert reg.geometry.area == pytest.approx(math.pi * r * r / 4, rel=2e-3)  # a quarter disk
     assert reg.window.equals(reg.geometry)  # no type: the window is the whole region
 
 
 @settings(max_examples=40, deadline=None)
-@given(k=st.sampled_from([0.01, 0.3048, 2.54, 100.0, 1000.0]), x=st.floats(1, 9), y=st.floats(1, 9), r=st.floats(0.2, 4), h=heading)
+@given(
+    k=st.sampled_from([0.01, 0.3048, 2.54, 100.0, 1000.0]),
+    x=st.floats(1, 9),
+    y=st.floats(1, 9),
+    r=st.floats(0.2, 4),
+    h=heading,
+)
 def test_regions_scale_with_the_site(k, x, y, r, h):
     """The same site drawn k times larger has every region k times larger (types included)."""
 
     def site(f):
-        types = {"w": {"kind": "pir-triangle", "range": 6 * f, "fov": 60.0, "resolution": 2 * f}, "g": {"samples": [[f, 0, 1], [2 * f, f, 0.5], [2 * f, -f, 0.2]]}}
+        types = {
+            "w": {"kind": "pir-triangle", "range": 6 * f, "fov": 60.0, "resolution": 2 * f},
+            "g": {"samples": [[f, 0, 1], [2 * f, f, 0.5], [2 * f, -f, 0.2]]},
+        }
         return make_site(
             motion=[
                 {"id": "a", "position": [x * f, y * f], "range": r * f},
@@ -125,10 +140,15 @@ def test_regions_scale_with_the_site(k, x, y, r, h):
 
 def test_proximity_and_beam_regions():
     site = make_site(
-        proximity=[{"id": "p", "position": [2.0, 2.0], "r_inner": 1.0, "r_outer": 2.0}, {"id": "q", "position": [8.0, 2.0], "radius": 1.5}],
+        proximity=[
+            {"id": "p", "position": [2.0, 2.0], "r_inner": 1.0, "r_outer": 2.0},
+            {"id": "q", "position": [8.0, 2.0], "radius": 1.5},
+        ],
         beams=[{"id": "b", "segment": [[5.0, 0.0], [5.0, 10.0]], "spacing": 0.4}],
     )
-    r = detection_regions(site) | detection_regions(make_site(beams=[{"id": "c", "segment": [[0.0, 5.0], [10.0, 5.0]]}]))
+    r = detection_regions(site) | detection_regions(
+        make_site(beams=[{"id": "c", "segment": [[0.0, 5.0], [10.0, 5.0]]}])
+    )
     assert (r["p"].radius, r["p"].inner_radius, r["q"].radius, r["q"].inner_radius) == (2.0, 1.0, 1.5, 1.5)
     assert r["b"].kind == "beam" and r["b"].radius == pytest.approx(0.2)
     assert r["b"].covers_xy(np.array([5.19, 5.21, 4.81]), np.array([3.0, 3.0, 9.0])).tolist() == [True, False, True]
@@ -145,7 +165,11 @@ def test_regions_are_built_once_per_site():
 
 def test_builtin_types_are_metres_converted_to_the_site_units():
     m = make_site(motion=[{"id": "m", "position": [0.0, 0.0], "heading": 45.0, "type": "pir"}])
-    cm = make_site(motion=[{"id": "m", "position": [0.0, 0.0], "heading": 45.0, "type": "pir"}], units="cm", boundary=(np.asarray(BOX) * 100).tolist())
+    cm = make_site(
+        motion=[{"id": "m", "position": [0.0, 0.0], "heading": 45.0, "type": "pir"}],
+        units="cm",
+        boundary=(np.asarray(BOX) * 100).tolist(),
+    )
     rng, fov = BUILTIN_TYPES["pir"]["range"], BUILTIN_TYPES["pir"]["fov"]
     area_m = rng * rng * math.tan(math.radians(fov / 2))
     assert detection_regions(m)["m"].geometry.area == pytest.approx(area_m)
@@ -192,14 +216,39 @@ def test_beam_and_grid_type_extents():
     "sensor, types, field, words",
     [
         ({"id": "m", "position": [1, 1]}, None, "motion_sensors[0] (id 'm')", "no detection region"),
-        ({"id": "m", "position": [1, 1], "type": "x10"}, {"x10": {"chatter_window": 0.1}}, "motion_sensors[0] (id 'm')", "declares no geometry"),
-        ({"id": "m", "position": [1, 1], "type": "nope"}, None, "motion_sensors[0] (id 'm').type", "unknown sensor type"),
-        ({"id": "m", "position": [1, 1], "type": "w"}, {"w": {"kind": "pir-triangle", "fov": 60.0}}, "sensor_types.w.range", "missing"),
+        (
+            {"id": "m", "position": [1, 1], "type": "x10"},
+            {"x10": {"chatter_window": 0.1}},
+            "motion_sensors[0] (id 'm')",
+            "declares no geometry",
+        ),
+        (
+            {"id": "m", "position": [1, 1], "type": "nope"},
+            None,
+            "motion_sensors[0] (id 'm').type",
+            "unknown sensor type",
+        ),
+        (
+            {"id": "m", "position": [1, 1], "type": "w"},
+            {"w": {"kind": "pir-triangle", "fov": 60.0}},
+            "sensor_types.w.range",
+            "missing",
+        ),
         ({"id": "m", "position": [1, 1], "type": "w"}, {"w": {"range": 5.0}}, "sensor_types.w.fov", "missing"),
         ({"id": "m", "position": [1, 1], "type": "w"}, {"w": {"kind": "beam"}}, "sensor_types.w.length", "missing"),
         ({"id": "m", "position": [1, 1], "type": "w"}, {"w": {"kind": "grid"}}, "sensor_types.w.samples", "missing"),
-        ({"id": "m", "position": [1, 1], "type": "w"}, {"w": {"kind": "cone", "range": 2}}, "sensor_types.w.kind", "cone"),
-        ({"id": "m", "position": [1, 1], "type": "w"}, {"w": {"kind": "beam", "length": 2, "width": -1}}, "sensor_types.w.width", "non-negative"),
+        (
+            {"id": "m", "position": [1, 1], "type": "w"},
+            {"w": {"kind": "cone", "range": 2}},
+            "sensor_types.w.kind",
+            "cone",
+        ),
+        (
+            {"id": "m", "position": [1, 1], "type": "w"},
+            {"w": {"kind": "beam", "length": 2, "width": -1}},
+            "sensor_types.w.width",
+            "non-negative",
+        ),
         (
             {"id": "m", "position": [1, 1], "fov": [[6, 6], [9, 6], [9, 9]], "range": 1.0},
             None,
@@ -228,7 +277,14 @@ def test_current_node_nearest_region_then_forward_fill():
     tg = np.array(["u", "u", "u", "u", "u", "v"])
     # before any region: -1; inside a only; both (nearer a, then nearer b); outside: last one; v never inside
     assert current_node(xy, tg, regs).tolist() == [-1, 0, 0, 1, 1, -1]
-    assert covers(regs, xy).tolist() == [[False, False], [True, False], [True, True], [True, True], [False, False], [False, False]]
+    assert covers(regs, xy).tolist() == [
+        [False, False],
+        [True, False],
+        [True, True],
+        [True, True],
+        [False, False],
+        [False, False],
+    ]
 
 
 @settings(max_examples=30, deadline=None)

@@ -38,7 +38,11 @@ def test_connecting_radius_is_the_smallest_that_connects(pos):
 @given(points, st.floats(0.5, 10))
 def test_radius_links_exactly_the_close_pairs(pos, r):
     g = geometric_sensor_graph(pos, radius=r)
-    want = {tuple(sorted((a, b), key=list(pos).index)) for a, b in itertools.combinations(pos, 2) if math.dist(pos[a], pos[b]) <= r}
+    want = {
+        tuple(sorted((a, b), key=list(pos).index))
+        for a, b in itertools.combinations(pos, 2)
+        if math.dist(pos[a], pos[b]) <= r
+    }
     assert set(g.edges) == want
     assert sum(len(c) for c in g.components) == len(pos)
 
@@ -68,11 +72,17 @@ def test_walls_cut_edges_and_rooms_need_a_doorway():
 
 
 def test_site_toml_geometry_option():
-    base = {"boundary": {"polygon": [[0, 0], [10, 0], [10, 4], [0, 4]]},
-            "motion_sensors": [{"id": f"m{i}", "position": [1 + 2 * i, 1], "range": 1} for i in range(5)]}  # fmt: skip
+    base = {
+        "boundary": {"polygon": [[0, 0], [10, 0], [10, 4], [0, 4]]},
+        "motion_sensors": [{"id": f"m{i}", "position": [1 + 2 * i, 1], "range": 1} for i in range(5)],
+    }
     s = site_from_dict({**base, "sensor_graph": {"geometry": "connected"}})
     assert set(s.sensor_graph.edges) == {("m0", "m1"), ("m1", "m2"), ("m2", "m3"), ("m3", "m4")}
-    walled = {**base, "obstacles": [{"polygon": [[5.9, 0], [6.1, 0], [6.1, 3], [5.9, 3]]}], "sensor_graph": {"geometry": "connected"}}
+    walled = {
+        **base,
+        "obstacles": [{"polygon": [[5.9, 0], [6.1, 0], [6.1, 3], [5.9, 3]]}],
+        "sensor_graph": {"geometry": "connected"},
+    }
     with pytest.raises(SiteError, match="sensor_graph.geometry.*not connected"):
         site_from_dict(walled)
     with pytest.raises(SiteError, match="either 'edges' or 'geometry'"):
@@ -85,10 +95,20 @@ LOG = "".join(
     f"2008-11-10\t14:{m:02d}:{s:02d}.5\t{sid}\t{val} {r} 1\n"
     for m in range(2)
     for s, (sid, val, r) in enumerate(
-        [("M01", "ON", 1), ("M02", "ON", 2), ("M01", "OFF", 1), ("M03", "ON", 2), ("M02", "OFF", 2), ("D07", "OPEN", 1),
-         ("M03", "OFF", 2), ("D07", "CLOSE", 1), ("M09", "ON", 1), ("M09", "OFF", 1)]
+        [
+            ("M01", "ON", 1),
+            ("M02", "ON", 2),
+            ("M01", "OFF", 1),
+            ("M03", "ON", 2),
+            ("M02", "OFF", 2),
+            ("D07", "OPEN", 1),
+            ("M03", "OFF", 2),
+            ("D07", "CLOSE", 1),
+            ("M09", "ON", 1),
+            ("M09", "OFF", 1),
+        ]
     )
-)  # fmt: skip
+)
 
 
 @pytest.mark.parametrize("fmt", ["kyoto", "csv", "sitejson"])
@@ -96,7 +116,13 @@ def test_floor_plan_layouts(tmp_path, fmt):
     from onebit.core.site import load_site
     from onebit.datasets.importers import import_casas
 
-    px = {"M001": (100, 100), "M002": (180, 100), "M003": (260, 100), "D007": (100, 180), "M099": (900, 900)}  # M099 not in the log
+    px = {
+        "M001": (100, 100),
+        "M002": (180, 100),
+        "M003": (260, 100),
+        "D007": (100, 180),
+        "M099": (900, 900),
+    }  # M099 not in the log
     log = tmp_path / "P01.txt"
     log.write_text(LOG)
     if fmt == "kyoto":
@@ -109,13 +135,27 @@ def test_floor_plan_layouts(tmp_path, fmt):
         scale = 0.02
     else:
         lay = tmp_path / "site.json"
-        lay.write_text(json.dumps({"sensors": [{"name": k, "locX": x / 1000, "locY": y / 1000, "types": ["Motion"]} for k, (x, y) in px.items()]}))
+        lay.write_text(
+            json.dumps(
+                {
+                    "sensors": [
+                        {"name": k, "locX": x / 1000, "locY": y / 1000, "types": ["Motion"]} for k, (x, y) in px.items()
+                    ]
+                }
+            )
+        )
         scale = 20.0  # metres per plan width
     u = 1000.0 if fmt == "sitejson" else 1.0  # rooms in the plan's own coordinates
     rooms = tmp_path / "partitions.json"
-    rooms.write_text(json.dumps({"hall": [{"top_left": {"x": 50 / u, "y": 50 / u}, "width": 300 / u, "height": 100 / u}],
-                                 "closet": [[50 / u, 160 / u], [150 / u, 160 / u], [150 / u, 220 / u], [50 / u, 220 / u]],
-                                 "far": [[800 / u, 800 / u], [990 / u, 800 / u], [990 / u, 990 / u], [800 / u, 990 / u]]}))  # fmt: skip
+    rooms.write_text(
+        json.dumps(
+            {
+                "hall": [{"top_left": {"x": 50 / u, "y": 50 / u}, "width": 300 / u, "height": 100 / u}],
+                "closet": [[50 / u, 160 / u], [150 / u, 160 / u], [150 / u, 220 / u], [50 / u, 220 / u]],
+                "far": [[800 / u, 800 / u], [990 / u, 800 / u], [990 / u, 990 / u], [800 / u, 990 / u]],
+            }
+        )
+    )
     with pytest.raises(Exception, match="--scale"):
         import_casas(log, tmp_path / "noscale", layout=lay)
     s = import_casas(log, tmp_path / "ds", layout=lay, rooms=rooms, scale=scale)
@@ -125,7 +165,8 @@ def test_floor_plan_layouts(tmp_path, fmt):
     assert pos["M02"] == pytest.approx((3.6, -2.0)) and pos["D07"][1] < pos["M01"][1]  # scaled, y axis flipped
     assert s.info["layout"]["unplaced"] == ["M09"] and s.info["graph"]["source"] == "geometry"
     edges = {tuple(sorted(e)) for e in site.sensor_graph.edges}
-    assert ("M01", "M02") in edges and ("M02", "M03") in edges and ("D07", "M01") in edges  # closet touches the hall: a doorway
+    assert (
+        ("M01", "M02") in edges and ("M02", "M03") in edges and ("D07", "M01") in edges
+    )  # closet touches the hall: a doorway
     assert site.sensor_graph.entries == ()  # the cupboard D07 is no door
     assert ("D07", "M02") not in edges  # 2.26 m apart: beyond the connecting radius (1.6 m)
-

@@ -6,10 +6,10 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
+from onebit.core.errors import SiteError
 from onebit.core.region_graph import build_region_graph
 from onebit.core.site import load_site, site_from_dict
 from onebit.datasets.builtin import builtin_site_path
-from onebit.core.errors import SiteError
 
 BASE = """
 name = "t"
@@ -43,7 +43,10 @@ def test_minimal_site_two_regions(tmp_path):
     [
         (lambda t: t.replace('units = "m"', 'units = "parsec"'), "units"),
         (lambda t: t.replace("segment = [[5, 0], [5, 4]]", "segment = [[5, 1], [5, 4]]"), "segment"),
-        (lambda t: t.replace("[[0, 0], [10, 0], [10, 4], [0, 4]]", "[[0, 0], [10, 4], [10, 0], [0, 4]]"), "boundary.polygon"),
+        (
+            lambda t: t.replace("[[0, 0], [10, 0], [10, 4], [0, 4]]", "[[0, 0], [10, 4], [10, 0], [0, 4]]"),
+            "boundary.polygon",
+        ),
         (lambda t: t + "colour = 3\n", "colour"),
         (lambda t: t.replace('id = "a"\n', ""), "id"),
         (lambda t: t.replace('forward = "right"', 'forward = "up"'), "forward"),
@@ -121,7 +124,10 @@ def test_units_default_to_metres(tmp_path):
 
 
 def test_motion_sensor_type_is_none_unless_declared(tmp_path):
-    text = BASE + '[[motion_sensors]]\nid = "m"\nposition = [1, 1]\nrange = 1.5\n[[motion_sensors]]\nid = "n"\nposition = [8, 2]\ntype = "pir"\n'
+    text = (
+        BASE
+        + '[[motion_sensors]]\nid = "m"\nposition = [1, 1]\nrange = 1.5\n[[motion_sensors]]\nid = "n"\nposition = [8, 2]\ntype = "pir"\n'
+    )
     site = _load(tmp_path, text)
     assert [m.type for m in site.motion_sensors] == [None, "pir"]
     regions = site.detection_regions
@@ -132,7 +138,7 @@ def test_motion_sensor_type_is_none_unless_declared(tmp_path):
 def test_a_sensor_without_a_region_loads_and_fails_when_its_region_is_needed(tmp_path):
     site = _load(tmp_path, BASE + '[[motion_sensors]]\nid = "m"\nposition = [1, 1]\n')
     with pytest.raises(SiteError) as exc:
-        site.detection_regions
+        _ = site.detection_regions
     assert "field 'motion_sensors[0] (id 'm')'" in str(exc.value) and "site.toml" in str(exc.value)
 
 
@@ -153,7 +159,9 @@ def test_loaded_motion_sensors_have_the_regions_they_declare(sensors):
         if with_fov or rng is None:
             m["fov"] = [[x - 0.5, y - 0.5], [x + 0.5, y - 0.5], [x + 0.5, y + 0.5], [x - 0.5, y + 0.5]]
         ms.append(m)
-    site = site_from_dict({"units": "cm", "boundary": {"polygon": [[0, 0], [10, 0], [10, 4], [0, 4]]}, "motion_sensors": ms})
+    site = site_from_dict(
+        {"units": "cm", "boundary": {"polygon": [[0, 0], [10, 0], [10, 4], [0, 4]]}, "motion_sensors": ms}
+    )
     regions = site.detection_regions
     for m in ms:
         r = regions[m["id"]]
@@ -228,7 +236,9 @@ def _mutated_site(draw) -> bytes:
         if op == "flip" and data:
             data[min(pos, len(data) - 1)] ^= 1 << draw(st.integers(0, 7))
         elif op == "insert":
-            data[pos:pos] = draw(st.sampled_from([b'"', b"[", b"]", b"\n", b"=", b"\xff", b"nan", b"inf", b"true", b"{", b"#"]))
+            data[pos:pos] = draw(
+                st.sampled_from([b'"', b"[", b"]", b"\n", b"=", b"\xff", b"nan", b"inf", b"true", b"{", b"#"])
+            )
         elif op == "delete":
             del data[pos : pos + draw(st.integers(1, 6))]
         elif op == "nest":
@@ -250,11 +260,15 @@ def test_site_fuzz_only_site_errors_and_bounded(tmp_path_factory, blob):
         assert len(str(exc)) <= 2300
 
 
-@pytest.mark.parametrize("h", ["[[0.0],[0,0.0],[]]", "[[1,0,0],[0,1,0],[0,0,true]]", "[]", '[[1,0,0],[0,1,0],[0,0,"1"]]'])
+@pytest.mark.parametrize(
+    "h", ["[[0.0],[0,0.0],[]]", "[[1,0,0],[0,1,0],[0,0,true]]", "[]", '[[1,0,0],[0,1,0],[0,0,"1"]]']
+)
 def test_ragged_or_mistyped_homography_is_a_site_error(tmp_path, h):
     # found by the site fuzz test: a ragged matrix reached numpy and raised a ValueError
     p = tmp_path / "site.toml"
-    p.write_text('name="t"\nunits="m"\n[boundary]\npolygon=[[0,0],[10,0],[10,4],[0,4]]\n'
-                 f"[camera]\nwidth=6\nheight=4\nfps=10\nhomography={h}\n")  # fmt: skip
+    p.write_text(
+        'name="t"\nunits="m"\n[boundary]\npolygon=[[0,0],[10,0],[10,4],[0,4]]\n'
+        f"[camera]\nwidth=6\nheight=4\nfps=10\nhomography={h}\n"
+    )
     with pytest.raises(SiteError, match=r"camera\.homography"):
         load_site(p)

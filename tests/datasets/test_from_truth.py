@@ -24,7 +24,9 @@ from onebit.readers.motion import read_motion_csv
 
 def _walks_of(scenario: str, root: Path, duration: float | None = 40.0) -> Path:
     """A folder holding only a scenario's site.toml and truth.csv (as if imported)."""
-    src = get_scenario(scenario).write(root / f"{scenario}-src", seed=4, duration=duration, agents=None, drop=0.0, camera=False, params={})
+    src = get_scenario(scenario).write(
+        root / f"{scenario}-src", seed=4, duration=duration, agents=None, drop=0.0, camera=False, params={}
+    )
     dst = root / scenario
     dst.mkdir()
     for name in ("site.toml", "truth.csv"):
@@ -43,7 +45,7 @@ def test_beams_from_truth_decode_to_the_true_crossings(tmp_path):
 
 def test_pir_fov_hold_and_refractory(tmp_path):
     d = _walks_of("istate-room", tmp_path, 60.0)
-    site_text = (d / "site.toml").read_text().replace('fov = [[0.5', 'refractory = 3.0\nfov = [[0.5', 1)
+    site_text = (d / "site.toml").read_text().replace("fov = [[0.5", "refractory = 3.0\nfov = [[0.5", 1)
     (d / "site.toml").write_text(site_text)
     site = load_site(d / "site.toml")
     refractory = {m.id: m.refractory for m in site.motion_sensors}
@@ -53,7 +55,9 @@ def test_pir_fov_hold_and_refractory(tmp_path):
     edges = read_motion_csv(d / "motion.csv", list(refractory)).motion.sort("t")
     for sid, f in refractory.items():  # after an off edge the sensor is blind for its refractory period
         e = edges.filter(pl.col("sensor") == sid)
-        off_then_on = e.with_columns(gap=pl.col("t") - pl.col("t").shift(1)).filter(pl.col("on") & pl.col("gap").is_not_null())
+        off_then_on = e.with_columns(gap=pl.col("t") - pl.col("t").shift(1)).filter(
+            pl.col("on") & pl.col("gap").is_not_null()
+        )
         assert (off_then_on["gap"] >= f - 1e-6).all(), sid
     # on only while someone is in the fov (or within the hold after)
     truth = pl.read_csv(d / "truth.csv")
@@ -117,7 +121,11 @@ def test_binary_sensors_from_truth_write_a_frame_log(tmp_path):
     assert np.allclose(np.diff(frames["t"].to_numpy()), 0.5)
     for t, active in frames.iter_rows():
         here = truth.filter(pl.col("t").is_between(t - 1e-6, t + 1e-6))
-        want = {s for s, (x, y) in pos.items() if any(np.hypot(x - a, y - b) <= 0.8 for a, b in here.select("x", "y").rows())}
+        want = {
+            s
+            for s, (x, y) in pos.items()
+            if any(np.hypot(x - a, y - b) <= 0.8 for a, b in here.select("x", "y").rows())
+        }
         assert set((active or "").split()) == want, t
     res = run_pipeline(d, tmp_path / "run", trackers=("istate",))
     assert res.status["frames"].startswith("ok") and metric(res.report, "frames/frames") == frames.height

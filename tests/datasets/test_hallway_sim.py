@@ -7,10 +7,16 @@ import numpy as np
 import polars as pl
 import pytest
 
-from onebit.datasets.hallway_sim import ROUTE_EAST, ROUTE_WEST, HallwaySimConfig, simulate_hallway, write_hallway_dataset
-from onebit.datasets.catalogue import get_scenario
-from onebit.datasets.builtin import builtin_site
 from onebit.core.errors import ConfigError
+from onebit.datasets.builtin import builtin_site
+from onebit.datasets.catalogue import get_scenario
+from onebit.datasets.hallway_sim import (
+    ROUTE_EAST,
+    ROUTE_WEST,
+    HallwaySimConfig,
+    simulate_hallway,
+    write_hallway_dataset,
+)
 from onebit.readers.motion import read_motion_csv
 from onebit.readers.tables_csv import read_truth_csv
 
@@ -20,7 +26,25 @@ def test_site_is_the_papers_floor():
     g = site.sensor_graph.to_networkx(site)
     assert len(site.motion_sensors) == 20 and nx.is_connected(g)
     ids = {m.id for m in site.motion_sensors}
-    assert {"92", "93", "94", "95", "96", "97", "99", "100", "101", "102", "103", "104", "110", "111", "114", "117", "118"} <= ids
+    assert {
+        "92",
+        "93",
+        "94",
+        "95",
+        "96",
+        "97",
+        "99",
+        "100",
+        "101",
+        "102",
+        "103",
+        "104",
+        "110",
+        "111",
+        "114",
+        "117",
+        "118",
+    } <= ids
     assert all(92 <= int(i) <= 118 for i in ids)
     minx, miny, maxx, maxy = site.boundary.bounds
     assert (maxx - minx, maxy - miny) == (30.0, 30.0)
@@ -49,7 +73,12 @@ def test_simulation_is_deterministic_and_truthful(tmp_path):
     g = site.sensor_graph.to_networkx(site)
     starts = first["node"].to_list()
     assert all(nx.shortest_path_length(g, a, b) >= 2 for i, a in enumerate(starts) for b in starts[i + 1 :])
-    moved = raw.sort("t").filter(pl.col("node") != pl.col("node").first().over("target")).group_by("target").agg(pl.col("t").min())
+    moved = (
+        raw.sort("t")
+        .filter(pl.col("node") != pl.col("node").first().over("target"))
+        .group_by("target")
+        .agg(pl.col("t").min())
+    )
     assert moved["t"].n_unique() == 3
     # random destinations: users enter through the door
     c = write_hallway_dataset(tmp_path / "c", seed=5, duration=60.0, users=3, walk="random")

@@ -36,9 +36,20 @@ def test_the_log_toggles_each_sensor_on_then_off_where_residents_are_and_is_dete
     for values in per["value"]:  # on, off, on, off, ...: starts on, alternates
         assert values[0] == 1 and all(x != y for x, y in zip(values, values[1:]))
     # a sensor turns on only where a resident is within its range at that time
-    on = a.toggles.filter(pl.col("value") == 1).join(a.samples, on="t").join(
-        pl.DataFrame({"sensor": [m.id for m in site.motion_sensors], "sx": [m.position[0] for m in site.motion_sensors],
-                      "sy": [m.position[1] for m in site.motion_sensors]}), on="sensor")  # fmt: skip
+    on = (
+        a.toggles.filter(pl.col("value") == 1)
+        .join(a.samples, on="t")
+        .join(
+            pl.DataFrame(
+                {
+                    "sensor": [m.id for m in site.motion_sensors],
+                    "sx": [m.position[0] for m in site.motion_sensors],
+                    "sy": [m.position[1] for m in site.motion_sensors],
+                }
+            ),
+            on="sensor",
+        )
+    )
     near = on.with_columns(d=((pl.col("x") - pl.col("sx")) ** 2 + (pl.col("y") - pl.col("sy")) ** 2).sqrt())
     assert near.group_by(["t", "sensor"]).agg(pl.col("d").min())["d"].max() <= 1.6 + 1e-9
 

@@ -9,10 +9,10 @@ import numpy as np
 import polars as pl
 import pytest
 
+from onebit._testing.casas_sim import EDGES, LAYOUT, write_casas_log
 from onebit.cli import main
 from onebit.core.errors import InputError
 from onebit.core.site import load_site
-from onebit._testing.casas_sim import EDGES, LAYOUT, write_casas_log
 from onebit.datasets.importers import import_casas, learn_sensor_graph
 from onebit.pipeline.report import metric
 from onebit.pipeline.runner import run_pipeline
@@ -64,7 +64,9 @@ def test_the_graph_rule_and_its_threshold():
     seq = ["A", "B", "C"] * 10 + ["A", "C"]  # A-C once: a skipped B
     ev = pl.DataFrame({"t": [float(i) for i in range(len(seq))], "sensor": seq, "on": [True] * len(seq)})
     ev = pl.concat([ev, pl.DataFrame({"t": [100.0, 101.0], "sensor": ["X", "Y"], "on": [True, True]})])
-    edges, tr = learn_sensor_graph(ev, ["A", "B", "C", "X", "Y"], window_s=5.0, min_count=3, min_share=0.1, min_lift=0.0)
+    edges, tr = learn_sensor_graph(
+        ev, ["A", "B", "C", "X", "Y"], window_s=5.0, min_count=3, min_share=0.1, min_lift=0.0
+    )
     assert ("A", "B") in edges and ("B", "C") in edges
     assert tr.filter((pl.col("a") == "X") & (pl.col("b") == "Y"))["kept"][0] == "joins components"
     assert ("A", "C") in edges  # the C -> A wrap-around of every loop: 9 transitions, a real edge here
@@ -97,7 +99,11 @@ def _two_rooms_at_once(seed: int) -> tuple[pl.DataFrame, list[str]]:
             rows.append((t, ids[k]))
             t += 1.5
         t += 30.0
-    ev = pl.DataFrame(rows, schema={"t": pl.Float64, "sensor": pl.String}, orient="row").with_columns(on=pl.lit(True)).sort("t")
+    ev = (
+        pl.DataFrame(rows, schema={"t": pl.Float64, "sensor": pl.String}, orient="row")
+        .with_columns(on=pl.lit(True))
+        .sort("t")
+    )
     return ev, ids
 
 
@@ -138,14 +144,14 @@ def test_one_resident_decodes_as_one_user(imported, tmp_path):
 
 def test_a_layout_file_gives_positions_and_edges(home, tmp_path):
     lay = tmp_path / "layout.toml"
-    sensors = "\n".join(f'{k} = [{x}, {y}]' for k, (x, y) in LAYOUT.items())
+    sensors = "\n".join(f"{k} = [{x}, {y}]" for k, (x, y) in LAYOUT.items())
     edges = ", ".join(f'["{a}", "{b}"]' for a, b in EDGES)
     lay.write_text(f'units = "m"\nrange = 1.5\n[sensors]\n{sensors}\n[graph]\nedges = [{edges}]\n')
     s = import_casas(home, tmp_path / "ds", layout=lay)
     site = load_site(tmp_path / "ds" / "site.toml")
     assert {m.id: m.position for m in site.motion_sensors} == {k: tuple(map(float, v)) for k, v in LAYOUT.items()}
     assert s.info["graph"]["source"] == "layout file" and s.info["layout"]["positions"] == "layout file"
-    lay.write_text('[sensors]\nM001 = [0, 0]\nM002 = [3, 0]\n')  # the others are not placed: kept in other.csv, named
+    lay.write_text("[sensors]\nM001 = [0, 0]\nM002 = [3, 0]\n")  # the others are not placed: kept in other.csv, named
     s2 = import_casas(home, tmp_path / "ds2", layout=lay)
     assert s2.info["layout"]["unplaced"] == sorted(set(LAYOUT) - {"M001", "M002"}, key=lambda n: (n[0], int(n[1:])))
     assert set(pl.read_csv(tmp_path / "ds2" / "motion.csv")["sensor"]) == {"M001", "M002"}
@@ -159,7 +165,10 @@ def test_import_trajectories_from_the_command_line(tmp_path):
     f = tmp_path / "export.txt"
     f.write_text("frame_time|tid|px|py\n1000|1|0|0\n1500|1|500|0\n1000|2|3000|1000\n2000|3|2900|1000\n")
     out = tmp_path / "walks"
-    assert main(["import", "trajectories", str(f), str(out), "--time-unit", "ms", "--scale", "0.001", "--join", "2,3"]) == 0
+    assert (
+        main(["import", "trajectories", str(f), str(out), "--time-unit", "ms", "--scale", "0.001", "--join", "2,3"])
+        == 0
+    )
     truth = pl.read_csv(out / "truth.csv")
     assert truth.rows() == [(0.0, 1, 0.0, 0.0), (0.0, 2, 3.0, 1.0), (0.5, 1, 0.5, 0.0), (1.0, 2, 2.9, 1.0)]
     site = load_site(out / "site.toml")  # written: the walks' box, no sensors yet

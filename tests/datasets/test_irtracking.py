@@ -12,13 +12,13 @@ import pytest
 from onebit.cli import main
 from onebit.core.errors import InputError
 from onebit.core.site import load_site
+from onebit.core.tables import CROSSINGS, MOTION
 from onebit.datasets.irtracking import DEFAULT_TARGETS, import_irtracking
 from onebit.datasets.irtracking_sim import write_irtracking
-from onebit.pipeline.report import metric
 from onebit.pipeline.context import RunContext
+from onebit.pipeline.report import metric
 from onebit.pipeline.runner import run_pipeline
 from onebit.pipeline.stages import TRACKERS, tracker_inputs
-from onebit.core.tables import CROSSINGS, MOTION
 
 
 @pytest.fixture(scope="module")
@@ -28,10 +28,15 @@ def files(tmp_path_factory):
 
 def test_import_writes_site_frames_truth(files, tmp_path):
     out = tmp_path / "ds"
-    assert main(["import", "irtracking", str(files.readings), str(out), "--truth", str(files.truth), "--radius", "0.8"]) == 0
+    assert (
+        main(["import", "irtracking", str(files.readings), str(out), "--truth", str(files.truth), "--radius", "0.8"])
+        == 0
+    )
     site = load_site(out / "site.toml")
     n = len(files.sensors_mm)
-    assert len(site.binary_sensors) == n and {m.id for m in site.motion_sensors} == {p.id for p in site.proximity_sensors}
+    assert len(site.binary_sensors) == n and {m.id for m in site.motion_sensors} == {
+        p.id for p in site.proximity_sensors
+    }
     assert site.level_sensors == frozenset(str(i) for i in range(1, n + 1))
     assert site.binary_sensors[0].position == pytest.approx(tuple(files.sensors_mm[0] / 1000))
     assert site.binary_sensors[0].r_outer == 0.8
@@ -106,7 +111,12 @@ def test_every_tracker_gets_the_levels(files, tmp_path):
     assert res.status["proximity"].startswith("skipped") and "frame log" in res.status["proximity"]
     site = load_site(ds / "site.toml")
     lv = pl.read_parquet(tmp_path / "run" / "tables" / "levels.parquet")
-    tables = {"levels": lv, "motion": pl.DataFrame(schema=MOTION), "proximity_frames": lv, "crossings": pl.DataFrame(schema=CROSSINGS)}
+    tables = {
+        "levels": lv,
+        "motion": pl.DataFrame(schema=MOTION),
+        "proximity_frames": lv,
+        "crossings": pl.DataFrame(schema=CROSSINGS),
+    }
     ctx = RunContext(ds, tmp_path / "x", site, None, {}, tables=tables)
     for entry in TRACKERS:
         assert tracker_inputs(entry, ctx)["levels"] is lv, entry.name
@@ -120,7 +130,7 @@ def test_a_frame_log_in_mcap_reads_as_the_csv(files, tmp_path):
     mc.mkdir()
     (mc / "site.toml").write_text((ds / "site.toml").read_text())
     assert main(["logs", "convert", str(ds), str(mc / "recording.mcap")]) == 0
-    a = run_pipeline(ds, tmp_path / "run-csv", trackers=["istate"])
+    run_pipeline(ds, tmp_path / "run-csv", trackers=["istate"])
     b = run_pipeline(mc, tmp_path / "run-mcap", trackers=["istate"])
     assert b.status["frames"].startswith("ok") and b.status["motion"].startswith("skipped")
     la = pl.read_parquet(tmp_path / "run-csv" / "tables" / "levels.parquet")

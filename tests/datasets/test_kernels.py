@@ -5,8 +5,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from onebit.datasets import kernels
 from onebit._testing.oracles import pir_refractory_reference
+from onebit.datasets import kernels
 from onebit.datasets.from_truth import _runs
 
 

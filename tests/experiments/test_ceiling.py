@@ -9,11 +9,11 @@ from onebit.cli import main
 from onebit.core.errors import InputError
 from onebit.core.site import load_site
 from onebit.datasets.irtracking import import_irtracking
+from onebit.datasets.irtracking_sim import write_irtracking
+from onebit.experiments import ceiling
 from onebit.readers.frames import read_frames_csv
 from onebit.readers.tables_csv import read_truth_csv
 from onebit.scoring.mot import metric_gate_rows
-from onebit.datasets.irtracking_sim import write_irtracking
-from onebit.experiments import ceiling
 
 
 def test_held_out_sequences_are_never_read(tmp_path):

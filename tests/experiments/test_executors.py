@@ -23,8 +23,14 @@ STUDIES = (("okane", 1), ("singh", 1), ("schiff", 1), ("correct", 2), ("findingh
 @pytest.fixture(scope="module")
 def ray_local():
     os.environ["RAY_USAGE_STATS_ENABLED"] = "0"
-    ray.init(address="local", num_cpus=2, include_dashboard=False, object_store_memory=100 * 1024**2, log_to_driver=False,
-             logging_level="ERROR")  # fmt: skip
+    ray.init(
+        address="local",
+        num_cpus=2,
+        include_dashboard=False,
+        object_store_memory=100 * 1024**2,
+        log_to_driver=False,
+        logging_level="ERROR",
+    )
     yield ray
     ray.shutdown()
 
@@ -45,7 +51,9 @@ def test_map_keeps_the_order_and_reports_a_failing_task_without_stopping(kind, r
 
 def test_a_failed_trial_fails_the_study_naming_it():
     with pytest.raises(StudyError, match=r"1 of 3 trial\(s\) failed:\n  x = -1.0: ValueError: math domain error"):
-        run_trials(math.sqrt, [1.0, -1.0, 4.0], executor=None, label=lambda x: f"x = {x}", echo=lambda s: None, study="t")
+        run_trials(
+            math.sqrt, [1.0, -1.0, 4.0], executor=None, label=lambda x: f"x = {x}", echo=lambda s: None, study="t"
+        )
     values, timings = run_trials(math.sqrt, [1.0, 4.0], executor=None, label=str, echo=lambda s: None, study="t")
     assert values == [1.0, 2.0] and timings["trial"].to_list() == ["1.0", "4.0"]
 
@@ -91,7 +99,23 @@ def test_the_seed_sweeps_are_experiments(studies):
 
 
 def test_cli_experiment_takes_the_executor_options(tmp_path, capsys):
-    assert main(["experiment", "okane", str(tmp_path / "ok"), "--quick", "--trials", "1", "--executor", "local", "--workers", "2"]) == 0
+    assert (
+        main(
+            [
+                "experiment",
+                "okane",
+                str(tmp_path / "ok"),
+                "--quick",
+                "--trials",
+                "1",
+                "--executor",
+                "local",
+                "--workers",
+                "2",
+            ]
+        )
+        == 0
+    )
     assert "local process pool, 2 worker(s)" in capsys.readouterr().out
     assert pl.read_parquet(tmp_path / "ok" / "results.parquet").height == 4
     assert main(["experiment", "okane", str(tmp_path / "x"), "--quick", "--ray-address", "auto"]) == 2

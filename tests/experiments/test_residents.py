@@ -15,7 +15,9 @@ def _session(path, seed: int) -> None:
     pos = {1: 0, 2: 5}
     for _ in range(120):
         r = int(rng.integers(1, 3))
-        pos[r] = int(np.clip(pos[r] + rng.choice([-1, 1]), 0, 2) if r == 1 else np.clip(pos[r] + rng.choice([-1, 1]), 3, 5))
+        pos[r] = int(
+            np.clip(pos[r] + rng.choice([-1, 1]), 0, 2) if r == 1 else np.clip(pos[r] + rng.choice([-1, 1]), 3, 5)
+        )
         s = f"M{pos[r] + 1:02d}"
         t += float(rng.uniform(1.0, 3.0))
         for dt, v in ((0.0, "ON"), (0.8, "OFF")):
@@ -33,9 +35,17 @@ def test_the_study_table(tmp_path):
     (dev / "README").write_text("not a session")
     res = tmp_path / "res"
     lay = tmp_path / "line.toml"  # the true line of sensors (a learned graph links what the two fire in turn)
-    lay.write_text("[sensors]\n" + "".join(f"M{k:02d} = [{2.0 * k}, 0.0]\n" for k in range(1, 7))
-                   + "[graph]\nedges = [" + ", ".join(f'["M{k:02d}", "M{k + 1:02d}"]' for k in range(1, 6)) + "]\n")
-    assert main(["experiment", "residents", str(dev), "--results", str(res), "--trackers", "hmm1", "--layout", str(lay)]) == 0
+    lay.write_text(
+        "[sensors]\n"
+        + "".join(f"M{k:02d} = [{2.0 * k}, 0.0]\n" for k in range(1, 7))
+        + "[graph]\nedges = ["
+        + ", ".join(f'["M{k:02d}", "M{k + 1:02d}"]' for k in range(1, 6))
+        + "]\n"
+    )
+    assert (
+        main(["experiment", "residents", str(dev), "--results", str(res), "--trackers", "hmm1", "--layout", str(lay)])
+        == 0
+    )
     df = pl.read_csv(res / "results.csv")
     assert df["session"].to_list() == ["P01"] * 3 + ["P02"] * 3 + ["mean"] * 3
     assert set(df["method"]) == {"hmm1", "baseline-busier", "baseline-nearest"}
@@ -57,10 +67,44 @@ def test_a_config_reaches_every_session_and_a_bad_one_is_refused(tmp_path):
     cfg = tmp_path / "run.toml"
     cfg.write_text("[residents]\nhabits = true\nmeet = 3.0\n")
     res = tmp_path / "res"
-    assert main(["experiment", "residents", str(dev), "--results", str(res), "--trackers", "residents", "--layout", str(lay), "--targets", "2",
-                 "--config", str(cfg)]) == 0  # fmt: skip
+    assert (
+        main(
+            [
+                "experiment",
+                "residents",
+                str(dev),
+                "--results",
+                str(res),
+                "--trackers",
+                "residents",
+                "--layout",
+                str(lay),
+                "--targets",
+                "2",
+                "--config",
+                str(cfg),
+            ]
+        )
+        == 0
+    )
     rec = (res / "runs" / "P01" / "run.toml").read_text()
     assert "habits = true" in rec and "meet = 3.0" in rec
     cfg.write_text("[residents]\nhabit_alpha = 0.0\n")
-    assert main(["experiment", "residents", str(dev), "--results", str(tmp_path / "bad"), "--trackers", "residents", "--layout", str(lay),
-                 "--config", str(cfg)]) != 0  # fmt: skip
+    assert (
+        main(
+            [
+                "experiment",
+                "residents",
+                str(dev),
+                "--results",
+                str(tmp_path / "bad"),
+                "--trackers",
+                "residents",
+                "--layout",
+                str(lay),
+                "--config",
+                str(cfg),
+            ]
+        )
+        != 0
+    )

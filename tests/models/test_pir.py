@@ -21,7 +21,12 @@ BOX = [[0.0, 0.0], [10.0, 0.0], [10.0, 10.0], [0.0, 10.0]]
 
 
 def make_site(sensors, types=None, *, units="m", scale=1.0):
-    d = {"name": "t", "units": units, "boundary": {"polygon": (np.asarray(BOX) * scale).tolist()}, "motion_sensors": sensors}
+    d = {
+        "name": "t",
+        "units": units,
+        "boundary": {"polygon": (np.asarray(BOX) * scale).tolist()},
+        "motion_sensors": sensors,
+    }
     if types:
         d["sensor_types"] = types
     return site_from_dict(d, source="t/site.toml")
@@ -50,7 +55,13 @@ def test_range_only_sensor_detects_with_the_area_fraction_of_its_disk(x, y, r, c
 
 
 @settings(max_examples=30, deadline=None)
-@given(x0=st.floats(0, 4.5), y0=st.floats(0, 4.5), x1=st.floats(5.5, 10), y1=st.floats(5.5, 10), heading=st.sampled_from([0.0, 45.0, 90.0, 200.0]))
+@given(
+    x0=st.floats(0, 4.5),
+    y0=st.floats(0, 4.5),
+    x1=st.floats(5.5, 10),
+    y1=st.floats(5.5, 10),
+    heading=st.sampled_from([0.0, 45.0, 90.0, 200.0]),
+)
 def test_fov_polygon_restricts_the_characterisation(x0, y0, x1, y1, heading):
     """A typed sensor with a fov (a box around the sensor, so the two overlap):
     q_ij = q^type_ij * |c_j cap fov| / |c_j|."""
@@ -74,15 +85,23 @@ def test_a_fov_covering_the_room_changes_nothing():
     for s in d["motion_sensors"]:
         s["fov"] = [[-1.0, -1.0], [11.0, -1.0], [11.0, 11.0], [-1.0, 11.0]]
     after = deploy(site_from_dict(d), 1.0)
-    assert np.array_equal(before.q, after.q) and np.array_equal(before.p0, after.p0) and np.array_equal(before.xi, after.xi)
+    assert (
+        np.array_equal(before.q, after.q)
+        and np.array_equal(before.p0, after.p0)
+        and np.array_equal(before.xi, after.xi)
+    )
 
 
 def test_the_same_room_in_cm_deploys_the_same_grid():
     d = site_dict("pir14-imperfect", 4.0)
     m = site_from_dict(d)
     cm = dict(d, units="cm", boundary={"polygon": (np.asarray(d["boundary"]["polygon"]) * 100).tolist()})
-    cm["motion_sensors"] = [dict(s, position=[100 * s["position"][0], 100 * s["position"][1]]) for s in d["motion_sensors"]]
-    cm["sensor_types"] = {k: dict(t, range=t["range"] * 100, resolution=t["resolution"] * 100) for k, t in d["sensor_types"].items()}
+    cm["motion_sensors"] = [
+        dict(s, position=[100 * s["position"][0], 100 * s["position"][1]]) for s in d["motion_sensors"]
+    ]
+    cm["sensor_types"] = {
+        k: dict(t, range=t["range"] * 100, resolution=t["resolution"] * 100) for k, t in d["sensor_types"].items()
+    }
     a, b = deploy(m, 1.0), deploy(site_from_dict(cm), 100.0)
     np.testing.assert_allclose(a.q, b.q, atol=1e-12)
     np.testing.assert_allclose(a.p0, b.p0)
@@ -108,7 +127,10 @@ def test_hallway_sensors_detect_in_their_range_disks_not_a_default_wedge():
         d = np.hypot(cx[nz] - m.position[0], cy[nz] - m.position[1])
         assert (d <= m.range + math.sqrt(0.5)).all()
         # and every cell wholly inside the disk detects with probability 1
-        corners = np.max([np.hypot(cx + sx - m.position[0], cy + sy - m.position[1]) for sx in (-0.5, 0.5) for sy in (-0.5, 0.5)], axis=0)
+        corners = np.max(
+            [np.hypot(cx + sx - m.position[0], cy + sy - m.position[1]) for sx in (-0.5, 0.5) for sy in (-0.5, 0.5)],
+            axis=0,
+        )
         assert (dep.q[i][corners <= m.range - 1e-9] == 1.0).all()
 
 

@@ -91,6 +91,8 @@ def test_the_run_record_holds_the_resolved_sections_and_the_time_origin(hallway,
     assert res.ok
     assert record["motion"]["chatter_window"] == 0.5 and "hmm1" in record and "scores" in record
     assert record["time"]["source"]
-    again = run_pipeline(hallway, tmp_path / "again", trackers=["hmm1"], config=runner.load_run_config(tmp_path / "run" / "run.toml"))
+    again = run_pipeline(
+        hallway, tmp_path / "again", trackers=["hmm1"], config=runner.load_run_config(tmp_path / "run" / "run.toml")
+    )
     assert tomllib.loads((tmp_path / "again" / "run.toml").read_text())["hmm1"] == record["hmm1"]
     assert again.ok

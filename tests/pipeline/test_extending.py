@@ -21,17 +21,16 @@ import polars as pl
 import pytest
 import shapely
 
+from onebit.cli import main
 from onebit.core.config import check_range
-from onebit.core.site import load_site
+from onebit.core.errors import ConfigError
+from onebit.core.site import Site, load_site
+from onebit.core.tables import CROSSINGS, TRACKS, check_schema, conform
 from onebit.core.writers import to_toml, write_csv, write_text
+from onebit.datasets.beams_sim import write_beams_dataset
 from onebit.datasets.from_truth import FromTruthConfig, simulate_from_truth
 from onebit.datasets.importers import graph_site_toml
 from onebit.pipeline import stages as stage_list
-from onebit.cli import main
-from onebit.core.errors import ConfigError
-from onebit.core.site import Site
-from onebit.core.tables import CROSSINGS, TRACKS, check_schema, conform
-from onebit.datasets.beams_sim import write_beams_dataset
 from onebit.pipeline.report import metric
 from onebit.pipeline.runner import run_pipeline
 from onebit.pipeline.stages import TRACKERS, TrackerEntry
@@ -74,7 +73,9 @@ def log_run(rec, tracker, out, *, site, region_graph, config, tables) -> None:
 
 
 GATE = Gate("point", 0.5, "m", "an agent within half a metre of the true one is a hit")
-ENTRY = TrackerEntry(TrackerSpec(name=NAME, needs=("crossings",), config=LastBeamConfig, run=run), score, log_run, gate=GATE)
+ENTRY = TrackerEntry(
+    TrackerSpec(name=NAME, needs=("crossings",), config=LastBeamConfig, run=run), score, log_run, gate=GATE
+)
 
 
 @pytest.fixture(scope="module")
@@ -98,7 +99,9 @@ def test_a_dummy_tracker_runs_end_to_end(data, tmp_path):
 
 
 def test_its_config_section_is_validated_and_recorded(data, tmp_path):
-    res = run_pipeline(data, tmp_path / "a", trackers=(NAME,), tracker_entries=(*TRACKERS, ENTRY), config={NAME: {"delay": 2.0}})
+    res = run_pipeline(
+        data, tmp_path / "a", trackers=(NAME,), tracker_entries=(*TRACKERS, ENTRY), config={NAME: {"delay": 2.0}}
+    )
     assert res.ok, res.status
     tracks = pl.read_parquet(tmp_path / "a" / "tables" / f"{NAME}_tracks.parquet")
     crossings = pl.read_parquet(tmp_path / "a" / "tables" / "crossings.parquet")
@@ -106,7 +109,9 @@ def test_its_config_section_is_validated_and_recorded(data, tmp_path):
     assert "delay = 2.0" in (tmp_path / "a" / "run.toml").read_text()
     # refused when the run starts (nothing written), naming the section and the field
     with pytest.raises(ConfigError, match=rf"\[{NAME}\] unknown field 'dealy'"):
-        run_pipeline(data, tmp_path / "b", trackers=(NAME,), tracker_entries=(*TRACKERS, ENTRY), config={NAME: {"dealy": 1}})
+        run_pipeline(
+            data, tmp_path / "b", trackers=(NAME,), tracker_entries=(*TRACKERS, ENTRY), config={NAME: {"dealy": 1}}
+        )
     assert not (tmp_path / "b" / "run.toml").exists()
 
 
@@ -124,7 +129,9 @@ def estimates_per_minute(tracker: str, tables: dict, site: Site, region_graph) -
     if tracks is None or tracks.height < 2:
         return []
     minutes = (tracks["t"].max() - tracks["t"].min()) / 60.0
-    return [(tracker, "estimates_per_minute", tracks.height / minutes if minutes > 0 else float("nan"), "estimates/min")]
+    return [
+        (tracker, "estimates_per_minute", tracks.height / minutes if minutes > 0 else float("nan"), "estimates/min")
+    ]
 
 
 def test_a_metric_line_reports_it_for_every_tracker_that_ran(data, tmp_path, monkeypatch, capsys):
@@ -154,13 +161,18 @@ def import_doorlog(file, dataset) -> dict:
             rec = json.loads(text)
             rows.append((rec["ts_ms"] / 1000.0, str(rec["door"]), 1 if rec["open"] else 0))
         except (ValueError, KeyError, TypeError) as exc:
-            rejects.append((str(file), line_no, "line", f"not a door record: {type(exc).__name__}: {exc}", text.strip()))
+            rejects.append(
+                (str(file), line_no, "line", f"not a door record: {type(exc).__name__}: {exc}", text.strip())
+            )
     ids = list(DOORS)
-    site = graph_site_toml(name="doorlog", units="m", positions=DOORS, edges=list(zip(ids, ids[1:])), doors=["front"],
-                           sensor_range=1.0)  # fmt: skip
+    site = graph_site_toml(
+        name="doorlog", units="m", positions=DOORS, edges=list(zip(ids, ids[1:])), doors=["front"], sensor_range=1.0
+    )
     write_text(site, dataset / "site.toml")
     write_csv(pl.DataFrame(rows, schema=["t", "sensor", "value"], orient="row"), dataset / "motion.csv")
-    write_csv(pl.DataFrame(rejects, schema=["file", "line", "field", "reason", "raw"], orient="row"), dataset / "rejects.csv")
+    write_csv(
+        pl.DataFrame(rejects, schema=["file", "line", "field", "reason", "raw"], orient="row"), dataset / "rejects.csv"
+    )
     counts = {"lines": len(rows) + len(rejects), "events": len(rows), "rejected": len(rejects)}
     write_text(to_toml({"source": {"file": str(file), "format": "doorlog"}, "counts": counts}), dataset / "import.toml")
     return counts
@@ -168,8 +180,14 @@ def import_doorlog(file, dataset) -> dict:
 
 def test_an_importer_writes_a_dataset_any_run_reads(tmp_path):
     export = tmp_path / "doors.jsonl"
-    walk = [(0, "front", True), (1500, "front", False), (2500, "hall", True), (4000, "hall", False), (5000, "kitchen", True),
-            (6500, "kitchen", False)]  # fmt: skip
+    walk = [
+        (0, "front", True),
+        (1500, "front", False),
+        (2500, "hall", True),
+        (4000, "hall", False),
+        (5000, "kitchen", True),
+        (6500, "kitchen", False),
+    ]
     lines = [json.dumps({"ts_ms": t, "door": d, "open": o}) for t, d, o in walk]
     export.write_text("\n".join(lines[:3] + ["{broken"] + lines[3:]) + "\n")
     (tmp_path / "d").mkdir()
@@ -222,7 +240,9 @@ def test_a_new_sensor_kind_is_declared_in_site_toml_alone(tmp_path):
     simulate_from_truth(d, seed=0, cfg=FromTruthConfig(hold_s=0.0))
     motion = pl.read_csv(d / "motion.csv").sort("t")
     on = {s: motion.filter((pl.col("sensor") == s) & (pl.col("value") == 1))["t"].to_list() for s in ("mat1", "mat2")}
-    assert on["mat1"] == pytest.approx([2.0], abs=0.06) and on["mat2"] == pytest.approx([5.5], abs=0.06)  # the walker steps on
+    assert on["mat1"] == pytest.approx([2.0], abs=0.06) and on["mat2"] == pytest.approx(
+        [5.5], abs=0.06
+    )  # the walker steps on
     res = run_pipeline(d, tmp_path / "run", trackers=("intruder",))
     assert res.ok, res.status
     tracks = pl.read_parquet(tmp_path / "run" / "tables" / "intruder_tracks.parquet")

@@ -43,12 +43,18 @@ class SimClock:
 @pytest.fixture(scope="module")
 def pir(tmp_path_factory):
     root = tmp_path_factory.mktemp("pir")
-    data = get_scenario("pir14").write(root / "d", seed=5, duration=60.0, agents=None, drop=0.0, camera=False, params={"refractory": 4})
+    data = get_scenario("pir14").write(
+        root / "d", seed=5, duration=60.0, agents=None, drop=0.0, camera=False, params={"refractory": 4}
+    )
     return root, data
 
 
 def _equal(live: pl.DataFrame, batch: pl.DataFrame) -> bool:
-    return live.select(batch.columns).sort(["track", "t"], maintain_order=True).equals(batch.sort(["track", "t"], maintain_order=True))
+    return (
+        live.select(batch.columns)
+        .sort(["track", "t"], maintain_order=True)
+        .equals(batch.sort(["track", "t"], maintain_order=True))
+    )
 
 
 def test_replay_equals_batch_and_reports_delay(pir, tmp_path):
@@ -56,11 +62,20 @@ def test_replay_equals_batch_and_reports_delay(pir, tmp_path):
     clock = SimClock()
     out = tmp_path / "out"
     config = {"intruder": {"camera_position": [5.0, 2.0, 3.0]}}  # the paper's pan-tilt-zoom camera
-    res = follow(data, out, trackers=("intruder", "intruder-naive"), config=config, options=FollowConfig(replay=20.0, poll=0.2),
-                 clock=clock.clock, sleep=clock.sleep)  # fmt: skip
+    res = follow(
+        data,
+        out,
+        trackers=("intruder", "intruder-naive"),
+        config=config,
+        options=FollowConfig(replay=20.0, poll=0.2),
+        clock=clock.clock,
+        sleep=clock.sleep,
+    )
     assert res.run.ok, res.run.status
     # an independent batch run of the same dataset: the online rows equal its tables
-    batch = run_pipeline(data, tmp_path / "batch", trackers=("intruder", "intruder-naive"), config=config, progress=False)
+    batch = run_pipeline(
+        data, tmp_path / "batch", trackers=("intruder", "intruder-naive"), config=config, progress=False
+    )
     cam = read_live_table(res.live, "intruder_camera")
     assert cam.height > 10 and cam.equals(pl.read_parquet(batch.out / "tables" / "intruder_camera.parquet"))
     for name in ("intruder", "intruder-naive"):
@@ -78,7 +93,9 @@ def test_replay_equals_batch_and_reports_delay(pir, tmp_path):
     firsts = [pl.read_parquet(p)["t"].min() for p in parts]
     assert firsts == sorted(firsts)
     it = read_live_table(res.live, "intruder_iterations")
-    assert it.equals(pl.read_parquet(batch.out / "tables" / "intruder_iterations.parquet").select(it.columns)) or np.allclose(
+    assert it.equals(
+        pl.read_parquet(batch.out / "tables" / "intruder_iterations.parquet").select(it.columns)
+    ) or np.allclose(
         it["ess"].to_numpy(), pl.read_parquet(batch.out / "tables" / "intruder_iterations.parquet")["ess"].to_numpy()
     )
     delays = read_live_table(res.live, "delays")
@@ -86,7 +103,12 @@ def test_replay_equals_batch_and_reports_delay(pir, tmp_path):
     # the stream: the batch recordings' entity paths, the delays, its own layout
     rrd = res.live / "rrd" / "follow.rrd"
     paths = entity_paths(rrd)
-    assert {"intruder/tracks/intruder", "intruder-naive/tracks/intruder-naive", "follow/delay/intruder", "site/boundary"} <= paths
+    assert {
+        "intruder/tracks/intruder",
+        "intruder-naive/tracks/intruder-naive",
+        "follow/delay/intruder",
+        "site/boundary",
+    } <= paths
     assert any(p.startswith("sensors/") for p in paths)
     assert {v.kind for v in blueprint_views(rrd)} == {"2D", "StateTimeline", "TimeSeries"}
     # the follow's own final run is the batch run: same report rows as onebit run's
@@ -96,9 +118,18 @@ def test_replay_equals_batch_and_reports_delay(pir, tmp_path):
 
 
 def test_beams_replay_equals_batch(tmp_path):
-    data = get_scenario("beams-lab").write(tmp_path / "d", seed=3, duration=60.0, agents=2, drop=0.0, camera=False, params={})
+    data = get_scenario("beams-lab").write(
+        tmp_path / "d", seed=3, duration=60.0, agents=2, drop=0.0, camera=False, params={}
+    )
     clock = SimClock()
-    res = follow(data, tmp_path / "out", trackers=("beams",), options=FollowConfig(replay=10.0, poll=0.25), clock=clock.clock, sleep=clock.sleep)
+    res = follow(
+        data,
+        tmp_path / "out",
+        trackers=("beams",),
+        options=FollowConfig(replay=10.0, poll=0.25),
+        clock=clock.clock,
+        sleep=clock.sleep,
+    )
     live = read_live_table(res.live, "beams_tracks")
     ref = pl.read_parquet(tmp_path / "out" / "tables" / "beams_tracks.parquet")
     assert ref.height > 5 and _equal(live, ref)
@@ -109,10 +140,19 @@ def test_beams_replay_equals_batch(tmp_path):
 def test_istate_replay_equals_batch_with_a_fixed_latency(tmp_path):
     """O'Kane's filter is online by design; its default raises latency_s to the whole log's time
     resolution, which a prefix cannot know: with latency_auto = false the rows are equal."""
-    data = get_scenario("istate-room").write(tmp_path / "d", seed=2, duration=30.0, agents=None, drop=0.0, camera=False, params={})
+    data = get_scenario("istate-room").write(
+        tmp_path / "d", seed=2, duration=30.0, agents=None, drop=0.0, camera=False, params={}
+    )
     clock = SimClock()
-    res = follow(data, tmp_path / "out", trackers=("istate",), config={"istate": {"latency_auto": False}},
-                 options=FollowConfig(replay=10.0, poll=0.5), clock=clock.clock, sleep=clock.sleep)  # fmt: skip
+    res = follow(
+        data,
+        tmp_path / "out",
+        trackers=("istate",),
+        config={"istate": {"latency_auto": False}},
+        options=FollowConfig(replay=10.0, poll=0.5),
+        clock=clock.clock,
+        sleep=clock.sleep,
+    )
     ref = pl.read_parquet(tmp_path / "out" / "tables" / "istate_tracks.parquet")
     assert ref.height > 10 and _equal(read_live_table(res.live, "istate_tracks"), ref)
     assert metric(res.report, "istate/online_equals_batch") == 1.0
@@ -150,7 +190,15 @@ def test_growing_log_waits_for_a_cut_line_and_ends_when_idle(pir, tmp_path):
     # relay chatter: an off edge followed within 1.5 s by an on edge is suppressed, so an edge is
     # final only 1.5 s (+ 1 s of reordering) after it -- the follow must wait that long
     config = {"motion": {"chatter_window": 1.5}}
-    res = follow(d, tmp_path / "out", trackers=("intruder",), config=config, options=FollowConfig(poll=0.1, idle=2.0), clock=clock.clock, sleep=clock.sleep)
+    res = follow(
+        d,
+        tmp_path / "out",
+        trackers=("intruder",),
+        config=config,
+        options=FollowConfig(poll=0.1, idle=2.0),
+        clock=clock.clock,
+        sleep=clock.sleep,
+    )
     assert clock.sleeps >= len(pieces)  # it ran until the log stopped growing, then idle
     assert metric(res.run.report, "rejects/rows") == 0.0  # no cut line was ever read as a row
     assert metric(res.run.report, "motion/suppressed") > 0
@@ -159,7 +207,9 @@ def test_growing_log_waits_for_a_cut_line_and_ends_when_idle(pir, tmp_path):
     for name in ("site.toml", "motion.csv", "truth.csv"):
         (whole / name).write_bytes((d / name).read_bytes())
     ref = run_pipeline(whole, tmp_path / "batch", trackers=("intruder",), config=config, progress=False)
-    assert _equal(read_live_table(res.live, "intruder_tracks"), pl.read_parquet(ref.out / "tables" / "intruder_tracks.parquet"))
+    assert _equal(
+        read_live_table(res.live, "intruder_tracks"), pl.read_parquet(ref.out / "tables" / "intruder_tracks.parquet")
+    )
     assert metric(res.report, "intruder/online_equals_batch") == 1.0
 
 
@@ -167,7 +217,14 @@ def test_a_crash_leaves_every_published_table_readable(pir, tmp_path):
     _, data = pir
     clock = SimClock(crash_after=8)
     with pytest.raises(KeyboardInterrupt):
-        follow(data, tmp_path / "out", trackers=("intruder",), options=FollowConfig(replay=10.0, poll=0.5), clock=clock.clock, sleep=clock.sleep)
+        follow(
+            data,
+            tmp_path / "out",
+            trackers=("intruder",),
+            options=FollowConfig(replay=10.0, poll=0.5),
+            clock=clock.clock,
+            sleep=clock.sleep,
+        )
     live = tmp_path / "out" / "live"
     tracks = read_live_table(live, "intruder_tracks")
     assert tracks is not None and 0 < tracks.height
@@ -175,7 +232,14 @@ def test_a_crash_leaves_every_published_table_readable(pir, tmp_path):
     assert read_live_table(live, "delays").height == tracks.height
     # a later follow into the same OUT replaces the live folder and runs
     clock = SimClock()
-    res = follow(data, tmp_path / "out", trackers=("intruder",), options=FollowConfig(replay=50.0, poll=0.5), clock=clock.clock, sleep=clock.sleep)
+    res = follow(
+        data,
+        tmp_path / "out",
+        trackers=("intruder",),
+        options=FollowConfig(replay=50.0, poll=0.5),
+        clock=clock.clock,
+        sleep=clock.sleep,
+    )
     assert metric(res.report, "intruder/online_equals_batch") == 1.0
     # a plain run into the same OUT replaces the run's files and keeps the live folder
     before = read_live_table(live, "intruder_tracks")
@@ -205,7 +269,14 @@ def test_mcap_replay_and_growing_mcap_equal_batch(pir, tmp_path, monkeypatch):
     d = tmp_path / "rec"
     data = _mcap_dataset(src, d, monkeypatch)
     clock = SimClock()
-    res = follow(d, tmp_path / "out", trackers=("intruder",), options=FollowConfig(replay=20.0, poll=0.2), clock=clock.clock, sleep=clock.sleep)
+    res = follow(
+        d,
+        tmp_path / "out",
+        trackers=("intruder",),
+        options=FollowConfig(replay=20.0, poll=0.2),
+        clock=clock.clock,
+        sleep=clock.sleep,
+    )
     assert len(list((res.live / "tables" / "intruder_tracks").glob("part-*.parquet"))) >= 5
     assert _equal(read_live_table(res.live, "intruder_tracks"), want)
     # the same file being written: its bytes appear in pieces that cut chunks in the middle
@@ -219,7 +290,14 @@ def test_mcap_replay_and_growing_mcap_equal_batch(pir, tmp_path, monkeypatch):
         (g / "recording.mcap").write_bytes(data[: (k + 1) * step])
 
     clock = SimClock(grow)
-    res = follow(g, tmp_path / "out2", trackers=("intruder",), options=FollowConfig(poll=0.1, idle=1.0), clock=clock.clock, sleep=clock.sleep)
+    res = follow(
+        g,
+        tmp_path / "out2",
+        trackers=("intruder",),
+        options=FollowConfig(poll=0.1, idle=1.0),
+        clock=clock.clock,
+        sleep=clock.sleep,
+    )
     assert len(list((res.live / "tables" / "intruder_tracks").glob("part-*.parquet"))) >= 5
     assert _equal(read_live_table(res.live, "intruder_tracks"), want)
     assert metric(res.run.report, "rejects/rows") == 0.0

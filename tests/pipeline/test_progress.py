@@ -33,7 +33,9 @@ class Recorder:
 
 @pytest.mark.parametrize("scenario, tracker", [("pir14", "intruder"), ("hallway", "findinghumo")])
 def test_stages_are_named_in_order_and_long_ones_advance_inside(tmp_path, scenario, tracker):
-    data = get_scenario(scenario).write(tmp_path / "d", seed=2, duration=40.0, agents=None, drop=0.0, camera=False, params={})
+    data = get_scenario(scenario).write(
+        tmp_path / "d", seed=2, duration=40.0, agents=None, drop=0.0, camera=False, params={}
+    )
     rec = Recorder()
     res = run_pipeline(data, tmp_path / "run", trackers=(tracker,), progress=rec)
     assert res.status[tracker].startswith("ok")

@@ -30,8 +30,14 @@ TINY = ("d0", "d1", "d2")
 def ray_local():
     """One small local Ray instance for the module (2 CPUs, no dashboard, no usage stats)."""
     os.environ["RAY_USAGE_STATS_ENABLED"] = "0"
-    ray.init(address="local", num_cpus=2, include_dashboard=False, object_store_memory=100 * 1024**2, log_to_driver=False,
-             logging_level="ERROR")  # fmt: skip
+    ray.init(
+        address="local",
+        num_cpus=2,
+        include_dashboard=False,
+        object_store_memory=100 * 1024**2,
+        log_to_driver=False,
+        logging_level="ERROR",
+    )
     yield ray
     ray.shutdown()
 
@@ -69,7 +75,9 @@ def _deterministic(summary: pl.DataFrame) -> pl.DataFrame:
 
 def test_find_datasets_takes_folders_globs_and_list_files(data, tmp_path):
     listing = tmp_path / "floors.txt"
-    listing.write_text(f"# one folder per line\n{data / 'd0'}\n\n{os.path.relpath(data / 'd1', tmp_path)}  # relative to the list\n")
+    listing.write_text(
+        f"# one folder per line\n{data / 'd0'}\n\n{os.path.relpath(data / 'd1', tmp_path)}  # relative to the list\n"
+    )
     found = find_datasets([str(data / "d2"), str(data / "d*"), str(listing)])
     assert [p.name for p in found] == ["d2", "d0", "d1"]  # duplicates dropped, first mention kept
     assert find_datasets([str(data / "*")], out=data / "empty") == [data / n for n in (*TINY, "victim")]  # OUT left out
@@ -131,7 +139,9 @@ def test_local_pool_and_ray_give_the_serial_summary(serial_run, data, tmp_path, 
         with ex:
             res = run_many(_some(data), tmp_path / ex.kind, executor=ex)
         assert _deterministic(res.summary).equals(_deterministic(serial_run.summary)), ex.kind
-        assert res.datasets.select("dataset", "status", "error").equals(serial_run.datasets.select("dataset", "status", "error"))
+        assert res.datasets.select("dataset", "status", "error").equals(
+            serial_run.datasets.select("dataset", "status", "error")
+        )
         assert _hidden(res.out) == []
     assert ray_local.is_initialized()  # a Ray the caller started is left running
 
@@ -219,7 +229,22 @@ def test_cli_run_many_prints_the_summary_and_exits_1_on_a_failed_dataset(data, t
     assert main(["run-many", str(data / "d*"), "--out", str(out), "--executor", "serial", "--trackers", "beams"]) == 0
     text = capsys.readouterr().out
     assert "3 of 3 dataset(s) ok" in text and "d2" in text
-    assert main(["run-many", str(data / "d0"), str(data / "empty"), "--out", str(out), "--executor", "local", "--workers", "2"]) == 1
+    assert (
+        main(
+            [
+                "run-many",
+                str(data / "d0"),
+                str(data / "empty"),
+                "--out",
+                str(out),
+                "--executor",
+                "local",
+                "--workers",
+                "2",
+            ]
+        )
+        == 1
+    )
     assert "failed: empty" in capsys.readouterr().out
 
 

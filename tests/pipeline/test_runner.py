@@ -6,16 +6,16 @@ import shutil
 import tomllib
 
 import polars as pl
-from mcap.reader import make_reader
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
+from mcap.reader import make_reader
 
-from onebit.datasets.builtin import builtin_site_path
-from onebit.datasets.beams_sim import write_beams_dataset
 from onebit.cli import main
-from onebit.pipeline.report import load_report, metric
 from onebit.core.errors import MAX_MESSAGE, ConfigError, OnebitError
+from onebit.datasets.beams_sim import write_beams_dataset
+from onebit.datasets.builtin import builtin_site_path
+from onebit.pipeline.report import load_report, metric
 from onebit.pipeline.runner import check_sections, load_run_config, run_pipeline
 from onebit.pipeline.stages import stages, tracker_names
 from onebit.viz.inspect import entity_paths, store_ids, verify
@@ -70,7 +70,14 @@ def test_rrd_files_verify_and_hold_site_truth_tracks(lab_run):
         ids.update(store_ids(p))
         paths |= entity_paths(p)
     assert len({rid for _, rid in ids}) == 1  # one recording id across the stages
-    for want in ("site/boundary", "site/beams/a", "site/regions/r1", "truth/agent1", "beams/tracks/agent1", "sensors/a"):
+    for want in (
+        "site/boundary",
+        "site/beams/a",
+        "site/regions/r1",
+        "truth/agent1",
+        "beams/tracks/agent1",
+        "sensors/a",
+    ):
         assert any(q == want or q.startswith(want + "/") for q in paths), want
     assert any(q.startswith("beams/occupancy/") for q in paths)
 
@@ -125,10 +132,16 @@ def test_a_tracker_whose_every_input_failed_is_skipped_not_run_on_nothing(lab_ru
     site = (bad / "site.toml").read_text()
     if "targets" not in site:
         (bad / "site.toml").write_text("targets = 2\n" + site)
-    (bad / "beams.csv").write_text("t,beam,pair,blocked\n1,a,a,1\n1e11,a,b,1\n5,a,a,0\n" + "".join(f"{1.7e9 + i},a,a,{i % 2}\n" for i in range(400)))
+    (bad / "beams.csv").write_text(
+        "t,beam,pair,blocked\n1,a,a,1\n1e11,a,b,1\n5,a,a,0\n"
+        + "".join(f"{1.7e9 + i},a,a,{i % 2}\n" for i in range(400))
+    )
     res = run_pipeline(bad, tmp_path / "run", trackers=["istate"])
     assert res.status["crossings"].startswith("failed")
-    assert res.status["istate"] == "skipped: none of its input tables (motion, proximity, crossings, beam_events) was produced by an earlier stage"
+    assert (
+        res.status["istate"]
+        == "skipped: none of its input tables (motion, proximity, crossings, beam_events) was produced by an earlier stage"
+    )
 
 
 def test_mcap_dataset_gives_the_same_crossings(lab_run, tmp_path):
@@ -219,7 +232,9 @@ def _mutated_run_toml(draw) -> bytes:
         if op == "flip" and data:
             data[min(pos, len(data) - 1)] ^= 1 << draw(st.integers(0, 7))
         elif op == "insert":
-            data[pos:pos] = draw(st.sampled_from([b"[", b"]", b'"', b"\n", b"\xff", b"nan", b"-inf", b"= 1", b"[beam]\n", b"x" * 5000]))
+            data[pos:pos] = draw(
+                st.sampled_from([b"[", b"]", b'"', b"\n", b"\xff", b"nan", b"-inf", b"= 1", b"[beam]\n", b"x" * 5000])
+            )
         elif op == "delete":
             del data[pos : pos + draw(st.integers(1, 6))]
         else:
@@ -297,7 +312,11 @@ def test_istate_beyond_its_stage_bound_is_skipped_saying_why(lab_run, tmp_path):
     reason = res.status["istate"]
     assert reason.startswith("skipped") and "max_stages = 10" in reason and "stages of period_s = 1 s" in reason
     assert res.ok  # not asked for by name: the others ran, the run is ok
-    asked = run_pipeline(data, tmp_path / "asked", trackers=("istate",), config={"istate": {"max_stages": 10}}, rrd=False)
+    asked = run_pipeline(
+        data, tmp_path / "asked", trackers=("istate",), config={"istate": {"max_stages": 10}}, rrd=False
+    )
     assert not asked.ok and any("max_stages" in p for p in asked.problems)
-    lifted = run_pipeline(data, tmp_path / "lifted", trackers=("istate",), config={"istate": {"max_stages": 0}}, rrd=False)
+    lifted = run_pipeline(
+        data, tmp_path / "lifted", trackers=("istate",), config={"istate": {"max_stages": 0}}, rrd=False
+    )
     assert lifted.status["istate"].startswith("ok")

@@ -182,10 +182,14 @@ class Server:
 
     def __init__(self) -> None:
         env = dict(os.environ, RERUN_ANALYTICS="0")
-        self.proc = subprocess.Popen([sys.executable, "-c", SERVER], stdin=subprocess.PIPE, stdout=subprocess.PIPE, text=True, env=env)
+        self.proc = subprocess.Popen(
+            [sys.executable, "-c", SERVER], stdin=subprocess.PIPE, stdout=subprocess.PIPE, text=True, env=env
+        )
 
     def run(self, dataset: Path, out: Path, kill_at: int, count: Path) -> dict:
-        self.proc.stdin.write(json.dumps({"dataset": str(dataset), "out": str(out), "kill_at": kill_at, "count": str(count)}) + "\n")
+        self.proc.stdin.write(
+            json.dumps({"dataset": str(dataset), "out": str(out), "kill_at": kill_at, "count": str(count)}) + "\n"
+        )
         self.proc.stdin.flush()
         ready, _, _ = select.select([self.proc.stdout], [], [], 120)
         assert ready, "the forked run did not finish"
@@ -223,7 +227,9 @@ def test_killed_runs_leave_the_previous_run_or_an_incomplete_mark_never_a_mixtur
                 run_pipeline(a, out, trackers=("beams",), progress=False)  # the next run repairs it
             else:
                 visible = {k: v for k, v in _tree(out).items() if not k.startswith(".")}
-                assert visible == {k: v for k, v in before.items() if not k.startswith(".")}, f"mixed after a kill before rename {n}"
+                assert visible == {k: v for k, v in before.items() if not k.startswith(".")}, (
+                    f"mixed after a kill before rename {n}"
+                )
                 assert load_report(out).height > 0
         assert marked == len([n for n in points if n > first])  # killed after INCOMPLETE was written: marked
     finally:

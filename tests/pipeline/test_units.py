@@ -103,7 +103,11 @@ def _is_table_array(v) -> bool:
 def toml_dumps(d: dict, prefix: tuple[str, ...] = ()) -> str:
     """A small TOML writer for site files: scalars, arrays, tables, arrays of tables."""
     key = lambda parts: ".".join(json.dumps(p) for p in parts)  # noqa: E731
-    lines = [f"{json.dumps(k)} = {_toml_value(v)}" for k, v in d.items() if not isinstance(v, dict) and not _is_table_array(v)]
+    lines = [
+        f"{json.dumps(k)} = {_toml_value(v)}"
+        for k, v in d.items()
+        if not isinstance(v, dict) and not _is_table_array(v)
+    ]
     for k, v in d.items():
         if isinstance(v, dict):
             lines += ["", f"[{key(prefix + (k,))}]", toml_dumps(v, prefix + (k,))]
@@ -201,15 +205,17 @@ def test_every_tracker_has_its_scenario_written():
 
 def test_every_tracker_is_compared(runs):
     assert {t for _, t in COMPARED} == set(EVERY_TRACKER)
-    for (name, t) in COMPARED:
+    for name, t in COMPARED:
         k, a, b = runs[name]
         for stage in (t, "scores"):
             assert a.status[stage].startswith("ok"), (name, stage, a.status[stage])
             assert b.status[stage].startswith("ok"), (name, stage, b.status[stage])
-    for name, (k, a, b) in runs.items():  # nothing else ran that is not compared
+    for name, (_k, a, b) in runs.items():  # nothing else ran that is not compared
         ran = {t for t in EVERY_TRACKER if a.status[t].startswith("ok")}
         assert ran == {t for (n, t) in COMPARED if n == name}, (name, ran)
-        assert {t: b.status[t].split(" ")[0] for t in EVERY_TRACKER} == {t: a.status[t].split(" ")[0] for t in EVERY_TRACKER}
+        assert {t: b.status[t].split(" ")[0] for t in EVERY_TRACKER} == {
+            t: a.status[t].split(" ")[0] for t in EVERY_TRACKER
+        }
 
 
 def _point_sets(df: pl.DataFrame, k: float = 1.0) -> np.ndarray:

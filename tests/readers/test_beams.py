@@ -10,9 +10,9 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
+from onebit.core.errors import InputError
 from onebit.readers.beams import decode_beam_log
 from onebit.readers.tables_csv import read_crossings_csv, read_truth_csv
-from onebit.core.errors import InputError
 
 SPACING = 0.1
 HALF_WIDTH = 0.2  # body half-width, wider than the spacing (paper: spacing < agent width)
@@ -67,7 +67,12 @@ def test_every_interleaving_decodes_right(tmp_path_factory, start, middle, end):
     events, expected, aborted = _events_from_positions(xs)
     path = Path(tmp_path_factory.mktemp("beam")) / "beams.csv"
     pl.DataFrame(
-        {"t": [e[0] for e in events], "beam": ["a"] * len(events), "pair": [e[1] for e in events], "blocked": [e[2] for e in events]},
+        {
+            "t": [e[0] for e in events],
+            "beam": ["a"] * len(events),
+            "pair": [e[1] for e in events],
+            "blocked": [e[2] for e in events],
+        },
         schema={"t": pl.Float64, "beam": pl.String, "pair": pl.String, "blocked": pl.Int64},
     ).write_csv(path)
     dec = decode_beam_log(path, ("a",))
@@ -102,9 +107,7 @@ def test_bad_rows_go_to_rejects_with_file_line_reason(tmp_path):
     p = _write(
         tmp_path,
         "beams.csv",
-        "t,beam,pair,blocked\n"
-        + good
-        + "oops,a,a,1\n"  # line 6: malformed time
+        "t,beam,pair,blocked\n" + good + "oops,a,a,1\n"  # line 6: malformed time
         "1.4,zz,a,1\n"  # line 7: unknown beam
         "0.5,a,a,1\n"  # line 8: timestamp goes backwards
         "1.3,a,b,0\n"  # line 9: duplicated event

@@ -9,11 +9,11 @@ import numpy as np
 import polars as pl
 import pytest
 
-from onebit.datasets.camera_render import render_overhead_video
-from onebit.datasets.builtin import builtin_site
 from onebit.core.errors import InputError
-from onebit.readers.camera import link_tracks, match_frames, read_camera, truth_error
 from onebit.core.tables import REJECTS, TRUTH
+from onebit.datasets.builtin import builtin_site
+from onebit.datasets.camera_render import render_overhead_video
+from onebit.readers.camera import link_tracks, match_frames, read_camera, truth_error
 
 RADIUS = 0.15  # ft
 SECONDS = 20.0

@@ -9,8 +9,8 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from onebit.core.errors import OnebitError
 from onebit._testing.casas_sim import write_casas_log
+from onebit.core.errors import OnebitError
 from onebit.readers.casas import read_casas
 from onebit.readers.loginfo import log_info
 
@@ -70,8 +70,20 @@ def test_events_kinds_annotations_and_rejects(tmp_path):
 
 
 def test_every_value_spelling_is_read(tmp_path):
-    rows = [("ON", True), ("OFF", False), ("on", True), ("off", False), ("1", True), ("0", False), ("true", True),
-            ("FALSE", False), ("OPEN", True), ("CLOSE", False), ("PRESENT", True), ("absent", False)]  # fmt: skip
+    rows = [
+        ("ON", True),
+        ("OFF", False),
+        ("on", True),
+        ("off", False),
+        ("1", True),
+        ("0", False),
+        ("true", True),
+        ("FALSE", False),
+        ("OPEN", True),
+        ("CLOSE", False),
+        ("PRESENT", True),
+        ("absent", False),
+    ]
     text = "".join(f"2012-01-01 10:00:{k:02d}.000000\tM{k:03d}\t{v}\n" for k, (v, _) in enumerate(rows))
     log = read_casas(_write(tmp_path, text))
     assert log.rejects.height == 0

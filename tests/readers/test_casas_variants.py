@@ -44,11 +44,16 @@ def test_resident_task_pairs_are_parsed(tmp_path):
     assert ev[3]["kind"] == "contact" and ev[3]["on"] is True and ev[3]["residents"] == "1"
     assert ev[8]["kind"] == "item" and ev[8]["on"] is False
     assert ev[6]["residents"] is None and ev[6]["on"] is False  # the event is sound, its annotation is not
-    assert log.annotation_problems["line"].to_list() == [6] and "not resident/task pairs" in log.annotation_problems["reason"][0]
+    assert (
+        log.annotation_problems["line"].to_list() == [6]
+        and "not resident/task pairs" in log.annotation_problems["reason"][0]
+    )
     assert ev[7]["residents"] is None and ev[7]["annotation"] is None
     rej = dict(zip(log.rejects["line"].to_list(), log.rejects["reason"].to_list()))
     assert set(rej) == {9, 10, 11}
-    assert "too few fields" in rej[9] and "'MAYBE' is not a motion value" in rej[10] and "not a date and time" in rej[11]
+    assert (
+        "too few fields" in rej[9] and "'MAYBE' is not a motion value" in rej[10] and "not a date and time" in rej[11]
+    )
 
 
 def test_date_and_time_in_one_field_or_two(tmp_path):
@@ -69,7 +74,7 @@ def test_named_sensors_and_activity_labels(tmp_path):
     text = (
         "2011-06-15 08:00:00 Bedroom Bedroom ON Sleep begin\n"  # the name twice
         "2011-06-15 08:00:02 Bedroom OFF\n"  # once
-        "2011-06-15 08:00:03 Fridge Fridge OPEN Meal_Preparation=\"begin\"\n"
+        '2011-06-15 08:00:03 Fridge Fridge OPEN Meal_Preparation="begin"\n'
         "2011-06-15 08:00:04 Fridge CLOSE\n"
         "2011-06-15 08:00:05 M021 Kitchen Kitchen ON 1 3\n"  # an id, its location twice
         "2011-06-15 08:00:06 Thermo 21.5\n"
@@ -79,7 +84,10 @@ def test_named_sensors_and_activity_labels(tmp_path):
     log = read_casas(_write(tmp_path, text))
     ev = {r["line"]: r for r in log.events.iter_rows(named=True)}
     assert ev[1]["sensor"] == "Bedroom" and ev[1]["kind"] == "motion" and ev[1]["on"] is True
-    assert (ev[1]["activity"], ev[1]["activity_edge"]) == ("Sleep", "begin") and (ev[7]["activity"], ev[7]["activity_edge"]) == ("Sleep", "end")
+    assert (ev[1]["activity"], ev[1]["activity_edge"]) == ("Sleep", "begin") and (
+        ev[7]["activity"],
+        ev[7]["activity_edge"],
+    ) == ("Sleep", "end")
     assert ev[3]["kind"] == "contact" and ev[3]["activity"] == "Meal_Preparation" and ev[3]["activity_edge"] == "begin"
     assert (ev[5]["sensor"], ev[5]["location"], ev[5]["residents"], ev[5]["kind"]) == ("M021", "Kitchen", "1", "motion")
     assert ev[6]["kind"] == "analog" and ev[6]["on"] is None
@@ -127,7 +135,11 @@ def test_lost_off_repair_by_hold_time():
     # after the repair no sensor has an ON followed by an ON more than its hold apart
     seq = out.sort("sensor", "t")
     gap = seq.with_columns(nt=pl.col("t").shift(-1).over("sensor"), non=pl.col("on").shift(-1).over("sensor"))
-    bad = gap.filter(pl.col("on") & pl.col("non").fill_null(False) & (pl.col("nt") - pl.col("t") > pl.col("sensor").replace_strict(h)))
+    bad = gap.filter(
+        pl.col("on")
+        & pl.col("non").fill_null(False)
+        & (pl.col("nt") - pl.col("t") > pl.col("sensor").replace_strict(h))
+    )
     assert bad.height == 0
 
 
@@ -166,7 +178,11 @@ def test_every_written_variant_reads_back(tmp_path, events):
 
 
 def test_truth_events_reader(tmp_path):
-    p = _write(tmp_path, "t,sensor,residents\n0.5,M1,2\n1.0,M2,2;1\n1.5,M3, 1 ; 2 \n2.0,M1,\nx,M1,1\n1.0,M2,1\n", "truth_events.csv")
+    p = _write(
+        tmp_path,
+        "t,sensor,residents\n0.5,M1,2\n1.0,M2,2;1\n1.5,M3, 1 ; 2 \n2.0,M1,\nx,M1,1\n1.0,M2,1\n",
+        "truth_events.csv",
+    )
     te, rej = read_truth_events_csv(p, epoch=None)
     assert te.schema == pl.Schema({"t": pl.Float64, "sensor": pl.String, "residents": pl.String})
     assert te.rows() == [(0.5, "M1", "2"), (1.0, "M2", "1;2"), (1.5, "M3", "1;2")]
@@ -179,12 +195,20 @@ def test_import_writes_the_identity_truth_and_no_cupboard_doors(tmp_path, doors)
     from onebit.core.site import load_site
     from onebit.datasets.importers import import_casas
 
-    log = _write(tmp_path, ADLMR + "".join(f"2008-11-10\t14:29:{k:02d}.0\tM{19 + k % 4}\t{'ON' if k % 2 == 0 else 'OFF'} 1 1\n" for k in range(40)))
+    log = _write(
+        tmp_path,
+        ADLMR
+        + "".join(
+            f"2008-11-10\t14:29:{k:02d}.0\tM{19 + k % 4}\t{'ON' if k % 2 == 0 else 'OFF'} 1 1\n" for k in range(40)
+        ),
+    )
     s = import_casas(log, tmp_path / f"ds{len(doors)}", doors=doors)
     te = pl.read_csv(tmp_path / f"ds{len(doors)}" / "truth_events.csv")
     assert te.columns == ["t", "sensor", "residents"]
     ev = read_casas(log).events
-    want = ev.filter(pl.col("kind").is_in(["motion", "contact", "door"]) & pl.col("on") & pl.col("residents").is_not_null())
+    want = ev.filter(
+        pl.col("kind").is_in(["motion", "contact", "door"]) & pl.col("on") & pl.col("residents").is_not_null()
+    )
     assert te.height == want.height == s.counts["truth_events"]
     assert set(te["residents"].cast(pl.String)) <= {"1", "2", "1;2"}
     site = load_site(tmp_path / f"ds{len(doors)}" / "site.toml")
@@ -196,9 +220,15 @@ def test_logs_info_counts_labels_and_lost_offs(tmp_path):
 
     text = ADLMR + "2008-11-10\t14:40:00.0\tM22\tON 2 2\n2008-11-10\t14:50:00.0\tM22\tON 2 2\n"  # a lost OFF between
     by = {r["source"]: r for r in log_info(_write(tmp_path, text)).iter_rows(named=True)}
-    assert by["log.txt:resident-labelled"]["rows"] == 8 and by["log.txt:resident-labelled"]["sensors"] == 3  # "1", "2", "1;2"
+    assert (
+        by["log.txt:resident-labelled"]["rows"] == 8 and by["log.txt:resident-labelled"]["sensors"] == 3
+    )  # "1", "2", "1;2"
     assert by["log.txt:annotation-problems"]["rows"] == 1
     assert by["log.txt:lost-off"]["rows"] == 1  # the second ON of M22 ten minutes later
-    csv = _write(tmp_path, "time,sensor,message,residents,activity\n2009-06-10 03:20:59-07:00,M037,ON,R1,\n2009-06-10 03:21:00-07:00,M037,OFF,R1,\n", "events.csv")
+    csv = _write(
+        tmp_path,
+        "time,sensor,message,residents,activity\n2009-06-10 03:20:59-07:00,M037,ON,R1,\n2009-06-10 03:21:00-07:00,M037,OFF,R1,\n",
+        "events.csv",
+    )
     by = {r["source"]: r for r in log_info(csv).iter_rows(named=True)}
     assert by["events.csv"]["rows"] == 2 and by["events.csv:motion"]["sensors"] == 1

@@ -123,8 +123,23 @@ def test_ordering_faults_stay_on_the_fast_path(tmp_path, fault):
     assert out.rejects["raw"].null_count() == 0
 
 
-@pytest.mark.parametrize("fault", ["blank line", "crlf", "quoted", "extra field", "short line", "empty field", "upper case",
-                                   "nan", "lone stamp", "bad byte", "iso", "spaces line"])  # fmt: skip
+@pytest.mark.parametrize(
+    "fault",
+    [
+        "blank line",
+        "crlf",
+        "quoted",
+        "extra field",
+        "short line",
+        "empty field",
+        "upper case",
+        "nan",
+        "lone stamp",
+        "bad byte",
+        "iso",
+        "spaces line",
+    ],
+)
 def test_files_with_bad_or_unusual_lines_leave_the_fast_path(tmp_path, fault):
     rng = np.random.default_rng(3)
     header, rows = _beam_lines(rng, 200)

@@ -57,15 +57,25 @@ def streams(draw):
 
 def _raw(rows, cols=("t", "sensor", "value")) -> RawRows:
     frame = pl.DataFrame(
-        {"line": list(range(2, 2 + len(rows))), **{c: [r[i] for r in rows] for i, c in enumerate(cols)}, "raw": [None] * len(rows)},
+        {
+            "line": list(range(2, 2 + len(rows))),
+            **{c: [r[i] for r in rows] for i, c in enumerate(cols)},
+            "raw": [None] * len(rows),
+        },
         schema={"line": pl.Int64, **{c: pl.String for c in cols}, "raw": pl.String},
     )
     return RawRows("stream.csv", frame, pl.DataFrame(schema=REJECTS))
 
 
 def _origin(rows):
-    return time_origin({"stream.csv": pl.DataFrame({"line": list(range(2, 2 + len(rows))), "t": [r[0] for r in rows]},
-                                                   schema={"line": pl.Int64, "t": pl.String})})  # fmt: skip
+    return time_origin(
+        {
+            "stream.csv": pl.DataFrame(
+                {"line": list(range(2, 2 + len(rows))), "t": [r[0] for r in rows]},
+                schema={"line": pl.Int64, "t": pl.String},
+            )
+        }
+    )
 
 
 def _casas_stamp(t: str) -> str:
@@ -100,12 +110,16 @@ def test_toggle_readers(rows, chatter):
 @SETTINGS
 @given(rows=streams())
 def test_beam_crossing_and_truth_readers(rows):
-    beam_rows = [(t, "a" if s != "zz" else "zz", "a" if v.lower() in ("on", "1", "true") else "b", v) for t, s, v in rows]
+    beam_rows = [
+        (t, "a" if s != "zz" else "zz", "a" if v.lower() in ("on", "1", "true") else "b", v) for t, s, v in rows
+    ]
     try:
         origin = _origin(rows)
         dec = decode_raw_beams(_raw(beam_rows, ("t", "beam", "pair", "blocked")), ("a",), epoch=origin)
         assert dec.events.height + dec.rejects.height == len(rows)
-        cr, rej = crossings_from_rows(_raw([(t, "a", v) for t, _, v in rows], ("t", "beam", "direction")), ("a",), epoch=origin)
+        cr, rej = crossings_from_rows(
+            _raw([(t, "a", v) for t, _, v in rows], ("t", "beam", "direction")), ("a",), epoch=origin
+        )
         assert cr.height + rej.height == len(rows)
         tr, rej = truth_from_rows(_raw([(t, s, v, "1.0") for t, s, v in rows], ("t", "target", "x", "y")), epoch=origin)
         assert tr.height + rej.height == len(rows)
@@ -119,7 +133,9 @@ def test_casas_and_trajectory_readers(tmp_path_factory, rows):
     tmp = tmp_path_factory.mktemp("streams")
     iso = [(_casas_stamp(t), s, v) for t, s, v in rows]
     casas = tmp / "log.txt"
-    casas.write_text("".join(f"{t}\t{'M00' + s[-1] if s != 'zz' else 'T001'}\t{v}\n" for t, s, v in iso), encoding="utf-8")
+    casas.write_text(
+        "".join(f"{t}\t{'M00' + s[-1] if s != 'zz' else 'T001'}\t{v}\n" for t, s, v in iso), encoding="utf-8"
+    )
     traj = Path(tmp / "walks.csv")
     traj.write_text("t,id,x,y\n" + "".join(f"{t},{s},{v or 0},1\n" for t, s, v in rows), encoding="utf-8")
     try:

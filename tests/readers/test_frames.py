@@ -40,7 +40,9 @@ def test_three_layouts_give_the_same_levels(tmp_path_factory, rows):
     for name, log in logs.items():
         assert log.layout == name and log.frames == len(grid) and log.rejects.height == 0 and log.unlisted == 0
         assert log.levels.schema == FRAMES
-        assert log.levels.height == len(grid) * 3  # every frame x every sensor: held-on frames are kept, never "no state change"
+        assert (
+            log.levels.height == len(grid) * 3
+        )  # every frame x every sensor: held-on frames are kept, never "no state change"
         assert log.levels["on"].to_numpy().reshape(-1, 3).tolist() == grid.tolist()
         prev = np.vstack([np.zeros((1, 3), bool), grid[:-1]])
         assert log.levels["fired"].to_numpy().reshape(-1, 3).tolist() == (grid & ~prev).tolist()
@@ -105,7 +107,9 @@ def test_a_sampled_toggle_log_of_level_sensors_is_not_rejected(tmp_path):
     states (counted), for edge sensors (a PIR's trigger) they stay rejects."""
     p = tmp_path / "motion.csv"
     grid = [[1, 0], [1, 0], [1, 1], [0, 1], [0, 0], [0, 0]]
-    p.write_text("t,sensor,value\n" + "".join(f"{k},{s},{v}\n" for k, row in enumerate(grid) for s, v in zip("ab", row)))
+    p.write_text(
+        "t,sensor,value\n" + "".join(f"{k},{s},{v}\n" for k, row in enumerate(grid) for s, v in zip("ab", row))
+    )
     lv = read_motion_csv(p, ["a", "b"], held={"a", "b"})
     assert lv.rejects.height == 0 and lv.held == 12 - 4
     assert lv.motion.rows() == [(0.0, "a", True), (2.0, "b", True), (3.0, "a", False), (4.0, "b", False)]

@@ -29,7 +29,9 @@ def _beam_log(rng, n, *, clean):
             for pair, blocked in seq:
                 t += float(rng.choice([0.0, 0.1, 0.5]))
                 rows.append((round(t, 1), beam, pair, blocked))
-        f = pl.DataFrame(rows, schema={"t": pl.Float64, "beam": pl.String, "pair": pl.String, "blocked": pl.Boolean}, orient="row")
+        f = pl.DataFrame(
+            rows, schema={"t": pl.Float64, "beam": pl.String, "pair": pl.String, "blocked": pl.Boolean}, orient="row"
+        )
     else:
         f = pl.DataFrame(
             {
@@ -39,7 +41,9 @@ def _beam_log(rng, n, *, clean):
                 "blocked": rng.random(n) < 0.5,
             }
         )
-    return f.with_columns(line=pl.int_range(2, f.height + 2, dtype=pl.Int64)).select("line", "t", "beam", "pair", "blocked")
+    return f.with_columns(line=pl.int_range(2, f.height + 2, dtype=pl.Int64)).select(
+        "line", "t", "beam", "pair", "blocked"
+    )
 
 
 @pytest.mark.parametrize("seed", range(12))
@@ -71,7 +75,9 @@ def test_debounce_kernel_equals_reference(seed):
         }
     ).with_columns(on=(pl.int_range(pl.len()).over("sensor") % 2 == 0))
     rules = {
-        s: M.DebounceRules(chatter_window=float(rng.choice([0, 0.1, 0.3, 1.0])), min_on=float(rng.choice([0, 0.2, 0.5, 2.0])))
+        s: M.DebounceRules(
+            chatter_window=float(rng.choice([0, 0.1, 0.3, 1.0])), min_on=float(rng.choice([0, 0.2, 0.5, 2.0]))
+        )
         for s in sensors[:3]
     }
     kept, sup = M.debounce(df, sensors, rules, compiled=True)

@@ -16,6 +16,7 @@ from mcap.stream_reader import StreamReader
 from mcap.writer import CompressionType, Writer
 
 from onebit.core.errors import InputError
+from onebit.core.tables import REJECTS
 from onebit.readers.loginfo import LOG_INFO, format_log_info, log_info
 from onebit.readers.mcap_io import (
     CHANNELS,
@@ -24,7 +25,6 @@ from onebit.readers.mcap_io import (
     read_mcap,
     write_mcap,
 )
-from onebit.core.tables import REJECTS
 
 BEAMS_CSV = """t,beam,pair,blocked
 0.5,b1,a,1
@@ -125,7 +125,9 @@ def test_csv_round_trip_property(rows):
 @settings(max_examples=40, deadline=None)
 @given(rows=st.lists(st.tuples(_floats, _text, _floats, _floats), max_size=25))
 def test_typed_table_round_trip_property(rows):
-    df = pl.DataFrame(rows, schema={"t": pl.Float64, "target": pl.String, "x": pl.Float64, "y": pl.Float64}, orient="row")
+    df = pl.DataFrame(
+        rows, schema={"t": pl.Float64, "target": pl.String, "x": pl.Float64, "y": pl.Float64}, orient="row"
+    )
     with tempfile.TemporaryDirectory() as tmp:
         path = Path(tmp) / "t.mcap"
         write_mcap(path, {"/truth": df})
@@ -167,7 +169,20 @@ def test_truncated_file_keeps_complete_messages(tmp_path):
     data = full.read_bytes()
     ends = _message_ends(full)
     complete = read_mcap(full).channels
-    cuts = sorted({9, 40, ends[0][1] - 1, ends[0][1], ends[3][1] + 5, ends[-1][1] - 3, ends[-1][1], ends[-1][1] + 20, len(data) - 4, len(data) - 1})
+    cuts = sorted(
+        {
+            9,
+            40,
+            ends[0][1] - 1,
+            ends[0][1],
+            ends[3][1] + 5,
+            ends[-1][1] - 3,
+            ends[-1][1],
+            ends[-1][1] + 20,
+            len(data) - 4,
+            len(data) - 1,
+        }
+    )
     for cut in cuts:
         part = tmp_path / f"cut{cut}.mcap"
         part.write_bytes(data[:cut])

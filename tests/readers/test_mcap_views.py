@@ -64,7 +64,13 @@ def _messages(path: Path) -> dict[str, list]:
     with open(path, "rb") as fh:
         for schema, channel, message in make_reader(fh).iter_messages():
             out.setdefault(channel.topic, []).append(
-                (schema.name if schema else "", schema.encoding if schema else "", channel.message_encoding, message.log_time, message.data)
+                (
+                    schema.name if schema else "",
+                    schema.encoding if schema else "",
+                    channel.message_encoding,
+                    message.log_time,
+                    message.data,
+                )
             )
     return out
 
@@ -82,7 +88,15 @@ def test_written_files_are_chunked_zstd_with_indexes(tmp_path):
     assert summary.statistics.message_count == n
     topics = {c.topic for c in summary.channels.values()}
     assert {"/motion", "/truth", "/crossings"} <= topics
-    assert {"/foxglove/site", "/foxglove/sensors", "/foxglove/truth", "/points/site", "/points/sensors", "/points/truth", "/events"} <= topics
+    assert {
+        "/foxglove/site",
+        "/foxglove/sensors",
+        "/foxglove/truth",
+        "/points/site",
+        "/points/sensors",
+        "/points/truth",
+        "/events",
+    } <= topics
 
 
 def test_view_schemas_are_foxgloves_own_and_messages_decode(tmp_path):
@@ -112,9 +126,13 @@ def test_view_schemas_are_foxgloves_own_and_messages_decode(tmp_path):
     # every message decodes with the Foxglove class; contents follow the logs
     log = [classes["foxglove.Log"].FromString(m[4]) for m in msgs["/events"]]
     assert [(x.name, x.message) for x in log] == [
-        ("motion", "m1 1"), ("motion", "m1 0"), ("crossings", "b1 crossed 1"), ("motion", "m2 on"),
-        ("motion", "m2 off"), ("motion", "m1 1"),
-    ]  # fmt: skip
+        ("motion", "m1 1"),
+        ("motion", "m1 0"),
+        ("crossings", "b1 crossed 1"),
+        ("motion", "m2 on"),
+        ("motion", "m2 off"),
+        ("motion", "m1 1"),
+    ]
     assert [m[3] for m in msgs["/events"]] == [5 * 10**8, 15 * 10**8, 17 * 10**8, 2 * 10**9, 3_250_000_000, 4 * 10**9]
     clouds = [classes["foxglove.PointCloud"].FromString(m[4]) for m in msgs["/points/sensors"]]
     n = MARKER_POINTS  # each sensor is a ring of points
@@ -124,7 +142,11 @@ def test_view_schemas_are_foxgloves_own_and_messages_decode(tmp_path):
     assert all(c.data[12:16] == c.data[(n - 1) * 16 + 12 : (n - 1) * 16 + 16] for c in clouds)
     assert on[0] == on[4] and on[1] == on[2] == on[3] and on[0] != on[1]
     truth = [classes["foxglove.SceneUpdate"].FromString(m[4]) for m in msgs["/foxglove/truth"]]
-    assert [(u.entities[0].id, u.entities[0].spheres[0].pose.position.x) for u in truth] == [("truth/p1", 1.0), ("truth/p1", 2.0), ("truth/p1", 4.5)]
+    assert [(u.entities[0].id, u.entities[0].spheres[0].pose.position.x) for u in truth] == [
+        ("truth/p1", 1.0),
+        ("truth/p1", 2.0),
+        ("truth/p1", 4.5),
+    ]
     site = classes["foxglove.SceneUpdate"].FromString(msgs["/foxglove/site"][0][4])
     ids = {e.id for e in site.entities}
     assert {"site/boundary", "site/beams/b1", "site/sensors/m1", "site/sensors/m2"} <= ids
@@ -132,7 +154,11 @@ def test_view_schemas_are_foxgloves_own_and_messages_decode(tmp_path):
 
 def _fields(fds) -> dict[str, list]:
     """Every message of a FileDescriptorSet: full name -> (field name, number, type, label)."""
-    return {f"{f.package}.{m.name}": sorted((x.name, x.number, x.type, x.label) for x in m.field) for f in fds.file for m in f.message_type}
+    return {
+        f"{f.package}.{m.name}": sorted((x.name, x.number, x.type, x.label) for x in m.field)
+        for f in fds.file
+        for m in f.message_type
+    }
 
 
 def test_view_schemas_match_the_foxglove_sdk(tmp_path):
@@ -149,10 +175,15 @@ def test_view_schemas_match_the_foxglove_sdk(tmp_path):
     for name, schema in schemas.items():
         sdk = getattr(messages, name.split(".")[1]).get_schema()
         assert (sdk.name, sdk.encoding) == (name, "protobuf")
-        ours, theirs = _fields(FileDescriptorSet.FromString(schema.data)), _fields(FileDescriptorSet.FromString(sdk.data))
+        ours, theirs = (
+            _fields(FileDescriptorSet.FromString(schema.data)),
+            _fields(FileDescriptorSet.FromString(sdk.data)),
+        )
         assert ours == theirs and name in ours, name
     classes = message_classes()
-    log = classes["foxglove.Log"].FromString(messages.Log(message="m1 on", name="motion", level=messages.LogLevel.Info).encode())
+    log = classes["foxglove.Log"].FromString(
+        messages.Log(message="m1 on", name="motion", level=messages.LogLevel.Info).encode()
+    )
     assert (log.message, log.name) == ("m1 on", "motion")
 
 
@@ -176,7 +207,9 @@ def test_without_views_and_with_tracks(tmp_path):
     bare = tmp_path / "bare.mcap"
     csv_folder_to_mcap(src, bare, views=False)
     assert set(_messages(bare)) == {"/motion", "/truth", "/crossings"}
-    tracks = pl.DataFrame({"tracker": ["intruder"] * 2, "track": ["intruder"] * 2, "t": [1.0, 3.0], "x": [1.5, None], "y": [1.0, None]})
+    tracks = pl.DataFrame(
+        {"tracker": ["intruder"] * 2, "track": ["intruder"] * 2, "t": [1.0, 3.0], "x": [1.5, None], "y": [1.0, None]}
+    )
     rec = tmp_path / "tracks.mcap"
     csv_folder_to_mcap(src, rec, tracks=tracks_for_views(tracks, offset_s=0.5))
     msgs = _messages(rec)
@@ -194,10 +227,20 @@ def test_old_json_only_unchunked_files_still_read(tmp_path):
         sid = w.register_schema(name="onebit.motion", encoding="jsonschema", data=b"{}")
         ch = w.register_channel(topic="/motion", message_encoding="json", schema_id=sid)
         for i, (t, s, v) in enumerate([(0.5, "m1", 1), (1.5, "m1", 0)]):
-            w.add_message(ch, log_time=int(t * 1e9), publish_time=int(t * 1e9), sequence=i, data=f'{{"t": {t}, "sensor": "{s}", "value": {v}}}'.encode())
+            w.add_message(
+                ch,
+                log_time=int(t * 1e9),
+                publish_time=int(t * 1e9),
+                sequence=i,
+                data=f'{{"t": {t}, "sensor": "{s}", "value": {v}}}'.encode(),
+            )
         w.finish()
     new = tmp_path / "new.mcap"
-    write_mcap(new, {"/motion": pl.DataFrame({"t": [0.5, 1.5], "sensor": ["m1", "m1"], "value": [1, 0]})}, site=load_site(_dataset(tmp_path / "d") / "site.toml"))
+    write_mcap(
+        new,
+        {"/motion": pl.DataFrame({"t": [0.5, 1.5], "sensor": ["m1", "m1"], "value": [1, 0]})},
+        site=load_site(_dataset(tmp_path / "d") / "site.toml"),
+    )
     a, b = read_mcap(old), read_mcap(new)
     assert a.rejects.height == 0 and b.rejects.height == 0
     assert a.channels["/motion"].drop("raw").equals(b.channels["/motion"].drop("raw"))
@@ -213,12 +256,32 @@ def _ros2_bag(path: Path) -> None:
         w = Ros2Writer(fh)
         boolean = w.register_msgdef("std_msgs/msg/Bool", "bool data")
         text = w.register_msgdef("std_msgs/msg/String", "string data")
-        for i, (topic, value) in enumerate([("/hall/pir_a", True), ("/hall/pir_b", True), ("/hall/pir_a", False), ("/hall/pir_b", False)]):
+        for i, (topic, value) in enumerate(
+            [("/hall/pir_a", True), ("/hall/pir_b", True), ("/hall/pir_a", False), ("/hall/pir_b", False)]
+        ):
             ns = 1_700_000_000_000_000_000 + i * 500_000_000
             w.write_message(topic, boolean, {"data": value}, log_time=ns, publish_time=ns)
-        w.write_message("/chatter", text, {"data": "hello"}, log_time=1_700_000_002_000_000_000, publish_time=1_700_000_002_000_000_000)
-        w.write_message("/chatter", text, {"data": "again"}, log_time=1_700_000_002_500_000_000, publish_time=1_700_000_002_500_000_000)
-        w.write_message("/hall/pir_c", text, {"data": "not a bool"}, log_time=1_700_000_003_000_000_000, publish_time=1_700_000_003_000_000_000)
+        w.write_message(
+            "/chatter",
+            text,
+            {"data": "hello"},
+            log_time=1_700_000_002_000_000_000,
+            publish_time=1_700_000_002_000_000_000,
+        )
+        w.write_message(
+            "/chatter",
+            text,
+            {"data": "again"},
+            log_time=1_700_000_002_500_000_000,
+            publish_time=1_700_000_002_500_000_000,
+        )
+        w.write_message(
+            "/hall/pir_c",
+            text,
+            {"data": "not a bool"},
+            log_time=1_700_000_003_000_000_000,
+            publish_time=1_700_000_003_000_000_000,
+        )
         w.finish()
 
 
@@ -232,12 +295,18 @@ def test_ros2_bool_topics_become_toggle_rows(tmp_path):
     }
     got = read_mcap(bag, topic_map=topics)
     motion = got.channels["/motion"]
-    assert motion.select("t", "sensor", "value").rows() == [("1700000000.000000000", "m1", "1"), ("1700000001.000000000", "m1", "0")]
+    assert motion.select("t", "sensor", "value").rows() == [
+        ("1700000000.000000000", "m1", "1"),
+        ("1700000001.000000000", "m1", "0"),
+    ]
     assert motion["raw"].to_list() == ["/hall/pir_a: data=True", "/hall/pir_a: data=False"]
     assert got.channels["/proximity"].select("sensor", "value").rows() == [("p1", "1"), ("p1", "0")]
     rej = got.rejects.sort("source")
     assert rej["source"].to_list() == ["bag.mcap:/chatter", "bag.mcap:/hall/pir_c"]
-    assert "2 message(s) in encoding 'cdr' (std_msgs/msg/String)" in rej["reason"][0] and "mcap_topics.toml" in rej["reason"][0]
+    assert (
+        "2 message(s) in encoding 'cdr' (std_msgs/msg/String)" in rej["reason"][0]
+        and "mcap_topics.toml" in rej["reason"][0]
+    )
     assert "field 'data' is str, not a boolean" in rej["reason"][1] and rej["line"][1] == 1
     # without a map nothing is taken and every foreign channel is one counted reject
     bare = read_mcap(bag)
@@ -285,8 +354,12 @@ def test_rerun_decodes_the_typed_channels(tmp_path):
     out = tmp_path / "rec.mcap"
     csv_folder_to_mcap(_dataset(tmp_path / "d"), out)
     rrd = tmp_path / "rec.rrd"
-    subprocess.run([str(exe), "mcap", "convert", str(out), "-o", str(rrd)], check=True, capture_output=True, timeout=120)
-    printed = subprocess.run([str(exe), "rrd", "print", str(rrd)], check=True, capture_output=True, text=True, timeout=120).stdout
+    subprocess.run(
+        [str(exe), "mcap", "convert", str(out), "-o", str(rrd)], check=True, capture_output=True, timeout=120
+    )
+    printed = subprocess.run(
+        [str(exe), "rrd", "print", str(rrd)], check=True, capture_output=True, text=True, timeout=120
+    ).stdout
     lines = [ln for ln in printed.splitlines() if "data columns" in ln]
 
     def columns(topic: str) -> str:

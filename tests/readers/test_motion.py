@@ -14,6 +14,9 @@ from hypothesis import strategies as st
 from onebit._testing.oracles import motion_frames_reference
 from onebit.core.errors import ConfigError
 from onebit.core.frames import motion_frames
+from onebit.core.tables import MOTION, REJECTS
+from onebit.pipeline.report import metric
+from onebit.pipeline.runner import run_pipeline
 from onebit.readers.motion import (
     DebounceRules,
     read_motion,
@@ -21,9 +24,6 @@ from onebit.readers.motion import (
     rules_by_type,
 )
 from onebit.readers.rows import RawRows
-from onebit.core.tables import FRAMES, MOTION, REJECTS
-from onebit.pipeline.report import metric
-from onebit.pipeline.runner import run_pipeline
 from onebit.viz.inspect import entity_paths
 
 SENSORS = ("p1", "p2", "p3")
@@ -95,7 +95,10 @@ def test_chatter_removed_exactly_by_the_rule(case):
     assert plain.motion.height == len(rows) and plain.suppressed.height == 0
 
 
-@given(st.lists(st.tuples(st.floats(0.01, 0.5), st.floats(0.01, 3.0)), min_size=1, max_size=12), st.sampled_from([0.1, 0.2]))
+@given(
+    st.lists(st.tuples(st.floats(0.01, 0.5), st.floats(0.01, 3.0)), min_size=1, max_size=12),
+    st.sampled_from([0.1, 0.2]),
+)
 @settings(max_examples=60, deadline=None)
 def test_min_on_removes_exactly_the_short_pulses(pulses, min_on):
     rows, t, keep = [], 0.0, []
@@ -114,7 +117,9 @@ def test_min_on_removes_exactly_the_short_pulses(pulses, min_on):
 # --------------------------------------------------------------------------- arbitrary junk: nothing lost
 
 junk_value = st.sampled_from(["0", "1", "on", "off", "2", "", "x", None])
-junk_time = st.one_of(st.floats(0, 20, allow_nan=False).map(lambda v: round(v, 1)), st.sampled_from(["nan", "abc", "", None, "inf"]))
+junk_time = st.one_of(
+    st.floats(0, 20, allow_nan=False).map(lambda v: round(v, 1)), st.sampled_from(["nan", "abc", "", None, "inf"])
+)
 junk_sensor = st.sampled_from(["p1", "p2", "p3", "zz", "", None])
 
 
@@ -216,8 +221,12 @@ def test_motion_stage_reads_debounces_and_reports(tmp_path: Path):
     # p1: on 0.5, off 2.5 (the 1.0 off / 1.05 on chatter pair suppressed); p2: on 0.7, off 3.0
     motion = pl.read_parquet(tmp_path / "run" / "tables" / "motion.parquet").sort("t")
     assert motion.schema == MOTION
-    assert list(zip(motion["t"], motion["sensor"], motion["on"])) == [(0.5, "p1", True), (0.7, "p2", True), (2.5, "p1", False),
-                                                                      (3.0, "p2", False)]  # fmt: skip
+    assert list(zip(motion["t"], motion["sensor"], motion["on"])) == [
+        (0.5, "p1", True),
+        (0.7, "p2", True),
+        (2.5, "p1", False),
+        (3.0, "p2", False),
+    ]
     assert not (tmp_path / "run" / "tables" / "frames.parquet").exists()  # each tracker samples its own slots
 
     assert {"sensors/p1", "sensors/p2"} <= entity_paths(tmp_path / "run" / "rrd" / "motion.rrd")
@@ -239,8 +248,10 @@ def test_frames_by_arrays_equal_the_join_reference(edges, period, window):
     for _, s in rows:  # alternating per sensor, starting on
         state[s] = not state.get(s, False)
         on.append(state[s])
-    motion = pl.DataFrame({"t": [t for t, _ in rows], "sensor": [s for _, s in rows], "on": on},
-                          schema={"t": pl.Float64, "sensor": pl.String, "on": pl.Boolean})  # fmt: skip
+    motion = pl.DataFrame(
+        {"t": [t for t, _ in rows], "sensor": [s for _, s in rows], "on": on},
+        schema={"t": pl.Float64, "sensor": pl.String, "on": pl.Boolean},
+    )
     kw = {} if window is None else {"t0": window[0], "t1": window[1]}
     got = motion_frames(motion, ["m1", "m2", "m3", "m4"], period=period, **kw)
     want = motion_frames_reference(motion, ["m1", "m2", "m3", "m4"], period=period, **kw)

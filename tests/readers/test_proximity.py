@@ -3,17 +3,17 @@
 from __future__ import annotations
 
 import numpy as np
-import pytest
 import polars as pl
+import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from onebit.datasets.proximity_sim import SCENARIO_SPECS, make_world
-from onebit.readers.proximity import ProximityConfig, proximity_frames, read_proximity_csv
+from onebit.core.errors import ConfigError, InputError
 from onebit.core.tables import FRAMES, PROXIMITY
+from onebit.datasets.proximity_sim import SCENARIO_SPECS, make_world
 from onebit.pipeline.report import metric
 from onebit.pipeline.runner import run_pipeline
-from onebit.core.errors import ConfigError, InputError
+from onebit.readers.proximity import ProximityConfig, proximity_frames, read_proximity_csv
 
 
 def frames_matrix(frames: pl.DataFrame, ids: list[str]) -> np.ndarray:
@@ -52,11 +52,15 @@ def test_bad_rows_go_to_rejects_with_line_and_reason(tmp_path):
 
 
 @settings(max_examples=60, deadline=None)
-@given(st.lists(st.tuples(st.floats(0, 10, allow_nan=False), st.booleans()), min_size=0, max_size=20),
-       st.floats(0.2, 2.0), st.integers(1, 15))
+@given(
+    st.lists(st.tuples(st.floats(0, 10, allow_nan=False), st.booleans()), min_size=0, max_size=20),
+    st.floats(0.2, 2.0),
+    st.integers(1, 15),
+)
 def test_frames_hold_the_state_after_the_last_edge(edges, period, n):
-    df = pl.DataFrame({"t": [e[0] for e in edges], "sensor": ["a"] * len(edges), "on": [e[1] for e in edges]},
-                      schema=PROXIMITY).sort("t", maintain_order=True)
+    df = pl.DataFrame(
+        {"t": [e[0] for e in edges], "sensor": ["a"] * len(edges), "on": [e[1] for e in edges]}, schema=PROXIMITY
+    ).sort("t", maintain_order=True)
     fr = proximity_frames(df, ["a"], period=period, start=0.0, instants=n)
     assert fr.height == n
     for k, (t, on) in enumerate(zip(fr["t"].to_list(), fr["on"].to_list())):  # brute-force check
@@ -78,9 +82,13 @@ def test_pipeline_reads_proximity_from_the_dataset_run_toml(tmp_path):
 def test_config_rejects_non_finite_values_naming_the_field():
     import pytest
 
-
-    for field, bad in (("start", float("nan")), ("start", float("inf")), ("period", float("inf")),
-                       ("chatter_window", float("inf")), ("instants", -1)):
+    for field, bad in (
+        ("start", float("nan")),
+        ("start", float("inf")),
+        ("period", float("inf")),
+        ("chatter_window", float("inf")),
+        ("instants", -1),
+    ):
         with pytest.raises(ConfigError, match=f"ProximityConfig.{field}"):
             ProximityConfig(**{field: bad})
 

@@ -246,7 +246,11 @@ def mutated(draw, valid: bytes) -> bytes:
     data = bytearray(valid)
     for _ in range(draw(st.integers(1, 5))):
         pos = draw(st.integers(0, len(data)))
-        op = draw(st.sampled_from(["flip", "quote", "newline", "crlf", "cr", "fields", "huge", "ff", "nul", "delete", "blank", "bom"]))
+        op = draw(
+            st.sampled_from(
+                ["flip", "quote", "newline", "crlf", "cr", "fields", "huge", "ff", "nul", "delete", "blank", "bom"]
+            )
+        )
         if op == "flip" and data:
             i = min(pos, len(data) - 1)
             data[i] ^= 1 << draw(st.integers(0, 7))
@@ -286,7 +290,9 @@ def _inputs(kind: str):
 
 
 @pytest.mark.parametrize("kind", KINDS)
-@settings(max_examples=70, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture, HealthCheck.too_slow])
+@settings(
+    max_examples=70, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture, HealthCheck.too_slow]
+)
 @given(data=st.data())
 def test_reader_fuzz(kind, tmp_path_factory, data):
     blob = data.draw(_inputs(kind), label="file")
@@ -339,7 +345,10 @@ def test_casas_fuzz(tmp_path_factory, data):
 
 def test_casas_line_numbers_are_physical(tmp_path):
     p = tmp_path / "log.txt"
-    p.write_bytes(VALID_CASAS.encode().replace(b"D001\tOPEN", b"D001\x0c\rOPEN") + b"bad \xff line\n2010-11-04 00:05:00\tM003\tON\n")
+    p.write_bytes(
+        VALID_CASAS.encode().replace(b"D001\tOPEN", b"D001\x0c\rOPEN")
+        + b"bad \xff line\n2010-11-04 00:05:00\tM003\tON\n"
+    )
     log = read_casas(p)
     assert log.rejects["line"].to_list() == [2, 6] and log.events.height == 5
     check_casas(p)
@@ -400,7 +409,8 @@ def valid_mcap(tmp_path_factory) -> bytes:
 @given(data=st.data())
 def test_mcap_fuzz_bytes(valid_mcap, tmp_path_factory, data):
     blob = data.draw(
-        st.one_of(st.binary(max_size=300), st.binary(max_size=300).map(lambda b: MAGIC + b), mutated(valid_mcap)), label="file"
+        st.one_of(st.binary(max_size=300), st.binary(max_size=300).map(lambda b: MAGIC + b), mutated(valid_mcap)),
+        label="file",
     )
     path = Path(tmp_path_factory.mktemp("mcap")) / "recording.mcap"
     path.write_bytes(blob)
@@ -426,7 +436,9 @@ def test_mcap_junk_messages_are_all_accounted_for(tmp_path_factory, rows):
 
 def test_mcap_message_with_huge_payload_is_bounded(tmp_path):
     path = tmp_path / "recording.mcap"
-    write_mcap(path, {"/crossings": pl.DataFrame({"t": ["1", "x" * 1_000_000], "beam": ["a", "a"], "direction": ["1", "1"]})})
+    write_mcap(
+        path, {"/crossings": pl.DataFrame({"t": ["1", "x" * 1_000_000], "beam": ["a", "a"], "direction": ["1", "1"]})}
+    )
     contents = read_mcap(path)
     ok, rej = crossings_from_rows(RawRowsFactory("recording.mcap:/crossings", contents.channels["/crossings"]), BEAMS)
     assert ok.height == 1 and rej["line"].to_list() == [2]

@@ -10,11 +10,11 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from onebit.core.errors import InputError
+from onebit.core.tables import REJECTS
 from onebit.datasets.catalogue import get_scenario
 from onebit.pipeline.runner import run_pipeline
 from onebit.readers.motion import read_motion
 from onebit.readers.rows import RawRows
-from onebit.core.tables import REJECTS
 from onebit.readers.timebase import column_origin, time_origin
 
 
@@ -49,9 +49,16 @@ def test_an_absurd_span_is_an_error_naming_file_line_and_field():
 
 
 def test_the_reader_rejects_the_lone_row_with_its_line():
-    frame = pl.DataFrame({"line": [2, 3, 4, 5], "t": ["1700000000.0", "1700000001.0", "1e11", "1700000002.0"],
-                          "sensor": ["m1"] * 4, "value": ["1", "0", "1", "1"], "raw": [None] * 4},
-                         schema_overrides={"raw": pl.String})  # fmt: skip
+    frame = pl.DataFrame(
+        {
+            "line": [2, 3, 4, 5],
+            "t": ["1700000000.0", "1700000001.0", "1e11", "1700000002.0"],
+            "sensor": ["m1"] * 4,
+            "value": ["1", "0", "1", "1"],
+            "raw": [None] * 4,
+        },
+        schema_overrides={"raw": pl.String},
+    )
     origin = time_origin({"motion.csv": frame})
     res = read_motion(RawRows("motion.csv", frame, pl.DataFrame(schema=REJECTS)), ["m1"], epoch=origin)
     assert res.motion["t"].to_list() == [0.0, 1.0, 2.0]
@@ -59,8 +66,16 @@ def test_the_reader_rejects_the_lone_row_with_its_line():
 
 
 def test_out_of_order_rows_within_the_tolerance_are_sorted_and_counted():
-    frame = pl.DataFrame({"line": [2, 3, 4, 5], "t": ["10.0", "10.7", "10.1", "8.0"], "sensor": ["a", "b", "c", "a"],
-                          "value": ["ON", "on", "1", "OFF"], "raw": [None] * 4}, schema_overrides={"raw": pl.String})  # fmt: skip
+    frame = pl.DataFrame(
+        {
+            "line": [2, 3, 4, 5],
+            "t": ["10.0", "10.7", "10.1", "8.0"],
+            "sensor": ["a", "b", "c", "a"],
+            "value": ["ON", "on", "1", "OFF"],
+            "raw": [None] * 4,
+        },
+        schema_overrides={"raw": pl.String},
+    )
     res = read_motion(RawRows("motion.csv", frame, pl.DataFrame(schema=REJECTS)), ["a", "b", "c"])
     assert res.motion["t"].to_list() == [10.0, 10.1, 10.7] and res.reordered == 1
     assert res.rejects["line"].to_list() == [5] and "backwards" in res.rejects["reason"][0]
@@ -70,14 +85,18 @@ def test_out_of_order_rows_within_the_tolerance_are_sorted_and_counted():
 def test_a_run_on_wall_clock_logs_builds_slots_from_the_data_not_from_1970(tmp_path, clock):
     """pir14 with its stamps moved to Unix seconds / ISO times: the same report as on 0-based
     seconds (the intruder filter's slots span the data: no 6 GB allocation, no abort)."""
-    data = get_scenario("pir14").write(tmp_path / "d", seed=2, duration=30.0, agents=None, drop=0.0, camera=False, params={})
+    data = get_scenario("pir14").write(
+        tmp_path / "d", seed=2, duration=30.0, agents=None, drop=0.0, camera=False, params={}
+    )
     ref = run_pipeline(data, tmp_path / "ref", trackers=("intruder",))
     for name in ("motion.csv", "truth.csv"):
         df = pl.read_csv(data / name)
         if clock == "unix":
             df = df.with_columns((pl.col("t") + 1.7e9).alias("t"))
         else:
-            stamp = pl.datetime(2024, 5, 1, 23, 59, 30, time_zone="UTC") + pl.duration(microseconds=(pl.col("t") * 1e6).round().cast(pl.Int64))
+            stamp = pl.datetime(2024, 5, 1, 23, 59, 30, time_zone="UTC") + pl.duration(
+                microseconds=(pl.col("t") * 1e6).round().cast(pl.Int64)
+            )
             df = df.with_columns(stamp.dt.strftime("%Y-%m-%dT%H:%M:%S%.6fZ").alias("t"))
         df.write_csv(data / name)
     res = run_pipeline(data, tmp_path / "wall", trackers=("intruder",))

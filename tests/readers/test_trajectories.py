@@ -36,8 +36,11 @@ def test_people_counter_export_in_ms_and_mm(tmp_path):
     assert r.columns == {"time": "timestamp", "track": "person_id", "x": "pos_x", "y": "pos_y"} and r.time_unit == "ms"
     assert r.truth.schema == TRUTH
     assert r.truth.select("t", "target", pl.col("x").round(9), pl.col("y").round(9)).rows() == [
-        (0.0, "7", 0.9, 2.0), (0.0, "9", 5.0, 2.0), (0.5, "7", 1.0, 2.0), (1.0, "9", 4.9, 1.9),
-    ]  # fmt: skip
+        (0.0, "7", 0.9, 2.0),
+        (0.0, "9", 5.0, 2.0),
+        (0.5, "7", 1.0, 2.0),
+        (1.0, "9", 4.9, 1.9),
+    ]
     assert r.origin.origin == 1700000000.0 and r.joined == 1
     rej = dict(zip(r.rejects["line"].to_list(), r.rejects["reason"].to_list()))
     assert set(rej) == {6, 7, 8}
@@ -55,7 +58,11 @@ def test_iso_times_tabs_named_columns_and_axis_flips(tmp_path):
     fmt = TrajectoryFormat(time="when", track="obj", x="east", y="north", flip_y=True, offset=(10.0, 20.0), scale=2.0)
     r = read_trajectories(p, fmt)
     assert r.time_unit == "iso" and r.origin.as_dict()["origin"] == "2024-05-01T10:00:00Z"
-    assert r.truth.select("t", "target", "x", "y").rows() == [(0.0, "a", 12.0, 16.0), (0.5, "a", 14.0, 16.0), (1.0, "b", 16.0, 12.0)]
+    assert r.truth.select("t", "target", "x", "y").rows() == [
+        (0.0, "a", 12.0, 16.0),
+        (0.5, "a", 14.0, 16.0),
+        (1.0, "b", 16.0, 12.0),
+    ]
     swapped = read_trajectories(p, TrajectoryFormat(time="when", track="obj", x="east", y="north", swap_xy=True))
     assert swapped.truth["x"].to_list() == [2.0, 2.0, 4.0]
 
@@ -82,8 +89,16 @@ def test_bad_options_and_missing_columns_name_the_problem(tmp_path):
 
 
 @settings(max_examples=30, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
-@given(rows=st.lists(st.lists(st.sampled_from(["0", "1.5", "-3", "1e11", "1700000000", "x", "", "2024-01-01 00:00:00", "a", "nan"]),
-                              min_size=2, max_size=5), max_size=20))  # fmt: skip
+@given(
+    rows=st.lists(
+        st.lists(
+            st.sampled_from(["0", "1.5", "-3", "1e11", "1700000000", "x", "", "2024-01-01 00:00:00", "a", "nan"]),
+            min_size=2,
+            max_size=5,
+        ),
+        max_size=20,
+    )
+)
 def test_any_rows_read_or_fail_cleanly(tmp_path, rows):
     p = _write(tmp_path, "t,id,x,y\n" + "".join(",".join(r) + "\n" for r in rows), "fuzz.csv")
     try:

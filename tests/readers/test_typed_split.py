@@ -38,7 +38,9 @@ from onebit.readers.timebase import TimeOrigin, column_origin, parts_origin
 
 BEAMS = ("a", "b", "c")
 SENSORS = ("p1", "p2", "p3")
-SETTINGS = settings(max_examples=60, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture, HealthCheck.too_slow])
+SETTINGS = settings(
+    max_examples=60, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture, HealthCheck.too_slow]
+)
 
 
 def _same_beams(path: Path, epoch=None):
@@ -64,15 +66,36 @@ def _same_toggles(path: Path, epoch=None):
 # --------------------------------------------------------------------------- messy files
 
 STAMPS = st.one_of(
-    st.sampled_from(["0", "0.5", "1", "1.5", "2", "2.5", "3", "10", "10.25", "1e11", "-1", "nan", "inf", "abc", "", " 2 ", "1.0 "]),
+    st.sampled_from(
+        ["0", "0.5", "1", "1.5", "2", "2.5", "3", "10", "10.25", "1e11", "-1", "nan", "inf", "abc", "", " 2 ", "1.0 "]
+    ),
     st.floats(0, 20, allow_nan=False).map(lambda v: f"{round(v, 1)}"),
     st.floats(0, 20, allow_nan=False).map(lambda v: f"{1.7e9 + round(v, 1)}"),
     st.sampled_from(["2024-05-01T10:00:00Z", "2024-05-01 10:00:01.5", "2024-05-01T10:00:03+00:00", "2024-05-01 10:00"]),
 )
 BAD_LINES = st.sampled_from(
-    ["", "   ", "\t", "1,a", "1,a,b,1,x", "1,a,b,1,", ",,,", '"1",a,b,1', '1,"a,b",b,1', '1,a"b,a,1', '1,"a', "1,a,b,1\r",
-     "1\r,a,b,1", "1,\xff,a,1", "1,a,a,1\udcff", "\x00", "t,beam,pair,blocked", "é,a,a,1", "1,a,a,1,é"]
-)  # fmt: skip
+    [
+        "",
+        "   ",
+        "\t",
+        "1,a",
+        "1,a,b,1,x",
+        "1,a,b,1,",
+        ",,,",
+        '"1",a,b,1',
+        '1,"a,b",b,1',
+        '1,a"b,a,1',
+        '1,"a',
+        "1,a,b,1\r",
+        "1\r,a,b,1",
+        "1,\xff,a,1",
+        "1,a,a,1\udcff",
+        "\x00",
+        "t,beam,pair,blocked",
+        "é,a,a,1",
+        "1,a,a,1,é",
+    ]
+)
 
 
 @st.composite
@@ -109,10 +132,18 @@ def toggle_file(draw) -> bytes:
             lines.append(f"{t},{sensor},{draw(st.sampled_from(values))}")
     if lines and draw(st.booleans()):
         lines.insert(draw(st.integers(0, len(lines))), draw(st.sampled_from(lines)))
-    return ("\n".join(["t,sensor,value", *lines]) + draw(st.sampled_from(["\n", ""]))).encode("utf-8", errors="surrogateescape")
+    return ("\n".join(["t,sensor,value", *lines]) + draw(st.sampled_from(["\n", ""]))).encode(
+        "utf-8", errors="surrogateescape"
+    )
 
 
-EPOCHS = st.sampled_from([None, "2024-05-01T09:59:00Z", TimeOrigin(origin=0.0, numeric=0.0, iso=1714557600.0, lo=0.0, hi=30.0, source="data")])
+EPOCHS = st.sampled_from(
+    [
+        None,
+        "2024-05-01T09:59:00Z",
+        TimeOrigin(origin=0.0, numeric=0.0, iso=1714557600.0, lo=0.0, hi=30.0, source="data"),
+    ]
+)
 
 
 @SETTINGS
@@ -138,7 +169,9 @@ def _beam_rows(rng, n):
     return [f"{t[k]},{rng.choice(BEAMS)},{rng.choice(['a', 'b'])},{rng.integers(0, 2)}" for k in range(n)]
 
 
-@pytest.mark.parametrize("bad", ["1,a,b,1,x", "1,zz,a,1", '1,"a",a,1', "1,a,a,1\udcff", "nan,a,a,1", "1,a", "   ", "1e11,a,a,1"])
+@pytest.mark.parametrize(
+    "bad", ["1,a,b,1,x", "1,zz,a,1", '1,"a",a,1', "1,a,a,1\udcff", "nan,a,a,1", "1,a", "   ", "1e11,a,a,1"]
+)
 def test_a_few_bad_lines_in_a_large_file(tmp_path, bad):
     """Past the kernels' MIN_ROWS, with the long-line count on every line: only the bad lines
     are typed row by row, the result is the row-by-row path's."""
@@ -163,7 +196,10 @@ def test_extra_columns_and_a_short_line_in_a_large_file(tmp_path):
     path.write_text("\n".join(["t,beam,pair,blocked,note", *rows]) + "\n")
     out = _same_beams(path)
     shape = out.rejects.filter(pl.col("reason").str.contains("fields"))
-    assert shape["line"].to_list() == [102, 202] and shape["reason"].to_list() == ["too few fields (4 of 5)", "too many fields (6 of 5)"]
+    assert shape["line"].to_list() == [102, 202] and shape["reason"].to_list() == [
+        "too few fields (4 of 5)",
+        "too many fields (6 of 5)",
+    ]
 
 
 # --------------------------------------------------------------------------- the pieces
@@ -181,7 +217,9 @@ def test_line_texts_are_physical_lines(blob, extra):
 @given(blob=st.binary(max_size=300).map(lambda b: b.replace(b"\x01", b",")))
 def test_separator_kernel_equals_reference(blob):
     buf = np.frombuffer(blob, dtype=np.uint8)
-    assert np.array_equal(kernels.separators_per_line(buf, ord(",")), kernels.separators_per_line_reference(buf, ord(",")))
+    assert np.array_equal(
+        kernels.separators_per_line(buf, ord(",")), kernels.separators_per_line_reference(buf, ord(","))
+    )
 
 
 @settings(max_examples=100, deadline=None)
@@ -195,7 +233,9 @@ def test_repeat_kernel_equals_reference(edges):
 
 @settings(max_examples=150, deadline=None)
 @given(
-    stamps=st.lists(st.one_of(st.floats(-5, 30, allow_nan=False).map(lambda v: repr(round(v, 2))), STAMPS), max_size=30),
+    stamps=st.lists(
+        st.one_of(st.floats(-5, 30, allow_nan=False).map(lambda v: repr(round(v, 2))), STAMPS), max_size=30
+    ),
     cut=st.integers(0, 30),
     epoch=st.sampled_from([None, "2024-05-01T09:59:00Z"]),
 )
@@ -203,7 +243,9 @@ def test_parts_origin_equals_column_origin(stamps, cut, epoch):
     """Numbers parsed by the typed read plus the rest as strings give the origin of the whole column."""
     col = pl.Series("t", stamps, dtype=pl.String)
     num = col.str.strip_chars().cast(pl.Float64, strict=False)
-    typed = num.is_finite().fill_null(False) & (pl.int_range(0, col.len(), eager=True) < cut)  # any subset of the finite numbers
+    typed = num.is_finite().fill_null(False) & (
+        pl.int_range(0, col.len(), eager=True) < cut
+    )  # any subset of the finite numbers
     numbers = num.filter(typed)
     strings = col.filter(~typed)
     assert parts_origin(numbers, strings, epoch) == column_origin(pl.DataFrame({"t": col}), "t", epoch)
@@ -244,7 +286,10 @@ def test_messy_truth_gives_the_row_by_row_result(tmp_path_factory, blob, epoch):
 
 
 @SETTINGS
-@given(blob=table_file("t,beam,direction,target", [STAMPS, st.sampled_from(["a", "b", "zz", " a"]), DIRECTIONS, NAMES]), epoch=EPOCHS)
+@given(
+    blob=table_file("t,beam,direction,target", [STAMPS, st.sampled_from(["a", "b", "zz", " a"]), DIRECTIONS, NAMES]),
+    epoch=EPOCHS,
+)
 def test_messy_crossings_give_the_row_by_row_result(tmp_path_factory, blob, epoch):
     from onebit.readers.tables_csv import (
         crossings_from_rows,
@@ -260,7 +305,9 @@ def test_messy_crossings_give_the_row_by_row_result(tmp_path_factory, blob, epoc
     for a, b in zip(fast, slow):
         assert a.schema == b.schema and a.equals(b), (a, b)
     fast = read_true_crossings_csv(path, BEAMS, epoch=epoch)
-    slow = true_crossings_from_rows(read_csv_rows(path, ("t", "beam", "direction", "target")), BEAMS, epoch=epoch, path=path)
+    slow = true_crossings_from_rows(
+        read_csv_rows(path, ("t", "beam", "direction", "target")), BEAMS, epoch=epoch, path=path
+    )
     for a, b in zip(fast, slow):
         assert a.schema == b.schema and a.equals(b), (a, b)
 
@@ -288,10 +335,13 @@ def test_one_column_read_gives_the_row_by_row_stamps_and_origin(tmp_path_factory
     assert origin(fast) == origin(slow)
 
 
-@pytest.mark.parametrize("header,long", [
-    ("t,sensor,value,a,b", "2,p1,1,x,y,z"),  # columns after the wanted ones, not read
-    ("t,a,sensor,value", "2,x,p1,1,z"),  # a column between them
-])  # fmt: skip
+@pytest.mark.parametrize(
+    "header,long",
+    [
+        ("t,sensor,value,a,b", "2,p1,1,x,y,z"),  # columns after the wanted ones, not read
+        ("t,a,sensor,value", "2,x,p1,1,z"),  # a column between them
+    ],
+)
 def test_a_long_line_is_rejected_when_some_columns_are_not_read(tmp_path, header, long):
     """The strict typed read does not notice a long line when it does not read every column:
     the separators are counted then, and the line goes row by row, rejected as there."""

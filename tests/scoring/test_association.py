@@ -104,9 +104,7 @@ def test_no_gate_prefers_more_matches_over_lower_cost():
 
 def test_mean_and_sum_differ_for_tracks_of_different_lengths():
     # "short" is near target a for 1 sample (error 2); "long" for 4 samples (error 1 each)
-    pairs = pl.DataFrame(
-        {"track": ["short"] + ["long"] * 4, "target": ["a"] * 5, "cost": [2.0, 1.0, 1.0, 1.0, 1.0]}
-    )
+    pairs = pl.DataFrame({"track": ["short"] + ["long"] * 4, "target": ["a"] * 5, "cost": [2.0, 1.0, 1.0, 1.0, 1.0]})
     assert associate(pairs, reduce="mean")["track"].to_list() == ["long"]
     assert associate(pairs, reduce="sum")["track"].to_list() == ["short"]
 
@@ -132,10 +130,16 @@ def test_empty_pairs_give_an_empty_matching():
 def test_pair_samples_takes_each_targets_truth_nearest_in_time(seed, tolerance):
     rng = np.random.default_rng(seed)
     truth = pl.DataFrame(
-        {"t": np.r_[np.sort(rng.uniform(0, 10, 15)), np.sort(rng.uniform(2, 8, 9))], "target": ["a"] * 15 + ["b"] * 9,
-         "x": rng.random(24), "y": rng.random(24)}
+        {
+            "t": np.r_[np.sort(rng.uniform(0, 10, 15)), np.sort(rng.uniform(2, 8, 9))],
+            "target": ["a"] * 15 + ["b"] * 9,
+            "x": rng.random(24),
+            "y": rng.random(24),
+        }
     )
-    tracks = pl.DataFrame({"track": ["k2"] * 7 + ["k1"] * 6, "t": rng.uniform(0, 10, 13), "x": rng.random(13), "y": rng.random(13)})
+    tracks = pl.DataFrame(
+        {"track": ["k2"] * 7 + ["k1"] * 6, "t": rng.uniform(0, 10, 13), "x": rng.random(13), "y": rng.random(13)}
+    )
     pairs = pair_samples(tracks, truth, tolerance=tolerance)
     expect = []
     for tk, t, x, y in tracks.iter_rows():  # brute force, a few rows
@@ -150,7 +154,9 @@ def test_pair_samples_takes_each_targets_truth_nearest_in_time(seed, tolerance):
 
 def test_complete_pairs_add_the_slots_a_track_misses():
     truth = pl.DataFrame({"t": [0.0, 1.0, 2.0], "target": ["a"] * 3, "x": [0.0, 1.0, 2.0], "y": [0.0] * 3})
-    tracks = pl.DataFrame({"track": ["k1", "k1", "k1", "k2"], "t": [0.0, 1.0, 2.0, 1.0], "x": [0.0, 1.0, 2.0, 5.0], "y": [0.0] * 4})
+    tracks = pl.DataFrame(
+        {"track": ["k1", "k1", "k1", "k2"], "t": [0.0, 1.0, 2.0, 1.0], "x": [0.0, 1.0, 2.0, 5.0], "y": [0.0] * 4}
+    )
     full = pair_samples(tracks, truth, tolerance=0.1, complete=True)
     assert full.height == 6  # 3 slots x 2 tracks
     missing = full.filter(pl.col("x").is_null())

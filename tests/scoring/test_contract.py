@@ -24,9 +24,13 @@ ENTRIES = {e.name: e for e in TRACKERS}
 SCENARIO = {e.name: e.scenario for e in TRACKERS}
 #: empty tables of the canonical schemas, for every input a tracker may take
 EMPTY_INPUTS = {
-    "motion": MOTION, "frames": FRAMES, "proximity": PROXIMITY, "proximity_frames": FRAMES,
-    "crossings": CROSSINGS, "corrected_crossings": CROSSINGS,
-}  # fmt: skip
+    "motion": MOTION,
+    "frames": FRAMES,
+    "proximity": PROXIMITY,
+    "proximity_frames": FRAMES,
+    "crossings": CROSSINGS,
+    "corrected_crossings": CROSSINGS,
+}
 
 
 def test_every_tracker_is_covered(scenario_sites):

@@ -26,8 +26,13 @@ def test_an_agent_sharing_no_crossing_stays_unmatched():
 
 
 def test_no_crossing_and_no_true_target():
-    assert assignment_scores(pl.DataFrame({"target": []}, schema={"target": pl.String}), pl.DataFrame({"track": []}, schema={"track": pl.String})) == (1.0, {})
-    assert assignment_scores(pl.DataFrame({"target": [None]}, schema={"target": pl.String}), pl.DataFrame({"track": ["x"]})) == (0.0, {})
+    assert assignment_scores(
+        pl.DataFrame({"target": []}, schema={"target": pl.String}),
+        pl.DataFrame({"track": []}, schema={"track": pl.String}),
+    ) == (1.0, {})
+    assert assignment_scores(
+        pl.DataFrame({"target": [None]}, schema={"target": pl.String}), pl.DataFrame({"track": ["x"]})
+    ) == (0.0, {})
 
 
 @pytest.mark.parametrize("seed", range(5))
@@ -79,7 +84,9 @@ def _random_polygons(rng):
     holed = shapely.difference(ring, box(cx - 0.5, cy - 0.5, cx + 0.5, cy + 0.5))
     x0, y0 = rng.uniform(-6, 6, 2)
     tri = Polygon([(x0, y0), (x0 + 2, y0), (x0 + 2, y0), (x0 + 1, y0 + 1.7)])
-    multi = MultiPolygon([box(*rng.uniform(-8, -2, 2), *rng.uniform(-1, 0, 2)), box(*rng.uniform(1, 2, 2), *rng.uniform(3, 8, 2))])
+    multi = MultiPolygon(
+        [box(*rng.uniform(-8, -2, 2), *rng.uniform(-1, 0, 2)), box(*rng.uniform(1, 2, 2), *rng.uniform(3, 8, 2))]
+    )
     return np.array([box(*rng.uniform(-6, 0, 2), *rng.uniform(0.1, 6, 2)), holed, multi, tri, Polygon()], dtype=object)
 
 
@@ -99,7 +106,9 @@ def test_polygon_distance_xy_is_shapelys_distance(seed):
     coords = shapely.get_coordinates(shapely.boundary(polys[:4]))
     t = rng.uniform(0, 1, (50, 1))
     a, b = coords[rng.integers(0, len(coords), 50)], coords[rng.integers(0, len(coords), 50)]
-    pts = np.vstack([rng.uniform(-12, 12, (300, 2)), coords, a + t * (b - a), coords + rng.normal(0, 1e-9, coords.shape)])
+    pts = np.vstack(
+        [rng.uniform(-12, 12, (300, 2)), coords, a + t * (b - a), coords + rng.normal(0, 1e-9, coords.shape)]
+    )
     which = rng.integers(0, len(polys), len(pts))
     ours = polygon_distance_xy(polys, which, pts[:, 0], pts[:, 1])
     ref = shapely.distance(polys[which], shapely.points(pts))

@@ -6,8 +6,8 @@ import polars as pl
 import pytest
 
 from onebit.core.tables import SCORES
-from onebit.scoring.findinghumo import score
 from onebit.models.graph_hmm.eatg import hop_matrix
+from onebit.scoring.findinghumo import score
 
 
 def test_users_take_the_track_of_least_summed_hops_and_missed_slots_cost_the_diameter(hallway_site):
@@ -19,11 +19,22 @@ def test_users_take_the_track_of_least_summed_hops_and_missed_slots_cost_the_dia
     far = g.nodes[int(hops[g.nodes.index(a)].argmax())]
     xy = {m.id: m.position for m in site.motion_sensors}
     truth = pl.DataFrame(
-        {"t": [0.5, 1.5, 2.5] * 2, "target": ["u1"] * 3 + ["u2"] * 3,
-         "x": [xy[a][0]] * 3 + [xy[far][0]] * 3, "y": [xy[a][1]] * 3 + [xy[far][1]] * 3}
-    )  # fmt: skip
+        {
+            "t": [0.5, 1.5, 2.5] * 2,
+            "target": ["u1"] * 3 + ["u2"] * 3,
+            "x": [xy[a][0]] * 3 + [xy[far][0]] * 3,
+            "y": [xy[a][1]] * 3 + [xy[far][1]] * 3,
+        }
+    )
     # k1 sits on u2's node; k2 on u1's node but misses the last slot
-    tracks = pl.DataFrame({"tracker": "hmm1", "track": ["k1"] * 3 + ["k2"] * 2, "t": [0.5, 1.5, 2.5, 0.5, 1.5], "node": [far] * 3 + [a, b]})
+    tracks = pl.DataFrame(
+        {
+            "tracker": "hmm1",
+            "track": ["k1"] * 3 + ["k2"] * 2,
+            "t": [0.5, 1.5, 2.5, 0.5, 1.5],
+            "node": [far] * 3 + [a, b],
+        }
+    )
     rows, made = score("hmm1", {"hmm1_tracks": tracks, "truth": truth}, site)
     m = {r[1]: r[2] for r in rows}
     assert m["users_true"] == 2 and m["users_decoded"] == 2

@@ -9,7 +9,12 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from onebit.scoring.identity import (
-    adjusted_rand_index, baseline_rows, busier_events, identity_scores, nearest_events, presence_count,
+    adjusted_rand_index,
+    baseline_rows,
+    busier_events,
+    identity_scores,
+    nearest_events,
+    presence_count,
 )
 from onebit.trackers.attribution import attribute_events
 
@@ -64,7 +69,9 @@ def test_ari_hand_cases():
     assert adjusted_rand_index(a, np.array([5, 5, 7, 7])) == 1.0
     assert adjusted_rand_index(a, np.array([0, 1, 0, 1])) == pytest.approx(-0.5)
     # sklearn's value for this pair: 0.24242424...
-    assert adjusted_rand_index(np.array([0, 0, 0, 1, 1, 1]), np.array([0, 0, 1, 1, 2, 2])) == pytest.approx(0.242424, abs=1e-6)
+    assert adjusted_rand_index(np.array([0, 0, 0, 1, 1, 1]), np.array([0, 0, 1, 1, 2, 2])) == pytest.approx(
+        0.242424, abs=1e-6
+    )
 
 
 @settings(max_examples=50, deadline=None)
@@ -80,7 +87,9 @@ def test_ari_is_symmetric_and_invariant_to_renaming(labels, seed):
 
 
 def test_presence_and_count_error():
-    te = pl.DataFrame({"t": [0.0, 120.0, 60.0, 2000.0, 2030.0], "sensor": ["a"] * 5, "residents": ["1", "1", "2", "2", "2"]})
+    te = pl.DataFrame(
+        {"t": [0.0, 120.0, 60.0, 2000.0, 2030.0], "sensor": ["a"] * 5, "residents": ["1", "1", "2", "2", "2"]}
+    )
     minutes = np.array([0.0, 60.0, 120.0])
     # resident 1 present 0..120; resident 2 present at 60 only (gap 1940 s > 600 s), then again from 2000
     assert presence_count(te, minutes).tolist() == pytest.approx([1.0, 1.0, 0.0])
@@ -93,11 +102,15 @@ def test_nearest_baseline_follows_two_walkers():
     line = ["a", "b", "c", "d", "x", "y", "z"]
     hops = {(p, q): abs(line.index(p) - line.index(q)) for p in line for q in line}
     seq = [("a", "1"), ("z", "2"), ("b", "1"), ("y", "2"), ("c", "1"), ("x", "2")]
-    te = pl.DataFrame({"t": [float(i) for i in range(6)], "sensor": [s for s, _ in seq], "residents": [r for _, r in seq]})
+    te = pl.DataFrame(
+        {"t": [float(i) for i in range(6)], "sensor": [s for s, _ in seq], "residents": [r for _, r in seq]}
+    )
     ev = nearest_events(te, hops, 2)
     assert ev["track"].to_list() == ["p1", "p2", "p1", "p2", "p1", "p2"]
     rows = {(st, m): v for st, m, v, _ in baseline_rows(te, hops)}
-    assert rows[("identity-nearest", "identity_accuracy")] == 1.0 and rows[("identity-busier", "identity_accuracy")] == 0.5
+    assert (
+        rows[("identity-nearest", "identity_accuracy")] == 1.0 and rows[("identity-busier", "identity_accuracy")] == 0.5
+    )
 
 
 def test_attribution_at_the_sensor_then_nearest_then_none():
@@ -106,7 +119,11 @@ def test_attribution_at_the_sensor_then_nearest_then_none():
     t0, period = 0.0, 1.0
     tracks = pl.DataFrame({"track": ["user1", "user2", "user1"], "t": [0.5, 0.5, 2.5], "node": ["a", "c", "a"]})
     motion = pl.DataFrame(
-        {"t": [0.2, 0.3, 0.4, 0.6, 1.5, 2.2], "sensor": ["c", "b", "d", "a", "a", "zz"], "on": [True, True, True, False, True, True]}
+        {
+            "t": [0.2, 0.3, 0.4, 0.6, 1.5, 2.2],
+            "sensor": ["c", "b", "d", "a", "a", "zz"],
+            "on": [True, True, True, False, True, True],
+        }
     )
     ev = attribute_events(motion, tracks, nodes, hops, t0=t0, period=period)
     assert ev.rows() == [

@@ -13,11 +13,15 @@ from onebit.scoring.serve import CannotServe, targets_at_once
 
 def _truth():
     t = np.arange(0.0, 10.5, 0.5)
-    return pl.DataFrame({"t": np.r_[t, t], "target": ["a"] * t.size + ["b"] * t.size, "x": np.r_[t, t], "y": np.r_[t * 0, t * 0 + 5.0]})
+    return pl.DataFrame(
+        {"t": np.r_[t, t], "target": ["a"] * t.size + ["b"] * t.size, "x": np.r_[t, t], "y": np.r_[t * 0, t * 0 + 5.0]}
+    )
 
 
 def test_the_track_is_scored_against_the_target_of_least_mean_error():
-    tracks = pl.DataFrame({"tracker": "intruder", "track": "k", "t": [2.0, 4.0, 6.0], "x": [2.0, 4.0, 6.0], "y": [4.0, 4.5, None]})
+    tracks = pl.DataFrame(
+        {"tracker": "intruder", "track": "k", "t": [2.0, 4.0, 6.0], "x": [2.0, 4.0, 6.0], "y": [4.0, 4.5, None]}
+    )
     sc = match_errors(tracks, _truth(), tolerance=0.25)
     assert sc.schema == SCORES
     assert sc["target"].unique().to_list() == ["b"] and sc["error"].to_list() == pytest.approx([1.0, 0.5])
@@ -41,7 +45,9 @@ def test_several_targets_at_once_cannot_be_served(hallway_site):
     with pytest.raises(CannotServe, match="2 targets at once"):
         score("intruder", {"intruder_tracks": tracks, "truth": _truth()}, hallway_site)
     # people who come one after the other are one at a time: served
-    one_by_one = _truth().with_columns(pl.when(pl.col("target") == "b").then(pl.col("t") + 20.0).otherwise(pl.col("t")).alias("t"))
+    one_by_one = _truth().with_columns(
+        pl.when(pl.col("target") == "b").then(pl.col("t") + 20.0).otherwise(pl.col("t")).alias("t")
+    )
     assert targets_at_once(one_by_one) == 1
     rows, _ = score("intruder", {"intruder_tracks": tracks, "truth": one_by_one}, hallway_site)
     assert {r[1] for r in rows} >= {"mean_error_cells", "scored_iterations"}

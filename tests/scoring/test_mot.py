@@ -32,7 +32,9 @@ def scene():
     objects = pl.DataFrame(obj, schema={"t": pl.Float64, "target": pl.String}, orient="row")
     hypotheses = pl.DataFrame(hyp, schema={"t": pl.Float64, "track": pl.String}, orient="row")
     distances = objects.join(hypotheses, on="t").with_columns(
-        distance=pl.struct("target", "track").map_elements(lambda r: near.get((r["target"], r["track"]), 5.0), return_dtype=pl.Float64)
+        distance=pl.struct("target", "track").map_elements(
+            lambda r: near.get((r["target"], r["track"]), 5.0), return_dtype=pl.Float64
+        )
     )
     return objects, hypotheses, distances
 
@@ -61,12 +63,19 @@ def direct_trackeval(objects, hypotheses, distances, gate):
     for t in times:
         o = sorted(objects.filter(pl.col("t") == t)["target"])
         h = sorted(hypotheses.filter(pl.col("t") == t)["track"])
-        s = np.array([[max(0.0, 1 - d.get((t, g, k), np.inf) / (2 * gate)) for k in h] for g in o]).reshape(len(o), len(h))
+        s = np.array([[max(0.0, 1 - d.get((t, g, k), np.inf) / (2 * gate)) for k in h] for g in o]).reshape(
+            len(o), len(h)
+        )
         data["gt_ids"].append(np.array([gi[g] for g in o], dtype=int))
         data["tracker_ids"].append(np.array([ki[k] for k in h], dtype=int))
         data["similarity_scores"].append(s)
-    data.update(num_timesteps=len(times), num_gt_ids=len(gi), num_tracker_ids=len(ki),
-                num_gt_dets=objects.height, num_tracker_dets=hypotheses.height)
+    data.update(
+        num_timesteps=len(times),
+        num_gt_ids=len(gi),
+        num_tracker_ids=len(ki),
+        num_gt_dets=objects.height,
+        num_tracker_dets=hypotheses.height,
+    )
     quiet = {"PRINT_CONFIG": False}
     return HOTA().eval_sequence(data), CLEAR(quiet).eval_sequence(data), Identity(quiet).eval_sequence(data)
 
@@ -162,23 +171,32 @@ def test_every_tracker_has_a_gate_with_a_reason():
 
 
 def _truth(rows):
-    return pl.DataFrame(rows, schema={"t": pl.Float64, "target": pl.String, "x": pl.Float64, "y": pl.Float64}, orient="row").with_columns(
-        region=pl.lit(None, pl.String), node=pl.lit(None, pl.String)
-    ).select(list(TRUTH))
+    return (
+        pl.DataFrame(
+            rows, schema={"t": pl.Float64, "target": pl.String, "x": pl.Float64, "y": pl.Float64}, orient="row"
+        )
+        .with_columns(region=pl.lit(None, pl.String), node=pl.lit(None, pl.String))
+        .select(list(TRUTH))
+    )
 
 
 def test_point_frames_score_every_truth_frame(hallway_site):
     """Every truth frame is a frame; a tracker sample holds for half its period around it; the
     truth frames it does not reach count their targets as misses."""
     truth = _truth([(t / 10, "a", t / 10, 0.0) for t in range(0, 101)])  # 10 Hz, x = t
-    tracks = pl.DataFrame({"track": ["k"] * 5, "t": [2.0, 4.0, 6.0, 8.0, 10.0], "x": [2.0, 4.5, 6.0, 8.0, None], "y": [0.0] * 5})
+    tracks = pl.DataFrame(
+        {"track": ["k"] * 5, "t": [2.0, 4.0, 6.0, 8.0, 10.0], "x": [2.0, 4.5, 6.0, 8.0, None], "y": [0.0] * 5}
+    )
     obj, hyp, dist = point_frames(tracks, truth)
     assert obj.height == 101  # every truth frame, the track's samples or not
     held = [t / 10 for t in range(10, 91)]  # within 1 s (half the track's 2 s period) of a sample with a position
     assert hyp["t"].to_list() == pytest.approx(held)
     d = dict(zip(dist["t"].to_list(), dist["distance"].to_list()))
     assert d[3.0] == pytest.approx(1.5) and d[4.0] == pytest.approx(0.5) and d[7.0] == pytest.approx(1.0)
-    rows = dict((r[1], r[2]) for r in mot_rows("intruder", GATE["intruder"], {"intruder_tracks": tracks, "truth": truth}, hallway_site, None))
+    rows = dict(
+        (r[1], r[2])
+        for r in mot_rows("intruder", GATE["intruder"], {"intruder_tracks": tracks, "truth": truth}, hallway_site, None)
+    )
     assert rows["mot_frames"] == 101 and rows["mot_misses"] == 101 - 81
     assert rows["mota"] == pytest.approx(1 - 20 / 101) and rows["mot_gate"] == 2.0
     # at 1 m the frames 1.5 m and 1.1-1.4 m off the 4.5 estimate are misses and false positives
@@ -192,13 +210,18 @@ def test_a_silent_tracker_scores_every_miss(hallway_site):
     miss, MOTA <= 0 (never NaN, never a score over the few frames it spoke)."""
     truth = _truth([(t / 2, g, 5.0 + t / 4, 5.0 + k) for t in range(40) for k, g in enumerate("ab")])
     silent = pl.DataFrame(schema={"track": pl.String, "t": pl.Float64, "x": pl.Float64, "y": pl.Float64})
-    rows = dict((r[1], r[2]) for r in mot_rows("istate", GATE["istate"], {"istate_tracks": silent, "truth": truth}, hallway_site, None))
+    rows = dict(
+        (r[1], r[2])
+        for r in mot_rows("istate", GATE["istate"], {"istate_tracks": silent, "truth": truth}, hallway_site, None)
+    )
     assert rows["mota@1m"] <= 0 and rows["misses@1m"] == truth.height == 80 and rows["false_positives@1m"] == 0
     assert rows["count_error"] == 2.0
     # a tracker that speaks at 4 of the 40 frames is scored on all 40
     few = pl.DataFrame({"track": ["k"] * 4, "t": [0.0, 5.0, 10.0, 15.0], "x": [5.0, 6.25, 7.5, 8.75], "y": [5.0] * 4})
     obj, hyp, dist = point_frames(few, truth)
-    assert obj["t"].n_unique() == 40 and hyp["t"].n_unique() == 36  # each sample holds 2.5 s either side (its 5 s period): 0 .. 17.5 s
+    assert (
+        obj["t"].n_unique() == 40 and hyp["t"].n_unique() == 36
+    )  # each sample holds 2.5 s either side (its 5 s period): 0 .. 17.5 s
     m = mot_metrics(obj, hyp, dist, gate=1.0)
     assert m["objects"] == 80 and m["misses"] >= 80 - 36 and m["frames"] == 40
 
@@ -217,8 +240,12 @@ def test_metric_gates_are_configurable_and_in_world_units(hallway_site):
     feet = site_from_dict({"units": "ft", "boundary": {"polygon": [[0, 0], [30, 0], [30, 30], [0, 30]]}})
     truth = _truth([(float(t), "a", 10.0, 10.0) for t in range(10)])
     off = 1.2 / 0.3048  # 1.2 m in feet
-    tracks = pl.DataFrame({"track": ["k"] * 10, "t": [float(t) for t in range(10)], "x": [10.0 + off] * 10, "y": [10.0] * 10})
-    rows = dict((r[1], r[2]) for r in mot_rows("x", None, {"x_tracks": tracks, "truth": truth}, feet, None, gates_m=(1.0, 1.5)))
+    tracks = pl.DataFrame(
+        {"track": ["k"] * 10, "t": [float(t) for t in range(10)], "x": [10.0 + off] * 10, "y": [10.0] * 10}
+    )
+    rows = dict(
+        (r[1], r[2]) for r in mot_rows("x", None, {"x_tracks": tracks, "truth": truth}, feet, None, gates_m=(1.0, 1.5))
+    )
     assert rows["mota@1m"] == -1.0 and rows["misses@1m"] == 10  # 1.2 m off: outside 1 m
     assert rows["mota@1.5m"] == 1.0 and rows["motp@1.5m"] == pytest.approx(off)
     assert ScoresConfig(gates_m=[1.5, 1.0]).gates_m == (1.5, 1.0) and ScoresConfig(gates_m=2).gates_m == (2.0,)
@@ -233,7 +260,10 @@ def test_metric_gates_are_configurable_and_in_world_units(hallway_site):
 def test_paper_gate_rows_say_their_gate(hallway_site):
     truth = _truth([(float(t), "a", 1.0, 1.0) for t in range(3)])
     tracks = pl.DataFrame({"track": ["k"] * 3, "t": [0.0, 1.0, 2.0], "x": [1.0] * 3, "y": [1.0] * 3})
-    units = {r[1]: r[3] for r in mot_rows("intruder", GATE["intruder"], {"intruder_tracks": tracks, "truth": truth}, hallway_site, None)}
+    units = {
+        r[1]: r[3]
+        for r in mot_rows("intruder", GATE["intruder"], {"intruder_tracks": tracks, "truth": truth}, hallway_site, None)
+    }
     assert units["mota"] == "fraction @ 2 cells" and units["mota@1m"] == "fraction"
 
 

@@ -14,7 +14,6 @@ from pathlib import Path
 
 import polars as pl
 import pytest
-
 import rerun as rr
 
 from onebit.core.region_graph import build_region_graph

@@ -48,8 +48,16 @@ def data(tmp_path_factory) -> dict[str, tuple]:
     """Per kind: (site, inputs with an empty stretch, (start, end) of the stretch)."""
     root = tmp_path_factory.mktemp("empty-room")
     out = {}
-    for kind, duration in (("beams-lab", 40.0), ("pir14", 40.0), ("proximity-line", None), ("hallway", 40.0), ("istate-room", 30.0)):
-        d = get_scenario(kind).write(root / kind, seed=5, duration=duration, agents=None, drop=0.0, camera=False, params={})
+    for kind, duration in (
+        ("beams-lab", 40.0),
+        ("pir14", 40.0),
+        ("proximity-line", None),
+        ("hallway", 40.0),
+        ("istate-room", 30.0),
+    ):
+        d = get_scenario(kind).write(
+            root / kind, seed=5, duration=duration, agents=None, drop=0.0, camera=False, params={}
+        )
         site = load_site(Path(d) / "site.toml")
         inputs: dict = {"region_graph": build_region_graph(site)}
         if kind == "beams-lab":
@@ -80,8 +88,11 @@ def data(tmp_path_factory) -> dict[str, tuple]:
 def test_no_track_where_nobody_is(data, name):
     entry = ENTRIES[name]
     site, inputs, (a, b) = data[KIND[name]]
-    out = entry.spec.run({k: v for k, v in inputs.items() if k in (*entry.spec.needs, *entry.spec.wants, "region_graph")},
-                         site, entry.spec.config())  # fmt: skip
+    out = entry.spec.run(
+        {k: v for k, v in inputs.items() if k in (*entry.spec.needs, *entry.spec.wants, "region_graph")},
+        site,
+        entry.spec.config(),
+    )
     tracks = out["tracks"]
     assert tracks.schema == TRACKS
     assert tracks.filter(pl.col("t") < a).height > 0, "tracks while people are there"

@@ -18,14 +18,16 @@ from onebit.core.site import load_site
 from onebit.datasets.catalogue import get_scenario
 from onebit.pipeline.report import metric
 from onebit.pipeline.runner import run_pipeline
-from onebit.trackers.beams.stage import BeamsConfig, run as run_beams
+from onebit.trackers.beams.stage import BeamsConfig
+from onebit.trackers.beams.stage import run as run_beams
 from onebit.trackers.findinghumo.stage import cap_users
 
 
 @pytest.fixture(scope="module")
 def hallway(tmp_path_factory):
-    return get_scenario("hallway").write(tmp_path_factory.mktemp("t") / "hall", seed=1, duration=40.0, agents=3, drop=0.0,
-                                         camera=False, params={})  # fmt: skip
+    return get_scenario("hallway").write(
+        tmp_path_factory.mktemp("t") / "hall", seed=1, duration=40.0, agents=3, drop=0.0, camera=False, params={}
+    )
 
 
 def test_declared_targets_skip_the_single_target_filter(hallway, tmp_path):
@@ -51,11 +53,17 @@ def test_undeclared_targets_the_report_says_the_filter_cannot_serve(hallway, tmp
 
 
 def test_istate_people_come_and_go(tmp_path):
-    data = get_scenario("istate-room").write(tmp_path / "room", seed=2, duration=40.0, agents=2, drop=0.0, camera=False, params={})
+    data = get_scenario("istate-room").write(
+        tmp_path / "room", seed=2, duration=40.0, agents=2, drop=0.0, camera=False, params={}
+    )
     truth = pl.read_csv(data / "truth.csv")
     # target2 leaves at 20 s and a third person comes in: 3 ids, never more than 2 at once
-    truth = truth.with_columns(pl.when((pl.col("target") == "target2") & (pl.col("t") >= 20.0)).then(pl.lit("target3"))
-                               .otherwise(pl.col("target")).alias("target"))  # fmt: skip
+    truth = truth.with_columns(
+        pl.when((pl.col("target") == "target2") & (pl.col("t") >= 20.0))
+        .then(pl.lit("target3"))
+        .otherwise(pl.col("target"))
+        .alias("target")
+    )
     truth.write_csv(data / "truth.csv")
     res = run_pipeline(data, tmp_path / "run", trackers=("istate",))
     assert metric(res.report, "istate/containment") == 1.0 and metric(res.report, "istate/scored_stages") >= 35
@@ -66,7 +74,9 @@ def test_istate_people_come_and_go(tmp_path):
 
 
 def test_beams_creates_at_most_targets_agents(tmp_path):
-    data = get_scenario("beams-lab").write(tmp_path / "lab", seed=7, duration=60.0, agents=2, drop=0.0, camera=False, params={})
+    data = get_scenario("beams-lab").write(
+        tmp_path / "lab", seed=7, duration=60.0, agents=2, drop=0.0, camera=False, params={}
+    )
     site = load_site(data / "site.toml")
     assert site.targets == 2
     rg = build_region_graph(site)
@@ -85,9 +95,13 @@ def test_findinghumo_cap_keeps_the_user_that_explains_the_activity():
     hops = np.array([[0, 1, 2], [1, 0, 1], [2, 1, 0]])
     active = np.zeros((6, 3), bool)
     active[[0, 1, 2, 3, 4, 5], [0, 0, 1, 1, 2, 2]] = True  # one walker 0 -> 1 -> 2
-    paths = np.array([[0, 0, 1, 1, 1, 1],  # the walker, then left behind at 1
-                      [-1, -1, 2, 2, 2, 2],  # a ghost that appears at 2 (a K_now burst)
-                      [-1, -1, -1, -1, 2, 2]])  # fmt: skip
+    paths = np.array(
+        [
+            [0, 0, 1, 1, 1, 1],  # the walker, then left behind at 1
+            [-1, -1, 2, 2, 2, 2],  # a ghost that appears at 2 (a K_now burst)
+            [-1, -1, -1, -1, 2, 2],
+        ]
+    )
     out = cap_users(paths, active, hops, 1)
     assert out.shape == (1, 6) and out[0].tolist() == [0, 0, 1, 1, 2, 2]
     assert cap_users(paths, active, hops, 0) is paths and cap_users(paths, active, hops, 3) is paths

@@ -151,9 +151,13 @@ def test_make_blueprint_without_data_and_with_an_unknown_tracker():
     empty = make_blueprint({})
     assert empty is not None
     logged = {
-        "site": {"Transform3D"}, "site/boundary": {"LineStrips2D"}, "centroid": {"Transform3D"},
-        "centroid/tracks/a": {"Points2D"}, "scores/centroid/a": {"Scalars", "SeriesLines"}, "odd/thing": {"TextLog"},
-    }  # fmt: skip
+        "site": {"Transform3D"},
+        "site/boundary": {"LineStrips2D"},
+        "centroid": {"Transform3D"},
+        "centroid/tracks/a": {"Points2D"},
+        "scores/centroid/a": {"Scalars", "SeriesLines"},
+        "odd/thing": {"TextLog"},
+    }
     assert tracker_roots(Logged(logged)) == ["centroid", "odd"]
     with pytest.raises(ValueError, match="trail_s"):
         make_blueprint(logged, trail_s=0.0)

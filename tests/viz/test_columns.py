@@ -80,7 +80,10 @@ def test_current_region_rows_hold_the_rings_of_the_region_entered(tmp_path, lab)
 def test_crossings_log_one_text_row_and_one_flash_per_crossing(tmp_path, lab):
     site, _ = lab
     beam = site.beam_ids[0]
-    cr = pl.DataFrame({"t": [0.5, 1.5, 3.0], "beam": [beam] * 3, "direction": [1, -1, 1]}, schema={"t": pl.Float64, "beam": pl.String, "direction": pl.Int8})
+    cr = pl.DataFrame(
+        {"t": [0.5, 1.5, 3.0], "beam": [beam] * 3, "direction": [1, -1, 1]},
+        schema={"t": pl.Float64, "beam": pl.String, "direction": pl.Int8},
+    )
     with stage_recording(tmp_path, "crossings", "run-1") as rec:
         log_crossings(rec, cr, site=site)
     rrd = tmp_path / "rrd" / "crossings.rrd"

@@ -16,9 +16,15 @@ from onebit.viz.inspect import blueprint_views, entity_paths, query_rules, store
 @pytest.fixture(scope="module")
 def two_runs(tmp_path_factory):
     root = tmp_path_factory.mktemp("cmp")
-    data = get_scenario("pir14").write(root / "d", seed=1, duration=20.0, agents=None, drop=0.0, camera=False, params={})
-    a = run_pipeline(data, root / "seed0", trackers=("intruder",), config={"intruder": {"seed": 0, "particles": 200}}, progress=False)
-    b = run_pipeline(data, root / "seed1", trackers=("intruder",), config={"intruder": {"seed": 1, "particles": 200}}, progress=False)
+    data = get_scenario("pir14").write(
+        root / "d", seed=1, duration=20.0, agents=None, drop=0.0, camera=False, params={}
+    )
+    a = run_pipeline(
+        data, root / "seed0", trackers=("intruder",), config={"intruder": {"seed": 0, "particles": 200}}, progress=False
+    )
+    b = run_pipeline(
+        data, root / "seed1", trackers=("intruder",), config={"intruder": {"seed": 1, "particles": 200}}, progress=False
+    )
     assert a.ok and b.ok
     return root, a.out, b.out
 
@@ -44,7 +50,10 @@ def test_compare_puts_both_runs_on_one_recording_with_paired_views(two_runs, tmp
             side = "A" if g.name.startswith("seed 0") else "B"
             assert g.kind == view.kind
             assert g.origin == f"{side}/{view.origin}".rstrip("/")
-            want = [(inc, f"{side}/{base}".rstrip("/"), sub) for inc, base, sub in query_rules(view.query, origin=view.origin)]
+            want = [
+                (inc, f"{side}/{base}".rstrip("/"), sub)
+                for inc, base, sub in query_rules(view.query, origin=view.origin)
+            ]
             assert query_rules(g.query, origin=g.origin) == want
             if view.kind == "2D":  # trail windows and hidden entities carried to both sides
                 assert g.overrides == {f"{side}/{e}": o for e, o in view.overrides.items()}

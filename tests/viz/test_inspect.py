@@ -28,23 +28,36 @@ def test_blueprint_read_back(tmp_path):
         rrb.Tabs(
             rrb.Horizontal(
                 rrb.Spatial2DView(
-                    name="map (m)", origin="/", contents=["+ truth/a", "+ truth/a/trail", "+ truth/a/path"],
+                    name="map (m)",
+                    origin="/",
+                    contents=["+ truth/a", "+ truth/a/trail", "+ truth/a/path"],
                     overrides={
                         "truth/a/path": [rrb.EntityBehavior(visible=False)],
-                        "truth/a/trail": [rrb.VisibleTimeRanges([rrb.VisibleTimeRange(
-                            "t", start=rrb.TimeRangeBoundary.cursor_relative(seconds=-10.0),
-                            end=rrb.TimeRangeBoundary.cursor_relative(seconds=0.0))])],
+                        "truth/a/trail": [
+                            rrb.VisibleTimeRanges(
+                                [
+                                    rrb.VisibleTimeRange(
+                                        "t",
+                                        start=rrb.TimeRangeBoundary.cursor_relative(seconds=-10.0),
+                                        end=rrb.TimeRangeBoundary.cursor_relative(seconds=0.0),
+                                    )
+                                ]
+                            )
+                        ],
                     },
                 ),
                 name="first",
             ),
             rrb.TimeSeriesView(name="error (m)", origin="/", contents=["+ scores/x/a"]),
         ),
-    )  # fmt: skip
+    )
     path = save_blueprint(bp, tmp_path / "b.rbl")
     views = {v.name: v for v in rrd.blueprint_views(path)}
     assert views["map (m)"].kind == "2D" and views["error (m)"].kind == "TimeSeries"
-    assert views["map (m)"].overrides == {"truth/a/path": {"visible": False}, "truth/a/trail": {"time_range": (-10.0, 0.0)}}
+    assert views["map (m)"].overrides == {
+        "truth/a/path": {"visible": False},
+        "truth/a/trail": {"time_range": (-10.0, 0.0)},
+    }
     assert rrd.blueprint_tabs(path) == ["first", "error (m)"]
 
 

@@ -50,12 +50,15 @@ def record(tmp_path, duration: float, lab) -> int:
     truth = walk(duration)
     tracks = truth.rename({"target": "track"}).with_columns(tracker=pl.lit("est"), x=pl.col("x") + 0.1)
     regions = tables.conform(
-        truth.filter(pl.col("target") == "target1").with_columns(
-            tracker=pl.lit("beams"), track=pl.lit("agent1"),
+        truth.filter(pl.col("target") == "target1")
+        .with_columns(
+            tracker=pl.lit("beams"),
+            track=pl.lit("agent1"),
             region=pl.Series([region_graph.names[int(i) % len(region_graph.names)] for i in range(truth.height // 2)]),
-        ).select("tracker", "track", "t", "region"),
+        )
+        .select("tracker", "track", "t", "region"),
         tables.TRACKS,
-    )  # fmt: skip
+    )
     scores = tracks.select("track", "t", error=pl.col("x") * 0.0 + 0.1, target=pl.col("track"))
     out = tmp_path / f"d{int(duration)}"
     with stage_recording(out, "all", RUN_ID) as rec:

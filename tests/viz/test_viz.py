@@ -10,7 +10,6 @@ import pytest
 import rerun as rr
 
 from onebit.core import tables
-from onebit.viz.findinghumo import _cpda_label
 from onebit.viz import (
     color_of,
     colors_of,
@@ -28,6 +27,7 @@ from onebit.viz import (
 )
 from onebit.viz import inspect as rrd
 from onebit.viz._series import update_indices
+from onebit.viz.findinghumo import _cpda_label
 from onebit.viz.tracks import region_positions
 
 RUN_ID = "run-test-0001"
@@ -264,5 +264,10 @@ def test_cpda_label_is_short_chosen_first_then_the_most_probable_alternatives():
     lines = label.split("\n")
     assert lines[0] == "CPDA switch: tracks 1 2 3 -> 2 1 3 (p=0.60)"
     assert lines[1:] == ["  or 1 2 3: p=0.20", "  or 3 2 1: p=0.15", "  or 1 3 2: p=0.04", "  (+1 more, p <= 0.01)"]
-    assert _cpda_label("0 1 2", "0 1 2", False, 0.9, "0 1 2:0.9; 1 0 2:0.05; 2 1 0:0.04; 0 2 1:0.009; 1 2 0:0.001").endswith("(+1 more, p < 0.01)")
-    assert _cpda_label("0 1", "0 1", False, 0.8, "0 1:0.800; 1 0:0.200").split("\n") == ["CPDA keep: tracks 1 2 -> 1 2 (p=0.80)", "  or 2 1: p=0.20"]
+    assert _cpda_label(
+        "0 1 2", "0 1 2", False, 0.9, "0 1 2:0.9; 1 0 2:0.05; 2 1 0:0.04; 0 2 1:0.009; 1 2 0:0.001"
+    ).endswith("(+1 more, p < 0.01)")
+    assert _cpda_label("0 1", "0 1", False, 0.8, "0 1:0.800; 1 0:0.200").split("\n") == [
+        "CPDA keep: tracks 1 2 -> 1 2 (p=0.80)",
+        "  or 2 1: p=0.20",
+    ]

@@ -129,7 +129,9 @@ class DecoderParams:
     count: str = "fresh"  # K_now over nodes turned on in the last fresh_slots slots ("fresh") or every node on ("on")
     fresh_slots: int = 2
     restarts: int = 6  # coordinate-ascent restarts (all user orders when K! <= restarts, else rotations); best joint likelihood wins
-    compiled: bool = True  # the coordinate ascent as one numba kernel (kernels.coordinate_ascent); False = the numpy reference
+    compiled: bool = (
+        True  # the coordinate ascent as one numba kernel (kernels.coordinate_ascent); False = the numpy reference
+    )
 
 
 @dataclass
@@ -186,7 +188,9 @@ def motion_components(obs: np.ndarray, hops: np.ndarray) -> tuple[np.ndarray, np
         return t, j, t
     near = (np.abs(t[:, None] - t[None, :]) <= 1) & (hops[j[:, None], j[None, :]] <= 1)
     r, c = np.nonzero(near)
-    _, lab = _csgraph.connected_components(_sparse.coo_matrix((np.ones(r.size), (r, c)), shape=(t.size, t.size)), directed=False)
+    _, lab = _csgraph.connected_components(
+        _sparse.coo_matrix((np.ones(r.size), (r, c)), shape=(t.size, t.size)), directed=False
+    )
     return t, j, lab
 
 
@@ -246,13 +250,31 @@ def decode_users(
         entries = [pos[e] if not p and e >= 0 else -1 for p, e in zip(prefixes, entry_nodes)]
         table = emission_tables(k, params.p_hit, params.p_false, emission_gain)
         best, _ = coordinate_ascent(
-            on, pre, starts, entries, orders, order=order, log_a1=log_a1, log_a2=log_a2, table=table, sweeps=params.sweeps
+            on,
+            pre,
+            starts,
+            entries,
+            orders,
+            order=order,
+            log_a1=log_a1,
+            log_a2=log_a2,
+            table=table,
+            sweeps=params.sweeps,
         )
     else:
         best, best_score = None, -np.inf
         for order_u in orders:
             decoded, score = coordinate_ascent_reference(
-                on, pos, prefixes, starts, entry_nodes, order_u, order=order, log_a1=log_a1, log_a2=log_a2, params=params
+                on,
+                pos,
+                prefixes,
+                starts,
+                entry_nodes,
+                order_u,
+                order=order,
+                log_a1=log_a1,
+                log_a2=log_a2,
+                params=params,
             )
             if best is None or score > best_score + 1e-9:
                 best, best_score = decoded, score
@@ -302,7 +324,7 @@ def coordinate_ascent_reference(on, pos, prefixes, starts, entry_nodes, order_u,
                 path, score = viterbi_motion_second_order(log_pi, np.diag(log_a1), log_a2, log_b)
             else:
                 path, score = viterbi_first_order(log_pi, log_a1, log_b)
-            path = path[len(pre):]
+            path = path[len(pre) :]
             trans[u] = score - float(emis[np.arange(n_slots - st), path].sum())
             decoded[u] = -1
             decoded[u, st:] = path
@@ -356,7 +378,9 @@ def decode_run(
                     continue
                 if any(hops[outer, lst[-1]] <= 1 for lst in last.values() if lst):
                     continue
-                if any(hops[outer, rows[u][s + t - 1]] <= 1 for u in alive if s + t - 1 >= 0 and rows[u][s + t - 1] >= 0):
+                if any(
+                    hops[outer, rows[u][s + t - 1]] <= 1 for u in alive if s + t - 1 >= 0 and rows[u][s + t - 1] >= 0
+                ):
                     continue
                 entries.append((t, outer))
         entries = sorted({(t, o) for t, o in entries})  # one entry per onset, whatever the signature
@@ -369,8 +393,10 @@ def decode_run(
             t0, node = entries[i] if i < len(entries) else (0, -1)
             seen = np.flatnonzero(obs.any(axis=0))
             back = [
-                u for u, (slot, outer) in dormant.items()
-                if s + t0 - slot <= resume and (outer == node or (node < 0 and seen.size and hops[outer, seen].min() <= 1))
+                u
+                for u, (slot, outer) in dormant.items()
+                if s + t0 - slot <= resume
+                and (outer == node or (node < 0 and seen.size and hops[outer, seen].min() <= 1))
             ]
             if back:  # an exit at this door just before: the same user walked through it
                 u = max(back, key=lambda v: dormant[v][0])
@@ -388,13 +414,17 @@ def decode_run(
         entry_nodes = [users[u].entry_node for u in cur]
         if not obs.any():
             # no motion at all: every known user stays where it was
-            paths = np.array([[p[-1] if p else -1] * (e - s) for p in prefixes], dtype=np.int64).reshape(len(cur), e - s)
+            paths = np.array([[p[-1] if p else -1] * (e - s) for p in prefixes], dtype=np.int64).reshape(
+                len(cur), e - s
+            )
             info = dict(order=0, states=0, overlap=False)
         elif params.mode == "adaptive":
             paths, info = _adaptive_window(obs, prefixes, starts, entry_nodes, eatg, params)
         else:
             order = 1 if params.mode == "full1" else 2
-            paths = decode_users(obs, np.arange(n), prefixes, starts, entry_nodes, order=order, eatg=eatg, params=params)
+            paths = decode_users(
+                obs, np.arange(n), prefixes, starts, entry_nodes, order=order, eatg=eatg, params=params
+            )
             info = dict(order=order, states=n, overlap=None)
         gone = []
         for i, u in enumerate(cur):
@@ -475,7 +505,9 @@ def _adaptive_window(obs, prefixes, starts, entry_nodes, eatg: Eatg, params: Dec
     overlap = multi or (near.sum(axis=0) > 1).any() or (near.sum(axis=1) > 1).any()
     active_nodes = np.unique(j)
     if overlap:
-        keep = np.unique(np.concatenate([active_nodes, [a for a in anchor if a >= 0], *[p for p in prefixes if p]]).astype(np.int64))
+        keep = np.unique(
+            np.concatenate([active_nodes, [a for a in anchor if a >= 0], *[p for p in prefixes if p]]).astype(np.int64)
+        )
         states = np.flatnonzero((hops[keep] <= 2).any(axis=0))
         paths = decode_users(obs, states, prefixes, starts, entry_nodes, order=2, eatg=eatg, params=params)
         return paths, dict(order=2, states=len(states), overlap=True)
@@ -485,7 +517,9 @@ def _adaptive_window(obs, prefixes, starts, entry_nodes, eatg: Eatg, params: Dec
     free_comps = [c for c in range(n_comp) if not near[:, c].any()]
     pairs = [(i, int(np.flatnonzero(near[i])[0])) for i in range(k) if near[i].any()]
     if free_users and free_comps:  # users without a nearby component (new, uniform start) take the rest
-        cost = np.array([[0.0 if anchor[i] < 0 else hops[anchor[i], comp_nodes[c]].min() for c in free_comps] for i in free_users])
+        cost = np.array(
+            [[0.0 if anchor[i] < 0 else hops[anchor[i], comp_nodes[c]].min() for c in free_comps] for i in free_users]
+        )
         r, cc = _optimize.linear_sum_assignment(cost)
         pairs += [(free_users[a], free_comps[b]) for a, b in zip(r, cc)]
     paired = {i for i, _ in pairs}
@@ -494,14 +528,20 @@ def _adaptive_window(obs, prefixes, starts, entry_nodes, eatg: Eatg, params: Dec
         mask = np.zeros_like(obs)
         sel = lab == c
         mask[t[sel], j[sel]] = True
-        keep = np.unique(np.concatenate([comp_nodes[c], [n for n in prefixes[i]], [anchor[i]] if anchor[i] >= 0 else []]).astype(np.int64))
+        keep = np.unique(
+            np.concatenate([comp_nodes[c], [n for n in prefixes[i]], [anchor[i]] if anchor[i] >= 0 else []]).astype(
+                np.int64
+            )
+        )
         states = np.flatnonzero((hops[keep] <= 1).any(axis=0))
         states_total += len(states)
-        paths[i] = decode_users(mask, states, [prefixes[i]], [starts[i]], [entry_nodes[i]], order=1, eatg=eatg, params=params)[0]
+        paths[i] = decode_users(
+            mask, states, [prefixes[i]], [starts[i]], [entry_nodes[i]], order=1, eatg=eatg, params=params
+        )[0]
     for i in range(k):
         if i not in paired:  # no motion near this user: it stays (or, new without motion, waits)
             if prefixes[i]:
-                paths[i, starts[i]:] = prefixes[i][-1]
+                paths[i, starts[i] :] = prefixes[i][-1]
             elif entry_nodes[i] >= 0:
-                paths[i, starts[i]:] = entry_nodes[i]
+                paths[i, starts[i] :] = entry_nodes[i]
     return paths, dict(order=1, states=states_total, overlap=False)

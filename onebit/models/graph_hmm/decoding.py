@@ -12,19 +12,26 @@ import numpy as np
 import polars as pl
 
 from onebit.core.config import check_choice, check_range
+from onebit.core.frames import ABSENT_AFTER_S, motion_frames, silent_stretches
 from onebit.core.site import Site
 from onebit.core.tables import MOTION, TRACKS, check_schema, conform
 from onebit.models.graph_hmm.adaptive import DecodeResult, DecoderParams, decode_run
 from onebit.models.graph_hmm.eatg import Eatg, hop_matrix, layout_eatg, trained_eatg
-from onebit.core.frames import ABSENT_AFTER_S, motion_frames, silent_stretches
-
 
 #: One row per HMM window: first slot, users K (and K now), entry/exit signatures, HMM order,
 #: states and whether the motion overlapped (null for the full-state baselines).
-WINDOWS = pl.Schema({
-    "slot": pl.Int64, "k": pl.Int64, "k_now": pl.Int64, "sig_in": pl.Int64, "sig_out": pl.Int64,
-    "order": pl.Int64, "states": pl.Int64, "overlap": pl.Boolean,
-})  # fmt: skip
+WINDOWS = pl.Schema(
+    {
+        "slot": pl.Int64,
+        "k": pl.Int64,
+        "k_now": pl.Int64,
+        "sig_in": pl.Int64,
+        "sig_out": pl.Int64,
+        "order": pl.Int64,
+        "states": pl.Int64,
+        "overlap": pl.Boolean,
+    }
+)
 
 
 #: where the joint re-decoding of meetings runs (:attr:`HmmConfig.joint`)
@@ -184,7 +191,13 @@ def build_eatg(site: Site, active: np.ndarray, cfg: HmmConfig) -> Eatg:
     if cfg.eatg == "layout" or active.shape[0] < 2:
         return layout_eatg(g.nodes, hops, stay=cfg.stay, turn_back=cfg.turn_back)
     return trained_eatg(
-        active, g.nodes, hops, horizon=cfg.d_max, prior_strength=cfg.prior_strength, stay=cfg.stay, turn_back=cfg.turn_back
+        active,
+        g.nodes,
+        hops,
+        horizon=cfg.d_max,
+        prior_strength=cfg.prior_strength,
+        stay=cfg.stay,
+        turn_back=cfg.turn_back,
     )
 
 
@@ -213,9 +226,18 @@ def decode_motion(mode: str, inputs: dict, site: Site, cfg: HmmConfig, *, progre
     idx = eatg.index
     sigs = [(idx[a], idx[b]) for a, b in door_signatures(g) if a in idx and b in idx]
     params = DecoderParams(
-        mode=mode, d_max=cfg.d_max, tau=cfg.tau, p_hit=cfg.p_hit, p_false=cfg.p_false, sweeps=cfg.sweeps, restarts=cfg.restarts,
-        offline=cfg.offline, max_users=user_bound(site, cfg), count=cfg.count, fresh_slots=cfg.fresh_slots,
-    )  # fmt: skip
+        mode=mode,
+        d_max=cfg.d_max,
+        tau=cfg.tau,
+        p_hit=cfg.p_hit,
+        p_false=cfg.p_false,
+        sweeps=cfg.sweeps,
+        restarts=cfg.restarts,
+        offline=cfg.offline,
+        max_users=user_bound(site, cfg),
+        count=cfg.count,
+        fresh_slots=cfg.fresh_slots,
+    )
     res = decode_run(active, eatg, signatures=sigs, params=params, progress=progress)
     silent = silent_stretches([motion.filter(pl.col("sensor").is_in(list(nodes)))], min_s=cfg.absent_after)
     return DecodedRun(active, t0, eatg, res, sigs, silent)
@@ -307,5 +329,3 @@ def tracks_table(name: str, paths: np.ndarray, nodes, site: Site, t0: float, per
         schema_overrides={"track": pl.String, "node": pl.String, "tracker": pl.String},
     )
     return conform(df, TRACKS).sort(["t", "track"])
-
-

@@ -35,6 +35,7 @@ from dataclasses import dataclass
 
 import numpy as np
 import polars as pl
+
 from onebit.core.lazy import lazy_module
 
 nx = lazy_module("networkx")
@@ -69,7 +70,13 @@ class Eatg:
                         "weight": mat[i, j],
                         "hops": self.hops[i, j].astype(np.int64),
                     },
-                    schema={"kind": pl.String, "src": pl.String, "dst": pl.String, "weight": pl.Float64, "hops": pl.Int64},
+                    schema={
+                        "kind": pl.String,
+                        "src": pl.String,
+                        "dst": pl.String,
+                        "weight": pl.Float64,
+                        "hops": pl.Int64,
+                    },
                 )
             )
         return pl.concat(rows)

@@ -159,7 +159,14 @@ def _pair_viterbi(delta, pred, lp, xs, g, h):
 
 
 def decode_pair(
-    space: PairSpace, start: tuple[int, int], active: np.ndarray, others: np.ndarray, ends, *, p_hit: float, p_false: float,
+    space: PairSpace,
+    start: tuple[int, int],
+    active: np.ndarray,
+    others: np.ndarray,
+    ends,
+    *,
+    p_hit: float,
+    p_false: float,
     compiled: bool = True,
 ):
     """Joint Viterbi of two users over a window (module docstring).
@@ -224,7 +231,14 @@ def meetings(paths: np.ndarray, hops: np.ndarray, *, pad: int) -> list[tuple[int
 
 
 def redecode_meetings(
-    paths: np.ndarray, active: np.ndarray, eatg: Eatg, *, p_hit: float, p_false: float, pad: int = 4, compiled: bool = True
+    paths: np.ndarray,
+    active: np.ndarray,
+    eatg: Eatg,
+    *,
+    p_hit: float,
+    p_false: float,
+    pad: int = 4,
+    compiled: bool = True,
 ) -> tuple[np.ndarray, list[dict]]:
     """Every meeting of two users (:func:`meetings`, in slot order) jointly re-decoded
     (:func:`decode_pair`), either pairing of the tails, the candidate of highest exact
@@ -251,11 +265,23 @@ def redecode_meetings(
         b = min(max(w1 + 1, _first_change(x[u], w1 + 1), _first_change(x[v], w1 + 1)), d - 1)
         seg = x[[u, v], a : b + 1]  # the pair from the slot before the window to where their tails settle
         k0, k1 = w0 - a, w1 + 1 - a  # the window inside ``seg``
-        score = functools.partial(_segment_log_likelihood, ctx0=ctx, window=(k0, k1), others=others, active=active[w0 : w1 + 1],
-                                  log_a=log_a, p_hit=p_hit, p_false=p_false)  # fmt: skip
+        score = functools.partial(
+            _segment_log_likelihood,
+            ctx0=ctx,
+            window=(k0, k1),
+            others=others,
+            active=active[w0 : w1 + 1],
+            log_a=log_a,
+            p_hit=p_hit,
+            p_false=p_false,
+        )
         cur = score(seg)
         best, pick = cur, None
-        for swap, path in enumerate(decode_pair(space, start, active[w0 : w1 + 1], others, ends, p_hit=p_hit, p_false=p_false, compiled=compiled)):
+        for swap, path in enumerate(
+            decode_pair(
+                space, start, active[w0 : w1 + 1], others, ends, p_hit=p_hit, p_false=p_false, compiled=compiled
+            )
+        ):
             if path is None:
                 continue
             y = seg.copy()
@@ -273,7 +299,16 @@ def redecode_meetings(
             # whose tail went to the other may no longer be present at a meeting listed before)
             queue = [m for m in meetings(x, eatg.hops, pad=pad) if m[2] >= w0 and (m[0], m[1], m[2]) not in done]
         mid = (w0 + w1) // 2
-        log.append({"slot": w0, "end": w1, "users": (u, v), "gain": best - cur, "exchanged": bool(pick and pick[1]), "node": int(x[u, mid])})
+        log.append(
+            {
+                "slot": w0,
+                "end": w1,
+                "users": (u, v),
+                "gain": best - cur,
+                "exchanged": bool(pick and pick[1]),
+                "node": int(x[u, mid]),
+            }
+        )
     return x, log
 
 
@@ -338,18 +373,32 @@ def _local_log_likelihood(x, *, rows, a, b, w, ctx0, active, n, log_a, p_hit, p_
     w0, w1 = w
     others = claims(np.delete(x[:, w0 : w1 + 1], list(rows), axis=0), n)
     return _segment_log_likelihood(
-        x[list(rows), a : b + 1], ctx0=ctx0, window=(w0 - a, w1 + 1 - a), others=others, active=active[w0 : w1 + 1],
-        log_a=log_a, p_hit=p_hit, p_false=p_false,
+        x[list(rows), a : b + 1],
+        ctx0=ctx0,
+        window=(w0 - a, w1 + 1 - a),
+        others=others,
+        active=active[w0 : w1 + 1],
+        log_a=log_a,
+        p_hit=p_hit,
+        p_false=p_false,
     )
 
 
 #: one row per meeting re-decoded jointly: its window, the two decoded users, the gain in
 #: ``log L`` of the kept candidate (0 when the paths were kept), whether the tails were exchanged,
 #: and the node of ``track_a`` at the window's middle slot (where the viewer shows it)
-JOINT = pl.Schema({
-    "slot": pl.Int64, "end": pl.Int64, "t": pl.Float64, "track_a": pl.String, "track_b": pl.String,
-    "gain": pl.Float64, "exchanged": pl.Boolean, "node": pl.String,
-})  # fmt: skip
+JOINT = pl.Schema(
+    {
+        "slot": pl.Int64,
+        "end": pl.Int64,
+        "t": pl.Float64,
+        "track_a": pl.String,
+        "track_b": pl.String,
+        "gain": pl.Float64,
+        "exchanged": pl.Boolean,
+        "node": pl.String,
+    }
+)
 
 
 def joint_table(log: list[dict], nodes, t0: float, period: float) -> pl.DataFrame:
@@ -357,7 +406,16 @@ def joint_table(log: list[dict], nodes, t0: float, period: float) -> pl.DataFram
     named ``user<k+1>`` as in the tracks table; where the user cap (``max_users`` / the site's
     ``targets``) drops users, the tracks table renumbers what it keeps)."""
     rows = [
-        (r["slot"], r["end"], t0 + (r["slot"] + 0.5) * period, f"user{r['users'][0] + 1}", f"user{r['users'][1] + 1}", float(r["gain"]), r["exchanged"], nodes[r["node"]])
+        (
+            r["slot"],
+            r["end"],
+            t0 + (r["slot"] + 0.5) * period,
+            f"user{r['users'][0] + 1}",
+            f"user{r['users'][1] + 1}",
+            float(r["gain"]),
+            r["exchanged"],
+            nodes[r["node"]],
+        )
         for r in log
     ]
     return pl.DataFrame(rows, schema=JOINT, orient="row")

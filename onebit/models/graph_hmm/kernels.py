@@ -228,9 +228,9 @@ def emission_tables(k: int, p_hit: float, p_false: float, gain) -> np.ndarray:
     on = np.ones_like(c, dtype=bool)
     cf = c.astype(float)
     p_on = np.where(cf > 0, 1.0 - (1.0 - p_hit) ** cf, p_false)
-    return np.vstack(
-        [gain(on, c, p_hit, p_false), gain(~on, c, p_hit, p_false), np.log(p_on), np.log1p(-p_on)]
-    ).astype(np.float64)
+    return np.vstack([gain(on, c, p_hit, p_false), gain(~on, c, p_hit, p_false), np.log(p_on), np.log1p(-p_on)]).astype(
+        np.float64
+    )
 
 
 @kernel
@@ -304,7 +304,9 @@ def _coordinate_ascent(on, pre, n_pre, starts, entry, orders, order, log_a1, log
     best_score = NEG_INF
     found = False
     for r in range(orders.shape[0]):
-        score = _ascent_one_order(on, pre, n_pre, starts, entry, orders[r], order, log_a1, log_stay, log_a2, table, sweeps, cur)
+        score = _ascent_one_order(
+            on, pre, n_pre, starts, entry, orders[r], order, log_a1, log_stay, log_a2, table, sweeps, cur
+        )
         if not found or score > best_score + 1e-9:
             found = True
             best_score = score
@@ -345,10 +347,19 @@ def coordinate_ascent(
     a2 = np.zeros((1, 1, 1)) if log_a2 is None else _f64(log_a2, 3)
     a1 = _f64(log_a1, 2)
     best, score = _coordinate_ascent(
-        np.ascontiguousarray(on, dtype=np.bool_), pre, n_pre, np.asarray(starts, dtype=np.int64),
-        np.asarray(entries, dtype=np.int64), np.asarray(orders, dtype=np.int64).reshape(-1, k), int(order),
-        a1, np.ascontiguousarray(np.diag(a1)) if s else np.zeros(0), a2, table, int(sweeps),
-    )  # fmt: skip
+        np.ascontiguousarray(on, dtype=np.bool_),
+        pre,
+        n_pre,
+        np.asarray(starts, dtype=np.int64),
+        np.asarray(entries, dtype=np.int64),
+        np.asarray(orders, dtype=np.int64).reshape(-1, k),
+        int(order),
+        a1,
+        np.ascontiguousarray(np.diag(a1)) if s else np.zeros(0),
+        a2,
+        table,
+        int(sweeps),
+    )
     return best, float(score)
 
 

@@ -71,7 +71,9 @@ def claims(paths: np.ndarray, n: int) -> np.ndarray:
     return c
 
 
-def model_log_likelihood(paths: np.ndarray, active: np.ndarray, eatg: Eatg, *, p_hit: float, p_false: float, log_a=None) -> float:
+def model_log_likelihood(
+    paths: np.ndarray, active: np.ndarray, eatg: Eatg, *, p_hit: float, p_false: float, log_a=None
+) -> float:
     """``log L(X)`` of the module docstring for paths ``(U, D)`` and slot activity ``(D, N)``."""
     n = len(eatg.nodes)
     if log_a is None:
@@ -122,7 +124,14 @@ def colocations(paths: np.ndarray) -> list[tuple[int, tuple[int, ...]]]:
 
 
 def tie_relabelling(
-    paths: np.ndarray, active: np.ndarray, eatg: Eatg, *, p_hit: float, p_false: float, rng: np.random.Generator, tol: float = 1e-6
+    paths: np.ndarray,
+    active: np.ndarray,
+    eatg: Eatg,
+    *,
+    p_hit: float,
+    p_false: float,
+    rng: np.random.Generator,
+    tol: float = 1e-6,
 ) -> tuple[np.ndarray, int]:
     """The true paths as the best *model-following* association would label them: at every
     co-location (:func:`colocations`, in slot order) the users' tails are permuted by a

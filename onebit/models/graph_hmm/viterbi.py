@@ -65,7 +65,9 @@ def _backtrack_first(psi: np.ndarray, delta: np.ndarray) -> tuple[np.ndarray, fl
     return path, float(delta[path[-1]])
 
 
-def viterbi_first_order_batch(log_pi: np.ndarray, log_a: np.ndarray, log_b: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def viterbi_first_order_batch(
+    log_pi: np.ndarray, log_a: np.ndarray, log_b: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
     """:func:`viterbi_first_order` for ``U`` independent sequences at once (same model).
 
     ``log_pi``: (U, S); ``log_b``: (U, D, S). Returns paths (U, D) and log probs (U,).

@@ -236,7 +236,11 @@ def _assign_constrained(source, target, n_regions: int, policy: str, c: Constrai
         tt = np.ascontiguousarray(times, dtype=np.float64)
     else:
         tt = np.zeros(m)
-    team_cap = np.asarray(c.team_capacity, np.int64).reshape(p, -1) if c.team_capacity is not None else np.zeros((p, 0), np.int64)
+    team_cap = (
+        np.asarray(c.team_capacity, np.int64).reshape(p, -1)
+        if c.team_capacity is not None
+        else np.zeros((p, 0), np.int64)
+    )
     rank = np.asarray(c.team_rank, np.int64) if c.team_rank is not None else np.zeros(0, np.int64)
     n_teams = team_cap.shape[1] if c.team_capacity is not None else (len(rank) if c.team_rank is not None else 0)
     if c.initial_region is not None:
@@ -248,11 +252,26 @@ def _assign_constrained(source, target, n_regions: int, policy: str, c: Constrai
         init, tm = np.zeros(0, np.int64), np.zeros(0, np.int64)
     max_agents = len(init) if c.initial_region is not None else int(c.max_agents)
     out, initial, team, un, code, why, why_order, q_len = kernels.assign_constrained(
-        src, tgt, p, policy == "lifo", np.ascontiguousarray(cap), np.ascontiguousarray(tau), use_time, tt,
-        int(c.max_track_length), bool(c.prefer_short), np.ascontiguousarray(team_cap),
-        c.team_capacity is not None, np.ascontiguousarray(rank), c.team_rank is not None, int(n_teams),
-        np.ascontiguousarray(init), np.ascontiguousarray(tm), c.initial_region is not None, int(max_agents),
-    )  # fmt: skip
+        src,
+        tgt,
+        p,
+        policy == "lifo",
+        np.ascontiguousarray(cap),
+        np.ascontiguousarray(tau),
+        use_time,
+        tt,
+        int(c.max_track_length),
+        bool(c.prefer_short),
+        np.ascontiguousarray(team_cap),
+        c.team_capacity is not None,
+        np.ascontiguousarray(rank),
+        c.team_rank is not None,
+        int(n_teams),
+        np.ascontiguousarray(init),
+        np.ascontiguousarray(tm),
+        c.initial_region is not None,
+        int(max_agents),
+    )
     reasons = []
     for j, k, w, wo, ql in zip(un.tolist(), code.tolist(), why.tolist(), why_order.tolist(), q_len.tolist()):
         s, t = int(src[j]), int(tgt[j])

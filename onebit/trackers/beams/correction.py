@@ -36,7 +36,14 @@ from onebit.core.config import check_choice, check_range
 from onebit.core.errors import ConfigError
 from onebit.core.region_graph import RegionGraph
 from onebit.core.tables import CROSSINGS, check_schema
-from onebit.trackers.beams.counting import PLACEMENTS, RegionEdges, correct, first_count_violation, minimal_initial_counts, verify
+from onebit.trackers.beams.counting import (
+    PLACEMENTS,
+    RegionEdges,
+    correct,
+    first_count_violation,
+    minimal_initial_counts,
+    verify,
+)
 
 #: The corrected crossing string: CROSSINGS plus whether each crossing was inserted.
 CORRECTED_CROSSINGS = pl.Schema({**dict(CROSSINGS), "inserted": pl.Boolean})
@@ -105,7 +112,9 @@ def initial_counts(cfg: CorrectConfig, names: tuple[str, ...], n: int) -> np.nda
         return eta
     if cfg.start_region is not None:
         if cfg.start_region not in idx:
-            raise ConfigError(f"[correct] start_region = {cfg.start_region!r}: unknown region; regions are {list(names)}")
+            raise ConfigError(
+                f"[correct] start_region = {cfg.start_region!r}: unknown region; regions are {list(names)}"
+            )
         eta = np.zeros(len(names), dtype=np.int64)
         eta[idx[cfg.start_region]] = n
         return eta
@@ -174,22 +183,35 @@ def run_correction(crossings: pl.DataFrame, rg: RegionGraph, cfg: CorrectConfig,
         accepted = int(need.sum()) <= n
         first = -1 if accepted else first_count_violation(src, tgt, len(rg.names), n)
     res = correct(
-        src, tgt, edges, n_agents=n, initial=eta0, placement=cfg.placement, window=cfg.window, times=crossings["t"].to_numpy()
+        src,
+        tgt,
+        edges,
+        n_agents=n,
+        initial=eta0,
+        placement=cfg.placement,
+        window=cfg.window,
+        times=crossings["t"].to_numpy(),
     )
     names = pl.Series("region", list(rg.names), dtype=pl.String)  # gathered by index below
     corrected = corrected_frame(crossings, res, edges)
     pos = res.insertion_positions
     # the observed crossing each insertion precedes: next non-negative observed_index
-    nxt = np.minimum.accumulate(np.where(res.observed_index >= 0, np.arange(len(res.inserted)), len(res.inserted))[::-1])[::-1]
+    nxt = np.minimum.accumulate(
+        np.where(res.observed_index >= 0, np.arange(len(res.inserted)), len(res.inserted))[::-1]
+    )[::-1]
     before = np.r_[res.observed_index, -1][nxt[pos]].astype(np.int64)
-    insertions = corrected.with_row_index("index").filter(pl.col("inserted")).select(
-        "t",
-        "beam",
-        "direction",
-        pl.col("index").cast(pl.Int64),
-        pl.Series("before", before, dtype=pl.Int64).replace(-1, None),
-        names.gather(res.source[pos]).alias("source"),
-        names.gather(res.target[pos]).alias("target"),
+    insertions = (
+        corrected.with_row_index("index")
+        .filter(pl.col("inserted"))
+        .select(
+            "t",
+            "beam",
+            "direction",
+            pl.col("index").cast(pl.Int64),
+            pl.Series("before", before, dtype=pl.Int64).replace(-1, None),
+            names.gather(res.source[pos]).alias("source"),
+            names.gather(res.target[pos]).alias("target"),
+        )
     )
     initial = pl.DataFrame({"region": list(rg.names), "count": res.initial.astype(np.int64)})
     rows = [

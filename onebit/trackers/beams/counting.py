@@ -81,15 +81,14 @@ previous one left); they are vectorised over the live count states and over runs
 from __future__ import annotations
 
 import collections
-
 from dataclasses import dataclass
 from math import comb
 
 import numpy as np
 
+from onebit.core.lazy import lazy_module
 from onebit.trackers.beams import kernels
 from onebit.trackers.beams.assignment import region_deficits, region_events
-from onebit.core.lazy import lazy_module
 
 _csgraph = lazy_module("scipy.sparse.csgraph")
 _sparse = lazy_module("scipy.sparse")
@@ -116,7 +115,7 @@ def count_states(n_regions: int, n_agents: int) -> np.ndarray:
     """
     states = np.zeros((1, 0), dtype=np.int64)
     left = np.array([n_agents], dtype=np.int64)
-    for r in range(n_regions - 1):
+    for _r in range(n_regions - 1):
         reps = left + 1
         idx = np.repeat(np.arange(len(states)), reps)
         starts = np.cumsum(reps) - reps
@@ -242,7 +241,7 @@ class RegionEdges:
         return int(self.hops.max()) if self.hops.size else 0
 
     @classmethod
-    def from_region_graph(cls, rg) -> "RegionEdges":
+    def from_region_graph(cls, rg) -> RegionEdges:
         """Edges of a :class:`~onebit.core.region_graph.RegionGraph`: for every beam in
         sorted order its forward edge, then all backward edges (so ties between parallel
         beams, like b and c of the building, go to the first beam id)."""
@@ -251,11 +250,15 @@ class RegionEdges:
         fs = [idx[rg.beam_source[b]] for b in beams]
         ft = [idx[rg.beam_target[b]] for b in beams]
         return cls.from_arrays(
-            fs + ft, ft + fs, len(rg.names), beams=tuple(beams + beams), directions=tuple([1] * len(beams) + [-1] * len(beams))
+            fs + ft,
+            ft + fs,
+            len(rg.names),
+            beams=tuple(beams + beams),
+            directions=tuple([1] * len(beams) + [-1] * len(beams)),
         )
 
     @classmethod
-    def from_arrays(cls, edge_source, edge_target, n_regions: int, *, beams=(), directions=()) -> "RegionEdges":
+    def from_arrays(cls, edge_source, edge_target, n_regions: int, *, beams=(), directions=()) -> RegionEdges:
         es = np.asarray(edge_source, dtype=np.int64)
         et = np.asarray(edge_target, dtype=np.int64)
         adj = _sparse.csr_matrix((np.ones(len(es)), (es, et)), shape=(n_regions, n_regions))
@@ -389,7 +392,12 @@ def correct(
 
     if compiled if compiled is not None else m >= COMPILED_MIN:
         best, parent, position, region, q, peak, events, bad = kernels.correction_dp(
-            src, tgt, np.ascontiguousarray(start, dtype=np.int64), np.ascontiguousarray(H, dtype=np.int64), _FAR, int(diam)
+            src,
+            tgt,
+            np.ascontiguousarray(start, dtype=np.int64),
+            np.ascontiguousarray(H, dtype=np.int64),
+            _FAR,
+            int(diam),
         )
         if bad >= 0:
             raise ValueError(f"crossing {bad} cannot be explained: no agent can reach its source region")
@@ -442,7 +450,9 @@ def _splice(src, tgt, ins_pos, ins_edge, edges: RegionEdges):
     return S.astype(np.int64), T.astype(np.int64), inserted, obs.astype(np.int64), edge.astype(np.int64)
 
 
-def place_insertions(S, T, inserted, obs, edge, initial, *, window: int = 4096, placement: str = "midpoint", times=None):
+def place_insertions(
+    S, T, inserted, obs, edge, initial, *, window: int = 4096, placement: str = "midpoint", times=None
+):
     """Move every inserted crossing ``u -> v`` to a place of its feasible window.
 
     Processed in string order. For the insertion at index ``q`` the count of ``u`` before

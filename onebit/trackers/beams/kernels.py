@@ -89,8 +89,27 @@ def assign_base(src, tgt, n_regions, lifo):
 
 
 @kernel
-def assign_constrained(src, tgt, n_regions, lifo, cap, tau, use_time, times, L, prefer_short,
-                       team_cap, has_team_cap, rank, has_rank, n_teams, init, init_team, known_initial, max_agents):
+def assign_constrained(
+    src,
+    tgt,
+    n_regions,
+    lifo,
+    cap,
+    tau,
+    use_time,
+    times,
+    L,
+    prefer_short,
+    team_cap,
+    has_team_cap,
+    rank,
+    has_rank,
+    n_teams,
+    init,
+    init_team,
+    known_initial,
+    max_agents,
+):
     """Algorithm 1 with the variations (see :mod:`onebit.trackers.beams.assignment`).
 
     Returns ``(agents (m,), initial (n,), team (n,), unexplained (k,), code (k,), why (k, 3),
@@ -213,8 +232,16 @@ def assign_constrained(src, tgt, n_regions, lifo, cap, tau, use_time, times, L, 
         _push(t, agent, head, tail, nxt, prv, size)
         if size[t] > peak[t]:
             peak[t] = size[t]
-    return (out, initial[:n].copy(), team[:n].copy(), un[:nu].copy(), code[:nu].copy(), why[:nu].copy(),
-            why_order[:nu].copy(), q_len[:nu].copy())
+    return (
+        out,
+        initial[:n].copy(),
+        team[:n].copy(),
+        un[:nu].copy(),
+        code[:nu].copy(),
+        why[:nu].copy(),
+        why_order[:nu].copy(),
+        q_len[:nu].copy(),
+    )
 
 
 # --------------------------------------------------------------------------- counting automaton

@@ -19,7 +19,13 @@ from __future__ import annotations
 
 import polars as pl
 
-_EMPTY_INTERVALS = {"region": pl.String, "t_start": pl.Float64, "t_end": pl.Float64, "duration_s": pl.Float64, "peak": pl.Int64}
+_EMPTY_INTERVALS = {
+    "region": pl.String,
+    "t_start": pl.Float64,
+    "t_end": pl.Float64,
+    "duration_s": pl.Float64,
+    "peak": pl.Int64,
+}
 
 
 def _explained(assignment: pl.DataFrame) -> pl.DataFrame:
@@ -63,9 +69,7 @@ def traffic_per_region(assignment: pl.DataFrame, bucket_s: float) -> pl.DataFram
     return (
         moves.group_by("bucket", "region")
         .agg(pl.col("entries").sum(), pl.col("exits").sum())
-        .with_columns(
-            t_start=pl.col("bucket").cast(pl.Float64) * bucket_s, traffic=pl.col("entries") + pl.col("exits")
-        )
+        .with_columns(t_start=pl.col("bucket").cast(pl.Float64) * bucket_s, traffic=pl.col("entries") + pl.col("exits"))
         .select("bucket", "t_start", "region", "entries", "exits", "traffic")
         .sort(["bucket", "traffic", "region"], descending=[False, True, False])
     )

@@ -8,21 +8,26 @@ from dataclasses import dataclass, field
 import numpy as np
 import polars as pl
 
+from onebit.core.config import check_choice, check_range
+from onebit.core.errors import ConfigError
 from onebit.core.region_graph import RegionGraph, build_region_graph
 from onebit.core.site import Site
-from onebit.core.errors import ConfigError
 from onebit.core.tables import CROSSINGS, TRACKS, check_schema, conform
 from onebit.trackers.base import TrackerSpec
-from onebit.core.config import check_choice, check_range
 from onebit.trackers.beams import queries
 from onebit.trackers.beams.assignment import POLICIES, Assignment, Constraints, ambiguous_crossings, assign_agents
 
 NAME = "beams"
 
 _UNEXPLAINED = {
-    "crossing": pl.Int64, "t": pl.Float64, "beam": pl.String, "direction": pl.Int8,
-    "source": pl.String, "region": pl.String, "reason": pl.String,
-}  # fmt: skip
+    "crossing": pl.Int64,
+    "t": pl.Float64,
+    "beam": pl.String,
+    "direction": pl.Int8,
+    "source": pl.String,
+    "region": pl.String,
+    "reason": pl.String,
+}
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -101,7 +106,9 @@ class BeamsConfig:
         if self.team_names and unknown:
             raise ConfigError(f"BeamsConfig.teams names team(s) {unknown} not in team_names {self.team_names}")
         if (self.team_capacity or self.prefer_team_order) and not self.team_names:
-            raise ConfigError("BeamsConfig.team_names must list the teams when team_capacity or prefer_team_order is set")
+            raise ConfigError(
+                "BeamsConfig.team_names must list the teams when team_capacity or prefer_team_order is set"
+            )
         for r, us in self.team_capacity.items():
             ok = isinstance(us, (list, tuple)) and len(us) == len(self.team_names)
             ok = ok and all(isinstance(u, int) and not isinstance(u, bool) and u >= -1 for u in us)
@@ -127,13 +134,19 @@ class BeamsConfig:
                 cap[idx[spec.name]] = spec.capacity
         for r, u in self.capacity.items():
             cap[region(r, f"capacity.{r}")] = u
-        init = np.array([region(r, "initial_regions") for r in self.initial_regions], np.int64) if self.initial_regions else None
+        init = (
+            np.array([region(r, "initial_regions") for r in self.initial_regions], np.int64)
+            if self.initial_regions
+            else None
+        )
         if init is not None:
             counts = np.bincount(init, minlength=p)
             over = np.flatnonzero((cap >= 0) & (counts > cap))
             if len(over):
                 r = rg.names[over[0]]
-                raise ConfigError(f"BeamsConfig.initial_regions puts {counts[over[0]]} agents in {r}, over its capacity {cap[over[0]]}")
+                raise ConfigError(
+                    f"BeamsConfig.initial_regions puts {counts[over[0]]} agents in {r}, over its capacity {cap[over[0]]}"
+                )
         tidx = {t: k for k, t in enumerate(self.team_names)}
         team = np.array([tidx[t] for t in self.teams], np.int64) if self.teams else None
         tcap = None
@@ -198,7 +211,9 @@ def run(inputs: dict, site: Site, config: BeamsConfig) -> dict[str, pl.DataFrame
         ambiguous = ambiguous_crossings(res.agents, alt.agents)
     else:
         ambiguous = np.zeros(len(src), dtype=bool)
-    track_ids = pl.select(pl.format("agent{}", pl.int_range(1, res.n_agents + 1, dtype=pl.Int64))).to_series().rename("track")
+    track_ids = (
+        pl.select(pl.format("agent{}", pl.int_range(1, res.n_agents + 1, dtype=pl.Int64))).to_series().rename("track")
+    )
     track_col = _track_column(res, track_ids)
 
     labels = pl.when(pl.col("direction") > 0).then(pl.col("beam")).otherwise(pl.col("beam") + "^-1")
@@ -250,7 +265,9 @@ def run(inputs: dict, site: Site, config: BeamsConfig) -> dict[str, pl.DataFrame
     )
     unexplained = pl.DataFrame(
         {"crossing": res.unexplained, "reason": list(res.reasons)}, schema={"crossing": pl.Int64, "reason": pl.String}
-    ).join(assignment.with_row_index("crossing").with_columns(pl.col("crossing").cast(pl.Int64)), on="crossing", how="left")
+    ).join(
+        assignment.with_row_index("crossing").with_columns(pl.col("crossing").cast(pl.Int64)), on="crossing", how="left"
+    )
     unexplained = unexplained.select(list(_UNEXPLAINED)).cast(_UNEXPLAINED)
     occ = queries.occupancy(explained, starts, rg.names)
     out = {
@@ -284,6 +301,9 @@ def occupancy(assignment: pl.DataFrame, starts: pl.DataFrame, rg: RegionGraph) -
 
 
 SPEC = TrackerSpec(
-    name=NAME, needs=("crossings",), config=BeamsConfig, run=run,
+    name=NAME,
+    needs=("crossings",),
+    config=BeamsConfig,
+    run=run,
     help="Bobadilla et al.: region-graph agent assignment from directional beams",
 )

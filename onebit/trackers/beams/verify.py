@@ -26,7 +26,6 @@ from dataclasses import dataclass
 import numpy as np
 import polars as pl
 
-
 _TOKEN = re.compile(r"^[^\s^]+(\^-1)?$")
 
 
@@ -173,9 +172,15 @@ def verify_path(
             }
         )
     schema = {
-        "target": pl.String, "score": pl.Float64, "max_score": pl.Float64, "story_aligned": pl.String,
-        "observed_aligned": pl.String, "t_start": pl.Float64, "t_end": pl.Float64, "plausible": pl.Boolean,
-    }  # fmt: skip
+        "target": pl.String,
+        "score": pl.Float64,
+        "max_score": pl.Float64,
+        "story_aligned": pl.String,
+        "observed_aligned": pl.String,
+        "t_start": pl.Float64,
+        "t_end": pl.Float64,
+        "plausible": pl.Boolean,
+    }
     return pl.DataFrame(rows, schema=schema)
 
 

@@ -100,6 +100,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+
 from onebit.core.lazy import lazy_module
 
 _sparse = lazy_module("scipy.sparse")  # loaded when a run filters, not when the CLI starts
@@ -156,7 +157,9 @@ class FilterResult:
     particles_label: np.ndarray
 
 
-def footprint_probability(xy: np.ndarray, sensors: np.ndarray, radii: np.ndarray, *, pd: float, edge: float) -> np.ndarray:
+def footprint_probability(
+    xy: np.ndarray, sensors: np.ndarray, radii: np.ndarray, *, pd: float, edge: float
+) -> np.ndarray:
     """Eq. (1): ``d[..., s]`` for positions ``xy (..., 2)``, sensors ``(S, 2)``, radii ``(S,)``."""
     dist = np.sqrt(((xy[..., None, :] - sensors) ** 2).sum(-1))
     if edge <= 0:
@@ -165,13 +168,17 @@ def footprint_probability(xy: np.ndarray, sensors: np.ndarray, radii: np.ndarray
     return pd / (1.0 + np.exp(-u))
 
 
-def frame_probability_off(positions: np.ndarray, sensors: np.ndarray, radii: np.ndarray, *, pd: float, pf: float, edge: float) -> np.ndarray:
+def frame_probability_off(
+    positions: np.ndarray, sensors: np.ndarray, radii: np.ndarray, *, pd: float, pf: float, edge: float
+) -> np.ndarray:
     """Eq. (2): ``P(z_s = 0 | positions (n, 2))`` for every sensor, ``(S,)``."""
     d = footprint_probability(positions, sensors, radii, pd=pd, edge=edge)
     return (1.0 - pf) * np.prod(1.0 - d, axis=0)
 
 
-def predict(x: np.ndarray, r: np.ndarray, rng: np.random.Generator, p: FilterParams, lo: np.ndarray, hi: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def predict(
+    x: np.ndarray, r: np.ndarray, rng: np.random.Generator, p: FilterParams, lo: np.ndarray, hi: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
     """Eq. (3) on particles ``x (I, N, 4)`` and existences ``r (I,)``; returns new arrays."""
     v = p.damping * x[..., 2:] + p.accel_sigma * np.sqrt(p.period) * rng.standard_normal(x[..., 2:].shape)
     pos = x[..., :2] + v * p.period
@@ -240,7 +247,9 @@ def birth_groups(z: np.ndarray, q: np.ndarray, sensors: np.ndarray, p: FilterPar
     return [cand[lab == g] for g in range(k)]
 
 
-def birth_particles(group: np.ndarray, sensors: np.ndarray, radii: np.ndarray, rng: np.random.Generator, p: FilterParams) -> np.ndarray:
+def birth_particles(
+    group: np.ndarray, sensors: np.ndarray, radii: np.ndarray, rng: np.random.Generator, p: FilterParams
+) -> np.ndarray:
     """``(N, 4)`` particles uniform in the footprints of ``group``'s sensors, velocities
     :math:`\\mathcal N(0, \\sigma_b^2)`."""
     N = p.particles
@@ -252,7 +261,9 @@ def birth_particles(group: np.ndarray, sensors: np.ndarray, radii: np.ndarray, r
     return np.c_[xy, v]
 
 
-def report_rows(frame: np.ndarray, label: np.ndarray, r: np.ndarray, confirmed_labels: np.ndarray, p: FilterParams) -> np.ndarray:
+def report_rows(
+    frame: np.ndarray, label: np.ndarray, r: np.ndarray, confirmed_labels: np.ndarray, p: FilterParams
+) -> np.ndarray:
     """Which rows are reported: the track was confirmed at some frame (the run is a batch, so
     a confirmed track is reported back to its birth), :math:`r \\ge r_{out}` at the row's
     frame, and at most ``max_out`` per frame, the largest :math:`r` first."""
@@ -268,8 +279,16 @@ def report_rows(frame: np.ndarray, label: np.ndarray, r: np.ndarray, confirmed_l
 
 
 def run_filter(
-    on: np.ndarray, sensors: np.ndarray, radii: np.ndarray, lo: np.ndarray, hi: np.ndarray, p: FilterParams, *,
-    seed: int = 0, log_particles: int = 0, progress=None,
+    on: np.ndarray,
+    sensors: np.ndarray,
+    radii: np.ndarray,
+    lo: np.ndarray,
+    hi: np.ndarray,
+    p: FilterParams,
+    *,
+    seed: int = 0,
+    log_particles: int = 0,
+    progress=None,
 ) -> FilterResult:
     """Run the filter over frames ``on (T, S)`` (bool levels); see the module docstring.
 
@@ -315,7 +334,11 @@ def run_filter(
             x, hist = resampled(ell, x, hist)
         # birth from the on sensors the updated tracks' particles leave unexplained (whatever
         # their existence: a tentative track near a firing gathers its evidence, no twin is born)
-        q = 1.0 - footprint_probability(x[..., :2], sensors, radii, pd=p.pd, edge=p.edge).mean(axis=1) if len(r) else np.zeros((0, S))
+        q = (
+            1.0 - footprint_probability(x[..., :2], sensors, radii, pd=p.pd, edge=p.edge).mean(axis=1)
+            if len(r)
+            else np.zeros((0, S))
+        )
         groups = birth_groups(z, q, sensors, p)
         room = p.max_tracks - len(r)
         if groups and room > 0:
@@ -343,13 +366,20 @@ def run_filter(
             for a_pos, a in enumerate(order):  # tracks are few (<= max_tracks)
                 if not keep[a]:
                     continue
-                for b in order[a_pos + 1:]:
+                for b in order[a_pos + 1 :]:
                     if keep[b] and dm[a, b] < p.merge_distance:
                         keep[b] = False
                         confirmed[a] |= confirmed[b]
                         merges[k] += 1
         deaths[k] = int((~keep).sum()) - merges[k]
-        x, hist, rowidx, r, labels, confirmed = x[keep], hist[keep], rowidx[keep], r[keep], labels[keep], confirmed[keep]
+        x, hist, rowidx, r, labels, confirmed = (
+            x[keep],
+            hist[keep],
+            rowidx[keep],
+            r[keep],
+            labels[keep],
+            confirmed[keep],
+        )
         ever_confirmed.update(labels[confirmed].tolist())
         live[k] = len(r)
         # this frame's rows, then every smoothed estimate still in the window
@@ -374,8 +404,16 @@ def run_filter(
     frame, label = cat["frame"].astype(np.int64), cat["label"].astype(np.int64)
     reported = report_rows(frame, label, cat["r"], np.array(sorted(ever_confirmed), dtype=np.int64), p)
     return FilterResult(
-        frame=frame, label=label, x=est[:n_rows, 0].copy(), y=est[:n_rows, 1].copy(), r=cat["r"],
-        reported=reported, births=births, deaths=deaths, merges=merges, live=live,
+        frame=frame,
+        label=label,
+        x=est[:n_rows, 0].copy(),
+        y=est[:n_rows, 1].copy(),
+        r=cat["r"],
+        reported=reported,
+        births=births,
+        deaths=deaths,
+        merges=merges,
+        live=live,
         particles_xy=np.concatenate(pxy) if pxy else np.zeros((0, 2)),
         particles_frame=np.concatenate(pfr) if pfr else np.zeros(0, np.int64),
         particles_label=np.concatenate(plab) if plab else np.zeros(0, np.int64),

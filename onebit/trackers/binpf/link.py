@@ -28,6 +28,7 @@ fewer than ``max_out`` tracks are reported there, so the bound still holds.
 from __future__ import annotations
 
 import numpy as np
+
 from onebit.core.lazy import lazy_module
 
 _optimize = lazy_module("scipy.optimize")  # loaded when a run links, not when the CLI starts
@@ -46,7 +47,9 @@ def tracklet_ends(frame: np.ndarray, label: np.ndarray, x: np.ndarray, y: np.nda
     return labs, frame[first], np.c_[x[first], y[first]], frame[last], np.c_[x[last], y[last]]
 
 
-def join_costs(s_frame, s_xy, e_frame, e_xy, *, period: float, max_gap: int, max_speed: float, slack: float) -> np.ndarray:
+def join_costs(
+    s_frame, s_xy, e_frame, e_xy, *, period: float, max_gap: int, max_speed: float, slack: float
+) -> np.ndarray:
     """``(ends, starts)`` cost :math:`c_{AB}` of joining end A to start B, ``inf`` where infeasible."""
     step = s_frame[None, :] - e_frame[:, None]  # s_B - e_A
     dist = np.sqrt(((s_xy[None, :, :] - e_xy[:, None, :]) ** 2).sum(-1))
@@ -68,8 +71,16 @@ def best_joins(cost: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 
 
 def link_tracklets(
-    frame: np.ndarray, label: np.ndarray, x: np.ndarray, y: np.ndarray, *, period: float, max_gap: int, max_speed: float,
-    slack: float, max_out: int = 0,
+    frame: np.ndarray,
+    label: np.ndarray,
+    x: np.ndarray,
+    y: np.ndarray,
+    *,
+    period: float,
+    max_gap: int,
+    max_speed: float,
+    slack: float,
+    max_out: int = 0,
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, int]:
     """Join tracklets of the reported rows ``(frame, label, x, y)`` (see the module docstring).
 
@@ -96,7 +107,9 @@ def link_tracklets(
     idx = np.searchsorted(labs, label)
     new_label = labs[new_of[idx]]
     # fill the gaps, cheapest joins first, only where fewer than max_out are reported
-    counts = np.bincount(frame, minlength=int(frame.max()) + 2).astype(np.int64) if frame.size else np.zeros(1, np.int64)
+    counts = (
+        np.bincount(frame, minlength=int(frame.max()) + 2).astype(np.int64) if frame.size else np.zeros(1, np.int64)
+    )
     add_f, add_l, add_x, add_y = [], [], [], []
     for a, b in sorted(zip(r, c), key=lambda ab: cost[ab[0], ab[1]]):
         gap = np.arange(e_f[a] + 1, s_f[b])

@@ -65,7 +65,9 @@ class BinPFConfig:
     link_speed: float = length(1.5, unit="m/s")  #: v_max, walking speed a join may assume, m/s
     link_slack: float = length(1.0)  #: rho, extra distance a join allows (about a footprint), m
     targets: int = 0  #: most people reported at once; 0 = the site's ``targets`` (none: no bound)
-    max_tracks: int = 0  #: most live tracks (tentative included); 0 = bound + 1 (8 without a bound): spare tentative tracks churn
+    max_tracks: int = (
+        0  #: most live tracks (tentative included); 0 = bound + 1 (8 without a bound): spare tentative tracks churn
+    )
     seed: int = 0  #: random seed
     log_particles: int = 50  #: particles per track and frame sent to Rerun
 
@@ -100,7 +102,11 @@ class BinPFConfig:
 
 
 def available(site: Site) -> str | None:
-    return None if site.proximity_sensors else "site has no proximity sensors (binary sensors with a position and a radius)"
+    return (
+        None
+        if site.proximity_sensors
+        else "site has no proximity sensors (binary sensors with a position and a radius)"
+    )
 
 
 def frame_levels(frames: pl.DataFrame, ids: tuple[str, ...]) -> tuple[np.ndarray, np.ndarray]:
@@ -134,48 +140,139 @@ def run(inputs: dict, site: Site, config: BinPFConfig) -> dict:
     bound = config.targets or (site.targets or 0)
     max_tracks = config.max_tracks or (bound + 1 if bound else 8)
     p = FilterParams(
-        particles=config.particles, pd=config.pd, pf=config.pf, edge=config.edge, period=frame_period(times),
-        damping=config.damping, accel_sigma=config.accel_sigma, survival=config.survival, silent=config.silent,
-        birth_r=config.birth_r, birth_explained=config.birth_explained, birth_link=config.birth_link,
-        birth_speed=config.birth_speed, r_confirm=config.r_confirm, r_delete=config.r_delete, r_out=config.r_out,
-        merge_distance=config.merge_distance, smooth_lag=config.smooth_lag, max_tracks=max_tracks, max_out=bound,
-    )  # fmt: skip
+        particles=config.particles,
+        pd=config.pd,
+        pf=config.pf,
+        edge=config.edge,
+        period=frame_period(times),
+        damping=config.damping,
+        accel_sigma=config.accel_sigma,
+        survival=config.survival,
+        silent=config.silent,
+        birth_r=config.birth_r,
+        birth_explained=config.birth_explained,
+        birth_link=config.birth_link,
+        birth_speed=config.birth_speed,
+        r_confirm=config.r_confirm,
+        r_delete=config.r_delete,
+        r_out=config.r_out,
+        merge_distance=config.merge_distance,
+        smooth_lag=config.smooth_lag,
+        max_tracks=max_tracks,
+        max_out=bound,
+    )
     minx, miny, maxx, maxy = site.boundary.bounds
-    res = run_filter(on, sensors, radii, np.array([minx, miny]), np.array([maxx, maxy]), p,
-                     seed=config.seed, log_particles=config.log_particles, progress=progress_of(inputs))  # fmt: skip
+    res = run_filter(
+        on,
+        sensors,
+        radii,
+        np.array([minx, miny]),
+        np.array([maxx, maxy]),
+        p,
+        seed=config.seed,
+        log_particles=config.log_particles,
+        progress=progress_of(inputs),
+    )
     track = np.char.add("b", res.label.astype(str)) if res.label.size else np.zeros(0, dtype=str)
     t = times[res.frame] if res.frame.size else np.zeros(0)
     existence = pl.DataFrame(
-        {"frame": res.frame, "t": t, "track": track.astype(object), "x": res.x, "y": res.y, "r": res.r, "reported": res.reported},
-        schema={"frame": pl.Int64, "t": pl.Float64, "track": pl.String, "x": pl.Float64, "y": pl.Float64, "r": pl.Float64,
-                "reported": pl.Boolean},
-    )  # fmt: skip
+        {
+            "frame": res.frame,
+            "t": t,
+            "track": track.astype(object),
+            "x": res.x,
+            "y": res.y,
+            "r": res.r,
+            "reported": res.reported,
+        },
+        schema={
+            "frame": pl.Int64,
+            "t": pl.Float64,
+            "track": pl.String,
+            "x": pl.Float64,
+            "y": pl.Float64,
+            "r": pl.Float64,
+            "reported": pl.Boolean,
+        },
+    )
     rep = existence.filter(pl.col("reported"))
-    f, lab, x, y = rep["frame"].to_numpy(), rep["track"].to_numpy().astype(str), rep["x"].to_numpy(), rep["y"].to_numpy()
+    f, lab, x, y = (
+        rep["frame"].to_numpy(),
+        rep["track"].to_numpy().astype(str),
+        rep["x"].to_numpy(),
+        rep["y"].to_numpy(),
+    )
     joins = 0
     if config.link and rep.height:
-        f, lab, x, y, joins = link_tracklets(f, lab, x, y, period=p.period, max_gap=config.link_gap, max_speed=config.link_speed,
-                                             slack=config.link_slack, max_out=bound)  # fmt: skip
-    tracks = conform(pl.DataFrame({"tracker": [NAME] * len(f), "track": lab.astype(object), "t": times[f] if len(f) else np.zeros(0),
-                                   "x": x, "y": y}, schema_overrides={"track": pl.String}), TRACKS)  # fmt: skip
+        f, lab, x, y, joins = link_tracklets(
+            f,
+            lab,
+            x,
+            y,
+            period=p.period,
+            max_gap=config.link_gap,
+            max_speed=config.link_speed,
+            slack=config.link_slack,
+            max_out=bound,
+        )
+    tracks = conform(
+        pl.DataFrame(
+            {
+                "tracker": [NAME] * len(f),
+                "track": lab.astype(object),
+                "t": times[f] if len(f) else np.zeros(0),
+                "x": x,
+                "y": y,
+            },
+            schema_overrides={"track": pl.String},
+        ),
+        TRACKS,
+    )
     reported_per_frame = np.bincount(f, minlength=len(times)).astype(np.int64) if len(times) else np.zeros(0, np.int64)
     count = existence.group_by("frame").agg(pl.col("r").sum().alias("count"))
     per_frame = (
-        pl.DataFrame({"frame": np.arange(len(times)), "t": times, "on": on.sum(axis=1).astype(np.int64), "live": res.live,
-                      "births": res.births, "deaths": res.deaths, "merges": res.merges, "reported": reported_per_frame})
+        pl.DataFrame(
+            {
+                "frame": np.arange(len(times)),
+                "t": times,
+                "on": on.sum(axis=1).astype(np.int64),
+                "live": res.live,
+                "births": res.births,
+                "deaths": res.deaths,
+                "merges": res.merges,
+                "reported": reported_per_frame,
+            }
+        )
         .join(count, on="frame", how="left")
         .with_columns(pl.col("count").fill_null(0.0))
         .drop("frame")
-    )  # fmt: skip
+    )
     artifacts = {
-        "times": times, "on": on, "sensors": sensors, "radii": radii, "ids": ids,
-        "particles_xy": res.particles_xy, "particles_t": times[res.particles_frame] if res.particles_frame.size else np.zeros(0),
-        "particles_track": np.char.add("b", res.particles_label.astype(str)) if res.particles_label.size else np.zeros(0, dtype=str),
-    }  # fmt: skip
-    return {"tracks": tracks, "existence": existence, "frames": per_frame, "links": pl.DataFrame({"joins": [joins]}), ARTIFACTS: artifacts}
+        "times": times,
+        "on": on,
+        "sensors": sensors,
+        "radii": radii,
+        "ids": ids,
+        "particles_xy": res.particles_xy,
+        "particles_t": times[res.particles_frame] if res.particles_frame.size else np.zeros(0),
+        "particles_track": np.char.add("b", res.particles_label.astype(str))
+        if res.particles_label.size
+        else np.zeros(0, dtype=str),
+    }
+    return {
+        "tracks": tracks,
+        "existence": existence,
+        "frames": per_frame,
+        "links": pl.DataFrame({"joins": [joins]}),
+        ARTIFACTS: artifacts,
+    }
 
 
 SPEC = TrackerSpec(
-    name=NAME, needs=("proximity_frames",), config=BinPFConfig, run=run, available=available,
+    name=NAME,
+    needs=("proximity_frames",),
+    config=BinPFConfig,
+    run=run,
+    available=available,
     help="beyond the papers: labelled multi-Bernoulli particle filter for arrays of binary sensors (soft footprint, false alarms, held sensors)",
-)  # fmt: skip
+)

@@ -61,8 +61,17 @@ class Params:
     A_hat: float
 
 
-def rules_of_thumb(space: FeasibleSpace, *, H: int, m_o: float, q_hat: int = 0, q_factor: float = 1.0,
-                   K: int = 0, L: int = 0, D0: float = 0.0) -> Params:
+def rules_of_thumb(
+    space: FeasibleSpace,
+    *,
+    H: int,
+    m_o: float,
+    q_hat: int = 0,
+    q_factor: float = 1.0,
+    K: int = 0,
+    L: int = 0,
+    D0: float = 0.0,
+) -> Params:
     """Parameters from the data (section 4.2.2); a non-zero argument overrides its rule."""
     q = int(q_hat) if q_hat > 0 else max(1, int(np.ceil(q_factor * max(space.max_lower_bound, 1))))
     mean_sf = float(np.mean(space.sizes_all)) if space.sizes_all.size else 0.0
@@ -118,8 +127,20 @@ def scan_order(cost: np.ndarray, L: int, rng: np.random.Generator) -> np.ndarray
     return sel[np.argsort(cost[sel], kind="stable")]
 
 
-def scan_clusters(cost: np.ndarray, parent: np.ndarray, x: np.ndarray, pd: np.ndarray, steps: int,
-                  *, H: int, K: int, L: int, D0: float, rng: np.random.Generator, compiled: bool | None = None):
+def scan_clusters(
+    cost: np.ndarray,
+    parent: np.ndarray,
+    x: np.ndarray,
+    pd: np.ndarray,
+    steps: int,
+    *,
+    H: int,
+    K: int,
+    L: int,
+    D0: float,
+    rng: np.random.Generator,
+    compiled: bool | None = None,
+):
     """Steps 3-18 of Algorithm 1 over candidates ``(parent, x)`` with ``cost``.
 
     ``pd (K_prev, K_prev)``: summed distances between the parents over the earlier steps;
@@ -186,8 +207,19 @@ def ordered_prefix(key: np.ndarray, k: int) -> np.ndarray:
     return idx[np.argsort(key[idx], kind="stable")]
 
 
-def scan_clusters_reference(cost: np.ndarray, parent: np.ndarray, x: np.ndarray, pd: np.ndarray, steps: int,
-                  *, H: int, K: int, L: int, D0: float, rng: np.random.Generator):
+def scan_clusters_reference(
+    cost: np.ndarray,
+    parent: np.ndarray,
+    x: np.ndarray,
+    pd: np.ndarray,
+    steps: int,
+    *,
+    H: int,
+    K: int,
+    L: int,
+    D0: float,
+    rng: np.random.Generator,
+):
     """Steps 3-18 of Algorithm 1, vectorised in numpy (once per cluster head over every later
     candidate): the plain reference of :func:`scan_clusters` and its test oracle.
 
@@ -309,8 +341,9 @@ def cluster_track(space: FeasibleSpace, p: Params, rng: np.random.Generator, *, 
     return RunResult(tracks, cost[heads], kept_n, scanned_n, clusters_n, cand_n, particles, max_cluster)
 
 
-def candidate_costs_reference(x: np.ndarray, last1: np.ndarray, last2: np.ndarray, cost: np.ndarray, m_t: int,
-                              curvature: bool) -> np.ndarray:
+def candidate_costs_reference(
+    x: np.ndarray, last1: np.ndarray, last2: np.ndarray, cost: np.ndarray, m_t: int, curvature: bool
+) -> np.ndarray:
     """Cost of every candidate, ``(K m_t,)``: candidate ``a m_t + j`` extends particle ``a``
     (last positions ``last1[a]``, ``last2[a]``, cost ``cost[a]``) by ``x[a m_t + j]``; it adds
     the change in velocity ``||x + x[n-1] - 2 x[n]||`` when ``curvature`` (from the third
@@ -376,9 +409,18 @@ class TrackResult:
     satisfied: bool
 
 
-def clustertrack(space: FeasibleSpace, p: Params, rng: np.random.Generator, *, max_reruns: int = 10,
-                 rerun: bool = True, record: bool = False, hard_limit: int = 40, high_cost: float = 10.0,
-                 max_tracks: int = 0) -> TrackResult:
+def clustertrack(
+    space: FeasibleSpace,
+    p: Params,
+    rng: np.random.Generator,
+    *,
+    max_reruns: int = 10,
+    rerun: bool = True,
+    record: bool = False,
+    hard_limit: int = 40,
+    high_cost: float = 10.0,
+    max_tracks: int = 0,
+) -> TrackResult:
     """Algorithm 1, then Appendix B: rerun through under-used components.
 
     While some instant t_o has a component c_o holding fewer tracks than its lower bound,
@@ -442,8 +484,9 @@ def clustertrack(space: FeasibleSpace, p: Params, rng: np.random.Generator, *, m
     return TrackResult(tracks, costs, origin, p, first, n, underused(space, tracks) is None)
 
 
-def _rerun(sub: FeasibleSpace, p: Params, K: int, q: int, tracks: np.ndarray, check: bool,
-           rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray]:
+def _rerun(
+    sub: FeasibleSpace, p: Params, K: int, q: int, tracks: np.ndarray, check: bool, rng: np.random.Generator
+) -> tuple[np.ndarray, np.ndarray]:
     """One Appendix B rerun with budget K: the q cheapest new tracks (that cluster with no
     track in ``tracks`` when ``check``), ``(tracks (<=q, T, d), costs)``."""
     res = cluster_track(sub, Params(p.H, p.m_o, K, p.L, p.D0, q, p.A_hat), rng)
@@ -496,9 +539,18 @@ class Consensus:
     runs: int
 
 
-def consensus(space: FeasibleSpace, p: Params, seeds: list[int], *, ratio: float = 10.0, min_support: float = 0.5,
-              max_reruns: int = 10, high_cost: float = 10.0, known: dict[int, TrackResult] | None = None,
-              max_tracks: int = 0) -> Consensus:
+def consensus(
+    space: FeasibleSpace,
+    p: Params,
+    seeds: list[int],
+    *,
+    ratio: float = 10.0,
+    min_support: float = 0.5,
+    max_reruns: int = 10,
+    high_cost: float = 10.0,
+    known: dict[int, TrackResult] | None = None,
+    max_tracks: int = 0,
+) -> Consensus:
     """Run CLUSTERTRACK once per seed, drop tracks costing more than ``ratio`` times the
     cheapest, cluster the rest (Algorithm 1's criterion) and count the clusters that hold a
     track from at least ``min_support`` of the runs (the paper's "biased by the number of
@@ -510,8 +562,13 @@ def consensus(space: FeasibleSpace, p: Params, seeds: list[int], *, ratio: float
     known = known or {}
     all_t, all_c, all_r = [], [], []
     for k, s in enumerate(seeds):  # independent runs (one per seed)
-        r = known[s] if s in known else clustertrack(space, p, np.random.default_rng(s), max_reruns=max_reruns, high_cost=high_cost,
-                                                     max_tracks=max_tracks)
+        r = (
+            known[s]
+            if s in known
+            else clustertrack(
+                space, p, np.random.default_rng(s), max_reruns=max_reruns, high_cost=high_cost, max_tracks=max_tracks
+            )
+        )
         all_t.append(r.tracks)
         all_c.append(r.costs)
         all_r.append(np.full(r.costs.size, k))

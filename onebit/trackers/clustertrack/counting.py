@@ -114,7 +114,9 @@ def snapshot_bounds_1d(f: Feasible1D) -> tuple[int, np.ndarray, np.ndarray]:
     return int(picked.size), bounds, pos
 
 
-def snapshot_bounds_2d(labels: np.ndarray, n_comp: int, on_idx: np.ndarray, outer: np.ndarray) -> tuple[int, np.ndarray]:
+def snapshot_bounds_2d(
+    labels: np.ndarray, n_comp: int, on_idx: np.ndarray, outer: np.ndarray
+) -> tuple[int, np.ndarray]:
     """``(lower_bound, component_bounds)`` of one 2-D raster snapshot.
 
     ``labels (cells,)``: component labels of F (0 outside, 1..n_comp); ``outer (n, cells)``:

@@ -24,8 +24,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from onebit.core.sensing import detection_regions
 from onebit.core.lazy import lazy_module
+from onebit.core.sensing import detection_regions
 
 cv2 = lazy_module("cv2")
 
@@ -156,7 +156,9 @@ class Feasible1D:
         return np.where(inside, kk, -1)
 
 
-def feasible_1d(x: np.ndarray, on: np.ndarray, r_inner: np.ndarray, r_outer: np.ndarray, lo: float, hi: float) -> Feasible1D:
+def feasible_1d(
+    x: np.ndarray, on: np.ndarray, r_inner: np.ndarray, r_outer: np.ndarray, lo: float, hi: float
+) -> Feasible1D:
     """F and the g_i at one instant from sensor positions ``x (n,)`` and readings ``on (n,)``.
 
     ``[lo, hi]`` is the site's extent along the line; F is clipped to it.
@@ -170,7 +172,9 @@ def feasible_1d(x: np.ndarray, on: np.ndarray, r_inner: np.ndarray, r_outer: np.
     c_on = np.c_[np.maximum(x[idx] - r_outer[idx], lo), np.minimum(x[idx] + r_outer[idx], hi)]
     c_on = c_on[c_on[:, 1] >= c_on[:, 0]] if c_on.size else c_on.reshape(0, 2)
     idx = idx[np.maximum(x[idx] - r_outer[idx], lo) <= np.minimum(x[idx] + r_outer[idx], hi)]
-    pieces, ia = intersect_intervals(c_on.reshape(-1, 2), free) if idx.size else (np.zeros((0, 2)), np.zeros(0, np.int64))
+    pieces, ia = (
+        intersect_intervals(c_on.reshape(-1, 2), free) if idx.size else (np.zeros((0, 2)), np.zeros(0, np.int64))
+    )
     sensor = idx[ia] if idx.size else np.zeros(0, dtype=np.int64)
     # single points (a target exactly at distance R_o) have measure zero: dropped
     keep = pieces[:, 1] - pieces[:, 0] > EPS if pieces.size else np.zeros(0, dtype=bool)

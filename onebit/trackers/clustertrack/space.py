@@ -22,8 +22,8 @@ from onebit.trackers.clustertrack.feasible import (
     feasible_raster,
     make_raster,
     raster_components,
-    sample_intervals,
     sample_cell_centres,
+    sample_intervals,
 )
 
 
@@ -53,7 +53,9 @@ class FeasibleSpace:
     # ----------------------------------------------------------------- construction
 
     @classmethod
-    def build(cls, on: np.ndarray, times: np.ndarray, sensors: SensorArray, boundary, *, dim: int, cell: float) -> "FeasibleSpace":
+    def build(
+        cls, on: np.ndarray, times: np.ndarray, sensors: SensorArray, boundary, *, dim: int, cell: float
+    ) -> FeasibleSpace:
         """From readings ``on (T, n)`` (sensor order of ``sensors``) at ``times (T,)``."""
         on = np.asarray(on, dtype=bool)
         T = on.shape[0]
@@ -110,11 +112,11 @@ class FeasibleSpace:
     def T(self) -> int:
         return int(self.order.size)
 
-    def restricted(self, t: int, c: int) -> "FeasibleSpace":
+    def restricted(self, t: int, c: int) -> FeasibleSpace:
         """F with F[t] (original instant) replaced by its component ``c``."""
         return replace(self, only=tuple(x for x in self.only if x[0] != t) + ((int(t), int(c)),))
 
-    def reversed(self) -> "FeasibleSpace":
+    def reversed(self) -> FeasibleSpace:
         return replace(self, order=self.order[::-1].copy())
 
     def _only(self, t: int) -> int | None:

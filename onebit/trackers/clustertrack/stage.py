@@ -25,10 +25,10 @@ from dataclasses import dataclass
 import numpy as np
 import polars as pl
 
+from onebit.core.config import check_choice, check_range
 from onebit.core.site import Site
 from onebit.core.tables import FRAMES, TRACKS, check_schema, conform
 from onebit.trackers.base import ARTIFACTS, TrackerSpec
-from onebit.core.config import check_choice, check_range
 from onebit.trackers.clustertrack.algorithm import Params, clustertrack, consensus, rules_of_thumb
 from onebit.trackers.clustertrack.feasible import sensor_array
 from onebit.trackers.clustertrack.space import FeasibleSpace
@@ -115,17 +115,48 @@ class ClusterTrackConfig:
 OUTPUT_SCHEMAS: dict[str, pl.Schema] = {
     "track_info": pl.Schema({"track": pl.String, "cost": pl.Float64, "origin": pl.Int64}),
     "counts": pl.Schema({"t": pl.Float64, "size": pl.Float64, "components": pl.Int64, "lower_bound": pl.Int64}),
-    "steps": pl.Schema({"t": pl.Float64, "candidates": pl.Int64, "scanned": pl.Int64, "kept": pl.Int64,
-                        "clusters": pl.Int64, "max_cluster": pl.Int64}),
-    "particles": pl.Schema({"t": pl.Float64, "particle": pl.Int64, "cluster": pl.Int64, "x": pl.Float64, "y": pl.Float64,
-                            "cost": pl.Float64}),
+    "steps": pl.Schema(
+        {
+            "t": pl.Float64,
+            "candidates": pl.Int64,
+            "scanned": pl.Int64,
+            "kept": pl.Int64,
+            "clusters": pl.Int64,
+            "max_cluster": pl.Int64,
+        }
+    ),
+    "particles": pl.Schema(
+        {
+            "t": pl.Float64,
+            "particle": pl.Int64,
+            "cluster": pl.Int64,
+            "x": pl.Float64,
+            "y": pl.Float64,
+            "cost": pl.Float64,
+        }
+    ),
     "feasible": pl.Schema({"t": pl.Float64, "component": pl.Int64, "lo": pl.Float64, "hi": pl.Float64}),
     "minimal_targets": pl.Schema({"t": pl.Float64, "x": pl.Float64}),
     "consensus": pl.Schema({"run": pl.Int64, "cluster": pl.Int64, "cost": pl.Float64, "support": pl.Float64}),
-    "params": pl.Schema({"dim": pl.Int64, "R": pl.Float64, "H": pl.Float64, "m_o": pl.Float64, "K": pl.Int64, "L": pl.Int64,
-                         "D0": pl.Float64, "Q_hat": pl.Int64, "A_hat": pl.Float64, "reruns": pl.Int64, "satisfied": pl.Boolean,
-                         "count_lower_bound": pl.Int64, "count_consensus": pl.Int64, "tracks": pl.Int64}),
-}  # fmt: skip
+    "params": pl.Schema(
+        {
+            "dim": pl.Int64,
+            "R": pl.Float64,
+            "H": pl.Float64,
+            "m_o": pl.Float64,
+            "K": pl.Int64,
+            "L": pl.Int64,
+            "D0": pl.Float64,
+            "Q_hat": pl.Int64,
+            "A_hat": pl.Float64,
+            "reruns": pl.Int64,
+            "satisfied": pl.Boolean,
+            "count_lower_bound": pl.Int64,
+            "count_consensus": pl.Int64,
+            "tracks": pl.Int64,
+        }
+    ),
+}
 
 
 def available(site: Site) -> str | None:
@@ -146,7 +177,9 @@ def readings(frames: pl.DataFrame, ids: tuple[str, ...]) -> tuple[np.ndarray, np
     return slots["t"].to_numpy().astype(float), on
 
 
-def build_space(frames: pl.DataFrame, site: Site, config: ClusterTrackConfig) -> tuple[FeasibleSpace, float, np.ndarray]:
+def build_space(
+    frames: pl.DataFrame, site: Site, config: ClusterTrackConfig
+) -> tuple[FeasibleSpace, float, np.ndarray]:
     """``(space, R, on (T, n))`` from the frames."""
     sa = sensor_array(site)
     times, on = readings(frames, sa.ids)
@@ -160,8 +193,9 @@ def params_for(space: FeasibleSpace, R: float, config: ClusterTrackConfig) -> Pa
         H, m_o = config.h, config.m_o_r / R
     else:
         H, m_o = config.h_2d, config.m_o_r2 / R**2
-    return rules_of_thumb(space, H=H, m_o=m_o, q_hat=config.q_hat, q_factor=config.q_factor, K=config.k, L=config.l,
-                          D0=config.d0_r * R)
+    return rules_of_thumb(
+        space, H=H, m_o=m_o, q_hat=config.q_hat, q_factor=config.q_factor, K=config.k, L=config.l, D0=config.d0_r * R
+    )
 
 
 def track_bound(p: Params, site: Site, config: ClusterTrackConfig) -> int:
@@ -193,8 +227,16 @@ def run(inputs: dict, site: Site, config: ClusterTrackConfig) -> dict[str, pl.Da
     p = params_for(space, R, config)
     rng = np.random.default_rng(config.seed)
     bound = track_bound(p, site, config)
-    res = clustertrack(space, p, rng, max_reruns=config.reruns, rerun=config.reruns > 0, record=True,
-                       high_cost=config.rerun_cost_ratio, max_tracks=bound)
+    res = clustertrack(
+        space,
+        p,
+        rng,
+        max_reruns=config.reruns,
+        rerun=config.reruns > 0,
+        record=True,
+        high_cost=config.rerun_cost_ratio,
+        max_tracks=bound,
+    )
     N = res.tracks.shape[0]
     names = [f"c{i + 1}" for i in range(N)]
     x, y = _xy(res.tracks)
@@ -216,12 +258,23 @@ def run(inputs: dict, site: Site, config: ClusterTrackConfig) -> dict[str, pl.Da
     nowhere = np.array([cb.size == 0 for cb in space.comp_bounds_all], dtype=bool)
     if nowhere.any():
         tracks = tracks.filter(~pl.col("t").is_in(times[nowhere].tolist()))
-    info = pl.DataFrame({"track": names, "cost": res.costs, "origin": res.origin}, schema={"track": pl.String, "cost": pl.Float64, "origin": pl.Int64})
+    info = pl.DataFrame(
+        {"track": names, "cost": res.costs, "origin": res.origin},
+        schema={"track": pl.String, "cost": pl.Float64, "origin": pl.Int64},
+    )
     ncomp = np.array([cb.size for cb in space.comp_bounds_all], dtype=np.int64)
     counts = pl.DataFrame({"t": times, "size": space.sizes_all, "components": ncomp, "lower_bound": space.bounds_all})
     fr = res.first
-    steps = pl.DataFrame({"t": times[space.order], "candidates": fr.candidates, "scanned": fr.scanned, "kept": fr.kept,
-                          "clusters": fr.clusters, "max_cluster": fr.max_cluster})
+    steps = pl.DataFrame(
+        {
+            "t": times[space.order],
+            "candidates": fr.candidates,
+            "scanned": fr.scanned,
+            "kept": fr.kept,
+            "clusters": fr.clusters,
+            "max_cluster": fr.max_cluster,
+        }
+    )
     # survivors of every instant in one table: the per-instant arrays are concatenated once
     n_t = np.array([fr.particles[t][1].size for t in range(T)], dtype=np.int64)
     pxy = np.concatenate([fr.particles[t][0] for t in range(T)]).reshape(-1, space.dim)
@@ -241,26 +294,61 @@ def run(inputs: dict, site: Site, config: ClusterTrackConfig) -> dict[str, pl.Da
         n_c = np.array([len(f.components) for f in space.f1d], dtype=np.int64)
         comps = np.concatenate([f.components for f in space.f1d]).reshape(-1, 2)
         out["feasible"] = pl.DataFrame(
-            {"t": np.repeat(times, n_c), "component": np.arange(n_c.sum()) - np.repeat(np.cumsum(n_c) - n_c, n_c),
-             "lo": comps[:, 0], "hi": comps[:, 1]}
+            {
+                "t": np.repeat(times, n_c),
+                "component": np.arange(n_c.sum()) - np.repeat(np.cumsum(n_c) - n_c, n_c),
+                "lo": comps[:, 0],
+                "hi": comps[:, 1],
+            }
         )
         out["minimal_targets"] = pl.DataFrame(
-            {"t": np.repeat(times, [m.size for m in space.minimal_targets]),
-             "x": np.concatenate(space.minimal_targets) if T else np.zeros(0)}
+            {
+                "t": np.repeat(times, [m.size for m in space.minimal_targets]),
+                "x": np.concatenate(space.minimal_targets) if T else np.zeros(0),
+            }
         )
     count_consensus = -1
     if config.consensus_runs > 0:
         seeds = list(range(config.seed, config.seed + config.consensus_runs))
-        cons = consensus(space, p, seeds, ratio=config.consensus_ratio, min_support=config.consensus_support,
-                         max_reruns=config.reruns, high_cost=config.rerun_cost_ratio,
-                         known={config.seed: res} if config.reruns > 0 else None, max_tracks=bound)  # the run above is seed's run
+        cons = consensus(
+            space,
+            p,
+            seeds,
+            ratio=config.consensus_ratio,
+            min_support=config.consensus_support,
+            max_reruns=config.reruns,
+            high_cost=config.rerun_cost_ratio,
+            known={config.seed: res} if config.reruns > 0 else None,
+            max_tracks=bound,
+        )  # the run above is seed's run
         count_consensus = cons.count
-        out["consensus"] = pl.DataFrame({"run": cons.run, "cluster": cons.cluster, "cost": cons.costs,
-                                         "support": cons.support[cons.cluster] if cons.cluster.size else np.zeros(0)})
+        out["consensus"] = pl.DataFrame(
+            {
+                "run": cons.run,
+                "cluster": cons.cluster,
+                "cost": cons.costs,
+                "support": cons.support[cons.cluster] if cons.cluster.size else np.zeros(0),
+            }
+        )
     out["params"] = pl.DataFrame(
-        [{"dim": space.dim, "R": R, "H": p.H, "m_o": p.m_o, "K": p.K, "L": p.L, "D0": p.D0, "Q_hat": p.Q_hat, "A_hat": p.A_hat,
-          "reruns": res.reruns, "satisfied": res.satisfied, "count_lower_bound": space.max_lower_bound,
-          "count_consensus": count_consensus, "tracks": N}]
+        [
+            {
+                "dim": space.dim,
+                "R": R,
+                "H": p.H,
+                "m_o": p.m_o,
+                "K": p.K,
+                "L": p.L,
+                "D0": p.D0,
+                "Q_hat": p.Q_hat,
+                "A_hat": p.A_hat,
+                "reruns": res.reruns,
+                "satisfied": res.satisfied,
+                "count_lower_bound": space.max_lower_bound,
+                "count_consensus": count_consensus,
+                "tracks": N,
+            }
+        ]
     )
     cells = None
     if space.dim == 2:
@@ -268,8 +356,11 @@ def run(inputs: dict, site: Site, config: ClusterTrackConfig) -> dict[str, pl.Da
         cxy = space.raster.centres[ci]
         cells = pl.DataFrame({"t": times[ti], "x": cxy[:, 0], "y": cxy[:, 1], "component": space.labels[ti, ci]})
     out[ARTIFACTS] = {
-        "times": times, "frames_on": on, "cells": cells, "cell": space.raster.cell if space.raster is not None else R / config.raster_per_r,
-    }  # fmt: skip
+        "times": times,
+        "frames_on": on,
+        "cells": cells,
+        "cell": space.raster.cell if space.raster is not None else R / config.raster_per_r,
+    }
     return {k: (v.cast(dict(OUTPUT_SCHEMAS[k])) if k in OUTPUT_SCHEMAS else v) for k, v in out.items()}
 
 

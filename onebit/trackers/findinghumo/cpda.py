@@ -44,9 +44,7 @@ from dataclasses import dataclass, field
 import numpy as np
 import polars as pl
 
-from onebit.core.lazy import lazy_module
 from onebit.models.graph_hmm.viterbi import log_safe
-
 
 SWITCHES = pl.Schema({"slot": pl.Int64, "node": pl.String, "users": pl.String, "pairing": pl.String})
 
@@ -75,7 +73,9 @@ def interaction_graph(paths: np.ndarray, nodes: tuple[str, ...]):
     return g
 
 
-def colocation_events(paths: np.ndarray, feature: np.ndarray, hops: np.ndarray | None = None) -> list[tuple[int, tuple[int, ...]]]:
+def colocation_events(
+    paths: np.ndarray, feature: np.ndarray, hops: np.ndarray | None = None
+) -> list[tuple[int, tuple[int, ...]]]:
     """Meeting events ``(c, users)``: slot ``c`` is the last of a run in which the same group of
     >= 2 users meets -- at one node (the paper's non-feature node), or, with ``hops``, also at
     adjacent nodes (two users crossing on an edge between slots, which a slot-level decoder
@@ -112,7 +112,7 @@ def colocation_events(paths: np.ndarray, feature: np.ndarray, hops: np.ndarray |
 def _neighbour_node(row: np.ndarray, node: int, start: int, stop: int, step: int) -> int:
     """First node different from ``node`` scanning ``row[start], row[start+step], ...`` up to
     (not including) ``stop``; -1 if none (or the user is absent)."""
-    seg = row[start:stop:step] if step > 0 else row[start:stop if stop >= 0 else None:step]
+    seg = row[start:stop:step] if step > 0 else row[start : stop if stop >= 0 else None : step]
     diff = np.flatnonzero(seg != node)
     if diff.size == 0:
         return -1
@@ -264,7 +264,9 @@ def _jumps(rows: np.ndarray, p, b: int, hops: np.ndarray | None) -> bool:
     known nodes more than one hop apart)."""
     if hops is None or b >= len(rows[0]):
         return False
-    return any(rows[u][b - 1] >= 0 and rows[p[u]][b] >= 0 and hops[rows[u][b - 1], rows[p[u]][b]] > 1 for u in range(len(p)))
+    return any(
+        rows[u][b - 1] >= 0 and rows[p[u]][b] >= 0 and hops[rows[u][b - 1], rows[p[u]][b]] > 1 for u in range(len(p))
+    )
 
 
 def cpda(
@@ -300,7 +302,9 @@ def cpda(
             if (at < 0).any() or users.size > MAX_MEETING:
                 continue
             # events are listed before the pass; an earlier switch may have moved these users apart
-            if (hops is None and (at != at[0]).any()) or (hops is not None and not _connected(hops[np.ix_(at, at)] <= 1)):
+            if (hops is None and (at != at[0]).any()) or (
+                hops is not None and not _connected(hops[np.ix_(at, at)] <= 1)
+            ):
                 continue
             d = paths.shape[1]
             s0 = meeting_start(paths, users, c, hops)
@@ -345,16 +349,33 @@ def pairing_probabilities(logp: np.ndarray) -> np.ndarray:
 
 def _decision(pass_no, c, at, users, ins, outs, perms, logp, best) -> dict:
     return {
-        "pass": int(pass_no), "slot": int(c), "nodes": tuple(int(x) for x in at), "users": tuple(int(u) for u in users),
-        "ins": tuple(int(x) for x in ins), "outs": tuple(int(x) for x in outs), "sigma": tuple(int(x) for x in perms[best]),
-        "perms": perms, "prob": pairing_probabilities(logp),
-    }  # fmt: skip
+        "pass": int(pass_no),
+        "slot": int(c),
+        "nodes": tuple(int(x) for x in at),
+        "users": tuple(int(u) for u in users),
+        "ins": tuple(int(x) for x in ins),
+        "outs": tuple(int(x) for x in outs),
+        "sigma": tuple(int(x) for x in perms[best]),
+        "perms": perms,
+        "prob": pairing_probabilities(logp),
+    }
 
 
-DECISIONS = pl.Schema({
-    "pass": pl.Int64, "slot": pl.Int64, "node": pl.String, "users": pl.String, "ins": pl.String, "outs": pl.String,
-    "pairing": pl.String, "switched": pl.Boolean, "p_chosen": pl.Float64, "p_keep": pl.Float64, "alternatives": pl.String,
-})  # fmt: skip
+DECISIONS = pl.Schema(
+    {
+        "pass": pl.Int64,
+        "slot": pl.Int64,
+        "node": pl.String,
+        "users": pl.String,
+        "ins": pl.String,
+        "outs": pl.String,
+        "pairing": pl.String,
+        "switched": pl.Boolean,
+        "p_chosen": pl.Float64,
+        "p_keep": pl.Float64,
+        "alternatives": pl.String,
+    }
+)
 
 
 def decisions_table(result: CpdaResult, nodes: tuple[str, ...]) -> pl.DataFrame:
@@ -366,23 +387,27 @@ def decisions_table(result: CpdaResult, nodes: tuple[str, ...]) -> pl.DataFrame:
     rows = []
     for d in result.decisions:
         users = d["users"]
-        alts = "; ".join(
-            f"{' '.join(str(users[i]) for i in p)}:{pr:.3f}" for p, pr in zip(d["perms"], d["prob"])
-        )
+        alts = "; ".join(f"{' '.join(str(users[i]) for i in p)}:{pr:.3f}" for p, pr in zip(d["perms"], d["prob"]))
         ident = tuple(range(len(users)))
         p_of = dict(zip(d["perms"], d["prob"].tolist()))
-        rows.append((
-            d["pass"], d["slot"], " ".join(name(j) for j in d["nodes"]), " ".join(map(str, users)),
-            " ".join(name(j) for j in d["ins"]), " ".join(name(j) for j in d["outs"]),
-            " ".join(str(users[i]) for i in d["sigma"]), d["sigma"] != ident,
-            float(p_of.get(d["sigma"], 1.0)), float(p_of.get(ident, 1.0)), alts,
-        ))  # fmt: skip
+        rows.append(
+            (
+                d["pass"],
+                d["slot"],
+                " ".join(name(j) for j in d["nodes"]),
+                " ".join(map(str, users)),
+                " ".join(name(j) for j in d["ins"]),
+                " ".join(name(j) for j in d["outs"]),
+                " ".join(str(users[i]) for i in d["sigma"]),
+                d["sigma"] != ident,
+                float(p_of.get(d["sigma"], 1.0)),
+                float(p_of.get(ident, 1.0)),
+                alts,
+            )
+        )
     return pl.DataFrame(rows, schema=DECISIONS, orient="row")
 
 
 def switches_table(result: CpdaResult, nodes: tuple[str, ...], slot0: int = 0) -> pl.DataFrame:
-    rows = [
-        (slot0 + c, nodes[j], " ".join(map(str, u)), " ".join(map(str, s)))
-        for c, j, u, s in result.switches
-    ]
+    rows = [(slot0 + c, nodes[j], " ".join(map(str, u)), " ".join(map(str, s))) for c, j, u, s in result.switches]
     return pl.DataFrame(rows, schema=SWITCHES, orient="row")

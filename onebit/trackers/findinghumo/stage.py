@@ -24,20 +24,37 @@ import numpy as np
 import polars as pl
 
 from onebit.core.config import check_range
+from onebit.core.frames import outside_silence
 from onebit.core.site import Site
 from onebit.models.graph_hmm.decoding import (
-    WINDOWS, HmmConfig, available, build_eatg, cap_users, decode_motion, door_signatures, slot_activity, tracks_table,
+    WINDOWS,
+    HmmConfig,
+    available,
+    build_eatg,
+    cap_users,
+    decode_motion,
+    door_signatures,
+    slot_activity,
+    tracks_table,
     windows_table,
 )
 from onebit.models.graph_hmm.joint import joint_table, redecode_meetings
-from onebit.core.frames import outside_silence
 from onebit.trackers.attribution import attribute_events
 from onebit.trackers.base import ARTIFACTS, PROGRESS, TrackerSpec
 from onebit.trackers.findinghumo.cpda import cpda, decisions_table, switches_table
 
 __all__ = [
-    "WINDOWS", "HmmConfig", "FindingHumoConfig", "SPECS", "build_eatg", "cap_users", "door_signatures", "slot_activity",
-    "run_findinghumo", "run_hmm1", "run_hmm2",
+    "WINDOWS",
+    "HmmConfig",
+    "FindingHumoConfig",
+    "SPECS",
+    "build_eatg",
+    "cap_users",
+    "door_signatures",
+    "slot_activity",
+    "run_findinghumo",
+    "run_hmm1",
+    "run_hmm2",
 ]
 
 
@@ -73,18 +90,31 @@ def _run(name: str, mode: str, inputs: dict, site: Site, cfg: HmmConfig) -> dict
     cap = cfg.max_users or (site.targets or 0)
     joint_log: list[dict] = []
     if cfg.joint == "before-cpda" or (cfg.joint == "after-cpda" and not isinstance(cfg, FindingHumoConfig)):
-        paths, joint_log = redecode_meetings(paths, active, eatg, p_hit=cfg.p_hit, p_false=cfg.p_false, pad=cfg.joint_pad)
+        paths, joint_log = redecode_meetings(
+            paths, active, eatg, p_hit=cfg.p_hit, p_false=cfg.p_false, pad=cfg.joint_pad
+        )
     cpda_input = paths
     if isinstance(cfg, FindingHumoConfig):
         feature = np.isin(np.asarray(nodes), list(g.entries) + list(g.exits))
-        cp = cpda(paths, eatg.a2, horizon=cfg.c_windows * cfg.d_max, feature=feature, hops=eatg.hops, max_passes=cfg.cpda_passes)
+        cp = cpda(
+            paths,
+            eatg.a2,
+            horizon=cfg.c_windows * cfg.d_max,
+            feature=feature,
+            hops=eatg.hops,
+            max_passes=cfg.cpda_passes,
+        )
         decoded = cap_users(res.paths, active, eatg.hops, cap)
-        out["decoded_hmm"] = outside_silence(tracks_table(name, decoded, nodes, site, t0, cfg.period), silent).drop("tracker")
+        out["decoded_hmm"] = outside_silence(tracks_table(name, decoded, nodes, site, t0, cfg.period), silent).drop(
+            "tracker"
+        )
         paths = cp.paths
         out["switches"] = switches_table(cp, nodes)
         out["cpda"] = decisions_table(cp, nodes)
         if cfg.joint == "after-cpda":
-            paths, joint_log = redecode_meetings(paths, active, eatg, p_hit=cfg.p_hit, p_false=cfg.p_false, pad=cfg.joint_pad)
+            paths, joint_log = redecode_meetings(
+                paths, active, eatg, p_hit=cfg.p_hit, p_false=cfg.p_false, pad=cfg.joint_pad
+            )
     if cfg.joint != "off":
         out["joint"] = joint_table(joint_log, nodes, t0, cfg.period)
     paths = cap_users(paths, active, eatg.hops, cap)
@@ -96,7 +126,9 @@ def _run(name: str, mode: str, inputs: dict, site: Site, cfg: HmmConfig) -> dict
     out["decoder"] = pl.DataFrame({"slots": [int(active.shape[0])], "users": [int(paths.shape[0])]})
     out[ARTIFACTS] = {"eatg": eatg, "active": active, "nodes": nodes, "t0": t0, "period": cfg.period, "paths": paths}
     if isinstance(cfg, FindingHumoConfig):
-        out[ARTIFACTS]["decoded_paths"] = cpda_input  # what CPDA started from (the Adaptive-HMM's, re-decoded at meetings)
+        out[ARTIFACTS]["decoded_paths"] = (
+            cpda_input  # what CPDA started from (the Adaptive-HMM's, re-decoded at meetings)
+        )
     return out
 
 
@@ -117,16 +149,27 @@ def run_hmm2(inputs: dict, site: Site, config: HmmConfig):
 
 SPECS = [
     TrackerSpec(
-        name="findinghumo", needs=("motion",), config=FindingHumoConfig, run=run_findinghumo,
+        name="findinghumo",
+        needs=("motion",),
+        config=FindingHumoConfig,
+        run=run_findinghumo,
         available=available,
         help="FindingHuMo (De et al.): Adaptive-HMM on a PIR sensor graph + CPDA path disambiguation",
     ),
     TrackerSpec(
-        name="hmm1", needs=("motion",), config=HmmConfig, run=run_hmm1, available=available,
+        name="hmm1",
+        needs=("motion",),
+        config=HmmConfig,
+        run=run_hmm1,
+        available=available,
         help="baseline: full-state first-order HMM on the PIR sensor graph (FindingHuMo section IV-B)",
     ),
     TrackerSpec(
-        name="hmm2", needs=("motion",), config=HmmConfig, run=run_hmm2, available=available,
+        name="hmm2",
+        needs=("motion",),
+        config=HmmConfig,
+        run=run_hmm2,
+        available=available,
         help="baseline: full-state second-order HMM on the PIR sensor graph (FindingHuMo section IV-B)",
     ),
 ]

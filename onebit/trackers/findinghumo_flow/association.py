@@ -161,7 +161,9 @@ def fragments(paths: np.ndarray, meets: list[Meeting]) -> list[Fragment]:
     return out
 
 
-def meeting_joins(paths: np.ndarray, frags: list[Fragment], meets: list[Meeting], hops: np.ndarray) -> list[tuple[int, int, int, int]]:
+def meeting_joins(
+    paths: np.ndarray, frags: list[Fragment], meets: list[Meeting], hops: np.ndarray
+) -> list[tuple[int, int, int, int]]:
     """Every allowed join at a meeting's cut slot: ``(f, g, cut, last node of f)`` for ``f``
     ending and ``g`` starting at the cut, ``g``'s first node within one hop of ``f``'s last."""
     by_end = {(f.track, f.end): i for i, f in enumerate(frags)}
@@ -228,8 +230,13 @@ def log_geom(n: int, mu: float) -> float:
 
 
 def join_cost(
-    x: tuple[np.ndarray, np.ndarray], y: tuple[np.ndarray, np.ndarray], log_a2: np.ndarray, mu: tuple[float, float] | None,
-    sigma: float, pace_f: float | None, pace_g: float | None,
+    x: tuple[np.ndarray, np.ndarray],
+    y: tuple[np.ndarray, np.ndarray],
+    log_a2: np.ndarray,
+    mu: tuple[float, float] | None,
+    sigma: float,
+    pace_f: float | None,
+    pace_g: float | None,
 ) -> float:
     """``c(f, g)`` of the module docstring from the visits ``x`` of ``f`` and ``y`` of ``g``
     (``mu = None``: without the turn/pass dwell term)."""
@@ -248,7 +255,9 @@ def join_cost(
     return cost
 
 
-def min_cost_cover(n: int, birth: np.ndarray, death: np.ndarray, joins: dict[tuple[int, int], float]) -> tuple[np.ndarray, float]:
+def min_cost_cover(
+    n: int, birth: np.ndarray, death: np.ndarray, joins: dict[tuple[int, int], float]
+) -> tuple[np.ndarray, float]:
     """Chains covering fragments ``0..n-1`` at minimum total cost (module docstring).
 
     ``birth[f]`` / ``death[f]``: cost of a chain starting / ending at ``f``; ``joins[(f, g)]``:

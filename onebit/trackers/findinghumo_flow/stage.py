@@ -20,24 +20,43 @@ import numpy as np
 import polars as pl
 
 from onebit.core.config import check_choice, check_range
-from onebit.core.site import Site
-from onebit.models.graph_hmm.joint import joint_table, redecode_meetings
-from onebit.models.graph_hmm.decoding import HmmConfig, available, cap_users, decode_motion, tracks_table, windows_table
-from onebit.models.graph_hmm.viterbi import log_safe
 from onebit.core.frames import outside_silence
+from onebit.core.site import Site
+from onebit.models.graph_hmm.decoding import HmmConfig, available, cap_users, decode_motion, tracks_table, windows_table
+from onebit.models.graph_hmm.joint import joint_table, redecode_meetings
+from onebit.models.graph_hmm.viterbi import log_safe
 from onebit.trackers.attribution import attribute_events
 from onebit.trackers.base import ARTIFACTS, PROGRESS, TrackerSpec
 from onebit.trackers.findinghumo_flow.association import (
-    BIRTH, Fragment, assemble, dwell_means, fragments, join_cost, meeting_joins, meetings, min_cost_cover, pace, visits,
+    BIRTH,
+    Fragment,
+    assemble,
+    dwell_means,
+    fragments,
+    join_cost,
+    meeting_joins,
+    meetings,
+    min_cost_cover,
+    pace,
+    visits,
 )
 
 NAME = "findinghumo-flow"
 
-FRAGMENTS = pl.Schema({"fragment": pl.Int64, "track": pl.Int64, "start": pl.Int64, "end": pl.Int64, "identity": pl.Int64})
-JOINS = pl.Schema({
-    "slot": pl.Int64, "node": pl.String, "src": pl.Int64, "dst": pl.Int64, "cost": pl.Float64, "chosen": pl.Boolean,
-    "probability": pl.Float64,
-})  # fmt: skip
+FRAGMENTS = pl.Schema(
+    {"fragment": pl.Int64, "track": pl.Int64, "start": pl.Int64, "end": pl.Int64, "identity": pl.Int64}
+)
+JOINS = pl.Schema(
+    {
+        "slot": pl.Int64,
+        "node": pl.String,
+        "src": pl.Int64,
+        "dst": pl.Int64,
+        "cost": pl.Float64,
+        "chosen": pl.Boolean,
+        "probability": pl.Float64,
+    }
+)
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -71,8 +90,18 @@ class FlowConfig(HmmConfig):
 
 
 def associate_paths(
-    paths: np.ndarray, hops: np.ndarray, a1: np.ndarray, a2: np.ndarray, feature: np.ndarray, entries: np.ndarray, exits: np.ndarray,
-    *, pace_sigma: float = 0.35, max_gap: int = 10, switch_cost: float = 1.0, turn_dwell: bool = False,
+    paths: np.ndarray,
+    hops: np.ndarray,
+    a1: np.ndarray,
+    a2: np.ndarray,
+    feature: np.ndarray,
+    entries: np.ndarray,
+    exits: np.ndarray,
+    *,
+    pace_sigma: float = 0.35,
+    max_gap: int = 10,
+    switch_cost: float = 1.0,
+    turn_dwell: bool = False,
     run_start: int = 0,
 ) -> tuple[np.ndarray, list[Fragment], np.ndarray, list[tuple]]:
     """Chain the fragments of ``paths`` (U, D) into identities (association module docstring).
@@ -121,7 +150,9 @@ def associate_paths(
         for g in starts[ok]:
             k = int(first_slot[g] - last_slot[f]) + 1
             # no a'' terms across a gap: the nodes walked in it are not known
-            c = -float(log_steps[k, last_node[f], first_node[g]]) + join_cost((vis[f][0][:0], vis[f][1][:0]), vis[g], log_a2, None, pace_sigma, paces[f], paces[g])
+            c = -float(log_steps[k, last_node[f], first_node[g]]) + join_cost(
+                (vis[f][0][:0], vis[f][1][:0]), vis[g], log_a2, None, pace_sigma, paces[f], paces[g]
+            )
             if np.isfinite(c):
                 joins[(int(f), int(g))] = c
                 where[(int(f), int(g))] = (int(first_slot[g]), int(last_node[f]))
@@ -145,13 +176,25 @@ def run_flow(inputs: dict, site: Site, config: FlowConfig) -> dict:
     decoded = run.result.paths
     joint_log: list[dict] = []
     if cfg.joint == "before-cpda":  # on the HMM's paths, before the association
-        decoded, joint_log = redecode_meetings(decoded, run.active, eatg, p_hit=cfg.p_hit, p_false=cfg.p_false, pad=cfg.joint_pad)
+        decoded, joint_log = redecode_meetings(
+            decoded, run.active, eatg, p_hit=cfg.p_hit, p_false=cfg.p_false, pad=cfg.joint_pad
+        )
     paths, frags, ident, joins = associate_paths(
-        decoded, eatg.hops, eatg.a1, eatg.a2, feature, entries, exits, pace_sigma=cfg.pace_sigma, max_gap=cfg.max_gap,
+        decoded,
+        eatg.hops,
+        eatg.a1,
+        eatg.a2,
+        feature,
+        entries,
+        exits,
+        pace_sigma=cfg.pace_sigma,
+        max_gap=cfg.max_gap,
         run_start=cfg.d_max,
     )
     if cfg.joint == "after-cpda":  # on the associated paths
-        paths, joint_log = redecode_meetings(paths, run.active, eatg, p_hit=cfg.p_hit, p_false=cfg.p_false, pad=cfg.joint_pad)
+        paths, joint_log = redecode_meetings(
+            paths, run.active, eatg, p_hit=cfg.p_hit, p_false=cfg.p_false, pad=cfg.joint_pad
+        )
     cap = cfg.max_users or (site.targets or 0)
     paths = cap_users(paths, run.active, eatg.hops, cap)
     tracks = outside_silence(tracks_table(NAME, paths, nodes, site, run.t0, cfg.period), run.silent)
@@ -169,10 +212,15 @@ def run_flow(inputs: dict, site: Site, config: FlowConfig) -> dict:
         "windows": windows_table(run.result),
         "decoder": pl.DataFrame({"slots": [int(run.active.shape[0])], "users": [int(paths.shape[0])]}),
         ARTIFACTS: {
-            "eatg": eatg, "active": run.active, "nodes": nodes, "t0": run.t0, "period": cfg.period, "paths": paths,
+            "eatg": eatg,
+            "active": run.active,
+            "nodes": nodes,
+            "t0": run.t0,
+            "period": cfg.period,
+            "paths": paths,
             "decoded_paths": decoded,  # what the association started from
         },
-    }  # fmt: skip
+    }
 
 
 def _joins_table(joins: list[tuple], nodes) -> pl.DataFrame:
@@ -181,7 +229,8 @@ def _joins_table(joins: list[tuple], nodes) -> pl.DataFrame:
         return pl.DataFrame(schema=JOINS)
     df = pl.DataFrame(
         [(s, nodes[j], f, g, c, ch) for s, j, f, g, c, ch in joins],
-        schema={k: v for k, v in JOINS.items() if k != "probability"}, orient="row",
+        schema={k: v for k, v in JOINS.items() if k != "probability"},
+        orient="row",
     )
     return df.with_columns(
         probability=(-(pl.col("cost") - pl.col("cost").min().over("src"))).exp()
@@ -190,6 +239,10 @@ def _joins_table(joins: list[tuple], nodes) -> pl.DataFrame:
 
 
 SPEC = TrackerSpec(
-    name=NAME, needs=("motion",), config=FlowConfig, run=run_flow, available=available,
+    name=NAME,
+    needs=("motion",),
+    config=FlowConfig,
+    run=run_flow,
+    available=available,
     help="beyond FindingHuMo: HMM paths cut at every meeting, fragments joined over the whole run by a minimum-cost flow",
 )

@@ -46,7 +46,11 @@ def pan_tilt_zoom(
     u = np.cross(r, f)
     corners = (
         P[:, None, :]
-        + (np.array([[a * width / 2, b * depth / 2, c * height / 2] for a in (-1, 1) for b in (-1, 1) for c in (-1, 1)]))[None]
+        + (
+            np.array(
+                [[a * width / 2, b * depth / 2, c * height / 2] for a in (-1, 1) for b in (-1, 1) for c in (-1, 1)]
+            )
+        )[None]
     )  # (T, 8, 3)
     v = corners - C
     z = np.einsum("tkc,tc->tk", v, f)

@@ -183,18 +183,35 @@ def run_filter(
     T = fired.shape[0]
     if not (T * n_particles >= COMPILED_MIN if compiled is None else compiled):
         return run_filter_reference(
-            fired, blind, dep, room, motion, n_particles=n_particles, half_w=half_w, half_d=half_d, rng=rng,
-            resample=resample, resample_when=resample_when, ess_threshold=ess_threshold, log_particles=log_particles,
+            fired,
+            blind,
+            dep,
+            room,
+            motion,
+            n_particles=n_particles,
+            half_w=half_w,
+            half_d=half_d,
+            rng=rng,
+            resample=resample,
+            resample_when=resample_when,
+            ess_threshold=ess_threshold,
+            log_particles=log_particles,
             progress=progress,
-        )  # fmt: skip
+        )
     cxs, cys = dep.grid.centres()
     mask = np.ascontiguousarray(room.contains(cxs.ravel(), cys.ravel()).reshape(cxs.shape))
     p = prior(n_particles, room, motion, rng)
     L = logged_per_iteration(log_particles, n_particles, T)
     res = FilterResult(
-        np.zeros((T, 2)), np.zeros(T), np.zeros(T, np.int64), np.zeros(T, np.int64), np.zeros(T, bool),
-        np.zeros((T, L, 2)), np.zeros((T, L)), np.zeros(T),
-    )  # fmt: skip
+        np.zeros((T, 2)),
+        np.zeros(T),
+        np.zeros(T, np.int64),
+        np.zeros(T, np.int64),
+        np.zeros(T, bool),
+        np.zeros((T, L, 2)),
+        np.zeros((T, L)),
+        np.zeros(T),
+    )
     if T == 0:
         return res
     pick = np.linspace(0, n_particles - 1, L).round().astype(np.int64) if L else np.zeros(0, np.int64)
@@ -209,18 +226,51 @@ def run_filter(
     blind = np.ascontiguousarray(blind, dtype=np.bool_)
     systematic, always = resample == "systematic", resample_when == "always"
     x, y, theta, v, w = (np.ascontiguousarray(c, dtype=np.float64) for c in (p.x, p.y, p.theta, p.v, p.w))
-    common = (grid, ptr, sensor, q, p0, xi, a, float(half_w), float(half_d), mask, systematic, always, float(ess_threshold), pick)
+    common = (
+        grid,
+        ptr,
+        sensor,
+        q,
+        p0,
+        xi,
+        a,
+        float(half_w),
+        float(half_d),
+        mask,
+        systematic,
+        always,
+        float(ess_threshold),
+        pick,
+    )
     outs = (res.estimates, res.ess, res.resampled, res.logged_xy, res.logged_w, res.spread)
     if room.is_box:
-        mot = np.array([motion.period, motion.v_max, motion.speed_sigma, motion.turn_scale, motion.max_retries], dtype=np.float64)
+        mot = np.array(
+            [motion.period, motion.v_max, motion.speed_sigma, motion.turn_scale, motion.max_retries], dtype=np.float64
+        )
         step = T if progress is None else max(1, -(-T // PROGRESS_CHUNKS))
         for a in range(0, T, step):
             b = min(a + step, T)
             kernels._run_box(
-                x, y, theta, v, w, rng, fired[a:b], blind[a:b], mot, np.asarray(room.bounds, dtype=np.float64), *common,
-                res.estimates[a:b], res.ess[a:b], res.redraws[a:b], res.clamped[a:b], res.resampled[a:b],
-                res.logged_xy[a:b], res.logged_w[a:b], res.spread[a:b],
-            )  # fmt: skip
+                x,
+                y,
+                theta,
+                v,
+                w,
+                rng,
+                fired[a:b],
+                blind[a:b],
+                mot,
+                np.asarray(room.bounds, dtype=np.float64),
+                *common,
+                res.estimates[a:b],
+                res.ess[a:b],
+                res.redraws[a:b],
+                res.clamped[a:b],
+                res.resampled[a:b],
+                res.logged_xy[a:b],
+                res.logged_w[a:b],
+                res.spread[a:b],
+            )
             if progress is not None:
                 progress(b, T)
         return res
@@ -272,16 +322,39 @@ def run_filter_reference(
     p = prior(n_particles, room, motion, rng)
     L = logged_per_iteration(log_particles, n_particles, T)
     res = FilterResult(
-        np.zeros((T, 2)), np.zeros(T), np.zeros(T, np.int64), np.zeros(T, np.int64), np.zeros(T, bool),
-        np.zeros((T, L, 2)), np.zeros((T, L)), np.zeros(T),
-    )  # fmt: skip
+        np.zeros((T, 2)),
+        np.zeros(T),
+        np.zeros(T, np.int64),
+        np.zeros(T, np.int64),
+        np.zeros(T, bool),
+        np.zeros((T, L, 2)),
+        np.zeros((T, L)),
+        np.zeros(T),
+    )
     pick = np.linspace(0, n_particles - 1, L).round().astype(np.int64) if L else np.zeros(0, np.int64)
     for k in range(T):
         p, step = filter_step(
-            p, fired[k], blind[k], dep, room, motion, half_w=half_w, half_d=half_d, mask=mask, rng=rng,
-            resample=resample, resample_when=resample_when, ess_threshold=ess_threshold, pick=pick,
-        )  # fmt: skip
-        res.estimates[k], res.ess[k], res.redraws[k], res.clamped[k] = step.estimate, step.ess, step.redraws, step.clamped
+            p,
+            fired[k],
+            blind[k],
+            dep,
+            room,
+            motion,
+            half_w=half_w,
+            half_d=half_d,
+            mask=mask,
+            rng=rng,
+            resample=resample,
+            resample_when=resample_when,
+            ess_threshold=ess_threshold,
+            pick=pick,
+        )
+        res.estimates[k], res.ess[k], res.redraws[k], res.clamped[k] = (
+            step.estimate,
+            step.ess,
+            step.redraws,
+            step.clamped,
+        )
         res.spread[k], res.resampled[k] = step.spread, step.resampled
         if L:
             res.logged_xy[k], res.logged_w[k] = step.logged_xy, step.logged_w

@@ -38,10 +38,10 @@ from dataclasses import dataclass, field
 import numpy as np
 import polars as pl
 
+from onebit.core.frames import outside_silence, silent_stretches
 from onebit.core.site import Site
 from onebit.models.motion import Motion, Particles, Room, prior
 from onebit.models.pir import Deployment, deploy
-from onebit.core.frames import outside_silence, silent_stretches
 from onebit.trackers.intruder.camera import pan_tilt_zoom
 from onebit.trackers.intruder.filter import filter_step
 from onebit.trackers.intruder.stage import NAME, IntruderConfig, observations, track_frame
@@ -85,16 +85,29 @@ def _empty(config: IntruderConfig) -> dict[str, pl.DataFrame]:
     out = {
         "tracks": track_frame(NAME, np.zeros(0), np.zeros((0, 2))),
         "iterations": pl.DataFrame(
-            schema={"t": pl.Float64, "ess": pl.Float64, "redraws": pl.Int64, "clamped": pl.Int64, "resampled": pl.Boolean,
-                    "spread": pl.Float64, "fired": pl.Int64, "blind": pl.Int64, "cell": pl.Float64}  # fmt: skip
+            schema={
+                "t": pl.Float64,
+                "ess": pl.Float64,
+                "redraws": pl.Int64,
+                "clamped": pl.Int64,
+                "resampled": pl.Boolean,
+                "spread": pl.Float64,
+                "fired": pl.Int64,
+                "blind": pl.Int64,
+                "cell": pl.Float64,
+            }
         ),
     }
     if config.camera_position is not None:
-        out["camera"] = pl.DataFrame(schema={"t": pl.Float64, "pan": pl.Float64, "tilt": pl.Float64, "zoom": pl.Float64})
+        out["camera"] = pl.DataFrame(
+            schema={"t": pl.Float64, "pan": pl.Float64, "tilt": pl.Float64, "zoom": pl.Float64}
+        )
     return out
 
 
-def advance(state: OnlineIntruder, motion: pl.DataFrame, *, horizon: float, settle: float, final: bool = False) -> dict[str, pl.DataFrame]:
+def advance(
+    state: OnlineIntruder, motion: pl.DataFrame, *, horizon: float, settle: float, final: bool = False
+) -> dict[str, pl.DataFrame]:
     """Run the iterations that became final; return their rows (``tracks``, ``iterations``
     and, with a camera, the PTZ ``camera`` commands), in the batch stage's schemas.
 
@@ -124,7 +137,9 @@ def advance(state: OnlineIntruder, motion: pl.DataFrame, *, horizon: float, sett
         elif settled.height:
             state.start = math.floor(settled["t"].min() / cfg.period) * cfg.period
     if final:
-        fired, blind, t_end = observations(motion, state.site, period=cfg.period, start=cfg.start, end=cfg.end, held=cfg.held)
+        fired, blind, t_end = observations(
+            motion, state.site, period=cfg.period, start=cfg.start, end=cfg.end, held=cfg.held
+        )
         todo = len(t_end)
         state.ended = True
     else:
@@ -140,8 +155,14 @@ def advance(state: OnlineIntruder, motion: pl.DataFrame, *, horizon: float, sett
         if todo <= state.done:
             return out
         # the slots' firings from the settled edges; every slot is closed by a later settled edge
-        fired, blind, t_end = observations(settled, state.site, period=cfg.period, start=state.start, end=state.start + todo * cfg.period,
-                                           held=cfg.held)  # fmt: skip
+        fired, blind, t_end = observations(
+            settled,
+            state.site,
+            period=cfg.period,
+            start=state.start,
+            end=state.start + todo * cfg.period,
+            held=cfg.held,
+        )
         todo = min(todo, len(t_end))
     k0 = state.done
     if todo <= k0:
@@ -154,9 +175,20 @@ def advance(state: OnlineIntruder, motion: pl.DataFrame, *, horizon: float, sett
     p = state.particles
     for k in range(k0, todo):  # sequential: each iteration needs the previous posterior
         p, step = filter_step(
-            p, fired[k], blind[k], state.dep, state.room, state.motion, half_w=half_w, half_d=half_d, mask=state.mask,
-            rng=state.rng, resample=cfg.resample, resample_when=cfg.resample_when, ess_threshold=cfg.ess_threshold,
-        )  # fmt: skip
+            p,
+            fired[k],
+            blind[k],
+            state.dep,
+            state.room,
+            state.motion,
+            half_w=half_w,
+            half_d=half_d,
+            mask=state.mask,
+            rng=state.rng,
+            resample=cfg.resample,
+            resample_when=cfg.resample_when,
+            ess_threshold=cfg.ess_threshold,
+        )
         rows.append(step)
     state.particles, state.done = p, todo
     t = t_end[k0:todo]
@@ -178,8 +210,13 @@ def advance(state: OnlineIntruder, motion: pl.DataFrame, *, horizon: float, sett
     )
     if cfg.camera_position is not None:
         ptz = pan_tilt_zoom(
-            est, tuple(cfg.camera_position), width=cfg.box_width * c, depth=cfg.box_depth * c,
-            height=cfg.box_height * c, fov_deg=cfg.camera_fov, aspect=cfg.camera_aspect,
-        )  # fmt: skip
+            est,
+            tuple(cfg.camera_position),
+            width=cfg.box_width * c,
+            depth=cfg.box_depth * c,
+            height=cfg.box_height * c,
+            fov_deg=cfg.camera_fov,
+            aspect=cfg.camera_aspect,
+        )
         out["camera"] = pl.DataFrame({"t": t, "pan": ptz[:, 0], "tilt": ptz[:, 1], "zoom": ptz[:, 2]})
     return out

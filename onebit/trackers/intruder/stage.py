@@ -24,17 +24,17 @@ from dataclasses import dataclass
 import numpy as np
 import polars as pl
 
-from onebit.core.site import Site
-from onebit.core.errors import ConfigError
-from onebit.core.units import length
-from onebit.core.frames import ABSENT_AFTER_S, motion_frames, outside_silence, refractory_state, silent_stretches
-from onebit.core.tables import TRACKS, check_schema, conform, MOTION
-from onebit.trackers.base import ARTIFACTS, PROGRESS, TrackerSpec
 from onebit.core.config import check_choice, check_range
-from onebit.trackers.intruder.camera import pan_tilt_zoom
+from onebit.core.errors import ConfigError
+from onebit.core.frames import ABSENT_AFTER_S, motion_frames, outside_silence, refractory_state, silent_stretches
+from onebit.core.site import Site
+from onebit.core.tables import MOTION, TRACKS, check_schema, conform
+from onebit.core.units import length
 from onebit.models.motion import Motion, Room
-from onebit.trackers.intruder.filter import run_filter
 from onebit.models.pir import Deployment, deploy
+from onebit.trackers.base import ARTIFACTS, PROGRESS, TrackerSpec
+from onebit.trackers.intruder.camera import pan_tilt_zoom
+from onebit.trackers.intruder.filter import run_filter
 
 NAME = "intruder"
 NAIVE = "intruder-naive"
@@ -48,7 +48,9 @@ class IntruderConfig:
     period: float = 2.0  #: t_P, seconds per iteration
     v_max: float = 4.0  #: maximum speed, cells/s
     speed_sigma: float = 1.5  #: std of the Gaussian added to the speed, cells/s
-    turn_scale: float | None = None  #: sigma_theta = turn_scale / speed (rad * cells/s), capped at pi; None = v_max (1 rad at top speed)
+    turn_scale: float | None = (
+        None  #: sigma_theta = turn_scale / speed (rad * cells/s), capped at pi; None = v_max (1 rad at top speed)
+    )
     box_width: float = 2.0  #: intruder bounding prism width (x), cells
     box_depth: float = 2.0  #: intruder bounding prism depth (y), cells
     cell: float = length(1.0)  #: size of a cell, m (converted to site units: world units per cell)
@@ -57,11 +59,15 @@ class IntruderConfig:
     ess_threshold: float = 0.5  #: fraction of particles, for resample_when = "ess"
     max_retries: int = 50  #: rejection-sampling rounds before a particle is left in place
     seed: int = 0  #: random seed
-    start: float | None = None  #: time the intruder enters (s); iteration k ends at start + (k+1) t_P; None = the start of the slot (a multiple of t_P) holding the first edge
+    start: float | None = (
+        None  #: time the intruder enters (s); iteration k ends at start + (k+1) t_P; None = the start of the slot (a multiple of t_P) holding the first edge
+    )
     end: float | None = None  #: time it leaves (s); None = the slot of the last edge
     log_particles: int = 1000  #: particles per iteration sent to Rerun
     box_height: float = 1.0  #: intruder bounding prism height, cells (for camera pointing)
-    camera_position: list[float] | None = length(None)  #: [x, y, z] of the pan-tilt-zoom camera, m (converted to site units); None = no camera table
+    camera_position: list[float] | None = length(
+        None
+    )  #: [x, y, z] of the pan-tilt-zoom camera, m (converted to site units); None = no camera table
     camera_fov: float = 60.0  #: horizontal field of view of the camera at zoom 1, degrees
     camera_aspect: float = 4.0 / 3.0  #: image width / height
     absent_after: float = ABSENT_AFTER_S  #: s; no estimate inside a stretch this long with every sensor off and no edge (nobody present); 0 = always estimate
@@ -95,9 +101,10 @@ class IntruderConfig:
         check_range(self, "absent_after", 0.0, 1e12)
         cp = self.camera_position
         if cp is not None and not (
-            isinstance(cp, (list, tuple)) and len(cp) == 3
+            isinstance(cp, (list, tuple))
+            and len(cp) == 3
             and all(isinstance(v, (int, float)) and not isinstance(v, bool) and np.isfinite(v) for v in cp)
-        ):  # fmt: skip
+        ):
             raise ConfigError(f"IntruderConfig.camera_position = {cp!r}; expected [x, y, z] (3 finite numbers)")
 
 
@@ -131,7 +138,9 @@ def available(site: Site) -> str | None:
     return None
 
 
-def observations(motion: pl.DataFrame, site: Site, *, period: float, start: float | None, end: float | None, held: bool = False):
+def observations(
+    motion: pl.DataFrame, site: Site, *, period: float, start: float | None, end: float | None, held: bool = False
+):
     """``(fired, blind, t_end)``: ``(T, n)`` S_i and B_i per iteration and each iteration's end time.
 
     ``S_i`` is a rising edge in the iteration; with ``held``, a sensor whose ``signal`` is
@@ -198,18 +207,32 @@ def run(inputs: dict, site: Site, config: IntruderConfig) -> dict[str, pl.DataFr
     motion = check_schema(inputs["motion"], MOTION, name="motion")
     c = config.cell
     dep = deploy(site, c, false_alarm=config.false_alarm)
-    fired, blind, t_end = observations(motion, site, period=config.period, start=config.start, end=config.end, held=config.held)
+    fired, blind, t_end = observations(
+        motion, site, period=config.period, start=config.start, end=config.end, held=config.held
+    )
     room = Room(site.free_space)
     turn = config.v_max if config.turn_scale is None else config.turn_scale
     mot = Motion(config.period, config.v_max * c, config.speed_sigma * c, turn * c, config.max_retries)
     res = run_filter(
-        fired, blind, dep, room, mot,
-        n_particles=config.particles, half_w=config.box_width * c / 2, half_d=config.box_depth * c / 2,
-        rng=np.random.default_rng(config.seed), resample=config.resample, resample_when=config.resample_when,
-        ess_threshold=config.ess_threshold, log_particles=config.log_particles, progress=inputs.get(PROGRESS),
-    )  # fmt: skip
+        fired,
+        blind,
+        dep,
+        room,
+        mot,
+        n_particles=config.particles,
+        half_w=config.box_width * c / 2,
+        half_d=config.box_depth * c / 2,
+        rng=np.random.default_rng(config.seed),
+        resample=config.resample,
+        resample_when=config.resample_when,
+        ess_threshold=config.ess_threshold,
+        log_particles=config.log_particles,
+        progress=inputs.get(PROGRESS),
+    )
     # the empty room: no estimate inside a stretch where every sensor is off and nothing fires
-    tracks = outside_silence(track_frame(NAME, t_end, res.estimates), silent_stretches([motion], min_s=config.absent_after))
+    tracks = outside_silence(
+        track_frame(NAME, t_end, res.estimates), silent_stretches([motion], min_s=config.absent_after)
+    )
     iterations = pl.DataFrame(
         {
             "t": t_end,
@@ -227,15 +250,25 @@ def run(inputs: dict, site: Site, config: IntruderConfig) -> dict[str, pl.DataFr
     extra = {}
     if config.camera_position is not None:
         ptz = pan_tilt_zoom(
-            res.estimates, tuple(config.camera_position), width=config.box_width * c, depth=config.box_depth * c,
-            height=config.box_height * c, fov_deg=config.camera_fov, aspect=config.camera_aspect,
-        )  # fmt: skip
+            res.estimates,
+            tuple(config.camera_position),
+            width=config.box_width * c,
+            depth=config.box_depth * c,
+            height=config.box_height * c,
+            fov_deg=config.camera_fov,
+            aspect=config.camera_aspect,
+        )
         extra["camera"] = pl.DataFrame({"t": t_end, "pan": ptz[:, 0], "tilt": ptz[:, 1], "zoom": ptz[:, 2]})
     artifacts = {
-        "deployment": dep, "t_end": t_end, "fired": fired, "blind": blind,
-        "particles_xy": res.logged_xy, "particles_w": res.logged_w, "estimates": res.estimates,
+        "deployment": dep,
+        "t_end": t_end,
+        "fired": fired,
+        "blind": blind,
+        "particles_xy": res.logged_xy,
+        "particles_w": res.logged_w,
+        "estimates": res.estimates,
         "box": (config.box_width * c, config.box_depth * c),
-    }  # fmt: skip
+    }
     return {"tracks": tracks, "iterations": iterations, "coverage": coverage, **extra, ARTIFACTS: artifacts}
 
 
@@ -250,10 +283,18 @@ def run_naive(inputs: dict, site: Site, config: NaiveConfig) -> dict[str, pl.Dat
 
 
 SPEC = TrackerSpec(
-    name=NAME, needs=("motion",), config=IntruderConfig, run=run, available=available,
+    name=NAME,
+    needs=("motion",),
+    config=IntruderConfig,
+    run=run,
+    available=available,
     help="SIR particle filter over PIR firings with refractory periods (Schiff & Goldberg)",
-)  # fmt: skip
+)
 NAIVE_SPEC = TrackerSpec(
-    name=NAIVE, needs=("motion",), config=NaiveConfig, run=run_naive, available=available,
+    name=NAIVE,
+    needs=("motion",),
+    config=NaiveConfig,
+    run=run_naive,
+    available=available,
     help="baseline: the intruder is always at the centre of the room",
-)  # fmt: skip
+)

@@ -29,9 +29,9 @@ import numpy as np
 import shapely
 from shapely.geometry.base import BaseGeometry
 
-from onebit.trackers.istate.core import IState
-from onebit.models.walking import ShortestPaths, advance  # noqa: F401  (re-exported: the trackers move along them)
 from onebit.core.lazy import lazy_module
+from onebit.models.walking import ShortestPaths, advance  # noqa: F401  (re-exported: the trackers move along them)
+from onebit.trackers.istate.core import IState
 
 nx = lazy_module("networkx")
 _optimize = lazy_module("scipy.optimize")
@@ -98,7 +98,9 @@ def greedy_centres(cells: Cells, m: int) -> np.ndarray:
     return out
 
 
-def weighted_kmeans(points: np.ndarray, weights: np.ndarray, centres: np.ndarray, *, iterations: int = 50) -> np.ndarray:
+def weighted_kmeans(
+    points: np.ndarray, weights: np.ndarray, centres: np.ndarray, *, iterations: int = 50
+) -> np.ndarray:
     """Lloyd's algorithm with per-observation weights: assign each point to its nearest
     centre, move each centre to the weighted mean of its points (a centre whose points weigh
     nothing stays). Vectorised over points and centres; sequential over iterations."""

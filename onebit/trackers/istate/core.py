@@ -57,6 +57,7 @@ from functools import lru_cache
 import numpy as np
 import shapely
 from shapely.geometry.base import BaseGeometry
+
 from onebit.core.lazy import lazy_module
 
 nx = lazy_module("networkx")
@@ -106,7 +107,9 @@ class IState:
     def __post_init__(self) -> None:
         r = self.regions
         if not isinstance(r, np.ndarray) or r.ndim != 2 or r.dtype != object:
-            raise ValueError(f"IState.regions must be an (E, n) object array, got {type(r).__name__} {getattr(r, 'shape', '')}")
+            raise ValueError(
+                f"IState.regions must be an (E, n) object array, got {type(r).__name__} {getattr(r, 'shape', '')}"
+            )
 
     @property
     def n(self) -> int:
@@ -264,9 +267,13 @@ class PairMemo:
         self.capacity = capacity  # entries kept across steps before starting afresh (region ids stay < 2**31)
         self.area: dict[int, float] = {}  # code of (region id, region id) -> area of the intersection
         self.covers: dict[int, bool] = {}  # code of (region id, region id) -> the first covers the second
-        self._tables: dict[object, dict] = {}  # name -> code of a region pair -> geometry (geometries); input -> result (recall)
+        self._tables: dict[
+            object, dict
+        ] = {}  # name -> code of a region pair -> geometry (geometries); input -> result (recall)
         self._rid: dict[bytes, int] = {}  # WKB -> region id (equal WKB, equal id)
-        self._obj: dict[int, tuple[object, int]] = {}  # id(geometry) -> (geometry, kept alive so its id stays its own; region id)
+        self._obj: dict[
+            int, tuple[object, int]
+        ] = {}  # id(geometry) -> (geometry, kept alive so its id stays its own; region id)
         self._norm: dict[int, tuple[object, bytes]] = {}  # id(geometry) -> (geometry, WKB of its normalised form)
         self.computed = 0  # pairs sent to shapely
         self.looked_up = 0  # pairs answered from the memo or by a duplicate in the same call
@@ -334,7 +341,9 @@ class PairMemo:
         """``shapely.to_wkb(shapely.normalize(geoms))`` (1-d), each geometry object encoded once."""
         return _encode_once(self._norm, geoms, lambda new: shapely.to_wkb(shapely.normalize(new)).tolist(), object)
 
-    def pairs(self, left: np.ndarray, right: np.ndarray, kl: np.ndarray, kr: np.ndarray, table: dict, op, dtype) -> np.ndarray:
+    def pairs(
+        self, left: np.ndarray, right: np.ndarray, kl: np.ndarray, kr: np.ndarray, table: dict, op, dtype
+    ) -> np.ndarray:
         """``op(left[p], right[p])`` for every pair ``p`` (1-d object arrays with their region
         ids ``kl``, ``kr``), each distinct ``(kl[p], kr[p])`` computed once (vectorised over the
         new ones) or looked up in ``table``."""
@@ -435,7 +444,13 @@ def enumerate_perfect_matchings(adj: np.ndarray) -> tuple[np.ndarray, np.ndarray
 
 
 def forward_project(
-    istate: IState, step: float, free_space: BaseGeometry, *, shape: str = "exact", substeps: int = 1, memo: PairMemo | None = None
+    istate: IState,
+    step: float,
+    free_space: BaseGeometry,
+    *,
+    shape: str = "exact",
+    substeps: int = 1,
+    memo: PairMemo | None = None,
 ) -> IState:
     """Motion update (Algorithm 1, lines 1-5): every region ``R <- F(R)``.
 
@@ -472,7 +487,9 @@ def forward_project(
     return IState(r[~void(r).any(axis=1)])
 
 
-def observation_update(istate: IState, sensing: BaseGeometry, *, shape: str = "exact", memo: PairMemo | None = None) -> IState:
+def observation_update(
+    istate: IState, sensing: BaseGeometry, *, shape: str = "exact", memo: PairMemo | None = None
+) -> IState:
     """Observation update for one sensing region ``S`` with reading 1 (Algorithm 1, lines 9-15).
 
     Eq. (4): ``eta' = U_i U_j R^(i)_1 x .. x (R^(i)_j cap S) x .. x R^(i)_n`` -- every
@@ -504,14 +521,20 @@ def observation_update(istate: IState, sensing: BaseGeometry, *, shape: str = "e
     return IState(rep[keep])
 
 
-def negative_update(istate: IState, sensing: BaseGeometry, *, shape: str = "exact", memo: PairMemo | None = None) -> IState:
+def negative_update(
+    istate: IState, sensing: BaseGeometry, *, shape: str = "exact", memo: PairMemo | None = None
+) -> IState:
     """*Beyond the paper*: a reading 0 from a sensor without false negatives, ``R <- R \\ S``
     for every region (no target is in ``S``). Elements with an emptied region are dropped.
     Under ``rect``/``disk`` the difference is over-approximated like every other result."""
     if istate.size == 0:
         return istate
     cut = lambda a, b: constrain(shapely.difference(a, b), shape)  # noqa: E731
-    r = cut(istate.regions, sensing) if memo is None else memo.geometries(istate.regions, sensing, ("negative", shape), cut)
+    r = (
+        cut(istate.regions, sensing)
+        if memo is None
+        else memo.geometries(istate.regions, sensing, ("negative", shape), cut)
+    )
     r = np.asarray(r, dtype=object).reshape(istate.regions.shape)
     keep = ~void(r).any(axis=1)
     return IState(r[keep])
@@ -545,7 +568,9 @@ def canonical(istate: IState, *, shape: str = "exact", memo: PairMemo | None = N
     ids = np.take_along_axis(ids, order, axis=1)
     r = np.take_along_axis(r, order, axis=1)
     codes = _row_codes(ids)
-    _, first = np.unique(codes, axis=0 if codes.ndim > 1 else None, return_index=True)  # sorted unique rows: canonical order
+    _, first = np.unique(
+        codes, axis=0 if codes.ndim > 1 else None, return_index=True
+    )  # sorted unique rows: canonical order
     return IState(r[first])
 
 
@@ -574,7 +599,9 @@ def covers_pairs(
     p, k, l = np.nonzero(nest)
     memo = PairMemo() if memo is None else memo
     key = memo.keys(regions)
-    cov[p, k, l] = memo.pairs(regions[b[p], l], regions[a[p], k], key[b[p], l], key[a[p], k], memo.covers, shapely.covers, bool)
+    cov[p, k, l] = memo.pairs(
+        regions[b[p], l], regions[a[p], k], key[b[p], l], key[a[p], k], memo.covers, shapely.covers, bool
+    )
     return cov
 
 
@@ -583,7 +610,12 @@ def _nested_boxes(bnd: np.ndarray, a: np.ndarray, b: np.ndarray) -> np.ndarray:
     region ``k`` of element ``a[p]`` (``bnd (E, n, 4)`` the regions' bounds)."""
     ba = bnd[a][:, :, None, :]
     bb = bnd[b][:, None, :, :]
-    return (bb[..., 0] <= ba[..., 0]) & (bb[..., 1] <= ba[..., 1]) & (bb[..., 2] >= ba[..., 2]) & (bb[..., 3] >= ba[..., 3])
+    return (
+        (bb[..., 0] <= ba[..., 0])
+        & (bb[..., 1] <= ba[..., 1])
+        & (bb[..., 2] >= ba[..., 2])
+        & (bb[..., 3] >= ba[..., 3])
+    )
 
 
 def covers_matrix(regions: np.ndarray, *, shape: str = "exact") -> np.ndarray:
@@ -618,7 +650,12 @@ def remove_dominated(istate: IState, *, shape: str = "exact", memo: PairMemo | N
     for lo in range(0, E, 512):  # rows in blocks: memory O(512 E n)
         hi = min(E, lo + 512)
         ba, bb = box_e[lo:hi, None, :], box_e[None, :, :]
-        cand = (bb[..., 0] <= ba[..., 0]) & (bb[..., 1] <= ba[..., 1]) & (bb[..., 2] >= ba[..., 2]) & (bb[..., 3] >= ba[..., 3])
+        cand = (
+            (bb[..., 0] <= ba[..., 0])
+            & (bb[..., 1] <= ba[..., 1])
+            & (bb[..., 2] >= ba[..., 2])
+            & (bb[..., 3] >= ba[..., 3])
+        )
         cand &= (sa[None, :, :] >= sa[lo:hi, None, :] - tol).all(axis=-1)
         a, b = np.nonzero(cand)
         a = a + lo
@@ -693,7 +730,9 @@ def best_pairing(ov: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return vals.reshape(lead), taus.reshape(*lead, n)
 
 
-def merge_elements(a: np.ndarray, b: np.ndarray, tau: np.ndarray, *, shape: str = "exact", memo: PairMemo | None = None) -> np.ndarray:
+def merge_elements(
+    a: np.ndarray, b: np.ndarray, tau: np.ndarray, *, shape: str = "exact", memo: PairMemo | None = None
+) -> np.ndarray:
     """Region-wise union ``(R^(a)_k cup R^(b)_tau(k))_k`` of two elements.
 
     For any pairing ``tau`` the result contains both elements' products (``prod_k R^(a)_k``
@@ -736,7 +775,9 @@ def cap_elements(istate: IState, max_elements: int, *, shape: str = "exact", mem
             cap_elements(IState(istate.regions[i : i + CAP_CHUNK]), max_elements, shape=shape, memo=memo).regions
             for i in range(0, E, CAP_CHUNK)
         ]
-        return cap_elements(clean_up(IState(np.vstack(parts)), shape=shape, memo=memo), max_elements, shape=shape, memo=memo)
+        return cap_elements(
+            clean_up(IState(np.vstack(parts)), shape=shape, memo=memo), max_elements, shape=shape, memo=memo
+        )
     if shape == "rect":  # box overlaps are the exact similarities: nothing to bound
         return cap_elements_reference(istate, max_elements, shape=shape, memo=memo)
     regs = [row for row in istate.regions]
@@ -853,10 +894,14 @@ def cap_elements_reference(
     if E > CAP_CHUNK:  # hierarchical: cap chunks of CAP_CHUNK first (each merge is a superset)
         memo = PairMemo() if memo is None else memo
         parts = [
-            cap_elements_reference(IState(istate.regions[i : i + CAP_CHUNK]), max_elements, shape=shape, memo=memo).regions
+            cap_elements_reference(
+                IState(istate.regions[i : i + CAP_CHUNK]), max_elements, shape=shape, memo=memo
+            ).regions
             for i in range(0, E, CAP_CHUNK)
         ]
-        return cap_elements_reference(clean_up(IState(np.vstack(parts)), shape=shape, memo=memo), max_elements, shape=shape, memo=memo)
+        return cap_elements_reference(
+            clean_up(IState(np.vstack(parts)), shape=shape, memo=memo), max_elements, shape=shape, memo=memo
+        )
     regs = [row for row in istate.regions]
     memo = PairMemo() if memo is None else memo
     ov = overlap_areas(istate.regions, istate.regions, shape=shape, memo=memo, skip_same=True)

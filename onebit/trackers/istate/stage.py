@@ -38,16 +38,16 @@ import numpy as np
 import polars as pl
 import shapely
 
-from onebit.core.site import Site
-from onebit.core.errors import ConfigError
-from onebit.core.sensing import body_radius, detection_regions
-from onebit.core.units import length
-from onebit.core.tables import CROSSINGS, MOTION, PROXIMITY, TRACKS, check_schema, conform
-from onebit.core.frames import ABSENT_AFTER_S, outside_silence, silent_stretches
-from onebit.trackers.base import ARTIFACTS, TrackerSpec
 from onebit.core.config import check_choice, check_range
-from onebit.trackers.istate.core import SHAPES, IState, PairMemo, disk, grow, info_state_update, shrink
+from onebit.core.errors import ConfigError
+from onebit.core.frames import ABSENT_AFTER_S, outside_silence, silent_stretches
 from onebit.core.lazy import lazy_module
+from onebit.core.sensing import body_radius, detection_regions
+from onebit.core.site import Site
+from onebit.core.tables import CROSSINGS, MOTION, PROXIMITY, TRACKS, check_schema, conform
+from onebit.core.units import length
+from onebit.trackers.base import ARTIFACTS, TrackerSpec
+from onebit.trackers.istate.core import SHAPES, IState, PairMemo, disk, grow, info_state_update, shrink
 
 _optimize = lazy_module("scipy.optimize")
 
@@ -59,8 +59,15 @@ REGIONS = pl.Schema(
 )
 #: Schema of ``istate_summary``: one row per stage.
 SUMMARY = pl.Schema(
-    {"t": pl.Float64, "stage": pl.Int64, "elements": pl.Int64, "area": pl.Float64, "detections": pl.Int64,
-     "rejected": pl.Int64, "area_share": pl.Float64}
+    {
+        "t": pl.Float64,
+        "stage": pl.Int64,
+        "elements": pl.Int64,
+        "area": pl.Float64,
+        "detections": pl.Int64,
+        "rejected": pl.Int64,
+        "area_share": pl.Float64,
+    }
 )
 #: Schema of ``istate_detections``: the sensing regions with reading 1 used at each stage.
 DETECTIONS = pl.Schema({"t": pl.Float64, "stage": pl.Int64, "sensor": pl.String, "inflation": pl.Float64})
@@ -202,9 +209,11 @@ def fits(inputs: dict, site: Site, config: IStateConfig) -> str | None:
     stages = int(np.ceil(hi / config.period_s - 1e-9)) - int(np.floor(lo / config.period_s + 1e-9)) + 1
     if stages <= config.max_stages:
         return None
-    return (f"the logs span {hi - lo:,.0f} s = {stages:,} stages of period_s = {config.period_s:g} s, more than "
-            f"max_stages = {config.max_stages:,} (the filter and its recording cost about 1-10 ms per stage); "
-            "set [istate] max_stages = 0 (no bound) or a longer period_s in --config to run it")  # fmt: skip
+    return (
+        f"the logs span {hi - lo:,.0f} s = {stages:,} stages of period_s = {config.period_s:g} s, more than "
+        f"max_stages = {config.max_stages:,} (the filter and its recording cost about 1-10 ms per stage); "
+        "set [istate] max_stages = 0 (no bound) or a longer period_s in --config to run it"
+    )
 
 
 # --------------------------------------------------------------------------- sampling
@@ -241,7 +250,15 @@ def state_readings(edges: pl.DataFrame, times: np.ndarray, period: float, hold: 
     Vectorised with polars over sensors x stages.
     """
     if edges.height == 0 or len(times) == 0:
-        return pl.DataFrame(schema={"stage": pl.Int64, "sensor": pl.String, "detect": pl.Boolean, "inflation": pl.Float64, "negative": pl.Boolean})
+        return pl.DataFrame(
+            schema={
+                "stage": pl.Int64,
+                "sensor": pl.String,
+                "detect": pl.Boolean,
+                "inflation": pl.Float64,
+                "negative": pl.Boolean,
+            }
+        )
     t0 = float(times[0])
     # readings -> edges: keep a row only where the sensor's state changes (every sensor starts
     # off), so level-sampled tables (a row per reading) and edge tables are treated alike
@@ -261,24 +278,39 @@ def state_readings(edges: pl.DataFrame, times: np.ndarray, period: float, hold: 
     g = (
         grid.join(per, on=["sensor", "stage"], how="left")
         .sort("sensor", "stage")
-        .with_columns(state=pl.col("last_on").forward_fill().over("sensor").fill_null(False), n_edges=pl.col("n_edges").fill_null(0))
+        .with_columns(
+            state=pl.col("last_on").forward_fill().over("sensor").fill_null(False),
+            n_edges=pl.col("n_edges").fill_null(0),
+        )
     )
     on_during = (pl.col("n_edges") > 0) & pl.col("t_off").is_not_null()
     return g.select(
         "stage",
         "sensor",
         detect=pl.col("state") | on_during,
-        inflation=pl.when(pl.col("state")).then(speed * hold).otherwise(speed * (pl.col("tk") - pl.col("t_off") + hold)),
+        inflation=pl.when(pl.col("state"))
+        .then(speed * hold)
+        .otherwise(speed * (pl.col("tk") - pl.col("t_off") + hold)),
         negative=~pl.col("state") & (pl.col("n_edges") == 0),
     )
 
 
-def crossing_readings(crossings: pl.DataFrame, times: np.ndarray, period: float, speed: float, hold: float = 0.0) -> pl.DataFrame:
+def crossing_readings(
+    crossings: pl.DataFrame, times: np.ndarray, period: float, speed: float, hold: float = 0.0
+) -> pl.DataFrame:
     """Beam detections: the latest crossing of each beam in each stage, inflated by
     ``v (t_k - t_c + hold)`` (``hold``: how late the crossing's stamp may be, the raw log's
     sampling interval)."""
     if crossings.height == 0 or len(times) == 0:
-        return pl.DataFrame(schema={"stage": pl.Int64, "sensor": pl.String, "detect": pl.Boolean, "inflation": pl.Float64, "negative": pl.Boolean})
+        return pl.DataFrame(
+            schema={
+                "stage": pl.Int64,
+                "sensor": pl.String,
+                "detect": pl.Boolean,
+                "inflation": pl.Float64,
+                "negative": pl.Boolean,
+            }
+        )
     t0 = float(times[0])
     tk = pl.Series("tk", times)
     return (
@@ -286,7 +318,11 @@ def crossing_readings(crossings: pl.DataFrame, times: np.ndarray, period: float,
         .filter(pl.col("stage") < len(times))
         .group_by("stage", pl.col("beam").alias("sensor"))
         .agg(tc=pl.col("t").max())
-        .with_columns(inflation=speed * (pl.lit(tk).gather(pl.col("stage")) - pl.col("tc") + hold), detect=pl.lit(True), negative=pl.lit(False))
+        .with_columns(
+            inflation=speed * (pl.lit(tk).gather(pl.col("stage")) - pl.col("tc") + hold),
+            detect=pl.lit(True),
+            negative=pl.lit(False),
+        )
         .select("stage", "sensor", "detect", "inflation", "negative")
     )
 
@@ -331,12 +367,28 @@ def run(inputs: dict, site: Site, config: IStateConfig) -> dict[str, pl.DataFram
         stamps = events["t"] if events is not None and events.height else cross["t"]
         lag = max(config.latency_s, time_resolution(stamps)) if config.latency_auto else config.latency_s
         readings.append(crossing_readings(cross, times, T, v, lag))
-    rd = pl.concat(readings) if readings else pl.DataFrame(schema={"stage": pl.Int64, "sensor": pl.String, "detect": pl.Boolean, "inflation": pl.Float64, "negative": pl.Boolean})
+    rd = (
+        pl.concat(readings)
+        if readings
+        else pl.DataFrame(
+            schema={
+                "stage": pl.Int64,
+                "sensor": pl.String,
+                "detect": pl.Boolean,
+                "inflation": pl.Float64,
+                "negative": pl.Boolean,
+            }
+        )
+    )
     rd = rd.with_columns(idx=pl.col("sensor").replace_strict(index, return_dtype=pl.Int64)).sort("stage", "idx")
 
     free = site.free_space
     det = rd.filter("detect")
-    det_geom = shapely.intersection(grow(sr.positive[det["idx"].to_numpy()], det["inflation"].to_numpy()), free) if det.height else np.zeros(0, object)
+    det_geom = (
+        shapely.intersection(grow(sr.positive[det["idx"].to_numpy()], det["inflation"].to_numpy()), free)
+        if det.height
+        else np.zeros(0, object)
+    )
     det_stage = det["stage"].to_numpy()
     neg = rd.filter(pl.col("negative") & pl.lit(config.reliable_negatives)) if config.reliable_negatives else rd.clear()
     # a reading may lag the target by latency_s: only S eroded by v latency_s is surely empty
@@ -370,7 +422,9 @@ def run(inputs: dict, site: Site, config: IStateConfig) -> dict[str, pl.DataFram
         E = eta.size
         reg_rows.append(eta.regions.ravel())
         area = memo.recall(eta, free, "total_area", IState.total_area)  # the I-state recurs at a fixed point
-        summ.append((float(tk), k, E, area, int(det_bounds[k + 1] - det_bounds[k]), len(rejected or ()), area / free_area))
+        summ.append(
+            (float(tk), k, E, area, int(det_bounds[k + 1] - det_bounds[k]), len(rejected or ()), area / free_area)
+        )
         track_xy[k] = prev = _point_summary(eta, prev, n)
 
     summary = pl.DataFrame(summ, schema=SUMMARY, orient="row")
@@ -391,7 +445,12 @@ def run(inputs: dict, site: Site, config: IStateConfig) -> dict[str, pl.DataFram
     silent = silent_stretches([*tables, *([cross] if cross is not None else [])], min_s=config.absent_after)
     tracks = outside_silence(tracks, silent)  # the empty room: no point summary where nobody is
     detections = pl.DataFrame(
-        {"t": times[det_stage] if len(times) else [], "stage": det_stage, "sensor": det["sensor"], "inflation": det["inflation"]},
+        {
+            "t": times[det_stage] if len(times) else [],
+            "stage": det_stage,
+            "sensor": det["sensor"],
+            "inflation": det["inflation"],
+        },
         schema=DETECTIONS,
     )
     artifacts = {"sensing": dict(zip(sr.ids, sr.positive))}

@@ -82,8 +82,9 @@ def last_nodes(node: np.ndarray, track: np.ndarray, people: int = 2) -> np.ndarr
     return out
 
 
-def meeting_cuts(node: np.ndarray, track: np.ndarray, dist: np.ndarray, *, meet: float,
-                 margin: float = 0.0, move_cost=None) -> np.ndarray:  # fmt: skip
+def meeting_cuts(
+    node: np.ndarray, track: np.ndarray, dist: np.ndarray, *, meet: float, margin: float = 0.0, move_cost=None
+) -> np.ndarray:
     """``cut[i]`` (``i >= 1``) of (H1): a swap may have happened just before event ``i``;
     ``cut[0]`` is False. ``move_cost(src, i) -> costs``: the decoder's ``c(src -> s_i)`` for an
     array of source nodes (needed when ``margin > 0``)."""
@@ -166,7 +167,9 @@ def habit_costs(node: np.ndarray, label: np.ndarray, n_nodes: int, *, alpha: flo
     return -np.log(theta)
 
 
-def objective(node: np.ndarray, label: np.ndarray, a: np.ndarray, n_nodes: int, *, alpha: float, switch: float, cut: np.ndarray) -> float:
+def objective(
+    node: np.ndarray, label: np.ndarray, a: np.ndarray, n_nodes: int, *, alpha: float, switch: float, cut: np.ndarray
+) -> float:
     """(H2) at the habits (H3) of the labels ``label XOR a`` (larger is better)."""
     z = label ^ a
     neg = habit_costs(node, z, n_nodes, alpha=alpha)
@@ -174,8 +177,18 @@ def objective(node: np.ndarray, label: np.ndarray, a: np.ndarray, n_nodes: int, 
     return float(-neg[z, node].sum() - switch * flips - alpha * neg.sum())
 
 
-def reorient(node: np.ndarray, track: np.ndarray, cut: np.ndarray, n_nodes: int, *, alpha: float = 1.0, switch: float = 0.0,
-             restarts: int = 8, iterations: int = 50, seed: int = 0) -> np.ndarray:  # fmt: skip
+def reorient(
+    node: np.ndarray,
+    track: np.ndarray,
+    cut: np.ndarray,
+    n_nodes: int,
+    *,
+    alpha: float = 1.0,
+    switch: float = 0.0,
+    restarts: int = 8,
+    iterations: int = 50,
+    seed: int = 0,
+) -> np.ndarray:
     """The persons (0/1) of every event after hard EM on (H2) (module docstring): from the
     decoder's orientation and ``restarts`` random ones, the best (H2). ``track`` must hold
     two people (0 and 1)."""

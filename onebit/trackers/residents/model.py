@@ -89,7 +89,9 @@ def node_distances(
     idx = {n: k for k, n in enumerate(nodes)}
     g = nx.Graph()
     g.add_nodes_from(range(len(nodes)))
-    g.add_weighted_edges_from((idx[a], idx[b], float(straight[idx[a], idx[b]])) for a, b in edges if a in idx and b in idx)
+    g.add_weighted_edges_from(
+        (idx[a], idx[b], float(straight[idx[a], idx[b]])) for a, b in edges if a in idx and b in idx
+    )
     out = straight.copy()
     for a, lengths in nx.all_pairs_dijkstra_path_length(g):
         for b, d in lengths.items():
@@ -98,7 +100,16 @@ def node_distances(
 
 
 def move_cost(
-    dist: np.ndarray, src: np.ndarray, dst: np.ndarray, dt: np.ndarray, *, l0: float, v: float, l_max: float, w: float, tau: float
+    dist: np.ndarray,
+    src: np.ndarray,
+    dst: np.ndarray,
+    dt: np.ndarray,
+    *,
+    l0: float,
+    v: float,
+    l_max: float,
+    w: float,
+    tau: float,
 ) -> np.ndarray:
     """``c(j, i)`` of eq. (2)-(3) for links from nodes ``src`` to nodes ``dst`` (indices into the
     distance matrix ``dist``) after silences ``dt`` (>= 0); the kernel is normalised over the
@@ -115,7 +126,9 @@ def move_cost(
     return dist[src, dst] / ell + log_z + w * np.log1p(dt / tau)
 
 
-def birth_cost(t: np.ndarray, is_entry: np.ndarray, *, t_first: float, start_window_s: float, door: float, inside: float) -> np.ndarray:
+def birth_cost(
+    t: np.ndarray, is_entry: np.ndarray, *, t_first: float, start_window_s: float, door: float, inside: float
+) -> np.ndarray:
     """``b(i)`` of eq. (4) for event times ``t`` and whether their node is an entry node.
 
     >>> birth_cost(np.array([0.0, 100.0, 100.0]), np.array([False, True, False]), t_first=0.0, start_window_s=60.0,
@@ -124,4 +137,3 @@ def birth_cost(t: np.ndarray, is_entry: np.ndarray, *, t_first: float, start_win
     """
     free = is_entry | (t - t_first <= start_window_s)
     return np.where(free, door, inside)
-

@@ -32,7 +32,13 @@ from onebit.core.site import Site
 from onebit.core.tables import MOTION, TRACKS, check_schema, conform
 from onebit.core.units import length
 from onebit.trackers.base import ARTIFACTS, TrackerSpec, progress_of
-from onebit.trackers.residents.decode import Attribution, attribution_cost, decode_events, preds_from_tracks, tracks_from_pred
+from onebit.trackers.residents.decode import (
+    Attribution,
+    attribution_cost,
+    decode_events,
+    preds_from_tracks,
+    tracks_from_pred,
+)
 from onebit.trackers.residents.habits import meeting_cuts, reorient
 from onebit.trackers.residents.model import birth_cost, move_cost, node_distances
 
@@ -40,7 +46,9 @@ NAME = "residents"
 
 EVENTS = pl.Schema({"t": pl.Float64, "sensor": pl.String, "track": pl.String})
 PEOPLE = pl.Schema({"t": pl.Float64, "present": pl.Int64})
-DECODER = pl.Schema({"events": pl.Int64, "people": pl.Int64, "cost": pl.Float64, "beam": pl.Int64, "states": pl.Float64})
+DECODER = pl.Schema(
+    {"events": pl.Int64, "people": pl.Int64, "cost": pl.Float64, "beam": pl.Int64, "states": pl.Float64}
+)
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -73,7 +81,7 @@ class ResidentsConfig:
     habit_alpha : Dirichlet pseudo-count per sensor of the habits (eq. H3).
     habit_switch : cost (nats) of a swap at a meeting (``lambda`` of eq. H2).
     habit_restarts : random starting orientations of the hard EM besides the decoder's.
-"""
+    """
 
     l0: float = length(1.0)
     speed: float = length(0.0, unit="m/s")
@@ -152,25 +160,59 @@ def people_bound(site: Site, cfg: ResidentsConfig) -> int:
     return max(1, int(site.targets)) if site.targets is not None else cfg.max_people
 
 
-def attribute(t: np.ndarray, node: np.ndarray, home: Home, cfg: ResidentsConfig, *, people: int, progress=None) -> Attribution:
+def attribute(
+    t: np.ndarray, node: np.ndarray, home: Home, cfg: ResidentsConfig, *, people: int, progress=None
+) -> Attribution:
     """Decode the events ``(t[i], node[i])`` (node indices into ``home.nodes``; sorted by t)."""
-    birth = birth_cost(t, home.entry[node], t_first=float(t[0]) if len(t) else 0.0, start_window_s=cfg.start_window_s,
-                       door=cfg.birth_door, inside=cfg.birth_inside)  # fmt: skip
+    birth = birth_cost(
+        t,
+        home.entry[node],
+        t_first=float(t[0]) if len(t) else 0.0,
+        start_window_s=cfg.start_window_s,
+        door=cfg.birth_door,
+        inside=cfg.birth_inside,
+    )
 
     def move_row(J: np.ndarray, i: int) -> np.ndarray:
-        return move_cost(home.dist, node[J], np.full(len(J), node[i]), t[i] - t[J], l0=cfg.l0, v=cfg.speed, l_max=cfg.l_max,
-                         w=cfg.silence_weight, tau=cfg.silence_tau_s)  # fmt: skip
+        return move_cost(
+            home.dist,
+            node[J],
+            np.full(len(J), node[i]),
+            t[i] - t[J],
+            l0=cfg.l0,
+            v=cfg.speed,
+            l_max=cfg.l_max,
+            w=cfg.silence_weight,
+            tau=cfg.silence_tau_s,
+        )
 
     res = decode_events(move_row, birth, people=people, beam=cfg.beam or None, stay=cfg.stay or None, progress=progress)
     if not cfg.habits or res.people != 2:
         return res
 
     def move_to(src: np.ndarray, i: int) -> np.ndarray:
-        return move_cost(home.dist, src, np.full(len(src), node[i]), np.zeros(len(src)), l0=cfg.l0, v=cfg.speed, l_max=cfg.l_max,
-                         w=0.0, tau=cfg.silence_tau_s)  # fmt: skip
+        return move_cost(
+            home.dist,
+            src,
+            np.full(len(src), node[i]),
+            np.zeros(len(src)),
+            l0=cfg.l0,
+            v=cfg.speed,
+            l_max=cfg.l_max,
+            w=0.0,
+            tau=cfg.silence_tau_s,
+        )
 
     cut = meeting_cuts(node, res.track, home.dist, meet=cfg.meet, margin=cfg.habit_margin, move_cost=move_to)
-    track = reorient(node, res.track, cut, len(home.nodes), alpha=cfg.habit_alpha, switch=cfg.habit_switch, restarts=cfg.habit_restarts)
+    track = reorient(
+        node,
+        res.track,
+        cut,
+        len(home.nodes),
+        alpha=cfg.habit_alpha,
+        switch=cfg.habit_switch,
+        restarts=cfg.habit_restarts,
+    )
     pred = preds_from_tracks(track)
 
     def move_one(j: int, i: int) -> float:
@@ -192,17 +234,29 @@ def run(inputs: dict, site: Site, config: ResidentsConfig) -> dict[str, pl.DataF
     K = people_bound(site, config)
     res = attribute(t, node, home, config, people=K, progress=progress_of(inputs))
     names = np.array([f"person{k + 1}" for k in range(max(res.people, 1))], dtype=object)
-    on_tracks = on.select("row", "t", "sensor").with_columns(track=pl.Series(names[res.track].tolist() if len(t) else [], dtype=pl.String))
+    on_tracks = on.select("row", "t", "sensor").with_columns(
+        track=pl.Series(names[res.track].tolist() if len(t) else [], dtype=pl.String)
+    )
     off = motion.filter(~pl.col("on")).select("row", "t", "sensor")
     off = off.sort("t").join_asof(  # an OFF edge: the person of its sensor's last ON (both sorted by t here)
-        on_tracks.select("t", "sensor", "track").sort("t"), on="t", by="sensor", strategy="backward", check_sortedness=False
+        on_tracks.select("t", "sensor", "track").sort("t"),
+        on="t",
+        by="sensor",
+        strategy="backward",
+        check_sortedness=False,
     )
     events = pl.concat([on_tracks, off.select(on_tracks.columns)]).sort("row").select(EVENTS.names())
     tracks = tracks_table(t, node, res, names, home, config)
     decoder = pl.DataFrame(
-        {"events": [len(t)], "people": [res.people], "cost": [res.cost], "beam": [config.beam],
-         "states": [float(res.states.mean()) if len(t) else 0.0]}, schema=DECODER,
-    )  # fmt: skip
+        {
+            "events": [len(t)],
+            "people": [res.people],
+            "cost": [res.cost],
+            "beam": [config.beam],
+            "states": [float(res.states.mean()) if len(t) else 0.0],
+        },
+        schema=DECODER,
+    )
     return {
         "events": conform(events, EVENTS),
         "tracks": tracks,
@@ -235,11 +289,15 @@ def presence(t: np.ndarray, node: np.ndarray, res: Attribution, home: Home, cfg:
     return out
 
 
-def tracks_table(t: np.ndarray, node: np.ndarray, res: Attribution, names: np.ndarray, home: Home, cfg: ResidentsConfig) -> pl.DataFrame:
+def tracks_table(
+    t: np.ndarray, node: np.ndarray, res: Attribution, names: np.ndarray, home: Home, cfg: ResidentsConfig
+) -> pl.DataFrame:
     """Every person on one grid of ``period`` s from the first event, while present, at the
     node of their latest event at or before the grid time."""
     frames = []
-    grid = float(t[0]) + cfg.period * np.arange(int(np.floor((t[-1] - t[0]) / cfg.period)) + 1) if len(t) else np.zeros(0)
+    grid = (
+        float(t[0]) + cfg.period * np.arange(int(np.floor((t[-1] - t[0]) / cfg.period)) + 1) if len(t) else np.zeros(0)
+    )
     for p, spans in enumerate(presence(t, node, res, home, cfg)):
         mine = np.flatnonzero(res.track == p)
         inside = np.zeros(grid.size, bool)
@@ -249,9 +307,18 @@ def tracks_table(t: np.ndarray, node: np.ndarray, res: Attribution, names: np.nd
         if ts.size == 0:  # present between two grid times: its first one after the start
             ts = grid[np.searchsorted(grid, spans[0, 0]) :][:1]
         k = node[mine[np.maximum(np.searchsorted(t[mine], ts + 1e-9, side="right") - 1, 0)]]
-        frames.append(pl.DataFrame({"track": names[p], "t": ts, "x": home.xy[k, 0], "y": home.xy[k, 1],
-                                    "node": np.asarray(home.nodes, dtype=object)[k].tolist()},
-                                   schema_overrides={"node": pl.String, "track": pl.String}))  # fmt: skip
+        frames.append(
+            pl.DataFrame(
+                {
+                    "track": names[p],
+                    "t": ts,
+                    "x": home.xy[k, 0],
+                    "y": home.xy[k, 1],
+                    "node": np.asarray(home.nodes, dtype=object)[k].tolist(),
+                },
+                schema_overrides={"node": pl.String, "track": pl.String},
+            )
+        )
     df = pl.concat(frames) if frames else pl.DataFrame(schema={"track": pl.String, "t": pl.Float64})
     return conform(df.with_columns(tracker=pl.lit(NAME)), TRACKS).sort(["t", "track"])
 
@@ -268,6 +335,10 @@ def people_table(t: np.ndarray, node: np.ndarray, res: Attribution, home: Home, 
 
 
 SPEC = TrackerSpec(
-    name=NAME, needs=("motion",), config=ResidentsConfig, run=run, available=available,
+    name=NAME,
+    needs=("motion",),
+    config=ResidentsConfig,
+    run=run,
+    available=available,
     help="who is who at home: motion events attributed to people by a dwell-aware motion model on the sensor graph",
-)  # fmt: skip
+)

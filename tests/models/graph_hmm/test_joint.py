@@ -71,9 +71,15 @@ def test_decode_pair_finds_the_brute_force_optimum(data):
 
     best = -np.inf
     for p1, p2 in itertools.product(user_paths(starts[0][0]), user_paths(starts[1][0])):
-        sc = _user_score(*starts[0], p1, end[0]) + _user_score(*starts[1], p2, end[1]) + _emission(active, others, p1, p2)
+        sc = (
+            _user_score(*starts[0], p1, end[0])
+            + _user_score(*starts[1], p2, end[1])
+            + _emission(active, others, p1, p2)
+        )
         best = max(best, sc)
-    (got,) = decode_pair(SPACE, (SPACE.state(*starts[0]), SPACE.state(*starts[1])), active, others, [end], p_hit=0.9, p_false=0.05)
+    (got,) = decode_pair(
+        SPACE, (SPACE.state(*starts[0]), SPACE.state(*starts[1])), active, others, [end], p_hit=0.9, p_false=0.05
+    )
     if not np.isfinite(best):
         assert got is None
         return
@@ -90,14 +96,18 @@ def _crossing_activity(seqs):
 
 
 def test_a_head_on_crossing_bounced_by_the_decoder_is_walked_through():
-    truth = _rows([
-        [97, 97, 96, 96, 96, 95, 95, 95, 99, 99, 99, 111, 111, 111],
-        [111, 111, 111, 99, 99, 99, 95, 95, 95, 96, 96, 96, 97, 97],
-    ])  # fmt: skip
+    truth = _rows(
+        [
+            [97, 97, 96, 96, 96, 95, 95, 95, 99, 99, 99, 111, 111, 111],
+            [111, 111, 111, 99, 99, 99, 95, 95, 95, 96, 96, 96, 97, 97],
+        ]
+    )
     active = _crossing_activity([[EATG.nodes[j] for j in r] for r in truth])
     # one user at a time: both turn back at 95 -- each keeps its side
     bounced = np.where(np.arange(14)[None, :] < 7, truth, truth[::-1])
-    assert model_log_likelihood(bounced, active, EATG, p_hit=0.9, p_false=0.05) < model_log_likelihood(truth, active, EATG, p_hit=0.9, p_false=0.05)
+    assert model_log_likelihood(bounced, active, EATG, p_hit=0.9, p_false=0.05) < model_log_likelihood(
+        truth, active, EATG, p_hit=0.9, p_false=0.05
+    )
     fixed, log = redecode_meetings(bounced, active, EATG, p_hit=0.9, p_false=0.05)
     assert log and any(r["gain"] > 0 for r in log)
     np.testing.assert_array_equal(fixed[:, -3:], truth[:, -3:])  # each leaves on its own side's far end
@@ -178,7 +188,18 @@ def test_the_local_log_likelihood_difference_is_the_full_difference(data):
         y[0, w1 + 1 :], y[1, w1 + 1 :] = paths[1, w1 + 1 :], paths[0, w1 + 1 :]
     active = np.array(data.draw(st.lists(st.booleans(), min_size=d * N, max_size=d * N))).reshape(d, N)
     ctx = came_from(paths[[0, 1], :w0])[:, -1]
-    kw = dict(rows=(0, 1), a=w0 - 1, b=_settled(paths[[0, 1]], w1), w=(w0, w1), ctx0=ctx, active=active, n=N, log_a=LOG_A, p_hit=0.9, p_false=0.05)
+    kw = dict(
+        rows=(0, 1),
+        a=w0 - 1,
+        b=_settled(paths[[0, 1]], w1),
+        w=(w0, w1),
+        ctx0=ctx,
+        active=active,
+        n=N,
+        log_a=LOG_A,
+        p_hit=0.9,
+        p_false=0.05,
+    )
     full = [model_log_likelihood(p, active, EATG, p_hit=0.9, p_false=0.05) for p in (paths, y)]
     local = [_local_log_likelihood(p, **kw) for p in (paths, y)]
     if np.isfinite(full).all():
@@ -199,13 +220,18 @@ def test_gains_add_up_to_the_full_log_likelihood_change_on_a_simulated_run():
     run = decode_motion("full2", {"motion": motion}, site, cfg)
     before = run.result.paths
     after, log = redecode_meetings(before, run.active, run.eatg, p_hit=cfg.p_hit, p_false=cfg.p_false)
-    full = [model_log_likelihood(p, run.active, run.eatg, p_hit=cfg.p_hit, p_false=cfg.p_false) for p in (before, after)]
+    full = [
+        model_log_likelihood(p, run.active, run.eatg, p_hit=cfg.p_hit, p_false=cfg.p_false) for p in (before, after)
+    ]
     gains = sum(r["gain"] for r in log)
     assert gains > 0 and np.isclose(full[1] - full[0], gains), (full, gains)
 
 
 @settings(max_examples=200, deadline=None)
-@given(row=st.lists(st.integers(-1, 3), min_size=1, max_size=400).map(lambda r: np.repeat(np.array(r, np.int64), 3)), data=st.data())
+@given(
+    row=st.lists(st.integers(-1, 3), min_size=1, max_size=400).map(lambda r: np.repeat(np.array(r, np.int64), 3)),
+    data=st.data(),
+)
 def test_bounded_context_and_change_searches_equal_the_whole_row(row, data):
     """The meeting's start context and its tails' first moves are found looking a growing way
     back / ahead (a meeting costs its dwell, not the run): the same as over the whole row."""
@@ -221,10 +247,12 @@ def test_bounded_context_and_change_searches_equal_the_whole_row(row, data):
 def test_a_meeting_after_an_exchange_of_tails_is_listed_on_the_new_paths():
     """Regression (issue #22, real CASAS logs: ``KeyError: (-1, -1)``): meetings were listed once on
     the initial paths; after an exchange of tails, a later meeting named a user who had left."""
-    truth = _rows([
-        [97, 97, 96, 96, 96, 95, 95, 95, 99, 99, 99, 111, 111, 111],
-        [111, 111, 111, 99, 99, 99, 95, 95, 95, 96, 96, 96, 97, 97],
-    ])  # fmt: skip
+    truth = _rows(
+        [
+            [97, 97, 96, 96, 96, 95, 95, 95, 99, 99, 99, 111, 111, 111],
+            [111, 111, 111, 99, 99, 99, 95, 95, 95, 96, 96, 96, 97, 97],
+        ]
+    )
     d = 24
     x = np.full((3, d), -1, np.int64)
     x[:2, :14] = np.where(np.arange(14)[None, :] < 7, truth, truth[::-1])  # bounced at 95

@@ -41,7 +41,10 @@ def test_first_order_kernel_ties_take_the_first_state():
     path, lp = kernels.viterbi_first_order(np.zeros(4), np.zeros((4, 4)), np.zeros((6, 4)))
     assert path.tolist() == [0] * 6 and lp == 0.0
     path, _ = kernels.viterbi_first_order(np.full(3, -np.inf), np.zeros((3, 3)), np.zeros((2, 3)))
-    assert path.tolist() == viterbi.viterbi_first_order(np.full(3, -np.inf), np.zeros((3, 3)), np.zeros((2, 3)))[0].tolist()
+    assert (
+        path.tolist()
+        == viterbi.viterbi_first_order(np.full(3, -np.inf), np.zeros((3, 3)), np.zeros((2, 3)))[0].tolist()
+    )
 
 
 @pytest.mark.parametrize("seed", range(6))
@@ -66,7 +69,11 @@ def test_second_order_kernels_equal_reference(seed, s):
 
 def _random_graph(rng, n):
     """A connected random corridor graph of ``n`` nodes (a tree plus a few chords)."""
-    g = nx.random_labeled_tree(n, seed=int(rng.integers(1 << 30))) if hasattr(nx, "random_labeled_tree") else nx.random_tree(n, seed=int(rng.integers(1 << 30)))
+    g = (
+        nx.random_labeled_tree(n, seed=int(rng.integers(1 << 30)))
+        if hasattr(nx, "random_labeled_tree")
+        else nx.random_tree(n, seed=int(rng.integers(1 << 30)))
+    )
     for _ in range(n // 4):
         a, b = rng.integers(0, n, 2)
         if a != b:
@@ -96,8 +103,18 @@ def test_coordinate_ascent_kernel_equals_reference(seed, order):
         entries = [int(rng.choice(states)) if rng.random() < 0.5 else -1 for _ in range(k)]
         for restarts, sweeps in ((6, 3), (2, 1), (1, 2)):
             kw = dict(order=order, eatg=eatg)
-            ref = decode_users(obs, states, prefixes, starts, entries, params=DecoderParams(restarts=restarts, sweeps=sweeps, compiled=False), **kw)
-            new = decode_users(obs, states, prefixes, starts, entries, params=DecoderParams(restarts=restarts, sweeps=sweeps), **kw)
+            ref = decode_users(
+                obs,
+                states,
+                prefixes,
+                starts,
+                entries,
+                params=DecoderParams(restarts=restarts, sweeps=sweeps, compiled=False),
+                **kw,
+            )
+            new = decode_users(
+                obs, states, prefixes, starts, entries, params=DecoderParams(restarts=restarts, sweeps=sweeps), **kw
+            )
             np.testing.assert_array_equal(new, ref, err_msg=f"trial {trial}, k={k}, L={L}, restarts={restarts}")
 
 

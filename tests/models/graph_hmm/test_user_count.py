@@ -19,13 +19,18 @@ from onebit.trackers.findinghumo_flow.stage import FlowConfig, run_flow
 def grid_home(n: int = 4, spacing: float = 1.5, targets: int | None = None):
     """``n`` x ``n`` ceiling motion sensors, 4-neighbour graph, no doors."""
     ids = {(i, j): f"M{i * n + j + 1:02d}" for i in range(n) for j in range(n)}
-    edges = [[ids[i, j], ids[i + di, j + dj]] for (i, j) in ids for di, dj in ((0, 1), (1, 0)) if (i + di, j + dj) in ids]
+    edges = [
+        [ids[i, j], ids[i + di, j + dj]] for (i, j) in ids for di, dj in ((0, 1), (1, 0)) if (i + di, j + dj) in ids
+    ]
     data = {
-        "name": "flat", "units": "m",
+        "name": "flat",
+        "units": "m",
         "boundary": {"polygon": [[-1.0, -1.0], [n * spacing, -1.0], [n * spacing, n * spacing], [-1.0, n * spacing]]},
-        "motion_sensors": [{"id": s, "position": [j * spacing, i * spacing], "range": spacing / 2} for (i, j), s in ids.items()],
+        "motion_sensors": [
+            {"id": s, "position": [j * spacing, i * spacing], "range": spacing / 2} for (i, j), s in ids.items()
+        ],
         "sensor_graph": {"edges": edges},
-    }  # fmt: skip
+    }
     if targets is not None:
         data["targets"] = targets
     return site_from_dict(data, source="<flat>"), ids
@@ -59,9 +64,11 @@ def one_resident_log(seed: int, minutes: float = 15.0) -> tuple[pl.DataFrame, ob
 
 
 TRACKERS = [
-    ("hmm1", run_hmm1, HmmConfig), ("hmm2", run_hmm2, HmmConfig), ("findinghumo", run_findinghumo, FindingHumoConfig),
+    ("hmm1", run_hmm1, HmmConfig),
+    ("hmm2", run_hmm2, HmmConfig),
+    ("findinghumo", run_findinghumo, FindingHumoConfig),
     ("findinghumo-flow", run_flow, FlowConfig),
-]  # fmt: skip
+]
 
 
 @pytest.mark.parametrize("name,run,cfg", TRACKERS, ids=[t[0] for t in TRACKERS])

@@ -225,7 +225,10 @@ def test_unknown_region_in_config_is_named(building):
 def walks(draw):
     """Random graph, agents walking on it; returns regions, crossings and the true starts."""
     n = draw(st.integers(2, 5))
-    beams = [tuple(draw(st.lists(st.integers(0, n - 1), min_size=2, max_size=2, unique=True))) for _ in range(draw(st.integers(1, 6)))]
+    beams = [
+        tuple(draw(st.lists(st.integers(0, n - 1), min_size=2, max_size=2, unique=True)))
+        for _ in range(draw(st.integers(1, 6)))
+    ]
     k = draw(st.integers(1, 4))
     start = [draw(st.integers(0, n - 1)) for _ in range(k)]
     pos = list(start)
@@ -252,7 +255,9 @@ def _check_walks(res, src, tgt):
 
 
 @settings(max_examples=120, deadline=None)
-@given(walks(), st.sampled_from(["fifo", "lifo"]), st.integers(1, 4), st.integers(0, 5), st.floats(0.0, 2.0), st.booleans())
+@given(
+    walks(), st.sampled_from(["fifo", "lifo"]), st.integers(1, 4), st.integers(0, 5), st.floats(0.0, 2.0), st.booleans()
+)
 def test_constrained_assignment_invariants(case, policy, u, L, tau, short):
     n, src, tgt, start, times = case
     c = Constraints(
@@ -292,6 +297,9 @@ def test_known_true_initial_condition_explains_everything(case, policy):
     # and non-binding constraints give the base algorithm's answer
     base = assign_agents(src, tgt, n, policy=policy)
     loose = Constraints(capacity=np.full(n, len(src) + 5), max_track_length=len(src) + 2, min_traversal=np.zeros(n))
-    assert assign_agents(src, tgt, n, policy=policy, constraints=loose, times=times).agents.tolist() == base.agents.tolist()
+    assert (
+        assign_agents(src, tgt, n, policy=policy, constraints=loose, times=times).agents.tolist()
+        == base.agents.tolist()
+    )
     big = Constraints(capacity=np.full(n, len(src) + 5), max_track_length=len(src) + 2, region_names=tuple("x" * n))
     assert assign_agents(src, tgt, n, policy=policy, constraints=big).agents.tolist() == base.agents.tolist()

@@ -7,19 +7,18 @@ import numpy as np
 import polars as pl
 import pytest
 
-from onebit.datasets.beams_sim import write_beams_dataset
 from onebit.core.errors import ConfigError, InputError
-from onebit.pipeline.report import metric
-from onebit.pipeline.runner import run_pipeline
-from onebit.scoring.correction import recovered_matches
-from onebit.trackers.beams.correction import CORRECTED_CROSSINGS, CorrectConfig, corrected_frame
-from onebit.readers.rows import read_csv_rows
-from onebit.readers.tables_csv import true_crossings_columns, true_crossings_from_rows
-from onebit.trackers.beams.counting import verify
-from onebit.viz.inspect import entity_paths
 from onebit.core.region_graph import build_region_graph
 from onebit.core.site import load_site
-from onebit.trackers.beams.counting import RegionEdges, correct
+from onebit.datasets.beams_sim import write_beams_dataset
+from onebit.pipeline.report import metric
+from onebit.pipeline.runner import run_pipeline
+from onebit.readers.rows import read_csv_rows
+from onebit.readers.tables_csv import true_crossings_columns, true_crossings_from_rows
+from onebit.scoring.correction import recovered_matches
+from onebit.trackers.beams.correction import CORRECTED_CROSSINGS, CorrectConfig, corrected_frame
+from onebit.trackers.beams.counting import RegionEdges, correct, verify
+from onebit.viz.inspect import entity_paths
 
 
 @pytest.fixture(scope="module")
@@ -77,7 +76,8 @@ def test_stage_tables_and_report(building_run):
     # every restoring insertion is an inserted row with the dropped crossing's beam and direction
     hit = rec.drop_nulls("inserted_row").join(
         cor.with_row_index("inserted_row").with_columns(pl.col("inserted_row").cast(pl.Int64)),
-        on="inserted_row", suffix="_ins",
+        on="inserted_row",
+        suffix="_ins",
     )
     assert hit.height == restored.len() and hit["inserted"].all()
     assert (hit["beam"] == hit["beam_ins"]).all() and (hit["direction"] == hit["direction_ins"]).all()
@@ -94,7 +94,7 @@ def test_dataset_run_toml_gives_the_known_initial_condition(tmp_path):
     stage uses it unless --config has a [correct] section, and enabled = false skips it."""
     data = write_beams_dataset(tmp_path / "d", "beams-building", seed=4, duration=60.0, drop=0.1, camera=False)
     truth = pl.read_csv(data / "truth.csv").sort("t").group_by("target", maintain_order=True).first()
-    assert 'n = 3' in (data / "run.toml").read_text() and truth.height == 3
+    assert "n = 3" in (data / "run.toml").read_text() and truth.height == 3
     res = run_pipeline(data, tmp_path / "r", trackers=("beams",))
     assert res.status["correct"].startswith("ok"), res.status["correct"]
     init = pl.read_parquet(res.out / "tables" / "correct_initial.parquet")
@@ -116,7 +116,9 @@ def test_stage_skipped_without_agent_count(tmp_path):
     (data / "site.toml").write_text("\n".join(ln for ln in site.splitlines() if not ln.startswith("targets")) + "\n")
     res = run_pipeline(data, tmp_path / "r", trackers=("beams",))
     assert res.status["correct"].startswith("skipped") and "[correct] n" in res.status["correct"]
-    res2 = run_pipeline(data, tmp_path / "r2", trackers=("beams",), config={"correct": {"n": 2, "start_region": "nowhere"}})
+    res2 = run_pipeline(
+        data, tmp_path / "r2", trackers=("beams",), config={"correct": {"n": 2, "start_region": "nowhere"}}
+    )
     assert res2.status["correct"].startswith("failed") and "start_region" in res2.status["correct"]
     res3 = run_pipeline(data, tmp_path / "r3", trackers=("beams",), config={"correct": {"n": 2, "start_region": "r1"}})
     assert res3.status["correct"].startswith("ok")
@@ -184,7 +186,9 @@ def twenty_seeds(tmp_path_factory):
     root = tmp_path_factory.mktemp("seeds")
     rows = []
     for seed in SEEDS:
-        data = write_beams_dataset(root / f"d{seed}", "beams-building", seed=seed, duration=300.0, drop=0.05, camera=False)
+        data = write_beams_dataset(
+            root / f"d{seed}", "beams-building", seed=seed, duration=300.0, drop=0.05, camera=False
+        )
         on = run_pipeline(data, root / f"on{seed}", trackers=("beams",))
         off = run_pipeline(data, root / f"off{seed}", trackers=("beams",), config={"correct": {"enabled": False}})
         assert on.ok and off.ok, (on.status, off.status)

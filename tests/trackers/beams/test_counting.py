@@ -11,15 +11,14 @@ from hypothesis import strategies as st
 
 from onebit.core.region_graph import build_region_graph
 from onebit.datasets.builtin import builtin_site
-from onebit.trackers.beams.assignment import assign_agents
-from onebit.trackers.beams.assignment import minimum_agents
-from onebit.trackers.beams.counting import first_count_violation
+from onebit.trackers.beams.assignment import assign_agents, minimum_agents
 from onebit.trackers.beams.counting import (
-    min_insertions_bfs,
     RegionEdges,
     correct,
     count_space_size,
     count_states,
+    first_count_violation,
+    min_insertions_bfs,
     minimal_initial_counts,
     verify,
 )
@@ -65,7 +64,6 @@ def reference_run(src, tgt, eta0):
     return -1
 
 
-
 def brute_force_insertions(src, tgt, edges: RegionEdges, starts) -> int:
     return min_insertions_bfs(src, tgt, edges, starts)
 
@@ -85,7 +83,9 @@ def test_count_space_is_all_vectors_summing_to_n(p, n):
 
 
 @settings(max_examples=60, deadline=None)
-@given(seed=st.integers(0, 10**6), p=st.integers(2, 7), n=st.integers(1, 5), m=st.integers(0, 60), chunk=st.integers(1, 17))
+@given(
+    seed=st.integers(0, 10**6), p=st.integers(2, 7), n=st.integers(1, 5), m=st.integers(0, 60), chunk=st.integers(1, 17)
+)
 def test_verification_accepts_simulated_strings(seed, p, n, m, chunk):
     rng = np.random.default_rng(seed)
     edges = random_graph(rng, p)
@@ -100,7 +100,9 @@ def test_verification_accepts_simulated_strings(seed, p, n, m, chunk):
 
 
 @settings(max_examples=60, deadline=None)
-@given(seed=st.integers(0, 10**6), p=st.integers(2, 6), n=st.integers(1, 4), m=st.integers(1, 40), chunk=st.integers(1, 9))
+@given(
+    seed=st.integers(0, 10**6), p=st.integers(2, 6), n=st.integers(1, 4), m=st.integers(1, 40), chunk=st.integers(1, 9)
+)
 def test_one_removed_crossing_is_rejected_exactly_when_impossible(seed, p, n, m, chunk):
     """Removing crossing j (s -> t) leaves one agent too few in t from j on; M_C rejects the
     string iff the observed crossings later empty t (some k > j leaves t while it holds exactly
@@ -244,7 +246,12 @@ def random_tree(rng: np.random.Generator, p: int) -> RegionEdges:
 
 
 @settings(max_examples=40, deadline=None)
-@given(seed=st.integers(0, 10**6), p=st.integers(2, 7), m=st.integers(2, 40), placement=st.sampled_from(["earliest", "latest", "midpoint"]))
+@given(
+    seed=st.integers(0, 10**6),
+    p=st.integers(2, 7),
+    m=st.integers(2, 40),
+    placement=st.sampled_from(["earliest", "latest", "midpoint"]),
+)
 def test_single_agent_isolated_drop_is_restored_exactly(seed, p, m, placement):
     """One agent, known eta_0, a tree: every dropped crossing j whose neighbours j - 1 and
     j + 1 were observed is detected (the agent's next crossing leaves an empty region), its

@@ -56,7 +56,9 @@ def _random_constraints(rng, p, m, base):
         initial_region=base.initial_region if known else None,
         max_agents=0 if known else int(rng.choice([0, 1, 2, 5])),
         team=rng.integers(-1, n_teams, n) if teams else None,
-        team_capacity=np.where(rng.random((p, n_teams)) < 0.5, rng.integers(0, 3, (p, n_teams)), -1) if teams and rng.random() < 0.7 else None,
+        team_capacity=np.where(rng.random((p, n_teams)) < 0.5, rng.integers(0, 3, (p, n_teams)), -1)
+        if teams and rng.random() < 0.7
+        else None,
         team_rank=rng.permutation(n_teams) if teams and rng.random() < 0.7 else None,
         min_traversal=np.where(rng.random(p) < 0.5, rng.uniform(0, 3, p), 0.0) if rng.random() < 0.5 else None,
         region_names=tuple(f"room{i}" for i in range(p)),
@@ -71,7 +73,7 @@ def test_constrained_kernel_equals_reference(seed):
     src, tgt = _random_string(rng, p, m)
     times = np.cumsum(rng.exponential(1.0, m))
     base = assign_agents(src, tgt, p)
-    for trial in range(4):
+    for _trial in range(4):
         cons = _random_constraints(rng, p, m, base)
         for policy in ("fifo", "lifo"):
             new = assign_agents(src, tgt, p, policy=policy, constraints=cons, times=times, compiled=True)
@@ -84,8 +86,12 @@ def test_kernel_reasons_name_every_refusal():
     order the scan met them, as the reference does."""
     src = np.array([1, 2, 1, 0, 0], np.int64)  # agents 0,1,2 walk into r0 ...
     tgt = np.array([0, 0, 0, 1, 2], np.int64)
-    cons = Constraints(initial_region=np.array([1, 2, 1]), max_track_length=2, team=np.array([0, 1, 0]),
-                       team_capacity=np.array([[5, 5], [0, 5], [5, 5]]))
+    cons = Constraints(
+        initial_region=np.array([1, 2, 1]),
+        max_track_length=2,
+        team=np.array([0, 1, 0]),
+        team_capacity=np.array([[5, 5], [0, 5], [5, 5]]),
+    )
     new = assign_agents(src, tgt, 3, constraints=cons, times=np.arange(5.0), compiled=True)
     ref = assign_agents_reference(src, tgt, 3, constraints=cons, times=np.arange(5.0))
     _same(new, ref)

@@ -7,14 +7,14 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from onebit.datasets.beams_sim import write_beams_dataset
 from onebit.core.region_graph import build_region_graph
+from onebit.datasets.beams_sim import write_beams_dataset
 from onebit.datasets.builtin import builtin_site
 from onebit.pipeline.report import metric
 from onebit.pipeline.runner import run_pipeline
 from onebit.trackers.beams import queries
-from onebit.viz.inspect import entity_paths
 from onebit.viz.beams import beam_midpoints
+from onebit.viz.inspect import entity_paths
 
 
 def _assignment() -> pl.DataFrame:
@@ -61,7 +61,9 @@ def test_occupancy_counts_bodies():
     r2 = occ.filter(pl.col("region") == "r2")
     assert r2["t"].to_list() == [0.0, 1.0, 2.0, 65.0, 70.0] and r2["count"].to_list() == [0, 1, 2, 1, 0]
     # the count of bodies is conserved after every crossing
-    total = occ.sort("t", maintain_order=True).group_by("region", maintain_order=True).agg(pl.all().last())["count"].sum()
+    total = (
+        occ.sort("t", maintain_order=True).group_by("region", maintain_order=True).agg(pl.all().last())["count"].sum()
+    )
     assert total == STARTS.height
 
 
@@ -74,7 +76,12 @@ def test_intervals_over_threshold():
 
 
 @settings(max_examples=50, deadline=None)
-@given(st.lists(st.sampled_from(["a", "a^-1", "b", "b^-1", "c", "c^-1", "d", "d^-1", "e", "e^-1", "f", "f^-1", "g", "g^-1"]), max_size=30))
+@given(
+    st.lists(
+        st.sampled_from(["a", "a^-1", "b", "b^-1", "c", "c^-1", "d", "d^-1", "e", "e^-1", "f", "f^-1", "g", "g^-1"]),
+        max_size=30,
+    )
+)
 def test_visits_of_r4_count_d_f_g_inverse(word):
     """Section IV-F-1: the visitors of r4 are the occurrences of d, f and g^-1."""
     rg = build_region_graph(builtin_site("building"))
@@ -83,7 +90,11 @@ def test_visits_of_r4_count_d_f_g_inverse(word):
     src, tgt = rg.endpoint_arrays(pl.Series(beams, dtype=pl.String), dirs)
     names = list(rg.names)
     a = pl.DataFrame(
-        {"t": [float(i) for i in range(len(word))], "source": [names[i] for i in src], "region": [names[i] for i in tgt]},
+        {
+            "t": [float(i) for i in range(len(word))],
+            "source": [names[i] for i in src],
+            "region": [names[i] for i in tgt],
+        },
         schema={"t": pl.Float64, "source": pl.String, "region": pl.String},
     )
     v = dict(queries.visits_per_region(a, rg.names).rows())
@@ -141,7 +152,6 @@ def test_rrd_holds_occupancy_region_paths_and_marks(building_run):
 
 def test_beam_midpoints_are_gathered_per_crossing_and_unknown_beams_named():
     import numpy as np
-
 
     site = builtin_site("building")
     ids = [b.id for b in site.beams]

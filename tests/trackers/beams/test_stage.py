@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-
 import networkx as nx
 import numpy as np
 import polars as pl
@@ -10,9 +9,9 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
+from onebit.core.errors import ConfigError
 from onebit.core.region_graph import build_region_graph
 from onebit.datasets.builtin import builtin_site
-from onebit.core.errors import ConfigError
 from onebit.trackers.beams import BeamsConfig, assign_agents, is_consistent_partition, minimum_agents, run
 
 
@@ -36,7 +35,7 @@ def test_building_region_graph_matches_fig2(building):
     into_r4 = {k for _, v, k in rg.graph.in_edges("r4", keys=True)}
     assert into_r4 == {"d", "f", "g^-1"}
     # every forward edge has its reverse labelled beta^-1
-    for u, v, k, data in rg.graph.edges(keys=True, data=True):
+    for u, v, _k, data in rg.graph.edges(keys=True, data=True):
         rev = f"{data['beam']}^-1" if data["direction"] == 1 else data["beam"]
         assert rg.graph.has_edge(v, u, key=rev)
 

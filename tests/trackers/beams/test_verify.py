@@ -19,7 +19,7 @@ MATCH, MISMATCH, GAP = 2.0, -1.0, 1.0
 def _global(a: tuple, b: tuple, match: float, mismatch: float, gap: float) -> float:
     """Best global alignment score of a and b, by exhaustive recursion over the last column."""
 
-    @functools.lru_cache(maxsize=None)
+    @functools.cache
     def g(i: int, j: int) -> float:
         if i == 0:
             return -gap * j

@@ -9,9 +9,16 @@ import numpy as np
 import pytest
 
 from onebit.trackers.binpf.filter import (
-    FilterParams, birth_groups, footprint_probability, frame_probability_off, observation_update, others_miss, predict,
-    run_filter, systematic_resample,
-)  # fmt: skip
+    FilterParams,
+    birth_groups,
+    footprint_probability,
+    frame_probability_off,
+    observation_update,
+    others_miss,
+    predict,
+    run_filter,
+    systematic_resample,
+)
 
 SENSORS = np.array([[0.0, 0.0], [1.5, 0.0], [3.0, 0.0], [0.0, 1.5], [1.5, 1.5], [3.0, 1.5]])
 RADII = np.full(len(SENSORS), 1.0)
@@ -61,8 +68,20 @@ def _brute_update(x, r, z, p):
     S = len(z)
     ell = np.zeros((I, N))
     r_new = np.zeros(I)
-    d = np.array([[[footprint_probability(x[i, n, :2][None], SENSORS[s][None], RADII[s:s + 1], pd=p.pd, edge=p.edge)[0, 0]
-                    for s in range(S)] for n in range(N)] for i in range(I)])  # fmt: skip
+    d = np.array(
+        [
+            [
+                [
+                    footprint_probability(x[i, n, :2][None], SENSORS[s][None], RADII[s : s + 1], pd=p.pd, edge=p.edge)[
+                        0, 0
+                    ]
+                    for s in range(S)
+                ]
+                for n in range(N)
+            ]
+            for i in range(I)
+        ]
+    )
     for i in range(I):
         ell0 = 0.0
         for s in range(S):
@@ -104,7 +123,9 @@ def test_a_contradicting_frame_lowers_existence_by_at_most_the_silent_factor():
     z[2] = True  # only a far sensor fires
     _, r = observation_update(x, np.array([0.9]), z, SENSORS, RADII, p)
     assert r[0] >= 0.9 * 0.2 / (0.9 * 0.2 + 0.1) - 1e-12
-    _, r0 = observation_update(x, np.array([0.9]), z, SENSORS, RADII, FilterParams(pd=0.99, pf=1e-6, edge=0.0, silent=0.0))
+    _, r0 = observation_update(
+        x, np.array([0.9]), z, SENSORS, RADII, FilterParams(pd=0.99, pf=1e-6, edge=0.0, silent=0.0)
+    )
     assert r0[0] < 0.1  # without it the one reading all but empties the track (L = 1 - p_d)
 
 

@@ -47,7 +47,9 @@ def test_filling_respects_the_bound():
     a = ("a", range(0, 3), [0.0, 0.1, 0.2], [0.0] * 3)
     b = ("b", range(6, 8), [0.3, 0.4], [0.0] * 2)
     other = ("z", range(0, 8), [5.0] * 8, [5.0] * 8)  # always reported: frames 3-5 already hold one track
-    f, lab, _, _, joins = link_tracklets(*_rows(a, b, other), period=0.5, max_gap=6, max_speed=1.5, slack=1.0, max_out=1)
+    f, lab, _, _, joins = link_tracklets(
+        *_rows(a, b, other), period=0.5, max_gap=6, max_speed=1.5, slack=1.0, max_out=1
+    )
     assert joins == 1 and np.bincount(f).max() <= 2
     assert not np.any((lab == "a") & (f >= 3) & (f <= 5))  # the bound of 1 leaves the gap empty
     f2, _, _, _, _ = link_tracklets(*_rows(a, b, other), period=0.5, max_gap=6, max_speed=1.5, slack=1.0, max_out=2)
@@ -56,7 +58,7 @@ def test_filling_respects_the_bound():
 
 def test_the_joins_are_the_largest_then_cheapest_matching():
     rng = np.random.default_rng(0)
-    for trial in range(40):
+    for _trial in range(40):
         n = 5
         parts = []
         for i in range(n):
@@ -69,8 +71,11 @@ def test_the_joins_are_the_largest_then_cheapest_matching():
         pairs = [(i, j) for i in range(n) for j in range(n) if np.isfinite(cost[i, j])]
         best = (0, 0.0)
         for k in range(len(pairs), 0, -1):  # largest matchings first, then cheapest
-            costs = [sum(cost[i, j] for i, j in m) for m in itertools.combinations(pairs, k)
-                     if len({i for i, _ in m}) == k and len({j for _, j in m}) == k]
+            costs = [
+                sum(cost[i, j] for i, j in m)
+                for m in itertools.combinations(pairs, k)
+                if len({i for i, _ in m}) == k and len({j for _, j in m}) == k
+            ]
             if costs:
                 best = (k, min(costs))
                 break

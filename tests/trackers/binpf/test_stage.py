@@ -18,8 +18,11 @@ XY = np.array([(1.0 + 1.5 * i, 1.0 + 1.5 * j) for i in range(5) for j in range(3
 
 
 def _site(targets: int | None):
-    d = {"units": "m", "boundary": {"polygon": [[0, 0], [8, 0], [8, 5], [0, 5]]},
-         "binary_sensors": [{"id": f"s{k}", "position": list(p), "radius": 1.0} for k, p in enumerate(XY)]}
+    d = {
+        "units": "m",
+        "boundary": {"polygon": [[0, 0], [8, 0], [8, 5], [0, 5]]},
+        "binary_sensors": [{"id": f"s{k}", "position": list(p), "radius": 1.0} for k, p in enumerate(XY)],
+    }
     if targets is not None:
         d["targets"] = targets
     return site_from_dict(d)
@@ -30,13 +33,29 @@ def _frames(T=40, seed=0):
     rng = np.random.default_rng(seed)
     u = np.linspace(0.5, 7.5, T)
     people = np.stack([np.c_[u, np.full(T, 1.0)], np.c_[u[::-1], np.full(T, 2.5)], np.c_[u, np.full(T, 4.0)]], axis=1)
-    p_off = np.stack([frame_probability_off(people[k], XY, np.ones(len(XY)), pd=0.9, pf=0.005, edge=0.2) for k in range(T)])
+    p_off = np.stack(
+        [frame_probability_off(people[k], XY, np.ones(len(XY)), pd=0.9, pf=0.005, edge=0.2) for k in range(T)]
+    )
     on = rng.random(p_off.shape) > p_off
     S = len(XY)
-    frames = pl.DataFrame({"slot": np.repeat(np.arange(T), S), "t": np.repeat(np.arange(T) * 0.5, S),
-                           "sensor": [f"s{k}" for k in range(S)] * T, "on": on.ravel(), "fired": on.ravel()}, schema=FRAMES)
-    truth = pl.DataFrame({"t": np.repeat(np.arange(T) * 0.5, 3), "target": ["a", "b", "c"] * T,
-                          "x": people[:, :, 0].ravel(), "y": people[:, :, 1].ravel()})
+    frames = pl.DataFrame(
+        {
+            "slot": np.repeat(np.arange(T), S),
+            "t": np.repeat(np.arange(T) * 0.5, S),
+            "sensor": [f"s{k}" for k in range(S)] * T,
+            "on": on.ravel(),
+            "fired": on.ravel(),
+        },
+        schema=FRAMES,
+    )
+    truth = pl.DataFrame(
+        {
+            "t": np.repeat(np.arange(T) * 0.5, 3),
+            "target": ["a", "b", "c"] * T,
+            "x": people[:, :, 0].ravel(),
+            "y": people[:, :, 1].ravel(),
+        }
+    )
     return frames, truth
 
 
@@ -47,7 +66,9 @@ def test_never_more_tracks_at_once_than_targets(targets):
     assert out["tracks"].schema == TRACKS and out["tracks"].height > 0
     assert out["tracks"].group_by("t").len()["len"].max() <= targets
     assert out["frames"]["reported"].max() <= targets
-    rows, tables = score("binpf", {"binpf_frames": out["frames"], "binpf_tracks": out["tracks"], "truth": truth}, _site(targets))
+    rows, tables = score(
+        "binpf", {"binpf_frames": out["frames"], "binpf_tracks": out["tracks"], "truth": truth}, _site(targets)
+    )
     m = {r[1]: r[2] for r in rows}
     assert m["max_reported"] <= targets and m["count_error"] >= 0
 
@@ -55,7 +76,9 @@ def test_never_more_tracks_at_once_than_targets(targets):
 def test_three_walkers_counted_and_followed():
     frames, truth = _frames()
     out = run({"proximity_frames": frames}, _site(None), BinPFConfig(particles=150))
-    rows, _ = score("binpf", {"binpf_frames": out["frames"], "binpf_tracks": out["tracks"], "truth": truth}, _site(None))
+    rows, _ = score(
+        "binpf", {"binpf_frames": out["frames"], "binpf_tracks": out["tracks"], "truth": truth}, _site(None)
+    )
     m = {r[1]: r[2] for r in rows}
     assert m["count_error"] <= 0.6
     tr = out["tracks"].filter(pl.col("t") >= 5.0)

@@ -134,9 +134,12 @@ def test_2d_raster_matches_shapely_disks_and_counts_components():
     on = np.any(d <= 1.0, axis=1)
     rast = make_raster(bnd, 0.05)
     r = np.ones(len(xy))
-    F = feasible_raster(on[None], disk_masks(rast, xy, r, closed=True), disk_masks(rast, xy, r, closed=False), rast.inside)[0]
+    F = feasible_raster(
+        on[None], disk_masks(rast, xy, r, closed=True), disk_masks(rast, xy, r, closed=False), rast.inside
+    )[0]
     exact = shapely.difference(
-        shapely.union_all([Point(p).buffer(1.0, 64) for p in xy[on]]), shapely.union_all([Point(p).buffer(1.0, 64) for p in xy[~on]])
+        shapely.union_all([Point(p).buffer(1.0, 64) for p in xy[on]]),
+        shapely.union_all([Point(p).buffer(1.0, 64) for p in xy[~on]]),
     ).intersection(bnd)
     assert abs(F.sum() * 0.05**2 - exact.area) < 0.05 * exact.area + 0.05
     n, lab = raster_components(F, rast)

@@ -41,7 +41,12 @@ def test_scan_kernel_equals_numpy_scan(seed):
     x = rng.uniform(0, 5, size=(kprev * m, dim))
     # ties (all costs 0 at t <= 2) broken by the random permutation, or distinct costs
     cost = np.zeros(kprev * m) if seed % 3 == 0 else rng.random(kprev * m).round(int(rng.integers(1, 4)))
-    kw = dict(H=int(rng.integers(1, 8)), K=int(rng.integers(1, 60)), L=int(rng.integers(1, 400)), D0=float(rng.uniform(0.05, 3.0)))
+    kw = dict(
+        H=int(rng.integers(1, 8)),
+        K=int(rng.integers(1, 60)),
+        L=int(rng.integers(1, 400)),
+        D0=float(rng.uniform(0.05, 3.0)),
+    )
     a = scan_clusters(cost, parent, x, pd, t, rng=np.random.default_rng(seed), compiled=True, **kw)
     b = scan_clusters_reference(cost, parent, x, pd, t, rng=np.random.default_rng(seed), **kw)
     for u, v in zip(a, b):
@@ -52,7 +57,9 @@ def _space(name, seed, **params):
     w = make_world(name, seed=seed, params=params)
     sa = SensorArray(tuple(f"p{i}" for i in range(len(w.sensor_xy))), w.sensor_xy, w.r_inner, w.r_outer)
     dim = 1 if sa.is_1d else 2
-    return FeasibleSpace.build(w.on, np.arange(w.on.shape[0], dtype=float), sa, box(*w.boundary), dim=dim, cell=0.25), sa.radius
+    return FeasibleSpace.build(
+        w.on, np.arange(w.on.shape[0], dtype=float), sa, box(*w.boundary), dim=dim, cell=0.25
+    ), sa.radius
 
 
 @pytest.mark.parametrize("name", ["proximity-line", "proximity-grid"])
@@ -85,7 +92,9 @@ def test_consensus_reuses_a_known_run():
 def test_ordered_prefix_is_the_start_of_the_stable_argsort(seed):
     rng = np.random.default_rng(seed)
     n = int(rng.integers(1, 300))
-    key = rng.integers(0, int(rng.integers(1, 20)), n).astype(float) if seed % 2 else rng.random(n)  # many ties, or none
+    key = (
+        rng.integers(0, int(rng.integers(1, 20)), n).astype(float) if seed % 2 else rng.random(n)
+    )  # many ties, or none
     full = np.argsort(key, kind="stable")
     for k in (0, 1, int(rng.integers(1, n + 1)), n, n + 5):
         np.testing.assert_array_equal(ordered_prefix(key, k), full[: max(0, min(k, n))])
@@ -97,7 +106,9 @@ def test_scan_order_is_the_selection_sorted_by_cost(seed):
     cost = rng.integers(0, 5, 200).astype(float)
     L = int(rng.integers(1, 250))
     sel = scan_selection(cost, L, np.random.default_rng(seed))
-    np.testing.assert_array_equal(scan_order(cost, L, np.random.default_rng(seed)), sel[np.argsort(cost[sel], kind="stable")])
+    np.testing.assert_array_equal(
+        scan_order(cost, L, np.random.default_rng(seed)), sel[np.argsort(cost[sel], kind="stable")]
+    )
 
 
 @pytest.mark.parametrize("seed", range(20))
@@ -107,8 +118,10 @@ def test_cost_and_distance_kernels_equal_numpy(seed):
     x = rng.uniform(-5, 5, (kprev * m_t, dim))
     last1, last2, cost = rng.uniform(-5, 5, (kprev, dim)), rng.uniform(-5, 5, (kprev, dim)), rng.random(kprev) * 10
     for curvature in (False, True):
-        np.testing.assert_array_equal(kernels.candidate_costs(x, last1, last2, cost, m_t, curvature),
-                                      candidate_costs_reference(x, last1, last2, cost, m_t, curvature))  # fmt: skip
+        np.testing.assert_array_equal(
+            kernels.candidate_costs(x, last1, last2, cost, m_t, curvature),
+            candidate_costs_reference(x, last1, last2, cost, m_t, curvature),
+        )
     pd = rng.random((kprev, kprev)) * 20
     par = rng.integers(0, kprev, int(rng.integers(1, 15)))
     xk = rng.uniform(-5, 5, (par.size, dim))

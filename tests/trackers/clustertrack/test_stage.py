@@ -10,8 +10,15 @@ from hypothesis import strategies as st
 from scipy.optimize import linear_sum_assignment
 from shapely.geometry import box
 
-from onebit.datasets.proximity_sim import SCENARIO_SPECS, make_world
+from onebit._testing.oracles import scan_clusters_direct
 from onebit.core.errors import ConfigError
+from onebit.core.site import site_from_dict
+from onebit.core.tables import FRAMES
+from onebit.datasets.proximity_sim import SCENARIO_SPECS, make_world
+from onebit.experiments import get_experiment
+from onebit.pipeline.report import metric
+from onebit.pipeline.runner import run_pipeline
+from onebit.scoring.clustertrack import match_tracks
 from onebit.trackers.clustertrack.algorithm import (
     _norm,
     clustertrack,
@@ -21,17 +28,10 @@ from onebit.trackers.clustertrack.algorithm import (
     trajectory_distance,
     usage,
 )
-from onebit._testing.oracles import scan_clusters_direct
 from onebit.trackers.clustertrack.feasible import SensorArray
 from onebit.trackers.clustertrack.space import FeasibleSpace
 from onebit.trackers.clustertrack.stage import ClusterTrackConfig, run
-from onebit.core.site import site_from_dict
-from onebit.core.tables import FRAMES
-from onebit.pipeline.report import metric
-from onebit.pipeline.runner import run_pipeline
 from onebit.viz.inspect import entity_paths
-from onebit.experiments import get_experiment
-from onebit.scoring.clustertrack import match_tracks
 
 
 def world_space(name: str, seed: int, **params):
@@ -43,7 +43,14 @@ def world_space(name: str, seed: int, **params):
 
 
 @settings(max_examples=40, deadline=None)
-@given(st.integers(0, 10**6), st.integers(1, 6), st.integers(1, 40), st.integers(2, 200), st.floats(0.05, 2.0), st.integers(1, 4))
+@given(
+    st.integers(0, 10**6),
+    st.integers(1, 6),
+    st.integers(1, 40),
+    st.integers(2, 200),
+    st.floats(0.05, 2.0),
+    st.integers(1, 4),
+)
 def test_vectorised_scan_equals_direct_algorithm1(seed, H, K, L, D0, t):
     rng = np.random.default_rng(seed)
     kprev, m = int(rng.integers(1, 12)), int(rng.integers(1, 15))
@@ -52,7 +59,9 @@ def test_vectorised_scan_equals_direct_algorithm1(seed, H, K, L, D0, t):
     parent = np.repeat(np.arange(kprev), m)
     x = rng.uniform(0, 5, size=(kprev * m, 1))
     cost = rng.random(kprev * m)  # distinct costs: no ties
-    kept, label, is_head, scanned = scan_clusters(cost, parent, x, pd, t, H=H, K=K, L=L, D0=D0, rng=np.random.default_rng(1))
+    kept, label, is_head, scanned = scan_clusters(
+        cost, parent, x, pd, t, H=H, K=K, L=L, D0=D0, rng=np.random.default_rng(1)
+    )
     full = np.concatenate([prev[parent], x[:, None, :]], axis=1)
     k2, l2, s2 = scan_clusters_direct(np.argsort(cost), full, H=H, K=K, L=L, D0=D0)
     np.testing.assert_array_equal(kept, k2)
@@ -75,7 +84,9 @@ def test_five_well_separated_targets_found_in_18_of_20_seeds():
         a, b = linear_sum_assignment(D)
         ok += int(np.sum(D[a, b] <= p.D0) == 5)
         # the K / L / H limits hold at every instant
-        assert np.all(res.first.kept <= p.K) and np.all(res.first.scanned <= p.L) and np.all(res.first.max_cluster <= p.H)
+        assert (
+            np.all(res.first.kept <= p.K) and np.all(res.first.scanned <= p.L) and np.all(res.first.max_cluster <= p.H)
+        )
     assert ok >= 18
 
 
@@ -134,8 +145,12 @@ def test_config_errors_name_the_field():
 
 def test_stage_on_empty_frames():
 
-    site = site_from_dict({"boundary": {"polygon": [[0, -0.5], [5, -0.5], [5, 0.5], [0, 0.5]]},
-                           "proximity_sensors": [{"id": "a", "position": [1.0, 0.0], "radius": 1.0}]})
+    site = site_from_dict(
+        {
+            "boundary": {"polygon": [[0, -0.5], [5, -0.5], [5, 0.5], [0, 0.5]]},
+            "proximity_sensors": [{"id": "a", "position": [1.0, 0.0], "radius": 1.0}],
+        }
+    )
     out = run({"proximity_frames": pl.DataFrame(schema=FRAMES)}, site, ClusterTrackConfig(consensus_runs=0))
     assert out["tracks"].height == 0
 
@@ -143,7 +158,9 @@ def test_stage_on_empty_frames():
 def test_pipeline_end_to_end(tmp_path):
 
     data = SCENARIO_SPECS["proximity-line"].write(tmp_path / "d", seed=4, params={"variant": "separated"})
-    res = run_pipeline(data, tmp_path / "run", trackers=("clustertrack",), config={"clustertrack": {"consensus_runs": 3}})
+    res = run_pipeline(
+        data, tmp_path / "run", trackers=("clustertrack",), config={"clustertrack": {"consensus_runs": 3}}
+    )
     assert res.status["clustertrack"].startswith("ok"), res.status
     rep = res.report
     assert metric(rep, "clustertrack/targets_true") == 5
@@ -170,10 +187,22 @@ def test_quick_singh_experiment_writes_table_and_plots(tmp_path):
 def test_match_tracks_pairs_every_track_row_with_the_nearest_truth_of_every_target():
 
     rng = np.random.default_rng(5)
-    truth = pl.DataFrame({"t": np.repeat(np.arange(12) * 0.5, 3), "target": ["b", "a", "c"] * 12,
-                          "x": rng.random(36), "y": rng.random(36)})
-    tracks = pl.DataFrame({"track": np.repeat(["c2", "c1"], 9), "t": np.tile(np.arange(9) * 0.7, 2),
-                           "x": rng.random(18), "y": rng.random(18)})
+    truth = pl.DataFrame(
+        {
+            "t": np.repeat(np.arange(12) * 0.5, 3),
+            "target": ["b", "a", "c"] * 12,
+            "x": rng.random(36),
+            "y": rng.random(36),
+        }
+    )
+    tracks = pl.DataFrame(
+        {
+            "track": np.repeat(["c2", "c1"], 9),
+            "t": np.tile(np.arange(9) * 0.7, 2),
+            "x": rng.random(18),
+            "y": rng.random(18),
+        }
+    )
     targets, names, D, pairs = match_tracks(truth, tracks)
     assert targets == ["a", "b", "c"] and names == ["c1", "c2"]
     assert pairs.height == 3 * tracks.height
@@ -235,15 +264,32 @@ def test_tracks_never_exceed_targets_nor_the_count_estimate():
 
     rng = np.random.default_rng(5)
     xy = [(1.0 + 1.5 * i, 1.0 + 1.5 * j) for i in range(5) for j in range(5)]
-    site = site_from_dict({"boundary": {"polygon": [[0, 0], [8, 0], [8, 8], [0, 8]]}, "units": "m", "targets": 2,
-                           "proximity_sensors": [{"id": f"s{k}", "position": list(p), "radius": 0.9} for k, p in enumerate(xy)]})
+    site = site_from_dict(
+        {
+            "boundary": {"polygon": [[0, 0], [8, 0], [8, 8], [0, 8]]},
+            "units": "m",
+            "targets": 2,
+            "proximity_sensors": [{"id": f"s{k}", "position": list(p), "radius": 0.9} for k, p in enumerate(xy)],
+        }
+    )
     T = 12
     on = rng.random((T, len(xy))) < 0.12  # scattered spurious firings: many components per instant
-    frames = pl.DataFrame({"slot": np.repeat(np.arange(T), len(xy)), "t": np.repeat(np.arange(T) * 0.5, len(xy)),
-                           "sensor": [f"s{k}" for k in range(len(xy))] * T, "on": on.ravel(), "fired": on.ravel()},
-                          schema={"slot": pl.Int64, "t": pl.Float64, "sensor": pl.String, "on": pl.Boolean, "fired": pl.Boolean})
+    frames = pl.DataFrame(
+        {
+            "slot": np.repeat(np.arange(T), len(xy)),
+            "t": np.repeat(np.arange(T) * 0.5, len(xy)),
+            "sensor": [f"s{k}" for k in range(len(xy))] * T,
+            "on": on.ravel(),
+            "fired": on.ravel(),
+        },
+        schema={"slot": pl.Int64, "t": pl.Float64, "sensor": pl.String, "on": pl.Boolean, "fired": pl.Boolean},
+    )
     for targets, bound in ((0, 2), (1, 1)):
-        out = run({"proximity_frames": frames}, site, ClusterTrackConfig(consensus_runs=2, targets=targets, h_2d=10, m_o_r2=10.0))
+        out = run(
+            {"proximity_frames": frames},
+            site,
+            ClusterTrackConfig(consensus_runs=2, targets=targets, h_2d=10, m_o_r2=10.0),
+        )
         q_hat = int(out["params"]["Q_hat"][0])
         n = out["tracks"].group_by("t").len()["len"].max()
         assert q_hat >= 2 and n <= min(bound, q_hat)

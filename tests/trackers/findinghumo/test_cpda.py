@@ -8,8 +8,8 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from onebit.datasets.builtin import builtin_site
-from onebit.trackers.findinghumo.cpda import colocation_events, cpda, interaction_graph
 from onebit.models.graph_hmm.eatg import hop_matrix, layout_eatg, trained_eatg
+from onebit.trackers.findinghumo.cpda import colocation_events, cpda, interaction_graph
 
 
 @pytest.fixture(scope="module")
@@ -178,7 +178,9 @@ def test_pair_meeting_equals_scoring_every_joined_path_whole(data):
     d = data.draw(st.integers(4, 14))
     rng = np.random.default_rng(data.draw(st.integers(0, 2**32 - 1)))
     paths = rng.integers(-1, n, size=(m + 1, d))
-    paths = np.where(rng.random((m + 1, d)) < 0.6, np.maximum.accumulate(np.arange(d)[None, :] * 0 + paths[:, :1], axis=1), paths)
+    paths = np.where(
+        rng.random((m + 1, d)) < 0.6, np.maximum.accumulate(np.arange(d)[None, :] * 0 + paths[:, :1], axis=1), paths
+    )
     log_a2 = np.log(rng.dirichlet(np.ones(n), size=n))
     hops = None if data.draw(st.booleans()) else rng.integers(0, 3, size=(n, n))
     users = np.arange(m)

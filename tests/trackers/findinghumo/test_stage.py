@@ -8,17 +8,17 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from onebit.datasets.hallway_sim import write_hallway_dataset
-from onebit.datasets.builtin import builtin_site
 from onebit.core.errors import ConfigError
 from onebit.core.site import load_site
-from onebit.pipeline.report import metric
-from onebit.scoring.findinghumo import score as score_findinghumo
-from onebit.pipeline.runner import run_pipeline
-from onebit.readers.motion import read_motion_csv
 from onebit.core.tables import MOTION, TRACKS
+from onebit.datasets.builtin import builtin_site
+from onebit.datasets.hallway_sim import write_hallway_dataset
 from onebit.models.graph_hmm.adaptive import DecoderParams, decode_run, decode_users, max_independent
 from onebit.models.graph_hmm.eatg import hop_matrix, layout_eatg
+from onebit.pipeline.report import metric
+from onebit.pipeline.runner import run_pipeline
+from onebit.readers.motion import read_motion_csv
+from onebit.scoring.findinghumo import score as score_findinghumo
 from onebit.trackers.findinghumo.stage import FindingHumoConfig, HmmConfig, build_eatg, run_findinghumo, slot_activity
 from onebit.viz.inspect import entity_paths
 
@@ -80,8 +80,16 @@ def test_two_users_crossing_are_both_explained(hallway):
     obs = np.zeros((6, len(eatg.nodes)), bool)
     for t, (x, y) in enumerate(zip(a, b)):
         obs[t, [i[x], i[y]]] = True
-    paths = decode_users(obs, np.arange(len(eatg.nodes)), [[i["96"], i["95"]], [i["110"], i["111"]]], [0, 0], [-1, -1],
-                         order=2, eatg=eatg, params=DecoderParams())
+    paths = decode_users(
+        obs,
+        np.arange(len(eatg.nodes)),
+        [[i["96"], i["95"]], [i["110"], i["111"]]],
+        [0, 0],
+        [-1, -1],
+        order=2,
+        eatg=eatg,
+        params=DecoderParams(),
+    )
     assert np.all(obs[np.arange(6)[:, None], paths.T])  # every decoded node is active
     explained = np.zeros_like(obs)
     explained[np.arange(6)[None, :].repeat(2, 0), paths] = True
@@ -141,7 +149,13 @@ def test_hallway_runs_end_to_end(hallway_runs):
     eatg = pl.read_parquet(res.out / "tables" / "findinghumo_eatg.parquet")
     assert set(eatg["kind"]) == {"a1", "a2"}
     ents = entity_paths(res.out / "rrd" / "findinghumo.rrd")
-    for e in ("findinghumo/eatg/a1", "findinghumo/eatg/nodes", "findinghumo/activations", "findinghumo/decoded/user1", "findinghumo/cpda"):
+    for e in (
+        "findinghumo/eatg/a1",
+        "findinghumo/eatg/nodes",
+        "findinghumo/activations",
+        "findinghumo/decoded/user1",
+        "findinghumo/cpda",
+    ):
         assert any(p.strip("/") == e for p in ents), (e, sorted(ents)[:20])
     flow = entity_paths(res.out / "rrd" / "findinghumo-flow.rrd")
     assert any(p.strip("/") == "findinghumo-flow/joins" for p in flow), sorted(flow)[:20]
@@ -158,7 +172,9 @@ def _mean_decoded_hmm(runs):
     out = []
     for seed, r in runs.items():
         tables = {
-            "findinghumo_tracks": pl.read_parquet(r.out / "tables" / "findinghumo_decoded_hmm.parquet").with_columns(tracker=pl.lit("findinghumo")),
+            "findinghumo_tracks": pl.read_parquet(r.out / "tables" / "findinghumo_decoded_hmm.parquet").with_columns(
+                tracker=pl.lit("findinghumo")
+            ),
             "truth": pl.read_parquet(r.out / "tables" / "truth.parquet"),
         }
         rows, _ = score_findinghumo("findinghumo", tables, load_site(r.out.parent / f"d{seed}" / "site.toml"))
@@ -233,13 +249,17 @@ def test_joint_redecoding_is_tabled_and_logged(hallway_runs):
     from onebit.viz.inspect import component_rows
 
     changed = 0
-    for seed, r in hallway_runs.items():
+    for _seed, r in hallway_runs.items():
         joint = pl.read_parquet(r.out / "tables" / "findinghumo_joint.parquet")
         assert joint.height > 0 and (joint["gain"] >= 0).all()
         assert not (r.out / "tables" / "hmm2_joint.parquet").exists()
         n = int((joint["gain"] > 0).sum())
         if n:
-            labels = [x for row in component_rows(r.out / "rrd" / "findinghumo.rrd", "findinghumo/joint", "Points2D:labels") for x in (row or [])]
+            labels = [
+                x
+                for row in component_rows(r.out / "rrd" / "findinghumo.rrd", "findinghumo/joint", "Points2D:labels")
+                for x in (row or [])
+            ]
             assert len(labels) == n and all(lb.startswith("joint: users ") for lb in labels), labels
         changed += n
     assert changed > 0

@@ -72,10 +72,13 @@ def _flags(site, eatg):
 
 def test_meetings_and_fragments(hallway):
     site, eatg = hallway
-    decoded = _paths(eatg, [
-        [97, 96, 95, 99, 99, 95, 96, 97],
-        [110, 111, 111, 99, 99, 111, 110, 117],
-    ])  # fmt: skip
+    decoded = _paths(
+        eatg,
+        [
+            [97, 96, 95, 99, 99, 95, 96, 97],
+            [110, 111, 111, 99, 99, 111, 110, 117],
+        ],
+    )
     feature, _, _ = _flags(site, eatg)
     meets = meetings(decoded, eatg.hops, feature)
     assert len(meets) == 1
@@ -89,17 +92,24 @@ def test_crossing_is_put_right(hallway):
     """Two users cross in the kitchen; the decoder bounced them back. The flow joins each
     incoming fragment to the outgoing one that goes on in its direction (a'')."""
     site, eatg = hallway
-    decoded = _paths(eatg, [
-        [97, 97, 96, 96, 95, 95, 99, 99, 95, 95, 96, 96, 97, 97],
-        [117, 117, 110, 110, 111, 111, 99, 99, 111, 111, 110, 110, 117, 117],
-    ])  # fmt: skip
+    decoded = _paths(
+        eatg,
+        [
+            [97, 97, 96, 96, 95, 95, 99, 99, 95, 95, 96, 96, 97, 97],
+            [117, 117, 110, 110, 111, 111, 99, 99, 111, 111, 110, 110, 117, 117],
+        ],
+    )
     feature, entries, exits = _flags(site, eatg)
-    out, frags, ident, joins = associate_paths(decoded, eatg.hops, eatg.a1, eatg.a2, feature, entries, exits, run_start=0)
+    out, frags, ident, joins = associate_paths(
+        decoded, eatg.hops, eatg.a1, eatg.a2, feature, entries, exits, run_start=0
+    )
     names = [[eatg.nodes[j] for j in row] for row in out]
-    assert sorted(names) == sorted([
-        ["97", "97", "96", "96", "95", "95", "99", "99", "111", "111", "110", "110", "117", "117"],
-        ["117", "117", "110", "110", "111", "111", "99", "99", "95", "95", "96", "96", "97", "97"],
-    ])  # fmt: skip
+    assert sorted(names) == sorted(
+        [
+            ["97", "97", "96", "96", "95", "95", "99", "99", "111", "111", "110", "110", "117", "117"],
+            ["117", "117", "110", "110", "111", "111", "99", "99", "95", "95", "96", "96", "97", "97"],
+        ]
+    )
     assert any(ch for *_, ch in joins)
     # continuity holds on every identity
     assert np.all(eatg.hops[out[:, :-1], out[:, 1:]] <= 1)
@@ -118,12 +128,17 @@ def test_a_vanished_track_goes_on_as_the_next_one(hallway):
     """A track lost for two slots mid-corridor continues on the track that starts near it
     (the gap join, EATG A' over the gap), instead of a birth and a death away from the doors."""
     site, eatg = hallway
-    decoded = _paths(eatg, [
-        [97, 96, 95, None, None, None, None, None],
-        [None, None, None, None, None, 111, 110, 117],
-    ])  # fmt: skip
+    decoded = _paths(
+        eatg,
+        [
+            [97, 96, 95, None, None, None, None, None],
+            [None, None, None, None, None, 111, 110, 117],
+        ],
+    )
     feature, entries, exits = _flags(site, eatg)
-    out, frags, ident, joins = associate_paths(decoded, eatg.hops, eatg.a1, eatg.a2, feature, entries, exits, run_start=0)
+    out, frags, ident, joins = associate_paths(
+        decoded, eatg.hops, eatg.a1, eatg.a2, feature, entries, exits, run_start=0
+    )
     assert out.shape[0] == 1 and len(set(ident.tolist())) == 1
     assert [eatg.nodes[j] if j >= 0 else None for j in out[0]] == ["97", "96", "95", None, None, "111", "110", "117"]
 

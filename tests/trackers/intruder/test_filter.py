@@ -11,29 +11,29 @@ import shapely
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from onebit.datasets.pir_sim import simulate, site_dict, write_pir_dataset
-from onebit.core.site import site_from_dict
 from onebit.core.errors import ConfigError, SiteError
-from onebit.readers.motion import read_motion_csv
-from onebit.readers.motion import MotionConfig, site_rules
+from onebit.core.site import load_site, site_from_dict
+from onebit.datasets.pir_sim import fire, path_motion, simulate, site_dict, write_pir_dataset
 from onebit.models.motion import Motion, Particles, Room, prior, propagate
 from onebit.models.pir import WorldGrid, box_cells, deploy, log_p_silent, sensor_likelihood, sensor_type
-from onebit.trackers.intruder.filter import box_counts, systematic_resample
+from onebit.readers.motion import MotionConfig, read_motion_csv, site_rules
 from onebit.scoring.intruder import match_errors
-from onebit.trackers.intruder.stage import IntruderConfig, NaiveConfig, run, run_naive
-from onebit.core.site import load_site
-from onebit.datasets.pir_sim import fire
-from onebit.datasets.pir_sim import path_motion
 from onebit.trackers.intruder.camera import pan_tilt_zoom
+from onebit.trackers.intruder.filter import box_counts, systematic_resample
+from onebit.trackers.intruder.stage import IntruderConfig, NaiveConfig, run, run_naive
 
 PAPER_MOTION = Motion(period=2.0, v_max=4.0, speed_sigma=1.5, turn_scale=4.0, max_retries=50)
 
 
 def run_scenario(tmp_path, scenario, seed, *, refractory=0.0, duration=120.0, **cfg):
-    data = write_pir_dataset(tmp_path / f"{scenario}-{seed}", scenario, seed=seed, duration=duration, refractory=refractory)
+    data = write_pir_dataset(
+        tmp_path / f"{scenario}-{seed}", scenario, seed=seed, duration=duration, refractory=refractory
+    )
 
     site = load_site(data / "site.toml")
-    res = read_motion_csv(data / "motion.csv", [m.id for m in site.motion_sensors], rules=site_rules(site, MotionConfig()))
+    res = read_motion_csv(
+        data / "motion.csv", [m.id for m in site.motion_sensors], rules=site_rules(site, MotionConfig())
+    )
     out = run({"motion": res.motion}, site, IntruderConfig(seed=seed, end=duration, **cfg))
     truth = pl.read_csv(data / "truth.csv")
     return site, res, out, truth
@@ -69,8 +69,11 @@ def test_same_seed_same_tracks(tmp_path):
     _, _, b, _ = run_scenario(tmp_path, "pir8", 3, refractory=4.0, duration=40.0)
     assert a["tracks"].equals(b["tracks"]) and a["iterations"].equals(b["iterations"])
     site = site_from_dict(site_dict("pir8", 4.0))
-    c = run({"motion": read_motion_csv(tmp_path / "pir8-3" / "motion.csv", [m.id for m in site.motion_sensors]).motion},
-            site, IntruderConfig(seed=4, end=40.0))  # fmt: skip
+    c = run(
+        {"motion": read_motion_csv(tmp_path / "pir8-3" / "motion.csv", [m.id for m in site.motion_sensors]).motion},
+        site,
+        IntruderConfig(seed=4, end=40.0),
+    )
     assert not c["tracks"].equals(a["tracks"])
 
 
@@ -105,10 +108,13 @@ def test_no_particle_leaves_the_room(name, seed, retries):
 def small_site(types: dict, sensors: list[dict]):
     return site_from_dict(
         {
-            "name": "t", "units": "m", "boundary": {"polygon": [[0, 0], [10, 0], [10, 10], [0, 10]]},
-            "motion_sensors": sensors, "sensor_types": types,
+            "name": "t",
+            "units": "m",
+            "boundary": {"polygon": [[0, 0], [10, 0], [10, 10], [0, 10]]},
+            "motion_sensors": sensors,
+            "sensor_types": types,
         }
-    )  # fmt: skip
+    )
 
 
 def test_refractory_sensor_contributes_only_its_refractory_probability():
@@ -136,7 +142,9 @@ def test_silent_probability_is_the_interpolated_product(x, y, h, seed):
     rng = np.random.default_rng(seed)
     q = rng.random((10, 10)) * (rng.random((10, 10)) < 0.5)
     samples = [[i + 0.5, j + 0.5, q[j, i]] for j in range(10) for i in range(10) if q[j, i] > 0]
-    site = small_site({"g": {"kind": "grid", "samples": samples, "false_positive": h}}, [{"id": "s", "position": [0, 0], "type": "g"}])
+    site = small_site(
+        {"g": {"kind": "grid", "samples": samples, "false_positive": h}}, [{"id": "s", "position": [0, 0], "type": "g"}]
+    )
     dep = deploy(site, 1.0)
     assert dep.xi[0] == int((dep.q[0] > 0).sum())
     assert dep.p0[0] == pytest.approx(1 - (1 - h) ** (1 / dep.xi[0]))
@@ -212,7 +220,13 @@ def test_simulated_paths_match_the_papers_naive_baseline():
 
 
 def test_deployment_of_beam_and_triangle():
-    site = small_site({}, [{"id": "b", "position": [0, 3.5], "type": "beam"}, {"id": "p", "position": [5, 0], "heading": 90, "type": "pir"}])
+    site = small_site(
+        {},
+        [
+            {"id": "b", "position": [0, 3.5], "type": "beam"},
+            {"id": "p", "position": [5, 0], "heading": 90, "type": "pir"},
+        ],
+    )
     dep = deploy(site, 1.0)
     beam = dep.q[0]
     assert beam[3].tolist() == [1.0] * 10 and beam.sum() == 10.0
@@ -242,7 +256,9 @@ def test_sensor_type_errors_name_the_key():
 # --------------------------------------------------------------------------- estimator and resampling
 
 
-@given(st.lists(st.tuples(st.floats(0, 10), st.floats(0, 10)), min_size=1, max_size=40), st.sampled_from([1.0, 2.0, 3.0]))
+@given(
+    st.lists(st.tuples(st.floats(0, 10), st.floats(0, 10)), min_size=1, max_size=40), st.sampled_from([1.0, 2.0, 3.0])
+)
 @settings(max_examples=60, deadline=None)
 def test_box_counts_match_brute_force(pts, width):
     grid = WorldGrid(0.0, 0.0, 1.0, 10, 10)
@@ -250,7 +266,9 @@ def test_box_counts_match_brute_force(pts, width):
     w = np.linspace(1, 2, len(xy))
     got = box_counts(xy[:, 0], xy[:, 1], w, grid, width / 2, width / 2)
     cx, cy = grid.centres()
-    inside = (np.abs(xy[:, 0][:, None, None] - cx) <= width / 2 + 1e-9) & (np.abs(xy[:, 1][:, None, None] - cy) <= width / 2 + 1e-9)
+    inside = (np.abs(xy[:, 0][:, None, None] - cx) <= width / 2 + 1e-9) & (
+        np.abs(xy[:, 1][:, None, None] - cy) <= width / 2 + 1e-9
+    )
     assert np.allclose(got, (inside * w[:, None, None]).sum(axis=0))
 
 
@@ -269,7 +287,9 @@ def test_box_cells_cover_the_box_area():
     grid = WorldGrid(0.0, 0.0, 1.0, 10, 10)
     x, y = np.array([5.3, 0.2, 9.9]), np.array([4.7, 0.5, 9.9])
     _, _, V = box_cells(x, y, grid, 1.0, 1.0)
-    inside = [shapely.box(a - 1, b - 1, a + 1, b + 1).intersection(shapely.box(0, 0, 10, 10)).area for a, b in zip(x, y)]
+    inside = [
+        shapely.box(a - 1, b - 1, a + 1, b + 1).intersection(shapely.box(0, 0, 10, 10)).area for a, b in zip(x, y)
+    ]
     assert np.allclose(V.sum(axis=1), inside)
 
 
@@ -278,7 +298,9 @@ def test_simulated_firings_survive_the_raw_log(tmp_path):
     d, sim = simulate("pir8", seed=2, duration=60.0, refractory=4.0)
     data = write_pir_dataset(tmp_path / "d", "pir8", seed=2, duration=60.0, refractory=4.0)
     site = site_from_dict(d)
-    res = read_motion_csv(data / "motion.csv", [m.id for m in site.motion_sensors], rules=site_rules(site, MotionConfig()))
+    res = read_motion_csv(
+        data / "motion.csv", [m.id for m in site.motion_sensors], rules=site_rules(site, MotionConfig())
+    )
     on = res.motion.filter(pl.col("on"))
     slots = (on["t"] / 2.0).floor().cast(pl.Int64)
     got = sorted(zip(slots.to_list(), on["sensor"].to_list()))
@@ -296,7 +318,13 @@ def test_camera_frames_the_prism_and_no_more(x, y, cz, fov):
     cam = (-1.0, -2.0, cz)
     pan, tilt, zoom = pan_tilt_zoom(np.array([[x, y]]), cam, width=2.0, depth=2.0, height=1.0, fov_deg=fov)[0]
     # pan/tilt point at the prism centre
-    f = np.array([math.cos(math.radians(tilt)) * math.cos(math.radians(pan)), math.cos(math.radians(tilt)) * math.sin(math.radians(pan)), math.sin(math.radians(tilt))])
+    f = np.array(
+        [
+            math.cos(math.radians(tilt)) * math.cos(math.radians(pan)),
+            math.cos(math.radians(tilt)) * math.sin(math.radians(pan)),
+            math.sin(math.radians(tilt)),
+        ]
+    )
     d = np.array([x, y, 0.5]) - cam
     assert np.allclose(f, d / np.linalg.norm(d))
     # every corner inside the zoomed field of view, one on its edge

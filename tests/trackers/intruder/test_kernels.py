@@ -36,7 +36,14 @@ def _random_deployment(rng, n, *, nx=10, ny=8, cell=1.0, h=None) -> Deployment:
     hs = rng.choice([0.0, 0.0, 0.1, 0.25, 1.0], size=n) if h is None else np.full(n, h)
     p0 = 1.0 - (1.0 - hs) ** (1.0 / xi)
     return Deployment(
-        tuple(f"s{i}" for i in range(n)), WorldGrid(0.0, 0.0, cell, nx, ny), q, p0, np.full(n, 1e-6), np.zeros(n), xi, ()
+        tuple(f"s{i}" for i in range(n)),
+        WorldGrid(0.0, 0.0, cell, nx, ny),
+        q,
+        p0,
+        np.full(n, 1e-6),
+        np.zeros(n),
+        xi,
+        (),
     )
 
 
@@ -58,7 +65,9 @@ def test_log_likelihood_equals_reference(seed):
         half_w, half_d = rng.choice([0.5, 1.0, 1.3]), rng.choice([0.5, 1.0, 2.0])
         ref = log_weights(x, y, fired, blind, dep, half_w, half_d)
         out = np.empty(n)
-        kernels._log_likelihood(x, y, fired, blind, grid, ptr, sensor, q, dep.p0, dep.xi.astype(float), a, half_w, half_d, out)
+        kernels._log_likelihood(
+            x, y, fired, blind, grid, ptr, sensor, q, dep.p0, dep.xi.astype(float), a, half_w, half_d, out
+        )
         np.testing.assert_allclose(out, ref, rtol=1e-9, atol=1e-9)
 
 
@@ -133,13 +142,37 @@ def test_run_filter_equals_reference_on_a_simulated_pir_run():
 def test_run_filter_without_iterations_or_sensors():
     dep = _random_deployment(np.random.default_rng(0), 3)
     room = Room(shapely.box(0, 0, 10, 8))
-    res = run_filter(np.zeros((0, 3), bool), np.zeros((0, 3), bool), dep, room, MOTION, n_particles=10, half_w=1, half_d=1, rng=np.random.default_rng(0), compiled=True)
+    res = run_filter(
+        np.zeros((0, 3), bool),
+        np.zeros((0, 3), bool),
+        dep,
+        room,
+        MOTION,
+        n_particles=10,
+        half_w=1,
+        half_d=1,
+        rng=np.random.default_rng(0),
+        compiled=True,
+    )
     assert res.estimates.shape == (0, 2)
-    none = Deployment((), dep.grid, np.zeros((0, 8, 10)), np.zeros(0), np.zeros(0), np.zeros(0), np.zeros(0, np.int64), ())
+    none = Deployment(
+        (), dep.grid, np.zeros((0, 8, 10)), np.zeros(0), np.zeros(0), np.zeros(0), np.zeros(0, np.int64), ()
+    )
     kw = dict(n_particles=50, half_w=1.0, half_d=1.0)
     _same(
-        run_filter(np.zeros((3, 0), bool), np.zeros((3, 0), bool), none, room, MOTION, rng=np.random.default_rng(1), compiled=True, **kw),
-        run_filter_reference(np.zeros((3, 0), bool), np.zeros((3, 0), bool), none, room, MOTION, rng=np.random.default_rng(1), **kw),
+        run_filter(
+            np.zeros((3, 0), bool),
+            np.zeros((3, 0), bool),
+            none,
+            room,
+            MOTION,
+            rng=np.random.default_rng(1),
+            compiled=True,
+            **kw,
+        ),
+        run_filter_reference(
+            np.zeros((3, 0), bool), np.zeros((3, 0), bool), none, room, MOTION, rng=np.random.default_rng(1), **kw
+        ),
     )
 
 
@@ -181,5 +214,7 @@ def test_log_likelihood_equals_reference_with_many_live_sensors(n_sensors):
     for fired in (rng.random(n_sensors) < 0.5, np.ones(n_sensors, bool), np.zeros(n_sensors, bool)):
         blind = np.zeros(n_sensors, bool)
         out = np.empty(n)
-        kernels._log_likelihood(x, y, fired, blind, grid, ptr, sensor, q, dep.p0, dep.xi.astype(float), a, 1.0, 1.0, out)
+        kernels._log_likelihood(
+            x, y, fired, blind, grid, ptr, sensor, q, dep.p0, dep.xi.astype(float), a, 1.0, 1.0, out
+        )
         np.testing.assert_allclose(out, log_weights(x, y, fired, blind, dep, 1.0, 1.0), rtol=1e-9, atol=1e-9)

@@ -18,7 +18,9 @@ from onebit.trackers.intruder.stage import IntruderConfig, run
 
 @pytest.fixture(scope="module")
 def log(tmp_path_factory):
-    d = get_scenario("pir14").write(tmp_path_factory.mktemp("pir") / "d", seed=4, duration=40.0, agents=None, drop=0.0, camera=False, params={})
+    d = get_scenario("pir14").write(
+        tmp_path_factory.mktemp("pir") / "d", seed=4, duration=40.0, agents=None, drop=0.0, camera=False, params={}
+    )
     site = load_site(d / "site.toml")
     motion = read_motion_csv(d / "motion.csv", [m.id for m in site.motion_sensors]).motion
     return site, motion
@@ -27,7 +29,10 @@ def log(tmp_path_factory):
 @pytest.mark.parametrize("step", [0.3, 1.7, 6.0])
 def test_prefixes_give_the_batch_rows_without_look_ahead(log, step):
     site, motion = log
-    cfg = config_in_site_units(config_from_mapping(IntruderConfig, {"particles": 300, "camera_position": [1.0, 1.0, 2.5]}, section="intruder"), site)
+    cfg = config_in_site_units(
+        config_from_mapping(IntruderConfig, {"particles": 300, "camera_position": [1.0, 1.0, 2.5]}, section="intruder"),
+        site,
+    )
     batch = run({"motion": motion}, site, cfg)
     state = online.start(site, cfg)
     settle = 1.0
@@ -45,7 +50,9 @@ def test_prefixes_give_the_batch_rows_without_look_ahead(log, step):
         assert whole["t"].is_unique().all(), k  # each row once
         ref = batch[k]
         if k == "iterations":  # floating sums of the weights: equal to rounding
-            assert whole.select("t", "redraws", "clamped", "resampled", "fired", "blind").equals(ref.select("t", "redraws", "clamped", "resampled", "fired", "blind"))
+            assert whole.select("t", "redraws", "clamped", "resampled", "fired", "blind").equals(
+                ref.select("t", "redraws", "clamped", "resampled", "fired", "blind")
+            )
             np.testing.assert_allclose(whole["ess"].to_numpy(), ref["ess"].to_numpy(), rtol=1e-12)
         else:
             assert whole.equals(ref), k

@@ -17,7 +17,9 @@ def _site(signal: str = "level", with_type: str | None = None) -> dict:
     d = {
         "units": "m",
         "boundary": {"polygon": [[0, 0], [10, 0], [10, 4], [0, 4]]},
-        "binary_sensors": [{"id": f"s{i}", "position": [1.0 + 2.0 * i, 2.0], "radius": 1.0, "signal": signal} for i in range(5)],
+        "binary_sensors": [
+            {"id": f"s{i}", "position": [1.0 + 2.0 * i, 2.0], "radius": 1.0, "signal": signal} for i in range(5)
+        ],
     }
     if with_type:
         d["sensor_types"] = {with_type: {"signal": signal}}

@@ -26,11 +26,17 @@ def quadrant_site(scale: float = 1.0, units: str = "m"):
     """Four sensors, each seeing one quadrant of a 10 x 10 m room through its ``fov`` only
     (heading 0 and no type: the old built-in 8 m wedge would look along +x from each)."""
     sensors = [
-        {"id": k, "position": [scale * CENTRES[k][0], scale * CENTRES[k][1]], "fov": (np.asarray(v, float) * scale).tolist()}
+        {
+            "id": k,
+            "position": [scale * CENTRES[k][0], scale * CENTRES[k][1]],
+            "fov": (np.asarray(v, float) * scale).tolist(),
+        }
         for k, v in QUADRANTS.items()
     ]
     box = (np.asarray([[0, 0], [10, 0], [10, 10], [0, 10]], float) * scale).tolist()
-    return site_from_dict({"name": "q", "units": units, "targets": 1, "boundary": {"polygon": box}, "motion_sensors": sensors})
+    return site_from_dict(
+        {"name": "q", "units": units, "targets": 1, "boundary": {"polygon": box}, "motion_sensors": sensors}
+    )
 
 
 def walk_motion(visits: list[str], period: float = 2.0) -> pl.DataFrame:
@@ -78,10 +84,13 @@ def test_cm_site_same_estimates():
 def test_a_sensor_without_a_region_is_an_error_not_a_default_wedge():
     site = site_from_dict(
         {
-            "name": "bad", "units": "m", "targets": 1, "boundary": {"polygon": [[0, 0], [10, 0], [10, 10], [0, 10]]},
+            "name": "bad",
+            "units": "m",
+            "targets": 1,
+            "boundary": {"polygon": [[0, 0], [10, 0], [10, 10], [0, 10]]},
             "motion_sensors": [{"id": "a", "position": [1.0, 1.0], "range": 2.0}, {"id": "b", "position": [9.0, 9.0]}],
         },
         source="bad/site.toml",
-    )  # fmt: skip
+    )
     with pytest.raises(SiteError, match=r"bad/site.toml: field 'motion_sensors\[1\] \(id 'b'\)': no detection region"):
         run({"motion": walk_motion(["a", "b"])}, site, IntruderConfig(particles=50))

@@ -13,7 +13,15 @@ from onebit.viz.inspect import entity_paths
 def test_simulate_run_report(tmp_path):
     data, out = tmp_path / "data", tmp_path / "run"
     assert main(["simulate", "pir14", str(data), "--seed", "4", "--duration", "60", "--param", "refractory=4"]) == 0
-    res = run_pipeline(data, out, trackers=("intruder", "intruder-naive"), config={"intruder": {"particles": 500, "end": 60.0, "camera_position": [0.0, 0.0, 3.0]}, "intruder-naive": {"end": 60.0}})
+    res = run_pipeline(
+        data,
+        out,
+        trackers=("intruder", "intruder-naive"),
+        config={
+            "intruder": {"particles": 500, "end": 60.0, "camera_position": [0.0, 0.0, 3.0]},
+            "intruder-naive": {"end": 60.0},
+        },
+    )
     assert res.ok, res.status
     rep = res.report
     assert metric(rep, "rejects/rows") == 0.0 and metric(rep, "motion/suppressed") > 0
@@ -31,6 +39,12 @@ def test_simulate_run_report(tmp_path):
     assert pl.read_parquet(out / "tables" / "intruder_camera.parquet").height == 30
     assert "particles = 500" in (out / "run.toml").read_text()
     ents = entity_paths(out / "rrd" / "intruder.rrd")
-    assert {"intruder/particles", "intruder/estimate", "intruder/camera", "intruder/sensors/pir00", "site/sensors/pir00/coverage"} <= set(ents)
+    assert {
+        "intruder/particles",
+        "intruder/estimate",
+        "intruder/camera",
+        "intruder/sensors/pir00",
+        "site/sensors/pir00/coverage",
+    } <= set(ents)
     assert "scores/intruder/intruder" in entity_paths(out / "rrd" / "scores.rrd")
     assert "sensors/pir00" in entity_paths(out / "rrd" / "motion.rrd")

@@ -9,8 +9,9 @@ import shapely
 from shapely.geometry import Point, box
 
 from onebit.datasets.okane_sim import fig9_environment
+from onebit.experiments.okane import qualitative
+from onebit.experiments.okane import run as run_experiment
 from onebit.experiments.okane_active import ActiveConfig, sensing_squares, simulate_active
-from onebit.experiments.okane import qualitative, run as run_experiment
 from onebit.trackers.istate.active import (
     ShortestPaths,
     advance,
@@ -125,7 +126,15 @@ def test_experiment_quick(tmp_path):
     rrd = out / "rrd" / "okane.rrd"
     verify(rrd)
     ents = entity_paths(rrd)
-    assert {"okane/P", "okane/links", "okane/trackers/0", "okane/trackers/0/sensing", "okane/trackers/1/destination", "okane/istate/0/0", "truth/target1"} <= ents
+    assert {
+        "okane/P",
+        "okane/links",
+        "okane/trackers/0",
+        "okane/trackers/0/sensing",
+        "okane/trackers/1/destination",
+        "okane/istate/0/0",
+        "truth/target1",
+    } <= ents
 
 
 def test_qualitative_summary():

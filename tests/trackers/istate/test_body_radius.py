@@ -23,7 +23,9 @@ SCENARIOS = sorted(n for n in all_scenarios() if n != "from-truth")
 @pytest.mark.parametrize("name", SCENARIOS)
 def test_containment_is_one_on_every_scenario_with_targets(tmp_path, name):
     duration = None if name.startswith(("proximity", "pir-line")) else 20.0
-    data = get_scenario(name).write(tmp_path / "d", seed=11, duration=duration, agents=None, drop=0.0, camera=False, params={})
+    data = get_scenario(name).write(
+        tmp_path / "d", seed=11, duration=duration, agents=None, drop=0.0, camera=False, params={}
+    )
     site = load_site(data / "site.toml")
     assert site.targets is not None and site.targets >= 1, "a simulator declares the targets it simulates"
     res = run_pipeline(data, tmp_path / "run", trackers=("istate",))
@@ -34,7 +36,9 @@ def test_containment_is_one_on_every_scenario_with_targets(tmp_path, name):
 
 def test_the_body_radius_is_what_keeps_the_truth_in(tmp_path):
     """Without the body (radius 0 and the old 5 cm beam width) the building loses the truth."""
-    data = get_scenario("beams-building").write(tmp_path / "d", seed=7, duration=120.0, agents=None, drop=0.0, camera=False, params={})
+    data = get_scenario("beams-building").write(
+        tmp_path / "d", seed=7, duration=120.0, agents=None, drop=0.0, camera=False, params={}
+    )
     text = (data / "site.toml").read_text()
     assert "body_radius = 0.25" in text
     ok = run_pipeline(data, tmp_path / "ok", trackers=("istate",))
@@ -45,8 +49,10 @@ def test_the_body_radius_is_what_keeps_the_truth_in(tmp_path):
 
 
 def test_body_radius_is_a_site_value_in_site_units():
-    base = {"boundary": {"polygon": [[0, 0], [10, 0], [10, 10], [0, 10]]},
-            "beams": [{"id": "a", "segment": [[5, 0], [5, 10]], "spacing": 0.1}]}  # fmt: skip
+    base = {
+        "boundary": {"polygon": [[0, 0], [10, 0], [10, 10], [0, 10]]},
+        "beams": [{"id": "a", "segment": [[5, 0], [5, 10]], "spacing": 0.1}],
+    }
     assert body_radius(site_from_dict(base)) == DEFAULT_BODY_RADIUS_M
     assert body_radius(site_from_dict({**base, "units": "cm"})) == pytest.approx(100 * DEFAULT_BODY_RADIUS_M)
     site = site_from_dict({**base, "body_radius": 0.3})

@@ -19,8 +19,8 @@ from shapely.geometry import Point, box
 
 from onebit.trackers.istate.core import (
     IState,
-    cap_elements,
     canonical,
+    cap_elements,
     clean_up,
     communicate,
     communicate_bruteforce,
@@ -175,7 +175,9 @@ def test_section_ii_interval_example_fig3():
     s1, s2 = box(0.2, 0, 0.4, h), box(0.8, 0, 1.0, h)
     rng = np.random.default_rng(0)
     q = rng.uniform(0, 1, (20000, 2))
-    states = np.stack([np.column_stack([q[:, 0], np.full(len(q), h / 2)]), np.column_stack([q[:, 1], np.full(len(q), h / 2)])], axis=1)
+    states = np.stack(
+        [np.column_stack([q[:, 0], np.full(len(q), h / 2)]), np.column_stack([q[:, 1], np.full(len(q), h / 2)])], axis=1
+    )
     near1 = np.abs(q - 0.3) <= 0.1
     # [a] the initial condition: all of X
     eta = IState.initial(W, 2)
@@ -231,7 +233,9 @@ def test_region_vanishing_in_an_obstacle_empties_its_element_and_never_becomes_m
     rows = IState(np.array([[None, ok[0]], ok], dtype=object))
     assert canonical(rows, shape="rect").size == 1
     assert constrain(np.array([None], dtype=object), "rect")[0].is_empty
-    capped = cap_elements(IState.from_elements([[box(i, 0, i + 1, 1), box(5, 5, 6, 6)] for i in range(6)]), 2, shape="rect")
+    capped = cap_elements(
+        IState.from_elements([[box(i, 0, i + 1, 1), box(5, 5, 6, 6)] for i in range(6)]), 2, shape="rect"
+    )
     assert not any(g is None for g in capped.regions.ravel())
 
 
@@ -267,7 +271,10 @@ def test_remove_dominated_equals_the_plain_definition(seed, n, E):
     and the memo change nothing: the elements the plain every-pair definition keeps. Elements
     are copies sharing regions (as an observation update makes them), some shrunk."""
     rng = np.random.default_rng(seed)
-    base = [shapely.intersection(Point(*rng.uniform([0, 0], [10, 8])).buffer(rng.uniform(0.5, 3), quad_segs=4), FREE) for _ in range(6)]
+    base = [
+        shapely.intersection(Point(*rng.uniform([0, 0], [10, 8])).buffer(rng.uniform(0.5, 3), quad_segs=4), FREE)
+        for _ in range(6)
+    ]
     rows = [[base[i] for i in rng.integers(0, len(base), n)] for _ in range(E)]
     for row in rows:  # some regions cut (subsets of a shared region)
         k = int(rng.integers(0, n))
@@ -284,7 +291,8 @@ def test_a_contradicting_reading_is_rejected_and_counted_not_emptying_the_istate
     right no single target can explain. The paper's filter empties the I-state for good; the
     outlier-tolerant update keeps it, names the reading, and the next consistent reading
     updates it as usual."""
-    from shapely.geometry import Point, box as sbox
+    from shapely.geometry import Point
+    from shapely.geometry import box as sbox
 
     free = sbox(0, 0, 10, 2)
     left, right = Point(1, 1).buffer(0.8), Point(9, 1).buffer(0.8)

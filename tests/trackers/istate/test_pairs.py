@@ -90,7 +90,6 @@ def test_filter_steps_are_unchanged_by_the_memo():
         assert _wkb(eta) == _wkb(ref) and same_elements(eta, ref)
 
 
-
 def test_a_memo_kept_across_steps_gives_the_same_bits():
     """One memo passed to every filter step (as the stage does; regions recur across steps)
     gives the results of a fresh memo per step, also when it starts afresh (small capacity),
@@ -132,9 +131,14 @@ def test_a_run_wide_memo_equals_computing_everything(seed, shape, n):
     """Filter steps sharing one memo (pair results, projected, intersected and merged regions
     looked up by WKB across steps) give the bits of steps that compute everything."""
     rng = np.random.default_rng(seed)
-    sensing = [shapely.intersection(Point(x, y).buffer(1.8, quad_segs=4), FREE) for x, y in rng.uniform([0, 0], [10, 8], (5, 2))]
+    sensing = [
+        shapely.intersection(Point(x, y).buffer(1.8, quad_segs=4), FREE)
+        for x, y in rng.uniform([0, 0], [10, 8], (5, 2))
+    ]
     steps = [[sensing[i] for i in rng.choice(5, size=int(rng.integers(0, 4)), replace=False)] for _ in range(8)]
-    negatives = [[box(*rng.uniform([0, 0], [9, 7]), *rng.uniform([9, 7], [10, 8]))] if rng.random() < 0.2 else [] for _ in steps]
+    negatives = [
+        [box(*rng.uniform([0, 0], [9, 7]), *rng.uniform([9, 7], [10, 8]))] if rng.random() < 0.2 else [] for _ in steps
+    ]
     memo = PairMemo()
     eta = ref = IState.initial(FREE, n)
     for k, det in enumerate(steps):

@@ -8,16 +8,16 @@ import polars as pl
 import pytest
 import shapely
 
-from onebit.datasets.okane_sim import write_room_dataset
-from onebit.core.site import load_site, site_from_dict
+from onebit.core.config import config_from_mapping
 from onebit.core.errors import ConfigError
+from onebit.core.site import load_site, site_from_dict
+from onebit.core.tables import TRACKS
+from onebit.datasets.okane_sim import write_room_dataset
 from onebit.pipeline.report import metric
 from onebit.pipeline.runner import run_pipeline
-from onebit.core.tables import TRACKS
-from onebit.trackers.istate import SPEC
-from onebit.core.config import config_from_mapping
-from onebit.trackers.istate.core import IState, contains
 from onebit.scoring.istate import score
+from onebit.trackers.istate import SPEC
+from onebit.trackers.istate.core import IState, contains
 from onebit.trackers.istate.stage import IStateConfig, run
 from onebit.viz.inspect import entity_paths, verify
 
@@ -69,7 +69,9 @@ def test_run_direct_containment_with_false_negatives(tmp_path, shape, negatives,
     site, motion, truth = _room_tables(7, 3, drop, tmp_path)
     cfg = IStateConfig(shape=shape, reliable_negatives=negatives, max_elements=5)
     out = run({"motion": motion}, site, cfg)
-    rows, tables = score("istate", {"istate_summary": out["summary"], "istate_regions": out["regions"], "truth": truth}, site)
+    rows, tables = score(
+        "istate", {"istate_summary": out["summary"], "istate_regions": out["regions"], "truth": truth}, site
+    )
     m = {r[1]: r[2] for r in rows}
     assert m["containment"] == 1.0 and m["scored_stages"] > 50
     assert m["elements_max"] <= 5
@@ -88,7 +90,10 @@ def test_proximity_and_crossings_as_sensing_regions():
         {
             "boundary": {"polygon": [[0, 0], [20, 0], [20, 4], [0, 4]]},
             "beams": [{"id": "b", "segment": [[10, 0], [10, 4]], "forward": "left", "spacing": 0.1}],
-            "proximity_sensors": [{"id": "p1", "position": [4, 2], "radius": 1.5}, {"id": "p2", "position": [16, 2], "r_inner": 1.0, "r_outer": 2.0}],
+            "proximity_sensors": [
+                {"id": "p1", "position": [4, 2], "radius": 1.5},
+                {"id": "p2", "position": [16, 2], "r_inner": 1.0, "r_outer": 2.0},
+            ],
             "targets": 1,
         }
     )
@@ -103,9 +108,14 @@ def test_proximity_and_crossings_as_sensing_regions():
         edges.append(pl.DataFrame({"t": t[ch], "sensor": sid, "on": on[ch]}))
     prox = pl.concat(edges).sort("t")
     t_cross = (10 - 1) / 0.9
-    crossings = pl.DataFrame({"t": [t_cross], "beam": ["b"], "direction": [1]}, schema={"t": pl.Float64, "beam": pl.String, "direction": pl.Int8})
+    crossings = pl.DataFrame(
+        {"t": [t_cross], "beam": ["b"], "direction": [1]},
+        schema={"t": pl.Float64, "beam": pl.String, "direction": pl.Int8},
+    )
     out = run({"proximity": prox, "crossings": crossings}, site, IStateConfig(max_speed=1.0, reliable_negatives=True))
-    rows, _ = score("istate", {"istate_summary": out["summary"], "istate_regions": out["regions"], "truth": truth}, site)
+    rows, _ = score(
+        "istate", {"istate_summary": out["summary"], "istate_regions": out["regions"], "truth": truth}, site
+    )
     m = {r[1]: r[2] for r in rows}
     assert m["containment"] == 1.0
     det = out["detections"]
@@ -136,7 +146,9 @@ def test_level_sampled_readings_use_the_log_resolution_as_latency():
     got = {}
     for auto in (True, False):
         out = run({"proximity": levels}, site, IStateConfig(max_speed=1.0, latency_auto=auto, shape="rect"))
-        rows, _ = score("istate", {"istate_summary": out["summary"], "istate_regions": out["regions"], "truth": truth}, site)
+        rows, _ = score(
+            "istate", {"istate_summary": out["summary"], "istate_regions": out["regions"], "truth": truth}, site
+        )
         got[auto] = {r[1]: r[2] for r in rows}["containment"]
     assert got[True] == 1.0 and got[False] < 1.0
 
@@ -151,11 +163,19 @@ def test_config_validation_names_the_field():
 
 
 def _corridor():
-    return {"boundary": {"polygon": [[0, 0], [5, 0], [5, 5], [0, 5]]}, "proximity_sensors": [{"id": "p", "position": [2, 2], "radius": 1}]}
+    return {
+        "boundary": {"polygon": [[0, 0], [5, 0], [5, 5], [0, 5]]},
+        "proximity_sensors": [{"id": "p", "position": [2, 2], "radius": 1}],
+    }
 
 
 def test_unknown_target_count_is_an_error():
-    site = site_from_dict({"boundary": {"polygon": [[0, 0], [5, 0], [5, 5], [0, 5]]}, "proximity_sensors": [{"id": "p", "position": [2, 2], "radius": 1}]})
+    site = site_from_dict(
+        {
+            "boundary": {"polygon": [[0, 0], [5, 0], [5, 5], [0, 5]]},
+            "proximity_sensors": [{"id": "p", "position": [2, 2], "radius": 1}],
+        }
+    )
     with pytest.raises(ConfigError, match="targets"):
         run({}, site, IStateConfig())
     assert "number of targets" in SPEC.available(site)
@@ -181,7 +201,10 @@ def test_regions_table_is_the_stages_rows_in_order():
     rng = np.random.default_rng(0)
     n = 2
     times = np.array([0.0, 1.0, 2.0, 3.0])
-    stages = [np.array([shapely.box(*rng.uniform(0, 1, 2), *rng.uniform(2, 3, 2)) for _ in range(E * n)], dtype=object) for E in (1, 0, 3, 2)]
+    stages = [
+        np.array([shapely.box(*rng.uniform(0, 1, 2), *rng.uniform(2, 3, 2)) for _ in range(E * n)], dtype=object)
+        for E in (1, 0, 3, 2)
+    ]
     frames = [
         pl.DataFrame(
             {

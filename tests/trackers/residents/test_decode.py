@@ -33,7 +33,9 @@ def _case(seed: int, n: int, nodes: int):
 
 
 @settings(max_examples=60, deadline=None)
-@given(seed=st.integers(0, 10_000), n=st.integers(1, 7), people=st.integers(1, 3), stay=st.sampled_from([None, 0.6, 0.9]))
+@given(
+    seed=st.integers(0, 10_000), n=st.integers(1, 7), people=st.integers(1, 3), stay=st.sampled_from([None, 0.6, 0.9])
+)
 def test_exact_decoder_finds_the_brute_force_minimum(seed, n, people, stay):
     row, one, birth = _case(seed, n, 5)
     exact = decode_events(row, birth, people=people, beam=None, stay=stay)
@@ -83,7 +85,9 @@ def test_two_people_far_apart_are_two_tracks_and_one_person_is_one():
     one_place = np.array([0, 1, 0, 1, 0, 1, 0, 1])
 
     def row1(J, i):
-        return move_cost(D, one_place[J], np.full(len(J), one_place[i]), t[i] - t[J], l0=1.0, v=0.0, l_max=1.0, w=0.0, tau=1.0)
+        return move_cost(
+            D, one_place[J], np.full(len(J), one_place[i]), t[i] - t[J], l0=1.0, v=0.0, l_max=1.0, w=0.0, tau=1.0
+        )
 
     # one person pacing between two sensors 1 m apart: without the who-fires term (5) two
     # people parked at the two sensors explain it more cheaply (the Occam factor is missing);

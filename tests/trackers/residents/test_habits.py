@@ -80,7 +80,9 @@ def test_hard_em_never_ends_below_the_decoders_orientation():
         cut[0] = False
         z = reorient(node, track, cut, 6, alpha=0.5, switch=1.0, restarts=2)
         kw = dict(alpha=0.5, switch=1.0, cut=cut)
-        assert objective(node, track, z ^ track, 6, **kw) >= objective(node, track, np.zeros(n, np.int64), 6, **kw) - 1e-9
+        assert (
+            objective(node, track, z ^ track, 6, **kw) >= objective(node, track, np.zeros(n, np.int64), 6, **kw) - 1e-9
+        )
 
 
 def test_cuts_where_the_two_people_are_together():

@@ -80,7 +80,9 @@ def test_two_residents_apart_are_two_people_and_every_event_goes_to_its_own(seed
     site, motion, who = _two_residents(seed)
     out = run({"motion": motion}, site, ResidentsConfig())
     assert out["decoder"]["people"][0] == 2
-    on = out["events"].join(motion.with_row_index("row").filter("on").select("t", "sensor"), on=["t", "sensor"], how="semi")
+    on = out["events"].join(
+        motion.with_row_index("row").filter("on").select("t", "sensor"), on=["t", "sensor"], how="semi"
+    )
     pairs = {(w, tr) for (t, s, tr) in on.rows() for w in [who[(t, s)]]}
     assert len(pairs) == 2 and len({tr for _, tr in pairs}) == 2  # one track per resident, no mixing
 
@@ -101,7 +103,7 @@ def test_tables_follow_their_schemas_and_off_edges_follow_their_on():
     assert out["tracks"].schema == TRACKS and out["events"].schema == EVENTS
     assert out["events"].height == motion.height and out["events"]["track"].null_count() == 0
     ev = out["events"].with_columns(on=motion["on"])
-    for s, g in ev.group_by("sensor"):
+    for _s, g in ev.group_by("sensor"):
         g = g.sort("t")
         on_track = g.filter("on")["track"].to_list()
         off_track = g.filter(~pl.col("on"))["track"].to_list()
@@ -116,7 +118,10 @@ def test_tables_follow_their_schemas_and_off_edges_follow_their_on():
 
 def test_a_person_whose_last_event_is_at_a_door_leaves():
     site, ids = corridor_home(doors=("M01",))
-    ev = [(float(k), ids[4 - k]) for k in range(5)] + [(300.0, ids[10]), (302.0, ids[11])]  # walks out at M01; later someone far inside
+    ev = [(float(k), ids[4 - k]) for k in range(5)] + [
+        (300.0, ids[10]),
+        (302.0, ids[11]),
+    ]  # walks out at M01; later someone far inside
     out = run({"motion": motion_log(ev)}, site, ResidentsConfig(exit_after_s=30.0, birth_inside=2.0))
     tr = out["tracks"]
     first = tr.filter(pl.col("track") == "person1")
@@ -143,7 +148,9 @@ def test_empty_motion_gives_empty_tables():
     assert out["decoder"]["people"][0] == 0
 
 
-@pytest.mark.parametrize("field,value", [("l0", 0.0), ("beam", -1), ("distance", "manhattan"), ("stay", 1.0), ("max_people", 0)])
+@pytest.mark.parametrize(
+    "field,value", [("l0", 0.0), ("beam", -1), ("distance", "manhattan"), ("stay", 1.0), ("max_people", 0)]
+)
 def test_config_errors_name_the_field(field, value):
     with pytest.raises(ConfigError, match=field):
         ResidentsConfig(**{field: value})
@@ -154,7 +161,9 @@ def test_habits_keep_two_residents_apart_and_report_the_cost_of_their_attributio
     site, motion, who = _two_residents(seed)
     cfg = ResidentsConfig(habits=True, meet=30.0)  # every event a cut: each one oriented by habit alone
     out = run({"motion": motion}, site, cfg)
-    on = out["events"].join(motion.with_row_index("row").filter("on").select("t", "sensor"), on=["t", "sensor"], how="semi")
+    on = out["events"].join(
+        motion.with_row_index("row").filter("on").select("t", "sensor"), on=["t", "sensor"], how="semi"
+    )
     pairs = {(who[(t, s)], tr) for (t, s, tr) in on.rows()}
     assert len(pairs) == 2 and len({tr for _, tr in pairs}) == 2  # the two ends' habits differ: still no mixing
     # the decoder's cost is that of the attribution it reports (eq. 1), not the one before re-orientation
@@ -170,12 +179,16 @@ def test_habits_keep_two_residents_apart_and_report_the_cost_of_their_attributio
     birth = np.where(t - t[0] <= cfg.start_window_s, cfg.birth_door, cfg.birth_inside)
 
     def move(j, i):
-        return float(move_cost(D, node[[j]], node[[i]], t[[i]] - t[[j]], l0=cfg.l0, v=0.0, l_max=cfg.l_max, w=0.0, tau=1.0)[0])
+        return float(
+            move_cost(D, node[[j]], node[[i]], t[[i]] - t[[j]], l0=cfg.l0, v=0.0, l_max=cfg.l_max, w=0.0, tau=1.0)[0]
+        )
 
     assert out["decoder"]["cost"][0] == pytest.approx(attribution_cost(pred, move, birth), rel=1e-9)
 
 
-@pytest.mark.parametrize("field,value", [("meet", -1.0), ("habit_alpha", 0.0), ("habit_restarts", -1), ("habit_switch", -0.5)])
+@pytest.mark.parametrize(
+    "field,value", [("meet", -1.0), ("habit_alpha", 0.0), ("habit_restarts", -1), ("habit_switch", -0.5)]
+)
 def test_habit_config_errors_name_the_field(field, value):
     with pytest.raises(ConfigError, match=field):
         ResidentsConfig(**{field: value})
