@@ -27,8 +27,9 @@ def true_counts(frame_t: np.ndarray, truth: pl.DataFrame) -> np.ndarray:
 
 
 def score(tracker: str, tables: dict, site: Site, region_graph=None) -> tuple[list[tuple[str, str, float, str]], dict]:
-    """Report rows ``count_error`` (mean over *every* frame, a frame with people and no track
-    included, of |reported tracks - people present|), ``count_bias`` (mean of the signed
+    """Report rows ``filter_count_error`` (mean over *every* frame of the filter, a frame with
+    people and no track included, of |reported tracks - people present|; the MOT scorer's
+    ``count_error`` is the same over the truth frames, :mod:`onebit.scoring.mot`), ``count_bias`` (mean of the signed
     difference), ``count_expected_error`` (same with the filter's expected count
     :math:`\\sum_i r_i`), and without truth ``tracks``, ``births``, ``merges``, ``max_reported``."""
     frames = tables.get(f"{NAME}_frames")
@@ -47,7 +48,7 @@ def score(tracker: str, tables: dict, site: Site, region_graph=None) -> tuple[li
     n = true_counts(frames["t"].to_numpy(), truth)
     rep = frames["reported"].to_numpy()
     rows += [
-        (NAME, "count_error", float(np.abs(rep - n).mean()), "people/frame"),
+        (NAME, "filter_count_error", float(np.abs(rep - n).mean()), "people/frame"),
         (NAME, "count_bias", float((rep - n).mean()), "people/frame"),
         (NAME, "count_expected_error", float(np.abs(frames["count"].to_numpy() - n).mean()), "people/frame"),
     ]

@@ -70,7 +70,7 @@ def test_never_more_tracks_at_once_than_targets(targets):
         "binpf", {"binpf_frames": out["frames"], "binpf_tracks": out["tracks"], "truth": truth}, _site(targets)
     )
     m = {r[1]: r[2] for r in rows}
-    assert m["max_reported"] <= targets and m["count_error"] >= 0
+    assert m["max_reported"] <= targets and m["filter_count_error"] >= 0
 
 
 def test_three_walkers_counted_and_followed():
@@ -80,7 +80,7 @@ def test_three_walkers_counted_and_followed():
         "binpf", {"binpf_frames": out["frames"], "binpf_tracks": out["tracks"], "truth": truth}, _site(None)
     )
     m = {r[1]: r[2] for r in rows}
-    assert m["count_error"] <= 0.6
+    assert m["filter_count_error"] <= 0.6
     tr = out["tracks"].filter(pl.col("t") >= 5.0)
     hits = 0
     for (t,), g in tr.group_by(["t"]):
