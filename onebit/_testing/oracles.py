@@ -22,6 +22,7 @@ import numpy as np
 import polars as pl
 import shapely
 
+from onebit.core.frames import slot_grid
 from onebit.core.region_graph import RegionGraph
 from onebit.core.tables import FRAMES, SCORES, conform
 from onebit.scoring.crossings import truth_regions
@@ -148,20 +149,10 @@ def motion_frames_reference(
 ) -> pl.DataFrame:
     """:func:`motion_frames` by polars joins (a cross join of slots and sensors, an as-of join
     for the state, a join for the rising edges): its plain reference and test oracle."""
-    sensors = list(dict.fromkeys(sensors))
-    ev = motion.select("t", "sensor", "on").filter(pl.col("sensor").is_in(sensors)).sort("t", maintain_order=True)
-    if t0 is None:
-        if ev.height == 0 and t1 is None:
-            return pl.DataFrame(schema=FRAMES)
-        first = float(ev["t"].min()) if ev.height else 0.0
-        t0 = math.floor(first / period) * period
-    if t1 is None:
-        last = float(ev["t"].max()) if ev.height else t0
-        n = max(int(math.floor((last - t0) / period)) + 1, 1)
-    else:
-        n = max(int(math.ceil((t1 - t0) / period - 1e-12)), 0)
-    if n == 0 or not sensors:
+    sensors, ev, span = slot_grid(motion, sensors, period=period, t0=t0, t1=t1)  # the same slots, by construction
+    if span is None:
         return pl.DataFrame(schema=FRAMES)
+    t0, n = span
     grid = (
         pl.DataFrame({"slot": pl.arange(0, n, eager=True).cast(pl.Int64)})
         .join(pl.DataFrame({"sensor": sensors}, schema={"sensor": pl.String}), how="cross")

@@ -45,13 +45,25 @@ def motion_frames(
     ``t1`` given, slots cover ``[t0, t1)`` (``ceil((t1 - t0) / period)`` slots). Every
     sensor starts off; edges before ``t0`` set the state at the first slot.
     """
+    sensors, ev, grid = slot_grid(motion, sensors, period=period, t0=t0, t1=t1)
+    if grid is None:
+        return pl.DataFrame(schema=FRAMES)
+    t0, n = grid
+    return _frames_arrays(ev, sensors, t0=t0, period=period, n=n)
+
+
+def slot_grid(
+    motion: pl.DataFrame, sensors: Sequence[str], *, period: float, t0: float | None, t1: float | None
+) -> tuple[list[str], pl.DataFrame, tuple[float, int] | None]:
+    """The slots of :func:`motion_frames`: ``(sensors without repeats, their edges sorted by t,
+    (t0, number of slots) or None when there is no slot)`` (the rules in its docstring)."""
     if not (isinstance(period, (int, float)) and math.isfinite(period) and period > 0):
         raise ConfigError(f"period = {period!r}: must be a finite number > 0 (seconds)")
     sensors = list(dict.fromkeys(sensors))
     ev = motion.select("t", "sensor", "on").filter(pl.col("sensor").is_in(sensors)).sort("t", maintain_order=True)
     if t0 is None:
         if ev.height == 0 and t1 is None:
-            return pl.DataFrame(schema=FRAMES)
+            return sensors, ev, None
         first = float(ev["t"].min()) if ev.height else 0.0
         t0 = math.floor(first / period) * period
     if t1 is None:
@@ -59,9 +71,7 @@ def motion_frames(
         n = max(int(math.floor((last - t0) / period)) + 1, 1)
     else:
         n = max(int(math.ceil((t1 - t0) / period - 1e-12)), 0)
-    if n == 0 or not sensors:
-        return pl.DataFrame(schema=FRAMES)
-    return _frames_arrays(ev, sensors, t0=t0, period=period, n=n)
+    return sensors, ev, ((t0, n) if n > 0 and sensors else None)
 
 
 def _frames_arrays(ev: pl.DataFrame, sensors: list[str], *, t0: float, period: float, n: int) -> pl.DataFrame:

@@ -44,6 +44,7 @@ from onebit.core.tables import REJECTS
 from onebit.core.writers import atomic_path
 from onebit.readers import mcap_views
 from onebit.readers.mcap_views import VIEW_TOPICS, ViewMessage
+from onebit.readers.motion import TOGGLE_VALUES
 from onebit.readers.timebase import iso_unix_us
 
 #: Bytes of uncompressed messages per chunk.
@@ -227,23 +228,6 @@ def _channel_messages(topic: str, df: pl.DataFrame) -> pl.DataFrame:
     ).with_columns(pl.col("log_time").cum_max().alias("key"))
 
 
-_TOGGLE_WORDS = {
-    "1": True,
-    "0": False,
-    "1.0": True,
-    "0.0": False,
-    "on": True,
-    "off": False,
-    "true": True,
-    "false": False,
-    "open": True,
-    "close": False,
-    "closed": False,
-    "present": True,
-    "absent": False,
-}
-
-
 def _views(per_topic: dict[str, pl.DataFrame], site, tracks: pl.DataFrame | None) -> list[ViewMessage]:
     """The typed view messages (:mod:`onebit.readers.mcap_views`) of the raw channels."""
     out: list[ViewMessage] = []
@@ -256,7 +240,7 @@ def _views(per_topic: dict[str, pl.DataFrame], site, tracks: pl.DataFrame | None
         per_topic[t].select(
             "log_time",
             "sensor",
-            pl.col("value").str.to_lowercase().replace_strict(_TOGGLE_WORDS, default=None).alias("on"),
+            pl.col("value").str.to_lowercase().replace_strict(TOGGLE_VALUES, default=None).alias("on"),
         )
         for t in ("/motion", "/proximity")
         if t in per_topic
