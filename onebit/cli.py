@@ -191,6 +191,7 @@ def _cmd_experiment(args) -> int:
             targets=args.targets,
             doors=tuple(d.strip() for d in args.doors.split(",") if d.strip()) if args.doors else (),
             config=load_run_config(args.config),
+            cross_validate=args.cross_validate,
         )
     else:
         if args.config is not None:
@@ -207,6 +208,19 @@ def _cmd_experiment(args) -> int:
             Path(args.out), seed=args.seed, trials=args.trials, quick=args.quick, echo=print, executor=ex, **extra
         )
     print(f"experiment {args.name}: results in {out}")
+    return 0
+
+
+def _cmd_learn_residents(args) -> int:
+    from onebit.pipeline.learn import learn_residents, write_profile
+
+    learned = learn_residents([Path(d) for d in args.datasets])
+    out = write_profile(learned, Path(args.out))
+    residents = learned.profile["resident"].n_unique()
+    print(
+        f"learned {residents} residents from {learned.events} labelled events in {learned.sessions} sessions "
+        f"({learned.rejects.height} truth_events lines rejected) -> {out}"
+    )
     return 0
 
 
@@ -379,6 +393,7 @@ def build_parser() -> argparse.ArgumentParser:
     _add_experiment_command(sub)
     _add_verify_path_command(sub)
     _add_import_commands(sub)
+    _add_learn_command(sub)
     _add_logs_commands(sub)
     return p
 
@@ -505,6 +520,12 @@ def _add_experiment_command(sub) -> None:
     e.add_argument("--seed", type=int, default=0)
     e.add_argument("--trials", type=int, default=None, help="trials per setting (default: the paper's)")
     e.add_argument("--quick", action="store_true", help="a reduced study (smoke test)")
+    e.add_argument(
+        "--cross-validate",
+        action="store_true",
+        help="residents: each session also decoded with the known residents learned from the other sessions "
+        "(leave one session out; the residents tracker and the supervised 'habits' baseline)",
+    )
     e.add_argument("--data", default=None, help="ceiling: the irtracking recordings (a clone of antonmil/irtracking)")
     _add_executor_options(e)
     e.set_defaults(func=_cmd_experiment)
@@ -519,6 +540,19 @@ def _add_verify_path_command(sub) -> None:
     vp.add_argument("--mismatch", type=float, default=-1.0, help="score of a mismatching label (<= 0)")
     vp.add_argument("--gap", type=float, default=1.0, help="penalty of a gap (> 0)")
     vp.set_defaults(func=_cmd_verify_path)
+
+
+def _add_learn_command(sub) -> None:
+    """``learn residents``: a known-residents profile from labelled dataset folders."""
+    ln = sub.add_parser("learn", help="learn a model from labelled dataset folders (known residents)")
+    lsub = ln.add_subparsers(dest="learn_command", required=True)
+    lr = lsub.add_parser(
+        "residents",
+        help="a residents_profile.csv from datasets with truth_events.csv (put it in a dataset: known residents)",
+    )
+    lr.add_argument("datasets", nargs="+", help="labelled dataset folders (e.g. imported CASAS sessions)")
+    lr.add_argument("--out", required=True, help="the profile to write (residents_profile.csv)")
+    lr.set_defaults(func=_cmd_learn_residents)
 
 
 def _add_import_commands(sub) -> None:

@@ -15,6 +15,11 @@ to ``RESULTS/results.csv`` and ``results.parquet``, with the mean over sessions 
 (``session = "mean"``) appended. A tracker that fails on a session is a row with its status
 and null scores, never a dropped row. ``RESULTS`` defaults to ``DIR/residents-study``.
 
+With ``--cross-validate`` (leave one session out) each session's dataset also gets the
+``residents_profile.csv`` learned from all the other sessions (:mod:`onebit.pipeline.learn`),
+so the ``residents`` tracker decodes it with known residents, and the supervised baseline
+``baseline-habits`` is added; no session's own labels are used to decode it.
+
 Only the files in ``DIR`` are read: to keep held-out sessions out, point it at a folder that
 holds only the development ones (e.g. symbolic links to P01-P13).
 """
@@ -28,12 +33,17 @@ import polars as pl
 from onebit.core.errors import InputError
 from onebit.core.writers import write_csv, write_parquet
 from onebit.datasets.importers import import_casas
+from onebit.pipeline.learn import learn_residents, write_profile
 from onebit.pipeline.runner import run_pipeline
 
 #: The multi-person trackers that write ``<tracker>_events`` (the default ``--trackers``).
 DEFAULT_TRACKERS = ("residents", "hmm1", "hmm2", "findinghumo", "findinghumo-flow")
 #: The baselines' report stages and their names here.
-BASELINES = {"identity-busier": "baseline-busier", "identity-nearest": "baseline-nearest"}
+BASELINES = {
+    "identity-busier": "baseline-busier",
+    "identity-nearest": "baseline-nearest",
+    "identity-habits": "baseline-habits",
+}
 
 RESULTS = pl.Schema(
     {
@@ -120,6 +130,7 @@ def run(
     targets: int | None = None,
     doors: tuple[str, ...] = (),
     config: dict | None = None,
+    cross_validate: bool = False,
 ) -> Path:
     """The study (module docstring); ``out`` is the folder of session files. ``quick``: the
     first two sessions; ``trials``: the first ``trials`` sessions; ``config``: the stage
@@ -134,16 +145,36 @@ def run(
     if trials:
         files = files[:trials]
     rows: list[dict] = []
+    datasets = {f.stem: res_dir / "datasets" / f.stem for f in files}
     for f in files:
-        ds = res_dir / "datasets" / f.stem
         import_casas(
-            f, ds, layout=layout, rooms=rooms, scale=scale, graph_radius=graph_radius, targets=targets, doors=doors
+            f,
+            datasets[f.stem],
+            layout=layout,
+            rooms=rooms,
+            scale=scale,
+            graph_radius=graph_radius,
+            targets=targets,
+            doors=doors,
         )
+    for f in files:
+        ds = datasets[f.stem]
+        profile = ds / "residents_profile.csv"
+        profile.unlink(missing_ok=True)
+        if cross_validate:  # known residents learned from every other session (leave one out)
+            others = [d for name, d in datasets.items() if name != f.stem]
+            if not others:
+                raise InputError("--cross-validate needs at least two sessions", file=folder)
+            write_profile(learn_residents(others), profile)
         run_dir = res_dir / "runs" / f.stem
         res = run_pipeline(ds, run_dir, trackers=trackers, config=config, progress=False)
         tpath = run_dir / "tables" / "timings.parquet"
         timings = pl.read_parquet(tpath) if tpath.exists() else None
-        new = session_rows(f.stem, res.report, res.status, trackers, timings)
+        new = [  # the supervised baseline exists only with a profile (--cross-validate)
+            r
+            for r in session_rows(f.stem, res.report, res.status, trackers, timings)
+            if r["method"] != "baseline-habits" or r["events"] is not None
+        ]
         rows += new
         echo(
             f"{f.stem}: "

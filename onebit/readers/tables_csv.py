@@ -7,7 +7,7 @@ from pathlib import Path
 import polars as pl
 
 from onebit.core.errors import InputError
-from onebit.core.tables import CROSSINGS, TRUE_CROSSINGS, TRUTH, TRUTH_EVENTS, conform
+from onebit.core.tables import CROSSINGS, RESIDENTS_PROFILE, TRUE_CROSSINGS, TRUTH, TRUTH_EVENTS, conform
 from onebit.readers.rows import (
     RawRows,
     TypedRows,
@@ -169,3 +169,26 @@ def read_truth_events_csv(path, *, epoch=None):
     Returns ``(truth_events, rejects)``; every line not taken is a reject with its reason."""
     path = Path(path)
     return truth_events_from_rows(read_csv_rows(path, tuple(TRUTH_EVENTS.names())), epoch=epoch, path=path)
+
+
+def residents_profile_from_rows(raw: RawRows, *, path: Path | None = None):
+    """Type ``residents_profile.csv`` rows: resident, from (empty: the resident's habit row), to,
+    count (a finite number >= 0). Returns ``(residents_profile, rejects)``; a second row with the
+    same resident, from and to is a duplicate (rejected, counted)."""
+    frm = pl.col("from").str.strip_chars()
+    cnt, cnt_bad = parse_float("count")
+    parsers = {
+        "resident": parse_name("resident", None, "resident"),
+        "from": (pl.when(frm == "").then(None).otherwise(frm), pl.lit(None, pl.String)),
+        "to": parse_name("to", None, "sensor"),
+        "count": (cnt, pl.coalesce(cnt_bad, pl.when(cnt < 0).then(pl.format("field 'count': negative: {}", cnt)))),
+    }
+    ok, rej = type_rows(raw, parsers, key=("resident", "from", "to"), path=path)
+    return conform(ok, RESIDENTS_PROFILE), rej
+
+
+def read_residents_profile_csv(path):
+    """``residents_profile.csv`` (resident, from, to, count) as
+    :data:`~onebit.core.tables.RESIDENTS_PROFILE`; every line not taken is a reject with its reason."""
+    path = Path(path)
+    return residents_profile_from_rows(read_csv_rows(path, tuple(RESIDENTS_PROFILE.names())), path=path)

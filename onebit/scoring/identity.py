@@ -3,8 +3,10 @@
 Inputs: ``truth_events`` (:data:`~onebit.core.tables.TRUTH_EVENTS`: t, sensor, residents
 ``"1"``/``"1;2"``) and a tracker's ``<tracker>_events``
 (:data:`~onebit.core.tables.TRACKER_EVENTS`: t, sensor, track or null). A truth event is
-matched to the tracker event of the same sensor within ``match_tol_s`` (1 ms) of it; one with
-no match, or matched to a null track, is *unattributed* and counts as wrong everywhere.
+matched to the tracker event of the same sensor within ``match_tol_s`` (1 ms) of it, or, when there is none, a repeated firing of a
+sensor still on (the reader keeps only its first ``ON``) to the tracker event of its sensor at
+most ``REPEAT_S`` (5 s) before it; one with no match, or matched to a null track, is
+*unattributed* and counts as wrong everywhere.
 
 * **accuracy** -- the share of truth events whose track, under the best one-to-one relabelling
   ``m`` of tracks to residents, names one of the event's residents::
@@ -35,6 +37,9 @@ Baselines, scored by the same functions (:func:`baseline_events`):
 
 * ``busier`` -- every event to one track: accuracy = the share of events naming the busier
   resident (the one named by most events).
+* ``habits`` (supervised; only with a known-residents profile) -- every event to the resident
+  with the most labelled events at its sensor in the profile: what a user with labelled days
+  tries first.
 * ``nearest`` -- a greedy online tracker a user would write first: ``K`` pseudo-tracks (``K`` =
   the number of residents in the truth: told, not estimated); each event, in time order, goes to
   the pseudo-track whose most recent event is at the nearest sensor (sensor-graph hops; ties:
@@ -53,6 +58,9 @@ from onebit.core.tables import TRACKER_EVENTS, TRUTH_EVENTS
 
 #: A truth event and a tracker event of the same sensor this close (s) are the same event.
 MATCH_TOL_S = 1e-3
+#: A truth event this soon (s) after a tracker event of its sensor, with none of its own, is a
+#: repeated firing of that sensor while on (:func:`matched`).
+REPEAT_S = 5.0
 #: A resident absent this long between two of its events (s) is not counted present in between.
 ABSENT_AFTER_S = 600.0
 
@@ -84,19 +92,24 @@ class IdentityScores:
 
 def matched(truth_events: pl.DataFrame, tracker_events: pl.DataFrame, *, tol: float = MATCH_TOL_S) -> pl.DataFrame:
     """Truth events (t, sensor, residents) with the ``track`` of the tracker event of the same
-    sensor nearest in time within ``tol`` (null: unattributed), sorted by t."""
+    sensor nearest in time within ``tol`` (null: unattributed), sorted by t. A truth event with
+    none there that follows a tracker event of its sensor by at most :data:`REPEAT_S` is a
+    repeated firing of a sensor still on (the motion reader rejects a repeated ``ON``: no state
+    change, counted) and takes that event's track."""
     te = truth_events.select(list(TRUTH_EVENTS)).sort("t")
     ev = tracker_events.select(list(TRACKER_EVENTS)).filter(pl.col("track").is_not_null()).sort("t")
     if te.height == 0:
         return te.with_columns(track=pl.lit(None, pl.String))
-    return te.join_asof(
-        ev.rename({"t": "_t"}).with_columns(t=pl.col("_t")),
-        on="t",
-        by="sensor",
-        strategy="nearest",
-        check_sortedness=False,
-        tolerance=tol,
-    ).drop("_t")
+    right = ev.rename({"t": "_t"}).with_columns(t=pl.col("_t"))
+    exact = te.join_asof(right, on="t", by="sensor", strategy="nearest", check_sortedness=False, tolerance=tol)
+    repeat = te.join_asof(
+        right, on="t", by="sensor", strategy="backward", check_sortedness=False, tolerance=REPEAT_S
+    ).select(pl.col("track").alias("_repeat"))
+    return (
+        pl.concat([exact, repeat], how="horizontal")
+        .with_columns(pl.coalesce("track", "_repeat").alias("track"))
+        .drop("_t", "_repeat")
+    )
 
 
 def relabelling(m: pl.DataFrame) -> tuple[dict[str, str], int]:
@@ -239,12 +252,37 @@ def nearest_events(truth_events: pl.DataFrame, hops: dict[tuple[str, str], int],
     return ev.select("t", "sensor").with_columns(track=pl.Series(out, dtype=pl.String)).select(list(TRACKER_EVENTS))
 
 
-def baseline_rows(truth_events: pl.DataFrame, hops: dict[tuple[str, str], int]) -> list[tuple[str, str, float, str]]:
-    """Report rows of both baselines (``identity-busier``, ``identity-nearest``)."""
+def habits_events(truth_events: pl.DataFrame, profile: pl.DataFrame) -> pl.DataFrame:
+    """Baseline ``habits`` (supervised): every event to the resident whose profile has the most
+    events at its sensor (ties: the resident first in text order); a sensor the profile never
+    saw goes to the resident with the most events overall."""
+    habit = profile.filter(pl.col("from").is_null())
+    overall = (
+        habit.group_by("resident").agg(pl.col("count").sum()).sort(["count", "resident"], descending=[True, False])
+    )
+    default = overall["resident"][0] if overall.height else None
+    best = habit.sort(["to", "count", "resident"], descending=[False, True, False]).unique("to", keep="first")
+    ev = truth_events.select("t", "sensor").join(
+        best.select(pl.col("to").alias("sensor"), pl.col("resident").alias("track")), on="sensor", how="left"
+    )
+    return ev.with_columns(pl.col("track").fill_null(default)).select(list(TRACKER_EVENTS))
+
+
+def baseline_rows(
+    truth_events: pl.DataFrame, hops: dict[tuple[str, str], int], *, profile: pl.DataFrame | None = None
+) -> list[tuple[str, str, float, str]]:
+    """Report rows of the baselines (``identity-busier``, ``identity-nearest``, and with a
+    known-residents ``profile`` the supervised ``identity-habits``)."""
     k = max(1, truth_events["residents"].str.split(";").explode().n_unique())
     busy = identity_scores(truth_events, busier_events(truth_events), constant_count=1.0)
     near = identity_scores(truth_events, nearest_events(truth_events, hops, k), constant_count=float(k))
-    return busy.rows("identity-busier") + near.rows("identity-nearest")
+    rows = busy.rows("identity-busier") + near.rows("identity-nearest")
+    if profile is not None and profile.height:
+        n = float(profile["resident"].n_unique())
+        rows += identity_scores(truth_events, habits_events(truth_events, profile), constant_count=n).rows(
+            "identity-habits"
+        )
+    return rows
 
 
 def graph_hops(site) -> dict[tuple[str, str], int]:
