@@ -46,9 +46,9 @@ from onebit.readers.rows import read_typed_csv
 from onebit.readers.tables_csv import (
     crossings_from_rows,
     read_crossings_csv,
+    read_residents_profile_csv,
     read_true_crossings_csv,
     read_truth_csv,
-    read_residents_profile_csv,
     read_truth_events_csv,
     true_crossings_columns,
     true_crossings_from_rows,

@@ -108,3 +108,56 @@ def test_a_config_reaches_every_session_and_a_bad_one_is_refused(tmp_path):
         )
         != 0
     )
+
+
+def _line_layout(tmp_path):
+    lay = tmp_path / "line.toml"
+    lay.write_text(
+        "[sensors]\n"
+        + "".join(f"M{k:02d} = [{2.0 * k}, 0.0]\n" for k in range(1, 7))
+        + "[graph]\nedges = ["
+        + ", ".join(f'["M{k:02d}", "M{k + 1:02d}"]' for k in range(1, 6))
+        + "]\n"
+    )
+    return lay
+
+
+def test_learn_a_profile_and_decode_with_known_residents(tmp_path):
+    """`onebit learn residents` from labelled datasets, the profile in another dataset, `onebit run`."""
+    for name, seed in (("P01", 0), ("P02", 1)):
+        _session(tmp_path / f"{name}.txt", seed)
+        args = ["import", "casas", str(tmp_path / f"{name}.txt"), str(tmp_path / name)]
+        assert main([*args, "--layout", str(_line_layout(tmp_path)), "--targets", "2"]) == 0
+    prof = tmp_path / "P02" / "residents_profile.csv"
+    assert main(["learn", "residents", str(tmp_path / "P01"), "--out", str(prof)]) == 0
+    assert pl.read_csv(prof)["resident"].cast(pl.String).unique().sort().to_list() == ["1", "2"]
+    out = tmp_path / "run"
+    assert main(["run", str(tmp_path / "P02"), "--out", str(out), "--trackers", "residents", "--no-rrd"]) == 0
+    ev = pl.read_parquet(out / "tables" / "residents_events.parquet")
+    assert set(ev["track"].drop_nulls()) <= {"resident1", "resident2"}
+    rep = pl.read_csv(out / "report.csv")
+    acc = {s: v for s, m, v in rep.select("stage", "metric", "value").iter_rows() if m == "identity_accuracy"}
+    assert {"residents", "identity-habits", "identity-busier", "identity-nearest"} <= set(acc)
+    assert acc["residents"] > 0.9 and acc["residents"] >= acc["identity-habits"]
+    # no labelled dataset: a clear error naming the file
+    assert main(["learn", "residents", str(tmp_path / "run"), "--out", str(tmp_path / "x.csv")]) == 2
+
+
+def test_cross_validation_learns_each_session_from_the_others(tmp_path):
+    dev = tmp_path / "dev"
+    dev.mkdir()
+    for name, seed in (("P01", 0), ("P02", 1), ("P03", 2)):
+        _session(dev / f"{name}.txt", seed)
+    res = tmp_path / "res"
+    args = ["experiment", "residents", str(dev), "--results", str(res), "--trackers", "residents"]
+    assert main([*args, "--layout", str(_line_layout(tmp_path)), "--targets", "2", "--cross-validate"]) == 0
+    df = pl.read_csv(res / "results.csv")
+    assert set(df["method"]) == {"residents", "baseline-busier", "baseline-nearest", "baseline-habits"}
+    # each session's profile comes from the other two: its own events are not in it
+    own = pl.read_csv(res / "datasets" / "P01" / "truth_events.csv").height
+    prof = pl.read_csv(res / "datasets" / "P01" / "residents_profile.csv")
+    assert prof.filter(pl.col("from").is_null())["count"].sum() == 240 and own == 120
+    # without --cross-validate the profiles are gone: the unsupervised decoder again
+    assert main([*args, "--layout", str(_line_layout(tmp_path)), "--targets", "2"]) == 0
+    assert not (res / "datasets" / "P01" / "residents_profile.csv").exists()
+    assert "baseline-habits" not in set(pl.read_csv(res / "results.csv")["method"])

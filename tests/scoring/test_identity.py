@@ -133,3 +133,31 @@ def test_attribution_at_the_sensor_then_nearest_then_none():
         (1.5, "a", None),  # nobody decoded in slot 1
         (2.2, "zz", None),  # not a node
     ]
+
+
+def test_a_repeated_on_takes_the_track_of_its_sensors_previous_event_within_5_s():
+    te = pl.DataFrame({"t": [0.0, 0.3, 7.0, 20.0], "sensor": ["a", "a", "a", "b"], "residents": ["1", "1", "1", "2"]})
+    ev = pl.DataFrame({"t": [0.0, 20.0], "sensor": ["a", "b"], "track": ["p", "q"]})
+    m = identity_scores(te, ev)
+    # 0.3 s after a's event: the same firing (the reader rejected the repeated ON); 7 s after: none
+    assert m.accuracy == pytest.approx(3 / 4)
+    assert m.attributed == pytest.approx(3 / 4)
+
+
+def test_the_supervised_habits_baseline():
+    from onebit.scoring.identity import habits_events
+
+    prof = pl.DataFrame(
+        {
+            "resident": ["1", "2", "1", "2"],
+            "from": [None, None, "a", None],
+            "to": ["a", "a", "b", "c"],
+            "count": [5.0, 2.0, 9.0, 1.0],
+        }
+    )
+    ev = habits_events(TE, prof)
+    # a -> 1 (5 vs 2), b -> the most events overall (1: 5), c -> 2 (habit rows only: 'from' null)
+    assert ev["track"].to_list() == ["1", "1", "2", "1", "1", "2"]
+    rows = {r[0]: r for r in baseline_rows(TE, {}, profile=prof) if r[1] == "identity_accuracy"}
+    assert set(rows) == {"identity-busier", "identity-nearest", "identity-habits"}
+    assert rows["identity-habits"][2] == pytest.approx(identity_scores(TE, ev).accuracy)
