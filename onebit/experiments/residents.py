@@ -11,7 +11,8 @@ session and method:
 ``session, method, status, accuracy, ari, switches_per_hour, count_error, attributed, events, seconds``
 
 (``seconds``: the tracker's stage time measured by the runner; null for the baselines), written
-to ``RESULTS/results.csv`` and ``results.parquet``, with the mean over sessions per method
+to ``RESULTS/results.csv`` and ``results.parquet`` (every identity error of the ``residents``
+tracker, with where the other resident was, to ``RESULTS/errors.csv``), with the mean over sessions per method
 (``session = "mean"``) appended. A tracker that fails on a session is a row with its status
 and null scores, never a dropped row. ``RESULTS`` defaults to ``DIR/residents-study``.
 
@@ -31,10 +32,12 @@ from pathlib import Path
 import polars as pl
 
 from onebit.core.errors import InputError
+from onebit.core.site import load_site
 from onebit.core.writers import write_csv, write_parquet
 from onebit.datasets.importers import import_casas
 from onebit.pipeline.learn import learn_residents, write_profile
 from onebit.pipeline.runner import run_pipeline
+from onebit.scoring.identity import ERRORS, error_table, graph_hops
 
 #: The multi-person trackers that write ``<tracker>_events`` (the default ``--trackers``).
 DEFAULT_TRACKERS = ("residents", "hmm1", "hmm2", "findinghumo", "findinghumo-flow")
@@ -102,6 +105,22 @@ def session_rows(
     return rows
 
 
+#: The tracker whose every identity error the study lists (``errors.csv``).
+DIAGNOSED = "residents"
+
+
+def session_errors(session: str, dataset: Path, run_dir: Path, trackers: tuple[str, ...]) -> list[pl.DataFrame]:
+    """Every identity error of :data:`DIAGNOSED` in one session's run
+    (:func:`onebit.scoring.identity.error_table`), with the session; empty when it did not run."""
+    tables = run_dir / "tables"
+    te, ev = tables / "truth_events.parquet", tables / f"{DIAGNOSED}_events.parquet"
+    if DIAGNOSED not in trackers or not te.exists() or not ev.exists():
+        return []
+    hops = graph_hops(load_site(dataset / "site.toml"))
+    err = error_table(pl.read_parquet(te), pl.read_parquet(ev), hops)
+    return [err.select(pl.lit(session).alias("session"), pl.all())]
+
+
 def with_means(df: pl.DataFrame) -> pl.DataFrame:
     """``df`` and one ``session = "mean"`` row per method (means over the sessions it scored)."""
     num = [c for c, t in RESULTS.items() if t == pl.Float64]
@@ -145,6 +164,7 @@ def run(
     if trials:
         files = files[:trials]
     rows: list[dict] = []
+    errors: list[pl.DataFrame] = []
     datasets = {f.stem: res_dir / "datasets" / f.stem for f in files}
     for f in files:
         import_casas(
@@ -168,6 +188,7 @@ def run(
             write_profile(learn_residents(others), profile)
         run_dir = res_dir / "runs" / f.stem
         res = run_pipeline(ds, run_dir, trackers=trackers, config=config, progress=False)
+        errors += session_errors(f.stem, ds, run_dir, trackers)
         tpath = run_dir / "tables" / "timings.parquet"
         timings = pl.read_parquet(tpath) if tpath.exists() else None
         new = [  # the supervised baseline exists only with a profile (--cross-validate)
@@ -186,8 +207,13 @@ def run(
     res_dir.mkdir(parents=True, exist_ok=True)
     write_csv(df, res_dir / "results.csv")
     write_parquet(df, res_dir / "results.parquet")
+    err = pl.concat(errors) if errors else pl.DataFrame(schema={"session": pl.String, **ERRORS})
+    write_csv(err, res_dir / "errors.csv")
     with pl.Config(tbl_rows=-1, tbl_cols=-1, tbl_width_chars=200, float_precision=3, tbl_hide_dataframe_shape=True):
         echo(str(df))
+        if err.height:
+            echo(f"identity errors of {DIAGNOSED} by kind (every one in errors.csv; docs/residents.md):")
+            echo(str(err.pivot(on="kind", index="session", values="t", aggregate_function="len").fill_null(0)))
         wide = df.pivot(on="method", index="session", values="accuracy")
         echo("identity accuracy (fraction of labelled events) per session and method:")
         echo(str(wide))

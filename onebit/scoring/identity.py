@@ -294,3 +294,80 @@ def graph_hops(site) -> dict[tuple[str, str], int]:
 
     graph = g.to_networkx()
     return {(a, b): int(d) for a, row in nx.all_pairs_shortest_path_length(graph) for b, d in row.items()}
+
+
+#: The error table's meeting: the other resident's latest labelled event this close in hops ...
+MEET_HOPS = 1
+#: ... and this recent (s).
+MEET_S = 30.0
+#: A run of consecutive wrong events at least this long is a swap (an identity held the wrong way).
+SWAP_RUN = 5
+
+ERRORS = pl.Schema(
+    {
+        "t": pl.Float64,
+        "sensor": pl.String,
+        "residents": pl.String,
+        "decoded": pl.String,
+        "other_sensor": pl.String,
+        "other_hops": pl.Int64,
+        "other_age_s": pl.Float64,
+        "run": pl.Int64,
+        "run_length": pl.Int64,
+        "kind": pl.String,
+    }
+)
+
+
+def error_table(
+    truth_events: pl.DataFrame, tracker_events: pl.DataFrame, hops: dict[tuple[str, str], int]
+) -> pl.DataFrame:
+    """Every identity error of a tracker (:data:`ERRORS`), for a diagnosis: a labelled event
+    whose track, under the best relabelling, names none of its residents (or has no track).
+
+    For each: the resident it was given (``decoded``; null: unattributed), where the *other*
+    resident was -- the sensor of the latest labelled event before it that does not name its
+    resident, its distance in sensor-graph hops (null: unreachable or none) and age -- and its
+    run of consecutive errors (in the order of the labelled events). ``kind``:
+
+    * ``meeting`` -- the other resident fired within ``MEET_HOPS`` hops in the last ``MEET_S``
+      seconds: where they were cannot tell them apart; only who they are could (a per-person
+      signal: a wearable, a door code, gait or height from a depth sensor);
+    * ``swap`` -- apart, in a run of at least ``SWAP_RUN`` errors: an identity held the wrong way
+      since an earlier meeting or start; a later habit cue did not turn it back;
+    * ``apart`` -- apart, a short run: the event looks like the other resident's (the
+      annotations give the resident who *most likely* caused it; some are the other's).
+    """
+    m = matched(truth_events, tracker_events)
+    mapping, _ = relabelling(m)
+    m = m.with_columns(decoded=pl.col("track").replace_strict(mapping, default=None, return_dtype=pl.String))
+    ok = pl.col("residents").str.split(";").list.contains(pl.col("decoded")).fill_null(False)
+    m = m.with_columns(wrong=~ok)
+    t = m["t"].to_list()
+    sens = m["sensor"].to_list()
+    res = [r.split(";") for r in m["residents"].to_list()]
+    wrong = m["wrong"].to_list()
+    rows = []
+    runs: list[int] = []  # the length of each run of consecutive errors
+    for i, bad in enumerate(wrong):
+        if bad and (i == 0 or not wrong[i - 1]):
+            runs.append(0)
+        if bad:
+            runs[-1] += 1
+    run = -1
+    for i, bad in enumerate(wrong):
+        if not bad:
+            continue
+        if i == 0 or not wrong[i - 1]:
+            run += 1
+        j = i - 1
+        while j >= 0 and set(res[j]) & set(res[i]):
+            j -= 1
+        other, oh, age = None, None, None
+        if j >= 0:
+            other, age = sens[j], t[i] - t[j]
+            oh = 0 if sens[i] == sens[j] else hops.get((sens[i], sens[j]))
+        meet = oh is not None and oh <= MEET_HOPS and age is not None and age <= MEET_S
+        kind = "meeting" if meet else ("swap" if runs[run] >= SWAP_RUN else "apart")
+        rows.append((t[i], sens[i], m["residents"][i], m["decoded"][i], other, oh, age, run, runs[run], kind))
+    return pl.DataFrame(rows, schema=ERRORS, orient="row")

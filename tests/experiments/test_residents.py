@@ -161,3 +161,16 @@ def test_cross_validation_learns_each_session_from_the_others(tmp_path):
     assert main([*args, "--layout", str(_line_layout(tmp_path)), "--targets", "2"]) == 0
     assert not (res / "datasets" / "P01" / "residents_profile.csv").exists()
     assert "baseline-habits" not in set(pl.read_csv(res / "results.csv")["method"])
+
+
+def test_every_identity_error_is_listed(tmp_path):
+    dev = tmp_path / "dev"
+    dev.mkdir()
+    _session(dev / "P01.txt", 0)
+    res = tmp_path / "res"
+    args = ["experiment", "residents", str(dev), "--results", str(res), "--trackers", "residents"]
+    assert main([*args, "--layout", str(_line_layout(tmp_path)), "--targets", "2"]) == 0
+    err = pl.read_csv(res / "errors.csv")
+    acc = pl.read_csv(res / "results.csv").filter((pl.col("method") == "residents") & (pl.col("session") == "P01"))
+    assert err.height == round((1 - acc["accuracy"][0]) * 120)
+    assert set(err["kind"]) <= {"meeting", "swap", "apart"}

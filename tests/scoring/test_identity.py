@@ -161,3 +161,28 @@ def test_the_supervised_habits_baseline():
     rows = {r[0]: r for r in baseline_rows(TE, {}, profile=prof) if r[1] == "identity_accuracy"}
     assert set(rows) == {"identity-busier", "identity-nearest", "identity-habits"}
     assert rows["identity-habits"][2] == pytest.approx(identity_scores(TE, ev).accuracy)
+
+
+def test_error_table_by_hand():
+    from onebit.scoring.identity import error_table
+
+    te = pl.DataFrame(
+        {
+            "t": [0.0, 1.0, 2.0, 100.0, 200.0],
+            "sensor": ["a", "b", "a", "c", "d"],
+            "residents": ["1", "2", "1", "1", "2"],
+        }
+    )
+    ev = te.select("t", "sensor").with_columns(track=pl.Series(["x", "y", "y", "x", None]))
+    hops = {("a", "b"): 1, ("b", "a"): 1, ("c", "a"): 2, ("d", "c"): 5}
+    err = error_table(te, ev, hops)
+    # x -> 1, y -> 2: wrong are t=2 (a, given 2; the other, 2, fired at b 1 s before, 1 hop: a meeting)
+    # and t=200 (unattributed; the other resident 1 fired at c 100 s before, 5 hops: apart)
+    assert err["t"].to_list() == [2.0, 200.0]
+    assert err["decoded"].to_list() == ["2", None]
+    assert err["other_sensor"].to_list() == ["b", "c"]
+    assert err["other_hops"].to_list() == [1, 5]
+    assert err["kind"].to_list() == ["meeting", "apart"]
+    assert err["run"].to_list() == [0, 1] and err["run_length"].to_list() == [1, 1]
+    perfect = te.select("t", "sensor").with_columns(track=te["residents"])
+    assert error_table(te, perfect, hops).height == 0
