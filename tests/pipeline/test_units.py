@@ -172,13 +172,6 @@ CONFIG = {
 }
 
 EVERY_TRACKER = tuple(e.name for e in TRACKERS)
-#: known failures, each a finding to fix (strict: the test says so when it is fixed)
-UNITS_BUG = pytest.mark.xfail(
-    strict=True,
-    reason="clustertrack on the 2-D proximity grid is not unit-free: deterministic in one unit, but the cm run "
-    "differs from the m run (mean_error_R 0.133 vs 0.226); found when the compared pairs came from TrackerEntry.scenario",
-)
-KNOWN = {("proximity-grid", "clustertrack"): UNITS_BUG, "proximity-grid": UNITS_BUG}
 GUARANTEE_ROWS = ("containment", "scored_stages", "area_mean")
 
 
@@ -223,7 +216,7 @@ def _point_sets(df: pl.DataFrame, k: float = 1.0) -> np.ndarray:
     return df.select("t", pl.col("x") * k, pl.col("y") * k).sort("t", "x", "y").select("x", "y").to_numpy()
 
 
-@pytest.mark.parametrize("scenario, tracker", [pytest.param(*p, marks=KNOWN.get(p, ())) for p in COMPARED])
+@pytest.mark.parametrize("scenario, tracker", list(COMPARED))
 def test_tracks_scale_with_the_units(runs, scenario, tracker):
     k, a, b = runs[scenario]
     mode = COMPARED[scenario, tracker]
@@ -245,7 +238,7 @@ def test_tracks_scale_with_the_units(runs, scenario, tracker):
         assert ta[c].to_list() == tb[c].to_list(), c
 
 
-@pytest.mark.parametrize("scenario", [pytest.param(n, marks=KNOWN.get(n, ())) for n in SCENARIOS])
+@pytest.mark.parametrize("scenario", list(SCENARIOS))
 def test_report_rows_scale_with_the_units(runs, scenario):
     k, a, b = runs[scenario]
     src_units = tomllib.loads((a.out.parent / "m" / "site.toml").read_text()).get("units", "m")
