@@ -224,6 +224,16 @@ def _cmd_learn_residents(args) -> int:
     return 0
 
 
+def _cmd_logs_split(args) -> int:
+    from onebit.pipeline.split import parse_period, split_dataset
+
+    parts = split_dataset(Path(args.dataset), Path(args.out), every=parse_period(args.every))
+    rows = sum(sum(p.rows.values()) for p in parts)
+    print(f"split {args.dataset} into {len(parts)} parts of {args.every} ({rows} rows) under {args.out}")
+    print(f"run them all: onebit run-many {args.out}/part-* --out RUNS")
+    return 0
+
+
 def _cmd_logs_info(args) -> int:
     print(format_log_info(log_info(args.file)))
     return 0
@@ -667,6 +677,11 @@ def _add_logs_commands(sub) -> None:
         "--topics", metavar="TOML", help="MCAP -> CSV: mcap_topics.toml mapping ROS 2 Bool topics to sensors"
     )
     lc.set_defaults(func=_cmd_logs_convert)
+    ls = lsub.add_parser("split", help="cut a long dataset into one dataset folder per day (or per --every)")
+    ls.add_argument("dataset")
+    ls.add_argument("out", help="folder for the parts (OUT/part-000, ...) and split.toml")
+    ls.add_argument("--every", default="1d", help="period of a part: 1d (default), 6h, 90m, 3600 (seconds)")
+    ls.set_defaults(func=_cmd_logs_split)
 
 
 def main(argv: list[str] | None = None) -> int:
