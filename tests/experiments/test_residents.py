@@ -27,14 +27,9 @@ def _session(path, seed: int) -> None:
     path.write_text("\n".join(lines) + "\n")
 
 
-def test_the_study_table(tmp_path):
-    dev = tmp_path / "dev"
-    dev.mkdir()
-    _session(dev / "P01.txt", 0)
-    _session(dev / "P02.txt", 1)
-    (dev / "README").write_text("not a session")
-    res = tmp_path / "res"
-    lay = tmp_path / "line.toml"  # the true line of sensors (a learned graph links what the two fire in turn)
+def _line_layout(tmp_path):
+    """The six sensors on a line, 2 m apart, and its chain graph."""
+    lay = tmp_path / "line.toml"
     lay.write_text(
         "[sensors]\n"
         + "".join(f"M{k:02d} = [{2.0 * k}, 0.0]\n" for k in range(1, 7))
@@ -42,6 +37,17 @@ def test_the_study_table(tmp_path):
         + ", ".join(f'["M{k:02d}", "M{k + 1:02d}"]' for k in range(1, 6))
         + "]\n"
     )
+    return lay
+
+
+def test_the_study_table(tmp_path):
+    dev = tmp_path / "dev"
+    dev.mkdir()
+    _session(dev / "P01.txt", 0)
+    _session(dev / "P02.txt", 1)
+    (dev / "README").write_text("not a session")
+    res = tmp_path / "res"
+    lay = _line_layout(tmp_path)  # the true line of sensors (a learned graph links what the two fire in turn)
     assert (
         main(["experiment", "residents", str(dev), "--results", str(res), "--trackers", "hmm1", "--layout", str(lay)])
         == 0
@@ -108,18 +114,6 @@ def test_a_config_reaches_every_session_and_a_bad_one_is_refused(tmp_path):
         )
         != 0
     )
-
-
-def _line_layout(tmp_path):
-    lay = tmp_path / "line.toml"
-    lay.write_text(
-        "[sensors]\n"
-        + "".join(f"M{k:02d} = [{2.0 * k}, 0.0]\n" for k in range(1, 7))
-        + "[graph]\nedges = ["
-        + ", ".join(f'["M{k:02d}", "M{k + 1:02d}"]' for k in range(1, 6))
-        + "]\n"
-    )
-    return lay
 
 
 def test_learn_a_profile_and_decode_with_known_residents(tmp_path):
