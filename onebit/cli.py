@@ -192,6 +192,7 @@ def _cmd_experiment(args) -> int:
             doors=tuple(d.strip() for d in args.doors.split(",") if d.strip()) if args.doors else (),
             config=load_run_config(args.config),
             cross_validate=args.cross_validate,
+            profile_clock=args.profile_clock,
         )
     else:
         if args.config is not None:
@@ -213,8 +214,10 @@ def _cmd_experiment(args) -> int:
 
 def _cmd_learn_residents(args) -> int:
     from onebit.pipeline.learn import learn_residents, write_profile
+    from onebit.trackers.residents.known import Clock
 
-    learned = learn_residents([Path(d) for d in args.datasets])
+    clock = Clock(args.clock, args.bins) if args.clock != "none" else None
+    learned = learn_residents([Path(d) for d in args.datasets], clock=clock)
     out = write_profile(learned, Path(args.out))
     residents = learned.profile["resident"].n_unique()
     print(
@@ -536,6 +539,12 @@ def _add_experiment_command(sub) -> None:
         help="residents: each session also decoded with the known residents learned from the other sessions "
         "(leave one session out; the residents tracker and the supervised 'habits' baseline)",
     )
+    e.add_argument(
+        "--profile-clock",
+        choices=("none", "day", "session"),
+        default="none",
+        help="residents --cross-validate: the profiles' clock (onebit learn residents --clock; 10 bins)",
+    )
     e.add_argument("--data", default=None, help="ceiling: the irtracking recordings (a clone of antonmil/irtracking)")
     _add_executor_options(e)
     e.set_defaults(func=_cmd_experiment)
@@ -562,6 +571,14 @@ def _add_learn_command(sub) -> None:
     )
     lr.add_argument("datasets", nargs="+", help="labelled dataset folders (e.g. imported CASAS sessions)")
     lr.add_argument("--out", required=True, help="the profile to write (residents_profile.csv)")
+    lr.add_argument(
+        "--clock",
+        choices=("none", "day", "session"),
+        default="none",
+        help="also learn the residents' habits by time: day (time of day, from the sites' epoch: homes over days) "
+        "or session (first to last event: scripted sessions); default none",
+    )
+    lr.add_argument("--bins", type=int, default=10, help="parts of the clock (default 10)")
     lr.set_defaults(func=_cmd_learn_residents)
 
 

@@ -133,6 +133,18 @@ def test_learn_a_profile_and_decode_with_known_residents(tmp_path):
     acc = {s: v for s, m, v in rep.select("stage", "metric", "value").iter_rows() if m == "identity_accuracy"}
     assert {"residents", "identity-habits", "identity-busier", "identity-nearest"} <= set(acc)
     assert acc["residents"] > 0.9 and acc["residents"] >= acc["identity-habits"]
+    # with a clock: the habits also by the session's phase, and the run still decodes the residents
+    assert (
+        main(["learn", "residents", str(tmp_path / "P01"), "--out", str(prof), "--clock", "session", "--bins", "4"])
+        == 0
+    )
+    assert set(pl.read_csv(prof)["bin"].drop_nulls()) == {f"session {k}/4" for k in range(4)}
+    assert (
+        main(["run", str(tmp_path / "P02"), "--out", str(tmp_path / "run2"), "--trackers", "residents", "--no-rrd"])
+        == 0
+    )
+    ev = pl.read_parquet(tmp_path / "run2" / "tables" / "residents_events.parquet")
+    assert set(ev["track"].drop_nulls()) <= {"resident1", "resident2"}
     # no labelled dataset: a clear error naming the file
     assert main(["learn", "residents", str(tmp_path / "run"), "--out", str(tmp_path / "x.csv")]) == 2
 
