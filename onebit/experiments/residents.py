@@ -38,6 +38,7 @@ from onebit.datasets.importers import import_casas
 from onebit.pipeline.learn import learn_residents, write_profile
 from onebit.pipeline.runner import run_pipeline
 from onebit.scoring.identity import ERRORS, error_table, graph_hops
+from onebit.trackers.residents.known import Clock
 
 #: The multi-person trackers that write ``<tracker>_events`` (the default ``--trackers``).
 DEFAULT_TRACKERS = ("residents", "hmm1", "hmm2", "findinghumo", "findinghumo-flow")
@@ -150,6 +151,7 @@ def run(
     doors: tuple[str, ...] = (),
     config: dict | None = None,
     cross_validate: bool = False,
+    profile_clock: str = "none",
 ) -> Path:
     """The study (module docstring); ``out`` is the folder of session files. ``quick``: the
     first two sessions; ``trials``: the first ``trials`` sessions; ``config``: the stage
@@ -185,7 +187,8 @@ def run(
             others = [d for name, d in datasets.items() if name != f.stem]
             if not others:
                 raise InputError("--cross-validate needs at least two sessions", file=folder)
-            write_profile(learn_residents(others), profile)
+            clock = Clock(profile_clock, 10) if profile_clock != "none" else None
+            write_profile(learn_residents(others, clock=clock), profile)
         run_dir = res_dir / "runs" / f.stem
         res = run_pipeline(ds, run_dir, trackers=trackers, config=config, progress=False)
         errors += session_errors(f.stem, ds, run_dir, trackers)

@@ -15,9 +15,10 @@ from pathlib import Path
 import polars as pl
 
 from onebit.core.errors import InputError
+from onebit.core.site import load_site
 from onebit.core.writers import write_csv
 from onebit.readers.tables_csv import read_truth_events_csv
-from onebit.trackers.residents.known import learn_profile
+from onebit.trackers.residents.known import Clock, learn_profile
 
 
 @dataclass(frozen=True)
@@ -31,12 +32,16 @@ class Learned:
     rejects: pl.DataFrame
 
 
-def learn_residents(datasets: list[Path]) -> Learned:
-    """The profile of the labelled sessions ``datasets`` (module docstring)."""
+def learn_residents(datasets: list[Path], *, clock: Clock | None = None) -> Learned:
+    """The profile of the labelled sessions ``datasets`` (module docstring); with a ``clock``
+    the residents' habits are also counted by time (the ``day`` clock reads each dataset's
+    ``site.toml`` epoch)."""
     if not datasets:
         raise InputError("no dataset folders to learn from")
-    labelled, rejects = [], []
+    labelled, rejects, epochs = [], [], []
     for ds in datasets:
+        if clock is not None and clock.kind == "day":
+            epochs.append(load_site(Path(ds) / "site.toml").epoch)
         path = Path(ds) / "truth_events.csv"
         if not path.exists():
             raise InputError("no truth_events.csv: a profile is learned from labelled sessions", file=path)
@@ -46,7 +51,9 @@ def learn_residents(datasets: list[Path]) -> Learned:
     events = sum(te.height for te in labelled)
     if events == 0:
         raise InputError("the truth_events.csv files have no labelled event", file=Path(datasets[0]))
-    return Learned(learn_profile(labelled), len(labelled), events, pl.concat(rejects))
+    return Learned(
+        learn_profile(labelled, clock=clock, epochs=epochs or None), len(labelled), events, pl.concat(rejects)
+    )
 
 
 def write_profile(learned: Learned, out: Path) -> Path:

@@ -707,7 +707,9 @@ def scores_stage(trackers: tuple[TrackerEntry, ...] = TRACKERS, metrics: tuple[M
                     ctx.status[f"scores/{entry.name}"] = f"failed: {exc}"
         te = tables.get("truth_events")
         if te is not None and te.height:  # what a tracker's identity per event is compared with
-            ctx.report += baseline_rows(te, graph_hops(ctx.site), profile=tables.get("residents_profile"))
+            ctx.report += baseline_rows(
+                te, graph_hops(ctx.site), profile=tables.get("residents_profile"), epoch=ctx.site.epoch
+            )
         rej = ctx.tables.get("rejects", pl.DataFrame(schema=REJECTS))
         ctx.report.append(("rejects", "rows", float(rej.height), "rows"))
         out["timings"] = tables["timings"]

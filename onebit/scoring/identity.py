@@ -38,8 +38,8 @@ Baselines, scored by the same functions (:func:`baseline_events`):
 * ``busier`` -- every event to one track: accuracy = the share of events naming the busier
   resident (the one named by most events).
 * ``habits`` (supervised; only with a known-residents profile) -- every event to the resident
-  with the most labelled events at its sensor in the profile: what a user with labelled days
-  tries first.
+  with the most labelled events at its sensor in the profile (at its sensor in its bin of the
+  profile's clock, when the profile has one): what a user with labelled days tries first.
 * ``nearest`` -- a greedy online tracker a user would write first: ``K`` pseudo-tracks (``K`` =
   the number of residents in the truth: told, not estimated); each event, in time order, goes to
   the pseudo-track whose most recent event is at the nearest sensor (sensor-graph hops; ties:
@@ -252,24 +252,50 @@ def nearest_events(truth_events: pl.DataFrame, hops: dict[tuple[str, str], int],
     return ev.select("t", "sensor").with_columns(track=pl.Series(out, dtype=pl.String)).select(list(TRACKER_EVENTS))
 
 
-def habits_events(truth_events: pl.DataFrame, profile: pl.DataFrame) -> pl.DataFrame:
+def habits_events(truth_events: pl.DataFrame, profile: pl.DataFrame, *, epoch: str | None = None) -> pl.DataFrame:
     """Baseline ``habits`` (supervised): every event to the resident whose profile has the most
-    events at its sensor (ties: the resident first in text order); a sensor the profile never
-    saw goes to the resident with the most events overall."""
+    events at its sensor -- in its bin of the profile's clock when the profile has one (the
+    ``day`` clock from the site's ``epoch``) -- (ties: the resident first in text order); a
+    sensor the profile never saw (at that time) falls back to the sensor over all times, then
+    to the resident with the most events overall."""
+    from onebit.trackers.residents.known import clock_of
+
     habit = profile.filter(pl.col("from").is_null())
     overall = (
-        habit.group_by("resident").agg(pl.col("count").sum()).sort(["count", "resident"], descending=[True, False])
+        habit.filter(pl.col("bin").is_null())
+        .group_by("resident")
+        .agg(pl.col("count").sum())
+        .sort(["count", "resident"], descending=[True, False])
     )
     default = overall["resident"][0] if overall.height else None
-    best = habit.sort(["to", "count", "resident"], descending=[False, True, False]).unique("to", keep="first")
-    ev = truth_events.select("t", "sensor").join(
-        best.select(pl.col("to").alias("sensor"), pl.col("resident").alias("track")), on="sensor", how="left"
+
+    def best(rows: pl.DataFrame, keys: list[str]) -> pl.DataFrame:
+        return rows.sort([*keys, "count", "resident"], descending=[False] * len(keys) + [True, False]).unique(
+            keys, keep="first"
+        )
+
+    ev = truth_events.sort("t").select("t", "sensor")
+    by_sensor = best(habit.filter(pl.col("bin").is_null()), ["to"]).select(
+        pl.col("to").alias("sensor"), pl.col("resident").alias("_any")
     )
-    return ev.with_columns(pl.col("track").fill_null(default)).select(list(TRACKER_EVENTS))
+    ev = ev.join(by_sensor, on="sensor", how="left")
+    clock = clock_of(profile)
+    if clock is not None:
+        b = clock.bin(ev["t"].to_numpy(), epoch=epoch)
+        ev = ev.with_columns(bin=pl.Series([clock.label(int(k)) for k in b], dtype=pl.String))
+        by_bin = best(habit.filter(pl.col("bin").is_not_null()), ["to", "bin"]).select(
+            pl.col("to").alias("sensor"), "bin", pl.col("resident").alias("_then")
+        )
+        ev = ev.join(by_bin, on=["sensor", "bin"], how="left").with_columns(pl.coalesce("_then", "_any").alias("_any"))
+    return ev.with_columns(track=pl.col("_any").fill_null(default)).select(list(TRACKER_EVENTS))
 
 
 def baseline_rows(
-    truth_events: pl.DataFrame, hops: dict[tuple[str, str], int], *, profile: pl.DataFrame | None = None
+    truth_events: pl.DataFrame,
+    hops: dict[tuple[str, str], int],
+    *,
+    profile: pl.DataFrame | None = None,
+    epoch: str | None = None,
 ) -> list[tuple[str, str, float, str]]:
     """Report rows of the baselines (``identity-busier``, ``identity-nearest``, and with a
     known-residents ``profile`` the supervised ``identity-habits``)."""
@@ -279,7 +305,7 @@ def baseline_rows(
     rows = busy.rows("identity-busier") + near.rows("identity-nearest")
     if profile is not None and profile.height:
         n = float(profile["resident"].n_unique())
-        rows += identity_scores(truth_events, habits_events(truth_events, profile), constant_count=n).rows(
+        rows += identity_scores(truth_events, habits_events(truth_events, profile, epoch=epoch), constant_count=n).rows(
             "identity-habits"
         )
     return rows

@@ -27,14 +27,9 @@ def _session(path, seed: int) -> None:
     path.write_text("\n".join(lines) + "\n")
 
 
-def test_the_study_table(tmp_path):
-    dev = tmp_path / "dev"
-    dev.mkdir()
-    _session(dev / "P01.txt", 0)
-    _session(dev / "P02.txt", 1)
-    (dev / "README").write_text("not a session")
-    res = tmp_path / "res"
-    lay = tmp_path / "line.toml"  # the true line of sensors (a learned graph links what the two fire in turn)
+def _line_layout(tmp_path):
+    """The six sensors on a line, 2 m apart, and its chain graph."""
+    lay = tmp_path / "line.toml"
     lay.write_text(
         "[sensors]\n"
         + "".join(f"M{k:02d} = [{2.0 * k}, 0.0]\n" for k in range(1, 7))
@@ -42,6 +37,17 @@ def test_the_study_table(tmp_path):
         + ", ".join(f'["M{k:02d}", "M{k + 1:02d}"]' for k in range(1, 6))
         + "]\n"
     )
+    return lay
+
+
+def test_the_study_table(tmp_path):
+    dev = tmp_path / "dev"
+    dev.mkdir()
+    _session(dev / "P01.txt", 0)
+    _session(dev / "P02.txt", 1)
+    (dev / "README").write_text("not a session")
+    res = tmp_path / "res"
+    lay = _line_layout(tmp_path)  # the true line of sensors (a learned graph links what the two fire in turn)
     assert (
         main(["experiment", "residents", str(dev), "--results", str(res), "--trackers", "hmm1", "--layout", str(lay)])
         == 0
@@ -110,18 +116,6 @@ def test_a_config_reaches_every_session_and_a_bad_one_is_refused(tmp_path):
     )
 
 
-def _line_layout(tmp_path):
-    lay = tmp_path / "line.toml"
-    lay.write_text(
-        "[sensors]\n"
-        + "".join(f"M{k:02d} = [{2.0 * k}, 0.0]\n" for k in range(1, 7))
-        + "[graph]\nedges = ["
-        + ", ".join(f'["M{k:02d}", "M{k + 1:02d}"]' for k in range(1, 6))
-        + "]\n"
-    )
-    return lay
-
-
 def test_learn_a_profile_and_decode_with_known_residents(tmp_path):
     """`onebit learn residents` from labelled datasets, the profile in another dataset, `onebit run`."""
     for name, seed in (("P01", 0), ("P02", 1)):
@@ -139,6 +133,18 @@ def test_learn_a_profile_and_decode_with_known_residents(tmp_path):
     acc = {s: v for s, m, v in rep.select("stage", "metric", "value").iter_rows() if m == "identity_accuracy"}
     assert {"residents", "identity-habits", "identity-busier", "identity-nearest"} <= set(acc)
     assert acc["residents"] > 0.9 and acc["residents"] >= acc["identity-habits"]
+    # with a clock: the habits also by the session's phase, and the run still decodes the residents
+    assert (
+        main(["learn", "residents", str(tmp_path / "P01"), "--out", str(prof), "--clock", "session", "--bins", "4"])
+        == 0
+    )
+    assert set(pl.read_csv(prof)["bin"].drop_nulls()) == {f"session {k}/4" for k in range(4)}
+    assert (
+        main(["run", str(tmp_path / "P02"), "--out", str(tmp_path / "run2"), "--trackers", "residents", "--no-rrd"])
+        == 0
+    )
+    ev = pl.read_parquet(tmp_path / "run2" / "tables" / "residents_events.parquet")
+    assert set(ev["track"].drop_nulls()) <= {"resident1", "resident2"}
     # no labelled dataset: a clear error naming the file
     assert main(["learn", "residents", str(tmp_path / "run"), "--out", str(tmp_path / "x.csv")]) == 2
 

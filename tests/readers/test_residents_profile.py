@@ -23,7 +23,7 @@ def test_rows_and_rejects(tmp_path):
     )
     prof, rej = read_residents_profile_csv(p)
     assert prof.schema == RESIDENTS_PROFILE
-    assert prof.rows() == [("1", None, "M01", 3.0), ("1", "M01", "M02", 2.5)]
+    assert prof.rows() == [("1", None, "M01", 3.0, None), ("1", "M01", "M02", 2.5, None)]
     why = dict(zip(rej["line"].to_list(), rej["reason"].to_list()))
     assert set(why) == {4, 5, 6, 7}
     assert "count" in why[4] and "negative" in why[4]
@@ -51,3 +51,19 @@ def test_every_line_is_a_row_or_a_reject(tmp_path_factory, rows):
     prof, rej = read_residents_profile_csv(p)
     assert prof.height + rej.height == len(rows)
     assert prof.select(pl.struct("resident", "from", "to").is_duplicated().any()).item() is False
+
+
+def test_the_clock_column(tmp_path):
+    p = tmp_path / "residents_profile.csv"
+    p.write_text(
+        "resident,from,to,count,bin\n"
+        "1,,M01,3,\n"
+        "1,,M01,2,session 0/10\n"
+        "1,,M01,1,session 10/10\n"  # k >= n
+        "1,M01,M02,1,session 1/10\n"  # a bin on a transition row
+        "2,,M02,1,week 1/7\n"  # not a clock
+    )
+    prof, rej = read_residents_profile_csv(p)
+    assert prof["bin"].to_list() == [None, "session 0/10"]
+    why = dict(zip(rej["line"].to_list(), rej["reason"].to_list()))
+    assert set(why) == {4, 5, 6} and all("'bin'" in w for w in why.values())

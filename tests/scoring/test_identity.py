@@ -153,6 +153,7 @@ def test_the_supervised_habits_baseline():
             "from": [None, None, "a", None],
             "to": ["a", "a", "b", "c"],
             "count": [5.0, 2.0, 9.0, 1.0],
+            "bin": [None, None, None, None],
         }
     )
     ev = habits_events(TE, prof)
@@ -186,3 +187,19 @@ def test_error_table_by_hand():
     assert err["run"].to_list() == [0, 1] and err["run_length"].to_list() == [1, 1]
     perfect = te.select("t", "sensor").with_columns(track=te["residents"])
     assert error_table(te, perfect, hops).height == 0
+
+
+def test_the_habits_baseline_by_the_profiles_clock():
+    from onebit.scoring.identity import habits_events
+
+    prof = pl.DataFrame(
+        {
+            "resident": ["1", "2", "2"],
+            "from": [None, None, None],
+            "to": ["a", "a", "a"],
+            "count": [5.0, 2.0, 2.0],
+            "bin": [None, None, "session 1/2"],  # late in the session, a is resident 2's
+        }
+    )
+    ev = habits_events(TE, prof)  # TE's a events at t = 0 (bin 0) and t = 30 (bin 1)
+    assert ev.filter(pl.col("sensor") == "a")["track"].to_list() == ["1", "2"]

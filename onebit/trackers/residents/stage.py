@@ -46,7 +46,7 @@ from onebit.trackers.residents.decode import (
     tracks_from_pred,
 )
 from onebit.trackers.residents.habits import meeting_cuts, reorient
-from onebit.trackers.residents.known import chains, posteriors
+from onebit.trackers.residents.known import chains, clock_bonus, posteriors
 from onebit.trackers.residents.model import birth_cost, move_cost, node_distances
 
 NAME = "residents"
@@ -93,6 +93,8 @@ class ResidentsConfig:
     profile_spread : ``l`` of eq. (K1), metres: the kernel that transitions never seen in the
         profile fall back to.
     profile_prior : ``beta`` of eq. (K1): the weight of that kernel against the learned counts.
+    profile_clock_weight : ``w`` of eq. (K3): the weight of the residents' habits by time when
+        the profile has a clock (0: ignore it).
     """
 
     l0: float = length(1.0)
@@ -118,6 +120,7 @@ class ResidentsConfig:
     profile: bool = True
     profile_spread: float = length(3.0)
     profile_prior: float = 2.0
+    profile_clock_weight: float = 1.0
 
     def __post_init__(self) -> None:
         check_range(self, "l0", 1e-9, None)
@@ -141,6 +144,7 @@ class ResidentsConfig:
         check_range(self, "habit_restarts", 0, 1000, types=(int,))
         check_range(self, "profile_spread", 1e-9, None)
         check_range(self, "profile_prior", 1e-9, 1e9)
+        check_range(self, "profile_clock_weight", 0.0, 100.0)
 
 
 def available(site: Site) -> str | None:
@@ -240,13 +244,14 @@ def attribute(
 
 
 def attribute_known(
-    node: np.ndarray, home: Home, profile: pl.DataFrame, cfg: ResidentsConfig
+    t: np.ndarray, node: np.ndarray, home: Home, profile: pl.DataFrame, cfg: ResidentsConfig, *, epoch: str | None
 ) -> tuple[Attribution, list[str]]:
-    """Each event to its most probable resident under the profile (eq. K1-K2 of
+    """Each event to its most probable resident under the profile (eq. K1-K3 of
     :mod:`onebit.trackers.residents.known`). Returns the attribution (people numbered in the
     order of the profile's residents, only those given an event) and their resident ids."""
     ch = chains(profile, home.nodes, home.dist, spread=cfg.profile_spread, prior=cfg.profile_prior)
-    post, log_z = posteriors(node, ch)
+    bonus = clock_bonus(profile, ch.residents, home.nodes, node, t, epoch=epoch, weight=cfg.profile_clock_weight)
+    post, log_z = posteriors(node, ch, bonus)
     who = post.argmax(axis=1) if len(node) else np.zeros(0, dtype=np.int64)
     fired = np.unique(who)
     track = np.searchsorted(fired, who).astype(np.int64)
@@ -267,7 +272,7 @@ def run(inputs: dict, site: Site, config: ResidentsConfig) -> dict[str, pl.DataF
     node = np.array([index[s] for s in on["sensor"].to_list()], dtype=np.int64)
     profile = inputs.get("residents_profile")
     if config.profile and profile is not None and profile.height:
-        res, labels = attribute_known(node, home, profile, config)
+        res, labels = attribute_known(t, node, home, profile, config, epoch=site.epoch)
         names = np.array([f"resident{r}" for r in labels], dtype=object)
     else:
         K = people_bound(site, config)

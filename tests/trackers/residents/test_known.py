@@ -9,10 +9,20 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
+from onebit.core.errors import ConfigError, InputError
 from onebit.core.tables import RESIDENTS_PROFILE
 from onebit.scoring.identity import identity_scores
 from onebit.trackers.residents import ResidentsConfig, run
-from onebit.trackers.residents.known import Chains, chains, learn_profile, posteriors, posteriors_bruteforce
+from onebit.trackers.residents.known import (
+    Chains,
+    Clock,
+    chains,
+    clock_bonus,
+    clock_of,
+    learn_profile,
+    posteriors,
+    posteriors_bruteforce,
+)
 from tests.trackers.residents.test_stage import corridor_home, motion_log
 
 
@@ -22,16 +32,18 @@ from tests.trackers.residents.test_stage import corridor_home, motion_log
     s=st.integers(1, 4),
     n=st.integers(0, 6),
     seed=st.integers(0, 10_000),
+    clock=st.booleans(),
 )
-def test_posteriors_equal_the_enumeration_of_every_firer_sequence(k, s, n, seed):
+def test_posteriors_equal_the_enumeration_of_every_firer_sequence(k, s, n, seed, clock):
     rng = np.random.default_rng(seed)
     ch = Chains(tuple(str(r) for r in range(k)), np.log(rng.dirichlet(np.ones(s), size=(k, s + 1))))
     node = rng.integers(0, s, n)
-    post, log_z = posteriors(node, ch)
+    bonus = rng.normal(size=(n, k)) if clock else None  # (K3): a factor per event and firer
+    post, log_z = posteriors(node, ch, bonus)
     if n == 0:
         assert post.shape == (0, k)
         return
-    ref, ref_z = posteriors_bruteforce(node, ch)
+    ref, ref_z = posteriors_bruteforce(node, ch, bonus)
     np.testing.assert_allclose(post, ref, atol=1e-10)
     assert log_z == pytest.approx(ref_z, abs=1e-10)
     np.testing.assert_allclose(post.sum(axis=1), 1.0, atol=1e-10)
@@ -46,7 +58,8 @@ def test_profile_counts_by_hand():
     b = _te([(0.0, "M3", "1")])  # a new session: no transition from a's last event
     prof = learn_profile([a, b])
     assert prof.schema == RESIDENTS_PROFILE
-    got = {(r, f, t): c for r, f, t, c in prof.iter_rows()}
+    assert prof["bin"].null_count() == prof.height  # no clock asked: no binned rows
+    got = {(r, f, t): c for r, f, t, c, _ in prof.iter_rows()}
     assert got == {
         ("1", None, "M1"): 1,
         ("1", None, "M2"): 1,
@@ -105,3 +118,38 @@ def test_a_profile_from_one_day_attributes_the_next_one(seed):
     assert acc_known > 0.85 and acc_known > acc_blind
     off = run({"motion": motion, "residents_profile": prof}, site, ResidentsConfig(profile=False))
     assert off["events"].equals(blind["events"])  # profile = false: the unsupervised decoder
+
+
+def test_the_clocks_bins():
+    t = np.array([0.0, 10.0, 50.0, 99.0, 100.0])
+    assert Clock("session", 4).bin(t, epoch=None).tolist() == [0, 0, 2, 3, 3]  # phase first -> last event
+    day = Clock("day", 24).bin(np.array([0.0, 3600.0, 23 * 3600.0]), epoch="2024-01-01T22:30:00")
+    assert day.tolist() == [22, 23, 21]  # 22:30, 23:30, 21:30 the next day
+    with pytest.raises(ConfigError, match="no epoch"):
+        Clock("day", 24).bin(t, epoch=None)
+    for bad in (("week", 4), ("day", 0), ("day", 2.5)):
+        with pytest.raises(ConfigError):
+            Clock(*bad)
+
+
+def test_a_clocked_profile_by_hand_and_its_factor():
+    te = _te([(0.0, "M1", "1"), (5.0, "M2", "2"), (10.0, "M1", "1;2")])
+    prof = learn_profile([te], clock=Clock("session", 2))
+    binned = {(r, s, b): c for r, f, s, c, b in prof.iter_rows() if b is not None}
+    assert binned == {
+        ("1", "M1", "session 0/2"): 1,
+        ("2", "M2", "session 1/2"): 1,
+        ("1", "M1", "session 1/2"): 1,
+        ("2", "M1", "session 1/2"): 1,
+    }
+    assert clock_of(prof) == Clock("session", 2)
+    node = np.array([0, 1, 0])
+    phi = clock_bonus(prof, ("1", "2"), ("M1", "M2"), node, np.array([0.0, 5.0, 10.0]), epoch=None, weight=1.0)
+    # (K3): ln (h_r(s, b) + 1) / sum_u (h_u(s, b) + 1); event 0: M1 in bin 0 -> 1: 2/3, 2: 1/3
+    np.testing.assert_allclose(np.exp(phi[0]), [2 / 3, 1 / 3])
+    np.testing.assert_allclose(np.exp(phi[1]), [1 / 3, 2 / 3])  # M2 in bin 1: resident 2's
+    np.testing.assert_allclose(np.exp(phi[2]), [1 / 2, 1 / 2])  # M1 in bin 1: both once
+    assert clock_bonus(prof, ("1", "2"), ("M1", "M2"), node, np.zeros(3), epoch=None, weight=0.0) is None
+    mixed = pl.concat([prof, prof.with_columns(pl.col("bin").str.replace("session", "day"))])
+    with pytest.raises(InputError, match="mixes clocks"):
+        clock_of(mixed)
