@@ -48,7 +48,6 @@ import numpy as np
 from onebit.trackers.clustertrack import kernels
 from onebit.trackers.clustertrack.space import FeasibleSpace
 
-
 #: Relative distance to a half-integer below which :func:`round_count` takes a count to be
 #: exactly that half-integer: far above the float noise of a product of lengths (1e-16
 #: relative), far below one sample.
