@@ -72,6 +72,11 @@ QUAD_SEGS = 4
 #: Relative slack added to grown distances so round-off never excludes a reachable point.
 _SLACK = 1e-9
 
+#: Relative tolerance of the filter's geometric decisions (module docstring, "Units"): two
+#: regions are compared to within ``delta = REL_TOL * L``, ``L`` the scale of the site
+#: (:func:`site_scale`); areas to within ``REL_TOL * L^2``.
+REL_TOL = 1e-9
+
 #: Grid (world units) to which disk centres are snapped and radii rounded up.
 DISK_GRID = 1e-6
 
@@ -162,9 +167,12 @@ def grow(geoms, distance, *, quad_segs: int = QUAD_SEGS):
     Shapely's round buffer is a polygon inscribed in the true offset curve; its chords are
     at least ``r cos(pi / (4 q))`` from the source, so buffering by ``r / cos(pi / (4 q))``
     contains every point within ``r``. ``distance`` may be an array (one per geometry).
+    The slack against round-off, ``r (1 + 1e-9) + 1e-9 |x|_max`` (``|x|_max`` the largest
+    coordinate magnitude of the geometry, :func:`_magnitude`), is relative: round-off of a
+    coordinate is relative to its magnitude, and the result scales with the units.
     """
     d = np.asarray(distance, dtype=float)
-    r = d / math.cos(math.pi / (4 * quad_segs)) * (1 + _SLACK) + _SLACK
+    r = d / math.cos(math.pi / (4 * quad_segs)) * (1 + _SLACK) + _SLACK * _magnitude(geoms)
     return shapely.buffer(geoms, np.where(d > 0, r, 0.0), quad_segs=quad_segs)
 
 
@@ -172,8 +180,35 @@ def shrink(geoms, distance, *, quad_segs: int = QUAD_SEGS):
     """``geoms (-) B(distance)`` (erosion), a *subset* of the points at least ``distance``
     inside: the inward buffer by the circumscribing radius (see :func:`grow`)."""
     d = np.asarray(distance, dtype=float)
-    r = d / math.cos(math.pi / (4 * quad_segs)) * (1 + _SLACK) + _SLACK
+    r = d / math.cos(math.pi / (4 * quad_segs)) * (1 + _SLACK) + _SLACK * _magnitude(geoms)
     return shapely.buffer(geoms, -np.where(d > 0, r, 0.0), quad_segs=quad_segs)
+
+
+def _magnitude(geoms) -> np.ndarray:
+    """Largest absolute coordinate of each geometry (0 for an empty or missing one)."""
+    b = np.abs(np.asarray(shapely.bounds(geoms), dtype=float))
+    return np.nan_to_num(b.max(axis=-1, initial=0.0))
+
+
+def site_scale(geoms) -> float:
+    """The length scale ``L`` of a set of geometries (the free space, an I-state's regions):
+    the largest of the width and height of their common bounding box and their largest
+    absolute coordinate (round-off grows with it); 0 when all are empty.
+
+    It scales with the units (``L`` in cm is 100 times ``L`` in m, to round-off), so every
+    tolerance set relative to it (``REL_TOL * L``) decides the same way in any unit."""
+    b = np.asarray(shapely.bounds(np.asarray(geoms, dtype=object).ravel()), dtype=float).reshape(-1, 4)
+    b = b[~np.isnan(b).any(axis=1)]
+    if len(b) == 0:
+        return 0.0
+    lo, hi = b[:, :2].min(axis=0), b[:, 2:].max(axis=0)
+    return float(max(hi[0] - lo[0], hi[1] - lo[1], np.abs(lo).max(), np.abs(hi).max()))
+
+
+def tolerance(geoms) -> float:
+    """``delta = REL_TOL * L`` (:func:`site_scale`): the distance to within which the clean-up
+    compares regions (:func:`covers_pairs`)."""
+    return REL_TOL * site_scale(geoms)
 
 
 def disk(center, radius: float, *, outer: bool = True, quad_segs: int = QUAD_SEGS):
@@ -267,6 +302,7 @@ class PairMemo:
         self.capacity = capacity  # entries kept across steps before starting afresh (region ids stay < 2**31)
         self.area: dict[int, float] = {}  # code of (region id, region id) -> area of the intersection
         self.covers: dict[int, bool] = {}  # code of (region id, region id) -> the first covers the second
+        self.covers_delta: float | None = None  # the tolerance ``self.covers`` was computed with
         self._tables: dict[
             object, dict
         ] = {}  # name -> code of a region pair -> geometry (geometries); input -> result (recall)
@@ -585,47 +621,81 @@ def _row_codes(ids: np.ndarray) -> np.ndarray:
 
 
 def covers_pairs(
-    regions: np.ndarray, a: np.ndarray, b: np.ndarray, *, shape: str = "exact", memo: PairMemo | None = None
+    regions: np.ndarray,
+    a: np.ndarray,
+    b: np.ndarray,
+    *,
+    shape: str = "exact",
+    memo: PairMemo | None = None,
+    delta: float | None = None,
 ) -> np.ndarray:
-    """``cov[p, k, l]``: region ``l`` of element ``b[p]`` covers region ``k`` of element ``a[p]``.
+    """``cov[p, k, l]``: region ``l`` of element ``b[p]`` covers region ``k`` of element ``a[p]``
+    to within ``delta`` (default :func:`tolerance` of ``regions``): ``R_k subset R_l (+) B(delta)``.
 
-    Only region pairs whose bounding boxes nest are tested with ``shapely.covers`` (for
+    Why a tolerance (module docstring, "Units"). The regions are results of overlays in
+    floating point: a region that exact arithmetic puts inside another, sharing part of its
+    boundary, pokes out of it by a sliver of round-off width (~1e-16 L) or not, depending on
+    the last bits of the coordinates -- and so on the units (the same site in cm and in m
+    kept 6 and 8 elements). Covering to within ``delta = 1e-9 L`` decides those the way
+    exact arithmetic does, in every unit: the decision changes only where a region pokes
+    out by about ``delta``, 10^7 times the round-off, a coincidence the units do not move.
+    The grown region is shapely's buffer by ``delta`` with one segment per quarter circle,
+    which holds every point within ``delta cos(pi/4)`` of ``R_l`` (and none farther than
+    ``delta``); exact covering is tried first (the same answer, cheaper). ``delta = 0``
+    is GEOS's exact ``covers``.
+
+    Only region pairs whose bounding boxes nest (to within ``delta``) are tested (for
     ``rect`` regions bounding-box nesting *is* covering), each distinct pair once
     (:class:`PairMemo`)."""
-    nest = _nested_boxes(_bounds(regions), a, b)
+    delta = tolerance(regions) if delta is None else float(delta)
+    nest = _nested_boxes(_bounds(regions), a, b, delta)
     if shape == "rect":
         return nest
     cov = np.zeros_like(nest)
     p, k, l = np.nonzero(nest)
     memo = PairMemo() if memo is None else memo
+    if memo.covers_delta != delta:  # the memo's coverings hold for one tolerance
+        memo.covers.clear()
+        memo.covers_delta = delta
     key = memo.keys(regions)
+
+    def covers_within(big, small):
+        out = shapely.covers(big, small)
+        if delta > 0 and not out.all():
+            rest = ~out
+            out[rest] = shapely.covers(shapely.buffer(big[rest], delta, quad_segs=1), small[rest])
+        return out
+
     cov[p, k, l] = memo.pairs(
-        regions[b[p], l], regions[a[p], k], key[b[p], l], key[a[p], k], memo.covers, shapely.covers, bool
+        regions[b[p], l], regions[a[p], k], key[b[p], l], key[a[p], k], memo.covers, covers_within, bool
     )
     return cov
 
 
-def _nested_boxes(bnd: np.ndarray, a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """``nest[p, k, l]``: the bounding box of region ``l`` of element ``b[p]`` contains that of
-    region ``k`` of element ``a[p]`` (``bnd (E, n, 4)`` the regions' bounds)."""
+def _nested_boxes(bnd: np.ndarray, a: np.ndarray, b: np.ndarray, delta: float = 0.0) -> np.ndarray:
+    """``nest[p, k, l]``: the bounding box of region ``l`` of element ``b[p]``, grown by
+    ``delta`` on every side, contains that of region ``k`` of element ``a[p]`` (``bnd (E, n, 4)``
+    the regions' bounds)."""
     ba = bnd[a][:, :, None, :]
     bb = bnd[b][:, None, :, :]
     return (
-        (bb[..., 0] <= ba[..., 0])
-        & (bb[..., 1] <= ba[..., 1])
-        & (bb[..., 2] >= ba[..., 2])
-        & (bb[..., 3] >= ba[..., 3])
+        (bb[..., 0] - delta <= ba[..., 0])
+        & (bb[..., 1] - delta <= ba[..., 1])
+        & (bb[..., 2] + delta >= ba[..., 2])
+        & (bb[..., 3] + delta >= ba[..., 3])
     )
 
 
-def covers_matrix(regions: np.ndarray, *, shape: str = "exact") -> np.ndarray:
+def covers_matrix(regions: np.ndarray, *, shape: str = "exact", delta: float | None = None) -> np.ndarray:
     """``cov[a, b, k, l]`` for every pair of elements (see :func:`covers_pairs`)."""
     E = regions.shape[0]
     a, b = np.divmod(np.arange(E * E), E)
-    return covers_pairs(regions, a, b, shape=shape).reshape(E, E, regions.shape[1], regions.shape[1])
+    return covers_pairs(regions, a, b, shape=shape, delta=delta).reshape(E, E, regions.shape[1], regions.shape[1])
 
 
-def remove_dominated(istate: IState, *, shape: str = "exact", memo: PairMemo | None = None) -> IState:
+def remove_dominated(
+    istate: IState, *, shape: str = "exact", memo: PairMemo | None = None, delta: float | None = None
+) -> IState:
     """Remove every element dominated by another (section VI-A, fourth clean-up step).
 
     ``E_b`` dominates ``E_a`` iff the containment bipartite graph (region ``k`` of ``E_a`` --
@@ -634,29 +704,39 @@ def remove_dominated(istate: IState, *, shape: str = "exact", memo: PairMemo | N
     relation is a strict partial order, so every removed element is dominated by a kept
     one and the union is unchanged.
 
+    Containment is decided to within ``delta`` (``R^(a)_k subset R^(b)_l (+) B(delta)``,
+    :func:`covers_pairs`; default :func:`tolerance` of the regions), so that the same site
+    keeps the same elements in any unit; a removed element then lies within ``delta`` of a
+    kept one (every target position of it is at most ``delta = 1e-9 L`` from the I-state).
+
     Two necessary conditions prune the ``E^2`` pairs in numpy before any geometry: the
-    bounding box of ``E_b``'s regions contains that of ``E_a``'s, and ``E_b``'s region areas,
-    sorted, are elementwise at least ``E_a``'s (a matching into supersets implies both).
+    bounding box of ``E_b``'s regions grown by ``delta`` contains that of ``E_a``'s, and
+    ``E_b``'s region areas grown by what the ``delta``-neighbourhood can add
+    (``|R (+) B(delta)| <= |R| + delta perimeter(R) + 4 delta^2``), sorted, are elementwise at
+    least ``E_a``'s (a matching into supersets implies both).
     """
     E = istate.size
     if E <= 1:
         return istate
     r = istate.regions
+    delta = tolerance(r) if delta is None else float(delta)
     bnd = _bounds(r)
     box_e = np.stack([bnd[..., 0].min(1), bnd[..., 1].min(1), bnd[..., 2].max(1), bnd[..., 3].max(1)], axis=1)
-    sa = -np.sort(-shapely.area(r), axis=1)
-    tol = 1e-12 * (1.0 + sa.max())
+    area = shapely.area(r)
+    sa = -np.sort(-area, axis=1)
+    sb = -np.sort(-(area + delta * shapely.length(r) + 4 * delta * delta), axis=1)
+    tol = 1e-12 * sa.max()  # round-off of the areas, relative
     dom = np.zeros((E, E), dtype=bool)  # dom[a, b]: b dominates a
     for lo in range(0, E, 512):  # rows in blocks: memory O(512 E n)
         hi = min(E, lo + 512)
         ba, bb = box_e[lo:hi, None, :], box_e[None, :, :]
         cand = (
-            (bb[..., 0] <= ba[..., 0])
-            & (bb[..., 1] <= ba[..., 1])
-            & (bb[..., 2] >= ba[..., 2])
-            & (bb[..., 3] >= ba[..., 3])
+            (bb[..., 0] - delta <= ba[..., 0])
+            & (bb[..., 1] - delta <= ba[..., 1])
+            & (bb[..., 2] + delta >= ba[..., 2])
+            & (bb[..., 3] + delta >= ba[..., 3])
         )
-        cand &= (sa[None, :, :] >= sa[lo:hi, None, :] - tol).all(axis=-1)
+        cand &= (sb[None, :, :] >= sa[lo:hi, None, :] - tol).all(axis=-1)
         a, b = np.nonzero(cand)
         a = a + lo
         keep = a != b
@@ -664,18 +744,20 @@ def remove_dominated(istate: IState, *, shape: str = "exact", memo: PairMemo | N
         for c in range(0, len(a), 65536):  # candidate pairs in chunks: memory O(65536 n^2)
             aa, bb_ = a[c : c + 65536], b[c : c + 65536]
             if shape != "rect":  # a covering nests the boxes: no perfect matching of nested boxes, none of coverings
-                ok = has_perfect_matching(_nested_boxes(bnd, aa, bb_))
+                ok = has_perfect_matching(_nested_boxes(bnd, aa, bb_, delta))
                 aa, bb_ = aa[ok], bb_[ok]
-            dom[aa, bb_] = has_perfect_matching(covers_pairs(r, aa, bb_, shape=shape, memo=memo))
+            dom[aa, bb_] = has_perfect_matching(covers_pairs(r, aa, bb_, shape=shape, memo=memo, delta=delta))
     idx = np.arange(E)
     beaten = dom & (~dom.T | (idx[None, :] < idx[:, None]))
     return IState(r[~beaten.any(axis=1)])
 
 
-def clean_up(istate: IState, *, shape: str = "exact", memo: PairMemo | None = None) -> IState:
+def clean_up(
+    istate: IState, *, shape: str = "exact", memo: PairMemo | None = None, delta: float | None = None
+) -> IState:
     """The four clean-up steps of section VI-A: canonical order, duplicates and empty elements
-    removed, dominated elements removed."""
-    return remove_dominated(canonical(istate, shape=shape, memo=memo), shape=shape, memo=memo)
+    removed, dominated elements removed (to within ``delta``, see :func:`remove_dominated`)."""
+    return remove_dominated(canonical(istate, shape=shape, memo=memo), shape=shape, memo=memo, delta=delta)
 
 
 # --------------------------------------------------------------------------- the cap M
@@ -743,7 +825,14 @@ def merge_elements(
     return np.asarray(join(a, b[tau]) if fresh else memo.geometries(a, b[tau], ("merge", shape), join), dtype=object)
 
 
-def cap_elements(istate: IState, max_elements: int, *, shape: str = "exact", memo: PairMemo | None = None) -> IState:
+def cap_elements(
+    istate: IState,
+    max_elements: int,
+    *,
+    shape: str = "exact",
+    memo: PairMemo | None = None,
+    delta: float | None = None,
+) -> IState:
     """Merge until at most ``M`` elements remain (section VI-A).
 
     Similarity of two elements = their total pairwise region overlap under the pairing of
@@ -772,14 +861,20 @@ def cap_elements(istate: IState, max_elements: int, *, shape: str = "exact", mem
     memo = PairMemo() if memo is None else memo
     if E > CAP_CHUNK:  # hierarchical: cap chunks of CAP_CHUNK first (each merge is a superset)
         parts = [
-            cap_elements(IState(istate.regions[i : i + CAP_CHUNK]), max_elements, shape=shape, memo=memo).regions
+            cap_elements(
+                IState(istate.regions[i : i + CAP_CHUNK]), max_elements, shape=shape, memo=memo, delta=delta
+            ).regions
             for i in range(0, E, CAP_CHUNK)
         ]
         return cap_elements(
-            clean_up(IState(np.vstack(parts)), shape=shape, memo=memo), max_elements, shape=shape, memo=memo
+            clean_up(IState(np.vstack(parts)), shape=shape, memo=memo, delta=delta),
+            max_elements,
+            shape=shape,
+            memo=memo,
+            delta=delta,
         )
     if shape == "rect":  # box overlaps are the exact similarities: nothing to bound
-        return cap_elements_reference(istate, max_elements, shape=shape, memo=memo)
+        return cap_elements_reference(istate, max_elements, shape=shape, memo=memo, delta=delta)
     regs = [row for row in istate.regions]
     sim = np.full((E, E), -np.inf)
     tau = np.zeros((E, E, n), dtype=np.int64)
@@ -817,7 +912,7 @@ def cap_elements(istate: IState, max_elements: int, *, shape: str = "exact", mem
             ub[i, others] = ub[others, i] = _slack(b[0])
             known[i, others] = known[others, i] = False
     out = IState(np.stack([regs[k] for k in np.flatnonzero(alive)]))
-    return clean_up(out, shape=shape, memo=memo)
+    return clean_up(out, shape=shape, memo=memo, delta=delta)
 
 
 def _box_overlaps(a: np.ndarray, b: np.ndarray) -> np.ndarray:
@@ -873,7 +968,12 @@ def _aligned_overlaps(a: np.ndarray, b: np.ndarray, *, shape: str, memo: PairMem
 
 
 def cap_elements_reference(
-    istate: IState, max_elements: int, *, shape: str = "exact", memo: PairMemo | None = None
+    istate: IState,
+    max_elements: int,
+    *,
+    shape: str = "exact",
+    memo: PairMemo | None = None,
+    delta: float | None = None,
 ) -> IState:
     """Merge until at most ``M`` elements remain (section VI-A), every similarity computed:
     the plain reference of :func:`cap_elements` (and the test oracle; same result).
@@ -895,12 +995,16 @@ def cap_elements_reference(
         memo = PairMemo() if memo is None else memo
         parts = [
             cap_elements_reference(
-                IState(istate.regions[i : i + CAP_CHUNK]), max_elements, shape=shape, memo=memo
+                IState(istate.regions[i : i + CAP_CHUNK]), max_elements, shape=shape, memo=memo, delta=delta
             ).regions
             for i in range(0, E, CAP_CHUNK)
         ]
         return cap_elements_reference(
-            clean_up(IState(np.vstack(parts)), shape=shape, memo=memo), max_elements, shape=shape, memo=memo
+            clean_up(IState(np.vstack(parts)), shape=shape, memo=memo, delta=delta),
+            max_elements,
+            shape=shape,
+            memo=memo,
+            delta=delta,
         )
     regs = [row for row in istate.regions]
     memo = PairMemo() if memo is None else memo
@@ -926,7 +1030,7 @@ def cap_elements_reference(
             sim[others, i] = s_new
             tau[others, i] = np.argsort(t_new, axis=1)  # inverse pairing
     out = IState(np.stack([regs[k] for k in np.flatnonzero(alive)]))
-    return clean_up(out, shape=shape, memo=memo)
+    return clean_up(out, shape=shape, memo=memo, delta=delta)
 
 
 # --------------------------------------------------------------------------- query
@@ -1076,13 +1180,14 @@ def info_state_update(
         memo.new_step()
         recall = memo.recall
     eta = forward_project(istate, step, free_space, shape=shape, substeps=substeps, memo=memo)
+    delta = tolerance(free_space)  # one tolerance for the whole run: the site's scale
 
     def observe(eta, s):
-        eta = clean_up(observation_update(eta, s, shape=shape, memo=memo), shape=shape, memo=memo)
-        return eta if max_elements is None else cap_elements(eta, max_elements, shape=shape, memo=memo)
+        eta = clean_up(observation_update(eta, s, shape=shape, memo=memo), shape=shape, memo=memo, delta=delta)
+        return eta if max_elements is None else cap_elements(eta, max_elements, shape=shape, memo=memo, delta=delta)
 
     def subtract(eta, s):
-        return clean_up(negative_update(eta, s, shape=shape, memo=memo), shape=shape, memo=memo)
+        return clean_up(negative_update(eta, s, shape=shape, memo=memo), shape=shape, memo=memo, delta=delta)
 
     for i, s in enumerate(detections):
         new = recall(eta, s, ("observe", shape, max_elements), observe)

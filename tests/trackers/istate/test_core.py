@@ -35,6 +35,7 @@ from onebit.trackers.istate.core import (
     permutations,
     remove_dominated,
     same_elements,
+    tolerance,
 )
 
 ROOM = box(0, 0, 10, 8)
@@ -252,12 +253,14 @@ def test_row_codes_keep_the_lexicographic_order_of_rows(n, E, hi, seed):
     assert np.array_equal(a, b)  # the first of equal rows, as numpy picks it
 
 
-def _remove_dominated_plain(eta: IState) -> IState:
-    """The definition: every element pair's containment graph (shapely.covers on every region
-    pair), a perfect matching, strict or earlier-index domination removes."""
+def _remove_dominated_plain(eta: IState, delta: float) -> IState:
+    """The definition: every element pair's containment graph (``R^b_l (+) B(delta)`` covers
+    ``R^a_k``, on every region pair; ``delta = 0``: GEOS's exact covers), a perfect matching,
+    strict or earlier-index domination removes."""
     r = eta.regions
     E, n = r.shape
-    cov = shapely.covers(r[None, :, None, :], r[:, None, :, None])  # cov[a, b, k, l]: R^b_l covers R^a_k
+    big = shapely.buffer(r, delta, quad_segs=1) if delta > 0 else r
+    cov = shapely.covers(big[None, :, None, :], r[:, None, :, None])  # cov[a, b, k, l]: R^b_l covers R^a_k
     dom = has_perfect_matching(cov) & ~np.eye(E, dtype=bool)
     idx = np.arange(E)
     beaten = dom & (~dom.T | (idx[None, :] < idx[:, None]))
@@ -265,11 +268,12 @@ def _remove_dominated_plain(eta: IState) -> IState:
 
 
 @settings(max_examples=25, deadline=None)
-@given(st.integers(0, 2**32 - 1), st.integers(1, 4), st.integers(2, 25))
-def test_remove_dominated_equals_the_plain_definition(seed, n, E):
+@given(st.integers(0, 2**32 - 1), st.integers(1, 4), st.integers(2, 25), st.sampled_from([None, 0.0]))
+def test_remove_dominated_equals_the_plain_definition(seed, n, E, delta):
     """The prefilters (element boxes, sorted areas, a perfect matching of nested region boxes)
-    and the memo change nothing: the elements the plain every-pair definition keeps. Elements
-    are copies sharing regions (as an observation update makes them), some shrunk."""
+    and the memo change nothing: the elements the plain every-pair definition keeps, with the
+    default tolerance (``1e-9`` of the scale) and with exact covering. Elements are copies
+    sharing regions (as an observation update makes them), some shrunk."""
     rng = np.random.default_rng(seed)
     base = [
         shapely.intersection(Point(*rng.uniform([0, 0], [10, 8])).buffer(rng.uniform(0.5, 3), quad_segs=4), FREE)
@@ -281,8 +285,9 @@ def test_remove_dominated_equals_the_plain_definition(seed, n, E):
         if rng.random() < 0.5:
             row[k] = shapely.intersection(row[k], box(*rng.uniform([0, 0], [5, 4]), *rng.uniform([5, 4], [10, 8])))
     eta = canonical(IState.from_elements(rows))
-    assert [shapely.to_wkb(x) for x in remove_dominated(eta).regions.ravel()] == [
-        shapely.to_wkb(x) for x in _remove_dominated_plain(eta).regions.ravel()
+    d = tolerance(eta.regions) if delta is None else delta
+    assert [shapely.to_wkb(x) for x in remove_dominated(eta, delta=delta).regions.ravel()] == [
+        shapely.to_wkb(x) for x in _remove_dominated_plain(eta, d).regions.ravel()
     ]
 
 
