@@ -47,7 +47,16 @@ from onebit.core.site import Site
 from onebit.core.tables import CROSSINGS, MOTION, PROXIMITY, TRACKS, check_schema, conform
 from onebit.core.units import length
 from onebit.trackers.base import ARTIFACTS, TrackerSpec
-from onebit.trackers.istate.core import SHAPES, IState, PairMemo, disk, grow, info_state_update, shrink
+from onebit.trackers.istate.core import (
+    SHAPES,
+    IState,
+    PairMemo,
+    SiteFrame,
+    disk,
+    grow,
+    info_state_update,
+    shrink,
+)
 
 _optimize = lazy_module("scipy.optimize")
 
@@ -382,17 +391,25 @@ def run(inputs: dict, site: Site, config: IStateConfig) -> dict[str, pl.DataFram
     )
     rd = rd.with_columns(idx=pl.col("sensor").replace_strict(index, return_dtype=pl.Int64)).sort("stage", "idx")
 
-    free = site.free_space
+    # the filter runs in the site's normalised frame, its inputs snapped (unit-free, SiteFrame)
+    frame = SiteFrame.of(site.free_space)
+    free = frame.outer(site.free_space)
     det = rd.filter("detect")
     det_geom = (
-        shapely.intersection(grow(sr.positive[det["idx"].to_numpy()], det["inflation"].to_numpy()), free)
+        shapely.intersection(
+            grow(frame.outer(sr.positive)[det["idx"].to_numpy()], frame.length(det["inflation"].to_numpy())), free
+        )
         if det.height
         else np.zeros(0, object)
     )
     det_stage = det["stage"].to_numpy()
     neg = rd.filter(pl.col("negative") & pl.lit(config.reliable_negatives)) if config.reliable_negatives else rd.clear()
     # a reading may lag the target by latency_s: only S eroded by v latency_s is surely empty
-    neg_geom = shrink(sr.negative[neg["idx"].to_numpy()], v * latency) if neg.height else np.zeros(0, object)
+    neg_geom = (
+        shrink(frame.inner(sr.negative)[neg["idx"].to_numpy()], frame.length(v * latency))
+        if neg.height
+        else np.zeros(0, object)
+    )
     neg_stage = neg["stage"].to_numpy()
     keep_neg = ~shapely.is_empty(neg_geom) if len(neg_geom) else np.zeros(0, bool)
     neg_geom, neg_stage = neg_geom[keep_neg], neg_stage[keep_neg]
@@ -405,12 +422,13 @@ def run(inputs: dict, site: Site, config: IStateConfig) -> dict[str, pl.DataFram
     prev = None
     memo = PairMemo()  # region-pair results of the whole run (regions recur across stages)
     free_area = float(free.area) or 1.0
+    step = float(frame.length(v * T))
     for k, tk in enumerate(times):  # inherently sequential: the I-state of stage k depends on k-1
         rejected: list | None = [] if config.contradictions == "reject" else None
         eta = info_state_update(
             eta,
             det_geom[det_bounds[k] : det_bounds[k + 1]],
-            step=v * T if k else 0.0,
+            step=step if k else 0.0,
             free_space=free,
             shape=config.shape,
             max_elements=cap,
@@ -423,12 +441,21 @@ def run(inputs: dict, site: Site, config: IStateConfig) -> dict[str, pl.DataFram
         reg_rows.append(eta.regions.ravel())
         area = memo.recall(eta, free, "total_area", IState.total_area)  # the I-state recurs at a fixed point
         summ.append(
-            (float(tk), k, E, area, int(det_bounds[k + 1] - det_bounds[k]), len(rejected or ()), area / free_area)
+            (
+                float(tk),
+                k,
+                E,
+                area * frame.scale**2,
+                int(det_bounds[k + 1] - det_bounds[k]),
+                len(rejected or ()),
+                area / free_area,
+            )
         )
         track_xy[k] = prev = _point_summary(eta, prev, n)
 
     summary = pl.DataFrame(summ, schema=SUMMARY, orient="row")
-    regions = _regions_table(times, reg_rows, n)
+    regions = _regions_table(times, reg_rows, n, frame)
+    track_xy = frame.xy_to_site(track_xy)
     K = len(times)
     tracks = conform(
         pl.DataFrame(
@@ -457,13 +484,16 @@ def run(inputs: dict, site: Site, config: IStateConfig) -> dict[str, pl.DataFram
     return {"tracks": tracks, "summary": summary, "regions": regions, "detections": detections, ARTIFACTS: artifacts}
 
 
-def _regions_table(times: np.ndarray, regions: list, n: int) -> pl.DataFrame:
-    """The ``regions`` table (REGIONS) of the stages' flattened ``(E_k n,)`` region arrays:
-    one row per region, built once for the run."""
+def _regions_table(times: np.ndarray, regions: list, n: int, frame: SiteFrame) -> pl.DataFrame:
+    """The ``regions`` table (REGIONS) of the stages' flattened ``(E_k n,)`` region arrays
+    (in ``frame``): one row per region in site units, built once for the run (a region
+    recurring across stages is mapped back once)."""
     if not regions:
         return pl.DataFrame(schema=REGIONS)
     sizes = np.array([len(r) for r in regions], dtype=np.int64)  # E_k n
     flat = np.concatenate(regions) if sizes.sum() else np.zeros(0, dtype=object)
+    _, first, inv = np.unique(np.fromiter(map(id, flat), dtype=np.int64, count=len(flat)), return_index=True, return_inverse=True)
+    flat = np.asarray(frame.to_site(flat[first]), dtype=object)[inv.ravel()]
     within = np.arange(len(flat), dtype=np.int64) - np.repeat(np.cumsum(sizes) - sizes, sizes)  # position in its stage
     return pl.DataFrame(
         {
