@@ -195,7 +195,9 @@ def test_deterministic_and_empty_input(tmp_path):
 
 def test_regions_table_is_the_stages_rows_in_order():
     """The run's regions table built at once equals one frame per stage, concatenated (stages
-    with no element included)."""
+    with no element included), each region mapped from the filter's frame to site units
+    (``x L + origin``; a region object recurring across stages mapped once, the same rows)."""
+    from onebit.trackers.istate.core import SiteFrame
     from onebit.trackers.istate.stage import REGIONS, _regions_table
 
     rng = np.random.default_rng(0)
@@ -205,6 +207,10 @@ def test_regions_table_is_the_stages_rows_in_order():
         np.array([shapely.box(*rng.uniform(0, 1, 2), *rng.uniform(2, 3, 2)) for _ in range(E * n)], dtype=object)
         for E in (1, 0, 3, 2)
     ]
+    stages[3][1] = stages[2][4]  # the same region object in two stages
+    frame = SiteFrame((2.0, -1.0), 4.0)
+    to_site = lambda g: shapely.affinity.affine_transform(g, [4.0, 0, 0, 4.0, 2.0, -1.0])  # noqa: E731
+    site = [np.array([to_site(g) for g in r] + [None], dtype=object)[:-1] for r in stages]
     frames = [
         pl.DataFrame(
             {
@@ -217,8 +223,8 @@ def test_regions_table_is_the_stages_rows_in_order():
             },
             schema=REGIONS,
         )
-        for k, (tk, r) in enumerate(zip(times, stages))
+        for k, (tk, r) in enumerate(zip(times, site))
     ]
-    assert _regions_table(times, stages, n).equals(pl.concat(frames))
-    assert _regions_table(times[:1], [stages[1]], n).equals(frames[1].clear())
-    assert _regions_table(times[:0], [], n).equals(pl.DataFrame(schema=REGIONS))
+    assert _regions_table(times, stages, n, frame).equals(pl.concat(frames))
+    assert _regions_table(times[:1], [stages[1]], n, frame).equals(frames[1].clear())
+    assert _regions_table(times[:0], [], n, frame).equals(pl.DataFrame(schema=REGIONS))
