@@ -41,8 +41,28 @@ distinct region's projection, intersection with a sensing region and merge union
 observation steps by the I-state they start from (an I-state at a fixed point -- a target
 staying within a sensor's reach -- comes back stage after stage).
 
+Units. The filter is unit-free: the same site in cm gives the results in m times 100
+(areas 10^4). Two things stood in the way, both decisions taken on round-off:
+
+* GEOS decides exactly on floating-point coordinates. A region that exact arithmetic puts
+  inside another, sharing part of its boundary (``R cap S`` and ``R``), is covered or not
+  depending on the last bits of the coordinates; an exact collinearity inside GEOS's
+  buffer keeps or drops a vertex; elements are ordered by their WKB bytes and the cap's
+  ties fall by that order. Scaling every coordinate by 100 changes those bits, so the
+  same site kept 8 elements in m and 6 in cm. The stage therefore runs the filter in the
+  site's normalised frame (:class:`SiteFrame`): coordinates ``(x - origin) / L`` snapped
+  to a ``2^-20`` grid, the same numbers in every unit, so the whole run is the same
+  computation bit for bit (the inputs grown, shrunk or rounded up so every step stays a
+  superset), mapped back to site units at the end.
+* Dominance is decided to within ``delta = REL_TOL L`` (:func:`covers_pairs`), so a
+  round-off sliver of ``R cap S`` poking out of ``R`` does not keep a dominated element
+  alive: the decision exact arithmetic makes (the paper's), in the frame and in direct
+  calls of these functions in any unit. Every tolerance and slack here is relative to
+  ``L`` (:func:`site_scale`) or to the coordinates' magnitude, none absolute.
+
 Soundness. Every operation returns a superset of the exact result (the containment
-guarantee of the paper). Shapely approximates round buffers by inscribed polygons, so every
+guarantee of the paper) -- up to ``delta = 1e-9 L``: an element removed as dominated lies
+within ``delta`` of one kept. Shapely approximates round buffers by inscribed polygons, so every
 buffer that must *contain* a disk is made with the circumscribing radius
 ``r / cos(pi / (4 q))`` (``q`` segments per quarter circle), see :func:`grow`.
 """
@@ -260,8 +280,9 @@ def void(geoms) -> np.ndarray:
     return shapely.is_empty(geoms) | shapely.is_missing(geoms)
 
 
-#: Grid of :class:`SiteFrame` coordinates and lengths, as a fraction of the site's extent.
-FRAME_GRID = 2.0**-30
+#: Grid of :class:`SiteFrame` coordinates and lengths, as a fraction of the site's extent
+#: (about 1e-6: 30 micrometres in a 30 m room, far below any sensing region's accuracy).
+FRAME_GRID = 2.0**-20
 
 
 @dataclass(frozen=True)
@@ -272,9 +293,10 @@ class SiteFrame:
     ``origin`` is the lower-left corner of the free space's bounding box and ``scale`` the
     larger of its width and height, so the site lies in ``[0, 1]^2`` whatever its units. The
     same site written in cm and in m has coordinates that differ only in their last bits
-    (``100 x`` rounded); rounded to a ``2^-30`` grid they are the same numbers (unless one
-    lies within ~1e-16 of the middle between two grid points, probability ~2^-21 per
-    coordinate), and GEOS, given the same numbers, makes the same decisions. So the filter
+    (``100 x`` rounded, then divided by ``100 L`` rounded: a few units in the 53rd bit);
+    rounded to a ``2^-20`` grid they are the same numbers -- unless one lies within those few
+    bits of the middle between two grid points, probability ~2^-31 per coordinate -- and
+    GEOS, given the same numbers, makes the same decisions. So the filter
     run on the snapped inputs is the same computation in every unit, bit for bit --
     including what no tolerance can fix: GEOS's buffer dropping an input vertex by an exact
     collinearity test, elements ordered by their WKB bytes, exact ties of the cap.

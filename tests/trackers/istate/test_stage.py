@@ -228,3 +228,34 @@ def test_regions_table_is_the_stages_rows_in_order():
     assert _regions_table(times, stages, n, frame).equals(pl.concat(frames))
     assert _regions_table(times[:1], [stages[1]], n, frame).equals(frames[1].clear())
     assert _regions_table(times[:0], [], n, frame).equals(pl.DataFrame(schema=REGIONS))
+
+
+@pytest.mark.parametrize("shape", ["exact", "rect", "disk"])
+def test_the_stage_is_unit_free(tmp_path, shape):
+    """The same room in cm gives the results in m scaled, to round-off (the filter runs in the
+    site's normalised frame, the same numbers in every unit): element counts per stage,
+    areas times 10^4, the point summary and every region times 100."""
+    import tomllib
+
+    from tests.pipeline.test_units import site_in_cm
+
+    from onebit.core.units import config_in_site_units
+
+    data = write_room_dataset(tmp_path / "d", seed=5, duration=40.0, n=3)
+    raw = pl.read_csv(data / "motion.csv")
+    motion = raw.select(pl.col("t").cast(pl.Float64), "sensor", on=pl.col("value") == 1)
+    site_m = load_site(data / "site.toml")
+    cm, k = site_in_cm(tomllib.loads((data / "site.toml").read_text()))
+    site_cm = site_from_dict(cm)
+    cfg = IStateConfig(shape=shape, max_elements=4, reliable_negatives=shape == "rect")
+    a = run({"motion": motion}, site_m, cfg)
+    b = run({"motion": motion}, site_cm, config_in_site_units(cfg, site_cm))
+    sa, sb = a["summary"], b["summary"]
+    assert sa["elements"].to_list() == sb["elements"].to_list() and sa["elements"].max() > 1
+    assert np.allclose(sb["area"].to_numpy(), sa["area"].to_numpy() * k * k, rtol=1e-12, atol=0)
+    for c in ("x", "y"):
+        assert np.allclose(b["tracks"][c].to_numpy() / k, a["tracks"][c].to_numpy(), rtol=0, atol=1e-12, equal_nan=True)
+    ga = shapely.from_wkb(a["regions"]["wkb"].to_numpy())
+    gb = shapely.transform(shapely.from_wkb(b["regions"]["wkb"].to_numpy()), lambda xy: xy / k)
+    assert (shapely.get_num_coordinates(ga) == shapely.get_num_coordinates(gb)).all()
+    assert np.allclose(shapely.get_coordinates(ga), shapely.get_coordinates(gb), rtol=0, atol=1e-12)
