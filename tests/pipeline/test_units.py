@@ -143,22 +143,16 @@ SCENARIOS = {
     "proximity-grid": dict(),
 }
 
-#: (scenario, tracker) -> how closely the cm run must reproduce the m run:
-#: ``exact`` -- tracks and report rows equal once scaled (rel 1e-6);
-#: ``close`` -- the I-state filter: GEOS overlays of scaled polygons differ in the last bits
-#: and a vertex may fall differently, so lengths and areas agree to rel 1e-3, the point
-#: summary to 1 cm per stage (as a set: its target labels follow the canonical order of the
-#: regions, normalised WKB bytes, which is not scale invariant), counts exactly;
-#: ``guarantee`` -- several ambiguous elements: which ones survive the cap is decided by that
-#: order, so only the guarantee is compared (containment, scored stages, area of the union).
-#: every tracker on the scenario its TrackerEntry names, exactly unless named here
-CLOSENESS = {"istate": "close"}
-COMPARED = {(e.scenario, e.name): CLOSENESS.get(e.name, "exact") for e in TRACKERS} | {
-    ("beams-lab", "istate"): "guarantee",  # and the I-state filter on every other scenario
-    ("pir14", "istate"): "close",
-    ("proximity-line", "istate"): "guarantee",
-    ("hallway", "istate"): "guarantee",
-    ("proximity-grid", "istate"): "guarantee",
+#: (scenario, tracker) -> how closely the cm run must reproduce the m run: ``exact`` -- tracks
+#: and report rows equal once scaled (rel 1e-6). Every tracker on the scenario its TrackerEntry
+#: names, and the ones named here. The I-state filter too: it runs in the site's normalised
+#: frame (``SiteFrame``), the same numbers in every unit, so GEOS decides the same way.
+COMPARED = {(e.scenario, e.name): "exact" for e in TRACKERS} | {
+    ("beams-lab", "istate"): "exact",  # and the I-state filter on every other scenario
+    ("pir14", "istate"): "exact",
+    ("proximity-line", "istate"): "exact",
+    ("hallway", "istate"): "exact",
+    ("proximity-grid", "istate"): "exact",
     ("proximity-grid", "clustertrack"): "exact",  # and CLUSTERTRACK on the 2-D grid too
     ("pir14", "residents"): "exact",  # and the residents tracker on every site with motion sensors
     ("istate-room", "residents"): "exact",
@@ -172,7 +166,6 @@ CONFIG = {
 }
 
 EVERY_TRACKER = tuple(e.name for e in TRACKERS)
-GUARANTEE_ROWS = ("containment", "scored_stages", "area_mean")
 
 
 @pytest.fixture(scope="module")
@@ -211,11 +204,6 @@ def test_every_tracker_is_compared(runs):
         }
 
 
-def _point_sets(df: pl.DataFrame, k: float = 1.0) -> np.ndarray:
-    """Track points per time, each time's points sorted (labels ignored), lengths times ``k``."""
-    return df.select("t", pl.col("x") * k, pl.col("y") * k).sort("t", "x", "y").select("x", "y").to_numpy()
-
-
 @pytest.mark.parametrize("scenario, tracker", list(COMPARED))
 def test_tracks_scale_with_the_units(runs, scenario, tracker):
     k, a, b = runs[scenario]
@@ -224,11 +212,7 @@ def test_tracks_scale_with_the_units(runs, scenario, tracker):
     tb = pl.read_parquet(b.out / "tables" / f"{tracker}_tracks.parquet").sort("track", "t")
     assert ta.height == tb.height > 0
     assert np.allclose(np.sort(ta["t"].to_numpy()), np.sort(tb["t"].to_numpy()), rtol=0, atol=1e-9)
-    if mode == "guarantee":
-        return
-    if mode == "close":
-        assert np.allclose(_point_sets(ta, k), _point_sets(tb), rtol=0, atol=1.0, equal_nan=True)  # 1 cm
-        return
+    assert mode == "exact", mode
     assert ta["track"].to_list() == tb["track"].to_list()
     for c in ("x", "y"):
         xa = ta[c].to_numpy().astype(float) * k
@@ -240,16 +224,7 @@ def test_tracks_scale_with_the_units(runs, scenario, tracker):
 
 #: (scenario, stage) whose report rows are known not to scale, each a finding to fix (strict: the
 #: test says so when it is fixed); every other row of the scenario is still compared
-KNOWN_ROWS = {
-    ("proximity-grid", "istate"): pytest.mark.xfail(
-        strict=True,
-        reason="istate's dominance test is GEOS's exact `covers` on the results of overlays: a region that "
-        "exact arithmetic puts inside another, sharing its boundary, is covered in cm and not in m (a sliver "
-        "of 0 to 8e-18 m^2): one dominance test keeps 8 elements in m and 6 in cm, the summaries differ from "
-        "stage 5 on (8 vs 7 elements), the cap merges other elements and the union differs from stage 14 on "
-        "(area_mean 58.87 m^2 vs 53.56 m^2)",
-    ),
-}
+KNOWN_ROWS: dict = {}
 
 
 def _compare_report_rows(runs, scenario: str, *, only: str | None = None) -> None:
@@ -265,8 +240,6 @@ def _compare_report_rows(runs, scenario: str, *, only: str | None = None) -> Non
         if (row_a["stage"] != only) if only else (scenario, row_a["stage"]) in KNOWN_ROWS:
             continue
         mode = COMPARED.get((scenario, row_a["stage"]), "exact")
-        if mode == "guarantee" and row_a["metric"] not in GUARANTEE_ROWS:
-            continue
         ua, ub = row_a["unit"], row_b["unit"]
         if ua == src_units:  # a length in the site's units
             assert ub == "cm", row_a
@@ -281,11 +254,8 @@ def _compare_report_rows(runs, scenario: str, *, only: str | None = None) -> Non
         if va is None or (isinstance(va, float) and math.isnan(va)):
             assert vb is None or math.isnan(vb), (row_a, row_b)
             continue
-        # close: the point summary moves by up to 1 cm, so what depends on it continuously (HOTA's
-        # similarity at the metric gates, every truth frame scored) agrees to rel 1e-3 as lengths do
-        smooth = row_a["metric"].startswith(("hota", "deta", "assa"))
-        rel = 1e-6 if mode == "exact" or (scale == 1.0 and not smooth) else 1e-3
-        assert vb == pytest.approx(va * scale, rel=rel, abs=1e-9 * scale), (row_a, row_b)
+        assert mode == "exact", mode
+        assert vb == pytest.approx(va * scale, rel=1e-6, abs=1e-9 * scale), (row_a, row_b)
 
 
 @pytest.mark.parametrize("scenario", list(SCENARIOS))
