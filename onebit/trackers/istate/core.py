@@ -302,7 +302,8 @@ class SiteFrame:
     collinearity test, elements ordered by their WKB bytes, exact ties of the cap.
 
     Soundness: each snapped input *contains* the exact one (:meth:`outer`: snapped, then
-    grown by two grid steps, a mitre offset that holds every point within that distance),
+    grown by one grid step ``q``, a mitre offset that holds every point within ``q`` of it, more
+    than the ``q / sqrt(2)`` a vertex moves when snapped),
     each region a 0 clears is *inside* the exact one (:meth:`inner`), and each length is
     rounded up (:meth:`length`); the results are mapped back with :meth:`to_site`."""
 
@@ -325,12 +326,12 @@ class SiteFrame:
     def outer(self, geoms):
         """Snapped geometries in the frame, each containing the exact one."""
         g = self._snapped(geoms)
-        return shapely.buffer(g, np.where(void(g), 0.0, 2 * FRAME_GRID), join_style="mitre")
+        return shapely.buffer(g, np.where(void(g), 0.0, FRAME_GRID), join_style="mitre")
 
     def inner(self, geoms):
         """Snapped geometries in the frame, each inside the exact one (may be empty)."""
         g = self._snapped(geoms)
-        return shapely.buffer(g, np.where(void(g), 0.0, -2 * FRAME_GRID), join_style="mitre")
+        return shapely.buffer(g, np.where(void(g), 0.0, -FRAME_GRID), join_style="mitre")
 
     def length(self, d):
         """Lengths in the frame, rounded to the grid and then up by one step (never shorter;
