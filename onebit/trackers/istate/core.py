@@ -243,7 +243,8 @@ def constrain(geoms, shape: str, *, quad_segs: int = QUAD_SEGS):
     * ``exact``: unchanged;
     * ``rect``: the axis-aligned bounding box ``[min x, max x] x [min y, max y]``;
     * ``disk``: the minimum enclosing circle ``B(c, r)`` (shapely's
-      ``minimum_bounding_circle``), its centre snapped to a ``DISK_GRID`` grid and its radius
+      ``minimum_bounding_circle``), its centre snapped to a ``DISK_GRID`` grid (absolute: in
+      the stage's :class:`SiteFrame`, 1e-6 of the site's extent) and its radius
       rounded up by the snap distance (so equal disks get identical polygons and duplicates
       are found), drawn as a polygon circumscribing it.
 

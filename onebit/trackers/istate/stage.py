@@ -28,6 +28,12 @@ off removes its inner disk ``R_i``, each eroded by ``v latency_s`` (beyond the p
 ``latency_s`` is by default raised to the logs' time resolution (``latency_auto``).
 Readings are first reduced to edges, so level-sampled logs work too. The loop over stages
 is inherently sequential; every stage's geometry is vectorised in :mod:`core`.
+
+Units. The filter runs in the site's normalised frame (:class:`~onebit.trackers.istate.core.SiteFrame`):
+the free space and the sensing regions mapped to ``(x - origin) / L`` and snapped to a
+``2^-20`` grid (each grown by a grid step, a cleared region shrunk by one, every length
+rounded up: still supersets), so the same site in cm and in m is the same computation bit
+for bit; regions, areas and the point summary are mapped back to site units.
 """
 
 from __future__ import annotations
