@@ -498,7 +498,9 @@ def _regions_table(times: np.ndarray, regions: list, n: int, frame: SiteFrame) -
         return pl.DataFrame(schema=REGIONS)
     sizes = np.array([len(r) for r in regions], dtype=np.int64)  # E_k n
     flat = np.concatenate(regions) if sizes.sum() else np.zeros(0, dtype=object)
-    _, first, inv = np.unique(np.fromiter(map(id, flat), dtype=np.int64, count=len(flat)), return_index=True, return_inverse=True)
+    _, first, inv = np.unique(
+        np.fromiter(map(id, flat), dtype=np.int64, count=len(flat)), return_index=True, return_inverse=True
+    )
     flat = np.asarray(frame.to_site(flat[first]), dtype=object)[inv.ravel()]
     within = np.arange(len(flat), dtype=np.int64) - np.repeat(np.cumsum(sizes) - sizes, sizes)  # position in its stage
     return pl.DataFrame(

@@ -237,9 +237,8 @@ def test_the_stage_is_unit_free(tmp_path, shape):
     areas times 10^4, the point summary and every region times 100."""
     import tomllib
 
-    from tests.pipeline.test_units import site_in_cm
-
     from onebit.core.units import config_in_site_units
+    from tests.pipeline.test_units import site_in_cm
 
     data = write_room_dataset(tmp_path / "d", seed=5, duration=40.0, n=3)
     raw = pl.read_csv(data / "motion.csv")
