@@ -239,12 +239,15 @@ def redecode_meetings(
     p_false: float,
     pad: int = 4,
     compiled: bool = True,
+    starts: tuple[int, int] | None = None,
 ) -> tuple[np.ndarray, list[dict]]:
     """Every meeting of two users (:func:`meetings`, in slot order) jointly re-decoded
     (:func:`decode_pair`), either pairing of the tails, the candidate of highest exact
     ``log L`` kept when it beats the current paths. After an accepted change the meetings
     still ahead are listed again on the changed paths (issue #22: a list made once on the
-    initial paths named users absent after an exchange of tails). Returns the paths and one record per
+    initial paths named users absent after an exchange of tails). ``starts = (lo, hi)``: only the
+    meetings whose window starts at ``w0`` in ``[lo, hi)`` (lagged decoding: the others were
+    re-decoded with an earlier block). Returns the paths and one record per
     meeting (slots, users, gain in ``log L``, whether the tails were exchanged)."""
     n = len(eatg.nodes)
     log_a = second_order_tensor(eatg.a1, eatg.a2, np.arange(n))
@@ -252,7 +255,10 @@ def redecode_meetings(
     x = np.array(paths, dtype=np.int64, copy=True)
     d = x.shape[1]
     log = []
-    queue, done = meetings(x, eatg.hops, pad=pad), set()
+    def listed(m) -> bool:
+        return starts is None or starts[0] <= m[2] < starts[1]
+
+    queue, done = [m for m in meetings(x, eatg.hops, pad=pad) if listed(m)], set()
     while queue:  # sequential: each re-decoding changes the paths the next one sees
         u, v, w0, w1 = queue.pop(0)
         done.add((u, v, w0))
@@ -297,7 +303,11 @@ def redecode_meetings(
                 x[u, w1 + 1 :], x[v, w1 + 1 :] = x[v, w1 + 1 :].copy(), x[u, w1 + 1 :].copy()
             # the paths changed from w0 on: the later meetings are those of the new paths (a user
             # whose tail went to the other may no longer be present at a meeting listed before)
-            queue = [m for m in meetings(x, eatg.hops, pad=pad) if m[2] >= w0 and (m[0], m[1], m[2]) not in done]
+            queue = [
+                m
+                for m in meetings(x, eatg.hops, pad=pad)
+                if m[2] >= w0 and (m[0], m[1], m[2]) not in done and listed(m)
+            ]
         mid = (w0 + w1) // 2
         log.append(
             {
