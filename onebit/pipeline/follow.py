@@ -84,7 +84,10 @@ from onebit.readers.mcap_io import load_topic_map, read_mcap
 from onebit.readers.motion import MotionConfig, site_rules
 from onebit.readers.rows import REORDER_TOLERANCE_S, RawRows
 from onebit.readers.timebase import MAX_GAP_S, TimeOrigin
+from onebit.models.graph_hmm.decoding import build_eatg
 from onebit.trackers.base import ARTIFACTS, PROGRESS
+from onebit.trackers.findinghumo import lagged as hmm_online
+from onebit.trackers.findinghumo.stage import FindingHumoConfig
 from onebit.trackers.intruder import online as intruder_online
 from onebit.viz import live as viz_live
 
@@ -98,6 +101,10 @@ ONLINE: dict[str, str] = {
     "hmm1": "per window (re-run on the settled prefix)",
     "hmm2": "per window (re-run on the settled prefix)",
 }
+#: The HMM trackers, online incrementally with ``decoding = "lagged"`` (their window decoder mode).
+_LAGGED_MODES = {"findinghumo": "adaptive", "hmm1": "full1", "hmm2": "full2"}
+#: How they publish then.
+LAGGED = "per block of tau slots, final D' slots after it (decoding = 'lagged', incremental)"
 #: The input table whose settled events close the rows of a re-run-on-prefix tracker.
 _PREFIX_EVENTS = {
     "intruder-naive": ("motion",),
@@ -340,6 +347,13 @@ class _Publisher:
             viz_live.log_delays(self.rec, tracker, t, delay)
 
 
+def _lagged(entry, data: Path, scratch: Path, site, rg, sections: dict, trackers) -> bool:
+    """Whether an HMM tracker's config (``--config``, else the dataset's ``run.toml``) asks for
+    ``decoding = "lagged"``."""
+    ctx = RunContext(data, scratch, site, rg, {k: dict(v) for k, v in sections.items() if isinstance(v, dict)}, trackers=trackers)
+    return getattr(tracker_config(entry, ctx), "decoding", "batch") == "lagged"
+
+
 def _settle(site, sections: dict) -> float:
     """The readers' look-ahead: reordering tolerance + the longest debounce window."""
     cfg = config_from_mapping(MotionConfig, sections.get("motion", {}), section="motion")
@@ -509,11 +523,13 @@ def follow(
         ]
         viz_live.send_live_blueprint(rec, online)
         batch_only = [n for n in chosen if n not in online]
-        for n in online:
-            echo(f"  {n}: online, {ONLINE[n]}")
         if batch_only:
             echo(f"  batch-only (run at the end): {', '.join(batch_only)}")
         intruder_state = None
+        hmm_states: dict[str, hmm_online.OnlineHmm] = {}
+        lagged = [n for n in online if n in _LAGGED_MODES and _lagged(entries[n], data, scratch, site, rg, merged, chosen)]
+        for n in online:
+            echo(f"  {n}: online, {LAGGED if n in lagged else ONLINE[n]}")
         published: dict[str, float] = {n: -math.inf for n in online}
         sent: dict[str, pl.DataFrame] = {}
         logged_edges = 0
@@ -618,6 +634,25 @@ def follow(
                         pub.table(f"{name}_iterations", rows["iterations"])
                         if "camera" in rows:
                             pub.table(f"{name}_camera", rows["camera"])
+                        continue
+                    if name in lagged:
+                        if "motion" not in tables:
+                            continue
+                        if name not in hmm_states:
+                            cfg = tracker_config(entry, ctx)
+                            eatg = build_eatg(site, np.zeros((0, len(site.sensor_graph.nodes)), bool), cfg)
+                            hmm_states[name] = hmm_online.start(
+                                name,
+                                _LAGGED_MODES[name],
+                                site,
+                                cfg,
+                                eatg,
+                                cpda_windows=cfg.c_windows if isinstance(cfg, FindingHumoConfig) else None,
+                            )
+                        rows = hmm_online.advance(
+                            hmm_states[name], tables["motion"], settled_until=horizon - settle, final=final
+                        )
+                        pub.estimates(name, rows)
                         continue
                     events = next((tables[k] for k in _PREFIX_EVENTS[name] if k in tables), None)
                     if events is None or events.height == 0:

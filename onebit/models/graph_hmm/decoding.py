@@ -390,7 +390,6 @@ def tracks_table(
     """One row per user and slot present: ``paths`` (U, L) covers slots ``slot0 ..``, a row's
     ``t`` is its slot's mid time ``t0 + (slot + 1/2) T``."""
     u, s = np.nonzero(paths >= 0)
-    s = s + slot0
     pos = {m.id: m.position for m in site.motion_sensors}
     xy = np.array([pos[n] for n in nodes]).reshape(-1, 2)
     k = paths[u, s]
@@ -398,7 +397,7 @@ def tracks_table(
         {
             "tracker": name,
             "track": [f"user{i + 1}" for i in u.tolist()],
-            "t": t0 + (s + 0.5) * period,
+            "t": t0 + (s + slot0 + 0.5) * period,
             "x": xy[k, 0] if k.size else np.zeros(0),
             "y": xy[k, 1] if k.size else np.zeros(0),
             "node": np.asarray(nodes, dtype=object)[k].tolist(),
