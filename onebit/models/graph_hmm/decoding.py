@@ -72,6 +72,9 @@ class HmmConfig:
     decision_lag : D', slots: a block is decided once ``decision_lag`` slots after it have
         arrived (the paper gives no value; at least ``d_max`` + the decoder's re-entry window
         of 10 slots).
+    lag_lookback : slots of committed output the post-processing of a lagged block sees
+        before it (CPDA's last ``C d_max`` slots at least; a meeting re-decoded jointly needs
+        its start: on the hallway demo 10 slots lost the joint re-decoding's gain, 20 kept it).
     stay : layout prior probability of staying at a node for one slot.
     turn_back : layout prior probability of turning back after one hop.
     prior_strength : pseudo-counts of the layout prior per row of the trained EATG.
@@ -106,6 +109,7 @@ class HmmConfig:
     eatg_file: str = ""
     decoding: str = "batch"
     decision_lag: int = 20
+    lag_lookback: int = 20
     stay: float = 0.6
     turn_back: float = 0.05
     prior_strength: float = 2.0
@@ -134,6 +138,7 @@ class HmmConfig:
         check_choice(self, "decoding", DECODINGS)
         check_range(self, "decision_lag", self.d_max + RESUME_SLOTS if isinstance(self.d_max, int) else 0, 100_000,
                     types=(int,))
+        check_range(self, "lag_lookback", 1, 100_000, types=(int,))
         if self.decoding == "lagged" and self.eatg == "trained":
             raise ConfigError(
                 f"{type(self).__name__}.eatg = 'trained' with decoding = 'lagged': a live decoder cannot learn the "

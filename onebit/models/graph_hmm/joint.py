@@ -239,15 +239,15 @@ def redecode_meetings(
     p_false: float,
     pad: int = 4,
     compiled: bool = True,
-    starts: tuple[int, int] | None = None,
+    decide: tuple[int, int] | None = None,
 ) -> tuple[np.ndarray, list[dict]]:
     """Every meeting of two users (:func:`meetings`, in slot order) jointly re-decoded
     (:func:`decode_pair`), either pairing of the tails, the candidate of highest exact
     ``log L`` kept when it beats the current paths. After an accepted change the meetings
     still ahead are listed again on the changed paths (issue #22: a list made once on the
-    initial paths named users absent after an exchange of tails). ``starts = (lo, hi)``: only the
-    meetings whose window starts at ``w0`` in ``[lo, hi)`` (lagged decoding: the others were
-    re-decoded with an earlier block). Returns the paths and one record per
+    initial paths named users absent after an exchange of tails). ``decide = (lo, hi)``: only the
+    meetings whose window ends at ``w1`` in ``[lo, hi)`` (lagged decoding: a meeting is
+    re-decoded with the block in which it ends, seen whole with its tails after it). Returns the paths and one record per
     meeting (slots, users, gain in ``log L``, whether the tails were exchanged)."""
     n = len(eatg.nodes)
     log_a = second_order_tensor(eatg.a1, eatg.a2, np.arange(n))
@@ -256,7 +256,7 @@ def redecode_meetings(
     d = x.shape[1]
     log = []
     def listed(m) -> bool:
-        return starts is None or starts[0] <= m[2] < starts[1]
+        return decide is None or decide[0] <= m[3] < decide[1]
 
     queue, done = [m for m in meetings(x, eatg.hops, pad=pad) if listed(m)], set()
     while queue:  # sequential: each re-decoding changes the paths the next one sees

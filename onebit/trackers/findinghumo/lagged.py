@@ -18,12 +18,14 @@ run`` and ``onebit follow``:
 * the output is **committed in blocks** of ``tau`` slots (the slots one window accepts)
   ``[b0, b1)``, each once the decoder's final slots reach ``b1 + ahead``, ``ahead = D' - d_max
   - resume``; so a block is decided no later than when slot ``b1 - 1 + D'`` has arrived. The
-  block's post-processing works on a segment: the committed output of the ``C d_max`` slots
-  before ``b0`` (CPDA's "last C windows", held as they were published), the block, and the
+  block's post-processing works on a segment: the committed output of the ``lag_lookback``
+  slots before ``b0`` (at least CPDA's "last C windows", ``C d_max``; held as they were
+  published), the block, and the
   look-ahead up to ``b1 + ahead`` -- kept from the previous block's post-processing where it
   had it, the decoder's output relabelled for the rest. On the segment: the joint
-  re-decoding of the meetings that *start* in the block
-  (:func:`~onebit.models.graph_hmm.joint.redecode_meetings`, ``starts``), CPDA on the events
+  re-decoding of the meetings that *end* in the block, seen whole with the slots after them
+  (:func:`~onebit.models.graph_hmm.joint.redecode_meetings`, ``decide``; the slots of a meeting
+  already committed stay as they were, an exchange of tails relabels the rest), CPDA on the events
   that *end* in the block (:func:`~onebit.trackers.findinghumo.cpda.cpda`, ``decide``), the
   block's slots committed, the rest kept as the next look-ahead. A switch or an exchange of
   tails relabels the users from its slot on: the decoder's later rows are relabelled by the
@@ -36,7 +38,7 @@ Every step reads only slots that are final when its block is committed, and the 
 cut by slot numbers, never by when the slots arrived; so feeding the slots in any pieces
 (``onebit follow``, poll by poll) and feeding them all at once (``onebit run``) commit the same
 blocks with the same paths -- tested on random cuts. The cost is linear in the run: each
-block's post-processing works on a segment of ``C d_max + tau + ahead`` slots.
+block's post-processing works on a segment of ``lag_lookback + tau + ahead`` slots.
 
 Delay (slots): slot ``t`` of block ``[b0, b1)`` is committed by the time slot ``b1 - 1 + D'``
 has arrived, at most ``tau - 1 + D'`` slots after ``t``; a slot's activity is final about 1.5
@@ -84,7 +86,7 @@ class LaggedDecoder:
         self.joint_before = cfg.joint == "before-cpda" or (cfg.joint == "after-cpda" and not fh)
         self.joint_after = fh and cfg.joint == "after-cpda"
         self.block = cfg.tau
-        self.back = (cpda_windows or 1) * cfg.d_max
+        self.back = cfg.lag_lookback
         self.ahead = cfg.decision_lag - cfg.d_max - RESUME_SLOTS
         self.feature = np.isin(np.asarray(g.nodes), list(g.entries) + list(g.exits))
         cap = user_bound(site, cfg)
@@ -173,7 +175,7 @@ class LaggedDecoder:
     def _joint(self, seg, active, owner, lo, r0, r1):
         cfg = self.cfg
         seg, log = redecode_meetings(
-            seg, active, self.eatg, p_hit=cfg.p_hit, p_false=cfg.p_false, pad=cfg.joint_pad, starts=(r0, r1)
+            seg, active, self.eatg, p_hit=cfg.p_hit, p_false=cfg.p_false, pad=cfg.joint_pad, decide=(r0, r1)
         )
         for rec in log:
             if rec["exchanged"]:
