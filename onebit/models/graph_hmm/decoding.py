@@ -172,7 +172,7 @@ def available(site: Site) -> str | None:
 
 
 def slot_activity(
-    motion: pl.DataFrame, nodes: tuple[str, ...], period: float, sampling: str = "mid"
+    motion: pl.DataFrame, nodes: tuple[str, ...], period: float, sampling: str = "mid", *, t0: float | None = None
 ) -> tuple[np.ndarray, float]:
     """(D, N) bool activity ``b_j(t)`` per slot and node, and ``t0`` (slot ``k`` covers
     ``[t0 + kT, t0 + (k+1)T)``, the grid of ``motion_frames``).
@@ -192,7 +192,7 @@ def slot_activity(
     Vectorised: one difference array over (slot, node).
     """
 
-    frames = motion_frames(motion, list(nodes), period=period)
+    frames = motion_frames(motion, list(nodes), period=period, t0=t0)
     if frames.height == 0:
         return np.zeros((0, len(nodes)), bool), 0.0
     n = len(nodes)
@@ -200,6 +200,20 @@ def slot_activity(
     if sampling == "any":
         return frames["on"].to_numpy().reshape(-1, n), t0
     d = frames.height // n
+    return mid_activity(motion, nodes, period, t0=t0, grid_slots=d, slot0=0, n_slots=d), t0
+
+
+def mid_activity(
+    motion: pl.DataFrame, nodes: tuple[str, ...], period: float, *, t0: float, grid_slots: int, slot0: int, n_slots: int
+) -> np.ndarray:
+    """``(n_slots, N)`` activity of the ``"mid"`` sampling of :func:`slot_activity` over the
+    slots ``[slot0, slot0 + n_slots)`` of the grid ``t0 + k T`` (``grid_slots`` slots: an
+    on-period still open at the end lasts to the grid's end). The same arithmetic as the whole
+    run's, so the slots are bit for bit those of :func:`slot_activity`, when ``motion`` holds
+    every edge at or after ``t0 + (slot0 - 1) T`` and each sensor's last edge before that (a
+    follower slots only the recent edges: :mod:`onebit.trackers.findinghumo.lagged`)."""
+    n = len(nodes)
+    d = grid_slots
     idx = {m: i for i, m in enumerate(nodes)}
     iv = (
         motion.select("t", "sensor", "on")
@@ -209,8 +223,8 @@ def slot_activity(
         .filter(pl.col("on"))
         .with_columns(pl.col("t_off").fill_null(t0 + d * period))
     )
-    if iv.height == 0:
-        return np.zeros((d, n), bool), t0
+    if iv.height == 0 or n_slots <= 0:
+        return np.zeros((max(n_slots, 0), n), bool)
     j = np.array([idx[s] for s in iv["sensor"].to_list()], dtype=np.int64)
     a = (iv["t"].to_numpy() - t0) / period - 0.5
     b = (iv["t_off"].to_numpy() - t0) / period - 0.5
@@ -220,10 +234,14 @@ def slot_activity(
     own = np.floor((a + b) / 2 + 0.5).astype(np.int64)
     first = np.clip(np.where(short, own, first), 0, d - 1)
     last = np.clip(np.where(short, own, last), 0, d - 1)
-    diff = np.zeros((d + 1, n), np.int64)
+    keep = (last >= slot0) & (first < slot0 + n_slots)  # the on-periods that reach the slots asked for
+    first = np.maximum(first[keep] - slot0, 0)
+    last = np.minimum(last[keep] - slot0, n_slots - 1)
+    j = j[keep]
+    diff = np.zeros((n_slots + 1, n), np.int64)
     np.add.at(diff, (first, j), 1)
     np.add.at(diff, (last + 1, j), -1)
-    return np.cumsum(diff, axis=0)[:d] > 0, t0
+    return np.cumsum(diff, axis=0)[:n_slots] > 0
 
 
 def build_eatg(site: Site, active: np.ndarray, cfg: HmmConfig) -> Eatg:

@@ -230,6 +230,11 @@ def meetings(paths: np.ndarray, hops: np.ndarray, *, pad: int) -> list[tuple[int
     return sorted(out, key=lambda m: m[2])
 
 
+def pair_space(eatg: Eatg) -> PairSpace:
+    """The :class:`PairSpace` of an EATG (second-order transitions on every node)."""
+    return PairSpace(eatg.hops, second_order_tensor(eatg.a1, eatg.a2, np.arange(len(eatg.nodes))))
+
+
 def redecode_meetings(
     paths: np.ndarray,
     active: np.ndarray,
@@ -240,6 +245,7 @@ def redecode_meetings(
     pad: int = 4,
     compiled: bool = True,
     decide: tuple[int, int] | None = None,
+    space: PairSpace | None = None,
 ) -> tuple[np.ndarray, list[dict]]:
     """Every meeting of two users (:func:`meetings`, in slot order) jointly re-decoded
     (:func:`decode_pair`), either pairing of the tails, the candidate of highest exact
@@ -250,8 +256,9 @@ def redecode_meetings(
     re-decoded with the block in which it ends, seen whole with its tails after it). Returns the paths and one record per
     meeting (slots, users, gain in ``log L``, whether the tails were exchanged)."""
     n = len(eatg.nodes)
-    log_a = second_order_tensor(eatg.a1, eatg.a2, np.arange(n))
-    space = PairSpace(eatg.hops, log_a)
+    if space is None:  # the pair states of the graph (a caller decoding block by block builds them once)
+        space = pair_space(eatg)
+    log_a = space.log_a
     x = np.array(paths, dtype=np.int64, copy=True)
     d = x.shape[1]
     log = []

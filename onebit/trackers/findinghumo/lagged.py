@@ -47,7 +47,8 @@ slots after it (the mid-time sampling of the next slot) plus the readers' settle
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+import math
+from dataclasses import dataclass
 
 import numpy as np
 import polars as pl
@@ -59,13 +60,14 @@ from onebit.models.graph_hmm.decoding import (
     HmmConfig,
     UserCap,
     decoder_params,
+    mid_activity,
     signature_indices,
     slot_activity,
     tracks_table,
     user_bound,
 )
 from onebit.models.graph_hmm.eatg import Eatg
-from onebit.models.graph_hmm.joint import redecode_meetings
+from onebit.models.graph_hmm.joint import pair_space, redecode_meetings
 from onebit.trackers.findinghumo.cpda import CpdaResult, cpda
 
 
@@ -85,6 +87,7 @@ class LaggedDecoder:
         fh = cpda_windows is not None
         self.joint_before = cfg.joint == "before-cpda" or (cfg.joint == "after-cpda" and not fh)
         self.joint_after = fh and cfg.joint == "after-cpda"
+        self.space = pair_space(eatg) if (self.joint_before or self.joint_after) else None
         self.block = cfg.tau
         self.back = cfg.lag_lookback
         self.ahead = cfg.decision_lag - cfg.d_max - RESUME_SLOTS
@@ -175,7 +178,8 @@ class LaggedDecoder:
     def _joint(self, seg, active, owner, lo, r0, r1):
         cfg = self.cfg
         seg, log = redecode_meetings(
-            seg, active, self.eatg, p_hit=cfg.p_hit, p_false=cfg.p_false, pad=cfg.joint_pad, decide=(r0, r1)
+            seg, active, self.eatg, p_hit=cfg.p_hit, p_false=cfg.p_false, pad=cfg.joint_pad, decide=(r0, r1),
+            space=self.space,
         )
         for rec in log:
             if rec["exchanged"]:
@@ -215,7 +219,13 @@ def stack_blocks(blocks: list[tuple[int, np.ndarray]], n_slots: int) -> np.ndarr
 class OnlineHmm:
     """One HMM tracker followed live: its :class:`LaggedDecoder`, the slot grid's origin, the
     slots fed, and the committed rows not yet published (held until a settled event at or
-    after their time decides whether they lie in a silent stretch, as the batch run drops them)."""
+    after their time decides whether they lie in a silent stretch, as the batch run drops them).
+
+    Each call works on the recent edges only -- those at or after a cut a few slots before
+    the first slot it still needs, with each sensor's last two edges before the cut
+    (``before``, kept up to date as the cut moves on: its state at the cut, and for the count
+    of sensors on that decides silent stretches, the ON of a last OFF) -- so a poll costs
+    the new slots, not the run."""
 
     name: str
     config: HmmConfig
@@ -223,7 +233,9 @@ class OnlineHmm:
     lag: LaggedDecoder
     t0: float | None = None
     fed: int = 0
-    pending: list[pl.DataFrame] = field(default_factory=list)
+    pending: pl.DataFrame | None = None
+    cut_row: int = 0  # rows of the (sorted) motion table before the cut
+    before: pl.DataFrame | None = None  # each sensor's last two edges before the cut
 
 
 def start(name: str, mode: str, site: Site, config: HmmConfig, eatg: Eatg, *, cpda_windows: int | None) -> OnlineHmm:
@@ -244,30 +256,59 @@ def final_slot_count(t0: float, period: float, settled_until: float, grid_slots:
 def advance(state: OnlineHmm, motion: pl.DataFrame, *, settled_until: float, final: bool) -> pl.DataFrame:
     """Feed the slots final with the settled ``motion`` edges (all edges when ``final``), commit
     the blocks that are decided and return the rows to publish now (the TRACKS rows at or
-    before the last settled edge, outside silent stretches; every row left when ``final``)."""
+    before the last settled edge, outside silent stretches; every row left when ``final``).
+
+    ``motion``: the MOTION table read so far, sorted by ``t`` (the reader's order); only its
+    rows after the cut are looked at."""
     cfg, site = state.config, state.site
     nodes = site.sensor_graph.nodes
-    mo = motion.filter(pl.col("sensor").is_in(list(nodes)))
-    if not final:
-        mo = mo.filter(pl.col("t") <= settled_until)
-    if mo.height == 0:
+    period = cfg.period
+    t = motion["t"]
+    end = motion.height if final else int(t.search_sorted(settled_until, side="right"))
+    recent = motion.slice(state.cut_row, end - state.cut_row).filter(pl.col("sensor").is_in(list(nodes)))
+    if state.t0 is None:
+        if recent.height == 0:
+            return _empty_tracks(state)
+        state.t0 = math.floor(float(recent["t"].min()) / period) * period  # the slot grid of motion_frames
+    t0 = state.t0
+    window = recent if state.before is None else pl.concat([state.before, recent.select(state.before.columns)])
+    if window.height == 0:
         return _empty_tracks(state)
-    active, t0 = slot_activity(mo, nodes, cfg.period, cfg.sampling)
-    state.t0 = t0
-    n = active.shape[0] if final else final_slot_count(t0, cfg.period, settled_until, active.shape[0])
+    last = float(window["t"].max())
+    grid = max(int(math.floor((last - t0) / period)) + 1, 1)  # slot_grid's count
+    n = grid if final else final_slot_count(t0, period, settled_until, grid)
     if n > state.fed:
-        state.lag.extend(active[state.fed : n])
+        if cfg.sampling == "mid":
+            act = mid_activity(window, nodes, period, t0=t0, grid_slots=grid, slot0=state.fed, n_slots=n - state.fed)
+        else:  # "any": the frames of the whole table (motion_frames' own grid)
+            act = slot_activity(motion.slice(0, end), nodes, period, "any")[0][state.fed : n]
+        state.lag.extend(act)
         state.fed = n
+    parts = [state.pending] if state.pending is not None else []
     for b0, paths in state.lag.commit(final=final):
-        state.pending.append(tracks_table(state.name, paths, nodes, site, t0, cfg.period, slot0=b0))
-    if not state.pending:
-        return _empty_tracks(state)
-    rows = pl.concat(state.pending)
-    last = float(mo["t"].max())
-    ready = rows if final else rows.filter(pl.col("t") <= last)
-    state.pending = [rows.filter(pl.col("t") > last)] if not final else []
-    silent = silent_stretches([mo], min_s=cfg.absent_after)
-    return outside_silence(ready, silent)
+        parts.append(tracks_table(state.name, paths, nodes, site, t0, period, slot0=b0))
+    rows = pl.concat(parts) if parts else _empty_tracks(state)
+    newest = float(recent["t"].max()) if recent.height else -math.inf
+    last_edge = max(newest, float(state.before["t"].max()) if state.before is not None and state.before.height else -math.inf)
+    ready = rows if final else rows.filter(pl.col("t") <= last_edge)
+    state.pending = None if final else rows.filter(pl.col("t") > last_edge)
+    published = outside_silence(ready, silent_stretches([window], min_s=cfg.absent_after))
+    # move the cut on: a few slots before the first slot still needed (the next slots to feed,
+    # the rows still pending), never back; the edges passed go into ``before``
+    need = state.lag.committed  # <= fed: the rows of the blocks still to commit need their silence too
+    if state.pending is not None and state.pending.height:
+        need = min(need, int(math.floor((float(state.pending["t"].min()) - t0) / period)))
+    cut = t0 + (need - 3) * period
+    cut_row = int(t.search_sorted(cut, side="left"))
+    if cut_row > state.cut_row and not final:
+        passed = motion.slice(state.cut_row, cut_row - state.cut_row).filter(pl.col("sensor").is_in(list(nodes)))
+        both = passed if state.before is None else pl.concat([state.before, passed.select(state.before.columns)])
+        # per sensor its last two edges: the last gives its state at the cut; with an OFF last,
+        # the ON before it keeps the count of sensors on (silent_stretches' +-1 sum) right
+        state.before = both.group_by("sensor", maintain_order=True).tail(2).select(motion.columns)
+        state.before = state.before.sort("t", maintain_order=True)
+        state.cut_row = cut_row
+    return published
 
 
 def _empty_tracks(state: OnlineHmm) -> pl.DataFrame:

@@ -115,3 +115,31 @@ def test_eatg_table_round_trip_and_errors(hallway, tmp_path):
     bad = trained.table().with_columns(pl.lit("nope").alias("src"))
     with pytest.raises(InputError, match="nope"):
         eatg_from_table(bad, g.nodes, hops, source="x.parquet")
+
+
+def test_online_advance_poll_by_poll_equals_the_lagged_run(tmp_path):
+    """The follower's side: the motion table as it grows, poll by poll, through
+    :func:`advance` (recent edges only) publishes exactly the lagged run's TRACKS rows,
+    silent stretches dropped -- here a log with a 90 s empty hallway in the middle."""
+    from onebit.trackers.findinghumo import lagged
+    from onebit.trackers.findinghumo.stage import run_findinghumo
+
+    site = builtin_site("hallway")
+    g = site.sensor_graph
+    ds = write_hallway_dataset(tmp_path, seed=5, duration=60.0, users=2, drop=0.0)
+    mo = read_motion_csv(ds / "motion.csv", list(g.nodes)).motion
+    mo = pl.concat([mo, mo.with_columns(pl.col("t") + 150.0)])  # nobody there for about 90 s between
+    cfg = FindingHumoConfig(eatg="layout", decoding="lagged")
+    ref = run_findinghumo({"motion": mo}, site, cfg)["tracks"]
+    eatg = layout_eatg(g.nodes, hop_matrix(g.nodes, g.edges))
+    state = lagged.start("findinghumo", "adaptive", site, cfg, eatg, cpda_windows=cfg.c_windows)
+    got, settle = [], 1.5
+    for h in np.arange(float(mo["t"].min()), float(mo["t"].max()) + 5.0, 1.7):
+        got.append(lagged.advance(state, mo.filter(pl.col("t") <= h), settled_until=h - settle, final=False))
+    early = sum(x.height for x in got)
+    got.append(lagged.advance(state, mo, settled_until=np.inf, final=True))
+    got = pl.concat(got)
+    assert early > ref.height // 2  # most rows published while the log grew
+    assert ref.filter((pl.col("t") > 70.0) & (pl.col("t") < 140.0)).height == 0  # the silence is dropped
+    assert got.sort(["track", "t"]).equals(ref.sort(["track", "t"]))
+    assert state.cut_row > mo.height // 2  # the follower looked at recent edges only
