@@ -356,3 +356,50 @@ def test_hmm_family_lagged_replay_equals_batch(tmp_path):
         assert len(parts) >= 5, name
         firsts = [pl.read_parquet(p)["t"].min() for p in parts]
         assert firsts == sorted(firsts), name
+
+
+def test_connect_streams_to_a_rerun_server(pir, tmp_path):
+    """``--connect``: a headless ``rerun`` that only listens for SDKs and saves what arrives
+    (``rerun --port P --save FILE``; no viewer window) receives the follow stream."""
+    import shutil
+    import signal
+    import socket
+    import subprocess
+    import sys
+    import time
+    from pathlib import Path
+
+    exe = shutil.which("rerun") or str(Path(sys.executable).parent / "rerun")
+    if not Path(exe).exists():
+        pytest.skip("no rerun executable")
+    with socket.socket() as s:  # a free port
+        s.bind(("127.0.0.1", 0))
+        port = s.getsockname()[1]
+    saved = tmp_path / "received.rrd"
+    log = open(tmp_path / "rerun.log", "w+")
+    proc = subprocess.Popen([exe, "--port", str(port), "--save", str(saved)], stdout=log, stderr=subprocess.STDOUT)
+    try:
+        for _ in range(200):  # until it listens (polled, not timed)
+            log.seek(0)
+            if "Listening for gRPC" in log.read() or proc.poll() is not None:
+                break
+            time.sleep(0.05)
+        assert proc.poll() is None, open(tmp_path / "rerun.log").read()
+        _, data = pir
+        clock = SimClock()
+        follow(
+            data,
+            tmp_path / "out",
+            trackers=("intruder",),
+            options=FollowConfig(replay=20.0, poll=0.5),
+            connect=f"rerun+http://127.0.0.1:{port}/proxy",
+            clock=clock.clock,
+            sleep=clock.sleep,
+        )
+    finally:
+        proc.send_signal(signal.SIGINT)  # the server ends its file on Ctrl-C
+        proc.wait(timeout=30)
+        log.close()
+    got = entity_paths(saved)
+    assert {"intruder/tracks/intruder", "follow/delay/intruder", "site/boundary"} <= got
+    assert got == entity_paths(tmp_path / "out" / "live" / "rrd" / "follow.rrd")  # what the file sink has
