@@ -77,6 +77,7 @@ from onebit.core.errors import ConfigError, InputError, OnebitError
 from onebit.core.region_graph import build_region_graph
 from onebit.core.site import load_site
 from onebit.core.tables import REJECTS
+from onebit.models.graph_hmm.decoding import build_eatg
 from onebit.pipeline.context import RunContext, dataset_run_config
 from onebit.pipeline.runner import RunResult, check_dataset, check_out, check_sections, run_pipeline
 from onebit.pipeline.stages import TIME_SOURCES, TRACKERS, run_time_origin, stages, tracker_config
@@ -84,7 +85,6 @@ from onebit.readers.mcap_io import load_topic_map, read_mcap
 from onebit.readers.motion import MotionConfig, site_rules
 from onebit.readers.rows import REORDER_TOLERANCE_S, RawRows
 from onebit.readers.timebase import MAX_GAP_S, TimeOrigin
-from onebit.models.graph_hmm.decoding import build_eatg
 from onebit.trackers.base import ARTIFACTS, PROGRESS
 from onebit.trackers.findinghumo import lagged as hmm_online
 from onebit.trackers.findinghumo.stage import FindingHumoConfig
@@ -350,7 +350,9 @@ class _Publisher:
 def _lagged(entry, data: Path, scratch: Path, site, rg, sections: dict, trackers) -> bool:
     """Whether an HMM tracker's config (``--config``, else the dataset's ``run.toml``) asks for
     ``decoding = "lagged"``."""
-    ctx = RunContext(data, scratch, site, rg, {k: dict(v) for k, v in sections.items() if isinstance(v, dict)}, trackers=trackers)
+    ctx = RunContext(
+        data, scratch, site, rg, {k: dict(v) for k, v in sections.items() if isinstance(v, dict)}, trackers=trackers
+    )
     return getattr(tracker_config(entry, ctx), "decoding", "batch") == "lagged"
 
 
@@ -527,7 +529,9 @@ def follow(
             echo(f"  batch-only (run at the end): {', '.join(batch_only)}")
         intruder_state = None
         hmm_states: dict[str, hmm_online.OnlineHmm] = {}
-        lagged = [n for n in online if n in _LAGGED_MODES and _lagged(entries[n], data, scratch, site, rg, merged, chosen)]
+        lagged = [
+            n for n in online if n in _LAGGED_MODES and _lagged(entries[n], data, scratch, site, rg, merged, chosen)
+        ]
         for n in online:
             echo(f"  {n}: online, {LAGGED if n in lagged else ONLINE[n]}")
         published: dict[str, float] = {n: -math.inf for n in online}

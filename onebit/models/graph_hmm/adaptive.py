@@ -374,7 +374,12 @@ class WindowDecoder:
     users)."""
 
     def __init__(
-        self, eatg: Eatg, n_nodes: int, *, signatures: list[tuple[int, int]] = (), params: DecoderParams = DecoderParams()
+        self,
+        eatg: Eatg,
+        n_nodes: int,
+        *,
+        signatures: list[tuple[int, int]] = (),
+        params: DecoderParams = DecoderParams(),
     ):
         self.eatg = eatg
         self.signatures = list(signatures)

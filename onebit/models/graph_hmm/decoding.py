@@ -136,8 +136,9 @@ class HmmConfig:
         if self.eatg == "file" and not self.eatg_file:
             raise ConfigError(f"{type(self).__name__}.eatg_file is empty; eatg = 'file' reads the EATG table it names")
         check_choice(self, "decoding", DECODINGS)
-        check_range(self, "decision_lag", self.d_max + RESUME_SLOTS if isinstance(self.d_max, int) else 0, 100_000,
-                    types=(int,))
+        check_range(
+            self, "decision_lag", self.d_max + RESUME_SLOTS if isinstance(self.d_max, int) else 0, 100_000, types=(int,)
+        )
         check_range(self, "lag_lookback", 1, 100_000, types=(int,))
         if self.decoding == "lagged" and self.eatg == "trained":
             raise ConfigError(
@@ -145,7 +146,9 @@ class HmmConfig:
                 "EATG from the whole log; use eatg = 'layout' or 'file' (a graph learned beforehand)"
             )
         if self.decoding == "lagged" and self.offline:
-            raise ConfigError(f"{type(self).__name__}.offline = True with decoding = 'lagged': offline is one window over the whole run")
+            raise ConfigError(
+                f"{type(self).__name__}.offline = True with decoding = 'lagged': offline is one window over the whole run"
+            )
         check_range(self, "stay", 0.0, 0.999)
         check_range(self, "turn_back", 0.0, 1.0)
         check_range(self, "prior_strength", 0.0, None)

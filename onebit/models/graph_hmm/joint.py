@@ -262,6 +262,7 @@ def redecode_meetings(
     x = np.array(paths, dtype=np.int64, copy=True)
     d = x.shape[1]
     log = []
+
     def listed(m) -> bool:
         return decide is None or decide[0] <= m[3] < decide[1]
 

@@ -178,7 +178,13 @@ class LaggedDecoder:
     def _joint(self, seg, active, owner, lo, r0, r1):
         cfg = self.cfg
         seg, log = redecode_meetings(
-            seg, active, self.eatg, p_hit=cfg.p_hit, p_false=cfg.p_false, pad=cfg.joint_pad, decide=(r0, r1),
+            seg,
+            active,
+            self.eatg,
+            p_hit=cfg.p_hit,
+            p_false=cfg.p_false,
+            pad=cfg.joint_pad,
+            decide=(r0, r1),
             space=self.space,
         )
         for rec in log:
@@ -289,7 +295,9 @@ def advance(state: OnlineHmm, motion: pl.DataFrame, *, settled_until: float, fin
         parts.append(tracks_table(state.name, paths, nodes, site, t0, period, slot0=b0))
     rows = pl.concat(parts) if parts else _empty_tracks(state)
     newest = float(recent["t"].max()) if recent.height else -math.inf
-    last_edge = max(newest, float(state.before["t"].max()) if state.before is not None and state.before.height else -math.inf)
+    last_edge = max(
+        newest, float(state.before["t"].max()) if state.before is not None and state.before.height else -math.inf
+    )
     ready = rows if final else rows.filter(pl.col("t") <= last_edge)
     state.pending = None if final else rows.filter(pl.col("t") > last_edge)
     published = outside_silence(ready, silent_stretches([window], min_s=cfg.absent_after))

@@ -51,7 +51,9 @@ def test_window_decoder_in_pieces_equals_decode_run(hallway, mode):
         dec.extend(active[i:j])
         dec.advance()
         f = dec.final_slots
-        assert f <= max(0, j - params.d_max - RESUME_SLOTS + params.tau)  # final only after the window and re-entry time
+        assert f <= max(
+            0, j - params.d_max - RESUME_SLOTS + params.tau
+        )  # final only after the window and re-entry time
         finals.append(dec.paths(0, f))
     dec.advance(final=True)
     assert np.array_equal(dec.result().paths, ref.paths) and dec.result().windows == ref.windows
