@@ -522,6 +522,10 @@ class WindowDecoder:
         if final:
             self.done = True
 
+    def activity(self, lo: int = 0, hi: int | None = None) -> np.ndarray:
+        """(hi - lo, N) slot activity fed so far over slots ``[lo, hi)``."""
+        return self._active[lo : self.n_slots if hi is None else hi]
+
     def paths(self, lo: int = 0, hi: int | None = None) -> np.ndarray:
         """(U, hi - lo) decoded node paths of the users so far over slots ``[lo, hi)``."""
         hi = self.n_slots if hi is None else hi

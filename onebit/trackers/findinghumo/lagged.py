@@ -121,7 +121,7 @@ class LaggedDecoder:
                 break
             paths = self._block(b0, b1, hi)
             if self.cap is not None:
-                paths = self.cap.step(paths, self.dec._active[b0:b1])
+                paths = self.cap.step(paths, self.dec.activity(b0, b1))
             blocks.append((b0, paths))
             self.committed = b1
         return blocks
@@ -146,7 +146,7 @@ class LaggedDecoder:
             seg[:kb, b0 - lo : b0 - lo + nb] = self.buf[:, :nb]
         start = max(self.buf_hi, b0)
         seg[:, start - lo :] = self.dec.paths(start, hi)[self.perm]
-        active = self.dec._active[lo:hi]
+        active = self.dec.activity(lo, hi)
         owner = np.arange(k)  # tail of each label at the segment's end: that of label owner[u] before
         r0, r1 = b0 - lo, b1 - lo
         cfg = self.cfg

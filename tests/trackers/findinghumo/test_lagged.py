@@ -105,6 +105,10 @@ def test_lagged_needs_a_graph_known_beforehand():
         HmmConfig(eatg="file")
     with pytest.raises(ConfigError, match="decoding"):
         HmmConfig(decoding="live")
+    from onebit.trackers.findinghumo_flow.stage import FlowConfig
+
+    with pytest.raises(ConfigError, match="batch-only"):  # a min-cost flow over the whole run
+        FlowConfig(eatg="layout", decoding="lagged")
 
 
 def test_eatg_table_round_trip_and_errors(hallway, tmp_path):
