@@ -32,6 +32,14 @@ Trackers online (:data:`ONLINE`):
   earlier assignment, which is never un-published: the final report says whether the published
   rows equal the batch's).
 
+* ``findinghumo``, ``hmm1``, ``hmm2`` with ``decoding = "lagged"`` (their ``run.toml`` section)
+  -- per block of ``tau`` slots, incrementally: :mod:`onebit.trackers.findinghumo.lagged` keeps
+  the window decoder and the committed output, slots only the recent edges, and commits a block
+  once ``decision_lag`` slots after it have arrived (the paper's bounded delay D'); the rows
+  equal the batch run's with the same config. By default (``decoding = "batch"``) they are
+  re-run on the settled prefix like ``istate``, and the published rows may differ from the
+  final decoding.
+
 Every other tracker is batch-only and runs at the end. An event at ``e`` is *settled* once the
 horizon passes ``e + settle``, ``settle`` = the readers' look-ahead (1 s of reordering plus
 the longest debounce window of the site's sensors).
