@@ -182,6 +182,70 @@ def read_bytes(path: str | Path) -> bytes:
     return data
 
 
+#: The most lines of the wrong shape (no quote, not blank, not as many fields as the header) a
+#: CSV log may hold: a file with more is refused before it is split (:func:`check_shapes`), since
+#: each would be a reject holding its text -- 200 MB of text that is not the log (garbage, the
+#: wrong file) would otherwise cost gigabytes of rejects. Fewer are rejected line by line.
+MAX_MALFORMED_LINES = 100_000
+#: Bytes per step of :func:`check_shapes` (cut at a newline): its temporaries are a few times this.
+_SHAPE_BYTES = 1 << 22
+
+
+def _line_counts(block: np.ndarray, ends: np.ndarray, mask: np.ndarray) -> np.ndarray:
+    """How many ``mask`` bytes each line of ``block`` holds (line ``k`` ends at ``ends[k]``, exclusive)."""
+    cum = np.zeros(block.size + 1, dtype=np.int32)
+    np.cumsum(mask, dtype=np.int32, out=cum[1:])
+    starts = np.r_[0, ends[:-1] + 1]
+    return cum[ends] - cum[np.minimum(starts, ends)]
+
+
+def malformed_lines(data: bytes, n_fields: int, after_line: int) -> tuple[int, int | None]:
+    """Lines after ``after_line`` of ``data`` that are surely not one record of ``n_fields``:
+    quote-free, not blank, and with another number of separators. Returns their count and the
+    first one's number. Scans ``data`` :data:`_SHAPE_BYTES` at a time (bounded temporaries)."""
+    count, first, pos, line0 = 0, None, 0, 1
+    size = len(data)
+    while pos < size:
+        hi = min(size, pos + _SHAPE_BYTES)
+        if hi < size:
+            cut = data.rfind(b"\n", pos, hi)
+            cut = cut if cut >= pos else data.find(b"\n", hi)
+            hi = size if cut == -1 else cut + 1
+        block = np.frombuffer(data, dtype=np.uint8, count=hi - pos, offset=pos)
+        ends = np.flatnonzero(block == 0x0A)
+        if hi == size and (ends.size == 0 or ends[-1] != block.size - 1):
+            ends = np.r_[ends, block.size]
+        if ends.size:
+            seps = _line_counts(block, ends, block == ord(SEPARATOR))
+            quotes = _line_counts(block, ends, block == ord(QUOTE))
+            text = _line_counts(block, ends, (block != 0x20) & (block != 0x09) & (block != 0x0D) & (block != 0x0A))
+            numbers = np.arange(line0, line0 + ends.size)
+            bad = np.flatnonzero((quotes == 0) & (text > 0) & (seps != n_fields - 1) & (numbers > after_line))
+            if bad.size:
+                count += int(bad.size)
+                first = first if first is not None else int(numbers[bad[0]])
+        line0 += int(np.count_nonzero(block == 0x0A))
+        pos = hi
+    return count, first
+
+
+def check_shapes(data: bytes, path: str | Path, n_fields: int, header_line: int) -> None:
+    """Refuse ``data`` (the bytes of ``path``, whose header of ``n_fields`` names is line
+    ``header_line``) when more than :data:`MAX_MALFORMED_LINES` of its lines are surely not
+    records of the header's width (:func:`malformed_lines`): an :class:`InputError` naming the
+    file and the first such line."""
+    if len(data) < MAX_MALFORMED_LINES:  # too short to hold that many lines
+        return
+    count, first = malformed_lines(data, n_fields, header_line)
+    if count > MAX_MALFORMED_LINES:
+        raise InputError(
+            f"{count} lines are not records of the header's {n_fields} fields (this is the first), more than "
+            f"the {MAX_MALFORMED_LINES} a log may have rejected: is this the right file?",
+            file=path,
+            line=first,
+        )
+
+
 def _bad_lines(data: bytes) -> tuple[np.ndarray, list[str]]:
     """The 1-based lines of ``data`` holding bytes that are not UTF-8, and for each the reason
     naming its first such byte and column. Lines with a byte >= 0x80 are found 16 MiB at a time
@@ -365,6 +429,8 @@ def csv_header(path: str | Path, columns: tuple[str, ...] = ()) -> tuple[list[st
     if not names:
         return [], 0, pl.DataFrame(schema={"line": pl.Int64, "text": pl.String, "_reason": pl.String})
     _check_columns(path, names, line, columns)
+    if columns:
+        check_shapes(data, path, len(names), line)
     lines = physical_lines(data)
     del data
     lines = lines.filter(
@@ -685,6 +751,7 @@ def read_typed_csv(path: str | Path, dtypes: dict[str, pl.DataType]) -> TypedSpl
     if len(header) > MAX_HEADER_FIELDS or any(header.count(c) != 1 for c in dtypes) or not head_text.strip(" \t"):
         return None
     n = len(header)
+    check_shapes(data, path, n, 1)
     n_lines = int(np.count_nonzero(np.frombuffer(data, dtype=np.uint8) == 0x0A)) + (not data.endswith(b"\n")) - 1
     columns = tuple(dtypes)
     file = FileLines(data)
