@@ -346,6 +346,13 @@ def _run_stages(
     data_stages = [st.name for st in stage_list if st.name not in {*tracker_names, "scores"}]
     if all(status.get(n, "").startswith("skipped") for n in data_stages):
         why = "; ".join(f"{n}: {s}" for n, s in status.items() if n in data_stages or n.startswith("mcap:"))
+        bad = [f"{n[5:]}: {s[8:]}" for n, s in status.items() if n.startswith("mcap:") and s.startswith("failed: ")]
+        if bad:  # an unreadable file is the news, not the stages it left with nothing
+            why = "; ".join(f"{n}: {s}" for n, s in status.items() if n in data_stages)
+            raise InputError(
+                f"unreadable input: {'; '.join(bad)}; nothing else to read ({why}); OUT was left as it was",
+                file=dataset,
+            )
         raise InputError(f"nothing to do: no input could be read ({why}); OUT was left as it was", file=dataset)
     problems = [
         f"tracker '{tr}' was asked for (--trackers) but did not run: {status.get(tr, 'not run')[len('skipped: ') :]}"
@@ -389,6 +396,10 @@ def _read_mcaps(ctx: RunContext, echo: Callable[[str], None]) -> None:
             echo(f"  {mp.name}: failed: {exc}")
             continue
         ctx.add_rejects(contents.rejects)
+        if contents.unreadable:  # cut inside its header: a failed input, not an absent one
+            why = contents.rejects["reason"][-1]
+            ctx.status[f"mcap:{mp.name}"] = f"failed: {why}"
+            echo(f"  {mp.name}: failed: {why}")
         for topic, frame in contents.channels.items():
             ctx.mcap_channels.setdefault(topic, RawRows(f"{mp.name}:{topic}", frame, pl.DataFrame(schema=REJECTS)))
 

@@ -83,12 +83,17 @@ class McapContents:
     views
         Topic -> messages skipped because they are derived views (:data:`VIEW_TOPICS`, or any
         protobuf channel): what the writer added for viewers, not input.
+    unreadable
+        True when the file is cut before any channel or message (inside its MCAP header, or in
+        its first chunk): nothing of it could be read (its one reject says so, naming the file);
+        the runner reports the file as unreadable, not the run as having nothing to do.
     """
 
     channels: dict[str, pl.DataFrame]
     rejects: pl.DataFrame
     truncated: bool
     views: dict[str, int] = field(default_factory=dict)
+    unreadable: bool = False
 
 
 #: Toggle channels a mapped ROS 2 topic may feed (``kind`` of :class:`TopicMapping`).
@@ -487,7 +492,7 @@ def read_mcap(path: str | Path, *, topic_map: dict[str, TopicMapping] | None = N
     InputError
         The file is missing, empty or not MCAP (bad magic).
     """
-    from mcap.records import Channel, Footer, Message, Schema
+    from mcap.records import Channel, Footer, Header, Message, Schema
     from mcap.stream_reader import StreamReader
 
     path = Path(path)
@@ -514,7 +519,7 @@ def read_mcap(path: str | Path, *, topic_map: dict[str, TopicMapping] | None = N
     with open(path, "rb") as fh:
         records = StreamReader(fh, record_size_limit=max(size, 1)).records
         good_end = 0
-        saw_footer = False
+        saw_footer = saw_header = False
         while True:
             try:
                 record = next(records)
@@ -523,18 +528,18 @@ def read_mcap(path: str | Path, *, topic_map: dict[str, TopicMapping] | None = N
             except Exception as exc:  # noqa: BLE001 - any decoding failure past the magic is a cut
                 truncated = True
                 what = type(exc).__name__ + (f": {exc}" if str(exc) else "")
-                rejects.append(
-                    (
-                        name,
-                        n_messages + 1,
-                        f"truncated: file ends or breaks at byte {good_end} of {size} "
-                        f"after {n_messages} complete messages ({what})",
-                        None,
-                    )
+                why = (
+                    f"truncated: file ends or breaks at byte {good_end} of {size} "
+                    f"after {n_messages} complete messages ({what})"
+                    if saw_header
+                    else f"unreadable: truncated in its MCAP header (the file has {size} bytes; {what})"
                 )
+                rejects.append((name, n_messages + 1, why, None))
                 break
             good_end = fh.tell()
-            if isinstance(record, Footer):
+            if isinstance(record, Header):
+                saw_header = True
+            elif isinstance(record, Footer):
                 saw_footer = True
             elif isinstance(record, Schema):
                 schemas[record.id] = record
@@ -641,7 +646,13 @@ def read_mcap(path: str | Path, *, topic_map: dict[str, TopicMapping] | None = N
     rejects_df = pl.DataFrame(
         rejects, schema=REJECTS, orient="row"
     )  # reasons and raw text quoted bounded, as every reader's
-    return McapContents(channels=channels, rejects=rejects_df, truncated=truncated, views=views)
+    return McapContents(
+        channels=channels,
+        rejects=rejects_df,
+        truncated=truncated,
+        views=views,
+        unreadable=truncated and not (n_messages or topics),
+    )
 
 
 def _mapped_value(
