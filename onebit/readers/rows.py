@@ -116,25 +116,16 @@ def check_line_lengths(data: bytes, path: str | Path) -> None:
         hi = min(len(data), lo + _SCAN_BYTES)
         nl = _line_starts_ends(data, lo, hi)
         ends = np.r_[nl, hi] if hi == len(data) else nl
-        if ends.size:
-            lengths = ends - np.r_[start, nl[: ends.size - 1] + 1]
-            over = np.flatnonzero(lengths > MAX_LINE_BYTES)
-            if over.size:
-                k = int(over[0])
-                raise InputError(
-                    f"line of {int(lengths[k])} bytes, longer than the {MAX_LINE_BYTES} a log line may have "
-                    "(is this a CSV log?)",
-                    file=path,
-                    line=lines_before + k + 1,
-                )
+        lengths = ends - np.r_[start, nl[: ends.size - 1] + 1] if ends.size else ends
+        over = np.flatnonzero(lengths > MAX_LINE_BYTES)
+        if over.size or (nl.size == 0 and hi - start > MAX_LINE_BYTES):
+            raise InputError(
+                f"line longer than the {MAX_LINE_BYTES} bytes a log line may have (is this a CSV log?)",
+                file=path,
+                line=lines_before + (int(over[0]) if over.size else 0) + 1,
+            )
         if nl.size:
             start = int(nl[-1]) + 1
-        elif hi - start > MAX_LINE_BYTES:
-            raise InputError(
-                f"line of more than {MAX_LINE_BYTES} bytes, the most a log line may have (is this a CSV log?)",
-                file=path,
-                line=lines_before + 1,
-            )
         lines_before += int(nl.size)
 
 

@@ -1,0 +1,75 @@
+"""Config values that size an allocation are bounded (#26 item 8): past a limit of
+:mod:`onebit.core.config` the error names the field, never a MemoryError or an abort."""
+
+from __future__ import annotations
+
+import polars as pl
+import pytest
+
+from onebit.core.config import MAX_STEPS, check_size
+from onebit.core.errors import ConfigError
+from onebit.core.frames import motion_frames
+from onebit.core.tables import MOTION
+from onebit.models.pir import WorldGrid
+from onebit.readers.proximity import ProximityConfig, proximity_frames
+from onebit.trackers.binpf.stage import BinPFConfig
+from onebit.trackers.clustertrack.feasible import make_raster
+from onebit.trackers.intruder.stage import IntruderConfig
+from onebit.trackers.istate.stage import IStateConfig
+
+
+def _edges(ts, sensor="s1"):
+    return pl.DataFrame({"t": ts, "sensor": [sensor] * len(ts), "on": [True, False] * (len(ts) // 2)}, schema=MOTION)
+
+
+def test_check_size_names_the_field_and_the_limit():
+    check_size(10, 10, what="rows", field="[x] n")
+    with pytest.raises(ConfigError, match=r"^\[x\] n: 11 rows, more than the 10 onebit allows; smaller$"):
+        check_size(11, 10, what="rows", field="[x] n", hint="smaller")
+    with pytest.raises(ConfigError, match="nan rows"):
+        check_size(float("nan"), 10, what="rows", field="[x] n")
+
+
+def test_instants_are_bounded_at_load():
+    """``[proximity] instants = 10000000000`` aborted the process in the allocator."""
+    assert ProximityConfig(instants=MAX_STEPS).instants == MAX_STEPS
+    with pytest.raises(ConfigError, match=r"ProximityConfig\.instants = 10000000000; allowed range: \[0, 10000000\]"):
+        ProximityConfig(instants=10**10)
+
+
+def test_proximity_frames_refuse_more_rows_than_the_limit():
+    ev = _edges([0.0, 100.0])
+    assert proximity_frames(ev, ["s1", "s2"], period=1.0).height == 2 * 101
+    with pytest.raises(ConfigError, match=r"\[proximity\] period = 1 s / instants: 40,000,000 frame rows"):
+        proximity_frames(ev, ["s1", "s2"], period=1.0, instants=20_000_000)
+    with pytest.raises(ConfigError, match=r"\[proximity\] period = 1e-06 s: 100,000,000 instants"):
+        proximity_frames(ev, ["s1"], period=1e-6)
+
+
+def test_motion_frames_refuse_a_period_too_short_for_the_span():
+    ev = _edges([0.0, 50.0])
+    assert motion_frames(ev, ["s1", "s2"], period=1.0).height == 2 * 51
+    with pytest.raises(ConfigError, match=r"period = 1e-06 s: 100,000,002 frame rows"):
+        motion_frames(ev, ["s1", "s2"], period=1e-6)
+    with pytest.raises(ConfigError, match=r"period = 1e-06 s"):
+        motion_frames(ev, ["s1", "s2"], period=1e-6, t0=0.0, t1=50.0)
+
+
+def test_world_grid_and_raster_refuse_a_cell_too_small(lab):
+    site, _ = lab
+    grid = WorldGrid.of_site(site, 0.5)
+    assert grid.nx * grid.ny > 0
+    with pytest.raises(ConfigError, match=r"cell = 1e-05: .* grid cells"):
+        WorldGrid.of_site(site, 1e-5)
+    with pytest.raises(ConfigError, match=r"\[clustertrack\] raster_per_r: .* raster cells"):
+        make_raster(site.boundary, 1e-5)
+
+
+def test_particle_and_stage_counts_are_bounded():
+    with pytest.raises(ConfigError, match=r"IntruderConfig\.particles = 100000000"):
+        IntruderConfig(particles=10**8)
+    with pytest.raises(ConfigError, match=r"IntruderConfig\.log_particles"):
+        IntruderConfig(log_particles=10**8)
+    with pytest.raises(ConfigError, match=r"IStateConfig\.max_stages = 100000000"):
+        IStateConfig(max_stages=10**8)
+    assert BinPFConfig(particles=10**6, max_tracks=10).particles == 10**6  # the product is checked at the run
