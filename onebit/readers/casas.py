@@ -82,7 +82,9 @@ from onebit.readers.motion import TOGGLE_VALUES
 from onebit.readers.rows import (
     REORDER_TOLERANCE_S,
     RawRows,
+    check_line_lengths,
     check_rows,
+    check_text,
     csv_header,
     parse_name,
     parse_time,
@@ -198,6 +200,8 @@ def casas_lines(path: str | Path) -> pl.DataFrame:
         data = path.read_bytes()
     except OSError as exc:
         raise InputError(f"cannot read CASAS log: {exc.strerror}", file=path) from None
+    check_line_lengths(data, path)  # bounded memory: no 200 MB line, no binary file split into lines
+    check_text(data, path)
     # physical lines (split at \n only, as rows.physical_lines does for every log), so a stray
     # \r, form feed or U+2028 inside a line never shifts the line numbers of what follows
     df = physical_lines(data).select("line", pl.col("text").str.replace_all("\x00", "\ufffd", literal=True))
