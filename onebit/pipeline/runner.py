@@ -254,7 +254,15 @@ def run_pipeline(
             try:
                 with rerun_enabled():  # recordings are written whatever RERUN says (viz.recording)
                     result = _run_stages(
-                        ctx, stage_list, requested, known, sink=sink, echo=echo, rrd=rrd, entered=entered
+                        ctx,
+                        stage_list,
+                        requested,
+                        known,
+                        sink=sink,
+                        echo=echo,
+                        rrd=rrd,
+                        entered=entered,
+                        looks={e.name: e.drawn for e in tracker_entries},
                     )
             except OnebitError:
                 raise
@@ -280,12 +288,14 @@ def _run_stages(
     echo: Callable[[str], None],
     rrd: bool = True,
     entered: float | None = None,
+    looks: dict | None = None,
 ) -> tuple[dict[str, str], pl.DataFrame, bool, list[str]]:
     """Run the stages into ``ctx.out`` (the work folder) and write the run's record there.
 
     A stage's work runs first, then (``rrd``) its recording is written: opened, the site
     logged, the stage's viz called, closed; a failure in either leaves no ``.rrd`` of the
-    stage. Work, recording and table writing are timed apart (``timing`` of ``run.toml``)."""
+    stage. Work, recording and table writing are timed apart (``timing`` of ``run.toml``);
+    ``looks`` (tracker -> :class:`~onebit.viz.families.Look`) lay out the run's blueprint."""
     work, dataset, site = ctx.out, ctx.dataset, ctx.site
     (work / "tables").mkdir(parents=True, exist_ok=True)
     if rrd:
@@ -363,7 +373,7 @@ def _run_stages(
         echo(f"  {p}")
     t3 = time.perf_counter()
     if rrd:
-        save_run_blueprint(work / "rrd", units=site.units)  # the viewer layout of what the stages logged
+        save_run_blueprint(work / "rrd", units=site.units, looks=looks)  # the viewer layout of what the stages logged
     timing["blueprint_s"] = round(time.perf_counter() - t3, 6)
     rejects = ctx.tables.get("rejects", pl.DataFrame(schema=REJECTS))
     outputs.write_parquet(rejects, work / "tables" / "rejects.parquet")
