@@ -207,7 +207,7 @@ def read_residents_profile_csv(path):
     """``residents_profile.csv`` (resident, from, to, count) as
     :data:`~onebit.core.tables.RESIDENTS_PROFILE`; every line not taken is a reject with its reason."""
     path = Path(path)
-    header, _, _ = csv_header(path)
+    header, _ = header_names(path)
     cols = tuple(c for c in RESIDENTS_PROFILE.names() if c != "bin" or "bin" in [h.strip() for h in header])
     raw = read_csv_rows(path, cols)
     if "bin" not in cols:  # a profile without a clock (the column may be left out)
