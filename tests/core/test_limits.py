@@ -3,6 +3,7 @@
 
 from __future__ import annotations
 
+import numpy as np
 import polars as pl
 import pytest
 
@@ -73,3 +74,31 @@ def test_particle_and_stage_counts_are_bounded():
     with pytest.raises(ConfigError, match=r"IStateConfig\.max_stages = 100000000"):
         IStateConfig(max_stages=10**8)
     assert BinPFConfig(particles=10**6, max_tracks=10).particles == 10**6  # the product is checked at the run
+
+
+def test_clustertrack_kept_and_candidate_particles_are_bounded():
+    """K kept particles carry a (K, K) matrix of summed distances; K x m_t candidates are drawn."""
+    from shapely.geometry import box
+
+    from onebit.trackers.clustertrack.algorithm import cluster_track, rules_of_thumb
+    from onebit.trackers.clustertrack.feasible import SensorArray
+    from onebit.trackers.clustertrack.space import FeasibleSpace
+
+    xy = np.array([[0.5, 0.5], [1.5, 0.5]])
+    sa = SensorArray(("a", "b"), xy, np.ones(2), np.ones(2))
+    on = np.array([[1, 0], [1, 1], [0, 1]], dtype=bool)
+    space = FeasibleSpace.build(on, np.arange(3, dtype=float), sa, box(0, 0, 2, 1), dim=2, cell=0.1)
+    assert rules_of_thumb(space, H=50, m_o=50.0).K == 50
+    with pytest.raises(ConfigError, match=r"\[clustertrack\] k \(default h x q_hat\): 100,000,000 particle pairs"):
+        rules_of_thumb(space, H=50, m_o=50.0, K=10_000)
+    p = rules_of_thumb(space, H=50, m_o=10**9)
+    with pytest.raises(ConfigError, match=r"\[clustertrack\] m_o_r / m_o_r2: .* candidate particles"):
+        cluster_track(space, p, np.random.default_rng(0))
+
+
+def test_scores_gates_are_bounded():
+    from onebit.scoring.crossings import MAX_GATES, ScoresConfig
+
+    assert len(ScoresConfig(gates_m=[float(g + 1) for g in range(MAX_GATES)]).gates_m) == MAX_GATES
+    with pytest.raises(ConfigError, match="ScoresConfig.gates_m: 33 gates, more than the 32"):
+        ScoresConfig(gates_m=[float(g + 1) for g in range(33)])
