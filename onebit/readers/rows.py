@@ -274,18 +274,12 @@ def physical_lines(data: bytes) -> pl.DataFrame:
     A line holding bytes that are not UTF-8 gets ``_reason`` naming the first such byte and
     its column (1-based, in bytes); its ``text`` shows invalid sequences as U+FFFD.
     """
-    try:
-        text, bad = data.decode("utf-8"), None
-    except UnicodeDecodeError:
-        text, bad = data.decode("utf-8", errors="replace"), _bad_lines(data)
-    if text.startswith("\ufeff"):  # a UTF-8 byte-order mark (spreadsheet exports) is not data
-        text = text[1:]
-    if text == "":
+    blocks = [_block_lines(data, lo, hi) for lo, hi in file_spans(data)]  # one span of the file at a time
+    if not any(len(parts) for parts, _ in blocks):
         return pl.DataFrame(schema={"line": pl.Int64, "text": pl.String, "_reason": pl.String})
-    parts = pl.Series("text", [text]).str.split("\n").explode()
-    del text
-    if parts[-1] == "":
-        parts = parts.slice(0, parts.len() - 1)
+    parts = pl.concat([parts for parts, _ in blocks], rechunk=True)
+    bad = _bad_lines(data) if any(not utf8 for _, utf8 in blocks) else None
+    del blocks
     lines = (
         pl.DataFrame({"text": parts})
         .with_row_index("line", offset=1)
@@ -295,6 +289,40 @@ def physical_lines(data: bytes) -> pl.DataFrame:
         return lines.with_columns(pl.lit(None, pl.String).alias("_reason"))
     reasons = pl.DataFrame({"line": bad[0], "_reason": bad[1]}, schema={"line": pl.Int64, "_reason": pl.String})
     return lines.join(reasons, on="line", how="left")
+
+
+def file_spans(data: bytes) -> list[tuple[int, int]]:
+    """``data`` cut into spans of about :data:`_SCAN_BYTES`, each ending just after a newline
+    (the last at the end of the data): the steps :func:`physical_lines` splits one at a time."""
+    spans, pos, size = [], 0, len(data)
+    while pos < size:
+        hi = min(size, pos + _SCAN_BYTES)
+        if hi < size:
+            cut = data.rfind(b"\n", pos, hi)
+            cut = cut if cut >= pos else data.find(b"\n", hi)
+            hi = size if cut == -1 else cut + 1
+        spans.append((pos, hi))
+        pos = hi
+    return spans
+
+
+def _block_lines(data: bytes, lo: int, hi: int) -> tuple[pl.Series, bool]:
+    """The lines of ``data[lo:hi]`` (a span of :func:`file_spans`) as text, invalid UTF-8 as U+FFFD
+    (a byte-order mark at the start of the file is not data), and whether the span is UTF-8."""
+    raw = data[lo:hi]
+    try:
+        text, utf8 = raw.decode("utf-8"), True
+    except UnicodeDecodeError:
+        text, utf8 = raw.decode("utf-8", errors="replace"), False
+    del raw
+    if lo == 0 and text.startswith("\ufeff"):
+        text = text[1:]
+    if not text:
+        return pl.Series("text", [], dtype=pl.String), utf8
+    if hi == len(data) and not text.endswith("\n"):
+        text += "\n"  # the last line has no newline: the same split as one that has
+    parts = pl.Series("text", [text]).str.split("\n").explode()
+    return parts.slice(0, parts.len() - 1), utf8  # the empty part after the span's last newline
 
 
 def _bounded(col: str, limit: int = MAX_QUOTE) -> pl.Expr:

@@ -152,3 +152,58 @@ def test_ascii_garbage_after_a_valid_header_is_refused(tmp_path):
     p = _write(tmp_path, b"t,sensor,value\n" + junk.tobytes())
     with pytest.raises(InputError, match=r"motion\.csv:\d+: \d+ lines are not records of the header's 3 fields"):
         read_motion_csv(p, SENSORS)
+
+
+@settings(max_examples=200, deadline=None)
+@given(
+    data=st.lists(
+        st.sampled_from([b"a", b"\n", b"\r\n", b",", b"\xff", b"\xc3\xa9", b"\xef\xbb\xbf", b" ", b"\xe2\x82"]),
+        max_size=60,
+    ).map(b"".join),
+    step=st.integers(1, 12),
+)
+def test_physical_lines_split_in_spans_as_in_one_piece(data, step):
+    """The file is split a span at a time (bounded temporaries): the same lines, texts and reasons."""
+    whole = rows.physical_lines(data)
+    with pytest.MonkeyPatch.context() as mp:
+        mp.setattr(rows, "_SCAN_BYTES", step)
+        spans = rows.physical_lines(data)
+    assert spans.equals(whole), (spans, whole)
+    assert whole.height == data.count(b"\n") + (not data.endswith(b"\n")) - (data in (b"", b"\xef\xbb\xbf"))
+
+
+def _undated_reference(data: bytes) -> int:
+    count = 0
+    for line in data.split(b"\n"):
+        if line[:1] in (b"", b" ", b"\t", b"\r"):
+            continue
+        count += not (len(line) >= 5 and line[:4].isdigit() and line[4:5] == b"-")
+    return count
+
+
+@settings(max_examples=150, deadline=None)
+@given(
+    data=st.lists(
+        st.sampled_from([b"2010-11-04 M1 ON", b"\n", b"x", b"201", b"-", b" ", b"\t", b"9999-"]), max_size=40
+    ).map(b"".join),
+    step=st.integers(1, 30),
+)
+def test_undated_casas_lines_match_a_line_by_line_count(data, step):
+    from onebit.readers.casas import undated_lines
+
+    with pytest.MonkeyPatch.context() as mp:
+        mp.setattr(rows, "_SCAN_BYTES", step)
+        count, first = undated_lines(data)
+    assert count == _undated_reference(data) and (first is None) == (count == 0)
+
+
+def test_a_casas_log_of_garbage_is_refused(tmp_path, monkeypatch):
+    from onebit.readers import casas
+
+    monkeypatch.setattr(casas, "MAX_MALFORMED_LINES", 3)
+    good = "2010-11-04 00:03:50\tM003\tON\n2010-11-04 00:03:55\tM003\tOFF\n"
+    ok = _write(tmp_path, (good + "junk\n" * 3).encode(), "ok.txt")
+    assert casas.read_casas(ok).rejects.height == 3
+    bad = _write(tmp_path, (good + "junk\n" * 4).encode(), "bad.txt")
+    with pytest.raises(InputError, match=r"bad\.txt:3: 4 lines do not start with a date"):
+        casas.read_casas(bad)
