@@ -182,41 +182,37 @@ MAX_MALFORMED_LINES = 100_000
 _SHAPE_BYTES = 1 << 22
 
 
-def _line_counts(block: np.ndarray, ends: np.ndarray, mask: np.ndarray) -> np.ndarray:
-    """How many ``mask`` bytes each line of ``block`` holds (line ``k`` ends at ``ends[k]``, exclusive)."""
-    cum = np.zeros(block.size + 1, dtype=np.int32)
-    np.cumsum(mask, dtype=np.int32, out=cum[1:])
-    starts = np.r_[0, ends[:-1] + 1]
-    return cum[ends] - cum[np.minimum(starts, ends)]
+def _per_line(ends: np.ndarray, at: np.ndarray) -> np.ndarray:
+    """How many of the byte offsets ``at`` fall on each line (line ``k`` ends at ``ends[k]``)."""
+    return np.bincount(np.searchsorted(ends, at), minlength=ends.size)[: ends.size]
 
 
 def malformed_lines(data: bytes, n_fields: int, after_line: int) -> tuple[int, int | None]:
     """Lines after ``after_line`` of ``data`` that are surely not one record of ``n_fields``:
     quote-free, not blank, and with another number of separators. Returns their count and the
-    first one's number. Scans ``data`` :data:`_SHAPE_BYTES` at a time (bounded temporaries)."""
-    count, first, pos, line0 = 0, None, 0, 1
-    size = len(data)
-    while pos < size:
-        hi = min(size, pos + _SHAPE_BYTES)
-        if hi < size:
-            cut = data.rfind(b"\n", pos, hi)
-            cut = cut if cut >= pos else data.find(b"\n", hi)
-            hi = size if cut == -1 else cut + 1
-        block = np.frombuffer(data, dtype=np.uint8, count=hi - pos, offset=pos)
+    first one's number. Scans ``data`` :data:`_SHAPE_BYTES` at a time (bounded temporaries):
+    separators are counted per line from their offsets; only the lines with a wrong count are
+    looked at for quotes and blanks."""
+    count, first, line0 = 0, None, 1
+    for lo, hi in file_spans(data, _SHAPE_BYTES):
+        block = np.frombuffer(data, dtype=np.uint8, count=hi - lo, offset=lo)
         ends = np.flatnonzero(block == 0x0A)
-        if hi == size and (ends.size == 0 or ends[-1] != block.size - 1):
+        n_nl = int(ends.size)
+        if hi == len(data) and (ends.size == 0 or ends[-1] != block.size - 1):
             ends = np.r_[ends, block.size]
         if ends.size:
-            seps = _line_counts(block, ends, block == ord(SEPARATOR))
-            quotes = _line_counts(block, ends, block == ord(QUOTE))
-            text = _line_counts(block, ends, (block != 0x20) & (block != 0x09) & (block != 0x0D) & (block != 0x0A))
+            seps = _per_line(ends, np.flatnonzero(block == ord(SEPARATOR)))
             numbers = np.arange(line0, line0 + ends.size)
-            bad = np.flatnonzero((quotes == 0) & (text > 0) & (seps != n_fields - 1) & (numbers > after_line))
-            if bad.size:
-                count += int(bad.size)
-                first = first if first is not None else int(numbers[bad[0]])
-        line0 += int(np.count_nonzero(block == 0x0A))
-        pos = hi
+            odd = np.flatnonzero((seps != n_fields - 1) & (numbers > after_line))
+            if odd.size:
+                quoted = _per_line(ends, np.flatnonzero(block == ord(QUOTE)))[odd] > 0
+                texty = (block != 0x20) & (block != 0x09) & (block != 0x0D) & (block != 0x0A)
+                blank = _per_line(ends, np.flatnonzero(texty))[odd] == 0
+                bad = odd[~quoted & ~blank]
+                if bad.size:
+                    count += int(bad.size)
+                    first = first if first is not None else int(numbers[bad[0]])
+        line0 += n_nl
     return count, first
 
 
@@ -291,12 +287,14 @@ def physical_lines(data: bytes) -> pl.DataFrame:
     return lines.join(reasons, on="line", how="left")
 
 
-def file_spans(data: bytes) -> list[tuple[int, int]]:
-    """``data`` cut into spans of about :data:`_SCAN_BYTES`, each ending just after a newline
-    (the last at the end of the data): the steps :func:`physical_lines` splits one at a time."""
+def file_spans(data: bytes, step: int | None = None) -> list[tuple[int, int]]:
+    """``data`` cut into spans of about ``step`` bytes (:data:`_SCAN_BYTES`), each ending just
+    after a newline (the last at the end of the data): the steps a whole file is scanned or
+    split in, one at a time (:func:`physical_lines`, :func:`malformed_lines`)."""
     spans, pos, size = [], 0, len(data)
+    step = step or _SCAN_BYTES
     while pos < size:
-        hi = min(size, pos + _SCAN_BYTES)
+        hi = min(size, pos + step)
         if hi < size:
             cut = data.rfind(b"\n", pos, hi)
             cut = cut if cut >= pos else data.find(b"\n", hi)
@@ -770,7 +768,6 @@ def read_typed_csv(path: str | Path, dtypes: dict[str, pl.DataType]) -> TypedSpl
     if len(header) > MAX_HEADER_FIELDS or any(header.count(c) != 1 for c in dtypes) or not head_text.strip(" \t"):
         return None
     n = len(header)
-    check_shapes(data, path, n, 1)
     n_lines = int(np.count_nonzero(np.frombuffer(data, dtype=np.uint8) == 0x0A)) + (not data.endswith(b"\n")) - 1
     columns = tuple(dtypes)
     file = FileLines(data)
@@ -791,6 +788,7 @@ def read_typed_csv(path: str | Path, dtypes: dict[str, pl.DataType]) -> TypedSpl
                 "line", *columns
             )
             return TypedSplit(frame, empty_rest, header, file)
+    check_shapes(data, path, n, 1)  # not clean: refused before the tolerant read if it is not this log
     work = data.replace(b"\r\n", b"\n") if b"\r" in data else data
     wfile = file if work is data else FileLines(work)
     odd = _odd_lines(work, wfile.nl) if not plain or not work.isascii() else np.empty(0, dtype=np.int64)
