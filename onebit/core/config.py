@@ -24,6 +24,8 @@ MAX_STEPS = 10_000_000
 MAX_GRID_CELLS = 20_000_000
 #: particles of a particle filter, over all its tracks
 MAX_PARTICLES = 10_000_000
+#: agents, people or targets a config may declare
+MAX_TARGETS = 10_000
 
 
 def check_size(count: float, limit: int, *, what: str, field: str, hint: str = "") -> None:

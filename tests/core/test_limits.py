@@ -102,3 +102,30 @@ def test_scores_gates_are_bounded():
     assert len(ScoresConfig(gates_m=[float(g + 1) for g in range(MAX_GATES)]).gates_m) == MAX_GATES
     with pytest.raises(ConfigError, match="ScoresConfig.gates_m: 33 gates, more than the 32"):
         ScoresConfig(gates_m=[float(g + 1) for g in range(33)])
+
+
+def test_beams_correction_count_states_are_bounded():
+    """With no known start every count vector of n agents over p regions is a start state:
+    C(n + p - 1, p - 1) of them ([correct] n = 10^9 was a 7.45 GiB allocation)."""
+    from onebit.trackers.beams.correction import CorrectConfig
+    from onebit.trackers.beams.counting import RegionEdges, correct
+
+    with pytest.raises(ConfigError, match=r"CorrectConfig\.n = 1000000000; allowed range: \[1, 10000\]"):
+        CorrectConfig(n=10**9)
+    e = RegionEdges.from_arrays([0, 1, 2, 3, 4], [1, 2, 3, 4, 5], 6)
+    src, tgt = e.edge_source[[0, 1]], e.edge_target[[0, 1]]
+    assert correct(src, tgt, e, n_agents=3).cost == 0
+    with pytest.raises(ConfigError, match=r"\[correct\] n \(or site\.toml targets\): .* count-state cells"):
+        correct(src, tgt, e, n_agents=1000)
+
+
+def test_site_targets_are_bounded(tmp_path):
+    from onebit.core.errors import SiteError
+    from onebit.core.site import load_site
+    from onebit.datasets.builtin import builtin_site_path
+
+    text = builtin_site_path("lab").read_text()
+    assert "targets" not in text.split("[", 1)[0]
+    (tmp_path / "site.toml").write_text("targets = 100000\n" + text)
+    with pytest.raises(SiteError, match=r"targets.*must be an integer in \[0, 10000\], got 100000"):
+        load_site(tmp_path / "site.toml")
