@@ -88,7 +88,7 @@ from onebit.core.tables import REJECTS
 from onebit.models.graph_hmm.decoding import build_eatg
 from onebit.pipeline.context import RunContext, dataset_run_config
 from onebit.pipeline.runner import RunResult, check_dataset, check_out, check_sections, run_pipeline
-from onebit.pipeline.stages import TIME_SOURCES, TRACKERS, run_time_origin, stages, tracker_config
+from onebit.pipeline.stages import LOOKS, TIME_SOURCES, TRACKERS, run_time_origin, stages, tracker_config
 from onebit.readers.mcap_io import load_topic_map, read_mcap
 from onebit.readers.motion import MotionConfig, site_rules
 from onebit.readers.rows import REORDER_TOLERANCE_S, RawRows
@@ -98,6 +98,7 @@ from onebit.trackers.findinghumo import lagged as hmm_online
 from onebit.trackers.findinghumo.stage import FindingHumoConfig
 from onebit.trackers.intruder import online as intruder_online
 from onebit.viz import live as viz_live
+from onebit.viz.families import Look
 
 #: Trackers that run while the log grows, and how often they publish.
 ONLINE: dict[str, str] = {
@@ -351,7 +352,7 @@ class _Publisher:
         self.delays.append(d)
         self.counts[tracker] = self.counts.get(tracker, 0) + len(t)
         if self.rec is not None:
-            viz_live.log_estimates(self.rec, tracker, tracks)
+            viz_live.log_estimates(self.rec, tracker, tracks, rgb=LOOKS.get(tracker, Look()).rgb)
             viz_live.log_delays(self.rec, tracker, t, delay)
 
 
