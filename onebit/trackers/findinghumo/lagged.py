@@ -102,6 +102,7 @@ class LaggedDecoder:
         self.switches: list[tuple[int, int, tuple[int, ...], tuple[int, ...]]] = []
         self.decisions: list[dict] = []
         self.joint_log: list[dict] = []
+        self.passes = 0  # the most CPDA passes one block took
 
     def extend(self, active: np.ndarray) -> None:
         """Append final slots ``active`` (L, N)."""
@@ -163,6 +164,7 @@ class LaggedDecoder:
                 decide=(r0, r1),
             )
             seg = cp.paths
+            self.passes = max(self.passes, cp.passes)
             for b, node, users, paired in cp.switches:
                 owner[np.asarray(users)] = owner[np.asarray(paired)]
                 self.switches.append((b + lo, node, users, paired))
@@ -195,8 +197,9 @@ class LaggedDecoder:
         return seg
 
     def cpda_result(self) -> CpdaResult:
-        """The CPDA switches and decisions of every block (slots of the run)."""
-        return CpdaResult(self.out[:, : self.committed], list(self.switches), 1, list(self.decisions))
+        """The CPDA switches and decisions of every block (slots of the run; ``passes``: the most
+        one block took)."""
+        return CpdaResult(self.out[:, : self.committed], list(self.switches), self.passes, list(self.decisions))
 
 
 def lagged_paths(
