@@ -354,7 +354,7 @@ def _decode_events(
 ) -> BeamDecode:
     out = decode_passes(events, source)
     if out.rejects.height:
-        fixed = out.rejects.join(events.select("line"), on="line", how="left")
+        fixed = out.rejects
         lines = fixed["line"].to_list()
         if path is not None:
             text = raw_lines(path, lines, data=file)
