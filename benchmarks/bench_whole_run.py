@@ -41,6 +41,7 @@ from __future__ import annotations
 
 import argparse
 import os
+import resource
 import shutil
 import subprocess
 import sys
@@ -122,6 +123,7 @@ def cold_run(
     cmd += [] if rrd else ["--no-rrd"]
     shutil.rmtree(out, ignore_errors=True)
     spawned = time.time()
+    before = resource.getrusage(resource.RUSAGE_CHILDREN)
     t0 = time.perf_counter()
     try:
         env = {**os.environ, "PYTHONPATH": str(code)} if code is not None else None
@@ -131,6 +133,8 @@ def cold_run(
     except subprocess.TimeoutExpired:
         return {"killed": True, "wall": timeout, "cmd": cmd}
     wall = time.perf_counter() - t0
+    after = resource.getrusage(resource.RUSAGE_CHILDREN)
+    cpu = (after.ru_utime - before.ru_utime) + (after.ru_stime - before.ru_stime)
     if not (out / "run.toml").exists():
         raise RuntimeError(f"{' '.join(cmd)} failed:\n{proc.stderr[-2000:]}")
     record = tomllib.loads((out / "run.toml").read_text())
@@ -140,6 +144,7 @@ def cold_run(
     return {
         "killed": False,
         "wall": wall,
+        "cpu": cpu,
         "startup": timing.get("entered_unix", spawned) - spawned,
         "viz": viz,
         "stages": stages,
@@ -269,6 +274,22 @@ def main(argv: list[str] | None = None) -> None:
                 )
                 if on["killed"]:
                     continue
+                table.add(
+                    Result(
+                        ROW,
+                        f"{what}, {n:.0e} rows: cpu (user + sys)",
+                        n,
+                        "s cpu",
+                        on["cpu"],
+                        off.get("cpu"),
+                        "the same run --no-rrd",
+                        growth(
+                            [n for n, _, o, _, _ in items if not o["killed"]],
+                            [o["cpu"] for _, _, o, _, _ in items if not o["killed"]],
+                        ),
+                        "the run's CPU seconds: what a loaded machine does not inflate",
+                    )
+                )
                 table.add(
                     Result(
                         ROW,

@@ -122,9 +122,7 @@ def typed_beam_events(
     )
 
 
-def decode_passes(
-    events: pl.DataFrame, source: str = "beams.csv", *, compiled: bool | str | None = None
-) -> BeamDecode:
+def decode_passes(events: pl.DataFrame, source: str = "beams.csv", *, compiled: bool | str | None = None) -> BeamDecode:
     """Decode accepted beam events (``line``, t, beam, pair, blocked; sorted by t) into crossings.
 
     Edges that do not change their pair's state (blocked while already blocked, or clear

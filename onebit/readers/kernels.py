@@ -147,24 +147,37 @@ def beam_pass_ends_vectorised(beam, pair, blocked, n_beams) -> PassEnds:
     acc = np.flatnonzero(reject == 0) if same.size else np.arange(m)
     if acc.size == 0:
         return PassEnds(reject, none, none, none, none)
-    b, v = beam[acc].astype(np.int64), blocked[acc]
-    step = v.astype(np.int64) * 2 - 1
-    after = np.empty(acc.size, dtype=np.int64)
-    for lo in range(0, n_beams, _PACK):  # one packed running sum per 31 beams
-        rows = slice(None) if n_beams <= _PACK else np.flatnonzero((b >= lo) & (b < lo + _PACK))
-        shift = 2 * (b[rows] - lo)
-        after[rows] = (np.cumsum(step[rows] << shift) >> shift) & 3
-    opens = (step == 1) & (after == 1)  # before = after - step = 0
+    b, v = beam[acc], blocked[acc]
+    if n_beams <= _PACK:  # one packed running sum (in place: few 10^6-row temporaries)
+        shift = b.astype(np.int64)
+        shift <<= 1
+        after = v.astype(np.int64)
+        after <<= 1
+        after -= 1
+        after <<= shift
+        np.cumsum(after, out=after)
+        after >>= shift
+        after &= 3
+    else:  # one per 31 beams
+        after = np.empty(acc.size, dtype=np.int64)
+        step = v.astype(np.int64) * 2 - 1
+        for lo in range(0, n_beams, _PACK):
+            rows = np.flatnonzero((b >= lo) & (b < lo + _PACK))
+            shift = 2 * (b[rows].astype(np.int64) - lo)
+            after[rows] = (np.cumsum(step[rows] << shift) >> shift) & 3
+    opens = v & (after == 1)  # before = after - step = 0
     ends = after == 0
     sel = np.flatnonzero(opens | ends)
-    srt = sel[np.argsort(b[sel].astype(small), kind="stable")]  # per beam, in time order
+    key = b[sel].astype(_key_type(n_beams))
+    by_beam = np.argsort(key, kind="stable")
+    srt = sel[by_beam]  # per beam, in time order
     is_end = ends[srt]
     at = np.flatnonzero(is_end)  # never 0: a beam's first such edge opens
     first_of = np.empty(acc.size, dtype=np.int64)
     first_of[srt[at]] = srt[at - 1]
     close = np.flatnonzero(ends)
     # a beam whose last opening/closing edge opens: its pass is open at the end
-    bs = b[srt]
+    bs = key[by_beam]
     tail = np.ones(srt.size, dtype=np.bool_)
     tail[:-1] = bs[:-1] != bs[1:]
     open_first = srt[tail & ~is_end]  # ascending within each beam; order them by start

@@ -344,7 +344,9 @@ def debounce(
     ev = ev.select("line", "t", "sensor", "on")
     kept = ev.filter(pl.Series(~(chat | short)))  # still sorted by t, line
     sup = [
-        ev.filter(pl.Series(m)).with_columns(rule=pl.lit(r)) for m, r in ((chat, "chatter"), (short, "min_on")) if m.any()
+        ev.filter(pl.Series(m)).with_columns(rule=pl.lit(r))
+        for m, r in ((chat, "chatter"), (short, "min_on"))
+        if m.any()
     ]
     suppressed = conform(pl.concat(sup) if sup else ev.clear().with_columns(rule=pl.lit("", pl.String)), SUPPRESSED)
     if len(sup) > 1:  # one rule's edges alone are in time order already (the rows of ev are)
