@@ -105,12 +105,14 @@ def datasets(root: Path, kinds, sizes) -> list[tuple[str, int, Path]]:
     return out
 
 
-def read_csv_cold(path: Path) -> float:
-    """Seconds of ``pl.read_csv(path)`` in a fresh process (after ``import polars``)."""
-    code = f"import time, polars as pl\nt = time.perf_counter(); pl.read_csv({str(path)!r})\nprint(time.perf_counter() - t)"
-    return float(
-        subprocess.run([sys.executable, "-c", code], check=True, capture_output=True, text=True).stdout.strip()
+def read_csv_cold(path: Path) -> tuple[float, float]:
+    """Seconds of ``pl.read_csv(path)`` in a fresh process (after ``import polars``): wall and CPU."""
+    code = (
+        "import time, polars as pl\nt, c = time.perf_counter(), time.process_time(); pl.read_csv("
+        f"{str(path)!r})\nprint(time.perf_counter() - t, time.process_time() - c)"
     )
+    out = subprocess.run([sys.executable, "-c", code], check=True, capture_output=True, text=True).stdout.split()
+    return float(out[0]), float(out[1])
 
 
 def cold_run(
@@ -141,12 +143,14 @@ def cold_run(
     timing = record.get("timing", {})
     stages = {k: v for k, v in timing.items() if isinstance(v, dict)}
     viz = sum(v.get("viz_s", 0.0) for v in stages.values()) + timing.get("blueprint_s", 0.0)
+    viz_cpu = sum(v.get("viz_cpu_s", 0.0) for v in stages.values()) + timing.get("blueprint_cpu_s", 0.0)
     return {
         "killed": False,
         "wall": wall,
         "cpu": cpu,
         "startup": timing.get("entered_unix", spawned) - spawned,
         "viz": viz,
+        "viz_cpu": viz_cpu,
         "stages": stages,
         "status": record.get("stages", {}),
         "cmd": cmd,
@@ -209,7 +213,7 @@ def main(argv: list[str] | None = None) -> None:
             )
             off = cold_run(data, root / "out-norrd", trackers, rrd=False, timeout=args.timeout)
             on = off if off["killed"] else cold_run(data, root / "out", trackers, rrd=True, timeout=args.timeout)
-            floor = read_csv_cold(data / LOG[kind])
+            floor, floor_cpu = read_csv_cold(data / LOG[kind])
             if args.baseline is not None and not on["killed"]:
                 warm = cold_run(
                     data, root / "out-base", trackers, rrd=True, timeout=args.timeout, code=args.baseline
@@ -238,7 +242,7 @@ def main(argv: list[str] | None = None) -> None:
                         f"the same run at {_commit_of(args.baseline)}" + (" (killed)" if base["killed"] else ""),
                     )
                 )
-            runs.setdefault(kind, []).append((n, what, on, off, floor))
+            runs.setdefault(kind, []).append((n, what, on, off, (floor, floor_cpu)))
             if on["killed"]:
                 killed.add(kind)
             print(
@@ -250,7 +254,7 @@ def main(argv: list[str] | None = None) -> None:
             ns = [n for n, *_ in items]
             walls = [on["wall"] for _, _, on, _, _ in items if not on["killed"]]
             g_wall = growth([n for n, _, on, _, _ in items if not on["killed"]], walls)
-            for n, what, on, off, floor in items:
+            for n, what, on, off, (floor, floor_cpu) in items:
                 killed = " (killed at the timeout)" if on["killed"] else ""
                 if "every tracker" in what and kind != "home":
                     goal = "< 120 s at 1e6 rows"
@@ -318,6 +322,21 @@ def main(argv: list[str] | None = None) -> None:
                         share is not None and share <= 0.20,
                     )
                 )
+                share_cpu = on["viz_cpu"] / on["cpu"] if on["cpu"] else None
+                table.add(
+                    Result(
+                        ROW,
+                        f"{what}, {n:.0e} rows: viz (recordings), cpu",
+                        n,
+                        "s cpu",
+                        on["viz_cpu"],
+                        on["cpu"],
+                        "the whole run's cpu",
+                        growth(ns, [r[2].get("viz_cpu", 0) for r in items if not r[2]["killed"]]),
+                        "<= 20 % of the run",
+                        share_cpu is not None and share_cpu <= 0.20,
+                    )
+                )
                 for stage, t in on["stages"].items():
                     reader = stage == READER_STAGE[kind]
                     table.add(
@@ -337,6 +356,21 @@ def main(argv: list[str] | None = None) -> None:
                             (t["work_s"] <= 2 * floor) if reader else None,
                         )
                     )
+                    if reader and "work_cpu_s" in t:
+                        table.add(
+                            Result(
+                                ROW,
+                                f"{what}, {n:.0e} rows: stage {stage}, cpu",
+                                n,
+                                "s cpu",
+                                t["work_cpu_s"],
+                                floor_cpu,
+                                "pl.read_csv of the log (fresh process), cpu",
+                                None,
+                                "<= 2x pl.read_csv (cold)",
+                                t["work_cpu_s"] <= 2 * floor_cpu,
+                            )
+                        )
     table.write()
 
 
