@@ -302,19 +302,25 @@ def debounce_masks_vectorised(sensor, on, t, chatter, min_on, n_sensors, eps):
     if m < 2:
         return chat, short
     order = _by_sensor(sensor, n_sensors)
-    s_, o_, t_ = sensor[order], on[order], t[order]
-    w = np.asarray(chatter, np.float64)[s_[1:]]
-    pair = (s_[1:] == s_[:-1]) & (w > 0) & o_[1:] & ~o_[:-1] & (t_[1:] - t_[:-1] <= w + eps)
+    s_, o_ = sensor[order], on[order]
+    chatter = np.asarray(chatter, np.float64)
+    min_on = np.asarray(min_on, np.float64)
     cs = np.zeros(m, dtype=np.bool_)
-    cs[1:] |= pair
-    cs[:-1] |= pair
-    ko = np.flatnonzero(~cs)
-    s2, o2, t2 = s_[ko], o_[ko], t_[ko]
-    mo = np.asarray(min_on, np.float64)[s2[1:]]
-    pair2 = (s2[1:] == s2[:-1]) & (mo > 0) & o2[:-1] & ~o2[1:] & (t2[1:] - t2[:-1] < mo - eps)
+    if (chatter > 0).any():  # (off, on) neighbours of a sensor; times only for those
+        i = np.flatnonzero((s_[1:] == s_[:-1]) & o_[1:] & ~o_[:-1])
+        w = chatter[s_[i + 1]]
+        i = i[(w > 0) & (t[order[i + 1]] - t[order[i]] <= w + eps)]
+        cs[i] = True
+        cs[i + 1] = True
     ss = np.zeros(m, dtype=np.bool_)
-    ss[ko[1:][pair2]] = True
-    ss[ko[:-1][pair2]] = True
+    if (min_on > 0).any():  # (on, off) neighbours among the edges chatter left
+        ko = np.flatnonzero(~cs) if cs.any() else np.arange(m)
+        s2, o2 = s_[ko], o_[ko]
+        i = np.flatnonzero((s2[1:] == s2[:-1]) & o2[:-1] & ~o2[1:])
+        mo = min_on[s2[i + 1]]
+        i = i[(mo > 0) & (t[order[ko[i + 1]]] - t[order[ko[i]]] < mo - eps)]
+        ss[ko[i]] = True
+        ss[ko[i + 1]] = True
     chat[order] = cs
     short[order] = ss
     return chat, short
