@@ -23,8 +23,8 @@ and the wall clock when the runner was entered, so **start-up** = entry - proces
 ``.rrd``, log the site, the stage's viz call, close) plus the blueprint. Floors beside each:
 the same run with ``--no-rrd`` (the recordings' cost is the difference), and ``pl.read_csv``
 of the same log in a fresh process (the read alone, after ``import polars``: the reader
-stages' floor). Before the first timed run of a kind, one untimed default run on its small source log fills
-numba's on-disk kernel cache (a checkout's first run compiles every kernel it meets: tens of
+stages' floor). Before the first timed run of a kind, one untimed run of the same command on its smallest log
+fills numba's on-disk kernel cache (a checkout's first run compiles every kernel it meets: tens of
 seconds that a user's later runs never pay). A run longer than ``--timeout`` s is killed and reported so (the
 ``--no-rrd`` run goes first; when it is killed the recorded run is not tried, nor the larger
 logs of that kind).
@@ -198,8 +198,13 @@ def main(argv: list[str] | None = None) -> None:
         for kind, n, data in datasets(root, kinds, sizes):
             if kind not in warmed:  # numba's on-disk cache filled, as a user's second run finds it
                 warmed.add(kind)
-                src = root / ("home-24h" if kind == "home" else f"src-{kind}")
-                cold_run(src, root / "out-warm", None, rrd=False, timeout=args.timeout)
+                cold_run(
+                    data,
+                    root / "out-warm",
+                    TRACKERS[kind] if not args.all_trackers else None,
+                    rrd=False,
+                    timeout=args.timeout,
+                )
             if kind in killed:  # a smaller log of this kind already ran past the timeout
                 print(f"  {kind} {n} rows: not run (a smaller log was killed at the timeout)", flush=True)
                 continue
