@@ -300,7 +300,9 @@ def test_clustertrack_and_binpf_beyond_their_instant_bounds_are_skipped_saying_w
     the stage in a default run, naming the setting; 0 lifts the bound."""
     data = SCENARIO_SPECS["proximity-line"].write(tmp_path / "d", seed=4, params={"variant": "separated"})
     tight = {"clustertrack": {"max_instants": 5, "consensus_runs": 0, "reruns": 0}, "binpf": {"max_frames": 5}}
-    res = run_pipeline(data, tmp_path / "bounded", trackers=("clustertrack", "binpf", "istate"), config=tight, rrd=False)
+    res = run_pipeline(
+        data, tmp_path / "bounded", trackers=("clustertrack", "binpf", "istate"), config=tight, rrd=False
+    )
     for name, field in (("clustertrack", "max_instants = 5"), ("binpf", "max_frames = 5")):
         reason = res.status[name]
         assert reason.startswith("skipped") and field in reason and "instants" in reason, reason
