@@ -20,14 +20,17 @@ from onebit.datasets.scenario import parse_params, simulate_into
 from onebit.experiments import get_experiment
 from onebit.pipeline.executors import EXECUTORS, make_executor
 from onebit.pipeline.follow import FollowConfig, follow, parse_speed
+from onebit.pipeline.learn import learn_residents, write_profile
 from onebit.pipeline.progress import Spinner
 from onebit.pipeline.report import check_run_folder, format_report, load_report
 from onebit.pipeline.runmany import format_summary, run_many
 from onebit.pipeline.runner import load_run_config, run_pipeline
+from onebit.pipeline.split import parse_period, split_dataset
 from onebit.readers.loginfo import format_log_info, log_info
 from onebit.readers.mcap_io import csv_folder_to_mcap, load_topic_map, mcap_to_csv_folder, tracks_for_views
 from onebit.readers.trajectories import TrajectoryFormat
 from onebit.trackers.beams.verify import parse_story, verify_path
+from onebit.trackers.residents.known import Clock
 from onebit.viz.compare import compare_runs
 
 
@@ -213,9 +216,6 @@ def _cmd_experiment(args) -> int:
 
 
 def _cmd_learn_residents(args) -> int:
-    from onebit.pipeline.learn import learn_residents, write_profile
-    from onebit.trackers.residents.known import Clock
-
     clock = Clock(args.clock, args.bins) if args.clock != "none" else None
     learned = learn_residents([Path(d) for d in args.datasets], clock=clock)
     out = write_profile(learned, Path(args.out))
@@ -228,8 +228,6 @@ def _cmd_learn_residents(args) -> int:
 
 
 def _cmd_logs_split(args) -> int:
-    from onebit.pipeline.split import parse_period, split_dataset
-
     parts = split_dataset(Path(args.dataset), Path(args.out), every=parse_period(args.every))
     rows = sum(sum(p.rows.values()) for p in parts)
     print(f"split {args.dataset} into {len(parts)} parts of {args.every} ({rows} rows) under {args.out}")

@@ -222,3 +222,42 @@ def test_interrupt_leaves_out_as_it_was(data, tmp_path, capsys, monkeypatch):
     code, _, err = run_cli(capsys, "run", data, "--out", out, "--trackers", "beams")
     assert code == 130 and "interrupted" in err
     assert sorted(p.name for p in out.rglob("*")) == before
+
+
+# --------------------------------------------------------------------------- inputs that used to exhaust memory (#26 item 8)
+
+
+def test_random_bytes_as_a_log_fail_its_stage_naming_the_file(data, tmp_path, capsys):
+    """Random bytes as ``beams.csv``: refused as not text, naming the file and line (200 MB of them
+    made a 4 GB MemoryError)."""
+    (data / "beams.csv").write_bytes(bytes(range(256)) * 1000)
+    code, _, err = run_cli(capsys, "run", data, "--out", tmp_path / "run", "--no-rrd")
+    status = (tmp_path / "run" / "run.toml").read_text()
+    assert code == 1 and "stage(s) failed" in err
+    assert "beams.csv:2: not a text file" in status  # line 1 is bytes 0-9: ASCII
+
+
+def test_instants_past_the_limit_are_refused_at_load(tmp_path, capsys):
+    """``[proximity] instants = 10000000000`` in a dataset's run.toml aborted the process (exit 134)."""
+    from onebit.datasets.proximity_sim import SCENARIO_SPECS
+
+    d = SCENARIO_SPECS["proximity-line"].write(tmp_path / "prox", seed=1, params={})
+    toml = (d / "run.toml").read_text() if (d / "run.toml").exists() else ""
+    (d / "run.toml").write_text("[proximity]\ninstants = 10000000000\n" + toml.replace("[proximity]", "[old]"))
+    code, _, err = run_cli(capsys, "run", d, "--out", tmp_path / "run", "--no-rrd")
+    assert code == 2 and "ProximityConfig.instants = 10000000000; allowed range: [0, 10000000]" in err
+
+
+def test_an_mcap_cut_in_its_header_is_an_unreadable_input(data, tmp_path, capsys):
+    from onebit.readers.mcap_io import MAGIC
+
+    alone = tmp_path / "alone"
+    alone.mkdir()
+    shutil.copy(data / "site.toml", alone / "site.toml")
+    (alone / "log.mcap").write_bytes(MAGIC + b"\x01\x05")
+    code, _, err = run_cli(capsys, "run", alone, "--out", tmp_path / "run")
+    assert code == 2 and "unreadable input: log.mcap: unreadable: truncated in its MCAP header" in err
+    assert "nothing to do" not in err
+    (data / "log.mcap").write_bytes(MAGIC[:5])  # beside readable logs: the run goes on, not ok, one reject
+    code, _, err = run_cli(capsys, "run", data, "--out", tmp_path / "run2", "--trackers", "beams", "--no-rrd")
+    assert code == 1 and 'mcap:log.mcap" = "failed: unreadable' in (tmp_path / "run2" / "run.toml").read_text()

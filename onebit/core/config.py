@@ -12,6 +12,29 @@ from typing import Any
 
 from onebit.core.errors import ConfigError, InputError
 
+#: Bounds on what a config value (or a value derived from one and the data) may make the trackers
+#: allocate; past one a run is refused with a :class:`ConfigError` naming the field, never left to
+#: exhaust memory. A table of this many rows is about 1 GB or less.
+#:
+#: slots x sensors of a frames table (a ``period`` too short for the logs' span, ``instants``)
+MAX_FRAME_CELLS = 20_000_000
+#: time steps a tracker or reader is cut into: instants, stages, iterations, rows per person
+MAX_STEPS = 10_000_000
+#: cells of a world grid or raster, times the sensors when each sensor has a map over it
+MAX_GRID_CELLS = 20_000_000
+#: particles of a particle filter, over all its tracks
+MAX_PARTICLES = 10_000_000
+#: agents, people or targets a config may declare
+MAX_TARGETS = 10_000
+
+
+def check_size(count: float, limit: int, *, what: str, field: str, hint: str = "") -> None:
+    """Refuse an allocation of ``count`` ``what`` sized by the config value ``field`` (e.g.
+    ``"[proximity] instants"``) when it is over ``limit``: a :class:`ConfigError` naming both."""
+    if not count <= limit:  # also NaN
+        c = f"{count:,.0f}" if math.isfinite(count) else repr(count)
+        raise ConfigError(f"{field}: {c} {what}, more than the {limit:,} onebit allows{'; ' + hint if hint else ''}")
+
 
 def config_from_mapping(cls: type, values: dict[str, Any] | None, *, section: str):
     """Build a config dataclass from a ``run.toml`` section, naming unknown fields."""

@@ -20,6 +20,7 @@ from collections.abc import Mapping, Sequence
 import numpy as np
 import polars as pl
 
+from onebit.core.config import MAX_FRAME_CELLS, check_size
 from onebit.core.errors import ConfigError
 from onebit.core.tables import FRAMES
 
@@ -56,7 +57,8 @@ def slot_grid(
     motion: pl.DataFrame, sensors: Sequence[str], *, period: float, t0: float | None, t1: float | None
 ) -> tuple[list[str], pl.DataFrame, tuple[float, int] | None]:
     """The slots of :func:`motion_frames`: ``(sensors without repeats, their edges sorted by t,
-    (t0, number of slots) or None when there is no slot)`` (the rules in its docstring)."""
+    (t0, number of slots) or None when there is no slot)`` (the rules in its docstring). More than
+    :data:`~onebit.core.config.MAX_FRAME_CELLS` slots x sensors is a :class:`ConfigError` naming the period."""
     if not (isinstance(period, (int, float)) and math.isfinite(period) and period > 0):
         raise ConfigError(f"period = {period!r}: must be a finite number > 0 (seconds)")
     sensors = list(dict.fromkeys(sensors))
@@ -68,10 +70,24 @@ def slot_grid(
         t0 = math.floor(first / period) * period
     if t1 is None:
         last = float(ev["t"].max()) if ev.height else t0
-        n = max(int(math.floor((last - t0) / period)) + 1, 1)
+        span = (last - t0) / period
+        _check_slots(span + 1, len(sensors), period)
+        n = max(int(math.floor(span)) + 1, 1)
     else:
-        n = max(int(math.ceil((t1 - t0) / period - 1e-12)), 0)
+        span = (t1 - t0) / period
+        _check_slots(span, len(sensors), period)
+        n = max(int(math.ceil(span - 1e-12)), 0)
     return sensors, ev, ((t0, n) if n > 0 and sensors else None)
+
+
+def _check_slots(slots: float, sensors: int, period: float) -> None:
+    check_size(
+        slots * max(sensors, 1),
+        MAX_FRAME_CELLS,
+        what=f"frame rows ({slots:,.0f} slots of {period:g} s x {sensors} sensors)",
+        field=f"period = {period:g} s",
+        hint="a longer period",
+    )
 
 
 def _frames_arrays(ev: pl.DataFrame, sensors: list[str], *, t0: float, period: float, n: int) -> pl.DataFrame:

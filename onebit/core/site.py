@@ -32,7 +32,7 @@ import numpy as np
 import shapely
 from shapely.geometry import LineString, Point, Polygon
 
-from onebit.core.config import load_toml
+from onebit.core.config import MAX_TARGETS, load_toml
 from onebit.core.errors import SiteError, bounded
 from onebit.core.sensing import build_detection_regions
 from onebit.core.sensor_graph import geometric_sensor_graph
@@ -338,8 +338,10 @@ def site_from_dict(data: dict, *, source: str = "<site>") -> Site:
     regions = _regions(data.get("regions", []), free, err)
     camera = _camera(data["camera"], err) if "camera" in data else None
     targets = data.get("targets")
-    if targets is not None and (not isinstance(targets, int) or isinstance(targets, bool) or targets < 0):
-        raise err("targets", f"must be a non-negative integer, got {targets!r}")
+    if targets is not None and (
+        not isinstance(targets, int) or isinstance(targets, bool) or not 0 <= targets <= MAX_TARGETS
+    ):
+        raise err("targets", f"must be an integer in [0, {MAX_TARGETS}], got {targets!r}")
     body = _number(data["body_radius"], "body_radius", err, lo=0.0) if "body_radius" in data else None
     stypes = data.get("sensor_types", {})
     if not isinstance(stypes, dict) or not all(isinstance(v, dict) for v in stypes.values()):

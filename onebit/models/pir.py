@@ -66,6 +66,7 @@ from dataclasses import dataclass
 import numpy as np
 import shapely
 
+from onebit.core.config import MAX_GRID_CELLS, check_size
 from onebit.core.errors import SiteError
 from onebit.core.sensing import (
     BUILTIN_TYPES,
@@ -213,10 +214,21 @@ class WorldGrid:
     ny: int
 
     @classmethod
-    def of_site(cls, site: Site, cell: float) -> WorldGrid:
+    def of_site(cls, site: Site, cell: float, *, maps: int = 1) -> WorldGrid:
+        """The grid of ``cell`` over ``site``; ``maps`` arrays of its size will be made (one per
+        sensor): more than :data:`~onebit.core.config.MAX_GRID_CELLS` cells in all is a
+        :class:`~onebit.core.errors.ConfigError` naming the cell size."""
         minx, miny, maxx, maxy = site.boundary.bounds
-        nx = max(1, math.ceil((maxx - minx) / cell - 1e-9))
-        ny = max(1, math.ceil((maxy - miny) / cell - 1e-9))
+        wide, high = (maxx - minx) / cell - 1e-9, (maxy - miny) / cell - 1e-9
+        check_size(
+            max(1.0, math.ceil(wide)) * max(1.0, math.ceil(high)) * max(maps, 1),
+            MAX_GRID_CELLS,
+            what=f"grid cells ({wide:,.0f} x {high:,.0f} cells of {cell:g} site units x {max(maps, 1)} sensor maps)",
+            field=f"cell = {cell:g}",
+            hint="a larger cell",
+        )
+        nx = max(1, math.ceil(wide))
+        ny = max(1, math.ceil(high))
         return cls(float(minx), float(miny), float(cell), nx, ny)
 
     def centres(self) -> tuple[np.ndarray, np.ndarray]:
@@ -351,7 +363,7 @@ def deploy(
     ``false_alarm`` is the h of a sensor whose characterisation does not state one: no type,
     or a ``[sensor_types]`` table of the site without ``false_positive``. The built-in types
     keep their own (the paper's simulated sensors)."""
-    grid = WorldGrid.of_site(site, cell)
+    grid = WorldGrid.of_site(site, cell, maps=len(site.motion_sensors))
     regions = detection_regions(site)
     types = dict(types or {})
     tables = site.sensor_types if isinstance(site.sensor_types, dict) else {}

@@ -32,6 +32,14 @@ Trackers online (:data:`ONLINE`):
   earlier assignment, which is never un-published: the final report says whether the published
   rows equal the batch's).
 
+* ``findinghumo``, ``hmm1``, ``hmm2`` with ``decoding = "lagged"`` (their ``run.toml`` section)
+  -- per block of ``tau`` slots, incrementally: :mod:`onebit.trackers.findinghumo.lagged` keeps
+  the window decoder and the committed output, slots only the recent edges, and commits a block
+  once ``decision_lag`` slots after it have arrived (the paper's bounded delay D'); the rows
+  equal the batch run's with the same config. By default (``decoding = "batch"``) they are
+  re-run on the settled prefix like ``istate``, and the published rows may differ from the
+  final decoding.
+
 Every other tracker is batch-only and runs at the end. An event at ``e`` is *settled* once the
 horizon passes ``e + settle``, ``settle`` = the readers' look-ahead (1 s of reordering plus
 the longest debounce window of the site's sensors).
@@ -77,16 +85,20 @@ from onebit.core.errors import ConfigError, InputError, OnebitError
 from onebit.core.region_graph import build_region_graph
 from onebit.core.site import load_site
 from onebit.core.tables import REJECTS
+from onebit.models.graph_hmm.decoding import build_eatg
 from onebit.pipeline.context import RunContext, dataset_run_config
 from onebit.pipeline.runner import RunResult, check_dataset, check_out, check_sections, run_pipeline
-from onebit.pipeline.stages import TIME_SOURCES, TRACKERS, run_time_origin, stages, tracker_config
+from onebit.pipeline.stages import LOOKS, TIME_SOURCES, TRACKERS, run_time_origin, stages, tracker_config
 from onebit.readers.mcap_io import load_topic_map, read_mcap
 from onebit.readers.motion import MotionConfig, site_rules
 from onebit.readers.rows import REORDER_TOLERANCE_S, RawRows
 from onebit.readers.timebase import MAX_GAP_S, TimeOrigin
 from onebit.trackers.base import ARTIFACTS, PROGRESS
+from onebit.trackers.findinghumo import lagged as hmm_online
+from onebit.trackers.findinghumo.stage import FindingHumoConfig
 from onebit.trackers.intruder import online as intruder_online
 from onebit.viz import live as viz_live
+from onebit.viz.families import Look
 
 #: Trackers that run while the log grows, and how often they publish.
 ONLINE: dict[str, str] = {
@@ -98,6 +110,10 @@ ONLINE: dict[str, str] = {
     "hmm1": "per window (re-run on the settled prefix)",
     "hmm2": "per window (re-run on the settled prefix)",
 }
+#: The HMM trackers, online incrementally with ``decoding = "lagged"`` (their window decoder mode).
+_LAGGED_MODES = {"findinghumo": "adaptive", "hmm1": "full1", "hmm2": "full2"}
+#: How they publish then.
+LAGGED = "per block of tau slots, final D' slots after it (decoding = 'lagged', incremental)"
 #: The input table whose settled events close the rows of a re-run-on-prefix tracker.
 _PREFIX_EVENTS = {
     "intruder-naive": ("motion",),
@@ -336,8 +352,17 @@ class _Publisher:
         self.delays.append(d)
         self.counts[tracker] = self.counts.get(tracker, 0) + len(t)
         if self.rec is not None:
-            viz_live.log_estimates(self.rec, tracker, tracks)
+            viz_live.log_estimates(self.rec, tracker, tracks, rgb=LOOKS.get(tracker, Look()).rgb)
             viz_live.log_delays(self.rec, tracker, t, delay)
+
+
+def _lagged(entry, data: Path, scratch: Path, site, rg, sections: dict, trackers) -> bool:
+    """Whether an HMM tracker's config (``--config``, else the dataset's ``run.toml``) asks for
+    ``decoding = "lagged"``."""
+    ctx = RunContext(
+        data, scratch, site, rg, {k: dict(v) for k, v in sections.items() if isinstance(v, dict)}, trackers=trackers
+    )
+    return getattr(tracker_config(entry, ctx), "decoding", "batch") == "lagged"
 
 
 def _settle(site, sections: dict) -> float:
@@ -509,11 +534,15 @@ def follow(
         ]
         viz_live.send_live_blueprint(rec, online)
         batch_only = [n for n in chosen if n not in online]
-        for n in online:
-            echo(f"  {n}: online, {ONLINE[n]}")
         if batch_only:
             echo(f"  batch-only (run at the end): {', '.join(batch_only)}")
         intruder_state = None
+        hmm_states: dict[str, hmm_online.OnlineHmm] = {}
+        lagged = [
+            n for n in online if n in _LAGGED_MODES and _lagged(entries[n], data, scratch, site, rg, merged, chosen)
+        ]
+        for n in online:
+            echo(f"  {n}: online, {LAGGED if n in lagged else ONLINE[n]}")
         published: dict[str, float] = {n: -math.inf for n in online}
         sent: dict[str, pl.DataFrame] = {}
         logged_edges = 0
@@ -618,6 +647,25 @@ def follow(
                         pub.table(f"{name}_iterations", rows["iterations"])
                         if "camera" in rows:
                             pub.table(f"{name}_camera", rows["camera"])
+                        continue
+                    if name in lagged:
+                        if "motion" not in tables:
+                            continue
+                        if name not in hmm_states:
+                            cfg = tracker_config(entry, ctx)
+                            eatg = build_eatg(site, np.zeros((0, len(site.sensor_graph.nodes)), bool), cfg)
+                            hmm_states[name] = hmm_online.start(
+                                name,
+                                _LAGGED_MODES[name],
+                                site,
+                                cfg,
+                                eatg,
+                                cpda_windows=cfg.c_windows if isinstance(cfg, FindingHumoConfig) else None,
+                            )
+                        rows = hmm_online.advance(
+                            hmm_states[name], tables["motion"], settled_until=horizon - settle, final=final
+                        )
+                        pub.estimates(name, rows)
                         continue
                     events = next((tables[k] for k in _PREFIX_EVENTS[name] if k in tables), None)
                     if events is None or events.height == 0:

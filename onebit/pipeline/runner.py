@@ -256,7 +256,15 @@ def run_pipeline(
             try:
                 with rerun_enabled():  # recordings are written whatever RERUN says (viz.recording)
                     result = _run_stages(
-                        ctx, stage_list, requested, known, sink=sink, echo=echo, rrd=rrd, entered=entered
+                        ctx,
+                        stage_list,
+                        requested,
+                        known,
+                        sink=sink,
+                        echo=echo,
+                        rrd=rrd,
+                        entered=entered,
+                        looks={e.name: e.drawn for e in tracker_entries},
                     )
             except OnebitError:
                 raise
@@ -282,12 +290,14 @@ def _run_stages(
     echo: Callable[[str], None],
     rrd: bool = True,
     entered: float | None = None,
+    looks: dict | None = None,
 ) -> tuple[dict[str, str], pl.DataFrame, bool, list[str]]:
     """Run the stages into ``ctx.out`` (the work folder) and write the run's record there.
 
     A stage's work runs first, then (``rrd``) its recording is written: opened, the site
     logged, the stage's viz called, closed; a failure in either leaves no ``.rrd`` of the
-    stage. Work, recording and table writing are timed apart (``timing`` of ``run.toml``)."""
+    stage. Work, recording and table writing are timed apart (``timing`` of ``run.toml``);
+    ``looks`` (tracker -> :class:`~onebit.viz.families.Look`) lay out the run's blueprint."""
     work, dataset, site = ctx.out, ctx.dataset, ctx.site
     (work / "tables").mkdir(parents=True, exist_ok=True)
     if rrd:
@@ -353,6 +363,13 @@ def _run_stages(
     data_stages = [st.name for st in stage_list if st.name not in {*tracker_names, "scores"}]
     if all(status.get(n, "").startswith("skipped") for n in data_stages):
         why = "; ".join(f"{n}: {s}" for n, s in status.items() if n in data_stages or n.startswith("mcap:"))
+        bad = [f"{n[5:]}: {s[8:]}" for n, s in status.items() if n.startswith("mcap:") and s.startswith("failed: ")]
+        if bad:  # an unreadable file is the news, not the stages it left with nothing
+            why = "; ".join(f"{n}: {s}" for n, s in status.items() if n in data_stages)
+            raise InputError(
+                f"unreadable input: {'; '.join(bad)}; nothing else to read ({why}); OUT was left as it was",
+                file=dataset,
+            )
         raise InputError(f"nothing to do: no input could be read ({why}); OUT was left as it was", file=dataset)
     problems = [
         f"tracker '{tr}' was asked for (--trackers) but did not run: {status.get(tr, 'not run')[len('skipped: ') :]}"
@@ -363,7 +380,7 @@ def _run_stages(
         echo(f"  {p}")
     t3, c3 = time.perf_counter(), time.process_time()
     if rrd:
-        save_run_blueprint(work / "rrd", units=site.units)  # the viewer layout of what the stages logged
+        save_run_blueprint(work / "rrd", units=site.units, looks=looks)  # the viewer layout of what the stages logged
     timing["blueprint_s"] = round(time.perf_counter() - t3, 6)
     timing["blueprint_cpu_s"] = round(time.process_time() - c3, 6)
     rejects = ctx.tables.get("rejects", pl.DataFrame(schema=REJECTS))
@@ -398,6 +415,10 @@ def _read_mcaps(ctx: RunContext, echo: Callable[[str], None]) -> None:
             echo(f"  {mp.name}: failed: {exc}")
             continue
         ctx.add_rejects(contents.rejects)
+        if contents.unreadable:  # cut inside its header: a failed input, not an absent one
+            why = contents.rejects["reason"][-1]
+            ctx.status[f"mcap:{mp.name}"] = f"failed: {why}"
+            echo(f"  {mp.name}: failed: {why}")
         for topic, frame in contents.channels.items():
             ctx.mcap_channels.setdefault(topic, RawRows(f"{mp.name}:{topic}", frame, pl.DataFrame(schema=REJECTS)))
 

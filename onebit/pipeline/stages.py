@@ -27,7 +27,7 @@ registry, no plugin loading: this file is the whole list.
 from __future__ import annotations
 
 from collections.abc import Callable
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Any
 
 import polars as pl
@@ -78,14 +78,16 @@ from onebit.viz import intruder as viz_intruder
 from onebit.viz import istate as viz_istate
 from onebit.viz import residents as viz_residents
 from onebit.viz.beams_correct import log_corrected_crossings
+from onebit.viz.colors import CAMERA_RGB
 from onebit.viz.events import log_crossings
+from onebit.viz.families import Look
 from onebit.viz.intruder import log_motion_states
 from onebit.viz.tracks import log_point_tracks, log_scores
 from onebit.viz.truth import log_truth
 
 #: ``score(tracker, tables, site, region_graph) -> (report rows, tables)``
 ScoreFn = Callable[..., tuple[list[ReportRow], dict[str, pl.DataFrame]]]
-#: ``log_run(rec, tracker, outputs, *, site, region_graph, config, tables)``
+#: ``log_run(rec, tracker, outputs, *, site, region_graph, config, tables, look)``
 VizFn = Callable[..., None]
 #: ``metric(tracker, tables, site, region_graph) -> report rows``: a metric the scores stage
 #: adds for every tracker that ran (``[]`` when the run lacks what it needs)
@@ -111,10 +113,18 @@ class TrackerEntry:
     #: the built-in scenario (``onebit simulate NAME``) the tests run it on: the contract tests
     #: of the trackers and of the scorers (``None``: no scenario serves it)
     scenario: str | None = None
+    #: how its recordings and its blueprint tab look: family and colour
+    #: (:class:`onebit.viz.families.Look`; the error unit is set from ``gate``, see :attr:`drawn`)
+    look: Look = field(default_factory=Look)
 
     @property
     def name(self) -> str:
         return self.spec.name
+
+    @property
+    def drawn(self) -> Look:
+        """:attr:`look` with its error unit from the MOT gate: a gate in hops is an error plot in hops."""
+        return replace(self.look, hops=self.gate is not None and self.gate.unit == "hops")
 
 
 #: The MOT gates the papers share (``TrackerEntry.gate``; docs/metrics.md, "Standard MOT metrics").
@@ -129,6 +139,13 @@ HOPS_GATE = Gate(
     "node", 1.0, "hops", "De et al. score hops on the sensor graph; 1 hop = the adjacent sensor, the PIR's resolution"
 )
 
+#: Colours of the FindingHuMo decoder and its two baselines (one entry each, made in a loop below).
+FINDINGHUMO_RGB: dict[str, tuple[int, int, int]] = {
+    "findinghumo": (255, 200, 60),
+    "hmm1": (90, 200, 255),
+    "hmm2": (240, 110, 200),
+}
+
 #: Every tracker, in the order their stages run.
 TRACKERS: tuple[TrackerEntry, ...] = (
     TrackerEntry(
@@ -140,9 +157,24 @@ TRACKERS: tuple[TrackerEntry, ...] = (
             "region", 1.0, "hops", "Bobadilla et al. localise to a region; 1 hop = the adjacent region, one beam away"
         ),
         scenario="beams-lab",
+        look=Look("beams", (64, 196, 255)),
     ),
-    TrackerEntry(intruder.SPEC, score_intruder.score, viz_intruder.log_run, gate=CELLS_GATE, scenario="pir14"),
-    TrackerEntry(intruder.NAIVE_SPEC, score_intruder.score, viz_intruder.log_run, gate=CELLS_GATE, scenario="pir14"),
+    TrackerEntry(
+        intruder.SPEC,
+        score_intruder.score,
+        viz_intruder.log_run,
+        gate=CELLS_GATE,
+        scenario="pir14",
+        look=Look("intruder", (70, 225, 110)),
+    ),
+    TrackerEntry(
+        intruder.NAIVE_SPEC,
+        score_intruder.score,
+        viz_intruder.log_run,
+        gate=CELLS_GATE,
+        scenario="pir14",
+        look=Look("intruder", (200, 120, 255)),
+    ),
     TrackerEntry(
         clustertrack.SPEC,
         score_clustertrack.score,
@@ -154,6 +186,7 @@ TRACKERS: tuple[TrackerEntry, ...] = (
             "Singh et al. report error in units of the sensing radius R; within R the target is resolved",
         ),
         scenario="proximity-line",
+        look=Look("clustertrack", (255, 160, 40)),
     ),
     TrackerEntry(
         binpf.SPEC,
@@ -167,13 +200,26 @@ TRACKERS: tuple[TrackerEntry, ...] = (
             "array (Milan et al. score at 1.5 m)",
         ),
         scenario="proximity-grid",
+        look=Look("binpf", (255, 110, 90)),
     ),
     *(
-        TrackerEntry(spec, score_findinghumo.score, viz_findinghumo.log_run, gate=HOPS_GATE, scenario="hallway")
+        TrackerEntry(
+            spec,
+            score_findinghumo.score,
+            viz_findinghumo.log_run,
+            gate=HOPS_GATE,
+            scenario="hallway",
+            look=Look("findinghumo", FINDINGHUMO_RGB[spec.name]),
+        )
         for spec in findinghumo.SPECS
     ),
     TrackerEntry(
-        findinghumo_flow.SPEC, score_findinghumo.score, viz_findinghumo.log_run, gate=HOPS_GATE, scenario="hallway"
+        findinghumo_flow.SPEC,
+        score_findinghumo.score,
+        viz_findinghumo.log_run,
+        gate=HOPS_GATE,
+        scenario="hallway",
+        look=Look("findinghumo", (120, 240, 200)),
     ),
     TrackerEntry(
         istate.SPEC,
@@ -187,6 +233,7 @@ TRACKERS: tuple[TrackerEntry, ...] = (
             "sensing radius is what the sensors can tell apart",
         ),
         scenario="istate-room",
+        look=Look("istate", (255, 235, 130)),
     ),
     TrackerEntry(
         residents.SPEC,
@@ -200,8 +247,13 @@ TRACKERS: tuple[TrackerEntry, ...] = (
             "event: within one sensing radius the sensor covers them",
         ),
         scenario="hallway",
+        look=Look("residents", (255, 140, 120)),
     ),
 )
+
+#: How every tracker is drawn, by name (:attr:`TrackerEntry.drawn`): what the viz and the
+#: blueprint are given.
+LOOKS: dict[str, Look] = {e.name: e.drawn for e in TRACKERS}
 
 
 def tracker_names(entries: tuple[TrackerEntry, ...] = TRACKERS) -> tuple[str, ...]:
@@ -409,7 +461,7 @@ def _camera_work(ctx: RunContext) -> dict[str, pl.DataFrame]:
 
 def _camera_viz(rec, ctx: RunContext, made: dict) -> None:
     cam = made["camera_truth"]
-    log_point_tracks(rec, "camera", cam.with_columns(track=pl.col("target"), tracker=pl.lit("camera")))
+    log_point_tracks(rec, "camera", cam.with_columns(track=pl.col("target"), tracker=pl.lit("camera")), rgb=CAMERA_RGB)
 
 
 def _frame_sensor_ids(site) -> list[str]:
@@ -642,7 +694,14 @@ def tracker_stage(entry: TrackerEntry) -> Stage:
         if ARTIFACTS in made:
             out[ARTIFACTS] = made[ARTIFACTS]
         entry.viz(
-            rec, name, out, site=ctx.site, region_graph=ctx.region_graph, config=ctx.configs[name], tables=ctx.tables
+            rec,
+            name,
+            out,
+            site=ctx.site,
+            region_graph=ctx.region_graph,
+            config=ctx.configs[name],
+            tables=ctx.tables,
+            look=entry.drawn,
         )
 
     return Stage(name, (), (f"{name}_tracks", f"{name}_*"), available, work, viz, config=spec.config)
@@ -725,7 +784,7 @@ def scores_stage(trackers: tuple[TrackerEntry, ...] = TRACKERS, metrics: tuple[M
                     if tracks is not None and "track" in tracks.columns
                     else None
                 )
-                log_scores(rec, entry.name, sc, track_ids=ids)
+                log_scores(rec, entry.name, sc, track_ids=ids, look=entry.drawn)
 
     makes = (
         "crossing_matches",

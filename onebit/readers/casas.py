@@ -74,16 +74,21 @@ from __future__ import annotations
 from dataclasses import dataclass
 from pathlib import Path
 
+import numpy as np
 import polars as pl
 
 from onebit.core.errors import InputError
 from onebit.core.tables import REJECTS
 from onebit.readers.motion import TOGGLE_VALUES
 from onebit.readers.rows import (
+    MAX_MALFORMED_LINES,
     REORDER_TOLERANCE_S,
     RawRows,
+    check_line_lengths,
     check_rows,
+    check_text,
     csv_header,
+    file_spans,
     parse_name,
     parse_time,
     physical_lines,
@@ -198,10 +203,44 @@ def casas_lines(path: str | Path) -> pl.DataFrame:
         data = path.read_bytes()
     except OSError as exc:
         raise InputError(f"cannot read CASAS log: {exc.strerror}", file=path) from None
+    check_line_lengths(data, path)  # bounded memory: no 200 MB line, no binary file split into lines
+    check_text(data, path)
+    count, first = undated_lines(data)
+    if count > MAX_MALFORMED_LINES:  # each would be a reject holding its text
+        raise InputError(
+            f"{count} lines do not start with a date (this is the first), more than the "
+            f"{MAX_MALFORMED_LINES} a log may have rejected: is this a CASAS log?",
+            file=path,
+            line=first,
+        )
     # physical lines (split at \n only, as rows.physical_lines does for every log), so a stray
     # \r, form feed or U+2028 inside a line never shifts the line numbers of what follows
     df = physical_lines(data).select("line", pl.col("text").str.replace_all("\x00", "\ufffd", literal=True))
+    del data
     return df.filter(pl.col("text").str.strip_chars() != "")
+
+
+def undated_lines(data: bytes) -> tuple[int, int | None]:
+    """Lines of a CASAS log that surely do not start with a date: their first byte is not a
+    space, a tab or a line end, and they do not start ``dddd-``. Returns their count and the
+    first one's number; scans the bytes a span at a time (numpy, bounded temporaries)."""
+    count, first, line0 = 0, None, 1
+    for lo, hi in file_spans(data):
+        block = np.frombuffer(data, dtype=np.uint8, count=hi - lo, offset=lo)
+        nl = np.flatnonzero(block == 0x0A)
+        starts = np.r_[0, nl + 1]
+        starts = starts[starts < block.size]
+        padded = np.concatenate([block, np.zeros(5, dtype=np.uint8)])
+        head = padded[starts[:, None] + np.arange(5)]
+        digits = (head[:, :4] >= ord("0")) & (head[:, :4] <= ord("9"))
+        dated = digits.all(axis=1) & (head[:, 4] == ord("-"))
+        blank_or_indented = np.isin(head[:, 0], np.array([0x20, 0x09, 0x0D, 0x0A], dtype=np.uint8))
+        bad = np.flatnonzero(~dated & ~blank_or_indented)
+        if bad.size:
+            count += int(bad.size)
+            first = first if first is not None else line0 + int(bad[0])
+        line0 += int(nl.size)
+    return count, first
 
 
 def split_lines(lines: pl.DataFrame) -> pl.DataFrame:

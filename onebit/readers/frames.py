@@ -44,7 +44,7 @@ import polars as pl
 from onebit.core.errors import InputError
 from onebit.core.tables import FRAMES, MOTION, REJECTS
 from onebit.readers.motion import TOGGLE_VALUES
-from onebit.readers.rows import RawRows, check_rows, csv_header, parse_choice, parse_time, read_csv_rows
+from onebit.readers.rows import RawRows, check_rows, header_names, parse_choice, parse_time, read_csv_rows
 from onebit.readers.timebase import TimeOrigin
 
 LAYOUTS = ("list", "long", "wide")
@@ -87,7 +87,7 @@ def frame_log_layout(header: Sequence[str], *, file: str | Path = "frames.csv", 
 def read_frames_csv(path: str | Path, sensors: Sequence[str], *, epoch: str | TimeOrigin | None = None) -> FrameLog:
     """Read ``frames.csv`` in any layout (module docstring); ``sensors`` are the known ids."""
     path = Path(path)
-    header, line, _ = csv_header(path)
+    header, line = header_names(path)
     if not header:
         return FrameLog(pl.DataFrame(schema=FRAMES), pl.DataFrame(schema=REJECTS), "list", 0)
     layout = frame_log_layout(header, file=path, line=line)

@@ -35,6 +35,7 @@ import polars as pl
 
 from onebit.core.errors import InputError, bounded
 from onebit.core.tables import REJECTS, rejects_frame
+from onebit.readers.rows import read_bytes
 
 #: Millimetres per pixel of the authors' CVML files ("positions in pixels x 25 = mm").
 PIXEL_MM = 25.0
@@ -81,10 +82,7 @@ def read_readings_txt(path: str | Path, *, channels: int = CHANNELS, sensors: in
     path = Path(path)
     if sensors < 1 or channels < sensors:
         raise InputError(f"channels = {channels}, sensors = {sensors}: need 1 <= sensors <= channels", file=path)
-    try:
-        text = path.read_text(encoding="utf-8", errors="replace")
-    except OSError as exc:
-        raise InputError(f"cannot read: {exc.strerror or exc}", file=path) from None
+    text = read_bytes(path).decode("utf-8", errors="replace")  # a long line or a binary file refused
     lines = text.splitlines()
     start = _start_time(lines[0]) if lines else None
     rows: list[list[int]] = []
@@ -210,10 +208,7 @@ def read_sensor_coordinates(path: str | Path) -> np.ndarray:
     :class:`~onebit.core.errors.InputError` naming the file and the vector when one is
     missing, holds a non-number, or the two differ in length."""
     path = Path(path)
-    try:
-        text = path.read_text(encoding="utf-8", errors="replace")
-    except OSError as exc:
-        raise InputError(f"cannot read: {exc.strerror or exc}", file=path) from None
+    text = read_bytes(path).decode("utf-8", errors="replace")  # a long line or a binary file refused
     code = "\n".join(line.split("%", 1)[0].replace("...", " ") for line in text.splitlines())
     found: dict[str, list[float]] = {}
     for m in _VECTOR.finditer(code):

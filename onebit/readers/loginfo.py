@@ -18,7 +18,7 @@ import polars as pl
 from onebit.core.errors import InputError
 from onebit.readers.casas import CSV_COLUMNS, TOGGLE_KINDS, read_casas, repair_lost_offs
 from onebit.readers.mcap_io import read_mcap
-from onebit.readers.rows import csv_header, read_csv_rows
+from onebit.readers.rows import header_names, read_csv_rows
 
 #: Schema of the :func:`log_info` frame.
 LOG_INFO = pl.Schema(
@@ -100,7 +100,7 @@ def _summarise(source: str, df: pl.DataFrame, bad_rows: int, extra_rejects: int 
 def _csv_rows(path: Path) -> list[dict]:
     """One summary of a CSV log, read by the CSV layer of :mod:`onebit.readers.rows` (a bad
     line counts as a reject, it never fails the file)."""
-    header = csv_header(path)[0]
+    header = header_names(path)[0]
     if not header:
         return [_summarise(path.name, pl.DataFrame(), 0)]
     names = tuple(dict.fromkeys(h for h in header if h))
@@ -132,7 +132,7 @@ def _is_casas_csv(path: Path) -> bool:
     """A pymrt ``events.csv`` (:func:`onebit.readers.casas.read_casas_csv`): no ``t`` column and
     either a header naming a time, a sensor and a message column, or none (a date-time first)."""
     try:
-        header = [h.lower() for h in csv_header(path)[0]]
+        header = [h.lower() for h in header_names(path)[0]]
     except InputError:
         return False
     if not header or "t" in header:

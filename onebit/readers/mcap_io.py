@@ -83,12 +83,17 @@ class McapContents:
     views
         Topic -> messages skipped because they are derived views (:data:`VIEW_TOPICS`, or any
         protobuf channel): what the writer added for viewers, not input.
+    unreadable
+        True when the file is cut before any channel or message (inside its MCAP header, or in
+        its first chunk): nothing of it could be read (its one reject says so, naming the file);
+        the runner reports the file as unreadable, not the run as having nothing to do.
     """
 
     channels: dict[str, pl.DataFrame]
     rejects: pl.DataFrame
     truncated: bool
     views: dict[str, int] = field(default_factory=dict)
+    unreadable: bool = False
 
 
 #: Toggle channels a mapped ROS 2 topic may feed (``kind`` of :class:`TopicMapping`).
@@ -443,6 +448,28 @@ def _check_magic(path: Path) -> int:
     return size
 
 
+@dataclass
+class _McapRead:
+    """What :func:`read_mcap` gathers while it walks the records of one file."""
+
+    name: str  # the file's name: the source of its rejects
+    topic_map: dict[str, TopicMapping]
+    topics: dict[int, tuple[str, str]] = field(default_factory=dict)  # channel id -> (topic, encoding)
+    channel_schema: dict[int, int] = field(default_factory=dict)
+    schemas: dict[int, object] = field(default_factory=dict)
+    decoders: dict[int, object] = field(default_factory=dict)
+    views: dict[str, int] = field(default_factory=dict)
+    unmapped: dict[str, list] = field(default_factory=dict)  # topic -> [count, encoding, schema name]
+    cols: dict[str, dict[str, list]] = field(default_factory=dict)
+    counts: dict[str, int] = field(default_factory=dict)
+    rejects: list[tuple[str, int | None, str | None, str | None]] = field(default_factory=list)
+    n_messages: int = 0
+
+    def new_channel(self, topic: str) -> None:
+        if topic in CHANNELS and topic not in self.cols:
+            self.cols[topic] = {c: [] for c in (*CHANNELS[topic], "line", "raw")}
+
+
 def read_mcap(path: str | Path, *, topic_map: dict[str, TopicMapping] | None = None) -> McapContents:
     """Read every raw-log channel of an MCAP file as string rows, keeping what precedes a cut.
 
@@ -487,139 +514,170 @@ def read_mcap(path: str | Path, *, topic_map: dict[str, TopicMapping] | None = N
     InputError
         The file is missing, empty or not MCAP (bad magic).
     """
-    from mcap.records import Channel, Footer, Message, Schema
-    from mcap.stream_reader import StreamReader
-
     path = Path(path)
     size = _check_magic(path)
-    name = path.name
-    topic_map = dict(topic_map or {})
-
-    topics: dict[int, tuple[str, str]] = {}  # channel id -> (topic, message encoding)
-    channel_schema: dict[int, int] = {}
-    schemas: dict[int, Schema] = {}
-    decoders: dict[int, object] = {}
-    views: dict[str, int] = {}
-    unmapped: dict[str, list] = {}  # topic -> [count, encoding, schema name]
-    cols: dict[str, dict[str, list]] = {}
-    counts: dict[str, int] = {}
-    rejects: list[tuple[str, int | None, str, str | None]] = []
-    n_messages = 0
-    truncated = False
-
-    def new_channel(topic: str) -> None:
-        if topic in CHANNELS and topic not in cols:
-            cols[topic] = {c: [] for c in (*CHANNELS[topic], "line", "raw")}
-
+    state = _McapRead(path.name, dict(topic_map or {}))
     with open(path, "rb") as fh:
-        records = StreamReader(fh, record_size_limit=max(size, 1)).records
-        good_end = 0
-        saw_footer = False
-        while True:
-            try:
-                record = next(records)
-            except StopIteration:
-                break
-            except Exception as exc:  # noqa: BLE001 - any decoding failure past the magic is a cut
-                truncated = True
-                what = type(exc).__name__ + (f": {exc}" if str(exc) else "")
-                rejects.append(
-                    (
-                        name,
-                        n_messages + 1,
-                        f"truncated: file ends or breaks at byte {good_end} of {size} "
-                        f"after {n_messages} complete messages ({what})",
-                        None,
-                    )
-                )
-                break
-            good_end = fh.tell()
-            if isinstance(record, Footer):
-                saw_footer = True
-            elif isinstance(record, Schema):
-                schemas[record.id] = record
-            elif isinstance(record, Channel):
-                topics[record.id] = (record.topic, record.message_encoding)
-                channel_schema[record.id] = record.schema_id
-                new_channel(record.topic)
-                mapping = topic_map.get(record.topic)
-                if mapping is not None:
-                    new_channel("/" + mapping.kind)
-            elif isinstance(record, Message):
-                n_messages += 1
-                topic, encoding = topics.get(record.channel_id, (f"channel {record.channel_id}", "json"))
-                if topic in VIEW_TOPICS or encoding.lower() == "protobuf":
-                    views[topic] = views.get(topic, 0) + 1
-                    continue
-                mapping = topic_map.get(topic)
-                if mapping is not None:
-                    target = "/" + mapping.kind
-                    source = f"{name}:{topic}"
-                    counts[topic] = counts.get(topic, 0) + 1
-                    value, why = _mapped_value(
-                        record, encoding, mapping, schemas.get(channel_schema.get(record.channel_id, 0)), decoders
-                    )
-                    if why is not None:
-                        rejects.append((source, counts[topic], why, bytes(record.data).hex()[:200]))
-                        continue
-                    out = cols[target]
-                    line = counts[target] = counts.get(target, 0) + 1
-                    out["t"].append(f"{record.log_time / 1e9:.9f}")
-                    out["sensor"].append(mapping.sensor)
-                    out["value"].append("1" if value else "0")
-                    out["line"].append(line)
-                    out["raw"].append(f"{topic}: {mapping.field}={value}")
-                    continue
-                if encoding.lower() != "json" and topic not in CHANNELS:
-                    sch = schemas.get(channel_schema.get(record.channel_id, 0))
-                    entry = unmapped.setdefault(topic, [0, encoding, sch.name if sch is not None else ""])
-                    entry[0] += 1
-                    continue
-                line = counts[topic] = counts.get(topic, 0) + 1
-                text = bytes(record.data).decode("utf-8", errors="replace")
-                source = f"{name}:{topic}"
-                if topic not in CHANNELS:
-                    why = (
-                        f"unknown topic {topic}"
-                        if record.channel_id in topics
-                        else f"message on undeclared channel id {record.channel_id}"
-                    )
-                    rejects.append((source, line, why, text))
-                    continue
-                if encoding.lower() != "json":
-                    rejects.append((source, line, f"message encoding '{encoding}' is not json", text))
-                    continue
-                try:
-                    obj = json.loads(record.data)
-                except (ValueError, UnicodeDecodeError) as exc:
-                    rejects.append((source, line, f"not valid JSON: {exc}", text))
-                    continue
-                if not isinstance(obj, dict):
-                    rejects.append((source, line, f"not a JSON object (a {type(obj).__name__})", text))
-                    continue
-                wanted = CHANNELS[topic]
-                missing = [c for c in wanted if c not in obj]
-                extra = [k for k in obj if k not in wanted]
-                if missing or extra:
-                    parts = []
-                    if missing:
-                        parts.append("missing field(s) " + ", ".join(f"'{c}'" for c in missing))
-                    if extra:
-                        parts.append("unexpected field(s) " + ", ".join(f"'{k}'" for k in extra))
-                    rejects.append((source, line, "; ".join(parts), text))
-                    continue
-                out = cols[topic]
-                for c in wanted:
-                    out[c].append(_cell(obj[c]))
-                out["line"].append(line)
-                out["raw"].append(text)
-        if not truncated and not saw_footer:  # pragma: no cover - StreamReader stops only at the footer
-            truncated = True
-            rejects.append((name, n_messages + 1, f"truncated: no footer (read {good_end} of {size} bytes)", None))
-    for topic, (n, encoding, schema_name) in unmapped.items():
-        rejects.append(
+        truncated, saw_header = _walk_records(fh, size, state)
+    _unmapped_rejects(state)
+    return McapContents(
+        channels=_channel_frames(state),
+        rejects=_rejects_frame(state.rejects),
+        truncated=truncated,
+        views=state.views,
+        unreadable=truncated and not (state.n_messages or state.topics),
+    )
+
+
+def _walk_records(fh: IO[bytes], size: int, state: _McapRead) -> tuple[bool, bool]:
+    """Read the records of an open MCAP file in order into ``state``; a decoding failure is the
+    cut (one reject naming its byte offset). Returns ``(truncated, saw the header record)``."""
+    from mcap.records import Channel, Footer, Header, Message, Schema
+    from mcap.stream_reader import StreamReader
+
+    records = StreamReader(fh, record_size_limit=max(size, 1)).records
+    good_end = 0
+    saw_footer = saw_header = False
+    while True:
+        try:
+            record = next(records)
+        except StopIteration:
+            break
+        except Exception as exc:  # noqa: BLE001 - any decoding failure past the magic is a cut
+            state.rejects.append(
+                (state.name, state.n_messages + 1, _cut_reason(exc, good_end, size, state, saw_header), None)
+            )
+            return True, saw_header
+        good_end = fh.tell()
+        if isinstance(record, Header):
+            saw_header = True
+        elif isinstance(record, Footer):
+            saw_footer = True
+        elif isinstance(record, Schema):
+            state.schemas[record.id] = record
+        elif isinstance(record, Channel):
+            _on_channel(record, state)
+        elif isinstance(record, Message):
+            _on_message(record, state)
+    if not saw_footer:  # pragma: no cover - StreamReader stops only at the footer
+        reason = f"truncated: no footer (read {good_end} of {size} bytes)"
+        state.rejects.append((state.name, state.n_messages + 1, reason, None))
+        return True, saw_header
+    return False, saw_header
+
+
+def _cut_reason(exc: Exception, good_end: int, size: int, state: _McapRead, saw_header: bool) -> str:
+    what = type(exc).__name__ + (f": {exc}" if str(exc) else "")
+    if not saw_header:
+        return f"unreadable: truncated in its MCAP header (the file has {size} bytes; {what})"
+    return (
+        f"truncated: file ends or breaks at byte {good_end} of {size} "
+        f"after {state.n_messages} complete messages ({what})"
+    )
+
+
+def _on_channel(record, state: _McapRead) -> None:
+    """A channel record: its topic and encoding, and the columns of a onebit channel (or of the
+    channel a mapped foreign topic feeds)."""
+    state.topics[record.id] = (record.topic, record.message_encoding)
+    state.channel_schema[record.id] = record.schema_id
+    state.new_channel(record.topic)
+    mapping = state.topic_map.get(record.topic)
+    if mapping is not None:
+        state.new_channel("/" + mapping.kind)
+
+
+def _on_message(record, state: _McapRead) -> None:
+    """A message record: counted as a view, decoded through its topic mapping, counted on an
+    unmapped binary topic, or read as a JSON row of a onebit channel (else a reject)."""
+    state.n_messages += 1
+    topic, encoding = state.topics.get(record.channel_id, (f"channel {record.channel_id}", "json"))
+    if topic in VIEW_TOPICS or encoding.lower() == "protobuf":
+        state.views[topic] = state.views.get(topic, 0) + 1
+    elif topic in state.topic_map:
+        _mapped_row(record, topic, encoding, state)
+    elif encoding.lower() != "json" and topic not in CHANNELS:
+        sch = state.schemas.get(state.channel_schema.get(record.channel_id, 0))
+        entry = state.unmapped.setdefault(topic, [0, encoding, sch.name if sch is not None else ""])
+        entry[0] += 1
+    else:
+        _json_row(record, topic, encoding, state)
+
+
+def _mapped_row(record, topic: str, encoding: str, state: _McapRead) -> None:
+    """A message of a mapped foreign topic: one toggle row of its ``/motion`` or ``/proximity``."""
+    mapping = state.topic_map[topic]
+    target = "/" + mapping.kind
+    state.counts[topic] = state.counts.get(topic, 0) + 1
+    schema = state.schemas.get(state.channel_schema.get(record.channel_id, 0))
+    value, why = _mapped_value(record, encoding, mapping, schema, state.decoders)
+    if why is not None:
+        state.rejects.append((f"{state.name}:{topic}", state.counts[topic], why, bytes(record.data).hex()[:200]))
+        return
+    out = state.cols[target]
+    line = state.counts[target] = state.counts.get(target, 0) + 1
+    out["t"].append(f"{record.log_time / 1e9:.9f}")
+    out["sensor"].append(mapping.sensor)
+    out["value"].append("1" if value else "0")
+    out["line"].append(line)
+    out["raw"].append(f"{topic}: {mapping.field}={value}")
+
+
+def _json_row(record, topic: str, encoding: str, state: _McapRead) -> None:
+    """A message that should be a JSON object with exactly the fields of a onebit channel."""
+    line = state.counts[topic] = state.counts.get(topic, 0) + 1
+    text = bytes(record.data).decode("utf-8", errors="replace")
+    source = f"{state.name}:{topic}"
+    why = _json_problem(record, topic, encoding, state)
+    if why is None:
+        try:
+            obj = json.loads(record.data)
+        except (ValueError, UnicodeDecodeError) as exc:
+            why = f"not valid JSON: {exc}"
+        else:
+            why = _fields_problem(obj, CHANNELS[topic])
+    if why is not None:
+        state.rejects.append((source, line, why, text))
+        return
+    out = state.cols[topic]
+    for c in CHANNELS[topic]:
+        out[c].append(_cell(obj[c]))
+    out["line"].append(line)
+    out["raw"].append(text)
+
+
+def _json_problem(record, topic: str, encoding: str, state: _McapRead) -> str | None:
+    """Why a message cannot be a row before its text is parsed: an unknown topic or channel,
+    an encoding that is not JSON."""
+    if topic not in CHANNELS:
+        if record.channel_id in state.topics:
+            return f"unknown topic {topic}"
+        return f"message on undeclared channel id {record.channel_id}"
+    if encoding.lower() != "json":
+        return f"message encoding '{encoding}' is not json"
+    return None
+
+
+def _fields_problem(obj: object, wanted: tuple[str, ...]) -> str | None:
+    """Why a parsed message is not a row of a channel with fields ``wanted``, else ``None``."""
+    if not isinstance(obj, dict):
+        return f"not a JSON object (a {type(obj).__name__})"
+    missing = [c for c in wanted if c not in obj]
+    extra = [k for k in obj if k not in wanted]
+    parts = []
+    if missing:
+        parts.append("missing field(s) " + ", ".join(f"'{c}'" for c in missing))
+    if extra:
+        parts.append("unexpected field(s) " + ", ".join(f"'{k}'" for k in extra))
+    return "; ".join(parts) or None
+
+
+def _unmapped_rejects(state: _McapRead) -> None:
+    """One reject per binary topic that is neither a view nor mapped, counting its messages."""
+    for topic, (n, encoding, schema_name) in state.unmapped.items():
+        state.rejects.append(
             (
-                f"{name}:{topic}",
+                f"{state.name}:{topic}",
                 None,
                 f"{n} message(s) in encoding '{encoding}'{f' ({schema_name})' if schema_name else ''} on a topic that is not "
                 "a onebit channel and not mapped: map a boolean topic to a sensor in mcap_topics.toml",
@@ -627,21 +685,24 @@ def read_mcap(path: str | Path, *, topic_map: dict[str, TopicMapping] | None = N
             )
         )
 
-    channels = {
+
+def _channel_frames(state: _McapRead) -> dict[str, pl.DataFrame]:
+    return {
         topic: pl.DataFrame(
             data,
             schema={**{c: pl.String for c in CHANNELS[topic]}, "line": pl.Int64, "raw": pl.String},
         )
-        for topic, data in cols.items()
+        for topic, data in state.cols.items()
     }
-    rejects = [
+
+
+def _rejects_frame(rejects: list) -> pl.DataFrame:
+    """The rejects, reasons and raw text quoted bounded, as every reader's."""
+    rows = [
         (src, line, None if why is None else bounded(why), None if raw is None else bounded(raw))
         for src, line, why, raw in rejects
     ]
-    rejects_df = pl.DataFrame(
-        rejects, schema=REJECTS, orient="row"
-    )  # reasons and raw text quoted bounded, as every reader's
-    return McapContents(channels=channels, rejects=rejects_df, truncated=truncated, views=views)
+    return pl.DataFrame(rows, schema=REJECTS, orient="row")
 
 
 def _mapped_value(

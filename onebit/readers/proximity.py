@@ -16,7 +16,7 @@ from pathlib import Path
 
 import polars as pl
 
-from onebit.core.config import check_range
+from onebit.core.config import MAX_FRAME_CELLS, MAX_STEPS, check_range, check_size
 from onebit.core.errors import ConfigError
 from onebit.core.tables import FRAMES, PROXIMITY, conform
 from onebit.readers.motion import TOGGLE_COLUMNS, DebounceRules, MotionRead, read_motion, read_motion_csv
@@ -31,7 +31,9 @@ class ProximityConfig:
 
     period : seconds between sampling instants.
     start : time of the first instant (s); negative = ``floor(first edge / period) * period``.
-    instants : number of instants; 0 = up to the last accepted edge.
+    instants : number of instants; 0 = up to the last accepted edge. At most
+        :data:`~onebit.core.config.MAX_STEPS`, and instants x sensors at most
+        :data:`~onebit.core.config.MAX_FRAME_CELLS` (checked when the frames are made).
     chatter_window : s; a 1->0 edge followed within this time by 0->1 on the same sensor is
         undone (Singh et al.: "neglect every 1->0 transition immediately followed by 0->1").
     min_on : s; shorter on-pulses are suppressed.
@@ -46,7 +48,7 @@ class ProximityConfig:
     def __post_init__(self) -> None:
         check_range(self, "period", 1e-9, None)
         check_range(self, "start", None, None)
-        check_range(self, "instants", 0, None, types=(int,))
+        check_range(self, "instants", 0, MAX_STEPS, types=(int,))
         check_range(self, "chatter_window", 0.0, None)
         check_range(self, "min_on", 0.0, None)
         for name in ("period", "start", "chatter_window", "min_on"):
@@ -100,7 +102,8 @@ def proximity_frames(
 
     ``on`` = the state after the sensor's last accepted edge at or before ``t_k`` (off before
     its first edge). ``start`` defaults to ``floor(first edge / period) * period``;
-    ``instants`` to the count reaching the last edge.
+    ``instants`` to the count reaching the last edge; more than
+    :data:`~onebit.core.config.MAX_FRAME_CELLS` rows is a :class:`ConfigError`.
     """
     sensors = list(dict.fromkeys(sensors))
     ev = proximity.select("t", "sensor", pl.col("on").alias("state")).filter(pl.col("sensor").is_in(sensors)).sort("t")
@@ -110,9 +113,18 @@ def proximity_frames(
         start = math.floor(float(ev["t"].min()) / period) * period if ev.height else 0.0
     if not instants:
         last = float(ev["t"].max()) if ev.height else start
-        instants = max(int(math.floor((last - start) / period + 1e-9)) + 1, 1)
+        span = (last - start) / period + 1e-9
+        check_size(span, MAX_STEPS, what="instants over the log", field=f"[proximity] period = {period:g} s")
+        instants = max(int(math.floor(span)) + 1, 1)
     if not sensors:
         return pl.DataFrame(schema=FRAMES)
+    check_size(
+        float(instants) * len(sensors),
+        MAX_FRAME_CELLS,
+        what=f"frame rows ({instants:,} instants x {len(sensors)} sensors)",
+        field=f"[proximity] period = {period:g} s / instants",
+        hint="a longer period or fewer instants",
+    )
     grid = (
         pl.DataFrame({"slot": pl.arange(0, instants, eager=True).cast(pl.Int64)})
         .join(

@@ -12,7 +12,7 @@ from onebit.readers.rows import (
     RawRows,
     TypedRows,
     check_split,
-    csv_header,
+    header_names,
     parse_choice,
     parse_float,
     parse_name,
@@ -57,7 +57,7 @@ def true_crossings_columns(path: Path) -> tuple[str, ...]:
     """Columns to read from ``truth_crossings.csv``: TRUE_CROSSINGS, plus ``dropped`` if the header has it."""
     base = tuple(TRUE_CROSSINGS.names())
     try:
-        header = csv_header(path)[0]
+        header = header_names(path)[0]
     except InputError:
         return base  # absent or unreadable: read_csv_rows reports it
     return base + ("dropped",) if "dropped" in header else base
@@ -207,7 +207,7 @@ def read_residents_profile_csv(path):
     """``residents_profile.csv`` (resident, from, to, count) as
     :data:`~onebit.core.tables.RESIDENTS_PROFILE`; every line not taken is a reject with its reason."""
     path = Path(path)
-    header, _, _ = csv_header(path)
+    header, _ = header_names(path)
     cols = tuple(c for c in RESIDENTS_PROFILE.names() if c != "bin" or "bin" in [h.strip() for h in header])
     raw = read_csv_rows(path, cols)
     if "bin" not in cols:  # a profile without a clock (the column may be left out)

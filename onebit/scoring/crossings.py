@@ -28,6 +28,9 @@ from onebit.core.tables import SCORES, TRUE_CROSSINGS, conform
 from onebit.scoring.association import associate
 from onebit.scoring.correction import score_correction
 
+#: The most MOT gates of ``[scores] gates_m``: each is one association of every tracker's tracks.
+MAX_GATES = 32
+
 
 @dataclass(frozen=True, kw_only=True)
 class ScoresConfig:
@@ -54,6 +57,8 @@ class ScoresConfig:
             raise ConfigError(
                 f"ScoresConfig.gates_m = {self.gates_m!r}; expected a list of positive distances in metres, e.g. [1.0, 1.5]"
             )
+        if len(g) > MAX_GATES:  # each gate is one MOT association of every tracker
+            raise ConfigError(f"ScoresConfig.gates_m: {len(g)} gates, more than the {MAX_GATES} allowed")
         object.__setattr__(self, "gates_m", tuple(float(v) for v in dict.fromkeys(g)))
 
 

@@ -55,6 +55,7 @@ import numpy as np
 import polars as pl
 
 from onebit.core.tables import TRACKER_EVENTS, TRUTH_EVENTS
+from onebit.trackers.residents.known import clock_of
 
 #: A truth event and a tracker event of the same sensor this close (s) are the same event.
 MATCH_TOL_S = 1e-3
@@ -258,8 +259,6 @@ def habits_events(truth_events: pl.DataFrame, profile: pl.DataFrame, *, epoch: s
     ``day`` clock from the site's ``epoch``) -- (ties: the resident first in text order); a
     sensor the profile never saw (at that time) falls back to the sensor over all times, then
     to the resident with the most events overall."""
-    from onebit.trackers.residents.known import clock_of
-
     habit = profile.filter(pl.col("from").is_null())
     overall = (
         habit.filter(pl.col("bin").is_null())

@@ -25,6 +25,7 @@ from onebit.core.region_graph import RegionGraph
 from onebit.core.site import Site
 from onebit.viz import colors, paths
 from onebit.viz._series import is_empty, repeat_text, require, text_array
+from onebit.viz.families import GENERIC, Look
 from onebit.viz.frame import log_world_frame
 from onebit.viz.radii import ui_points
 from onebit.viz.tracks import (
@@ -71,7 +72,12 @@ def _track_label(labels: dict[str, str]) -> pl.Expr:
 
 
 def log_assignments(
-    rec: rr.RecordingStream, tracker: str, assignment: pl.DataFrame | None, labels: dict[str, str]
+    rec: rr.RecordingStream,
+    tracker: str,
+    assignment: pl.DataFrame | None,
+    labels: dict[str, str],
+    *,
+    rgb: tuple[int, int, int] | None = None,
 ) -> None:
     """``<tracker>/assignments``: a log line per explained, unambiguous crossing, in its track's colour."""
     if is_empty(assignment):
@@ -91,7 +97,7 @@ def log_assignments(
     text = a.select(
         pl.format("#{} {}{}: {}", pl.col("crossing"), _crossing_label(), move, _track_label(labels)).alias("s")
     )
-    shades = track_colors(tracker, labels)
+    shades = track_colors(tracker, labels, rgb=rgb)
     ids = list(shades)
     palette = np.array([*shades.values(), colors.WARNING], np.uint8).reshape(-1, 4)
     k = (
@@ -162,16 +168,24 @@ def log_marked_crossings(
 
 
 def log_run(
-    rec: rr.RecordingStream, tracker: str, out: dict, *, site: Site, region_graph: RegionGraph, config, tables: dict
+    rec: rr.RecordingStream,
+    tracker: str,
+    out: dict,
+    *,
+    site: Site,
+    region_graph: RegionGraph,
+    config,
+    tables: dict,
+    look: Look = GENERIC,
 ) -> None:
     """Everything the ``beams`` tracker produced: region tracks (dot, trail, current region,
     whole region path), occupancy, the assignment log, ambiguous and unexplained crossings."""
     tracks = out["tracks"]
     labels = track_labels(tracker, tracks["track"].drop_nulls().unique().to_list() if not is_empty(tracks) else [])
-    log_region_tracks(rec, tracker, tracks, region_graph)
+    log_region_tracks(rec, tracker, tracks, region_graph, rgb=look.rgb)
     log_occupancy(rec, tracker, out["occupancy"])
     assignment = out["assignment"]
-    log_assignments(rec, tracker, assignment, labels)
+    log_assignments(rec, tracker, assignment, labels, rgb=look.rgb)
     if not is_empty(assignment) and "ambiguous" in assignment.columns:
         marked = assignment.with_row_index("crossing").filter(pl.col("ambiguous"))
         log_marked_crossings(rec, tracker, "ambiguous", marked, site, labels)

@@ -16,6 +16,7 @@ import polars as pl
 
 from onebit.core.lazy import lazy_module
 from onebit.viz import colors, paths
+from onebit.viz.families import GENERIC, Look
 from onebit.viz.frame import log_world_frame
 from onebit.viz.tracks import log_point_tracks
 
@@ -79,11 +80,11 @@ def log_counts(rec, tracker: str, frames: pl.DataFrame) -> None:
         )
 
 
-def log_run(rec, tracker: str, out: dict, *, site, region_graph, config, tables: dict) -> None:
+def log_run(rec, tracker: str, out: dict, *, site, region_graph, config, tables: dict, look: Look = GENERIC) -> None:
     """Everything ``binpf`` produced: footprints on, particles, counts, tracks."""
     art = out.get("artifacts")
     if art is not None:
         log_footprints(rec, tracker, art["times"], art["on"], art["sensors"], art["radii"])
         log_track_particles(rec, tracker, art["times"], art["particles_t"], art["particles_xy"], art["particles_track"])
     log_counts(rec, tracker, out.get("frames"))
-    log_point_tracks(rec, tracker, out["tracks"])
+    log_point_tracks(rec, tracker, out["tracks"], rgb=look.rgb)

@@ -47,7 +47,7 @@ from pathlib import Path
 from onebit.core import writers
 from onebit.core.lazy import lazy_module
 from onebit.viz import colors, paths
-from onebit.viz.families import FAMILY_ORDER, error_unit, family
+from onebit.viz.families import FAMILY_ORDER, Look, error_unit, family, look_of
 from onebit.viz.inspect import entity_archetypes, scalar_ranges, store_ids
 from onebit.viz.recording import APPLICATION_ID, close_recording, open_recording
 from onebit.viz.tracks import natural_key
@@ -167,8 +167,9 @@ class View:
 class Planner:
     """Builds the tabs of one run from :class:`Logged`, recording which entities are placed."""
 
-    def __init__(self, logged: Logged, *, units: str, trail_s: float) -> None:
+    def __init__(self, logged: Logged, *, units: str, trail_s: float, looks: Mapping[str, Look] | None = None) -> None:
         self.L, self.units, self.trail_s = logged, units, float(trail_s)
+        self.looks = dict(looks or {})
         self.placed: set[str] = set()
 
     # ---------------------------------------------------------------- building blocks
@@ -211,7 +212,7 @@ class Planner:
         return [p for t in trackers for p in self.L.under(paths.join(paths.SCORES, paths.part(t)), SERIES)]
 
     def error_view(self, trackers: list[str], what: str) -> View | None:
-        unit = error_unit(trackers[0], self.units)
+        unit = error_unit(look_of(self.looks, trackers[0]), self.units)
         if unit == "hops":
             return self.count_view(f"{what} ({unit})", self.scores(trackers))
         return self.view("series", f"{what} ({unit})", self.scores(trackers))
@@ -435,12 +436,13 @@ def _tab(name: str, main: View | None, side: list[View | None]) -> rrb.Container
     return _named(_row(parts, shares=[3, 2]), name)
 
 
-def tracker_roots(logged: Logged) -> list[str]:
-    """Trackers the run logged, from their roots and their ``scores/<tracker>``, in tab order."""
+def tracker_roots(logged: Logged, looks: Mapping[str, Look] | None = None) -> list[str]:
+    """Trackers the run logged, from their roots and their ``scores/<tracker>``, in tab order
+    (their families' in :data:`~onebit.viz.families.FAMILY_ORDER`, by ``looks``)."""
     names = {r for r in logged.roots() if r not in SHARED_ROOTS}
     names |= {p.split("/")[1] for p in logged.under(paths.SCORES) if len(p.split("/")) > 1}
     order = {f: i for i, f in enumerate(FAMILY_ORDER)}
-    return sorted(names, key=lambda t: (order.get(family(t) or "", len(order)), natural_key(t)))
+    return sorted(names, key=lambda t: (order.get(family(t, looks) or "", len(order)), natural_key(t)))
 
 
 def make_blueprint(
@@ -449,22 +451,25 @@ def make_blueprint(
     units: str = "m",
     trail_s: float = TRAIL_S,
     ranges: Mapping[str, tuple[float, float]] | None = None,
+    looks: Mapping[str, Look] | None = None,
 ) -> rrb.Blueprint:
     """The layout of a run from what it logged (``{entity path: archetype names}``, as
     :func:`onebit.viz.inspect.entity_archetypes` reads it): one tab per family (module
     docstring), the first of :data:`~onebit.viz.families.FAMILY_ORDER` active; ``units`` names
     the site's length unit in the titles; ``trail_s`` is the trail window in seconds; ``ranges``
     (``{entity: (min, max)}`` of the Scalars, :func:`onebit.viz.inspect.scalar_ranges`) lets the
-    count plots start at 0."""
+    count plots start at 0; ``looks`` (tracker -> :class:`~onebit.viz.families.Look`, the
+    pipeline's ``LOOKS``) gives each tracker its family's tab and error unit (a tracker without
+    one gets the generic layout)."""
     if not (trail_s > 0):
         raise ValueError(f"trail_s must be a positive number of seconds, got {trail_s!r}")
     logged = archetypes if isinstance(archetypes, Logged) else Logged(archetypes, ranges)
-    plan = Planner(logged, units=units, trail_s=trail_s)
+    plan = Planner(logged, units=units, trail_s=trail_s, looks=looks)
     tabs = []
-    trackers = tracker_roots(logged)
-    intruders = [t for t in trackers if family(t) == "intruder"]
+    trackers = tracker_roots(logged, looks)
+    intruders = [t for t in trackers if family(t, looks) == "intruder"]
     for t in trackers:
-        fam = family(t)
+        fam = family(t, looks)
         if fam == "intruder":
             if t == intruders[0]:
                 tabs.append(plan.intruder(intruders))
@@ -524,7 +529,9 @@ def send_run_blueprint(
     return close_recording(rec, path)
 
 
-def save_run_blueprint(rrd_dir: str | Path, *, units: str = "m", trail_s: float = TRAIL_S) -> Path:
+def save_run_blueprint(
+    rrd_dir: str | Path, *, units: str = "m", trail_s: float = TRAIL_S, looks: Mapping[str, Look] | None = None
+) -> Path:
     """Build the blueprint of the recordings in ``rrd_dir`` (every stage's ``*.rrd``), write it
     to ``rrd_dir/blueprint.rbl`` and send it with the run in ``rrd_dir/_blueprint.rrd`` (same
     application and recording id as the stages); returns the ``.rbl``'s path. Run again (e.g.
@@ -532,13 +539,13 @@ def save_run_blueprint(rrd_dir: str | Path, *, units: str = "m", trail_s: float 
 
     Examples
     --------
-    >>> save_run_blueprint("OUT/rrd", units="ft", trail_s=30.0)   # doctest: +SKIP
+    >>> save_run_blueprint("OUT/rrd", units="ft", trail_s=30.0, looks=LOOKS)   # doctest: +SKIP
     PosixPath('OUT/rrd/blueprint.rbl')
     """
     rrd_dir = Path(rrd_dir)
     files = sorted(p for p in rrd_dir.glob("*.rrd") if p.name != BLUEPRINT_RECORDING)
     logged = Logged(entity_archetypes(files), scalar_ranges(files)) if files else Logged({})
-    blueprint = make_blueprint(logged, units=units, trail_s=trail_s)
+    blueprint = make_blueprint(logged, units=units, trail_s=trail_s, looks=looks)
     out = save_blueprint(blueprint, rrd_dir / BLUEPRINT_FILE)
     ids = store_ids(files[0]) if files else []
     if ids:

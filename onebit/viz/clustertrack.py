@@ -27,6 +27,7 @@ import polars as pl
 from onebit.core.lazy import lazy_module
 from onebit.viz import colors, paths
 from onebit.viz._series import is_empty, strips_array
+from onebit.viz.families import GENERIC, Look
 from onebit.viz.frame import log_world_frame
 from onebit.viz.tracks import log_point_tracks, track_colors, track_labels
 
@@ -114,8 +115,9 @@ def log_space_time(
     feasible: pl.DataFrame | None,
     tracks: pl.DataFrame | None,
     truth: pl.DataFrame | None,
+    rgb: tuple[int, int, int] | None = None,
 ) -> None:
-    """The 1-D space-time diagram (module docstring)."""
+    """The 1-D space-time diagram (module docstring); tracks in shades of ``rgb``."""
     if times.size == 0:
         return
     minx, _, maxx, _ = site.boundary.bounds
@@ -153,7 +155,7 @@ def log_space_time(
             )
     if not is_empty(tracks):
         labels = track_labels(tracker, tracks["track"].unique().to_list())
-        shades = track_colors(tracker, labels)
+        shades = track_colors(tracker, labels, rgb=rgb)
         for ident, g in tracks.sort("t").partition_by("track", as_dict=True, maintain_order=True).items():
             tid = str(ident[0])
             rec.log(
@@ -310,21 +312,24 @@ def log_clustertrack(
     cells: pl.DataFrame | None = None,
     cell: float = 0.1,
     truth: pl.DataFrame | None = None,
+    rgb: tuple[int, int, int] | None = None,
 ) -> None:
-    """Everything the stage produced (see the module docstring)."""
+    """Everything the stage produced (see the module docstring); tracks in shades of ``rgb``."""
     if frames_on is not None:
         log_sensor_states(rec, tracker, site, frames_on, times)
     if "feasible" in out:
         log_feasible_1d(rec, tracker, out["feasible"], times)
-        log_space_time(rec, tracker, site, times, feasible=out["feasible"], tracks=out["tracks"], truth=truth)
+        log_space_time(rec, tracker, site, times, feasible=out["feasible"], tracks=out["tracks"], truth=truth, rgb=rgb)
     elif cells is not None:
         log_feasible_2d(rec, tracker, cells, times, cell)
     log_counts(rec, tracker, out.get("counts"), truth)
     log_particles(rec, tracker, out["particles"], times)
-    log_point_tracks(rec, tracker, out["tracks"])
+    log_point_tracks(rec, tracker, out["tracks"], rgb=rgb)
 
 
-def log_run(rec: rr.RecordingStream, tracker: str, out: dict, *, site, region_graph, config, tables: dict) -> None:
+def log_run(
+    rec: rr.RecordingStream, tracker: str, out: dict, *, site, region_graph, config, tables: dict, look: Look = GENERIC
+) -> None:
     """Everything CLUSTERTRACK produced (see the module docstring); the truth joins the
     space-time diagram and the count plot when the run has it."""
     art = out.get("artifacts")
@@ -335,5 +340,14 @@ def log_run(rec: rr.RecordingStream, tracker: str, out: dict, *, site, region_gr
     if truth is not None:
         truth = truth.filter(pl.col("t").is_in(times.tolist()))
     log_clustertrack(
-        rec, tracker, site, out, times, frames_on=art["frames_on"], cells=art["cells"], cell=art["cell"], truth=truth
+        rec,
+        tracker,
+        site,
+        out,
+        times,
+        frames_on=art["frames_on"],
+        cells=art["cells"],
+        cell=art["cell"],
+        truth=truth,
+        rgb=look.rgb,
     )

@@ -3,8 +3,8 @@
 * Ids (regions, element slots, sensors) are hashed (CRC-32, not Python's salted ``hash``) into
   a fixed palette, so an id keeps its colour in every stage and every run (:func:`color_of`).
 * **Truth is neutral** (:data:`TRUTH`: light grey rings and trails) and **every estimate is in
-  its tracker's colour** (:func:`track_color`: shades of
-  :data:`onebit.viz.families.TRACKER_RGB`), so a true target and an estimate never share a
+  its tracker's colour** (:func:`track_color`: shades of its
+  :class:`~onebit.viz.families.Look`'s ``rgb``), so a true target and an estimate never share a
   colour, whatever their ids.
 """
 
@@ -15,8 +15,6 @@ import zlib
 from collections.abc import Iterable
 
 import numpy as np
-
-from onebit.viz.families import TRACKER_RGB
 
 #: Fixed palette (Tableau 20 order: the 10 strong colours, then their light partners).
 PALETTE: np.ndarray = np.array(
@@ -91,26 +89,34 @@ def colors_of(keys: Iterable[object], *, alpha: int = 255) -> np.ndarray:
     return out
 
 
-def tracker_color(tracker: str, *, alpha: int = 255) -> tuple[int, int, int, int]:
-    """RGBA colour of a tracker (:data:`~onebit.viz.families.TRACKER_RGB`; a palette colour
-    for a tracker not listed there)."""
-    rgb = TRACKER_RGB.get(tracker)
+#: Colour of the camera's detections (not a tracker: they are drawn as tracks of ``camera``).
+CAMERA_RGB: tuple[int, int, int] = (165, 165, 165)
+
+
+def tracker_color(
+    tracker: str, *, rgb: tuple[int, int, int] | None = None, alpha: int = 255
+) -> tuple[int, int, int, int]:
+    """RGBA colour of a tracker: ``rgb`` (its :class:`~onebit.viz.families.Look`'s), else a
+    palette colour from its name."""
     if rgb is None:
         return color_of(tracker, alpha=alpha)
     return (*rgb, int(alpha))
 
 
-def track_color(tracker: str, index: int, count: int, *, alpha: int = 255) -> tuple[int, int, int, int]:
-    """RGBA colour of the ``index``-th of ``count`` tracks of ``tracker``: the tracker's colour
-    turned a little round the colour wheel and made darker (first) to lighter (last), so the
-    tracks of one tracker are told apart and still read as that tracker's.
+def track_color(
+    tracker: str, index: int, count: int, *, rgb: tuple[int, int, int] | None = None, alpha: int = 255
+) -> tuple[int, int, int, int]:
+    """RGBA colour of the ``index``-th of ``count`` tracks of ``tracker`` (colour ``rgb``, as
+    :func:`tracker_color`): the tracker's colour turned a little round the colour wheel and made
+    darker (first) to lighter (last), so the tracks of one tracker are told apart and still read
+    as that tracker's.
 
     Examples
     --------
-    >>> track_color("beams", 0, 1) == tracker_color("beams")
+    >>> track_color("beams", 0, 1, rgb=(64, 196, 255)) == tracker_color("beams", rgb=(64, 196, 255))
     True
     """
-    r, g, b, _ = tracker_color(tracker)
+    r, g, b, _ = tracker_color(tracker, rgb=rgb)
     if count <= 1:
         return (r, g, b, int(alpha))
     s = index / (count - 1) - 0.5  # -0.5 (first) .. 0.5 (last)

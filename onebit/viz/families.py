@@ -1,4 +1,4 @@
-"""Which paper each tracker belongs to, its colour and the unit its error is shown in.
+"""How a tracker is drawn: its *look* (family, colour, error unit), declared on its pipeline entry.
 
 A *family* is one paper's way of looking at a run: the ``beams`` family is Bobadilla et al.'s
 agents in regions, ``intruder`` Schiff & Goldberg's particle filter (with its room-centre
@@ -7,63 +7,67 @@ graph (with the ``hmm1`` / ``hmm2`` baselines) and ``istate`` O'Kane's I-states.
 blueprint (:mod:`onebit.viz.blueprint`) builds one tab per family, or per tracker where the
 trackers of a family are alternatives to compare side by side (the HMM decoders).
 
-A tracker that is not listed here (a new one, ``docs/extending.md``) gets the generic
-layout: its root in a site view and its error in a plot, in the site's units.
+Each tracker's :class:`Look` is a field of its ``TrackerEntry`` (``onebit.pipeline.stages``,
+the one place a tracker is declared); the error unit comes from the entry's MOT gate (a gate
+in hops: the error plot shows ``hop_error``). The pipeline passes the looks down to the viz
+functions; a tracker with no look (the default :data:`GENERIC`) gets the generic layout: its
+root in a site view, its error in a plot in the site's units, a palette colour from its name.
 """
 
 from __future__ import annotations
 
-#: Family of every tracker the pipeline declares (``onebit.pipeline.stages.TRACKERS``).
-FAMILY_OF: dict[str, str] = {
-    "beams": "beams",
-    "intruder": "intruder",
-    "intruder-naive": "intruder",
-    "clustertrack": "clustertrack",
-    "findinghumo": "findinghumo",
-    "hmm1": "findinghumo",
-    "hmm2": "findinghumo",
-    "findinghumo-flow": "findinghumo",
-    "istate": "istate",
-    "residents": "residents",
-    "binpf": "binpf",
-}
+from collections.abc import Mapping
+from dataclasses import dataclass
 
-#: Families in the order of their tabs; the first present is the tab a run opens on.
+
+@dataclass(frozen=True)
+class Look:
+    """How one tracker is drawn.
+
+    family : the blueprint tab it belongs to (one of :data:`FAMILY_ORDER`); ``None`` = the
+        generic layout.
+    rgb : its colour: its estimates, trails, boxes and error series are drawn in shades of it
+        (truth is always neutral, :data:`onebit.viz.colors.TRUTH`); chosen apart from the
+        sensor-state colours (red firing, orange refractory) and from the other trackers'.
+        ``None`` = a palette colour from its name.
+    hops : its error plot shows ``hop_error`` in hops (region and graph trackers, the papers'
+        unit), else ``error`` in the site's units. Set from the tracker's MOT gate.
+    """
+
+    family: str | None = None
+    rgb: tuple[int, int, int] | None = None
+    hops: bool = False
+
+    def __post_init__(self) -> None:
+        if self.family is not None and self.family not in FAMILY_ORDER:
+            raise ValueError(f"Look.family = {self.family!r}; known families: {list(FAMILY_ORDER)}")
+        if self.rgb is not None and (len(self.rgb) != 3 or not all(0 <= int(c) <= 255 for c in self.rgb)):
+            raise ValueError(f"Look.rgb = {self.rgb!r}; three integers in [0, 255]")
+
+
+#: The look of a tracker that declares none.
+GENERIC = Look()
+
+#: Families in the order of their tabs; the first present is the tab a run opens on. Each has a
+#: layout method of the same name in :class:`onebit.viz.blueprint.Planner`.
 FAMILY_ORDER: tuple[str, ...] = ("beams", "clustertrack", "findinghumo", "intruder", "istate", "residents", "binpf")
 
-#: Each tracker's colour (RGB): its estimates, trails, boxes and error series are drawn in
-#: shades of it; truth is always neutral (:data:`onebit.viz.colors.TRUTH`). Chosen apart from
-#: the sensor-state colours (red firing, orange refractory) and from each other.
-TRACKER_RGB: dict[str, tuple[int, int, int]] = {
-    "beams": (64, 196, 255),
-    "intruder": (70, 225, 110),
-    "intruder-naive": (200, 120, 255),
-    "clustertrack": (255, 160, 40),
-    "findinghumo": (255, 200, 60),
-    "hmm1": (90, 200, 255),
-    "hmm2": (240, 110, 200),
-    "findinghumo-flow": (120, 240, 200),
-    "istate": (255, 235, 130),
-    "residents": (255, 140, 120),
-    "binpf": (255, 110, 90),
-    "camera": (165, 165, 165),
-}
 
-#: Score column (``SCORES``) and unit of each tracker's error plot; every other tracker shows
-#: ``error`` in the site's units. Region and graph trackers are scored in hops, the papers' unit.
-HOP_TRACKERS: frozenset[str] = frozenset({"beams", "findinghumo", "hmm1", "hmm2", "findinghumo-flow"})
+def look_of(looks: Mapping[str, Look] | None, tracker: str) -> Look:
+    """The look of ``tracker`` in ``looks`` (:data:`GENERIC` when it has none)."""
+    return (looks or {}).get(tracker, GENERIC)
 
 
-def family(tracker: str) -> str | None:
-    """Family of ``tracker`` or ``None`` for a tracker this module does not know."""
-    return FAMILY_OF.get(tracker)
+def family(tracker: str, looks: Mapping[str, Look] | None) -> str | None:
+    """Family of ``tracker`` or ``None`` for a tracker without one."""
+    return look_of(looks, tracker).family
 
 
-def error_column(tracker: str) -> str:
+def error_column(look: Look) -> str:
     """``"hop_error"`` for the region and graph trackers, else ``"error"`` (site units)."""
-    return "hop_error" if tracker in HOP_TRACKERS else "error"
+    return "hop_error" if look.hops else "error"
 
 
-def error_unit(tracker: str, site_units: str) -> str:
-    """The unit of ``tracker``'s error plot: ``"hops"`` or the site's length unit."""
-    return "hops" if tracker in HOP_TRACKERS else site_units
+def error_unit(look: Look, site_units: str) -> str:
+    """The unit of a tracker's error plot: ``"hops"`` or the site's length unit."""
+    return "hops" if look.hops else site_units

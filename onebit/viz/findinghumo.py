@@ -28,6 +28,7 @@ import polars as pl
 from onebit.core.lazy import lazy_module
 from onebit.viz import paths
 from onebit.viz._series import groups, is_empty
+from onebit.viz.families import GENERIC, Look
 from onebit.viz.frame import log_world_frame
 from onebit.viz.tracks import log_point_tracks, track_colors, track_labels
 
@@ -90,14 +91,16 @@ def log_activations(
     )
 
 
-def log_decoded(rec: rr.RecordingStream, tracker: str, tracks: pl.DataFrame | None) -> None:
+def log_decoded(
+    rec: rr.RecordingStream, tracker: str, tracks: pl.DataFrame | None, *, rgb: tuple[int, int, int] | None = None
+) -> None:
     """Each decoded track: the dot now with its trail (:func:`log_point_tracks`) and its whole
     node sequence (static, hidden by default in the blueprint)."""
     if is_empty(tracks):
         return
-    log_point_tracks(rec, tracker, tracks)
+    log_point_tracks(rec, tracker, tracks, rgb=rgb)
     labels = track_labels(tracker, tracks["track"].drop_nulls().unique().to_list())
-    shades = track_colors(tracker, labels)
+    shades = track_colors(tracker, labels, rgb=rgb)
     for user, g in groups(tracks.drop_nulls(["x", "y"]), "track"):
         xy = g.select("x", "y").to_numpy()
         rec.log(
@@ -242,13 +245,15 @@ def log_joint(rec: rr.RecordingStream, tracker: str, joint: pl.DataFrame | None,
     _log_labelled_points(rec, paths.join(paths.tracker_root(tracker), "joint"), xy, t, labels, DECISION)
 
 
-def log_run(rec: rr.RecordingStream, tracker: str, out: dict, *, site, region_graph, config, tables: dict) -> None:
+def log_run(
+    rec: rr.RecordingStream, tracker: str, out: dict, *, site, region_graph, config, tables: dict, look: Look = GENERIC
+) -> None:
     """Everything an HMM tracker produced: the EATG, active nodes per slot, decoded paths and
     (FindingHuMo) the CPDA switches."""
     art = out["artifacts"]
     log_eatg(rec, tracker, art["eatg"], site)
     log_activations(rec, tracker, art["active"], site, art["nodes"], art["t0"], art["period"])
-    log_decoded(rec, tracker, out["tracks"])
+    log_decoded(rec, tracker, out["tracks"], rgb=look.rgb)
     if "switches" in out:
         log_switches(rec, tracker, out["switches"], site, art["nodes"], art["t0"], art["period"])
     if "cpda" in out:

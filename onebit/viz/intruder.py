@@ -30,6 +30,7 @@ import polars as pl
 from onebit.core.lazy import lazy_module
 from onebit.viz import colors, paths
 from onebit.viz._series import groups, is_empty, strips_array, text_array
+from onebit.viz.families import GENERIC, Look
 from onebit.viz.frame import log_world_frame
 from onebit.viz.radii import ui_points
 from onebit.viz.tracks import log_point_tracks
@@ -169,7 +170,14 @@ def log_particles(rec: rr.RecordingStream, tracker: str, t: np.ndarray, xy: np.n
 
 
 def log_estimate(
-    rec: rr.RecordingStream, tracker: str, t: np.ndarray, est: np.ndarray, width: float, depth: float
+    rec: rr.RecordingStream,
+    tracker: str,
+    t: np.ndarray,
+    est: np.ndarray,
+    width: float,
+    depth: float,
+    *,
+    rgb: tuple[int, int, int] | None = None,
 ) -> None:
     """The estimate's bounding box (the body the likelihood uses) on ``<tracker>/estimate``."""
     if len(t) == 0:
@@ -178,7 +186,9 @@ def log_estimate(
     log_world_frame(rec, entity)
     rec.log(
         entity,
-        rr.Boxes2D.from_fields(colors=colors.tracker_color(tracker), radii=rr.Radius.ui_points(1.5), draw_order=29.0),
+        rr.Boxes2D.from_fields(
+            colors=colors.tracker_color(tracker, rgb=rgb), radii=rr.Radius.ui_points(1.5), draw_order=29.0
+        ),
         static=True,
     )
     rec.send_columns(
@@ -222,7 +232,9 @@ def log_camera_cone(
     )
 
 
-def log_run(rec: rr.RecordingStream, tracker: str, out: dict, *, site, region_graph, config, tables: dict) -> None:
+def log_run(
+    rec: rr.RecordingStream, tracker: str, out: dict, *, site, region_graph, config, tables: dict, look: Look = GENERIC
+) -> None:
     """Everything the ``intruder`` (or ``intruder-naive``) tracker produced: coverage, sensor
     states, particles, the estimate with its box, the camera cone and the track."""
     art = out.get("artifacts")
@@ -231,9 +243,9 @@ def log_run(rec: rr.RecordingStream, tracker: str, out: dict, *, site, region_gr
         log_coverage(rec, art["deployment"])
         log_sensor_states(rec, tracker, art["deployment"], t_end, art["fired"], art["blind"])
         log_particles(rec, tracker, t_end, art["particles_xy"], art["particles_w"])
-        log_estimate(rec, tracker, t_end, art["estimates"], *art["box"])
+        log_estimate(rec, tracker, t_end, art["estimates"], *art["box"], rgb=look.rgb)
         if "camera" in out:
             log_camera_cone(
                 rec, tracker, tuple(config.camera_position), t_end, art["estimates"], out["camera"], config.camera_fov
             )
-    log_point_tracks(rec, tracker, out["tracks"])
+    log_point_tracks(rec, tracker, out["tracks"], rgb=look.rgb)

@@ -27,6 +27,7 @@ import shapely
 from onebit.core.lazy import lazy_module
 from onebit.viz import colors, paths
 from onebit.viz._series import rings, strips_array
+from onebit.viz.families import GENERIC, Look
 from onebit.viz.frame import log_world_frame
 from onebit.viz.radii import ui_points
 from onebit.viz.tracks import log_point_tracks
@@ -341,7 +342,9 @@ def log_active_tracking(
         log_istate_regions(rec, tracker, regions, times)
 
 
-def log_run(rec: rr.RecordingStream, tracker: str, out: dict, *, site, region_graph, config, tables: dict) -> None:
+def log_run(
+    rec: rr.RecordingStream, tracker: str, out: dict, *, site, region_graph, config, tables: dict, look: Look = GENERIC
+) -> None:
     """Everything the I-state filter produced: regions (filled and outlined), sensing regions,
     detections, element count and area, and the point summary."""
     log_istate_run(
@@ -353,4 +356,4 @@ def log_run(rec: rr.RecordingStream, tracker: str, out: dict, *, site, region_gr
         sensing=out["artifacts"]["sensing"],
         detections=out["detections"],
     )
-    log_point_tracks(rec, tracker, out["tracks"])
+    log_point_tracks(rec, tracker, out["tracks"], rgb=look.rgb)

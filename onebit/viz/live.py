@@ -93,16 +93,18 @@ def live_blueprint(trackers: list[str]) -> rrb.Blueprint:
     )
 
 
-def log_estimates(rec: rr.RecordingStream, tracker: str, rows: pl.DataFrame) -> None:
+def log_estimates(
+    rec: rr.RecordingStream, tracker: str, rows: pl.DataFrame, *, rgb: tuple[int, int, int] | None = None
+) -> None:
     """Newly published track rows (``track``, ``t``, ``x``, ``y``) as points on
-    ``<tracker>/tracks/<track>``; rows without a position are skipped."""
+    ``<tracker>/tracks/<track>`` in the tracker's colour ``rgb``; rows without a position are skipped."""
     if rows is None or rows.height == 0 or "x" not in rows.columns:
         return
     rows = rows.drop_nulls(["t", "x", "y"])
     if rows.height == 0:
         return
     log_world_frame(rec, paths.tracker_root(tracker))
-    color = colors.tracker_color(tracker)
+    color = colors.tracker_color(tracker, rgb=rgb)
     for (track,), g in rows.sort("t").group_by("track", maintain_order=True):
         xy = g.select("x", "y").to_numpy().astype(np.float64)
         rec.send_columns(

@@ -19,13 +19,16 @@ import polars as pl
 from onebit.core.lazy import lazy_module
 from onebit.viz import paths
 from onebit.viz._series import is_empty
+from onebit.viz.families import GENERIC, Look
 from onebit.viz.frame import log_world_frame
 from onebit.viz.tracks import log_point_tracks, track_colors, track_labels
 
 rr = lazy_module("rerun")
 
 
-def log_events(rec: rr.RecordingStream, tracker: str, events: pl.DataFrame | None, site) -> None:
+def log_events(
+    rec: rr.RecordingStream, tracker: str, events: pl.DataFrame | None, site, *, rgb: tuple[int, int, int] | None = None
+) -> None:
     """ON events as points at their sensor, coloured and labelled by their person (one row each)."""
     if is_empty(events):
         return
@@ -34,7 +37,7 @@ def log_events(rec: rr.RecordingStream, tracker: str, events: pl.DataFrame | Non
     if ev.height == 0:
         return
     ids = ev["track"].unique().to_list()
-    shade, label = track_colors(tracker, ids), track_labels(tracker, ids)
+    shade, label = track_colors(tracker, ids, rgb=rgb), track_labels(tracker, ids)
     xy = np.array([pos[s] for s in ev["sensor"].to_list()], dtype=float).reshape(-1, 2)
     cols = np.array([shade[k] for k in ev["track"].to_list()], dtype=np.uint8).reshape(-1, 4)
     labels = [f"{label[k]}: {s}" for k, s in zip(ev["track"].to_list(), ev["sensor"].to_list())]
@@ -65,13 +68,22 @@ def log_people(rec: rr.RecordingStream, tracker: str, people: pl.DataFrame | Non
 
 
 def log_run(
-    rec: rr.RecordingStream, tracker: str, out: dict, *, site, region_graph=None, config=None, tables=None
+    rec: rr.RecordingStream,
+    tracker: str,
+    out: dict,
+    *,
+    site,
+    region_graph=None,
+    config=None,
+    tables=None,
+    look: Look = GENERIC,
 ) -> None:
     """The residents stage: people's tracks, the attributed events, the people present."""
-    log_point_tracks(rec, tracker, out.get("tracks"))
+    log_point_tracks(rec, tracker, out.get("tracks"), rgb=look.rgb)
     ev = out.get("events")
     if not is_empty(ev):
-        log_events(rec, tracker, ev.join(_on_rows(tables, ev), on=["t", "sensor"], how="semi") if tables else ev, site)
+        on = ev.join(_on_rows(tables, ev), on=["t", "sensor"], how="semi") if tables else ev
+        log_events(rec, tracker, on, site, rgb=look.rgb)
     log_people(rec, tracker, out.get("people"))
 
 

@@ -15,7 +15,10 @@ Entities:
 * ``<tracker>/occupancy/<region>`` -- agents per region (Scalars, a step series);
 * ``scores/<tracker>/<track>`` -- error of each track against its matched target (Scalars):
   hops for region and graph trackers, site units for the others
-  (:func:`onebit.viz.families.error_column`).
+  (:func:`onebit.viz.families.error_column` of the tracker's :class:`~onebit.viz.families.Look`).
+
+The tracker's colour is its look's ``rgb``, passed down by the pipeline (a palette colour from
+its name without one).
 
 Everything goes through ``send_columns``.
 """
@@ -32,7 +35,7 @@ from onebit.core.lazy import lazy_module
 from onebit.core.region_graph import RegionGraph
 from onebit.viz import colors, paths
 from onebit.viz._series import groups, is_empty, only_tracker, region_outlines, require, ring_table, strips_array
-from onebit.viz.families import error_column
+from onebit.viz.families import GENERIC, Look, error_column
 from onebit.viz.frame import log_world_frame
 from onebit.viz.radii import ui_points
 from onebit.viz.trails import log_dot, log_moving, log_trail
@@ -72,10 +75,12 @@ def track_labels(tracker: str, track_ids) -> dict[str, str]:
     return {tid: f"track {k + 1}" for k, tid in enumerate(ids)}
 
 
-def track_colors(tracker: str, track_ids) -> dict[str, tuple[int, int, int, int]]:
-    """Colour of each track id: shades of the tracker's colour in the order of :func:`track_labels`."""
+def track_colors(
+    tracker: str, track_ids, *, rgb: tuple[int, int, int] | None = None
+) -> dict[str, tuple[int, int, int, int]]:
+    """Colour of each track id: shades of the tracker's colour ``rgb`` in the order of :func:`track_labels`."""
     ids = sorted({str(i) for i in track_ids if i is not None}, key=natural_key)
-    return {tid: colors.track_color(tracker, k, len(ids)) for k, tid in enumerate(ids)}
+    return {tid: colors.track_color(tracker, k, len(ids), rgb=rgb) for k, tid in enumerate(ids)}
 
 
 def region_anchors(region_graph: RegionGraph) -> tuple[np.ndarray, np.ndarray]:
@@ -126,7 +131,12 @@ def log_current_region(
 
 
 def log_region_tracks(
-    rec: rr.RecordingStream, tracker: str, tracks: pl.DataFrame | None, region_graph: RegionGraph
+    rec: rr.RecordingStream,
+    tracker: str,
+    tracks: pl.DataFrame | None,
+    region_graph: RegionGraph,
+    *,
+    rgb: tuple[int, int, int] | None = None,
 ) -> None:
     """Log region-level tracks ``(track, t, region)``: row = the region a track entered at ``t``.
 
@@ -144,7 +154,7 @@ def log_region_tracks(
         return
     log_world_frame(rec, paths.tracker_root(tracker))
     labels = track_labels(tracker, tracks["track"].unique().to_list())
-    shades = track_colors(tracker, labels)
+    shades = track_colors(tracker, labels, rgb=rgb)
     for slot, (track, g) in enumerate(groups(tracks, "track")):
         regions = g["region"].to_numpy()
         t = g["t"].to_numpy()
@@ -168,9 +178,11 @@ def log_region_tracks(
             )
 
 
-def log_point_tracks(rec: rr.RecordingStream, tracker: str, tracks: pl.DataFrame | None) -> None:
+def log_point_tracks(
+    rec: rr.RecordingStream, tracker: str, tracks: pl.DataFrame | None, *, rgb: tuple[int, int, int] | None = None
+) -> None:
     """Log tracks with positions ``(track, t, x, y)`` on ``<tracker>/tracks/<track>`` (+ ``/trail``,
-    ``/path``), each a dot in a shade of the tracker's colour labelled ``"track k"``.
+    ``/path``), each a dot in a shade of the tracker's colour ``rgb`` labelled ``"track k"``.
 
     Rows with a null ``x`` or ``y`` and rows of other trackers are skipped.
     """
@@ -182,7 +194,7 @@ def log_point_tracks(rec: rr.RecordingStream, tracker: str, tracks: pl.DataFrame
         return
     log_world_frame(rec, paths.tracker_root(tracker))
     labels = track_labels(tracker, tracks["track"].unique().to_list())
-    shades = track_colors(tracker, labels)
+    shades = track_colors(tracker, labels, rgb=rgb)
     for track, g in groups(tracks, "track"):
         log_moving(
             rec,
@@ -225,10 +237,12 @@ def log_occupancy(rec: rr.RecordingStream, tracker: str, occupancy: pl.DataFrame
         )
 
 
-def log_scores(rec: rr.RecordingStream, tracker: str, scores: pl.DataFrame | None, *, track_ids=None) -> None:
+def log_scores(
+    rec: rr.RecordingStream, tracker: str, scores: pl.DataFrame | None, *, track_ids=None, look: Look = GENERIC
+) -> None:
     """Log each track's error ``(track, t, error | hop_error[, target])`` as Scalars on
-    ``scores/<tracker>/<track>``: ``hop_error`` (hops) for region and graph trackers, else
-    ``error`` (site units) -- one unit per tracker, named in its plot's title.
+    ``scores/<tracker>/<track>``: ``hop_error`` (hops) for region and graph trackers (``look.hops``),
+    else ``error`` (site units) -- one unit per tracker, named in its plot's title.
 
     Series are named ``"track k ~ <target>"`` (the target the scoring matched it to) in the
     track's colour; ``track_ids`` (all ids of the tracker's tracks) keeps the ``k`` the same as
@@ -236,7 +250,7 @@ def log_scores(rec: rr.RecordingStream, tracker: str, scores: pl.DataFrame | Non
     """
     if is_empty(scores):
         return
-    column = error_column(tracker)
+    column = error_column(look)
     if column not in scores.columns:
         column = "error"
     require(scores, ("track", "t", column), name="scores")
@@ -246,7 +260,7 @@ def log_scores(rec: rr.RecordingStream, tracker: str, scores: pl.DataFrame | Non
     ids = list(track_ids) if track_ids is not None else []
     ids += scores["track"].unique().to_list()
     labels = track_labels(tracker, ids)
-    shades = track_colors(tracker, labels)
+    shades = track_colors(tracker, labels, rgb=look.rgb)
     for track, g in groups(scores, "track"):
         targets = g["target"].drop_nulls().unique().sort().to_list() if "target" in g.columns else []
         name = f"{labels[track]} ~ {'/'.join(map(str, targets))}" if targets else labels[track]

@@ -36,6 +36,7 @@ from onebit.pipeline.runner import run_pipeline
 from onebit.pipeline.stages import TRACKERS, TrackerEntry
 from onebit.scoring.mot import Gate
 from onebit.trackers.base import TrackerSpec
+from onebit.viz.families import GENERIC, Look
 from onebit.viz.inspect import entity_paths
 from onebit.viz.tracks import log_point_tracks
 
@@ -68,14 +69,33 @@ def score(tracker: str, tables: dict, site: Site, region_graph) -> tuple[list, d
     return [(tracker, "estimates", float(tracks.height), "estimates")], {}
 
 
-def log_run(rec, tracker, out, *, site, region_graph, config, tables) -> None:
-    log_point_tracks(rec, tracker, out["tracks"])
+def log_run(rec, tracker, out, *, site, region_graph, config, tables, look=GENERIC) -> None:
+    log_point_tracks(rec, tracker, out["tracks"], rgb=look.rgb)
 
 
 GATE = Gate("point", 0.5, "m", "an agent within half a metre of the true one is a hit")
 ENTRY = TrackerEntry(
-    TrackerSpec(name=NAME, needs=("crossings",), config=LastBeamConfig, run=run), score, log_run, gate=GATE
+    TrackerSpec(name=NAME, needs=("crossings",), config=LastBeamConfig, run=run),
+    score,
+    log_run,
+    gate=GATE,
+    look=Look(rgb=(10, 250, 10)),  # no family: the generic layout, in its own colour
 )
+
+
+def _colors(rrd, entity: str) -> set[int]:
+    """Every packed RGBA colour logged on ``entity`` (Points2D / LineStrips2D colours)."""
+    from rerun.chunk import RrdReader
+
+    out: set[int] = set()
+    for chunk in RrdReader(str(rrd)).stream():
+        if str(chunk.entity_path) != entity:
+            continue
+        frame = pl.from_arrow(chunk.to_record_batch())
+        for col in frame.columns:
+            if col.endswith(":colors"):
+                out |= {int(v) for v in frame[col].explode().drop_nulls().to_list()}
+    return out
 
 
 @pytest.fixture(scope="module")
@@ -94,6 +114,8 @@ def test_a_dummy_tracker_runs_end_to_end(data, tmp_path):
     assert 0.0 <= metric(res.report, f"{NAME}/hota") <= 1.0 and metric(res.report, f"{NAME}/mota") <= 1.0
     assert metric(res.report, f"{NAME}/mot_gate") == pytest.approx(0.5 / 0.3048)
     assert f"{NAME}/tracks/agent" in entity_paths(tmp_path / "run" / "rrd" / f"{NAME}.rrd")
+    # drawn in the colour its entry declares (one track: the colour itself, RGBA packed)
+    assert 0x0AFA0AFF in _colors(tmp_path / "run" / "rrd" / f"{NAME}.rrd", f"/{NAME}/tracks/agent")
     # the beams tracker still reads the corrected crossings; the dummy reads the decoded ones
     assert res.status["beams"].startswith("ok")
 

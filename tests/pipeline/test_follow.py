@@ -321,3 +321,85 @@ def test_nothing_to_follow_is_an_error(tmp_path, pir):
     (d / "site.toml").write_bytes((src / "site.toml").read_bytes())
     with pytest.raises(InputError, match="no log to follow"):
         follow(d, tmp_path / "out")
+
+
+def test_hmm_family_lagged_replay_equals_batch(tmp_path):
+    """FindingHuMo's live requirement: with ``decoding = "lagged"`` (an EATG known beforehand,
+    a fixed decision lag D') the hallway replayed at high speed publishes, block by block while
+    the log grows, exactly the rows ``onebit run`` with the same config writes."""
+    data = get_scenario("hallway").write(
+        tmp_path / "d", seed=7, duration=60.0, agents=3, drop=0.0, camera=False, params={}
+    )
+    names = ("findinghumo", "hmm1", "hmm2")
+    config = {n: {"eatg": "layout", "decoding": "lagged"} for n in names}
+    clock = SimClock()
+    res = follow(
+        data,
+        tmp_path / "out",
+        trackers=names,
+        config=config,
+        options=FollowConfig(replay=20.0, poll=0.25),
+        clock=clock.clock,
+        sleep=clock.sleep,
+    )
+    batch = run_pipeline(data, tmp_path / "batch", trackers=names, config=config, progress=False)
+    for name in names:
+        live = read_live_table(res.live, f"{name}_tracks")
+        ref = pl.read_parquet(batch.out / "tables" / f"{name}_tracks.parquet")
+        assert ref.height > 50, name
+        assert _equal(live, ref), name
+        assert metric(res.report, f"{name}/online_equals_batch") == 1.0
+        p50, p99 = metric(res.report, f"{name}/delay_p50"), metric(res.report, f"{name}/delay_p99")
+        assert 0.0 <= p50 <= p99 and math.isfinite(p99)
+        # published while the log grew, in time order: not one batch at the end
+        parts = sorted((res.live / "tables" / f"{name}_tracks").glob("part-*.parquet"))
+        assert len(parts) >= 5, name
+        firsts = [pl.read_parquet(p)["t"].min() for p in parts]
+        assert firsts == sorted(firsts), name
+
+
+def test_connect_streams_to_a_rerun_server(pir, tmp_path):
+    """``--connect``: a headless ``rerun`` that only listens for SDKs and saves what arrives
+    (``rerun --port P --save FILE``; no viewer window) receives the follow stream."""
+    import shutil
+    import signal
+    import socket
+    import subprocess
+    import sys
+    import time
+    from pathlib import Path
+
+    exe = shutil.which("rerun") or str(Path(sys.executable).parent / "rerun")
+    if not Path(exe).exists():
+        pytest.skip("no rerun executable")
+    with socket.socket() as s:  # a free port
+        s.bind(("127.0.0.1", 0))
+        port = s.getsockname()[1]
+    saved = tmp_path / "received.rrd"
+    log = open(tmp_path / "rerun.log", "w+")
+    proc = subprocess.Popen([exe, "--port", str(port), "--save", str(saved)], stdout=log, stderr=subprocess.STDOUT)
+    try:
+        for _ in range(200):  # until it listens (polled, not timed)
+            log.seek(0)
+            if "Listening for gRPC" in log.read() or proc.poll() is not None:
+                break
+            time.sleep(0.05)
+        assert proc.poll() is None, open(tmp_path / "rerun.log").read()
+        _, data = pir
+        clock = SimClock()
+        follow(
+            data,
+            tmp_path / "out",
+            trackers=("intruder",),
+            options=FollowConfig(replay=20.0, poll=0.5),
+            connect=f"rerun+http://127.0.0.1:{port}/proxy",
+            clock=clock.clock,
+            sleep=clock.sleep,
+        )
+    finally:
+        proc.send_signal(signal.SIGINT)  # the server ends its file on Ctrl-C
+        proc.wait(timeout=30)
+        log.close()
+    got = entity_paths(saved)
+    assert {"intruder/tracks/intruder", "follow/delay/intruder", "site/boundary"} <= got
+    assert got == entity_paths(tmp_path / "out" / "live" / "rrd" / "follow.rrd")  # what the file sink has

@@ -316,3 +316,18 @@ def test_log_info_many_sensors_truncates_ids(tmp_path):
     row = log_info(tmp_path / "motion.csv").row(0, named=True)
     assert row["sensors"] == 15
     assert row["sensor_ids"].startswith("s00,s01") and row["sensor_ids"].endswith("(+5)")
+
+
+def test_a_file_cut_in_its_header_is_unreadable_not_empty(tmp_path):
+    full = tmp_path / "full.mcap"
+    csv_folder_to_mcap(_folder(tmp_path / "in"), full)
+    data = full.read_bytes()
+    for cut in (4, 8, 12):
+        part = tmp_path / f"cut{cut}.mcap"
+        part.write_bytes(data[:cut])
+        got = read_mcap(part)
+        assert got.truncated and got.unreadable and not got.channels, cut
+        assert got.rejects.rows() == [(part.name, 1, got.rejects["reason"][0], None)] and got.rejects["reason"][
+            0
+        ].startswith("unreadable: truncated in its MCAP header")
+    assert not read_mcap(full).unreadable

@@ -14,7 +14,7 @@ import pytest
 
 from onebit.datasets.catalogue import get_scenario
 from onebit.pipeline.runner import run_pipeline
-from onebit.pipeline.stages import tracker_names
+from onebit.pipeline.stages import LOOKS, tracker_names
 from onebit.viz import inspect as rrd
 from onebit.viz.blueprint import (
     BLUEPRINT_FILE,
@@ -101,7 +101,7 @@ def test_each_family_opens_on_its_own_tab_and_nothing_is_left_over(run):
         assert sum(tab.startswith(f"{owner}: ") for tab in tabs) == 1, (t, tabs)
     assert len(tabs) == len({("intruder" if t == "intruder-naive" and "intruder" in ran else t) for t in ran})
     assert "more" not in tabs  # every entity found its family's view
-    assert set(tracker_roots(Logged(logged))) <= set(ran)
+    assert set(tracker_roots(Logged(logged), LOOKS)) <= set(ran)
 
 
 def test_plots_say_what_and_in_which_unit(run):

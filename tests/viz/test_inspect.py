@@ -2,13 +2,15 @@
 
 from __future__ import annotations
 
+import pytest
 import rerun.blueprint as rrb
 
-from onebit.pipeline.stages import tracker_names
+from onebit.pipeline.stages import LOOKS, TRACKERS, tracker_names
 from onebit.viz import colors
 from onebit.viz import inspect as rrd
 from onebit.viz.blueprint import save_blueprint
-from onebit.viz.families import FAMILY_OF, TRACKER_RGB
+from onebit.viz.colors import CAMERA_RGB
+from onebit.viz.families import FAMILY_ORDER, Look
 
 
 def test_query_rules_follow_rerun_docs():
@@ -62,9 +64,24 @@ def test_blueprint_read_back(tmp_path):
 
 
 def test_every_tracker_has_a_family_and_a_colour_apart_from_truth():
-    assert set(tracker_names()) <= set(FAMILY_OF)
-    assert set(FAMILY_OF) <= set(TRACKER_RGB)
+    """Each tracker's look is declared on its entry (one place): a family with a tab, a colour
+    of its own, apart from the truth's; its error unit is its MOT gate's."""
+    assert set(LOOKS) == set(tracker_names())
+    assert all(look.family in FAMILY_ORDER and look.rgb is not None for look in LOOKS.values())
+    rgbs = [look.rgb for look in LOOKS.values()]
+    assert len(set(rgbs)) == len(rgbs) and CAMERA_RGB not in rgbs
     truth = colors.TRUTH[:3]
-    shades = [colors.track_color(t, k, 3)[:3] for t in FAMILY_OF for k in range(3)]
+    shades = [colors.track_color(t, k, 3, rgb=look.rgb)[:3] for t, look in LOOKS.items() for k in range(3)]
     assert truth not in shades
-    assert len({colors.track_color("findinghumo", k, 3) for k in range(3)}) == 3
+    assert len({colors.track_color("findinghumo", k, 3, rgb=LOOKS["findinghumo"].rgb) for k in range(3)}) == 3
+    for e in TRACKERS:
+        assert e.drawn.hops == (e.gate is not None and e.gate.unit == "hops"), e.name
+    assert {t for t, look in LOOKS.items() if look.hops} == {"beams", "findinghumo", "hmm1", "hmm2", "findinghumo-flow"}
+
+
+def test_a_look_names_a_known_family_and_a_colour():
+    with pytest.raises(ValueError, match="Look.family = 'nope'"):
+        Look("nope")
+    with pytest.raises(ValueError, match="Look.rgb"):
+        Look("beams", (1, 2, 300))
+    assert colors.tracker_color("new-tracker") == colors.color_of("new-tracker")  # no look: a palette colour

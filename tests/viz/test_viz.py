@@ -10,6 +10,7 @@ import pytest
 import rerun as rr
 
 from onebit.core import tables
+from onebit.pipeline.stages import LOOKS
 from onebit.viz import (
     color_of,
     colors_of,
@@ -96,7 +97,7 @@ def write_full(out_dir, site, region_graph, *, stage="beams", recording_id=RUN_I
         log_point_tracks(rec, "particles", pl.DataFrame({"track": ["p"], "t": [0.0], "x": [1.0], "y": [1.0]}))
         log_occupancy(rec, "beams", occupancy_frame())
         log_scores(rec, "beams", scores_frame())
-    save_run_blueprint(out_dir / "rrd", units=site.units)
+    save_run_blueprint(out_dir / "rrd", units=site.units, looks=LOOKS)
     return out_dir / "rrd" / f"{stage}.rrd"
 
 

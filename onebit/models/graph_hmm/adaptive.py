@@ -113,6 +113,10 @@ LOOKBACK = 120
 NEAR_HOPS = 1
 
 
+#: slots after an exit in which an entry at the same door continues that user (DecoderParams.resume)
+RESUME_SLOTS = 10
+
+
 @dataclass(frozen=True, kw_only=True)
 class DecoderParams:
     """Parameters of the window decoder (see the module docstring)."""
@@ -124,7 +128,7 @@ class DecoderParams:
     p_false: float = 0.05
     sweeps: int = 3
     offline: bool = False
-    resume: int = 10  # slots after an exit in which an entry at the same door continues that user
+    resume: int = RESUME_SLOTS  # slots after an exit in which an entry at the same door continues that user
     max_users: int = 0  # the most users decoded at once (a bound inside the decoder; 0 = none)
     count: str = "fresh"  # K_now over nodes turned on in the last fresh_slots slots ("fresh") or every node on ("on")
     fresh_slots: int = 2
@@ -346,100 +350,195 @@ def decode_run(
     """Decode every user's node path from slot activity ``active`` (D, N) bool.
 
     ``progress(done, total)``, when given, is called after each window with the slots
-    decoded so far and the number of slots (:data:`onebit.trackers.base.PROGRESS`)."""
+    decoded so far and the number of slots (:data:`onebit.trackers.base.PROGRESS`).
+    The whole run at once: :class:`WindowDecoder` fed every slot and flushed."""
     active = np.asarray(active, bool)
-    n_slots, n = active.shape
-    hops = eatg.hops
-    adj = hops == 1
-    mis_cache: dict = {}
-    ons = onsets(active)
-    fresh = recent_onsets(ons, params.fresh_slots)
-    users: list[_User] = []
-    rows: list[np.ndarray] = []  # per user, full-length path
-    alive: list[int] = []  # indices into users of present users
-    windows: list[dict] = []
-    dormant: dict[int, tuple[int, int]] = {}  # exited user -> (slot after its exit, door node)
-    resume = params.resume
-    d_max = n_slots if params.offline else params.d_max
-    tau = n_slots if params.offline else params.tau
-    s = 0
-    while s < n_slots:
-        e = min(s + d_max, n_slots)
-        acc = e if e == n_slots else min(s + tau, n_slots)
-        obs = active[s:e]
-        counted = obs if params.count == "on" else fresh[s:e]
-        k_now = max((max_independent(np.flatnonzero(row), adj, mis_cache) for row in counted), default=0)
-        last = {u: _last_nodes(rows[u], s) for u in alive}
-        # entry signatures: onset at outer, then inner active later in the window, nobody near outer
-        entries = []
-        for outer, inner in signatures:
-            for t in np.flatnonzero(ons[s:e, outer]):
-                if not obs[t:, inner].any():
+    dec = WindowDecoder(eatg, active.shape[1], signatures=signatures, params=params)
+    dec.extend(active)
+    dec.advance(final=True, progress=progress)
+    return dec.result()
+
+
+class WindowDecoder:
+    """The window loop of :func:`decode_run`, resumable: slots arrive in pieces
+    (:meth:`extend`), :meth:`advance` decodes every window whose slots have all arrived, and
+    the result is the same however the slots were cut into pieces.
+
+    A window ``[s, s + d_max)`` is decoded once slot ``s + d_max`` has arrived (strictly
+    after the window: the last window of a run, which reaches the run's end, accepts all its
+    slots, not ``tau`` -- that is decided only by ``advance(final=True)``). A decoded slot
+    ``k`` can still change while ``k >= s - resume`` (``s`` the next window's first slot): a
+    user that exits and re-enters at the same door within ``resume`` slots has the slots in
+    between filled with the door node; :attr:`final_slots` is the count of slots that no
+    later window changes. Sequential by nature (each window starts from the previous one's
+    users)."""
+
+    def __init__(
+        self,
+        eatg: Eatg,
+        n_nodes: int,
+        *,
+        signatures: list[tuple[int, int]] = (),
+        params: DecoderParams = DecoderParams(),
+    ):
+        self.eatg = eatg
+        self.signatures = list(signatures)
+        self.params = params
+        self.n = int(n_nodes)
+        self._active = np.zeros((0, self.n), bool)
+        self._fresh = np.zeros((0, self.n), bool)
+        self._ons = np.zeros((0, self.n), bool)
+        self.n_slots = 0
+        self.users: list[_User] = []
+        self.rows: list[np.ndarray] = []  # per user, path over the capacity (-1 absent)
+        self.alive: list[int] = []
+        self.windows: list[dict] = []
+        self.dormant: dict[int, tuple[int, int]] = {}  # exited user -> (slot after its exit, door node)
+        self.s = 0
+        self.done = False
+        self._mis: dict = {}
+
+    @property
+    def final_slots(self) -> int:
+        """Slots ``[0, final_slots)`` whose decoded nodes no later window changes."""
+        return self.n_slots if self.done else max(0, self.s - self.params.resume)
+
+    def extend(self, active: np.ndarray) -> None:
+        """Append slots ``active`` (L, N) bool (final: their activity does not change later)."""
+        active = np.asarray(active, bool).reshape(-1, self.n)
+        if self.done:
+            raise ValueError("WindowDecoder: slots added after the final advance")
+        if active.shape[0] == 0:
+            return
+        old = self.n_slots
+        need = old + active.shape[0]
+        if need > self._active.shape[0]:  # capacity doubling: amortised O(1) per slot
+            cap = max(need, 2 * self._active.shape[0], 64)
+            self._active = _grow(self._active, cap, False)
+            self._fresh = _grow(self._fresh, cap, False)
+            self._ons = _grow(self._ons, cap, False)
+            self.rows = [_grow(r, cap, -1) for r in self.rows]
+        self._active[old:need] = active
+        prev = self._active[old - 1 : old] if old else np.zeros((1, self.n), bool)
+        self._ons[old:need] = onsets(np.vstack([prev, active]))[1:]  # on now, off in the slot before
+        lo = max(0, old - max(self.params.fresh_slots, 1) + 1)  # the onsets the new slots' freshness looks back to
+        self._fresh[old:need] = recent_onsets(self._ons[lo:need], self.params.fresh_slots)[old - lo :]
+        self.n_slots = need
+
+    def advance(self, *, final: bool = False, progress: Callable[[int, int], None] | None = None) -> None:
+        """Decode every window whose slots have all arrived (with ``final``: every window left,
+        the last accepting all its slots -- no slot arrives after)."""
+        params = self.params
+        n_slots = self.n_slots
+        active, ons, fresh = self._active[:n_slots], self._ons[:n_slots], self._fresh[:n_slots]
+        hops = self.eatg.hops
+        adj = hops == 1
+        users, rows, dormant = self.users, self.rows, self.dormant
+        resume = params.resume
+        d_max = n_slots if params.offline else params.d_max
+        tau = n_slots if params.offline else params.tau
+        if params.offline and not final:
+            return
+        s = self.s
+        alive = self.alive
+        while s < n_slots and (final or s + d_max < n_slots):
+            e = min(s + d_max, n_slots)
+            acc = e if e == n_slots else min(s + tau, n_slots)
+            obs = active[s:e]
+            counted = obs if params.count == "on" else fresh[s:e]
+            k_now = max((max_independent(np.flatnonzero(row), adj, self._mis) for row in counted), default=0)
+            last = {u: _last_nodes(rows[u], s) for u in alive}
+            # entry signatures: onset at outer, then inner active later in the window, nobody near outer
+            entries = []
+            for outer, inner in self.signatures:
+                for t in np.flatnonzero(ons[s:e, outer]):
+                    if not obs[t:, inner].any():
+                        continue
+                    if any(hops[outer, lst[-1]] <= 1 for lst in last.values() if lst):
+                        continue
+                    if any(
+                        hops[outer, rows[u][s + t - 1]] <= 1
+                        for u in alive
+                        if s + t - 1 >= 0 and rows[u][s + t - 1] >= 0
+                    ):
+                        continue
+                    entries.append((t, outer))
+            entries = sorted({(t, o) for t, o in entries})  # one entry per onset, whatever the signature
+            k_pre = len(alive)
+            k = max(k_pre + len(entries), k_now)
+            if params.max_users > 0:  # the bound holds inside the decoder: never more users than it
+                k = min(k, max(params.max_users, k_pre))
+            new = []
+            for i in range(k - k_pre):
+                t0, node = entries[i] if i < len(entries) else (0, -1)
+                seen = np.flatnonzero(obs.any(axis=0))
+                back = [
+                    u
+                    for u, (slot, outer) in dormant.items()
+                    if s + t0 - slot <= resume
+                    and (outer == node or (node < 0 and seen.size and hops[outer, seen].min() <= 1))
+                ]
+                if back:  # an exit at this door just before: the same user walked through it
+                    u = max(back, key=lambda v: dormant[v][0])
+                    slot, door = dormant.pop(u)
+                    rows[u][slot : s + t0] = door
+                    users[u].start, users[u].entry_node = s + t0, door
+                    new.append(u)
                     continue
-                if any(hops[outer, lst[-1]] <= 1 for lst in last.values() if lst):
-                    continue
-                if any(
-                    hops[outer, rows[u][s + t - 1]] <= 1 for u in alive if s + t - 1 >= 0 and rows[u][s + t - 1] >= 0
-                ):
-                    continue
-                entries.append((t, outer))
-        entries = sorted({(t, o) for t, o in entries})  # one entry per onset, whatever the signature
-        k_pre = len(alive)
-        k = max(k_pre + len(entries), k_now)
-        if params.max_users > 0:  # the bound holds inside the decoder: never more users than it
-            k = min(k, max(params.max_users, k_pre))
-        new = []
-        for i in range(k - k_pre):
-            t0, node = entries[i] if i < len(entries) else (0, -1)
-            seen = np.flatnonzero(obs.any(axis=0))
-            back = [
-                u
-                for u, (slot, outer) in dormant.items()
-                if s + t0 - slot <= resume
-                and (outer == node or (node < 0 and seen.size and hops[outer, seen].min() <= 1))
-            ]
-            if back:  # an exit at this door just before: the same user walked through it
-                u = max(back, key=lambda v: dormant[v][0])
-                slot, door = dormant.pop(u)
-                rows[u][slot : s + t0] = door
-                users[u].start, users[u].entry_node = s + t0, door
-                new.append(u)
-                continue
-            users.append(_User(len(users), s + t0, node))
-            rows.append(np.full(n_slots, -1, dtype=np.int64))
-            new.append(len(users) - 1)
-        cur = alive + new
-        prefixes = [last.get(u, []) for u in cur]
-        starts = [max(0, users[u].start - s) for u in cur]
-        entry_nodes = [users[u].entry_node for u in cur]
-        if not obs.any():
-            # no motion at all: every known user stays where it was
-            paths = np.array([[p[-1] if p else -1] * (e - s) for p in prefixes], dtype=np.int64).reshape(
-                len(cur), e - s
-            )
-            info = dict(order=0, states=0, overlap=False)
-        elif params.mode == "adaptive":
-            paths, info = _adaptive_window(obs, prefixes, starts, entry_nodes, eatg, params)
-        else:
-            order = 1 if params.mode == "full1" else 2
-            paths = decode_users(
-                obs, np.arange(n), prefixes, starts, entry_nodes, order=order, eatg=eatg, params=params
-            )
-            info = dict(order=order, states=n, overlap=None)
-        gone = []
-        for i, u in enumerate(cur):
-            rows[u][s:acc] = np.where(np.arange(s, acc) >= users[u].start, paths[i, : acc - s], -1)
-            if _exits(rows[u][:acc], active[acc:e], signatures):
-                gone.append(u)
-        alive = [u for u in cur if u not in gone]
-        for u in gone:
-            dormant[u] = (acc, int(rows[u][acc - 1]))
-        windows.append(dict(slot=s, k=k, k_now=k_now, sig_in=len(entries), sig_out=len(gone), **info))
-        s = acc
-        if progress is not None:
-            progress(s, n_slots)
-    paths = np.array(rows, dtype=np.int64).reshape(len(rows), n_slots)
-    return DecodeResult(paths, windows)
+                users.append(_User(len(users), s + t0, node))
+                rows.append(np.full(self._active.shape[0], -1, dtype=np.int64))
+                new.append(len(users) - 1)
+            cur = alive + new
+            prefixes = [last.get(u, []) for u in cur]
+            starts = [max(0, users[u].start - s) for u in cur]
+            entry_nodes = [users[u].entry_node for u in cur]
+            if not obs.any():
+                # no motion at all: every known user stays where it was
+                paths = np.array([[p[-1] if p else -1] * (e - s) for p in prefixes], dtype=np.int64).reshape(
+                    len(cur), e - s
+                )
+                info = dict(order=0, states=0, overlap=False)
+            elif params.mode == "adaptive":
+                paths, info = _adaptive_window(obs, prefixes, starts, entry_nodes, self.eatg, params)
+            else:
+                order = 1 if params.mode == "full1" else 2
+                paths = decode_users(
+                    obs, np.arange(self.n), prefixes, starts, entry_nodes, order=order, eatg=self.eatg, params=params
+                )
+                info = dict(order=order, states=self.n, overlap=None)
+            gone = []
+            for i, u in enumerate(cur):
+                rows[u][s:acc] = np.where(np.arange(s, acc) >= users[u].start, paths[i, : acc - s], -1)
+                if _exits(rows[u][:acc], active[acc:e], self.signatures):
+                    gone.append(u)
+            alive = [u for u in cur if u not in gone]
+            for u in gone:
+                dormant[u] = (acc, int(rows[u][acc - 1]))
+            self.windows.append(dict(slot=s, k=k, k_now=k_now, sig_in=len(entries), sig_out=len(gone), **info))
+            s = acc
+            if progress is not None:
+                progress(s, n_slots)
+        self.s, self.alive = s, alive
+        if final:
+            self.done = True
+
+    def activity(self, lo: int = 0, hi: int | None = None) -> np.ndarray:
+        """(hi - lo, N) slot activity fed so far over slots ``[lo, hi)``."""
+        return self._active[lo : self.n_slots if hi is None else hi]
+
+    def paths(self, lo: int = 0, hi: int | None = None) -> np.ndarray:
+        """(U, hi - lo) decoded node paths of the users so far over slots ``[lo, hi)``."""
+        hi = self.n_slots if hi is None else hi
+        return np.array([r[lo:hi] for r in self.rows], dtype=np.int64).reshape(len(self.rows), max(hi - lo, 0))
+
+    def result(self) -> DecodeResult:
+        return DecodeResult(self.paths(), list(self.windows))
+
+
+def _grow(a: np.ndarray, cap: int, fill) -> np.ndarray:
+    out = np.full((cap, *a.shape[1:]), fill, dtype=a.dtype)
+    out[: a.shape[0]] = a
+    return out
 
 
 def recent_onsets(ons: np.ndarray, slots: int) -> np.ndarray:

@@ -12,11 +12,12 @@ import numpy as np
 import polars as pl
 
 from onebit.core.config import check_choice, check_range
+from onebit.core.errors import ConfigError
 from onebit.core.frames import ABSENT_AFTER_S, motion_frames, silent_stretches
 from onebit.core.site import Site
 from onebit.core.tables import MOTION, TRACKS, check_schema, conform
-from onebit.models.graph_hmm.adaptive import DecodeResult, DecoderParams, decode_run
-from onebit.models.graph_hmm.eatg import Eatg, hop_matrix, layout_eatg, trained_eatg
+from onebit.models.graph_hmm.adaptive import RESUME_SLOTS, DecodeResult, DecoderParams, decode_run
+from onebit.models.graph_hmm.eatg import Eatg, hop_matrix, layout_eatg, read_eatg, trained_eatg
 
 #: One row per HMM window: first slot, users K (and K now), entry/exit signatures, HMM order,
 #: states and whether the motion overlapped (null for the full-state baselines).
@@ -33,6 +34,9 @@ WINDOWS = pl.Schema(
     }
 )
 
+
+#: how the run is decoded (:attr:`HmmConfig.decoding`)
+DECODINGS = ("batch", "lagged")
 
 #: where the joint re-decoding of meetings runs (:attr:`HmmConfig.joint`)
 JOINT = ("off", "before-cpda", "after-cpda")
@@ -52,7 +56,25 @@ class HmmConfig:
     tau : acceptance threshold: the first ``tau`` slots of a window are kept, the next window
         starts there (the paper does not give a value).
     eatg : ``"trained"`` -- A', A'' learned from the run's own motion data (eqs. 1, 2),
-        smoothed with the layout -- or ``"layout"`` (physical layout only).
+        smoothed with the layout -- ``"layout"`` (physical layout only), or ``"file"``: the
+        EATG table in ``eatg_file`` (one learned beforehand, e.g. an earlier run's
+        ``tables/findinghumo_eatg.parquet`` on a training log).
+    eatg_file : the ``.parquet`` / ``.csv`` EATG table read with ``eatg = "file"`` (kind, src,
+        dst, weight; a path relative to the working directory).
+    decoding : ``"batch"`` -- the whole run at once: windows and the post-processing (joint
+        re-decoding, CPDA) see the whole log -- or ``"lagged"``, the paper's live
+        requirement (section III: ``q_i(t)`` known by ``t + D'T``): the run is decoded in
+        blocks of ``tau`` slots in time order and a block is final (never revised) once the
+        slots up to ``decision_lag`` after it have arrived; the post-processing of a block
+        looks back ``c_windows d_max`` slots (the committed output) and ahead to that lag
+        (:mod:`onebit.trackers.findinghumo.lagged`). Needs an EATG known beforehand
+        (``"layout"`` or ``"file"``); ``onebit follow`` publishes exactly what this gives.
+    decision_lag : D', slots: a block is decided once ``decision_lag`` slots after it have
+        arrived (the paper gives no value; at least ``d_max`` + the decoder's re-entry window
+        of 10 slots).
+    lag_lookback : slots of committed output the post-processing of a lagged block sees
+        before it (CPDA's last ``C d_max`` slots at least; a meeting re-decoded jointly needs
+        its start: on the hallway demo 10 slots lost the joint re-decoding's gain, 20 kept it).
     stay : layout prior probability of staying at a node for one slot.
     turn_back : layout prior probability of turning back after one hop.
     prior_strength : pseudo-counts of the layout prior per row of the trained EATG.
@@ -84,6 +106,10 @@ class HmmConfig:
     d_max: int = 5
     tau: int = 3
     eatg: str = "trained"
+    eatg_file: str = ""
+    decoding: str = "batch"
+    decision_lag: int = 20
+    lag_lookback: int = 20
     stay: float = 0.6
     turn_back: float = 0.05
     prior_strength: float = 2.0
@@ -104,7 +130,25 @@ class HmmConfig:
         check_choice(self, "sampling", ("mid", "any"))
         check_range(self, "d_max", 1, 1000, types=(int,))
         check_range(self, "tau", 1, self.d_max if isinstance(self.d_max, int) else None, types=(int,))
-        check_choice(self, "eatg", ("trained", "layout"))
+        check_choice(self, "eatg", ("trained", "layout", "file"))
+        if not isinstance(self.eatg_file, str):
+            raise ConfigError(f"{type(self).__name__}.eatg_file = {self.eatg_file!r}; a path (string)")
+        if self.eatg == "file" and not self.eatg_file:
+            raise ConfigError(f"{type(self).__name__}.eatg_file is empty; eatg = 'file' reads the EATG table it names")
+        check_choice(self, "decoding", DECODINGS)
+        check_range(
+            self, "decision_lag", self.d_max + RESUME_SLOTS if isinstance(self.d_max, int) else 0, 100_000, types=(int,)
+        )
+        check_range(self, "lag_lookback", 1, 100_000, types=(int,))
+        if self.decoding == "lagged" and self.eatg == "trained":
+            raise ConfigError(
+                f"{type(self).__name__}.eatg = 'trained' with decoding = 'lagged': a live decoder cannot learn the "
+                "EATG from the whole log; use eatg = 'layout' or 'file' (a graph learned beforehand)"
+            )
+        if self.decoding == "lagged" and self.offline:
+            raise ConfigError(
+                f"{type(self).__name__}.offline = True with decoding = 'lagged': offline is one window over the whole run"
+            )
         check_range(self, "stay", 0.0, 0.999)
         check_range(self, "turn_back", 0.0, 1.0)
         check_range(self, "prior_strength", 0.0, None)
@@ -131,7 +175,7 @@ def available(site: Site) -> str | None:
 
 
 def slot_activity(
-    motion: pl.DataFrame, nodes: tuple[str, ...], period: float, sampling: str = "mid"
+    motion: pl.DataFrame, nodes: tuple[str, ...], period: float, sampling: str = "mid", *, t0: float | None = None
 ) -> tuple[np.ndarray, float]:
     """(D, N) bool activity ``b_j(t)`` per slot and node, and ``t0`` (slot ``k`` covers
     ``[t0 + kT, t0 + (k+1)T)``, the grid of ``motion_frames``).
@@ -151,7 +195,7 @@ def slot_activity(
     Vectorised: one difference array over (slot, node).
     """
 
-    frames = motion_frames(motion, list(nodes), period=period)
+    frames = motion_frames(motion, list(nodes), period=period, t0=t0)
     if frames.height == 0:
         return np.zeros((0, len(nodes)), bool), 0.0
     n = len(nodes)
@@ -159,6 +203,20 @@ def slot_activity(
     if sampling == "any":
         return frames["on"].to_numpy().reshape(-1, n), t0
     d = frames.height // n
+    return mid_activity(motion, nodes, period, t0=t0, grid_slots=d, slot0=0, n_slots=d), t0
+
+
+def mid_activity(
+    motion: pl.DataFrame, nodes: tuple[str, ...], period: float, *, t0: float, grid_slots: int, slot0: int, n_slots: int
+) -> np.ndarray:
+    """``(n_slots, N)`` activity of the ``"mid"`` sampling of :func:`slot_activity` over the
+    slots ``[slot0, slot0 + n_slots)`` of the grid ``t0 + k T`` (``grid_slots`` slots: an
+    on-period still open at the end lasts to the grid's end). The same arithmetic as the whole
+    run's, so the slots are bit for bit those of :func:`slot_activity`, when ``motion`` holds
+    every edge at or after ``t0 + (slot0 - 1) T`` and each sensor's last edge before that (a
+    follower slots only the recent edges: :mod:`onebit.trackers.findinghumo.lagged`)."""
+    n = len(nodes)
+    d = grid_slots
     idx = {m: i for i, m in enumerate(nodes)}
     iv = (
         motion.select("t", "sensor", "on")
@@ -168,8 +226,8 @@ def slot_activity(
         .filter(pl.col("on"))
         .with_columns(pl.col("t_off").fill_null(t0 + d * period))
     )
-    if iv.height == 0:
-        return np.zeros((d, n), bool), t0
+    if iv.height == 0 or n_slots <= 0:
+        return np.zeros((max(n_slots, 0), n), bool)
     j = np.array([idx[s] for s in iv["sensor"].to_list()], dtype=np.int64)
     a = (iv["t"].to_numpy() - t0) / period - 0.5
     b = (iv["t_off"].to_numpy() - t0) / period - 0.5
@@ -179,15 +237,21 @@ def slot_activity(
     own = np.floor((a + b) / 2 + 0.5).astype(np.int64)
     first = np.clip(np.where(short, own, first), 0, d - 1)
     last = np.clip(np.where(short, own, last), 0, d - 1)
-    diff = np.zeros((d + 1, n), np.int64)
+    keep = (last >= slot0) & (first < slot0 + n_slots)  # the on-periods that reach the slots asked for
+    first = np.maximum(first[keep] - slot0, 0)
+    last = np.minimum(last[keep] - slot0, n_slots - 1)
+    j = j[keep]
+    diff = np.zeros((n_slots + 1, n), np.int64)
     np.add.at(diff, (first, j), 1)
     np.add.at(diff, (last + 1, j), -1)
-    return np.cumsum(diff, axis=0)[:d] > 0, t0
+    return np.cumsum(diff, axis=0)[:n_slots] > 0
 
 
 def build_eatg(site: Site, active: np.ndarray, cfg: HmmConfig) -> Eatg:
     g = site.sensor_graph
     hops = hop_matrix(g.nodes, g.edges)
+    if cfg.eatg == "file":
+        return read_eatg(cfg.eatg_file, g.nodes, hops)
     if cfg.eatg == "layout" or active.shape[0] < 2:
         return layout_eatg(g.nodes, hops, stay=cfg.stay, turn_back=cfg.turn_back)
     return trained_eatg(
@@ -223,9 +287,22 @@ def decode_motion(mode: str, inputs: dict, site: Site, cfg: HmmConfig, *, progre
     nodes = g.nodes
     active, t0 = slot_activity(motion, nodes, cfg.period, cfg.sampling)
     eatg = build_eatg(site, active, cfg)
+    sigs = signature_indices(g, eatg)
+    params = decoder_params(site, cfg, mode)
+    res = decode_run(active, eatg, signatures=sigs, params=params, progress=progress)
+    silent = silent_stretches([motion.filter(pl.col("sensor").is_in(list(nodes)))], min_s=cfg.absent_after)
+    return DecodedRun(active, t0, eatg, res, sigs, silent)
+
+
+def signature_indices(g, eatg: Eatg) -> list[tuple[int, int]]:
+    """:func:`door_signatures` of the sensor graph as EATG node indices."""
     idx = eatg.index
-    sigs = [(idx[a], idx[b]) for a, b in door_signatures(g) if a in idx and b in idx]
-    params = DecoderParams(
+    return [(idx[a], idx[b]) for a, b in door_signatures(g) if a in idx and b in idx]
+
+
+def decoder_params(site: Site, cfg: HmmConfig, mode: str) -> DecoderParams:
+    """The window decoder's parameters of an HMM tracker's config (``mode``: adaptive, full1, full2)."""
+    return DecoderParams(
         mode=mode,
         d_max=cfg.d_max,
         tau=cfg.tau,
@@ -238,9 +315,6 @@ def decode_motion(mode: str, inputs: dict, site: Site, cfg: HmmConfig, *, progre
         count=cfg.count,
         fresh_slots=cfg.fresh_slots,
     )
-    res = decode_run(active, eatg, signatures=sigs, params=params, progress=progress)
-    silent = silent_stretches([motion.filter(pl.col("sensor").is_in(list(nodes)))], min_s=cfg.absent_after)
-    return DecodedRun(active, t0, eatg, res, sigs, silent)
 
 
 def user_bound(site: Site, cfg: HmmConfig) -> int:
@@ -275,44 +349,72 @@ def cap_users(paths: np.ndarray, active: np.ndarray, hops: np.ndarray, cap: int)
     ``K_now`` (independent active nodes) without an exit signature to bring it down: one
     resident whose PIRs hold ``ON`` a few seconds after she passed shows two nodes two hops
     apart, a "second user" that then stays for the rest of the log. When the number of
-    people is known (``targets``), ``cap`` identities are kept: at each slot the present
-    users are ranked by whether their node is active now, then by how recently it was, then
-    by whether an identity already holds them; the first ``cap`` are reported. An identity
-    keeps its user while the user is kept; a newly kept user takes the free identity whose
-    last node is nearest in hops to it. ``cap <= 0`` or ``U <= cap`` returns ``paths``.
-    Sequential over slots (each depends on the last); vectorised over users within one.
-    """
+    people is known (``targets``), ``cap`` identities are kept (:class:`UserCap`, slot by
+    slot). ``cap <= 0`` or ``U <= cap`` returns ``paths``."""
     U, D = paths.shape
     if cap <= 0 or U <= cap:
         return paths
-    out = np.full((cap, D), -1, dtype=np.int64)
-    holder = np.full(cap, -1, dtype=np.int64)  # identity -> decoded user
-    last_node = np.full(cap, -1, dtype=np.int64)
-    seen = np.full(U, -1, dtype=np.int64)  # last slot each user's node was active
-    users = np.arange(U)
-    for s in range(D):
-        node = paths[:, s]
-        here = node >= 0
-        lit = here & active[s, np.clip(node, 0, None)]
-        seen = np.where(lit, s, seen)
-        held = np.isin(users, holder)
-        order = np.lexsort((~held, -seen, ~lit))  # active now, then recently, then already held
-        keep = [int(u) for u in order if here[u]][:cap]
-        holder = np.where(np.isin(holder, keep), holder, -1)
-        for u in keep:
-            if u in holder:
-                continue
-            free = np.flatnonzero(holder < 0)
-            near = [hops[last_node[i], node[u]] if last_node[i] >= 0 else 0 for i in free]
-            i = int(free[int(np.argmin(near))])
-            holder[i] = u
-        ok = holder >= 0
-        out[ok, s] = node[holder[ok]]
-        last_node = np.where(ok, out[:, s], last_node)
-    return out
+    return UserCap(cap, hops).step(paths, active)
 
 
-def tracks_table(name: str, paths: np.ndarray, nodes, site: Site, t0: float, period: float) -> pl.DataFrame:
+class UserCap:
+    """The identities of :func:`cap_users`, kept slot by slot so that slots can come in pieces.
+
+    At each slot the present users are ranked by whether their node is active now, then by
+    how recently it was, then by whether an identity already holds them; the first ``cap``
+    are reported. An identity keeps its user while the user is kept; a newly kept user takes
+    the free identity whose last node is nearest in hops to it. Sequential over slots (each
+    depends on the last); vectorised over users within one. :meth:`step` on slots cut into
+    pieces gives the pieces of one :meth:`step` on them all (the users may grow in number
+    between pieces: rows of users that appear later are appended)."""
+
+    def __init__(self, cap: int, hops: np.ndarray):
+        self.cap = int(cap)
+        self.hops = hops
+        self.holder = np.full(cap, -1, dtype=np.int64)  # identity -> decoded user
+        self.last_node = np.full(cap, -1, dtype=np.int64)
+        self.seen = np.zeros(0, dtype=np.int64)  # last slot each user's node was active
+        self.slot = 0
+
+    def step(self, paths: np.ndarray, active: np.ndarray) -> np.ndarray:
+        """``(U, L)`` paths and ``(L, N)`` activity of the next ``L`` slots -> ``(cap, L)``."""
+        cap, hops = self.cap, self.hops
+        U, L = paths.shape
+        if U > self.seen.size:
+            self.seen = np.concatenate([self.seen, np.full(U - self.seen.size, -1, dtype=np.int64)])
+        out = np.full((cap, L), -1, dtype=np.int64)
+        holder, last_node, seen = self.holder, self.last_node, self.seen
+        users = np.arange(U)
+        for i_s in range(L):
+            s = self.slot + i_s
+            node = paths[:, i_s]
+            here = node >= 0
+            lit = here & active[i_s, np.clip(node, 0, None)]
+            seen = np.where(lit, s, seen)
+            held = np.isin(users, holder)
+            order = np.lexsort((~held, -seen, ~lit))  # active now, then recently, then already held
+            keep = [int(u) for u in order if here[u]][:cap]
+            holder = np.where(np.isin(holder, keep), holder, -1)
+            for u in keep:
+                if u in holder:
+                    continue
+                free = np.flatnonzero(holder < 0)
+                near = [hops[last_node[i], node[u]] if last_node[i] >= 0 else 0 for i in free]
+                i = int(free[int(np.argmin(near))])
+                holder[i] = u
+            ok = holder >= 0
+            out[ok, i_s] = node[holder[ok]]
+            last_node = np.where(ok, out[:, i_s], last_node)
+        self.holder, self.last_node, self.seen = holder, last_node, seen
+        self.slot += L
+        return out
+
+
+def tracks_table(
+    name: str, paths: np.ndarray, nodes, site: Site, t0: float, period: float, *, slot0: int = 0
+) -> pl.DataFrame:
+    """One row per user and slot present: ``paths`` (U, L) covers slots ``slot0 ..``, a row's
+    ``t`` is its slot's mid time ``t0 + (slot + 1/2) T``."""
     u, s = np.nonzero(paths >= 0)
     pos = {m.id: m.position for m in site.motion_sensors}
     xy = np.array([pos[n] for n in nodes]).reshape(-1, 2)
@@ -321,7 +423,7 @@ def tracks_table(name: str, paths: np.ndarray, nodes, site: Site, t0: float, per
         {
             "tracker": name,
             "track": [f"user{i + 1}" for i in u.tolist()],
-            "t": t0 + (s + 0.5) * period,
+            "t": t0 + (s + slot0 + 0.5) * period,
             "x": xy[k, 0] if k.size else np.zeros(0),
             "y": xy[k, 1] if k.size else np.zeros(0),
             "node": np.asarray(nodes, dtype=object)[k].tolist(),

@@ -32,10 +32,12 @@ with probability ``turn_back`` (1 at a dead end) or on to each other neighbour o
 from __future__ import annotations
 
 from dataclasses import dataclass
+from pathlib import Path
 
 import numpy as np
 import polars as pl
 
+from onebit.core.errors import InputError
 from onebit.core.lazy import lazy_module
 
 nx = lazy_module("networkx")
@@ -90,6 +92,44 @@ class Eatg:
             for a, b, w in zip(i.tolist(), j.tolist(), mat[i, j].tolist()):
                 g.add_edge(self.nodes[a], self.nodes[b], **{kind: w})
         return g
+
+
+def eatg_from_table(table: pl.DataFrame, nodes: tuple[str, ...], hops: np.ndarray, *, source: str = "eatg") -> Eatg:
+    """The EATG of an ``eatg`` table (:meth:`Eatg.table`: kind, src, dst, weight) -- one learned
+    from a training log by an earlier run (``tables/findinghumo_eatg.parquet``) -- on the
+    site's ``nodes`` and ``hops``. Rows of a node the table does not name stay (weight 1 on
+    the diagonal); each row is renormalised. A node the site does not have is an error naming
+    ``source``: the graph belongs to another site."""
+    need = {"kind", "src", "dst", "weight"}
+    if not need <= set(table.columns):
+        raise InputError(f"an EATG table needs the columns {sorted(need)}; it has {table.columns}", file=source)
+    idx = {n: i for i, n in enumerate(nodes)}
+    unknown = sorted((set(table["src"].to_list()) | set(table["dst"].to_list())) - set(idx))
+    if unknown:
+        raise InputError(f"nodes {unknown[:5]} are not sensor-graph nodes of this site", file=source)
+    mats = {}
+    for kind, allowed in (("a1", hops <= 1), ("a2", (hops == 2) | np.eye(len(nodes), dtype=bool))):
+        part = table.filter(pl.col("kind") == kind)
+        m = np.zeros((len(nodes), len(nodes)))
+        i = np.array([idx[x] for x in part["src"].to_list()], dtype=np.int64)
+        j = np.array([idx[x] for x in part["dst"].to_list()], dtype=np.int64)
+        w = part["weight"].cast(pl.Float64).to_numpy()
+        if (w < 0).any() or not np.isfinite(w).all():
+            raise InputError(f"'{kind}' weights must be finite and >= 0", file=source)
+        if i.size and not allowed[i, j].all():
+            raise InputError(f"'{kind}' has an edge the site's hop distances do not allow", file=source)
+        m[i, j] = w
+        mats[kind] = _normalise(m, fallback_diag=True)
+    return Eatg(tuple(nodes), hops, mats["a1"], mats["a2"])
+
+
+def read_eatg(path: str, nodes: tuple[str, ...], hops: np.ndarray) -> Eatg:
+    """:func:`eatg_from_table` of a ``.parquet`` or ``.csv`` file."""
+    p = Path(path)
+    if not p.is_file():
+        raise InputError("EATG file not found", file=p)
+    table = pl.read_parquet(p) if p.suffix == ".parquet" else pl.read_csv(p)
+    return eatg_from_table(table, nodes, hops, source=str(p))
 
 
 def hop_matrix(nodes: tuple[str, ...], edges) -> np.ndarray:

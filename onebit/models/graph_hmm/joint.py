@@ -230,6 +230,11 @@ def meetings(paths: np.ndarray, hops: np.ndarray, *, pad: int) -> list[tuple[int
     return sorted(out, key=lambda m: m[2])
 
 
+def pair_space(eatg: Eatg) -> PairSpace:
+    """The :class:`PairSpace` of an EATG (second-order transitions on every node)."""
+    return PairSpace(eatg.hops, second_order_tensor(eatg.a1, eatg.a2, np.arange(len(eatg.nodes))))
+
+
 def redecode_meetings(
     paths: np.ndarray,
     active: np.ndarray,
@@ -239,20 +244,29 @@ def redecode_meetings(
     p_false: float,
     pad: int = 4,
     compiled: bool = True,
+    decide: tuple[int, int] | None = None,
+    space: PairSpace | None = None,
 ) -> tuple[np.ndarray, list[dict]]:
     """Every meeting of two users (:func:`meetings`, in slot order) jointly re-decoded
     (:func:`decode_pair`), either pairing of the tails, the candidate of highest exact
     ``log L`` kept when it beats the current paths. After an accepted change the meetings
     still ahead are listed again on the changed paths (issue #22: a list made once on the
-    initial paths named users absent after an exchange of tails). Returns the paths and one record per
+    initial paths named users absent after an exchange of tails). ``decide = (lo, hi)``: only the
+    meetings whose window ends at ``w1`` in ``[lo, hi)`` (lagged decoding: a meeting is
+    re-decoded with the block in which it ends, seen whole with its tails after it). Returns the paths and one record per
     meeting (slots, users, gain in ``log L``, whether the tails were exchanged)."""
     n = len(eatg.nodes)
-    log_a = second_order_tensor(eatg.a1, eatg.a2, np.arange(n))
-    space = PairSpace(eatg.hops, log_a)
+    if space is None:  # the pair states of the graph (a caller decoding block by block builds them once)
+        space = pair_space(eatg)
+    log_a = space.log_a
     x = np.array(paths, dtype=np.int64, copy=True)
     d = x.shape[1]
     log = []
-    queue, done = meetings(x, eatg.hops, pad=pad), set()
+
+    def listed(m) -> bool:
+        return decide is None or decide[0] <= m[3] < decide[1]
+
+    queue, done = [m for m in meetings(x, eatg.hops, pad=pad) if listed(m)], set()
     while queue:  # sequential: each re-decoding changes the paths the next one sees
         u, v, w0, w1 = queue.pop(0)
         done.add((u, v, w0))
@@ -297,7 +311,11 @@ def redecode_meetings(
                 x[u, w1 + 1 :], x[v, w1 + 1 :] = x[v, w1 + 1 :].copy(), x[u, w1 + 1 :].copy()
             # the paths changed from w0 on: the later meetings are those of the new paths (a user
             # whose tail went to the other may no longer be present at a meeting listed before)
-            queue = [m for m in meetings(x, eatg.hops, pad=pad) if m[2] >= w0 and (m[0], m[1], m[2]) not in done]
+            queue = [
+                m
+                for m in meetings(x, eatg.hops, pad=pad)
+                if m[2] >= w0 and (m[0], m[1], m[2]) not in done and listed(m)
+            ]
         mid = (w0 + w1) // 2
         log.append(
             {

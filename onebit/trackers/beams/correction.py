@@ -32,7 +32,7 @@ from dataclasses import dataclass
 import numpy as np
 import polars as pl
 
-from onebit.core.config import check_choice, check_range
+from onebit.core.config import MAX_TARGETS, check_choice, check_range
 from onebit.core.errors import ConfigError
 from onebit.core.region_graph import RegionGraph
 from onebit.core.tables import CROSSINGS, check_schema
@@ -82,7 +82,7 @@ class CorrectConfig:
 
     def __post_init__(self) -> None:
         if self.n is not None:
-            check_range(self, "n", 1, None, types=(int,))
+            check_range(self, "n", 1, MAX_TARGETS, types=(int,))
         check_choice(self, "placement", PLACEMENTS)
         check_range(self, "window", 1, None, types=(int,))
         if not isinstance(self.enabled, bool):

@@ -81,11 +81,13 @@ previous one left); they are vectorised over the live count states and over runs
 from __future__ import annotations
 
 import collections
+import math
 from dataclasses import dataclass
 from math import comb
 
 import numpy as np
 
+from onebit.core.config import MAX_GRID_CELLS, check_size
 from onebit.core.lazy import lazy_module
 from onebit.trackers.beams import kernels
 from onebit.trackers.beams.assignment import region_deficits, region_events
@@ -384,6 +386,13 @@ def correct(
     elif n_agents is None:
         raise ValueError("give n_agents or initial")
     else:
+        check_size(  # every count vector with sum n is a start state: C(n + p - 1, p - 1) rows of p
+            float(math.comb(n_agents + p - 1, p - 1)) * p if p else 0.0,
+            MAX_GRID_CELLS,
+            what=f"count-state cells ({n_agents} agents over {p} regions, every start unknown)",
+            field="[correct] n (or site.toml targets)",
+            hint="fewer agents, or the known initial counts ([correct] initial / start_region)",
+        )
         start = count_states(p, n_agents)
     if n_agents < 1 and m > 0:
         raise ValueError("a non-empty crossing string needs n >= 1 agents")

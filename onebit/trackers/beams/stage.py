@@ -202,32 +202,52 @@ def run(inputs: dict, site: Site, config: BeamsConfig) -> dict[str, pl.DataFrame
     rg: RegionGraph = inputs.get("region_graph") or build_region_graph(site)
     names = pl.Series("region", list(rg.names), dtype=pl.String)  # gathered by index below
     src, tgt = rg.endpoint_arrays(crossings["beam"], crossings["direction"].to_numpy())
-    cons = config.constraints(site, rg)
-    times = crossings["t"].to_numpy()
-    res = assign_agents(src, tgt, len(rg.names), policy=config.policy, constraints=cons, times=times)
-    if config.ambiguity:
-        other = "lifo" if config.policy == "fifo" else "fifo"
-        alt = assign_agents(src, tgt, len(rg.names), policy=other, constraints=cons, times=times)
-        ambiguous = ambiguous_crossings(res.agents, alt.agents)
-    else:
-        ambiguous = np.zeros(len(src), dtype=bool)
+    res, ambiguous = _assign(src, tgt, crossings["t"].to_numpy(), site, rg, config)
     track_ids = (
         pl.select(pl.format("agent{}", pl.int_range(1, res.n_agents + 1, dtype=pl.Int64))).to_series().rename("track")
     )
-    track_col = _track_column(res, track_ids)
-
     labels = pl.when(pl.col("direction") > 0).then(pl.col("beam")).otherwise(pl.col("beam") + "^-1")
     assignment = crossings.with_columns(
-        track=track_col,
+        track=_track_column(res, track_ids),
         source=names.gather(src),
         region=names.gather(tgt),
         ambiguous=pl.Series(ambiguous, dtype=pl.Boolean),
         label=labels,
     )
     explained = assignment.filter(pl.col("track").is_not_null())
+    starts = _agent_starts(res, track_ids, names, crossings, config)
+    occ = queries.occupancy(explained, starts, rg.names)
+    return {
+        "assignment": assignment.drop("label"),
+        "agents": _agents_table(explained, starts),
+        "tracks": _tracks_table(explained, starts),
+        "unexplained": _unexplained_table(res, assignment),
+        "occupancy": occ,
+        "visits": queries.visits_per_region(explained, rg.names),
+        "traffic": queries.traffic_per_region(explained, config.traffic_bucket_s),
+        "over_threshold": queries.intervals_over_threshold(
+            occ, config.occupancy_threshold, t_end=float(crossings["t"].max()) if crossings.height else None
+        ),
+    }
+
+
+def _assign(src, tgt, times, site: Site, rg: RegionGraph, config: BeamsConfig):
+    """Algorithm 1 under the configured policy and constraints, and which crossings the other
+    policy (FIFO <-> LIFO) gives to another agent (all False when ``config.ambiguity`` is off)."""
+    cons = config.constraints(site, rg)
+    res = assign_agents(src, tgt, len(rg.names), policy=config.policy, constraints=cons, times=times)
+    if not config.ambiguity:
+        return res, np.zeros(len(src), dtype=bool)
+    other = "lifo" if config.policy == "fifo" else "fifo"
+    alt = assign_agents(src, tgt, len(rg.names), policy=other, constraints=cons, times=times)
+    return res, ambiguous_crossings(res.agents, alt.agents)
+
+
+def _agent_starts(res, track_ids: pl.Series, names: pl.Series, crossings: pl.DataFrame, config: BeamsConfig):
+    """Each agent in its initial region (and team) at the first crossing time of the run."""
     t0 = float(crossings["t"].min()) if crossings.height else 0.0
     team_names = pl.Series("team", [*config.team_names, None], dtype=pl.String)  # index -1 = no team
-    starts = pl.DataFrame(
+    return pl.DataFrame(
         {
             "track": track_ids,
             "t": pl.Series([t0] * res.n_agents, dtype=pl.Float64),
@@ -235,16 +255,22 @@ def run(inputs: dict, site: Site, config: BeamsConfig) -> dict[str, pl.DataFrame
             "team": team_names.gather(np.where(res.team >= 0, res.team, len(config.team_names))),
         }
     )
+
+
+def _tracks_table(explained: pl.DataFrame, starts: pl.DataFrame) -> pl.DataFrame:
+    """TRACKS: each agent's start, then one row per crossing with the region entered."""
     steps = pl.concat(
         [
             starts.select("track", "t", "region").with_columns(order=pl.lit(0)),
             explained.select("track", "t", "region").with_columns(order=pl.lit(1)),
         ]
     )
-    tracks = conform(
-        steps.sort(["track", "order", "t"], maintain_order=True).with_columns(tracker=pl.lit(NAME)), TRACKS
-    )
-    agents = (
+    return conform(steps.sort(["track", "order", "t"], maintain_order=True).with_columns(tracker=pl.lit(NAME)), TRACKS)
+
+
+def _agents_table(explained: pl.DataFrame, starts: pl.DataFrame) -> pl.DataFrame:
+    """One row per agent: its crossing string y_i, region path and counts."""
+    return (
         explained.group_by("track", maintain_order=True)
         .agg(
             crossings=pl.col("label").str.join(" "),
@@ -263,26 +289,16 @@ def run(inputs: dict, site: Site, config: BeamsConfig) -> dict[str, pl.DataFrame
             ambiguous_crossings=pl.col("ambiguous_crossings").fill_null(0).cast(pl.Int64),
         )
     )
+
+
+def _unexplained_table(res, assignment: pl.DataFrame) -> pl.DataFrame:
+    """The crossings no agent could make, with the reason and the crossing's columns."""
     unexplained = pl.DataFrame(
         {"crossing": res.unexplained, "reason": list(res.reasons)}, schema={"crossing": pl.Int64, "reason": pl.String}
     ).join(
         assignment.with_row_index("crossing").with_columns(pl.col("crossing").cast(pl.Int64)), on="crossing", how="left"
     )
-    unexplained = unexplained.select(list(_UNEXPLAINED)).cast(_UNEXPLAINED)
-    occ = queries.occupancy(explained, starts, rg.names)
-    out = {
-        "assignment": assignment.drop("label"),
-        "agents": agents,
-        "tracks": tracks,
-        "unexplained": unexplained,
-        "occupancy": occ,
-        "visits": queries.visits_per_region(explained, rg.names),
-        "traffic": queries.traffic_per_region(explained, config.traffic_bucket_s),
-        "over_threshold": queries.intervals_over_threshold(
-            occ, config.occupancy_threshold, t_end=float(crossings["t"].max()) if crossings.height else None
-        ),
-    }
-    return out
+    return unexplained.select(list(_UNEXPLAINED)).cast(_UNEXPLAINED)
 
 
 def _track_column(res: Assignment, track_ids: pl.Series) -> pl.Series:

@@ -25,7 +25,7 @@ from dataclasses import dataclass
 import numpy as np
 import polars as pl
 
-from onebit.core.config import check_choice, check_range
+from onebit.core.config import MAX_PARTICLES, check_choice, check_range, check_size
 from onebit.core.site import Site
 from onebit.core.tables import FRAMES, TRACKS, check_schema, conform
 from onebit.core.units import length
@@ -150,6 +150,13 @@ def run(inputs: dict, site: Site, config: BinPFConfig) -> dict:
     times, on = frame_levels(frames, ids)
     bound = config.targets or (site.targets or 0)
     max_tracks = config.max_tracks or (bound + 1 if bound else 8)
+    check_size(
+        float(config.particles) * max_tracks,
+        MAX_PARTICLES,
+        what=f"particles ({config.particles} per track x {max_tracks} tracks)",
+        field="[binpf] particles / max_tracks",
+        hint="fewer particles or tracks",
+    )
     p = FilterParams(
         particles=config.particles,
         pd=config.pd,

@@ -45,6 +45,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from onebit.core.config import MAX_GRID_CELLS, MAX_PARTICLES, check_size
 from onebit.trackers.clustertrack import kernels
 from onebit.trackers.clustertrack.space import FeasibleSpace
 
@@ -103,6 +104,13 @@ def rules_of_thumb(
     mean_sf = float(np.mean(space.sizes_all)) if space.sizes_all.size else 0.0
     a_hat = mean_sf / q
     k = int(K) if K > 0 else H * q
+    check_size(  # the kept particles' summed distances are a (K, K) matrix
+        float(k) * k,
+        MAX_GRID_CELLS,
+        what=f"particle pairs (K = {k:,} kept particles, squared)",
+        field="[clustertrack] k (default h x q_hat)",
+        hint="fewer kept particles",
+    )
     l_ = int(L) if L > 0 else max(k, round_count(H * m_o * mean_sf))
     d0 = float(D0) if D0 > 0 else (a_hat ** (1.0 / space.dim) if a_hat > 0 else 1e-9)
     return Params(H, m_o, k, l_, d0, q, a_hat)
@@ -328,6 +336,13 @@ def cluster_track(space: FeasibleSpace, p: Params, rng: np.random.Generator, *, 
     for step in range(T):
         kprev = cost.size
         m_t = max(1, round_count(p.m_o * space.size(step)))
+        check_size(
+            float(kprev) * m_t,
+            MAX_PARTICLES,
+            what=f"candidate particles ({kprev:,} kept x {m_t:,} each)",
+            field="[clustertrack] m_o_r / m_o_r2",
+            hint="fewer particles per unit of feasible space",
+        )
         x = space.sample(step, kprev * m_t, rng).reshape(-1, dim)
         if x.shape[0] == 0:  # F empty (nobody anywhere, or inconsistent readings): keep the particles where they are
             x = last1 if step > 0 else np.zeros((1, dim))

@@ -24,6 +24,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from onebit.core.config import MAX_GRID_CELLS, check_size
 from onebit.core.lazy import lazy_module
 from onebit.core.sensing import detection_regions
 
@@ -234,8 +235,15 @@ def make_raster(boundary, cell: float) -> Raster:
     import shapely
 
     minx, miny, maxx, maxy = boundary.bounds
-    w = max(1, int(np.ceil((maxx - minx) / cell)))
-    h = max(1, int(np.ceil((maxy - miny) / cell)))
+    wide, high = max(1.0, np.ceil((maxx - minx) / cell)), max(1.0, np.ceil((maxy - miny) / cell))
+    check_size(
+        wide * high,
+        MAX_GRID_CELLS,
+        what=f"raster cells ({wide:,.0f} x {high:,.0f} of {cell:g})",
+        field="[clustertrack] raster_per_r",
+        hint="fewer cells per R",
+    )
+    w, h = int(wide), int(high)
     r = Raster(minx, miny, cell, w, h, np.ones(w * h, dtype=bool))
     c = r.centres
     return Raster(minx, miny, cell, w, h, shapely.contains_xy(boundary, c[:, 0], c[:, 1]))
@@ -243,6 +251,13 @@ def make_raster(boundary, cell: float) -> Raster:
 
 def disk_masks(raster: Raster, xy: np.ndarray, radius: np.ndarray, *, closed: bool) -> np.ndarray:
     """``(n_sensors, cells)`` bool: cell centre within ``radius`` of each sensor."""
+    check_size(
+        float(len(xy)) * raster.width * raster.height,
+        MAX_GRID_CELLS,
+        what=f"sensor-cell pairs ({len(xy)} sensors x {raster.width * raster.height:,} raster cells)",
+        field="[clustertrack] raster_per_r",
+        hint="fewer cells per R",
+    )
     c = raster.centres
     d2 = (c[None, :, 0] - xy[:, None, 0]) ** 2 + (c[None, :, 1] - xy[:, None, 1]) ** 2
     r2 = (radius**2)[:, None]

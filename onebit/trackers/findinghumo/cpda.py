@@ -286,6 +286,7 @@ def cpda(
     feature: np.ndarray | None = None,
     hops: np.ndarray | None = None,
     max_passes: int = 5,
+    decide: tuple[int, int] | None = None,
 ) -> CpdaResult:
     """Disambiguate crossovers in ``paths`` (K, D) with the 2-hop weights ``a2`` = A'' (N, N).
 
@@ -295,6 +296,8 @@ def cpda(
     probable, so every switch raises the joint probability of all paths and the passes end
     (at a fixed point when ``max_passes`` allows). ``horizon`` (``C d_max`` slots) bounds how
     far back and on the incoming / outgoing nodes recorded with a decision are looked for.
+    ``decide = (lo, hi)``: only the events whose slot ``c`` is in ``[lo, hi)`` are decided
+    (lagged decoding: the events before were decided with an earlier block).
     """
     paths = np.array(paths, dtype=np.int64, copy=True)
     n = a2.shape[0]
@@ -306,6 +309,8 @@ def cpda(
     for passes in range(1, max_passes + 1):
         changed = False
         for c, group in colocation_events(paths, feature, hops):
+            if decide is not None and not decide[0] <= c < decide[1]:
+                continue
             users = np.asarray(group)
             at = paths[users, c]
             if (at < 0).any() or users.size > MAX_MEETING:

@@ -24,8 +24,9 @@ import numpy as np
 import polars as pl
 
 from onebit.core.config import check_range
-from onebit.core.frames import outside_silence
+from onebit.core.frames import outside_silence, silent_stretches
 from onebit.core.site import Site
+from onebit.core.tables import MOTION, check_schema
 from onebit.models.graph_hmm.decoding import (
     WINDOWS,
     HmmConfig,
@@ -36,12 +37,14 @@ from onebit.models.graph_hmm.decoding import (
     door_signatures,
     slot_activity,
     tracks_table,
+    user_bound,
     windows_table,
 )
 from onebit.models.graph_hmm.joint import joint_table, redecode_meetings
 from onebit.trackers.attribution import attribute_events
 from onebit.trackers.base import ARTIFACTS, PROGRESS, TrackerSpec
 from onebit.trackers.findinghumo.cpda import cpda, decisions_table, switches_table
+from onebit.trackers.findinghumo.lagged import lagged_paths
 
 __all__ = [
     "WINDOWS",
@@ -81,6 +84,8 @@ class FindingHumoConfig(HmmConfig):
 
 
 def _run(name: str, mode: str, inputs: dict, site: Site, cfg: HmmConfig) -> dict[str, pl.DataFrame]:
+    if cfg.decoding == "lagged":
+        return _run_lagged(name, mode, inputs, site, cfg)
     run = decode_motion(mode, inputs, site, cfg, progress=inputs.get(PROGRESS))
     g = site.sensor_graph
     nodes = g.nodes
@@ -129,6 +134,42 @@ def _run(name: str, mode: str, inputs: dict, site: Site, cfg: HmmConfig) -> dict
         out[ARTIFACTS]["decoded_paths"] = (
             cpda_input  # what CPDA started from (the Adaptive-HMM's, re-decoded at meetings)
         )
+    return out
+
+
+def _run_lagged(name: str, mode: str, inputs: dict, site: Site, cfg: HmmConfig) -> dict[str, pl.DataFrame]:
+    """``decoding = "lagged"``: the live algorithm on the whole log at once
+    (:mod:`onebit.trackers.findinghumo.lagged`; ``onebit follow`` publishes the same rows)."""
+    motion = check_schema(inputs["motion"], MOTION, name="motion")
+    g = site.sensor_graph
+    nodes = g.nodes
+    active, t0 = slot_activity(motion, nodes, cfg.period, cfg.sampling)
+    eatg = build_eatg(site, active, cfg)  # layout or file: never learned from this log (config check)
+    fh = isinstance(cfg, FindingHumoConfig)
+    paths, lag = lagged_paths(mode, active, site, cfg, eatg, cpda_windows=cfg.c_windows if fh else None)
+    silent = silent_stretches([motion.filter(pl.col("sensor").is_in(list(nodes)))], min_s=cfg.absent_after)
+    out: dict[str, pl.DataFrame] = {}
+    res = lag.dec.result()
+    cap = user_bound(site, cfg)
+    if fh:
+        decoded = cap_users(res.paths, active, eatg.hops, cap)
+        out["decoded_hmm"] = outside_silence(tracks_table(name, decoded, nodes, site, t0, cfg.period), silent).drop(
+            "tracker"
+        )
+        cp = lag.cpda_result()
+        out["switches"] = switches_table(cp, nodes)
+        out["cpda"] = decisions_table(cp, nodes)
+    if cfg.joint != "off":
+        out["joint"] = joint_table(lag.joint_log, nodes, t0, cfg.period)
+    tracks = outside_silence(tracks_table(name, paths, nodes, site, t0, cfg.period), silent)
+    out["tracks"] = tracks
+    out["events"] = attribute_events(inputs["motion"], tracks, nodes, eatg.hops, t0=t0, period=cfg.period)
+    out["eatg"] = eatg.table()
+    out["windows"] = windows_table(res)
+    out["decoder"] = pl.DataFrame({"slots": [int(active.shape[0])], "users": [int(paths.shape[0])]})
+    out[ARTIFACTS] = {"eatg": eatg, "active": active, "nodes": nodes, "t0": t0, "period": cfg.period, "paths": paths}
+    if fh:
+        out[ARTIFACTS]["decoded_paths"] = res.paths
     return out
 
 

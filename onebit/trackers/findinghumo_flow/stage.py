@@ -20,6 +20,7 @@ import numpy as np
 import polars as pl
 
 from onebit.core.config import check_choice, check_range
+from onebit.core.errors import ConfigError
 from onebit.core.frames import outside_silence
 from onebit.core.site import Site
 from onebit.models.graph_hmm.decoding import HmmConfig, available, cap_users, decode_motion, tracks_table, windows_table
@@ -83,6 +84,11 @@ class FlowConfig(HmmConfig):
     def __post_init__(self) -> None:
         super().__post_init__()
         check_choice(self, "decoder", ("full2", "adaptive"))
+        if self.decoding != "batch":  # a global min-cost flow over the whole run: never lagged
+            raise ConfigError(
+                f"FlowConfig.decoding = {self.decoding!r}; findinghumo-flow is batch-only (a min-cost flow over "
+                "the whole run): allowed values: ['batch']"
+            )
         check_range(self, "pace_sigma", 1e-3, 1e9)
         check_range(self, "max_gap", 0, 10_000, types=(int,))
         check_range(self, "switch_cost", 0.0, 1e3)

@@ -24,7 +24,7 @@ from dataclasses import dataclass
 import numpy as np
 import polars as pl
 
-from onebit.core.config import check_choice, check_range
+from onebit.core.config import MAX_PARTICLES, check_choice, check_range
 from onebit.core.errors import ConfigError
 from onebit.core.frames import ABSENT_AFTER_S, motion_frames, outside_silence, refractory_state, silent_stretches
 from onebit.core.site import Site
@@ -75,7 +75,7 @@ class IntruderConfig:
     held: bool = True  #: a level sensor (signal = "level") held on through an iteration fires in it (presence), not only on a rising edge
 
     def __post_init__(self) -> None:
-        check_range(self, "particles", 1, None, types=(int,))
+        check_range(self, "particles", 1, MAX_PARTICLES, types=(int,))
         check_range(self, "false_alarm", 0.0, 0.999)
         check_range(self, "period", 1e-6, None)
         check_range(self, "v_max", 0.0, None)
@@ -88,13 +88,13 @@ class IntruderConfig:
         check_choice(self, "resample", ("systematic", "multinomial"))
         check_choice(self, "resample_when", ("always", "ess"))
         check_range(self, "ess_threshold", 0.0, 1.0)
-        check_range(self, "max_retries", 1, None, types=(int,))
+        check_range(self, "max_retries", 1, 10_000, types=(int,))
         check_range(self, "seed", 0, None, types=(int,))
         if self.start is not None:
             check_range(self, "start", None, None)
         if self.end is not None:
             check_range(self, "end", self.start, None)
-        check_range(self, "log_particles", 0, None, types=(int,))
+        check_range(self, "log_particles", 0, MAX_PARTICLES, types=(int,))
         check_range(self, "box_height", 1e-6, None)
         check_range(self, "camera_fov", 1e-3, 179.0)
         check_range(self, "camera_aspect", 1e-3, None)

@@ -38,7 +38,7 @@ import numpy as np
 import polars as pl
 import shapely
 
-from onebit.core.config import check_choice, check_range
+from onebit.core.config import MAX_STEPS, check_choice, check_range, check_size
 from onebit.core.errors import ConfigError
 from onebit.core.frames import ABSENT_AFTER_S, outside_silence, silent_stretches
 from onebit.core.lazy import lazy_module
@@ -103,7 +103,8 @@ class IStateConfig:
     max_stages : the most stages (``span / period_s``) the pipeline runs the filter on; a
         longer log skips the stage, saying so (the set-based filter costs ~0.3 ms per stage
         and its recording ~1-10 ms more, whatever happens in the stage: a 10^6-row beams log
-        of 5 days is 460 000 stages). 0 = no bound.
+        of 5 days is 460 000 stages). 0 = no bound but :data:`~onebit.core.config.MAX_STEPS`
+        (10 million; more is refused, as a larger ``max_stages`` is).
     contradictions : what a reading that no joint state explains does (a spurious or late
         firing, a footprint larger than declared): ``reject`` (default) keeps the I-state and
         counts the reading (``summary.rejected``); ``empty`` is the paper's filter, whose
@@ -137,7 +138,7 @@ class IStateConfig:
         check_range(self, "beam_width", 0.0, None)
         check_range(self, "substeps", 1, 100, types=(int,))
         check_range(self, "absent_after", 0.0, 1e12)
-        check_range(self, "max_stages", 0, None, types=(int,))
+        check_range(self, "max_stages", 0, MAX_STEPS, types=(int,))
 
 
 # --------------------------------------------------------------------------- sensing regions
@@ -199,15 +200,16 @@ def available(site: Site) -> str | None:
 
 def fits(inputs: dict, site: Site, config: IStateConfig) -> str | None:
     """Reason to skip the filter on these inputs, or ``None``: the stages ``k T`` from the first
-    to the last reading (:func:`stage_times`) exceed ``config.max_stages`` (0 = no bound)."""
-    if not config.max_stages:
-        return None
+    to the last reading (:func:`stage_times`) exceed ``config.max_stages`` (0 = no bound but
+    :data:`~onebit.core.config.MAX_STEPS`, past which it is a :class:`ConfigError`)."""
     ts = [inputs[k]["t"] for k in ("motion", "proximity", "crossings") if k in inputs and inputs[k].height]
     if not ts:
         return None
     lo, hi = float(min(t.min() for t in ts)), float(max(t.max() for t in ts))
-    stages = int(np.ceil(hi / config.period_s - 1e-9)) - int(np.floor(lo / config.period_s + 1e-9)) + 1
-    if stages <= config.max_stages:
+    stages = np.ceil(hi / config.period_s - 1e-9) - np.floor(lo / config.period_s + 1e-9) + 1
+    check_size(stages, MAX_STEPS, what="stages over the logs", field=f"[istate] period_s = {config.period_s:g}")
+    stages = int(stages)
+    if not config.max_stages or stages <= config.max_stages:
         return None
     return (
         f"the logs span {hi - lo:,.0f} s = {stages:,} stages of period_s = {config.period_s:g} s, more than "

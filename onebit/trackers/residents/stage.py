@@ -33,7 +33,7 @@ from dataclasses import dataclass
 import numpy as np
 import polars as pl
 
-from onebit.core.config import check_choice, check_range
+from onebit.core.config import MAX_STEPS, check_choice, check_range, check_size
 from onebit.core.site import Site
 from onebit.core.tables import MOTION, TRACKS, check_schema, conform
 from onebit.core.units import length
@@ -339,6 +339,14 @@ def tracks_table(
     """Every person on one grid of ``period`` s from the first event, while present, at the
     node of their latest event at or before the grid time."""
     frames = []
+    if len(t):
+        check_size(
+            (t[-1] - t[0]) / cfg.period * max(cfg.max_people, 1),
+            MAX_STEPS,
+            what=f"track rows (up to {cfg.max_people} people every {cfg.period:g} s)",
+            field=f"[residents] period = {cfg.period:g}",
+            hint="a longer period",
+        )
     grid = (
         float(t[0]) + cfg.period * np.arange(int(np.floor((t[-1] - t[0]) / cfg.period)) + 1) if len(t) else np.zeros(0)
     )
