@@ -27,6 +27,11 @@ BENCHMARKS = (
         "bench_whole_run",
         "cold onebit run on 1e4-1e6-row beams/motion/proximity logs and a 24-h home log: stages, viz, start-up vs --no-rrd and pl.read_csv",
     ),
+    (
+        "bench_whole_run",
+        "a default onebit run (every tracker) on 1e4-1e6-row beams/motion/proximity logs: each stage's growth, < 2 min at 1e6",
+        ["--all-trackers", "--kinds", "beams,motion,proximity"],
+    ),
 )
 OPTIONAL = {"bench_camera"}
 
@@ -34,7 +39,7 @@ OPTIONAL = {"bench_camera"}
 def main() -> int:
     failed: list[str] = []
     t_all = time.perf_counter()
-    for name, title in BENCHMARKS:
+    for name, title, *argv in BENCHMARKS:
         print(f"\n=== {name}: {title} ===", flush=True)
         try:
             module = importlib.import_module(f"benchmarks.{name}")
@@ -47,7 +52,7 @@ def main() -> int:
             continue
         t0 = time.perf_counter()
         try:
-            module.main()
+            module.main(*argv)  # a benchmark given arguments (argv) runs with them
         except Exception:  # report and go on with the next benchmark
             traceback.print_exc()
             failed.append(name)

@@ -210,9 +210,11 @@ def run_pipeline(
     The run record ``run.toml`` holds, besides each stage's status, a ``[timing]`` table: per
     stage the seconds of its work (``work_s``, as in its status), of its recording (``viz_s``:
     opening the ``.rrd``, the site and the stage's viz call, closing it) and of writing its
-    tables (``write_s``); ``blueprint_s``, ``run_s`` (stages to record) and ``entered_unix``
-    (the wall clock when this function was called: a caller that knows when its process
-    started gets the start-up from it).
+    tables (``write_s``), and the CPU seconds of the work and of the recording (``work_cpu_s``,
+    ``viz_cpu_s``: the process's, every thread's; on a shared machine the wall times grow with
+    the load, these hardly); ``blueprint_s`` (``blueprint_cpu_s``), ``run_s`` (stages to
+    record; ``run_cpu_s``) and ``entered_unix`` (the wall clock when this function was called: a caller that
+    knows when its process started gets the start-up from it).
 
     Raises :class:`OnebitError` (``out`` untouched) for bad input found before or instead of
     any work: dataset, ``OUT``, site, config, tracker names, or every stage skipped.
@@ -304,7 +306,7 @@ def _run_stages(
     status = ctx.status
     timing: dict[str, Any] = {"entered_unix": round(entered if entered is not None else time.time(), 6), "rrd": rrd}
     _read_mcaps(ctx, echo)
-    started = time.time()
+    started, started_cpu = time.time(), time.process_time()
     for i, st in enumerate(stage_list):
         sink.stage(st.name, i, len(stage_list))
         missing = [n for n in st.needs if n not in ctx.tables]
@@ -315,18 +317,23 @@ def _run_stages(
             status[st.name] = f"skipped: {reason}"
             echo(f"  {st.name}: skipped ({reason})")
             continue
-        t0 = time.perf_counter()
+        t0, c0 = time.perf_counter(), time.process_time()
         try:
             made = st.work(ctx)
             ctx.seconds[st.name] = time.perf_counter() - t0
             check_made(st, made, ctx.tables, extra=(ARTIFACTS,))
-            t1 = time.perf_counter()
+            t1, c1 = time.perf_counter(), time.process_time()
             if rrd:
                 with stage_recording(work, st.name, recording_id) as rec:
                     log_site(rec, site, ctx.region_graph)
                     if st.viz is not None:
                         st.viz(rec, ctx, made)
-            timing[st.name] = {"work_s": round(ctx.seconds[st.name], 6), "viz_s": round(time.perf_counter() - t1, 6)}
+            timing[st.name] = {
+                "work_s": round(ctx.seconds[st.name], 6),
+                "viz_s": round(time.perf_counter() - t1, 6),
+                "work_cpu_s": round(c1 - c0, 6),
+                "viz_cpu_s": round(time.process_time() - c1, 6),
+            }
         except OnebitError as exc:
             status[st.name] = f"failed: {exc}"
             echo(f"  {st.name}: FAILED: {exc}")
@@ -371,10 +378,11 @@ def _run_stages(
     ]
     for p in problems:
         echo(f"  {p}")
-    t3 = time.perf_counter()
+    t3, c3 = time.perf_counter(), time.process_time()
     if rrd:
         save_run_blueprint(work / "rrd", units=site.units, looks=looks)  # the viewer layout of what the stages logged
     timing["blueprint_s"] = round(time.perf_counter() - t3, 6)
+    timing["blueprint_cpu_s"] = round(time.process_time() - c3, 6)
     rejects = ctx.tables.get("rejects", pl.DataFrame(schema=REJECTS))
     outputs.write_parquet(rejects, work / "tables" / "rejects.parquet")
     report = pl.DataFrame(ctx.report, schema=REPORT, orient="row")
@@ -382,6 +390,7 @@ def _run_stages(
     outputs.write_csv(report, work / "report.csv")
     ok = all(not s.startswith("failed") for s in status.values()) and not problems
     timing["run_s"] = round(time.time() - started, 6)
+    timing["run_cpu_s"] = round(time.process_time() - started_cpu, 6)
     _write_record(
         ctx,
         recording_id=recording_id,

@@ -122,36 +122,41 @@ def typed_beam_events(
     )
 
 
-def decode_passes(events: pl.DataFrame, source: str = "beams.csv", *, compiled: bool | None = None) -> BeamDecode:
+def decode_passes(events: pl.DataFrame, source: str = "beams.csv", *, compiled: bool | str | None = None) -> BeamDecode:
     """Decode accepted beam events (``line``, t, beam, pair, blocked; sorted by t) into crossings.
 
     Edges that do not change their pair's state (blocked while already blocked, or clear
     while clear) cannot come from a body and are rejected with their line. The machine runs
     as one compiled pass over the events (:func:`onebit.readers.kernels.beam_passes`) when numba
-    is loaded in the process already (:func:`onebit.core.compiled.numba_loaded`), else as its numpy version (:func:`~onebit.readers.kernels.beam_passes_vectorised`:
+    is loaded in the process already (:func:`onebit.core.compiled.numba_loaded`), else as its numpy version (:func:`~onebit.readers.kernels.beam_pass_ends_vectorised`:
     a process that runs no other kernel does not pay numba's load for the reader); the
     tables are built from its result with polars, as :func:`decode_passes_reference` (the
-    polars window version, its test oracle) builds them. ``compiled=None`` uses the kernel
-    from :data:`~onebit.readers.kernels.MIN_ROWS` events on, the reference below (same result).
+    polars window version, its test oracle) builds them. ``compiled=None`` uses the kernel (or
+    its numpy version) from :data:`~onebit.readers.kernels.MIN_ROWS` events on, the reference
+    below (same result); ``True``: the kernel, ``"numpy"``: the numpy version, ``False``: the
+    reference.
     """
     if not (events.height >= kernels.MIN_ROWS if compiled is None else compiled):
         return decode_passes_reference(events, source)
     ev = by_time(events)
     if isinstance(ev.schema["beam"], pl.Enum):  # the typed read's beams: their codes are the enum's
         names = pl.Series(ev.schema["beam"].categories, dtype=pl.String)
-        code = ev["beam"].to_physical().to_numpy().astype(np.int64)
+        code_s = ev["beam"].to_physical()
     else:
         names = ev["beam"].unique(maintain_order=True)
-        code = ev["beam"].replace_strict(names, range(len(names)), return_dtype=pl.Int64).to_numpy().astype(np.int64)
+        code_s = ev["beam"].replace_strict(names, range(len(names)), return_dtype=pl.UInt32, default=0)
     if ev.schema["pair"] == pl.Enum(["a", "b"]):
-        pair = ev["pair"].to_physical().to_numpy().astype(np.int8)
+        pair_s = ev["pair"].to_physical()
     else:
-        pair = (ev["pair"] == "b").to_numpy().astype(np.int8)
+        pair_s = (ev["pair"] == "b").cast(pl.UInt8)
+    code, pair = code_s.to_numpy(), pair_s.to_numpy().astype(np.int8)
+    blocked = ev["blocked"].to_numpy().astype(np.bool_)
     # ``compiled=None``: numba's load only when a kernel paid it already, else the numpy version
-    passes = kernels.beam_passes if compiled or numba_loaded() else kernels.beam_passes_vectorised
-    reject, pass_first, close, first_pair, last = passes(
-        code, pair, ev["blocked"].to_numpy().astype(np.bool_), len(names)
-    )
+    if compiled is True or (compiled is None and numba_loaded()):
+        ends = kernels.pass_ends(*kernels.beam_passes(code.astype(np.int64), pair, blocked, len(names)))
+    else:
+        ends = kernels.beam_pass_ends_vectorised(code, pair, blocked, len(names))
+    reject = ends.reject
     t = ev["t"].to_numpy()
     pairs = pl.Series(["a", "b"], dtype=pl.String)
     bad = np.flatnonzero(reject)
@@ -169,14 +174,11 @@ def decode_passes(events: pl.DataFrame, source: str = "beams.csv", *, compiled: 
             )
         )
         rejects = make_rejects(rej.sort("line"), source, None)
-        keep = np.flatnonzero(reject == 0)
-        events_out = ev[keep]
-        code_ok, pair_ok = code[keep], pair[keep]
+        keep = pl.Series(reject == 0)
+        events_out, code_ok, pair_ok = ev.filter(keep), code_s.filter(keep), pair_s.filter(keep)
     else:
         rejects = make_rejects(ev.clear().with_columns(pl.lit(None, pl.String).alias("_reason")), source, None)
-        events_out = ev
-        code_ok = ev["beam"].to_physical() if isinstance(ev.schema["beam"], pl.Enum) else code  # no copy of the codes
-        pair_ok = ev["pair"].to_physical() if ev.schema["pair"] == pl.Enum(["a", "b"]) else pair
+        events_out, code_ok, pair_ok = ev, code_s, pair_s
     events_out = pl.DataFrame(
         {
             "t": events_out["t"],
@@ -187,14 +189,14 @@ def decode_passes(events: pl.DataFrame, source: str = "beams.csv", *, compiled: 
         schema=BEAM_EVENTS,
     )
     # closed passes at their closing edge (time order); a crossing leaves by the other pair
-    ends = np.flatnonzero(close)
-    opener, leaver = first_pair[ends], pair[ends]
-    cross = ends[opener != leaver]
+    opener, leaver = pair[ends.opened], pair[ends.close]
+    crossing = opener != leaver
+    cross = ends.close[crossing]
     crossings = pl.DataFrame(
         {
             "t": t[cross],
             "beam": names.gather(code[cross]),
-            "direction": np.where(opener[opener != leaver] == 0, 1, -1).astype(np.int8),
+            "direction": np.where(opener[crossing] == 0, 1, -1).astype(np.int8),
         },
         schema=CROSSINGS,
     )
@@ -202,16 +204,18 @@ def decode_passes(events: pl.DataFrame, source: str = "beams.csv", *, compiled: 
     if tc.size > 1 and not (tc[1:] > tc[:-1]).all():  # ties in t: beams in order, else as the passes started
         crossings = crossings.sort(["t", "beam"], maintain_order=True)
     # start-and-return passes: in the order they started (as the reference's groups), then by t
-    ab = ends[opener == leaver]
-    ab = ab[np.argsort(pass_first[ab], kind="stable")]
+    order = np.argsort(ends.opened[~crossing], kind="stable")
+    ab = ends.close[~crossing][order]
     aborted = pl.DataFrame(
-        {"t": t[ab], "beam": names.gather(code[ab]), "side": np.where(first_pair[ab] == 0, -1, 1).astype(np.int8)},
+        {
+            "t": t[ab],
+            "beam": names.gather(code[ab]),
+            "side": np.where(opener[~crossing][order] == 0, -1, 1).astype(np.int8),
+        },
         schema=ABORTED,
     ).sort("t")
     # a pass still open at the end holds its beam's last edge, which does not close it
-    op = last[(last >= 0)]
-    op = op[~close[op]]
-    op = op[np.argsort(pass_first[op], kind="stable")]
+    op = ends.open_last
     unfinished = pl.DataFrame({"t": t[op], "beam": names.gather(code[op])}, schema={"t": pl.Float64, "beam": pl.String})
     return BeamDecode(events_out, crossings, aborted, unfinished, rejects)
 
@@ -348,7 +352,7 @@ def _decode_events(
 ) -> BeamDecode:
     out = decode_passes(events, source)
     if out.rejects.height:
-        fixed = out.rejects.join(events.select("line"), on="line", how="left")
+        fixed = out.rejects
         lines = fixed["line"].to_list()
         if path is not None:
             text = raw_lines(path, lines, data=file)

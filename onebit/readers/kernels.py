@@ -19,6 +19,8 @@ kernel                         reference
 
 from __future__ import annotations
 
+from typing import NamedTuple
+
 import numpy as np
 
 from onebit.core.compiled import kernel
@@ -76,67 +78,112 @@ def beam_passes(beam, pair, blocked, n_beams):
     return reject, pass_first, close, first_pair, last
 
 
-def beam_passes_vectorised(beam, pair, blocked, n_beams):
-    """:func:`beam_passes` with numpy array operations (two stable sorts, forward fills by
-    ``maximum.accumulate``): the same five arrays, without numba. A reader uses it in a process
-    where numba is not loaded yet (loading it costs 0.3-0.5 s, ten times this at 10^6 edges),
-    the kernel where numba is loaded already (tests: equal on random logs).
+class PassEnds(NamedTuple):
+    """The passes of a beam log as :func:`decode_passes <onebit.readers.beams.decode_passes>`
+    needs them (indices into the events, in time order): ``reject`` (m,) the no-change code of
+    each edge (0 = accepted); ``close`` the edges that close a pass, ascending, and ``opened``
+    the first edge of each one's pass; ``open_last`` the last edge of each beam whose pass is
+    still open at the end, and ``open_first`` that pass's first edge, both in the order the
+    open passes started."""
+
+    reject: np.ndarray
+    close: np.ndarray
+    opened: np.ndarray
+    open_last: np.ndarray
+    open_first: np.ndarray
+
+
+def pass_ends(reject, pass_first, close, first_pair, last) -> PassEnds:
+    """:class:`PassEnds` from the five arrays of :func:`beam_passes` (the kernel)."""
+    ends = np.flatnonzero(close)
+    op = last[last >= 0]
+    op = op[~close[op]]
+    op = op[np.argsort(pass_first[op], kind="stable")]
+    return PassEnds(reject, ends, pass_first[ends], op, pass_first[op])
+
+
+#: Beams per packed counter of :func:`beam_pass_ends_vectorised` (2 bits each in an int64).
+_PACK = 31
+
+
+def beam_pass_ends_vectorised(beam, pair, blocked, n_beams) -> PassEnds:
+    """:func:`beam_passes` as :class:`PassEnds`, with numpy array operations and no per-edge
+    pass index: what a reader uses where numba is not loaded (loading it costs 0.3-0.5 s, several
+    times this at 10^6 edges); the kernel's arrays give the same :class:`PassEnds` through
+    :func:`pass_ends` (tests: equal on random logs).
 
     No-change edges: a pair's state before an edge is its previous edge's value (an accepted
-    edge sets it, a rejected one had it already), so edge ``k`` of pair ``(b, q)`` is rejected
-    iff ``blocked[k]`` equals the pair's previous ``blocked`` (``False`` before the first). The
-    accepted edges of each beam, in time order: ``a_k``, ``b_k`` the last value of each pair
-    at or before ``k``; the beam is idle after ``k`` iff ``not (a_k or b_k)``; a pass starts at
-    a beam's first edge and after each idle edge, and closes at an idle edge.
-    """
-    beam = np.asarray(beam, np.int64)
-    pair = np.asarray(pair, np.int8)
+    edge sets it, a rejected one had it already), so after a stable radix sort by (beam, pair)
+    an edge equal to its pair's previous edge (clear before the first) is rejected. The
+    accepted edges of each pair alternate, blocked first, so the number of blocked pairs of
+    beam ``b`` after its accepted edge ``k`` is the running sum over the beam's accepted
+    edges of ``+1`` (blocked) / ``-1`` (cleared)::
+
+        c_b(k) = sum_{j <= k, beam_j = b} (2 blocked_j - 1)  in {0, 1, 2}
+
+    so one cumulative sum of ``(2 blocked - 1) 4^b`` over the edges in time order holds every
+    beam's count in two bits (31 beams per int64; more beams, one sum per 31). An edge opens a
+    pass when its beam's count before it is 0, and closes one when the count after it is 0.
+    Per beam, opening and closing edges alternate (open first), so in a stable sort of them by
+    beam the edge before a closing edge is its pass's first edge, and a beam whose last one
+    opens holds an open pass (unfinished) ending at its last accepted edge."""
+    beam = np.asarray(beam)
+    pair = np.asarray(pair)
     blocked = np.asarray(blocked, np.bool_)
     m = beam.shape[0]
     reject = np.zeros(m, dtype=np.int8)
-    pass_first = np.full(m, -1, dtype=np.int64)
-    close = np.zeros(m, dtype=np.bool_)
-    first_pair = np.full(m, -1, dtype=np.int8)
-    last = np.full(n_beams, -1, dtype=np.int64)
+    none = np.empty(0, dtype=np.int64)
     if m == 0:
-        return reject, pass_first, close, first_pair, last
-    small = (
-        np.int16 if 2 * n_beams < np.iinfo(np.int16).max else np.int64
-    )  # 16-bit keys: numpy's stable sort is a radix sort
-    g = (beam * 2 + pair).astype(small)
-    order = np.argsort(g, kind="stable")  # per (beam, pair), in time order
+        return PassEnds(reject, none, none, none, none)
+    small = _key_type(2 * n_beams)
+    g = beam.astype(small) * 2 + pair.astype(small)
+    order = np.argsort(g, kind="stable")  # per (beam, pair), in time order (a radix sort)
     gs, vs = g[order], blocked[order]
     prev = np.zeros(m, dtype=np.bool_)
     prev[1:] = vs[:-1]
-    prev[np.flatnonzero(np.diff(gs)) + 1] = False  # each pair starts clear
-    same = vs == prev
+    prev[np.flatnonzero(gs[1:] != gs[:-1]) + 1] = False  # each pair starts clear
+    same = np.flatnonzero(vs == prev)
     reject[order[same]] = np.where(vs[same], ALREADY_BLOCKED, ALREADY_CLEAR)
-    acc = np.flatnonzero(reject == 0)
+    acc = np.flatnonzero(reject == 0) if same.size else np.arange(m)
     if acc.size == 0:
-        return reject, pass_first, close, first_pair, last
-    idx = acc[np.argsort(beam[acc].astype(small), kind="stable")]  # accepted edges per beam, in time order
-    b, q, v = beam[idx], pair[idx], blocked[idx]
-    n = idx.size
-    pos = np.arange(n)
-    start = np.ones(n, dtype=np.bool_)
-    start[1:] = b[1:] != b[:-1]
-    first = np.maximum.accumulate(np.where(start, pos, 0))  # the beam's first position
-
-    def state(of_pair):  # the pair's value after each edge: its last edge so far in the beam, else clear
-        at = np.maximum.accumulate(np.where(q == of_pair, pos, -1))
-        return np.where(at >= first, v[np.maximum(at, 0)], False)
-
-    idle = ~(state(0) | state(1))
-    opens = start.copy()
-    opens[1:] |= idle[:-1]
-    opened = np.maximum.accumulate(np.where(opens, pos, 0))
-    pass_first[idx] = idx[opened]
-    close[idx] = idle
-    first_pair[idx[idle]] = q[opened[idle]]
-    end = np.ones(n, dtype=np.bool_)
-    end[:-1] = b[:-1] != b[1:]
-    last[b[end]] = idx[end]
-    return reject, pass_first, close, first_pair, last
+        return PassEnds(reject, none, none, none, none)
+    b, v = beam[acc], blocked[acc]
+    if n_beams <= _PACK:  # one packed running sum (in place: few 10^6-row temporaries)
+        shift = b.astype(np.int64)
+        shift <<= 1
+        after = v.astype(np.int64)
+        after <<= 1
+        after -= 1
+        after <<= shift
+        np.cumsum(after, out=after)
+        after >>= shift
+        after &= 3
+    else:  # one per 31 beams
+        after = np.empty(acc.size, dtype=np.int64)
+        step = v.astype(np.int64) * 2 - 1
+        for lo in range(0, n_beams, _PACK):
+            rows = np.flatnonzero((b >= lo) & (b < lo + _PACK))
+            shift = 2 * (b[rows].astype(np.int64) - lo)
+            after[rows] = (np.cumsum(step[rows] << shift) >> shift) & 3
+    opens = v & (after == 1)  # before = after - step = 0
+    ends = after == 0
+    sel = np.flatnonzero(opens | ends)
+    key = b[sel].astype(_key_type(n_beams))
+    by_beam = np.argsort(key, kind="stable")
+    srt = sel[by_beam]  # per beam, in time order
+    is_end = ends[srt]
+    at = np.flatnonzero(is_end)  # never 0: a beam's first such edge opens
+    first_of = np.empty(acc.size, dtype=np.int64)
+    first_of[srt[at]] = srt[at - 1]
+    close = np.flatnonzero(ends)
+    # a beam whose last opening/closing edge opens: its pass is open at the end
+    bs = key[by_beam]
+    tail = np.ones(srt.size, dtype=np.bool_)
+    tail[:-1] = bs[:-1] != bs[1:]
+    open_first = srt[tail & ~is_end]  # ascending within each beam; order them by start
+    open_first = np.sort(open_first)
+    open_last = np.array([acc.size - 1 - int(np.argmax(b[::-1] == b[k])) for k in open_first], dtype=np.int64)
+    return PassEnds(reject, acc[close], acc[first_of[close]], acc[open_last], acc[open_first])
 
 
 @kernel
@@ -211,15 +258,22 @@ def separators_per_line_reference(buf: np.ndarray, sep: int) -> np.ndarray:
     return np.diff(np.concatenate([[0], before])).astype(np.int64)
 
 
+def _key_type(n: int):
+    """The smallest signed integer type that holds the codes ``0 .. n - 1``: numpy's stable sort
+    of 8- and 16-bit keys is a radix sort, and 8-bit keys sort twice as fast as 16-bit ones."""
+    if n <= np.iinfo(np.int8).max:
+        return np.int8
+    return np.int16 if n <= np.iinfo(np.int16).max else np.int64
+
+
 def _by_sensor(sensor, n_sensors):
-    """Stable order of the rows by sensor (time order within a sensor): a radix sort on 16-bit codes."""
-    small = np.int16 if n_sensors < np.iinfo(np.int16).max else np.int64
-    return np.argsort(np.asarray(sensor).astype(small), kind="stable")
+    """Stable order of the rows by sensor (time order within a sensor): a radix sort on small codes."""
+    return np.argsort(np.asarray(sensor).astype(_key_type(n_sensors)), kind="stable")
 
 
 def toggle_repeats_vectorised(sensor, on, n_sensors):
     """:func:`toggle_repeats` with numpy (used while numba is not loaded, as
-    :func:`beam_passes_vectorised`): per sensor, ``on`` equal to its previous edge's (off before the first)."""
+    :func:`beam_pass_ends_vectorised`): per sensor, ``on`` equal to its previous edge's (off before the first)."""
     on = np.asarray(on, np.bool_)
     m = on.shape[0]
     same = np.zeros(m, dtype=np.bool_)
@@ -248,19 +302,25 @@ def debounce_masks_vectorised(sensor, on, t, chatter, min_on, n_sensors, eps):
     if m < 2:
         return chat, short
     order = _by_sensor(sensor, n_sensors)
-    s_, o_, t_ = sensor[order], on[order], t[order]
-    w = np.asarray(chatter, np.float64)[s_[1:]]
-    pair = (s_[1:] == s_[:-1]) & (w > 0) & o_[1:] & ~o_[:-1] & (t_[1:] - t_[:-1] <= w + eps)
+    s_, o_ = sensor[order], on[order]
+    chatter = np.asarray(chatter, np.float64)
+    min_on = np.asarray(min_on, np.float64)
     cs = np.zeros(m, dtype=np.bool_)
-    cs[1:] |= pair
-    cs[:-1] |= pair
-    ko = np.flatnonzero(~cs)
-    s2, o2, t2 = s_[ko], o_[ko], t_[ko]
-    mo = np.asarray(min_on, np.float64)[s2[1:]]
-    pair2 = (s2[1:] == s2[:-1]) & (mo > 0) & o2[:-1] & ~o2[1:] & (t2[1:] - t2[:-1] < mo - eps)
+    if (chatter > 0).any():  # (off, on) neighbours of a sensor; times only for those
+        i = np.flatnonzero((s_[1:] == s_[:-1]) & o_[1:] & ~o_[:-1])
+        w = chatter[s_[i + 1]]
+        i = i[(w > 0) & (t[order[i + 1]] - t[order[i]] <= w + eps)]
+        cs[i] = True
+        cs[i + 1] = True
     ss = np.zeros(m, dtype=np.bool_)
-    ss[ko[1:][pair2]] = True
-    ss[ko[:-1][pair2]] = True
+    if (min_on > 0).any():  # (on, off) neighbours among the edges chatter left
+        ko = np.flatnonzero(~cs) if cs.any() else np.arange(m)
+        s2, o2 = s_[ko], o_[ko]
+        i = np.flatnonzero((s2[1:] == s2[:-1]) & o2[:-1] & ~o2[1:])
+        mo = min_on[s2[i + 1]]
+        i = i[(mo > 0) & (t[order[ko[i + 1]]] - t[order[ko[i]]] < mo - eps)]
+        ss[ko[i]] = True
+        ss[ko[i + 1]] = True
     chat[order] = cs
     short[order] = ss
     return chat, short

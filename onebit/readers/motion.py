@@ -342,14 +342,12 @@ def debounce(
         TIME_EPS,
     )
     ev = ev.select("line", "t", "sensor", "on")
-    kept = ev.filter(pl.Series(~(chat | short)))  # still sorted by t, line
-    sup = [
-        ev[np.flatnonzero(m)].with_columns(rule=pl.lit(r)) for m, r in ((chat, "chatter"), (short, "min_on")) if m.any()
-    ]
-    suppressed = conform(pl.concat(sup) if sup else ev.clear().with_columns(rule=pl.lit("", pl.String)), SUPPRESSED)
-    if len(sup) > 1:  # one rule's edges alone are in time order already (the rows of ev are)
-        suppressed = suppressed.sort(["t", "line"])
-    return kept, suppressed
+    gone = chat | short  # the rules mark disjoint edges (minimum on-time only among those chatter left)
+    kept = ev.filter(pl.Series(~gone))  # still sorted by t, line
+    sup = ev.filter(pl.Series(gone)).with_columns(  # in time order, as ev
+        rule=pl.when(pl.Series(chat[gone])).then(pl.lit("chatter")).otherwise(pl.lit("min_on"))
+    )
+    return kept, conform(sup, SUPPRESSED)
 
 
 def debounce_reference(

@@ -186,10 +186,10 @@ def _stamps(sources: Mapping[str, pl.DataFrame | list[pl.DataFrame]], col: str) 
     return pl.concat(parts).sort("abs")
 
 
-def _kept_span(v: pl.Series, max_gap_s: float, lone_fraction: float) -> tuple[int, int]:
+def _kept_span(v: pl.Series | np.ndarray, max_gap_s: float, lone_fraction: float) -> tuple[int, int]:
     """``[i0, i1)``: the stamps of sorted ``v`` (non-empty) left once the lone clusters at either
     end are cut off (module docstring)."""
-    a = v.to_numpy()
+    a = v if isinstance(v, np.ndarray) else v.to_numpy()
     n = a.size
     cut = np.flatnonzero(np.diff(a) > max_gap_s) + 1  # a cluster starts at each of these indices
     bounds = [0, *cut.tolist(), n]
@@ -224,6 +224,42 @@ def number_column_origin(values: pl.Series, epoch: str | TimeOrigin | None) -> T
     return TimeOrigin(origin=0.0, numeric=0.0, iso=None, lo=lo + origin, hi=hi + origin, source="data", lone=lone)
 
 
+def _numeric_origin(sources, col, epoch, max_gap_s, lone_fraction, max_span_s) -> TimeOrigin | None:
+    """:func:`time_origin` when every stamp is already a number (the good rows of typed reads,
+    no string rows left): from the values alone, in numpy, with no table of stamps; ``None``
+    when some stamp is a string, or when the span is absurd (the table of stamps names both
+    ends' file and line)."""
+    values = []
+    for frames in sources.values():
+        for df in frames if isinstance(frames, list) else [frames]:
+            if df is None or col not in df.columns or df.height == 0:
+                continue
+            if not df.schema[col].is_numeric():
+                return None
+            values.append(df[col].cast(pl.Float64).to_numpy())
+    a = np.concatenate(values) if len(values) > 1 else values[0] if values else np.empty(0)
+    if not np.isfinite(a).all():
+        a = a[np.isfinite(a)]
+    if a.size > 1 and not (a[1:] >= a[:-1]).all():  # a log is mostly in order: no sort then
+        a = np.sort(a)
+    if a.size == 0:
+        if epoch is not None:
+            return TimeOrigin(origin=epoch_unix(epoch), numeric=0.0, iso=epoch_unix(epoch), source="epoch")
+        return TimeOrigin()
+    i0, i1 = _kept_span(a, max_gap_s, lone_fraction)
+    lo_abs, hi_abs = float(a[i0]), float(a[i1 - 1])
+    if hi_abs - lo_abs > max_span_s:
+        return None
+    lone = a.size - (i1 - i0)
+    if epoch is not None:
+        e = epoch_unix(epoch)
+        return TimeOrigin(origin=e, numeric=0.0, iso=e, lo=lo_abs, hi=hi_abs, source="epoch", lone=lone)
+    origin = float(math.floor(lo_abs))
+    return TimeOrigin(
+        origin=origin, numeric=origin, iso=origin, lo=lo_abs - origin, hi=hi_abs - origin, source="data", lone=lone
+    )
+
+
 def time_origin(
     sources: Mapping[str, pl.DataFrame],
     *,
@@ -241,6 +277,9 @@ def time_origin(
     the same numbers the strings give, without turning them back into text). Raises :class:`InputError` when the
     accepted stamps span more than ``max_span_s``, naming both ends' file, line and field.
     """
+    fast = _numeric_origin(sources, col, epoch, max_gap_s, lone_fraction, max_span_s)
+    if fast is not None:
+        return fast
     st = _stamps(sources, col)
     n = st.height
     if epoch is not None:

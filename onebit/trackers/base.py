@@ -61,3 +61,18 @@ class TrackerSpec:
     #: within what the tracker can do in a sensible time (istate: its stage count), checked by
     #: the pipeline before the run; the reason names the setting that lifts the bound.
     fits: Callable[..., str | None] | None = None
+
+
+def instants_bound(frames, tracker: str, field: str, bound: int, cost: str) -> str | None:
+    """The reason a tracker of frame logs skips a log of more instants (distinct ``slot`` of
+    ``frames``) than ``bound`` (its ``[tracker] field``; 0 = no bound), or ``None``: a
+    :data:`TrackerSpec.fits` for trackers whose cost is per instant (``cost``: what one costs)."""
+    if not bound or frames is None or frames.height == 0:
+        return None
+    instants = frames["slot"].n_unique()
+    if instants <= bound:
+        return None
+    return (
+        f"the frames hold {instants:,} instants, more than {field} = {bound:,} ({cost}); "
+        f"set [{tracker}] {field} = 0 (no bound) in --config to run it"
+    )

@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import contextlib
 import os
+import sys
 import threading
 from collections.abc import Iterator
 from pathlib import Path
@@ -25,6 +26,41 @@ APPLICATION_ID = "onebit"
 
 
 _ENV_LOCK = threading.RLock()
+_ARROW = {"checked": False}
+
+
+def arrow_without_pandas() -> None:
+    """Keep pyarrow from importing pandas (0.3-0.4 s, a third of a short run's recordings)
+    when it first converts a numpy array -- which every Rerun log call does: pyarrow asks
+    whether the array is a pandas one, and to ask, imports pandas. onebit never hands pandas
+    objects to Rerun, so unless pandas is in the process already, pyarrow's one lazy check
+    is made here while ``import pandas`` fails: pyarrow then records that there is no pandas
+    for those checks. Whatever asks pyarrow for pandas explicitly later (``to_pandas``)
+    imports it as usual (pyarrow retries the import then); a module that imports pandas
+    itself (motmetrics) is not affected. Called by :func:`open_recording`; once per process."""
+    if _ARROW["checked"]:
+        return
+    _ARROW["checked"] = True
+    if "pandas" in sys.modules:  # already paid for
+        return
+    import numpy as np
+    import pyarrow as pa
+
+    blocker = _NoPandas()
+    sys.meta_path.insert(0, blocker)  # ``import pandas`` raises ImportError
+    try:
+        pa.array(np.zeros(1))  # pyarrow's lazy pandas check: "not installed", once
+    finally:
+        sys.meta_path.remove(blocker)
+
+
+class _NoPandas:
+    """A meta path finder refusing pandas (used by :func:`arrow_without_pandas` only)."""
+
+    def find_spec(self, name, path=None, target=None):
+        if name == "pandas" or name.startswith("pandas."):
+            raise ImportError(f"{name} is not imported for pyarrow's array checks (onebit.viz)")
+        return None
 
 
 @contextlib.contextmanager
@@ -61,6 +97,7 @@ def open_recording(path: str | Path, *, recording_id: str, application_id: str =
         raise ValueError(f"recording_id must be a non-empty string, got {recording_id!r}")
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
+    arrow_without_pandas()
     with rerun_enabled():
         rec = rr.RecordingStream(application_id, recording_id=recording_id)
         rec.save(temp_path(path))

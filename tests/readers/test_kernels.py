@@ -88,7 +88,7 @@ def test_debounce_kernel_equals_reference(seed):
 @pytest.mark.parametrize("seed", range(12))
 @pytest.mark.parametrize("clean", [True, False])
 def test_vectorised_beam_passes_equal_the_kernel(seed, clean):
-    """The numpy version (used while numba is not loaded) gives the kernel's five arrays."""
+    """The numpy version (used while numba is not loaded) gives the pass ends of the kernel's arrays."""
     from onebit.readers import kernels as K
 
     rng = np.random.default_rng(100 + seed)
@@ -96,10 +96,41 @@ def test_vectorised_beam_passes_equal_the_kernel(seed, clean):
     code = f["beam"].replace_strict(["a", "b", "c"], [0, 1, 2], return_dtype=pl.Int64).to_numpy()
     pair = (f["pair"] == "b").to_numpy().astype(np.int8)
     blocked = f["blocked"].to_numpy().astype(np.bool_)
-    want = K.beam_passes.py_func(code, pair, blocked, 3)
-    got = K.beam_passes_vectorised(code, pair, blocked, 3)
-    for name, w, g in zip(("reject", "pass_first", "close", "first_pair", "last"), want, got):
+    want = K.pass_ends(*K.beam_passes.py_func(code, pair, blocked, 3))
+    got = K.beam_pass_ends_vectorised(code.astype(np.uint8), pair, blocked, 3)
+    for name, w, g in zip(want._fields, want, got):
         assert np.array_equal(w, g) and w.dtype == g.dtype, name
+
+
+@pytest.mark.parametrize("n_beams", [1, 31, 32, 70])
+def test_vectorised_beam_passes_with_many_beams(n_beams):
+    """More beams than one packed counter holds (31): one running sum per 31 beams, same ends."""
+    from onebit.readers import kernels as K
+
+    rng = np.random.default_rng(n_beams)
+    n = 3000
+    beam = np.repeat(rng.integers(0, n_beams, n // 4), 4)  # passes, some broken by flipped edges
+    pair = np.tile(np.array([0, 1, 0, 1], np.int8), n // 4)
+    blocked = np.tile(np.array([1, 1, 0, 0], np.bool_), n // 4) ^ (rng.random(n) < 0.05)
+    shuffle = rng.permutation(n // 4)  # interleave some passes of different beams
+    beam, pair, blocked = (a.reshape(-1, 4)[np.sort(shuffle)].reshape(-1) for a in (beam, pair, blocked))
+    beam = beam.astype(np.int64)
+    want = K.pass_ends(*K.beam_passes.py_func(beam, pair, blocked, n_beams))
+    got = K.beam_pass_ends_vectorised(beam, pair, blocked, n_beams)
+    assert want.close.size > 0
+    for name, w, g in zip(want._fields, want, got):
+        assert np.array_equal(w, g), name
+
+
+@pytest.mark.parametrize("clean", [True, False])
+def test_beam_pass_decoder_numpy_path_equals_reference(clean):
+    """decode_passes above MIN_ROWS without numba loaded (the numpy pass ends) equals the polars reference."""
+    rng = np.random.default_rng(7)
+    f = _beam_log(rng, 6000, clean=clean)
+    a, b = B.decode_passes(f, compiled="numpy"), B.decode_passes_reference(f)
+    assert a.crossings.height and a.aborted.height and a.rejects.height
+    for k in ("events", "crossings", "aborted", "unfinished", "rejects"):
+        assert getattr(a, k).equals(getattr(b, k)), k
 
 
 @pytest.mark.parametrize("seed", range(10))

@@ -444,3 +444,25 @@ def test_mcap_message_with_huge_payload_is_bounded(tmp_path):
     assert ok.height == 1 and rej["line"].to_list() == [2]
     assert_bounded_rejects(rej)
     assert json.loads(contents.channels["/crossings"]["raw"][1])["t"].startswith("xxx")
+
+
+@settings(max_examples=60, deadline=None)
+@given(
+    st.lists(st.text(alphabet='ab,1. \t\r"', max_size=12), min_size=0, max_size=200),
+    st.booleans(),
+    st.lists(st.integers(-2, 230), min_size=0, max_size=150),
+)
+def test_ascii_lines_cut_out_at_once_equal_one_by_one(body, trailing_newline, wanted):
+    """line_texts of many lines of an ASCII file (cut out in one go) equals the line-by-line cut."""
+    import numpy as np
+
+    from onebit.readers.rows import _ascii_line_texts, _line_texts_reference, line_texts, newlines
+
+    data = "\n".join(body).encode() + (b"\n" if trailing_newline and body else b"")
+    got = line_texts(data, wanted)
+    assert got.equals(_line_texts_reference(data, wanted))
+    nl = newlines(data)
+    n_lines = nl.size + (len(data) > 0 and not data.endswith(b"\n"))
+    want = np.unique(np.asarray(wanted, dtype=np.int64))
+    want = want[(want >= 1) & (want <= n_lines)]
+    assert _ascii_line_texts(data, nl, want).equals(_line_texts_reference(data, wanted))

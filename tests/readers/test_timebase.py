@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 import tomllib
 
 import polars as pl
@@ -128,3 +129,29 @@ def test_a_typed_reads_numbers_give_the_origin_their_strings_give(numbers, rest,
         assert (got.value.file, got.value.line) == (exc.file, exc.line)
         return
     assert time_origin({"log.csv": [good, others]}, epoch=epoch) == want
+
+
+@settings(max_examples=40, deadline=None)
+@given(
+    st.lists(st.one_of(st.floats(-1e10, 1e10), st.sampled_from([math.inf, -math.inf])), min_size=0, max_size=30),
+    st.lists(st.one_of(st.floats(0, 1e5), st.just(math.nan)), min_size=0, max_size=30),
+    st.sampled_from([None, "2024-05-01T00:00:00Z"]),
+)
+def test_numeric_stamps_alone_give_the_origin_their_strings_give(a, b, epoch):
+    """Typed reads with no string row left: the origin from the numbers alone (no table of
+    stamps) equals the one of the same stamps as strings, error (file, line) included."""
+    frames = [
+        pl.DataFrame({"line": range(2, 2 + len(v)), "t": v}, schema={"line": pl.Int64, "t": pl.Float64}) for v in (a, b)
+    ]
+    strings = {
+        name: f.with_columns(pl.col("t").map_elements(repr, return_dtype=pl.String))
+        for name, f in zip(("a.csv", "b.csv"), frames)
+    }
+    try:
+        want = time_origin(strings, epoch=epoch)
+    except InputError as exc:
+        with pytest.raises(InputError) as got:
+            time_origin({"a.csv": [frames[0]], "b.csv": [frames[1]]}, epoch=epoch)
+        assert (got.value.file, got.value.line, got.value.field) == (exc.file, exc.line, exc.field)
+        return
+    assert time_origin({"a.csv": [frames[0]], "b.csv": [frames[1]]}, epoch=epoch) == want

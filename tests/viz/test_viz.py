@@ -272,3 +272,27 @@ def test_cpda_label_is_short_chosen_first_then_the_most_probable_alternatives():
         "CPDA keep: tracks 1 2 -> 1 2 (p=0.80)",
         "  or 2 1: p=0.20",
     ]
+
+
+def test_a_recording_does_not_import_pandas_and_pandas_still_works(tmp_path):
+    """pyarrow imports pandas on its first numpy conversion (0.3-0.4 s); a recording stops
+    that (arrow_without_pandas), and an explicit pandas use afterwards still gets pandas."""
+    import sys
+
+    code = f"""
+import sys
+import numpy as np
+from onebit.viz.recording import stage_recording
+with stage_recording({str(tmp_path)!r}, "s", "run-1") as rec:
+    rec.log("p", __import__("rerun").Points2D(np.zeros((5, 2))))
+assert "pandas" not in sys.modules, "pandas imported by a recording"
+import pyarrow as pa
+import pandas as pd
+df = pa.table({{"x": [1, 2]}}).to_pandas()
+assert isinstance(df, pd.DataFrame)
+assert pa.array(pd.Categorical(["a", "b"])).type.id == pa.dictionary(pa.int8(), pa.string()).id
+print("ok")
+"""
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
+    assert out.returncode == 0 and out.stdout.strip() == "ok", out.stderr[-2000:]
+    assert (tmp_path / "rrd" / "s.rrd").is_file()

@@ -28,7 +28,7 @@ import polars as pl
 from onebit.core.config import check_choice, check_range
 from onebit.core.site import Site
 from onebit.core.tables import FRAMES, TRACKS, check_schema, conform
-from onebit.trackers.base import ARTIFACTS, TrackerSpec
+from onebit.trackers.base import ARTIFACTS, TrackerSpec, instants_bound
 from onebit.trackers.clustertrack.algorithm import Params, clustertrack, consensus, rules_of_thumb
 from onebit.trackers.clustertrack.feasible import sensor_array
 from onebit.trackers.clustertrack.space import FeasibleSpace
@@ -68,6 +68,10 @@ class ClusterTrackConfig:
     targets : most tracks returned (and so at once: a track spans the run); 0 = the
         site's ``targets``. The result never exceeds min(targets, Q_hat).
     seed : random seed.
+    max_instants : the most instants (frames) the pipeline runs it on; a longer log skips
+        the stage, saying so: every instant is scanned once per run, and with the defaults
+        there are about (1 + reruns) x (1 + consensus_runs) runs -- 10-30 ms per instant on a
+        19-sensor line on 2 cores, so 3000 instants take 0.5-1.5 minutes. 0 = no bound.
     """
 
     h: int = 25
@@ -88,6 +92,7 @@ class ClusterTrackConfig:
     dim: str = "auto"
     targets: int = 0
     seed: int = 0
+    max_instants: int = 3000
 
     def __post_init__(self) -> None:
         check_range(self, "h", 1, 100000, types=(int,))
@@ -108,6 +113,7 @@ class ClusterTrackConfig:
         check_choice(self, "dim", ("auto", "1d", "2d"))
         check_range(self, "targets", 0, 10**4, types=(int,))
         check_range(self, "seed", 0, None, types=(int,))
+        check_range(self, "max_instants", 0, None, types=(int,))
 
 
 #: Schemas of the tables besides ``tracks`` (``feasible`` and ``minimal_targets`` in 1-D only,
@@ -161,6 +167,13 @@ OUTPUT_SCHEMAS: dict[str, pl.Schema] = {
 
 def available(site: Site) -> str | None:
     return None if site.proximity_sensors else "site has no proximity sensors"
+
+
+def fits(inputs: dict, site: Site, config: ClusterTrackConfig) -> str | None:
+    """Reason to skip on these inputs, or ``None``: more instants than ``config.max_instants``."""
+    return instants_bound(
+        inputs.get("proximity_frames"), NAME, "max_instants", config.max_instants, "10-30 ms each with the defaults"
+    )
 
 
 def readings(frames: pl.DataFrame, ids: tuple[str, ...]) -> tuple[np.ndarray, np.ndarray]:
@@ -370,5 +383,6 @@ SPEC = TrackerSpec(
     config=ClusterTrackConfig,
     run=run,
     available=available,
+    fits=fits,
     help="Singh et al.: target counting and CLUSTERTRACK from binary proximity sensors",
 )

@@ -293,3 +293,20 @@ def test_tracks_never_exceed_targets_nor_the_count_estimate():
         q_hat = int(out["params"]["Q_hat"][0])
         n = out["tracks"].group_by("t").len()["len"].max()
         assert q_hat >= 2 and n <= min(bound, q_hat)
+
+
+def test_clustertrack_and_binpf_beyond_their_instant_bounds_are_skipped_saying_why(tmp_path):
+    """A frame log of more instants than [clustertrack] max_instants / [binpf] max_frames skips
+    the stage in a default run, naming the setting; 0 lifts the bound."""
+    data = SCENARIO_SPECS["proximity-line"].write(tmp_path / "d", seed=4, params={"variant": "separated"})
+    tight = {"clustertrack": {"max_instants": 5, "consensus_runs": 0, "reruns": 0}, "binpf": {"max_frames": 5}}
+    res = run_pipeline(
+        data, tmp_path / "bounded", trackers=("clustertrack", "binpf", "istate"), config=tight, rrd=False
+    )
+    for name, field in (("clustertrack", "max_instants = 5"), ("binpf", "max_frames = 5")):
+        reason = res.status[name]
+        assert reason.startswith("skipped") and field in reason and "instants" in reason, reason
+    assert not res.ok and any("max_instants" in p for p in res.problems)  # asked for by name
+    lifted = {"clustertrack": {"max_instants": 0, "consensus_runs": 0, "reruns": 0}, "binpf": {"max_frames": 0}}
+    res = run_pipeline(data, tmp_path / "lifted", trackers=("clustertrack", "binpf"), config=lifted, rrd=False)
+    assert res.status["clustertrack"].startswith("ok") and res.status["binpf"].startswith("ok"), res.status
