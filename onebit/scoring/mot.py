@@ -402,7 +402,7 @@ def mot_metrics(
     if not gate > 0:
         raise OnebitError(f"mot_metrics: gate={gate!r}; expected a positive distance")
     fa = frame_arrays(objects, hypotheses, distances)
-    n_obj, n_hyp = len(fa.oids), len(fa.hids)
+    n_obj = len(fa.oids)
     (matches, switches, misses, fps), dsum = clear_counts(fa, gate)
     ident = id_measures(fa, gate)
     hota = hota_curves(fa, gate)
