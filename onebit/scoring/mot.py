@@ -221,7 +221,9 @@ def frame_blocks(objects: pl.DataFrame, hypotheses: pl.DataFrame, distances: pl.
 # --------------------------------------------------------------------------- CLEAR MOT
 
 
-def _clear_frame(f: int, fa: FrameArrays, gate: float, last: np.ndarray, counts: np.ndarray, dsum: np.ndarray) -> None:
+def _clear_frame(
+    f: int, fa: FrameArrays, gate: float, last: np.ndarray, counts: np.ndarray, events: np.ndarray
+) -> None:
     """One frame of CLEAR MOT exactly as ``motmetrics.MOTAccumulator.update`` does it, with its
     own assignment solver (``motmetrics.lap.linear_sum_assignment``): the frames the kernel
     hands over (a tie between optimal assignments, or too large to enumerate)."""
@@ -232,7 +234,7 @@ def _clear_frame(f: int, fa: FrameArrays, gate: float, last: np.ndarray, counts:
     d = np.where(d <= gate, d, np.nan)
     om, hm = np.zeros(no, bool), np.zeros(nh, bool)
     matches = switches = 0
-    fsum = 0.0
+    ev: list[float] = []
     if no and nh:
         for i in range(no):  # (1) continuing pairs
             if last[oids[i]] < 0:
@@ -241,7 +243,7 @@ def _clear_frame(f: int, fa: FrameArrays, gate: float, last: np.ndarray, counts:
             if len(j) and np.isfinite(d[i, j[0]]):
                 om[i] = hm[j[0]] = True
                 matches += 1
-                fsum += d[i, j[0]]
+                ev.append(d[i, j[0]])
         d[om, :] = np.nan
         d[:, hm] = np.nan
         for i, j in zip(*mm.lap.linear_sum_assignment(d)):  # (2) the rest
@@ -252,31 +254,35 @@ def _clear_frame(f: int, fa: FrameArrays, gate: float, last: np.ndarray, counts:
                 switches += 1
             else:
                 matches += 1
-            fsum += d[i, j]
+            ev.append(d[i, j])
             last[o] = h
             om[i] = hm[j] = True
-    counts += (matches, switches, no - om.sum(), nh - hm.sum())
-    dsum[0] += fsum
+    misses, fps = no - int(om.sum()), nh - int(hm.sum())
+    ev += [0.0] * (misses + fps)
+    e = counts[4]
+    events[e : e + len(ev)] = ev
+    counts += (matches, switches, misses, fps, len(ev))
 
 
 def clear_counts(fa: FrameArrays, gate: float, *, compiled: bool = True) -> tuple[np.ndarray, float]:
     """CLEAR MOT over all frames (:func:`onebit.scoring.mot_kernels.clear_pass`, motmetrics'
     rule: last frame's matches that are still within the gate are kept, then the fewest
     misses at the least distance): ``([matches, switches, misses, false positives], sum of
-    matched distances)``. The kernel runs until a frame it cannot decide alone, which
-    :func:`_clear_frame` scores with motmetrics' solver, and resumes after it; ``compiled=False``
-    runs the kernel's plain Python (its test oracle)."""
+    matched distances)``, the sum taken over motmetrics' event column in its order (so MOTP is
+    its float). The kernel runs until a frame it cannot decide alone, which :func:`_clear_frame`
+    scores with motmetrics' solver, and resumes after it; ``compiled=False`` runs the kernel's
+    plain Python (its test oracle)."""
     run = mot_kernels.clear_pass if compiled else mot_kernels.clear_pass.py_func
     last = np.full(max(fa.n_gt_ids, 1), -1, np.int64)
-    counts = np.zeros(4, np.int64)
-    dsum = np.zeros(1)
+    counts = np.zeros(5, np.int64)
+    events = np.zeros(len(fa.oids) + len(fa.hids))
     f = 0
     while f < fa.n_frames:
-        f = run(f, fa.o_ptr, fa.oids, fa.h_ptr, fa.hids, fa.d_ptr, fa.d, float(gate), last, counts, dsum)
+        f = run(f, fa.o_ptr, fa.oids, fa.h_ptr, fa.hids, fa.d_ptr, fa.d, float(gate), last, counts, events)
         if f < fa.n_frames:
-            _clear_frame(f, fa, gate, last, counts, dsum)
+            _clear_frame(f, fa, gate, last, counts, events)
             f += 1
-    return counts, float(dsum[0])
+    return counts[:4], float(events[: counts[4]].sum())
 
 
 # --------------------------------------------------------------------------- ID measures
@@ -314,7 +320,7 @@ ALPHAS = np.arange(0.05, 0.99, 0.05)
 _EPS = np.finfo("float").eps
 
 
-def hota_curves(fa: FrameArrays, gate: float) -> dict[str, np.ndarray]:
+def hota_curves(fa: FrameArrays, gate: float, *, compiled: bool = True) -> dict[str, np.ndarray]:
     """HOTA, DetA, AssA at each of :data:`ALPHAS`, as ``trackeval.metrics.HOTA.eval_sequence``
     computes them, over all frames at once (the same float operations in the same order).
 
@@ -323,7 +329,7 @@ def hota_curves(fa: FrameArrays, gate: float) -> dict[str, np.ndarray]:
     frame's matching maximises :math:`\\sum A \\cdot s`
     (:func:`onebit.scoring.mot_kernels.hota_matches`; ties go to TrackEval's solver, scipy's
     ``linear_sum_assignment``); a matched pair counts at :math:`\\alpha` when
-    :math:`s \\ge \\alpha`."""
+    :math:`s \\ge \\alpha`. ``compiled=False`` runs the matching kernel's plain Python."""
     n = len(ALPHAS)
     n_obj, n_hyp = len(fa.oids), len(fa.hids)
     out = {k: np.zeros(n) for k in ("HOTA", "DetA", "AssA")}
@@ -346,7 +352,8 @@ def hota_curves(fa: FrameArrays, gate: float) -> dict[str, np.ndarray]:
     score = align.ravel()[cell] * s
     pairs = np.empty(min(n_obj, n_hyp), np.int64)
     handed = np.empty(fa.n_frames, np.int64)
-    n_p, n_h = mot_kernels.hota_matches(fa.o_ptr, fa.h_ptr, fa.d_ptr, score, pairs, handed)
+    match = mot_kernels.hota_matches if compiled else mot_kernels.hota_matches.py_func
+    n_p, n_h = match(fa.o_ptr, fa.h_ptr, fa.d_ptr, score, pairs, handed)
     chosen = [pairs[:n_p]]
     for f in handed[:n_h]:  # ties and large frames: TrackEval's own solver
         no, nh = fa.o_ptr[f + 1] - fa.o_ptr[f], fa.h_ptr[f + 1] - fa.h_ptr[f]

@@ -117,7 +117,7 @@ def best_matching(w, ok, n_rows, n_cols, by_count, choice):
 
 
 @kernel
-def clear_pass(f0, o_ptr, oids, h_ptr, hids, d_ptr, d, gate, last, counts, dsum):
+def clear_pass(f0, o_ptr, oids, h_ptr, hids, d_ptr, d, gate, last, counts, events):
     """CLEAR MOT (``motmetrics.MOTAccumulator.update``) over frames ``f0, f0+1, ...``.
 
     Per frame: (1) each object, in id order, whose last matched hypothesis ``last[o]`` is present
@@ -126,8 +126,10 @@ def clear_pass(f0, o_ptr, oids, h_ptr, hids, d_ptr, d, gate, last, counts, dsum)
     distance (:func:`best_matching`); a pair whose object was last matched to another hypothesis
     is a switch; ``last[o]`` becomes its hypothesis; (3) unmatched objects are misses, unmatched
     hypotheses false positives. Accumulates ``counts = [matches, switches, misses, false
-    positives]`` and ``dsum[0]`` (distances of matches and switches), updates ``last``. Returns
-    the first frame it cannot decide alone (a tie or too large, untouched) or the frame count.
+    positives, events]`` and writes each event's distance to ``events`` in motmetrics' order
+    (matches of (1), pairs of (2) by object, then 0 for each miss and false positive: its MOTP
+    is the sum of that column), updates ``last``. Returns the first frame it cannot decide
+    alone (a tie or too large, untouched) or the frame count.
     """
     n_frames = len(o_ptr) - 1
     choice = np.empty(64, np.int64)
@@ -135,17 +137,22 @@ def clear_pass(f0, o_ptr, oids, h_ptr, hids, d_ptr, d, gate, last, counts, dsum)
         oa, ob = o_ptr[f], o_ptr[f + 1]
         ha, hb = h_ptr[f], h_ptr[f + 1]
         no, nh = ob - oa, hb - ha
+        e = counts[4]
         if no == 0 or nh == 0:
+            for _ in range(no + nh):
+                events[e] = 0.0
+                e += 1
             counts[2] += no
             counts[3] += nh
+            counts[4] = e
             continue
         if no > 64:
             return f
         da = d_ptr[f]
         omask = np.zeros(no, np.bool_)
         hmask = np.zeros(nh, np.bool_)
-        matches = 0
-        fsum = 0.0
+        first = np.empty(no, np.float64)
+        n1 = 0
         for i in range(no):  # (1) continuing pairs
             hp = last[oids[oa + i]]
             if hp < 0:
@@ -156,8 +163,8 @@ def clear_pass(f0, o_ptr, oids, h_ptr, hids, d_ptr, d, gate, last, counts, dsum)
                     if x <= gate:  # False for NaN
                         omask[i] = True
                         hmask[j] = True
-                        matches += 1
-                        fsum += x
+                        first[n1] = x
+                        n1 += 1
                     break
         ok = np.zeros(no * nh, np.bool_)
         for i in range(no):
@@ -169,8 +176,11 @@ def clear_pass(f0, o_ptr, oids, h_ptr, hids, d_ptr, d, gate, last, counts, dsum)
         status = best_matching(d[da : da + no * nh], ok, no, nh, True, choice)
         if status != UNIQUE:
             return f
+        for k in range(n1):
+            events[e] = first[k]
+            e += 1
+        matches = n1
         switches = 0
-        paired = 0
         for i in range(no):
             j = choice[i]
             if j < 0:
@@ -181,15 +191,20 @@ def clear_pass(f0, o_ptr, oids, h_ptr, hids, d_ptr, d, gate, last, counts, dsum)
                 switches += 1
             else:
                 matches += 1
-            fsum += d[da + i * nh + j]
+            events[e] = d[da + i * nh + j]
+            e += 1
             last[o] = h
-            paired += 1
+            omask[i] = True
+            hmask[j] = True
         done = matches + switches  # objects matched in (1) or (2)
+        for _ in range(no - done + nh - done):
+            events[e] = 0.0
+            e += 1
         counts[0] += matches
         counts[1] += switches
         counts[2] += no - done
         counts[3] += nh - done
-        dsum[0] += fsum
+        counts[4] = e
     return n_frames
 
 

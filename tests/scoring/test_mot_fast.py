@@ -13,7 +13,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from onebit.scoring import mot_kernels
-from onebit.scoring.mot import clear_counts, frame_arrays, mot_metrics, mot_metrics_libraries
+from onebit.scoring.mot import clear_counts, frame_arrays, hota_curves, mot_metrics, mot_metrics_libraries
 
 #: distances drawn from: exact ties, the gate itself (1.0), beyond it, far beyond the HOTA range
 LEVELS = (0.0, 0.25, 0.5, 1.0, 1.5, 2.0, 3.0)
@@ -77,12 +77,15 @@ def test_equals_the_libraries_on_scenes_with_continuous_distances(scene):
 
 @settings(max_examples=60, deadline=None, derandomize=True)
 @given(scenes(hops=True))
-def test_the_compiled_clear_pass_equals_its_plain_python(scene):
+def test_the_compiled_kernels_equal_their_plain_python(scene):
     objects, hypotheses, distances, gate = scene
     fa = frame_arrays(objects, hypotheses, distances)
     fast, fast_sum = clear_counts(fa, gate)
     plain, plain_sum = clear_counts(fa, gate, compiled=False)
     assert fast.tolist() == plain.tolist() and fast_sum == plain_sum
+    fast, plain = hota_curves(fa, gate), hota_curves(fa, gate, compiled=False)
+    for k in fast:
+        np.testing.assert_array_equal(fast[k], plain[k])
 
 
 def test_a_silent_tracker_misses_every_target_frame():
