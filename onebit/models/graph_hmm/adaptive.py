@@ -169,6 +169,12 @@ def second_order_tensor(a1: np.ndarray, a2: np.ndarray, idx: np.ndarray) -> np.n
     return log_safe(t)
 
 
+def window_transitions(eatg: Eatg, states: np.ndarray, order: int) -> tuple[np.ndarray, np.ndarray | None]:
+    """``(log a1, log a2)`` restricted to ``states`` (``log a2`` only for ``order == 2``)."""
+    log_a2 = second_order_tensor(eatg.a1, eatg.a2, states) if order == 2 else None
+    return restricted_first(eatg.a1, states), log_a2
+
+
 def max_independent(nodes_on: np.ndarray, adj: np.ndarray, cache: dict) -> int:
     """Size of a maximum set of active nodes pairwise >= 2 hops apart (exact)."""
     key = tuple(nodes_on.tolist())
@@ -224,12 +230,15 @@ def decode_users(
     order: int,
     eatg: Eatg,
     params: DecoderParams,
+    transitions: tuple[np.ndarray, np.ndarray | None] | None = None,
 ) -> np.ndarray:
     """Decode ``K`` users on one window by explain-away coordinate ascent (module docstring).
 
     obs : (L, N) bool activity of the window; states : (S,) node indices of the state set.
     prefixes : per user, the last accepted nodes (0-2 of them) clamped before slot 0.
     starts : per user, the window slot it appears at (0 for known users).
+    transitions : ``(log a1, log a2)`` on ``states`` when the caller has them already (the
+        full-state baselines decode every window on the same states: computed once per run).
     Returns (K, L) node indices, -1 before a user's start.
     """
     k = len(prefixes)
@@ -239,8 +248,9 @@ def decode_users(
         return out
     pos = {int(v): i for i, v in enumerate(states)}
     on = obs[:, states]  # (L, S)
-    log_a1 = restricted_first(eatg.a1, states)
-    log_a2 = second_order_tensor(eatg.a1, eatg.a2, states) if order == 2 else None
+    if transitions is None:
+        transitions = window_transitions(eatg, states, order)
+    log_a1, log_a2 = transitions
     if math.factorial(k) <= params.restarts:  # every order: the result does not depend on the labels
         orders = [list(o) for o in itertools.permutations(range(k))]
     else:  # the users' decoding order rotated
@@ -360,6 +370,9 @@ def decode_run(
     windows: list[dict] = []
     dormant: dict[int, tuple[int, int]] = {}  # exited user -> (slot after its exit, door node)
     resume = params.resume
+    full = None  # the full-state baselines' transitions, on every node: the same for every window
+    if params.mode in ("full1", "full2"):
+        full = window_transitions(eatg, np.arange(n), 1 if params.mode == "full1" else 2)
     d_max = n_slots if params.offline else params.d_max
     tau = n_slots if params.offline else params.tau
     s = 0
@@ -423,7 +436,15 @@ def decode_run(
         else:
             order = 1 if params.mode == "full1" else 2
             paths = decode_users(
-                obs, np.arange(n), prefixes, starts, entry_nodes, order=order, eatg=eatg, params=params
+                obs,
+                np.arange(n),
+                prefixes,
+                starts,
+                entry_nodes,
+                order=order,
+                eatg=eatg,
+                params=params,
+                transitions=full,
             )
             info = dict(order=order, states=n, overlap=None)
         gone = []

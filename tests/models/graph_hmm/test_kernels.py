@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from onebit.models.graph_hmm import kernels, viterbi
-from onebit.models.graph_hmm.adaptive import DecoderParams, decode_run, decode_users
+from onebit.models.graph_hmm.adaptive import DecoderParams, decode_run, decode_users, window_transitions
 from onebit.models.graph_hmm.eatg import hop_matrix, layout_eatg, trained_eatg
 
 
@@ -152,3 +152,39 @@ def test_emission_table_matches_the_reference_gain():
         claims = np.array([[cc]])
         assert table[2, cc] == joint_emission(np.array([[True]]), claims, 0.9, 0.05)
         assert table[3, cc] == joint_emission(np.array([[False]]), claims, 0.9, 0.05)
+
+
+@pytest.mark.parametrize("seed", range(8))
+def test_sparse_motion_kernel_equals_the_dense_one(seed):
+    """The second-order Viterbi that visits only reachable (previous, current) pairs and the
+    moves the tensor allows gives the dense kernel's path and score, bit for bit: on tensors of
+    random sensor graphs (as the decoder builds them) and on random dense and sparse tensors."""
+    rng = np.random.default_rng(200 + seed)
+    nodes, edges = _random_graph(rng, 14)
+    hops = hop_matrix(nodes, edges)
+    act = rng.random((80, len(nodes))) < 0.2
+    eatg = trained_eatg(act, nodes, hops, horizon=5) if seed % 2 else layout_eatg(nodes, hops)
+    for trial in range(6):
+        if trial < 4:
+            states = np.arange(len(nodes)) if trial == 0 else np.sort(rng.choice(len(nodes), 8, replace=False))
+            log_a1, log_a2 = window_transitions(eatg, states, 2)
+            s = len(states)
+        else:
+            s = 6
+            log_a1 = np.log(rng.dirichlet(np.ones(s), size=s))
+            log_a2 = np.log(rng.dirichlet(np.ones(s), size=(s, s)))
+            log_a2[rng.random((s, s, s)) < 0.5 * (trial - 4)] = -np.inf
+        log_stay = np.ascontiguousarray(np.diag(log_a1))
+        for d in (1, 2, 5, 9):
+            log_pi = np.log(rng.dirichlet(np.ones(s)))
+            log_pi[rng.random(s) < 0.3] = -np.inf
+            log_b = np.log(rng.random((d, s)) + 1e-3)
+            log_b[rng.random((d, s)) < 0.2] = -np.inf
+            k_ptr, k_idx = kernels.move_support(log_a2)
+            p0, lp0 = kernels._viterbi_motion2(log_pi, log_stay, log_a2, log_b)
+            p1, lp1 = kernels._viterbi_motion2_sparse(log_pi, log_stay, log_a2, log_b, k_ptr, k_idx)
+            np.testing.assert_array_equal(p1, p0)
+            assert lp1 == lp0 or (np.isneginf(lp0) and np.isneginf(lp1))
+    # on a sensor graph the support is the neighbourhood, not the graph
+    k_ptr, _ = kernels.move_support(window_transitions(eatg, np.arange(len(nodes)), 2)[1])
+    assert np.diff(k_ptr).max() <= (hops == 1).sum(axis=1).max() + 1
