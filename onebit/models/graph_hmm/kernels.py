@@ -466,3 +466,85 @@ def _f64(a, ndim: int = 1) -> np.ndarray:
     if out.ndim != ndim:
         raise ValueError(f"expected a {ndim}-d array, got shape {out.shape}")
     return out
+
+
+# --------------------------------------------------------------------------- capping the users
+
+
+@kernel
+def cap_users_pass(paths, active, hops, cap):
+    """Compiled :func:`onebit.models.graph_hmm.decoding.cap_users_reference` (same output): per
+    slot the present users ranked by (node active now, last slot it was active, held by an
+    identity, user index), the first ``cap`` kept, each newly kept user given the free identity
+    whose last node is nearest in hops (first of equals). Sequential over slots; ``O(cap U)``
+    per slot."""
+    n_users, n_slots = paths.shape
+    out = np.full((cap, n_slots), -1, dtype=np.int64)
+    holder = np.full(cap, -1, dtype=np.int64)
+    last_node = np.full(cap, -1, dtype=np.int64)
+    seen = np.full(n_users, -1, dtype=np.int64)
+    lit = np.zeros(n_users, dtype=np.bool_)
+    held = np.zeros(n_users, dtype=np.bool_)
+    taken = np.zeros(n_users, dtype=np.bool_)
+    keep = np.empty(cap, dtype=np.int64)
+    in_keep = np.zeros(n_users, dtype=np.bool_)
+    for s in range(n_slots):
+        for u in range(n_users):
+            q = paths[u, s]
+            lit[u] = q >= 0 and active[s, q]
+            if lit[u]:
+                seen[u] = s
+            held[u] = False
+            taken[u] = False
+            in_keep[u] = False
+        for i in range(cap):
+            if holder[i] >= 0:
+                held[holder[i]] = True
+        n_keep = 0
+        while n_keep < cap:  # the next present user in (lit, seen, held, index) order
+            b = -1
+            for u in range(n_users):
+                if paths[u, s] < 0 or taken[u]:
+                    continue
+                if b < 0:
+                    b = u
+                    continue
+                if lit[u] != lit[b]:
+                    better = lit[u]
+                elif seen[u] != seen[b]:
+                    better = seen[u] > seen[b]
+                else:
+                    better = held[u] and not held[b]
+                if better:
+                    b = u
+            if b < 0:
+                break
+            taken[b] = True
+            keep[n_keep] = b
+            in_keep[b] = True
+            n_keep += 1
+        for i in range(cap):
+            if holder[i] >= 0 and not in_keep[holder[i]]:
+                holder[i] = -1
+        for r in range(n_keep):
+            u = keep[r]
+            have = False
+            for i in range(cap):
+                if holder[i] == u:
+                    have = True
+            if have:
+                continue
+            best_i = -1
+            best_d = 0
+            for i in range(cap):
+                if holder[i] >= 0:
+                    continue
+                d = hops[last_node[i], paths[u, s]] if last_node[i] >= 0 else 0
+                if best_i < 0 or d < best_d:
+                    best_i, best_d = i, d
+            holder[best_i] = u
+        for i in range(cap):
+            if holder[i] >= 0:
+                out[i, s] = paths[holder[i], s]
+                last_node[i] = out[i, s]
+    return out

@@ -9,6 +9,7 @@ import pytest
 
 from onebit.models.graph_hmm import kernels, viterbi
 from onebit.models.graph_hmm.adaptive import DecoderParams, decode_run, decode_users, window_transitions
+from onebit.models.graph_hmm.decoding import cap_users
 from onebit.models.graph_hmm.eatg import hop_matrix, layout_eatg, trained_eatg
 
 
@@ -188,3 +189,19 @@ def test_sparse_motion_kernel_equals_the_dense_one(seed):
     # on a sensor graph the support is the neighbourhood, not the graph
     k_ptr, _ = kernels.move_support(window_transitions(eatg, np.arange(len(nodes)), 2)[1])
     assert np.diff(k_ptr).max() <= (hops == 1).sum(axis=1).max() + 1
+
+
+@pytest.mark.parametrize("seed", range(10))
+def test_cap_users_kernel_equals_reference(seed):
+    """Random decoded paths (users appearing, vanishing, sharing nodes) on random graphs:
+    the compiled cap keeps the same users under the same identities as the numpy one."""
+    rng = np.random.default_rng(300 + seed)
+    nodes, edges = _random_graph(rng, 9)
+    hops = hop_matrix(nodes, edges)
+    n_users, n_slots = int(rng.integers(2, 9)), int(rng.integers(1, 60))
+    paths = rng.integers(0, len(nodes), (n_users, n_slots))
+    paths[rng.random(paths.shape) < 0.35] = -1
+    active = rng.random((n_slots, len(nodes))) < 0.3
+    for cap in range(1, n_users + 1):
+        ref = cap_users(paths, active, hops, cap, compiled=False)
+        np.testing.assert_array_equal(cap_users(paths, active, hops, cap), ref)
