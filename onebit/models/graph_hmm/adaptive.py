@@ -96,7 +96,7 @@ import numpy as np
 
 from onebit.core.lazy import lazy_module
 from onebit.models.graph_hmm.eatg import Eatg, onsets
-from onebit.models.graph_hmm.kernels import coordinate_ascent, emission_tables
+from onebit.models.graph_hmm.kernels import coordinate_ascent, emission_tables, move_support
 from onebit.models.graph_hmm.viterbi import log_safe, viterbi_first_order, viterbi_motion_second_order
 
 nx = lazy_module("networkx")
@@ -169,10 +169,15 @@ def second_order_tensor(a1: np.ndarray, a2: np.ndarray, idx: np.ndarray) -> np.n
     return log_safe(t)
 
 
-def window_transitions(eatg: Eatg, states: np.ndarray, order: int) -> tuple[np.ndarray, np.ndarray | None]:
-    """``(log a1, log a2)`` restricted to ``states`` (``log a2`` only for ``order == 2``)."""
-    log_a2 = second_order_tensor(eatg.a1, eatg.a2, states) if order == 2 else None
-    return restricted_first(eatg.a1, states), log_a2
+def window_transitions(
+    eatg: Eatg, states: np.ndarray, order: int
+) -> tuple[np.ndarray, np.ndarray | None, tuple[np.ndarray, np.ndarray] | None]:
+    """``(log a1, log a2, support)`` restricted to ``states``: ``log a2`` and its moves
+    (:func:`onebit.models.graph_hmm.kernels.move_support`) only for ``order == 2``."""
+    if order != 2:
+        return restricted_first(eatg.a1, states), None, None
+    log_a2 = second_order_tensor(eatg.a1, eatg.a2, states)
+    return restricted_first(eatg.a1, states), log_a2, move_support(np.ascontiguousarray(log_a2, dtype=np.float64))
 
 
 def max_independent(nodes_on: np.ndarray, adj: np.ndarray, cache: dict) -> int:
@@ -230,14 +235,14 @@ def decode_users(
     order: int,
     eatg: Eatg,
     params: DecoderParams,
-    transitions: tuple[np.ndarray, np.ndarray | None] | None = None,
+    transitions: tuple | None = None,
 ) -> np.ndarray:
     """Decode ``K`` users on one window by explain-away coordinate ascent (module docstring).
 
     obs : (L, N) bool activity of the window; states : (S,) node indices of the state set.
     prefixes : per user, the last accepted nodes (0-2 of them) clamped before slot 0.
     starts : per user, the window slot it appears at (0 for known users).
-    transitions : ``(log a1, log a2)`` on ``states`` when the caller has them already (the
+    transitions : :func:`window_transitions` of ``states`` when the caller has them already (the
         full-state baselines decode every window on the same states: computed once per run).
     Returns (K, L) node indices, -1 before a user's start.
     """
@@ -250,7 +255,7 @@ def decode_users(
     on = obs[:, states]  # (L, S)
     if transitions is None:
         transitions = window_transitions(eatg, states, order)
-    log_a1, log_a2 = transitions
+    log_a1, log_a2, support = transitions
     if math.factorial(k) <= params.restarts:  # every order: the result does not depend on the labels
         orders = [list(o) for o in itertools.permutations(range(k))]
     else:  # the users' decoding order rotated
@@ -270,6 +275,7 @@ def decode_users(
             log_a2=log_a2,
             table=table,
             sweeps=params.sweeps,
+            support=support,
         )
     else:
         best, best_score = None, -np.inf

@@ -418,6 +418,7 @@ def coordinate_ascent(
     log_a2: np.ndarray | None,
     table: np.ndarray,
     sweeps: int,
+    support: tuple[np.ndarray, np.ndarray] | None = None,
 ) -> tuple[np.ndarray, float]:
     """Every restart of the explain-away coordinate ascent in one compiled call.
 
@@ -427,7 +428,8 @@ def coordinate_ascent(
     :func:`emission_tables`. Returns the ``(K, L)`` state positions of the order with the
     highest joint log-likelihood (first of equals within 1e-9) and that likelihood, as
     :func:`~onebit.models.graph_hmm.adaptive.coordinate_ascent_reference` run over the same
-    orders.
+    orders. ``support``: :func:`move_support` of ``log_a2`` when the caller has it (computed
+    here otherwise, ``O(S^3)``).
     """
     k = len(prefixes)
     pre = np.zeros((k, 2), dtype=np.int64)
@@ -438,9 +440,9 @@ def coordinate_ascent(
     s = on.shape[1]
     a2 = np.zeros((1, 1, 1)) if log_a2 is None else _f64(log_a2, 3)
     a1 = _f64(log_a1, 2)
-    k_ptr, k_idx = (
-        move_support(a2) if order == 2 and log_a2 is not None else (np.zeros(2, np.int64), np.zeros(0, np.int64))
-    )
+    if order != 2 or log_a2 is None:
+        support = (np.zeros(2, np.int64), np.zeros(0, np.int64))
+    k_ptr, k_idx = move_support(a2) if support is None else support
     best, score = _coordinate_ascent(
         np.ascontiguousarray(on, dtype=np.bool_),
         pre,

@@ -168,7 +168,7 @@ def test_sparse_motion_kernel_equals_the_dense_one(seed):
     for trial in range(6):
         if trial < 4:
             states = np.arange(len(nodes)) if trial == 0 else np.sort(rng.choice(len(nodes), 8, replace=False))
-            log_a1, log_a2 = window_transitions(eatg, states, 2)
+            log_a1, log_a2, _ = window_transitions(eatg, states, 2)
             s = len(states)
         else:
             s = 6
