@@ -235,61 +235,130 @@ def move_support(log_move):
 
 
 @kernel
+def _grow(arr, need):
+    """``arr`` if it holds ``need`` items, else a copy twice as large (or ``need``)."""
+    if need <= arr.shape[0]:
+        return arr
+    out = np.empty(max(need, 2 * arr.shape[0]), dtype=arr.dtype)
+    out[: arr.shape[0]] = arr
+    return out
+
+
+@kernel
 def _viterbi_motion2_sparse(log_pi, log_stay, log_move, log_b, k_ptr, k_idx):
-    """:func:`_viterbi_motion2` visiting only what can be finite: per current node ``j`` the
-    previous nodes ``p`` whose ``delta[p, j]`` is finite (the reachable (previous, current)
-    pairs) and the moves ``k`` of :func:`move_support`. Per slot ``O(S^2 + S d_in d_out)``
-    instead of ``O(S^3)``; the same maxima taken in the same order (``p`` ascending, first of
-    equals), so the same path and score (tests: equal to the dense kernel)."""
-    n_slots, n_states = log_b.shape
+    """:func:`_viterbi_motion2` over the reachable pairs only: it keeps the list of the
+    (previous, current) pairs whose ``delta`` is finite and, per slot, extends each by the moves
+    :func:`move_support` allows and by staying. A user whose last nodes are known (the clamped
+    prefix) reaches a few pairs per slot, so the cost follows the neighbourhood it can reach, not
+    the graph; one that may start anywhere reaches every node. Back-pointers are kept only where
+    a move wins (per slot, sparse). Every maximum keeps the dense kernel's choice (the smallest
+    previous node among equals; the row-major first pair at the end), so the path and the score
+    are the dense kernel's (tests)."""
+    n_slots, n = log_b.shape
     path = np.zeros(n_slots, dtype=np.int64)
     if n_slots == 0:
         return path, 0.0
-    delta = np.full((n_states, n_states), NEG_INF)
-    for j in range(n_states):
-        delta[j, j] = log_pi[j] + log_b[0, j]
-    back = np.full((n_slots, n_states, n_states), -1, dtype=np.int64)
-    best = np.full((n_states, n_states), NEG_INF)
-    arg = np.zeros((n_states, n_states), dtype=np.int64)
-    new = np.empty((n_states, n_states))
+    delta = np.full((n, n), NEG_INF)
+    nd = np.full((n, n), NEG_INF)
+    best = np.full((n, n), NEG_INF)
+    arg = np.zeros((n, n), dtype=np.int64)
+    touched = np.zeros((n, n), dtype=np.bool_)
+    ca = np.empty(max(n, 16), dtype=np.int64)  # the finite pairs of delta: (ca[i], cb[i])
+    cb = np.empty(max(n, 16), dtype=np.int64)
+    nc = 0
+    for j in range(n):
+        v = log_pi[j] + log_b[0, j]
+        if v > NEG_INF:
+            delta[j, j] = v
+            ca[nc] = j
+            cb[nc] = j
+            nc += 1
+    ta = np.empty(16, dtype=np.int64)  # pairs a move reaches this slot
+    tb = np.empty(16, dtype=np.int64)
+    na = np.empty(16, dtype=np.int64)  # the finite pairs of the next delta
+    nb = np.empty(16, dtype=np.int64)
+    rec_ptr = np.zeros(n_slots + 1, dtype=np.int64)  # back-pointers where a move won: per slot
+    ra = np.empty(16, dtype=np.int64)
+    rb = np.empty(16, dtype=np.int64)
+    rp = np.empty(16, dtype=np.int64)
+    nr = 0
     for d in range(1, n_slots):  # sequential in time by construction
-        for j in range(n_states):
+        nt = 0
+        for i in range(nc):  # best[j, k] = max_p delta[p, j] + log_move[p, j, k]
+            p = ca[i]
+            j = cb[i]
+            dv = delta[p, j]
             for q in range(k_ptr[j], k_ptr[j + 1]):
-                best[j, k_idx[q]] = NEG_INF
-                arg[j, k_idx[q]] = 0
-            for p in range(n_states):
-                dv = delta[p, j]
-                if dv == NEG_INF:
+                k = k_idx[q]
+                if k == j:
                     continue
-                row = log_move[p, j]
-                for q in range(k_ptr[j], k_ptr[j + 1]):
-                    k = k_idx[q]
-                    v = dv + row[k]
-                    if v > best[j, k]:
-                        best[j, k] = v
-                        arg[j, k] = p
-        bd = back[d]
-        for j in range(n_states):
-            for k in range(n_states):
+                v = dv + log_move[p, j, k]
+                if v == NEG_INF:
+                    continue
+                if not touched[j, k]:
+                    touched[j, k] = True
+                    ta = _grow(ta, nt + 1)
+                    tb = _grow(tb, nt + 1)
+                    ta[nt] = j
+                    tb[nt] = k
+                    nt += 1
+                    best[j, k] = v
+                    arg[j, k] = p
+                elif v > best[j, k] or (v == best[j, k] and p < arg[j, k]):
+                    best[j, k] = v
+                    arg[j, k] = p
+        nn = 0
+        for pass_ in range(2):  # the pairs a move reaches, then the others that stay
+            m = nt if pass_ == 0 else nc
+            for i in range(m):
+                j = ta[i] if pass_ == 0 else ca[i]
+                k = tb[i] if pass_ == 0 else cb[i]
+                if pass_ == 1 and touched[j, k]:
+                    continue
                 stay = delta[j, k] + log_stay[k]
-                move = NEG_INF if j == k else best[j, k]
+                move = best[j, k] if pass_ == 0 else NEG_INF
                 if move > stay:
-                    bd[j, k] = arg[j, k]
-                    new[j, k] = move + log_b[d, k]
+                    ra = _grow(ra, nr + 1)
+                    rb = _grow(rb, nr + 1)
+                    rp = _grow(rp, nr + 1)
+                    ra[nr] = j
+                    rb[nr] = k
+                    rp[nr] = arg[j, k]
+                    nr += 1
+                    v = move + log_b[d, k]
                 else:
-                    new[j, k] = stay + log_b[d, k]
-        for j in range(n_states):
-            for k in range(n_states):
-                delta[j, k] = new[j, k]
+                    v = stay + log_b[d, k]
+                if v > NEG_INF:
+                    nd[j, k] = v
+                    na = _grow(na, nn + 1)
+                    nb = _grow(nb, nn + 1)
+                    na[nn] = j
+                    nb[nn] = k
+                    nn += 1
+        rec_ptr[d + 1] = nr
+        for i in range(nt):
+            touched[ta[i], tb[i]] = False
+            best[ta[i], tb[i]] = NEG_INF
+            arg[ta[i], tb[i]] = 0
+        for i in range(nc):
+            delta[ca[i], cb[i]] = NEG_INF
+        delta, nd = nd, delta
+        ca, na = na, ca
+        cb, nb = nb, cb
+        nc = nn
     x, y = 0, 0
-    for a in range(n_states):
-        for b in range(n_states):
-            if delta[a, b] > delta[x, y]:
-                x, y = a, b
+    for i in range(nc):  # the row-major first maximum
+        a, b = ca[i], cb[i]
+        if delta[a, b] > delta[x, y] or (delta[a, b] == delta[x, y] and (a < x or (a == x and b < y))):
+            x, y = a, b
     score = delta[x, y]
     path[n_slots - 1] = y
     for d in range(n_slots - 1, 0, -1):
-        b = back[d, x, y]
+        b = -1
+        for r in range(rec_ptr[d], rec_ptr[d + 1]):
+            if ra[r] == x and rb[r] == y:
+                b = rp[r]
+                break
         if b >= 0:
             x, y = b, x
         path[d - 1] = y

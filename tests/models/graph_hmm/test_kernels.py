@@ -157,9 +157,10 @@ def test_emission_table_matches_the_reference_gain():
 
 @pytest.mark.parametrize("seed", range(8))
 def test_sparse_motion_kernel_equals_the_dense_one(seed):
-    """The second-order Viterbi that visits only reachable (previous, current) pairs and the
+    """The second-order Viterbi that keeps only the reachable (previous, current) pairs and the
     moves the tensor allows gives the dense kernel's path and score, bit for bit: on tensors of
-    random sensor graphs (as the decoder builds them) and on random dense and sparse tensors."""
+    random sensor graphs (as the decoder builds them) and on random dense and sparse tensors,
+    with random, clamped (a known last node) and all-equal emissions (ties)."""
     rng = np.random.default_rng(200 + seed)
     nodes, edges = _random_graph(rng, 14)
     hops = hop_matrix(nodes, edges)
@@ -182,10 +183,15 @@ def test_sparse_motion_kernel_equals_the_dense_one(seed):
             log_b = np.log(rng.random((d, s)) + 1e-3)
             log_b[rng.random((d, s)) < 0.2] = -np.inf
             k_ptr, k_idx = kernels.move_support(log_a2)
-            p0, lp0 = kernels._viterbi_motion2(log_pi, log_stay, log_a2, log_b)
-            p1, lp1 = kernels._viterbi_motion2_sparse(log_pi, log_stay, log_a2, log_b, k_ptr, k_idx)
-            np.testing.assert_array_equal(p1, p0)
-            assert lp1 == lp0 or (np.isneginf(lp0) and np.isneginf(lp1))
+            clamped = log_b.copy()  # the decoder's prefix: the user's last node known
+            clamped[0] = -np.inf
+            clamped[0, rng.integers(s)] = 0.0
+            flat = np.zeros_like(log_b)  # every emission equal: ties everywhere
+            for pi, b in ((log_pi, log_b), (np.zeros(s), clamped), (np.zeros(s), flat)):
+                p0, lp0 = kernels._viterbi_motion2(pi, log_stay, log_a2, b)
+                p1, lp1 = kernels._viterbi_motion2_sparse(pi, log_stay, log_a2, b, k_ptr, k_idx)
+                np.testing.assert_array_equal(p1, p0)
+                assert lp1 == lp0 or (np.isneginf(lp0) and np.isneginf(lp1))
     # on a sensor graph the support is the neighbourhood, not the graph
     k_ptr, _ = kernels.move_support(window_transitions(eatg, np.arange(len(nodes)), 2)[1])
     assert np.diff(k_ptr).max() <= (hops == 1).sum(axis=1).max() + 1
@@ -205,3 +211,17 @@ def test_cap_users_kernel_equals_reference(seed):
     for cap in range(1, n_users + 1):
         ref = cap_users(paths, active, hops, cap, compiled=False)
         np.testing.assert_array_equal(cap_users(paths, active, hops, cap), ref)
+
+
+def test_sparse_motion_kernel_breaks_ties_as_the_dense_one():
+    """Every move equally likely and better than staying: every previous node ties, and both
+    kernels take the smallest (the path depends on it)."""
+    s = 5
+    log_move = np.zeros((s, s, s))
+    log_stay = np.full(s, -1.0)
+    for b in (np.zeros((6, s)), np.where(np.eye(s, dtype=bool)[[3, 1, 4, 0, 2, 2]], 0.0, -0.5)):
+        k_ptr, k_idx = kernels.move_support(log_move)
+        p0, lp0 = kernels._viterbi_motion2(np.zeros(s), log_stay, log_move, b)
+        p1, lp1 = kernels._viterbi_motion2_sparse(np.zeros(s), log_stay, log_move, b, k_ptr, k_idx)
+        np.testing.assert_array_equal(p1, p0)
+        assert lp1 == lp0
