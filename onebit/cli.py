@@ -191,6 +191,8 @@ def _cmd_experiment(args) -> int:
             targets=args.targets,
             doors=tuple(d.strip() for d in args.doors.split(",") if d.strip()) if args.doors else (),
             config=load_run_config(args.config),
+            cross_validate=args.cross_validate,
+            profile_clock=args.profile_clock,
         )
     else:
         if args.config is not None:
@@ -207,6 +209,31 @@ def _cmd_experiment(args) -> int:
             Path(args.out), seed=args.seed, trials=args.trials, quick=args.quick, echo=print, executor=ex, **extra
         )
     print(f"experiment {args.name}: results in {out}")
+    return 0
+
+
+def _cmd_learn_residents(args) -> int:
+    from onebit.pipeline.learn import learn_residents, write_profile
+    from onebit.trackers.residents.known import Clock
+
+    clock = Clock(args.clock, args.bins) if args.clock != "none" else None
+    learned = learn_residents([Path(d) for d in args.datasets], clock=clock)
+    out = write_profile(learned, Path(args.out))
+    residents = learned.profile["resident"].n_unique()
+    print(
+        f"learned {residents} residents from {learned.events} labelled events in {learned.sessions} sessions "
+        f"({learned.rejects.height} truth_events lines rejected) -> {out}"
+    )
+    return 0
+
+
+def _cmd_logs_split(args) -> int:
+    from onebit.pipeline.split import parse_period, split_dataset
+
+    parts = split_dataset(Path(args.dataset), Path(args.out), every=parse_period(args.every))
+    rows = sum(sum(p.rows.values()) for p in parts)
+    print(f"split {args.dataset} into {len(parts)} parts of {args.every} ({rows} rows) under {args.out}")
+    print(f"run them all: onebit run-many {args.out}/part-* --out RUNS")
     return 0
 
 
@@ -379,6 +406,7 @@ def build_parser() -> argparse.ArgumentParser:
     _add_experiment_command(sub)
     _add_verify_path_command(sub)
     _add_import_commands(sub)
+    _add_learn_command(sub)
     _add_logs_commands(sub)
     return p
 
@@ -505,6 +533,18 @@ def _add_experiment_command(sub) -> None:
     e.add_argument("--seed", type=int, default=0)
     e.add_argument("--trials", type=int, default=None, help="trials per setting (default: the paper's)")
     e.add_argument("--quick", action="store_true", help="a reduced study (smoke test)")
+    e.add_argument(
+        "--cross-validate",
+        action="store_true",
+        help="residents: each session also decoded with the known residents learned from the other sessions "
+        "(leave one session out; the residents tracker and the supervised 'habits' baseline)",
+    )
+    e.add_argument(
+        "--profile-clock",
+        choices=("none", "day", "session"),
+        default="none",
+        help="residents --cross-validate: the profiles' clock (onebit learn residents --clock; 10 bins)",
+    )
     e.add_argument("--data", default=None, help="ceiling: the irtracking recordings (a clone of antonmil/irtracking)")
     _add_executor_options(e)
     e.set_defaults(func=_cmd_experiment)
@@ -519,6 +559,27 @@ def _add_verify_path_command(sub) -> None:
     vp.add_argument("--mismatch", type=float, default=-1.0, help="score of a mismatching label (<= 0)")
     vp.add_argument("--gap", type=float, default=1.0, help="penalty of a gap (> 0)")
     vp.set_defaults(func=_cmd_verify_path)
+
+
+def _add_learn_command(sub) -> None:
+    """``learn residents``: a known-residents profile from labelled dataset folders."""
+    ln = sub.add_parser("learn", help="learn a model from labelled dataset folders (known residents)")
+    lsub = ln.add_subparsers(dest="learn_command", required=True)
+    lr = lsub.add_parser(
+        "residents",
+        help="a residents_profile.csv from datasets with truth_events.csv (put it in a dataset: known residents)",
+    )
+    lr.add_argument("datasets", nargs="+", help="labelled dataset folders (e.g. imported CASAS sessions)")
+    lr.add_argument("--out", required=True, help="the profile to write (residents_profile.csv)")
+    lr.add_argument(
+        "--clock",
+        choices=("none", "day", "session"),
+        default="none",
+        help="also learn the residents' habits by time: day (time of day, from the sites' epoch: homes over days) "
+        "or session (first to last event: scripted sessions); default none",
+    )
+    lr.add_argument("--bins", type=int, default=10, help="parts of the clock (default 10)")
+    lr.set_defaults(func=_cmd_learn_residents)
 
 
 def _add_import_commands(sub) -> None:
@@ -633,6 +694,11 @@ def _add_logs_commands(sub) -> None:
         "--topics", metavar="TOML", help="MCAP -> CSV: mcap_topics.toml mapping ROS 2 Bool topics to sensors"
     )
     lc.set_defaults(func=_cmd_logs_convert)
+    ls = lsub.add_parser("split", help="cut a long dataset into one dataset folder per day (or per --every)")
+    ls.add_argument("dataset")
+    ls.add_argument("out", help="folder for the parts (OUT/part-000, ...) and split.toml")
+    ls.add_argument("--every", default="1d", help="period of a part: 1d (default), 6h, 90m, 3600 (seconds)")
+    ls.set_defaults(func=_cmd_logs_split)
 
 
 def main(argv: list[str] | None = None) -> int:

@@ -42,6 +42,16 @@ TRUTH = pl.Schema(
 #: sorted as text and joined with ``;`` ("1", "1;2"). ``t`` on the run's time base (as motion).
 TRUTH_EVENTS = pl.Schema({"t": pl.Float64, "sensor": pl.String, "residents": pl.String})
 
+#: A residents profile (``residents_profile.csv``, learned by ``onebit learn residents`` from
+#: datasets with ``truth_events``): per resident, ``count`` of their consecutive labelled events
+#: ``from`` -> ``to`` (sensors); a row with ``from`` null counts the resident's events at ``to``
+#: (their habit); a habit row with a ``bin`` (``"session 3/10"``, ``"day 14/24"``) counts them
+#: in that part of the session or of the day only (the profile's clock). Read by the
+#: ``residents`` tracker (docs/residents.md, "Known residents").
+RESIDENTS_PROFILE = pl.Schema(
+    {"resident": pl.String, "from": pl.String, "to": pl.String, "count": pl.Float64, "bin": pl.String}
+)
+
 #: ``<tracker>_events``: the track each motion firing (ON edge) was attributed to (null: none).
 TRACKER_EVENTS = pl.Schema({"t": pl.Float64, "sensor": pl.String, "track": pl.String})
 

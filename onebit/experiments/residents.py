@@ -11,9 +11,15 @@ session and method:
 ``session, method, status, accuracy, ari, switches_per_hour, count_error, attributed, events, seconds``
 
 (``seconds``: the tracker's stage time measured by the runner; null for the baselines), written
-to ``RESULTS/results.csv`` and ``results.parquet``, with the mean over sessions per method
+to ``RESULTS/results.csv`` and ``results.parquet`` (every identity error of the ``residents``
+tracker, with where the other resident was, to ``RESULTS/errors.csv``), with the mean over sessions per method
 (``session = "mean"``) appended. A tracker that fails on a session is a row with its status
 and null scores, never a dropped row. ``RESULTS`` defaults to ``DIR/residents-study``.
+
+With ``--cross-validate`` (leave one session out) each session's dataset also gets the
+``residents_profile.csv`` learned from all the other sessions (:mod:`onebit.pipeline.learn`),
+so the ``residents`` tracker decodes it with known residents, and the supervised baseline
+``baseline-habits`` is added; no session's own labels are used to decode it.
 
 Only the files in ``DIR`` are read: to keep held-out sessions out, point it at a folder that
 holds only the development ones (e.g. symbolic links to P01-P13).
@@ -26,14 +32,22 @@ from pathlib import Path
 import polars as pl
 
 from onebit.core.errors import InputError
+from onebit.core.site import load_site
 from onebit.core.writers import write_csv, write_parquet
 from onebit.datasets.importers import import_casas
+from onebit.pipeline.learn import learn_residents, write_profile
 from onebit.pipeline.runner import run_pipeline
+from onebit.scoring.identity import ERRORS, error_table, graph_hops
+from onebit.trackers.residents.known import Clock
 
 #: The multi-person trackers that write ``<tracker>_events`` (the default ``--trackers``).
 DEFAULT_TRACKERS = ("residents", "hmm1", "hmm2", "findinghumo", "findinghumo-flow")
 #: The baselines' report stages and their names here.
-BASELINES = {"identity-busier": "baseline-busier", "identity-nearest": "baseline-nearest"}
+BASELINES = {
+    "identity-busier": "baseline-busier",
+    "identity-nearest": "baseline-nearest",
+    "identity-habits": "baseline-habits",
+}
 
 RESULTS = pl.Schema(
     {
@@ -92,6 +106,22 @@ def session_rows(
     return rows
 
 
+#: The tracker whose every identity error the study lists (``errors.csv``).
+DIAGNOSED = "residents"
+
+
+def session_errors(session: str, dataset: Path, run_dir: Path, trackers: tuple[str, ...]) -> list[pl.DataFrame]:
+    """Every identity error of :data:`DIAGNOSED` in one session's run
+    (:func:`onebit.scoring.identity.error_table`), with the session; empty when it did not run."""
+    tables = run_dir / "tables"
+    te, ev = tables / "truth_events.parquet", tables / f"{DIAGNOSED}_events.parquet"
+    if DIAGNOSED not in trackers or not te.exists() or not ev.exists():
+        return []
+    hops = graph_hops(load_site(dataset / "site.toml"))
+    err = error_table(pl.read_parquet(te), pl.read_parquet(ev), hops)
+    return [err.select(pl.lit(session).alias("session"), pl.all())]
+
+
 def with_means(df: pl.DataFrame) -> pl.DataFrame:
     """``df`` and one ``session = "mean"`` row per method (means over the sessions it scored)."""
     num = [c for c, t in RESULTS.items() if t == pl.Float64]
@@ -120,6 +150,8 @@ def run(
     targets: int | None = None,
     doors: tuple[str, ...] = (),
     config: dict | None = None,
+    cross_validate: bool = False,
+    profile_clock: str = "none",
 ) -> Path:
     """The study (module docstring); ``out`` is the folder of session files. ``quick``: the
     first two sessions; ``trials``: the first ``trials`` sessions; ``config``: the stage
@@ -134,16 +166,39 @@ def run(
     if trials:
         files = files[:trials]
     rows: list[dict] = []
+    errors: list[pl.DataFrame] = []
+    datasets = {f.stem: res_dir / "datasets" / f.stem for f in files}
     for f in files:
-        ds = res_dir / "datasets" / f.stem
         import_casas(
-            f, ds, layout=layout, rooms=rooms, scale=scale, graph_radius=graph_radius, targets=targets, doors=doors
+            f,
+            datasets[f.stem],
+            layout=layout,
+            rooms=rooms,
+            scale=scale,
+            graph_radius=graph_radius,
+            targets=targets,
+            doors=doors,
         )
+    for f in files:
+        ds = datasets[f.stem]
+        profile = ds / "residents_profile.csv"
+        profile.unlink(missing_ok=True)
+        if cross_validate:  # known residents learned from every other session (leave one out)
+            others = [d for name, d in datasets.items() if name != f.stem]
+            if not others:
+                raise InputError("--cross-validate needs at least two sessions", file=folder)
+            clock = Clock(profile_clock, 10) if profile_clock != "none" else None
+            write_profile(learn_residents(others, clock=clock), profile)
         run_dir = res_dir / "runs" / f.stem
         res = run_pipeline(ds, run_dir, trackers=trackers, config=config, progress=False)
+        errors += session_errors(f.stem, ds, run_dir, trackers)
         tpath = run_dir / "tables" / "timings.parquet"
         timings = pl.read_parquet(tpath) if tpath.exists() else None
-        new = session_rows(f.stem, res.report, res.status, trackers, timings)
+        new = [  # the supervised baseline exists only with a profile (--cross-validate)
+            r
+            for r in session_rows(f.stem, res.report, res.status, trackers, timings)
+            if r["method"] != "baseline-habits" or r["events"] is not None
+        ]
         rows += new
         echo(
             f"{f.stem}: "
@@ -155,8 +210,13 @@ def run(
     res_dir.mkdir(parents=True, exist_ok=True)
     write_csv(df, res_dir / "results.csv")
     write_parquet(df, res_dir / "results.parquet")
+    err = pl.concat(errors) if errors else pl.DataFrame(schema={"session": pl.String, **ERRORS})
+    write_csv(err, res_dir / "errors.csv")
     with pl.Config(tbl_rows=-1, tbl_cols=-1, tbl_width_chars=200, float_precision=3, tbl_hide_dataframe_shape=True):
         echo(str(df))
+        if err.height:
+            echo(f"identity errors of {DIAGNOSED} by kind (every one in errors.csv; docs/residents.md):")
+            echo(str(err.pivot(on="kind", index="session", values="t", aggregate_function="len").fill_null(0)))
         wide = df.pivot(on="method", index="session", values="accuracy")
         echo("identity accuracy (fraction of labelled events) per session and method:")
         echo(str(wide))

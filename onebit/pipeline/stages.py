@@ -5,6 +5,7 @@
     crossings  beams.csv | crossings.csv   -> crossings, aborted, beam_events
     truth      truth.csv                   -> truth, true_crossings, sim_crossings
     truth_events truth_events.csv          -> truth_events (per-event identity truth: t, sensor, residents)
+    residents_profile residents_profile.csv -> residents_profile (known residents, learned from labelled days)
     camera     camera.mp4                  -> camera_truth, camera_detections
     frames     frames.csv (frame-sampled)  -> levels, motion, proximity, proximity_frames
     motion     motion.csv                  -> motion, motion_suppressed   (skipped with frames.csv)
@@ -45,6 +46,7 @@ from onebit.readers.rows import read_typed_csv
 from onebit.readers.tables_csv import (
     crossings_from_rows,
     read_crossings_csv,
+    read_residents_profile_csv,
     read_true_crossings_csv,
     read_truth_csv,
     read_truth_events_csv,
@@ -359,6 +361,22 @@ def _truth_events_work(ctx: RunContext) -> dict[str, pl.DataFrame]:
         ),
     ]
     return {"truth_events": te}
+
+
+def _profile_available(ctx: RunContext) -> str | None:
+    return None if (ctx.dataset / "residents_profile.csv").exists() else "no residents_profile.csv in the dataset"
+
+
+def _profile_work(ctx: RunContext) -> dict[str, pl.DataFrame]:
+    """``residents_profile.csv`` (learned by ``onebit learn residents``): the known residents'
+    profile the ``residents`` tracker decodes with (docs/residents.md, "Known residents")."""
+    prof, rej = read_residents_profile_csv(ctx.dataset / "residents_profile.csv")
+    ctx.add_rejects(rej)
+    ctx.report += [
+        ("residents_profile", "residents", float(prof["resident"].n_unique()), "residents"),
+        ("residents_profile", "events", float(prof.filter(pl.col("from").is_null())["count"].sum()), "events"),
+    ]
+    return {"residents_profile": prof}
 
 
 def _camera_available(ctx: RunContext) -> str | None:
@@ -689,7 +707,9 @@ def scores_stage(trackers: tuple[TrackerEntry, ...] = TRACKERS, metrics: tuple[M
                     ctx.status[f"scores/{entry.name}"] = f"failed: {exc}"
         te = tables.get("truth_events")
         if te is not None and te.height:  # what a tracker's identity per event is compared with
-            ctx.report += baseline_rows(te, graph_hops(ctx.site))
+            ctx.report += baseline_rows(
+                te, graph_hops(ctx.site), profile=tables.get("residents_profile"), epoch=ctx.site.epoch
+            )
         rej = ctx.tables.get("rejects", pl.DataFrame(schema=REJECTS))
         ctx.report.append(("rejects", "rows", float(rej.height), "rows"))
         out["timings"] = tables["timings"]
@@ -733,6 +753,7 @@ def stages(trackers: tuple[TrackerEntry, ...] = TRACKERS) -> list[Stage]:
         ),
         Stage("truth", (), ("truth", "true_crossings", "sim_crossings"), _truth_available, _truth_work, _truth_viz),
         Stage("truth_events", (), ("truth_events",), _truth_events_available, _truth_events_work),
+        Stage("residents_profile", (), ("residents_profile",), _profile_available, _profile_work),
         Stage("camera", (), ("camera_truth", "camera_detections"), _camera_available, _camera_work, _camera_viz),
         Stage(
             "frames",

@@ -927,15 +927,15 @@ def by_time(rows: pl.DataFrame) -> pl.DataFrame:
 
 def duplicate_of(ok: pl.DataFrame, key: tuple[str, ...]) -> pl.Series:
     """For every row of ``ok`` (``line`` + the ``key`` columns, ``t`` among them), the first
-    ``line`` of an earlier row with the same ``key``, else null: found by one sort on the key and
+    ``line`` of an earlier row with the same ``key`` (nulls equal), else null: found by one sort on the key and
     a comparison of neighbours (no window over the key). Rows whose ``t`` no other row has
     cannot be duplicates; when ``t`` never decreases in file order (the usual log) only the
     runs of equal ``t`` are sorted."""
     out = pl.Series("_dup", [], dtype=pl.Int64).extend_constant(None, ok.height)
     idx = pl.int_range(pl.len(), dtype=pl.Int64).alias("_i")
     cand = ok.select(idx, "line", *key)
-    v = ok["t"].to_numpy()
-    if v.size < 2 or (v[1:] >= v[:-1]).all():
+    v = ok["t"].to_numpy() if "t" in ok.columns else None  # a time-free table: every row a candidate
+    if v is not None and (v.size < 2 or (v[1:] >= v[:-1]).all()):
         eq = v[1:] == v[:-1]
         if not eq.any():  # no two rows share a stamp: no duplicate
             return out
@@ -981,7 +981,9 @@ def order_checks(
         )
         ok = ok.filter(pl.col("_dup").is_null()).drop("_dup")
     reordered = 0
-    if not in_time_order(ok["t"]):  # some row is earlier than a row before it
+    if "t" in ok.columns and not in_time_order(
+        ok["t"]
+    ):  # some row is earlier than a row before it (time-free tables: no order)
         ok = ok.sort("line").with_columns(pl.col("t").cum_max().shift(1).alias("_prev"))
         back = (pl.col("t") < pl.col("_prev") - tolerance).fill_null(False)
         late = ok.filter(back).rechunk()  # (polars 2.1 panics formatting a filtered frame's floats otherwise)
@@ -1011,7 +1013,7 @@ def order_checks(
         made = pl.DataFrame(schema=REJECTS)
     rejects = made if prior is None else pl.concat([prior, made]).sort("line")
     accepted = ok.select("line", *columns)
-    if reordered or not in_time_order(accepted["t"]):
+    if "t" in accepted.columns and (reordered or not in_time_order(accepted["t"])):
         accepted = accepted.sort(["t", "line"])
     return TypedRows(accepted, rejects, reordered)
 

@@ -7,7 +7,7 @@ from pathlib import Path
 import polars as pl
 
 from onebit.core.errors import InputError
-from onebit.core.tables import CROSSINGS, TRUE_CROSSINGS, TRUTH, TRUTH_EVENTS, conform
+from onebit.core.tables import CROSSINGS, RESIDENTS_PROFILE, TRUE_CROSSINGS, TRUTH, TRUTH_EVENTS, conform
 from onebit.readers.rows import (
     RawRows,
     TypedRows,
@@ -169,3 +169,47 @@ def read_truth_events_csv(path, *, epoch=None):
     Returns ``(truth_events, rejects)``; every line not taken is a reject with its reason."""
     path = Path(path)
     return truth_events_from_rows(read_csv_rows(path, tuple(TRUTH_EVENTS.names())), epoch=epoch, path=path)
+
+
+#: A profile row's ``bin``: ``session k/n`` or ``day k/n`` with ``0 <= k < n``.
+PROFILE_BIN = r"^(session|day) ([0-9]+)/([0-9]+)$"
+
+
+def residents_profile_from_rows(raw: RawRows, *, path: Path | None = None):
+    """Type ``residents_profile.csv`` rows: resident, from (empty: the resident's habit row), to,
+    count (a finite number >= 0), bin (empty, or ``session k/n`` / ``day k/n`` on a habit row).
+    Returns ``(residents_profile, rejects)``; a second row with the same resident, from, to and
+    bin is a duplicate (rejected, counted)."""
+    frm = pl.col("from").str.strip_chars()
+    cnt, cnt_bad = parse_float("count")
+    b = pl.col("bin").str.strip_chars()
+    k, n = b.str.extract(PROFILE_BIN, 2).cast(pl.Int64), b.str.extract(PROFILE_BIN, 3).cast(pl.Int64)
+    bin_bad = (
+        pl.when(b.is_null() | (b == ""))
+        .then(None)
+        .when(k.is_null() | (k >= n))
+        .then(pl.format("field 'bin': '{}' is not 'session k/n' or 'day k/n' with 0 <= k < n", b))
+        .when(frm != "")
+        .then(pl.lit("field 'bin': only on a habit row (empty 'from')"))
+    )
+    parsers = {
+        "resident": parse_name("resident", None, "resident"),
+        "from": (pl.when(frm == "").then(None).otherwise(frm), pl.lit(None, pl.String)),
+        "to": parse_name("to", None, "sensor"),
+        "count": (cnt, pl.coalesce(cnt_bad, pl.when(cnt < 0).then(pl.format("field 'count': negative: {}", cnt)))),
+        "bin": (pl.when(b == "").then(None).otherwise(b), bin_bad),
+    }
+    ok, rej = type_rows(raw, parsers, key=("resident", "from", "to", "bin"), path=path)
+    return conform(ok, RESIDENTS_PROFILE), rej
+
+
+def read_residents_profile_csv(path):
+    """``residents_profile.csv`` (resident, from, to, count) as
+    :data:`~onebit.core.tables.RESIDENTS_PROFILE`; every line not taken is a reject with its reason."""
+    path = Path(path)
+    header, _, _ = csv_header(path)
+    cols = tuple(c for c in RESIDENTS_PROFILE.names() if c != "bin" or "bin" in [h.strip() for h in header])
+    raw = read_csv_rows(path, cols)
+    if "bin" not in cols:  # a profile without a clock (the column may be left out)
+        raw = RawRows(raw.source, raw.frame.with_columns(bin=pl.lit(None, pl.String)), raw.rejects)
+    return residents_profile_from_rows(raw, path=path)

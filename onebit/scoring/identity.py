@@ -3,8 +3,10 @@
 Inputs: ``truth_events`` (:data:`~onebit.core.tables.TRUTH_EVENTS`: t, sensor, residents
 ``"1"``/``"1;2"``) and a tracker's ``<tracker>_events``
 (:data:`~onebit.core.tables.TRACKER_EVENTS`: t, sensor, track or null). A truth event is
-matched to the tracker event of the same sensor within ``match_tol_s`` (1 ms) of it; one with
-no match, or matched to a null track, is *unattributed* and counts as wrong everywhere.
+matched to the tracker event of the same sensor within ``match_tol_s`` (1 ms) of it, or, when there is none, a repeated firing of a
+sensor still on (the reader keeps only its first ``ON``) to the tracker event of its sensor at
+most ``REPEAT_S`` (5 s) before it; one with no match, or matched to a null track, is
+*unattributed* and counts as wrong everywhere.
 
 * **accuracy** -- the share of truth events whose track, under the best one-to-one relabelling
   ``m`` of tracks to residents, names one of the event's residents::
@@ -35,6 +37,9 @@ Baselines, scored by the same functions (:func:`baseline_events`):
 
 * ``busier`` -- every event to one track: accuracy = the share of events naming the busier
   resident (the one named by most events).
+* ``habits`` (supervised; only with a known-residents profile) -- every event to the resident
+  with the most labelled events at its sensor in the profile (at its sensor in its bin of the
+  profile's clock, when the profile has one): what a user with labelled days tries first.
 * ``nearest`` -- a greedy online tracker a user would write first: ``K`` pseudo-tracks (``K`` =
   the number of residents in the truth: told, not estimated); each event, in time order, goes to
   the pseudo-track whose most recent event is at the nearest sensor (sensor-graph hops; ties:
@@ -53,6 +58,9 @@ from onebit.core.tables import TRACKER_EVENTS, TRUTH_EVENTS
 
 #: A truth event and a tracker event of the same sensor this close (s) are the same event.
 MATCH_TOL_S = 1e-3
+#: A truth event this soon (s) after a tracker event of its sensor, with none of its own, is a
+#: repeated firing of that sensor while on (:func:`matched`).
+REPEAT_S = 5.0
 #: A resident absent this long between two of its events (s) is not counted present in between.
 ABSENT_AFTER_S = 600.0
 
@@ -84,19 +92,24 @@ class IdentityScores:
 
 def matched(truth_events: pl.DataFrame, tracker_events: pl.DataFrame, *, tol: float = MATCH_TOL_S) -> pl.DataFrame:
     """Truth events (t, sensor, residents) with the ``track`` of the tracker event of the same
-    sensor nearest in time within ``tol`` (null: unattributed), sorted by t."""
+    sensor nearest in time within ``tol`` (null: unattributed), sorted by t. A truth event with
+    none there that follows a tracker event of its sensor by at most :data:`REPEAT_S` is a
+    repeated firing of a sensor still on (the motion reader rejects a repeated ``ON``: no state
+    change, counted) and takes that event's track."""
     te = truth_events.select(list(TRUTH_EVENTS)).sort("t")
     ev = tracker_events.select(list(TRACKER_EVENTS)).filter(pl.col("track").is_not_null()).sort("t")
     if te.height == 0:
         return te.with_columns(track=pl.lit(None, pl.String))
-    return te.join_asof(
-        ev.rename({"t": "_t"}).with_columns(t=pl.col("_t")),
-        on="t",
-        by="sensor",
-        strategy="nearest",
-        check_sortedness=False,
-        tolerance=tol,
-    ).drop("_t")
+    right = ev.rename({"t": "_t"}).with_columns(t=pl.col("_t"))
+    exact = te.join_asof(right, on="t", by="sensor", strategy="nearest", check_sortedness=False, tolerance=tol)
+    repeat = te.join_asof(
+        right, on="t", by="sensor", strategy="backward", check_sortedness=False, tolerance=REPEAT_S
+    ).select(pl.col("track").alias("_repeat"))
+    return (
+        pl.concat([exact, repeat], how="horizontal")
+        .with_columns(pl.coalesce("track", "_repeat").alias("track"))
+        .drop("_t", "_repeat")
+    )
 
 
 def relabelling(m: pl.DataFrame) -> tuple[dict[str, str], int]:
@@ -239,12 +252,63 @@ def nearest_events(truth_events: pl.DataFrame, hops: dict[tuple[str, str], int],
     return ev.select("t", "sensor").with_columns(track=pl.Series(out, dtype=pl.String)).select(list(TRACKER_EVENTS))
 
 
-def baseline_rows(truth_events: pl.DataFrame, hops: dict[tuple[str, str], int]) -> list[tuple[str, str, float, str]]:
-    """Report rows of both baselines (``identity-busier``, ``identity-nearest``)."""
+def habits_events(truth_events: pl.DataFrame, profile: pl.DataFrame, *, epoch: str | None = None) -> pl.DataFrame:
+    """Baseline ``habits`` (supervised): every event to the resident whose profile has the most
+    events at its sensor -- in its bin of the profile's clock when the profile has one (the
+    ``day`` clock from the site's ``epoch``) -- (ties: the resident first in text order); a
+    sensor the profile never saw (at that time) falls back to the sensor over all times, then
+    to the resident with the most events overall."""
+    from onebit.trackers.residents.known import clock_of
+
+    habit = profile.filter(pl.col("from").is_null())
+    overall = (
+        habit.filter(pl.col("bin").is_null())
+        .group_by("resident")
+        .agg(pl.col("count").sum())
+        .sort(["count", "resident"], descending=[True, False])
+    )
+    default = overall["resident"][0] if overall.height else None
+
+    def best(rows: pl.DataFrame, keys: list[str]) -> pl.DataFrame:
+        return rows.sort([*keys, "count", "resident"], descending=[False] * len(keys) + [True, False]).unique(
+            keys, keep="first"
+        )
+
+    ev = truth_events.sort("t").select("t", "sensor")
+    by_sensor = best(habit.filter(pl.col("bin").is_null()), ["to"]).select(
+        pl.col("to").alias("sensor"), pl.col("resident").alias("_any")
+    )
+    ev = ev.join(by_sensor, on="sensor", how="left")
+    clock = clock_of(profile)
+    if clock is not None:
+        b = clock.bin(ev["t"].to_numpy(), epoch=epoch)
+        ev = ev.with_columns(bin=pl.Series([clock.label(int(k)) for k in b], dtype=pl.String))
+        by_bin = best(habit.filter(pl.col("bin").is_not_null()), ["to", "bin"]).select(
+            pl.col("to").alias("sensor"), "bin", pl.col("resident").alias("_then")
+        )
+        ev = ev.join(by_bin, on=["sensor", "bin"], how="left").with_columns(pl.coalesce("_then", "_any").alias("_any"))
+    return ev.with_columns(track=pl.col("_any").fill_null(default)).select(list(TRACKER_EVENTS))
+
+
+def baseline_rows(
+    truth_events: pl.DataFrame,
+    hops: dict[tuple[str, str], int],
+    *,
+    profile: pl.DataFrame | None = None,
+    epoch: str | None = None,
+) -> list[tuple[str, str, float, str]]:
+    """Report rows of the baselines (``identity-busier``, ``identity-nearest``, and with a
+    known-residents ``profile`` the supervised ``identity-habits``)."""
     k = max(1, truth_events["residents"].str.split(";").explode().n_unique())
     busy = identity_scores(truth_events, busier_events(truth_events), constant_count=1.0)
     near = identity_scores(truth_events, nearest_events(truth_events, hops, k), constant_count=float(k))
-    return busy.rows("identity-busier") + near.rows("identity-nearest")
+    rows = busy.rows("identity-busier") + near.rows("identity-nearest")
+    if profile is not None and profile.height:
+        n = float(profile["resident"].n_unique())
+        rows += identity_scores(truth_events, habits_events(truth_events, profile, epoch=epoch), constant_count=n).rows(
+            "identity-habits"
+        )
+    return rows
 
 
 def graph_hops(site) -> dict[tuple[str, str], int]:
@@ -256,3 +320,80 @@ def graph_hops(site) -> dict[tuple[str, str], int]:
 
     graph = g.to_networkx()
     return {(a, b): int(d) for a, row in nx.all_pairs_shortest_path_length(graph) for b, d in row.items()}
+
+
+#: The error table's meeting: the other resident's latest labelled event this close in hops ...
+MEET_HOPS = 1
+#: ... and this recent (s).
+MEET_S = 30.0
+#: A run of consecutive wrong events at least this long is a swap (an identity held the wrong way).
+SWAP_RUN = 5
+
+ERRORS = pl.Schema(
+    {
+        "t": pl.Float64,
+        "sensor": pl.String,
+        "residents": pl.String,
+        "decoded": pl.String,
+        "other_sensor": pl.String,
+        "other_hops": pl.Int64,
+        "other_age_s": pl.Float64,
+        "run": pl.Int64,
+        "run_length": pl.Int64,
+        "kind": pl.String,
+    }
+)
+
+
+def error_table(
+    truth_events: pl.DataFrame, tracker_events: pl.DataFrame, hops: dict[tuple[str, str], int]
+) -> pl.DataFrame:
+    """Every identity error of a tracker (:data:`ERRORS`), for a diagnosis: a labelled event
+    whose track, under the best relabelling, names none of its residents (or has no track).
+
+    For each: the resident it was given (``decoded``; null: unattributed), where the *other*
+    resident was -- the sensor of the latest labelled event before it that does not name its
+    resident, its distance in sensor-graph hops (null: unreachable or none) and age -- and its
+    run of consecutive errors (in the order of the labelled events). ``kind``:
+
+    * ``meeting`` -- the other resident fired within ``MEET_HOPS`` hops in the last ``MEET_S``
+      seconds: where they were cannot tell them apart; only who they are could (a per-person
+      signal: a wearable, a door code, gait or height from a depth sensor);
+    * ``swap`` -- apart, in a run of at least ``SWAP_RUN`` errors: an identity held the wrong way
+      since an earlier meeting or start; a later habit cue did not turn it back;
+    * ``apart`` -- apart, a short run: the event looks like the other resident's (the
+      annotations give the resident who *most likely* caused it; some are the other's).
+    """
+    m = matched(truth_events, tracker_events)
+    mapping, _ = relabelling(m)
+    m = m.with_columns(decoded=pl.col("track").replace_strict(mapping, default=None, return_dtype=pl.String))
+    ok = pl.col("residents").str.split(";").list.contains(pl.col("decoded")).fill_null(False)
+    m = m.with_columns(wrong=~ok)
+    t = m["t"].to_list()
+    sens = m["sensor"].to_list()
+    res = [r.split(";") for r in m["residents"].to_list()]
+    wrong = m["wrong"].to_list()
+    rows = []
+    runs: list[int] = []  # the length of each run of consecutive errors
+    for i, bad in enumerate(wrong):
+        if bad and (i == 0 or not wrong[i - 1]):
+            runs.append(0)
+        if bad:
+            runs[-1] += 1
+    run = -1
+    for i, bad in enumerate(wrong):
+        if not bad:
+            continue
+        if i == 0 or not wrong[i - 1]:
+            run += 1
+        j = i - 1
+        while j >= 0 and set(res[j]) & set(res[i]):
+            j -= 1
+        other, oh, age = None, None, None
+        if j >= 0:
+            other, age = sens[j], t[i] - t[j]
+            oh = 0 if sens[i] == sens[j] else hops.get((sens[i], sens[j]))
+        meet = oh is not None and oh <= MEET_HOPS and age is not None and age <= MEET_S
+        kind = "meeting" if meet else ("swap" if runs[run] >= SWAP_RUN else "apart")
+        rows.append((t[i], sens[i], m["residents"][i], m["decoded"][i], other, oh, age, run, runs[run], kind))
+    return pl.DataFrame(rows, schema=ERRORS, orient="row")

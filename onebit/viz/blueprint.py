@@ -302,7 +302,8 @@ class Planner:
         hidden = [
             *self.L.under(paths.join(root, "decoded")),
             *self.L.frame(paths.join(root, "eatg", "a2")),
-            *self.sensor_marks(),
+            # the HMM trackers draw the sensor graph's nodes themselves; residents draws no graph
+            *(self.sensor_marks() if tracker != "residents" else []),
         ]
         windows = {
             p: min(DECISION_S, self.trail_s)

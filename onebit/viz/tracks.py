@@ -59,10 +59,14 @@ def track_labels(tracker: str, track_ids) -> dict[str, str]:
     --------
     >>> track_labels("beams", ["agent2", "agent10", "agent1"])
     {'agent1': 'track 1', 'agent2': 'track 2', 'agent10': 'track 3'}
+    >>> track_labels("residents", ["resident2", "resident1"])  # known residents (a profile)
+    {'resident1': 'resident 1', 'resident2': 'resident 2'}
     >>> track_labels("intruder", ["intruder"])
     {'intruder': 'intruder estimate'}
     """
     ids = sorted({str(i) for i in track_ids if i is not None}, key=natural_key)
+    if ids and all(re.fullmatch(r"resident\S+", i) for i in ids):  # known residents keep their names
+        return {i: f"resident {i.removeprefix('resident')}" for i in ids}
     if len(ids) == 1:
         return {ids[0]: f"{tracker} estimate"}
     return {tid: f"track {k + 1}" for k, tid in enumerate(ids)}

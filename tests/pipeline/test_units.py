@@ -172,13 +172,6 @@ CONFIG = {
 }
 
 EVERY_TRACKER = tuple(e.name for e in TRACKERS)
-#: known failures, each a finding to fix (strict: the test says so when it is fixed)
-UNITS_BUG = pytest.mark.xfail(
-    strict=True,
-    reason="clustertrack on the 2-D proximity grid is not unit-free: deterministic in one unit, but the cm run "
-    "differs from the m run (mean_error_R 0.133 vs 0.226); found when the compared pairs came from TrackerEntry.scenario",
-)
-KNOWN = {("proximity-grid", "clustertrack"): UNITS_BUG, "proximity-grid": UNITS_BUG}
 GUARANTEE_ROWS = ("containment", "scored_stages", "area_mean")
 
 
@@ -223,7 +216,7 @@ def _point_sets(df: pl.DataFrame, k: float = 1.0) -> np.ndarray:
     return df.select("t", pl.col("x") * k, pl.col("y") * k).sort("t", "x", "y").select("x", "y").to_numpy()
 
 
-@pytest.mark.parametrize("scenario, tracker", [pytest.param(*p, marks=KNOWN.get(p, ())) for p in COMPARED])
+@pytest.mark.parametrize("scenario, tracker", list(COMPARED))
 def test_tracks_scale_with_the_units(runs, scenario, tracker):
     k, a, b = runs[scenario]
     mode = COMPARED[scenario, tracker]
@@ -245,8 +238,23 @@ def test_tracks_scale_with_the_units(runs, scenario, tracker):
         assert ta[c].to_list() == tb[c].to_list(), c
 
 
-@pytest.mark.parametrize("scenario", [pytest.param(n, marks=KNOWN.get(n, ())) for n in SCENARIOS])
-def test_report_rows_scale_with_the_units(runs, scenario):
+#: (scenario, stage) whose report rows are known not to scale, each a finding to fix (strict: the
+#: test says so when it is fixed); every other row of the scenario is still compared
+KNOWN_ROWS = {
+    ("proximity-grid", "istate"): pytest.mark.xfail(
+        strict=True,
+        reason="istate's dominance test is GEOS's exact `covers` on the results of overlays: a region that "
+        "exact arithmetic puts inside another, sharing its boundary, is covered in cm and not in m (a sliver "
+        "of 0 to 8e-18 m^2): one dominance test keeps 8 elements in m and 6 in cm, the summaries differ from "
+        "stage 5 on (8 vs 7 elements), the cap merges other elements and the union differs from stage 14 on "
+        "(area_mean 58.87 m^2 vs 53.56 m^2)",
+    ),
+}
+
+
+def _compare_report_rows(runs, scenario: str, *, only: str | None = None) -> None:
+    """Every report row of the m run equals the cm run's once lengths are scaled; ``only``: the
+    rows of that stage alone, else every stage but those in :data:`KNOWN_ROWS`."""
     k, a, b = runs[scenario]
     src_units = tomllib.loads((a.out.parent / "m" / "site.toml").read_text()).get("units", "m")
     timing = pl.col("metric").str.contains("seconds")
@@ -254,6 +262,8 @@ def test_report_rows_scale_with_the_units(runs, scenario):
     rb = b.report.filter(~timing)
     assert ra.select("stage", "metric").to_dicts() == rb.select("stage", "metric").to_dicts()
     for row_a, row_b in zip(ra.iter_rows(named=True), rb.iter_rows(named=True)):
+        if (row_a["stage"] != only) if only else (scenario, row_a["stage"]) in KNOWN_ROWS:
+            continue
         mode = COMPARED.get((scenario, row_a["stage"]), "exact")
         if mode == "guarantee" and row_a["metric"] not in GUARANTEE_ROWS:
             continue
@@ -276,6 +286,16 @@ def test_report_rows_scale_with_the_units(runs, scenario):
         smooth = row_a["metric"].startswith(("hota", "deta", "assa"))
         rel = 1e-6 if mode == "exact" or (scale == 1.0 and not smooth) else 1e-3
         assert vb == pytest.approx(va * scale, rel=rel, abs=1e-9 * scale), (row_a, row_b)
+
+
+@pytest.mark.parametrize("scenario", list(SCENARIOS))
+def test_report_rows_scale_with_the_units(runs, scenario):
+    _compare_report_rows(runs, scenario)
+
+
+@pytest.mark.parametrize("scenario, stage", [pytest.param(*p, marks=m) for p, m in KNOWN_ROWS.items()])
+def test_known_report_rows_scale_with_the_units(runs, scenario, stage):
+    _compare_report_rows(runs, scenario, only=stage)
 
 
 def test_site_rewrite_round_trips(tmp_path):

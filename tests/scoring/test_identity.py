@@ -133,3 +133,73 @@ def test_attribution_at_the_sensor_then_nearest_then_none():
         (1.5, "a", None),  # nobody decoded in slot 1
         (2.2, "zz", None),  # not a node
     ]
+
+
+def test_a_repeated_on_takes_the_track_of_its_sensors_previous_event_within_5_s():
+    te = pl.DataFrame({"t": [0.0, 0.3, 7.0, 20.0], "sensor": ["a", "a", "a", "b"], "residents": ["1", "1", "1", "2"]})
+    ev = pl.DataFrame({"t": [0.0, 20.0], "sensor": ["a", "b"], "track": ["p", "q"]})
+    m = identity_scores(te, ev)
+    # 0.3 s after a's event: the same firing (the reader rejected the repeated ON); 7 s after: none
+    assert m.accuracy == pytest.approx(3 / 4)
+    assert m.attributed == pytest.approx(3 / 4)
+
+
+def test_the_supervised_habits_baseline():
+    from onebit.scoring.identity import habits_events
+
+    prof = pl.DataFrame(
+        {
+            "resident": ["1", "2", "1", "2"],
+            "from": [None, None, "a", None],
+            "to": ["a", "a", "b", "c"],
+            "count": [5.0, 2.0, 9.0, 1.0],
+            "bin": [None, None, None, None],
+        }
+    )
+    ev = habits_events(TE, prof)
+    # a -> 1 (5 vs 2), b -> the most events overall (1: 5), c -> 2 (habit rows only: 'from' null)
+    assert ev["track"].to_list() == ["1", "1", "2", "1", "1", "2"]
+    rows = {r[0]: r for r in baseline_rows(TE, {}, profile=prof) if r[1] == "identity_accuracy"}
+    assert set(rows) == {"identity-busier", "identity-nearest", "identity-habits"}
+    assert rows["identity-habits"][2] == pytest.approx(identity_scores(TE, ev).accuracy)
+
+
+def test_error_table_by_hand():
+    from onebit.scoring.identity import error_table
+
+    te = pl.DataFrame(
+        {
+            "t": [0.0, 1.0, 2.0, 100.0, 200.0],
+            "sensor": ["a", "b", "a", "c", "d"],
+            "residents": ["1", "2", "1", "1", "2"],
+        }
+    )
+    ev = te.select("t", "sensor").with_columns(track=pl.Series(["x", "y", "y", "x", None]))
+    hops = {("a", "b"): 1, ("b", "a"): 1, ("c", "a"): 2, ("d", "c"): 5}
+    err = error_table(te, ev, hops)
+    # x -> 1, y -> 2: wrong are t=2 (a, given 2; the other, 2, fired at b 1 s before, 1 hop: a meeting)
+    # and t=200 (unattributed; the other resident 1 fired at c 100 s before, 5 hops: apart)
+    assert err["t"].to_list() == [2.0, 200.0]
+    assert err["decoded"].to_list() == ["2", None]
+    assert err["other_sensor"].to_list() == ["b", "c"]
+    assert err["other_hops"].to_list() == [1, 5]
+    assert err["kind"].to_list() == ["meeting", "apart"]
+    assert err["run"].to_list() == [0, 1] and err["run_length"].to_list() == [1, 1]
+    perfect = te.select("t", "sensor").with_columns(track=te["residents"])
+    assert error_table(te, perfect, hops).height == 0
+
+
+def test_the_habits_baseline_by_the_profiles_clock():
+    from onebit.scoring.identity import habits_events
+
+    prof = pl.DataFrame(
+        {
+            "resident": ["1", "2", "2"],
+            "from": [None, None, None],
+            "to": ["a", "a", "a"],
+            "count": [5.0, 2.0, 2.0],
+            "bin": [None, None, "session 1/2"],  # late in the session, a is resident 2's
+        }
+    )
+    ev = habits_events(TE, prof)  # TE's a events at t = 0 (bin 0) and t = 30 (bin 1)
+    assert ev.filter(pl.col("sensor") == "a")["track"].to_list() == ["1", "2"]

@@ -3,7 +3,8 @@
 A *particle* is a candidate trajectory ``P = (x[1], ..., x[t])``. At every instant t:
 
 1. each of the K_{t-1} surviving particles is extended by m_t points drawn uniformly from
-   F[t] (independently per particle), ``m_t = round(m_o * S_F(t))``: m_t K_{t-1} candidates;
+   F[t] (independently per particle), ``m_t = round(m_o * S_F(t))``: m_t K_{t-1} candidates
+   (a tie at k + 1/2 goes to the even count in every unit, :func:`round_count`);
 2. cost (section 4.2.1) = sum over n of the change in velocity::
 
        c[n] = || x[n+1] + x[n-1] - 2 x[n] ||,     cost(P) = sum_{n=2}^{t-1} c[n]
@@ -47,6 +48,31 @@ import numpy as np
 from onebit.trackers.clustertrack import kernels
 from onebit.trackers.clustertrack.space import FeasibleSpace
 
+#: Relative distance to a half-integer below which :func:`round_count` takes a count to be
+#: exactly that half-integer: far above the float noise of a product of lengths (1e-16
+#: relative), far below one sample.
+HALF_TOL = 1e-9
+
+
+def round_count(v: float) -> int:
+    """``round(v)`` (ties to even) of a count that exact arithmetic may put at ``k + 1/2``.
+
+    The counts of CLUSTERTRACK, ``m_t = round(m_o S_F(t))`` and ``L = round(H m_o mean S_F)``,
+    are unit-free products of a density in site units^-n and a measure in site units^n, and
+    they sit exactly at a half-integer more often than not: on the 2-D raster
+    ``S_F = N (R / 10)^2`` and ``m_o R^2 = 50`` make ``m_o S_F = N / 2``; in 1-D, lengths that
+    are multiples of R / 2 times ``m_o R = 15`` do the same. The float product carries noise
+    that depends on the site's units (``50 * (145 * 0.1**2) = 72.50000000000001`` on a site in
+    metres, ``0.005 * (145 * 100.0) = 72.5`` in cm), and ``round`` let that noise decide: 73
+    draws per particle in m, 72 in cm, and every later random draw of the run differed. So
+    ``v`` is first snapped to the nearest half-integer when within a relative
+    :data:`HALF_TOL` of it; the tie then goes to the even count, whatever the units.
+    """
+    half = round(2.0 * v) / 2.0
+    if abs(v - half) <= HALF_TOL * max(1.0, abs(v)):
+        v = half
+    return int(round(v))
+
 
 @dataclass(frozen=True)
 class Params:
@@ -77,7 +103,7 @@ def rules_of_thumb(
     mean_sf = float(np.mean(space.sizes_all)) if space.sizes_all.size else 0.0
     a_hat = mean_sf / q
     k = int(K) if K > 0 else H * q
-    l_ = int(L) if L > 0 else max(k, int(round(H * m_o * mean_sf)))
+    l_ = int(L) if L > 0 else max(k, round_count(H * m_o * mean_sf))
     d0 = float(D0) if D0 > 0 else (a_hat ** (1.0 / space.dim) if a_hat > 0 else 1e-9)
     return Params(H, m_o, k, l_, d0, q, a_hat)
 
@@ -301,7 +327,7 @@ def cluster_track(space: FeasibleSpace, p: Params, rng: np.random.Generator, *, 
     compiled = T * p.L >= PASS_COMPILED_MIN
     for step in range(T):
         kprev = cost.size
-        m_t = max(1, int(round(p.m_o * space.size(step))))
+        m_t = max(1, round_count(p.m_o * space.size(step)))
         x = space.sample(step, kprev * m_t, rng).reshape(-1, dim)
         if x.shape[0] == 0:  # F empty (nobody anywhere, or inconsistent readings): keep the particles where they are
             x = last1 if step > 0 else np.zeros((1, dim))

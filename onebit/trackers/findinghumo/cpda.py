@@ -240,6 +240,16 @@ def pair_meeting(
     slots = list(range(c + 1, s0, -1))
     ends = {b: [_ends(rows[u], b) for u in range(m)] for b in slots}  # (h2, h1, t1, t2) per user
     base = {b: logp[0] - sum(_cross(e[0], e[1], e[2], e[3], log_a2) for e in ends[b]) for b in slots}
+    # Where the HMM's own pairing is impossible under a'' at slot b (base = +inf), an
+    # impossible alternative scores inf - inf = nan and is never taken (nan > x is False), a
+    # possible one +inf, which the caller reads as "no finite best" and keeps the HMM's pairing.
+    with np.errstate(invalid="ignore"):
+        _score_pairings(perms, logp, slot, slots, ends, base, rows, hops, log_a2, m)
+    return perms, logp, slot
+
+
+def _score_pairings(perms, logp, slot, slots, ends, base, rows, hops, log_a2, m) -> None:
+    """Fill ``logp``/``slot`` of every non-identity pairing with its best slot (:func:`pair_meeting`)."""
     for k, p in enumerate(perms[1:], start=1):  # m <= MAX_MEETING users, a few slots: tiny
         for b in slots:
             if _jumps(rows, p, b, hops):
@@ -248,7 +258,6 @@ def pair_meeting(
             score = base[b] + sum(_cross(e[u][0], e[u][1], e[p[u]][2], e[p[u]][3], log_a2) for u in range(m))
             if score > logp[k] + 1e-9:
                 logp[k], slot[k] = score, b
-    return perms, logp, slot
 
 
 def _pairings(paths: np.ndarray, users: np.ndarray, c: int):

@@ -9,6 +9,12 @@ its sensor's last ``ON``. With ``habits`` (off by default: no gain measured on t
 sessions, docs/residents.md), two decoded people are then re-oriented between their meetings
 by their sensor habits, learned without labels (:mod:`onebit.trackers.residents.habits`).
 
+Known residents: when the run has a ``residents_profile`` (``residents_profile.csv`` in the
+dataset, learned from labelled days by ``onebit learn residents``) and ``profile`` is on, the
+events are decoded instead by the exact known-residents HMM of
+:mod:`onebit.trackers.residents.known` (each event to its most probable resident; people named
+by the profile's residents, ``resident<id>``).
+
 Outputs (tables ``residents_<key>``):
 
 * ``events`` -- t, sensor, track: which person each motion edge was attributed to (null for an
@@ -40,6 +46,7 @@ from onebit.trackers.residents.decode import (
     tracks_from_pred,
 )
 from onebit.trackers.residents.habits import meeting_cuts, reorient
+from onebit.trackers.residents.known import chains, clock_bonus, posteriors
 from onebit.trackers.residents.model import birth_cost, move_cost, node_distances
 
 NAME = "residents"
@@ -81,6 +88,13 @@ class ResidentsConfig:
     habit_alpha : Dirichlet pseudo-count per sensor of the habits (eq. H3).
     habit_switch : cost (nats) of a swap at a meeting (``lambda`` of eq. H2).
     habit_restarts : random starting orientations of the hard EM besides the decoder's.
+    profile : decode with the run's ``residents_profile`` when it has one (known residents,
+        :mod:`onebit.trackers.residents.known`); off: always the unsupervised decoder.
+    profile_spread : ``l`` of eq. (K1), metres: the kernel that transitions never seen in the
+        profile fall back to.
+    profile_prior : ``beta`` of eq. (K1): the weight of that kernel against the learned counts.
+    profile_clock_weight : ``w`` of eq. (K3): the weight of the residents' habits by time when
+        the profile has a clock (0: ignore it).
     """
 
     l0: float = length(1.0)
@@ -103,6 +117,10 @@ class ResidentsConfig:
     habit_alpha: float = 1.0
     habit_switch: float = 0.0
     habit_restarts: int = 8
+    profile: bool = True
+    profile_spread: float = length(3.0)
+    profile_prior: float = 2.0
+    profile_clock_weight: float = 1.0
 
     def __post_init__(self) -> None:
         check_range(self, "l0", 1e-9, None)
@@ -124,6 +142,9 @@ class ResidentsConfig:
         check_range(self, "habit_alpha", 1e-6, None)
         check_range(self, "habit_switch", 0.0, None)
         check_range(self, "habit_restarts", 0, 1000, types=(int,))
+        check_range(self, "profile_spread", 1e-9, None)
+        check_range(self, "profile_prior", 1e-9, 1e9)
+        check_range(self, "profile_clock_weight", 0.0, 100.0)
 
 
 def available(site: Site) -> str | None:
@@ -222,6 +243,24 @@ def attribute(
     return Attribution(pred, tracks_from_pred(pred), cost, int((pred < 0).sum()), res.states)
 
 
+def attribute_known(
+    t: np.ndarray, node: np.ndarray, home: Home, profile: pl.DataFrame, cfg: ResidentsConfig, *, epoch: str | None
+) -> tuple[Attribution, list[str]]:
+    """Each event to its most probable resident under the profile (eq. K1-K3 of
+    :mod:`onebit.trackers.residents.known`). Returns the attribution (people numbered in the
+    order of the profile's residents, only those given an event) and their resident ids."""
+    ch = chains(profile, home.nodes, home.dist, spread=cfg.profile_spread, prior=cfg.profile_prior)
+    bonus = clock_bonus(profile, ch.residents, home.nodes, node, t, epoch=epoch, weight=cfg.profile_clock_weight)
+    post, log_z = posteriors(node, ch, bonus)
+    who = post.argmax(axis=1) if len(node) else np.zeros(0, dtype=np.int64)
+    fired = np.unique(who)
+    track = np.searchsorted(fired, who).astype(np.int64)
+    K, S = len(ch.residents), len(home.nodes)
+    states = np.full(len(node), float(K * (S + 1) ** (K - 1)))
+    att = Attribution(preds_from_tracks(track), track, -log_z, int(fired.size), states)
+    return att, [ch.residents[k] for k in fired]
+
+
 def run(inputs: dict, site: Site, config: ResidentsConfig) -> dict[str, pl.DataFrame]:
     """Attribute the motion events to people (module docstring)."""
     motion = check_schema(inputs["motion"], MOTION, name="motion").select(MOTION.names())
@@ -231,9 +270,14 @@ def run(inputs: dict, site: Site, config: ResidentsConfig) -> dict[str, pl.DataF
     on = motion.filter(pl.col("on"))
     t = on["t"].to_numpy().astype(float)
     node = np.array([index[s] for s in on["sensor"].to_list()], dtype=np.int64)
-    K = people_bound(site, config)
-    res = attribute(t, node, home, config, people=K, progress=progress_of(inputs))
-    names = np.array([f"person{k + 1}" for k in range(max(res.people, 1))], dtype=object)
+    profile = inputs.get("residents_profile")
+    if config.profile and profile is not None and profile.height:
+        res, labels = attribute_known(t, node, home, profile, config, epoch=site.epoch)
+        names = np.array([f"resident{r}" for r in labels], dtype=object)
+    else:
+        K = people_bound(site, config)
+        res = attribute(t, node, home, config, people=K, progress=progress_of(inputs))
+        names = np.array([f"person{k + 1}" for k in range(max(res.people, 1))], dtype=object)
     on_tracks = on.select("row", "t", "sensor").with_columns(
         track=pl.Series(names[res.track].tolist() if len(t) else [], dtype=pl.String)
     )
@@ -337,6 +381,7 @@ def people_table(t: np.ndarray, node: np.ndarray, res: Attribution, home: Home, 
 SPEC = TrackerSpec(
     name=NAME,
     needs=("motion",),
+    wants=("residents_profile",),
     config=ResidentsConfig,
     run=run,
     available=available,
