@@ -1,10 +1,15 @@
-"""Standard multi-target tracking metrics of every tracker, from maintained libraries.
+"""Standard multi-target tracking metrics of every tracker, as the maintained libraries compute them.
 
 Beside each paper's own metrics (DESIGN.md, "Scores and reports"):
 
 * MOTA, MOTP, ID switches (CLEAR MOT, Bernardin & Stiefelhagen 2008) and IDF1 (Ristani et al.
-  2016) from ``motmetrics``;
-* HOTA, DetA, AssA (Luiten et al. 2021) from ``trackeval`` (``motmetrics`` 1.4.0 has no HOTA).
+  2016) as ``motmetrics`` computes them;
+* HOTA, DetA, AssA (Luiten et al. 2021) as ``trackeval`` does (``motmetrics`` 1.4.0 has no HOTA).
+
+Computed over all frames at once (:func:`mot_metrics`: a compiled CLEAR pass, the ID measures
+by one assignment, HOTA vectorised; ties between optimal matchings go to the libraries' own
+solvers); the libraries' per-frame APIs (:func:`mot_metrics_libraries`) are the test oracle
+(``tests/scoring/test_mot_fast.py``; docs/metrics.md, "How the scorer computes").
 
 Frames, objects, hypotheses: every frame is scored
 --------------------------------------------------
