@@ -494,18 +494,38 @@ def _last_nodes(row: np.ndarray, s: int) -> list[int]:
 
 
 def _exits(row: np.ndarray, after: np.ndarray, signatures) -> bool:
-    """The path ends ``inner -> outer`` of an exit signature and ``outer`` is silent after."""
-    valid = row[row >= 0]
-    if valid.size < 2:
-        return False
-    end = valid[-1]
-    moved = valid[valid != end]
-    if moved.size == 0:
+    """The path ends ``inner -> outer`` of an exit signature and ``outer`` is silent after.
+
+    ``outer`` is the last node the path is at (absent slots skipped), ``inner`` the last
+    different one before it (:func:`_last_two`): read from the end, so a window costs the
+    user's last dwell, not the run so far."""
+    end, came = _last_two(row)
+    if end < 0 or came < 0:
         return False
     for outer, inner in signatures:
-        if end == outer and moved[-1] == inner and not after[:, outer].any():
+        if end == outer and came == inner and not after[:, outer].any():
             return True
     return False
+
+
+def _last_two(row: np.ndarray) -> tuple[int, int]:
+    """``(end, came)``: the last node of ``row`` (``-1`` entries are absences) and the last node
+    different from it before that, ``-1`` where there is none; looking back in growing steps."""
+    end, hi, step = -1, len(row), 64
+    while hi > 0:
+        lo = max(0, hi - step)
+        seg = row[lo:hi]
+        if end < 0:
+            at = np.flatnonzero(seg >= 0)
+            if at.size:
+                end = int(seg[at[-1]])
+                seg = seg[: at[-1]]
+        if end >= 0:
+            diff = np.flatnonzero((seg >= 0) & (seg != end))
+            if diff.size:
+                return end, int(seg[diff[-1]])
+        hi, step = lo, step * 4
+    return end, -1
 
 
 def _adaptive_window(obs, prefixes, starts, entry_nodes, eatg: Eatg, params: DecoderParams):
