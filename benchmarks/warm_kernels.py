@@ -27,6 +27,25 @@ def findinghumo() -> None:
     from onebit.models.graph_hmm.joint import redecode_meetings
 
     redecode_meetings(np.array([[0, 1, 2, 2], [2, 2, 1, 0]]), act[:4], eatg, p_hit=0.9, p_false=0.05, pad=1)
+    from onebit.models.graph_hmm.decoding import cap_users
+
+    cap_users(np.array([[0, 1, 2, 2], [2, 2, 1, 0], [3, 3, -1, -1]]), act[:4], eatg.hops, 2)
+
+
+def scoring() -> None:
+    from onebit.scoring.mot import mot_metrics
+
+    obj = pl.DataFrame({"t": [0.0, 0.0, 1.0], "target": ["a", "b", "a"]})
+    hyp = pl.DataFrame({"t": [0.0, 1.0, 1.0], "track": ["k", "k", "l"]})
+    dist = pl.DataFrame(
+        {
+            "t": [0.0, 0.0, 1.0, 1.0],
+            "target": ["a", "b", "a", "a"],
+            "track": ["k", "k", "k", "l"],
+            "distance": [0.2] * 4,
+        }
+    )
+    mot_metrics(obj, hyp, dist, gate=1.0)
 
 
 def intruder() -> None:
@@ -130,7 +149,7 @@ def readers() -> None:
 
 def main() -> None:
     t_all = time.perf_counter()
-    for warm in (findinghumo, intruder, beams, clustertrack, readers):
+    for warm in (findinghumo, intruder, beams, clustertrack, readers, scoring):
         t0 = time.perf_counter()
         warm()
         print(f"kernels: {warm.__name__:<13} {time.perf_counter() - t0:6.2f} s", flush=True)

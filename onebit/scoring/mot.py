@@ -1,10 +1,15 @@
-"""Standard multi-target tracking metrics of every tracker, from maintained libraries.
+"""Standard multi-target tracking metrics of every tracker, as the maintained libraries compute them.
 
 Beside each paper's own metrics (DESIGN.md, "Scores and reports"):
 
 * MOTA, MOTP, ID switches (CLEAR MOT, Bernardin & Stiefelhagen 2008) and IDF1 (Ristani et al.
-  2016) from ``motmetrics``;
-* HOTA, DetA, AssA (Luiten et al. 2021) from ``trackeval`` (``motmetrics`` 1.4.0 has no HOTA).
+  2016) as ``motmetrics`` computes them;
+* HOTA, DetA, AssA (Luiten et al. 2021) as ``trackeval`` does (``motmetrics`` 1.4.0 has no HOTA).
+
+Computed over all frames at once (:func:`mot_metrics`: a compiled CLEAR pass, the ID measures
+by one assignment, HOTA vectorised; ties between optimal matchings go to the libraries' own
+solvers); the libraries' per-frame APIs (:func:`mot_metrics_libraries`) are the test oracle
+(``tests/scoring/test_mot_fast.py``; docs/metrics.md, "How the scorer computes").
 
 Frames, objects, hypotheses: every frame is scored
 --------------------------------------------------
@@ -89,6 +94,7 @@ from onebit.core.region_graph import RegionGraph
 from onebit.core.site import Site
 from onebit.core.units import to_site_units
 from onebit.models.graph_hmm.eatg import hop_matrix
+from onebit.scoring import mot_kernels
 from onebit.scoring.association import truth_at
 from onebit.scoring.crossings import truth_regions
 from onebit.scoring.findinghumo import truth_nodes
@@ -123,7 +129,7 @@ class Gate:
     reason: str
 
 
-_METRICS = ("mota", "motp", "idf1", "num_switches", "num_misses", "num_false_positives", "num_objects")
+_METRICS = ("mota", "motp", "idf1", "idp", "idr", "num_switches", "num_misses", "num_false_positives", "num_objects")
 
 
 # --------------------------------------------------------------------------- the metrics
@@ -135,13 +141,40 @@ def similarity(distance: np.ndarray, gate: float) -> np.ndarray:
     return np.clip(np.nan_to_num(s, nan=0.0), 0.0, 1.0)
 
 
-def frame_blocks(objects: pl.DataFrame, hypotheses: pl.DataFrame, distances: pl.DataFrame):
-    """The frames as the libraries take them: per frame the object ids, the hypothesis ids and
-    the (objects x hypotheses) distance matrix (NaN where no distance is given).
+@dataclass(frozen=True)
+class FrameArrays:
+    """The frames as flat arrays: frame ``f`` (time ``t[f]``) has the object ids
+    ``oids[o_ptr[f]:o_ptr[f+1]]`` (ascending), the hypothesis ids ``hids[h_ptr[f]:h_ptr[f+1]]``
+    (ascending) and their row-major (objects x hypotheses) distances ``d[d_ptr[f]:d_ptr[f+1]]``
+    (NaN where no distance is given). Ids are 0-based codes of the sorted target and track
+    names (``n_gt_ids``, ``n_tracker_ids`` of them)."""
 
-    Ids are 0-based codes of the sorted target and track names (``trackeval`` wants
-    contiguous ids). Returns ``(frames, object_ids, hypothesis_ids, matrices)``.
-    """
+    t: np.ndarray
+    o_ptr: np.ndarray
+    oids: np.ndarray
+    h_ptr: np.ndarray
+    hids: np.ndarray
+    d_ptr: np.ndarray
+    d: np.ndarray
+    n_gt_ids: int
+    n_tracker_ids: int
+
+    @property
+    def n_frames(self) -> int:
+        return len(self.t)
+
+    def pair_index(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """For every entry of ``d``: its object's and its hypothesis' position in ``oids`` and
+        ``hids``, and its frame."""
+        n_o, n_h = np.diff(self.o_ptr), np.diff(self.h_ptr)
+        f = np.repeat(np.arange(self.n_frames), n_o * n_h)
+        q = np.arange(len(self.d)) - self.d_ptr[f]
+        nh = np.maximum(n_h[f], 1)
+        return self.o_ptr[f] + q // nh, self.h_ptr[f] + q % nh, f
+
+
+def frame_arrays(objects: pl.DataFrame, hypotheses: pl.DataFrame, distances: pl.DataFrame) -> FrameArrays:
+    """:class:`FrameArrays` of the frame tables (every distinct ``t`` of either is a frame)."""
     targets = objects["target"].unique().sort()
     tracks = hypotheses["track"].unique().sort()
     o = objects.select("t", "target").unique().join(targets.to_frame().with_row_index("oi"), on="target")
@@ -154,23 +187,210 @@ def frame_blocks(objects: pl.DataFrame, hypotheses: pl.DataFrame, distances: pl.
         .join(distances.select("t", "target", "track", "distance"), on=["t", "target", "track"], how="left")
         .sort("t", "oi", "hi")
     )
-    fr = frames.to_numpy()
-    ob = np.searchsorted(o["t"].to_numpy(), fr, side="left"), np.searchsorted(o["t"].to_numpy(), fr, side="right")
-    hb = np.searchsorted(h["t"].to_numpy(), fr, side="left"), np.searchsorted(h["t"].to_numpy(), fr, side="right")
-    n_o, n_h = ob[1] - ob[0], hb[1] - hb[0]
-    db = np.r_[0, np.cumsum(n_o * n_h)]
-    oi, hi = o["oi"].to_numpy().astype(np.int64), h["hi"].to_numpy().astype(np.int64)
-    d = full["distance"].fill_null(np.nan).to_numpy().astype(float)
-    obj_ids = [oi[a:b] for a, b in zip(*ob)]
-    hyp_ids = [hi[a:b] for a, b in zip(*hb)]
-    mats = [d[db[f] : db[f + 1]].reshape(n_o[f], n_h[f]) for f in range(len(fr))]
-    return fr, obj_ids, hyp_ids, mats
+    fr = frames.to_numpy().astype(float)
+    ot, ht = o["t"].to_numpy(), h["t"].to_numpy()
+    o_ptr = np.searchsorted(ot, fr, side="left")
+    h_ptr = np.searchsorted(ht, fr, side="left")
+    o_ptr = np.r_[o_ptr, len(ot)].astype(np.int64)
+    h_ptr = np.r_[h_ptr, len(ht)].astype(np.int64)
+    d_ptr = np.r_[0, np.cumsum(np.diff(o_ptr) * np.diff(h_ptr))].astype(np.int64)
+    return FrameArrays(
+        t=fr,
+        o_ptr=o_ptr,
+        oids=o["oi"].to_numpy().astype(np.int64),
+        h_ptr=h_ptr,
+        hids=h["hi"].to_numpy().astype(np.int64),
+        d_ptr=d_ptr,
+        d=full["distance"].fill_null(np.nan).to_numpy().astype(float),
+        n_gt_ids=targets.len(),
+        n_tracker_ids=tracks.len(),
+    )
+
+
+def frame_blocks(objects: pl.DataFrame, hypotheses: pl.DataFrame, distances: pl.DataFrame):
+    """The frames as the libraries take them: per frame the object ids, the hypothesis ids and
+    the (objects x hypotheses) distance matrix (NaN where no distance is given).
+
+    Ids are 0-based codes of the sorted target and track names (``trackeval`` wants
+    contiguous ids). Returns ``(frames, object_ids, hypothesis_ids, matrices)``.
+    """
+    fa = frame_arrays(objects, hypotheses, distances)
+    n_o, n_h = np.diff(fa.o_ptr), np.diff(fa.h_ptr)
+    r = range(fa.n_frames)
+    obj_ids = [fa.oids[fa.o_ptr[f] : fa.o_ptr[f + 1]] for f in r]
+    hyp_ids = [fa.hids[fa.h_ptr[f] : fa.h_ptr[f + 1]] for f in r]
+    mats = [fa.d[fa.d_ptr[f] : fa.d_ptr[f + 1]].reshape(n_o[f], n_h[f]) for f in r]
+    return fa.t, obj_ids, hyp_ids, mats
+
+
+# --------------------------------------------------------------------------- CLEAR MOT
+
+
+def _clear_frame(
+    f: int, fa: FrameArrays, gate: float, last: np.ndarray, counts: np.ndarray, events: np.ndarray
+) -> None:
+    """One frame of CLEAR MOT exactly as ``motmetrics.MOTAccumulator.update`` does it, with its
+    own assignment solver (``motmetrics.lap.linear_sum_assignment``): the frames the kernel
+    hands over (a tie between optimal assignments, or too large to enumerate)."""
+    oa, ob, ha, hb = fa.o_ptr[f], fa.o_ptr[f + 1], fa.h_ptr[f], fa.h_ptr[f + 1]
+    oids, hids = fa.oids[oa:ob], fa.hids[ha:hb]
+    no, nh = len(oids), len(hids)
+    d = fa.d[fa.d_ptr[f] : fa.d_ptr[f + 1]].reshape(no, nh)
+    d = np.where(d <= gate, d, np.nan)
+    om, hm = np.zeros(no, bool), np.zeros(nh, bool)
+    matches = switches = 0
+    ev: list[float] = []
+    if no and nh:
+        for i in range(no):  # (1) continuing pairs
+            if last[oids[i]] < 0:
+                continue
+            (j,) = np.nonzero(~hm & (hids == last[oids[i]]))
+            if len(j) and np.isfinite(d[i, j[0]]):
+                om[i] = hm[j[0]] = True
+                matches += 1
+                ev.append(d[i, j[0]])
+        d[om, :] = np.nan
+        d[:, hm] = np.nan
+        for i, j in zip(*mm.lap.linear_sum_assignment(d)):  # (2) the rest
+            if not np.isfinite(d[i, j]):
+                continue
+            o, h = oids[i], hids[j]
+            if last[o] >= 0 and last[o] != h:
+                switches += 1
+            else:
+                matches += 1
+            ev.append(d[i, j])
+            last[o] = h
+            om[i] = hm[j] = True
+    misses, fps = no - int(om.sum()), nh - int(hm.sum())
+    ev += [0.0] * (misses + fps)
+    e = counts[4]
+    events[e : e + len(ev)] = ev
+    counts += (matches, switches, misses, fps, len(ev))
+
+
+def clear_counts(fa: FrameArrays, gate: float, *, compiled: bool = True) -> tuple[np.ndarray, float]:
+    """CLEAR MOT over all frames (:func:`onebit.scoring.mot_kernels.clear_pass`, motmetrics'
+    rule: last frame's matches that are still within the gate are kept, then the fewest
+    misses at the least distance): ``([matches, switches, misses, false positives], sum of
+    matched distances)``, the sum taken over motmetrics' event column in its order (so MOTP is
+    its float). The kernel runs until a frame it cannot decide alone, which :func:`_clear_frame`
+    scores with motmetrics' solver, and resumes after it; ``compiled=False`` runs the kernel's
+    plain Python (its test oracle)."""
+    run = mot_kernels.clear_pass if compiled else mot_kernels.clear_pass.py_func
+    last = np.full(max(fa.n_gt_ids, 1), -1, np.int64)
+    counts = np.zeros(5, np.int64)
+    events = np.zeros(len(fa.oids) + len(fa.hids))
+    f = 0
+    while f < fa.n_frames:
+        f = run(f, fa.o_ptr, fa.oids, fa.h_ptr, fa.hids, fa.d_ptr, fa.d, float(gate), last, counts, events)
+        if f < fa.n_frames:
+            _clear_frame(f, fa, gate, last, counts, events)
+            f += 1
+    return counts[:4], float(events[: counts[4]].sum())
+
+
+# --------------------------------------------------------------------------- ID measures
+
+
+def id_measures(fa: FrameArrays, gate: float) -> dict[str, float]:
+    """IDTP, IDFP, IDFN, IDF1, IDP, IDR (Ristani et al. 2016, as ``motmetrics`` computes them):
+    the one-to-one assignment of track ids to truth ids that maximises the frames they are
+    matched within the gate (IDTP); IDFN = objects - IDTP, IDFP = hypotheses - IDTP."""
+    n_obj, n_hyp = len(fa.oids), len(fa.hids)
+    oi, hi, _ = fa.pair_index()
+    near = fa.d <= gate
+    nt = max(fa.n_tracker_ids, 1)
+    tp = np.bincount(fa.oids[oi[near]] * nt + fa.hids[hi[near]], minlength=max(fa.n_gt_ids, 1) * nt)
+    tp = tp.reshape(-1, nt)
+    idtp = 0.0
+    if tp.any():
+        r, c = _linear_sum_assignment(tp, maximize=True)
+        idtp = float(tp[r, c].sum())
+    with np.errstate(divide="ignore", invalid="ignore"):
+        return {
+            "idtp": idtp,
+            "idfp": n_hyp - idtp,
+            "idfn": n_obj - idtp,
+            "idf1": float(np.divide(2 * idtp, n_obj + n_hyp)),
+            "idp": float(np.divide(idtp, n_hyp)),
+            "idr": float(np.divide(idtp, n_obj)),
+        }
+
+
+# --------------------------------------------------------------------------- HOTA
+
+#: TrackEval's HOTA localisation thresholds.
+ALPHAS = np.arange(0.05, 0.99, 0.05)
+_EPS = np.finfo("float").eps
+
+
+def hota_curves(fa: FrameArrays, gate: float, *, compiled: bool = True) -> dict[str, np.ndarray]:
+    """HOTA, DetA, AssA at each of :data:`ALPHAS`, as ``trackeval.metrics.HOTA.eval_sequence``
+    computes them, over all frames at once (the same float operations in the same order).
+
+    The global alignment of ids :math:`A(g, k) = P / (n_g + n_k - P)`, with :math:`P` the sum
+    over frames of :math:`s_{gk} / (\\sum_{k'} s_{gk'} + \\sum_{g'} s_{g'k} - s_{gk})`; each
+    frame's matching maximises :math:`\\sum A \\cdot s`
+    (:func:`onebit.scoring.mot_kernels.hota_matches`; ties go to TrackEval's solver, scipy's
+    ``linear_sum_assignment``); a matched pair counts at :math:`\\alpha` when
+    :math:`s \\ge \\alpha`. ``compiled=False`` runs the matching kernel's plain Python."""
+    n = len(ALPHAS)
+    n_obj, n_hyp = len(fa.oids), len(fa.hids)
+    out = {k: np.zeros(n) for k in ("HOTA", "DetA", "AssA")}
+    if n_hyp == 0 or n_obj == 0:
+        return out
+    ng, nt = fa.n_gt_ids, fa.n_tracker_ids
+    s = similarity(fa.d, gate)
+    oi, hi, _ = fa.pair_index()
+    rows = np.bincount(oi, weights=s, minlength=n_obj)  # per frame and object: sum over its tracks
+    cols = np.bincount(hi, weights=s, minlength=n_hyp)  # per frame and track: sum over its objects
+    denom = cols[hi] + rows[oi] - s
+    iou = np.zeros_like(s)
+    ok = denom > 0 + _EPS
+    iou[ok] = s[ok] / denom[ok]
+    cell = fa.oids[oi] * nt + fa.hids[hi]
+    pmc = np.bincount(cell, weights=iou, minlength=ng * nt).reshape(ng, nt)
+    gt_count = np.bincount(fa.oids, minlength=ng).astype(float)[:, None]
+    tr_count = np.bincount(fa.hids, minlength=nt).astype(float)[None, :]
+    align = pmc / (gt_count + tr_count - pmc)
+    score = align.ravel()[cell] * s
+    pairs = np.empty(min(n_obj, n_hyp), np.int64)
+    handed = np.empty(fa.n_frames, np.int64)
+    match = mot_kernels.hota_matches if compiled else mot_kernels.hota_matches.py_func
+    n_p, n_h = match(fa.o_ptr, fa.h_ptr, fa.d_ptr, score, pairs, handed)
+    chosen = [pairs[:n_p]]
+    for f in handed[:n_h]:  # ties and large frames: TrackEval's own solver
+        no, nh = fa.o_ptr[f + 1] - fa.o_ptr[f], fa.h_ptr[f + 1] - fa.h_ptr[f]
+        r, c = _linear_sum_assignment(-score[fa.d_ptr[f] : fa.d_ptr[f + 1]].reshape(no, nh))
+        chosen.append(fa.d_ptr[f] + r * nh + c)
+    p = np.concatenate(chosen)
+    sp, cp = s[p], cell[p]
+    for a, alpha in enumerate(ALPHAS):
+        hit = sp >= alpha - _EPS
+        tp = float(hit.sum())
+        mc = np.bincount(cp[hit], minlength=ng * nt).reshape(ng, nt).astype(float)
+        ass = mc / np.maximum(1, gt_count + tr_count - mc)
+        out["AssA"][a] = np.sum(mc * ass) / np.maximum(1, tp)
+        out["DetA"][a] = tp / np.maximum(1, tp + (n_obj - tp) + (n_hyp - tp))
+    out["HOTA"] = np.sqrt(out["DetA"] * out["AssA"])
+    return out
+
+
+def _linear_sum_assignment(cost: np.ndarray, maximize: bool = False):
+    from scipy.optimize import linear_sum_assignment  # deferred: scipy's import is not free
+
+    return linear_sum_assignment(cost, maximize=maximize)
+
+
+# --------------------------------------------------------------------------- the metrics
 
 
 def mot_metrics(
     objects: pl.DataFrame, hypotheses: pl.DataFrame, distances: pl.DataFrame, *, gate: float
 ) -> dict[str, float]:
-    """MOTA, MOTP, IDF1, ID switches (motmetrics) and HOTA, DetA, AssA (trackeval).
+    """MOTA, MOTP, IDF1, ID switches (CLEAR MOT and ID measures, as ``motmetrics`` computes them)
+    and HOTA, DetA, AssA (as ``trackeval`` does), over all frames at once.
 
     Parameters
     ----------
@@ -183,12 +403,45 @@ def mot_metrics(
 
     Returns
     -------
-    ``mota, motp, idf1, id_switches, misses, false_positives, objects, frames, hota, deta, assa``;
-    NaN where undefined (MOTP without a match).
+    ``mota, motp, idf1, idp, idr, id_switches, misses, false_positives, objects, frames, hota,
+    deta, assa``; NaN where undefined (MOTP without a match, MOTA without objects).
 
-    The libraries take one frame at a time (``MOTAccumulator.update``, TrackEval's per-timestep
-    lists): the loop over frames is their interface; the frame arrays are built vectorised.
+    Equal to :func:`mot_metrics_libraries` (the libraries' per-frame APIs, kept as the test
+    oracle; ``tests/scoring/test_mot_fast.py``): the sequential CLEAR rule runs compiled
+    (:func:`clear_counts`), the ID measures and HOTA are vectorised over frames
+    (:func:`id_measures`, :func:`hota_curves`).
     """
+    if not gate > 0:
+        raise OnebitError(f"mot_metrics: gate={gate!r}; expected a positive distance")
+    fa = frame_arrays(objects, hypotheses, distances)
+    n_obj = len(fa.oids)
+    (matches, switches, misses, fps), dsum = clear_counts(fa, gate)
+    ident = id_measures(fa, gate)
+    hota = hota_curves(fa, gate)
+    detections = matches + switches
+    nan = float("nan")
+    return {
+        "mota": 1.0 - (misses + switches + fps) / n_obj if n_obj else nan,  # undefined without truth
+        "motp": dsum / detections if detections else nan,
+        "idf1": ident["idf1"] if fa.n_frames else nan,
+        "idp": ident["idp"] if fa.n_frames else nan,
+        "idr": ident["idr"] if fa.n_frames else nan,
+        "id_switches": float(switches),
+        "misses": float(misses),
+        "false_positives": float(fps),
+        "objects": float(n_obj),
+        "frames": float(fa.n_frames),
+        "hota": float(np.mean(hota["HOTA"])),
+        "deta": float(np.mean(hota["DetA"])),
+        "assa": float(np.mean(hota["AssA"])),
+    }
+
+
+def mot_metrics_libraries(
+    objects: pl.DataFrame, hypotheses: pl.DataFrame, distances: pl.DataFrame, *, gate: float
+) -> dict[str, float]:
+    """:func:`mot_metrics` through the libraries' own per-frame APIs (``MOTAccumulator.update``,
+    TrackEval's per-timestep lists): the oracle of the fast scorer, one Python call per frame."""
     if not gate > 0:
         raise OnebitError(f"mot_metrics: gate={gate!r}; expected a positive distance")
     frames, obj_ids, hyp_ids, mats = frame_blocks(objects, hypotheses, distances)
@@ -202,7 +455,7 @@ def mot_metrics(
         s = mm.metrics.create().compute(acc, metrics=list(_METRICS), name="run", return_dataframe=False)
     else:
         s = dict.fromkeys(_METRICS, 0)
-        s.update(mota=np.nan, motp=np.nan, idf1=np.nan)
+        s.update(mota=np.nan, motp=np.nan, idf1=np.nan, idp=np.nan, idr=np.nan)
     data = {
         "num_timesteps": len(frames),
         "num_gt_ids": objects["target"].n_unique(),
@@ -218,6 +471,8 @@ def mot_metrics(
         "mota": float(s["mota"]) if n_obj else float("nan"),  # 1 - FP / 0: undefined without truth
         "motp": float(s["motp"]),
         "idf1": float(s["idf1"]),
+        "idp": float(s["idp"]),
+        "idr": float(s["idr"]),
         "id_switches": float(s["num_switches"]),
         "misses": float(s["num_misses"]),
         "false_positives": float(s["num_false_positives"]),

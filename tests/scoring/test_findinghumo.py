@@ -7,7 +7,7 @@ import pytest
 
 from onebit.core.tables import SCORES
 from onebit.models.graph_hmm.eatg import hop_matrix
-from onebit.scoring.findinghumo import score
+from onebit.scoring.findinghumo import _truth_nodes, score, truth_nodes
 
 
 def test_users_take_the_track_of_least_summed_hops_and_missed_slots_cost_the_diameter(hallway_site):
@@ -44,3 +44,15 @@ def test_users_take_the_track_of_least_summed_hops_and_missed_slots_cost_the_dia
     assert m["slots_exact"] == pytest.approx(4 / 6)
     sc = made["hmm1_scores"]
     assert sc.schema == SCORES and dict(sc.select("track", "target").unique().iter_rows()) == {"k1": "u2", "k2": "u1"}
+
+
+def test_truth_nodes_answers_the_same_truth_once_and_a_new_truth_anew(hallway_site):
+    xy = [m.position for m in hallway_site.motion_sensors]
+    one = pl.DataFrame({"t": [0.0, 1.0], "target": ["u", "u"], "x": [xy[0][0], xy[1][0]], "y": [xy[0][1], xy[1][1]]})
+    other = one.with_columns(x=pl.Series([xy[2][0], xy[3][0]]), y=pl.Series([xy[2][1], xy[3][1]]))
+    first = truth_nodes(one, hallway_site)
+    assert truth_nodes(one, hallway_site) is first  # the same objects: the remembered answer
+    again = truth_nodes(other, hallway_site)
+    assert again["node"].to_list() == _truth_nodes(other, hallway_site)["node"].to_list()
+    assert again["node"].to_list() != first["node"].to_list()
+    assert truth_nodes(one, hallway_site)["node"].to_list() == first["node"].to_list()

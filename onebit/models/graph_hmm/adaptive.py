@@ -96,7 +96,7 @@ import numpy as np
 
 from onebit.core.lazy import lazy_module
 from onebit.models.graph_hmm.eatg import Eatg, onsets
-from onebit.models.graph_hmm.kernels import coordinate_ascent, emission_tables
+from onebit.models.graph_hmm.kernels import coordinate_ascent, emission_tables, move_support
 from onebit.models.graph_hmm.viterbi import log_safe, viterbi_first_order, viterbi_motion_second_order
 
 nx = lazy_module("networkx")
@@ -173,6 +173,17 @@ def second_order_tensor(a1: np.ndarray, a2: np.ndarray, idx: np.ndarray) -> np.n
     return log_safe(t)
 
 
+def window_transitions(
+    eatg: Eatg, states: np.ndarray, order: int
+) -> tuple[np.ndarray, np.ndarray | None, tuple[np.ndarray, np.ndarray] | None]:
+    """``(log a1, log a2, support)`` restricted to ``states``: ``log a2`` and its moves
+    (:func:`onebit.models.graph_hmm.kernels.move_support`) only for ``order == 2``."""
+    if order != 2:
+        return restricted_first(eatg.a1, states), None, None
+    log_a2 = second_order_tensor(eatg.a1, eatg.a2, states)
+    return restricted_first(eatg.a1, states), log_a2, move_support(np.ascontiguousarray(log_a2, dtype=np.float64))
+
+
 def max_independent(nodes_on: np.ndarray, adj: np.ndarray, cache: dict) -> int:
     """Size of a maximum set of active nodes pairwise >= 2 hops apart (exact)."""
     key = tuple(nodes_on.tolist())
@@ -228,12 +239,15 @@ def decode_users(
     order: int,
     eatg: Eatg,
     params: DecoderParams,
+    transitions: tuple | None = None,
 ) -> np.ndarray:
     """Decode ``K`` users on one window by explain-away coordinate ascent (module docstring).
 
     obs : (L, N) bool activity of the window; states : (S,) node indices of the state set.
     prefixes : per user, the last accepted nodes (0-2 of them) clamped before slot 0.
     starts : per user, the window slot it appears at (0 for known users).
+    transitions : :func:`window_transitions` of ``states`` when the caller has them already (the
+        full-state baselines decode every window on the same states: computed once per run).
     Returns (K, L) node indices, -1 before a user's start.
     """
     k = len(prefixes)
@@ -243,8 +257,9 @@ def decode_users(
         return out
     pos = {int(v): i for i, v in enumerate(states)}
     on = obs[:, states]  # (L, S)
-    log_a1 = restricted_first(eatg.a1, states)
-    log_a2 = second_order_tensor(eatg.a1, eatg.a2, states) if order == 2 else None
+    if transitions is None:
+        transitions = window_transitions(eatg, states, order)
+    log_a1, log_a2, support = transitions
     if math.factorial(k) <= params.restarts:  # every order: the result does not depend on the labels
         orders = [list(o) for o in itertools.permutations(range(k))]
     else:  # the users' decoding order rotated
@@ -264,6 +279,7 @@ def decode_users(
             log_a2=log_a2,
             table=table,
             sweeps=params.sweeps,
+            support=support,
         )
     else:
         best, best_score = None, -np.inf
@@ -397,6 +413,12 @@ class WindowDecoder:
         self.s = 0
         self.done = False
         self._mis: dict = {}
+        # the full-state baselines' transitions, on every node: the same for every window
+        self._full = (
+            window_transitions(eatg, np.arange(self.n), 1 if params.mode == "full1" else 2)
+            if params.mode in ("full1", "full2")
+            else None
+        )
 
     @property
     def final_slots(self) -> int:
@@ -503,7 +525,15 @@ class WindowDecoder:
             else:
                 order = 1 if params.mode == "full1" else 2
                 paths = decode_users(
-                    obs, np.arange(self.n), prefixes, starts, entry_nodes, order=order, eatg=self.eatg, params=params
+                    obs,
+                    np.arange(self.n),
+                    prefixes,
+                    starts,
+                    entry_nodes,
+                    order=order,
+                    eatg=self.eatg,
+                    params=params,
+                    transitions=self._full,
                 )
                 info = dict(order=order, states=self.n, overlap=None)
             gone = []
@@ -566,18 +596,38 @@ def _last_nodes(row: np.ndarray, s: int) -> list[int]:
 
 
 def _exits(row: np.ndarray, after: np.ndarray, signatures) -> bool:
-    """The path ends ``inner -> outer`` of an exit signature and ``outer`` is silent after."""
-    valid = row[row >= 0]
-    if valid.size < 2:
-        return False
-    end = valid[-1]
-    moved = valid[valid != end]
-    if moved.size == 0:
+    """The path ends ``inner -> outer`` of an exit signature and ``outer`` is silent after.
+
+    ``outer`` is the last node the path is at (absent slots skipped), ``inner`` the last
+    different one before it (:func:`_last_two`): read from the end, so a window costs the
+    user's last dwell, not the run so far."""
+    end, came = _last_two(row)
+    if end < 0 or came < 0:
         return False
     for outer, inner in signatures:
-        if end == outer and moved[-1] == inner and not after[:, outer].any():
+        if end == outer and came == inner and not after[:, outer].any():
             return True
     return False
+
+
+def _last_two(row: np.ndarray) -> tuple[int, int]:
+    """``(end, came)``: the last node of ``row`` (``-1`` entries are absences) and the last node
+    different from it before that, ``-1`` where there is none; looking back in growing steps."""
+    end, hi, step = -1, len(row), 64
+    while hi > 0:
+        lo = max(0, hi - step)
+        seg = row[lo:hi]
+        if end < 0:
+            at = np.flatnonzero(seg >= 0)
+            if at.size:
+                end = int(seg[at[-1]])
+                seg = seg[: at[-1]]
+        if end >= 0:
+            diff = np.flatnonzero((seg >= 0) & (seg != end))
+            if diff.size:
+                return end, int(seg[diff[-1]])
+        hi, step = lo, step * 4
+    return end, -1
 
 
 def _adaptive_window(obs, prefixes, starts, entry_nodes, eatg: Eatg, params: DecoderParams):

@@ -18,6 +18,7 @@ from onebit.core.site import Site
 from onebit.core.tables import MOTION, TRACKS, check_schema, conform
 from onebit.models.graph_hmm.adaptive import RESUME_SLOTS, DecodeResult, DecoderParams, decode_run
 from onebit.models.graph_hmm.eatg import Eatg, hop_matrix, layout_eatg, read_eatg, trained_eatg
+from onebit.models.graph_hmm.kernels import cap_users_pass
 
 #: One row per HMM window: first slot, users K (and K now), entry/exit signatures, HMM order,
 #: states and whether the motion overlapped (null for the full-state baselines).
@@ -342,18 +343,41 @@ def door_signatures(g) -> list[tuple[str, str]]:
     return [(d, n) for d in doors for n in sorted(set(nbr.get(d, ()))) if n not in doors]
 
 
-def cap_users(paths: np.ndarray, active: np.ndarray, hops: np.ndarray, cap: int) -> np.ndarray:
+def cap_users(
+    paths: np.ndarray, active: np.ndarray, hops: np.ndarray, cap: int, *, compiled: bool = True
+) -> np.ndarray:
     """At most ``cap`` users at a time: ``(U, D)`` decoded node paths -> ``(min(U, cap), D)``.
 
     The decoder's user count ``K = max(K_pre + Sig_in - Sig_out, K_now)`` can only grow by
     ``K_now`` (independent active nodes) without an exit signature to bring it down: one
     resident whose PIRs hold ``ON`` a few seconds after she passed shows two nodes two hops
     apart, a "second user" that then stays for the rest of the log. When the number of
-    people is known (``targets``), ``cap`` identities are kept (:class:`UserCap`, slot by
-    slot). ``cap <= 0`` or ``U <= cap`` returns ``paths``."""
+    people is known (``targets``), ``cap`` identities are kept (:class:`UserCap` slot by slot
+    online; here all slots at once): at each slot the present
+    users are ranked by whether their node is active now, then by how recently it was, then
+    by whether an identity already holds them; the first ``cap`` are reported. An identity
+    keeps its user while the user is kept; a newly kept user takes the free identity whose
+    last node is nearest in hops to it. ``cap <= 0`` or ``U <= cap`` returns ``paths``.
+    Sequential over slots (each depends on the last): compiled
+    (:func:`onebit.models.graph_hmm.kernels.cap_users_pass`); ``compiled=False`` runs
+    :func:`cap_users_reference`, its test oracle.
+    """
     U, D = paths.shape
     if cap <= 0 or U <= cap:
         return paths
+    if not compiled:
+        return cap_users_reference(paths, active, hops, cap)
+    return cap_users_pass(
+        np.ascontiguousarray(paths, dtype=np.int64),
+        np.ascontiguousarray(active, dtype=np.bool_),
+        np.ascontiguousarray(hops, dtype=np.int64),
+        int(cap),
+    )
+
+
+def cap_users_reference(paths: np.ndarray, active: np.ndarray, hops: np.ndarray, cap: int) -> np.ndarray:
+    """:func:`cap_users` in numpy, vectorised over the users of a slot (the oracle of its kernel):
+    one :class:`UserCap` given every slot at once."""
     return UserCap(cap, hops).step(paths, active)
 
 

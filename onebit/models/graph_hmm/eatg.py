@@ -184,20 +184,32 @@ def trained_eatg(
     with a lag of 1..``horizon`` slots as a sum of ``horizon`` matrix products.
     """
     prior = layout_eatg(nodes, hops, stay=stay, turn_back=turn_back)
-    act = np.asarray(active, float)
-    if act.shape[0] < 2:
+    active = np.asarray(active, bool)
+    if active.shape[0] < 2:
         return prior
-    c1 = act[:-1].T @ act[1:]  # (j2, j1) counts of j2 at t and j1 at t+1
+    c1 = lag_counts(active, 1)  # (j2, j1) counts of j2 at t and j1 at t+1
     c1 = np.where(hops <= 1, c1, 0.0)
     a1 = _normalise(c1 + prior_strength * prior.a1, fallback_diag=True)
-    on = onsets(np.asarray(active, bool)).astype(float)
+    on = onsets(active)
     c2 = np.zeros_like(c1)
-    for lag in range(1, horizon + 1):  # loop over lags, each a vectorised (N, N) product
+    for lag in range(1, horizon + 1):  # loop over lags, each a sparse (N, N) product
         if lag < on.shape[0]:
-            c2 += on[:-lag].T @ on[lag:]
+            c2 += lag_counts(on, lag)
     c2 = np.where(hops == 2, c2, 0.0)  # re-triggers of one node are mostly PIR bursts: prior only
     a2 = _normalise(c2 + prior_strength * prior.a2, fallback_diag=True)
     return Eatg(tuple(nodes), hops, a1, a2)
+
+
+def lag_counts(x: np.ndarray, lag: int) -> np.ndarray:
+    """``(N, N)`` float counts ``x[:-lag].T @ x[lag:]`` of a ``(D, N)`` bool activity: how often
+    node ``i`` is on at ``t`` and node ``j`` at ``t + lag``. A sparse integer product (the
+    activity of a day is a few percent of its slots x nodes): exact counts, the dense float
+    product's values, without a ``D x N`` float copy per lag."""
+    from scipy import sparse  # deferred: scipy's import is not free
+
+    a = sparse.csc_matrix(x[:-lag].astype(np.int32))
+    b = sparse.csc_matrix(x[lag:].astype(np.int32))
+    return np.asarray((a.T @ b).toarray(), dtype=float)
 
 
 def _normalise(m: np.ndarray, *, fallback_diag: bool) -> np.ndarray:

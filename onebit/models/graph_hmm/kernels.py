@@ -208,6 +208,163 @@ def _viterbi_motion2(log_pi, log_stay, log_move, log_b):
     return path, score
 
 
+@kernel
+def move_support(log_move):
+    """The moves a second-order tensor allows, as CSR over the current node ``j``: the next
+    nodes ``k`` with ``log_move[p, j, k] > -inf`` for some previous node ``p``
+    (``k_idx[k_ptr[j]:k_ptr[j+1]]``, ascending). On a sensor graph these are ``j``'s
+    neighbours: a handful, not the graph."""
+    n = log_move.shape[0]
+    mask = np.zeros((n, n), dtype=np.bool_)
+    for p in range(n):
+        for j in range(n):
+            for k in range(n):
+                if log_move[p, j, k] > NEG_INF:
+                    mask[j, k] = True
+    k_ptr = np.zeros(n + 1, dtype=np.int64)
+    for j in range(n):
+        k_ptr[j + 1] = k_ptr[j] + mask[j].sum()
+    k_idx = np.empty(k_ptr[n], dtype=np.int64)
+    q = 0
+    for j in range(n):
+        for k in range(n):
+            if mask[j, k]:
+                k_idx[q] = k
+                q += 1
+    return k_ptr, k_idx
+
+
+@kernel
+def _grow(arr, need):
+    """``arr`` if it holds ``need`` items, else a copy twice as large (or ``need``)."""
+    if need <= arr.shape[0]:
+        return arr
+    out = np.empty(max(need, 2 * arr.shape[0]), dtype=arr.dtype)
+    out[: arr.shape[0]] = arr
+    return out
+
+
+@kernel
+def _viterbi_motion2_sparse(log_pi, log_stay, log_move, log_b, k_ptr, k_idx):
+    """:func:`_viterbi_motion2` over the reachable pairs only: it keeps the list of the
+    (previous, current) pairs whose ``delta`` is finite and, per slot, extends each by the moves
+    :func:`move_support` allows and by staying. A user whose last nodes are known (the clamped
+    prefix) reaches a few pairs per slot, so the cost follows the neighbourhood it can reach, not
+    the graph; one that may start anywhere reaches every node. Back-pointers are kept only where
+    a move wins (per slot, sparse). Every maximum keeps the dense kernel's choice (the smallest
+    previous node among equals; the row-major first pair at the end), so the path and the score
+    are the dense kernel's (tests)."""
+    n_slots, n = log_b.shape
+    path = np.zeros(n_slots, dtype=np.int64)
+    if n_slots == 0:
+        return path, 0.0
+    delta = np.full((n, n), NEG_INF)
+    nd = np.full((n, n), NEG_INF)
+    best = np.full((n, n), NEG_INF)
+    arg = np.zeros((n, n), dtype=np.int64)
+    touched = np.zeros((n, n), dtype=np.bool_)
+    ca = np.empty(max(n, 16), dtype=np.int64)  # the finite pairs of delta: (ca[i], cb[i])
+    cb = np.empty(max(n, 16), dtype=np.int64)
+    nc = 0
+    for j in range(n):
+        v = log_pi[j] + log_b[0, j]
+        if v > NEG_INF:
+            delta[j, j] = v
+            ca[nc] = j
+            cb[nc] = j
+            nc += 1
+    ta = np.empty(16, dtype=np.int64)  # pairs a move reaches this slot
+    tb = np.empty(16, dtype=np.int64)
+    na = np.empty(16, dtype=np.int64)  # the finite pairs of the next delta
+    nb = np.empty(16, dtype=np.int64)
+    rec_ptr = np.zeros(n_slots + 1, dtype=np.int64)  # back-pointers where a move won: per slot
+    ra = np.empty(16, dtype=np.int64)
+    rb = np.empty(16, dtype=np.int64)
+    rp = np.empty(16, dtype=np.int64)
+    nr = 0
+    for d in range(1, n_slots):  # sequential in time by construction
+        nt = 0
+        for i in range(nc):  # best[j, k] = max_p delta[p, j] + log_move[p, j, k]
+            p = ca[i]
+            j = cb[i]
+            dv = delta[p, j]
+            for q in range(k_ptr[j], k_ptr[j + 1]):
+                k = k_idx[q]
+                if k == j:
+                    continue
+                v = dv + log_move[p, j, k]
+                if v == NEG_INF:
+                    continue
+                if not touched[j, k]:
+                    touched[j, k] = True
+                    ta = _grow(ta, nt + 1)
+                    tb = _grow(tb, nt + 1)
+                    ta[nt] = j
+                    tb[nt] = k
+                    nt += 1
+                    best[j, k] = v
+                    arg[j, k] = p
+                elif v > best[j, k] or (v == best[j, k] and p < arg[j, k]):
+                    best[j, k] = v
+                    arg[j, k] = p
+        nn = 0
+        for pass_ in range(2):  # the pairs a move reaches, then the others that stay
+            m = nt if pass_ == 0 else nc
+            for i in range(m):
+                j = ta[i] if pass_ == 0 else ca[i]
+                k = tb[i] if pass_ == 0 else cb[i]
+                if pass_ == 1 and touched[j, k]:
+                    continue
+                stay = delta[j, k] + log_stay[k]
+                move = best[j, k] if pass_ == 0 else NEG_INF
+                if move > stay:
+                    ra = _grow(ra, nr + 1)
+                    rb = _grow(rb, nr + 1)
+                    rp = _grow(rp, nr + 1)
+                    ra[nr] = j
+                    rb[nr] = k
+                    rp[nr] = arg[j, k]
+                    nr += 1
+                    v = move + log_b[d, k]
+                else:
+                    v = stay + log_b[d, k]
+                if v > NEG_INF:
+                    nd[j, k] = v
+                    na = _grow(na, nn + 1)
+                    nb = _grow(nb, nn + 1)
+                    na[nn] = j
+                    nb[nn] = k
+                    nn += 1
+        rec_ptr[d + 1] = nr
+        for i in range(nt):
+            touched[ta[i], tb[i]] = False
+            best[ta[i], tb[i]] = NEG_INF
+            arg[ta[i], tb[i]] = 0
+        for i in range(nc):
+            delta[ca[i], cb[i]] = NEG_INF
+        delta, nd = nd, delta
+        ca, na = na, ca
+        cb, nb = nb, cb
+        nc = nn
+    x, y = 0, 0
+    for i in range(nc):  # the row-major first maximum
+        a, b = ca[i], cb[i]
+        if delta[a, b] > delta[x, y] or (delta[a, b] == delta[x, y] and (a < x or (a == x and b < y))):
+            x, y = a, b
+    score = delta[x, y]
+    path[n_slots - 1] = y
+    for d in range(n_slots - 1, 0, -1):
+        b = -1
+        for r in range(rec_ptr[d], rec_ptr[d + 1]):
+            if ra[r] == x and rb[r] == y:
+                b = rp[r]
+                break
+        if b >= 0:
+            x, y = b, x
+        path[d - 1] = y
+    return path, score
+
+
 def viterbi_motion_second_order(
     log_pi: np.ndarray, log_stay: np.ndarray, log_move: np.ndarray, log_b: np.ndarray
 ) -> tuple[np.ndarray, float]:
@@ -234,7 +391,9 @@ def emission_tables(k: int, p_hit: float, p_false: float, gain) -> np.ndarray:
 
 
 @kernel
-def _ascent_one_order(on, pre, n_pre, starts, entry, order_u, order, log_a1, log_stay, log_a2, table, sweeps, decoded):
+def _ascent_one_order(
+    on, pre, n_pre, starts, entry, order_u, order, log_a1, log_stay, log_a2, k_ptr, k_idx, table, sweeps, decoded
+):
     """Explain-away sweeps over the users in ``order_u``; fills ``decoded (K, L)`` and returns the
     joint log-likelihood (see :func:`coordinate_ascent`)."""
     n_slots, s = on.shape
@@ -271,7 +430,7 @@ def _ascent_one_order(on, pre, n_pre, starts, entry, order_u, order, log_a1, log
                     log_pi[j] = NEG_INF
                 log_pi[entry[u]] = 0.0
             if order == 2:
-                path, score = _viterbi_motion2(log_pi, log_stay, log_a2, log_b)
+                path, score = _viterbi_motion2_sparse(log_pi, log_stay, log_a2, log_b, k_ptr, k_idx)
             else:
                 path, score = _viterbi1(log_pi, log_a1, log_b)
             emis_sum = 0.0
@@ -296,7 +455,9 @@ def _ascent_one_order(on, pre, n_pre, starts, entry, order_u, order, log_a1, log
 
 
 @kernel
-def _coordinate_ascent(on, pre, n_pre, starts, entry, orders, order, log_a1, log_stay, log_a2, table, sweeps):
+def _coordinate_ascent(
+    on, pre, n_pre, starts, entry, orders, order, log_a1, log_stay, log_a2, k_ptr, k_idx, table, sweeps
+):
     k = pre.shape[0]
     n_slots = on.shape[0]
     best = np.full((k, n_slots), -1, dtype=np.int64)
@@ -305,7 +466,7 @@ def _coordinate_ascent(on, pre, n_pre, starts, entry, orders, order, log_a1, log
     found = False
     for r in range(orders.shape[0]):
         score = _ascent_one_order(
-            on, pre, n_pre, starts, entry, orders[r], order, log_a1, log_stay, log_a2, table, sweeps, cur
+            on, pre, n_pre, starts, entry, orders[r], order, log_a1, log_stay, log_a2, k_ptr, k_idx, table, sweeps, cur
         )
         if not found or score > best_score + 1e-9:
             found = True
@@ -326,6 +487,7 @@ def coordinate_ascent(
     log_a2: np.ndarray | None,
     table: np.ndarray,
     sweeps: int,
+    support: tuple[np.ndarray, np.ndarray] | None = None,
 ) -> tuple[np.ndarray, float]:
     """Every restart of the explain-away coordinate ascent in one compiled call.
 
@@ -335,7 +497,8 @@ def coordinate_ascent(
     :func:`emission_tables`. Returns the ``(K, L)`` state positions of the order with the
     highest joint log-likelihood (first of equals within 1e-9) and that likelihood, as
     :func:`~onebit.models.graph_hmm.adaptive.coordinate_ascent_reference` run over the same
-    orders.
+    orders. ``support``: :func:`move_support` of ``log_a2`` when the caller has it (computed
+    here otherwise, ``O(S^3)``).
     """
     k = len(prefixes)
     pre = np.zeros((k, 2), dtype=np.int64)
@@ -346,6 +509,9 @@ def coordinate_ascent(
     s = on.shape[1]
     a2 = np.zeros((1, 1, 1)) if log_a2 is None else _f64(log_a2, 3)
     a1 = _f64(log_a1, 2)
+    if order != 2 or log_a2 is None:
+        support = (np.zeros(2, np.int64), np.zeros(0, np.int64))
+    k_ptr, k_idx = move_support(a2) if support is None else support
     best, score = _coordinate_ascent(
         np.ascontiguousarray(on, dtype=np.bool_),
         pre,
@@ -357,6 +523,8 @@ def coordinate_ascent(
         a1,
         np.ascontiguousarray(np.diag(a1)) if s else np.zeros(0),
         a2,
+        k_ptr,
+        k_idx,
         table,
         int(sweeps),
     )
@@ -368,4 +536,86 @@ def _f64(a, ndim: int = 1) -> np.ndarray:
     out = np.ascontiguousarray(a, dtype=np.float64)
     if out.ndim != ndim:
         raise ValueError(f"expected a {ndim}-d array, got shape {out.shape}")
+    return out
+
+
+# --------------------------------------------------------------------------- capping the users
+
+
+@kernel
+def cap_users_pass(paths, active, hops, cap):
+    """Compiled :func:`onebit.models.graph_hmm.decoding.cap_users_reference` (same output): per
+    slot the present users ranked by (node active now, last slot it was active, held by an
+    identity, user index), the first ``cap`` kept, each newly kept user given the free identity
+    whose last node is nearest in hops (first of equals). Sequential over slots; ``O(cap U)``
+    per slot."""
+    n_users, n_slots = paths.shape
+    out = np.full((cap, n_slots), -1, dtype=np.int64)
+    holder = np.full(cap, -1, dtype=np.int64)
+    last_node = np.full(cap, -1, dtype=np.int64)
+    seen = np.full(n_users, -1, dtype=np.int64)
+    lit = np.zeros(n_users, dtype=np.bool_)
+    held = np.zeros(n_users, dtype=np.bool_)
+    taken = np.zeros(n_users, dtype=np.bool_)
+    keep = np.empty(cap, dtype=np.int64)
+    in_keep = np.zeros(n_users, dtype=np.bool_)
+    for s in range(n_slots):
+        for u in range(n_users):
+            q = paths[u, s]
+            lit[u] = q >= 0 and active[s, q]
+            if lit[u]:
+                seen[u] = s
+            held[u] = False
+            taken[u] = False
+            in_keep[u] = False
+        for i in range(cap):
+            if holder[i] >= 0:
+                held[holder[i]] = True
+        n_keep = 0
+        while n_keep < cap:  # the next present user in (lit, seen, held, index) order
+            b = -1
+            for u in range(n_users):
+                if paths[u, s] < 0 or taken[u]:
+                    continue
+                if b < 0:
+                    b = u
+                    continue
+                if lit[u] != lit[b]:
+                    better = lit[u]
+                elif seen[u] != seen[b]:
+                    better = seen[u] > seen[b]
+                else:
+                    better = held[u] and not held[b]
+                if better:
+                    b = u
+            if b < 0:
+                break
+            taken[b] = True
+            keep[n_keep] = b
+            in_keep[b] = True
+            n_keep += 1
+        for i in range(cap):
+            if holder[i] >= 0 and not in_keep[holder[i]]:
+                holder[i] = -1
+        for r in range(n_keep):
+            u = keep[r]
+            have = False
+            for i in range(cap):
+                if holder[i] == u:
+                    have = True
+            if have:
+                continue
+            best_i = -1
+            best_d = 0
+            for i in range(cap):
+                if holder[i] >= 0:
+                    continue
+                d = hops[last_node[i], paths[u, s]] if last_node[i] >= 0 else 0
+                if best_i < 0 or d < best_d:
+                    best_i, best_d = i, d
+            holder[best_i] = u
+        for i in range(cap):
+            if holder[i] >= 0:
+                out[i, s] = paths[holder[i], s]
+                last_node[i] = out[i, s]
     return out

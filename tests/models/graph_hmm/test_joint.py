@@ -145,7 +145,7 @@ def test_meetings_are_runs_within_one_hop_padded():
 @settings(max_examples=30, deadline=None)
 @given(data=st.data())
 def test_compiled_pair_recursion_equals_the_numpy_reference(data):
-    from onebit.models.graph_hmm.joint import _pair_viterbi, pair_viterbi_reference
+    from onebit.models.graph_hmm.joint import pair_viterbi, pair_viterbi_reference
 
     w = data.draw(st.integers(1, 5))
     s = SPACE.x.size
@@ -153,7 +153,7 @@ def test_compiled_pair_recursion_equals_the_numpy_reference(data):
     rng = np.random.default_rng(seed)
     delta = np.where(rng.random((s, s)) < 0.05, rng.normal(size=(s, s)), -np.inf)
     g, h = rng.normal(size=(w, N)), rng.normal(size=(w, N))
-    d1, p1 = _pair_viterbi(delta, SPACE.pred, SPACE.lp, SPACE.x, g, h)
+    d1, p1 = pair_viterbi(delta, SPACE.pred, SPACE.lp, SPACE.x, g, h)
     d0, p0 = pair_viterbi_reference(delta, SPACE.pred, SPACE.lp, SPACE.x, g, h)
     np.testing.assert_allclose(d1, d0, rtol=0, atol=1e-9)
     ok = np.isfinite(d0)

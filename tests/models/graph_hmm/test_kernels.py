@@ -8,7 +8,8 @@ import numpy as np
 import pytest
 
 from onebit.models.graph_hmm import kernels, viterbi
-from onebit.models.graph_hmm.adaptive import DecoderParams, decode_run, decode_users
+from onebit.models.graph_hmm.adaptive import DecoderParams, decode_run, decode_users, window_transitions
+from onebit.models.graph_hmm.decoding import cap_users
 from onebit.models.graph_hmm.eatg import hop_matrix, layout_eatg, trained_eatg
 
 
@@ -152,3 +153,75 @@ def test_emission_table_matches_the_reference_gain():
         claims = np.array([[cc]])
         assert table[2, cc] == joint_emission(np.array([[True]]), claims, 0.9, 0.05)
         assert table[3, cc] == joint_emission(np.array([[False]]), claims, 0.9, 0.05)
+
+
+@pytest.mark.parametrize("seed", range(8))
+def test_sparse_motion_kernel_equals_the_dense_one(seed):
+    """The second-order Viterbi that keeps only the reachable (previous, current) pairs and the
+    moves the tensor allows gives the dense kernel's path and score, bit for bit: on tensors of
+    random sensor graphs (as the decoder builds them) and on random dense and sparse tensors,
+    with random, clamped (a known last node) and all-equal emissions (ties)."""
+    rng = np.random.default_rng(200 + seed)
+    nodes, edges = _random_graph(rng, 14)
+    hops = hop_matrix(nodes, edges)
+    act = rng.random((80, len(nodes))) < 0.2
+    eatg = trained_eatg(act, nodes, hops, horizon=5) if seed % 2 else layout_eatg(nodes, hops)
+    for trial in range(6):
+        if trial < 4:
+            states = np.arange(len(nodes)) if trial == 0 else np.sort(rng.choice(len(nodes), 8, replace=False))
+            log_a1, log_a2, _ = window_transitions(eatg, states, 2)
+            s = len(states)
+        else:
+            s = 6
+            log_a1 = np.log(rng.dirichlet(np.ones(s), size=s))
+            log_a2 = np.log(rng.dirichlet(np.ones(s), size=(s, s)))
+            log_a2[rng.random((s, s, s)) < 0.5 * (trial - 4)] = -np.inf
+        log_stay = np.ascontiguousarray(np.diag(log_a1))
+        for d in (1, 2, 5, 9):
+            log_pi = np.log(rng.dirichlet(np.ones(s)))
+            log_pi[rng.random(s) < 0.3] = -np.inf
+            log_b = np.log(rng.random((d, s)) + 1e-3)
+            log_b[rng.random((d, s)) < 0.2] = -np.inf
+            k_ptr, k_idx = kernels.move_support(log_a2)
+            clamped = log_b.copy()  # the decoder's prefix: the user's last node known
+            clamped[0] = -np.inf
+            clamped[0, rng.integers(s)] = 0.0
+            flat = np.zeros_like(log_b)  # every emission equal: ties everywhere
+            for pi, b in ((log_pi, log_b), (np.zeros(s), clamped), (np.zeros(s), flat)):
+                p0, lp0 = kernels._viterbi_motion2(pi, log_stay, log_a2, b)
+                p1, lp1 = kernels._viterbi_motion2_sparse(pi, log_stay, log_a2, b, k_ptr, k_idx)
+                np.testing.assert_array_equal(p1, p0)
+                assert lp1 == lp0 or (np.isneginf(lp0) and np.isneginf(lp1))
+    # on a sensor graph the support is the neighbourhood, not the graph
+    k_ptr, _ = kernels.move_support(window_transitions(eatg, np.arange(len(nodes)), 2)[1])
+    assert np.diff(k_ptr).max() <= (hops == 1).sum(axis=1).max() + 1
+
+
+@pytest.mark.parametrize("seed", range(10))
+def test_cap_users_kernel_equals_reference(seed):
+    """Random decoded paths (users appearing, vanishing, sharing nodes) on random graphs:
+    the compiled cap keeps the same users under the same identities as the numpy one."""
+    rng = np.random.default_rng(300 + seed)
+    nodes, edges = _random_graph(rng, 9)
+    hops = hop_matrix(nodes, edges)
+    n_users, n_slots = int(rng.integers(2, 9)), int(rng.integers(1, 60))
+    paths = rng.integers(0, len(nodes), (n_users, n_slots))
+    paths[rng.random(paths.shape) < 0.35] = -1
+    active = rng.random((n_slots, len(nodes))) < 0.3
+    for cap in range(1, n_users + 1):
+        ref = cap_users(paths, active, hops, cap, compiled=False)
+        np.testing.assert_array_equal(cap_users(paths, active, hops, cap), ref)
+
+
+def test_sparse_motion_kernel_breaks_ties_as_the_dense_one():
+    """Every move equally likely and better than staying: every previous node ties, and both
+    kernels take the smallest (the path depends on it)."""
+    s = 5
+    log_move = np.zeros((s, s, s))
+    log_stay = np.full(s, -1.0)
+    for b in (np.zeros((6, s)), np.where(np.eye(s, dtype=bool)[[3, 1, 4, 0, 2, 2]], 0.0, -0.5)):
+        k_ptr, k_idx = kernels.move_support(log_move)
+        p0, lp0 = kernels._viterbi_motion2(np.zeros(s), log_stay, log_move, b)
+        p1, lp1 = kernels._viterbi_motion2_sparse(np.zeros(s), log_stay, log_move, b, k_ptr, k_idx)
+        np.testing.assert_array_equal(p1, p0)
+        assert lp1 == lp0
