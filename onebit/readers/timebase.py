@@ -251,13 +251,7 @@ def _numeric_origin(sources, col, epoch, max_gap_s, lone_fraction, max_span_s) -
     if hi_abs - lo_abs > max_span_s:
         return None
     lone = a.size - (i1 - i0)
-    if epoch is not None:
-        e = epoch_unix(epoch)
-        return TimeOrigin(origin=e, numeric=0.0, iso=e, lo=lo_abs, hi=hi_abs, source="epoch", lone=lone)
-    origin = float(math.floor(lo_abs))
-    return TimeOrigin(
-        origin=origin, numeric=origin, iso=origin, lo=lo_abs - origin, hi=hi_abs - origin, source="data", lone=lone
-    )
+    return _origin(lo_abs, hi_abs, lone, epoch)
 
 
 def time_origin(
@@ -307,13 +301,7 @@ def time_origin(
             field=col,
         )
     lone = n - keep.height
-    if epoch is not None:
-        e = epoch_unix(epoch)
-        return TimeOrigin(origin=e, numeric=0.0, iso=e, lo=lo_abs, hi=hi_abs, source="epoch", lone=lone)
-    origin = float(math.floor(lo_abs))
-    return TimeOrigin(
-        origin=origin, numeric=origin, iso=origin, lo=lo_abs - origin, hi=hi_abs - origin, source="data", lone=lone
-    )
+    return _origin(lo_abs, hi_abs, lone, epoch)
 
 
 def parts_origin(numbers: pl.Series, strings: pl.Series, epoch: str | None) -> TimeOrigin:
@@ -384,4 +372,16 @@ def column_origin(frame: pl.DataFrame | None, col: str, epoch: str | None) -> Ti
         return TimeOrigin(origin=0.0, numeric=0.0, iso=None, source="data")
     return TimeOrigin(
         origin=0.0, numeric=0.0, iso=None, lo=o.lo + o.origin, hi=o.hi + o.origin, source="data", lone=o.lone
+    )
+
+
+def _origin(lo_abs: float, hi_abs: float, lone: int, epoch) -> TimeOrigin:
+    """The origin of stamps spanning ``[lo_abs, hi_abs]``: the ``epoch`` when given, else the
+    first stamp floored to a second (the data's own start)."""
+    if epoch is not None:
+        e = epoch_unix(epoch)
+        return TimeOrigin(origin=e, numeric=0.0, iso=e, lo=lo_abs, hi=hi_abs, source="epoch", lone=lone)
+    origin = float(math.floor(lo_abs))
+    return TimeOrigin(
+        origin=origin, numeric=origin, iso=origin, lo=lo_abs - origin, hi=hi_abs - origin, source="data", lone=lone
     )
