@@ -39,7 +39,14 @@ def cell_boxes(grid: WorldGrid):
 
 
 @settings(max_examples=40, deadline=None)
-@given(x=st.floats(0, 10), y=st.floats(0, 10), r=st.floats(0.3, 6), cell=st.sampled_from([0.5, 1.0, 2.0]))
+# no subnormal coordinates (below 2.2e-308 m): GEOS's overlays of a disk centred at x = 5e-324
+# miscount its area inside the room (8.96 against 8.48 m^2, found by hypothesis); no site has them
+@given(
+    x=st.floats(0, 10, allow_subnormal=False),
+    y=st.floats(0, 10, allow_subnormal=False),
+    r=st.floats(0.3, 6),
+    cell=st.sampled_from([0.5, 1.0, 2.0]),
+)
 def test_range_only_sensor_detects_with_the_area_fraction_of_its_disk(x, y, r, cell):
     """No type: q_ij = |c_j cap disk| / |c_j| (perfect detection inside the disk), h = 0."""
     site = make_site([{"id": "m", "position": [x, y], "range": r}])

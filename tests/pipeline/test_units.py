@@ -222,14 +222,9 @@ def test_tracks_scale_with_the_units(runs, scenario, tracker):
         assert ta[c].to_list() == tb[c].to_list(), c
 
 
-#: (scenario, stage) whose report rows are known not to scale, each a finding to fix (strict: the
-#: test says so when it is fixed); every other row of the scenario is still compared
-KNOWN_ROWS: dict = {}
-
-
-def _compare_report_rows(runs, scenario: str, *, only: str | None = None) -> None:
-    """Every report row of the m run equals the cm run's once lengths are scaled; ``only``: the
-    rows of that stage alone, else every stage but those in :data:`KNOWN_ROWS`."""
+def _compare_report_rows(runs, scenario: str) -> None:
+    """Every report row of the m run equals the cm run's once lengths are scaled (every stage:
+    no known exception is left -- clustertrack's and istate's units bugs are fixed)."""
     k, a, b = runs[scenario]
     src_units = tomllib.loads((a.out.parent / "m" / "site.toml").read_text()).get("units", "m")
     timing = pl.col("metric").str.contains("seconds")
@@ -237,8 +232,6 @@ def _compare_report_rows(runs, scenario: str, *, only: str | None = None) -> Non
     rb = b.report.filter(~timing)
     assert ra.select("stage", "metric").to_dicts() == rb.select("stage", "metric").to_dicts()
     for row_a, row_b in zip(ra.iter_rows(named=True), rb.iter_rows(named=True)):
-        if (row_a["stage"] != only) if only else (scenario, row_a["stage"]) in KNOWN_ROWS:
-            continue
         mode = COMPARED.get((scenario, row_a["stage"]), "exact")
         ua, ub = row_a["unit"], row_b["unit"]
         if ua == src_units:  # a length in the site's units
@@ -261,11 +254,6 @@ def _compare_report_rows(runs, scenario: str, *, only: str | None = None) -> Non
 @pytest.mark.parametrize("scenario", list(SCENARIOS))
 def test_report_rows_scale_with_the_units(runs, scenario):
     _compare_report_rows(runs, scenario)
-
-
-@pytest.mark.parametrize("scenario, stage", [pytest.param(*p, marks=m) for p, m in KNOWN_ROWS.items()])
-def test_known_report_rows_scale_with_the_units(runs, scenario, stage):
-    _compare_report_rows(runs, scenario, only=stage)
 
 
 def test_site_rewrite_round_trips(tmp_path):
