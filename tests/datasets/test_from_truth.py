@@ -37,7 +37,7 @@ def _walks_of(scenario: str, root: Path, duration: float | None = 40.0) -> Path:
 def test_beams_from_truth_decode_to_the_true_crossings(tmp_path):
     d = _walks_of("beams-building", tmp_path, 90.0)
     assert main(["simulate", "from-truth", str(d), "--seed", "2"]) == 0
-    res = run_pipeline(d, tmp_path / "run", trackers=("beams", "istate"))
+    res = run_pipeline(d, tmp_path / "run", trackers=("beams", "istate"), rrd=False)
     assert metric(res.report, "crossings/decoded_match") == 1.0  # body width: a crossing when the body clears
     assert metric(res.report, "beams/agent_count_error") == 0.0
     assert metric(res.report, "istate/containment") == 1.0
@@ -66,7 +66,7 @@ def test_pir_fov_hold_and_refractory(tmp_path):
     on_times = edges.filter((pl.col("sensor") == "m1") & pl.col("on"))["t"].to_numpy()
     if len(on_times):
         assert np.min(np.abs(on_times[:, None] - inside["t"].to_numpy()[None, :]), axis=1).max() <= 0.1
-    res = run_pipeline(d, tmp_path / "run", trackers=("istate",))
+    res = run_pipeline(d, tmp_path / "run", trackers=("istate",), rrd=False)
     assert metric(res.report, "istate/containment") == 1.0  # run.toml [istate] got the hold and the top speed
 
 
@@ -75,7 +75,7 @@ def test_proximity_from_truth(tmp_path):
     simulate_from_truth(d, seed=0)
     prox = pl.read_csv(d / "proximity.csv")
     assert set(prox["value"].unique()) == {0, 1}
-    res = run_pipeline(d, tmp_path / "run", trackers=("istate",))
+    res = run_pipeline(d, tmp_path / "run", trackers=("istate",), rrd=False)
     assert res.status["istate"].startswith("ok") and metric(res.report, "istate/containment") == 1.0
 
 
@@ -90,7 +90,7 @@ def test_deployment_planning_from_an_export(tmp_path):
     site += '\n[[beams]]\nid = "door"\nsegment = [[5.0, 1.0], [5.0, 3.0]]\nforward = "right"\nspacing = 0.05\n'
     (d / "site.toml").write_text(site)
     assert main(["simulate", "from-truth", str(d)]) == 0
-    res = run_pipeline(d, tmp_path / "run", trackers=("beams",))
+    res = run_pipeline(d, tmp_path / "run", trackers=("beams",), rrd=False)
     assert metric(res.report, "crossings/decoded") == 1.0 and metric(res.report, "crossings/decoded_match") == 1.0
 
 
@@ -127,7 +127,7 @@ def test_binary_sensors_from_truth_write_a_frame_log(tmp_path):
             if any(np.hypot(x - a, y - b) <= 0.8 for a, b in here.select("x", "y").rows())
         }
         assert set((active or "").split()) == want, t
-    res = run_pipeline(d, tmp_path / "run", trackers=("istate",))
+    res = run_pipeline(d, tmp_path / "run", trackers=("istate",), rrd=False)
     assert res.status["frames"].startswith("ok") and metric(res.report, "frames/frames") == frames.height
     text = (d / "site.toml").read_text() + '\n[[motion_sensors]]\nid = "pir"\nposition = [1.0, 1.0]\nrange = 2.0\n'
     (d / "site.toml").write_text(text)

@@ -92,7 +92,7 @@ def test_imported_dataset_runs_from_its_frame_log(files, tmp_path):
     motion edges and proximity frames of the binary sensors declared once."""
     ds = tmp_path / "ds"
     import_irtracking(files.readings, ds, truth=files.truth, radius=0.8, targets=3)
-    res = run_pipeline(ds, tmp_path / "run", trackers=["istate"])
+    res = run_pipeline(ds, tmp_path / "run", trackers=["istate"], rrd=False)
     assert res.status["frames"].startswith("ok") and res.status["motion"].startswith("skipped")
     lv = pl.read_parquet(tmp_path / "run" / "tables" / "levels.parquet")
     n = len(files.sensors_mm)
@@ -107,7 +107,7 @@ def test_every_tracker_gets_the_levels(files, tmp_path):
     """A frame log's levels reach every tracker's inputs; the proximity stage says why it skipped."""
     ds = tmp_path / "ds"
     import_irtracking(files.readings, ds, radius=0.8, targets=3)
-    res = run_pipeline(ds, tmp_path / "run", trackers=["istate"])
+    res = run_pipeline(ds, tmp_path / "run", trackers=["istate"], rrd=False)
     assert res.status["proximity"].startswith("skipped") and "frame log" in res.status["proximity"]
     site = load_site(ds / "site.toml")
     lv = pl.read_parquet(tmp_path / "run" / "tables" / "levels.parquet")
@@ -130,8 +130,8 @@ def test_a_frame_log_in_mcap_reads_as_the_csv(files, tmp_path):
     mc.mkdir()
     (mc / "site.toml").write_text((ds / "site.toml").read_text())
     assert main(["logs", "convert", str(ds), str(mc / "recording.mcap")]) == 0
-    run_pipeline(ds, tmp_path / "run-csv", trackers=["istate"])
-    b = run_pipeline(mc, tmp_path / "run-mcap", trackers=["istate"])
+    run_pipeline(ds, tmp_path / "run-csv", trackers=["istate"], rrd=False)
+    b = run_pipeline(mc, tmp_path / "run-mcap", trackers=["istate"], rrd=False)
     assert b.status["frames"].startswith("ok") and b.status["motion"].startswith("skipped")
     la = pl.read_parquet(tmp_path / "run-csv" / "tables" / "levels.parquet")
     lb = pl.read_parquet(tmp_path / "run-mcap" / "tables" / "levels.parquet")

@@ -51,7 +51,7 @@ def test_a_stage_returns_only_what_it_declares():
 def test_every_declared_stage_keeps_its_declaration(hallway, tmp_path):
     """A whole run through the runner's check: every stage that ran is ok, so every table it
     returned was declared and new."""
-    res = run_pipeline(hallway, tmp_path / "run", trackers=["hmm1", "findinghumo"])
+    res = run_pipeline(hallway, tmp_path / "run", trackers=["hmm1", "findinghumo"], rrd=False)
     assert res.ok, res.status
     made = {p.stem for p in (tmp_path / "run" / "tables").glob("*.parquet")} - {"rejects"}
     ran = [st for st in stages() if res.status.get(st.name, "").startswith("ok")]
@@ -64,7 +64,7 @@ def test_a_stage_returning_an_undeclared_table_fails_clearly(hallway, tmp_path, 
 
     extra = Stage("sneaky", ("motion",), ("levels",), lambda ctx: None, sneaky)
     monkeypatch.setattr(runner, "stages", lambda entries: [*stages(entries), extra])
-    res = run_pipeline(hallway, tmp_path / "run", trackers=["hmm1"])
+    res = run_pipeline(hallway, tmp_path / "run", trackers=["hmm1"], rrd=False)
     assert not res.ok
     assert "returned table(s) ['motion_copy'] it does not declare (makes = ['levels'])" in res.status["sneaky"]
     assert res.status["hmm1"].startswith("ok")  # the other stages keep their outputs
@@ -86,7 +86,9 @@ def test_a_stage_resolves_its_config_beside_the_given_one(hallway, tmp_path):
 
 
 def test_the_run_record_holds_the_resolved_sections_and_the_time_origin(hallway, tmp_path):
-    res = run_pipeline(hallway, tmp_path / "run", trackers=["hmm1"], config={"motion": {"chatter_window": 0.5}})
+    res = run_pipeline(
+        hallway, tmp_path / "run", trackers=["hmm1"], config={"motion": {"chatter_window": 0.5}}, rrd=False
+    )
     record = tomllib.loads((tmp_path / "run" / "run.toml").read_text())
     assert res.ok
     assert record["motion"]["chatter_window"] == 0.5 and "hmm1" in record and "scores" in record

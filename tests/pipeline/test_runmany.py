@@ -52,7 +52,7 @@ def data(tmp_path_factory) -> Path:
     (root / "empty").mkdir()
     slow = write_pir_dataset(root / "victim", "pir14", seed=1, duration=30.0)
     with open(slow / "run.toml", "a", encoding="utf-8") as fh:
-        fh.write("\n[intruder]\nparticles = 40000\n")
+        fh.write("\n[intruder]\nparticles = 10000\n")
     return root
 
 
@@ -137,7 +137,7 @@ def test_summary_one_row_per_dataset_and_metric_failures_named(serial_run, data)
 def test_local_pool_and_ray_give_the_serial_summary(serial_run, data, tmp_path, ray_local):
     for ex in (LocalPoolExecutor(workers=2), RayExecutor(workers=2)):
         with ex:
-            res = run_many(_some(data), tmp_path / ex.kind, executor=ex)
+            res = run_many(_some(data), tmp_path / ex.kind, executor=ex, rrd=False)
         assert _deterministic(res.summary).equals(_deterministic(serial_run.summary)), ex.kind
         assert res.datasets.select("dataset", "status", "error").equals(
             serial_run.datasets.select("dataset", "status", "error")
@@ -185,7 +185,7 @@ def _killed_run(data, out, executor):
     box: dict = {}
     th = _kill_when_running(out, "victim", box)
     with executor:
-        res = run_many([str(data / "victim"), *(str(data / n) for n in TINY)], out, executor=executor)
+        res = run_many([str(data / "victim"), *(str(data / n) for n in TINY)], out, executor=executor, rrd=False)
     th.join(5)
     assert "pid" in box, "the victim's worker was not seen running"
     assert box["final_existed"] is False  # nothing at the final place while the task ran

@@ -178,8 +178,8 @@ def runs(tmp_path_factory):
         kw = {"duration": None, "agents": None, "params": {}} | opts
         get_scenario(name).write(src, seed=3, drop=0.0, camera=False, **kw)
         k = dataset_in_cm(src, base / "cm")
-        a = run_pipeline(src, base / "run-m", config=CONFIG)
-        b = run_pipeline(base / "cm", base / "run-cm", config=CONFIG)
+        a = run_pipeline(src, base / "run-m", config=CONFIG, rrd=False)
+        b = run_pipeline(base / "cm", base / "run-cm", config=CONFIG, rrd=False)
         out[name] = (k, a, b)
     return out
 

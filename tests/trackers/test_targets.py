@@ -32,7 +32,7 @@ def hallway(tmp_path_factory):
 
 def test_declared_targets_skip_the_single_target_filter(hallway, tmp_path):
     assert load_site(hallway / "site.toml").targets == 3  # the simulator declares what it simulated
-    res = run_pipeline(hallway, tmp_path / "run", trackers=("intruder", "intruder-naive", "findinghumo"))
+    res = run_pipeline(hallway, tmp_path / "run", trackers=("intruder", "intruder-naive", "findinghumo"), rrd=False)
     for name in ("intruder", "intruder-naive"):
         assert res.status[name].startswith("skipped") and "3 targets" in res.status[name]
     assert metric(res.report, "findinghumo/users_decoded") <= 3
@@ -45,7 +45,7 @@ def test_undeclared_targets_the_report_says_the_filter_cannot_serve(hallway, tmp
     for f in ("motion.csv", "truth.csv"):
         (data / f).write_bytes((hallway / f).read_bytes())
     (data / "site.toml").write_text("\n".join(ln for ln in text.splitlines() if not ln.startswith("targets")))
-    res = run_pipeline(data, tmp_path / "run", trackers=("intruder",))
+    res = run_pipeline(data, tmp_path / "run", trackers=("intruder",), rrd=False)
     assert res.status["intruder"].startswith("ok") and res.ok
     assert res.status["scores/intruder"].startswith("cannot serve the data: the truth has 3 targets at once")
     rows = res.report.filter(pl.col("stage") == "intruder")
@@ -65,10 +65,10 @@ def test_istate_people_come_and_go(tmp_path):
         .alias("target")
     )
     truth.write_csv(data / "truth.csv")
-    res = run_pipeline(data, tmp_path / "run", trackers=("istate",))
+    res = run_pipeline(data, tmp_path / "run", trackers=("istate",), rrd=False)
     assert metric(res.report, "istate/containment") == 1.0 and metric(res.report, "istate/scored_stages") >= 35
     (data / "site.toml").write_text((data / "site.toml").read_text().replace("targets = 2", "targets = 1"))
-    res = run_pipeline(data, tmp_path / "run1", trackers=("istate",))
+    res = run_pipeline(data, tmp_path / "run1", trackers=("istate",), rrd=False)
     assert "cannot serve the data: the truth has 2 targets" in res.status["scores/istate"]
     assert metric(res.report, "istate/containment") is None and metric(res.report, "istate/cannot_serve") == 1.0
 
@@ -80,7 +80,7 @@ def test_beams_creates_at_most_targets_agents(tmp_path):
     site = load_site(data / "site.toml")
     assert site.targets == 2
     rg = build_region_graph(site)
-    dec = run_pipeline(data, tmp_path / "run", trackers=("beams",))
+    dec = run_pipeline(data, tmp_path / "run", trackers=("beams",), rrd=False)
     cr = pl.read_parquet(tmp_path / "run" / "tables" / "crossings.parquet")
     out = run_beams({"crossings": cr, "region_graph": rg}, site, BeamsConfig())
     assert out["agents"].height <= 2 and metric(dec.report, "beams/agents") <= 2

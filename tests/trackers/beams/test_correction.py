@@ -95,7 +95,7 @@ def test_dataset_run_toml_gives_the_known_initial_condition(tmp_path):
     data = write_beams_dataset(tmp_path / "d", "beams-building", seed=4, duration=60.0, drop=0.1, camera=False)
     truth = pl.read_csv(data / "truth.csv").sort("t").group_by("target", maintain_order=True).first()
     assert "n = 3" in (data / "run.toml").read_text() and truth.height == 3
-    res = run_pipeline(data, tmp_path / "r", trackers=("beams",))
+    res = run_pipeline(data, tmp_path / "r", trackers=("beams",), rrd=False)
     assert res.status["correct"].startswith("ok"), res.status["correct"]
     init = pl.read_parquet(res.out / "tables" / "correct_initial.parquet")
 
@@ -105,7 +105,7 @@ def test_dataset_run_toml_gives_the_known_initial_condition(tmp_path):
     assert dict(init.iter_rows()) == {r: start.count(r) for r in rg.names}
     assert init["count"].sum() == 3
     assert "[correct]" in (res.out / "run.toml").read_text()
-    off = run_pipeline(data, tmp_path / "off", trackers=("beams",), config={"correct": {"enabled": False}})
+    off = run_pipeline(data, tmp_path / "off", trackers=("beams",), config={"correct": {"enabled": False}}, rrd=False)
     assert off.status["correct"].startswith("skipped") and "enabled = false" in off.status["correct"]
 
 
@@ -114,13 +114,15 @@ def test_stage_skipped_without_agent_count(tmp_path):
     (data / "run.toml").unlink()  # no known n: neither site.toml targets nor a [correct] section
     site = (data / "site.toml").read_text()  # the simulator declares its agents as targets: drop them
     (data / "site.toml").write_text("\n".join(ln for ln in site.splitlines() if not ln.startswith("targets")) + "\n")
-    res = run_pipeline(data, tmp_path / "r", trackers=("beams",))
+    res = run_pipeline(data, tmp_path / "r", trackers=("beams",), rrd=False)
     assert res.status["correct"].startswith("skipped") and "[correct] n" in res.status["correct"]
     res2 = run_pipeline(
         data, tmp_path / "r2", trackers=("beams",), config={"correct": {"n": 2, "start_region": "nowhere"}}
     )
     assert res2.status["correct"].startswith("failed") and "start_region" in res2.status["correct"]
-    res3 = run_pipeline(data, tmp_path / "r3", trackers=("beams",), config={"correct": {"n": 2, "start_region": "r1"}})
+    res3 = run_pipeline(
+        data, tmp_path / "r3", trackers=("beams",), config={"correct": {"n": 2, "start_region": "r1"}}, rrd=False
+    )
     assert res3.status["correct"].startswith("ok")
 
 
@@ -189,8 +191,10 @@ def twenty_seeds(tmp_path_factory):
         data = write_beams_dataset(
             root / f"d{seed}", "beams-building", seed=seed, duration=300.0, drop=0.05, camera=False
         )
-        on = run_pipeline(data, root / f"on{seed}", trackers=("beams",))
-        off = run_pipeline(data, root / f"off{seed}", trackers=("beams",), config={"correct": {"enabled": False}})
+        on = run_pipeline(data, root / f"on{seed}", trackers=("beams",), rrd=False)
+        off = run_pipeline(
+            data, root / f"off{seed}", trackers=("beams",), config={"correct": {"enabled": False}}, rrd=False
+        )
         assert on.ok and off.ok, (on.status, off.status)
         assert on.status["correct"].startswith("ok") and off.status["correct"].startswith("skipped")
         dropped = metric(on.report, "correct/dropped")
@@ -242,5 +246,5 @@ def test_broken_dataset_run_toml_is_refused_naming_the_file(tmp_path):
     data = write_beams_dataset(tmp_path / "d", "beams-building", seed=0, duration=30.0, drop=0.0, camera=False)
     (data / "run.toml").write_text("[correct\nn = 3\n")
     with pytest.raises(InputError, match=r"run\.toml: not valid TOML"):
-        run_pipeline(data, tmp_path / "run", trackers=("beams",))
+        run_pipeline(data, tmp_path / "run", trackers=("beams",), rrd=False)
     assert not (tmp_path / "run" / "run.toml").exists()

@@ -28,7 +28,7 @@ def test_containment_is_one_on_every_scenario_with_targets(tmp_path, name):
     )
     site = load_site(data / "site.toml")
     assert site.targets is not None and site.targets >= 1, "a simulator declares the targets it simulates"
-    res = run_pipeline(data, tmp_path / "run", trackers=("istate",))
+    res = run_pipeline(data, tmp_path / "run", trackers=("istate",), rrd=False)
     assert res.status["istate"].startswith("ok"), res.status["istate"]
     assert metric(res.report, "istate/containment") == 1.0
     assert metric(res.report, "istate/scored_stages") > 5
@@ -41,10 +41,10 @@ def test_the_body_radius_is_what_keeps_the_truth_in(tmp_path):
     )
     text = (data / "site.toml").read_text()
     assert "body_radius = 0.25" in text
-    ok = run_pipeline(data, tmp_path / "ok", trackers=("istate",))
+    ok = run_pipeline(data, tmp_path / "ok", trackers=("istate",), rrd=False)
     assert metric(ok.report, "istate/containment") == 1.0
     (data / "site.toml").write_text(text.replace("body_radius = 0.25", "body_radius = 0.0"))
-    bad = run_pipeline(data, tmp_path / "bad", trackers=("istate",), config={"istate": {"beam_width": 0.05}})
+    bad = run_pipeline(data, tmp_path / "bad", trackers=("istate",), config={"istate": {"beam_width": 0.05}}, rrd=False)
     assert metric(bad.report, "istate/containment") < 1.0
 
 
