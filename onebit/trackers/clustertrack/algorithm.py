@@ -343,28 +343,37 @@ def cluster_track(space: FeasibleSpace, p: Params, rng: np.random.Generator, *, 
             field="[clustertrack] m_o_r / m_o_r2",
             hint="fewer particles per unit of feasible space",
         )
-        x = space.sample(step, kprev * m_t, rng).reshape(-1, dim)
+        x = space.sample(step, kprev * m_t, rng, compiled=compiled).reshape(-1, dim)
         if x.shape[0] == 0:  # F empty (nobody anywhere, or inconsistent readings): keep the particles where they are
             x = last1 if step > 0 else np.zeros((1, dim))
             m_t = 1
-        parent = np.repeat(np.arange(kprev), m_t)
-        if compiled:
-            c = kernels.candidate_costs(np.ascontiguousarray(x, dtype=np.float64), last1, last2, cost, m_t, step >= 2)
+        if compiled:  # two compiled calls per instant; the random draws stay numpy's (same stream)
+            x = np.ascontiguousarray(x, dtype=np.float64)
+            c = kernels.candidate_costs(x, last1, last2, cost, m_t, step >= 2)
+            sel = scan_selection(c, p.L, rng)
+            kept, label, is_head, scanned, pd, biggest = kernels.scan_step(
+                c, sel, x, m_t, pd, float(step + 1), int(p.H), int(p.K), float(p.D0), SCAN_PREFIX
+            )
+            par = kept // m_t
+            xk = x[kept]
+            clusters_n[step] = np.count_nonzero(is_head)
+            max_cluster[step] = biggest
         else:
+            parent = np.repeat(np.arange(kprev), m_t)
             c = candidate_costs_reference(x, last1, last2, cost, m_t, step >= 2)
-        kept, label, is_head, scanned = scan_clusters(
-            c, parent, x, pd, step + 1, H=p.H, K=p.K, L=p.L, D0=p.D0, rng=rng, compiled=compiled
-        )
-        par = parent[kept]
-        xk = x[kept]
-        pd = kernels.summed_distances(pd, par, xk) if compiled else summed_distances_reference(pd, par, xk)
+            kept, label, is_head, scanned = scan_clusters(
+                c, parent, x, pd, step + 1, H=p.H, K=p.K, L=p.L, D0=p.D0, rng=rng, compiled=False
+            )
+            par = parent[kept]
+            xk = x[kept]
+            pd = summed_distances_reference(pd, par, xk)
+            clusters_n[step] = np.unique(label).size
+            max_cluster[step] = np.bincount(label).max()
         last2, last1 = last1[par], xk
         pos_hist.append(xk)
         par_hist.append(par)
         cost = c[kept]
         kept_n[step], scanned_n[step], cand_n[step] = kept.size, scanned, c.size
-        clusters_n[step] = np.unique(label).size
-        max_cluster[step] = np.bincount(label).max()
         if record:
             particles.append((xk.copy(), label.copy(), cost.copy()))
     heads = np.flatnonzero(is_head)

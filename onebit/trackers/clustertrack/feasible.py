@@ -27,6 +27,7 @@ import numpy as np
 from onebit.core.config import MAX_GRID_CELLS, check_size
 from onebit.core.lazy import lazy_module
 from onebit.core.sensing import detection_regions
+from onebit.trackers.clustertrack import kernels
 
 cv2 = lazy_module("cv2")
 
@@ -190,10 +191,11 @@ def feasible_1d(
     return Feasible1D(comps, f.pieces, f.piece_sensor, comp)
 
 
-def sample_intervals(iv: np.ndarray, n: int, rng: np.random.Generator) -> np.ndarray:
+def sample_intervals(iv: np.ndarray, n: int, rng: np.random.Generator, *, compiled: bool = False) -> np.ndarray:
     """``n`` points uniform on the union of disjoint intervals ``iv (c, 2)``.
 
-    A uniform draw on ``[0, S_F)`` is mapped through the cumulative lengths.
+    A uniform draw on ``[0, S_F)`` is mapped through the cumulative lengths (``compiled``: by
+    :func:`onebit.trackers.clustertrack.kernels.map_intervals`, the same draws and points).
     """
     length = iv[:, 1] - iv[:, 0]
     total = float(length.sum())
@@ -201,6 +203,8 @@ def sample_intervals(iv: np.ndarray, n: int, rng: np.random.Generator) -> np.nda
         return np.zeros(0)
     if total <= EPS:  # degenerate F (single points): pick among them
         return iv[rng.integers(0, len(iv), size=n), 0]
+    if compiled:
+        return kernels.map_intervals(rng.random(n), np.ascontiguousarray(iv, dtype=np.float64), total)
     u = rng.random(n) * total
     cum = np.cumsum(length)
     k = np.minimum(np.searchsorted(cum, u, side="right"), len(iv) - 1)

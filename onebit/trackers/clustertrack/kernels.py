@@ -107,3 +107,283 @@ def summed_distances(pd, par, xk):
                 s = v * v if q == 0 else s + v * v
             out[a, b] = pd[par[a], par[b]] + math.sqrt(s)
     return out
+
+
+@kernel
+def kth_smallest(key, k):
+    """The ``k``-th smallest value of ``key`` (0-based): ``np.partition(key, k)[k]``, by
+    quickselect on a copy (numba's ``np.partition`` cost ten times numpy's here)."""
+    a = key.copy()
+    lo, hi = 0, a.size - 1
+    while lo < hi:
+        mid = (lo + hi) // 2  # median of three as the pivot
+        x, y, z = a[lo], a[mid], a[hi]
+        piv = max(min(x, y), min(max(x, y), z))
+        i, j = lo, hi
+        while i <= j:
+            while a[i] < piv:
+                i += 1
+            while a[j] > piv:
+                j -= 1
+            if i <= j:
+                a[i], a[j] = a[j], a[i]
+                i += 1
+                j -= 1
+        if k <= j:
+            hi = j
+        elif k >= i:
+            lo = i
+        else:
+            return a[k]
+    return a[k]
+
+
+@kernel
+def ordered_prefix(key, k):
+    """The first ``k`` of ``np.argsort(key, kind="stable")``: every position with a key below
+    the ``k``-th smallest value, then the first positions holding that value, by key then
+    position (a stable sort gives one answer, so this equals
+    :func:`onebit.trackers.clustertrack.algorithm.ordered_prefix`, its reference)."""
+    n = key.size
+    if k >= n:
+        return np.argsort(key, kind="mergesort")
+    if k <= 0:
+        return np.zeros(0, dtype=np.int64)
+    v = kth_smallest(key, k - 1)
+    nb = 0
+    for i in range(n):
+        if key[i] < v:
+            nb += 1
+    idx = np.empty(k, dtype=np.int64)  # by position: the keys below v and the first k - nb at v
+    na = 0
+    at = 0
+    for i in range(n):
+        if key[i] < v:
+            idx[na] = i
+            na += 1
+        elif key[i] == v and at < k - nb:
+            idx[na] = i
+            na += 1
+            at += 1
+    kv = np.empty(na)
+    for i in range(na):
+        kv[i] = key[idx[i]]
+    return idx[np.argsort(kv, kind="mergesort")]
+
+
+@kernel
+def _head_distance(i, j, par, sel, x, pd, steps):
+    """``D`` between candidates ``sel[i]`` and ``sel[j]`` as :func:`scan_sorted` computes it."""
+    a, b = sel[i], sel[j]
+    s = 0.0
+    for q in range(x.shape[1]):
+        dv = x[a, q] - x[b, q]
+        s += dv * dv
+    return (pd[par[i], par[j]] + math.sqrt(s)) / steps
+
+
+@kernel
+def _before(key, i, j):
+    """Whether position ``i`` comes before ``j`` in the stable order of ``key``."""
+    return key[i] < key[j] or (key[i] == key[j] and i < j)
+
+
+@kernel
+def scan_step(cost, sel, x, m_t, pd, steps, H, K, D0, prefix):
+    """Steps 3-18 of Algorithm 1 and the survivors' summed distances, in one call per instant.
+
+    ``cost (n,)`` of the candidates (candidate ``i`` extends particle ``i // m_t`` by
+    ``x[i]``), ``sel`` the candidates to scan before they are ordered
+    (:func:`onebit.trackers.clustertrack.algorithm.scan_selection`); the scan order is the
+    stable order of ``cost[sel]``. Returns ``(kept, label, is_head, scanned, pd_new,
+    max_cluster)``: kept candidate indices in scan order, their cluster ids, heads,
+    candidates scanned, the kept particles' summed distances (:func:`summed_distances`) and
+    the largest cluster's size -- what the numpy pass computes
+    (:func:`onebit.trackers.clustertrack.algorithm.scan_clusters_reference`, then
+    ``summed_distances_reference``), with the same distances in the same order of operations.
+
+    Cost follows what the scan keeps, not what it passes over. The first ``prefix x K``
+    candidates of the order are sorted (:func:`ordered_prefix`) and scanned in turn. If ``K``
+    are not kept by then, the rest are not sorted: each gets its nearest head so far at once,
+    and the scan jumps from one *event* to the next -- the first remaining candidate (in the
+    order) that would found a head (nearest head ``>= D_0``) or join a cluster holding fewer
+    than ``H``; every candidate it jumps over joins a full cluster and is dropped, so where
+    it lies in the order changes nothing. A new head updates the nearest head of the
+    candidates after it. A scan that collapses into full clusters (the usual first run)
+    thus costs ``O(L x heads)`` per instant instead of a sort of ``L``. After ``EVENTS``
+    events the rest is sorted and scanned in turn (each event costs a pass over the rest)."""
+    n = sel.size
+    key = np.empty(n)
+    par = np.empty(n, dtype=np.int64)
+    for i in range(n):
+        key[i] = cost[sel[i]]
+        par[i] = sel[i] // m_t
+    cap = min(K, n)
+    heads = np.empty(cap, dtype=np.int64)  # positions in sel
+    counts = np.empty(cap, dtype=np.int64)
+    kept = np.empty(cap, dtype=np.int64)  # positions in sel, in scan order
+    label = np.empty(cap, dtype=np.int64)
+    is_head = np.empty(cap, dtype=np.bool_)
+    nh = 0
+    nk = 0
+    scanned = n
+    stop = -1  # position at which the K-th was kept
+    first = min(n, prefix * max(K, 1))
+    o = ordered_prefix(key, first)
+    for r in range(o.size):  # the sorted prefix, in turn (scan_sorted's loop)
+        i = o[r]
+        best = np.inf
+        bh = -1
+        for h in range(nh):
+            d = _head_distance(i, heads[h], par, sel, x, pd, steps)
+            if d < best:
+                best = d
+                bh = h
+        if nh == 0 or best >= D0:
+            heads[nh] = i
+            counts[nh] = 1
+            kept[nk], label[nk], is_head[nk] = i, nh, True
+            nh += 1
+            nk += 1
+        elif counts[bh] < H:
+            counts[bh] += 1
+            kept[nk], label[nk], is_head[nk] = i, bh, False
+            nk += 1
+        if nk >= K:
+            scanned = r + 1
+            stop = i
+            break
+    if stop < 0 and o.size < n:
+        rest = np.ones(n, dtype=np.bool_)
+        for r in range(o.size):
+            rest[o[r]] = False
+        ri = np.flatnonzero(rest)
+        m = ri.size
+        best_r = np.full(m, np.inf)
+        bh_r = np.full(m, -1, dtype=np.int64)
+        for h in range(nh):
+            for u in range(m):
+                d = _head_distance(ri[u], heads[h], par, sel, x, pd, steps)
+                if d < best_r[u]:
+                    best_r[u] = d
+                    bh_r[u] = h
+        last = -1  # position in sel of the last event (-1: none yet; all of `rest` is after the prefix)
+        events = 0
+        while True:
+            j = -1  # the next event: first in the order after `last` that founds or joins
+            for u in range(m):
+                i = ri[u]
+                if last >= 0 and not _before(key, last, i):
+                    continue
+                if nh == 0 or best_r[u] >= D0 or counts[bh_r[u]] < H:
+                    if j < 0 or _before(key, i, ri[j]):
+                        j = u
+            if j < 0:
+                break
+            if events >= EVENTS:  # many events: sort what is left and scan it in turn
+                left = np.empty(m, dtype=np.int64)
+                nl = 0
+                for u in range(m):
+                    if last < 0 or _before(key, last, ri[u]):
+                        left[nl] = u
+                        nl += 1
+                left = left[:nl]
+                kl = np.empty(nl)
+                for v in range(nl):
+                    kl[v] = key[ri[left[v]]]
+                left = left[np.argsort(kl, kind="mergesort")]  # ri is increasing: ties stay by position
+                for v in range(nl):
+                    u = left[v]
+                    i = ri[u]
+                    if nh == 0 or best_r[u] >= D0:
+                        h = nh
+                        heads[nh] = i
+                        counts[nh] = 1
+                        kept[nk], label[nk], is_head[nk] = i, nh, True
+                        nh += 1
+                        nk += 1
+                        for w in range(v + 1, nl):
+                            uu = left[w]
+                            d = _head_distance(ri[uu], i, par, sel, x, pd, steps)
+                            if d < best_r[uu]:
+                                best_r[uu] = d
+                                bh_r[uu] = h
+                    elif counts[bh_r[u]] < H:
+                        counts[bh_r[u]] += 1
+                        kept[nk], label[nk], is_head[nk] = i, bh_r[u], False
+                        nk += 1
+                    if nk >= K:
+                        stop = i
+                        break
+                break
+            events += 1
+            i = ri[j]
+            if nh == 0 or best_r[j] >= D0:
+                h = nh
+                heads[nh] = i
+                counts[nh] = 1
+                kept[nk], label[nk], is_head[nk] = i, nh, True
+                nh += 1
+                nk += 1
+                for u in range(m):  # the candidates after the new head compare with it too
+                    if _before(key, i, ri[u]):
+                        d = _head_distance(ri[u], i, par, sel, x, pd, steps)
+                        if d < best_r[u]:
+                            best_r[u] = d
+                            bh_r[u] = h
+            else:
+                counts[bh_r[j]] += 1
+                kept[nk], label[nk], is_head[nk] = i, bh_r[j], False
+                nk += 1
+            last = i
+            if nk >= K:
+                stop = i
+                break
+        if stop >= 0:  # its rank in the order
+            scanned = 0
+            for i in range(n):
+                if not _before(key, stop, i):
+                    scanned += 1
+    out = np.empty(nk, dtype=np.int64)
+    pk = np.empty(nk, dtype=np.int64)
+    for a in range(nk):
+        out[a] = sel[kept[a]]
+        pk[a] = out[a] // m_t
+    pd_new = summed_distances(pd, pk, np.ascontiguousarray(x[out]))
+    biggest = 0
+    for h in range(nh):
+        biggest = max(biggest, counts[h])
+    return out, label[:nk].copy(), is_head[:nk].copy(), scanned, pd_new, biggest
+
+
+#: :func:`scan_step` sorts the rest of the scan order after this many events past its sorted prefix.
+EVENTS = 16
+
+
+@kernel
+def map_intervals(u, iv, total):
+    """Points ``iv[k, 0] + u' - (cum[k] - length[k])``, ``u' = u total``, ``k`` the interval
+    holding ``u'`` in the cumulative lengths: the mapping of
+    :func:`onebit.trackers.clustertrack.feasible.sample_intervals` (its reference; the same
+    operations, so equal points), found by a linear walk over the few intervals of F instead
+    of one binary search per draw."""
+    c = iv.shape[0]
+    length = np.empty(c)
+    cum = np.empty(c)
+    acc = 0.0
+    for k in range(c):
+        length[k] = iv[k, 1] - iv[k, 0]
+        acc = length[k] if k == 0 else acc + length[k]
+        cum[k] = acc
+    out = np.empty(u.size)
+    for r in range(u.size):
+        v = u[r] * total
+        k = 0
+        if c <= 16:
+            while k < c and cum[k] <= v:  # searchsorted(cum, v, side="right")
+                k += 1
+        else:
+            k = np.searchsorted(cum, v, side="right")
+        k = min(k, c - 1)
+        out[r] = iv[k, 0] + v - (cum[k] - length[k])
+    return out

@@ -138,15 +138,16 @@ class FeasibleSpace:
             return float(iv[1] - iv[0])
         return float(np.count_nonzero(self.labels[t] == c + 1) * self.raster.cell**2)
 
-    def sample(self, step: int, n: int, rng: np.random.Generator) -> np.ndarray:
-        """``(n, dim)`` points uniform on F at ``step``."""
+    def sample(self, step: int, n: int, rng: np.random.Generator, *, compiled: bool = False) -> np.ndarray:
+        """``(n, dim)`` points uniform on F at ``step`` (``compiled``: the 1-D mapping compiled,
+        same points)."""
         t = int(self.order[step])
         c = self._only(t)
         if self.dim == 1:
             iv = self.f1d[t].components
             if c is not None:
                 iv = iv[c : c + 1]
-            return sample_intervals(iv, n, rng)[:, None]
+            return sample_intervals(iv, n, rng, compiled=compiled)[:, None]
         xy = self.cell_xy[t]
         if c is not None:
             xy = xy[self.labels[t][self.cells[t]] == c + 1]

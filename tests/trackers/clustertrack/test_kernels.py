@@ -152,3 +152,54 @@ def test_sampling_from_listed_cell_centres_draws_what_the_mask_sampler_draws():
     a = sample_raster(mask, r, 1000, np.random.default_rng(3))
     b = sample_cell_centres(r.centres_of(np.flatnonzero(mask)), r.cell, 1000, np.random.default_rng(3))
     np.testing.assert_array_equal(a, b)
+
+
+@pytest.mark.parametrize("seed", range(80))
+def test_fused_step_kernel_equals_numpy_scan_and_distances(seed):
+    """``kernels.scan_step`` (sorted prefix, then event jumps over the unsorted rest, then a
+    sorted continuation after ``EVENTS`` events) keeps, labels and counts exactly what the
+    numpy scan does, and gives the same summed distances: ties, few and many clusters,
+    prefixes shorter than the scan."""
+    rng = np.random.default_rng(seed)
+    dim = int(rng.integers(1, 3))
+    t = int(rng.integers(1, 6))
+    kprev, m = int(rng.integers(1, 15)), int(rng.integers(1, 40)) + (30 if seed >= 60 else 0)
+    prev = rng.uniform(0, 5, size=(kprev, max(t - 1, 1), dim))
+    pd = np.sum(_norm(prev[:, None] - prev[None, :])[..., None], axis=(2, 3)) if t > 1 else np.zeros((kprev, kprev))
+    parent = np.repeat(np.arange(kprev), m)
+    x = rng.uniform(0, 5, size=(kprev * m, dim))
+    cost = np.zeros(kprev * m) if seed % 3 == 0 else rng.random(kprev * m).round(int(rng.integers(1, 4)))
+    H, K, L = int(rng.integers(1, 30)), int(rng.integers(1, 120)), int(rng.integers(1, 600))
+    D0 = float(rng.choice([0.02, 0.1, 0.5, 1.5, 4.0]))
+    prefix = int(rng.choice([1, 4]))
+    if seed >= 60:  # small full clusters, many of them: more than EVENTS kept past the prefix
+        H, K, L, D0, prefix = int(rng.integers(1, 3)), int(rng.integers(40, 120)), kprev * m, 0.3, 1
+    ref_kept, ref_lab, ref_head, ref_scanned = scan_clusters_reference(
+        cost, parent, x, pd, t, H=H, K=K, L=L, D0=D0, rng=np.random.default_rng(seed)
+    )
+    sel = scan_selection(cost, L, np.random.default_rng(seed))
+    kept, lab, head, scanned, pd_new, biggest = kernels.scan_step(cost, sel, x, m, pd, float(t), H, K, D0, prefix)
+    np.testing.assert_array_equal(kept, ref_kept)
+    np.testing.assert_array_equal(lab, ref_lab)
+    np.testing.assert_array_equal(head, ref_head)
+    assert scanned == ref_scanned
+    np.testing.assert_array_equal(pd_new, summed_distances_reference(pd, parent[kept], x[kept]))
+    assert biggest == np.bincount(ref_lab).max()
+
+
+@pytest.mark.parametrize("seed", range(20))
+def test_compiled_prefix_and_interval_mapping_equal_numpy(seed):
+    from onebit.trackers.clustertrack.feasible import sample_intervals
+
+    rng = np.random.default_rng(seed)
+    n = int(rng.integers(1, 300))
+    key = rng.integers(0, int(rng.integers(1, 20)), n).astype(float) if seed % 2 else rng.random(n)
+    for k in (0, 1, int(rng.integers(1, n + 1)), n, n + 5):
+        np.testing.assert_array_equal(kernels.ordered_prefix(key, k), ordered_prefix(key, k))
+    for k in range(0, n, max(1, n // 7)):
+        assert kernels.kth_smallest(key, k) == np.partition(key, k)[k]
+    c = int(rng.integers(1, 40))  # both the walk (<= 16 intervals) and the binary search
+    ends = np.sort(rng.uniform(-10, 10, 2 * c)).reshape(c, 2)
+    a = sample_intervals(ends, 500, np.random.default_rng(seed), compiled=True)
+    b = sample_intervals(ends, 500, np.random.default_rng(seed))
+    np.testing.assert_array_equal(a, b)
