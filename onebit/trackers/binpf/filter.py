@@ -102,11 +102,15 @@ from dataclasses import dataclass
 import numpy as np
 
 from onebit.core.lazy import lazy_module
+from onebit.trackers.binpf import kernels
 
 _sparse = lazy_module("scipy.sparse")  # loaded when a run filters, not when the CLI starts
 _csgraph = lazy_module("scipy.sparse.csgraph")
 
 _TINY = 1e-12
+
+#: :func:`run_filter` uses the compiled update from this many frames on.
+COMPILED_MIN_FRAMES = 300
 
 
 @dataclass(frozen=True)
@@ -289,6 +293,7 @@ def run_filter(
     seed: int = 0,
     log_particles: int = 0,
     progress=None,
+    compiled: bool | None = None,
 ) -> FilterResult:
     """Run the filter over frames ``on (T, S)`` (bool levels); see the module docstring.
 
@@ -297,9 +302,26 @@ def run_filter(
     the estimate of frame :math:`k` is the mean over the particles that survived to
     :math:`k + \\text{lag}` of where their ancestors were at :math:`k` (a later reading that
     says where a person went corrects where they were).
+
+    ``compiled``: the observation update and the birth test's footprints by the kernels of
+    :mod:`onebit.trackers.binpf.kernels` (a frame's cost follows the sensors near the tracks;
+    equal to rounding); ``None`` = from :data:`COMPILED_MIN_FRAMES` frames on (below, numba's
+    start-up in a fresh process costs more than it saves).
     """
     rng = np.random.default_rng(seed)
     T, S = on.shape
+    if compiled is None:
+        compiled = T >= COMPILED_MIN_FRAMES
+    sensors = np.ascontiguousarray(sensors, dtype=np.float64)
+    radii = np.ascontiguousarray(radii, dtype=np.float64)
+
+    def update(xs, rs):
+        if compiled:
+            return kernels.observation_update(
+                np.ascontiguousarray(xs), rs, z, sensors, radii, p.pd, p.pf, p.edge, p.silent
+            )
+        return (*observation_update(xs, rs, z, sensors, radii, p), None)
+
     N = p.particles
     L = p.smooth_lag
     x = np.zeros((0, N, 4))
@@ -322,7 +344,7 @@ def run_filter(
 
     def resampled(ell, xs, hs):
         idx = systematic_resample(ell, rng)
-        return np.take_along_axis(xs, idx[..., None], axis=1), np.take_along_axis(hs, idx[..., None, None], axis=1)
+        return np.take_along_axis(xs, idx[..., None], axis=1), np.take_along_axis(hs, idx[..., None, None], axis=1), idx
 
     for k in range(T):
         z = on[k]
@@ -330,15 +352,16 @@ def run_filter(
         hist = np.concatenate([hist[:, :, 1:], x[:, :, None, :2]], axis=2)
         rowidx = np.concatenate([rowidx[:, 1:], np.full((len(r), 1), -1)], axis=1)
         if len(r):  # existing tracks first: they get the first chance to explain the frame
-            ell, r = observation_update(x, r, z, sensors, radii, p)
-            x, hist = resampled(ell, x, hist)
+            ell, r, d = update(x, r)
+            x, hist, idx = resampled(ell, x, hist)
         # birth from the on sensors the updated tracks' particles leave unexplained (whatever
         # their existence: a tentative track near a firing gathers its evidence, no twin is born)
-        q = (
-            1.0 - footprint_probability(x[..., :2], sensors, radii, pd=p.pd, edge=p.edge).mean(axis=1)
-            if len(r)
-            else np.zeros((0, S))
-        )
+        if not len(r):
+            q = np.zeros((0, S))
+        elif compiled:  # the resampled particles' footprints are the update's, copied
+            q = 1.0 - kernels.resampled_mean(d, idx)
+        else:
+            q = 1.0 - footprint_probability(x[..., :2], sensors, radii, pd=p.pd, edge=p.edge).mean(axis=1)
         groups = birth_groups(z, q, sensors, p)
         room = p.max_tracks - len(r)
         if groups and room > 0:
@@ -346,10 +369,10 @@ def run_filter(
             newx = np.stack([birth_particles(g, sensors, radii, rng, p) for g in groups])
             newr = np.full(len(groups), p.birth_r)
             # the newborn are updated on this frame with the others' posterior miss probabilities
-            ell, rall = observation_update(np.concatenate([x, newx]), np.concatenate([r, newr]), z, sensors, radii, p)
+            ell, rall, _ = update(np.concatenate([x, newx]), np.concatenate([r, newr]))
             nb = slice(len(r), None)
             newh = np.repeat(newx[:, :, None, :2], L + 1, axis=2)
-            newx, newh = resampled(ell[nb], newx, newh)
+            newx, newh, _ = resampled(ell[nb], newx, newh)
             x, hist, r = np.concatenate([x, newx]), np.concatenate([hist, newh]), np.concatenate([r, rall[nb]])
             rowidx = np.concatenate([rowidx, np.full((len(groups), L + 1), -1)])
             labels = np.concatenate([labels, np.arange(next_label, next_label + len(groups))])

@@ -1,0 +1,70 @@
+"""binpf's compiled observation update against the numpy one it replaces on long logs: equal to
+rounding (1e-9) on random frames -- near and far tracks, soft and hard footprints, with and
+without silence -- the resampled particles' mean footprint equal to evaluating it again,
+and a whole compiled run giving the numpy run's tracks."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from onebit.trackers.binpf import kernels
+from onebit.trackers.binpf.filter import FilterParams, footprint_probability, observation_update, run_filter
+
+SENSORS = np.c_[np.arange(12) * 1.5, np.zeros(12)]  # a 16.5 m line: far sensors for every track
+RADII = np.full(len(SENSORS), 1.0)
+
+
+def _frame(seed, I=4, N=50):
+    rng = np.random.default_rng(seed)
+    centres = rng.uniform([-1.0, -0.5], [18.0, 0.5], (I, 1, 2))
+    x = np.concatenate([centres + rng.normal(0, 0.4, (I, N, 2)), rng.normal(size=(I, N, 2))], axis=-1)
+    r = rng.uniform(0.05, 0.95, I)
+    z = rng.random(len(SENSORS)) < 0.3
+    return x, r, z
+
+
+@pytest.mark.parametrize("seed", range(12))
+@pytest.mark.parametrize(("edge", "silent"), [(0.3, 0.3), (0.05, 0.0), (0.0, 0.2)])
+def test_compiled_update_equals_numpy_to_rounding(seed, edge, silent):
+    x, r, z = _frame(seed)
+    p = FilterParams(pd=0.8, pf=0.02, edge=edge, silent=silent)
+    ell, r_new = observation_update(x, r, z, SENSORS, RADII, p)
+    ell_c, r_c, d = kernels.observation_update(x, r, z, SENSORS, RADII, p.pd, p.pf, p.edge, p.silent)
+    np.testing.assert_allclose(r_c, r_new, rtol=1e-9, atol=1e-12)
+    # log-weights are defined up to a per-track constant (the far sensors' terms)
+    np.testing.assert_allclose(ell_c - ell_c.max(1, keepdims=True), ell - ell.max(1, keepdims=True), atol=1e-9)
+    full = footprint_probability(x[..., :2], SENSORS, RADII, pd=p.pd, edge=p.edge)
+    # the same footprints to rounding, zero only where the footprint is below 2^-54
+    np.testing.assert_allclose(d, full, rtol=1e-14, atol=2.0**-54)
+    if edge > 0:
+        assert np.any((d == 0) & (full > 0))  # and the far sensors were skipped
+
+
+@pytest.mark.parametrize("seed", range(6))
+def test_resampled_mean_is_the_mean_footprint_of_the_copies(seed):
+    x, r, z = _frame(seed)
+    p = FilterParams(pd=0.8, pf=0.02, edge=0.3)
+    _, _, d = kernels.observation_update(x, r, z, SENSORS, RADII, p.pd, p.pf, p.edge, p.silent)
+    idx = np.random.default_rng(seed).integers(0, x.shape[1], x.shape[:2])
+    xs = np.take_along_axis(x, idx[..., None], axis=1)
+    ref = footprint_probability(xs[..., :2], SENSORS, RADII, pd=p.pd, edge=p.edge).mean(axis=1)
+    np.testing.assert_allclose(kernels.resampled_mean(d, idx), ref, rtol=1e-12, atol=2.0**-54)
+
+
+def test_compiled_run_gives_the_numpy_runs_tracks():
+    rng = np.random.default_rng(5)
+    T = 60
+    walk = np.c_[np.linspace(0.0, 16.0, T), np.zeros(T)]
+    p_on = 0.9 * (np.abs(walk[:, None, 0] - SENSORS[None, :, 0]) <= 1.0)
+    on = rng.random(p_on.shape) < np.maximum(p_on, 0.005)
+    p = FilterParams(particles=80, pd=0.9, pf=0.005, edge=0.2, period=1.0, max_out=1, max_tracks=3)
+    lo, hi = np.array([-1.0, -1.0]), np.array([18.0, 1.0])
+    a = run_filter(on, SENSORS, RADII, lo, hi, p, seed=2, compiled=True)
+    b = run_filter(on, SENSORS, RADII, lo, hi, p, seed=2, compiled=False)
+    assert a.reported.any()
+    np.testing.assert_array_equal(a.label, b.label)
+    np.testing.assert_array_equal(a.reported, b.reported)
+    np.testing.assert_allclose(a.x, b.x, atol=1e-9)
+    np.testing.assert_allclose(a.y, b.y, atol=1e-9)
+    np.testing.assert_allclose(a.r, b.r, atol=1e-9)
