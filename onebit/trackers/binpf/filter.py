@@ -101,11 +101,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from onebit.core.lazy import lazy_module
 from onebit.trackers.binpf import kernels
-
-_sparse = lazy_module("scipy.sparse")  # loaded when a run filters, not when the CLI starts
-_csgraph = lazy_module("scipy.sparse.csgraph")
 
 _TINY = 1e-12
 
@@ -247,8 +243,16 @@ def birth_groups(z: np.ndarray, q: np.ndarray, sensors: np.ndarray, p: FilterPar
         return []
     pts = sensors[cand]
     adj = np.sqrt(((pts[:, None] - pts[None]) ** 2).sum(-1)) <= p.birth_link
-    k, lab = _csgraph.connected_components(_sparse.csr_matrix(adj), directed=False)
-    return [cand[lab == g] for g in range(k)]
+    # connected components, numbered by their lowest member (as scipy's csgraph numbers them):
+    # every sensor takes the lowest label among its neighbours until nothing changes (the few
+    # on sensors of a frame: no sparse matrix to build)
+    lab = np.arange(cand.size)
+    while True:
+        new = np.where(adj, lab[None, :], cand.size).min(axis=1)
+        if np.array_equal(new, lab):
+            break
+        lab = new
+    return [cand[lab == g] for g in np.unique(lab)]
 
 
 def birth_particles(

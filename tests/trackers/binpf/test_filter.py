@@ -203,3 +203,22 @@ def test_same_seed_same_result():
     b = run_filter(on, SENSORS, RADII, LO, HI, FilterParams(particles=50), seed=4)
     np.testing.assert_array_equal(a.x, b.x)
     np.testing.assert_array_equal(a.label, b.label)
+
+
+@pytest.mark.parametrize("seed", range(15))
+def test_birth_groups_are_scipys_connected_components_in_its_order(seed):
+    from scipy.sparse import csr_matrix
+    from scipy.sparse.csgraph import connected_components
+
+    rng = np.random.default_rng(seed)
+    sensors = rng.uniform(0, 10, (int(rng.integers(1, 25)), 2))
+    z = rng.random(len(sensors)) < 0.6
+    p = FilterParams(birth_link=float(rng.uniform(0.5, 4.0)))
+    groups = birth_groups(z, np.ones((0, len(sensors))), sensors, p)
+    cand = np.flatnonzero(z)
+    if cand.size == 0:
+        assert groups == []
+        return
+    adj = np.sqrt(((sensors[cand][:, None] - sensors[cand][None]) ** 2).sum(-1)) <= p.birth_link
+    k, lab = connected_components(csr_matrix(adj), directed=False)
+    assert [g.tolist() for g in groups] == [cand[lab == g].tolist() for g in range(k)]
