@@ -189,6 +189,34 @@ def _before(key, i, j):
 
 
 @kernel
+def _sift_down(heap, v, size, key, ri):
+    """Restore the min-heap ``heap[:size]`` (of indices into ``ri``, by scan order) below ``v``."""
+    while True:
+        c = 2 * v + 1
+        if c >= size:
+            return
+        if c + 1 < size and _before(key, ri[heap[c + 1]], ri[heap[c]]):
+            c += 1
+        if _before(key, ri[heap[c]], ri[heap[v]]):
+            heap[c], heap[v] = heap[v], heap[c]
+            v = c
+        else:
+            return
+
+
+@kernel
+def _sift_up(heap, v, key, ri):
+    """Restore the min-heap after a push at ``v``."""
+    while v > 0:
+        up = (v - 1) // 2
+        if _before(key, ri[heap[v]], ri[heap[up]]):
+            heap[up], heap[v] = heap[v], heap[up]
+            v = up
+        else:
+            return
+
+
+@kernel
 def scan_step(cost, sel, x, m_t, pd, steps, H, K, D0, prefix):
     """Steps 3-18 of Algorithm 1 and the survivors' summed distances, in one call per instant.
 
@@ -205,13 +233,14 @@ def scan_step(cost, sel, x, m_t, pd, steps, H, K, D0, prefix):
     Cost follows what the scan keeps, not what it passes over. The first ``prefix x K``
     candidates of the order are sorted (:func:`ordered_prefix`) and scanned in turn. If ``K``
     are not kept by then, the rest are not sorted: each gets its nearest head so far at once,
-    and the scan jumps from one *event* to the next -- the first remaining candidate (in the
-    order) that would found a head (nearest head ``>= D_0``) or join a cluster holding fewer
-    than ``H``; every candidate it jumps over joins a full cluster and is dropped, so where
-    it lies in the order changes nothing. A new head updates the nearest head of the
-    candidates after it. A scan that collapses into full clusters (the usual first run)
-    thus costs ``O(L x heads)`` per instant instead of a sort of ``L``. After ``EVENTS``
-    events the rest is sorted and scanned in turn (each event costs a pass over the rest)."""
+    and only the *live* ones -- that would found a head (nearest head ``>= D_0``) or join a
+    cluster holding fewer than ``H`` -- go into a heap by scan order. Every other candidate
+    would join a full cluster and be dropped, so where it lies in the order changes nothing
+    -- unless a later head becomes its nearest: a new head updates the candidates after it
+    and pushes those it makes live. The scan pops the heap (skipping what has gone dead as
+    clusters filled) until no live candidate is left or ``K`` are kept. A scan that
+    collapses into full clusters (the usual first run) thus costs ``O(L x heads)`` per
+    instant plus the live candidates' heap, instead of a sort of ``L``."""
     n = sel.size
     key = np.empty(n)
     par = np.empty(n, dtype=np.int64)
@@ -267,78 +296,92 @@ def scan_step(cost, sel, x, m_t, pd, steps, H, K, D0, prefix):
                 if d < best_r[u]:
                     best_r[u] = d
                     bh_r[u] = h
-        last = -1  # position in sel of the last event (-1: none yet; all of `rest` is after the prefix)
-        events = 0
-        while True:
-            j = -1  # the next event: first in the order after `last` that founds or joins
-            for u in range(m):
-                i = ri[u]
-                if last >= 0 and not _before(key, last, i):
-                    continue
-                if nh == 0 or best_r[u] >= D0 or counts[bh_r[u]] < H:
-                    if j < 0 or _before(key, i, ri[j]):
-                        j = u
-            if j < 0:
-                break
-            if events >= EVENTS:  # many events: sort what is left and scan it in turn
-                left = np.empty(m, dtype=np.int64)
-                nl = 0
-                for u in range(m):
-                    if last < 0 or _before(key, last, ri[u]):
-                        left[nl] = u
-                        nl += 1
-                left = left[:nl]
-                kl = np.empty(nl)
-                for v in range(nl):
-                    kl[v] = key[ri[left[v]]]
-                left = left[np.argsort(kl, kind="mergesort")]  # ri is increasing: ties stay by position
-                for v in range(nl):
-                    u = left[v]
-                    i = ri[u]
-                    if nh == 0 or best_r[u] >= D0:
-                        h = nh
-                        heads[nh] = i
-                        counts[nh] = 1
-                        kept[nk], label[nk], is_head[nk] = i, nh, True
-                        nh += 1
-                        nk += 1
-                        for w in range(v + 1, nl):
-                            uu = left[w]
-                            d = _head_distance(ri[uu], i, par, sel, x, pd, steps)
-                            if d < best_r[uu]:
-                                best_r[uu] = d
-                                bh_r[uu] = h
-                    elif counts[bh_r[u]] < H:
-                        counts[bh_r[u]] += 1
-                        kept[nk], label[nk], is_head[nk] = i, bh_r[u], False
-                        nk += 1
-                    if nk >= K:
-                        stop = i
-                        break
-                break
-            events += 1
-            i = ri[j]
-            if nh == 0 or best_r[j] >= D0:
+        # the live candidates (that would found a head or join a cluster not yet full) in a
+        # heap by scan order; `live` counts those in the heap, through `free` (would found)
+        # and `near[h]` (nearest head h, within D0); the scan ends when none is left
+        heap = np.empty(m, dtype=np.int64)  # indices into ri
+        in_heap = np.zeros(m, dtype=np.bool_)
+        near = np.zeros(cap, dtype=np.int64)
+        free = 0
+        live = 0
+        size = 0
+        for u in range(m):
+            if best_r[u] >= D0 or counts[bh_r[u]] < H:
+                heap[size] = u
+                size += 1
+                in_heap[u] = True
+                if best_r[u] >= D0:
+                    free += 1
+                    live += 1
+                else:
+                    near[bh_r[u]] += 1
+                    live += 1
+        for v in range(size // 2 - 1, -1, -1):
+            _sift_down(heap, v, size, key, ri)
+        while live > 0:
+            u = heap[0]  # the next live-or-not candidate in scan order
+            size -= 1
+            heap[0] = heap[size]
+            _sift_down(heap, 0, size, key, ri)
+            in_heap[u] = False
+            if best_r[u] >= D0:
+                free -= 1
+                live -= 1
+            else:
+                near[bh_r[u]] -= 1
+                if counts[bh_r[u]] < H:
+                    live -= 1
+            i = ri[u]
+            if best_r[u] >= D0:  # founds a cluster; later candidates compare with it too
                 h = nh
                 heads[nh] = i
                 counts[nh] = 1
                 kept[nk], label[nk], is_head[nk] = i, nh, True
                 nh += 1
                 nk += 1
-                for u in range(m):  # the candidates after the new head compare with it too
-                    if _before(key, i, ri[u]):
-                        d = _head_distance(ri[u], i, par, sel, x, pd, steps)
-                        if d < best_r[u]:
-                            best_r[u] = d
-                            bh_r[u] = h
-            else:
-                counts[bh_r[j]] += 1
-                kept[nk], label[nk], is_head[nk] = i, bh_r[j], False
+                if nk >= K:
+                    stop = i
+                    break
+                for w in range(m):
+                    if not _before(key, i, ri[w]):
+                        continue
+                    d = _head_distance(ri[w], i, par, sel, x, pd, steps)
+                    if d >= best_r[w]:
+                        continue
+                    if in_heap[w]:  # take its old state out of the counts
+                        if best_r[w] >= D0:
+                            free -= 1
+                            live -= 1
+                        else:
+                            near[bh_r[w]] -= 1
+                            if counts[bh_r[w]] < H:
+                                live -= 1
+                    best_r[w] = d
+                    bh_r[w] = h
+                    if best_r[w] >= D0 or counts[h] < H:
+                        if not in_heap[w]:
+                            in_heap[w] = True
+                            heap[size] = w
+                            size += 1
+                            _sift_up(heap, size - 1, key, ri)
+                    if in_heap[w]:
+                        if best_r[w] >= D0:
+                            free += 1
+                            live += 1
+                        else:
+                            near[h] += 1
+                            if counts[h] < H:
+                                live += 1
+            elif counts[bh_r[u]] < H:  # joins its nearest cluster
+                h = bh_r[u]
+                counts[h] += 1
+                kept[nk], label[nk], is_head[nk] = i, h, False
                 nk += 1
-            last = i
-            if nk >= K:
-                stop = i
-                break
+                if counts[h] == H:  # full: its near candidates are no longer live
+                    live -= near[h]
+                if nk >= K:
+                    stop = i
+                    break
         if stop >= 0:  # its rank in the order
             scanned = 0
             for i in range(n):
@@ -354,10 +397,6 @@ def scan_step(cost, sel, x, m_t, pd, steps, H, K, D0, prefix):
     for h in range(nh):
         biggest = max(biggest, counts[h])
     return out, label[:nk].copy(), is_head[:nk].copy(), scanned, pd_new, biggest
-
-
-#: :func:`scan_step` sorts the rest of the scan order after this many events past its sorted prefix.
-EVENTS = 16
 
 
 @kernel

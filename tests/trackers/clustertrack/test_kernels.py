@@ -156,10 +156,9 @@ def test_sampling_from_listed_cell_centres_draws_what_the_mask_sampler_draws():
 
 @pytest.mark.parametrize("seed", range(80))
 def test_fused_step_kernel_equals_numpy_scan_and_distances(seed):
-    """``kernels.scan_step`` (sorted prefix, then event jumps over the unsorted rest, then a
-    sorted continuation after ``EVENTS`` events) keeps, labels and counts exactly what the
-    numpy scan does, and gives the same summed distances: ties, few and many clusters,
-    prefixes shorter than the scan."""
+    """``kernels.scan_step`` (sorted prefix, then a heap of the live candidates of the unsorted
+    rest) keeps, labels and counts exactly what the numpy scan does, and gives the same
+    summed distances: ties, few and many clusters, H = 1, prefixes shorter than the scan."""
     rng = np.random.default_rng(seed)
     dim = int(rng.integers(1, 3))
     t = int(rng.integers(1, 6))
@@ -172,7 +171,7 @@ def test_fused_step_kernel_equals_numpy_scan_and_distances(seed):
     H, K, L = int(rng.integers(1, 30)), int(rng.integers(1, 120)), int(rng.integers(1, 600))
     D0 = float(rng.choice([0.02, 0.1, 0.5, 1.5, 4.0]))
     prefix = int(rng.choice([1, 4]))
-    if seed >= 60:  # small full clusters, many of them: more than EVENTS kept past the prefix
+    if seed >= 60:  # small full clusters, many of them: many kept past the prefix, heads founded there
         H, K, L, D0, prefix = int(rng.integers(1, 3)), int(rng.integers(40, 120)), kprev * m, 0.3, 1
     ref_kept, ref_lab, ref_head, ref_scanned = scan_clusters_reference(
         cost, parent, x, pd, t, H=H, K=K, L=L, D0=D0, rng=np.random.default_rng(seed)
