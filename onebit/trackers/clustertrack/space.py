@@ -56,16 +56,29 @@ class FeasibleSpace:
     def build(
         cls, on: np.ndarray, times: np.ndarray, sensors: SensorArray, boundary, *, dim: int, cell: float
     ) -> FeasibleSpace:
-        """From readings ``on (T, n)`` (sensor order of ``sensors``) at ``times (T,)``."""
+        """From readings ``on (T, n)`` (sensor order of ``sensors``) at ``times (T,)``.
+
+        F, its components and their bounds are a function of the readings alone, so they are
+        computed once per *distinct* reading (a sensor array repeats a handful of patterns
+        over a long log: 22 in 10^6 rows of the simulated line) and shared by the instants
+        that have it -- the same values, in time and work bounded by the distinct patterns,
+        not the log's length."""
         on = np.asarray(on, dtype=bool)
         T = on.shape[0]
+        if T:
+            uniq, inv = np.unique(on, axis=0, return_inverse=True)
+            inv = inv.reshape(-1)
+        else:
+            uniq, inv = on, np.zeros(0, dtype=np.int64)
         if dim == 1:
             minx, _, maxx, _ = boundary.bounds
             x = sensors.xy[:, 0]
-            # per instant: F is a different number of intervals at every instant (each call is
+            # per distinct reading: F is a different number of intervals each time (each call is
             # vectorised over sensors); Theorem 4's greedy is sequential in its picks
-            fs = tuple(feasible_1d(x, on[t], sensors.r_inner, sensors.r_outer, minx, maxx) for t in range(T))
-            b = [snapshot_bounds_1d(f) for f in fs]
+            fu = [feasible_1d(x, row, sensors.r_inner, sensors.r_outer, minx, maxx) for row in uniq]
+            bu = [snapshot_bounds_1d(f) for f in fu]
+            fs = tuple(fu[k] for k in inv)
+            b = [bu[k] for k in inv]
             return cls(
                 1,
                 np.asarray(times, float),
@@ -79,31 +92,33 @@ class FeasibleSpace:
         raster = make_raster(boundary, cell)
         outer = disk_masks(raster, sensors.xy, sensors.r_outer, closed=True)
         inner = disk_masks(raster, sensors.xy, sensors.r_inner, closed=False)
-        masks = feasible_raster(on, outer, inner, raster.inside)
-        labels = np.zeros(masks.shape, dtype=np.int64)
+        masks_u = feasible_raster(uniq, outer, inner, raster.inside)
+        labels_u = np.zeros(masks_u.shape, dtype=np.int64)
         bounds, cb = [], []
-        # Per instant: one OpenCV labelling (~30 us) and the bounds vectorised over on-sensors
-        # x cells. Stacking all instants into one image and one (instant, sensor) x cells pass
-        # was measured 10x slower (re-numbering the labels and gathering a label row per pair
-        # cost more than the T calls), so the loop over instants stays.
-        for t in range(T):
-            n, lab = raster_components(masks[t], raster)
-            labels[t] = lab
-            lb, per = snapshot_bounds_2d(lab, n, np.flatnonzero(on[t]), outer)
+        # Per distinct reading: one OpenCV labelling (~30 us) and the bounds vectorised over
+        # on-sensors x cells. Stacking them into one image and one (reading, sensor) x cells
+        # pass was measured 10x slower (re-numbering the labels and gathering a label row per
+        # pair cost more than the calls), so the loop stays.
+        for k in range(uniq.shape[0]):
+            n, lab = raster_components(masks_u[k], raster)
+            labels_u[k] = lab
+            lb, per = snapshot_bounds_2d(lab, n, np.flatnonzero(uniq[k]), outer)
             bounds.append(lb)
             cb.append(per)
+        cells_u = [np.flatnonzero(m) for m in masks_u]
+        xy_u = [raster.centres_of(c) for c in cells_u]
         return cls(
             2,
             np.asarray(times, float),
-            masks.sum(axis=1) * raster.cell**2,
-            np.array(bounds, dtype=np.int64),
-            tuple(cb),
+            (masks_u.sum(axis=1) * raster.cell**2)[inv],
+            np.array(bounds, dtype=np.int64)[inv] if T else np.zeros(0, dtype=np.int64),
+            tuple(cb[k] for k in inv),
             raster=raster,
-            masks=masks,
-            labels=labels,
+            masks=masks_u[inv],
+            labels=labels_u[inv],
             order=np.arange(T),
-            cells=(cells := tuple(np.flatnonzero(m) for m in masks)),
-            cell_xy=tuple(raster.centres_of(c) for c in cells),
+            cells=tuple(cells_u[k] for k in inv),
+            cell_xy=tuple(xy_u[k] for k in inv),
         )
 
     # ----------------------------------------------------------------- views

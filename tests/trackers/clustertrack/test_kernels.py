@@ -202,3 +202,25 @@ def test_compiled_prefix_and_interval_mapping_equal_numpy(seed):
     a = sample_intervals(ends, 500, np.random.default_rng(seed), compiled=True)
     b = sample_intervals(ends, 500, np.random.default_rng(seed))
     np.testing.assert_array_equal(a, b)
+
+
+@pytest.mark.parametrize("name", ["proximity-line", "proximity-grid"])
+def test_space_built_per_distinct_reading_equals_one_built_per_instant(name):
+    """F, its components and bounds come from each distinct reading once; every instant gets
+    what a space built from that instant alone has."""
+    w = make_world(name, seed=1, params={})
+    sa = SensorArray(tuple(f"p{i}" for i in range(len(w.sensor_xy))), w.sensor_xy, w.r_inner, w.r_outer)
+    dim = 1 if sa.is_1d else 2
+    on = np.concatenate([w.on, w.on[::-1], w.on[:3]])  # repeated readings, out of order
+    sp = FeasibleSpace.build(on, np.arange(len(on), dtype=float), sa, box(*w.boundary), dim=dim, cell=0.25)
+    assert len(np.unique(on, axis=0)) < len(on)
+    for t in range(len(on)):
+        one = FeasibleSpace.build(on[t : t + 1], np.zeros(1), sa, box(*w.boundary), dim=dim, cell=0.25)
+        assert sp.sizes_all[t] == one.sizes_all[0] and sp.bounds_all[t] == one.bounds_all[0]
+        np.testing.assert_array_equal(sp.comp_bounds_all[t], one.comp_bounds_all[0])
+        if dim == 1:
+            np.testing.assert_array_equal(sp.f1d[t].components, one.f1d[0].components)
+            np.testing.assert_array_equal(sp.minimal_targets[t], one.minimal_targets[0])
+        else:
+            np.testing.assert_array_equal(sp.labels[t], one.labels[0])
+            np.testing.assert_array_equal(sp.cell_xy[t], one.cell_xy[0])
