@@ -127,6 +127,20 @@ def clustertrack() -> None:
         )
         kernels.candidate_costs(x, x[:2], x[:2], np.zeros(2), 3, True)
         kernels.summed_distances(np.zeros((2, 2)), np.arange(2), x[:2])
+        # the pass's fused scan (types as cluster_track passes them)
+        kernels.scan_step(np.arange(6.0), np.arange(6), x, 3, np.zeros((2, 2)), 2.0, 2, 4, 0.5, 1)
+    kernels.map_intervals(np.random.default_rng(0).random(5), np.array([[0.0, 1.0], [2.0, 3.0]]), 2.0)
+
+
+def binpf() -> None:
+    from onebit.trackers.binpf import kernels
+
+    rng = np.random.default_rng(0)
+    x = rng.random((2, 5, 4))
+    sensors, radii = np.array([[0.0, 0.0], [1.0, 0.0]]), np.ones(2)
+    on = np.array([[True, False]])
+    _, _, d = kernels.observation_update(x, np.full(2, 0.5), on[0], sensors, radii, 0.75, 0.01, 0.3, 0.3)
+    kernels.resampled_mean(d, np.zeros((2, 5), dtype=np.int64))
 
 
 def readers() -> None:
@@ -149,7 +163,7 @@ def readers() -> None:
 
 def main() -> None:
     t_all = time.perf_counter()
-    for warm in (findinghumo, intruder, beams, clustertrack, readers, scoring):
+    for warm in (findinghumo, intruder, beams, clustertrack, binpf, readers, scoring):
         t0 = time.perf_counter()
         warm()
         print(f"kernels: {warm.__name__:<13} {time.perf_counter() - t0:6.2f} s", flush=True)

@@ -404,8 +404,8 @@ def map_intervals(u, iv, total):
     """Points ``iv[k, 0] + u' - (cum[k] - length[k])``, ``u' = u total``, ``k`` the interval
     holding ``u'`` in the cumulative lengths: the mapping of
     :func:`onebit.trackers.clustertrack.feasible.sample_intervals` (its reference; the same
-    operations, so equal points), found by a linear walk over the few intervals of F instead
-    of one binary search per draw."""
+    operations, so equal points), found by counting over the few intervals of F instead of
+    one binary search per draw."""
     c = iv.shape[0]
     length = np.empty(c)
     cum = np.empty(c)
@@ -418,9 +418,9 @@ def map_intervals(u, iv, total):
     for r in range(u.size):
         v = u[r] * total
         k = 0
-        if c <= 16:
-            while k < c and cum[k] <= v:  # searchsorted(cum, v, side="right")
-                k += 1
+        if c <= 16:  # searchsorted(cum, v, side="right"): cum is sorted, so count the ends <= v
+            for j in range(c):  # (no early exit: no branch to mispredict)
+                k += cum[j] <= v
         else:
             k = np.searchsorted(cum, v, side="right")
         k = min(k, c - 1)
