@@ -149,7 +149,13 @@ def ordered_prefix(key, k):
         return np.argsort(key, kind="mergesort")
     if k <= 0:
         return np.zeros(0, dtype=np.int64)
-    v = kth_smallest(key, k - 1)
+    return ordered_prefix_at(key, k, kth_smallest(key, k - 1))
+
+
+@kernel
+def ordered_prefix_at(key, k, v):
+    """:func:`ordered_prefix` given ``v``, the ``k``-th smallest key (``0 < k < len(key)``)."""
+    n = key.size
     nb = 0
     for i in range(n):
         if key[i] < v:
@@ -217,20 +223,22 @@ def _sift_up(heap, v, key, ri):
 
 
 @kernel
-def scan_step(cost, sel, x, m_t, pd, steps, H, K, D0, prefix):
+def scan_step(key, sel, x, m_t, pd, steps, H, K, D0, first, v):
     """Steps 3-18 of Algorithm 1 and the survivors' summed distances, in one call per instant.
 
-    ``cost (n,)`` of the candidates (candidate ``i`` extends particle ``i // m_t`` by
-    ``x[i]``), ``sel`` the candidates to scan before they are ordered
-    (:func:`onebit.trackers.clustertrack.algorithm.scan_selection`); the scan order is the
-    stable order of ``cost[sel]``. Returns ``(kept, label, is_head, scanned, pd_new,
+    ``sel`` the candidates to scan before they are ordered
+    (:func:`onebit.trackers.clustertrack.algorithm.scan_selection`; candidate ``i`` extends
+    particle ``i // m_t`` by ``x[i]``), ``key = cost[sel]``; the scan order is the stable
+    order of ``key``. ``first``: how many to sort first, ``v``: the ``first``-th smallest key
+    when ``first < len(sel)`` (numpy's partition finds it faster than a kernel; see
+    :func:`onebit.trackers.clustertrack.algorithm.fused_scan`). Returns ``(kept, label, is_head, scanned, pd_new,
     max_cluster)``: kept candidate indices in scan order, their cluster ids, heads,
     candidates scanned, the kept particles' summed distances (:func:`summed_distances`) and
     the largest cluster's size -- what the numpy pass computes
     (:func:`onebit.trackers.clustertrack.algorithm.scan_clusters_reference`, then
     ``summed_distances_reference``), with the same distances in the same order of operations.
 
-    Cost follows what the scan keeps, not what it passes over. The first ``prefix x K``
+    Cost follows what the scan keeps, not what it passes over. The first ``first``
     candidates of the order are sorted (:func:`ordered_prefix`) and scanned in turn. If ``K``
     are not kept by then, the rest are not sorted: each gets its nearest head so far at once,
     and only the *live* ones -- that would found a head (nearest head ``>= D_0``) or join a
@@ -242,10 +250,8 @@ def scan_step(cost, sel, x, m_t, pd, steps, H, K, D0, prefix):
     collapses into full clusters (the usual first run) thus costs ``O(L x heads)`` per
     instant plus the live candidates' heap, instead of a sort of ``L``."""
     n = sel.size
-    key = np.empty(n)
     par = np.empty(n, dtype=np.int64)
     for i in range(n):
-        key[i] = cost[sel[i]]
         par[i] = sel[i] // m_t
     cap = min(K, n)
     heads = np.empty(cap, dtype=np.int64)  # positions in sel
@@ -257,8 +263,7 @@ def scan_step(cost, sel, x, m_t, pd, steps, H, K, D0, prefix):
     nk = 0
     scanned = n
     stop = -1  # position at which the K-th was kept
-    first = min(n, prefix * max(K, 1))
-    o = ordered_prefix(key, first)
+    o = np.argsort(key, kind="mergesort") if first >= n else ordered_prefix_at(key, first, v)
     for r in range(o.size):  # the sorted prefix, in turn (scan_sorted's loop)
         i = o[r]
         best = np.inf

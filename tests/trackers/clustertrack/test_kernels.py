@@ -16,6 +16,7 @@ from onebit.trackers.clustertrack.algorithm import (
     cluster_track,
     clustertrack,
     consensus,
+    fused_scan,
     ordered_prefix,
     rules_of_thumb,
     scan_clusters,
@@ -156,7 +157,7 @@ def test_sampling_from_listed_cell_centres_draws_what_the_mask_sampler_draws():
 
 @pytest.mark.parametrize("seed", range(80))
 def test_fused_step_kernel_equals_numpy_scan_and_distances(seed):
-    """``kernels.scan_step`` (sorted prefix, then a heap of the live candidates of the unsorted
+    """``fused_scan`` / ``kernels.scan_step`` (sorted prefix, then a heap of the live candidates of the unsorted
     rest) keeps, labels and counts exactly what the numpy scan does, and gives the same
     summed distances: ties, few and many clusters, H = 1, prefixes shorter than the scan."""
     rng = np.random.default_rng(seed)
@@ -177,7 +178,7 @@ def test_fused_step_kernel_equals_numpy_scan_and_distances(seed):
         cost, parent, x, pd, t, H=H, K=K, L=L, D0=D0, rng=np.random.default_rng(seed)
     )
     sel = scan_selection(cost, L, np.random.default_rng(seed))
-    kept, lab, head, scanned, pd_new, biggest = kernels.scan_step(cost, sel, x, m, pd, float(t), H, K, D0, prefix)
+    kept, lab, head, scanned, pd_new, biggest = fused_scan(cost, sel, x, m, pd, t, H=H, K=K, D0=D0, prefix=prefix)
     np.testing.assert_array_equal(kept, ref_kept)
     np.testing.assert_array_equal(lab, ref_lab)
     np.testing.assert_array_equal(head, ref_head)
