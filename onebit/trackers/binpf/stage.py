@@ -71,8 +71,8 @@ class BinPFConfig:
     seed: int = 0  #: random seed
     log_particles: int = 50  #: particles per track and frame sent to Rerun
     #: the most frames the pipeline runs it on; a longer log skips the stage, saying so (each
-    #: frame costs 4-8 ms with the default particles on 2 cores: 10 000 frames take 0.7-1.3 minutes); 0 = no bound
-    max_frames: int = 10_000
+    #: frame costs 1.6-1.9 ms with the default particles on 2 cores: 40 000 frames take 1.1-1.3 minutes); 0 = no bound
+    max_frames: int = 40_000
 
     def __post_init__(self) -> None:
         check_range(self, "particles", 1, 10**6, types=(int,))
@@ -137,7 +137,11 @@ def frame_period(times: np.ndarray) -> float:
 def fits(inputs: dict, site: Site, config: BinPFConfig) -> str | None:
     """Reason to skip on these inputs, or ``None``: more frames than ``config.max_frames``."""
     return instants_bound(
-        inputs.get("proximity_frames"), NAME, "max_frames", config.max_frames, "4-8 ms each with the default particles"
+        inputs.get("proximity_frames"),
+        NAME,
+        "max_frames",
+        config.max_frames,
+        "1.6-1.9 ms each with the default particles",
     )
 
 
