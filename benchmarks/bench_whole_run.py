@@ -34,9 +34,11 @@ logs of that kind).
 
 Rows go to ``benchmarks/results.csv`` (row ``whole run``) with the growth exponent over the
 sizes. ``python -m benchmarks.bench_whole_run [--sizes 1e4,1e5,1e6] [--kinds beams,motion,...]
-[--timeout 600] [--baseline CHECKOUT]`` (``--baseline``: each recorded run also with the
+[--timeout 600] [--baseline CHECKOUT] [--config RUN_TOML]`` (``--baseline``: each recorded run also with the
 onebit of an earlier commit's checkout, after one run to fill its kernels' cache, and ours
-again right after it: the before/after row); ``make bench`` runs it with the defaults. Run it under ``nice`` on a shared
+again right after it: the before/after row; ``--config``: every run with that ``run.toml``,
+e.g. lifting a tracker's bound to measure its growth past it; every tracker stage also gets
+a CPU row with its growth); ``make bench`` runs it with the defaults. Run it under ``nice`` on a shared
 machine; it takes minutes.
 """
 
@@ -140,12 +142,21 @@ def read_csv_cold(path: Path) -> tuple[float, float]:
 
 
 def cold_run(
-    dataset: Path, out: Path, trackers: str | None, *, rrd: bool, timeout: float, code: Path | None = None
+    dataset: Path,
+    out: Path,
+    trackers: str | None,
+    *,
+    rrd: bool,
+    timeout: float,
+    code: Path | None = None,
+    config: Path | None = None,
 ) -> dict:
     """One ``onebit run`` process: wall, start-up, per-stage work and viz seconds, or ``killed``;
-    ``code``: run the onebit of that checkout (``PYTHONPATH``) instead of this one."""
+    ``code``: run the onebit of that checkout (``PYTHONPATH``) instead of this one; ``config``:
+    its ``--config`` (a ``run.toml``)."""
     cmd = [sys.executable, "-m", "onebit.cli", "run", str(dataset), "--out", str(out)]
     cmd += ["--trackers", trackers] if trackers else []
+    cmd += ["--config", str(config)] if config is not None else []
     cmd += [] if rrd else ["--no-rrd"]
     shutil.rmtree(out, ignore_errors=True)
     spawned = time.time()
@@ -209,6 +220,14 @@ def main(argv: list[str] | None = None) -> None:
         metavar="CHECKOUT",
         help="also run each recorded run with the onebit of this checkout (an earlier commit): the before/after rows",
     )
+    ap.add_argument(
+        "--config",
+        type=Path,
+        default=None,
+        metavar="RUN_TOML",
+        help="pass --config RUN_TOML to every run (e.g. lifting [clustertrack] max_instants to measure a "
+        "tracker's growth past its bound); the rows name the file",
+    )
     args = ap.parse_args(argv)
     sizes = tuple(int(float(s)) for s in args.sizes.split(","))
     kinds = tuple(k.strip() for k in args.kinds.split(","))
@@ -228,6 +247,7 @@ def main(argv: list[str] | None = None) -> None:
                     TRACKERS[kind] if not args.all_trackers else None,
                     rrd=False,
                     timeout=args.timeout,
+                    config=args.config,
                 )
             if kind in killed:  # a smaller log of this kind already ran past the timeout
                 print(f"  {kind} {n} rows: not run (a smaller log was killed at the timeout)", flush=True)
@@ -237,20 +257,39 @@ def main(argv: list[str] | None = None) -> None:
                 what = f"home (24 h, 50 PIRs, 2 residents), {f'--trackers {trackers}' if trackers else 'every tracker'}"
             else:
                 what = f"{kind} --trackers {trackers}" if trackers else f"{kind}, every tracker"
-            off = cold_run(data, root / "out-norrd", trackers, rrd=False, timeout=args.timeout)
-            on = off if off["killed"] else cold_run(data, root / "out", trackers, rrd=True, timeout=args.timeout)
+            what += f" (--config {args.config.name})" if args.config is not None else ""
+            off = cold_run(data, root / "out-norrd", trackers, rrd=False, timeout=args.timeout, config=args.config)
+            on = (
+                off
+                if off["killed"]
+                else cold_run(data, root / "out", trackers, rrd=True, timeout=args.timeout, config=args.config)
+            )
             floor, floor_cpu = read_csv_cold(data / LOG[kind])
             if args.baseline is not None and not on["killed"]:
                 warm = cold_run(
-                    data, root / "out-base", trackers, rrd=True, timeout=args.timeout, code=args.baseline
+                    data,
+                    root / "out-base",
+                    trackers,
+                    rrd=True,
+                    timeout=args.timeout,
+                    code=args.baseline,
+                    config=args.config,
                 )  # its kernels' cache
                 base = (
                     warm
                     if warm["killed"]
-                    else cold_run(data, root / "out-base", trackers, rrd=True, timeout=args.timeout, code=args.baseline)
+                    else cold_run(
+                        data,
+                        root / "out-base",
+                        trackers,
+                        rrd=True,
+                        timeout=args.timeout,
+                        code=args.baseline,
+                        config=args.config,
+                    )
                 )
                 again = cold_run(
-                    data, root / "out", trackers, rrd=True, timeout=args.timeout
+                    data, root / "out", trackers, rrd=True, timeout=args.timeout, config=args.config
                 )  # right after, in the same conditions
                 ours = min(on["wall"], again["wall"])
                 print(
@@ -381,6 +420,28 @@ def main(argv: list[str] | None = None) -> None:
                             (t["work_s"] <= 2 * floor) if reader else None,
                         )
                     )
+                    if not reader and "work_cpu_s" in t:  # a tracker's CPU: what the load does not inflate
+                        table.add(
+                            Result(
+                                ROW,
+                                f"{what}, {n:.0e} rows: stage {stage}, cpu",
+                                n,
+                                "s cpu",
+                                t["work_cpu_s"],
+                                None,
+                                "",
+                                growth(
+                                    [r[0] for r in items if stage in r[2].get("stages", {})],
+                                    [
+                                        r[2]["stages"][stage]["work_cpu_s"]
+                                        for r in items
+                                        if stage in r[2].get("stages", {})
+                                    ],
+                                ),
+                                "",
+                                None,
+                            )
+                        )
                     if reader and "work_cpu_s" in t:
                         table.add(
                             Result(
