@@ -49,6 +49,7 @@ class FeasibleSpace:
     minimal_targets: tuple = ()  # T arrays: positions of a minimal target set (1-D, Theorem 4)
     cells: tuple = ()  # T arrays: the F cells of each instant (2-D), so sampling costs |F|, not the grid
     cell_xy: tuple = ()  # T arrays (|F|, 2): their centres
+    reading: np.ndarray | None = None  # (T,) index of each instant's distinct reading (F is shared within one)
 
     # ----------------------------------------------------------------- construction
 
@@ -88,6 +89,7 @@ class FeasibleSpace:
                 f1d=fs,
                 order=np.arange(T),
                 minimal_targets=tuple(x[2] for x in b),
+                reading=inv,
             )
         raster = make_raster(boundary, cell)
         outer = disk_masks(raster, sensors.xy, sensors.r_outer, closed=True)
@@ -119,6 +121,7 @@ class FeasibleSpace:
             order=np.arange(T),
             cells=tuple(cells_u[k] for k in inv),
             cell_xy=tuple(xy_u[k] for k in inv),
+            reading=inv,
         )
 
     # ----------------------------------------------------------------- views
@@ -198,8 +201,15 @@ class FeasibleSpace:
         if N == 0 or T == 0:
             return out
         if self.dim == 1:
-            for t in range(T):  # a different set of intervals per instant
-                out[:, t] = self.f1d[t].component_of(tracks[:, t, 0])
+            if self.reading is None:
+                for t in range(T):  # a different set of intervals per instant
+                    out[:, t] = self.f1d[t].component_of(tracks[:, t, 0])
+                return out
+            # one lookup per distinct reading, over every instant that has it
+            order = np.argsort(self.reading, kind="stable")
+            starts = np.flatnonzero(np.r_[True, np.diff(self.reading[order]) != 0])
+            for ts in np.split(order, starts[1:]):
+                out[:, ts] = self.f1d[ts[0]].component_of(tracks[:, ts, 0])
             return out
         r = self.raster
         j = np.floor((tracks[..., 0] - r.x0) / r.cell).astype(np.int64)
