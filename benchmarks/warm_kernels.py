@@ -130,6 +130,7 @@ def clustertrack() -> None:
         # the pass's fused scan (types as cluster_track passes them)
         kernels.scan_step(np.arange(6.0), np.arange(6), x, 3, np.zeros((2, 2)), 2.0, 2, 4, 0.5, 2, 1.0)
     kernels.map_intervals(np.random.default_rng(0).random(5), np.array([[0.0, 1.0], [2.0, 3.0]]), 2.0)
+    kernels.jitter_cells(np.zeros((2, 2)), np.zeros(3, dtype=np.int64), np.zeros((3, 2)), 0.1)
 
 
 def binpf() -> None:

@@ -308,12 +308,19 @@ def sample_cells(cells: np.ndarray, raster: Raster, n: int, rng: np.random.Gener
     return c + (rng.random((n, 2)) - 0.5) * raster.cell
 
 
-def sample_cell_centres(xy: np.ndarray, cell: float, n: int, rng: np.random.Generator) -> np.ndarray:
+def sample_cell_centres(
+    xy: np.ndarray, cell: float, n: int, rng: np.random.Generator, *, compiled: bool = False
+) -> np.ndarray:
     """``n`` points uniform on the cells of centres ``xy (m, 2)``: the same draws as
     :func:`sample_cells` on those cells (a cell uniformly, then uniform inside it), with the
-    centres looked up once per instant instead of recomputed per draw."""
+    centres looked up once per instant instead of recomputed per draw (``compiled``: the
+    lookup and offsets in one pass, :func:`onebit.trackers.clustertrack.kernels.jitter_cells`;
+    the same draws and points)."""
     if n <= 0 or len(xy) == 0:
         return np.zeros((0, 2))
+    if compiled:
+        k = rng.integers(0, len(xy), size=n)
+        return kernels.jitter_cells(np.ascontiguousarray(xy, dtype=np.float64), k, rng.random((n, 2)), float(cell))
     c = xy[rng.integers(0, len(xy), size=n)]
     return c + (rng.random((n, 2)) - 0.5) * cell
 

@@ -431,3 +431,17 @@ def map_intervals(u, iv, total):
         k = min(k, c - 1)
         out[r] = iv[k, 0] + v - (cum[k] - length[k])
     return out
+
+
+@kernel
+def jitter_cells(xy, k, u, cell):
+    """``xy[k] + (u - 0.5) cell``: cell centres ``xy (m, 2)`` drawn by ``k (n,)``, each moved
+    uniformly inside its cell by ``u (n, 2)`` -- the arithmetic of
+    :func:`onebit.trackers.clustertrack.feasible.sample_cell_centres` (its reference; the same
+    operations, so equal points) in one pass instead of four temporaries."""
+    n = k.size
+    out = np.empty((n, 2))
+    for r in range(n):
+        for q in range(2):
+            out[r, q] = xy[k[r], q] + (u[r, q] - 0.5) * cell
+    return out

@@ -157,8 +157,8 @@ class FeasibleSpace:
         return float(np.count_nonzero(self.labels[t] == c + 1) * self.raster.cell**2)
 
     def sample(self, step: int, n: int, rng: np.random.Generator, *, compiled: bool = False) -> np.ndarray:
-        """``(n, dim)`` points uniform on F at ``step`` (``compiled``: the 1-D mapping compiled,
-        same points)."""
+        """``(n, dim)`` points uniform on F at ``step`` (``compiled``: the mapping of the draws
+        compiled, same points)."""
         t = int(self.order[step])
         c = self._only(t)
         if self.dim == 1:
@@ -169,7 +169,7 @@ class FeasibleSpace:
         xy = self.cell_xy[t]
         if c is not None:
             xy = xy[self.labels[t][self.cells[t]] == c + 1]
-        return sample_cell_centres(xy, self.raster.cell, n, rng)
+        return sample_cell_centres(xy, self.raster.cell, n, rng, compiled=compiled)
 
     def component_of(self, t: int, pts: np.ndarray) -> np.ndarray:
         """Component index (0-based) of points ``(m, dim)`` at original instant ``t``; -1 outside F.

@@ -153,6 +153,8 @@ def test_sampling_from_listed_cell_centres_draws_what_the_mask_sampler_draws():
     a = sample_raster(mask, r, 1000, np.random.default_rng(3))
     b = sample_cell_centres(r.centres_of(np.flatnonzero(mask)), r.cell, 1000, np.random.default_rng(3))
     np.testing.assert_array_equal(a, b)
+    c = sample_cell_centres(r.centres_of(np.flatnonzero(mask)), r.cell, 1000, np.random.default_rng(3), compiled=True)
+    np.testing.assert_array_equal(a, c)
 
 
 @pytest.mark.parametrize("seed", range(80))
