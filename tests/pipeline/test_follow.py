@@ -158,8 +158,15 @@ def test_istate_replay_equals_batch_with_a_fixed_latency(tmp_path):
     assert metric(res.report, "istate/online_equals_batch") == 1.0
 
 
-def test_growing_log_waits_for_a_cut_line_and_ends_when_idle(pir, tmp_path):
+def test_growing_log_waits_for_a_cut_line_and_ends_when_idle(pir, tmp_path, monkeypatch):
     _, src = pir
+    import onebit.pipeline.stages as stages_module
+
+    whole_reads = []  # the batch reader of the whole file: only the final batch run calls it
+    batch_reader = stages_module.read_motion_csv
+    monkeypatch.setattr(
+        stages_module, "read_motion_csv", lambda *a, **k: whole_reads.append(a[0]) or batch_reader(*a, **k)
+    )
     d = tmp_path / "live"
     d.mkdir()
     (d / "site.toml").write_bytes((src / "site.toml").read_bytes())
@@ -200,6 +207,8 @@ def test_growing_log_waits_for_a_cut_line_and_ends_when_idle(pir, tmp_path):
         sleep=clock.sleep,
     )
     assert clock.sleeps >= len(pieces)  # it ran until the log stopped growing, then idle
+    # every poll read only the bytes appended since the last one (onebit/readers/tail.py)
+    assert len(whole_reads) == 1
     assert metric(res.run.report, "rejects/rows") == 0.0  # no cut line was ever read as a row
     assert metric(res.run.report, "motion/suppressed") > 0
     whole = tmp_path / "whole"  # the same log, complete, in one batch run
