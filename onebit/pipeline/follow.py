@@ -96,6 +96,7 @@ from onebit.readers.rows import REORDER_TOLERANCE_S, RawRows
 from onebit.readers.tail import BeamTail, ToggleTail
 from onebit.readers.timebase import MAX_GAP_S, TimeOrigin
 from onebit.trackers.base import ARTIFACTS, PROGRESS
+from onebit.trackers.beams import online as beams_online
 from onebit.trackers.findinghumo import lagged as hmm_online
 from onebit.trackers.findinghumo.stage import FindingHumoConfig
 from onebit.trackers.intruder import online as intruder_online
@@ -106,7 +107,7 @@ from onebit.viz.families import Look
 ONLINE: dict[str, str] = {
     "intruder": "per iteration (incremental particle filter)",
     "intruder-naive": "per iteration",
-    "beams": "per crossing (re-run on the settled prefix)",
+    "beams": "per crossing (incremental; re-run on the settled prefix when [correct] runs)",
     "istate": "per stage (re-run on the settled prefix)",
     "findinghumo": "per window (re-run on the settled prefix)",
     "hmm1": "per window (re-run on the settled prefix)",
@@ -677,6 +678,7 @@ def follow(
             echo(f"  batch-only (run at the end): {', '.join(batch_only)}")
         intruder_state = None
         tails = _Tails()
+        beams_state: beams_online.OnlineBeams | None = None
         hmm_states: dict[str, hmm_online.OnlineHmm] = {}
         lagged = [
             n for n in online if n in _LAGGED_MODES and _lagged(entries[n], data, scratch, site, rg, merged, chosen)
@@ -797,6 +799,16 @@ def follow(
                         pub.table(f"{name}_iterations", rows["iterations"])
                         if "camera" in rows:
                             pub.table(f"{name}_camera", rows["camera"])
+                        continue
+                    if name == "beams" and "corrected_crossings" not in tables and "crossings" in tables:
+                        # Algorithm 1 crossing by crossing (its input is the reader's, not the correction's)
+                        if beams_state is None:
+                            beams_state = beams_online.start(site, tracker_config(entry, ctx), rg)
+                        cr = tables["crossings"]
+                        rows = beams_online.advance(
+                            beams_state, cr if final else cr.filter(pl.col("t") <= until_t), final=final
+                        )
+                        pub.estimates(name, rows)
                         continue
                     if name in lagged:
                         if "motion" not in tables:

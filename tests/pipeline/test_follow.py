@@ -117,24 +117,38 @@ def test_replay_equals_batch_and_reports_delay(pir, tmp_path):
     assert a.equals(b)
 
 
-def test_beams_replay_equals_batch(tmp_path):
+@pytest.mark.parametrize("correct", [True, False])
+def test_beams_replay_equals_batch(tmp_path, monkeypatch, correct):
+    """Without the correction the tracker runs crossing by crossing (never re-run on a
+    prefix); with it (the correction's programme is over the whole string) it is re-run on the
+    settled prefix. Both end with the batch run's tracks."""
+    import onebit.pipeline.follow as follow_module
+
     data = get_scenario("beams-lab").write(
         tmp_path / "d", seed=3, duration=60.0, agents=2, drop=0.0, camera=False, params={}
+    )
+    reruns = []
+    inputs = follow_module._inputs
+    monkeypatch.setattr(
+        follow_module, "_inputs", lambda entry, *a, **k: reruns.append(entry.name) or inputs(entry, *a, **k)
     )
     clock = SimClock()
     res = follow(
         data,
         tmp_path / "out",
         trackers=("beams",),
+        config=None if correct else {"correct": {"enabled": False}},
         options=FollowConfig(replay=10.0, poll=0.25),
         clock=clock.clock,
         sleep=clock.sleep,
     )
+    assert (metric(res.run.report, "correct/n") is not None) == correct  # the correction ran (or not)
     live = read_live_table(res.live, "beams_tracks")
     ref = pl.read_parquet(tmp_path / "out" / "tables" / "beams_tracks.parquet")
     assert ref.height > 5 and _equal(live, ref)
     assert metric(res.report, "beams/online_equals_batch") == 1.0
     assert len(list((res.live / "tables" / "beams_tracks").glob("part-*.parquet"))) >= 3
+    assert (len(reruns) > 3) if correct else (reruns == [])
 
 
 def test_istate_replay_equals_batch_with_a_fixed_latency(tmp_path):
