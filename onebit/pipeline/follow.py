@@ -143,18 +143,24 @@ class FollowConfig:
     idle : seconds without a new line that end a live run.
     settle : seconds an event must be in the past before it is final; ``None`` = the readers'
         look-ahead (1 s reordering + the longest debounce window).
+    incremental : read the CSV logs incrementally and run ``beams`` crossing by crossing;
+        ``False`` re-reads the whole snapshot and re-runs ``beams`` on the prefix at every poll
+        (the earlier way, same tables: for comparisons, ``benchmarks/bench_follow.py``).
     """
 
     replay: float | None = None
     poll: float = 0.25
     idle: float = 10.0
     settle: float | None = None
+    incremental: bool = True
 
     def __post_init__(self) -> None:
         if self.replay is not None and not (
             isinstance(self.replay, (int, float)) and math.isfinite(self.replay) and self.replay > 0
         ):
             raise ConfigError(f"FollowConfig.replay = {self.replay!r}; a speed factor > 0 (e.g. 20 for --replay 20x)")
+        if not isinstance(self.incremental, bool):
+            raise ConfigError(f"FollowConfig.incremental = {self.incremental!r}; must be true or false")
         for name, lo in (("poll", 1e-4), ("idle", 0.0)):
             v = getattr(self, name)
             if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v) or v < lo:
@@ -766,7 +772,7 @@ def follow(
                 final = now - last_growth >= options.idle
             polls += 1
             if new or final:
-                if origin is not None:  # the incremental readers: only the lines released since the last poll
+                if origin is not None and options.incremental:  # only the lines released since the last poll
                     here = _context(data, scratch, site, rg, merged, chosen, _channels(mcaps))
                     for src in sources.values():
                         tails.start(src, here, stage_list, origin)
@@ -800,7 +806,12 @@ def follow(
                         if "camera" in rows:
                             pub.table(f"{name}_camera", rows["camera"])
                         continue
-                    if name == "beams" and "corrected_crossings" not in tables and "crossings" in tables:
+                    if (
+                        name == "beams"
+                        and options.incremental
+                        and "corrected_crossings" not in tables
+                        and "crossings" in tables
+                    ):
                         # Algorithm 1 crossing by crossing (its input is the reader's, not the correction's)
                         if beams_state is None:
                             beams_state = beams_online.start(site, tracker_config(entry, ctx), rg)
