@@ -100,6 +100,7 @@ from onebit.trackers.beams import online as beams_online
 from onebit.trackers.findinghumo import lagged as hmm_online
 from onebit.trackers.findinghumo.stage import FindingHumoConfig
 from onebit.trackers.intruder import online as intruder_online
+from onebit.trackers.istate import online as istate_online
 from onebit.viz import live as viz_live
 from onebit.viz.families import Look
 
@@ -108,7 +109,7 @@ ONLINE: dict[str, str] = {
     "intruder": "per iteration (incremental particle filter)",
     "intruder-naive": "per iteration",
     "beams": "per crossing (incremental; re-run on the settled prefix when [correct] runs)",
-    "istate": "per stage (re-run on the settled prefix)",
+    "istate": "per stage (incremental with latency_auto = false; else re-run on the settled prefix)",
     "findinghumo": "per window (re-run on the settled prefix)",
     "hmm1": "per window (re-run on the settled prefix)",
     "hmm2": "per window (re-run on the settled prefix)",
@@ -685,6 +686,7 @@ def follow(
         intruder_state = None
         tails = _Tails()
         beams_state: beams_online.OnlineBeams | None = None
+        istate_state: istate_online.OnlineIState | bool | None = None  # False: not online with its config
         hmm_states: dict[str, hmm_online.OnlineHmm] = {}
         lagged = [
             n for n in online if n in _LAGGED_MODES and _lagged(entries[n], data, scratch, site, rg, merged, chosen)
@@ -821,6 +823,22 @@ def follow(
                         )
                         pub.estimates(name, rows)
                         continue
+                    if name == "istate" and options.incremental and istate_state is not False:
+                        # O'Kane's filter stage by stage (when its config lets the batch run be sequential)
+                        if istate_state is None:
+                            cfg = tracker_config(entry, ctx)
+                            istate_state = (
+                                istate_online.start(site, cfg) if istate_online.supported(cfg) is None else False
+                            )
+                        if istate_state is not False:
+                            rows = istate_online.advance(
+                                istate_state,
+                                {k: tables[k] for k in ("motion", "proximity", "crossings") if k in tables},
+                                until=until_t,
+                                final=final,
+                            )
+                            pub.estimates(name, rows)
+                            continue
                     if name in lagged:
                         if "motion" not in tables:
                             continue

@@ -151,11 +151,19 @@ def test_beams_replay_equals_batch(tmp_path, monkeypatch, correct):
     assert (len(reruns) > 3) if correct else (reruns == [])
 
 
-def test_istate_replay_equals_batch_with_a_fixed_latency(tmp_path):
+def test_istate_replay_equals_batch_with_a_fixed_latency(tmp_path, monkeypatch):
     """O'Kane's filter is online by design; its default raises latency_s to the whole log's time
-    resolution, which a prefix cannot know: with latency_auto = false the rows are equal."""
+    resolution, which a prefix cannot know: with latency_auto = false it runs stage by stage
+    (never re-run on a prefix) and the rows are equal."""
+    import onebit.pipeline.follow as follow_module
+
     data = get_scenario("istate-room").write(
         tmp_path / "d", seed=2, duration=30.0, agents=None, drop=0.0, camera=False, params={}
+    )
+    reruns = []
+    inputs = follow_module._inputs
+    monkeypatch.setattr(
+        follow_module, "_inputs", lambda entry, *a, **k: reruns.append(entry.name) or inputs(entry, *a, **k)
     )
     clock = SimClock()
     res = follow(
@@ -170,6 +178,8 @@ def test_istate_replay_equals_batch_with_a_fixed_latency(tmp_path):
     ref = pl.read_parquet(tmp_path / "out" / "tables" / "istate_tracks.parquet")
     assert ref.height > 10 and _equal(read_live_table(res.live, "istate_tracks"), ref)
     assert metric(res.report, "istate/online_equals_batch") == 1.0
+    assert reruns == []
+    assert len(list((res.live / "tables" / "istate_tracks").glob("part-*.parquet"))) >= 5
 
 
 def test_growing_log_waits_for_a_cut_line_and_ends_when_idle(pir, tmp_path, monkeypatch):
