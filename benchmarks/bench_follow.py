@@ -14,6 +14,8 @@ each fifth of the run. A poll that costs the same in the last fifth as in the se
 * ``beams`` -- the beams-lab demo (seed 3, 2 agents, 150 s), its ``beams.csv`` repeated
   ``--tiles`` times, followed with the ``beams`` tracker (``[correct] enabled = false``: its
   input is the reader's crossings, so it runs crossing by crossing).
+* ``istate`` -- the istate-room demo (seed 2, 150 s), its ``motion.csv`` repeated ``--tiles``
+  times, followed with the ``istate`` tracker (``latency_auto = false``: stage by stage).
 * ``reader`` -- the motion reader alone on a long log (hallway tiled to ~10^6 edges): the
   incremental reader (:class:`onebit.readers.tail.ToggleTail`) fed 1 000 s of log per poll,
   beside what a poll paid before, the batch reader (``read_motion_csv``) on the whole prefix
@@ -170,8 +172,8 @@ def reader_costs(data: Path, *, step: float = 1000.0) -> dict:
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--case", choices=("hallway", "beams", "reader", "all"), default="all")
-    ap.add_argument("--tiles", type=int, default=0, help="0: 200 (hallway), 400 (beams), 7250 (reader)")
+    ap.add_argument("--case", choices=("hallway", "beams", "istate", "reader", "all"), default="all")
+    ap.add_argument("--tiles", type=int, default=0, help="0: 200 (hallway), 400 (beams), 40 (istate), 7250 (reader)")
     ap.add_argument("--speed", type=float, default=100.0)
     ap.add_argument("--decoding", choices=("lagged", "batch"), default="lagged")
     ap.add_argument("--no-incremental", action="store_true")
@@ -215,6 +217,21 @@ def main() -> None:
             print(r)
             rows.append((f"beams-lab x{tiles} beams, poll", events, r["ms_per_poll_by_fifth"], None))
             rows.append((f"beams-lab x{tiles} beam reader, poll", events, r["reader_ms_by_fifth"], None))
+        if args.case in ("istate", "all"):
+            tiles = args.tiles or 40
+            data = tiled(root, "istate-room", "motion.csv", tiles, seed=2, agents=None)
+            edges = pl.read_csv(data / "motion.csv").height
+            print(f"istate-room x {tiles} ({edges} edges), replay {args.speed}x, istate, incremental {inc}")
+            r = poll_costs(
+                data,
+                root / "out-i",
+                speed=args.speed,
+                tracker="istate",
+                config={"istate": {"latency_auto": False, "max_stages": 0}},
+                incremental=inc,
+            )
+            print(r)
+            rows.append((f"istate-room x{tiles} istate, poll", edges, r["ms_per_poll_by_fifth"], None))
         if args.case in ("reader", "all"):
             tiles = args.tiles or 7250
             data = tiled_hallway(root, tiles)

@@ -15,34 +15,45 @@ Two ways in:
   horizon is that clock.
 
 Released lines are appended to a snapshot of the dataset (a temporary folder with the
-dataset's ``*.toml``), and every poll the pipeline's own reader stages (``crossings``,
-``motion``, ``proximity``, ``correct``: :mod:`onebit.pipeline.stages`) read it with the time
-origin fixed once (the whole log's in a replay; when live, the first poll's, with its window
-of accepted stamps left open ahead, so a lone stamp far in the future is rejected only by the
-final batch run) -- the same readers and the same rejects as ``onebit run``.
+dataset's ``*.toml``: what the final batch run of a live follow reads) and fed to the
+incremental readers (:mod:`onebit.readers.tail`, :class:`_Tails`) of ``motion.csv``,
+``proximity.csv`` and ``beams.csv``: each poll they read only the lines released since the last
+one, carry the batch reader's state (duplicates, order, sensor and pair states, the debounce's
+unsettled tail, open beam passes) and emit exactly the batch reader's rows and rejects on the
+whole file once final. The other reader stages (``crossings.csv``, ``correct``, MCAP channels)
+read the snapshot every poll (:func:`_read_prefix`). The time origin is fixed once (the whole
+log's in a replay; when live, the first poll's, with its window of accepted stamps left open
+ahead, so a lone stamp far in the future is rejected only by the final batch run).
+``FollowConfig(incremental=False)`` re-reads the snapshot whole and re-runs ``beams`` and
+``istate`` on the prefix at every poll (the earlier way; same tables).
 
 Trackers online (:data:`ONLINE`):
 
 * ``intruder`` -- per iteration, incrementally: :mod:`onebit.trackers.intruder.online` keeps the
   particle filter's posterior and steps it over each slot once it is final;
-* ``intruder-naive`` -- per iteration, ``beams`` -- per crossing: re-run on the settled prefix
-  of their input whenever a new settled event arrives; the rows up to that event not published
-  before are published (a re-run may add a row dated earlier: ``beams`` gives an agent created
-  at a later crossing its initial region at the first crossing's time; and it could change an
-  earlier assignment, which is never un-published: the final report says whether the published
-  rows equal the batch's).
+* ``beams`` -- per crossing, incrementally: :mod:`onebit.trackers.beams.online` feeds each final
+  crossing to Algorithm 1 as a resumable pass; when the false-negative correction runs
+  (``[correct]``) its input is the corrected string, chosen over the whole string, and it is
+  re-run on the settled prefix instead;
+* ``istate`` -- per stage, incrementally with ``latency_auto = false`` and without
+  ``reliable_negatives`` (:mod:`onebit.trackers.istate.online`); otherwise re-run on the
+  settled prefix;
+* ``intruder-naive`` -- per iteration, re-run on the settled prefix of its input whenever a new
+  settled event arrives; the rows up to that event not published before are published (a
+  re-run could change an earlier row, which is never un-published: the final report says
+  whether the published rows equal the batch's).
 
 * ``findinghumo``, ``hmm1``, ``hmm2`` with ``decoding = "lagged"`` (their ``run.toml`` section)
   -- per block of ``tau`` slots, incrementally: :mod:`onebit.trackers.findinghumo.lagged` keeps
   the window decoder and the committed output, slots only the recent edges, and commits a block
   once ``decision_lag`` slots after it have arrived (the paper's bounded delay D'); the rows
   equal the batch run's with the same config. By default (``decoding = "batch"``) they are
-  re-run on the settled prefix like ``istate``, and the published rows may differ from the
-  final decoding.
+  re-run on the settled prefix, and the published rows may differ from the final decoding.
 
 Every other tracker is batch-only and runs at the end. An event at ``e`` is *settled* once the
 horizon passes ``e + settle``, ``settle`` = the readers' look-ahead (1 s of reordering plus
-the longest debounce window of the site's sensors).
+the longest debounce window of the site's sensors), and once the incremental readers have
+emitted it (:attr:`_Tails.until`).
 
 Outputs, beside the run folder that the final batch run writes (``onebit run`` on the data
 followed, so ``OUT/report.*``, ``OUT/tables``, ``OUT/rrd`` are the batch run's):
