@@ -81,7 +81,7 @@ def _cat(parts: list[pl.DataFrame], like: pl.DataFrame) -> pl.DataFrame:
     return pl.concat(parts) if parts else like.clear()
 
 
-@settings(max_examples=30, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@settings(max_examples=20, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 @given(toggle_logs())
 def test_toggle_tail_equals_one_batch_read(log):
     data, chunks, rules, held = log
@@ -128,7 +128,7 @@ def beam_logs(draw):
     return data, _cuts(draw, data)
 
 
-@settings(max_examples=30, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@settings(max_examples=20, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 @given(beam_logs())
 def test_beam_tail_equals_one_batch_read(log):
     data, chunks = log
