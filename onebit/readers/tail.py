@@ -43,10 +43,12 @@ from __future__ import annotations
 
 import heapq
 import math
+from collections import deque
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 
+import numpy as np
 import polars as pl
 
 from onebit.core.errors import InputError
@@ -146,6 +148,64 @@ def _typed(raw: RawRows, parsers: dict) -> tuple[pl.DataFrame, pl.DataFrame]:
     return typed.filter(pl.col("_reason").is_null()), rej
 
 
+class _Seen:
+    """The first line of every distinct key seen (the duplicate check), in bounded-size parts:
+    keys at or after ``top - tolerance`` in a dict; older keys (only a row going backwards can
+    repeat one: every later accepted row is at or after that time) moved to sorted numpy
+    arrays (``t``, a code of the other fields, line), about 20 bytes a key instead of ~200,
+    merged two by two like a binary counter (O(log n) moves per key)."""
+
+    def __init__(self) -> None:
+        self.recent: dict = {}
+        self.order: deque = deque()  # the recent keys in insertion order (stamps roughly increasing)
+        self.codes: dict = {}  # the fields other than t -> int code
+        self.parts: list[tuple[np.ndarray, np.ndarray, np.ndarray]] = []  # (t, code, line), sorted by (t, code)
+
+    def get(self, key: tuple, old: bool):
+        """The first line of ``key`` (``old``: its ``t`` is before the recent window, look in the archive too)."""
+        first = self.recent.get(key)
+        if first is not None or not old:
+            return first
+        code = self.codes.get(key[1:])
+        if code is None:
+            return None
+        t = key[0]
+        for ts, cs, ls in self.parts:
+            lo, hi = np.searchsorted(ts, t, side="left"), np.searchsorted(ts, t, side="right")
+            hit = np.flatnonzero(cs[lo:hi] == code)
+            if hit.size:
+                return int(ls[lo + hit[0]])
+        return None
+
+    def add(self, key: tuple, line: int) -> None:
+        self.recent[key] = line
+        self.order.append(key)
+
+    def archive(self, before: float) -> None:
+        """Move the keys with ``t < before`` (from the front of the insertion order) out of the dict."""
+        moved = []
+        order, recent = self.order, self.recent
+        while order and order[0][0] < before:
+            k = order.popleft()
+            moved.append((k[0], self.codes.setdefault(k[1:], len(self.codes)), recent.pop(k)))
+        if not moved:
+            return
+        a = np.array(moved, dtype=np.float64)
+        part = (a[:, 0].copy(), a[:, 1].astype(np.int64), a[:, 2].astype(np.int64))
+        self.parts.append(self._sorted(*part))
+        while len(self.parts) > 1 and len(self.parts[-2][0]) <= 2 * len(self.parts[-1][0]):
+            b, c = self.parts.pop(), self.parts.pop()
+            self.parts.append(self._sorted(*(np.concatenate([x, y]) for x, y in zip(c, b))))
+
+    @staticmethod
+    def _sorted(t, code, line):
+        o = np.lexsort((code, t))
+        return t[o], code[o], line[o]
+
+    def __len__(self) -> int:
+        return len(self.recent) + sum(len(p[0]) for p in self.parts)
+
+
 @dataclass
 class _Ordered:
     """Duplicates and order across feeds (:func:`~onebit.readers.rows.order_checks` as a stream)."""
@@ -153,7 +213,7 @@ class _Ordered:
     key: tuple[str, ...]
     tolerance: float
     source: str
-    seen: dict = field(default_factory=dict)  # key -> first line
+    seen: _Seen = field(default_factory=_Seen)  # key -> first line
     top: float = -math.inf  # running maximum of accepted stamps
     heap: list = field(default_factory=list)  # (t, line, row) waiting for their final place
     reordered: int = 0
@@ -167,15 +227,16 @@ class _Ordered:
         """Check ``ok`` (line order); queue the accepted rows; return the rejects made."""
         dups, backs = [], []
         tol = self.tolerance
+        seen = self.seen
         for row in ok.select("line", *cols, "raw").iter_rows():
             line, t = row[0], row[1]
             k = row[1 : 1 + len(cols)]
-            first = self.seen.get(k)
+            prev = self.top
+            first = seen.get(k, t < prev - tol)
             if first is not None:
                 dups.append((line, row[-1], first))
                 continue
-            self.seen[k] = line
-            prev = self.top
+            seen.add(k, line)
             if t < prev - tol:
                 backs.append((line, row[-1], t, prev))
                 continue
@@ -184,6 +245,7 @@ class _Ordered:
             else:
                 self.top = t
             heapq.heappush(self.heap, (t, line, row))
+        seen.archive(self.top - tol)
         parts = []
         if dups:
             same = " and ".join(", ".join(self.key).rsplit(", ", 1))

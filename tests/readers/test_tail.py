@@ -182,3 +182,19 @@ def test_a_bad_header_names_the_file_and_line():
     tail = CsvTail("motion.csv", ("t", "sensor", "value"))
     with pytest.raises(InputError, match="missing column"):
         tail.feed(b"\ntime,sensor,value\n")
+
+
+def test_a_duplicate_far_back_is_named_from_the_archive():
+    """Keys far behind the newest stamp leave the dict for compact arrays; a row repeating one
+    (it also goes backwards) is still a duplicate of its first line, as in the batch read."""
+    tail = ToggleTail("motion.csv", ("p1", "p2"), origin=ORIGIN)
+    tail.feed(b"t,sensor,value\n100.0,p1,1\n100.5,p2,1\n")
+    for k in range(1, 40):
+        tail.feed(f"{100.0 + 5 * k:.1f},p1,{k % 2 ^ 1}\n".encode())
+    assert len(tail.order.seen.recent) < 5 and len(tail.order.seen) == 41
+    rej = tail.feed(b"100.5,p2,1\n100.5,p2,0\n").rejects
+    rej = pl.concat([rej, tail.finish().rejects])
+    assert rej.select("line", "reason").rows() == [
+        (43, "duplicate of line 3 (same t, sensor and value)"),
+        (44, "timestamp goes backwards (0.5 after 195.0, more than 1.0 s)"),
+    ]
