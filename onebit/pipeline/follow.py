@@ -17,10 +17,10 @@ Two ways in:
 Released lines are appended to a snapshot of the dataset (a temporary folder with the
 dataset's ``*.toml``: what the final batch run of a live follow reads) and fed to the
 incremental readers (:mod:`onebit.readers.tail`, :class:`_Tails`) of ``motion.csv``,
-``proximity.csv`` and ``beams.csv``: each poll they read only the lines released since the last
+``proximity.csv``, ``beams.csv`` and ``crossings.csv``: each poll they read only the lines released since the last
 one, carry the batch reader's state (duplicates, order, sensor and pair states, the debounce's
 unsettled tail, open beam passes) and emit exactly the batch reader's rows and rejects on the
-whole file once final. The other reader stages (``crossings.csv``, ``correct``, MCAP channels)
+whole file once final. The other reader stages (``correct``, MCAP channels)
 read the snapshot every poll (:func:`_read_prefix`). The time origin is fixed once (the whole
 log's in a replay; when live, the first poll's, with its window of accepted stamps left open
 ahead, so a lone stamp far in the future is rejected only by the final batch run).
@@ -104,7 +104,7 @@ from onebit.readers.mcap_io import load_topic_map, read_mcap
 from onebit.readers.motion import MotionConfig, site_rules
 from onebit.readers.proximity import ProximityConfig, proximity_frames
 from onebit.readers.rows import REORDER_TOLERANCE_S, RawRows
-from onebit.readers.tail import BeamTail, ToggleTail
+from onebit.readers.tail import BeamTail, CrossingTail, ToggleTail
 from onebit.readers.timebase import MAX_GAP_S, TimeOrigin
 from onebit.trackers.base import ARTIFACTS, PROGRESS
 from onebit.trackers.beams import online as beams_online
@@ -339,14 +339,14 @@ def _channels(mcaps: list[_McapSource]) -> dict[str, RawRows]:
 # --------------------------------------------------------------------------- incremental readers
 
 #: The CSV logs read incrementally (:mod:`onebit.readers.tail`), by the reader stage they replace.
-_TAILED = {"motion": "motion", "proximity": "proximity", "beams": "crossings"}
+_TAILED = {"motion": "motion", "proximity": "proximity", "beams": "crossings", "crossings": "crossings"}
 #: Rechunk an accumulated table once it holds this many chunks (one per poll otherwise).
 _MAX_CHUNKS = 64
 
 
 class _Tails:
     """The incremental readers of the followed CSV logs (``motion.csv``, ``proximity.csv``,
-    ``beams.csv``) and the tables they have emitted so far: each poll feeds them only the
+    ``beams.csv``, ``crossings.csv`` when there is no raw beam log) and the tables they have emitted so far: each poll feeds them only the
     lines released since the last one; their rows are the batch reader stage's rows on the
     whole log, emitted once final (:mod:`onebit.readers.tail`). A reader that fails (a bad
     header, a log that is not text) leaves its stage's tables out, as a failed stage does;
@@ -372,6 +372,8 @@ class _Tails:
         stage = next((st for st in stage_list if st.name == _TAILED[stem]), None)
         if stage is None or stage.available(ctx) is not None:
             return
+        if stem == "crossings" and ctx.has_source("beams"):  # the stage decodes the raw beams instead
+            return
         site = ctx.site
         try:
             if stem == "motion":
@@ -392,8 +394,10 @@ class _Tails:
                 reader = ToggleTail(
                     src.path.name, ids, origin=origin, rules=cfg.rules, held=site.level_sensors, path=src.path
                 )
-            else:
+            elif stem == "beams":
                 reader = BeamTail(src.path.name, site.beam_ids, origin=origin, path=src.path)
+            else:
+                reader = CrossingTail(src.path.name, site.beam_ids, origin=origin, path=src.path)
             self.readers[stem] = reader
             self.fed[stem] = 0
             self._add(stem, reader.feed(src.header))
@@ -450,6 +454,8 @@ class _Tails:
     def _add(self, stem: str, chunk) -> None:
         if stem == "beams":
             parts = {"crossings": chunk.crossings, "aborted": chunk.aborted, "beam_events": chunk.events}
+        elif stem == "crossings":
+            parts = {"crossings": chunk.crossings}
         else:
             parts = {stem: chunk.motion, f"{stem}_suppressed": chunk.suppressed}
         parts["rejects"] = chunk.rejects

@@ -27,6 +27,7 @@ parsers and carry the rest of its state across feeds:
   and its last kept on edge (until the next kept off edge, or until every later edge is at
   least ``min_on`` after it) -- the *unsettled tail*. Edges are emitted in ``(t, line)`` order
   up to the first unsettled one;
+* **crossings** (``crossings.csv``, :class:`CrossingTail`): no state beyond the checks;
 * **passes** (:func:`~onebit.readers.kernels.beam_passes`): each beam's open pass (its first
   edge's rank and pair); a crossing or start-and-return is emitted once no later close can
   share its stamp (``t < F``).
@@ -71,6 +72,7 @@ from onebit.readers.rows import (
     physical_lines,
     rows_of_lines,
 )
+from onebit.readers.tables_csv import _crossing_parsers
 from onebit.readers.timebase import TimeOrigin
 
 
@@ -587,3 +589,47 @@ class BeamTail:
             )
         rejects = self.rejects.take(math.inf if final else self.order.first_waiting_line())
         return BeamChunk(ev, crossings, aborted, rejects, unfinished)
+
+
+@dataclass
+class CrossingChunk:
+    """What one feed of ``crossings.csv`` gave: the next crossings (CROSSINGS) and rejects."""
+
+    crossings: pl.DataFrame
+    rejects: pl.DataFrame
+
+
+class CrossingTail:
+    """:func:`~onebit.readers.tables_csv.read_crossings_csv` of a growing ``crossings.csv`` (a log
+    of decoded crossings: t, beam, direction), one feed at a time: the field, duplicate and order
+    checks of the batch read (no reordering tolerance), a crossing emitted once no later row can
+    sort before it."""
+
+    def __init__(self, source: str, beam_ids: Sequence[str], *, origin: TimeOrigin, path: Path | None = None):
+        self.beam_ids = tuple(beam_ids)
+        self.origin = origin
+        self.csv = CsvTail(source, ("t", "beam", "direction"), path)
+        self.order = _Ordered(("t", "beam", "direction"), 0.0, source)
+        self.rejects = _Rejects()
+        self.done = False
+
+    def feed(self, data: bytes) -> CrossingChunk:
+        return self._step(self.csv.feed(data), final=False)
+
+    def finish(self) -> CrossingChunk:
+        return self._step(self.csv.finish(), final=True)
+
+    @property
+    def settled_until(self) -> float:
+        return math.inf if self.done else self.order.frontier
+
+    def _step(self, raw: RawRows, *, final: bool) -> CrossingChunk:
+        cols = ("t", "beam", "direction")
+        if raw.frame.height or raw.rejects.height:
+            ok, rej = _typed(raw, _crossing_parsers(self.beam_ids, self.origin, raw.frame))
+            self.rejects.add(rej)
+            self.rejects.add(self.order.push(ok, cols))
+        rows = [r[1:4] for r in self.order.pop(math.inf if final else self.order.frontier)]
+        self.done = self.done or final
+        out = pl.DataFrame(rows, schema=CROSSINGS, orient="row")
+        return CrossingChunk(out, self.rejects.take(math.inf if final else self.order.first_waiting_line()))

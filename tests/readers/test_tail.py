@@ -16,7 +16,8 @@ from hypothesis import strategies as st
 from onebit.core.errors import InputError
 from onebit.readers.beams import decode_beam_log
 from onebit.readers.motion import DebounceRules, read_motion_csv
-from onebit.readers.tail import BeamTail, CsvTail, ToggleTail
+from onebit.readers.tables_csv import read_crossings_csv
+from onebit.readers.tail import BeamTail, CrossingTail, CsvTail, ToggleTail
 from onebit.readers.timebase import TimeOrigin
 
 SENSORS = ("p1", "p2", "p3")
@@ -144,6 +145,41 @@ def test_beam_tail_equals_one_batch_read(log):
     assert _cat([o.aborted for o in outs], batch.aborted).equals(batch.aborted)
     assert _cat([o.rejects for o in outs], batch.rejects).equals(batch.rejects)
     assert outs[-1].unfinished.equals(batch.unfinished)
+
+
+@st.composite
+def crossing_logs(draw):
+    lines = ["t,beam,direction"]
+    t = 0.0
+    for _ in range(draw(st.integers(0, 30))):
+        kind = draw(st.sampled_from(["row"] * 6 + ["back", "dup", "bad"]))
+        t += draw(st.sampled_from([0.0, 0.2, 1.0]))
+        b, d = draw(st.sampled_from(BEAMS)), draw(st.sampled_from(["1", "-1"]))
+        if kind == "row":
+            lines.append(f"{_stamp(draw, t)},{b},{d}")
+        elif kind == "back":
+            lines.append(f"{_stamp(draw, max(t - 0.5, 0.0))},{b},{d}")
+        elif kind == "dup" and len(lines) > 1:
+            lines.append(draw(st.sampled_from(lines[1:])))
+        elif kind == "bad":
+            lines.append(f"{_stamp(draw, t)},{b},2")
+    data = ("\n".join(lines) + draw(st.sampled_from(["\n", ""]))).encode()
+    return data, _cuts(draw, data)
+
+
+@settings(max_examples=20, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(crossing_logs())
+def test_crossing_tail_equals_one_batch_read(log):
+    data, chunks = log
+    with tempfile.TemporaryDirectory() as tmp:
+        path = Path(tmp) / "crossings.csv"
+        path.write_bytes(data)
+        crossings, rejects = read_crossings_csv(path, BEAMS, epoch=ORIGIN)
+    tail = CrossingTail("crossings.csv", BEAMS, origin=ORIGIN)
+    outs = [tail.feed(c) for c in chunks]
+    outs.append(tail.finish())
+    assert _cat([o.crossings for o in outs], crossings).equals(crossings)
+    assert _cat([o.rejects for o in outs], rejects).equals(rejects)
 
 
 def test_a_line_being_written_waits_for_its_newline():
