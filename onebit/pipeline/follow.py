@@ -14,16 +14,16 @@ Two ways in:
   line is released when a virtual clock ``t0 + speed * (wall - wall0)`` passes its stamp; the
   horizon is that clock.
 
-Released lines are appended to a snapshot of the dataset (a temporary folder with the
-dataset's ``*.toml``: what the final batch run of a live follow reads) and fed to the
-incremental readers (:mod:`onebit.readers.tail`, :class:`_Tails`) of ``motion.csv``,
-``proximity.csv``, ``beams.csv`` and ``crossings.csv``: each poll they read only the lines released since the last
+Released lines are appended to a snapshot of the dataset (a temporary folder with the dataset's
+``*.toml``: what the final batch run of a live follow reads) and fed to the incremental readers
+(:mod:`onebit.readers.tail`, :class:`_Tails`) of ``motion.csv``, ``proximity.csv``,
+``beams.csv`` and ``crossings.csv``: each poll they read only the lines released since the last
 one, carry the batch reader's state (duplicates, order, sensor and pair states, the debounce's
 unsettled tail, open beam passes) and emit exactly the batch reader's rows and rejects on the
-whole file once final. The other reader stages (``correct``, MCAP channels)
-read the snapshot every poll (:func:`_read_prefix`). The time origin is fixed once (the whole
-log's in a replay; when live, the first poll's, with its window of accepted stamps left open
-ahead, so a lone stamp far in the future is rejected only by the final batch run).
+whole file once final. The other reader stages (``correct``, MCAP channels) read the snapshot
+every poll (:func:`_read_prefix`). The time origin is fixed once (the whole log's in a replay;
+when live, the first poll's, with its window of accepted stamps left open ahead, so a lone stamp
+far in the future is rejected only by the final batch run).
 ``FollowConfig(incremental=False)`` re-reads the snapshot whole and re-runs ``beams`` and
 ``istate`` on the prefix at every poll (the earlier way; same tables).
 
@@ -346,11 +346,12 @@ _MAX_CHUNKS = 64
 
 class _Tails:
     """The incremental readers of the followed CSV logs (``motion.csv``, ``proximity.csv``,
-    ``beams.csv``, ``crossings.csv`` when there is no raw beam log) and the tables they have emitted so far: each poll feeds them only the
-    lines released since the last one; their rows are the batch reader stage's rows on the
-    whole log, emitted once final (:mod:`onebit.readers.tail`). A reader that fails (a bad
-    header, a log that is not text) leaves its stage's tables out, as a failed stage does;
-    the final batch run reports the error."""
+    ``beams.csv``, ``crossings.csv`` when there is no raw beam log) and the tables they have
+    emitted so far: each poll feeds them only the lines released since the last one; their
+    rows are the batch reader stage's rows on the whole log, emitted once final
+    (:mod:`onebit.readers.tail`). A reader that fails (a bad header, a log that is not text)
+    leaves its stage's tables out, as a failed stage does; the final batch run reports the
+    error."""
 
     def __init__(self) -> None:
         self.readers: dict[str, ToggleTail | BeamTail] = {}
