@@ -64,6 +64,7 @@ from onebit.readers.motion import (
 )
 from onebit.readers.rows import (
     _BLANK,
+    MAX_LINE_BYTES,
     REORDER_TOLERANCE_S,
     RawRows,
     _check_columns,
@@ -100,6 +101,12 @@ class CsvTail:
         buf = self.partial + data
         cut = buf.rfind(b"\n")
         if cut < 0:
+            if len(buf) > MAX_LINE_BYTES:  # as the batch reader refuses such a file (and a bound on memory)
+                raise InputError(
+                    f"line longer than the {MAX_LINE_BYTES} bytes a log line may have (is this a CSV log?)",
+                    file=self.path,
+                    line=self.lines + 1,
+                )
             self.partial = buf
             return self._rows(None)
         self.partial = buf[cut + 1 :]

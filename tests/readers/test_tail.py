@@ -214,6 +214,18 @@ def test_a_chattering_sensor_keeps_a_bounded_tail():
     assert batch.motion.height == 1 and batch.suppressed.height == 2 * 119
 
 
+def test_a_line_that_never_ends_is_refused_naming_it(monkeypatch):
+    import onebit.readers.tail as tail_module
+
+    monkeypatch.setattr(tail_module, "MAX_LINE_BYTES", 64)
+    tail = CsvTail("motion.csv", ("t", "sensor", "value"))
+    tail.feed(b"t,sensor,value\n100.0,p1,1\n")
+    tail.feed(b"x" * 40)
+    with pytest.raises(InputError, match="line longer") as err:
+        tail.feed(b"x" * 40)
+    assert err.value.line == 3
+
+
 def test_a_bad_header_names_the_file_and_line():
     tail = CsvTail("motion.csv", ("t", "sensor", "value"))
     with pytest.raises(InputError, match="missing column"):
