@@ -354,7 +354,7 @@ class _Tails:
     error."""
 
     def __init__(self) -> None:
-        self.readers: dict[str, ToggleTail | BeamTail] = {}
+        self.readers: dict[str, ToggleTail | BeamTail | CrossingTail] = {}
         self.fed: dict[str, int] = {}
         self.failed: dict[str, str] = {}
         self.tables: dict[str, pl.DataFrame] = {}
