@@ -96,7 +96,7 @@ import numpy as np
 
 from onebit.core.lazy import lazy_module
 from onebit.models.graph_hmm.eatg import Eatg, onsets
-from onebit.models.graph_hmm.kernels import coordinate_ascent, emission_tables, move_support
+from onebit.models.graph_hmm.kernels import coordinate_ascent, emission_tables, transition_support
 from onebit.models.graph_hmm.viterbi import log_safe, viterbi_first_order, viterbi_motion_second_order
 
 nx = lazy_module("networkx")
@@ -173,15 +173,15 @@ def second_order_tensor(a1: np.ndarray, a2: np.ndarray, idx: np.ndarray) -> np.n
     return log_safe(t)
 
 
-def window_transitions(
-    eatg: Eatg, states: np.ndarray, order: int
-) -> tuple[np.ndarray, np.ndarray | None, tuple[np.ndarray, np.ndarray] | None]:
-    """``(log a1, log a2, support)`` restricted to ``states``: ``log a2`` and its moves
-    (:func:`onebit.models.graph_hmm.kernels.move_support`) only for ``order == 2``."""
+def window_transitions(eatg: Eatg, states: np.ndarray, order: int) -> tuple[np.ndarray, np.ndarray | None, tuple]:
+    """``(log a1, log a2, support)`` restricted to ``states``: ``log a2`` only for ``order == 2``;
+    ``support`` the moves the decodes follow
+    (:func:`onebit.models.graph_hmm.kernels.transition_support`)."""
+    log_a1 = restricted_first(eatg.a1, states)
     if order != 2:
-        return restricted_first(eatg.a1, states), None, None
+        return log_a1, None, transition_support(log_a1, None)
     log_a2 = second_order_tensor(eatg.a1, eatg.a2, states)
-    return restricted_first(eatg.a1, states), log_a2, move_support(np.ascontiguousarray(log_a2, dtype=np.float64))
+    return log_a1, log_a2, transition_support(log_a1, log_a2)
 
 
 def max_independent(nodes_on: np.ndarray, adj: np.ndarray, cache: dict) -> int:
@@ -255,8 +255,10 @@ def decode_users(
     out = np.full((k, n_slots), -1, dtype=np.int64)
     if k == 0 or n_slots == 0:
         return out
-    pos = {int(v): i for i, v in enumerate(states)}
-    on = obs[:, states]  # (L, S)
+    states = np.asarray(states, dtype=np.int64)
+    if states.size > 1 and not (np.diff(states) > 0).all():
+        raise ValueError("decode_users: states must be ascending and distinct")
+    on = obs if len(states) == obs.shape[1] else obs[:, states]  # (L, S): every node, or the listed ones
     if transitions is None:
         transitions = window_transitions(eatg, states, order)
     log_a1, log_a2, support = transitions
@@ -265,8 +267,8 @@ def decode_users(
     else:  # the users' decoding order rotated
         orders = [[(u + r) % k for u in range(k)] for r in range(min(k, params.restarts))]
     if params.compiled:
-        pre = [[pos[q] for q in p] for p in prefixes]
-        entries = [pos[e] if not p and e >= 0 else -1 for p, e in zip(prefixes, entry_nodes)]
+        pre = [[_position(states, q) for q in p] for p in prefixes]
+        entries = [_position(states, e) if not p and e >= 0 else -1 for p, e in zip(prefixes, entry_nodes)]
         table = emission_tables(k, params.p_hit, params.p_false, emission_gain)
         best, _ = coordinate_ascent(
             on,
@@ -282,6 +284,7 @@ def decode_users(
             support=support,
         )
     else:
+        pos = {int(v): i for i, v in enumerate(states)}
         best, best_score = None, -np.inf
         for order_u in orders:
             decoded, score = coordinate_ascent_reference(
@@ -302,6 +305,14 @@ def decode_users(
     have = decoded >= 0
     out[have] = states[decoded[have]]
     return out
+
+
+def _position(states: np.ndarray, node: int) -> int:
+    """The index of ``node`` in the ascending ``states`` (a ``KeyError`` if absent)."""
+    i = int(np.searchsorted(states, node))
+    if i >= len(states) or states[i] != node:
+        raise KeyError(node)
+    return i
 
 
 def joint_emission(on: np.ndarray, claims: np.ndarray, p_hit: float, p_false: float) -> float:

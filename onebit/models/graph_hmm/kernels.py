@@ -245,7 +245,7 @@ def _grow(arr, need):
 
 
 @kernel
-def _viterbi_motion2_sparse(log_pi, log_stay, log_move, log_b, k_ptr, k_idx):
+def _viterbi_motion2_local(log_pi, log_stay, log_move, gs, log_b, k_ptr, k_idx):
     """:func:`_viterbi_motion2` over the reachable pairs only: it keeps the list of the
     (previous, current) pairs whose ``delta`` is finite and, per slot, extends each by the moves
     :func:`move_support` allows and by staying. A user whose last nodes are known (the clamped
@@ -253,7 +253,12 @@ def _viterbi_motion2_sparse(log_pi, log_stay, log_move, log_b, k_ptr, k_idx):
     the graph; one that may start anywhere reaches every node. Back-pointers are kept only where
     a move wins (per slot, sparse). Every maximum keeps the dense kernel's choice (the smallest
     previous node among equals; the row-major first pair at the end), so the path and the score
-    are the dense kernel's (tests)."""
+    are the dense kernel's (tests).
+
+    Local states: state ``i`` of ``log_pi``, ``log_stay``, ``log_b`` and of the support
+    ``k_ptr``/``k_idx`` is the tensor's node ``gs[i]`` (``gs`` ascending), so a user's decode
+    runs on the nodes it can reach (:func:`_ascent_one_order`) while ``log_move`` stays the
+    tensor of the whole state set; :func:`_viterbi_motion2_sparse` is the identity map."""
     n_slots, n = log_b.shape
     path = np.zeros(n_slots, dtype=np.int64)
     if n_slots == 0:
@@ -292,7 +297,7 @@ def _viterbi_motion2_sparse(log_pi, log_stay, log_move, log_b, k_ptr, k_idx):
                 k = k_idx[q]
                 if k == j:
                     continue
-                v = dv + log_move[p, j, k]
+                v = dv + log_move[gs[p], gs[j], gs[k]]
                 if v == NEG_INF:
                     continue
                 if not touched[j, k]:
@@ -365,6 +370,14 @@ def _viterbi_motion2_sparse(log_pi, log_stay, log_move, log_b, k_ptr, k_idx):
     return path, score
 
 
+@kernel
+def _viterbi_motion2_sparse(log_pi, log_stay, log_move, log_b, k_ptr, k_idx):
+    """:func:`_viterbi_motion2_local` on every state of ``log_move`` (the identity map)."""
+    return _viterbi_motion2_local(
+        log_pi, log_stay, log_move, np.arange(log_b.shape[1], dtype=np.int64), log_b, k_ptr, k_idx
+    )
+
+
 def viterbi_motion_second_order(
     log_pi: np.ndarray, log_stay: np.ndarray, log_move: np.ndarray, log_b: np.ndarray
 ) -> tuple[np.ndarray, float]:
@@ -390,19 +403,177 @@ def emission_tables(k: int, p_hit: float, p_false: float, gain) -> np.ndarray:
     )
 
 
+def transition_support(log_a1: np.ndarray, log_a2: np.ndarray | None) -> tuple:
+    """The moves of a window's transitions, for the local decodes of :func:`coordinate_ascent`:
+    ``(f_ptr, f_idx, b_ptr, b_idx, t_max)`` -- the next states of each state as CSR
+    (:func:`move_support` of ``log_a2`` for the second order, the finite entries of ``log_a1``
+    for the first), the same graph transposed (the states each state is reached from), and the
+    largest log transition (stay or move, ``<= 0``). Computed once per state set (the full-state
+    baselines: once per run)."""
+    if log_a2 is not None:
+        a2 = _f64(log_a2, 3)
+        f_ptr, f_idx = move_support(a2)
+        t_max = max(float(a2.max()) if a2.size else NEG_INF, float(np.diag(log_a1).max()) if len(log_a1) else NEG_INF)
+    else:
+        a1 = _f64(log_a1, 2)
+        rows, cols = np.nonzero(a1 > NEG_INF)
+        f_ptr = np.zeros(a1.shape[0] + 1, dtype=np.int64)
+        np.cumsum(np.bincount(rows, minlength=a1.shape[0]), out=f_ptr[1:])
+        f_idx = cols.astype(np.int64)
+        t_max = float(a1.max()) if a1.size else NEG_INF
+    n = len(f_ptr) - 1
+    src = np.repeat(np.arange(n, dtype=np.int64), np.diff(f_ptr))
+    order = np.lexsort((src, f_idx))  # by destination, then source: ascending rows of the transpose
+    b_ptr = np.zeros(n + 1, dtype=np.int64)
+    np.cumsum(np.bincount(f_idx, minlength=n), out=b_ptr[1:])
+    return f_ptr, f_idx, b_ptr, src[order], min(t_max, 0.0)
+
+
+@kernel
+def _reach(seeds, n_seeds, radius, f_ptr, f_idx, b_ptr, b_idx, dist, out):
+    """The states within ``radius`` moves of ``seeds[:n_seeds]`` on the transition graph taken
+    both ways (breadth first), ascending in ``out``; returns their count. ``dist`` (``-1`` on
+    entry) is left ``-1``. Cost: the states reached and their moves, not the state set."""
+    n = 0
+    for i in range(n_seeds):
+        q = seeds[i]
+        if dist[q] < 0:
+            dist[q] = 0
+            out[n] = q
+            n += 1
+    head = 0
+    while head < n:
+        j = out[head]
+        head += 1
+        dj = dist[j]
+        if dj >= radius:
+            continue
+        for w in range(2):
+            ptr = f_ptr if w == 0 else b_ptr
+            idx = f_idx if w == 0 else b_idx
+            for q in range(ptr[j], ptr[j + 1]):
+                k = idx[q]
+                if dist[k] < 0:
+                    dist[k] = dj + 1
+                    out[n] = k
+                    n += 1
+    for i in range(n):
+        dist[out[i]] = -1
+    out[:n] = np.sort(out[:n])
+    return n
+
+
+@kernel
+def _claims(decoded, u, t, q):
+    """Users other than ``u`` at state ``q`` in slot ``t``."""
+    c = 0
+    for v in range(decoded.shape[0]):
+        if v != u and decoded[v, t] == q:
+            c += 1
+    return c
+
+
+@kernel
+def _decode_local(
+    u, gs, n_loc, on, decoded, pre, npre, st, entry_u, order, log_a1, log_stay, log_a2, f_ptr, f_idx, loc, table
+):
+    """One user's Viterbi (with the other users' claims fixed) on the states ``gs[:n_loc]``:
+    emissions, initial distribution, transitions and moves restricted to them. Returns the
+    path (rows: the clamped prefix, then slots ``st..L-1``) in state indices and its score."""
+    n_slots = on.shape[0]
+    gl = gs[:n_loc]
+    for i in range(n_loc):
+        loc[gl[i]] = i
+    rows = npre + n_slots - st
+    log_b = np.empty((rows, n_loc))
+    for r in range(npre):
+        for i in range(n_loc):
+            log_b[r, i] = NEG_INF
+        log_b[r, loc[pre[u, r]]] = 0.0
+    for t in range(st, n_slots):
+        r = npre + t - st
+        for i in range(n_loc):
+            c = _claims(decoded, u, t, gl[i])
+            log_b[r, i] = table[0, c] if on[t, gl[i]] else table[1, c]
+    log_pi = np.zeros(n_loc)
+    if npre == 0 and entry_u >= 0:
+        for i in range(n_loc):
+            log_pi[i] = NEG_INF
+        log_pi[loc[entry_u]] = 0.0
+    if order == 2:
+        lk_ptr = np.zeros(n_loc + 1, dtype=np.int64)
+        m = 0
+        for i in range(n_loc):
+            g = gl[i]
+            for q in range(f_ptr[g], f_ptr[g + 1]):
+                if loc[f_idx[q]] >= 0:
+                    m += 1
+            lk_ptr[i + 1] = m
+        lk_idx = np.empty(m, dtype=np.int64)
+        m = 0
+        for i in range(n_loc):
+            g = gl[i]
+            for q in range(f_ptr[g], f_ptr[g + 1]):
+                if loc[f_idx[q]] >= 0:
+                    lk_idx[m] = loc[f_idx[q]]
+                    m += 1
+        stay = np.empty(n_loc)
+        for i in range(n_loc):
+            stay[i] = log_stay[gl[i]]
+        path, score = _viterbi_motion2_local(log_pi, stay, log_a2, gl, log_b, lk_ptr, lk_idx)
+    else:
+        a1 = np.empty((n_loc, n_loc))
+        for i in range(n_loc):
+            for k in range(n_loc):
+                a1[i, k] = log_a1[gl[i], gl[k]]
+        path, score = _viterbi1(log_pi, a1, log_b)
+    emis_sum = 0.0
+    for t in range(st, n_slots):
+        emis_sum += log_b[npre + t - st, path[npre + t - st]]
+    for i in range(n_loc):
+        loc[gl[i]] = -1
+    out = np.empty(rows, dtype=np.int64)
+    for r in range(rows):
+        out[r] = gl[path[r]]
+    return out, score, emis_sum
+
+
 @kernel
 def _ascent_one_order(
-    on, pre, n_pre, starts, entry, order_u, order, log_a1, log_stay, log_a2, k_ptr, k_idx, table, sweeps, decoded
+    on,
+    on_ptr,
+    on_idx,
+    pre,
+    n_pre,
+    starts,
+    entry,
+    order_u,
+    order,
+    log_a1,
+    log_stay,
+    log_a2,
+    support,
+    table,
+    sweeps,
+    decoded,
+    stats,
 ):
     """Explain-away sweeps over the users in ``order_u``; fills ``decoded (K, L)`` and returns the
-    joint log-likelihood (see :func:`coordinate_ascent`)."""
+    joint log-likelihood (see :func:`coordinate_ascent`; ``stats`` counts the decodes, those on
+    all states and the certificate fallbacks)."""
+    f_ptr, f_idx, b_ptr, b_idx, t_max = support
     n_slots, s = on.shape
     k = pre.shape[0]
-    claims = np.zeros((n_slots, s), dtype=np.int64)
     for u in range(k):
         for t in range(n_slots):
             decoded[u, t] = -1
     trans = np.zeros(k)
+    dist = np.full(s, -1, dtype=np.int64)
+    loc = np.full(s, -1, dtype=np.int64)
+    gs = np.empty(s, dtype=np.int64)
+    everything = np.arange(s, dtype=np.int64)
+    seeds = np.empty(max(on_idx.shape[0], 1), dtype=np.int64)
+    g0 = table[1, 0]  # the largest emission of a state that is off (no claim: off with claims is lower)
     for _ in range(max(sweeps, 1)):
         for oi in range(order_u.shape[0]):
             u = order_u[oi]
@@ -410,69 +581,190 @@ def _ascent_one_order(
             if st >= n_slots:
                 continue
             for t in range(n_slots):
-                if decoded[u, t] >= 0:
-                    claims[t, decoded[u, t]] -= 1
+                decoded[u, t] = -1
             npre = n_pre[u]
             rows = npre + n_slots - st
-            log_b = np.empty((rows, s))
-            for r in range(npre):
-                for j in range(s):
-                    log_b[r, j] = NEG_INF
-                log_b[r, pre[u, r]] = 0.0
-            for t in range(st, n_slots):
-                r = npre + t - st
-                for j in range(s):
-                    c = claims[t, j]
-                    log_b[r, j] = table[0, c] if on[t, j] else table[1, c]
-            log_pi = np.zeros(s)
-            if npre == 0 and entry[u] >= 0:
-                for j in range(s):
-                    log_pi[j] = NEG_INF
-                log_pi[entry[u]] = 0.0
-            if order == 2:
-                path, score = _viterbi_motion2_sparse(log_pi, log_stay, log_a2, log_b, k_ptr, k_idx)
+            # the states the user can be at (module docstring of adaptive, "local decodes")
+            uniform = False
+            if npre > 0:
+                seeds[0] = pre[u, npre - 1]
+                n_loc = _reach(seeds, 1, rows - npre, f_ptr, f_idx, b_ptr, b_idx, dist, gs)
+                if npre == 2:  # its context node, if farther
+                    have = False
+                    for i in range(n_loc):
+                        have = have or gs[i] == pre[u, 0]
+                    if not have:
+                        gs[n_loc] = pre[u, 0]
+                        n_loc += 1
+                        gs[:n_loc] = np.sort(gs[:n_loc])
+            elif entry[u] >= 0:
+                seeds[0] = entry[u]
+                n_loc = _reach(seeds, 1, rows - 1, f_ptr, f_idx, b_ptr, b_idx, dist, gs)
             else:
-                path, score = _viterbi1(log_pi, log_a1, log_b)
-            emis_sum = 0.0
-            for t in range(st, n_slots):
-                emis_sum += log_b[npre + t - st, path[npre + t - st]]
+                uniform = True
+                ns = 0
+                for q in range(on_ptr[st], on_ptr[n_slots]):
+                    seeds[ns] = on_idx[q]
+                    ns += 1
+                n_loc = _reach(seeds, ns, rows - 1, f_ptr, f_idx, b_ptr, b_idx, dist, gs) if ns else 0
+            stats[0] += 1
+            full = n_loc == 0 or n_loc == s
+            if full:
+                path, score, emis_sum = _decode_local(
+                    u,
+                    everything,
+                    s,
+                    on,
+                    decoded,
+                    pre,
+                    npre,
+                    st,
+                    entry[u],
+                    order,
+                    log_a1,
+                    log_stay,
+                    log_a2,
+                    f_ptr,
+                    f_idx,
+                    loc,
+                    table,
+                )
+                stats[1] += 1
+            else:
+                path, score, emis_sum = _decode_local(
+                    u,
+                    gs,
+                    n_loc,
+                    on,
+                    decoded,
+                    pre,
+                    npre,
+                    st,
+                    entry[u],
+                    order,
+                    log_a1,
+                    log_stay,
+                    log_a2,
+                    f_ptr,
+                    f_idx,
+                    loc,
+                    table,
+                )
+                if score == NEG_INF:  # no path (a clamped jump): the all-state decode's choice among equals
+                    path, score, emis_sum = _decode_local(
+                        u,
+                        everything,
+                        s,
+                        on,
+                        decoded,
+                        pre,
+                        npre,
+                        st,
+                        entry[u],
+                        order,
+                        log_a1,
+                        log_stay,
+                        log_a2,
+                        f_ptr,
+                        f_idx,
+                        loc,
+                        table,
+                    )
+                    stats[1] += 1
+                elif uniform:
+                    bound = g0  # the best score of a path that never meets an active state
+                    for _r in range(1, rows):
+                        bound = (bound + t_max) + g0
+                    if not score > bound:  # not certified: decode on every state
+                        path, score, emis_sum = _decode_local(
+                            u,
+                            everything,
+                            s,
+                            on,
+                            decoded,
+                            pre,
+                            npre,
+                            st,
+                            entry[u],
+                            order,
+                            log_a1,
+                            log_stay,
+                            log_a2,
+                            f_ptr,
+                            f_idx,
+                            loc,
+                            table,
+                        )
+                        stats[1] += 1
+                        stats[2] += 1
             trans[u] = score - emis_sum
-            for t in range(n_slots):
-                decoded[u, t] = -1
             for t in range(st, n_slots):
-                q = path[npre + t - st]
-                decoded[u, t] = q
-                claims[t, q] += 1
+                decoded[u, t] = path[npre + t - st]
     total = 0.0
     for u in range(k):
         total += trans[u]
     joint = 0.0
-    for t in range(n_slots):
-        for j in range(s):
-            c = claims[t, j]
-            joint += table[2, c] if on[t, j] else table[3, c]
+    for t in range(n_slots):  # the states with an activation or a user; every other one is off and free
+        special = 0
+        for q in range(on_ptr[t], on_ptr[t + 1]):
+            joint += table[2, _claims(decoded, -1, t, on_idx[q])]
+            special += 1
+        for u in range(k):
+            q = decoded[u, t]
+            if q < 0 or on[t, q]:
+                continue
+            first = True
+            for v in range(u):
+                if decoded[v, t] == q:
+                    first = False
+            if first:
+                joint += table[3, _claims(decoded, -1, t, q)]
+                special += 1
+        joint += (s - special) * table[3, 0]
     return total + joint
 
 
 @kernel
 def _coordinate_ascent(
-    on, pre, n_pre, starts, entry, orders, order, log_a1, log_stay, log_a2, k_ptr, k_idx, table, sweeps
+    on, on_ptr, on_idx, pre, n_pre, starts, entry, orders, order, log_a1, log_stay, log_a2, support, table, sweeps
 ):
     k = pre.shape[0]
     n_slots = on.shape[0]
     best = np.full((k, n_slots), -1, dtype=np.int64)
     cur = np.empty((k, n_slots), dtype=np.int64)
+    stats = np.zeros(3, dtype=np.int64)
     best_score = NEG_INF
     found = False
     for r in range(orders.shape[0]):
         score = _ascent_one_order(
-            on, pre, n_pre, starts, entry, orders[r], order, log_a1, log_stay, log_a2, k_ptr, k_idx, table, sweeps, cur
+            on,
+            on_ptr,
+            on_idx,
+            pre,
+            n_pre,
+            starts,
+            entry,
+            orders[r],
+            order,
+            log_a1,
+            log_stay,
+            log_a2,
+            support,
+            table,
+            sweeps,
+            cur,
+            stats,
         )
         if not found or score > best_score + 1e-9:
             found = True
             best_score = score
             best[:, :] = cur
-    return best, best_score
+    return best, best_score, stats
+
+
+#: user decodes of :func:`coordinate_ascent` in this process: ``[decodes, on every state,
+#: uncertified local decodes redone on every state]`` (a diagnostic the benchmarks read)
+DECODE_STATS = np.zeros(3, dtype=np.int64)
 
 
 def coordinate_ascent(
@@ -487,7 +779,7 @@ def coordinate_ascent(
     log_a2: np.ndarray | None,
     table: np.ndarray,
     sweeps: int,
-    support: tuple[np.ndarray, np.ndarray] | None = None,
+    support: tuple | None = None,
 ) -> tuple[np.ndarray, float]:
     """Every restart of the explain-away coordinate ascent in one compiled call.
 
@@ -497,8 +789,19 @@ def coordinate_ascent(
     :func:`emission_tables`. Returns the ``(K, L)`` state positions of the order with the
     highest joint log-likelihood (first of equals within 1e-9) and that likelihood, as
     :func:`~onebit.models.graph_hmm.adaptive.coordinate_ascent_reference` run over the same
-    orders. ``support``: :func:`move_support` of ``log_a2`` when the caller has it (computed
-    here otherwise, ``O(S^3)``).
+    orders. ``support``: :func:`transition_support` of the transitions when the caller has it
+    (computed here otherwise; ``O(S^3)`` for the second order).
+
+    Each user is decoded on the states it can reach, not on all ``S`` (the per-slot cost
+    follows the activity, not the building; paper III-B): a user with known last nodes on the
+    states within the window's length of moves of its last node, one with an entry node on
+    those of the entry node -- exact, no other state has a finite score -- and one that may
+    start anywhere on the states within the window's length of an active state, with a
+    certificate: the local best must beat the best score any path that never meets an active
+    state can have (its every emission is at most the free-and-off gain, every transition at
+    most ``t_max``); otherwise it is decoded again on every state. The paths are the
+    all-state decode's (tests), the joint likelihood is summed over the active and claimed
+    states plus the free-and-off ones counted (equal to ~1e-12).
     """
     k = len(prefixes)
     pre = np.zeros((k, 2), dtype=np.int64)
@@ -507,27 +810,34 @@ def coordinate_ascent(
         n_pre[u] = len(p)
         pre[u, : len(p)] = p
     s = on.shape[1]
-    a2 = np.zeros((1, 1, 1)) if log_a2 is None else _f64(log_a2, 3)
     a1 = _f64(log_a1, 2)
-    if order != 2 or log_a2 is None:
-        support = (np.zeros(2, np.int64), np.zeros(0, np.int64))
-    k_ptr, k_idx = move_support(a2) if support is None else support
-    best, score = _coordinate_ascent(
-        np.ascontiguousarray(on, dtype=np.bool_),
+    second = order == 2 and log_a2 is not None
+    a2 = _f64(log_a2, 3) if second else np.zeros((1, 1, 1))
+    if support is None:
+        support = transition_support(a1, a2 if second else None)
+    on = np.ascontiguousarray(on, dtype=np.bool_)
+    t_on, j_on = np.nonzero(on)
+    on_ptr = np.zeros(on.shape[0] + 1, dtype=np.int64)
+    np.cumsum(np.bincount(t_on, minlength=on.shape[0]), out=on_ptr[1:])
+    f_ptr, f_idx, b_ptr, b_idx, t_max = support
+    best, score, stats = _coordinate_ascent(
+        on,
+        on_ptr,
+        j_on.astype(np.int64),
         pre,
         n_pre,
         np.asarray(starts, dtype=np.int64),
         np.asarray(entries, dtype=np.int64),
         np.asarray(orders, dtype=np.int64).reshape(-1, k),
-        int(order),
+        2 if second else 1,
         a1,
         np.ascontiguousarray(np.diag(a1)) if s else np.zeros(0),
         a2,
-        k_ptr,
-        k_idx,
+        (f_ptr, f_idx, b_ptr, b_idx, float(t_max)),
         table,
         int(sweeps),
     )
+    DECODE_STATS[:] += stats
     return best, float(score)
 
 
