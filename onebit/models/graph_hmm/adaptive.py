@@ -256,7 +256,7 @@ def decode_users(
     if k == 0 or n_slots == 0:
         return out
     states = np.asarray(states, dtype=np.int64)
-    if states.size > 1 and not (np.diff(states) > 0).all():
+    if len(states) != obs.shape[1] and states.size > 1 and not (np.diff(states) > 0).all():
         raise ValueError("decode_users: states must be ascending and distinct")
     on = obs if len(states) == obs.shape[1] else obs[:, states]  # (L, S): every node, or the listed ones
     if transitions is None:
@@ -479,7 +479,11 @@ class WindowDecoder:
             acc = e if e == n_slots else min(s + tau, n_slots)
             obs = active[s:e]
             counted = obs if params.count == "on" else fresh[s:e]
-            k_now = max((max_independent(np.flatnonzero(row), adj, self._mis) for row in counted), default=0)
+            ct, cj = np.nonzero(counted)  # one scan of the window, then its slots' nodes
+            k_now = max(
+                (max_independent(cj[a:b], adj, self._mis) for a, b in _runs(ct)),
+                default=0,
+            )
             last = {u: _last_nodes(rows[u], s) for u in alive}
             # entry signatures: onset at outer, then inner active later in the window, nobody near outer
             entries = []
@@ -574,6 +578,14 @@ class WindowDecoder:
 
     def result(self) -> DecodeResult:
         return DecodeResult(self.paths(), list(self.windows))
+
+
+def _runs(t: np.ndarray) -> list[tuple[int, int]]:
+    """``[(a, b)]``: the runs of equal values of the sorted ``t`` (``t[a:b]``)."""
+    if t.size == 0:
+        return []
+    cut = np.flatnonzero(np.diff(t)) + 1
+    return list(zip([0, *cut.tolist()], [*cut.tolist(), int(t.size)]))
 
 
 def _grow(a: np.ndarray, cap: int, fill) -> np.ndarray:

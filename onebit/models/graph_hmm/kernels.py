@@ -529,10 +529,13 @@ def _decode_local(
         if n_loc == log_a1.shape[0]:  # every state: the matrix as it is
             path, score = _viterbi1(log_pi, log_a1, log_b)
         else:
-            a1 = np.empty((n_loc, n_loc))
+            a1 = np.full((n_loc, n_loc), NEG_INF)  # the finite entries only: the moves of the support
             for i in range(n_loc):
-                for k in range(n_loc):
-                    a1[i, k] = log_a1[gl[i], gl[k]]
+                g = gl[i]
+                for q in range(f_ptr[g], f_ptr[g + 1]):
+                    k = loc[f_idx[q]]
+                    if k >= 0:
+                        a1[i, k] = log_a1[g, f_idx[q]]
             path, score = _viterbi1(log_pi, a1, log_b)
     emis_sum = 0.0
     for t in range(st, n_slots):
@@ -564,10 +567,12 @@ def _ascent_one_order(
     sweeps,
     decoded,
     stats,
+    scratch,
 ):
     """Explain-away sweeps over the users in ``order_u``; fills ``decoded (K, L)`` and returns the
     joint log-likelihood (see :func:`coordinate_ascent`; ``stats`` counts the decodes, those on
-    all states and the certificate fallbacks)."""
+    all states and the certificate fallbacks; ``scratch`` (4, S) int: ``-1``, ``-1``, any, and
+    ``0..S-1``, left as found)."""
     f_ptr, f_idx, b_ptr, b_idx, t_max = support
     n_slots, s = on.shape
     k = pre.shape[0]
@@ -575,10 +580,7 @@ def _ascent_one_order(
         for t in range(n_slots):
             decoded[u, t] = -1
     trans = np.zeros(k)
-    dist = np.full(s, -1, dtype=np.int64)
-    loc = np.full(s, -1, dtype=np.int64)
-    gs = np.empty(s, dtype=np.int64)
-    everything = np.arange(s, dtype=np.int64)
+    dist, loc, gs, everything = scratch[0], scratch[1], scratch[2], scratch[3]
     seeds = np.empty(max(on_idx.shape[0], 1), dtype=np.int64)
     g0 = table[1, 0]  # the largest emission of a state that is off (no claim: off with claims is lower)
     for _ in range(max(sweeps, 1)):
@@ -740,6 +742,9 @@ def _coordinate_ascent(
     best = np.full((k, n_slots), -1, dtype=np.int64)
     cur = np.empty((k, n_slots), dtype=np.int64)
     stats = np.zeros(3, dtype=np.int64)
+    scratch = np.full((4, on.shape[1]), -1, dtype=np.int64)  # once per window, not per order
+    for i in range(on.shape[1]):
+        scratch[3, i] = i
     best_score = NEG_INF
     found = False
     for r in range(orders.shape[0]):
@@ -761,6 +766,7 @@ def _coordinate_ascent(
             sweeps,
             cur,
             stats,
+            scratch,
         )
         if not found or score > best_score + 1e-9:
             found = True
