@@ -128,7 +128,7 @@ def main(argv: list[str] | None = None) -> None:
         decode_timed(active[:60], nodes, edges, sigs, mode, targets=targets)
     table = Table()
     for mode in args.modes.split(","):
-        name = {"full2": "hmm2", "full1": "hmm1"}.get(mode, mode)
+        name = {"full2": "hmm2", "full1": "hmm1", "adaptive": "findinghumo-windows"}.get(mode, mode)
         per_slot, setups, ref = [], [], None
         for n in sizes:
             g_nodes, g_edges = grown(nodes, edges, n)
