@@ -77,6 +77,18 @@ the rest is look-ahead). Per window:
 
 The baselines ``hmm1`` / ``hmm2`` run the same loop with the full state set and a fixed order
 (``mode = "full1"`` / ``"full2"``); ``offline`` uses one window spanning the whole run.
+
+5. **Local decodes** (the cost follows the activity, III-B): inside the coordinate ascent each
+   user's Viterbi runs on the states it can reach in the window, not on the whole state set
+   -- the nodes within the window's length of moves of its last node (known users) or entry
+   node (exact: no other state has a finite score); for a user that may start anywhere, those
+   within the window's length of a node active in its slots, certified: a path that never
+   meets an activation scores at most ``g0 + (L - 1)(t_max + g0)`` (``g0`` the free-and-off
+   emission gain, the largest of an inactive state; ``t_max`` the largest log transition), and
+   the local best must beat that strictly, else the user is decoded on every state. The paths
+   are the all-state decoder's (:func:`onebit.models.graph_hmm.kernels.coordinate_ascent`);
+   so the full-state baselines cost per slot what the activity around the users costs, not
+   what the building does (``benchmarks/bench_hmm_growth.py``).
 The window loop is inherently sequential (each window starts from the previous one's users),
 and so is the coordinate ascent inside a window: every restart of it (all user orders, sweeps
 and users, the Viterbi recursions included) runs as one compiled call

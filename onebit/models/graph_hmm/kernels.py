@@ -13,6 +13,8 @@ kernel                                   reference (``tests/models/graph_hmm/tes
 :func:`viterbi_second_order`             :func:`onebit.models.graph_hmm.viterbi.viterbi_second_order`
 :func:`viterbi_motion_second_order`      :func:`onebit.models.graph_hmm.viterbi.viterbi_motion_second_order`
 :func:`coordinate_ascent`                :func:`onebit.models.graph_hmm.adaptive.coordinate_ascent_reference`
+                                         (every user on every state) and brute force over
+                                         every path (its users decoded on their reach)
 =======================================  ====================================================
 
 Equal outputs: the kernels do the same additions in the same order as the references and
