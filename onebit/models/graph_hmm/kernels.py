@@ -247,7 +247,7 @@ def _grow(arr, need):
 
 
 @kernel
-def _viterbi_motion2_local(log_pi, log_stay, log_move, gs, log_b, k_ptr, k_idx):
+def _viterbi_motion2_local(log_pi, log_stay, blocks, gs, log_b, k_ptr, k_idx, k_col):
     """:func:`_viterbi_motion2` over the reachable pairs only: it keeps the list of the
     (previous, current) pairs whose ``delta`` is finite and, per slot, extends each by the moves
     :func:`move_support` allows and by staying. A user whose last nodes are known (the clamped
@@ -259,8 +259,12 @@ def _viterbi_motion2_local(log_pi, log_stay, log_move, gs, log_b, k_ptr, k_idx):
 
     Local states: state ``i`` of ``log_pi``, ``log_stay``, ``log_b`` and of the support
     ``k_ptr``/``k_idx`` is the tensor's node ``gs[i]`` (``gs`` ascending), so a user's decode
-    runs on the nodes it can reach (:func:`_ascent_one_order`) while ``log_move`` stays the
-    tensor of the whole state set; :func:`_viterbi_motion2_sparse` is the identity map."""
+    runs on the nodes it can reach (:func:`_ascent_one_order`); the moves are read from
+    ``blocks`` (:func:`motion_blocks`: per node, its contexts x its next nodes, the tensor of the
+    whole state set stored sparse), move ``q`` of the local support being column ``k_col[q]`` of
+    its node's block. A finite pair ``(p, j)`` always has ``p`` among ``j``'s contexts (it was
+    reached by a move ``p -> j`` of the support, or is a start ``(j, j)``).
+    :func:`_viterbi_motion2_sparse` is the identity map."""
     n_slots, n = log_b.shape
     path = np.zeros(n_slots, dtype=np.int64)
     if n_slots == 0:
@@ -295,11 +299,12 @@ def _viterbi_motion2_local(log_pi, log_stay, log_move, gs, log_b, k_ptr, k_idx):
             p = ca[i]
             j = cb[i]
             dv = delta[p, j]
+            base = _block_row(blocks, gs[p], gs[j])
             for q in range(k_ptr[j], k_ptr[j + 1]):
                 k = k_idx[q]
                 if k == j:
                     continue
-                v = dv + log_move[gs[p], gs[j], gs[k]]
+                v = dv + blocks[4][base + k_col[q]]
                 if v == NEG_INF:
                     continue
                 if not touched[j, k]:
@@ -373,10 +378,82 @@ def _viterbi_motion2_local(log_pi, log_stay, log_move, gs, log_b, k_ptr, k_idx):
 
 
 @kernel
+def _block_row(blocks, p, j):
+    """The offset in ``blocks[4]`` of the row of context ``p`` in node ``j``'s block (``p`` is
+    always among ``j``'s contexts: see :func:`_viterbi_motion2_local`)."""
+    p_ptr, p_idx, blk_ptr, kn_ptr = blocks[0], blocks[1], blocks[2], blocks[3]
+    r = 0
+    for z in range(p_ptr[j], p_ptr[j + 1]):
+        if p_idx[z] == p:
+            r = z - p_ptr[j]
+            break
+    return blk_ptr[j] + r * (kn_ptr[j + 1] - kn_ptr[j])
+
+
+@kernel
+def _blocks_from_dense(log_move, k_ptr, k_idx):
+    """:func:`motion_blocks` of a dense tensor."""
+    n = log_move.shape[0]
+    p_cnt = np.ones(n, dtype=np.int64)  # the node itself (no direction known yet)
+    for p in range(n):
+        for q in range(k_ptr[p], k_ptr[p + 1]):
+            if k_idx[q] != p:
+                p_cnt[k_idx[q]] += 1
+    p_ptr = np.zeros(n + 1, dtype=np.int64)
+    for j in range(n):
+        p_ptr[j + 1] = p_ptr[j] + p_cnt[j]
+    p_idx = np.empty(p_ptr[n], dtype=np.int64)
+    fill = p_ptr[:-1].copy()
+    for p in range(n):  # ascending p: each node's contexts come out sorted
+        for q in range(k_ptr[p], k_ptr[p + 1]):
+            j = k_idx[q]
+            if j != p:
+                p_idx[fill[j]] = p
+                fill[j] += 1
+        p_idx[fill[p]] = p  # placed in p's own list at its turn: ascending overall
+        fill[p] += 1
+    blk_ptr = np.zeros(n + 1, dtype=np.int64)
+    for j in range(n):
+        blk_ptr[j + 1] = blk_ptr[j] + (p_ptr[j + 1] - p_ptr[j]) * (k_ptr[j + 1] - k_ptr[j])
+    vals = np.empty(blk_ptr[n])
+    for j in range(n):
+        nk = k_ptr[j + 1] - k_ptr[j]
+        for r in range(p_ptr[j + 1] - p_ptr[j]):
+            p = p_idx[p_ptr[j] + r]
+            for c in range(nk):
+                vals[blk_ptr[j] + r * nk + c] = log_move[p, j, k_idx[k_ptr[j] + c]]
+    return p_ptr, p_idx, blk_ptr, vals
+
+
+def motion_blocks(log_move: np.ndarray, k_ptr: np.ndarray, k_idx: np.ndarray) -> tuple:
+    """A second-order tensor ``log_move[p, j, k]`` stored sparse, as the decoders read it:
+    ``(p_ptr, p_idx, blk_ptr, k_ptr, vals)`` -- per node ``j`` its contexts ``p`` (``j`` itself and
+    the nodes that move to ``j``: ``p_idx[p_ptr[j]:p_ptr[j+1]]``, ascending), its next nodes
+    (``k_idx[k_ptr[j]:k_ptr[j+1]]``, :func:`move_support`) and the block ``contexts x next
+    nodes`` of values at ``vals[blk_ptr[j]:blk_ptr[j+1]]`` (row-major). ``O(N deg^2)``, where the
+    tensor is ``N^3``; :func:`onebit.models.graph_hmm.adaptive.second_order_support` builds it
+    without the dense tensor."""
+    p_ptr, p_idx, blk_ptr, vals = _blocks_from_dense(_f64(log_move, 3), k_ptr, k_idx)
+    return p_ptr, p_idx, blk_ptr, np.asarray(k_ptr, np.int64), vals
+
+
+@kernel
 def _viterbi_motion2_sparse(log_pi, log_stay, log_move, log_b, k_ptr, k_idx):
     """:func:`_viterbi_motion2_local` on every state of ``log_move`` (the identity map)."""
+    p_ptr, p_idx, blk_ptr, vals = _blocks_from_dense(log_move, k_ptr, k_idx)
+    col = np.empty(k_idx.shape[0], dtype=np.int64)
+    for j in range(k_ptr.shape[0] - 1):
+        for q in range(k_ptr[j], k_ptr[j + 1]):
+            col[q] = q - k_ptr[j]
     return _viterbi_motion2_local(
-        log_pi, log_stay, log_move, np.arange(log_b.shape[1], dtype=np.int64), log_b, k_ptr, k_idx
+        log_pi,
+        log_stay,
+        (p_ptr, p_idx, blk_ptr, k_ptr, vals),
+        np.arange(log_b.shape[1], dtype=np.int64),
+        log_b,
+        k_ptr,
+        k_idx,
+        col,
     )
 
 
@@ -407,28 +484,49 @@ def emission_tables(k: int, p_hit: float, p_false: float, gain) -> np.ndarray:
 
 def transition_support(log_a1: np.ndarray, log_a2: np.ndarray | None) -> tuple:
     """The moves of a window's transitions, for the local decodes of :func:`coordinate_ascent`:
-    ``(f_ptr, f_idx, b_ptr, b_idx, t_max)`` -- the next states of each state as CSR
+    ``(f_ptr, f_idx, b_ptr, b_idx, t_max, blocks)`` -- the next states of each state as CSR
     (:func:`move_support` of ``log_a2`` for the second order, the finite entries of ``log_a1``
-    for the first), the same graph transposed (the states each state is reached from), and the
-    largest log transition (stay or move, ``<= 0``). Computed once per state set (the full-state
-    baselines: once per run)."""
+    for the first), the same graph transposed (the states each state is reached from), the
+    largest log transition a path can take (stay or move, ``<= 0``) and, for the second order,
+    the tensor stored sparse (:func:`motion_blocks`; empty for the first). Computed once per
+    state set (the full-state baselines: once per run, without the dense tensor:
+    :func:`onebit.models.graph_hmm.adaptive.second_order_support`)."""
     if log_a2 is not None:
         a2 = _f64(log_a2, 3)
         f_ptr, f_idx = move_support(a2)
-        t_max = max(float(a2.max()) if a2.size else NEG_INF, float(np.diag(log_a1).max()) if len(log_a1) else NEG_INF)
-    else:
-        a1 = _f64(log_a1, 2)
-        rows, cols = np.nonzero(a1 > NEG_INF)
-        f_ptr = np.zeros(a1.shape[0] + 1, dtype=np.int64)
-        np.cumsum(np.bincount(rows, minlength=a1.shape[0]), out=f_ptr[1:])
-        f_idx = cols.astype(np.int64)
-        t_max = float(a1.max()) if a1.size else NEG_INF
+        return support_from_blocks(motion_blocks(a2, f_ptr, f_idx), f_idx, np.diag(log_a1))
+    a1 = _f64(log_a1, 2)
+    rows, cols = np.nonzero(a1 > NEG_INF)
+    f_ptr = np.zeros(a1.shape[0] + 1, dtype=np.int64)
+    np.cumsum(np.bincount(rows, minlength=a1.shape[0]), out=f_ptr[1:])
+    f_idx = cols.astype(np.int64)
+    t_max = float(a1.max()) if a1.size else NEG_INF
+    return (*_transpose(f_ptr, f_idx), min(t_max, 0.0), no_blocks(a1.shape[0]))
+
+
+def support_from_blocks(blocks: tuple, k_idx: np.ndarray, log_stay: np.ndarray) -> tuple:
+    """:func:`transition_support` of a second-order tensor given as :func:`motion_blocks` (its
+    next-node lists ``k_idx``; ``log_stay`` the stays)."""
+    f_ptr = blocks[3]
+    vals = blocks[4]
+    t_max = max(float(vals.max()) if vals.size else NEG_INF, float(np.max(log_stay)) if len(log_stay) else NEG_INF)
+    return (*_transpose(f_ptr, np.asarray(k_idx, np.int64)), min(t_max, 0.0), blocks)
+
+
+def no_blocks(n: int) -> tuple:
+    """Empty :func:`motion_blocks` (a first-order model)."""
+    z = np.zeros(n + 1, dtype=np.int64)
+    return z, np.zeros(0, np.int64), z, z, np.zeros(0)
+
+
+def _transpose(f_ptr: np.ndarray, f_idx: np.ndarray) -> tuple:
+    """``(f_ptr, f_idx, b_ptr, b_idx)``: a CSR graph and its transpose (rows ascending)."""
     n = len(f_ptr) - 1
     src = np.repeat(np.arange(n, dtype=np.int64), np.diff(f_ptr))
     order = np.lexsort((src, f_idx))  # by destination, then source: ascending rows of the transpose
     b_ptr = np.zeros(n + 1, dtype=np.int64)
     np.cumsum(np.bincount(f_idx, minlength=n), out=b_ptr[1:])
-    return f_ptr, f_idx, b_ptr, src[order], min(t_max, 0.0)
+    return f_ptr, f_idx, b_ptr, src[order]
 
 
 @kernel
@@ -477,7 +575,7 @@ def _claims(decoded, u, t, q):
 
 @kernel
 def _decode_local(
-    u, gs, n_loc, on, decoded, pre, npre, st, entry_u, order, log_a1, log_stay, log_a2, f_ptr, f_idx, loc, table
+    u, gs, n_loc, on, decoded, pre, npre, st, entry_u, order, log_a1, log_stay, blocks, f_ptr, f_idx, loc, table
 ):
     """One user's Viterbi (with the other users' claims fixed) on the states ``gs[:n_loc]``:
     emissions, initial distribution, transitions and moves restricted to them. Returns the
@@ -516,17 +614,19 @@ def _decode_local(
                     m += 1
             lk_ptr[i + 1] = m
         lk_idx = np.empty(m, dtype=np.int64)
+        lk_col = np.empty(m, dtype=np.int64)  # the move's column in its node's block
         m = 0
         for i in range(n_loc):
             g = gl[i]
             for q in range(f_ptr[g], f_ptr[g + 1]):
                 if loc[f_idx[q]] >= 0:
                     lk_idx[m] = loc[f_idx[q]]
+                    lk_col[m] = q - f_ptr[g]
                     m += 1
         stay = np.empty(n_loc)
         for i in range(n_loc):
             stay[i] = log_stay[gl[i]]
-        path, score = _viterbi_motion2_local(log_pi, stay, log_a2, gl, log_b, lk_ptr, lk_idx)
+        path, score = _viterbi_motion2_local(log_pi, stay, blocks, gl, log_b, lk_ptr, lk_idx, lk_col)
     else:
         if n_loc == log_a1.shape[0]:  # every state: the matrix as it is
             path, score = _viterbi1(log_pi, log_a1, log_b)
@@ -563,7 +663,7 @@ def _ascent_one_order(
     order,
     log_a1,
     log_stay,
-    log_a2,
+    blocks,
     support,
     table,
     sweeps,
@@ -634,7 +734,7 @@ def _ascent_one_order(
                     order,
                     log_a1,
                     log_stay,
-                    log_a2,
+                    blocks,
                     f_ptr,
                     f_idx,
                     loc,
@@ -655,7 +755,7 @@ def _ascent_one_order(
                     order,
                     log_a1,
                     log_stay,
-                    log_a2,
+                    blocks,
                     f_ptr,
                     f_idx,
                     loc,
@@ -675,7 +775,7 @@ def _ascent_one_order(
                         order,
                         log_a1,
                         log_stay,
-                        log_a2,
+                        blocks,
                         f_ptr,
                         f_idx,
                         loc,
@@ -700,7 +800,7 @@ def _ascent_one_order(
                             order,
                             log_a1,
                             log_stay,
-                            log_a2,
+                            blocks,
                             f_ptr,
                             f_idx,
                             loc,
@@ -737,7 +837,7 @@ def _ascent_one_order(
 
 @kernel
 def _coordinate_ascent(
-    on, on_ptr, on_idx, pre, n_pre, starts, entry, orders, order, log_a1, log_stay, log_a2, support, table, sweeps
+    on, on_ptr, on_idx, pre, n_pre, starts, entry, orders, order, log_a1, log_stay, blocks, support, table, sweeps
 ):
     k = pre.shape[0]
     n_slots = on.shape[0]
@@ -762,7 +862,7 @@ def _coordinate_ascent(
             order,
             log_a1,
             log_stay,
-            log_a2,
+            blocks,
             support,
             table,
             sweeps,
@@ -805,7 +905,8 @@ def coordinate_ascent(
     highest joint log-likelihood (first of equals within 1e-9) and that likelihood, as
     :func:`~onebit.models.graph_hmm.adaptive.coordinate_ascent_reference` run over the same
     orders. ``support``: :func:`transition_support` of the transitions when the caller has it
-    (computed here otherwise; ``O(S^3)`` for the second order).
+    (computed here otherwise from the dense ``log_a2``, ``O(S^3)``; with a second-order
+    ``support`` ``log_a2`` may be ``None``).
 
     Each user is decoded on the states it can reach, not on all ``S`` (the per-slot cost
     follows the activity, not the building; paper III-B): a user with known last nodes on the
@@ -826,15 +927,14 @@ def coordinate_ascent(
         pre[u, : len(p)] = p
     s = on.shape[1]
     a1 = _f64(log_a1, 2)
-    second = order == 2 and log_a2 is not None
-    a2 = _f64(log_a2, 3) if second else np.zeros((1, 1, 1))
+    second = order == 2 and (log_a2 is not None or support is not None)
     if support is None:
-        support = transition_support(a1, a2 if second else None)
+        support = transition_support(a1, _f64(log_a2, 3) if second else None)
     on = np.ascontiguousarray(on, dtype=np.bool_)
     t_on, j_on = np.nonzero(on)
     on_ptr = np.zeros(on.shape[0] + 1, dtype=np.int64)
     np.cumsum(np.bincount(t_on, minlength=on.shape[0]), out=on_ptr[1:])
-    f_ptr, f_idx, b_ptr, b_idx, t_max = support
+    f_ptr, f_idx, b_ptr, b_idx, t_max, blocks = support
     best, score, stats = _coordinate_ascent(
         on,
         on_ptr,
@@ -847,7 +947,7 @@ def coordinate_ascent(
         2 if second else 1,
         a1,
         np.ascontiguousarray(np.diag(a1)) if s else np.zeros(0),
-        a2,
+        blocks if second else no_blocks(s),
         (f_ptr, f_idx, b_ptr, b_idx, float(t_max)),
         table,
         int(sweeps),
