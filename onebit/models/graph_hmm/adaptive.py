@@ -108,7 +108,7 @@ import numpy as np
 
 from onebit.core.lazy import lazy_module
 from onebit.models.graph_hmm.eatg import Eatg, onsets
-from onebit.models.graph_hmm.kernels import coordinate_ascent, emission_tables, transition_support
+from onebit.models.graph_hmm.kernels import coordinate_ascent, emission_tables, support_from_blocks, transition_support
 from onebit.models.graph_hmm.viterbi import log_safe, viterbi_first_order, viterbi_motion_second_order
 
 nx = lazy_module("networkx")
@@ -185,13 +185,57 @@ def second_order_tensor(a1: np.ndarray, a2: np.ndarray, idx: np.ndarray) -> np.n
     return log_safe(t)
 
 
-def window_transitions(eatg: Eatg, states: np.ndarray, order: int) -> tuple[np.ndarray, np.ndarray | None, tuple]:
-    """``(log a1, log a2, support)`` restricted to ``states``: ``log a2`` only for ``order == 2``;
-    ``support`` the moves the decodes follow
-    (:func:`onebit.models.graph_hmm.kernels.transition_support`)."""
+def second_order_support(a1: np.ndarray, a2: np.ndarray, idx: np.ndarray) -> tuple:
+    """:func:`~onebit.models.graph_hmm.kernels.transition_support` of
+    :func:`second_order_tensor` on the states ``idx``, built without the ``S^3`` tensor: per
+    node ``j2`` only the contexts ``j3`` a path can have there (``j2`` itself and the nodes that
+    move to it) and the nodes it moves to -- ``O(S deg^2)`` values, ``O(S^2 deg)`` time. Each
+    value is computed as :func:`second_order_tensor` computes it (the same products, the same
+    row sums over all ``S`` nodes), so it equals the dense entry bit for bit (tests)."""
+    p1 = a1[np.ix_(idx, idx)]
+    s = p1.sum(axis=1, keepdims=True)
+    p1 = np.where(s > 0, p1 / np.where(s > 0, s, 1.0), np.eye(len(idx)))
+    p2 = a2[np.ix_(idx, idx)]
+    n = len(idx)
+    eye = np.eye(n, dtype=bool)
+    stay = np.diag(p1).copy()
+    move = np.where(eye, 0.0, p1)
+    nxt = (move > 0) | (eye & (stay > 0)[:, None])  # the finite entries of the tensor's rows: moves and the stay
+    k_ptr = np.zeros(n + 1, dtype=np.int64)
+    np.cumsum(nxt.sum(axis=1), out=k_ptr[1:])
+    k_idx = np.nonzero(nxt)[1].astype(np.int64)
+    came = (move > 0).T | eye  # came[j, p]: a path at j can have come from p (or no direction yet: p = j)
+    p_ptr = np.zeros(n + 1, dtype=np.int64)
+    np.cumsum(came.sum(axis=1), out=p_ptr[1:])
+    p_idx = np.nonzero(came)[1].astype(np.int64)
+    blk_ptr = np.zeros(n + 1, dtype=np.int64)
+    np.cumsum(np.diff(p_ptr) * np.diff(k_ptr), out=blk_ptr[1:])
+    vals = np.empty(int(blk_ptr[-1]))
+    for j2 in range(n):  # per node: its contexts x its next nodes (the tensor's formula, module item 3)
+        ctx = p_idx[p_ptr[j2] : p_ptr[j2 + 1]]
+        ks = k_idx[k_ptr[j2] : k_ptr[j2 + 1]]
+        w = move[j2][None, :] * p2[ctx, :]  # (contexts, S): the same products as the dense tensor's
+        z = w.sum(axis=1, keepdims=True)  # the same row sums over all S nodes
+        directed = np.where(z > 0, (1.0 - stay[j2]) * w / np.where(z > 0, z, 1.0), move[j2][None, :])
+        t = np.where((ctx == j2)[:, None], move[j2][None, :], directed)[:, ks]
+        t = np.where((ks == j2)[None, :], stay[j2] * np.ones((len(ctx), 1)), t)
+        vals[blk_ptr[j2] : blk_ptr[j2 + 1]] = log_safe(t).ravel()
+    blocks = (p_ptr, p_idx, blk_ptr, k_ptr, vals)
+    return support_from_blocks(blocks, k_idx, log_safe(stay))
+
+
+def window_transitions(
+    eatg: Eatg, states: np.ndarray, order: int, *, dense: bool = True
+) -> tuple[np.ndarray, np.ndarray | None, tuple]:
+    """``(log a1, log a2, support)`` restricted to ``states``: ``log a2`` only for ``order == 2``
+    and ``dense`` (else ``None``: the decoders read the sparse tensor of ``support``,
+    :func:`second_order_support`, built without the ``S^3`` array); ``support`` the moves the
+    decodes follow (:func:`onebit.models.graph_hmm.kernels.transition_support`)."""
     log_a1 = restricted_first(eatg.a1, states)
     if order != 2:
         return log_a1, None, transition_support(log_a1, None)
+    if not dense:
+        return log_a1, None, second_order_support(eatg.a1, eatg.a2, states)
     log_a2 = second_order_tensor(eatg.a1, eatg.a2, states)
     return log_a1, log_a2, transition_support(log_a1, log_a2)
 
@@ -296,6 +340,8 @@ def decode_users(
             support=support,
         )
     else:
+        if order == 2 and log_a2 is None:  # the reference reads the dense tensor
+            log_a2 = second_order_tensor(eatg.a1, eatg.a2, states)
         pos = {int(v): i for i, v in enumerate(states)}
         best, best_score = None, -np.inf
         for order_u in orders:
@@ -438,7 +484,7 @@ class WindowDecoder:
         self._mis: dict = {}
         # the full-state baselines' transitions, on every node: the same for every window
         self._full = (
-            window_transitions(eatg, np.arange(self.n), 1 if params.mode == "full1" else 2)
+            window_transitions(eatg, np.arange(self.n), 1 if params.mode == "full1" else 2, dense=False)
             if params.mode in ("full1", "full2")
             else None
         )

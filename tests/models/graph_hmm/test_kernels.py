@@ -339,3 +339,41 @@ def test_local_decodes_equal_the_all_state_reference_on_a_large_graph(order):
             np.testing.assert_array_equal(new, ref, err_msg=f"trial {trial}, k={k}, sweeps={sweeps}")
     stats = kernels.DECODE_STATS - before
     assert stats[1] < stats[0] / 2  # most decodes on the user's reach, not on the 48 states
+
+
+@pytest.mark.parametrize("seed", range(6))
+def test_sparse_second_order_support_equals_the_dense_tensor(seed):
+    """The second-order tensor built sparse (per node: its contexts x its next nodes, never the
+    S^3 array) holds the dense tensor's values bit for bit, the same moves, contexts and bound;
+    and a full-state hmm2 run on it decodes the numpy reference's paths (dense tensor)."""
+    rng = np.random.default_rng(600 + seed)
+    nodes, edges = _random_graph(rng, 15)
+    hops = hop_matrix(nodes, edges)
+    act = rng.random((80, len(nodes))) < 0.15
+    eatg = trained_eatg(act, nodes, hops, horizon=5) if seed % 2 else layout_eatg(nodes, hops)
+    for states in (np.arange(len(nodes)), np.sort(rng.choice(len(nodes), 9, replace=False))):
+        log_a1, log_a2, dense = window_transitions(eatg, states, 2)
+        a1_sparse, none, sparse = window_transitions(eatg, states, 2, dense=False)
+        assert none is None
+        np.testing.assert_array_equal(a1_sparse, log_a1)
+        for a, b in zip(dense[:4], sparse[:4]):
+            np.testing.assert_array_equal(a, b)
+        assert dense[4] == sparse[4]
+        for a, b in zip(dense[5], sparse[5]):
+            np.testing.assert_array_equal(a, b)  # values bit for bit (-inf included)
+        p_ptr, p_idx, blk_ptr, k_ptr, vals = sparse[5]
+        k_idx = sparse[1]
+        for j in range(len(states)):  # every stored value is the dense tensor's entry
+            ks = k_idx[k_ptr[j] : k_ptr[j + 1]]
+            block = vals[blk_ptr[j] : blk_ptr[j + 1]].reshape(-1, len(ks))
+            np.testing.assert_array_equal(block, log_a2[np.ix_(p_idx[p_ptr[j] : p_ptr[j + 1]], [j], ks)][:, 0, :])
+    pos = rng.integers(0, len(nodes), 2)
+    walk = np.zeros((40, len(nodes)), bool)
+    for t in range(40):
+        for u in range(2):
+            if rng.random() < 0.4:
+                pos[u] = rng.choice(np.flatnonzero(hops[pos[u]] == 1))
+        walk[t, pos] = True
+    ref = decode_run(walk, eatg, params=DecoderParams(mode="full2", compiled=False))
+    new = decode_run(walk, eatg, params=DecoderParams(mode="full2"))
+    np.testing.assert_array_equal(new.paths, ref.paths)
