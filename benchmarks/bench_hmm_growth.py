@@ -98,7 +98,10 @@ def decode_timed(active, nodes, edges, sigs, mode: str, *, targets: int = 2, com
     return t1 - t0, t2 - t1, dec.result().paths
 
 
-def growth(sizes, values) -> float:
+def growth(sizes, values) -> float | None:
+    """The growth exponent over the sizes (``None`` for a single size)."""
+    if len(sizes) < 2 or sizes[-1] == sizes[0]:
+        return None
     return float(np.log(values[-1] / values[0]) / np.log(sizes[-1] / sizes[0]))
 
 
@@ -164,7 +167,7 @@ def main(argv: list[str] | None = None) -> None:
                     peer_name=f"the same activity on N={sizes[0]}",
                     growth=g if n == sizes[-1] else None,
                     goal="independent of N (growth ~0)",
-                    met=(abs(g) < 0.25) if n == sizes[-1] else None,
+                    met=(abs(g) < 0.25) if n == sizes[-1] and g is not None else None,
                 )
             )
         gs = growth(sizes, setups)
