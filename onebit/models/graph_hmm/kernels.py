@@ -484,11 +484,13 @@ def emission_tables(k: int, p_hit: float, p_false: float, gain) -> np.ndarray:
 
 def transition_support(log_a1: np.ndarray, log_a2: np.ndarray | None) -> tuple:
     """The moves of a window's transitions, for the local decodes of :func:`coordinate_ascent`:
-    ``(f_ptr, f_idx, b_ptr, b_idx, t_max, blocks)`` -- the next states of each state as CSR
+    ``(f_ptr, f_idx, b_ptr, b_idx, t_max, blocks, log_stay)`` -- the next states of each state as CSR
     (:func:`move_support` of ``log_a2`` for the second order, the finite entries of ``log_a1``
     for the first), the same graph transposed (the states each state is reached from), the
-    largest log transition a path can take (stay or move, ``<= 0``) and, for the second order,
-    the tensor stored sparse (:func:`motion_blocks`; empty for the first). Computed once per
+    largest log transition a path can take (stay or move, ``<= 0``) and the transitions stored
+    sparse: for the second order the tensor (:func:`motion_blocks`), for the first the value of
+    each move beside it (``blocks[4][q]`` is ``log_a1`` of move ``q``); and the stays
+    (``diag log_a1``). Computed once per
     state set (the full-state baselines: once per run, without the dense tensor:
     :func:`onebit.models.graph_hmm.adaptive.second_order_support`)."""
     if log_a2 is not None:
@@ -501,7 +503,9 @@ def transition_support(log_a1: np.ndarray, log_a2: np.ndarray | None) -> tuple:
     np.cumsum(np.bincount(rows, minlength=a1.shape[0]), out=f_ptr[1:])
     f_idx = cols.astype(np.int64)
     t_max = float(a1.max()) if a1.size else NEG_INF
-    return (*_transpose(f_ptr, f_idx), min(t_max, 0.0), no_blocks(a1.shape[0]))
+    z = np.zeros(a1.shape[0] + 1, dtype=np.int64)
+    first = (z, np.zeros(0, np.int64), f_ptr, f_ptr, np.ascontiguousarray(a1[rows, cols]))  # one row per node
+    return (*_transpose(f_ptr, f_idx), min(t_max, 0.0), first, np.ascontiguousarray(np.diag(a1)))
 
 
 def support_from_blocks(blocks: tuple, k_idx: np.ndarray, log_stay: np.ndarray) -> tuple:
@@ -509,14 +513,9 @@ def support_from_blocks(blocks: tuple, k_idx: np.ndarray, log_stay: np.ndarray) 
     next-node lists ``k_idx``; ``log_stay`` the stays)."""
     f_ptr = blocks[3]
     vals = blocks[4]
-    t_max = max(float(vals.max()) if vals.size else NEG_INF, float(np.max(log_stay)) if len(log_stay) else NEG_INF)
-    return (*_transpose(f_ptr, np.asarray(k_idx, np.int64)), min(t_max, 0.0), blocks)
-
-
-def no_blocks(n: int) -> tuple:
-    """Empty :func:`motion_blocks` (a first-order model)."""
-    z = np.zeros(n + 1, dtype=np.int64)
-    return z, np.zeros(0, np.int64), z, z, np.zeros(0)
+    stay = np.ascontiguousarray(log_stay, dtype=np.float64)
+    t_max = max(float(vals.max()) if vals.size else NEG_INF, float(np.max(stay)) if len(stay) else NEG_INF)
+    return (*_transpose(f_ptr, np.asarray(k_idx, np.int64)), min(t_max, 0.0), blocks, stay)
 
 
 def _transpose(f_ptr: np.ndarray, f_idx: np.ndarray) -> tuple:
@@ -637,7 +636,7 @@ def _decode_local(
                 for q in range(f_ptr[g], f_ptr[g + 1]):
                     k = loc[f_idx[q]]
                     if k >= 0:
-                        a1[i, k] = log_a1[g, f_idx[q]]
+                        a1[i, k] = blocks[4][q]  # the move's value, stored beside it (first order)
             path, score = _viterbi1(log_pi, a1, log_b)
     emis_sum = 0.0
     for t in range(st, n_slots):
@@ -925,7 +924,6 @@ def coordinate_ascent(
     for u, p in enumerate(prefixes):
         n_pre[u] = len(p)
         pre[u, : len(p)] = p
-    s = on.shape[1]
     a1 = _f64(log_a1, 2)
     second = order == 2 and (log_a2 is not None or support is not None)
     if support is None:
@@ -934,7 +932,7 @@ def coordinate_ascent(
     t_on, j_on = np.nonzero(on)
     on_ptr = np.zeros(on.shape[0] + 1, dtype=np.int64)
     np.cumsum(np.bincount(t_on, minlength=on.shape[0]), out=on_ptr[1:])
-    f_ptr, f_idx, b_ptr, b_idx, t_max, blocks = support
+    f_ptr, f_idx, b_ptr, b_idx, t_max, blocks, log_stay = support
     best, score, stats = _coordinate_ascent(
         on,
         on_ptr,
@@ -946,8 +944,8 @@ def coordinate_ascent(
         np.asarray(orders, dtype=np.int64).reshape(-1, k),
         2 if second else 1,
         a1,
-        np.ascontiguousarray(np.diag(a1)) if s else np.zeros(0),
-        blocks if second else no_blocks(s),
+        log_stay,
+        blocks,
         (f_ptr, f_idx, b_ptr, b_idx, float(t_max)),
         table,
         int(sweeps),
