@@ -108,7 +108,13 @@ import numpy as np
 
 from onebit.core.lazy import lazy_module
 from onebit.models.graph_hmm.eatg import Eatg, onsets
-from onebit.models.graph_hmm.kernels import coordinate_ascent, emission_tables, support_from_blocks, transition_support
+from onebit.models.graph_hmm.kernels import (
+    coordinate_ascent,
+    emission_tables,
+    support_from_blocks,
+    transition_support,
+    with_bases,
+)
 from onebit.models.graph_hmm.viterbi import log_safe, viterbi_first_order, viterbi_motion_second_order
 
 nx = lazy_module("networkx")
@@ -220,8 +226,7 @@ def second_order_support(a1: np.ndarray, a2: np.ndarray, idx: np.ndarray) -> tup
         t = np.where((ctx == j2)[:, None], move[j2][None, :], directed)[:, ks]
         t = np.where((ks == j2)[None, :], stay[j2] * np.ones((len(ctx), 1)), t)
         vals[blk_ptr[j2] : blk_ptr[j2 + 1]] = log_safe(t).ravel()
-    blocks = (p_ptr, p_idx, blk_ptr, k_ptr, vals)
-    return support_from_blocks(blocks, k_idx, log_safe(stay))
+    return support_from_blocks(with_bases(p_ptr, p_idx, blk_ptr, k_ptr, vals, k_idx), k_idx, log_safe(stay))
 
 
 def window_transitions(

@@ -262,7 +262,8 @@ def _viterbi_motion2_local(log_pi, log_stay, blocks, gs, log_b, k_ptr, k_idx, k_
     runs on the nodes it can reach (:func:`_ascent_one_order`); the moves are read from
     ``blocks`` (:func:`motion_blocks`: per node, its contexts x its next nodes, the tensor of the
     whole state set stored sparse), move ``q`` of the local support being column ``k_col[q]`` of
-    its node's block. A finite pair ``(p, j)`` always has ``p`` among ``j``'s contexts (it was
+    its node's block (each pair's row offset kept from its creation: ``blocks[5]``, ``blocks[6]``). A
+    finite pair ``(p, j)`` always has ``p`` among ``j``'s contexts (it was
     reached by a move ``p -> j`` of the support, or is a start ``(j, j)``).
     :func:`_viterbi_motion2_sparse` is the identity map."""
     n_slots, n = log_b.shape
@@ -274,6 +275,7 @@ def _viterbi_motion2_local(log_pi, log_stay, blocks, gs, log_b, k_ptr, k_idx, k_
     best = np.full((n, n), NEG_INF)
     arg = np.zeros((n, n), dtype=np.int64)
     touched = np.zeros((n, n), dtype=np.bool_)
+    base_of = np.empty((n, n), dtype=np.int64)  # a finite pair's row in its node's block (offset in vals)
     ca = np.empty(max(n, 16), dtype=np.int64)  # the finite pairs of delta: (ca[i], cb[i])
     cb = np.empty(max(n, 16), dtype=np.int64)
     nc = 0
@@ -281,6 +283,7 @@ def _viterbi_motion2_local(log_pi, log_stay, blocks, gs, log_b, k_ptr, k_idx, k_
         v = log_pi[j] + log_b[0, j]
         if v > NEG_INF:
             delta[j, j] = v
+            base_of[j, j] = blocks[6][gs[j]]
             ca[nc] = j
             cb[nc] = j
             nc += 1
@@ -299,7 +302,7 @@ def _viterbi_motion2_local(log_pi, log_stay, blocks, gs, log_b, k_ptr, k_idx, k_
             p = ca[i]
             j = cb[i]
             dv = delta[p, j]
-            base = _block_row(blocks, gs[p], gs[j])
+            base = base_of[p, j]
             for q in range(k_ptr[j], k_ptr[j + 1]):
                 k = k_idx[q]
                 if k == j:
@@ -309,6 +312,7 @@ def _viterbi_motion2_local(log_pi, log_stay, blocks, gs, log_b, k_ptr, k_idx, k_
                     continue
                 if not touched[j, k]:
                     touched[j, k] = True
+                    base_of[j, k] = blocks[5][blocks[3][gs[j]] + k_col[q]]
                     ta = _grow(ta, nt + 1)
                     tb = _grow(tb, nt + 1)
                     ta[nt] = j
@@ -378,16 +382,23 @@ def _viterbi_motion2_local(log_pi, log_stay, blocks, gs, log_b, k_ptr, k_idx, k_
 
 
 @kernel
-def _block_row(blocks, p, j):
-    """The offset in ``blocks[4]`` of the row of context ``p`` in node ``j``'s block (``p`` is
-    always among ``j``'s contexts: see :func:`_viterbi_motion2_local`)."""
-    p_ptr, p_idx, blk_ptr, kn_ptr = blocks[0], blocks[1], blocks[2], blocks[3]
-    r = 0
-    for z in range(p_ptr[j], p_ptr[j + 1]):
-        if p_idx[z] == p:
-            r = z - p_ptr[j]
-            break
-    return blk_ptr[j] + r * (kn_ptr[j + 1] - kn_ptr[j])
+def _context_bases(p_ptr, p_idx, blk_ptr, k_ptr, k_idx):
+    """Where each move's pair starts in ``vals``: ``arr[q]`` for move ``q`` (``j -> k``) the
+    row of context ``j`` in ``k``'s block, ``own[j]`` the row of ``j`` (no direction yet) in its
+    own block -- looked up once per model, so the decoders never search a context list."""
+    n = p_ptr.shape[0] - 1
+    arr = np.zeros(k_idx.shape[0], dtype=np.int64)
+    own = np.zeros(n, dtype=np.int64)
+    for j in range(n):
+        for z in range(p_ptr[j], p_ptr[j + 1]):
+            if p_idx[z] == j:
+                own[j] = blk_ptr[j] + (z - p_ptr[j]) * (k_ptr[j + 1] - k_ptr[j])
+        for q in range(k_ptr[j], k_ptr[j + 1]):
+            k = k_idx[q]
+            for z in range(p_ptr[k], p_ptr[k + 1]):
+                if p_idx[z] == j:
+                    arr[q] = blk_ptr[k] + (z - p_ptr[k]) * (k_ptr[k + 1] - k_ptr[k])
+    return arr, own
 
 
 @kernel
@@ -427,20 +438,29 @@ def _blocks_from_dense(log_move, k_ptr, k_idx):
 
 def motion_blocks(log_move: np.ndarray, k_ptr: np.ndarray, k_idx: np.ndarray) -> tuple:
     """A second-order tensor ``log_move[p, j, k]`` stored sparse, as the decoders read it:
-    ``(p_ptr, p_idx, blk_ptr, k_ptr, vals)`` -- per node ``j`` its contexts ``p`` (``j`` itself and
+    ``(p_ptr, p_idx, blk_ptr, k_ptr, vals, arr, own)`` -- per node ``j`` its contexts ``p`` (``j`` itself and
     the nodes that move to ``j``: ``p_idx[p_ptr[j]:p_ptr[j+1]]``, ascending), its next nodes
     (``k_idx[k_ptr[j]:k_ptr[j+1]]``, :func:`move_support`) and the block ``contexts x next
-    nodes`` of values at ``vals[blk_ptr[j]:blk_ptr[j+1]]`` (row-major). ``O(N deg^2)``, where the
+    nodes`` of values at ``vals[blk_ptr[j]:blk_ptr[j+1]]`` (row-major), and where each pair's row
+    starts (:func:`_context_bases`). ``O(N deg^2)``, where the
     tensor is ``N^3``; :func:`onebit.models.graph_hmm.adaptive.second_order_support` builds it
     without the dense tensor."""
     p_ptr, p_idx, blk_ptr, vals = _blocks_from_dense(_f64(log_move, 3), k_ptr, k_idx)
-    return p_ptr, p_idx, blk_ptr, np.asarray(k_ptr, np.int64), vals
+    return with_bases(p_ptr, p_idx, blk_ptr, np.asarray(k_ptr, np.int64), vals, np.asarray(k_idx, np.int64))
+
+
+def with_bases(p_ptr, p_idx, blk_ptr, k_ptr, vals, k_idx) -> tuple:
+    """The :func:`motion_blocks` tuple ``(p_ptr, p_idx, blk_ptr, k_ptr, vals, arr, own)`` with
+    the offsets of :func:`_context_bases`."""
+    arr, own = _context_bases(p_ptr, p_idx, blk_ptr, k_ptr, k_idx)
+    return p_ptr, p_idx, blk_ptr, k_ptr, vals, arr, own
 
 
 @kernel
 def _viterbi_motion2_sparse(log_pi, log_stay, log_move, log_b, k_ptr, k_idx):
     """:func:`_viterbi_motion2_local` on every state of ``log_move`` (the identity map)."""
     p_ptr, p_idx, blk_ptr, vals = _blocks_from_dense(log_move, k_ptr, k_idx)
+    arr, own = _context_bases(p_ptr, p_idx, blk_ptr, k_ptr, k_idx)
     col = np.empty(k_idx.shape[0], dtype=np.int64)
     for j in range(k_ptr.shape[0] - 1):
         for q in range(k_ptr[j], k_ptr[j + 1]):
@@ -448,7 +468,7 @@ def _viterbi_motion2_sparse(log_pi, log_stay, log_move, log_b, k_ptr, k_idx):
     return _viterbi_motion2_local(
         log_pi,
         log_stay,
-        (p_ptr, p_idx, blk_ptr, k_ptr, vals),
+        (p_ptr, p_idx, blk_ptr, k_ptr, vals, arr, own),
         np.arange(log_b.shape[1], dtype=np.int64),
         log_b,
         k_ptr,
@@ -504,7 +524,15 @@ def transition_support(log_a1: np.ndarray, log_a2: np.ndarray | None) -> tuple:
     f_idx = cols.astype(np.int64)
     t_max = float(a1.max()) if a1.size else NEG_INF
     z = np.zeros(a1.shape[0] + 1, dtype=np.int64)
-    first = (z, np.zeros(0, np.int64), f_ptr, f_ptr, np.ascontiguousarray(a1[rows, cols]))  # one row per node
+    first = (  # one row per node: each move's value beside it
+        z,
+        np.zeros(0, np.int64),
+        f_ptr,
+        f_ptr,
+        np.ascontiguousarray(a1[rows, cols]),
+        np.zeros(f_idx.size, np.int64),
+        np.zeros(a1.shape[0], np.int64),
+    )
     return (*_transpose(f_ptr, f_idx), min(t_max, 0.0), first, np.ascontiguousarray(np.diag(a1)))
 
 

@@ -362,7 +362,7 @@ def test_sparse_second_order_support_equals_the_dense_tensor(seed):
         for a, b in zip(dense[5], sparse[5]):
             np.testing.assert_array_equal(a, b)  # values bit for bit (-inf included)
         np.testing.assert_array_equal(dense[6], sparse[6])  # the stays
-        p_ptr, p_idx, blk_ptr, k_ptr, vals = sparse[5]
+        p_ptr, p_idx, blk_ptr, k_ptr, vals, _, _ = sparse[5]
         k_idx = sparse[1]
         for j in range(len(states)):  # every stored value is the dense tensor's entry
             ks = k_idx[k_ptr[j] : k_ptr[j + 1]]
