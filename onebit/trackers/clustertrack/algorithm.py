@@ -24,10 +24,12 @@ whose running minimum is >= D_0 (the minimum only over heads founded before it, 
 sequential scan). The trajectory part of D is kept as a matrix of summed distances between
 surviving particles, updated per instant as ``PD_t = PD_{t-1}[parent, parent] + ||x_a - x_b||``,
 so D costs O(1) per pair. Cluster ranks come from one stable sort; the H cap and the K / L
-stops are cumulative sums. The compiled pass (:mod:`onebit.trackers.clustertrack.kernels`)
-computes the candidates' costs and the survivors' summed distances in one loop each, and
-sorts only the start of the scan order the scan reaches (a rerun, ``K = H q``, keeps its
-``K`` within the first few dozen of ``K m_t`` candidates).
+stops are cumulative sums. The compiled pass (:mod:`onebit.trackers.clustertrack.kernels`,
+from :data:`PASS_COMPILED_MIN`) takes the same random draws and makes two compiled calls per
+instant: the candidates' costs, then :func:`fused_scan` -- the scan, which sorts only the
+first ``K`` of the order and visits the rest only where a candidate is live, the survivors'
+summed distances and the cluster sizes (an instant costs in proportion to its ``m_t K``
+candidates: the feasible space the on sensors leave and the targets, not the site).
 
 Ties in cost (every cost is 0 for t <= 2) are broken in a random order, so the first
 instants keep a random subset rather than the first particles generated.

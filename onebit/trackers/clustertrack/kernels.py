@@ -1,15 +1,21 @@
-"""Compiled (numba) kernel of CLUSTERTRACK's scan (Algorithm 1, steps 3-18).
+"""Compiled (numba) kernels of CLUSTERTRACK's pass (Algorithm 1): the scan (steps 3-18), the
+candidates' costs, the survivors' summed distances and the mapping of the random draws onto F.
 
 The scan is inherently sequential: whether a candidate founds a cluster depends on the heads
 founded before it, and the scan stops once ``K`` particles are kept. The vectorised numpy
 scan (:func:`onebit.trackers.clustertrack.algorithm.scan_clusters_reference`) compares every
-head with *every* later candidate, even those after the ``K``-th kept one; this kernel walks
-the candidates in cost order and stops there, so a step costs ``O(scanned x heads)`` with no
-temporaries. It keeps the numpy scan as its plain reference and test oracle
-(``tests/trackers/clustertrack/test_kernels.py``: equal kept particles, labels, heads and
-scan counts on random inputs): the same distance
+head with *every* later candidate, even those after the ``K``-th kept one. :func:`scan_sorted`
+walks candidates already sorted and stops there (``scan_clusters``' compiled path);
+:func:`scan_step`, the pass's one call per instant, sorts only the start of the order and
+visits the rest only where a candidate is *live* (would found a head or join a cluster that
+is not full), so an instant costs ``O(L x heads)`` plus the live candidates, not a sort of
+``L``. Both keep the numpy scan as their plain reference and test oracle
+(``tests/trackers/clustertrack/test_kernels.py``: equal kept particles, labels, heads, scan
+counts and summed distances on random inputs): the same distance
 ``D = (pd[parent_a, parent_b] + ||x_a - x_b||) / t`` in the same order of operations, the
-nearest head with the lowest index on ties, a new head when that distance is ``>= D_0``.
+nearest head with the lowest index on ties, a new head when that distance is ``>= D_0``. The
+random draws themselves stay numpy's (:mod:`onebit.trackers.clustertrack.algorithm`), so a
+compiled pass gives the numpy pass's result.
 """
 
 from __future__ import annotations
