@@ -347,6 +347,9 @@ def run_filter(
     pxy, pfr, plab = [], [], []
 
     def resampled(ell, xs, hs):
+        if compiled:  # the same draw per track, the walk and the copies compiled
+            idx = kernels.systematic_resample(np.ascontiguousarray(ell), rng.random((len(ell), 1)))
+            return (*kernels.gather_particles(np.ascontiguousarray(xs), np.ascontiguousarray(hs), idx), idx)
         idx = systematic_resample(ell, rng)
         return np.take_along_axis(xs, idx[..., None], axis=1), np.take_along_axis(hs, idx[..., None, None], axis=1), idx
 

@@ -155,3 +155,47 @@ def resampled_mean(d, idx):
         for s in range(S):
             out[i, s] /= N
     return out
+
+
+@kernel
+def systematic_resample(logw, u0):
+    """Indices ``(I, N)`` of systematic resampling of every row of ``logw (I, N)`` with the
+    uniform draws ``u0 (I, 1)``: the compiled
+    :func:`onebit.trackers.binpf.filter.systematic_resample` (its reference; the same
+    operations but numba's ``exp``, so equal unless a draw falls within rounding of a
+    particle's cumulative weight)."""
+    I, N = logw.shape[0], logw.shape[1]
+    idx = np.empty((I, N), dtype=np.int64)
+    c = np.empty(N)
+    for i in range(I):
+        top = -np.inf
+        for n in range(N):
+            top = max(top, logw[i, n])
+        acc = 0.0
+        for n in range(N):
+            acc += math.exp(logw[i, n] - top)
+            c[n] = acc
+        for n in range(N):
+            c[n] /= acc
+        k = 0
+        for n in range(N):  # u increases with n: one merge walk (searchsorted side="right")
+            u = (u0[i, 0] + n) / N
+            while k < N and c[k] <= u:
+                k += 1
+            idx[i, n] = min(k, N - 1)
+    return idx
+
+
+@kernel
+def gather_particles(x, hist, idx):
+    """``x[i, idx[i, n]]`` and ``hist[i, idx[i, n]]`` for every track and particle (the
+    resampled copies; ``np.take_along_axis`` of both in one pass)."""
+    I, N = idx.shape[0], idx.shape[1]
+    xo = np.empty((I, N, x.shape[2]))
+    ho = np.empty((I, N, hist.shape[2], hist.shape[3]))
+    for i in range(I):
+        for n in range(N):
+            k = idx[i, n]
+            xo[i, n] = x[i, k]
+            ho[i, n] = hist[i, k]
+    return xo, ho

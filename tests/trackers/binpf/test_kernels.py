@@ -68,3 +68,20 @@ def test_compiled_run_gives_the_numpy_runs_tracks():
     np.testing.assert_allclose(a.x, b.x, atol=1e-9)
     np.testing.assert_allclose(a.y, b.y, atol=1e-9)
     np.testing.assert_allclose(a.r, b.r, atol=1e-9)
+
+
+@pytest.mark.parametrize("seed", range(10))
+def test_compiled_resampling_draws_the_numpy_indices_and_copies(seed):
+    from onebit.trackers.binpf.filter import systematic_resample
+
+    rng = np.random.default_rng(seed)
+    logw = rng.normal(0, 3, (int(rng.integers(1, 6)), int(rng.integers(1, 200))))
+    logw[0, : logw.shape[1] // 2] = -800.0  # weights that underflow to 0 next to the others
+    ref = systematic_resample(logw, np.random.default_rng(seed + 100))
+    idx = kernels.systematic_resample(logw, np.random.default_rng(seed + 100).random((logw.shape[0], 1)))
+    np.testing.assert_array_equal(idx, ref)
+    x = rng.random((*logw.shape, 4))
+    hist = rng.random((*logw.shape, 5, 2))
+    xo, ho = kernels.gather_particles(x, hist, idx)
+    np.testing.assert_array_equal(xo, np.take_along_axis(x, idx[..., None], axis=1))
+    np.testing.assert_array_equal(ho, np.take_along_axis(hist, idx[..., None, None], axis=1))
