@@ -71,7 +71,7 @@ class BinPFConfig:
     seed: int = 0  #: random seed
     log_particles: int = 50  #: particles per track and frame sent to Rerun
     #: the most frames the pipeline runs it on; a longer log skips the stage, saying so (each
-    #: frame costs 1.6-1.9 ms with the default particles on 2 cores: 40 000 frames take 1.1-1.3 minutes); 0 = no bound
+    #: frame costs 1.3-1.9 ms with the default particles on 2 cores: 40 000 frames take 0.9-1.3 minutes); 0 = no bound
     max_frames: int = 40_000
 
     def __post_init__(self) -> None:
@@ -141,7 +141,7 @@ def fits(inputs: dict, site: Site, config: BinPFConfig) -> str | None:
         NAME,
         "max_frames",
         config.max_frames,
-        "1.6-1.9 ms each with the default particles",
+        "1.3-1.9 ms each with the default particles",
     )
 
 

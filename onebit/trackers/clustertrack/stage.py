@@ -70,10 +70,10 @@ class ClusterTrackConfig:
     seed : random seed.
     max_instants : the most instants (frames) the pipeline runs it on; a longer log skips
         the stage, saying so: every instant is scanned once per run, and with the defaults
-        there are about (1 + reruns) x (1 + consensus_runs) runs -- 8-11 ms per instant on
+        there are about (1 + reruns) x (1 + consensus_runs) runs -- 7-11 ms per instant on
         the simulated 25-sensor line on 2 cores (each run's instant costs ~0.2 ms, in
         proportion to its m_t K candidates: the sensors on and the targets, not the site),
-        so 6000 instants take 0.8-1.1 minutes. 0 = no bound.
+        so 6000 instants take 0.7-1.1 minutes. 0 = no bound.
     """
 
     h: int = 25
@@ -174,7 +174,7 @@ def available(site: Site) -> str | None:
 def fits(inputs: dict, site: Site, config: ClusterTrackConfig) -> str | None:
     """Reason to skip on these inputs, or ``None``: more instants than ``config.max_instants``."""
     return instants_bound(
-        inputs.get("proximity_frames"), NAME, "max_instants", config.max_instants, "8-11 ms each with the defaults"
+        inputs.get("proximity_frames"), NAME, "max_instants", config.max_instants, "7-11 ms each with the defaults"
     )
 
 
