@@ -15,7 +15,7 @@ import polars as pl
 from onebit.core.lazy import lazy_module
 from onebit.core.site import Site
 from onebit.viz import colors, paths
-from onebit.viz._series import groups, is_empty, repeat_text, require, strips_array, text_array
+from onebit.viz._series import choice_text, groups, is_empty, repeat_text, require, strips_array, text_array
 from onebit.viz.frame import log_world_frame
 from onebit.viz.radii import ui_points
 
@@ -57,12 +57,11 @@ def log_crossings(
             direction = g["direction"].cast(pl.Float64).to_numpy()
             color = np.where(direction[:, None] > 0, colors.FORWARD, colors.BACKWARD).astype(np.uint8)
             t = paths.time_column(g["t"].to_numpy())
+            texts = choice_text([f"{beam} forward", f"{beam}^-1 backward"], direction <= 0)  # as crossing_texts
             rec.send_columns(
                 entity,
                 indexes=[t],
-                columns=rr.TextLog.columns(
-                    text=text_array(crossing_texts(g)), level=repeat_text("INFO", g.height), color=color
-                ),
+                columns=rr.TextLog.columns(text=texts, level=repeat_text("INFO", g.height), color=color),
             )
             if beam in known:
                 b = site.beam(beam)

@@ -12,7 +12,16 @@ from hypothesis import strategies as st
 from rerun.chunk import RrdReader
 
 from onebit.viz import paths
-from onebit.viz._series import gather_ranges, region_outlines, repeat_text, ring_table, rings, strips_array, text_array
+from onebit.viz._series import (
+    choice_text,
+    gather_ranges,
+    region_outlines,
+    repeat_text,
+    ring_table,
+    rings,
+    strips_array,
+    text_array,
+)
 from onebit.viz.events import log_crossings
 from onebit.viz.recording import stage_recording
 from onebit.viz.tracks import log_current_region, region_indices
@@ -35,6 +44,22 @@ def test_text_arrays_equal_rerun_string_conversion(values, word, n):
     assert text_array(pl.Series(values, dtype=pl.String)).equals(rr.components.TextBatch(values).as_arrow_array())
     assert text_array(values).equals(rr.components.TextBatch(values).as_arrow_array())
     assert repeat_text(word, n).equals(pa.array([word] * n, type=pa.utf8()))
+
+
+@settings(max_examples=60, deadline=None)
+@given(st.lists(st.text(max_size=6), min_size=1, max_size=4), st.data())
+def test_choice_text_equals_the_strings_it_picks(options, data):
+    index = data.draw(st.lists(st.integers(0, len(options) - 1), max_size=30))
+    got = choice_text(options, np.array(index, np.int64))
+    assert got.equals(text_array([options[i] for i in index]))
+
+
+def test_crossing_texts_by_choice_equal_the_polars_texts():
+    from onebit.viz.events import crossing_texts
+
+    g = pl.DataFrame({"beam": ["b2"] * 5, "direction": [1, -1, -1, 1, 1]})
+    want = text_array(crossing_texts(g))
+    assert choice_text(["b2 forward", "b2^-1 backward"], g["direction"].to_numpy() <= 0).equals(want)
 
 
 @given(st.lists(st.tuples(st.integers(0, 50), st.integers(0, 4)), max_size=10))
