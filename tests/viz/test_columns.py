@@ -121,3 +121,13 @@ def test_crossings_log_one_text_row_and_one_flash_per_crossing(tmp_path, lab):
     assert [r[0] for r in flashes] == [0.5, 1.5, 3.0]
     for _, strips in flashes:
         assert np.allclose(np.array(strips[0]), np.array([b.p0, b.p1], np.float32))
+
+
+@settings(max_examples=40, deadline=None)
+@given(st.lists(st.tuples(st.sampled_from(["a", "b2", "é"]), st.sampled_from([1, -1])), max_size=25))
+def test_corrected_crossing_labels_from_buffers_equal_the_polars_labels(rows):
+    from onebit.viz.beams_correct import _label_array, _labels
+
+    df = pl.DataFrame(rows, schema={"beam": pl.String, "direction": pl.Int8}, orient="row")
+    for suffix in ("", " inserted"):
+        assert _label_array(df, suffix).equals(text_array(_labels(df, suffix)))
