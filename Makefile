@@ -38,12 +38,13 @@ $(RAY_STAMP): $(STAMP)
 	$(BIN)/python -m pip install --quiet -e '.[test,ray]'
 	touch $(RAY_STAMP)
 
-# test: lint and format (ruff), the layers contract (import-linter, pyproject.toml) and the test suite.
+# test: lint and format (ruff), the layers contract (import-linter, pyproject.toml) and the test suite
+# on both cores (pytest-xdist; a test file stays on one worker, so module fixtures are built once).
 test: install $(RAY_STAMP)
 	$(BIN)/ruff check .
 	$(BIN)/ruff format --check .
 	$(BIN)/lint-imports --no-cache
-	RERUN_ANALYTICS=0 $(BIN)/python -m pytest
+	RERUN_ANALYTICS=0 $(BIN)/python -m pytest -n 2 --dist loadfile
 
 bench: install
 	$(BIN)/python -m pip install --quiet -e '.[test,bench,ray]'

@@ -340,8 +340,22 @@ ERRORS = pl.Schema(
         "run": pl.Int64,
         "run_length": pl.Int64,
         "kind": pl.String,
+        "met_t": pl.Float64,
+        "met_sensor": pl.String,
+        "parted_t": pl.Float64,
+        "parted_sensor": pl.String,
+        "resolved_by": pl.String,
     }
 )
+
+#: What information could have resolved an error of each kind (the error table's ``resolved_by``).
+RESOLVED_BY = {
+    "meeting": "who, not where: a per-person signal at the meeting (wearable tag, door code, height or gait)",
+    "swap": "the identities after the meeting: these residents' own labelled day, or an item sensor of a task "
+    "between parting and this event",
+    "apart": "nothing in the sensors: the labels give this sensor to the other resident here (a rare visit, "
+    "or the annotation's most likely resident)",
+}
 
 
 def error_table(
@@ -362,6 +376,12 @@ def error_table(
       since an earlier meeting or start; a later habit cue did not turn it back;
     * ``apart`` -- apart, a short run: the event looks like the other resident's (the
       annotations give the resident who *most likely* caused it; some are the other's).
+
+    Where the residents met and parted: ``met_t``/``met_sensor`` the latest labelled event at
+    or before the start of the error's run where they met (as for ``meeting``; null: they had
+    not met), ``parted_t``/``parted_sensor`` the first labelled event after it where they were
+    apart (null for a meeting error). ``resolved_by``: what information could have resolved an
+    error of its kind (:data:`RESOLVED_BY`).
     """
     m = matched(truth_events, tracker_events)
     mapping, _ = relabelling(m)
@@ -372,27 +392,62 @@ def error_table(
     sens = m["sensor"].to_list()
     res = [r.split(";") for r in m["residents"].to_list()]
     wrong = m["wrong"].to_list()
-    rows = []
+    n = len(t)
+    # the other resident's latest labelled event before each event, and whether they met there
+    other: list[tuple[str | None, int | None, float | None]] = []
+    met = []
+    latest: dict[frozenset, int] = {}  # the latest event of each set of residents
+    for i in range(n):
+        mine = frozenset(res[i])
+        j = max((k for key, k in latest.items() if not key & mine), default=-1)
+        latest[mine] = i
+        o, oh, age = None, None, None
+        if j >= 0:
+            o, age = sens[j], t[i] - t[j]
+            oh = 0 if sens[i] == sens[j] else hops.get((sens[i], sens[j]))
+        other.append((o, oh, age))
+        met.append(oh is not None and oh <= MEET_HOPS and age is not None and age <= MEET_S)
     runs: list[int] = []  # the length of each run of consecutive errors
     for i, bad in enumerate(wrong):
         if bad and (i == 0 or not wrong[i - 1]):
             runs.append(0)
         if bad:
             runs[-1] += 1
-    run = -1
+    upto = [-1] * n  # the latest meeting at or before each event
+    for i in range(n):
+        upto[i] = i if met[i] else (upto[i - 1] if i else -1)
+    apart_after = [None] * (n + 1)  # the first event apart after each event
+    for i in range(n - 1, -1, -1):
+        apart_after[i] = i + 1 if i + 1 < n and not met[i + 1] else apart_after[i + 1]
+    rows = []
+    run, start = -1, 0
     for i, bad in enumerate(wrong):
         if not bad:
             continue
         if i == 0 or not wrong[i - 1]:
-            run += 1
-        j = i - 1
-        while j >= 0 and set(res[j]) & set(res[i]):
-            j -= 1
-        other, oh, age = None, None, None
-        if j >= 0:
-            other, age = sens[j], t[i] - t[j]
-            oh = 0 if sens[i] == sens[j] else hops.get((sens[i], sens[j]))
-        meet = oh is not None and oh <= MEET_HOPS and age is not None and age <= MEET_S
-        kind = "meeting" if meet else ("swap" if runs[run] >= SWAP_RUN else "apart")
-        rows.append((t[i], sens[i], m["residents"][i], m["decoded"][i], other, oh, age, run, runs[run], kind))
+            run, start = run + 1, i
+        o, oh, age = other[i]
+        kind = "meeting" if met[i] else ("swap" if runs[run] >= SWAP_RUN else "apart")
+        # where they last met at or before the run's start, and the first event after it apart
+        k = i if met[i] else upto[start]
+        p = apart_after[k] if k >= 0 and not met[i] else None
+        rows.append(
+            (
+                t[i],
+                sens[i],
+                m["residents"][i],
+                m["decoded"][i],
+                o,
+                oh,
+                age,
+                run,
+                runs[run],
+                kind,
+                t[k] if k >= 0 else None,
+                sens[k] if k >= 0 else None,
+                t[p] if p is not None else None,
+                sens[p] if p is not None else None,
+                RESOLVED_BY[kind],
+            )
+        )
     return pl.DataFrame(rows, schema=ERRORS, orient="row")

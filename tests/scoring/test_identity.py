@@ -165,7 +165,7 @@ def test_the_supervised_habits_baseline():
 
 
 def test_error_table_by_hand():
-    from onebit.scoring.identity import error_table
+    from onebit.scoring.identity import RESOLVED_BY, error_table
 
     te = pl.DataFrame(
         {
@@ -185,6 +185,11 @@ def test_error_table_by_hand():
     assert err["other_hops"].to_list() == [1, 5]
     assert err["kind"].to_list() == ["meeting", "apart"]
     assert err["run"].to_list() == [0, 1] and err["run_length"].to_list() == [1, 1]
+    # where they met: at the meeting error itself; for t=200 the last meeting before it (t=2 at a,
+    # resident 2 at b 1 s before), and where they parted after it (t=100 at c: 2 hops or more)
+    assert err["met_t"].to_list() == [2.0, 2.0] and err["met_sensor"].to_list() == ["a", "a"]
+    assert err["parted_t"].to_list() == [None, 100.0] and err["parted_sensor"].to_list() == [None, "c"]
+    assert err["resolved_by"].to_list() == [RESOLVED_BY["meeting"], RESOLVED_BY["apart"]]
     perfect = te.select("t", "sensor").with_columns(track=te["residents"])
     assert error_table(te, perfect, hops).height == 0
 
