@@ -266,11 +266,12 @@ def toggle_edges(
 def _toggle_masks(ok: pl.DataFrame, sensors: Sequence[str], rules) -> tuple[np.ndarray, ...] | None:
     """Passes 2 and 3's masks (repeat, chatter, short) of typed edges in time order, by one numpy
     pass (:func:`~onebit.readers.kernels.toggle_masks_vectorised`: one sort by sensor for the
-    repeats and the debounce) when the edges are the typed read's (sensor codes of an enum),
-    number at least :data:`~onebit.readers.kernels.MIN_ROWS` and numba is not loaded in the
-    process; else ``None``: :func:`repeats` and :func:`debounce` (the kernels when numba is
-    loaded, the polars references below the size) make them, with the same result."""
-    if ok.height < kernels.MIN_ROWS or numba_loaded() or not isinstance(ok.schema["sensor"], pl.Enum):
+    repeats and the debounce) when the edges are the typed read's (sensor codes of an enum) and
+    numba is not loaded in the process (at any size: at 10^4 edges it takes a third of the
+    polars references' time); else ``None``: :func:`repeats` and :func:`debounce` (the kernels
+    when numba is loaded, from :data:`~onebit.readers.kernels.MIN_ROWS` edges, the polars
+    references below) make them, with the same result."""
+    if numba_loaded() or not isinstance(ok.schema["sensor"], pl.Enum):
         return None
     if not (in_time_order(ok["t"]) and in_time_order(ok["line"])):
         return None

@@ -177,8 +177,8 @@ def test_fused_toggle_masks_equal_repeats_then_debounce(seed):
 
 @pytest.mark.parametrize("seed", range(4))
 def test_motion_reader_fused_path_equals_the_reference(tmp_path, monkeypatch, seed):
-    """read_motion_csv through the fused numpy masks (from MIN_ROWS rows, numba not loaded)
-    gives the tables of the polars reference path (below MIN_ROWS): kept, suppressed, rejects
+    """read_motion_csv through the fused numpy masks (numba not loaded) gives the tables of the
+    polars reference path (without them, below MIN_ROWS): kept, suppressed, rejects
     and the held count, on a log with repeats, chatter, short pulses and a level sensor."""
     from onebit.core import compiled
     from onebit.readers import kernels as K
@@ -194,8 +194,9 @@ def test_motion_reader_fused_path_equals_the_reference(tmp_path, monkeypatch, se
     kw = dict(rules=rules, held={"lv"})
     monkeypatch.setattr(compiled, "numba_loaded", lambda: False)
     monkeypatch.setattr(M, "numba_loaded", lambda: False)
-    ref = M.read_motion_csv(p, ["p1", "p2", "p3", "lv"], **kw)  # n < MIN_ROWS: the polars references
-    monkeypatch.setattr(K, "MIN_ROWS", 10)
+    with monkeypatch.context() as mp:  # the path without the fused masks: n < MIN_ROWS, the polars references
+        mp.setattr(M, "_toggle_masks", lambda *a: None)
+        ref = M.read_motion_csv(p, ["p1", "p2", "p3", "lv"], **kw)
     calls = []
     real = K.toggle_masks_vectorised
     monkeypatch.setattr(K, "toggle_masks_vectorised", lambda *a: calls.append(1) or real(*a))
