@@ -6,6 +6,7 @@ from __future__ import annotations
 import numpy as np
 import polars as pl
 import pyarrow as pa
+import pytest
 import rerun as rr
 from hypothesis import given, settings
 from hypothesis import strategies as st
@@ -131,3 +132,29 @@ def test_corrected_crossing_labels_from_buffers_equal_the_polars_labels(rows):
     df = pl.DataFrame(rows, schema={"beam": pl.String, "direction": pl.Int8}, orient="row")
     for suffix in ("", " inserted"):
         assert _label_array(df, suffix).equals(text_array(_labels(df, suffix)))
+
+
+@settings(max_examples=60, deadline=None)
+@given(
+    st.lists(st.tuples(st.sampled_from(["b", "a", "c10", "c2", None]), st.integers(0, 20)), max_size=40),
+    st.sampled_from(["string", "categorical", "enum", "int"]),
+)
+def test_groups_by_filters_equal_groups_by_partition(rows, kind):
+    """groups() with a few keys (one filter each) gives the parts of one hash partition:
+    the same keys in the same order, each with its rows in order and sorted by t."""
+    import onebit.viz._series as S
+
+    df = pl.DataFrame(rows, schema={"k": pl.String, "t": pl.Float64}, orient="row").with_row_index("i")
+    if kind == "categorical":
+        df = df.with_columns(pl.col("k").cast(pl.Categorical))
+    elif kind == "enum":
+        df = df.with_columns(pl.col("k").cast(pl.Enum(["a", "b", "c10", "c2"])))
+    elif kind == "int":
+        df = df.with_columns(pl.col("k").str.len_bytes().cast(pl.Int64))
+    few = S.groups(df, "k")
+    with pytest.MonkeyPatch.context() as mp:
+        mp.setattr(S, "FEW_GROUPS", -1)
+        many = S.groups(df, "k")
+    assert [k for k, _ in few] == [k for k, _ in many]
+    for (_, a), (_, b) in zip(few, many):
+        assert a.equals(b)
