@@ -83,7 +83,10 @@ def log_assignments(
     if is_empty(assignment):
         return
     require(assignment, ("t", "beam", "direction", "track"), name="assignment")
-    a = assignment.with_row_index("crossing").sort("t", maintain_order=True)
+    a = assignment.with_row_index("crossing")
+    t = a["t"].to_numpy()
+    if t.size > 1 and not (t[1:] >= t[:-1]).all():  # the tracker's table is in time order: no sort then
+        a = a.sort("t", maintain_order=True)
     if "ambiguous" in a.columns:
         a = a.filter(~pl.col("ambiguous").fill_null(False))
     a = a.filter(pl.col("track").is_not_null())
