@@ -14,35 +14,46 @@ Two ways in:
   line is released when a virtual clock ``t0 + speed * (wall - wall0)`` passes its stamp; the
   horizon is that clock.
 
-Released lines are appended to a snapshot of the dataset (a temporary folder with the
-dataset's ``*.toml``), and every poll the pipeline's own reader stages (``crossings``,
-``motion``, ``proximity``, ``correct``: :mod:`onebit.pipeline.stages`) read it with the time
-origin fixed once (the whole log's in a replay; when live, the first poll's, with its window
-of accepted stamps left open ahead, so a lone stamp far in the future is rejected only by the
-final batch run) -- the same readers and the same rejects as ``onebit run``.
+Released lines are appended to a snapshot of the dataset (a temporary folder with the dataset's
+``*.toml``: what the final batch run of a live follow reads) and fed to the incremental readers
+(:mod:`onebit.readers.tail`, :class:`_Tails`) of ``motion.csv``, ``proximity.csv``,
+``beams.csv`` and ``crossings.csv``: each poll they read only the lines released since the last
+one, carry the batch reader's state (duplicates, order, sensor and pair states, the debounce's
+unsettled tail, open beam passes) and emit exactly the batch reader's rows and rejects on the
+whole file once final. The other reader stages (``correct``, MCAP channels) read the snapshot
+every poll (:func:`_read_prefix`). The time origin is fixed once (the whole log's in a replay;
+when live, the first poll's, with its window of accepted stamps left open ahead, so a lone stamp
+far in the future is rejected only by the final batch run).
+``FollowConfig(incremental=False)`` re-reads the snapshot whole and re-runs ``beams`` and
+``istate`` on the prefix at every poll (the earlier way; same tables).
 
 Trackers online (:data:`ONLINE`):
 
 * ``intruder`` -- per iteration, incrementally: :mod:`onebit.trackers.intruder.online` keeps the
   particle filter's posterior and steps it over each slot once it is final;
-* ``intruder-naive`` -- per iteration, ``beams`` -- per crossing: re-run on the settled prefix
-  of their input whenever a new settled event arrives; the rows up to that event not published
-  before are published (a re-run may add a row dated earlier: ``beams`` gives an agent created
-  at a later crossing its initial region at the first crossing's time; and it could change an
-  earlier assignment, which is never un-published: the final report says whether the published
-  rows equal the batch's).
+* ``beams`` -- per crossing, incrementally: :mod:`onebit.trackers.beams.online` feeds each final
+  crossing to Algorithm 1 as a resumable pass; when the false-negative correction runs
+  (``[correct]``) its input is the corrected string, chosen over the whole string, and it is
+  re-run on the settled prefix instead;
+* ``istate`` -- per stage, incrementally with ``latency_auto = false`` and without
+  ``reliable_negatives`` (:mod:`onebit.trackers.istate.online`); otherwise re-run on the
+  settled prefix;
+* ``intruder-naive`` -- per iteration, re-run on the settled prefix of its input whenever a new
+  settled event arrives; the rows up to that event not published before are published (a
+  re-run could change an earlier row, which is never un-published: the final report says
+  whether the published rows equal the batch's).
 
 * ``findinghumo``, ``hmm1``, ``hmm2`` with ``decoding = "lagged"`` (their ``run.toml`` section)
   -- per block of ``tau`` slots, incrementally: :mod:`onebit.trackers.findinghumo.lagged` keeps
   the window decoder and the committed output, slots only the recent edges, and commits a block
   once ``decision_lag`` slots after it have arrived (the paper's bounded delay D'); the rows
   equal the batch run's with the same config. By default (``decoding = "batch"``) they are
-  re-run on the settled prefix like ``istate``, and the published rows may differ from the
-  final decoding.
+  re-run on the settled prefix, and the published rows may differ from the final decoding.
 
 Every other tracker is batch-only and runs at the end. An event at ``e`` is *settled* once the
 horizon passes ``e + settle``, ``settle`` = the readers' look-ahead (1 s of reordering plus
-the longest debounce window of the site's sensors).
+the longest debounce window of the site's sensors), and once the incremental readers have
+emitted it (:attr:`_Tails.until`).
 
 Outputs, beside the run folder that the final batch run writes (``onebit run`` on the data
 followed, so ``OUT/report.*``, ``OUT/tables``, ``OUT/rrd`` are the batch run's):
@@ -91,12 +102,16 @@ from onebit.pipeline.runner import RunResult, check_dataset, check_out, check_se
 from onebit.pipeline.stages import LOOKS, TIME_SOURCES, TRACKERS, run_time_origin, stages, tracker_config
 from onebit.readers.mcap_io import load_topic_map, read_mcap
 from onebit.readers.motion import MotionConfig, site_rules
+from onebit.readers.proximity import ProximityConfig, proximity_frames
 from onebit.readers.rows import REORDER_TOLERANCE_S, RawRows
+from onebit.readers.tail import BeamTail, CrossingTail, ToggleTail
 from onebit.readers.timebase import MAX_GAP_S, TimeOrigin
 from onebit.trackers.base import ARTIFACTS, PROGRESS
+from onebit.trackers.beams import online as beams_online
 from onebit.trackers.findinghumo import lagged as hmm_online
 from onebit.trackers.findinghumo.stage import FindingHumoConfig
 from onebit.trackers.intruder import online as intruder_online
+from onebit.trackers.istate import online as istate_online
 from onebit.viz import live as viz_live
 from onebit.viz.families import Look
 
@@ -104,8 +119,8 @@ from onebit.viz.families import Look
 ONLINE: dict[str, str] = {
     "intruder": "per iteration (incremental particle filter)",
     "intruder-naive": "per iteration",
-    "beams": "per crossing (re-run on the settled prefix)",
-    "istate": "per stage (re-run on the settled prefix)",
+    "beams": "per crossing (incremental; re-run on the settled prefix when [correct] runs)",
+    "istate": "per stage (incremental with latency_auto = false; else re-run on the settled prefix)",
     "findinghumo": "per window (re-run on the settled prefix)",
     "hmm1": "per window (re-run on the settled prefix)",
     "hmm2": "per window (re-run on the settled prefix)",
@@ -140,18 +155,24 @@ class FollowConfig:
     idle : seconds without a new line that end a live run.
     settle : seconds an event must be in the past before it is final; ``None`` = the readers'
         look-ahead (1 s reordering + the longest debounce window).
+    incremental : read the CSV logs incrementally and run ``beams`` crossing by crossing;
+        ``False`` re-reads the whole snapshot and re-runs ``beams`` on the prefix at every poll
+        (the earlier way, same tables: for comparisons, ``benchmarks/bench_follow.py``).
     """
 
     replay: float | None = None
     poll: float = 0.25
     idle: float = 10.0
     settle: float | None = None
+    incremental: bool = True
 
     def __post_init__(self) -> None:
         if self.replay is not None and not (
             isinstance(self.replay, (int, float)) and math.isfinite(self.replay) and self.replay > 0
         ):
             raise ConfigError(f"FollowConfig.replay = {self.replay!r}; a speed factor > 0 (e.g. 20 for --replay 20x)")
+        if not isinstance(self.incremental, bool):
+            raise ConfigError(f"FollowConfig.incremental = {self.incremental!r}; must be true or false")
         for name, lo in (("poll", 1e-4), ("idle", 0.0)):
             v = getattr(self, name)
             if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v) or v < lo:
@@ -315,6 +336,139 @@ def _channels(mcaps: list[_McapSource]) -> dict[str, RawRows]:
     return out
 
 
+# --------------------------------------------------------------------------- incremental readers
+
+#: The CSV logs read incrementally (:mod:`onebit.readers.tail`), by the reader stage they replace.
+_TAILED = {"motion": "motion", "proximity": "proximity", "beams": "crossings", "crossings": "crossings"}
+#: Rechunk an accumulated table once it holds this many chunks (one per poll otherwise).
+_MAX_CHUNKS = 64
+
+
+class _Tails:
+    """The incremental readers of the followed CSV logs (``motion.csv``, ``proximity.csv``,
+    ``beams.csv``, ``crossings.csv`` when there is no raw beam log) and the tables they have
+    emitted so far: each poll feeds them only the lines released since the last one; their
+    rows are the batch reader stage's rows on the whole log, emitted once final
+    (:mod:`onebit.readers.tail`). A reader that fails (a bad header, a log that is not text)
+    leaves its stage's tables out, as a failed stage does; the final batch run reports the
+    error."""
+
+    def __init__(self) -> None:
+        self.readers: dict[str, ToggleTail | BeamTail | CrossingTail] = {}
+        self.fed: dict[str, int] = {}
+        self.failed: dict[str, str] = {}
+        self.tables: dict[str, pl.DataFrame] = {}
+        self.prox: tuple[list[str], ProximityConfig] | None = None
+
+    @property
+    def stages(self) -> set[str]:
+        """The reader stages these readers stand in for."""
+        return {_TAILED[k] for k in (*self.readers, *self.failed)}
+
+    def start(self, src: _Source, ctx: RunContext, stage_list, origin: TimeOrigin) -> None:
+        """Open the reader of ``src`` if its stage reads that CSV (and has not been opened)."""
+        stem = src.stem
+        if stem not in _TAILED or stem in self.readers or stem in self.failed or src.header is None:
+            return
+        stage = next((st for st in stage_list if st.name == _TAILED[stem]), None)
+        if stage is None or stage.available(ctx) is not None:
+            return
+        if stem == "crossings" and ctx.has_source("beams"):  # the stage decodes the raw beams instead
+            return
+        site = ctx.site
+        try:
+            if stem == "motion":
+                cfg = config_from_mapping(MotionConfig, ctx.section("motion"), section="motion")
+                ids = [m.id for m in site.motion_sensors]
+                reader = ToggleTail(
+                    src.path.name,
+                    ids,
+                    origin=origin,
+                    rules=site_rules(site, cfg),
+                    held=site.level_sensors,
+                    path=src.path,
+                )
+            elif stem == "proximity":
+                cfg = config_from_mapping(ProximityConfig, ctx.section("proximity"), section="proximity")
+                ids = [p.id for p in site.proximity_sensors]
+                self.prox = (ids, cfg)
+                reader = ToggleTail(
+                    src.path.name, ids, origin=origin, rules=cfg.rules, held=site.level_sensors, path=src.path
+                )
+            elif stem == "beams":
+                reader = BeamTail(src.path.name, site.beam_ids, origin=origin, path=src.path)
+            else:
+                reader = CrossingTail(src.path.name, site.beam_ids, origin=origin, path=src.path)
+            self.readers[stem] = reader
+            self.fed[stem] = 0
+            self._add(stem, reader.feed(src.header))
+        except OnebitError as exc:
+            self._fail(stem, exc)
+
+    def poll(self, sources: dict[str, _Source], final: bool) -> None:
+        """Feed every reader the lines released since the last poll (and end them when ``final``)."""
+        for stem, reader in list(self.readers.items()):
+            src = sources[stem]
+            try:
+                lines = src.lines[self.fed[stem] : src.released]
+                self.fed[stem] = src.released
+                if lines:
+                    self._add(stem, reader.feed(b"".join(lines)))
+                if final:
+                    self._add(stem, reader.finish())
+            except OnebitError as exc:
+                self._fail(stem, exc)
+
+    @property
+    def until(self) -> float:
+        """Every row the batch readers give with ``t`` below this is in :attr:`tables`."""
+        return min((r.settled_until for r in self.readers.values()), default=math.inf)
+
+    def preset(self) -> dict[str, pl.DataFrame]:
+        """The tables so far (with ``proximity_frames`` made from the proximity edges, as the stage makes them)."""
+        out = dict(self.tables)
+        if "proximity" in out and self.prox is not None:
+            ids, cfg = self.prox
+            out["proximity_frames"] = proximity_frames(
+                out["proximity"],
+                ids,
+                period=cfg.period,
+                start=None if cfg.start < 0 else cfg.start,
+                instants=cfg.instants or None,
+            )
+        return out
+
+    def _fail(self, stem: str, exc: OnebitError) -> None:
+        self.readers.pop(stem, None)
+        self.failed[stem] = str(exc)
+        for name in (
+            ("motion", "motion_suppressed")
+            if stem == "motion"
+            else (
+                ("proximity", "proximity_suppressed")
+                if stem == "proximity"
+                else ("crossings", "aborted", "beam_events")
+            )
+        ):
+            self.tables.pop(name, None)
+
+    def _add(self, stem: str, chunk) -> None:
+        if stem == "beams":
+            parts = {"crossings": chunk.crossings, "aborted": chunk.aborted, "beam_events": chunk.events}
+        elif stem == "crossings":
+            parts = {"crossings": chunk.crossings}
+        else:
+            parts = {stem: chunk.motion, f"{stem}_suppressed": chunk.suppressed}
+        parts["rejects"] = chunk.rejects
+        for name, df in parts.items():
+            old = self.tables.get(name)
+            if old is None:
+                self.tables[name] = df
+            elif df.height:  # a new frame sharing the old chunks (a tracker may hold the old one)
+                new = pl.concat([old, df], rechunk=False)
+                self.tables[name] = new.rechunk() if new.n_chunks() > _MAX_CHUNKS else new
+
+
 # --------------------------------------------------------------------------- the loop
 
 
@@ -385,17 +539,20 @@ def _read_prefix(
     origin: TimeOrigin | None,
     stage_list,
     mcap_channels: dict[str, RawRows],
+    tails: _Tails | None = None,
 ) -> RunContext:
     """The reader stages on the snapshot (and the MCAP rows released): a context whose
-    ``tables`` hold what they made."""
-    ctx = RunContext(
-        snapshot, scratch, site, rg, {k: dict(v) for k, v in sections.items() if isinstance(v, dict)}, trackers=trackers
-    )
-    ctx.mcap_channels = dict(mcap_channels)
+    ``tables`` hold what they made. The stages that ``tails`` stands in for are not run: their
+    tables are the incremental readers' (read from the bytes appended since the last poll)."""
+    ctx = _context(snapshot, scratch, site, rg, sections, trackers, mcap_channels)
     if origin is not None:
         ctx.time_origin = origin
+    skip = set()
+    if tails is not None:
+        ctx.tables.update(tails.preset())
+        skip = tails.stages
     for st in stage_list:
-        if st.name not in _READER_STAGES:
+        if st.name not in _READER_STAGES or st.name in skip:
             continue
         if any(n not in ctx.tables for n in st.needs) or st.available(ctx) is not None:
             continue
@@ -405,6 +562,14 @@ def _read_prefix(
             ctx.status[st.name] = f"failed: {exc}"
             continue
         ctx.tables.update({k: v for k, v in made.items() if k != ARTIFACTS})
+    return ctx
+
+
+def _context(data: Path, scratch: Path, site, rg, sections: dict, trackers, mcap_channels) -> RunContext:
+    ctx = RunContext(
+        data, scratch, site, rg, {k: dict(v) for k, v in sections.items() if isinstance(v, dict)}, trackers=trackers
+    )
+    ctx.mcap_channels = dict(mcap_channels)
     return ctx
 
 
@@ -537,6 +702,9 @@ def follow(
         if batch_only:
             echo(f"  batch-only (run at the end): {', '.join(batch_only)}")
         intruder_state = None
+        tails = _Tails()
+        beams_state: beams_online.OnlineBeams | None = None
+        istate_state: istate_online.OnlineIState | bool | None = None  # False: not online with its config
         hmm_states: dict[str, hmm_online.OnlineHmm] = {}
         lagged = [
             n for n in online if n in _LAGGED_MODES and _lagged(entries[n], data, scratch, site, rg, merged, chosen)
@@ -624,12 +792,18 @@ def follow(
                 final = now - last_growth >= options.idle
             polls += 1
             if new or final:
-                ctx = _read_prefix(data, scratch, site, rg, merged, chosen, origin, stage_list, _channels(mcaps))
+                if origin is not None and options.incremental:  # only the lines released since the last poll
+                    here = _context(data, scratch, site, rg, merged, chosen, _channels(mcaps))
+                    for src in sources.values():
+                        tails.start(src, here, stage_list, origin)
+                    tails.poll(sources, final)
+                ctx = _read_prefix(data, scratch, site, rg, merged, chosen, origin, stage_list, _channels(mcaps), tails)
                 tables = ctx.tables
+                # final: an event at most this late (the readers' look-ahead, and what they emitted)
+                read_until = tails.until
+                until_t = math.inf if final else min(horizon - settle, math.nextafter(read_until, -math.inf))
                 if "motion" in tables:
-                    settled = (
-                        tables["motion"].filter(pl.col("t") <= horizon - settle) if not final else tables["motion"]
-                    )
+                    settled = tables["motion"].filter(pl.col("t") <= until_t) if not final else tables["motion"]
                     if settled.height > logged_edges:
                         viz_live.log_states(rec, settled.slice(logged_edges))
                         logged_edges = settled.height
@@ -641,13 +815,48 @@ def follow(
                         if intruder_state is None:
                             intruder_state = intruder_online.start(site, tracker_config(entry, ctx))
                         rows = intruder_online.advance(
-                            intruder_state, tables["motion"], horizon=horizon, settle=settle, final=final
+                            intruder_state,
+                            tables["motion"],
+                            horizon=min(horizon, until_t + settle),
+                            settle=settle,
+                            final=final,
                         )
                         pub.estimates(name, rows["tracks"])
                         pub.table(f"{name}_iterations", rows["iterations"])
                         if "camera" in rows:
                             pub.table(f"{name}_camera", rows["camera"])
                         continue
+                    if (
+                        name == "beams"
+                        and options.incremental
+                        and "corrected_crossings" not in tables
+                        and "crossings" in tables
+                    ):
+                        # Algorithm 1 crossing by crossing (its input is the reader's, not the correction's)
+                        if beams_state is None:
+                            beams_state = beams_online.start(site, tracker_config(entry, ctx), rg)
+                        cr = tables["crossings"]
+                        rows = beams_online.advance(
+                            beams_state, cr if final else cr.filter(pl.col("t") <= until_t), final=final
+                        )
+                        pub.estimates(name, rows)
+                        continue
+                    if name == "istate" and options.incremental and istate_state is not False:
+                        # O'Kane's filter stage by stage (when its config lets the batch run be sequential)
+                        if istate_state is None:
+                            cfg = tracker_config(entry, ctx)
+                            istate_state = (
+                                istate_online.start(site, cfg) if istate_online.supported(cfg) is None else False
+                            )
+                        if istate_state is not False:
+                            rows = istate_online.advance(
+                                istate_state,
+                                {k: tables[k] for k in ("motion", "proximity", "crossings") if k in tables},
+                                until=until_t,
+                                final=final,
+                            )
+                            pub.estimates(name, rows)
+                            continue
                     if name in lagged:
                         if "motion" not in tables:
                             continue
@@ -663,14 +872,14 @@ def follow(
                                 cpda_windows=cfg.c_windows if isinstance(cfg, FindingHumoConfig) else None,
                             )
                         rows = hmm_online.advance(
-                            hmm_states[name], tables["motion"], settled_until=horizon - settle, final=final
+                            hmm_states[name], tables["motion"], settled_until=until_t, final=final
                         )
                         pub.estimates(name, rows)
                         continue
                     events = next((tables[k] for k in _PREFIX_EVENTS[name] if k in tables), None)
                     if events is None or events.height == 0:
                         continue
-                    until = None if final else horizon - settle
+                    until = None if final else until_t
                     ev = events if until is None else events.filter(pl.col("t") <= until)
                     if ev.height == 0:
                         continue

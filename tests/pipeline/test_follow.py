@@ -117,38 +117,100 @@ def test_replay_equals_batch_and_reports_delay(pir, tmp_path):
     assert a.equals(b)
 
 
-def test_beams_replay_equals_batch(tmp_path):
+@pytest.mark.parametrize("correct", [True, False])
+def test_beams_replay_equals_batch(tmp_path, monkeypatch, correct):
+    """Without the correction the tracker runs crossing by crossing (never re-run on a
+    prefix); with it (the correction's programme is over the whole string) it is re-run on the
+    settled prefix. Both end with the batch run's tracks."""
+    import onebit.pipeline.follow as follow_module
+
     data = get_scenario("beams-lab").write(
         tmp_path / "d", seed=3, duration=60.0, agents=2, drop=0.0, camera=False, params={}
+    )
+    reruns = []
+    inputs = follow_module._inputs
+    monkeypatch.setattr(
+        follow_module, "_inputs", lambda entry, *a, **k: reruns.append(entry.name) or inputs(entry, *a, **k)
     )
     clock = SimClock()
     res = follow(
         data,
         tmp_path / "out",
         trackers=("beams",),
+        config=None if correct else {"correct": {"enabled": False}},
         options=FollowConfig(replay=10.0, poll=0.25),
         clock=clock.clock,
         sleep=clock.sleep,
     )
+    assert (metric(res.run.report, "correct/n") is not None) == correct  # the correction ran (or not)
     live = read_live_table(res.live, "beams_tracks")
     ref = pl.read_parquet(tmp_path / "out" / "tables" / "beams_tracks.parquet")
     assert ref.height > 5 and _equal(live, ref)
     assert metric(res.report, "beams/online_equals_batch") == 1.0
     assert len(list((res.live / "tables" / "beams_tracks").glob("part-*.parquet"))) >= 3
+    assert (len(reruns) > 3) if correct else (reruns == [])
 
 
-def test_istate_replay_equals_batch_with_a_fixed_latency(tmp_path):
+def test_a_crossing_log_is_read_incrementally(tmp_path, monkeypatch):
+    """A dataset with ``crossings.csv`` (decoded crossings, no raw beams): every poll reads only
+    its new lines (the whole file is read once, by the final batch run) and ``beams`` runs
+    crossing by crossing, equal to the batch run."""
+    import onebit.pipeline.follow as follow_module
+    import onebit.pipeline.stages as stages_module
+    from onebit.core.site import load_site
+    from onebit.readers.beams import decode_beam_log
+
+    src = get_scenario("beams-lab").write(
+        tmp_path / "d", seed=3, duration=30.0, agents=2, drop=0.0, camera=False, params={}
+    )
+    data = tmp_path / "crossings-only"
+    data.mkdir()
+    (data / "site.toml").write_bytes((src / "site.toml").read_bytes())
+    decode_beam_log(src / "beams.csv", load_site(src / "site.toml").beam_ids).crossings.write_csv(
+        data / "crossings.csv"
+    )
+    whole, reruns = [], []
+    reader, inputs = stages_module.read_crossings_csv, follow_module._inputs
+    monkeypatch.setattr(stages_module, "read_crossings_csv", lambda *a, **k: whole.append(a[0]) or reader(*a, **k))
+    monkeypatch.setattr(
+        follow_module, "_inputs", lambda entry, *a, **k: reruns.append(entry.name) or inputs(entry, *a, **k)
+    )
+    clock = SimClock()
+    res = follow(
+        data,
+        tmp_path / "out",
+        trackers=("beams",),
+        config={"correct": {"enabled": False}},
+        options=FollowConfig(replay=20.0, poll=0.25),
+        clock=clock.clock,
+        sleep=clock.sleep,
+    )
+    ref = pl.read_parquet(tmp_path / "out" / "tables" / "beams_tracks.parquet")
+    assert ref.height > 5 and _equal(read_live_table(res.live, "beams_tracks"), ref)
+    assert metric(res.report, "beams/online_equals_batch") == 1.0
+    assert len(whole) == 1 and reruns == []
+
+
+def test_istate_replay_equals_batch_with_a_fixed_latency(tmp_path, monkeypatch):
     """O'Kane's filter is online by design; its default raises latency_s to the whole log's time
-    resolution, which a prefix cannot know: with latency_auto = false the rows are equal."""
+    resolution, which a prefix cannot know: with latency_auto = false it runs stage by stage
+    (never re-run on a prefix) and the rows are equal."""
+    import onebit.pipeline.follow as follow_module
+
     data = get_scenario("istate-room").write(
         tmp_path / "d", seed=2, duration=30.0, agents=None, drop=0.0, camera=False, params={}
+    )
+    reruns = []
+    inputs = follow_module._inputs
+    monkeypatch.setattr(
+        follow_module, "_inputs", lambda entry, *a, **k: reruns.append(entry.name) or inputs(entry, *a, **k)
     )
     clock = SimClock()
     res = follow(
         data,
         tmp_path / "out",
         trackers=("istate",),
-        config={"istate": {"latency_auto": False}},
+        config={"istate": {"latency_auto": False, "absent_after": 2.0}},  # rows in silent gaps dropped
         options=FollowConfig(replay=10.0, poll=0.5),
         clock=clock.clock,
         sleep=clock.sleep,
@@ -156,10 +218,21 @@ def test_istate_replay_equals_batch_with_a_fixed_latency(tmp_path):
     ref = pl.read_parquet(tmp_path / "out" / "tables" / "istate_tracks.parquet")
     assert ref.height > 10 and _equal(read_live_table(res.live, "istate_tracks"), ref)
     assert metric(res.report, "istate/online_equals_batch") == 1.0
+    assert reruns == []
+    assert len(list((res.live / "tables" / "istate_tracks").glob("part-*.parquet"))) >= 5
+    summary = pl.read_parquet(tmp_path / "out" / "tables" / "istate_summary.parquet")
+    assert ref["t"].n_unique() < summary.height  # some stages fell in a silent stretch, online too
 
 
-def test_growing_log_waits_for_a_cut_line_and_ends_when_idle(pir, tmp_path):
+def test_growing_log_waits_for_a_cut_line_and_ends_when_idle(pir, tmp_path, monkeypatch):
     _, src = pir
+    import onebit.pipeline.stages as stages_module
+
+    whole_reads = []  # the batch reader of the whole file: only the final batch run calls it
+    batch_reader = stages_module.read_motion_csv
+    monkeypatch.setattr(
+        stages_module, "read_motion_csv", lambda *a, **k: whole_reads.append(a[0]) or batch_reader(*a, **k)
+    )
     d = tmp_path / "live"
     d.mkdir()
     (d / "site.toml").write_bytes((src / "site.toml").read_bytes())
@@ -200,6 +273,8 @@ def test_growing_log_waits_for_a_cut_line_and_ends_when_idle(pir, tmp_path):
         sleep=clock.sleep,
     )
     assert clock.sleeps >= len(pieces)  # it ran until the log stopped growing, then idle
+    # every poll read only the bytes appended since the last one (onebit/readers/tail.py)
+    assert len(whole_reads) == 1
     assert metric(res.run.report, "rejects/rows") == 0.0  # no cut line was ever read as a row
     assert metric(res.run.report, "motion/suppressed") > 0
     whole = tmp_path / "whole"  # the same log, complete, in one batch run

@@ -294,128 +294,171 @@ def assign_constrained_reference(source, target, n_regions: int, policy: str, c:
     """Algorithm 1 with the variations of :class:`Constraints` (see the module docstring) as
     a plain Python pass: the reference of the compiled kernel and its test oracle.
 
-    Inherently sequential, one pass; Line 5 scans ``Q_source`` when B, D or E is active.
+    Inherently sequential, one pass (:class:`AssignmentState` over the whole string); Line 5
+    scans ``Q_source`` when B, D or E is active.
     """
-    src = np.asarray(source, dtype=np.int64).tolist()
-    tgt = np.asarray(target, dtype=np.int64).tolist()
-    m = len(src)
-    p = n_regions
-    names = list(c.region_names) if c.region_names is not None else [f"r{i}" for i in range(p)]
-    cap = np.asarray(c.capacity, np.int64).tolist() if c.capacity is not None else [-1] * p
-    tau = np.asarray(c.min_traversal, np.float64).tolist() if c.min_traversal is not None else [0.0] * p
-    use_time = any(x > 0 for x in tau)
-    if use_time:
-        if times is None or len(times) != m:
-            raise ValueError("min_traversal (variation E) needs one time stamp per crossing")
-        tt = np.asarray(times, np.float64).tolist()
-    else:
-        tt = [0.0] * m
-    L = int(c.max_track_length)
-    team_cap = np.asarray(c.team_capacity, np.int64).tolist() if c.team_capacity is not None else None
-    rank = np.asarray(c.team_rank, np.int64).tolist() if c.team_rank is not None else None
-    n_teams = len(team_cap[0]) if team_cap else (len(rank) if rank else 0)
-    scan = L > 0 or c.prefer_short or use_time or team_cap is not None or rank is not None
-    lifo = policy == "lifo"
+    state = AssignmentState(n_regions, policy, c)
+    state.feed(source, target, times)
+    return state.assignment()
 
-    queues: list[list[int]] = [[] for _ in range(p)]
-    team_count = [[0] * n_teams for _ in range(p)]
-    initial: list[int] = []
-    visits: list[int] = []
-    entered: list[float] = []
-    team: list[int] = []
-    if c.initial_region is not None:
-        init = np.asarray(c.initial_region, np.int64).tolist()
-        tm = np.asarray(c.team, np.int64).tolist() if c.team is not None else [-1] * len(init)
-        if len(tm) != len(init):
-            raise ValueError(f"team has {len(tm)} entries but initial_region has {len(init)}")
-        for a, (r, k) in enumerate(zip(init, tm)):
-            queues[r].append(a)
-            initial.append(r)
-            visits.append(1)
-            entered.append(float("-inf"))
-            team.append(k)
-            if k >= 0 and n_teams:
-                team_count[r][k] += 1
-        allow_new = False
-    else:
-        allow_new = True
-    max_agents = len(initial) if c.initial_region is not None else int(c.max_agents)
-    peak = [len(q) for q in queues]
 
-    out = [-1] * m
-    unexplained: list[int] = []
-    reasons: list[str] = []
-    for j in range(m):
-        s, t = src[j], tgt[j]
-        q = queues[s]
-        if cap[t] >= 0 and len(queues[t]) >= cap[t]:
-            unexplained.append(j)
-            reasons.append(f"capacity of {names[t]} ({cap[t]}) reached")
-            continue
-        pos = -1
-        if q and not scan:
-            pos = len(q) - 1 if lifo else 0
-        elif q:
-            best = None
-            why: dict[str, int] = {}
-            order = range(len(q) - 1, -1, -1) if lifo else range(len(q))
-            for i in order:
-                a = q[i]
-                if L and visits[a] >= L:
-                    why["track length"] = why.get("track length", 0) + 1
-                    continue
-                if use_time and tt[j] - entered[a] < tau[s]:
-                    why["in region < traversal time"] = why.get("in region < traversal time", 0) + 1
-                    continue
-                k = team[a]
-                if team_cap is not None and k >= 0 and 0 <= team_cap[t][k] <= team_count[t][k]:
-                    why["team bound of target"] = why.get("team bound of target", 0) + 1
-                    continue
-                key = (rank[k] if (rank is not None and k >= 0) else n_teams, visits[a] if c.prefer_short else 0)
-                if best is None or key < best:
-                    best, pos = key, i
-        if pos >= 0:
-            agent = q.pop(pos)
+class AssignmentState:
+    """Algorithm 1 (with the variations of :class:`Constraints`) as a resumable pass: the
+    queues ``Q_r`` and every agent's counters are kept between calls of :meth:`feed`, so a
+    string fed in pieces gets, crossing by crossing, the agents one pass over the whole string
+    gives (the crossing-by-crossing algorithm of the paper; ``onebit follow`` feeds each
+    crossing once it is final). ``c = None``: the base algorithm."""
+
+    def __init__(self, n_regions: int, policy: str, c: Constraints | None = None):
+        if policy not in POLICIES:
+            raise ValueError(f"policy must be one of {POLICIES}, got {policy!r}")
+        c = c if c is not None else Constraints()
+        p = self.p = int(n_regions)
+        self.names = list(c.region_names) if c.region_names is not None else [f"r{i}" for i in range(p)]
+        self.cap = np.asarray(c.capacity, np.int64).tolist() if c.capacity is not None else [-1] * p
+        self.tau = np.asarray(c.min_traversal, np.float64).tolist() if c.min_traversal is not None else [0.0] * p
+        self.use_time = any(x > 0 for x in self.tau)
+        self.L = int(c.max_track_length)
+        self.prefer_short = c.prefer_short
+        self.team_cap = np.asarray(c.team_capacity, np.int64).tolist() if c.team_capacity is not None else None
+        self.rank = np.asarray(c.team_rank, np.int64).tolist() if c.team_rank is not None else None
+        tc, rk = self.team_cap, self.rank
+        self.n_teams = len(tc[0]) if tc else (len(rk) if rk else 0)
+        self.scan = self.L > 0 or c.prefer_short or self.use_time or tc is not None or rk is not None
+        self.lifo = policy == "lifo"
+        self.queues: list[list[int]] = [[] for _ in range(p)]
+        self.team_count = [[0] * self.n_teams for _ in range(p)]
+        self.initial: list[int] = []
+        self.visits: list[int] = []
+        self.entered: list[float] = []
+        self.team: list[int] = []
+        if c.initial_region is not None:
+            init = np.asarray(c.initial_region, np.int64).tolist()
+            tm = np.asarray(c.team, np.int64).tolist() if c.team is not None else [-1] * len(init)
+            if len(tm) != len(init):
+                raise ValueError(f"team has {len(tm)} entries but initial_region has {len(init)}")
+            for a, (r, k) in enumerate(zip(init, tm)):
+                self.queues[r].append(a)
+                self.initial.append(r)
+                self.visits.append(1)
+                self.entered.append(float("-inf"))
+                self.team.append(k)
+                if k >= 0 and self.n_teams:
+                    self.team_count[r][k] += 1
+            self.allow_new = False
         else:
-            can_create = allow_new and (max_agents == 0 or len(initial) < max_agents) and L != 1
-            room = cap[s] < 0 or peak[s] + 1 <= cap[s]
-            if can_create and room:
-                agent = len(initial)
-                initial.append(s)
-                visits.append(1)
-                entered.append(float("-inf"))
-                team.append(-1)
-                peak[s] += 1
-            else:
-                unexplained.append(j)
-                if q:
-                    detail = ", ".join(f"{v} {k}" for k, v in why.items())
-                    reasons.append(f"no eligible agent among the {len(q)} in {names[s]} ({detail})")
-                elif L == 1:
-                    reasons.append(f"no agent in {names[s]}; a new one would exceed max_track_length 1")
-                elif not can_create:
-                    reasons.append(f"no agent in {names[s]} and all {max_agents} agents are known")
-                else:
-                    reasons.append(f"no agent in {names[s]} and no room for a new one (capacity {cap[s]})")
+            self.allow_new = True
+        self.max_agents = len(self.initial) if c.initial_region is not None else int(c.max_agents)
+        self.peak = [len(q) for q in self.queues]
+        self.agents: list[int] = []  # A[j] of every crossing fed
+        self.unexplained: list[int] = []
+        self.reasons: list[str] = []
+
+    def feed(self, source, target, times=None) -> np.ndarray:
+        """Assign the next crossings ``source[j] -> target[j]`` (``times`` for variation E);
+        returns their agents (-1 = unexplainable)."""
+        src = np.asarray(source, dtype=np.int64).tolist()
+        tgt = np.asarray(target, dtype=np.int64).tolist()
+        m = len(src)
+        if self.use_time:
+            if times is None or len(times) != m:
+                raise ValueError("min_traversal (variation E) needs one time stamp per crossing")
+            tt = np.asarray(times, np.float64).tolist()
+        else:
+            tt = [0.0] * m
+        queues, team_count, visits, entered, team, peak = (
+            self.queues,
+            self.team_count,
+            self.visits,
+            self.entered,
+            self.team,
+            self.peak,
+        )
+        cap, tau, L, names, n_teams = self.cap, self.tau, self.L, self.names, self.n_teams
+        team_cap, rank = self.team_cap, self.rank
+        out = [-1] * m
+        base = len(self.agents)
+        for j in range(m):
+            s, t = src[j], tgt[j]
+            q = queues[s]
+            if cap[t] >= 0 and len(queues[t]) >= cap[t]:
+                self.unexplained.append(base + j)
+                self.reasons.append(f"capacity of {names[t]} ({cap[t]}) reached")
                 continue
-        k = team[agent]
-        if k >= 0 and n_teams:
-            team_count[s][k] -= 1
-            team_count[t][k] += 1
-        out[j] = agent
-        visits[agent] += 1
-        entered[agent] = tt[j]
-        queues[t].append(agent)
-        if len(queues[t]) > peak[t]:
-            peak[t] = len(queues[t])
-    return Assignment(
-        np.asarray(out, dtype=np.int64),
-        len(initial),
-        np.asarray(initial, dtype=np.int64),
-        np.asarray(unexplained, dtype=np.int64),
-        tuple(reasons),
-        np.asarray(team, dtype=np.int64),
-    )
+            pos = -1
+            if q and not self.scan:
+                pos = len(q) - 1 if self.lifo else 0
+            elif q:
+                best = None
+                why: dict[str, int] = {}
+                order = range(len(q) - 1, -1, -1) if self.lifo else range(len(q))
+                for i in order:
+                    a = q[i]
+                    if L and visits[a] >= L:
+                        why["track length"] = why.get("track length", 0) + 1
+                        continue
+                    if self.use_time and tt[j] - entered[a] < tau[s]:
+                        why["in region < traversal time"] = why.get("in region < traversal time", 0) + 1
+                        continue
+                    k = team[a]
+                    if team_cap is not None and k >= 0 and 0 <= team_cap[t][k] <= team_count[t][k]:
+                        why["team bound of target"] = why.get("team bound of target", 0) + 1
+                        continue
+                    key = (rank[k] if (rank is not None and k >= 0) else n_teams, visits[a] if self.prefer_short else 0)
+                    if best is None or key < best:
+                        best, pos = key, i
+            if pos >= 0:
+                agent = q.pop(pos)
+            else:
+                initial = self.initial
+                can_create = self.allow_new and (self.max_agents == 0 or len(initial) < self.max_agents) and L != 1
+                room = cap[s] < 0 or peak[s] + 1 <= cap[s]
+                if can_create and room:
+                    agent = len(initial)
+                    initial.append(s)
+                    visits.append(1)
+                    entered.append(float("-inf"))
+                    team.append(-1)
+                    peak[s] += 1
+                else:
+                    self.unexplained.append(base + j)
+                    if q:
+                        detail = ", ".join(f"{v} {k}" for k, v in why.items())
+                        self.reasons.append(f"no eligible agent among the {len(q)} in {names[s]} ({detail})")
+                    elif L == 1:
+                        self.reasons.append(f"no agent in {names[s]}; a new one would exceed max_track_length 1")
+                    elif not can_create:
+                        self.reasons.append(f"no agent in {names[s]} and all {self.max_agents} agents are known")
+                    else:
+                        self.reasons.append(f"no agent in {names[s]} and no room for a new one (capacity {cap[s]})")
+                    continue
+            k = team[agent]
+            if k >= 0 and n_teams:
+                team_count[s][k] -= 1
+                team_count[t][k] += 1
+            out[j] = agent
+            visits[agent] += 1
+            entered[agent] = tt[j]
+            queues[t].append(agent)
+            if len(queues[t]) > peak[t]:
+                peak[t] = len(queues[t])
+        self.agents += out
+        return np.asarray(out, dtype=np.int64)
+
+    @property
+    def n_agents(self) -> int:
+        return len(self.initial)
+
+    def assignment(self) -> Assignment:
+        """The :class:`Assignment` of every crossing fed so far."""
+        return Assignment(
+            np.asarray(self.agents, dtype=np.int64),
+            len(self.initial),
+            np.asarray(self.initial, dtype=np.int64),
+            np.asarray(self.unexplained, dtype=np.int64),
+            tuple(self.reasons),
+            np.asarray(self.team, dtype=np.int64),
+        )
 
 
 def ambiguous_crossings(first: np.ndarray, second: np.ndarray) -> np.ndarray:
