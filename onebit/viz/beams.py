@@ -59,7 +59,7 @@ def beam_midpoints(site: Site, beams: list[str] | pl.Series) -> np.ndarray:
     unknown = names.filter(~names.is_in(ids)).unique().sort()
     if unknown.len():
         raise ValueError(f"beam(s) {unknown.to_list()} not in the site; beams are {ids}")
-    k = names.replace_strict(ids, list(range(len(ids))), return_dtype=pl.Int64).to_numpy()
+    k = names.cast(pl.Enum(list(dict.fromkeys(ids)))).to_physical().to_numpy()  # codes: no string per row
     return mids[k].astype(np.float64).reshape(-1, 2)
 
 

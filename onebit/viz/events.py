@@ -82,14 +82,23 @@ def log_crossings(
     if not is_empty(aborted):
         require(aborted, ("t", "beam", "side"), name="aborted")
         for beam, g in groups(aborted, "beam"):
-            texts = g.select(
-                (pl.lit(f"{beam} aborted pass, side ") + pl.col("side").cast(pl.Int64).cast(pl.String)).alias("text")
-            ).to_series()
+            if g["side"].null_count():
+                texts = text_array(
+                    g.select(
+                        pl.lit(f"{beam} aborted pass, side ") + pl.col("side").cast(pl.Int64).cast(pl.String)
+                    ).to_series()
+                )
+            else:  # a few sides (-1, 1): the texts from buffers
+                side = g["side"].cast(pl.Int64).to_numpy()
+                values = np.unique(side)
+                texts = choice_text(
+                    [f"{beam} aborted pass, side {v}" for v in values.tolist()], np.searchsorted(values, side)
+                )
             rec.send_columns(
                 paths.sensor(beam, prefix=entity_prefix),
                 indexes=[paths.time_column(g["t"].to_numpy())],
                 columns=rr.TextLog.columns(
-                    text=text_array(texts),
+                    text=texts,
                     level=repeat_text("WARN", g.height),
                     color=np.tile(np.asarray(colors.WARNING, np.uint8), (g.height, 1)),
                 ),

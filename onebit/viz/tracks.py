@@ -237,7 +237,9 @@ def log_occupancy(rec: rr.RecordingStream, tracker: str, occupancy: pl.DataFrame
     if is_empty(occupancy):
         return
     require(occupancy, ("t", "region", "count"), name="occupancy")
-    occupancy = only_tracker(occupancy, tracker).drop_nulls(["t", "count"])
+    occupancy = only_tracker(occupancy, tracker)
+    if occupancy["t"].null_count() or occupancy["count"].null_count():
+        occupancy = occupancy.drop_nulls(["t", "count"])
     for region, g in groups(occupancy, "region"):
         _log_series(
             rec,

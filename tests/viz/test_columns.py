@@ -12,6 +12,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from rerun.chunk import RrdReader
 
+from onebit.core.tables import ABORTED
 from onebit.viz import paths
 from onebit.viz._series import (
     choice_text,
@@ -119,6 +120,15 @@ def test_crossings_log_one_text_row_and_one_flash_per_crossing(tmp_path, lab):
     assert [v for _, v in levels] == [["INFO"]] * 3
     flashes = _rows(rrd, paths.sensor_crossed(beam), "LineStrips2D:strips")
     b = site.beam(beam)
+    with stage_recording(tmp_path, "aborted", "run-1") as rec:
+        ab = pl.DataFrame({"t": [0.7, 2.0, 2.2], "beam": [beam] * 3, "side": [1, -1, 1]}, schema=ABORTED)
+        log_crossings(rec, cr, aborted=ab, site=site)
+    warned = [
+        r
+        for r in _rows(tmp_path / "rrd" / "aborted.rrd", paths.sensor(beam), "TextLog:text")
+        if r[0] in (0.7, 2.0, 2.2)
+    ]
+    assert warned == [(t, [f"{beam} aborted pass, side {s}"]) for t, s in ((0.7, 1), (2.0, -1), (2.2, 1))]
     assert [r[0] for r in flashes] == [0.5, 1.5, 3.0]
     for _, strips in flashes:
         assert np.allclose(np.array(strips[0]), np.array([b.p0, b.p1], np.float32))
