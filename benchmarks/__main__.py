@@ -21,6 +21,17 @@ BENCHMARKS = (
     ("bench_clustertrack", "CLUSTERTRACK Algorithm 1 scan vs direct per-particle"),
     ("bench_intruder", "intruder SIR particle filter vs Stone Soup particle predictor/updater"),
     ("bench_findinghumo", "FindingHuMo Viterbi vs hmmlearn, decoder time per slot, 2nd-order memory"),
+    (
+        "bench_hmm_growth",
+        "hmm2 / hmm1 / findinghumo windows: decoder time per slot vs graph size (25-800 nodes) at the same activity",
+        ["--sizes", "25,50,100,200,400,800", "--modes", "full2,full1,adaptive"],
+    ),
+    (
+        "bench_hmm_growth",
+        "hmm2 / hmm1 on the 24-hour home log, on its 50 nodes and on 200",
+        ["--scenario", "home", "--minutes", "1440", "--start-hour", "0", "--sizes", "50,200", "--modes", "full2,full1"]
+        + ["--repeat", "1", "--no-reference"],
+    ),
     ("bench_istate", "O'Kane I-state filter step, matching vs direct communication update"),
     ("bench_runmany", "run-many over 16 datasets and the O'Kane study: serial vs local pool vs Ray"),
     (

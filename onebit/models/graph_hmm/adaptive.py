@@ -77,6 +77,18 @@ the rest is look-ahead). Per window:
 
 The baselines ``hmm1`` / ``hmm2`` run the same loop with the full state set and a fixed order
 (``mode = "full1"`` / ``"full2"``); ``offline`` uses one window spanning the whole run.
+
+5. **Local decodes** (the cost follows the activity, III-B): inside the coordinate ascent each
+   user's Viterbi runs on the states it can reach in the window, not on the whole state set
+   -- the nodes within the window's length of moves of its last node (known users) or entry
+   node (exact: no other state has a finite score); for a user that may start anywhere, those
+   within the window's length of a node active in its slots, certified: a path that never
+   meets an activation scores at most ``g0 + (L - 1)(t_max + g0)`` (``g0`` the free-and-off
+   emission gain, the largest of an inactive state; ``t_max`` the largest log transition), and
+   the local best must beat that strictly, else the user is decoded on every state. The paths
+   are the all-state decoder's (:func:`onebit.models.graph_hmm.kernels.coordinate_ascent`);
+   so the full-state baselines cost per slot what the activity around the users costs, not
+   what the building does (``benchmarks/bench_hmm_growth.py``).
 The window loop is inherently sequential (each window starts from the previous one's users),
 and so is the coordinate ascent inside a window: every restart of it (all user orders, sweeps
 and users, the Viterbi recursions included) runs as one compiled call
@@ -96,7 +108,13 @@ import numpy as np
 
 from onebit.core.lazy import lazy_module
 from onebit.models.graph_hmm.eatg import Eatg, onsets
-from onebit.models.graph_hmm.kernels import coordinate_ascent, emission_tables, move_support
+from onebit.models.graph_hmm.kernels import (
+    coordinate_ascent,
+    emission_tables,
+    support_from_blocks,
+    transition_support,
+    with_bases,
+)
 from onebit.models.graph_hmm.viterbi import log_safe, viterbi_first_order, viterbi_motion_second_order
 
 nx = lazy_module("networkx")
@@ -173,15 +191,58 @@ def second_order_tensor(a1: np.ndarray, a2: np.ndarray, idx: np.ndarray) -> np.n
     return log_safe(t)
 
 
+def second_order_support(a1: np.ndarray, a2: np.ndarray, idx: np.ndarray) -> tuple:
+    """:func:`~onebit.models.graph_hmm.kernels.transition_support` of
+    :func:`second_order_tensor` on the states ``idx``, built without the ``S^3`` tensor: per
+    node ``j2`` only the contexts ``j3`` a path can have there (``j2`` itself and the nodes that
+    move to it) and the nodes it moves to -- ``O(S deg^2)`` values, ``O(S^2 deg)`` time. Each
+    value is computed as :func:`second_order_tensor` computes it (the same products, the same
+    row sums over all ``S`` nodes), so it equals the dense entry bit for bit (tests)."""
+    p1 = a1[np.ix_(idx, idx)]
+    s = p1.sum(axis=1, keepdims=True)
+    p1 = np.where(s > 0, p1 / np.where(s > 0, s, 1.0), np.eye(len(idx)))
+    p2 = a2[np.ix_(idx, idx)]
+    n = len(idx)
+    eye = np.eye(n, dtype=bool)
+    stay = np.diag(p1).copy()
+    move = np.where(eye, 0.0, p1)
+    nxt = (move > 0) | (eye & (stay > 0)[:, None])  # the finite entries of the tensor's rows: moves and the stay
+    k_ptr = np.zeros(n + 1, dtype=np.int64)
+    np.cumsum(nxt.sum(axis=1), out=k_ptr[1:])
+    k_idx = np.nonzero(nxt)[1].astype(np.int64)
+    came = (move > 0).T | eye  # came[j, p]: a path at j can have come from p (or no direction yet: p = j)
+    p_ptr = np.zeros(n + 1, dtype=np.int64)
+    np.cumsum(came.sum(axis=1), out=p_ptr[1:])
+    p_idx = np.nonzero(came)[1].astype(np.int64)
+    blk_ptr = np.zeros(n + 1, dtype=np.int64)
+    np.cumsum(np.diff(p_ptr) * np.diff(k_ptr), out=blk_ptr[1:])
+    vals = np.empty(int(blk_ptr[-1]))
+    for j2 in range(n):  # per node: its contexts x its next nodes (the tensor's formula, module item 3)
+        ctx = p_idx[p_ptr[j2] : p_ptr[j2 + 1]]
+        ks = k_idx[k_ptr[j2] : k_ptr[j2 + 1]]
+        w = move[j2][None, :] * p2[ctx, :]  # (contexts, S): the same products as the dense tensor's
+        z = w.sum(axis=1, keepdims=True)  # the same row sums over all S nodes
+        directed = np.where(z > 0, (1.0 - stay[j2]) * w / np.where(z > 0, z, 1.0), move[j2][None, :])
+        t = np.where((ctx == j2)[:, None], move[j2][None, :], directed)[:, ks]
+        t = np.where((ks == j2)[None, :], stay[j2] * np.ones((len(ctx), 1)), t)
+        vals[blk_ptr[j2] : blk_ptr[j2 + 1]] = log_safe(t).ravel()
+    return support_from_blocks(with_bases(p_ptr, p_idx, blk_ptr, k_ptr, vals, k_idx), k_idx, log_safe(stay))
+
+
 def window_transitions(
-    eatg: Eatg, states: np.ndarray, order: int
-) -> tuple[np.ndarray, np.ndarray | None, tuple[np.ndarray, np.ndarray] | None]:
-    """``(log a1, log a2, support)`` restricted to ``states``: ``log a2`` and its moves
-    (:func:`onebit.models.graph_hmm.kernels.move_support`) only for ``order == 2``."""
+    eatg: Eatg, states: np.ndarray, order: int, *, dense: bool = True
+) -> tuple[np.ndarray, np.ndarray | None, tuple]:
+    """``(log a1, log a2, support)`` restricted to ``states``: ``log a2`` only for ``order == 2``
+    and ``dense`` (else ``None``: the decoders read the sparse tensor of ``support``,
+    :func:`second_order_support`, built without the ``S^3`` array); ``support`` the moves the
+    decodes follow (:func:`onebit.models.graph_hmm.kernels.transition_support`)."""
+    log_a1 = restricted_first(eatg.a1, states)
     if order != 2:
-        return restricted_first(eatg.a1, states), None, None
+        return log_a1, None, transition_support(log_a1, None)
+    if not dense:
+        return log_a1, None, second_order_support(eatg.a1, eatg.a2, states)
     log_a2 = second_order_tensor(eatg.a1, eatg.a2, states)
-    return restricted_first(eatg.a1, states), log_a2, move_support(np.ascontiguousarray(log_a2, dtype=np.float64))
+    return log_a1, log_a2, transition_support(log_a1, log_a2)
 
 
 def max_independent(nodes_on: np.ndarray, adj: np.ndarray, cache: dict) -> int:
@@ -255,8 +316,10 @@ def decode_users(
     out = np.full((k, n_slots), -1, dtype=np.int64)
     if k == 0 or n_slots == 0:
         return out
-    pos = {int(v): i for i, v in enumerate(states)}
-    on = obs[:, states]  # (L, S)
+    states = np.asarray(states, dtype=np.int64)
+    if len(states) != obs.shape[1] and states.size > 1 and not (np.diff(states) > 0).all():
+        raise ValueError("decode_users: states must be ascending and distinct")
+    on = obs if len(states) == obs.shape[1] else obs[:, states]  # (L, S): every node, or the listed ones
     if transitions is None:
         transitions = window_transitions(eatg, states, order)
     log_a1, log_a2, support = transitions
@@ -265,8 +328,8 @@ def decode_users(
     else:  # the users' decoding order rotated
         orders = [[(u + r) % k for u in range(k)] for r in range(min(k, params.restarts))]
     if params.compiled:
-        pre = [[pos[q] for q in p] for p in prefixes]
-        entries = [pos[e] if not p and e >= 0 else -1 for p, e in zip(prefixes, entry_nodes)]
+        pre = [[_position(states, q) for q in p] for p in prefixes]
+        entries = [_position(states, e) if not p and e >= 0 else -1 for p, e in zip(prefixes, entry_nodes)]
         table = emission_tables(k, params.p_hit, params.p_false, emission_gain)
         best, _ = coordinate_ascent(
             on,
@@ -282,6 +345,9 @@ def decode_users(
             support=support,
         )
     else:
+        if order == 2 and log_a2 is None:  # the reference reads the dense tensor
+            log_a2 = second_order_tensor(eatg.a1, eatg.a2, states)
+        pos = {int(v): i for i, v in enumerate(states)}
         best, best_score = None, -np.inf
         for order_u in orders:
             decoded, score = coordinate_ascent_reference(
@@ -302,6 +368,14 @@ def decode_users(
     have = decoded >= 0
     out[have] = states[decoded[have]]
     return out
+
+
+def _position(states: np.ndarray, node: int) -> int:
+    """The index of ``node`` in the ascending ``states`` (a ``KeyError`` if absent)."""
+    i = int(np.searchsorted(states, node))
+    if i >= len(states) or states[i] != node:
+        raise KeyError(node)
+    return i
 
 
 def joint_emission(on: np.ndarray, claims: np.ndarray, p_hit: float, p_false: float) -> float:
@@ -415,7 +489,7 @@ class WindowDecoder:
         self._mis: dict = {}
         # the full-state baselines' transitions, on every node: the same for every window
         self._full = (
-            window_transitions(eatg, np.arange(self.n), 1 if params.mode == "full1" else 2)
+            window_transitions(eatg, np.arange(self.n), 1 if params.mode == "full1" else 2, dense=False)
             if params.mode in ("full1", "full2")
             else None
         )
@@ -468,7 +542,11 @@ class WindowDecoder:
             acc = e if e == n_slots else min(s + tau, n_slots)
             obs = active[s:e]
             counted = obs if params.count == "on" else fresh[s:e]
-            k_now = max((max_independent(np.flatnonzero(row), adj, self._mis) for row in counted), default=0)
+            ct, cj = np.nonzero(counted)  # one scan of the window, then its slots' nodes
+            k_now = max(
+                (max_independent(cj[a:b], adj, self._mis) for a, b in _runs(ct)),
+                default=0,
+            )
             last = {u: _last_nodes(rows[u], s) for u in alive}
             # entry signatures: onset at outer, then inner active later in the window, nobody near outer
             entries = []
@@ -563,6 +641,14 @@ class WindowDecoder:
 
     def result(self) -> DecodeResult:
         return DecodeResult(self.paths(), list(self.windows))
+
+
+def _runs(t: np.ndarray) -> list[tuple[int, int]]:
+    """``[(a, b)]``: the runs of equal values of the sorted ``t`` (``t[a:b]``)."""
+    if t.size == 0:
+        return []
+    cut = np.flatnonzero(np.diff(t)) + 1
+    return list(zip([0, *cut.tolist()], [*cut.tolist(), int(t.size)]))
 
 
 def _grow(a: np.ndarray, cap: int, fill) -> np.ndarray:

@@ -3,12 +3,14 @@ equal paths, equal scores (to 1e-9), equal decoded runs."""
 
 from __future__ import annotations
 
+import itertools
+
 import networkx as nx
 import numpy as np
 import pytest
 
 from onebit.models.graph_hmm import kernels, viterbi
-from onebit.models.graph_hmm.adaptive import DecoderParams, decode_run, decode_users, window_transitions
+from onebit.models.graph_hmm.adaptive import DecoderParams, decode_run, decode_users, emission_gain, window_transitions
 from onebit.models.graph_hmm.decoding import cap_users
 from onebit.models.graph_hmm.eatg import hop_matrix, layout_eatg, trained_eatg
 
@@ -225,3 +227,154 @@ def test_sparse_motion_kernel_breaks_ties_as_the_dense_one():
         p1, lp1 = kernels._viterbi_motion2_sparse(np.zeros(s), log_stay, log_move, b, k_ptr, k_idx)
         np.testing.assert_array_equal(p1, p0)
         assert lp1 == lp0
+
+
+def _brute_force(on, table, prefix, entry, order, log_a1, log_a2):
+    """The best score over every path of one user (no other user) by enumeration: the window's
+    states at each slot after the clamped ``prefix``; first order ``a1``, second order the
+    distinct-node context (:func:`viterbi.viterbi_motion_second_order`)."""
+    n_slots, s = on.shape
+    paths = np.array(list(itertools.product(range(s), repeat=n_slots)), dtype=np.int64).reshape(-1, n_slots)
+    full = np.hstack([np.tile(np.asarray(prefix, np.int64), (len(paths), 1)), paths])
+    score = np.zeros(len(paths))
+    if not prefix and entry >= 0:
+        score += np.where(full[:, 0] == entry, 0.0, -np.inf)
+    rows = np.arange(n_slots)
+    score += np.where(on[rows[None, :], paths], table[0, 0], table[1, 0]).sum(axis=1)
+    log_stay = np.diag(log_a1)
+    came = full[:, 0].copy()  # the last node different from the current one (itself: none yet)
+    with np.errstate(invalid="ignore"):
+        for d in range(1, full.shape[1]):
+            a, b = full[:, d - 1], full[:, d]
+            if order == 1:
+                score = score + log_a1[a, b]
+            else:
+                score = score + np.where(a == b, log_stay[b], log_a2[came, a, b])
+                came = np.where(a == b, came, a)
+    return score.max(), dict(zip(map(tuple, paths.tolist()), score))
+
+
+@pytest.mark.parametrize("seed", range(6))
+@pytest.mark.parametrize("order", [1, 2])
+def test_local_decodes_equal_brute_force(seed, order):
+    """One user decoded on the states it can reach (kernels.coordinate_ascent) scores the best
+    of every path, enumerated: with a known last node, an entry node or anywhere, on a graph
+    larger than the window's reach; and with activations that repel (the certificate of a
+    user that may start anywhere fails, and it is decoded again on every state)."""
+    rng = np.random.default_rng(400 + seed)
+    nodes, edges = _random_graph(rng, 20)
+    hops = hop_matrix(nodes, edges)
+    act = rng.random((60, len(nodes))) < 0.2
+    eatg = trained_eatg(act, nodes, hops, horizon=5) if seed % 2 else layout_eatg(nodes, hops)
+    states = np.arange(len(nodes))
+    log_a1, log_a2, support = window_transitions(eatg, states, order)
+    table = kernels.emission_tables(1, 0.9, 0.05, emission_gain)
+    repel = table.copy()
+    repel[0] = table[1, 0] - 3.0
+    local = redone = 0
+    for trial in range(12):
+        n_slots = int(rng.integers(1, 4))
+        on = rng.random((n_slots, len(nodes))) < 0.06
+        kind = trial % 3
+        last = int(rng.integers(len(nodes)))
+        came = [int(rng.choice(np.flatnonzero(hops[last] == 1)))] if rng.random() < 0.5 else []
+        prefix = came + [last] if kind == 0 else []
+        entry = int(rng.integers(len(nodes))) if kind == 1 else -1
+        for tab in (table, repel) if kind == 2 else (table,):
+            before = kernels.DECODE_STATS.copy()
+            best, _ = kernels.coordinate_ascent(
+                on,
+                [prefix],
+                [0],
+                [entry],
+                [[0]],
+                order=order,
+                log_a1=log_a1,
+                log_a2=log_a2,
+                table=tab,
+                sweeps=1,
+                support=support,
+            )
+            stats = kernels.DECODE_STATS - before
+            top, scores = _brute_force(on, tab, prefix, entry, order, log_a1, log_a2)
+            got = scores[tuple(best[0].tolist())]
+            assert got == pytest.approx(top, rel=1e-12, abs=1e-12), f"trial {trial}, kind {kind}"
+            local += int(stats[0] - stats[1])
+            if tab is repel and on.any():  # the local best cannot beat the quiet paths: redone on every state
+                assert stats[1] == 1
+                redone += int(stats[2])
+    assert local > 0 and redone > 0  # decodes ran on part of the graph, and certificates failed
+
+
+@pytest.mark.parametrize("order", [1, 2])
+def test_local_decodes_equal_the_all_state_reference_on_a_large_graph(order):
+    """Several users on windows of a 48-node graph (the window's reach is a small part of it):
+    the compiled ascent, whose decodes run on the states each user can reach, gives the numpy
+    reference's paths (every user decoded on every state), and most of its decodes are local."""
+    rng = np.random.default_rng(500 + order)
+    nodes, edges = _random_graph(rng, 48)
+    hops = hop_matrix(nodes, edges)
+    act = rng.random((120, len(nodes))) < 0.05
+    eatg = trained_eatg(act, nodes, hops, horizon=5)
+    states = np.arange(len(nodes))
+    transitions = window_transitions(eatg, states, order)
+    before = kernels.DECODE_STATS.copy()
+    for trial in range(10):
+        k = int(rng.integers(1, 4))
+        n_slots = int(rng.integers(2, 6))
+        obs = rng.random((n_slots, len(nodes))) < 0.04
+        prefixes, starts, entries = [], [], []
+        for _ in range(k):
+            last = int(rng.integers(len(nodes)))
+            kind = rng.integers(3)
+            prefixes.append(([int(rng.choice(np.flatnonzero(hops[last] == 1)))] + [last]) if kind == 0 else [])
+            starts.append(0 if kind == 0 else int(rng.integers(0, n_slots)))
+            entries.append(int(rng.integers(len(nodes))) if kind == 1 else -1)
+        for sweeps in (1, 3):
+            kw = dict(order=order, eatg=eatg, transitions=transitions)
+            ref = decode_users(
+                obs, states, prefixes, starts, entries, params=DecoderParams(sweeps=sweeps, compiled=False), **kw
+            )
+            new = decode_users(obs, states, prefixes, starts, entries, params=DecoderParams(sweeps=sweeps), **kw)
+            np.testing.assert_array_equal(new, ref, err_msg=f"trial {trial}, k={k}, sweeps={sweeps}")
+    stats = kernels.DECODE_STATS - before
+    assert stats[1] < stats[0] / 2  # most decodes on the user's reach, not on the 48 states
+
+
+@pytest.mark.parametrize("seed", range(6))
+def test_sparse_second_order_support_equals_the_dense_tensor(seed):
+    """The second-order tensor built sparse (per node: its contexts x its next nodes, never the
+    S^3 array) holds the dense tensor's values bit for bit, the same moves, contexts and bound;
+    and a full-state hmm2 run on it decodes the numpy reference's paths (dense tensor)."""
+    rng = np.random.default_rng(600 + seed)
+    nodes, edges = _random_graph(rng, 15)
+    hops = hop_matrix(nodes, edges)
+    act = rng.random((80, len(nodes))) < 0.15
+    eatg = trained_eatg(act, nodes, hops, horizon=5) if seed % 2 else layout_eatg(nodes, hops)
+    for states in (np.arange(len(nodes)), np.sort(rng.choice(len(nodes), 9, replace=False))):
+        log_a1, log_a2, dense = window_transitions(eatg, states, 2)
+        a1_sparse, none, sparse = window_transitions(eatg, states, 2, dense=False)
+        assert none is None
+        np.testing.assert_array_equal(a1_sparse, log_a1)
+        for a, b in zip(dense[:4], sparse[:4]):
+            np.testing.assert_array_equal(a, b)
+        assert dense[4] == sparse[4]
+        for a, b in zip(dense[5], sparse[5]):
+            np.testing.assert_array_equal(a, b)  # values bit for bit (-inf included)
+        np.testing.assert_array_equal(dense[6], sparse[6])  # the stays
+        p_ptr, p_idx, blk_ptr, k_ptr, vals, _, _ = sparse[5]
+        k_idx = sparse[1]
+        for j in range(len(states)):  # every stored value is the dense tensor's entry
+            ks = k_idx[k_ptr[j] : k_ptr[j + 1]]
+            block = vals[blk_ptr[j] : blk_ptr[j + 1]].reshape(-1, len(ks))
+            np.testing.assert_array_equal(block, log_a2[np.ix_(p_idx[p_ptr[j] : p_ptr[j + 1]], [j], ks)][:, 0, :])
+    pos = rng.integers(0, len(nodes), 2)
+    walk = np.zeros((40, len(nodes)), bool)
+    for t in range(40):
+        for u in range(2):
+            if rng.random() < 0.4:
+                pos[u] = rng.choice(np.flatnonzero(hops[pos[u]] == 1))
+        walk[t, pos] = True
+    ref = decode_run(walk, eatg, params=DecoderParams(mode="full2", compiled=False))
+    new = decode_run(walk, eatg, params=DecoderParams(mode="full2"))
+    np.testing.assert_array_equal(new.paths, ref.paths)
