@@ -34,11 +34,13 @@ logs of that kind).
 
 Rows go to ``benchmarks/results.csv`` (row ``whole run``) with the growth exponent over the
 sizes. ``python -m benchmarks.bench_whole_run [--sizes 1e4,1e5,1e6] [--kinds beams,motion,...]
-[--timeout 600] [--baseline CHECKOUT] [--config RUN_TOML]`` (``--baseline``: each recorded run also with the
+[--timeout 600] [--baseline CHECKOUT] [--repeat N] [--config RUN_TOML]`` (``--baseline``: each recorded run also with the
 onebit of an earlier commit's checkout, after one run to fill its kernels' cache, and ours
-again right after it: the before/after row; ``--config``: every run with that ``run.toml``,
-e.g. lifting a tracker's bound to measure its growth past it; every tracker stage also gets
-a CPU row with its growth); ``make bench`` runs it with the defaults. Run it under ``nice`` on a shared
+again right after it: the before/after row; ``--repeat N``: the ``--no-rrd`` run, the
+recorded run and the ``pl.read_csv`` floor each run ``N`` times in turn, and every time
+written is the median of its ``N``: on a shared machine one cold run can be twice another;
+``--config``: every run with that ``run.toml``, e.g. lifting a tracker's bound to measure its
+growth past it; every tracker stage also gets a CPU row with its growth); ``make bench`` runs it with the defaults. Run it under ``nice`` on a shared
 machine; it takes minutes.
 """
 
@@ -48,6 +50,7 @@ import argparse
 import os
 import resource
 import shutil
+import statistics
 import subprocess
 import sys
 import tempfile
@@ -192,6 +195,24 @@ def cold_run(
     }
 
 
+def median_run(runs: list[dict]) -> dict:
+    """One run's record from ``runs`` of the same command: the median of each time (wall, cpu,
+    start-up, viz, every stage's seconds), ``killed`` if any was; the first run's status."""
+    if len(runs) == 1 or any(r["killed"] for r in runs):
+        return next((r for r in runs if r["killed"]), runs[0])
+    out = dict(runs[0])
+    for key in ("wall", "cpu", "startup", "viz", "viz_cpu"):
+        out[key] = float(statistics.median(r[key] for r in runs))
+    stages = {}
+    for stage, first in runs[0]["stages"].items():
+        stages[stage] = {
+            k: float(statistics.median(r["stages"].get(stage, {}).get(k, v) for r in runs)) for k, v in first.items()
+        }
+    out["stages"] = stages
+    out["runs"] = len(runs)
+    return out
+
+
 def _commit_of(checkout: Path) -> str:
     try:
         return subprocess.run(
@@ -228,7 +249,15 @@ def main(argv: list[str] | None = None) -> None:
         help="pass --config RUN_TOML to every run (e.g. lifting [clustertrack] max_instants to measure a "
         "tracker's growth past its bound); the rows name the file",
     )
+    ap.add_argument(
+        "--repeat",
+        type=int,
+        default=1,
+        help="run each command (--no-rrd, recorded, pl.read_csv) this many times in turn and keep the medians",
+    )
     args = ap.parse_args(argv)
+    if args.repeat < 1:
+        ap.error(f"--repeat {args.repeat}: at least 1")
     sizes = tuple(int(float(s)) for s in args.sizes.split(","))
     kinds = tuple(k.strip() for k in args.kinds.split(","))
     print(f"load average {os.getloadavg()}", flush=True)
@@ -258,13 +287,21 @@ def main(argv: list[str] | None = None) -> None:
             else:
                 what = f"{kind} --trackers {trackers}" if trackers else f"{kind}, every tracker"
             what += f" (--config {args.config.name})" if args.config is not None else ""
-            off = cold_run(data, root / "out-norrd", trackers, rrd=False, timeout=args.timeout, config=args.config)
-            on = (
-                off
-                if off["killed"]
-                else cold_run(data, root / "out", trackers, rrd=True, timeout=args.timeout, config=args.config)
-            )
-            floor, floor_cpu = read_csv_cold(data / LOG[kind])
+            offs, ons, floors = [], [], []
+            for _ in range(args.repeat):  # in turn: the three measured in the same minute each time
+                offs.append(
+                    cold_run(data, root / "out-norrd", trackers, rrd=False, timeout=args.timeout, config=args.config)
+                )
+                if offs[-1]["killed"]:
+                    break
+                ons.append(cold_run(data, root / "out", trackers, rrd=True, timeout=args.timeout, config=args.config))
+                floors.append(read_csv_cold(data / LOG[kind]))
+            off = median_run(offs)
+            on = off if off["killed"] else median_run(ons)
+            if not floors:
+                floors.append(read_csv_cold(data / LOG[kind]))
+            floor = float(statistics.median(f[0] for f in floors))
+            floor_cpu = float(statistics.median(f[1] for f in floors))
             if args.baseline is not None and not on["killed"]:
                 warm = cold_run(
                     data,

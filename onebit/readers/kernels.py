@@ -288,6 +288,35 @@ def toggle_repeats_vectorised(sensor, on, n_sensors):
     return same
 
 
+def _debounce_sorted(s_, o_, ts, chatter, min_on, eps):
+    """The debounce masks of :func:`debounce_masks_vectorised` on edges already in sensor order
+    (``s_`` sensor, ``o_`` on, ``ts`` time; time order within a sensor): chatter marks each
+    (off, on) pair of neighbours of a sensor within its window; the minimum on-time rule marks
+    each (on, off) pair of neighbours among the edges chatter left, sooner than ``min_on``."""
+    m = o_.shape[0]
+    cs = np.zeros(m, dtype=np.bool_)
+    ss = np.zeros(m, dtype=np.bool_)
+    if m < 2:
+        return cs, ss
+    chatter = np.asarray(chatter, np.float64)
+    min_on = np.asarray(min_on, np.float64)
+    if (chatter > 0).any():  # (off, on) neighbours of a sensor; times only for those
+        i = np.flatnonzero((s_[1:] == s_[:-1]) & o_[1:] & ~o_[:-1])
+        w = chatter[s_[i + 1]]
+        i = i[(w > 0) & (ts[i + 1] - ts[i] <= w + eps)]
+        cs[i] = True
+        cs[i + 1] = True
+    if (min_on > 0).any():  # (on, off) neighbours among the edges chatter left
+        ko = np.flatnonzero(~cs) if cs.any() else np.arange(m)
+        s2, o2 = s_[ko], o_[ko]
+        i = np.flatnonzero((s2[1:] == s2[:-1]) & o2[:-1] & ~o2[1:])
+        mo = min_on[s2[i + 1]]
+        i = i[(mo > 0) & (ts[ko[i + 1]] - ts[ko[i]] < mo - eps)]
+        ss[ko[i]] = True
+        ss[ko[i + 1]] = True
+    return cs, ss
+
+
 def debounce_masks_vectorised(sensor, on, t, chatter, min_on, n_sensors, eps):
     """:func:`debounce_masks` with numpy (used while numba is not loaded): chatter marks each
     (off, on) pair of neighbours in a sensor's sequence within its window; the minimum on-time
@@ -302,28 +331,40 @@ def debounce_masks_vectorised(sensor, on, t, chatter, min_on, n_sensors, eps):
     if m < 2:
         return chat, short
     order = _by_sensor(sensor, n_sensors)
-    s_, o_ = sensor[order], on[order]
-    chatter = np.asarray(chatter, np.float64)
-    min_on = np.asarray(min_on, np.float64)
-    cs = np.zeros(m, dtype=np.bool_)
-    if (chatter > 0).any():  # (off, on) neighbours of a sensor; times only for those
-        i = np.flatnonzero((s_[1:] == s_[:-1]) & o_[1:] & ~o_[:-1])
-        w = chatter[s_[i + 1]]
-        i = i[(w > 0) & (t[order[i + 1]] - t[order[i]] <= w + eps)]
-        cs[i] = True
-        cs[i + 1] = True
-    ss = np.zeros(m, dtype=np.bool_)
-    if (min_on > 0).any():  # (on, off) neighbours among the edges chatter left
-        ko = np.flatnonzero(~cs) if cs.any() else np.arange(m)
-        s2, o2 = s_[ko], o_[ko]
-        i = np.flatnonzero((s2[1:] == s2[:-1]) & o2[:-1] & ~o2[1:])
-        mo = min_on[s2[i + 1]]
-        i = i[(mo > 0) & (t[order[ko[i + 1]]] - t[order[ko[i]]] < mo - eps)]
-        ss[ko[i]] = True
-        ss[ko[i + 1]] = True
+    cs, ss = _debounce_sorted(sensor[order], on[order], t[order], chatter, min_on, eps)
     chat[order] = cs
     short[order] = ss
     return chat, short
+
+
+def toggle_masks_vectorised(sensor, on, t, chatter, min_on, n_sensors, eps):
+    """:func:`toggle_repeats_vectorised` and then :func:`debounce_masks_vectorised` on the edges
+    that are not repeats, in one sort by sensor: returns ``(same, chat, short)`` masks over all
+    the edges (``chat`` and ``short`` false on the repeats). The edges a debounce sees are the
+    non-repeats, still in sensor order after the sort (a stable subsequence), so one sort and
+    one gather of the times serve both rules; equal to the two functions in turn (tests)."""
+    sensor = np.asarray(sensor)
+    on = np.asarray(on, np.bool_)
+    m = on.shape[0]
+    same = np.zeros(m, dtype=np.bool_)
+    chat = np.zeros(m, dtype=np.bool_)
+    short = np.zeros(m, dtype=np.bool_)
+    if m == 0:
+        return same, chat, short
+    order = _by_sensor(sensor, n_sensors)
+    s_ = sensor[order].astype(_key_type(n_sensors))
+    o_ = on[order]
+    prev = np.zeros(m, dtype=np.bool_)
+    prev[1:] = o_[:-1]
+    prev[np.flatnonzero(s_[1:] != s_[:-1]) + 1] = False  # each sensor starts off
+    rep = o_ == prev
+    same[order] = rep
+    keep = np.flatnonzero(~rep)
+    at = order[keep]  # the non-repeats, in sensor order
+    cs, ss = _debounce_sorted(s_[keep], o_[keep], np.asarray(t, np.float64)[at], chatter, min_on, eps)
+    chat[at] = cs
+    short[at] = ss
+    return same, chat, short
 
 
 @kernel

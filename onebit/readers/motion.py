@@ -72,6 +72,7 @@ from onebit.readers.rows import (
     check_rows,
     check_split,
     clean_time,
+    in_time_order,
     make_rejects,
     order_checks,
     parse_choice,
@@ -222,14 +223,17 @@ def toggle_edges(
     """Passes 2 and 3 of :func:`read_motion` on typed and checked rows (``t``, ``sensor``, ``value``)."""
     ok, rejects = typed.accepted, typed.rejects
     ok = ok.rename({"value": "on"})  # sorted by t, file order within a stamp (TypedRows)
+    masks = _toggle_masks(ok, sensors, rules)
 
     # pass 2: edges that do not change their sensor's state (every sensor starts off)
-    same = repeats(ok)
+    same = repeats(ok) if masks is None else pl.Series(masks[0])
     n_held = 0
     if held and same.any():  # a level sensor's repeated state is a held state: no edge, no fault
         is_held = ok.select(pl.col("sensor").cast(pl.String).is_in(list(held))).to_series() & same
         n_held = int(is_held.sum())
         ok, same = ok.filter(~is_held), same.filter(~is_held)
+        if masks is not None:
+            masks = tuple(mk[~is_held.to_numpy()] for mk in masks)
     if same.any():  # reasons for those edges only
         rep = (
             ok.filter(same)
@@ -244,9 +248,11 @@ def toggle_edges(
         more = make_rejects(rep, source, path, typed.file)
         rejects = pl.concat([rejects, more]).sort("line")
         ok = ok.filter(~same)
+        if masks is not None:
+            masks = tuple(mk[~masks[0]] for mk in masks)
 
     # pass 3: debounce on the alternating sequence
-    edges, suppressed = debounce(ok, sensors, rules)
+    edges, suppressed = debounce(ok, sensors, rules) if masks is None else _debounced(ok, masks[1], masks[2])
     if isinstance(edges.schema["sensor"], pl.Enum):  # the typed read's codes: names gathered, not cast row by row
         names = pl.Series(edges.schema["sensor"].categories, dtype=pl.String)
         motion = pl.DataFrame(
@@ -255,6 +261,33 @@ def toggle_edges(
     else:
         motion = conform(edges, MOTION)
     return MotionRead(motion, rejects.select(REJECTS.names()).cast(dict(REJECTS)), suppressed, typed.reordered, n_held)
+
+
+def _toggle_masks(ok: pl.DataFrame, sensors: Sequence[str], rules) -> tuple[np.ndarray, ...] | None:
+    """Passes 2 and 3's masks (repeat, chatter, short) of typed edges in time order, by one numpy
+    pass (:func:`~onebit.readers.kernels.toggle_masks_vectorised`: one sort by sensor for the
+    repeats and the debounce) when the edges are the typed read's (sensor codes of an enum) and
+    numba is not loaded in the process (at any size: at 10^4 edges it takes a third of the
+    polars references' time); else ``None``: :func:`repeats` and :func:`debounce` (the kernels
+    when numba is loaded, from :data:`~onebit.readers.kernels.MIN_ROWS` edges, the polars
+    references below) make them, with the same result."""
+    if numba_loaded() or not isinstance(ok.schema["sensor"], pl.Enum):
+        return None
+    if not (in_time_order(ok["t"]) and in_time_order(ok["line"])):
+        return None
+    names = ok.schema["sensor"].categories.to_list()
+    table = _rules_frame(sensors, rules)
+    chatter = dict(zip(table["sensor"].to_list(), table["_chatter"].to_list()))
+    min_on = dict(zip(table["sensor"].to_list(), table["_min_on"].to_list()))
+    return kernels.toggle_masks_vectorised(
+        ok["sensor"].to_physical().to_numpy(),
+        ok["on"].to_numpy(),
+        ok["t"].to_numpy(),
+        np.array([chatter.get(n, 0.0) for n in names], dtype=np.float64),
+        np.array([min_on.get(n, 0.0) for n in names], dtype=np.float64),
+        max(len(names), 1),
+        TIME_EPS,
+    )
 
 
 def repeats(ok: pl.DataFrame, *, compiled: bool | None = None) -> pl.Series:
@@ -341,6 +374,11 @@ def debounce(
         len(names),
         TIME_EPS,
     )
+    return _debounced(ev, chat, short)
+
+
+def _debounced(ev: pl.DataFrame, chat: np.ndarray, short: np.ndarray) -> tuple[pl.DataFrame, pl.DataFrame]:
+    """``(kept, suppressed)`` of :func:`debounce` from its masks over ``ev`` (edges in time order)."""
     ev = ev.select("line", "t", "sensor", "on")
     gone = chat | short  # the rules mark disjoint edges (minimum on-time only among those chatter left)
     kept = ev.filter(pl.Series(~gone))  # still sorted by t, line

@@ -108,8 +108,16 @@ def _line_starts_ends(data: bytes, lo: int, hi: int) -> np.ndarray:
 def check_line_lengths(data: bytes, path: str | Path) -> None:
     """Refuse ``data`` (the bytes of ``path``) when a physical line is longer than
     :data:`MAX_LINE_BYTES`: an :class:`InputError` naming the file and the line. Scans the file
-    in steps of 16 MiB, so the check itself costs bounded memory."""
+    in steps of 16 MiB, so the check itself costs bounded memory.
+
+    A line longer than ``M`` = :data:`MAX_LINE_BYTES` holds a whole block ``[k M/2, (k+1) M/2)``
+    without a newline, so a file whose every such block holds one (one ``bytes.find`` each,
+    stopping at the block's first newline) has no long line and is not scanned further: a log
+    of short lines costs microseconds, not a pass over all its newlines."""
     if len(data) <= MAX_LINE_BYTES:
+        return
+    half = max(1, MAX_LINE_BYTES // 2)
+    if all(data.find(b"\n", lo, lo + half) >= 0 for lo in range(0, len(data) - half + 1, half)):
         return
     start, lines_before = 0, 0  # start of the current line; newlines before this step
     for lo in range(0, len(data), _SCAN_BYTES):
@@ -1174,8 +1182,6 @@ def duplicate_of(ok: pl.DataFrame, key: tuple[str, ...]) -> pl.Series:
     cannot be duplicates; when ``t`` never decreases in file order (the usual log) only the
     runs of equal ``t`` are sorted."""
     out = pl.Series("_dup", [], dtype=pl.Int64).extend_constant(None, ok.height)
-    idx = pl.int_range(pl.len(), dtype=pl.Int64).alias("_i")
-    cand = ok.select(idx, "line", *key)
     v = ok["t"].to_numpy() if "t" in ok.columns else None  # a time-free table: every row a candidate
     if v is not None and (v.size < 2 or (v[1:] >= v[:-1]).all()):
         eq = v[1:] == v[:-1]
@@ -1184,7 +1190,10 @@ def duplicate_of(ok: pl.DataFrame, key: tuple[str, ...]) -> pl.Series:
         tie = np.zeros(v.size, dtype=np.bool_)
         tie[1:] |= eq
         tie[:-1] |= eq
-        cand = cand.filter(pl.Series(tie))
+        at = np.flatnonzero(tie)  # only the rows in a run of equal stamps
+        cand = ok[at].select(pl.Series("_i", at, dtype=pl.Int64), "line", *key)
+    else:
+        cand = ok.select(pl.int_range(pl.len(), dtype=pl.Int64).alias("_i"), "line", *key)
     cand = cand.sort([*key, "line"])
     same = pl.all_horizontal([pl.col(k).eq_missing(pl.col(k).shift(1)) for k in key]).fill_null(False)
     cand = cand.with_columns(pl.when(same).then(None).otherwise(pl.col("line")).forward_fill().alias("_first"))
@@ -1277,10 +1286,11 @@ def check_split(
     finds over all the rows (:func:`~onebit.readers.timebase.parts_origin`); good rows whose
     stamp falls outside its window go to the row-by-row side, which names them."""
     origin = epoch if isinstance(epoch, TimeOrigin) else parts_origin(good["t"], split.rest.frame["t"], epoch)
-    if math.isfinite(origin.lo) or math.isfinite(origin.hi):
-        t = good["t"] - origin.numeric
-        lone = (t < origin.lo - 1e-3) | (t > origin.hi + 1e-3)
-        if lone.any():
+    if (math.isfinite(origin.lo) or math.isfinite(origin.hi)) and good.height:
+        lo, hi = good["t"].min() - origin.numeric, good["t"].max() - origin.numeric  # no mask when none is out
+        t = good["t"] - origin.numeric if lo < origin.lo - 1e-3 or hi > origin.hi + 1e-3 else None
+        lone = (t < origin.lo - 1e-3) | (t > origin.hi + 1e-3) if t is not None else None
+        if lone is not None and lone.any():
             out = good.filter(lone)["line"]
             split = split.demote(out)
             good = good.filter(~lone)

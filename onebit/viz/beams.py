@@ -59,7 +59,7 @@ def beam_midpoints(site: Site, beams: list[str] | pl.Series) -> np.ndarray:
     unknown = names.filter(~names.is_in(ids)).unique().sort()
     if unknown.len():
         raise ValueError(f"beam(s) {unknown.to_list()} not in the site; beams are {ids}")
-    k = names.replace_strict(ids, list(range(len(ids))), return_dtype=pl.Int64).to_numpy()
+    k = names.cast(pl.Enum(list(dict.fromkeys(ids)))).to_physical().to_numpy()  # codes: no string per row
     return mids[k].astype(np.float64).reshape(-1, 2)
 
 
@@ -83,7 +83,10 @@ def log_assignments(
     if is_empty(assignment):
         return
     require(assignment, ("t", "beam", "direction", "track"), name="assignment")
-    a = assignment.with_row_index("crossing").sort("t", maintain_order=True)
+    a = assignment.with_row_index("crossing")
+    t = a["t"].to_numpy()
+    if t.size > 1 and not (t[1:] >= t[:-1]).all():  # the tracker's table is in time order: no sort then
+        a = a.sort("t", maintain_order=True)
     if "ambiguous" in a.columns:
         a = a.filter(~pl.col("ambiguous").fill_null(False))
     a = a.filter(pl.col("track").is_not_null())

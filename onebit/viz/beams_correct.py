@@ -9,7 +9,8 @@ Entities (timeline ``t``):
 * ``correct/log`` -- a TextLog line (level WARN) per inserted crossing, in the crossing log
   beside the observed ones (``sensors/<beam>``).
 
-Each entity is sent with one ``send_columns`` call (one point per time step).
+Each entity is sent with one ``send_columns`` call (one point per time step; the points' colour
+and size logged once, static).
 """
 
 from __future__ import annotations
@@ -20,7 +21,7 @@ import polars as pl
 from onebit.core.lazy import lazy_module
 from onebit.core.site import Site
 from onebit.viz import paths
-from onebit.viz._series import is_empty, require
+from onebit.viz._series import choice_text, is_empty, repeat_text, require
 from onebit.viz.beams import beam_midpoints
 from onebit.viz.frame import log_world_frame
 
@@ -51,6 +52,16 @@ def _labels(df: pl.DataFrame, suffix: str) -> list[str]:
     )["s"].to_list()
 
 
+def _label_array(df: pl.DataFrame, suffix: str):
+    """:func:`_labels` (its reference) as UTF-8 Arrow strings built from the few distinct labels
+    (a beam and a direction each; :func:`~onebit.viz._series.choice_text`), no string per row."""
+    beam = df["beam"].cast(pl.String)
+    names = beam.unique(maintain_order=True)
+    code = beam.cast(pl.Enum(names.to_list())).to_physical().cast(pl.Int64).to_numpy()
+    options = [f"{b}{sfx}{suffix}" for b in names.to_list() for sfx in ("", "^-1")]
+    return choice_text(options, 2 * code + (df["direction"].to_numpy() <= 0))
+
+
 def log_corrected_crossings(rec: rr.RecordingStream, corrected: pl.DataFrame | None, site: Site) -> None:
     """Log the corrected string ``(t, beam, direction, inserted)``: observed and inserted crossings
     on separate entities with distinct colours and sizes, and a text line for each."""
@@ -66,15 +77,11 @@ def log_corrected_crossings(rec: rr.RecordingStream, corrected: pl.DataFrame | N
         if g.height == 0:
             continue
         xy = beam_midpoints(site, g["beam"])
+        rec.log(entity, rr.Points2D.from_fields(colors=color, radii=radius), static=True)  # the style, once
         rec.send_columns(
             entity,
             indexes=[paths.time_column(g["t"].to_numpy())],
-            columns=rr.Points2D.columns(
-                positions=xy,
-                colors=np.tile(np.asarray(color, np.uint8), (g.height, 1)),
-                radii=np.full(g.height, radius, np.float32),
-                labels=_labels(g, suffix),
-            ).partition(np.ones(g.height, dtype=np.int64)),
+            columns=rr.Points2D.columns(positions=xy, labels=_label_array(g, suffix)),
         )
     ins = corrected.filter(pl.col("inserted")).sort("t", maintain_order=True)
     if ins.height == 0:
@@ -83,8 +90,8 @@ def log_corrected_crossings(rec: rr.RecordingStream, corrected: pl.DataFrame | N
         log_path(),
         indexes=[paths.time_column(ins["t"].to_numpy())],
         columns=rr.TextLog.columns(
-            text=_labels(ins, " inserted (missed crossing restored by the counting automaton)"),
-            level=[rr.TextLogLevel.WARN] * ins.height,
+            text=_label_array(ins, " inserted (missed crossing restored by the counting automaton)"),
+            level=repeat_text("WARN", ins.height),
             color=np.tile(np.asarray(INSERTED, np.uint8), (ins.height, 1)),
         ),
     )

@@ -15,7 +15,7 @@ import polars as pl
 from onebit.core.lazy import lazy_module
 from onebit.core.site import Site
 from onebit.viz import colors, paths
-from onebit.viz._series import groups, is_empty, repeat_text, require, strips_array, text_array
+from onebit.viz._series import choice_text, groups, is_empty, repeat_text, require, strips_array, text_array
 from onebit.viz.frame import log_world_frame
 from onebit.viz.radii import ui_points
 
@@ -57,12 +57,11 @@ def log_crossings(
             direction = g["direction"].cast(pl.Float64).to_numpy()
             color = np.where(direction[:, None] > 0, colors.FORWARD, colors.BACKWARD).astype(np.uint8)
             t = paths.time_column(g["t"].to_numpy())
+            texts = choice_text([f"{beam} forward", f"{beam}^-1 backward"], direction <= 0)  # as crossing_texts
             rec.send_columns(
                 entity,
                 indexes=[t],
-                columns=rr.TextLog.columns(
-                    text=text_array(crossing_texts(g)), level=repeat_text("INFO", g.height), color=color
-                ),
+                columns=rr.TextLog.columns(text=texts, level=repeat_text("INFO", g.height), color=color),
             )
             if beam in known:
                 b = site.beam(beam)
@@ -83,14 +82,23 @@ def log_crossings(
     if not is_empty(aborted):
         require(aborted, ("t", "beam", "side"), name="aborted")
         for beam, g in groups(aborted, "beam"):
-            texts = g.select(
-                (pl.lit(f"{beam} aborted pass, side ") + pl.col("side").cast(pl.Int64).cast(pl.String)).alias("text")
-            ).to_series()
+            if g["side"].null_count():
+                texts = text_array(
+                    g.select(
+                        pl.lit(f"{beam} aborted pass, side ") + pl.col("side").cast(pl.Int64).cast(pl.String)
+                    ).to_series()
+                )
+            else:  # a few sides (-1, 1): the texts from buffers
+                side = g["side"].cast(pl.Int64).to_numpy()
+                values = np.unique(side)
+                texts = choice_text(
+                    [f"{beam} aborted pass, side {v}" for v in values.tolist()], np.searchsorted(values, side)
+                )
             rec.send_columns(
                 paths.sensor(beam, prefix=entity_prefix),
                 indexes=[paths.time_column(g["t"].to_numpy())],
                 columns=rr.TextLog.columns(
-                    text=text_array(texts),
+                    text=texts,
                     level=repeat_text("WARN", g.height),
                     color=np.tile(np.asarray(colors.WARNING, np.uint8), (g.height, 1)),
                 ),

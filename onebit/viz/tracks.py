@@ -93,19 +93,20 @@ def region_anchors(region_graph: RegionGraph) -> tuple[np.ndarray, np.ndarray]:
 def region_indices(region_graph: RegionGraph, regions) -> np.ndarray:
     """``(n,)`` index in ``region_graph`` of each region name; a name not in it raises
     ``ValueError`` naming it (vectorised with polars: no Python work per row)."""
-    names = pl.Series("region", regions, dtype=pl.String)
+    names = regions.cast(pl.String) if isinstance(regions, pl.Series) else pl.Series("region", regions, dtype=pl.String)
     known = list(region_graph.names)
     unknown = names.filter(~names.is_in(known)).unique().sort().to_list()
     if unknown:
         raise ValueError(f"tracks name region(s) {unknown} not in the region graph; regions are {known}")
-    return names.replace_strict(known, list(range(len(known))), return_dtype=pl.Int64).to_numpy()
+    return names.cast(pl.Enum(known)).to_physical().cast(pl.Int64).to_numpy()
 
 
-def region_positions(region_graph: RegionGraph, regions: np.ndarray, slot: int) -> np.ndarray:
+def region_positions(region_graph: RegionGraph, regions, slot: int, *, index: np.ndarray | None = None) -> np.ndarray:
     """``(n, 2)`` display positions of a track in ``regions`` (names): each region's
     representative point, offset by a small per-track vector (``slot`` picks the direction),
-    falling back to the representative point where the offset point would leave the region."""
-    k = region_indices(region_graph, regions)
+    falling back to the representative point where the offset point would leave the region
+    (``index``: :func:`region_indices` of ``regions``, when already known)."""
+    k = region_indices(region_graph, regions) if index is None else index
     rp, size = region_anchors(region_graph)
     angle = slot * _GOLDEN_ANGLE
     direction = np.array([np.cos(angle), np.sin(angle)])
@@ -117,11 +118,20 @@ def region_positions(region_graph: RegionGraph, regions: np.ndarray, slot: int) 
 
 
 def log_current_region(
-    rec: rr.RecordingStream, entity: str, t: np.ndarray, regions: np.ndarray, region_graph: RegionGraph, *, color
+    rec: rr.RecordingStream,
+    entity: str,
+    t: np.ndarray,
+    regions,
+    region_graph: RegionGraph,
+    *,
+    color,
+    index: np.ndarray | None = None,
 ) -> None:
     """``entity``: the outline of the region a track is in, from each time it enters one
-    (one row per entry holding the region's rings, gathered from the rings of every region)."""
-    points, lengths, per_row = region_outlines(ring_table(region_graph.polygons), region_indices(region_graph, regions))
+    (one row per entry holding the region's rings, gathered from the rings of every region;
+    ``index``: :func:`region_indices` of ``regions``, when already known)."""
+    k = region_indices(region_graph, regions) if index is None else index
+    points, lengths, per_row = region_outlines(ring_table(region_graph.polygons), k)
     rec.log(entity, rr.LineStrips2D.from_fields(colors=color, radii=REGION_WIDTH, draw_order=8.0), static=True)
     rec.send_columns(
         entity,
@@ -156,13 +166,16 @@ def log_region_tracks(
     labels = track_labels(tracker, tracks["track"].unique().to_list())
     shades = track_colors(tracker, labels, rgb=rgb)
     for slot, (track, g) in enumerate(groups(tracks, "track")):
-        regions = g["region"].to_numpy()
+        regions = g["region"]
+        k = region_indices(region_graph, regions)  # once per track: positions and outlines
         t = g["t"].to_numpy()
-        xy = region_positions(region_graph, regions, slot)
+        xy = region_positions(region_graph, regions, slot, index=k)
         entity = paths.track(tracker, track)
         log_dot(rec, entity, t, xy, color=shades[track], label=labels[track])
         log_trail(rec, entity, t, xy, color=shades[track])
-        log_current_region(rec, paths.track_region(tracker, track), t, regions, region_graph, color=shades[track])
+        log_current_region(
+            rec, paths.track_region(tracker, track), t, regions, region_graph, color=shades[track], index=k
+        )
         if len(xy) >= 2:
             rec.log(
                 paths.track_region_path(tracker, track),
@@ -224,7 +237,9 @@ def log_occupancy(rec: rr.RecordingStream, tracker: str, occupancy: pl.DataFrame
     if is_empty(occupancy):
         return
     require(occupancy, ("t", "region", "count"), name="occupancy")
-    occupancy = only_tracker(occupancy, tracker).drop_nulls(["t", "count"])
+    occupancy = only_tracker(occupancy, tracker)
+    if occupancy["t"].null_count() or occupancy["count"].null_count():
+        occupancy = occupancy.drop_nulls(["t", "count"])
     for region, g in groups(occupancy, "region"):
         _log_series(
             rec,

@@ -151,3 +151,59 @@ def test_vectorised_toggle_repeats_and_debounce_equal_the_kernels(seed):
     want = K.debounce_masks.py_func(s2, o2, t2, chatter, min_on, ns, 1e-9)
     got = K.debounce_masks_vectorised(s2, o2, t2, chatter, min_on, ns, 1e-9)
     assert np.array_equal(want[0], got[0]) and np.array_equal(want[1], got[1])
+
+
+@pytest.mark.parametrize("seed", range(10))
+def test_fused_toggle_masks_equal_repeats_then_debounce(seed):
+    """toggle_masks_vectorised (one sort by sensor for both passes) gives the repeats of
+    toggle_repeats and, on the other edges, the masks of debounce_masks."""
+    from onebit.readers import kernels as K
+
+    rng = np.random.default_rng(300 + seed)
+    n, ns = int(rng.integers(0, 800)), int(rng.integers(1, 6))
+    sensor = rng.integers(0, ns, n).astype(np.uint32)
+    on = rng.random(n) < 0.5
+    t = np.sort(rng.uniform(0, 60, n).round(1))
+    chatter = rng.choice([0.0, 0.5, 2.0], ns)
+    min_on = rng.choice([0.0, 1.0, 3.0], ns)
+    same, chat, short = K.toggle_masks_vectorised(sensor, on, t, chatter, min_on, ns, 1e-9)
+    want_same = K.toggle_repeats.py_func(sensor.astype(np.int64), on, ns)
+    assert np.array_equal(same, want_same)
+    alt = ~want_same
+    want = K.debounce_masks.py_func(sensor[alt].astype(np.int64), on[alt], t[alt], chatter, min_on, ns, 1e-9)
+    assert np.array_equal(chat[alt], want[0]) and np.array_equal(short[alt], want[1])
+    assert not (chat[same] | short[same]).any()
+
+
+@pytest.mark.parametrize("seed", range(4))
+def test_motion_reader_fused_path_equals_the_reference(tmp_path, monkeypatch, seed):
+    """read_motion_csv through the fused numpy masks (numba not loaded) gives the tables of the
+    polars reference path (without them, below MIN_ROWS): kept, suppressed, rejects
+    and the held count, on a log with repeats, chatter, short pulses and a level sensor."""
+    from onebit.core import compiled
+    from onebit.readers import kernels as K
+
+    rng = np.random.default_rng(400 + seed)
+    n = 3000
+    t = np.sort(rng.uniform(0, 300, n).round(2))
+    sensor = rng.choice(["p1", "p2", "p3", "lv"], n)
+    on = (rng.random(n) < 0.5).astype(int)
+    p = tmp_path / "motion.csv"
+    pl.DataFrame({"t": t, "sensor": sensor, "value": on}).write_csv(p)
+    rules = {"p1": M.DebounceRules(chatter_window=0.5, min_on=1.0), "p2": M.DebounceRules(min_on=2.0)}
+    kw = dict(rules=rules, held={"lv"})
+    monkeypatch.setattr(compiled, "numba_loaded", lambda: False)
+    monkeypatch.setattr(M, "numba_loaded", lambda: False)
+    with monkeypatch.context() as mp:  # the path without the fused masks: n < MIN_ROWS, the polars references
+        mp.setattr(M, "_toggle_masks", lambda *a: None)
+        ref = M.read_motion_csv(p, ["p1", "p2", "p3", "lv"], **kw)
+    calls = []
+    real = K.toggle_masks_vectorised
+    monkeypatch.setattr(K, "toggle_masks_vectorised", lambda *a: calls.append(1) or real(*a))
+    fused = M.read_motion_csv(p, ["p1", "p2", "p3", "lv"], **kw)
+    assert calls  # the fused path ran
+    assert ref.held > 0 and ref.suppressed.height > 0 and ref.rejects.height > 0
+    assert fused.motion.equals(ref.motion)
+    assert fused.suppressed.equals(ref.suppressed)
+    assert fused.rejects.equals(ref.rejects)
+    assert fused.held == ref.held

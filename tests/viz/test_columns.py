@@ -6,13 +6,24 @@ from __future__ import annotations
 import numpy as np
 import polars as pl
 import pyarrow as pa
+import pytest
 import rerun as rr
 from hypothesis import given, settings
 from hypothesis import strategies as st
 from rerun.chunk import RrdReader
 
+from onebit.core.tables import ABORTED
 from onebit.viz import paths
-from onebit.viz._series import gather_ranges, region_outlines, repeat_text, ring_table, rings, strips_array, text_array
+from onebit.viz._series import (
+    choice_text,
+    gather_ranges,
+    region_outlines,
+    repeat_text,
+    ring_table,
+    rings,
+    strips_array,
+    text_array,
+)
 from onebit.viz.events import log_crossings
 from onebit.viz.recording import stage_recording
 from onebit.viz.tracks import log_current_region, region_indices
@@ -35,6 +46,22 @@ def test_text_arrays_equal_rerun_string_conversion(values, word, n):
     assert text_array(pl.Series(values, dtype=pl.String)).equals(rr.components.TextBatch(values).as_arrow_array())
     assert text_array(values).equals(rr.components.TextBatch(values).as_arrow_array())
     assert repeat_text(word, n).equals(pa.array([word] * n, type=pa.utf8()))
+
+
+@settings(max_examples=60, deadline=None)
+@given(st.lists(st.text(max_size=6), min_size=1, max_size=4), st.data())
+def test_choice_text_equals_the_strings_it_picks(options, data):
+    index = data.draw(st.lists(st.integers(0, len(options) - 1), max_size=30))
+    got = choice_text(options, np.array(index, np.int64))
+    assert got.equals(text_array([options[i] for i in index]))
+
+
+def test_crossing_texts_by_choice_equal_the_polars_texts():
+    from onebit.viz.events import crossing_texts
+
+    g = pl.DataFrame({"beam": ["b2"] * 5, "direction": [1, -1, -1, 1, 1]})
+    want = text_array(crossing_texts(g))
+    assert choice_text(["b2 forward", "b2^-1 backward"], g["direction"].to_numpy() <= 0).equals(want)
 
 
 @given(st.lists(st.tuples(st.integers(0, 50), st.integers(0, 4)), max_size=10))
@@ -93,6 +120,51 @@ def test_crossings_log_one_text_row_and_one_flash_per_crossing(tmp_path, lab):
     assert [v for _, v in levels] == [["INFO"]] * 3
     flashes = _rows(rrd, paths.sensor_crossed(beam), "LineStrips2D:strips")
     b = site.beam(beam)
+    with stage_recording(tmp_path, "aborted", "run-1") as rec:
+        ab = pl.DataFrame({"t": [0.7, 2.0, 2.2], "beam": [beam] * 3, "side": [1, -1, 1]}, schema=ABORTED)
+        log_crossings(rec, cr, aborted=ab, site=site)
+    warned = [
+        r
+        for r in _rows(tmp_path / "rrd" / "aborted.rrd", paths.sensor(beam), "TextLog:text")
+        if r[0] in (0.7, 2.0, 2.2)
+    ]
+    assert warned == [(t, [f"{beam} aborted pass, side {s}"]) for t, s in ((0.7, 1), (2.0, -1), (2.2, 1))]
     assert [r[0] for r in flashes] == [0.5, 1.5, 3.0]
     for _, strips in flashes:
         assert np.allclose(np.array(strips[0]), np.array([b.p0, b.p1], np.float32))
+
+
+@settings(max_examples=40, deadline=None)
+@given(st.lists(st.tuples(st.sampled_from(["a", "b2", "é"]), st.sampled_from([1, -1])), max_size=25))
+def test_corrected_crossing_labels_from_buffers_equal_the_polars_labels(rows):
+    from onebit.viz.beams_correct import _label_array, _labels
+
+    df = pl.DataFrame(rows, schema={"beam": pl.String, "direction": pl.Int8}, orient="row")
+    for suffix in ("", " inserted"):
+        assert _label_array(df, suffix).equals(text_array(_labels(df, suffix)))
+
+
+@settings(max_examples=60, deadline=None)
+@given(
+    st.lists(st.tuples(st.sampled_from(["b", "a", "c10", "c2", None]), st.integers(0, 20)), max_size=40),
+    st.sampled_from(["string", "categorical", "enum", "int"]),
+)
+def test_groups_by_filters_equal_groups_by_partition(rows, kind):
+    """groups() with a few keys (one filter each) gives the parts of one hash partition:
+    the same keys in the same order, each with its rows in order and sorted by t."""
+    import onebit.viz._series as S
+
+    df = pl.DataFrame(rows, schema={"k": pl.String, "t": pl.Float64}, orient="row").with_row_index("i")
+    if kind == "categorical":
+        df = df.with_columns(pl.col("k").cast(pl.Categorical))
+    elif kind == "enum":
+        df = df.with_columns(pl.col("k").cast(pl.Enum(["a", "b", "c10", "c2"])))
+    elif kind == "int":
+        df = df.with_columns(pl.col("k").str.len_bytes().cast(pl.Int64))
+    few = S.groups(df, "k")
+    with pytest.MonkeyPatch.context() as mp:
+        mp.setattr(S, "FEW_GROUPS", -1)
+        many = S.groups(df, "k")
+    assert [k for k, _ in few] == [k for k, _ in many]
+    for (_, a), (_, b) in zip(few, many):
+        assert a.equals(b)

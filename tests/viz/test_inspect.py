@@ -4,6 +4,8 @@ from __future__ import annotations
 
 import pytest
 import rerun.blueprint as rrb
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from onebit.pipeline.stages import LOOKS, TRACKERS, tracker_names
 from onebit.viz import colors
@@ -85,3 +87,34 @@ def test_a_look_names_a_known_family_and_a_colour():
     with pytest.raises(ValueError, match="Look.rgb"):
         Look("beams", (1, 2, 300))
     assert colors.tracker_color("new-tracker") == colors.color_of("new-tracker")  # no look: a palette colour
+
+
+_VALUE = st.one_of(st.none(), st.just(float("nan")), st.floats(-1e6, 1e6))
+
+
+@settings(max_examples=80, deadline=None)
+@given(
+    st.lists(st.one_of(st.none(), st.lists(_VALUE, max_size=4)), max_size=8),
+    st.integers(0, 3),
+    st.booleans(),
+)
+def test_list_min_max_equals_pyarrow_compute(rows, cut, large):
+    """The blueprint's Scalars ranges from the Arrow buffers equal pyarrow.compute's min_max of
+    the flattened lists: nulls skipped, NaN ignored unless all are NaN, None without a value;
+    sliced arrays and large lists too."""
+    import math
+
+    import pyarrow as pa
+    import pyarrow.compute as pc
+
+    from onebit.viz.inspect import list_min_max
+
+    typ = pa.large_list(pa.float64()) if large else pa.list_(pa.float64())
+    col = pa.array(rows, typ).slice(min(cut, len(rows)))
+    mm = pc.min_max(pc.list_flatten(col))
+    want = (mm["min"].as_py(), mm["max"].as_py())
+    got = list_min_max(col)
+    for w, g in zip(want, got):
+        assert (w is None and g is None) or (
+            w is not None and g is not None and (w == g or (math.isnan(w) and math.isnan(g)))
+        )
