@@ -92,7 +92,9 @@ particle mean; at most ``max_out`` (the site's ``targets``) are reported per fra
 largest :math:`r` first. Identities are the tracks' labels.
 
 The frames are processed in order (a filter is sequential); every step inside a frame is
-vectorised over tracks, particles and sensors.
+vectorised over tracks, particles and sensors -- or, on logs of :data:`COMPILED_MIN_FRAMES`
+frames or more, compiled (:mod:`onebit.trackers.binpf.kernels`: the sensors far from a track,
+whose footprint is below ``2^-54``, are skipped).
 """
 
 from __future__ import annotations
@@ -307,10 +309,11 @@ def run_filter(
     :math:`k + \\text{lag}` of where their ancestors were at :math:`k` (a later reading that
     says where a person went corrects where they were).
 
-    ``compiled``: the observation update and the birth test's footprints by the kernels of
-    :mod:`onebit.trackers.binpf.kernels` (a frame's cost follows the sensors near the tracks;
-    equal to rounding); ``None`` = from :data:`COMPILED_MIN_FRAMES` frames on (below, numba's
-    start-up in a fresh process costs more than it saves).
+    ``compiled``: the observation update, the birth test's footprints and the resampling by
+    the kernels of :mod:`onebit.trackers.binpf.kernels` (a frame's cost follows the sensors
+    near the tracks; the same random draws, equal to rounding); ``None`` = from
+    :data:`COMPILED_MIN_FRAMES` frames on (below, numba's start-up in a fresh process costs
+    more than it saves).
     """
     rng = np.random.default_rng(seed)
     T, S = on.shape
