@@ -747,48 +747,37 @@ def _ascent_one_order(
                 n_loc = _reach(seeds, ns, rows - 1, f_ptr, f_idx, b_ptr, b_idx, dist, gs) if ns else 0
             stats[0] += 1
             full = n_loc == 0 or 2 * n_loc > s  # reaching most states: every state (no certificate needed)
-            if full:
-                path, score, emis_sum = _decode_local(
-                    u,
-                    everything,
-                    s,
-                    on,
-                    decoded,
-                    pre,
-                    npre,
-                    st,
-                    entry[u],
-                    order,
-                    log_a1,
-                    log_stay,
-                    blocks,
-                    f_ptr,
-                    f_idx,
-                    loc,
-                    table,
-                )
-                stats[1] += 1
-            else:
-                path, score, emis_sum = _decode_local(
-                    u,
-                    gs,
-                    n_loc,
-                    on,
-                    decoded,
-                    pre,
-                    npre,
-                    st,
-                    entry[u],
-                    order,
-                    log_a1,
-                    log_stay,
-                    blocks,
-                    f_ptr,
-                    f_idx,
-                    loc,
-                    table,
-                )
+            path, score, emis_sum = _decode_local(
+                u,
+                everything if full else gs,
+                s if full else n_loc,
+                on,
+                decoded,
+                pre,
+                npre,
+                st,
+                entry[u],
+                order,
+                log_a1,
+                log_stay,
+                blocks,
+                f_ptr,
+                f_idx,
+                loc,
+                table,
+            )
+            redo = False
+            if not full:
                 if score == NEG_INF:  # no path (a clamped jump): the all-state decode's choice among equals
+                    redo = True
+                elif uniform:
+                    bound = g0  # the best score of a path that never meets an active state
+                    for _r in range(1, rows):
+                        bound = (bound + t_max) + g0
+                    if not score > bound:  # not certified: decode on every state
+                        redo = True
+                        stats[2] += 1
+                if redo:
                     path, score, emis_sum = _decode_local(
                         u,
                         everything,
@@ -808,33 +797,8 @@ def _ascent_one_order(
                         loc,
                         table,
                     )
-                    stats[1] += 1
-                elif uniform:
-                    bound = g0  # the best score of a path that never meets an active state
-                    for _r in range(1, rows):
-                        bound = (bound + t_max) + g0
-                    if not score > bound:  # not certified: decode on every state
-                        path, score, emis_sum = _decode_local(
-                            u,
-                            everything,
-                            s,
-                            on,
-                            decoded,
-                            pre,
-                            npre,
-                            st,
-                            entry[u],
-                            order,
-                            log_a1,
-                            log_stay,
-                            blocks,
-                            f_ptr,
-                            f_idx,
-                            loc,
-                            table,
-                        )
-                        stats[1] += 1
-                        stats[2] += 1
+            if full or redo:
+                stats[1] += 1
             trans[u] = score - emis_sum
             for t in range(st, n_slots):
                 decoded[u, t] = path[npre + t - st]
