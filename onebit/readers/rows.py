@@ -1203,6 +1203,16 @@ def duplicate_of(ok: pl.DataFrame, key: tuple[str, ...]) -> pl.Series:
     return out
 
 
+def backwards_reason(tolerance: float) -> pl.Expr:
+    """The reject reason of a row whose ``t`` is earlier than ``_prev`` (the latest time before
+    it) by more than ``tolerance`` seconds."""
+    if tolerance <= 0:
+        return pl.format("timestamp goes backwards ({} after {})", pl.col("t"), pl.col("_prev"))
+    return pl.format(
+        "timestamp goes backwards ({} after {}, more than {} s)", pl.col("t"), pl.col("_prev"), pl.lit(tolerance)
+    )
+
+
 def order_checks(
     ok: pl.DataFrame,
     *,
@@ -1239,16 +1249,7 @@ def order_checks(
         back = (pl.col("t") < pl.col("_prev") - tolerance).fill_null(False)
         late = ok.filter(back).rechunk()  # (polars 2.1 panics formatting a filtered frame's floats otherwise)
         if late.height:
-            why = (
-                pl.format("timestamp goes backwards ({} after {})", pl.col("t"), pl.col("_prev"))
-                if tolerance <= 0
-                else pl.format(
-                    "timestamp goes backwards ({} after {}, more than {} s)",
-                    pl.col("t"),
-                    pl.col("_prev"),
-                    pl.lit(tolerance),
-                )
-            )
+            why = backwards_reason(tolerance)
             parts.append(late.with_columns(why.alias("_reason")))
             ok = ok.filter(~back)
         reordered = int(ok.select((pl.col("t") < pl.col("_prev")).fill_null(False).sum()).item())

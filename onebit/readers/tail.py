@@ -69,6 +69,7 @@ from onebit.readers.rows import (
     RawRows,
     _check_columns,
     _header_of,
+    backwards_reason,
     make_rejects,
     physical_lines,
     rows_of_lines,
@@ -270,16 +271,7 @@ class _Ordered:
             b = pl.DataFrame(
                 backs, schema={"line": pl.Int64, "raw": pl.String, "t": pl.Float64, "_prev": pl.Float64}, orient="row"
             )
-            why = (
-                pl.format("timestamp goes backwards ({} after {})", pl.col("t"), pl.col("_prev"))
-                if tol <= 0
-                else pl.format(
-                    "timestamp goes backwards ({} after {}, more than {} s)",
-                    pl.col("t"),
-                    pl.col("_prev"),
-                    pl.lit(tol),
-                )
-            )
+            why = backwards_reason(tol)
             parts.append(b.select("line", "raw", why.alias("_reason")))
         if not parts:
             return pl.DataFrame(schema=REJECTS)
