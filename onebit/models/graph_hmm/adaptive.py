@@ -173,14 +173,19 @@ def restricted_first(a1: np.ndarray, idx: np.ndarray) -> np.ndarray:
     return log_safe(sub)
 
 
-def second_order_tensor(a1: np.ndarray, a2: np.ndarray, idx: np.ndarray) -> np.ndarray:
-    """(S, S, S) log a(j3, j2, j1) on the states ``idx`` (module docstring, item 3)."""
+def _restricted(a1: np.ndarray, a2: np.ndarray, idx: np.ndarray) -> tuple:
+    """``a1`` row-normalised on the states ``idx`` (a row without moves: stay), ``a2`` on them,
+    their number and the identity mask: what the second-order model is built from."""
     p1 = a1[np.ix_(idx, idx)]
     s = p1.sum(axis=1, keepdims=True)
     p1 = np.where(s > 0, p1 / np.where(s > 0, s, 1.0), np.eye(len(idx)))
-    p2 = a2[np.ix_(idx, idx)]
     n = len(idx)
-    eye = np.eye(n, dtype=bool)
+    return p1, a2[np.ix_(idx, idx)], n, np.eye(n, dtype=bool)
+
+
+def second_order_tensor(a1: np.ndarray, a2: np.ndarray, idx: np.ndarray) -> np.ndarray:
+    """(S, S, S) log a(j3, j2, j1) on the states ``idx`` (module docstring, item 3)."""
+    p1, p2, n, eye = _restricted(a1, a2, idx)
     stay = np.diag(p1)  # (j2,)
     move = np.where(eye, 0.0, p1)  # (j2, j1), j1 != j2
     w = move[None, :, :] * p2[:, None, :]  # (j3, j2, j1)
@@ -198,12 +203,7 @@ def second_order_support(a1: np.ndarray, a2: np.ndarray, idx: np.ndarray) -> tup
     move to it) and the nodes it moves to -- ``O(S deg^2)`` values, ``O(S^2 deg)`` time. Each
     value is computed as :func:`second_order_tensor` computes it (the same products, the same
     row sums over all ``S`` nodes), so it equals the dense entry bit for bit (tests)."""
-    p1 = a1[np.ix_(idx, idx)]
-    s = p1.sum(axis=1, keepdims=True)
-    p1 = np.where(s > 0, p1 / np.where(s > 0, s, 1.0), np.eye(len(idx)))
-    p2 = a2[np.ix_(idx, idx)]
-    n = len(idx)
-    eye = np.eye(n, dtype=bool)
+    p1, p2, n, eye = _restricted(a1, a2, idx)
     stay = np.diag(p1).copy()
     move = np.where(eye, 0.0, p1)
     nxt = (move > 0) | (eye & (stay > 0)[:, None])  # the finite entries of the tensor's rows: moves and the stay
