@@ -23,7 +23,14 @@ from onebit.core.tables import FRAMES, PROXIMITY, conform
 from onebit.readers.motion import TOGGLE_COLUMNS, DebounceRules, MotionRead, read_motion, read_motion_csv
 from onebit.readers.rows import RawRows
 
-__all__ = ["ProximityConfig", "read_proximity", "read_proximity_csv", "proximity_frames", "proximity_frames_reference", "TOGGLE_COLUMNS"]
+__all__ = [
+    "ProximityConfig",
+    "read_proximity",
+    "read_proximity_csv",
+    "proximity_frames",
+    "proximity_frames_reference",
+    "TOGGLE_COLUMNS",
+]
 
 
 @dataclass(frozen=True, kw_only=True)
