@@ -62,9 +62,23 @@ def atomic_path(path: str | Path, *, suffix: str = ".tmp") -> Iterator[Path]:
         raise
 
 
+#: Logical bytes of a Parquet row group at most (see :func:`write_parquet`).
+ROW_GROUP_BYTES = 64 * 2**20
+
+
 def write_parquet(df: pl.DataFrame, path: str | Path) -> None:
+    """``df`` to ``path`` atomically, in row groups of at most :data:`ROW_GROUP_BYTES` of
+    logical data (polars' default of 512^2 rows per group is encoded whole in memory: a
+    table of 3 kB WKB regions, 226 000 rows, held 0.7 GB more while it was written)."""
+    rows = None
+    if df.height:
+        per_row = max(df.estimated_size() / df.height, 1.0)
+        rows = max(1024, int(ROW_GROUP_BYTES / per_row))
     with atomic_path(path) as tmp:
-        df.write_parquet(tmp)
+        if rows is not None and rows < df.height:
+            df.write_parquet(tmp, row_group_size=rows)
+        else:
+            df.write_parquet(tmp)
 
 
 def write_csv(df: pl.DataFrame, path: str | Path) -> None:

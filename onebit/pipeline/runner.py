@@ -39,6 +39,7 @@ import polars as pl
 from onebit.core import writers as outputs
 from onebit.core.config import config_from_mapping, load_toml
 from onebit.core.errors import ConfigError, InputError, OnebitError, bounded
+from onebit.core.memory import release_freed_memory
 from onebit.core.region_graph import build_region_graph
 from onebit.core.site import load_site
 from onebit.core.tables import REJECTS, REPORT
@@ -320,6 +321,7 @@ def _run_stages(
         t0, c0 = time.perf_counter(), time.process_time()
         try:
             made = st.work(ctx)
+            release_freed_memory()  # what the work dropped, before its recording and the next stage
             ctx.seconds[st.name] = time.perf_counter() - t0
             check_made(st, made, ctx.tables, extra=(ARTIFACTS,))
             t1, c1 = time.perf_counter(), time.process_time()
@@ -328,6 +330,7 @@ def _run_stages(
                     log_site(rec, site, ctx.region_graph)
                     if st.viz is not None:
                         st.viz(rec, ctx, made)
+                release_freed_memory()
             timing[st.name] = {
                 "work_s": round(ctx.seconds[st.name], 6),
                 "viz_s": round(time.perf_counter() - t1, 6),

@@ -7,6 +7,7 @@ import polars as pl
 import shapely
 
 from onebit.core.site import Site
+from onebit.core.wkb import geometries
 from onebit.scoring.serve import CannotServe
 from onebit.trackers.istate.core import has_perfect_matching
 
@@ -93,7 +94,7 @@ def score(tracker: str, tables: dict, site: Site, region_graph=None) -> tuple[li
             f"('targets' in site.toml, or [istate] targets): it must be the most targets present at once"
         )
     ok_truth = count > 0
-    geoms = shapely.from_wkb(regs["wkb"].to_numpy())
+    geoms = geometries(regs["wkb"])  # each distinct region parsed once
     st_idx = regs["stage"].to_numpy()
     bounds = np.searchsorted(st_idx, stages["stage"].to_numpy())
     bounds = np.r_[bounds, len(st_idx)]

@@ -52,6 +52,7 @@ from onebit.core.sensing import body_radius, detection_regions
 from onebit.core.site import Site
 from onebit.core.tables import CROSSINGS, MOTION, PROXIMITY, TRACKS, check_schema, conform
 from onebit.core.units import length
+from onebit.core.wkb import wkb_column
 from onebit.trackers.base import ARTIFACTS, TrackerSpec
 from onebit.trackers.istate.core import (
     SHAPES,
@@ -116,10 +117,12 @@ class IStateConfig:
         in which every sensor is off and nothing happens; 0 = always one. The I-state itself
         is unchanged.
     max_stages : the most stages (``span / period_s``) the pipeline runs the filter on; a
-        longer log skips the stage, saying so (the set-based filter costs ~0.3 ms per stage
-        and its recording ~1-10 ms more, whatever happens in the stage: a 10^6-row beams log
-        of 5 days is 460 000 stages). 0 = no bound but :data:`~onebit.core.config.MAX_STEPS`
-        (10 million; more is refused, as a larger ``max_stages`` is).
+        longer log skips the stage, saying so. 100 000 holds a day at 1 s: the filter and its
+        recording cost ~0.1-0.6 ms a stage (a simulated day of a two-resident home, 86 389
+        stages: 21-25 s of filter and 25 s of recording, 1.5 GB; 10^6 PIR rows, 80 589 stages:
+        27 + 10 s); a 10^6-row beams log of 5 days is 460 000 stages. 0 = no bound but
+        :data:`~onebit.core.config.MAX_STEPS` (10 million; more is refused, as a larger
+        ``max_stages`` is).
     contradictions : what a reading that no joint state explains does (a spurious or late
         firing, a footprint larger than declared): ``reject`` (default) keeps the I-state and
         counts the reading (``summary.rejected``); ``empty`` is the paper's filter, whose
@@ -137,7 +140,7 @@ class IStateConfig:
     beam_width: float = length(0.0, unit="m")
     substeps: int = 1
     absent_after: float = ABSENT_AFTER_S
-    max_stages: int = 20_000
+    max_stages: int = 100_000
     contradictions: str = "reject"
 
     def __post_init__(self) -> None:
@@ -228,7 +231,7 @@ def fits(inputs: dict, site: Site, config: IStateConfig) -> str | None:
         return None
     return (
         f"the logs span {hi - lo:,.0f} s = {stages:,} stages of period_s = {config.period_s:g} s, more than "
-        f"max_stages = {config.max_stages:,} (the filter and its recording cost about 1-10 ms per stage); "
+        f"max_stages = {config.max_stages:,} (the filter and its recording cost about 0.1-0.6 ms per stage); "
         "set [istate] max_stages = 0 (no bound) or a longer period_s in --config to run it"
     )
 
@@ -495,7 +498,8 @@ def run(inputs: dict, site: Site, config: IStateConfig) -> dict[str, pl.DataFram
 def _regions_table(times: np.ndarray, regions: list, n: int, frame: SiteFrame) -> pl.DataFrame:
     """The ``regions`` table (REGIONS) of the stages' flattened ``(E_k n,)`` region arrays
     (in ``frame``): one row per region in site units, built once for the run (a region
-    recurring across stages is mapped back once)."""
+    recurring across stages is mapped back, measured and encoded once: its WKB bytes are
+    shared by its rows, :func:`onebit.core.wkb.wkb_column`)."""
     if not regions:
         return pl.DataFrame(schema=REGIONS)
     sizes = np.array([len(r) for r in regions], dtype=np.int64)  # E_k n
@@ -503,7 +507,8 @@ def _regions_table(times: np.ndarray, regions: list, n: int, frame: SiteFrame) -
     _, first, inv = np.unique(
         np.fromiter(map(id, flat), dtype=np.int64, count=len(flat)), return_index=True, return_inverse=True
     )
-    flat = np.asarray(frame.to_site(flat[first]), dtype=object)[inv.ravel()]
+    distinct = np.asarray(frame.to_site(flat[first]), dtype=object)
+    flat = distinct[inv.ravel()]
     within = np.arange(len(flat), dtype=np.int64) - np.repeat(np.cumsum(sizes) - sizes, sizes)  # position in its stage
     return pl.DataFrame(
         {
@@ -511,8 +516,8 @@ def _regions_table(times: np.ndarray, regions: list, n: int, frame: SiteFrame) -
             "stage": np.repeat(np.arange(len(regions), dtype=np.int64), sizes),
             "element": within // n,
             "k": within % n,
-            "area": shapely.area(flat).astype(float),
-            "wkb": shapely.to_wkb(flat),
+            "area": shapely.area(distinct).astype(float)[inv.ravel()],
+            "wkb": wkb_column(flat),  # each region's WKB once, shared by the stages holding it
         },
         schema=REGIONS,
     )
