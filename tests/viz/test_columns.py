@@ -28,8 +28,8 @@ from onebit.viz._series import (
 )
 from onebit.viz.events import log_crossings
 from onebit.viz.recording import stage_recording
-from onebit.viz.trails import segments
 from onebit.viz.tracks import log_current_region, region_indices
+from onebit.viz.trails import segments
 
 
 @settings(max_examples=60, deadline=None)
