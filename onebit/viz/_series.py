@@ -50,6 +50,15 @@ def only_tracker(df: pl.DataFrame, tracker: str) -> pl.DataFrame:
     return df if mine.all() else df.filter(mine)  # a tracker's own table: no copy
 
 
+def in_time_order(df: pl.DataFrame, column: str = "t") -> pl.DataFrame:
+    """``df`` sorted by ``column`` (stable), or ``df`` itself when it is in that order already
+    (the readers' and trackers' tables are: one numpy comparison instead of a sort)."""
+    t = df.get_column(column).to_numpy()
+    if t.size > 1 and not (t[1:] >= t[:-1]).all():
+        return df.sort(column, maintain_order=True)
+    return df
+
+
 #: Up to this many distinct keys :func:`groups` filters once per key instead of partitioning.
 FEW_GROUPS = 8
 
@@ -72,10 +81,7 @@ def groups(df: pl.DataFrame, key: str) -> list[tuple[str, pl.DataFrame]]:
         parts = df.filter(pl.col(key).is_not_null()).partition_by(key, as_dict=True, maintain_order=True)
     out = []
     for k, g in sorted(parts.items(), key=lambda kv: kv[0][0]):
-        t = g["t"].to_numpy()
-        if t.size > 1 and not (t[1:] >= t[:-1]).all():
-            g = g.sort("t", maintain_order=True)
-        out.append((str(k[0]), g))
+        out.append((str(k[0]), in_time_order(g)))
     return out
 
 

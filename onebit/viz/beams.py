@@ -24,7 +24,7 @@ from onebit.core.lazy import lazy_module
 from onebit.core.region_graph import RegionGraph
 from onebit.core.site import Site
 from onebit.viz import colors, paths
-from onebit.viz._series import is_empty, repeat_text, require, text_array
+from onebit.viz._series import in_time_order, is_empty, repeat_text, require, text_array
 from onebit.viz.families import GENERIC, Look
 from onebit.viz.frame import log_world_frame
 from onebit.viz.radii import ui_points
@@ -56,10 +56,11 @@ def beam_midpoints(site: Site, beams: list[str] | pl.Series) -> np.ndarray:
             raise ValueError(f"beam(s) {names.unique().sort().to_list()} not in the site (it has no beams)")
         return np.zeros((0, 2), dtype=np.float64)
     mids = shapely.get_coordinates(shapely.line_interpolate_point([b.line for b in site.beams], 0.5, normalized=True))
-    unknown = names.filter(~names.is_in(ids)).unique().sort()
-    if unknown.len():
-        raise ValueError(f"beam(s) {unknown.to_list()} not in the site; beams are {ids}")
-    k = names.cast(pl.Enum(list(dict.fromkeys(ids)))).to_physical().to_numpy()  # codes: no string per row
+    try:  # codes: no string per row; the cast fails on an id that is not a beam
+        k = names.cast(pl.Enum(list(dict.fromkeys(ids)))).to_physical().to_numpy()
+    except pl.exceptions.InvalidOperationError:
+        unknown = names.filter(~names.is_in(ids)).unique().sort()
+        raise ValueError(f"beam(s) {unknown.to_list()} not in the site; beams are {ids}") from None
     return mids[k].astype(np.float64).reshape(-1, 2)
 
 
@@ -83,10 +84,7 @@ def log_assignments(
     if is_empty(assignment):
         return
     require(assignment, ("t", "beam", "direction", "track"), name="assignment")
-    a = assignment.with_row_index("crossing")
-    t = a["t"].to_numpy()
-    if t.size > 1 and not (t[1:] >= t[:-1]).all():  # the tracker's table is in time order: no sort then
-        a = a.sort("t", maintain_order=True)
+    a = in_time_order(assignment.with_row_index("crossing"))  # the tracker's table is: no sort then
     if "ambiguous" in a.columns:
         a = a.filter(~pl.col("ambiguous").fill_null(False))
     a = a.filter(pl.col("track").is_not_null())
@@ -130,7 +128,7 @@ def log_marked_crossings(
     if is_empty(marked):
         return
     require(marked, ("t", "beam", "direction"), name=kind)
-    m = marked.sort("t")
+    m = in_time_order(marked)
     if "crossing" not in m.columns:
         m = m.with_row_index("crossing")
     if "reason" in m.columns:

@@ -21,7 +21,7 @@ import polars as pl
 from onebit.core.lazy import lazy_module
 from onebit.core.site import Site
 from onebit.viz import paths
-from onebit.viz._series import choice_text, is_empty, repeat_text, require
+from onebit.viz._series import choice_text, in_time_order, is_empty, repeat_text, require
 from onebit.viz.beams import beam_midpoints
 from onebit.viz.frame import log_world_frame
 
@@ -73,7 +73,7 @@ def log_corrected_crossings(rec: rr.RecordingStream, corrected: pl.DataFrame | N
         (False, observed_path(), OBSERVED, rr.Radius.ui_points(4.0), ""),
         (True, inserted_path(), INSERTED, rr.Radius.ui_points(9.0), " inserted"),
     ):
-        g = corrected.filter(pl.col("inserted") == inserted).sort("t", maintain_order=True)
+        g = in_time_order(corrected.filter(pl.col("inserted") == inserted))
         if g.height == 0:
             continue
         xy = beam_midpoints(site, g["beam"])
@@ -83,7 +83,7 @@ def log_corrected_crossings(rec: rr.RecordingStream, corrected: pl.DataFrame | N
             indexes=[paths.time_column(g["t"].to_numpy())],
             columns=rr.Points2D.columns(positions=xy, labels=_label_array(g, suffix)),
         )
-    ins = corrected.filter(pl.col("inserted")).sort("t", maintain_order=True)
+    ins = in_time_order(corrected.filter(pl.col("inserted")))
     if ins.height == 0:
         return
     rec.send_columns(
