@@ -85,9 +85,10 @@ def log_assignments(
         return
     require(assignment, ("t", "beam", "direction", "track"), name="assignment")
     a = in_time_order(assignment.with_row_index("crossing"))  # the tracker's table is: no sort then
+    keep = pl.col("track").is_not_null()
     if "ambiguous" in a.columns:
-        a = a.filter(~pl.col("ambiguous").fill_null(False))
-    a = a.filter(pl.col("track").is_not_null())
+        keep = keep & ~pl.col("ambiguous").fill_null(False)
+    a = a.filter(keep)  # one pass
     if a.height == 0:
         return
     move = (

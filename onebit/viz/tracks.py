@@ -161,7 +161,9 @@ def log_region_tracks(
     if is_empty(tracks):
         return
     require(tracks, ("track", "t", "region"), name="tracks")
-    tracks = only_tracker(tracks, tracker).drop_nulls(["t", "region"])
+    tracks = only_tracker(tracks, tracker).select("track", "t", "region")  # no copy of the other columns
+    if tracks["t"].null_count() or tracks["region"].null_count():
+        tracks = tracks.drop_nulls(["t", "region"])
     if tracks.height == 0:
         return
     log_world_frame(rec, paths.tracker_root(tracker))
