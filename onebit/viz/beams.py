@@ -24,7 +24,7 @@ from onebit.core.lazy import lazy_module
 from onebit.core.region_graph import RegionGraph
 from onebit.core.site import Site
 from onebit.viz import colors, paths
-from onebit.viz._series import in_time_order, is_empty, repeat_text, require, text_array
+from onebit.viz._series import choice_text, in_time_order, is_empty, repeat_text, require, text_array
 from onebit.viz.families import GENERIC, Look
 from onebit.viz.frame import log_world_frame
 from onebit.viz.radii import ui_points
@@ -66,6 +66,23 @@ def beam_midpoints(site: Site, beams: list[str] | pl.Series) -> np.ndarray:
 
 def _crossing_label() -> pl.Expr:
     return pl.when(pl.col("direction") > 0).then(pl.col("beam")).otherwise(pl.col("beam") + "^-1")
+
+
+def crossing_labels(df: pl.DataFrame, suffix: str = "") -> list[str]:
+    """``"a"`` / ``"a^-1"`` (beam, then ``^-1`` unless the direction is positive) + ``suffix`` of
+    each row of ``df`` (``beam``, ``direction``): the reference of :func:`crossing_label_array`."""
+    return df.select((_crossing_label() + pl.lit(suffix)).alias("s"))["s"].to_list()
+
+
+def crossing_label_array(df: pl.DataFrame, suffix: str = ""):
+    """:func:`crossing_labels` as UTF-8 Arrow strings built from the few distinct labels (a beam
+    and a direction each; :func:`~onebit.viz._series.choice_text`), no string per row."""
+    beam = df["beam"].cast(pl.String)
+    names = beam.unique(maintain_order=True)
+    code = beam.cast(pl.Enum(names.to_list())).to_physical().cast(pl.Int64).to_numpy()
+    backward = (~(df["direction"] > 0).fill_null(False)).to_numpy()
+    options = [f"{b}{sfx}{suffix}" for b in names.to_list() for sfx in ("", "^-1")]
+    return choice_text(options, 2 * code + backward)
 
 
 def _track_label(labels: dict[str, str]) -> pl.Expr:
@@ -149,9 +166,7 @@ def log_marked_crossings(
     rec.log(
         entity, rr.Points2D.from_fields(radii=MARK_RADIUS, colors=color, show_labels=True, draw_order=40.0), static=True
     )
-    marks = text_array(
-        m.select(pl.format("{} {}", _crossing_label(), pl.lit(_MARK_TEXT.get(kind, kind))).alias("s"))["s"]
-    )
+    marks = crossing_label_array(m, f" {_MARK_TEXT.get(kind, kind)}")
     rec.send_columns(
         entity,
         indexes=[paths.time_column(t)],

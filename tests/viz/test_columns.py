@@ -187,13 +187,13 @@ def test_crossings_log_one_text_row_and_one_flash_per_crossing(tmp_path, lab):
 
 
 @settings(max_examples=40, deadline=None)
-@given(st.lists(st.tuples(st.sampled_from(["a", "b2", "é"]), st.sampled_from([1, -1])), max_size=25))
-def test_corrected_crossing_labels_from_buffers_equal_the_polars_labels(rows):
-    from onebit.viz.beams_correct import _label_array, _labels
+@given(st.lists(st.tuples(st.sampled_from(["a", "b2", "é"]), st.sampled_from([1, -1, 0, None])), max_size=25))
+def test_crossing_labels_from_buffers_equal_the_polars_labels(rows):
+    from onebit.viz.beams import crossing_label_array, crossing_labels
 
     df = pl.DataFrame(rows, schema={"beam": pl.String, "direction": pl.Int8}, orient="row")
-    for suffix in ("", " inserted"):
-        assert _label_array(df, suffix).equals(text_array(_labels(df, suffix)))
+    for suffix in ("", " inserted", " ambiguous"):
+        assert crossing_label_array(df, suffix).equals(text_array(crossing_labels(df, suffix)))
 
 
 @settings(max_examples=60, deadline=None)
