@@ -3,6 +3,8 @@
 from __future__ import annotations
 
 import argparse
+import atexit
+import gc
 import sys
 import tempfile
 import traceback
@@ -699,7 +701,17 @@ def _add_logs_commands(sub) -> None:
     ls.set_defaults(func=_cmd_logs_split)
 
 
+def _skip_the_exit_collection() -> None:
+    """At exit, after every other exit handler (they run last registered first): freeze the heap
+    so the interpreter's final garbage collection does not walk it. That walk costs 0.2-0.3 s
+    after a 10^6-row run (polars, numba, Rerun's classes), a tenth of the run; every file is
+    closed by then (recordings flushed, run folders renamed), and the process is ending."""
+    gc.freeze()
+
+
 def main(argv: list[str] | None = None) -> int:
+    atexit.unregister(_skip_the_exit_collection)  # once per process, however often main runs
+    atexit.register(_skip_the_exit_collection)
     args = build_parser().parse_args(argv)
     try:
         return int(args.func(args) or 0)

@@ -24,7 +24,7 @@ from onebit.core.lazy import lazy_module
 from onebit.core.region_graph import RegionGraph
 from onebit.core.site import Site
 from onebit.viz import colors, paths
-from onebit.viz._series import is_empty, repeat_text, require, text_array
+from onebit.viz._series import choice_text, in_time_order, is_empty, repeat_text, require, text_array
 from onebit.viz.families import GENERIC, Look
 from onebit.viz.frame import log_world_frame
 from onebit.viz.radii import ui_points
@@ -56,15 +56,33 @@ def beam_midpoints(site: Site, beams: list[str] | pl.Series) -> np.ndarray:
             raise ValueError(f"beam(s) {names.unique().sort().to_list()} not in the site (it has no beams)")
         return np.zeros((0, 2), dtype=np.float64)
     mids = shapely.get_coordinates(shapely.line_interpolate_point([b.line for b in site.beams], 0.5, normalized=True))
-    unknown = names.filter(~names.is_in(ids)).unique().sort()
-    if unknown.len():
-        raise ValueError(f"beam(s) {unknown.to_list()} not in the site; beams are {ids}")
-    k = names.cast(pl.Enum(list(dict.fromkeys(ids)))).to_physical().to_numpy()  # codes: no string per row
+    try:  # codes: no string per row; the cast fails on an id that is not a beam
+        k = names.cast(pl.Enum(list(dict.fromkeys(ids)))).to_physical().to_numpy()
+    except pl.exceptions.InvalidOperationError:
+        unknown = names.filter(~names.is_in(ids)).unique().sort()
+        raise ValueError(f"beam(s) {unknown.to_list()} not in the site; beams are {ids}") from None
     return mids[k].astype(np.float64).reshape(-1, 2)
 
 
 def _crossing_label() -> pl.Expr:
     return pl.when(pl.col("direction") > 0).then(pl.col("beam")).otherwise(pl.col("beam") + "^-1")
+
+
+def crossing_labels(df: pl.DataFrame, suffix: str = "") -> list[str]:
+    """``"a"`` / ``"a^-1"`` (beam, then ``^-1`` unless the direction is positive) + ``suffix`` of
+    each row of ``df`` (``beam``, ``direction``): the reference of :func:`crossing_label_array`."""
+    return df.select((_crossing_label() + pl.lit(suffix)).alias("s"))["s"].to_list()
+
+
+def crossing_label_array(df: pl.DataFrame, suffix: str = ""):
+    """:func:`crossing_labels` as UTF-8 Arrow strings built from the few distinct labels (a beam
+    and a direction each; :func:`~onebit.viz._series.choice_text`), no string per row."""
+    beam = df["beam"].cast(pl.String)
+    names = beam.unique(maintain_order=True)
+    code = beam.cast(pl.Enum(names.to_list())).to_physical().cast(pl.Int64).to_numpy()
+    backward = (~(df["direction"] > 0).fill_null(False)).to_numpy()
+    options = [f"{b}{sfx}{suffix}" for b in names.to_list() for sfx in ("", "^-1")]
+    return choice_text(options, 2 * code + backward)
 
 
 def _track_label(labels: dict[str, str]) -> pl.Expr:
@@ -83,13 +101,11 @@ def log_assignments(
     if is_empty(assignment):
         return
     require(assignment, ("t", "beam", "direction", "track"), name="assignment")
-    a = assignment.with_row_index("crossing")
-    t = a["t"].to_numpy()
-    if t.size > 1 and not (t[1:] >= t[:-1]).all():  # the tracker's table is in time order: no sort then
-        a = a.sort("t", maintain_order=True)
+    a = in_time_order(assignment.with_row_index("crossing"))  # the tracker's table is: no sort then
+    keep = pl.col("track").is_not_null()
     if "ambiguous" in a.columns:
-        a = a.filter(~pl.col("ambiguous").fill_null(False))
-    a = a.filter(pl.col("track").is_not_null())
+        keep = keep & ~pl.col("ambiguous").fill_null(False)
+    a = a.filter(keep)  # one pass
     if a.height == 0:
         return
     move = (
@@ -130,7 +146,7 @@ def log_marked_crossings(
     if is_empty(marked):
         return
     require(marked, ("t", "beam", "direction"), name=kind)
-    m = marked.sort("t")
+    m = in_time_order(marked)
     if "crossing" not in m.columns:
         m = m.with_row_index("crossing")
     if "reason" in m.columns:
@@ -150,9 +166,7 @@ def log_marked_crossings(
     rec.log(
         entity, rr.Points2D.from_fields(radii=MARK_RADIUS, colors=color, show_labels=True, draw_order=40.0), static=True
     )
-    marks = text_array(
-        m.select(pl.format("{} {}", _crossing_label(), pl.lit(_MARK_TEXT.get(kind, kind))).alias("s"))["s"]
-    )
+    marks = crossing_label_array(m, f" {_MARK_TEXT.get(kind, kind)}")
     rec.send_columns(
         entity,
         indexes=[paths.time_column(t)],

@@ -21,8 +21,8 @@ import polars as pl
 from onebit.core.lazy import lazy_module
 from onebit.core.site import Site
 from onebit.viz import paths
-from onebit.viz._series import choice_text, is_empty, repeat_text, require
-from onebit.viz.beams import beam_midpoints
+from onebit.viz._series import in_time_order, is_empty, repeat_text, require
+from onebit.viz.beams import beam_midpoints, crossing_label_array
 from onebit.viz.frame import log_world_frame
 
 rr = lazy_module("rerun")
@@ -44,24 +44,6 @@ def log_path() -> str:
     return paths.join(ROOT, "log")
 
 
-def _labels(df: pl.DataFrame, suffix: str) -> list[str]:
-    return df.select(
-        (
-            pl.when(pl.col("direction") > 0).then(pl.col("beam")).otherwise(pl.col("beam") + "^-1") + pl.lit(suffix)
-        ).alias("s")
-    )["s"].to_list()
-
-
-def _label_array(df: pl.DataFrame, suffix: str):
-    """:func:`_labels` (its reference) as UTF-8 Arrow strings built from the few distinct labels
-    (a beam and a direction each; :func:`~onebit.viz._series.choice_text`), no string per row."""
-    beam = df["beam"].cast(pl.String)
-    names = beam.unique(maintain_order=True)
-    code = beam.cast(pl.Enum(names.to_list())).to_physical().cast(pl.Int64).to_numpy()
-    options = [f"{b}{sfx}{suffix}" for b in names.to_list() for sfx in ("", "^-1")]
-    return choice_text(options, 2 * code + (df["direction"].to_numpy() <= 0))
-
-
 def log_corrected_crossings(rec: rr.RecordingStream, corrected: pl.DataFrame | None, site: Site) -> None:
     """Log the corrected string ``(t, beam, direction, inserted)``: observed and inserted crossings
     on separate entities with distinct colours and sizes, and a text line for each."""
@@ -73,7 +55,7 @@ def log_corrected_crossings(rec: rr.RecordingStream, corrected: pl.DataFrame | N
         (False, observed_path(), OBSERVED, rr.Radius.ui_points(4.0), ""),
         (True, inserted_path(), INSERTED, rr.Radius.ui_points(9.0), " inserted"),
     ):
-        g = corrected.filter(pl.col("inserted") == inserted).sort("t", maintain_order=True)
+        g = in_time_order(corrected.filter(pl.col("inserted") == inserted))
         if g.height == 0:
             continue
         xy = beam_midpoints(site, g["beam"])
@@ -81,16 +63,16 @@ def log_corrected_crossings(rec: rr.RecordingStream, corrected: pl.DataFrame | N
         rec.send_columns(
             entity,
             indexes=[paths.time_column(g["t"].to_numpy())],
-            columns=rr.Points2D.columns(positions=xy, labels=_label_array(g, suffix)),
+            columns=rr.Points2D.columns(positions=xy, labels=crossing_label_array(g, suffix)),
         )
-    ins = corrected.filter(pl.col("inserted")).sort("t", maintain_order=True)
+    ins = in_time_order(corrected.filter(pl.col("inserted")))
     if ins.height == 0:
         return
     rec.send_columns(
         log_path(),
         indexes=[paths.time_column(ins["t"].to_numpy())],
         columns=rr.TextLog.columns(
-            text=_label_array(ins, " inserted (missed crossing restored by the counting automaton)"),
+            text=crossing_label_array(ins, " inserted (missed crossing restored by the counting automaton)"),
             level=repeat_text("WARN", ins.height),
             color=np.tile(np.asarray(INSERTED, np.uint8), (ins.height, 1)),
         ),

@@ -52,12 +52,13 @@ def log_crossings(
     if not is_empty(crossings):
         require(crossings, ("t", "beam", "direction"), name="crossings")
         known = set(site.beam_ids) if site is not None else set()
+        palette = np.array([colors.FORWARD, colors.BACKWARD], np.uint8)
         for beam, g in groups(crossings, "beam"):
             entity = paths.sensor(beam, prefix=entity_prefix)
-            direction = g["direction"].cast(pl.Float64).to_numpy()
-            color = np.where(direction[:, None] > 0, colors.FORWARD, colors.BACKWARD).astype(np.uint8)
+            backward = (g["direction"].cast(pl.Float64).to_numpy() <= 0).astype(np.intp)
+            color = palette[backward]  # green forward, orange backward
             t = paths.time_column(g["t"].to_numpy())
-            texts = choice_text([f"{beam} forward", f"{beam}^-1 backward"], direction <= 0)  # as crossing_texts
+            texts = choice_text([f"{beam} forward", f"{beam}^-1 backward"], backward)  # as crossing_texts
             rec.send_columns(
                 entity,
                 indexes=[t],
@@ -66,7 +67,7 @@ def log_crossings(
             if beam in known:
                 b = site.beam(beam)
                 log_world_frame(rec, entity_prefix)
-                segment = np.array([b.p0, b.p1], np.float64)
+                segment = np.array([b.p0, b.p1], np.float32)
                 rec.log(
                     paths.sensor_crossed(beam, prefix=entity_prefix),
                     rr.LineStrips2D.from_fields(radii=CROSSED_WIDTH, labels=[beam], show_labels=False, draw_order=22.0),

@@ -9,6 +9,8 @@ shows world coordinates and labels stay upright. Logging it again is harmless (s
 
 from __future__ import annotations
 
+import functools
+
 from onebit.core.lazy import lazy_module
 
 rr = lazy_module("rerun")
@@ -20,4 +22,10 @@ Y_UP_SCALE = (1.0, -1.0, 1.0)
 
 def log_world_frame(rec: rr.RecordingStream, root: str) -> None:
     """Put the map geometry under ``root`` (one path part, e.g. ``"truth"``) in the y-up frame."""
-    rec.log(root.split("/")[0], rr.Transform3D(scale=list(Y_UP_SCALE)), static=True)
+    rec.log(root.split("/")[0], _world_frame(), static=True)
+
+
+@functools.cache
+def _world_frame() -> rr.Transform3D:
+    """The y-up transform, built once (an archetype is logged as it is, into any recording)."""
+    return rr.Transform3D(scale=list(Y_UP_SCALE))

@@ -48,69 +48,105 @@ def log_site(rec: rr.RecordingStream, site: Site, region_graph: RegionGraph | No
     arrow to the forward side labelled with the beam id), ``site/regions/<name>`` and
     ``site/sensors`` (every sensor's dim mark, :func:`log_sensor_marks`). Without a region graph, the site's named
     region points are logged as labelled points.
+
+    Every stage's recording holds the site: its archetypes are built once for a site and
+    region graph (the last pair asked for) and logged as they are into each recording.
     """
     log_world_frame(rec, paths.SITE)
-    rec.log(
-        paths.site_boundary(),
-        rr.LineStrips2D(
-            rings(site.boundary), radii=WALL_WIDTH, colors=colors.WALL, labels=[site.name], show_labels=False
-        ),
-        static=True,
-    )
+    for entity, parts in _site_parts(site, region_graph):
+        rec.log(entity, *parts, static=True)
+
+
+_SITE_PARTS: list = []  # [(site, region_graph, parts)]: the last site drawn
+
+
+def _site_parts(site: Site, region_graph: RegionGraph | None) -> list[tuple[str, list]]:
+    """``(entity, archetypes)`` of :func:`log_site`, built once per site and region graph."""
+    if _SITE_PARTS and _SITE_PARTS[0][0] is site and _SITE_PARTS[0][1] is region_graph:
+        return _SITE_PARTS[0][2]
+    parts = [
+        (
+            paths.site_boundary(),
+            [
+                rr.LineStrips2D(
+                    rings(site.boundary), radii=WALL_WIDTH, colors=colors.WALL, labels=[site.name], show_labels=False
+                )
+            ],
+        )
+    ]
     for i, (poly, name) in enumerate(zip(site.obstacles, site.obstacle_names, strict=True)):
-        rec.log(
-            paths.site_obstacle(i),
-            rr.LineStrips2D(rings(poly), radii=WALL_WIDTH, colors=colors.OBSTACLE, labels=[name], show_labels=False),
-            static=True,
+        parts.append(
+            (
+                paths.site_obstacle(i),
+                [
+                    rr.LineStrips2D(
+                        rings(poly), radii=WALL_WIDTH, colors=colors.OBSTACLE, labels=[name], show_labels=False
+                    )
+                ],
+            )
         )
     for b in site.beams:
         origin, vector = beam_arrow(site, b.id)
-        rec.log(
-            paths.site_beam(b.id),
-            rr.LineStrips2D([np.array([b.p0, b.p1], float)], radii=BEAM_WIDTH, colors=colors.BEAM, draw_order=20.0),
-            rr.Arrows2D(
-                origins=[origin],
-                vectors=[vector],
-                radii=BEAM_WIDTH,
-                colors=colors.BEAM,
-                labels=[b.id],
-                show_labels=True,
-                draw_order=20.0,
-            ),
-            static=True,
+        parts.append(
+            (
+                paths.site_beam(b.id),
+                [
+                    rr.LineStrips2D(
+                        [np.array([b.p0, b.p1], float)], radii=BEAM_WIDTH, colors=colors.BEAM, draw_order=20.0
+                    ),
+                    rr.Arrows2D(
+                        origins=[origin],
+                        vectors=[vector],
+                        radii=BEAM_WIDTH,
+                        colors=colors.BEAM,
+                        labels=[b.id],
+                        show_labels=True,
+                        draw_order=20.0,
+                    ),
+                ],
+            )
         )
     if region_graph is not None:
         for name, poly in zip(region_graph.names, region_graph.polygons, strict=True):
             rp = poly.representative_point()
-            outline = rings(poly)
-            rec.log(
-                paths.site_region(name),
-                rr.LineStrips2D(outline, radii=REGION_WIDTH, colors=REGION_COLOR, draw_order=5.0),
-                rr.Points2D(
-                    [[rp.x, rp.y]],
-                    radii=LABEL_RADIUS,
-                    colors=REGION_LABEL,
-                    labels=[name],
-                    show_labels=True,
-                    draw_order=6.0,
-                ),
-                static=True,
+            parts.append(
+                (
+                    paths.site_region(name),
+                    [
+                        rr.LineStrips2D(rings(poly), radii=REGION_WIDTH, colors=REGION_COLOR, draw_order=5.0),
+                        rr.Points2D(
+                            [[rp.x, rp.y]],
+                            radii=LABEL_RADIUS,
+                            colors=REGION_LABEL,
+                            labels=[name],
+                            show_labels=True,
+                            draw_order=6.0,
+                        ),
+                    ],
+                )
             )
     else:
         for spec in site.regions:
-            rec.log(
-                paths.site_region(spec.name),
-                rr.Points2D(
-                    [spec.point],
-                    radii=LABEL_RADIUS,
-                    colors=REGION_LABEL,
-                    labels=[spec.name],
-                    show_labels=True,
-                    draw_order=6.0,
-                ),
-                static=True,
+            parts.append(
+                (
+                    paths.site_region(spec.name),
+                    [
+                        rr.Points2D(
+                            [spec.point],
+                            radii=LABEL_RADIUS,
+                            colors=REGION_LABEL,
+                            labels=[spec.name],
+                            show_labels=True,
+                            draw_order=6.0,
+                        )
+                    ],
+                )
             )
-    log_sensor_marks(rec, site)
+    marks = sensor_marks(site)
+    if marks:
+        parts.append((paths.join(paths.SITE, "sensors"), marks))
+    _SITE_PARTS[:] = [(site, region_graph, parts)]
+    return parts
 
 
 #: Sensor marks: dim, so the map stays readable; the families highlight the sensors that fire.
@@ -124,8 +160,14 @@ def log_sensor_marks(rec: rr.RecordingStream, site: Site) -> None:
     One entity for all sensors, not one per sensor: a static log is a chunk of its own in the
     file, and the site is drawn in every stage's recording.
     """
+    parts = sensor_marks(site)
+    if parts:
+        rec.log(paths.join(paths.SITE, "sensors"), *parts, static=True)
+
+
+def sensor_marks(site: Site) -> list:
+    """The archetypes of :func:`log_sensor_marks` (none for a site without motion or proximity sensors)."""
     length = 0.025 * site.diagonal
-    entity = paths.join(paths.SITE, "sensors")
     parts = []
     if site.motion_sensors:
         a = np.radians([m.heading for m in site.motion_sensors])
@@ -151,5 +193,4 @@ def log_sensor_marks(rec: rr.RecordingStream, site: Site) -> None:
                 draw_order=11.0,
             )
         )
-    if parts:
-        rec.log(entity, *parts, static=True)
+    return parts

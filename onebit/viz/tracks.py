@@ -95,10 +95,12 @@ def region_indices(region_graph: RegionGraph, regions) -> np.ndarray:
     ``ValueError`` naming it (vectorised with polars: no Python work per row)."""
     names = regions.cast(pl.String) if isinstance(regions, pl.Series) else pl.Series("region", regions, dtype=pl.String)
     known = list(region_graph.names)
-    unknown = names.filter(~names.is_in(known)).unique().sort().to_list()
-    if unknown:
-        raise ValueError(f"tracks name region(s) {unknown} not in the region graph; regions are {known}")
-    return names.cast(pl.Enum(known)).to_physical().cast(pl.Int64).to_numpy()
+    try:  # one pass: the cast fails on a name that is not a region
+        codes = names.cast(pl.Enum(known))
+    except pl.exceptions.InvalidOperationError:
+        unknown = names.filter(~names.is_in(known)).unique().sort().to_list()
+        raise ValueError(f"tracks name region(s) {unknown} not in the region graph; regions are {known}") from None
+    return codes.to_physical().cast(pl.Int64).to_numpy()
 
 
 def region_positions(region_graph: RegionGraph, regions, slot: int, *, index: np.ndarray | None = None) -> np.ndarray:
@@ -159,7 +161,9 @@ def log_region_tracks(
     if is_empty(tracks):
         return
     require(tracks, ("track", "t", "region"), name="tracks")
-    tracks = only_tracker(tracks, tracker).drop_nulls(["t", "region"])
+    tracks = only_tracker(tracks, tracker).select("track", "t", "region")  # no copy of the other columns
+    if tracks["t"].null_count() or tracks["region"].null_count():
+        tracks = tracks.drop_nulls(["t", "region"])
     if tracks.height == 0:
         return
     log_world_frame(rec, paths.tracker_root(tracker))

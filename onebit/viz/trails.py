@@ -49,17 +49,19 @@ RING_ORDER = 28.0
 DOT_ORDER = 32.0
 
 
-def segments(xy: np.ndarray) -> np.ndarray:
-    """``(n - 1, 2, 2)`` segments from each position of ``xy`` (``(n, 2)``) to the next."""
-    xy = np.asarray(xy, np.float64).reshape(-1, 2)
-    if len(xy) < 2:
-        return np.zeros((0, 2, 2), np.float64)
-    return np.stack([xy[:-1], xy[1:]], axis=1)
+def segments(xy: np.ndarray, dtype=np.float64) -> np.ndarray:
+    """``(n - 1, 2, 2)`` segments from each position of ``xy`` (``(n, 2)``) to the next, in
+    ``dtype`` (float32 for Rerun's strips: built in that type, no second copy)."""
+    xy = np.asarray(xy, dtype).reshape(-1, 2)
+    out = np.empty((max(len(xy) - 1, 0), 2, 2), dtype)
+    out[:, 0] = xy[:-1]
+    out[:, 1] = xy[1:]
+    return out
 
 
 def log_trail(rec: rr.RecordingStream, entity: str, t: np.ndarray, xy: np.ndarray, *, color, width=TRAIL_WIDTH) -> None:
     """``<entity>/trail``: the segment ending at each sample ``i >= 1``, at time ``t[i]``."""
-    seg = segments(xy)
+    seg = segments(xy, np.float32)
     if len(seg) == 0:
         return
     trail = paths.trail(entity)

@@ -8,6 +8,7 @@ import polars as pl
 import pyarrow as pa
 import pytest
 import rerun as rr
+import shapely
 from hypothesis import given, settings
 from hypothesis import strategies as st
 from rerun.chunk import RrdReader
@@ -17,6 +18,7 @@ from onebit.viz import paths
 from onebit.viz._series import (
     choice_text,
     gather_ranges,
+    only_tracker,
     region_outlines,
     repeat_text,
     ring_table,
@@ -27,6 +29,7 @@ from onebit.viz._series import (
 from onebit.viz.events import log_crossings
 from onebit.viz.recording import stage_recording
 from onebit.viz.tracks import log_current_region, region_indices
+from onebit.viz.trails import segments
 
 
 @settings(max_examples=60, deadline=None)
@@ -54,6 +57,55 @@ def test_choice_text_equals_the_strings_it_picks(options, data):
     index = data.draw(st.lists(st.integers(0, len(options) - 1), max_size=30))
     got = choice_text(options, np.array(index, np.int64))
     assert got.equals(text_array([options[i] for i in index]))
+
+
+def test_choice_text_rejects_an_index_outside_the_options():
+    with pytest.raises(ValueError, match="outside the 2 options"):
+        choice_text(["a", "b"], np.array([0, 2]))
+
+
+_SHAPES = [  # a square, a square with a hole, two parts (one with a hole), a triangle, nothing
+    shapely.box(0, 0, 1, 1),
+    shapely.box(0, 0, 4, 4).difference(shapely.box(1, 1, 2, 2)),
+    shapely.MultiPolygon([shapely.box(5, 5, 6, 6), shapely.box(7, 0, 9, 3).difference(shapely.box(7.5, 1, 8, 2))]),
+    shapely.Polygon([(0, 0), (3, 0), (0, 2)]),
+    shapely.Polygon(),
+]
+
+
+@settings(max_examples=60, deadline=None)
+@given(st.lists(st.sampled_from(range(len(_SHAPES))), min_size=1, max_size=4), st.lists(st.integers(0, 3), max_size=25))
+def test_region_outlines_are_the_rings_of_each_row_polygon(chosen, picks):
+    """One gather per row (and per ring only with holes or parts) equals the rings concatenated row by row."""
+    polys = [_SHAPES[i] for i in chosen]
+    k = np.array([p % len(polys) for p in picks], np.int64)
+    pts, lengths, per_row = region_outlines(ring_table(polys), k)
+    want = [r for i in k for r in rings(polys[i])]
+    assert pts.dtype == np.float32
+    assert per_row.tolist() == [len(rings(polys[i])) for i in k]
+    assert lengths.tolist() == [len(r) for r in want]
+    flat = np.concatenate(want).astype(np.float32) if want else np.zeros((0, 2), np.float32)
+    assert np.array_equal(pts, flat.reshape(-1, 2))
+
+
+def test_segments_in_float32_are_the_float64_segments_cast():
+    xy = np.random.default_rng(3).normal(size=(7, 2)) * 1e3
+    assert np.array_equal(segments(xy, np.float32), segments(xy).astype(np.float32))
+
+
+def test_only_tracker_keeps_a_tracker_own_table_and_drops_other_and_null_rows():
+    own = pl.DataFrame({"tracker": ["beams", "beams"], "t": [0.0, 1.0]})
+    assert only_tracker(own, "beams") is own
+    mixed = pl.DataFrame({"tracker": ["beams", None, "istate", "beams"], "t": [0.0, 1.0, 2.0, 3.0]})
+    assert only_tracker(mixed, "beams")["t"].to_list() == [0.0, 3.0]
+    assert only_tracker(pl.DataFrame({"t": [0.0]}), "beams").height == 1
+
+
+def test_region_indices_name_the_unknown_regions(lab):
+    _, rg = lab
+    assert region_indices(rg, [rg.names[1], rg.names[0]]).tolist() == [1, 0]
+    with pytest.raises(ValueError, match=r"\['nowhere'\] not in the region graph"):
+        region_indices(rg, [rg.names[0], "nowhere", "nowhere"])
 
 
 def test_crossing_texts_by_choice_equal_the_polars_texts():
@@ -135,13 +187,13 @@ def test_crossings_log_one_text_row_and_one_flash_per_crossing(tmp_path, lab):
 
 
 @settings(max_examples=40, deadline=None)
-@given(st.lists(st.tuples(st.sampled_from(["a", "b2", "é"]), st.sampled_from([1, -1])), max_size=25))
-def test_corrected_crossing_labels_from_buffers_equal_the_polars_labels(rows):
-    from onebit.viz.beams_correct import _label_array, _labels
+@given(st.lists(st.tuples(st.sampled_from(["a", "b2", "é"]), st.sampled_from([1, -1, 0, None])), max_size=25))
+def test_crossing_labels_from_buffers_equal_the_polars_labels(rows):
+    from onebit.viz.beams import crossing_label_array, crossing_labels
 
     df = pl.DataFrame(rows, schema={"beam": pl.String, "direction": pl.Int8}, orient="row")
-    for suffix in ("", " inserted"):
-        assert _label_array(df, suffix).equals(text_array(_labels(df, suffix)))
+    for suffix in ("", " inserted", " ambiguous"):
+        assert crossing_label_array(df, suffix).equals(text_array(crossing_labels(df, suffix)))
 
 
 @settings(max_examples=60, deadline=None)

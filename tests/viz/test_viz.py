@@ -296,3 +296,29 @@ print("ok")
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
     assert out.returncode == 0 and out.stdout.strip() == "ok", out.stderr[-2000:]
     assert (tmp_path / "rrd" / "s.rrd").is_file()
+
+
+def test_the_first_recording_imports_rerun_with_the_collector_paused_and_resumes_it(tmp_path):
+    """open_recording imports Rerun with no collection during the import, and leaves the
+    collector as it found it: on again when it was on, off when the caller had turned it off."""
+    import sys
+
+    code = f"""
+import gc, sys
+starts = []
+def importing():  # rerun's module is being executed (importlib's mark while it runs)
+    return getattr(getattr(sys.modules.get("rerun"), "__spec__", None), "_initializing", False)
+gc.callbacks.append(lambda phase, info: starts.append(info) if phase == "start" and importing() else None)
+from onebit.viz.recording import stage_recording
+assert "rerun" not in sys.modules
+with stage_recording({str(tmp_path)!r}, "s", "run-1") as rec:
+    assert gc.isenabled()
+assert "rerun.blueprint" in sys.modules and not importing() and not starts, starts
+gc.disable()
+from onebit.viz.recording import import_rerun
+import_rerun()
+assert not gc.isenabled()
+print("ok")
+"""
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
+    assert out.returncode == 0 and out.stdout.strip() == "ok", out.stderr[-2000:]
