@@ -102,8 +102,9 @@ def pass_ends(reject, pass_first, close, first_pair, last) -> PassEnds:
     return PassEnds(reject, ends, pass_first[ends], op, pass_first[op])
 
 
-#: Beams per packed counter of :func:`beam_pass_ends_vectorised` (2 bits each in an int64).
-_PACK = 31
+#: Beams per packed counter of :func:`beam_pass_ends_vectorised` (2 bits each in an int64), and
+#: the most beams whose counters fit one uint32 (half the memory, the usual site).
+_PACK, _PACK32 = 31, 16
 
 
 def beam_pass_ends_vectorised(beam, pair, blocked, n_beams) -> PassEnds:
@@ -116,17 +117,18 @@ def beam_pass_ends_vectorised(beam, pair, blocked, n_beams) -> PassEnds:
     edge sets it, a rejected one had it already), so after a stable radix sort by (beam, pair)
     an edge equal to its pair's previous edge (clear before the first) is rejected. The
     accepted edges of each pair alternate, blocked first, so the number of blocked pairs of
-    beam ``b`` after its accepted edge ``k`` is the running sum over the beam's accepted
-    edges of ``+1`` (blocked) / ``-1`` (cleared)::
+    beam ``b`` after edge ``k`` is the running sum over the beam's accepted edges of ``+1``
+    (blocked) / ``-1`` (cleared), a rejected edge adding 0::
 
-        c_b(k) = sum_{j <= k, beam_j = b} (2 blocked_j - 1)  in {0, 1, 2}
+        c_b(k) = sum_{j <= k, beam_j = b, accepted} (2 blocked_j - 1)  in {0, 1, 2}
 
     so one cumulative sum of ``(2 blocked - 1) 4^b`` over the edges in time order holds every
-    beam's count in two bits (31 beams per int64; more beams, one sum per 31). An edge opens a
-    pass when its beam's count before it is 0, and closes one when the count after it is 0.
-    Per beam, opening and closing edges alternate (open first), so in a stable sort of them by
-    beam the edge before a closing edge is its pass's first edge, and a beam whose last one
-    opens holds an open pass (unfinished) ending at its last accepted edge."""
+    beam's count in two bits (31 beams per int64; more beams, one sum per 31). An accepted
+    edge opens a pass when its beam's count after it is 1 and it blocks (0 before), and closes
+    one when the count after it is 0. Per beam, opening and closing edges alternate (open
+    first), so the ``i``-th closing edge of a beam closes the pass its ``i``-th opening edge
+    opened: one stable radix sort of each by beam pairs them, and a beam with one opening edge
+    more holds an open pass (unfinished) ending at its last accepted edge."""
     beam = np.asarray(beam)
     pair = np.asarray(pair)
     blocked = np.asarray(blocked, np.bool_)
@@ -136,54 +138,68 @@ def beam_pass_ends_vectorised(beam, pair, blocked, n_beams) -> PassEnds:
     if m == 0:
         return PassEnds(reject, none, none, none, none)
     small = _key_type(2 * n_beams)
-    g = beam.astype(small) * 2 + pair.astype(small)
+    g = beam.astype(small)
+    g <<= 1
+    g |= pair.astype(small)
     order = np.argsort(g, kind="stable")  # per (beam, pair), in time order (a radix sort)
-    gs, vs = g[order], blocked[order]
-    prev = np.zeros(m, dtype=np.bool_)
-    prev[1:] = vs[:-1]
-    prev[np.flatnonzero(gs[1:] != gs[:-1]) + 1] = False  # each pair starts clear
-    same = np.flatnonzero(vs == prev)
-    reject[order[same]] = np.where(vs[same], ALREADY_BLOCKED, ALREADY_CLEAR)
-    acc = np.flatnonzero(reject == 0) if same.size else np.arange(m)
-    if acc.size == 0:
-        return PassEnds(reject, none, none, none, none)
-    b, v = beam[acc], blocked[acc]
-    if n_beams <= _PACK:  # one packed running sum (in place: few 10^6-row temporaries)
-        shift = b.astype(np.int64)
+    vs = blocked[order]
+    same = np.empty(m, dtype=np.bool_)
+    same[0] = not vs[0]  # each pair starts clear
+    np.equal(vs[1:], vs[:-1], out=same[1:])
+    gs = g[order]
+    starts = np.flatnonzero(gs[1:] != gs[:-1]) + 1
+    same[starts] = ~vs[starts]
+    bad_sorted = np.flatnonzero(same)
+    bad = order[bad_sorted]
+    reject[bad] = np.where(vs[bad_sorted], ALREADY_BLOCKED, ALREADY_CLEAR)
+    del order, vs, gs, same, g
+    accepted = reject == 0
+    if n_beams <= _PACK32:  # 2 bits per beam in one uint32: sums mod 2^32 are exact (each count is 0..2)
+        shift = beam.astype(np.uint32)
         shift <<= 1
-        after = v.astype(np.int64)
+        after = blocked.astype(np.uint32)
         after <<= 1
-        after -= 1
+        after -= 1  # -1 as 2^32 - 1: the sum is taken mod 2^32
+        after[bad] = 0  # a rejected edge changes no count
         after <<= shift
-        np.cumsum(after, out=after)
+        np.cumsum(after, dtype=np.uint32, out=after)
         after >>= shift
         after &= 3
-    else:  # one per 31 beams
-        after = np.empty(acc.size, dtype=np.int64)
-        step = v.astype(np.int64) * 2 - 1
+    else:  # int64 sums, one per 31 beams
+        step = blocked.astype(np.int64)
+        step <<= 1
+        step -= 1
+        step[bad] = 0
+        after = np.empty(m, dtype=np.int64)
         for lo in range(0, n_beams, _PACK):
-            rows = np.flatnonzero((b >= lo) & (b < lo + _PACK))
-            shift = 2 * (b[rows].astype(np.int64) - lo)
+            rows = np.flatnonzero((beam >= lo) & (beam < lo + _PACK)) if n_beams > _PACK else slice(None)
+            shift = 2 * (beam[rows].astype(np.int64) - lo)
             after[rows] = (np.cumsum(step[rows] << shift) >> shift) & 3
-    opens = v & (after == 1)  # before = after - step = 0
-    ends = after == 0
-    sel = np.flatnonzero(opens | ends)
-    key = b[sel].astype(_key_type(n_beams))
-    by_beam = np.argsort(key, kind="stable")
-    srt = sel[by_beam]  # per beam, in time order
-    is_end = ends[srt]
-    at = np.flatnonzero(is_end)  # never 0: a beam's first such edge opens
-    first_of = np.empty(acc.size, dtype=np.int64)
-    first_of[srt[at]] = srt[at - 1]
-    close = np.flatnonzero(ends)
-    # a beam whose last opening/closing edge opens: its pass is open at the end
-    bs = key[by_beam]
-    tail = np.ones(srt.size, dtype=np.bool_)
-    tail[:-1] = bs[:-1] != bs[1:]
-    open_first = srt[tail & ~is_end]  # ascending within each beam; order them by start
-    open_first = np.sort(open_first)
-    open_last = np.array([acc.size - 1 - int(np.argmax(b[::-1] == b[k])) for k in open_first], dtype=np.int64)
-    return PassEnds(reject, acc[close], acc[first_of[close]], acc[open_last], acc[open_first])
+    idle = after == 0
+    close = np.flatnonzero(idle & accepted & ~blocked)
+    opens = np.flatnonzero((after == 1) & accepted & blocked)
+    if opens.size == 0:
+        return PassEnds(reject, none, none, none, none)
+    key = _key_type(n_beams)
+    ob, cb = beam[opens].astype(key), beam[close].astype(key)
+    o_order = np.argsort(ob, kind="stable")
+    c_order = np.argsort(cb, kind="stable")
+    n_open = np.bincount(ob, minlength=n_beams)
+    n_close = np.bincount(cb, minlength=n_beams)
+    o_start = np.cumsum(n_open) - n_open  # where each beam's opening edges start in o_order
+    c_start = np.cumsum(n_close) - n_close
+    # the i-th closing edge of a beam (sorted position c_start[b] + i) closes its i-th opening edge's pass
+    to_open = np.arange(close.size, dtype=np.int64) + np.repeat(o_start - c_start, n_close)
+    opened = np.empty(close.size, dtype=np.int64)
+    opened[c_order] = opens[o_order[to_open]]
+    # a beam with one more opening than closing edge: its last pass is open at the end
+    left = np.flatnonzero(n_open > n_close)
+    open_first = np.sort(opens[o_order[o_start[left] + n_open[left] - 1]])
+    open_last = np.empty(open_first.size, dtype=np.int64)
+    for i, k in enumerate(open_first.tolist()):  # the beam's last accepted edge, at or after its pass opened
+        tail = np.flatnonzero((beam[k:] == beam[k]) & accepted[k:])
+        open_last[i] = k + tail[-1]
+    return PassEnds(reject, close, opened, open_last, open_first)
 
 
 @kernel
