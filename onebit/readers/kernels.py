@@ -274,6 +274,28 @@ def separators_per_line_reference(buf: np.ndarray, sep: int) -> np.ndarray:
     return np.diff(np.concatenate([[0], before])).astype(np.int64)
 
 
+def separators_per_line_vectorised(buf: np.ndarray, sep: int, step: int = 1 << 22) -> np.ndarray:
+    """:func:`separators_per_line` with numpy, ``step`` bytes at a time (bounded temporaries):
+    what a reader uses while numba is not loaded (its load costs 0.3-0.5 s, ten times this on a
+    16 MB file). In each step the offsets of the separators and newlines, in order, are found
+    at once; the separators of a line are the offsets between two newlines, plus those carried
+    from the step before. Equal to :func:`separators_per_line_reference` (tests)."""
+    out, carry = [], 0
+    for lo in range(0, buf.shape[0], step):
+        block = buf[lo : lo + step]
+        pos = np.flatnonzero((block == sep) | (block == 10))
+        nl = np.flatnonzero(block[pos] == 10)  # which of them are newlines
+        if nl.size == 0:
+            carry += pos.size
+            continue
+        counts = np.diff(nl, prepend=-1) - 1  # separators between consecutive newlines
+        counts[0] += carry
+        out.append(counts)
+        carry = pos.size - 1 - int(nl[-1])
+    out.append(np.array([carry]))
+    return np.concatenate(out).astype(np.int64)
+
+
 def _key_type(n: int):
     """The smallest signed integer type that holds the codes ``0 .. n - 1``: numpy's stable sort
     of 8- and 16-bit keys is a radix sort, and 8-bit keys sort twice as fast as 16-bit ones."""

@@ -52,6 +52,7 @@ from pathlib import Path
 import numpy as np
 import polars as pl
 
+from onebit.core.compiled import numba_loaded
 from onebit.core.errors import MAX_QUOTE, InputError
 from onebit.core.tables import REJECTS
 from onebit.readers import kernels
@@ -730,10 +731,13 @@ def _commas(work: bytes, nl: np.ndarray, lines: np.ndarray) -> int:
 
 def _separators_per_line(work: bytes, n_lines: int) -> np.ndarray:
     """Separators on every line of ``work``: compiled from :data:`~onebit.readers.kernels.MIN_ROWS`
-    lines on, else its numpy reference (a small file never pays numba's start)."""
+    lines on when numba is loaded already (:func:`~onebit.core.compiled.numba_loaded`), else
+    with numpy (:func:`~onebit.readers.kernels.separators_per_line_vectorised`): a reader never
+    pays numba's load (0.3-0.5 s) for a messy file."""
     buf = np.frombuffer(work, dtype=np.uint8)
-    count = kernels.separators_per_line if n_lines >= kernels.MIN_ROWS else kernels.separators_per_line_reference
-    return count(buf, ord(SEPARATOR))
+    if n_lines >= kernels.MIN_ROWS and numba_loaded():
+        return kernels.separators_per_line(buf, ord(SEPARATOR))
+    return kernels.separators_per_line_vectorised(buf, ord(SEPARATOR))
 
 
 def read_typed_csv(path: str | Path, dtypes: dict[str, pl.DataType]) -> TypedSplit | None:
