@@ -780,9 +780,9 @@ def read_typed_csv(path: str | Path, dtypes: dict[str, pl.DataType]) -> TypedSpl
     if len(header) > MAX_HEADER_FIELDS or any(header.count(c) != 1 for c in dtypes) or not head_text.strip(" \t"):
         return None
     n = len(header)
-    n_lines = int(np.count_nonzero(np.frombuffer(data, dtype=np.uint8) == 0x0A)) + (not data.endswith(b"\n")) - 1
+    file = FileLines(data)  # its newlines counted once: the lines, and where a named line is
+    n_lines = file.n_lines - 1
     columns = tuple(dtypes)
-    file = FileLines(data)
     empty_rest = RawRows(path.name, _empty_rows(columns), pl.DataFrame(schema=REJECTS))
     plain = b'"' not in data and b"\r" not in data
     if plain and (data.isascii() or _utf8(data)):
@@ -891,42 +891,18 @@ def line_texts(data: bytes, lines, nl: np.ndarray | None = None) -> pl.DataFrame
     """The rows of :func:`physical_lines` (``line``, ``text``, ``_reason``) for the given 1-based
     line numbers only (each once, in order; numbers past the end are left out), cut out of
     ``data`` at its newlines (``nl``: :func:`newlines`, when already known): what naming a few
-    bad lines of a large file costs, instead of splitting all of it."""
-    want = np.unique(np.asarray(lines, dtype=np.int64))
-    schema = {"line": pl.Int64, "text": pl.String, "_reason": pl.String}
-    if want.size > _FEW_LINES:
-        return physical_lines(data).filter(pl.col("line").is_in(pl.Series(want).implode()))
-    if nl is None:
-        nl = newlines(data)
-    n_lines = nl.size + (len(data) > 0 and not data.endswith(b"\n"))
-    want = want[(want >= 1) & (want <= n_lines)]
-    if want.size > 64 and data.isascii():  # no decoding to fail: cut out in one go
-        return _ascii_line_texts(data, nl, want)
-    starts, ends = _bounds(nl, len(data), want)
-    texts, reasons = [], []
-    for k, s, e in zip(want.tolist(), starts, ends):  # the named lines only
-        raw = data[s:e]
-        try:
-            text, why = raw.decode("utf-8"), None
-        except UnicodeDecodeError as exc:  # as physical_lines: U+FFFD per invalid sequence, the first one named
-            text = raw.decode("utf-8", errors="replace")
-            why = f"not UTF-8 text: byte 0x{raw[exc.start]:02X} at column {exc.start + 1}"
-        if k == 1 and text.startswith("\ufeff"):
-            text = text[1:]
-        texts.append(text.removesuffix("\r"))
-        reasons.append(why)
-    return pl.DataFrame({"line": want, "text": texts, "_reason": reasons}, schema=schema)
+    bad lines of a large file costs, instead of splitting all of it (:meth:`FileLines.lines`)."""
+    file = FileLines(data)
+    if nl is not None:
+        file._nl = nl
+    return file.lines(lines)
 
 
-def _ascii_line_texts(data: bytes, nl: np.ndarray, want: np.ndarray) -> pl.DataFrame:
+def _ascii_line_texts(data: bytes, want: np.ndarray, starts: np.ndarray, ends: np.ndarray) -> pl.DataFrame:
     """:func:`line_texts` of ASCII ``data`` (the lines ``want``, 1-based, ascending, each in the
-    file) without a Python step per line: their bytes gathered with their line ends into one
-    string, split at the newlines; a ``\r`` before a newline is dropped, as there."""
-    if nl.size:
-        starts = np.where(want > 1, nl[np.clip(want - 2, 0, nl.size - 1)] + 1, 0)
-        ends = np.where(want - 1 < nl.size, nl[np.clip(want - 1, 0, nl.size - 1)], len(data))
-    else:
-        starts, ends = np.zeros(want.size, np.int64), np.full(want.size, len(data), np.int64)
+    file, from byte ``starts`` to ``ends``) without a Python step per line: their bytes gathered
+    with their line ends into one string, split at the newlines; a ``\r`` before a newline is
+    dropped, as there."""
     buf = np.frombuffer(data + b"\n", dtype=np.uint8)  # a last line without a newline gets one
     span = ends - starts + 1  # each line and its newline
     first = np.cumsum(span) - span
@@ -956,23 +932,110 @@ def _line_texts_reference(data: bytes, lines) -> pl.DataFrame:
     )
 
 
-class FileLines:
-    """A file's bytes and, once needed, their newline offsets: the text of any line by number."""
+#: Bytes per step of :class:`FileLines`' newline count (its index of where the lines are).
+_LINE_STEP = 1 << 20
 
-    def __init__(self, data: bytes) -> None:
+
+class FileLines:
+    """A file's bytes and, once needed, where its lines are: the text of any line by number.
+
+    Naming a few lines of a large file does not list all its newlines (:attr:`nl`, 8 bytes per
+    line): the newlines of every ``step`` bytes (:data:`_LINE_STEP`) are counted once (:meth:`step_newlines`,
+    the pass that also gives the number of lines), and a line's bounds are found in its step
+    alone."""
+
+    def __init__(self, data: bytes, step: int = _LINE_STEP) -> None:
         self.data = data
+        self.step = step
         self._nl: np.ndarray | None = None
+        self._steps: np.ndarray | None = None
+        self._ascii: bool | None = None
 
     @property
     def nl(self) -> np.ndarray:
+        """Byte offsets of every newline (:func:`newlines`)."""
         if self._nl is None:
             self._nl = newlines(self.data)
         return self._nl
 
+    def step_newlines(self) -> np.ndarray:
+        """How many newlines each :attr:`step` bytes of the file hold (counted once)."""
+        if self._steps is None:
+            buf, step = np.frombuffer(self.data, dtype=np.uint8), self.step
+            self._steps = np.array(
+                [np.count_nonzero(buf[lo : lo + step] == 0x0A) for lo in range(0, buf.size, step)],
+                dtype=np.int64,
+            )
+        return self._steps
+
+    @property
+    def n_newlines(self) -> int:
+        return int(self._nl.size) if self._nl is not None else int(self.step_newlines().sum())
+
+    @property
+    def n_lines(self) -> int:
+        """Physical lines: one per newline, and the text after the last one if any."""
+        return self.n_newlines + (len(self.data) > 0 and not self.data.endswith(b"\n"))
+
+    def is_ascii(self) -> bool:
+        if self._ascii is None:
+            self._ascii = self.data.isascii()
+        return self._ascii
+
+    def newline_offsets(self, k: np.ndarray) -> np.ndarray:
+        """Byte offsets of the newlines ``k`` (0-based, each below :attr:`n_newlines`): from
+        :attr:`nl` when listed, else each one found in its step only."""
+        if self._nl is not None:
+            return self._nl[k]
+        ends = np.cumsum(self.step_newlines())  # newlines up to the end of each step
+        step = np.searchsorted(ends, k, side="right")
+        out = np.empty(k.size, dtype=np.int64)
+        buf = np.frombuffer(self.data, dtype=np.uint8)
+        for c in np.unique(step).tolist():
+            at = step == c
+            lo = c * self.step
+            here = np.flatnonzero(buf[lo : lo + self.step] == 0x0A) + lo
+            out[at] = here[k[at] - (ends[c] - here.size)]
+        return out
+
+    def bounds(self, want: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Start and end byte offsets of the lines ``want`` (1-based, each in the file)."""
+        n_nl = self.n_newlines
+        starts = np.zeros(want.size, dtype=np.int64)
+        ends = np.full(want.size, len(self.data), dtype=np.int64)
+        after = np.flatnonzero(want > 1)  # lines after the first start past the newline before them
+        if after.size:
+            starts[after] = self.newline_offsets(want[after] - 2) + 1
+        closed = np.flatnonzero(want - 1 < n_nl)  # lines that end at a newline
+        if closed.size:
+            ends[closed] = self.newline_offsets(want[closed] - 1)
+        return starts, ends
+
     def lines(self, lines) -> pl.DataFrame:
-        """:func:`line_texts` of these lines."""
-        lines = np.asarray(lines, dtype=np.int64)
-        return line_texts(self.data, lines, None if lines.size > _FEW_LINES else self.nl)
+        """The rows of :func:`physical_lines` (``line``, ``text``, ``_reason``) of these 1-based
+        line numbers (each once, in order; numbers past the end left out)."""
+        data = self.data
+        want = np.unique(np.asarray(lines, dtype=np.int64))
+        schema = {"line": pl.Int64, "text": pl.String, "_reason": pl.String}
+        if want.size > _FEW_LINES:
+            return physical_lines(data).filter(pl.col("line").is_in(pl.Series(want).implode()))
+        want = want[(want >= 1) & (want <= self.n_lines)]
+        starts, ends = self.bounds(want)
+        if want.size > 64 and self.is_ascii():  # no decoding to fail: cut out in one go
+            return _ascii_line_texts(data, want, starts, ends)
+        texts, reasons = [], []
+        for k, s, e in zip(want.tolist(), starts.tolist(), ends.tolist()):  # the named lines only
+            raw = data[s:e]
+            try:
+                text, why = raw.decode("utf-8"), None
+            except UnicodeDecodeError as exc:  # as physical_lines: U+FFFD per invalid sequence, the first one named
+                text = raw.decode("utf-8", errors="replace")
+                why = f"not UTF-8 text: byte 0x{raw[exc.start]:02X} at column {exc.start + 1}"
+            if k == 1 and text.startswith("\ufeff"):
+                text = text[1:]
+            texts.append(text.removesuffix("\r"))
+            reasons.append(why)
+        return pl.DataFrame({"line": want, "text": texts, "_reason": reasons}, schema=schema)
 
     def texts(self, lines, *, limit: int | None = MAX_QUOTE) -> dict[int, str]:
         """The text of each of these lines, cut to ``limit`` characters (``None``: whole)."""

@@ -456,7 +456,7 @@ def test_ascii_lines_cut_out_at_once_equal_one_by_one(body, trailing_newline, wa
     """line_texts of many lines of an ASCII file (cut out in one go) equals the line-by-line cut."""
     import numpy as np
 
-    from onebit.readers.rows import _ascii_line_texts, _line_texts_reference, line_texts, newlines
+    from onebit.readers.rows import FileLines, _ascii_line_texts, _line_texts_reference, line_texts, newlines
 
     data = "\n".join(body).encode() + (b"\n" if trailing_newline and body else b"")
     got = line_texts(data, wanted)
@@ -465,4 +465,26 @@ def test_ascii_lines_cut_out_at_once_equal_one_by_one(body, trailing_newline, wa
     n_lines = nl.size + (len(data) > 0 and not data.endswith(b"\n"))
     want = np.unique(np.asarray(wanted, dtype=np.int64))
     want = want[(want >= 1) & (want <= n_lines)]
-    assert _ascii_line_texts(data, nl, want).equals(_line_texts_reference(data, wanted))
+    assert _ascii_line_texts(data, want, *FileLines(data).bounds(want)).equals(_line_texts_reference(data, wanted))
+
+
+@settings(max_examples=100, deadline=None)
+@given(
+    st.lists(st.text(alphabet="ab,1\r\u00e9", max_size=12), min_size=0, max_size=120),
+    st.booleans(),
+    st.lists(st.integers(-2, 130), min_size=0, max_size=80),
+    st.integers(1, 40),
+)
+def test_lines_found_by_step_counts_equal_the_newline_list(body, trailing_newline, wanted, step):
+    """FileLines finds a named line's text from its newlines counted per step (steps of any
+    size, lines across steps) as from the list of every newline, and as one by one."""
+    from onebit.readers.rows import FileLines, _line_texts_reference, newlines
+
+    data = "\n".join(body).encode() + (b"\n" if trailing_newline and body else b"")
+    by_steps = FileLines(data, step=step)
+    listed = FileLines(data)
+    listed._nl = newlines(data)
+    assert by_steps.n_lines == listed.n_lines
+    got = by_steps.lines(wanted)
+    assert got.equals(listed.lines(wanted))
+    assert got.select("line", "text").equals(_line_texts_reference(data, wanted).select("line", "text"))
