@@ -903,10 +903,13 @@ def _ascii_line_texts(data: bytes, want: np.ndarray, starts: np.ndarray, ends: n
     file, from byte ``starts`` to ``ends``) without a Python step per line: their bytes gathered
     with their line ends into one string, split at the newlines; a ``\r`` before a newline is
     dropped, as there."""
-    buf = np.frombuffer(data + b"\n", dtype=np.uint8)  # a last line without a newline gets one
+    buf = np.frombuffer(data, dtype=np.uint8)
     span = ends - starts + 1  # each line and its newline
     first = np.cumsum(span) - span
-    cut = buf[np.repeat(starts - first, span) + np.arange(int(span.sum()), dtype=np.int64)]
+    at = np.repeat(starts - first, span) + np.arange(int(span.sum()), dtype=np.int64)
+    np.minimum(at, buf.size - 1, out=at)  # (a last line without a newline: its end is past the data)
+    cut = buf[at]
+    cut[first + span - 1] = 0x0A  # every line ends with a newline (the file is not copied to give it one)
     text = pl.Series([cut.tobytes().decode("ascii")]).str.split("\n").explode().slice(0, want.size)
     return pl.DataFrame(
         {"line": want, "text": text.str.strip_suffix("\r"), "_reason": pl.Series([None] * want.size, dtype=pl.String)},
@@ -1004,11 +1007,10 @@ class FileLines:
         starts = np.zeros(want.size, dtype=np.int64)
         ends = np.full(want.size, len(self.data), dtype=np.int64)
         after = np.flatnonzero(want > 1)  # lines after the first start past the newline before them
-        if after.size:
-            starts[after] = self.newline_offsets(want[after] - 2) + 1
         closed = np.flatnonzero(want - 1 < n_nl)  # lines that end at a newline
-        if closed.size:
-            ends[closed] = self.newline_offsets(want[closed] - 1)
+        at = self.newline_offsets(np.concatenate([want[after] - 2, want[closed] - 1]))  # one look-up for both
+        starts[after] = at[: after.size] + 1
+        ends[closed] = at[after.size :]
         return starts, ends
 
     def lines(self, lines) -> pl.DataFrame:
