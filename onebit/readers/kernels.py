@@ -327,32 +327,48 @@ def toggle_repeats_vectorised(sensor, on, n_sensors):
 
 
 def _debounce_sorted(s_, o_, ts, chatter, min_on, eps):
-    """The debounce masks of :func:`debounce_masks_vectorised` on edges already in sensor order
+    """The debounce of :func:`debounce_masks_vectorised` on edges already in sensor order
     (``s_`` sensor, ``o_`` on, ``ts`` time; time order within a sensor): chatter marks each
     (off, on) pair of neighbours of a sensor within its window; the minimum on-time rule marks
-    each (on, off) pair of neighbours among the edges chatter left, sooner than ``min_on``."""
+    each (on, off) pair of neighbours among the edges chatter left, sooner than ``min_on``.
+    Returns the positions (in the sensor order) of the edges each rule marks."""
     m = o_.shape[0]
-    cs = np.zeros(m, dtype=np.bool_)
-    ss = np.zeros(m, dtype=np.bool_)
+    none = np.empty(0, dtype=np.int64)
     if m < 2:
-        return cs, ss
+        return none, none
     chatter = np.asarray(chatter, np.float64)
     min_on = np.asarray(min_on, np.float64)
+    cs = ss = none
     if (chatter > 0).any():  # (off, on) neighbours of a sensor; times only for those
         i = np.flatnonzero((s_[1:] == s_[:-1]) & o_[1:] & ~o_[:-1])
-        w = chatter[s_[i + 1]]
-        i = i[(w > 0) & (ts[i + 1] - ts[i] <= w + eps)]
-        cs[i] = True
-        cs[i + 1] = True
+        i, w = _with_rule(i, chatter, s_)
+        i = i[ts[i + 1] - ts[i] <= w + eps]
+        cs = np.empty(2 * i.size, dtype=np.int64)  # pairs of neighbours never share an edge
+        cs[0::2], cs[1::2] = i, i + 1
     if (min_on > 0).any():  # (on, off) neighbours among the edges chatter left
-        ko = np.flatnonzero(~cs) if cs.any() else np.arange(m)
-        s2, o2 = s_[ko], o_[ko]
+        ko, s2, o2 = None, s_, o_
+        if cs.size:
+            left = np.ones(m, dtype=np.bool_)
+            left[cs] = False
+            ko = np.flatnonzero(left)
+            s2, o2 = s_[ko], o_[ko]
         i = np.flatnonzero((s2[1:] == s2[:-1]) & o2[:-1] & ~o2[1:])
-        mo = min_on[s2[i + 1]]
-        i = i[(mo > 0) & (ts[ko[i + 1]] - ts[ko[i]] < mo - eps)]
-        ss[ko[i]] = True
-        ss[ko[i + 1]] = True
+        i, mo = _with_rule(i, min_on, s2)
+        j, k = (i, i + 1) if ko is None else (ko[i], ko[i + 1])
+        short = ts[k] - ts[j] < mo - eps
+        ss = np.empty(2 * int(np.count_nonzero(short)), dtype=np.int64)
+        ss[0::2], ss[1::2] = j[short], k[short]
     return cs, ss
+
+
+def _with_rule(i, per_sensor, s_):
+    """The pairs ``(i, i + 1)`` whose sensor's rule is on (> 0) and its value for each (one
+    number when every sensor has the same)."""
+    if (per_sensor == per_sensor[0]).all():
+        return i, float(per_sensor[0])
+    w = per_sensor[s_[i + 1]]
+    on = w > 0
+    return i[on], w[on]
 
 
 def debounce_masks_vectorised(sensor, on, t, chatter, min_on, n_sensors, eps):
@@ -370,8 +386,8 @@ def debounce_masks_vectorised(sensor, on, t, chatter, min_on, n_sensors, eps):
         return chat, short
     order = _by_sensor(sensor, n_sensors)
     cs, ss = _debounce_sorted(sensor[order], on[order], t[order], chatter, min_on, eps)
-    chat[order] = cs
-    short[order] = ss
+    chat[order[cs]] = True
+    short[order[ss]] = True
     return chat, short
 
 
@@ -389,6 +405,24 @@ def toggle_masks_vectorised(sensor, on, t, chatter, min_on, n_sensors, eps):
     short = np.zeros(m, dtype=np.bool_)
     if m == 0:
         return same, chat, short
+    order = _by_sensor(sensor, n_sensors)
+    s_ = sensor[order].astype(_key_type(n_sensors))
+    o_ = on[order]
+    rep = np.empty(m, dtype=np.bool_)
+    rep[0] = not o_[0]  # each sensor starts off: an off edge first is a repeat
+    np.equal(o_[1:], o_[:-1], out=rep[1:])
+    starts = np.flatnonzero(s_[1:] != s_[:-1]) + 1
+    rep[starts] = ~o_[starts]
+    repeated = np.flatnonzero(rep)
+    same[order[repeated]] = True
+    at = order
+    if repeated.size:  # the debounce sees the other edges (still in sensor order)
+        keep = np.flatnonzero(~rep)
+        at, s_, o_ = order[keep], s_[keep], o_[keep]
+    cs, ss = _debounce_sorted(s_, o_, np.asarray(t, np.float64)[at], chatter, min_on, eps)
+    chat[at[cs]] = True
+    short[at[ss]] = True
+    return same, chat, short
     order = _by_sensor(sensor, n_sensors)
     s_ = sensor[order].astype(_key_type(n_sensors))
     o_ = on[order]
