@@ -103,7 +103,7 @@ def pass_ends(reject, pass_first, close, first_pair, last) -> PassEnds:
 
 
 #: Beams per packed counter of :func:`beam_pass_ends_vectorised` (2 bits each in an int64), and
-#: the most beams whose counters fit one uint32 (half the memory, the usual site).
+#: the most beams whose counters fit one uint32 (uint16 up to 8 beams, uint8 up to 4: less memory).
 _PACK, _PACK32 = 31, 16
 
 
@@ -154,15 +154,16 @@ def beam_pass_ends_vectorised(beam, pair, blocked, n_beams) -> PassEnds:
     reject[bad] = np.where(vs[bad_sorted], ALREADY_BLOCKED, ALREADY_CLEAR)
     del order, vs, gs, same, g
     accepted = reject == 0
-    if n_beams <= _PACK32:  # 2 bits per beam in one uint32: sums mod 2^32 are exact (each count is 0..2)
-        shift = beam.astype(np.uint32)
+    if n_beams <= _PACK32:  # 2 bits per beam in one unsigned word: its sums mod 2^bits are exact (counts 0..2)
+        word = np.uint8 if n_beams <= 4 else np.uint16 if n_beams <= 8 else np.uint32
+        shift = beam.astype(word)
         shift <<= 1
-        after = blocked.astype(np.uint32)
+        after = blocked.astype(word)
         after <<= 1
-        after -= 1  # -1 as 2^32 - 1: the sum is taken mod 2^32
+        after -= 1  # -1 as 2^bits - 1: the sum is taken mod 2^bits
         after[bad] = 0  # a rejected edge changes no count
         after <<= shift
-        np.cumsum(after, dtype=np.uint32, out=after)
+        np.cumsum(after, dtype=word, out=after)
         after >>= shift
         after &= 3
     else:  # int64 sums, one per 31 beams

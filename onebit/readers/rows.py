@@ -1231,9 +1231,19 @@ def check_rows(
 
 
 def in_time_order(t: pl.Series) -> bool:
-    """Whether ``t`` never decreases (one pass in numpy; nulls and NaN are never in order)."""
+    """Whether ``t`` never decreases (one pass in numpy; nulls and NaN are never in order); a
+    column polars knows to be sorted (its flag: :func:`mark_in_order`), without nulls or NaN,
+    needs no pass over its values."""
+    if t.flags.get("SORTED_ASC") and t.null_count() == 0 and not (t.dtype.is_float() and t.is_nan().any()):
+        return True
     v = t.to_numpy()
     return bool(v.size < 2 or (v[1:] >= v[:-1]).all())
+
+
+def mark_in_order(rows: pl.DataFrame, *columns: str) -> pl.DataFrame:
+    """``rows`` with ``columns`` flagged as sorted ascending for polars, once found in order
+    (:func:`in_time_order`): later checks of the same rows read the flag instead of the values."""
+    return rows.with_columns(pl.col(c).set_sorted() for c in columns)
 
 
 def by_time(rows: pl.DataFrame) -> pl.DataFrame:
@@ -1246,30 +1256,35 @@ def by_time(rows: pl.DataFrame) -> pl.DataFrame:
 
 def duplicate_of(ok: pl.DataFrame, key: tuple[str, ...]) -> pl.Series:
     """For every row of ``ok`` (``line`` + the ``key`` columns, ``t`` among them), the first
-    ``line`` of an earlier row with the same ``key`` (nulls equal), else null: found by one sort on the key and
-    a comparison of neighbours (no window over the key). Rows whose ``t`` no other row has
-    cannot be duplicates; when ``t`` never decreases in file order (the usual log) only the
-    runs of equal ``t`` are sorted."""
+    ``line`` of an earlier row with the same ``key`` (nulls equal), else null
+    (:func:`duplicate_rows`, as a column)."""
     out = pl.Series("_dup", [], dtype=pl.Int64).extend_constant(None, ok.height)
+    dup = duplicate_rows(ok, key)
+    return out.scatter(dup["_i"], dup["_first"]) if dup.height else out
+
+
+def duplicate_rows(ok: pl.DataFrame, key: tuple[str, ...], *, in_order: bool | None = None) -> pl.DataFrame:
+    """The rows of ``ok`` (``line`` + the ``key`` columns, ``t`` among them) identical in ``key``
+    to an earlier row (nulls equal): their index ``_i`` and the ``line`` of the first such
+    row, ``_first``. Found by one sort on the key and a comparison of neighbours (no window
+    over the key). Rows whose ``t`` no other row has cannot be duplicates; when ``t`` never
+    decreases in file order (the usual log; ``in_order``: already known) only the runs of
+    equal ``t`` are sorted, and a log without two equal stamps costs one comparison."""
+    none = pl.DataFrame(schema={"_i": pl.Int64, "_first": pl.Int64})
     v = ok["t"].to_numpy() if "t" in ok.columns else None  # a time-free table: every row a candidate
-    if v is not None and (v.size < 2 or (v[1:] >= v[:-1]).all()):
+    if v is not None and (in_order if in_order is not None else in_time_order(ok["t"])):
         eq = v[1:] == v[:-1]
         if not eq.any():  # no two rows share a stamp: no duplicate
-            return out
-        tie = np.zeros(v.size, dtype=np.bool_)
-        tie[1:] |= eq
-        tie[:-1] |= eq
-        at = np.flatnonzero(tie)  # only the rows in a run of equal stamps
+            return none
+        first = np.flatnonzero(eq)  # rows whose stamp the next row has
+        at = np.unique(np.concatenate([first, first + 1]))  # only the rows in a run of equal stamps
         cand = ok[at].select(pl.Series("_i", at, dtype=pl.Int64), "line", *key)
     else:
         cand = ok.select(pl.int_range(pl.len(), dtype=pl.Int64).alias("_i"), "line", *key)
     cand = cand.sort([*key, "line"])
     same = pl.all_horizontal([pl.col(k).eq_missing(pl.col(k).shift(1)) for k in key]).fill_null(False)
     cand = cand.with_columns(pl.when(same).then(None).otherwise(pl.col("line")).forward_fill().alias("_first"))
-    cand = cand.filter(pl.col("_first") != pl.col("line"))
-    if cand.height:
-        out = out.scatter(cand["_i"], cand["_first"])
-    return out
+    return cand.filter(pl.col("_first") != pl.col("line")).select("_i", "_first")
 
 
 def backwards_reason(tolerance: float) -> pl.Expr:
@@ -1301,19 +1316,19 @@ def order_checks(
     for the rejected rows only; rows without ``raw`` get their line's text from ``path``
     (``data``: its :class:`FileLines`, when already read)."""
     parts = [field_bad] if field_bad is not None and field_bad.height else []
-    dup_of = duplicate_of(ok, key)
-    if dup_of.null_count() < ok.height:
+    in_order = "t" in ok.columns and in_time_order(ok["t"])  # (dropping rows keeps the order)
+    dups = duplicate_rows(ok, key, in_order=in_order)
+    if dups.height:
         same = " and ".join(", ".join(key).rsplit(", ", 1))  # ("t", "target") -> "t and target"
-        ok = ok.with_columns(dup_of.alias("_dup"))
+        dup_of = pl.Series("_dup", [], dtype=pl.Int64).extend_constant(None, ok.height).scatter(dups["_i"], dups["_first"])
+        ok = ok.with_columns(dup_of)
         dup = ok.filter(pl.col("_dup").is_not_null()).rechunk()
         parts.append(
             dup.with_columns(pl.format("duplicate of line {} (same {})", pl.col("_dup"), pl.lit(same)).alias("_reason"))
         )
         ok = ok.filter(pl.col("_dup").is_null()).drop("_dup")
     reordered = 0
-    if "t" in ok.columns and not in_time_order(
-        ok["t"]
-    ):  # some row is earlier than a row before it (time-free tables: no order)
+    if "t" in ok.columns and not in_order:  # some row is earlier than a row before it (time-free tables: no order)
         ok = ok.sort("line").with_columns(pl.col("t").cum_max().shift(1).alias("_prev"))
         back = (pl.col("t") < pl.col("_prev") - tolerance).fill_null(False)
         late = ok.filter(back).rechunk()  # (polars 2.1 panics formatting a filtered frame's floats otherwise)
@@ -1334,8 +1349,10 @@ def order_checks(
         made = pl.DataFrame(schema=REJECTS)
     rejects = made if prior is None else pl.concat([prior, made]).sort("line")
     accepted = ok.select("line", *columns)
-    if "t" in accepted.columns and (reordered or not in_time_order(accepted["t"])):
+    if "t" in accepted.columns and not in_order and (reordered or not in_time_order(accepted["t"])):
         accepted = accepted.sort(["t", "line"])
+    elif in_order:  # the finite stamps of parsed rows, in order: flagged so, for the reader's next checks
+        accepted = mark_in_order(accepted, "t")
     return TypedRows(accepted, rejects, reordered)
 
 
