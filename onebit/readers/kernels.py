@@ -107,7 +107,34 @@ def pass_ends(reject, pass_first, close, first_pair, last) -> PassEnds:
 _PACK, _PACK32 = 31, 16
 
 
-def beam_pass_ends_vectorised(beam, pair, blocked, n_beams) -> PassEnds:
+def beam_rejects(beam, pair, blocked, n_beams) -> np.ndarray:
+    """The no-change code of every edge (0 = accepted; :data:`ALREADY_BLOCKED`,
+    :data:`ALREADY_CLEAR`) of :func:`beam_pass_ends_vectorised`: after a stable radix sort by
+    (beam, pair), an edge equal to its pair's previous edge (clear before the first)."""
+    beam = np.asarray(beam)
+    blocked = np.asarray(blocked, np.bool_)
+    m = beam.shape[0]
+    reject = np.zeros(m, dtype=np.int8)
+    if m == 0:
+        return reject
+    small = _key_type(2 * n_beams)
+    g = beam.astype(small)
+    g <<= 1
+    g |= np.asarray(pair).astype(small)
+    order = np.argsort(g, kind="stable")  # per (beam, pair), in time order (a radix sort)
+    vs = blocked[order]
+    same = np.empty(m, dtype=np.bool_)
+    same[0] = not vs[0]  # each pair starts clear
+    np.equal(vs[1:], vs[:-1], out=same[1:])
+    gs = g[order]
+    starts = np.flatnonzero(gs[1:] != gs[:-1]) + 1
+    same[starts] = ~vs[starts]
+    bad_sorted = np.flatnonzero(same)
+    reject[order[bad_sorted]] = np.where(vs[bad_sorted], ALREADY_BLOCKED, ALREADY_CLEAR)
+    return reject
+
+
+def beam_pass_ends_vectorised(beam, pair, blocked, n_beams, reject=None) -> PassEnds:
     """:func:`beam_passes` as :class:`PassEnds`, with numpy array operations and no per-edge
     pass index: what a reader uses where numba is not loaded (loading it costs 0.3-0.5 s, several
     times this at 10^6 edges); the kernel's arrays give the same :class:`PassEnds` through
@@ -128,31 +155,16 @@ def beam_pass_ends_vectorised(beam, pair, blocked, n_beams) -> PassEnds:
     one when the count after it is 0. Per beam, opening and closing edges alternate (open
     first), so the ``i``-th closing edge of a beam closes the pass its ``i``-th opening edge
     opened: one stable radix sort of each by beam pairs them, and a beam with one opening edge
-    more holds an open pass (unfinished) ending at its last accepted edge."""
+    more holds an open pass (unfinished) ending at its last accepted edge. ``reject``: the
+    no-change codes when already found (:func:`beam_rejects`)."""
     beam = np.asarray(beam)
-    pair = np.asarray(pair)
     blocked = np.asarray(blocked, np.bool_)
     m = beam.shape[0]
-    reject = np.zeros(m, dtype=np.int8)
+    reject = beam_rejects(beam, pair, blocked, n_beams) if reject is None else reject
     none = np.empty(0, dtype=np.int64)
     if m == 0:
         return PassEnds(reject, none, none, none, none)
-    small = _key_type(2 * n_beams)
-    g = beam.astype(small)
-    g <<= 1
-    g |= pair.astype(small)
-    order = np.argsort(g, kind="stable")  # per (beam, pair), in time order (a radix sort)
-    vs = blocked[order]
-    same = np.empty(m, dtype=np.bool_)
-    same[0] = not vs[0]  # each pair starts clear
-    np.equal(vs[1:], vs[:-1], out=same[1:])
-    gs = g[order]
-    starts = np.flatnonzero(gs[1:] != gs[:-1]) + 1
-    same[starts] = ~vs[starts]
-    bad_sorted = np.flatnonzero(same)
-    bad = order[bad_sorted]
-    reject[bad] = np.where(vs[bad_sorted], ALREADY_BLOCKED, ALREADY_CLEAR)
-    del order, vs, gs, same, g
+    bad = np.flatnonzero(reject)
     accepted = reject == 0
     if n_beams <= _PACK32:  # 2 bits per beam in one unsigned word: its sums mod 2^bits are exact (counts 0..2)
         word = np.uint8 if n_beams <= 4 else np.uint16 if n_beams <= 8 else np.uint32

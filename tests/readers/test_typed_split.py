@@ -387,3 +387,34 @@ def test_a_long_messy_file_is_split_without_numba(tmp_path, monkeypatch):
     path.write_text("t,beam,pair,blocked\n" + "\n".join(lines) + "\n")
     fast = _same_beams(path)
     assert "too many fields" in fast.rejects.filter(pl.col("line") == 9)["reason"].item()
+
+
+def test_a_long_log_decoded_on_two_threads_equals_the_row_by_row_path(tmp_path, monkeypatch):
+    """Past MIN_ROWS events, with numba not loaded, the decoder builds the events table and
+    names the rejected lines on a second thread while numpy finds the passes: the tables and
+    the rejects (reasons, lines, raw text) are the row-by-row path's."""
+    from onebit.readers import beams
+
+    monkeypatch.setattr(beams, "numba_loaded", lambda: False)
+    pools = []
+
+    class Pool(beams.ThreadPoolExecutor):
+        def submit(self, fn, *args):
+            pools.append(fn)
+            return super().submit(fn, *args)
+
+    monkeypatch.setattr(beams, "ThreadPoolExecutor", Pool)
+    rng = np.random.default_rng(5)
+    n = kernels.MIN_ROWS + 3000
+    t = np.cumsum(rng.choice([0.0, 0.05, 0.1, 0.2], n)).round(2)
+    beam = rng.choice(list(BEAMS), n)
+    pair = rng.choice(["a", "b"], n)
+    blocked = (rng.random(n) < 0.5).astype(int)  # many no-change edges, passes of every kind
+    body = "\n".join(f"{a},{b},{c},{d}" for a, b, c, d in zip(t.tolist(), beam, pair, blocked))
+    path = tmp_path / "beams.csv"
+    path.write_text("t,beam,pair,blocked\n" + body + "\n")
+    fast = _same_beams(path)
+    assert fast.rejects.height > 1000 and fast.crossings.height > 100 and fast.aborted.height > 100
+    assert fast.rejects["raw"].null_count() == 0
+    # on the second thread: both paths' events tables, the typed path's rejected lines' text
+    assert sorted(f.__name__ for f in pools) == ["collect", "collect", "texts"]
