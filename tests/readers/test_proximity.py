@@ -13,7 +13,12 @@ from onebit.core.tables import FRAMES, PROXIMITY
 from onebit.datasets.proximity_sim import SCENARIO_SPECS, make_world
 from onebit.pipeline.report import metric
 from onebit.pipeline.runner import run_pipeline
-from onebit.readers.proximity import ProximityConfig, proximity_frames, read_proximity_csv
+from onebit.readers.proximity import (
+    ProximityConfig,
+    proximity_frames,
+    proximity_frames_reference,
+    read_proximity_csv,
+)
 
 
 def frames_matrix(frames: pl.DataFrame, ids: list[str]) -> np.ndarray:
@@ -67,6 +72,37 @@ def test_frames_hold_the_state_after_the_last_edge(edges, period, n):
         before = [e for e in df.iter_rows() if e[0] <= t]
         assert on == (before[-1][2] if before else False)
         assert abs(t - k * period) < 1e-9
+
+
+@settings(max_examples=80, deadline=None)
+@given(
+    st.lists(
+        st.tuples(st.integers(0, 40), st.sampled_from(["a", "b", "c", "x"]), st.booleans()), min_size=0, max_size=40
+    ),
+    st.sampled_from([0.25, 0.3, 0.5, 1.0]),
+    st.one_of(st.none(), st.sampled_from([0.0, 1.0, 2.5])),
+    st.one_of(st.none(), st.integers(1, 30)),
+)
+def test_frames_equal_the_as_of_join_reference(edges, period, start, instants):
+    """The numpy frames equal the polars as-of join: several sensors, a sensor not asked for
+    (``x``), stamps shared by several edges of one sensor (the later row holds), edges
+    between and past the instants, a chosen or default start and count."""
+    df = pl.DataFrame(
+        {"t": [e[0] / 4 for e in edges], "sensor": [e[1] for e in edges], "on": [e[2] for e in edges]},
+        schema=PROXIMITY,
+    ).sort("t", maintain_order=True)
+    ids = ["c", "a", "b"]
+    fast = proximity_frames(df, ids, period=period, start=start, instants=instants)
+    ref = proximity_frames_reference(df, ids, period=period, start=start, instants=instants)
+    assert fast.schema == FRAMES
+    assert fast.equals(ref, null_equal=True)
+
+
+def test_frames_of_edges_sharing_a_stamp_take_the_later_row():
+    df = pl.DataFrame({"t": [1.0, 1.0, 1.0], "sensor": ["a", "a", "b"], "on": [True, False, True]}, schema=PROXIMITY)
+    fr = proximity_frames(df, ["a", "b"], period=1.0, start=0.0, instants=3)
+    assert fr["on"].to_list() == [False, False, False, True, False, True]
+    assert fr.equals(proximity_frames_reference(df, ["a", "b"], period=1.0, start=0.0, instants=3), null_equal=True)
 
 
 def test_pipeline_reads_proximity_from_the_dataset_run_toml(tmp_path):
