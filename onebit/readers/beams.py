@@ -124,7 +124,11 @@ def typed_beam_events(
 
 
 def decode_passes(
-    events: pl.DataFrame, source: str = "beams.csv", *, compiled: bool | str | None = None, file: FileLines | None = None
+    events: pl.DataFrame,
+    source: str = "beams.csv",
+    *,
+    compiled: bool | str | None = None,
+    file: FileLines | None = None,
 ) -> BeamDecode:
     """Decode accepted beam events (``line``, t, beam, pair, blocked; sorted by t) into crossings.
 
@@ -191,7 +195,9 @@ def decode_passes(
                 .with_columns(
                     pl.when(pl.Series(reject[bad]) == kernels.ALREADY_BLOCKED)
                     .then(
-                        pl.format("pair {} of beam {} already blocked (no state change)", pl.col("pair"), pl.col("beam"))
+                        pl.format(
+                            "pair {} of beam {} already blocked (no state change)", pl.col("pair"), pl.col("beam")
+                        )
                     )
                     .otherwise(
                         pl.format("pair {} of beam {} already clear (no state change)", pl.col("pair"), pl.col("beam"))

@@ -254,7 +254,9 @@ def toggle_edges(
     # pass 3: debounce on the alternating sequence
     if masks is not None:  # the typed read's codes and the numpy masks: both tables in one go
         motion, suppressed = _motion_tables(ok, masks[1], masks[2])
-        return MotionRead(motion, rejects.select(REJECTS.names()).cast(dict(REJECTS)), suppressed, typed.reordered, n_held)
+        return MotionRead(
+            motion, rejects.select(REJECTS.names()).cast(dict(REJECTS)), suppressed, typed.reordered, n_held
+        )
     edges, suppressed = debounce(ok, sensors, rules)
     if isinstance(edges.schema["sensor"], pl.Enum):  # the typed read's codes: names gathered, not cast row by row
         names = pl.Series(edges.schema["sensor"].categories, dtype=pl.String)

@@ -1324,7 +1324,9 @@ def order_checks(
     dups = duplicate_rows(ok, key, in_order=in_order)
     if dups.height:
         same = " and ".join(", ".join(key).rsplit(", ", 1))  # ("t", "target") -> "t and target"
-        dup_of = pl.Series("_dup", [], dtype=pl.Int64).extend_constant(None, ok.height).scatter(dups["_i"], dups["_first"])
+        dup_of = (
+            pl.Series("_dup", [], dtype=pl.Int64).extend_constant(None, ok.height).scatter(dups["_i"], dups["_first"])
+        )
         ok = ok.with_columns(dup_of)
         dup = ok.filter(pl.col("_dup").is_not_null()).rechunk()
         parts.append(

@@ -492,9 +492,7 @@ def test_lines_found_by_step_counts_equal_the_newline_list(body, trailing_newlin
 
 @settings(max_examples=150, deadline=None)
 @given(
-    st.lists(
-        st.tuples(st.integers(0, 6), st.sampled_from(["a", "b", None]), st.booleans()), min_size=0, max_size=60
-    ),
+    st.lists(st.tuples(st.integers(0, 6), st.sampled_from(["a", "b", None]), st.booleans()), min_size=0, max_size=60),
     st.booleans(),
 )
 def test_duplicates_found_among_equal_stamps_only_equal_the_plain_search(rows, in_order):

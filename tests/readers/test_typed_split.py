@@ -232,7 +232,8 @@ def test_separator_count_in_numpy_equals_reference(blob, step):
     steps, steps without a newline), gives the reference's count of every line."""
     buf = np.frombuffer(blob, dtype=np.uint8)
     assert np.array_equal(
-        kernels.separators_per_line_vectorised(buf, ord(","), step), kernels.separators_per_line_reference(buf, ord(","))
+        kernels.separators_per_line_vectorised(buf, ord(","), step),
+        kernels.separators_per_line_reference(buf, ord(",")),
     )
 
 
