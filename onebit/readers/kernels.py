@@ -344,7 +344,9 @@ def _debounce_sorted(s_, o_, ts, chatter, min_on, eps):
     (``s_`` sensor, ``o_`` on, ``ts`` time; time order within a sensor): chatter marks each
     (off, on) pair of neighbours of a sensor within its window; the minimum on-time rule marks
     each (on, off) pair of neighbours among the edges chatter left, sooner than ``min_on``.
-    Returns the positions (in the sensor order) of the edges each rule marks."""
+    Every neighbour pair is tested at once with boolean masks over contiguous arrays (the gaps
+    by one ``diff``); a rule shared by every sensor is one number. Returns the positions (in the
+    sensor order) of the edges each rule marks."""
     m = o_.shape[0]
     none = np.empty(0, dtype=np.int64)
     if m < 2:
@@ -352,36 +354,43 @@ def _debounce_sorted(s_, o_, ts, chatter, min_on, eps):
     chatter = np.asarray(chatter, np.float64)
     min_on = np.asarray(min_on, np.float64)
     cs = ss = none
-    if (chatter > 0).any():  # (off, on) neighbours of a sensor; times only for those
-        i = np.flatnonzero((s_[1:] == s_[:-1]) & o_[1:] & ~o_[:-1])
-        i, w = _with_rule(i, chatter, s_)
-        i = i[ts[i + 1] - ts[i] <= w + eps]
+    same = s_[1:] == s_[:-1]  # neighbours of one sensor
+    if (chatter > 0).any():  # (off, on) neighbours within the window
+        w = _rule_of_pairs(chatter, s_)
+        pair = same & o_[1:]
+        pair &= ~o_[:-1]
+        pair &= np.diff(ts) <= w + eps
+        if not np.isscalar(w):
+            pair &= w > 0
+        i = np.flatnonzero(pair)
         cs = np.empty(2 * i.size, dtype=np.int64)  # pairs of neighbours never share an edge
         cs[0::2], cs[1::2] = i, i + 1
     if (min_on > 0).any():  # (on, off) neighbours among the edges chatter left
-        ko, s2, o2 = None, s_, o_
+        ko, s2, o2, t2, same2 = None, s_, o_, ts, same
         if cs.size:
             left = np.ones(m, dtype=np.bool_)
             left[cs] = False
             ko = np.flatnonzero(left)
-            s2, o2 = s_[ko], o_[ko]
-        i = np.flatnonzero((s2[1:] == s2[:-1]) & o2[:-1] & ~o2[1:])
-        i, mo = _with_rule(i, min_on, s2)
-        j, k = (i, i + 1) if ko is None else (ko[i], ko[i + 1])
-        short = ts[k] - ts[j] < mo - eps
-        ss = np.empty(2 * int(np.count_nonzero(short)), dtype=np.int64)
-        ss[0::2], ss[1::2] = j[short], k[short]
+            s2, o2, t2 = s_[ko], o_[ko], ts[ko]
+            same2 = s2[1:] == s2[:-1]
+        w = _rule_of_pairs(min_on, s2)
+        pair = same2 & o2[:-1]
+        pair &= ~o2[1:]
+        pair &= np.diff(t2) < w - eps
+        if not np.isscalar(w):
+            pair &= w > 0
+        i = np.flatnonzero(pair)
+        ss = np.empty(2 * i.size, dtype=np.int64)
+        ss[0::2], ss[1::2] = (i, i + 1) if ko is None else (ko[i], ko[i + 1])
     return cs, ss
 
 
-def _with_rule(i, per_sensor, s_):
-    """The pairs ``(i, i + 1)`` whose sensor's rule is on (> 0) and its value for each (one
-    number when every sensor has the same)."""
+def _rule_of_pairs(per_sensor, s_):
+    """A rule's value for each pair of neighbours ``(k, k + 1)`` in sensor order (the sensor of
+    ``k + 1``), or one number when every sensor has the same."""
     if (per_sensor == per_sensor[0]).all():
-        return i, float(per_sensor[0])
-    w = per_sensor[s_[i + 1]]
-    on = w > 0
-    return i[on], w[on]
+        return float(per_sensor[0])
+    return per_sensor[s_[1:]]
 
 
 def debounce_masks_vectorised(sensor, on, t, chatter, min_on, n_sensors, eps):
