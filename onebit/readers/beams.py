@@ -23,6 +23,7 @@ Everything is vectorised with polars window expressions over beams; nothing loop
 
 from __future__ import annotations
 
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -122,7 +123,13 @@ def typed_beam_events(
     )
 
 
-def decode_passes(events: pl.DataFrame, source: str = "beams.csv", *, compiled: bool | str | None = None) -> BeamDecode:
+def decode_passes(
+    events: pl.DataFrame,
+    source: str = "beams.csv",
+    *,
+    compiled: bool | str | None = None,
+    file: FileLines | None = None,
+) -> BeamDecode:
     """Decode accepted beam events (``line``, t, beam, pair, blocked; sorted by t) into crossings.
 
     Edges that do not change their pair's state (blocked while already blocked, or clear
@@ -135,7 +142,8 @@ def decode_passes(events: pl.DataFrame, source: str = "beams.csv", *, compiled: 
     the kernel from :data:`~onebit.readers.kernels.MIN_ROWS` events on and the reference below;
     without it, the numpy version at any size (at 10^4 events it takes half the reference's
     time); the same result each way. ``True``: the kernel, ``"numpy"``: the numpy version,
-    ``False``: the reference.
+    ``False``: the reference. ``file``: the CSV's :class:`~onebit.readers.rows.FileLines` (the
+    events' ``line`` numbers are its lines): the rejects get their lines' text from it.
     """
     if compiled is None:  # the kernel where numba is loaded (from MIN_ROWS events), else numpy
         compiled = (events.height >= kernels.MIN_ROWS) if numba_loaded() else "numpy"
@@ -157,40 +165,58 @@ def decode_passes(events: pl.DataFrame, source: str = "beams.csv", *, compiled: 
     # ``compiled=None``: numba's load only when a kernel paid it already, else the numpy version
     if compiled is True:
         ends = kernels.pass_ends(*kernels.beam_passes(code.astype(np.int64), pair, blocked, len(names)))
+        reject = ends.reject
     else:
-        ends = kernels.beam_pass_ends_vectorised(code, pair, blocked, len(names))
-    reject = ends.reject
+        reject = kernels.beam_rejects(code, pair, blocked, len(names))
     t = ev["t"].to_numpy()
     pairs = pl.Series(["a", "b"], dtype=pl.String)
     bad = np.flatnonzero(reject)
-    if bad.size:  # reasons for the rejected edges only
-        rej = (
-            ev[bad]
-            .rechunk()
-            .with_columns(
-                pl.when(pl.Series(reject[bad]) == kernels.ALREADY_BLOCKED)
-                .then(pl.format("pair {} of beam {} already blocked (no state change)", pl.col("pair"), pl.col("beam")))
-                .otherwise(
-                    pl.format("pair {} of beam {} already clear (no state change)", pl.col("pair"), pl.col("beam"))
-                )
-                .alias("_reason")
-            )
-        )
-        rejects = make_rejects(rej.sort("line"), source, None)
-        keep = pl.Series(reject == 0)
-        events_out, code_ok, pair_ok = ev.filter(keep), code_s.filter(keep), pair_s.filter(keep)
-    else:
-        rejects = make_rejects(ev.clear().with_columns(pl.lit(None, pl.String).alias("_reason")), source, None)
-        events_out, code_ok, pair_ok = ev, code_s, pair_s
-    events_out = pl.DataFrame(
-        {
-            "t": events_out["t"],
-            "beam": names.gather(code_ok),
-            "pair": pairs.gather(pair_ok),
-            "blocked": events_out["blocked"],
-        },
-        schema=BEAM_EVENTS,
+    # the accepted edges, their names gathered by code (faster than a String cast of an enum)
+    coded = pl.DataFrame([ev["t"], code_s.alias("_beam"), pair_s.alias("_pair"), ev["blocked"]]).lazy()
+    events_q = (coded.filter(pl.Series(reject == 0)) if bad.size else coded).select(
+        "t",
+        pl.lit(names).gather("_beam").alias("beam"),
+        pl.lit(pairs).gather("_pair").alias("pair"),
+        pl.col("blocked").cast(pl.Boolean),
     )
+    # a large log: polars builds the events table (and ``file`` names the rejected lines) on a
+    # second thread while numpy finds the passes on this one (both free the GIL as they work)
+    pool = ThreadPoolExecutor(max_workers=1) if ev.height >= kernels.MIN_ROWS else None
+    events_job = pool.submit(events_q.collect) if pool is not None else None
+    lines = ev["line"].to_numpy()[bad].tolist() if file is not None else []
+    texts_job = pool.submit(file.texts, lines) if pool is not None and lines else None
+    try:
+        if compiled is not True:
+            ends = kernels.beam_pass_ends_vectorised(code, pair, blocked, len(names), reject=reject)
+        if bad.size:  # reasons for the rejected edges only
+            rej = (
+                ev[bad]
+                .rechunk()
+                .with_columns(
+                    pl.when(pl.Series(reject[bad]) == kernels.ALREADY_BLOCKED)
+                    .then(
+                        pl.format(
+                            "pair {} of beam {} already blocked (no state change)", pl.col("pair"), pl.col("beam")
+                        )
+                    )
+                    .otherwise(
+                        pl.format("pair {} of beam {} already clear (no state change)", pl.col("pair"), pl.col("beam"))
+                    )
+                    .alias("_reason")
+                )
+            )
+            rejects = make_rejects(rej.sort("line"), source, None)
+            if file is not None:  # each line's text, from the file already read
+                text = texts_job.result() if texts_job is not None else file.texts(lines)
+                rejects = rejects.with_columns(
+                    pl.Series("raw", [text.get(i) for i in rejects["line"].to_list()], dtype=pl.String)
+                )
+        else:
+            rejects = make_rejects(ev.clear().with_columns(pl.lit(None, pl.String).alias("_reason")), source, None)
+        events_out = events_job.result() if events_job is not None else events_q.collect()
+    finally:
+        if pool is not None:
+            pool.shutdown()
     # closed passes at their closing edge (time order); a crossing leaves by the other pair
     opener, leaver = pair[ends.opened], pair[ends.close]
     crossing = opener != leaver
@@ -353,12 +379,12 @@ def decode_raw_beams(raw: RawRows, beam_ids, *, epoch=None, path: Path | None = 
 def _decode_events(
     events: pl.DataFrame, rejects: pl.DataFrame, source: str, path: Path | None, file: FileLines | None = None
 ) -> BeamDecode:
-    out = decode_passes(events, source)
+    out = decode_passes(events, source, file=file)  # with the file read: its rejects' text
     if out.rejects.height:
         fixed = out.rejects
-        lines = fixed["line"].to_list()
-        if path is not None:
-            text = raw_lines(path, lines, data=file)
+        if path is not None and fixed["raw"].null_count() == fixed.height:  # not named by decode_passes
+            lines = fixed["line"].to_list()
+            text = file.texts(lines) if file is not None else raw_lines(path, lines)  # (the file read again)
             fixed = fixed.with_columns(pl.Series("raw", [text.get(i) for i in lines], dtype=pl.String))
         rejects = pl.concat([rejects, fixed.select(REJECTS.names())]).sort("line")
     return BeamDecode(out.events, out.crossings, out.aborted, out.unfinished, rejects)

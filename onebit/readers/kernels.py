@@ -102,11 +102,39 @@ def pass_ends(reject, pass_first, close, first_pair, last) -> PassEnds:
     return PassEnds(reject, ends, pass_first[ends], op, pass_first[op])
 
 
-#: Beams per packed counter of :func:`beam_pass_ends_vectorised` (2 bits each in an int64).
-_PACK = 31
+#: Beams per packed counter of :func:`beam_pass_ends_vectorised` (2 bits each in an int64), and
+#: the most beams whose counters fit one uint32 (uint16 up to 8 beams, uint8 up to 4: less memory).
+_PACK, _PACK32 = 31, 16
 
 
-def beam_pass_ends_vectorised(beam, pair, blocked, n_beams) -> PassEnds:
+def beam_rejects(beam, pair, blocked, n_beams) -> np.ndarray:
+    """The no-change code of every edge (0 = accepted; :data:`ALREADY_BLOCKED`,
+    :data:`ALREADY_CLEAR`) of :func:`beam_pass_ends_vectorised`: after a stable radix sort by
+    (beam, pair), an edge equal to its pair's previous edge (clear before the first)."""
+    beam = np.asarray(beam)
+    blocked = np.asarray(blocked, np.bool_)
+    m = beam.shape[0]
+    reject = np.zeros(m, dtype=np.int8)
+    if m == 0:
+        return reject
+    small = _key_type(2 * n_beams)
+    g = beam.astype(small)
+    g <<= 1
+    g |= np.asarray(pair).astype(small)
+    order = np.argsort(g, kind="stable")  # per (beam, pair), in time order (a radix sort)
+    vs = blocked[order]
+    same = np.empty(m, dtype=np.bool_)
+    same[0] = not vs[0]  # each pair starts clear
+    np.equal(vs[1:], vs[:-1], out=same[1:])
+    gs = g[order]
+    starts = np.flatnonzero(gs[1:] != gs[:-1]) + 1
+    same[starts] = ~vs[starts]
+    bad_sorted = np.flatnonzero(same)
+    reject[order[bad_sorted]] = np.where(vs[bad_sorted], ALREADY_BLOCKED, ALREADY_CLEAR)
+    return reject
+
+
+def beam_pass_ends_vectorised(beam, pair, blocked, n_beams, reject=None) -> PassEnds:
     """:func:`beam_passes` as :class:`PassEnds`, with numpy array operations and no per-edge
     pass index: what a reader uses where numba is not loaded (loading it costs 0.3-0.5 s, several
     times this at 10^6 edges); the kernel's arrays give the same :class:`PassEnds` through
@@ -116,74 +144,75 @@ def beam_pass_ends_vectorised(beam, pair, blocked, n_beams) -> PassEnds:
     edge sets it, a rejected one had it already), so after a stable radix sort by (beam, pair)
     an edge equal to its pair's previous edge (clear before the first) is rejected. The
     accepted edges of each pair alternate, blocked first, so the number of blocked pairs of
-    beam ``b`` after its accepted edge ``k`` is the running sum over the beam's accepted
-    edges of ``+1`` (blocked) / ``-1`` (cleared)::
+    beam ``b`` after edge ``k`` is the running sum over the beam's accepted edges of ``+1``
+    (blocked) / ``-1`` (cleared), a rejected edge adding 0::
 
-        c_b(k) = sum_{j <= k, beam_j = b} (2 blocked_j - 1)  in {0, 1, 2}
+        c_b(k) = sum_{j <= k, beam_j = b, accepted} (2 blocked_j - 1)  in {0, 1, 2}
 
     so one cumulative sum of ``(2 blocked - 1) 4^b`` over the edges in time order holds every
-    beam's count in two bits (31 beams per int64; more beams, one sum per 31). An edge opens a
-    pass when its beam's count before it is 0, and closes one when the count after it is 0.
-    Per beam, opening and closing edges alternate (open first), so in a stable sort of them by
-    beam the edge before a closing edge is its pass's first edge, and a beam whose last one
-    opens holds an open pass (unfinished) ending at its last accepted edge."""
+    beam's count in two bits (31 beams per int64; more beams, one sum per 31). An accepted
+    edge opens a pass when its beam's count after it is 1 and it blocks (0 before), and closes
+    one when the count after it is 0. Per beam, opening and closing edges alternate (open
+    first), so the ``i``-th closing edge of a beam closes the pass its ``i``-th opening edge
+    opened: one stable radix sort of each by beam pairs them, and a beam with one opening edge
+    more holds an open pass (unfinished) ending at its last accepted edge. ``reject``: the
+    no-change codes when already found (:func:`beam_rejects`)."""
     beam = np.asarray(beam)
-    pair = np.asarray(pair)
     blocked = np.asarray(blocked, np.bool_)
     m = beam.shape[0]
-    reject = np.zeros(m, dtype=np.int8)
+    reject = beam_rejects(beam, pair, blocked, n_beams) if reject is None else reject
     none = np.empty(0, dtype=np.int64)
     if m == 0:
         return PassEnds(reject, none, none, none, none)
-    small = _key_type(2 * n_beams)
-    g = beam.astype(small) * 2 + pair.astype(small)
-    order = np.argsort(g, kind="stable")  # per (beam, pair), in time order (a radix sort)
-    gs, vs = g[order], blocked[order]
-    prev = np.zeros(m, dtype=np.bool_)
-    prev[1:] = vs[:-1]
-    prev[np.flatnonzero(gs[1:] != gs[:-1]) + 1] = False  # each pair starts clear
-    same = np.flatnonzero(vs == prev)
-    reject[order[same]] = np.where(vs[same], ALREADY_BLOCKED, ALREADY_CLEAR)
-    acc = np.flatnonzero(reject == 0) if same.size else np.arange(m)
-    if acc.size == 0:
-        return PassEnds(reject, none, none, none, none)
-    b, v = beam[acc], blocked[acc]
-    if n_beams <= _PACK:  # one packed running sum (in place: few 10^6-row temporaries)
-        shift = b.astype(np.int64)
+    bad = np.flatnonzero(reject)
+    accepted = reject == 0
+    if n_beams <= _PACK32:  # 2 bits per beam in one unsigned word: its sums mod 2^bits are exact (counts 0..2)
+        word = np.uint8 if n_beams <= 4 else np.uint16 if n_beams <= 8 else np.uint32
+        shift = beam.astype(word)
         shift <<= 1
-        after = v.astype(np.int64)
+        after = blocked.astype(word)
         after <<= 1
-        after -= 1
+        after -= 1  # -1 as 2^bits - 1: the sum is taken mod 2^bits
+        after[bad] = 0  # a rejected edge changes no count
         after <<= shift
-        np.cumsum(after, out=after)
+        np.cumsum(after, dtype=word, out=after)
         after >>= shift
         after &= 3
-    else:  # one per 31 beams
-        after = np.empty(acc.size, dtype=np.int64)
-        step = v.astype(np.int64) * 2 - 1
+    else:  # int64 sums, one per 31 beams
+        step = blocked.astype(np.int64)
+        step <<= 1
+        step -= 1
+        step[bad] = 0
+        after = np.empty(m, dtype=np.int64)
         for lo in range(0, n_beams, _PACK):
-            rows = np.flatnonzero((b >= lo) & (b < lo + _PACK))
-            shift = 2 * (b[rows].astype(np.int64) - lo)
+            rows = np.flatnonzero((beam >= lo) & (beam < lo + _PACK)) if n_beams > _PACK else slice(None)
+            shift = 2 * (beam[rows].astype(np.int64) - lo)
             after[rows] = (np.cumsum(step[rows] << shift) >> shift) & 3
-    opens = v & (after == 1)  # before = after - step = 0
-    ends = after == 0
-    sel = np.flatnonzero(opens | ends)
-    key = b[sel].astype(_key_type(n_beams))
-    by_beam = np.argsort(key, kind="stable")
-    srt = sel[by_beam]  # per beam, in time order
-    is_end = ends[srt]
-    at = np.flatnonzero(is_end)  # never 0: a beam's first such edge opens
-    first_of = np.empty(acc.size, dtype=np.int64)
-    first_of[srt[at]] = srt[at - 1]
-    close = np.flatnonzero(ends)
-    # a beam whose last opening/closing edge opens: its pass is open at the end
-    bs = key[by_beam]
-    tail = np.ones(srt.size, dtype=np.bool_)
-    tail[:-1] = bs[:-1] != bs[1:]
-    open_first = srt[tail & ~is_end]  # ascending within each beam; order them by start
-    open_first = np.sort(open_first)
-    open_last = np.array([acc.size - 1 - int(np.argmax(b[::-1] == b[k])) for k in open_first], dtype=np.int64)
-    return PassEnds(reject, acc[close], acc[first_of[close]], acc[open_last], acc[open_first])
+    idle = after == 0
+    close = np.flatnonzero(idle & accepted & ~blocked)
+    opens = np.flatnonzero((after == 1) & accepted & blocked)
+    if opens.size == 0:
+        return PassEnds(reject, none, none, none, none)
+    key = _key_type(n_beams)
+    ob, cb = beam[opens].astype(key), beam[close].astype(key)
+    o_order = np.argsort(ob, kind="stable")
+    c_order = np.argsort(cb, kind="stable")
+    n_open = np.bincount(ob, minlength=n_beams)
+    n_close = np.bincount(cb, minlength=n_beams)
+    o_start = np.cumsum(n_open) - n_open  # where each beam's opening edges start in o_order
+    c_start = np.cumsum(n_close) - n_close
+    # the i-th closing edge of a beam (sorted position c_start[b] + i) closes its i-th opening edge's pass
+    to_open = np.arange(close.size, dtype=np.int64) + np.repeat(o_start - c_start, n_close)
+    opened = np.empty(close.size, dtype=np.int64)
+    opened[c_order] = opens[o_order[to_open]]
+    # a beam with one more opening than closing edge: its last pass is open at the end
+    left = np.flatnonzero(n_open > n_close)
+    open_first = np.sort(opens[o_order[o_start[left] + n_open[left] - 1]])
+    open_last = np.empty(open_first.size, dtype=np.int64)
+    for i, k in enumerate(open_first.tolist()):  # the beam's last accepted edge, at or after its pass opened
+        tail = np.flatnonzero((beam[k:] == beam[k]) & accepted[k:])
+        open_last[i] = k + tail[-1]
+    return PassEnds(reject, close, opened, open_last, open_first)
 
 
 @kernel
@@ -258,6 +287,28 @@ def separators_per_line_reference(buf: np.ndarray, sep: int) -> np.ndarray:
     return np.diff(np.concatenate([[0], before])).astype(np.int64)
 
 
+def separators_per_line_vectorised(buf: np.ndarray, sep: int, step: int = 1 << 22) -> np.ndarray:
+    """:func:`separators_per_line` with numpy, ``step`` bytes at a time (bounded temporaries):
+    what a reader uses while numba is not loaded (its load costs 0.3-0.5 s, ten times this on a
+    16 MB file). In each step the offsets of the separators and newlines, in order, are found
+    at once; the separators of a line are the offsets between two newlines, plus those carried
+    from the step before. Equal to :func:`separators_per_line_reference` (tests)."""
+    out, carry = [], 0
+    for lo in range(0, buf.shape[0], step):
+        block = buf[lo : lo + step]
+        pos = np.flatnonzero((block == sep) | (block == 10))
+        nl = np.flatnonzero(block[pos] == 10)  # which of them are newlines
+        if nl.size == 0:
+            carry += pos.size
+            continue
+        counts = np.diff(nl, prepend=-1) - 1  # separators between consecutive newlines
+        counts[0] += carry
+        out.append(counts)
+        carry = pos.size - 1 - int(nl[-1])
+    out.append(np.array([carry]))
+    return np.concatenate(out).astype(np.int64)
+
+
 def _key_type(n: int):
     """The smallest signed integer type that holds the codes ``0 .. n - 1``: numpy's stable sort
     of 8- and 16-bit keys is a radix sort, and 8-bit keys sort twice as fast as 16-bit ones."""
@@ -289,32 +340,57 @@ def toggle_repeats_vectorised(sensor, on, n_sensors):
 
 
 def _debounce_sorted(s_, o_, ts, chatter, min_on, eps):
-    """The debounce masks of :func:`debounce_masks_vectorised` on edges already in sensor order
+    """The debounce of :func:`debounce_masks_vectorised` on edges already in sensor order
     (``s_`` sensor, ``o_`` on, ``ts`` time; time order within a sensor): chatter marks each
     (off, on) pair of neighbours of a sensor within its window; the minimum on-time rule marks
-    each (on, off) pair of neighbours among the edges chatter left, sooner than ``min_on``."""
+    each (on, off) pair of neighbours among the edges chatter left, sooner than ``min_on``.
+    Every neighbour pair is tested at once with boolean masks over contiguous arrays (the gaps
+    by one ``diff``); a rule shared by every sensor is one number. Returns the positions (in the
+    sensor order) of the edges each rule marks."""
     m = o_.shape[0]
-    cs = np.zeros(m, dtype=np.bool_)
-    ss = np.zeros(m, dtype=np.bool_)
+    none = np.empty(0, dtype=np.int64)
     if m < 2:
-        return cs, ss
+        return none, none
     chatter = np.asarray(chatter, np.float64)
     min_on = np.asarray(min_on, np.float64)
-    if (chatter > 0).any():  # (off, on) neighbours of a sensor; times only for those
-        i = np.flatnonzero((s_[1:] == s_[:-1]) & o_[1:] & ~o_[:-1])
-        w = chatter[s_[i + 1]]
-        i = i[(w > 0) & (ts[i + 1] - ts[i] <= w + eps)]
-        cs[i] = True
-        cs[i + 1] = True
+    cs = ss = none
+    same = s_[1:] == s_[:-1]  # neighbours of one sensor
+    if (chatter > 0).any():  # (off, on) neighbours within the window
+        w = _rule_of_pairs(chatter, s_)
+        pair = same & o_[1:]
+        pair &= ~o_[:-1]
+        pair &= np.diff(ts) <= w + eps
+        if not np.isscalar(w):
+            pair &= w > 0
+        i = np.flatnonzero(pair)
+        cs = np.empty(2 * i.size, dtype=np.int64)  # pairs of neighbours never share an edge
+        cs[0::2], cs[1::2] = i, i + 1
     if (min_on > 0).any():  # (on, off) neighbours among the edges chatter left
-        ko = np.flatnonzero(~cs) if cs.any() else np.arange(m)
-        s2, o2 = s_[ko], o_[ko]
-        i = np.flatnonzero((s2[1:] == s2[:-1]) & o2[:-1] & ~o2[1:])
-        mo = min_on[s2[i + 1]]
-        i = i[(mo > 0) & (ts[ko[i + 1]] - ts[ko[i]] < mo - eps)]
-        ss[ko[i]] = True
-        ss[ko[i + 1]] = True
+        ko, s2, o2, t2, same2 = None, s_, o_, ts, same
+        if cs.size:
+            left = np.ones(m, dtype=np.bool_)
+            left[cs] = False
+            ko = np.flatnonzero(left)
+            s2, o2, t2 = s_[ko], o_[ko], ts[ko]
+            same2 = s2[1:] == s2[:-1]
+        w = _rule_of_pairs(min_on, s2)
+        pair = same2 & o2[:-1]
+        pair &= ~o2[1:]
+        pair &= np.diff(t2) < w - eps
+        if not np.isscalar(w):
+            pair &= w > 0
+        i = np.flatnonzero(pair)
+        ss = np.empty(2 * i.size, dtype=np.int64)
+        ss[0::2], ss[1::2] = (i, i + 1) if ko is None else (ko[i], ko[i + 1])
     return cs, ss
+
+
+def _rule_of_pairs(per_sensor, s_):
+    """A rule's value for each pair of neighbours ``(k, k + 1)`` in sensor order (the sensor of
+    ``k + 1``), or one number when every sensor has the same."""
+    if (per_sensor == per_sensor[0]).all():
+        return float(per_sensor[0])
+    return per_sensor[s_[1:]]
 
 
 def debounce_masks_vectorised(sensor, on, t, chatter, min_on, n_sensors, eps):
@@ -332,8 +408,8 @@ def debounce_masks_vectorised(sensor, on, t, chatter, min_on, n_sensors, eps):
         return chat, short
     order = _by_sensor(sensor, n_sensors)
     cs, ss = _debounce_sorted(sensor[order], on[order], t[order], chatter, min_on, eps)
-    chat[order] = cs
-    short[order] = ss
+    chat[order[cs]] = True
+    short[order[ss]] = True
     return chat, short
 
 
@@ -351,6 +427,24 @@ def toggle_masks_vectorised(sensor, on, t, chatter, min_on, n_sensors, eps):
     short = np.zeros(m, dtype=np.bool_)
     if m == 0:
         return same, chat, short
+    order = _by_sensor(sensor, n_sensors)
+    s_ = sensor[order].astype(_key_type(n_sensors))
+    o_ = on[order]
+    rep = np.empty(m, dtype=np.bool_)
+    rep[0] = not o_[0]  # each sensor starts off: an off edge first is a repeat
+    np.equal(o_[1:], o_[:-1], out=rep[1:])
+    starts = np.flatnonzero(s_[1:] != s_[:-1]) + 1
+    rep[starts] = ~o_[starts]
+    repeated = np.flatnonzero(rep)
+    same[order[repeated]] = True
+    at = order
+    if repeated.size:  # the debounce sees the other edges (still in sensor order)
+        keep = np.flatnonzero(~rep)
+        at, s_, o_ = order[keep], s_[keep], o_[keep]
+    cs, ss = _debounce_sorted(s_, o_, np.asarray(t, np.float64)[at], chatter, min_on, eps)
+    chat[at[cs]] = True
+    short[at[ss]] = True
+    return same, chat, short
     order = _by_sensor(sensor, n_sensors)
     s_ = sensor[order].astype(_key_type(n_sensors))
     o_ = on[order]

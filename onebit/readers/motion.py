@@ -252,7 +252,12 @@ def toggle_edges(
             masks = tuple(mk[~masks[0]] for mk in masks)
 
     # pass 3: debounce on the alternating sequence
-    edges, suppressed = debounce(ok, sensors, rules) if masks is None else _debounced(ok, masks[1], masks[2])
+    if masks is not None:  # the typed read's codes and the numpy masks: both tables in one go
+        motion, suppressed = _motion_tables(ok, masks[1], masks[2])
+        return MotionRead(
+            motion, rejects.select(REJECTS.names()).cast(dict(REJECTS)), suppressed, typed.reordered, n_held
+        )
+    edges, suppressed = debounce(ok, sensors, rules)
     if isinstance(edges.schema["sensor"], pl.Enum):  # the typed read's codes: names gathered, not cast row by row
         names = pl.Series(edges.schema["sensor"].categories, dtype=pl.String)
         motion = pl.DataFrame(
@@ -375,6 +380,23 @@ def debounce(
         TIME_EPS,
     )
     return _debounced(ev, chat, short)
+
+
+def _motion_tables(ev: pl.DataFrame, chat: np.ndarray, short: np.ndarray) -> tuple[pl.DataFrame, pl.DataFrame]:
+    """``(motion, suppressed)`` of edges in time order whose sensor is the typed read's enum,
+    from the debounce's masks: :func:`_debounced`'s tables in their final schemas, the sensor
+    names gathered by code (faster than a String cast of an enum) in one lazy select each."""
+    names = pl.Series(ev.schema["sensor"].categories, dtype=pl.String)
+    gone = chat | short  # the rules mark disjoint edges (minimum on-time only among those chatter left)
+    coded = ev.select("line", "t", pl.col("sensor").to_physical().alias("_s"), "on").lazy()
+    sensor = pl.lit(names).gather("_s").alias("sensor")
+    if not gone.any():
+        return coded.select("t", sensor, "on").collect(), pl.DataFrame(schema=SUPPRESSED)
+    motion = coded.filter(pl.Series(~gone)).select("t", sensor, "on")
+    rule = pl.when(pl.Series(chat[gone])).then(pl.lit("chatter")).otherwise(pl.lit("min_on")).alias("rule")
+    suppressed = coded.filter(pl.Series(gone)).select("t", sensor, "on", rule, "line")  # in time order, as ev
+    motion, suppressed = pl.collect_all([motion, suppressed])
+    return motion, suppressed
 
 
 def _debounced(ev: pl.DataFrame, chat: np.ndarray, short: np.ndarray) -> tuple[pl.DataFrame, pl.DataFrame]:

@@ -52,6 +52,7 @@ from pathlib import Path
 import numpy as np
 import polars as pl
 
+from onebit.core.compiled import numba_loaded
 from onebit.core.errors import MAX_QUOTE, InputError
 from onebit.core.tables import REJECTS
 from onebit.readers import kernels
@@ -730,10 +731,13 @@ def _commas(work: bytes, nl: np.ndarray, lines: np.ndarray) -> int:
 
 def _separators_per_line(work: bytes, n_lines: int) -> np.ndarray:
     """Separators on every line of ``work``: compiled from :data:`~onebit.readers.kernels.MIN_ROWS`
-    lines on, else its numpy reference (a small file never pays numba's start)."""
+    lines on when numba is loaded already (:func:`~onebit.core.compiled.numba_loaded`), else
+    with numpy (:func:`~onebit.readers.kernels.separators_per_line_vectorised`): a reader never
+    pays numba's load (0.3-0.5 s) for a messy file."""
     buf = np.frombuffer(work, dtype=np.uint8)
-    count = kernels.separators_per_line if n_lines >= kernels.MIN_ROWS else kernels.separators_per_line_reference
-    return count(buf, ord(SEPARATOR))
+    if n_lines >= kernels.MIN_ROWS and numba_loaded():
+        return kernels.separators_per_line(buf, ord(SEPARATOR))
+    return kernels.separators_per_line_vectorised(buf, ord(SEPARATOR))
 
 
 def read_typed_csv(path: str | Path, dtypes: dict[str, pl.DataType]) -> TypedSplit | None:
@@ -776,9 +780,9 @@ def read_typed_csv(path: str | Path, dtypes: dict[str, pl.DataType]) -> TypedSpl
     if len(header) > MAX_HEADER_FIELDS or any(header.count(c) != 1 for c in dtypes) or not head_text.strip(" \t"):
         return None
     n = len(header)
-    n_lines = int(np.count_nonzero(np.frombuffer(data, dtype=np.uint8) == 0x0A)) + (not data.endswith(b"\n")) - 1
+    file = FileLines(data)  # its newlines counted once: the lines, and where a named line is
+    n_lines = file.n_lines - 1
     columns = tuple(dtypes)
-    file = FileLines(data)
     empty_rest = RawRows(path.name, _empty_rows(columns), pl.DataFrame(schema=REJECTS))
     plain = b'"' not in data and b"\r" not in data
     if plain and (data.isascii() or _utf8(data)):
@@ -792,9 +796,9 @@ def read_typed_csv(path: str | Path, dtypes: dict[str, pl.DataType]) -> TypedSpl
             and _all_parsed(frame, dtypes)
             and _widths_hold(data, header, dtypes, n_lines)
         ):
-            frame = frame.with_columns(pl.int_range(2, frame.height + 2, dtype=pl.Int64).alias("line")).select(
-                "line", *columns
-            )
+            # one buffer per column (the parse gives one per thread's piece): every later numpy
+            # view of a column is free, not a copy each time (the time origin, checks, decoder)
+            frame = frame.select(columns).rechunk().insert_column(0, _line_numbers(frame.height))
             return TypedSplit(frame, empty_rest, header, file)
     check_shapes(data, path, n, 1)  # not clean: refused before the tolerant read if it is not this log
     work = data.replace(b"\r\n", b"\n") if b"\r" in data else data
@@ -825,6 +829,12 @@ def read_typed_csv(path: str | Path, dtypes: dict[str, pl.DataType]) -> TypedSpl
     lines = file.lines(marked)
     lines = lines.filter(~pl.col("text").str.contains(_BLANK) | pl.col("_reason").is_not_null())
     return TypedSplit(good, rows_of_lines(lines, header, columns, path.name), header, file)
+
+
+def _line_numbers(n: int) -> pl.Series:
+    """``line`` of the ``n`` rows of a typed read: 2, 3, ... (the header is line 1), as numpy
+    makes it (half the time of polars' ``int_range`` in a fresh process)."""
+    return pl.Series("line", np.arange(2, n + 2, dtype=np.int64))
 
 
 def _widths_hold(data: bytes, header: list[str], dtypes: dict[str, pl.DataType], n_lines: int) -> bool:
@@ -887,46 +897,25 @@ def line_texts(data: bytes, lines, nl: np.ndarray | None = None) -> pl.DataFrame
     """The rows of :func:`physical_lines` (``line``, ``text``, ``_reason``) for the given 1-based
     line numbers only (each once, in order; numbers past the end are left out), cut out of
     ``data`` at its newlines (``nl``: :func:`newlines`, when already known): what naming a few
-    bad lines of a large file costs, instead of splitting all of it."""
-    want = np.unique(np.asarray(lines, dtype=np.int64))
-    schema = {"line": pl.Int64, "text": pl.String, "_reason": pl.String}
-    if want.size > _FEW_LINES:
-        return physical_lines(data).filter(pl.col("line").is_in(pl.Series(want).implode()))
-    if nl is None:
-        nl = newlines(data)
-    n_lines = nl.size + (len(data) > 0 and not data.endswith(b"\n"))
-    want = want[(want >= 1) & (want <= n_lines)]
-    if want.size > 64 and data.isascii():  # no decoding to fail: cut out in one go
-        return _ascii_line_texts(data, nl, want)
-    starts, ends = _bounds(nl, len(data), want)
-    texts, reasons = [], []
-    for k, s, e in zip(want.tolist(), starts, ends):  # the named lines only
-        raw = data[s:e]
-        try:
-            text, why = raw.decode("utf-8"), None
-        except UnicodeDecodeError as exc:  # as physical_lines: U+FFFD per invalid sequence, the first one named
-            text = raw.decode("utf-8", errors="replace")
-            why = f"not UTF-8 text: byte 0x{raw[exc.start]:02X} at column {exc.start + 1}"
-        if k == 1 and text.startswith("\ufeff"):
-            text = text[1:]
-        texts.append(text.removesuffix("\r"))
-        reasons.append(why)
-    return pl.DataFrame({"line": want, "text": texts, "_reason": reasons}, schema=schema)
+    bad lines of a large file costs, instead of splitting all of it (:meth:`FileLines.lines`)."""
+    file = FileLines(data)
+    if nl is not None:
+        file._nl = nl
+    return file.lines(lines)
 
 
-def _ascii_line_texts(data: bytes, nl: np.ndarray, want: np.ndarray) -> pl.DataFrame:
+def _ascii_line_texts(data: bytes, want: np.ndarray, starts: np.ndarray, ends: np.ndarray) -> pl.DataFrame:
     """:func:`line_texts` of ASCII ``data`` (the lines ``want``, 1-based, ascending, each in the
-    file) without a Python step per line: their bytes gathered with their line ends into one
-    string, split at the newlines; a ``\r`` before a newline is dropped, as there."""
-    if nl.size:
-        starts = np.where(want > 1, nl[np.clip(want - 2, 0, nl.size - 1)] + 1, 0)
-        ends = np.where(want - 1 < nl.size, nl[np.clip(want - 1, 0, nl.size - 1)], len(data))
-    else:
-        starts, ends = np.zeros(want.size, np.int64), np.full(want.size, len(data), np.int64)
-    buf = np.frombuffer(data + b"\n", dtype=np.uint8)  # a last line without a newline gets one
+    file, from byte ``starts`` to ``ends``) without a Python step per line: their bytes gathered
+    with their line ends into one string, split at the newlines; a ``\r`` before a newline is
+    dropped, as there."""
+    buf = np.frombuffer(data, dtype=np.uint8)
     span = ends - starts + 1  # each line and its newline
     first = np.cumsum(span) - span
-    cut = buf[np.repeat(starts - first, span) + np.arange(int(span.sum()), dtype=np.int64)]
+    at = np.repeat(starts - first, span) + np.arange(int(span.sum()), dtype=np.int64)
+    np.minimum(at, buf.size - 1, out=at)  # (a last line without a newline: its end is past the data)
+    cut = buf[at]
+    cut[first + span - 1] = 0x0A  # every line ends with a newline (the file is not copied to give it one)
     text = pl.Series([cut.tobytes().decode("ascii")]).str.split("\n").explode().slice(0, want.size)
     return pl.DataFrame(
         {"line": want, "text": text.str.strip_suffix("\r"), "_reason": pl.Series([None] * want.size, dtype=pl.String)},
@@ -952,23 +941,109 @@ def _line_texts_reference(data: bytes, lines) -> pl.DataFrame:
     )
 
 
-class FileLines:
-    """A file's bytes and, once needed, their newline offsets: the text of any line by number."""
+#: Bytes per step of :class:`FileLines`' newline count (its index of where the lines are).
+_LINE_STEP = 1 << 20
 
-    def __init__(self, data: bytes) -> None:
+
+class FileLines:
+    """A file's bytes and, once needed, where its lines are: the text of any line by number.
+
+    Naming a few lines of a large file does not list all its newlines (:attr:`nl`, 8 bytes per
+    line): the newlines of every ``step`` bytes (:data:`_LINE_STEP`) are counted once (:meth:`step_newlines`,
+    the pass that also gives the number of lines), and a line's bounds are found in its step
+    alone."""
+
+    def __init__(self, data: bytes, step: int = _LINE_STEP) -> None:
         self.data = data
+        self.step = step
         self._nl: np.ndarray | None = None
+        self._steps: np.ndarray | None = None
+        self._ascii: bool | None = None
 
     @property
     def nl(self) -> np.ndarray:
+        """Byte offsets of every newline (:func:`newlines`)."""
         if self._nl is None:
             self._nl = newlines(self.data)
         return self._nl
 
+    def step_newlines(self) -> np.ndarray:
+        """How many newlines each :attr:`step` bytes of the file hold (counted once)."""
+        if self._steps is None:
+            buf, step = np.frombuffer(self.data, dtype=np.uint8), self.step
+            self._steps = np.array(
+                [np.count_nonzero(buf[lo : lo + step] == 0x0A) for lo in range(0, buf.size, step)],
+                dtype=np.int64,
+            )
+        return self._steps
+
+    @property
+    def n_newlines(self) -> int:
+        return int(self._nl.size) if self._nl is not None else int(self.step_newlines().sum())
+
+    @property
+    def n_lines(self) -> int:
+        """Physical lines: one per newline, and the text after the last one if any."""
+        return self.n_newlines + (len(self.data) > 0 and not self.data.endswith(b"\n"))
+
+    def is_ascii(self) -> bool:
+        if self._ascii is None:
+            self._ascii = self.data.isascii()
+        return self._ascii
+
+    def newline_offsets(self, k: np.ndarray) -> np.ndarray:
+        """Byte offsets of the newlines ``k`` (0-based, each below :attr:`n_newlines`): from
+        :attr:`nl` when listed, else each one found in its step only."""
+        if self._nl is not None:
+            return self._nl[k]
+        ends = np.cumsum(self.step_newlines())  # newlines up to the end of each step
+        step = np.searchsorted(ends, k, side="right")
+        out = np.empty(k.size, dtype=np.int64)
+        buf = np.frombuffer(self.data, dtype=np.uint8)
+        for c in np.unique(step).tolist():
+            at = step == c
+            lo = c * self.step
+            here = np.flatnonzero(buf[lo : lo + self.step] == 0x0A) + lo
+            out[at] = here[k[at] - (ends[c] - here.size)]
+        return out
+
+    def bounds(self, want: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Start and end byte offsets of the lines ``want`` (1-based, each in the file)."""
+        n_nl = self.n_newlines
+        starts = np.zeros(want.size, dtype=np.int64)
+        ends = np.full(want.size, len(self.data), dtype=np.int64)
+        after = np.flatnonzero(want > 1)  # lines after the first start past the newline before them
+        closed = np.flatnonzero(want - 1 < n_nl)  # lines that end at a newline
+        at = self.newline_offsets(np.concatenate([want[after] - 2, want[closed] - 1]))  # one look-up for both
+        starts[after] = at[: after.size] + 1
+        ends[closed] = at[after.size :]
+        return starts, ends
+
     def lines(self, lines) -> pl.DataFrame:
-        """:func:`line_texts` of these lines."""
-        lines = np.asarray(lines, dtype=np.int64)
-        return line_texts(self.data, lines, None if lines.size > _FEW_LINES else self.nl)
+        """The rows of :func:`physical_lines` (``line``, ``text``, ``_reason``) of these 1-based
+        line numbers (each once, in order; numbers past the end left out)."""
+        data = self.data
+        want = np.unique(np.asarray(lines, dtype=np.int64))
+        schema = {"line": pl.Int64, "text": pl.String, "_reason": pl.String}
+        if want.size > _FEW_LINES:
+            return physical_lines(data).filter(pl.col("line").is_in(pl.Series(want).implode()))
+        want = want[(want >= 1) & (want <= self.n_lines)]
+        starts, ends = self.bounds(want)
+        if want.size > 64 and self.is_ascii():  # no decoding to fail: cut out in one go
+            return _ascii_line_texts(data, want, starts, ends)
+        texts, reasons = [], []
+        for k, s, e in zip(want.tolist(), starts.tolist(), ends.tolist()):  # the named lines only
+            raw = data[s:e]
+            try:
+                text, why = raw.decode("utf-8"), None
+            except UnicodeDecodeError as exc:  # as physical_lines: U+FFFD per invalid sequence, the first one named
+                text = raw.decode("utf-8", errors="replace")
+                why = f"not UTF-8 text: byte 0x{raw[exc.start]:02X} at column {exc.start + 1}"
+            if k == 1 and text.startswith("\ufeff"):
+                text = text[1:]
+            texts.append(text.removesuffix("\r"))
+            reasons.append(why)
+        return pl.DataFrame({"line": want, "text": texts, "_reason": reasons}, schema=schema)
 
     def texts(self, lines, *, limit: int | None = MAX_QUOTE) -> dict[int, str]:
         """The text of each of these lines, cut to ``limit`` characters (``None``: whole)."""
@@ -1162,9 +1237,19 @@ def check_rows(
 
 
 def in_time_order(t: pl.Series) -> bool:
-    """Whether ``t`` never decreases (one pass in numpy; nulls and NaN are never in order)."""
+    """Whether ``t`` never decreases (one pass in numpy; nulls and NaN are never in order); a
+    column polars knows to be sorted (its flag: :func:`mark_in_order`), without nulls or NaN,
+    needs no pass over its values."""
+    if t.flags.get("SORTED_ASC") and t.null_count() == 0 and not (t.dtype.is_float() and t.is_nan().any()):
+        return True
     v = t.to_numpy()
     return bool(v.size < 2 or (v[1:] >= v[:-1]).all())
+
+
+def mark_in_order(rows: pl.DataFrame, *columns: str) -> pl.DataFrame:
+    """``rows`` with ``columns`` flagged as sorted ascending for polars, once found in order
+    (:func:`in_time_order`): later checks of the same rows read the flag instead of the values."""
+    return rows.with_columns(pl.col(c).set_sorted() for c in columns)
 
 
 def by_time(rows: pl.DataFrame) -> pl.DataFrame:
@@ -1177,30 +1262,35 @@ def by_time(rows: pl.DataFrame) -> pl.DataFrame:
 
 def duplicate_of(ok: pl.DataFrame, key: tuple[str, ...]) -> pl.Series:
     """For every row of ``ok`` (``line`` + the ``key`` columns, ``t`` among them), the first
-    ``line`` of an earlier row with the same ``key`` (nulls equal), else null: found by one sort on the key and
-    a comparison of neighbours (no window over the key). Rows whose ``t`` no other row has
-    cannot be duplicates; when ``t`` never decreases in file order (the usual log) only the
-    runs of equal ``t`` are sorted."""
+    ``line`` of an earlier row with the same ``key`` (nulls equal), else null
+    (:func:`duplicate_rows`, as a column)."""
     out = pl.Series("_dup", [], dtype=pl.Int64).extend_constant(None, ok.height)
+    dup = duplicate_rows(ok, key)
+    return out.scatter(dup["_i"], dup["_first"]) if dup.height else out
+
+
+def duplicate_rows(ok: pl.DataFrame, key: tuple[str, ...], *, in_order: bool | None = None) -> pl.DataFrame:
+    """The rows of ``ok`` (``line`` + the ``key`` columns, ``t`` among them) identical in ``key``
+    to an earlier row (nulls equal): their index ``_i`` and the ``line`` of the first such
+    row, ``_first``. Found by one sort on the key and a comparison of neighbours (no window
+    over the key). Rows whose ``t`` no other row has cannot be duplicates; when ``t`` never
+    decreases in file order (the usual log; ``in_order``: already known) only the runs of
+    equal ``t`` are sorted, and a log without two equal stamps costs one comparison."""
+    none = pl.DataFrame(schema={"_i": pl.Int64, "_first": pl.Int64})
     v = ok["t"].to_numpy() if "t" in ok.columns else None  # a time-free table: every row a candidate
-    if v is not None and (v.size < 2 or (v[1:] >= v[:-1]).all()):
+    if v is not None and (in_order if in_order is not None else in_time_order(ok["t"])):
         eq = v[1:] == v[:-1]
         if not eq.any():  # no two rows share a stamp: no duplicate
-            return out
-        tie = np.zeros(v.size, dtype=np.bool_)
-        tie[1:] |= eq
-        tie[:-1] |= eq
-        at = np.flatnonzero(tie)  # only the rows in a run of equal stamps
+            return none
+        first = np.flatnonzero(eq)  # rows whose stamp the next row has
+        at = np.unique(np.concatenate([first, first + 1]))  # only the rows in a run of equal stamps
         cand = ok[at].select(pl.Series("_i", at, dtype=pl.Int64), "line", *key)
     else:
         cand = ok.select(pl.int_range(pl.len(), dtype=pl.Int64).alias("_i"), "line", *key)
     cand = cand.sort([*key, "line"])
     same = pl.all_horizontal([pl.col(k).eq_missing(pl.col(k).shift(1)) for k in key]).fill_null(False)
     cand = cand.with_columns(pl.when(same).then(None).otherwise(pl.col("line")).forward_fill().alias("_first"))
-    cand = cand.filter(pl.col("_first") != pl.col("line"))
-    if cand.height:
-        out = out.scatter(cand["_i"], cand["_first"])
-    return out
+    return cand.filter(pl.col("_first") != pl.col("line")).select("_i", "_first")
 
 
 def backwards_reason(tolerance: float) -> pl.Expr:
@@ -1232,19 +1322,21 @@ def order_checks(
     for the rejected rows only; rows without ``raw`` get their line's text from ``path``
     (``data``: its :class:`FileLines`, when already read)."""
     parts = [field_bad] if field_bad is not None and field_bad.height else []
-    dup_of = duplicate_of(ok, key)
-    if dup_of.null_count() < ok.height:
+    in_order = "t" in ok.columns and in_time_order(ok["t"])  # (dropping rows keeps the order)
+    dups = duplicate_rows(ok, key, in_order=in_order)
+    if dups.height:
         same = " and ".join(", ".join(key).rsplit(", ", 1))  # ("t", "target") -> "t and target"
-        ok = ok.with_columns(dup_of.alias("_dup"))
+        dup_of = (
+            pl.Series("_dup", [], dtype=pl.Int64).extend_constant(None, ok.height).scatter(dups["_i"], dups["_first"])
+        )
+        ok = ok.with_columns(dup_of)
         dup = ok.filter(pl.col("_dup").is_not_null()).rechunk()
         parts.append(
             dup.with_columns(pl.format("duplicate of line {} (same {})", pl.col("_dup"), pl.lit(same)).alias("_reason"))
         )
         ok = ok.filter(pl.col("_dup").is_null()).drop("_dup")
     reordered = 0
-    if "t" in ok.columns and not in_time_order(
-        ok["t"]
-    ):  # some row is earlier than a row before it (time-free tables: no order)
+    if "t" in ok.columns and not in_order:  # some row is earlier than a row before it (time-free tables: no order)
         ok = ok.sort("line").with_columns(pl.col("t").cum_max().shift(1).alias("_prev"))
         back = (pl.col("t") < pl.col("_prev") - tolerance).fill_null(False)
         late = ok.filter(back).rechunk()  # (polars 2.1 panics formatting a filtered frame's floats otherwise)
@@ -1265,8 +1357,10 @@ def order_checks(
         made = pl.DataFrame(schema=REJECTS)
     rejects = made if prior is None else pl.concat([prior, made]).sort("line")
     accepted = ok.select("line", *columns)
-    if "t" in accepted.columns and (reordered or not in_time_order(accepted["t"])):
+    if "t" in accepted.columns and not in_order and (reordered or not in_time_order(accepted["t"])):
         accepted = accepted.sort(["t", "line"])
+    elif in_order:  # the finite stamps of parsed rows, in order: flagged so, for the reader's next checks
+        accepted = mark_in_order(accepted, "t")
     return TypedRows(accepted, rejects, reordered)
 
 

@@ -191,6 +191,8 @@ def _kept_span(v: pl.Series | np.ndarray, max_gap_s: float, lone_fraction: float
     end are cut off (module docstring)."""
     a = v if isinstance(v, np.ndarray) else v.to_numpy()
     n = a.size
+    if a[n - 1] - a[0] <= max_gap_s:  # no two stamps further apart: one cluster
+        return 0, n
     cut = np.flatnonzero(np.diff(a) > max_gap_s) + 1  # a cluster starts at each of these indices
     bounds = [0, *cut.tolist(), n]
     sizes = [b - a for a, b in zip(bounds[:-1], bounds[1:])]
@@ -238,7 +240,7 @@ def _numeric_origin(sources, col, epoch, max_gap_s, lone_fraction, max_span_s) -
                 return None
             values.append(df[col].cast(pl.Float64).to_numpy())
     a = np.concatenate(values) if len(values) > 1 else values[0] if values else np.empty(0)
-    if not np.isfinite(a).all():
+    if a.size and not (np.isfinite(a.min()) and np.isfinite(a.max())):  # (NaN and inf show in min or max)
         a = a[np.isfinite(a)]
     if a.size > 1 and not (a[1:] >= a[:-1]).all():  # a log is mostly in order: no sort then
         a = np.sort(a)

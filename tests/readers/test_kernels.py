@@ -102,9 +102,10 @@ def test_vectorised_beam_passes_equal_the_kernel(seed, clean):
         assert np.array_equal(w, g) and w.dtype == g.dtype, name
 
 
-@pytest.mark.parametrize("n_beams", [1, 31, 32, 70])
+@pytest.mark.parametrize("n_beams", [1, 4, 5, 8, 9, 16, 17, 31, 32, 70])
 def test_vectorised_beam_passes_with_many_beams(n_beams):
-    """More beams than one packed counter holds (31): one running sum per 31 beams, same ends."""
+    """Every width of the packed counters (uint8 to 4 beams, uint16 to 8, uint32 to 16, int64 to 31)
+    and more beams than one holds (one running sum per 31 beams): the same ends."""
     from onebit.readers import kernels as K
 
     rng = np.random.default_rng(n_beams)

@@ -456,7 +456,7 @@ def test_ascii_lines_cut_out_at_once_equal_one_by_one(body, trailing_newline, wa
     """line_texts of many lines of an ASCII file (cut out in one go) equals the line-by-line cut."""
     import numpy as np
 
-    from onebit.readers.rows import _ascii_line_texts, _line_texts_reference, line_texts, newlines
+    from onebit.readers.rows import FileLines, _ascii_line_texts, _line_texts_reference, line_texts, newlines
 
     data = "\n".join(body).encode() + (b"\n" if trailing_newline and body else b"")
     got = line_texts(data, wanted)
@@ -465,4 +465,71 @@ def test_ascii_lines_cut_out_at_once_equal_one_by_one(body, trailing_newline, wa
     n_lines = nl.size + (len(data) > 0 and not data.endswith(b"\n"))
     want = np.unique(np.asarray(wanted, dtype=np.int64))
     want = want[(want >= 1) & (want <= n_lines)]
-    assert _ascii_line_texts(data, nl, want).equals(_line_texts_reference(data, wanted))
+    assert _ascii_line_texts(data, want, *FileLines(data).bounds(want)).equals(_line_texts_reference(data, wanted))
+
+
+@settings(max_examples=100, deadline=None)
+@given(
+    st.lists(st.text(alphabet="ab,1\r\u00e9", max_size=12), min_size=0, max_size=120),
+    st.booleans(),
+    st.lists(st.integers(-2, 130), min_size=0, max_size=80),
+    st.integers(1, 40),
+)
+def test_lines_found_by_step_counts_equal_the_newline_list(body, trailing_newline, wanted, step):
+    """FileLines finds a named line's text from its newlines counted per step (steps of any
+    size, lines across steps) as from the list of every newline, and as one by one."""
+    from onebit.readers.rows import FileLines, _line_texts_reference, newlines
+
+    data = "\n".join(body).encode() + (b"\n" if trailing_newline and body else b"")
+    by_steps = FileLines(data, step=step)
+    listed = FileLines(data)
+    listed._nl = newlines(data)
+    assert by_steps.n_lines == listed.n_lines
+    got = by_steps.lines(wanted)
+    assert got.equals(listed.lines(wanted))
+    assert got.select("line", "text").equals(_line_texts_reference(data, wanted).select("line", "text"))
+
+
+@settings(max_examples=150, deadline=None)
+@given(
+    st.lists(st.tuples(st.integers(0, 6), st.sampled_from(["a", "b", None]), st.booleans()), min_size=0, max_size=60),
+    st.booleans(),
+)
+def test_duplicates_found_among_equal_stamps_only_equal_the_plain_search(rows, in_order):
+    """duplicate_rows on a log in time order (only the runs of equal stamps sorted) finds what
+    the search over every row finds, and both what a plain scan finds: each row equal in the
+    key (nulls equal) to an earlier one, with the line of the first."""
+    from onebit.readers.rows import duplicate_of, duplicate_rows, in_time_order, mark_in_order
+
+    if in_order:
+        rows = sorted(rows, key=lambda r: r[0])
+    ok = pl.DataFrame(
+        {
+            "line": list(range(2, len(rows) + 2)),
+            "t": [float(r[0]) for r in rows],
+            "beam": [r[1] for r in rows],
+            "on": [r[2] for r in rows],
+        },
+        schema={"line": pl.Int64, "t": pl.Float64, "beam": pl.String, "on": pl.Boolean},
+    )
+    key = ("t", "beam", "on")
+    want, seen = [], {}
+    for i, r in enumerate(rows):
+        want.append(seen.get(r))
+        seen.setdefault(r, i + 2)
+    assert duplicate_of(ok, key).to_list() == want
+    plain = duplicate_rows(ok, key, in_order=False)
+    assert dict(zip(plain["_i"], plain["_first"])) == {i: w for i, w in enumerate(want) if w is not None}
+    assert in_time_order(ok["t"]) == (in_order or [r[0] for r in rows] == sorted(r[0] for r in rows))
+    if in_time_order(ok["t"]):
+        assert duplicate_rows(ok, key, in_order=True).sort("_i").equals(plain.sort("_i"))
+        assert in_time_order(mark_in_order(ok, "t")["t"])
+
+
+def test_a_column_flagged_sorted_with_nan_or_nulls_is_not_in_time_order():
+    """The sorted flag alone never vouches for a column with NaN or nulls (never in order)."""
+    from onebit.readers.rows import in_time_order
+
+    assert not in_time_order(pl.Series([1.0, 2.0, float("nan")]).set_sorted())
+    assert not in_time_order(pl.Series([1.0, None, 2.0]).set_sorted())
+    assert in_time_order(pl.Series([1.0, 1.0, 2.0]).set_sorted())

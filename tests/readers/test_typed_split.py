@@ -222,6 +222,21 @@ def test_separator_kernel_equals_reference(blob):
     )
 
 
+@settings(max_examples=200, deadline=None)
+@given(
+    blob=st.binary(max_size=300).map(lambda b: b.replace(b"\x01", b",").replace(b"\x02", b"\n")),
+    step=st.integers(1, 64),
+)
+def test_separator_count_in_numpy_equals_reference(blob, step):
+    """The numpy count (used while numba is not loaded), in steps of any size (lines cut across
+    steps, steps without a newline), gives the reference's count of every line."""
+    buf = np.frombuffer(blob, dtype=np.uint8)
+    assert np.array_equal(
+        kernels.separators_per_line_vectorised(buf, ord(","), step),
+        kernels.separators_per_line_reference(buf, ord(",")),
+    )
+
+
 @settings(max_examples=100, deadline=None)
 @given(st.lists(st.tuples(st.sampled_from(["p1", "p2", "p3"]), st.booleans()), max_size=60))
 def test_repeat_kernel_equals_reference(edges):
@@ -353,3 +368,54 @@ def test_a_long_line_is_rejected_when_some_columns_are_not_read(tmp_path, header
     path.write_text("\n".join([header, *rows]) + "\n")
     res = _same_toggles(path)
     assert res.rejects.height == 1 and "too many fields" in res.rejects["reason"][0]
+
+
+def test_a_long_messy_file_is_split_without_numba(tmp_path, monkeypatch):
+    """A file past MIN_ROWS lines with a line of too many fields has its separators counted on
+    every line; while numba is not loaded that count is numpy's (a reader never pays numba's
+    load for a messy file), and the result is the row-by-row path's."""
+    from onebit.readers import rows
+
+    def refuse(*args):
+        raise AssertionError("the compiled separator count ran while numba was not loaded")
+
+    monkeypatch.setattr(rows, "numba_loaded", lambda: False)
+    monkeypatch.setattr(kernels, "separators_per_line", refuse)
+    n = kernels.MIN_ROWS + 10
+    lines = [f"{k * 0.5},{'abc'[k % 3]},{'ab'[k % 2]},{(k // 2) % 2}" for k in range(n)]
+    lines[7] += ",extra"  # too many fields: only the count of every line finds it
+    path = tmp_path / "beams.csv"
+    path.write_text("t,beam,pair,blocked\n" + "\n".join(lines) + "\n")
+    fast = _same_beams(path)
+    assert "too many fields" in fast.rejects.filter(pl.col("line") == 9)["reason"].item()
+
+
+def test_a_long_log_decoded_on_two_threads_equals_the_row_by_row_path(tmp_path, monkeypatch):
+    """Past MIN_ROWS events, with numba not loaded, the decoder builds the events table and
+    names the rejected lines on a second thread while numpy finds the passes: the tables and
+    the rejects (reasons, lines, raw text) are the row-by-row path's."""
+    from onebit.readers import beams
+
+    monkeypatch.setattr(beams, "numba_loaded", lambda: False)
+    pools = []
+
+    class Pool(beams.ThreadPoolExecutor):
+        def submit(self, fn, *args):
+            pools.append(fn)
+            return super().submit(fn, *args)
+
+    monkeypatch.setattr(beams, "ThreadPoolExecutor", Pool)
+    rng = np.random.default_rng(5)
+    n = kernels.MIN_ROWS + 3000
+    t = np.cumsum(rng.choice([0.0, 0.05, 0.1, 0.2], n)).round(2)
+    beam = rng.choice(list(BEAMS), n)
+    pair = rng.choice(["a", "b"], n)
+    blocked = (rng.random(n) < 0.5).astype(int)  # many no-change edges, passes of every kind
+    body = "\n".join(f"{a},{b},{c},{d}" for a, b, c, d in zip(t.tolist(), beam, pair, blocked))
+    path = tmp_path / "beams.csv"
+    path.write_text("t,beam,pair,blocked\n" + body + "\n")
+    fast = _same_beams(path)
+    assert fast.rejects.height > 1000 and fast.crossings.height > 100 and fast.aborted.height > 100
+    assert fast.rejects["raw"].null_count() == 0
+    # on the second thread: both paths' events tables, the typed path's rejected lines' text
+    assert sorted(f.__name__ for f in pools) == ["collect", "collect", "texts"]
