@@ -20,6 +20,8 @@ import sys
 from collections.abc import Callable
 from typing import Any
 
+from onebit.core.lazy import collector_paused, quiet_import
+
 #: Options of every kernel: cached on disk, and free of the GIL while it runs.
 OPTIONS = {"cache": True, "nogil": True}
 
@@ -44,6 +46,9 @@ class Kernel:
         return self._dispatcher
 
     def __call__(self, *args: Any) -> Any:
+        if not _STATE["loaded"]:  # the process's first kernel: numba's import and target set-up
+            with collector_paused():  # ~10^5 objects that stay: collections would find nothing
+                return self.dispatcher(*args)
         return self.dispatcher(*args)
 
 
@@ -64,7 +69,7 @@ def kernel(fn: Callable[..., Any]) -> Kernel:
 
 
 def _compile_module(name: str) -> None:
-    import numba  # deferred: a process that runs no kernel never imports it
+    numba = quiet_import("numba")  # deferred: a process that runs no kernel never imports it
 
     _STATE["loaded"] = True
     module = sys.modules[name]

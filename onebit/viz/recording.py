@@ -9,7 +9,6 @@ application id and recording id, so opening them together overlays them in one r
 from __future__ import annotations
 
 import contextlib
-import gc
 import os
 import sys
 import threading
@@ -18,7 +17,7 @@ from pathlib import Path
 
 from onebit.core import writers
 from onebit.core.errors import OnebitError
-from onebit.core.lazy import lazy_module
+from onebit.core.lazy import lazy_module, quiet_import
 
 rr = lazy_module("rerun")
 
@@ -65,20 +64,12 @@ class _NoPandas:
 
 
 def import_rerun() -> None:
-    """Import Rerun (once per process) with the cyclic garbage collector paused: its import makes
-    some 10^5 objects (an attrs class per component and archetype), all kept, and the
-    collections they trigger (about 80, one of them over the whole heap) find nothing to free --
-    0.02-0.05 s of the 0.2-0.25 s import. The collector is resumed as it was. Called by
-    :func:`open_recording`."""
-    if "rerun" in sys.modules:
-        return
-    enabled = gc.isenabled()
-    gc.disable()
-    try:
-        import rerun  # noqa: F401
-    finally:
-        if enabled:
-            gc.enable()
+    """Import Rerun (once per process) with the cyclic garbage collector paused and its objects
+    frozen (:func:`onebit.core.lazy.collector_paused`): its import makes some 10^5 objects (an
+    attrs class per component and archetype), all kept, and the collections they trigger
+    (about 80, one of them over the whole heap) find nothing to free -- 0.02-0.05 s of the
+    0.2-0.25 s import. Called by :func:`open_recording`."""
+    quiet_import("rerun")
 
 
 @contextlib.contextmanager
