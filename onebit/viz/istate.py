@@ -46,6 +46,9 @@ FILL_PIXELS = 360
 #: Rows of one ``send_columns`` call of the region outlines and fill images (memory stays
 #: bounded on long runs: a day of stages sends ~50 000 rows of ~200-point outlines per slot).
 SEND_ROWS = 4096
+#: Regions of a stage up to which :func:`fill_images` codes a pixel by the set of regions over
+#: it (a bit each; the code table has 2^16 entries at most), beyond by renumbered labels.
+FILL_BITS = 16
 OUTLINE_WIDTH = ui_points(1.5)
 SENSING = (150, 150, 150, 90)
 
@@ -187,7 +190,13 @@ def _png_bgr(bgr: np.ndarray) -> bytes:
 
 
 def fill_images(
-    grid: np.ndarray, raster: FillRaster, *, background=colors.MAP_BACKGROUND, keys=None, cache: dict | None = None
+    grid: np.ndarray,
+    raster: FillRaster,
+    *,
+    background=colors.MAP_BACKGROUND,
+    keys=None,
+    cache: dict | None = None,
+    max_bits: int = FILL_BITS,
 ) -> list[bytes]:
     """One RGB PNG per stage of ``grid`` (``(E, n, K)`` geometries or ``None``): every region of
     every element filled in the element's colour at :data:`FILL_ALPHA` over ``background`` and
@@ -195,12 +204,15 @@ def fill_images(
     element are the background.
 
     A pixel's colour depends only on which regions cover it, in drawing order, so the image is
-    drawn as a label per pixel (which regions so far) and a small table of label colours,
-    blended as :func:`onebit._testing.oracles.fill_images_reference` blends each pixel (equal images, tested): per
-    region one mask and one table lookup, no float image. ``keys`` (one hashable per stage,
-    e.g. the stage's region WKBs) reuses the PNG of an earlier stage with the same key: an
-    unobserved I-state that has filled the free space stays the same for many stages;
-    ``cache`` (key -> PNG) keeps them across calls.
+    drawn as a code per pixel and a small table of code colours, blended as
+    :func:`onebit._testing.oracles.fill_images_reference` blends each pixel (equal images,
+    tested), no float image. With at most ``max_bits`` regions in the stage the code is the
+    set of regions covering the pixel, one bit each (``code |= mask << j`` on each region's
+    window); the colours are blended for the codes present only. With more, the code is a
+    label renumbered region by region (per region one gather and one scatter of its pixels).
+    ``keys`` (one hashable per stage, e.g. the stage's region WKBs) reuses the PNG of an earlier
+    stage with the same key: an unobserved I-state that has filled the free space stays the
+    same for many stages; ``cache`` (key -> PNG) keeps them across calls.
     """
     E, _, K = grid.shape
     bg = np.asarray(background[:3], np.float32)
@@ -212,30 +224,56 @@ def fill_images(
         if key is not None and key in done:
             out.append(done[key])
             continue
-        label = np.zeros((raster.height, raster.width), np.int32)  # 0 = background
-        table = bg[None, :]  # (labels, 3) colours
+        wins = []  # (element, window) of each region drawn, in drawing order
         for e in range(E):
             for g in grid[e, :, s]:
                 if g is None or g.is_empty:
                     continue
                 win = raster.window(g)  # the region's own pixels only, not the whole image
-                if win is None:
-                    continue
-                (r0, r1, c0, c1), m = win
-                sub = label[r0:r1, c0:c1]
-                m = m.astype(bool)
-                under = sub[m]
-                present = np.flatnonzero(np.bincount(under, minlength=len(table)))
-                remap = np.arange(len(table), dtype=np.int32)
-                remap[present] = len(table) + np.arange(len(present), dtype=np.int32)
-                table = np.concatenate([table, elem[e] * FILL_ALPHA + table[present] * (1 - FILL_ALPHA)])
-                sub[m] = remap[under]
+                if win is not None:
+                    wins.append((e, win))
+        draw = _codes_by_bits if len(wins) <= max_bits else _codes_by_labels
+        code, table = draw(wins, raster, bg, elem)
         bgr = np.ascontiguousarray(table.round().clip(0, 255).astype(np.uint8)[:, ::-1])
-        png = _png_bgr(np.take(bgr, label, axis=0))  # the image in OpenCV's channel order, one gather
+        png = _png_bgr(np.take(bgr, code, axis=0))  # the image in OpenCV's channel order, one gather
         if key is not None:
             done[key] = png
         out.append(png)
     return out
+
+
+def _codes_by_bits(wins, raster: FillRaster, bg: np.ndarray, elem: list) -> tuple[np.ndarray, np.ndarray]:
+    """``(code (h, w), colours (codes, 3))``: bit ``j`` of a pixel's code set when region ``j``
+    covers it; the colour of a code blends the elements of its bits in order over ``bg``
+    (for the codes present in the image only)."""
+    bits = np.zeros((raster.height, raster.width), np.int32)
+    for j, (_, ((r0, r1, c0, c1), m)) in enumerate(wins):
+        bits[r0:r1, c0:c1] |= m.astype(np.int32) << j
+    present = np.flatnonzero(np.bincount(bits.reshape(-1), minlength=1))
+    col = np.repeat(bg[None, :], present.size, axis=0)
+    for j, (e, _) in enumerate(wins):  # in drawing order, as each pixel is blended
+        on = ((present >> j) & 1).astype(bool)
+        col[on] = elem[e] * FILL_ALPHA + col[on] * (1 - FILL_ALPHA)
+    index = np.zeros(int(present[-1]) + 1, np.int32)
+    index[present] = np.arange(present.size, dtype=np.int32)
+    return index[bits], col
+
+
+def _codes_by_labels(wins, raster: FillRaster, bg: np.ndarray, elem: list) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`_codes_by_bits` for any number of regions: a label per pixel (which regions so
+    far), renumbered region by region, and the table of the labels' colours."""
+    label = np.zeros((raster.height, raster.width), np.int32)  # 0 = background
+    table = bg[None, :]  # (labels, 3) colours
+    for e, ((r0, r1, c0, c1), m) in wins:
+        sub = label[r0:r1, c0:c1]
+        m = m.astype(bool)
+        under = sub[m]
+        present = np.flatnonzero(np.bincount(under, minlength=len(table)))
+        remap = np.arange(len(table), dtype=np.int32)
+        remap[present] = len(table) + np.arange(len(present), dtype=np.int32)
+        table = np.concatenate([table, elem[e] * FILL_ALPHA + table[present] * (1 - FILL_ALPHA)])
+        sub[m] = remap[under]
+    return label, table
 
 
 def _region_grid(regions: pl.DataFrame, K: int) -> np.ndarray:
