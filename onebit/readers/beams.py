@@ -221,11 +221,12 @@ def decode_passes(
     opener, leaver = pair[ends.opened], pair[ends.close]
     crossing = opener != leaver
     cross = ends.close[crossing]
+    one, minus = np.int8(1), np.int8(-1)
     crossings = pl.DataFrame(
         {
             "t": t[cross],
-            "beam": names.gather(code[cross]),
-            "direction": np.where(opener[crossing] == 0, 1, -1).astype(np.int8),
+            "beam": names.gather(pl.Series(code[cross])),  # (a Series of codes: no conversion of a numpy index)
+            "direction": np.where(opener[crossing] == 0, one, minus),
         },
         schema=CROSSINGS,
     )
@@ -238,14 +239,16 @@ def decode_passes(
     aborted = pl.DataFrame(
         {
             "t": t[ab],
-            "beam": names.gather(code[ab]),
-            "side": np.where(opener[~crossing][order] == 0, -1, 1).astype(np.int8),
+            "beam": names.gather(pl.Series(code[ab])),
+            "side": np.where(opener[~crossing][order] == 0, minus, one),
         },
         schema=ABORTED,
     ).sort("t")
     # a pass still open at the end holds its beam's last edge, which does not close it
     op = ends.open_last
-    unfinished = pl.DataFrame({"t": t[op], "beam": names.gather(code[op])}, schema={"t": pl.Float64, "beam": pl.String})
+    unfinished = pl.DataFrame(
+        {"t": t[op], "beam": names.gather(pl.Series(code[op]))}, schema={"t": pl.Float64, "beam": pl.String}
+    )
     return BeamDecode(events_out, crossings, aborted, unfinished, rejects)
 
 

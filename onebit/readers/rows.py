@@ -53,7 +53,7 @@ import numpy as np
 import polars as pl
 
 from onebit.core.compiled import numba_loaded
-from onebit.core.errors import MAX_QUOTE, InputError
+from onebit.core.errors import MAX_QUOTE, InputError, bounded
 from onebit.core.tables import REJECTS
 from onebit.readers import kernels
 from onebit.readers.timebase import (
@@ -833,8 +833,9 @@ def read_typed_csv(path: str | Path, dtypes: dict[str, pl.DataType]) -> TypedSpl
 
 def _line_numbers(n: int) -> pl.Series:
     """``line`` of the ``n`` rows of a typed read: 2, 3, ... (the header is line 1), as numpy
-    makes it (half the time of polars' ``int_range`` in a fresh process)."""
-    return pl.Series("line", np.arange(2, n + 2, dtype=np.int64))
+    makes it (half the time of polars' ``int_range`` in a fresh process), flagged sorted (the
+    checks of line order read the flag)."""
+    return pl.Series("line", np.arange(2, n + 2, dtype=np.int64)).set_sorted()
 
 
 def _widths_hold(data: bytes, header: list[str], dtypes: dict[str, pl.DataType], n_lines: int) -> bool:
@@ -943,6 +944,40 @@ def _line_texts_reference(data: bytes, lines) -> pl.DataFrame:
 
 #: Bytes per step of :class:`FileLines`' newline count (its index of where the lines are).
 _LINE_STEP = 1 << 20
+#: Bytes per block of :class:`FileLines`' index of where a named line is (a newline count per
+#: block): a line is found among the 64 bytes of its block, not among its step's.
+_BLOCK = 64
+_BYTE_SUM = np.uint64(0x0101010101010101)
+
+
+def block_newlines(buf: np.ndarray, step: int = _LINE_STEP) -> np.ndarray:
+    """How many newlines each :data:`_BLOCK` bytes of ``buf`` (uint8) hold (the last block may be
+    shorter), found ``step`` bytes at a time (bounded temporaries). In a block the 0/1 bytes of
+    its newline mask are summed as eight uint64 words, then the eight byte lanes of that sum
+    (each at most 8) by one multiplication: no per-block reduction call."""
+    n = buf.shape[0]
+    full = n // _BLOCK * _BLOCK
+    out = np.empty(-(-n // _BLOCK), dtype=np.uint8)
+    step = max(_BLOCK, step // _BLOCK * _BLOCK)
+    for lo in range(0, full, step):
+        hi = min(full, lo + step)
+        words = (buf[lo:hi] == 0x0A).view(np.uint64).reshape(-1, _BLOCK // 8)
+        s = words[:, 0] + words[:, 1]
+        for j in range(2, _BLOCK // 8):
+            s += words[:, j]
+        s *= _BYTE_SUM  # the top byte of the product is the sum of the eight byte lanes
+        s >>= np.uint64(56)
+        out[lo // _BLOCK : hi // _BLOCK] = s
+    if full < n:
+        out[-1] = np.count_nonzero(buf[full:] == 0x0A)
+    return out
+
+
+def block_newlines_reference(buf: np.ndarray) -> np.ndarray:
+    """:func:`block_newlines` one block at a time: its test oracle."""
+    return np.array(
+        [np.count_nonzero(buf[lo : lo + _BLOCK] == 0x0A) for lo in range(0, buf.shape[0], _BLOCK)], dtype=np.uint8
+    )
 
 
 class FileLines:
@@ -958,6 +993,7 @@ class FileLines:
         self.step = step
         self._nl: np.ndarray | None = None
         self._steps: np.ndarray | None = None
+        self._blocks: np.ndarray | None = None
         self._ascii: bool | None = None
 
     @property
@@ -991,21 +1027,38 @@ class FileLines:
             self._ascii = self.data.isascii()
         return self._ascii
 
+    def block_ends(self) -> np.ndarray:
+        """Newlines up to the end of each :data:`_BLOCK` bytes of the file (cumulative; counted
+        once, when a line is first named): where a named line is, to its block."""
+        if self._blocks is None:
+            self._blocks = np.cumsum(block_newlines(np.frombuffer(self.data, dtype=np.uint8), self.step), dtype=np.int64)
+        return self._blocks
+
     def newline_offsets(self, k: np.ndarray) -> np.ndarray:
         """Byte offsets of the newlines ``k`` (0-based, each below :attr:`n_newlines`): from
-        :attr:`nl` when listed, else each one found in its step only."""
+        :attr:`nl` when listed, else each one found in its block of :data:`_BLOCK` bytes
+        (:meth:`block_ends`: the block holding it, then its rank among the block's newlines)."""
+        k = np.asarray(k, dtype=np.int64)
         if self._nl is not None:
             return self._nl[k]
-        ends = np.cumsum(self.step_newlines())  # newlines up to the end of each step
-        step = np.searchsorted(ends, k, side="right")
-        out = np.empty(k.size, dtype=np.int64)
+        if k.size == 0:
+            return np.empty(0, dtype=np.int64)
+        ends = self.block_ends()
+        block = np.searchsorted(ends, k, side="right")
+        rank = k - np.where(block > 0, ends[block - 1], 0)  # newlines of the block before this one
+        count = ends[block] - (k - rank)  # newlines in each one's block
         buf = np.frombuffer(self.data, dtype=np.uint8)
-        for c in np.unique(step).tolist():
-            at = step == c
-            lo = c * self.step
-            here = np.flatnonzero(buf[lo : lo + self.step] == 0x0A) + lo
-            out[at] = here[k[at] - (ends[c] - here.size)]
-        return out
+        full = buf.size // _BLOCK
+        rows = np.empty((k.size, _BLOCK), dtype=np.uint8)
+        inside = block < full
+        rows[inside] = buf[: full * _BLOCK].reshape(full, _BLOCK)[block[inside]]
+        if not inside.all():  # the file's last block, shorter: padded with a byte that is not a newline
+            tail = np.zeros(_BLOCK, dtype=np.uint8)
+            tail[: buf.size - full * _BLOCK] = buf[full * _BLOCK :]
+            rows[~inside] = tail
+        at = np.flatnonzero(rows == 0x0A)  # the blocks' newlines, block after block (each block's count)
+        first = np.cumsum(count) - count
+        return block * _BLOCK + at[first + rank] - np.arange(k.size, dtype=np.int64) * _BLOCK
 
     def bounds(self, want: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Start and end byte offsets of the lines ``want`` (1-based, each in the file)."""
@@ -1049,6 +1102,15 @@ class FileLines:
         """The text of each of these lines, cut to ``limit`` characters (``None``: whole)."""
         if len(lines) == 0:
             return {}
+        want = np.unique(np.asarray(lines, dtype=np.int64))
+        if want.size <= _FEW_LINES and self.is_ascii():  # nothing to decode: cut out one by one, no table
+            want = want[(want >= 1) & (want <= self.n_lines)]
+            starts, ends = self.bounds(want)
+            data, cut = self.data, (lambda x: x) if limit is None else (lambda x: bounded(x, limit))
+            return {
+                k: cut(data[s:e].decode("ascii").removesuffix("\r"))
+                for k, s, e in zip(want.tolist(), starts.tolist(), ends.tolist())
+            }
         found = self.lines(lines)
         return dict(found.select("line", "text" if limit is None else _bounded("text", limit)).iter_rows())
 

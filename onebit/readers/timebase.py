@@ -186,6 +186,24 @@ def _stamps(sources: Mapping[str, pl.DataFrame | list[pl.DataFrame]], col: str) 
     return pl.concat(parts).sort("abs")
 
 
+#: Stamps per piece of :func:`gap_cuts`.
+_GAP_PIECE = 1 << 16
+
+
+def gap_cuts(a: np.ndarray, max_gap_s: float, piece: int = _GAP_PIECE) -> np.ndarray:
+    """The indices ``i`` of sorted ``a`` with ``a[i] - a[i - 1] > max_gap_s`` (ascending), one piece
+    of ``piece`` stamps at a time: a piece spanning at most ``max_gap_s`` holds no such gap (every
+    gap in it is at most its span) and is skipped, so a log of a few clusters costs a look at
+    each piece's ends, not a 10^6-row array of differences. Equal to
+    ``np.flatnonzero(np.diff(a) > max_gap_s) + 1`` (tests)."""
+    out = []
+    for lo in range(0, a.shape[0] - 1, piece):
+        hi = min(a.shape[0] - 1, lo + piece)  # the gaps a[i + 1] - a[i] for lo <= i < hi
+        if not a[hi] - a[lo] <= max_gap_s:
+            out.append(np.flatnonzero(np.diff(a[lo : hi + 1]) > max_gap_s) + (lo + 1))
+    return np.concatenate(out) if out else np.empty(0, dtype=np.int64)
+
+
 def _kept_span(v: pl.Series | np.ndarray, max_gap_s: float, lone_fraction: float) -> tuple[int, int]:
     """``[i0, i1)``: the stamps of sorted ``v`` (non-empty) left once the lone clusters at either
     end are cut off (module docstring)."""
@@ -193,7 +211,7 @@ def _kept_span(v: pl.Series | np.ndarray, max_gap_s: float, lone_fraction: float
     n = a.size
     if a[n - 1] - a[0] <= max_gap_s:  # no two stamps further apart: one cluster
         return 0, n
-    cut = np.flatnonzero(np.diff(a) > max_gap_s) + 1  # a cluster starts at each of these indices
+    cut = gap_cuts(a, max_gap_s)  # a cluster starts at each of these indices
     bounds = [0, *cut.tolist(), n]
     sizes = [b - a for a, b in zip(bounds[:-1], bounds[1:])]
     limit = max(1, int(lone_fraction * n))

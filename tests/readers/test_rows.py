@@ -533,3 +533,36 @@ def test_a_column_flagged_sorted_with_nan_or_nulls_is_not_in_time_order():
     assert not in_time_order(pl.Series([1.0, 2.0, float("nan")]).set_sorted())
     assert not in_time_order(pl.Series([1.0, None, 2.0]).set_sorted())
     assert in_time_order(pl.Series([1.0, 1.0, 2.0]).set_sorted())
+
+
+@settings(max_examples=100, deadline=None)
+@given(st.binary(max_size=700), st.integers(1, 300))
+def test_newlines_per_block_equal_one_block_at_a_time(data, step):
+    """block_newlines (eight words summed, their byte lanes by one product; any step size,
+    blocks and steps cut anywhere) counts each 64-byte block's newlines as counting them one
+    block at a time does."""
+    import numpy as np
+
+    from onebit.readers.rows import block_newlines, block_newlines_reference
+
+    buf = np.frombuffer(data.replace(b"\x00", b"\n"), dtype=np.uint8)  # (more newlines)
+    assert block_newlines(buf, step).tolist() == block_newlines_reference(buf).tolist()
+
+
+@settings(max_examples=100, deadline=None)
+@given(
+    st.lists(st.text(alphabet="ab,1\r\u00e9", max_size=90), min_size=0, max_size=60),
+    st.booleans(),
+    st.lists(st.integers(-2, 70), min_size=1, max_size=40),
+    st.sampled_from([None, 5, MAX_QUOTE]),
+)
+def test_named_lines_text_equals_their_rows(body, trailing_newline, wanted, limit):
+    """FileLines.texts (ASCII files: each line cut out and bounded in Python, no table) gives
+    each named line the text of its row in FileLines.lines, cut to ``limit`` as bounded cuts it,
+    for ASCII files and others alike."""
+    from onebit.readers.rows import FileLines
+
+    data = "\n".join(body).encode() + (b"\n" if trailing_newline and body else b"")
+    rows = FileLines(data).lines(wanted)
+    want = {k: (t if limit is None else bounded(t, limit)) for k, t in rows.select("line", "text").iter_rows()}
+    assert FileLines(data).texts(wanted, limit=limit) == want

@@ -155,3 +155,21 @@ def test_numeric_stamps_alone_give_the_origin_their_strings_give(a, b, epoch):
         assert (got.value.file, got.value.line, got.value.field) == (exc.file, exc.line, exc.field)
         return
     assert time_origin({"a.csv": [frames[0]], "b.csv": [frames[1]]}, epoch=epoch) == want
+
+
+@settings(max_examples=150, deadline=None)
+@given(
+    st.lists(st.floats(0, 1e6, allow_nan=False), min_size=1, max_size=300),
+    st.sampled_from([0.5, 10.0, 1000.0, 86_400.0]),
+    st.integers(1, 40),
+)
+def test_gap_cuts_by_pieces_equal_the_cuts_of_every_difference(values, gap, piece):
+    """gap_cuts (pieces whose span is at most the gap skipped) finds the indices of the gaps
+    over ``max_gap_s`` that the differences of every pair of neighbours find, for any piece size."""
+    import numpy as np
+
+    from onebit.readers.timebase import gap_cuts
+
+    a = np.sort(np.asarray(values, dtype=np.float64))
+    got = gap_cuts(a, gap, piece)
+    assert got.tolist() == (np.flatnonzero(np.diff(a) > gap) + 1).tolist()
