@@ -681,8 +681,11 @@ def _all_parsed(frame: pl.DataFrame, dtypes: dict[str, pl.DataType]) -> bool:
     """Whether every row is :func:`_parsed` (nulls from the columns' counts, no row scan)."""
     if sum(frame.null_count().row(0)):
         return False
-    if any(not frame[c].is_finite().all() for c, d in dtypes.items() if d.is_float()):
-        return False
+    for c, d in dtypes.items():  # finite: the min and max are (NaN and inf show there), no mask
+        if d.is_float() and frame.height:
+            a = frame[c].to_numpy()
+            if not (np.isfinite(a.min()) and np.isfinite(a.max())):
+                return False
     strings = [c for c, d in dtypes.items() if d == pl.String]
     return not strings or frame.select(_parsed(frame.select(strings), {c: pl.String for c in strings}).all()).item()
 
@@ -790,15 +793,13 @@ def read_typed_csv(path: str | Path, dtypes: dict[str, pl.DataType]) -> TypedSpl
             frame = _typed_read(data, header, dtypes, tolerant=False)
         except pl.exceptions.PolarsError:
             frame = None
-        if (
-            frame is not None
-            and frame.height == n_lines
-            and _all_parsed(frame, dtypes)
-            and _widths_hold(data, header, dtypes, n_lines)
-        ):
-            # one buffer per column (the parse gives one per thread's piece): every later numpy
-            # view of a column is free, not a copy each time (the time origin, checks, decoder)
-            frame = frame.select(columns).rechunk().insert_column(0, _line_numbers(frame.height))
+        # one buffer per column (the parse gives one per thread's piece): every later numpy
+        # view of a column is free, not a copy each time (the checks, time origin, decoder)
+        frame = frame.rechunk() if frame is not None and frame.height == n_lines else None
+        if frame is not None and _all_parsed(frame, dtypes) and _widths_hold(data, header, dtypes, n_lines):
+            frame = frame.select(columns).insert_column(0, _line_numbers(frame.height))
+            if "t" in frame.columns and frame.schema["t"].is_float() and in_time_order(frame["t"]):
+                frame = mark_in_order(frame, "t")  # found once: the time origin and the checks read the flag
             return TypedSplit(frame, empty_rest, header, file)
     check_shapes(data, path, n, 1)  # not clean: refused before the tolerant read if it is not this log
     work = data.replace(b"\r\n", b"\n") if b"\r" in data else data
@@ -1302,8 +1303,8 @@ def in_time_order(t: pl.Series) -> bool:
     """Whether ``t`` never decreases (one pass in numpy; nulls and NaN are never in order); a
     column polars knows to be sorted (its flag: :func:`mark_in_order`), without nulls or NaN,
     needs no pass over its values."""
-    if t.flags.get("SORTED_ASC") and t.null_count() == 0 and not (t.dtype.is_float() and t.is_nan().any()):
-        return True
+    if t.flags.get("SORTED_ASC") and t.null_count() == 0 and not (t.dtype.is_float() and t.len() and math.isnan(t[-1])):
+        return True  # (polars sorts NaN last: a sorted column holds one only if its last value is NaN)
     v = t.to_numpy()
     return bool(v.size < 2 or (v[1:] >= v[:-1]).all())
 
@@ -1451,7 +1452,10 @@ def check_split(
             out = good.filter(lone)["line"]
             split = split.demote(out)
             good = good.filter(~lone)
-    good = good.with_columns(pl.col("t") - origin.numeric) if origin.numeric else good
+    if origin.numeric:  # (a constant taken off keeps the order: rounding is monotone)
+        in_order = bool(good["t"].flags.get("SORTED_ASC"))
+        good = good.with_columns(pl.col("t") - origin.numeric)
+        good = mark_in_order(good, "t") if in_order else good
     rest = split.rest
     columns = tuple(good.columns[1:])
     if rest.frame.height == 0:

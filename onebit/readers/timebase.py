@@ -249,18 +249,23 @@ def _numeric_origin(sources, col, epoch, max_gap_s, lone_fraction, max_span_s) -
     no string rows left): from the values alone, in numpy, with no table of stamps; ``None``
     when some stamp is a string, or when the span is absurd (the table of stamps names both
     ends' file and line)."""
-    values = []
+    values, flagged = [], []
     for frames in sources.values():
         for df in frames if isinstance(frames, list) else [frames]:
             if df is None or col not in df.columns or df.height == 0:
                 continue
             if not df.schema[col].is_numeric():
                 return None
-            values.append(df[col].cast(pl.Float64).to_numpy())
+            v = df[col].cast(pl.Float64)
+            values.append(v.to_numpy())
+            flagged.append(bool(v.flags.get("SORTED_ASC")) and v.null_count() == 0)
     a = np.concatenate(values) if len(values) > 1 else values[0] if values else np.empty(0)
-    if a.size and not (np.isfinite(a.min()) and np.isfinite(a.max())):  # (NaN and inf show in min or max)
+    in_order = len(values) == 1 and flagged[0]  # one column flagged sorted (polars sorts NaN last)
+    ends = a[[0, -1]] if in_order and a.size else a
+    if a.size and not (np.isfinite(ends.min()) and np.isfinite(ends.max())):  # (NaN and inf show in min or max)
         a = a[np.isfinite(a)]
-    if a.size > 1 and not (a[1:] >= a[:-1]).all():  # a log is mostly in order: no sort then
+        in_order = False
+    if a.size > 1 and not in_order and not (a[1:] >= a[:-1]).all():  # a log is mostly in order: no sort then
         a = np.sort(a)
     if a.size == 0:
         if epoch is not None:

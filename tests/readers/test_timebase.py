@@ -173,3 +173,27 @@ def test_gap_cuts_by_pieces_equal_the_cuts_of_every_difference(values, gap, piec
     a = np.sort(np.asarray(values, dtype=np.float64))
     got = gap_cuts(a, gap, piece)
     assert got.tolist() == (np.flatnonzero(np.diff(a) > gap) + 1).tolist()
+
+
+@settings(max_examples=150, deadline=None)
+@given(
+    st.lists(
+        st.one_of(st.floats(0, 3e5, allow_nan=False), st.sampled_from([float("nan"), float("inf"), -float("inf")])),
+        min_size=1,
+        max_size=60,
+    )
+)
+def test_a_column_flagged_sorted_gives_the_origin_of_its_values(values):
+    """The time origin of a column polars knows to be sorted (read from the flag: no pass over the
+    values for order, finiteness from its ends) equals the origin of the same values without
+    the flag; NaN and infinities (polars sorts NaN last) are left out either way."""
+    import polars as pl
+
+    from onebit.readers.rows import in_time_order
+
+    t = pl.Series("t", values, dtype=pl.Float64).sort()
+    flagged = pl.DataFrame({"line": range(t.len()), "t": t})
+    plain = pl.DataFrame({"line": range(t.len()), "t": pl.Series("t", t.to_list(), dtype=pl.Float64)})
+    assert flagged["t"].flags["SORTED_ASC"] and (t.len() < 2 or not plain["t"].flags["SORTED_ASC"])
+    assert time_origin({"motion.csv": flagged}) == time_origin({"motion.csv": plain})
+    assert in_time_order(flagged["t"]) == in_time_order(plain["t"])
