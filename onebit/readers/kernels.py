@@ -165,7 +165,6 @@ def beam_pass_ends_vectorised(beam, pair, blocked, n_beams, reject=None) -> Pass
     if m == 0:
         return PassEnds(reject, none, none, none, none)
     bad = np.flatnonzero(reject)
-    accepted = reject == 0
     if n_beams <= _PACK32:  # 2 bits per beam in one unsigned word: its sums mod 2^bits are exact (counts 0..2)
         word = np.uint8 if n_beams <= 4 else np.uint16 if n_beams <= 8 else np.uint32
         shift = beam.astype(word)
@@ -188,9 +187,15 @@ def beam_pass_ends_vectorised(beam, pair, blocked, n_beams, reject=None) -> Pass
             rows = np.flatnonzero((beam >= lo) & (beam < lo + _PACK)) if n_beams > _PACK else slice(None)
             shift = 2 * (beam[rows].astype(np.int64) - lo)
             after[rows] = (np.cumsum(step[rows] << shift) >> shift) & 3
-    idle = after == 0
-    close = np.flatnonzero(idle & accepted & ~blocked)
-    opens = np.flatnonzero((after == 1) & accepted & blocked)
+    mask = after == 0  # idle after a clearing edge: it closes a pass (masks made in place: no temporaries)
+    np.greater(mask, blocked, out=mask)
+    mask[bad] = False
+    close = np.flatnonzero(mask)
+    np.equal(after, 1, out=mask)  # count 1 after a blocking edge: it opens one
+    mask &= blocked
+    mask[bad] = False
+    opens = np.flatnonzero(mask)
+    del mask
     if opens.size == 0:
         return PassEnds(reject, none, none, none, none)
     key = _key_type(n_beams)
@@ -210,7 +215,7 @@ def beam_pass_ends_vectorised(beam, pair, blocked, n_beams, reject=None) -> Pass
     open_first = np.sort(opens[o_order[o_start[left] + n_open[left] - 1]])
     open_last = np.empty(open_first.size, dtype=np.int64)
     for i, k in enumerate(open_first.tolist()):  # the beam's last accepted edge, at or after its pass opened
-        tail = np.flatnonzero((beam[k:] == beam[k]) & accepted[k:])
+        tail = np.flatnonzero((beam[k:] == beam[k]) & (reject[k:] == 0))
         open_last[i] = k + tail[-1]
     return PassEnds(reject, close, opened, open_last, open_first)
 
@@ -355,34 +360,47 @@ def _debounce_sorted(s_, o_, ts, chatter, min_on, eps):
     min_on = np.asarray(min_on, np.float64)
     cs = ss = none
     same = s_[1:] == s_[:-1]  # neighbours of one sensor
+    gap = np.empty(m - 1, dtype=np.float64)  # gaps between neighbours (one buffer for both rules)
     if (chatter > 0).any():  # (off, on) neighbours within the window
         w = _rule_of_pairs(chatter, s_)
         pair = same & o_[1:]
         pair &= ~o_[:-1]
-        pair &= np.diff(ts) <= w + eps
+        np.subtract(ts[1:], ts[:-1], out=gap)
+        pair &= gap <= w + eps
         if not np.isscalar(w):
             pair &= w > 0
         i = np.flatnonzero(pair)
         cs = np.empty(2 * i.size, dtype=np.int64)  # pairs of neighbours never share an edge
         cs[0::2], cs[1::2] = i, i + 1
     if (min_on > 0).any():  # (on, off) neighbours among the edges chatter left
-        ko, s2, o2, t2, same2 = None, s_, o_, ts, same
-        if cs.size:
+        s2, o2, t2, same2 = s_, o_, ts, same
+        if cs.size:  # the edges left, by a mask (no index of them)
             left = np.ones(m, dtype=np.bool_)
             left[cs] = False
-            ko = np.flatnonzero(left)
-            s2, o2, t2 = s_[ko], o_[ko], ts[ko]
+            s2, o2, t2 = s_[left], o_[left], ts[left]
             same2 = s2[1:] == s2[:-1]
         w = _rule_of_pairs(min_on, s2)
         pair = same2 & o2[:-1]
         pair &= ~o2[1:]
-        pair &= np.diff(t2) < w - eps
+        gap2 = gap[: t2.shape[0] - 1]
+        np.subtract(t2[1:], t2[:-1], out=gap2)
+        pair &= gap2 < w - eps
         if not np.isscalar(w):
             pair &= w > 0
         i = np.flatnonzero(pair)
         ss = np.empty(2 * i.size, dtype=np.int64)
-        ss[0::2], ss[1::2] = (i, i + 1) if ko is None else (ko[i], ko[i + 1])
+        ss[0::2], ss[1::2] = _left_positions(i, cs), _left_positions(i + 1, cs)
     return cs, ss
+
+
+def _left_positions(p: np.ndarray, gone: np.ndarray) -> np.ndarray:
+    """The positions in the whole sequence of the positions ``p`` in the sequence left once the
+    (ascending) positions ``gone`` are taken out: ``p`` plus how many of them come before it,
+    i.e. the number of ``gone[j]`` with ``gone[j] - j <= p`` (``gone[j] - j``: the positions
+    left before ``gone[j]``, non-decreasing). Equal to ``np.flatnonzero(left)[p]`` (tests)."""
+    if gone.size == 0:
+        return p
+    return p + np.searchsorted(gone - np.arange(gone.size), p, side="right")
 
 
 def _rule_of_pairs(per_sensor, s_):

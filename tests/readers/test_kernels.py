@@ -7,6 +7,8 @@ from __future__ import annotations
 import numpy as np
 import polars as pl
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from onebit.readers import beams as B
 from onebit.readers import motion as M
@@ -208,3 +210,21 @@ def test_motion_reader_fused_path_equals_the_reference(tmp_path, monkeypatch, se
     assert fused.suppressed.equals(ref.suppressed)
     assert fused.rejects.equals(ref.rejects)
     assert fused.held == ref.held
+
+
+@settings(max_examples=200, deadline=None)
+@given(st.integers(0, 60), st.data())
+def test_left_positions_equal_the_index_of_the_edges_left(m, data):
+    """_left_positions maps a position among the edges left (once some positions are taken out)
+    to its position in the whole sequence, as the index of the edges left does."""
+    import numpy as np
+
+    from onebit.readers.kernels import _left_positions
+
+    gone = np.array(sorted(data.draw(st.sets(st.integers(0, max(m - 1, 0)), max_size=m))), dtype=np.int64)
+    gone = gone[gone < m]
+    left = np.ones(m, dtype=np.bool_)
+    left[gone] = False
+    index = np.flatnonzero(left)
+    p = np.arange(index.size, dtype=np.int64)
+    assert _left_positions(p, gone).tolist() == index.tolist()
