@@ -27,8 +27,11 @@ then scored with the exact joint log-likelihood of all paths
 (:func:`~onebit.models.graph_hmm.likelihood.model_log_likelihood`) and kept only when it
 beats the current paths, so a re-decoding never lowers ``log L``.
 
-Cost per meeting: ``O(W S^2 K^2)`` with ``K <= 1 + max deg + 1`` predecessors per user state
-(hallway: S = 62, ~10^5 per slot). The recursion is sequential over the window's slots and
+Cost per meeting: ``O(W S^2 K)`` with ``K <= 1 + max deg + 1`` predecessors per user state and
+``S`` the user states of the meeting's neighbourhood (:class:`JointSpaces`: the nodes within 2
+hops of the pair's nodes and of the activations near them, as the paper's Adaptive-HMM chooses
+its states for overlapping motion; hallway: S <= 77 on the whole graph), not of the building;
+the transitions are read entry by entry, with no ``N^3`` tensor. The recursion is sequential over the window's slots and
 runs compiled (:func:`_pair_viterbi`, numba); :func:`pair_viterbi_reference`, vectorised in
 numpy over the pair states, is its plain reference and test oracle.
 """
@@ -41,44 +44,118 @@ import numpy as np
 import polars as pl
 
 from onebit.core.compiled import kernel
-from onebit.models.graph_hmm.adaptive import joint_emission, second_order_tensor
+from onebit.models.graph_hmm.adaptive import SecondOrderEntries, joint_emission
 from onebit.models.graph_hmm.eatg import Eatg
 from onebit.models.graph_hmm.likelihood import claims, path_log_prior
 
 
 class PairSpace:
-    """The user states ``(x, c)`` of a graph and each state's predecessors with their log
-    transition probabilities (module docstring)."""
+    """The user states ``(x, c)`` on the nodes ``nodes`` (default: every node of the graph) and
+    each state's predecessors with their log transition probabilities (module docstring).
 
-    def __init__(self, hops: np.ndarray, log_a: np.ndarray):
+    ``log_a`` gives ``log a(j3, j2, j1)`` by index arrays: the dense tensor of
+    :func:`~onebit.models.graph_hmm.adaptive.second_order_tensor` or its entries one by one
+    (:class:`~onebit.models.graph_hmm.adaptive.SecondOrderEntries`, no ``N^3`` array). On a
+    subset of the nodes a state ``(x, c)`` keeps every context ``c`` of ``x``; a move from a
+    node outside the subset has no predecessor state (paths stay inside it). States are
+    ordered by node, then context, and so are the predecessors, as on the whole graph: a
+    subset's recursion breaks ties as the whole graph's does among the paths both hold.
+    ``local``: each state's node as a column of ``nodes`` (the emission gains are computed on
+    those columns only)."""
+
+    def __init__(self, hops: np.ndarray, log_a, nodes: np.ndarray | None = None):
         n = hops.shape[0]
+        nodes = np.arange(n, dtype=np.int64) if nodes is None else np.unique(np.asarray(nodes, dtype=np.int64))
+        self.nodes = nodes
+        inside = np.zeros(n, dtype=bool)
+        inside[nodes] = True
         xs, cs = [], []
-        for x in range(n):  # graph-sized set-up, once per run
+        for x in nodes.tolist():  # the subset's (or the graph's, once per run) states
             for c in [-1, *np.flatnonzero(hops[x] == 1).tolist()]:
                 xs.append(x)
                 cs.append(c)
         self.x = np.array(xs, np.int64)
         self.c = np.array(cs, np.int64)
+        self.local = np.searchsorted(nodes, self.x).astype(np.int64)
         index = {(x, c): i for i, (x, c) in enumerate(zip(xs, cs))}
         self.index = index
-        preds: list[list[tuple[int, float]]] = []
-        for x, c in zip(xs, cs):
-            p = [(index[(x, c)], float(log_a[c if c >= 0 else x, x, x]))]  # stay
-            if c >= 0:  # arrived from c: any state at c moved here
-                for i in np.flatnonzero(self.x == c):
-                    cc = int(self.c[i])
-                    p.append((int(i), float(log_a[cc if cc >= 0 else c, c, x])))
-            preds.append(p)
-        k = max(len(p) for p in preds)
+        at = {}  # node -> its states, in order
+        for i, x in enumerate(xs):
+            at.setdefault(x, []).append(i)
+        rows, js = [], []  # (state, predecessor state) and the triple (j3, j2, j1) of the move
+        for i, (x, c) in enumerate(zip(xs, cs)):
+            rows.append((i, i))
+            js.append((c if c >= 0 else x, x, x))  # stay
+            if c >= 0 and inside[c]:  # arrived from c: any state at c moved here
+                for p in at[c]:
+                    cc = cs[p]
+                    rows.append((i, p))
+                    js.append((cc if cc >= 0 else c, c, x))
+        j = np.array(js, dtype=np.int64).reshape(-1, 3)
+        values = np.asarray(log_a[j[:, 0], j[:, 1], j[:, 2]], dtype=np.float64) if len(j) else np.zeros(0)
+        owner = np.array([r[0] for r in rows], dtype=np.int64)
+        counts = np.bincount(owner, minlength=len(xs))
+        k = int(counts.max()) if len(xs) else 1
+        col = np.arange(len(owner)) - np.repeat(np.cumsum(counts) - counts, counts)
         self.pred = np.zeros((len(xs), k), np.int64)
         self.lp = np.full((len(xs), k), -np.inf)
-        for i, p in enumerate(preds):
-            self.pred[i, : len(p)] = [a for a, _ in p]
-            self.lp[i, : len(p)] = [b for _, b in p]
+        self.pred[owner, col] = [r[1] for r in rows]
+        self.lp[owner, col] = values
         self.log_a = log_a
 
     def state(self, x: int, c: int) -> int:
         return self.index[(int(x), int(c) if c >= 0 and (int(x), int(c)) in self.index else -1)]
+
+
+class JointSpaces:
+    """The pair states a meeting is re-decoded on (:func:`redecode_meetings`), built once per
+    run and reused: ``reach = 0`` the whole graph (:class:`PairSpace` of every node); ``reach =
+    r > 0`` the meeting's neighbourhood, as the paper's Adaptive-HMM chooses its states for
+    overlapping motion (Sec. III-B2 (a): "the activated nodes of the motion sequences and up to
+    their 2-hop nodes"): with ``P`` the two users' nodes from the slot before the window to the
+    first slot after it and ``A`` the nodes active in the window within ``r`` hops of ``P``,
+    the states are those of the nodes within ``r`` hops of ``P`` or ``A``. A meeting then
+    costs ``O(W S_m^2 K)`` with ``S_m`` the states of its neighbourhood, not of the building.
+    The transitions are read entry by entry (:class:`SecondOrderEntries`): no ``N^3`` tensor.
+    Spaces are cached by their node set (at most ``MAX_CACHED``)."""
+
+    MAX_CACHED = 4096
+
+    def __init__(self, eatg: Eatg, reach: int = 2):
+        if reach < 0:
+            raise ValueError(f"reach must be >= 0 hops, got {reach}")
+        self.hops = eatg.hops
+        self.reach = int(reach)
+        self.log_a = SecondOrderEntries(eatg.a1, eatg.a2)
+        self._cache: dict[bytes, PairSpace] = {}
+        self._whole: PairSpace | None = None
+
+    def whole(self) -> PairSpace:
+        if self._whole is None:
+            self._whole = PairSpace(self.hops, self.log_a)
+        return self._whole
+
+    def nodes(self, pair_nodes: np.ndarray, active: np.ndarray) -> np.ndarray:
+        """The neighbourhood's nodes (class docstring) of the pair's nodes ``pair_nodes`` and
+        the window's activity ``active (W, N)``."""
+        p = np.unique(pair_nodes[pair_nodes >= 0])
+        near = (self.hops[p] <= self.reach).any(axis=0)
+        seeds = near & active.any(axis=0)
+        seeds[p] = True
+        return np.flatnonzero((self.hops[np.flatnonzero(seeds)] <= self.reach).any(axis=0))
+
+    def around(self, pair_nodes: np.ndarray, active: np.ndarray) -> PairSpace:
+        """The :class:`PairSpace` a meeting is decoded on (the whole graph's if ``reach = 0``)."""
+        if self.reach == 0:
+            return self.whole()
+        nodes = self.nodes(pair_nodes, active)
+        key = nodes.tobytes()
+        space = self._cache.get(key)
+        if space is None:
+            if len(self._cache) >= self.MAX_CACHED:
+                self._cache.clear()
+            space = self._cache[key] = PairSpace(self.hops, self.log_a, nodes)
+        return space
 
 
 def _gains(active: np.ndarray, others: np.ndarray, p_hit: float, p_false: float) -> tuple[np.ndarray, np.ndarray]:
@@ -187,12 +264,12 @@ def decode_pair(
     ``(2, W)`` node array per end, or ``None`` where no path reaches it. ``compiled=False``
     runs the numpy reference recursion."""
     s = space.x.size
-    g, h = _gains(active, others, p_hit, p_false)
+    g, h = _gains(active[:, space.nodes], others[:, space.nodes], p_hit, p_false)  # the space's columns
     delta0 = np.full((s, s), -np.inf)
     delta0[start[0], start[1]] = 0.0
     pred, k, xs = space.pred, space.pred.shape[1], space.x
     run = pair_viterbi if compiled else pair_viterbi_reference
-    delta, psi = run(delta0, pred, space.lp, xs, np.ascontiguousarray(g), np.ascontiguousarray(h))
+    delta, psi = run(delta0, pred, space.lp, space.local, np.ascontiguousarray(g), np.ascontiguousarray(h))
     out = []
     for y1, y2 in ends:
         term = delta.copy()
@@ -241,8 +318,8 @@ def meetings(paths: np.ndarray, hops: np.ndarray, *, pad: int) -> list[tuple[int
 
 
 def pair_space(eatg: Eatg) -> PairSpace:
-    """The :class:`PairSpace` of an EATG (second-order transitions on every node)."""
-    return PairSpace(eatg.hops, second_order_tensor(eatg.a1, eatg.a2, np.arange(len(eatg.nodes))))
+    """The :class:`PairSpace` of every node of an EATG (its transitions read entry by entry)."""
+    return PairSpace(eatg.hops, SecondOrderEntries(eatg.a1, eatg.a2))
 
 
 def redecode_meetings(
@@ -255,7 +332,8 @@ def redecode_meetings(
     pad: int = 4,
     compiled: bool = True,
     decide: tuple[int, int] | None = None,
-    space: PairSpace | None = None,
+    reach: int = 2,
+    spaces: JointSpaces | None = None,
 ) -> tuple[np.ndarray, list[dict]]:
     """Every meeting of two users (:func:`meetings`, in slot order) jointly re-decoded
     (:func:`decode_pair`), either pairing of the tails, the candidate of highest exact
@@ -263,12 +341,15 @@ def redecode_meetings(
     still ahead are listed again on the changed paths (issue #22: a list made once on the
     initial paths named users absent after an exchange of tails). ``decide = (lo, hi)``: only the
     meetings whose window ends at ``w1`` in ``[lo, hi)`` (lagged decoding: a meeting is
-    re-decoded with the block in which it ends, seen whole with its tails after it). Returns the paths and one record per
-    meeting (slots, users, gain in ``log L``, whether the tails were exchanged)."""
+    re-decoded with the block in which it ends, seen whole with its tails after it). Each meeting
+    is decoded on the pair states of its neighbourhood (:class:`JointSpaces`, ``reach`` hops;
+    0 = every node); ``spaces``: those of an earlier call (a caller decoding block by block
+    builds them once; its ``reach`` is used). Returns the paths and one record per meeting
+    (slots, users, gain in ``log L``, whether the tails were exchanged)."""
     n = len(eatg.nodes)
-    if space is None:  # the pair states of the graph (a caller decoding block by block builds them once)
-        space = pair_space(eatg)
-    log_a = space.log_a
+    if spaces is None:
+        spaces = JointSpaces(eatg, reach)
+    log_a = spaces.log_a
     x = np.array(paths, dtype=np.int64, copy=True)
     d = x.shape[1]
     log = []
@@ -281,6 +362,7 @@ def redecode_meetings(
         u, v, w0, w1 = queue.pop(0)
         done.add((u, v, w0))
         a = w0 - 1
+        space = spaces.around(x[[u, v], a : min(w1 + 2, d)], active[w0 : w1 + 1])
         ctx = np.array([_context(x[u], a), _context(x[v], a)], dtype=np.int64)
         start = (space.state(x[u, a], ctx[0]), space.state(x[v, a], ctx[1]))
         others = claims(np.delete(x[:, w0 : w1 + 1], [u, v], axis=0), n)
