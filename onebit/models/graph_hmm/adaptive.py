@@ -223,6 +223,18 @@ class SecondOrderEntries:
         self.stay = np.diag(p1).copy()
         self.move = np.where(eye, 0.0, p1)
         self.p2 = np.ascontiguousarray(p2)
+        # z of the contexts a path can have (j3 a neighbour of j2 either way), summed once per
+        # run: a call then sums only the rows of other contexts
+        j3, j2 = np.nonzero((self.move > 0) | (self.move.T > 0))
+        self._keys = j3.astype(np.int64) * n + j2
+        self._z = self._sums(j3, j2)
+
+    def _sums(self, j3: np.ndarray, j2: np.ndarray) -> np.ndarray:
+        z = np.empty(j3.size)
+        for lo in range(0, j3.size, self.CHUNK):  # bounded memory: CHUNK rows of N products at a time
+            hi = lo + self.CHUNK
+            z[lo:hi] = (self.move[j2[lo:hi]] * self.p2[j3[lo:hi]]).sum(axis=1)
+        return z
 
     def __getitem__(self, key) -> np.ndarray:
         j3, j2, j1 = np.broadcast_arrays(*(np.asarray(k, dtype=np.int64) for k in key))
@@ -230,11 +242,12 @@ class SecondOrderEntries:
         j3, j2, j1 = j3.ravel(), j2.ravel(), j1.ravel()
         n = self.n
         uniq, inv = np.unique(j3 * n + j2, return_inverse=True)
-        u3, u2 = uniq // n, uniq % n
         z = np.empty(uniq.size)
-        for lo in range(0, uniq.size, self.CHUNK):  # bounded memory: CHUNK rows of N products at a time
-            hi = lo + self.CHUNK
-            z[lo:hi] = (self.move[u2[lo:hi]] * self.p2[u3[lo:hi]]).sum(axis=1)
+        at = np.minimum(np.searchsorted(self._keys, uniq), max(self._keys.size - 1, 0))
+        known = self._keys[at] == uniq if self._keys.size else np.zeros(uniq.size, bool)
+        z[known] = self._z[at[known]]
+        other = uniq[~known]
+        z[~known] = self._sums(other // n, other % n)
         z = z[inv.reshape(-1)]
         move = self.move[j2, j1]
         w = move * self.p2[j3, j1]

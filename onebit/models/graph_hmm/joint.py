@@ -259,12 +259,15 @@ def decode_pair(
     """Joint Viterbi of two users over a window (module docstring).
 
     ``start``: the two users' states at the slot before the window; ``active`` ``(W, N)`` and
-    ``others`` ``(W, N)`` (users at each node other than the pair); ``ends``: a list of
+    ``others`` ``(W, N)`` (users at each node other than the pair), or both on the space's
+    nodes only (``(W, len(space.nodes))``); ``ends``: a list of
     ``(y_1, y_2)`` first nodes after the window (``-1``: none) to finish into. Returns one
     ``(2, W)`` node array per end, or ``None`` where no path reaches it. ``compiled=False``
     runs the numpy reference recursion."""
     s = space.x.size
-    g, h = _gains(active[:, space.nodes], others[:, space.nodes], p_hit, p_false)  # the space's columns
+    if active.shape[1] != space.nodes.size:  # the graph's columns: keep the space's
+        active, others = active[:, space.nodes], others[:, space.nodes]
+    g, h = _gains(active, others, p_hit, p_false)
     delta0 = np.full((s, s), -np.inf)
     delta0[start[0], start[1]] = 0.0
     pred, k, xs = space.pred, space.pred.shape[1], space.x
@@ -365,7 +368,13 @@ def redecode_meetings(
         space = spaces.around(x[[u, v], a : min(w1 + 2, d)], active[w0 : w1 + 1])
         ctx = np.array([_context(x[u], a), _context(x[v], a)], dtype=np.int64)
         start = (space.state(x[u, a], ctx[0]), space.state(x[v, a], ctx[1]))
-        others = claims(np.delete(x[:, w0 : w1 + 1], [u, v], axis=0), n)
+        # the window's emissions on the space's columns only: the pair's current and candidate
+        # nodes are all in it, so the columns outside add the same to every candidate's log L
+        col = np.full(n, -1, dtype=np.int64)
+        col[space.nodes] = np.arange(space.nodes.size)
+        rest = np.delete(x[:, w0 : w1 + 1], [u, v], axis=0)
+        others = claims(np.where(rest >= 0, col[np.maximum(rest, 0)], -1), space.nodes.size)
+        act = active[w0 : w1 + 1][:, space.nodes]
         nxt = (int(x[u, w1 + 1]), int(x[v, w1 + 1])) if w1 + 1 < d else (-1, -1)
         ends = [nxt, (nxt[1], nxt[0])]
         b = min(max(w1 + 1, _first_change(x[u], w1 + 1), _first_change(x[v], w1 + 1)), d - 1)
@@ -376,17 +385,16 @@ def redecode_meetings(
             ctx0=ctx,
             window=(k0, k1),
             others=others,
-            active=active[w0 : w1 + 1],
+            active=act,
             log_a=log_a,
             p_hit=p_hit,
             p_false=p_false,
+            col=col,
         )
         cur = score(seg)
         best, pick = cur, None
         for swap, path in enumerate(
-            decode_pair(
-                space, start, active[w0 : w1 + 1], others, ends, p_hit=p_hit, p_false=p_false, compiled=compiled
-            )
+            decode_pair(space, start, act, others, ends, p_hit=p_hit, p_false=p_false, compiled=compiled)
         ):
             if path is None:
                 continue
@@ -463,14 +471,16 @@ def _settled(rows: np.ndarray, w1: int) -> int:
     return min(max(w1 + 1, *(_first_change(r, w1 + 1) for r in rows)), d - 1)
 
 
-def _segment_log_likelihood(seg, *, ctx0, window, others, active, log_a, p_hit, p_false) -> float:
+def _segment_log_likelihood(seg, *, ctx0, window, others, active, log_a, p_hit, p_false, col=None) -> float:
     """:func:`_local_log_likelihood` on the pair's segment ``seg`` (2, b - a + 1) from slot ``a``
-    (contexts ``ctx0``), the window at columns ``window`` and the other users' ``claims`` there."""
+    (contexts ``ctx0``), the window at columns ``window`` and the other users' ``claims`` there;
+    ``col``: each node's column in ``others``/``active`` when they hold only some nodes (the
+    emissions of those columns; the pair's nodes in the window must be among them)."""
     k0, k1 = window
     inside = others.copy()
     for r in seg[:, k0:k1]:  # the two users
         ok = r >= 0
-        inside[np.flatnonzero(ok), r[ok]] += 1
+        inside[np.flatnonzero(ok), r[ok] if col is None else col[r[ok]]] += 1
     return path_log_prior(seg, log_a, ctx0) + joint_emission(active, inside, p_hit, p_false)
 
 
