@@ -10,7 +10,7 @@ wing of silent sensors (a grid corridor of rows of 10, joined to the graph's las
 nodes, so every size decodes exactly the same motion and only the building grows. The decoder
 is the trackers' (:class:`~onebit.models.graph_hmm.adaptive.WindowDecoder`, modes ``full2`` =
 hmm2, ``full1`` = hmm1, ``adaptive`` = findinghumo's windows, ``joint`` = findinghumo's joint
-re-decoding of meetings on the windows' paths, its reference the same on every node; the trackers' defaults, the site's
+re-decoding of meetings on the windows' paths (``joint2``: with ``joint_hops = 2``), its reference every meeting on every node; the trackers' defaults, the site's
 targets as the user bound, the EATG trained on the activity); the CPU time per slot (the
 fastest of ``--repeat`` runs) excludes the once-per-run model set-up (on its own row). The
 paths decoded on every ``N`` are compared with the smallest graph's (printed; equal unless the
@@ -106,7 +106,7 @@ def joint_timed(active, nodes, edges, sigs, mode: str, *, targets: int = 2, comp
     """``(set-up s, joint s, paths)``: findinghumo's joint re-decoding of meetings
     (:func:`~onebit.models.graph_hmm.joint.redecode_meetings`, the trackers' defaults) on the
     Adaptive-HMM's paths (not timed); set-up: its :class:`~onebit.models.graph_hmm.joint.JointSpaces`
-    (once per run); ``compiled=False``: on every node (``reach = 0``), its reference here."""
+    (once per run); ``compiled=False``: every meeting on every node, its reference here."""
     from onebit.models.graph_hmm.decoding import HmmConfig
     from onebit.models.graph_hmm.eatg import hop_matrix, trained_eatg
     from onebit.models.graph_hmm.joint import JointSpaces, redecode_meetings
@@ -115,7 +115,8 @@ def joint_timed(active, nodes, edges, sigs, mode: str, *, targets: int = 2, comp
     _, _, paths = decode_timed(active, nodes, edges, sigs, "adaptive", targets=targets)
     eatg = trained_eatg(active, nodes, hop_matrix(nodes, edges), horizon=5)
     t0 = time.process_time()
-    spaces = JointSpaces(eatg, cfg.joint_hops if compiled else 0)
+    reach = int(mode[len("joint") :] or cfg.joint_hops)  # joint2: the paper's 2-hop neighbourhood
+    spaces = JointSpaces(eatg, reach, whole=not compiled)
     t1 = time.process_time()
     out, _ = redecode_meetings(
         paths,
@@ -164,14 +165,18 @@ def main(argv: list[str] | None = None) -> None:
     )
     print(f"{what}: {n_slots} slots, {int(active.sum())} active (slot, node) cells, {len(nodes)} nodes")
     # warm the kernels (compile or load from the cache) outside the timing
-    timed = {"joint": joint_timed}
+    timed = {"joint": joint_timed, "joint2": joint_timed}
     for mode in args.modes.split(","):
         timed.get(mode, decode_timed)(active[:60], nodes, edges, sigs, mode, targets=targets)
     table = Table()
     for mode in args.modes.split(","):
-        name = {"full2": "hmm2", "full1": "hmm1", "adaptive": "findinghumo-windows", "joint": "findinghumo-joint"}.get(
-            mode, mode
-        )
+        name = {
+            "full2": "hmm2",
+            "full1": "hmm1",
+            "adaptive": "findinghumo-windows",
+            "joint": "findinghumo-joint",
+            "joint2": "findinghumo-joint (joint_hops 2)",
+        }.get(mode, mode)
         run = timed.get(mode, decode_timed)
         per_slot, setups, ref = [], [], None
         for n in sizes:
@@ -196,7 +201,7 @@ def main(argv: list[str] | None = None) -> None:
                 f" paths {'equal' if same else 'DIFFER'} to N={sizes[0]}'s"
                 + (
                     f"; {stats[0]} user decodes, {stats[1]} on all states ({stats[2]} uncertified)"
-                    if mode != "joint"
+                    if not mode.startswith("joint")
                     else ""
                 ),
                 flush=True,

@@ -28,9 +28,8 @@ then scored with the exact joint log-likelihood of all paths
 beats the current paths, so a re-decoding never lowers ``log L``.
 
 Cost per meeting: ``O(W S^2 K)`` with ``K <= 1 + max deg + 1`` predecessors per user state and
-``S`` the user states of the meeting's neighbourhood (:class:`JointSpaces`: the nodes within 2
-hops of the pair's nodes and of the activations near them, as the paper's Adaptive-HMM chooses
-its states for overlapping motion; hallway: S <= 77 on the whole graph), not of the building;
+``S`` the user states of the nodes the pair can reach in the window (:class:`JointSpaces`,
+exact; optionally only the paper's 2-hop neighbourhood of their motion), not of the building;
 the transitions are read entry by entry, with no ``N^3`` tensor. The recursion is sequential over the window's slots and
 runs compiled (:func:`_pair_viterbi`, numba); :func:`pair_viterbi_reference`, vectorised in
 numpy over the pair states, is its plain reference and test oracle.
@@ -109,46 +108,81 @@ class PairSpace:
 
 class JointSpaces:
     """The pair states a meeting is re-decoded on (:func:`redecode_meetings`), built once per
-    run and reused: ``reach = 0`` the whole graph (:class:`PairSpace` of every node); ``reach =
-    r > 0`` the meeting's neighbourhood, as the paper's Adaptive-HMM chooses its states for
-    overlapping motion (Sec. III-B2 (a): "the activated nodes of the motion sequences and up to
-    their 2-hop nodes"): with ``P`` the two users' nodes from the slot before the window to the
-    first slot after it and ``A`` the nodes active in the window within ``r`` hops of ``P``,
-    the states are those of the nodes within ``r`` hops of ``P`` or ``A``. A meeting then
-    costs ``O(W S_m^2 K)`` with ``S_m`` the states of its neighbourhood, not of the building.
-    The transitions are read entry by entry (:class:`SecondOrderEntries`): no ``N^3`` tensor.
-    Spaces are cached by their node set (at most ``MAX_CACHED``)."""
+    run and reused.
+
+    **Exact** (always): the nodes the two users can be at. A window of ``W`` slots starts from
+    the users' nodes ``s_u`` at the slot before it and ends by a move into a tail node ``y``
+    (the first slot after it, either pairing); a path moves at most one hop a slot, so a node
+    ``x`` at window slot ``t`` has ``hops(s_u, x) <= t + 1`` and ``hops(x, y) <= W - t``::
+
+        X = {x : some t in [0, W) has hops(s_u, x) <= t + 1 and hops(x, y) <= W - t}
+          = {x : hops(s_u, x) + hops(x, y) <= W + 1, hops(s_u, x) <= W, hops(x, y) <= W}
+            for a user u and a tail y (hops(s_u, x) <= W where a pairing leaves u without one),
+
+    plus the pair's current nodes. Every path of finite score lies in ``X``, and so does every
+    predecessor a back-pointer of such a path can name; the states keep the whole graph's order
+    (:class:`PairSpace`), so the decoded paths are the whole graph's, ties included (tests). A
+    meeting costs ``O(W S_X^2 K)``: ``S_X`` grows with the window's length, not the building.
+
+    ``reach = r > 0`` (the ``joint_hops`` option) further restricts ``X`` to the paper's state
+    set for overlapping motion (Sec. III-B2 (a): "the activated nodes of the motion sequences
+    and up to their 2-hop nodes"): the nodes within ``r`` hops of the pair's nodes and of the
+    activations chained to them within ``r`` hops. Faster on long meetings but approximate: a
+    joint optimum that leaves it is not found (on the simulated 24-hour home one hour-long
+    meeting's gain in ``log L`` fell from 682 to 53). Transitions are read entry by entry
+    (:class:`~onebit.models.graph_hmm.adaptive.SecondOrderEntries`): no ``N^3`` tensor.
+    Spaces are cached by their node set (at most ``MAX_CACHED``). ``whole=True``: every meeting
+    on every node (the reference the exact sets are tested against)."""
 
     MAX_CACHED = 4096
 
-    def __init__(self, eatg: Eatg, reach: int = 2):
+    def __init__(self, eatg: Eatg, reach: int = 0, *, whole: bool = False):
         if reach < 0:
             raise ValueError(f"reach must be >= 0 hops, got {reach}")
-        self.hops = eatg.hops
+        self.whole = bool(whole)
+        self.hops = np.minimum(np.asarray(eatg.hops, dtype=np.int64), np.int64(2**40))  # no overflow in sums
         self.reach = int(reach)
         self.log_a = SecondOrderEntries(eatg.a1, eatg.a2)
         self._cache: dict[bytes, PairSpace] = {}
-        self._whole: PairSpace | None = None
 
-    def whole(self) -> PairSpace:
-        if self._whole is None:
-            self._whole = PairSpace(self.hops, self.log_a)
-        return self._whole
+    def reachable(self, starts, tails, w: int) -> np.ndarray:
+        """``(N,)`` mask of the exact set ``X`` (class docstring) for the users' start nodes,
+        their tail nodes (``-1``: none) and a window of ``w`` slots."""
+        ok = np.zeros(self.hops.shape[0], dtype=bool)
+        ys = [int(y) for y in tails if y >= 0]
+        for s in starts:
+            if s < 0:
+                continue
+            h = self.hops[int(s)]
+            if len(ys) < len(tails):  # a pairing leaves this user without a tail
+                ok |= h <= w
+            for y in ys:
+                hy = self.hops[y]
+                ok |= (h + hy <= w + 1) & (h <= w) & (hy <= w)
+        return ok
 
-    def nodes(self, pair_nodes: np.ndarray, active: np.ndarray) -> np.ndarray:
-        """The neighbourhood's nodes (class docstring) of the pair's nodes ``pair_nodes`` and
-        the window's activity ``active (W, N)``."""
-        p = np.unique(pair_nodes[pair_nodes >= 0])
-        near = (self.hops[p] <= self.reach).any(axis=0)
-        seeds = near & active.any(axis=0)
-        seeds[p] = True
-        return np.flatnonzero((self.hops[np.flatnonzero(seeds)] <= self.reach).any(axis=0))
+    def neighbourhood(self, pair_nodes: np.ndarray, active: np.ndarray) -> np.ndarray:
+        """``(N,)`` mask of the paper's state set (class docstring, ``reach > 0``) of the pair's
+        nodes and the window's activity ``active (W, N)``."""
+        on = active.any(axis=0)
+        seeds = np.zeros(on.size, dtype=bool)
+        seeds[np.unique(pair_nodes[pair_nodes >= 0])] = True
+        new = seeds.copy()
+        while new.any():  # the motion sequences the pair is part of: activations chained within reach
+            near = (self.hops[np.flatnonzero(new)] <= self.reach).any(axis=0)
+            new = near & on & ~seeds
+            seeds |= new
+        return (self.hops[np.flatnonzero(seeds)] <= self.reach).any(axis=0)
 
-    def around(self, pair_nodes: np.ndarray, active: np.ndarray) -> PairSpace:
-        """The :class:`PairSpace` a meeting is decoded on (the whole graph's if ``reach = 0``)."""
-        if self.reach == 0:
-            return self.whole()
-        nodes = self.nodes(pair_nodes, active)
+    def around(self, pair_nodes: np.ndarray, starts, tails, active: np.ndarray) -> PairSpace:
+        """The :class:`PairSpace` a meeting is decoded on: ``pair_nodes`` the two users' nodes
+        from the slot before the window to the first slot after it, ``starts`` / ``tails``
+        their nodes there (``-1``: none), ``active (W, N)`` the window's activity."""
+        ok = self.reachable(starts, tails, active.shape[0]) | self.whole
+        if self.reach:
+            ok &= self.neighbourhood(pair_nodes, active)
+        ok[pair_nodes[pair_nodes >= 0]] = True
+        nodes = np.flatnonzero(ok)
         key = nodes.tobytes()
         space = self._cache.get(key)
         if space is None:
@@ -335,7 +369,7 @@ def redecode_meetings(
     pad: int = 4,
     compiled: bool = True,
     decide: tuple[int, int] | None = None,
-    reach: int = 2,
+    reach: int = 0,
     spaces: JointSpaces | None = None,
 ) -> tuple[np.ndarray, list[dict]]:
     """Every meeting of two users (:func:`meetings`, in slot order) jointly re-decoded
@@ -345,8 +379,8 @@ def redecode_meetings(
     initial paths named users absent after an exchange of tails). ``decide = (lo, hi)``: only the
     meetings whose window ends at ``w1`` in ``[lo, hi)`` (lagged decoding: a meeting is
     re-decoded with the block in which it ends, seen whole with its tails after it). Each meeting
-    is decoded on the pair states of its neighbourhood (:class:`JointSpaces`, ``reach`` hops;
-    0 = every node); ``spaces``: those of an earlier call (a caller decoding block by block
+    is decoded on the pair states its users can reach (:class:`JointSpaces`; ``reach > 0``:
+    within the paper's neighbourhood of ``reach`` hops too, approximate); ``spaces``: those of an earlier call (a caller decoding block by block
     builds them once; its ``reach`` is used). Returns the paths and one record per meeting
     (slots, users, gain in ``log L``, whether the tails were exchanged)."""
     n = len(eatg.nodes)
@@ -365,7 +399,9 @@ def redecode_meetings(
         u, v, w0, w1 = queue.pop(0)
         done.add((u, v, w0))
         a = w0 - 1
-        space = spaces.around(x[[u, v], a : min(w1 + 2, d)], active[w0 : w1 + 1])
+        nxt = (int(x[u, w1 + 1]), int(x[v, w1 + 1])) if w1 + 1 < d else (-1, -1)
+        ends = [nxt, (nxt[1], nxt[0])]
+        space = spaces.around(x[[u, v], a : min(w1 + 2, d)], (x[u, a], x[v, a]), nxt, active[w0 : w1 + 1])
         ctx = np.array([_context(x[u], a), _context(x[v], a)], dtype=np.int64)
         start = (space.state(x[u, a], ctx[0]), space.state(x[v, a], ctx[1]))
         # the window's emissions on the space's columns only: the pair's current and candidate
@@ -375,8 +411,6 @@ def redecode_meetings(
         rest = np.delete(x[:, w0 : w1 + 1], [u, v], axis=0)
         others = claims(np.where(rest >= 0, col[np.maximum(rest, 0)], -1), space.nodes.size)
         act = active[w0 : w1 + 1][:, space.nodes]
-        nxt = (int(x[u, w1 + 1]), int(x[v, w1 + 1])) if w1 + 1 < d else (-1, -1)
-        ends = [nxt, (nxt[1], nxt[0])]
         b = min(max(w1 + 1, _first_change(x[u], w1 + 1), _first_change(x[v], w1 + 1)), d - 1)
         seg = x[[u, v], a : b + 1]  # the pair from the slot before the window to where their tails settle
         k0, k1 = w0 - a, w1 + 1 - a  # the window inside ``seg``

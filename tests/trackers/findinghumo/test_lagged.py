@@ -152,8 +152,8 @@ def test_online_advance_poll_by_poll_equals_the_lagged_run(tmp_path):
 
 
 def test_the_joint_neighbourhood_is_a_hop_count():
-    assert FindingHumoConfig().joint_hops == 2  # the paper's 2-hop state set for overlapping motion
-    assert HmmConfig(joint_hops=0).joint_hops == 0  # every node
+    assert FindingHumoConfig().joint_hops == 0  # exact: the nodes the pair can reach
+    assert HmmConfig(joint_hops=2).joint_hops == 2  # the paper's 2-hop state set for overlapping motion
     with pytest.raises(ConfigError, match="joint_hops"):
         FindingHumoConfig(joint_hops=-1)
     with pytest.raises(ConfigError, match="joint_hops"):
