@@ -100,6 +100,10 @@ class HmmConfig:
         output, what CPDA then starts from) or ``"after-cpda"``. The baselines ``hmm1`` /
         ``hmm2`` default to ``"off"`` (the paper's full-state HMMs as it describes them).
     joint_pad : slots a joint re-decoding window extends either side of a meeting.
+    joint_hops : 0 (default): a meeting is re-decoded on the nodes its two users can reach in
+        the window (exact; :class:`~onebit.models.graph_hmm.joint.JointSpaces`); ``r > 0``: also
+        only within ``r`` hops of their motion (the paper's state set for overlapping motion,
+        Sec. III-B2 (a), 2 hops) -- faster on long meetings, approximate.
     """
 
     period: float = 1.0
@@ -125,6 +129,7 @@ class HmmConfig:
     fresh_slots: int = 2
     joint: str = "off"
     joint_pad: int = 4
+    joint_hops: int = 0
 
     def __post_init__(self) -> None:
         check_range(self, "period", 1e-3, None)
@@ -164,6 +169,7 @@ class HmmConfig:
         check_range(self, "fresh_slots", 1, 1000, types=(int,))
         check_choice(self, "joint", JOINT)
         check_range(self, "joint_pad", 0, 100, types=(int,))
+        check_range(self, "joint_hops", 0, 1000, types=(int,))
 
 
 def available(site: Site) -> str | None:
