@@ -493,8 +493,8 @@ def typed_toggle_rows(
     split = split if split is not None else read_typed_csv(path, toggle_dtypes(sensors))
     if split is None:
         return None
-    on = pl.Series([TOGGLE_VALUES[v] for v in spellings], dtype=pl.Boolean)
-    good = split.good.with_columns(on.gather(split.good["value"].to_physical()).alias("value"))
+    on_codes = [i for i, v in enumerate(spellings) if TOGGLE_VALUES[v]]  # the spellings of "on", by code
+    good = split.good.with_columns(pl.col("value").to_physical().is_in(on_codes).alias("value"))
     return check_split(
         split,
         good,
