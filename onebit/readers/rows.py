@@ -1032,7 +1032,9 @@ class FileLines:
         """Newlines up to the end of each :data:`_BLOCK` bytes of the file (cumulative; counted
         once, when a line is first named): where a named line is, to its block."""
         if self._blocks is None:
-            self._blocks = np.cumsum(block_newlines(np.frombuffer(self.data, dtype=np.uint8), self.step), dtype=np.int64)
+            self._blocks = np.cumsum(
+                block_newlines(np.frombuffer(self.data, dtype=np.uint8), self.step), dtype=np.int64
+            )
         return self._blocks
 
     def newline_offsets(self, k: np.ndarray) -> np.ndarray:
