@@ -1109,11 +1109,14 @@ class FileLines:
         if want.size <= _FEW_LINES and self.is_ascii():  # nothing to decode: cut out one by one, no table
             want = want[(want >= 1) & (want <= self.n_lines)]
             starts, ends = self.bounds(want)
-            data, cut = self.data, (lambda x: x) if limit is None else (lambda x: bounded(x, limit))
-            return {
-                k: cut(data[s:e].decode("ascii").removesuffix("\r"))
-                for k, s, e in zip(want.tolist(), starts.tolist(), ends.tolist())
-            }
+            buf, data = np.frombuffer(self.data, dtype=np.uint8), self.data
+            if want.size:  # a line's "\r" before its newline is not text (as physical_lines)
+                ends -= (ends > starts) & (buf[np.maximum(ends - 1, 0)] == 0x0D)
+            text = [data[s:e].decode("ascii") for s, e in zip(starts.tolist(), ends.tolist())]
+            if limit is not None:  # only the lines longer than the limit are cut (ASCII: a byte a character)
+                for i in np.flatnonzero(ends - starts > limit).tolist():
+                    text[i] = bounded(text[i], limit)
+            return dict(zip(want.tolist(), text))
         found = self.lines(lines)
         return dict(found.select("line", "text" if limit is None else _bounded("text", limit)).iter_rows())
 
