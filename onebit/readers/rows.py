@@ -1353,12 +1353,58 @@ def duplicate_rows(ok: pl.DataFrame, key: tuple[str, ...], *, in_order: bool | N
         first = np.flatnonzero(eq)  # rows whose stamp the next row has
         at = np.unique(np.concatenate([first, first + 1]))  # only the rows in a run of equal stamps
         cand = ok[at].select(pl.Series("_i", at, dtype=pl.Int64), "line", *key)
-    else:
-        cand = ok.select(pl.int_range(pl.len(), dtype=pl.Int64).alias("_i"), "line", *key)
+        found = _duplicates_numpy(cand, key)  # (a few rows: numpy's sort beats a polars query)
+        return found if found is not None else _duplicates_polars(cand, key)
+    cand = ok.select(pl.int_range(pl.len(), dtype=pl.Int64).alias("_i"), "line", *key)
+    return _duplicates_polars(cand, key)
+
+
+def _duplicates_polars(cand: pl.DataFrame, key: tuple[str, ...]) -> pl.DataFrame:
+    """:func:`duplicate_rows` of candidate rows (``_i``, ``line``, the ``key`` columns): one sort
+    on the key and line, each row compared with the one before (nulls equal)."""
     cand = cand.sort([*key, "line"])
     same = pl.all_horizontal([pl.col(k).eq_missing(pl.col(k).shift(1)) for k in key]).fill_null(False)
     cand = cand.with_columns(pl.when(same).then(None).otherwise(pl.col("line")).forward_fill().alias("_first"))
     return cand.filter(pl.col("_first") != pl.col("line")).select("_i", "_first")
+
+
+def _key_values(s: pl.Series) -> np.ndarray | None:
+    """The values of a key column as numpy compares them the way polars' ``eq_missing`` does
+    (enum codes, booleans, integers, finite floats without a negative zero, no nulls), else
+    ``None``."""
+    if s.null_count():
+        return None
+    if isinstance(s.dtype, pl.Enum):
+        return s.to_physical().to_numpy()
+    if s.dtype == pl.Boolean or s.dtype.is_integer():
+        return s.to_numpy()
+    if s.dtype.is_float():
+        a = s.to_numpy()
+        return a if np.isfinite(a).all() and not (np.signbit(a) & (a == 0)).any() else None
+    return None
+
+
+def _duplicates_numpy(cand: pl.DataFrame, key: tuple[str, ...]) -> pl.DataFrame | None:
+    """:func:`_duplicates_polars` in numpy (one ``lexsort`` on the key and line, neighbours
+    compared), for key columns numpy compares as polars does (:func:`_key_values`); ``None``
+    for others (text, nulls, NaN). Equal to it (tests)."""
+    values = [_key_values(cand[k]) for k in key]
+    if cand.height == 0 or any(v is None for v in values):
+        return None
+    line = cand["line"].to_numpy()
+    order = np.lexsort((line, *values[::-1]))  # by the key (its first column first), then line
+    same = np.ones(max(line.size - 1, 0), dtype=np.bool_)
+    for v in values:
+        vs = v[order]
+        same &= vs[1:] == vs[:-1]
+    start = np.ones(line.size, dtype=np.bool_)  # a row that starts its group of equal keys
+    start[1:] = ~same
+    first = line[order][np.maximum.accumulate(np.where(start, np.arange(line.size), 0))]
+    dup = np.flatnonzero(~start)
+    return pl.DataFrame(
+        {"_i": cand["_i"].to_numpy()[order][dup], "_first": first[dup]},
+        schema={"_i": pl.Int64, "_first": pl.Int64},
+    )
 
 
 def backwards_reason(tolerance: float) -> pl.Expr:

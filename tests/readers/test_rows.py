@@ -11,6 +11,7 @@ and raw text are those of the physical line; every message and raw text is bound
 from __future__ import annotations
 
 import json
+import math
 import re
 from pathlib import Path
 
@@ -566,3 +567,54 @@ def test_named_lines_text_equals_their_rows(body, trailing_newline, wanted, limi
     rows = FileLines(data).lines(wanted)
     want = {k: (t if limit is None else bounded(t, limit)) for k, t in rows.select("line", "text").iter_rows()}
     assert FileLines(data).texts(wanted, limit=limit) == want
+
+
+@settings(max_examples=200, deadline=None)
+@given(
+    st.lists(
+        st.tuples(
+            st.sampled_from([0.0, 1.5, 2.0, -0.0, float("nan"), 3.25]),
+            st.sampled_from(["a", "b", "c"]),
+            st.sampled_from([True, False, None]),
+            st.sampled_from(["x", "y", None]),
+        ),
+        min_size=1,
+        max_size=40,
+    ),
+    st.permutations(range(40)),
+    st.sampled_from([("t", "beam", "on"), ("t", "beam"), ("t", "name"), ("t", "on", "name")]),
+)
+def test_duplicates_in_numpy_equal_the_polars_search(rows, lines, key):
+    """_duplicates_numpy (enum codes, booleans and finite floats compared in numpy) finds the
+    rows and first lines _duplicates_polars finds, and declines (None) the keys numpy would
+    compare otherwise: text, nulls, NaN, a negative zero."""
+    from onebit.readers.rows import _duplicates_numpy, _duplicates_polars
+
+    cand = pl.DataFrame(
+        {
+            "_i": list(range(len(rows))),
+            "line": [lines[i] + 2 for i in range(len(rows))],
+            "t": [r[0] for r in rows],
+            "beam": [r[1] for r in rows],
+            "on": [r[2] for r in rows],
+            "name": [r[3] for r in rows],
+        },
+        schema={
+            "_i": pl.Int64,
+            "line": pl.Int64,
+            "t": pl.Float64,
+            "beam": pl.Enum(["c", "a", "b"]),
+            "on": pl.Boolean,
+            "name": pl.String,
+        },
+    )
+    plain = _duplicates_polars(cand, key).sort("_i")
+    fast = _duplicates_numpy(cand, key)
+    declines = "name" in key or any(
+        cand[k].null_count()
+        or (cand[k].dtype == pl.Float64 and any(math.isnan(x) or math.copysign(1, x) < 0 and x == 0 for x in cand[k]))
+        for k in key
+    )
+    assert (fast is None) == declines
+    if fast is not None:
+        assert fast.sort("_i").equals(plain)
