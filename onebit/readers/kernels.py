@@ -350,57 +350,58 @@ def _debounce_sorted(s_, o_, ts, chatter, min_on, eps):
     (off, on) pair of neighbours of a sensor within its window; the minimum on-time rule marks
     each (on, off) pair of neighbours among the edges chatter left, sooner than ``min_on``.
     Every neighbour pair is tested at once with boolean masks over contiguous arrays (the gaps
-    by one ``diff``); a rule shared by every sensor is one number. Returns the positions (in the
-    sensor order) of the edges each rule marks."""
+    by one subtraction, for both rules); a rule shared by every sensor is one number. The
+    neighbours among the edges chatter left are not gathered: they are the neighbours that are
+    both left and, across each run of chatter pairs (adjacent pairs ``(i, i + 1), (i + 2, i + 3),
+    ...``), the edge before the run and the edge after it. Returns the positions (in the sensor
+    order) of the edges each rule marks, in no particular order."""
     m = o_.shape[0]
     none = np.empty(0, dtype=np.int64)
-    if m < 2:
-        return none, none
     chatter = np.asarray(chatter, np.float64)
     min_on = np.asarray(min_on, np.float64)
-    cs = ss = none
+    use_chatter, use_min_on = bool((chatter > 0).any()), bool((min_on > 0).any())
+    if m < 2 or not (use_chatter or use_min_on):
+        return none, none
+    cs = ss = first = none  # first: the first edge of each chatter pair
     same = s_[1:] == s_[:-1]  # neighbours of one sensor
-    gap = np.empty(m - 1, dtype=np.float64)  # gaps between neighbours (one buffer for both rules)
-    if (chatter > 0).any():  # (off, on) neighbours within the window
+    gap = np.subtract(ts[1:], ts[:-1])  # the gap of every pair of neighbours (k, k + 1)
+    if use_chatter:  # (off, on) neighbours within the window
         w = _rule_of_pairs(chatter, s_)
         pair = same & o_[1:]
         pair &= ~o_[:-1]
-        np.subtract(ts[1:], ts[:-1], out=gap)
         pair &= gap <= w + eps
         if not np.isscalar(w):
             pair &= w > 0
-        i = np.flatnonzero(pair)
-        cs = np.empty(2 * i.size, dtype=np.int64)  # pairs of neighbours never share an edge
-        cs[0::2], cs[1::2] = i, i + 1
-    if (min_on > 0).any():  # (on, off) neighbours among the edges chatter left
-        s2, o2, t2, same2 = s_, o_, ts, same
-        if cs.size:  # the edges left, by a mask (no index of them)
-            left = np.ones(m, dtype=np.bool_)
-            left[cs] = False
-            s2, o2, t2 = s_[left], o_[left], ts[left]
-            same2 = s2[1:] == s2[:-1]
-        w = _rule_of_pairs(min_on, s2)
-        pair = same2 & o2[:-1]
-        pair &= ~o2[1:]
-        gap2 = gap[: t2.shape[0] - 1]
-        np.subtract(t2[1:], t2[:-1], out=gap2)
-        pair &= gap2 < w - eps
+        first = np.flatnonzero(pair)  # pairs of neighbours never share an edge
+        cs = np.concatenate([first, first + 1])
+    if use_min_on:  # (on, off) neighbours among the edges chatter left
+        w = _rule_of_pairs(min_on, s_)
+        pair = same & o_[:-1]
+        pair &= ~o_[1:]
+        pair &= gap < w - eps
         if not np.isscalar(w):
             pair &= w > 0
-        i = np.flatnonzero(pair)
-        ss = np.empty(2 * i.size, dtype=np.int64)
-        ss[0::2], ss[1::2] = _left_positions(i, cs), _left_positions(i + 1, cs)
+        if first.size:  # neighbours both left
+            gone = np.zeros(m, dtype=np.bool_)
+            gone[first] = True
+            gone[first + 1] = True
+            pair &= ~gone[:-1]
+            pair &= ~gone[1:]
+        p = np.flatnonzero(pair)
+        q = p + 1
+        if first.size:  # across each run of chatter pairs: the edge before it and the edge after it
+            joined = first[1:] == first[:-1] + 2  # the next pair starts right after this one
+            a = first[np.r_[True, ~joined]] - 1
+            b = first[np.r_[~joined, True]] + 2
+            keep = (a >= 0) & (b < m)
+            a, b = a[keep], b[keep]
+            wb = w if np.isscalar(w) else min_on[s_[b]]
+            x = (s_[a] == s_[b]) & o_[a] & ~o_[b] & (ts[b] - ts[a] < wb - eps)
+            if not np.isscalar(wb):
+                x &= wb > 0
+            p, q = np.concatenate([p, a[x]]), np.concatenate([q, b[x]])
+        ss = np.concatenate([p, q])
     return cs, ss
-
-
-def _left_positions(p: np.ndarray, gone: np.ndarray) -> np.ndarray:
-    """The positions in the whole sequence of the positions ``p`` in the sequence left once the
-    (ascending) positions ``gone`` are taken out: ``p`` plus how many of them come before it,
-    i.e. the number of ``gone[j]`` with ``gone[j] - j <= p`` (``gone[j] - j``: the positions
-    left before ``gone[j]``, non-decreasing). Equal to ``np.flatnonzero(left)[p]`` (tests)."""
-    if gone.size == 0:
-        return p
-    return p + np.searchsorted(gone - np.arange(gone.size), p, side="right")
 
 
 def _rule_of_pairs(per_sensor, s_):

@@ -212,19 +212,28 @@ def test_motion_reader_fused_path_equals_the_reference(tmp_path, monkeypatch, se
     assert fused.held == ref.held
 
 
-@settings(max_examples=200, deadline=None)
-@given(st.integers(0, 60), st.data())
-def test_left_positions_equal_the_index_of_the_edges_left(m, data):
-    """_left_positions maps a position among the edges left (once some positions are taken out)
-    to its position in the whole sequence, as the index of the edges left does."""
-    import numpy as np
+@settings(max_examples=300, deadline=None)
+@given(
+    st.lists(st.tuples(st.integers(0, 2), st.integers(0, 30)), min_size=0, max_size=80),
+    st.lists(st.sampled_from([0.0, 0.3, 1.0, 2.5]), min_size=3, max_size=3),
+    st.lists(st.sampled_from([0.0, 0.3, 1.0, 2.5]), min_size=3, max_size=3),
+)
+def test_debounce_without_gathering_the_edges_left_equals_the_kernel(edges, chatter, min_on):
+    """debounce_masks_vectorised (the minimum on-time rule on the neighbours both left by
+    chatter and across each run of chatter pairs, no gather of the edges left) gives the
+    kernel's masks on dense alternating logs: runs of chatter pairs, sensors' sequences
+    meeting across a run, rules shared or per sensor, gaps at the rules' edges."""
+    from onebit.readers import kernels as K
 
-    from onebit.readers.kernels import _left_positions
-
-    gone = np.array(sorted(data.draw(st.sets(st.integers(0, max(m - 1, 0)), max_size=m))), dtype=np.int64)
-    gone = gone[gone < m]
-    left = np.ones(m, dtype=np.bool_)
-    left[gone] = False
-    index = np.flatnonzero(left)
-    p = np.arange(index.size, dtype=np.int64)
-    assert _left_positions(p, gone).tolist() == index.tolist()
+    ns = 3
+    sensor = np.array([s for s, _ in edges], dtype=np.int64)
+    t = np.sort(np.array([k / 10 for _, k in edges], dtype=np.float64))
+    on = np.zeros(sensor.size, dtype=np.bool_)
+    state = np.zeros(ns, dtype=np.bool_)
+    for k, s in enumerate(sensor.tolist()):  # alternating per sensor, as the debounce sees them
+        state[s] = ~state[s]
+        on[k] = state[s]
+    chatter, min_on = np.array(chatter), np.array(min_on)
+    want = K.debounce_masks.py_func(sensor, on, t, chatter, min_on, ns, 1e-9)
+    got = K.debounce_masks_vectorised(sensor, on, t, chatter, min_on, ns, 1e-9)
+    assert np.array_equal(want[0], got[0]) and np.array_equal(want[1], got[1])
