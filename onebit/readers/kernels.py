@@ -344,19 +344,13 @@ def toggle_repeats_vectorised(sensor, on, n_sensors):
     return same
 
 
-#: Neighbour pairs per step of the debounce's gaps (bounded temporaries).
-_GAP_STEP = 1 << 16
-
-
-def _debounce_sorted(s_, o_, t, at, chatter, min_on, eps):
+def _debounce_sorted(s_, o_, ts, chatter, min_on, eps):
     """The debounce of :func:`debounce_masks_vectorised` on edges already in sensor order
-    (``s_`` sensor, ``o_`` on; time order within a sensor; the edge at sorted position ``p``
-    is at time ``t[at[p]]``): chatter marks each
+    (``s_`` sensor, ``o_`` on, ``ts`` time; time order within a sensor): chatter marks each
     (off, on) pair of neighbours of a sensor within its window; the minimum on-time rule marks
     each (on, off) pair of neighbours among the edges chatter left, sooner than ``min_on``.
-    Every neighbour pair is tested at once with boolean masks over contiguous arrays; the gaps
-    are taken :data:`_GAP_STEP` pairs at a time, for both rules (no array of every edge's time
-    in sensor order, nor of every gap); a rule shared by every sensor is one number. The
+    Every neighbour pair is tested at once with boolean masks over contiguous arrays (the gaps
+    by one subtraction, for both rules); a rule shared by every sensor is one number. The
     neighbours among the edges chatter left are not gathered: they are the neighbours that are
     both left and, across each run of chatter pairs (adjacent pairs ``(i, i + 1), (i + 2, i + 3),
     ...``), the edge before the run and the edge after it. Returns the positions (in the sensor
@@ -370,33 +364,21 @@ def _debounce_sorted(s_, o_, t, at, chatter, min_on, eps):
         return none, none
     cs = ss = first = none  # first: the first edge of each chatter pair
     same = s_[1:] == s_[:-1]  # neighbours of one sensor
-    wc = _rule_of_pairs(chatter, s_) if use_chatter else 0.0
-    wm = _rule_of_pairs(min_on, s_) if use_min_on else 0.0
-    near_c = np.empty(m - 1, dtype=np.bool_) if use_chatter else None  # gap <= window (+ eps)
-    near_m = np.empty(m - 1, dtype=np.bool_) if use_min_on else None  # gap < min_on (- eps)
-    up, down = wc + eps, wm - eps
-    for lo in range(0, m - 1, _GAP_STEP):  # the gap of each pair of neighbours (k, k + 1), a step at a time
-        hi = min(m - 1, lo + _GAP_STEP)
-        tb = t[at[lo : hi + 1]]
-        gap = tb[1:] - tb[:-1]
-        if near_c is not None:
-            np.less_equal(gap, up if np.isscalar(up) else up[lo:hi], out=near_c[lo:hi])
-        if near_m is not None:
-            np.less(gap, down if np.isscalar(down) else down[lo:hi], out=near_m[lo:hi])
+    gap = np.subtract(ts[1:], ts[:-1])  # the gap of every pair of neighbours (k, k + 1)
     if use_chatter:  # (off, on) neighbours within the window
-        w = wc
+        w = _rule_of_pairs(chatter, s_)
         pair = same & o_[1:]
         pair &= ~o_[:-1]
-        pair &= near_c
+        pair &= gap <= w + eps
         if not np.isscalar(w):
             pair &= w > 0
         first = np.flatnonzero(pair)  # pairs of neighbours never share an edge
         cs = np.concatenate([first, first + 1])
     if use_min_on:  # (on, off) neighbours among the edges chatter left
-        w = wm
+        w = _rule_of_pairs(min_on, s_)
         pair = same & o_[:-1]
         pair &= ~o_[1:]
-        pair &= near_m
+        pair &= gap < w - eps
         if not np.isscalar(w):
             pair &= w > 0
         if first.size:  # neighbours both left
@@ -414,7 +396,7 @@ def _debounce_sorted(s_, o_, t, at, chatter, min_on, eps):
             keep = (a >= 0) & (b < m)
             a, b = a[keep], b[keep]
             wb = w if np.isscalar(w) else min_on[s_[b]]
-            x = (s_[a] == s_[b]) & o_[a] & ~o_[b] & (t[at[b]] - t[at[a]] < wb - eps)
+            x = (s_[a] == s_[b]) & o_[a] & ~o_[b] & (ts[b] - ts[a] < wb - eps)
             if not np.isscalar(wb):
                 x &= wb > 0
             p, q = np.concatenate([p, a[x]]), np.concatenate([q, b[x]])
@@ -444,7 +426,7 @@ def debounce_masks_vectorised(sensor, on, t, chatter, min_on, n_sensors, eps):
     if m < 2:
         return chat, short
     order = _by_sensor(sensor, n_sensors)
-    cs, ss = _debounce_sorted(sensor[order], on[order], t, order, chatter, min_on, eps)
+    cs, ss = _debounce_sorted(sensor[order], on[order], t[order], chatter, min_on, eps)
     chat[order[cs]] = True
     short[order[ss]] = True
     return chat, short
@@ -478,7 +460,7 @@ def toggle_masks_vectorised(sensor, on, t, chatter, min_on, n_sensors, eps):
     if repeated.size:  # the debounce sees the other edges (still in sensor order)
         keep = np.flatnonzero(~rep)
         at, s_, o_ = order[keep], s_[keep], o_[keep]
-    cs, ss = _debounce_sorted(s_, o_, np.asarray(t, np.float64), at, chatter, min_on, eps)
+    cs, ss = _debounce_sorted(s_, o_, np.asarray(t, np.float64)[at], chatter, min_on, eps)
     chat[at[cs]] = True
     short[at[ss]] = True
     return same, chat, short

@@ -217,14 +217,12 @@ def test_motion_reader_fused_path_equals_the_reference(tmp_path, monkeypatch, se
     st.lists(st.tuples(st.integers(0, 2), st.integers(0, 30)), min_size=0, max_size=80),
     st.lists(st.sampled_from([0.0, 0.3, 1.0, 2.5]), min_size=3, max_size=3),
     st.lists(st.sampled_from([0.0, 0.3, 1.0, 2.5]), min_size=3, max_size=3),
-    st.sampled_from([1, 2, 3, 7, 1 << 16]),
 )
-def test_debounce_without_gathering_the_edges_left_equals_the_kernel(edges, chatter, min_on, step):
+def test_debounce_without_gathering_the_edges_left_equals_the_kernel(edges, chatter, min_on):
     """debounce_masks_vectorised (the minimum on-time rule on the neighbours both left by
     chatter and across each run of chatter pairs, no gather of the edges left) gives the
     kernel's masks on dense alternating logs: runs of chatter pairs, sensors' sequences
-    meeting across a run, rules shared or per sensor, gaps at the rules' edges, the gaps taken
-    in steps of any size."""
+    meeting across a run, rules shared or per sensor, gaps at the rules' edges."""
     from onebit.readers import kernels as K
 
     ns = 3
@@ -237,9 +235,5 @@ def test_debounce_without_gathering_the_edges_left_equals_the_kernel(edges, chat
         on[k] = state[s]
     chatter, min_on = np.array(chatter), np.array(min_on)
     want = K.debounce_masks.py_func(sensor, on, t, chatter, min_on, ns, 1e-9)
-    default, K._GAP_STEP = K._GAP_STEP, step
-    try:
-        got = K.debounce_masks_vectorised(sensor, on, t, chatter, min_on, ns, 1e-9)
-    finally:
-        K._GAP_STEP = default
+    got = K.debounce_masks_vectorised(sensor, on, t, chatter, min_on, ns, 1e-9)
     assert np.array_equal(want[0], got[0]) and np.array_equal(want[1], got[1])
