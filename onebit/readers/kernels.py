@@ -323,8 +323,11 @@ def _key_type(n: int):
 
 
 def _by_sensor(sensor, n_sensors):
-    """Stable order of the rows by sensor (time order within a sensor): a radix sort on small codes."""
-    return np.argsort(np.asarray(sensor).astype(_key_type(n_sensors)), kind="stable")
+    """Stable order of the rows by sensor (time order within a sensor): a radix sort on small
+    codes (8- or 16-bit codes sorted as they are, no copy)."""
+    sensor = np.asarray(sensor)
+    small = sensor.dtype.kind in "iu" and sensor.dtype.itemsize <= np.dtype(_key_type(n_sensors)).itemsize
+    return np.argsort(sensor if small else sensor.astype(_key_type(n_sensors)), kind="stable")
 
 
 def toggle_repeats_vectorised(sensor, on, n_sensors):

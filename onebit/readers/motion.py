@@ -226,15 +226,18 @@ def toggle_edges(
     masks = _toggle_masks(ok, sensors, rules)
 
     # pass 2: edges that do not change their sensor's state (every sensor starts off)
-    same = repeats(ok) if masks is None else pl.Series(masks[0])
+    if masks is None:
+        same = repeats(ok)
+    else:  # (a log without repeats, the usual one: no Series of them)
+        same = pl.Series(masks[0]) if masks[0].any() else None
     n_held = 0
-    if held and same.any():  # a level sensor's repeated state is a held state: no edge, no fault
+    if held and same is not None and same.any():  # a level sensor's repeated state is a held state: no edge, no fault
         is_held = ok.select(pl.col("sensor").cast(pl.String).is_in(list(held))).to_series() & same
         n_held = int(is_held.sum())
         ok, same = ok.filter(~is_held), same.filter(~is_held)
         if masks is not None:
             masks = tuple(mk[~is_held.to_numpy()] for mk in masks)
-    if same.any():  # reasons for those edges only
+    if same is not None and same.any():  # reasons for those edges only
         rep = (
             ok.filter(same)
             .rechunk()
