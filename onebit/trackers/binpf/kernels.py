@@ -199,3 +199,280 @@ def gather_particles(x, hist, idx):
             xo[i, n] = x[i, k]
             ho[i, n] = hist[i, k]
     return xo, ho
+
+
+@kernel
+def birth_groups_of(z, q, n_tracks, sensors, birth_explained, birth_link):
+    """:func:`onebit.trackers.binpf.filter.birth_groups` compiled: ``(members, starts)`` -- the
+    groups' sensors one after the other (each group by increasing sensor, groups by their
+    lowest member, scipy's order) and where each group starts (``len(starts) - 1`` groups).
+    ``q (I, S)`` of the first ``n_tracks`` tracks."""
+    S = z.size
+    cand = np.empty(S, dtype=np.int64)
+    nc = 0
+    for s in range(S):
+        if not z[s]:
+            continue
+        prod = 1.0
+        for i in range(n_tracks):
+            prod *= q[i, s]
+        explained = 1.0 - prod if n_tracks > 0 else 0.0
+        if explained < birth_explained:
+            cand[nc] = s
+            nc += 1
+    lab = np.arange(nc)
+    new = np.empty(nc, dtype=np.int64)
+    changed = True
+    while changed:  # every sensor takes the lowest label among its neighbours (itself included)
+        changed = False
+        for a in range(nc):
+            best = nc
+            for b in range(nc):
+                dx = sensors[cand[a], 0] - sensors[cand[b], 0]
+                dy = sensors[cand[a], 1] - sensors[cand[b], 1]
+                if math.sqrt(dx * dx + dy * dy) <= birth_link and lab[b] < best:
+                    best = lab[b]
+            new[a] = best
+        for a in range(nc):
+            if new[a] != lab[a]:
+                changed = True
+            lab[a] = new[a]
+    members = np.empty(nc, dtype=np.int64)
+    starts = np.empty(nc + 1, dtype=np.int64)
+    ng = 0
+    nm = 0
+    for g in range(nc):  # labels are members' own indices: group g exists when some lab == g
+        first = True
+        for a in range(nc):
+            if lab[a] == g:
+                if first:
+                    starts[ng] = nm
+                    ng += 1
+                    first = False
+                members[nm] = cand[a]
+                nm += 1
+    starts[ng] = nm
+    return members, starts[: ng + 1]
+
+
+@kernel
+def _grow(a, n):
+    """``a`` with room for at least ``n`` rows along its first axis (doubling)."""
+    if a.shape[0] >= n:
+        return a
+    cap = max(n, 2 * a.shape[0])
+    out = np.empty((cap,) + a.shape[1:], dtype=a.dtype)
+    out[: a.shape[0]] = a
+    return out
+
+
+@kernel
+def run_frames(  # noqa: PLR0913, PLR0915 -- one compiled frame loop: the filter's whole state is its arguments
+    on,
+    k0,
+    k1,
+    state,
+    x,
+    hist,
+    rowidx,
+    r,
+    labels,
+    confirmed,
+    ever,
+    est,
+    rows_frame,
+    rows_label,
+    rows_r,
+    counts,
+    sensors,
+    radii,
+    lo,
+    hi,
+    rng,
+    fp,
+    ip,
+):
+    """Frames ``k0 .. k1 - 1`` of :func:`onebit.trackers.binpf.filter.run_filter_reference`, in
+    one compiled loop with the same draws from the same ``numpy.random.Generator`` ``rng``
+    (numba draws NumPy's stream), in the same order, and the same kernels for the update and
+    the resampling.
+
+    State (updated in place): ``state = [tracks, next_label, n_rows]``; per track slot
+    ``x (M, N, 4)``, ``hist (M, N, L+1, 2)``, ``rowidx (M, L+1)``, ``r``, ``labels``,
+    ``confirmed`` (first ``tracks`` live); ``ever[label]`` confirmed once (sized for every
+    label the frames can make); the output rows ``est (rows, 2)``, ``rows_frame``,
+    ``rows_label``, ``rows_r`` (sized for ``n_rows + M (k1 - k0)``); ``counts (T, 4)``:
+    births, deaths, merges, live. ``fp``: pd, pf, edge, period, damping, accel_sigma,
+    survival, silent, birth_r, birth_explained, birth_link, birth_speed, r_confirm,
+    r_delete, merge_distance; ``ip``: particles, smooth_lag, max_tracks, log_particles.
+    Returns the logged particles of these frames: ``(xy (P, 2), frame (P,), label (P,))``.
+    """
+    pd, pf, edge, period = fp[0], fp[1], fp[2], fp[3]
+    damping, accel_sigma, survival, silent = fp[4], fp[5], fp[6], fp[7]
+    birth_r, birth_explained, birth_link, birth_speed = fp[8], fp[9], fp[10], fp[11]
+    r_confirm, r_delete, merge_distance = fp[12], fp[13], fp[14]
+    N, L, max_tracks, log_p = ip[0], ip[1], ip[2], ip[3]
+    S = sensors.shape[0]
+    I = state[0]
+    next_label = state[1]
+    n_rows = state[2]
+    sig = accel_sigma * np.sqrt(period)
+    lp = min(log_p, N)
+    pxy = np.empty((max(lp * max_tracks * min(k1 - k0, 64), 1), 2))
+    pfr = np.empty(pxy.shape[0], dtype=np.int64)
+    plab = np.empty(pxy.shape[0], dtype=np.int64)
+    npl = 0
+    keep = np.empty(max_tracks, dtype=np.bool_)
+    mean = np.empty((max_tracks, 2))
+    for k in range(k0, k1):
+        z = on[k]
+        # Eq. (3): prediction, draws (tracks, particles, 2) in C order
+        eps = rng.standard_normal(I * N * 2)
+        for i in range(I):
+            for n in range(N):
+                for c in range(2):
+                    v = damping * x[i, n, 2 + c] + sig * eps[(i * N + n) * 2 + c]
+                    pos = x[i, n, c] + v * period
+                    cl = min(max(pos, lo[c]), hi[c])
+                    x[i, n, c] = cl
+                    x[i, n, 2 + c] = 0.0 if cl != pos else v
+            r[i] = r[i] * survival
+            for n in range(N):
+                for j in range(L):
+                    hist[i, n, j, 0] = hist[i, n, j + 1, 0]
+                    hist[i, n, j, 1] = hist[i, n, j + 1, 1]
+                hist[i, n, L, 0] = x[i, n, 0]
+                hist[i, n, L, 1] = x[i, n, 1]
+            for j in range(L):
+                rowidx[i, j] = rowidx[i, j + 1]
+            rowidx[i, L] = -1
+        q = np.zeros((I, S))
+        if I > 0:  # existing tracks first: they get the first chance to explain the frame
+            ell, rn, d = observation_update(x[:I], r[:I], z, sensors, radii, pd, pf, edge, silent)
+            u0 = rng.random(I).reshape(I, 1)
+            idx = systematic_resample(ell, u0)
+            xo, ho = gather_particles(x[:I], hist[:I], idx)
+            x[:I] = xo
+            hist[:I] = ho
+            r[:I] = rn
+            q = 1.0 - resampled_mean(d, idx)
+        members, starts = birth_groups_of(z, q, I, sensors, birth_explained, birth_link)
+        ng = starts.size - 1
+        room = max_tracks - I
+        if ng > 0 and room > 0:
+            size = np.empty(ng, dtype=np.int64)
+            for g in range(ng):
+                size[g] = starts[g + 1] - starts[g]
+            order = np.argsort(-size, kind="mergesort")[:room]  # largest first, stable
+            nb = order.size
+            for b in range(nb):
+                g = order[b]
+                ms = members[starts[g] : starts[g + 1]]
+                which = ms[rng.integers(0, ms.size, N)]
+                u = rng.random(N)
+                turn = rng.random(N)
+                vel = rng.standard_normal(N * 2)
+                t = I + b
+                for n in range(N):
+                    rad = radii[which[n]] * np.sqrt(u[n])
+                    ang = turn[n] * 2 * np.pi
+                    x[t, n, 0] = sensors[which[n], 0] + rad * np.cos(ang)
+                    x[t, n, 1] = sensors[which[n], 1] + rad * np.sin(ang)
+                    x[t, n, 2] = birth_speed * vel[2 * n]
+                    x[t, n, 3] = birth_speed * vel[2 * n + 1]
+                    for j in range(L + 1):
+                        hist[t, n, j, 0] = x[t, n, 0]
+                        hist[t, n, j, 1] = x[t, n, 1]
+                r[t] = birth_r
+                for j in range(L + 1):
+                    rowidx[t, j] = -1
+                labels[t] = next_label + b
+                confirmed[t] = False
+            # the newborn are updated on this frame with the others' posterior miss probabilities
+            ell, rall, _ = observation_update(x[: I + nb], r[: I + nb], z, sensors, radii, pd, pf, edge, silent)
+            u0 = rng.random(nb).reshape(nb, 1)
+            idx = systematic_resample(ell[I:], u0)
+            xo, ho = gather_particles(x[I : I + nb], hist[I : I + nb], idx)
+            x[I : I + nb] = xo
+            hist[I : I + nb] = ho
+            r[I : I + nb] = rall[I:]
+            next_label += nb
+            counts[k, 0] = nb
+            I += nb
+        for i in range(I):
+            confirmed[i] = confirmed[i] or r[i] >= r_confirm
+            keep[i] = r[i] >= r_delete
+        # merge: of two tracks closer than merge_distance keep the larger r
+        n_merge = 0
+        if I > 1 and merge_distance > 0:
+            for i in range(I):
+                for c in range(2):
+                    acc = 0.0
+                    for n in range(N):
+                        acc += x[i, n, c]
+                    mean[i, c] = acc / N
+            order = np.argsort(-r[:I], kind="mergesort")
+            for ap in range(I):
+                a = order[ap]
+                if not keep[a]:
+                    continue
+                for bp in range(ap + 1, I):
+                    b = order[bp]
+                    dx = mean[a, 0] - mean[b, 0]
+                    dy = mean[a, 1] - mean[b, 1]
+                    if keep[b] and np.sqrt(dx * dx + dy * dy) < merge_distance:
+                        keep[b] = False
+                        confirmed[a] = confirmed[a] or confirmed[b]
+                        n_merge += 1
+        n_drop = 0
+        j = 0
+        for i in range(I):  # compact the kept tracks to the front, in order
+            if not keep[i]:
+                n_drop += 1
+                continue
+            if j != i:
+                x[j] = x[i]
+                hist[j] = hist[i]
+                rowidx[j] = rowidx[i]
+                r[j] = r[i]
+                labels[j] = labels[i]
+                confirmed[j] = confirmed[i]
+            j += 1
+        I = j
+        counts[k, 1] = n_drop - n_merge
+        counts[k, 2] = n_merge
+        counts[k, 3] = I
+        for i in range(I):
+            if confirmed[i]:
+                ever[labels[i]] = True
+            rowidx[i, L] = n_rows + i
+            rows_frame[n_rows + i] = k
+            rows_label[n_rows + i] = labels[i]
+            rows_r[n_rows + i] = r[i]
+        n_rows += I
+        for i in range(I):  # every smoothed estimate still in the window
+            for jj in range(L + 1):
+                row = rowidx[i, jj]
+                if row < 0:
+                    continue
+                for c in range(2):
+                    acc = 0.0
+                    for n in range(N):
+                        acc += hist[i, n, jj, c]
+                    est[row, c] = acc / N
+        if lp > 0 and I > 0:
+            need = npl + I * lp
+            pxy = _grow(pxy, need)
+            pfr = _grow(pfr, need)
+            plab = _grow(plab, need)
+            for i in range(I):
+                for n in range(lp):
+                    pxy[npl, 0] = x[i, n, 0]
+                    pxy[npl, 1] = x[i, n, 1]
+                    pfr[npl] = k
+                    plab[npl] = labels[i]
+                    npl += 1
+    state[0] = I
+    state[1] = next_label
+    state[2] = n_rows
+    return pxy[:npl], pfr[:npl], plab[:npl]

@@ -1,7 +1,8 @@
 """binpf's compiled observation update against the numpy one it replaces on long logs: equal to
 rounding (1e-9) on random frames -- near and far tracks, soft and hard footprints, with and
 without silence -- the resampled particles' mean footprint equal to evaluating it again,
-and a whole compiled run giving the numpy run's tracks."""
+a whole compiled run giving the numpy run's tracks, and the compiled frame loop giving its
+per-frame Python reference's every row, count and logged particle."""
 
 from __future__ import annotations
 
@@ -9,7 +10,13 @@ import numpy as np
 import pytest
 
 from onebit.trackers.binpf import kernels
-from onebit.trackers.binpf.filter import FilterParams, footprint_probability, observation_update, run_filter
+from onebit.trackers.binpf.filter import (
+    FilterParams,
+    footprint_probability,
+    observation_update,
+    run_filter,
+    run_filter_reference,
+)
 
 SENSORS = np.c_[np.arange(12) * 1.5, np.zeros(12)]  # a 16.5 m line: far sensors for every track
 RADII = np.full(len(SENSORS), 1.0)
@@ -85,3 +92,41 @@ def test_compiled_resampling_draws_the_numpy_indices_and_copies(seed):
     xo, ho = kernels.gather_particles(x, hist, idx)
     np.testing.assert_array_equal(xo, np.take_along_axis(x, idx[..., None], axis=1))
     np.testing.assert_array_equal(ho, np.take_along_axis(hist, idx[..., None, None], axis=1))
+
+
+def _two_walkers(seed, T=300):
+    rng = np.random.default_rng(seed)
+    walk = np.c_[8 + 8 * np.sin(np.linspace(0.0, 6, T)), 8 - 8 * np.sin(np.linspace(0.0, 9, T))]
+    near = (np.abs(walk[:, :, None] - SENSORS[None, None, :, 0]) <= 1.0).any(axis=1)
+    return rng.random(near.shape) < np.where(near, 0.9, 0.02)
+
+
+@pytest.mark.parametrize(("seed", "edge", "lag", "log"), [(1, 0.2, 4, 10), (2, 0.0, 0, 0), (3, 0.3, 2, 500)])
+def test_compiled_frame_loop_equals_its_per_frame_reference(seed, edge, lag, log):
+    on = _two_walkers(seed)
+    p = FilterParams(particles=60, pd=0.9, pf=0.005, edge=edge, period=1.0, max_out=2, max_tracks=4, smooth_lag=lag)
+    lo, hi = np.array([-1.0, -1.0]), np.array([18.0, 1.0])
+    a = run_filter(on, SENSORS, RADII, lo, hi, p, seed=seed, compiled=True, log_particles=log)
+    b = run_filter_reference(on, SENSORS, RADII, lo, hi, p, seed=seed, compiled=True, log_particles=log)
+    assert a.births.sum() > 2 and a.merges.sum() + a.deaths.sum() > 0 and a.reported.any()
+    for f in ("frame", "label", "reported", "births", "deaths", "merges", "live"):
+        np.testing.assert_array_equal(getattr(a, f), getattr(b, f), err_msg=f)
+    for f in ("particles_frame", "particles_label", "particles_xy", "x", "y", "r"):
+        np.testing.assert_array_equal(getattr(a, f), getattr(b, f), err_msg=f)
+
+
+def test_compiled_frame_loop_in_chunks_is_one_loop(monkeypatch):
+    from onebit.trackers.binpf import filter as F
+
+    on = _two_walkers(4, T=120)
+    p = FilterParams(particles=40, pd=0.9, pf=0.005, edge=0.2, period=1.0, max_out=2, max_tracks=3)
+    lo, hi = np.array([-1.0, -1.0]), np.array([18.0, 1.0])
+    seen = []
+    a = run_filter(on, SENSORS, RADII, lo, hi, p, seed=4, compiled=True, log_particles=5)
+    monkeypatch.setattr(F, "CHUNK_FRAMES", 7)
+    b = run_filter(
+        on, SENSORS, RADII, lo, hi, p, seed=4, compiled=True, log_particles=5, progress=lambda d, t: seen.append(d)
+    )
+    assert seen[0] == 7 and seen[-1] == 120
+    for f in ("frame", "label", "reported", "x", "y", "r", "particles_xy", "live"):
+        np.testing.assert_array_equal(getattr(a, f), getattr(b, f), err_msg=f)
