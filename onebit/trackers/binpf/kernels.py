@@ -147,13 +147,42 @@ def observation_update(x, r, z, sensors, radii, pd, pf, edge, silent):
     """Eqs. (4), (4'), (5): log-weights ``(I, N)`` (up to a per-track constant), updated
     existences ``(I,)`` and the footprints ``d (I, S, N)`` (:func:`footprints`: 0 away from the
     track); the compiled :func:`onebit.trackers.binpf.filter.observation_update` (its
-    reference, equal to rounding), summing over the sensors near each track only. A
-    particle's log-likelihood is the log of the product of its terms, one log per
-    :data:`LOG_EVERY` near sensors; every loop over particles is plain arithmetic that LLVM
-    vectorises."""
-    I, N, S = x.shape[0], x.shape[1], sensors.shape[0]
+    reference, equal to rounding), summing over the sensors near each track only
+    (:func:`track_miss`, :func:`others_miss`, :func:`weigh`)."""
     near = near_sensors(x, sensors, radii, edge)
     d = footprints(x, sensors, radii, pd, edge, near)
+    q = track_miss(d, r, near)
+    ell, r_new = weigh(d, near, others_miss(q, pf), r, z, silent)
+    return ell, r_new, d
+
+
+@kernel
+def newborn_update(xb, rb, q_old, z, sensors, radii, pd, pf, edge, silent):
+    """:func:`observation_update` of ``[old tracks, newborn xb]`` for the newborn only: their
+    log-weights and existences, the old tracks entering through their ``q_old (I, S)`` alone.
+
+    The old tracks have just been updated and resampled: their particles are copies of
+    particles whose footprints are known, so ``q_old = 1 - r_i dbar_is`` with ``dbar`` the
+    :func:`resampled_mean` is what :func:`track_miss` gives on the copies -- the same sums
+    in the same order -- except on a sensor the copies' smaller box no longer reaches,
+    where ``r dbar < 2^-54`` and ``1 - r dbar`` rounds to exactly the 1 it gives. So this
+    equals the newborn's rows of :func:`observation_update` on the concatenation, bit for
+    bit, without evaluating the old tracks' footprints again."""
+    near = near_sensors(xb, sensors, radii, edge)
+    d = footprints(xb, sensors, radii, pd, edge, near)
+    I, B = q_old.shape[0], xb.shape[0]
+    q = np.empty((I + B, q_old.shape[1]))
+    q[:I] = q_old
+    q[I:] = track_miss(d, rb, near)
+    m = others_miss(q, pf)
+    return weigh(d, near, m[I:], rb, z, silent)
+
+
+@kernel
+def track_miss(d, r, near):
+    """``q (I, S)``: ``1 - r_i dbar_is`` (the mean footprint over the particles, ``d (I, S, N)``)
+    where ``near[i, s]``, 1 elsewhere."""
+    I, S, N = d.shape[0], d.shape[1], d.shape[2]
     q = np.ones((I, S))
     acc_s = np.empty(S)
     for i in range(I):
@@ -166,7 +195,14 @@ def observation_update(x, r, z, sensors, radii, pd, pf, edge, silent):
         for s in range(S):
             if near[i, s]:
                 q[i, s] = 1.0 - r[i] * (acc_s[s] / N)
-    # m_is = (1 - p_f) prod_{j != i} q_js by prefix and suffix products
+    return q
+
+
+@kernel
+def others_miss(q, pf):
+    """``m (I, S)``: ``m_is = (1 - p_f) prod_{j != i} q_js`` by prefix and suffix products (the
+    compiled :func:`onebit.trackers.binpf.filter.others_miss`)."""
+    I, S = q.shape[0], q.shape[1]
     m = np.empty((I, S))
     for s in range(S):
         pre = 1.0
@@ -177,6 +213,16 @@ def observation_update(x, r, z, sensors, radii, pd, pf, edge, silent):
         for i in range(I - 1, -1, -1):
             m[i, s] = (1.0 - pf) * m[i, s] * suf
             suf *= q[i, s]
+    return m
+
+
+@kernel
+def weigh(d, near, m, r, z, silent):
+    """Eqs. (4), (4'), (5) for tracks with footprints ``d (I, S, N)`` and the others' miss
+    probabilities ``m (I, S)``: ``(ell (I, N), r_new (I,))``. A particle's log-likelihood is
+    the log of the product of its terms, one log per :data:`LOG_EVERY` near sensors; every
+    loop over particles is plain arithmetic that LLVM vectorises."""
+    I, S, N = d.shape[0], d.shape[1], d.shape[2]
     ell = np.zeros((I, N))
     r_new = np.empty(I)
     prod = np.empty(N)
@@ -225,7 +271,7 @@ def observation_update(x, r, z, sensors, radii, pd, pf, edge, silent):
         a = math.log(max(r[i], _TINY)) + L_log
         b = math.log(max(1.0 - r[i], _TINY))
         r_new[i] = 1.0 / (1.0 + math.exp(min(max(b - a, -700.0), 700.0)))
-    return ell, r_new, d
+    return ell, r_new
 
 
 @kernel
@@ -435,7 +481,7 @@ def run_frames(  # noqa: PLR0913, PLR0915 -- one compiled frame loop: the filter
             for j in range(L):
                 rowidx[i, j] = rowidx[i, j + 1]
             rowidx[i, L] = -1
-        q = np.zeros((I, S))
+        dbar = np.zeros((I, S))  # the resampled particles' mean footprints
         if I > 0:  # existing tracks first: they get the first chance to explain the frame
             ell, rn, d = observation_update(x[:I], r[:I], z, sensors, radii, pd, pf, edge, silent)
             u0 = rng.random(I).reshape(I, 1)
@@ -444,7 +490,8 @@ def run_frames(  # noqa: PLR0913, PLR0915 -- one compiled frame loop: the filter
             x[:I] = xo
             hist[:I] = ho
             r[:I] = rn
-            q = 1.0 - resampled_mean(d, idx)
+            dbar = resampled_mean(d, idx)
+        q = 1.0 - dbar
         members, starts = birth_groups_of(z, q, I, sensors, birth_explained, birth_link)
         ng = starts.size - 1
         room = max_tracks - I
@@ -478,13 +525,18 @@ def run_frames(  # noqa: PLR0913, PLR0915 -- one compiled frame loop: the filter
                 labels[t] = next_label + b
                 confirmed[t] = False
             # the newborn are updated on this frame with the others' posterior miss probabilities
-            ell, rall, _ = observation_update(x[: I + nb], r[: I + nb], z, sensors, radii, pd, pf, edge, silent)
+            # (the old tracks through their q alone: newborn_update, equal to observation_update's rows)
+            q_old = np.empty((I, S))
+            for i in range(I):
+                for s in range(S):
+                    q_old[i, s] = 1.0 - r[i] * dbar[i, s]
+            ell, rb = newborn_update(x[I : I + nb], r[I : I + nb], q_old, z, sensors, radii, pd, pf, edge, silent)
             u0 = rng.random(nb).reshape(nb, 1)
-            idx = systematic_resample(ell[I:], u0)
+            idx = systematic_resample(ell, u0)
             xo, ho = gather_particles(x[I : I + nb], hist[I : I + nb], idx)
             x[I : I + nb] = xo
             hist[I : I + nb] = ho
-            r[I : I + nb] = rall[I:]
+            r[I : I + nb] = rb
             next_label += nb
             counts[k, 0] = nb
             I += nb

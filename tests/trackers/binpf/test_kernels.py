@@ -139,3 +139,19 @@ def test_compiled_frame_loop_in_chunks_is_one_loop(monkeypatch):
     assert seen[0] == 7 and seen[-1] == 120
     for f in ("frame", "label", "reported", "x", "y", "r", "particles_xy", "live"):
         np.testing.assert_array_equal(getattr(a, f), getattr(b, f), err_msg=f)
+
+
+@pytest.mark.parametrize("seed", range(8))
+@pytest.mark.parametrize("edge", [0.3, 0.0])
+def test_newborn_update_is_the_concatenated_updates_newborn_rows_bit_for_bit(seed, edge):
+    x, r, z = _frame(seed, I=5, N=40)
+    p = FilterParams(pd=0.8, pf=0.02, edge=edge, silent=0.3)
+    args = (SENSORS, RADII, p.pd, p.pf, p.edge, p.silent)
+    ell, r1, d = kernels.observation_update(x[:3], r[:3], z, *args)
+    idx = kernels.systematic_resample(ell, np.random.default_rng(seed).random((3, 1)))
+    old, _ = kernels.gather_particles(x[:3], np.zeros((3, 40, 1, 2)), idx)
+    q_old = 1.0 - r1[:, None] * kernels.resampled_mean(d, idx)
+    ell_b, r_b = kernels.newborn_update(x[3:], r[3:], q_old, z, *args)
+    ell_all, r_all, _ = kernels.observation_update(np.concatenate([old, x[3:]]), np.r_[r1, r[3:]], z, *args)
+    np.testing.assert_array_equal(ell_b, ell_all[3:])
+    np.testing.assert_array_equal(r_b, r_all[3:])
