@@ -336,6 +336,26 @@ def gather_particles(x, hist, idx):
 
 
 @kernel
+def gather_shift(x, hist, idx, xo, ho):
+    """The resampled copies of tracks ``0 .. I - 1`` (``I, N = idx.shape``) into ``xo`` and
+    ``ho``, their histories moved on by a frame: ``xo[i, n] = x[i, k]``, ``ho[i, n, :L] =
+    hist[i, k, 1:]``, ``ho[i, n, L] = x[i, k, :2]`` (``k = idx[i, n]``) -- the shift of
+    :func:`onebit.trackers.binpf.filter.run_filter_reference` before its update, then its
+    gather (:func:`gather_particles`), in one pass of copies."""
+    I, N, L1 = idx.shape[0], idx.shape[1], hist.shape[2]
+    for i in range(I):
+        for n in range(N):
+            k = idx[i, n]
+            for c in range(x.shape[2]):
+                xo[i, n, c] = x[i, k, c]
+            for j in range(L1 - 1):
+                ho[i, n, j, 0] = hist[i, k, j + 1, 0]
+                ho[i, n, j, 1] = hist[i, k, j + 1, 1]
+            ho[i, n, L1 - 1, 0] = x[i, k, 0]
+            ho[i, n, L1 - 1, 1] = x[i, k, 1]
+
+
+@kernel
 def birth_groups_of(z, q, n_tracks, sensors, birth_explained, birth_link):
     """:func:`onebit.trackers.binpf.filter.birth_groups` compiled: ``(members, starts)`` -- the
     groups' sensors one after the other (each group by increasing sensor, groups by their
@@ -406,8 +426,8 @@ def run_frames(  # noqa: PLR0913, PLR0915 -- one compiled frame loop: the filter
     k0,
     k1,
     state,
-    x,
-    hist,
+    x_state,
+    hist_state,
     rowidx,
     r,
     labels,
@@ -432,7 +452,7 @@ def run_frames(  # noqa: PLR0913, PLR0915 -- one compiled frame loop: the filter
     the resampling.
 
     State (updated in place): ``state = [tracks, next_label, n_rows]``; per track slot
-    ``x (M, N, 4)``, ``hist (M, N, L+1, 2)``, ``rowidx (M, L+1)``, ``r``, ``labels``,
+    ``x_state (M, N, 4)``, ``hist_state (M, N, L+1, 2)``, ``rowidx (M, L+1)``, ``r``, ``labels``,
     ``confirmed`` (first ``tracks`` live); ``ever[label]`` confirmed once (sized for every
     label the frames can make); the output rows ``est (rows, 2)``, ``rows_frame``,
     ``rows_label``, ``rows_r`` (sized for ``n_rows + M (k1 - k0)``); ``counts (T, 4)``:
@@ -451,6 +471,11 @@ def run_frames(  # noqa: PLR0913, PLR0915 -- one compiled frame loop: the filter
     next_label = state[1]
     n_rows = state[2]
     sig = accel_sigma * np.sqrt(period)
+    # the particles and their histories, and a second pair the resampling gathers into (the
+    # two are swapped, not copied back; the state arrays hold the result at the end)
+    x, hist = x_state, hist_state
+    x_alt, hist_alt = np.empty_like(x_state), np.empty_like(hist_state)
+    flips = 0
     lp = min(log_p, N)
     pxy = np.empty((max(lp * max_tracks * min(k1 - k0, 64), 1), 2))
     pfr = np.empty(pxy.shape[0], dtype=np.int64)
@@ -472,12 +497,7 @@ def run_frames(  # noqa: PLR0913, PLR0915 -- one compiled frame loop: the filter
                     x[i, n, c] = cl
                     x[i, n, 2 + c] = 0.0 if cl != pos else v
             r[i] = r[i] * survival
-            for n in range(N):
-                for j in range(L):
-                    hist[i, n, j, 0] = hist[i, n, j + 1, 0]
-                    hist[i, n, j, 1] = hist[i, n, j + 1, 1]
-                hist[i, n, L, 0] = x[i, n, 0]
-                hist[i, n, L, 1] = x[i, n, 1]
+            # (the histories move on by a frame in the resampling's gather: gather_shift)
             for j in range(L):
                 rowidx[i, j] = rowidx[i, j + 1]
             rowidx[i, L] = -1
@@ -486,9 +506,10 @@ def run_frames(  # noqa: PLR0913, PLR0915 -- one compiled frame loop: the filter
             ell, rn, d = observation_update(x[:I], r[:I], z, sensors, radii, pd, pf, edge, silent)
             u0 = rng.random(I).reshape(I, 1)
             idx = systematic_resample(ell, u0)
-            xo, ho = gather_particles(x[:I], hist[:I], idx)
-            x[:I] = xo
-            hist[:I] = ho
+            gather_shift(x, hist, idx, x_alt, hist_alt)
+            x, x_alt = x_alt, x
+            hist, hist_alt = hist_alt, hist
+            flips += 1
             r[:I] = rn
             dbar = resampled_mean(d, idx)
         q = 1.0 - dbar
@@ -614,6 +635,9 @@ def run_frames(  # noqa: PLR0913, PLR0915 -- one compiled frame loop: the filter
                     pfr[npl] = k
                     plab[npl] = labels[i]
                     npl += 1
+    if flips % 2 == 1:  # the result is in the second pair
+        x_state[:] = x
+        hist_state[:] = hist
     state[0] = I
     state[1] = next_label
     state[2] = n_rows

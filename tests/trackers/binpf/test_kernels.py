@@ -155,3 +155,17 @@ def test_newborn_update_is_the_concatenated_updates_newborn_rows_bit_for_bit(see
     ell_all, r_all, _ = kernels.observation_update(np.concatenate([old, x[3:]]), np.r_[r1, r[3:]], z, *args)
     np.testing.assert_array_equal(ell_b, ell_all[3:])
     np.testing.assert_array_equal(r_b, r_all[3:])
+
+
+@pytest.mark.parametrize("lag", [0, 1, 4])
+def test_gather_shift_is_the_shift_then_the_gather(lag):
+    rng = np.random.default_rng(lag)
+    x = rng.random((3, 20, 4))
+    hist = rng.random((3, 20, lag + 1, 2))
+    idx = np.sort(rng.integers(0, 20, (3, 20)), axis=1)
+    shifted = np.concatenate([hist[:, :, 1:], x[:, :, None, :2]], axis=2)
+    want_x, want_h = kernels.gather_particles(x, shifted, idx)
+    xo, ho = np.empty_like(x), np.empty_like(hist)
+    kernels.gather_shift(x, hist, idx, xo, ho)
+    np.testing.assert_array_equal(xo, want_x)
+    np.testing.assert_array_equal(ho, want_h)
