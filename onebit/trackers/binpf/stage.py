@@ -75,9 +75,9 @@ class BinPFConfig:
     #: (50 a frame on 475 000 frames of 6 tracks would be 142 million points, 4.6 GB)
     log_particles_max: int = 2_000_000
     #: the most frames the pipeline runs it on; a longer log skips the stage, saying so (each
-    #: frame costs ~0.37 ms of CPU with the default particles -- the stage on 47 500 frames of the
-    #: simulated 25-sensor line, cold, on 2 shared cores: 17.6-19.3 s -- so 250 000 frames take
-    #: about 1.5 minutes); 0 = no bound
+    #: frame costs ~0.35 ms of CPU with the default particles -- the stage on 47 499 frames of the
+    #: simulated 25-sensor line, cold, on 2 shared cores: 16.1-17.0 s; 157 s on 474 999 -- so
+    #: 250 000 frames take about 1.5 minutes); 0 = no bound
     max_frames: int = 250_000
 
     def __post_init__(self) -> None:
@@ -148,7 +148,7 @@ def fits(inputs: dict, site: Site, config: BinPFConfig) -> str | None:
         NAME,
         "max_frames",
         config.max_frames,
-        "~0.37 ms each with the default particles",
+        "~0.35 ms each with the default particles",
     )
 
 
