@@ -39,12 +39,12 @@ def log_footprints(rec, tracker: str, t: np.ndarray, on: np.ndarray, sensors: np
     rec.log(
         entity, rr.LineStrips2D.from_fields(colors=ON, radii=rr.Radius.ui_points(1.0), draw_order=15.0), static=True
     )
-    rings = [_circle(sensors[s], radii[s]) for s in range(len(sensors))]
-    kk, ss = np.nonzero(on)
-    rec.send_columns(
+    rings = np.stack([_circle(sensors[s], radii[s]) for s in range(len(sensors))])  # (S, 25, 2)
+    _, ss = np.nonzero(on)
+    rec.send_columns(  # one (strips, 25, 2) array: rerun's numpy path, not a list of arrays
         entity,
         indexes=[paths.time_column(t)],
-        columns=rr.LineStrips2D.columns(strips=[rings[s] for s in ss]).partition(on.sum(axis=1).astype(np.int64)),
+        columns=rr.LineStrips2D.columns(strips=rings[ss]).partition(on.sum(axis=1).astype(np.int64)),
     )
 
 

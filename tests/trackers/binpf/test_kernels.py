@@ -1,7 +1,8 @@
 """binpf's compiled observation update against the numpy one it replaces on long logs: equal to
 rounding (1e-9) on random frames -- near and far tracks, soft and hard footprints, with and
 without silence -- the resampled particles' mean footprint equal to evaluating it again,
-and a whole compiled run giving the numpy run's tracks."""
+a whole compiled run giving the numpy run's tracks, and the compiled frame loop giving its
+per-frame Python reference's every row, count and logged particle."""
 
 from __future__ import annotations
 
@@ -9,7 +10,13 @@ import numpy as np
 import pytest
 
 from onebit.trackers.binpf import kernels
-from onebit.trackers.binpf.filter import FilterParams, footprint_probability, observation_update, run_filter
+from onebit.trackers.binpf.filter import (
+    FilterParams,
+    footprint_probability,
+    observation_update,
+    run_filter,
+    run_filter_reference,
+)
 
 SENSORS = np.c_[np.arange(12) * 1.5, np.zeros(12)]  # a 16.5 m line: far sensors for every track
 RADII = np.full(len(SENSORS), 1.0)
@@ -36,9 +43,18 @@ def test_compiled_update_equals_numpy_to_rounding(seed, edge, silent):
     np.testing.assert_allclose(ell_c - ell_c.max(1, keepdims=True), ell - ell.max(1, keepdims=True), atol=1e-9)
     full = footprint_probability(x[..., :2], SENSORS, RADII, pd=p.pd, edge=p.edge)
     # the same footprints to rounding, zero only where the footprint is below 2^-54
-    np.testing.assert_allclose(d, full, rtol=1e-14, atol=2.0**-54)
+    np.testing.assert_allclose(d.transpose(0, 2, 1), full, rtol=1e-14, atol=2.0**-54)
     if edge > 0:
-        assert np.any((d == 0) & (full > 0))  # and the far sensors were skipped
+        assert np.any((d.transpose(0, 2, 1) == 0) & (full > 0))  # and the far sensors were skipped
+
+
+@pytest.mark.parametrize("seed", range(4))
+def test_exp_into_is_the_library_exp_within_two_ulp(seed):
+    y = np.random.default_rng(seed).uniform(-700.0, 700.0, 5000)
+    y[:6] = [0.0, -50.0, 50.0, 1e-300, -1e-17, 709.0]
+    out = np.empty_like(y)
+    kernels.exp_into(y, out, np.empty(y.size, dtype=np.int64))
+    np.testing.assert_array_less(np.abs(out - np.exp(y)), 2.0 * np.spacing(np.exp(y)))
 
 
 @pytest.mark.parametrize("seed", range(6))
@@ -85,3 +101,71 @@ def test_compiled_resampling_draws_the_numpy_indices_and_copies(seed):
     xo, ho = kernels.gather_particles(x, hist, idx)
     np.testing.assert_array_equal(xo, np.take_along_axis(x, idx[..., None], axis=1))
     np.testing.assert_array_equal(ho, np.take_along_axis(hist, idx[..., None, None], axis=1))
+
+
+def _two_walkers(seed, T=300):
+    rng = np.random.default_rng(seed)
+    walk = np.c_[8 + 8 * np.sin(np.linspace(0.0, 6, T)), 8 - 8 * np.sin(np.linspace(0.0, 9, T))]
+    near = (np.abs(walk[:, :, None] - SENSORS[None, None, :, 0]) <= 1.0).any(axis=1)
+    return rng.random(near.shape) < np.where(near, 0.9, 0.02)
+
+
+@pytest.mark.parametrize(("seed", "edge", "lag", "log"), [(1, 0.2, 4, 10), (2, 0.0, 0, 0), (3, 0.3, 2, 500)])
+def test_compiled_frame_loop_equals_its_per_frame_reference(seed, edge, lag, log):
+    on = _two_walkers(seed)
+    p = FilterParams(particles=60, pd=0.9, pf=0.005, edge=edge, period=1.0, max_out=2, max_tracks=4, smooth_lag=lag)
+    lo, hi = np.array([-1.0, -1.0]), np.array([18.0, 1.0])
+    a = run_filter(on, SENSORS, RADII, lo, hi, p, seed=seed, compiled=True, log_particles=log)
+    b = run_filter_reference(on, SENSORS, RADII, lo, hi, p, seed=seed, compiled=True, log_particles=log)
+    assert a.births.sum() > 2 and a.merges.sum() + a.deaths.sum() > 0 and a.reported.any()
+    for f in ("frame", "label", "reported", "births", "deaths", "merges", "live"):
+        np.testing.assert_array_equal(getattr(a, f), getattr(b, f), err_msg=f)
+    for f in ("particles_frame", "particles_label", "particles_xy", "x", "y", "r"):
+        np.testing.assert_array_equal(getattr(a, f), getattr(b, f), err_msg=f)
+
+
+def test_compiled_frame_loop_in_chunks_is_one_loop(monkeypatch):
+    from onebit.trackers.binpf import filter as F
+
+    on = _two_walkers(4, T=120)
+    p = FilterParams(particles=40, pd=0.9, pf=0.005, edge=0.2, period=1.0, max_out=2, max_tracks=3)
+    lo, hi = np.array([-1.0, -1.0]), np.array([18.0, 1.0])
+    seen = []
+    a = run_filter(on, SENSORS, RADII, lo, hi, p, seed=4, compiled=True, log_particles=5)
+    monkeypatch.setattr(F, "CHUNK_FRAMES", 7)
+    b = run_filter(
+        on, SENSORS, RADII, lo, hi, p, seed=4, compiled=True, log_particles=5, progress=lambda d, t: seen.append(d)
+    )
+    assert seen[0] == 7 and seen[-1] == 120
+    for f in ("frame", "label", "reported", "x", "y", "r", "particles_xy", "live"):
+        np.testing.assert_array_equal(getattr(a, f), getattr(b, f), err_msg=f)
+
+
+@pytest.mark.parametrize("seed", range(8))
+@pytest.mark.parametrize("edge", [0.3, 0.0])
+def test_newborn_update_is_the_concatenated_updates_newborn_rows_bit_for_bit(seed, edge):
+    x, r, z = _frame(seed, I=5, N=40)
+    p = FilterParams(pd=0.8, pf=0.02, edge=edge, silent=0.3)
+    args = (SENSORS, RADII, p.pd, p.pf, p.edge, p.silent)
+    ell, r1, d = kernels.observation_update(x[:3], r[:3], z, *args)
+    idx = kernels.systematic_resample(ell, np.random.default_rng(seed).random((3, 1)))
+    old, _ = kernels.gather_particles(x[:3], np.zeros((3, 40, 1, 2)), idx)
+    q_old = 1.0 - r1[:, None] * kernels.resampled_mean(d, idx)
+    ell_b, r_b = kernels.newborn_update(x[3:], r[3:], q_old, z, *args)
+    ell_all, r_all, _ = kernels.observation_update(np.concatenate([old, x[3:]]), np.r_[r1, r[3:]], z, *args)
+    np.testing.assert_array_equal(ell_b, ell_all[3:])
+    np.testing.assert_array_equal(r_b, r_all[3:])
+
+
+@pytest.mark.parametrize("lag", [0, 1, 4])
+def test_gather_shift_is_the_shift_then_the_gather(lag):
+    rng = np.random.default_rng(lag)
+    x = rng.random((3, 20, 4))
+    hist = rng.random((3, 20, lag + 1, 2))
+    idx = np.sort(rng.integers(0, 20, (3, 20)), axis=1)
+    shifted = np.concatenate([hist[:, :, 1:], x[:, :, None, :2]], axis=2)
+    want_x, want_h = kernels.gather_particles(x, shifted, idx)
+    xo, ho = np.empty_like(x), np.empty_like(hist)
+    kernels.gather_shift(x, hist, idx, xo, ho)
+    np.testing.assert_array_equal(xo, want_x)
+    np.testing.assert_array_equal(ho, want_h)

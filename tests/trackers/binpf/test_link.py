@@ -8,7 +8,14 @@ import itertools
 import numpy as np
 import pytest
 
-from onebit.trackers.binpf.link import best_joins, join_costs, link_tracklets, tracklet_ends
+from onebit.trackers.binpf.link import (
+    best_joins,
+    best_joins_sparse,
+    join_costs,
+    join_pairs,
+    link_tracklets,
+    tracklet_ends,
+)
 
 
 def _rows(*tracklets):
@@ -84,3 +91,25 @@ def test_the_joins_are_the_largest_then_cheapest_matching():
         assert float(cost[r, c].sum()) == pytest.approx(best[1])
         _, new_lab, _, _, joins = link_tracklets(f, lab, x, y, period=0.5, max_gap=4, max_speed=1.5, slack=1.0)
         assert joins == best[0] and len(set(new_lab.tolist())) == n - joins
+
+
+@pytest.mark.parametrize("seed", range(30))
+def test_the_sparse_pairs_and_assignment_are_the_dense_ones(seed):
+    rng = np.random.default_rng(seed)
+    n = int(rng.integers(2, 60))
+    parts = []
+    for i in range(n):
+        s = int(rng.integers(0, 80))
+        L = int(rng.integers(1, 5))
+        parts.append((f"t{i:02d}", range(s, s + L), rng.uniform(0, 6, L), rng.uniform(0, 2, L)))
+    f, lab, x, y = _rows(*parts)
+    labs, sf, sxy, ef, exy = tracklet_ends(f, lab, x, y)
+    kw = {"period": 0.5, "max_gap": int(rng.integers(0, 8)), "max_speed": 1.5, "slack": 1.0}
+    dense = join_costs(sf, sxy, ef, exy, **kw)
+    pe, ps, pc = join_pairs(sf, sxy, ef, exy, **kw)
+    assert set(zip(pe.tolist(), ps.tolist())) == set(zip(*np.nonzero(np.isfinite(dense))))
+    np.testing.assert_array_equal(pc, dense[pe, ps])
+    r, c = best_joins(dense)
+    r2, c2 = best_joins_sparse(pe, ps, pc, labs.size, labs.size)
+    assert r2.size == r.size and float(dense[r2, c2].sum()) == pytest.approx(float(dense[r, c].sum()))
+    assert sorted(zip(r2.tolist(), c2.tolist())) == sorted(zip(r.tolist(), c.tolist()))  # costs are distinct

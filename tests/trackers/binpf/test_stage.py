@@ -101,3 +101,19 @@ def test_config_errors_name_the_field():
         BinPFConfig(r_confirm=0.5, r_delete=0.6)
     with pytest.raises(ConfigError, match="pd"):
         BinPFConfig(pd=1.5)
+
+
+def test_particles_sent_to_rerun_stay_within_the_budget_and_never_change_the_tracks():
+    frames, _ = _frames(T=30)
+    full = run({"proximity_frames": frames}, _site(3), BinPFConfig(particles=60, log_particles=20))
+    cut = run(
+        {"proximity_frames": frames},
+        _site(3),
+        BinPFConfig(particles=60, log_particles=20, log_particles_max=30 * 4 * 5),
+    )
+    per = {
+        k: np.unique(v["artifacts"]["particles_t"], return_counts=True)[1] for k, v in (("full", full), ("cut", cut))
+    }
+    live = full["frames"].filter(pl.col("live") > 0)["live"].to_numpy()
+    assert per["full"].tolist() == (20 * live).tolist() and per["cut"].tolist() == (5 * live).tolist()
+    assert full["tracks"].equals(cut["tracks"]) and full["existence"].equals(cut["existence"])
