@@ -344,6 +344,27 @@ def component_rows(rrd_paths: str | Path | Iterable[str | Path], entity: str, co
     return static + timed
 
 
+def timed_rows(
+    rrd_paths: str | Path | Iterable[str | Path], entity: str, component: str, *, timeline: str = "t"
+) -> list[tuple[float, object]]:
+    """``(t in seconds, value)`` of every timed row of ``component`` on ``entity``, sorted by
+    ``t`` (static rows left out; ``timeline`` a duration or timestamp timeline in ns)."""
+    import pyarrow as pa
+
+    files = [rrd_paths] if isinstance(rrd_paths, (str, Path)) else list(rrd_paths)
+    out: list[tuple[float, object]] = []
+    for f in files:
+        for chunk in _reader(f).stream():
+            if chunk.is_static or _clean(chunk.entity_path) != _clean(entity):
+                continue
+            rb = chunk.to_record_batch()
+            if component not in rb.schema.names:
+                continue
+            t = rb.column(timeline).cast(pa.int64()).to_pylist()
+            out += [(ns / 1e9, v) for ns, v in zip(t, rb.column(component).to_pylist())]
+    return sorted(out, key=lambda r: r[0])
+
+
 def blueprint_tabs(path: str | Path) -> list[str]:
     """Names of the children of a blueprint's root container, in order (the tabs of a layout
     whose root is a ``Tabs`` container); the root container's own name first when it has one."""

@@ -4,25 +4,11 @@ holds one ring per sensor on, around that sensor, at the frame's time."""
 from __future__ import annotations
 
 import numpy as np
-import pyarrow as pa
-from rerun.chunk import RrdReader
 
 from onebit.viz import paths
 from onebit.viz.binpf import log_footprints
+from onebit.viz.inspect import timed_rows
 from onebit.viz.recording import stage_recording
-
-
-def _rows(rrd, entity: str, column: str) -> list[tuple[float, list]]:
-    out = []
-    for chunk in RrdReader(str(rrd)).stream():
-        if chunk.entity_path.lstrip("/") != entity or chunk.is_static:
-            continue
-        rb = chunk.to_record_batch()
-        if column not in rb.schema.names:
-            continue
-        t = rb.column("t").cast(pa.int64()).to_pylist()
-        out += [(ns / 1e9, v) for ns, v in zip(t, rb.column(column).to_pylist())]
-    return sorted(out, key=lambda r: r[0])
 
 
 def test_each_frame_holds_the_ring_of_every_sensor_on(tmp_path):
@@ -34,7 +20,7 @@ def test_each_frame_holds_the_ring_of_every_sensor_on(tmp_path):
     t = np.arange(9) * 0.5
     with stage_recording(tmp_path, "binpf", "run-1") as rec:
         log_footprints(rec, "binpf", t, on, sensors, radii)
-    rows = _rows(
+    rows = timed_rows(
         tmp_path / "rrd" / "binpf.rrd", paths.join(paths.tracker_root("binpf"), "sensors", "on"), "LineStrips2D:strips"
     )
     assert [r[0] for r in rows] == t.tolist()

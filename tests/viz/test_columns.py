@@ -11,7 +11,6 @@ import rerun as rr
 import shapely
 from hypothesis import given, settings
 from hypothesis import strategies as st
-from rerun.chunk import RrdReader
 
 from onebit.core.tables import ABORTED
 from onebit.viz import paths
@@ -27,6 +26,7 @@ from onebit.viz._series import (
     text_array,
 )
 from onebit.viz.events import log_crossings
+from onebit.viz.inspect import timed_rows
 from onebit.viz.recording import stage_recording
 from onebit.viz.tracks import log_current_region, region_indices
 from onebit.viz.trails import segments
@@ -93,7 +93,7 @@ def test_segments_in_float32_are_the_float64_segments_cast():
     assert np.array_equal(segments(xy, np.float32), segments(xy).astype(np.float32))
 
 
-def test_only_tracker_keeps_a_tracker_own_table_and_drops_other_and_null_rows():
+def test_only_tracker_keeps_a_tracker_own_table_and_drops_other_and_nulltimed_rows():
     own = pl.DataFrame({"tracker": ["beams", "beams"], "t": [0.0, 1.0]})
     assert only_tracker(own, "beams") is own
     mixed = pl.DataFrame({"tracker": ["beams", None, "istate", "beams"], "t": [0.0, 1.0, 2.0, 3.0]})
@@ -124,27 +124,13 @@ def test_gather_ranges_is_concatenated_aranges(pairs):
     assert gather_ranges(starts, lengths).tolist() == want.tolist()
 
 
-def _rows(rrd, entity: str, column: str) -> list[tuple[float, object]]:
-    """(t seconds, value) of ``column`` on ``entity`` over the file's chunks, sorted by t."""
-    out = []
-    for chunk in RrdReader(str(rrd)).stream():
-        if chunk.entity_path.lstrip("/") != entity or chunk.is_static:
-            continue
-        rb = chunk.to_record_batch()
-        if column not in rb.schema.names:
-            continue
-        t = rb.column("t").cast(pa.int64()).to_pylist()
-        out += [(ns / 1e9, v) for ns, v in zip(t, rb.column(column).to_pylist())]
-    return sorted(out, key=lambda r: r[0])
-
-
 def test_current_region_rows_hold_the_rings_of_the_region_entered(tmp_path, lab):
     site, rg = lab
     regions = np.array([rg.names[i % len(rg.names)] for i in (0, 2, 1, 4, 0)])
     t = np.array([1.0, 2.5, 4.0, 7.0, 9.5])
     with stage_recording(tmp_path, "beams", "run-1") as rec:
         log_current_region(rec, "beams/tracks/a/region", t, regions, rg, color=(255, 0, 0, 255))
-    rows = _rows(tmp_path / "rrd" / "beams.rrd", "beams/tracks/a/region", "LineStrips2D:strips")
+    rows = timed_rows(tmp_path / "rrd" / "beams.rrd", "beams/tracks/a/region", "LineStrips2D:strips")
     assert [r[0] for r in rows] == t.tolist()
     table = ring_table(rg.polygons)
     for (_, strips), name in zip(rows, regions):
@@ -166,18 +152,18 @@ def test_crossings_log_one_text_row_and_one_flash_per_crossing(tmp_path, lab):
     with stage_recording(tmp_path, "crossings", "run-1") as rec:
         log_crossings(rec, cr, site=site)
     rrd = tmp_path / "rrd" / "crossings.rrd"
-    texts = _rows(rrd, paths.sensor(beam), "TextLog:text")
+    texts = timed_rows(rrd, paths.sensor(beam), "TextLog:text")
     assert texts == [(0.5, [f"{beam} forward"]), (1.5, [f"{beam}^-1 backward"]), (3.0, [f"{beam} forward"])]
-    levels = _rows(rrd, paths.sensor(beam), "TextLog:level")
+    levels = timed_rows(rrd, paths.sensor(beam), "TextLog:level")
     assert [v for _, v in levels] == [["INFO"]] * 3
-    flashes = _rows(rrd, paths.sensor_crossed(beam), "LineStrips2D:strips")
+    flashes = timed_rows(rrd, paths.sensor_crossed(beam), "LineStrips2D:strips")
     b = site.beam(beam)
     with stage_recording(tmp_path, "aborted", "run-1") as rec:
         ab = pl.DataFrame({"t": [0.7, 2.0, 2.2], "beam": [beam] * 3, "side": [1, -1, 1]}, schema=ABORTED)
         log_crossings(rec, cr, aborted=ab, site=site)
     warned = [
         r
-        for r in _rows(tmp_path / "rrd" / "aborted.rrd", paths.sensor(beam), "TextLog:text")
+        for r in timed_rows(tmp_path / "rrd" / "aborted.rrd", paths.sensor(beam), "TextLog:text")
         if r[0] in (0.7, 2.0, 2.2)
     ]
     assert warned == [(t, [f"{beam} aborted pass, side {s}"]) for t, s in ((0.7, 1), (2.0, -1), (2.2, 1))]
