@@ -427,44 +427,30 @@ def run(inputs: dict, site: Site, config: IStateConfig) -> dict[str, pl.DataFram
 
     det_bounds = np.searchsorted(det_stage, np.arange(len(times) + 1))
     neg_bounds = np.searchsorted(neg_stage, np.arange(len(times) + 1))
-    eta = IState.initial(free, n)
-    cap = config.max_elements or None
-    reg_rows, summ, track_xy = [], [], np.zeros((len(times), n, 2))
-    prev = None
-    memo = PairMemo()  # region-pair results of the whole run (regions recur across stages)
-    free_area = float(free.area) or 1.0
-    step = float(frame.length(v * T))
-    for k, tk in enumerate(times):  # inherently sequential: the I-state of stage k depends on k-1
-        rejected: list | None = [] if config.contradictions == "reject" else None
-        eta = info_state_update(
-            eta,
-            det_geom[det_bounds[k] : det_bounds[k + 1]],
-            step=step if k else 0.0,
-            free_space=free,
-            shape=config.shape,
-            max_elements=cap,
-            negatives=neg_geom[neg_bounds[k] : neg_bounds[k + 1]],
-            substeps=config.substeps,
-            memo=memo,
-            rejected=rejected,
-        )
-        E = eta.size
-        reg_rows.append(eta.regions.ravel())
-        area = memo.recall(eta, free, "total_area", IState.total_area)  # the I-state recurs at a fixed point
-        summ.append(
-            (
-                float(tk),
-                k,
-                E,
-                area * frame.scale**2,
-                int(det_bounds[k + 1] - det_bounds[k]),
-                len(rejected or ()),
-                area / free_area,
-            )
-        )
-        track_xy[k] = prev = _point_summary(eta, prev, n)
-
-    summary = pl.DataFrame(summ, schema=SUMMARY, orient="row")
+    steps = Stages(
+        times=times,
+        detections=det_geom,
+        det_bounds=det_bounds,
+        negatives=neg_geom,
+        neg_bounds=neg_bounds,
+        free=free,
+        n=n,
+        step=float(frame.length(v * T)),
+    )
+    reg_rows, summ, track_xy = _filter(steps, config)
+    summ[:, 3] *= frame.scale**2  # area in site units
+    summary = pl.DataFrame(
+        {
+            "t": np.asarray(times, dtype=float),
+            "stage": np.arange(len(times), dtype=np.int64),
+            "elements": summ[:, 0].astype(np.int64),
+            "area": summ[:, 3],
+            "detections": np.diff(det_bounds).astype(np.int64),
+            "rejected": summ[:, 1].astype(np.int64),
+            "area_share": summ[:, 2],
+        },
+        schema=SUMMARY,
+    )
     regions = _regions_table(times, reg_rows, n, frame)
     track_xy = frame.xy_to_site(track_xy)
     K = len(times)
@@ -493,6 +479,178 @@ def run(inputs: dict, site: Site, config: IStateConfig) -> dict[str, pl.DataFram
     )
     artifacts = {"sensing": dict(zip(sr.ids, sr.positive))}
     return {"tracks": tracks, "summary": summary, "regions": regions, "detections": detections, ARTIFACTS: artifacts}
+
+
+# --------------------------------------------------------------------------- the stage loop
+
+
+#: Entries (I-states, stage transitions, point summaries) :class:`_Transitions` keeps before
+#: it starts afresh.
+TRANSITIONS_CAPACITY = 1 << 16
+
+
+@dataclass(frozen=True, kw_only=True)
+class Stages:
+    """The filter's inputs in the site's frame: the stage times, the sensing regions reading 1
+    (``detections``, those of stage ``k`` at ``det_bounds[k]:det_bounds[k + 1]``) and the regions
+    a reading 0 clears (``negatives``, likewise), the free space, ``n`` and the motion step
+    ``s_tgt = v T``."""
+
+    times: np.ndarray
+    detections: np.ndarray
+    det_bounds: np.ndarray
+    negatives: np.ndarray
+    neg_bounds: np.ndarray
+    free: object
+    n: int
+    step: float
+
+
+def _filter(stages: Stages, config: IStateConfig) -> tuple[list, np.ndarray, np.ndarray]:
+    """The filter over every stage: ``(regions of each stage, (K, 4) [elements, rejected,
+    area / free area, area (frame units)], (K, n, 2) point summaries)``.
+
+    Each stage is a function of the I-state it starts from, whether it moves (every stage but
+    the first) and its readings' regions -- ``eta_k = f(eta_{k-1}, S_k)`` -- and its point
+    summary a function of ``eta_k`` and the summary before. :class:`_Transitions` numbers the
+    distinct I-states (by their regions' WKB) and the distinct reading regions, and looks a
+    stage up when its ``(eta_{k-1}, moves, S_k)`` was met before: a room where nothing is read
+    keeps an I-state that is a fixed point of the motion update (``F(eta) = eta``: the free
+    space, or regions at walls), and a log whose readings recur (a beam crossed again and
+    again) goes through the same I-states. A looked-up stage is the one computed (the same
+    GEOS operations on the same coordinates give the same bits), so the result is
+    :func:`_filter_reference`'s, which computes every stage (the test oracle)."""
+    times, n = stages.times, stages.n
+    K = len(times)
+    memo = PairMemo()  # region-pair results of the whole run (regions recur across stages)
+    cache = _Transitions()
+    det_ids = cache.reading_ids(stages.detections)
+    neg_ids = cache.reading_ids(stages.negatives)
+    db, nb = stages.det_bounds.tolist(), stages.neg_bounds.tolist()
+    free_area = float(stages.free.area) or 1.0
+    cap = config.max_elements or None
+    reject = config.contradictions == "reject"
+    reg_rows: list = [None] * K
+    summ = np.zeros((K, 4))
+    track_xy = np.zeros((K, n, 2))
+    eta = IState.initial(stages.free, n)
+    state = cache.state(eta)
+    prev, prev_key = None, None
+    for k in range(K):  # inherently sequential: the I-state of stage k depends on k-1
+        d0, d1, g0, g1 = db[k], db[k + 1], nb[k], nb[k + 1]
+        key = (state, k > 0, det_ids[d0:d1].tobytes() if d1 > d0 else b"", neg_ids[g0:g1].tobytes() if g1 > g0 else b"")
+        hit = cache.step.get(key)
+        if hit is None:
+            rejected: list | None = [] if reject else None
+            eta = info_state_update(
+                cache.etas[state],
+                stages.detections[d0:d1],
+                step=stages.step if k else 0.0,
+                free_space=stages.free,
+                shape=config.shape,
+                max_elements=cap,
+                negatives=stages.negatives[g0:g1],
+                substeps=config.substeps,
+                memo=memo,
+                rejected=rejected,
+            )
+            area = float(IState.total_area(eta, stages.free))
+            hit = cache.remember(key, eta, (eta.size, len(rejected or ()), area / free_area, area))
+            if hit is None:  # the cache started afresh: the state numbers are new
+                state = cache.state(eta)
+                hit = (state, eta.regions.ravel(), (eta.size, len(rejected or ()), area / free_area, area))
+        state, reg_rows[k], summ[k] = hit
+        pkey = (state, prev_key)
+        xy = cache.summary.get(pkey)
+        if xy is None:
+            xy = _point_summary(cache.etas[state], prev, n)
+            xy_key = xy.tobytes()
+            if len(cache.summary) < TRANSITIONS_CAPACITY:
+                cache.summary[pkey] = (xy, xy_key)
+        else:
+            xy, xy_key = xy
+        track_xy[k] = prev = xy
+        prev_key = xy_key
+    return reg_rows, summ, track_xy
+
+
+class _Transitions:
+    """The distinct I-states of a run (numbered by their regions' WKB), the stage transitions
+    met (``(state, moves, reading ids, negative ids) -> (state, regions, summary row)``) and the
+    point summaries (``(state, previous summary) -> summary``) of :func:`_filter`; dropped
+    together when they hold more than :data:`TRANSITIONS_CAPACITY` entries."""
+
+    def __init__(self) -> None:
+        self.etas: list[IState] = []  # state number -> I-state
+        self._number: dict[tuple, int] = {}  # (shape, region ids) -> state number
+        self._rid: dict[bytes, int] = {}  # region WKB -> region id
+        self._obj: dict[int, tuple[object, int]] = {}  # id(region) -> (region kept alive, region id)
+        self.step: dict[tuple, tuple] = {}
+        self.summary: dict[tuple, tuple] = {}
+
+    @staticmethod
+    def reading_ids(geoms: np.ndarray) -> np.ndarray:
+        """One int32 per reading region, equal for equal WKB."""
+        if len(geoms) == 0:
+            return np.zeros(0, dtype=np.int32)
+        _, inv = np.unique(shapely.to_wkb(geoms), return_inverse=True)
+        return inv.reshape(-1).astype(np.int32)
+
+    def state(self, eta: IState) -> int:
+        """The number of an I-state (a new one for an I-state not met before)."""
+        ids = []
+        for g in eta.regions.ravel().tolist():
+            hit = self._obj.get(id(g))
+            if hit is None:
+                hit = self._obj[id(g)] = (g, self._rid.setdefault(shapely.to_wkb(g), len(self._rid)))
+            ids.append(hit[1])
+        key = (eta.regions.shape, tuple(ids))
+        s = self._number.get(key)
+        if s is None:
+            s = self._number[key] = len(self.etas)
+            self.etas.append(eta)
+        return s
+
+    def remember(self, key: tuple, eta: IState, row: tuple) -> tuple | None:
+        """Store the transition ``key -> eta`` and return it; ``None`` when the cache was full
+        and has been dropped (the caller numbers ``eta`` afresh)."""
+        if len(self.step) + len(self.summary) + len(self.etas) > TRANSITIONS_CAPACITY:
+            self.__init__()
+            return None
+        out = self.step[key] = (self.state(eta), eta.regions.ravel(), row)
+        return out
+
+
+def _filter_reference(stages: Stages, config: IStateConfig) -> tuple[list, np.ndarray, np.ndarray]:
+    """:func:`_filter` computing every stage (the plain loop; its test oracle)."""
+    times, n = stages.times, stages.n
+    K = len(times)
+    db, nb = stages.det_bounds, stages.neg_bounds
+    eta = IState.initial(stages.free, n)
+    cap = config.max_elements or None
+    reg_rows, summ, track_xy = [], np.zeros((K, 4)), np.zeros((K, n, 2))
+    prev = None
+    memo = PairMemo()
+    free_area = float(stages.free.area) or 1.0
+    for k in range(K):
+        rejected: list | None = [] if config.contradictions == "reject" else None
+        eta = info_state_update(
+            eta,
+            stages.detections[db[k] : db[k + 1]],
+            step=stages.step if k else 0.0,
+            free_space=stages.free,
+            shape=config.shape,
+            max_elements=cap,
+            negatives=stages.negatives[nb[k] : nb[k + 1]],
+            substeps=config.substeps,
+            memo=memo,
+            rejected=rejected,
+        )
+        reg_rows.append(eta.regions.ravel())
+        area = float(IState.total_area(eta, stages.free))
+        summ[k] = (eta.size, len(rejected or ()), area / free_area, area)
+        track_xy[k] = prev = _point_summary(eta, prev, n)
+    return reg_rows, summ, track_xy
 
 
 def _regions_table(times: np.ndarray, regions: list, n: int, frame: SiteFrame) -> pl.DataFrame:
