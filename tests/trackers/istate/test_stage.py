@@ -258,3 +258,79 @@ def test_the_stage_is_unit_free(tmp_path, shape):
     gb = shapely.transform(shapely.from_wkb(b["regions"]["wkb"].to_numpy()), lambda xy: xy / k)
     assert (shapely.get_num_coordinates(ga) == shapely.get_num_coordinates(gb)).all()
     assert np.allclose(shapely.get_coordinates(ga), shapely.get_coordinates(gb), rtol=0, atol=1e-12)
+
+
+def _tiled_room(tmp_path, n: int, copies: int = 3, span: float = 30.0):
+    """A room's motion log of ``span`` s repeated ``copies`` times (offsets of whole stages):
+    its readings, and so its stage transitions, recur."""
+    data = write_room_dataset(tmp_path / "tiled", seed=3, duration=span, n=n)
+    raw = pl.read_csv(data / "motion.csv")
+    motion = raw.select(pl.col("t").cast(pl.Float64), "sensor", on=pl.col("value") == 1)
+    tiles = [motion.with_columns(pl.col("t") + i * (span + 10.0)) for i in range(copies)]
+    return load_site(data / "site.toml"), pl.concat(tiles)
+
+
+@pytest.mark.parametrize(
+    "cfg",
+    [
+        IStateConfig(max_elements=4),
+        IStateConfig(shape="rect", reliable_negatives=True, max_elements=3),
+        IStateConfig(shape="disk", contradictions="empty", max_speed=0.5),
+        IStateConfig(max_elements=0, substeps=2, absent_after=3.0),
+    ],
+)
+def test_transitions_looked_up_equal_every_stage_computed(tmp_path, monkeypatch, cfg):
+    """The stage loop that looks up recurring transitions (:func:`_filter`) gives every table
+    of the plain loop (:func:`_filter_reference`), bit for bit -- also when its cache is
+    dropped every few entries; and it does look stages up (fewer filter steps computed)."""
+    from onebit.trackers.istate import stage as st
+
+    site, motion = _tiled_room(tmp_path, n=2)
+    calls = {"n": 0}
+    update = st.info_state_update
+
+    def counted(*a, **kw):
+        calls["n"] += 1
+        return update(*a, **kw)
+
+    monkeypatch.setattr(st, "info_state_update", counted)
+    fast = run({"motion": motion}, site, cfg)
+    computed = calls["n"]
+    stages = fast["summary"].height
+    assert stages > 100 and computed < stages  # the quiet gaps and the repeated tiles are looked up
+    with monkeypatch.context() as m:
+        m.setattr(st, "TRANSITIONS_CAPACITY", 7)
+        small = run({"motion": motion}, site, cfg)
+        m.setattr(st, "_filter", st._filter_reference)
+        plain = run({"motion": motion}, site, cfg)
+    for name in ("summary", "regions", "tracks", "detections"):
+        assert fast[name].equals(plain[name]), name
+        assert small[name].equals(plain[name]), name
+    assert plain["summary"]["elements"].max() >= 1
+
+
+def test_transitions_are_keyed_by_the_negatives_too():
+    """Stages with the same I-state and the same reading 1 but a different reading 0 (a
+    reliable negative) are different transitions: the looked-up loop equals the plain one."""
+    from onebit.trackers.istate.stage import Stages, _filter, _filter_reference
+
+    free = shapely.box(0, 0, 1, 1)
+    a, b = shapely.box(0, 0, 0.6, 1), shapely.box(0.3, 0, 1, 1)
+    obj = lambda xs: np.array(xs + [None], dtype=object)[:-1]  # noqa: E731
+    # stages 1-5 read a; stages 3 and 5 also clear b; the step (2) refills the square each stage
+    stages = Stages(
+        times=np.arange(6.0),
+        detections=obj([a] * 5),
+        det_bounds=np.array([0, 0, 1, 2, 3, 4, 5]),
+        negatives=obj([b, b]),
+        neg_bounds=np.array([0, 0, 0, 0, 1, 1, 2]),
+        free=free,
+        n=1,
+        step=2.0,
+    )
+    cfg = IStateConfig(reliable_negatives=True)
+    fast, plain = _filter(stages, cfg), _filter_reference(stages, cfg)
+    areas = plain[1][:, 3]
+    assert np.allclose(areas, [1.0, 0.6, 0.6, 0.3, 0.6, 0.3])
+    assert np.array_equal(fast[1], plain[1]) and np.array_equal(fast[2], plain[2], equal_nan=True)
+    assert [shapely.to_wkb(r).tolist() for r in fast[0]] == [shapely.to_wkb(r).tolist() for r in plain[0]]
