@@ -393,20 +393,51 @@ def log_istate_run(
     )
     _series(rec, paths.join(root, "area"), "area of the I-state", (120, 200, 255), times, summary["area"].to_numpy())
     if detections is not None and detections.height and sensing:
-        d = detections.sort("stage", maintain_order=True)
-        strips = [s for sid in d["sensor"] for s in rings(sensing[sid])]
-        per = [len(rings(sensing[sid])) for sid in d["sensor"]]
-        lens = np.zeros(len(times), dtype=np.int64)
-        np.add.at(lens, d["stage"].to_numpy(), per)
-        ent = paths.join(root, "detections")
-        rec.log(
-            ent,
-            rr.LineStrips2D.from_fields(colors=[colors.FIRING], radii=rr.Radius.ui_points(2.5), draw_order=18.0),
-            static=True,
-        )
+        log_detections(rec, root, detections, sensing, times)
+
+
+def log_detections(rec: rr.RecordingStream, root: str, detections: pl.DataFrame, sensing: dict, times) -> None:
+    """``<root>/detections``: the sensing regions (``sensing``: sensor -> geometry) of the
+    ``detections`` (stage, sensor) of each stage, outlined bright red; a row only at the stages
+    whose set of detected sensors differs from the stage before (the first always), a stage with
+    none an empty row -- the viewer shows at every time what a row per stage showed. Each
+    sensor's rings are taken once (:func:`_strips_per_stage`) and gathered per row."""
+    d = detections.sort("stage", maintain_order=True)
+    ids = list(sensing)
+    code = d["sensor"].replace_strict({s: i for i, s in enumerate(ids)}, return_dtype=pl.Int64).to_numpy()
+    stage = d["stage"].to_numpy()
+    K = len(times)
+    at = _changed_sets(stage, code, K)
+    keep = np.isin(stage, at)
+    shapes = np.array([sensing[s] for s in ids] + [None], dtype=object)[:-1]
+    strips, per = _strips_per_stage(shapes[code[keep]])
+    lens = np.zeros(K, dtype=np.int64)
+    np.add.at(lens, stage[keep], np.asarray(per, dtype=np.int64))
+    ent = paths.join(root, "detections")
+    rec.log(
+        ent,
+        rr.LineStrips2D.from_fields(colors=[colors.FIRING], radii=rr.Radius.ui_points(2.5), draw_order=18.0),
+        static=True,
+    )
+    for part in np.array_split(at, max(1, -(-at.size // SEND_ROWS))):  # bounded batches
+        lo = int(lens[: part[0]].sum())
+        hi = lo + int(lens[part].sum())
         rec.send_columns(
-            ent, indexes=[paths.time_column(times)], columns=rr.LineStrips2D.columns(strips=strips).partition(lens)
+            ent,
+            indexes=[paths.time_column(np.asarray(times)[part])],
+            columns=rr.LineStrips2D.columns(strips=strips[lo:hi]).partition(lens[part]),
         )
+
+
+def _changed_sets(stage: np.ndarray, code: np.ndarray, K: int) -> np.ndarray:
+    """The stages ``0..K-1`` whose sequence of ``code`` (rows sorted by ``stage``) differs from
+    the stage before's (the first always): equal counts and equal codes position by position."""
+    cnt = np.bincount(stage, minlength=K)
+    same = np.r_[False, cnt[1:] == cnt[:-1]]
+    j = np.flatnonzero(same[stage])  # a row of a stage with as many rows as the stage before
+    differs = code[j] != code[j - cnt[stage[j]]]  # its counterpart there: as many rows back
+    same[stage[j[differs]]] = False
+    return np.flatnonzero(~same)
 
 
 def log_active_tracking(

@@ -406,9 +406,12 @@ def run(inputs: dict, site: Site, config: IStateConfig) -> dict[str, pl.DataFram
     frame = SiteFrame.of(site.free_space)
     free = frame.outer(site.free_space)
     det = rd.filter("detect")
-    det_geom = (
-        shapely.intersection(
-            grow(frame.outer(sr.positive)[det["idx"].to_numpy()], frame.length(det["inflation"].to_numpy())), free
+    pos = frame.outer(sr.positive)
+    det_geom = (  # each distinct (sensor, inflation) grown and clipped once, shared by its readings
+        _per_distinct(
+            lambda i, d: shapely.intersection(grow(pos[i], d), free),
+            det["idx"].to_numpy(),
+            frame.length(det["inflation"].to_numpy()),
         )
         if det.height
         else np.zeros(0, object)
@@ -416,8 +419,11 @@ def run(inputs: dict, site: Site, config: IStateConfig) -> dict[str, pl.DataFram
     det_stage = det["stage"].to_numpy()
     neg = rd.filter(pl.col("negative") & pl.lit(config.reliable_negatives)) if config.reliable_negatives else rd.clear()
     # a reading may lag the target by latency_s: only S eroded by v latency_s is surely empty
+    cleared = frame.inner(sr.negative)
     neg_geom = (
-        shrink(frame.inner(sr.negative)[neg["idx"].to_numpy()], frame.length(v * latency))
+        _per_distinct(
+            lambda i, d: shrink(cleared[i], d), neg["idx"].to_numpy(), np.full(neg.height, frame.length(v * latency))
+        )
         if neg.height
         else np.zeros(0, object)
     )
@@ -479,6 +485,16 @@ def run(inputs: dict, site: Site, config: IStateConfig) -> dict[str, pl.DataFram
     )
     artifacts = {"sensing": dict(zip(sr.ids, sr.positive))}
     return {"tracks": tracks, "summary": summary, "regions": regions, "detections": detections, ARTIFACTS: artifacts}
+
+
+def _per_distinct(make, idx: np.ndarray, dist: np.ndarray) -> np.ndarray:
+    """``make(idx, dist)`` (an elementwise geometry function of a sensor index and a length)
+    computed once per distinct ``(idx, dist)`` pair, the result object shared by the rows with
+    that pair (the same values as computing every row: each row's result depends on its pair only)."""
+    key = np.stack([np.asarray(idx, dtype=np.float64), np.asarray(dist, dtype=np.float64)], axis=1)
+    u, inv = np.unique(key, axis=0, return_inverse=True)
+    out = np.asarray(make(u[:, 0].astype(np.int64), u[:, 1]), dtype=object)
+    return out[inv.reshape(-1)]
 
 
 # --------------------------------------------------------------------------- the stage loop
@@ -590,11 +606,14 @@ class _Transitions:
 
     @staticmethod
     def reading_ids(geoms: np.ndarray) -> np.ndarray:
-        """One int32 per reading region, equal for equal WKB."""
+        """One int32 per reading region, equal for equal WKB (each geometry object encoded once)."""
         if len(geoms) == 0:
             return np.zeros(0, dtype=np.int32)
-        _, inv = np.unique(shapely.to_wkb(geoms), return_inverse=True)
-        return inv.reshape(-1).astype(np.int32)
+        _, first, objs = np.unique(
+            np.fromiter(map(id, geoms), dtype=np.int64, count=len(geoms)), return_index=True, return_inverse=True
+        )
+        _, inv = np.unique(shapely.to_wkb(geoms[first]), return_inverse=True)
+        return inv.reshape(-1).astype(np.int32)[objs.reshape(-1)]
 
     def state(self, eta: IState) -> int:
         """The number of an I-state (a new one for an I-state not met before)."""
