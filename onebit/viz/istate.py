@@ -27,7 +27,7 @@ import shapely
 from onebit.core.lazy import lazy_module
 from onebit.core.wkb import geometries
 from onebit.viz import colors, paths
-from onebit.viz._series import gather_ranges, rings, strips_array
+from onebit.viz._series import blobs_array, gather_ranges, rings, strips_array
 from onebit.viz.families import GENERIC, Look
 from onebit.viz.frame import log_world_frame
 from onebit.viz.radii import ui_points
@@ -353,7 +353,9 @@ def log_istate_regions(
     drawn: dict = {}  # PNGs by stage key, across the batches
     for part in np.array_split(at, max(1, -(-at.size // SEND_ROWS))):
         blobs = fill_images(grid[:, :, part], raster, keys=[keys[s] for s in part], cache=drawn)
-        rec.send_columns(ent, indexes=[paths.time_column(times[part])], columns=rr.EncodedImage.columns(blob=blobs))
+        rec.send_columns(
+            ent, indexes=[paths.time_column(times[part])], columns=rr.EncodedImage.columns(blob=blobs_array(blobs))
+        )
 
 
 def log_istate_run(
