@@ -553,13 +553,16 @@ def _filter(stages: Stages, config: IStateConfig) -> tuple[list, np.ndarray, np.
     state = cache.state(eta)
     prev, prev_key = None, None
     for k in range(K):  # inherently sequential: the I-state of stage k depends on k-1
+        if cache.full():  # start afresh (memory stays bounded): the state numbers are new
+            cache.__init__()
+            state = cache.state(eta)
         d0, d1, g0, g1 = db[k], db[k + 1], nb[k], nb[k + 1]
         key = (state, k > 0, det_ids[d0:d1].tobytes() if d1 > d0 else b"", neg_ids[g0:g1].tobytes() if g1 > g0 else b"")
         hit = cache.step.get(key)
         if hit is None:
             rejected: list | None = [] if reject else None
-            eta = info_state_update(
-                cache.etas[state],
+            new = info_state_update(
+                eta,
                 stages.detections[d0:d1],
                 step=stages.step if k else 0.0,
                 free_space=stages.free,
@@ -570,39 +573,40 @@ def _filter(stages: Stages, config: IStateConfig) -> tuple[list, np.ndarray, np.
                 memo=memo,
                 rejected=rejected,
             )
-            area = float(IState.total_area(eta, stages.free))
-            hit = cache.remember(key, eta, (eta.size, len(rejected or ()), area / free_area, area))
-            if hit is None:  # the cache started afresh: the state numbers are new
-                state = cache.state(eta)
-                hit = (state, eta.regions.ravel(), (eta.size, len(rejected or ()), area / free_area, area))
-        state, reg_rows[k], summ[k] = hit
+            s = cache.state(new)
+            area = cache.area(s, stages.free)  # once per distinct I-state
+            hit = cache.step[key] = (s, (new.size, len(rejected or ()), area / free_area, area))
+        state, summ[k] = hit
+        eta = cache.etas[state]  # the I-state of this number met first: the same regions
+        reg_rows[k] = cache.rows[state]
         pkey = (state, prev_key)
         xy = cache.summary.get(pkey)
         if xy is None:
-            xy = _point_summary(cache.etas[state], prev, n)
-            xy_key = xy.tobytes()
-            if len(cache.summary) < TRANSITIONS_CAPACITY:
-                cache.summary[pkey] = (xy, xy_key)
-        else:
-            xy, xy_key = xy
+            xy = cache.summary[pkey] = _point_summary(eta, prev, n)
+            xy.flags.writeable = False
         track_xy[k] = prev = xy
-        prev_key = xy_key
+        prev_key = xy.tobytes()
     return reg_rows, summ, track_xy
 
 
 class _Transitions:
-    """The distinct I-states of a run (numbered by their regions' WKB), the stage transitions
-    met (``(state, moves, reading ids, negative ids) -> (state, regions, summary row)``) and the
-    point summaries (``(state, previous summary) -> summary``) of :func:`_filter`; dropped
-    together when they hold more than :data:`TRANSITIONS_CAPACITY` entries."""
+    """The distinct I-states of a run (numbered by their regions' WKB, with their flattened
+    regions and total area), the stage transitions met (``(state, moves, reading ids, negative
+    ids) -> (state, summary row)``) and the point summaries (``(state, previous summary) ->
+    summary``) of :func:`_filter`; :meth:`full` past :data:`TRANSITIONS_CAPACITY` entries."""
 
     def __init__(self) -> None:
         self.etas: list[IState] = []  # state number -> I-state
+        self.rows: list[np.ndarray] = []  # state number -> its regions, flattened
+        self._area: dict[int, float] = {}  # state number -> area of the union of its regions
         self._number: dict[tuple, int] = {}  # (shape, region ids) -> state number
         self._rid: dict[bytes, int] = {}  # region WKB -> region id
         self._obj: dict[int, tuple[object, int]] = {}  # id(region) -> (region kept alive, region id)
         self.step: dict[tuple, tuple] = {}
-        self.summary: dict[tuple, tuple] = {}
+        self.summary: dict[tuple, np.ndarray] = {}
+
+    def full(self) -> bool:
+        return len(self.step) + len(self.summary) + len(self.etas) + len(self._obj) > TRANSITIONS_CAPACITY
 
     @staticmethod
     def reading_ids(geoms: np.ndarray) -> np.ndarray:
@@ -628,16 +632,15 @@ class _Transitions:
         if s is None:
             s = self._number[key] = len(self.etas)
             self.etas.append(eta)
+            self.rows.append(eta.regions.ravel())
         return s
 
-    def remember(self, key: tuple, eta: IState, row: tuple) -> tuple | None:
-        """Store the transition ``key -> eta`` and return it; ``None`` when the cache was full
-        and has been dropped (the caller numbers ``eta`` afresh)."""
-        if len(self.step) + len(self.summary) + len(self.etas) > TRANSITIONS_CAPACITY:
-            self.__init__()
-            return None
-        out = self.step[key] = (self.state(eta), eta.regions.ravel(), row)
-        return out
+    def area(self, state: int, free) -> float:
+        """:meth:`IState.total_area` of a state within the free space, computed once."""
+        a = self._area.get(state)
+        if a is None:
+            a = self._area[state] = float(IState.total_area(self.etas[state], free))
+        return a
 
 
 def _filter_reference(stages: Stages, config: IStateConfig) -> tuple[list, np.ndarray, np.ndarray]:
@@ -666,7 +669,7 @@ def _filter_reference(stages: Stages, config: IStateConfig) -> tuple[list, np.nd
             rejected=rejected,
         )
         reg_rows.append(eta.regions.ravel())
-        area = float(IState.total_area(eta, stages.free))
+        area = memo.recall(eta, stages.free, "total_area", IState.total_area)  # as the filter always did
         summ[k] = (eta.size, len(rejected or ()), area / free_area, area)
         track_xy[k] = prev = _point_summary(eta, prev, n)
     return reg_rows, summ, track_xy
