@@ -356,6 +356,7 @@ def log_istate_regions(
         rec.send_columns(
             ent, indexes=[paths.time_column(times[part])], columns=rr.EncodedImage.columns(blob=blobs_array(blobs))
         )
+        rec.flush()  # each batch written before the next: the queue of images in memory stays one batch
 
 
 def log_istate_run(
