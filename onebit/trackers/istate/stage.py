@@ -117,12 +117,15 @@ class IStateConfig:
         in which every sensor is off and nothing happens; 0 = always one. The I-state itself
         is unchanged.
     max_stages : the most stages (``span / period_s``) the pipeline runs the filter on; a
-        longer log skips the stage, saying so. 100 000 holds a day at 1 s: the filter and its
-        recording cost ~0.1-0.6 ms a stage (a simulated day of a two-resident home, 86 389
-        stages: 21-25 s of filter and 25 s of recording, 1.5 GB; 10^6 PIR rows, 80 589 stages:
-        27 + 10 s); a 10^6-row beams log of 5 days is 460 000 stages. 0 = no bound but
-        :data:`~onebit.core.config.MAX_STEPS` (10 million; more is refused, as a larger
-        ``max_stages`` is).
+        longer log skips the stage, saying so. 500 000 holds 5.8 days at 1 s and the 10^6-row
+        beams log (461 733 stages). A stage whose I-state and readings were met before is looked
+        up (:func:`_filter`: a few microseconds), a new one is computed (0.1-0.7 ms: 0.13 ms on a
+        simulated 100 000 s beams log, 23 % of its stages computed; 0.5-0.7 ms in a two-resident
+        home, 15 %), and the recording adds ~10 us a stage. Measured: the 10^6-row beams log
+        (tiled, 117 stages computed) 1.5 s of filter, its default run 12 s; a simulated day of
+        the home, 86 389 stages, 18-22 s of filter. A log of new stages only would cost up to
+        ~0.7 ms x 500 000 = 6 min. 0 = no bound but :data:`~onebit.core.config.MAX_STEPS` (10
+        million; more is refused, as a larger ``max_stages`` is).
     contradictions : what a reading that no joint state explains does (a spurious or late
         firing, a footprint larger than declared): ``reject`` (default) keeps the I-state and
         counts the reading (``summary.rejected``); ``empty`` is the paper's filter, whose
@@ -140,7 +143,7 @@ class IStateConfig:
     beam_width: float = length(0.0, unit="m")
     substeps: int = 1
     absent_after: float = ABSENT_AFTER_S
-    max_stages: int = 100_000
+    max_stages: int = 500_000
     contradictions: str = "reject"
 
     def __post_init__(self) -> None:
@@ -231,7 +234,8 @@ def fits(inputs: dict, site: Site, config: IStateConfig) -> str | None:
         return None
     return (
         f"the logs span {hi - lo:,.0f} s = {stages:,} stages of period_s = {config.period_s:g} s, more than "
-        f"max_stages = {config.max_stages:,} (the filter and its recording cost about 0.1-0.6 ms per stage); "
+        f"max_stages = {config.max_stages:,} (the filter costs 0.1-0.7 ms per stage it computes, a few us per stage "
+        "whose I-state and readings recur, its recording ~10 us); "
         "set [istate] max_stages = 0 (no bound) or a longer period_s in --config to run it"
     )
 
