@@ -447,7 +447,7 @@ def run(inputs: dict, site: Site, config: IStateConfig) -> dict[str, pl.DataFram
         n=n,
         step=float(frame.length(v * T)),
     )
-    reg_rows, summ, track_xy = _filter(steps, config)
+    stage_state, state_rows, summ, track_xy = _filter(steps, config)
     summ[:, 3] *= frame.scale**2  # area in site units
     summary = pl.DataFrame(
         {
@@ -461,7 +461,7 @@ def run(inputs: dict, site: Site, config: IStateConfig) -> dict[str, pl.DataFram
         },
         schema=SUMMARY,
     )
-    regions = _regions_table(times, reg_rows, n, frame)
+    regions = _regions_table(times, state_rows, n, frame, stage_state)
     track_xy = frame.xy_to_site(track_xy)
     K = len(times)
     tracks = conform(
@@ -495,9 +495,10 @@ def _per_distinct(make, idx: np.ndarray, dist: np.ndarray) -> np.ndarray:
     """``make(idx, dist)`` (an elementwise geometry function of a sensor index and a length)
     computed once per distinct ``(idx, dist)`` pair, the result object shared by the rows with
     that pair (the same values as computing every row: each row's result depends on its pair only)."""
-    key = np.stack([np.asarray(idx, dtype=np.float64), np.asarray(dist, dtype=np.float64)], axis=1)
-    u, inv = np.unique(key, axis=0, return_inverse=True)
-    out = np.asarray(make(u[:, 0].astype(np.int64), u[:, 1]), dtype=object)
+    idx = np.asarray(idx, dtype=np.int64)
+    d, d_code = np.unique(np.asarray(dist, dtype=np.float64), return_inverse=True)
+    _, first, inv = np.unique(idx * len(d) + d_code.reshape(-1), return_index=True, return_inverse=True)
+    out = np.asarray(make(idx[first], d[d_code.reshape(-1)[first]]), dtype=object)
     return out[inv.reshape(-1)]
 
 
@@ -526,9 +527,10 @@ class Stages:
     step: float
 
 
-def _filter(stages: Stages, config: IStateConfig) -> tuple[list, np.ndarray, np.ndarray]:
-    """The filter over every stage: ``(regions of each stage, (K, 4) [elements, rejected,
-    area / free area, area (frame units)], (K, n, 2) point summaries)``.
+def _filter(stages: Stages, config: IStateConfig) -> tuple[np.ndarray, list, np.ndarray, np.ndarray]:
+    """The filter over every stage: ``(I-state of each stage (K,), the regions of each of those
+    I-states flattened, (K, 4) [elements, rejected, area / free area, area (frame units)],
+    (K, n, 2) point summaries)``.
 
     Each stage is a function of the I-state it starts from, whether it moves (every stage but
     the first) and its readings' regions -- ``eta_k = f(eta_{k-1}, S_k)`` -- and its point
@@ -543,14 +545,15 @@ def _filter(stages: Stages, config: IStateConfig) -> tuple[list, np.ndarray, np.
     times, n = stages.times, stages.n
     K = len(times)
     memo = PairMemo()  # region-pair results of the whole run (regions recur across stages)
-    cache = _Transitions()
+    state_rows: list = []  # the regions of each distinct I-state of the run, flattened
+    cache = _Transitions(state_rows)
     det_ids = cache.reading_ids(stages.detections)
     neg_ids = cache.reading_ids(stages.negatives)
     db, nb = stages.det_bounds.tolist(), stages.neg_bounds.tolist()
     free_area = float(stages.free.area) or 1.0
     cap = config.max_elements or None
     reject = config.contradictions == "reject"
-    reg_rows: list = [None] * K
+    stage_state = np.zeros(K, dtype=np.int64)
     summ = np.zeros((K, 4))
     track_xy = np.zeros((K, n, 2))
     eta = IState.initial(stages.free, n)
@@ -558,7 +561,7 @@ def _filter(stages: Stages, config: IStateConfig) -> tuple[list, np.ndarray, np.
     prev, prev_key = None, None
     for k in range(K):  # inherently sequential: the I-state of stage k depends on k-1
         if cache.full():  # start afresh (memory stays bounded): the state numbers are new
-            cache.__init__()
+            cache.__init__(state_rows)
             state = cache.state(eta)
         d0, d1, g0, g1 = db[k], db[k + 1], nb[k], nb[k + 1]
         key = (state, k > 0, det_ids[d0:d1].tobytes() if d1 > d0 else b"", neg_ids[g0:g1].tobytes() if g1 > g0 else b"")
@@ -582,7 +585,7 @@ def _filter(stages: Stages, config: IStateConfig) -> tuple[list, np.ndarray, np.
             hit = cache.step[key] = (s, (new.size, len(rejected or ()), area / free_area, area))
         state, summ[k] = hit
         eta = cache.etas[state]  # the I-state of this number met first: the same regions
-        reg_rows[k] = cache.rows[state]
+        stage_state[k] = cache.run_number[state]
         pkey = (state, prev_key)
         xy = cache.summary.get(pkey)
         if xy is None:
@@ -590,7 +593,7 @@ def _filter(stages: Stages, config: IStateConfig) -> tuple[list, np.ndarray, np.
             xy.flags.writeable = False
         track_xy[k] = prev = xy
         prev_key = xy.tobytes()
-    return reg_rows, summ, track_xy
+    return stage_state, state_rows, summ, track_xy
 
 
 class _Transitions:
@@ -599,9 +602,10 @@ class _Transitions:
     ids) -> (state, summary row)``) and the point summaries (``(state, previous summary) ->
     summary``) of :func:`_filter`; :meth:`full` past :data:`TRANSITIONS_CAPACITY` entries."""
 
-    def __init__(self) -> None:
+    def __init__(self, run_rows: list) -> None:
         self.etas: list[IState] = []  # state number -> I-state
-        self.rows: list[np.ndarray] = []  # state number -> its regions, flattened
+        self.run_rows = run_rows  # the regions of every I-state numbered in the run, flattened (kept on a reset)
+        self.run_number: list[int] = []  # state number -> its index in run_rows
         self._area: dict[int, float] = {}  # state number -> area of the union of its regions
         self._number: dict[tuple, int] = {}  # (shape, region ids) -> state number
         self._rid: dict[bytes, int] = {}  # region WKB -> region id
@@ -636,7 +640,8 @@ class _Transitions:
         if s is None:
             s = self._number[key] = len(self.etas)
             self.etas.append(eta)
-            self.rows.append(eta.regions.ravel())
+            self.run_number.append(len(self.run_rows))
+            self.run_rows.append(eta.regions.ravel())
         return s
 
     def area(self, state: int, free) -> float:
@@ -647,8 +652,8 @@ class _Transitions:
         return a
 
 
-def _filter_reference(stages: Stages, config: IStateConfig) -> tuple[list, np.ndarray, np.ndarray]:
-    """:func:`_filter` computing every stage (the plain loop; its test oracle)."""
+def _filter_reference(stages: Stages, config: IStateConfig) -> tuple[np.ndarray, list, np.ndarray, np.ndarray]:
+    """:func:`_filter` computing every stage (the plain loop; its test oracle): an I-state per stage."""
     times, n = stages.times, stages.n
     K = len(times)
     db, nb = stages.det_bounds, stages.neg_bounds
@@ -676,32 +681,42 @@ def _filter_reference(stages: Stages, config: IStateConfig) -> tuple[list, np.nd
         area = memo.recall(eta, stages.free, "total_area", IState.total_area)  # as the filter always did
         summ[k] = (eta.size, len(rejected or ()), area / free_area, area)
         track_xy[k] = prev = _point_summary(eta, prev, n)
-    return reg_rows, summ, track_xy
+    return np.arange(K, dtype=np.int64), reg_rows, summ, track_xy
 
 
-def _regions_table(times: np.ndarray, regions: list, n: int, frame: SiteFrame) -> pl.DataFrame:
-    """The ``regions`` table (REGIONS) of the stages' flattened ``(E_k n,)`` region arrays
-    (in ``frame``): one row per region in site units, built once for the run (a region
-    recurring across stages is mapped back, measured and encoded once: its WKB bytes are
-    shared by its rows, :func:`onebit.core.wkb.wkb_column`)."""
-    if not regions:
+def _regions_table(
+    times: np.ndarray, regions: list, n: int, frame: SiteFrame, stage_state: np.ndarray | None = None
+) -> pl.DataFrame:
+    """The ``regions`` table (REGIONS): stage ``k`` holds the flattened ``(E n,)`` region array
+    ``regions[stage_state[k]]`` (in ``frame``; ``stage_state`` default ``0..K-1``, an array per
+    stage); one row per region in site units, built once for the run (a region recurring
+    across stages is mapped back, measured and encoded once: its WKB bytes are shared by its
+    rows; an I-state recurring across stages is laid out once and its rows gathered)."""
+    K = len(times)
+    state = np.arange(K, dtype=np.int64) if stage_state is None else np.asarray(stage_state, dtype=np.int64)
+    if K == 0 or not regions:
         return pl.DataFrame(schema=REGIONS)
-    sizes = np.array([len(r) for r in regions], dtype=np.int64)  # E_k n
-    flat = np.concatenate(regions) if sizes.sum() else np.zeros(0, dtype=object)
+    sizes_s = np.fromiter(map(len, regions), dtype=np.int64, count=len(regions))  # E n of each I-state
+    flat = np.concatenate(regions) if sizes_s.sum() else np.zeros(0, dtype=object)
     _, first, inv = np.unique(
         np.fromiter(map(id, flat), dtype=np.int64, count=len(flat)), return_index=True, return_inverse=True
     )
     distinct = np.asarray(frame.to_site(flat[first]), dtype=object)
-    flat = distinct[inv.ravel()]
-    within = np.arange(len(flat), dtype=np.int64) - np.repeat(np.cumsum(sizes) - sizes, sizes)  # position in its stage
+    sizes = sizes_s[state]  # rows of each stage
+    total = int(sizes.sum())
+    before = np.cumsum(sizes) - sizes  # first row of each stage
+    # the rows of each stage: its I-state's regions, positions in ``flat`` gathered
+    pos = np.repeat((np.cumsum(sizes_s) - sizes_s)[state] - before, sizes) + np.arange(total, dtype=np.int64)
+    code = inv.reshape(-1)[pos]  # distinct region of each row
+    within = np.arange(total, dtype=np.int64) - np.repeat(before, sizes)  # position in its stage
     return pl.DataFrame(
         {
             "t": np.repeat(np.asarray(times, dtype=float), sizes),
-            "stage": np.repeat(np.arange(len(regions), dtype=np.int64), sizes),
+            "stage": np.repeat(np.arange(K, dtype=np.int64), sizes),
             "element": within // n,
             "k": within % n,
-            "area": shapely.area(distinct).astype(float)[inv.ravel()],
-            "wkb": wkb_column(flat),  # each region's WKB once, shared by the stages holding it
+            "area": shapely.area(distinct).astype(float)[code],
+            "wkb": wkb_column(distinct).gather(code),  # each region's WKB once, shared by the stages holding it
         },
         schema=REGIONS,
     )

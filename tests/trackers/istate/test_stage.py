@@ -228,6 +228,11 @@ def test_regions_table_is_the_stages_rows_in_order():
     assert _regions_table(times, stages, n, frame).equals(pl.concat(frames))
     assert _regions_table(times[:1], [stages[1]], n, frame).equals(frames[1].clear())
     assert _regions_table(times[:0], [], n, frame).equals(pl.DataFrame(schema=REGIONS))
+    # I-states laid out once and named per stage: the table of the stages' own arrays
+    states, of_stage = [stages[2], stages[1], stages[3]], np.array([2, 0, 0, 1])
+    per_stage = [states[s] for s in of_stage]
+    assert _regions_table(times, states, n, frame, of_stage).equals(_regions_table(times, per_stage, n, frame))
+    assert _regions_table(times, states, n, frame, of_stage)["stage"].to_list() == [0, 0, 0, 0] + [1] * 6 + [2] * 6
 
 
 @pytest.mark.parametrize("shape", ["exact", "rect", "disk"])
@@ -330,7 +335,9 @@ def test_transitions_are_keyed_by_the_negatives_too():
     )
     cfg = IStateConfig(reliable_negatives=True)
     fast, plain = _filter(stages, cfg), _filter_reference(stages, cfg)
-    areas = plain[1][:, 3]
+    areas = plain[2][:, 3]
     assert np.allclose(areas, [1.0, 0.6, 0.6, 0.3, 0.6, 0.3])
-    assert np.array_equal(fast[1], plain[1]) and np.array_equal(fast[2], plain[2], equal_nan=True)
-    assert [shapely.to_wkb(r).tolist() for r in fast[0]] == [shapely.to_wkb(r).tolist() for r in plain[0]]
+    assert np.array_equal(fast[2], plain[2]) and np.array_equal(fast[3], plain[3], equal_nan=True)
+    per_stage = lambda out: [shapely.to_wkb(out[1][s]).tolist() for s in out[0]]  # noqa: E731
+    assert per_stage(fast) == per_stage(plain)
+    assert len(fast[1]) < len(stages.times)  # the recurring I-states are laid out once
