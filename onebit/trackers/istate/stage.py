@@ -385,7 +385,8 @@ def run(inputs: dict, site: Site, config: IStateConfig) -> dict[str, pl.DataFram
     latency = config.latency_s
     if config.latency_auto and levels is not None:
         latency = max(latency, time_resolution(levels["t"]))
-    readings = [state_readings(levels, times, T, latency, v)] if tables else []
+    used = pl.col("detect") | (pl.col("negative") & pl.lit(config.reliable_negatives))  # the rows the filter reads
+    readings = [state_readings(levels, times, T, latency, v).filter(used)] if tables else []
     if cross is not None:  # a crossing's stamp lags the body by up to the raw beam log's sampling interval
         events = inputs.get("beam_events")
         stamps = events["t"] if events is not None and events.height else cross["t"]
@@ -504,6 +505,9 @@ def _per_distinct(make, idx: np.ndarray, dist: np.ndarray) -> np.ndarray:
 
 # --------------------------------------------------------------------------- the stage loop
 
+
+#: Stages of the ``regions`` table built at once (:func:`_regions_table`).
+REGIONS_CHUNK = 1 << 16
 
 #: Entries (I-states, stage transitions, point summaries) :class:`_Transitions` keeps before
 #: it starts afresh.
@@ -702,24 +706,33 @@ def _regions_table(
         np.fromiter(map(id, flat), dtype=np.int64, count=len(flat)), return_index=True, return_inverse=True
     )
     distinct = np.asarray(frame.to_site(flat[first]), dtype=object)
-    sizes = sizes_s[state]  # rows of each stage
-    total = int(sizes.sum())
-    before = np.cumsum(sizes) - sizes  # first row of each stage
-    # the rows of each stage: its I-state's regions, positions in ``flat`` gathered
-    pos = np.repeat((np.cumsum(sizes_s) - sizes_s)[state] - before, sizes) + np.arange(total, dtype=np.int64)
-    code = inv.reshape(-1)[pos]  # distinct region of each row
-    within = np.arange(total, dtype=np.int64) - np.repeat(before, sizes)  # position in its stage
-    return pl.DataFrame(
-        {
-            "t": np.repeat(np.asarray(times, dtype=float), sizes),
-            "stage": np.repeat(np.arange(K, dtype=np.int64), sizes),
-            "element": within // n,
-            "k": within % n,
-            "area": shapely.area(distinct).astype(float)[code],
-            "wkb": wkb_column(distinct).gather(code),  # each region's WKB once, shared by the stages holding it
-        },
-        schema=REGIONS,
-    )
+    area = shapely.area(distinct).astype(float)
+    wkb = wkb_column(distinct)  # each region's WKB once, shared by the stages holding it
+    code_of = inv.reshape(-1).astype(np.int64)  # distinct region of each position in ``flat``
+    start_s = np.cumsum(sizes_s) - sizes_s
+    times = np.asarray(times, dtype=float)
+    parts = []
+    for lo in range(0, K, REGIONS_CHUNK):  # stages in chunks: the temporaries stay O(chunk)
+        st = state[lo : lo + REGIONS_CHUNK]
+        sizes = sizes_s[st]  # rows of each stage
+        total = int(sizes.sum())
+        before = np.cumsum(sizes) - sizes  # first row of each stage
+        within = np.arange(total, dtype=np.int64) - np.repeat(before, sizes)  # position in its stage
+        code = code_of[np.repeat(start_s[st], sizes) + within]  # its I-state's region there
+        parts.append(
+            pl.DataFrame(
+                {
+                    "t": np.repeat(times[lo : lo + REGIONS_CHUNK], sizes),
+                    "stage": np.repeat(np.arange(lo, lo + len(st), dtype=np.int64), sizes),
+                    "element": within // n,
+                    "k": within % n,
+                    "area": area[code],
+                    "wkb": wkb.gather(code),
+                },
+                schema=REGIONS,
+            )
+        )
+    return pl.concat(parts, rechunk=False) if len(parts) > 1 else parts[0]
 
 
 def _point_summary(eta: IState, prev: np.ndarray | None, n: int) -> np.ndarray:

@@ -233,6 +233,14 @@ def test_regions_table_is_the_stages_rows_in_order():
     per_stage = [states[s] for s in of_stage]
     assert _regions_table(times, states, n, frame, of_stage).equals(_regions_table(times, per_stage, n, frame))
     assert _regions_table(times, states, n, frame, of_stage)["stage"].to_list() == [0, 0, 0, 0] + [1] * 6 + [2] * 6
+    from onebit.trackers.istate import stage as st
+
+    whole = _regions_table(times, stages, n, frame)
+    st.REGIONS_CHUNK, chunk = 1, st.REGIONS_CHUNK  # a stage at a time: the same table
+    try:
+        assert _regions_table(times, stages, n, frame).equals(whole)
+    finally:
+        st.REGIONS_CHUNK = chunk
 
 
 @pytest.mark.parametrize("shape", ["exact", "rect", "disk"])
