@@ -276,13 +276,16 @@ def _codes_by_labels(wins, raster: FillRaster, bg: np.ndarray, elem: list) -> tu
     return label, table
 
 
-def _region_grid(regions: pl.DataFrame, K: int) -> np.ndarray:
+def _region_grid(regions: pl.DataFrame, K: int, geoms: np.ndarray | None = None) -> np.ndarray:
     """``(E, n, K)`` object array of the regions by element slot, region and stage (``None``
-    where absent); rows with the same WKB hold the same geometry object (parsed once)."""
+    where absent); rows with the same WKB hold the same geometry object (parsed once), or
+    ``geoms`` holds each row's geometry already (the tracker's, rows with the same region
+    sharing an object)."""
     n = int(regions["k"].max()) + 1
     E = int(regions["element"].max()) + 1
     grid = np.full((E, n, K), None, dtype=object)
-    geoms = geometries(regions["wkb"])
+    if geoms is None or len(geoms) != regions.height:
+        geoms = geometries(regions["wkb"])
     grid[regions["element"].to_numpy(), regions["k"].to_numpy(), regions["stage"].to_numpy()] = geoms
     return grid
 
@@ -303,7 +306,14 @@ def changed(keys) -> np.ndarray:
 
 
 def log_istate_regions(
-    rec: rr.RecordingStream, tracker: str, regions: pl.DataFrame, times: np.ndarray, *, bounds=None, fill: bool = True
+    rec: rr.RecordingStream,
+    tracker: str,
+    regions: pl.DataFrame,
+    times: np.ndarray,
+    *,
+    bounds=None,
+    fill: bool = True,
+    geoms: np.ndarray | None = None,
 ) -> None:
     """Every (element slot, k) of the ``regions`` table (t, stage, element, k, wkb) over ``times``:
     outlines per slot and region, and (``fill``) one fill image per stage over ``bounds``
@@ -312,12 +322,13 @@ def log_istate_regions(
     Each entity gets a row only at the stages where what it shows changes (the first stage
     always; a slot that empties gets a row with no strips): the viewer shows at every time the
     latest row at or before it, so it shows what a row per stage showed. An I-state holds
-    still between readings -- a day of a home: 86 389 stages, 10 600 changes of the fill."""
+    still between readings -- a day of a home: 86 389 stages, 10 600 changes of the fill.
+    ``geoms``: each row's geometry, when the caller has them (:func:`_region_grid`)."""
     if regions.height == 0:
         return
     log_world_frame(rec, paths.tracker_root(tracker))
     K = len(times)
-    grid = _region_grid(regions, K)
+    grid = _region_grid(regions, K, geoms)
     E, n, _ = grid.shape
     times = np.asarray(times)
     for e in range(E):
@@ -368,9 +379,10 @@ def log_istate_run(
     site=None,
     sensing: dict | None = None,
     detections: pl.DataFrame | None = None,
+    geoms: np.ndarray | None = None,
 ) -> None:
     """The ``istate`` stage: I-state regions (filled and outlined), sensing regions, detections,
-    element count and area."""
+    element count and area (``geoms``: the regions' geometries row by row, if known)."""
     root = paths.tracker_root(tracker)
     log_world_frame(rec, root)
     for sid, g in (sensing or {}).items():
@@ -385,7 +397,7 @@ def log_istate_run(
         return
     times = summary["t"].to_numpy()
     bounds = site.boundary.bounds if site is not None else None
-    log_istate_regions(rec, tracker, regions, times, bounds=bounds)
+    log_istate_regions(rec, tracker, regions, times, bounds=bounds, geoms=geoms)
     _series(
         rec,
         paths.join(root, "elements"),
@@ -532,5 +544,6 @@ def log_run(
         site=site,
         sensing=out["artifacts"]["sensing"],
         detections=out["detections"],
+        geoms=out["artifacts"].get("region_geometries"),
     )
     log_point_tracks(rec, tracker, out["tracks"], rgb=look.rgb)

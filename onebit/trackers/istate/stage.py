@@ -462,7 +462,8 @@ def run(inputs: dict, site: Site, config: IStateConfig) -> dict[str, pl.DataFram
         },
         schema=SUMMARY,
     )
-    regions = _regions_table(times, state_rows, n, frame, stage_state)
+    row_geoms: list = []
+    regions = _regions_table(times, state_rows, n, frame, stage_state, row_geoms=row_geoms)
     track_xy = frame.xy_to_site(track_xy)
     K = len(times)
     tracks = conform(
@@ -488,7 +489,11 @@ def run(inputs: dict, site: Site, config: IStateConfig) -> dict[str, pl.DataFram
         },
         schema=DETECTIONS,
     )
-    artifacts = {"sensing": dict(zip(sr.ids, sr.positive))}
+    artifacts = {
+        "sensing": dict(zip(sr.ids, sr.positive)),
+        # the regions table's geometries, row by row (shared objects): its recording parses no WKB
+        "region_geometries": np.concatenate(row_geoms) if row_geoms else np.zeros(0, dtype=object),
+    }
     return {"tracks": tracks, "summary": summary, "regions": regions, "detections": detections, ARTIFACTS: artifacts}
 
 
@@ -689,13 +694,21 @@ def _filter_reference(stages: Stages, config: IStateConfig) -> tuple[np.ndarray,
 
 
 def _regions_table(
-    times: np.ndarray, regions: list, n: int, frame: SiteFrame, stage_state: np.ndarray | None = None
+    times: np.ndarray,
+    regions: list,
+    n: int,
+    frame: SiteFrame,
+    stage_state: np.ndarray | None = None,
+    *,
+    row_geoms: list | None = None,
 ) -> pl.DataFrame:
     """The ``regions`` table (REGIONS): stage ``k`` holds the flattened ``(E n,)`` region array
     ``regions[stage_state[k]]`` (in ``frame``; ``stage_state`` default ``0..K-1``, an array per
     stage); one row per region in site units, built once for the run (a region recurring
     across stages is mapped back, measured and encoded once: its WKB bytes are shared by its
-    rows; an I-state recurring across stages is laid out once and its rows gathered)."""
+    rows; an I-state recurring across stages is laid out once and its rows gathered).
+    ``row_geoms`` (a list) receives the rows' geometries in site units (object arrays, one per
+    chunk of rows), for the recording: the same objects, not parsed again from the WKB."""
     K = len(times)
     state = np.arange(K, dtype=np.int64) if stage_state is None else np.asarray(stage_state, dtype=np.int64)
     if K == 0 or not regions:
@@ -708,6 +721,9 @@ def _regions_table(
     distinct = np.asarray(frame.to_site(flat[first]), dtype=object)
     area = shapely.area(distinct).astype(float)
     wkb = wkb_column(distinct)  # each region's WKB once, shared by the stages holding it
+    if row_geoms is not None:  # one object per distinct WKB, as parsing the column gives
+        _, one, same = np.unique(wkb.to_numpy(), return_index=True, return_inverse=True)
+        canonical = distinct[one][same.reshape(-1)]
     code_of = inv.reshape(-1).astype(np.int64)  # distinct region of each position in ``flat``
     start_s = np.cumsum(sizes_s) - sizes_s
     times = np.asarray(times, dtype=float)
@@ -732,6 +748,8 @@ def _regions_table(
                 schema=REGIONS,
             )
         )
+        if row_geoms is not None:
+            row_geoms.append(canonical[code])
     return pl.concat(parts, rechunk=False) if len(parts) > 1 else parts[0]
 
 

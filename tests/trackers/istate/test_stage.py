@@ -349,3 +349,27 @@ def test_transitions_are_keyed_by_the_negatives_too():
     per_stage = lambda out: [shapely.to_wkb(out[1][s]).tolist() for s in out[0]]  # noqa: E731
     assert per_stage(fast) == per_stage(plain)
     assert len(fast[1]) < len(stages.times)  # the recurring I-states are laid out once
+
+
+def test_region_geometries_artifact_is_the_regions_table_parsed(tmp_path):
+    """The geometries handed to the recording, row by row, are the regions table's WKB parsed:
+    the same bytes, and one object per distinct WKB (as :func:`onebit.core.wkb.geometries`)."""
+    from onebit.core.wkb import geometries
+
+    site, motion = _tiled_room(tmp_path, n=2, copies=2)
+    out = run({"motion": motion}, site, IStateConfig(max_elements=4))
+    got = out["artifacts"]["region_geometries"]
+    regs = out["regions"]
+    assert len(got) == regs.height > 0
+    assert shapely.to_wkb(got).tolist() == regs["wkb"].to_list()
+    parsed = geometries(regs["wkb"])
+    assert np.array_equal(_objects_in_order(got), _objects_in_order(parsed))
+
+
+def _objects_in_order(geoms) -> np.ndarray:
+    """Each row's object numbered in order of first appearance (equal for arrays that share
+    objects at the same rows)."""
+    _, first, inv = np.unique(np.fromiter(map(id, geoms), np.int64), return_index=True, return_inverse=True)
+    rank = np.empty(len(first), np.int64)
+    rank[np.argsort(first)] = np.arange(len(first))
+    return rank[inv.ravel()]
