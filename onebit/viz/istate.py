@@ -423,11 +423,7 @@ def log_detections(rec: rr.RecordingStream, root: str, detections: pl.DataFrame,
     stage = d["stage"].to_numpy()
     K = len(times)
     at = _changed_sets(stage, code, K)
-    keep = np.isin(stage, at)
     shapes = np.array([sensing[s] for s in ids] + [None], dtype=object)[:-1]
-    strips, per = _strips_per_stage(shapes[code[keep]])
-    lens = np.zeros(K, dtype=np.int64)
-    np.add.at(lens, stage[keep], np.asarray(per, dtype=np.int64))
     ent = paths.join(root, "detections")
     rec.log(
         ent,
@@ -435,12 +431,15 @@ def log_detections(rec: rr.RecordingStream, root: str, detections: pl.DataFrame,
         static=True,
     )
     for part in np.array_split(at, max(1, -(-at.size // SEND_ROWS))):  # bounded batches
-        lo = int(lens[: part[0]].sum())
-        hi = lo + int(lens[part].sum())
+        lo, hi = np.searchsorted(stage, part[0], "left"), np.searchsorted(stage, part[-1], "right")
+        rows = lo + np.flatnonzero(np.isin(stage[lo:hi], part))  # the detections of this batch's stages
+        strips, per = _strips_per_stage(shapes[code[rows]])
+        lens = np.zeros(len(part), dtype=np.int64)
+        np.add.at(lens, np.searchsorted(part, stage[rows]), np.asarray(per, dtype=np.int64))
         rec.send_columns(
             ent,
             indexes=[paths.time_column(np.asarray(times)[part])],
-            columns=rr.LineStrips2D.columns(strips=strips[lo:hi]).partition(lens[part]),
+            columns=rr.LineStrips2D.columns(strips=strips).partition(lens),
         )
 
 
