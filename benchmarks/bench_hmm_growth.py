@@ -9,7 +9,8 @@ trackers slot it (1 s, mid-slot sampling): the ``hallway`` (FindingHuMo Fig. 1 f
 wing of silent sensors (a grid corridor of rows of 10, joined to the graph's last node) to ``N``
 nodes, so every size decodes exactly the same motion and only the building grows. The decoder
 is the trackers' (:class:`~onebit.models.graph_hmm.adaptive.WindowDecoder`, modes ``full2`` =
-hmm2, ``full1`` = hmm1, ``adaptive`` = findinghumo's windows; the trackers' defaults, the site's
+hmm2, ``full1`` = hmm1, ``adaptive`` = findinghumo's windows, ``joint`` = findinghumo's joint
+re-decoding of meetings on the windows' paths (``joint2``: with ``joint_hops = 2``), its reference every meeting on every node; the trackers' defaults, the site's
 targets as the user bound, the EATG trained on the activity); the CPU time per slot (the
 fastest of ``--repeat`` runs) excludes the once-per-run model set-up (on its own row). The
 paths decoded on every ``N`` are compared with the smallest graph's (printed; equal unless the
@@ -101,6 +102,34 @@ def decode_timed(active, nodes, edges, sigs, mode: str, *, targets: int = 2, com
     return t1 - t0, t2 - t1, dec.result().paths
 
 
+def joint_timed(active, nodes, edges, sigs, mode: str, *, targets: int = 2, compiled: bool = True):
+    """``(set-up s, joint s, paths)``: findinghumo's joint re-decoding of meetings
+    (:func:`~onebit.models.graph_hmm.joint.redecode_meetings`, the trackers' defaults) on the
+    Adaptive-HMM's paths (not timed); set-up: its :class:`~onebit.models.graph_hmm.joint.JointSpaces`
+    (once per run); ``compiled=False``: every meeting on every node, its reference here."""
+    from onebit.models.graph_hmm.decoding import HmmConfig
+    from onebit.models.graph_hmm.eatg import hop_matrix, trained_eatg
+    from onebit.models.graph_hmm.joint import JointSpaces, redecode_meetings
+
+    cfg = HmmConfig()
+    _, _, paths = decode_timed(active, nodes, edges, sigs, "adaptive", targets=targets)
+    eatg = trained_eatg(active, nodes, hop_matrix(nodes, edges), horizon=5)
+    t0 = time.process_time()
+    reach = int(mode[len("joint") :] or cfg.joint_hops)  # joint2: the paper's 2-hop neighbourhood
+    spaces = JointSpaces(eatg, reach, whole=not compiled)
+    t1 = time.process_time()
+    out, _ = redecode_meetings(
+        paths,
+        active,
+        eatg,
+        p_hit=cfg.p_hit,
+        p_false=cfg.p_false,
+        pad=cfg.joint_pad,
+        spaces=spaces,
+    )
+    return t1 - t0, time.process_time() - t1, out
+
+
 def growth(sizes, values) -> float | None:
     """The growth exponent over the sizes (``None`` for a single size)."""
     if len(sizes) < 2 or sizes[-1] == sizes[0]:
@@ -136,24 +165,32 @@ def main(argv: list[str] | None = None) -> None:
     )
     print(f"{what}: {n_slots} slots, {int(active.sum())} active (slot, node) cells, {len(nodes)} nodes")
     # warm the kernels (compile or load from the cache) outside the timing
+    timed = {"joint": joint_timed, "joint2": joint_timed}
     for mode in args.modes.split(","):
-        decode_timed(active[:60], nodes, edges, sigs, mode, targets=targets)
+        timed.get(mode, decode_timed)(active[:60], nodes, edges, sigs, mode, targets=targets)
     table = Table()
     for mode in args.modes.split(","):
-        name = {"full2": "hmm2", "full1": "hmm1", "adaptive": "findinghumo-windows"}.get(mode, mode)
+        name = {
+            "full2": "hmm2",
+            "full1": "hmm1",
+            "adaptive": "findinghumo-windows",
+            "joint": "findinghumo-joint",
+            "joint2": "findinghumo-joint (joint_hops 2)",
+        }.get(mode, mode)
+        run = timed.get(mode, decode_timed)
         per_slot, setups, ref = [], [], None
         for n in sizes:
             g_nodes, g_edges = grown(nodes, edges, n)
             act = np.zeros((n_slots, len(g_nodes)), bool)
             act[:, : len(nodes)] = active
             before = kernels.DECODE_STATS.copy()
-            runs = [decode_timed(act, g_nodes, g_edges, sigs, mode, targets=targets) for _ in range(args.repeat)]
+            runs = [run(act, g_nodes, g_edges, sigs, mode, targets=targets) for _ in range(args.repeat)]
             stats = (kernels.DECODE_STATS - before) // args.repeat
             setup, dt, paths = min(r[0] for r in runs), min(r[1] for r in runs), runs[0][2]
             if ref is None and not args.reference:
                 ref = paths
             if ref is None:
-                ref = decode_timed(act, g_nodes, g_edges, sigs, mode, targets=targets, compiled=False)[2]
+                ref = run(act, g_nodes, g_edges, sigs, mode, targets=targets, compiled=False)[2]
                 if not np.array_equal(paths, ref):
                     raise AssertionError(f"{name}: the paths differ from the numpy reference's on N={n}")
             same = paths.shape == ref.shape and np.array_equal(paths, ref)
@@ -161,8 +198,12 @@ def main(argv: list[str] | None = None) -> None:
             setups.append(setup)
             print(
                 f"{name} N={len(g_nodes):>4}: {dt / n_slots * 1e3:8.3f} ms/slot ({dt:.2f} s), set-up {setup:.3f} s,"
-                f" paths {'equal' if same else 'DIFFER'} to N={sizes[0]}'s; {stats[0]} user decodes,"
-                f" {stats[1]} on all states ({stats[2]} uncertified)",
+                f" paths {'equal' if same else 'DIFFER'} to N={sizes[0]}'s"
+                + (
+                    f"; {stats[0]} user decodes, {stats[1]} on all states ({stats[2]} uncertified)"
+                    if not mode.startswith("joint")
+                    else ""
+                ),
                 flush=True,
             )
         g = growth(sizes, per_slot)

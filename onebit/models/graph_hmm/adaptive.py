@@ -196,6 +196,67 @@ def second_order_tensor(a1: np.ndarray, a2: np.ndarray, idx: np.ndarray) -> np.n
     return log_safe(t)
 
 
+class SecondOrderEntries:
+    """The entries of :func:`second_order_tensor` on every node (``idx = arange(N)``), one by
+    one, without its ``N^3`` array: ``T[j3, j2, j1]`` with index arrays (broadcast together)
+    gives ``log a(j3, j2, j1)`` of the module docstring (item 3)::
+
+        a(j3, j2, j2) = p1(j2, j2)                                   (stay)
+        a(j2, j2, j1) = p1(j2, j1)                                   (no direction yet: first order)
+        a(j3, j2, j1) = (1 - p1(j2, j2)) w(j3, j2, j1) / z(j3, j2)   (z > 0; else p1(j2, j1))
+        w(j3, j2, j1) = p1(j2, j1) p2(j3, j1),   z(j3, j2) = sum_{k != j2} w(j3, j2, k)
+
+    (``p1``/``p2`` the row-normalised ``a1`` and ``a2``). ``z`` is summed once per distinct
+    ``(j3, j2)`` of a call over the same row of ``N`` products as the dense tensor's, so each
+    entry equals the dense one bit for bit (tests); memory ``O(N^2)``, a call
+    ``O(m + pairs N)``. Used where only the entries along paths or of a few states are read:
+    the joint re-decoding of meetings (:mod:`onebit.models.graph_hmm.joint`) and the
+    likelihood of paths (:mod:`onebit.models.graph_hmm.likelihood`)."""
+
+    #: distinct ``(j3, j2)`` rows whose ``z`` is summed at once (bounds a call's memory)
+    CHUNK = 4096
+
+    def __init__(self, a1: np.ndarray, a2: np.ndarray):
+        p1, p2, n, eye = _restricted(a1, a2, np.arange(a1.shape[0]))
+        self.n = n
+        self.shape = (n, n, n)
+        self.stay = np.diag(p1).copy()
+        self.move = np.where(eye, 0.0, p1)
+        self.p2 = np.ascontiguousarray(p2)
+        # z of the contexts a path can have (j3 a neighbour of j2 either way), summed once per
+        # run: a call then sums only the rows of other contexts
+        j3, j2 = np.nonzero((self.move > 0) | (self.move.T > 0))
+        self._keys = j3.astype(np.int64) * n + j2
+        self._z = self._sums(j3, j2)
+
+    def _sums(self, j3: np.ndarray, j2: np.ndarray) -> np.ndarray:
+        z = np.empty(j3.size)
+        for lo in range(0, j3.size, self.CHUNK):  # bounded memory: CHUNK rows of N products at a time
+            hi = lo + self.CHUNK
+            z[lo:hi] = (self.move[j2[lo:hi]] * self.p2[j3[lo:hi]]).sum(axis=1)
+        return z
+
+    def __getitem__(self, key) -> np.ndarray:
+        j3, j2, j1 = np.broadcast_arrays(*(np.asarray(k, dtype=np.int64) for k in key))
+        shape = j3.shape
+        j3, j2, j1 = j3.ravel(), j2.ravel(), j1.ravel()
+        n = self.n
+        uniq, inv = np.unique(j3 * n + j2, return_inverse=True)
+        z = np.empty(uniq.size)
+        at = np.minimum(np.searchsorted(self._keys, uniq), max(self._keys.size - 1, 0))
+        known = self._keys[at] == uniq if self._keys.size else np.zeros(uniq.size, bool)
+        z[known] = self._z[at[known]]
+        other = uniq[~known]
+        z[~known] = self._sums(other // n, other % n)
+        z = z[inv.reshape(-1)]
+        move = self.move[j2, j1]
+        w = move * self.p2[j3, j1]
+        directed = np.where(z > 0, (1.0 - self.stay[j2]) * w / np.where(z > 0, z, 1.0), move)
+        t = np.where(j3 == j2, move, directed)
+        t = np.where(j1 == j2, self.stay[j2], t)
+        return log_safe(t).reshape(shape)
+
+
 def second_order_support(a1: np.ndarray, a2: np.ndarray, idx: np.ndarray) -> tuple:
     """:func:`~onebit.models.graph_hmm.kernels.transition_support` of
     :func:`second_order_tensor` on the states ``idx``, built without the ``S^3`` tensor: per

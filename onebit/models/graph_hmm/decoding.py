@@ -100,6 +100,10 @@ class HmmConfig:
         output, what CPDA then starts from) or ``"after-cpda"``. The baselines ``hmm1`` /
         ``hmm2`` default to ``"off"`` (the paper's full-state HMMs as it describes them).
     joint_pad : slots a joint re-decoding window extends either side of a meeting.
+    joint_hops : 0 (default): a meeting is re-decoded on the nodes its two users can reach in
+        the window (exact; :class:`~onebit.models.graph_hmm.joint.JointSpaces`); ``r > 0``: also
+        only within ``r`` hops of their motion (the paper's state set for overlapping motion,
+        Sec. III-B2 (a), 2 hops) -- faster on long meetings, approximate.
     """
 
     period: float = 1.0
@@ -125,6 +129,7 @@ class HmmConfig:
     fresh_slots: int = 2
     joint: str = "off"
     joint_pad: int = 4
+    joint_hops: int = 0
 
     def __post_init__(self) -> None:
         check_range(self, "period", 1e-3, None)
@@ -164,6 +169,7 @@ class HmmConfig:
         check_range(self, "fresh_slots", 1, 1000, types=(int,))
         check_choice(self, "joint", JOINT)
         check_range(self, "joint_pad", 0, 100, types=(int,))
+        check_range(self, "joint_hops", 0, 1000, types=(int,))
 
 
 def available(site: Site) -> str | None:
@@ -280,9 +286,53 @@ class DecodedRun:
     silent: pl.DataFrame
 
 
+#: the :class:`HmmConfig` fields :func:`decode_motion` reads (slots, EATG, decoder, silences)
+DECODE_FIELDS = (
+    "period",
+    "sampling",
+    "eatg",
+    "eatg_file",
+    "d_max",
+    "tau",
+    "stay",
+    "turn_back",
+    "prior_strength",
+    "p_hit",
+    "p_false",
+    "sweeps",
+    "restarts",
+    "offline",
+    "max_users",
+    "count",
+    "fresh_slots",
+    "absent_after",
+)
+_LAST: dict = {}  # the last decoded run of this process and what it was decoded from
+
+
 def decode_motion(mode: str, inputs: dict, site: Site, cfg: HmmConfig, *, progress=None) -> DecodedRun:
     """Slot the ``motion`` table, learn the EATG and decode the users (:func:`decode_run`,
-    ``mode`` ``"adaptive"`` / ``"full1"`` / ``"full2"``)."""
+    ``mode`` ``"adaptive"`` / ``"full1"`` / ``"full2"``).
+
+    Trackers that decode the same thing share it: the last run decoded in this process is
+    returned again when ``mode``, the ``motion`` table and the site are the same objects and
+    the config's :data:`DECODE_FIELDS` are equal (``findinghumo-flow`` with its default
+    ``decoder = "full2"`` after ``hmm2``; ``findinghumo`` after ``findinghumo-flow`` with
+    ``decoder = "adaptive"``). Its arrays are read-only, so no tracker can change what another
+    reads."""
+    key = (mode, tuple(getattr(cfg, f) for f in DECODE_FIELDS))
+    if _LAST.get("key") == key and _LAST.get("motion") is inputs["motion"] and _LAST.get("site") is site:
+        if progress is not None:  # the shared decode's progress, counted up again
+            for done, total in _LAST["progress"]:
+                progress(done, total)
+        return _LAST["run"]
+    calls: list[tuple[int, int]] = []
+
+    def told(done: int, total: int) -> None:
+        calls.append((done, total))
+        if progress is not None:
+            progress(done, total)
+
     motion = check_schema(inputs["motion"], MOTION, name="motion")
     g = site.sensor_graph
     nodes = g.nodes
@@ -290,9 +340,14 @@ def decode_motion(mode: str, inputs: dict, site: Site, cfg: HmmConfig, *, progre
     eatg = build_eatg(site, active, cfg)
     sigs = signature_indices(g, eatg)
     params = decoder_params(site, cfg, mode)
-    res = decode_run(active, eatg, signatures=sigs, params=params, progress=progress)
+    res = decode_run(active, eatg, signatures=sigs, params=params, progress=told)
     silent = silent_stretches([motion.filter(pl.col("sensor").is_in(list(nodes)))], min_s=cfg.absent_after)
-    return DecodedRun(active, t0, eatg, res, sigs, silent)
+    for a in (active, res.paths, eatg.hops, eatg.a1, eatg.a2):
+        a.flags.writeable = False
+    run = DecodedRun(active, t0, eatg, res, sigs, silent)
+    _LAST.clear()
+    _LAST.update(key=key, motion=inputs["motion"], site=site, run=run, progress=calls)
+    return run
 
 
 def signature_indices(g, eatg: Eatg) -> list[tuple[int, int]]:

@@ -27,8 +27,10 @@ then scored with the exact joint log-likelihood of all paths
 (:func:`~onebit.models.graph_hmm.likelihood.model_log_likelihood`) and kept only when it
 beats the current paths, so a re-decoding never lowers ``log L``.
 
-Cost per meeting: ``O(W S^2 K^2)`` with ``K <= 1 + max deg + 1`` predecessors per user state
-(hallway: S = 62, ~10^5 per slot). The recursion is sequential over the window's slots and
+Cost per meeting: ``O(W S^2 K)`` with ``K <= 1 + max deg + 1`` predecessors per user state and
+``S`` the user states of the nodes the pair can reach in the window (:class:`JointSpaces`,
+exact; optionally only the paper's 2-hop neighbourhood of their motion), not of the building;
+the transitions are read entry by entry, with no ``N^3`` tensor. The recursion is sequential over the window's slots and
 runs compiled (:func:`_pair_viterbi`, numba); :func:`pair_viterbi_reference`, vectorised in
 numpy over the pair states, is its plain reference and test oracle.
 """
@@ -41,44 +43,153 @@ import numpy as np
 import polars as pl
 
 from onebit.core.compiled import kernel
-from onebit.models.graph_hmm.adaptive import joint_emission, second_order_tensor
+from onebit.models.graph_hmm.adaptive import SecondOrderEntries, joint_emission
 from onebit.models.graph_hmm.eatg import Eatg
 from onebit.models.graph_hmm.likelihood import claims, path_log_prior
 
 
 class PairSpace:
-    """The user states ``(x, c)`` of a graph and each state's predecessors with their log
-    transition probabilities (module docstring)."""
+    """The user states ``(x, c)`` on the nodes ``nodes`` (default: every node of the graph) and
+    each state's predecessors with their log transition probabilities (module docstring).
 
-    def __init__(self, hops: np.ndarray, log_a: np.ndarray):
+    ``log_a`` gives ``log a(j3, j2, j1)`` by index arrays: the dense tensor of
+    :func:`~onebit.models.graph_hmm.adaptive.second_order_tensor` or its entries one by one
+    (:class:`~onebit.models.graph_hmm.adaptive.SecondOrderEntries`, no ``N^3`` array). On a
+    subset of the nodes a state ``(x, c)`` keeps every context ``c`` of ``x``; a move from a
+    node outside the subset has no predecessor state (paths stay inside it). States are
+    ordered by node, then context, and so are the predecessors, as on the whole graph: a
+    subset's recursion breaks ties as the whole graph's does among the paths both hold.
+    ``local``: each state's node as a column of ``nodes`` (the emission gains are computed on
+    those columns only)."""
+
+    def __init__(self, hops: np.ndarray, log_a, nodes: np.ndarray | None = None):
         n = hops.shape[0]
+        nodes = np.arange(n, dtype=np.int64) if nodes is None else np.unique(np.asarray(nodes, dtype=np.int64))
+        self.nodes = nodes
+        inside = np.zeros(n, dtype=bool)
+        inside[nodes] = True
         xs, cs = [], []
-        for x in range(n):  # graph-sized set-up, once per run
+        for x in nodes.tolist():  # the subset's (or the graph's, once per run) states
             for c in [-1, *np.flatnonzero(hops[x] == 1).tolist()]:
                 xs.append(x)
                 cs.append(c)
         self.x = np.array(xs, np.int64)
         self.c = np.array(cs, np.int64)
+        self.local = np.searchsorted(nodes, self.x).astype(np.int64)
         index = {(x, c): i for i, (x, c) in enumerate(zip(xs, cs))}
         self.index = index
-        preds: list[list[tuple[int, float]]] = []
-        for x, c in zip(xs, cs):
-            p = [(index[(x, c)], float(log_a[c if c >= 0 else x, x, x]))]  # stay
-            if c >= 0:  # arrived from c: any state at c moved here
-                for i in np.flatnonzero(self.x == c):
-                    cc = int(self.c[i])
-                    p.append((int(i), float(log_a[cc if cc >= 0 else c, c, x])))
-            preds.append(p)
-        k = max(len(p) for p in preds)
+        at = {}  # node -> its states, in order
+        for i, x in enumerate(xs):
+            at.setdefault(x, []).append(i)
+        rows, js = [], []  # (state, predecessor state) and the triple (j3, j2, j1) of the move
+        for i, (x, c) in enumerate(zip(xs, cs)):
+            rows.append((i, i))
+            js.append((c if c >= 0 else x, x, x))  # stay
+            if c >= 0 and inside[c]:  # arrived from c: any state at c moved here
+                for p in at[c]:
+                    cc = cs[p]
+                    rows.append((i, p))
+                    js.append((cc if cc >= 0 else c, c, x))
+        j = np.array(js, dtype=np.int64).reshape(-1, 3)
+        values = np.asarray(log_a[j[:, 0], j[:, 1], j[:, 2]], dtype=np.float64) if len(j) else np.zeros(0)
+        owner = np.array([r[0] for r in rows], dtype=np.int64)
+        counts = np.bincount(owner, minlength=len(xs))
+        k = int(counts.max()) if len(xs) else 1
+        col = np.arange(len(owner)) - np.repeat(np.cumsum(counts) - counts, counts)
         self.pred = np.zeros((len(xs), k), np.int64)
         self.lp = np.full((len(xs), k), -np.inf)
-        for i, p in enumerate(preds):
-            self.pred[i, : len(p)] = [a for a, _ in p]
-            self.lp[i, : len(p)] = [b for _, b in p]
+        self.pred[owner, col] = [r[1] for r in rows]
+        self.lp[owner, col] = values
         self.log_a = log_a
 
     def state(self, x: int, c: int) -> int:
         return self.index[(int(x), int(c) if c >= 0 and (int(x), int(c)) in self.index else -1)]
+
+
+class JointSpaces:
+    """The pair states a meeting is re-decoded on (:func:`redecode_meetings`), built once per
+    run and reused.
+
+    **Exact** (always): the nodes the two users can be at. A window of ``W`` slots starts from
+    the users' nodes ``s_u`` at the slot before it and ends by a move into a tail node ``y``
+    (the first slot after it, either pairing); a path moves at most one hop a slot, so a node
+    ``x`` at window slot ``t`` has ``hops(s_u, x) <= t + 1`` and ``hops(x, y) <= W - t``::
+
+        X = {x : some t in [0, W) has hops(s_u, x) <= t + 1 and hops(x, y) <= W - t}
+          = {x : hops(s_u, x) + hops(x, y) <= W + 1, hops(s_u, x) <= W, hops(x, y) <= W}
+            for a user u and a tail y (hops(s_u, x) <= W where a pairing leaves u without one),
+
+    plus the pair's current nodes. Every path of finite score lies in ``X``, and so does every
+    predecessor a back-pointer of such a path can name; the states keep the whole graph's order
+    (:class:`PairSpace`), so the decoded paths are the whole graph's, ties included (tests). A
+    meeting costs ``O(W S_X^2 K)``: ``S_X`` grows with the window's length, not the building.
+
+    ``reach = r > 0`` (the ``joint_hops`` option) further restricts ``X`` to the paper's state
+    set for overlapping motion (Sec. III-B2 (a): "the activated nodes of the motion sequences
+    and up to their 2-hop nodes"): the nodes within ``r`` hops of the pair's nodes and of the
+    activations chained to them within ``r`` hops. Faster on long meetings but approximate: a
+    joint optimum that leaves it is not found (on the simulated 24-hour home one hour-long
+    meeting's gain in ``log L`` fell from 682 to 53). Transitions are read entry by entry
+    (:class:`~onebit.models.graph_hmm.adaptive.SecondOrderEntries`): no ``N^3`` tensor.
+    Spaces are cached by their node set (at most ``MAX_CACHED``). ``whole=True``: every meeting
+    on every node (the reference the exact sets are tested against)."""
+
+    MAX_CACHED = 4096
+
+    def __init__(self, eatg: Eatg, reach: int = 0, *, whole: bool = False):
+        if reach < 0:
+            raise ValueError(f"reach must be >= 0 hops, got {reach}")
+        self.whole = bool(whole)
+        self.hops = np.minimum(np.asarray(eatg.hops, dtype=np.int64), np.int64(2**40))  # no overflow in sums
+        self.reach = int(reach)
+        self.log_a = SecondOrderEntries(eatg.a1, eatg.a2)
+        self._cache: dict[bytes, PairSpace] = {}
+
+    def reachable(self, starts, tails, w: int) -> np.ndarray:
+        """``(N,)`` mask of the exact set ``X`` (class docstring) for the users' start nodes,
+        their tail nodes (``-1``: none) and a window of ``w`` slots."""
+        ok = np.zeros(self.hops.shape[0], dtype=bool)
+        ys = [int(y) for y in tails if y >= 0]
+        for s in starts:
+            if s < 0:
+                continue
+            h = self.hops[int(s)]
+            if len(ys) < len(tails):  # a pairing leaves this user without a tail
+                ok |= h <= w
+            for y in ys:
+                hy = self.hops[y]
+                ok |= (h + hy <= w + 1) & (h <= w) & (hy <= w)
+        return ok
+
+    def neighbourhood(self, pair_nodes: np.ndarray, active: np.ndarray) -> np.ndarray:
+        """``(N,)`` mask of the paper's state set (class docstring, ``reach > 0``) of the pair's
+        nodes and the window's activity ``active (W, N)``."""
+        on = active.any(axis=0)
+        seeds = np.zeros(on.size, dtype=bool)
+        seeds[np.unique(pair_nodes[pair_nodes >= 0])] = True
+        new = seeds.copy()
+        while new.any():  # the motion sequences the pair is part of: activations chained within reach
+            near = (self.hops[np.flatnonzero(new)] <= self.reach).any(axis=0)
+            new = near & on & ~seeds
+            seeds |= new
+        return (self.hops[np.flatnonzero(seeds)] <= self.reach).any(axis=0)
+
+    def around(self, pair_nodes: np.ndarray, starts, tails, active: np.ndarray) -> PairSpace:
+        """The :class:`PairSpace` a meeting is decoded on: ``pair_nodes`` the two users' nodes
+        from the slot before the window to the first slot after it, ``starts`` / ``tails``
+        their nodes there (``-1``: none), ``active (W, N)`` the window's activity."""
+        ok = self.reachable(starts, tails, active.shape[0]) | self.whole
+        if self.reach:
+            ok &= self.neighbourhood(pair_nodes, active)
+        ok[pair_nodes[pair_nodes >= 0]] = True
+        nodes = np.flatnonzero(ok)
+        key = nodes.tobytes()
+        space = self._cache.get(key)
+        if space is None:
+            if len(self._cache) >= self.MAX_CACHED:
+                self._cache.clear()
+            space = self._cache[key] = PairSpace(self.hops, self.log_a, nodes)
+        return space
 
 
 def _gains(active: np.ndarray, others: np.ndarray, p_hit: float, p_false: float) -> tuple[np.ndarray, np.ndarray]:
@@ -182,17 +293,20 @@ def decode_pair(
     """Joint Viterbi of two users over a window (module docstring).
 
     ``start``: the two users' states at the slot before the window; ``active`` ``(W, N)`` and
-    ``others`` ``(W, N)`` (users at each node other than the pair); ``ends``: a list of
+    ``others`` ``(W, N)`` (users at each node other than the pair), or both on the space's
+    nodes only (``(W, len(space.nodes))``); ``ends``: a list of
     ``(y_1, y_2)`` first nodes after the window (``-1``: none) to finish into. Returns one
     ``(2, W)`` node array per end, or ``None`` where no path reaches it. ``compiled=False``
     runs the numpy reference recursion."""
     s = space.x.size
+    if active.shape[1] != space.nodes.size:  # the graph's columns: keep the space's
+        active, others = active[:, space.nodes], others[:, space.nodes]
     g, h = _gains(active, others, p_hit, p_false)
     delta0 = np.full((s, s), -np.inf)
     delta0[start[0], start[1]] = 0.0
     pred, k, xs = space.pred, space.pred.shape[1], space.x
     run = pair_viterbi if compiled else pair_viterbi_reference
-    delta, psi = run(delta0, pred, space.lp, xs, np.ascontiguousarray(g), np.ascontiguousarray(h))
+    delta, psi = run(delta0, pred, space.lp, space.local, np.ascontiguousarray(g), np.ascontiguousarray(h))
     out = []
     for y1, y2 in ends:
         term = delta.copy()
@@ -241,8 +355,8 @@ def meetings(paths: np.ndarray, hops: np.ndarray, *, pad: int) -> list[tuple[int
 
 
 def pair_space(eatg: Eatg) -> PairSpace:
-    """The :class:`PairSpace` of an EATG (second-order transitions on every node)."""
-    return PairSpace(eatg.hops, second_order_tensor(eatg.a1, eatg.a2, np.arange(len(eatg.nodes))))
+    """The :class:`PairSpace` of every node of an EATG (its transitions read entry by entry)."""
+    return PairSpace(eatg.hops, SecondOrderEntries(eatg.a1, eatg.a2))
 
 
 def redecode_meetings(
@@ -255,7 +369,8 @@ def redecode_meetings(
     pad: int = 4,
     compiled: bool = True,
     decide: tuple[int, int] | None = None,
-    space: PairSpace | None = None,
+    reach: int = 0,
+    spaces: JointSpaces | None = None,
 ) -> tuple[np.ndarray, list[dict]]:
     """Every meeting of two users (:func:`meetings`, in slot order) jointly re-decoded
     (:func:`decode_pair`), either pairing of the tails, the candidate of highest exact
@@ -263,12 +378,15 @@ def redecode_meetings(
     still ahead are listed again on the changed paths (issue #22: a list made once on the
     initial paths named users absent after an exchange of tails). ``decide = (lo, hi)``: only the
     meetings whose window ends at ``w1`` in ``[lo, hi)`` (lagged decoding: a meeting is
-    re-decoded with the block in which it ends, seen whole with its tails after it). Returns the paths and one record per
-    meeting (slots, users, gain in ``log L``, whether the tails were exchanged)."""
+    re-decoded with the block in which it ends, seen whole with its tails after it). Each meeting
+    is decoded on the pair states its users can reach (:class:`JointSpaces`; ``reach > 0``:
+    within the paper's neighbourhood of ``reach`` hops too, approximate); ``spaces``: those of an earlier call (a caller decoding block by block
+    builds them once; its ``reach`` is used). Returns the paths and one record per meeting
+    (slots, users, gain in ``log L``, whether the tails were exchanged)."""
     n = len(eatg.nodes)
-    if space is None:  # the pair states of the graph (a caller decoding block by block builds them once)
-        space = pair_space(eatg)
-    log_a = space.log_a
+    if spaces is None:
+        spaces = JointSpaces(eatg, reach)
+    log_a = spaces.log_a
     x = np.array(paths, dtype=np.int64, copy=True)
     d = x.shape[1]
     log = []
@@ -281,11 +399,18 @@ def redecode_meetings(
         u, v, w0, w1 = queue.pop(0)
         done.add((u, v, w0))
         a = w0 - 1
-        ctx = np.array([_context(x[u], a), _context(x[v], a)], dtype=np.int64)
-        start = (space.state(x[u, a], ctx[0]), space.state(x[v, a], ctx[1]))
-        others = claims(np.delete(x[:, w0 : w1 + 1], [u, v], axis=0), n)
         nxt = (int(x[u, w1 + 1]), int(x[v, w1 + 1])) if w1 + 1 < d else (-1, -1)
         ends = [nxt, (nxt[1], nxt[0])]
+        space = spaces.around(x[[u, v], a : min(w1 + 2, d)], (x[u, a], x[v, a]), nxt, active[w0 : w1 + 1])
+        ctx = np.array([_context(x[u], a), _context(x[v], a)], dtype=np.int64)
+        start = (space.state(x[u, a], ctx[0]), space.state(x[v, a], ctx[1]))
+        # the window's emissions on the space's columns only: the pair's current and candidate
+        # nodes are all in it, so the columns outside add the same to every candidate's log L
+        col = np.full(n, -1, dtype=np.int64)
+        col[space.nodes] = np.arange(space.nodes.size)
+        rest = np.delete(x[:, w0 : w1 + 1], [u, v], axis=0)
+        others = claims(np.where(rest >= 0, col[np.maximum(rest, 0)], -1), space.nodes.size)
+        act = active[w0 : w1 + 1][:, space.nodes]
         b = min(max(w1 + 1, _first_change(x[u], w1 + 1), _first_change(x[v], w1 + 1)), d - 1)
         seg = x[[u, v], a : b + 1]  # the pair from the slot before the window to where their tails settle
         k0, k1 = w0 - a, w1 + 1 - a  # the window inside ``seg``
@@ -294,17 +419,16 @@ def redecode_meetings(
             ctx0=ctx,
             window=(k0, k1),
             others=others,
-            active=active[w0 : w1 + 1],
+            active=act,
             log_a=log_a,
             p_hit=p_hit,
             p_false=p_false,
+            col=col,
         )
         cur = score(seg)
         best, pick = cur, None
         for swap, path in enumerate(
-            decode_pair(
-                space, start, active[w0 : w1 + 1], others, ends, p_hit=p_hit, p_false=p_false, compiled=compiled
-            )
+            decode_pair(space, start, act, others, ends, p_hit=p_hit, p_false=p_false, compiled=compiled)
         ):
             if path is None:
                 continue
@@ -381,14 +505,16 @@ def _settled(rows: np.ndarray, w1: int) -> int:
     return min(max(w1 + 1, *(_first_change(r, w1 + 1) for r in rows)), d - 1)
 
 
-def _segment_log_likelihood(seg, *, ctx0, window, others, active, log_a, p_hit, p_false) -> float:
+def _segment_log_likelihood(seg, *, ctx0, window, others, active, log_a, p_hit, p_false, col=None) -> float:
     """:func:`_local_log_likelihood` on the pair's segment ``seg`` (2, b - a + 1) from slot ``a``
-    (contexts ``ctx0``), the window at columns ``window`` and the other users' ``claims`` there."""
+    (contexts ``ctx0``), the window at columns ``window`` and the other users' ``claims`` there;
+    ``col``: each node's column in ``others``/``active`` when they hold only some nodes (the
+    emissions of those columns; the pair's nodes in the window must be among them)."""
     k0, k1 = window
     inside = others.copy()
     for r in seg[:, k0:k1]:  # the two users
         ok = r >= 0
-        inside[np.flatnonzero(ok), r[ok]] += 1
+        inside[np.flatnonzero(ok), r[ok] if col is None else col[r[ok]]] += 1
     return path_log_prior(seg, log_a, ctx0) + joint_emission(active, inside, p_hit, p_false)
 
 

@@ -25,7 +25,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from onebit.models.graph_hmm.adaptive import joint_emission, second_order_tensor
+from onebit.models.graph_hmm.adaptive import SecondOrderEntries, joint_emission
 from onebit.models.graph_hmm.eatg import Eatg
 
 
@@ -51,7 +51,8 @@ def came_from(paths: np.ndarray, ctx0: np.ndarray | None = None) -> np.ndarray:
 
 def path_log_prior(paths: np.ndarray, log_a: np.ndarray, ctx0: np.ndarray | None = None) -> float:
     """``sum_u sum_t log a(c_u(t-1), x_u(t-1), x_u(t))`` over slots where the user is present
-    at ``t - 1`` and ``t`` (``log_a`` the ``(N, N, N)`` tensor ``log a(j3, j2, j1)``; ``ctx0``
+    at ``t - 1`` and ``t`` (``log_a`` indexed ``log_a[j3, j2, j1]``: the ``(N, N, N)`` tensor or
+    :class:`~onebit.models.graph_hmm.adaptive.SecondOrderEntries`; ``ctx0``
     as in :func:`came_from`)."""
     paths = np.asarray(paths, dtype=np.int64)
     ctx = came_from(paths, ctx0)
@@ -77,7 +78,7 @@ def model_log_likelihood(
     """``log L(X)`` of the module docstring for paths ``(U, D)`` and slot activity ``(D, N)``."""
     n = len(eatg.nodes)
     if log_a is None:
-        log_a = second_order_tensor(eatg.a1, eatg.a2, np.arange(n))
+        log_a = SecondOrderEntries(eatg.a1, eatg.a2)
     return path_log_prior(paths, log_a) + joint_emission(active, claims(paths, n), p_hit, p_false)
 
 
@@ -89,8 +90,7 @@ def exchange_margin(
     (``X_e``: ``u`` follows ``x_v(t)`` and ``v`` follows ``x_u(t)`` for ``t >= e``). ``> 0``: the
     model prefers ``X``; ``0``: it cannot tell them apart; ``-inf`` is impossible (``X``
     itself has probability 0); ``+inf`` when every exchange is impossible (a jump)."""
-    n = len(eatg.nodes)
-    log_a = second_order_tensor(eatg.a1, eatg.a2, np.arange(n))
+    log_a = SecondOrderEntries(eatg.a1, eatg.a2)
     base = model_log_likelihood(paths, active, eatg, p_hit=p_hit, p_false=p_false, log_a=log_a)
     best, at = -np.inf, -1
     for e in slots:  # a handful of candidate slots
@@ -143,8 +143,7 @@ def tie_relabelling(
     the draw changed the labels."""
     import itertools
 
-    n = len(eatg.nodes)
-    log_a = second_order_tensor(eatg.a1, eatg.a2, np.arange(n))
+    log_a = SecondOrderEntries(eatg.a1, eatg.a2)
     x = np.array(paths, dtype=np.int64, copy=True)
     changed = 0
     for e in sorted({e for e, _ in colocations(paths)}):

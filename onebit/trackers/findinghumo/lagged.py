@@ -67,7 +67,7 @@ from onebit.models.graph_hmm.decoding import (
     user_bound,
 )
 from onebit.models.graph_hmm.eatg import Eatg
-from onebit.models.graph_hmm.joint import pair_space, redecode_meetings
+from onebit.models.graph_hmm.joint import JointSpaces, redecode_meetings
 from onebit.trackers.findinghumo.cpda import CpdaResult, cpda
 
 
@@ -87,7 +87,7 @@ class LaggedDecoder:
         fh = cpda_windows is not None
         self.joint_before = cfg.joint == "before-cpda" or (cfg.joint == "after-cpda" and not fh)
         self.joint_after = fh and cfg.joint == "after-cpda"
-        self.space = pair_space(eatg) if (self.joint_before or self.joint_after) else None
+        self.spaces = JointSpaces(eatg, cfg.joint_hops) if (self.joint_before or self.joint_after) else None
         self.block = cfg.tau
         self.back = cfg.lag_lookback
         self.ahead = cfg.decision_lag - cfg.d_max - RESUME_SLOTS
@@ -187,7 +187,7 @@ class LaggedDecoder:
             p_false=cfg.p_false,
             pad=cfg.joint_pad,
             decide=(r0, r1),
-            space=self.space,
+            spaces=self.spaces,
         )
         for rec in log:
             if rec["exchanged"]:

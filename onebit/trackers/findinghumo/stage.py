@@ -96,7 +96,7 @@ def _run(name: str, mode: str, inputs: dict, site: Site, cfg: HmmConfig) -> dict
     joint_log: list[dict] = []
     if cfg.joint == "before-cpda" or (cfg.joint == "after-cpda" and not isinstance(cfg, FindingHumoConfig)):
         paths, joint_log = redecode_meetings(
-            paths, active, eatg, p_hit=cfg.p_hit, p_false=cfg.p_false, pad=cfg.joint_pad
+            paths, active, eatg, p_hit=cfg.p_hit, p_false=cfg.p_false, pad=cfg.joint_pad, reach=cfg.joint_hops
         )
     cpda_input = paths
     if isinstance(cfg, FindingHumoConfig):
@@ -118,7 +118,7 @@ def _run(name: str, mode: str, inputs: dict, site: Site, cfg: HmmConfig) -> dict
         out["cpda"] = decisions_table(cp, nodes)
         if cfg.joint == "after-cpda":
             paths, joint_log = redecode_meetings(
-                paths, active, eatg, p_hit=cfg.p_hit, p_false=cfg.p_false, pad=cfg.joint_pad
+                paths, active, eatg, p_hit=cfg.p_hit, p_false=cfg.p_false, pad=cfg.joint_pad, reach=cfg.joint_hops
             )
     if cfg.joint != "off":
         out["joint"] = joint_table(joint_log, nodes, t0, cfg.period)

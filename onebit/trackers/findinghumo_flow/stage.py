@@ -183,7 +183,7 @@ def run_flow(inputs: dict, site: Site, config: FlowConfig) -> dict:
     joint_log: list[dict] = []
     if cfg.joint == "before-cpda":  # on the HMM's paths, before the association
         decoded, joint_log = redecode_meetings(
-            decoded, run.active, eatg, p_hit=cfg.p_hit, p_false=cfg.p_false, pad=cfg.joint_pad
+            decoded, run.active, eatg, p_hit=cfg.p_hit, p_false=cfg.p_false, pad=cfg.joint_pad, reach=cfg.joint_hops
         )
     paths, frags, ident, joins = associate_paths(
         decoded,
@@ -199,7 +199,7 @@ def run_flow(inputs: dict, site: Site, config: FlowConfig) -> dict:
     )
     if cfg.joint == "after-cpda":  # on the associated paths
         paths, joint_log = redecode_meetings(
-            paths, run.active, eatg, p_hit=cfg.p_hit, p_false=cfg.p_false, pad=cfg.joint_pad
+            paths, run.active, eatg, p_hit=cfg.p_hit, p_false=cfg.p_false, pad=cfg.joint_pad, reach=cfg.joint_hops
         )
     cap = cfg.max_users or (site.targets or 0)
     paths = cap_users(paths, run.active, eatg.hops, cap)

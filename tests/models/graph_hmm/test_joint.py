@@ -271,3 +271,134 @@ def test_a_meeting_after_an_exchange_of_tails_is_listed_on_the_new_paths():
     assert later and all(r["users"] == (0, 2) for r in later)  # the later meeting is user 0's now
     before = model_log_likelihood(x, active, EATG, p_hit=0.9, p_false=0.05)
     assert model_log_likelihood(fixed, active, EATG, p_hit=0.9, p_false=0.05) >= before
+
+
+# --- the meeting's neighbourhood (JointSpaces) and the entries without the N^3 tensor ---------
+
+
+@settings(max_examples=30, deadline=None)
+@given(
+    n=st.integers(2, 12),
+    seed=st.integers(0, 2**31 - 1),
+    density=st.floats(0.0, 1.0),
+)
+def test_second_order_entries_equal_the_dense_tensor_bit_for_bit(n, seed, density):
+    from onebit.models.graph_hmm.adaptive import SecondOrderEntries
+
+    rng = np.random.default_rng(seed)
+    a1 = rng.random((n, n)) * (rng.random((n, n)) < density)  # rows without moves too
+    a2 = rng.random((n, n)) * (rng.random((n, n)) < density)
+    dense = second_order_tensor(a1, a2, np.arange(n))
+    i = np.indices((n, n, n)).reshape(3, -1)
+    got = SecondOrderEntries(a1, a2)[i[0], i[1], i[2]]
+    np.testing.assert_array_equal(got, dense.ravel())
+    entries = SecondOrderEntries(a1, a2)
+    entries.CHUNK = 3  # z summed a few rows at a time: the same values
+    np.testing.assert_array_equal(entries[i[0], i[1], i[2]], dense.ravel())
+
+
+def test_a_subset_space_holds_the_whole_graphs_states_and_moves_inside_it():
+    from onebit.models.graph_hmm.adaptive import SecondOrderEntries
+
+    nodes = np.flatnonzero(EATG.hops[IDX["95"]] <= 2)  # a neighbourhood of 95
+    sub = PairSpace(EATG.hops, SecondOrderEntries(EATG.a1, EATG.a2), nodes)
+    whole = SPACE
+    where = np.array([whole.index[(x, c)] for x, c in zip(sub.x.tolist(), sub.c.tolist())])
+    assert np.all(np.diff(where) > 0)  # the same order
+    np.testing.assert_array_equal(whole.x[where], sub.x)
+    for i, w in enumerate(where):  # each state's predecessors inside the subset, in the whole graph's order
+        keep = [k for k in range(whole.pred.shape[1]) if np.isfinite(whole.lp[w, k]) or k == 0]
+        wp = [(int(whole.pred[w, k]), whole.lp[w, k]) for k in keep if whole.x[whole.pred[w, k]] in set(nodes.tolist())]
+        sp = [(int(where[sub.pred[i, k]]), sub.lp[i, k]) for k in range(sub.pred.shape[1]) if np.isfinite(sub.lp[i, k])]
+        assert [p for p, v in wp if np.isfinite(v)] == [p for p, _ in sp]
+        np.testing.assert_array_equal([v for _, v in wp if np.isfinite(v)], [v for _, v in sp])
+    np.testing.assert_array_equal(sub.nodes[sub.local], sub.x)
+
+
+def test_the_paper_neighbourhood_holds_the_pair_and_its_chained_activations_not_far_ones():
+    from onebit.models.graph_hmm.joint import JointSpaces
+
+    spaces = JointSpaces(EATG, reach=2)
+    pair = _rows([[95, 95, 99], [96, 95, 95]])
+    active = np.zeros((2, N), bool)
+    far = int(np.argmax(EATG.hops[IDX["95"]]))  # the node farthest from the meeting
+    near = int(np.flatnonzero(EATG.hops[IDX["99"]] == 2)[0])
+    active[0, far] = active[1, near] = True
+    got = set(np.flatnonzero(spaces.neighbourhood(pair, active)).tolist())
+    p = {IDX["95"], IDX["96"], IDX["99"]}
+    within = lambda src, r: {int(j) for s in src for j in np.flatnonzero(EATG.hops[s] <= r)}  # noqa: E731
+    assert got == within(p | {near}, 2)
+    assert far not in got and EATG.hops[IDX["95"], far] > 4
+
+
+@settings(max_examples=40, deadline=None)
+@given(data=st.data())
+def test_the_reachable_set_holds_every_path_from_the_starts_into_the_tails(data):
+    """Every node of every walk of W slots (a hop at most per slot) from a start node into a
+    tail is in the exact set; a node the set leaves out is on no such walk."""
+    from onebit.models.graph_hmm.joint import JointSpaces
+
+    spaces = JointSpaces(EATG)
+    w = data.draw(st.integers(1, 6))
+    starts = (data.draw(st.integers(0, N - 1)), data.draw(st.integers(0, N - 1)))
+    tails = (data.draw(st.integers(-1, N - 1)), data.draw(st.integers(-1, N - 1)))
+    ok = spaces.reachable(starts, tails, w)
+    h = EATG.hops
+    for x in range(N):  # by the definition: some user, some pairing's tail (or none)
+        ys = [y for y in tails if y >= 0]
+        on_walk = any(
+            any(h[s, x] <= t + 1 and (y < 0 or h[x, y] <= w - t) for t in range(w))
+            for s in starts
+            for y in ([*ys, -1] if len(ys) < 2 else ys)
+        )
+        assert bool(ok[x]) == on_walk, (x, starts, tails, w)
+
+
+def test_a_meeting_decoded_on_what_its_users_reach_is_decoded_as_on_the_whole_graph():
+    """Seed 25 of the hallway (3 users): every meeting re-decoded on the nodes its users can
+    reach gives the same paths and records as on every node; with a silent wing of 100 more
+    nodes chained to the hallway's last node the spaces hold what the pairs can reach (a part
+    of the wing on long meetings) and the paths are the same."""
+    from onebit.experiments.findinghumo_diagnose import simulate
+    from onebit.models.graph_hmm.decoding import decode_motion
+    from onebit.models.graph_hmm.eatg import Eatg
+    from onebit.models.graph_hmm.joint import JointSpaces
+    from onebit.trackers.findinghumo.stage import FindingHumoConfig
+
+    site, motion, _ = simulate(25)
+    cfg = FindingHumoConfig()
+    run = decode_motion("full2", {"motion": motion}, site, cfg)
+    kw = dict(p_hit=cfg.p_hit, p_false=cfg.p_false)
+    whole, log0 = redecode_meetings(
+        run.result.paths, run.active, run.eatg, spaces=JointSpaces(run.eatg, whole=True), **kw
+    )
+    local, log2 = redecode_meetings(run.result.paths, run.active, run.eatg, **kw)
+    np.testing.assert_array_equal(whole, local)
+    assert [(r["slot"], r["users"], r["exchanged"]) for r in log0] == [
+        (r["slot"], r["users"], r["exchanged"]) for r in log2
+    ]
+    assert np.allclose([r["gain"] for r in log0], [r["gain"] for r in log2])
+    # the same run on a graph grown by 100 silent nodes chained to the last node
+    e, n, extra = run.eatg, len(run.eatg.nodes), 100
+    m = n + extra
+    hops = np.full((m, m), 10**6, dtype=e.hops.dtype)
+    hops[:n, :n] = e.hops
+    a1 = np.zeros((m, m))
+    a1[:n, :n] = e.a1
+    a2 = np.zeros((m, m))
+    a2[:n, :n] = e.a2
+    chain = [n - 1, *range(n, m)]
+    for a, b in zip(chain, chain[1:]):  # silent: no moves learned on the wing (its rows stay)
+        hops[a, b] = hops[b, a] = 1
+    import networkx as nx
+
+    g = nx.from_numpy_array((hops == 1).astype(int))
+    hops = np.array(nx.floyd_warshall_numpy(g), dtype=e.hops.dtype)
+    grown = Eatg(nodes=(*e.nodes, *[f"W{k}" for k in range(extra)]), hops=hops, a1=a1, a2=a2)
+    active = np.zeros((run.active.shape[0], m), bool)
+    active[:, :n] = run.active
+    spaces = JointSpaces(grown)
+    big, _ = redecode_meetings(run.result.paths, active, grown, spaces=spaces, **kw)
+    sizes = [sp.nodes.size for sp in spaces._cache.values()]
+    assert max(sizes) < m // 3  # what the pairs can reach in their windows, not the building
+    np.testing.assert_array_equal(big, local)

@@ -149,3 +149,12 @@ def test_online_advance_poll_by_poll_equals_the_lagged_run(tmp_path):
     assert ref.filter((pl.col("t") > 70.0) & (pl.col("t") < 140.0)).height == 0  # the silence is dropped
     assert got.sort(["track", "t"]).equals(ref.sort(["track", "t"]))
     assert state.cut_row > mo.height // 2  # the follower looked at recent edges only
+
+
+def test_the_joint_neighbourhood_is_a_hop_count():
+    assert FindingHumoConfig().joint_hops == 0  # exact: the nodes the pair can reach
+    assert HmmConfig(joint_hops=2).joint_hops == 2  # the paper's 2-hop state set for overlapping motion
+    with pytest.raises(ConfigError, match="joint_hops"):
+        FindingHumoConfig(joint_hops=-1)
+    with pytest.raises(ConfigError, match="joint_hops"):
+        HmmConfig(joint_hops=1.5)
