@@ -8,6 +8,7 @@ those arrays here from flat numpy / polars columns, with no Python work per row:
 
 * :func:`strips_array` -- ``LineStrip2D`` (a list of 2-D points per strip) from flat points
   and per-strip lengths;
+* :func:`blobs_array` -- ``Blob`` (encoded images) from a list of bytes;
 * :func:`text_array` / :func:`repeat_text` / :func:`choice_text` -- ``Text`` / ``TextLogLevel``
   strings (UTF-8);
 * :func:`ring_table` / :func:`region_outlines` -- the outline rings of a set of polygons, and
@@ -154,6 +155,26 @@ def strips_array(points: np.ndarray, lengths: np.ndarray | int) -> pa.ListArray:
     typ = _strip_type()
     inner = pa.FixedSizeListArray.from_arrays(pa.array(pts.reshape(-1)), type=typ.value_type)
     return pa.ListArray.from_arrays(pa.array(offsets), inner, type=typ)
+
+
+@functools.cache
+def _blob_type():
+    """Rerun's Arrow type of a ``Blob`` batch (``list<uint8 not null>``)."""
+    return rr.components.BlobBatch([]).as_arrow_array().type
+
+
+def blobs_array(blobs: Sequence[bytes]) -> pa.ListArray:
+    """A ``Blob`` batch (encoded images) as one Arrow array, the bytes joined in one copy: pass
+    it as ``blob=`` to ``rr.EncodedImage.columns``. Equal to
+    ``rr.components.BlobBatch(blobs).as_arrow_array()`` (tested), which converts blob by blob
+    (13 us each: 4 s for the 330 000 fill images of a 10^6-row beams run)."""
+    lens = np.fromiter(map(len, blobs), dtype=np.int64, count=len(blobs))
+    if int(lens.sum()) > np.iinfo(np.int32).max:  # 32-bit offsets: Rerun's own conversion
+        return rr.components.BlobBatch(list(blobs)).as_arrow_array()
+    offsets = np.zeros(len(blobs) + 1, np.int32)
+    np.cumsum(lens, out=offsets[1:])
+    body = np.frombuffer(b"".join(blobs), dtype=np.uint8)
+    return pa.ListArray.from_arrays(pa.array(offsets), pa.array(body), type=_blob_type())
 
 
 def text_array(values: pl.Series | Sequence[str]) -> pa.StringArray:

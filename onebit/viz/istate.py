@@ -27,7 +27,7 @@ import shapely
 from onebit.core.lazy import lazy_module
 from onebit.core.wkb import geometries
 from onebit.viz import colors, paths
-from onebit.viz._series import gather_ranges, rings, strips_array
+from onebit.viz._series import blobs_array, gather_ranges, rings, strips_array
 from onebit.viz.families import GENERIC, Look
 from onebit.viz.frame import log_world_frame
 from onebit.viz.radii import ui_points
@@ -276,13 +276,16 @@ def _codes_by_labels(wins, raster: FillRaster, bg: np.ndarray, elem: list) -> tu
     return label, table
 
 
-def _region_grid(regions: pl.DataFrame, K: int) -> np.ndarray:
+def _region_grid(regions: pl.DataFrame, K: int, geoms: np.ndarray | None = None) -> np.ndarray:
     """``(E, n, K)`` object array of the regions by element slot, region and stage (``None``
-    where absent); rows with the same WKB hold the same geometry object (parsed once)."""
+    where absent); rows with the same WKB hold the same geometry object (parsed once), or
+    ``geoms`` holds each row's geometry already (the tracker's, rows with the same region
+    sharing an object)."""
     n = int(regions["k"].max()) + 1
     E = int(regions["element"].max()) + 1
     grid = np.full((E, n, K), None, dtype=object)
-    geoms = geometries(regions["wkb"])
+    if geoms is None or len(geoms) != regions.height:
+        geoms = geometries(regions["wkb"])
     grid[regions["element"].to_numpy(), regions["k"].to_numpy(), regions["stage"].to_numpy()] = geoms
     return grid
 
@@ -303,7 +306,14 @@ def changed(keys) -> np.ndarray:
 
 
 def log_istate_regions(
-    rec: rr.RecordingStream, tracker: str, regions: pl.DataFrame, times: np.ndarray, *, bounds=None, fill: bool = True
+    rec: rr.RecordingStream,
+    tracker: str,
+    regions: pl.DataFrame,
+    times: np.ndarray,
+    *,
+    bounds=None,
+    fill: bool = True,
+    geoms: np.ndarray | None = None,
 ) -> None:
     """Every (element slot, k) of the ``regions`` table (t, stage, element, k, wkb) over ``times``:
     outlines per slot and region, and (``fill``) one fill image per stage over ``bounds``
@@ -312,12 +322,13 @@ def log_istate_regions(
     Each entity gets a row only at the stages where what it shows changes (the first stage
     always; a slot that empties gets a row with no strips): the viewer shows at every time the
     latest row at or before it, so it shows what a row per stage showed. An I-state holds
-    still between readings -- a day of a home: 86 389 stages, 10 600 changes of the fill."""
+    still between readings -- a day of a home: 86 389 stages, 10 600 changes of the fill.
+    ``geoms``: each row's geometry, when the caller has them (:func:`_region_grid`)."""
     if regions.height == 0:
         return
     log_world_frame(rec, paths.tracker_root(tracker))
     K = len(times)
-    grid = _region_grid(regions, K)
+    grid = _region_grid(regions, K, geoms)
     E, n, _ = grid.shape
     times = np.asarray(times)
     for e in range(E):
@@ -353,7 +364,10 @@ def log_istate_regions(
     drawn: dict = {}  # PNGs by stage key, across the batches
     for part in np.array_split(at, max(1, -(-at.size // SEND_ROWS))):
         blobs = fill_images(grid[:, :, part], raster, keys=[keys[s] for s in part], cache=drawn)
-        rec.send_columns(ent, indexes=[paths.time_column(times[part])], columns=rr.EncodedImage.columns(blob=blobs))
+        rec.send_columns(
+            ent, indexes=[paths.time_column(times[part])], columns=rr.EncodedImage.columns(blob=blobs_array(blobs))
+        )
+        rec.flush()  # each batch written before the next: the queue of images in memory stays one batch
 
 
 def log_istate_run(
@@ -365,9 +379,10 @@ def log_istate_run(
     site=None,
     sensing: dict | None = None,
     detections: pl.DataFrame | None = None,
+    geoms: np.ndarray | None = None,
 ) -> None:
     """The ``istate`` stage: I-state regions (filled and outlined), sensing regions, detections,
-    element count and area."""
+    element count and area (``geoms``: the regions' geometries row by row, if known)."""
     root = paths.tracker_root(tracker)
     log_world_frame(rec, root)
     for sid, g in (sensing or {}).items():
@@ -382,7 +397,7 @@ def log_istate_run(
         return
     times = summary["t"].to_numpy()
     bounds = site.boundary.bounds if site is not None else None
-    log_istate_regions(rec, tracker, regions, times, bounds=bounds)
+    log_istate_regions(rec, tracker, regions, times, bounds=bounds, geoms=geoms)
     _series(
         rec,
         paths.join(root, "elements"),
@@ -393,20 +408,50 @@ def log_istate_run(
     )
     _series(rec, paths.join(root, "area"), "area of the I-state", (120, 200, 255), times, summary["area"].to_numpy())
     if detections is not None and detections.height and sensing:
-        d = detections.sort("stage", maintain_order=True)
-        strips = [s for sid in d["sensor"] for s in rings(sensing[sid])]
-        per = [len(rings(sensing[sid])) for sid in d["sensor"]]
-        lens = np.zeros(len(times), dtype=np.int64)
-        np.add.at(lens, d["stage"].to_numpy(), per)
-        ent = paths.join(root, "detections")
-        rec.log(
-            ent,
-            rr.LineStrips2D.from_fields(colors=[colors.FIRING], radii=rr.Radius.ui_points(2.5), draw_order=18.0),
-            static=True,
-        )
+        log_detections(rec, root, detections, sensing, times)
+
+
+def log_detections(rec: rr.RecordingStream, root: str, detections: pl.DataFrame, sensing: dict, times) -> None:
+    """``<root>/detections``: the sensing regions (``sensing``: sensor -> geometry) of the
+    ``detections`` (stage, sensor) of each stage, outlined bright red; a row only at the stages
+    whose set of detected sensors differs from the stage before (the first always), a stage with
+    none an empty row -- the viewer shows at every time what a row per stage showed. Each
+    sensor's rings are taken once (:func:`_strips_per_stage`) and gathered per row."""
+    d = detections.sort("stage", maintain_order=True)
+    ids = list(sensing)
+    code = d["sensor"].replace_strict({s: i for i, s in enumerate(ids)}, return_dtype=pl.Int64).to_numpy()
+    stage = d["stage"].to_numpy()
+    K = len(times)
+    at = _changed_sets(stage, code, K)
+    shapes = np.array([sensing[s] for s in ids] + [None], dtype=object)[:-1]
+    ent = paths.join(root, "detections")
+    rec.log(
+        ent,
+        rr.LineStrips2D.from_fields(colors=[colors.FIRING], radii=rr.Radius.ui_points(2.5), draw_order=18.0),
+        static=True,
+    )
+    for part in np.array_split(at, max(1, -(-at.size // SEND_ROWS))):  # bounded batches
+        lo, hi = np.searchsorted(stage, part[0], "left"), np.searchsorted(stage, part[-1], "right")
+        rows = lo + np.flatnonzero(np.isin(stage[lo:hi], part))  # the detections of this batch's stages
+        strips, per = _strips_per_stage(shapes[code[rows]])
+        lens = np.zeros(len(part), dtype=np.int64)
+        np.add.at(lens, np.searchsorted(part, stage[rows]), np.asarray(per, dtype=np.int64))
         rec.send_columns(
-            ent, indexes=[paths.time_column(times)], columns=rr.LineStrips2D.columns(strips=strips).partition(lens)
+            ent,
+            indexes=[paths.time_column(np.asarray(times)[part])],
+            columns=rr.LineStrips2D.columns(strips=strips).partition(lens),
         )
+
+
+def _changed_sets(stage: np.ndarray, code: np.ndarray, K: int) -> np.ndarray:
+    """The stages ``0..K-1`` whose sequence of ``code`` (rows sorted by ``stage``) differs from
+    the stage before's (the first always): equal counts and equal codes position by position."""
+    cnt = np.bincount(stage, minlength=K)
+    same = np.r_[False, cnt[1:] == cnt[:-1]]
+    j = np.flatnonzero(same[stage])  # a row of a stage with as many rows as the stage before
+    differs = code[j] != code[j - cnt[stage[j]]]  # its counterpart there: as many rows back
+    same[stage[j[differs]]] = False
+    return np.flatnonzero(~same)
 
 
 def log_active_tracking(
@@ -498,5 +543,6 @@ def log_run(
         site=site,
         sensing=out["artifacts"]["sensing"],
         detections=out["detections"],
+        geoms=out["artifacts"].get("region_geometries"),
     )
     log_point_tracks(rec, tracker, out["tracks"], rgb=look.rgb)

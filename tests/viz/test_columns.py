@@ -15,6 +15,7 @@ from hypothesis import strategies as st
 from onebit.core.tables import ABORTED
 from onebit.viz import paths
 from onebit.viz._series import (
+    blobs_array,
     choice_text,
     gather_ranges,
     only_tracker,
@@ -41,6 +42,19 @@ def test_strips_array_equals_rerun_per_strip_conversion(lengths, seed):
     ours = strips_array(points, lengths)
     assert ours.equals(rr.components.LineStrip2DBatch(strips).as_arrow_array())
     assert rr.LineStrips2D.columns(strips=ours).partition(np.ones(len(lengths), np.int64)) is not None
+
+
+@settings(max_examples=60, deadline=None)
+@given(st.lists(st.binary(max_size=40), max_size=12), st.data())
+def test_blobs_array_equals_rerun_per_blob_conversion(blobs, data):
+    repeated = (
+        blobs + [blobs[i] for i in data.draw(st.lists(st.integers(0, max(0, len(blobs) - 1)), max_size=5))]
+        if blobs
+        else []
+    )
+    ours = blobs_array(repeated)
+    assert ours.equals(rr.components.BlobBatch(repeated).as_arrow_array())
+    assert rr.EncodedImage.columns(blob=ours) is not None
 
 
 @settings(max_examples=60, deadline=None)

@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import numpy as np
 import polars as pl
+import pytest
 import shapely
 from hypothesis import given, settings
 from hypothesis import strategies as st
@@ -13,6 +14,7 @@ from rerun.chunk import RrdReader
 
 from onebit._testing.oracles import fill_images_reference
 from onebit.viz import paths
+from onebit.viz._series import rings
 from onebit.viz.istate import (
     FillRaster,
     _strips_per_stage,
@@ -176,3 +178,45 @@ def test_regions_are_logged_where_they_change_and_read_the_same_at_every_stage(t
         g = per_stage[s][1]
         want = [] if g is None else [np.asarray(g.exterior.coords, np.float32).tolist()]
         assert strips == want
+
+
+@pytest.mark.parametrize("batch", [4096, 2])
+def test_detections_are_logged_where_the_set_changes_and_read_the_same_at_every_stage(tmp_path, monkeypatch, batch):
+    """Detections of stages (the same set in consecutive stages, none, a set of two in another
+    order): rows only where a stage's set differs from the stage before, and the latest row at or
+    before each stage's time holds that stage's sensing regions' rings in its order."""
+    from onebit.viz import istate
+    from onebit.viz.istate import _changed_sets, log_detections
+
+    monkeypatch.setattr(istate, "SEND_ROWS", batch)  # rows of one send_columns call
+
+    hole = shapely.Polygon([(0, 0), (4, 0), (4, 4), (0, 4)], [[(1, 1), (2, 1), (2, 2), (1, 2)]])
+    sensing = {"p": _box(0, 0, 1, 1), "q": hole, "r": shapely.MultiPolygon([_box(5, 5, 1, 1), _box(7, 5, 1, 1)])}
+    per_stage = [["p"], ["p"], [], [], ["q", "r"], ["r", "q"], ["r", "q"], ["p"], []]
+    det = pl.DataFrame(
+        {
+            "stage": [s for s, ids in enumerate(per_stage) for _ in ids],
+            "sensor": [i for ids in per_stage for i in ids],
+        },
+        schema={"stage": pl.Int64, "sensor": pl.String},
+    )
+    times = np.arange(len(per_stage), dtype=float) * 2.0
+    path = tmp_path / "d.rrd"
+    rec = open_recording(path, recording_id="test")
+    log_detections(rec, "istate", det, sensing, times)
+    close_recording(rec, path)
+    got = _logged(path, "istate/detections", "LineStrips2D:strips")
+    assert [t for t, _ in got] == [0.0, 4.0, 8.0, 10.0, 14.0, 16.0]
+    for s, t in enumerate(times):
+        strips = [v for u, v in got if u <= t][-1]
+        want = [np.asarray(r, np.float32).tolist() for sid in per_stage[s] for r in rings(sensing[sid])]
+        assert strips == want, s
+    # the changed stages against a plain comparison of each stage's list with the one before
+    rng = np.random.default_rng(1)
+    for _ in range(50):
+        K = int(rng.integers(1, 12))
+        lists = [list(rng.integers(0, 3, size=int(rng.integers(0, 3)))) for _ in range(K)]
+        stage = np.array([s for s, ids in enumerate(lists) for _ in ids], dtype=np.int64)
+        code = np.array([c for ids in lists for c in ids], dtype=np.int64)
+        plain = [s for s in range(K) if s == 0 or lists[s] != lists[s - 1]]
+        assert _changed_sets(stage, code, K).tolist() == plain

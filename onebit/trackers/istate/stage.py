@@ -117,12 +117,15 @@ class IStateConfig:
         in which every sensor is off and nothing happens; 0 = always one. The I-state itself
         is unchanged.
     max_stages : the most stages (``span / period_s``) the pipeline runs the filter on; a
-        longer log skips the stage, saying so. 100 000 holds a day at 1 s: the filter and its
-        recording cost ~0.1-0.6 ms a stage (a simulated day of a two-resident home, 86 389
-        stages: 21-25 s of filter and 25 s of recording, 1.5 GB; 10^6 PIR rows, 80 589 stages:
-        27 + 10 s); a 10^6-row beams log of 5 days is 460 000 stages. 0 = no bound but
-        :data:`~onebit.core.config.MAX_STEPS` (10 million; more is refused, as a larger
-        ``max_stages`` is).
+        longer log skips the stage, saying so. 500 000 holds 5.8 days at 1 s and the 10^6-row
+        beams log (461 733 stages). A stage whose I-state and readings were met before is looked
+        up (:func:`_filter`: a few microseconds), a new one is computed (0.1-0.7 ms: 0.13 ms on a
+        simulated 100 000 s beams log, 23 % of its stages computed; 0.5-0.7 ms in a two-resident
+        home, 15 %), and the recording adds ~10 us a stage. Measured: the 10^6-row beams log
+        (tiled, 117 stages computed) 1.5 s of filter, its default run 12 s; a simulated day of
+        the home, 86 389 stages, 18-22 s of filter. A log of new stages only would cost up to
+        ~0.7 ms x 500 000 = 6 min. 0 = no bound but :data:`~onebit.core.config.MAX_STEPS` (10
+        million; more is refused, as a larger ``max_stages`` is).
     contradictions : what a reading that no joint state explains does (a spurious or late
         firing, a footprint larger than declared): ``reject`` (default) keeps the I-state and
         counts the reading (``summary.rejected``); ``empty`` is the paper's filter, whose
@@ -140,7 +143,7 @@ class IStateConfig:
     beam_width: float = length(0.0, unit="m")
     substeps: int = 1
     absent_after: float = ABSENT_AFTER_S
-    max_stages: int = 100_000
+    max_stages: int = 500_000
     contradictions: str = "reject"
 
     def __post_init__(self) -> None:
@@ -231,7 +234,8 @@ def fits(inputs: dict, site: Site, config: IStateConfig) -> str | None:
         return None
     return (
         f"the logs span {hi - lo:,.0f} s = {stages:,} stages of period_s = {config.period_s:g} s, more than "
-        f"max_stages = {config.max_stages:,} (the filter and its recording cost about 0.1-0.6 ms per stage); "
+        f"max_stages = {config.max_stages:,} (the filter costs 0.1-0.7 ms per stage it computes, a few us per stage "
+        "whose I-state and readings recur, its recording ~10 us); "
         "set [istate] max_stages = 0 (no bound) or a longer period_s in --config to run it"
     )
 
@@ -381,7 +385,8 @@ def run(inputs: dict, site: Site, config: IStateConfig) -> dict[str, pl.DataFram
     latency = config.latency_s
     if config.latency_auto and levels is not None:
         latency = max(latency, time_resolution(levels["t"]))
-    readings = [state_readings(levels, times, T, latency, v)] if tables else []
+    used = pl.col("detect") | (pl.col("negative") & pl.lit(config.reliable_negatives))  # the rows the filter reads
+    readings = [state_readings(levels, times, T, latency, v).filter(used)] if tables else []
     if cross is not None:  # a crossing's stamp lags the body by up to the raw beam log's sampling interval
         events = inputs.get("beam_events")
         stamps = events["t"] if events is not None and events.height else cross["t"]
@@ -406,9 +411,12 @@ def run(inputs: dict, site: Site, config: IStateConfig) -> dict[str, pl.DataFram
     frame = SiteFrame.of(site.free_space)
     free = frame.outer(site.free_space)
     det = rd.filter("detect")
-    det_geom = (
-        shapely.intersection(
-            grow(frame.outer(sr.positive)[det["idx"].to_numpy()], frame.length(det["inflation"].to_numpy())), free
+    pos = frame.outer(sr.positive)
+    det_geom = (  # each distinct (sensor, inflation) grown and clipped once, shared by its readings
+        _per_distinct(
+            lambda i, d: shapely.intersection(grow(pos[i], d), free),
+            det["idx"].to_numpy(),
+            frame.length(det["inflation"].to_numpy()),
         )
         if det.height
         else np.zeros(0, object)
@@ -416,8 +424,11 @@ def run(inputs: dict, site: Site, config: IStateConfig) -> dict[str, pl.DataFram
     det_stage = det["stage"].to_numpy()
     neg = rd.filter(pl.col("negative") & pl.lit(config.reliable_negatives)) if config.reliable_negatives else rd.clear()
     # a reading may lag the target by latency_s: only S eroded by v latency_s is surely empty
+    cleared = frame.inner(sr.negative)
     neg_geom = (
-        shrink(frame.inner(sr.negative)[neg["idx"].to_numpy()], frame.length(v * latency))
+        _per_distinct(
+            lambda i, d: shrink(cleared[i], d), neg["idx"].to_numpy(), np.full(neg.height, frame.length(v * latency))
+        )
         if neg.height
         else np.zeros(0, object)
     )
@@ -427,45 +438,32 @@ def run(inputs: dict, site: Site, config: IStateConfig) -> dict[str, pl.DataFram
 
     det_bounds = np.searchsorted(det_stage, np.arange(len(times) + 1))
     neg_bounds = np.searchsorted(neg_stage, np.arange(len(times) + 1))
-    eta = IState.initial(free, n)
-    cap = config.max_elements or None
-    reg_rows, summ, track_xy = [], [], np.zeros((len(times), n, 2))
-    prev = None
-    memo = PairMemo()  # region-pair results of the whole run (regions recur across stages)
-    free_area = float(free.area) or 1.0
-    step = float(frame.length(v * T))
-    for k, tk in enumerate(times):  # inherently sequential: the I-state of stage k depends on k-1
-        rejected: list | None = [] if config.contradictions == "reject" else None
-        eta = info_state_update(
-            eta,
-            det_geom[det_bounds[k] : det_bounds[k + 1]],
-            step=step if k else 0.0,
-            free_space=free,
-            shape=config.shape,
-            max_elements=cap,
-            negatives=neg_geom[neg_bounds[k] : neg_bounds[k + 1]],
-            substeps=config.substeps,
-            memo=memo,
-            rejected=rejected,
-        )
-        E = eta.size
-        reg_rows.append(eta.regions.ravel())
-        area = memo.recall(eta, free, "total_area", IState.total_area)  # the I-state recurs at a fixed point
-        summ.append(
-            (
-                float(tk),
-                k,
-                E,
-                area * frame.scale**2,
-                int(det_bounds[k + 1] - det_bounds[k]),
-                len(rejected or ()),
-                area / free_area,
-            )
-        )
-        track_xy[k] = prev = _point_summary(eta, prev, n)
-
-    summary = pl.DataFrame(summ, schema=SUMMARY, orient="row")
-    regions = _regions_table(times, reg_rows, n, frame)
+    steps = Stages(
+        times=times,
+        detections=det_geom,
+        det_bounds=det_bounds,
+        negatives=neg_geom,
+        neg_bounds=neg_bounds,
+        free=free,
+        n=n,
+        step=float(frame.length(v * T)),
+    )
+    stage_state, state_rows, summ, track_xy = _filter(steps, config)
+    summ[:, 3] *= frame.scale**2  # area in site units
+    summary = pl.DataFrame(
+        {
+            "t": np.asarray(times, dtype=float),
+            "stage": np.arange(len(times), dtype=np.int64),
+            "elements": summ[:, 0].astype(np.int64),
+            "area": summ[:, 3],
+            "detections": np.diff(det_bounds).astype(np.int64),
+            "rejected": summ[:, 1].astype(np.int64),
+            "area_share": summ[:, 2],
+        },
+        schema=SUMMARY,
+    )
+    row_geoms: list = []
+    regions = _regions_table(times, state_rows, n, frame, stage_state, row_geoms=row_geoms)
     track_xy = frame.xy_to_site(track_xy)
     K = len(times)
     tracks = conform(
@@ -491,36 +489,268 @@ def run(inputs: dict, site: Site, config: IStateConfig) -> dict[str, pl.DataFram
         },
         schema=DETECTIONS,
     )
-    artifacts = {"sensing": dict(zip(sr.ids, sr.positive))}
+    artifacts = {
+        "sensing": dict(zip(sr.ids, sr.positive)),
+        # the regions table's geometries, row by row (shared objects): its recording parses no WKB
+        "region_geometries": np.concatenate(row_geoms) if row_geoms else np.zeros(0, dtype=object),
+    }
     return {"tracks": tracks, "summary": summary, "regions": regions, "detections": detections, ARTIFACTS: artifacts}
 
 
-def _regions_table(times: np.ndarray, regions: list, n: int, frame: SiteFrame) -> pl.DataFrame:
-    """The ``regions`` table (REGIONS) of the stages' flattened ``(E_k n,)`` region arrays
-    (in ``frame``): one row per region in site units, built once for the run (a region
-    recurring across stages is mapped back, measured and encoded once: its WKB bytes are
-    shared by its rows, :func:`onebit.core.wkb.wkb_column`)."""
-    if not regions:
+def _per_distinct(make, idx: np.ndarray, dist: np.ndarray) -> np.ndarray:
+    """``make(idx, dist)`` (an elementwise geometry function of a sensor index and a length)
+    computed once per distinct ``(idx, dist)`` pair, the result object shared by the rows with
+    that pair (the same values as computing every row: each row's result depends on its pair only)."""
+    idx = np.asarray(idx, dtype=np.int64)
+    d, d_code = np.unique(np.asarray(dist, dtype=np.float64), return_inverse=True)
+    _, first, inv = np.unique(idx * len(d) + d_code.reshape(-1), return_index=True, return_inverse=True)
+    out = np.asarray(make(idx[first], d[d_code.reshape(-1)[first]]), dtype=object)
+    return out[inv.reshape(-1)]
+
+
+# --------------------------------------------------------------------------- the stage loop
+
+
+#: Stages of the ``regions`` table built at once (:func:`_regions_table`).
+REGIONS_CHUNK = 1 << 16
+
+#: Entries (I-states, stage transitions, point summaries) :class:`_Transitions` keeps before
+#: it starts afresh.
+TRANSITIONS_CAPACITY = 1 << 16
+
+
+@dataclass(frozen=True, kw_only=True)
+class Stages:
+    """The filter's inputs in the site's frame: the stage times, the sensing regions reading 1
+    (``detections``, those of stage ``k`` at ``det_bounds[k]:det_bounds[k + 1]``) and the regions
+    a reading 0 clears (``negatives``, likewise), the free space, ``n`` and the motion step
+    ``s_tgt = v T``."""
+
+    times: np.ndarray
+    detections: np.ndarray
+    det_bounds: np.ndarray
+    negatives: np.ndarray
+    neg_bounds: np.ndarray
+    free: object
+    n: int
+    step: float
+
+
+def _filter(stages: Stages, config: IStateConfig) -> tuple[np.ndarray, list, np.ndarray, np.ndarray]:
+    """The filter over every stage: ``(I-state of each stage (K,), the regions of each of those
+    I-states flattened, (K, 4) [elements, rejected, area / free area, area (frame units)],
+    (K, n, 2) point summaries)``.
+
+    Each stage is a function of the I-state it starts from, whether it moves (every stage but
+    the first) and its readings' regions -- ``eta_k = f(eta_{k-1}, S_k)`` -- and its point
+    summary a function of ``eta_k`` and the summary before. :class:`_Transitions` numbers the
+    distinct I-states (by their regions' WKB) and the distinct reading regions, and looks a
+    stage up when its ``(eta_{k-1}, moves, S_k)`` was met before: a room where nothing is read
+    keeps an I-state that is a fixed point of the motion update (``F(eta) = eta``: the free
+    space, or regions at walls), and a log whose readings recur (a beam crossed again and
+    again) goes through the same I-states. A looked-up stage is the one computed (the same
+    GEOS operations on the same coordinates give the same bits), so the result is
+    :func:`_filter_reference`'s, which computes every stage (the test oracle)."""
+    times, n = stages.times, stages.n
+    K = len(times)
+    memo = PairMemo()  # region-pair results of the whole run (regions recur across stages)
+    state_rows: list = []  # the regions of each distinct I-state of the run, flattened
+    cache = _Transitions(state_rows)
+    det_ids = cache.reading_ids(stages.detections)
+    neg_ids = cache.reading_ids(stages.negatives)
+    db, nb = stages.det_bounds.tolist(), stages.neg_bounds.tolist()
+    free_area = float(stages.free.area) or 1.0
+    cap = config.max_elements or None
+    reject = config.contradictions == "reject"
+    stage_state = np.zeros(K, dtype=np.int64)
+    summ = np.zeros((K, 4))
+    track_xy = np.zeros((K, n, 2))
+    eta = IState.initial(stages.free, n)
+    state = cache.state(eta)
+    prev, prev_key = None, None
+    for k in range(K):  # inherently sequential: the I-state of stage k depends on k-1
+        if cache.full():  # start afresh (memory stays bounded): the state numbers are new
+            cache.__init__(state_rows)
+            state = cache.state(eta)
+        d0, d1, g0, g1 = db[k], db[k + 1], nb[k], nb[k + 1]
+        key = (state, k > 0, det_ids[d0:d1].tobytes() if d1 > d0 else b"", neg_ids[g0:g1].tobytes() if g1 > g0 else b"")
+        hit = cache.step.get(key)
+        if hit is None:
+            rejected: list | None = [] if reject else None
+            new = info_state_update(
+                eta,
+                stages.detections[d0:d1],
+                step=stages.step if k else 0.0,
+                free_space=stages.free,
+                shape=config.shape,
+                max_elements=cap,
+                negatives=stages.negatives[g0:g1],
+                substeps=config.substeps,
+                memo=memo,
+                rejected=rejected,
+            )
+            s = cache.state(new)
+            area = cache.area(s, stages.free)  # once per distinct I-state
+            hit = cache.step[key] = (s, (new.size, len(rejected or ()), area / free_area, area))
+        state, summ[k] = hit
+        eta = cache.etas[state]  # the I-state of this number met first: the same regions
+        stage_state[k] = cache.run_number[state]
+        pkey = (state, prev_key)
+        xy = cache.summary.get(pkey)
+        if xy is None:
+            xy = cache.summary[pkey] = _point_summary(eta, prev, n)
+            xy.flags.writeable = False
+        track_xy[k] = prev = xy
+        prev_key = xy.tobytes()
+    return stage_state, state_rows, summ, track_xy
+
+
+class _Transitions:
+    """The distinct I-states of a run (numbered by their regions' WKB, with their flattened
+    regions and total area), the stage transitions met (``(state, moves, reading ids, negative
+    ids) -> (state, summary row)``) and the point summaries (``(state, previous summary) ->
+    summary``) of :func:`_filter`; :meth:`full` past :data:`TRANSITIONS_CAPACITY` entries."""
+
+    def __init__(self, run_rows: list) -> None:
+        self.etas: list[IState] = []  # state number -> I-state
+        self.run_rows = run_rows  # the regions of every I-state numbered in the run, flattened (kept on a reset)
+        self.run_number: list[int] = []  # state number -> its index in run_rows
+        self._area: dict[int, float] = {}  # state number -> area of the union of its regions
+        self._number: dict[tuple, int] = {}  # (shape, region ids) -> state number
+        self._rid: dict[bytes, int] = {}  # region WKB -> region id
+        self._obj: dict[int, tuple[object, int]] = {}  # id(region) -> (region kept alive, region id)
+        self.step: dict[tuple, tuple] = {}
+        self.summary: dict[tuple, np.ndarray] = {}
+
+    def full(self) -> bool:
+        return len(self.step) + len(self.summary) + len(self.etas) + len(self._obj) > TRANSITIONS_CAPACITY
+
+    @staticmethod
+    def reading_ids(geoms: np.ndarray) -> np.ndarray:
+        """One int32 per reading region, equal for equal WKB (each geometry object encoded once)."""
+        if len(geoms) == 0:
+            return np.zeros(0, dtype=np.int32)
+        _, first, objs = np.unique(
+            np.fromiter(map(id, geoms), dtype=np.int64, count=len(geoms)), return_index=True, return_inverse=True
+        )
+        _, inv = np.unique(shapely.to_wkb(geoms[first]), return_inverse=True)
+        return inv.reshape(-1).astype(np.int32)[objs.reshape(-1)]
+
+    def state(self, eta: IState) -> int:
+        """The number of an I-state (a new one for an I-state not met before)."""
+        ids = []
+        for g in eta.regions.ravel().tolist():
+            hit = self._obj.get(id(g))
+            if hit is None:
+                hit = self._obj[id(g)] = (g, self._rid.setdefault(shapely.to_wkb(g), len(self._rid)))
+            ids.append(hit[1])
+        key = (eta.regions.shape, tuple(ids))
+        s = self._number.get(key)
+        if s is None:
+            s = self._number[key] = len(self.etas)
+            self.etas.append(eta)
+            self.run_number.append(len(self.run_rows))
+            self.run_rows.append(eta.regions.ravel())
+        return s
+
+    def area(self, state: int, free) -> float:
+        """:meth:`IState.total_area` of a state within the free space, computed once."""
+        a = self._area.get(state)
+        if a is None:
+            a = self._area[state] = float(IState.total_area(self.etas[state], free))
+        return a
+
+
+def _filter_reference(stages: Stages, config: IStateConfig) -> tuple[np.ndarray, list, np.ndarray, np.ndarray]:
+    """:func:`_filter` computing every stage (the plain loop; its test oracle): an I-state per stage."""
+    times, n = stages.times, stages.n
+    K = len(times)
+    db, nb = stages.det_bounds, stages.neg_bounds
+    eta = IState.initial(stages.free, n)
+    cap = config.max_elements or None
+    reg_rows, summ, track_xy = [], np.zeros((K, 4)), np.zeros((K, n, 2))
+    prev = None
+    memo = PairMemo()
+    free_area = float(stages.free.area) or 1.0
+    for k in range(K):
+        rejected: list | None = [] if config.contradictions == "reject" else None
+        eta = info_state_update(
+            eta,
+            stages.detections[db[k] : db[k + 1]],
+            step=stages.step if k else 0.0,
+            free_space=stages.free,
+            shape=config.shape,
+            max_elements=cap,
+            negatives=stages.negatives[nb[k] : nb[k + 1]],
+            substeps=config.substeps,
+            memo=memo,
+            rejected=rejected,
+        )
+        reg_rows.append(eta.regions.ravel())
+        area = memo.recall(eta, stages.free, "total_area", IState.total_area)  # as the filter always did
+        summ[k] = (eta.size, len(rejected or ()), area / free_area, area)
+        track_xy[k] = prev = _point_summary(eta, prev, n)
+    return np.arange(K, dtype=np.int64), reg_rows, summ, track_xy
+
+
+def _regions_table(
+    times: np.ndarray,
+    regions: list,
+    n: int,
+    frame: SiteFrame,
+    stage_state: np.ndarray | None = None,
+    *,
+    row_geoms: list | None = None,
+) -> pl.DataFrame:
+    """The ``regions`` table (REGIONS): stage ``k`` holds the flattened ``(E n,)`` region array
+    ``regions[stage_state[k]]`` (in ``frame``; ``stage_state`` default ``0..K-1``, an array per
+    stage); one row per region in site units, built once for the run (a region recurring
+    across stages is mapped back, measured and encoded once: its WKB bytes are shared by its
+    rows; an I-state recurring across stages is laid out once and its rows gathered).
+    ``row_geoms`` (a list) receives the rows' geometries in site units (object arrays, one per
+    chunk of rows), for the recording: the same objects, not parsed again from the WKB."""
+    K = len(times)
+    state = np.arange(K, dtype=np.int64) if stage_state is None else np.asarray(stage_state, dtype=np.int64)
+    if K == 0 or not regions:
         return pl.DataFrame(schema=REGIONS)
-    sizes = np.array([len(r) for r in regions], dtype=np.int64)  # E_k n
-    flat = np.concatenate(regions) if sizes.sum() else np.zeros(0, dtype=object)
+    sizes_s = np.fromiter(map(len, regions), dtype=np.int64, count=len(regions))  # E n of each I-state
+    flat = np.concatenate(regions) if sizes_s.sum() else np.zeros(0, dtype=object)
     _, first, inv = np.unique(
         np.fromiter(map(id, flat), dtype=np.int64, count=len(flat)), return_index=True, return_inverse=True
     )
     distinct = np.asarray(frame.to_site(flat[first]), dtype=object)
-    flat = distinct[inv.ravel()]
-    within = np.arange(len(flat), dtype=np.int64) - np.repeat(np.cumsum(sizes) - sizes, sizes)  # position in its stage
-    return pl.DataFrame(
-        {
-            "t": np.repeat(np.asarray(times, dtype=float), sizes),
-            "stage": np.repeat(np.arange(len(regions), dtype=np.int64), sizes),
-            "element": within // n,
-            "k": within % n,
-            "area": shapely.area(distinct).astype(float)[inv.ravel()],
-            "wkb": wkb_column(flat),  # each region's WKB once, shared by the stages holding it
-        },
-        schema=REGIONS,
-    )
+    area = shapely.area(distinct).astype(float)
+    wkb = wkb_column(distinct)  # each region's WKB once, shared by the stages holding it
+    if row_geoms is not None:  # one object per distinct WKB, as parsing the column gives
+        _, one, same = np.unique(wkb.to_numpy(), return_index=True, return_inverse=True)
+        canonical = distinct[one][same.reshape(-1)]
+    code_of = inv.reshape(-1).astype(np.int64)  # distinct region of each position in ``flat``
+    start_s = np.cumsum(sizes_s) - sizes_s
+    times = np.asarray(times, dtype=float)
+    parts = []
+    for lo in range(0, K, REGIONS_CHUNK):  # stages in chunks: the temporaries stay O(chunk)
+        st = state[lo : lo + REGIONS_CHUNK]
+        sizes = sizes_s[st]  # rows of each stage
+        total = int(sizes.sum())
+        before = np.cumsum(sizes) - sizes  # first row of each stage
+        within = np.arange(total, dtype=np.int64) - np.repeat(before, sizes)  # position in its stage
+        code = code_of[np.repeat(start_s[st], sizes) + within]  # its I-state's region there
+        parts.append(
+            pl.DataFrame(
+                {
+                    "t": np.repeat(times[lo : lo + REGIONS_CHUNK], sizes),
+                    "stage": np.repeat(np.arange(lo, lo + len(st), dtype=np.int64), sizes),
+                    "element": within // n,
+                    "k": within % n,
+                    "area": area[code],
+                    "wkb": wkb.gather(code),
+                },
+                schema=REGIONS,
+            )
+        )
+        if row_geoms is not None:
+            row_geoms.append(canonical[code])
+    return pl.concat(parts, rechunk=False) if len(parts) > 1 else parts[0]
 
 
 def _point_summary(eta: IState, prev: np.ndarray | None, n: int) -> np.ndarray:

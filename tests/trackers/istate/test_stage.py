@@ -228,6 +228,19 @@ def test_regions_table_is_the_stages_rows_in_order():
     assert _regions_table(times, stages, n, frame).equals(pl.concat(frames))
     assert _regions_table(times[:1], [stages[1]], n, frame).equals(frames[1].clear())
     assert _regions_table(times[:0], [], n, frame).equals(pl.DataFrame(schema=REGIONS))
+    # I-states laid out once and named per stage: the table of the stages' own arrays
+    states, of_stage = [stages[2], stages[1], stages[3]], np.array([2, 0, 0, 1])
+    per_stage = [states[s] for s in of_stage]
+    assert _regions_table(times, states, n, frame, of_stage).equals(_regions_table(times, per_stage, n, frame))
+    assert _regions_table(times, states, n, frame, of_stage)["stage"].to_list() == [0, 0, 0, 0] + [1] * 6 + [2] * 6
+    from onebit.trackers.istate import stage as st
+
+    whole = _regions_table(times, stages, n, frame)
+    st.REGIONS_CHUNK, chunk = 1, st.REGIONS_CHUNK  # a stage at a time: the same table
+    try:
+        assert _regions_table(times, stages, n, frame).equals(whole)
+    finally:
+        st.REGIONS_CHUNK = chunk
 
 
 @pytest.mark.parametrize("shape", ["exact", "rect", "disk"])
@@ -258,3 +271,105 @@ def test_the_stage_is_unit_free(tmp_path, shape):
     gb = shapely.transform(shapely.from_wkb(b["regions"]["wkb"].to_numpy()), lambda xy: xy / k)
     assert (shapely.get_num_coordinates(ga) == shapely.get_num_coordinates(gb)).all()
     assert np.allclose(shapely.get_coordinates(ga), shapely.get_coordinates(gb), rtol=0, atol=1e-12)
+
+
+def _tiled_room(tmp_path, n: int, copies: int = 3, span: float = 30.0):
+    """A room's motion log of ``span`` s repeated ``copies`` times (offsets of whole stages):
+    its readings, and so its stage transitions, recur."""
+    data = write_room_dataset(tmp_path / "tiled", seed=3, duration=span, n=n)
+    raw = pl.read_csv(data / "motion.csv")
+    motion = raw.select(pl.col("t").cast(pl.Float64), "sensor", on=pl.col("value") == 1)
+    tiles = [motion.with_columns(pl.col("t") + i * (span + 10.0)) for i in range(copies)]
+    return load_site(data / "site.toml"), pl.concat(tiles)
+
+
+@pytest.mark.parametrize(
+    "cfg",
+    [
+        IStateConfig(max_elements=4),
+        IStateConfig(shape="rect", reliable_negatives=True, max_elements=3),
+        IStateConfig(shape="disk", contradictions="empty", max_speed=0.5),
+        IStateConfig(max_elements=0, substeps=2, absent_after=3.0),
+    ],
+)
+def test_transitions_looked_up_equal_every_stage_computed(tmp_path, monkeypatch, cfg):
+    """The stage loop that looks up recurring transitions (:func:`_filter`) gives every table
+    of the plain loop (:func:`_filter_reference`), bit for bit -- also when its cache is
+    dropped every few entries; and it does look stages up (fewer filter steps computed)."""
+    from onebit.trackers.istate import stage as st
+
+    site, motion = _tiled_room(tmp_path, n=2)
+    calls = {"n": 0}
+    update = st.info_state_update
+
+    def counted(*a, **kw):
+        calls["n"] += 1
+        return update(*a, **kw)
+
+    monkeypatch.setattr(st, "info_state_update", counted)
+    fast = run({"motion": motion}, site, cfg)
+    computed = calls["n"]
+    stages = fast["summary"].height
+    assert stages > 100 and computed < stages  # the quiet gaps and the repeated tiles are looked up
+    with monkeypatch.context() as m:
+        m.setattr(st, "TRANSITIONS_CAPACITY", 7)
+        small = run({"motion": motion}, site, cfg)
+        m.setattr(st, "_filter", st._filter_reference)
+        plain = run({"motion": motion}, site, cfg)
+    for name in ("summary", "regions", "tracks", "detections"):
+        assert fast[name].equals(plain[name]), name
+        assert small[name].equals(plain[name]), name
+    assert plain["summary"]["elements"].max() >= 1
+
+
+def test_transitions_are_keyed_by_the_negatives_too():
+    """Stages with the same I-state and the same reading 1 but a different reading 0 (a
+    reliable negative) are different transitions: the looked-up loop equals the plain one."""
+    from onebit.trackers.istate.stage import Stages, _filter, _filter_reference
+
+    free = shapely.box(0, 0, 1, 1)
+    a, b = shapely.box(0, 0, 0.6, 1), shapely.box(0.3, 0, 1, 1)
+    obj = lambda xs: np.array(xs + [None], dtype=object)[:-1]  # noqa: E731
+    # stages 1-5 read a; stages 3 and 5 also clear b; the step (2) refills the square each stage
+    stages = Stages(
+        times=np.arange(6.0),
+        detections=obj([a] * 5),
+        det_bounds=np.array([0, 0, 1, 2, 3, 4, 5]),
+        negatives=obj([b, b]),
+        neg_bounds=np.array([0, 0, 0, 0, 1, 1, 2]),
+        free=free,
+        n=1,
+        step=2.0,
+    )
+    cfg = IStateConfig(reliable_negatives=True)
+    fast, plain = _filter(stages, cfg), _filter_reference(stages, cfg)
+    areas = plain[2][:, 3]
+    assert np.allclose(areas, [1.0, 0.6, 0.6, 0.3, 0.6, 0.3])
+    assert np.array_equal(fast[2], plain[2]) and np.array_equal(fast[3], plain[3], equal_nan=True)
+    per_stage = lambda out: [shapely.to_wkb(out[1][s]).tolist() for s in out[0]]  # noqa: E731
+    assert per_stage(fast) == per_stage(plain)
+    assert len(fast[1]) < len(stages.times)  # the recurring I-states are laid out once
+
+
+def test_region_geometries_artifact_is_the_regions_table_parsed(tmp_path):
+    """The geometries handed to the recording, row by row, are the regions table's WKB parsed:
+    the same bytes, and one object per distinct WKB (as :func:`onebit.core.wkb.geometries`)."""
+    from onebit.core.wkb import geometries
+
+    site, motion = _tiled_room(tmp_path, n=2, copies=2)
+    out = run({"motion": motion}, site, IStateConfig(max_elements=4))
+    got = out["artifacts"]["region_geometries"]
+    regs = out["regions"]
+    assert len(got) == regs.height > 0
+    assert shapely.to_wkb(got).tolist() == regs["wkb"].to_list()
+    parsed = geometries(regs["wkb"])
+    assert np.array_equal(_objects_in_order(got), _objects_in_order(parsed))
+
+
+def _objects_in_order(geoms) -> np.ndarray:
+    """Each row's object numbered in order of first appearance (equal for arrays that share
+    objects at the same rows)."""
+    _, first, inv = np.unique(np.fromiter(map(id, geoms), np.int64), return_index=True, return_inverse=True)
+    rank = np.empty(len(first), np.int64)
+    rank[np.argsort(first)] = np.arange(len(first))
+    return rank[inv.ravel()]
