@@ -364,10 +364,12 @@ def log_istate_regions(
     drawn: dict = {}  # PNGs by stage key, across the batches
     for part in np.array_split(at, max(1, -(-at.size // SEND_ROWS))):
         blobs = fill_images(grid[:, :, part], raster, keys=[keys[s] for s in part], cache=drawn)
+        # the previous batch written before this one is queued (at most two batches of images in
+        # memory), while this one was drawn: the writer's encoding overlaps the drawing
+        rec.flush()
         rec.send_columns(
             ent, indexes=[paths.time_column(times[part])], columns=rr.EncodedImage.columns(blob=blobs_array(blobs))
         )
-        rec.flush()  # each batch written before the next: the queue of images in memory stays one batch
 
 
 def log_istate_run(
