@@ -73,6 +73,7 @@ from onebit.readers.rows import (
     check_split,
     clean_time,
     in_time_order,
+    kept_rows,
     make_rejects,
     order_checks,
     parse_choice,
@@ -395,11 +396,12 @@ def _motion_tables(ev: pl.DataFrame, chat: np.ndarray, short: np.ndarray) -> tup
     sensor = pl.lit(names).gather("_s").alias("sensor")
     if not gone.any():
         return coded.select("t", sensor, "on").collect(), pl.DataFrame(schema=SUPPRESSED)
-    motion = coded.filter(pl.Series(~gone)).select("t", sensor, "on")
+    kept = ~gone
+    motion = coded.filter(pl.Series(kept)).select(sensor, "on")  # its times kept in numpy (kept_rows)
     rule = pl.when(pl.Series(chat[gone])).then(pl.lit("chatter")).otherwise(pl.lit("min_on")).alias("rule")
     suppressed = coded.filter(pl.Series(gone)).select("t", sensor, "on", rule, "line")  # in time order, as ev
     motion, suppressed = pl.collect_all([motion, suppressed])
-    return motion, suppressed
+    return motion.insert_column(0, kept_rows(ev["t"], kept)), suppressed
 
 
 def _debounced(ev: pl.DataFrame, chat: np.ndarray, short: np.ndarray) -> tuple[pl.DataFrame, pl.DataFrame]:

@@ -5,6 +5,7 @@ order, duplicates), and the pieces it is built of against their references."""
 
 from __future__ import annotations
 
+import math
 from pathlib import Path
 
 import numpy as np
@@ -418,4 +419,86 @@ def test_a_long_log_decoded_on_two_threads_equals_the_row_by_row_path(tmp_path, 
     assert fast.rejects.height > 1000 and fast.crossings.height > 100 and fast.aborted.height > 100
     assert fast.rejects["raw"].null_count() == 0
     # on the second thread: both paths' events tables, the typed path's rejected lines' text
-    assert sorted(f.__name__ for f in pools) == ["collect", "collect", "texts"]
+    assert sorted(f.__name__ for f in pools) == ["events_table", "events_table", "texts"]
+
+
+# --------------------------------------------------------------------------- columns made in numpy
+
+
+def _bits(s: pl.Series) -> np.ndarray:
+    a = s.to_numpy()
+    return a.view(np.uint64) if s.dtype == pl.Float64 else a
+
+
+def _same_column(fast: pl.Series, plain: pl.Series) -> None:
+    """Bit for bit (-0.0 and 0.0 differ), the same name, dtype, nulls and sorted flags."""
+    assert fast.name == plain.name and fast.dtype == plain.dtype and fast.null_count() == plain.null_count()
+    assert dict(fast.flags) == dict(plain.flags), (fast.flags, plain.flags)
+    if plain.null_count():
+        assert fast.equals(plain)
+    else:
+        assert np.array_equal(_bits(fast), _bits(plain))
+
+
+NUMBERS = st.one_of(
+    st.floats(allow_nan=False, width=64),
+    st.sampled_from([0.0, -0.0, 6.0, 1.7e9, 1e-300, -1e300, float("inf"), float("-inf")]),
+)
+
+
+@SETTINGS
+@given(
+    values=st.lists(NUMBERS, max_size=40),
+    cuts=st.lists(st.integers(0, 40), max_size=4),
+    c=st.floats(allow_nan=False, allow_infinity=False),
+    flag=st.booleans(),
+    ints=st.booleans(),
+    null=st.booleans(),
+    data=st.data(),
+)
+def test_columns_made_in_numpy_equal_polars_own(monkeypatch, values, cuts, c, flag, ints, null, data):
+    """``one_buffer`` / ``minus_constant`` / ``kept_rows`` (a large column copied, shifted or
+    filtered in numpy, for numpy's huge pages) against ``rechunk`` / ``s - c`` / ``filter``:
+    bit for bit, with the same sorted flags; a column with nulls is left to polars. The size
+    from which numpy is used is lowered so that small columns take that path."""
+    from onebit.readers import rows
+
+    monkeypatch.setattr(rows, "_NUMPY_COPY_BYTES", 8)
+    if ints:
+        values = [int(max(-(2**62), min(2**62, v))) if math.isfinite(v) else 7 for v in values]
+    dtype = pl.Int64 if ints else pl.Float64
+    if flag:
+        values = sorted(values)
+    pieces = [values[a:b] for a, b in zip([0, *sorted(cuts)], [*sorted(cuts), len(values)])]
+    parts = [pl.Series("t", p, dtype=dtype) for p in pieces]
+    if null and values:
+        parts.append(pl.Series("t", [None], dtype=dtype))
+    s = pl.concat(parts, rechunk=False)
+    if flag and not (null and values):
+        s = s.set_sorted()
+    frame = pl.DataFrame([s, pl.Series("k", range(s.len()), dtype=pl.UInt8 if s.len() < 256 else pl.Int64)])
+    one = rows.one_buffer(frame)
+    assert one.schema == frame.schema and all(col.n_chunks() == 1 for col in one.iter_columns())
+    for name in frame.columns:
+        _same_column(one[name], frame[name].rechunk())
+    if not ints:
+        _same_column(rows.minus_constant(s, c), s - c)
+    keep = np.array(data.draw(st.lists(st.booleans(), min_size=s.len(), max_size=s.len())), dtype=np.bool_)
+    _same_column(rows.kept_rows(s, keep), s.filter(pl.Series(keep)))
+    assert rows.kept_rows(s, None) is s
+
+
+@SETTINGS
+@given(blob=beam_file(), tblob=toggle_file(), epoch=EPOCHS)
+def test_readers_with_columns_made_in_numpy_give_the_row_by_row_result(tmp_path_factory, monkeypatch, blob, tblob, epoch):
+    """The beam and toggle readers with every large-column shortcut taken (the size lowered):
+    the typed read's one buffer per column, the time origin taken off and the kept edges' times
+    in numpy give the row-by-row path's tables."""
+    from onebit.readers import rows
+
+    monkeypatch.setattr(rows, "_NUMPY_COPY_BYTES", 8)
+    folder = Path(tmp_path_factory.mktemp("numpy"))
+    (folder / "beams.csv").write_bytes(blob)
+    (folder / "motion.csv").write_bytes(tblob)
+    _same_beams(folder / "beams.csv", epoch)
+    _same_toggles(folder / "motion.csv", epoch)
