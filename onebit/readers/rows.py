@@ -56,6 +56,7 @@ from onebit.core.compiled import numba_loaded
 from onebit.core.errors import MAX_QUOTE, InputError, bounded
 from onebit.core.tables import REJECTS
 from onebit.readers import kernels
+from onebit.readers.filebytes import read_file
 from onebit.readers.timebase import (
     MAX_GAP_S,
     TimeOrigin,
@@ -172,7 +173,7 @@ def read_bytes(path: str | Path) -> bytes:
     file's bytes, whatever is in it."""
     path = Path(path)
     try:
-        data = path.read_bytes()
+        data = read_file(path)  # (a large file into memory advised for huge pages: fewer page faults)
     except IsADirectoryError:
         raise InputError("is a folder, not a file", file=path) from None
     except OSError as exc:
