@@ -490,7 +490,9 @@ def test_columns_made_in_numpy_equal_polars_own(monkeypatch, values, cuts, c, fl
 
 @SETTINGS
 @given(blob=beam_file(), tblob=toggle_file(), epoch=EPOCHS)
-def test_readers_with_columns_made_in_numpy_give_the_row_by_row_result(tmp_path_factory, monkeypatch, blob, tblob, epoch):
+def test_readers_with_columns_made_in_numpy_give_the_row_by_row_result(
+    tmp_path_factory, monkeypatch, blob, tblob, epoch
+):
     """The beam and toggle readers with every large-column shortcut taken (the size lowered):
     the typed read's one buffer per column, the time origin taken off and the kept edges' times
     in numpy give the row-by-row path's tables."""
