@@ -237,3 +237,23 @@ def test_debounce_without_gathering_the_edges_left_equals_the_kernel(edges, chat
     want = K.debounce_masks.py_func(sensor, on, t, chatter, min_on, ns, 1e-9)
     got = K.debounce_masks_vectorised(sensor, on, t, chatter, min_on, ns, 1e-9)
     assert np.array_equal(want[0], got[0]) and np.array_equal(want[1], got[1])
+
+
+@settings(max_examples=60, deadline=None)
+@given(
+    edges=st.lists(st.tuples(st.integers(0, 69), st.integers(0, 1), st.booleans()), max_size=300),
+    n_beams=st.sampled_from([1, 3, 4, 70]),
+    step=st.sampled_from([1, 2, 3, 7, 64, 1 << 16]),
+)
+def test_beam_rejects_step_by_step_equal_the_kernel(edges, n_beams, step):
+    """The no-change codes found ``step`` edges at a time (each pair's last value carried from
+    step to step) are the kernel's, whatever the step: a pair's first edge in a step is compared
+    with its last edge of an earlier step (it fails when the carried value is left out)."""
+    from onebit.readers import kernels as K
+
+    beam = np.array([b % n_beams for b, _, _ in edges], dtype=np.int64)
+    pair = np.array([p for _, p, _ in edges], dtype=np.int8)
+    blocked = np.array([v for _, _, v in edges], dtype=np.bool_)
+    want = K.beam_passes.py_func(beam, pair, blocked, n_beams)[0]
+    got = K.beam_rejects(beam.astype(np.uint8), pair, blocked, n_beams, step=step)
+    assert got.dtype == want.dtype and np.array_equal(got, want)
