@@ -153,6 +153,62 @@ def beam_rejects(beam, pair, blocked, n_beams, *, step: int = _REJECT_STEP) -> n
     return reject
 
 
+#: Beams up to which :func:`beam_pass_ends_vectorised` pairs the opening and closing edges of
+#: each beam by a mask per beam (two scans of the edges each) rather than by two sorts.
+_FEW_BEAMS = 8
+
+
+def _pair_by_beam_sorts(beam, opens, close, n_beams) -> tuple[np.ndarray, np.ndarray]:
+    """``(opened, open_first)`` of :func:`beam_pass_ends_vectorised`: the ``i``-th closing edge
+    of a beam closes the pass its ``i``-th opening edge opened, paired by one stable radix sort of
+    each by beam; a beam with one opening edge more holds an open pass, opened by its last."""
+    key = _key_type(n_beams)
+    ob, cb = beam[opens].astype(key), beam[close].astype(key)
+    o_order = np.argsort(ob, kind="stable")
+    c_order = np.argsort(cb, kind="stable")
+    n_open = np.bincount(ob, minlength=n_beams)
+    n_close = np.bincount(cb, minlength=n_beams)
+    o_start = np.cumsum(n_open) - n_open  # where each beam's opening edges start in o_order
+    c_start = np.cumsum(n_close) - n_close
+    # the i-th closing edge of a beam (sorted position c_start[b] + i) closes its i-th opening edge's pass
+    to_open = np.arange(close.size, dtype=np.int64) + np.repeat(o_start - c_start, n_close)
+    opened = np.empty(close.size, dtype=np.int64)
+    opened[c_order] = opens[o_order[to_open]]
+    # a beam with one more opening than closing edge: its last pass is open at the end
+    left = np.flatnonzero(n_open > n_close)
+    return opened, np.sort(opens[o_order[o_start[left] + n_open[left] - 1]])
+
+
+def _pair_by_beam_masks(beam, opens, close, n_beams) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`_pair_by_beam_sorts` with a mask per beam: the beam's opening edges (in time order)
+    taken out, the first as many as its closing edges written at those (few beams: no sort, no
+    index array of all the edges)."""
+    ob, cb = beam[opens], beam[close]
+    opened = np.empty(close.size, dtype=np.int64)
+    first = []
+    for b in range(n_beams):
+        mine = opens[ob == b]
+        at = cb == b
+        k = int(np.count_nonzero(at))
+        opened[at] = mine[:k]
+        if mine.size > k:  # one opening edge more: its pass is open at the end
+            first.append(int(mine[-1]))
+    return opened, np.array(sorted(first), dtype=np.int64)
+
+
+def _last_accepted(beam, reject, k: int, step: int = 1 << 16) -> int:
+    """The last accepted edge of edge ``k``'s beam (``k`` accepted), looked for from the end of
+    the log back, ``step`` edges at a time (found in the last step, as a rule)."""
+    hi = beam.shape[0]
+    while hi > k:
+        lo = max(k, hi - step)
+        tail = np.flatnonzero((beam[lo:hi] == beam[k]) & (reject[lo:hi] == 0))
+        if tail.size:
+            return lo + int(tail[-1])
+        hi = lo
+    return k
+
+
 def beam_pass_ends_vectorised(beam, pair, blocked, n_beams, reject=None) -> PassEnds:
     """:func:`beam_passes` as :class:`PassEnds`, with numpy array operations and no per-edge
     pass index: what a reader uses where numba is not loaded (loading it costs 0.3-0.5 s, several
@@ -217,25 +273,13 @@ def beam_pass_ends_vectorised(beam, pair, blocked, n_beams, reject=None) -> Pass
     del mask
     if opens.size == 0:
         return PassEnds(reject, none, none, none, none)
-    key = _key_type(n_beams)
-    ob, cb = beam[opens].astype(key), beam[close].astype(key)
-    o_order = np.argsort(ob, kind="stable")
-    c_order = np.argsort(cb, kind="stable")
-    n_open = np.bincount(ob, minlength=n_beams)
-    n_close = np.bincount(cb, minlength=n_beams)
-    o_start = np.cumsum(n_open) - n_open  # where each beam's opening edges start in o_order
-    c_start = np.cumsum(n_close) - n_close
-    # the i-th closing edge of a beam (sorted position c_start[b] + i) closes its i-th opening edge's pass
-    to_open = np.arange(close.size, dtype=np.int64) + np.repeat(o_start - c_start, n_close)
-    opened = np.empty(close.size, dtype=np.int64)
-    opened[c_order] = opens[o_order[to_open]]
-    # a beam with one more opening than closing edge: its last pass is open at the end
-    left = np.flatnonzero(n_open > n_close)
-    open_first = np.sort(opens[o_order[o_start[left] + n_open[left] - 1]])
+    if n_beams <= _FEW_BEAMS:
+        opened, open_first = _pair_by_beam_masks(beam, opens, close, n_beams)
+    else:
+        opened, open_first = _pair_by_beam_sorts(beam, opens, close, n_beams)
     open_last = np.empty(open_first.size, dtype=np.int64)
     for i, k in enumerate(open_first.tolist()):  # the beam's last accepted edge, at or after its pass opened
-        tail = np.flatnonzero((beam[k:] == beam[k]) & (reject[k:] == 0))
-        open_last[i] = k + tail[-1]
+        open_last[i] = _last_accepted(beam, reject, k)
     return PassEnds(reject, close, opened, open_last, open_first)
 
 

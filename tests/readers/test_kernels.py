@@ -257,3 +257,44 @@ def test_beam_rejects_step_by_step_equal_the_kernel(edges, n_beams, step):
     want = K.beam_passes.py_func(beam, pair, blocked, n_beams)[0]
     got = K.beam_rejects(beam.astype(np.uint8), pair, blocked, n_beams, step=step)
     assert got.dtype == want.dtype and np.array_equal(got, want)
+
+
+@settings(max_examples=60, deadline=None)
+@given(
+    edges=st.lists(st.tuples(st.integers(0, 3), st.booleans()), min_size=1, max_size=200),
+    data=st.data(),
+    step=st.sampled_from([1, 2, 5, 1 << 16]),
+)
+def test_last_accepted_edge_found_from_the_end_equals_a_scan(edges, data, step):
+    """The last accepted edge of a beam at or after an accepted edge ``k``, found ``step`` edges at
+    a time from the end back, is the last one a scan of the whole tail finds."""
+    from onebit.readers import kernels as K
+
+    beam = np.array([b for b, _ in edges], dtype=np.uint8)
+    reject = np.array([0 if ok else 1 for _, ok in edges], dtype=np.int8)
+    reject[0] = 0
+    k = data.draw(st.sampled_from(np.flatnonzero(reject == 0).tolist()))
+    want = k + int(np.flatnonzero((beam[k:] == beam[k]) & (reject[k:] == 0))[-1])
+    assert K._last_accepted(beam, reject, k, step=step) == want
+
+
+@pytest.mark.parametrize("n_beams", [1, 2, 3, 4, 8])
+@pytest.mark.parametrize("seed", range(4))
+def test_passes_paired_by_masks_equal_paired_by_sorts(n_beams, seed):
+    """The two pairings of opening and closing edges (a mask per beam for a few beams, two sorts
+    beyond) give the same passes, open ones included."""
+    from onebit.readers import kernels as K
+
+    rng = np.random.default_rng(seed)
+    n = 4000
+    beam = np.repeat(rng.integers(0, n_beams, n // 4), 4).astype(np.uint8)
+    pair = np.tile(np.array([0, 1, 0, 1], np.int8), n // 4)
+    blocked = np.tile(np.array([1, 1, 0, 0], np.bool_), n // 4) ^ (rng.random(n) < 0.05)
+    reject = K.beam_rejects(beam, pair, blocked, n_beams)
+    ends = K.beam_pass_ends_vectorised(beam, pair, blocked, n_beams, reject=reject)
+    opens = np.sort(np.concatenate([ends.opened, ends.open_first]))
+    a = K._pair_by_beam_masks(beam, opens, ends.close, n_beams)
+    b = K._pair_by_beam_sorts(beam, opens, ends.close, n_beams)
+    assert ends.close.size > 0
+    for x, y in zip(a, b):
+        assert x.dtype == y.dtype and np.array_equal(x, y)
