@@ -498,12 +498,14 @@ def debounce_masks_vectorised(sensor, on, t, chatter, min_on, n_sensors, eps):
     return chat, short
 
 
-def toggle_masks_vectorised(sensor, on, t, chatter, min_on, n_sensors, eps):
+def toggle_masks_vectorised(sensor, on, t, chatter, min_on, n_sensors, eps, *, step: int = 1 << 16):
     """:func:`toggle_repeats_vectorised` and then :func:`debounce_masks_vectorised` on the edges
     that are not repeats, in one sort by sensor: returns ``(same, chat, short)`` masks over all
     the edges (``chat`` and ``short`` false on the repeats). The edges a debounce sees are the
     non-repeats, still in sensor order after the sort (a stable subsequence), so one sort and
-    one gather of the times serve both rules; equal to the two functions in turn (tests)."""
+    one gather of the times serve both rules; equal to the two functions in turn (tests). The
+    debounce runs on slices of whole sensors of at least ``step`` edges (:func:`_sensor_slices`:
+    each sensor's neighbours are in its slice), so its temporaries are small and reused."""
     sensor = np.asarray(sensor)
     on = np.asarray(on, np.bool_)
     m = on.shape[0]
@@ -526,24 +528,28 @@ def toggle_masks_vectorised(sensor, on, t, chatter, min_on, n_sensors, eps):
     if repeated.size:  # the debounce sees the other edges (still in sensor order)
         keep = np.flatnonzero(~rep)
         at, s_, o_ = order[keep], s_[keep], o_[keep]
-    cs, ss = _debounce_sorted(s_, o_, np.asarray(t, np.float64)[at], chatter, min_on, eps)
-    chat[at[cs]] = True
-    short[at[ss]] = True
+    t = np.asarray(t, np.float64)
+    for lo, hi in _sensor_slices(s_, step):  # whole sensors at a time: the same neighbours, small temporaries
+        cs, ss = _debounce_sorted(s_[lo:hi], o_[lo:hi], t[at[lo:hi]], chatter, min_on, eps)
+        chat[at[lo + cs]] = True
+        short[at[lo + ss]] = True
     return same, chat, short
-    order = _by_sensor(sensor, n_sensors)
-    s_ = sensor[order].astype(_key_type(n_sensors))
-    o_ = on[order]
-    prev = np.zeros(m, dtype=np.bool_)
-    prev[1:] = o_[:-1]
-    prev[np.flatnonzero(s_[1:] != s_[:-1]) + 1] = False  # each sensor starts off
-    rep = o_ == prev
-    same[order] = rep
-    keep = np.flatnonzero(~rep)
-    at = order[keep]  # the non-repeats, in sensor order
-    cs, ss = _debounce_sorted(s_[keep], o_[keep], np.asarray(t, np.float64)[at], chatter, min_on, eps)
-    chat[at] = cs
-    short[at] = ss
-    return same, chat, short
+
+
+def _sensor_slices(s_: np.ndarray, step: int) -> list[tuple[int, int]]:
+    """Cuts of edges in sensor order (``s_``) into slices of whole sensors, each at least
+    ``step`` edges (but the last): a sensor's neighbours are all in its slice."""
+    m = s_.shape[0]
+    if m <= step:
+        return [(0, m)]
+    starts = np.flatnonzero(s_[1:] != s_[:-1]) + 1  # where each sensor after the first starts
+    cuts, lo = [], 0
+    for k in starts.tolist():
+        if k - lo >= step:
+            cuts.append((lo, k))
+            lo = k
+    cuts.append((lo, m))
+    return cuts
 
 
 @kernel

@@ -156,10 +156,12 @@ def test_vectorised_toggle_repeats_and_debounce_equal_the_kernels(seed):
     assert np.array_equal(want[0], got[0]) and np.array_equal(want[1], got[1])
 
 
+@pytest.mark.parametrize("step", [1, 7, 100, 1 << 16])
 @pytest.mark.parametrize("seed", range(10))
-def test_fused_toggle_masks_equal_repeats_then_debounce(seed):
+def test_fused_toggle_masks_equal_repeats_then_debounce(seed, step):
     """toggle_masks_vectorised (one sort by sensor for both passes) gives the repeats of
-    toggle_repeats and, on the other edges, the masks of debounce_masks."""
+    toggle_repeats and, on the other edges, the masks of debounce_masks, whatever the size of
+    the slices of whole sensors the debounce runs on (``step``)."""
     from onebit.readers import kernels as K
 
     rng = np.random.default_rng(300 + seed)
@@ -169,7 +171,7 @@ def test_fused_toggle_masks_equal_repeats_then_debounce(seed):
     t = np.sort(rng.uniform(0, 60, n).round(1))
     chatter = rng.choice([0.0, 0.5, 2.0], ns)
     min_on = rng.choice([0.0, 1.0, 3.0], ns)
-    same, chat, short = K.toggle_masks_vectorised(sensor, on, t, chatter, min_on, ns, 1e-9)
+    same, chat, short = K.toggle_masks_vectorised(sensor, on, t, chatter, min_on, ns, 1e-9, step=step)
     want_same = K.toggle_repeats.py_func(sensor.astype(np.int64), on, ns)
     assert np.array_equal(same, want_same)
     alt = ~want_same
