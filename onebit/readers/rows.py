@@ -691,7 +691,8 @@ def minus_constant(s: pl.Series, c: float) -> pl.Series:
     """``s - c`` (the same IEEE-754 differences as polars'), made in numpy for a large
     ``Float64`` column without nulls (:func:`numpy_column`)."""
     if s.dtype == pl.Float64 and _wide_numbers(s):
-        return numpy_column(s.name, s.to_numpy() - c)
+        with np.errstate(over="ignore", invalid="ignore"):  # (inf and NaN as polars makes them, silently)
+            return numpy_column(s.name, s.to_numpy() - c)
     return s - c
 
 
