@@ -18,12 +18,34 @@ from __future__ import annotations
 
 import multiprocessing
 import os
+import time
 from collections.abc import Callable, Sequence
 from concurrent.futures import ProcessPoolExecutor
 from typing import Any
 
 #: The environment variable that caps the cores a stage uses (an integer >= 1).
 CORES_ENV = "ONEBIT_CORES"
+
+_worker_cpu = 0.0  # CPU seconds of the calls run_beside made in workers, this process's total
+
+
+def worker_cpu_seconds() -> float:
+    """CPU seconds the calls :func:`run_beside` sent to worker processes have taken so far in
+    this process (each measured in its worker): a stage's CPU is this process's
+    ``time.process_time()`` plus what this adds during the stage (:func:`cpu_seconds`)."""
+    return _worker_cpu
+
+
+def cpu_seconds() -> float:
+    """``time.process_time()`` plus :func:`worker_cpu_seconds`: the CPU a stage costs, its
+    workers' included (the runner's ``work_cpu_s``)."""
+    return time.process_time() + _worker_cpu
+
+
+def _timed(fn: Callable[..., Any], args: tuple) -> tuple[Any, float]:
+    c = time.process_time()
+    out = fn(*args)
+    return out, time.process_time() - c
 
 
 def available_cores() -> int:
@@ -68,11 +90,21 @@ def run_beside(
     ctx = multiprocessing.get_context("forkserver")
     ctx.set_forkserver_preload(list(dict.fromkeys([*preload, fn.__module__])))
     with ProcessPoolExecutor(max_workers=min(workers, len(elsewhere)), mp_context=ctx) as pool:
-        futures = [pool.submit(fn, *args) for args in elsewhere]
+        futures = [pool.submit(_timed, fn, args) for args in elsewhere]
         try:
             first = here()
         except BaseException:
             for f in futures:
                 f.cancel()
             raise
-        return first, [f.result() for f in futures]
+        rest = []
+        for f in futures:
+            out, cpu = f.result()
+            _add_worker_cpu(cpu)
+            rest.append(out)
+        return first, rest
+
+
+def _add_worker_cpu(seconds: float) -> None:
+    global _worker_cpu
+    _worker_cpu += seconds

@@ -7,7 +7,14 @@ import os
 
 import pytest
 
-from onebit.core.parallel import CORES_ENV, available_cores, one_core_each, run_beside
+from onebit.core.parallel import (
+    CORES_ENV,
+    available_cores,
+    cpu_seconds,
+    one_core_each,
+    run_beside,
+    worker_cpu_seconds,
+)
 
 
 def test_available_cores_from_the_environment_or_the_affinity(monkeypatch):
@@ -46,3 +53,20 @@ def test_run_beside_gives_the_calls_results_in_order_with_or_without_workers():
 def test_run_beside_raises_a_workers_exception_here():
     with pytest.raises(ValueError, match="factorial"):
         run_beside(lambda: 1, math.factorial, [(2,), (-1,)], workers=2)
+
+
+def _burn(n: int) -> int:
+    return sum(i * i for i in range(n))
+
+
+def test_the_workers_cpu_is_counted_here():
+    """A stage's CPU (the runner's ``work_cpu_s``) includes what its worker processes spent:
+    each call measures its own ``process_time`` in its worker and hands it back."""
+    before_workers, before = worker_cpu_seconds(), cpu_seconds()
+    run_beside(lambda: None, _burn, [(300_000,), (300_000,)], workers=2)
+    spent = worker_cpu_seconds() - before_workers
+    assert spent > 0
+    assert cpu_seconds() - before >= spent
+    same = worker_cpu_seconds()
+    run_beside(lambda: None, _burn, [(1000,)], workers=0)  # here: nothing sent to a worker
+    assert worker_cpu_seconds() == same
