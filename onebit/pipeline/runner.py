@@ -39,8 +39,8 @@ import polars as pl
 from onebit.core import writers as outputs
 from onebit.core.config import config_from_mapping, load_toml
 from onebit.core.errors import ConfigError, InputError, OnebitError, bounded
-from onebit.core.parallel import cpu_seconds, worker_cpu_seconds
 from onebit.core.memory import release_freed_memory
+from onebit.core.parallel import cpu_seconds, worker_cpu_seconds
 from onebit.core.region_graph import build_region_graph
 from onebit.core.site import load_site
 from onebit.core.tables import REJECTS, REPORT
