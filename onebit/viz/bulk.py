@@ -155,14 +155,17 @@ def log_styles(
     which: Sequence[int] | None = None,
 ) -> None:
     """``rec.log(entities[i], style_i, static=True)`` for each ``i`` of ``which`` (default: all):
-    ``style_i`` holds the components of ``template`` (an archetype instance), where a component
-    named in ``per_entity`` (``"Points2D:colors"``) is row ``i`` of that array instead."""
-    base = described(template)
+    ``style_i`` holds the components of ``template`` (an archetype instance, or several logged
+    together), where a component named in ``per_entity`` (``"Points2D:colors"``) is row ``i`` of
+    that array instead."""
+    templates = template if isinstance(template, (list, tuple)) else [template]
+    base = [c for one in templates for c in described(one)]
     per_entity = {k: v for k, v in (per_entity or {}).items() if v is not None}
     names = {c.descriptor.component for c in base}
     unknown = set(per_entity) - names
     if unknown:
-        raise ValueError(f"log_styles: {sorted(unknown)} are not components of {type(template).__name__} ({sorted(names)})")
+        kinds = "/".join(type(one).__name__ for one in templates)
+        raise ValueError(f"log_styles: {sorted(unknown)} are not components of {kinds} ({sorted(names)})")
     for i in range(len(entities)) if which is None else which:
         style = [
             ArrowColumn(c.descriptor, per_entity[c.descriptor.component].slice(i, 1))

@@ -165,25 +165,74 @@ def log_dot(
     log_dots(rec, [entity], t, xy, np.array([0, len(np.asarray(t))]), colors=[color], labels=[label], radius=radius)
 
 
+def log_rings(
+    rec: rr.RecordingStream,
+    entities: Sequence[str],
+    t: np.ndarray,
+    xy: np.ndarray,
+    bounds: np.ndarray,
+    *,
+    size: float,
+    labels: Sequence[str],
+) -> None:
+    """True targets now, many at once: entity ``i`` is a hollow neutral ring of radius ``size``
+    (world units) with its label ``labels[i]`` to the left of it (a tiny point left of the ring
+    carries it, so the label of an estimate on the target, drawn below the estimate's dot, does
+    not cover it), at each of its rows ``bounds[i]:bounds[i + 1]`` of ``t`` and ``xy``."""
+    bounds = np.asarray(bounds, np.int64)
+    has = np.flatnonzero(np.diff(bounds) >= 1)
+    if len(has) == 0:
+        return
+    ring = rr.Ellipses2D.from_fields(
+        half_sizes=[[size, size]], colors=colors.TRUTH, line_radii=RING_WIDTH, draw_order=RING_ORDER
+    )
+    anchor = rr.Points2D.from_fields(
+        radii=LABEL_ANCHOR, colors=colors.TRUTH, labels=[labels[has[0]]], show_labels=True, draw_order=RING_ORDER
+    )
+    bulk.log_styles(rec, entities, [ring, anchor], {"Points2D:labels": bulk.text_batch(labels)}, which=has.tolist())
+    xy = np.asarray(xy, np.float64).reshape(-1, 2)
+    marks = bulk.column_arrays(
+        [*rr.Ellipses2D.columns(centers=xy), *rr.Points2D.columns(positions=xy + LABEL_OFFSET * size)]
+    )
+    bulk.send_spans(rec, entities, bulk.time_array(t), marks, bounds[:-1], bounds[1:])
+
+
 def log_ring(rec: rr.RecordingStream, entity: str, t: np.ndarray, xy: np.ndarray, *, size: float, label: str) -> None:
-    """A true target now: a hollow neutral ring of radius ``size`` (world units) with its label
-    to the left of it (a tiny point left of the ring carries it, so the label of an estimate on
-    the target, drawn below the estimate's dot, does not cover it), at every sample."""
-    rec.log(
-        entity,
-        rr.Ellipses2D.from_fields(
-            half_sizes=[[size, size]], colors=colors.TRUTH, line_radii=RING_WIDTH, draw_order=RING_ORDER
-        ),
-        rr.Points2D.from_fields(
-            radii=LABEL_ANCHOR, colors=colors.TRUTH, labels=[label], show_labels=True, draw_order=RING_ORDER
-        ),
-        static=True,
-    )
-    rec.send_columns(
-        entity,
-        indexes=[paths.time_column(t)],
-        columns=[*rr.Ellipses2D.columns(centers=xy), *rr.Points2D.columns(positions=xy + LABEL_OFFSET * size)],
-    )
+    """A true target now: :func:`log_rings` of one target."""
+    log_rings(rec, [entity], t, xy, np.array([0, len(np.asarray(t))]), size=size, labels=[label])
+
+
+def log_movers(
+    rec: rr.RecordingStream,
+    entities: Sequence[str],
+    t: np.ndarray,
+    xy: np.ndarray,
+    bounds: np.ndarray,
+    *,
+    labels: Sequence[str],
+    shades=None,
+    truth_size: float | None = None,
+) -> None:
+    """Many moving things: entity ``i`` (rows ``bounds[i]:bounds[i + 1]`` of ``t`` ``(n,)`` s and
+    ``xy`` ``(n, 2)``) gets its marker now, its trail and its hidden full path (module
+    docstring), the rows of all of them converted together (:mod:`onebit.viz.bulk`).
+
+    With ``truth_size`` they are drawn as truth (neutral rings of that radius); otherwise as
+    estimates (dots in ``shades[i]``)."""
+    t = np.asarray(t, np.float64)
+    xy = np.asarray(xy, np.float64).reshape(-1, 2)
+    if len(t) == 0:
+        return
+    if truth_size is not None:
+        trail = [colors.TRUTH_TRAIL] * len(entities)
+        log_rings(rec, entities, t, xy, bounds, size=truth_size, labels=labels)
+        log_trails(rec, entities, t, xy, bounds, colors=trail, width=TRUTH_TRAIL_WIDTH)
+        log_full_paths(rec, entities, xy, bounds, colors=trail)
+    else:
+        shades = list(shades) if shades is not None else [None] * len(entities)
+        log_dots(rec, entities, t, xy, bounds, colors=shades, labels=labels)
+        log_trails(rec, entities, t, xy, bounds, colors=shades)
+        log_full_paths(rec, entities, xy, bounds, colors=shades)
 
 
 def log_moving(
@@ -196,23 +245,12 @@ def log_moving(
     color=None,
     truth_size: float | None = None,
 ) -> None:
-    """One moving thing: the marker now, its trail and its hidden full path (module docstring).
-
-    With ``truth_size`` it is drawn as truth (neutral ring of that radius); otherwise as an
-    estimate (a dot in ``color``). ``t`` is ``(n,)`` seconds, ``xy`` ``(n, 2)``.
-    """
+    """One moving thing: :func:`log_movers` of one entity (``t`` ``(n,)`` seconds, ``xy``
+    ``(n, 2)``): a truth ring of radius ``truth_size`` or an estimate's dot in ``color``."""
     t = np.asarray(t, np.float64)
-    xy = np.asarray(xy, np.float64).reshape(-1, 2)
-    if len(t) == 0:
-        return
-    if truth_size is not None:
-        log_ring(rec, entity, t, xy, size=truth_size, label=label)
-        log_trail(rec, entity, t, xy, color=colors.TRUTH_TRAIL, width=TRUTH_TRAIL_WIDTH)
-        log_full_path(rec, entity, xy, color=colors.TRUTH_TRAIL)
-    else:
-        log_dot(rec, entity, t, xy, color=color, label=label)
-        log_trail(rec, entity, t, xy, color=color)
-        log_full_path(rec, entity, xy, color=color)
+    log_movers(
+        rec, [entity], t, xy, np.array([0, len(t)]), labels=[label], shades=[color], truth_size=truth_size
+    )
 
 
 def marker_size(xy: np.ndarray, *, diagonal: float | None = None) -> float:

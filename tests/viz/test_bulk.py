@@ -37,12 +37,20 @@ from onebit.viz.tracks import (
 from onebit.viz.trails import (
     DOT_ORDER,
     DOT_RADIUS,
+    LABEL_ANCHOR,
+    LABEL_OFFSET,
     PATH_WIDTH,
+    RING_ORDER,
+    RING_WIDTH,
     TRAIL_ORDER,
     TRAIL_WIDTH,
+    TRUTH_TRAIL_WIDTH,
     log_full_paths,
+    log_moving,
+    marker_size,
     segments,
 )
+from onebit.viz.truth import log_truth
 
 # --------------------------------------------------------------------------- the per-track oracle
 
@@ -56,12 +64,12 @@ def _dot(rec, entity, t, xy, *, color, label):
     rec.send_columns(entity, indexes=[paths.time_column(t)], columns=rr.Points2D.columns(positions=xy))
 
 
-def _trail(rec, entity, t, xy, *, color):
+def _trail(rec, entity, t, xy, *, color, width=TRAIL_WIDTH):
     seg = segments(xy, np.float32)
     if len(seg) == 0:
         return
     trail = paths.trail(entity)
-    rec.log(trail, rr.LineStrips2D.from_fields(colors=color, radii=TRAIL_WIDTH, draw_order=TRAIL_ORDER), static=True)
+    rec.log(trail, rr.LineStrips2D.from_fields(colors=color, radii=width, draw_order=TRAIL_ORDER), static=True)
     rec.send_columns(
         trail, indexes=[paths.time_column(np.asarray(t)[1:])], columns=rr.LineStrips2D.columns(strips=strips_array(seg, 2))
     )
@@ -76,6 +84,36 @@ def _full_path(rec, entity, xy, *, color, max_vertices=5000):
         rr.LineStrips2D([xy[keep]], colors=color, radii=PATH_WIDTH, draw_order=TRAIL_ORDER - 1),
         static=True,
     )
+
+
+def _ring(rec, entity, t, xy, *, size, label):
+    rec.log(
+        entity,
+        rr.Ellipses2D.from_fields(
+            half_sizes=[[size, size]], colors=colors.TRUTH, line_radii=RING_WIDTH, draw_order=RING_ORDER
+        ),
+        rr.Points2D.from_fields(
+            radii=LABEL_ANCHOR, colors=colors.TRUTH, labels=[label], show_labels=True, draw_order=RING_ORDER
+        ),
+        static=True,
+    )
+    rec.send_columns(
+        entity,
+        indexes=[paths.time_column(t)],
+        columns=[*rr.Ellipses2D.columns(centers=xy), *rr.Points2D.columns(positions=xy + LABEL_OFFSET * size)],
+    )
+
+
+def oracle_truth(rec, truth, *, diagonal):
+    truth = truth.drop_nulls(["t", "x", "y"])
+    log_world_frame(rec, paths.TRUTH)
+    size = marker_size(truth.select("x", "y").to_numpy(), diagonal=diagonal)
+    for target, g in groups(truth, "target"):
+        entity = paths.truth(target)
+        t, xy = g["t"].to_numpy().astype(np.float64), g.select("x", "y").to_numpy().astype(np.float64)
+        _ring(rec, entity, t, xy, size=size, label=target)
+        _trail(rec, entity, t, xy, color=colors.TRUTH_TRAIL, width=TRUTH_TRAIL_WIDTH)
+        _full_path(rec, entity, xy, color=colors.TRUTH_TRAIL)
 
 
 def _position(region_graph, regions, slot):
@@ -340,3 +378,67 @@ def test_log_styles_names_a_component_the_template_lacks():
     template = rr.Points2D.from_fields(radii=1.0)
     with pytest.raises(ValueError, match="not components of Points2D"):
         bulk.log_styles(None, ["a"], template, {"Points2D:colorz": bulk.color_array([(1, 2, 3, 4)])})
+
+
+def test_truth_in_bulk_equals_one_target_at_a_time(tmp_path):
+    truth = point_table(11).drop("tracker").rename({"track": "target"})
+    _same_recording(
+        tmp_path,
+        lambda rec: log_truth(rec, truth, diagonal=12.0),
+        lambda rec: oracle_truth(rec, truth, diagonal=12.0),
+    )
+
+
+def test_one_moving_estimate_without_a_colour_equals_the_per_entity_calls(tmp_path):
+    t, xy = np.array([0.0, 1.0, 2.5]), np.array([[0.0, 0.0], [1.0, 0.5], [2.0, 2.0]])
+
+    def one(rec):
+        _dot(rec, "e", t, xy, color=None, label="e estimate")
+        _trail(rec, "e", t, xy, color=None)
+        _full_path(rec, "e", xy, color=None)
+
+    got = _same_recording(tmp_path, lambda rec: log_moving(rec, "e", t, xy, label="e estimate"), one)
+    assert not any(k[1].endswith(":colors") for k in got)
+
+
+def test_space_time_paths_in_bulk_equal_one_path_at_a_time(tmp_path):
+    from onebit.viz.clustertrack import SpaceTime, _log_space_time_paths
+
+    tracks = point_table(13).drop_nulls(["track", "t", "x"]).drop("y", "tracker")
+    truth = tracks.rename({"track": "target"})
+    st = SpaceTime(0.0, 9.0, np.sort(tracks["t"].unique().to_numpy()))
+    labels = track_labels("clustertrack", tracks["track"].unique().to_list())
+    shades = track_colors("clustertrack", labels, rgb=(10, 200, 90))
+
+    def bulk_log(rec):
+        _log_space_time_paths(rec, "ct/space_time", "truth", truth, "target", st, radius=1.0, shades=None, labels=None, show_labels=False)
+        _log_space_time_paths(rec, "ct/space_time", "tracks", tracks, "track", st, radius=2.0, shades=shades, labels=labels, show_labels=True)
+
+    def oracle_log(rec):  # the per-id loops the bulk path replaced
+        for ident, g in groups(truth, "target"):
+            rec.log(
+                paths.join("ct/space_time", "truth", paths.part(ident)),
+                rr.LineStrips2D(
+                    [np.c_[g["x"].to_numpy(), st.y(g["t"].to_numpy())]],
+                    radii=rr.Radius.ui_points(1.0),
+                    colors=colors.TRUTH_TRAIL,
+                    labels=[f"true {ident}"],
+                    show_labels=False,
+                ),
+                static=True,
+            )
+        for tid, g in groups(tracks, "track"):
+            rec.log(
+                paths.join("ct/space_time", "tracks", paths.part(tid)),
+                rr.LineStrips2D(
+                    [np.c_[g["x"].to_numpy(), st.y(g["t"].to_numpy())]],
+                    radii=rr.Radius.ui_points(2.0),
+                    colors=shades[tid],
+                    labels=[labels[tid]],
+                    show_labels=True,
+                ),
+                static=True,
+            )
+
+    got = _same_recording(tmp_path, bulk_log, oracle_log)
+    assert any(k[0].startswith("ct/space_time/truth/") for k in got)
