@@ -111,7 +111,11 @@ def region_positions(region_graph: RegionGraph, regions, slot, *, index: np.ndar
     known). The offset points are computed once per (slot, region) pair that occurs."""
     k = region_indices(region_graph, regions) if index is None else np.asarray(index, np.int64).reshape(-1)
     rp, size = region_anchors(region_graph)
-    slots = np.broadcast_to(np.asarray(slot, np.int64).reshape(-1), k.shape) if np.ndim(slot) else np.full(k.shape, int(slot))
+    slots = (
+        np.broadcast_to(np.asarray(slot, np.int64).reshape(-1), k.shape)
+        if np.ndim(slot)
+        else np.full(k.shape, int(slot))
+    )
     pair, row_pair = np.unique(slots * len(rp) + k, return_inverse=True)
     s, r = pair // max(len(rp), 1), pair % max(len(rp), 1)
     angle = s * _GOLDEN_ANGLE
@@ -208,7 +212,13 @@ def log_region_tracks(
     log_dots(rec, entities, t, xy, bounds, colors=track_shades, labels=[labels[track] for track in spans.keys])
     log_trails(rec, entities, t, xy, bounds, colors=track_shades)
     log_current_regions(
-        rec, [paths.track_region(tracker, track) for track in spans.keys], t, k, region_graph, bounds, colors=track_shades
+        rec,
+        [paths.track_region(tracker, track) for track in spans.keys],
+        t,
+        k,
+        region_graph,
+        bounds,
+        colors=track_shades,
     )
     whole = np.flatnonzero(spans.lengths >= 2)
     if len(whole) == 0:

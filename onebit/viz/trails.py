@@ -62,7 +62,14 @@ def segments(xy: np.ndarray, dtype=np.float64) -> np.ndarray:
 
 
 def log_trails(
-    rec: rr.RecordingStream, entities: Sequence[str], t: np.ndarray, xy: np.ndarray, bounds: np.ndarray, *, colors, width=TRAIL_WIDTH
+    rec: rr.RecordingStream,
+    entities: Sequence[str],
+    t: np.ndarray,
+    xy: np.ndarray,
+    bounds: np.ndarray,
+    *,
+    colors,
+    width=TRAIL_WIDTH,
 ) -> None:
     """``<entity>/trail`` of many moving things at once: entity ``i`` has rows
     ``bounds[i]:bounds[i + 1]`` of ``t`` (``(n,)`` s) and ``xy`` (``(n, 2)``) and colour
@@ -105,7 +112,13 @@ def full_path_vertices(bounds: np.ndarray, max_vertices: int = MAX_PATH_VERTICES
 
 
 def log_full_paths(
-    rec: rr.RecordingStream, entities: Sequence[str], xy: np.ndarray, bounds: np.ndarray, *, colors, max_vertices: int = MAX_PATH_VERTICES
+    rec: rr.RecordingStream,
+    entities: Sequence[str],
+    xy: np.ndarray,
+    bounds: np.ndarray,
+    *,
+    colors,
+    max_vertices: int = MAX_PATH_VERTICES,
 ) -> None:
     """``<entity>/path`` of many moving things: entity ``i`` (rows ``bounds[i]:bounds[i + 1]``
     of ``xy``, at least two) gets its whole path thinned to ``max_vertices`` as one static strip
@@ -248,9 +261,7 @@ def log_moving(
     """One moving thing: :func:`log_movers` of one entity (``t`` ``(n,)`` seconds, ``xy``
     ``(n, 2)``): a truth ring of radius ``truth_size`` or an estimate's dot in ``color``."""
     t = np.asarray(t, np.float64)
-    log_movers(
-        rec, [entity], t, xy, np.array([0, len(t)]), labels=[label], shades=[color], truth_size=truth_size
-    )
+    log_movers(rec, [entity], t, xy, np.array([0, len(t)]), labels=[label], shades=[color], truth_size=truth_size)
 
 
 def marker_size(xy: np.ndarray, *, diagonal: float | None = None) -> float:

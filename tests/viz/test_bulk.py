@@ -71,7 +71,9 @@ def _trail(rec, entity, t, xy, *, color, width=TRAIL_WIDTH):
     trail = paths.trail(entity)
     rec.log(trail, rr.LineStrips2D.from_fields(colors=color, radii=width, draw_order=TRAIL_ORDER), static=True)
     rec.send_columns(
-        trail, indexes=[paths.time_column(np.asarray(t)[1:])], columns=rr.LineStrips2D.columns(strips=strips_array(seg, 2))
+        trail,
+        indexes=[paths.time_column(np.asarray(t)[1:])],
+        columns=rr.LineStrips2D.columns(strips=strips_array(seg, 2)),
     )
 
 
@@ -153,7 +155,9 @@ def oracle_region_tracks(rec, tracker, tracks, region_graph, *, rgb=None):
         k = region_indices(region_graph, g["region"])
         points, lengths, per_row = region_outlines(ring_table(region_graph.polygons), k)
         region = paths.track_region(tracker, track)
-        rec.log(region, rr.LineStrips2D.from_fields(colors=shades[track], radii=REGION_WIDTH, draw_order=8.0), static=True)
+        rec.log(
+            region, rr.LineStrips2D.from_fields(colors=shades[track], radii=REGION_WIDTH, draw_order=8.0), static=True
+        )
         rec.send_columns(
             region,
             indexes=[paths.time_column(t)],
@@ -290,8 +294,10 @@ def test_point_tracks_in_bulk_equal_one_track_at_a_time(tmp_path):
 
 
 def test_point_tracks_with_integer_ids_in_bulk_equal_one_track_at_a_time(tmp_path):
-    tracks = point_table(7).filter(pl.col("track").is_not_null()).with_columns(
-        track=pl.col("track").rank("dense").cast(pl.Int64) * 5
+    tracks = (
+        point_table(7)
+        .filter(pl.col("track").is_not_null())
+        .with_columns(track=pl.col("track").rank("dense").cast(pl.Int64) * 5)
     )
     _same_recording(
         tmp_path,
@@ -359,7 +365,11 @@ def test_scores_and_occupancy_in_bulk_equal_one_series_at_a_time(tmp_path):
         }
     )
     occupancy = pl.DataFrame(
-        {"t": np.sort(rng.uniform(0, 10, n)), "region": rng.choice(["r1", "r2", "hall"], n), "count": rng.integers(0, 3, n)}
+        {
+            "t": np.sort(rng.uniform(0, 10, n)),
+            "region": rng.choice(["r1", "r2", "hall"], n),
+            "count": rng.integers(0, 3, n),
+        }
     )
 
     def bulk_log(rec):
@@ -411,8 +421,21 @@ def test_space_time_paths_in_bulk_equal_one_path_at_a_time(tmp_path):
     shades = track_colors("clustertrack", labels, rgb=(10, 200, 90))
 
     def bulk_log(rec):
-        _log_space_time_paths(rec, "ct/space_time", "truth", truth, "target", st, radius=1.0, shades=None, labels=None, show_labels=False)
-        _log_space_time_paths(rec, "ct/space_time", "tracks", tracks, "track", st, radius=2.0, shades=shades, labels=labels, show_labels=True)
+        _log_space_time_paths(
+            rec, "ct/space_time", "truth", truth, "target", st, radius=1.0, shades=None, labels=None, show_labels=False
+        )
+        _log_space_time_paths(
+            rec,
+            "ct/space_time",
+            "tracks",
+            tracks,
+            "track",
+            st,
+            radius=2.0,
+            shades=shades,
+            labels=labels,
+            show_labels=True,
+        )
 
     def oracle_log(rec):  # the per-id loops the bulk path replaced
         for ident, g in groups(truth, "target"):
@@ -442,3 +465,28 @@ def test_space_time_paths_in_bulk_equal_one_path_at_a_time(tmp_path):
 
     got = _same_recording(tmp_path, bulk_log, oracle_log)
     assert any(k[0].startswith("ct/space_time/truth/") for k in got)
+
+
+def test_decoded_paths_in_bulk_equal_one_user_at_a_time(tmp_path):
+    from onebit.viz.findinghumo import log_decoded
+
+    tracks = point_table(17).drop("tracker").drop_nulls(["t"])
+
+    def oracle_log(rec):  # log_point_tracks, then the per-user loop the bulk path replaced
+        log_point_tracks(rec, "findinghumo", tracks)
+        labels = track_labels("findinghumo", tracks["track"].drop_nulls().unique().to_list())
+        shades = track_colors("findinghumo", labels)
+        for user, g in groups(tracks.drop_nulls(["x", "y"]), "track"):
+            rec.log(
+                paths.decoded("findinghumo", user),
+                rr.LineStrips2D(
+                    [g.select("x", "y").to_numpy()],
+                    colors=shades[user],
+                    radii=rr.Radius.ui_points(2.0),
+                    labels=[f"{labels[user]}: whole decoded path"],
+                ),
+                static=True,
+            )
+
+    got = _same_recording(tmp_path, lambda rec: log_decoded(rec, "findinghumo", tracks), oracle_log)
+    assert any(k[0].startswith("findinghumo/decoded/") for k in got)
