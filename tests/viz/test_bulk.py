@@ -13,6 +13,8 @@ import polars as pl
 import pytest
 import rerun as rr
 import shapely
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from onebit.viz import bulk, colors, paths
 from onebit.viz._series import groups, only_tracker, region_outlines, ring_table, strips_array, update_indices
@@ -490,3 +492,18 @@ def test_decoded_paths_in_bulk_equal_one_user_at_a_time(tmp_path):
 
     got = _same_recording(tmp_path, lambda rec: log_decoded(rec, "findinghumo", tracks), oracle_log)
     assert any(k[0].startswith("findinghumo/decoded/") for k in got)
+
+
+@settings(max_examples=40, deadline=None)
+@given(
+    st.one_of(
+        st.lists(st.integers(-5, 40), max_size=30),
+        st.lists(st.sampled_from(["b1", "b2", "agent10", "ü", ""]), max_size=30),
+        st.lists(st.floats(-3, 3, allow_nan=False).map(lambda v: round(v, 1)), max_size=30),
+    ),
+    st.booleans(),
+)
+def test_colors_of_distinct_keys_equal_one_key_at_a_time(keys, as_array):
+    got = colors.colors_of(np.array(keys) if as_array else keys, alpha=140)
+    want = np.array([colors.color_of(k, alpha=140) for k in keys], np.uint8).reshape(-1, 4)
+    np.testing.assert_array_equal(got, want)
