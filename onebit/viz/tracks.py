@@ -108,7 +108,8 @@ def region_positions(region_graph: RegionGraph, regions, slot, *, index: np.ndar
     representative point, offset by a small per-track vector (``slot``, an int or one per row,
     picks the direction), falling back to the representative point where the offset point
     would leave the region (``index``: :func:`region_indices` of ``regions``, when already
-    known). The offset points are computed once per (slot, region) pair that occurs."""
+    known). The offset points are computed once per (slot, region) pair (every pair when they
+    are fewer than the rows, else those that occur)."""
     k = region_indices(region_graph, regions) if index is None else np.asarray(index, np.int64).reshape(-1)
     rp, size = region_anchors(region_graph)
     slots = (
@@ -116,7 +117,11 @@ def region_positions(region_graph: RegionGraph, regions, slot, *, index: np.ndar
         if np.ndim(slot)
         else np.full(k.shape, int(slot))
     )
-    pair, row_pair = np.unique(slots * len(rp) + k, return_inverse=True)
+    cells = (int(slots.max()) + 1) * len(rp) if len(slots) else 0
+    if cells <= max(len(k), 4096):  # every (slot, region) pair: a table, no sort of the rows
+        pair, row_pair = np.arange(cells), slots * len(rp) + k
+    else:  # many tracks: only the pairs that occur
+        pair, row_pair = np.unique(slots * len(rp) + k, return_inverse=True)
     s, r = pair // max(len(rp), 1), pair % max(len(rp), 1)
     angle = s * _GOLDEN_ANGLE
     direction = np.stack([np.cos(angle), np.sin(angle)], axis=-1)

@@ -280,6 +280,17 @@ def test_track_spans_are_the_groups_in_one_frame():
         assert spans.frame[int(spans.bounds[i]) : int(spans.bounds[i + 1])].equals(g)
     ints = df.with_columns(track=pl.col("track").rank("dense").cast(pl.Int64) * 7)
     assert bulk.track_spans(ints, "track").keys == [k for k, _ in groups(ints, "track")]
+    for frame in (  # one key; all in time order; in (key, time) order; each key in time order, interleaved
+        df.filter(pl.col("track") == "a"),
+        df.sort("t"),
+        df.sort("track", "t"),
+        df.sort("track", "t").sort("track", descending=True, maintain_order=True),
+        df.sort("t").with_columns(t=pl.col("t") * pl.when(pl.col("track") == "a").then(1.0).otherwise(2.0)),
+    ):
+        spans = bulk.track_spans(frame, "track")
+        assert pl.concat([g for _, g in groups(frame, "track")]).equals(spans.frame)
+    many = pl.DataFrame({"track": [f"k{i % 11}" for i in range(60)], "t": np.arange(60.0)})
+    assert pl.concat([g for _, g in groups(many, "track")]).equals(bulk.track_spans(many, "track").frame)
 
 
 def test_point_tracks_in_bulk_equal_one_track_at_a_time(tmp_path):
