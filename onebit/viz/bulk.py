@@ -28,7 +28,7 @@ import polars as pl
 
 from onebit.core.lazy import lazy_module
 from onebit.viz import paths
-from onebit.viz._series import FEW_GROUPS
+from onebit.viz._series import FEW_GROUPS, in_time_order
 
 pa = lazy_module("pyarrow")
 rr = lazy_module("rerun")
@@ -124,34 +124,35 @@ class Spans:
 def track_spans(df: pl.DataFrame, key: str = "track", *, time: str = "t") -> Spans:
     """``df`` without rows of a null ``key``, grouped by ``key``: the groups of
     :func:`onebit.viz._series.groups` (sorted key order; each group's rows in ``time`` order,
-    ties in table order) as one frame and offsets. Nothing is moved when the rows are in (key,
-    time) order already (a tracker's table by track); a few keys (at most
-    :data:`~onebit.viz._series.FEW_GROUPS`) of rows in time order are a filter each; else one
-    stable radix sort of the keys' codes (after a sort by time when some key's rows are out of
-    time order) and one gather -- no partition and no work per group."""
+    ties in table order) as one frame and offsets. A few keys (at most
+    :data:`~onebit.viz._series.FEW_GROUPS`: regions, a few tracks) are a filter each, as in
+    ``groups``; more are one stable radix sort of the keys' codes (after a sort by time when
+    some key's rows are out of time order) and one gather, and nothing is moved when the rows
+    are in (key, time) order already -- no partition and no work per group."""
     if df.get_column(key).null_count():
         df = df.filter(pl.col(key).is_not_null())
     values = df.get_column(key)
-    keys = [str(k) for k in sorted(values.unique().to_list())]  # Python's order, as groups()
+    distinct = sorted(values.unique().to_list())  # Python's order, as groups()
+    keys = [str(k) for k in distinct]
     if len(set(keys)) != len(keys):  # two values with one text (never for str / int keys)
         raise ValueError(f"{key} values {keys} are not distinct as text")
+    bounds = np.zeros(len(keys) + 1, np.int64)
+    if 1 < len(keys) <= FEW_GROUPS:  # a filter per key (polars, in parallel) beats a sort and a gather
+        parts = [in_time_order(df.filter(pl.col(key) == k), time) for k in distinct]
+        np.cumsum([g.height for g in parts], out=bounds[1:])
+        return Spans(frame=pl.concat(parts, rechunk=True), keys=keys, bounds=bounds)
     code = values.cast(pl.String).cast(pl.Enum(keys)).to_physical().to_numpy()
     if len(keys) <= np.iinfo(np.uint16).max:  # numpy's stable sort of 16-bit keys is a radix sort
         code = code.astype(np.uint16, copy=False)
     t = df.get_column(time).to_numpy()
     by_key = len(keys) < 2 or bool((code[1:] >= code[:-1]).all())
-    t_sorted = t.size < 2 or bool((t[1:] >= t[:-1]).all())
-    if not by_key and t_sorted and len(keys) <= FEW_GROUPS:  # a filter per key beats a gather
-        df = pl.concat([df.filter(pl.Series(code == i)) for i in range(len(keys))], rechunk=True)
-    elif not t_sorted or not by_key:
-        order = None if by_key else np.argsort(code, kind="stable")
-        c, tt = (code, t) if order is None else (code[order], t[order])
-        if not ((tt[1:] >= tt[:-1]) | (c[1:] != c[:-1])).all():  # some key's rows out of time order
-            by_t = np.argsort(t, kind="stable")
-            order = by_t[np.argsort(code[by_t], kind="stable")]
-        if order is not None:
-            df = df[order]
-    bounds = np.zeros(len(keys) + 1, np.int64)
+    order = None if by_key else np.argsort(code, kind="stable")
+    c, tt = (code, t) if order is None else (code[order], t[order])
+    if tt.size > 1 and not ((tt[1:] >= tt[:-1]) | (c[1:] != c[:-1])).all():  # some key's rows out of time order
+        by_t = np.argsort(t, kind="stable")
+        order = by_t[np.argsort(code[by_t], kind="stable")]
+    if order is not None:
+        df = df[order]
     np.cumsum(np.bincount(code, minlength=len(keys)), out=bounds[1:])
     return Spans(frame=df, keys=keys, bounds=bounds)
 
