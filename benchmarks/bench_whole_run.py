@@ -202,6 +202,7 @@ def cold_run(
         raise RuntimeError(f"{' '.join(cmd)} failed:\n{proc.stderr[-2000:]}")
     record = tomllib.loads((out / "run.toml").read_text())
     timing = record.get("timing", {})
+    cpu += timing.get("worker_cpu_s", 0.0)  # a stage's worker processes (forked by a fork server, not waited for here)
     stages = {k: v for k, v in timing.items() if isinstance(v, dict)}
     viz = sum(v.get("viz_s", 0.0) for v in stages.values()) + timing.get("blueprint_s", 0.0)
     viz_cpu = sum(v.get("viz_cpu_s", 0.0) for v in stages.values()) + timing.get("blueprint_cpu_s", 0.0)

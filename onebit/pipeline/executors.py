@@ -51,6 +51,7 @@ from dataclasses import dataclass, replace
 from typing import Any
 
 from onebit.core.errors import ConfigError, OnebitError
+from onebit.core.parallel import one_core_each
 
 #: The executors by name, as ``--executor`` takes them.
 EXECUTORS = ("serial", "local", "ray")
@@ -112,6 +113,14 @@ def call_task(fn: Callable[[Any], Any], item: Any) -> TaskOutcome:
             msg, tb = f"{type(exc).__name__}: {exc}", traceback.format_exc(limit=12)
         return TaskOutcome(-1, error=msg, traceback=tb, seconds=time.perf_counter() - t0, worker=worker)
     return TaskOutcome(-1, value=value, seconds=time.perf_counter() - t0, worker=worker)
+
+
+def call_task_in_pool(fn: Callable[[Any], Any], item: Any) -> TaskOutcome:
+    """:func:`call_task` in a worker of a pool of tasks (local processes, Ray): the stages of
+    this process use one core each (:func:`onebit.core.parallel.one_core_each`), since every
+    core already runs a task of the pool."""
+    one_core_each()
+    return call_task(fn, item)
 
 
 def _died(index: int, attempts: int, detail: str = "") -> TaskOutcome:
@@ -198,7 +207,7 @@ class LocalPoolExecutor(Executor):
                     while todo and not broken and len(inflight) < self.workers:
                         i = todo.popleft()
                         try:
-                            fut = pool.submit(call_task, fn, items[i])
+                            fut = pool.submit(call_task_in_pool, fn, items[i])
                         except BrokenProcessPool:
                             todo.appendleft(i)
                             broken = True
@@ -295,7 +304,7 @@ class RayExecutor(Executor):
     def map(self, fn: Callable[[Any], Any], items: Iterable[Any], *, on_done: OnDone = None) -> list[TaskOutcome]:
         ray = self.start()
         items = list(items)
-        remote = ray.remote(num_cpus=1, max_retries=self.max_retries, retry_exceptions=False)(call_task)
+        remote = ray.remote(num_cpus=1, max_retries=self.max_retries, retry_exceptions=False)(call_task_in_pool)
         fn_ref = ray.put(fn)
         limit = self.workers or len(items) or 1
         outcomes: list[TaskOutcome | None] = [None] * len(items)

@@ -40,6 +40,7 @@ from onebit.core import writers as outputs
 from onebit.core.config import config_from_mapping, load_toml
 from onebit.core.errors import ConfigError, InputError, OnebitError, bounded
 from onebit.core.memory import release_freed_memory
+from onebit.core.parallel import cpu_seconds, worker_cpu_seconds
 from onebit.core.region_graph import build_region_graph
 from onebit.core.site import load_site
 from onebit.core.tables import REJECTS, REPORT
@@ -212,9 +213,11 @@ def run_pipeline(
     stage the seconds of its work (``work_s``, as in its status), of its recording (``viz_s``:
     opening the ``.rrd``, the site and the stage's viz call, closing it) and of writing its
     tables (``write_s``), and the CPU seconds of the work and of the recording (``work_cpu_s``,
-    ``viz_cpu_s``: the process's, every thread's; on a shared machine the wall times grow with
-    the load, these hardly); ``blueprint_s`` (``blueprint_cpu_s``), ``run_s`` (stages to
-    record; ``run_cpu_s``) and ``entered_unix`` (the wall clock when this function was called: a caller that
+    ``viz_cpu_s``: the process's, every thread's, and of the worker processes a stage ran
+    pieces in, :func:`onebit.core.parallel.cpu_seconds`; on a shared machine the wall times
+    grow with the load, these hardly); ``blueprint_s`` (``blueprint_cpu_s``), ``run_s`` (stages
+    to record; ``run_cpu_s``), ``worker_cpu_s`` (the part of ``run_cpu_s`` spent in worker
+    processes) and ``entered_unix`` (the wall clock when this function was called: a caller that
     knows when its process started gets the start-up from it).
 
     Raises :class:`OnebitError` (``out`` untouched) for bad input found before or instead of
@@ -307,7 +310,7 @@ def _run_stages(
     status = ctx.status
     timing: dict[str, Any] = {"entered_unix": round(entered if entered is not None else time.time(), 6), "rrd": rrd}
     _read_mcaps(ctx, echo)
-    started, started_cpu = time.time(), time.process_time()
+    started, started_cpu, started_workers = time.time(), cpu_seconds(), worker_cpu_seconds()
     for i, st in enumerate(stage_list):
         sink.stage(st.name, i, len(stage_list))
         missing = [n for n in st.needs if n not in ctx.tables]
@@ -318,13 +321,13 @@ def _run_stages(
             status[st.name] = f"skipped: {reason}"
             echo(f"  {st.name}: skipped ({reason})")
             continue
-        t0, c0 = time.perf_counter(), time.process_time()
+        t0, c0 = time.perf_counter(), cpu_seconds()
         try:
             made = st.work(ctx)
             release_freed_memory()  # what the work dropped, before its recording and the next stage
             ctx.seconds[st.name] = time.perf_counter() - t0
             check_made(st, made, ctx.tables, extra=(ARTIFACTS,))
-            t1, c1 = time.perf_counter(), time.process_time()
+            t1, c1 = time.perf_counter(), cpu_seconds()
             if rrd:
                 with stage_recording(work, st.name, recording_id) as rec:
                     log_site(rec, site, ctx.region_graph)
@@ -335,7 +338,7 @@ def _run_stages(
                 "work_s": round(ctx.seconds[st.name], 6),
                 "viz_s": round(time.perf_counter() - t1, 6),
                 "work_cpu_s": round(c1 - c0, 6),
-                "viz_cpu_s": round(time.process_time() - c1, 6),
+                "viz_cpu_s": round(cpu_seconds() - c1, 6),
             }
         except OnebitError as exc:
             status[st.name] = f"failed: {exc}"
@@ -393,7 +396,8 @@ def _run_stages(
     outputs.write_csv(report, work / "report.csv")
     ok = all(not s.startswith("failed") for s in status.values()) and not problems
     timing["run_s"] = round(time.time() - started, 6)
-    timing["run_cpu_s"] = round(time.process_time() - started_cpu, 6)
+    timing["run_cpu_s"] = round(cpu_seconds() - started_cpu, 6)
+    timing["worker_cpu_s"] = round(worker_cpu_seconds() - started_workers, 6)
     _write_record(
         ctx,
         recording_id=recording_id,

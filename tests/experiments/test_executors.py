@@ -49,6 +49,23 @@ def test_map_keeps_the_order_and_reports_a_failing_task_without_stopping(kind, r
     assert out[1].error == "ValueError: math domain error" and "Traceback" in out[1].traceback
 
 
+def _cores_here(_: int) -> int:
+    from onebit.core.parallel import available_cores
+
+    return available_cores()
+
+
+@pytest.mark.parametrize("kind", ["local", "ray"])
+def test_a_pool_worker_gives_its_stages_one_core(kind, ray_local, monkeypatch):
+    """Every core already runs a task of the pool: a stage inside one (clustertrack's runs) does
+    not start workers of its own (``ONEBIT_CORES=1`` in the worker)."""
+    monkeypatch.delenv("ONEBIT_CORES", raising=False)
+    with _executors()[kind] as ex:
+        out = ex.map(_cores_here, [0, 1])
+    assert [o.value for o in out] == [1, 1]
+    assert "ONEBIT_CORES" not in os.environ  # this process is not a worker
+
+
 def test_a_failed_trial_fails_the_study_naming_it():
     with pytest.raises(StudyError, match=r"1 of 3 trial\(s\) failed:\n  x = -1.0: ValueError: math domain error"):
         run_trials(

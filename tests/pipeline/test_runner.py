@@ -301,6 +301,7 @@ def test_run_record_times_work_recording_and_writing_of_every_stage(lab_run, tmp
         assert {"work_s", "viz_s", "write_s"} <= set(timing[name]) and min(timing[name].values()) >= 0.0
         assert f"({timing[name]['work_s']:.2f} s)" in record["stages"][name]  # the status shows the work alone
     assert timing["entered_unix"] <= (res.out / "run.toml").stat().st_mtime
+    assert 0.0 <= timing["worker_cpu_s"] <= timing["run_cpu_s"]  # a lab run's stages start no worker
     # a run record given back as --config ignores the timing (not a stage section)
     assert "timing" not in load_run_config(res.out / "run.toml")
 

@@ -622,6 +622,26 @@ class Consensus:
     runs: int
 
 
+def seed_runs(
+    space: FeasibleSpace,
+    p: Params,
+    seeds: list[int],
+    max_reruns: int = 10,
+    high_cost: float = 10.0,
+    max_tracks: int = 0,
+) -> list[TrackResult]:
+    """The runs :func:`consensus` makes for ``seeds``, one after another: ``clustertrack(space,
+    p, default_rng(seed), max_reruns=..., high_cost=..., max_tracks=...)`` each. A module-level
+    function, so that a worker process can make some of a stage's runs (they are independent:
+    each has its own generator) and hand them to :func:`consensus` as ``known``."""
+    return [
+        clustertrack(
+            space, p, np.random.default_rng(s), max_reruns=max_reruns, high_cost=high_cost, max_tracks=max_tracks
+        )
+        for s in seeds
+    ]
+
+
 def consensus(
     space: FeasibleSpace,
     p: Params,

@@ -26,10 +26,11 @@ import numpy as np
 import polars as pl
 
 from onebit.core.config import check_choice, check_range
+from onebit.core.parallel import available_cores, run_beside
 from onebit.core.site import Site
 from onebit.core.tables import FRAMES, TRACKS, check_schema, conform
 from onebit.trackers.base import ARTIFACTS, TrackerSpec, instants_bound
-from onebit.trackers.clustertrack.algorithm import Params, clustertrack, consensus, rules_of_thumb
+from onebit.trackers.clustertrack.algorithm import Params, clustertrack, consensus, rules_of_thumb, seed_runs
 from onebit.trackers.clustertrack.feasible import sensor_array
 from onebit.trackers.clustertrack.space import FeasibleSpace
 
@@ -74,6 +75,14 @@ class ClusterTrackConfig:
         the simulated 25-sensor line on 2 cores (each run's instant costs ~0.2 ms, in
         proportion to its m_t K candidates: the sensors on and the targets, not the site),
         so 6000 instants take 0.7-1.1 minutes. 0 = no bound.
+    cores : the most cores the independent runs use at once (the stage's own run and the
+        consensus runs of the other seeds: ``1 + consensus_runs - 1`` runs, each a whole
+        CLUSTERTRACK with its reruns). The runs are dealt in turn to the cores: this process
+        takes the first lane (the stage's run first), worker processes the others
+        (:func:`onebit.core.parallel.run_beside`). 0 = every core this process may use
+        (:func:`onebit.core.parallel.available_cores`; 1 inside a ``run-many`` pool), on a job
+        of at least :data:`PARALLEL_MIN` steps x candidates (below it, starting workers costs
+        more than it saves); 1 = every run here. The output is the same for any value.
     """
 
     h: int = 25
@@ -95,6 +104,7 @@ class ClusterTrackConfig:
     targets: int = 0
     seed: int = 0
     max_instants: int = 6000
+    cores: int = 0
 
     def __post_init__(self) -> None:
         check_range(self, "h", 1, 100000, types=(int,))
@@ -116,6 +126,7 @@ class ClusterTrackConfig:
         check_range(self, "targets", 0, 10**4, types=(int,))
         check_range(self, "seed", 0, None, types=(int,))
         check_range(self, "max_instants", 0, None, types=(int,))
+        check_range(self, "cores", 0, 4096, types=(int,))
 
 
 #: Schemas of the tables besides ``tracks`` (``feasible`` and ``minimal_targets`` in 1-D only,
@@ -226,6 +237,24 @@ def _xy(a: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return a[..., 0], (a[..., 1] if a.shape[-1] > 1 else np.zeros(a.shape[:-1]))
 
 
+#: ``cores = 0`` runs the independent runs side by side from this many steps x candidates
+#: (``T x L``): the 10^4-row simulated line has 4 749 x 2 779 = 13 M (its four runs ~45 s of
+#: CPU), the real r1-easy ceiling array 230 x 21 857 = 5 M (~6 s); a worker costs about a
+#: second to start (forked from a fresh interpreter, numba's kernels loaded from its cache).
+PARALLEL_MIN = 2_000_000
+
+
+def run_cores(config: ClusterTrackConfig, work: int, runs: int) -> int:
+    """Lanes (this process and workers) for ``runs`` independent runs beside the stage's own:
+    ``config.cores`` (0: :func:`available_cores` when ``work = T x L >= PARALLEL_MIN``, else
+    1), at most ``1 + runs``."""
+    if config.cores == 0:
+        cores = available_cores() if work >= PARALLEL_MIN else 1
+    else:
+        cores = config.cores
+    return max(1, min(cores, 1 + runs))
+
+
 def run(inputs: dict, site: Site, config: ClusterTrackConfig) -> dict[str, pl.DataFrame]:
     """Feasible spaces, counts, CLUSTERTRACK with Appendix B, and the multi-run consensus."""
     frames = check_schema(inputs["proximity_frames"], FRAMES, name="proximity_frames")
@@ -240,18 +269,36 @@ def run(inputs: dict, site: Site, config: ClusterTrackConfig) -> dict[str, pl.Da
             del empty["consensus"]
         return {"tracks": pl.DataFrame(schema=TRACKS), **empty}
     p = params_for(space, R, config)
-    rng = np.random.default_rng(config.seed)
     bound = track_bound(p, site, config)
-    res = clustertrack(
-        space,
-        p,
-        rng,
-        max_reruns=config.reruns,
-        rerun=config.reruns > 0,
-        record=True,
-        high_cost=config.rerun_cost_ratio,
-        max_tracks=bound,
+    seeds = list(range(config.seed, config.seed + config.consensus_runs))
+    # the consensus's other runs (the stage's run is seed's when it is the same call: reruns on)
+    others = [s for s in seeds if not (config.reruns > 0 and s == config.seed)]
+    cores = run_cores(config, T * p.L, len(others))
+    jobs = [None, *others]  # None: the stage's run (recorded), in this process
+    lanes = [[s for s in jobs[k::cores] if s is not None] for k in range(cores)]  # lane 0: this process
+
+    def here():
+        run = clustertrack(
+            space,
+            p,
+            np.random.default_rng(config.seed),
+            max_reruns=config.reruns,
+            rerun=config.reruns > 0,
+            record=True,
+            high_cost=config.rerun_cost_ratio,
+            max_tracks=bound,
+        )
+        return run, seed_runs(space, p, lanes[0], config.reruns, config.rerun_cost_ratio, bound)
+
+    (res, mine), theirs = run_beside(
+        here,
+        seed_runs,
+        [(space, p, lane, config.reruns, config.rerun_cost_ratio, bound) for lane in lanes[1:] if lane],
+        workers=cores - 1,
     )
+    made = dict(zip(lanes[0], mine))
+    for lane, runs in zip([lane for lane in lanes[1:] if lane], theirs):
+        made.update(zip(lane, runs))
     N = res.tracks.shape[0]
     names = [f"c{i + 1}" for i in range(N)]
     x, y = _xy(res.tracks)
@@ -324,7 +371,6 @@ def run(inputs: dict, site: Site, config: ClusterTrackConfig) -> dict[str, pl.Da
         )
     count_consensus = -1
     if config.consensus_runs > 0:
-        seeds = list(range(config.seed, config.seed + config.consensus_runs))
         cons = consensus(
             space,
             p,
@@ -333,9 +379,9 @@ def run(inputs: dict, site: Site, config: ClusterTrackConfig) -> dict[str, pl.Da
             min_support=config.consensus_support,
             max_reruns=config.reruns,
             high_cost=config.rerun_cost_ratio,
-            known={config.seed: res} if config.reruns > 0 else None,
+            known={**made, **({config.seed: res} if config.reruns > 0 else {})},
             max_tracks=bound,
-        )  # the run above is seed's run
+        )  # every run is made above: the stage's (seed's) and the others, here or in workers
         count_consensus = cons.count
         out["consensus"] = pl.DataFrame(
             {

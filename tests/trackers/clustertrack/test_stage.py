@@ -30,7 +30,15 @@ from onebit.trackers.clustertrack.algorithm import (
 )
 from onebit.trackers.clustertrack.feasible import SensorArray
 from onebit.trackers.clustertrack.space import FeasibleSpace
-from onebit.trackers.clustertrack.stage import ClusterTrackConfig, run
+from onebit.trackers.clustertrack.stage import (
+    PARALLEL_MIN,
+    ClusterTrackConfig,
+    build_space,
+    params_for,
+    run,
+    run_cores,
+    track_bound,
+)
 from onebit.viz.inspect import entity_paths
 
 
@@ -310,3 +318,65 @@ def test_clustertrack_and_binpf_beyond_their_instant_bounds_are_skipped_saying_w
     lifted = {"clustertrack": {"max_instants": 0, "consensus_runs": 0, "reruns": 0}, "binpf": {"max_frames": 0}}
     res = run_pipeline(data, tmp_path / "lifted", trackers=("clustertrack", "binpf"), config=lifted, rrd=False)
     assert res.status["clustertrack"].startswith("ok") and res.status["binpf"].startswith("ok"), res.status
+
+
+def _grid_frames(seed: int = 5, T: int = 12):
+    rng = np.random.default_rng(seed)
+    xy = [(1.0 + 1.5 * i, 1.0 + 1.5 * j) for i in range(5) for j in range(5)]
+    site = site_from_dict(
+        {
+            "boundary": {"polygon": [[0, 0], [8, 0], [8, 8], [0, 8]]},
+            "units": "m",
+            "targets": 2,
+            "proximity_sensors": [{"id": f"s{k}", "position": list(p), "radius": 0.9} for k, p in enumerate(xy)],
+        }
+    )
+    on = rng.random((T, len(xy))) < 0.12
+    frames = pl.DataFrame(
+        {
+            "slot": np.repeat(np.arange(T), len(xy)),
+            "t": np.repeat(np.arange(T) * 0.5, len(xy)),
+            "sensor": [f"s{k}" for k in range(len(xy))] * T,
+            "on": on.ravel(),
+            "fired": on.ravel(),
+        },
+        schema={"slot": pl.Int64, "t": pl.Float64, "sensor": pl.String, "on": pl.Boolean, "fired": pl.Boolean},
+    )
+    return frames, site
+
+
+@pytest.mark.parametrize("reruns", [10, 0])
+def test_runs_side_by_side_in_worker_processes_give_the_same_tables(reruns):
+    """``cores`` deals the independent runs (the stage's and the other consensus seeds') to this
+    process and workers; every table is the same as with every run here, in one process."""
+    frames, site = _grid_frames()
+    base = dict(consensus_runs=4, reruns=reruns, h_2d=10, m_o_r2=10.0, seed=3)
+    one = run({"proximity_frames": frames}, site, ClusterTrackConfig(cores=1, **base))
+    three = run({"proximity_frames": frames}, site, ClusterTrackConfig(cores=3, **base))
+    assert one.keys() == three.keys()
+    for name in one:
+        if not isinstance(one[name], pl.DataFrame):
+            continue
+        assert one[name].equals(three[name]), name
+    assert one["consensus"].height > 0
+    # and both are what consensus() makes by itself, run after run
+    sp, R, _ = build_space(frames, site, ClusterTrackConfig(**base))
+    p = params_for(sp, R, ClusterTrackConfig(**base))
+    cons = consensus(
+        sp, p, [3, 4, 5, 6], max_reruns=reruns, max_tracks=track_bound(p, site, ClusterTrackConfig(**base))
+    )
+    assert np.array_equal(cons.costs, one["consensus"]["cost"].to_numpy())
+
+
+def test_run_cores_auto_follows_the_job_and_the_cores_available(monkeypatch):
+    cfg = ClusterTrackConfig()
+    monkeypatch.setenv("ONEBIT_CORES", "4")
+    assert run_cores(cfg, PARALLEL_MIN - 1, 3) == 1  # small job: every run here
+    assert run_cores(cfg, PARALLEL_MIN, 3) == 4
+    assert run_cores(cfg, PARALLEL_MIN, 1) == 2  # never more lanes than runs
+    assert run_cores(ClusterTrackConfig(cores=1), 10**9, 3) == 1
+    assert run_cores(ClusterTrackConfig(cores=3), 10, 3) == 3  # an explicit count holds for any job
+    monkeypatch.setenv("ONEBIT_CORES", "1")  # a run-many worker
+    assert run_cores(cfg, 10**9, 3) == 1
+    with pytest.raises(ConfigError, match="cores"):
+        ClusterTrackConfig(cores=-1)

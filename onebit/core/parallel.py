@@ -1,0 +1,110 @@
+"""Cores a stage may use, and independent pieces of one stage run in processes side by side.
+
+A tracker whose work splits into independent runs (CLUSTERTRACK's runs with different seeds)
+may run them in worker processes: :func:`run_beside` starts the pieces in a process pool
+(``forkserver``: a fresh interpreter forks the workers, so no thread of this process -- polars',
+numba's, Rerun's -- is copied into them), runs one piece in this process meanwhile, and returns
+every result in order. The results are what the same calls give in this process (the workers
+run the same code on the same, pickled, arguments), so a run's output does not depend on how
+many cores it had.
+
+How many: :func:`available_cores` -- the CPUs this process may run on
+(``os.sched_getaffinity``), or the environment's ``ONEBIT_CORES`` when set. The run-many pools
+set ``ONEBIT_CORES=1`` in their workers (:func:`one_core_each`): there every core already runs a
+dataset, and a stage that started its own pool would only make them wait for each other.
+"""
+
+from __future__ import annotations
+
+import multiprocessing
+import os
+import time
+from collections.abc import Callable, Sequence
+from concurrent.futures import ProcessPoolExecutor
+from typing import Any
+
+#: The environment variable that caps the cores a stage uses (an integer >= 1).
+CORES_ENV = "ONEBIT_CORES"
+
+_worker_cpu = 0.0  # CPU seconds of the calls run_beside made in workers, this process's total
+
+
+def worker_cpu_seconds() -> float:
+    """CPU seconds the calls :func:`run_beside` sent to worker processes have taken so far in
+    this process (each measured in its worker): a stage's CPU is this process's
+    ``time.process_time()`` plus what this adds during the stage (:func:`cpu_seconds`)."""
+    return _worker_cpu
+
+
+def cpu_seconds() -> float:
+    """``time.process_time()`` plus :func:`worker_cpu_seconds`: the CPU a stage costs, its
+    workers' included (the runner's ``work_cpu_s``)."""
+    return time.process_time() + _worker_cpu
+
+
+def _timed(fn: Callable[..., Any], args: tuple) -> tuple[Any, float]:
+    c = time.process_time()
+    out = fn(*args)
+    return out, time.process_time() - c
+
+
+def available_cores() -> int:
+    """The cores a stage may use: ``ONEBIT_CORES`` when set (>= 1), else the CPUs this process
+    may run on. A value that is not a positive integer raises ``ValueError`` naming it."""
+    raw = os.environ.get(CORES_ENV)
+    if raw is not None and raw.strip():
+        try:
+            n = int(raw)
+        except ValueError:
+            n = 0
+        if n < 1:
+            raise ValueError(f"environment variable {CORES_ENV}={raw!r}: expected a whole number of cores >= 1")
+        return n
+    try:
+        return max(1, len(os.sched_getaffinity(0)))
+    except AttributeError:  # pragma: no cover - platforms without affinity
+        return max(1, os.cpu_count() or 1)
+
+
+def one_core_each() -> None:
+    """Mark this process as one worker of a pool of datasets: its stages use one core."""
+    os.environ[CORES_ENV] = "1"
+
+
+def run_beside(
+    here: Callable[[], Any],
+    fn: Callable[..., Any],
+    elsewhere: Sequence[tuple],
+    *,
+    workers: int,
+    preload: Sequence[str] = (),
+) -> tuple[Any, list[Any]]:
+    """``(here(), [fn(*args) for args in elsewhere])``, the second in ``min(workers,
+    len(elsewhere))`` worker processes while this process computes the first; with ``workers <=
+    0`` or nothing elsewhere, everything here, in order. ``fn`` must be a module-level function
+    and its arguments picklable; ``preload``: modules the fork server imports once (``fn``'s
+    module is always one). An exception in a worker is raised here, as the call would have
+    raised it; the pool is shut down either way."""
+    if workers <= 0 or not elsewhere:
+        return here(), [fn(*args) for args in elsewhere]
+    ctx = multiprocessing.get_context("forkserver")
+    ctx.set_forkserver_preload(list(dict.fromkeys([*preload, fn.__module__])))
+    with ProcessPoolExecutor(max_workers=min(workers, len(elsewhere)), mp_context=ctx) as pool:
+        futures = [pool.submit(_timed, fn, args) for args in elsewhere]
+        try:
+            first = here()
+        except BaseException:
+            for f in futures:
+                f.cancel()
+            raise
+        rest = []
+        for f in futures:
+            out, cpu = f.result()
+            _add_worker_cpu(cpu)
+            rest.append(out)
+        return first, rest
+
+
+def _add_worker_cpu(seconds: float) -> None:
+    global _worker_cpu
+    _worker_cpu += seconds
