@@ -62,9 +62,7 @@ def log_track_particles(
     rec.send_columns(
         entity,
         indexes=[paths.time_column(times)],
-        columns=rr.Points2D.columns(positions=xy, colors=colors.colors_of(track.tolist(), alpha=140)).partition(
-            lengths
-        ),
+        columns=rr.Points2D.columns(positions=xy, colors=colors.colors_of(track, alpha=140)).partition(lengths),
     )
 
 

@@ -25,7 +25,7 @@ import numpy as np
 import polars as pl
 
 from onebit.core.lazy import lazy_module
-from onebit.viz import colors, paths
+from onebit.viz import bulk, colors, paths
 from onebit.viz._series import is_empty, strips_array
 from onebit.viz.families import GENERIC, Look
 from onebit.viz.frame import log_world_frame
@@ -141,34 +141,15 @@ def log_space_time(
             static=True,
         )
     if not is_empty(truth):
-        for ident, g in truth.sort("t").partition_by("target", as_dict=True, maintain_order=True).items():
-            rec.log(
-                paths.join(base, "truth", paths.part(ident[0])),
-                rr.LineStrips2D(
-                    [np.c_[g["x"].to_numpy(), st.y(g["t"].to_numpy())]],
-                    radii=rr.Radius.ui_points(1.0),
-                    colors=colors.TRUTH_TRAIL,
-                    labels=[f"true {ident[0]}"],
-                    show_labels=False,
-                ),
-                static=True,
-            )
+        _log_space_time_paths(
+            rec, base, "truth", truth, "target", st, radius=1.0, shades=None, labels=None, show_labels=False
+        )
     if not is_empty(tracks):
         labels = track_labels(tracker, tracks["track"].unique().to_list())
         shades = track_colors(tracker, labels, rgb=rgb)
-        for ident, g in tracks.sort("t").partition_by("track", as_dict=True, maintain_order=True).items():
-            tid = str(ident[0])
-            rec.log(
-                paths.join(base, "tracks", paths.part(tid)),
-                rr.LineStrips2D(
-                    [np.c_[g["x"].to_numpy(), st.y(g["t"].to_numpy())]],
-                    radii=rr.Radius.ui_points(2.0),
-                    colors=shades[tid],
-                    labels=[labels[tid]],
-                    show_labels=True,
-                ),
-                static=True,
-            )
+        _log_space_time_paths(
+            rec, base, "tracks", tracks, "track", st, radius=2.0, shades=shades, labels=labels, show_labels=True
+        )
     now = paths.join(base, "now")
     y = st.y(times)
     rec.log(
@@ -185,6 +166,44 @@ def log_space_time(
             )
         ),
     )
+
+
+def _log_space_time_paths(
+    rec: rr.RecordingStream,
+    base: str,
+    kind: str,
+    frame: pl.DataFrame,
+    key: str,
+    st: SpaceTime,
+    *,
+    radius: float,
+    shades: dict | None,
+    labels: dict | None,
+    show_labels: bool,
+) -> None:
+    """``<base>/<kind>/<id>``: each id's path in the space-time plane as one static strip, in
+    its shade (``shades``; the truth's trail colour without) labelled ``labels[id]`` (``"true
+    <id>"`` without); the strips of all ids are built in one go (:mod:`onebit.viz.bulk`)."""
+    spans = bulk.track_spans(frame.select(key, "t", "x"), key)
+    if not spans.keys:
+        return
+    f = spans.frame
+    pts = np.c_[f["x"].to_numpy(), st.y(f["t"].to_numpy())]
+    names = [labels[k] for k in spans.keys] if labels is not None else [f"true {k}" for k in spans.keys]
+    tints = [shades[k] for k in spans.keys] if shades is not None else [colors.TRUTH_TRAIL] * len(spans.keys)
+    template = rr.LineStrips2D(
+        [pts[: spans.bounds[1]]],
+        radii=rr.Radius.ui_points(radius),
+        colors=tints[0],
+        labels=[names[0]],
+        show_labels=show_labels,
+    )
+    per_id = {
+        "LineStrips2D:strips": strips_array(pts, spans.lengths),
+        "LineStrips2D:colors": bulk.color_array(tints),
+        "LineStrips2D:labels": bulk.text_batch(names),
+    }
+    bulk.log_styles(rec, [paths.join(base, kind, paths.part(k)) for k in spans.keys], template, per_id)
 
 
 def log_counts(rec: rr.RecordingStream, tracker: str, counts: pl.DataFrame | None, truth: pl.DataFrame | None) -> None:

@@ -26,8 +26,8 @@ import numpy as np
 import polars as pl
 
 from onebit.core.lazy import lazy_module
-from onebit.viz import paths
-from onebit.viz._series import groups, is_empty
+from onebit.viz import bulk, paths
+from onebit.viz._series import is_empty, strips_array
 from onebit.viz.families import GENERIC, Look
 from onebit.viz.frame import log_world_frame
 from onebit.viz.tracks import log_point_tracks, track_colors, track_labels
@@ -101,18 +101,21 @@ def log_decoded(
     log_point_tracks(rec, tracker, tracks, rgb=rgb)
     labels = track_labels(tracker, tracks["track"].drop_nulls().unique().to_list())
     shades = track_colors(tracker, labels, rgb=rgb)
-    for user, g in groups(tracks.drop_nulls(["x", "y"]), "track"):
-        xy = g.select("x", "y").to_numpy()
-        rec.log(
-            paths.decoded(tracker, user),
-            rr.LineStrips2D(
-                [xy],
-                colors=shades[user],
-                radii=rr.Radius.ui_points(2.0),
-                labels=[f"{labels[user]}: whole decoded path"],
-            ),
-            static=True,
-        )
+    spans = bulk.track_spans(tracks.drop_nulls(["x", "y"]).select("track", "t", "x", "y"), "track")
+    if not spans.keys:
+        return
+    xy = spans.frame.select("x", "y").to_numpy()
+    names = [f"{labels[user]}: whole decoded path" for user in spans.keys]
+    tints = [shades[user] for user in spans.keys]
+    template = rr.LineStrips2D(
+        [xy[: spans.bounds[1]]], colors=tints[0], radii=rr.Radius.ui_points(2.0), labels=names[:1]
+    )
+    per_user = {
+        "LineStrips2D:strips": strips_array(xy, spans.lengths),
+        "LineStrips2D:colors": bulk.color_array(tints),
+        "LineStrips2D:labels": bulk.text_batch(names),
+    }
+    bulk.log_styles(rec, [paths.decoded(tracker, user) for user in spans.keys], template, per_user)
 
 
 def _one_based(indices: str) -> str:

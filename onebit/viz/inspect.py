@@ -397,3 +397,40 @@ def blueprint_tabs(path: str | Path) -> list[str]:
         return containers.get(ident, {}).get("name", "") if kind == "container" else views.get(ident, "")
 
     return [name(ref) for ref in containers[root].get("contents", [])]
+
+
+def recording_rows(rrd_paths: str | Path | Iterable[str | Path]) -> dict[tuple[str, str, str], list[tuple]]:
+    """Every row of every component in the first recording store of each file, for comparing
+    two recordings content for content: ``{(entity, component, component type): rows}``, a
+    row being ``(timelines, value)`` with ``timelines`` a sorted tuple of ``(name, ns)``
+    (empty for static rows). Rows are in time order, ties (and static rows) in the order they
+    were logged (row id); row and chunk ids themselves are left out, so two files with the
+    same content give equal results however their rows were cut into chunks."""
+    files = [rrd_paths] if isinstance(rrd_paths, (str, Path)) else list(rrd_paths)
+    found: dict[tuple[str, str, str], list[tuple]] = {}
+    for f in files:
+        for chunk in _reader(f).stream():
+            entity = _clean(chunk.entity_path)
+            if _is_internal(entity):
+                continue
+            rb = chunk.to_record_batch()
+            row_ids = rb.column(0).to_pylist() if rb.schema.field(0).metadata.get(b"rerun:kind") == b"control" else None
+            times, data = [], []
+            for i, fld in enumerate(rb.schema):
+                kind = (fld.metadata or {}).get(b"rerun:kind")
+                if kind == b"index":
+                    times.append((fld.name, rb.column(i).cast("int64").to_pylist()))
+                elif kind == b"data":
+                    data.append((fld, rb.column(i).to_pylist()))
+            for fld, values in data:
+                key = (entity, fld.name, (fld.metadata or {}).get(b"rerun:component_type", b"").decode())
+                rows = found.setdefault(key, [])
+                for r, value in enumerate(values):
+                    if value is None:
+                        continue
+                    stamp = tuple(sorted((name, ts[r]) for name, ts in times))
+                    rows.append((stamp, row_ids[r] if row_ids else r, value))
+    return {
+        key: [(stamp, value) for stamp, _, value in sorted(rows, key=lambda row: (row[0], row[1]))]
+        for key, rows in found.items()
+    }

@@ -33,12 +33,12 @@ import shapely
 
 from onebit.core.lazy import lazy_module
 from onebit.core.region_graph import RegionGraph
-from onebit.viz import colors, paths
-from onebit.viz._series import groups, is_empty, only_tracker, region_outlines, require, ring_table, strips_array
+from onebit.viz import bulk, colors, paths
+from onebit.viz._series import is_empty, only_tracker, region_outlines, require, ring_table, strips_array
 from onebit.viz.families import GENERIC, Look, error_column
 from onebit.viz.frame import log_world_frame
 from onebit.viz.radii import ui_points
-from onebit.viz.trails import log_dot, log_moving, log_trail
+from onebit.viz.trails import log_dots, log_full_paths, log_trails
 
 rr = lazy_module("rerun")
 
@@ -103,20 +103,59 @@ def region_indices(region_graph: RegionGraph, regions) -> np.ndarray:
     return codes.to_physical().cast(pl.Int64).to_numpy()
 
 
-def region_positions(region_graph: RegionGraph, regions, slot: int, *, index: np.ndarray | None = None) -> np.ndarray:
-    """``(n, 2)`` display positions of a track in ``regions`` (names): each region's
-    representative point, offset by a small per-track vector (``slot`` picks the direction),
-    falling back to the representative point where the offset point would leave the region
-    (``index``: :func:`region_indices` of ``regions``, when already known)."""
-    k = region_indices(region_graph, regions) if index is None else index
+def region_positions(region_graph: RegionGraph, regions, slot, *, index: np.ndarray | None = None) -> np.ndarray:
+    """``(n, 2)`` display positions of tracks in ``regions`` (names): each region's
+    representative point, offset by a small per-track vector (``slot``, an int or one per row,
+    picks the direction), falling back to the representative point where the offset point
+    would leave the region (``index``: :func:`region_indices` of ``regions``, when already
+    known). The offset points are computed once per (slot, region) pair (every pair when they
+    are fewer than the rows, else those that occur)."""
+    k = region_indices(region_graph, regions) if index is None else np.asarray(index, np.int64).reshape(-1)
     rp, size = region_anchors(region_graph)
-    angle = slot * _GOLDEN_ANGLE
-    direction = np.array([np.cos(angle), np.sin(angle)])
-    xy = rp + (TRACK_OFFSET * size)[:, None] * direction  # per region, then gathered per row
-    inside = np.array(
-        [shapely.contains_xy(poly, *p) for poly, p in zip(region_graph.polygons, xy)], dtype=bool
-    ).reshape(-1)
-    return np.where(inside[:, None], xy, rp)[k].reshape(-1, 2)
+    slots = (
+        np.broadcast_to(np.asarray(slot, np.int64).reshape(-1), k.shape)
+        if np.ndim(slot)
+        else np.full(k.shape, int(slot))
+    )
+    cells = (int(slots.max()) + 1) * len(rp) if len(slots) else 0
+    if cells <= max(len(k), 4096):  # every (slot, region) pair: a table, no sort of the rows
+        pair, row_pair = np.arange(cells), slots * len(rp) + k
+    else:  # many tracks: only the pairs that occur
+        pair, row_pair = np.unique(slots * len(rp) + k, return_inverse=True)
+    s, r = pair // max(len(rp), 1), pair % max(len(rp), 1)
+    angle = s * _GOLDEN_ANGLE
+    direction = np.stack([np.cos(angle), np.sin(angle)], axis=-1)
+    xy = rp[r] + (TRACK_OFFSET * size)[r][:, None] * direction
+    inside = np.zeros(len(pair), bool)
+    for j in np.unique(r).tolist():  # one vectorised test per region that occurs
+        sel = np.flatnonzero(r == j)
+        inside[sel] = shapely.contains_xy(region_graph.polygons[j], xy[sel, 0], xy[sel, 1])
+    return np.where(inside[:, None], xy, rp[r])[row_pair.reshape(-1)].reshape(-1, 2)
+
+
+def log_current_regions(
+    rec: rr.RecordingStream,
+    entities: list[str],
+    t: np.ndarray,
+    index: np.ndarray,
+    region_graph: RegionGraph,
+    bounds: np.ndarray,
+    *,
+    colors,
+) -> None:
+    """``entities[i]``: the outline of the region a track is in, from each time it enters one
+    (rows ``bounds[i]:bounds[i + 1]`` of ``t`` and ``index``, the :func:`region_indices` of the
+    regions entered; one row per entry holding the region's rings, gathered from the rings of
+    every region), in ``colors[i]``. The outlines of all rows are built once."""
+    bounds = np.asarray(bounds, np.int64)
+    has = np.flatnonzero(np.diff(bounds) >= 1)
+    if len(has) == 0:
+        return
+    template = rr.LineStrips2D.from_fields(colors=colors[has[0]], radii=REGION_WIDTH, draw_order=8.0)
+    bulk.log_styles(rec, entities, template, {"LineStrips2D:colors": bulk.color_array(colors)}, which=has.tolist())
+    points, lengths, per_row = region_outlines(ring_table(region_graph.polygons), index)
+    outlines = bulk.column_arrays(rr.LineStrips2D.columns(strips=strips_array(points, lengths)).partition(per_row))
+    bulk.send_spans(rec, entities, bulk.time_array(t), outlines, bounds[:-1], bounds[1:])
 
 
 def log_current_region(
@@ -130,16 +169,10 @@ def log_current_region(
     index: np.ndarray | None = None,
 ) -> None:
     """``entity``: the outline of the region a track is in, from each time it enters one
-    (one row per entry holding the region's rings, gathered from the rings of every region;
-    ``index``: :func:`region_indices` of ``regions``, when already known)."""
+    (:func:`log_current_regions` of one track; ``index``: :func:`region_indices` of
+    ``regions``, when already known)."""
     k = region_indices(region_graph, regions) if index is None else index
-    points, lengths, per_row = region_outlines(ring_table(region_graph.polygons), k)
-    rec.log(entity, rr.LineStrips2D.from_fields(colors=color, radii=REGION_WIDTH, draw_order=8.0), static=True)
-    rec.send_columns(
-        entity,
-        indexes=[paths.time_column(t)],
-        columns=rr.LineStrips2D.columns(strips=strips_array(points, lengths)).partition(per_row),
-    )
+    log_current_regions(rec, [entity], t, k, region_graph, np.array([0, len(k)]), colors=[color])
 
 
 def log_region_tracks(
@@ -157,6 +190,9 @@ def log_region_tracks(
     in now outlined in its colour (``.../region``) and its whole region path, hidden
     (``.../regions``). Rows of other trackers (when a ``tracker`` column exists) and rows with
     a null region are skipped; a region not in ``region_graph`` raises ``ValueError``.
+
+    The rows of all tracks are converted together and each track's entities are slices of
+    them (:mod:`onebit.viz.bulk`): the cost follows rows, not tracks.
     """
     if is_empty(tracks):
         return
@@ -169,30 +205,47 @@ def log_region_tracks(
     log_world_frame(rec, paths.tracker_root(tracker))
     labels = track_labels(tracker, tracks["track"].unique().to_list())
     shades = track_colors(tracker, labels, rgb=rgb)
-    for slot, (track, g) in enumerate(groups(tracks, "track")):
-        regions = g["region"]
-        k = region_indices(region_graph, regions)  # once per track: positions and outlines
-        t = g["t"].to_numpy()
-        xy = region_positions(region_graph, regions, slot, index=k)
-        entity = paths.track(tracker, track)
-        log_dot(rec, entity, t, xy, color=shades[track], label=labels[track])
-        log_trail(rec, entity, t, xy, color=shades[track])
-        log_current_region(
-            rec, paths.track_region(tracker, track), t, regions, region_graph, color=shades[track], index=k
-        )
-        if len(xy) >= 2:
-            rec.log(
-                paths.track_region_path(tracker, track),
-                rr.LineStrips2D(
-                    [xy],
-                    colors=(*shades[track][:3], 150),
-                    radii=rr.Radius.ui_points(1.0),
-                    labels=[f"{labels[track]}: whole region path"],
-                    show_labels=False,
-                    draw_order=20.0,
-                ),
-                static=True,
-            )
+    spans = bulk.track_spans(tracks, "track")
+    if not spans.keys:
+        return
+    frame, bounds = spans.frame, spans.bounds
+    k = region_indices(region_graph, frame["region"])  # once: positions and outlines
+    t = frame["t"].to_numpy().astype(np.float64)
+    xy = region_positions(region_graph, None, spans.group_of_rows(), index=k)  # slot = the track's rank
+    entities = [paths.track(tracker, track) for track in spans.keys]
+    track_shades = [shades[track] for track in spans.keys]
+    log_dots(rec, entities, t, xy, bounds, colors=track_shades, labels=[labels[track] for track in spans.keys])
+    log_trails(rec, entities, t, xy, bounds, colors=track_shades)
+    log_current_regions(
+        rec,
+        [paths.track_region(tracker, track) for track in spans.keys],
+        t,
+        k,
+        region_graph,
+        bounds,
+        colors=track_shades,
+    )
+    whole = np.flatnonzero(spans.lengths >= 2)
+    if len(whole) == 0:
+        return
+    faint = [(*shade[:3], 150) for shade in track_shades]
+    names = [f"{labels[track]}: whole region path" for track in spans.keys]
+    i0 = int(whole[0])
+    template = rr.LineStrips2D(
+        [xy[bounds[i0] : bounds[i0 + 1]]],
+        colors=faint[i0],
+        radii=rr.Radius.ui_points(1.0),
+        labels=[names[i0]],
+        show_labels=False,
+        draw_order=20.0,
+    )
+    per_track = {
+        "LineStrips2D:strips": strips_array(xy, spans.lengths),
+        "LineStrips2D:colors": bulk.color_array(faint),
+        "LineStrips2D:labels": bulk.text_batch(names),
+    }
+    region_paths = [paths.track_region_path(tracker, track) for track in spans.keys]
+    bulk.log_styles(rec, region_paths, template, per_track, which=whole.tolist())
 
 
 def log_point_tracks(
@@ -201,7 +254,9 @@ def log_point_tracks(
     """Log tracks with positions ``(track, t, x, y)`` on ``<tracker>/tracks/<track>`` (+ ``/trail``,
     ``/path``), each a dot in a shade of the tracker's colour ``rgb`` labelled ``"track k"``.
 
-    Rows with a null ``x`` or ``y`` and rows of other trackers are skipped.
+    Rows with a null ``x`` or ``y`` and rows of other trackers are skipped. The rows of all
+    tracks are converted together and each track's entities are slices of them
+    (:mod:`onebit.viz.bulk`): the cost follows rows, not tracks.
     """
     if is_empty(tracks):
         return
@@ -212,28 +267,48 @@ def log_point_tracks(
     log_world_frame(rec, paths.tracker_root(tracker))
     labels = track_labels(tracker, tracks["track"].unique().to_list())
     shades = track_colors(tracker, labels, rgb=rgb)
-    for track, g in groups(tracks, "track"):
-        log_moving(
-            rec,
-            paths.track(tracker, track),
-            g["t"].to_numpy(),
-            g.select("x", "y").to_numpy().astype(np.float64),
-            label=labels[track],
-            color=shades[track],
-        )
+    spans = bulk.track_spans(tracks.select("track", "t", "x", "y"), "track")
+    if not spans.keys:
+        return
+    frame, bounds = spans.frame, spans.bounds
+    t = frame["t"].to_numpy().astype(np.float64)
+    xy = frame.select("x", "y").to_numpy().astype(np.float64)
+    entities = [paths.track(tracker, track) for track in spans.keys]
+    track_shades = [shades[track] for track in spans.keys]
+    log_dots(rec, entities, t, xy, bounds, colors=track_shades, labels=[labels[track] for track in spans.keys])
+    log_trails(rec, entities, t, xy, bounds, colors=track_shades)
+    log_full_paths(rec, entities, xy, bounds, colors=track_shades)
 
 
-def _log_series(
-    rec: rr.RecordingStream, entity: str, name: str, color, t: np.ndarray, values: np.ndarray, *, step: bool
+def log_series(
+    rec: rr.RecordingStream,
+    entities: list[str],
+    names: list[str],
+    colors,
+    t: np.ndarray,
+    values: np.ndarray,
+    bounds: np.ndarray,
+    *,
+    step: bool,
 ) -> None:
-    style = rr.SeriesLines(
-        colors=color,
-        names=[name],
+    """Scalars on many entities: entity ``i`` is the series ``names[i]`` in ``colors[i]`` with
+    rows ``bounds[i]:bounds[i + 1]`` of ``t`` and ``values`` (a step series if ``step``); the
+    values of all rows are converted once."""
+    bounds = np.asarray(bounds, np.int64)
+    has = np.flatnonzero(np.diff(bounds) >= 1)
+    if len(has) == 0:
+        return
+    i0 = int(has[0])
+    template = rr.SeriesLines(
+        colors=colors[i0],
+        names=[names[i0]],
         widths=[2.0],
         interpolation_mode=rr.components.InterpolationMode.StepAfter if step else None,
     )
-    rec.log(entity, style, static=True)
-    rec.send_columns(entity, indexes=[paths.time_column(t)], columns=rr.Scalars.columns(scalars=values))
+    per_entity = {"SeriesLines:colors": bulk.color_array(colors), "SeriesLines:names": bulk.text_batch(names)}
+    bulk.log_styles(rec, entities, template, per_entity, which=has.tolist())
+    scalars = bulk.column_arrays(rr.Scalars.columns(scalars=np.asarray(values, np.float64)))
+    bulk.send_spans(rec, entities, bulk.time_array(t), scalars, bounds[:-1], bounds[1:])
 
 
 def log_occupancy(rec: rr.RecordingStream, tracker: str, occupancy: pl.DataFrame | None) -> None:
@@ -244,16 +319,19 @@ def log_occupancy(rec: rr.RecordingStream, tracker: str, occupancy: pl.DataFrame
     occupancy = only_tracker(occupancy, tracker)
     if occupancy["t"].null_count() or occupancy["count"].null_count():
         occupancy = occupancy.drop_nulls(["t", "count"])
-    for region, g in groups(occupancy, "region"):
-        _log_series(
-            rec,
-            paths.occupancy(tracker, region),
-            region,
-            colors.color_of(region),
-            g["t"].to_numpy(),
-            g["count"].cast(pl.Float64).to_numpy(),
-            step=True,
-        )
+    spans = bulk.track_spans(occupancy.select("region", "t", "count"), "region")
+    if not spans.keys:
+        return
+    log_series(
+        rec,
+        [paths.occupancy(tracker, region) for region in spans.keys],
+        spans.keys,
+        [colors.color_of(region) for region in spans.keys],
+        spans.frame["t"].to_numpy(),
+        spans.frame["count"].cast(pl.Float64).to_numpy(),
+        spans.bounds,
+        step=True,
+    )
 
 
 def log_scores(
@@ -280,15 +358,25 @@ def log_scores(
     ids += scores["track"].unique().to_list()
     labels = track_labels(tracker, ids)
     shades = track_colors(tracker, labels, rgb=look.rgb)
-    for track, g in groups(scores, "track"):
-        targets = g["target"].drop_nulls().unique().sort().to_list() if "target" in g.columns else []
-        name = f"{labels[track]} ~ {'/'.join(map(str, targets))}" if targets else labels[track]
-        _log_series(
-            rec,
-            paths.score(tracker, track),
-            name,
-            shades[track],
-            g["t"].to_numpy(),
-            g[column].cast(pl.Float64).to_numpy(),
-            step=False,
-        )
+    keep = ["track", "t", column] + (["target"] if "target" in scores.columns else [])
+    spans = bulk.track_spans(scores.select(keep), "track")
+    if not spans.keys:
+        return
+    targets: dict[str, list] = {}
+    if "target" in scores.columns:
+        matched = spans.frame.group_by("track").agg(pl.col("target").drop_nulls().unique().sort())
+        targets = {str(k): v for k, v in zip(matched["track"].to_list(), matched["target"].to_list())}
+    names = []
+    for track in spans.keys:
+        found = targets.get(track) or []
+        names.append(f"{labels[track]} ~ {'/'.join(map(str, found))}" if found else labels[track])
+    log_series(
+        rec,
+        [paths.score(tracker, track) for track in spans.keys],
+        names,
+        [shades[track] for track in spans.keys],
+        spans.frame["t"].to_numpy(),
+        spans.frame[column].cast(pl.Float64).to_numpy(),
+        spans.bounds,
+        step=False,
+    )

@@ -20,10 +20,12 @@ second of each demo run).
 
 from __future__ import annotations
 
+from collections.abc import Sequence
+
 import numpy as np
 
 from onebit.core.lazy import lazy_module
-from onebit.viz import colors, paths
+from onebit.viz import bulk, colors, paths
 from onebit.viz._series import strips_array, update_indices
 from onebit.viz.radii import ui_points
 
@@ -59,18 +61,79 @@ def segments(xy: np.ndarray, dtype=np.float64) -> np.ndarray:
     return out
 
 
+def log_trails(
+    rec: rr.RecordingStream,
+    entities: Sequence[str],
+    t: np.ndarray,
+    xy: np.ndarray,
+    bounds: np.ndarray,
+    *,
+    colors,
+    width=TRAIL_WIDTH,
+) -> None:
+    """``<entity>/trail`` of many moving things at once: entity ``i`` has rows
+    ``bounds[i]:bounds[i + 1]`` of ``t`` (``(n,)`` s) and ``xy`` (``(n, 2)``) and colour
+    ``colors[i]``; its trail is the segment ending at each of its samples but the first, at
+    that sample's time. The segments of all rows are built once and sliced per entity
+    (:mod:`onebit.viz.bulk`)."""
+    bounds = np.asarray(bounds, np.int64)
+    lengths = np.diff(bounds)
+    has = np.flatnonzero(lengths >= 2)
+    if len(has) == 0:
+        return
+    trails = [paths.trail(e) for e in entities]
+    template = rr.LineStrips2D.from_fields(colors=colors[has[0]], radii=width, draw_order=TRAIL_ORDER)
+    bulk.log_styles(rec, trails, template, {"LineStrips2D:colors": bulk.color_array(colors)}, which=has.tolist())
+    seg = segments(xy, np.float32)  # segment j: row j to row j + 1 (across two entities: never sent)
+    strips = bulk.column_arrays(rr.LineStrips2D.columns(strips=strips_array(seg, 2)))
+    times = bulk.time_array(np.asarray(t, np.float64)[1:])
+    starts = bounds[:-1]
+    stops = np.maximum(bounds[1:] - 1, starts)  # entity i: segments (and times) starts[i]:stops[i]
+    bulk.send_spans(rec, trails, times, strips, starts, stops)
+
+
 def log_trail(rec: rr.RecordingStream, entity: str, t: np.ndarray, xy: np.ndarray, *, color, width=TRAIL_WIDTH) -> None:
     """``<entity>/trail``: the segment ending at each sample ``i >= 1``, at time ``t[i]``."""
-    seg = segments(xy, np.float32)
-    if len(seg) == 0:
+    log_trails(rec, [entity], t, xy, np.array([0, len(np.asarray(t))]), colors=[color], width=width)
+
+
+def full_path_vertices(bounds: np.ndarray, max_vertices: int = MAX_PATH_VERTICES) -> tuple[np.ndarray, np.ndarray]:
+    """The rows kept on the whole paths of entities with rows ``bounds[i]:bounds[i + 1]``:
+    ``(row indices, vertices per entity)``; an entity with more than ``max_vertices`` rows is
+    thinned to :func:`onebit.viz._series.update_indices` of them, the others keep every row."""
+    bounds = np.asarray(bounds, np.int64)
+    lengths = np.diff(bounds)
+    keep = np.repeat(lengths <= max_vertices, lengths)
+    for i in np.flatnonzero(lengths > max_vertices).tolist():  # few: the long tracks
+        keep[bounds[i] + update_indices(int(lengths[i]), max_vertices)] = True
+    rows = np.flatnonzero(keep)
+    count = np.bincount(np.repeat(np.arange(len(lengths)), lengths)[rows], minlength=len(lengths))
+    return rows, count
+
+
+def log_full_paths(
+    rec: rr.RecordingStream,
+    entities: Sequence[str],
+    xy: np.ndarray,
+    bounds: np.ndarray,
+    *,
+    colors,
+    max_vertices: int = MAX_PATH_VERTICES,
+) -> None:
+    """``<entity>/path`` of many moving things: entity ``i`` (rows ``bounds[i]:bounds[i + 1]``
+    of ``xy``, at least two) gets its whole path thinned to ``max_vertices`` as one static strip
+    in ``colors[i]``; the strips of all entities are built in one go."""
+    xy = np.asarray(xy, np.float64).reshape(-1, 2)
+    rows, count = full_path_vertices(bounds, max_vertices)
+    has = np.flatnonzero(np.diff(np.asarray(bounds, np.int64)) >= 2)
+    if len(has) == 0:
         return
-    trail = paths.trail(entity)
-    rec.log(trail, rr.LineStrips2D.from_fields(colors=color, radii=width, draw_order=TRAIL_ORDER), static=True)
-    rec.send_columns(
-        trail,
-        indexes=[paths.time_column(np.asarray(t)[1:])],
-        columns=rr.LineStrips2D.columns(strips=strips_array(seg, 2)),
-    )
+    strips = strips_array(xy[rows], count)
+    i0 = int(has[0])
+    first = xy[rows][int(count[:i0].sum()) : int(count[: i0 + 1].sum())]
+    template = rr.LineStrips2D([first], colors=colors[i0], radii=PATH_WIDTH, draw_order=TRAIL_ORDER - 1)
+    per_entity = {"LineStrips2D:strips": strips, "LineStrips2D:colors": bulk.color_array(colors)}
+    bulk.log_styles(rec, [paths.full_path(e) for e in entities], template, per_entity, which=has.tolist())
 
 
 def log_full_path(
@@ -78,47 +141,111 @@ def log_full_path(
 ) -> None:
     """``<entity>/path``: the whole path, thinned to ``max_vertices``, as one static strip."""
     xy = np.asarray(xy, np.float64).reshape(-1, 2)
-    if len(xy) < 2:
+    log_full_paths(rec, [entity], xy, np.array([0, len(xy)]), colors=[color], max_vertices=max_vertices)
+
+
+def log_dots(
+    rec: rr.RecordingStream,
+    entities: Sequence[str],
+    t: np.ndarray,
+    xy: np.ndarray,
+    bounds: np.ndarray,
+    *,
+    colors,
+    labels: Sequence[str],
+    radius=DOT_RADIUS,
+) -> None:
+    """Estimates now, many at once: entity ``i`` is a filled dot in ``colors[i]`` labelled
+    ``labels[i]`` at each of its rows ``bounds[i]:bounds[i + 1]`` of ``t`` and ``xy``."""
+    bounds = np.asarray(bounds, np.int64)
+    has = np.flatnonzero(np.diff(bounds) >= 1)
+    if len(has) == 0:
         return
-    keep = update_indices(len(xy), max_vertices)
-    rec.log(
-        paths.full_path(entity),
-        rr.LineStrips2D([xy[keep]], colors=color, radii=PATH_WIDTH, draw_order=TRAIL_ORDER - 1),
-        static=True,
+    i0 = int(has[0])
+    template = rr.Points2D.from_fields(
+        radii=radius, colors=colors[i0], labels=[labels[i0]], show_labels=True, draw_order=DOT_ORDER
     )
+    per_entity = {"Points2D:colors": bulk.color_array(colors), "Points2D:labels": bulk.text_batch(labels)}
+    bulk.log_styles(rec, entities, template, per_entity, which=has.tolist())
+    positions = bulk.column_arrays(rr.Points2D.columns(positions=np.asarray(xy, np.float64).reshape(-1, 2)))
+    bulk.send_spans(rec, entities, bulk.time_array(t), positions, bounds[:-1], bounds[1:])
 
 
 def log_dot(
     rec: rr.RecordingStream, entity: str, t: np.ndarray, xy: np.ndarray, *, color, label: str, radius=DOT_RADIUS
 ) -> None:
     """An estimate now: a filled dot in ``color`` labelled ``label`` at every sample."""
-    rec.log(
-        entity,
-        rr.Points2D.from_fields(radii=radius, colors=color, labels=[label], show_labels=True, draw_order=DOT_ORDER),
-        static=True,
+    log_dots(rec, [entity], t, xy, np.array([0, len(np.asarray(t))]), colors=[color], labels=[label], radius=radius)
+
+
+def log_rings(
+    rec: rr.RecordingStream,
+    entities: Sequence[str],
+    t: np.ndarray,
+    xy: np.ndarray,
+    bounds: np.ndarray,
+    *,
+    size: float,
+    labels: Sequence[str],
+) -> None:
+    """True targets now, many at once: entity ``i`` is a hollow neutral ring of radius ``size``
+    (world units) with its label ``labels[i]`` to the left of it (a tiny point left of the ring
+    carries it, so the label of an estimate on the target, drawn below the estimate's dot, does
+    not cover it), at each of its rows ``bounds[i]:bounds[i + 1]`` of ``t`` and ``xy``."""
+    bounds = np.asarray(bounds, np.int64)
+    has = np.flatnonzero(np.diff(bounds) >= 1)
+    if len(has) == 0:
+        return
+    ring = rr.Ellipses2D.from_fields(
+        half_sizes=[[size, size]], colors=colors.TRUTH, line_radii=RING_WIDTH, draw_order=RING_ORDER
     )
-    rec.send_columns(entity, indexes=[paths.time_column(t)], columns=rr.Points2D.columns(positions=xy))
+    anchor = rr.Points2D.from_fields(
+        radii=LABEL_ANCHOR, colors=colors.TRUTH, labels=[labels[has[0]]], show_labels=True, draw_order=RING_ORDER
+    )
+    bulk.log_styles(rec, entities, [ring, anchor], {"Points2D:labels": bulk.text_batch(labels)}, which=has.tolist())
+    xy = np.asarray(xy, np.float64).reshape(-1, 2)
+    marks = bulk.column_arrays(
+        [*rr.Ellipses2D.columns(centers=xy), *rr.Points2D.columns(positions=xy + LABEL_OFFSET * size)]
+    )
+    bulk.send_spans(rec, entities, bulk.time_array(t), marks, bounds[:-1], bounds[1:])
 
 
 def log_ring(rec: rr.RecordingStream, entity: str, t: np.ndarray, xy: np.ndarray, *, size: float, label: str) -> None:
-    """A true target now: a hollow neutral ring of radius ``size`` (world units) with its label
-    to the left of it (a tiny point left of the ring carries it, so the label of an estimate on
-    the target, drawn below the estimate's dot, does not cover it), at every sample."""
-    rec.log(
-        entity,
-        rr.Ellipses2D.from_fields(
-            half_sizes=[[size, size]], colors=colors.TRUTH, line_radii=RING_WIDTH, draw_order=RING_ORDER
-        ),
-        rr.Points2D.from_fields(
-            radii=LABEL_ANCHOR, colors=colors.TRUTH, labels=[label], show_labels=True, draw_order=RING_ORDER
-        ),
-        static=True,
-    )
-    rec.send_columns(
-        entity,
-        indexes=[paths.time_column(t)],
-        columns=[*rr.Ellipses2D.columns(centers=xy), *rr.Points2D.columns(positions=xy + LABEL_OFFSET * size)],
-    )
+    """A true target now: :func:`log_rings` of one target."""
+    log_rings(rec, [entity], t, xy, np.array([0, len(np.asarray(t))]), size=size, labels=[label])
+
+
+def log_movers(
+    rec: rr.RecordingStream,
+    entities: Sequence[str],
+    t: np.ndarray,
+    xy: np.ndarray,
+    bounds: np.ndarray,
+    *,
+    labels: Sequence[str],
+    shades=None,
+    truth_size: float | None = None,
+) -> None:
+    """Many moving things: entity ``i`` (rows ``bounds[i]:bounds[i + 1]`` of ``t`` ``(n,)`` s and
+    ``xy`` ``(n, 2)``) gets its marker now, its trail and its hidden full path (module
+    docstring), the rows of all of them converted together (:mod:`onebit.viz.bulk`).
+
+    With ``truth_size`` they are drawn as truth (neutral rings of that radius); otherwise as
+    estimates (dots in ``shades[i]``)."""
+    t = np.asarray(t, np.float64)
+    xy = np.asarray(xy, np.float64).reshape(-1, 2)
+    if len(t) == 0:
+        return
+    if truth_size is not None:
+        trail = [colors.TRUTH_TRAIL] * len(entities)
+        log_rings(rec, entities, t, xy, bounds, size=truth_size, labels=labels)
+        log_trails(rec, entities, t, xy, bounds, colors=trail, width=TRUTH_TRAIL_WIDTH)
+        log_full_paths(rec, entities, xy, bounds, colors=trail)
+    else:
+        shades = list(shades) if shades is not None else [None] * len(entities)
+        log_dots(rec, entities, t, xy, bounds, colors=shades, labels=labels)
+        log_trails(rec, entities, t, xy, bounds, colors=shades)
+        log_full_paths(rec, entities, xy, bounds, colors=shades)
 
 
 def log_moving(
@@ -131,23 +258,10 @@ def log_moving(
     color=None,
     truth_size: float | None = None,
 ) -> None:
-    """One moving thing: the marker now, its trail and its hidden full path (module docstring).
-
-    With ``truth_size`` it is drawn as truth (neutral ring of that radius); otherwise as an
-    estimate (a dot in ``color``). ``t`` is ``(n,)`` seconds, ``xy`` ``(n, 2)``.
-    """
+    """One moving thing: :func:`log_movers` of one entity (``t`` ``(n,)`` seconds, ``xy``
+    ``(n, 2)``): a truth ring of radius ``truth_size`` or an estimate's dot in ``color``."""
     t = np.asarray(t, np.float64)
-    xy = np.asarray(xy, np.float64).reshape(-1, 2)
-    if len(t) == 0:
-        return
-    if truth_size is not None:
-        log_ring(rec, entity, t, xy, size=truth_size, label=label)
-        log_trail(rec, entity, t, xy, color=colors.TRUTH_TRAIL, width=TRUTH_TRAIL_WIDTH)
-        log_full_path(rec, entity, xy, color=colors.TRUTH_TRAIL)
-    else:
-        log_dot(rec, entity, t, xy, color=color, label=label)
-        log_trail(rec, entity, t, xy, color=color)
-        log_full_path(rec, entity, xy, color=color)
+    log_movers(rec, [entity], t, xy, np.array([0, len(t)]), labels=[label], shades=[color], truth_size=truth_size)
 
 
 def marker_size(xy: np.ndarray, *, diagonal: float | None = None) -> float:

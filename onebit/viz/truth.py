@@ -11,10 +11,10 @@ import numpy as np
 import polars as pl
 
 from onebit.core.lazy import lazy_module
-from onebit.viz import paths
-from onebit.viz._series import groups, is_empty, require
+from onebit.viz import bulk, paths
+from onebit.viz._series import is_empty, require
 from onebit.viz.frame import log_world_frame
-from onebit.viz.trails import log_moving, marker_size
+from onebit.viz.trails import log_movers, marker_size
 
 rr = lazy_module("rerun")
 
@@ -39,12 +39,15 @@ def log_truth(
         return
     log_world_frame(rec, prefix)
     size = marker_size(truth.select("x", "y").to_numpy(), diagonal=diagonal)
-    for target, g in groups(truth, "target"):
-        log_moving(
-            rec,
-            paths.truth(target, prefix=prefix),
-            g["t"].to_numpy(),
-            g.select("x", "y").to_numpy().astype(np.float64),
-            label=target,
-            truth_size=size,
-        )
+    spans = bulk.track_spans(truth.select("target", "t", "x", "y"), "target")
+    if not spans.keys:
+        return
+    log_movers(
+        rec,
+        [paths.truth(target, prefix=prefix) for target in spans.keys],
+        spans.frame["t"].to_numpy(),
+        spans.frame.select("x", "y").to_numpy().astype(np.float64),
+        spans.bounds,
+        labels=spans.keys,
+        truth_size=size,
+    )
