@@ -21,6 +21,7 @@ import os
 import time
 from collections.abc import Callable, Sequence
 from concurrent.futures import ProcessPoolExecutor
+from concurrent.futures.process import BrokenProcessPool
 from typing import Any
 
 #: The environment variable that caps the cores a stage uses (an integer >= 1).
@@ -71,6 +72,12 @@ def one_core_each() -> None:
     os.environ[CORES_ENV] = "1"
 
 
+def _context() -> multiprocessing.context.BaseContext:
+    """``forkserver`` where the platform has it (Linux, macOS), else ``spawn`` (Windows)."""
+    methods = multiprocessing.get_all_start_methods()
+    return multiprocessing.get_context("forkserver" if "forkserver" in methods else "spawn")
+
+
 def run_beside(
     here: Callable[[], Any],
     fn: Callable[..., Any],
@@ -83,14 +90,21 @@ def run_beside(
     len(elsewhere))`` worker processes while this process computes the first; with ``workers <=
     0`` or nothing elsewhere, everything here, in order. ``fn`` must be a module-level function
     and its arguments picklable; ``preload``: modules the fork server imports once (``fn``'s
-    module is always one). An exception in a worker is raised here, as the call would have
-    raised it; the pool is shut down either way."""
+    module is always one). An exception raised by ``fn`` in a worker is raised here, as the
+    call would have raised it. Workers that cannot start or die (killed, out of memory: the
+    pool breaks) cost only time: their calls are made here instead, and give the same results.
+    The pool is shut down either way."""
     if workers <= 0 or not elsewhere:
         return here(), [fn(*args) for args in elsewhere]
-    ctx = multiprocessing.get_context("forkserver")
-    ctx.set_forkserver_preload(list(dict.fromkeys([*preload, fn.__module__])))
-    with ProcessPoolExecutor(max_workers=min(workers, len(elsewhere)), mp_context=ctx) as pool:
+    ctx = _context()
+    if ctx.get_start_method() == "forkserver":
+        ctx.set_forkserver_preload(list(dict.fromkeys([*preload, fn.__module__])))
+    try:
+        pool = ProcessPoolExecutor(max_workers=min(workers, len(elsewhere)), mp_context=ctx)
         futures = [pool.submit(_timed, fn, args) for args in elsewhere]
+    except (OSError, BrokenProcessPool):  # no worker could be started here: everything in this process
+        return here(), [fn(*args) for args in elsewhere]
+    with pool:
         try:
             first = here()
         except BaseException:
@@ -98,9 +112,13 @@ def run_beside(
                 f.cancel()
             raise
         rest = []
-        for f in futures:
-            out, cpu = f.result()
-            _add_worker_cpu(cpu)
+        for f, args in zip(futures, elsewhere):
+            try:
+                out, cpu = f.result()
+            except BrokenProcessPool:  # the worker died under this call: make it here
+                out = fn(*args)
+            else:
+                _add_worker_cpu(cpu)
             rest.append(out)
         return first, rest
 

@@ -70,3 +70,17 @@ def test_the_workers_cpu_is_counted_here():
     same = worker_cpu_seconds()
     run_beside(lambda: None, _burn, [(1000,)], workers=0)  # here: nothing sent to a worker
     assert worker_cpu_seconds() == same
+
+
+def _dies_in_a_worker(n: int) -> int:
+    import multiprocessing
+
+    if multiprocessing.parent_process() is not None:  # a worker: die as an out-of-memory kill would
+        os._exit(9)
+    return n * 2
+
+
+def test_a_worker_that_dies_costs_only_time():
+    """A pool broken by a dead worker: the calls it held are made here, with the same results."""
+    first, rest = run_beside(lambda: "here", _dies_in_a_worker, [(1,), (2,), (3,)], workers=2)
+    assert (first, rest) == ("here", [2, 4, 6])
