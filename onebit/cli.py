@@ -40,7 +40,9 @@ def _cmd_run(args) -> int:
     trackers = tuple(t.strip() for t in args.trackers.split(",")) if args.trackers else None
     config = load_run_config(args.config)
     print(f"onebit run {args.dataset} -> {args.out}")
-    res = run_pipeline(args.dataset, args.out, trackers=trackers, config=config, echo=print, rrd=not args.no_rrd)
+    res = run_pipeline(
+        args.dataset, args.out, trackers=trackers, config=config, echo=print, rrd=not args.no_rrd, cores=args.cores
+    )
     print(format_report(res.report, title=f"report of {args.out}"))
     if args.no_rrd:
         print("Rerun recordings: none (--no-rrd)")
@@ -422,6 +424,13 @@ def _add_run_commands(sub) -> None:
         "--no-rrd",
         action="store_true",
         help="write no Rerun recordings (rrd/): the same tables and report, faster (batch sweeps)",
+    )
+    r.add_argument(
+        "--cores",
+        type=int,
+        default=0,
+        help="most trackers worked at once, side by side (the same tables); 0 = the cores available, "
+        "on logs of 200 000 rows or more (default); 1 = one after another",
     )
     r.set_defaults(func=_cmd_run)
 

@@ -90,10 +90,11 @@ def run_beside(
     len(elsewhere))`` worker processes while this process computes the first; with ``workers <=
     0`` or nothing elsewhere, everything here, in order. ``fn`` must be a module-level function
     and its arguments picklable; ``preload``: modules the fork server imports once (``fn``'s
-    module is always one). An exception raised by ``fn`` in a worker is raised here, as the
-    call would have raised it. Workers that cannot start or die (killed, out of memory: the
-    pool breaks) cost only time: their calls are made here instead, and give the same results.
-    The pool is shut down either way."""
+    module is always one). A call that fails in a worker for any reason -- workers that cannot
+    start or die (killed, out of memory: the pool breaks), arguments a worker cannot unpickle (a
+    function of a module only this process can import), or ``fn`` raising -- is made again
+    here: it gives the same result, or raises here what it raised there. The pool is shut
+    down either way."""
     if workers <= 0 or not elsewhere:
         return here(), [fn(*args) for args in elsewhere]
     ctx = _context()
@@ -115,7 +116,7 @@ def run_beside(
         for f, args in zip(futures, elsewhere):
             try:
                 out, cpu = f.result()
-            except BrokenProcessPool:  # the worker died under this call: make it here
+            except Exception:  # the worker died, could not take the call, or fn raised: make it here
                 out = fn(*args)
             else:
                 _add_worker_cpu(cpu)

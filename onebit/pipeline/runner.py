@@ -26,6 +26,8 @@ makes the run not ``ok``.
 from __future__ import annotations
 
 import copy
+import os
+import pickle
 import time
 import traceback
 import uuid
@@ -40,7 +42,7 @@ from onebit.core import writers as outputs
 from onebit.core.config import config_from_mapping, load_toml
 from onebit.core.errors import ConfigError, InputError, OnebitError, bounded
 from onebit.core.memory import release_freed_memory
-from onebit.core.parallel import cpu_seconds, worker_cpu_seconds
+from onebit.core.parallel import CORES_ENV, available_cores, cpu_seconds, one_core_each, run_beside, worker_cpu_seconds
 from onebit.core.region_graph import build_region_graph
 from onebit.core.site import load_site
 from onebit.core.tables import REJECTS, REPORT
@@ -49,7 +51,7 @@ from onebit.pipeline.progress import ProgressSink, progress_sink
 from onebit.pipeline.stages import TRACKERS, TrackerEntry, stages
 from onebit.readers.mcap_io import load_topic_map, read_mcap
 from onebit.readers.rows import RawRows
-from onebit.trackers.base import ARTIFACTS
+from onebit.trackers.base import ARTIFACTS, PROGRESS
 from onebit.viz.blueprint import save_run_blueprint
 from onebit.viz.recording import rerun_enabled, stage_recording
 from onebit.viz.site import log_site
@@ -198,6 +200,7 @@ def run_pipeline(
     progress: bool | ProgressSink | None = None,
     echo: Callable[[str], None] | None = None,
     rrd: bool = True,
+    cores: int = 0,
 ) -> RunResult:
     """Run every available stage on ``dataset``, writing the run folder ``out`` as one transaction.
 
@@ -207,7 +210,12 @@ def run_pipeline(
     ``docs/extending.md``); ``progress``: a bar on a terminal (``None``), ``True``/``False``,
     or a :class:`~onebit.pipeline.progress.ProgressSink`; ``rrd=False`` (``--no-rrd``) writes
     no Rerun recordings (no ``rrd/`` folder, no viz calls): the tables, report and run record
-    are the same, for batch sweeps where nobody will open the recordings.
+    are the same, for batch sweeps where nobody will open the recordings. ``cores``: the most
+    trackers worked at once, side by side (the runs's process and worker processes, each
+    tracker on one core; the tables and report are the same for any value); 0 = the cores
+    this process may use (:func:`onebit.core.parallel.available_cores`: ``ONEBIT_CORES``, else
+    its CPU affinity; 1 in a ``run-many`` pool's worker) once the run's tables hold
+    :data:`DETACH_MIN_ROWS` rows, else 1; 1 = one tracker after another, here.
 
     The run record ``run.toml`` holds, besides each stage's status, a ``[timing]`` table: per
     stage the seconds of its work (``work_s``, as in its status), of its recording (``viz_s``:
@@ -224,6 +232,8 @@ def run_pipeline(
     any work: dataset, ``OUT``, site, config, tracker names, or every stage skipped.
     """
     entered = time.time()
+    if isinstance(cores, bool) or not isinstance(cores, int) or cores < 0:
+        raise ConfigError(f"cores = {cores!r}: expected a whole number >= 0 (0 = the cores available)")
     dataset, out = Path(dataset), Path(out)
     echo = echo or (lambda s: None)
     check_dataset(dataset)
@@ -269,6 +279,7 @@ def run_pipeline(
                         rrd=rrd,
                         entered=entered,
                         looks={e.name: e.drawn for e in tracker_entries},
+                        cores=cores,
                     )
             except OnebitError:
                 raise
@@ -284,6 +295,134 @@ def run_pipeline(
     return RunResult(out, status, report, ok, problems)
 
 
+#: A run detaches its trackers side by side (``cores = 0``) from this many rows in its
+#: tables when they start: below it the trackers take seconds, less than starting workers.
+DETACH_MIN_ROWS = 200_000
+
+
+@dataclass
+class _Detached:
+    """What a detached stage's work gave: its tables, or its error (``onebit``: an
+    :class:`OnebitError`, said as it is; else a bug, with the traceback), and its seconds."""
+
+    made: dict[str, Any] | None
+    seconds: float
+    cpu: float
+    error: str | None = None
+    onebit: bool = False
+    traceback: str | None = None
+    rerun_here: bool = False
+
+
+class _DetachedError(Exception):
+    def __init__(self, outcome: _Detached) -> None:
+        super().__init__(outcome.error)
+        self.outcome = outcome
+
+
+def _run_job(fn: Callable[..., dict[str, Any]], args: tuple, *, check_artifacts: bool = False) -> _Detached:
+    t0, c0 = time.perf_counter(), time.process_time()
+    try:
+        made = fn(*args)
+    except OnebitError as exc:
+        return _Detached(None, time.perf_counter() - t0, time.process_time() - c0, str(exc), onebit=True)
+    except Exception as exc:  # a bug: its traceback goes to logs/, as in the run's own process
+        return _Detached(
+            None,
+            time.perf_counter() - t0,
+            time.process_time() - c0,
+            f"{type(exc).__name__}: {exc}",
+            traceback=traceback.format_exc(limit=8),
+        )
+    out = _Detached(made, time.perf_counter() - t0, time.process_time() - c0)
+    if check_artifacts and ARTIFACTS in made:
+        try:  # what only the recording uses must come back to this process
+            pickle.dumps(made[ARTIFACTS], protocol=pickle.HIGHEST_PROTOCOL)
+        except Exception:
+            return _Detached(None, out.seconds, out.cpu, rerun_here=True)
+    return out
+
+
+def _run_lane(jobs: list[tuple[str, Callable, tuple]]) -> list[_Detached]:
+    """A worker's lane of detached stages, one after another, each on one core."""
+    one_core_each()
+    return [_run_job(fn, args, check_artifacts=True) for _, fn, args in jobs]
+
+
+def _portable(fn: Callable, args: tuple) -> bool:
+    """Whether ``fn`` and the functions among ``args`` pickle by reference (module-level)."""
+    try:
+        pickle.dumps([fn, *(a for a in args if callable(a))])
+    except Exception:
+        return False
+    return True
+
+
+def _without_progress(args: tuple) -> tuple:
+    """``args`` with the progress callback taken out of its input tables (a bar of this
+    process; a worker's stage reports nothing)."""
+    return tuple(
+        {k: v for k, v in a.items() if k != PROGRESS} if isinstance(a, dict) and PROGRESS in a else a for a in args
+    )
+
+
+def run_cores(ctx: RunContext, cores: int) -> int:
+    """Cores for the detached stages: ``cores`` when > 0, else :func:`available_cores` when
+    the run's tables hold at least :data:`DETACH_MIN_ROWS` rows, else 1."""
+    if cores > 0:
+        return cores
+    rows = sum(t.height for t in ctx.tables.values() if isinstance(t, pl.DataFrame))
+    return available_cores() if rows >= DETACH_MIN_ROWS else 1
+
+
+def _detachable(rest: list[Stage], ctx: RunContext) -> list[Stage]:
+    """The detachable stages from the start of ``rest`` on (up to the first that is not) that
+    would run now: available, their input tables made."""
+    out = []
+    for st in rest:
+        if st.detach is None:
+            break
+        if all(n in ctx.tables for n in st.needs) and st.available(ctx) is None:
+            out.append(st)
+    return out
+
+
+def _detach_batch(stages: list[Stage], ctx: RunContext, cores: int) -> dict[str, _Detached]:
+    """Run the work of ``stages`` (detachable, available) side by side: dealt in turn to
+    ``cores`` lanes, this process taking the first, worker processes the others
+    (:func:`onebit.core.parallel.run_beside`); each stage's work on one core. A stage whose
+    work cannot be sent (a local function) or whose artifacts cannot come back is worked here."""
+    jobs = []
+    for st in stages:
+        fn, args = st.detach(ctx)
+        jobs.append((st.name, fn, args))
+    k = min(cores, len(jobs))
+    lanes = [jobs[j::k] for j in range(k)]
+    here_jobs = list(lanes[0])
+    away = []
+    for lane in lanes[1:]:
+        keep = [(n, f, _without_progress(a)) for n, f, a in lane if _portable(f, a)]
+        here_jobs += [j for j in lane if not _portable(j[1], j[2])]
+        if keep:
+            away.append(keep)
+    old = os.environ.get(CORES_ENV)
+    os.environ[CORES_ENV] = "1"  # every stage of the batch on one core: the batch fills them
+    try:
+        mine, theirs = run_beside(
+            lambda: [_run_job(f, a) for _, f, a in here_jobs], _run_lane, [(lane,) for lane in away], workers=k - 1
+        )
+    finally:
+        if old is None:
+            os.environ.pop(CORES_ENV, None)
+        else:
+            os.environ[CORES_ENV] = old
+    out = {n: o for (n, _, _), o in zip(here_jobs, mine)}
+    for lane, outcomes in zip(away, theirs):
+        for (n, f, a), o in zip(lane, outcomes):
+            out[n] = _run_job(f, a) if o.rerun_here else o
+    return out
+
+
 def _run_stages(
     ctx: RunContext,
     stage_list: list[Stage],
@@ -295,6 +434,7 @@ def _run_stages(
     rrd: bool = True,
     entered: float | None = None,
     looks: dict | None = None,
+    cores: int = 0,
 ) -> tuple[dict[str, str], pl.DataFrame, bool, list[str]]:
     """Run the stages into ``ctx.out`` (the work folder) and write the run's record there.
 
@@ -311,6 +451,7 @@ def _run_stages(
     timing: dict[str, Any] = {"entered_unix": round(entered if entered is not None else time.time(), 6), "rrd": rrd}
     _read_mcaps(ctx, echo)
     started, started_cpu, started_workers = time.time(), cpu_seconds(), worker_cpu_seconds()
+    detached: dict[str, _Detached] = {}
     for i, st in enumerate(stage_list):
         sink.stage(st.name, i, len(stage_list))
         missing = [n for n in st.needs if n not in ctx.tables]
@@ -321,11 +462,22 @@ def _run_stages(
             status[st.name] = f"skipped: {reason}"
             echo(f"  {st.name}: skipped ({reason})")
             continue
+        if st.detach is not None and st.name not in detached and run_cores(ctx, cores) > 1:
+            batch = _detachable(stage_list[i:], ctx)
+            if len(batch) >= 2:  # this stage and the detachable ones after it, side by side
+                detached.update(_detach_batch(batch, ctx, run_cores(ctx, cores)))
         t0, c0 = time.perf_counter(), cpu_seconds()
         try:
-            made = st.work(ctx)
+            if st.name in detached:  # worked already, here or in a worker
+                done = detached.pop(st.name)
+                if done.error is not None:
+                    raise _DetachedError(done)
+                made, work_s, work_cpu = done.made, done.seconds, done.cpu
+            else:
+                made = st.work(ctx)
+                work_s, work_cpu = None, None
             release_freed_memory()  # what the work dropped, before its recording and the next stage
-            ctx.seconds[st.name] = time.perf_counter() - t0
+            ctx.seconds[st.name] = time.perf_counter() - t0 if work_s is None else work_s
             check_made(st, made, ctx.tables, extra=(ARTIFACTS,))
             t1, c1 = time.perf_counter(), cpu_seconds()
             if rrd:
@@ -337,12 +489,22 @@ def _run_stages(
             timing[st.name] = {
                 "work_s": round(ctx.seconds[st.name], 6),
                 "viz_s": round(time.perf_counter() - t1, 6),
-                "work_cpu_s": round(c1 - c0, 6),
+                "work_cpu_s": round(c1 - c0 if work_cpu is None else work_cpu, 6),
                 "viz_cpu_s": round(cpu_seconds() - c1, 6),
             }
         except OnebitError as exc:
             status[st.name] = f"failed: {exc}"
             echo(f"  {st.name}: FAILED: {exc}")
+            continue
+        except _DetachedError as exc:  # the detached work's error, said as the work here would
+            done = exc.outcome
+            if done.onebit:
+                status[st.name] = f"failed: {done.error}"
+                echo(f"  {st.name}: FAILED: {done.error}")
+            else:
+                status[st.name] = bounded(f"failed: {done.error}", 2000)
+                outputs.write_text(done.traceback or "", work / "logs" / f"{st.name}.traceback.txt")
+                echo(f"  {st.name}: FAILED with {bounded(done.error)} (traceback in logs/{st.name}.traceback.txt)")
             continue
         except Exception as exc:  # a bug, not bad input: keep the other stages, keep the traceback
             tb = traceback.format_exc(limit=8)

@@ -661,6 +661,17 @@ def tracker_inputs(entry: TrackerEntry, ctx: RunContext) -> dict[str, Any]:
     return inputs
 
 
+def detached_tracker(name: str, run: Callable, inputs: dict[str, Any], site, cfg) -> dict[str, Any]:
+    """A tracker stage's work on inputs taken from the run (:func:`tracker_inputs`): its
+    tables named ``<tracker>_<table>``, its artifacts as they are. The stage's ``work`` is this
+    call in the run's process; its ``detach`` hands the same call to a worker process."""
+    out = run(inputs, site, cfg)
+    made: dict[str, Any] = {f"{name}_{k}": v for k, v in out.items() if k != ARTIFACTS}
+    if ARTIFACTS in out:
+        made[ARTIFACTS] = out[ARTIFACTS]
+    return made
+
+
 def tracker_stage(entry: TrackerEntry) -> Stage:
     name = entry.name
     spec = entry.spec
@@ -680,12 +691,12 @@ def tracker_stage(entry: TrackerEntry) -> Stage:
         return reason
 
     def work(ctx: RunContext) -> dict[str, Any]:
+        fn, args = detach(ctx)
+        return fn(*args)
+
+    def detach(ctx: RunContext) -> tuple[Callable[..., dict[str, Any]], tuple]:
         cfg = ctx.configs[name] = tracker_config(entry, ctx)
-        out = spec.run(tracker_inputs(entry, ctx), ctx.site, cfg)
-        made: dict[str, Any] = {f"{name}_{k}": v for k, v in out.items() if k != ARTIFACTS}
-        if ARTIFACTS in out:
-            made[ARTIFACTS] = out[ARTIFACTS]
-        return made
+        return detached_tracker, (name, spec.run, tracker_inputs(entry, ctx), ctx.site, cfg)
 
     def viz(rec, ctx: RunContext, made: dict) -> None:
         if entry.viz is None:
@@ -704,7 +715,7 @@ def tracker_stage(entry: TrackerEntry) -> Stage:
             look=entry.drawn,
         )
 
-    return Stage(name, (), (f"{name}_tracks", f"{name}_*"), available, work, viz, config=spec.config)
+    return Stage(name, (), (f"{name}_tracks", f"{name}_*"), available, work, viz, config=spec.config, detach=detach)
 
 
 # --------------------------------------------------------------------------- scores

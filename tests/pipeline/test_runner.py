@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import shutil
 import tomllib
+from dataclasses import dataclass
 
 import polars as pl
 import pytest
@@ -12,12 +13,13 @@ from hypothesis import strategies as st
 from mcap.reader import make_reader
 
 from onebit.cli import main
-from onebit.core.errors import MAX_MESSAGE, ConfigError, OnebitError
+from onebit.core.errors import MAX_MESSAGE, ConfigError, InputError, OnebitError
 from onebit.datasets.beams_sim import write_beams_dataset
 from onebit.datasets.builtin import builtin_site_path
 from onebit.pipeline.report import load_report, metric
 from onebit.pipeline.runner import check_sections, load_run_config, run_pipeline
-from onebit.pipeline.stages import stages, tracker_names
+from onebit.pipeline.stages import TRACKERS, TrackerEntry, stages, tracker_names
+from onebit.trackers.base import TrackerSpec
 from onebit.viz.inspect import entity_paths, store_ids, verify
 
 
@@ -321,3 +323,70 @@ def test_istate_beyond_its_stage_bound_is_skipped_saying_why(lab_run, tmp_path):
         data, tmp_path / "lifted", trackers=("istate",), config={"istate": {"max_stages": 0}}, rrd=False
     )
     assert lifted.status["istate"].startswith("ok")
+
+
+def test_trackers_side_by_side_give_the_same_run(lab_run, tmp_path):
+    """``--cores 2``: the trackers are worked side by side (here and in a worker process, each on
+    one core); every table, the report and each stage's status are the ones of one tracker
+    after another, and the worker's CPU is in the run's."""
+    data, res = lab_run
+    out = tmp_path / "side"
+    assert main(["run", str(data), "--out", str(out), "--no-rrd", "--cores", "2"]) == 0
+    ran = [n for n, s in res.status.items() if s.startswith("ok") and n in {e.name for e in TRACKERS}]
+    assert len(ran) >= 2, ran  # two trackers or more: one of them worked in a worker
+    names = sorted(p.name for p in (res.out / "tables").glob("*.parquet"))
+    assert sorted(p.name for p in (out / "tables").glob("*.parquet")) == names
+    for name in names:
+        if name == "timings.parquet":
+            continue
+        assert pl.read_parquet(out / "tables" / name).equals(pl.read_parquet(res.out / "tables" / name)), name
+    seconds = pl.col("unit") != "s"
+    assert load_report(out).filter(seconds).equals(load_report(res.out).filter(seconds))
+    record = tomllib.loads((out / "run.toml").read_text())
+    assert [s.split(" (")[0] for s in record["stages"].values()] == [s.split(" (")[0] for s in res.status.values()]
+    assert record["timing"]["worker_cpu_s"] > 0.0
+    with pytest.raises(ConfigError, match="cores"):
+        run_pipeline(data, tmp_path / "bad", cores=-1)
+
+
+def _bug_run(inputs, site, config):
+    raise RuntimeError("a bug in the tracker")
+
+
+def _bad_input_run(inputs, site, config):
+    raise InputError("the crossings say nothing this tracker can use")
+
+
+@dataclass(frozen=True, kw_only=True)
+class _NoConfig:
+    pass
+
+
+def test_a_tracker_failing_beside_the_others_fails_as_it_would_alone(lab_run, tmp_path):
+    """A detached tracker's error is its stage's, as in one process: an OnebitError is said as it
+    is, a bug keeps its traceback in logs/; the other trackers' tables are unchanged."""
+    data, _ = lab_run
+    entries = (
+        *TRACKERS,
+        TrackerEntry(TrackerSpec(name="bug", needs=("crossings",), config=_NoConfig, run=_bug_run), None, None),
+        TrackerEntry(TrackerSpec(name="bad", needs=("crossings",), config=_NoConfig, run=_bad_input_run), None, None),
+    )
+    runs = {
+        cores: run_pipeline(
+            data,
+            tmp_path / f"c{cores}",
+            trackers=("beams", "bug", "bad"),
+            tracker_entries=entries,
+            rrd=False,
+            cores=cores,
+        )
+        for cores in (1, 3)
+    }
+    for cores, res in runs.items():
+        assert res.status["bad"] == "failed: the crossings say nothing this tracker can use", cores
+        assert res.status["bug"] == "failed: RuntimeError: a bug in the tracker", cores
+        assert "a bug in the tracker" in (tmp_path / f"c{cores}" / "logs" / "bug.traceback.txt").read_text()
+        assert res.status["beams"].startswith("ok")
+    assert pl.read_parquet(tmp_path / "c3" / "tables" / "beams_tracks.parquet").equals(
+        pl.read_parquet(tmp_path / "c1" / "tables" / "beams_tracks.parquet")
+    )
