@@ -87,8 +87,10 @@ def run_beside(
     preload: Sequence[str] = (),
 ) -> tuple[Any, list[Any]]:
     """``(here(), [fn(*args) for args in elsewhere])``, the second in ``min(workers,
-    len(elsewhere))`` worker processes while this process computes the first; with ``workers <=
-    0`` or nothing elsewhere, everything here, in order. ``fn`` must be a module-level function
+    len(elsewhere))`` worker processes while this process computes the first; then this
+    process makes, in order, every call no worker has taken yet (so the cores stay busy
+    whatever each call costs); with ``workers <= 0`` or nothing elsewhere, everything here,
+    in order. ``fn`` must be a module-level function
     and its arguments picklable; ``preload``: modules the fork server imports once (``fn``'s
     module is always one). A call that fails in a worker for any reason -- workers that cannot
     start or die (killed, out of memory: the pool breaks), arguments a worker cannot unpickle (a
@@ -112,15 +114,21 @@ def run_beside(
             for f in futures:
                 f.cancel()
             raise
-        rest = []
-        for f, args in zip(futures, elsewhere):
+        rest: list[Any] = [None] * len(futures)
+        waiting = []
+        for k, (f, args) in enumerate(zip(futures, elsewhere)):
+            if f.cancel():  # no worker has taken it yet: this process is free, so it makes it
+                rest[k] = fn(*args)
+            else:
+                waiting.append(k)
+        for k in waiting:
             try:
-                out, cpu = f.result()
+                out, cpu = futures[k].result()
             except Exception:  # the worker died, could not take the call, or fn raised: make it here
-                out = fn(*args)
+                out = fn(*elsewhere[k])
             else:
                 _add_worker_cpu(cpu)
-            rest.append(out)
+            rest[k] = out
         return first, rest
 
 

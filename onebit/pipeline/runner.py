@@ -26,6 +26,7 @@ makes the run not ``ok``.
 from __future__ import annotations
 
 import copy
+import multiprocessing
 import os
 import pickle
 import time
@@ -344,9 +345,12 @@ def _run_job(fn: Callable[..., dict[str, Any]], args: tuple, *, check_artifacts:
 
 
 def _run_lane(jobs: list[tuple[str, Callable, tuple]]) -> list[_Detached]:
-    """A worker's lane of detached stages, one after another, each on one core."""
-    one_core_each()
-    return [_run_job(fn, args, check_artifacts=True) for _, fn, args in jobs]
+    """Detached stages one after another, each on one core: in a worker process, or here when
+    this process takes them (:func:`onebit.core.parallel.run_beside`)."""
+    worker = multiprocessing.parent_process() is not None
+    if worker:
+        one_core_each()
+    return [_run_job(fn, args, check_artifacts=worker) for _, fn, args in jobs]
 
 
 def _portable(fn: Callable, args: tuple) -> bool:
@@ -388,8 +392,9 @@ def _detachable(rest: list[Stage], ctx: RunContext) -> list[Stage]:
 
 
 def _detach_batch(stages: list[Stage], ctx: RunContext, cores: int) -> dict[str, _Detached]:
-    """Run the work of ``stages`` (detachable, available) side by side: dealt in turn to
-    ``cores`` lanes, this process taking the first, worker processes the others
+    """Run the work of ``stages`` (detachable, available) side by side on ``cores``: this
+    process the first, ``cores - 1`` worker processes the others in order, each taking the
+    next when it is free, and this process too once its own is done
     (:func:`onebit.core.parallel.run_beside`); each stage's work on one core. A stage whose
     work cannot be sent (a local function) or whose artifacts cannot come back is worked here."""
     jobs = []
@@ -397,14 +402,8 @@ def _detach_batch(stages: list[Stage], ctx: RunContext, cores: int) -> dict[str,
         fn, args = st.detach(ctx)
         jobs.append((st.name, fn, args))
     k = min(cores, len(jobs))
-    lanes = [jobs[j::k] for j in range(k)]
-    here_jobs = list(lanes[0])
-    away = []
-    for lane in lanes[1:]:
-        keep = [(n, f, _without_progress(a)) for n, f, a in lane if _portable(f, a)]
-        here_jobs += [j for j in lane if not _portable(j[1], j[2])]
-        if keep:
-            away.append(keep)
+    here_jobs = [jobs[0], *(j for j in jobs[1:] if not _portable(j[1], j[2]))]
+    away = [[(n, f, _without_progress(a))] for n, f, a in jobs[1:] if _portable(f, a)]
     old = os.environ.get(CORES_ENV)
     os.environ[CORES_ENV] = "1"  # every stage of the batch on one core: the batch fills them
     try:

@@ -77,9 +77,9 @@ class ClusterTrackConfig:
         so 6000 instants take 0.7-1.1 minutes. 0 = no bound.
     cores : the most cores the independent runs use at once (the stage's own run and the
         consensus runs of the other seeds: ``1 + consensus_runs - 1`` runs, each a whole
-        CLUSTERTRACK with its reruns). The runs are dealt in turn to the cores: this process
-        takes the first lane (the stage's run first), worker processes the others
-        (:func:`onebit.core.parallel.run_beside`). 0 = every core this process may use
+        CLUSTERTRACK with its reruns). This process makes the stage's run, ``cores - 1``
+        worker processes the others, each taking the next seed when free, and this process
+        too once its run is done (:func:`onebit.core.parallel.run_beside`). 0 = every core this process may use
         (:func:`onebit.core.parallel.available_cores`; 1 inside a ``run-many`` pool), on a job
         of at least :data:`PARALLEL_MIN` steps x candidates (below it, starting workers costs
         more than it saves); 1 = every run here. The output is the same for any value.
@@ -274,11 +274,9 @@ def run(inputs: dict, site: Site, config: ClusterTrackConfig) -> dict[str, pl.Da
     # the consensus's other runs (the stage's run is seed's when it is the same call: reruns on)
     others = [s for s in seeds if not (config.reruns > 0 and s == config.seed)]
     cores = run_cores(config, T * p.L, len(others))
-    jobs = [None, *others]  # None: the stage's run (recorded), in this process
-    lanes = [[s for s in jobs[k::cores] if s is not None] for k in range(cores)]  # lane 0: this process
 
     def here():
-        run = clustertrack(
+        return clustertrack(
             space,
             p,
             np.random.default_rng(config.seed),
@@ -288,17 +286,16 @@ def run(inputs: dict, site: Site, config: ClusterTrackConfig) -> dict[str, pl.Da
             high_cost=config.rerun_cost_ratio,
             max_tracks=bound,
         )
-        return run, seed_runs(space, p, lanes[0], config.reruns, config.rerun_cost_ratio, bound)
 
-    (res, mine), theirs = run_beside(
+    # the other runs to cores - 1 workers, one seed a call; this process takes, once its own
+    # run is done, every one no worker has started (run_beside)
+    res, theirs = run_beside(
         here,
         seed_runs,
-        [(space, p, lane, config.reruns, config.rerun_cost_ratio, bound) for lane in lanes[1:] if lane],
+        [(space, p, [s], config.reruns, config.rerun_cost_ratio, bound) for s in others],
         workers=cores - 1,
     )
-    made = dict(zip(lanes[0], mine))
-    for lane, runs in zip([lane for lane in lanes[1:] if lane], theirs):
-        made.update(zip(lane, runs))
+    made = {s: runs[0] for s, runs in zip(others, theirs)}
     N = res.tracks.shape[0]
     names = [f"c{i + 1}" for i in range(N)]
     x, y = _xy(res.tracks)
