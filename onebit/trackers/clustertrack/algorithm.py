@@ -665,13 +665,7 @@ def consensus(
     known = known or {}
     all_t, all_c, all_r = [], [], []
     for k, s in enumerate(seeds):  # independent runs (one per seed)
-        r = (
-            known[s]
-            if s in known
-            else clustertrack(
-                space, p, np.random.default_rng(s), max_reruns=max_reruns, high_cost=high_cost, max_tracks=max_tracks
-            )
-        )
+        r = known[s] if s in known else seed_runs(space, p, [s], max_reruns, high_cost, max_tracks)[0]
         all_t.append(r.tracks)
         all_c.append(r.costs)
         all_r.append(np.full(r.costs.size, k))

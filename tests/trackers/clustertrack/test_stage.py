@@ -267,31 +267,9 @@ def test_ten_targets_reruns_are_not_monopolised_by_jump_trajectories():
 def test_tracks_never_exceed_targets_nor_the_count_estimate():
     """Spurious firings raise per-component lower bounds; Appendix B reruns must still stop at
     min(targets, Q_hat) tracks (issue 23: 11-38 tracks for 3-6 people)."""
-    from onebit.core.site import site_from_dict
     from onebit.trackers.clustertrack.stage import ClusterTrackConfig, run
 
-    rng = np.random.default_rng(5)
-    xy = [(1.0 + 1.5 * i, 1.0 + 1.5 * j) for i in range(5) for j in range(5)]
-    site = site_from_dict(
-        {
-            "boundary": {"polygon": [[0, 0], [8, 0], [8, 8], [0, 8]]},
-            "units": "m",
-            "targets": 2,
-            "proximity_sensors": [{"id": f"s{k}", "position": list(p), "radius": 0.9} for k, p in enumerate(xy)],
-        }
-    )
-    T = 12
-    on = rng.random((T, len(xy))) < 0.12  # scattered spurious firings: many components per instant
-    frames = pl.DataFrame(
-        {
-            "slot": np.repeat(np.arange(T), len(xy)),
-            "t": np.repeat(np.arange(T) * 0.5, len(xy)),
-            "sensor": [f"s{k}" for k in range(len(xy))] * T,
-            "on": on.ravel(),
-            "fired": on.ravel(),
-        },
-        schema={"slot": pl.Int64, "t": pl.Float64, "sensor": pl.String, "on": pl.Boolean, "fired": pl.Boolean},
-    )
+    frames, site = _grid_frames(seed=5, T=12)  # scattered spurious firings: many components per instant
     for targets, bound in ((0, 2), (1, 1)):
         out = run(
             {"proximity_frames": frames},
