@@ -136,12 +136,14 @@ class Stage:
     viz: Callable[[Any, RunContext, dict[str, Any]], None] | None = None
     #: the config class of its ``run.toml`` section (a frozen dataclass), checked when the run starts
     config: type | None = None
-    #: the work as one call that another process can make: ``detach(ctx) -> (fn, args)`` with
-    #: ``fn(*args)`` returning what ``work(ctx)`` returns (``fn`` module-level, the arguments
-    #: picklable; what it needs from ``ctx`` taken here, in this process). The runner may run
-    #: the detachable stages of a run side by side on the cores (trackers: pure functions of
-    #: their inputs); ``None``: always ``work`` here
-    detach: Callable[[RunContext], tuple[Callable[..., dict[str, Any]], tuple]] | None = None
+    #: the work as one call that another process can make: ``detach(ctx) -> (fn, args, shares)``
+    #: with ``fn(*args)`` returning what ``work(ctx)`` returns (``fn`` module-level, the
+    #: arguments picklable; what it needs from ``ctx`` taken here, in this process) and
+    #: ``shares`` a key or ``None``: stages of equal keys share a part of their work when made
+    #: one after the other in one process, so they are kept in one call. The runner may run the
+    #: detachable stages of a run side by side on the cores (trackers: pure functions of their
+    #: inputs); ``None``: always ``work`` here
+    detach: Callable[[RunContext], tuple[Callable[..., dict[str, Any]], tuple, Any]] | None = None
 
     def declares(self, table: str) -> bool:
         """Whether ``table`` is among :attr:`makes` (by name, or by a ``prefix_*`` entry)."""

@@ -397,13 +397,25 @@ def _detach_batch(stages: list[Stage], ctx: RunContext, cores: int) -> dict[str,
     next when it is free, and this process too once its own is done
     (:func:`onebit.core.parallel.run_beside`); each stage's work on one core. A stage whose
     work cannot be sent (a local function) or whose artifacts cannot come back is worked here."""
-    jobs = []
+    units: list[list[tuple[str, Callable, tuple]]] = []  # calls: stages sharing work stay in one
+    by_key: dict[Any, list] = {}
     for st in stages:
-        fn, args = st.detach(ctx)
-        jobs.append((st.name, fn, args))
-    k = min(cores, len(jobs))
-    here_jobs = [jobs[0], *(j for j in jobs[1:] if not _portable(j[1], j[2]))]
-    away = [[(n, f, _without_progress(a))] for n, f, a in jobs[1:] if _portable(f, a)]
+        fn, args, shares = st.detach(ctx)
+        job = (st.name, fn, args)
+        if shares is not None and shares in by_key:
+            by_key[shares].append(job)
+            continue
+        units.append([job])
+        if shares is not None:
+            by_key[shares] = units[-1]
+    k = min(cores, len(units))
+    here_jobs = list(units[0])
+    away = []
+    for unit in units[1:]:
+        if all(_portable(f, a) for _, f, a in unit):
+            away.append([(n, f, _without_progress(a)) for n, f, a in unit])
+        else:
+            here_jobs += unit
     old = os.environ.get(CORES_ENV)
     os.environ[CORES_ENV] = "1"  # every stage of the batch on one core: the batch fills them
     try:

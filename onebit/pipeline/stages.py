@@ -691,12 +691,13 @@ def tracker_stage(entry: TrackerEntry) -> Stage:
         return reason
 
     def work(ctx: RunContext) -> dict[str, Any]:
-        fn, args = detach(ctx)
+        fn, args, _ = detach(ctx)
         return fn(*args)
 
-    def detach(ctx: RunContext) -> tuple[Callable[..., dict[str, Any]], tuple]:
+    def detach(ctx: RunContext) -> tuple[Callable[..., dict[str, Any]], tuple, Any]:
         cfg = ctx.configs[name] = tracker_config(entry, ctx)
-        return detached_tracker, (name, spec.run, tracker_inputs(entry, ctx), ctx.site, cfg)
+        shares = spec.shares(cfg) if spec.shares is not None else None
+        return detached_tracker, (name, spec.run, tracker_inputs(entry, ctx), ctx.site, cfg), shares
 
     def viz(rec, ctx: RunContext, made: dict) -> None:
         if entry.viz is None:

@@ -61,6 +61,11 @@ class TrackerSpec:
     #: within what the tracker can do in a sensible time (istate: its stage count), checked by
     #: the pipeline before the run; the reason names the setting that lifts the bound.
     fits: Callable[..., str | None] | None = None
+    #: ``shares(config) -> key or None``: trackers whose keys are equal compute a common part
+    #: and share it when run in one process one after the other (hmm2 and findinghumo-flow
+    #: decode the same run: :func:`onebit.models.graph_hmm.decoding.decode_motion`); a run
+    #: that works trackers side by side keeps them in one call.
+    shares: Callable[[Any], Any] | None = None
 
 
 def instants_bound(frames, tracker: str, field: str, bound: int, cost: str) -> str | None:

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import os
 import shutil
 import tomllib
 from dataclasses import dataclass
@@ -390,3 +391,45 @@ def test_a_tracker_failing_beside_the_others_fails_as_it_would_alone(lab_run, tm
     assert pl.read_parquet(tmp_path / "c3" / "tables" / "beams_tracks.parquet").equals(
         pl.read_parquet(tmp_path / "c1" / "tables" / "beams_tracks.parquet")
     )
+
+
+def _where(name: str) -> dict:
+    return {f"{name}_where": pl.DataFrame({"pid": [os.getpid()]})}
+
+
+def test_stages_that_share_work_stay_in_one_call():
+    """hmm2 and findinghumo-flow decode the same run and share it one after the other in one
+    process: a side-by-side batch keeps stages of one ``shares`` key in one call."""
+    from onebit.pipeline.context import Stage
+    from onebit.pipeline.runner import _detach_batch
+
+    def stage(name, key):
+        return Stage(
+            name,
+            (),
+            (f"{name}_*",),
+            lambda ctx: None,
+            lambda ctx: _where(name),
+            detach=lambda ctx: (_where, (name,), key),
+        )
+
+    batch = [stage("a", None), stage("b", "decode"), stage("c", None), stage("d", "decode")]
+    out = _detach_batch(batch, None, 3)
+    pid = {n: int(o.made[f"{n}_where"]["pid"][0]) for n, o in out.items()}
+    assert pid["a"] == os.getpid()  # the first here
+    assert pid["b"] == pid["d"] != os.getpid()  # the shared pair together, in a worker
+    assert sorted(out) == ["a", "b", "c", "d"]
+
+
+def test_hmm2_and_findinghumo_flow_share_a_key_and_others_do_not():
+    from onebit.models.graph_hmm.decoding import HmmConfig
+    from onebit.trackers.findinghumo.stage import SPECS, FindingHumoConfig
+    from onebit.trackers.findinghumo_flow.stage import SPEC as FLOW
+    from onebit.trackers.findinghumo_flow.stage import FlowConfig
+
+    spec = {s.name: s for s in SPECS}
+    flow = FLOW.shares(FlowConfig())
+    assert spec["hmm2"].shares(HmmConfig()) == flow
+    assert spec["hmm1"].shares(HmmConfig()) != flow
+    assert FLOW.shares(FlowConfig(decoder="adaptive")) == spec["findinghumo"].shares(FindingHumoConfig())
+    assert spec["hmm2"].shares(HmmConfig(decoding="lagged", eatg="layout")) is None

@@ -310,6 +310,12 @@ DECODE_FIELDS = (
 _LAST: dict = {}  # the last decoded run of this process and what it was decoded from
 
 
+def decode_key(mode: str, cfg: HmmConfig) -> tuple:
+    """What :func:`decode_motion` shares a decoded run by (besides the motion table and the
+    site): the mode and the config's :data:`DECODE_FIELDS`."""
+    return (mode, tuple(getattr(cfg, f) for f in DECODE_FIELDS))
+
+
 def decode_motion(mode: str, inputs: dict, site: Site, cfg: HmmConfig, *, progress=None) -> DecodedRun:
     """Slot the ``motion`` table, learn the EATG and decode the users (:func:`decode_run`,
     ``mode`` ``"adaptive"`` / ``"full1"`` / ``"full2"``).
@@ -320,7 +326,7 @@ def decode_motion(mode: str, inputs: dict, site: Site, cfg: HmmConfig, *, progre
     ``decoder = "full2"`` after ``hmm2``; ``findinghumo`` after ``findinghumo-flow`` with
     ``decoder = "adaptive"``). Its arrays are read-only, so no tracker can change what another
     reads."""
-    key = (mode, tuple(getattr(cfg, f) for f in DECODE_FIELDS))
+    key = decode_key(mode, cfg)
     if _LAST.get("key") == key and _LAST.get("motion") is inputs["motion"] and _LAST.get("site") is site:
         if progress is not None:  # the shared decode's progress, counted up again
             for done, total in _LAST["progress"]:

@@ -33,6 +33,7 @@ from onebit.models.graph_hmm.decoding import (
     available,
     build_eatg,
     cap_users,
+    decode_key,
     decode_motion,
     door_signatures,
     slot_activity,
@@ -188,6 +189,15 @@ def run_hmm2(inputs: dict, site: Site, config: HmmConfig):
     return _run("hmm2", "full2", inputs, site, config)
 
 
+def _shares(mode: str):
+    """The decoded run a tracker of ``mode`` shares (:func:`decode_key`), unless it decodes lagged."""
+
+    def key(cfg: HmmConfig):
+        return None if cfg.decoding == "lagged" else ("graph-hmm decode", decode_key(mode, cfg))
+
+    return key
+
+
 SPECS = [
     TrackerSpec(
         name="findinghumo",
@@ -195,6 +205,7 @@ SPECS = [
         config=FindingHumoConfig,
         run=run_findinghumo,
         available=available,
+        shares=_shares("adaptive"),
         help="FindingHuMo (De et al.): Adaptive-HMM on a PIR sensor graph + CPDA path disambiguation",
     ),
     TrackerSpec(
@@ -203,6 +214,7 @@ SPECS = [
         config=HmmConfig,
         run=run_hmm1,
         available=available,
+        shares=_shares("full1"),
         help="baseline: full-state first-order HMM on the PIR sensor graph (FindingHuMo section IV-B)",
     ),
     TrackerSpec(
@@ -211,6 +223,7 @@ SPECS = [
         config=HmmConfig,
         run=run_hmm2,
         available=available,
+        shares=_shares("full2"),
         help="baseline: full-state second-order HMM on the PIR sensor graph (FindingHuMo section IV-B)",
     ),
 ]

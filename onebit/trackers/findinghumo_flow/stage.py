@@ -23,7 +23,15 @@ from onebit.core.config import check_choice, check_range
 from onebit.core.errors import ConfigError
 from onebit.core.frames import outside_silence
 from onebit.core.site import Site
-from onebit.models.graph_hmm.decoding import HmmConfig, available, cap_users, decode_motion, tracks_table, windows_table
+from onebit.models.graph_hmm.decoding import (
+    HmmConfig,
+    available,
+    cap_users,
+    decode_key,
+    decode_motion,
+    tracks_table,
+    windows_table,
+)
 from onebit.models.graph_hmm.joint import joint_table, redecode_meetings
 from onebit.models.graph_hmm.viterbi import log_safe
 from onebit.trackers.attribution import attribute_events
@@ -244,11 +252,18 @@ def _joins_table(joins: list[tuple], nodes) -> pl.DataFrame:
     ).sort("slot", "src", "dst")
 
 
+def shared_decode(cfg: FlowConfig) -> tuple:
+    """The decoded run this tracker shares with the HMM trackers of the same decoder and
+    fields (``hmm2`` with the default ``decoder = "full2"``)."""
+    return ("graph-hmm decode", decode_key(cfg.decoder, cfg))
+
+
 SPEC = TrackerSpec(
     name=NAME,
     needs=("motion",),
     config=FlowConfig,
     run=run_flow,
     available=available,
+    shares=shared_decode,
     help="beyond FindingHuMo: HMM paths cut at every meeting, fragments joined over the whole run by a minimum-cost flow",
 )
