@@ -29,6 +29,7 @@ import copy
 import multiprocessing
 import os
 import pickle
+import tempfile
 import time
 import traceback
 import uuid
@@ -344,13 +345,53 @@ def _run_job(fn: Callable[..., dict[str, Any]], args: tuple, *, check_artifacts:
     return out
 
 
-def _run_lane(jobs: list[tuple[str, Callable, tuple]]) -> list[_Detached]:
-    """Detached stages one after another, each on one core: in a worker process, or here when
-    this process takes them (:func:`onebit.core.parallel.run_beside`)."""
+#: A worker hands a table of this many bytes or more back through a file (Arrow IPC,
+#: uncompressed, read here once), not the pipe: a pickled table is held twice on each side
+#: while it passes -- the table and its bytes -- (the 24-hour home's ``istate_regions``, 0.7 GB,
+#: took the day's process tree over 2 GB); through a file, once on each side.
+SPILL_BYTES = 64 * 2**20
+
+
+@dataclass(frozen=True)
+class _Spilled:
+    """A table a worker wrote to ``path`` (Arrow IPC) for this process to read."""
+
+    path: str
+
+
+def _spill(made: dict[str, Any], limit: int) -> None:
+    """Replace the tables of ``made`` of ``limit`` bytes or more by files (in a worker)."""
+    for key, value in made.items():
+        if key != ARTIFACTS and isinstance(value, pl.DataFrame) and value.estimated_size() >= limit:
+            fd, path = tempfile.mkstemp(prefix="onebit-table-", suffix=".arrow")
+            os.close(fd)
+            value.write_ipc(path, compression="uncompressed")
+            made[key] = _Spilled(path)
+
+
+def _unspill(made: dict[str, Any]) -> None:
+    """Read the tables a worker left in files (:func:`_spill`) and remove the files."""
+    for key, value in made.items():
+        if isinstance(value, _Spilled):
+            try:
+                made[key] = pl.read_ipc(value.path)
+            finally:
+                Path(value.path).unlink(missing_ok=True)
+
+
+def _run_lane(jobs: list[tuple[str, Callable, tuple]], spill: int = SPILL_BYTES) -> list[_Detached]:
+    """Detached stages one after another, each on one core: in a worker process (its large
+    tables handed back through files, :func:`_spill`), or here when this process takes them
+    (:func:`onebit.core.parallel.run_beside`)."""
     worker = multiprocessing.parent_process() is not None
     if worker:
         one_core_each()
-    return [_run_job(fn, args, check_artifacts=worker) for _, fn, args in jobs]
+    out = [_run_job(fn, args, check_artifacts=worker) for _, fn, args in jobs]
+    if worker:
+        for o in out:
+            if o.made is not None:
+                _spill(o.made, spill)
+    return out
 
 
 def _portable(fn: Callable, args: tuple) -> bool:
@@ -391,7 +432,9 @@ def _detachable(rest: list[Stage], ctx: RunContext) -> list[Stage]:
     return out
 
 
-def _detach_batch(stages: list[Stage], ctx: RunContext, cores: int) -> dict[str, _Detached]:
+def _detach_batch(
+    stages: list[Stage], ctx: RunContext, cores: int, *, spill: int | None = None
+) -> dict[str, _Detached]:
     """Run the work of ``stages`` (detachable, available) side by side on ``cores``: this
     process the first, ``cores - 1`` worker processes the others in order, each taking the
     next when it is free, and this process too once its own is done
@@ -420,7 +463,10 @@ def _detach_batch(stages: list[Stage], ctx: RunContext, cores: int) -> dict[str,
     os.environ[CORES_ENV] = "1"  # every stage of the batch on one core: the batch fills them
     try:
         mine, theirs = run_beside(
-            lambda: [_run_job(f, a) for _, f, a in here_jobs], _run_lane, [(lane,) for lane in away], workers=k - 1
+            lambda: [_run_job(f, a) for _, f, a in here_jobs],
+            _run_lane,
+            [(lane, SPILL_BYTES if spill is None else spill) for lane in away],
+            workers=k - 1,
         )
     finally:
         if old is None:
@@ -430,6 +476,8 @@ def _detach_batch(stages: list[Stage], ctx: RunContext, cores: int) -> dict[str,
     out = {n: o for (n, _, _), o in zip(here_jobs, mine)}
     for lane, outcomes in zip(away, theirs):
         for (n, f, a), o in zip(lane, outcomes):
+            if o.made is not None:
+                _unspill(o.made)
             out[n] = _run_job(f, a) if o.rerun_here else o
     return out
 

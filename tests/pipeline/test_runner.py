@@ -6,6 +6,7 @@ import os
 import shutil
 import tomllib
 from dataclasses import dataclass
+from pathlib import Path
 
 import polars as pl
 import pytest
@@ -433,3 +434,21 @@ def test_hmm2_and_findinghumo_flow_share_a_key_and_others_do_not():
     assert spec["hmm1"].shares(HmmConfig()) != flow
     assert FLOW.shares(FlowConfig(decoder="adaptive")) == spec["findinghumo"].shares(FindingHumoConfig())
     assert spec["hmm2"].shares(HmmConfig(decoding="lagged", eatg="layout")) is None
+
+
+def test_a_workers_large_tables_come_back_through_files(lab_run, tmp_path, monkeypatch):
+    """Tables of SPILL_BYTES or more pass from a worker as Arrow IPC files read here (every
+    table, with the bound at 0): the same tables as one process, and no file is left."""
+    import tempfile
+
+    import onebit.pipeline.runner as runner
+
+    data, res = lab_run
+    monkeypatch.setattr(runner, "SPILL_BYTES", 0)
+    before = set(Path(tempfile.gettempdir()).glob("onebit-table-*.arrow"))
+    side = run_pipeline(data, tmp_path / "spilled", rrd=False, cores=2)
+    assert side.ok and side.status.keys() == res.status.keys()
+    for p in (res.out / "tables").glob("*.parquet"):
+        if p.name != "timings.parquet":
+            assert pl.read_parquet(tmp_path / "spilled" / "tables" / p.name).equals(pl.read_parquet(p)), p.name
+    assert set(Path(tempfile.gettempdir()).glob("onebit-table-*.arrow")) == before
