@@ -313,7 +313,6 @@ class _Detached:
     error: str | None = None
     onebit: bool = False
     traceback: str | None = None
-    rerun_here: bool = False
 
 
 class _DetachedError(Exception):
@@ -322,7 +321,7 @@ class _DetachedError(Exception):
         self.outcome = outcome
 
 
-def _run_job(fn: Callable[..., dict[str, Any]], args: tuple, *, check_artifacts: bool = False) -> _Detached:
+def _run_job(fn: Callable[..., dict[str, Any]], args: tuple) -> _Detached:
     t0, c0 = time.perf_counter(), time.process_time()
     try:
         made = fn(*args)
@@ -336,13 +335,7 @@ def _run_job(fn: Callable[..., dict[str, Any]], args: tuple, *, check_artifacts:
             f"{type(exc).__name__}: {exc}",
             traceback=traceback.format_exc(limit=8),
         )
-    out = _Detached(made, time.perf_counter() - t0, time.process_time() - c0)
-    if check_artifacts and ARTIFACTS in made:
-        try:  # what only the recording uses must come back to this process
-            pickle.dumps(made[ARTIFACTS], protocol=pickle.HIGHEST_PROTOCOL)
-        except Exception:
-            return _Detached(None, out.seconds, out.cpu, rerun_here=True)
-    return out
+    return _Detached(made, time.perf_counter() - t0, time.process_time() - c0)
 
 
 #: A worker hands a table of this many bytes or more back through a file (Arrow IPC,
@@ -386,7 +379,7 @@ def _run_lane(jobs: list[tuple[str, Callable, tuple]], spill: int = SPILL_BYTES)
     worker = multiprocessing.parent_process() is not None
     if worker:
         one_core_each()
-    out = [_run_job(fn, args, check_artifacts=worker) for _, fn, args in jobs]
+    out = [_run_job(fn, args) for _, fn, args in jobs]
     if worker:
         for o in out:
             if o.made is not None:
@@ -439,7 +432,9 @@ def _detach_batch(
     process the first, ``cores - 1`` worker processes the others in order, each taking the
     next when it is free, and this process too once its own is done
     (:func:`onebit.core.parallel.run_beside`); each stage's work on one core. A stage whose
-    work cannot be sent (a local function) or whose artifacts cannot come back is worked here."""
+    work cannot be sent (a local function) is worked here; a call a worker cannot make or
+    hand back (artifacts that do not pickle, a worker killed) is made here again by
+    ``run_beside``."""
     units: list[list[tuple[str, Callable, tuple]]] = []  # calls: stages sharing work stay in one
     by_key: dict[Any, list] = {}
     for st in stages:
@@ -475,10 +470,10 @@ def _detach_batch(
             os.environ[CORES_ENV] = old
     out = {n: o for (n, _, _), o in zip(here_jobs, mine)}
     for lane, outcomes in zip(away, theirs):
-        for (n, f, a), o in zip(lane, outcomes):
+        for (n, _, _), o in zip(lane, outcomes):
             if o.made is not None:
                 _unspill(o.made)
-            out[n] = _run_job(f, a) if o.rerun_here else o
+            out[n] = o
     return out
 
 

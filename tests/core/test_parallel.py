@@ -84,3 +84,12 @@ def test_a_worker_that_dies_costs_only_time():
     """A pool broken by a dead worker: the calls it held are made here, with the same results."""
     first, rest = run_beside(lambda: "here", _dies_in_a_worker, [(1,), (2,), (3,)], workers=2)
     assert (first, rest) == ("here", [2, 4, 6])
+
+
+def _unpicklable(n: int):
+    return lambda: n  # a result no worker can hand back
+
+
+def test_a_result_a_worker_cannot_hand_back_is_made_here():
+    first, rest = run_beside(lambda: 0, _unpicklable, [(3,), (4,)], workers=2)
+    assert first == 0 and [f() for f in rest] == [3, 4]
