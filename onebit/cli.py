@@ -276,6 +276,20 @@ def _cmd_logs_convert(args) -> int:
     return 0
 
 
+def _cmd_import_aras(args) -> int:
+    from onebit.datasets.aras import import_aras, parse_days
+
+    res = import_aras(args.house, args.dataset, days=parse_days(args.days))
+    c = res.counts
+    print(
+        f"imported {args.house} -> {args.dataset}: {c['days']} days, {c['lines']} lines, {c['motion_csv']} level changes "
+        f"of {c['person_sensors']} person sensors in motion.csv, {c['other_csv']} in other.csv, "
+        f"{c['truth_events']} resident-labelled events, {c['rejected']} rejected lines, {c['short_days']} short days; "
+        "see import.toml"
+    )
+    return 0
+
+
 def _cmd_import_casas(args) -> int:
     doors = tuple(d.strip() for d in args.doors.split(",") if d.strip()) if args.doors else ()
     res = import_casas(
@@ -644,6 +658,15 @@ def _add_import_commands(sub) -> None:
         help="lost OFF repair: on-durations a sensor needs for its own (median) hold time",
     )
     ic.set_defaults(func=_cmd_import_casas)
+    ia = isub.add_parser(
+        "aras",
+        help="an ARAS house folder (DAY_N.txt, README) -> motion.csv, truth_count.csv, annotations.csv, "
+        "truth_events.csv, site.toml (docs/homes.md)",
+    )
+    ia.add_argument("house", help="the house folder: DAY_1.txt ... and the README naming the sensor columns")
+    ia.add_argument("dataset")
+    ia.add_argument("--days", default=None, help="days to import, A-B (default: every day file found)")
+    ia.set_defaults(func=_cmd_import_aras)
     ir = isub.add_parser(
         "irtracking",
         help="Milan et al.'s ceiling IR array (SEQ.txt or SEQ.xml detections) -> site.toml, frames.csv, truth.csv",

@@ -52,6 +52,13 @@ RESIDENTS_PROFILE = pl.Schema(
     {"resident": pl.String, "from": pl.String, "to": pl.String, "count": pl.Float64, "bin": pl.String}
 )
 
+#: ``count_profile``: the count model's sufficient statistics from labelled days
+#: (:func:`onebit.models.occupancy.stats`): counts per term, count state and key.
+COUNT_PROFILE = pl.Schema({"term": pl.String, "state": pl.Int64, "key": pl.String, "count": pl.Float64})
+
+#: ``truth_count``: how many people are in, as intervals [t, end).
+TRUTH_COUNT = pl.Schema({"t": pl.Float64, "end": pl.Float64, "count": pl.Int64})
+
 #: ``<tracker>_events``: the track each motion firing (ON edge) was attributed to (null: none).
 TRACKER_EVENTS = pl.Schema({"t": pl.Float64, "sensor": pl.String, "track": pl.String})
 

@@ -83,6 +83,26 @@ class RunResult:
     problems: list[str] = field(default_factory=list)
 
 
+def _check_run_section(values: dict[str, Any], *, source: str | Path) -> None:
+    """``[run]``: what the run does by default; today ``trackers``, the trackers a plain
+    ``onebit run`` (no ``--trackers``) runs -- an importer writes it where some trackers cannot
+    serve its data (a month of a home: the slot HMMs' cost grows with the slots)."""
+    for key, value in values.items():
+        if key != "trackers":
+            raise ConfigError(f"{source}: [run] {key}: unknown key; known: ['trackers']")
+        if not isinstance(value, list) or not all(isinstance(v, str) for v in value):
+            raise ConfigError(f"{source}: [run] trackers: a list of tracker names, e.g. [\"residents\"]")
+
+
+def default_trackers(config: dict[str, Any], dataset_sections: dict[str, Any]) -> tuple[str, ...]:
+    """``[run] trackers`` of ``--config``, else of the dataset's own ``run.toml`` (``()``: all)."""
+    for sections in (config, dataset_sections):
+        run = sections.get("run")
+        if isinstance(run, dict) and run.get("trackers"):
+            return tuple(run["trackers"])
+    return ()
+
+
 def _is_run_record(data: dict[str, Any]) -> bool:
     return "recording_id" in data and isinstance(data.get("stages"), dict)
 
@@ -109,6 +129,9 @@ def check_sections(sections: dict[str, Any], stage_list: list[Stage], *, source:
     record = _is_run_record(sections)
     for name, values in sections.items():
         if record and (name in RUN_RECORD_SECTIONS or not isinstance(values, dict)):
+            continue
+        if name == "run" and isinstance(values, dict):
+            _check_run_section(values, source=source)
             continue
         if not isinstance(values, dict):
             raise ConfigError(
@@ -247,10 +270,11 @@ def run_pipeline(
     dataset_sections = dataset_run_config(dataset)
     check_sections(dataset_sections, stage_list, source=dataset / "run.toml")
     known = [e.name for e in tracker_entries]
-    requested = tuple(trackers) if trackers else ()
+    requested = tuple(trackers) if trackers else default_trackers(config, dataset_sections)
     for tr in requested:
         if tr not in known:
-            raise ConfigError(f"--trackers: unknown tracker {tr!r}; known: {sorted(known)}")
+            where = "--trackers" if trackers else "[run] trackers"
+            raise ConfigError(f"{where}: unknown tracker {tr!r}; known: {sorted(known)}")
     trackers = requested or tuple(known)
     rg = build_region_graph(site)
     if replacing:

@@ -1,0 +1,404 @@
+"""How many people are home: a door-gated hidden Markov model of the count, over minutes.
+
+Beyond the papers. The trackers of a home decode who fired each event, but the first question
+a home's user asks is simpler: how many people are in? A motion log answers it through three
+things, each a term below: people come and go through the house door (the count changes at
+door events), an empty home is silent (a sensor that fires needs someone), and two sensors far
+apart firing at once need two people. Where labelled days exist (``truth_count.csv``), the
+same model is learned from them -- which sensors are on with 0, 1, 2 people in, when people
+go out, and the count by time of day -- and decodes later days.
+
+Bins. Time is cut into bins of ``bin_s`` (60 s), bin ``b`` covering
+``[t0 + b bin_s, t0 + (b + 1) bin_s)``, ``t0`` a multiple of ``bin_s`` (so bins line up with the
+clock). Per bin (:func:`features`):
+
+* ``door_b`` -- an edge (on or off) of an entry/exit sensor of the site's sensor graph;
+* ``active_b`` -- an ON edge of another sensor, or (``held``) a level sensor on in the bin
+  (a force sensor under a sleeper, a pressure mat under someone sitting);
+* ``far_b`` -- two ON edges at most ``window_s`` apart at sensors ``far_hops`` or more hops
+  apart on the sensor graph (straight-line ``far_m`` metres without a graph): one person
+  cannot have fired both;
+* ``fired_bs`` / ``held_bs`` -- which sensors had an ON edge / were on (level sensors) in the bin;
+* ``hour_b`` -- the hour of day (from the site's epoch).
+
+The model. Hidden count ``n_b`` in ``0..K`` (``K`` = ``targets`` of the site, else the
+largest count of the labelled days, else ``max_people``)::
+
+    P(n_b = j | n_{b-1} = i) = D[i, j]  if door_b   else  Q[i, j]                       (O1)
+    P(obs_b | n_b = n) = A[n, active_b] F[n, far_b] H(hour_b, n)^w
+                         prod_s P(fired_bs | n) P(held_bs | n)   [learned sensors only]      (O2)
+
+Unlearned (no ``count_profile``), the constants are the defaults of the config:
+``D[i, j]`` keeps the count with ``door_stay`` and moves it by one with the rest (by two
+with a tenth of it), ``Q[i, i] = 1 - quiet_change`` (a change without a door event: a
+missed door, or a home with no door sensor); ``A[0, 1] = noise`` (a sensor fires in an
+empty home), ``A[n, 1] = 1 - (1 - activity)^n``; ``F[n, 1] = far_noise`` for ``n <= 1``,
+``far_rate`` for ``n >= 2``; no clock; start ``P(n_0 = n)`` proportional to ``2^-n``.
+
+Learned (:func:`stats` on labelled bins, :func:`model_from_stats`): every table above is the
+labelled bins' frequencies with a Dirichlet prior of ``prior`` pseudo-counts per cell (the
+unlearned value's shape for ``D`` and ``Q``), the per-sensor terms replace ``A`` (they hold
+the same information, finer), ``H(h, n)`` is the share of the labelled bins of hour ``h``
+with ``n`` people, weighted by ``w = clock_weight``.
+
+Decoding: the most probable count sequence (Viterbi, :func:`viterbi`; inherently sequential
+over bins, compiled with numba, :func:`viterbi_reference` its plain oracle), written as a step
+function ``(t, present)`` at each bin start (:func:`people_steps`).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import polars as pl
+
+from onebit.core.compiled import kernel
+from onebit.core.tables import COUNT_PROFILE
+
+#: The ``present`` step function of a count: (t, present).
+PEOPLE = pl.Schema({"t": pl.Float64, "present": pl.Int64})
+
+
+@dataclass(frozen=True)
+class Features:
+    """Per-bin evidence (module docstring); ``sensors`` names the columns of ``fired``/``held``."""
+
+    t0: float
+    bin_s: float
+    door: np.ndarray
+    active: np.ndarray
+    far: np.ndarray
+    fired: np.ndarray
+    held: np.ndarray
+    hour: np.ndarray
+    sensors: tuple[str, ...]
+
+    @property
+    def bins(self) -> int:
+        return int(self.door.size)
+
+    @property
+    def starts(self) -> np.ndarray:
+        return self.t0 + self.bin_s * np.arange(self.bins)
+
+
+def hours_of(t: np.ndarray, epoch_seconds_of_day: float | None) -> np.ndarray:
+    """Hour of day (0-23) of times ``t`` (s since the epoch) when the epoch's time of day is
+    known, else ``-1``."""
+    if epoch_seconds_of_day is None:
+        return np.full(np.shape(t), -1, dtype=np.int64)
+    return (((np.asarray(t, dtype=float) + epoch_seconds_of_day) % 86_400.0) // 3600.0).astype(np.int64)
+
+
+def features(
+    motion: pl.DataFrame,
+    sensors: list[str],
+    doors: set[str],
+    levels: set[str],
+    far: np.ndarray,
+    *,
+    bin_s: float,
+    window_s: float,
+    held: bool,
+    epoch_seconds_of_day: float | None,
+    span: tuple[float, float] | None = None,
+) -> Features:
+    """The bins' evidence from a MOTION table (t, sensor, on) restricted to ``sensors``.
+
+    ``far[a, b]``: whether sensors ``a`` and ``b`` (indices into ``sensors``) are too far
+    apart for one person to fire both within ``window_s``. ``span``: the time range to cover
+    (default: the motion's first to last edge)."""
+    index = {s: k for k, s in enumerate(sensors)}
+    m = motion.filter(pl.col("sensor").is_in(sensors)).sort("t")
+    t = m["t"].to_numpy().astype(float)
+    on = m["on"].to_numpy().astype(bool)
+    k = np.array([index[s] for s in m["sensor"].to_list()], dtype=np.int64)
+    lo, hi = span if span is not None else ((float(t[0]), float(t[-1])) if t.size else (0.0, 0.0))
+    t0 = np.floor(lo / bin_s) * bin_s
+    B = max(int(np.floor((hi - t0) / bin_s)) + 1, 1)
+    b = np.clip(((t - t0) // bin_s).astype(np.int64), 0, B - 1)
+    S = len(sensors)
+    is_door = np.array([s in doors for s in sensors], dtype=bool)
+    is_level = np.array([s in levels for s in sensors], dtype=bool)
+    door = np.zeros(B, dtype=bool)
+    door[b[is_door[k]]] = True
+    fired = np.zeros((B, S), dtype=bool)
+    fired[b[on], k[on]] = True
+    held_bs = _held(b, k, on, B, S) & is_level[None, :]
+    active = fired[:, ~is_door].any(axis=1)
+    if held:
+        active |= held_bs[:, ~is_door].any(axis=1)
+    far_b = np.zeros(B, dtype=bool)
+    sel = on & ~is_door[k]
+    ts, ks, bs = t[sel], k[sel], b[sel]
+    step = 1
+    while step < ts.size:
+        close = ts[step:] - ts[:-step] <= window_s
+        if not close.any():
+            break
+        i = np.flatnonzero(close)
+        hit = far[ks[i], ks[i + step]]
+        far_b[bs[i[hit] + step]] = True
+        step += 1
+    hour = hours_of(t0 + bin_s * np.arange(B) + bin_s / 2, epoch_seconds_of_day)
+    return Features(float(t0), float(bin_s), door, active, far_b, fired, held_bs, hour, tuple(sensors))
+
+
+def _held(b: np.ndarray, k: np.ndarray, on: np.ndarray, B: int, S: int) -> np.ndarray:
+    """``held[b, s]``: sensor ``s`` on at some time in bin ``b`` (from its edges; a sensor on
+    when the log ends stays on to the last bin)."""
+    out = np.zeros((B, S), dtype=bool)
+    if b.size == 0:
+        return out
+    order = np.lexsort((np.arange(b.size), k))
+    kb, bb, ob = k[order], b[order], on[order]
+    for s in np.unique(kb):
+        sel = kb == s
+        bs, os_ = bb[sel], ob[sel]
+        # runs: each ON edge to the next edge of the sensor (an OFF, or the log's end)
+        starts = np.flatnonzero(os_)
+        ends = np.where(starts + 1 < bs.size, bs[np.minimum(starts + 1, bs.size - 1)], B - 1)
+        diff = np.zeros(B + 1, dtype=np.int64)
+        np.add.at(diff, bs[starts], 1)
+        np.add.at(diff, ends + 1, -1)
+        out[:, s] = np.cumsum(diff[:B]) > 0
+    return out
+
+
+@dataclass(frozen=True)
+class CountModel:
+    """The model's log tables (module docstring): ``K + 1`` states."""
+
+    log_start: np.ndarray
+    log_door: np.ndarray
+    log_quiet: np.ndarray
+    log_active: np.ndarray | None
+    log_far: np.ndarray
+    log_hour: np.ndarray | None
+    #: per-sensor terms (learned): (K + 1, S, 2) each, on the model's ``sensors``
+    log_fired: np.ndarray | None = None
+    log_held: np.ndarray | None = None
+    sensors: tuple[str, ...] = ()
+    clock_weight: float = 1.0
+
+    @property
+    def K(self) -> int:
+        return int(self.log_start.size) - 1
+
+    def emissions(self, f: Features) -> np.ndarray:
+        """``ln P(obs_b | n)`` of (O2) for every bin and count: ``(B, K + 1)``."""
+        B = f.bins
+        ll = self.log_far[:, f.far.astype(np.int64)].T.copy()
+        if self.log_active is not None:
+            ll += self.log_active[:, f.active.astype(np.int64)].T
+        if self.log_fired is not None:
+            idx = {s: j for j, s in enumerate(f.sensors)}
+            cols = [idx.get(s, -1) for s in self.sensors]
+            for j, c in enumerate(cols):
+                fired = f.fired[:, c].astype(np.int64) if c >= 0 else np.zeros(B, np.int64)
+                held = f.held[:, c].astype(np.int64) if c >= 0 else np.zeros(B, np.int64)
+                ll += self.log_fired[:, j, fired].T + self.log_held[:, j, held].T
+        if self.log_hour is not None and self.clock_weight > 0:
+            known = f.hour >= 0
+            ll[known] += self.clock_weight * self.log_hour[f.hour[known]]
+        return ll
+
+
+def default_model(
+    K: int,
+    *,
+    door_stay: float,
+    quiet_change: float,
+    noise: float,
+    activity: float,
+    far_noise: float,
+    far_rate: float,
+) -> CountModel:
+    """The unlearned model (module docstring)."""
+    n = np.arange(K + 1)
+    start = 2.0**-n
+    door = _band(K, door_stay)
+    quiet = np.full((K + 1, K + 1), 0.0)
+    quiet[:] = quiet_change / max(K, 1)
+    np.fill_diagonal(quiet, 1.0 - quiet_change)
+    if K == 0:
+        quiet[:] = 1.0
+    p_active = np.where(n == 0, noise, 1.0 - (1.0 - activity) ** n)
+    p_far = np.where(n <= 1, far_noise, far_rate)
+    return CountModel(
+        log_start=np.log(start / start.sum()),
+        log_door=np.log(door),
+        log_quiet=np.log(quiet),
+        log_active=np.log(np.column_stack([1.0 - p_active, p_active])),
+        log_far=np.log(np.column_stack([1.0 - p_far, p_far])),
+        log_hour=None,
+    )
+
+
+def _band(K: int, stay: float) -> np.ndarray:
+    """Door transitions: stay with ``stay``; the rest to the counts one away (a tenth of it to
+    two away), renormalised at the ends."""
+    m = np.zeros((K + 1, K + 1))
+    for i in range(K + 1):
+        for j in range(K + 1):
+            d = abs(i - j)
+            m[i, j] = stay if d == 0 else (1.0 - stay) * (1.0 if d == 1 else 0.1 if d == 2 else 0.0)
+    m += 1e-12
+    return m / m.sum(axis=1, keepdims=True)
+
+
+def truth_bins(truth_count: pl.DataFrame, f: Features) -> np.ndarray:
+    """The labelled count of every bin: the time-average of ``truth_count`` (t, end, count)
+    over the bin, rounded; ``-1`` where no interval covers the bin."""
+    starts = f.starts
+    total = np.zeros(f.bins)
+    cover = np.zeros(f.bins)
+    for a, e, c in truth_count.select("t", "end", "count").iter_rows():
+        lo = np.clip(a, starts, starts + f.bin_s)
+        hi = np.clip(e, starts, starts + f.bin_s)
+        w = np.maximum(hi - lo, 0.0)
+        total += w * c
+        cover += w
+    out = np.full(f.bins, -1, dtype=np.int64)
+    ok = cover >= 0.5 * f.bin_s
+    out[ok] = np.floor(total[ok] / cover[ok] + 0.5).astype(np.int64)
+    return out
+
+
+def stats(f: Features, y: np.ndarray) -> pl.DataFrame:
+    """The sufficient statistics (:data:`~onebit.core.tables.COUNT_PROFILE`) of labelled bins
+    ``y`` (``-1``: unlabelled, skipped): counts per term, state and key; additive over days."""
+    rows: list[tuple[str, int, str, float]] = []
+    ok = y >= 0
+    for n in np.unique(y[ok]):
+        sel = ok & (y == n)
+        rows.append(("bins", int(n), "", float(sel.sum())))
+        rows.append(("active", int(n), "1", float(f.active[sel].sum())))
+        rows.append(("far", int(n), "1", float(f.far[sel].sum())))
+        for j, s in enumerate(f.sensors):
+            rows.append(("fired", int(n), s, float(f.fired[sel, j].sum())))
+            rows.append(("held", int(n), s, float(f.held[sel, j].sum())))
+        hours, counts = np.unique(f.hour[sel & (f.hour >= 0)], return_counts=True)
+        rows += [("hour", int(n), str(int(h)), float(c)) for h, c in zip(hours, counts)]
+    pair = ok[1:] & ok[:-1]
+    for term, gate in (("door", f.door[1:]), ("quiet", ~f.door[1:])):
+        sel = pair & gate
+        src, dst = y[:-1][sel], y[1:][sel]
+        if src.size:
+            keys, counts = np.unique(np.column_stack([src, dst]), axis=0, return_counts=True)
+            rows += [(term, int(a), str(int(b)), float(c)) for (a, b), c in zip(keys, counts)]
+    first = np.flatnonzero(ok)
+    if first.size:
+        rows.append(("start", int(y[first[0]]), "", 1.0))
+    return pl.DataFrame(rows, schema=COUNT_PROFILE, orient="row")
+
+
+def model_from_stats(
+    st: pl.DataFrame, K: int, *, prior: float, clock_weight: float, unlearned: CountModel
+) -> CountModel:
+    """The learned model (module docstring) of summed statistics ``st``, on counts ``0..K``."""
+    st = st.group_by("term", "state", "key").agg(pl.col("count").sum())
+    get = {(a, int(b), c): float(v) for a, b, c, v in st.iter_rows()}
+    bins = np.array([get.get(("bins", n, ""), 0.0) for n in range(K + 1)])
+    sensors = tuple(sorted({c for a, _, c, _ in st.iter_rows() if a == "fired"}))
+
+    def bern(term: str, key: str) -> np.ndarray:
+        on = np.array([get.get((term, n, key), 0.0) for n in range(K + 1)])
+        p = (on + prior * 0.5) / (bins + prior)
+        return np.log(np.column_stack([1.0 - p, p]))
+
+    def trans(term: str, shape: np.ndarray) -> np.ndarray:
+        c = np.array([[get.get((term, i, str(j)), 0.0) for j in range(K + 1)] for i in range(K + 1)])
+        p = c + prior * np.exp(shape) * (K + 1)
+        return np.log(p / p.sum(axis=1, keepdims=True))
+
+    hour = np.array([[get.get(("hour", n, str(h)), 0.0) for n in range(K + 1)] for h in range(24)])
+    has_clock = hour.sum() > 0
+    log_hour = np.log((hour + prior) / (hour + prior).sum(axis=1, keepdims=True)) if has_clock else None
+    start = np.array([get.get(("start", n, ""), 0.0) for n in range(K + 1)]) + np.exp(unlearned.log_start)
+    return CountModel(
+        log_start=np.log(start / start.sum()),
+        log_door=trans("door", unlearned.log_door),
+        log_quiet=trans("quiet", unlearned.log_quiet),
+        log_active=None if sensors else bern("active", "1"),
+        log_far=bern("far", "1"),
+        log_hour=log_hour,
+        log_fired=np.stack([bern("fired", s) for s in sensors], axis=1) if sensors else None,
+        log_held=np.stack([bern("held", s) for s in sensors], axis=1) if sensors else None,
+        sensors=sensors,
+        clock_weight=clock_weight,
+    )
+
+
+def learned_people(st: pl.DataFrame) -> int:
+    """The largest count the statistics saw (0 when they are empty)."""
+    seen = st.filter(pl.col("term") == "bins")["state"]
+    return int(seen.max()) if seen.len() else 0
+
+
+def viterbi_reference(ll: np.ndarray, door: np.ndarray, log_door, log_quiet, log_start) -> np.ndarray:
+    """The most probable count sequence of (O1)-(O2), written step by step (the oracle)."""
+    B, N = ll.shape
+    if B == 0:
+        return np.zeros(0, dtype=np.int64)
+    delta = log_start + ll[0]
+    back = np.zeros((B, N), dtype=np.int64)
+    for b in range(1, B):
+        trans = log_door if door[b] else log_quiet
+        cand = delta[:, None] + trans
+        back[b] = np.argmax(cand, axis=0)
+        delta = cand[back[b], np.arange(N)] + ll[b]
+    path = np.zeros(B, dtype=np.int64)
+    path[-1] = int(np.argmax(delta))
+    for b in range(B - 1, 0, -1):
+        path[b - 1] = back[b, path[b]]
+    return path
+
+
+@kernel
+def _viterbi_kernel(ll, door, log_door, log_quiet, log_start):  # pragma: no cover - compiled
+    B, N = ll.shape
+    path = np.zeros(B, dtype=np.int64)
+    if B == 0:
+        return path
+    back = np.zeros((B, N), dtype=np.int64)
+    delta = log_start + ll[0]
+    new = np.empty(N)
+    for b in range(1, B):
+        for j in range(N):
+            best, arg = -np.inf, 0
+            for i in range(N):
+                v = delta[i] + (log_door[i, j] if door[b] else log_quiet[i, j])
+                if v > best:
+                    best, arg = v, i
+            back[b, j] = arg
+            new[j] = best + ll[b, j]
+        delta[:] = new
+    best, arg = -np.inf, 0
+    for j in range(N):
+        if delta[j] > best:
+            best, arg = delta[j], j
+    path[B - 1] = arg
+    for b in range(B - 1, 0, -1):
+        path[b - 1] = back[b, path[b]]
+    return path
+
+
+def viterbi(ll: np.ndarray, door: np.ndarray, model: CountModel) -> np.ndarray:
+    """:func:`viterbi_reference`, compiled (equal paths: the tests compare them)."""
+    return _viterbi_kernel(
+        np.ascontiguousarray(ll, dtype=np.float64),
+        np.ascontiguousarray(door, dtype=np.bool_),
+        np.ascontiguousarray(model.log_door),
+        np.ascontiguousarray(model.log_quiet),
+        np.ascontiguousarray(model.log_start),
+    )
+
+
+def people_steps(starts: np.ndarray, count: np.ndarray) -> pl.DataFrame:
+    """The step function of a per-bin count: a row at the first bin and at every change."""
+    if count.size == 0:
+        return pl.DataFrame(schema=PEOPLE)
+    keep = np.r_[True, count[1:] != count[:-1]]
+    return pl.DataFrame({"t": starts[keep].astype(float), "present": count[keep].astype(np.int64)}, schema=PEOPLE)
