@@ -181,7 +181,7 @@ def read_readme(path: str | Path) -> ArasHouse:
         raise InputError("no README beside the day files: it names the sensor columns", file=path)
     text = path.read_text(errors="replace").replace("\t", "    ")
     sensors, acts, section = [], {}, None
-    for n, line in enumerate(text.splitlines(), start=1):
+    for line in text.splitlines():
         low = line.lower()
         if "sensor explanations" in low:
             section = "sensors"
