@@ -34,7 +34,6 @@ from onebit.core import writers
 from onebit.core.errors import InputError
 from onebit.core.site import load_site
 from onebit.datasets.irtracking import import_irtracking
-from onebit.experiments.peers import stonesoup
 from onebit.experiments.trials import format_table
 from onebit.pipeline.executors import Executor
 from onebit.pipeline.report import metric
@@ -120,6 +119,14 @@ def room_centre_tracks(times, site, name: str = "room-centre") -> pl.DataFrame:
     return pl.DataFrame({"tracker": name, "track": f"{name}-0", "t": t, "x": (minx + maxx) / 2, "y": (miny + maxy) / 2})
 
 
+def _stonesoup():
+    """The Stone Soup peer module (imported when the experiment runs, not with the registry of
+    experiments, so ``python -m onebit.experiments.peers.stonesoup`` runs it as a fresh script)."""
+    from onebit.experiments.peers import stonesoup
+
+    return stonesoup
+
+
 def _row(sequence: str, tracker: str, status: str, rows: dict, seconds: float | None) -> dict:
     return {
         "sequence": sequence,
@@ -163,6 +170,7 @@ def one_sequence(data: Path, out: Path, name: str, *, trackers: tuple[str, ...],
             sec,
         )
     )
+    stonesoup = _stonesoup()
     why = stonesoup.missing()
     for label, jpda in (("stonesoup-gnn", False), ("stonesoup-jpda", True)):
         if why is not None:
@@ -206,7 +214,7 @@ def run(
     if unknown:
         raise InputError(f"unknown positional tracker {unknown[0]!r}; known: {list(POSITIONAL)}", field="trackers")
     names = choose_sequences(data, sequences, quick=quick)
-    why = stonesoup.missing()
+    why = _stonesoup().missing()
     if why is not None:
         echo(f"note: {why}; the other rows run")
     out.mkdir(parents=True, exist_ok=True)

@@ -212,7 +212,9 @@ def main(argv: list[str] | None = None) -> int:
     from onebit.readers.tables_csv import read_truth_csv
     from onebit.scoring.mot import metric_gate_rows
 
-    ap = argparse.ArgumentParser(prog="python -m onebit.experiments.peers.stonesoup", description=__doc__.splitlines()[0])
+    ap = argparse.ArgumentParser(
+        prog="python -m onebit.experiments.peers.stonesoup", description=__doc__.splitlines()[0]
+    )
     ap.add_argument("dataset", help="a dataset folder with frames.csv and truth.csv (onebit import irtracking)")
     ap.add_argument("--jpda", action="store_true")
     args = ap.parse_args(argv)
