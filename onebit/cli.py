@@ -206,7 +206,8 @@ def _cmd_experiment(args) -> int:
             raise ConfigError(f"experiment {args.name!r} takes no --config")
         params = inspect.signature(mod.run).parameters
         trackers = tuple(t.strip() for t in args.trackers.split(",") if t.strip()) if args.trackers else None
-        for key, value in (("data", args.data), ("trackers", trackers)):
+        sequences = None if args.sequences is None else tuple(q.strip() for q in args.sequences.split(",") if q.strip())
+        for key, value in (("data", args.data), ("trackers", trackers), ("sequences", sequences)):
             if value is not None:
                 if key not in params:
                     raise ConfigError(f"experiment {args.name!r} takes no --{key}")
@@ -569,6 +570,11 @@ def _add_experiment_command(sub) -> None:
         help="residents --cross-validate: the profiles' clock (onebit learn residents --clock; 10 bins)",
     )
     e.add_argument("--data", default=None, help="ceiling: the irtracking recordings (a clone of antonmil/irtracking)")
+    e.add_argument(
+        "--sequences",
+        default=None,
+        help="ceiling: comma-separated sequences of the clone (default: every sequence found in it)",
+    )
     _add_executor_options(e)
     e.set_defaults(func=_cmd_experiment)
 

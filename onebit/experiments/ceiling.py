@@ -1,9 +1,9 @@
-"""``onebit experiment ceiling OUT --data DIR``: every positional tracker on the real ceiling array.
+"""``onebit experiment ceiling OUT --data CLONE [--sequences a,b,...]``: every positional tracker on the real ceiling array.
 
-For each sequence of Milan et al.'s ``irtracking`` recordings a user may develop on
-(:data:`SEQUENCES`: the synthetic ``s1-easy/medium/hard``, ``testanton``, ``testanton-long``
-and the real ``r1-easy``; ``r1-medium`` and ``r1-hard`` are held out and **never** imported or
-run here, :data:`HELD_OUT`), the experiment
+The experiment runs on every sequence of Milan et al.'s ``irtracking`` recordings found in the
+clone (:func:`find_sequences`: a ``SEQ_gt.xml`` truth with its ``SEQ.txt`` readings or
+``SEQ.xml`` detections, in ``CLONE/data`` or ``CLONE``), or on those named by ``--sequences``
+(an unknown name is an error that lists the sequences found). For each sequence it
 
 1. imports it (``onebit import irtracking``: ``SEQ.txt``, else the ``SEQ.xml`` detections, with
    ``SEQ_gt.xml`` as truth) into ``OUT/datasets/SEQ``, ``targets`` not from the truth;
@@ -11,20 +11,20 @@ run here, :data:`HELD_OUT`), the experiment
    the dataset lacks are listed as skipped, with the reason), scored at 1.0 and 1.5 m
    (``[scores] gates_m = [1.0, 1.5]``; 1.5 m is the authors' ``CLEAR_MOT.m`` threshold), every
    frame scored (:mod:`onebit.scoring.mot`);
-3. scores two baselines with the same scorer: the **room centre** (one track at the room's
-   centre at every frame: what a tracker that knows nothing answers) and, when Stone Soup is
-   installed (``pip install -e .[bench]``) and the repository's ``benchmarks`` package is
-   importable (run from the repository), **Stone Soup** GNN and JPDA Kalman trackers fed every
-   firing sensor as a point detection (``benchmarks/stonesoup_ceiling.py``).
+3. scores the peers with the same scorer: the **room centre** (one track at the room's centre
+   at every frame: what a tracker that knows nothing answers) and the **Stone Soup** GNN and
+   JPDA Kalman trackers fed every firing sensor as a point detection
+   (:mod:`onebit.experiments.peers.stonesoup`). Stone Soup is the ``bench`` extra
+   (``pip install 'onebit[bench]'``); without it its rows say so and the rest runs.
 
 Writes ``results.csv`` / ``results.parquet`` (one row per sequence and tracker: status,
-``mota@1m``, ``mota@1.5m``, ``idf1@1m``, ``idf1@1.5m``, ``count_error`` (people per frame),
-``max_tracks``, ``seconds``) and prints the table. ``--quick``: the two short sequences only.
+``mota@1m``, ``mota@1.5m``, ``idf1@1m``, ``idf1@1.5m``, ``hota@1m``, ``hota@1.5m``,
+``count_error`` (people per frame), ``max_tracks``, ``seconds``) and prints the table.
+``--quick``: the two short sequences :data:`QUICK` (when ``--sequences`` is not given).
 """
 
 from __future__ import annotations
 
-import importlib
 import time
 from pathlib import Path
 
@@ -42,15 +42,14 @@ from onebit.pipeline.stages import TRACKERS
 from onebit.readers.tables_csv import read_truth_csv
 from onebit.scoring.mot import metric_gate_rows
 
-#: The sequences a user may develop on, in the order of the table.
-SEQUENCES = ("s1-easy", "s1-medium", "s1-hard", "testanton", "testanton-long", "r1-easy")
-#: Held out for evaluation: never imported, run or looked at by this experiment.
-HELD_OUT = ("r1-medium", "r1-hard")
+#: The two short sequences of the irtracking clone: ``--quick``.
 QUICK = ("testanton", "s1-easy")
+#: The truth file of a sequence is ``SEQ`` + this.
+TRUTH_SUFFIX = "_gt.xml"
 GATES_M = (1.0, 1.5)
 #: Every onebit tracker whose tracks are positions (beams answers in regions of a beam site).
 POSITIONAL = tuple(e.name for e in TRACKERS if e.name != "beams")
-COLUMNS = ("mota@1m", "mota@1.5m", "idf1@1m", "idf1@1.5m", "count_error", "max_tracks")
+COLUMNS = ("mota@1m", "mota@1.5m", "idf1@1m", "idf1@1.5m", "hota@1m", "hota@1.5m", "count_error", "max_tracks")
 RESULT_SCHEMA = pl.Schema(
     {
         "sequence": pl.String,
@@ -62,15 +61,51 @@ RESULT_SCHEMA = pl.Schema(
 )
 
 
+def data_folder(data: Path) -> Path:
+    """Where the sequences are: ``data/data`` in a clone of the repository, else ``data`` itself."""
+    data = Path(data)
+    if not data.is_dir():
+        raise InputError("not a folder (is --data the irtracking clone?)", file=data)
+    return data / "data" if (data / "data").is_dir() else data
+
+
+def find_sequences(data: Path) -> tuple[str, ...]:
+    """Every sequence in the clone, sorted by name: each ``SEQ_gt.xml`` (truth) that has
+    ``SEQ.txt`` (readings) or ``SEQ.xml`` (detections) beside it."""
+    folder = data_folder(data)
+    names = (p.name[: -len(TRUTH_SUFFIX)] for p in folder.glob(f"*{TRUTH_SUFFIX}"))
+    return tuple(sorted(n for n in names if n and ((folder / f"{n}.txt").is_file() or (folder / f"{n}.xml").is_file())))
+
+
+def choose_sequences(data: Path, sequences: tuple[str, ...] | None = None, *, quick: bool = False) -> tuple[str, ...]:
+    """The sequences to run, in table order: ``sequences`` if given (each must be in the clone),
+    else :data:`QUICK` with ``quick``, else every sequence found (:func:`find_sequences`)."""
+    found = find_sequences(data)
+    if not found:
+        raise InputError(
+            f"no irtracking sequence here (a SEQ{TRUTH_SUFFIX} with SEQ.txt or SEQ.xml; is --data the irtracking clone?)",
+            file=data_folder(data),
+        )
+    if sequences is not None and not tuple(sequences):
+        raise InputError(f"names no sequence; found: {', '.join(found)}", field="sequences")
+    chosen = tuple(sequences) if sequences is not None else (QUICK if quick else found)
+    for name in chosen:
+        if name not in found:
+            raise InputError(
+                f"unknown sequence {name!r}: no {name}{TRUTH_SUFFIX} with {name}.txt or {name}.xml in "
+                f"{data_folder(data)}; found: {', '.join(found)}",
+                field="sequences",
+            )
+    return tuple(dict.fromkeys(chosen))
+
+
 def sequence_files(data: Path, name: str) -> tuple[Path, Path]:
-    """(readings, truth) of a sequence: ``data/SEQ.txt`` (else ``SEQ.xml``) and ``data/SEQ_gt.xml``."""
-    if name in HELD_OUT:
-        raise InputError(f"{name} is held out for evaluation: this experiment never reads it", field="sequence")
-    folder = data / "data" if (data / "data").is_dir() else data
+    """(readings, truth) of a sequence: ``SEQ.txt`` (else ``SEQ.xml``) and ``SEQ_gt.xml``."""
+    folder = data_folder(data)
     readings = folder / f"{name}.txt"
     if not readings.exists():
         readings = folder / f"{name}.xml"
-    truth = folder / f"{name}_gt.xml"
+    truth = folder / f"{name}{TRUTH_SUFFIX}"
     for p in (readings, truth):
         if not p.exists():
             raise InputError("missing (is --data the irtracking clone?)", file=p)
@@ -85,15 +120,11 @@ def room_centre_tracks(times, site, name: str = "room-centre") -> pl.DataFrame:
 
 
 def _stonesoup():
-    """The Stone Soup baseline module, or the reason it cannot run."""
-    try:
-        importlib.import_module("stonesoup")
-    except ImportError:
-        return None, "Stone Soup not installed (pip install -e .[bench])"
-    try:
-        return importlib.import_module("benchmarks.stonesoup_ceiling"), None
-    except ImportError:
-        return None, "benchmarks/stonesoup_ceiling.py not importable (run from the repository)"
+    """The Stone Soup peer module (imported when the experiment runs, not with the registry of
+    experiments, so ``python -m onebit.experiments.peers.stonesoup`` runs it as a fresh script)."""
+    from onebit.experiments.peers import stonesoup
+
+    return stonesoup
 
 
 def _row(sequence: str, tracker: str, status: str, rows: dict, seconds: float | None) -> dict:
@@ -139,13 +170,14 @@ def one_sequence(data: Path, out: Path, name: str, *, trackers: tuple[str, ...],
             sec,
         )
     )
-    mod, why = _stonesoup()
+    stonesoup = _stonesoup()
+    why = stonesoup.missing()
     for label, jpda in (("stonesoup-gnn", False), ("stonesoup-jpda", True)):
-        if mod is None:
+        if why is not None:
             rows.append(_row(name, label, f"skipped: {why}", {}, None))
             continue
         t0 = time.perf_counter()
-        tracks = mod.track(levels, site, jpda=jpda, name=label)
+        tracks = stonesoup.track(levels, site, jpda=jpda, name=label)
         sec = time.perf_counter() - t0
         rows.append(
             _row(name, label, "ok", {r[1]: r[2] for r in metric_gate_rows(label, tracks, truth, site, GATES_M)}, sec)
@@ -164,23 +196,30 @@ def run(
     executor: Executor | None = None,
     data: str | Path | None = None,
     trackers: tuple[str, ...] | None = None,
+    sequences: tuple[str, ...] | None = None,
 ) -> Path:
     """The registered entry point (see :mod:`onebit.experiments`); ``data`` is the irtracking
-    clone (``--data``); ``trackers`` picks onebit trackers (default :data:`POSITIONAL`).
-    ``seed``/``trials``/``executor`` do not apply (the recordings are fixed; one pass)."""
+    clone (``--data``); ``sequences`` picks sequences of it (``--sequences``, default every one
+    found: :func:`choose_sequences`); ``trackers`` picks onebit trackers (default
+    :data:`POSITIONAL`). ``seed``/``trials``/``executor`` do not apply (the recordings are
+    fixed; one pass)."""
     if data is None:
         raise InputError(
-            "the ceiling experiment needs the irtracking recordings: onebit experiment ceiling OUT --data DIR",
+            "the ceiling experiment needs the irtracking recordings: onebit experiment ceiling OUT --data CLONE",
             field="data",
         )
     data, out = Path(data), Path(out)
-    out.mkdir(parents=True, exist_ok=True)
     chosen = tuple(trackers) if trackers else POSITIONAL
     unknown = [t for t in chosen if t not in POSITIONAL]
     if unknown:
         raise InputError(f"unknown positional tracker {unknown[0]!r}; known: {list(POSITIONAL)}", field="trackers")
+    names = choose_sequences(data, sequences, quick=quick)
+    why = _stonesoup().missing()
+    if why is not None:
+        echo(f"note: {why}; the other rows run")
+    out.mkdir(parents=True, exist_ok=True)
     rows = []
-    for name in QUICK if quick else SEQUENCES:
+    for name in names:
         rows += one_sequence(data, out, name, trackers=chosen, echo=echo)
     results = pl.DataFrame(rows, schema=RESULT_SCHEMA)
     writers.write_parquet(results, out / "results.parquet")

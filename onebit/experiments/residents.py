@@ -21,8 +21,8 @@ With ``--cross-validate`` (leave one session out) each session's dataset also ge
 so the ``residents`` tracker decodes it with known residents, and the supervised baseline
 ``baseline-habits`` is added; no session's own labels are used to decode it.
 
-Only the files in ``DIR`` are read: to keep held-out sessions out, point it at a folder that
-holds only the development ones (e.g. symbolic links to P01-P13).
+Only the files in ``DIR`` are read: to run some sessions, point it at a folder that holds
+those (e.g. symbolic links to P01.txt..P13.txt).
 """
 
 from __future__ import annotations

@@ -41,17 +41,15 @@ def _line_layout(tmp_path):
 
 
 def test_the_study_table(tmp_path):
-    dev = tmp_path / "dev"
-    dev.mkdir()
-    _session(dev / "P01.txt", 0)
-    _session(dev / "P02.txt", 1)
-    (dev / "README").write_text("not a session")
+    sessions = tmp_path / "sessions"
+    sessions.mkdir()
+    _session(sessions / "P01.txt", 0)
+    _session(sessions / "P02.txt", 1)
+    (sessions / "README").write_text("not a session")
     res = tmp_path / "res"
     lay = _line_layout(tmp_path)  # the true line of sensors (a learned graph links what the two fire in turn)
-    assert (
-        main(["experiment", "residents", str(dev), "--results", str(res), "--trackers", "hmm1", "--layout", str(lay)])
-        == 0
-    )
+    args = ["experiment", "residents", str(sessions), "--results", str(res), "--trackers", "hmm1"]
+    assert main([*args, "--layout", str(lay)]) == 0
     df = pl.read_csv(res / "results.csv")
     assert df["session"].to_list() == ["P01"] * 3 + ["P02"] * 3 + ["mean"] * 3
     assert set(df["method"]) == {"hmm1", "baseline-busier", "baseline-nearest"}
@@ -65,9 +63,9 @@ def test_the_study_table(tmp_path):
 
 
 def test_a_config_reaches_every_session_and_a_bad_one_is_refused(tmp_path):
-    dev = tmp_path / "dev"
-    dev.mkdir()
-    _session(dev / "P01.txt", 0)
+    sessions = tmp_path / "sessions"
+    sessions.mkdir()
+    _session(sessions / "P01.txt", 0)
     lay = tmp_path / "line.toml"
     lay.write_text("[sensors]\n" + "".join(f"M{k:02d} = [{2.0 * k}, 0.0]\n" for k in range(1, 7)))
     cfg = tmp_path / "run.toml"
@@ -78,7 +76,7 @@ def test_a_config_reaches_every_session_and_a_bad_one_is_refused(tmp_path):
             [
                 "experiment",
                 "residents",
-                str(dev),
+                str(sessions),
                 "--results",
                 str(res),
                 "--trackers",
@@ -101,7 +99,7 @@ def test_a_config_reaches_every_session_and_a_bad_one_is_refused(tmp_path):
             [
                 "experiment",
                 "residents",
-                str(dev),
+                str(sessions),
                 "--results",
                 str(tmp_path / "bad"),
                 "--trackers",
@@ -150,12 +148,12 @@ def test_learn_a_profile_and_decode_with_known_residents(tmp_path):
 
 
 def test_cross_validation_learns_each_session_from_the_others(tmp_path):
-    dev = tmp_path / "dev"
-    dev.mkdir()
+    sessions = tmp_path / "sessions"
+    sessions.mkdir()
     for name, seed in (("P01", 0), ("P02", 1), ("P03", 2)):
-        _session(dev / f"{name}.txt", seed)
+        _session(sessions / f"{name}.txt", seed)
     res = tmp_path / "res"
-    args = ["experiment", "residents", str(dev), "--results", str(res), "--trackers", "residents"]
+    args = ["experiment", "residents", str(sessions), "--results", str(res), "--trackers", "residents"]
     assert main([*args, "--layout", str(_line_layout(tmp_path)), "--targets", "2", "--cross-validate"]) == 0
     df = pl.read_csv(res / "results.csv")
     assert set(df["method"]) == {"residents", "baseline-busier", "baseline-nearest", "baseline-habits"}
@@ -170,11 +168,11 @@ def test_cross_validation_learns_each_session_from_the_others(tmp_path):
 
 
 def test_every_identity_error_is_listed(tmp_path):
-    dev = tmp_path / "dev"
-    dev.mkdir()
-    _session(dev / "P01.txt", 0)
+    sessions = tmp_path / "sessions"
+    sessions.mkdir()
+    _session(sessions / "P01.txt", 0)
     res = tmp_path / "res"
-    args = ["experiment", "residents", str(dev), "--results", str(res), "--trackers", "residents"]
+    args = ["experiment", "residents", str(sessions), "--results", str(res), "--trackers", "residents"]
     assert main([*args, "--layout", str(_line_layout(tmp_path)), "--targets", "2"]) == 0
     err = pl.read_csv(res / "errors.csv")
     acc = pl.read_csv(res / "results.csv").filter((pl.col("method") == "residents") & (pl.col("session") == "P01"))

@@ -39,7 +39,7 @@ NAME = "binpf"
 @dataclass(frozen=True, kw_only=True)
 class BinPFConfig:
     """``run.toml`` ``[binpf]``. Defaults fit the real ceiling IR array of Milan et al. (fitted
-    by maximum likelihood of Eq. (2) on its development sequence: :math:`p_d` 0.74, soft edge
+    by maximum likelihood of Eq. (2) on its sequence r1-easy: :math:`p_d` 0.74, soft edge
     0.31 m, :math:`p_f` 0.008; see ``docs/binpf.md``)."""
 
     particles: int = 300  #: particles per track
