@@ -19,11 +19,11 @@ $(STAMP): pyproject.toml
 	$(BIN)/python -m benchmarks.warm_kernels  # compile the numba kernels once (cached): not on a run's critical path
 	touch $(STAMP)
 
-# demo: one simulated dataset per paper; each run writes OUT/rrd/*.rrd, OUT/report.csv and prints the report.
+# demo: one simulated dataset per paper; each run writes OUT/rrd/*.rrd, OUT/report.csv and prints one summary table
+# (the skipped stages one line per reason); `onebit report OUT` prints the whole report.
 demo: install
 	$(BIN)/onebit simulate beams-lab $(BUILD)/demo/beams-lab --seed 7 --duration 180 --agents 2
 	$(BIN)/onebit run $(BUILD)/demo/beams-lab --out $(BUILD)/demo/run
-	$(BIN)/onebit report $(BUILD)/demo/run
 	$(BIN)/onebit simulate pir14 $(BUILD)/demo/pir14 --seed 7 --param refractory=4
 	$(BIN)/onebit run $(BUILD)/demo/pir14 --out $(BUILD)/demo/pir14-run
 	$(BIN)/onebit simulate proximity-line $(BUILD)/demo/proximity-line --seed 7
