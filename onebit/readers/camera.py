@@ -1,6 +1,6 @@
 """Overhead camera reader: ``camera.mp4`` -> ground-truth tracks through OpenCV.
 
-The camera gives the ground truth the one-bit trackers are scored against (DESIGN.md, "The
+The camera gives the ground truth the one-bit trackers are scored against (docs/architecture.md, "The
 dataset folder"). Agents are found as blobs that differ from a static background and are
 linked frame to frame by minimum-cost assignment.
 
