@@ -166,7 +166,10 @@ def skipped_groups(status: dict[str, str], stage_list: Sequence[Stage] = ()) -> 
                 return root(maker, seen | {name})
         return name
 
+    def said(name: str) -> str:  # the reason without the stage's own name: "tracker 'hmm1' not selected"
+        return reasons[name].replace(f"tracker '{name}' ", "").replace(f" '{name}'", "")
+
     groups: dict[str, list[str]] = {}
     for name in reasons:
-        groups.setdefault(reasons[root(name)], []).append(name)
+        groups.setdefault(said(root(name)), []).append(name)
     return [f"skipped ({reason}): {', '.join(names)}" for reason, names in groups.items()]

@@ -32,6 +32,8 @@ STATUS = {
     "findinghumo": "skipped: site has no [sensor_graph] with edges",
     "hmm1": "skipped: site has no [sensor_graph] with edges",
     "beams": "ok (1.50 s)",
+    "intruder": "skipped: tracker 'intruder' not selected (--trackers)",
+    "residents": "skipped: tracker 'residents' not selected (--trackers)",
     "istate": "failed: boom",
     "scores/istate": "failed: cannot score",
 }
@@ -42,9 +44,10 @@ def test_skipped_stages_are_one_line_per_reason_said_at_their_root():
     assert lines == [
         "skipped (no frames.csv in the dataset): frames, clustertrack, binpf",
         "skipped (site has no [sensor_graph] with edges): findinghumo, hmm1",
+        "skipped (not selected (--trackers)): intruder, residents",
     ]
     # without the stage list a dependent stage keeps its own reason
-    assert len(skipped_groups(STATUS)) == 3
+    assert len(skipped_groups(STATUS)) == 4
 
 
 def test_summary_has_a_row_per_stage_that_ran_with_its_paper_measures():
