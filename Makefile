@@ -19,11 +19,11 @@ $(STAMP): pyproject.toml
 	$(BIN)/python -m benchmarks.warm_kernels  # compile the numba kernels once (cached): not on a run's critical path
 	touch $(STAMP)
 
-# demo: one simulated dataset per paper; each run writes OUT/rrd/*.rrd, OUT/report.csv and prints the report.
+# demo: one simulated dataset per paper; each run writes OUT/rrd/*.rrd, OUT/report.csv and prints one summary table
+# (the skipped stages one line per reason); `onebit report OUT` prints the whole report.
 demo: install
 	$(BIN)/onebit simulate beams-lab $(BUILD)/demo/beams-lab --seed 7 --duration 180 --agents 2
 	$(BIN)/onebit run $(BUILD)/demo/beams-lab --out $(BUILD)/demo/run
-	$(BIN)/onebit report $(BUILD)/demo/run
 	$(BIN)/onebit simulate pir14 $(BUILD)/demo/pir14 --seed 7 --param refractory=4
 	$(BIN)/onebit run $(BUILD)/demo/pir14 --out $(BUILD)/demo/pir14-run
 	$(BIN)/onebit simulate proximity-line $(BUILD)/demo/proximity-line --seed 7
@@ -38,12 +38,14 @@ $(RAY_STAMP): $(STAMP)
 	$(BIN)/python -m pip install --quiet -e '.[test,ray]'
 	touch $(RAY_STAMP)
 
-# test: lint and format (ruff), the layers contract (import-linter, pyproject.toml) and the test suite
-# on both cores (pytest-xdist; a test file stays on one worker, so module fixtures are built once).
+# test: lint and format (ruff), the layers contract (import-linter, pyproject.toml), the docs site
+# (mkdocs.yml, strict: a broken link or anchor fails) and the test suite on both cores
+# (pytest-xdist; a test file stays on one worker, so module fixtures are built once).
 test: install $(RAY_STAMP)
 	$(BIN)/ruff check .
 	$(BIN)/ruff format --check .
 	$(BIN)/lint-imports --no-cache
+	NO_MKDOCS_2_WARNING=1 $(BIN)/mkdocs build --strict --quiet --site-dir $(BUILD)/site
 	RERUN_ANALYTICS=0 $(BIN)/python -m pytest -n 2 --dist loadfile
 
 bench: install

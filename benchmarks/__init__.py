@@ -1,1 +1,1 @@
-"""Side-by-side benchmarks against peers (see DESIGN.md, "Standards")."""
+"""Side-by-side benchmarks against peers (see docs/architecture.md, "Standards")."""

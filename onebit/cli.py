@@ -5,6 +5,7 @@ from __future__ import annotations
 import argparse
 import atexit
 import gc
+import re
 import sys
 import tempfile
 import traceback
@@ -24,10 +25,11 @@ from onebit.pipeline.executors import EXECUTORS, make_executor
 from onebit.pipeline.follow import FollowConfig, follow, parse_speed
 from onebit.pipeline.learn import learn_residents, write_profile
 from onebit.pipeline.progress import Spinner
-from onebit.pipeline.report import check_run_folder, format_report, load_report
+from onebit.pipeline.report import check_run_folder, format_report, format_run_summary, load_report, skipped_groups
 from onebit.pipeline.runmany import format_summary, run_many
 from onebit.pipeline.runner import load_run_config, run_pipeline
 from onebit.pipeline.split import parse_period, split_dataset
+from onebit.pipeline.stages import stages
 from onebit.readers.loginfo import format_log_info, log_info
 from onebit.readers.mcap_io import csv_folder_to_mcap, load_topic_map, mcap_to_csv_folder, tracks_for_views
 from onebit.readers.trajectories import TrajectoryFormat
@@ -35,15 +37,32 @@ from onebit.trackers.beams.verify import parse_story, verify_path
 from onebit.trackers.residents.known import Clock
 from onebit.viz.compare import compare_runs
 
+_STAGE_LINE = re.compile(r"  [\w-]+: (ok|skipped \()")
+
+
+def _quiet_echo(line: str) -> None:
+    """The run's messages but its per-stage ``ok`` / ``skipped`` lines: the summary says those."""
+    if not _STAGE_LINE.match(line):
+        print(line)
+
 
 def _cmd_run(args) -> int:
     trackers = tuple(t.strip() for t in args.trackers.split(",")) if args.trackers else None
     config = load_run_config(args.config)
     print(f"onebit run {args.dataset} -> {args.out}")
+    echo = print if args.full_report else _quiet_echo
     res = run_pipeline(
-        args.dataset, args.out, trackers=trackers, config=config, echo=print, rrd=not args.no_rrd, cores=args.cores
+        args.dataset, args.out, trackers=trackers, config=config, echo=echo, rrd=not args.no_rrd, cores=args.cores
     )
-    print(format_report(res.report, title=f"report of {args.out}"))
+    if args.full_report:
+        print(format_report(res.report, title=f"report of {args.out}"))
+    else:
+        for line in skipped_groups(res.status, stages()):
+            print(f"  {line}")
+        print(format_run_summary(res.report, res.status, title=f"summary of {args.out}"), end="")
+        print(
+            f"the whole report ({res.report.height} rows): {Path(args.out) / 'report.csv'}, or: onebit report {args.out}"
+        )
     if args.no_rrd:
         print("Rerun recordings: none (--no-rrd)")
     else:
@@ -446,6 +465,12 @@ def _add_run_commands(sub) -> None:
         default=0,
         help="most trackers worked at once, side by side (the same tables); 0 = the cores available, "
         "on logs of 200 000 rows or more (default); 1 = one after another",
+    )
+    r.add_argument(
+        "--full-report",
+        action="store_true",
+        help="print every stage as it ends and every row of the report (default: one summary table, "
+        "the skipped stages one line per reason; the whole report is in OUT/report.csv and onebit report)",
     )
     r.set_defaults(func=_cmd_run)
 

@@ -1,4 +1,4 @@
-"""Canonical table schemas (see DESIGN.md, "Canonical tables").
+"""Canonical table schemas (see docs/architecture.md, "Canonical tables").
 
 Every table carries ``t: Float64`` = seconds since the dataset epoch, sorted by ``t``.
 Readers normalise to these schemas; stages call :func:`check_schema` on entry.

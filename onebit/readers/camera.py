@@ -1,7 +1,6 @@
 """Overhead camera reader: ``camera.mp4`` -> ground-truth tracks through OpenCV.
 
-The camera gives the ground truth the one-bit trackers are scored against (DESIGN.md, "The
-dataset folder"). Agents are found as blobs that differ from a static background and are
+The camera gives the ground truth the one-bit trackers are scored against (docs/dataset.md). Agents are found as blobs that differ from a static background and are
 linked frame to frame by minimum-cost assignment.
 
 Pipeline

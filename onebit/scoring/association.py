@@ -1,4 +1,4 @@
-"""The one truth-to-track association of every scorer (DESIGN.md, "Scores and reports").
+"""The one truth-to-track association of every scorer (docs/architecture.md, "Scores and reports").
 
 Two small steps, used by the ``intruder``, ``clustertrack``, ``findinghumo``/``hmm1``/``hmm2``
 and ``beams`` scorers alike (each with its own per-sample cost, in the paper's unit):

@@ -1,6 +1,6 @@
 """Standard multi-target tracking metrics of every tracker, as the maintained libraries compute them.
 
-Beside each paper's own metrics (DESIGN.md, "Scores and reports"):
+Beside each paper's own metrics (docs/architecture.md, "Scores and reports"):
 
 * MOTA, MOTP, ID switches (CLEAR MOT, Bernardin & Stiefelhagen 2008) and IDF1 (Ristani et al.
   2016) as ``motmetrics`` computes them;

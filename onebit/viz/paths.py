@@ -1,4 +1,4 @@
-"""Entity paths and the time line of every Rerun recording (DESIGN.md, "Rerun recordings").
+"""Entity paths and the time line of every Rerun recording (docs/architecture.md, "Rerun recordings").
 
 Every path a stage logs to is built here, so the layout lives in one place::
 

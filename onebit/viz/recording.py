@@ -1,7 +1,7 @@
 """Opening and closing ``.rrd`` files atomically.
 
 A recording is written to a temp file next to its final path and renamed into place only
-when it is complete, so an interrupted run never leaves a half ``.rrd`` (DESIGN.md,
+when it is complete, so an interrupted run never leaves a half ``.rrd`` (docs/architecture.md,
 "Standards"). Every stage of a run writes its own file ``OUT/rrd/<stage>.rrd`` with the same
 application id and recording id, so opening them together overlays them in one recording.
 """

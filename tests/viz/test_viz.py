@@ -1,4 +1,4 @@
-"""onebit.viz: recordings are written atomically, verify, and hold the DESIGN entity paths."""
+"""onebit.viz: recordings are written atomically, verify, and hold the entity paths of docs/architecture.md."""
 
 from __future__ import annotations
 
