@@ -23,7 +23,7 @@ and clears ``b`` last (paper Figs. 5-7).
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from datetime import datetime
 from functools import cached_property
 from pathlib import Path
@@ -58,18 +58,18 @@ _TOP_KEYS = {
     "sensor_types",
     "body_radius",
 }
-_MOTION_KEYS = {"id", "position", "heading", "type", "refractory", "fov", "range", "signal"}
-_BINARY_KEYS = {"id", "position", "radius", "r_inner", "r_outer", "fov", "type", "refractory", "signal"}
+_MOTION_KEYS = {"id", "position", "heading", "type", "refractory", "fov", "range", "signal", "ignore"}
+_BINARY_KEYS = {"id", "position", "radius", "r_inner", "r_outer", "fov", "type", "refractory", "signal", "ignore"}
 #: What a binary reading means (``signal`` of a sensor or of its ``[sensor_types]`` table):
 #: ``level`` -- on while a target is in the footprint (a sensor held on is presence: ceiling
 #: IR, pressure mats, proximity sensors); ``edge`` -- an on is an event (motion began in the
 #: footprint: a PIR's trigger), a sensor held on says nothing more after its rising edge.
 SIGNALS = ("level", "edge")
-_PROXIMITY_KEYS = {"id", "position", "radius", "r_inner", "r_outer"}
+_PROXIMITY_KEYS = {"id", "position", "radius", "r_inner", "r_outer", "ignore"}
 _GRAPH_KEYS = {"edges", "entries", "exits", "signatures", "geometry"}
 _BOUNDARY_KEYS = {"polygon"}
 _OBSTACLE_KEYS = {"name", "polygon"}
-_BEAM_KEYS = {"id", "segment", "forward", "spacing", "capacity"}
+_BEAM_KEYS = {"id", "segment", "forward", "spacing", "capacity", "ignore"}
 _REGION_KEYS = {"name", "point", "capacity"}
 _CAMERA_KEYS = {"width", "height", "fps", "homography", "points", "t0"}
 _UNITS = set(METRES_PER_UNIT)
@@ -260,6 +260,26 @@ class Site:
     #: body overlaps a pair, so a crossing is logged with the centre up to ``spacing / 2 +
     #: body_radius`` past the beam (:func:`onebit.core.sensing.body_radius`)
     body_radius: float | None = None
+    #: ids of the sensors (beams included) marked ``ignore = true``, on the sensor or on its
+    #: ``[sensor_types.<name>]`` table: the readers know them (their rows are read, never
+    #: rejected), no tracker sees them (:attr:`tracked`)
+    ignored: frozenset[str] = frozenset()
+
+    @cached_property
+    def tracked(self) -> Site:
+        """The site as the trackers see it: the ignored sensors left out of the motion,
+        proximity and binary sensor lists (the sensor graph never has them). Beams stay (they
+        bound the regions); an ignored beam's crossings are left out of the trackers' inputs
+        (:func:`onebit.pipeline.stages.without_ignored`). ``self`` when nothing is ignored."""
+        if not self.ignored:
+            return self
+        keep = self.ignored.isdisjoint
+        return replace(
+            self,
+            motion_sensors=tuple(m for m in self.motion_sensors if keep((m.id,))),
+            proximity_sensors=tuple(p for p in self.proximity_sensors if keep((p.id,))),
+            binary_sensors=tuple(b for b in self.binary_sensors if keep((b.id,))),
+        )
 
     @property
     def free_space(self):
@@ -347,12 +367,14 @@ def site_from_dict(data: dict, *, source: str = "<site>") -> Site:
     if not isinstance(stypes, dict) or not all(isinstance(v, dict) for v in stypes.values()):
         raise err("sensor_types", "must be a table of tables ([sensor_types.<name>])")
     motion, prox, binary = _sensors(data, boundary, {b.id for b in beams}, stypes, err)
+    ignored = _ignored(data, stypes, err)
     graph = (
         _sensor_graph(
             data["sensor_graph"],
             {m.id for m in motion},
             err,
-            motion=motion,
+            motion=[m for m in motion if m.id not in ignored],
+            ignored=ignored,
             walls=shapely.union_all([boundary.exterior, *obstacles]),
             source=source,
         )
@@ -378,7 +400,36 @@ def site_from_dict(data: dict, *, source: str = "<site>") -> Site:
         sensor_graph=graph,
         sensor_types=stypes,
         body_radius=body,
+        ignored=ignored,
     )
+
+
+_SENSOR_LISTS = ("beams", "motion_sensors", "proximity_sensors", "binary_sensors")
+
+
+def _ignored(data: dict, stypes: dict, err) -> frozenset[str]:
+    """Ids of the sensors marked ``ignore = true``: on the sensor, else on its type's table
+    (``[sensor_types.<name>] ignore = true``); a sensor's own ``ignore = false`` overrides its
+    type's. The tables were validated already (ids, keys); ``ignore`` must be a boolean."""
+    for name, table in stypes.items():
+        if "ignore" in table and not isinstance(table["ignore"], bool):
+            raise err(f"sensor_types.{name}.ignore", f"must be true or false, got {_shown(table['ignore'])}")
+    out: set[str] = set()
+    for kind in _SENSOR_LISTS:
+        for i, table in enumerate(data.get(kind, [])):
+            sid = str(table["id"])
+            if "ignore" in table:
+                if not isinstance(table["ignore"], bool):
+                    raise err(
+                        f"{kind}[{i}] (id {sid!r}).ignore", f"must be true or false, got {_shown(table['ignore'])}"
+                    )
+                flag = table["ignore"]
+            else:
+                typ = stypes.get(table.get("type")) if isinstance(table.get("type"), str) else None
+                flag = bool(typ.get("ignore", False)) if typ is not None else False
+            if flag:
+                out.add(sid)
+    return frozenset(out)
 
 
 def _site_epoch(epoch, err) -> str | None:
@@ -635,7 +686,19 @@ def _proximity_sensor(ps: dict, i: int, seen: set[str], err) -> ProximitySensor:
     return ProximitySensor(sid, (float(pos[0]), float(pos[1])), r_in, r_out)
 
 
-def _sensor_graph(g, motion_ids: set[str], err, *, motion=(), walls=None, source: str = "<site>") -> SensorGraph:
+def _sensor_graph(
+    g,
+    motion_ids: set[str],
+    err,
+    *,
+    motion=(),
+    walls=None,
+    source: str = "<site>",
+    ignored: frozenset[str] = frozenset(),
+) -> SensorGraph:
+    """``[sensor_graph]``: edges given or from the sensors' geometry (``motion``: the sensors
+    not ignored). An ignored sensor may be named in the table (it is a motion sensor) but is
+    no node of the graph: its edges, entries, exits and signatures are dropped."""
     if not isinstance(g, dict):
         raise err("sensor_graph", "must be a table")
     _unknown(g, _GRAPH_KEYS, "sensor_graph.", err)
@@ -679,8 +742,13 @@ def _sensor_graph(g, motion_ids: set[str], err, *, motion=(), walls=None, source
     sig = g.get("signatures", [])
     if not isinstance(sig, list) or not all(isinstance(e, list) and len(e) == 2 for e in sig):
         raise err("sensor_graph.signatures", "must be a list of [outer, inner] node pairs")
-    nodes = tuple(sorted(motion_ids, key=_natural_key))
-    return SensorGraph(nodes, edges_t, out["entries"], out["exits"], tuple((str(a), str(b)) for a, b in sig))
+    sig_t = tuple((str(a), str(b)) for a, b in sig)
+    if ignored:
+        edges_t = tuple(e for e in edges_t if ignored.isdisjoint(e))
+        sig_t = tuple(e for e in sig_t if ignored.isdisjoint(e))
+        out = {k: tuple(n for n in v if n not in ignored) for k, v in out.items()}
+    nodes = tuple(sorted(motion_ids - ignored, key=_natural_key))
+    return SensorGraph(nodes, edges_t, out["entries"], out["exits"], sig_t)
 
 
 def _natural_key(s: str):

@@ -108,6 +108,7 @@ TYPE_KEYS = GEOMETRY_KEYS | {
     "chatter_window",
     "min_on",
     "signal",
+    "ignore",
 }
 
 IDW_POWER = 2.0

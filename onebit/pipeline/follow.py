@@ -99,7 +99,15 @@ from onebit.core.tables import REJECTS
 from onebit.models.graph_hmm.decoding import build_eatg
 from onebit.pipeline.context import RunContext, dataset_run_config
 from onebit.pipeline.runner import RunResult, check_dataset, check_out, check_sections, run_pipeline
-from onebit.pipeline.stages import LOOKS, TIME_SOURCES, TRACKERS, run_time_origin, stages, tracker_config
+from onebit.pipeline.stages import (
+    LOOKS,
+    TIME_SOURCES,
+    TRACKERS,
+    run_time_origin,
+    stages,
+    tracker_config,
+    without_ignored,
+)
 from onebit.readers.mcap_io import load_topic_map, read_mcap
 from onebit.readers.motion import MotionConfig, site_rules
 from onebit.readers.proximity import ProximityConfig, proximity_frames
@@ -573,18 +581,21 @@ def _context(data: Path, scratch: Path, site, rg, sections: dict, trackers, mcap
     return ctx
 
 
-def _inputs(entry, tables: dict, region_graph, *, until: float | None) -> dict[str, Any] | None:
-    """A tracker's inputs from ``tables``, each cut at ``t <= until`` (``None``: whole)."""
+def _inputs(
+    entry, tables: dict, region_graph, *, until: float | None, ignored: frozenset[str] = frozenset()
+) -> dict[str, Any] | None:
+    """A tracker's inputs from ``tables``, each cut at ``t <= until`` (``None``: whole), without
+    the rows of the ``ignored`` sensors (:func:`onebit.pipeline.stages.without_ignored`)."""
     inputs: dict[str, Any] = {}
     for key in entry.spec.needs:
         src = next((s for s in entry.inputs.get(key, (key,)) if s in tables), None)
         if src is None:
             return None
-        df = tables[src]
+        df = without_ignored(src, tables[src], ignored)
         inputs[key] = df if until is None or "t" not in df.columns else df.filter(pl.col("t") <= until)
     for k in entry.spec.wants:
         if k in tables:
-            df = tables[k]
+            df = without_ignored(k, tables[k], ignored)
             inputs[k] = df if until is None or "t" not in df.columns else df.filter(pl.col("t") <= until)
     inputs["region_graph"] = region_graph
     inputs[PROGRESS] = lambda done, total: None
@@ -695,7 +706,7 @@ def follow(
         online = [
             n
             for n in ONLINE
-            if n in chosen and (entries[n].spec.available is None or entries[n].spec.available(site) is None)
+            if n in chosen and (entries[n].spec.available is None or entries[n].spec.available(site.tracked) is None)
         ]
         viz_live.send_live_blueprint(rec, online)
         batch_only = [n for n in chosen if n not in online]
@@ -886,10 +897,10 @@ def follow(
                     last = math.inf if final else float(ev["t"].max())
                     if last <= published[name]:
                         continue
-                    inputs = _inputs(entry, tables, rg, until=until)
+                    inputs = _inputs(entry, tables, rg, until=until, ignored=site.ignored)
                     if inputs is None:
                         continue
-                    res = entry.spec.run(inputs, site, tracker_config(entry, ctx))
+                    res = entry.spec.run(inputs, site.tracked, tracker_config(entry, ctx))
                     upto = res["tracks"].filter(pl.col("t") <= last)
                     # rows not published yet (a re-run may add rows dated earlier: beams gives an agent
                     # created at a later crossing its initial region at the first crossing's time)

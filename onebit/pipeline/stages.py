@@ -10,6 +10,7 @@
     frames     frames.csv (frame-sampled)  -> levels, motion, proximity, proximity_frames
     motion     motion.csv                  -> motion, motion_suppressed   (skipped with frames.csv)
     proximity  proximity.csv               -> proximity, proximity_frames, proximity_suppressed
+    ignore     site.toml ignore = true     -> ignored (rows of ignored sensors the trackers will not see)
     correct    crossings                   -> corrected_crossings, correct_insertions, correct_initial
     <tracker>  its TrackerSpec.needs       -> <tracker>_tracks, <tracker>_<table>...   (one per TRACKERS entry)
     scores     everything above            -> crossing_matches, <tracker>_scores, ...
@@ -609,6 +610,61 @@ def _proximity_work(ctx: RunContext) -> dict[str, pl.DataFrame]:
 # --------------------------------------------------------------------------- correction (Bobadilla V)
 
 
+# --------------------------------------------------------------------------- ignored sensors
+
+#: The tables of readings a tracker may read, with the column naming their sensor: an ignored
+#: sensor's rows are left out of them (:func:`without_ignored`) before any tracker sees them.
+READINGS = {
+    "motion": "sensor",
+    "proximity": "sensor",
+    "levels": "sensor",
+    "proximity_frames": "sensor",
+    "crossings": "beam",
+    "corrected_crossings": "beam",
+    "beam_events": "beam",
+    "aborted": "beam",
+}
+
+
+def without_ignored(name: str, table: Any, ignored: frozenset[str]) -> Any:
+    """``table`` (the run's table ``name``) without the rows of the ``ignored`` sensors
+    (``site.toml`` ``ignore = true``) when it is a table of readings (:data:`READINGS`); any
+    other value as it is."""
+    col = READINGS.get(name)
+    if not ignored or col is None or not isinstance(table, pl.DataFrame) or col not in table.columns:
+        return table
+    return table.filter(~pl.col(col).is_in(sorted(ignored)))
+
+
+def _ignore_available(ctx: RunContext) -> str | None:
+    return None if ctx.site.ignored else "no sensor has ignore = true in site.toml"
+
+
+def _ignore_work(ctx: RunContext) -> dict[str, pl.DataFrame]:
+    """Count what the readers read of the ignored sensors (kept in their tables, left out of
+    every tracker's inputs by :func:`tracker_inputs`): one row per (table, sensor)."""
+    ignored = sorted(ctx.site.ignored)
+    parts = []
+    for name, col in READINGS.items():
+        df = ctx.tables.get(name)
+        if df is None or col not in df.columns:
+            continue
+        parts.append(
+            df.filter(pl.col(col).is_in(ignored))
+            .group_by(col)
+            .len("rows")
+            .select(pl.lit(name).alias("table"), pl.col(col).alias("sensor"), pl.col("rows").cast(pl.Int64))
+        )
+    schema = {"table": pl.String, "sensor": pl.String, "rows": pl.Int64}
+    out = pl.concat(parts) if parts else pl.DataFrame(schema=schema)
+    out = out.sort("table", "sensor")
+    ctx.report += [
+        ("ignore", "ignored_sensors", float(len(ignored)), "sensors"),
+        ("ignore", "ignored_rows", float(out["rows"].sum()) if out.height else 0.0, "rows"),
+    ]
+    return {"ignored": out}
+
+
 def _correct_available(ctx: RunContext) -> str | None:
     if not ctx.site.beams:
         return "site has no beams"
@@ -628,7 +684,8 @@ def _correct_work(ctx: RunContext) -> dict[str, pl.DataFrame]:
     cfg = config_from_mapping(CorrectConfig, ctx.section("correct"), section="correct")
     n = cfg.n if cfg.n is not None else ctx.site.targets
     ctx.record("correct", cfg, n=n)
-    res = run_correction(ctx.tables["crossings"], ctx.region_graph, cfg, n)
+    crossings = without_ignored("crossings", ctx.tables["crossings"], ctx.site.ignored)
+    res = run_correction(crossings, ctx.region_graph, cfg, n)
     ctx.report += res.report
     return res.tables
 
@@ -649,13 +706,18 @@ def tracker_config(entry: TrackerEntry, ctx: RunContext):
 
 
 def tracker_inputs(entry: TrackerEntry, ctx: RunContext) -> dict[str, Any]:
+    """The tracker's input tables (its ``needs``, first present source wins, and ``wants``),
+    without the rows of ignored sensors (:func:`without_ignored`), the region graph and the
+    progress callback. The tracker is run on ``ctx.site.tracked`` (no ignored sensor)."""
+    ignored = ctx.site.ignored
     inputs: dict[str, Any] = {}
     for key in entry.spec.needs:
         sources = entry.inputs.get(key, (key,))
-        inputs[key] = next(ctx.tables[s] for s in sources if s in ctx.tables)
-    inputs.update({k: ctx.tables[k] for k in entry.spec.wants if k in ctx.tables})
+        src = next(s for s in sources if s in ctx.tables)
+        inputs[key] = without_ignored(src, ctx.tables[src], ignored)
+    inputs.update({k: without_ignored(k, ctx.tables[k], ignored) for k in entry.spec.wants if k in ctx.tables})
     if "levels" in ctx.tables:  # a frame log: every sensor's reading at every frame, for any tracker that reads it
-        inputs.setdefault("levels", ctx.tables["levels"])
+        inputs.setdefault("levels", without_ignored("levels", ctx.tables["levels"], ignored))
     inputs["region_graph"] = ctx.region_graph
     inputs[PROGRESS] = ctx.progress
     return inputs
@@ -684,10 +746,11 @@ def tracker_stage(entry: TrackerEntry) -> Stage:
                 return f"input table '{key}' not produced by an earlier stage"
         if not spec.needs and spec.wants and not any(k in ctx.tables for k in spec.wants):
             return f"none of its input tables ({', '.join(spec.wants)}) was produced by an earlier stage"
-        reason = spec.available(ctx.site) if spec.available is not None else None
+        site = ctx.site.tracked
+        reason = spec.available(site) if spec.available is not None else None
         if reason is None and spec.fits is not None:  # the inputs' size against the tracker's bound
-            cfg = config_in_site_units(config_from_mapping(spec.config, ctx.section(name), section=name), ctx.site)
-            reason = spec.fits(tracker_inputs(entry, ctx), ctx.site, cfg)
+            cfg = config_in_site_units(config_from_mapping(spec.config, ctx.section(name), section=name), site)
+            reason = spec.fits(tracker_inputs(entry, ctx), site, cfg)
         return reason
 
     def work(ctx: RunContext) -> dict[str, Any]:
@@ -697,7 +760,7 @@ def tracker_stage(entry: TrackerEntry) -> Stage:
     def detach(ctx: RunContext) -> tuple[Callable[..., dict[str, Any]], tuple, Any]:
         cfg = ctx.configs[name] = tracker_config(entry, ctx)
         shares = spec.shares(cfg) if spec.shares is not None else None
-        return detached_tracker, (name, spec.run, tracker_inputs(entry, ctx), ctx.site, cfg), shares
+        return detached_tracker, (name, spec.run, tracker_inputs(entry, ctx), ctx.site.tracked, cfg), shares
 
     def viz(rec, ctx: RunContext, made: dict) -> None:
         if entry.viz is None:
@@ -709,7 +772,7 @@ def tracker_stage(entry: TrackerEntry) -> Stage:
             rec,
             name,
             out,
-            site=ctx.site,
+            site=ctx.site.tracked,
             region_graph=ctx.region_graph,
             config=ctx.configs[name],
             tables=ctx.tables,
@@ -751,13 +814,14 @@ def scores_stage(trackers: tuple[TrackerEntry, ...] = TRACKERS, metrics: tuple[M
         )
         rows, out = score_crossings(tables, cfg)
         ctx.report += rows
+        site = ctx.site.tracked  # the trackers' view: no ignored sensor
         tables.update(out)
         for entry in trackers:
             if entry.name not in ctx.trackers or not ctx.status.get(entry.name, "").startswith("ok"):
                 continue
             try:  # one tracker's scoring failing (say, a sensor without a region) keeps the others'
-                rows, made = entry.score(entry.name, tables, ctx.site, ctx.region_graph)
-                rows = rows + mot_rows(entry.name, entry.gate, tables, ctx.site, ctx.region_graph, gates_m=cfg.gates_m)
+                rows, made = entry.score(entry.name, tables, site, ctx.region_graph)
+                rows = rows + mot_rows(entry.name, entry.gate, tables, site, ctx.region_graph, gates_m=cfg.gates_m)
             except CannotServe as exc:  # the tracker's model does not fit the data: a flag, no number
                 ctx.status[f"scores/{entry.name}"] = f"cannot serve the data: {exc}"
                 ctx.report.append((entry.name, "cannot_serve", 1.0, "flag"))
@@ -773,13 +837,13 @@ def scores_stage(trackers: tuple[TrackerEntry, ...] = TRACKERS, metrics: tuple[M
                 continue
             for fn in METRICS if metrics is None else metrics:
                 try:
-                    ctx.report += fn(entry.name, tables, ctx.site, ctx.region_graph)
+                    ctx.report += fn(entry.name, tables, site, ctx.region_graph)
                 except OnebitError as exc:
                     ctx.status[f"scores/{entry.name}"] = f"failed: {exc}"
         te = tables.get("truth_events")
         if te is not None and te.height:  # what a tracker's identity per event is compared with
             ctx.report += baseline_rows(
-                te, graph_hops(ctx.site), profile=tables.get("residents_profile"), epoch=ctx.site.epoch
+                te, graph_hops(site), profile=tables.get("residents_profile"), epoch=ctx.site.epoch
             )
         rej = ctx.tables.get("rejects", pl.DataFrame(schema=REJECTS))
         ctx.report.append(("rejects", "rows", float(rej.height), "rows"))
@@ -851,6 +915,7 @@ def stages(trackers: tuple[TrackerEntry, ...] = TRACKERS) -> list[Stage]:
             _proximity_work,
             config=ProximityConfig,
         ),
+        Stage("ignore", (), ("ignored",), _ignore_available, _ignore_work),
         Stage(
             "correct",
             ("crossings",),

@@ -278,6 +278,37 @@ def log_point_tracks(
     log_dots(rec, entities, t, xy, bounds, colors=track_shades, labels=[labels[track] for track in spans.keys])
     log_trails(rec, entities, t, xy, bounds, colors=track_shades)
     log_full_paths(rec, entities, xy, bounds, colors=track_shades)
+    log_track_ends(rec, entities, t, bounds)
+
+
+def track_ends(t: np.ndarray, bounds: np.ndarray) -> np.ndarray:
+    """When each track of rows ``bounds[i]:bounds[i + 1]`` of ``t`` has ended: one of its own
+    steps (the median gap of its rows) after its last row; a track of one row takes the median
+    step of all tracks (``NaN`` when no track has two rows: no step is known)."""
+    bounds = np.asarray(bounds, np.int64)
+    steps = [np.diff(t[lo:hi]) for lo, hi in zip(bounds[:-1], bounds[1:])]
+    every = np.concatenate([d[d > 0] for d in steps]) if steps else np.empty(0)
+    fallback = float(np.median(every)) if every.size else np.nan
+    ends = np.full(len(steps), np.nan)
+    for i, (d, hi) in enumerate(zip(steps, bounds[1:].tolist())):
+        if hi <= bounds[i]:
+            continue
+        pos = d[d > 0]
+        ends[i] = t[hi - 1] + (float(np.median(pos)) if pos.size else fallback)
+    return ends
+
+
+def log_track_ends(rec: rr.RecordingStream, entities: list[str], t: np.ndarray, bounds: np.ndarray) -> None:
+    """Clear each track's dot and label when the track has ended (:func:`track_ends`), so a
+    map shows the tracks alive now, not every track that ever was (the trail fades by its own
+    time range; the hidden whole path, a child entity, stays). One ``send_columns`` per track."""
+    ends = track_ends(np.asarray(t, np.float64), bounds)
+    has = np.flatnonzero(np.isfinite(ends))
+    if len(has) == 0:
+        return
+    clear = bulk.column_arrays(rr.Clear.columns(is_recursive=np.zeros(len(has), bool)))
+    idx = np.arange(len(has))
+    bulk.send_spans(rec, [entities[i] for i in has], bulk.time_array(ends[has]), clear, idx, idx + 1)
 
 
 def log_series(

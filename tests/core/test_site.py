@@ -272,3 +272,80 @@ def test_ragged_or_mistyped_homography_is_a_site_error(tmp_path, h):
     )
     with pytest.raises(SiteError, match=r"camera\.homography"):
         load_site(p)
+
+
+# --------------------------------------------------------------------------- ignore = true
+
+
+def _ignore_site(flags: list[bool | None], typed: list[bool], type_ignore: bool) -> dict:
+    """A site of 4 binary sensors in a row with a connected geometric graph: sensor i says
+    ``ignore = flags[i]`` (``None``: says nothing) and is of type ``hot`` when ``typed[i]``."""
+    sensors = []
+    for i, (flag, typ) in enumerate(zip(flags, typed)):
+        s = {"id": f"s{i}", "position": [1.0 + 2 * i, 2.0], "radius": 1.0}
+        if flag is not None:
+            s["ignore"] = flag
+        if typ:
+            s["type"] = "hot"
+        sensors.append(s)
+    return {
+        "boundary": {"polygon": [[0, 0], [10, 0], [10, 4], [0, 4]]},
+        "binary_sensors": sensors,
+        "sensor_types": {"hot": {"ignore": type_ignore}},
+        "sensor_graph": {"geometry": "connected"},
+    }
+
+
+@settings(max_examples=40, deadline=None)
+@given(
+    flags=st.lists(st.sampled_from([None, True, False]), min_size=4, max_size=4),
+    typed=st.lists(st.booleans(), min_size=4, max_size=4),
+    type_ignore=st.booleans(),
+)
+def test_ignored_sensors_are_known_to_readers_and_left_out_for_trackers(flags, typed, type_ignore):
+    site = site_from_dict(_ignore_site(flags, typed, type_ignore))
+    expect = {f"s{i}" for i, (f, t) in enumerate(zip(flags, typed)) if f is True or (f is None and t and type_ignore)}
+    assert site.ignored == expect
+    every = {f"s{i}" for i in range(4)}
+    # the readers' view: every sensor, ignored or not
+    assert {m.id for m in site.motion_sensors} == every
+    assert {p.id for p in site.proximity_sensors} == every
+    assert set(site.signals) == every
+    # the trackers' view: none of the ignored
+    tracked = site.tracked
+    assert {m.id for m in tracked.motion_sensors} == every - expect
+    assert {p.id for p in tracked.proximity_sensors} == every - expect
+    assert {b.id for b in tracked.binary_sensors} == every - expect
+    assert set(site.sensor_graph.nodes) == every - expect
+    assert all(expect.isdisjoint(e) for e in site.sensor_graph.edges)
+    assert (tracked is site) == (not expect)
+
+
+def test_explicit_graph_edges_at_an_ignored_sensor_are_dropped():
+    data = _ignore_site([None, True, None, None], [False] * 4, False)
+    data["sensor_graph"] = {"edges": [["s0", "s1"], ["s1", "s2"], ["s2", "s3"]], "entries": ["s1", "s0"]}
+    site = site_from_dict(data)
+    assert site.sensor_graph.edges == (("s2", "s3"),)
+    assert site.sensor_graph.entries == ("s0",)
+
+
+@pytest.mark.parametrize(
+    "edit, key",
+    [
+        (lambda d: d["binary_sensors"][0].update(ignore="yes"), "binary_sensors[0] (id 's0').ignore"),
+        (lambda d: d["sensor_types"]["hot"].update(ignore=1), "sensor_types.hot.ignore"),
+    ],
+)
+def test_ignore_must_be_a_boolean(edit, key):
+    data = _ignore_site([None] * 4, [True] * 4, False)
+    edit(data)
+    with pytest.raises(SiteError) as exc:
+        site_from_dict(data)
+    assert key in str(exc.value)
+
+
+def test_an_ignored_beam_keeps_its_regions(tmp_path):
+    site = _load(tmp_path, BASE.replace("spacing = 0.1", "spacing = 0.1\nignore = true"))
+    assert site.ignored == {"a"}
+    assert site.tracked.beam_ids == ("a",)
+    assert build_region_graph(site).names == ("r1", "r2")

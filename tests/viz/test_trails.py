@@ -124,3 +124,18 @@ def test_truth_is_a_neutral_ring_and_an_estimate_a_dot_in_its_tracker_colour(tmp
     # same id, different names: the estimate does not pretend to be the target
     assert rrd.component_rows(f, "beams/tracks/target1", "Points2D:labels") == [["beams estimate"]]
     assert rrd.component_rows(f, "truth/target1", "Points2D:labels") == [["target1"]]
+
+
+def test_an_ended_track_is_cleared_one_step_after_its_last_row(tmp_path):
+    """binpf's map kept 40-150 stale ``track N`` labels while one track was alive: a track's
+    dot (and so its label) is cleared when it ends; a track alive to the end is cleared after."""
+    walks = walk(6.0, targets=2).rename({"target": "track"})
+    tracks = walks.filter((pl.col("track") == "target2") | (pl.col("t") < 2.0))  # target1 ends at 1.9 s
+    with stage_recording(tmp_path, "c", RUN_ID) as rec:
+        log_point_tracks(rec, "binpf", tracks)
+    f = tmp_path / "rrd" / "c.rrd"
+    first = rrd.timed_rows(f, "binpf/tracks/target1", "Clear:is_recursive")
+    assert [(round(t, 6), v) for t, v in first] == [(2.0, [False])]  # one step (0.1 s) after 1.9 s
+    last = rrd.timed_rows(f, "binpf/tracks/target2", "Clear:is_recursive")
+    assert [round(t, 6) for t, _ in last] == [round(float(walks["t"].max()) + 0.1, 6)]
+    assert rrd.timed_rows(f, "binpf/tracks/target1/path", "Clear:is_recursive") == []  # the whole path stays
