@@ -553,7 +553,12 @@ def import_aras(house: str | Path, dataset: str | Path, *, days: tuple[int, int]
     info = {
         "source": {"folder": str(house.resolve()), "format": "aras", "readme": spec.source},
         "counts": counts,
-        "time": {"epoch": EPOCH, "notional": True, "days": [a, b], "rule": "day N starts (N - 1) x 86400 s after epoch"},
+        "time": {
+            "epoch": EPOCH,
+            "notional": True,
+            "days": [a, b],
+            "rule": "day N starts (N - 1) x 86400 s after epoch",
+        },
         "truth": {
             "count": "people home = residents whose activity is not Going Out (2)",
             "events": "an ON edge goes to resident r when the other is Going Out, Sleeping or Napping and r is not; "

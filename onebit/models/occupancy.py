@@ -54,7 +54,12 @@ import numpy as np
 import polars as pl
 
 from onebit.core.compiled import kernel
-from onebit.core.tables import COUNT_PROFILE
+from onebit.core.config import check_range
+from onebit.core.lazy import lazy_module
+from onebit.core.tables import COUNT_PROFILE, MOTION, check_schema
+from onebit.core.units import length
+
+nx = lazy_module("networkx")
 
 #: The ``present`` step function of a count: (t, present).
 PEOPLE = pl.Schema({"t": pl.Float64, "present": pl.Int64})
@@ -402,3 +407,172 @@ def people_steps(starts: np.ndarray, count: np.ndarray) -> pl.DataFrame:
         return pl.DataFrame(schema=PEOPLE)
     keep = np.r_[True, count[1:] != count[:-1]]
     return pl.DataFrame({"t": starts[keep].astype(float), "present": count[keep].astype(np.int64)}, schema=PEOPLE)
+
+
+@dataclass(frozen=True, kw_only=True)
+class OccupancyConfig:
+    """``[occupancy]``: the count model's constants (module docstring, eq. O1-O2).
+
+    bin_s : seconds per bin (the count is decided per bin).
+    max_people : ``K`` when neither ``targets`` nor a learned profile gives it.
+    window_s, far_hops, far_m : two ON edges at most ``window_s`` apart at sensors ``far_hops``
+        or more hops apart on the sensor graph (``far_m`` metres apart without a graph) need two people.
+    held : a level sensor on in a bin (a force sensor, a pressure mat) is activity.
+    door_stay : ``D[i, i]``: a door event that changes nothing (someone looks out, a visitor at the door).
+    quiet_change : probability of a change of the count in a bin without a door event.
+    noise : ``A[0, 1]``: a sensor fires in an empty home in a bin.
+    activity : one person's chance to fire a sensor in a bin (``A[n, 1] = 1 - (1 - activity)^n``).
+    far_noise, far_rate : ``F[n, 1]``: far pairs with at most one person in (lingering
+        sensors, a door slammed by the wind) and with two or more.
+    prior : pseudo-counts per cell of every learned table (Dirichlet).
+    clock_weight : ``w``: weight of the learned count by hour of day (0: no clock).
+    profile : use the dataset's ``count_profile.csv`` when it has one (off: always the defaults).
+    """
+
+    bin_s: float = 60.0
+    max_people: int = 4
+    window_s: float = 2.0
+    far_hops: int = 3
+    far_m: float = length(5.0)
+    held: bool = True
+    door_stay: float = 0.5
+    quiet_change: float = 1e-4
+    noise: float = 0.02
+    activity: float = 0.3
+    far_noise: float = 0.002
+    far_rate: float = 0.1
+    prior: float = 1.0
+    clock_weight: float = 1.0
+    profile: bool = True
+
+    def __post_init__(self) -> None:
+        check_range(self, "bin_s", 1.0, 86_400.0)
+        check_range(self, "max_people", 1, 16, types=(int,))
+        check_range(self, "window_s", 0.0, 600.0)
+        check_range(self, "far_hops", 1, 1000, types=(int,))
+        check_range(self, "far_m", 0.0, None)
+        check_range(self, "door_stay", 1e-6, 1.0 - 1e-6)
+        check_range(self, "quiet_change", 1e-12, 0.5)
+        check_range(self, "noise", 1e-9, 0.5)
+        check_range(self, "activity", 1e-6, 1.0 - 1e-6)
+        check_range(self, "far_noise", 1e-9, 0.5)
+        check_range(self, "far_rate", 1e-9, 1.0 - 1e-9)
+        check_range(self, "prior", 1e-6, 1e6)
+        check_range(self, "clock_weight", 0.0, 100.0)
+
+
+#: The per-bin table of a run: bin start, evidence, decoded count.
+BINS = pl.Schema({"t": pl.Float64, "door": pl.Boolean, "active": pl.Boolean, "far": pl.Boolean, "present": pl.Int64})
+
+
+def epoch_seconds_of_day(epoch: str | None) -> float | None:
+    """Seconds after midnight of an ISO epoch (``None`` without one)."""
+    if not epoch:
+        return None
+    from datetime import datetime
+
+    d = datetime.fromisoformat(epoch.replace("Z", "+00:00"))
+    return float(d.hour * 3600 + d.minute * 60 + d.second + d.microsecond / 1e6)
+
+
+def far_matrix(site, sensors: list[str], cfg: OccupancyConfig) -> np.ndarray:
+    """Whether two sensors are too far apart for one person to fire both within ``window_s``:
+    ``far_hops`` or more hops on the site's sensor graph (not joined: far), or ``far_m``
+    metres apart without a graph."""
+    g = site.sensor_graph
+    S = len(sensors)
+    if g is not None and list(g.edges):
+        gr = nx.Graph()
+        gr.add_nodes_from(sensors)
+        gr.add_edges_from((a, b) for a, b in g.edges if a in gr and b in gr)
+        idx = {s: k for k, s in enumerate(sensors)}
+        hops = np.full((S, S), np.inf)
+        for a, lengths in nx.all_pairs_shortest_path_length(gr):
+            for b, d in lengths.items():
+                hops[idx[a], idx[b]] = d
+        return hops >= cfg.far_hops
+    pos = {m.id: m.position for m in site.motion_sensors}
+    xy = np.array([pos[s] for s in sensors], dtype=float).reshape(-1, 2)
+    d = np.hypot(xy[:, None, 0] - xy[None, :, 0], xy[:, None, 1] - xy[None, :, 1])
+    return d >= cfg.far_m
+
+
+def people_bound(site, cfg: OccupancyConfig, profile: pl.DataFrame | None) -> int:
+    """``K``: the site's ``targets`` (an upper bound), else the largest count of the learned
+    days, else ``max_people``."""
+    if site.targets is not None:
+        return max(int(site.targets), 1)
+    if profile is not None and profile.height:
+        return max(learned_people(profile), 1)
+    return cfg.max_people
+
+
+def estimate(
+    motion: pl.DataFrame,
+    site,
+    cfg: OccupancyConfig,
+    profile: pl.DataFrame | None = None,
+    *,
+    span: tuple[float, float] | None = None,
+) -> tuple[pl.DataFrame, pl.DataFrame]:
+    """The count of a home over the motion log: ``(bins, people)`` -- the per-bin table
+    (:data:`BINS`) and the step function (:data:`PEOPLE`). ``profile``: the statistics of
+    labelled days (:data:`~onebit.core.tables.COUNT_PROFILE`), used when ``cfg.profile``."""
+    motion = check_schema(motion, MOTION, name="motion")
+    sensors = [m.id for m in site.motion_sensors]
+    g = site.sensor_graph
+    doors = set(g.entries) | set(g.exits) if g is not None else set()
+    if motion.filter(pl.col("sensor").is_in(sensors)).height == 0 and span is None:
+        return pl.DataFrame(schema=BINS), pl.DataFrame(schema=PEOPLE)
+    f = features(
+        motion,
+        sensors,
+        doors,
+        set(site.level_sensors),
+        far_matrix(site, sensors, cfg),
+        bin_s=cfg.bin_s,
+        window_s=cfg.window_s,
+        held=cfg.held,
+        epoch_seconds_of_day=epoch_seconds_of_day(site.epoch),
+        span=span,
+    )
+    use = profile if (cfg.profile and profile is not None and profile.height) else None
+    K = people_bound(site, cfg, use)
+    model = default_model(
+        K,
+        door_stay=cfg.door_stay,
+        quiet_change=cfg.quiet_change,
+        noise=cfg.noise,
+        activity=cfg.activity,
+        far_noise=cfg.far_noise,
+        far_rate=cfg.far_rate,
+    )
+    if use is not None:
+        model = model_from_stats(use, K, prior=cfg.prior, clock_weight=cfg.clock_weight, unlearned=model)
+    count = viterbi(model.emissions(f), f.door, model)
+    bins = pl.DataFrame(
+        {"t": f.starts, "door": f.door, "active": f.active, "far": f.far, "present": count}, schema=BINS
+    )
+    return bins, people_steps(f.starts, count)
+
+
+def learn_stats(motion: pl.DataFrame, truth_count: pl.DataFrame, site, cfg: OccupancyConfig) -> pl.DataFrame:
+    """The statistics (:func:`stats`) of one labelled dataset: its motion log's bins against
+    its ``truth_count`` over the truth's span."""
+    sensors = [m.id for m in site.motion_sensors]
+    g = site.sensor_graph
+    doors = set(g.entries) | set(g.exits) if g is not None else set()
+    span = (float(truth_count["t"].min()), float(truth_count["end"].max()) - 1e-9)
+    f = features(
+        check_schema(motion, MOTION, name="motion"),
+        sensors,
+        doors,
+        set(site.level_sensors),
+        far_matrix(site, sensors, cfg),
+        bin_s=cfg.bin_s,
+        window_s=cfg.window_s,
+        held=cfg.held,
+        epoch_seconds_of_day=epoch_seconds_of_day(site.epoch),
+        span=span,
+    )
+    return stats(f, truth_bins(truth_count, f))

@@ -91,7 +91,7 @@ def _check_run_section(values: dict[str, Any], *, source: str | Path) -> None:
         if key != "trackers":
             raise ConfigError(f"{source}: [run] {key}: unknown key; known: ['trackers']")
         if not isinstance(value, list) or not all(isinstance(v, str) for v in value):
-            raise ConfigError(f"{source}: [run] trackers: a list of tracker names, e.g. [\"residents\"]")
+            raise ConfigError(f'{source}: [run] trackers: a list of tracker names, e.g. ["residents"]')
 
 
 def default_trackers(config: dict[str, Any], dataset_sections: dict[str, Any]) -> tuple[str, ...]:

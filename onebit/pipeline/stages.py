@@ -37,7 +37,10 @@ from onebit.core.config import config_from_mapping
 from onebit.core.errors import InputError, OnebitError
 from onebit.core.tables import REJECTS
 from onebit.core.units import config_in_site_units
+from onebit.models.occupancy import OccupancyConfig
+from onebit.pipeline import homes
 from onebit.pipeline.context import ReportRow, RunContext, Stage
+from onebit.pipeline.homes import count_metric, count_rows, people_from_tracks
 from onebit.readers.beams import BEAM_COLUMNS, beam_dtypes, decode_beam_log, decode_raw_beams
 from onebit.readers.camera import read_camera, truth_error
 from onebit.readers.frames import edges_of_levels, read_frame_rows, read_frames_csv
@@ -77,6 +80,7 @@ from onebit.viz import clustertrack as viz_clustertrack
 from onebit.viz import findinghumo as viz_findinghumo
 from onebit.viz import intruder as viz_intruder
 from onebit.viz import istate as viz_istate
+from onebit.viz import occupancy as viz_occupancy
 from onebit.viz import residents as viz_residents
 from onebit.viz.beams_correct import log_corrected_crossings
 from onebit.viz.colors import CAMERA_RGB
@@ -723,11 +727,17 @@ def tracker_inputs(entry: TrackerEntry, ctx: RunContext) -> dict[str, Any]:
     return inputs
 
 
-def detached_tracker(name: str, run: Callable, inputs: dict[str, Any], site, cfg) -> dict[str, Any]:
+def detached_tracker(
+    name: str, run: Callable, inputs: dict[str, Any], site, cfg, counts_people: bool = False
+) -> dict[str, Any]:
     """A tracker stage's work on inputs taken from the run (:func:`tracker_inputs`): its
     tables named ``<tracker>_<table>``, its artifacts as they are. The stage's ``work`` is this
-    call in the run's process; its ``detach`` hands the same call to a worker process."""
+    call in the run's process; its ``detach`` hands the same call to a worker process. A
+    multi-person tracker (``counts_people``) that writes no ``people`` gets it from its tracks
+    (:func:`onebit.pipeline.homes.people_from_tracks`)."""
     out = run(inputs, site, cfg)
+    if counts_people and "people" not in out:
+        out = {**out, "people": people_from_tracks(out.get("tracks"))}
     made: dict[str, Any] = {f"{name}_{k}": v for k, v in out.items() if k != ARTIFACTS}
     if ARTIFACTS in out:
         made[ARTIFACTS] = out[ARTIFACTS]
@@ -760,7 +770,8 @@ def tracker_stage(entry: TrackerEntry) -> Stage:
     def detach(ctx: RunContext) -> tuple[Callable[..., dict[str, Any]], tuple, Any]:
         cfg = ctx.configs[name] = tracker_config(entry, ctx)
         shares = spec.shares(cfg) if spec.shares is not None else None
-        return detached_tracker, (name, spec.run, tracker_inputs(entry, ctx), ctx.site.tracked, cfg), shares
+        args = (name, spec.run, tracker_inputs(entry, ctx), ctx.site.tracked, cfg, spec.counts_people)
+        return detached_tracker, args, shares
 
     def viz(rec, ctx: RunContext, made: dict) -> None:
         if entry.viz is None:
@@ -796,7 +807,7 @@ def identity_metric(tracker: str, tables: dict[str, pl.DataFrame], site, region_
 
 #: The metrics of every tracker beyond its own (``TrackerEntry.score``) and the MOT rows: one
 #: line per metric (docs/extending.md, "A report metric").
-METRICS: tuple[MetricFn, ...] = (identity_metric,)
+METRICS: tuple[MetricFn, ...] = (identity_metric, count_metric)
 
 
 def scores_stage(trackers: tuple[TrackerEntry, ...] = TRACKERS, metrics: tuple[MetricFn, ...] | None = None) -> Stage:
@@ -845,6 +856,7 @@ def scores_stage(trackers: tuple[TrackerEntry, ...] = TRACKERS, metrics: tuple[M
             ctx.report += baseline_rows(
                 te, graph_hops(site), profile=tables.get("residents_profile"), epoch=ctx.site.epoch
             )
+        ctx.report += count_rows(tables)  # the count model's and the count baselines' scores
         rej = ctx.tables.get("rejects", pl.DataFrame(schema=REJECTS))
         ctx.report.append(("rejects", "rows", float(rej.height), "rows"))
         out["timings"] = tables["timings"]
@@ -889,6 +901,8 @@ def stages(trackers: tuple[TrackerEntry, ...] = TRACKERS) -> list[Stage]:
         Stage("truth", (), ("truth", "true_crossings", "sim_crossings"), _truth_available, _truth_work, _truth_viz),
         Stage("truth_events", (), ("truth_events",), _truth_events_available, _truth_events_work),
         Stage("residents_profile", (), ("residents_profile",), _profile_available, _profile_work),
+        Stage("truth_count", (), ("truth_count",), homes.truth_count_available, homes.truth_count_work),
+        Stage("count_profile", (), ("count_profile",), homes.count_profile_available, homes.count_profile_work),
         Stage("camera", (), ("camera_truth", "camera_detections"), _camera_available, _camera_work, _camera_viz),
         Stage(
             "frames",
@@ -916,6 +930,15 @@ def stages(trackers: tuple[TrackerEntry, ...] = TRACKERS) -> list[Stage]:
             config=ProximityConfig,
         ),
         Stage("ignore", (), ("ignored",), _ignore_available, _ignore_work),
+        Stage(
+            "occupancy",
+            ("motion",),
+            ("occupancy_bins", "occupancy_people"),
+            homes.occupancy_available,
+            homes.occupancy_work,
+            viz_occupancy.log_occupancy,
+            config=OccupancyConfig,
+        ),
         Stage(
             "correct",
             ("crossings",),

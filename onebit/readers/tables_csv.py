@@ -7,7 +7,16 @@ from pathlib import Path
 import polars as pl
 
 from onebit.core.errors import InputError
-from onebit.core.tables import CROSSINGS, RESIDENTS_PROFILE, TRUE_CROSSINGS, TRUTH, TRUTH_EVENTS, conform
+from onebit.core.tables import (
+    COUNT_PROFILE,
+    CROSSINGS,
+    RESIDENTS_PROFILE,
+    TRUE_CROSSINGS,
+    TRUTH,
+    TRUTH_COUNT,
+    TRUTH_EVENTS,
+    conform,
+)
 from onebit.readers.rows import (
     RawRows,
     TypedRows,
@@ -213,3 +222,71 @@ def read_residents_profile_csv(path):
     if "bin" not in cols:  # a profile without a clock (the column may be left out)
         raw = RawRows(raw.source, raw.frame.with_columns(bin=pl.lit(None, pl.String)), raw.rejects)
     return residents_profile_from_rows(raw, path=path)
+
+
+def truth_count_from_rows(raw: RawRows, *, epoch=None, path: Path | None = None):
+    """Type ``truth_count.csv`` rows: ``t`` and ``end`` (seconds or ISO times, ``end > t``),
+    ``count`` (a whole number >= 0) -- people in over ``[t, end)``. Returns ``(truth_count,
+    rejects)``; an interval that starts before the previous one ends is rejected (overlap)."""
+    cnt, cnt_bad = parse_float("count")
+    end, end_bad = parse_time("end", epoch, raw.frame)
+    t, t_bad = parse_time("t", epoch, raw.frame)
+    parsers = {
+        "t": (t, t_bad),
+        "end": (end, pl.coalesce(end_bad, pl.when(end <= t).then(pl.format("field 'end': not after t: {}", end)))),
+        "count": (
+            cnt.cast(pl.Int64, strict=False),
+            pl.coalesce(
+                cnt_bad,
+                pl.when((cnt < 0) | (cnt != cnt.round(0)))
+                .then(pl.format("field 'count': not a whole number >= 0: {}", cnt))
+                .otherwise(None),
+            ),
+        ),
+    }
+    ok, rej = type_rows(raw, parsers, key=("t",), path=path)
+    ok = conform(ok, TRUTH_COUNT).sort("t")
+    overlap = ok["t"].to_numpy()[1:] < ok["end"].to_numpy()[:-1] - 1e-9 if ok.height > 1 else []
+    if len(overlap) and overlap.any():
+        import numpy as np
+
+        bad = np.r_[False, overlap]
+        extra = pl.DataFrame(
+            {
+                "source": str(path) if path else "truth_count",
+                "line": pl.Series([None] * int(bad.sum()), dtype=pl.Int64),
+                "reason": "an interval that starts before the previous one ends (overlap)",
+                "raw": [f"{a},{b},{c}" for a, b, c in ok.filter(pl.Series(bad)).iter_rows()],
+            }
+        )
+        ok = ok.filter(~pl.Series(bad))
+        rej = pl.concat([rej, extra.cast(rej.schema)]) if rej.height else extra
+    return ok, rej
+
+
+def read_truth_count_csv(path, *, epoch=None):
+    """``truth_count.csv`` (t, end, count): how many people are in, as intervals
+    (:data:`~onebit.core.tables.TRUTH_COUNT`); every line not taken is a reject with its reason."""
+    path = Path(path)
+    return truth_count_from_rows(read_csv_rows(path, tuple(TRUTH_COUNT.names())), epoch=epoch, path=path)
+
+
+def read_count_profile_csv(path):
+    """``count_profile.csv`` (term, state, key, count): the count model's statistics learned by
+    ``onebit learn residents`` (:data:`~onebit.core.tables.COUNT_PROFILE`)."""
+    path = Path(path)
+    raw = read_csv_rows(path, tuple(COUNT_PROFILE.names()))
+    cnt, cnt_bad = parse_float("count")
+    st, st_bad = parse_float("state")
+    terms = ("bins", "active", "far", "fired", "held", "hour", "door", "quiet", "start")
+    parsers = {
+        "term": parse_name("term", terms, "term"),
+        "state": (
+            st.cast(pl.Int64, strict=False),
+            pl.coalesce(st_bad, pl.when((st < 0) | (st != st.round(0))).then(pl.lit("field 'state': not a count"))),
+        ),
+        "key": (pl.col("key").fill_null("").str.strip_chars(), pl.lit(None, pl.String)),
+        "count": (cnt, pl.coalesce(cnt_bad, pl.when(cnt < 0).then(pl.format("field 'count': negative: {}", cnt)))),
+    }
+    ok, rej = type_rows(raw, parsers, key=("term", "state", "key"), path=path)
+    return conform(ok, COUNT_PROFILE), rej

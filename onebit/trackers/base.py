@@ -66,6 +66,9 @@ class TrackerSpec:
     #: decode the same run: :func:`onebit.models.graph_hmm.decoding.decode_motion`); a run
     #: that works trackers side by side keeps them in one call.
     shares: Callable[[Any], Any] | None = None
+    #: a multi-person tracker: it writes ``people`` (t, present), or the runner makes it from
+    #: its tracks (``onebit.pipeline.homes.people_from_tracks``), scored against ``truth_count``
+    counts_people: bool = False
 
 
 def instants_bound(frames, tracker: str, field: str, bound: int, cost: str) -> str | None:
@@ -81,3 +84,12 @@ def instants_bound(frames, tracker: str, field: str, bound: int, cost: str) -> s
         f"the frames hold {instants:,} instants, more than {field} = {bound:,} ({cost}); "
         f"set [{tracker}] {field} = 0 (no bound) in --config to run it"
     )
+
+
+def home_count_bound(inputs: dict) -> int:
+    """The most people the home's count model (stage ``occupancy``, table ``occupancy_people``)
+    says are in at once; 0 when the run has no such table (no bound from it)."""
+    people = inputs.get("occupancy_people")
+    if people is None or people.height == 0:
+        return 0
+    return int(people["present"].max())

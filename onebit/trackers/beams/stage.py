@@ -319,6 +319,7 @@ def occupancy(assignment: pl.DataFrame, starts: pl.DataFrame, rg: RegionGraph) -
 SPEC = TrackerSpec(
     name=NAME,
     needs=("crossings",),
+    counts_people=True,
     config=BeamsConfig,
     run=run,
     help="Bobadilla et al.: region-graph agent assignment from directional beams",

@@ -308,6 +308,7 @@ def run(inputs: dict, site: Site, config: BinPFConfig) -> dict:
 SPEC = TrackerSpec(
     name=NAME,
     needs=("proximity_frames",),
+    counts_people=True,
     config=BinPFConfig,
     run=run,
     available=available,

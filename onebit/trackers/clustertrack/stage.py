@@ -425,6 +425,7 @@ def run(inputs: dict, site: Site, config: ClusterTrackConfig) -> dict[str, pl.Da
 SPEC = TrackerSpec(
     name=NAME,
     needs=("proximity_frames",),
+    counts_people=True,
     config=ClusterTrackConfig,
     run=run,
     available=available,

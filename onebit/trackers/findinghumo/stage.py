@@ -43,7 +43,7 @@ from onebit.models.graph_hmm.decoding import (
 )
 from onebit.models.graph_hmm.joint import joint_table, redecode_meetings
 from onebit.trackers.attribution import attribute_events
-from onebit.trackers.base import ARTIFACTS, PROGRESS, TrackerSpec
+from onebit.trackers.base import ARTIFACTS, PROGRESS, TrackerSpec, home_count_bound
 from onebit.trackers.findinghumo.cpda import cpda, decisions_table, switches_table
 from onebit.trackers.findinghumo.lagged import lagged_paths
 
@@ -93,7 +93,7 @@ def _run(name: str, mode: str, inputs: dict, site: Site, cfg: HmmConfig) -> dict
     active, t0, eatg, res, silent = run.active, run.t0, run.eatg, run.result, run.silent
     paths = res.paths
     out: dict[str, pl.DataFrame] = {}
-    cap = cfg.max_users or (site.targets or 0)
+    cap = cfg.max_users or (site.targets or 0) or home_count_bound(inputs)
     joint_log: list[dict] = []
     if cfg.joint == "before-cpda" or (cfg.joint == "after-cpda" and not isinstance(cfg, FindingHumoConfig)):
         paths, joint_log = redecode_meetings(
@@ -205,6 +205,8 @@ SPECS = [
         config=FindingHumoConfig,
         run=run_findinghumo,
         available=available,
+        wants=("occupancy_people",),
+        counts_people=True,
         shares=_shares("adaptive"),
         help="FindingHuMo (De et al.): Adaptive-HMM on a PIR sensor graph + CPDA path disambiguation",
     ),
@@ -214,6 +216,8 @@ SPECS = [
         config=HmmConfig,
         run=run_hmm1,
         available=available,
+        wants=("occupancy_people",),
+        counts_people=True,
         shares=_shares("full1"),
         help="baseline: full-state first-order HMM on the PIR sensor graph (FindingHuMo section IV-B)",
     ),
@@ -223,6 +227,8 @@ SPECS = [
         config=HmmConfig,
         run=run_hmm2,
         available=available,
+        wants=("occupancy_people",),
+        counts_people=True,
         shares=_shares("full2"),
         help="baseline: full-state second-order HMM on the PIR sensor graph (FindingHuMo section IV-B)",
     ),

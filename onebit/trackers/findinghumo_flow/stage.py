@@ -35,7 +35,7 @@ from onebit.models.graph_hmm.decoding import (
 from onebit.models.graph_hmm.joint import joint_table, redecode_meetings
 from onebit.models.graph_hmm.viterbi import log_safe
 from onebit.trackers.attribution import attribute_events
-from onebit.trackers.base import ARTIFACTS, PROGRESS, TrackerSpec
+from onebit.trackers.base import ARTIFACTS, PROGRESS, TrackerSpec, home_count_bound
 from onebit.trackers.findinghumo_flow.association import (
     BIRTH,
     Fragment,
@@ -209,7 +209,7 @@ def run_flow(inputs: dict, site: Site, config: FlowConfig) -> dict:
         paths, joint_log = redecode_meetings(
             paths, run.active, eatg, p_hit=cfg.p_hit, p_false=cfg.p_false, pad=cfg.joint_pad, reach=cfg.joint_hops
         )
-    cap = cfg.max_users or (site.targets or 0)
+    cap = cfg.max_users or (site.targets or 0) or home_count_bound(inputs)
     paths = cap_users(paths, run.active, eatg.hops, cap)
     tracks = outside_silence(tracks_table(NAME, paths, nodes, site, run.t0, cfg.period), run.silent)
     frag_table = pl.DataFrame(
@@ -264,6 +264,8 @@ SPEC = TrackerSpec(
     config=FlowConfig,
     run=run_flow,
     available=available,
+    wants=("occupancy_people",),
+    counts_people=True,
     shares=shared_decode,
     help="beyond FindingHuMo: HMM paths cut at every meeting, fragments joined over the whole run by a minimum-cost flow",
 )

@@ -769,6 +769,7 @@ def _point_summary(eta: IState, prev: np.ndarray | None, n: int) -> np.ndarray:
 SPEC = TrackerSpec(
     name=NAME,
     needs=(),
+    counts_people=True,
     wants=("motion", "proximity", "crossings", "beam_events"),
     config=IStateConfig,
     run=run,

@@ -22,7 +22,9 @@ Outputs (tables ``residents_<key>``):
 * ``tracks`` (TRACKS) -- each person every ``period`` seconds while present, at the node (and
   x, y) of their latest event: present while silent; gone ``exit_after_s`` after an event at an
   exit node that is followed by a longer silence (they left), back at their next event;
-* ``people`` -- t, present: the number of people present over time (at each event);
+* ``people`` -- t, present: the number of people present over time: the home's count model's
+  (stage ``occupancy``, :mod:`onebit.models.occupancy`) when the run has it, which also bounds
+  the decoder's people when ``site.toml`` has no ``targets``; else the decoded people's presence;
 * ``decoder`` -- events, people, cost, beam, states (mean kept per event).
 """
 
@@ -37,7 +39,7 @@ from onebit.core.config import MAX_STEPS, check_choice, check_range, check_size
 from onebit.core.site import Site
 from onebit.core.tables import MOTION, TRACKS, check_schema, conform
 from onebit.core.units import length
-from onebit.trackers.base import ARTIFACTS, TrackerSpec, progress_of
+from onebit.trackers.base import ARTIFACTS, TrackerSpec, home_count_bound, progress_of
 from onebit.trackers.residents.decode import (
     Attribution,
     attribution_cost,
@@ -176,9 +178,13 @@ def home_of(site: Site, distance: str) -> Home:
     return Home(nodes, xy, dist, np.array([n in entries for n in nodes]), np.array([n in exits for n in nodes]))
 
 
-def people_bound(site: Site, cfg: ResidentsConfig) -> int:
-    """``K`` of eq. (1): ``targets`` when the site gives it (0 people -> 1: events need a cause), else ``max_people``."""
-    return max(1, int(site.targets)) if site.targets is not None else cfg.max_people
+def people_bound(site: Site, cfg: ResidentsConfig, counted: int = 0) -> int:
+    """``K`` of eq. (1): ``targets`` when the site gives it (0 people -> 1: events need a cause),
+    else the most people the home's count model says are in at once (``counted``, stage
+    ``occupancy``), else ``max_people``."""
+    if site.targets is not None:
+        return max(1, int(site.targets))
+    return max(1, min(counted, cfg.max_people)) if counted > 0 else cfg.max_people
 
 
 def attribute(
@@ -275,7 +281,7 @@ def run(inputs: dict, site: Site, config: ResidentsConfig) -> dict[str, pl.DataF
         res, labels = attribute_known(t, node, home, profile, config, epoch=site.epoch)
         names = np.array([f"resident{r}" for r in labels], dtype=object)
     else:
-        K = people_bound(site, config)
+        K = people_bound(site, config, home_count_bound(inputs))
         res = attribute(t, node, home, config, people=K, progress=progress_of(inputs))
         names = np.array([f"person{k + 1}" for k in range(max(res.people, 1))], dtype=object)
     on_tracks = on.select("row", "t", "sensor").with_columns(
@@ -304,7 +310,7 @@ def run(inputs: dict, site: Site, config: ResidentsConfig) -> dict[str, pl.DataF
     return {
         "events": conform(events, EVENTS),
         "tracks": tracks,
-        "people": people_table(t, node, res, home, config),
+        "people": counted_people(inputs, t, node, res, home, config),
         "decoder": decoder,
         ARTIFACTS: {"t": t, "node": node, "track": res.track, "nodes": home.nodes, "xy": home.xy},
     }
@@ -375,6 +381,16 @@ def tracks_table(
     return conform(df.with_columns(tracker=pl.lit(NAME)), TRACKS).sort(["t", "track"])
 
 
+def counted_people(inputs: dict, t, node, res: Attribution, home: Home, cfg: ResidentsConfig) -> pl.DataFrame:
+    """``people``: the home's count model's (stage ``occupancy``: doors, silence, which sensors
+    fire, a count learned from labelled days) when the run has it, else the decoded people's
+    presence (:func:`people_table`)."""
+    counted = inputs.get("occupancy_people")
+    if counted is not None:
+        return counted.select(PEOPLE.names()).cast(dict(PEOPLE))
+    return people_table(t, node, res, home, cfg)
+
+
 def people_table(t: np.ndarray, node: np.ndarray, res: Attribution, home: Home, cfg: ResidentsConfig) -> pl.DataFrame:
     """The number of people present at each event's time (their presence intervals)."""
     present = np.zeros(len(t), dtype=np.int64)
@@ -389,7 +405,8 @@ def people_table(t: np.ndarray, node: np.ndarray, res: Attribution, home: Home, 
 SPEC = TrackerSpec(
     name=NAME,
     needs=("motion",),
-    wants=("residents_profile",),
+    wants=("residents_profile", "occupancy_people"),
+    counts_people=True,
     config=ResidentsConfig,
     run=run,
     available=available,
