@@ -5,7 +5,9 @@ Two ways in:
 * **live** -- the dataset's CSV logs (``motion.csv``, ``beams.csv``, ``crossings.csv``,
   ``proximity.csv``, ``truth.csv``, ``truth_crossings.csv``) are tailed: every poll reads the
   lines appended since the last one. A last line without its newline is being written: it is
-  left for the next poll, never rejected. A log that shrinks is an error naming it. A growing
+  left for the next poll, never rejected (at the end, or when its file is rotated away or
+  truncated, it is taken as a line, as the batch reader takes a file's last line). A log rotated,
+  truncated or rewritten in place is followed into its new file (:func:`_read_live`). A growing
   ``.mcap`` (chunked, as loggers write them) is re-read when it grew, keeping every complete
   chunk (and the ``mcap_topics.toml`` map of ROS 2 topics). The *horizon* (the log time known
   so far) is the earliest of the sensor logs' latest stamps (a log that runs ahead does not
