@@ -14,7 +14,7 @@ from pathlib import Path
 import polars as pl
 
 from onebit.core.config import load_toml
-from onebit.core.errors import ConfigError, InputError, OnebitError, bounded
+from onebit.core.errors import ConfigError, InputError, OnebitError, bounded, is_disk_full
 from onebit.core.site import load_site
 from onebit.datasets.catalogue import IN_PLACE, all_scenarios, get_scenario
 from onebit.datasets.importers import import_casas, import_trajectories
@@ -847,6 +847,9 @@ def main(argv: list[str] | None = None) -> int:
         print("onebit: interrupted (folders being written were left as they were before)", file=sys.stderr)
         return 130
     except Exception as exc:  # a bug (or the system: disk full): one line, the traceback kept for a bug report
+        if is_disk_full(exc):  # not a bug; and no room for a traceback file either
+            print(f"onebit: error: no space left on the device: {bounded(str(exc))}", file=sys.stderr)
+            return 1
         what = "error" if isinstance(exc, OSError) else "internal error"
         print(f"onebit: {what}: {bounded(f'{type(exc).__name__}: {exc}')}", file=sys.stderr)
         notes = [n for n in getattr(exc, "__notes__", []) if n.startswith("onebit:")]

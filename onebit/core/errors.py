@@ -8,6 +8,7 @@ huge TOML string) is cut to :data:`MAX_QUOTE` characters and a whole message to
 
 from __future__ import annotations
 
+import errno
 from pathlib import Path
 
 #: Characters of raw user text (a rejected line, a bad value) quoted in a reject or a message.
@@ -70,3 +71,35 @@ class SiteError(InputError):
 
 class ConfigError(OnebitError, ValueError):
     """A configuration value outside its declared bounds; names the field, value and range."""
+
+
+#: ``errno`` values and message fragments of a full disk (or an exhausted quota). Rust writers
+#: (polars) report it as ``OSError``/``ComputeError`` text without ``errno``: "No space left on
+#: device (os error 28)".
+_DISK_FULL_ERRNOS = (errno.ENOSPC, errno.EDQUOT)
+_DISK_FULL_TEXT = ("no space left on device", "os error 28", "disk quota exceeded", "os error 122")
+
+
+def is_disk_full(exc: BaseException) -> bool:
+    """Whether ``exc`` (or an exception it was raised from) says the disk is full."""
+    seen = set()
+    while exc is not None and id(exc) not in seen:
+        seen.add(id(exc))
+        if isinstance(exc, OSError) and exc.errno in _DISK_FULL_ERRNOS:
+            return True
+        if any(s in str(exc).lower() for s in _DISK_FULL_TEXT):
+            return True
+        exc = exc.__cause__ or exc.__context__
+    return False
+
+
+class DiskFullError(OnebitError):
+    """No space left on the device while writing ``file``: the unfinished file was removed and
+    every file written before it is intact."""
+
+    def __init__(self, file: str | Path) -> None:
+        self.file = str(file)
+        super().__init__(
+            f"{self.file}: no space left on the device while writing it; the unfinished file was removed "
+            "and the outputs written before it are intact: free some space and run the command again"
+        )

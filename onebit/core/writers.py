@@ -23,7 +23,7 @@ from typing import Any
 
 import polars as pl
 
-from onebit.core.errors import InputError
+from onebit.core.errors import DiskFullError, InputError, is_disk_full
 
 #: Name of the marker file of a folder whose entries are being swapped (or whose swap was cut).
 INCOMPLETE = "INCOMPLETE"
@@ -50,15 +50,26 @@ def commit(tmp: str | Path, path: str | Path) -> Path:
 @contextmanager
 def atomic_path(path: str | Path, *, suffix: str = ".tmp") -> Iterator[Path]:
     """Yield a temporary path next to ``path``; on success rename it over ``path``, on any
-    error delete it and re-raise (``path`` keeps its old content, if any)."""
+    error delete it and re-raise (``path`` keeps its old content, if any).
+
+    A full disk (``ENOSPC``/``EDQUOT``, or a library's "No space left on device") becomes a
+    :class:`~onebit.core.errors.DiskFullError` naming ``path``: one clear line, the half-written
+    temporary file removed, every file written before untouched."""
     path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
+    try:
+        path.parent.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        if is_disk_full(exc):
+            raise DiskFullError(path) from exc
+        raise
     tmp = temp_path(path, suffix=suffix)
     try:
         yield tmp
         commit(tmp, path)
-    except BaseException:
+    except BaseException as exc:
         tmp.unlink(missing_ok=True)
+        if isinstance(exc, Exception) and not isinstance(exc, DiskFullError) and is_disk_full(exc):
+            raise DiskFullError(path) from exc
         raise
 
 

@@ -5,7 +5,9 @@ Two ways in:
 * **live** -- the dataset's CSV logs (``motion.csv``, ``beams.csv``, ``crossings.csv``,
   ``proximity.csv``, ``truth.csv``, ``truth_crossings.csv``) are tailed: every poll reads the
   lines appended since the last one. A last line without its newline is being written: it is
-  left for the next poll, never rejected. A log that shrinks is an error naming it. A growing
+  left for the next poll, never rejected (at the end, or when its file is rotated away or
+  truncated, it is taken as a line, as the batch reader takes a file's last line). A log rotated,
+  truncated or rewritten in place is followed into its new file (:func:`_read_live`). A growing
   ``.mcap`` (chunked, as loggers write them) is re-read when it grew, keeping every complete
   chunk (and the ``mcap_topics.toml`` map of ROS 2 topics). The *horizon* (the log time known
   so far) is the earliest of the sensor logs' latest stamps (a log that runs ahead does not
@@ -77,6 +79,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
+import os
 import re
 import shutil
 import tempfile
@@ -85,7 +88,7 @@ import uuid
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import Any, BinaryIO
 
 import numpy as np
 import polars as pl
@@ -226,6 +229,17 @@ class _Source:
     release: np.ndarray = field(default_factory=lambda: np.zeros(0))  # replay: log time each line is released at
     released: int = 0
     last_t: float = -math.inf  # latest stamp released (live horizon)
+    fh: BinaryIO | None = None  # live: the file being read, kept open (a rotated file is read to its end)
+    ident: tuple[int, int] | None = None  # live: (device, inode) of ``fh``
+    at_start: bool = True  # live: the next complete line is the first of a file (its header)
+    last_line: bytes = b""  # live: the last complete line consumed (to see a rewrite in place)
+    partial: bytes = b""  # live: the bytes after the last newline, as seen at the last poll
+    restarts: int = 0  # live: times the log was rotated, truncated or rewritten while followed
+
+    def close(self) -> None:
+        if self.fh is not None:
+            self.fh.close()
+            self.fh = None
 
     def write(self, lines: list[bytes]) -> None:
         if not lines:
@@ -262,6 +276,123 @@ def _complete_lines(data: bytes) -> tuple[list[bytes], int]:
     if end < 0:
         return [], 0
     return data[: end + 1].splitlines(keepends=True), end + 1
+
+
+def _fields(line: bytes) -> list[str]:
+    return [c.strip().strip('"') for c in line.decode("utf-8", errors="replace").rstrip("\r\n").split(",")]
+
+
+def _read_appended(src: _Source) -> list[bytes]:
+    """The complete lines appended to ``src``'s open file since the last read (the first file's
+    header is taken as the log's header; a later file's first line is dropped when it is that
+    header again); the bytes of a line still being written are kept in ``src.partial``."""
+    size = os.fstat(src.fh.fileno()).st_size
+    if size <= src.offset:
+        src.partial = b""
+        return []
+    src.fh.seek(src.offset)
+    chunk = src.fh.read(size - src.offset)
+    lines, used = _complete_lines(chunk)
+    src.partial = chunk[used:]
+    if not lines:
+        return []
+    src.offset += used
+    src.last_line = lines[-1]
+    if src.at_start:
+        src.at_start = False
+        if src.header is None:
+            src.header, lines = lines[0], lines[1:]
+            src.t_col = _header_t_column(src.header, src.path)
+            src.snapshot.write_bytes(src.header if src.header.endswith(b"\n") else src.header + b"\n")
+        elif _fields(lines[0]) == _fields(src.header):
+            lines = lines[1:]
+    return lines
+
+
+def _rewritten(src: _Source) -> bool:
+    """Whether the open file was truncated (shorter than what was read) or rewritten in place
+    (the last line read is no longer where it was): a logger that restarted on the same file."""
+    size = os.fstat(src.fh.fileno()).st_size
+    if size < src.offset:
+        return True
+    n = len(src.last_line)
+    return n > 0 and os.pread(src.fh.fileno(), n, src.offset - n) != src.last_line
+
+
+def _rotated(src: _Source) -> bool:
+    """Whether the log's path now names another file than the one open (renamed and a new one
+    started); a path with no file yet (between the rename and the new file) is not."""
+    try:
+        st = os.stat(src.path)
+    except FileNotFoundError:
+        return False
+    return (st.st_dev, st.st_ino) != src.ident
+
+
+def _unfinished_line(src: _Source) -> list[bytes]:
+    """The line the old file ends with that never got its newline, as a complete line (the
+    batch reader takes a file's last line so), unless it is only the start of a header."""
+    rest, src.partial = src.partial, b""
+    if not rest.strip() or src.header is None or (src.at_start and src.header.startswith(rest.rstrip(b"\r"))):
+        return []
+    return [rest + b"\n"]
+
+
+def _open_log(src: _Source) -> bool:
+    """Open the file at the log's path (a new one is read from its start)."""
+    try:
+        src.fh = open(src.path, "rb")  # noqa: SIM115 - kept open across polls, closed by close()
+    except OSError:
+        return False
+    st = os.fstat(src.fh.fileno())
+    src.ident, src.offset, src.last_line, src.at_start = (st.st_dev, st.st_ino), 0, b"", True
+    return True
+
+
+def _read_live(src: _Source) -> tuple[list[bytes], list[str]]:
+    """The complete lines a followed log gained since the last poll, and what happened to it.
+
+    * rewritten in place (truncated, or its bytes changed under the last line read: a logger
+      that restarted on the same file): its unfinished last line is taken, then the file is
+      read again from its start as a new file of the log;
+    * rotated (its path names a new file): the old file is read to its end (its unfinished last
+      line taken), then the new one from its start.
+
+    A new file's lines are appended to the log followed, after the old ones (its header, when
+    it repeats the log's, dropped); rows earlier than those accepted are then the readers'
+    "goes backwards" rejects, as in a batch run on the concatenated log.
+    """
+    notes: list[str] = []
+    if src.fh is None and not _open_log(src):
+        return [], notes
+    lines: list[bytes] = []
+    if src.offset and _rewritten(src):
+        lines += _unfinished_line(src)
+        src.offset, src.last_line, src.at_start, src.restarts = 0, b"", True, src.restarts + 1
+        notes.append(f"{src.path}: truncated or rewritten while followed; read again from its start")
+    lines += _read_appended(src)
+    if _rotated(src):
+        lines += _read_appended(src)  # what the logger wrote before it moved to the new file
+        lines += _unfinished_line(src)
+        src.close()
+        src.restarts += 1
+        notes.append(f"{src.path}: rotated (a new file at its path); the old one read to its end")
+        if _open_log(src):
+            lines += _read_appended(src)
+    return lines, notes
+
+
+def _take_unfinished(sources: dict[str, _Source]) -> None:
+    """The end of a live follow: a last line that never got its newline is taken as the batch
+    reader takes a file's last line (a row if it parses, else a reject naming its line)."""
+    for src in sources.values():
+        if src.fh is None:
+            continue
+        last = _unfinished_line(src)
+        if last:
+            src.write(last)
+            src.lines.extend(last)
+            src.released = len(src.lines)
 
 
 @dataclass
@@ -656,6 +787,7 @@ def follow(
     data = snapshot / "data"
     data.mkdir()
     scratch.mkdir()
+    sources: dict[str, _Source] = {}
     try:
         for p in dataset.glob("*.toml"):
             shutil.copy(p, data / p.name)
@@ -723,6 +855,7 @@ def follow(
         for n in online:
             echo(f"  {n}: online, {LAGGED if n in lagged else ONLINE[n]}")
         published: dict[str, float] = {n: -math.inf for n in online}
+        warned: set[str] = set()  # logs whose clock was said to have stepped back
         sent: dict[str, pl.DataFrame] = {}
         logged_edges = 0
         last_growth = clock()
@@ -747,31 +880,13 @@ def follow(
                     horizon = max([horizon, *(r[-1] for m in mcaps for r in m.release.values() if len(r))])
             else:
                 for src in sources.values():
-                    try:
-                        size = src.path.stat().st_size
-                    except OSError:
-                        continue
-                    if size < src.offset:
-                        raise InputError(
-                            f"the log shrank from {src.offset} to {size} bytes while followed (rotated or rewritten?)",
-                            file=src.path,
-                        )
-                    if size == src.offset:
-                        continue
-                    with open(src.path, "rb") as fh:
-                        fh.seek(src.offset)
-                        chunk = fh.read(size - src.offset)
-                    lines, used = _complete_lines(chunk)
-                    if not lines:
-                        continue  # a line being written: wait for its newline
-                    src.offset += used
-                    if src.header is None:
-                        src.header, lines = lines[0], lines[1:]
-                        src.t_col = _header_t_column(src.header, src.path)
-                        src.snapshot.write_bytes(src.header if src.header.endswith(b"\n") else src.header + b"\n")
-                    src.write(lines)
-                    src.lines.extend(lines)
-                    new = True
+                    lines, notes = _read_live(src)  # a line being written waits for its newline
+                    for note in notes:
+                        echo(f"  {note}")
+                    if lines:
+                        src.write(lines)
+                        src.lines.extend(lines)
+                        new = True
                 for m in mcaps:
                     new = m.poll() or new
                 if new:
@@ -801,6 +916,8 @@ def follow(
                     horizon = min(known) if known else -math.inf
                     history.append((horizon, now))
                 final = now - last_growth >= options.idle
+                if final:
+                    _take_unfinished(sources)
             polls += 1
             if new or final:
                 if origin is not None and options.incremental:  # only the lines released since the last poll
@@ -808,6 +925,7 @@ def follow(
                     for src in sources.values():
                         tails.start(src, here, stage_list, origin)
                     tails.poll(sources, final)
+                    _say_clock_steps(tails, warned, echo)
                 ctx = _read_prefix(data, scratch, site, rg, merged, chosen, origin, stage_list, _channels(mcaps), tails)
                 tables = ctx.tables
                 # final: an event at most this late (the readers' look-ahead, and what they emitted)
@@ -921,12 +1039,46 @@ def follow(
         for m in mcaps if options.replay is None else ():  # the recordings as they are now
             shutil.copy(m.path, data / m.path.name)
         run = run_pipeline(final_data, out, trackers=trackers, config=config, progress=False, echo=echo)
-        report = _follow_report(out, live, online, pub, polls, batch_only)
+        report = pl.concat([_follow_report(out, live, online, pub, polls, batch_only), _fault_rows(out, sources)])
         outputs.write_parquet(report, live / "report.parquet")
         outputs.write_csv(report, live / "report.csv")
         return FollowResult(run=run, report=report, live=live, batch_only=batch_only)
     finally:
+        for src in sources.values():
+            src.close()
         shutil.rmtree(snapshot, ignore_errors=True)
+
+
+#: The reason the readers give a row more than the reordering tolerance behind the latest accepted one.
+_BACKWARDS = "timestamp goes backwards"
+
+
+def _say_clock_steps(tails: _Tails, warned: set[str], echo: Callable[[str], None]) -> None:
+    """Say once per log when its clock stepped back: the readers' first "goes backwards" reject."""
+    rejects = tails.tables.get("rejects")
+    if rejects is None or rejects.height == 0:
+        return
+    back = rejects.filter(pl.col("reason").str.starts_with(_BACKWARDS) & ~pl.col("source").is_in(list(warned)))
+    for source, line, reason in (
+        back.unique("source", keep="first", maintain_order=True).select("source", "line", "reason").iter_rows()
+    ):
+        warned.add(source)
+        echo(
+            f"  {source}:{line}: the logger's clock stepped back ({reason}); its rows are rejected "
+            "(OUT/tables/rejects.parquet) until its clock passes the latest time accepted"
+        )
+
+
+def _fault_rows(out: Path, sources: dict[str, _Source]) -> pl.DataFrame:
+    """The follow report's rows on faults of the logs: files restarted (rotated, truncated,
+    rewritten) and rows rejected because the logger's clock stepped back (the final run's rejects)."""
+    rows = [("follow", "log_restarts", float(sum(s.restarts for s in sources.values())), "files")]
+    path = out / "tables" / "rejects.parquet"
+    back = pl.read_parquet(path).filter(pl.col("reason").str.starts_with(_BACKWARDS)) if path.is_file() else None
+    rows.append(("follow", "rows_rejected_backwards", float(back.height if back is not None else 0), "rows"))
+    return pl.DataFrame(
+        rows, schema={"stage": pl.String, "metric": pl.String, "value": pl.Float64, "unit": pl.String}, orient="row"
+    )
 
 
 def read_live_table(live: str | Path, name: str) -> pl.DataFrame | None:

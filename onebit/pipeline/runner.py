@@ -42,7 +42,7 @@ import polars as pl
 
 from onebit.core import writers as outputs
 from onebit.core.config import config_from_mapping, load_toml
-from onebit.core.errors import ConfigError, InputError, OnebitError, bounded
+from onebit.core.errors import ConfigError, DiskFullError, InputError, OnebitError, bounded, is_disk_full
 from onebit.core.memory import release_freed_memory
 from onebit.core.parallel import CORES_ENV, available_cores, cpu_seconds, one_core_each, run_beside, worker_cpu_seconds
 from onebit.core.region_graph import build_region_graph
@@ -310,6 +310,8 @@ def run_pipeline(
             except OnebitError:
                 raise
             except Exception as exc:  # a bug, not bad input: keep what was done and the traceback
+                if is_disk_full(exc):  # the system, not a bug: OUT left as it was
+                    raise DiskFullError(work) from exc
                 crash = exc
                 result = _record_crash(ctx, exc)
     finally:
@@ -570,6 +572,8 @@ def _run_stages(
                 "work_cpu_s": round(c1 - c0 if work_cpu is None else work_cpu, 6),
                 "viz_cpu_s": round(cpu_seconds() - c1, 6),
             }
+        except DiskFullError:  # not this stage's failure: the whole run stops, OUT left as it was
+            raise
         except OnebitError as exc:
             status[st.name] = f"failed: {exc}"
             echo(f"  {st.name}: FAILED: {exc}")
@@ -585,6 +589,8 @@ def _run_stages(
                 echo(f"  {st.name}: FAILED with {bounded(done.error)} (traceback in logs/{st.name}.traceback.txt)")
             continue
         except Exception as exc:  # a bug, not bad input: keep the other stages, keep the traceback
+            if is_disk_full(exc):  # the system, not a bug: the whole run stops, OUT left as it was
+                raise DiskFullError(work) from exc
             tb = traceback.format_exc(limit=8)
             status[st.name] = bounded(f"failed: {type(exc).__name__}: {exc}", 2000)
             outputs.write_text(tb, work / "logs" / f"{st.name}.traceback.txt")

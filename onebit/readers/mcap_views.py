@@ -28,6 +28,9 @@ ids that later updates replace), while Rerun 0.41's MCAP importer decodes ``Poin
 protobuf message (checked with ``rerun mcap convert`` + ``rerun rrd print``). Coordinates are
 the site's world units in a frame ``site`` (z = 0); times are the raw messages' log times, so
 the views line up with the raw channels on one timeline.
+Every sub-message (a pose's position and orientation, timestamps,
+colours) is marked present even when all zero, so Rerun's importer finds no null where it needs
+a value and ``rerun rrd verify`` accepts the converted recording.
 
 The message classes and their ``FileDescriptorSet`` come from Foxglove's own
 ``foxglove-schemas-protobuf`` package (registered by ``mcap-protobuf-support``), so the
@@ -89,11 +92,26 @@ def message_classes() -> dict[str, type]:
 
 
 def _color(msg, rgba) -> None:
+    msg.SetInParent()
     msg.r, msg.g, msg.b, msg.a = rgba
 
 
 def _stamp(msg, ns: int) -> None:
+    """A ``google.protobuf.Timestamp``, present even at 0 ns (the first message of a log in
+    relative seconds): proto3 leaves an all-zero sub-message out unless it is marked set."""
+    msg.SetInParent()
     msg.seconds, msg.nanos = divmod(int(ns), 1_000_000_000)
+
+
+def _pose(pose, x: float = 0.0, y: float = 0.0, z: float = 0.0) -> None:
+    """A ``foxglove.Pose`` at ``(x, y, z)`` with the identity orientation, both parts present
+    even when zero: Rerun's importer reads a missing position as null (``rerun rrd verify``
+    then rejects the converted recording: "Expected non-nullable data")."""
+    pose.position.SetInParent()
+    pose.position.x, pose.position.y, pose.position.z = float(x), float(y), float(z)
+    pose.orientation.SetInParent()
+    pose.orientation.x = pose.orientation.y = pose.orientation.z = 0.0
+    pose.orientation.w = 1.0
 
 
 def _entity(update, entity_id: str, ns: int):
@@ -101,6 +119,7 @@ def _entity(update, entity_id: str, ns: int):
     e.id = entity_id
     e.frame_id = FRAME
     _stamp(e.timestamp, ns)
+    e.lifetime.SetInParent()  # 0: until replaced or deleted
     return e
 
 
@@ -111,7 +130,7 @@ def _line(entity, xy, rgba, *, closed: bool, thickness: float) -> None:
     line.type = LinePrimitive.LINE_LOOP if closed else LinePrimitive.LINE_STRIP
     line.thickness = thickness
     line.scale_invariant = False
-    line.pose.orientation.w = 1.0
+    _pose(line.pose)
     _color(line.color, rgba)
     for x, y in xy:
         p = line.points.add()
@@ -120,16 +139,14 @@ def _line(entity, xy, rgba, *, closed: bool, thickness: float) -> None:
 
 def _sphere(entity, x: float, y: float, size: float, rgba) -> None:
     s = entity.spheres.add()
-    s.pose.position.x, s.pose.position.y = float(x), float(y)
-    s.pose.orientation.w = 1.0
+    _pose(s.pose, x, y)
     s.size.x = s.size.y = s.size.z = size
     _color(s.color, rgba)
 
 
 def _text(entity, x: float, y: float, text: str, size: float) -> None:
     t = entity.texts.add()
-    t.pose.position.x, t.pose.position.y, t.pose.position.z = float(x), float(y), size
-    t.pose.orientation.w = 1.0
+    _pose(t.pose, x, y, size)
     t.billboard = True
     t.font_size = 12.0
     t.scale_invariant = True
@@ -150,7 +167,7 @@ def point_cloud(ns: int, xy: np.ndarray, rgba: np.ndarray):
     pc = PointCloud()
     _stamp(pc.timestamp, ns)
     pc.frame_id = FRAME
-    pc.pose.orientation.w = 1.0
+    _pose(pc.pose)
     pc.point_stride = 16
     for name, offset, kind in (
         ("x", 0, PackedElementField.FLOAT32),

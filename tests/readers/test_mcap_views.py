@@ -370,3 +370,100 @@ def test_rerun_decodes_the_typed_channels(tmp_path):
     assert "TextLog:text" in columns("/events")
     assert "foxglove.SceneUpdate" in columns("/foxglove/site")
     assert columns("/motion")
+
+
+def _unset_parts(msg, where: str = "") -> list[str]:
+    """Every singular sub-message field (pose, position, orientation, timestamp, colour, ...) of
+    ``msg`` and of its sub-messages that is not present, with its path."""
+    out = []
+    for f in msg.DESCRIPTOR.fields:
+        if f.message_type is None:
+            continue
+        name = f"{where}.{f.name}" if where else f.name
+        if f.is_repeated:
+            for i, item in enumerate(getattr(msg, f.name)):
+                out += _unset_parts(item, f"{name}[{i}]")
+        elif not msg.HasField(f.name):
+            out.append(name)
+        else:
+            out += _unset_parts(getattr(msg, f.name), name)
+    return out
+
+
+def _with_tracks(tmp: Path) -> Path:
+    """The small dataset with a target and a track at the origin (all-zero positions) and a
+    message at log time 0, converted with the track view."""
+    src = _dataset(tmp / "d")
+    (src / "truth.csv").write_text(TRUTH + "2.5,p2,0.0,0.0\n")
+    tracks = pl.DataFrame(
+        {
+            "tracker": ["intruder"] * 3,
+            "track": ["intruder"] * 3,
+            "t": [0.0, 1.0, 3.0],
+            "x": [0.0, 2.0, 4.0],
+            "y": [0.0, 1.5, 2.0],
+        }
+    )
+    out = tmp / "rec.mcap"
+    csv_folder_to_mcap(src, out, tracks=tracks_for_views(tracks))
+    return out
+
+
+def test_every_typed_message_carries_its_poses_timestamps_and_frame(tmp_path):
+    """No sub-message is left to proto3's defaults (absent on the wire): a PointCloud's pose has
+    its position and orientation, every timestamp is present (also at 0 ns), every entity and
+    point cloud names its frame."""
+    out = _with_tracks(tmp_path)
+    msgs = _messages(out)
+    classes = message_classes()
+    assert set(VIEW_TOPICS) <= set(msgs)
+    for topic, type_name in VIEW_TOPICS.items():
+        for _, _, _, log_time, data in msgs[topic]:
+            m = classes[type_name].FromString(data)
+            assert _unset_parts(m) == [], (topic, log_time)
+            if type_name == "foxglove.PointCloud":
+                assert m.frame_id == "site"
+                assert (m.pose.orientation.w, m.pose.position.x) == (1.0, 0.0)
+            if type_name == "foxglove.SceneUpdate":
+                assert all(e.frame_id == "site" for e in m.entities)
+            stamps = [m.timestamp] if type_name != "foxglove.SceneUpdate" else [e.timestamp for e in m.entities]
+            assert stamps and all(s.seconds * 10**9 + s.nanos == log_time for s in stamps), (topic, log_time)
+    assert min(m[3] for m in msgs["/points/tracks"]) == 0
+
+
+def _rerun_cli() -> str:
+    """The ``rerun`` CLI beside this interpreter (rerun-sdk) or on PATH, if it has the
+    ``mcap convert`` and ``rrd verify`` subcommands; else the test is skipped."""
+    exe = Path(sys.executable).parent / "rerun"
+    path = str(exe) if exe.exists() else shutil.which("rerun")
+    if path is None:
+        pytest.skip("the rerun CLI of rerun-sdk is not installed")
+    for group, sub in (("mcap", "convert"), ("rrd", "verify")):
+        helptext = subprocess.run([path, group, "--help"], capture_output=True, text=True, timeout=60).stdout
+        if sub not in helptext:
+            pytest.skip(f"this rerun CLI has no `rerun {group} {sub}`")
+    return path
+
+
+@pytest.mark.parametrize("timeline", ["timestamp", "duration"])
+def test_converted_recording_verifies(tmp_path, timeline):
+    """``rerun mcap convert`` of a written MCAP gives a recording ``rerun rrd verify`` accepts:
+    the small dataset with tracks at the origin, and a short pir14 demo."""
+    from onebit.datasets.catalogue import get_scenario
+
+    exe = _rerun_cli()
+    demo = get_scenario("pir14").write(
+        tmp_path / "pir14", seed=5, duration=20.0, agents=None, drop=0.0, camera=False, params={"refractory": 4}
+    )
+    csv_folder_to_mcap(demo, tmp_path / "pir14.mcap")
+    for mcap in (_with_tracks(tmp_path), tmp_path / "pir14.mcap"):
+        rrd = mcap.with_suffix(".rrd")
+        subprocess.run(
+            [exe, "mcap", "convert", str(mcap), "--timeline-type", timeline, "-o", str(rrd)],
+            check=True,
+            capture_output=True,
+            timeout=120,
+        )
+        verify = subprocess.run([exe, "rrd", "verify", str(rrd)], capture_output=True, text=True, timeout=120)
+        assert verify.returncode == 0, verify.stdout + verify.stderr
+        assert "verified without error" in verify.stdout + verify.stderr
