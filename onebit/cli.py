@@ -248,6 +248,15 @@ def _cmd_learn_residents(args) -> int:
         f"learned {residents} residents from {learned.events} labelled events in {learned.sessions} sessions "
         f"({learned.rejects.height} truth_events lines rejected) -> {out}"
     )
+    from onebit.core.writers import write_csv
+    from onebit.pipeline.learn import learn_counts
+
+    counts = learn_counts([Path(d) for d in args.datasets])
+    if counts is not None:
+        path = Path(args.out).parent / "count_profile.csv"
+        write_csv(counts, path)
+        hours = counts.filter(pl.col("term") == "bins")["count"].sum() / 60.0
+        print(f"learned the home's count model from {hours:.1f} labelled hours (truth_count.csv) -> {path}")
     return 0
 
 

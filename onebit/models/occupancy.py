@@ -16,8 +16,8 @@ clock). Per bin (:func:`features`):
 * ``active_b`` -- an ON edge of another sensor, or (``held``) a level sensor on in the bin
   (a force sensor under a sleeper, a pressure mat under someone sitting);
 * ``far_b`` -- two ON edges at most ``window_s`` apart at sensors ``far_hops`` or more hops
-  apart on the sensor graph (straight-line ``far_m`` metres without a graph): one person
-  cannot have fired both;
+  apart on the sensor graph (straight-line ``far_m`` metres without a graph; sensors the
+  graph does not join are not far): one person cannot have fired both;
 * ``fired_bs`` / ``held_bs`` -- which sensors had an ON edge / were on (level sensors) in the bin;
 * ``hour_b`` -- the hour of day (from the site's epoch).
 
@@ -26,13 +26,14 @@ largest count of the labelled days, else ``max_people``)::
 
     P(n_b = j | n_{b-1} = i) = D[i, j]  if door_b   else  Q[i, j]                       (O1)
     P(obs_b | n_b = n) = A[n, active_b] F[n, far_b] H(hour_b, n)^w
-                         prod_s P(fired_bs | n) P(held_bs | n)   [learned sensors only]      (O2)
+                         [prod_s P(fired_bs | n) P(held_bs | n)]^v   [learned sensors only]  (O2)
 
 Unlearned (no ``count_profile``), the constants are the defaults of the config:
 ``D[i, j]`` keeps the count with ``door_stay`` and moves it by one with the rest (by two
 with a tenth of it), ``Q[i, i] = 1 - quiet_change`` (a change without a door event: a
 missed door, or a home with no door sensor); ``A[0, 1] = noise`` (a sensor fires in an
-empty home), ``A[n, 1] = 1 - (1 - activity)^n``; ``F[n, 1] = far_noise`` for ``n <= 1``,
+empty home), ``A[n, 1] = activity`` for ``n >= 1`` (activity tells an empty home from an
+occupied one, not one person from two: people's own habits dominate it); ``F[n, 1] = far_noise`` for ``n <= 1``,
 ``far_rate`` for ``n >= 2``; no clock; start ``P(n_0 = n)`` proportional to ``2^-n``.
 
 Learned (:func:`stats` on labelled bins, :func:`model_from_stats`): every table above is the
@@ -186,6 +187,7 @@ class CountModel:
     log_held: np.ndarray | None = None
     sensors: tuple[str, ...] = ()
     clock_weight: float = 1.0
+    sensor_weight: float = 1.0
 
     @property
     def K(self) -> int:
@@ -203,7 +205,7 @@ class CountModel:
             for j, c in enumerate(cols):
                 fired = f.fired[:, c].astype(np.int64) if c >= 0 else np.zeros(B, np.int64)
                 held = f.held[:, c].astype(np.int64) if c >= 0 else np.zeros(B, np.int64)
-                ll += self.log_fired[:, j, fired].T + self.log_held[:, j, held].T
+                ll += self.sensor_weight * (self.log_fired[:, j, fired].T + self.log_held[:, j, held].T)
         if self.log_hour is not None and self.clock_weight > 0:
             known = f.hour >= 0
             ll[known] += self.clock_weight * self.log_hour[f.hour[known]]
@@ -229,7 +231,7 @@ def default_model(
     np.fill_diagonal(quiet, 1.0 - quiet_change)
     if K == 0:
         quiet[:] = 1.0
-    p_active = np.where(n == 0, noise, 1.0 - (1.0 - activity) ** n)
+    p_active = np.where(n == 0, noise, activity)
     p_far = np.where(n <= 1, far_noise, far_rate)
     return CountModel(
         log_start=np.log(start / start.sum()),
@@ -300,13 +302,13 @@ def stats(f: Features, y: np.ndarray) -> pl.DataFrame:
 
 
 def model_from_stats(
-    st: pl.DataFrame, K: int, *, prior: float, clock_weight: float, unlearned: CountModel
+    st: pl.DataFrame, K: int, *, prior: float, clock_weight: float, unlearned: CountModel, sensor_weight: float = 1.0
 ) -> CountModel:
     """The learned model (module docstring) of summed statistics ``st``, on counts ``0..K``."""
     st = st.group_by("term", "state", "key").agg(pl.col("count").sum())
     get = {(a, int(b), c): float(v) for a, b, c, v in st.iter_rows()}
     bins = np.array([get.get(("bins", n, ""), 0.0) for n in range(K + 1)])
-    sensors = tuple(sorted({c for a, _, c, _ in st.iter_rows() if a == "fired"}))
+    sensors = tuple(sorted({c for a, _, c, _ in st.iter_rows() if a == "fired"})) if sensor_weight > 0 else ()
 
     def bern(term: str, key: str) -> np.ndarray:
         on = np.array([get.get((term, n, key), 0.0) for n in range(K + 1)])
@@ -333,6 +335,7 @@ def model_from_stats(
         log_held=np.stack([bern("held", s) for s in sensors], axis=1) if sensors else None,
         sensors=sensors,
         clock_weight=clock_weight,
+        sensor_weight=sensor_weight,
     )
 
 
@@ -421,28 +424,31 @@ class OccupancyConfig:
     door_stay : ``D[i, i]``: a door event that changes nothing (someone looks out, a visitor at the door).
     quiet_change : probability of a change of the count in a bin without a door event.
     noise : ``A[0, 1]``: a sensor fires in an empty home in a bin.
-    activity : one person's chance to fire a sensor in a bin (``A[n, 1] = 1 - (1 - activity)^n``).
+    activity : ``A[n, 1]``, ``n >= 1``: a sensor fires (or a level sensor is on) in a bin with someone in.
     far_noise, far_rate : ``F[n, 1]``: far pairs with at most one person in (lingering
         sensors, a door slammed by the wind) and with two or more.
     prior : pseudo-counts per cell of every learned table (Dirichlet).
     clock_weight : ``w``: weight of the learned count by hour of day (0: no clock).
+    sensor_weight : ``v``: weight of the learned per-sensor terms (0: the learned ``A`` instead;
+        below 1 tempers the naive-Bayes product of correlated sensors).
     profile : use the dataset's ``count_profile.csv`` when it has one (off: always the defaults).
     """
 
     bin_s: float = 60.0
     max_people: int = 4
-    window_s: float = 2.0
-    far_hops: int = 3
+    window_s: float = 1.0
+    far_hops: int = 4
     far_m: float = length(5.0)
     held: bool = True
     door_stay: float = 0.5
     quiet_change: float = 1e-4
     noise: float = 0.02
     activity: float = 0.3
-    far_noise: float = 0.002
-    far_rate: float = 0.1
+    far_noise: float = 0.05
+    far_rate: float = 0.5
     prior: float = 1.0
-    clock_weight: float = 1.0
+    clock_weight: float = 0.0
+    sensor_weight: float = 0.0
     profile: bool = True
 
     def __post_init__(self) -> None:
@@ -459,6 +465,7 @@ class OccupancyConfig:
         check_range(self, "far_rate", 1e-9, 1.0 - 1e-9)
         check_range(self, "prior", 1e-6, 1e6)
         check_range(self, "clock_weight", 0.0, 100.0)
+        check_range(self, "sensor_weight", 0.0, 100.0)
 
 
 #: The per-bin table of a run: bin start, evidence, decoded count.
@@ -477,7 +484,8 @@ def epoch_seconds_of_day(epoch: str | None) -> float | None:
 
 def far_matrix(site, sensors: list[str], cfg: OccupancyConfig) -> np.ndarray:
     """Whether two sensors are too far apart for one person to fire both within ``window_s``:
-    ``far_hops`` or more hops on the site's sensor graph (not joined: far), or ``far_m``
+    ``far_hops`` or more hops on the site's sensor graph (two sensors the graph does not join
+    are not known to be far: not far), or ``far_m``
     metres apart without a graph."""
     g = site.sensor_graph
     S = len(sensors)
@@ -490,7 +498,7 @@ def far_matrix(site, sensors: list[str], cfg: OccupancyConfig) -> np.ndarray:
         for a, lengths in nx.all_pairs_shortest_path_length(gr):
             for b, d in lengths.items():
                 hops[idx[a], idx[b]] = d
-        return hops >= cfg.far_hops
+        return np.isfinite(hops) & (hops >= cfg.far_hops)  # not joined: nothing known, not far
     pos = {m.id: m.position for m in site.motion_sensors}
     xy = np.array([pos[s] for s in sensors], dtype=float).reshape(-1, 2)
     d = np.hypot(xy[:, None, 0] - xy[None, :, 0], xy[:, None, 1] - xy[None, :, 1])
@@ -548,7 +556,9 @@ def estimate(
         far_rate=cfg.far_rate,
     )
     if use is not None:
-        model = model_from_stats(use, K, prior=cfg.prior, clock_weight=cfg.clock_weight, unlearned=model)
+        model = model_from_stats(
+            use, K, prior=cfg.prior, clock_weight=cfg.clock_weight, unlearned=model, sensor_weight=cfg.sensor_weight
+        )
     count = viterbi(model.emissions(f), f.door, model)
     bins = pl.DataFrame(
         {"t": f.starts, "door": f.door, "active": f.active, "far": f.far, "present": count}, schema=BINS

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import math
+from dataclasses import replace
 from pathlib import Path
 
 import polars as pl
@@ -30,6 +32,7 @@ from onebit.readers.rows import (
     read_typed_csv,
     type_rows,
 )
+from onebit.readers.timebase import TimeOrigin
 
 _FLAG = {"0": False, "1": True, "false": False, "true": True}
 _DIRECTION = {"1": 1, "+1": 1, "-1": -1, "f": 1, "b": -1, "forward": 1, "backward": -1}
@@ -229,7 +232,9 @@ def truth_count_from_rows(raw: RawRows, *, epoch=None, path: Path | None = None)
     ``count`` (a whole number >= 0) -- people in over ``[t, end)``. Returns ``(truth_count,
     rejects)``; an interval that starts before the previous one ends is rejected (overlap)."""
     cnt, cnt_bad = parse_float("count")
-    end, end_bad = parse_time("end", epoch, raw.frame)
+    # an interval's end may lie past the last logged stamp: the run's window is not applied to it
+    open_ = replace(epoch, lo=-math.inf, hi=math.inf) if isinstance(epoch, TimeOrigin) else epoch
+    end, end_bad = parse_time("end", open_, raw.frame)
     t, t_bad = parse_time("t", epoch, raw.frame)
     parsers = {
         "t": (t, t_bad),
