@@ -84,6 +84,8 @@ def occupancy_work(ctx: RunContext) -> dict[str, pl.DataFrame]:
         ("occupancy", "mean_present", float(n.mean()) if n.size else 0.0, "people"),
         ("occupancy", "max_present", float(n.max()) if n.size else 0.0, "people"),
         ("occupancy", "learned", float("count_profile" in ctx.tables and cfg.profile), "flag"),
+        *[("occupancy", f"share_{k}", float((n == k).mean()) if n.size else 0.0, "fraction of bins") for k in range(3)],
+        ("occupancy", "share_3plus", float((n >= 3).mean()) if n.size else 0.0, "fraction of bins"),
     ]
     return {"occupancy_bins": bins, "occupancy_people": people}
 
