@@ -91,6 +91,37 @@ of people. A confirmed track with :math:`r_i \\ge r_{\\mathrm{out}}` is reported
 particle mean; at most ``max_out`` (the site's ``targets``) are reported per frame, the
 largest :math:`r` first. Identities are the tracks' labels.
 
+*Split* (two people under overlapping footprints; ``split_ratio > 0``). The mean-field update
+cannot resolve two people half a metre apart: given a track's marginal, a second track's
+best place is on top of it (it shares both people's firings), so two tracks of a close pair
+drift together and merge. A split is a move of the field's kind (a twin proposed, kept if the
+likelihood supports the larger cardinality) with a joint update of the pair:
+
+1. *Proposal.* For every on sensor :math:`c` the tracks already explain
+   (:math:`1 - \\prod_j q_{jc} \\ge \\beta`), a twin with particles uniform in :math:`c`'s
+   footprint is scored by its Bernoulli likelihood ratio :math:`L_c` of Eq. (5), the tracks
+   entering through their posterior :math:`q`; twins with :math:`L_c \\ge` ``split_ratio``
+   (the frame is more probable with one more person there than without) are born, the
+   largest :math:`L_c` first, none within ``birth_link`` of another, each coupled to the
+   nearest uncoupled track.
+2. *Joint update of a couple* :math:`(a, b)`: their particles are taken side by side, particle
+   :math:`n` of both scored by the joint likelihood of Eq. (2) with both present
+
+   .. math::
+
+       \\ell_{ab}^{(n)} = \\sum_s \\log\\big[z_s (1 - o_s^{(n)}) + (1 - z_s)\\, o_s^{(n)}\\big],
+       \\quad o_s^{(n)} = (1 - p_f) \\prod_{j \\ne a, b} q_{js}\\,
+                          \\big(1 - d_s(x_a^{(n)})\\big)\\big(1 - d_s(x_b^{(n)})\\big)   \\tag{6}
+
+   and both resampled with the same indices, so a pair of positions that explains the
+   firings' spread together survives (particle :math:`n` of :math:`a` on the left is weighed
+   with particle :math:`n` of :math:`b` on the right), not each track alone at the centre.
+   Existences stay Eq. (5). A couple is not merged; it ends when either dies or their means
+   are more than ``couple_distance`` apart.
+
+The split runs in :func:`run_filter_reference` (``run_filter`` uses it whatever the length
+when ``split_ratio > 0``; the compiled loop has no split).
+
 The frames are processed in order (a filter is sequential); every step inside a frame is
 vectorised over tracks, particles and sensors -- or, on logs of :data:`COMPILED_MIN_FRAMES`
 frames or more, compiled (:mod:`onebit.trackers.binpf.kernels`: the sensors far from a track,
@@ -135,6 +166,8 @@ class FilterParams:
     smooth_lag: int = 4
     max_tracks: int = 12
     max_out: int = 0
+    split_ratio: float = 0.0
+    couple_distance: float = 2.5
 
 
 @dataclass
@@ -271,6 +304,44 @@ def birth_particles(
     return np.c_[xy, v]
 
 
+def split_proposals(z, q, x, r, sensors, radii, rng, p, update, room):
+    """Twin particles ``(B, N, 4)`` for the on sensors the tracks explain whose twin's
+    likelihood ratio (Eq. (5), the tracks entering through their posterior) is at least
+    ``split_ratio``; see "Split"."""
+    explained = 1.0 - np.prod(q, axis=0)
+    cand = np.flatnonzero(z & (explained >= p.birth_explained))
+    if cand.size == 0:
+        return np.zeros((0, p.particles, 4))
+    tx = np.stack([birth_particles(np.array([s]), sensors, radii, rng, p) for s in cand])
+    L = np.empty(cand.size)
+    for c in range(cand.size):
+        _, rr, _ = update(np.concatenate([x, tx[c : c + 1]]), np.concatenate([r, [p.birth_r]]))
+        rb = min(max(rr[-1], 1e-300), 1 - 1e-16)
+        L[c] = rb * (1 - p.birth_r) / (p.birth_r * (1 - rb))
+    order = np.argsort(-L, kind="stable")
+    chosen: list[int] = []
+    for c in order:
+        if L[c] < p.split_ratio or len(chosen) >= room:
+            break
+        if all(np.hypot(*(sensors[cand[c]] - sensors[cand[o]])) > p.birth_link for o in chosen):
+            chosen.append(int(c))
+    return tx[chosen]
+
+
+def pair_loglik(x, r, z, ia, ib, sensors, radii, p):
+    """Joint log-likelihood ``(N,)`` of a coupled pair's particles taken side by side: track
+    ``ia``'s particle ``n`` and track ``ib``'s particle ``n`` present together, the other tracks
+    entering through their marginal miss probabilities; see "Split"."""
+    d = footprint_probability(x[..., :2], sensors, radii, pd=p.pd, edge=p.edge)  # (I, N, S)
+    q = 1.0 - r[:, None] * d.mean(axis=1)
+    others = np.ones(len(r), bool)
+    others[[ia, ib]] = False
+    m = (1.0 - p.pf) * np.prod(q[others], axis=0)  # (S,)
+    off = m[None, :] * (1.0 - d[ia]) * (1.0 - d[ib])  # (N, S)
+    like = np.where(z[None, :], 1.0 - off, off)
+    return np.log(np.maximum(like, _TINY)).sum(-1)
+
+
 def report_rows(
     frame: np.ndarray, label: np.ndarray, r: np.ndarray, confirmed_labels: np.ndarray, p: FilterParams
 ) -> np.ndarray:
@@ -319,7 +390,7 @@ def run_filter(
     T, S = on.shape
     if compiled is None:
         compiled = T >= COMPILED_MIN_FRAMES
-    if not compiled:
+    if not compiled or p.split_ratio > 0:  # the split is in the reference loop only
         return run_filter_reference(
             on, sensors, radii, lo, hi, p, seed=seed, log_particles=log_particles, progress=progress, compiled=False
         )
@@ -442,6 +513,7 @@ def run_filter_reference(
     rowidx = np.zeros((0, L + 1), dtype=np.int64)  # row of (track, frame k-L+j), -1 = none
     r = np.zeros(0)
     labels = np.zeros(0, dtype=np.int64)
+    partner: dict[int, int] = {}  # label -> label of its coupled twin ("Split")
     confirmed = np.zeros(0, dtype=bool)
     ever_confirmed: set[int] = set()
     next_label = 0
@@ -469,7 +541,22 @@ def run_filter_reference(
         rowidx = np.concatenate([rowidx[:, 1:], np.full((len(r), 1), -1)], axis=1)
         if len(r):  # existing tracks first: they get the first chance to explain the frame
             ell, r, d = update(x, r)
-            x, hist, idx = resampled(ell, x, hist)
+            pairs = [
+                (int(np.flatnonzero(labels == a)[0]), int(np.flatnonzero(labels == b)[0]))
+                for a, b in partner.items()
+                if a < b and a in labels and b in labels
+            ]
+            if pairs:
+                ell = ell.copy()
+                for ia, ib in pairs:
+                    ell[ia] = ell[ib] = pair_loglik(x, r, z, ia, ib, sensors, radii, p)
+                idx = systematic_resample(ell, rng)
+                for ia, ib in pairs:
+                    idx[ib] = idx[ia]
+                x = np.take_along_axis(x, idx[..., None], axis=1)
+                hist = np.take_along_axis(hist, idx[..., None, None], axis=1)
+            else:
+                x, hist, idx = resampled(ell, x, hist)
         # birth from the on sensors the updated tracks' particles leave unexplained (whatever
         # their existence: a tentative track near a firing gathers its evidence, no twin is born)
         if not len(r):
@@ -480,9 +567,24 @@ def run_filter_reference(
             q = 1.0 - footprint_probability(x[..., :2], sensors, radii, pd=p.pd, edge=p.edge).mean(axis=1)
         groups = birth_groups(z, q, sensors, p)
         room = p.max_tracks - len(r)
+        newx = None
         if groups and room > 0:
             groups = sorted(groups, key=len, reverse=True)[:room]
             newx = np.stack([birth_particles(g, sensors, radii, rng, p) for g in groups])
+        if p.split_ratio > 0 and len(r) and room - len(groups) > 0:
+            twins = split_proposals(z, q, x, r, sensors, radii, rng, p, update, room - len(groups))
+            mean_old = x[..., :2].mean(axis=1)
+            for t_i, tw in enumerate(twins):  # each twin is coupled to the nearest uncoupled track
+                dd = np.hypot(*(mean_old - tw[:, :2].mean(axis=0)).T)
+                for j in np.argsort(dd):
+                    if int(labels[j]) not in partner:
+                        a, b = int(labels[j]), next_label + len(groups) + t_i
+                        partner[a], partner[b] = b, a
+                        break
+            if len(twins):
+                groups = [*groups, *([None] * len(twins))]
+                newx = twins if newx is None else np.concatenate([newx, twins])
+        if newx is not None:
             newr = np.full(len(groups), p.birth_r)
             # the newborn are updated on this frame with the others' posterior miss probabilities
             ell, rall, _ = update(np.concatenate([x, newx]), np.concatenate([r, newr]))
@@ -506,7 +608,7 @@ def run_filter_reference(
                 if not keep[a]:
                     continue
                 for b in order[a_pos + 1 :]:
-                    if keep[b] and dm[a, b] < p.merge_distance:
+                    if keep[b] and dm[a, b] < p.merge_distance and partner.get(int(labels[a])) != int(labels[b]):
                         keep[b] = False
                         confirmed[a] |= confirmed[b]
                         merges[k] += 1
@@ -520,6 +622,12 @@ def run_filter_reference(
             confirmed[keep],
         )
         ever_confirmed.update(labels[confirmed].tolist())
+        if partner:  # a couple ends when one dies or the two are far apart
+            mean = x[..., :2].mean(axis=1)
+            pos = {int(lab): i for i, lab in enumerate(labels)}
+            for a, b in list(partner.items()):
+                if a not in pos or b not in pos or np.hypot(*(mean[pos[a]] - mean[pos[b]])) > p.couple_distance:
+                    partner.pop(a, None)
         live[k] = len(r)
         # this frame's rows, then every smoothed estimate still in the window
         rowidx[:, -1] = n_rows + np.arange(len(r))
