@@ -28,6 +28,8 @@ What is written (every file atomically)::
                      by the rule below
     rejects.csv      file, line, reason, raw text of every line not used (when any)
     import.toml      what was read, written and rejected, the rules, the time line
+    run.toml         [run] trackers = ["residents"]: what a plain ``onebit run`` runs (the
+                     slot HMMs cost minutes per day of a home; --trackers overrides it)
 
 Time line. ``t`` is seconds since ``epoch`` = ``2000-01-01T00:00:00`` (a notional date: ARAS
 publishes no calendar dates). Day ``N`` starts ``(N - 1) x 86 400`` s after it, so every import
@@ -568,7 +570,20 @@ def import_aras(house: str | Path, dataset: str | Path, *, days: tuple[int, int]
         "layout": {"positions": "schematic (rooms from the README places), approximate"},
     }
     write_text(to_toml(info), out / "import.toml")
+    write_text(RUN_TOML, out / "run.toml")
     return ArasImport(out, counts, info)
+
+
+#: The dataset's own ``run.toml``: which trackers a plain ``onebit run`` runs on a home log.
+RUN_TOML = """# Written by 'onebit import aras': what a plain 'onebit run' of this home does (edit freely;
+# --trackers on the command line overrides it).
+# residents: who fired each event, and how many are home (stage occupancy, docs/homes.md).
+# Left out by default: hmm1, hmm2, findinghumo, findinghumo-flow decode every 1 s slot of the
+#   log (minutes per day of a home; run them with --trackers on a few days); intruder and
+#   intruder-naive follow one intruder, not a household.
+[run]
+trackers = ["residents"]
+"""
 
 
 def _merge_intervals(df: pl.DataFrame) -> pl.DataFrame:
