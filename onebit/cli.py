@@ -80,6 +80,7 @@ def _web_serve(args) -> WebServe | None:
 
 def _cmd_follow(args) -> int:
     trackers = tuple(t.strip() for t in args.trackers.split(",")) if args.trackers else None
+    serve_web = _web_serve(args)
     config = load_run_config(args.config)
     options = FollowConfig(
         replay=parse_speed(args.replay) if args.replay else None, poll=args.poll, idle=args.idle, settle=args.settle
@@ -97,7 +98,7 @@ def _cmd_follow(args) -> int:
         config=config,
         options=options,
         connect=args.connect,
-        serve_web=_web_serve(args),
+        serve_web=serve_web,
         echo=print,
     )
     print(format_report(res.run.report, title=f"report of {args.out}"))
