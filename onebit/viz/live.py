@@ -19,10 +19,10 @@ from __future__ import annotations
 
 import errno
 import ipaddress
-import os
 import signal
 import socket
 import subprocess
+import sys
 import time
 from dataclasses import dataclass
 from pathlib import Path
@@ -186,14 +186,21 @@ def _web_viewer_command() -> list[str]:
     return [str(rerun_binary())]
 
 
-def _die_with_parent() -> None:  # pragma: no cover - runs in the child, before exec
-    """Linux: the page's server ends when this process does, even on ``kill -9``."""
-    try:
-        import ctypes
+def _death_signal():
+    """A function for the child to call between fork and exec (``preexec_fn``) so that the
+    page's server ends when this process does, even on ``kill -9`` (Linux ``prctl``
+    ``PR_SET_PDEATHSIG``); ``None`` elsewhere. Resolved here, in the parent: the child, forked
+    from a process with Rerun's threads running, only makes the one call."""
+    if not sys.platform.startswith("linux"):
+        return None
+    import ctypes
 
-        ctypes.CDLL(None).prctl(1, signal.SIGTERM)  # PR_SET_PDEATHSIG
+    try:
+        prctl = ctypes.CDLL(None, use_errno=True).prctl
     except (OSError, AttributeError):
-        pass
+        return None
+    args = (ctypes.c_int(1), ctypes.c_ulong(signal.SIGTERM))  # PR_SET_PDEATHSIG, SIGTERM
+    return lambda: prctl(*args)
 
 
 def _wait_listening(host: str, port: int, *, proc: subprocess.Popen | None = None) -> bool:
@@ -228,7 +235,7 @@ def start_web_viewer(bind: str, port: int, grpc_url: str, *, log: Path) -> subpr
             stdin=subprocess.DEVNULL,
             stdout=out,
             stderr=subprocess.STDOUT,
-            preexec_fn=_die_with_parent if os.name == "posix" else None,  # noqa: PLW1509
+            preexec_fn=_death_signal(),  # noqa: PLW1509 - one prctl call, resolved in the parent
         )
     if _wait_listening(_dial_host(bind), port, proc=proc):
         return proc
