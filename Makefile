@@ -6,7 +6,7 @@ STAMP := $(VENV)/.installed
 RAY_STAMP := $(VENV)/.ray-installed
 BUILD := build
 
-.PHONY: install demo test bench clean
+.PHONY: install demo test browser-test bench clean
 
 install: $(STAMP)
 
@@ -46,7 +46,16 @@ test: install $(RAY_STAMP)
 	$(BIN)/ruff format --check .
 	$(BIN)/lint-imports --no-cache
 	NO_MKDOCS_2_WARNING=1 $(BIN)/mkdocs build --strict --quiet --site-dir $(BUILD)/site
-	RERUN_ANALYTICS=0 $(BIN)/python -m pytest -n 2 --dist loadfile
+	RERUN_ANALYTICS=0 $(BIN)/python -m pytest -n 2 --dist loadfile -m "not browser"
+
+# browser-test: headless Chromium (Debian's, software GL) opens the page of `onebit follow --serve-web`
+# and checks the stream reached it and is drawn (tests/viz/test_live_browser.py, docs/live.md). Not in
+# `test`: it takes about a minute (the viewer's wasm started on a software renderer).
+CHROMIUM := /usr/bin/chromium
+SUDO := $(shell [ "$$(id -u)" = 0 ] || echo sudo)
+browser-test: install
+	test -x $(CHROMIUM) || ($(SUDO) apt-get update && $(SUDO) apt-get install -y chromium)
+	RERUN_ANALYTICS=0 $(BIN)/python -m pytest -m browser tests/viz/test_live_browser.py
 
 bench: install
 	$(BIN)/python -m pip install --quiet -e '.[test,bench,ray]'

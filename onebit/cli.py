@@ -36,6 +36,7 @@ from onebit.readers.trajectories import TrajectoryFormat
 from onebit.trackers.beams.verify import parse_story, verify_path
 from onebit.trackers.residents.known import Clock
 from onebit.viz.compare import compare_runs
+from onebit.viz.live import WebServe
 
 _STAGE_LINE = re.compile(r"  [\w-]+: (ok|skipped \()")
 
@@ -77,8 +78,28 @@ def _cmd_run(args) -> int:
     return 0 if res.ok else 1
 
 
+def _web_serve(args) -> WebServe | None:
+    """``--serve-web`` and its ``--web-port``, ``--grpc-port``, ``--bind`` as a :class:`WebServe`."""
+    given = {
+        flag: value
+        for flag, value in (("--web-port", args.web_port), ("--grpc-port", args.grpc_port), ("--bind", args.bind))
+        if value is not None
+    }
+    if not args.serve_web:
+        if given:
+            raise ConfigError(f"{', '.join(given)}: only with --serve-web")
+        return None
+    defaults = WebServe()
+    return WebServe(
+        bind=args.bind if args.bind is not None else defaults.bind,
+        web_port=args.web_port if args.web_port is not None else defaults.web_port,
+        grpc_port=args.grpc_port if args.grpc_port is not None else defaults.grpc_port,
+    )
+
+
 def _cmd_follow(args) -> int:
     trackers = tuple(t.strip() for t in args.trackers.split(",")) if args.trackers else None
+    serve_web = _web_serve(args)
     config = load_run_config(args.config)
     options = FollowConfig(
         replay=parse_speed(args.replay) if args.replay else None, poll=args.poll, idle=args.idle, settle=args.settle
@@ -96,7 +117,7 @@ def _cmd_follow(args) -> int:
         config=config,
         options=options,
         connect=args.connect,
-        serve_web=args.serve_web,
+        serve_web=serve_web,
         echo=print,
     )
     print(format_report(res.run.report, title=f"report of {args.out}"))
@@ -572,7 +593,29 @@ def _add_run_commands(sub) -> None:
         const="rerun+http://127.0.0.1:9876/proxy",
         help="also stream to a Rerun viewer that is open (default URL rerun+http://127.0.0.1:9876/proxy)",
     )
-    fo.add_argument("--serve-web", action="store_true", help="also serve the stream to a web viewer (prints its URL)")
+    fo.add_argument(
+        "--serve-web",
+        action="store_true",
+        help="also serve the stream to a web viewer (prints its URL); it listens on 127.0.0.1 only "
+        "(this machine) unless --bind says otherwise: from another machine, forward both ports over "
+        "SSH (ssh -L 9090:127.0.0.1:9090 -L 9876:127.0.0.1:9876 HOST), see docs/live.md",
+    )
+    fo.add_argument(
+        "--web-port", type=int, default=None, help="--serve-web: port of the page (default 9090; 0 = a free one)"
+    )
+    fo.add_argument(
+        "--grpc-port",
+        type=int,
+        default=None,
+        help="--serve-web: port of the stream the page reads (default 9876; 0 = a free one)",
+    )
+    fo.add_argument(
+        "--bind",
+        metavar="ADDR",
+        default=None,
+        help="--serve-web: address both ports listen on (default 127.0.0.1: this machine only; "
+        "0.0.0.0: every interface, so anyone on the network sees the live view -- no password)",
+    )
     fo.set_defaults(func=_cmd_follow)
 
     cp = sub.add_parser(

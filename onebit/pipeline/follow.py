@@ -741,15 +741,18 @@ def follow(
     config: dict[str, Any] | None = None,
     options: FollowConfig = FollowConfig(),
     connect: str | None = None,
-    serve_web: bool = False,
+    serve_web: bool | viz_live.WebServe = False,
     echo: Callable[[str], None] | None = None,
     clock: Callable[[], float] = time.monotonic,
     sleep: Callable[[float], None] = time.sleep,
 ) -> FollowResult:
     """Follow ``dataset`` (module docstring) and end with the batch run into ``out``.
 
+    ``serve_web``: ``True`` serves the web viewer on :class:`~onebit.viz.live.WebServe`'s
+    defaults (127.0.0.1 only, ports 9090 and 9876), a ``WebServe`` where it says.
+
     Raises :class:`OnebitError` for bad input found before anything is followed (dataset,
-    ``OUT``, site, config, tracker names, no CSV log to follow).
+    ``OUT``, site, config, tracker names, no CSV log to follow, a port in use).
     """
     dataset, out = Path(dataset), Path(out)
     echo = echo or (lambda s: None)
@@ -778,11 +781,15 @@ def follow(
             file=dataset,
         )
     settle = options.settle if options.settle is not None else _settle(site, merged)
+    serve = viz_live.WebServe() if serve_web is True else (serve_web or None)
+    if serve is not None:
+        viz_live.check_ports(serve)  # a port in use stops the follow before it replaces OUT/live
 
     live = out / LIVE
     shutil.rmtree(live, ignore_errors=True)  # a previous follow's live outputs
     live.mkdir(parents=True)
     snapshot = Path(tempfile.mkdtemp(prefix="onebit-follow-"))
+    served: viz_live.ServedViewer | None = None
     scratch = snapshot / ".scratch"
     data = snapshot / "data"
     data.mkdir()
@@ -826,11 +833,11 @@ def follow(
             return i if i is not None else clock()
 
         recording_id = str(uuid.uuid4())
-        rec, url = viz_live.open_live(
-            live / "rrd" / "follow.rrd", recording_id=recording_id, connect=connect, serve_web=serve_web
+        rec, served = viz_live.open_live(
+            live / "rrd" / "follow.rrd", recording_id=recording_id, connect=connect, serve_web=serve
         )
-        if url:
-            echo(f"  web viewer: {url}")
+        for line in served.describe() if served else ():
+            echo(f"  {line}")
         viz_live.log_live_site(rec, site, rg)
         pub = _Publisher(live, rec, wall_at, clock)
 
@@ -1033,7 +1040,7 @@ def follow(
             if final:
                 break
             sleep(options.poll)
-        viz_live.close_live(rec)
+        viz_live.close_live(rec, served)
         echo(f"  followed {polls} polls; final batch run")
         final_data = dataset if options.replay is not None else data
         for m in mcaps if options.replay is None else ():  # the recordings as they are now
@@ -1046,6 +1053,8 @@ def follow(
     finally:
         for src in sources.values():
             src.close()
+        if served is not None:  # an error or an interrupt: the page's server ends with the follow
+            served.stop()
         shutil.rmtree(snapshot, ignore_errors=True)
 
 

@@ -479,3 +479,143 @@ def test_connect_streams_to_a_rerun_server(pir, tmp_path):
     got = entity_paths(saved)
     assert {"intruder/tracks/intruder", "follow/delay/intruder", "site/boundary"} <= got
     assert got == entity_paths(tmp_path / "out" / "live" / "rrd" / "follow.rrd")  # what the file sink has
+
+
+def _listening_on(port: int) -> set[str]:
+    """The local addresses a TCP socket listens on at ``port`` (Linux: /proc/net/tcp, tcp6)."""
+    import ipaddress
+    from pathlib import Path
+
+    found = set()
+    for table, size in (("/proc/net/tcp", 4), ("/proc/net/tcp6", 16)):
+        if not Path(table).exists():
+            continue
+        for line in Path(table).read_text().splitlines()[1:]:
+            local, state = line.split()[1], line.split()[3]
+            addr, hexport = local.split(":")
+            if state == "0A" and int(hexport, 16) == port:  # 0A: LISTEN
+                raw = bytes.fromhex(addr)
+                raw = b"".join(raw[i : i + 4][::-1] for i in range(0, size, 4))  # host-order words
+                found.add(str(ipaddress.ip_address(raw)))
+    return found
+
+
+def _served_ports(lines: list[str]) -> tuple[str, int, int]:
+    """(page URL, page port, stream port) from a follow's ``web viewer`` lines."""
+    import re
+
+    url = next(ln.split("web viewer: ", 1)[1] for ln in lines if "web viewer: " in ln)
+    m = next(m for ln in lines if (m := re.search(r"ports (\d+) \(page\) and (\d+) \(stream\)", ln)))
+    return url, int(m[1]), int(m[2])
+
+
+@pytest.mark.skipif(not __import__("os").path.exists("/proc/net/tcp"), reason="reads Linux's /proc/net/tcp")
+def test_two_serve_web_follows_side_by_side_on_free_ports_listen_on_localhost_only(pir, tmp_path):
+    """Two ``follow --serve-web`` with ``--web-port 0 --grpc-port 0`` at once: four distinct
+    ports, each listened on by 127.0.0.1 only, both pages served; all closed at the end."""
+    import urllib.request
+
+    from onebit.viz.live import WebServe
+
+    _, data = pir
+    outer_lines: list[str] = []
+    inner_lines: list[str] = []
+    seen: dict = {}
+
+    def look(_sleeps: int) -> None:  # inside the inner follow: both serving, look at all four ports
+        if seen:
+            return
+        for name, lines in (("outer", outer_lines), ("inner", inner_lines)):
+            url, web, grpc = _served_ports(lines)
+            with urllib.request.urlopen(url, timeout=10) as r:
+                page = r.read().decode()
+            seen[name] = (web, grpc, _listening_on(web), _listening_on(grpc), r.status, "re_viewer.js" in page)
+
+    def start_inner(_sleeps: int) -> None:
+        if not seen:
+            inner = SimClock(on_sleep=look)
+            follow(
+                data,
+                tmp_path / "inner",
+                trackers=("intruder",),
+                options=FollowConfig(replay=20.0, poll=0.5),
+                serve_web=WebServe(web_port=0, grpc_port=0),
+                echo=inner_lines.append,
+                clock=inner.clock,
+                sleep=inner.sleep,
+            )
+
+    outer = SimClock(on_sleep=start_inner)
+    follow(
+        data,
+        tmp_path / "outer",
+        trackers=("intruder",),
+        options=FollowConfig(replay=20.0, poll=0.5),
+        serve_web=WebServe(web_port=0, grpc_port=0),
+        echo=outer_lines.append,
+        clock=outer.clock,
+        sleep=outer.sleep,
+    )
+    ports = [p for name in ("outer", "inner") for p in seen[name][:2]]
+    assert len(set(ports)) == 4, ports
+    for name in ("outer", "inner"):
+        web, grpc, web_addrs, grpc_addrs, status, is_viewer = seen[name]
+        assert web_addrs == {"127.0.0.1"} and grpc_addrs == {"127.0.0.1"}, (name, web_addrs, grpc_addrs)
+        assert status == 200 and is_viewer, name
+    for p in ports:  # the follows ended: nothing listens any more (the page servers were stopped)
+        assert _listening_on(p) == set(), p
+
+
+@pytest.mark.parametrize("flag", ["--web-port", "--grpc-port"])
+def test_a_port_in_use_is_one_line_naming_the_port_and_the_flag(pir, tmp_path, capsys, flag):
+    import socket
+
+    from onebit.cli import main
+
+    _, data = pir
+    (tmp_path / "out" / "live").mkdir(parents=True)
+    (tmp_path / "out" / "live" / "kept.txt").write_text("a previous follow's live outputs")
+    with socket.socket() as taken:
+        taken.bind(("127.0.0.1", 0))
+        taken.listen()
+        port = taken.getsockname()[1]
+        other = "--grpc-port" if flag == "--web-port" else "--web-port"
+        argv = ["follow", str(data), "--out", str(tmp_path / "out"), "--replay", "20x", "--serve-web"]
+        rc = main([*argv, flag, str(port), other, "0"])
+    err = capsys.readouterr().err.strip().splitlines()
+    assert rc == 2
+    assert err == [
+        f"onebit: error: {flag} {port}: port {port} is already in use on 127.0.0.1 (another follow "
+        f"--serve-web, or a Rerun viewer?); choose another with {flag} N, or {flag} 0 for a free one"
+    ]
+    assert (tmp_path / "out" / "live" / "kept.txt").exists()  # refused before OUT/live is replaced
+
+
+def test_the_page_server_taking_a_port_in_use_names_it(tmp_path):
+    """The page's server (the ``rerun`` child) finding its port taken after the check: the same error."""
+    import socket
+
+    from onebit.viz.live import PortInUseError, start_web_viewer
+
+    with socket.socket() as taken:  # bound, not listening: the child's bind fails, a connect would too
+        taken.bind(("127.0.0.1", 0))
+        port = taken.getsockname()[1]
+        with pytest.raises(PortInUseError, match=f"--web-port {port}: port {port} is already in use"):
+            start_web_viewer("127.0.0.1", port, "rerun+http://127.0.0.1:9/proxy", log=tmp_path / "web.log")
+
+
+@pytest.mark.parametrize(
+    ("kwargs", "message"),
+    [
+        ({"web_port": 70000}, "--web-port 70000: expected a port in 0..65535"),
+        ({"grpc_port": -1}, "--grpc-port -1: expected a port"),
+        ({"bind": "localhost"}, "--bind 'localhost': expected an IP address"),
+        ({"web_port": 9000, "grpc_port": 9000}, "both 9000"),
+    ],
+)
+def test_web_serve_options_are_checked(kwargs, message):
+    from onebit.viz.live import WebServe
+
+    with pytest.raises(ConfigError, match=message):
+        WebServe(**kwargs)
+    assert WebServe().bind == "127.0.0.1" and WebServe().local_only
