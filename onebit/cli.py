@@ -247,7 +247,8 @@ def _cmd_experiment(args) -> int:
         params = inspect.signature(mod.run).parameters
         trackers = tuple(t.strip() for t in args.trackers.split(",") if t.strip()) if args.trackers else None
         sequences = None if args.sequences is None else tuple(q.strip() for q in args.sequences.split(",") if q.strip())
-        for key, value in (("data", args.data), ("trackers", trackers), ("sequences", sequences)):
+        pairs = (("data", args.data), ("trackers", trackers), ("sequences", sequences))
+        for key, value in (*pairs, ("learn", args.learn), ("decode", args.decode)):
             if value is not None:
                 if key not in params:
                     raise ConfigError(f"experiment {args.name!r} takes no --{key}")
@@ -677,7 +678,9 @@ def _add_simulate_command(sub) -> None:
 def _add_experiment_command(sub) -> None:
     """``experiment``: a paper's study."""
     e = sub.add_parser("experiment", help="reproduce a paper's study: simulate, run, tabulate, plot")
-    e.add_argument("name", help="schiff, singh, okane, ..., residents (OUT = a folder of CASAS sessions)")
+    e.add_argument(
+        "name", help="schiff, singh, okane, ..., residents (OUT = a folder of CASAS sessions), ceiling, homes (ARAS)"
+    )
     e.add_argument("out")
     e.add_argument("--results", default=None, help="residents: results folder (default OUT/residents-study)")
     e.add_argument(
@@ -708,7 +711,13 @@ def _add_experiment_command(sub) -> None:
         default="none",
         help="residents --cross-validate: the profiles' clock (onebit learn residents --clock; 10 bins)",
     )
-    e.add_argument("--data", default=None, help="ceiling: the irtracking recordings (a clone of antonmil/irtracking)")
+    e.add_argument(
+        "--data",
+        default=None,
+        help="ceiling: the irtracking recordings (a clone of antonmil/irtracking); homes: an ARAS house folder",
+    )
+    e.add_argument("--learn", default=None, help="homes: the labelled days, A-B (default: the first half)")
+    e.add_argument("--decode", default=None, help="homes: the days to decode, A-B[,C-D...] (default: the second half)")
     e.add_argument(
         "--sequences",
         default=None,

@@ -583,6 +583,10 @@ RUN_TOML = """# Written by 'onebit import aras': what a plain 'onebit run' of th
 #   intruder-naive follow one intruder, not a household.
 [run]
 trackers = ["residents"]
+
+# a row of each person every 10 s (not every second: a month is then 0.26 M rows a person)
+[residents]
+period = 10.0
 """
 
 

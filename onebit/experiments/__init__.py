@@ -22,7 +22,17 @@ from __future__ import annotations
 from types import ModuleType
 
 from onebit.core.errors import ConfigError
-from onebit.experiments import ceiling, correct, findinghumo, findinghumo_diagnose, okane, residents, schiff, singh
+from onebit.experiments import (
+    ceiling,
+    correct,
+    findinghumo,
+    findinghumo_diagnose,
+    homes,
+    okane,
+    residents,
+    schiff,
+    singh,
+)
 
 EXPERIMENTS: dict[str, ModuleType] = {
     "singh": singh,
@@ -33,6 +43,7 @@ EXPERIMENTS: dict[str, ModuleType] = {
     "findinghumo-diagnose": findinghumo_diagnose,
     "residents": residents,
     "ceiling": ceiling,
+    "homes": homes,
 }
 
 

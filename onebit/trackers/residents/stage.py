@@ -347,9 +347,9 @@ def tracks_table(
     frames = []
     if len(t):
         check_size(
-            (t[-1] - t[0]) / cfg.period * max(cfg.max_people, 1),
+            (t[-1] - t[0]) / cfg.period * max(res.people, 1),
             MAX_STEPS,
-            what=f"track rows (up to {cfg.max_people} people every {cfg.period:g} s)",
+            what=f"track rows ({res.people} people every {cfg.period:g} s)",
             field=f"[residents] period = {cfg.period:g}",
             hint="a longer period",
         )
