@@ -480,15 +480,15 @@ def import_aras(house: str | Path, dataset: str | Path, *, days: tuple[int, int]
     lines = short = 0
     for d in range(a, b + 1):
         day = read_day(files[d], d, S, carry=carry)
-        off = 1 if carry is not None else 0
         lv, acts = day.levels, day.activities
-        t = (d - 1) * DAY_S + np.arange(lv.shape[0]) - off
+        t = (d - 1) * DAY_S + np.arange(lv.shape[0])
         lines += day.lines
         short += int(day.lines < DAY_S)
         rejects.append(day.rejects)
-        ch = edges(t, lv, ids, first=carry is None)
-        if off:  # the carried row is the day before's last second: only changes from it count
-            ch = ch.filter(pl.col("t") >= float(t[1]))
+        if carry is not None and t.size:  # changes from the day before's last second count, at this day's first
+            ch = edges(np.r_[t[0] - 1, t], np.vstack([carry[0][None, :], lv]), ids, first=False)
+        else:
+            ch = edges(t, lv, ids, first=True)
         kinds = {s.id: s.type for s in spec.sensors}
         motion.append(ch.filter(pl.col("sensor").is_in([i for i, p in zip(ids, person) if p])))
         other.append(
@@ -496,7 +496,6 @@ def import_aras(house: str | Path, dataset: str | Path, *, days: tuple[int, int]
                 kind=pl.col("sensor").replace_strict(kinds, default="binary")
             )
         )
-        lv, acts, t = lv[off:], acts[off:], t[off:]
         end = float(t[-1] + 1) if t.size else float((d - 1) * DAY_S)
         n_home = (acts != GOING_OUT).sum(axis=1)
         counts_iv.append(intervals(t, n_home, end))
@@ -506,7 +505,7 @@ def import_aras(house: str | Path, dataset: str | Path, *, days: tuple[int, int]
         on = ch.filter((pl.col("value") == 1) & pl.col("sensor").is_in([i for i, p in zip(ids, person) if p]))
         k = (on["t"].to_numpy() - (d - 1) * DAY_S).astype(np.int64)
         events.append(on.select("t", "sensor").with_columns(residents=pl.Series(who[k].tolist(), dtype=pl.String)))
-        carry = (day.levels[-1], day.activities[-1]) if day.levels.shape[0] else None
+        carry = (day.levels[-1], day.activities[-1]) if day.levels.shape[0] else carry
     motion_df = pl.concat(motion)
     other_df = pl.concat(other)
     count_df = _merge_intervals(pl.concat(counts_iv)).rename({"value": "count"})

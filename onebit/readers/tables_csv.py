@@ -258,7 +258,7 @@ def truth_count_from_rows(raw: RawRows, *, epoch=None, path: Path | None = None)
         bad = np.r_[False, overlap]
         extra = pl.DataFrame(
             {
-                "source": str(path) if path else "truth_count",
+                "source": raw.source,
                 "line": pl.Series([None] * int(bad.sum()), dtype=pl.Int64),
                 "reason": "an interval that starts before the previous one ends (overlap)",
                 "raw": [f"{a},{b},{c}" for a, b, c in ok.filter(pl.Series(bad)).iter_rows()],

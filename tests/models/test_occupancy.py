@@ -1,0 +1,288 @@
+"""The door-gated count model of a home (issue 34, item 2): the compiled Viterbi against its
+oracle, the per-bin features of a hand-made log, additive statistics, and the count it decodes
+on generated one-person, two-person and silent logs."""
+
+from __future__ import annotations
+
+from dataclasses import replace
+
+import numpy as np
+import polars as pl
+import pytest
+
+from onebit.core.site import site_from_dict
+from onebit.core.tables import MOTION
+from onebit.models.occupancy import (
+    BINS,
+    PEOPLE,
+    CountModel,
+    Features,
+    OccupancyConfig,
+    estimate,
+    features,
+    learn_stats,
+    stats,
+    viterbi,
+    viterbi_reference,
+)
+
+# -- Viterbi ------------------------------------------------------------------------------
+
+
+@pytest.mark.parametrize("seed", range(12))
+def test_compiled_viterbi_equals_the_reference(seed):
+    rng = np.random.default_rng(seed)
+    K = int(rng.integers(0, 5))
+    B = int(rng.choice([0, 1, 2, 50, 300]))
+    N = K + 1
+
+    def logp(*shape):
+        p = rng.dirichlet(np.ones(shape[-1]), size=shape[:-1]) if len(shape) > 1 else rng.dirichlet(np.ones(shape[0]))
+        return np.log(p)
+
+    ll = np.log(rng.uniform(0.01, 1.0, size=(B, N)))
+    door = rng.random(B) < 0.2
+    model = CountModel(
+        log_start=logp(N),
+        log_door=logp(N, N),
+        log_quiet=logp(N, N),
+        log_active=None,
+        log_far=np.zeros((N, 2)),
+        log_hour=None,
+    )
+    want = viterbi_reference(ll, door, model.log_door, model.log_quiet, model.log_start)
+    got = viterbi(ll, door, model)
+    assert got.dtype == np.int64 and got.shape == (B,)
+    assert got.tolist() == want.tolist()
+
+
+# -- features of a hand-made log ----------------------------------------------------------
+
+SENSORS = ["d", "a", "b", "c", "f"]
+
+
+def _motion(rows) -> pl.DataFrame:
+    return pl.DataFrame(rows, schema=MOTION, orient="row")
+
+
+HAND = _motion(
+    [
+        (5.0, "d", True),  # bin 0: the door, not activity
+        (6.0, "d", False),
+        (70.0, "a", True),  # bin 1: a and c 0.5 s apart, far apart: far
+        (70.5, "c", True),
+        (75.0, "a", False),
+        (80.0, "c", False),
+        (130.0, "a", True),  # bin 2: a then b, near: not far
+        (135.0, "b", True),
+        (140.0, "a", False),
+        (141.0, "b", False),
+        (200.0, "f", True),  # bin 3: a level sensor on until 330 (bin 5): held in bins 3-5
+        (330.0, "f", False),
+        (400.0, "c", True),  # bin 6: c then a 2 s apart: beyond the window
+        (402.0, "a", True),
+        (403.0, "zz", True),  # not one of the sensors: ignored
+    ]
+)
+
+
+def _far() -> np.ndarray:
+    far = np.zeros((5, 5), dtype=bool)
+    far[1, 3] = far[3, 1] = True  # a - c
+    return far
+
+
+def _features(**kw) -> Features:
+    args = dict(bin_s=60.0, window_s=1.0, held=True, epoch_seconds_of_day=None)
+    args.update(kw)
+    return features(HAND, SENSORS, {"d"}, {"f"}, _far(), **args)
+
+
+def test_features_of_a_hand_made_log():
+    f = _features()
+    assert f.t0 == 0.0 and f.bins == 7
+    assert f.door.tolist() == [True, False, False, False, False, False, False]
+    assert f.active.tolist() == [False, True, True, True, True, True, True]
+    assert f.far.tolist() == [False, True, False, False, False, False, False]
+    fired = {b: sorted(SENSORS[j] for j in np.flatnonzero(f.fired[b])) for b in range(f.bins)}
+    assert fired == {0: ["d"], 1: ["a", "c"], 2: ["a", "b"], 3: ["f"], 4: [], 5: [], 6: ["a", "c"]}
+    assert f.held[:, 4].tolist() == [False, False, False, True, True, True, False]
+    assert not f.held[:, :4].any()  # only level sensors are held
+    assert (f.hour == -1).all()
+
+
+def test_features_without_held_and_with_a_clock():
+    f = _features(held=False, epoch_seconds_of_day=23 * 3600.0)
+    assert f.active.tolist() == [False, True, True, True, False, False, True]
+    assert (f.hour == 23).all()
+
+
+# -- statistics ---------------------------------------------------------------------------
+
+
+def _cut(f: Features, lo: int, hi: int) -> Features:
+    s = slice(lo, hi)
+    return replace(
+        f,
+        t0=f.t0 + lo * f.bin_s,
+        door=f.door[s],
+        active=f.active[s],
+        far=f.far[s],
+        fired=f.fired[s],
+        held=f.held[s],
+        hour=f.hour[s],
+    )
+
+
+def _as_dict(df: pl.DataFrame) -> dict:
+    g = df.group_by("term", "state", "key").agg(pl.col("count").sum())
+    return {(a, b, c): v for a, b, c, v in g.iter_rows() if v != 0}
+
+
+@pytest.mark.parametrize("k", [1, 3, 5])
+def test_stats_are_additive_but_for_the_boundary(k):
+    f = _features(epoch_seconds_of_day=0.0)
+    y = np.array([1, 1, 2, 2, -1, 1, 0])
+    whole = _as_dict(stats(f, y))
+    parts = pl.concat([stats(_cut(f, 0, k), y[:k]), stats(_cut(f, k, f.bins), y[k:])])
+    extra = []
+    if y[k - 1] >= 0 and y[k] >= 0:  # the transition across the cut
+        extra.append(("door" if f.door[k] else "quiet", int(y[k - 1]), str(int(y[k])), 1.0))
+    first2 = next((int(v) for v in y[k:] if v >= 0), None)
+    if first2 is not None:  # the second part's start row
+        extra.append(("start", first2, "", -1.0))
+    summed = pl.concat([parts, pl.DataFrame(extra, schema=parts.schema, orient="row")]) if extra else parts
+    assert _as_dict(summed) == whole
+
+
+def test_learn_stats_of_two_days_sum_to_their_concatenation():
+    site = _line_site()
+    cfg = OccupancyConfig()
+    m1 = _one_person(np.random.default_rng(1), hours=3.0)
+    m2 = _one_person(np.random.default_rng(2), hours=3.0).with_columns(pl.col("t") + 86_400.0)
+    t1 = pl.DataFrame({"t": [0.0], "end": [3 * 3600.0], "count": [1]})
+    t2 = pl.DataFrame({"t": [86_400.0], "end": [86_400.0 + 3 * 3600.0], "count": [1]})
+    s1, s2 = learn_stats(m1, t1, site, cfg), learn_stats(m2, t2, site, cfg)
+    assert s1.filter(pl.col("term") == "bins")["count"].sum() == 180
+    assert _as_dict(pl.concat([s1, s2]))[("bins", 1, "")] == 360
+    assert _as_dict(pl.concat([s1, s2]))[("start", 1, "")] == 2
+
+
+# -- the count on generated logs ----------------------------------------------------------
+
+N_LINE = 10
+
+
+def _line_site(door: bool = False):
+    """Ten sensors on a line 2 m apart, a chain sensor graph; ``s9`` a level (force) sensor."""
+    ids = [f"s{i}" for i in range(N_LINE)]
+    graph = {"edges": [[ids[i], ids[i + 1]] for i in range(N_LINE - 1)]}
+    if door:
+        graph |= {"entries": ["s0"], "exits": ["s0"]}
+    return site_from_dict(
+        {
+            "name": "line",
+            "units": "m",
+            "epoch": "2000-01-01T00:00:00",
+            "boundary": {"polygon": [[-1, -1], [20, -1], [20, 1], [-1, 1]]},
+            "sensor_types": {"force": {"signal": "level"}},
+            "motion_sensors": [
+                {"id": s, "position": [2.0 * i, 0.0], "range": 1.0, **({"type": "force"} if i == 9 else {})}
+                for i, s in enumerate(ids)
+            ],
+            "sensor_graph": graph,
+        }
+    )
+
+
+def _pulse(rows, t, s, hold):
+    rows.append((t, s, True))
+    rows.append((t + hold, s, False))
+
+
+def _one_person(rng, *, hours: float, silence: tuple[float, float] = (600.0, 2700.0)) -> pl.DataFrame:
+    """One person walking the chain: a pulse at each sensor reached, lingering at some (the
+    sensor re-fires while they stay, and fires once more after they left), sitting on the
+    force sensor ``s9`` for up to an hour (held on), and now and then a silence of ``silence``
+    seconds (asleep, or reading where no sensor sees)."""
+    rows: list = []
+    t, pos, end = 0.0, int(rng.integers(0, N_LINE)), hours * 3600.0
+    while t < end:
+        u = rng.random()
+        if u < 0.005:  # a silence
+            t += rng.uniform(*silence)
+            continue
+        if pos == 9 and u < 0.2:  # sits down: the force sensor held
+            hold = rng.uniform(600.0, 3600.0)
+            _pulse(rows, t, "s9", hold)
+            t += hold + 1.0
+        else:
+            _pulse(rows, t, f"s{pos}", rng.uniform(1.0, 4.0))
+            if rng.random() < 0.3:  # lingering: the sensor re-fires while they stay
+                for _ in range(int(rng.integers(1, 6))):
+                    t += rng.uniform(5.0, 40.0)
+                    _pulse(rows, t, f"s{pos}", rng.uniform(1.0, 4.0))
+            t += rng.exponential(30.0) + 1.0
+        prev = pos
+        pos = int(np.clip(pos + rng.choice([-1, 1]), 0, N_LINE - 1))
+        if rng.random() < 0.1:  # the sensor left behind fires once more
+            _pulse(rows, t + rng.uniform(0.2, 3.0), f"s{prev}", 2.0)
+    df = pl.DataFrame(rows, schema=MOTION, orient="row").filter(pl.col("t") < end).sort("t")
+    return df
+
+
+@pytest.mark.parametrize("seed", [7, 8])
+def test_one_person_with_lingering_sensors_and_silences_is_one(seed):
+    """Silences of 10-45 minutes (no door in the site), a force sensor held up to an hour,
+    sensors that re-fire: one person in >= 95 % of the day's bins, never two."""
+    site = _line_site()
+    motion = _one_person(np.random.default_rng(seed), hours=24.0)
+    assert motion.height > 500
+    bins, people = estimate(motion, site, OccupancyConfig())
+    assert bins.schema == BINS and people.schema == PEOPLE
+    n = bins["present"].to_numpy()
+    assert (~bins["active"].to_numpy()).mean() > 0.05  # the silences are there
+    assert (n == 1).mean() >= 0.95, np.bincount(n)
+    assert n.max() == 1
+
+
+@pytest.mark.xfail(
+    strict=True,
+    reason="with the default constants a home without a door sensor empties after about an hour of "
+    "silence: two quiet changes cost 2 ln(quiet_change / K) = -21, the same as 63 silent minutes "
+    "at ln(0.7 / 0.98) each (issue 34: 'long silences' of hours)",
+)
+def test_one_person_through_silences_of_hours_is_one():
+    motion = _one_person(np.random.default_rng(7), hours=24.0, silence=(2 * 3600.0, 3 * 3600.0))
+    bins, _ = estimate(motion, _line_site(), OccupancyConfig())
+    n = bins["present"].to_numpy()
+    assert n.max() == 1  # never two (this part holds)
+    assert (n == 1).mean() >= 0.95, np.bincount(n)
+
+
+def test_silences_of_hours_never_make_two():
+    motion = _one_person(np.random.default_rng(9), hours=24.0, silence=(2 * 3600.0, 3 * 3600.0))
+    bins, _ = estimate(motion, _line_site(), OccupancyConfig())
+    assert bins["present"].max() == 1
+
+
+def test_a_silent_log_gives_no_people():
+    bins, people = estimate(pl.DataFrame(schema=MOTION), _line_site(), OccupancyConfig())
+    assert bins.height == 0 and people.height == 0
+    assert bins.schema == BINS and people.schema == PEOPLE
+
+
+def test_two_people_firing_far_apart_at_once_are_two():
+    """Two people at the two ends of the chain (7+ hops apart), often firing within a second."""
+    rng = np.random.default_rng(3)
+    rows: list = []
+    t = 0.0
+    while t < 4 * 3600.0:
+        a, b = int(rng.integers(0, 3)), int(rng.integers(7, 9))
+        _pulse(rows, t, f"s{a}", 2.0)
+        _pulse(rows, t + rng.uniform(0.0, 0.8), f"s{b}", 2.0)
+        t += rng.exponential(40.0) + 5.0
+    motion = pl.DataFrame(rows, schema=MOTION, orient="row").sort("t")
+    bins, _ = estimate(motion, _line_site(), OccupancyConfig())
+    n = bins["present"].to_numpy()
+    assert (n == 2).mean() >= 0.9, np.bincount(n)
