@@ -583,9 +583,13 @@ RUN_TOML = """# Written by 'onebit import aras': what a plain 'onebit run' of th
 [run]
 trackers = ["residents"]
 
-# a row of each person every 10 s (not every second: a month is then 0.26 M rows a person)
+# a row of each person every 10 s (not every second: a month is then 0.26 M rows a person);
+# with a residents_profile.csv, who fired each event by runs of one resident's events weighed
+# by their habits (eq. K4 of docs/residents.md: over days one resident is often out or asleep)
 [residents]
 period = 10.0
+profile_model = "turns"
+profile_tau_s = 30.0
 """
 
 

@@ -34,7 +34,10 @@ with a tenth of it), ``Q[i, i] = 1 - quiet_change`` (a change without a door eve
 missed door, or a home with no door sensor); ``A[0, 1] = noise`` (a sensor fires in an
 empty home), ``A[n, 1] = activity`` for ``n >= 1`` (activity tells an empty home from an
 occupied one, not one person from two: people's own habits dominate it); ``F[n, 1] = far_noise`` for ``n <= 1``,
-``far_rate`` for ``n >= 2``; no clock; start ``P(n_0 = n)`` proportional to ``2^-n``.
+``far_rate`` for ``n >= 2``; no clock; start ``P(n_0 = n)`` proportional to ``2^-n``. A site
+without a door sensor (no entry/exit node) never sees anyone leave: there a silent bin is no
+evidence of an empty home (``A[n, 0] = 1`` for every ``n``), so a sleeper's hours of silence keep
+the count, and only activity (``A[0, 1] = noise``) and far pairs move it.
 
 Learned (:func:`stats` on labelled bins, :func:`model_from_stats`): every table above is the
 labelled bins' frequencies with a Dirichlet prior of ``prior`` pseudo-counts per cell (the
@@ -49,7 +52,7 @@ function ``(t, present)`` at each bin start (:func:`people_steps`).
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 import polars as pl
@@ -555,6 +558,8 @@ def estimate(
         far_noise=cfg.far_noise,
         far_rate=cfg.far_rate,
     )
+    if not doors and use is None:  # no door sensor: nobody is seen leaving, so silence is no evidence of it
+        model = replace(model, log_active=np.column_stack([np.zeros(K + 1), model.log_active[:, 1]]))
     if use is not None:
         model = model_from_stats(
             use, K, prior=cfg.prior, clock_weight=cfg.clock_weight, unlearned=model, sensor_weight=cfg.sensor_weight

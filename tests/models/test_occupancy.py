@@ -246,12 +246,6 @@ def test_one_person_with_lingering_sensors_and_silences_is_one(seed):
     assert n.max() == 1
 
 
-@pytest.mark.xfail(
-    strict=True,
-    reason="with the default constants a home without a door sensor empties after about an hour of "
-    "silence: two quiet changes cost 2 ln(quiet_change / K) = -21, the same as 63 silent minutes "
-    "at ln(0.7 / 0.98) each (issue 34: 'long silences' of hours)",
-)
 def test_one_person_through_silences_of_hours_is_one():
     motion = _one_person(np.random.default_rng(7), hours=24.0, silence=(2 * 3600.0, 3 * 3600.0))
     bins, _ = estimate(motion, _line_site(), OccupancyConfig())

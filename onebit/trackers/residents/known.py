@@ -68,6 +68,7 @@ import numpy as np
 import polars as pl
 from scipy.special import logsumexp
 
+from onebit.core.compiled import kernel
 from onebit.core.errors import ConfigError, InputError
 from onebit.core.tables import RESIDENTS_PROFILE, conform
 
@@ -305,3 +306,119 @@ def posteriors_bruteforce(node: np.ndarray, ch: Chains, bonus: np.ndarray | None
     for wk, z in zip(w, seqs):
         post[np.arange(n), list(z)] += wk
     return post, log_z
+
+
+# --------------------------------------------------------------------------- turns (K4)
+#
+# The chains (K1-K3) hold both residents present and firing in turn. In a home over days that
+# is seldom so: one is out or asleep for hours, and the one awake fires run after run of events.
+# ``profile_model = "turns"`` decodes who fired each event by that, from the same profile:
+#
+#     P(z_i = r | z_{i-1} = q) = s_i [r = q] + (1 - s_i) / (K - 1) [r != q],
+#     s_i = 1/K + (1 - 1/K) exp(-(t_i - t_{i-1}) / tau)                                  (K4)
+#     emission  e_r(i) = P(r | s_i, b_i) = (h_r(s_i, b_i) + 1) / sum_u (h_u(s_i, b_i) + 1)
+#
+# (the habit of (K3) as a scaled likelihood; per sensor when the profile has no clock): a person
+# who fired an event a moment ago most likely fired this one too, and after a long silence anyone
+# may have (``s -> 1/K``). Forward-backward gives ``P(z_i = r | all events)``; each event goes to
+# its most probable resident. Inherently sequential over events: compiled
+# (:func:`turn_posteriors`), :func:`turn_posteriors_reference` its oracle.
+
+
+def habit_log_probs(
+    profile: pl.DataFrame, residents: tuple[str, ...], nodes: tuple[str, ...], node: np.ndarray, t: np.ndarray, *, epoch
+) -> np.ndarray:
+    """``ln P(r | s_i, b_i)`` of (K4) for every event and resident (``n x K``): by the profile's
+    clock bins when it has a clock, else by its per-sensor habit rows; add-one."""
+    S, K = len(nodes), len(residents)
+    index = {n: k for k, n in enumerate(nodes)}
+    ri = {r: k for k, r in enumerate(residents)}
+    clock = clock_of(profile)
+    bins = clock.bins if clock is not None else 1
+    h = np.ones((K, bins, S))
+    habit = profile.filter(pl.col("from").is_null() & pl.col("to").is_in(list(nodes)))
+    habit = habit.filter(pl.col("bin").is_not_null()) if clock is not None else habit.filter(pl.col("bin").is_null())
+    for r, s_, c, b in habit.select("resident", "to", "count", "bin").iter_rows():
+        if r in ri:
+            h[ri[r], int(b.split()[1].split("/")[0]) if clock is not None else 0, index[s_]] += c
+    log_p = np.log(h / h.sum(axis=0, keepdims=True))
+    b = clock.bin(t, epoch=epoch) if clock is not None else np.zeros(len(node), dtype=np.int64)
+    return log_p[:, b, node].T
+
+
+def turn_posteriors_reference(log_e: np.ndarray, t: np.ndarray, tau: float) -> np.ndarray:
+    """(K4)'s posteriors, written step by step in log space (the oracle of :func:`turn_posteriors`)."""
+    n, K = log_e.shape
+    if n == 0:
+        return np.zeros((0, K))
+    fwd = np.empty((n, K))
+    fwd[0] = log_e[0] - np.log(K)
+    for i in range(1, n):
+        stay = 1.0 / K + (1.0 - 1.0 / K) * np.exp(-(t[i] - t[i - 1]) / tau)
+        move = (1.0 - stay) / max(K - 1, 1)
+        a = np.full((K, K), np.log(max(move, 1e-300)))
+        np.fill_diagonal(a, np.log(stay))
+        fwd[i] = logsumexp(fwd[i - 1][:, None] + a, axis=0) + log_e[i]
+    bwd = np.zeros((n, K))
+    for i in range(n - 2, -1, -1):
+        stay = 1.0 / K + (1.0 - 1.0 / K) * np.exp(-(t[i + 1] - t[i]) / tau)
+        move = (1.0 - stay) / max(K - 1, 1)
+        a = np.full((K, K), np.log(max(move, 1e-300)))
+        np.fill_diagonal(a, np.log(stay))
+        bwd[i] = logsumexp(a + (log_e[i + 1] + bwd[i + 1])[None, :], axis=1)
+    post = fwd + bwd
+    post -= logsumexp(post, axis=1, keepdims=True)
+    return np.exp(post)
+
+
+@kernel
+def _turns_kernel(e, t, tau):  # pragma: no cover - compiled
+    n, K = e.shape
+    fwd = np.zeros((n, K))
+    bwd = np.ones((n, K))
+    s = 0.0
+    for r in range(K):
+        fwd[0, r] = e[0, r] / K
+        s += fwd[0, r]
+    for r in range(K):
+        fwd[0, r] /= s
+    for i in range(1, n):
+        stay = 1.0 / K + (1.0 - 1.0 / K) * np.exp(-(t[i] - t[i - 1]) / tau)
+        move = (1.0 - stay) / max(K - 1, 1)
+        tot = 0.0
+        for r in range(K):
+            acc = 0.0
+            for q in range(K):
+                acc += fwd[i - 1, q] * (stay if q == r else move)
+            fwd[i, r] = acc * e[i, r]
+            tot += fwd[i, r]
+        for r in range(K):
+            fwd[i, r] /= tot
+    for i in range(n - 2, -1, -1):
+        stay = 1.0 / K + (1.0 - 1.0 / K) * np.exp(-(t[i + 1] - t[i]) / tau)
+        move = (1.0 - stay) / max(K - 1, 1)
+        tot = 0.0
+        for q in range(K):
+            acc = 0.0
+            for r in range(K):
+                acc += (stay if q == r else move) * e[i + 1, r] * bwd[i + 1, r]
+            bwd[i, q] = acc
+            tot += acc
+        for q in range(K):
+            bwd[i, q] /= tot
+    post = fwd * bwd
+    for i in range(n):
+        tot = 0.0
+        for r in range(K):
+            tot += post[i, r]
+        for r in range(K):
+            post[i, r] /= tot
+    return post
+
+
+def turn_posteriors(log_e: np.ndarray, t: np.ndarray, tau: float) -> np.ndarray:
+    """``P(z_i = r | all events)`` of (K4), ``n x K`` (compiled; scaled forward-backward)."""
+    if log_e.shape[0] == 0:
+        return np.zeros(log_e.shape)
+    e = np.exp(log_e - log_e.max(axis=1, keepdims=True))
+    return _turns_kernel(np.ascontiguousarray(e), np.ascontiguousarray(t, dtype=np.float64), float(tau))

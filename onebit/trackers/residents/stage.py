@@ -48,7 +48,7 @@ from onebit.trackers.residents.decode import (
     tracks_from_pred,
 )
 from onebit.trackers.residents.habits import meeting_cuts, reorient
-from onebit.trackers.residents.known import chains, clock_bonus, posteriors
+from onebit.trackers.residents.known import chains, clock_bonus, habit_log_probs, posteriors, turn_posteriors
 from onebit.trackers.residents.model import birth_cost, move_cost, node_distances
 
 NAME = "residents"
@@ -95,6 +95,10 @@ class ResidentsConfig:
     profile_spread : ``l`` of eq. (K1), metres: the kernel that transitions never seen in the
         profile fall back to.
     profile_prior : ``beta`` of eq. (K1): the weight of that kernel against the learned counts.
+    profile_model : ``"chains"`` (eq. K1-K3: both residents present, firing in turn) or
+        ``"turns"`` (eq. K4: runs of one resident's events weighed by their habits by sensor and
+        time; a home over days, where one is often out or asleep).
+    profile_tau_s : ``tau`` of (K4): the silence (s) after which the next event may be anyone's.
     profile_clock_weight : ``w`` of eq. (K3): the weight of the residents' habits by time when
         the profile has a clock (0: ignore it).
     """
@@ -123,6 +127,8 @@ class ResidentsConfig:
     profile_spread: float = length(3.0)
     profile_prior: float = 2.0
     profile_clock_weight: float = 1.0
+    profile_model: str = "chains"
+    profile_tau_s: float = 300.0
 
     def __post_init__(self) -> None:
         check_range(self, "l0", 1e-9, None)
@@ -147,6 +153,8 @@ class ResidentsConfig:
         check_range(self, "profile_spread", 1e-9, None)
         check_range(self, "profile_prior", 1e-9, 1e9)
         check_range(self, "profile_clock_weight", 0.0, 100.0)
+        check_choice(self, "profile_model", ("chains", "turns"))
+        check_range(self, "profile_tau_s", 1e-3, 1e7)
 
 
 def available(site: Site) -> str | None:
@@ -256,8 +264,13 @@ def attribute_known(
     :mod:`onebit.trackers.residents.known`). Returns the attribution (people numbered in the
     order of the profile's residents, only those given an event) and their resident ids."""
     ch = chains(profile, home.nodes, home.dist, spread=cfg.profile_spread, prior=cfg.profile_prior)
-    bonus = clock_bonus(profile, ch.residents, home.nodes, node, t, epoch=epoch, weight=cfg.profile_clock_weight)
-    post, log_z = posteriors(node, ch, bonus)
+    if cfg.profile_model == "turns":  # (K4): runs of one resident's events, weighed by their habits
+        log_e = habit_log_probs(profile, ch.residents, home.nodes, node, t, epoch=epoch)
+        post = turn_posteriors(log_e, t, cfg.profile_tau_s)
+        log_z = 0.0
+    else:
+        bonus = clock_bonus(profile, ch.residents, home.nodes, node, t, epoch=epoch, weight=cfg.profile_clock_weight)
+        post, log_z = posteriors(node, ch, bonus)
     who = post.argmax(axis=1) if len(node) else np.zeros(0, dtype=np.int64)
     fired = np.unique(who)
     track = np.searchsorted(fired, who).astype(np.int64)
