@@ -53,6 +53,7 @@ from onebit.viz.recording import APPLICATION_ID, close_recording, open_recording
 from onebit.viz.tracks import natural_key
 from onebit.viz.trails import TRAIL_S
 
+rr = lazy_module("rerun")
 rrb = lazy_module("rerun.blueprint")
 
 #: File name of the run's blueprint, next to the recordings.
@@ -74,8 +75,12 @@ FRAME = frozenset({"Transform3D"})
 SERIES = frozenset({"Scalars"})
 TEXT = frozenset({"TextLog"})
 STATE = frozenset({"StateChange"})
+#: Root of the ``occupancy`` stage (:mod:`onebit.viz.occupancy`): it gets the "home" tab.
+HOME_ROOT = "occupancy"
+#: Name of the home tab (``onebit snapshot RUN --view home``).
+HOME_TAB = "home"
 #: Roots that are not a tracker's.
-SHARED_ROOTS = frozenset({paths.SITE, paths.TRUTH, paths.SENSORS, paths.SCORES, "camera", "correct"})
+SHARED_ROOTS = frozenset({paths.SITE, paths.TRUTH, paths.SENSORS, paths.SCORES, "camera", "correct", HOME_ROOT})
 
 
 class Logged:
@@ -113,13 +118,26 @@ class View:
     time series of counts, its y range."""
 
     def __init__(
-        self, kind: str, name: str, entities: Iterable[str], *, hidden: Iterable[str] = (), windows=None, y_range=None
+        self,
+        kind: str,
+        name: str,
+        entities: Iterable[str],
+        *,
+        hidden: Iterable[str] = (),
+        windows=None,
+        y_range=None,
+        shown: Mapping[str, list] | None = None,
+        whole_run: bool = False,
     ) -> None:
         self.kind, self.name = kind, name
         self.entities = list(dict.fromkeys(entities))
         self.hidden = [h for h in dict.fromkeys(hidden) if h in self.entities]
         self.windows = {p: w for p, w in (windows or {}).items() if p in self.entities}
         self.y_range = y_range
+        #: per-entity component overrides (e.g. labels shown), for entities in the view
+        self.shown = {p: list(a) for p, a in (shown or {}).items() if p in self.entities}
+        #: a time series that spans the whole run (both ends unbounded), not a window at the cursor
+        self.whole_run = bool(whole_run)
 
     def shows_data(self, logged: Logged) -> bool:
         want = {"map": SPATIAL, "series": SERIES, "text": TEXT, "state": STATE}[self.kind]
@@ -130,6 +148,8 @@ class View:
         overrides: dict[str, list] = {}
         for p in self.hidden:
             overrides.setdefault(p, []).append(rrb.EntityBehavior(visible=False))
+        for p, archetypes in self.shown.items():
+            overrides.setdefault(p, []).extend(archetypes)
         for p, seconds in self.windows.items():
             overrides.setdefault(p, []).append(
                 rrb.VisibleTimeRanges(
@@ -157,11 +177,19 @@ class View:
                 origin="/",
                 contents=contents,
                 axis_y=axis,
+                time_ranges=whole_run_range() if self.whole_run else None,
                 plot_legend=rrb.PlotLegend(rrb.Corner2D.LeftTop, visible=True),
             )
         if self.kind == "text":
             return rrb.TextLogView(name=self.name, origin="/", contents=contents)
         return rrb.StateTimelineView(name=self.name, origin="/", contents=contents)
+
+
+def whole_run_range() -> rrb.VisibleTimeRange:
+    """The visible time range of a plot that spans the whole run on :data:`paths.TIMELINE`."""
+    return rrb.VisibleTimeRange(
+        paths.TIMELINE, start=rrb.TimeRangeBoundary.infinite(), end=rrb.TimeRangeBoundary.infinite()
+    )
 
 
 class Planner:
@@ -181,12 +209,12 @@ class Planner:
         self.placed.update(v.entities)
         return v
 
-    def count_view(self, name: str, entities: list[str]) -> View | None:
+    def count_view(self, name: str, entities: list[str], **kw) -> View | None:
         """A time series of counts (agents, targets, elements, hops): y from 0 to a little
         above the largest value logged, so a constant count is not drawn on the plot's edge."""
         top = max((self.L.ranges[p][1] for p in entities if p in self.L.ranges), default=None)
         y_range = (0.0, float(top) * 1.1 + 0.5) if top is not None and top >= 0 else None
-        return self.view("series", name, entities, y_range=y_range)
+        return self.view("series", name, entities, y_range=y_range, **kw)
 
     def moving_overrides(self, entities: list[str]) -> tuple[list[str], dict[str, float]]:
         """Hidden whole paths and trail windows among ``entities`` (by their last path part)."""
@@ -217,9 +245,41 @@ class Planner:
             return self.count_view(f"{what} ({unit})", self.scores(trackers))
         return self.view("series", f"{what} ({unit})", self.scores(trackers))
 
-    def map_view(self, name: str, entities: list[str], *, hidden=(), windows=None) -> View | None:
+    def map_view(self, name: str, entities: list[str], *, hidden=(), windows=None, shown=None) -> View | None:
         h, w = self.moving_overrides(entities)
-        return self.view("map", name, entities, hidden=[*h, *hidden], windows={**w, **(windows or {})})
+        return self.view("map", name, entities, hidden=[*h, *hidden], windows={**w, **(windows or {})}, shown=shown)
+
+    def sensor_labels(self) -> dict[str, list]:
+        """Overrides that show the sensors' ids on their marks (``site/sensors``), for the maps
+        of home trackers where the sensors are few and the ids are what a reader looks for."""
+        kinds = self.L.kinds.get(f"{paths.SITE}/sensors", frozenset())
+        parts = [
+            a.from_fields(show_labels=True)
+            for name, a in (("Arrows2D", rr.Arrows2D), ("Points2D", rr.Points2D))
+            if name in kinds
+        ]
+        return {f"{paths.SITE}/sensors": parts} if parts else {}
+
+    def home(self, residents: list[str]) -> rrb.Container | None:
+        """The home (the ``occupancy`` stage ran): the site with each motion sensor labelled
+        and lit while on, each resident's estimated place with a short trail (the ``residents``
+        trackers); the people home against the truth, with the door events, as steps over the
+        whole run; the sensors' on / off bands."""
+        if not self.L.under(HOME_ROOT):
+            return None
+        site = [p for p in self.site() if p != f"{paths.SITE}/sensors"]
+        people = [
+            p
+            for t in residents
+            for p in [*self.L.frame(paths.tracker_root(t)), *self.L.under(paths.join(paths.tracker_root(t), "tracks"))]
+        ]
+        entities = [*site, *self.L.under(HOME_ROOT, SPATIAL | FRAME), *self.truth(), *people]
+        where = self.map_view(f"home ({self.units}): sensors on (red), each resident's estimated place", entities)
+        count = self.count_view(
+            "people home: model vs truth, door events (count)", self.L.under(HOME_ROOT, SERIES), whole_run=True
+        )
+        states = self.view("state", "motion sensors: on / off", self.states())
+        return _tab(HOME_TAB, where, [count, states])
 
     # ---------------------------------------------------------------- families
 
@@ -318,7 +378,11 @@ class Planner:
             "residents": "people and the events attributed to them",
         }.get(tracker, "sensor graph, baseline decoder")
         site = self.map_view(
-            f"{what} ({self.units}): active nodes, decoded tracks, truth", entities, hidden=hidden, windows=windows
+            f"{what} ({self.units}): active nodes, decoded tracks, truth",
+            entities,
+            hidden=hidden,
+            windows=windows,
+            shown=self.sensor_labels() if family(tracker, self.looks) == "residents" else None,
         )
         error = self.error_view([tracker], "hop error of each decoded track")
         states = self.view("state", "motion sensors: on / off", self.states())
@@ -465,8 +529,9 @@ def make_blueprint(
         raise ValueError(f"trail_s must be a positive number of seconds, got {trail_s!r}")
     logged = archetypes if isinstance(archetypes, Logged) else Logged(archetypes, ranges)
     plan = Planner(logged, units=units, trail_s=trail_s, looks=looks)
-    tabs = []
     trackers = tracker_roots(logged, looks)
+    # a home opens on how many are in and where (the first question a home user asks)
+    tabs = [plan.home([t for t in trackers if family(t, looks) == "residents"])]
     intruders = [t for t in trackers if family(t, looks) == "intruder"]
     for t in trackers:
         fam = family(t, looks)
@@ -477,7 +542,7 @@ def make_blueprint(
             tabs.append(getattr(plan, fam)(t))
         else:
             tabs.append(plan.generic(t))
-    if not any(tabs):  # no tracker ran: the site with the truth and the sensors
+    if not any(tabs[1:]) and tabs[0] is None:  # no tracker ran: the site with the truth and the sensors
         site = plan.map_view(
             f"site ({units})", [*plan.site(), *plan.truth(), *logged.under(paths.SENSORS, SPATIAL | FRAME)]
         )
