@@ -177,6 +177,7 @@ class View:
                 origin="/",
                 contents=contents,
                 axis_y=axis,
+                axis_x=whole_run_axis() if self.whole_run else None,
                 time_ranges=whole_run_range() if self.whole_run else None,
                 plot_legend=rrb.PlotLegend(rrb.Corner2D.LeftTop, visible=True),
             )
@@ -190,6 +191,13 @@ def whole_run_range() -> rrb.VisibleTimeRange:
     return rrb.VisibleTimeRange(
         paths.TIMELINE, start=rrb.TimeRangeBoundary.infinite(), end=rrb.TimeRangeBoundary.infinite()
     )
+
+
+def whole_run_axis() -> rrb.TimeAxis:
+    """The time axis of a plot that shows the whole run (not the window around the cursor that
+    the viewer shows by default), zoomed on its own."""
+    every = rr.TimeRange(start=rrb.TimeRangeBoundary.infinite(), end=rrb.TimeRangeBoundary.infinite())
+    return rrb.TimeAxis(link=rrb.components.LinkAxis.Independent, view_range=every)
 
 
 class Planner:
@@ -267,7 +275,11 @@ class Planner:
         whole run; the sensors' on / off bands."""
         if not self.L.under(HOME_ROOT):
             return None
-        site = [p for p in self.site() if p != f"{paths.SITE}/sensors"]
+        # the sensors are drawn lit and labelled by the home stage; a single region's name (a
+        # house with no floor plan) would only cover a sensor's label
+        regions = self.L.under(f"{paths.SITE}/regions")
+        drop = {f"{paths.SITE}/sensors", *(regions if len(regions) == 1 else [])}
+        site = [p for p in self.site() if p not in drop]
         people = [
             p
             for t in residents
@@ -275,9 +287,12 @@ class Planner:
         ]
         entities = [*site, *self.L.under(HOME_ROOT, SPATIAL | FRAME), *self.truth(), *people]
         where = self.map_view(f"home ({self.units}): sensors on (red), each resident's estimated place", entities)
-        count = self.count_view(
-            "people home: model vs truth, door events (count)", self.L.under(HOME_ROOT, SERIES), whole_run=True
-        )
+        series = self.L.under(HOME_ROOT, SERIES)
+        # the truth first, so the model's line is drawn over it
+        series = sorted(series, key=lambda p: p != paths.join(HOME_ROOT, "truth"))
+        count = self.count_view("people home: model vs truth, door events (count)", series, whole_run=True)
+        if count is not None and count.y_range is not None:  # room for the door marks under 0
+            count.y_range = (-0.5, count.y_range[1])
         states = self.view("state", "motion sensors: on / off", self.states())
         return _tab(HOME_TAB, where, [count, states])
 

@@ -4,7 +4,8 @@ Entity paths::
 
     occupancy/present     the count model's people present (a step series over the whole run)
     occupancy/truth       the true count (``truth_count``), when the dataset has it (a step series)
-    occupancy/doors       a point at 0 at every bin with a door event
+    occupancy/doors       a cross at every bin with a door event, just below 0 (:data:`DOOR_Y`) so
+                          the zero line does not hide it
     occupancy/sensors     every motion sensor at its place on the site, labelled with its id,
                           bright while on and dim while off (positions and labels static, the
                           colours one row per edge)
@@ -25,6 +26,8 @@ from onebit.viz.frame import log_world_frame
 rr = lazy_module("rerun")
 
 ROOT = "occupancy"
+#: Height of the door-event marks on the count plot: under the 0 line, above the axis.
+DOOR_Y = -0.25
 #: Colour of a sensor that is off on the home map (a sensor that is on has :data:`colors.FIRING`).
 SENSOR_OFF = (110, 110, 110, 255)
 
@@ -74,7 +77,10 @@ def log_occupancy(rec, ctx, made: dict) -> None:
             )
         log_step_series(rec, paths.join(ROOT, "present"), t, v, name="people home (model)", rgb=(255, 140, 120))
     ts, vs = truth_steps(ctx.tables.get("truth_count"))
-    log_step_series(rec, paths.join(ROOT, "truth"), ts, vs, name="people home (truth)", rgb=(120, 220, 120))
+    # the truth wide and translucent under the model's thin line: both stay readable where they agree
+    log_step_series(
+        rec, paths.join(ROOT, "truth"), ts, vs, name="people home (truth)", rgb=(120, 220, 120, 150), width=5.0
+    )
     bins = made.get("occupancy_bins")
     if bins is not None and bins.height and bins["door"].any():
         d = bins.filter("door")
@@ -83,7 +89,7 @@ def log_occupancy(rec, ctx, made: dict) -> None:
         rec.send_columns(
             entity,
             indexes=[paths.time_column(d["t"].to_numpy())],
-            columns=rr.Scalars.columns(scalars=np.zeros(d.height)),
+            columns=rr.Scalars.columns(scalars=np.full(d.height, DOOR_Y)),
         )
 
 
