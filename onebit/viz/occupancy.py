@@ -75,6 +75,9 @@ def log_occupancy(rec, ctx, made: dict) -> None:
                 np.r_[t, bins["t"].max() + float(np.diff(bins["t"].to_numpy()[:2])[0] if bins.height > 1 else 60.0)],
                 np.r_[v, v[-1]],
             )
+        truth = ctx.tables.get("truth_count")
+        if truth is not None and truth.height and float(truth["end"].max()) > t[-1]:  # to the truth's end too
+            t, v = np.r_[t, float(truth["end"].max())], np.r_[v, v[-1]]
         log_step_series(rec, paths.join(ROOT, "present"), t, v, name="people home (model)", rgb=(255, 140, 120))
     ts, vs = truth_steps(ctx.tables.get("truth_count"))
     # the truth wide and translucent under the model's thin line: both stay readable where they agree
