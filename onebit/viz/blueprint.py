@@ -27,6 +27,12 @@ Each tab opens on what its paper is about (:mod:`onebit.viz.families`):
   motion event in the colour of the person it was given to; error per track (where there is
   truth); the people present; sensor states.
 
+When the ``occupancy`` stage ran there is a **home** tab (:meth:`Planner.home`): the site with
+each motion sensor labelled and lit while on, each resident's estimated place; the people home
+against the truth with the door events, as steps over the whole run (time axis and visible range
+unbounded, not the window at the cursor); the sensors' states. A run of home trackers only
+(``residents``) opens on it; otherwise it follows the trackers' tabs.
+
 Views that would be empty are not created and every view names only logged entities (exact
 paths). Every logged entity is in some view: what no family shows goes to a last tab, "more".
 Trails (``.../trail``) get a visible time range ``[cursor - trail_s, cursor]``; whole paths,
@@ -545,8 +551,12 @@ def make_blueprint(
     logged = archetypes if isinstance(archetypes, Logged) else Logged(archetypes, ranges)
     plan = Planner(logged, units=units, trail_s=trail_s, looks=looks)
     trackers = tracker_roots(logged, looks)
-    # a home opens on how many are in and where (the first question a home user asks)
-    tabs = [plan.home([t for t in trackers if family(t, looks) == "residents"])]
+    residents = [t for t in trackers if family(t, looks) == "residents"]
+    home = plan.home(residents)
+    # a home run (no tracker but the home ones) opens on how many are in and where, the first
+    # question a home user asks; a run of a paper's tracker opens on its paper's tab
+    home_first = home is not None and set(trackers) <= set(residents)
+    tabs = [home] if home_first else []
     intruders = [t for t in trackers if family(t, looks) == "intruder"]
     for t in trackers:
         fam = family(t, looks)
@@ -557,7 +567,9 @@ def make_blueprint(
             tabs.append(getattr(plan, fam)(t))
         else:
             tabs.append(plan.generic(t))
-    if not any(tabs[1:]) and tabs[0] is None:  # no tracker ran: the site with the truth and the sensors
+    if not home_first and home is not None:
+        tabs.append(home)
+    if not any(tabs):  # no tracker ran: the site with the truth and the sensors
         site = plan.map_view(
             f"site ({units})", [*plan.site(), *plan.truth(), *logged.under(paths.SENSORS, SPATIAL | FRAME)]
         )
