@@ -27,6 +27,12 @@ Each tab opens on what its paper is about (:mod:`onebit.viz.families`):
   motion event in the colour of the person it was given to; error per track (where there is
   truth); the people present; sensor states.
 
+When the ``occupancy`` stage ran there is a **home** tab (:meth:`Planner.home`): the site with
+each motion sensor labelled and lit while on, each resident's estimated place; the people home
+against the truth with the door events, as steps over the whole run (time axis and visible range
+unbounded, not the window at the cursor); the sensors' states. A run of home trackers only
+(``residents``) opens on it; otherwise it follows the trackers' tabs.
+
 Views that would be empty are not created and every view names only logged entities (exact
 paths). Every logged entity is in some view: what no family shows goes to a last tab, "more".
 Trails (``.../trail``) get a visible time range ``[cursor - trail_s, cursor]``; whole paths,
@@ -53,6 +59,7 @@ from onebit.viz.recording import APPLICATION_ID, close_recording, open_recording
 from onebit.viz.tracks import natural_key
 from onebit.viz.trails import TRAIL_S
 
+rr = lazy_module("rerun")
 rrb = lazy_module("rerun.blueprint")
 
 #: File name of the run's blueprint, next to the recordings.
@@ -74,8 +81,12 @@ FRAME = frozenset({"Transform3D"})
 SERIES = frozenset({"Scalars"})
 TEXT = frozenset({"TextLog"})
 STATE = frozenset({"StateChange"})
+#: Root of the ``occupancy`` stage (:mod:`onebit.viz.occupancy`): it gets the "home" tab.
+HOME_ROOT = "occupancy"
+#: Name of the home tab (``onebit snapshot RUN --view home``).
+HOME_TAB = "home"
 #: Roots that are not a tracker's.
-SHARED_ROOTS = frozenset({paths.SITE, paths.TRUTH, paths.SENSORS, paths.SCORES, "camera", "correct"})
+SHARED_ROOTS = frozenset({paths.SITE, paths.TRUTH, paths.SENSORS, paths.SCORES, "camera", "correct", HOME_ROOT})
 
 
 class Logged:
@@ -113,13 +124,26 @@ class View:
     time series of counts, its y range."""
 
     def __init__(
-        self, kind: str, name: str, entities: Iterable[str], *, hidden: Iterable[str] = (), windows=None, y_range=None
+        self,
+        kind: str,
+        name: str,
+        entities: Iterable[str],
+        *,
+        hidden: Iterable[str] = (),
+        windows=None,
+        y_range=None,
+        shown: Mapping[str, list] | None = None,
+        whole_run: bool = False,
     ) -> None:
         self.kind, self.name = kind, name
         self.entities = list(dict.fromkeys(entities))
         self.hidden = [h for h in dict.fromkeys(hidden) if h in self.entities]
         self.windows = {p: w for p, w in (windows or {}).items() if p in self.entities}
         self.y_range = y_range
+        #: per-entity component overrides (e.g. labels shown), for entities in the view
+        self.shown = {p: list(a) for p, a in (shown or {}).items() if p in self.entities}
+        #: a time series that spans the whole run (both ends unbounded), not a window at the cursor
+        self.whole_run = bool(whole_run)
 
     def shows_data(self, logged: Logged) -> bool:
         want = {"map": SPATIAL, "series": SERIES, "text": TEXT, "state": STATE}[self.kind]
@@ -130,6 +154,8 @@ class View:
         overrides: dict[str, list] = {}
         for p in self.hidden:
             overrides.setdefault(p, []).append(rrb.EntityBehavior(visible=False))
+        for p, archetypes in self.shown.items():
+            overrides.setdefault(p, []).extend(archetypes)
         for p, seconds in self.windows.items():
             overrides.setdefault(p, []).append(
                 rrb.VisibleTimeRanges(
@@ -157,11 +183,27 @@ class View:
                 origin="/",
                 contents=contents,
                 axis_y=axis,
+                axis_x=whole_run_axis() if self.whole_run else None,
+                time_ranges=whole_run_range() if self.whole_run else None,
                 plot_legend=rrb.PlotLegend(rrb.Corner2D.LeftTop, visible=True),
             )
         if self.kind == "text":
             return rrb.TextLogView(name=self.name, origin="/", contents=contents)
         return rrb.StateTimelineView(name=self.name, origin="/", contents=contents)
+
+
+def whole_run_range() -> rrb.VisibleTimeRange:
+    """The visible time range of a plot that spans the whole run on :data:`paths.TIMELINE`."""
+    return rrb.VisibleTimeRange(
+        paths.TIMELINE, start=rrb.TimeRangeBoundary.infinite(), end=rrb.TimeRangeBoundary.infinite()
+    )
+
+
+def whole_run_axis() -> rrb.TimeAxis:
+    """The time axis of a plot that shows the whole run (not the window around the cursor that
+    the viewer shows by default), zoomed on its own."""
+    every = rr.TimeRange(start=rrb.TimeRangeBoundary.infinite(), end=rrb.TimeRangeBoundary.infinite())
+    return rrb.TimeAxis(link=rrb.components.LinkAxis.Independent, view_range=every)
 
 
 class Planner:
@@ -181,12 +223,12 @@ class Planner:
         self.placed.update(v.entities)
         return v
 
-    def count_view(self, name: str, entities: list[str]) -> View | None:
+    def count_view(self, name: str, entities: list[str], **kw) -> View | None:
         """A time series of counts (agents, targets, elements, hops): y from 0 to a little
         above the largest value logged, so a constant count is not drawn on the plot's edge."""
         top = max((self.L.ranges[p][1] for p in entities if p in self.L.ranges), default=None)
         y_range = (0.0, float(top) * 1.1 + 0.5) if top is not None and top >= 0 else None
-        return self.view("series", name, entities, y_range=y_range)
+        return self.view("series", name, entities, y_range=y_range, **kw)
 
     def moving_overrides(self, entities: list[str]) -> tuple[list[str], dict[str, float]]:
         """Hidden whole paths and trail windows among ``entities`` (by their last path part)."""
@@ -217,9 +259,48 @@ class Planner:
             return self.count_view(f"{what} ({unit})", self.scores(trackers))
         return self.view("series", f"{what} ({unit})", self.scores(trackers))
 
-    def map_view(self, name: str, entities: list[str], *, hidden=(), windows=None) -> View | None:
+    def map_view(self, name: str, entities: list[str], *, hidden=(), windows=None, shown=None) -> View | None:
         h, w = self.moving_overrides(entities)
-        return self.view("map", name, entities, hidden=[*h, *hidden], windows={**w, **(windows or {})})
+        return self.view("map", name, entities, hidden=[*h, *hidden], windows={**w, **(windows or {})}, shown=shown)
+
+    def sensor_labels(self) -> dict[str, list]:
+        """Overrides that show the sensors' ids on their marks (``site/sensors``), for the maps
+        of home trackers where the sensors are few and the ids are what a reader looks for."""
+        kinds = self.L.kinds.get(f"{paths.SITE}/sensors", frozenset())
+        parts = [
+            a.from_fields(show_labels=True)
+            for name, a in (("Arrows2D", rr.Arrows2D), ("Points2D", rr.Points2D))
+            if name in kinds
+        ]
+        return {f"{paths.SITE}/sensors": parts} if parts else {}
+
+    def home(self, residents: list[str]) -> rrb.Container | None:
+        """The home (the ``occupancy`` stage ran): the site with each motion sensor labelled
+        and lit while on, each resident's estimated place with a short trail (the ``residents``
+        trackers); the people home against the truth, with the door events, as steps over the
+        whole run; the sensors' on / off bands."""
+        if not self.L.under(HOME_ROOT):
+            return None
+        # the sensors are drawn lit and labelled by the home stage; a single region's name (a
+        # house with no floor plan) would only cover a sensor's label
+        regions = self.L.under(f"{paths.SITE}/regions")
+        drop = {f"{paths.SITE}/sensors", *(regions if len(regions) == 1 else [])}
+        site = [p for p in self.site() if p not in drop]
+        people = [
+            p
+            for t in residents
+            for p in [*self.L.frame(paths.tracker_root(t)), *self.L.under(paths.join(paths.tracker_root(t), "tracks"))]
+        ]
+        entities = [*site, *self.L.under(HOME_ROOT, SPATIAL | FRAME), *self.truth(), *people]
+        where = self.map_view(f"home ({self.units}): sensors on (red), each resident's estimated place", entities)
+        series = self.L.under(HOME_ROOT, SERIES)
+        # the truth first, so the model's line is drawn over it
+        series = sorted(series, key=lambda p: p != paths.join(HOME_ROOT, "truth"))
+        count = self.count_view("people home: model vs truth, door events (count)", series, whole_run=True)
+        if count is not None and count.y_range is not None:  # room for the door marks under 0
+            count.y_range = (-0.5, count.y_range[1])
+        states = self.view("state", "motion sensors: on / off", self.states())
+        return _tab(HOME_TAB, where, [count, states])
 
     # ---------------------------------------------------------------- families
 
@@ -318,7 +399,11 @@ class Planner:
             "residents": "people and the events attributed to them",
         }.get(tracker, "sensor graph, baseline decoder")
         site = self.map_view(
-            f"{what} ({self.units}): active nodes, decoded tracks, truth", entities, hidden=hidden, windows=windows
+            f"{what} ({self.units}): active nodes, decoded tracks, truth",
+            entities,
+            hidden=hidden,
+            windows=windows,
+            shown=self.sensor_labels() if family(tracker, self.looks) == "residents" else None,
         )
         error = self.error_view([tracker], "hop error of each decoded track")
         states = self.view("state", "motion sensors: on / off", self.states())
@@ -465,8 +550,13 @@ def make_blueprint(
         raise ValueError(f"trail_s must be a positive number of seconds, got {trail_s!r}")
     logged = archetypes if isinstance(archetypes, Logged) else Logged(archetypes, ranges)
     plan = Planner(logged, units=units, trail_s=trail_s, looks=looks)
-    tabs = []
     trackers = tracker_roots(logged, looks)
+    residents = [t for t in trackers if family(t, looks) == "residents"]
+    home = plan.home(residents)
+    # a home run (no tracker but the home ones) opens on how many are in and where, the first
+    # question a home user asks; a run of a paper's tracker opens on its paper's tab
+    home_first = home is not None and set(trackers) <= set(residents)
+    tabs = [home] if home_first else []
     intruders = [t for t in trackers if family(t, looks) == "intruder"]
     for t in trackers:
         fam = family(t, looks)
@@ -477,6 +567,8 @@ def make_blueprint(
             tabs.append(getattr(plan, fam)(t))
         else:
             tabs.append(plan.generic(t))
+    if not home_first and home is not None:
+        tabs.append(home)
     if not any(tabs):  # no tracker ran: the site with the truth and the sensors
         site = plan.map_view(
             f"site ({units})", [*plan.site(), *plan.truth(), *logged.under(paths.SENSORS, SPATIAL | FRAME)]

@@ -4,7 +4,11 @@ Entity paths::
 
     occupancy/present     the count model's people present (a step series over the whole run)
     occupancy/truth       the true count (``truth_count``), when the dataset has it (a step series)
-    occupancy/doors       a point at 0 at every bin with a door event
+    occupancy/doors       a cross at every bin with a door event, just below 0 (:data:`DOOR_Y`) so
+                          the zero line does not hide it
+    occupancy/sensors     every motion sensor at its place on the site, labelled with its id,
+                          bright while on and dim while off (positions and labels static, the
+                          colours one row per edge)
 
 Each series is one ``send_columns``; the styles are static.
 """
@@ -15,11 +19,17 @@ import numpy as np
 import polars as pl
 
 from onebit.core.lazy import lazy_module
-from onebit.viz import paths
+from onebit.viz import colors, paths
+from onebit.viz._series import is_empty
+from onebit.viz.frame import log_world_frame
 
 rr = lazy_module("rerun")
 
 ROOT = "occupancy"
+#: Height of the door-event marks on the count plot: under the 0 line, above the axis.
+DOOR_Y = -0.25
+#: Colour of a sensor that is off on the home map (a sensor that is on has :data:`colors.FIRING`).
+SENSOR_OFF = (110, 110, 110, 255)
 
 
 def log_step_series(rec, entity: str, t: np.ndarray, v: np.ndarray, *, name: str, rgb, width: float = 2.0) -> None:
@@ -54,7 +64,8 @@ def truth_steps(truth_count: pl.DataFrame | None) -> tuple[np.ndarray, np.ndarra
 
 
 def log_occupancy(rec, ctx, made: dict) -> None:
-    """The count, the truth and the door events (module docstring)."""
+    """The count, the truth, the door events and the sensors on the map (module docstring)."""
+    log_sensor_map(rec, ctx.site, ctx.tables.get("motion"))
     people = made.get("occupancy_people")
     if people is not None and people.height:
         t, v = people["t"].to_numpy(), people["present"].to_numpy()
@@ -64,9 +75,15 @@ def log_occupancy(rec, ctx, made: dict) -> None:
                 np.r_[t, bins["t"].max() + float(np.diff(bins["t"].to_numpy()[:2])[0] if bins.height > 1 else 60.0)],
                 np.r_[v, v[-1]],
             )
+        truth = ctx.tables.get("truth_count")
+        if truth is not None and truth.height and float(truth["end"].max()) > t[-1]:  # to the truth's end too
+            t, v = np.r_[t, float(truth["end"].max())], np.r_[v, v[-1]]
         log_step_series(rec, paths.join(ROOT, "present"), t, v, name="people home (model)", rgb=(255, 140, 120))
     ts, vs = truth_steps(ctx.tables.get("truth_count"))
-    log_step_series(rec, paths.join(ROOT, "truth"), ts, vs, name="people home (truth)", rgb=(120, 220, 120))
+    # the truth wide and translucent under the model's thin line: both stay readable where they agree
+    log_step_series(
+        rec, paths.join(ROOT, "truth"), ts, vs, name="people home (truth)", rgb=(120, 220, 120, 150), width=5.0
+    )
     bins = made.get("occupancy_bins")
     if bins is not None and bins.height and bins["door"].any():
         d = bins.filter("door")
@@ -75,5 +92,49 @@ def log_occupancy(rec, ctx, made: dict) -> None:
         rec.send_columns(
             entity,
             indexes=[paths.time_column(d["t"].to_numpy())],
-            columns=rr.Scalars.columns(scalars=np.zeros(d.height)),
+            columns=rr.Scalars.columns(scalars=np.full(d.height, DOOR_Y)),
         )
+
+
+def log_sensor_map(rec, site, motion: pl.DataFrame | None) -> None:
+    """``occupancy/sensors``: the motion sensors on the site, labelled, coloured by their state.
+
+    Positions and labels are static; the colours are one row per time at which some sensor
+    changed (all sensors off before the first edge), so the map shows which sensors are on now.
+    """
+    sensors = list(site.motion_sensors)
+    if not sensors or is_empty(motion):
+        return
+    index = {m.id: i for i, m in enumerate(sensors)}
+    edges = motion.filter(pl.col("sensor").is_in(list(index))).sort("t", maintain_order=True)
+    if edges.height == 0:
+        return
+    entity = paths.join(ROOT, "sensors")
+    log_world_frame(rec, entity)
+    rec.log(
+        entity,
+        rr.Points2D(
+            [m.position for m in sensors],
+            labels=[m.id for m in sensors],
+            radii=rr.Radius.ui_points(5.0),
+            show_labels=True,
+            draw_order=12.0,
+        ),
+        static=True,
+    )
+    t = edges["t"].to_numpy().astype(np.float64)
+    col = np.fromiter((index[s] for s in edges["sensor"].to_list()), dtype=np.int64, count=edges.height)
+    state = np.zeros(len(sensors), dtype=bool)
+    rows = np.empty((edges.height, len(sensors)), dtype=bool)
+    for k, (c, on) in enumerate(zip(col, edges["on"].to_list(), strict=True)):
+        state[c] = bool(on)
+        rows[k] = state
+    last = np.r_[t[1:] != t[:-1], True]  # one row per time: the state after its last edge
+    t, rows = np.r_[t[0] - 1.0, t[last]], np.vstack([np.zeros((1, len(sensors)), dtype=bool), rows[last]])
+    on_rgba, off_rgba = np.array([*colors.FIRING[:3], 255], np.uint8), np.array(SENSOR_OFF, np.uint8)
+    rgba = np.where(rows.reshape(-1, 1), on_rgba, off_rgba)
+    rec.send_columns(
+        entity,
+        indexes=[paths.time_column(t)],
+        columns=rr.Points2D.columns(colors=rgba).partition(np.full(t.size, len(sensors), dtype=np.int64)),
+    )

@@ -56,10 +56,12 @@ def log_events(
 
 
 def log_people(rec: rr.RecordingStream, tracker: str, people: pl.DataFrame | None) -> None:
-    """The number of people present over time as one scalar series."""
+    """The number of people present over time as one step series."""
     if is_empty(people):
         return
     entity = paths.join(paths.tracker_root(tracker), "people")
+    # a count holds until the next sample: steps, not lines sloping between sparse samples
+    rec.log(entity, rr.SeriesLines(interpolation_mode=rr.components.InterpolationMode.StepAfter), static=True)
     rec.send_columns(
         entity,
         indexes=[paths.time_column(people["t"].to_numpy())],
