@@ -39,7 +39,12 @@ def log_step_series(rec, entity: str, t: np.ndarray, v: np.ndarray, *, name: str
     rec.log(
         entity,
         rr.SeriesLines(
-            colors=[rgb], names=[name], widths=[width], interpolation_mode=rr.components.InterpolationMode.StepAfter
+            colors=[rgb],
+            names=[name],
+            widths=[width],
+            interpolation_mode=rr.components.InterpolationMode.StepAfter,
+            # a count is whole: zoomed out over days, the viewer's default averaging draws 0.5 and 1.5
+            aggregation_policy=rr.components.AggregationPolicy.Off,
         ),
         static=True,
     )

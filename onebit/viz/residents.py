@@ -61,7 +61,14 @@ def log_people(rec: rr.RecordingStream, tracker: str, people: pl.DataFrame | Non
         return
     entity = paths.join(paths.tracker_root(tracker), "people")
     # a count holds until the next sample: steps, not lines sloping between sparse samples
-    rec.log(entity, rr.SeriesLines(interpolation_mode=rr.components.InterpolationMode.StepAfter), static=True)
+    rec.log(
+        entity,
+        rr.SeriesLines(
+            interpolation_mode=rr.components.InterpolationMode.StepAfter,
+            aggregation_policy=rr.components.AggregationPolicy.Off,
+        ),
+        static=True,
+    )
     rec.send_columns(
         entity,
         indexes=[paths.time_column(people["t"].to_numpy())],
