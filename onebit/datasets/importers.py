@@ -651,7 +651,22 @@ def import_casas(
         hold_samples=hold_samples,
     )
     write_text(to_toml(info), out / "import.toml")
+    if lay is not None and g.how != "force layout":
+        write_text(PLAN_RUN_TOML, out / "run.toml")
     return ImportSummary(out, counts, info)
+
+
+#: The dataset's own ``run.toml`` of a CASAS home imported with a floor plan: the home's count
+#: model (stage ``occupancy``) judges "two sensors too far apart for one person" on the plan's
+#: graph (docs/homes.md: chosen on one half of the development sessions with the Kyoto plan).
+PLAN_RUN_TOML = """# Written by 'onebit import casas --layout': the positions are the floor plan's, so the home's
+# count model calls two sensors 2 hops apart on the plan's graph, fired within 2 s, two people
+# (without a plan the learned graph's hops are looser: the defaults, 4 hops within 1 s).
+[occupancy]
+far_hops = 2
+window_s = 2.0
+far_noise = 0.1
+"""
 
 
 def _check_casas_args(log: Path, *, targets, window_s, spacing_m, min_share, hold_s, hold_samples) -> None:
