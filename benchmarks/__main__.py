@@ -43,6 +43,11 @@ BENCHMARKS = (
         "a default onebit run (every tracker) on 1e4-1e6-row beams/motion/proximity logs: each stage's growth, < 2 min at 1e6",
         ["--all-trackers", "--kinds", "beams,motion,proximity"],
     ),
+    (
+        "bench_home_month",
+        "a generated ARAS-format home, 1/7/30 days: cold import + default run beside a pl.read_csv floor, < 2 min and 2 GB at 30",
+        ["--days", "1,7,30"],
+    ),
 )
 OPTIONAL = {"bench_camera"}
 

@@ -13,6 +13,10 @@ door contact on for a few seconds at leaving and at coming back; while someone i
 awake, 200-450 sensor activations of 3-120 s are spread over the waking hours (a few hundred to
 about a thousand level changes a day); the temperature sensor switches a few times a day.
 
+Before the timed runs, one untimed import and run of another generated day fills numba's
+on-disk kernel cache and the ``.pyc`` files (a checkout's first run compiles every kernel it
+meets, seconds that a user's later runs never pay); its times are printed as the warm-up.
+
 What is timed, per N: ``python -m onebit.cli import aras HOUSE DS`` (it writes ``run.toml``:
 the residents tracker) and ``python -m onebit.cli run DS --out RUN``, each a fresh process
 under ``/usr/bin/time -v`` (wall, user + sys CPU of the process and its waited-for children,
@@ -226,7 +230,10 @@ def measure(root: Path, days: int, seed: int, timeout: float) -> dict:
         if not res["run"]["killed"]:
             record = tomllib.loads((run / "run.toml").read_text())
             res["run"]["cpu"] += record.get("timing", {}).get("worker_cpu_s", 0.0)
-            res["stages"] = {k: v for k, v in record.get("stages", {}).items()}
+            res["stages"] = dict(record.get("stages", {}))
+            bad = {k: v for k, v in res["stages"].items() if not str(v).startswith(("ok", "skipped"))}
+            if bad:
+                raise RuntimeError(f"onebit run on {days} day(s): stages not ok: {bad}")
     res["floor"] = floor(house, days, timeout)
     shutil.rmtree(house, ignore_errors=True)
     shutil.rmtree(ds, ignore_errors=True)
@@ -281,6 +288,12 @@ def main(argv: list[str] | None = None) -> None:
         ap.error("--days: positive numbers of days, e.g. 1,7,30")
     results = []
     with tempfile.TemporaryDirectory(prefix="onebit-home-month-") as tmp:
+        warm = measure(Path(tmp) / "warm-up", 1, args.seed + 1000, args.timeout)
+        print(
+            f"  warm-up (1 day, untimed: fills numba's kernel cache and the .pyc files): import "
+            f"{warm['import']['wall']:.1f} s, run {warm['run']['wall']:.1f} s",
+            flush=True,
+        )
         for n in days:
             results.append(measure(Path(tmp), n, args.seed, args.timeout))
             r = results[-1]
