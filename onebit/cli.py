@@ -16,14 +16,18 @@ import polars as pl
 from onebit.core.config import load_toml
 from onebit.core.errors import ConfigError, InputError, OnebitError, bounded, is_disk_full
 from onebit.core.site import load_site
+from onebit.core.writers import write_csv
+from onebit.datasets.aras import import_aras, parse_days
 from onebit.datasets.catalogue import IN_PLACE, all_scenarios, get_scenario
 from onebit.datasets.importers import import_casas, import_trajectories
 from onebit.datasets.irtracking import DEFAULT_RADIUS_M, PERIOD_S, import_irtracking
 from onebit.datasets.scenario import parse_params, simulate_into
+from onebit.datasets.skeleton import init_dataset
 from onebit.experiments import get_experiment
+from onebit.pipeline.check import check_dataset, format_check
 from onebit.pipeline.executors import EXECUTORS, make_executor
 from onebit.pipeline.follow import FollowConfig, follow, parse_speed
-from onebit.pipeline.learn import learn_residents, write_profile
+from onebit.pipeline.learn import learn_counts, learn_residents, write_profile
 from onebit.pipeline.progress import Spinner
 from onebit.pipeline.report import check_run_folder, format_report, format_run_summary, load_report, skipped_groups
 from onebit.pipeline.runmany import format_summary, run_many
@@ -37,6 +41,7 @@ from onebit.trackers.beams.verify import parse_story, verify_path
 from onebit.trackers.residents.known import Clock
 from onebit.viz.compare import compare_runs
 from onebit.viz.live import WebServe
+from onebit.viz.snapshot import snapshot
 
 _STAGE_LINE = re.compile(r"  [\w-]+: (ok|skipped \()")
 
@@ -270,8 +275,6 @@ def _cmd_learn_residents(args) -> int:
         f"learned {residents} residents from {learned.events} labelled events in {learned.sessions} sessions "
         f"({learned.rejects.height} truth_events lines rejected) -> {out}"
     )
-    from onebit.core.writers import write_csv
-    from onebit.pipeline.learn import learn_counts
 
     counts = learn_counts([Path(d) for d in args.datasets])
     if counts is not None:
@@ -328,7 +331,6 @@ def _cmd_logs_convert(args) -> int:
 
 
 def _cmd_import_aras(args) -> int:
-    from onebit.datasets.aras import import_aras, parse_days
 
     res = import_aras(args.house, args.dataset, days=parse_days(args.days))
     c = res.counts
@@ -480,7 +482,6 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def _cmd_init(args) -> int:
-    from onebit.datasets.skeleton import init_dataset
 
     path, found = init_dataset(args.dataset, args.logs, force=args.force)
     for log, fmt, sensors in found:
@@ -498,14 +499,12 @@ def _cmd_init(args) -> int:
 
 
 def _cmd_check(args) -> int:
-    from onebit.pipeline.check import check_dataset, format_check
 
     print(format_check(check_dataset(args.dataset)))
     return 0
 
 
 def _cmd_snapshot(args) -> int:
-    from onebit.viz.snapshot import snapshot
 
     snapshot(args.run, args.at, args.out, view=args.view)
     return 0

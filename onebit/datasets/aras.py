@@ -69,6 +69,7 @@ from onebit.core.errors import InputError
 from onebit.core.site import site_from_dict
 from onebit.core.tables import REJECTS
 from onebit.core.writers import to_toml, write_csv, write_text
+from onebit.datasets.importers import _v
 
 #: The notional date of day 1's midnight.
 EPOCH = "2000-01-01T00:00:00"
@@ -401,8 +402,6 @@ def schematic_edges(sensors: list[ArasSensor], pos: dict) -> list[tuple[str, str
 
 def site_text(house: ArasHouse, name: str) -> str:
     """``site.toml`` of the house's person sensors (module docstring)."""
-    from onebit.datasets.importers import _v
-
     person = [s for s in house.sensors if s.person]
     pos = schematic_positions(person)
     edges_ = schematic_edges(person, pos)

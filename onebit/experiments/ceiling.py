@@ -34,6 +34,7 @@ from onebit.core import writers
 from onebit.core.errors import InputError
 from onebit.core.site import load_site
 from onebit.datasets.irtracking import import_irtracking
+from onebit.experiments.peers import stonesoup
 from onebit.experiments.trials import format_table
 from onebit.pipeline.executors import Executor
 from onebit.pipeline.report import metric
@@ -120,10 +121,7 @@ def room_centre_tracks(times, site, name: str = "room-centre") -> pl.DataFrame:
 
 
 def _stonesoup():
-    """The Stone Soup peer module (imported when the experiment runs, not with the registry of
-    experiments, so ``python -m onebit.experiments.peers.stonesoup`` runs it as a fresh script)."""
-    from onebit.experiments.peers import stonesoup
-
+    """The Stone Soup peer module (the library itself is imported when a peer runs)."""
     return stonesoup
 
 

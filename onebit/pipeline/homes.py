@@ -16,6 +16,8 @@ from __future__ import annotations
 import numpy as np
 import polars as pl
 
+from onebit.core.config import config_from_mapping
+from onebit.core.units import config_in_site_units
 from onebit.models.occupancy import PEOPLE, OccupancyConfig, estimate
 from onebit.pipeline.context import ReportRow, RunContext
 from onebit.readers.tables_csv import read_count_profile_csv, read_truth_count_csv
@@ -23,20 +25,14 @@ from onebit.readers.timebase import TimeOrigin
 from onebit.scoring.count import baseline_rows, count_scores
 
 
-def _origin(ctx: RunContext) -> TimeOrigin | None:
-    from onebit.pipeline.stages import run_time_origin
-
-    return run_time_origin(ctx)
-
-
 def truth_count_available(ctx: RunContext) -> str | None:
     return None if (ctx.dataset / "truth_count.csv").exists() else "no truth_count.csv in the dataset"
 
 
-def truth_count_work(ctx: RunContext) -> dict[str, pl.DataFrame]:
+def truth_count_work(ctx: RunContext, origin: TimeOrigin) -> dict[str, pl.DataFrame]:
     """``truth_count.csv`` (t, end, count): how many people were in (``onebit import aras``
-    writes it from the residents' Going Out labels)."""
-    tc, rej = read_truth_count_csv(ctx.dataset / "truth_count.csv", epoch=_origin(ctx))
+    writes it from the residents' Going Out labels); ``origin``: the run's time origin."""
+    tc, rej = read_truth_count_csv(ctx.dataset / "truth_count.csv", epoch=origin)
     ctx.add_rejects(rej)
     span = float((tc["end"] - tc["t"]).sum()) if tc.height else 0.0
     ctx.report += [
@@ -66,17 +62,12 @@ def occupancy_available(ctx: RunContext) -> str | None:
     return None if ctx.site.tracked.motion_sensors else "site has no motion sensors"
 
 
-def occupancy_work(ctx: RunContext) -> dict[str, pl.DataFrame]:
-    """The home's count (:func:`onebit.models.occupancy.estimate`) over the motion log, on the
-    sensors the trackers see (ignored ones left out)."""
-    from onebit.core.config import config_from_mapping
-    from onebit.core.units import config_in_site_units
-    from onebit.pipeline.stages import without_ignored
-
+def occupancy_work(ctx: RunContext, motion: pl.DataFrame) -> dict[str, pl.DataFrame]:
+    """The home's count (:func:`onebit.models.occupancy.estimate`) over ``motion`` (the run's,
+    without the ignored sensors' rows), on the sensors the trackers see."""
     cfg = config_from_mapping(OccupancyConfig, ctx.section("occupancy"), section="occupancy")
     ctx.record("occupancy", cfg)
     cfg = config_in_site_units(cfg, ctx.site)
-    motion = without_ignored("motion", ctx.tables["motion"], ctx.site.ignored)
     bins, people = estimate(motion, ctx.site.tracked, cfg, ctx.tables.get("count_profile"))
     n = bins["present"].to_numpy() if bins.height else np.zeros(0)
     ctx.report += [

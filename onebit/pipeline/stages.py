@@ -640,6 +640,14 @@ def without_ignored(name: str, table: Any, ignored: frozenset[str]) -> Any:
     return table.filter(~pl.col(col).is_in(sorted(ignored)))
 
 
+def _truth_count_work(ctx: RunContext) -> dict[str, pl.DataFrame]:
+    return homes.truth_count_work(ctx, run_time_origin(ctx))
+
+
+def _occupancy_work(ctx: RunContext) -> dict[str, pl.DataFrame]:
+    return homes.occupancy_work(ctx, without_ignored("motion", ctx.tables["motion"], ctx.site.ignored))
+
+
 def _ignore_available(ctx: RunContext) -> str | None:
     return None if ctx.site.ignored else "no sensor has ignore = true in site.toml"
 
@@ -901,7 +909,7 @@ def stages(trackers: tuple[TrackerEntry, ...] = TRACKERS) -> list[Stage]:
         Stage("truth", (), ("truth", "true_crossings", "sim_crossings"), _truth_available, _truth_work, _truth_viz),
         Stage("truth_events", (), ("truth_events",), _truth_events_available, _truth_events_work),
         Stage("residents_profile", (), ("residents_profile",), _profile_available, _profile_work),
-        Stage("truth_count", (), ("truth_count",), homes.truth_count_available, homes.truth_count_work),
+        Stage("truth_count", (), ("truth_count",), homes.truth_count_available, _truth_count_work),
         Stage("count_profile", (), ("count_profile",), homes.count_profile_available, homes.count_profile_work),
         Stage("camera", (), ("camera_truth", "camera_detections"), _camera_available, _camera_work, _camera_viz),
         Stage(
@@ -935,7 +943,7 @@ def stages(trackers: tuple[TrackerEntry, ...] = TRACKERS) -> list[Stage]:
             ("motion",),
             ("occupancy_bins", "occupancy_people"),
             homes.occupancy_available,
-            homes.occupancy_work,
+            _occupancy_work,
             viz_occupancy.log_occupancy,
             config=OccupancyConfig,
         ),

@@ -135,12 +135,24 @@ def oracle_point_tracks(rec, tracker, tracks, *, rgb=None):
     log_world_frame(rec, paths.tracker_root(tracker))
     labels = track_labels(tracker, tracks["track"].unique().to_list())
     shades = track_colors(tracker, labels, rgb=rgb)
+    gaps = [np.diff(g["t"].to_numpy().astype(np.float64)) for _, g in groups(tracks, "track")]
+    every = np.concatenate([d[d > 0] for d in gaps]) if gaps else np.empty(0)
     for track, g in groups(tracks, "track"):
         entity = paths.track(tracker, track)
         t, xy = g["t"].to_numpy().astype(np.float64), g.select("x", "y").to_numpy().astype(np.float64)
         _dot(rec, entity, t, xy, color=shades[track], label=labels[track])
         _trail(rec, entity, t, xy, color=shades[track])
         _full_path(rec, entity, xy, color=shades[track])
+        # the dot and label cleared one of the track's own steps after its last row (the
+        # median step of every track for a track of one row; never when no step is known)
+        own = np.diff(t)[np.diff(t) > 0]
+        step = float(np.median(own)) if own.size else (float(np.median(every)) if every.size else np.nan)
+        if np.isfinite(step):
+            rec.send_columns(
+                entity,
+                indexes=[paths.time_column(np.array([t[-1] + step]))],
+                columns=rr.Clear.columns(is_recursive=[False]),
+            )
 
 
 def oracle_region_tracks(rec, tracker, tracks, region_graph, *, rgb=None):

@@ -22,7 +22,7 @@ born from ``min_points`` detections in a row (MultiMeasurementInitiator) and del
 ``delete_after`` frames without an update. Not tuned on any recording: the defaults are the
 footprint and a walking speed.
 
-``python -m onebit.experiments.peers.stonesoup DATASET [--jpda]`` prints its scores on an
+``python -m onebit.experiments.peers DATASET [--jpda]`` prints its scores on an
 imported dataset (``onebit import irtracking``).
 """
 
@@ -41,6 +41,9 @@ import polars as pl
 from onebit.core.site import Site, load_site
 from onebit.core.tables import FRAMES, TRACKS, conform
 from onebit.core.units import to_site_units
+from onebit.readers.frames import read_frames_csv
+from onebit.readers.tables_csv import read_truth_csv
+from onebit.scoring.mot import metric_gate_rows
 
 EPOCH = _dt.datetime(2000, 1, 1)
 #: What a user installs to get this peer.
@@ -208,13 +211,8 @@ def track(
 
 
 def main(argv: list[str] | None = None) -> int:
-    from onebit.readers.frames import read_frames_csv
-    from onebit.readers.tables_csv import read_truth_csv
-    from onebit.scoring.mot import metric_gate_rows
 
-    ap = argparse.ArgumentParser(
-        prog="python -m onebit.experiments.peers.stonesoup", description=__doc__.splitlines()[0]
-    )
+    ap = argparse.ArgumentParser(prog="python -m onebit.experiments.peers", description=__doc__.splitlines()[0])
     ap.add_argument("dataset", help="a dataset folder with frames.csv and truth.csv (onebit import irtracking)")
     ap.add_argument("--jpda", action="store_true")
     args = ap.parse_args(argv)
@@ -232,7 +230,3 @@ def main(argv: list[str] | None = None) -> int:
     for _, metric, value, unit in metric_gate_rows(name, tracks, truth, site, (1.0, 1.5)):
         print(f"{name:16s} {metric:24s} {value:10.4g} {unit}")
     return 0
-
-
-if __name__ == "__main__":
-    sys.exit(main())
