@@ -10,6 +10,10 @@ Entity paths::
                           bright while on and dim while off (positions and labels static, the
                           colours one row per edge)
 
+and, for every tracker that writes a ``people`` table (:func:`log_people`)::
+
+    <tracker>/people      the tracker's people present (a step series in its colour)
+
 Each series is one ``send_columns``; the styles are static.
 """
 
@@ -20,7 +24,7 @@ import polars as pl
 
 from onebit.core.lazy import lazy_module
 from onebit.viz import colors, paths
-from onebit.viz._series import is_empty
+from onebit.viz._series import is_empty, require
 from onebit.viz.frame import log_world_frame
 
 rr = lazy_module("rerun")
@@ -52,6 +56,23 @@ def log_step_series(rec, entity: str, t: np.ndarray, v: np.ndarray, *, name: str
         entity,
         indexes=[paths.time_column(np.asarray(t, dtype=np.float64))],
         columns=rr.Scalars.columns(scalars=np.asarray(v, dtype=np.float64)),
+    )
+
+
+def log_people(rec, tracker: str, people: pl.DataFrame | None, *, rgb: tuple[int, int, int] | None = None) -> None:
+    """``<tracker>/people``: a tracker's people present (``t, present``) as one step series in
+    its colour (a count holds until the next sample: steps, not lines sloping between sparse
+    samples). The pipeline logs it for every tracker whose stage made ``<tracker>_people``."""
+    if is_empty(people):
+        return
+    require(people, ("t", "present"), name=f"{tracker}_people")
+    log_step_series(
+        rec,
+        paths.join(paths.tracker_root(tracker), "people"),
+        people["t"].to_numpy(),
+        people["present"].to_numpy(),
+        name=f"{tracker}: people",
+        rgb=colors.tracker_color(tracker, rgb=rgb),
     )
 
 
