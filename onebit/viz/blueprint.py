@@ -47,6 +47,7 @@ one layout is written once the stages are done, as ``blueprint.rbl`` and, sent w
 
 from __future__ import annotations
 
+import functools
 from collections.abc import Iterable, Mapping
 from pathlib import Path
 
@@ -85,6 +86,10 @@ STATE = frozenset({"StateChange"})
 HOME_ROOT = "occupancy"
 #: Name of the home tab (``onebit snapshot RUN --view home``).
 HOME_TAB = "home"
+#: Up to this many scored trackers the summary tab has an error plot for each, beyond it one per unit.
+SUMMARY_ERROR_PLOTS = 3
+#: Name of the summary tab (``onebit snapshot RUN --view summary``).
+SUMMARY_TAB = "summary"
 #: Roots that are not a tracker's.
 SHARED_ROOTS = frozenset({paths.SITE, paths.TRUTH, paths.SENSORS, paths.SCORES, "camera", "correct", HOME_ROOT})
 
@@ -189,7 +194,13 @@ class View:
             )
         if self.kind == "text":
             return rrb.TextLogView(name=self.name, origin="/", contents=contents)
-        return rrb.StateTimelineView(name=self.name, origin="/", contents=contents)
+        return rrb.StateTimelineView(
+            name=self.name,
+            origin="/",
+            contents=contents,
+            time_view=whole_run_axis() if self.whole_run else None,
+            time_ranges=whole_run_range() if self.whole_run else None,
+        )
 
 
 def whole_run_range() -> rrb.VisibleTimeRange:
@@ -301,6 +312,40 @@ class Planner:
             count.y_range = (-0.5, count.y_range[1])
         states = self.view("state", "motion sensors: on / off", self.states())
         return _tab(HOME_TAB, where, [count, states])
+
+    def summary(self, trackers: list[str]) -> rrb.Container | None:
+        """The run at a glance, every plot over the whole run (time axis and visible range
+        unbounded): the people present by every tracker (``<tracker>/people``) and by the
+        count model (``occupancy/present``) against the truth (``occupancy/truth``), with the
+        door events; the error of every tracker's tracks, one plot per tracker (few trackers)
+        or per unit; the run's events (the sensors' on / off bands, the crossing log)."""
+        home = sorted(self.L.under(HOME_ROOT, SERIES), key=lambda p: p != paths.join(HOME_ROOT, "truth"))
+        people = [p for t in trackers for p in self.L.under(paths.join(paths.tracker_root(t), "people"), SERIES)]
+        count = self.count_view(
+            "people present: each tracker vs the truth over the run (count)", [*home, *people], whole_run=True
+        )
+        if count is not None and count.y_range is not None and paths.join(HOME_ROOT, "doors") in count.entities:
+            count.y_range = (-0.5, count.y_range[1])  # room for the door marks under 0
+        scored = [t for t in trackers if self.scores([t])]
+        groups: dict[str, list[str]] = {}
+        if len(scored) <= SUMMARY_ERROR_PLOTS:
+            groups = {t: [t] for t in scored}
+        else:
+            for t in scored:
+                groups.setdefault(error_unit(look_of(self.looks, t), self.units), []).append(t)
+        errors = []
+        for key, group in groups.items():
+            what = f"{key}: error of each track over the run" if group == [key] else "error of each track over the run"
+            unit = error_unit(look_of(self.looks, group[0]), self.units)
+            kind = self.count_view if unit == "hops" else functools.partial(self.view, "series")
+            errors.append(kind(f"{what} ({unit})", self.scores(group), whole_run=True))
+        states = self.view("state", "events: sensors on / off over the run", self.states(), whole_run=True)
+        log = self.view("text", "events: crossing log", self.L.under(paths.SENSORS, TEXT))
+        events = [v for v in (states, log) if v is not None]
+        plots = [count, *errors, *events]
+        if not any(v is not None for v in (count, *errors)):
+            return None
+        return _named(_column(plots), SUMMARY_TAB)
 
     # ---------------------------------------------------------------- families
 
@@ -569,6 +614,7 @@ def make_blueprint(
             tabs.append(plan.generic(t))
     if not home_first and home is not None:
         tabs.append(home)
+    tabs.append(plan.summary(trackers))
     if not any(tabs):  # no tracker ran: the site with the truth and the sensors
         site = plan.map_view(
             f"site ({units})", [*plan.site(), *plan.truth(), *logged.under(paths.SENSORS, SPATIAL | FRAME)]
