@@ -392,6 +392,7 @@ def _truth_work(ctx: RunContext) -> dict[str, pl.DataFrame]:
 
 def _truth_viz(rec, ctx: RunContext, made: dict) -> None:
     log_truth(rec, made["truth"], diagonal=ctx.site.diagonal)
+    viz_occupancy.log_truth_people(rec, made["truth"])  # the summary tab's true count
 
 
 def _truth_events_available(ctx: RunContext) -> str | None:

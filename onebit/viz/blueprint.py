@@ -33,6 +33,11 @@ against the truth with the door events, as steps over the whole run (time axis a
 unbounded, not the window at the cursor); the sensors' states. A run of home trackers only
 (``residents``) opens on it; otherwise it follows the trackers' tabs.
 
+Every run with a tracker (or a home) has a **summary** tab, the last (:meth:`Planner.summary`):
+the people present by every tracker (``<tracker>/people``) and the count model against the
+truth, each tracker's error, the sensors' on / off bands and the crossing log; its plots and
+band span the whole run, as the home tab's count.
+
 Views that would be empty are not created and every view names only logged entities (exact
 paths). Every logged entity is in some view: what no family shows goes to a last tab, "more".
 Trails (``.../trail``) get a visible time range ``[cursor - trail_s, cursor]``; whole paths,
@@ -86,12 +91,16 @@ STATE = frozenset({"StateChange"})
 HOME_ROOT = "occupancy"
 #: Name of the home tab (``onebit snapshot RUN --view home``).
 HOME_TAB = "home"
-#: Up to this many scored trackers the summary tab has an error plot for each, beyond it one per unit.
-SUMMARY_ERROR_PLOTS = 3
+#: Error plots a row on the summary tab (one per tracker).
+SUMMARY_COLUMNS = 3
 #: Name of the summary tab (``onebit snapshot RUN --view summary``).
 SUMMARY_TAB = "summary"
+#: Root of the series only the summary tab shows (the true count of a run with tracked truth).
+SUMMARY_ROOT = "summary"
 #: Roots that are not a tracker's.
-SHARED_ROOTS = frozenset({paths.SITE, paths.TRUTH, paths.SENSORS, paths.SCORES, "camera", "correct", HOME_ROOT})
+SHARED_ROOTS = frozenset(
+    {paths.SITE, paths.TRUTH, paths.SENSORS, paths.SCORES, "camera", "correct", HOME_ROOT, SUMMARY_ROOT}
+)
 
 
 class Logged:
@@ -316,36 +325,36 @@ class Planner:
     def summary(self, trackers: list[str]) -> rrb.Container | None:
         """The run at a glance, every plot over the whole run (time axis and visible range
         unbounded): the people present by every tracker (``<tracker>/people``) and by the
-        count model (``occupancy/present``) against the truth (``occupancy/truth``), with the
-        door events; the error of every tracker's tracks, one plot per tracker (few trackers)
-        or per unit; the run's events (the sensors' on / off bands, the crossing log)."""
-        home = sorted(self.L.under(HOME_ROOT, SERIES), key=lambda p: p != paths.join(HOME_ROOT, "truth"))
+        count model (``occupancy/present``) against the truth (``summary/truth`` from the
+        tracked truth, ``occupancy/truth`` from a home's ``truth_count``), with the
+        door events; the error of every tracker's tracks, one plot per tracker (in a grid); the
+        run's events (the sensors' on / off bands, the crossing log)."""
+        # the truths first, so the estimates' lines are drawn over them
+        truths = [p for p in (paths.join(SUMMARY_ROOT, "truth"), paths.join(HOME_ROOT, "truth")) if p in self.L]
+        home = [p for p in self.L.under(HOME_ROOT, SERIES) if p not in truths]
         people = [p for t in trackers for p in self.L.under(paths.join(paths.tracker_root(t), "people"), SERIES)]
+        vs = " vs the truth" if truths else ""
         count = self.count_view(
-            "people present: each tracker vs the truth over the run (count)", [*home, *people], whole_run=True
+            f"people present: each tracker{vs} over the run (count)", [*truths, *home, *people], whole_run=True
         )
         if count is not None and count.y_range is not None and paths.join(HOME_ROOT, "doors") in count.entities:
             count.y_range = (-0.5, count.y_range[1])  # room for the door marks under 0
-        scored = [t for t in trackers if self.scores([t])]
-        groups: dict[str, list[str]] = {}
-        if len(scored) <= SUMMARY_ERROR_PLOTS:
-            groups = {t: [t] for t in scored}
-        else:
-            for t in scored:
-                groups.setdefault(error_unit(look_of(self.looks, t), self.units), []).append(t)
         errors = []
-        for key, group in groups.items():
-            what = f"{key}: error of each track over the run" if group == [key] else "error of each track over the run"
-            unit = error_unit(look_of(self.looks, group[0]), self.units)
+        for t in trackers:  # one plot per tracker: the legends name tracks, not trackers
+            unit = error_unit(look_of(self.looks, t), self.units)
             kind = self.count_view if unit == "hops" else functools.partial(self.view, "series")
-            errors.append(kind(f"{what} ({unit})", self.scores(group), whole_run=True))
+            errors.append(kind(f"{t}: error of each track over the run ({unit})", self.scores([t]), whole_run=True))
+        errors = [v for v in errors if v is not None]
         states = self.view("state", "events: sensors on / off over the run", self.states(), whole_run=True)
         log = self.view("text", "events: crossing log", self.L.under(paths.SENSORS, TEXT))
-        events = [v for v in (states, log) if v is not None]
-        plots = [count, *errors, *events]
-        if not any(v is not None for v in (count, *errors)):
+        if count is None and not errors:
             return None
-        return _named(_column(plots), SUMMARY_TAB)
+        events = _row([states, log], shares=[3, 2]) if states is not None or log is not None else None
+        # the error plots side by side, at most SUMMARY_COLUMNS a row
+        grid = rrb.Grid(*_built(errors), grid_columns=min(len(errors), SUMMARY_COLUMNS)) if len(errors) > 1 else None
+        parts = [count, grid if grid is not None else (errors[0] if errors else None), events]
+        shares = [s for s, p in zip((2, 3 if len(errors) > SUMMARY_COLUMNS else 2, 2), parts) if p is not None]
+        return _named(_column(parts, shares=shares), SUMMARY_TAB)
 
     # ---------------------------------------------------------------- families
 
@@ -614,7 +623,8 @@ def make_blueprint(
             tabs.append(plan.generic(t))
     if not home_first and home is not None:
         tabs.append(home)
-    tabs.append(plan.summary(trackers))
+    if trackers or home is not None:
+        tabs.append(plan.summary(trackers))
     if not any(tabs):  # no tracker ran: the site with the truth and the sensors
         site = plan.map_view(
             f"site ({units})", [*plan.site(), *plan.truth(), *logged.under(paths.SENSORS, SPATIAL | FRAME)]
