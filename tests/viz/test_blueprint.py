@@ -104,7 +104,9 @@ def test_each_family_opens_on_its_own_tab_and_nothing_is_left_over(run):
         assert sum(tab.startswith(f"{owner}: ") for tab in tabs) == 1, (t, tabs)
     home = int("home" in tabs)  # the occupancy stage ran (motion logs): its tab after the trackers'
     assert tabs[-1] == "summary"  # one per run, last
-    assert len(tabs) == home + 1 + len({("intruder" if t == "intruder-naive" and "intruder" in ran else t) for t in ran})
+    assert len(tabs) == home + 1 + len(
+        {("intruder" if t == "intruder-naive" and "intruder" in ran else t) for t in ran}
+    )
     assert "more" not in tabs  # every entity found its family's view
     assert set(tracker_roots(Logged(logged), LOOKS)) <= set(ran)
 

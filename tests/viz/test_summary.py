@@ -4,7 +4,6 @@ tracker's people present as steps (onebit.viz.occupancy.log_people) and the trut
 
 from __future__ import annotations
 
-import numpy as np
 import polars as pl
 import rerun as rr
 import rerun.blueprint as rrb
