@@ -392,6 +392,7 @@ def _truth_work(ctx: RunContext) -> dict[str, pl.DataFrame]:
 
 def _truth_viz(rec, ctx: RunContext, made: dict) -> None:
     log_truth(rec, made["truth"], diagonal=ctx.site.diagonal)
+    viz_occupancy.log_truth_people(rec, made["truth"])  # the summary tab's true count
 
 
 def _truth_events_available(ctx: RunContext) -> str | None:
@@ -782,11 +783,13 @@ def tracker_stage(entry: TrackerEntry) -> Stage:
         return detached_tracker, args, shares
 
     def viz(rec, ctx: RunContext, made: dict) -> None:
-        if entry.viz is None:
-            return
         out = {k[len(name) + 1 :]: v for k, v in made.items() if k.startswith(f"{name}_")}
         if ARTIFACTS in made:
             out[ARTIFACTS] = made[ARTIFACTS]
+        # every tracker's people present, one step series the summary tab plots against the truth
+        viz_occupancy.log_people(rec, name, out.get("people"), rgb=entry.drawn.rgb)
+        if entry.viz is None:
+            return
         entry.viz(
             rec,
             name,

@@ -33,6 +33,11 @@ against the truth with the door events, as steps over the whole run (time axis a
 unbounded, not the window at the cursor); the sensors' states. A run of home trackers only
 (``residents``) opens on it; otherwise it follows the trackers' tabs.
 
+Every run with a tracker (or a home) has a **summary** tab, the last (:meth:`Planner.summary`):
+the people present by every tracker (``<tracker>/people``) and the count model against the
+truth, each tracker's error, the sensors' on / off bands and the crossing log; its plots and
+band span the whole run, as the home tab's count.
+
 Views that would be empty are not created and every view names only logged entities (exact
 paths). Every logged entity is in some view: what no family shows goes to a last tab, "more".
 Trails (``.../trail``) get a visible time range ``[cursor - trail_s, cursor]``; whole paths,
@@ -47,6 +52,7 @@ one layout is written once the stages are done, as ``blueprint.rbl`` and, sent w
 
 from __future__ import annotations
 
+import functools
 from collections.abc import Iterable, Mapping
 from pathlib import Path
 
@@ -85,8 +91,16 @@ STATE = frozenset({"StateChange"})
 HOME_ROOT = "occupancy"
 #: Name of the home tab (``onebit snapshot RUN --view home``).
 HOME_TAB = "home"
+#: Error plots a row on the summary tab (one per tracker).
+SUMMARY_COLUMNS = 3
+#: Name of the summary tab (``onebit snapshot RUN --view summary``).
+SUMMARY_TAB = "summary"
+#: Root of the series only the summary tab shows (the true count of a run with tracked truth).
+SUMMARY_ROOT = "summary"
 #: Roots that are not a tracker's.
-SHARED_ROOTS = frozenset({paths.SITE, paths.TRUTH, paths.SENSORS, paths.SCORES, "camera", "correct", HOME_ROOT})
+SHARED_ROOTS = frozenset(
+    {paths.SITE, paths.TRUTH, paths.SENSORS, paths.SCORES, "camera", "correct", HOME_ROOT, SUMMARY_ROOT}
+)
 
 
 class Logged:
@@ -189,7 +203,13 @@ class View:
             )
         if self.kind == "text":
             return rrb.TextLogView(name=self.name, origin="/", contents=contents)
-        return rrb.StateTimelineView(name=self.name, origin="/", contents=contents)
+        return rrb.StateTimelineView(
+            name=self.name,
+            origin="/",
+            contents=contents,
+            time_view=whole_run_axis() if self.whole_run else None,
+            time_ranges=whole_run_range() if self.whole_run else None,
+        )
 
 
 def whole_run_range() -> rrb.VisibleTimeRange:
@@ -301,6 +321,40 @@ class Planner:
             count.y_range = (-0.5, count.y_range[1])
         states = self.view("state", "motion sensors: on / off", self.states())
         return _tab(HOME_TAB, where, [count, states])
+
+    def summary(self, trackers: list[str]) -> rrb.Container | None:
+        """The run at a glance, every plot over the whole run (time axis and visible range
+        unbounded): the people present by every tracker (``<tracker>/people``) and by the
+        count model (``occupancy/present``) against the truth (``summary/truth`` from the
+        tracked truth, ``occupancy/truth`` from a home's ``truth_count``), with the
+        door events; the error of every tracker's tracks, one plot per tracker (in a grid); the
+        run's events (the sensors' on / off bands, the crossing log)."""
+        # the truths first, so the estimates' lines are drawn over them
+        truths = [p for p in (paths.join(SUMMARY_ROOT, "truth"), paths.join(HOME_ROOT, "truth")) if p in self.L]
+        home = [p for p in self.L.under(HOME_ROOT, SERIES) if p not in truths]
+        people = [p for t in trackers for p in self.L.under(paths.join(paths.tracker_root(t), "people"), SERIES)]
+        vs = " vs the truth" if truths else ""
+        count = self.count_view(
+            f"people present: each tracker{vs} over the run (count)", [*truths, *home, *people], whole_run=True
+        )
+        if count is not None and count.y_range is not None and paths.join(HOME_ROOT, "doors") in count.entities:
+            count.y_range = (-0.5, count.y_range[1])  # room for the door marks under 0
+        errors = []
+        for t in trackers:  # one plot per tracker: the legends name tracks, not trackers
+            unit = error_unit(look_of(self.looks, t), self.units)
+            kind = self.count_view if unit == "hops" else functools.partial(self.view, "series")
+            errors.append(kind(f"{t}: error of each track over the run ({unit})", self.scores([t]), whole_run=True))
+        errors = [v for v in errors if v is not None]
+        states = self.view("state", "events: sensors on / off over the run", self.states(), whole_run=True)
+        log = self.view("text", "events: crossing log", self.L.under(paths.SENSORS, TEXT))
+        if count is None and not errors:
+            return None
+        events = _row([states, log], shares=[3, 2]) if states is not None or log is not None else None
+        # the error plots side by side, at most SUMMARY_COLUMNS a row
+        grid = rrb.Grid(*_built(errors), grid_columns=min(len(errors), SUMMARY_COLUMNS)) if len(errors) > 1 else None
+        parts = [count, grid if grid is not None else (errors[0] if errors else None), events]
+        shares = [s for s, p in zip((2, 3 if len(errors) > SUMMARY_COLUMNS else 2, 2), parts) if p is not None]
+        return _named(_column(parts, shares=shares), SUMMARY_TAB)
 
     # ---------------------------------------------------------------- families
 
@@ -569,6 +623,8 @@ def make_blueprint(
             tabs.append(plan.generic(t))
     if not home_first and home is not None:
         tabs.append(home)
+    if trackers or home is not None:
+        tabs.append(plan.summary(trackers))
     if not any(tabs):  # no tracker ran: the site with the truth and the sensors
         site = plan.map_view(
             f"site ({units})", [*plan.site(), *plan.truth(), *logged.under(paths.SENSORS, SPATIAL | FRAME)]

@@ -10,6 +10,13 @@ Entity paths::
                           bright while on and dim while off (positions and labels static, the
                           colours one row per edge)
 
+and, for every tracker that writes a ``people`` table (:func:`log_people`), and for a run with
+tracked truth (:func:`log_truth_people`)::
+
+    <tracker>/people      the tracker's people present (a step series in its colour)
+    summary/truth         the true targets present, each from its first to its last truth row
+                          (a step series, drawn as ``occupancy/truth``)
+
 Each series is one ``send_columns``; the styles are static.
 """
 
@@ -20,12 +27,16 @@ import polars as pl
 
 from onebit.core.lazy import lazy_module
 from onebit.viz import colors, paths
-from onebit.viz._series import is_empty
+from onebit.viz._series import is_empty, require
 from onebit.viz.frame import log_world_frame
 
 rr = lazy_module("rerun")
 
 ROOT = "occupancy"
+#: Root of the series only the summary tab shows (:data:`onebit.viz.blueprint.SUMMARY_ROOT`).
+SUMMARY_ROOT = "summary"
+#: Style of a true count: wide and translucent under the estimates' thin lines.
+TRUTH_RGB, TRUTH_WIDTH = (120, 220, 120, 150), 5.0
 #: Height of the door-event marks on the count plot: under the 0 line, above the axis.
 DOOR_Y = -0.25
 #: Colour of a sensor that is off on the home map (a sensor that is on has :data:`colors.FIRING`).
@@ -52,6 +63,48 @@ def log_step_series(rec, entity: str, t: np.ndarray, v: np.ndarray, *, name: str
         entity,
         indexes=[paths.time_column(np.asarray(t, dtype=np.float64))],
         columns=rr.Scalars.columns(scalars=np.asarray(v, dtype=np.float64)),
+    )
+
+
+def log_people(rec, tracker: str, people: pl.DataFrame | None, *, rgb: tuple[int, int, int] | None = None) -> None:
+    """``<tracker>/people``: a tracker's people present (``t, present``) as one step series in
+    its colour (a count holds until the next sample: steps, not lines sloping between sparse
+    samples). The pipeline logs it for every tracker whose stage made ``<tracker>_people``."""
+    if is_empty(people):
+        return
+    require(people, ("t", "present"), name=f"{tracker}_people")
+    log_step_series(
+        rec,
+        paths.join(paths.tracker_root(tracker), "people"),
+        people["t"].to_numpy(),
+        people["present"].to_numpy(),
+        name=f"{tracker}: people",
+        rgb=colors.tracker_color(tracker, rgb=rgb),
+    )
+
+
+def truth_people_steps(truth: pl.DataFrame | None) -> tuple[np.ndarray, np.ndarray]:
+    """The true targets present from a truth frame ``(t, target, ...)``: each target counts from
+    its first row's time to its last's (a target that leaves and comes back between two rows is
+    counted as present meanwhile). Returns the step corners ``(t, count)``, one per time."""
+    if is_empty(truth):
+        return np.zeros(0), np.zeros(0)
+    spans = truth.drop_nulls(["t", "target"]).group_by("target").agg(a=pl.col("t").min(), b=pl.col("t").max())
+    if spans.height == 0:
+        return np.zeros(0), np.zeros(0)
+    t = np.r_[spans["a"].to_numpy(), spans["b"].to_numpy()].astype(np.float64)
+    d = np.r_[np.ones(spans.height), -np.ones(spans.height)]
+    order = np.argsort(t, kind="stable")
+    t, v = t[order], np.cumsum(d[order])
+    last = np.r_[t[1:] != t[:-1], True]  # the count after every change at that time
+    return t[last], v[last]
+
+
+def log_truth_people(rec, truth: pl.DataFrame | None) -> None:
+    """``summary/truth``: the true targets present (:func:`truth_people_steps`), one step series."""
+    t, v = truth_people_steps(truth)
+    log_step_series(
+        rec, paths.join(SUMMARY_ROOT, "truth"), t, v, name="people (truth)", rgb=TRUTH_RGB, width=TRUTH_WIDTH
     )
 
 
@@ -87,7 +140,7 @@ def log_occupancy(rec, ctx, made: dict) -> None:
     ts, vs = truth_steps(ctx.tables.get("truth_count"))
     # the truth wide and translucent under the model's thin line: both stay readable where they agree
     log_step_series(
-        rec, paths.join(ROOT, "truth"), ts, vs, name="people home (truth)", rgb=(120, 220, 120, 150), width=5.0
+        rec, paths.join(ROOT, "truth"), ts, vs, name="people home (truth)", rgb=TRUTH_RGB, width=TRUTH_WIDTH
     )
     bins = made.get("occupancy_bins")
     if bins is not None and bins.height and bins["door"].any():

@@ -6,7 +6,8 @@ Entity paths (under the tracker's root)::
                                  trail and hidden whole path (:func:`onebit.viz.tracks.log_point_tracks`)
     <tracker>/events             every motion ON event at its sensor, in the colour of the person
                                  it was attributed to and labelled with them, at its time
-    <tracker>/people             the number of people present (a step series)
+    <tracker>/people             the number of people present (a step series, logged by the
+                                 pipeline for every tracker: :func:`onebit.viz.occupancy.log_people`)
 
 Bulk series go through one ``send_columns`` each.
 """
@@ -55,27 +56,6 @@ def log_events(
     )
 
 
-def log_people(rec: rr.RecordingStream, tracker: str, people: pl.DataFrame | None) -> None:
-    """The number of people present over time as one step series."""
-    if is_empty(people):
-        return
-    entity = paths.join(paths.tracker_root(tracker), "people")
-    # a count holds until the next sample: steps, not lines sloping between sparse samples
-    rec.log(
-        entity,
-        rr.SeriesLines(
-            interpolation_mode=rr.components.InterpolationMode.StepAfter,
-            aggregation_policy=rr.components.AggregationPolicy.Off,
-        ),
-        static=True,
-    )
-    rec.send_columns(
-        entity,
-        indexes=[paths.time_column(people["t"].to_numpy())],
-        columns=rr.Scalars.columns(scalars=people["present"].to_numpy().astype(np.float64)),
-    )
-
-
 def log_run(
     rec: rr.RecordingStream,
     tracker: str,
@@ -87,13 +67,12 @@ def log_run(
     tables=None,
     look: Look = GENERIC,
 ) -> None:
-    """The residents stage: people's tracks, the attributed events, the people present."""
+    """The residents stage: people's tracks and the attributed events."""
     log_point_tracks(rec, tracker, out.get("tracks"), rgb=look.rgb)
     ev = out.get("events")
     if not is_empty(ev):
         on = ev.join(_on_rows(tables, ev), on=["t", "sensor"], how="semi") if tables else ev
         log_events(rec, tracker, on, site, rgb=look.rgb)
-    log_people(rec, tracker, out.get("people"))
 
 
 def _on_rows(tables: dict, events: pl.DataFrame) -> pl.DataFrame:

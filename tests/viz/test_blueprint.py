@@ -11,6 +11,8 @@ from __future__ import annotations
 import re
 
 import pytest
+import rerun as rr
+import rerun.blueprint as rrb
 
 from onebit.datasets.catalogue import get_scenario
 from onebit.pipeline.runner import run_pipeline
@@ -19,6 +21,7 @@ from onebit.viz import inspect as rrd
 from onebit.viz.blueprint import (
     BLUEPRINT_FILE,
     BLUEPRINT_RECORDING,
+    SUMMARY_TAB,
     Logged,
     make_blueprint,
     tracker_roots,
@@ -100,7 +103,10 @@ def test_each_family_opens_on_its_own_tab_and_nothing_is_left_over(run):
         owner = "intruder" if t == "intruder-naive" and "intruder" in ran else t
         assert sum(tab.startswith(f"{owner}: ") for tab in tabs) == 1, (t, tabs)
     home = int("home" in tabs)  # the occupancy stage ran (motion logs): its tab after the trackers'
-    assert len(tabs) == home + len({("intruder" if t == "intruder-naive" and "intruder" in ran else t) for t in ran})
+    assert tabs[-1] == "summary"  # one per run, last
+    assert len(tabs) == home + 1 + len(
+        {("intruder" if t == "intruder-naive" and "intruder" in ran else t) for t in ran}
+    )
     assert "more" not in tabs  # every entity found its family's view
     assert set(tracker_roots(Logged(logged), LOOKS)) <= set(ran)
 
@@ -162,3 +168,46 @@ def test_make_blueprint_without_data_and_with_an_unknown_tracker():
     assert tracker_roots(Logged(logged)) == ["centroid", "odd"]
     with pytest.raises(ValueError, match="trail_s"):
         make_blueprint(logged, trail_s=0.0)
+
+
+def _views(container):
+    for x in container.contents:
+        yield from [x] if isinstance(x, rrb.View) else _views(x)
+
+
+WHOLE_RUN = [{"timeline": "t", "range": {"start": None, "end": None}}]
+
+
+def test_the_summary_tab_shows_people_errors_and_events_over_the_whole_run(run):
+    """One summary tab per run: every tracker's people present (with the truth when logged) and
+    every tracker's error, each plot and the events' timeline over the whole run."""
+    _, folder, logged, _, _ = run
+    files = sorted(p for p in folder.glob("*.rrd") if p.name != BLUEPRINT_RECORDING)
+    blueprint = make_blueprint(Logged(logged, rrd.scalar_ranges(files)), looks=LOOKS)
+    (summary,) = [t for t in blueprint.root_container.contents if t.name == SUMMARY_TAB]
+    views = list(_views(summary))
+    entities = {e.removeprefix("+ ") for v in views for e in v.contents}
+    people = {p for p in logged if p.endswith("/people") and "Scalars" in logged[p]}
+    scores = {p for p in logged if p.startswith("scores/") and "Scalars" in logged[p]}
+    assert people | scores, logged  # every demo run logs a count or an error
+    assert people <= entities and scores <= entities, (people - entities, scores - entities)
+    for v in views:
+        if v.class_identifier in ("TimeSeries", "StateTimeline"):
+            ranges = v.properties["VisibleTimeRanges"].ranges.as_arrow_array().to_pylist()
+            assert ranges == WHOLE_RUN, (v.name, ranges)
+            assert v.properties["TimeAxis"].view_range.as_arrow_array().to_pylist() == [{"start": None, "end": None}]
+
+
+def test_every_trackers_people_is_a_step_series(run):
+    """``<tracker>/people`` (every multi-person tracker's people table): steps, not averaged."""
+    name, folder, logged, _, ran = run
+    files = sorted(p for p in folder.glob("*.rrd") if p.name != BLUEPRINT_RECORDING)
+    people = [p for p in logged if p.endswith("/people") and p.split("/")[0] in ran]
+    if name in ("beams-lab", "istate-room", "proximity-line"):  # their trackers count people
+        assert people, sorted(logged)
+    for entity in people:
+        modes = rrd.component_rows(files, entity, "SeriesLines:interpolation_mode")
+        assert modes and all(m == [rr.components.InterpolationMode.StepAfter.value] for m in modes), entity
+        policy = rrd.component_rows(files, entity, "SeriesLines:aggregation_policy")
+        assert policy and all(p == [rr.components.AggregationPolicy.Off.value] for p in policy), entity
+        assert len(rrd.timed_rows(files, entity, "Scalars:scalars")) >= 1
