@@ -319,7 +319,7 @@ class Planner:
         count = self.count_view("people home: model vs truth, door events (count)", series, whole_run=True)
         if count is not None and count.y_range is not None:  # room for the door marks under 0
             count.y_range = (-0.5, count.y_range[1])
-        states = self.view("state", "motion sensors: on / off", self.states())
+        states = self.view("state", "home: motion sensors on / off", self.states())
         return _tab(HOME_TAB, where, [count, states])
 
     def summary(self, trackers: list[str]) -> rrb.Container | None:

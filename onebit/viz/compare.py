@@ -106,12 +106,15 @@ def _view(view: ViewInfo, prefix: str, label: str):
 def compare_blueprint(
     views_a: list[ViewInfo], views_b: list[ViewInfo], *, labels: tuple[str, str], prefixes: tuple[str, str] = ("A", "B")
 ):
-    """One row per view name (A's views first, then B's that A lacks): the view for run A and the
-    same view for run B side by side. Views of a kind without a blueprint class are left out."""
-    by_name: dict[str, list[ViewInfo]] = {}
+    """One row per view (A's views first, then B's that A lacks; a view is its name, kind, origin
+    and contents: two tabs may each hold a view of one name, say the sensors' on/off bands): the
+    view for run A and the same view for run B side by side. Views of a kind without a blueprint
+    class are left out."""
+    by_name: dict[tuple, list[ViewInfo]] = {}
     for v in [*views_a, *views_b]:
-        if v.kind in _VIEW_CLASSES and v.name not in by_name:
-            by_name[v.name] = [v]
+        key = (v.name, v.kind, v.origin, tuple(v.query))
+        if v.kind in _VIEW_CLASSES and key not in by_name:
+            by_name[key] = [v]
     rows = [
         rrb.Horizontal(_view(v, prefixes[0], labels[0]), _view(v, prefixes[1], labels[1]), name=v.name)
         for (v,) in by_name.values()
