@@ -22,16 +22,16 @@ $(STAMP): pyproject.toml
 # demo: one simulated dataset per paper; each run writes OUT/rrd/*.rrd, OUT/report.csv and prints one summary table
 # (the skipped stages one line per reason); `onebit report OUT` prints the whole report.
 demo: install
-	$(BIN)/onebit simulate beams-lab $(BUILD)/demo/beams-lab --seed 7 --duration 180 --agents 2
-	$(BIN)/onebit run $(BUILD)/demo/beams-lab --out $(BUILD)/demo/run
-	$(BIN)/onebit simulate pir14 $(BUILD)/demo/pir14 --seed 7 --param refractory=4
-	$(BIN)/onebit run $(BUILD)/demo/pir14 --out $(BUILD)/demo/pir14-run
-	$(BIN)/onebit simulate proximity-line $(BUILD)/demo/proximity-line --seed 7
-	$(BIN)/onebit run $(BUILD)/demo/proximity-line --out $(BUILD)/demo/proximity-line-run
-	$(BIN)/onebit simulate hallway $(BUILD)/demo/hallway --seed 7 --users 3 --duration 150
-	$(BIN)/onebit run $(BUILD)/demo/hallway --out $(BUILD)/demo/hallway-run
-	$(BIN)/onebit simulate istate-room $(BUILD)/demo/istate-room --seed 7
-	$(BIN)/onebit run $(BUILD)/demo/istate-room --out $(BUILD)/demo/istate-room-run
+	@$(BIN)/onebit simulate beams-lab $(BUILD)/demo/beams-lab --seed 7 --duration 180 --agents 2
+	@$(BIN)/onebit run $(BUILD)/demo/beams-lab --out $(BUILD)/demo/run
+	@$(BIN)/onebit simulate pir14 $(BUILD)/demo/pir14 --seed 7 --param refractory=4
+	@$(BIN)/onebit run $(BUILD)/demo/pir14 --out $(BUILD)/demo/pir14-run
+	@$(BIN)/onebit simulate proximity-line $(BUILD)/demo/proximity-line --seed 7
+	@$(BIN)/onebit run $(BUILD)/demo/proximity-line --out $(BUILD)/demo/proximity-line-run
+	@$(BIN)/onebit simulate hallway $(BUILD)/demo/hallway --seed 7 --users 3 --duration 150
+	@$(BIN)/onebit run $(BUILD)/demo/hallway --out $(BUILD)/demo/hallway-run
+	@$(BIN)/onebit simulate istate-room $(BUILD)/demo/istate-room --seed 7
+	@$(BIN)/onebit run $(BUILD)/demo/istate-room --out $(BUILD)/demo/istate-room-run
 
 # the ray extra (onebit run-many / experiment --executor ray); the executor tests use it.
 $(RAY_STAMP): $(STAMP)

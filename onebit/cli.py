@@ -66,15 +66,11 @@ def _cmd_run(args) -> int:
         for line in skipped_groups(res.status, stages()):
             print(f"  {line}")
         print(format_run_summary(res.report, res.status, title=f"summary of {args.out}"), end="")
-        print(
-            f"the whole report ({res.report.height} rows): {Path(args.out) / 'report.csv'}, or: onebit report {args.out}"
-        )
-    if args.no_rrd:
-        print("Rerun recordings: none (--no-rrd)")
-    else:
-        print(
-            f"Rerun recordings: {Path(args.out) / 'rrd'}/*.rrd   (open later with: rerun {Path(args.out) / 'rrd'}/*.rrd)"
-        )
+    rrd = "Rerun recordings: none (--no-rrd)" if args.no_rrd else f"Rerun recordings: rerun {Path(args.out) / 'rrd'}/*.rrd"
+    if args.full_report:
+        print(rrd)
+    else:  # one line: where the rest is
+        print(f"the whole report ({res.report.height} rows): onebit report {args.out}; {rrd}")
     failed = [name for name, state in res.status.items() if state.startswith("failed")]
     for why in (
         [f"stage(s) failed: {', '.join(failed)} (see {Path(args.out) / 'run.toml'})"] if failed else []

@@ -172,4 +172,20 @@ def skipped_groups(status: dict[str, str], stage_list: Sequence[Stage] = ()) -> 
     groups: dict[str, list[str]] = {}
     for name in reasons:
         groups.setdefault(said(root(name)), []).append(name)
-    return [f"skipped ({reason}): {', '.join(names)}" for reason, names in groups.items()]
+    lines: dict[str, str] = {}
+    for title, pattern in (("inputs not in the dataset", ABSENT), ("the site lacks what they need", SITE)):
+        hits = [r for r in groups if pattern.match(r)]
+        if len(hits) > 1:  # one line for the kind, each stage with what it lacks
+            what = [next(g for g in pattern.match(r).groups() if g) for r in hits]
+            lines[title] = "; ".join(f"{', '.join(groups[r])} ({w})" for r, w in zip(hits, what))
+            groups = {r: n for r, n in groups.items() if r not in hits}
+    lines.update({reason: ", ".join(names) for reason, names in groups.items()})
+    return [f"skipped ({reason}): {what}" for reason, what in lines.items()]
+
+
+#: A stage skipped because an input file is not in the dataset ("no truth_count.csv in the
+#: dataset", "no frames.csv or /frames MCAP channel in the dataset"): group 1 names the file.
+ABSENT = re.compile(r"^no (\S+?\.\w+)\b.* in the dataset$")
+#: A stage skipped because the site lacks what it needs ("site has no beams", "site.toml has
+#: no proximity sensors", "no sensor has ignore = true in site.toml"): group 1 says what.
+SITE = re.compile(r"^(?:site(?:\.toml)? has (no .+)|(no sensor has .+) in site\.toml)$")

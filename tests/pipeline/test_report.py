@@ -72,3 +72,20 @@ def test_onebit_run_prints_the_summary_and_report_prints_every_row(tmp_path, cap
     assert main(["report", str(tmp_path / "run")]) == 0
     full = capsys.readouterr().out
     assert all(f"{r['stage']}/{r['metric']}" in full for r in report.iter_rows(named=True))
+
+
+def test_absent_inputs_and_what_the_site_lacks_are_one_line_each():
+    status = {
+        "truth_count": "skipped: no truth_count.csv in the dataset",
+        "camera": "skipped: no camera.mp4 in the dataset",
+        "correct": "skipped: site has no beams",
+        "proximity": "skipped: site.toml has no proximity sensors",
+        "ignore": "skipped: no sensor has ignore = true in site.toml",
+        "intruder": "skipped: tracker 'intruder' not selected (--trackers)",
+    }
+    assert skipped_groups(status) == [
+        "skipped (inputs not in the dataset): truth_count (truth_count.csv); camera (camera.mp4)",
+        "skipped (the site lacks what they need): correct (no beams); proximity (no proximity sensors); "
+        "ignore (no sensor has ignore = true)",
+        "skipped (not selected (--trackers)): intruder",
+    ]
