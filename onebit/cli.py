@@ -66,7 +66,11 @@ def _cmd_run(args) -> int:
         for line in skipped_groups(res.status, stages()):
             print(f"  {line}")
         print(format_run_summary(res.report, res.status, title=f"summary of {args.out}"), end="")
-    rrd = "Rerun recordings: none (--no-rrd)" if args.no_rrd else f"Rerun recordings: rerun {Path(args.out) / 'rrd'}/*.rrd"
+    rrd = (
+        "Rerun recordings: none (--no-rrd)"
+        if args.no_rrd
+        else f"Rerun recordings: rerun {Path(args.out) / 'rrd'}/*.rrd"
+    )
     if args.full_report:
         print(rrd)
     else:  # one line: where the rest is
