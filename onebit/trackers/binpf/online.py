@@ -326,7 +326,7 @@ def step(st: OnlineBinPF, times: np.ndarray, on: np.ndarray, *, final: bool) -> 
     st.pending = []
     if final:
         a = st.arrays
-        for k, w in st.window.items():  # the positions of the last frames are as final as they get
+        for w in st.window.values():  # the positions of the last frames are as final as they get
             if w[2] is None:
                 w[2] = a["est"][w[3] : w[3] + w[0].size].copy()
         while st.committed < st.filtered:
