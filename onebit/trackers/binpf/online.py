@@ -179,6 +179,7 @@ def _begin(st: OnlineBinPF, period: float) -> None:
         "rows_r": np.zeros(2 * M * (L + 2)),
         "fp": _fp(p),
         "ip": np.array([N, L, M, max(int(st.log_particles), 0)], dtype=np.int64),
+        "dbuf": np.empty((M, st.sensors.shape[0], N)),  # footprints, near rows only (kernels.footprints_into)
     }
     st.started = True
 
@@ -201,7 +202,7 @@ def _filter_frame(st: OnlineBinPF, z: np.ndarray) -> None:
     pxy, _pfr, plab = kernels.run_frames(
         z.reshape(1, -1), 0, 1, a["state"], a["x"], a["hist"], a["rowidx"], a["r"], a["labels"],
         a["confirmed"], a["ever"], a["est"], a["rows_frame"], a["rows_label"], a["rows_r"], counts,
-        st.sensors, st.radii, st.lo, st.hi, st.rng, a["fp"], a["ip"],
+        st.sensors, st.radii, st.lo, st.hi, st.rng, a["fp"], a["ip"], a["dbuf"],
     )  # fmt: skip
     n_rows = int(a["state"][2])
     labels = a["rows_label"][base_rows:n_rows].copy()
