@@ -20,8 +20,8 @@ Released lines are appended to a snapshot of the dataset (a temporary folder wit
 ``beams.csv`` and ``crossings.csv``: each poll they read only the lines released since the last
 one, carry the batch reader's state (duplicates, order, sensor and pair states, the debounce's
 unsettled tail, open beam passes) and emit exactly the batch reader's rows and rejects on the
-whole file once final. The other reader stages (``correct``, MCAP channels) read the snapshot
-every poll (:func:`_read_prefix`). The time origin is fixed once (the whole log's in a replay;
+whole file once final. The other reader stages (``frames`` of a ceiling array's ``frames.csv``,
+``correct``, MCAP channels) read the snapshot every poll (:func:`_read_prefix`). The time origin is fixed once (the whole log's in a replay;
 when live, the first poll's, with its window of accepted stamps left open ahead, so a lone stamp
 far in the future is rejected only by the final batch run).
 ``FollowConfig(incremental=False)`` re-reads the snapshot whole and re-runs ``beams`` and
@@ -154,7 +154,7 @@ _PREFIX_EVENTS = {
     "hmm2": ("motion",),
 }
 #: Reader stages run on every poll (truth and camera only at the end, by the batch run).
-_READER_STAGES = ("crossings", "motion", "proximity", "correct")
+_READER_STAGES = ("frames", "crossings", "motion", "proximity", "correct")
 #: Logs that are ground truth, not sensor input: they do not hold the live horizon back.
 _TRUTH_LOGS = ("truth", "truth_crossings")
 #: Subfolder of OUT with the live outputs (kept by later runs into OUT).

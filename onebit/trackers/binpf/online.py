@@ -97,7 +97,6 @@ class OnlineBinPF:
     pending: list[np.ndarray] = field(default_factory=list)  # final frames not filtered yet
     filtered: int = 0  # frames filtered
     committed: int = 0  # frames committed
-    slot: int | None = None  # the last input slot consumed
     # the compiled loop's state (kernels.run_frames)
     arrays: dict[str, np.ndarray] = field(default_factory=dict)
     # per frame not yet committed: (labels, r, xy (filled once final))
@@ -381,20 +380,18 @@ def start_follow(site: Site, config) -> FollowBinPF:
 
 
 def advance(state: FollowBinPF, frames: pl.DataFrame, *, until: float, final: bool) -> pl.DataFrame:
-    """Consume the slots of ``frames`` (FRAMES, every final row so far) with ``t <= until``
-    (all when ``final``) not consumed yet; return the TRACKS rows committed."""
+    """Consume the frames of ``frames`` (FRAMES, every final row so far) with ``t <= until``
+    (all when ``final``) after the last one consumed; return the TRACKS rows committed."""
     from onebit.trackers.binpf.stage import frame_levels
 
     drv = state.driver
     if drv.ended:
         return pl.DataFrame(schema=TRACKS)
     frames = check_schema(frames, FRAMES, name="proximity_frames")
-    new = frames if drv.slot is None else frames.filter(pl.col("slot") > drv.slot)
+    new = frames if not drv.times else frames.filter(pl.col("t") > drv.times[-1])
     if not final:
         new = new.filter(pl.col("t") <= until)
     times, on = frame_levels(new, state.ids)
-    if new.height:
-        drv.slot = int(new["slot"].max())
     rows = step(drv, times, on, final=final)
     return tracks_table(drv, rows)
 
