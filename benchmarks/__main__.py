@@ -33,6 +33,10 @@ BENCHMARKS = (
         + ["--repeat", "1", "--no-reference"],
     ),
     ("bench_istate", "O'Kane I-state filter step, matching vs direct communication update"),
+    (
+        "bench_binpf_scale",
+        "binpf online at building scale: ms per frame vs ceiling sensors (100-900) and people (10, 40), 2 Hz budget",
+    ),
     ("bench_runmany", "run-many over 16 datasets and the O'Kane study: serial vs local pool vs Ray"),
     (
         "bench_whole_run",

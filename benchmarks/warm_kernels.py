@@ -142,6 +142,10 @@ def binpf() -> None:
     on = np.array([[True, False]])
     _, _, d = kernels.observation_update(x, np.full(2, 0.5), on[0], sensors, radii, 0.75, 0.01, 0.3, 0.3)
     kernels.resampled_mean(d, np.zeros((2, 5), dtype=np.int64))
+    _, _, d, near = kernels.observation_update_local(
+        x, np.full(2, 0.5), on[0], sensors, radii, 0.75, 0.01, 0.3, 0.3, np.empty((2, 2, 5))
+    )
+    kernels.resampled_mean_near(d, np.zeros((2, 5), dtype=np.int64), near)
     idx = kernels.systematic_resample(np.zeros((2, 5)), rng.random((2, 1)))
     kernels.gather_particles(x, np.zeros((2, 5, 5, 2)), idx)
 

@@ -6,7 +6,16 @@ Adding a simulator: give its module ``SCENARIO_SPECS`` and list it here.
 from __future__ import annotations
 
 from onebit.core.errors import ConfigError
-from onebit.datasets import beams_sim, from_truth, hallway_sim, home_sim, okane_sim, pir_sim, proximity_sim
+from onebit.datasets import (
+    beams_sim,
+    building_sim,
+    from_truth,
+    hallway_sim,
+    home_sim,
+    okane_sim,
+    pir_sim,
+    proximity_sim,
+)
 from onebit.datasets.scenario import Scenario
 
 SCENARIOS: dict[str, Scenario] = {
@@ -17,6 +26,7 @@ SCENARIOS: dict[str, Scenario] = {
     **home_sim.SCENARIO_SPECS,
     **okane_sim.SCENARIO_SPECS,
     **from_truth.SCENARIO_SPECS,
+    **building_sim.SCENARIO_SPECS,
 }
 
 #: Scenarios that add logs to an existing dataset folder (its site.toml and truth.csv) instead

@@ -22,8 +22,8 @@ Released lines are appended to a snapshot of the dataset (a temporary folder wit
 ``beams.csv`` and ``crossings.csv``: each poll they read only the lines released since the last
 one, carry the batch reader's state (duplicates, order, sensor and pair states, the debounce's
 unsettled tail, open beam passes) and emit exactly the batch reader's rows and rejects on the
-whole file once final. The other reader stages (``correct``, MCAP channels) read the snapshot
-every poll (:func:`_read_prefix`). The time origin is fixed once (the whole log's in a replay;
+whole file once final. The other reader stages (``frames`` of a ceiling array's ``frames.csv``,
+``correct``, MCAP channels) read the snapshot every poll (:func:`_read_prefix`). The time origin is fixed once (the whole log's in a replay;
 when live, the first poll's, with its window of accepted stamps left open ahead, so a lone stamp
 far in the future is rejected only by the final batch run).
 ``FollowConfig(incremental=False)`` re-reads the snapshot whole and re-runs ``beams`` and
@@ -51,6 +51,11 @@ Trackers online (:data:`ONLINE`):
   once ``decision_lag`` slots after it have arrived (the paper's bounded delay D'); the rows
   equal the batch run's with the same config. By default (``decoding = "batch"``) they are
   re-run on the settled prefix, and the published rows may differ from the final decoding.
+* ``binpf`` -- per frame, incrementally: :mod:`onebit.trackers.binpf.online` keeps the particle
+  filter's state and commits frame ``k`` once frame ``k + commit_lag`` is filtered (tracklets
+  joined causally); equal to the batch run with the same ``[binpf] commit_lag`` (with the
+  default 0 the batch run reports back to a track's birth and joins over the whole log; the
+  follow then commits after ``DEFAULT_COMMIT_LAG`` frames and the report says where they differ).
 
 Every other tracker is batch-only and runs at the end. An event at ``e`` is *settled* once the
 horizon passes ``e + settle``, ``settle`` = the readers' look-ahead (1 s of reordering plus
@@ -119,6 +124,7 @@ from onebit.readers.tail import BeamTail, CrossingTail, ToggleTail
 from onebit.readers.timebase import MAX_GAP_S, TimeOrigin
 from onebit.trackers.base import ARTIFACTS, PROGRESS
 from onebit.trackers.beams import online as beams_online
+from onebit.trackers.binpf import online as binpf_online
 from onebit.trackers.findinghumo import lagged as hmm_online
 from onebit.trackers.findinghumo.stage import FindingHumoConfig
 from onebit.trackers.intruder import online as intruder_online
@@ -135,6 +141,7 @@ ONLINE: dict[str, str] = {
     "findinghumo": "per window (re-run on the settled prefix)",
     "hmm1": "per window (re-run on the settled prefix)",
     "hmm2": "per window (re-run on the settled prefix)",
+    "binpf": "per frame, committed after [binpf] commit_lag frames (incremental particle filter)",
 }
 #: The HMM trackers, online incrementally with ``decoding = "lagged"`` (their window decoder mode).
 _LAGGED_MODES = {"findinghumo": "adaptive", "hmm1": "full1", "hmm2": "full2"}
@@ -150,7 +157,7 @@ _PREFIX_EVENTS = {
     "hmm2": ("motion",),
 }
 #: Reader stages run on every poll (truth and camera only at the end, by the batch run).
-_READER_STAGES = ("crossings", "motion", "proximity", "correct")
+_READER_STAGES = ("frames", "crossings", "motion", "proximity", "correct")
 #: Logs that are ground truth, not sensor input: they do not hold the live horizon back.
 _TRUTH_LOGS = ("truth", "truth_crossings")
 #: Subfolder of OUT with the live outputs (kept by later runs into OUT).
@@ -856,6 +863,7 @@ def follow(
         beams_state: beams_online.OnlineBeams | None = None
         istate_state: istate_online.OnlineIState | bool | None = None  # False: not online with its config
         hmm_states: dict[str, hmm_online.OnlineHmm] = {}
+        binpf_state: binpf_online.FollowBinPF | None = None
         lagged = [
             n for n in online if n in _LAGGED_MODES and _lagged(entries[n], data, scratch, site, rg, merged, chosen)
         ]
@@ -993,6 +1001,13 @@ def follow(
                             )
                             pub.estimates(name, rows)
                             continue
+                    if name == "binpf":
+                        if "proximity_frames" in tables:
+                            if binpf_state is None:
+                                binpf_state = binpf_online.start_follow(site.tracked, tracker_config(entry, ctx))
+                            frames = tables["proximity_frames"]
+                            pub.estimates(name, binpf_online.advance(binpf_state, frames, until=until_t, final=final))
+                        continue
                     if name in lagged:
                         if "motion" not in tables:
                             continue

@@ -479,7 +479,11 @@ class Planner:
             "number of people: expected and reported (count)", self.L.under(paths.join(root, "count"), SERIES)
         )
         error = self.error_view([tracker], "distance of each person from their target")
-        states = self.view("state", "sensors: on / off", self.states())
+        zones = self.L.under(paths.join(root, "zones", "count"), SERIES)
+        if zones:  # a floor of hundreds of sensors: people per zone, not a row per sensor
+            states = self.count_view("people per zone (reported tracks)", zones)
+        else:
+            states = self.view("state", "sensors: on / off", self.states())
         return _tab(f"{tracker}: people from the array", site, [count, error, states])
 
     def istate(self, tracker: str) -> rrb.Container | None:

@@ -421,6 +421,7 @@ def run_filter(
     )  # fmt: skip
     ip = np.array([N, L, M, max(int(log_particles), 0)], dtype=np.int64)
     pxy, pfr, plab = [], [], []
+    dbuf = np.empty((M, S, N))  # the footprints, near rows only (kernels.footprints_into)
     lo = np.asarray(lo, dtype=np.float64)
     hi = np.asarray(hi, dtype=np.float64)
     for k0 in range(0, T, CHUNK_FRAMES):
@@ -437,7 +438,7 @@ def run_filter(
             ever = np.concatenate([ever, np.zeros(max(M * (k1 - k0), ever.size), dtype=bool)])
         a, b, c = kernels.run_frames(
             on, k0, k1, state, x, hist, rowidx, r, labels, confirmed, ever, est,
-            rows_frame, rows_label, rows_r, counts, sensors, radii, lo, hi, rng, fp, ip,
+            rows_frame, rows_label, rows_r, counts, sensors, radii, lo, hi, rng, fp, ip, dbuf,
         )  # fmt: skip
         pxy.append(a)
         pfr.append(b)

@@ -11,7 +11,13 @@ sensor gives ``q_is = 1`` and adds to the track's particle log-likelihoods
 :math:`\\ell_i^{(n)}` the same constant it adds to :math:`\\ell_i^0`, which cancels in the
 existence update (Eq. (5) uses :math:`\\ell_i^{(n)} - \\ell_i^0`) and in the resampling
 weights (defined up to a per-track constant). So a frame costs
-``O(tracks x particles x sensors near them)``, not the whole array.
+``O(tracks x particles x sensors near them)``, not the whole array: the frame loop
+(:func:`run_frames`) evaluates the near rows only, into a buffer kept between frames
+(:func:`observation_update_local`, :func:`resampled_mean_near`), and nothing reads the others
+-- on a 30 x 30 ceiling array with 10 people a frame costs about what it costs on 10 x 10
+(``benchmarks/bench_binpf_scale.py``). What is left per frame over the whole array is
+``O(tracks x sensors)`` without the particles (which sensors are near, the miss
+probabilities), under a millisecond at 900 sensors and 40 tracks.
 
 They equal the numpy functions to rounding (the sums run in another order and numba's
 ``exp``/``log`` may differ from numpy's in the last bit; ``tests/trackers/binpf/test_filter.py``
@@ -110,8 +116,19 @@ def footprints(x, sensors, radii, pd, edge, near):
     """Eq. (1) ``d (I, S, N)`` -- sensors before particles, so a row is one sensor over a
     track's particles -- where ``near[i, s]``, 0 elsewhere (below ``2^-54`` there). The
     logistic's ``exp`` is :func:`exp_into`'s, fused into the row's loop."""
+    d = np.empty((x.shape[0], sensors.shape[0], x.shape[1]))
+    footprints_into(x, sensors, radii, pd, edge, near, d, True)
+    return d
+
+
+@kernel
+def footprints_into(x, sensors, radii, pd, edge, near, d, zero):
+    """:func:`footprints` into ``d[:I]`` (a buffer kept between frames): the rows of the near
+    sensors only, the others set to 0 when ``zero`` and left as they are otherwise (then no
+    kernel reads them: :func:`track_miss`, :func:`weigh` and :func:`resampled_mean_near`
+    visit near rows only). A frame's cost then follows the sensors near the tracks, not the
+    array: no ``(I, S, N)`` array is filled or allocated."""
     I, N, S = x.shape[0], x.shape[1], sensors.shape[0]
-    d = np.empty((I, S, N))
     bits = np.empty(N, dtype=np.int64)
     px = np.empty(N)
     py = np.empty(N)
@@ -121,7 +138,8 @@ def footprints(x, sensors, radii, pd, edge, near):
             py[n] = x[i, n, 1]
         for s in range(S):
             if not near[i, s]:
-                d[i, s, :] = 0.0
+                if zero:
+                    d[i, s, :] = 0.0
                 continue
             sx, sy, rs = sensors[s, 0], sensors[s, 1], radii[s]
             row = d[i, s]
@@ -139,7 +157,6 @@ def footprints(x, sensors, radii, pd, edge, near):
             scale = bits.view(np.float64)
             for n in range(N):
                 row[n] = pd / (1.0 + row[n] * scale[n])
-    return d
 
 
 @kernel
@@ -154,6 +171,21 @@ def observation_update(x, r, z, sensors, radii, pd, pf, edge, silent):
     q = track_miss(d, r, near)
     ell, r_new = weigh(d, near, others_miss(q, pf), r, z, silent)
     return ell, r_new, d
+
+
+@kernel
+def observation_update_local(x, r, z, sensors, radii, pd, pf, edge, silent, dbuf):
+    """:func:`observation_update` with the footprints in the buffer ``dbuf (>= I, S, N)``, near
+    rows only (:func:`footprints_into`): the same log-weights and existences, bit for bit
+    (every sum visits the same terms in the same order), and ``near (I, S)`` for
+    :func:`resampled_mean_near`. Returns ``(ell, r_new, d, near)``, ``d`` a view of ``dbuf``."""
+    I = x.shape[0]
+    near = near_sensors(x, sensors, radii, edge)
+    d = dbuf[:I]
+    footprints_into(x, sensors, radii, pd, edge, near, d, False)
+    q = track_miss(d, r, near)
+    ell, r_new = weigh(d, near, others_miss(q, pf), r, z, silent)
+    return ell, r_new, d, near
 
 
 @kernel
@@ -184,17 +216,15 @@ def track_miss(d, r, near):
     where ``near[i, s]``, 1 elsewhere."""
     I, S, N = d.shape[0], d.shape[1], d.shape[2]
     q = np.ones((I, S))
-    acc_s = np.empty(S)
     for i in range(I):
-        # sums over particles, every sensor's in turn per particle (the same order per sensor,
-        # S independent sums instead of one chain of additions)
-        acc_s[:] = 0.0
-        for n in range(N):
-            for s in range(S):
-                acc_s[s] += d[i, s, n]
+        # per near sensor, the sum over particles in order (the rows of the other sensors are
+        # not read: :func:`footprints_into` may leave them unset)
         for s in range(S):
             if near[i, s]:
-                q[i, s] = 1.0 - r[i] * (acc_s[s] / N)
+                acc = 0.0
+                for n in range(N):
+                    acc += d[i, s, n]
+                q[i, s] = 1.0 - r[i] * (acc / N)
     return q
 
 
@@ -288,6 +318,23 @@ def resampled_mean(d, idx):
                 out[i, s] += d[i, s, k]
         for s in range(S):
             out[i, s] /= N
+    return out
+
+
+@kernel
+def resampled_mean_near(d, idx, near):
+    """:func:`resampled_mean` reading the near rows only (0 elsewhere): the same values where
+    ``near`` (the same sums in the same order), without reading a row :func:`footprints_into`
+    left unset."""
+    I, S, N = d.shape[0], d.shape[1], d.shape[2]
+    out = np.zeros((I, S))
+    for i in range(I):
+        for s in range(S):
+            if near[i, s]:
+                acc = 0.0
+                for n in range(N):
+                    acc += d[i, s, idx[i, n]]
+                out[i, s] = acc / N
     return out
 
 
@@ -445,6 +492,7 @@ def run_frames(  # noqa: PLR0913, PLR0915 -- one compiled frame loop: the filter
     rng,
     fp,
     ip,
+    dbuf,
 ):
     """Frames ``k0 .. k1 - 1`` of :func:`onebit.trackers.binpf.filter.run_filter_reference`, in
     one compiled loop with the same draws from the same ``numpy.random.Generator`` ``rng``
@@ -458,7 +506,10 @@ def run_frames(  # noqa: PLR0913, PLR0915 -- one compiled frame loop: the filter
     ``rows_label``, ``rows_r`` (sized for ``n_rows + M (k1 - k0)``); ``counts (T, 4)``:
     births, deaths, merges, live. ``fp``: pd, pf, edge, period, damping, accel_sigma,
     survival, silent, birth_r, birth_explained, birth_link, birth_speed, r_confirm,
-    r_delete, merge_distance; ``ip``: particles, smooth_lag, max_tracks, log_particles.
+    r_delete, merge_distance; ``ip``: particles, smooth_lag, max_tracks, log_particles;
+    ``dbuf (max_tracks, S, N)``: the footprints' buffer (:func:`observation_update_local`),
+    kept by the caller, so that a frame neither allocates nor fills a ``(tracks, sensors,
+    particles)`` array: its cost follows the sensors within reach of the tracks.
     Returns the logged particles of these frames: ``(xy (P, 2), frame (P,), label (P,))``.
     """
     pd, pf, edge, period = fp[0], fp[1], fp[2], fp[3]
@@ -503,7 +554,7 @@ def run_frames(  # noqa: PLR0913, PLR0915 -- one compiled frame loop: the filter
             rowidx[i, L] = -1
         dbar = np.zeros((I, S))  # the resampled particles' mean footprints
         if I > 0:  # existing tracks first: they get the first chance to explain the frame
-            ell, rn, d = observation_update(x[:I], r[:I], z, sensors, radii, pd, pf, edge, silent)
+            ell, rn, d, near = observation_update_local(x[:I], r[:I], z, sensors, radii, pd, pf, edge, silent, dbuf)
             u0 = rng.random(I).reshape(I, 1)
             idx = systematic_resample(ell, u0)
             gather_shift(x, hist, idx, x_alt, hist_alt)
@@ -511,7 +562,7 @@ def run_frames(  # noqa: PLR0913, PLR0915 -- one compiled frame loop: the filter
             hist, hist_alt = hist_alt, hist
             flips += 1
             r[:I] = rn
-            dbar = resampled_mean(d, idx)
+            dbar = resampled_mean_near(d, idx, near)
         q = 1.0 - dbar
         members, starts = birth_groups_of(z, q, I, sensors, birth_explained, birth_link)
         ng = starts.size - 1

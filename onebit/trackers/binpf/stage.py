@@ -26,10 +26,12 @@ import numpy as np
 import polars as pl
 
 from onebit.core.config import MAX_PARTICLES, check_choice, check_range, check_size
+from onebit.core.errors import ConfigError
 from onebit.core.site import Site
 from onebit.core.tables import FRAMES, TRACKS, check_schema, conform
 from onebit.core.units import length
 from onebit.trackers.base import ARTIFACTS, TrackerSpec, instants_bound, progress_of
+from onebit.trackers.binpf import online as binpf_online
 from onebit.trackers.binpf.filter import FilterParams, run_filter
 from onebit.trackers.binpf.link import link_tracklets
 
@@ -65,6 +67,11 @@ class BinPFConfig:
     link_gap: int = 10  #: g_max, most missing frames a join bridges
     link_speed: float = length(1.5, unit="m/s")  #: v_max, walking speed a join may assume, m/s
     link_slack: float = length(1.0)  #: rho, extra distance a join allows (about a footprint), m
+    #: frames after which a frame's tracks are final; 0 = the whole log (a confirmed track is
+    #: reported back to its birth, tracklets joined over the run); > 0 (at least ``smooth_lag``):
+    #: reported if confirmed within the lag, joined causally -- what ``onebit follow`` publishes,
+    #: equal with the same value (:mod:`onebit.trackers.binpf.online`)
+    commit_lag: int = 0
     targets: int = 0  #: most people reported at once; 0 = the site's ``targets`` (none: no bound)
     max_tracks: int = (
         0  #: most live tracks (tentative included); 0 = bound + 1 (8 without a bound): spare tentative tracks churn
@@ -106,12 +113,43 @@ class BinPFConfig:
         check_range(self, "link_gap", 0, 10**6, types=(int,))
         check_range(self, "link_speed", 0.0, 1e6)
         check_range(self, "link_slack", 0.0, 1e9)
+        check_range(self, "commit_lag", 0, 10**6, types=(int,))
+        if self.commit_lag and self.commit_lag < self.smooth_lag:
+            raise ConfigError(
+                f"BinPFConfig.commit_lag = {self.commit_lag}: must be 0 or at least smooth_lag = {self.smooth_lag} "
+                "(a frame's smoothed positions are final smooth_lag frames later)"
+            )
         check_range(self, "targets", 0, 10**4, types=(int,))
         check_range(self, "max_tracks", 0, 10**4, types=(int,))
         check_range(self, "seed", 0, None, types=(int,))
         check_range(self, "log_particles", 0, 10**6, types=(int,))
         check_range(self, "log_particles_max", 0, 10**9, types=(int,))
         check_range(self, "max_frames", 0, None, types=(int,))
+
+
+def _linked(existence: pl.DataFrame, config: BinPFConfig, period: float, bound: int):
+    """The reported rows, tracklets joined over the whole log: ``(frame, track, x, y, joins)``."""
+    rep = existence.filter(pl.col("reported"))
+    f, lab, x, y = (
+        rep["frame"].to_numpy(),
+        rep["track"].to_numpy().astype(str),
+        rep["x"].to_numpy(),
+        rep["y"].to_numpy(),
+    )
+    joins = 0
+    if config.link and rep.height:
+        f, lab, x, y, joins = link_tracklets(
+            f,
+            lab,
+            x,
+            y,
+            period=period,
+            max_gap=config.link_gap,
+            max_speed=config.link_speed,
+            slack=config.link_slack,
+            max_out=bound,
+        )
+    return f, lab, x, y, joins
 
 
 def available(site: Site) -> str | None:
@@ -162,13 +200,19 @@ def logged_particles(config: BinPFConfig, frames: int, max_tracks: int) -> int:
     return min(config.log_particles, max(1, config.log_particles_max // (frames * max_tracks)))
 
 
-def run(inputs: dict, site: Site, config: BinPFConfig) -> dict:
-    """The ``binpf`` stage (see the module docstring)."""
-    frames = check_schema(inputs["proximity_frames"], FRAMES, name="proximity_frames")
+def site_arrays(site: Site, config: BinPFConfig):
+    """``(ids, sensors (S, 2), radii (S,), lo (2,), hi (2,))``: the proximity sensors in site
+    order, their footprint radii (``radius`` or each ``r_outer``) and the site's bounding box."""
     ids = tuple(s.id for s in site.proximity_sensors)
     sensors = np.array([s.position for s in site.proximity_sensors], dtype=float).reshape(-1, 2)
     radii = np.array([config.radius or s.r_outer for s in site.proximity_sensors], dtype=float)
-    times, on = frame_levels(frames, ids)
+    minx, miny, maxx, maxy = site.boundary.bounds
+    return ids, sensors, radii, np.array([minx, miny]), np.array([maxx, maxy])
+
+
+def filter_params(config: BinPFConfig, site: Site, *, period: float) -> FilterParams:
+    """The filter's parameters: the config's, the frame ``period`` and the bounds on tracks
+    (``max_tracks``, ``max_out`` from ``targets``), checked against the particle budget."""
     bound = config.targets or (site.targets or 0)
     max_tracks = config.max_tracks or (bound + 1 if bound else 8)
     check_size(
@@ -178,12 +222,12 @@ def run(inputs: dict, site: Site, config: BinPFConfig) -> dict:
         field="[binpf] particles / max_tracks",
         hint="fewer particles or tracks",
     )
-    p = FilterParams(
+    return FilterParams(
         particles=config.particles,
         pd=config.pd,
         pf=config.pf,
         edge=config.edge,
-        period=frame_period(times),
+        period=period,
         damping=config.damping,
         accel_sigma=config.accel_sigma,
         survival=config.survival,
@@ -201,18 +245,27 @@ def run(inputs: dict, site: Site, config: BinPFConfig) -> dict:
         max_tracks=max_tracks,
         max_out=bound,
     )
-    minx, miny, maxx, maxy = site.boundary.bounds
-    res = run_filter(
-        on,
-        sensors,
-        radii,
-        np.array([minx, miny]),
-        np.array([maxx, maxy]),
-        p,
-        seed=config.seed,
-        log_particles=logged_particles(config, len(times), max_tracks),
-        progress=progress_of(inputs),
-    )
+
+
+def run(inputs: dict, site: Site, config: BinPFConfig) -> dict:
+    """The ``binpf`` stage (see the module docstring)."""
+    frames = check_schema(inputs["proximity_frames"], FRAMES, name="proximity_frames")
+    ids, sensors, radii, lo, hi = site_arrays(site, config)
+    times, on = frame_levels(frames, ids)
+    p = filter_params(config, site, period=frame_period(times))
+    bound, max_tracks = p.max_out, p.max_tracks
+    n_logged = logged_particles(config, len(times), max_tracks)
+    if config.commit_lag:  # the online driver over the whole log: what `onebit follow` publishes
+        res, (f, lab_i, x, y, joins) = binpf_online.run_lagged(
+            times, on, p, sensors, radii, lo, hi, lag=config.commit_lag, link=config.link,
+            link_gap=config.link_gap, link_speed=config.link_speed, link_slack=config.link_slack,
+            seed=config.seed, log_particles=n_logged, progress=progress_of(inputs),
+        )  # fmt: skip
+        lab = np.char.add("b", lab_i.astype(str)) if lab_i.size else np.zeros(0, dtype=str)
+    else:
+        res = run_filter(
+            on, sensors, radii, lo, hi, p, seed=config.seed, log_particles=n_logged, progress=progress_of(inputs)
+        )
     track = np.char.add("b", res.label.astype(str)) if res.label.size else np.zeros(0, dtype=str)
     t = times[res.frame] if res.frame.size else np.zeros(0)
     existence = pl.DataFrame(
@@ -235,26 +288,8 @@ def run(inputs: dict, site: Site, config: BinPFConfig) -> dict:
             "reported": pl.Boolean,
         },
     )
-    rep = existence.filter(pl.col("reported"))
-    f, lab, x, y = (
-        rep["frame"].to_numpy(),
-        rep["track"].to_numpy().astype(str),
-        rep["x"].to_numpy(),
-        rep["y"].to_numpy(),
-    )
-    joins = 0
-    if config.link and rep.height:
-        f, lab, x, y, joins = link_tracklets(
-            f,
-            lab,
-            x,
-            y,
-            period=p.period,
-            max_gap=config.link_gap,
-            max_speed=config.link_speed,
-            slack=config.link_slack,
-            max_out=bound,
-        )
+    if not config.commit_lag:
+        f, lab, x, y, joins = _linked(existence, config, p.period, bound)
     tracks = conform(
         pl.DataFrame(
             {

@@ -16,8 +16,10 @@ from onebit.pipeline.report import metric
 from onebit.pipeline.runner import run_pipeline
 from onebit.readers.beams import crossing_reach
 
-#: every simulated scenario (they all declare their targets), short
-SCENARIOS = sorted(n for n in all_scenarios() if n != "from-truth")
+#: every simulated scenario (they all declare their targets), short; not the building floor
+#: (400 ceiling sensors, 40 people: the I-state of 40 targets is far beyond istate's scale --
+#: over 10 minutes for 20 s -- and binpf's growth benchmark runs it)
+SCENARIOS = sorted(n for n in all_scenarios() if n not in ("from-truth", "ceiling-building"))
 
 
 @pytest.mark.parametrize("name", SCENARIOS)
