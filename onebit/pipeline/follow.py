@@ -125,6 +125,7 @@ from onebit.readers.timebase import MAX_GAP_S, TimeOrigin
 from onebit.trackers.base import ARTIFACTS, PROGRESS
 from onebit.trackers.beams import online as beams_online
 from onebit.trackers.binpf import online as binpf_online
+from onebit.trackers.binpf import stage as binpf_stage
 from onebit.trackers.findinghumo import lagged as hmm_online
 from onebit.trackers.findinghumo.stage import FindingHumoConfig
 from onebit.trackers.intruder import online as intruder_online
@@ -1004,7 +1005,7 @@ def follow(
                     if name == "binpf":
                         if "proximity_frames" in tables:
                             if binpf_state is None:
-                                binpf_state = binpf_online.start_follow(site.tracked, tracker_config(entry, ctx))
+                                binpf_state = binpf_stage.start_follow(site.tracked, tracker_config(entry, ctx))
                             frames = tables["proximity_frames"]
                             pub.estimates(name, binpf_online.advance(binpf_state, frames, until=until_t, final=final))
                         continue

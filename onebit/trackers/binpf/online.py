@@ -50,7 +50,6 @@ from dataclasses import dataclass, field
 import numpy as np
 import polars as pl
 
-from onebit.core.site import Site
 from onebit.core.tables import FRAMES, TRACKS, check_schema, conform
 from onebit.trackers.binpf import kernels
 from onebit.trackers.binpf.filter import FilterParams, FilterResult
@@ -357,6 +356,20 @@ def tracks_table(st: OnlineBinPF, rows: list[tuple[int, int, float, float]], tra
     return conform(df, TRACKS).sort(["t", "track"], maintain_order=True)
 
 
+def frame_levels(frames: pl.DataFrame, ids: tuple[str, ...]) -> tuple[np.ndarray, np.ndarray]:
+    """``(times (T,), on (T, S))``: each sensor's level per frame, sensors in site order, a
+    sensor without a row in a frame off."""
+    frames = frames.filter(pl.col("sensor").is_in(list(ids)))
+    slots = frames.select("slot", "t").unique("slot").sort("slot")
+    if slots.height == 0:
+        return np.zeros(0), np.zeros((0, len(ids)), dtype=bool)
+    k = np.searchsorted(slots["slot"].to_numpy(), frames["slot"].to_numpy())
+    col = frames["sensor"].replace_strict(list(ids), list(range(len(ids))), return_dtype=pl.Int64).to_numpy()
+    on = np.zeros((slots.height, len(ids)), dtype=bool)
+    on[k, col] = frames["on"].to_numpy()
+    return slots["t"].to_numpy().astype(float), on
+
+
 @dataclass
 class FollowBinPF:
     """:func:`advance`'s state: the driver and the input consumed so far."""
@@ -365,25 +378,9 @@ class FollowBinPF:
     ids: tuple[str, ...]
 
 
-def start_follow(site: Site, config) -> FollowBinPF:
-    """The driver for ``onebit follow`` from the ``[binpf]`` config (:class:`~onebit.trackers.binpf.stage.BinPFConfig`)."""
-    from onebit.trackers.binpf.stage import filter_params, site_arrays  # the stage imports this module
-
-    ids, sensors, radii, lo, hi = site_arrays(site, config)
-    p = filter_params(config, site, period=1.0)
-    lag = config.commit_lag or max(DEFAULT_COMMIT_LAG, config.smooth_lag)
-    drv = start(
-        p, sensors, radii, lo, hi, lag=lag, link=config.link, link_gap=config.link_gap,
-        link_speed=config.link_speed, link_slack=config.link_slack, seed=config.seed,
-    )  # fmt: skip
-    return FollowBinPF(drv, ids)
-
-
 def advance(state: FollowBinPF, frames: pl.DataFrame, *, until: float, final: bool) -> pl.DataFrame:
     """Consume the frames of ``frames`` (FRAMES, every final row so far) with ``t <= until``
     (all when ``final``) after the last one consumed; return the TRACKS rows committed."""
-    from onebit.trackers.binpf.stage import frame_levels
-
     drv = state.driver
     if drv.ended:
         return pl.DataFrame(schema=TRACKS)

@@ -34,6 +34,7 @@ from onebit.trackers.base import ARTIFACTS, TrackerSpec, instants_bound, progres
 from onebit.trackers.binpf import online as binpf_online
 from onebit.trackers.binpf.filter import FilterParams, run_filter
 from onebit.trackers.binpf.link import link_tracklets
+from onebit.trackers.binpf.online import frame_levels
 
 NAME = "binpf"
 
@@ -158,20 +159,6 @@ def available(site: Site) -> str | None:
         if site.proximity_sensors
         else "site has no proximity sensors (binary sensors with a position and a radius)"
     )
-
-
-def frame_levels(frames: pl.DataFrame, ids: tuple[str, ...]) -> tuple[np.ndarray, np.ndarray]:
-    """``(times (T,), on (T, S))``: each sensor's level per frame, sensors in site order, a
-    sensor without a row in a frame off."""
-    frames = frames.filter(pl.col("sensor").is_in(list(ids)))
-    slots = frames.select("slot", "t").unique("slot").sort("slot")
-    if slots.height == 0:
-        return np.zeros(0), np.zeros((0, len(ids)), dtype=bool)
-    k = np.searchsorted(slots["slot"].to_numpy(), frames["slot"].to_numpy())
-    col = frames["sensor"].replace_strict(list(ids), list(range(len(ids))), return_dtype=pl.Int64).to_numpy()
-    on = np.zeros((slots.height, len(ids)), dtype=bool)
-    on[k, col] = frames["on"].to_numpy()
-    return slots["t"].to_numpy().astype(float), on
 
 
 def frame_period(times: np.ndarray) -> float:
@@ -353,3 +340,15 @@ SPEC = TrackerSpec(
     fits=fits,
     help="beyond the papers: labelled multi-Bernoulli particle filter for arrays of binary sensors (soft footprint, false alarms, held sensors)",
 )
+
+
+def start_follow(site: Site, config: BinPFConfig) -> binpf_online.FollowBinPF:
+    """The driver for ``onebit follow`` from the ``[binpf]`` config (:class:`~onebit.trackers.binpf.stage.BinPFConfig`)."""
+    ids, sensors, radii, lo, hi = site_arrays(site, config)
+    p = filter_params(config, site, period=1.0)
+    lag = config.commit_lag or max(binpf_online.DEFAULT_COMMIT_LAG, config.smooth_lag)
+    drv = binpf_online.start(
+        p, sensors, radii, lo, hi, lag=lag, link=config.link, link_gap=config.link_gap,
+        link_speed=config.link_speed, link_slack=config.link_slack, seed=config.seed,
+    )  # fmt: skip
+    return binpf_online.FollowBinPF(drv, ids)

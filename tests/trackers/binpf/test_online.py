@@ -11,7 +11,7 @@ import pytest
 from onebit.core.errors import ConfigError
 from onebit.trackers.binpf import online
 from onebit.trackers.binpf.filter import run_filter
-from onebit.trackers.binpf.stage import BinPFConfig, filter_params, frame_levels, run, site_arrays
+from onebit.trackers.binpf.stage import BinPFConfig, filter_params, frame_levels, run, site_arrays, start_follow
 from tests.trackers.binpf.test_stage import _frames, _site
 
 
@@ -29,7 +29,7 @@ def test_follow_chunks_equal_batch_stage(cuts_seed):
     assert batch.height > 0
     rng = np.random.default_rng(cuts_seed)
     cuts = sorted(rng.uniform(0, 30, 7).tolist())
-    st = online.start_follow(site, cfg)
+    st = start_follow(site, cfg)
     parts = [online.advance(st, f, until=c, final=False) for f, c in zip(_chunks(frames, cuts), cuts)]
     parts.append(online.advance(st, frames, until=np.inf, final=True))
     got = pl.concat(parts)
@@ -43,7 +43,7 @@ def test_committed_only_after_the_lag():
     frames, _ = _frames(T=60, seed=3)
     site = _site(3)
     cfg = BinPFConfig(particles=80, commit_lag=6, log_particles=0)
-    st = online.start_follow(site, cfg)
+    st = start_follow(site, cfg)
     out = online.advance(st, frames, until=20.0, final=False)  # frames 0..40 at 0.5 s
     assert out.height > 0
     # rows dated up to 40 - 6 frames (gap rows of joins are dated earlier still)
