@@ -57,7 +57,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 import polars as pl
 
-from onebit.core.compiled import kernel
+from onebit.core.compiled import kernel, numba_loaded
 from onebit.core.config import check_range
 from onebit.core.lazy import lazy_module
 from onebit.core.tables import COUNT_PROFILE, MOTION, check_schema
@@ -396,8 +396,16 @@ def _viterbi_kernel(ll, door, log_door, log_quiet, log_start):  # pragma: no cov
     return path
 
 
+#: Below this many cells (bins x counts) a process that has not loaded numba yet decodes with
+#: the plain recursion: a few thousand steps of numpy cost less than numba's start-up.
+SMALL = 20_000
+
+
 def viterbi(ll: np.ndarray, door: np.ndarray, model: CountModel) -> np.ndarray:
-    """:func:`viterbi_reference`, compiled (equal paths: the tests compare them)."""
+    """:func:`viterbi_reference`, compiled (equal paths: the tests compare them); small
+    problems in a process without numba loaded take the reference (:data:`SMALL`)."""
+    if ll.size <= SMALL and not numba_loaded():
+        return viterbi_reference(ll, door, model.log_door, model.log_quiet, model.log_start)
     return _viterbi_kernel(
         np.ascontiguousarray(ll, dtype=np.float64),
         np.ascontiguousarray(door, dtype=np.bool_),

@@ -18,6 +18,7 @@ from onebit.models.occupancy import (
     CountModel,
     Features,
     OccupancyConfig,
+    _viterbi_kernel,
     estimate,
     features,
     learn_stats,
@@ -51,9 +52,10 @@ def test_compiled_viterbi_equals_the_reference(seed):
         log_hour=None,
     )
     want = viterbi_reference(ll, door, model.log_door, model.log_quiet, model.log_start)
-    got = viterbi(ll, door, model)
+    got = _viterbi_kernel(ll, door, model.log_door, model.log_quiet, model.log_start)  # the compiled kernel itself
     assert got.dtype == np.int64 and got.shape == (B,)
     assert got.tolist() == want.tolist()
+    assert viterbi(ll, door, model).tolist() == want.tolist()  # whichever path the dispatcher takes
 
 
 # -- features of a hand-made log ----------------------------------------------------------

@@ -68,7 +68,7 @@ import numpy as np
 import polars as pl
 from scipy.special import logsumexp
 
-from onebit.core.compiled import kernel
+from onebit.core.compiled import kernel, numba_loaded
 from onebit.core.errors import ConfigError, InputError
 from onebit.core.tables import RESIDENTS_PROFILE, conform
 
@@ -420,5 +420,7 @@ def turn_posteriors(log_e: np.ndarray, t: np.ndarray, tau: float) -> np.ndarray:
     """``P(z_i = r | all events)`` of (K4), ``n x K`` (compiled; scaled forward-backward)."""
     if log_e.shape[0] == 0:
         return np.zeros(log_e.shape)
+    if log_e.size <= 20_000 and not numba_loaded():  # small: numba's start-up costs more than the loop
+        return turn_posteriors_reference(log_e, t, tau)
     e = np.exp(log_e - log_e.max(axis=1, keepdims=True))
     return _turns_kernel(np.ascontiguousarray(e), np.ascontiguousarray(t, dtype=np.float64), float(tau))

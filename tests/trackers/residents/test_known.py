@@ -153,3 +153,18 @@ def test_a_clocked_profile_by_hand_and_its_factor():
     mixed = pl.concat([prof, prof.with_columns(pl.col("bin").str.replace("session", "day"))])
     with pytest.raises(InputError, match="mixes clocks"):
         clock_of(mixed)
+
+
+@pytest.mark.parametrize("seed", range(6))
+def test_compiled_turns_equal_their_reference(seed):
+    from onebit.trackers.residents.known import _turns_kernel, turn_posteriors, turn_posteriors_reference
+
+    rng = np.random.default_rng(seed)
+    K, n = int(rng.integers(2, 4)), int(rng.integers(1, 80))
+    log_e = np.log(rng.dirichlet(np.ones(K), size=n))
+    t = np.cumsum(rng.exponential(60.0, n))
+    want = turn_posteriors_reference(log_e, t, 120.0)
+    e = np.exp(log_e - log_e.max(axis=1, keepdims=True))
+    np.testing.assert_allclose(_turns_kernel(e, t, 120.0), want, atol=1e-10)
+    np.testing.assert_allclose(turn_posteriors(log_e, t, 120.0), want, atol=1e-10)
+    assert want.shape == (n, K) and np.allclose(want.sum(axis=1), 1.0)
