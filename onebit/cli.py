@@ -360,6 +360,7 @@ def _cmd_import_casas(args) -> int:
         scale=args.scale,
         rooms=args.rooms,
         graph_radius=args.graph_radius,
+        count=args.count,
     )
     c = res.counts
     print(
@@ -790,6 +791,13 @@ def _add_import_commands(sub) -> None:
         "(default: the smallest distance that keeps the graph connected)",
     )
     ic.add_argument("--targets", type=int, default=None, help="the most residents present at once (site.toml targets)")
+    ic.add_argument(
+        "--count",
+        type=int,
+        default=None,
+        help="the people in throughout, when known and constant (a one-resident session): written as "
+        "truth_count.csv, so every people count is scored per minute",
+    )
     ic.add_argument(
         "--window", type=float, default=5.0, help="learned graph: s between two sensors' ON for a transition"
     )

@@ -577,8 +577,13 @@ def import_casas(
     scale: float | None = None,
     rooms: str | Path | None = None,
     graph_radius: float | None = None,
+    count: int | None = None,
 ) -> ImportSummary:
     """Write a dataset folder from a CASAS log (module docstring); every file atomically.
+
+    ``count``: the number of people in throughout, when it is known and constant (a
+    one-resident session): written as ``truth_count.csv`` over the log's span, so the run
+    scores every people count per minute against it (docs/homes.md).
 
     ``doors``: contact sensors that are doors to the outside (entry/exit nodes), beside the
     layout's; every other contact (cupboards, appliances) is an ordinary node. ``hold_s`` /
@@ -588,6 +593,8 @@ def import_casas(
     (:func:`_casas_parts`), the sensor graph and positions found (:func:`_casas_graph`), the
     site written only if it loads, then the tables and ``import.toml`` (:func:`_casas_record`)."""
     log, out = Path(log), Path(dataset)
+    if count is not None and count < 0:
+        raise InputError(f"--count {count}: a number of people >= 0", field="count")
     _check_casas_args(
         log,
         targets=targets,
@@ -651,9 +658,24 @@ def import_casas(
         hold_samples=hold_samples,
     )
     write_text(to_toml(info), out / "import.toml")
+    if count is not None:
+        write_csv(known_count(parts.toggles["t"], count), out / "truth_count.csv")
     if lay is not None and g.how != "force layout":
         write_text(PLAN_RUN_TOML, out / "run.toml")
     return ImportSummary(out, counts, info)
+
+
+def known_count(t: pl.Series, count: int) -> pl.DataFrame:
+    """``truth_count`` (t, end, count) of a count known and constant over the times ``t``:
+    one interval from the first whole second to the second after the last.
+
+    >>> known_count(pl.Series([3.2, 50.0, 99.5]), 1).rows()
+    [(3.0, 100.0, 1)]
+    """
+    if t.len() == 0:
+        return pl.DataFrame(schema={"t": pl.Float64, "end": pl.Float64, "count": pl.Int64})
+    lo, hi = math.floor(float(t.min())), math.floor(float(t.max())) + 1.0
+    return pl.DataFrame({"t": [float(lo)], "end": [float(hi)], "count": [int(count)]})
 
 
 #: The dataset's own ``run.toml`` of a CASAS home imported with a floor plan: the home's count

@@ -232,10 +232,11 @@ def truth_count_from_rows(raw: RawRows, *, epoch=None, path: Path | None = None)
     ``count`` (a whole number >= 0) -- people in over ``[t, end)``. Returns ``(truth_count,
     rejects)``; an interval that starts before the previous one ends is rejected (overlap)."""
     cnt, cnt_bad = parse_float("count")
-    # an interval's end may lie past the last logged stamp: the run's window is not applied to it
+    # an interval may start before the first logged stamp and end after the last: the run's
+    # window of accepted stamps is not applied to it
     open_ = replace(epoch, lo=-math.inf, hi=math.inf) if isinstance(epoch, TimeOrigin) else epoch
     end, end_bad = parse_time("end", open_, raw.frame)
-    t, t_bad = parse_time("t", epoch, raw.frame)
+    t, t_bad = parse_time("t", open_, raw.frame)
     parsers = {
         "t": (t, t_bad),
         "end": (end, pl.coalesce(end_bad, pl.when(end <= t).then(pl.format("field 'end': not after t: {}", end)))),

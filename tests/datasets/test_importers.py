@@ -174,3 +174,23 @@ def test_import_trajectories_from_the_command_line(tmp_path):
     site = load_site(out / "site.toml")  # written: the walks' box, no sensors yet
     assert site.boundary.contains(site.boundary.centroid) and not site.beams
     assert main(["import", "trajectories", str(f), str(tmp_path / "bad"), "--x-column", "nope"]) == 2
+
+
+def test_a_known_count_is_written_as_truth_and_scored_per_minute(home, tmp_path):
+    """``--count 1``: a one-resident log's count, known and constant, becomes ``truth_count.csv``
+    over the log's span, and every people count of the run is scored against it, without
+    ``targets`` (the count model decides the count itself)."""
+    out = tmp_path / "ds"
+    assert main(["import", "casas", str(home), str(out), "--count", "1"]) == 0
+    tc = pl.read_csv(out / "truth_count.csv")
+    motion = pl.read_csv(out / "motion.csv")
+    assert tc.rows() == [(np.floor(motion["t"].min()), np.floor(motion["t"].max()) + 1.0, 1)]
+    assert "targets" not in (out / "site.toml").read_text()
+    res = run_pipeline(out, tmp_path / "run", trackers=("residents",), rrd=False)
+    for stage in ("residents", "occupancy", "count-commonest"):
+        assert metric(res.report, f"{stage}/count_minutes") > 0, stage
+    assert metric(res.report, "count-commonest/count_accuracy") == 1.0  # a constant count: the majority is right
+    assert metric(res.report, "residents/occupancy_accuracy") == 1.0
+    with pytest.raises(InputError, match="count"):
+        import_casas(home, tmp_path / "bad", count=-1)
+    assert not (tmp_path / "bad").exists()
