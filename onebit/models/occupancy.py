@@ -538,23 +538,10 @@ def estimate(
     (:data:`BINS`) and the step function (:data:`PEOPLE`). ``profile``: the statistics of
     labelled days (:data:`~onebit.core.tables.COUNT_PROFILE`), used when ``cfg.profile``."""
     motion = check_schema(motion, MOTION, name="motion")
-    sensors = [m.id for m in site.motion_sensors]
-    g = site.sensor_graph
-    doors = set(g.entries) | set(g.exits) if g is not None else set()
-    if motion.filter(pl.col("sensor").is_in(sensors)).height == 0 and span is None:
+    doors = site_doors(site)
+    if motion.filter(pl.col("sensor").is_in([m.id for m in site.motion_sensors])).height == 0 and span is None:
         return pl.DataFrame(schema=BINS), pl.DataFrame(schema=PEOPLE)
-    f = features(
-        motion,
-        sensors,
-        doors,
-        set(site.level_sensors),
-        far_matrix(site, sensors, cfg),
-        bin_s=cfg.bin_s,
-        window_s=cfg.window_s,
-        held=cfg.held,
-        epoch_seconds_of_day=epoch_seconds_of_day(site.epoch),
-        span=span,
-    )
+    f = site_features(motion, site, cfg, span)
     use = profile if (cfg.profile and profile is not None and profile.height) else None
     K = people_bound(site, cfg, use)
     model = default_model(
@@ -582,14 +569,25 @@ def estimate(
 def learn_stats(motion: pl.DataFrame, truth_count: pl.DataFrame, site, cfg: OccupancyConfig) -> pl.DataFrame:
     """The statistics (:func:`stats`) of one labelled dataset: its motion log's bins against
     its ``truth_count`` over the truth's span."""
-    sensors = [m.id for m in site.motion_sensors]
-    g = site.sensor_graph
-    doors = set(g.entries) | set(g.exits) if g is not None else set()
     span = (float(truth_count["t"].min()), float(truth_count["end"].max()) - 1e-9)
-    f = features(
-        check_schema(motion, MOTION, name="motion"),
+    f = site_features(check_schema(motion, MOTION, name="motion"), site, cfg, span)
+    return stats(f, truth_bins(truth_count, f))
+
+
+def site_doors(site) -> set[str]:
+    """The site's entry/exit nodes (its door sensors): empty without a sensor graph."""
+    g = site.sensor_graph
+    return set(g.entries) | set(g.exits) if g is not None else set()
+
+
+def site_features(motion: pl.DataFrame, site, cfg: OccupancyConfig, span: tuple[float, float] | None) -> Features:
+    """:func:`features` of a motion table on the site's motion sensors, doors, level sensors and
+    far pairs, with the config's bins and window."""
+    sensors = [m.id for m in site.motion_sensors]
+    return features(
+        motion,
         sensors,
-        doors,
+        site_doors(site),
         set(site.level_sensors),
         far_matrix(site, sensors, cfg),
         bin_s=cfg.bin_s,
@@ -598,4 +596,3 @@ def learn_stats(motion: pl.DataFrame, truth_count: pl.DataFrame, site, cfg: Occu
         epoch_seconds_of_day=epoch_seconds_of_day(site.epoch),
         span=span,
     )
-    return stats(f, truth_bins(truth_count, f))
