@@ -63,6 +63,9 @@ class BinPFConfig:
     r_out: float = 0.65  #: a confirmed track is reported while its existence is at least this
     merge_distance: float = length(0.4)  #: two tracks closer than this are merged, m
     split_ratio: float = 0.0  #: a twin of a track is proposed where its likelihood ratio is at least this; 0 = no split
+    count_ratio: float = (
+        0.0  #: a person the local MAP count of a cluster adds is born if it raises Eq. (2) by this factor; 0 = off
+    )
     smooth_lag: int = 4  #: frames of fixed-lag smoothing of the positions (particle genealogy); 0 = filter only
     link: bool = True  #: join tracklets across short gaps (one min-cost assignment, :mod:`onebit.trackers.binpf.link`)
     link_gap: int = 10  #: g_max, most missing frames a join bridges
@@ -109,6 +112,7 @@ class BinPFConfig:
         check_range(self, "r_out", self.r_delete, 1.0)
         check_range(self, "merge_distance", 0.0, 1e9)
         check_range(self, "split_ratio", 0.0, 1e9)
+        check_range(self, "count_ratio", 0.0, 1e9)
         check_range(self, "smooth_lag", 0, 1000, types=(int,))
         check_choice(self, "link", (True, False))
         check_range(self, "link_gap", 0, 10**6, types=(int,))
@@ -228,6 +232,7 @@ def filter_params(config: BinPFConfig, site: Site, *, period: float) -> FilterPa
         r_out=config.r_out,
         merge_distance=config.merge_distance,
         split_ratio=config.split_ratio,
+        count_ratio=config.count_ratio,
         smooth_lag=config.smooth_lag,
         max_tracks=max_tracks,
         max_out=bound,
