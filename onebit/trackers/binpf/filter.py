@@ -425,7 +425,8 @@ def count_births(z, means, sensors, radii, p: FilterParams, before=None) -> tupl
     """The people the local MAP count of each cluster of on sensors finds beyond the tracks
     near it (Eq. (7)): ``(born (B, 2), places (P, 2))`` -- ``places`` every such untracked
     place of this frame, ``born`` those of them within a footprint radius of an untracked
-    place of the frame before (``before``; with ``count_persist`` = 1 every place); see "Count"."""
+    place of the frame before (``before``) when ``count_persist >= 2`` (one frame before is
+    looked at, whatever the value), every place when ``count_persist <= 1``; see "Count"."""
     on = np.flatnonzero(z)
     if on.size == 0:
         return np.zeros((0, 2)), np.zeros((0, 2))

@@ -63,9 +63,7 @@ class BinPFConfig:
     r_out: float = 0.65  #: a confirmed track is reported while its existence is at least this
     merge_distance: float = length(0.4)  #: two tracks closer than this are merged, m
     split_ratio: float = 0.0  #: a twin of a track is proposed where its likelihood ratio is at least this; 0 = no split
-    count_ratio: float = (
-        0.0  #: a person the local MAP count of a cluster adds is born if it raises Eq. (2) by this factor; 0 = off
-    )
+    count_ratio: float = 0.0  #: kappa of Eq. (8), the local MAP count's price per person (untracked ones born); 0 = off
     smooth_lag: int = 4  #: frames of fixed-lag smoothing of the positions (particle genealogy); 0 = filter only
     link: bool = True  #: join tracklets across short gaps (one min-cost assignment, :mod:`onebit.trackers.binpf.link`)
     link_gap: int = 10  #: g_max, most missing frames a join bridges
@@ -123,6 +121,11 @@ class BinPFConfig:
             raise ConfigError(
                 f"BinPFConfig.commit_lag = {self.commit_lag}: must be 0 or at least smooth_lag = {self.smooth_lag} "
                 "(a frame's smoothed positions are final smooth_lag frames later)"
+            )
+        if self.commit_lag and self.count_ratio:
+            raise ConfigError(
+                f"BinPFConfig.count_ratio = {self.count_ratio}: the count runs in the batch filter only; "
+                "set commit_lag = 0 (the online driver has no count)"
             )
         check_range(self, "targets", 0, 10**4, types=(int,))
         check_range(self, "max_tracks", 0, 10**4, types=(int,))
