@@ -45,6 +45,7 @@ from onebit.core.writers import write_csv as _atomic_csv
 from onebit.core.writers import write_text as _atomic_text
 from onebit.datasets.builtin import builtin_site_path
 from onebit.datasets.scenario import Scenario
+from onebit.models.pir import hold_samples, keep_bursts, pir_on, toggle_edges
 
 nx = lazy_module("networkx")
 
@@ -227,30 +228,17 @@ def simulate_hallway(site: Site, cfg: HallwaySimConfig, *, seed: int) -> Hallway
     k = np.rint(samples["t"].to_numpy() * cfg.rate_hz).astype(np.int64)
     inside = covers(regions, xy)
     det = inside & (rng.random(inside.shape) < cfg.p_detect)
-    hit = np.zeros((len(times), len(ids)), bool)
-    rr, cc = np.nonzero(det)
-    hit[k[rr], cc] = True
-    hold = max(1, int(round(cfg.hold * cfg.rate_hz)))
-    csum = np.cumsum(np.vstack([np.zeros((1, len(ids)), np.int64), hit.astype(np.int64)]), axis=0)
-    lo = np.maximum(np.arange(len(times)) - hold + 1, 0)
-    on = (csum[np.arange(len(times)) + 1] - csum[lo]) > 0  # a detection in the last `hold` s
-    padded = np.vstack([np.zeros((1, len(ids)), bool), on, np.zeros((1, len(ids)), bool)])
-    edge_t, edge_n = np.nonzero(padded[1:] != padded[:-1])
-    value = padded[1:][edge_t, edge_n]
-    # drop whole bursts: an on edge and its off edge together
-    burst = np.zeros(len(edge_t), np.int64)
-    order = np.lexsort((edge_t, edge_n))
-    burst[order] = np.cumsum(value[order]) + edge_n[order] * len(times)
-    burst_ids, inv = np.unique(burst, return_inverse=True)
-    keep = (rng.random(len(burst_ids)) >= cfg.drop)[inv]
+    on = pir_on(k, det, len(times), hold_samples(cfg.hold, cfg.rate_hz))
+    edges = toggle_edges(on)
+    keep = keep_bursts(edges.burst, cfg.drop, rng)
     offset = rng.uniform(-cfg.clock_offset, cfg.clock_offset, size=len(ids))
-    t_edge = np.minimum(edge_t, len(times)) / cfg.rate_hz + offset[edge_n]
+    t_edge = edges.sample / cfg.rate_hz + offset[edges.sensor]
     toggles = (
         pl.DataFrame(
             {
                 "t": np.maximum(t_edge, 0.0),
-                "sensor": np.asarray(ids, dtype=object)[edge_n].tolist(),
-                "value": value.astype(np.int8),
+                "sensor": np.asarray(ids, dtype=object)[edges.sensor].tolist(),
+                "value": edges.value.astype(np.int8),
             }
         )
         .filter(pl.Series(keep))
