@@ -100,6 +100,7 @@ __all__ = [
     "ToggleEdges",
     "hold_samples",
     "pir_on",
+    "hold_on",
     "toggle_edges",
     "keep_bursts",
 ]
@@ -553,18 +554,25 @@ def hold_samples(hold_s: float, rate_hz: float) -> int:
 
 
 def pir_on(sample: np.ndarray, detected: np.ndarray, n: int, hold: int) -> np.ndarray:
-    """``(n, s)`` on-states of ``s`` PIRs over ``n`` samples.
+    """``(n, s)`` on-states of ``s`` PIRs over ``n`` samples, from detections of bodies.
 
     ``detected`` is ``(m, s)``: row ``r`` (a body at sample ``sample[r]``) detected by sensor
-    ``j``. Sensor ``j`` is on at sample ``k`` when a detection fell in samples
-    ``k - hold + 1 .. k`` (the PIR's hold, :func:`hold_samples`)::
+    ``j``; a sample with any detection is a trigger (:func:`hold_on`).
+    """
+    hit = np.zeros((n, detected.shape[1]), bool)
+    rows, cols = np.nonzero(detected)
+    hit[sample[rows], cols] = True
+    return hold_on(hit, hold)
+
+
+def hold_on(hit: np.ndarray, hold: int) -> np.ndarray:
+    """``(n, s)`` on-states of PIRs triggered at ``hit`` (``(n, s)`` bool) that stay on ``hold``
+    samples (:func:`hold_samples`): sensor ``j`` is on at sample ``k`` when it was triggered in
+    samples ``k - hold + 1 .. k``::
 
         on[k, j] = OR_{k - hold < k' <= k} hit[k', j]
     """
-    s = detected.shape[1]
-    hit = np.zeros((n, s), bool)
-    rows, cols = np.nonzero(detected)
-    hit[sample[rows], cols] = True
+    n, s = hit.shape
     csum = np.cumsum(np.vstack([np.zeros((1, s), np.int64), hit.astype(np.int64)]), axis=0)
     lo = np.maximum(np.arange(n) - hold + 1, 0)
     return (csum[np.arange(n) + 1] - csum[lo]) > 0

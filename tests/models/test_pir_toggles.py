@@ -7,7 +7,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from hypothesis.extra.numpy import arrays
 
-from onebit.models.pir import hold_samples, keep_bursts, pir_on, toggle_edges
+from onebit.models.pir import hold_on, hold_samples, keep_bursts, pir_on, toggle_edges
 
 
 def on_by_loop(sample, detected, n, hold):
@@ -40,6 +40,8 @@ detections = st.integers(1, 40).flatmap(
 def test_pir_on_is_the_hold_of_the_definition(case):
     n, (sample, detected), hold = case
     assert np.array_equal(pir_on(sample, detected, n, hold), on_by_loop(sample, detected, n, hold))
+    hit = on_by_loop(sample, detected, n, 1)  # a hold of one sample: the triggers themselves
+    assert np.array_equal(hold_on(hit, hold), on_by_loop(sample, detected, n, hold))
 
 
 @settings(max_examples=200, deadline=None)
