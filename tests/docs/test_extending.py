@@ -112,7 +112,8 @@ def scratch(tmp_path_factory):
         for sub, pkg in PACKAGES.items():
             mp.setattr(pkg, "__path__", [*pkg.__path__, str(root / "onebit" / sub)])
         yield written
-        for mod in [m for m in sys.modules if m.split(".")[-1] in ("centroid", "rates") or ".centroid." in m]:
+        ours = {rel.removesuffix(".py").removesuffix("/__init__").replace("/", ".") for rel in written}
+        for mod in [m for m in sys.modules if m in ours or m.rpartition(".")[0] in ours]:
             del sys.modules[mod]
 
 
