@@ -18,7 +18,8 @@ non-uniform coverage), read through the site's detection regions
 a node's region is detected in a sample with probability ``p_detect`` (motion comes in bursts) and a detection
 holds the PIR on for ``hold`` seconds. Each node has a clock offset (uniform in
 ``+-clock_offset`` s) added to its time stamps, and each on-burst's packets are lost with
-probability ``drop``. ``motion.csv`` is the raw toggle log (t, sensor, value).
+probability ``drop`` (the hold, the edges and the lost bursts: the PIR's toggle log of
+:mod:`onebit.models.pir`). ``motion.csv`` is the raw toggle log (t, sensor, value).
 
 Truth (``truth.csv``): t, target, x, y, node at 10 Hz while a user is inside; ``node`` is the
 node whose coverage the user is in (the nearest when several), else the last one it was in

@@ -16,7 +16,8 @@ minutes in the bathroom) -- moving now and then to a neighbouring spot of the ro
 
 Sensing, as PIRs do: a sensor sees a resident inside its range only while the resident
 moves (probability ``p_detect`` per sample) or, still, with probability ``p_still`` per sample
-(breathing, turning over); a detection holds it on for ``hold`` seconds. ``motion.csv`` is the
+(breathing, turning over); a detection holds it on for ``hold`` seconds, and a whole on-burst
+is lost with probability ``drop`` (the PIR's toggle log of :mod:`onebit.models.pir`). ``motion.csv`` is the
 raw toggle log (t, sensor, value), ``truth.csv`` the positions at ``rate_hz`` (t, target, x, y,
 node). Sampling and sensing are vectorised over samples, residents and sensors; planning is
 sequential per resident. Deterministic for a seed; nothing comes from a real dataset.
