@@ -193,9 +193,7 @@ def features(
         firings = np.bincount(bs, minlength=B)[:B]
         off = ~one_walker(ts, ks, hops, walk_s=walk_s, walk_slack=walk_slack)
         strays = np.bincount(bs[off], minlength=B)[:B]
-    return Features(
-        float(t0), float(bin_s), door, active, far_b, fired, held_bs, hour, tuple(sensors), firings, strays
-    )
+    return Features(float(t0), float(bin_s), door, active, far_b, fired, held_bs, hour, tuple(sensors), firings, strays)
 
 
 #: (W2): the predecessors of a firing a walker's path may come from.
