@@ -40,7 +40,8 @@ each firing linked to at most ``M = 64`` predecessors)::
 
 traced back from the largest ``L_j``; the firings off it are strays: ``strays_b`` of the bin's
 ``firings_b``. One walker leaves a few (glitches, the graph's missing edges); two walkers active
-at once leave one of them unexplained, a large share.
+at once leave more: the firings of one of them whenever the other is out of its reach.
+The firings are the ON edges of non-door sensors; a level sensor held on adds none.
 
 The model. Hidden count ``n_b`` in ``0..K`` (``K`` = ``targets`` of the site, else the
 largest count of the labelled days, else ``max_people``)::
