@@ -347,7 +347,6 @@ def run_stage(st: Stage, ctx: RunContext, *, worked: Worked | None = None) -> Wo
         if worked is not None and worked.error is not None:
             return worked
         made = st.work(ctx) if worked is None else worked.made
-        release_freed_memory()  # what the work dropped, before its recording and the next stage
         seconds = ctx.seconds[st.name] = time.perf_counter() - t0 if worked is None else worked.seconds
         check_made(st, made, ctx.tables, extra=(ARTIFACTS,))
     except DiskFullError:  # not this stage's failure: the whole run stops, OUT left as it was
@@ -455,6 +454,7 @@ def _run_stages(
             echo(f"  {st.name}: skipped ({reason})")
             continue
         done = run_stage(st, ctx, worked=beside.take(stage_list[i:], ctx))
+        release_freed_memory()  # what the work dropped, before its recording and the next stage
         if done.error is None:
             done, timing[st.name] = _recorded(st, ctx, done, recording_id if rrd else None)
         if done.error is not None:
