@@ -77,19 +77,21 @@ from onebit.core.errors import ConfigError, InputError
 from onebit.core.region_graph import build_region_graph
 from onebit.core.site import load_site
 from onebit.core.tables import REJECTS
-from onebit.pipeline.context import RunContext, dataset_run_config
+from onebit.pipeline import stages as declaration
+from onebit.pipeline.context import RunContext
 from onebit.pipeline.online import BATCH, Poll
 from onebit.pipeline.publish import Publisher, fault_rows, follow_report, read_live_table
 from onebit.pipeline.runner import (
     RunResult,
     check_dataset,
     check_out,
-    check_sections,
+    check_tracker_names,
+    checked_sections,
     run_pipeline,
     run_stage,
     skip_reason,
 )
-from onebit.pipeline.stages import LOOKS, TIME_SOURCES, TRACKERS, TrackerEntry, run_time_origin, stages
+from onebit.pipeline.stages import LOOKS, TIME_SOURCES, TRACKERS, TrackerEntry, run_time_origin
 from onebit.pipeline.tail import (
     LogSource,
     McapSource,
@@ -221,16 +223,11 @@ class Follow:
         check_out(self.out, self.dataset)
         self.site = load_site(self.dataset / "site.toml")
         self.rg = build_region_graph(self.site)
-        self.stage_list = stages(TRACKERS)
-        sections = dict(config or {})
-        check_sections(sections, self.stage_list, source="--config")
-        dataset_sections = dataset_run_config(self.dataset)
-        check_sections(dataset_sections, self.stage_list, source=self.dataset / "run.toml")
+        self.stage_list = declaration.stages(TRACKERS)  # the run's own declaration, read at run time
+        sections, dataset_sections = checked_sections(self.dataset, config, self.stage_list)
         self.merged = {**dataset_sections, **sections}
         known = [e.name for e in TRACKERS]
-        for tr in trackers or ():
-            if tr not in known:
-                raise ConfigError(f"--trackers: unknown tracker {tr!r}; known: {sorted(known)}")
+        check_tracker_names(tuple(trackers or ()), known, where="--trackers")
         self.chosen = tuple(trackers) if trackers else tuple(known)
         self.logs = [stem for stem in TIME_SOURCES if (self.dataset / f"{stem}.csv").is_file()]
         topics = self.dataset / "mcap_topics.toml"

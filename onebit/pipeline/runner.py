@@ -44,10 +44,11 @@ from onebit.core.parallel import cpu_seconds, worker_cpu_seconds
 from onebit.core.region_graph import build_region_graph
 from onebit.core.site import load_site
 from onebit.core.tables import REJECTS, REPORT
+from onebit.pipeline import stages as declaration
 from onebit.pipeline.context import RunContext, Stage, check_made, dataset_run_config
 from onebit.pipeline.detach import SideBySide, Worked, failed
 from onebit.pipeline.progress import ProgressSink, progress_sink
-from onebit.pipeline.stages import TRACKERS, TrackerEntry, stages
+from onebit.pipeline.stages import TRACKERS, TrackerEntry
 from onebit.readers.mcap_io import load_topic_map, read_mcap
 from onebit.readers.rows import RawRows
 from onebit.trackers.base import ARTIFACTS
@@ -144,6 +145,33 @@ def check_sections(sections: dict[str, Any], stage_list: list[Stage], *, source:
             except (ConfigError, TypeError, ValueError) as exc:
                 what = str(exc) if str(exc).startswith(f"[{name}]") else f"[{name}] {exc}"
                 raise ConfigError(f"{source}: {what}") from None
+
+
+def checked_sections(dataset: Path, config: dict[str, Any] | None, stage_list: list[Stage]) -> tuple[dict, dict]:
+    """``--config``'s sections (a copy: a run never changes the caller's dicts) and the
+    dataset's own ``run.toml``, each checked against ``stage_list`` (:func:`check_sections`)."""
+    config = copy.deepcopy(dict(config or {}))
+    check_sections(config, stage_list, source="--config")
+    dataset_sections = dataset_run_config(dataset)
+    check_sections(dataset_sections, stage_list, source=dataset / "run.toml")
+    return config, dataset_sections
+
+
+def check_tracker_names(names: tuple[str, ...], known: list[str], *, where: str) -> None:
+    """Every name of ``names`` is a declared tracker; else a :class:`ConfigError` naming ``where``."""
+    for tr in names:
+        if tr not in known:
+            raise ConfigError(f"{where}: unknown tracker {tr!r}; known: {sorted(known)}")
+
+
+def _crashed(exc: Exception, work: Path) -> Exception:
+    """An error of the stage loop: bad input and a full disk end the run (``OUT`` left as it
+    was), so they are raised; a bug is returned, to be recorded as the run's failure."""
+    if isinstance(exc, OnebitError):
+        raise exc
+    if is_disk_full(exc):  # the system, not a bug: OUT left as it was
+        raise DiskFullError(work) from exc
+    return exc
 
 
 def check_dataset(dataset: Path) -> Path:
@@ -261,18 +289,11 @@ def run_pipeline(
     check_dataset(dataset)
     replacing = check_out(out, dataset)
     site = load_site(dataset / "site.toml")
-    stage_list = stages(tracker_entries)
-    config = copy.deepcopy(dict(config or {}))  # the run reads it (RunContext.config); never the caller's dicts
-    check_sections(config, stage_list, source="--config")
-    dataset_sections = dataset_run_config(dataset)
-    check_sections(dataset_sections, stage_list, source=dataset / "run.toml")
+    stage_list = declaration.stages(tracker_entries)  # read at run time: the one declaration
+    config, dataset_sections = checked_sections(dataset, config, stage_list)
     known = [e.name for e in tracker_entries]
     requested = tuple(trackers) if trackers else default_trackers(config, dataset_sections)
-    for tr in requested:
-        if tr not in known:
-            where = "--trackers" if trackers else "[run] trackers"
-            raise ConfigError(f"{where}: unknown tracker {tr!r}; known: {sorted(known)}")
-    trackers = requested or tuple(known)
+    check_tracker_names(requested, known, where="--trackers" if trackers else "[run] trackers")
     rg = build_region_graph(site)
     if replacing:
         echo(f"  {replacing}")
@@ -286,7 +307,7 @@ def run_pipeline(
                 site,
                 rg,
                 config,
-                trackers=trackers,
+                trackers=requested or tuple(known),
                 progress=sink.step,
                 dataset_sections=dataset_sections,
             )
@@ -304,12 +325,8 @@ def run_pipeline(
                         looks={e.name: e.drawn for e in tracker_entries},
                         cores=cores,
                     )
-            except OnebitError:
-                raise
             except Exception as exc:  # a bug, not bad input: keep what was done and the traceback
-                if is_disk_full(exc):  # the system, not a bug: OUT left as it was
-                    raise DiskFullError(work) from exc
-                crash = exc
+                crash = _crashed(exc, work)
                 result = _record_crash(ctx, exc)
     finally:
         sink.close()

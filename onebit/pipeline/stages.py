@@ -16,7 +16,13 @@
     scores     everything above            -> crossing_matches, <tracker>_scores, ...
 
 Each stage's ``makes`` is checked by the runner (:func:`onebit.pipeline.context.check_made`):
-a stage returning a table it does not declare, or one an earlier stage made, fails.
+a stage returning a table it does not declare, or one an earlier stage made, fails. ``onebit
+run`` and ``onebit follow`` run this one list with one step
+(:func:`onebit.pipeline.runner.run_stage`); ``follow`` runs the stages declared ``polled`` at
+every poll, and each tracker as its entry's ``live`` says (:mod:`onebit.pipeline.online`).
+
+This file declares; the work is elsewhere: a tracker's stage in :mod:`onebit.pipeline.tracking`,
+the scores in :mod:`onebit.pipeline.scores`, the readers' stages beside them.
 
 Adding a tracker: its package under :mod:`onebit.trackers` (a ``TrackerSpec``), a scoring
 function in :mod:`onebit.scoring` (built on :mod:`onebit.scoring.association`; the MOT metrics
