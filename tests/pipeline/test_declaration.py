@@ -12,7 +12,7 @@ import polars as pl
 import pytest
 
 import onebit.pipeline.follow as follow_module
-from onebit.datasets.scenario import get_scenario
+from onebit.datasets.catalogue import get_scenario
 from onebit.pipeline import stages as declaration
 from onebit.pipeline.context import RunContext, Stage
 from onebit.pipeline.follow import FollowConfig, follow
