@@ -42,12 +42,14 @@ import polars as pl
 from onebit.core.config import config_from_mapping
 from onebit.core.errors import InputError
 from onebit.models.occupancy import OccupancyConfig
-from onebit.pipeline import homes
+from onebit.pipeline import (
+    homes,
+    tracking,  # its tracker_stage, read when stages() is called (tracking reads this module)
+)
 from onebit.pipeline.context import ReportRow, RunContext, Stage
 from onebit.pipeline.homes import count_metric
 from onebit.pipeline.online import BATCH_ONLY, BEAMS, BINPF, INTRUDER, ISTATE, LAGGED, ONLINE, PREFIX, Live, hmm_stepper
 from onebit.pipeline.scores import MetricFn, identity_metric, scores_stage
-from onebit.pipeline.tracking import tracker_stage
 from onebit.readers.beams import BEAM_COLUMNS, beam_dtypes, decode_beam_log, decode_raw_beams
 from onebit.readers.camera import read_camera, truth_error
 from onebit.readers.frames import edges_of_levels, read_frame_rows, read_frames_csv
@@ -814,6 +816,6 @@ def stages(trackers: tuple[TrackerEntry, ...] = TRACKERS) -> list[Stage]:
             config=CorrectConfig,
             polled=True,
         ),
-        *(tracker_stage(e) for e in trackers),
+        *(tracking.tracker_stage(e) for e in trackers),
         scores_stage(trackers, METRICS),
     ]

@@ -15,6 +15,7 @@ import polars as pl
 
 from onebit.core.config import config_from_mapping
 from onebit.core.units import config_in_site_units
+from onebit.pipeline import stages as declaration  # without_ignored, the reader stages' helper (read at call time)
 from onebit.pipeline.context import RunContext, Stage
 from onebit.pipeline.homes import people_from_tracks
 from onebit.trackers.base import ARTIFACTS, PROGRESS
@@ -43,12 +44,10 @@ def tracker_inputs(entry: TrackerEntry, ctx: RunContext, *, until: float | None 
     whole; ``onebit follow`` re-runs a tracker on the settled prefix), with the region graph
     and the progress callback; ``None`` when a table it needs is missing. The tracker is run on
     ``ctx.site.tracked`` (no ignored sensor)."""
-    from onebit.pipeline.stages import without_ignored  # the reader stages' helper (stages imports this module)
-
     ignored = ctx.site.ignored
 
     def table(name: str) -> pl.DataFrame:
-        df = without_ignored(name, ctx.tables[name], ignored)
+        df = declaration.without_ignored(name, ctx.tables[name], ignored)
         return df if until is None or "t" not in df.columns else df.filter(pl.col("t") <= until)
 
     inputs: dict[str, Any] = {}
