@@ -91,7 +91,7 @@ from onebit.pipeline.runner import (
     run_stage,
     skip_reason,
 )
-from onebit.pipeline.stages import LOOKS, TIME_SOURCES, TRACKERS, TrackerEntry, run_time_origin
+from onebit.pipeline.stages import TIME_SOURCES, TRACKERS, TrackerEntry, run_time_origin
 from onebit.pipeline.tail import (
     LogSource,
     McapSource,
@@ -214,8 +214,10 @@ class Follow:
         echo: Callable[[str], None] | None = None,
         clock: Callable[[], float] = time.monotonic,
         sleep: Callable[[float], None] = time.sleep,
+        tracker_entries: tuple[TrackerEntry, ...] = TRACKERS,
     ) -> None:
         self.dataset, self.out = Path(dataset), Path(out)
+        self.entries = tracker_entries
         self.trackers, self.config, self.options, self.connect = trackers, config, options, connect
         self.echo = echo or (lambda s: None)
         self.clock, self.sleep = clock, sleep
@@ -223,10 +225,10 @@ class Follow:
         check_out(self.out, self.dataset)
         self.site = load_site(self.dataset / "site.toml")
         self.rg = build_region_graph(self.site)
-        self.stage_list = declaration.stages(TRACKERS)  # the run's own declaration, read at run time
+        self.stage_list = declaration.stages(tracker_entries)  # the run's own declaration, read at run time
         sections, dataset_sections = checked_sections(self.dataset, config, self.stage_list)
         self.merged = {**dataset_sections, **sections}
-        known = [e.name for e in TRACKERS]
+        known = [e.name for e in tracker_entries]
         check_tracker_names(tuple(trackers or ()), known, where="--trackers")
         self.chosen = tuple(trackers) if trackers else tuple(known)
         self.logs = [stem for stem in TIME_SOURCES if (self.dataset / f"{stem}.csv").is_file()]
@@ -282,7 +284,7 @@ class Follow:
         for line in self.served.describe() if self.served else ():
             self.echo(f"  {line}")
         viz_live.log_live_site(self.rec, self.site, self.rg)
-        self.pub = Publisher(self.live, self.rec, self.wall_at, self.clock, LOOKS)
+        self.pub = Publisher(self.live, self.rec, self.wall_at, self.clock, {e.name: e.drawn for e in self.entries})
         self._start_trackers()
         self.last_growth = self.clock()
 
@@ -313,7 +315,7 @@ class Follow:
         ctx = self._context()
         self.runs = [
             _LiveTracker(e, tracker_config(e, ctx))
-            for e in TRACKERS
+            for e in self.entries
             if e.live.mode != BATCH
             and e.name in self.chosen
             and (e.spec.available is None or e.spec.available(self.site.tracked) is None)
@@ -510,7 +512,13 @@ class Follow:
         for m in self.mcaps if self.options.replay is None else ():  # the recordings as they are now
             shutil.copy(m.path, self.data / m.path.name)
         run = run_pipeline(
-            final_data, self.out, trackers=self.trackers, config=self.config, progress=False, echo=self.echo
+            final_data,
+            self.out,
+            trackers=self.trackers,
+            config=self.config,
+            tracker_entries=self.entries,
+            progress=False,
+            echo=self.echo,
         )
         report = pl.concat(
             [
@@ -560,11 +568,14 @@ def follow(
     echo: Callable[[str], None] | None = None,
     clock: Callable[[], float] = time.monotonic,
     sleep: Callable[[float], None] = time.sleep,
+    tracker_entries: tuple[TrackerEntry, ...] = TRACKERS,
 ) -> FollowResult:
     """Follow ``dataset`` (module docstring) and end with the batch run into ``out``.
 
     ``serve_web``: ``True`` serves the web viewer on :class:`~onebit.viz.live.WebServe`'s
     defaults (127.0.0.1 only, ports 9090 and 9876), a ``WebServe`` where it says.
+    ``tracker_entries``: the trackers of the stage list, as for
+    :func:`~onebit.pipeline.runner.run_pipeline` (each runs live as its ``live`` says).
 
     Raises :class:`OnebitError` for bad input found before anything is followed (dataset,
     ``OUT``, site, config, tracker names, no CSV log to follow, a port in use).
@@ -580,4 +591,5 @@ def follow(
         echo=echo,
         clock=clock,
         sleep=sleep,
+        tracker_entries=tracker_entries,
     ).run()

@@ -6,19 +6,23 @@ from __future__ import annotations
 
 import ast
 import tomllib
+from dataclasses import dataclass
 from pathlib import Path
 
 import polars as pl
 import pytest
 
 import onebit.pipeline.follow as follow_module
+from onebit.core.tables import TRACKS, conform
 from onebit.datasets.catalogue import get_scenario
 from onebit.pipeline import stages as declaration
 from onebit.pipeline.context import RunContext, Stage
-from onebit.pipeline.follow import FollowConfig, follow
+from onebit.pipeline.follow import FollowConfig, follow, read_live_table
 from onebit.pipeline.online import BATCH, LAGGED, ONLINE, PREFIX, Live
+from onebit.pipeline.report import metric
 from onebit.pipeline.runner import run_pipeline
-from onebit.pipeline.stages import TRACKERS
+from onebit.pipeline.stages import TRACKERS, TrackerEntry
+from onebit.trackers.base import TrackerSpec
 
 ROOT = Path(__file__).resolve().parents[2]
 
@@ -142,3 +146,46 @@ def test_every_tracker_is_in_the_independence_contract():
     folders = {f"onebit.trackers.{p.parent.name}" for p in (ROOT / "onebit" / "trackers").glob("*/__init__.py")}
     assert of_entries <= folders
     assert folders == modules, f"missing: {sorted(folders - modules)}; not a tracker: {sorted(modules - folders)}"
+
+
+def _edges(inputs: dict, site, config) -> dict[str, pl.DataFrame]:
+    """A dummy tracker: one estimate at the origin per accepted motion edge."""
+    m = inputs["motion"].filter(pl.col("on"))
+    tracks = pl.DataFrame(
+        {"tracker": "edges", "track": "a", "t": m["t"], "x": 0.0, "y": 0.0},
+        schema_overrides={"tracker": pl.String, "track": pl.String},
+    )
+    return {"tracks": conform(tracks, TRACKS)}
+
+
+@dataclass(frozen=True, kw_only=True)
+class _EdgesConfig:
+    pass
+
+
+def test_a_tracker_declared_prefix_runs_live_by_its_declaration(pir, tmp_path):
+    """A tracker ``follow`` has never heard of, declared ``live=Live(PREFIX, ...)``, is re-run on
+    the settled prefix at the polls and ends equal to the batch run's rows."""
+    entry = TrackerEntry(
+        TrackerSpec(name="edges", needs=("motion",), config=_EdgesConfig, run=_edges),
+        lambda tracker, tables, site, rg: ([], {}),
+        live=Live(PREFIX, "per edge", events=("motion",)),
+    )
+    clock = _Clock()
+    lines: list[str] = []
+    res = follow(
+        pir,
+        tmp_path / "follow",
+        trackers=("edges",),
+        options=FollowConfig(replay=10.0, poll=0.5),
+        clock=clock.clock,
+        sleep=clock.sleep,
+        echo=lines.append,
+        tracker_entries=(*TRACKERS, entry),
+    )
+    assert "  edges: online, per edge" in lines
+    batch = pl.read_parquet(tmp_path / "follow" / "tables" / "edges_tracks.parquet")
+    live = read_live_table(res.live, "edges_tracks")
+    assert batch.height > 5 and live.sort("t").equals(batch.sort("t"))
+    assert len(list((res.live / "tables" / "edges_tracks").glob("part-*.parquet"))) >= 3
+    assert metric(res.report, "edges/online_equals_batch") == 1.0
