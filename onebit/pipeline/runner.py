@@ -265,18 +265,9 @@ def run_pipeline(
     tracker on one core; the tables and report are the same for any value); 0 = the cores
     this process may use (:func:`onebit.core.parallel.available_cores`: ``ONEBIT_CORES``, else
     its CPU affinity; 1 in a ``run-many`` pool's worker) once the run's tables hold
-    :data:`DETACH_MIN_ROWS` rows, else 1; 1 = one tracker after another, here.
+    :data:`~onebit.pipeline.detach.DETACH_MIN_ROWS` rows, else 1; 1 = one tracker after another, here.
 
-    The run record ``run.toml`` holds, besides each stage's status, a ``[timing]`` table: per
-    stage the seconds of its work (``work_s``, as in its status), of its recording (``viz_s``:
-    opening the ``.rrd``, the site and the stage's viz call, closing it) and of writing its
-    tables (``write_s``), and the CPU seconds of the work and of the recording (``work_cpu_s``,
-    ``viz_cpu_s``: the process's, every thread's, and of the worker processes a stage ran
-    pieces in, :func:`onebit.core.parallel.cpu_seconds`; on a shared machine the wall times
-    grow with the load, these hardly); ``blueprint_s`` (``blueprint_cpu_s``), ``run_s`` (stages
-    to record; ``run_cpu_s``), ``worker_cpu_s`` (the part of ``run_cpu_s`` spent in worker
-    processes) and ``entered_unix`` (the wall clock when this function was called: a caller that
-    knows when its process started gets the start-up from it).
+    The run record ``run.toml`` holds each stage's status and a ``[timing]`` table (:func:`_finish`).
 
     Raises :class:`OnebitError` (``out`` untouched) for bad input found before or instead of
     any work: dataset, ``OUT``, site, config, tracker names, or every stage skipped.
@@ -517,7 +508,19 @@ def _finish(
     rrd: bool,
     looks: dict | None,
 ) -> tuple[dict[str, str], pl.DataFrame, bool, list[str]]:
-    """The run's blueprint, rejects, report and record (``run.toml``)."""
+    """The run's blueprint, rejects, report and record (``run.toml``).
+
+    The run record holds, besides each stage's status, a ``[timing]`` table: per
+    stage the seconds of its work (``work_s``, as in its status), of its recording (``viz_s``:
+    opening the ``.rrd``, the site and the stage's viz call, closing it) and of writing its
+    tables (``write_s``), and the CPU seconds of the work and of the recording (``work_cpu_s``,
+    ``viz_cpu_s``: the process's, every thread's, and of the worker processes a stage ran
+    pieces in, :func:`onebit.core.parallel.cpu_seconds`; on a shared machine the wall times
+    grow with the load, these hardly); ``blueprint_s`` (``blueprint_cpu_s``), ``run_s`` (stages
+    to record; ``run_cpu_s``), ``worker_cpu_s`` (the part of ``run_cpu_s`` spent in worker
+    processes) and ``entered_unix`` (the wall clock when this function was called: a caller that
+    knows when its process started gets the start-up from it).
+    """
     work = ctx.out
     t3, c3 = time.perf_counter(), time.process_time()
     if rrd:
