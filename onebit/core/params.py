@@ -37,7 +37,7 @@ from onebit.core.errors import ConfigError
 
 #: Units a parameter may state (the first three are converted to the site's units,
 #: :mod:`onebit.core.units`; the others are documentary).
-UNITS = ("m", "m/s", "m^2", "s", "Hz", "slots", "frames", "instants", "nats", "cells", "R", "%")
+UNITS = ("m", "m/s", "m^2", "s", "Hz", "slots", "frames", "nats", "cells", "cells/s", "deg")
 
 _KINDS = ("int", "float", "bool", "str")
 
