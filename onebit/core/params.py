@@ -19,7 +19,8 @@ A declaration, in a frozen keyword-only dataclass::
     policy: str = param("fifo", "queue discipline", choices=("fifo", "lifo"))
     r_out: float = param(0.65, "reported while existence is at least this", lo="r_delete", hi=1.0)
 
-A bound is a number or the name of another field of the same config (its value is the bound).
+A bound is a number, the name of another field of the same config (its value is the bound), or
+``(field, offset)`` (that field's value plus the offset).
 The field's kind (``int``, ``float``, ``bool``, ``str``, optional with ``| None``) is read from
 its annotation: an ``int`` must be an integer, a ``float`` a finite number (an integer too),
 never a bool; a ``bool`` must be true or false; a ``str`` a string; ``None`` is allowed only by
@@ -39,22 +40,23 @@ from onebit.core.errors import ConfigError
 #: :mod:`onebit.core.units`; the others are documentary).
 UNITS = ("m", "m/s", "m^2", "s", "Hz", "slots", "frames", "nats", "cells", "cells/s", "deg")
 
-_KINDS = ("int", "float", "bool", "str")
+#: A bound: a number, another field's name, or ``(field, offset)`` (the field's value plus the offset).
+Bound = float | str | tuple[str, float] | None
 
 
 def param(
     default: Any = dataclasses.MISSING,
     doc: str = "",
     *,
-    lo: float | str | None = None,
-    hi: float | str | None = None,
+    lo: Bound = None,
+    hi: Bound = None,
     choices: tuple | None = None,
     unit: str | None = None,
     factory: Callable[[], Any] | None = None,
 ) -> Any:
     """A dataclass field declared as a parameter (module docstring): ``default`` (or
     ``factory`` for a table or list), a one-line ``doc``, inclusive bounds ``lo``/``hi`` (a
-    number or another field's name), allowed ``choices`` and the ``unit``."""
+    number, another field's name or ``(field, offset)``), allowed ``choices`` and the ``unit``."""
     if not doc:
         raise ValueError("param: every parameter needs its doc")
     if unit is not None and unit not in UNITS:
@@ -76,8 +78,8 @@ class ParamInfo:
     kind: str  #: "int", "float", "bool", "str" or the annotation's text (a table, a list)
     optional: bool  #: ``None`` is allowed
     doc: str
-    lo: float | str | None
-    hi: float | str | None
+    lo: Bound
+    hi: Bound
     choices: tuple | None
     unit: str | None
 
@@ -96,6 +98,8 @@ class ParamInfo:
 
 
 def _show(v: Any) -> str:
+    if isinstance(v, tuple) and len(v) == 2 and isinstance(v[0], str):  # a bound: a field plus an offset
+        return f"{v[0]} + {v[1]!r}"
     if isinstance(v, str):
         return v if v.isidentifier() and not v.startswith(("'", '"')) else repr(v)
     return repr(v)
@@ -131,8 +135,11 @@ def describe(cls: type) -> list[ParamInfo]:
     return out
 
 
-def bound_value(obj: Any, bound: float | str | None) -> Any:
-    """A bound's value on ``obj``: the number itself, or the value of the field it names."""
+def bound_value(obj: Any, bound: Bound) -> Any:
+    """A bound's value on ``obj``: the number itself, the value of the field it names, or that
+    value plus an offset (``("d_max", 10)``)."""
+    if isinstance(bound, tuple):
+        return getattr(obj, bound[0]) + bound[1]
     return getattr(obj, bound) if isinstance(bound, str) else bound
 
 
