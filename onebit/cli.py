@@ -25,6 +25,7 @@ from onebit.datasets.scenario import parse_params, simulate_into
 from onebit.datasets.skeleton import init_dataset
 from onebit.experiments import get_experiment
 from onebit.pipeline.check import check_dataset, format_check
+from onebit.pipeline.config_show import add_config_command
 from onebit.pipeline.executors import EXECUTORS, make_executor
 from onebit.pipeline.follow import FollowConfig, follow, parse_speed
 from onebit.pipeline.learn import learn_counts, learn_residents, write_profile
@@ -479,6 +480,7 @@ def build_parser() -> argparse.ArgumentParser:
     _add_learn_command(sub)
     _add_logs_commands(sub)
     _add_user_data_commands(sub)
+    add_config_command(sub)
     return p
 
 

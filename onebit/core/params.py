@@ -30,6 +30,7 @@ never a bool; a ``bool`` must be true or false; a ``str`` a string; ``None`` is 
 from __future__ import annotations
 
 import dataclasses
+import json
 import math
 from collections.abc import Callable
 from typing import Any, NamedTuple
@@ -87,7 +88,7 @@ class ParamInfo:
         """What values are allowed, in words: ``[0.0, 1.0]``, ``>= 1``, ``"fifo" | "lifo"``, ...;
         empty when the declaration says nothing beyond the kind."""
         if self.choices is not None:
-            return " | ".join(_show(c) for c in self.choices)
+            return " | ".join(json.dumps(c) for c in self.choices)  # as TOML writes them
         if self.lo is not None and self.hi is not None:
             return f"[{_show(self.lo)}, {_show(self.hi)}]"
         if self.lo is not None:
@@ -107,7 +108,8 @@ def _show(v: Any) -> str:
 
 def _kind(annotation: Any) -> tuple[str, bool]:
     """``(kind, optional)`` of a field annotation (a string under ``from __future__ import annotations``)."""
-    text = annotation if isinstance(annotation, str) else getattr(annotation, "__name__", str(annotation))
+    text = getattr(annotation, "__forward_arg__", annotation)  # a NamedTuple's string annotation
+    text = text if isinstance(text, str) else getattr(text, "__name__", str(text))
     parts = [p.strip() for p in text.split("|")]
     optional = "None" in parts
     rest = [p for p in parts if p != "None"]

@@ -45,7 +45,7 @@ NAIVE = "intruder-naive"
 class IntruderConfig:
     """``run.toml`` ``[intruder]``; defaults are the paper's simulation values (section VIII)."""
 
-    particles: int = param(1000, "number of particles", lo=1, hi=MAX_PARTICLES)
+    particles: int = param(1000, "number of particles (paper: 1000)", lo=1, hi=MAX_PARTICLES)
     period: float = param(2.0, "t_P, seconds per iteration", lo=1e-6, unit="s")
     v_max: float = param(4.0, "maximum speed", lo=0.0, unit="cells/s")
     speed_sigma: float = param(1.5, "std of the Gaussian added to the speed", lo=0.0, unit="cells/s")
@@ -67,7 +67,8 @@ class IntruderConfig:
     start: float | None = param(
         None,
         "time the intruder enters; iteration k ends at start + (k+1) t_P; unset = the start of the slot "
-        "(a multiple of t_P) holding the first edge",
+        "(a multiple of t_P) holding the first edge, so the slots span the data wherever its clock is (Unix "
+        "seconds, an early epoch)",
         unit="s",
     )
     end: float | None = param(None, "time it leaves; unset = the slot of the last edge", lo="start", unit="s")
@@ -89,15 +90,16 @@ class IntruderConfig:
     false_alarm: float = param(
         0.02,
         "h of a sensor whose type states no false_positive (no type, or a site table without it): P(it fires "
-        "in an iteration with nobody in its region). Real ceiling IR: ~0.03 per 2 s; 0 = the paper's "
-        "perfect sensors",
+        "in an iteration with nobody in its region); the built-in simulated types keep theirs (pir 0, "
+        "pir-imperfect 0.25). Real ceiling IR: ~0.008 per 0.5 s frame = ~0.03 per 2 s iteration; 0 = the "
+        "paper's perfect sensors",
         lo=0.0,
         hi=0.999,
     )
     held: bool = param(
         True,
         'a level sensor (signal = "level") held on through an iteration fires in it (presence), not only '
-        "on a rising edge",
+        'on a rising edge; PIRs (signal = "edge") are unchanged',
     )
 
     def __post_init__(self) -> None:
