@@ -22,11 +22,14 @@ from onebit.core.params import ParamInfo, describe
 WIDTH = 100
 
 
-def config_sections() -> dict[str, type]:
-    """``{section: config class}`` for every stage of the pipeline that reads a ``run.toml`` section."""
-    from onebit.pipeline.stages import stages  # noqa: PLC0415 -- the stage list imports every tracker
+def config_sections(stage_list: list | None = None) -> dict[str, type]:
+    """``{section: config class}`` for every stage of ``stage_list`` (the declared pipeline by
+    default) that reads a ``run.toml`` section."""
+    if stage_list is None:
+        from onebit.pipeline.stages import stages  # noqa: PLC0415 -- the stage list imports every tracker
 
-    return {st.name: st.config for st in stages() if st.config is not None}
+        stage_list = stages()
+    return {st.name: st.config for st in stage_list if st.config is not None}
 
 
 def toml_value(v: Any) -> str:
@@ -96,9 +99,10 @@ def section_toml(name: str, cls: type) -> str:
     return "\n".join(lines) + "\n"
 
 
-def show(stage: str | None = None) -> str:
-    """The TOML of one stage's section (``stage``) or of every section."""
-    sections = config_sections()
+def show(stage: str | None = None, stage_list: list | None = None) -> str:
+    """The TOML of one stage's section (``stage``) or of every section (of ``stage_list``, by
+    default the declared pipeline)."""
+    sections = config_sections(stage_list)
     if stage is not None:
         if stage not in sections:
             raise ConfigError(f"config show: no stage {stage!r} takes a config; stages with one: {sorted(sections)}")

@@ -13,6 +13,7 @@ import pytest
 from onebit.core.errors import ConfigError
 from onebit.core.params import derived, describe, kernel_tuple, param, validate
 from onebit.core.units import config_in_site_units, length
+from onebit.pipeline.check import SuspectConfig
 from onebit.pipeline.config_show import config_sections
 from onebit.trackers.binpf.config import FilterParams
 
@@ -115,7 +116,7 @@ COMPANIONS = {
     ("decoding", "lagged"): {"eatg": "layout"},
 }
 
-CONFIGS = {**{name: cls for name, cls in config_sections().items()}, "binpf FilterParams": FilterParams}
+CONFIGS = {**config_sections(), "binpf FilterParams": FilterParams, "check SuspectConfig": SuspectConfig}
 
 
 def _probes(cls):
