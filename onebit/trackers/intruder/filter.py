@@ -63,6 +63,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from onebit.core.params import kernel_tuple
 from onebit.models.motion import Motion, Particles, Room, prior, propagate
 from onebit.models.pir import PROB_FLOOR, Deployment, WorldGrid, log_weights
 from onebit.trackers.intruder import kernels
@@ -230,9 +231,7 @@ def run_filter(
     rs = kernels.Resampling(systematic, always, float(ess_threshold), pick)
     outs = kernels.Outputs(res.estimates, res.ess, res.resampled, res.logged_xy, res.logged_w, res.spread)
     if room.is_box:
-        mot = np.array(
-            [motion.period, motion.v_max, motion.speed_sigma, motion.turn_scale, motion.max_retries], dtype=np.float64
-        )
+        mot = kernel_tuple(kernels.MotionParams, **{n: getattr(motion, n) for n in kernels.MotionParams._fields})
         step = T if progress is None else max(1, -(-T // PROGRESS_CHUNKS))
         for k0 in range(0, T, step):
             k1 = min(k0 + step, T)

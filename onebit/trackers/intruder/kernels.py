@@ -58,6 +58,16 @@ LOG_FLOOR = math.log(PROB_FLOOR)
 TWO_PI = 2 * math.pi
 
 
+class MotionParams(NamedTuple):
+    """The intruder model (:class:`onebit.models.motion.Motion`, same fields) for :func:`_run_box`."""
+
+    period: float
+    v_max: float
+    speed_sigma: float
+    turn_scale: float
+    max_retries: int
+
+
 class Model(NamedTuple):
     """The deployment on the grid, as the likelihood and the estimate read it."""
 
@@ -606,9 +616,10 @@ def _update(k, x, y, theta, v, w, uniform, rng, fired, blind, model, rs, out, lw
 
 @kernel
 def _run_box(x, y, theta, v, w, rng, fired, blind, motion, box, model, rs, out, redraws, clamped):
-    """Every iteration in a box room: propagate then :func:`_update` (see the module docstring),
-    with one workspace for the whole run (no allocation per iteration); ``redraws`` and
-    ``clamped`` per iteration beside ``out``."""
+    """Every iteration in a box room: propagate with ``motion`` (:class:`MotionParams`) in the
+    room ``box`` then :func:`_update` (see the module docstring), with one workspace for the
+    whole run (no allocation per iteration); ``redraws`` and ``clamped`` per iteration beside
+    ``out``."""
     N = x.shape[0]
     lw = np.empty(N)
     scratch = np.empty((int(model.grid[4]) + 1, int(model.grid[3]) + 1))
@@ -627,11 +638,11 @@ def _run_box(x, y, theta, v, w, rng, fired, blind, motion, box, model, rs, out, 
             theta,
             v,
             rng,
-            motion[0],
-            motion[1],
-            motion[2],
-            motion[3],
-            int(motion[4]),
+            motion.period,
+            motion.v_max,
+            motion.speed_sigma,
+            motion.turn_scale,
+            motion.max_retries,
             box,
             idx,
             pack,
