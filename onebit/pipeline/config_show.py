@@ -17,6 +17,7 @@ from typing import Any
 
 from onebit.core.errors import ConfigError
 from onebit.core.params import ParamInfo, describe
+from onebit.pipeline.stages import stages
 
 #: Width of the comment lines.
 WIDTH = 100
@@ -26,8 +27,6 @@ def config_sections(stage_list: list | None = None) -> dict[str, type]:
     """``{section: config class}`` for every stage of ``stage_list`` (the declared pipeline by
     default) that reads a ``run.toml`` section."""
     if stage_list is None:
-        from onebit.pipeline.stages import stages  # noqa: PLC0415 -- the stage list imports every tracker
-
         stage_list = stages()
     return {st.name: st.config for st in stage_list if st.config is not None}
 
