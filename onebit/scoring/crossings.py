@@ -44,9 +44,9 @@ class ScoresConfig:
     )
     gates_m: tuple[float, ...] = param(
         (1.0,),
-        "the metric gates at which every tracker with positions gets MOTA, IDF1, HOTA, ... (rows mota@1m; "
-        "onebit.scoring.mot); the irtracking authors score at 1.5 m",
-        unit="m",
+        "the metric gates, in metres (onebit.scoring.mot converts them to the site's units itself, so the "
+        "field carries no unit to convert), at which every tracker with positions gets MOTA, IDF1, HOTA, ... "
+        "(rows mota@1m); the irtracking authors score at 1.5 m",
     )
 
     def __post_init__(self) -> None:
