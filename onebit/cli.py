@@ -21,6 +21,7 @@ from onebit.commands.simulate import add_simulate_command
 from onebit.commands.user_data import add_user_data_commands
 from onebit.commands.verify import add_verify_path_command
 from onebit.core.errors import OnebitError, bounded, is_disk_full
+from onebit.pipeline.config_show import add_config_command
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -35,6 +36,7 @@ def build_parser() -> argparse.ArgumentParser:
     add_learn_command(sub)
     add_logs_commands(sub)
     add_user_data_commands(sub)
+    add_config_command(sub)
     return p
 
 

@@ -88,8 +88,8 @@ import numpy as np
 import polars as pl
 
 from onebit.core.compiled import kernel, numba_loaded
-from onebit.core.config import check_range
 from onebit.core.lazy import lazy_module
+from onebit.core.params import param, validate
 from onebit.core.tables import COUNT_PROFILE, MOTION, check_schema
 from onebit.core.units import length
 
@@ -508,70 +508,75 @@ def people_steps(starts: np.ndarray, count: np.ndarray) -> pl.DataFrame:
 
 @dataclass(frozen=True, kw_only=True)
 class OccupancyConfig:
-    """``[occupancy]``: the count model's constants (module docstring, eq. O1-O2).
+    """``[occupancy]``: the count model's constants (module docstring, eq. O1-O2)."""
 
-    bin_s : seconds per bin (the count is decided per bin).
-    max_people : ``K`` when neither ``targets`` nor a learned profile gives it.
-    window_s, far_hops, far_m : two ON edges at most ``window_s`` apart at sensors ``far_hops``
-        or more hops apart on the sensor graph (``far_m`` metres apart without a graph) need two people.
-    held : a level sensor on in a bin (a force sensor, a pressure mat) is activity.
-    door_stay : ``D[i, i]``: a door event that changes nothing (someone looks out, a visitor at the door).
-    quiet_change : probability of a change of the count in a bin without a door event.
-    noise : ``A[0, 1]``: a sensor fires in an empty home in a bin.
-    activity : ``A[n, 1]``, ``n >= 1``: a sensor fires (or a level sensor is on) in a bin with someone in.
-    far_noise, far_rate : ``F[n, 1]``: far pairs with at most one person in (lingering
-        sensors, a door slammed by the wind) and with two or more.
-    prior : pseudo-counts per cell of every learned table (Dirichlet).
-    clock_weight : ``w``: weight of the learned count by hour of day (0: no clock).
-    sensor_weight : ``v``: weight of the learned per-sensor terms (0: the learned ``A`` instead;
-        below 1 tempers the naive-Bayes product of correlated sensors).
-    profile : use the dataset's ``count_profile.csv`` when it has one (off: always the defaults).
-    walk_s, walk_slack : (W1): seconds per hop of one walker and hops of slack; ``walk_s = 0``
-        (or a site without a sensor graph): no stray term (O3), the far pairs ``F`` instead.
-    stray_one, stray_two : (O3) ``g_n``: the share of firings one walker leaves unexplained
-        with at most one person in, and with two or more.
-    """
-
-    bin_s: float = 60.0
-    max_people: int = 4
-    window_s: float = 1.0
-    far_hops: int = 4
-    far_m: float = length(5.0)
-    held: bool = True
-    door_stay: float = 0.5
-    quiet_change: float = 1e-4
-    noise: float = 0.02
-    activity: float = 0.3
-    far_noise: float = 0.05
-    far_rate: float = 0.5
-    prior: float = 1.0
-    clock_weight: float = 0.0
-    sensor_weight: float = 0.0
-    profile: bool = True
-    walk_s: float = 0.5
-    walk_slack: float = 2.0
-    stray_one: float = 0.05
-    stray_two: float = 0.09
+    bin_s: float = param(60.0, "seconds per bin (the count is decided per bin)", lo=1.0, hi=86_400.0, unit="s")
+    max_people: int = param(4, "K when neither targets nor a learned profile gives it", lo=1, hi=16)
+    window_s: float = param(
+        1.0,
+        "two ON edges at most this far apart at sensors far_hops or more hops apart on the sensor graph "
+        "(far_m apart without a graph) need two people",
+        lo=0.0,
+        hi=600.0,
+        unit="s",
+    )
+    far_hops: int = param(4, "hops on the sensor graph that make two sensors far (see window_s)", lo=1, hi=1000)
+    far_m: float = length(5.0, "distance that makes two sensors far on a site without a sensor graph", lo=0.0)
+    held: bool = param(True, "a level sensor on in a bin (a force sensor, a pressure mat) is activity")
+    door_stay: float = param(
+        0.5,
+        "D[i, i]: a door event that changes nothing (someone looks out, a visitor at the door)",
+        lo=1e-6,
+        hi=1.0 - 1e-6,
+    )
+    quiet_change: float = param(
+        1e-4, "probability of a change of the count in a bin without a door event", lo=1e-12, hi=0.5
+    )
+    noise: float = param(0.02, "A[0, 1]: a sensor fires in an empty home in a bin", lo=1e-9, hi=0.5)
+    activity: float = param(
+        0.3,
+        "A[n, 1], n >= 1: a sensor fires (or a level sensor is on) in a bin with someone in",
+        lo=1e-6,
+        hi=1.0 - 1e-6,
+    )
+    far_noise: float = param(
+        0.05,
+        "F[n, 1] with at most one person in: far pairs (lingering sensors, a door slammed by the wind)",
+        lo=1e-9,
+        hi=0.5,
+    )
+    far_rate: float = param(0.5, "F[n, 1] with two or more people in: far pairs", lo=1e-9, hi=1.0 - 1e-9)
+    prior: float = param(1.0, "pseudo-counts per cell of every learned table (Dirichlet)", lo=1e-6, hi=1e6)
+    clock_weight: float = param(0.0, "w: weight of the learned count by hour of day (0: no clock)", lo=0.0, hi=100.0)
+    sensor_weight: float = param(
+        0.0,
+        "v: weight of the learned per-sensor terms (0: the learned A instead; below 1 tempers the "
+        "naive-Bayes product of correlated sensors)",
+        lo=0.0,
+        hi=100.0,
+    )
+    profile: bool = param(True, "use the dataset's count_profile.csv when it has one (off: always the defaults)")
+    walk_s: float = param(
+        0.5,
+        "(W1): seconds per hop of one walker; 0 (or a site without a sensor graph): no stray term (O3), the "
+        "far pairs F instead",
+        lo=0.0,
+        hi=3600.0,
+        unit="s",
+    )
+    walk_slack: float = param(2.0, "(W1): hops of slack of one walker's walk", lo=0.0, hi=1000.0)
+    stray_one: float = param(
+        0.05,
+        "(O3) g_n: the share of firings one walker leaves unexplained with at most one person in",
+        lo=1e-9,
+        hi=1.0 - 1e-9,
+    )
+    stray_two: float = param(
+        0.09, "(O3) g_n: the share of firings one walker leaves unexplained with two or more", lo=1e-9, hi=1.0 - 1e-9
+    )
 
     def __post_init__(self) -> None:
-        check_range(self, "bin_s", 1.0, 86_400.0)
-        check_range(self, "max_people", 1, 16, types=(int,))
-        check_range(self, "window_s", 0.0, 600.0)
-        check_range(self, "far_hops", 1, 1000, types=(int,))
-        check_range(self, "far_m", 0.0, None)
-        check_range(self, "door_stay", 1e-6, 1.0 - 1e-6)
-        check_range(self, "quiet_change", 1e-12, 0.5)
-        check_range(self, "noise", 1e-9, 0.5)
-        check_range(self, "activity", 1e-6, 1.0 - 1e-6)
-        check_range(self, "far_noise", 1e-9, 0.5)
-        check_range(self, "far_rate", 1e-9, 1.0 - 1e-9)
-        check_range(self, "prior", 1e-6, 1e6)
-        check_range(self, "clock_weight", 0.0, 100.0)
-        check_range(self, "sensor_weight", 0.0, 100.0)
-        check_range(self, "walk_s", 0.0, 3600.0)
-        check_range(self, "walk_slack", 0.0, 1000.0)
-        check_range(self, "stray_one", 1e-9, 1.0 - 1e-9)
-        check_range(self, "stray_two", 1e-9, 1.0 - 1e-9)
+        validate(self)
 
 
 #: The per-bin table of a run: bin start, evidence, decoded count.

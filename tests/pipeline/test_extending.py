@@ -19,16 +19,17 @@ import numpy as np
 import polars as pl
 import pytest
 
-from onebit.core.config import check_range
 from onebit.core.errors import ConfigError
+from onebit.core.params import param, validate
 from onebit.core.site import Site, load_site
 from onebit.core.tables import CROSSINGS, TRACKS, check_schema, conform
 from onebit.core.writers import to_toml, write_csv, write_text
 from onebit.datasets.beams_sim import write_beams_dataset
 from onebit.datasets.importers import graph_site_toml
+from onebit.pipeline.config_show import show
 from onebit.pipeline.report import metric
 from onebit.pipeline.runner import run_pipeline
-from onebit.pipeline.stages import TRACKERS, TrackerEntry
+from onebit.pipeline.stages import TRACKERS, TrackerEntry, stages
 from onebit.scoring.mot import Gate
 from onebit.trackers.base import TrackerSpec
 from onebit.viz.families import GENERIC, Look
@@ -42,10 +43,10 @@ NAME = "last-beam"
 class LastBeamConfig:
     """``[last-beam]``: a time offset added to every estimate (s)."""
 
-    delay: float = 0.0
+    delay: float = param(0.0, "time offset added to every estimate", lo=0.0, unit="s")
 
     def __post_init__(self) -> None:
-        check_range(self, "delay", 0.0, None)
+        validate(self)
 
 
 def run(inputs: dict, site: Site, config: LastBeamConfig) -> dict[str, pl.DataFrame]:
@@ -130,6 +131,11 @@ def test_its_config_section_is_validated_and_recorded(data, tmp_path):
             data, tmp_path / "b", trackers=(NAME,), tracker_entries=(*TRACKERS, ENTRY), config={NAME: {"dealy": 1}}
         )
     assert not (tmp_path / "b" / "run.toml").exists()
+    # its declared parameter is listed by `onebit config show` and probed like every other
+    shown = show(NAME, stage_list=stages((*TRACKERS, ENTRY)))
+    assert "# time offset added to every estimate.\n# (float, s, >= 0.0)\ndelay = 0.0\n" in shown
+    with pytest.raises(ConfigError, match=r"LastBeamConfig\.delay = -1\.0; allowed range"):
+        LastBeamConfig(delay=-1.0)
 
 
 def test_unknown_tracker_names_the_known_ones(data, tmp_path):
