@@ -28,6 +28,7 @@ that rounding of a particle's cumulative weight.
 from __future__ import annotations
 
 import math
+from typing import NamedTuple
 
 import numpy as np
 
@@ -467,6 +468,32 @@ def _grow(a, n):
     return out
 
 
+class KernelParams(NamedTuple):
+    """:func:`run_frames`' parameters: the :class:`~onebit.trackers.binpf.config.FilterParams`
+    of the same names (declared there), as float64 / int64
+    (:func:`onebit.trackers.binpf.filter.kernel_params`)."""
+
+    pd: float
+    pf: float
+    edge: float
+    period: float
+    damping: float
+    accel_sigma: float
+    survival: float
+    silent: float
+    birth_r: float
+    birth_explained: float
+    birth_link: float
+    birth_speed: float
+    r_confirm: float
+    r_delete: float
+    merge_distance: float
+    particles: int
+    smooth_lag: int
+    max_tracks: int
+    log_particles: int  #: particles per track and frame logged
+
+
 @kernel
 def predict_frame(x, r, rowidx, n_tracks, eps, damping, sig, period, lo, hi, survival):
     """Eq. (3) on the first ``n_tracks`` tracks in place (``eps``: the draws, (tracks,
@@ -490,15 +517,15 @@ def predict_frame(x, r, rowidx, n_tracks, eps, damping, sig, period, lo, hi, sur
 
 @kernel
 def add_births(
-    x, hist, rowidx, r, labels, confirmed, n_tracks, next_label, members, starts, dbar, z, sensors, radii, rng, fp
+    x, hist, rowidx, r, labels, confirmed, n_tracks, next_label, members, starts, dbar, z, sensors, radii, rng, kp
 ):  # noqa: PLR0913
     """The newborn of a frame (see "Measurement-driven birth"): the largest birth groups that
     fit in the free slots after the first ``n_tracks``, particles uniform in the footprints of
     their sensors, updated on this frame with the old tracks entering through their posterior
     miss probabilities ``1 - r dbar`` (:func:`newborn_update`, equal to the full update's
     rows), resampled. Returns how many were born."""
-    pd, pf, edge, silent = fp[0], fp[1], fp[2], fp[7]
-    birth_r, birth_speed = fp[8], fp[11]
+    pd, pf, edge, silent = kp.pd, kp.pf, kp.edge, kp.silent
+    birth_r, birth_speed = kp.birth_r, kp.birth_speed
     N = x.shape[1]
     L = rowidx.shape[1] - 1
     I = n_tracks
@@ -625,7 +652,7 @@ def write_rows(
 @kernel
 def run_frames(  # noqa: PLR0913 -- one compiled frame loop: the filter's whole state is its arguments
     on, k0, k1, state, x_state, hist_state, rowidx, r, labels, confirmed, ever, est, rows_frame, rows_label, rows_r,
-    counts, sensors, radii, lo, hi, rng, fp, ip, dbuf,
+    counts, sensors, radii, lo, hi, rng, kp, dbuf,
 ):  # fmt: skip
     """Frames ``k0 .. k1 - 1`` of :func:`onebit.trackers.binpf.filter.run_filter_reference`, in
     one compiled loop with the same draws from the same ``numpy.random.Generator`` ``rng``
@@ -637,23 +664,21 @@ def run_frames(  # noqa: PLR0913 -- one compiled frame loop: the filter's whole 
     ``confirmed`` (first ``tracks`` live); ``ever[label]`` confirmed once (sized for every
     label the frames can make); the output rows ``est (rows, 2)``, ``rows_frame``,
     ``rows_label``, ``rows_r`` (sized for ``n_rows + M (k1 - k0)``); ``counts (T, 4)``:
-    births, deaths, merges, live. ``fp``: pd, pf, edge, period, damping, accel_sigma,
-    survival, silent, birth_r, birth_explained, birth_link, birth_speed, r_confirm,
-    r_delete, merge_distance; ``ip``: particles, smooth_lag, max_tracks, log_particles;
+    births, deaths, merges, live. ``kp``: the parameters (:class:`KernelParams`);
     ``dbuf (max_tracks, S, N)``: the footprints' buffer (:func:`observation_update_local`),
     kept by the caller, so that a frame neither allocates nor fills a ``(tracks, sensors,
     particles)`` array: its cost follows the sensors within reach of the tracks.
     Returns the logged particles of these frames: ``(xy (P, 2), frame (P,), label (P,))``.
     """
-    pd, pf, edge, silent = fp[0], fp[1], fp[2], fp[7]
-    N, L, max_tracks = ip[0], ip[1], ip[2]
+    pd, pf, edge, silent = kp.pd, kp.pf, kp.edge, kp.silent
+    N, L, max_tracks = kp.particles, kp.smooth_lag, kp.max_tracks
     I, next_label, n_rows = state[0], state[1], state[2]
     # the particles and their histories, and a second pair the resampling gathers into (the
     # two are swapped, not copied back; the state arrays hold the result at the end)
     x, hist = x_state, hist_state
     x_alt, hist_alt = np.empty_like(x_state), np.empty_like(hist_state)
     flips = 0
-    lp = min(ip[3], N)
+    lp = min(kp.log_particles, N)
     pxy = np.empty((max(lp * max_tracks * min(k1 - k0, 64), 1), 2))
     pfr = np.empty(pxy.shape[0], dtype=np.int64)
     plab = np.empty(pxy.shape[0], dtype=np.int64)
@@ -664,7 +689,9 @@ def run_frames(  # noqa: PLR0913 -- one compiled frame loop: the filter's whole 
     for k in range(k0, k1):
         z = on[k]
         eps = rng.standard_normal(I * N * 2)  # Eq. (3)
-        predict_frame(x, r, rowidx, I, eps, fp[4], fp[5] * np.sqrt(fp[3]), fp[3], lo, hi, fp[6])
+        predict_frame(
+            x, r, rowidx, I, eps, kp.damping, kp.accel_sigma * np.sqrt(kp.period), kp.period, lo, hi, kp.survival
+        )
         dbar = np.zeros((I, sensors.shape[0]))  # the resampled particles' mean footprints
         if I > 0:  # existing tracks first: they get the first chance to explain the frame
             ell, rn, d, near = observation_update_local(x[:I], r[:I], z, sensors, radii, pd, pf, edge, silent, dbuf)
@@ -675,13 +702,13 @@ def run_frames(  # noqa: PLR0913 -- one compiled frame loop: the filter's whole 
             flips += 1
             r[:I] = rn
             dbar = resampled_mean_near(d, idx, near)
-        members, starts = birth_groups_of(z, 1.0 - dbar, I, sensors, fp[9], fp[10])
+        members, starts = birth_groups_of(z, 1.0 - dbar, I, sensors, kp.birth_explained, kp.birth_link)
         if starts.size > 1 and max_tracks > I:
-            nb = add_births(x, hist, rowidx, r, labels, confirmed, I, next_label, members, starts, dbar, z, sensors, radii, rng, fp)  # fmt: skip
+            nb = add_births(x, hist, rowidx, r, labels, confirmed, I, next_label, members, starts, dbar, z, sensors, radii, rng, kp)  # fmt: skip
             next_label += nb
             counts[k, 0] = nb
             I += nb
-        n_merge = confirm_and_merge(x, r, confirmed, keep, mean, I, fp[12], fp[13], fp[14])
+        n_merge = confirm_and_merge(x, r, confirmed, keep, mean, I, kp.r_confirm, kp.r_delete, kp.merge_distance)
         kept = compact(x, hist, rowidx, r, labels, confirmed, keep, I)
         counts[k, 1] = I - kept - n_merge
         counts[k, 2] = n_merge
