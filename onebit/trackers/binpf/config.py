@@ -49,6 +49,12 @@ class BinPFConfig:
     split_ratio: float = param(
         0.0, "a twin of a track is proposed where its likelihood ratio is at least this; 0 = no split", lo=0.0, hi=1e9
     )
+    count_ratio: float = param(
+        0.0,
+        "kappa of Eq. (8), the local MAP count's price per person (untracked ones born, binpf.md); 0 = off",
+        lo=0.0,
+        hi=1e9,
+    )
     smooth_lag: int = param(
         4,
         "fixed-lag smoothing of the positions (particle genealogy); 0 = filter only",
@@ -104,13 +110,18 @@ class BinPFConfig:
                 f"BinPFConfig.commit_lag = {self.commit_lag}: must be 0 or at least smooth_lag = {self.smooth_lag} "
                 "(a frame's smoothed positions are final smooth_lag frames later)"
             )
+        if self.commit_lag and self.count_ratio:
+            raise ConfigError(
+                f"BinPFConfig.count_ratio = {self.count_ratio}: the count runs in the batch filter only; "
+                "set commit_lag = 0 (the online driver has no count)"
+            )
 
 
 #: The config's fields the filter reads (:func:`onebit.trackers.binpf.filter.run_filter`).
 FILTER_FIELDS = (
     "particles", "pd", "pf", "edge", "damping", "accel_sigma", "survival", "birth_r", "birth_explained",
     "birth_link", "birth_speed", "r_confirm", "r_delete", "r_out", "merge_distance", "silent", "smooth_lag",
-    "max_tracks", "split_ratio",
+    "max_tracks", "split_ratio", "count_ratio",
 )  # fmt: skip
 
 FilterParams = derived(
@@ -124,9 +135,12 @@ FilterParams = derived(
         "couple_distance": param(
             2.5, "a couple (split twins) ends when their means are farther apart than this (site units)", lo=0.0
         ),
+        "count_persist": param(
+            2, "the count births a place also found the frame before (>= 2) or at once (1)", lo=1, hi=2
+        ),
     },
     doc="Parameters of :func:`onebit.trackers.binpf.filter.run_filter` in site units: "
     ":class:`BinPFConfig`'s declarations of the same names (``max_tracks`` resolved, 12 by default) "
-    "plus ``period``, ``max_out`` and ``couple_distance``.",
+    "plus ``period``, ``max_out``, ``couple_distance`` and ``count_persist``.",
     module=__name__,
 )

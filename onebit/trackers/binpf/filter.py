@@ -119,8 +119,38 @@ likelihood supports the larger cardinality) with a joint update of the pair:
    Existences stay Eq. (5). A couple is not merged; it ends when either dies or their means
    are more than ``couple_distance`` apart.
 
-The split runs in :func:`run_filter_reference` (``run_filter`` uses it whatever the length
-when ``split_ratio > 0``; the compiled loop has no split).
+*Count* (a cardinality the likelihood supports; ``count_ratio > 0``). The on sensors within
+``birth_link`` of each other form clusters; cluster :math:`C` is judged on the sensors
+:math:`S_C` within :math:`2(R + 3w)` of its on sensors (on and off). With people at
+:math:`Y = (y_1..y_n)` Eq. (2) gives
+
+.. math::
+
+    \\ell_C(Y) = \\sum_{s \\in S_C} \\log\\big[z_s (1 - o_s(Y)) + (1 - z_s)\\, o_s(Y)\\big],
+    \\qquad o_s(Y) = (1 - p_f) \\prod_{k} \\big(1 - d_s(y_k)\\big),                 \\tag{7}
+
+and the count is the local MAP under a prior that charges each person a factor
+:math:`\\kappa` (``count_ratio``), :math:`P(n) \\propto \\kappa^{-n}`:
+
+.. math::
+
+    \\hat n_C = \\max\\{n : \\ell_C(\\hat Y_n) - \\ell_C(\\hat Y_{n-1}) \\ge \\log \\kappa\\}   \\tag{8}
+
+(the search adds people one at a time and stops at the first that falls short).
+:math:`\\hat Y_n` is searched on a 0.2 m grid over the cluster's footprints: the better of
+:math:`\\hat Y_{n-1}` plus the best new point and :math:`\\hat Y_{n-1}` with one person replaced
+by the best pair of points within :math:`R` of it (two people 0.5 m apart are better
+explained by a pair than by one in the middle plus one anywhere), then two passes moving
+each person to its best point given the others. The tracks whose particle mean lies within
+:math:`R + 3w` of the cluster's on sensors take the places nearest them (closest pair first);
+a place left over is a person no track explains. It is born -- particles
+:math:`\\mathcal N(y, \\max(w, 0.1)^2)`, existence ``birth_r``, updated on the frame like
+any newborn -- when the frame before also left an untracked place within :math:`R` of it
+(``count_persist`` = 2 frames; a single frame's firings are too noisy a count). The regular
+births of the frame count as tracks here.
+
+The split and the count run in :func:`run_filter_reference` (``run_filter`` uses it whatever
+the length when ``split_ratio > 0`` or ``count_ratio > 0``; the compiled loop has neither).
 
 The frames are processed in order (a filter is sequential); every step inside a frame is
 vectorised over tracks, particles and sensors -- or, on logs of :data:`COMPILED_MIN_FRAMES`
@@ -308,6 +338,132 @@ def split_proposals(z, q, x, r, sensors, radii, rng, p, update, room):
     return tx[chosen]
 
 
+def _cluster_loglik(y: np.ndarray, z: np.ndarray, sensors: np.ndarray, radii: np.ndarray, p: FilterParams) -> float:
+    """Eq. (2)'s log-likelihood of the levels ``z`` of ``sensors`` with people at ``y (n, 2)``."""
+    off = frame_probability_off(y, sensors, radii, pd=p.pd, pf=p.pf, edge=p.edge)
+    return float(np.log(np.maximum(np.where(z, 1.0 - off, off), _TINY)).sum())
+
+
+def local_map_people(z, sensors, radii, p: FilterParams, step: float = 0.2, passes: int = 2):
+    """The local MAP configurations of Eq. (7) for one cluster's sensors: ``[Y_0, Y_1, ...]``,
+    ``Y_n (n, 2)`` the best ``n`` people found on a grid of ``step``, while a person adds at
+    least ``log count_ratio`` to the log-likelihood, and their log-likelihoods
+    :math:`\\ell(Y_n)`; see "Count"."""
+    if not z.any():
+        return [np.zeros((0, 2))], [_cluster_loglik(np.zeros((0, 2)), z, sensors, radii, p)]
+    lo = sensors[z].min(axis=0) - radii[z].max()
+    hi = sensors[z].max(axis=0) + radii[z].max()
+    gx, gy = np.meshgrid(np.arange(lo[0], hi[0] + step / 2, step), np.arange(lo[1], hi[1] + step / 2, step))
+    grid = np.c_[gx.ravel(), gy.ravel()]
+    dg = footprint_probability(grid, sensors, radii, pd=p.pd, edge=p.edge)  # (G, S)
+    reach = radii[z].max()
+
+    def loglik(off):  # Eq. (2) summed over the sensors (last axis)
+        return np.log(np.maximum(np.where(z, 1.0 - off, off), _TINY)).sum(axis=-1)
+
+    def best(others: list[int]) -> tuple[int, float]:  # one person's best grid point, the others fixed
+        ll = loglik((1.0 - p.pf) * np.prod(1.0 - dg[others], axis=0)[None, :] * (1.0 - dg))
+        g = int(np.argmax(ll))
+        return g, float(ll[g])
+
+    def split(chosen: list[int]) -> tuple[list[int], float]:  # person a replaced by the best pair near it
+        top: tuple[list[int], float] = ([], -np.inf)
+        for a in range(len(chosen)):
+            rest = chosen[:a] + chosen[a + 1 :]
+            near = np.flatnonzero(np.hypot(*(grid - grid[chosen[a]]).T) <= reach)
+            base = (1.0 - p.pf) * np.prod(1.0 - dg[rest], axis=0) * (1.0 - dg[near])  # (P, S)
+            ll = loglik(base[:, None, :] * (1.0 - dg[near])[None, :, :])  # (P, P)
+            u, v = np.unravel_index(int(np.argmax(ll)), ll.shape)
+            if ll[u, v] > top[1]:
+                top = ([*rest, int(near[u]), int(near[v])], float(ll[u, v]))
+        return top
+
+    chosen: list[int] = []
+    ll = float(loglik((1.0 - p.pf) * np.ones(len(z))))
+    out, lls = [np.zeros((0, 2))], [ll]
+    while len(chosen) <= int(z.sum()):
+        g, ll_new = best(chosen)
+        trial = [*chosen, g]
+        if chosen:  # or one person split into two where the firings' spread says so
+            two, ll_two = split(chosen)
+            if ll_two > ll_new:
+                trial, ll_new = two, ll_two
+        for _ in range(passes if len(trial) > 1 else 0):  # each person to its best place given the others
+            for a in range(len(trial)):
+                trial[a], ll_new = best(trial[:a] + trial[a + 1 :])
+        if ll_new - ll < np.log(p.count_ratio):
+            break
+        chosen, ll = trial, ll_new
+        out.append(grid[chosen])
+        lls.append(ll)
+    return out, lls
+
+
+def count_births(z, means, sensors, radii, p: FilterParams, before=None) -> tuple[np.ndarray, np.ndarray]:
+    """The people the local MAP count of each cluster of on sensors finds beyond the tracks
+    near it (Eq. (7)): ``(born (B, 2), places (P, 2))`` -- ``places`` every such untracked
+    place of this frame, ``born`` those of them within a footprint radius of an untracked
+    place of the frame before (``before``) when ``count_persist >= 2`` (one frame before is
+    looked at, whatever the value), every place when ``count_persist <= 1``; see "Count"."""
+    on = np.flatnonzero(z)
+    if on.size == 0:
+        return np.zeros((0, 2)), np.zeros((0, 2))
+    pts = sensors[on]
+    adj = np.sqrt(((pts[:, None] - pts[None]) ** 2).sum(-1)) <= p.birth_link
+    lab = np.arange(on.size)
+    while True:  # clusters of on sensors: connected components, as birth_groups
+        new = np.where(adj, lab[None, :], on.size).min(axis=1)
+        if np.array_equal(new, lab):
+            break
+        lab = new
+    reach = radii.max() + 3.0 * max(p.edge, 0.0)
+    places = []
+    for g in np.unique(lab):
+        c = on[lab == g]
+        near = np.flatnonzero(np.sqrt(((sensors[:, None] - sensors[c][None]) ** 2).sum(-1)).min(axis=1) <= 2 * reach)
+        Y = local_map_people(z[near], sensors[near], radii[near], p)[0][-1]
+        dt = np.sqrt(((means[:, None] - sensors[c][None]) ** 2).sum(-1)).min(axis=1) if len(means) else np.zeros(0)
+        mine = means[dt <= reach]  # the tracks under this cluster
+        if len(Y) <= len(mine):
+            continue
+        cost = np.sqrt(((Y[:, None] - mine[None]) ** 2).sum(-1))  # (places, tracks)
+        free = np.ones(len(Y), bool)
+        for _ in range(len(mine)):  # the tracks take the places nearest them, closest pair first
+            a, b = np.unravel_index(np.argmin(cost), cost.shape)
+            free[a] = False
+            cost[a, :] = cost[:, b] = np.inf
+        places.extend(Y[free])
+    places = np.array(places).reshape(-1, 2)
+    if p.count_persist <= 1:
+        return places, places
+    before = np.zeros((0, 2)) if before is None else before
+    seen = np.sqrt(((places[:, None] - before[None]) ** 2).sum(-1)).min(axis=1) <= radii.max() if len(before) else []
+    return places[np.asarray(seen, bool)] if len(before) else np.zeros((0, 2)), places
+
+
+def count_particles(y: np.ndarray, rng: np.random.Generator, p: FilterParams, lo, hi) -> np.ndarray:
+    """``(N, 4)`` particles of a person the count places at ``y``: positions
+    :math:`\\mathcal N(y, \\sigma_c^2)`, :math:`\\sigma_c` = ``max(edge, 0.1)``, clipped to the
+    site; velocities :math:`\\mathcal N(0, \\sigma_b^2)`."""
+    N = p.particles
+    xy = np.clip(y + max(p.edge, 0.1) * rng.standard_normal((N, 2)), lo, hi)
+    return np.c_[xy, p.birth_speed * rng.standard_normal((N, 2))]
+
+
+def couple(partner: dict, labels, mean_old, mean_new, first_label: int, reach: float) -> None:
+    """Couple newborn ``first_label + t`` (mean ``mean_new[t]``) to the nearest uncoupled old track
+    within ``reach`` (``partner``: label -> label, both ways); see "Split" and "Count"."""
+    for t, m in enumerate(mean_new):
+        dd = np.hypot(*(mean_old - m).T)
+        for j in np.argsort(dd):
+            if dd[j] > reach:
+                break
+            if int(labels[j]) not in partner:
+                a, b = int(labels[j]), first_label + t
+                partner[a], partner[b] = b, a
+                break
+
+
 def pair_loglik(x, r, z, ia, ib, sensors, radii, p):
     """Joint log-likelihood ``(N,)`` of a coupled pair's particles taken side by side: track
     ``ia``'s particle ``n`` and track ``ib``'s particle ``n`` present together, the other tracks
@@ -370,7 +526,7 @@ def run_filter(
     T, S = on.shape
     if compiled is None:
         compiled = T >= COMPILED_MIN_FRAMES
-    if not compiled or p.split_ratio > 0:  # the split is in the reference loop only
+    if not compiled or p.split_ratio > 0 or p.count_ratio > 0:  # the split and the count: reference loop only
         return run_filter_reference(
             on, sensors, radii, lo, hi, p, seed=seed, log_particles=log_particles, progress=progress, compiled=False
         )
@@ -488,6 +644,7 @@ def run_filter_reference(
     r = np.zeros(0)
     labels = np.zeros(0, dtype=np.int64)
     partner: dict[int, int] = {}  # label -> label of its coupled twin ("Split")
+    places = np.zeros((0, 2))  # the count's untracked places of the frame before ("Count")
     confirmed = np.zeros(0, dtype=bool)
     ever_confirmed: set[int] = set()
     next_label = 0
@@ -545,19 +702,23 @@ def run_filter_reference(
         if groups and room > 0:
             groups = sorted(groups, key=len, reverse=True)[:room]
             newx = np.stack([birth_particles(g, sensors, radii, rng, p) for g in groups])
+        twins = np.zeros((0, N, 4))
         if p.split_ratio > 0 and len(r) and room - len(groups) > 0:
             twins = split_proposals(z, q, x, r, sensors, radii, rng, p, update, room - len(groups))
-            mean_old = x[..., :2].mean(axis=1)
-            for t_i, tw in enumerate(twins):  # each twin is coupled to the nearest uncoupled track
-                dd = np.hypot(*(mean_old - tw[:, :2].mean(axis=0)).T)
-                for j in np.argsort(dd):
-                    if int(labels[j]) not in partner:
-                        a, b = int(labels[j]), next_label + len(groups) + t_i
-                        partner[a], partner[b] = b, a
-                        break
-            if len(twins):
-                groups = [*groups, *([None] * len(twins))]
-                newx = twins if newx is None else np.concatenate([newx, twins])
+        elif p.count_ratio > 0 and room - len(groups) > 0:
+            means = x[..., :2].mean(axis=1)
+            if newx is not None:
+                means = np.concatenate([means, newx[..., :2].mean(axis=1)])
+            ys, places = count_births(z, means, sensors, radii, p, places)
+            ys = ys[: room - len(groups)]
+            twins = np.stack([count_particles(y, rng, p, lo, hi) for y in ys]) if len(ys) else twins
+        if len(twins) and p.split_ratio > 0:  # each twin is coupled to the nearest uncoupled track
+            couple(
+                partner, labels, x[..., :2].mean(axis=1), twins[..., :2].mean(axis=1), next_label + len(groups), np.inf
+            )
+        if len(twins):
+            groups = [*groups, *([None] * len(twins))]
+            newx = twins if newx is None else np.concatenate([newx, twins])
         if newx is not None:
             newr = np.full(len(groups), p.birth_r)
             # the newborn are updated on this frame with the others' posterior miss probabilities

@@ -495,31 +495,165 @@ class KernelParams(NamedTuple):
 
 
 @kernel
-def run_frames(  # noqa: PLR0913, PLR0915 -- one compiled frame loop: the filter's whole state is its arguments
-    on,
-    k0,
-    k1,
-    state,
-    x_state,
-    hist_state,
-    rowidx,
-    r,
-    labels,
-    confirmed,
-    ever,
-    est,
-    rows_frame,
-    rows_label,
-    rows_r,
-    counts,
-    sensors,
-    radii,
-    lo,
-    hi,
-    rng,
-    kp,
-    dbuf,
+def predict_frame(x, r, rowidx, n_tracks, eps, damping, sig, period, lo, hi, survival):
+    """Eq. (3) on the first ``n_tracks`` tracks in place (``eps``: the draws, (tracks,
+    particles, 2) in C order); the rows of the smoothing window move on by a frame (the
+    histories themselves in the resampling's gather: :func:`gather_shift`)."""
+    N = x.shape[1]
+    L = rowidx.shape[1] - 1
+    for i in range(n_tracks):
+        for n in range(N):
+            for c in range(2):
+                v = damping * x[i, n, 2 + c] + sig * eps[(i * N + n) * 2 + c]
+                pos = x[i, n, c] + v * period
+                cl = min(max(pos, lo[c]), hi[c])
+                x[i, n, c] = cl
+                x[i, n, 2 + c] = 0.0 if cl != pos else v
+        r[i] = r[i] * survival
+        for j in range(L):
+            rowidx[i, j] = rowidx[i, j + 1]
+        rowidx[i, L] = -1
+
+
+@kernel
+def add_births(
+    x, hist, rowidx, r, labels, confirmed, n_tracks, next_label, members, starts, dbar, z, sensors, radii, rng, kp
+):  # noqa: PLR0913
+    """The newborn of a frame (see "Measurement-driven birth"): the largest birth groups that
+    fit in the free slots after the first ``n_tracks``, particles uniform in the footprints of
+    their sensors, updated on this frame with the old tracks entering through their posterior
+    miss probabilities ``1 - r dbar`` (:func:`newborn_update`, equal to the full update's
+    rows), resampled. Returns how many were born."""
+    pd, pf, edge, silent = kp.pd, kp.pf, kp.edge, kp.silent
+    birth_r, birth_speed = kp.birth_r, kp.birth_speed
+    N = x.shape[1]
+    L = rowidx.shape[1] - 1
+    I = n_tracks
+    ng = starts.size - 1
+    size = np.empty(ng, dtype=np.int64)
+    for g in range(ng):
+        size[g] = starts[g + 1] - starts[g]
+    order = np.argsort(-size, kind="mergesort")[: x.shape[0] - I]  # largest first, stable
+    nb = order.size
+    for b in range(nb):
+        ms = members[starts[order[b]] : starts[order[b] + 1]]
+        which = ms[rng.integers(0, ms.size, N)]
+        u = rng.random(N)
+        turn = rng.random(N)
+        vel = rng.standard_normal(N * 2)
+        t = I + b
+        for n in range(N):
+            rad = radii[which[n]] * np.sqrt(u[n])
+            ang = turn[n] * 2 * np.pi
+            x[t, n, 0] = sensors[which[n], 0] + rad * np.cos(ang)
+            x[t, n, 1] = sensors[which[n], 1] + rad * np.sin(ang)
+            x[t, n, 2] = birth_speed * vel[2 * n]
+            x[t, n, 3] = birth_speed * vel[2 * n + 1]
+            for j in range(L + 1):
+                hist[t, n, j, 0] = x[t, n, 0]
+                hist[t, n, j, 1] = x[t, n, 1]
+        r[t] = birth_r
+        rowidx[t, :] = -1
+        labels[t] = next_label + b
+        confirmed[t] = False
+    q_old = np.empty((I, sensors.shape[0]))
+    for i in range(I):
+        for s in range(sensors.shape[0]):
+            q_old[i, s] = 1.0 - r[i] * dbar[i, s]
+    ell, rb = newborn_update(x[I : I + nb], r[I : I + nb], q_old, z, sensors, radii, pd, pf, edge, silent)
+    idx = systematic_resample(ell, rng.random(nb).reshape(nb, 1))
+    xo, ho = gather_particles(x[I : I + nb], hist[I : I + nb], idx)
+    x[I : I + nb] = xo
+    hist[I : I + nb] = ho
+    r[I : I + nb] = rb
+    return nb
+
+
+@kernel
+def confirm_and_merge(x, r, confirmed, keep, mean, n_tracks, r_confirm, r_delete, merge_distance):
+    """Confirmation, deletion (``keep``) and the merge of two tracks closer than
+    ``merge_distance`` (the larger ``r`` kept) over the first ``n_tracks``; returns the merges."""
+    I = n_tracks
+    N = x.shape[1]
+    for i in range(I):
+        confirmed[i] = confirmed[i] or r[i] >= r_confirm
+        keep[i] = r[i] >= r_delete
+    n_merge = 0
+    if I > 1 and merge_distance > 0:
+        for i in range(I):
+            for c in range(2):
+                acc = 0.0
+                for n in range(N):
+                    acc += x[i, n, c]
+                mean[i, c] = acc / N
+        order = np.argsort(-r[:I], kind="mergesort")
+        for ap in range(I):
+            a = order[ap]
+            if not keep[a]:
+                continue
+            for bp in range(ap + 1, I):
+                b = order[bp]
+                dx = mean[a, 0] - mean[b, 0]
+                dy = mean[a, 1] - mean[b, 1]
+                if keep[b] and np.sqrt(dx * dx + dy * dy) < merge_distance:
+                    keep[b] = False
+                    confirmed[a] = confirmed[a] or confirmed[b]
+                    n_merge += 1
+    return n_merge
+
+
+@kernel
+def compact(x, hist, rowidx, r, labels, confirmed, keep, n_tracks):
+    """The kept tracks of the first ``n_tracks`` moved to the front, in order; returns how many."""
+    j = 0
+    for i in range(n_tracks):
+        if not keep[i]:
+            continue
+        if j != i:
+            x[j] = x[i]
+            hist[j] = hist[i]
+            rowidx[j] = rowidx[i]
+            r[j] = r[i]
+            labels[j] = labels[i]
+            confirmed[j] = confirmed[i]
+        j += 1
+    return j
+
+
+@kernel
+def write_rows(
+    k, hist, rowidx, r, labels, confirmed, ever, n_tracks, n_rows, est, rows_frame, rows_label, rows_r, hsum
 ):
+    """Frame ``k``'s rows of the live tracks, then every smoothed estimate still in the window
+    (the mean over the particles of their ancestors' positions); returns the rows written."""
+    N = hist.shape[1]
+    L = rowidx.shape[1] - 1
+    for i in range(n_tracks):
+        if confirmed[i]:
+            ever[labels[i]] = True
+        rowidx[i, L] = n_rows + i
+        rows_frame[n_rows + i] = k
+        rows_label[n_rows + i] = labels[i]
+        rows_r[n_rows + i] = r[i]
+    for i in range(n_tracks):
+        hsum[:] = 0.0  # per (lag, axis): the sum over particles in order, side by side
+        for n in range(N):
+            for jj in range(L + 1):
+                hsum[jj, 0] += hist[i, n, jj, 0]
+                hsum[jj, 1] += hist[i, n, jj, 1]
+        for jj in range(L + 1):
+            row = rowidx[i, jj]
+            if row >= 0:
+                est[row, 0] = hsum[jj, 0] / N
+                est[row, 1] = hsum[jj, 1] / N
+    return n_rows + n_tracks
+
+
+@kernel
+def run_frames(  # noqa: PLR0913 -- one compiled frame loop: the filter's whole state is its arguments
+    on, k0, k1, state, x_state, hist_state, rowidx, r, labels, confirmed, ever, est, rows_frame, rows_label, rows_r,
+    counts, sensors, radii, lo, hi, rng, kp, dbuf,
+):  # fmt: skip
     """Frames ``k0 .. k1 - 1`` of :func:`onebit.trackers.binpf.filter.run_filter_reference`, in
     one compiled loop with the same draws from the same ``numpy.random.Generator`` ``rng``
     (numba draws NumPy's stream), in the same order, and the same kernels for the update and
@@ -536,22 +670,15 @@ def run_frames(  # noqa: PLR0913, PLR0915 -- one compiled frame loop: the filter
     particles)`` array: its cost follows the sensors within reach of the tracks.
     Returns the logged particles of these frames: ``(xy (P, 2), frame (P,), label (P,))``.
     """
-    pd, pf, edge, period = kp.pd, kp.pf, kp.edge, kp.period
-    damping, accel_sigma, survival, silent = kp.damping, kp.accel_sigma, kp.survival, kp.silent
-    birth_r, birth_explained, birth_link, birth_speed = kp.birth_r, kp.birth_explained, kp.birth_link, kp.birth_speed
-    r_confirm, r_delete, merge_distance = kp.r_confirm, kp.r_delete, kp.merge_distance
-    N, L, max_tracks, log_p = kp.particles, kp.smooth_lag, kp.max_tracks, kp.log_particles
-    S = sensors.shape[0]
-    I = state[0]
-    next_label = state[1]
-    n_rows = state[2]
-    sig = accel_sigma * np.sqrt(period)
+    pd, pf, edge, silent = kp.pd, kp.pf, kp.edge, kp.silent
+    N, L, max_tracks = kp.particles, kp.smooth_lag, kp.max_tracks
+    I, next_label, n_rows = state[0], state[1], state[2]
     # the particles and their histories, and a second pair the resampling gathers into (the
     # two are swapped, not copied back; the state arrays hold the result at the end)
     x, hist = x_state, hist_state
     x_alt, hist_alt = np.empty_like(x_state), np.empty_like(hist_state)
     flips = 0
-    lp = min(log_p, N)
+    lp = min(kp.log_particles, N)
     pxy = np.empty((max(lp * max_tracks * min(k1 - k0, 64), 1), 2))
     pfr = np.empty(pxy.shape[0], dtype=np.int64)
     plab = np.empty(pxy.shape[0], dtype=np.int64)
@@ -561,159 +688,42 @@ def run_frames(  # noqa: PLR0913, PLR0915 -- one compiled frame loop: the filter
     hsum = np.empty((L + 1, 2))
     for k in range(k0, k1):
         z = on[k]
-        # Eq. (3): prediction, draws (tracks, particles, 2) in C order
-        eps = rng.standard_normal(I * N * 2)
-        for i in range(I):
-            for n in range(N):
-                for c in range(2):
-                    v = damping * x[i, n, 2 + c] + sig * eps[(i * N + n) * 2 + c]
-                    pos = x[i, n, c] + v * period
-                    cl = min(max(pos, lo[c]), hi[c])
-                    x[i, n, c] = cl
-                    x[i, n, 2 + c] = 0.0 if cl != pos else v
-            r[i] = r[i] * survival
-            # (the histories move on by a frame in the resampling's gather: gather_shift)
-            for j in range(L):
-                rowidx[i, j] = rowidx[i, j + 1]
-            rowidx[i, L] = -1
-        dbar = np.zeros((I, S))  # the resampled particles' mean footprints
+        eps = rng.standard_normal(I * N * 2)  # Eq. (3)
+        predict_frame(
+            x, r, rowidx, I, eps, kp.damping, kp.accel_sigma * np.sqrt(kp.period), kp.period, lo, hi, kp.survival
+        )
+        dbar = np.zeros((I, sensors.shape[0]))  # the resampled particles' mean footprints
         if I > 0:  # existing tracks first: they get the first chance to explain the frame
             ell, rn, d, near = observation_update_local(x[:I], r[:I], z, sensors, radii, pd, pf, edge, silent, dbuf)
-            u0 = rng.random(I).reshape(I, 1)
-            idx = systematic_resample(ell, u0)
+            idx = systematic_resample(ell, rng.random(I).reshape(I, 1))
             gather_shift(x, hist, idx, x_alt, hist_alt)
             x, x_alt = x_alt, x
             hist, hist_alt = hist_alt, hist
             flips += 1
             r[:I] = rn
             dbar = resampled_mean_near(d, idx, near)
-        q = 1.0 - dbar
-        members, starts = birth_groups_of(z, q, I, sensors, birth_explained, birth_link)
-        ng = starts.size - 1
-        room = max_tracks - I
-        if ng > 0 and room > 0:
-            size = np.empty(ng, dtype=np.int64)
-            for g in range(ng):
-                size[g] = starts[g + 1] - starts[g]
-            order = np.argsort(-size, kind="mergesort")[:room]  # largest first, stable
-            nb = order.size
-            for b in range(nb):
-                g = order[b]
-                ms = members[starts[g] : starts[g + 1]]
-                which = ms[rng.integers(0, ms.size, N)]
-                u = rng.random(N)
-                turn = rng.random(N)
-                vel = rng.standard_normal(N * 2)
-                t = I + b
-                for n in range(N):
-                    rad = radii[which[n]] * np.sqrt(u[n])
-                    ang = turn[n] * 2 * np.pi
-                    x[t, n, 0] = sensors[which[n], 0] + rad * np.cos(ang)
-                    x[t, n, 1] = sensors[which[n], 1] + rad * np.sin(ang)
-                    x[t, n, 2] = birth_speed * vel[2 * n]
-                    x[t, n, 3] = birth_speed * vel[2 * n + 1]
-                    for j in range(L + 1):
-                        hist[t, n, j, 0] = x[t, n, 0]
-                        hist[t, n, j, 1] = x[t, n, 1]
-                r[t] = birth_r
-                for j in range(L + 1):
-                    rowidx[t, j] = -1
-                labels[t] = next_label + b
-                confirmed[t] = False
-            # the newborn are updated on this frame with the others' posterior miss probabilities
-            # (the old tracks through their q alone: newborn_update, equal to observation_update's rows)
-            q_old = np.empty((I, S))
-            for i in range(I):
-                for s in range(S):
-                    q_old[i, s] = 1.0 - r[i] * dbar[i, s]
-            ell, rb = newborn_update(x[I : I + nb], r[I : I + nb], q_old, z, sensors, radii, pd, pf, edge, silent)
-            u0 = rng.random(nb).reshape(nb, 1)
-            idx = systematic_resample(ell, u0)
-            xo, ho = gather_particles(x[I : I + nb], hist[I : I + nb], idx)
-            x[I : I + nb] = xo
-            hist[I : I + nb] = ho
-            r[I : I + nb] = rb
+        members, starts = birth_groups_of(z, 1.0 - dbar, I, sensors, kp.birth_explained, kp.birth_link)
+        if starts.size > 1 and max_tracks > I:
+            nb = add_births(x, hist, rowidx, r, labels, confirmed, I, next_label, members, starts, dbar, z, sensors, radii, rng, kp)  # fmt: skip
             next_label += nb
             counts[k, 0] = nb
             I += nb
-        for i in range(I):
-            confirmed[i] = confirmed[i] or r[i] >= r_confirm
-            keep[i] = r[i] >= r_delete
-        # merge: of two tracks closer than merge_distance keep the larger r
-        n_merge = 0
-        if I > 1 and merge_distance > 0:
-            for i in range(I):
-                for c in range(2):
-                    acc = 0.0
-                    for n in range(N):
-                        acc += x[i, n, c]
-                    mean[i, c] = acc / N
-            order = np.argsort(-r[:I], kind="mergesort")
-            for ap in range(I):
-                a = order[ap]
-                if not keep[a]:
-                    continue
-                for bp in range(ap + 1, I):
-                    b = order[bp]
-                    dx = mean[a, 0] - mean[b, 0]
-                    dy = mean[a, 1] - mean[b, 1]
-                    if keep[b] and np.sqrt(dx * dx + dy * dy) < merge_distance:
-                        keep[b] = False
-                        confirmed[a] = confirmed[a] or confirmed[b]
-                        n_merge += 1
-        n_drop = 0
-        j = 0
-        for i in range(I):  # compact the kept tracks to the front, in order
-            if not keep[i]:
-                n_drop += 1
-                continue
-            if j != i:
-                x[j] = x[i]
-                hist[j] = hist[i]
-                rowidx[j] = rowidx[i]
-                r[j] = r[i]
-                labels[j] = labels[i]
-                confirmed[j] = confirmed[i]
-            j += 1
-        I = j
-        counts[k, 1] = n_drop - n_merge
+        n_merge = confirm_and_merge(x, r, confirmed, keep, mean, I, kp.r_confirm, kp.r_delete, kp.merge_distance)
+        kept = compact(x, hist, rowidx, r, labels, confirmed, keep, I)
+        counts[k, 1] = I - kept - n_merge
         counts[k, 2] = n_merge
-        counts[k, 3] = I
-        for i in range(I):
-            if confirmed[i]:
-                ever[labels[i]] = True
-            rowidx[i, L] = n_rows + i
-            rows_frame[n_rows + i] = k
-            rows_label[n_rows + i] = labels[i]
-            rows_r[n_rows + i] = r[i]
-        n_rows += I
-        for i in range(I):  # every smoothed estimate still in the window
-            hsum[:] = 0.0  # per (lag, axis): the sum over particles in order, side by side
-            for n in range(N):
-                for jj in range(L + 1):
-                    hsum[jj, 0] += hist[i, n, jj, 0]
-                    hsum[jj, 1] += hist[i, n, jj, 1]
-            for jj in range(L + 1):
-                row = rowidx[i, jj]
-                if row >= 0:
-                    est[row, 0] = hsum[jj, 0] / N
-                    est[row, 1] = hsum[jj, 1] / N
+        counts[k, 3] = I = kept
+        n_rows = write_rows(k, hist, rowidx, r, labels, confirmed, ever, I, n_rows, est, rows_frame, rows_label, rows_r, hsum)  # fmt: skip
         if lp > 0 and I > 0:
             need = npl + I * lp
-            pxy = _grow(pxy, need)
-            pfr = _grow(pfr, need)
-            plab = _grow(plab, need)
+            pxy, pfr, plab = _grow(pxy, need), _grow(pfr, need), _grow(plab, need)
             for i in range(I):
-                for n in range(lp):
-                    pxy[npl, 0] = x[i, n, 0]
-                    pxy[npl, 1] = x[i, n, 1]
-                    pfr[npl] = k
-                    plab[npl] = labels[i]
-                    npl += 1
+                pxy[npl : npl + lp] = x[i, :lp, :2]
+                pfr[npl : npl + lp] = k
+                plab[npl : npl + lp] = labels[i]
+                npl += lp
     if flips % 2 == 1:  # the result is in the second pair
         x_state[:] = x
         hist_state[:] = hist
-    state[0] = I
-    state[1] = next_label
-    state[2] = n_rows
+    state[0], state[1], state[2] = I, next_label, n_rows
     return pxy[:npl], pfr[:npl], plab[:npl]

@@ -136,6 +136,7 @@ def filter_params(config: BinPFConfig, site: Site, *, period: float) -> FilterPa
         r_out=config.r_out,
         merge_distance=config.merge_distance,
         split_ratio=config.split_ratio,
+        count_ratio=config.count_ratio,
         smooth_lag=config.smooth_lag,
         max_tracks=max_tracks,
         max_out=bound,

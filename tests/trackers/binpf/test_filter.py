@@ -11,8 +11,10 @@ import pytest
 from onebit.trackers.binpf.filter import (
     FilterParams,
     birth_groups,
+    count_births,
     footprint_probability,
     frame_probability_off,
+    local_map_people,
     observation_update,
     others_miss,
     predict,
@@ -237,10 +239,11 @@ def _standing(people, T=30, seed=0):
     return rng.random((T, len(DENSE))) > p_off[None, :]
 
 
-def _reported_per_frame(on, split_ratio, seed):
+def _reported_per_frame(on, split_ratio, seed, count_ratio=0.0):
     p = FilterParams(
-        particles=200, pd=0.95, pf=0.002, edge=0.1, period=0.5, max_out=3, max_tracks=4, split_ratio=split_ratio
-    )
+        particles=200, pd=0.95, pf=0.002, edge=0.1, period=0.5, max_out=3, max_tracks=4, split_ratio=split_ratio,
+        count_ratio=count_ratio,
+    )  # fmt: skip
     res = run_filter(on, DENSE, DENSE_R, DENSE_LO, DENSE_HI, p, seed=seed)
     return res, np.bincount(res.frame[res.reported], minlength=len(on))
 
@@ -268,4 +271,50 @@ def test_two_people_half_a_metre_apart_are_two_tracks_with_the_split(seed):
 def test_one_person_is_not_split_in_two(seed):
     on = _standing(np.array([[2.0, 1.5]]), seed=seed)
     _, count = _reported_per_frame(on, 1.5, seed)
+    assert count.max() == 1 and (count == 1).sum() >= 25
+
+
+COUNT = FilterParams(pd=0.95, pf=0.002, edge=0.1, count_ratio=10.0)
+
+
+def _expected_levels(people):
+    """The levels a frame most probably shows (each sensor on iff Eq. (2) says on is likelier)."""
+    return frame_probability_off(people, DENSE, DENSE_R, pd=0.95, pf=0.002, edge=0.1) < 0.5
+
+
+def test_the_local_map_count_finds_two_people_half_a_metre_apart_and_one_alone():
+    """Eq. (7) on the dense array: the firings of two people 0.5 m apart (a wider spread) are
+    two people, each placed within a grid step or so of one; one person's are one."""
+    two = np.array([[1.75, 1.5], [2.25, 1.5]])
+    Y = local_map_people(_expected_levels(two), DENSE, DENSE_R, COUNT)[0][-1]
+    assert len(Y) == 2
+    d = np.sqrt(((two[:, None] - Y[None]) ** 2).sum(-1))
+    assert d.min(axis=1).max() <= 0.3 and d.min(axis=0).max() <= 0.3
+    one = np.array([[2.0, 1.5]])
+    assert len(local_map_people(_expected_levels(one), DENSE, DENSE_R, COUNT)[0][-1]) == 1
+    assert len(local_map_people(np.zeros(len(DENSE), bool), DENSE, DENSE_R, COUNT)[0][-1]) == 0
+
+
+def test_count_births_adds_only_the_people_no_track_takes_and_only_where_seen_twice():
+    two = np.array([[1.75, 1.5], [2.25, 1.5]])
+    z = _expected_levels(two)
+    once = FilterParams(pd=0.95, pf=0.002, edge=0.1, count_ratio=10.0, count_persist=1)
+    assert len(count_births(z, np.zeros((0, 2)), DENSE, DENSE_R, once)[0]) == 2
+    born, _ = count_births(z, np.array([[2.0, 1.5]]), DENSE, DENSE_R, once)  # one track between them
+    assert len(born) == 1
+    assert len(count_births(z, two, DENSE, DENSE_R, once)[0]) == 0  # both tracked: nobody new
+    far = np.array([[0.0, 3.0]])  # a track under no firing of the cluster does not count
+    assert len(count_births(z, far, DENSE, DENSE_R, once)[0]) == 2
+    # count_persist = 2 (the default): a place is born only if the frame before had one near it
+    born, places = count_births(z, np.array([[2.0, 1.5]]), DENSE, DENSE_R, COUNT)
+    assert len(born) == 0 and len(places) == 1
+    born, _ = count_births(z, np.array([[2.0, 1.5]]), DENSE, DENSE_R, COUNT, places)
+    assert len(born) == 1
+    assert len(count_births(z, np.array([[2.0, 1.5]]), DENSE, DENSE_R, COUNT, np.array([[0.0, 3.0]]))[0]) == 0
+
+
+@pytest.mark.parametrize("seed", range(3))
+def test_one_person_stays_one_track_with_the_count(seed):
+    on = _standing(np.array([[2.0, 1.5]]), seed=seed)
+    _, count = _reported_per_frame(on, 0.0, seed, count_ratio=3.0)
     assert count.max() == 1 and (count == 1).sum() >= 25

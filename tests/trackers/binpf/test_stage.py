@@ -101,6 +101,10 @@ def test_config_errors_name_the_field():
         BinPFConfig(r_confirm=0.5, r_delete=0.6)
     with pytest.raises(ConfigError, match="pd"):
         BinPFConfig(pd=1.5)
+    with pytest.raises(ConfigError, match="count_ratio"):  # the online driver has no count
+        BinPFConfig(count_ratio=3.0, commit_lag=6)
+    with pytest.raises(ConfigError, match="count_ratio"):
+        BinPFConfig(count_ratio=-1.0)
 
 
 def test_particles_sent_to_rerun_stay_within_the_budget_and_never_change_the_tracks():
