@@ -18,23 +18,18 @@ from onebit.core.config import config_from_mapping
 from onebit.core.errors import InputError
 from onebit.pipeline import homes
 from onebit.pipeline.context import RunContext
-from onebit.readers.beams import BEAM_COLUMNS, beam_dtypes, decode_beam_log, decode_raw_beams
+from onebit.readers.beams import beam_dtypes, read_beams
 from onebit.readers.camera import read_camera, truth_error
-from onebit.readers.frames import edges_of_levels, read_frame_rows, read_frames_csv
-from onebit.readers.motion import TOGGLE_COLUMNS, MotionConfig, read_motion, read_motion_csv, site_rules, toggle_dtypes
-from onebit.readers.proximity import ProximityConfig, proximity_frames, read_proximity, read_proximity_csv
-from onebit.readers.rows import read_typed_csv
+from onebit.readers.frames import edges_of_levels, read_frames
+from onebit.readers.logs import Log, Stamps, log_name, log_stamps, typed_stamps
+from onebit.readers.motion import MotionConfig, read_motion, site_rules, toggle_dtypes
+from onebit.readers.proximity import ProximityConfig, proximity_frames, read_proximity
 from onebit.readers.tables_csv import (
-    crossings_from_rows,
-    read_crossings_csv,
+    read_crossings,
     read_residents_profile_csv,
-    read_true_crossings_csv,
-    read_truth_csv,
-    read_truth_events_csv,
-    true_crossings_columns,
-    true_crossings_from_rows,
-    truth_events_from_rows,
-    truth_from_rows,
+    read_true_crossings,
+    read_truth,
+    read_truth_events,
 )
 from onebit.readers.timebase import TimeOrigin, time_origin
 from onebit.scoring.crossings import true_crossings_from_truth, truth_regions
@@ -49,13 +44,14 @@ from onebit.viz.truth import log_truth
 
 # --------------------------------------------------------------------------- the time base
 
-#: The raw logs whose stamps set a run's time origin, with the columns read from them.
+#: The raw logs whose stamps set a run's time origin (a CSV file or an MCAP channel each).
 TIME_SOURCES = ("beams", "crossings", "truth", "truth_crossings", "truth_events", "motion", "proximity", "frames")
 
 
 def run_time_origin(ctx: RunContext) -> TimeOrigin:
     """The run's one time origin (:mod:`onebit.readers.timebase`), computed on first use from
-    the ``t`` stamps of every raw log of the dataset (CSV or MCAP channel) and kept on ``ctx``
+    the ``t`` stamps of every raw log of the dataset (CSV or MCAP channel; each log's
+    time-origin step, :func:`origin_stamps`) and kept on ``ctx``
     (``ctx.time_origin``): ``site.toml``'s ``epoch`` if set, else the data's own start; lone
     stamps far from the rest fall outside its window and are rejected by every reader. A log
     whose header cannot be read is left out here (its own stage reports it). Raises
@@ -63,39 +59,28 @@ def run_time_origin(ctx: RunContext) -> TimeOrigin:
     ``[time]`` table (source, origin as ISO and as the logs' number, span, lone stamps)."""
     if ctx.time_origin is not None:
         return ctx.time_origin
-    frames: dict[str, pl.DataFrame | list[pl.DataFrame]] = {}
+    frames: dict[str, Stamps] = {}
     for stem in TIME_SOURCES:
-        if not ctx.has_source(stem):
-            continue
-        split = _typed_read(ctx, stem)
-        if split is not None:  # read once, typed: its stamps here, the rest by the reader stage
-            ctx.typed_reads[stem] = split
-            frames[f"{stem}.csv"] = [split.good.select("line", "t"), split.rest.frame.select("line", "t")]
-            continue
-        try:
-            name, frame = ctx.stamps(stem)
-        except InputError:
-            continue
-        frames[name] = frame
+        log = ctx.log(stem)
+        stamps = None if log is None else origin_stamps(ctx.site, stem, log)
+        if stamps is not None:
+            frames[log_name(log)] = stamps
     origin = time_origin(frames, epoch=ctx.site.epoch)
     ctx.time_origin = origin
     return origin
 
 
-def _typed_read(ctx: RunContext, stem: str):
-    """The typed read (:func:`~onebit.readers.rows.read_typed_csv`) of ``<stem>.csv`` in the
-    reader stage's types, for the logs whose reader takes it (beams, motion, proximity), else
-    ``None`` (no such CSV, another log, or a file the typed read cannot take)."""
-    csv = ctx.dataset / f"{stem}.csv"
-    if stem not in ("beams", "motion", "proximity") or not csv.exists():
-        return None
+def origin_stamps(site, stem: str, log: Log) -> Stamps | None:
+    """The time-origin step of the log ``stem``: its stamps, read as its reader reads them (a
+    beam or toggle log in its reader's types, :func:`~onebit.readers.logs.typed_stamps`: the
+    same numbers, and an absurd span names them the same way), ``None`` when it cannot be read."""
     if stem == "beams":
-        ids = list(ctx.site.beam_ids)
-    else:
-        ids = [m.id for m in (ctx.site.motion_sensors if stem == "motion" else ctx.site.proximity_sensors)]
-    if not ids:  # its stage will not read it: the stamps alone
-        return None
-    return read_typed_csv(csv, beam_dtypes(tuple(ids)) if stem == "beams" else toggle_dtypes(ids))
+        ids = tuple(site.beam_ids)
+        return typed_stamps(log, beam_dtypes(ids) if ids else None)
+    if stem in ("motion", "proximity"):
+        ids = [m.id for m in (site.motion_sensors if stem == "motion" else site.proximity_sensors)]
+        return typed_stamps(log, toggle_dtypes(ids) if ids else None)
+    return log_stamps(log)
 
 
 # --------------------------------------------------------------------------- reader stages
@@ -108,19 +93,12 @@ def crossings_available(ctx: RunContext) -> str | None:
 
 
 def crossings_work(ctx: RunContext) -> dict[str, pl.DataFrame]:
+    """The raw beam log (:func:`~onebit.readers.beams.read_beams`), else the crossings log
+    (:func:`~onebit.readers.tables_csv.read_crossings`)."""
     site = ctx.site
-    out: dict[str, pl.DataFrame] = {}
     if ctx.has_source("beams"):
-        csv = ctx.dataset / "beams.csv"
-        if csv.exists():  # a clean file is typed in one read (decode_beam_log), else line by line
-            dec = decode_beam_log(
-                csv, site.beam_ids, epoch=run_time_origin(ctx), split=ctx.typed_reads.pop("beams", None)
-            )
-        else:
-            raw, path = ctx.source("beams", BEAM_COLUMNS)
-            dec = decode_raw_beams(raw, site.beam_ids, epoch=run_time_origin(ctx), path=path)
+        dec = read_beams(ctx.log("beams"), site.beam_ids, epoch=run_time_origin(ctx))
         ctx.add_rejects(dec.rejects)
-        out.update(crossings=dec.crossings, aborted=dec.aborted, beam_events=dec.events)
         ctx.report += [
             ("crossings", "decoded", float(dec.crossings.height), "crossings"),
             ("crossings", "aborted", float(dec.aborted.height), "passes"),
@@ -128,17 +106,11 @@ def crossings_work(ctx: RunContext) -> dict[str, pl.DataFrame]:
         ]
         if ctx.has_source("crossings"):
             ctx.report.append(("crossings", "ignored_crossings_csv", 1.0, "flag"))
-    else:
-        csv = ctx.dataset / "crossings.csv"
-        if csv.exists():  # typed in one read, only the lines it cannot take row by row
-            cr, rej = read_crossings_csv(csv, site.beam_ids, epoch=run_time_origin(ctx))
-        else:
-            raw, path = ctx.source("crossings", ("t", "beam", "direction"))
-            cr, rej = crossings_from_rows(raw, site.beam_ids, epoch=run_time_origin(ctx), path=path)
-        ctx.add_rejects(rej)
-        out["crossings"] = cr
-        ctx.report.append(("crossings", "decoded", float(cr.height), "crossings"))
-    return out
+        return {"crossings": dec.crossings, "aborted": dec.aborted, "beam_events": dec.events}
+    cr, rej = read_crossings(ctx.log("crossings"), site.beam_ids, epoch=run_time_origin(ctx))
+    ctx.add_rejects(rej)
+    ctx.report.append(("crossings", "decoded", float(cr.height), "crossings"))
+    return {"crossings": cr}
 
 
 def crossings_viz(rec, ctx: RunContext, made: dict) -> None:
@@ -150,23 +122,15 @@ def truth_available(ctx: RunContext) -> str | None:
 
 
 def truth_work(ctx: RunContext) -> dict[str, pl.DataFrame]:
-    csv = ctx.dataset / "truth.csv"
-    if csv.exists():  # typed in one read, only the lines it cannot take row by row
-        truth, rej = read_truth_csv(csv, epoch=run_time_origin(ctx))
-    else:
-        raw, path = ctx.source("truth", ("t", "target", "x", "y"))
-        truth, rej = truth_from_rows(raw, epoch=run_time_origin(ctx), path=path)
+    """The truth log (:func:`~onebit.readers.tables_csv.read_truth`) with each point's region
+    and the crossings it implies, and the simulator's true crossings when the dataset has them
+    (:func:`~onebit.readers.tables_csv.read_true_crossings`)."""
+    truth, rej = read_truth(ctx.log("truth"), epoch=run_time_origin(ctx))
     ctx.add_rejects(rej)
     truth = truth_regions(truth, ctx.region_graph)
     out = {"truth": truth, "true_crossings": true_crossings_from_truth(truth, ctx.site, ctx.region_graph)}
     if ctx.has_source("truth_crossings"):
-        csv = ctx.dataset / "truth_crossings.csv"
-        columns = true_crossings_columns(csv)
-        if csv.exists() and "dropped" not in columns:  # typed in one read, as truth.csv
-            sim_cr, rej = read_true_crossings_csv(csv, ctx.site.beam_ids, epoch=run_time_origin(ctx))
-        else:
-            raw, path = ctx.source("truth_crossings", columns)
-            sim_cr, rej = true_crossings_from_rows(raw, ctx.site.beam_ids, epoch=run_time_origin(ctx), path=path)
+        sim_cr, rej = read_true_crossings(ctx.log("truth_crossings"), ctx.site.beam_ids, epoch=run_time_origin(ctx))
         ctx.add_rejects(rej)
         out["sim_crossings"] = sim_cr
     return out
@@ -184,12 +148,7 @@ def truth_events_available(ctx: RunContext) -> str | None:
 
 
 def truth_events_work(ctx: RunContext) -> dict[str, pl.DataFrame]:
-    csv = ctx.dataset / "truth_events.csv"
-    if csv.exists():
-        te, rej = read_truth_events_csv(csv, epoch=run_time_origin(ctx))
-    else:
-        raw, path = ctx.source("truth_events", ("t", "sensor", "residents"))
-        te, rej = truth_events_from_rows(raw, epoch=run_time_origin(ctx), path=path)
+    te, rej = read_truth_events(ctx.log("truth_events"), epoch=run_time_origin(ctx))
     ctx.add_rejects(rej)
     ctx.report += [
         ("truth_events", "events", float(te.height), "events"),
@@ -273,11 +232,7 @@ def frames_work(ctx: RunContext) -> dict[str, pl.DataFrame]:
     sensors; a binary sensor's edges are in ``motion`` once)."""
     site = ctx.site
     ids = _frame_sensor_ids(site)
-    csv = ctx.dataset / "frames.csv"
-    if csv.exists():
-        log = read_frames_csv(csv, ids, epoch=run_time_origin(ctx))
-    else:  # the MCAP channel /frames: the list layout (t, active)
-        log = read_frame_rows(ctx.mcap_channels["/frames"], ids, layout="list", epoch=run_time_origin(ctx))
+    log = read_frames(ctx.log("frames"), ids, epoch=run_time_origin(ctx))
     ctx.add_rejects(log.rejects)
     levels = log.levels
     motion_ids = [m.id for m in site.motion_sensors]
@@ -322,21 +277,8 @@ def motion_work(ctx: RunContext) -> dict[str, pl.DataFrame]:
     ctx.record("motion", cfg)
     site = ctx.site
     ids = [m.id for m in site.motion_sensors]
-    csv = ctx.dataset / "motion.csv"
-    if csv.exists():  # a clean file is typed in one read (read_motion_csv), else line by line
-        res = read_motion_csv(
-            csv,
-            ids,
-            epoch=run_time_origin(ctx),
-            rules=site_rules(site, cfg),
-            held=site.level_sensors,
-            split=ctx.typed_reads.pop("motion", None),
-        )
-    else:
-        raw, path = ctx.source("motion", TOGGLE_COLUMNS)
-        res = read_motion(
-            raw, ids, epoch=run_time_origin(ctx), path=path, rules=site_rules(site, cfg), held=site.level_sensors
-        )
+    rules = site_rules(site, cfg)
+    res = read_motion(ctx.log("motion"), ids, epoch=run_time_origin(ctx), rules=rules, held=site.level_sensors)
     ctx.add_rejects(res.rejects)
     ctx.report += [
         ("motion", "edges", float(res.motion.height), "edges"),
@@ -365,21 +307,9 @@ def proximity_work(ctx: RunContext) -> dict[str, pl.DataFrame]:
     cfg = config_from_mapping(ProximityConfig, ctx.section("proximity"), section="proximity")
     ctx.record("proximity", cfg)
     ids = [p.id for p in ctx.site.proximity_sensors]
-    csv = ctx.dataset / "proximity.csv"
-    if csv.exists():  # a clean file is typed in one read (read_proximity_csv), else line by line
-        res = read_proximity_csv(
-            csv,
-            ids,
-            epoch=run_time_origin(ctx),
-            rules=cfg.rules,
-            held=ctx.site.level_sensors,
-            split=ctx.typed_reads.pop("proximity", None),
-        )
-    else:
-        raw, path = ctx.source("proximity", TOGGLE_COLUMNS)
-        res = read_proximity(
-            raw, ids, epoch=run_time_origin(ctx), path=path, rules=cfg.rules, held=ctx.site.level_sensors
-        )
+    res = read_proximity(
+        ctx.log("proximity"), ids, epoch=run_time_origin(ctx), rules=cfg.rules, held=ctx.site.level_sensors
+    )
     ctx.add_rejects(res.rejects)
     frames = proximity_frames(
         res.motion, ids, period=cfg.period, start=None if cfg.start < 0 else cfg.start, instants=cfg.instants or None

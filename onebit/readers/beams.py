@@ -34,11 +34,11 @@ from onebit.core.compiled import numba_loaded
 from onebit.core.sensing import body_radius
 from onebit.core.tables import ABORTED, BEAM_EVENTS, CROSSINGS, REJECTS, conform
 from onebit.readers import kernels
+from onebit.readers.logs import Log
 from onebit.readers.rows import (
     FileLines,
     RawRows,
     TypedRows,
-    TypedSplit,
     by_time,
     check_split,
     clean_time,
@@ -54,6 +54,7 @@ from onebit.readers.rows import (
     read_typed_csv,
     type_rows,
 )
+from onebit.readers.timebase import TimeOrigin
 
 BEAM_COLUMNS = ("t", "beam", "pair", "blocked")
 
@@ -101,15 +102,11 @@ def beam_dtypes(beam_ids: tuple[str, ...]) -> dict[str, pl.DataType]:
 _beam_dtypes = beam_dtypes  # the earlier private name
 
 
-def typed_beam_events(
-    path: Path, beam_ids: tuple[str, ...], *, epoch=None, split: TypedSplit | None = None
-) -> TypedRows | None:
+def typed_beam_events(path: Path, beam_ids: tuple[str, ...], *, epoch=None) -> TypedRows | None:
     """:func:`read_beam_events` of ``beams.csv`` by one typed read (:func:`~onebit.readers.rows.read_typed_csv`),
     the lines it cannot take typed row by row; ``None`` when the header is not a plain first
-    line (the row-by-row path reads the file). Beam and pair stay enums (the decoder's codes).
-    ``split``: that read already made (with :func:`beam_dtypes`; the runner reads the file
-    once for the time origin and the reader)."""
-    split = split if split is not None else read_typed_csv(path, beam_dtypes(beam_ids))
+    line (the row-by-row path reads the file). Beam and pair stay enums (the decoder's codes)."""
+    split = read_typed_csv(path, beam_dtypes(beam_ids))
     if split is None:
         return None
     good = split.good.with_columns(pl.col("blocked").to_physical() == 1)
@@ -337,8 +334,17 @@ def decode_passes_reference(events: pl.DataFrame, source: str = "beams.csv") -> 
     return _decoded(ev, passes, rejects)
 
 
+def read_beams(log: Log, beam_ids: tuple[str, ...], *, epoch: str | TimeOrigin | None = None) -> BeamDecode:
+    """The raw-beam reader: ``beams.csv`` (:func:`decode_beam_log`: typed in one read, line by
+    line only where it must) or the rows of an MCAP ``/beams`` channel (:func:`decode_raw_beams`),
+    decoded into crossings, aborted and unfinished passes, events and rejects."""
+    if isinstance(log, RawRows):
+        return decode_raw_beams(log, beam_ids, epoch=epoch)
+    return decode_beam_log(log, beam_ids, epoch=epoch)
+
+
 def decode_beam_log(
-    path: str | Path, beam_ids: tuple[str, ...], *, epoch: str | None = None, split: TypedSplit | None = None
+    path: str | Path, beam_ids: tuple[str, ...], *, epoch: str | TimeOrigin | None = None
 ) -> BeamDecode:
     """Read ``beams.csv`` and decode it: the whole raw-beam reader.
 
@@ -346,7 +352,7 @@ def decode_beam_log(
     cannot take go through the row-by-row CSV layer, which names each bad line. The result is
     the row-by-row path's on the whole file (:func:`decode_raw_beams`)."""
     path = Path(path)
-    typed = typed_beam_events(path, tuple(beam_ids), epoch=epoch, split=split)
+    typed = typed_beam_events(path, tuple(beam_ids), epoch=epoch)
     if typed is None:
         raw = read_csv_rows(path, BEAM_COLUMNS)
         return decode_raw_beams(raw, beam_ids, epoch=epoch, path=path)
