@@ -13,7 +13,7 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from onebit.core.errors import InputError
-from onebit.readers import rows
+from onebit.readers import lines, rows
 from onebit.readers.motion import read_motion_csv
 from onebit.readers.rows import (
     check_line_lengths,
@@ -59,7 +59,7 @@ def test_line_length_check_finds_the_first_long_line_across_scan_steps(data, lim
 
 
 def test_a_file_that_is_one_huge_line_is_refused_before_it_is_split(tmp_path, monkeypatch):
-    monkeypatch.setattr(rows, "MAX_LINE_BYTES", 1000)
+    monkeypatch.setattr(lines, "MAX_LINE_BYTES", 1000)
     garbage = np.random.default_rng(0).integers(32, 127, size=5000, dtype=np.uint8).tobytes().replace(b"\n", b" ")
     p = _write(tmp_path, garbage)
     with pytest.raises(InputError, match=r"motion\.csv:1: line longer than the 1000 bytes"):
@@ -131,7 +131,7 @@ def test_malformed_count_is_the_readers_field_count_rejects(tmp_path_factory, bo
 
 
 def test_too_many_malformed_lines_refuse_the_file_naming_the_first(tmp_path, monkeypatch):
-    monkeypatch.setattr(rows, "MAX_MALFORMED_LINES", 5)
+    monkeypatch.setattr(lines, "MAX_MALFORMED_LINES", 5)
     head = b"t,sensor,value\n1,p1,1\n2,p1,0\n"
     ok = _write(tmp_path, head + b"garbage line\n" * 5 + b"3,p2,1\n", "ok.csv")
     assert read_motion_csv(ok, SENSORS).rejects.height == 5  # at the limit: rejected line by line
