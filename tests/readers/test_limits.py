@@ -48,8 +48,8 @@ def _longest_reference(data: bytes, limit: int) -> int | None:
 )
 def test_line_length_check_finds_the_first_long_line_across_scan_steps(data, limit, step):
     with pytest.MonkeyPatch.context() as mp:
-        mp.setattr(rows, "MAX_LINE_BYTES", limit)
-        mp.setattr(rows, "_SCAN_BYTES", step)
+        mp.setattr(lines, "MAX_LINE_BYTES", limit)
+        mp.setattr(lines, "_SCAN_BYTES", step)
         want = _longest_reference(data, limit)
         if want is None:
             check_line_lengths(data, "f.csv")
@@ -113,7 +113,7 @@ def _malformed_reference(data: bytes, n_fields: int, after_line: int) -> int:
 )
 def test_malformed_line_count_matches_a_line_by_line_count(data, n, after, step):
     with pytest.MonkeyPatch.context() as mp:
-        mp.setattr(rows, "_SHAPE_BYTES", step)
+        mp.setattr(lines, "_SHAPE_BYTES", step)
         count, first = malformed_lines(data, n, after)
     assert count == _malformed_reference(data, n, after)
     assert (first is None) == (count == 0)
@@ -166,7 +166,7 @@ def test_physical_lines_split_in_spans_as_in_one_piece(data, step):
     """The file is split a span at a time (bounded temporaries): the same lines, texts and reasons."""
     whole = rows.physical_lines(data)
     with pytest.MonkeyPatch.context() as mp:
-        mp.setattr(rows, "_SCAN_BYTES", step)
+        mp.setattr(lines, "_SCAN_BYTES", step)
         spans = rows.physical_lines(data)
     assert spans.equals(whole), (spans, whole)
     assert whole.height == data.count(b"\n") + (not data.endswith(b"\n")) - (data in (b"", b"\xef\xbb\xbf"))
@@ -192,7 +192,7 @@ def test_undated_casas_lines_match_a_line_by_line_count(data, step):
     from onebit.readers.casas import undated_lines
 
     with pytest.MonkeyPatch.context() as mp:
-        mp.setattr(rows, "_SCAN_BYTES", step)
+        mp.setattr(lines, "_SCAN_BYTES", step)
         count, first = undated_lines(data)
     assert count == _undated_reference(data) and (first is None) == (count == 0)
 
