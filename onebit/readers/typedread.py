@@ -266,21 +266,10 @@ def read_typed_csv(path: str | Path, dtypes: dict[str, pl.DataType]) -> TypedSpl
         data = read_bytes(path)
     except InputError:
         return None
-    if not data or data.startswith(codecs.BOM_UTF8):
+    plain_header = _plain_header(data, dtypes)
+    if plain_header is None:
         return None
-    end = data.find(b"\n")
-    if end <= 0:  # no data line, or a blank first line
-        return None
-    head = data[:end].removesuffix(b"\r")
-    if b'"' in head or b"\r" in head:
-        return None
-    try:
-        head_text = head.decode("utf-8")
-    except UnicodeDecodeError:
-        return None
-    header = [name.strip() for name in head_text.split(SEPARATOR)]
-    if len(header) > MAX_HEADER_FIELDS or any(header.count(c) != 1 for c in dtypes) or not head_text.strip(" \t"):
-        return None
+    header, head_text = plain_header
     n = len(header)
     file = FileLines(data)  # its newlines counted once: the lines, and where a named line is
     n_lines = file.n_lines - 1
@@ -329,6 +318,28 @@ def read_typed_csv(path: str | Path, dtypes: dict[str, pl.DataType]) -> TypedSpl
     lines = file.lines(marked)
     lines = lines.filter(~pl.col("text").str.contains(_BLANK) | pl.col("_reason").is_not_null())
     return TypedSplit(good, rows_of_lines(lines, header, columns, path.name), header, file)
+
+
+def _plain_header(data: bytes, dtypes: dict[str, pl.DataType]) -> tuple[list[str], str] | None:
+    """(the header's names, its text) when the file's first line is a plain header naming each
+    wanted column once (UTF-8, no quote, no carriage return but its line end, no byte-order
+    mark), with a data line after it; else ``None``."""
+    if not data or data.startswith(codecs.BOM_UTF8):
+        return None
+    end = data.find(b"\n")
+    if end <= 0:  # no data line, or a blank first line
+        return None
+    head = data[:end].removesuffix(b"\r")
+    if b'"' in head or b"\r" in head:
+        return None
+    try:
+        head_text = head.decode("utf-8")
+    except UnicodeDecodeError:
+        return None
+    header = [name.strip() for name in head_text.split(SEPARATOR)]
+    if len(header) > MAX_HEADER_FIELDS or any(header.count(c) != 1 for c in dtypes) or not head_text.strip(" \t"):
+        return None
+    return header, head_text
 
 
 def _line_numbers(n: int) -> pl.Series:
