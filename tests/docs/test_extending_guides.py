@@ -51,7 +51,8 @@ def doors_stage(monkeypatch) -> Stage:
     monkeypatch.setitem(sys.modules, "onebit.readers.doors", module)
     ns = dict(vars(reading))
     exec(compile(work, "docs/extending.md (onebit/pipeline/reading.py)", "exec"), ns)
-    stage = eval(declaration.strip().rstrip(","), {"Stage": Stage, "reading": types.SimpleNamespace(**ns)})
+    (entry,) = [line for line in declaration.splitlines() if line and not line.startswith("#")]
+    stage = eval(entry.rstrip(","), {"Stage": Stage, "reading": types.SimpleNamespace(**ns)})
     declared = runner.stages
 
     def with_doors(trackers=TRACKERS):
@@ -66,8 +67,9 @@ def doors_stage(monkeypatch) -> Stage:
 
 def test_the_guide_has_a_reader_a_stage_and_its_declaration():
     reader, work, declaration = guide_blocks()
-    assert "def read_doors(log: Log" in reader and "def doors_work(ctx" in work
-    assert declaration.strip().startswith('Stage("doors"')
+    assert reader.startswith("# onebit/readers/doors.py\n") and "def read_doors(log: Log" in reader
+    assert work.startswith("# onebit/pipeline/reading.py") and "def doors_work(ctx" in work
+    assert declaration.startswith("# onebit/pipeline/stages.py:") and 'Stage("doors"' in declaration
 
 
 def _dataset(d: Path) -> None:
