@@ -3,9 +3,13 @@ dataset (a CSV file or an MCAP channel) -> its canonical tables, on the run's on
 (:func:`run_time_origin`), plus the stages that only reshape what the readers made (``ignore``,
 ``correct``, the homes' ``truth_count`` and ``occupancy``).
 
-Every function here is the ``available``, ``work`` or ``viz`` of one declared stage; the
-declarations (names, what each needs and makes, its config) are in
-:func:`onebit.pipeline.stages.stages`.
+Besides the run's time origin (:func:`run_time_origin`, from every log's stamps:
+:func:`origin_stamps`) and the filter of the ignored sensors' readings
+(:func:`without_ignored`), each function here is the ``available``, ``work`` or ``viz`` of
+one declared stage; the declarations (names, what each needs and makes, its config) are in
+:func:`onebit.pipeline.stages.stages`. A stage reads its log through the format's one reader
+(``read_beams``, ``read_motion``, ...: :mod:`onebit.readers.logs`), which takes the CSV file
+or the MCAP channel's rows (``ctx.log(stem)``) and chooses its own path.
 """
 
 from __future__ import annotations
