@@ -71,8 +71,7 @@ def poll_costs(data: Path, out: Path, *, speed: float, tracker: str, config: dic
     from onebit.pipeline.follow import FollowConfig, follow
 
     spent = {"read": 0.0}
-    originals = {"_read_prefix": follow_module._read_prefix}
-    poll_original = follow_module._Tails.poll
+    read_original = follow_module.Follow.read  # the readers: incremental ones and the polled stages
 
     def timed(fn):
         def run(*a, **k):
@@ -91,8 +90,7 @@ def poll_costs(data: Path, out: Path, *, speed: float, tracker: str, config: dic
         marks.append((time.process_time(), spent["read"]))
         now[0] += dt
 
-    follow_module._read_prefix = timed(originals["_read_prefix"])
-    follow_module._Tails.poll = timed(poll_original)
+    follow_module.Follow.read = timed(read_original)
     try:
         res = follow(
             data,
@@ -104,8 +102,7 @@ def poll_costs(data: Path, out: Path, *, speed: float, tracker: str, config: dic
             sleep=sleep,
         )
     finally:
-        follow_module._read_prefix = originals["_read_prefix"]
-        follow_module._Tails.poll = poll_original
+        follow_module.Follow.read = read_original
     m = np.array(marks)
     work, read = np.diff(m[:, 0]), np.diff(m[:, 1])
     equal = res.report.filter((pl.col("stage") == tracker) & (pl.col("metric") == "online_equals_batch"))

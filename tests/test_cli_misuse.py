@@ -10,8 +10,8 @@ from pathlib import Path
 
 import pytest
 
-from onebit import cli
 from onebit.cli import main
+from onebit.commands import run as run_command
 from onebit.core import writers
 from onebit.datasets.beams_sim import write_beams_dataset
 from onebit.pipeline import runner
@@ -202,7 +202,7 @@ def test_a_bug_gives_one_line_and_keeps_the_traceback(data, tmp_path, capsys, mo
     tb = tmp_path / "run" / "logs" / "run.traceback.txt"
     assert str(tb) in err and "RuntimeError: boom" in tb.read_text()
     assert "ok = false" in (tmp_path / "run" / "run.toml").read_text()
-    monkeypatch.setattr(cli, "load_report", broken)
+    monkeypatch.setattr(run_command, "load_report", broken)
     code, _, err = run_cli(capsys, "report", tmp_path / "run")
     assert code == 1 and "internal error" in err
     kept = Path(err.split("the traceback is in ")[1].split(";")[0])

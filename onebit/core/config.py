@@ -1,6 +1,9 @@
-"""Config constraint helpers: every stage config is a frozen keyword-only dataclass whose
-``__post_init__`` checks its fields with these; the error names the class, the field, the value
-and what is allowed (:class:`~onebit.core.errors.ConfigError`)."""
+"""Config constraint helpers. Every stage config is a frozen keyword-only dataclass whose fields
+are declared with :func:`onebit.core.params.param` (default, doc, bounds, choices, unit) and
+whose ``__post_init__`` checks them with :func:`onebit.core.params.validate`; the error names
+the class, the field, the value and what is allowed (:class:`~onebit.core.errors.ConfigError`).
+:func:`check_range` and :func:`check_choice` check one value by hand (the simulators' options);
+the allocation limits below bound what a config may make a tracker allocate."""
 
 from __future__ import annotations
 

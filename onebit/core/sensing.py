@@ -62,7 +62,7 @@ import math
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from functools import cached_property
-from typing import TYPE_CHECKING
+from typing import Any, Protocol
 
 import numpy as np
 import polars as pl
@@ -73,8 +73,26 @@ from shapely.geometry.base import BaseGeometry
 from onebit.core.errors import SiteError
 from onebit.core.units import units_per_metre
 
-if TYPE_CHECKING:
-    from onebit.core.site import Site
+
+class SensorSite(Protocol):
+    """What this module reads of a site; :class:`onebit.core.site.Site` is one.
+
+    Typed by its shape, not by name: the site builds on this module (it caches its regions
+    from :func:`build_detection_regions`), so this module does not import the site.
+    """
+
+    units: str
+    source: str
+    sensor_types: Mapping[str, Any]
+    body_radius: float | None
+    motion_sensors: Sequence[Any]
+    binary_sensors: Sequence[Any]
+    proximity_sensors: Sequence[Any]
+    beams: Sequence[Any]
+
+    @property
+    def detection_regions(self) -> dict[str, DetectionRegion]: ...
+
 
 #: Segments per quarter circle of a disk in :attr:`DetectionRegion.geometry`.
 QUAD_SEGS = 32
@@ -112,7 +130,7 @@ DEFAULT_RESOLUTION_M = 1.0
 DEFAULT_BODY_RADIUS_M = 0.2
 
 
-def body_radius(site: Site) -> float:
+def body_radius(site: SensorSite) -> float:
     """The radius of a target's body in the site's units: ``site.toml``'s ``body_radius``, else
     :data:`DEFAULT_BODY_RADIUS_M` converted. The one value simulators (a beam is blocked while
     a body overlaps a pair), the beam reader's geometry (:func:`onebit.readers.beams.crossing_reach`)
@@ -357,7 +375,7 @@ def _intersect(parts: list[BaseGeometry]) -> BaseGeometry:
     return out
 
 
-def detection_regions(site: Site) -> dict[str, DetectionRegion]:
+def detection_regions(site: SensorSite) -> dict[str, DetectionRegion]:
     """Every sensor's :class:`DetectionRegion` by sensor id (motion, proximity, beams, in site
     order), built once per site and cached on it (:attr:`Site.detection_regions`).
 
@@ -367,7 +385,7 @@ def detection_regions(site: Site) -> dict[str, DetectionRegion]:
     return site.detection_regions
 
 
-def build_detection_regions(site: Site) -> dict[str, DetectionRegion]:
+def build_detection_regions(site: SensorSite) -> dict[str, DetectionRegion]:
     """Build the regions of :func:`detection_regions` (uncached)."""
     out: dict[str, DetectionRegion] = {}
     tables = site.sensor_types if isinstance(site.sensor_types, dict) else {}

@@ -19,6 +19,7 @@ import dataclasses
 from typing import Any
 
 from onebit.core.errors import SiteError
+from onebit.core.params import param
 
 #: metres per site unit
 METRES_PER_UNIT: dict[str, float] = {"m": 1.0, "cm": 0.01, "mm": 0.001, "ft": 0.3048, "in": 0.0254}
@@ -27,10 +28,14 @@ METRES_PER_UNIT: dict[str, float] = {"m": 1.0, "cm": 0.01, "mm": 0.001, "ft": 0.
 UNIT_POWER: dict[str, int] = {"m": 1, "m/s": 1, "m^2": 2}
 
 
-def length(default: Any = dataclasses.MISSING, *, unit: str = "m", **kwargs) -> Any:
-    """A dataclass field holding a length (or speed, area) in metres: ``v_max: float = length(4.0, unit="m/s")``."""
+def length(default: Any = dataclasses.MISSING, doc: str = "", *, unit: str = "m", **kwargs) -> Any:
+    """A dataclass field holding a length (or speed, area) in metres:
+    ``v_max: float = length(4.0, "top walking speed", unit="m/s", lo=0.0)``. With a ``doc`` it is
+    a declared parameter (:func:`onebit.core.params.param`: bounds, choices as keywords)."""
     if unit not in UNIT_POWER:
         raise ValueError(f"unit {unit!r}; expected one of {sorted(UNIT_POWER)}")
+    if doc:
+        return param(default, doc, unit=unit, **kwargs)
     return dataclasses.field(default=default, metadata={"unit": unit}, **kwargs)
 
 
@@ -54,7 +59,7 @@ def to_site_units(value: Any, unit: str, site_units: str) -> Any:
 def config_in_site_units(config: Any, site: Any) -> Any:
     """A copy of the frozen config ``config`` with every unit-carrying field in ``site.units``.
 
-    Fields without a ``unit`` in their metadata are unchanged; on a site in metres the
+    Fields without a length ``unit`` (m, m/s, m^2) in their metadata are unchanged; on a site in metres the
     config is returned as it is.
     """
     if not dataclasses.is_dataclass(config) or units_per_metre(site.units) == 1.0:
@@ -62,6 +67,6 @@ def config_in_site_units(config: Any, site: Any) -> Any:
     changes = {
         f.name: to_site_units(getattr(config, f.name), f.metadata["unit"], site.units)
         for f in dataclasses.fields(config)
-        if "unit" in f.metadata
+        if f.metadata.get("unit") in UNIT_POWER
     }
     return dataclasses.replace(config, **changes) if changes else config

@@ -59,6 +59,7 @@ from onebit.core.units import units_per_metre
 from onebit.core.writers import to_toml, write_csv, write_text
 from onebit.datasets import kernels
 from onebit.datasets.scenario import Scenario
+from onebit.models.pir import hold_on
 from onebit.readers.tables_csv import read_truth_csv
 from onebit.readers.timebase import iso_unix, number
 
@@ -208,10 +209,7 @@ def pir_events(
         inside[present] = regions[sid].covers_xy(flat[present, 0], flat[present, 1])
         seen = inside & (rng.random(K * n) < cfg.p_detect)
         trig[:, i] = seen.reshape(K, n).any(axis=1)
-    hold = int(round(cfg.hold_s * cfg.rate_hz))
-    c = np.cumsum(np.vstack([np.zeros((1, len(ids)), np.int64), trig.astype(np.int64)]), axis=0)
-    lo = np.maximum(np.arange(1, K + 1) - hold - 1, 0)
-    on = (c[1:] - c[lo]) > 0  # a trigger within the last hold_s (the PIR's hold)
+    on = hold_on(trig, int(round(cfg.hold_s * cfg.rate_hz)) + 1)  # a trigger now or within the last hold_s
     refr = np.array([m.refractory for m in site.motion_sensors], dtype=float)
     if np.any(refr > 0) and on.any():
         col, start, end = _runs(on)

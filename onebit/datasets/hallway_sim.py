@@ -18,7 +18,8 @@ non-uniform coverage), read through the site's detection regions
 a node's region is detected in a sample with probability ``p_detect`` (motion comes in bursts) and a detection
 holds the PIR on for ``hold`` seconds. Each node has a clock offset (uniform in
 ``+-clock_offset`` s) added to its time stamps, and each on-burst's packets are lost with
-probability ``drop``. ``motion.csv`` is the raw toggle log (t, sensor, value).
+probability ``drop`` (the hold, the edges and the lost bursts: the PIR's toggle log of
+:mod:`onebit.models.pir`). ``motion.csv`` is the raw toggle log (t, sensor, value).
 
 Truth (``truth.csv``): t, target, x, y, node at 10 Hz while a user is inside; ``node`` is the
 node whose coverage the user is in (the nearest when several), else the last one it was in
@@ -45,6 +46,7 @@ from onebit.core.writers import write_csv as _atomic_csv
 from onebit.core.writers import write_text as _atomic_text
 from onebit.datasets.builtin import builtin_site_path
 from onebit.datasets.scenario import Scenario
+from onebit.models.pir import hold_samples, keep_bursts, pir_on, toggle_edges
 
 nx = lazy_module("networkx")
 
@@ -227,30 +229,17 @@ def simulate_hallway(site: Site, cfg: HallwaySimConfig, *, seed: int) -> Hallway
     k = np.rint(samples["t"].to_numpy() * cfg.rate_hz).astype(np.int64)
     inside = covers(regions, xy)
     det = inside & (rng.random(inside.shape) < cfg.p_detect)
-    hit = np.zeros((len(times), len(ids)), bool)
-    rr, cc = np.nonzero(det)
-    hit[k[rr], cc] = True
-    hold = max(1, int(round(cfg.hold * cfg.rate_hz)))
-    csum = np.cumsum(np.vstack([np.zeros((1, len(ids)), np.int64), hit.astype(np.int64)]), axis=0)
-    lo = np.maximum(np.arange(len(times)) - hold + 1, 0)
-    on = (csum[np.arange(len(times)) + 1] - csum[lo]) > 0  # a detection in the last `hold` s
-    padded = np.vstack([np.zeros((1, len(ids)), bool), on, np.zeros((1, len(ids)), bool)])
-    edge_t, edge_n = np.nonzero(padded[1:] != padded[:-1])
-    value = padded[1:][edge_t, edge_n]
-    # drop whole bursts: an on edge and its off edge together
-    burst = np.zeros(len(edge_t), np.int64)
-    order = np.lexsort((edge_t, edge_n))
-    burst[order] = np.cumsum(value[order]) + edge_n[order] * len(times)
-    burst_ids, inv = np.unique(burst, return_inverse=True)
-    keep = (rng.random(len(burst_ids)) >= cfg.drop)[inv]
+    on = pir_on(k, det, len(times), hold_samples(cfg.hold, cfg.rate_hz))
+    edges = toggle_edges(on)
+    keep = keep_bursts(edges.burst, cfg.drop, rng)
     offset = rng.uniform(-cfg.clock_offset, cfg.clock_offset, size=len(ids))
-    t_edge = np.minimum(edge_t, len(times)) / cfg.rate_hz + offset[edge_n]
+    t_edge = edges.sample / cfg.rate_hz + offset[edges.sensor]
     toggles = (
         pl.DataFrame(
             {
                 "t": np.maximum(t_edge, 0.0),
-                "sensor": np.asarray(ids, dtype=object)[edge_n].tolist(),
-                "value": value.astype(np.int8),
+                "sensor": np.asarray(ids, dtype=object)[edges.sensor].tolist(),
+                "value": edges.value.astype(np.int8),
             }
         )
         .filter(pl.Series(keep))

@@ -16,7 +16,8 @@ minutes in the bathroom) -- moving now and then to a neighbouring spot of the ro
 
 Sensing, as PIRs do: a sensor sees a resident inside its range only while the resident
 moves (probability ``p_detect`` per sample) or, still, with probability ``p_still`` per sample
-(breathing, turning over); a detection holds it on for ``hold`` seconds. ``motion.csv`` is the
+(breathing, turning over); a detection holds it on for ``hold`` seconds, and a whole on-burst
+is lost with probability ``drop`` (the PIR's toggle log of :mod:`onebit.models.pir`). ``motion.csv`` is the
 raw toggle log (t, sensor, value), ``truth.csv`` the positions at ``rate_hz`` (t, target, x, y,
 node). Sampling and sensing are vectorised over samples, residents and sensors; planning is
 sequential per resident. Deterministic for a seed; nothing comes from a real dataset.
@@ -37,6 +38,7 @@ from onebit.core.site import Site, load_site
 from onebit.core.writers import write_csv as _atomic_csv
 from onebit.core.writers import write_text as _atomic_text
 from onebit.datasets.scenario import Scenario
+from onebit.models.pir import hold_samples, keep_bursts, pir_on, toggle_edges
 
 nx = lazy_module("networkx")
 
@@ -205,30 +207,14 @@ def simulate_home(site: Site, cfg: HomeSimConfig, *, seed: int) -> HomeSimulatio
     k = np.tile(np.arange(len(times)), cfg.residents)
     p = np.where(move, cfg.p_detect, cfg.p_still)[:, None]
     det = covers(regions, xy) & (rng.random((len(xy), len(ids))) < p)
-    hit = np.zeros((len(times), len(ids)), bool)
-    r_, c_ = np.nonzero(det)
-    hit[k[r_], c_] = True
-    hold = max(1, int(round(cfg.hold * cfg.rate_hz)))
-    csum = np.cumsum(np.vstack([np.zeros((1, len(ids)), np.int64), hit.astype(np.int64)]), axis=0)
-    lo = np.maximum(np.arange(len(times)) - hold + 1, 0)
-    on = (csum[np.arange(len(times)) + 1] - csum[lo]) > 0  # a detection in the last `hold` s
-    padded = np.vstack([np.zeros((1, len(ids)), bool), on, np.zeros((1, len(ids)), bool)])
-    edge_t, edge_n = np.nonzero(padded[1:] != padded[:-1])
-    value = padded[1:][edge_t, edge_n]
-    burst = np.cumsum(value[np.lexsort((edge_t, edge_n))])  # drop whole bursts: an on edge and its off edge together
-    keep = np.ones(len(edge_t), bool)
-    if cfg.drop > 0:
-        order = np.lexsort((edge_t, edge_n))
-        b = np.empty(len(edge_t), np.int64)
-        b[order] = burst + edge_n[order] * len(times)
-        uniq, inv = np.unique(b, return_inverse=True)
-        keep = (rng.random(len(uniq)) >= cfg.drop)[inv]
+    edges = toggle_edges(pir_on(k, det, len(times), hold_samples(cfg.hold, cfg.rate_hz)))
+    keep = keep_bursts(edges.burst, cfg.drop, rng)  # the last draw: the stream after it is not used
     toggles = (
         pl.DataFrame(
             {
-                "t": edge_t / cfg.rate_hz,
-                "sensor": np.asarray(ids, dtype=object)[edge_n].tolist(),
-                "value": value.astype(np.int8),
+                "t": edges.sample / cfg.rate_hz,
+                "sensor": np.asarray(ids, dtype=object)[edges.sensor].tolist(),
+                "value": edges.value.astype(np.int8),
             }
         )
         .filter(pl.Series(keep))

@@ -683,11 +683,13 @@ def known_count(t: pl.Series, count: int) -> pl.DataFrame:
 #: graph (docs/homes.md: chosen on one half of the development sessions with the Kyoto plan).
 PLAN_RUN_TOML = """# Written by 'onebit import casas --layout': the positions are the floor plan's, so the home's
 # count model calls two sensors 2 hops apart on the plan's graph, fired within 2 s, two people
-# (without a plan the learned graph's hops are looser: the defaults, 4 hops within 1 s).
+# (without a plan the learned graph's hops are looser: the defaults, 4 hops within 1 s, and the
+# strays of one walker instead of far pairs; walk_s = 0 turns that term off here).
 [occupancy]
 far_hops = 2
 window_s = 2.0
 far_noise = 0.1
+walk_s = 0.0
 """
 
 

@@ -97,6 +97,12 @@ __all__ = [
     "log_weights",
     "PROB_FLOOR",
     "CHUNK",
+    "ToggleEdges",
+    "hold_samples",
+    "pir_on",
+    "hold_on",
+    "toggle_edges",
+    "keep_bursts",
 ]
 
 #: Keys of a ``[sensor_types.<name>]`` table: geometry, rates and the reader's debounce keys.
@@ -518,3 +524,76 @@ def log_weights(x, y, fired, blind, dep, half_w, half_d) -> np.ndarray:
     p_fire = -np.expm1(ls)
     logp = np.where(f, np.log(np.clip(p_fire, PROB_FLOOR, 1.0)), np.maximum(ls, math.log(PROB_FLOOR)))
     return logp.sum(axis=0)
+
+
+# --------------------------------------------------------------------------- the toggle log
+# What a PIR writes, sampled on a regular clock: a detection holds it on for ``hold`` samples,
+# its log holds the on and off edges, and a lost packet loses a whole on-burst. The simulators
+# (:mod:`onebit.datasets.hallway_sim`, :mod:`onebit.datasets.home_sim`) sense with it.
+
+
+@dataclass(frozen=True)
+class ToggleEdges:
+    """The toggles of ``s`` PIRs over ``n`` samples, one entry per edge, ordered by
+    ``(sample, sensor)``.
+
+    ``sample`` is the index of the first sample in the new state (``n`` for an off edge after
+    the last sample), ``sensor`` the PIR's column, ``value`` ``True`` for an on edge; ``burst``
+    is one id per on-burst, shared by its on edge and the off edge that ends it.
+    """
+
+    sample: np.ndarray  # (e,) int
+    sensor: np.ndarray  # (e,) int
+    value: np.ndarray  # (e,) bool
+    burst: np.ndarray  # (e,) int
+
+
+def hold_samples(hold_s: float, rate_hz: float) -> int:
+    """Samples a detection holds the PIR on: ``hold_s`` at ``rate_hz``, at least one."""
+    return max(1, int(round(hold_s * rate_hz)))
+
+
+def pir_on(sample: np.ndarray, detected: np.ndarray, n: int, hold: int) -> np.ndarray:
+    """``(n, s)`` on-states of ``s`` PIRs over ``n`` samples, from detections of bodies.
+
+    ``detected`` is ``(m, s)``: row ``r`` (a body at sample ``sample[r]``) detected by sensor
+    ``j``; a sample with any detection is a trigger (:func:`hold_on`).
+    """
+    hit = np.zeros((n, detected.shape[1]), bool)
+    rows, cols = np.nonzero(detected)
+    hit[sample[rows], cols] = True
+    return hold_on(hit, hold)
+
+
+def hold_on(hit: np.ndarray, hold: int) -> np.ndarray:
+    """``(n, s)`` on-states of PIRs triggered at ``hit`` (``(n, s)`` bool) that stay on ``hold``
+    samples (:func:`hold_samples`): sensor ``j`` is on at sample ``k`` when it was triggered in
+    samples ``k - hold + 1 .. k``::
+
+        on[k, j] = OR_{k - hold < k' <= k} hit[k', j]
+    """
+    n, s = hit.shape
+    csum = np.cumsum(np.vstack([np.zeros((1, s), np.int64), hit.astype(np.int64)]), axis=0)
+    lo = np.maximum(np.arange(n) - hold + 1, 0)
+    return (csum[np.arange(n) + 1] - csum[lo]) > 0
+
+
+def toggle_edges(on: np.ndarray) -> ToggleEdges:
+    """The on and off edges of ``(n, s)`` on-states (every PIR off before and after them)."""
+    n, s = on.shape
+    padded = np.vstack([np.zeros((1, s), bool), on, np.zeros((1, s), bool)])
+    sample, sensor = np.nonzero(padded[1:] != padded[:-1])
+    value = padded[1:][sample, sensor]
+    # bursts: number the on edges of each sensor in time; an off edge keeps its on edge's number
+    burst = np.zeros(len(sample), np.int64)
+    order = np.lexsort((sample, sensor))
+    burst[order] = np.cumsum(value[order]) + sensor[order] * n
+    return ToggleEdges(sample, sensor, value, burst)
+
+
+def keep_bursts(burst: np.ndarray, drop: float, rng: np.random.Generator) -> np.ndarray:
+    """``(e,)`` booleans: the edges kept when each whole on-burst (its on and its off edge) is
+    lost with probability ``drop``. One draw per burst, in burst-id order, even when
+    ``drop`` is 0 (the generator's stream does not depend on ``drop``)."""
+    ids, inverse = np.unique(burst, return_inverse=True)
+    return (rng.random(len(ids)) >= drop)[inverse]

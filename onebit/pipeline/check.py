@@ -34,6 +34,7 @@ import numpy as np
 import polars as pl
 
 from onebit.core.errors import InputError
+from onebit.core.params import param, validate
 from onebit.core.region_graph import build_region_graph
 from onebit.core.site import Site, load_site
 from onebit.pipeline.context import RunContext
@@ -57,12 +58,17 @@ PLACEHOLDER = "# CHECK: placeholder position"
 class SuspectConfig:
     """How :func:`suspect_sensors` judges a sensor (module docstring)."""
 
-    quiet_s: float = 600.0  #: no other sensor on within this long before and after: an empty stretch
-    solo_share: float = 0.5  #: share of a sensor's ons in empty stretches that flags it
-    min_ons: int = 20  #: fewer ons than this: too few to judge
-    window_s: float = 30.0  #: an on of a neighbour within this long: co-firing
-    lift: float = 1.5  #: co-firing no more than this times chance flags a sensor
-    neighbours: int = 3  #: nearest sensors taken as neighbours when the site has no graph
+    quiet_s: float = param(
+        600.0, "no other sensor on within this long before and after: an empty stretch", lo=0.0, unit="s"
+    )
+    solo_share: float = param(0.5, "share of a sensor's ons in empty stretches that flags it", lo=0.0, hi=1.0)
+    min_ons: int = param(20, "fewer ons than this: too few to judge", lo=0)
+    window_s: float = param(30.0, "an on of a neighbour within this long: co-firing", lo=0.0, unit="s")
+    lift: float = param(1.5, "co-firing no more than this times chance flags a sensor", lo=0.0)
+    neighbours: int = param(3, "nearest sensors taken as neighbours when the site has no graph", lo=0)
+
+    def __post_init__(self) -> None:
+        validate(self)
 
 
 @dataclass

@@ -46,7 +46,7 @@ class RunContext:
     status: dict[str, str] = field(default_factory=dict)
     #: wall-clock seconds of every stage that ran (measured by the runner, never by a stage)
     seconds: dict[str, float] = field(default_factory=dict)
-    #: each tracker's resolved config (lengths in the site's units), for its viz function
+    #: each tracker's config as built from its section, once per run (:func:`onebit.pipeline.tracking.tracker_config`)
     configs: dict[str, Any] = field(default_factory=dict)
     #: ``progress(done, total)`` of the running stage: the runner forwards it to its bar;
     #: trackers get it in their inputs (:data:`onebit.trackers.base.PROGRESS`)
@@ -129,6 +129,9 @@ class Stage:
     #: detachable stages of a run side by side on the cores (trackers: pure functions of their
     #: inputs); ``None``: always ``work`` here
     detach: Callable[[RunContext], tuple[Callable[..., dict[str, Any]], tuple, Any]] | None = None
+    #: ``onebit follow`` runs it at every poll on the logs read so far (the readers of the sensor
+    #: logs, whose tables the trackers step over); the others run in its final batch run only
+    polled: bool = False
 
     def declares(self, table: str) -> bool:
         """Whether ``table`` is among :attr:`makes` (by name, or by a ``prefix_*`` entry)."""

@@ -26,10 +26,6 @@ makes the run not ``ok``.
 from __future__ import annotations
 
 import copy
-import multiprocessing
-import os
-import pickle
-import tempfile
 import time
 import traceback
 import uuid
@@ -44,16 +40,18 @@ from onebit.core import writers as outputs
 from onebit.core.config import config_from_mapping, load_toml
 from onebit.core.errors import ConfigError, DiskFullError, InputError, OnebitError, bounded, is_disk_full
 from onebit.core.memory import release_freed_memory
-from onebit.core.parallel import CORES_ENV, available_cores, cpu_seconds, one_core_each, run_beside, worker_cpu_seconds
+from onebit.core.parallel import cpu_seconds, worker_cpu_seconds
 from onebit.core.region_graph import build_region_graph
 from onebit.core.site import load_site
 from onebit.core.tables import REJECTS, REPORT
+from onebit.pipeline import stages as declaration
 from onebit.pipeline.context import RunContext, Stage, check_made, dataset_run_config
+from onebit.pipeline.detach import SideBySide, Worked, failed
 from onebit.pipeline.progress import ProgressSink, progress_sink
-from onebit.pipeline.stages import TRACKERS, TrackerEntry, stages
+from onebit.pipeline.stages import TRACKERS, TrackerEntry
 from onebit.readers.mcap_io import load_topic_map, read_mcap
 from onebit.readers.rows import RawRows
-from onebit.trackers.base import ARTIFACTS, PROGRESS
+from onebit.trackers.base import ARTIFACTS
 from onebit.viz.blueprint import save_run_blueprint
 from onebit.viz.recording import rerun_enabled, stage_recording
 from onebit.viz.site import log_site
@@ -149,6 +147,33 @@ def check_sections(sections: dict[str, Any], stage_list: list[Stage], *, source:
                 raise ConfigError(f"{source}: {what}") from None
 
 
+def checked_sections(dataset: Path, config: dict[str, Any] | None, stage_list: list[Stage]) -> tuple[dict, dict]:
+    """``--config``'s sections (a copy: a run never changes the caller's dicts) and the
+    dataset's own ``run.toml``, each checked against ``stage_list`` (:func:`check_sections`)."""
+    config = copy.deepcopy(dict(config or {}))
+    check_sections(config, stage_list, source="--config")
+    dataset_sections = dataset_run_config(dataset)
+    check_sections(dataset_sections, stage_list, source=dataset / "run.toml")
+    return config, dataset_sections
+
+
+def check_tracker_names(names: tuple[str, ...], known: list[str], *, where: str) -> None:
+    """Every name of ``names`` is a declared tracker; else a :class:`ConfigError` naming ``where``."""
+    for tr in names:
+        if tr not in known:
+            raise ConfigError(f"{where}: unknown tracker {tr!r}; known: {sorted(known)}")
+
+
+def _crashed(exc: Exception, work: Path) -> Exception:
+    """An error of the stage loop: bad input and a full disk end the run (``OUT`` left as it
+    was), so they are raised; a bug is returned, to be recorded as the run's failure."""
+    if isinstance(exc, OnebitError):
+        raise exc
+    if is_disk_full(exc):  # the system, not a bug: OUT left as it was
+        raise DiskFullError(work) from exc
+    return exc
+
+
 def check_dataset(dataset: Path) -> Path:
     """The dataset folder can be read: it exists, no interrupted ``onebit simulate`` left it
     ``INCOMPLETE``, and no file the runner reads is a symlink leading outside it."""
@@ -240,18 +265,9 @@ def run_pipeline(
     tracker on one core; the tables and report are the same for any value); 0 = the cores
     this process may use (:func:`onebit.core.parallel.available_cores`: ``ONEBIT_CORES``, else
     its CPU affinity; 1 in a ``run-many`` pool's worker) once the run's tables hold
-    :data:`DETACH_MIN_ROWS` rows, else 1; 1 = one tracker after another, here.
+    :data:`~onebit.pipeline.detach.DETACH_MIN_ROWS` rows, else 1; 1 = one tracker after another, here.
 
-    The run record ``run.toml`` holds, besides each stage's status, a ``[timing]`` table: per
-    stage the seconds of its work (``work_s``, as in its status), of its recording (``viz_s``:
-    opening the ``.rrd``, the site and the stage's viz call, closing it) and of writing its
-    tables (``write_s``), and the CPU seconds of the work and of the recording (``work_cpu_s``,
-    ``viz_cpu_s``: the process's, every thread's, and of the worker processes a stage ran
-    pieces in, :func:`onebit.core.parallel.cpu_seconds`; on a shared machine the wall times
-    grow with the load, these hardly); ``blueprint_s`` (``blueprint_cpu_s``), ``run_s`` (stages
-    to record; ``run_cpu_s``), ``worker_cpu_s`` (the part of ``run_cpu_s`` spent in worker
-    processes) and ``entered_unix`` (the wall clock when this function was called: a caller that
-    knows when its process started gets the start-up from it).
+    The run record ``run.toml`` holds each stage's status and a ``[timing]`` table (:func:`_finish`).
 
     Raises :class:`OnebitError` (``out`` untouched) for bad input found before or instead of
     any work: dataset, ``OUT``, site, config, tracker names, or every stage skipped.
@@ -264,18 +280,11 @@ def run_pipeline(
     check_dataset(dataset)
     replacing = check_out(out, dataset)
     site = load_site(dataset / "site.toml")
-    stage_list = stages(tracker_entries)
-    config = copy.deepcopy(dict(config or {}))  # the run reads it (RunContext.config); never the caller's dicts
-    check_sections(config, stage_list, source="--config")
-    dataset_sections = dataset_run_config(dataset)
-    check_sections(dataset_sections, stage_list, source=dataset / "run.toml")
+    stage_list = declaration.stages(tracker_entries)  # read at run time: the one declaration
+    config, dataset_sections = checked_sections(dataset, config, stage_list)
     known = [e.name for e in tracker_entries]
     requested = tuple(trackers) if trackers else default_trackers(config, dataset_sections)
-    for tr in requested:
-        if tr not in known:
-            where = "--trackers" if trackers else "[run] trackers"
-            raise ConfigError(f"{where}: unknown tracker {tr!r}; known: {sorted(known)}")
-    trackers = requested or tuple(known)
+    check_tracker_names(requested, known, where="--trackers" if trackers else "[run] trackers")
     rg = build_region_graph(site)
     if replacing:
         echo(f"  {replacing}")
@@ -289,7 +298,7 @@ def run_pipeline(
                 site,
                 rg,
                 config,
-                trackers=trackers,
+                trackers=requested or tuple(known),
                 progress=sink.step,
                 dataset_sections=dataset_sections,
             )
@@ -307,12 +316,8 @@ def run_pipeline(
                         looks={e.name: e.drawn for e in tracker_entries},
                         cores=cores,
                     )
-            except OnebitError:
-                raise
             except Exception as exc:  # a bug, not bad input: keep what was done and the traceback
-                if is_disk_full(exc):  # the system, not a bug: OUT left as it was
-                    raise DiskFullError(work) from exc
-                crash = exc
+                crash = _crashed(exc, work)
                 result = _record_crash(ctx, exc)
     finally:
         sink.close()
@@ -323,184 +328,102 @@ def run_pipeline(
     return RunResult(out, status, report, ok, problems)
 
 
-#: A run detaches its trackers side by side (``cores = 0``) from this many rows in its
-#: tables when they start: below it the trackers take seconds, less than starting workers.
-DETACH_MIN_ROWS = 200_000
+# --------------------------------------------------------------------------- one stage
 
 
-@dataclass
-class _Detached:
-    """What a detached stage's work gave: its tables, or its error (``onebit``: an
-    :class:`OnebitError`, said as it is; else a bug, with the traceback), and its seconds."""
-
-    made: dict[str, Any] | None
-    seconds: float
-    cpu: float
-    error: str | None = None
-    onebit: bool = False
-    traceback: str | None = None
+def skip_reason(st: Stage, ctx: RunContext) -> str | None:
+    """Why ``st`` does not run on ``ctx`` now (its own ``available``, then its input tables), or ``None``."""
+    missing = [n for n in st.needs if n not in ctx.tables]
+    reason = st.available(ctx)
+    if reason is None and missing:
+        reason = f"input table(s) {missing} not produced by an earlier stage"
+    return reason
 
 
-class _DetachedError(Exception):
-    def __init__(self, outcome: _Detached) -> None:
-        super().__init__(outcome.error)
-        self.outcome = outcome
+def run_stage(st: Stage, ctx: RunContext, *, worked: Worked | None = None) -> Worked:
+    """The work of the available stage ``st`` on ``ctx``: the one step ``onebit run`` and
+    ``onebit follow`` share.
 
-
-def _run_job(fn: Callable[..., dict[str, Any]], args: tuple) -> _Detached:
-    t0, c0 = time.perf_counter(), time.process_time()
+    ``st.work(ctx)`` here, or ``worked``: what a worker made of it
+    (:class:`~onebit.pipeline.detach.SideBySide`); timed (``ctx.seconds``) and checked against
+    the stage's declaration (:func:`~onebit.pipeline.context.check_made`). A failure is the
+    outcome's ``error`` (with a ``traceback`` when it is a bug, not bad input); a full disk
+    stops everything (:class:`DiskFullError`). The tables are the caller's to keep and write.
+    """
+    t0, c0 = time.perf_counter(), cpu_seconds()
     try:
-        made = fn(*args)
-    except OnebitError as exc:
-        return _Detached(None, time.perf_counter() - t0, time.process_time() - c0, str(exc), onebit=True)
-    except Exception as exc:  # a bug: its traceback goes to logs/, as in the run's own process
-        return _Detached(
-            None,
-            time.perf_counter() - t0,
-            time.process_time() - c0,
-            f"{type(exc).__name__}: {exc}",
-            traceback=traceback.format_exc(limit=8),
-        )
-    return _Detached(made, time.perf_counter() - t0, time.process_time() - c0)
+        if worked is not None and worked.error is not None:
+            return worked
+        made = st.work(ctx) if worked is None else worked.made
+        seconds = ctx.seconds[st.name] = time.perf_counter() - t0 if worked is None else worked.seconds
+        check_made(st, made, ctx.tables, extra=(ARTIFACTS,))
+    except DiskFullError:  # not this stage's failure: the whole run stops, OUT left as it was
+        raise
+    except Exception as exc:  # bad input, or a bug: keep the other stages (and the traceback)
+        if is_disk_full(exc):  # the system, not a bug: the whole run stops, OUT left as it was
+            raise DiskFullError(ctx.out) from exc
+        return failed(exc, time.perf_counter() - t0, cpu_seconds() - c0)
+    return Worked(made, seconds, cpu_seconds() - c0 if worked is None else worked.cpu)
 
 
-#: A worker hands a table of this many bytes or more back through a file (Arrow IPC,
-#: uncompressed, read here once), not the pipe: a pickled table is held twice on each side
-#: while it passes -- the table and its bytes -- (the 24-hour home's ``istate_regions``, 0.7 GB,
-#: took the day's process tree over 2 GB); through a file, once on each side.
-SPILL_BYTES = 64 * 2**20
+def _log_stage(st: Stage, ctx: RunContext, made: dict[str, Any], recording_id: str) -> None:
+    """The stage's recording: opened, the site logged, the stage's viz called, closed."""
+    with stage_recording(ctx.out, st.name, recording_id) as rec:
+        log_site(rec, ctx.site, ctx.region_graph)
+        if st.viz is not None:
+            st.viz(rec, ctx, made)
+    release_freed_memory()
 
 
-@dataclass(frozen=True)
-class _Spilled:
-    """A table a worker wrote to ``path`` (Arrow IPC) for this process to read."""
-
-    path: str
-
-
-def _spill(made: dict[str, Any], limit: int) -> None:
-    """Replace the tables of ``made`` of ``limit`` bytes or more by files (in a worker)."""
-    for key, value in made.items():
-        if key != ARTIFACTS and isinstance(value, pl.DataFrame) and value.estimated_size() >= limit:
-            fd, path = tempfile.mkstemp(prefix="onebit-table-", suffix=".arrow")
-            os.close(fd)
-            value.write_ipc(path, compression="uncompressed")
-            made[key] = _Spilled(path)
-
-
-def _unspill(made: dict[str, Any]) -> None:
-    """Read the tables a worker left in files (:func:`_spill`) and remove the files."""
-    for key, value in made.items():
-        if isinstance(value, _Spilled):
-            try:
-                made[key] = pl.read_ipc(value.path)
-            finally:
-                Path(value.path).unlink(missing_ok=True)
-
-
-def _run_lane(jobs: list[tuple[str, Callable, tuple]], spill: int = SPILL_BYTES) -> list[_Detached]:
-    """Detached stages one after another, each on one core: in a worker process (its large
-    tables handed back through files, :func:`_spill`), or here when this process takes them
-    (:func:`onebit.core.parallel.run_beside`)."""
-    worker = multiprocessing.parent_process() is not None
-    if worker:
-        one_core_each()
-    out = [_run_job(fn, args) for _, fn, args in jobs]
-    if worker:
-        for o in out:
-            if o.made is not None:
-                _spill(o.made, spill)
-    return out
-
-
-def _portable(fn: Callable, args: tuple) -> bool:
-    """Whether ``fn`` and the functions among ``args`` pickle by reference (module-level)."""
+def _recorded(st: Stage, ctx: RunContext, done: Worked, recording_id: str | None) -> tuple[Worked, dict]:
+    """``done`` with its recording written (``recording_id``; ``None``: no recordings) and its
+    timing, or the recording's failure."""
+    t1, c1 = time.perf_counter(), cpu_seconds()
     try:
-        pickle.dumps([fn, *(a for a in args if callable(a))])
-    except Exception:
-        return False
-    return True
+        if recording_id is not None:
+            _log_stage(st, ctx, done.made, recording_id)
+    except DiskFullError:
+        raise
+    except Exception as exc:
+        if is_disk_full(exc):
+            raise DiskFullError(ctx.out) from exc
+        return failed(exc, done.seconds, done.cpu), {}
+    return done, {
+        "work_s": round(done.seconds, 6),
+        "viz_s": round(time.perf_counter() - t1, 6),
+        "work_cpu_s": round(done.cpu, 6),
+        "viz_cpu_s": round(cpu_seconds() - c1, 6),
+    }
 
 
-def _without_progress(args: tuple) -> tuple:
-    """``args`` with the progress callback taken out of its input tables (a bar of this
-    process; a worker's stage reports nothing)."""
-    return tuple(
-        {k: v for k, v in a.items() if k != PROGRESS} if isinstance(a, dict) and PROGRESS in a else a for a in args
-    )
+def _say_failed(name: str, done: Worked, ctx: RunContext, echo: Callable[[str], None]) -> None:
+    """A stage's failure in its status: bad input as it is said, a bug with its traceback in ``logs/``."""
+    if done.onebit:
+        ctx.status[name] = f"failed: {done.error}"
+        echo(f"  {name}: FAILED: {done.error}")
+        return
+    ctx.status[name] = bounded(f"failed: {done.error}", 2000)
+    outputs.write_text(done.traceback or "", ctx.out / "logs" / f"{name}.traceback.txt")
+    echo(f"  {name}: FAILED with {bounded(done.error)} (traceback in logs/{name}.traceback.txt)")
 
 
-def run_cores(ctx: RunContext, cores: int) -> int:
-    """Cores for the detached stages: ``cores`` when > 0, else :func:`available_cores` when
-    the run's tables hold at least :data:`DETACH_MIN_ROWS` rows, else 1."""
-    if cores > 0:
-        return cores
-    rows = sum(t.height for t in ctx.tables.values() if isinstance(t, pl.DataFrame))
-    return available_cores() if rows >= DETACH_MIN_ROWS else 1
-
-
-def _detachable(rest: list[Stage], ctx: RunContext) -> list[Stage]:
-    """The detachable stages from the start of ``rest`` on (up to the first that is not) that
-    would run now: available, their input tables made."""
-    out = []
-    for st in rest:
-        if st.detach is None:
-            break
-        if all(n in ctx.tables for n in st.needs) and st.available(ctx) is None:
-            out.append(st)
-    return out
-
-
-def _detach_batch(
-    stages: list[Stage], ctx: RunContext, cores: int, *, spill: int | None = None
-) -> dict[str, _Detached]:
-    """Run the work of ``stages`` (detachable, available) side by side on ``cores``: this
-    process the first, ``cores - 1`` worker processes the others in order, each taking the
-    next when it is free, and this process too once its own is done
-    (:func:`onebit.core.parallel.run_beside`); each stage's work on one core. A stage whose
-    work cannot be sent (a local function) is worked here; a call a worker cannot make or
-    hand back (artifacts that do not pickle, a worker killed) is made here again by
-    ``run_beside``."""
-    units: list[list[tuple[str, Callable, tuple]]] = []  # calls: stages sharing work stay in one
-    by_key: dict[Any, list] = {}
-    for st in stages:
-        fn, args, shares = st.detach(ctx)
-        job = (st.name, fn, args)
-        if shares is not None and shares in by_key:
-            by_key[shares].append(job)
+def _keep(st: Stage, ctx: RunContext, made: dict[str, Any], timing: dict, echo: Callable[[str], None]) -> None:
+    """The tables a stage made: into the run's tables and ``tables/``; its status ok."""
+    t2 = time.perf_counter()
+    for name, df in made.items():
+        if name == ARTIFACTS:  # in-memory results for the stage's viz only
             continue
-        units.append([job])
-        if shares is not None:
-            by_key[shares] = units[-1]
-    k = min(cores, len(units))
-    here_jobs = list(units[0])
-    away = []
-    for unit in units[1:]:
-        if all(_portable(f, a) for _, f, a in unit):
-            away.append([(n, f, _without_progress(a)) for n, f, a in unit])
-        else:
-            here_jobs += unit
-    old = os.environ.get(CORES_ENV)
-    os.environ[CORES_ENV] = "1"  # every stage of the batch on one core: the batch fills them
-    try:
-        mine, theirs = run_beside(
-            lambda: [_run_job(f, a) for _, f, a in here_jobs],
-            _run_lane,
-            [(lane, SPILL_BYTES if spill is None else spill) for lane in away],
-            workers=k - 1,
-        )
-    finally:
-        if old is None:
-            os.environ.pop(CORES_ENV, None)
-        else:
-            os.environ[CORES_ENV] = old
-    out = {n: o for (n, _, _), o in zip(here_jobs, mine)}
-    for lane, outcomes in zip(away, theirs):
-        for (n, _, _), o in zip(lane, outcomes):
-            if o.made is not None:
-                _unspill(o.made)
-            out[n] = o
-    return out
+        ctx.tables[name] = df
+        outputs.write_parquet(df, ctx.out / "tables" / f"{name}.parquet")
+    timing["write_s"] = round(time.perf_counter() - t2, 6)
+    ctx.status[st.name] = f"ok ({ctx.seconds[st.name]:.2f} s)"
+    echo(f"  {st.name}: ok")
+    for part, state in ctx.status.items():  # parts of a stage that failed on their own (scores/<tracker>)
+        if part.startswith(f"{st.name}/"):
+            echo(f"  {part}: {state}")
+
+
+# --------------------------------------------------------------------------- the stage loop
 
 
 def _run_stages(
@@ -518,121 +441,92 @@ def _run_stages(
 ) -> tuple[dict[str, str], pl.DataFrame, bool, list[str]]:
     """Run the stages into ``ctx.out`` (the work folder) and write the run's record there.
 
-    A stage's work runs first, then (``rrd``) its recording is written: opened, the site
-    logged, the stage's viz called, closed; a failure in either leaves no ``.rrd`` of the
-    stage. Work, recording and table writing are timed apart (``timing`` of ``run.toml``);
-    ``looks`` (tracker -> :class:`~onebit.viz.families.Look`) lay out the run's blueprint."""
-    work, dataset, site = ctx.out, ctx.dataset, ctx.site
-    (work / "tables").mkdir(parents=True, exist_ok=True)
+    Each available stage is worked (:func:`run_stage`; the detachable ones maybe side by side,
+    :class:`~onebit.pipeline.detach.SideBySide`), then (``rrd``) its recording is written; a
+    failure in either leaves no ``.rrd`` of the stage. Work, recording and table writing are
+    timed apart (``timing`` of ``run.toml``); ``looks`` (tracker ->
+    :class:`~onebit.viz.families.Look`) lay out the run's blueprint."""
+    (ctx.out / "tables").mkdir(parents=True, exist_ok=True)
     if rrd:
-        (work / "rrd").mkdir(parents=True, exist_ok=True)
+        (ctx.out / "rrd").mkdir(parents=True, exist_ok=True)
     recording_id = str(uuid.uuid4())
-    status = ctx.status
     timing: dict[str, Any] = {"entered_unix": round(entered if entered is not None else time.time(), 6), "rrd": rrd}
     _read_mcaps(ctx, echo)
-    started, started_cpu, started_workers = time.time(), cpu_seconds(), worker_cpu_seconds()
-    detached: dict[str, _Detached] = {}
+    started = (time.time(), cpu_seconds(), worker_cpu_seconds())
+    beside = SideBySide(cores)
     for i, st in enumerate(stage_list):
         sink.stage(st.name, i, len(stage_list))
-        missing = [n for n in st.needs if n not in ctx.tables]
-        reason = st.available(ctx)
-        if reason is None and missing:
-            reason = f"input table(s) {missing} not produced by an earlier stage"
+        reason = skip_reason(st, ctx)
         if reason is not None:
-            status[st.name] = f"skipped: {reason}"
+            ctx.status[st.name] = f"skipped: {reason}"
             echo(f"  {st.name}: skipped ({reason})")
             continue
-        if st.detach is not None and st.name not in detached and run_cores(ctx, cores) > 1:
-            batch = _detachable(stage_list[i:], ctx)
-            if len(batch) >= 2:  # this stage and the detachable ones after it, side by side
-                detached.update(_detach_batch(batch, ctx, run_cores(ctx, cores)))
-        t0, c0 = time.perf_counter(), cpu_seconds()
-        try:
-            if st.name in detached:  # worked already, here or in a worker
-                done = detached.pop(st.name)
-                if done.error is not None:
-                    raise _DetachedError(done)
-                made, work_s, work_cpu = done.made, done.seconds, done.cpu
-            else:
-                made = st.work(ctx)
-                work_s, work_cpu = None, None
-            release_freed_memory()  # what the work dropped, before its recording and the next stage
-            ctx.seconds[st.name] = time.perf_counter() - t0 if work_s is None else work_s
-            check_made(st, made, ctx.tables, extra=(ARTIFACTS,))
-            t1, c1 = time.perf_counter(), cpu_seconds()
-            if rrd:
-                with stage_recording(work, st.name, recording_id) as rec:
-                    log_site(rec, site, ctx.region_graph)
-                    if st.viz is not None:
-                        st.viz(rec, ctx, made)
-                release_freed_memory()
-            timing[st.name] = {
-                "work_s": round(ctx.seconds[st.name], 6),
-                "viz_s": round(time.perf_counter() - t1, 6),
-                "work_cpu_s": round(c1 - c0 if work_cpu is None else work_cpu, 6),
-                "viz_cpu_s": round(cpu_seconds() - c1, 6),
-            }
-        except DiskFullError:  # not this stage's failure: the whole run stops, OUT left as it was
-            raise
-        except OnebitError as exc:
-            status[st.name] = f"failed: {exc}"
-            echo(f"  {st.name}: FAILED: {exc}")
+        done = run_stage(st, ctx, worked=beside.take(stage_list[i:], ctx))
+        release_freed_memory()  # what the work dropped, before its recording and the next stage
+        if done.error is None:
+            done, timing[st.name] = _recorded(st, ctx, done, recording_id if rrd else None)
+        if done.error is not None:
+            _say_failed(st.name, done, ctx, echo)
             continue
-        except _DetachedError as exc:  # the detached work's error, said as the work here would
-            done = exc.outcome
-            if done.onebit:
-                status[st.name] = f"failed: {done.error}"
-                echo(f"  {st.name}: FAILED: {done.error}")
-            else:
-                status[st.name] = bounded(f"failed: {done.error}", 2000)
-                outputs.write_text(done.traceback or "", work / "logs" / f"{st.name}.traceback.txt")
-                echo(f"  {st.name}: FAILED with {bounded(done.error)} (traceback in logs/{st.name}.traceback.txt)")
-            continue
-        except Exception as exc:  # a bug, not bad input: keep the other stages, keep the traceback
-            if is_disk_full(exc):  # the system, not a bug: the whole run stops, OUT left as it was
-                raise DiskFullError(work) from exc
-            tb = traceback.format_exc(limit=8)
-            status[st.name] = bounded(f"failed: {type(exc).__name__}: {exc}", 2000)
-            outputs.write_text(tb, work / "logs" / f"{st.name}.traceback.txt")
-            echo(
-                f"  {st.name}: FAILED with {bounded(f'{type(exc).__name__}: {exc}')} (traceback in logs/{st.name}.traceback.txt)"
-            )
-            continue
-        t2 = time.perf_counter()
-        for name, df in made.items():
-            if name == ARTIFACTS:  # in-memory results for the stage's viz only
-                continue
-            ctx.tables[name] = df
-            outputs.write_parquet(df, work / "tables" / f"{name}.parquet")
-        timing[st.name]["write_s"] = round(time.perf_counter() - t2, 6)
-        status[st.name] = f"ok ({ctx.seconds[st.name]:.2f} s)"
-        echo(f"  {st.name}: ok")
-        for part, state in status.items():  # parts of a stage that failed on their own (scores/<tracker>)
-            if part.startswith(f"{st.name}/"):
-                echo(f"  {part}: {state}")
-
-    # nothing useful done: no stage read or corrected any input (trackers and scores on nothing do not count)
-    data_stages = [st.name for st in stage_list if st.name not in {*tracker_names, "scores"}]
-    if all(status.get(n, "").startswith("skipped") for n in data_stages):
-        why = "; ".join(f"{n}: {s}" for n, s in status.items() if n in data_stages or n.startswith("mcap:"))
-        bad = [f"{n[5:]}: {s[8:]}" for n, s in status.items() if n.startswith("mcap:") and s.startswith("failed: ")]
-        if bad:  # an unreadable file is the news, not the stages it left with nothing
-            why = "; ".join(f"{n}: {s}" for n, s in status.items() if n in data_stages)
-            raise InputError(
-                f"unreadable input: {'; '.join(bad)}; nothing else to read ({why}); OUT was left as it was",
-                file=dataset,
-            )
-        raise InputError(f"nothing to do: no input could be read ({why}); OUT was left as it was", file=dataset)
+        _keep(st, ctx, done.made, timing[st.name], echo)
+    _check_did_something(ctx, stage_list, tracker_names)
     problems = [
-        f"tracker '{tr}' was asked for (--trackers) but did not run: {status.get(tr, 'not run')[len('skipped: ') :]}"
+        f"tracker '{tr}' was asked for (--trackers) but did not run: {ctx.status.get(tr, 'not run')[len('skipped: ') :]}"
         for tr in requested
-        if status.get(tr, "").startswith("skipped")
+        if ctx.status.get(tr, "").startswith("skipped")
     ]
     for p in problems:
         echo(f"  {p}")
+    return _finish(ctx, recording_id, problems, timing, started, rrd=rrd, looks=looks)
+
+
+def _check_did_something(ctx: RunContext, stage_list: list[Stage], tracker_names: list[str]) -> None:
+    """Nothing useful done -- no stage read or corrected any input (trackers and scores on
+    nothing do not count) -- is an :class:`InputError`, so ``OUT`` is left as it was."""
+    status = ctx.status
+    data_stages = [st.name for st in stage_list if st.name not in {*tracker_names, "scores"}]
+    if not all(status.get(n, "").startswith("skipped") for n in data_stages):
+        return
+    why = "; ".join(f"{n}: {s}" for n, s in status.items() if n in data_stages or n.startswith("mcap:"))
+    bad = [f"{n[5:]}: {s[8:]}" for n, s in status.items() if n.startswith("mcap:") and s.startswith("failed: ")]
+    if bad:  # an unreadable file is the news, not the stages it left with nothing
+        why = "; ".join(f"{n}: {s}" for n, s in status.items() if n in data_stages)
+        raise InputError(
+            f"unreadable input: {'; '.join(bad)}; nothing else to read ({why}); OUT was left as it was",
+            file=ctx.dataset,
+        )
+    raise InputError(f"nothing to do: no input could be read ({why}); OUT was left as it was", file=ctx.dataset)
+
+
+def _finish(
+    ctx: RunContext,
+    recording_id: str,
+    problems: list[str],
+    timing: dict[str, Any],
+    started: tuple[float, float, float],
+    *,
+    rrd: bool,
+    looks: dict | None,
+) -> tuple[dict[str, str], pl.DataFrame, bool, list[str]]:
+    """The run's blueprint, rejects, report and record (``run.toml``).
+
+    The run record holds, besides each stage's status, a ``[timing]`` table: per
+    stage the seconds of its work (``work_s``, as in its status), of its recording (``viz_s``:
+    opening the ``.rrd``, the site and the stage's viz call, closing it) and of writing its
+    tables (``write_s``), and the CPU seconds of the work and of the recording (``work_cpu_s``,
+    ``viz_cpu_s``: the process's, every thread's, and of the worker processes a stage ran
+    pieces in, :func:`onebit.core.parallel.cpu_seconds`; on a shared machine the wall times
+    grow with the load, these hardly); ``blueprint_s`` (``blueprint_cpu_s``), ``run_s`` (stages
+    to record; ``run_cpu_s``), ``worker_cpu_s`` (the part of ``run_cpu_s`` spent in worker
+    processes) and ``entered_unix`` (the wall clock when this function was called: a caller that
+    knows when its process started gets the start-up from it).
+    """
+    work = ctx.out
     t3, c3 = time.perf_counter(), time.process_time()
     if rrd:
-        save_run_blueprint(work / "rrd", units=site.units, looks=looks)  # the viewer layout of what the stages logged
+        save_run_blueprint(
+            work / "rrd", units=ctx.site.units, looks=looks
+        )  # the viewer layout of what the stages logged
     timing["blueprint_s"] = round(time.perf_counter() - t3, 6)
     timing["blueprint_cpu_s"] = round(time.process_time() - c3, 6)
     rejects = ctx.tables.get("rejects", pl.DataFrame(schema=REJECTS))
@@ -640,20 +534,20 @@ def _run_stages(
     report = pl.DataFrame(ctx.report, schema=REPORT, orient="row")
     outputs.write_parquet(report, work / "report.parquet")
     outputs.write_csv(report, work / "report.csv")
-    ok = all(not s.startswith("failed") for s in status.values()) and not problems
-    timing["run_s"] = round(time.time() - started, 6)
-    timing["run_cpu_s"] = round(cpu_seconds() - started_cpu, 6)
-    timing["worker_cpu_s"] = round(worker_cpu_seconds() - started_workers, 6)
+    ok = all(not s.startswith("failed") for s in ctx.status.values()) and not problems
+    timing["run_s"] = round(time.time() - started[0], 6)
+    timing["run_cpu_s"] = round(cpu_seconds() - started[1], 6)
+    timing["worker_cpu_s"] = round(worker_cpu_seconds() - started[2], 6)
     _write_record(
         ctx,
         recording_id=recording_id,
-        seconds=time.time() - started,
+        seconds=time.time() - started[0],
         ok=ok,
         problems=problems,
         rejects=rejects.height,
         timing=timing,
     )
-    return status, report, ok, problems
+    return ctx.status, report, ok, problems
 
 
 def _read_mcaps(ctx: RunContext, echo: Callable[[str], None]) -> None:

@@ -16,10 +16,14 @@
     scores     everything above            -> crossing_matches, <tracker>_scores, ...
 
 Each stage's ``makes`` is checked by the runner (:func:`onebit.pipeline.context.check_made`):
-a stage returning a table it does not declare, or one an earlier stage made, fails.
+a stage returning a table it does not declare, or one an earlier stage made, fails. ``onebit
+run`` and ``onebit follow`` run this one list with one step
+(:func:`onebit.pipeline.runner.run_stage`); ``follow`` runs the stages declared ``polled`` at
+every poll, and each tracker as its entry's ``live`` says (:mod:`onebit.pipeline.online`).
 
-The work of the reader stages (a raw log -> its tables) is in :mod:`onebit.pipeline.reading`;
-this file only declares them.
+This file declares; the work is elsewhere: a tracker's stage in :mod:`onebit.pipeline.tracking`,
+the scores in :mod:`onebit.pipeline.scores`, the reader stages' work (a raw log -> its tables)
+in :mod:`onebit.pipeline.reading`.
 
 Adding a tracker: its package under :mod:`onebit.trackers` (a ``TrackerSpec``), a scoring
 function in :mod:`onebit.scoring` (built on :mod:`onebit.scoring.association`; the MOT metrics
@@ -32,19 +36,20 @@ from __future__ import annotations
 
 from collections.abc import Callable
 from dataclasses import dataclass, field, replace
-from typing import Any
 
 import polars as pl
 
-from onebit.core.config import config_from_mapping
-from onebit.core.errors import OnebitError
-from onebit.core.tables import REJECTS
-from onebit.core.units import config_in_site_units
 from onebit.models.occupancy import OccupancyConfig
-from onebit.pipeline import homes, reading
-from onebit.pipeline.context import ReportRow, RunContext, Stage
-from onebit.pipeline.homes import count_metric, count_rows, people_from_tracks
-from onebit.pipeline.reading import TIME_SOURCES, run_time_origin, without_ignored  # noqa: F401  (the first two for follow)
+from onebit.pipeline import (
+    homes,
+    reading,
+    tracking,  # its tracker_stage, read when stages() is called (tracking reads this module)
+)
+from onebit.pipeline.context import ReportRow, Stage
+from onebit.pipeline.homes import count_metric
+from onebit.pipeline.online import BATCH_ONLY, BEAMS, BINPF, INTRUDER, ISTATE, LAGGED, ONLINE, PREFIX, Live, hmm_stepper
+from onebit.pipeline.reading import TIME_SOURCES, run_time_origin, without_ignored  # noqa: F401  (for follow, tracking)
+from onebit.pipeline.scores import MetricFn, identity_metric, scores_stage
 from onebit.readers.motion import MotionConfig
 from onebit.readers.proximity import ProximityConfig
 from onebit.scoring import beams as score_beams
@@ -54,12 +59,9 @@ from onebit.scoring import findinghumo as score_findinghumo
 from onebit.scoring import intruder as score_intruder
 from onebit.scoring import istate as score_istate
 from onebit.scoring import residents as score_residents
-from onebit.scoring.crossings import ScoresConfig, score_crossings
-from onebit.scoring.identity import baseline_rows, graph_hops, identity_scores
-from onebit.scoring.mot import Gate, mot_rows
-from onebit.scoring.serve import CannotServe
+from onebit.scoring.mot import Gate
 from onebit.trackers import beams, binpf, clustertrack, findinghumo, findinghumo_flow, intruder, istate, residents
-from onebit.trackers.base import ARTIFACTS, PROGRESS, TrackerSpec
+from onebit.trackers.base import TrackerSpec
 from onebit.trackers.beams.correction import CorrectConfig
 from onebit.viz import beams as viz_beams
 from onebit.viz import binpf as viz_binpf
@@ -70,15 +72,11 @@ from onebit.viz import istate as viz_istate
 from onebit.viz import occupancy as viz_occupancy
 from onebit.viz import residents as viz_residents
 from onebit.viz.families import Look
-from onebit.viz.tracks import log_scores
 
 #: ``score(tracker, tables, site, region_graph) -> (report rows, tables)``
 ScoreFn = Callable[..., tuple[list[ReportRow], dict[str, pl.DataFrame]]]
 #: ``log_run(rec, tracker, outputs, *, site, region_graph, config, tables, look)``
 VizFn = Callable[..., None]
-#: ``metric(tracker, tables, site, region_graph) -> report rows``: a metric the scores stage
-#: adds for every tracker that ran (``[]`` when the run lacks what it needs)
-MetricFn = Callable[[str, dict[str, pl.DataFrame], Any, Any], list[ReportRow]]
 
 
 @dataclass(frozen=True)
@@ -103,6 +101,9 @@ class TrackerEntry:
     #: how its recordings and its blueprint tab look: family and colour
     #: (:class:`onebit.viz.families.Look`; the error unit is set from ``gate``, see :attr:`drawn`)
     look: Look = field(default_factory=Look)
+    #: how it runs while ``onebit follow`` reads a growing log (:class:`onebit.pipeline.online.Live`:
+    #: online, lagged, re-run on the settled prefix, or batch only)
+    live: Live = BATCH_ONLY
 
     @property
     def name(self) -> str:
@@ -133,6 +134,9 @@ FINDINGHUMO_RGB: dict[str, tuple[int, int, int]] = {
     "hmm2": (240, 110, 200),
 }
 
+#: The window decoder of each FindingHuMo HMM (its ``decoding = "lagged"`` online run).
+HMM_DECODERS: dict[str, str] = {"findinghumo": "adaptive", "hmm1": "full1", "hmm2": "full2"}
+
 #: Every tracker, in the order their stages run.
 TRACKERS: tuple[TrackerEntry, ...] = (
     TrackerEntry(
@@ -145,6 +149,12 @@ TRACKERS: tuple[TrackerEntry, ...] = (
         ),
         scenario="beams-lab",
         look=Look("beams", (64, 196, 255)),
+        live=Live(
+            ONLINE,
+            "per crossing (incremental; re-run on the settled prefix when [correct] runs)",
+            events=("corrected_crossings", "crossings"),
+            stepper=BEAMS,
+        ),
     ),
     TrackerEntry(
         intruder.SPEC,
@@ -153,6 +163,7 @@ TRACKERS: tuple[TrackerEntry, ...] = (
         gate=CELLS_GATE,
         scenario="pir14",
         look=Look("intruder", (70, 225, 110)),
+        live=Live(ONLINE, "per iteration (incremental particle filter)", stepper=INTRUDER),
     ),
     TrackerEntry(
         intruder.NAIVE_SPEC,
@@ -161,6 +172,7 @@ TRACKERS: tuple[TrackerEntry, ...] = (
         gate=CELLS_GATE,
         scenario="pir14",
         look=Look("intruder", (200, 120, 255)),
+        live=Live(PREFIX, "per iteration", events=("motion",)),
     ),
     TrackerEntry(
         clustertrack.SPEC,
@@ -188,6 +200,9 @@ TRACKERS: tuple[TrackerEntry, ...] = (
         ),
         scenario="proximity-grid",
         look=Look("binpf", (255, 110, 90)),
+        live=Live(
+            ONLINE, "per frame, committed after [binpf] commit_lag frames (incremental particle filter)", stepper=BINPF
+        ),
     ),
     *(
         TrackerEntry(
@@ -197,6 +212,12 @@ TRACKERS: tuple[TrackerEntry, ...] = (
             gate=HOPS_GATE,
             scenario="hallway",
             look=Look("findinghumo", FINDINGHUMO_RGB[spec.name]),
+            live=Live(
+                LAGGED,
+                "per window (re-run on the settled prefix)",
+                events=("motion",),
+                stepper=hmm_stepper(HMM_DECODERS[spec.name]),
+            ),
         )
         for spec in findinghumo.SPECS
     ),
@@ -221,6 +242,12 @@ TRACKERS: tuple[TrackerEntry, ...] = (
         ),
         scenario="istate-room",
         look=Look("istate", (255, 235, 130)),
+        live=Live(
+            ONLINE,
+            "per stage (incremental with latency_auto = false; else re-run on the settled prefix)",
+            events=("motion", "proximity", "crossings"),
+            stepper=ISTATE,
+        ),
     ),
     TrackerEntry(
         residents.SPEC,
@@ -247,192 +274,11 @@ def tracker_names(entries: tuple[TrackerEntry, ...] = TRACKERS) -> tuple[str, ..
     return tuple(e.name for e in entries)
 
 
-# --------------------------------------------------------------------------- trackers
-
-
-def tracker_config(entry: TrackerEntry, ctx: RunContext):
-    """The tracker's config from its ``run.toml`` section (``--config``, else the dataset's own
-    ``run.toml``: :meth:`RunContext.section`), its lengths in the site's units."""
-    cfg = config_from_mapping(entry.spec.config, ctx.section(entry.name), section=entry.name)
-    ctx.record(entry.name, cfg)
-    return config_in_site_units(cfg, ctx.site)
-
-
-def tracker_inputs(entry: TrackerEntry, ctx: RunContext) -> dict[str, Any]:
-    """The tracker's input tables (its ``needs``, first present source wins, and ``wants``),
-    without the rows of ignored sensors (:func:`without_ignored`), the region graph and the
-    progress callback. The tracker is run on ``ctx.site.tracked`` (no ignored sensor)."""
-    ignored = ctx.site.ignored
-    inputs: dict[str, Any] = {}
-    for key in entry.spec.needs:
-        sources = entry.inputs.get(key, (key,))
-        src = next(s for s in sources if s in ctx.tables)
-        inputs[key] = without_ignored(src, ctx.tables[src], ignored)
-    inputs.update({k: without_ignored(k, ctx.tables[k], ignored) for k in entry.spec.wants if k in ctx.tables})
-    if "levels" in ctx.tables:  # a frame log: every sensor's reading at every frame, for any tracker that reads it
-        inputs.setdefault("levels", without_ignored("levels", ctx.tables["levels"], ignored))
-    inputs["region_graph"] = ctx.region_graph
-    inputs[PROGRESS] = ctx.progress
-    return inputs
-
-
-def detached_tracker(
-    name: str, run: Callable, inputs: dict[str, Any], site, cfg, counts_people: bool = False
-) -> dict[str, Any]:
-    """A tracker stage's work on inputs taken from the run (:func:`tracker_inputs`): its
-    tables named ``<tracker>_<table>``, its artifacts as they are. The stage's ``work`` is this
-    call in the run's process; its ``detach`` hands the same call to a worker process. A
-    multi-person tracker (``counts_people``) that writes no ``people`` gets it from its tracks
-    (:func:`onebit.pipeline.homes.people_from_tracks`)."""
-    out = run(inputs, site, cfg)
-    if counts_people and "people" not in out:
-        out = {**out, "people": people_from_tracks(out.get("tracks"))}
-    made: dict[str, Any] = {f"{name}_{k}": v for k, v in out.items() if k != ARTIFACTS}
-    if ARTIFACTS in out:
-        made[ARTIFACTS] = out[ARTIFACTS]
-    return made
-
-
-def tracker_stage(entry: TrackerEntry) -> Stage:
-    name = entry.name
-    spec = entry.spec
-
-    def available(ctx: RunContext) -> str | None:
-        if name not in ctx.trackers:
-            return f"tracker '{name}' not selected (--trackers)"
-        for key in spec.needs:
-            if not any(s in ctx.tables for s in entry.inputs.get(key, (key,))):
-                return f"input table '{key}' not produced by an earlier stage"
-        if not spec.needs and spec.wants and not any(k in ctx.tables for k in spec.wants):
-            return f"none of its input tables ({', '.join(spec.wants)}) was produced by an earlier stage"
-        site = ctx.site.tracked
-        reason = spec.available(site) if spec.available is not None else None
-        if reason is None and spec.fits is not None:  # the inputs' size against the tracker's bound
-            cfg = config_in_site_units(config_from_mapping(spec.config, ctx.section(name), section=name), site)
-            reason = spec.fits(tracker_inputs(entry, ctx), site, cfg)
-        return reason
-
-    def work(ctx: RunContext) -> dict[str, Any]:
-        fn, args, _ = detach(ctx)
-        return fn(*args)
-
-    def detach(ctx: RunContext) -> tuple[Callable[..., dict[str, Any]], tuple, Any]:
-        cfg = ctx.configs[name] = tracker_config(entry, ctx)
-        shares = spec.shares(cfg) if spec.shares is not None else None
-        args = (name, spec.run, tracker_inputs(entry, ctx), ctx.site.tracked, cfg, spec.counts_people)
-        return detached_tracker, args, shares
-
-    def viz(rec, ctx: RunContext, made: dict) -> None:
-        out = {k[len(name) + 1 :]: v for k, v in made.items() if k.startswith(f"{name}_")}
-        if ARTIFACTS in made:
-            out[ARTIFACTS] = made[ARTIFACTS]
-        # every tracker's people present, one step series the summary tab plots against the truth
-        viz_occupancy.log_people(rec, name, out.get("people"), rgb=entry.drawn.rgb)
-        if entry.viz is None:
-            return
-        entry.viz(
-            rec,
-            name,
-            out,
-            site=ctx.site.tracked,
-            region_graph=ctx.region_graph,
-            config=ctx.configs[name],
-            tables=ctx.tables,
-            look=entry.drawn,
-        )
-
-    return Stage(name, (), (f"{name}_tracks", f"{name}_*"), available, work, viz, config=spec.config, detach=detach)
-
-
 # --------------------------------------------------------------------------- scores
-
-
-def identity_metric(tracker: str, tables: dict[str, pl.DataFrame], site, region_graph) -> list[ReportRow]:
-    """Identity per event (:func:`onebit.scoring.identity.identity_scores`, docs/metrics.md) of a
-    tracker that wrote ``<tracker>_events``, when the dataset has ``truth_events``."""
-    te, ev = tables.get("truth_events"), tables.get(f"{tracker}_events")
-    if te is None or not te.height or ev is None:
-        return []
-    return identity_scores(te, ev, tracks=tables.get(f"{tracker}_tracks")).rows(tracker)
-
 
 #: The metrics of every tracker beyond its own (``TrackerEntry.score``) and the MOT rows: one
 #: line per metric (docs/extending.md, "A report metric").
 METRICS: tuple[MetricFn, ...] = (identity_metric, count_metric)
-
-
-def scores_stage(trackers: tuple[TrackerEntry, ...] = TRACKERS, metrics: tuple[MetricFn, ...] | None = None) -> Stage:
-    """The ``scores`` stage: crossings against the truth, then every tracker that ran ok: its
-    paper's metrics (``entry.score``), the standard MOT metrics (:func:`onebit.scoring.mot.mot_rows`)
-    and every metric of ``metrics`` (default :data:`METRICS`), then the identity baselines."""
-
-    def work(ctx: RunContext) -> dict[str, pl.DataFrame]:
-        cfg = config_from_mapping(ScoresConfig, ctx.section("scores"), section="scores")
-        ctx.record("scores", cfg)
-        tables = dict(ctx.tables)
-        tables["timings"] = pl.DataFrame(
-            {"stage": list(ctx.seconds), "seconds": list(ctx.seconds.values())},
-            schema={"stage": pl.String, "seconds": pl.Float64},
-        )
-        rows, out = score_crossings(tables, cfg)
-        ctx.report += rows
-        site = ctx.site.tracked  # the trackers' view: no ignored sensor
-        tables.update(out)
-        for entry in trackers:
-            if entry.name not in ctx.trackers or not ctx.status.get(entry.name, "").startswith("ok"):
-                continue
-            try:  # one tracker's scoring failing (say, a sensor without a region) keeps the others'
-                rows, made = entry.score(entry.name, tables, site, ctx.region_graph)
-                rows = rows + mot_rows(entry.name, entry.gate, tables, site, ctx.region_graph, gates_m=cfg.gates_m)
-            except CannotServe as exc:  # the tracker's model does not fit the data: a flag, no number
-                ctx.status[f"scores/{entry.name}"] = f"cannot serve the data: {exc}"
-                ctx.report.append((entry.name, "cannot_serve", 1.0, "flag"))
-                continue
-            except OnebitError as exc:
-                ctx.status[f"scores/{entry.name}"] = f"failed: {exc}"
-                continue
-            ctx.report += rows
-            out.update(made)
-            tables.update(made)
-        for entry in trackers:  # the metrics of every tracker (METRICS)
-            if entry.name not in ctx.trackers or not ctx.status.get(entry.name, "").startswith("ok"):
-                continue
-            for fn in METRICS if metrics is None else metrics:
-                try:
-                    ctx.report += fn(entry.name, tables, site, ctx.region_graph)
-                except OnebitError as exc:
-                    ctx.status[f"scores/{entry.name}"] = f"failed: {exc}"
-        te = tables.get("truth_events")
-        if te is not None and te.height:  # what a tracker's identity per event is compared with
-            ctx.report += baseline_rows(
-                te, graph_hops(site), profile=tables.get("residents_profile"), epoch=ctx.site.epoch
-            )
-        ctx.report += count_rows(tables)  # the count model's and the count baselines' scores
-        rej = ctx.tables.get("rejects", pl.DataFrame(schema=REJECTS))
-        ctx.report.append(("rejects", "rows", float(rej.height), "rows"))
-        out["timings"] = tables["timings"]
-        return out
-
-    def viz(rec, ctx: RunContext, made: dict) -> None:
-        for entry in trackers:
-            sc = made.get(f"{entry.name}_scores")
-            if sc is not None:
-                tracks = ctx.tables.get(f"{entry.name}_tracks")
-                ids = (
-                    tracks["track"].drop_nulls().unique().to_list()
-                    if tracks is not None and "track" in tracks.columns
-                    else None
-                )
-                log_scores(rec, entry.name, sc, track_ids=ids, look=entry.drawn)
-
-    makes = (
-        "crossing_matches",
-        "corrected_targets",
-        "correct_recovered",
-        "timings",
-        *(f"{e.name}_*" for e in trackers),
-    )
-    return Stage("scores", (), makes, lambda ctx: None, work, viz, config=ScoresConfig)
 
 
 # --------------------------------------------------------------------------- the list
@@ -448,6 +294,7 @@ def stages(trackers: tuple[TrackerEntry, ...] = TRACKERS) -> list[Stage]:
             reading.crossings_available,
             reading.crossings_work,
             reading.crossings_viz,
+            polled=True,
         ),
         Stage(
             "truth",
@@ -476,6 +323,7 @@ def stages(trackers: tuple[TrackerEntry, ...] = TRACKERS) -> list[Stage]:
             reading.frames_available,
             reading.frames_work,
             reading.frames_viz,
+            polled=True,
         ),
         Stage(
             "motion",
@@ -485,6 +333,7 @@ def stages(trackers: tuple[TrackerEntry, ...] = TRACKERS) -> list[Stage]:
             reading.motion_work,
             reading.motion_viz,
             config=MotionConfig,
+            polled=True,
         ),
         Stage(
             "proximity",
@@ -493,6 +342,7 @@ def stages(trackers: tuple[TrackerEntry, ...] = TRACKERS) -> list[Stage]:
             reading.proximity_available,
             reading.proximity_work,
             config=ProximityConfig,
+            polled=True,
         ),
         Stage("ignore", (), ("ignored",), reading.ignore_available, reading.ignore_work),
         Stage(
@@ -512,7 +362,8 @@ def stages(trackers: tuple[TrackerEntry, ...] = TRACKERS) -> list[Stage]:
             reading.correct_work,
             reading.correct_viz,
             config=CorrectConfig,
+            polled=True,
         ),
-        *(tracker_stage(e) for e in trackers),
-        scores_stage(trackers),
+        *(tracking.tracker_stage(e) for e in trackers),
+        scores_stage(trackers, METRICS),
     ]

@@ -61,6 +61,7 @@ import polars as pl
 
 from onebit.core.compiled import numba_loaded
 from onebit.core.errors import ConfigError
+from onebit.core.params import param, validate
 from onebit.core.tables import MOTION, REJECTS, conform
 from onebit.readers import kernels
 from onebit.readers.rows import (
@@ -547,22 +548,17 @@ def clean_toggle_rows(
 
 @dataclass(frozen=True, kw_only=True)
 class MotionConfig:
-    """``run.toml`` ``[motion]``: the debounce of every motion sensor.
+    """``run.toml`` ``[motion]``: the debounce of every motion sensor."""
 
-    chatter_window : relay-chatter window (s) for every sensor; ``None`` = from the sensor type.
-    min_on : minimum on-time (s) for every sensor; ``None`` = from the sensor type.
-    """
-
-    chatter_window: float | None = None
-    min_on: float | None = None
+    chatter_window: float | None = param(
+        None, "relay-chatter window for every sensor; unset = from the sensor type", lo=0.0, unit="s"
+    )
+    min_on: float | None = param(
+        None, "minimum on-time for every sensor; unset = from the sensor type", lo=0.0, unit="s"
+    )
 
     def __post_init__(self) -> None:
-        for name in ("chatter_window", "min_on"):
-            v = getattr(self, name)
-            if v is not None and (
-                isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v) or v < 0
-            ):
-                raise ConfigError(f"MotionConfig.{name} = {v!r}; allowed range: [0, inf) seconds")
+        validate(self)
 
 
 def site_rules(site, cfg: MotionConfig) -> dict[str, DebounceRules]:

@@ -17,8 +17,8 @@ from pathlib import Path
 import numpy as np
 import polars as pl
 
-from onebit.core.config import MAX_FRAME_CELLS, MAX_STEPS, check_range, check_size
-from onebit.core.errors import ConfigError
+from onebit.core.config import MAX_FRAME_CELLS, MAX_STEPS, check_size
+from onebit.core.params import param, validate
 from onebit.core.tables import FRAMES, PROXIMITY, conform
 from onebit.readers.motion import TOGGLE_COLUMNS, DebounceRules, MotionRead, read_motion, read_motion_csv
 from onebit.readers.rows import RawRows
@@ -35,33 +35,28 @@ __all__ = [
 
 @dataclass(frozen=True, kw_only=True)
 class ProximityConfig:
-    """The ``[proximity]`` section of ``run.toml``.
+    """The ``[proximity]`` section of ``run.toml``: how binary sensor edges become frames."""
 
-    period : seconds between sampling instants.
-    start : time of the first instant (s); negative = ``floor(first edge / period) * period``.
-    instants : number of instants; 0 = up to the last accepted edge. At most
-        :data:`~onebit.core.config.MAX_STEPS`, and instants x sensors at most
-        :data:`~onebit.core.config.MAX_FRAME_CELLS` (checked when the frames are made).
-    chatter_window : s; a 1->0 edge followed within this time by 0->1 on the same sensor is
-        undone (Singh et al.: "neglect every 1->0 transition immediately followed by 0->1").
-    min_on : s; shorter on-pulses are suppressed.
-    """
-
-    period: float = 1.0
-    start: float = -1.0
-    instants: int = 0
-    chatter_window: float = 0.0
-    min_on: float = 0.0
+    period: float = param(1.0, "seconds between sampling instants", lo=1e-9, unit="s")
+    start: float = param(-1.0, "time of the first instant; negative = floor(first edge / period) * period", unit="s")
+    instants: int = param(
+        0,
+        "number of instants; 0 = up to the last accepted edge (instants x sensors at most "
+        f"{MAX_FRAME_CELLS:,}, checked when the frames are made)",
+        lo=0,
+        hi=MAX_STEPS,
+    )
+    chatter_window: float = param(
+        0.0,
+        'a 1->0 edge followed within this time by 0->1 on the same sensor is undone (Singh et al.: "neglect '
+        'every 1->0 transition immediately followed by 0->1")',
+        lo=0.0,
+        unit="s",
+    )
+    min_on: float = param(0.0, "shorter on-pulses are suppressed", lo=0.0, unit="s")
 
     def __post_init__(self) -> None:
-        check_range(self, "period", 1e-9, None)
-        check_range(self, "start", None, None)
-        check_range(self, "instants", 0, MAX_STEPS, types=(int,))
-        check_range(self, "chatter_window", 0.0, None)
-        check_range(self, "min_on", 0.0, None)
-        for name in ("period", "start", "chatter_window", "min_on"):
-            if not math.isfinite(getattr(self, name)):
-                raise ConfigError(f"ProximityConfig.{name} = {getattr(self, name)!r}; must be finite")
+        validate(self)
 
     @property
     def rules(self) -> DebounceRules:

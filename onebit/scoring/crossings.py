@@ -20,8 +20,8 @@ import numpy as np
 import polars as pl
 import shapely
 
-from onebit.core.config import check_range
 from onebit.core.errors import ConfigError
+from onebit.core.params import param, validate
 from onebit.core.region_graph import RegionGraph
 from onebit.core.site import Site
 from onebit.core.tables import SCORES, TRUE_CROSSINGS, conform
@@ -34,20 +34,23 @@ MAX_GATES = 32
 
 @dataclass(frozen=True, kw_only=True)
 class ScoresConfig:
-    """Scoring parameters.
+    """``run.toml`` ``[scores]``: scoring parameters."""
 
-    crossing_tolerance_s : largest time difference between an observed crossing and the true
-        crossing it is matched to (seconds).
-    gates_m : the metric gates (metres) at which every tracker with positions gets MOTA,
-        IDF1, HOTA, ... (rows ``mota@1m``; :mod:`onebit.scoring.mot`); the irtracking
-        authors score at 1.5 m.
-    """
-
-    crossing_tolerance_s: float = 1.0
-    gates_m: tuple[float, ...] = (1.0,)
+    crossing_tolerance_s: float = param(
+        1.0,
+        "largest time difference between an observed crossing and the true crossing it is matched to",
+        lo=0.0,
+        unit="s",
+    )
+    gates_m: tuple[float, ...] = param(
+        (1.0,),
+        "the metric gates, in metres (onebit.scoring.mot converts them to the site's units itself, so the "
+        "field carries no unit to convert), at which every tracker with positions gets MOTA, IDF1, HOTA, ... "
+        "(rows mota@1m); the irtracking authors score at 1.5 m",
+    )
 
     def __post_init__(self) -> None:
-        check_range(self, "crossing_tolerance_s", 0.0, None)
+        validate(self)
         g = self.gates_m
         if isinstance(g, (int, float)) and not isinstance(g, bool):
             g = (g,)

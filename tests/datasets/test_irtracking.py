@@ -18,7 +18,8 @@ from onebit.datasets.irtracking_sim import write_irtracking
 from onebit.pipeline.context import RunContext
 from onebit.pipeline.report import metric
 from onebit.pipeline.runner import run_pipeline
-from onebit.pipeline.stages import TRACKERS, tracker_inputs
+from onebit.pipeline.stages import TRACKERS
+from onebit.pipeline.tracking import tracker_inputs
 
 
 @pytest.fixture(scope="module")
@@ -103,8 +104,9 @@ def test_imported_dataset_runs_from_its_frame_log(files, tmp_path):
     assert res.status["istate"].startswith("ok")
 
 
-def test_every_tracker_gets_the_levels(files, tmp_path):
-    """A frame log's levels reach every tracker's inputs; the proximity stage says why it skipped."""
+def test_a_frame_log_reaches_the_trackers_through_their_tables(files, tmp_path):
+    """A frame log's readings reach a tracker through the tables it reads (``proximity_frames``);
+    ``levels`` is read by no tracker and handed to none; the proximity stage says why it skipped."""
     ds = tmp_path / "ds"
     import_irtracking(files.readings, ds, radius=0.8, targets=3)
     res = run_pipeline(ds, tmp_path / "run", trackers=["istate"], rrd=False)
@@ -119,7 +121,10 @@ def test_every_tracker_gets_the_levels(files, tmp_path):
     }
     ctx = RunContext(ds, tmp_path / "x", site, None, {}, tables=tables)
     for entry in TRACKERS:
-        assert tracker_inputs(entry, ctx)["levels"] is lv, entry.name
+        inputs = tracker_inputs(entry, ctx)
+        assert "levels" not in inputs, entry.name
+        if "proximity_frames" in entry.spec.needs:
+            assert inputs["proximity_frames"] is lv, entry.name
 
 
 def test_a_frame_log_in_mcap_reads_as_the_csv(files, tmp_path):

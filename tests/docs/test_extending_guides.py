@@ -53,14 +53,14 @@ def doors_stage(monkeypatch) -> Stage:
     exec(compile(work, "docs/extending.md (onebit/pipeline/reading.py)", "exec"), ns)
     (entry,) = [line for line in declaration.splitlines() if line and not line.startswith("#")]
     stage = eval(entry.rstrip(","), {"Stage": Stage, "reading": types.SimpleNamespace(**ns)})
-    declared = runner.stages
+    declared = declaration.stages
 
     def with_doors(trackers=TRACKERS):
         out = declared(trackers)
         i = [s.name for s in out].index("proximity") + 1
         return [*out[:i], stage, *out[i:]]
 
-    monkeypatch.setattr(runner, "stages", with_doors)
+    monkeypatch.setattr(declaration, "stages", with_doors)
     monkeypatch.setattr(reading, "TIME_SOURCES", (*reading.TIME_SOURCES, "doors"))
     return stage
 

@@ -22,6 +22,8 @@ from onebit.models.occupancy import (
     estimate,
     features,
     learn_stats,
+    one_walker,
+    site_features,
     stats,
     viterbi,
     viterbi_reference,
@@ -133,6 +135,8 @@ def _cut(f: Features, lo: int, hi: int) -> Features:
         fired=f.fired[s],
         held=f.held[s],
         hour=f.hour[s],
+        firings=None if f.firings is None else f.firings[s],
+        strays=None if f.strays is None else f.strays[s],
     )
 
 
@@ -282,3 +286,79 @@ def test_two_people_firing_far_apart_at_once_are_two():
     bins, _ = estimate(motion, _line_site(), OccupancyConfig())
     n = bins["present"].to_numpy()
     assert (n == 2).mean() >= 0.9, np.bincount(n)
+
+
+# -- one walker or two (eq. W1-W2, O3) ------------------------------------------------------
+
+
+def _chain_hops(n: int) -> np.ndarray:
+    i = np.arange(n)
+    return np.abs(i[:, None] - i[None, :]).astype(float)
+
+
+def test_one_walker_by_hand():
+    """Sensors on a chain (hops = index difference), 0.5 s per hop, 2 hops of slack."""
+    hops = _chain_hops(10)
+    t = np.array([0.0, 1.0, 1.2, 2.0, 30.0, 30.1])
+    k = np.array([0, 1, 9, 2, 9, 0])
+    # 9 at 1.2 s is 8 hops from 1 (needs 3 s) and 9 from 0: a stray; 9 at 30 s is reachable
+    # from 2 (7 hops in 28 s); 0 at 30.1 s is 9 hops from that 9: the longer path skips one of them
+    on = one_walker(t, k, hops, walk_s=0.5, walk_slack=2.0)
+    assert on[:2].all() and not on[2] and on[3]
+    assert on[4:].sum() == 1
+    assert one_walker(np.zeros(0), np.zeros(0, np.int64), hops, walk_s=0.5, walk_slack=2.0).size == 0
+
+
+def test_lingering_and_late_refires_are_one_walker():
+    hops = _chain_hops(10)
+    t = np.array([0.0, 5.0, 10.0, 11.0, 11.5, 12.0, 40.0])
+    k = np.array([3, 3, 3, 4, 3, 5, 5])  # re-fires at 3, a step to 4, 3 fires once more behind them
+    assert one_walker(t, k, hops, walk_s=0.5, walk_slack=2.0).all()
+
+
+def test_strays_per_bin_in_the_features():
+    f = _features(hops=_chain_hops(5), walk_s=0.5, walk_slack=0.0)
+    assert f.firings.tolist() == [0, 2, 2, 1, 0, 0, 2]
+    # bin 1: a (1) and c (3) 0.5 s apart: 2 hops > 1 hop in 0.5 s, one of them a stray
+    assert f.strays.tolist() == [0, 1, 0, 0, 0, 0, 0]
+    assert _features().strays is None  # no walker without hops
+
+
+def test_one_walker_explains_nearly_all_of_one_persons_firings():
+    site = _line_site()
+    motion = _one_person(np.random.default_rng(7), hours=3.0)
+    f = site_features(motion, site, OccupancyConfig(), None)
+    assert f.strays is not None and f.strays.sum() < 0.05 * f.firings.sum()
+
+
+def test_two_walkers_at_once_leave_many_strays_and_are_two():
+    """Two people at the two halves of the chain, each walking their own half (a step every
+    2-20 s) at the same time: one walker leaves more than a tenth of the firings unexplained."""
+    rng = np.random.default_rng(4)
+    rows: list = []
+    for lo in (0, 5):
+        t, pos = 0.0, lo
+        while t < 2 * 3600.0:
+            _pulse(rows, t, f"s{pos}", 2.0)
+            pos = int(np.clip(pos + rng.choice([-1, 1]), lo, lo + 3))
+            t += rng.uniform(2.0, 20.0)
+    motion = pl.DataFrame(rows, schema=MOTION, orient="row").sort("t")
+    f = site_features(motion, _line_site(), OccupancyConfig(), None)
+    assert f.strays.sum() > 0.1 * f.firings.sum()  # one person: < 0.05 (above)
+    bins, _ = estimate(motion, _line_site(), OccupancyConfig())
+    n = bins["present"].to_numpy()
+    assert (n == 2).mean() >= 0.9, np.bincount(n)
+    # the strays carry it: without them (walk_s = 0) and with far pairs made no evidence, one
+    neutral, _ = estimate(motion, _line_site(), OccupancyConfig(walk_s=0.0, far_noise=0.5, far_rate=0.5))
+    assert (neutral["present"].to_numpy() == 2).mean() < 0.5
+
+
+def test_the_learned_model_keeps_its_far_pairs_and_has_no_stray_term():
+    site = _line_site()
+    cfg = OccupancyConfig()
+    motion = _one_person(np.random.default_rng(1), hours=3.0)
+    truth = pl.DataFrame({"t": [0.0], "end": [3 * 3600.0], "count": [1]})
+    st = learn_stats(motion, truth, site, cfg)
+    assert not st.filter(pl.col("term").is_in(["firings", "strays"])).height
+    bins, _ = estimate(motion, site, cfg, st)
+    assert (bins["present"].to_numpy() == 1).mean() >= 0.95

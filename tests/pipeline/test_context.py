@@ -13,6 +13,7 @@ from onebit.core.region_graph import build_region_graph
 from onebit.core.site import load_site
 from onebit.datasets.builtin import builtin_site_path
 from onebit.pipeline import runner
+from onebit.pipeline import stages as declaration
 from onebit.pipeline.context import RunContext, Stage, StageContractError, check_made
 from onebit.pipeline.runner import run_pipeline
 from onebit.pipeline.stages import stages
@@ -63,7 +64,7 @@ def test_a_stage_returning_an_undeclared_table_fails_clearly(hallway, tmp_path, 
         return {"motion_copy": ctx.tables["motion"]}
 
     extra = Stage("sneaky", ("motion",), ("levels",), lambda ctx: None, sneaky)
-    monkeypatch.setattr(runner, "stages", lambda entries: [*stages(entries), extra])
+    monkeypatch.setattr(declaration, "stages", lambda entries: [*stages(entries), extra])
     res = run_pipeline(hallway, tmp_path / "run", trackers=["hmm1"], rrd=False)
     assert not res.ok
     assert "returned table(s) ['motion_copy'] it does not declare (makes = ['levels'])" in res.status["sneaky"]

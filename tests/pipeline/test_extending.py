@@ -3,12 +3,11 @@
 * **A tracker**: ``last-beam`` puts its one agent at the midpoint of the beam it last crossed.
   It is declared exactly as the guide says (a TrackerSpec with a frozen config, a scorer, a viz
   function, one TrackerEntry) and passed to the runner beside the built-in ones.
-* **A report metric**: one function of ``(tracker, tables, site, region_graph)`` and one line
-  in ``METRICS``: every tracker that ran gets its row.
 * **An input format**: an importer for a small foreign export (JSON lines of door contacts)
   writes the canonical files; ``onebit run`` reads them as any dataset.
-* **A sensor kind**: a floor mat, declared in ``site.toml`` alone (a ``kind = "polygon"``
-  sensor type): simulated from walks, read, and tracked without a line of code.
+
+The guides' own code (a tracker, a report metric, a sensor kind) is run as written by
+``tests/docs/test_extending.py``.
 """
 
 from __future__ import annotations
@@ -19,21 +18,18 @@ from dataclasses import dataclass
 import numpy as np
 import polars as pl
 import pytest
-import shapely
 
-from onebit.cli import main
-from onebit.core.config import check_range
 from onebit.core.errors import ConfigError
+from onebit.core.params import param, validate
 from onebit.core.site import Site, load_site
 from onebit.core.tables import CROSSINGS, TRACKS, check_schema, conform
 from onebit.core.writers import to_toml, write_csv, write_text
 from onebit.datasets.beams_sim import write_beams_dataset
-from onebit.datasets.from_truth import FromTruthConfig, simulate_from_truth
 from onebit.datasets.importers import graph_site_toml
-from onebit.pipeline import stages as stage_list
+from onebit.pipeline.config_show import show
 from onebit.pipeline.report import metric
 from onebit.pipeline.runner import run_pipeline
-from onebit.pipeline.stages import TRACKERS, TrackerEntry
+from onebit.pipeline.stages import TRACKERS, TrackerEntry, stages
 from onebit.scoring.mot import Gate
 from onebit.trackers.base import TrackerSpec
 from onebit.viz.families import GENERIC, Look
@@ -47,10 +43,10 @@ NAME = "last-beam"
 class LastBeamConfig:
     """``[last-beam]``: a time offset added to every estimate (s)."""
 
-    delay: float = 0.0
+    delay: float = param(0.0, "time offset added to every estimate", lo=0.0, unit="s")
 
     def __post_init__(self) -> None:
-        check_range(self, "delay", 0.0, None)
+        validate(self)
 
 
 def run(inputs: dict, site: Site, config: LastBeamConfig) -> dict[str, pl.DataFrame]:
@@ -135,37 +131,16 @@ def test_its_config_section_is_validated_and_recorded(data, tmp_path):
             data, tmp_path / "b", trackers=(NAME,), tracker_entries=(*TRACKERS, ENTRY), config={NAME: {"dealy": 1}}
         )
     assert not (tmp_path / "b" / "run.toml").exists()
+    # its declared parameter is listed by `onebit config show` and probed like every other
+    shown = show(NAME, stage_list=stages((*TRACKERS, ENTRY)))
+    assert "# time offset added to every estimate.\n# (float, s, >= 0.0)\ndelay = 0.0\n" in shown
+    with pytest.raises(ConfigError, match=r"LastBeamConfig\.delay = -1\.0; allowed range"):
+        LastBeamConfig(delay=-1.0)
 
 
 def test_unknown_tracker_names_the_known_ones(data, tmp_path):
     with pytest.raises(ConfigError, match=NAME):
         run_pipeline(data, tmp_path / "c", trackers=("nope",), tracker_entries=(*TRACKERS, ENTRY))
-
-
-# --------------------------------------------------------------------------- a report metric
-
-
-def estimates_per_minute(tracker: str, tables: dict, site: Site, region_graph) -> list:
-    """Estimates per minute of the run's span (``[]`` without tracks)."""
-    tracks = tables.get(f"{tracker}_tracks")
-    if tracks is None or tracks.height < 2:
-        return []
-    minutes = (tracks["t"].max() - tracks["t"].min()) / 60.0
-    return [
-        (tracker, "estimates_per_minute", tracks.height / minutes if minutes > 0 else float("nan"), "estimates/min")
-    ]
-
-
-def test_a_metric_line_reports_it_for_every_tracker_that_ran(data, tmp_path, monkeypatch, capsys):
-    monkeypatch.setattr(stage_list, "METRICS", (*stage_list.METRICS, estimates_per_minute))
-    res = run_pipeline(data, tmp_path / "m", trackers=("beams", NAME), tracker_entries=(*TRACKERS, ENTRY))
-    assert res.ok, res.status
-    for tracker in ("beams", NAME):
-        tracks = pl.read_parquet(tmp_path / "m" / "tables" / f"{tracker}_tracks.parquet")
-        span = (tracks["t"].max() - tracks["t"].min()) / 60.0
-        assert metric(res.report, f"{tracker}/estimates_per_minute") == pytest.approx(tracks.height / span)
-    assert main(["report", str(tmp_path / "m")]) == 0
-    assert "estimates_per_minute" in capsys.readouterr().out
 
 
 # --------------------------------------------------------------------------- an input format (an importer)
@@ -223,49 +198,3 @@ def test_an_importer_writes_a_dataset_any_run_reads(tmp_path):
     assert tracks.height > 0 and set(tracks["node"].drop_nulls()) <= set(DOORS)
     rejected = pl.read_csv(tmp_path / "d" / "rejects.csv")
     assert rejected["line"].to_list() == [4]
-
-
-# --------------------------------------------------------------------------- a sensor kind (site.toml alone)
-
-MAT_SITE = """name = "mats"
-units = "m"
-targets = 1
-[boundary]
-polygon = [[0, 0], [10, 0], [10, 4], [0, 4]]
-[sensor_types.mat]        # a pressure mat: 1 m x 2 m, on while someone stands on it
-kind = "polygon"
-polygon = [[-0.5, -1.0], [0.5, -1.0], [0.5, 1.0], [-0.5, 1.0]]
-signal = "level"
-resolution = 0.25
-[[motion_sensors]]
-id = "mat1"
-position = [3.0, 2.0]
-type = "mat"
-[[motion_sensors]]
-id = "mat2"
-position = [7.0, 2.0]
-heading = 90.0
-type = "mat"
-"""
-
-
-def test_a_new_sensor_kind_is_declared_in_site_toml_alone(tmp_path):
-    d = tmp_path / "mats"
-    d.mkdir()
-    (d / "site.toml").write_text(MAT_SITE)
-    t = np.arange(0.0, 9.01, 0.25)  # one walker along y = 2 at 1 m/s, from x = 0.5
-    write_csv(pl.DataFrame({"t": t, "target": "w", "x": 0.5 + t, "y": 2.0}), d / "truth.csv")
-    site = load_site(d / "site.toml")
-    regions = site.detection_regions
-    assert regions["mat1"].geometry.equals(shapely.box(2.5, 1.0, 3.5, 3.0))
-    assert regions["mat2"].geometry.equals(shapely.box(6.0, 1.5, 8.0, 2.5))  # turned by its heading
-    simulate_from_truth(d, seed=0, cfg=FromTruthConfig(hold_s=0.0))
-    motion = pl.read_csv(d / "motion.csv").sort("t")
-    on = {s: motion.filter((pl.col("sensor") == s) & (pl.col("value") == 1))["t"].to_list() for s in ("mat1", "mat2")}
-    assert on["mat1"] == pytest.approx([2.0], abs=0.06) and on["mat2"] == pytest.approx(
-        [5.5], abs=0.06
-    )  # the walker steps on
-    res = run_pipeline(d, tmp_path / "run", trackers=("intruder",))
-    assert res.ok, res.status
-    tracks = pl.read_parquet(tmp_path / "run" / "tables" / "intruder_tracks.parquet")
-    assert tracks.height > 0 and tracks["x"].is_not_null().any()

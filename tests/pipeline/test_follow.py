@@ -128,9 +128,9 @@ def test_beams_replay_equals_batch(tmp_path, monkeypatch, correct):
         tmp_path / "d", seed=3, duration=60.0, agents=2, drop=0.0, camera=False, params={}
     )
     reruns = []
-    inputs = follow_module._inputs
+    inputs = follow_module.tracker_inputs
     monkeypatch.setattr(
-        follow_module, "_inputs", lambda entry, *a, **k: reruns.append(entry.name) or inputs(entry, *a, **k)
+        follow_module, "tracker_inputs", lambda entry, *a, **k: reruns.append(entry.name) or inputs(entry, *a, **k)
     )
     clock = SimClock()
     res = follow(
@@ -170,10 +170,10 @@ def test_a_crossing_log_is_read_incrementally(tmp_path, monkeypatch):
         data / "crossings.csv"
     )
     whole, reruns = [], []
-    reader, inputs = reading_module.read_crossings, follow_module._inputs
+    reader, inputs = reading_module.read_crossings, follow_module.tracker_inputs
     monkeypatch.setattr(reading_module, "read_crossings", lambda *a, **k: whole.append(a[0]) or reader(*a, **k))
     monkeypatch.setattr(
-        follow_module, "_inputs", lambda entry, *a, **k: reruns.append(entry.name) or inputs(entry, *a, **k)
+        follow_module, "tracker_inputs", lambda entry, *a, **k: reruns.append(entry.name) or inputs(entry, *a, **k)
     )
     clock = SimClock()
     res = follow(
@@ -201,9 +201,9 @@ def test_istate_replay_equals_batch_with_a_fixed_latency(tmp_path, monkeypatch):
         tmp_path / "d", seed=2, duration=30.0, agents=None, drop=0.0, camera=False, params={}
     )
     reruns = []
-    inputs = follow_module._inputs
+    inputs = follow_module.tracker_inputs
     monkeypatch.setattr(
-        follow_module, "_inputs", lambda entry, *a, **k: reruns.append(entry.name) or inputs(entry, *a, **k)
+        follow_module, "tracker_inputs", lambda entry, *a, **k: reruns.append(entry.name) or inputs(entry, *a, **k)
     )
     clock = SimClock()
     res = follow(

@@ -402,7 +402,7 @@ def test_stages_that_share_work_stay_in_one_call():
     """hmm2 and findinghumo-flow decode the same run and share it one after the other in one
     process: a side-by-side batch keeps stages of one ``shares`` key in one call."""
     from onebit.pipeline.context import Stage
-    from onebit.pipeline.runner import _detach_batch
+    from onebit.pipeline.detach import detach_batch
 
     def stage(name, key):
         return Stage(
@@ -415,7 +415,7 @@ def test_stages_that_share_work_stay_in_one_call():
         )
 
     batch = [stage("a", None), stage("b", "decode"), stage("c", None), stage("d", "decode")]
-    out = _detach_batch(batch, None, 3)
+    out = detach_batch(batch, None, 3)
     pid = {n: int(o.made[f"{n}_where"]["pid"][0]) for n, o in out.items()}
     assert pid["a"] == os.getpid()  # the first here
     assert pid["b"] == pid["d"] != os.getpid()  # the shared pair together, in a worker
@@ -441,10 +441,10 @@ def test_a_workers_large_tables_come_back_through_files(lab_run, tmp_path, monke
     table, with the bound at 0): the same tables as one process, and no file is left."""
     import tempfile
 
-    import onebit.pipeline.runner as runner
+    import onebit.pipeline.detach as detach
 
     data, res = lab_run
-    monkeypatch.setattr(runner, "SPILL_BYTES", 0)
+    monkeypatch.setattr(detach, "SPILL_BYTES", 0)
     before = set(Path(tempfile.gettempdir()).glob("onebit-table-*.arrow"))
     side = run_pipeline(data, tmp_path / "spilled", rrd=False, cores=2)
     assert side.ok and side.status.keys() == res.status.keys()

@@ -11,9 +11,9 @@ from dataclasses import dataclass
 import numpy as np
 import polars as pl
 
-from onebit.core.config import check_choice, check_range
 from onebit.core.errors import ConfigError
 from onebit.core.frames import ABSENT_AFTER_S, motion_frames, silent_stretches
+from onebit.core.params import param, validate
 from onebit.core.site import Site
 from onebit.core.tables import MOTION, TRACKS, check_schema, conform
 from onebit.models.graph_hmm.adaptive import RESUME_SLOTS, DecodeResult, DecoderParams, decode_run
@@ -46,106 +46,126 @@ JOINT = ("off", "before-cpda", "after-cpda")
 @dataclass(frozen=True, kw_only=True)
 class HmmConfig:
     """Shared configuration of the HMM trackers (``run.toml`` sections ``[findinghumo]``,
-    ``[hmm1]``, ``[hmm2]``); defaults are the paper's (section IV-A). The trackers work on
-    the sensor graph: no field is a length.
+    ``[hmm1]``, ``[hmm2]``, ``[findinghumo-flow]``); defaults are the paper's (section IV-A). The
+    trackers work on the sensor graph: no field is a length."""
 
-    period : length T of a unit timeslot (s).
-    sampling : how the binary series becomes ``b_j(t)`` per slot: ``"mid"`` -- the state at
-        the slot's mid time (short on-periods kept in their own slot) -- or ``"any"`` -- on at
-        some time in the slot (:func:`slot_activity`).
-    d_max : HMM window length in slots (d_max T = 5 s).
-    tau : acceptance threshold: the first ``tau`` slots of a window are kept, the next window
-        starts there (the paper does not give a value).
-    eatg : ``"trained"`` -- A', A'' learned from the run's own motion data (eqs. 1, 2),
-        smoothed with the layout -- ``"layout"`` (physical layout only), or ``"file"``: the
-        EATG table in ``eatg_file`` (one learned beforehand, e.g. an earlier run's
-        ``tables/findinghumo_eatg.parquet`` on a training log).
-    eatg_file : the ``.parquet`` / ``.csv`` EATG table read with ``eatg = "file"`` (kind, src,
-        dst, weight; a path relative to the working directory).
-    decoding : ``"batch"`` -- the whole run at once: windows and the post-processing (joint
-        re-decoding, CPDA) see the whole log -- or ``"lagged"``, the paper's live
-        requirement (section III: ``q_i(t)`` known by ``t + D'T``): the run is decoded in
-        blocks of ``tau`` slots in time order and a block is final (never revised) once the
-        slots up to ``decision_lag`` after it have arrived; the post-processing of a block
-        looks back ``c_windows d_max`` slots (the committed output) and ahead to that lag
-        (:mod:`onebit.trackers.findinghumo.lagged`). Needs an EATG known beforehand
-        (``"layout"`` or ``"file"``); ``onebit follow`` publishes exactly what this gives.
-    decision_lag : D', slots: a block is decided once ``decision_lag`` slots after it have
-        arrived (the paper gives no value; at least ``d_max`` + the decoder's re-entry window
-        of 10 slots).
-    lag_lookback : slots of committed output the post-processing of a lagged block sees
-        before it (CPDA's last ``C d_max`` slots at least; a meeting re-decoded jointly needs
-        its start: on the hallway demo 10 slots lost the joint re-decoding's gain, 20 kept it).
-    stay : layout prior probability of staying at a node for one slot.
-    turn_back : layout prior probability of turning back after one hop.
-    prior_strength : pseudo-counts of the layout prior per row of the trained EATG.
-    p_hit : probability that the node a user is at is seen active in a slot.
-    p_false : probability that a node nobody is at is seen active in a slot.
-    sweeps : explain-away sweeps over the users per window (coordinate ascent).
-    restarts : coordinate-ascent runs per window over different user decoding orders (every
-        order when K! <= restarts, else rotations); the highest joint log-likelihood is kept.
-    offline : decode the whole run as one window (the paper's offline baselines).
-    absent_after : s; the empty room: no track row inside a stretch this long in which every
-        sensor is off and nothing fires (nobody present); 0 = users stay where they were.
-    max_users : the most users at once; 0 = the site's ``targets`` (the most people present at
-        once), no bound when the site does not say. It bounds the decoder itself (a window
-        never decodes more users, :func:`~onebit.models.graph_hmm.adaptive.decode_run`) and
-        the output (:func:`cap_users`, which then has nothing left to cut).
-    count : what ``K_now`` counts (:mod:`onebit.models.graph_hmm.adaptive`, item 1):
-        ``"fresh"`` -- nodes that turned on in the last ``fresh_slots`` slots -- or ``"on"``
-        -- every node on (the paper's literal reading; lingering sensors become users).
-    fresh_slots : slots an onset counts as fresh for ``K_now``.
-    joint : re-decode every meeting of two users jointly (beyond the paper,
-        :mod:`onebit.models.graph_hmm.joint`); ``"off"``, ``"before-cpda"`` (on the HMM's
-        output, what CPDA then starts from) or ``"after-cpda"``. The baselines ``hmm1`` /
-        ``hmm2`` default to ``"off"`` (the paper's full-state HMMs as it describes them).
-    joint_pad : slots a joint re-decoding window extends either side of a meeting.
-    joint_hops : 0 (default): a meeting is re-decoded on the nodes its two users can reach in
-        the window (exact; :class:`~onebit.models.graph_hmm.joint.JointSpaces`); ``r > 0``: also
-        only within ``r`` hops of their motion (the paper's state set for overlapping motion,
-        Sec. III-B2 (a), 2 hops) -- faster on long meetings, approximate.
-    """
-
-    period: float = 1.0
-    sampling: str = "mid"
-    d_max: int = 5
-    tau: int = 3
-    eatg: str = "trained"
-    eatg_file: str = ""
-    decoding: str = "batch"
-    decision_lag: int = 20
-    lag_lookback: int = 20
-    stay: float = 0.6
-    turn_back: float = 0.05
-    prior_strength: float = 2.0
-    p_hit: float = 0.9
-    p_false: float = 0.05
-    sweeps: int = 3
-    restarts: int = 6
-    offline: bool = False
-    absent_after: float = ABSENT_AFTER_S
-    max_users: int = 0
-    count: str = "fresh"
-    fresh_slots: int = 2
-    joint: str = "off"
-    joint_pad: int = 4
-    joint_hops: int = 0
+    period: float = param(1.0, "length T of a unit timeslot", lo=1e-3, unit="s")
+    sampling: str = param(
+        "mid",
+        "how the binary series becomes b_j(t) per slot: mid -- the state at the slot's mid time (short "
+        "on-periods kept in their own slot) -- or any -- on at some time in the slot (slot_activity)",
+        choices=("mid", "any"),
+    )
+    d_max: int = param(5, "HMM window length (d_max T = 5 s)", lo=1, hi=1000, unit="slots")
+    tau: int = param(
+        3,
+        "acceptance threshold: the first tau slots of a window are kept, the next window starts there (the "
+        "paper does not give a value)",
+        lo=1,
+        hi="d_max",
+        unit="slots",
+    )
+    eatg: str = param(
+        "trained",
+        "trained -- A', A'' learned from the run's own motion data (eqs. 1, 2), smoothed with the layout -- "
+        "layout (physical layout only), or file: the EATG table in eatg_file (one learned beforehand, e.g. an "
+        "earlier run's tables/findinghumo_eatg.parquet on a training log)",
+        choices=("trained", "layout", "file"),
+    )
+    eatg_file: str = param(
+        "",
+        'the .parquet / .csv EATG table read with eatg = "file" (kind, src, dst, weight; a path relative '
+        "to the working directory)",
+    )
+    decoding: str = param(
+        "batch",
+        "batch -- the whole run at once: windows and the post-processing (joint re-decoding, CPDA) see the "
+        "whole log -- or lagged, the paper's live requirement (section III: q_i(t) known by t + D'T): the run "
+        "is decoded in blocks of tau slots in time order and a block is final (never revised) once the slots "
+        "up to decision_lag after it have arrived; the post-processing of a block looks back c_windows d_max "
+        "slots (the committed output) and ahead to that lag (onebit.trackers.findinghumo.lagged). Needs an "
+        "EATG known beforehand (layout or file); onebit follow publishes exactly what this gives",
+        choices=DECODINGS,
+    )
+    decision_lag: int = param(
+        20,
+        "D': a block is decided once decision_lag slots after it have arrived (the paper gives no value; at "
+        "least d_max + the decoder's re-entry window of 10 slots)",
+        lo=("d_max", RESUME_SLOTS),
+        hi=100_000,
+        unit="slots",
+    )
+    lag_lookback: int = param(
+        20,
+        "slots of committed output the post-processing of a lagged block sees before it (CPDA's last "
+        "C d_max slots at least; a meeting re-decoded jointly needs its start: on the hallway demo 10 slots "
+        "lost the joint re-decoding's gain, 20 kept it)",
+        lo=1,
+        hi=100_000,
+        unit="slots",
+    )
+    stay: float = param(0.6, "layout prior probability of staying at a node for one slot", lo=0.0, hi=0.999)
+    turn_back: float = param(0.05, "layout prior probability of turning back after one hop", lo=0.0, hi=1.0)
+    prior_strength: float = param(2.0, "pseudo-counts of the layout prior per row of the trained EATG", lo=0.0)
+    p_hit: float = param(0.9, "probability that the node a user is at is seen active in a slot", lo=0.5, hi=0.999)
+    p_false: float = param(0.05, "probability that a node nobody is at is seen active in a slot", lo=1e-6, hi=0.5)
+    sweeps: int = param(3, "explain-away sweeps over the users per window (coordinate ascent)", lo=1, hi=20)
+    restarts: int = param(
+        6,
+        "coordinate-ascent runs per window over different user decoding orders (every order when "
+        "K! <= restarts, else rotations); the highest joint log-likelihood is kept",
+        lo=1,
+        hi=20,
+    )
+    offline: bool = param(False, "decode the whole run as one window (the paper's offline baselines)")
+    absent_after: float = param(
+        ABSENT_AFTER_S,
+        "the empty room: no track row inside a stretch this long in which every sensor is off and nothing "
+        "fires (nobody present); 0 = users stay where they were",
+        lo=0.0,
+        hi=1e12,
+        unit="s",
+    )
+    max_users: int = param(
+        0,
+        "the most users at once; 0 = the site's targets (the most people present at once), no bound when the "
+        "site does not say. It bounds the decoder itself (a window never decodes more users) and the output "
+        "(cap_users, which then has nothing left to cut)",
+        lo=0,
+        hi=10_000,
+    )
+    count: str = param(
+        "fresh",
+        "what K_now counts (onebit.models.graph_hmm.adaptive, item 1): fresh -- nodes that turned on in the "
+        "last fresh_slots slots -- or on -- every node on (the paper's literal reading; lingering sensors "
+        "become users)",
+        choices=("fresh", "on"),
+    )
+    fresh_slots: int = param(2, "slots an onset counts as fresh for K_now", lo=1, hi=1000, unit="slots")
+    joint: str = param(
+        "off",
+        "re-decode every meeting of two users jointly (beyond the paper, onebit.models.graph_hmm.joint); off, "
+        "before-cpda (on the HMM's output, what CPDA then starts from) or after-cpda. The baselines hmm1 / "
+        "hmm2 default to off (the paper's full-state HMMs as it describes them)",
+        choices=JOINT,
+    )
+    joint_pad: int = param(
+        4, "slots a joint re-decoding window extends either side of a meeting", lo=0, hi=100, unit="slots"
+    )
+    joint_hops: int = param(
+        0,
+        "0: a meeting is re-decoded on the nodes its two users can reach in the window (exact; "
+        "onebit.models.graph_hmm.joint.JointSpaces); r > 0: also only within r hops of their motion (the "
+        "paper's state set for overlapping motion, Sec. III-B2 (a), 2 hops) -- faster on long meetings, "
+        "approximate",
+        lo=0,
+        hi=1000,
+    )
 
     def __post_init__(self) -> None:
-        check_range(self, "period", 1e-3, None)
-        check_choice(self, "sampling", ("mid", "any"))
-        check_range(self, "d_max", 1, 1000, types=(int,))
-        check_range(self, "tau", 1, self.d_max if isinstance(self.d_max, int) else None, types=(int,))
-        check_choice(self, "eatg", ("trained", "layout", "file"))
-        if not isinstance(self.eatg_file, str):
-            raise ConfigError(f"{type(self).__name__}.eatg_file = {self.eatg_file!r}; a path (string)")
+        validate(self)
         if self.eatg == "file" and not self.eatg_file:
             raise ConfigError(f"{type(self).__name__}.eatg_file is empty; eatg = 'file' reads the EATG table it names")
-        check_choice(self, "decoding", DECODINGS)
-        check_range(
-            self, "decision_lag", self.d_max + RESUME_SLOTS if isinstance(self.d_max, int) else 0, 100_000, types=(int,)
-        )
-        check_range(self, "lag_lookback", 1, 100_000, types=(int,))
         if self.decoding == "lagged" and self.eatg == "trained":
             raise ConfigError(
                 f"{type(self).__name__}.eatg = 'trained' with decoding = 'lagged': a live decoder cannot learn the "
@@ -155,21 +175,6 @@ class HmmConfig:
             raise ConfigError(
                 f"{type(self).__name__}.offline = True with decoding = 'lagged': offline is one window over the whole run"
             )
-        check_range(self, "stay", 0.0, 0.999)
-        check_range(self, "turn_back", 0.0, 1.0)
-        check_range(self, "prior_strength", 0.0, None)
-        check_range(self, "p_hit", 0.5, 0.999)
-        check_range(self, "p_false", 1e-6, 0.5)
-        check_range(self, "sweeps", 1, 20, types=(int,))
-        check_range(self, "restarts", 1, 20, types=(int,))
-        check_choice(self, "offline", (False, True))
-        check_range(self, "absent_after", 0.0, 1e12)
-        check_range(self, "max_users", 0, 10_000, types=(int,))
-        check_choice(self, "count", ("fresh", "on"))
-        check_range(self, "fresh_slots", 1, 1000, types=(int,))
-        check_choice(self, "joint", JOINT)
-        check_range(self, "joint_pad", 0, 100, types=(int,))
-        check_range(self, "joint_hops", 0, 1000, types=(int,))
 
 
 def available(site: Site) -> str | None:

@@ -32,8 +32,9 @@ from dataclasses import dataclass
 import numpy as np
 import polars as pl
 
-from onebit.core.config import MAX_TARGETS, check_choice, check_range
+from onebit.core.config import MAX_TARGETS
 from onebit.core.errors import ConfigError
+from onebit.core.params import param, validate
 from onebit.core.region_graph import RegionGraph
 from onebit.core.tables import CROSSINGS, check_schema
 from onebit.trackers.beams.counting import (
@@ -59,42 +60,35 @@ class CorrectionResult:
 
 @dataclass(frozen=True, kw_only=True)
 class CorrectConfig:
-    """``run.toml`` ``[correct]``.
+    """``run.toml`` ``[correct]``: the counting correction of section V."""
 
-    n : number of agents (section V assumes it known); ``None`` = ``site.toml`` ``targets``.
-    initial : known initial counts per region name (sum = n); ``None`` = not known.
-    start_region : all n agents start in this region; used when ``initial`` is not given.
-    placement : where an inserted crossing goes in its feasible window: ``"earliest"``
-        (as early as the counts allow), ``"latest"`` (right before the crossing that needs it)
-        or ``"midpoint"`` (the middle in time of that window; the default, see
-        :func:`~onebit.trackers.beams.counting.place_insertions`).
-    window : how many crossings back an insertion may be moved.
-    enabled : ``false`` skips the stage (e.g. to compare with the uncorrected string when
-        the dataset's ``run.toml`` would turn it on).
-    """
-
-    n: int | None = None
-    initial: dict | None = None
-    start_region: str | None = None
-    placement: str = "midpoint"
-    window: int = 4096
-    enabled: bool = True
+    n: int | None = param(
+        None, "number of agents (section V assumes it known); unset = site.toml targets", lo=1, hi=MAX_TARGETS
+    )
+    initial: dict | None = param(None, "known initial counts per region name (sum = n); unset = not known")
+    start_region: str | None = param(None, "all n agents start in this region; used when initial is not given")
+    placement: str = param(
+        "midpoint",
+        "where an inserted crossing goes in its feasible window: earliest (as early as the counts allow), "
+        "latest (right before the crossing that needs it) or midpoint (the middle in time of that window, "
+        "onebit.trackers.beams.counting.place_insertions)",
+        choices=PLACEMENTS,
+    )
+    window: int = param(4096, "how many crossings back an insertion may be moved", lo=1)
+    enabled: bool = param(
+        True,
+        "false skips the stage (e.g. to compare with the uncorrected string when the dataset's run.toml "
+        "would turn it on)",
+    )
 
     def __post_init__(self) -> None:
-        if self.n is not None:
-            check_range(self, "n", 1, MAX_TARGETS, types=(int,))
-        check_choice(self, "placement", PLACEMENTS)
-        check_range(self, "window", 1, None, types=(int,))
-        if not isinstance(self.enabled, bool):
-            raise ConfigError(f"CorrectConfig.enabled = {self.enabled!r}; expected true or false")
+        validate(self)
         if self.initial is not None:
             if not isinstance(self.initial, dict) or not self.initial:
                 raise ConfigError(f"CorrectConfig.initial = {self.initial!r}; expected a table region -> count")
             for k, v in self.initial.items():
                 if isinstance(v, bool) or not isinstance(v, int) or v < 0:
                     raise ConfigError(f"CorrectConfig.initial.{k} = {v!r}; expected a count >= 0")
-        if self.start_region is not None and not isinstance(self.start_region, str):
-            raise ConfigError(f"CorrectConfig.start_region = {self.start_region!r}; expected a region name")
 
 
 def initial_counts(cfg: CorrectConfig, names: tuple[str, ...], n: int) -> np.ndarray | None:

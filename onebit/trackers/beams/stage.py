@@ -3,13 +3,13 @@ ambiguity, unexplained crossings and the section IV-F-1 queries."""
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 import numpy as np
 import polars as pl
 
-from onebit.core.config import check_choice, check_range
 from onebit.core.errors import ConfigError
+from onebit.core.params import param, validate
 from onebit.core.region_graph import RegionGraph, build_region_graph
 from onebit.core.site import Site
 from onebit.core.tables import CROSSINGS, TRACKS, check_schema, conform
@@ -33,57 +33,59 @@ _UNEXPLAINED = {
 @dataclass(frozen=True, kw_only=True)
 class BeamsConfig:
     """Configuration of the ``beams`` tracker (``[beams]`` in ``run.toml``). It works on the
-    region graph: no field is a length (times are seconds).
+    region graph: no field is a length (times are seconds)."""
 
-    policy : queue discipline of the region queues Q_r (Algorithm 1, line 5): ``"fifo"``
-        assigns the agent that has waited longest (the paper's experiment), ``"lifo"`` the
-        agent that arrived last ("agents with momentum keep moving").
-    capacity : IV-A, ``{region: u_r}`` upper bound on the agents in a region; overrides the
-        ``capacity`` of the site's ``[[regions]]``. Empty = unbounded.
-    max_track_length : IV-B, most regions an agent may visit (its initial region counts);
-        0 = unbounded.
-    prefer_short_tracks : IV-B, region queues ordered by regions visited, shortest first.
-    initial_regions : IV-C, the initial region of every agent (n = its length); no other
-        agent is created. Empty = unknown.
-    max_agents : when ``initial_regions`` is empty, most agents that may be created; 0 = the
-        site's ``targets`` (the most agents present at once), unbounded when it does not say.
-    teams : IV-D, the team of every agent of ``initial_regions`` (same length). Empty = none.
-    team_names : IV-D, the m teams, in the order of the ``team_capacity`` tuples and of the
-        exit priority.
-    team_capacity : IV-D, ``{region: [u^1, .., u^m]}`` per-team bounds (-1 = unbounded).
-    prefer_team_order : IV-D, the exit policy prefers ``team_names[0]``, then ``[1]``, ...
-        (e.g. robots before humans), before the queue order.
-    min_traversal_s : IV-E, ``{region: seconds}`` minimum time an agent stays in a region
-        before it may leave; key ``"*"`` sets every other region. Empty = no time rule.
-    ambiguity : run both FIFO and LIFO and mark the crossings whose agent differs.
-    traffic_bucket_s : IV-F-1, time bucket of the traffic query (seconds).
-    occupancy_threshold : IV-F-1, "were there more than N agents in any region" (the paper's N = 10).
-    """
-
-    policy: str = "fifo"
-    capacity: dict = field(default_factory=dict)
-    max_track_length: int = 0
-    prefer_short_tracks: bool = False
-    initial_regions: list = field(default_factory=list)
-    max_agents: int = 0
-    teams: list = field(default_factory=list)
-    team_names: list = field(default_factory=list)
-    team_capacity: dict = field(default_factory=dict)
-    prefer_team_order: bool = False
-    min_traversal_s: dict = field(default_factory=dict)
-    ambiguity: bool = True
-    traffic_bucket_s: float = 60.0
-    occupancy_threshold: int = 10
+    policy: str = param(
+        "fifo",
+        "queue discipline of the region queues Q_r (Algorithm 1, line 5): fifo assigns the agent that has "
+        "waited longest (the paper's experiment), lifo the agent that arrived last (\"agents with momentum "
+        'keep moving")',
+        choices=POLICIES,
+    )
+    capacity: dict = param(
+        doc="IV-A, {region = u_r} upper bound on the agents in a region; overrides the capacity of the "
+        "site's [[regions]]. Empty = unbounded",
+        factory=dict,
+    )
+    max_track_length: int = param(
+        0, "IV-B, most regions an agent may visit (its initial region counts); 0 = unbounded", lo=0
+    )
+    prefer_short_tracks: bool = param(False, "IV-B, region queues ordered by regions visited, shortest first")
+    initial_regions: list = param(
+        doc="IV-C, the initial region of every agent (n = its length); no other agent is created. Empty = unknown",
+        factory=list,
+    )
+    max_agents: int = param(
+        0,
+        "when initial_regions is empty, most agents that may be created; 0 = the site's targets (the most "
+        "agents present at once), unbounded when it does not say",
+        lo=0,
+    )
+    teams: list = param(
+        doc="IV-D, the team of every agent of initial_regions (same length). Empty = none", factory=list
+    )
+    team_names: list = param(
+        doc="IV-D, the m teams, in the order of the team_capacity lists and of the exit priority", factory=list
+    )
+    team_capacity: dict = param(doc="IV-D, {region = [u^1, .., u^m]} per-team bounds (-1 = unbounded)", factory=dict)
+    prefer_team_order: bool = param(
+        False,
+        "IV-D, the exit policy prefers team_names[0], then [1], ... (e.g. robots before humans), before the "
+        "queue order",
+    )
+    min_traversal_s: dict = param(
+        doc='IV-E, {region = seconds} minimum time an agent stays in a region before it may leave; key "*" '
+        "sets every other region. Empty = no time rule",
+        factory=dict,
+    )
+    ambiguity: bool = param(True, "run both FIFO and LIFO and mark the crossings whose agent differs")
+    traffic_bucket_s: float = param(60.0, "IV-F-1, time bucket of the traffic query", lo=1e-9, hi=1e12, unit="s")
+    occupancy_threshold: int = param(
+        10, 'IV-F-1, "were there more than N agents in any region" (the paper\'s N = 10)', lo=0
+    )
 
     def __post_init__(self) -> None:
-        check_choice(self, "policy", POLICIES)
-        check_range(self, "max_track_length", 0, None, types=(int,))
-        check_range(self, "max_agents", 0, None, types=(int,))
-        check_range(self, "traffic_bucket_s", 1e-9, 1e12)
-        check_range(self, "occupancy_threshold", 0, None, types=(int,))
-        for name in ("prefer_short_tracks", "prefer_team_order", "ambiguity"):
-            if not isinstance(getattr(self, name), bool):
-                raise ConfigError(f"BeamsConfig.{name} = {getattr(self, name)!r}; must be true or false")
+        validate(self)
         for name in ("capacity", "team_capacity", "min_traversal_s"):
             if not isinstance(getattr(self, name), dict):
                 raise ConfigError(f"BeamsConfig.{name} = {getattr(self, name)!r}; must be a table {{region = ...}}")

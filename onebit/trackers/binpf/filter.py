@@ -134,40 +134,14 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from onebit.core.params import kernel_tuple
 from onebit.trackers.binpf import kernels
+from onebit.trackers.binpf.config import FilterParams
 
 _TINY = 1e-12
 
 #: :func:`run_filter` uses the compiled update from this many frames on.
 COMPILED_MIN_FRAMES = 300
-
-
-@dataclass(frozen=True)
-class FilterParams:
-    """Parameters of :func:`run_filter` in world units (see the module docstring)."""
-
-    particles: int = 300
-    pd: float = 0.75
-    pf: float = 0.01
-    edge: float = 0.3
-    period: float = 0.5
-    damping: float = 0.8
-    accel_sigma: float = 0.8
-    survival: float = 0.98
-    birth_r: float = 0.1
-    birth_explained: float = 0.3
-    birth_link: float = 1.8
-    birth_speed: float = 0.3
-    r_confirm: float = 0.9
-    r_delete: float = 0.05
-    r_out: float = 0.65
-    merge_distance: float = 0.4
-    silent: float = 0.3
-    smooth_lag: int = 4
-    max_tracks: int = 12
-    max_out: int = 0
-    split_ratio: float = 0.0
-    couple_distance: float = 2.5
 
 
 @dataclass
@@ -190,6 +164,12 @@ class FilterResult:
     particles_xy: np.ndarray
     particles_frame: np.ndarray
     particles_label: np.ndarray
+
+
+def kernel_params(p: FilterParams, log_particles: int) -> kernels.KernelParams:
+    """The compiled loop's parameters: ``p``'s of the same names, and ``log_particles`` (>= 0)."""
+    values = {n: getattr(p, n) for n in kernels.KernelParams._fields if n != "log_particles"}
+    return kernel_tuple(kernels.KernelParams, **values, log_particles=max(int(log_particles), 0))
 
 
 def footprint_probability(
@@ -412,14 +392,7 @@ def run_filter(
     rows_label = np.zeros(0, dtype=np.int64)
     rows_r = np.zeros(0)
     counts = np.zeros((T, 4), dtype=np.int64)
-    fp = np.array(
-        [
-            p.pd, p.pf, p.edge, p.period, p.damping, p.accel_sigma, p.survival, p.silent, p.birth_r,
-            p.birth_explained, p.birth_link, p.birth_speed, p.r_confirm, p.r_delete, p.merge_distance,
-        ],
-        dtype=np.float64,
-    )  # fmt: skip
-    ip = np.array([N, L, M, max(int(log_particles), 0)], dtype=np.int64)
+    kp = kernel_params(p, log_particles)
     pxy, pfr, plab = [], [], []
     dbuf = np.empty((M, S, N))  # the footprints, near rows only (kernels.footprints_into)
     lo = np.asarray(lo, dtype=np.float64)
@@ -438,7 +411,7 @@ def run_filter(
             ever = np.concatenate([ever, np.zeros(max(M * (k1 - k0), ever.size), dtype=bool)])
         a, b, c = kernels.run_frames(
             on, k0, k1, state, x, hist, rowidx, r, labels, confirmed, ever, est,
-            rows_frame, rows_label, rows_r, counts, sensors, radii, lo, hi, rng, fp, ip, dbuf,
+            rows_frame, rows_label, rows_r, counts, sensors, radii, lo, hi, rng, kp, dbuf,
         )  # fmt: skip
         pxy.append(a)
         pfr.append(b)

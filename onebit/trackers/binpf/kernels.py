@@ -28,6 +28,7 @@ that rounding of a particle's cumulative weight.
 from __future__ import annotations
 
 import math
+from typing import NamedTuple
 
 import numpy as np
 
@@ -467,6 +468,32 @@ def _grow(a, n):
     return out
 
 
+class KernelParams(NamedTuple):
+    """:func:`run_frames`' parameters: the :class:`~onebit.trackers.binpf.config.FilterParams`
+    of the same names (declared there), as float64 / int64
+    (:func:`onebit.trackers.binpf.filter.kernel_params`)."""
+
+    pd: float
+    pf: float
+    edge: float
+    period: float
+    damping: float
+    accel_sigma: float
+    survival: float
+    silent: float
+    birth_r: float
+    birth_explained: float
+    birth_link: float
+    birth_speed: float
+    r_confirm: float
+    r_delete: float
+    merge_distance: float
+    particles: int
+    smooth_lag: int
+    max_tracks: int
+    log_particles: int  #: particles per track and frame logged
+
+
 @kernel
 def run_frames(  # noqa: PLR0913, PLR0915 -- one compiled frame loop: the filter's whole state is its arguments
     on,
@@ -490,8 +517,7 @@ def run_frames(  # noqa: PLR0913, PLR0915 -- one compiled frame loop: the filter
     lo,
     hi,
     rng,
-    fp,
-    ip,
+    kp,
     dbuf,
 ):
     """Frames ``k0 .. k1 - 1`` of :func:`onebit.trackers.binpf.filter.run_filter_reference`, in
@@ -504,19 +530,17 @@ def run_frames(  # noqa: PLR0913, PLR0915 -- one compiled frame loop: the filter
     ``confirmed`` (first ``tracks`` live); ``ever[label]`` confirmed once (sized for every
     label the frames can make); the output rows ``est (rows, 2)``, ``rows_frame``,
     ``rows_label``, ``rows_r`` (sized for ``n_rows + M (k1 - k0)``); ``counts (T, 4)``:
-    births, deaths, merges, live. ``fp``: pd, pf, edge, period, damping, accel_sigma,
-    survival, silent, birth_r, birth_explained, birth_link, birth_speed, r_confirm,
-    r_delete, merge_distance; ``ip``: particles, smooth_lag, max_tracks, log_particles;
+    births, deaths, merges, live. ``kp``: the parameters (:class:`KernelParams`);
     ``dbuf (max_tracks, S, N)``: the footprints' buffer (:func:`observation_update_local`),
     kept by the caller, so that a frame neither allocates nor fills a ``(tracks, sensors,
     particles)`` array: its cost follows the sensors within reach of the tracks.
     Returns the logged particles of these frames: ``(xy (P, 2), frame (P,), label (P,))``.
     """
-    pd, pf, edge, period = fp[0], fp[1], fp[2], fp[3]
-    damping, accel_sigma, survival, silent = fp[4], fp[5], fp[6], fp[7]
-    birth_r, birth_explained, birth_link, birth_speed = fp[8], fp[9], fp[10], fp[11]
-    r_confirm, r_delete, merge_distance = fp[12], fp[13], fp[14]
-    N, L, max_tracks, log_p = ip[0], ip[1], ip[2], ip[3]
+    pd, pf, edge, period = kp.pd, kp.pf, kp.edge, kp.period
+    damping, accel_sigma, survival, silent = kp.damping, kp.accel_sigma, kp.survival, kp.silent
+    birth_r, birth_explained, birth_link, birth_speed = kp.birth_r, kp.birth_explained, kp.birth_link, kp.birth_speed
+    r_confirm, r_delete, merge_distance = kp.r_confirm, kp.r_delete, kp.merge_distance
+    N, L, max_tracks, log_p = kp.particles, kp.smooth_lag, kp.max_tracks, kp.log_particles
     S = sensors.shape[0]
     I = state[0]
     next_label = state[1]

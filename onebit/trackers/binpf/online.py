@@ -52,7 +52,7 @@ import polars as pl
 
 from onebit.core.tables import FRAMES, TRACKS, check_schema, conform
 from onebit.trackers.binpf import kernels
-from onebit.trackers.binpf.filter import FilterParams, FilterResult
+from onebit.trackers.binpf.filter import FilterParams, FilterResult, kernel_params
 from onebit.trackers.binpf.link import best_joins, join_costs
 
 #: ``onebit follow``'s commit lag (frames) when the config's ``commit_lag`` is 0.
@@ -146,16 +146,6 @@ def start(
     )
 
 
-def _fp(p: FilterParams) -> np.ndarray:
-    return np.array(
-        [
-            p.pd, p.pf, p.edge, p.period, p.damping, p.accel_sigma, p.survival, p.silent, p.birth_r,
-            p.birth_explained, p.birth_link, p.birth_speed, p.r_confirm, p.r_delete, p.merge_distance,
-        ],
-        dtype=np.float64,
-    )  # fmt: skip
-
-
 def _begin(st: OnlineBinPF, period: float) -> None:
     """Allocate the compiled loop's state (as :func:`onebit.trackers.binpf.filter.run_filter`)."""
     p = FilterParams(**{**st.p.__dict__, "period": period})
@@ -175,8 +165,7 @@ def _begin(st: OnlineBinPF, period: float) -> None:
         "rows_frame": np.zeros(2 * M * (L + 2), dtype=np.int64),
         "rows_label": np.zeros(2 * M * (L + 2), dtype=np.int64),
         "rows_r": np.zeros(2 * M * (L + 2)),
-        "fp": _fp(p),
-        "ip": np.array([N, L, M, max(int(st.log_particles), 0)], dtype=np.int64),
+        "kp": kernel_params(p, st.log_particles),
         "dbuf": np.empty((M, st.sensors.shape[0], N)),  # footprints, near rows only (kernels.footprints_into)
     }
     st.started = True
@@ -200,7 +189,7 @@ def _filter_frame(st: OnlineBinPF, z: np.ndarray) -> None:
     pxy, _pfr, plab = kernels.run_frames(
         z.reshape(1, -1), 0, 1, a["state"], a["x"], a["hist"], a["rowidx"], a["r"], a["labels"],
         a["confirmed"], a["ever"], a["est"], a["rows_frame"], a["rows_label"], a["rows_r"], counts,
-        st.sensors, st.radii, st.lo, st.hi, st.rng, a["fp"], a["ip"], a["dbuf"],
+        st.sensors, st.radii, st.lo, st.hi, st.rng, a["kp"], a["dbuf"],
     )  # fmt: skip
     n_rows = int(a["state"][2])
     labels = a["rows_label"][base_rows:n_rows].copy()

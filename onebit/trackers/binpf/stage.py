@@ -20,112 +20,20 @@ Outputs (tables ``binpf_<key>``):
 
 from __future__ import annotations
 
-from dataclasses import dataclass
-
 import numpy as np
 import polars as pl
 
-from onebit.core.config import MAX_PARTICLES, check_choice, check_range, check_size
-from onebit.core.errors import ConfigError
+from onebit.core.config import MAX_PARTICLES, check_size
 from onebit.core.site import Site
 from onebit.core.tables import FRAMES, TRACKS, check_schema, conform
-from onebit.core.units import length
 from onebit.trackers.base import ARTIFACTS, TrackerSpec, instants_bound, progress_of
 from onebit.trackers.binpf import online as binpf_online
+from onebit.trackers.binpf.config import BinPFConfig
 from onebit.trackers.binpf.filter import FilterParams, run_filter
 from onebit.trackers.binpf.link import link_tracklets
 from onebit.trackers.binpf.online import frame_levels
 
 NAME = "binpf"
-
-
-@dataclass(frozen=True, kw_only=True)
-class BinPFConfig:
-    """``run.toml`` ``[binpf]``. Defaults fit the real ceiling IR array of Milan et al. (fitted
-    by maximum likelihood of Eq. (2) on its sequence r1-easy: :math:`p_d` 0.74, soft edge
-    0.31 m, :math:`p_f` 0.008; see ``docs/binpf.md``)."""
-
-    particles: int = 300  #: particles per track
-    pd: float = 0.75  #: p_d, probability a person well inside a footprint triggers the sensor in a frame
-    pf: float = 0.01  #: p_f, probability a sensor is on with nobody near (false alarm) per frame
-    edge: float = length(0.3)  #: w, width of the footprint's soft edge, m (0 = hard disk)
-    radius: float | None = length(None)  #: footprint radius R_s for every sensor, m; None = each sensor's r_outer
-    damping: float = 0.8  #: a, velocity kept from one frame to the next
-    accel_sigma: float = length(0.8, unit="m/s")  #: sigma_v, velocity noise per sqrt(s), m/s per sqrt(s)
-    survival: float = 0.98  #: p_s, probability a person stays from one frame to the next
-    silent: float = 0.3  #: epsilon, probability a present person triggers nothing in a frame (Eq. 4')
-    birth_r: float = 0.1  #: existence of a newborn track
-    birth_explained: float = 0.3  #: an on sensor the tracks trigger with less than this is unexplained
-    birth_link: float = length(1.8)  #: unexplained on sensors closer than this give one newborn, m
-    birth_speed: float = length(0.3, unit="m/s")  #: std of a newborn particle's velocity, m/s
-    r_confirm: float = 0.9  #: a track is confirmed once its existence reaches this
-    r_delete: float = 0.05  #: a track is deleted when its existence falls below this
-    r_out: float = 0.65  #: a confirmed track is reported while its existence is at least this
-    merge_distance: float = length(0.4)  #: two tracks closer than this are merged, m
-    split_ratio: float = 0.0  #: a twin of a track is proposed where its likelihood ratio is at least this; 0 = no split
-    smooth_lag: int = 4  #: frames of fixed-lag smoothing of the positions (particle genealogy); 0 = filter only
-    link: bool = True  #: join tracklets across short gaps (one min-cost assignment, :mod:`onebit.trackers.binpf.link`)
-    link_gap: int = 10  #: g_max, most missing frames a join bridges
-    link_speed: float = length(1.5, unit="m/s")  #: v_max, walking speed a join may assume, m/s
-    link_slack: float = length(1.0)  #: rho, extra distance a join allows (about a footprint), m
-    #: frames after which a frame's tracks are final; 0 = the whole log (a confirmed track is
-    #: reported back to its birth, tracklets joined over the run); > 0 (at least ``smooth_lag``):
-    #: reported if confirmed within the lag, joined causally -- what ``onebit follow`` publishes,
-    #: equal with the same value (:mod:`onebit.trackers.binpf.online`)
-    commit_lag: int = 0
-    targets: int = 0  #: most people reported at once; 0 = the site's ``targets`` (none: no bound)
-    max_tracks: int = (
-        0  #: most live tracks (tentative included); 0 = bound + 1 (8 without a bound): spare tentative tracks churn
-    )
-    seed: int = 0  #: random seed
-    log_particles: int = 50  #: particles per track and frame sent to Rerun
-    #: most particles sent to Rerun over the run: on a long log each track sends
-    #: ``min(log_particles, max(1, log_particles_max // (frames x max_tracks)))`` a frame
-    #: (50 a frame on 475 000 frames of 6 tracks would be 142 million points, 4.6 GB)
-    log_particles_max: int = 2_000_000
-    #: the most frames the pipeline runs it on; a longer log skips the stage, saying so (each
-    #: frame costs ~0.35 ms of CPU with the default particles -- the stage on 47 499 frames of the
-    #: simulated 25-sensor line, cold, on 2 shared cores: 16.1-17.0 s; 157 s on 474 999 -- so
-    #: 250 000 frames take about 1.5 minutes); 0 = no bound
-    max_frames: int = 250_000
-
-    def __post_init__(self) -> None:
-        check_range(self, "particles", 1, 10**6, types=(int,))
-        check_range(self, "pd", 1e-6, 1.0)
-        check_range(self, "pf", 1e-9, 0.5)
-        check_range(self, "edge", 0.0, 1e6)
-        if self.radius is not None:
-            check_range(self, "radius", 1e-9, 1e9)
-        check_range(self, "damping", 0.0, 1.0)
-        check_range(self, "accel_sigma", 0.0, 1e6)
-        check_range(self, "survival", 1e-6, 1.0)
-        check_range(self, "silent", 0.0, 0.999)
-        check_range(self, "birth_r", 1e-6, 0.999)
-        check_range(self, "birth_explained", 0.0, 1.0)
-        check_range(self, "birth_link", 0.0, 1e9)
-        check_range(self, "birth_speed", 0.0, 1e6)
-        check_range(self, "r_confirm", 0.0, 1.0)
-        check_range(self, "r_delete", 0.0, self.r_confirm)
-        check_range(self, "r_out", self.r_delete, 1.0)
-        check_range(self, "merge_distance", 0.0, 1e9)
-        check_range(self, "split_ratio", 0.0, 1e9)
-        check_range(self, "smooth_lag", 0, 1000, types=(int,))
-        check_choice(self, "link", (True, False))
-        check_range(self, "link_gap", 0, 10**6, types=(int,))
-        check_range(self, "link_speed", 0.0, 1e6)
-        check_range(self, "link_slack", 0.0, 1e9)
-        check_range(self, "commit_lag", 0, 10**6, types=(int,))
-        if self.commit_lag and self.commit_lag < self.smooth_lag:
-            raise ConfigError(
-                f"BinPFConfig.commit_lag = {self.commit_lag}: must be 0 or at least smooth_lag = {self.smooth_lag} "
-                "(a frame's smoothed positions are final smooth_lag frames later)"
-            )
-        check_range(self, "targets", 0, 10**4, types=(int,))
-        check_range(self, "max_tracks", 0, 10**4, types=(int,))
-        check_range(self, "seed", 0, None, types=(int,))
-        check_range(self, "log_particles", 0, 10**6, types=(int,))
-        check_range(self, "log_particles_max", 0, 10**9, types=(int,))
-        check_range(self, "max_frames", 0, None, types=(int,))
 
 
 def _linked(existence: pl.DataFrame, config: BinPFConfig, period: float, bound: int):

@@ -25,8 +25,8 @@ from dataclasses import dataclass
 import numpy as np
 import polars as pl
 
-from onebit.core.config import check_choice, check_range
 from onebit.core.parallel import available_cores, run_beside
+from onebit.core.params import param, validate
 from onebit.core.site import Site
 from onebit.core.tables import FRAMES, TRACKS, check_schema, conform
 from onebit.trackers.base import ARTIFACTS, TrackerSpec, instants_bound
@@ -43,90 +43,80 @@ class ClusterTrackConfig:
 
     Every length is relative to R (the sensors' mean radius, from the site's detection
     regions), so no field carries a unit and a ``run.toml`` means the same in any units.
-
-    h : H, particles kept per cluster in 1-D (paper: 25).
-    m_o_r : sampling density m_o R in 1-D (paper: 15 samples per R).
-    h_2d : H in 2-D (paper: 50).
-    m_o_r2 : m_o R^2 in 2-D (paper: 50).
-    q_hat : estimated number of targets; 0 = max over instants of the lower bound (paper).
-    q_factor : multiplies the rule-of-thumb Q_hat (the paper tried up to 2).
-    k, l : K and L; 0 = rules of thumb K = H Q_hat, L = H m_o mean(S_F).
-    d0_r : clustering threshold D_0 in units of R; 0 = rule of thumb A_hat^(1/n).
-    reruns : Appendix B: reruns that must yield tracks not clustering with existing ones
-        (paper: 10); 0 switches Appendix B off (the paper's "one-run version").
-    rerun_cost_ratio : a rerun whose new tracks all cost more than this times the cheapest
-        track (section 6's "significantly high cost") was monopolised by one cluster of its
-        K = H q budget; it is repeated once with K = H Q_hat. 0 = the paper-literal rerun.
-    consensus_runs : R runs (seeds ``seed .. seed+R-1``) for the multi-run target count (the
-        paper's suggestion in section 6, left open there; each run costs as much as the
-        tracker itself, so 4 by default -- 2 minutes of a 43-sensor array in ~8 s -- and 10
-        or more for a figure like the paper's 12b).
-    consensus_ratio : drop consensus tracks costing more than this times the cheapest (10).
-    consensus_support : a consensus cluster counts when at least this fraction of runs has a
-        track in it.
-    raster_per_r : 2-D raster cells per R.
-    dim : "auto" (1-D when every sensor has y == 0), "1d" or "2d".
-    targets : most tracks returned (and so at once: a track spans the run); 0 = the
-        site's ``targets``. The result never exceeds min(targets, Q_hat).
-    seed : random seed.
-    max_instants : the most instants (frames) the pipeline runs it on; a longer log skips
-        the stage, saying so: every instant is scanned once per run, and with the defaults
-        there are about (1 + reruns) x (1 + consensus_runs) runs -- 7-11 ms per instant on
-        the simulated 25-sensor line on 2 cores (each run's instant costs ~0.2 ms, in
-        proportion to its m_t K candidates: the sensors on and the targets, not the site),
-        so 6000 instants take 0.7-1.1 minutes. 0 = no bound.
-    cores : the most cores the independent runs use at once (the stage's own run and the
-        consensus runs of the other seeds: ``1 + consensus_runs - 1`` runs, each a whole
-        CLUSTERTRACK with its reruns). This process makes the stage's run, ``cores - 1``
-        worker processes the others, each taking the next seed when free, and this process
-        too once its run is done (:func:`onebit.core.parallel.run_beside`). 0 = every core this process may use
-        (:func:`onebit.core.parallel.available_cores`; 1 inside a ``run-many`` pool), on a job
-        of at least :data:`PARALLEL_MIN` steps x candidates (below it, starting workers costs
-        more than it saves); 1 = every run here. The output is the same for any value.
     """
 
-    h: int = 25
-    m_o_r: float = 15.0
-    h_2d: int = 50
-    m_o_r2: float = 50.0
-    q_hat: int = 0
-    q_factor: float = 1.0
-    k: int = 0
-    l: int = 0  # noqa: E741
-    d0_r: float = 0.0
-    reruns: int = 10
-    rerun_cost_ratio: float = 10.0
-    consensus_runs: int = 4
-    consensus_ratio: float = 10.0
-    consensus_support: float = 0.5
-    raster_per_r: int = 10
-    dim: str = "auto"
-    targets: int = 0
-    seed: int = 0
-    max_instants: int = 6000
-    cores: int = 0
+    h: int = param(25, "H, particles kept per cluster in 1-D (paper: 25)", lo=1, hi=100000)
+    m_o_r: float = param(15.0, "sampling density m_o R in 1-D (paper: 15 samples per R)", lo=1e-6, hi=1e5)
+    h_2d: int = param(50, "H in 2-D (paper: 50)", lo=1, hi=100000)
+    m_o_r2: float = param(50.0, "m_o R^2 in 2-D (paper: 50)", lo=1e-6, hi=1e6)
+    q_hat: int = param(
+        0, "estimated number of targets; 0 = max over instants of the lower bound (paper)", lo=0, hi=10000
+    )
+    q_factor: float = param(1.0, "multiplies the rule-of-thumb Q_hat (the paper tried up to 2)", lo=1e-6, hi=100.0)
+    k: int = param(0, "K; 0 = rule of thumb K = H Q_hat", lo=0, hi=10**7)
+    l: int = param(0, "L; 0 = rule of thumb L = H m_o mean(S_F)", lo=0, hi=10**8)  # noqa: E741
+    d0_r: float = param(0.0, "clustering threshold D_0 in units of R; 0 = rule of thumb A_hat^(1/n)", lo=0.0, hi=1e6)
+    reruns: int = param(
+        10,
+        "Appendix B: reruns that must yield tracks not clustering with existing ones (paper: 10); 0 switches "
+        'Appendix B off (the paper\'s "one-run version")',
+        lo=0,
+        hi=1000,
+    )
+    rerun_cost_ratio: float = param(
+        10.0,
+        "a rerun whose new tracks all cost more than this times the cheapest track (section 6's "
+        '"significantly high cost") was monopolised by one cluster of its K = H q budget; it is repeated '
+        "once with K = H Q_hat. 0 = the paper-literal rerun",
+        lo=0.0,
+        hi=1e9,
+    )
+    consensus_runs: int = param(
+        4,
+        "R runs (seeds seed .. seed+R-1) for the multi-run target count (the paper's suggestion in section 6, "
+        "left open there; each run costs as much as the tracker itself, so 4 by default -- 2 minutes of a "
+        "43-sensor array in ~8 s -- and 10 or more for a figure like the paper's 12b)",
+        lo=0,
+        hi=10000,
+    )
+    consensus_ratio: float = param(
+        10.0, "drop consensus tracks costing more than this times the cheapest (10)", lo=1.0, hi=1e9
+    )
+    consensus_support: float = param(
+        0.5, "a consensus cluster counts when at least this fraction of runs has a track in it", lo=0.0, hi=1.0
+    )
+    raster_per_r: int = param(10, "2-D raster cells per R", lo=1, hi=1000)
+    dim: str = param("auto", "auto (1-D when every sensor has y == 0), 1d or 2d", choices=("auto", "1d", "2d"))
+    targets: int = param(
+        0,
+        "most tracks returned (and so at once: a track spans the run); 0 = the site's targets. The result "
+        "never exceeds min(targets, Q_hat)",
+        lo=0,
+        hi=10**4,
+    )
+    seed: int = param(0, "random seed", lo=0)
+    max_instants: int = param(
+        6000,
+        "the most instants (frames) the pipeline runs it on; a longer log skips the stage, saying so: every "
+        "instant is scanned once per run, and with the defaults there are about (1 + reruns) x "
+        "(1 + consensus_runs) runs -- 7-11 ms per instant on the simulated 25-sensor line on 2 cores (each "
+        "run's instant costs ~0.2 ms, in proportion to its m_t K candidates: the sensors on and the targets, "
+        "not the site), so 6000 instants take 0.7-1.1 minutes. 0 = no bound",
+        lo=0,
+    )
+    cores: int = param(
+        0,
+        "the most cores the independent runs use at once (the stage's own run and the consensus runs of the "
+        "other seeds, each a whole CLUSTERTRACK with its reruns; onebit.core.parallel.run_beside). 0 = every "
+        "core this process may use (1 inside a run-many pool), on a job of at least PARALLEL_MIN steps x "
+        "candidates (below it, starting workers costs more than it saves); 1 = every run here. The output "
+        "is the same for any value",
+        lo=0,
+        hi=4096,
+    )
 
     def __post_init__(self) -> None:
-        check_range(self, "h", 1, 100000, types=(int,))
-        check_range(self, "h_2d", 1, 100000, types=(int,))
-        check_range(self, "m_o_r", 1e-6, 1e5)
-        check_range(self, "m_o_r2", 1e-6, 1e6)
-        check_range(self, "q_hat", 0, 10000, types=(int,))
-        check_range(self, "q_factor", 1e-6, 100.0)
-        check_range(self, "k", 0, 10**7, types=(int,))
-        check_range(self, "l", 0, 10**8, types=(int,))
-        check_range(self, "d0_r", 0.0, 1e6)
-        check_range(self, "reruns", 0, 1000, types=(int,))
-        check_range(self, "rerun_cost_ratio", 0.0, 1e9)
-        check_range(self, "consensus_runs", 0, 10000, types=(int,))
-        check_range(self, "consensus_ratio", 1.0, 1e9)
-        check_range(self, "consensus_support", 0.0, 1.0)
-        check_range(self, "raster_per_r", 1, 1000, types=(int,))
-        check_choice(self, "dim", ("auto", "1d", "2d"))
-        check_range(self, "targets", 0, 10**4, types=(int,))
-        check_range(self, "seed", 0, None, types=(int,))
-        check_range(self, "max_instants", 0, None, types=(int,))
-        check_range(self, "cores", 0, 4096, types=(int,))
+        validate(self)
 
 
 #: Schemas of the tables besides ``tracks`` (``feasible`` and ``minimal_targets`` in 1-D only,

@@ -23,11 +23,12 @@ from dataclasses import dataclass
 import numpy as np
 import polars as pl
 
-from onebit.core.config import check_range
 from onebit.core.frames import outside_silence, silent_stretches
+from onebit.core.params import param
 from onebit.core.site import Site
 from onebit.core.tables import MOTION, check_schema
 from onebit.models.graph_hmm.decoding import (
+    JOINT,
     WINDOWS,
     HmmConfig,
     available,
@@ -64,24 +65,20 @@ __all__ = [
 
 @dataclass(frozen=True, kw_only=True)
 class FindingHumoConfig(HmmConfig):
-    """``[findinghumo]``: the shared HMM options plus CPDA's.
+    """``[findinghumo]``: the shared HMM options plus CPDA's."""
 
-    c_windows : C, the number of HMM windows CPDA looks back and ahead over (paper example: 2).
-    cpda_passes : maximum number of CPDA passes ("repeat until stable").
-    joint : as in :class:`HmmConfig`, here ``"before-cpda"`` by default: the paper leaves open
-        how the K users' paths are decoded jointly; re-decoding each meeting of two users
-        exactly is part of that decoding, and CPDA then runs on its output as on the HMM's in
-        the paper. Measured (docs/findinghumo.md): seeds 0-59 0.536 vs 0.570 ``"after-cpda"``.
-    """
-
-    c_windows: int = 2
-    cpda_passes: int = 5
-    joint: str = "before-cpda"
-
-    def __post_init__(self) -> None:
-        super().__post_init__()
-        check_range(self, "c_windows", 1, 1000, types=(int,))
-        check_range(self, "cpda_passes", 1, 100, types=(int,))
+    c_windows: int = param(
+        2, "C, the number of HMM windows CPDA looks back and ahead over (paper example: 2)", lo=1, hi=1000
+    )
+    cpda_passes: int = param(5, 'maximum number of CPDA passes ("repeat until stable")', lo=1, hi=100)
+    joint: str = param(
+        "before-cpda",
+        "as in the shared HMM options, here before-cpda by default: the paper leaves open how the K users' "
+        "paths are decoded jointly; re-decoding each meeting of two users exactly is part of that decoding, "
+        "and CPDA then runs on its output as on the HMM's in the paper. Measured (docs/findinghumo.md): "
+        "seeds 0-59 0.536 vs 0.570 after-cpda",
+        choices=JOINT,
+    )
 
 
 def _run(name: str, mode: str, inputs: dict, site: Site, cfg: HmmConfig) -> dict[str, pl.DataFrame]:

@@ -19,11 +19,11 @@ from dataclasses import dataclass
 import numpy as np
 import polars as pl
 
-from onebit.core.config import check_choice, check_range
-from onebit.core.errors import ConfigError
 from onebit.core.frames import outside_silence
+from onebit.core.params import param
 from onebit.core.site import Site
 from onebit.models.graph_hmm.decoding import (
+    JOINT,
     HmmConfig,
     available,
     cap_users,
@@ -70,37 +70,43 @@ JOINS = pl.Schema(
 
 @dataclass(frozen=True, kw_only=True)
 class FlowConfig(HmmConfig):
-    """``[findinghumo-flow]``: the shared HMM options plus the association's.
+    """``[findinghumo-flow]``: the shared HMM options plus the association's."""
 
-    decoder : ``"full2"`` (second-order full-state HMM) or ``"adaptive"`` (the Adaptive-HMM).
-    pace_sigma : spread of the log pace (slots per node) of one user across a meeting.
-    max_gap : slots a track may vanish before it continues on a track that starts.
-    switch_cost : cost (nats) of a join that changes the decoded track: the HMM's own pairing
-        is kept unless the evidence against it is stronger (and among equals).
-    turn_dwell : add the turn/pass dwell term ``-log Geom(n; mu_turn | mu_pass)`` to the join
-        cost (off by default: on the issue's 20 seeds it made the association worse, 0.75 vs
-        0.60 hops -- users here also pause where they do not turn, see docs/findinghumo.md).
-    """
-
-    joint: str = "before-cpda"  # here: on the HMM's paths, before the association (0.464 vs 0.501 after it, seeds 0-19)
-    decoder: str = "full2"
-    pace_sigma: float = 0.35
-    max_gap: int = 10
-    switch_cost: float = 1.0
-    turn_dwell: bool = False
-
-    def __post_init__(self) -> None:
-        super().__post_init__()
-        check_choice(self, "decoder", ("full2", "adaptive"))
-        if self.decoding != "batch":  # a global min-cost flow over the whole run: never lagged
-            raise ConfigError(
-                f"FlowConfig.decoding = {self.decoding!r}; findinghumo-flow is batch-only (a min-cost flow over "
-                "the whole run): allowed values: ['batch']"
-            )
-        check_range(self, "pace_sigma", 1e-3, 1e9)
-        check_range(self, "max_gap", 0, 10_000, types=(int,))
-        check_range(self, "switch_cost", 0.0, 1e3)
-        check_choice(self, "turn_dwell", (False, True))
+    joint: str = param(
+        "before-cpda",
+        "re-decode every meeting of two users jointly (as in the shared HMM options); here on the HMM's "
+        "paths, before the association, by default (0.464 vs 0.501 after it, seeds 0-19); after-cpda "
+        "re-decodes the associated paths; off: none",
+        choices=JOINT,
+    )
+    decoding: str = param(
+        "batch", "batch only: a global min-cost flow over the whole run is never lagged", choices=("batch",)
+    )
+    decoder: str = param(
+        "full2",
+        "full2 (second-order full-state HMM) or adaptive (the Adaptive-HMM)",
+        choices=("full2", "adaptive"),
+    )
+    pace_sigma: float = param(
+        0.35, "spread of the log pace (slots per node) of one user across a meeting", lo=1e-3, hi=1e9
+    )
+    max_gap: int = param(
+        10, "slots a track may vanish before it continues on a track that starts", lo=0, hi=10_000, unit="slots"
+    )
+    switch_cost: float = param(
+        1.0,
+        "cost of a join that changes the decoded track: the HMM's own pairing is kept unless the evidence "
+        "against it is stronger (and among equals)",
+        lo=0.0,
+        hi=1e3,
+        unit="nats",
+    )
+    turn_dwell: bool = param(
+        False,
+        "add the turn/pass dwell term -log Geom(n; mu_turn | mu_pass) to the join cost (off by default: on "
+        "the issue's 20 seeds it made the association worse, 0.75 vs 0.60 hops -- users here also pause "
+        "where they do not turn, see docs/findinghumo.md)",
+    )
 
 
 def associate_paths(

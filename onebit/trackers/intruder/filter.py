@@ -63,6 +63,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from onebit.core.params import kernel_tuple
 from onebit.models.motion import Motion, Particles, Room, prior, propagate
 from onebit.models.pir import PROB_FLOOR, Deployment, WorldGrid, log_weights
 from onebit.trackers.intruder import kernels
@@ -226,59 +227,26 @@ def run_filter(
     blind = np.ascontiguousarray(blind, dtype=np.bool_)
     systematic, always = resample == "systematic", resample_when == "always"
     x, y, theta, v, w = (np.ascontiguousarray(c, dtype=np.float64) for c in (p.x, p.y, p.theta, p.v, p.w))
-    common = (
-        grid,
-        ptr,
-        sensor,
-        q,
-        p0,
-        xi,
-        a,
-        float(half_w),
-        float(half_d),
-        mask,
-        systematic,
-        always,
-        float(ess_threshold),
-        pick,
-    )
-    outs = (res.estimates, res.ess, res.resampled, res.logged_xy, res.logged_w, res.spread)
+    model = kernels.Model(grid, ptr, sensor, q, p0, xi, a, float(half_w), float(half_d), mask)
+    rs = kernels.Resampling(systematic, always, float(ess_threshold), pick)
+    outs = kernels.Outputs(res.estimates, res.ess, res.resampled, res.logged_xy, res.logged_w, res.spread)
     if room.is_box:
-        mot = np.array(
-            [motion.period, motion.v_max, motion.speed_sigma, motion.turn_scale, motion.max_retries], dtype=np.float64
-        )
+        mot = kernel_tuple(kernels.MotionParams, **{n: getattr(motion, n) for n in kernels.MotionParams._fields})
         step = T if progress is None else max(1, -(-T // PROGRESS_CHUNKS))
-        for a in range(0, T, step):
-            b = min(a + step, T)
+        for k0 in range(0, T, step):
+            k1 = min(k0 + step, T)
             kernels._run_box(
-                x,
-                y,
-                theta,
-                v,
-                w,
-                rng,
-                fired[a:b],
-                blind[a:b],
-                mot,
-                np.asarray(room.bounds, dtype=np.float64),
-                *common,
-                res.estimates[a:b],
-                res.ess[a:b],
-                res.redraws[a:b],
-                res.clamped[a:b],
-                res.resampled[a:b],
-                res.logged_xy[a:b],
-                res.logged_w[a:b],
-                res.spread[a:b],
-            )
+                x, y, theta, v, w, rng, fired[k0:k1], blind[k0:k1], mot, np.asarray(room.bounds, dtype=np.float64),
+                model, rs, kernels.Outputs(*(o[k0:k1] for o in outs)), res.redraws[k0:k1], res.clamped[k0:k1],
+            )  # fmt: skip
             if progress is not None:
-                progress(b, T)
+                progress(k1, T)
         return res
     uniform = False
     for k in range(T):  # sequential: each iteration needs the previous posterior
         p, res.redraws[k], res.clamped[k] = propagate(Particles(x, y, theta, v, w), room, motion, rng)
         x, y, theta, v, w = (np.ascontiguousarray(c, dtype=np.float64) for c in (p.x, p.y, p.theta, p.v, p.w))
-        uniform = kernels._update_one(k, x, y, theta, v, w, uniform, rng, fired[k], blind[k], *common, *outs)
+        uniform = kernels._update_one(k, x, y, theta, v, w, uniform, rng, fired[k], blind[k], model, rs, outs)
         if progress is not None:
             progress(k + 1, T)
     return res

@@ -47,6 +47,7 @@ the same constant to every particle), as in the reference.
 from __future__ import annotations
 
 import math
+from typing import NamedTuple
 
 import numpy as np
 
@@ -55,6 +56,51 @@ from onebit.core.compiled import kernel
 PROB_FLOOR = 1e-12
 LOG_FLOOR = math.log(PROB_FLOOR)
 TWO_PI = 2 * math.pi
+
+
+class MotionParams(NamedTuple):
+    """The intruder model (:class:`onebit.models.motion.Motion`, same fields) for :func:`_run_box`."""
+
+    period: float
+    v_max: float
+    speed_sigma: float
+    turn_scale: float
+    max_retries: int
+
+
+class Model(NamedTuple):
+    """The deployment on the grid, as the likelihood and the estimate read it."""
+
+    grid: np.ndarray  #: (5,) x0, y0, cell, nx, ny
+    cell_ptr: np.ndarray  #: CSR of the sensors per cell (:func:`cell_lists`)
+    cell_sensor: np.ndarray
+    cell_q: np.ndarray
+    p0: np.ndarray  #: (n,) false-alarm probability per sensor
+    xi: np.ndarray  #: (n,) cells of each region R_i
+    a: np.ndarray  #: (n,) 1 - p0, as the reference computes it
+    half_w: float  #: the intruder's half width
+    half_d: float  #: the intruder's half depth
+    mask: np.ndarray  #: (ny, nx) cells inside the room
+
+
+class Resampling(NamedTuple):
+    """When and how the filter resamples, and which particles it logs."""
+
+    systematic: bool  #: systematic (else multinomial) resampling
+    always: bool  #: every iteration (else when the ESS is below ``ess_threshold N``)
+    ess_threshold: float
+    pick: np.ndarray  #: (L,) indices of the particles logged per iteration
+
+
+class Outputs(NamedTuple):
+    """What every iteration ``k`` writes (row ``k`` of each)."""
+
+    est: np.ndarray  #: (T, 2) estimate
+    ess: np.ndarray  #: (T,) effective sample size
+    resampled: np.ndarray  #: (T,) bool
+    logged_xy: np.ndarray  #: (T, L, 2)
+    logged_w: np.ndarray  #: (T, L)
+    spread: np.ndarray  #: (T,)
 
 
 # --------------------------------------------------------------------------- propagate
@@ -513,47 +559,20 @@ def _resample(w, rng, systematic, idx, cs):
 
 
 @kernel
-def _update(
-    k,
-    x,
-    y,
-    theta,
-    v,
-    w,
-    uniform,
-    rng,
-    fired,
-    blind,
-    grid,
-    cell_ptr,
-    cell_sensor,
-    cell_q,
-    p0,
-    xi,
-    a,
-    half_w,
-    half_d,
-    mask,
-    systematic,
-    always,
-    ess_threshold,
-    pick,
-    lw,
-    scratch,
-    idx,
-    est,
-    ess,
-    resampled,
-    logged_xy,
-    logged_w,
-    spread,
-    cells,
-    buf,
-):
+def _update(k, x, y, theta, v, w, uniform, rng, fired, blind, model, rs, out, lw, scratch, idx, cells, buf):
     """Weigh, estimate, log and resample after the propagation of iteration ``k``; returns
-    whether the weights are uniform afterwards. ``lw``, ``idx``, ``buf`` ``(N,)``, ``cells``
-    ``(4, N)`` and ``scratch`` are workspace."""
+    whether the weights are uniform afterwards. ``model`` (:class:`Model`), ``rs``
+    (:class:`Resampling`), the outputs ``out`` (:class:`Outputs`, row ``k`` written); ``lw``,
+    ``idx``, ``buf`` ``(N,)``, ``cells`` ``(4, N)`` and ``scratch`` are workspace."""
     N = x.shape[0]
+    grid, cell_ptr, cell_sensor, cell_q, p0, xi, a = (
+        model.grid, model.cell_ptr, model.cell_sensor, model.cell_q, model.p0, model.xi, model.a
+    )  # fmt: skip
+    half_w, half_d, mask = model.half_w, model.half_d, model.mask
+    systematic, always, ess_threshold, pick = rs.systematic, rs.always, rs.ess_threshold, rs.pick
+    est, ess, resampled, logged_xy, logged_w, spread = (
+        out.est, out.ess, out.resampled, out.logged_xy, out.logged_w, out.spread
+    )  # fmt: skip
     _log_likelihood(x, y, fired, blind, grid, cell_ptr, cell_sensor, cell_q, p0, xi, a, half_w, half_d, lw)
     mx = -np.inf
     log_uniform = math.log(1.0 / N)
@@ -596,45 +615,14 @@ def _update(
 
 
 @kernel
-def _run_box(
-    x,
-    y,
-    theta,
-    v,
-    w,
-    rng,
-    fired,
-    blind,
-    motion,
-    box,
-    grid,
-    cell_ptr,
-    cell_sensor,
-    cell_q,
-    p0,
-    xi,
-    a,
-    half_w,
-    half_d,
-    mask,
-    systematic,
-    always,
-    ess_threshold,
-    pick,
-    est,
-    ess,
-    redraws,
-    clamped,
-    resampled,
-    logged_xy,
-    logged_w,
-    spread,
-):
-    """Every iteration in a box room: propagate then :func:`_update` (see the module docstring),
-    with one workspace for the whole run (no allocation per iteration)."""
+def _run_box(x, y, theta, v, w, rng, fired, blind, motion, box, model, rs, out, redraws, clamped):
+    """Every iteration in a box room: propagate with ``motion`` (:class:`MotionParams`) in the
+    room ``box`` then :func:`_update` (see the module docstring), with one workspace for the
+    whole run (no allocation per iteration); ``redraws`` and ``clamped`` per iteration beside
+    ``out``."""
     N = x.shape[0]
     lw = np.empty(N)
-    scratch = np.empty((int(grid[4]) + 1, int(grid[3]) + 1))
+    scratch = np.empty((int(model.grid[4]) + 1, int(model.grid[3]) + 1))
     idx = np.empty(N, dtype=np.int64)
     buf = np.empty(N)
     cells = np.empty((4, N), dtype=np.int64)
@@ -650,11 +638,11 @@ def _run_box(
             theta,
             v,
             rng,
-            motion[0],
-            motion[1],
-            motion[2],
-            motion[3],
-            int(motion[4]),
+            motion.period,
+            motion.v_max,
+            motion.speed_sigma,
+            motion.turn_scale,
+            motion.max_retries,
             box,
             idx,
             pack,
@@ -664,116 +652,22 @@ def _run_box(
         )
         redraws[k], clamped[k] = r, c
         uniform = _update(
-            k,
-            x,
-            y,
-            theta,
-            v,
-            w,
-            uniform,
-            rng,
-            fired[k],
-            blind[k],
-            grid,
-            cell_ptr,
-            cell_sensor,
-            cell_q,
-            p0,
-            xi,
-            a,
-            half_w,
-            half_d,
-            mask,
-            systematic,
-            always,
-            ess_threshold,
-            pick,
-            lw,
-            scratch,
-            idx,
-            est,
-            ess,
-            resampled,
-            logged_xy,
-            logged_w,
-            spread,
-            cells,
-            buf,
+            k, x, y, theta, v, w, uniform, rng, fired[k], blind[k], model, rs, out, lw, scratch, idx, cells, buf
         )
 
 
 @kernel
-def _update_one(
-    k,
-    x,
-    y,
-    theta,
-    v,
-    w,
-    uniform,
-    rng,
-    fired,
-    blind,
-    grid,
-    cell_ptr,
-    cell_sensor,
-    cell_q,
-    p0,
-    xi,
-    a,
-    half_w,
-    half_d,
-    mask,
-    systematic,
-    always,
-    ess_threshold,
-    pick,
-    est,
-    ess,
-    resampled,
-    logged_xy,
-    logged_w,
-    spread,
-):
+def _update_one(k, x, y, theta, v, w, uniform, rng, fired, blind, model, rs, out):
     """:func:`_update` for one iteration of a room that is not a box (propagated outside)."""
     N = x.shape[0]
     return _update(
-        k,
-        x,
-        y,
-        theta,
-        v,
-        w,
-        uniform,
-        rng,
-        fired,
-        blind,
-        grid,
-        cell_ptr,
-        cell_sensor,
-        cell_q,
-        p0,
-        xi,
-        a,
-        half_w,
-        half_d,
-        mask,
-        systematic,
-        always,
-        ess_threshold,
-        pick,
+        k, x, y, theta, v, w, uniform, rng, fired, blind, model, rs, out,
         np.empty(N),
-        np.empty((int(grid[4]) + 1, int(grid[3]) + 1)),
+        np.empty((int(model.grid[4]) + 1, int(model.grid[3]) + 1)),
         np.empty(N, dtype=np.int64),
-        est,
-        ess,
-        resampled,
-        logged_xy,
-        logged_w,
-        spread,
         np.empty((4, N), dtype=np.int64),
         np.empty(N),
-    )
+    )  # fmt: skip
 
 
 # --------------------------------------------------------------------------- the deployment per cell

@@ -24,9 +24,10 @@ from dataclasses import dataclass
 import numpy as np
 import polars as pl
 
-from onebit.core.config import MAX_PARTICLES, check_choice, check_range
+from onebit.core.config import MAX_PARTICLES
 from onebit.core.errors import ConfigError
 from onebit.core.frames import ABSENT_AFTER_S, motion_frames, outside_silence, refractory_state, silent_stretches
+from onebit.core.params import param, validate
 from onebit.core.site import Site
 from onebit.core.tables import MOTION, TRACKS, check_schema, conform
 from onebit.core.units import length
@@ -44,61 +45,65 @@ NAIVE = "intruder-naive"
 class IntruderConfig:
     """``run.toml`` ``[intruder]``; defaults are the paper's simulation values (section VIII)."""
 
-    particles: int = 1000  #: number of particles
-    period: float = 2.0  #: t_P, seconds per iteration
-    v_max: float = 4.0  #: maximum speed, cells/s
-    speed_sigma: float = 1.5  #: std of the Gaussian added to the speed, cells/s
-    turn_scale: float | None = (
-        None  #: sigma_theta = turn_scale / speed (rad * cells/s), capped at pi; None = v_max (1 rad at top speed)
+    particles: int = param(1000, "number of particles (paper: 1000)", lo=1, hi=MAX_PARTICLES)
+    period: float = param(2.0, "t_P, seconds per iteration", lo=1e-6, unit="s")
+    v_max: float = param(4.0, "maximum speed", lo=0.0, unit="cells/s")
+    speed_sigma: float = param(1.5, "std of the Gaussian added to the speed", lo=0.0, unit="cells/s")
+    turn_scale: float | None = param(
+        None,
+        "sigma_theta = turn_scale / speed (rad * cells/s), capped at pi; unset = v_max (1 rad at top speed)",
+        lo=0.0,
     )
-    box_width: float = 2.0  #: intruder bounding prism width (x), cells
-    box_depth: float = 2.0  #: intruder bounding prism depth (y), cells
-    cell: float = length(1.0)  #: size of a cell, m (converted to site units: world units per cell)
-    resample: str = "systematic"  #: systematic | multinomial
-    resample_when: str = "always"  #: always (SIR) | ess (when ESS < ess_threshold * particles)
-    ess_threshold: float = 0.5  #: fraction of particles, for resample_when = "ess"
-    max_retries: int = 50  #: rejection-sampling rounds before a particle is left in place
-    seed: int = 0  #: random seed
-    start: float | None = (
-        None  #: time the intruder enters (s); iteration k ends at start + (k+1) t_P; None = the start of the slot (a multiple of t_P) holding the first edge
+    box_width: float = param(2.0, "intruder bounding prism width (x)", lo=1e-6, unit="cells")
+    box_depth: float = param(2.0, "intruder bounding prism depth (y)", lo=1e-6, unit="cells")
+    cell: float = length(1.0, "size of a cell (converted to site units: world units per cell)", lo=1e-9)
+    resample: str = param("systematic", "resampling scheme", choices=("systematic", "multinomial"))
+    resample_when: str = param(
+        "always", "always (SIR), or ess: when ESS < ess_threshold * particles", choices=("always", "ess")
     )
-    end: float | None = None  #: time it leaves (s); None = the slot of the last edge
-    log_particles: int = 1000  #: particles per iteration sent to Rerun
-    box_height: float = 1.0  #: intruder bounding prism height, cells (for camera pointing)
+    ess_threshold: float = param(0.5, 'fraction of particles, for resample_when = "ess"', lo=0.0, hi=1.0)
+    max_retries: int = param(50, "rejection-sampling rounds before a particle is left in place", lo=1, hi=10_000)
+    seed: int = param(0, "random seed", lo=0)
+    start: float | None = param(
+        None,
+        "time the intruder enters; iteration k ends at start + (k+1) t_P; unset = the start of the slot "
+        "(a multiple of t_P) holding the first edge, so the slots span the data wherever its clock is (Unix "
+        "seconds, an early epoch)",
+        unit="s",
+    )
+    end: float | None = param(None, "time it leaves; unset = the slot of the last edge", lo="start", unit="s")
+    log_particles: int = param(1000, "particles per iteration sent to Rerun", lo=0, hi=MAX_PARTICLES)
+    box_height: float = param(1.0, "intruder bounding prism height (for camera pointing)", lo=1e-6, unit="cells")
     camera_position: list[float] | None = length(
-        None
-    )  #: [x, y, z] of the pan-tilt-zoom camera, m (converted to site units); None = no camera table
-    camera_fov: float = 60.0  #: horizontal field of view of the camera at zoom 1, degrees
-    camera_aspect: float = 4.0 / 3.0  #: image width / height
-    absent_after: float = ABSENT_AFTER_S  #: s; no estimate inside a stretch this long with every sensor off and no edge (nobody present); 0 = always estimate
-    false_alarm: float = 0.02  #: h of a sensor whose type states no false_positive (no type, or a site table without it): P(it fires in an iteration with nobody in its region). Real ceiling IR: ~0.03 per 2 s; 0 = the paper's perfect sensors
-    held: bool = True  #: a level sensor (signal = "level") held on through an iteration fires in it (presence), not only on a rising edge
+        None, "[x, y, z] of the pan-tilt-zoom camera (converted to site units); unset = no camera table"
+    )
+    camera_fov: float = param(60.0, "horizontal field of view of the camera at zoom 1", lo=1e-3, hi=179.0, unit="deg")
+    camera_aspect: float = param(4.0 / 3.0, "image width / height", lo=1e-3)
+    absent_after: float = param(
+        ABSENT_AFTER_S,
+        "no estimate inside a stretch this long with every sensor off and no edge (nobody present); "
+        "0 = always estimate",
+        lo=0.0,
+        hi=1e12,
+        unit="s",
+    )
+    false_alarm: float = param(
+        0.02,
+        "h of a sensor whose type states no false_positive (no type, or a site table without it): P(it fires "
+        "in an iteration with nobody in its region); the built-in simulated types keep theirs (pir 0, "
+        "pir-imperfect 0.25). Real ceiling IR: ~0.008 per 0.5 s frame = ~0.03 per 2 s iteration; 0 = the "
+        "paper's perfect sensors",
+        lo=0.0,
+        hi=0.999,
+    )
+    held: bool = param(
+        True,
+        'a level sensor (signal = "level") held on through an iteration fires in it (presence), not only '
+        'on a rising edge; PIRs (signal = "edge") are unchanged',
+    )
 
     def __post_init__(self) -> None:
-        check_range(self, "particles", 1, MAX_PARTICLES, types=(int,))
-        check_range(self, "false_alarm", 0.0, 0.999)
-        check_range(self, "period", 1e-6, None)
-        check_range(self, "v_max", 0.0, None)
-        check_range(self, "speed_sigma", 0.0, None)
-        if self.turn_scale is not None:
-            check_range(self, "turn_scale", 0.0, None)
-        check_range(self, "box_width", 1e-6, None)
-        check_range(self, "box_depth", 1e-6, None)
-        check_range(self, "cell", 1e-9, None)
-        check_choice(self, "resample", ("systematic", "multinomial"))
-        check_choice(self, "resample_when", ("always", "ess"))
-        check_range(self, "ess_threshold", 0.0, 1.0)
-        check_range(self, "max_retries", 1, 10_000, types=(int,))
-        check_range(self, "seed", 0, None, types=(int,))
-        if self.start is not None:
-            check_range(self, "start", None, None)
-        if self.end is not None:
-            check_range(self, "end", self.start, None)
-        check_range(self, "log_particles", 0, MAX_PARTICLES, types=(int,))
-        check_range(self, "box_height", 1e-6, None)
-        check_range(self, "camera_fov", 1e-3, 179.0)
-        check_range(self, "camera_aspect", 1e-3, None)
-        check_range(self, "absent_after", 0.0, 1e12)
+        validate(self)
         cp = self.camera_position
         if cp is not None and not (
             isinstance(cp, (list, tuple))
@@ -112,20 +117,18 @@ class IntruderConfig:
 class NaiveConfig:
     """``run.toml`` ``[intruder-naive]``: the baseline reports the room centre every iteration."""
 
-    period: float = 2.0  #: t_P, seconds per iteration
-    cell: float = length(1.0)  #: size of a cell, m (converted to site units; for the error in cells)
-    start: float | None = None  #: time the intruder enters (s); None = the start of the slot holding the first edge
-    end: float | None = None  #: time it leaves (s); None = the slot of the last edge
-    absent_after: float = ABSENT_AFTER_S  #: s; no estimate inside a silent stretch this long (see IntruderConfig)
+    period: float = param(2.0, "t_P, seconds per iteration", lo=1e-6, unit="s")
+    cell: float = length(1.0, "size of a cell (converted to site units; for the error in cells)", lo=1e-9)
+    start: float | None = param(
+        None, "time the intruder enters; unset = the start of the slot holding the first edge", unit="s"
+    )
+    end: float | None = param(None, "time it leaves; unset = the slot of the last edge", lo="start", unit="s")
+    absent_after: float = param(
+        ABSENT_AFTER_S, "no estimate inside a silent stretch this long (see [intruder])", lo=0.0, hi=1e12, unit="s"
+    )
 
     def __post_init__(self) -> None:
-        check_range(self, "period", 1e-6, None)
-        check_range(self, "cell", 1e-9, None)
-        check_range(self, "absent_after", 0.0, 1e12)
-        if self.start is not None:
-            check_range(self, "start", None, None)
-        if self.end is not None:
-            check_range(self, "end", self.start, None)
+        validate(self)
 
 
 def available(site: Site) -> str | None:

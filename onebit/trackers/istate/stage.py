@@ -44,10 +44,11 @@ import numpy as np
 import polars as pl
 import shapely
 
-from onebit.core.config import MAX_STEPS, check_choice, check_range, check_size
+from onebit.core.config import MAX_STEPS, check_size
 from onebit.core.errors import ConfigError
 from onebit.core.frames import ABSENT_AFTER_S, outside_silence, silent_stretches
 from onebit.core.lazy import lazy_module
+from onebit.core.params import param, validate
 from onebit.core.sensing import body_radius, detection_regions
 from onebit.core.site import Site
 from onebit.core.tables import CROSSINGS, MOTION, PROXIMITY, TRACKS, check_schema, conform
@@ -91,75 +92,82 @@ DETECTIONS = pl.Schema({"t": pl.Float64, "stage": pl.Int64, "sensor": pl.String,
 
 @dataclass(frozen=True, kw_only=True)
 class IStateConfig:
-    """Configuration of the ``istate`` tracker ([istate] in run.toml).
+    """Configuration of the ``istate`` tracker (``[istate]`` in ``run.toml``)."""
 
-    period_s : stage period T in seconds (readings are sampled at ``t_k = k T``).
-    max_speed : largest target speed, m/s (converted to site units per second);
-        ``s_tgt = max_speed * T``.
-    targets : number of targets n; 0 = the site's ``targets`` (the stage runs only on sites
-        that declare ``targets``; this overrides it).
-    max_elements : the cap M on the number of elements (paper: 10); 0 = no cap.
-    shape : ``exact`` polygons, or the over-approximation by ``rect`` (axis-aligned
-        rectangles, the paper's simulations) or ``disk`` (section VI-A.1).
-    reliable_negatives : readings 0 remove the sensing region (sensors without false
-        negatives; beyond the paper).
-    latency_s : how late a sensor's reading may lag the target (s): an off edge may come up
-        to this long after the target left, an on state may hold this long after it (the
-        sampling interval of the log, a PIR hold time). 0 = ideal continuous-time sensors.
-    latency_auto : use ``max(latency_s, resolution)``, where the resolution is the smallest
-        positive gap between distinct reading times of the motion/proximity logs (0.1 s for
-        a 10 Hz log, 1 s for readings at whole seconds).
-    beam_width : extra half-width of a beam's region, m, beyond its reach at a crossing (half
-        its pair spacing plus the site's ``body_radius``: a crossing is logged when the body
-        has cleared the beam, its centre that far past it).
-    substeps : rounds of grow-and-clip in the motion update (more follow obstacles tighter).
-    absent_after : s; the empty room: no point summary (track row) inside a stretch this long
-        in which every sensor is off and nothing happens; 0 = always one. The I-state itself
-        is unchanged.
-    max_stages : the most stages (``span / period_s``) the pipeline runs the filter on; a
-        longer log skips the stage, saying so. 500 000 holds 5.8 days at 1 s and the 10^6-row
-        beams log (461 733 stages). A stage whose I-state and readings were met before is looked
-        up (:func:`_filter`: a few microseconds), a new one is computed (0.1-0.7 ms: 0.13 ms on a
-        simulated 100 000 s beams log, 23 % of its stages computed; 0.5-0.7 ms in a two-resident
-        home, 15 %), and the recording adds ~10 us a stage. Measured: the 10^6-row beams log
-        (tiled, 117 stages computed) 1.5 s of filter, its default run 12 s; a simulated day of
-        the home, 86 389 stages, 18-22 s of filter. A log of new stages only would cost up to
-        ~0.7 ms x 500 000 = 6 min. 0 = no bound but :data:`~onebit.core.config.MAX_STEPS` (10
-        million; more is refused, as a larger ``max_stages`` is).
-    contradictions : what a reading that no joint state explains does (a spurious or late
-        firing, a footprint larger than declared): ``reject`` (default) keeps the I-state and
-        counts the reading (``summary.rejected``); ``empty`` is the paper's filter, whose
-        I-state then stays empty for the rest of the run.
-    """
-
-    period_s: float = 1.0
-    max_speed: float = length(1.5, unit="m/s")
-    targets: int = 0
-    max_elements: int = 10
-    shape: str = "exact"
-    reliable_negatives: bool = False
-    latency_s: float = 0.0
-    latency_auto: bool = True
-    beam_width: float = length(0.0, unit="m")
-    substeps: int = 1
-    absent_after: float = ABSENT_AFTER_S
-    max_stages: int = 500_000
-    contradictions: str = "reject"
+    period_s: float = param(1.0, "stage period T (readings are sampled at t_k = k T)", lo=1e-6, unit="s")
+    max_speed: float = length(
+        1.5, "largest target speed (converted to site units per second); s_tgt = max_speed * T", unit="m/s", lo=0.0
+    )
+    targets: int = param(
+        0,
+        "number of targets n; 0 = the site's targets (the stage runs only on sites that declare targets; "
+        "this overrides it)",
+        lo=0,
+        hi=8,
+    )
+    max_elements: int = param(10, "the cap M on the number of elements (paper: 10); 0 = no cap", lo=0, hi=10_000)
+    shape: str = param(
+        "exact",
+        "exact polygons, or the over-approximation by rect (axis-aligned rectangles, the paper's "
+        "simulations) or disk (section VI-A.1)",
+        choices=SHAPES,
+    )
+    reliable_negatives: bool = param(
+        False, "readings 0 remove the sensing region (sensors without false negatives; beyond the paper)"
+    )
+    latency_s: float = param(
+        0.0,
+        "how late a sensor's reading may lag the target: an off edge may come up to this long after the "
+        "target left, an on state may hold this long after it (the sampling interval of the log, a PIR "
+        "hold time); 0 = ideal continuous-time sensors",
+        lo=0.0,
+        unit="s",
+    )
+    latency_auto: bool = param(
+        True,
+        "use max(latency_s, resolution), where the resolution is the smallest positive gap between distinct "
+        "reading times of the motion/proximity logs (0.1 s for a 10 Hz log, 1 s for readings at whole seconds)",
+    )
+    beam_width: float = length(
+        0.0,
+        "extra half-width of a beam's region, beyond its reach at a crossing (half its pair spacing plus the "
+        "site's body_radius: a crossing is logged when the body has cleared the beam, its centre that far past it)",
+        lo=0.0,
+    )
+    substeps: int = param(
+        1, "rounds of grow-and-clip in the motion update (more follow obstacles tighter)", lo=1, hi=100
+    )
+    absent_after: float = param(
+        ABSENT_AFTER_S,
+        "the empty room: no point summary (track row) inside a stretch this long in which every sensor is "
+        "off and nothing happens; 0 = always one. The I-state itself is unchanged",
+        lo=0.0,
+        hi=1e12,
+        unit="s",
+    )
+    max_stages: int = param(
+        500_000,
+        "the most stages (span / period_s) the pipeline runs the filter on; a longer log skips the stage, "
+        "saying so. 500 000 holds 5.8 days at 1 s and the 10^6-row beams log (461 733 stages). A stage whose "
+        "I-state and readings were met before is looked up (a few microseconds), a new one is computed "
+        "(0.1-0.7 ms: 0.13 ms on a simulated 100 000 s beams log, 23 % of its stages computed; 0.5-0.7 ms in "
+        "a two-resident home, 15 %), and the recording adds ~10 us a stage. Measured: the 10^6-row beams log "
+        "(tiled, 117 stages computed) 1.5 s of filter, its default run 12 s; a simulated day of the home, "
+        "86 389 stages, 18-22 s of filter. A log of new stages only would cost up to ~0.7 ms x 500 000 = "
+        "6 min. 0 = no bound but MAX_STEPS (10 million; more is refused, as a larger max_stages is)",
+        lo=0,
+        hi=MAX_STEPS,
+    )
+    contradictions: str = param(
+        "reject",
+        "what a reading that no joint state explains does (a spurious or late firing, a footprint larger "
+        "than declared): reject keeps the I-state and counts the reading (summary.rejected); empty is the "
+        "paper's filter, whose I-state then stays empty for the rest of the run",
+        choices=("reject", "empty"),
+    )
 
     def __post_init__(self) -> None:
-        check_choice(self, "contradictions", ("reject", "empty"))
-        check_range(self, "period_s", 1e-6, None)
-        check_range(self, "max_speed", 0.0, None)
-        check_range(self, "targets", 0, 8, types=(int,))
-        check_range(self, "max_elements", 0, 10_000, types=(int,))
-        check_choice(self, "shape", SHAPES)
-        check_choice(self, "reliable_negatives", (True, False))
-        check_range(self, "latency_s", 0.0, None)
-        check_choice(self, "latency_auto", (True, False))
-        check_range(self, "beam_width", 0.0, None)
-        check_range(self, "substeps", 1, 100, types=(int,))
-        check_range(self, "absent_after", 0.0, 1e12)
-        check_range(self, "max_stages", 0, MAX_STEPS, types=(int,))
+        validate(self)
 
 
 # --------------------------------------------------------------------------- sensing regions

@@ -35,7 +35,8 @@ from dataclasses import dataclass
 import numpy as np
 import polars as pl
 
-from onebit.core.config import MAX_STEPS, check_choice, check_range, check_size
+from onebit.core.config import MAX_STEPS, check_size
+from onebit.core.params import param, validate
 from onebit.core.site import Site
 from onebit.core.tables import MOTION, TRACKS, check_schema, conform
 from onebit.core.units import length
@@ -62,99 +63,90 @@ DECODER = pl.Schema(
 
 @dataclass(frozen=True, kw_only=True)
 class ResidentsConfig:
-    """``[residents]``: the model's constants (eq. 2-5 of the model module) and the search's.
+    """``[residents]``: the model's constants (eq. 2-5 of the model module) and the search's."""
 
-    l0 : spread of the next sensor a person fires (about a sensor's footprint), metres.
-    speed : walking speed at which the spread grows with silence, metres per second. Default 0:
-        on the real two-resident sessions a person's next event is no farther after a long
-        silence than after a short one (docs/residents.md, "what the data says").
-    l_max : largest spread (a room), metres (used when ``speed > 0``).
-    silence_weight, silence_tau_s : ``w`` and ``tau`` of the silence term of eq. (3) (0: off).
-    stay : ``rho`` of the who-fires term (5) (0: off).
-    birth_door, birth_inside : cost (nats) of a new person at a door or at the log's start /
-        anywhere else.
-    start_window_s : seconds from the first event during which people already home appear.
-    max_people : bound on the people when ``site.toml`` has no ``targets``.
-    beam : states kept per event (0 = all: the exact minimum of (1)). Default 1 (each event
-        committed to its cheapest continuation): measured better than the exact minimum on
-        the real sessions (docs/residents.md).
-    distance : ``"graph"`` (shortest paths over the site's sensor graph, each edge as long as
-        the straight line between its sensors) or ``"straight"`` (between sensor positions).
-    period : seconds between two rows of a person in ``tracks``.
-    exit_after_s : silence after a last event at an exit node after which the person has left.
-    habits : re-orient two decoded people between their meetings by their sensor habits, learned
-        without labels (:mod:`onebit.trackers.residents.habits`; only when two people are decoded).
-    meet : two people this close (metres, the decoder's distance) may have swapped (eq. H1).
-    habit_margin : also a possible swap where the two people's motion costs for an event differ
-        by at most this (nats; 0: off) (eq. H1).
-    habit_alpha : Dirichlet pseudo-count per sensor of the habits (eq. H3).
-    habit_switch : cost (nats) of a swap at a meeting (``lambda`` of eq. H2).
-    habit_restarts : random starting orientations of the hard EM besides the decoder's.
-    profile : decode with the run's ``residents_profile`` when it has one (known residents,
-        :mod:`onebit.trackers.residents.known`); off: always the unsupervised decoder.
-    profile_spread : ``l`` of eq. (K1), metres: the kernel that transitions never seen in the
-        profile fall back to.
-    profile_prior : ``beta`` of eq. (K1): the weight of that kernel against the learned counts.
-    profile_model : ``"chains"`` (eq. K1-K3: both residents present, firing in turn) or
-        ``"turns"`` (eq. K4: runs of one resident's events weighed by their habits by sensor and
-        time; a home over days, where one is often out or asleep).
-    profile_tau_s : ``tau`` of (K4): the silence (s) after which the next event may be anyone's.
-    profile_clock_weight : ``w`` of eq. (K3): the weight of the residents' habits by time when
-        the profile has a clock (0: ignore it).
-    """
-
-    l0: float = length(1.0)
-    speed: float = length(0.0, unit="m/s")
-    l_max: float = length(4.0)
-    silence_weight: float = 0.0
-    silence_tau_s: float = 10.0
-    stay: float = 0.0
-    birth_door: float = 6.0
-    birth_inside: float = 15.0
-    start_window_s: float = 60.0
-    max_people: int = 4
-    beam: int = 1
-    distance: str = "graph"
-    period: float = 1.0
-    exit_after_s: float = 60.0
-    habits: bool = False
-    meet: float = length(2.5)
-    habit_margin: float = 0.0
-    habit_alpha: float = 1.0
-    habit_switch: float = 0.0
-    habit_restarts: int = 8
-    profile: bool = True
-    profile_spread: float = length(3.0)
-    profile_prior: float = 2.0
-    profile_clock_weight: float = 1.0
-    profile_model: str = "chains"
-    profile_tau_s: float = 300.0
+    l0: float = length(1.0, "spread of the next sensor a person fires (about a sensor's footprint)", lo=1e-9)
+    speed: float = length(
+        0.0,
+        "walking speed at which the spread grows with silence. Default 0: on the real two-resident sessions "
+        "a person's next event is no farther after a long silence than after a short one (docs/residents.md, "
+        '"what the data says")',
+        unit="m/s",
+        lo=0.0,
+    )
+    l_max: float = length(4.0, "largest spread (a room), used when speed > 0", lo="l0")
+    silence_weight: float = param(0.0, "w of the silence term of eq. (3) (0: off)", lo=0.0, hi=100.0)
+    silence_tau_s: float = param(10.0, "tau of the silence term of eq. (3)", lo=1e-9, unit="s")
+    stay: float = param(0.0, "rho of the who-fires term (5) (0: off)", lo=0.0, hi=0.999)
+    birth_door: float = param(6.0, "cost of a new person at a door or at the log's start", lo=0.0, hi=1e6, unit="nats")
+    birth_inside: float = param(15.0, "cost of a new person anywhere else", lo=0.0, hi=1e6, unit="nats")
+    start_window_s: float = param(
+        60.0, "time from the first event during which people already home appear", lo=0.0, unit="s"
+    )
+    max_people: int = param(4, "bound on the people when site.toml has no targets", lo=1, hi=16)
+    beam: int = param(
+        1,
+        "states kept per event (0 = all: the exact minimum of (1)). Default 1 (each event committed to its "
+        "cheapest continuation): measured better than the exact minimum on the real sessions (docs/residents.md)",
+        lo=0,
+        hi=1_000_000,
+    )
+    distance: str = param(
+        "graph",
+        "graph (shortest paths over the site's sensor graph, each edge as long as the straight line between "
+        "its sensors) or straight (between sensor positions)",
+        choices=("graph", "straight"),
+    )
+    period: float = param(1.0, "time between two rows of a person in tracks", lo=1e-6, unit="s")
+    exit_after_s: float = param(
+        60.0, "silence after a last event at an exit node after which the person has left", lo=0.0, unit="s"
+    )
+    habits: bool = param(
+        False,
+        "re-orient two decoded people between their meetings by their sensor habits, learned without labels "
+        "(onebit.trackers.residents.habits; only when two people are decoded)",
+    )
+    meet: float = length(2.5, "two people this close (the decoder's distance) may have swapped (eq. H1)", lo=0.0)
+    habit_margin: float = param(
+        0.0,
+        "also a possible swap where the two people's motion costs for an event differ by at most this "
+        "(0: off) (eq. H1)",
+        lo=0.0,
+        unit="nats",
+    )
+    habit_alpha: float = param(1.0, "Dirichlet pseudo-count per sensor of the habits (eq. H3)", lo=1e-6)
+    habit_switch: float = param(0.0, "cost of a swap at a meeting (lambda of eq. H2)", lo=0.0, unit="nats")
+    habit_restarts: int = param(8, "random starting orientations of the hard EM besides the decoder's", lo=0, hi=1000)
+    profile: bool = param(
+        True,
+        "decode with the run's residents_profile when it has one (known residents, "
+        "onebit.trackers.residents.known); off: always the unsupervised decoder",
+    )
+    profile_spread: float = length(
+        3.0, "l of eq. (K1): the kernel that transitions never seen in the profile fall back to", lo=1e-9
+    )
+    profile_prior: float = param(
+        2.0, "beta of eq. (K1): the weight of that kernel against the learned counts", lo=1e-9, hi=1e9
+    )
+    profile_clock_weight: float = param(
+        1.0,
+        "w of eq. (K3): the weight of the residents' habits by time when the profile has a clock (0: ignore it)",
+        lo=0.0,
+        hi=100.0,
+    )
+    profile_model: str = param(
+        "chains",
+        "chains (eq. K1-K3: both residents present, firing in turn) or turns (eq. K4: runs of one "
+        "resident's events weighed by their habits by sensor and time; a home over days, where one is "
+        "often out or asleep)",
+        choices=("chains", "turns"),
+    )
+    profile_tau_s: float = param(
+        300.0, "tau of (K4): the silence after which the next event may be anyone's", lo=1e-3, hi=1e7, unit="s"
+    )
 
     def __post_init__(self) -> None:
-        check_range(self, "l0", 1e-9, None)
-        check_range(self, "speed", 0.0, None)
-        check_range(self, "l_max", self.l0, None)
-        check_range(self, "silence_weight", 0.0, 100.0)
-        check_range(self, "silence_tau_s", 1e-9, None)
-        check_range(self, "stay", 0.0, 0.999)
-        check_range(self, "birth_door", 0.0, 1e6)
-        check_range(self, "birth_inside", 0.0, 1e6)
-        check_range(self, "start_window_s", 0.0, None)
-        check_range(self, "max_people", 1, 16, types=(int,))
-        check_range(self, "beam", 0, 1_000_000, types=(int,))
-        check_choice(self, "distance", ("graph", "straight"))
-        check_range(self, "period", 1e-6, None)
-        check_range(self, "exit_after_s", 0.0, None)
-        check_range(self, "meet", 0.0, None)
-        check_range(self, "habit_margin", 0.0, None)
-        check_range(self, "habit_alpha", 1e-6, None)
-        check_range(self, "habit_switch", 0.0, None)
-        check_range(self, "habit_restarts", 0, 1000, types=(int,))
-        check_range(self, "profile_spread", 1e-9, None)
-        check_range(self, "profile_prior", 1e-9, 1e9)
-        check_range(self, "profile_clock_weight", 0.0, 100.0)
-        check_choice(self, "profile_model", ("chains", "turns"))
-        check_range(self, "profile_tau_s", 1e-3, 1e7)
+        validate(self)
 
 
 def available(site: Site) -> str | None:

@@ -107,7 +107,7 @@ def test_lagged_needs_a_graph_known_beforehand():
         HmmConfig(decoding="live")
     from onebit.trackers.findinghumo_flow.stage import FlowConfig
 
-    with pytest.raises(ConfigError, match="batch-only"):  # a min-cost flow over the whole run
+    with pytest.raises(ConfigError, match=r"FlowConfig\.decoding = 'lagged'; allowed values: \['batch'\]"):
         FlowConfig(eatg="layout", decoding="lagged")
 
 
