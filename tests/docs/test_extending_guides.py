@@ -20,6 +20,7 @@ from onebit.core.tables import REJECTS
 from onebit.core.writers import write_csv, write_text
 from onebit.datasets.importers import graph_site_toml
 from onebit.pipeline import reading, runner
+from onebit.pipeline import stages as stage_list
 from onebit.pipeline.context import Stage
 from onebit.pipeline.report import metric
 from onebit.pipeline.stages import TRACKERS
@@ -53,14 +54,14 @@ def doors_stage(monkeypatch) -> Stage:
     exec(compile(work, "docs/extending.md (onebit/pipeline/reading.py)", "exec"), ns)
     (entry,) = [line for line in declaration.splitlines() if line and not line.startswith("#")]
     stage = eval(entry.rstrip(","), {"Stage": Stage, "reading": types.SimpleNamespace(**ns)})
-    declared = declaration.stages
+    declared = stage_list.stages
 
     def with_doors(trackers=TRACKERS):
         out = declared(trackers)
         i = [s.name for s in out].index("proximity") + 1
         return [*out[:i], stage, *out[i:]]
 
-    monkeypatch.setattr(declaration, "stages", with_doors)
+    monkeypatch.setattr(stage_list, "stages", with_doors)
     monkeypatch.setattr(reading, "TIME_SOURCES", (*reading.TIME_SOURCES, "doors"))
     return stage
 
