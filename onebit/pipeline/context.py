@@ -14,7 +14,7 @@ from onebit.core.errors import InputError
 from onebit.core.region_graph import RegionGraph
 from onebit.core.site import Site
 from onebit.core.tables import REJECTS
-from onebit.readers.rows import RawRows, read_csv_column, read_csv_rows
+from onebit.readers.rows import RawRows
 from onebit.readers.timebase import TimeOrigin
 
 #: A report row: (stage, metric, value, unit).
@@ -53,10 +53,7 @@ class RunContext:
     progress: Callable[[int, int], None] = _no_progress
     #: the sections of the dataset's own ``run.toml`` (``None``: read it on first use)
     dataset_sections: dict[str, Any] | None = None
-    #: typed reads of the dataset's CSV logs made for the time origin, by stem (``beams``,
-    #: ``motion``, ``proximity``), taken by their reader stage: each file is read once
-    typed_reads: dict[str, Any] = field(default_factory=dict)
-    #: the run's one time origin (:func:`onebit.pipeline.stages.run_time_origin` computes it
+    #: the run's one time origin (:func:`onebit.pipeline.reading.run_time_origin` computes it
     #: on first use; ``onebit follow`` sets it to the one of its first snapshot)
     time_origin: TimeOrigin | None = None
     #: each stage's config as it ran, by section (``run.toml``'s stage sections)
@@ -67,25 +64,13 @@ class RunContext:
         its fields that are set (``None`` is left out: TOML has no null), then ``extra``."""
         self.resolved[section] = {k: v for k, v in asdict(cfg).items() if v is not None} | extra
 
-    def source(self, stem: str, columns: tuple[str, ...]) -> tuple[RawRows, Path | None] | None:
-        """String rows of ``<stem>.csv`` in the dataset, else of the MCAP channel ``/<stem>``."""
+    def log(self, stem: str) -> Path | RawRows | None:
+        """The raw log ``<stem>`` (:data:`~onebit.readers.logs.Log`): the dataset's
+        ``<stem>.csv``, else the rows of the MCAP channel ``/<stem>``, else ``None``."""
         p = self.dataset / f"{stem}.csv"
         if p.exists():
-            return read_csv_rows(p, columns), p
-        if f"/{stem}" in self.mcap_channels:
-            return self.mcap_channels[f"/{stem}"], None
-        return None
-
-    def stamps(self, stem: str) -> tuple[str, pl.DataFrame] | None:
-        """(source name, ``line`` + String ``t``) of ``<stem>.csv`` (typed in one read when it
-        can, :func:`~onebit.readers.rows.read_csv_column`), else of the MCAP channel."""
-        p = self.dataset / f"{stem}.csv"
-        if p.exists():
-            return p.name, read_csv_column(p, "t")
-        if f"/{stem}" in self.mcap_channels:
-            raw = self.mcap_channels[f"/{stem}"]
-            return raw.source, raw.frame
-        return None
+            return p
+        return self.mcap_channels.get(f"/{stem}")
 
     def has_source(self, stem: str) -> bool:
         return (self.dataset / f"{stem}.csv").exists() or f"/{stem}" in self.mcap_channels

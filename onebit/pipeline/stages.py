@@ -22,7 +22,8 @@ run`` and ``onebit follow`` run this one list with one step
 every poll, and each tracker as its entry's ``live`` says (:mod:`onebit.pipeline.online`).
 
 This file declares; the work is elsewhere: a tracker's stage in :mod:`onebit.pipeline.tracking`,
-the scores in :mod:`onebit.pipeline.scores`, the readers' stages beside them.
+the scores in :mod:`onebit.pipeline.scores`, the reader stages' work (a raw log -> its tables)
+in :mod:`onebit.pipeline.reading`.
 
 Adding a tracker: its package under :mod:`onebit.trackers` (a ``TrackerSpec``), a scoring
 function in :mod:`onebit.scoring` (built on :mod:`onebit.scoring.association`; the MOT metrics
@@ -35,40 +36,22 @@ from __future__ import annotations
 
 from collections.abc import Callable
 from dataclasses import dataclass, field, replace
-from typing import Any
 
 import polars as pl
 
-from onebit.core.config import config_from_mapping
-from onebit.core.errors import InputError
 from onebit.models.occupancy import OccupancyConfig
 from onebit.pipeline import (
     homes,
+    reading,
     tracking,  # its tracker_stage, read when stages() is called (tracking reads this module)
 )
-from onebit.pipeline.context import ReportRow, RunContext, Stage
+from onebit.pipeline.context import ReportRow, Stage
 from onebit.pipeline.homes import count_metric
 from onebit.pipeline.online import BATCH_ONLY, BEAMS, BINPF, INTRUDER, ISTATE, LAGGED, ONLINE, PREFIX, Live, hmm_stepper
+from onebit.pipeline.reading import TIME_SOURCES, run_time_origin, without_ignored  # noqa: F401  (for follow, tracking)
 from onebit.pipeline.scores import MetricFn, identity_metric, scores_stage
-from onebit.readers.beams import BEAM_COLUMNS, beam_dtypes, decode_beam_log, decode_raw_beams
-from onebit.readers.camera import read_camera, truth_error
-from onebit.readers.frames import edges_of_levels, read_frame_rows, read_frames_csv
-from onebit.readers.motion import TOGGLE_COLUMNS, MotionConfig, read_motion, read_motion_csv, site_rules, toggle_dtypes
-from onebit.readers.proximity import ProximityConfig, proximity_frames, read_proximity, read_proximity_csv
-from onebit.readers.rows import read_typed_csv
-from onebit.readers.tables_csv import (
-    crossings_from_rows,
-    read_crossings_csv,
-    read_residents_profile_csv,
-    read_true_crossings_csv,
-    read_truth_csv,
-    read_truth_events_csv,
-    true_crossings_columns,
-    true_crossings_from_rows,
-    truth_events_from_rows,
-    truth_from_rows,
-)
-from onebit.readers.timebase import TimeOrigin, time_origin
+from onebit.readers.motion import MotionConfig
+from onebit.readers.proximity import ProximityConfig
 from onebit.scoring import beams as score_beams
 from onebit.scoring import binpf as score_binpf
 from onebit.scoring import clustertrack as score_clustertrack
@@ -76,11 +59,10 @@ from onebit.scoring import findinghumo as score_findinghumo
 from onebit.scoring import intruder as score_intruder
 from onebit.scoring import istate as score_istate
 from onebit.scoring import residents as score_residents
-from onebit.scoring.crossings import true_crossings_from_truth, truth_regions
 from onebit.scoring.mot import Gate
 from onebit.trackers import beams, binpf, clustertrack, findinghumo, findinghumo_flow, intruder, istate, residents
 from onebit.trackers.base import TrackerSpec
-from onebit.trackers.beams.correction import CorrectConfig, run_correction
+from onebit.trackers.beams.correction import CorrectConfig
 from onebit.viz import beams as viz_beams
 from onebit.viz import binpf as viz_binpf
 from onebit.viz import clustertrack as viz_clustertrack
@@ -89,13 +71,7 @@ from onebit.viz import intruder as viz_intruder
 from onebit.viz import istate as viz_istate
 from onebit.viz import occupancy as viz_occupancy
 from onebit.viz import residents as viz_residents
-from onebit.viz.beams_correct import log_corrected_crossings
-from onebit.viz.colors import CAMERA_RGB
-from onebit.viz.events import log_crossings
 from onebit.viz.families import Look
-from onebit.viz.intruder import log_motion_states
-from onebit.viz.tracks import log_point_tracks
-from onebit.viz.truth import log_truth
 
 #: ``score(tracker, tables, site, region_graph) -> (report rows, tables)``
 ScoreFn = Callable[..., tuple[list[ReportRow], dict[str, pl.DataFrame]]]
@@ -298,448 +274,6 @@ def tracker_names(entries: tuple[TrackerEntry, ...] = TRACKERS) -> tuple[str, ..
     return tuple(e.name for e in entries)
 
 
-# --------------------------------------------------------------------------- the time base
-
-#: The raw logs whose stamps set a run's time origin, with the columns read from them.
-TIME_SOURCES = ("beams", "crossings", "truth", "truth_crossings", "truth_events", "motion", "proximity", "frames")
-
-
-def run_time_origin(ctx: RunContext) -> TimeOrigin:
-    """The run's one time origin (:mod:`onebit.readers.timebase`), computed on first use from
-    the ``t`` stamps of every raw log of the dataset (CSV or MCAP channel) and kept on ``ctx``
-    (``ctx.time_origin``): ``site.toml``'s ``epoch`` if set, else the data's own start; lone
-    stamps far from the rest fall outside its window and are rejected by every reader. A log
-    whose header cannot be read is left out here (its own stage reports it). Raises
-    :class:`~onebit.core.errors.InputError` on an absurd span. It goes to ``run.toml`` as the
-    ``[time]`` table (source, origin as ISO and as the logs' number, span, lone stamps)."""
-    if ctx.time_origin is not None:
-        return ctx.time_origin
-    frames: dict[str, pl.DataFrame | list[pl.DataFrame]] = {}
-    for stem in TIME_SOURCES:
-        if not ctx.has_source(stem):
-            continue
-        split = _typed_read(ctx, stem)
-        if split is not None:  # read once, typed: its stamps here, the rest by the reader stage
-            ctx.typed_reads[stem] = split
-            frames[f"{stem}.csv"] = [split.good.select("line", "t"), split.rest.frame.select("line", "t")]
-            continue
-        try:
-            name, frame = ctx.stamps(stem)
-        except InputError:
-            continue
-        frames[name] = frame
-    origin = time_origin(frames, epoch=ctx.site.epoch)
-    ctx.time_origin = origin
-    return origin
-
-
-def _typed_read(ctx: RunContext, stem: str):
-    """The typed read (:func:`~onebit.readers.rows.read_typed_csv`) of ``<stem>.csv`` in the
-    reader stage's types, for the logs whose reader takes it (beams, motion, proximity), else
-    ``None`` (no such CSV, another log, or a file the typed read cannot take)."""
-    csv = ctx.dataset / f"{stem}.csv"
-    if stem not in ("beams", "motion", "proximity") or not csv.exists():
-        return None
-    if stem == "beams":
-        ids = list(ctx.site.beam_ids)
-    else:
-        ids = [m.id for m in (ctx.site.motion_sensors if stem == "motion" else ctx.site.proximity_sensors)]
-    if not ids:  # its stage will not read it: the stamps alone
-        return None
-    return read_typed_csv(csv, beam_dtypes(tuple(ids)) if stem == "beams" else toggle_dtypes(ids))
-
-
-# --------------------------------------------------------------------------- reader stages
-
-
-def _crossings_available(ctx: RunContext) -> str | None:
-    if ctx.has_source("beams") or ctx.has_source("crossings"):
-        return None
-    return "no beams.csv, crossings.csv or /beams, /crossings MCAP channel in the dataset"
-
-
-def _crossings_work(ctx: RunContext) -> dict[str, pl.DataFrame]:
-    site = ctx.site
-    out: dict[str, pl.DataFrame] = {}
-    if ctx.has_source("beams"):
-        csv = ctx.dataset / "beams.csv"
-        if csv.exists():  # a clean file is typed in one read (decode_beam_log), else line by line
-            dec = decode_beam_log(
-                csv, site.beam_ids, epoch=run_time_origin(ctx), split=ctx.typed_reads.pop("beams", None)
-            )
-        else:
-            raw, path = ctx.source("beams", BEAM_COLUMNS)
-            dec = decode_raw_beams(raw, site.beam_ids, epoch=run_time_origin(ctx), path=path)
-        ctx.add_rejects(dec.rejects)
-        out.update(crossings=dec.crossings, aborted=dec.aborted, beam_events=dec.events)
-        ctx.report += [
-            ("crossings", "decoded", float(dec.crossings.height), "crossings"),
-            ("crossings", "aborted", float(dec.aborted.height), "passes"),
-            ("crossings", "unfinished", float(dec.unfinished.height), "passes"),
-        ]
-        if ctx.has_source("crossings"):
-            ctx.report.append(("crossings", "ignored_crossings_csv", 1.0, "flag"))
-    else:
-        csv = ctx.dataset / "crossings.csv"
-        if csv.exists():  # typed in one read, only the lines it cannot take row by row
-            cr, rej = read_crossings_csv(csv, site.beam_ids, epoch=run_time_origin(ctx))
-        else:
-            raw, path = ctx.source("crossings", ("t", "beam", "direction"))
-            cr, rej = crossings_from_rows(raw, site.beam_ids, epoch=run_time_origin(ctx), path=path)
-        ctx.add_rejects(rej)
-        out["crossings"] = cr
-        ctx.report.append(("crossings", "decoded", float(cr.height), "crossings"))
-    return out
-
-
-def _crossings_viz(rec, ctx: RunContext, made: dict) -> None:
-    log_crossings(rec, made["crossings"], aborted=made.get("aborted"), site=ctx.site)
-
-
-def _truth_available(ctx: RunContext) -> str | None:
-    return None if ctx.has_source("truth") else "no truth.csv or /truth MCAP channel in the dataset"
-
-
-def _truth_work(ctx: RunContext) -> dict[str, pl.DataFrame]:
-    csv = ctx.dataset / "truth.csv"
-    if csv.exists():  # typed in one read, only the lines it cannot take row by row
-        truth, rej = read_truth_csv(csv, epoch=run_time_origin(ctx))
-    else:
-        raw, path = ctx.source("truth", ("t", "target", "x", "y"))
-        truth, rej = truth_from_rows(raw, epoch=run_time_origin(ctx), path=path)
-    ctx.add_rejects(rej)
-    truth = truth_regions(truth, ctx.region_graph)
-    out = {"truth": truth, "true_crossings": true_crossings_from_truth(truth, ctx.site, ctx.region_graph)}
-    if ctx.has_source("truth_crossings"):
-        csv = ctx.dataset / "truth_crossings.csv"
-        columns = true_crossings_columns(csv)
-        if csv.exists() and "dropped" not in columns:  # typed in one read, as truth.csv
-            sim_cr, rej = read_true_crossings_csv(csv, ctx.site.beam_ids, epoch=run_time_origin(ctx))
-        else:
-            raw, path = ctx.source("truth_crossings", columns)
-            sim_cr, rej = true_crossings_from_rows(raw, ctx.site.beam_ids, epoch=run_time_origin(ctx), path=path)
-        ctx.add_rejects(rej)
-        out["sim_crossings"] = sim_cr
-    return out
-
-
-def _truth_viz(rec, ctx: RunContext, made: dict) -> None:
-    log_truth(rec, made["truth"], diagonal=ctx.site.diagonal)
-    viz_occupancy.log_truth_people(rec, made["truth"])  # the summary tab's true count
-
-
-def _truth_events_available(ctx: RunContext) -> str | None:
-    return (
-        None if ctx.has_source("truth_events") else "no truth_events.csv or /truth_events MCAP channel in the dataset"
-    )
-
-
-def _truth_events_work(ctx: RunContext) -> dict[str, pl.DataFrame]:
-    csv = ctx.dataset / "truth_events.csv"
-    if csv.exists():
-        te, rej = read_truth_events_csv(csv, epoch=run_time_origin(ctx))
-    else:
-        raw, path = ctx.source("truth_events", ("t", "sensor", "residents"))
-        te, rej = truth_events_from_rows(raw, epoch=run_time_origin(ctx), path=path)
-    ctx.add_rejects(rej)
-    ctx.report += [
-        ("truth_events", "events", float(te.height), "events"),
-        (
-            "truth_events",
-            "residents",
-            float(te["residents"].str.split(";").explode().n_unique()) if te.height else 0.0,
-            "residents",
-        ),
-    ]
-    return {"truth_events": te}
-
-
-def _profile_available(ctx: RunContext) -> str | None:
-    return None if (ctx.dataset / "residents_profile.csv").exists() else "no residents_profile.csv in the dataset"
-
-
-def _profile_work(ctx: RunContext) -> dict[str, pl.DataFrame]:
-    """``residents_profile.csv`` (learned by ``onebit learn residents``): the known residents'
-    profile the ``residents`` tracker decodes with (docs/residents.md, "Known residents")."""
-    prof, rej = read_residents_profile_csv(ctx.dataset / "residents_profile.csv")
-    ctx.add_rejects(rej)
-    ctx.report += [
-        ("residents_profile", "residents", float(prof["resident"].n_unique()), "residents"),
-        ("residents_profile", "events", float(prof.filter(pl.col("from").is_null())["count"].sum()), "events"),
-    ]
-    return {"residents_profile": prof}
-
-
-def _camera_available(ctx: RunContext) -> str | None:
-    if not (ctx.dataset / "camera.mp4").exists():
-        return "no camera.mp4 in the dataset"
-    if ctx.site.camera is None:
-        return "camera.mp4 present but site.toml has no [camera]"
-    return None
-
-
-def _camera_work(ctx: RunContext) -> dict[str, pl.DataFrame]:
-    res = read_camera(ctx.dataset / "camera.mp4", ctx.site)
-    ctx.add_rejects(res.rejects)
-    shift = run_time_origin(ctx).numeric  # camera.t0 is on the logs' clock: on the run's time base too
-    detections = res.detections.with_columns(pl.col("t") - shift) if shift else res.detections
-    cam_truth = truth_regions(res.truth.with_columns(pl.col("t") - shift) if shift else res.truth, ctx.region_graph)
-    ctx.report.append(("camera", "frames", float(res.frames), "frames"))
-    ctx.report.append(
-        ("camera", "tracks", float(cam_truth["target"].n_unique()) if cam_truth.height else 0.0, "tracks")
-    )
-    if "truth" in ctx.tables:
-        err = truth_error(cam_truth.select(res.truth.columns), ctx.tables["truth"], diagonal=ctx.site.diagonal)
-        ctx.report += [
-            ("camera", "truth_error", float(err["mean"]), ctx.site.units),
-            ("camera", "truth_error_rel", float(err["rel"]), "fraction of diagonal"),
-            ("camera", "missed", float(err["missed"]), "points"),
-        ]
-    return {"camera_truth": cam_truth, "camera_detections": detections}
-
-
-def _camera_viz(rec, ctx: RunContext, made: dict) -> None:
-    cam = made["camera_truth"]
-    log_point_tracks(rec, "camera", cam.with_columns(track=pl.col("target"), tracker=pl.lit("camera")), rgb=CAMERA_RGB)
-
-
-def _frame_sensor_ids(site) -> list[str]:
-    """Every binary sensor a frame log may list: motion, then proximity sensors (each id once)."""
-    return list(dict.fromkeys([m.id for m in site.motion_sensors] + [p.id for p in site.proximity_sensors]))
-
-
-def _frames_available(ctx: RunContext) -> str | None:
-    if not ctx.has_source("frames"):
-        return "no frames.csv or /frames MCAP channel in the dataset"
-    if not _frame_sensor_ids(ctx.site):
-        return "frame log present but site.toml declares no binary sensors (binary_sensors, motion_sensors, proximity_sensors)"
-    return None
-
-
-def _frames_work(ctx: RunContext) -> dict[str, pl.DataFrame]:
-    """A frame-sampled log (:mod:`onebit.readers.frames`) -> ``levels`` (every frame x every
-    sensor) and, from them, what the trackers read: ``motion`` (toggle edges of the motion and
-    binary sensors), ``proximity_frames`` (the proximity and
-    binary sensors' levels at every frame) and ``proximity`` (edges of the proximity-only
-    sensors; a binary sensor's edges are in ``motion`` once)."""
-    site = ctx.site
-    ids = _frame_sensor_ids(site)
-    csv = ctx.dataset / "frames.csv"
-    if csv.exists():
-        log = read_frames_csv(csv, ids, epoch=run_time_origin(ctx))
-    else:  # the MCAP channel /frames: the list layout (t, active)
-        log = read_frame_rows(ctx.mcap_channels["/frames"], ids, layout="list", epoch=run_time_origin(ctx))
-    ctx.add_rejects(log.rejects)
-    levels = log.levels
-    motion_ids = [m.id for m in site.motion_sensors]
-    prox_ids = [p.id for p in site.proximity_sensors]
-    prox_only = [p for p in prox_ids if p not in set(motion_ids)]
-    out = {"levels": levels}
-    if motion_ids:
-        out["motion"] = edges_of_levels(levels, motion_ids)
-    if prox_ids:
-        out["proximity_frames"] = levels.filter(pl.col("sensor").is_in(prox_ids))
-        out["proximity"] = edges_of_levels(levels, prox_only)
-    ctx.report += [
-        ("frames", "frames", float(log.frames), "frames"),
-        ("frames", "period", float(log.period) if log.period is not None else float("nan"), "s"),
-        ("frames", "on_readings", float(levels["on"].sum()) if levels.height else 0.0, "readings"),
-        ("frames", "unlisted", float(log.unlisted), "readings"),
-        ("frames", "rejected", float(log.rejects.height), "rows"),
-    ]
-    for stem in ("motion", "proximity"):
-        if ctx.has_source(stem):  # one source of readings per sensor: the frame log
-            ctx.report.append(("frames", f"ignored_{stem}_csv", 1.0, "flag"))
-    return out
-
-
-def _frames_viz(rec, ctx: RunContext, made: dict) -> None:
-    if "motion" in made:
-        log_motion_states(rec, made["motion"], [m.id for m in ctx.site.motion_sensors])
-
-
-def _motion_available(ctx: RunContext) -> str | None:
-    if ctx.has_source("frames"):
-        return "the readings come from the frame log (frames.csv or /frames)"
-    if not ctx.has_source("motion"):
-        return "no motion.csv or /motion MCAP channel in the dataset"
-    if not ctx.site.motion_sensors:
-        return "motion log present but site.toml has no [[motion_sensors]]"
-    return None
-
-
-def _motion_work(ctx: RunContext) -> dict[str, pl.DataFrame]:
-    cfg = config_from_mapping(MotionConfig, ctx.section("motion"), section="motion")
-    ctx.record("motion", cfg)
-    site = ctx.site
-    ids = [m.id for m in site.motion_sensors]
-    csv = ctx.dataset / "motion.csv"
-    if csv.exists():  # a clean file is typed in one read (read_motion_csv), else line by line
-        res = read_motion_csv(
-            csv,
-            ids,
-            epoch=run_time_origin(ctx),
-            rules=site_rules(site, cfg),
-            held=site.level_sensors,
-            split=ctx.typed_reads.pop("motion", None),
-        )
-    else:
-        raw, path = ctx.source("motion", TOGGLE_COLUMNS)
-        res = read_motion(
-            raw, ids, epoch=run_time_origin(ctx), path=path, rules=site_rules(site, cfg), held=site.level_sensors
-        )
-    ctx.add_rejects(res.rejects)
-    ctx.report += [
-        ("motion", "edges", float(res.motion.height), "edges"),
-        ("motion", "suppressed", float(res.suppressed.height), "edges"),
-        ("motion", "held", float(res.held), "rows"),
-        ("motion", "rejected", float(res.rejects.height), "rows"),
-    ]
-    return {"motion": res.motion, "motion_suppressed": res.suppressed}
-
-
-def _motion_viz(rec, ctx: RunContext, made: dict) -> None:
-    log_motion_states(rec, made["motion"], [m.id for m in ctx.site.motion_sensors])
-
-
-def _proximity_available(ctx: RunContext) -> str | None:
-    if ctx.has_source("frames"):
-        return "the readings come from the frame log (frames.csv or /frames)"
-    if not ctx.site.proximity_sensors:
-        return "site.toml has no proximity sensors"
-    if not ctx.has_source("proximity"):
-        return "no proximity.csv or /proximity MCAP channel in the dataset"
-    return None
-
-
-def _proximity_work(ctx: RunContext) -> dict[str, pl.DataFrame]:
-    cfg = config_from_mapping(ProximityConfig, ctx.section("proximity"), section="proximity")
-    ctx.record("proximity", cfg)
-    ids = [p.id for p in ctx.site.proximity_sensors]
-    csv = ctx.dataset / "proximity.csv"
-    if csv.exists():  # a clean file is typed in one read (read_proximity_csv), else line by line
-        res = read_proximity_csv(
-            csv,
-            ids,
-            epoch=run_time_origin(ctx),
-            rules=cfg.rules,
-            held=ctx.site.level_sensors,
-            split=ctx.typed_reads.pop("proximity", None),
-        )
-    else:
-        raw, path = ctx.source("proximity", TOGGLE_COLUMNS)
-        res = read_proximity(
-            raw, ids, epoch=run_time_origin(ctx), path=path, rules=cfg.rules, held=ctx.site.level_sensors
-        )
-    ctx.add_rejects(res.rejects)
-    frames = proximity_frames(
-        res.motion, ids, period=cfg.period, start=None if cfg.start < 0 else cfg.start, instants=cfg.instants or None
-    )
-    ctx.report += [
-        ("proximity", "edges", float(res.motion.height), "edges"),
-        ("proximity", "suppressed", float(res.suppressed.height), "edges"),
-        ("proximity", "held", float(res.held), "rows"),
-        ("proximity", "rejected", float(res.rejects.height), "rows"),
-        ("proximity", "instants", float(frames["slot"].n_unique()) if frames.height else 0.0, "instants"),
-    ]
-    return {"proximity": res.motion, "proximity_frames": frames, "proximity_suppressed": res.suppressed}
-
-
-# --------------------------------------------------------------------------- correction (Bobadilla V)
-
-
-# --------------------------------------------------------------------------- ignored sensors
-
-#: The tables of readings a tracker may read, with the column naming their sensor: an ignored
-#: sensor's rows are left out of them (:func:`without_ignored`) before any tracker sees them.
-READINGS = {
-    "motion": "sensor",
-    "proximity": "sensor",
-    "levels": "sensor",
-    "proximity_frames": "sensor",
-    "crossings": "beam",
-    "corrected_crossings": "beam",
-    "beam_events": "beam",
-    "aborted": "beam",
-}
-
-
-def without_ignored(name: str, table: Any, ignored: frozenset[str]) -> Any:
-    """``table`` (the run's table ``name``) without the rows of the ``ignored`` sensors
-    (``site.toml`` ``ignore = true``) when it is a table of readings (:data:`READINGS`); any
-    other value as it is."""
-    col = READINGS.get(name)
-    if not ignored or col is None or not isinstance(table, pl.DataFrame) or col not in table.columns:
-        return table
-    return table.filter(~pl.col(col).is_in(sorted(ignored)))
-
-
-def _truth_count_work(ctx: RunContext) -> dict[str, pl.DataFrame]:
-    return homes.truth_count_work(ctx, run_time_origin(ctx))
-
-
-def _occupancy_work(ctx: RunContext) -> dict[str, pl.DataFrame]:
-    return homes.occupancy_work(ctx, without_ignored("motion", ctx.tables["motion"], ctx.site.ignored))
-
-
-def _ignore_available(ctx: RunContext) -> str | None:
-    return None if ctx.site.ignored else "no sensor has ignore = true in site.toml"
-
-
-def _ignore_work(ctx: RunContext) -> dict[str, pl.DataFrame]:
-    """Count what the readers read of the ignored sensors (kept in their tables, left out of
-    every tracker's inputs by :func:`tracker_inputs`): one row per (table, sensor)."""
-    ignored = sorted(ctx.site.ignored)
-    parts = []
-    for name, col in READINGS.items():
-        df = ctx.tables.get(name)
-        if df is None or col not in df.columns:
-            continue
-        parts.append(
-            df.filter(pl.col(col).is_in(ignored))
-            .group_by(col)
-            .len("rows")
-            .select(pl.lit(name).alias("table"), pl.col(col).alias("sensor"), pl.col("rows").cast(pl.Int64))
-        )
-    schema = {"table": pl.String, "sensor": pl.String, "rows": pl.Int64}
-    out = pl.concat(parts) if parts else pl.DataFrame(schema=schema)
-    out = out.sort("table", "sensor")
-    ctx.report += [
-        ("ignore", "ignored_sensors", float(len(ignored)), "sensors"),
-        ("ignore", "ignored_rows", float(out["rows"].sum()) if out.height else 0.0, "rows"),
-    ]
-    return {"ignored": out}
-
-
-def _correct_available(ctx: RunContext) -> str | None:
-    if not ctx.site.beams:
-        return "site has no beams"
-    try:
-        section = ctx.section("correct")
-    except InputError:  # a broken run.toml: run the stage so it fails naming the file
-        return None
-    if section.get("enabled", True) is False:
-        return "disabled: [correct] enabled = false"
-    n = section.get("n")
-    if n is None and ctx.site.targets is None:
-        return "number of agents unknown: set site.toml targets or run.toml [correct] n"
-    return None
-
-
-def _correct_work(ctx: RunContext) -> dict[str, pl.DataFrame]:
-    cfg = config_from_mapping(CorrectConfig, ctx.section("correct"), section="correct")
-    n = cfg.n if cfg.n is not None else ctx.site.targets
-    ctx.record("correct", cfg, n=n)
-    crossings = without_ignored("crossings", ctx.tables["crossings"], ctx.site.ignored)
-    res = run_correction(crossings, ctx.region_graph, cfg, n)
-    ctx.report += res.report
-    return res.tables
-
-
-def _correct_viz(rec, ctx: RunContext, made: dict) -> None:
-    log_corrected_crossings(rec, made["corrected_crossings"], ctx.site)
-
-
 # --------------------------------------------------------------------------- scores
 
 #: The metrics of every tracker beyond its own (``TrackerEntry.score``) and the MOT rows: one
@@ -757,33 +291,47 @@ def stages(trackers: tuple[TrackerEntry, ...] = TRACKERS) -> list[Stage]:
             "crossings",
             (),
             ("crossings", "aborted", "beam_events"),
-            _crossings_available,
-            _crossings_work,
-            _crossings_viz,
+            reading.crossings_available,
+            reading.crossings_work,
+            reading.crossings_viz,
             polled=True,
         ),
-        Stage("truth", (), ("truth", "true_crossings", "sim_crossings"), _truth_available, _truth_work, _truth_viz),
-        Stage("truth_events", (), ("truth_events",), _truth_events_available, _truth_events_work),
-        Stage("residents_profile", (), ("residents_profile",), _profile_available, _profile_work),
-        Stage("truth_count", (), ("truth_count",), homes.truth_count_available, _truth_count_work),
+        Stage(
+            "truth",
+            (),
+            ("truth", "true_crossings", "sim_crossings"),
+            reading.truth_available,
+            reading.truth_work,
+            reading.truth_viz,
+        ),
+        Stage("truth_events", (), ("truth_events",), reading.truth_events_available, reading.truth_events_work),
+        Stage("residents_profile", (), ("residents_profile",), reading.profile_available, reading.profile_work),
+        Stage("truth_count", (), ("truth_count",), homes.truth_count_available, reading.truth_count_work),
         Stage("count_profile", (), ("count_profile",), homes.count_profile_available, homes.count_profile_work),
-        Stage("camera", (), ("camera_truth", "camera_detections"), _camera_available, _camera_work, _camera_viz),
+        Stage(
+            "camera",
+            (),
+            ("camera_truth", "camera_detections"),
+            reading.camera_available,
+            reading.camera_work,
+            reading.camera_viz,
+        ),
         Stage(
             "frames",
             (),
             ("levels", "motion", "proximity", "proximity_frames"),
-            _frames_available,
-            _frames_work,
-            _frames_viz,
+            reading.frames_available,
+            reading.frames_work,
+            reading.frames_viz,
             polled=True,
         ),
         Stage(
             "motion",
             (),
             ("motion", "motion_suppressed"),
-            _motion_available,
-            _motion_work,
-            _motion_viz,
+            reading.motion_available,
+            reading.motion_work,
+            reading.motion_viz,
             config=MotionConfig,
             polled=True,
         ),
@@ -791,18 +339,18 @@ def stages(trackers: tuple[TrackerEntry, ...] = TRACKERS) -> list[Stage]:
             "proximity",
             (),
             ("proximity", "proximity_frames", "proximity_suppressed"),
-            _proximity_available,
-            _proximity_work,
+            reading.proximity_available,
+            reading.proximity_work,
             config=ProximityConfig,
             polled=True,
         ),
-        Stage("ignore", (), ("ignored",), _ignore_available, _ignore_work),
+        Stage("ignore", (), ("ignored",), reading.ignore_available, reading.ignore_work),
         Stage(
             "occupancy",
             ("motion",),
             ("occupancy_bins", "occupancy_people"),
             homes.occupancy_available,
-            _occupancy_work,
+            reading.occupancy_work,
             viz_occupancy.log_occupancy,
             config=OccupancyConfig,
         ),
@@ -810,9 +358,9 @@ def stages(trackers: tuple[TrackerEntry, ...] = TRACKERS) -> list[Stage]:
             "correct",
             ("crossings",),
             ("corrected_crossings", "correct_insertions", "correct_initial"),
-            _correct_available,
-            _correct_work,
-            _correct_viz,
+            reading.correct_available,
+            reading.correct_work,
+            reading.correct_viz,
             config=CorrectConfig,
             polled=True,
         ),

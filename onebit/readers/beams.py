@@ -34,11 +34,11 @@ from onebit.core.compiled import numba_loaded
 from onebit.core.sensing import body_radius
 from onebit.core.tables import ABORTED, BEAM_EVENTS, CROSSINGS, REJECTS, conform
 from onebit.readers import kernels
+from onebit.readers.logs import Log
 from onebit.readers.rows import (
     FileLines,
     RawRows,
     TypedRows,
-    TypedSplit,
     by_time,
     check_split,
     clean_time,
@@ -54,6 +54,7 @@ from onebit.readers.rows import (
     read_typed_csv,
     type_rows,
 )
+from onebit.readers.timebase import TimeOrigin
 
 BEAM_COLUMNS = ("t", "beam", "pair", "blocked")
 
@@ -101,15 +102,11 @@ def beam_dtypes(beam_ids: tuple[str, ...]) -> dict[str, pl.DataType]:
 _beam_dtypes = beam_dtypes  # the earlier private name
 
 
-def typed_beam_events(
-    path: Path, beam_ids: tuple[str, ...], *, epoch=None, split: TypedSplit | None = None
-) -> TypedRows | None:
+def typed_beam_events(path: Path, beam_ids: tuple[str, ...], *, epoch=None) -> TypedRows | None:
     """:func:`read_beam_events` of ``beams.csv`` by one typed read (:func:`~onebit.readers.rows.read_typed_csv`),
     the lines it cannot take typed row by row; ``None`` when the header is not a plain first
-    line (the row-by-row path reads the file). Beam and pair stay enums (the decoder's codes).
-    ``split``: that read already made (with :func:`beam_dtypes`; the runner reads the file
-    once for the time origin and the reader)."""
-    split = split if split is not None else read_typed_csv(path, beam_dtypes(beam_ids))
+    line (the row-by-row path reads the file). Beam and pair stay enums (the decoder's codes)."""
+    split = read_typed_csv(path, beam_dtypes(beam_ids))
     if split is None:
         return None
     good = split.good.with_columns(pl.col("blocked").to_physical() == 1)
@@ -151,16 +148,7 @@ def decode_passes(
     if not compiled:
         return decode_passes_reference(events, source)
     ev = by_time(events)
-    if isinstance(ev.schema["beam"], pl.Enum):  # the typed read's beams: their codes are the enum's
-        names = pl.Series(ev.schema["beam"].categories, dtype=pl.String)
-        code_s = ev["beam"].to_physical()
-    else:
-        names = ev["beam"].unique(maintain_order=True)
-        code_s = ev["beam"].replace_strict(names, range(len(names)), return_dtype=pl.UInt32, default=0)
-    if ev.schema["pair"] == pl.Enum(["a", "b"]):
-        pair_s = ev["pair"].to_physical()
-    else:
-        pair_s = (ev["pair"] == "b").cast(pl.UInt8)
+    names, code_s, pair_s = _beam_codes(ev)
     code, pair = code_s.to_numpy(), pair_s.to_numpy().astype(np.int8)
     blocked = ev["blocked"].to_numpy().astype(np.bool_)
     # ``compiled=None``: numba's load only when a kernel paid it already, else the numpy version
@@ -169,15 +157,13 @@ def decode_passes(
         reject = ends.reject
     else:
         reject = kernels.beam_rejects(code, pair, blocked, len(names))
-    t = ev["t"].to_numpy()
-    pairs = pl.Series(["a", "b"], dtype=pl.String)
     bad = np.flatnonzero(reject)
     # the accepted edges, their names gathered by code (faster than a String cast of an enum)
     keep = reject == 0 if bad.size else None
     coded = pl.DataFrame([code_s.alias("_beam"), pair_s.alias("_pair"), ev["blocked"]]).lazy()
     events_q = (coded.filter(pl.Series(keep)) if keep is not None else coded).select(
         pl.lit(names).gather("_beam").alias("beam"),
-        pl.lit(pairs).gather("_pair").alias("pair"),
+        pl.lit(pl.Series(["a", "b"], dtype=pl.String)).gather("_pair").alias("pair"),
         pl.col("blocked").cast(pl.Boolean),
     )
 
@@ -194,34 +180,57 @@ def decode_passes(
         if compiled is not True:
             ends = kernels.beam_pass_ends_vectorised(code, pair, blocked, len(names), reject=reject)
         if bad.size:  # reasons for the rejected edges only
-            rej = (
-                ev[bad]
-                .rechunk()
-                .with_columns(
-                    pl.when(pl.Series(reject[bad]) == kernels.ALREADY_BLOCKED)
-                    .then(
-                        pl.format(
-                            "pair {} of beam {} already blocked (no state change)", pl.col("pair"), pl.col("beam")
-                        )
-                    )
-                    .otherwise(
-                        pl.format("pair {} of beam {} already clear (no state change)", pl.col("pair"), pl.col("beam"))
-                    )
-                    .alias("_reason")
-                )
-            )
-            rejects = make_rejects(rej.sort("line"), source, None)
-            if file is not None:  # each line's text, from the file already read
-                text = texts_job.result() if texts_job is not None else file.texts(lines)
-                rejects = rejects.with_columns(
-                    pl.Series("raw", [text.get(i) for i in rejects["line"].to_list()], dtype=pl.String)
-                )
+            texts = (lambda: texts_job.result()) if texts_job is not None else (lambda: file.texts(lines))
+            rejects = _edge_rejects(ev, reject, bad, source, texts if file is not None else None)
         else:
             rejects = make_rejects(ev.clear().with_columns(pl.lit(None, pl.String).alias("_reason")), source, None)
         events_out = events_job.result() if events_job is not None else events_table()
     finally:
         if pool is not None:
             pool.shutdown()
+    return BeamDecode(events_out, *_pass_tables(ev["t"].to_numpy(), names, code, pair, ends), rejects)
+
+
+def _beam_codes(ev: pl.DataFrame) -> tuple[pl.Series, pl.Series, pl.Series]:
+    """(beam names, each event's beam code, its pair's code: ``a`` 0, ``b`` 1): a typed read's
+    enum codes as they are, else the beams numbered in order of appearance."""
+    if isinstance(ev.schema["beam"], pl.Enum):  # the typed read's beams: their codes are the enum's
+        names = pl.Series(ev.schema["beam"].categories, dtype=pl.String)
+        code_s = ev["beam"].to_physical()
+    else:
+        names = ev["beam"].unique(maintain_order=True)
+        code_s = ev["beam"].replace_strict(names, range(len(names)), return_dtype=pl.UInt32, default=0)
+    if ev.schema["pair"] == pl.Enum(["a", "b"]):
+        pair_s = ev["pair"].to_physical()
+    else:
+        pair_s = (ev["pair"] == "b").cast(pl.UInt8)
+    return names, code_s, pair_s
+
+
+def _edge_rejects(ev: pl.DataFrame, reject: np.ndarray, bad: np.ndarray, source: str, texts) -> pl.DataFrame:
+    """The rejects of the edges that did not change their pair's state (``bad``: their rows in
+    ``ev``), with their lines' text from ``texts()`` (``None``: no file, no text)."""
+    rej = (
+        ev[bad]
+        .rechunk()
+        .with_columns(
+            pl.when(pl.Series(reject[bad]) == kernels.ALREADY_BLOCKED)
+            .then(pl.format("pair {} of beam {} already blocked (no state change)", pl.col("pair"), pl.col("beam")))
+            .otherwise(pl.format("pair {} of beam {} already clear (no state change)", pl.col("pair"), pl.col("beam")))
+            .alias("_reason")
+        )
+    )
+    rejects = make_rejects(rej.sort("line"), source, None)
+    if texts is not None:  # each line's text, from the file already read
+        text = texts()
+        rejects = rejects.with_columns(
+            pl.Series("raw", [text.get(i) for i in rejects["line"].to_list()], dtype=pl.String)
+        )
+    return rejects
+
+
+def _pass_tables(t: np.ndarray, names: pl.Series, code: np.ndarray, pair: np.ndarray, ends) -> tuple:
+    """(crossings, aborted, unfinished) from the passes' ends (:func:`~onebit.readers.kernels.pass_ends`)."""
     # closed passes at their closing edge (time order); a crossing leaves by the other pair
     opener, leaver = pair[ends.opened], pair[ends.close]
     crossing = opener != leaver
@@ -254,7 +263,7 @@ def decode_passes(
     unfinished = pl.DataFrame(
         {"t": t[op], "beam": names.gather(pl.Series(code[op]))}, schema={"t": pl.Float64, "beam": pl.String}
     )
-    return BeamDecode(events_out, crossings, aborted, unfinished, rejects)
+    return crossings, aborted, unfinished
 
 
 def _decoded(ev: pl.DataFrame, passes: pl.DataFrame, rejects: pl.DataFrame) -> BeamDecode:
@@ -337,8 +346,17 @@ def decode_passes_reference(events: pl.DataFrame, source: str = "beams.csv") -> 
     return _decoded(ev, passes, rejects)
 
 
+def read_beams(log: Log, beam_ids: tuple[str, ...], *, epoch: str | TimeOrigin | None = None) -> BeamDecode:
+    """The raw-beam reader: ``beams.csv`` (:func:`decode_beam_log`: typed in one read, line by
+    line only where it must) or the rows of an MCAP ``/beams`` channel (:func:`decode_raw_beams`),
+    decoded into crossings, aborted and unfinished passes, events and rejects."""
+    if isinstance(log, RawRows):
+        return decode_raw_beams(log, beam_ids, epoch=epoch)
+    return decode_beam_log(log, beam_ids, epoch=epoch)
+
+
 def decode_beam_log(
-    path: str | Path, beam_ids: tuple[str, ...], *, epoch: str | None = None, split: TypedSplit | None = None
+    path: str | Path, beam_ids: tuple[str, ...], *, epoch: str | TimeOrigin | None = None
 ) -> BeamDecode:
     """Read ``beams.csv`` and decode it: the whole raw-beam reader.
 
@@ -346,7 +364,7 @@ def decode_beam_log(
     cannot take go through the row-by-row CSV layer, which names each bad line. The result is
     the row-by-row path's on the whole file (:func:`decode_raw_beams`)."""
     path = Path(path)
-    typed = typed_beam_events(path, tuple(beam_ids), epoch=epoch, split=split)
+    typed = typed_beam_events(path, tuple(beam_ids), epoch=epoch)
     if typed is None:
         raw = read_csv_rows(path, BEAM_COLUMNS)
         return decode_raw_beams(raw, beam_ids, epoch=epoch, path=path)

@@ -344,31 +344,8 @@ def write_mcap(
     with _atomic(path) as fh:
         writer = Writer(fh, chunk_size=CHUNK_SIZE, compression=CompressionType.ZSTD, use_chunking=True)
         writer.start(profile="", library="onebit")
-        ids: dict[str, int] = {}
-        for _order, (topic, df) in enumerate(tables.items()):
-            columns = CHANNELS[topic]
-            schema = {
-                "type": "object",
-                "title": topic.lstrip("/"),
-                "properties": {c: {"type": _json_type(df.schema[c])} for c in columns},
-                "required": list(columns),
-            }
-            sid = writer.register_schema(
-                name=_SCHEMA_PREFIX + topic.lstrip("/"),
-                encoding="jsonschema",
-                data=json.dumps(schema).encode(),
-            )
-            ids[topic] = writer.register_channel(topic=topic, message_encoding="json", schema_id=sid)
-        view_ids: dict[str, int] = {}
-        schema_ids: dict[type, int] = {}
-        for m in view_msgs:
-            if m.topic not in view_ids:
-                cls = type(m.message)
-                if cls not in schema_ids:
-                    schema_ids[cls] = register_schema(writer, cls)
-                view_ids[m.topic] = writer.register_channel(
-                    topic=m.topic, message_encoding="protobuf", schema_id=schema_ids[cls]
-                )
+        ids = _register_raw_channels(writer, tables)
+        view_ids = _register_view_channels(writer, view_msgs, register_schema)
         frames = [
             m.select("log_time", "key", "data").with_columns(
                 pl.lit(ids[topic], pl.Int64).alias("channel"),
@@ -417,6 +394,42 @@ def write_mcap(
                 )
         write_views_until(None, done)
         writer.finish()
+
+
+def _register_raw_channels(writer, tables: dict[str, pl.DataFrame]) -> dict[str, int]:
+    """One JSON schema and one channel per raw topic, in the order of ``tables``: topic -> channel id."""
+    ids: dict[str, int] = {}
+    for topic, df in tables.items():
+        columns = CHANNELS[topic]
+        schema = {
+            "type": "object",
+            "title": topic.lstrip("/"),
+            "properties": {c: {"type": _json_type(df.schema[c])} for c in columns},
+            "required": list(columns),
+        }
+        sid = writer.register_schema(
+            name=_SCHEMA_PREFIX + topic.lstrip("/"),
+            encoding="jsonschema",
+            data=json.dumps(schema).encode(),
+        )
+        ids[topic] = writer.register_channel(topic=topic, message_encoding="json", schema_id=sid)
+    return ids
+
+
+def _register_view_channels(writer, view_msgs: list, register_schema) -> dict[str, int]:
+    """One protobuf channel per view topic, in order of first message (one schema per message
+    class): topic -> channel id."""
+    view_ids: dict[str, int] = {}
+    schema_ids: dict[type, int] = {}
+    for m in view_msgs:
+        if m.topic not in view_ids:
+            cls = type(m.message)
+            if cls not in schema_ids:
+                schema_ids[cls] = register_schema(writer, cls)
+            view_ids[m.topic] = writer.register_channel(
+                topic=m.topic, message_encoding="protobuf", schema_id=schema_ids[cls]
+            )
+    return view_ids
 
 
 # --------------------------------------------------------------------------- reading

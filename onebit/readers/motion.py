@@ -68,7 +68,6 @@ from onebit.readers.rows import (
     REORDER_TOLERANCE_S,
     RawRows,
     TypedRows,
-    TypedSplit,
     by_time,
     check_rows,
     check_split,
@@ -172,7 +171,7 @@ class MotionRead:
 
 
 def read_motion(
-    raw: RawRows,
+    raw: RawRows | Path,
     sensors: Sequence[str],
     *,
     epoch: str | TimeOrigin | None = None,
@@ -181,11 +180,13 @@ def read_motion(
     tolerance: float = REORDER_TOLERANCE_S,
     held: frozenset[str] | set[str] = frozenset(),
 ) -> MotionRead:
-    """Type, check and debounce the string rows of a toggle log (CSV or an MCAP channel).
+    """Type, check and debounce a toggle log: the toggle reader.
 
     Parameters
     ----------
-    raw : string rows with columns ``t``, ``sensor``, ``value`` (see ``read_csv_rows``).
+    raw : the log (:data:`~onebit.readers.logs.Log`): a CSV file, read by :func:`read_motion_csv`
+        (typed in one read, line by line only where it must), or string rows with columns
+        ``t``, ``sensor``, ``value`` (an MCAP channel's, or :func:`~onebit.readers.rows.read_csv_rows`').
     sensors : the known sensor ids; any other id is rejected.
     epoch : the run's :class:`~onebit.readers.timebase.TimeOrigin`, or the site's epoch (for
         ISO wall-clock stamps) when the reader is used on its own.
@@ -199,6 +200,8 @@ def read_motion(
     The reasons never name the sensor kind, so the same reader serves ``proximity.csv``.
     """
     sensors = tuple(sensors)
+    if not isinstance(raw, RawRows):
+        return read_motion_csv(raw, sensors, epoch=epoch, rules=rules, held=held, tolerance=tolerance)
     typed = check_rows(
         raw, _toggle_parsers(sensors, epoch, raw.frame), key=("t", "sensor", "value"), path=path, tolerance=tolerance
     )
@@ -465,15 +468,16 @@ def read_motion_csv(
     epoch: str | TimeOrigin | None = None,
     rules: DebounceRules | Mapping[str, DebounceRules] | None = None,
     held: frozenset[str] | set[str] = frozenset(),
-    split: TypedSplit | None = None,
+    tolerance: float = REORDER_TOLERANCE_S,
 ) -> MotionRead:
-    """Read ``motion.csv`` (or ``proximity.csv``): the whole toggle reader for one file.
-    ``split``: its typed read (:func:`toggle_dtypes`) when the caller made it already."""
+    """Read ``motion.csv`` (or ``proximity.csv``): the whole toggle reader for one file, typed
+    in one read (:func:`typed_toggle_rows`), the row-by-row path when that read cannot take it."""
     path = Path(path)
     sensors = tuple(sensors)
-    typed = typed_toggle_rows(path, sensors, epoch=epoch, split=split)
+    typed = typed_toggle_rows(path, sensors, epoch=epoch, tolerance=tolerance)
     if typed is None:
-        return read_motion(read_csv_rows(path, TOGGLE_COLUMNS), sensors, epoch=epoch, path=path, rules=rules, held=held)
+        raw = read_csv_rows(path, TOGGLE_COLUMNS)
+        return read_motion(raw, sensors, epoch=epoch, path=path, rules=rules, held=held, tolerance=tolerance)
     return toggle_edges(typed, sensors, source=path.name, path=path, rules=rules, held=held)
 
 
@@ -488,7 +492,6 @@ def typed_toggle_rows(
     *,
     epoch: str | TimeOrigin | None = None,
     tolerance: float = REORDER_TOLERANCE_S,
-    split: TypedSplit | None = None,
 ) -> TypedRows | None:
     """Pass 1 of :func:`read_motion` for a toggle log typed by one ``pl.read_csv``
     (:func:`~onebit.readers.rows.read_typed_csv`: numeric ``t``, known sensors, values spelled
@@ -496,7 +499,7 @@ def typed_toggle_rows(
     ``None`` when the header is not a plain first line (the row-by-row path reads the file).
     The sensor stays an enum (the debounce's codes); every output table casts it to String."""
     spellings = list(TOGGLE_VALUES)
-    split = split if split is not None else read_typed_csv(path, toggle_dtypes(sensors))
+    split = read_typed_csv(path, toggle_dtypes(sensors))
     if split is None:
         return None
     on_codes = [i for i, v in enumerate(spellings) if TOGGLE_VALUES[v]]  # the spellings of "on", by code

@@ -64,7 +64,7 @@ class ProximityConfig:
 
 
 def read_proximity(
-    raw: RawRows,
+    raw: RawRows | Path,
     sensors: Sequence[str],
     *,
     epoch=None,
@@ -72,8 +72,10 @@ def read_proximity(
     rules: DebounceRules | None = None,
     held: frozenset[str] = frozenset(),
 ) -> MotionRead:
-    """Type, check and debounce a proximity toggle log; ``motion`` holds PROXIMITY rows
-    (``held``: level sensors, whose repeated states are held states, :func:`read_motion`)."""
+    """Type, check and debounce a proximity toggle log: the proximity reader of
+    ``proximity.csv`` (typed in one read, line by line only where it must) or of an MCAP
+    channel's rows; ``motion`` holds PROXIMITY rows (``held``: level sensors, whose repeated
+    states are held states, :func:`read_motion`)."""
     res = read_motion(raw, sensors, epoch=epoch, path=path, rules=rules, held=held)
     return MotionRead(conform(res.motion, PROXIMITY), res.rejects, res.suppressed, res.reordered, res.held)
 
@@ -85,11 +87,9 @@ def read_proximity_csv(
     epoch=None,
     rules: DebounceRules | None = None,
     held: frozenset[str] = frozenset(),
-    split=None,
 ) -> MotionRead:
-    """:func:`read_proximity` of ``proximity.csv`` (a clean file typed in one read, :func:`read_motion_csv`;
-    ``split``: that read, when the caller made it already)."""
-    res = read_motion_csv(Path(path), sensors, epoch=epoch, rules=rules, held=held, split=split)
+    """:func:`read_proximity` of ``proximity.csv`` (a clean file typed in one read, :func:`read_motion_csv`)."""
+    res = read_motion_csv(Path(path), sensors, epoch=epoch, rules=rules, held=held)
     return MotionRead(conform(res.motion, PROXIMITY), res.rejects, res.suppressed, res.reordered, res.held)
 
 

@@ -1,4 +1,11 @@
-"""Readers of already-canonical logs: ``crossings.csv``, ``truth.csv``, ``truth_crossings.csv``, ``truth_events.csv``."""
+"""Readers of already-canonical logs: ``crossings.csv``, ``truth.csv``, ``truth_crossings.csv``, ``truth_events.csv``.
+
+Each log has one reader of its CSV file or its MCAP channel's rows (:data:`~onebit.readers.logs.Log`):
+:func:`read_crossings`, :func:`read_truth`, :func:`read_true_crossings`, :func:`read_truth_events`.
+A CSV file is typed in one read (``read_*_csv``), only the lines that read cannot take row by
+row; an MCAP channel's rows are typed row by row (``*_from_rows``). Each returns
+``(table, rejects)``.
+"""
 
 from __future__ import annotations
 
@@ -19,6 +26,7 @@ from onebit.core.tables import (
     TRUTH_EVENTS,
     conform,
 )
+from onebit.readers.logs import Log
 from onebit.readers.rows import (
     RawRows,
     TypedRows,
@@ -181,6 +189,42 @@ def read_truth_events_csv(path, *, epoch=None):
     Returns ``(truth_events, rejects)``; every line not taken is a reject with its reason."""
     path = Path(path)
     return truth_events_from_rows(read_csv_rows(path, tuple(TRUTH_EVENTS.names())), epoch=epoch, path=path)
+
+
+def read_crossings(log: Log, beam_ids, *, epoch=None) -> tuple[pl.DataFrame, pl.DataFrame]:
+    """The crossings reader: ``crossings.csv`` (:func:`read_crossings_csv`) or an MCAP
+    ``/crossings`` channel's rows (:func:`crossings_from_rows`)."""
+    if isinstance(log, RawRows):
+        return crossings_from_rows(log, beam_ids, epoch=epoch)
+    return read_crossings_csv(log, beam_ids, epoch=epoch)
+
+
+def read_truth(log: Log, *, epoch=None) -> tuple[pl.DataFrame, pl.DataFrame]:
+    """The truth reader: ``truth.csv`` (:func:`read_truth_csv`) or an MCAP ``/truth`` channel's
+    rows (:func:`truth_from_rows`)."""
+    if isinstance(log, RawRows):
+        return truth_from_rows(log, epoch=epoch)
+    return read_truth_csv(log, epoch=epoch)
+
+
+def read_true_crossings(log: Log, beam_ids, *, epoch=None) -> tuple[pl.DataFrame, pl.DataFrame]:
+    """The true-crossings reader: ``truth_crossings.csv`` (:func:`read_true_crossings_csv`; row
+    by row when it has the simulator's ``dropped`` column, which is kept) or an MCAP
+    ``/truth_crossings`` channel's rows (:func:`true_crossings_from_rows`)."""
+    if isinstance(log, RawRows):
+        return true_crossings_from_rows(log, beam_ids, epoch=epoch)
+    columns = true_crossings_columns(log)
+    if "dropped" in columns:
+        return true_crossings_from_rows(read_csv_rows(log, columns), beam_ids, epoch=epoch, path=log)
+    return read_true_crossings_csv(log, beam_ids, epoch=epoch)
+
+
+def read_truth_events(log: Log, *, epoch=None) -> tuple[pl.DataFrame, pl.DataFrame]:
+    """The per-event identity truth reader: ``truth_events.csv`` (:func:`read_truth_events_csv`)
+    or an MCAP ``/truth_events`` channel's rows (:func:`truth_events_from_rows`)."""
+    if isinstance(log, RawRows):
+        return truth_events_from_rows(log, epoch=epoch)
+    return read_truth_events_csv(log, epoch=epoch)
 
 
 #: A profile row's ``bin``: ``session k/n`` or ``day k/n`` with ``0 <= k < n``.

@@ -55,6 +55,7 @@ import polars as pl
 from onebit.core.errors import InputError
 from onebit.core.tables import ABORTED, BEAM_EVENTS, CROSSINGS, MOTION, REJECTS
 from onebit.readers.beams import BEAM_COLUMNS, _beam_parsers
+from onebit.readers.csvfields import _BLANK, _check_columns, _header_of
 from onebit.readers.motion import (
     SUPPRESSED,
     TIME_EPS,
@@ -63,12 +64,9 @@ from onebit.readers.motion import (
     _toggle_parsers,
 )
 from onebit.readers.rows import (
-    _BLANK,
     MAX_LINE_BYTES,
     REORDER_TOLERANCE_S,
     RawRows,
-    _check_columns,
-    _header_of,
     backwards_reason,
     make_rejects,
     physical_lines,

@@ -156,7 +156,7 @@ def test_a_crossing_log_is_read_incrementally(tmp_path, monkeypatch):
     its new lines (the whole file is read once, by the final batch run) and ``beams`` runs
     crossing by crossing, equal to the batch run."""
     import onebit.pipeline.follow as follow_module
-    import onebit.pipeline.stages as stages_module
+    import onebit.pipeline.reading as reading_module
     from onebit.core.site import load_site
     from onebit.readers.beams import decode_beam_log
 
@@ -170,8 +170,8 @@ def test_a_crossing_log_is_read_incrementally(tmp_path, monkeypatch):
         data / "crossings.csv"
     )
     whole, reruns = [], []
-    reader, inputs = stages_module.read_crossings_csv, follow_module.tracker_inputs
-    monkeypatch.setattr(stages_module, "read_crossings_csv", lambda *a, **k: whole.append(a[0]) or reader(*a, **k))
+    reader, inputs = reading_module.read_crossings, follow_module.tracker_inputs
+    monkeypatch.setattr(reading_module, "read_crossings", lambda *a, **k: whole.append(a[0]) or reader(*a, **k))
     monkeypatch.setattr(
         follow_module, "tracker_inputs", lambda entry, *a, **k: reruns.append(entry.name) or inputs(entry, *a, **k)
     )
@@ -226,12 +226,12 @@ def test_istate_replay_equals_batch_with_a_fixed_latency(tmp_path, monkeypatch):
 
 def test_growing_log_waits_for_a_cut_line_and_ends_when_idle(pir, tmp_path, monkeypatch):
     _, src = pir
-    import onebit.pipeline.stages as stages_module
+    import onebit.pipeline.reading as reading_module
 
     whole_reads = []  # the batch reader of the whole file: only the final batch run calls it
-    batch_reader = stages_module.read_motion_csv
+    batch_reader = reading_module.read_motion
     monkeypatch.setattr(
-        stages_module, "read_motion_csv", lambda *a, **k: whole_reads.append(a[0]) or batch_reader(*a, **k)
+        reading_module, "read_motion", lambda *a, **k: whole_reads.append(a[0]) or batch_reader(*a, **k)
     )
     d = tmp_path / "live"
     d.mkdir()

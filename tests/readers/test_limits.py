@@ -13,7 +13,7 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from onebit.core.errors import InputError
-from onebit.readers import rows
+from onebit.readers import lines, rows
 from onebit.readers.motion import read_motion_csv
 from onebit.readers.rows import (
     check_line_lengths,
@@ -48,8 +48,8 @@ def _longest_reference(data: bytes, limit: int) -> int | None:
 )
 def test_line_length_check_finds_the_first_long_line_across_scan_steps(data, limit, step):
     with pytest.MonkeyPatch.context() as mp:
-        mp.setattr(rows, "MAX_LINE_BYTES", limit)
-        mp.setattr(rows, "_SCAN_BYTES", step)
+        mp.setattr(lines, "MAX_LINE_BYTES", limit)
+        mp.setattr(lines, "_SCAN_BYTES", step)
         want = _longest_reference(data, limit)
         if want is None:
             check_line_lengths(data, "f.csv")
@@ -59,7 +59,7 @@ def test_line_length_check_finds_the_first_long_line_across_scan_steps(data, lim
 
 
 def test_a_file_that_is_one_huge_line_is_refused_before_it_is_split(tmp_path, monkeypatch):
-    monkeypatch.setattr(rows, "MAX_LINE_BYTES", 1000)
+    monkeypatch.setattr(lines, "MAX_LINE_BYTES", 1000)
     garbage = np.random.default_rng(0).integers(32, 127, size=5000, dtype=np.uint8).tobytes().replace(b"\n", b" ")
     p = _write(tmp_path, garbage)
     with pytest.raises(InputError, match=r"motion\.csv:1: line longer than the 1000 bytes"):
@@ -113,7 +113,7 @@ def _malformed_reference(data: bytes, n_fields: int, after_line: int) -> int:
 )
 def test_malformed_line_count_matches_a_line_by_line_count(data, n, after, step):
     with pytest.MonkeyPatch.context() as mp:
-        mp.setattr(rows, "_SHAPE_BYTES", step)
+        mp.setattr(lines, "_SHAPE_BYTES", step)
         count, first = malformed_lines(data, n, after)
     assert count == _malformed_reference(data, n, after)
     assert (first is None) == (count == 0)
@@ -131,7 +131,7 @@ def test_malformed_count_is_the_readers_field_count_rejects(tmp_path_factory, bo
 
 
 def test_too_many_malformed_lines_refuse_the_file_naming_the_first(tmp_path, monkeypatch):
-    monkeypatch.setattr(rows, "MAX_MALFORMED_LINES", 5)
+    monkeypatch.setattr(lines, "MAX_MALFORMED_LINES", 5)
     head = b"t,sensor,value\n1,p1,1\n2,p1,0\n"
     ok = _write(tmp_path, head + b"garbage line\n" * 5 + b"3,p2,1\n", "ok.csv")
     assert read_motion_csv(ok, SENSORS).rejects.height == 5  # at the limit: rejected line by line
@@ -166,7 +166,7 @@ def test_physical_lines_split_in_spans_as_in_one_piece(data, step):
     """The file is split a span at a time (bounded temporaries): the same lines, texts and reasons."""
     whole = rows.physical_lines(data)
     with pytest.MonkeyPatch.context() as mp:
-        mp.setattr(rows, "_SCAN_BYTES", step)
+        mp.setattr(lines, "_SCAN_BYTES", step)
         spans = rows.physical_lines(data)
     assert spans.equals(whole), (spans, whole)
     assert whole.height == data.count(b"\n") + (not data.endswith(b"\n")) - (data in (b"", b"\xef\xbb\xbf"))
@@ -192,7 +192,7 @@ def test_undated_casas_lines_match_a_line_by_line_count(data, step):
     from onebit.readers.casas import undated_lines
 
     with pytest.MonkeyPatch.context() as mp:
-        mp.setattr(rows, "_SCAN_BYTES", step)
+        mp.setattr(lines, "_SCAN_BYTES", step)
         count, first = undated_lines(data)
     assert count == _undated_reference(data) and (first is None) == (count == 0)
 

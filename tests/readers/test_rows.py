@@ -457,7 +457,8 @@ def test_ascii_lines_cut_out_at_once_equal_one_by_one(body, trailing_newline, wa
     """line_texts of many lines of an ASCII file (cut out in one go) equals the line-by-line cut."""
     import numpy as np
 
-    from onebit.readers.rows import FileLines, _ascii_line_texts, _line_texts_reference, line_texts, newlines
+    from onebit.readers.linetext import _ascii_line_texts, _line_texts_reference
+    from onebit.readers.rows import FileLines, line_texts, newlines
 
     data = "\n".join(body).encode() + (b"\n" if trailing_newline and body else b"")
     got = line_texts(data, wanted)
@@ -479,7 +480,8 @@ def test_ascii_lines_cut_out_at_once_equal_one_by_one(body, trailing_newline, wa
 def test_lines_found_by_step_counts_equal_the_newline_list(body, trailing_newline, wanted, step):
     """FileLines finds a named line's text from its newlines counted per step (steps of any
     size, lines across steps) as from the list of every newline, and as one by one."""
-    from onebit.readers.rows import FileLines, _line_texts_reference, newlines
+    from onebit.readers.linetext import _line_texts_reference
+    from onebit.readers.rows import FileLines, newlines
 
     data = "\n".join(body).encode() + (b"\n" if trailing_newline and body else b"")
     by_steps = FileLines(data, step=step)
@@ -588,7 +590,7 @@ def test_duplicates_in_numpy_equal_the_polars_search(rows, lines, key):
     """_duplicates_numpy (enum codes, booleans and finite floats compared in numpy) finds the
     rows and first lines _duplicates_polars finds, and declines (None) the keys numpy would
     compare otherwise: text, nulls, NaN, a negative zero."""
-    from onebit.readers.rows import _duplicates_numpy, _duplicates_polars
+    from onebit.readers.rowchecks import _duplicates_numpy, _duplicates_polars
 
     cand = pl.DataFrame(
         {

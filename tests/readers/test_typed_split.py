@@ -375,12 +375,12 @@ def test_a_long_messy_file_is_split_without_numba(tmp_path, monkeypatch):
     """A file past MIN_ROWS lines with a line of too many fields has its separators counted on
     every line; while numba is not loaded that count is numpy's (a reader never pays numba's
     load for a messy file), and the result is the row-by-row path's."""
-    from onebit.readers import rows
+    from onebit.readers import typedread
 
     def refuse(*args):
         raise AssertionError("the compiled separator count ran while numba was not loaded")
 
-    monkeypatch.setattr(rows, "numba_loaded", lambda: False)
+    monkeypatch.setattr(typedread, "numba_loaded", lambda: False)
     monkeypatch.setattr(kernels, "separators_per_line", refuse)
     n = kernels.MIN_ROWS + 10
     lines = [f"{k * 0.5},{'abc'[k % 3]},{'ab'[k % 2]},{(k // 2) % 2}" for k in range(n)]
@@ -461,9 +461,9 @@ def test_columns_made_in_numpy_equal_polars_own(monkeypatch, values, cuts, c, fl
     filtered in numpy, for numpy's huge pages) against ``rechunk`` / ``s - c`` / ``filter``:
     bit for bit, with the same sorted flags; a column with nulls is left to polars. The size
     from which numpy is used is lowered so that small columns take that path."""
-    from onebit.readers import rows
+    from onebit.readers import rows, typedread
 
-    monkeypatch.setattr(rows, "_NUMPY_COPY_BYTES", 8)
+    monkeypatch.setattr(typedread, "_NUMPY_COPY_BYTES", 8)
     if ints:
         values = [int(max(-(2**62), min(2**62, v))) if math.isfinite(v) else 7 for v in values]
     dtype = pl.Int64 if ints else pl.Float64
@@ -496,9 +496,9 @@ def test_readers_with_columns_made_in_numpy_give_the_row_by_row_result(
     """The beam and toggle readers with every large-column shortcut taken (the size lowered):
     the typed read's one buffer per column, the time origin taken off and the kept edges' times
     in numpy give the row-by-row path's tables."""
-    from onebit.readers import rows
+    from onebit.readers import typedread
 
-    monkeypatch.setattr(rows, "_NUMPY_COPY_BYTES", 8)
+    monkeypatch.setattr(typedread, "_NUMPY_COPY_BYTES", 8)
     folder = Path(tmp_path_factory.mktemp("numpy"))
     (folder / "beams.csv").write_bytes(blob)
     (folder / "motion.csv").write_bytes(tblob)
