@@ -246,7 +246,7 @@ def test_region_vanishing_in_an_obstacle_empties_its_element_and_never_becomes_m
 @given(st.integers(1, 8), st.integers(1, 40), st.integers(1, 500), st.integers(0, 2**32 - 1))
 def test_row_codes_keep_the_lexicographic_order_of_rows(n, E, hi, seed):
     """Unique rows by their int codes: the same rows in the same order as numpy's unique rows."""
-    from onebit.trackers.istate.core import _row_codes
+    from onebit.trackers.istate.cleanup import _row_codes
 
     ids = np.random.default_rng(seed).integers(0, hi, (E, n))
     codes = _row_codes(ids)
