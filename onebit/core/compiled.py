@@ -7,8 +7,9 @@ its argument types on its own first call, or loaded from numba's on-disk cache, 
 which makes later processes start in milliseconds). So a command that never runs a kernel --
 ``onebit --help``, ``onebit simulate``, a reader of a file without beams -- does not pay
 numba's import. When a module's kernels become dispatchers the module's names are rebound to
-them, so a kernel that calls another compiles against the callee's dispatcher, and callers
-that look the kernel up on the module reach numba directly.
+them (a kernel imported from another module too, compiled or not), so a kernel that calls
+another compiles against the callee's dispatcher, and callers that look the kernel up on the
+module reach numba directly.
 
 The undecorated function stays available as ``.py_func`` (numba's name for it).
 """
@@ -74,6 +75,7 @@ def _compile_module(name: str) -> None:
     _STATE["loaded"] = True
     module = sys.modules[name]
     for attr, value in list(vars(module).items()):
-        if isinstance(value, Kernel) and value._dispatcher is None:
-            value._dispatcher = numba.njit(**OPTIONS)(value.py_func)
+        if isinstance(value, Kernel):  # its own kernels and those it imports from another module
+            if value._dispatcher is None:
+                value._dispatcher = numba.njit(**OPTIONS)(value.py_func)
             setattr(module, attr, value._dispatcher)
