@@ -8,7 +8,7 @@ states are decoded *together* over the meeting, with everyone else held fixed.
 
 User state ``s = (x, c)``: node ``x`` and the node ``c`` it came from (``-1`` before its first
 move), the context of the second-order transition ``a(c, x, y)``
-(:func:`~onebit.models.graph_hmm.adaptive.second_order_tensor`). Moves: stay
+(:func:`~onebit.models.graph_hmm.window.second_order_tensor`). Moves: stay
 ``(x, c) -> (x, c)`` with ``log a(c|x, x, x)``, or step to a neighbour ``y``:
 ``(x, c) -> (y, x)`` with ``log a(c|x, x, y)`` (``c|x``: ``c``, or ``x`` when unknown). The
 pair's state is ``(s_1, s_2)`` (``S^2`` states, ``S = sum_x (deg x + 1)``); the Viterbi
@@ -43,9 +43,10 @@ import numpy as np
 import polars as pl
 
 from onebit.core.compiled import kernel
-from onebit.models.graph_hmm.adaptive import SecondOrderEntries, joint_emission
+from onebit.models.graph_hmm.adaptive import joint_emission
 from onebit.models.graph_hmm.eatg import Eatg
 from onebit.models.graph_hmm.likelihood import claims, path_log_prior
+from onebit.models.graph_hmm.window import SecondOrderEntries
 
 
 class PairSpace:
@@ -53,8 +54,8 @@ class PairSpace:
     each state's predecessors with their log transition probabilities (module docstring).
 
     ``log_a`` gives ``log a(j3, j2, j1)`` by index arrays: the dense tensor of
-    :func:`~onebit.models.graph_hmm.adaptive.second_order_tensor` or its entries one by one
-    (:class:`~onebit.models.graph_hmm.adaptive.SecondOrderEntries`, no ``N^3`` array). On a
+    :func:`~onebit.models.graph_hmm.window.second_order_tensor` or its entries one by one
+    (:class:`~onebit.models.graph_hmm.window.SecondOrderEntries`, no ``N^3`` array). On a
     subset of the nodes a state ``(x, c)`` keeps every context ``c`` of ``x``; a move from a
     node outside the subset has no predecessor state (paths stay inside it). States are
     ordered by node, then context, and so are the predecessors, as on the whole graph: a
@@ -130,7 +131,7 @@ class JointSpaces:
     activations chained to them within ``r`` hops. Faster on long meetings but approximate: a
     joint optimum that leaves it is not found (on the simulated 24-hour home one hour-long
     meeting's gain in ``log L`` fell from 682 to 53). Transitions are read entry by entry
-    (:class:`~onebit.models.graph_hmm.adaptive.SecondOrderEntries`): no ``N^3`` tensor.
+    (:class:`~onebit.models.graph_hmm.window.SecondOrderEntries`): no ``N^3`` tensor.
     Spaces are cached by their node set (at most ``MAX_CACHED``). ``whole=True``: every meeting
     on every node (the reference the exact sets are tested against)."""
 
