@@ -218,6 +218,64 @@ def _decode_local(
 
 
 @kernel
+def _user_states(pre_u, npre, entry_u, st, rows, on_ptr, on_idx, seeds, f_ptr, f_idx, b_ptr, b_idx, dist, gs):
+    """The states a user can be at (module docstring of adaptive, "local decodes"), written to
+    ``gs``: ``(n_loc, uniform)``, ``uniform`` for a user that may start anywhere (its states
+    those within reach of an active state, to be certified)."""
+    n_slots = on_ptr.shape[0] - 1
+    uniform = False
+    if npre > 0:
+        seeds[0] = pre_u[npre - 1]
+        n_loc = _reach(seeds, 1, rows - npre, f_ptr, f_idx, b_ptr, b_idx, dist, gs)
+        if npre == 2:  # its context node, if farther
+            have = False
+            for i in range(n_loc):
+                have = have or gs[i] == pre_u[0]
+            if not have:
+                gs[n_loc] = pre_u[0]
+                n_loc += 1
+                gs[:n_loc] = np.sort(gs[:n_loc])
+    elif entry_u >= 0:
+        seeds[0] = entry_u
+        n_loc = _reach(seeds, 1, rows - 1, f_ptr, f_idx, b_ptr, b_idx, dist, gs)
+    else:
+        uniform = True
+        ns = 0
+        for q in range(on_ptr[st], on_ptr[n_slots]):
+            seeds[ns] = on_idx[q]
+            ns += 1
+        n_loc = _reach(seeds, ns, rows - 1, f_ptr, f_idx, b_ptr, b_idx, dist, gs) if ns else 0
+    return n_loc, uniform
+
+
+@kernel
+def _joint_emission(on, on_ptr, on_idx, decoded, table):
+    """The joint emission log-likelihood of the decoded users, summed over the states with an
+    activation or a user; every other one is off and free (``table[3, 0]`` each)."""
+    n_slots, s = on.shape
+    k = decoded.shape[0]
+    joint = 0.0
+    for t in range(n_slots):
+        special = 0
+        for q in range(on_ptr[t], on_ptr[t + 1]):
+            joint += table[2, _claims(decoded, -1, t, on_idx[q])]
+            special += 1
+        for u in range(k):
+            q = decoded[u, t]
+            if q < 0 or on[t, q]:
+                continue
+            first = True
+            for v in range(u):
+                if decoded[v, t] == q:
+                    first = False
+            if first:
+                joint += table[3, _claims(decoded, -1, t, q)]
+                special += 1
+        joint += (s - special) * table[3, 0]
+    return joint
+
+
+@kernel
 def _ascent_one_order(
     on,
     on_ptr,
@@ -262,29 +320,9 @@ def _ascent_one_order(
                 decoded[u, t] = -1
             npre = n_pre[u]
             rows = npre + n_slots - st
-            # the states the user can be at (module docstring of adaptive, "local decodes")
-            uniform = False
-            if npre > 0:
-                seeds[0] = pre[u, npre - 1]
-                n_loc = _reach(seeds, 1, rows - npre, f_ptr, f_idx, b_ptr, b_idx, dist, gs)
-                if npre == 2:  # its context node, if farther
-                    have = False
-                    for i in range(n_loc):
-                        have = have or gs[i] == pre[u, 0]
-                    if not have:
-                        gs[n_loc] = pre[u, 0]
-                        n_loc += 1
-                        gs[:n_loc] = np.sort(gs[:n_loc])
-            elif entry[u] >= 0:
-                seeds[0] = entry[u]
-                n_loc = _reach(seeds, 1, rows - 1, f_ptr, f_idx, b_ptr, b_idx, dist, gs)
-            else:
-                uniform = True
-                ns = 0
-                for q in range(on_ptr[st], on_ptr[n_slots]):
-                    seeds[ns] = on_idx[q]
-                    ns += 1
-                n_loc = _reach(seeds, ns, rows - 1, f_ptr, f_idx, b_ptr, b_idx, dist, gs) if ns else 0
+            n_loc, uniform = _user_states(
+                pre[u], npre, entry[u], st, rows, on_ptr, on_idx, seeds, f_ptr, f_idx, b_ptr, b_idx, dist, gs
+            )
             stats[0] += 1
             full = n_loc == 0 or 2 * n_loc > s  # reaching most states: every state (no certificate needed)
             path, score, emis_sum = _decode_local(
@@ -345,25 +383,7 @@ def _ascent_one_order(
     total = 0.0
     for u in range(k):
         total += trans[u]
-    joint = 0.0
-    for t in range(n_slots):  # the states with an activation or a user; every other one is off and free
-        special = 0
-        for q in range(on_ptr[t], on_ptr[t + 1]):
-            joint += table[2, _claims(decoded, -1, t, on_idx[q])]
-            special += 1
-        for u in range(k):
-            q = decoded[u, t]
-            if q < 0 or on[t, q]:
-                continue
-            first = True
-            for v in range(u):
-                if decoded[v, t] == q:
-                    first = False
-            if first:
-                joint += table[3, _claims(decoded, -1, t, q)]
-                special += 1
-        joint += (s - special) * table[3, 0]
-    return total + joint
+    return total + _joint_emission(on, on_ptr, on_idx, decoded, table)
 
 
 @kernel

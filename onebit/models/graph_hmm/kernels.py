@@ -248,6 +248,66 @@ def _grow(arr, need):
 
 
 @kernel
+def _best_moves(delta, ca, cb, nc, blocks, gs, k_ptr, k_idx, k_col, base_of, best, arg, touched, ta, tb):
+    """One slot's moves of :func:`_viterbi_motion2_local`: ``best[j, k] = max_p delta[p, j] +
+    log_move[p, j, k]`` over the finite pairs ``(ca, cb)`` and the moves of the support, ``arg``
+    the smallest maximising ``p``; the pairs a move reaches are marked in ``touched`` and listed
+    in ``(ta, tb)`` (grown as needed). Returns ``(ta, tb, count)``."""
+    nt = 0
+    for i in range(nc):
+        p = ca[i]
+        j = cb[i]
+        dv = delta[p, j]
+        base = base_of[p, j]
+        for q in range(k_ptr[j], k_ptr[j + 1]):
+            k = k_idx[q]
+            if k == j:
+                continue
+            v = dv + blocks[4][base + k_col[q]]
+            if v == NEG_INF:
+                continue
+            if not touched[j, k]:
+                touched[j, k] = True
+                base_of[j, k] = blocks[5][blocks[3][gs[j]] + k_col[q]]
+                ta = _grow(ta, nt + 1)
+                tb = _grow(tb, nt + 1)
+                ta[nt] = j
+                tb[nt] = k
+                nt += 1
+                best[j, k] = v
+                arg[j, k] = p
+            elif v > best[j, k] or (v == best[j, k] and p < arg[j, k]):
+                best[j, k] = v
+                arg[j, k] = p
+    return ta, tb, nt
+
+
+@kernel
+def _backtrack_pairs(delta, ca, cb, nc, rec_ptr, ra, rb, rp, path):
+    """The end of :func:`_viterbi_motion2_local`: the row-major first maximal pair of the last
+    ``delta``, then back through the slots' sparse back-pointers (a pair without one stayed).
+    Fills ``path``; returns the score."""
+    n_slots = path.shape[0]
+    x, y = 0, 0
+    for i in range(nc):  # the row-major first maximum
+        a, b = ca[i], cb[i]
+        if delta[a, b] > delta[x, y] or (delta[a, b] == delta[x, y] and (a < x or (a == x and b < y))):
+            x, y = a, b
+    score = delta[x, y]
+    path[n_slots - 1] = y
+    for d in range(n_slots - 1, 0, -1):
+        b = -1
+        for r in range(rec_ptr[d], rec_ptr[d + 1]):
+            if ra[r] == x and rb[r] == y:
+                b = rp[r]
+                break
+        if b >= 0:
+            x, y = b, x
+        path[d - 1] = y
+    return score
+
+
+@kernel
 def _viterbi_motion2_local(log_pi, log_stay, blocks, gs, log_b, k_ptr, k_idx, k_col):
     """:func:`_viterbi_motion2` over the reachable pairs only: it keeps the list of the
     (previous, current) pairs whose ``delta`` is finite and, per slot, extends each by the moves
@@ -298,32 +358,9 @@ def _viterbi_motion2_local(log_pi, log_stay, blocks, gs, log_b, k_ptr, k_idx, k_
     rp = np.empty(16, dtype=np.int64)
     nr = 0
     for d in range(1, n_slots):  # sequential in time by construction
-        nt = 0
-        for i in range(nc):  # best[j, k] = max_p delta[p, j] + log_move[p, j, k]
-            p = ca[i]
-            j = cb[i]
-            dv = delta[p, j]
-            base = base_of[p, j]
-            for q in range(k_ptr[j], k_ptr[j + 1]):
-                k = k_idx[q]
-                if k == j:
-                    continue
-                v = dv + blocks[4][base + k_col[q]]
-                if v == NEG_INF:
-                    continue
-                if not touched[j, k]:
-                    touched[j, k] = True
-                    base_of[j, k] = blocks[5][blocks[3][gs[j]] + k_col[q]]
-                    ta = _grow(ta, nt + 1)
-                    tb = _grow(tb, nt + 1)
-                    ta[nt] = j
-                    tb[nt] = k
-                    nt += 1
-                    best[j, k] = v
-                    arg[j, k] = p
-                elif v > best[j, k] or (v == best[j, k] and p < arg[j, k]):
-                    best[j, k] = v
-                    arg[j, k] = p
+        ta, tb, nt = _best_moves(
+            delta, ca, cb, nc, blocks, gs, k_ptr, k_idx, k_col, base_of, best, arg, touched, ta, tb
+        )
         nn = 0
         for pass_ in range(2):  # the pairs a move reaches, then the others that stay
             m = nt if pass_ == 0 else nc
@@ -363,23 +400,7 @@ def _viterbi_motion2_local(log_pi, log_stay, blocks, gs, log_b, k_ptr, k_idx, k_
         ca, na = na, ca
         cb, nb = nb, cb
         nc = nn
-    x, y = 0, 0
-    for i in range(nc):  # the row-major first maximum
-        a, b = ca[i], cb[i]
-        if delta[a, b] > delta[x, y] or (delta[a, b] == delta[x, y] and (a < x or (a == x and b < y))):
-            x, y = a, b
-    score = delta[x, y]
-    path[n_slots - 1] = y
-    for d in range(n_slots - 1, 0, -1):
-        b = -1
-        for r in range(rec_ptr[d], rec_ptr[d + 1]):
-            if ra[r] == x and rb[r] == y:
-                b = rp[r]
-                break
-        if b >= 0:
-            x, y = b, x
-        path[d - 1] = y
-    return path, score
+    return path, _backtrack_pairs(delta, ca, cb, nc, rec_ptr, ra, rb, rp, path)
 
 
 @kernel
