@@ -10,6 +10,7 @@ oracle                                 the shipped step it checks
 :func:`pair_meeting_reference`         :func:`onebit.trackers.findinghumo.cpda.pair_meeting`
 :func:`scan_clusters_direct`           :func:`onebit.trackers.clustertrack.algorithm.scan_clusters`
 :func:`motion_frames_reference`        :func:`onebit.core.frames.motion_frames`
+:func:`istate_filter_reference`        ``onebit.trackers.istate.stage._filter`` (the stage loop)
 =====================================  =========================================================
 """
 
@@ -27,6 +28,8 @@ from onebit.core.region_graph import RegionGraph
 from onebit.core.tables import FRAMES, SCORES, conform
 from onebit.scoring.crossings import truth_regions
 from onebit.trackers.findinghumo.cpda import _jumps, _pairings, junction_score
+from onebit.trackers.istate.core import IState, PairMemo, info_state_update
+from onebit.trackers.istate.stage import IStateConfig, Stages, _point_summary
 from onebit.viz import colors
 from onebit.viz.istate import FILL_ALPHA, FillRaster, _png, element_color
 
@@ -181,3 +184,35 @@ def motion_frames_reference(
     )
     out = out.join(order, on="sensor").sort(["slot", "_k"])
     return conform(out, FRAMES)
+
+
+def istate_filter_reference(stages: Stages, config: IStateConfig) -> tuple[np.ndarray, list, np.ndarray, np.ndarray]:
+    """:func:`onebit.trackers.istate.stage._filter` computing every stage (the plain loop; its test oracle): an I-state per stage."""
+    times, n = stages.times, stages.n
+    K = len(times)
+    db, nb = stages.det_bounds, stages.neg_bounds
+    eta = IState.initial(stages.free, n)
+    cap = config.max_elements or None
+    reg_rows, summ, track_xy = [], np.zeros((K, 4)), np.zeros((K, n, 2))
+    prev = None
+    memo = PairMemo()
+    free_area = float(stages.free.area) or 1.0
+    for k in range(K):
+        rejected: list | None = [] if config.contradictions == "reject" else None
+        eta = info_state_update(
+            eta,
+            stages.detections[db[k] : db[k + 1]],
+            step=stages.step if k else 0.0,
+            free_space=stages.free,
+            shape=config.shape,
+            max_elements=cap,
+            negatives=stages.negatives[nb[k] : nb[k + 1]],
+            substeps=config.substeps,
+            memo=memo,
+            rejected=rejected,
+        )
+        reg_rows.append(eta.regions.ravel())
+        area = memo.recall(eta, stages.free, "total_area", IState.total_area)  # as the filter always did
+        summ[k] = (eta.size, len(rejected or ()), area / free_area, area)
+        track_xy[k] = prev = _point_summary(eta, prev, n)
+    return np.arange(K, dtype=np.int64), reg_rows, summ, track_xy
