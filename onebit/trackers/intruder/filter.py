@@ -198,8 +198,6 @@ def run_filter(
             log_particles=log_particles,
             progress=progress,
         )
-    cxs, cys = dep.grid.centres()
-    mask = np.ascontiguousarray(room.contains(cxs.ravel(), cys.ravel()).reshape(cxs.shape))
     p = prior(n_particles, room, motion, rng)
     L = logged_per_iteration(log_particles, n_particles, T)
     res = FilterResult(
@@ -215,6 +213,29 @@ def run_filter(
     if T == 0:
         return res
     pick = np.linspace(0, n_particles - 1, L).round().astype(np.int64) if L else np.zeros(0, np.int64)
+    fired = np.ascontiguousarray(fired, dtype=np.bool_)
+    blind = np.ascontiguousarray(blind, dtype=np.bool_)
+    x, y, theta, v, w = (np.ascontiguousarray(c, dtype=np.float64) for c in (p.x, p.y, p.theta, p.v, p.w))
+    common = _kernel_common(dep, room, half_w, half_d, resample, resample_when, ess_threshold, pick)
+    outs = (res.estimates, res.ess, res.resampled, res.logged_xy, res.logged_w, res.spread)
+    if room.is_box:
+        _run_box_room((x, y, theta, v, w), rng, fired, blind, room, motion, common, res, progress)
+        return res
+    uniform = False
+    for k in range(T):  # sequential: each iteration needs the previous posterior
+        p, res.redraws[k], res.clamped[k] = propagate(Particles(x, y, theta, v, w), room, motion, rng)
+        x, y, theta, v, w = (np.ascontiguousarray(c, dtype=np.float64) for c in (p.x, p.y, p.theta, p.v, p.w))
+        uniform = kernels._update_one(k, x, y, theta, v, w, uniform, rng, fired[k], blind[k], *common, *outs)
+        if progress is not None:
+            progress(k + 1, T)
+    return res
+
+
+def _kernel_common(dep: Deployment, room: Room, half_w, half_d, resample, resample_when, ess_threshold, pick) -> tuple:
+    """The arguments every filter kernel call shares: the grid, the sensors' cell lists and
+    probabilities, the body's half sizes, the room's cell mask and the resampling options."""
+    cxs, cys = dep.grid.centres()
+    mask = np.ascontiguousarray(room.contains(cxs.ravel(), cys.ravel()).reshape(cxs.shape))
     g = dep.grid
     grid = np.array([g.x0, g.y0, g.cell, g.nx, g.ny], dtype=np.float64)
     ptr, sensor, q = kernels.cell_lists(dep.q)
@@ -222,11 +243,8 @@ def run_filter(
     # 1 - p0 as the reference divides by it: exp(log1p(-p0)) (math.exp, as log_p_silent)
     a = np.array([math.exp(v) for v in np.log1p(-np.minimum(p0, 1 - PROB_FLOOR))], dtype=np.float64)
     xi = np.asarray(dep.xi, dtype=np.float64)
-    fired = np.ascontiguousarray(fired, dtype=np.bool_)
-    blind = np.ascontiguousarray(blind, dtype=np.bool_)
     systematic, always = resample == "systematic", resample_when == "always"
-    x, y, theta, v, w = (np.ascontiguousarray(c, dtype=np.float64) for c in (p.x, p.y, p.theta, p.v, p.w))
-    common = (
+    return (
         grid,
         ptr,
         sensor,
@@ -242,46 +260,37 @@ def run_filter(
         float(ess_threshold),
         pick,
     )
-    outs = (res.estimates, res.ess, res.resampled, res.logged_xy, res.logged_w, res.spread)
-    if room.is_box:
-        mot = np.array(
-            [motion.period, motion.v_max, motion.speed_sigma, motion.turn_scale, motion.max_retries], dtype=np.float64
+
+
+def _run_box_room(particles, rng, fired, blind, room: Room, motion: Motion, common: tuple, res, progress) -> None:
+    """The whole run in a box room, one compiled call (or :data:`PROGRESS_CHUNKS` slices of the
+    iterations when ``progress`` is given), filling ``res``."""
+    T = fired.shape[0]
+    mot = np.array(
+        [motion.period, motion.v_max, motion.speed_sigma, motion.turn_scale, motion.max_retries], dtype=np.float64
+    )
+    step = T if progress is None else max(1, -(-T // PROGRESS_CHUNKS))
+    for a in range(0, T, step):
+        b = min(a + step, T)
+        kernels._run_box(
+            *particles,
+            rng,
+            fired[a:b],
+            blind[a:b],
+            mot,
+            np.asarray(room.bounds, dtype=np.float64),
+            *common,
+            res.estimates[a:b],
+            res.ess[a:b],
+            res.redraws[a:b],
+            res.clamped[a:b],
+            res.resampled[a:b],
+            res.logged_xy[a:b],
+            res.logged_w[a:b],
+            res.spread[a:b],
         )
-        step = T if progress is None else max(1, -(-T // PROGRESS_CHUNKS))
-        for a in range(0, T, step):
-            b = min(a + step, T)
-            kernels._run_box(
-                x,
-                y,
-                theta,
-                v,
-                w,
-                rng,
-                fired[a:b],
-                blind[a:b],
-                mot,
-                np.asarray(room.bounds, dtype=np.float64),
-                *common,
-                res.estimates[a:b],
-                res.ess[a:b],
-                res.redraws[a:b],
-                res.clamped[a:b],
-                res.resampled[a:b],
-                res.logged_xy[a:b],
-                res.logged_w[a:b],
-                res.spread[a:b],
-            )
-            if progress is not None:
-                progress(b, T)
-        return res
-    uniform = False
-    for k in range(T):  # sequential: each iteration needs the previous posterior
-        p, res.redraws[k], res.clamped[k] = propagate(Particles(x, y, theta, v, w), room, motion, rng)
-        x, y, theta, v, w = (np.ascontiguousarray(c, dtype=np.float64) for c in (p.x, p.y, p.theta, p.v, p.w))
-        uniform = kernels._update_one(k, x, y, theta, v, w, uniform, rng, fired[k], blind[k], *common, *outs)
         if progress is not None:
-            progress(k + 1, T)
-    return res
+            progress(b, T)
 
 
 def logged_per_iteration(log_particles: int, n_particles: int, iterations: int) -> int:
