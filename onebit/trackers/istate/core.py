@@ -24,7 +24,7 @@ Operations (each named after the paper's step):
   axis-aligned rectangle or disk containing each exact result;
 * :func:`contains` / :func:`contains_states` -- the query of section VI-A.2;
 * :func:`communicate` -- the communication update of section VI-B (perfect matchings of the
-  non-empty-intersection graph); :func:`communicate_bruteforce` is the direct
+  non-empty-intersection graph); :func:`onebit._testing.oracles.communicate_bruteforce` is the direct
   ``O(M^2 n!)`` formula it replaces, kept as the reference.
 
 Pairwise work done once. The cap and the clean-up compare regions pairwise across elements
@@ -124,7 +124,6 @@ __all__ = [
     "cap_elements_reference",
     "clean_up",
     "communicate",
-    "communicate_bruteforce",
     "constrain",
     "contains",
     "contains_states",
@@ -330,22 +329,6 @@ def communicate(a: IState, b: IState, *, shape: str = "exact") -> IState:
         left = a.regions[i]  # (P, n)
         right = np.take_along_axis(b.regions[j], match, axis=1)
         inter = np.asarray(constrain(shapely.intersection(left, right), shape), dtype=object).reshape(left.shape)
-    return clean_up(IState(inter), shape=shape)
-
-
-def communicate_bruteforce(a: IState, b: IState, *, shape: str = "exact") -> IState:
-    """The direct formula of section VI-B, ``O(Ea Eb n!)`` intersections: every element pair
-    and every permutation, empty products dropped, then clean-up (reference for tests and
-    the benchmark)."""
-    Ea, Eb, n = a.size, b.size, a.n
-    if Ea == 0 or Eb == 0:
-        return IState(np.empty((0, n), dtype=object))
-    perms = permutations(n)
-    i, j, p = np.meshgrid(np.arange(Ea), np.arange(Eb), np.arange(len(perms)), indexing="ij")
-    i, j, p = i.ravel(), j.ravel(), p.ravel()
-    left = a.regions[i]
-    right = np.take_along_axis(b.regions[j], perms[p], axis=1)
-    inter = np.asarray(constrain(shapely.intersection(left, right), shape), dtype=object).reshape(left.shape)
     return clean_up(IState(inter), shape=shape)
 
 

@@ -17,6 +17,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from shapely.geometry import Point, box
 
+from onebit._testing.oracles import communicate_bruteforce
 from onebit.trackers.istate.core import (
     FRAME_GRID,
     IState,
@@ -25,7 +26,6 @@ from onebit.trackers.istate.core import (
     cap_elements,
     clean_up,
     communicate,
-    communicate_bruteforce,
     constrain,
     contains,
     contains_states,
