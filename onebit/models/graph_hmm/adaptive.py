@@ -408,6 +408,77 @@ class WindowDecoder:
         self._fresh[old:need] = recent_onsets(self._ons[lo:need], self.params.fresh_slots)[old - lo :]
         self.n_slots = need
 
+    def _entries(self, s: int, obs: np.ndarray, ons: np.ndarray, last: dict, alive: list) -> list[tuple[int, int]]:
+        """The window's entry signatures (from slot ``s``; ``obs``/``ons`` its activity and
+        onsets): an onset at ``outer``, then ``inner`` active later in the window, nobody near
+        ``outer``. One ``(slot in the window, outer)`` per onset, whatever the signature, sorted."""
+        hops, rows = self.eatg.hops, self.rows
+        entries = []
+        for outer, inner in self.signatures:
+            for t in np.flatnonzero(ons[:, outer]):
+                if not obs[t:, inner].any():
+                    continue
+                if any(hops[outer, lst[-1]] <= 1 for lst in last.values() if lst):
+                    continue
+                if any(
+                    hops[outer, rows[u][s + t - 1]] <= 1 for u in alive if s + t - 1 >= 0 and rows[u][s + t - 1] >= 0
+                ):
+                    continue
+                entries.append((t, outer))
+        return sorted({(t, o) for t, o in entries})
+
+    def _new_users(self, count: int, entries: list, obs: np.ndarray, s: int) -> list[int]:
+        """``count`` users more in the window from slot ``s``: each at its entry (the first
+        ``len(entries)``; then anywhere), a dormant user that just left by that door resumed
+        (``DecoderParams.resume``), else a new one. Returns their indices."""
+        users, rows, dormant, hops = self.users, self.rows, self.dormant, self.eatg.hops
+        new = []
+        for i in range(count):
+            t0, node = entries[i] if i < len(entries) else (0, -1)
+            seen = np.flatnonzero(obs.any(axis=0))
+            back = [
+                u
+                for u, (slot, outer) in dormant.items()
+                if s + t0 - slot <= self.params.resume
+                and (outer == node or (node < 0 and seen.size and hops[outer, seen].min() <= 1))
+            ]
+            if back:  # an exit at this door just before: the same user walked through it
+                u = max(back, key=lambda v: dormant[v][0])
+                slot, door = dormant.pop(u)
+                rows[u][slot : s + t0] = door
+                users[u].start, users[u].entry_node = s + t0, door
+                new.append(u)
+                continue
+            users.append(_User(len(users), s + t0, node))
+            rows.append(np.full(self._active.shape[0], -1, dtype=np.int64))
+            new.append(len(users) - 1)
+        return new
+
+    def _decode_window(self, obs: np.ndarray, prefixes: list, starts: list, entry_nodes: list) -> tuple:
+        """``(paths, info)`` of the window's users: staying put without any motion, else the
+        adaptive decoder or the full-state baseline of ``params.mode``."""
+        params = self.params
+        if not obs.any():
+            # no motion at all: every known user stays where it was
+            w = obs.shape[0]
+            paths = np.array([[p[-1] if p else -1] * w for p in prefixes], dtype=np.int64).reshape(len(prefixes), w)
+            return paths, dict(order=0, states=0, overlap=False)
+        if params.mode == "adaptive":
+            return _adaptive_window(obs, prefixes, starts, entry_nodes, self.eatg, params)
+        order = 1 if params.mode == "full1" else 2
+        paths = decode_users(
+            obs,
+            np.arange(self.n),
+            prefixes,
+            starts,
+            entry_nodes,
+            order=order,
+            eatg=self.eatg,
+            params=params,
+            transitions=self._full,
+        )
+        return paths, dict(order=order, states=self.n, overlap=None)
+
     def advance(self, *, final: bool = False, progress: Callable[[int, int], None] | None = None) -> None:
         """Decode every window whose slots have all arrived (with ``final``: every window left,
         the last accepting all its slots -- no slot arrives after)."""
@@ -417,7 +488,6 @@ class WindowDecoder:
         hops = self.eatg.hops
         adj = hops == 1
         users, rows, dormant = self.users, self.rows, self.dormant
-        resume = params.resume
         d_max = n_slots if params.offline else params.d_max
         tau = n_slots if params.offline else params.tau
         if params.offline and not final:
@@ -435,72 +505,16 @@ class WindowDecoder:
                 default=0,
             )
             last = {u: _last_nodes(rows[u], s) for u in alive}
-            # entry signatures: onset at outer, then inner active later in the window, nobody near outer
-            entries = []
-            for outer, inner in self.signatures:
-                for t in np.flatnonzero(ons[s:e, outer]):
-                    if not obs[t:, inner].any():
-                        continue
-                    if any(hops[outer, lst[-1]] <= 1 for lst in last.values() if lst):
-                        continue
-                    if any(
-                        hops[outer, rows[u][s + t - 1]] <= 1
-                        for u in alive
-                        if s + t - 1 >= 0 and rows[u][s + t - 1] >= 0
-                    ):
-                        continue
-                    entries.append((t, outer))
-            entries = sorted({(t, o) for t, o in entries})  # one entry per onset, whatever the signature
+            entries = self._entries(s, obs, ons[s:e], last, alive)
             k_pre = len(alive)
             k = max(k_pre + len(entries), k_now)
             if params.max_users > 0:  # the bound holds inside the decoder: never more users than it
                 k = min(k, max(params.max_users, k_pre))
-            new = []
-            for i in range(k - k_pre):
-                t0, node = entries[i] if i < len(entries) else (0, -1)
-                seen = np.flatnonzero(obs.any(axis=0))
-                back = [
-                    u
-                    for u, (slot, outer) in dormant.items()
-                    if s + t0 - slot <= resume
-                    and (outer == node or (node < 0 and seen.size and hops[outer, seen].min() <= 1))
-                ]
-                if back:  # an exit at this door just before: the same user walked through it
-                    u = max(back, key=lambda v: dormant[v][0])
-                    slot, door = dormant.pop(u)
-                    rows[u][slot : s + t0] = door
-                    users[u].start, users[u].entry_node = s + t0, door
-                    new.append(u)
-                    continue
-                users.append(_User(len(users), s + t0, node))
-                rows.append(np.full(self._active.shape[0], -1, dtype=np.int64))
-                new.append(len(users) - 1)
-            cur = alive + new
+            cur = alive + self._new_users(k - k_pre, entries, obs, s)
             prefixes = [last.get(u, []) for u in cur]
             starts = [max(0, users[u].start - s) for u in cur]
             entry_nodes = [users[u].entry_node for u in cur]
-            if not obs.any():
-                # no motion at all: every known user stays where it was
-                paths = np.array([[p[-1] if p else -1] * (e - s) for p in prefixes], dtype=np.int64).reshape(
-                    len(cur), e - s
-                )
-                info = dict(order=0, states=0, overlap=False)
-            elif params.mode == "adaptive":
-                paths, info = _adaptive_window(obs, prefixes, starts, entry_nodes, self.eatg, params)
-            else:
-                order = 1 if params.mode == "full1" else 2
-                paths = decode_users(
-                    obs,
-                    np.arange(self.n),
-                    prefixes,
-                    starts,
-                    entry_nodes,
-                    order=order,
-                    eatg=self.eatg,
-                    params=params,
-                    transitions=self._full,
-                )
-                info = dict(order=order, states=self.n, overlap=None)
+            paths, info = self._decode_window(obs, prefixes, starts, entry_nodes)
             gone = []
             for i, u in enumerate(cur):
                 rows[u][s:acc] = np.where(np.arange(s, acc) >= users[u].start, paths[i, : acc - s], -1)
