@@ -251,6 +251,48 @@ def graph_site_toml(
 # --------------------------------------------------------------------------- CASAS
 
 
+def _casas_layout(layout, log: Path, *, scale, rooms, graph_radius) -> Layout | None:
+    """The layout file or floor plan (None without one), its ids renamed to the log's."""
+    lay = None
+    if layout is not None:
+        lay = (
+            load_layout(layout)
+            if Path(layout).suffix.lower() == ".toml"
+            else load_floor_plan(layout, scale=scale, rooms=rooms, radius=graph_radius)
+        )
+        lay = _renamed(lay, read_casas(log).events["sensor"].unique().to_list())
+    return lay
+
+
+def _casas_site_toml(log: Path, res: CasasLog, lay: Layout | None, g, door_ids: list, targets: int | None) -> str:
+    """The text of the imported home's ``site.toml``, its header saying where the positions
+    and the graph come from."""
+    epoch = _epoch_text(res)
+    header = (
+        f"# Imported from the CASAS log {log.name} by 'onebit import casas' (see import.toml).\n"
+        + (
+            "# Sensor positions: a force layout of the sensor graph learned from the log -- NOT measured.\n"
+            if g.how == "force layout"
+            else f"# Sensor positions from the layout file {Path(lay.source).name}.\n"
+        )
+        + f"# Sensor graph: {g.graph_how}; entry/exit nodes: the doors a layout or --doors declares ({len(door_ids)}), "
+        "never cupboard or appliance contacts.\n"
+    )
+    text = graph_site_toml(
+        name=(lay.name if lay is not None and lay.name else log.stem),
+        units=g.units,
+        positions=g.positions,
+        edges=g.edges,
+        doors=door_ids,
+        sensor_range=g.sensor_range,
+        boundary=lay.boundary if lay is not None else None,
+        epoch=epoch,
+        targets=targets if targets is not None else (lay.targets if lay is not None else None),
+        header=header,
+    )
+    return text
+
+
 def import_casas(
     log: str | Path,
     dataset: str | Path,
@@ -294,43 +336,14 @@ def import_casas(
         hold_s=hold_s,
         hold_samples=hold_samples,
     )
-    lay = None
-    if layout is not None:
-        lay = (
-            load_layout(layout)
-            if Path(layout).suffix.lower() == ".toml"
-            else load_floor_plan(layout, scale=scale, rooms=rooms, radius=graph_radius)
-        )
-        lay = _renamed(lay, read_casas(log).events["sensor"].unique().to_list())
+    lay = _casas_layout(layout, log, scale=scale, rooms=rooms, graph_radius=graph_radius)
     kinds = dict(lay.kinds) if lay is not None else {}
     kinds.update({d: "door" for d in doors})
     res: CasasLog = read_casas(log, kinds=kinds or None)
     parts = _casas_parts(res, lay, log, doors=doors, hold_s=hold_s, hold_samples=hold_samples)
     g = _casas_graph(parts, lay, window_s=window_s, min_count=min_count, min_share=min_share, spacing_m=spacing_m)
     door_ids = [n for n in g.positions if n in parts.door_ids]
-    epoch = _epoch_text(res)
-    header = (
-        f"# Imported from the CASAS log {log.name} by 'onebit import casas' (see import.toml).\n"
-        + (
-            "# Sensor positions: a force layout of the sensor graph learned from the log -- NOT measured.\n"
-            if g.how == "force layout"
-            else f"# Sensor positions from the layout file {Path(lay.source).name}.\n"
-        )
-        + f"# Sensor graph: {g.graph_how}; entry/exit nodes: the doors a layout or --doors declares ({len(door_ids)}), "
-        "never cupboard or appliance contacts.\n"
-    )
-    text = graph_site_toml(
-        name=(lay.name if lay is not None and lay.name else log.stem),
-        units=g.units,
-        positions=g.positions,
-        edges=g.edges,
-        doors=door_ids,
-        sensor_range=g.sensor_range,
-        boundary=lay.boundary if lay is not None else None,
-        epoch=epoch,
-        targets=targets if targets is not None else (lay.targets if lay is not None else None),
-        header=header,
-    )
+    text = _casas_site_toml(log, res, lay, g, door_ids, targets)
     site_from_dict(tomllib.loads(text), source=str(out / "site.toml"))  # refuse to write a site that would not load
     out.mkdir(parents=True, exist_ok=True)
     write_text(text, out / "site.toml")
