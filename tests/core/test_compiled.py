@@ -1,4 +1,5 @@
-"""A kernel may call a kernel of another module, whichever of the two modules compiles first."""
+"""A kernel may call a kernel of another module (which calls one of its own), whichever of the two
+modules compiles first."""
 
 from __future__ import annotations
 
@@ -12,8 +13,12 @@ CALLEE = """
 from onebit.core.compiled import kernel
 
 @kernel
+def _double(x):
+    return x + x
+
+@kernel
 def twice(x):
-    return 2.0 * x
+    return _double(x)
 """
 
 CALLER = """
