@@ -96,6 +96,22 @@ def merge_elements(
     return np.asarray(join(a, b[tau]) if fresh else memo.geometries(a, b[tau], ("merge", shape), join), dtype=object)
 
 
+def _capped_by_chunks(cap, istate: IState, max_elements: int, *, shape: str, memo: PairMemo, delta) -> IState:
+    """``cap`` (:func:`cap_elements` or its reference) of each chunk of ``CAP_CHUNK`` elements,
+    then of their cleaned-up union: the pairwise similarity matrix stays ``O(CAP_CHUNK^2 n^2)``."""
+    parts = [
+        cap(IState(istate.regions[i : i + CAP_CHUNK]), max_elements, shape=shape, memo=memo, delta=delta).regions
+        for i in range(0, istate.regions.shape[0], CAP_CHUNK)
+    ]
+    return cap(
+        clean_up(IState(np.vstack(parts)), shape=shape, memo=memo, delta=delta),
+        max_elements,
+        shape=shape,
+        memo=memo,
+        delta=delta,
+    )
+
+
 def cap_elements(
     istate: IState,
     max_elements: int,
@@ -131,19 +147,7 @@ def cap_elements(
         return istate
     memo = PairMemo() if memo is None else memo
     if E > CAP_CHUNK:  # hierarchical: cap chunks of CAP_CHUNK first (each merge is a superset)
-        parts = [
-            cap_elements(
-                IState(istate.regions[i : i + CAP_CHUNK]), max_elements, shape=shape, memo=memo, delta=delta
-            ).regions
-            for i in range(0, E, CAP_CHUNK)
-        ]
-        return cap_elements(
-            clean_up(IState(np.vstack(parts)), shape=shape, memo=memo, delta=delta),
-            max_elements,
-            shape=shape,
-            memo=memo,
-            delta=delta,
-        )
+        return _capped_by_chunks(cap_elements, istate, max_elements, shape=shape, memo=memo, delta=delta)
     if shape == "rect":  # box overlaps are the exact similarities: nothing to bound
         return cap_elements_reference(istate, max_elements, shape=shape, memo=memo, delta=delta)
     regs = [row for row in istate.regions]
