@@ -200,16 +200,7 @@ def run_filter(
         )
     p = prior(n_particles, room, motion, rng)
     L = logged_per_iteration(log_particles, n_particles, T)
-    res = FilterResult(
-        np.zeros((T, 2)),
-        np.zeros(T),
-        np.zeros(T, np.int64),
-        np.zeros(T, np.int64),
-        np.zeros(T, bool),
-        np.zeros((T, L, 2)),
-        np.zeros((T, L)),
-        np.zeros(T),
-    )
+    res = _zero_result(T, L)
     if T == 0:
         return res
     pick = np.linspace(0, n_particles - 1, L).round().astype(np.int64) if L else np.zeros(0, np.int64)
@@ -229,6 +220,21 @@ def run_filter(
         if progress is not None:
             progress(k + 1, T)
     return res
+
+
+def _zero_result(T: int, L: int) -> FilterResult:
+    """A :class:`FilterResult` of ``T`` iterations, ``L`` logged particles each, all zero (the
+    kernels fill it)."""
+    return FilterResult(
+        np.zeros((T, 2)),
+        np.zeros(T),
+        np.zeros(T, np.int64),
+        np.zeros(T, np.int64),
+        np.zeros(T, bool),
+        np.zeros((T, L, 2)),
+        np.zeros((T, L)),
+        np.zeros(T),
+    )
 
 
 def _kernel_common(dep: Deployment, room: Room, half_w, half_d, resample, resample_when, ess_threshold, pick) -> tuple:
