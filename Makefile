@@ -38,13 +38,15 @@ $(RAY_STAMP): $(STAMP)
 	$(BIN)/python -m pip install --quiet -e '.[test,ray]'
 	touch $(RAY_STAMP)
 
-# test: lint and format (ruff), the layers contract (import-linter, pyproject.toml), the docs site
-# (mkdocs.yml, strict: a broken link or anchor fails) and the test suite on both cores
-# (pytest-xdist; a test file stays on one worker, so module fixtures are built once).
+# test: lint and format (ruff), the layers contract (import-linter, pyproject.toml), the size limits
+# of functions and modules (tools/sizes.py), the docs site (mkdocs.yml, strict: a broken link or
+# anchor fails) and the test suite on both cores (pytest-xdist; a test file stays on one worker, so
+# module fixtures are built once).
 test: install $(RAY_STAMP)
 	$(BIN)/ruff check .
 	$(BIN)/ruff format --check .
 	$(BIN)/lint-imports --no-cache
+	$(BIN)/python tools/sizes.py
 	NO_MKDOCS_2_WARNING=1 $(BIN)/mkdocs build --strict --quiet --site-dir $(BUILD)/site
 	RERUN_ANALYTICS=0 $(BIN)/python -m pytest -n 2 --dist loadfile -m "not browser"
 

@@ -155,7 +155,7 @@ def main(argv: list[str] | None = None) -> None:
     )
     ap.add_argument("--no-write", action="store_true", help="print only, do not update results.csv")
     args = ap.parse_args(argv)
-    from onebit.models.graph_hmm import kernels
+    from onebit.models.graph_hmm import ascent
 
     sizes = [int(s) for s in args.sizes.split(",")]
     active, nodes, edges, sigs, targets = activity(args.scenario, args.minutes, args.start_hour)
@@ -183,9 +183,9 @@ def main(argv: list[str] | None = None) -> None:
             g_nodes, g_edges = grown(nodes, edges, n)
             act = np.zeros((n_slots, len(g_nodes)), bool)
             act[:, : len(nodes)] = active
-            before = kernels.DECODE_STATS.copy()
+            before = ascent.DECODE_STATS.copy()
             runs = [run(act, g_nodes, g_edges, sigs, mode, targets=targets) for _ in range(args.repeat)]
-            stats = (kernels.DECODE_STATS - before) // args.repeat
+            stats = (ascent.DECODE_STATS - before) // args.repeat
             setup, dt, paths = min(r[0] for r in runs), min(r[1] for r in runs), runs[0][2]
             if ref is None and not args.reference:
                 ref = paths

@@ -23,11 +23,11 @@ import numpy as np
 import shapely
 from shapely.geometry import Point, box
 
+from onebit._testing.oracles import communicate_bruteforce
 from onebit.trackers.istate.core import (
     IState,
     clean_up,
     communicate,
-    communicate_bruteforce,
     info_state_update,
     observation_update,
     same_elements,

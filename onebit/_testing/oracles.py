@@ -10,6 +10,9 @@ oracle                                 the shipped step it checks
 :func:`pair_meeting_reference`         :func:`onebit.trackers.findinghumo.cpda.pair_meeting`
 :func:`scan_clusters_direct`           :func:`onebit.trackers.clustertrack.algorithm.scan_clusters`
 :func:`motion_frames_reference`        :func:`onebit.core.frames.motion_frames`
+:func:`istate_filter_reference`        ``onebit.trackers.istate.stage._filter`` (the stage loop)
+:func:`communicate_bruteforce`        :func:`onebit.trackers.istate.core.communicate`
+:func:`posteriors_bruteforce`         :func:`onebit.trackers.residents.known.posteriors`
 =====================================  =========================================================
 """
 
@@ -17,16 +20,21 @@ from __future__ import annotations
 
 import math
 from collections.abc import Sequence
+from itertools import product
 
 import numpy as np
 import polars as pl
 import shapely
+from scipy.special import logsumexp
 
 from onebit.core.frames import slot_grid
 from onebit.core.region_graph import RegionGraph
 from onebit.core.tables import FRAMES, SCORES, conform
 from onebit.scoring.crossings import truth_regions
 from onebit.trackers.findinghumo.cpda import _jumps, _pairings, junction_score
+from onebit.trackers.istate.core import IState, PairMemo, clean_up, constrain, info_state_update, permutations
+from onebit.trackers.istate.stage import IStateConfig, Stages, _point_summary
+from onebit.trackers.residents.known import Chains
 from onebit.viz import colors
 from onebit.viz.istate import FILL_ALPHA, FillRaster, _png, element_color
 
@@ -181,3 +189,75 @@ def motion_frames_reference(
     )
     out = out.join(order, on="sensor").sort(["slot", "_k"])
     return conform(out, FRAMES)
+
+
+def istate_filter_reference(stages: Stages, config: IStateConfig) -> tuple[np.ndarray, list, np.ndarray, np.ndarray]:
+    """:func:`onebit.trackers.istate.stage._filter` computing every stage (the plain loop; its test oracle): an I-state per stage."""
+    times, n = stages.times, stages.n
+    K = len(times)
+    db, nb = stages.det_bounds, stages.neg_bounds
+    eta = IState.initial(stages.free, n)
+    cap = config.max_elements or None
+    reg_rows, summ, track_xy = [], np.zeros((K, 4)), np.zeros((K, n, 2))
+    prev = None
+    memo = PairMemo()
+    free_area = float(stages.free.area) or 1.0
+    for k in range(K):
+        rejected: list | None = [] if config.contradictions == "reject" else None
+        eta = info_state_update(
+            eta,
+            stages.detections[db[k] : db[k + 1]],
+            step=stages.step if k else 0.0,
+            free_space=stages.free,
+            shape=config.shape,
+            max_elements=cap,
+            negatives=stages.negatives[nb[k] : nb[k + 1]],
+            substeps=config.substeps,
+            memo=memo,
+            rejected=rejected,
+        )
+        reg_rows.append(eta.regions.ravel())
+        area = memo.recall(eta, stages.free, "total_area", IState.total_area)  # as the filter always did
+        summ[k] = (eta.size, len(rejected or ()), area / free_area, area)
+        track_xy[k] = prev = _point_summary(eta, prev, n)
+    return np.arange(K, dtype=np.int64), reg_rows, summ, track_xy
+
+
+def communicate_bruteforce(a: IState, b: IState, *, shape: str = "exact") -> IState:
+    """The direct formula of section VI-B, ``O(Ea Eb n!)`` intersections: every element pair
+    and every permutation, empty products dropped, then clean-up (reference for tests and
+    the benchmark)."""
+    Ea, Eb, n = a.size, b.size, a.n
+    if Ea == 0 or Eb == 0:
+        return IState(np.empty((0, n), dtype=object))
+    perms = permutations(n)
+    i, j, p = np.meshgrid(np.arange(Ea), np.arange(Eb), np.arange(len(perms)), indexing="ij")
+    i, j, p = i.ravel(), j.ravel(), p.ravel()
+    left = a.regions[i]
+    right = np.take_along_axis(b.regions[j], perms[p], axis=1)
+    inter = np.asarray(constrain(shapely.intersection(left, right), shape), dtype=object).reshape(left.shape)
+    return clean_up(IState(inter), shape=shape)
+
+
+def posteriors_bruteforce(node: np.ndarray, ch: Chains, bonus: np.ndarray | None = None) -> tuple[np.ndarray, float]:
+    """(K2)-(K3) by enumeration of all ``K^n`` firer sequences (test oracle for short logs)."""
+    K = len(ch.residents)
+    bonus = np.zeros((len(node), K)) if bonus is None else bonus
+    S = ch.log_t.shape[2]
+    n = len(node)
+    logs, seqs = [], []
+    for z in product(range(K), repeat=n):
+        last = [S] * K
+        total = 0.0
+        for i, r in enumerate(z):
+            total += ch.log_t[r, last[r], node[i]] + bonus[i, r]
+            last[r] = int(node[i])
+        logs.append(total)
+        seqs.append(z)
+    logs = np.array(logs)
+    log_z = float(logsumexp(logs))
+    w = np.exp(logs - log_z)
+    post = np.zeros((n, K))
+    for wk, z in zip(w, seqs):
+        post[np.arange(n), list(z)] += wk
+    return post, log_z

@@ -7,8 +7,10 @@ its argument types on its own first call, or loaded from numba's on-disk cache, 
 which makes later processes start in milliseconds). So a command that never runs a kernel --
 ``onebit --help``, ``onebit simulate``, a reader of a file without beams -- does not pay
 numba's import. When a module's kernels become dispatchers the module's names are rebound to
-them, so a kernel that calls another compiles against the callee's dispatcher, and callers
-that look the kernel up on the module reach numba directly.
+them (a kernel imported from another module too: that module is turned as well, so the
+kernels the imported one calls are dispatchers in its own module), so a kernel that calls
+another compiles against the callee's dispatcher, and callers that look the kernel up on the
+module reach numba directly.
 
 The undecorated function stays available as ``.py_func`` (numba's name for it).
 """
@@ -73,7 +75,11 @@ def _compile_module(name: str) -> None:
 
     _STATE["loaded"] = True
     module = sys.modules[name]
-    for attr, value in list(vars(module).items()):
-        if isinstance(value, Kernel) and value._dispatcher is None:
-            value._dispatcher = numba.njit(**OPTIONS)(value.py_func)
+    for attr, value in list(vars(module).items()):  # its own kernels first
+        if isinstance(value, Kernel) and value.py_func.__module__ == name:
+            if value._dispatcher is None:
+                value._dispatcher = numba.njit(**OPTIONS)(value.py_func)
             setattr(module, attr, value._dispatcher)
+    for attr, value in list(vars(module).items()):  # then those it imports: their module's turn
+        if isinstance(value, Kernel):
+            setattr(module, attr, value.dispatcher)

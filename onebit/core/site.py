@@ -9,7 +9,8 @@ of its ``[sensor_types]``) is in the site's ``units`` (one of
 :data:`onebit.core.units.METRES_PER_UNIT`; ``m`` when the key is absent), and so are the
 logs' and the truth's positions. Tracker configs are in metres and converted once
 (:func:`onebit.core.units.config_in_site_units`). Each sensor's detection region is built
-once per site by :mod:`onebit.core.sensing` (:attr:`Site.detection_regions`).
+once per site by :mod:`onebit.core.sensing` (:attr:`Site.detection_regions`). Each field's
+check (a number, a polygon, an id, ...) is in :mod:`onebit.core.site_fields`.
 
 Beam convention
 ---------------
@@ -24,7 +25,6 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field, replace
-from datetime import datetime
 from functools import cached_property
 from pathlib import Path
 
@@ -33,9 +33,24 @@ import shapely
 from shapely.geometry import LineString, Point, Polygon
 
 from onebit.core.config import MAX_TARGETS, load_toml
-from onebit.core.errors import SiteError, bounded
+from onebit.core.errors import SiteError
 from onebit.core.sensing import build_detection_regions
 from onebit.core.sensor_graph import geometric_sensor_graph
+from onebit.core.site_fields import (
+    _check_epoch,
+    _geom_points,
+    _integer,
+    _is_matrix,
+    _list_of_tables,
+    _name,
+    _natural_key,
+    _number,
+    _points,
+    _polygon,
+    _sensor_id,
+    _shown,
+    _unknown,
+)
 from onebit.core.units import METRES_PER_UNIT
 
 #: Tolerance (world units) for "a beam end touches the boundary or an obstacle".
@@ -551,60 +566,6 @@ def _sensors(data: dict, boundary, beam_ids: set[str], stypes: dict, err):
     return motion + [b.as_motion() for b in binary], prox + [b.as_proximity() for b in binary], binary
 
 
-def _shown(value) -> str:
-    """A user's value as quoted in a message (bounded: :func:`onebit.core.errors.bounded`)."""
-    return bounded(repr(value))
-
-
-def _number(value, key: str, err, *, lo: float | None = None, positive: bool = False) -> float:
-    if not isinstance(value, (int, float)) or isinstance(value, bool) or not math.isfinite(value):
-        raise err(key, f"must be a finite number, got {_shown(value)}")
-    if positive and value <= 0:
-        raise err(key, f"must be positive, got {value!r}")
-    if lo is not None and value < lo:
-        raise err(key, f"must be at least {lo}, got {value!r}")
-    return float(value)
-
-
-def _integer(value, key: str, err, *, lo: int | None = None) -> int:
-    """An integer (never a bool, never a float) of at least ``lo``."""
-    if not isinstance(value, int) or isinstance(value, bool):
-        raise err(key, f"must be an integer, got {_shown(value)}")
-    if lo is not None and value < lo:
-        raise err(key, f"must be at least {lo}, got {value!r}")
-    return value
-
-
-def _name(value, key: str, err) -> str:
-    """An id or name: a non-empty string, or an integer (kept as its decimal text)."""
-    if isinstance(value, bool) or not isinstance(value, (str, int)):
-        raise err(key, f"must be a string (or an integer), got {_shown(value)}")
-    text = str(value)
-    if not text.strip():
-        raise err(key, "must not be empty")
-    return text
-
-
-def _check_epoch(epoch: str, err) -> None:
-    """The epoch is an ISO 8601 date or date-time (``2024-05-01T08:00:00Z``)."""
-    try:
-        datetime.fromisoformat(epoch.replace("Z", "+00:00"))
-    except ValueError:
-        raise err(
-            "epoch", f"not an ISO 8601 date or date-time (e.g. 2024-05-01T08:00:00Z), got {_shown(epoch)}"
-        ) from None
-
-
-def _sensor_id(table: dict, key: str, seen: set[str], err) -> str:
-    if "id" not in table:
-        raise err(key + ".id", "missing")
-    sid = _name(table["id"], key + ".id", err)
-    if sid in seen:
-        raise err(key + ".id", f"duplicate sensor id {sid!r}")
-    seen.add(sid)
-    return sid
-
-
 def _signal(table: dict, typ: str | None, stypes: dict, key: str, default: str, err) -> str:
     """The sensor's ``signal``, else its type table's, else ``default`` (:data:`SIGNALS`)."""
     if "signal" in table:
@@ -751,57 +712,9 @@ def _sensor_graph(
     return SensorGraph(nodes, edges_t, out["entries"], out["exits"], sig_t)
 
 
-def _natural_key(s: str):
-    import re
-
-    return [int(p) if p.isdigit() else p for p in re.split(r"(\d+)", s)]
-
-
 def _at_end(inter, beam: Beam) -> bool:
     pts = [Point(beam.p0), Point(beam.p1)]
     return all(min(p.distance(q) for q in pts) <= TOUCH_TOL for p in _geom_points(inter))
-
-
-def _geom_points(g):
-    if g.geom_type == "Point":
-        return [g]
-    return list(getattr(g, "geoms", []))
-
-
-def _unknown(table: dict, allowed: set[str], prefix: str, err) -> None:
-    for k in table:
-        if k not in allowed:
-            raise err(prefix + k, f"unknown key; allowed keys are {sorted(allowed)}")
-
-
-def _list_of_tables(value, key: str, err) -> list[dict]:
-    if not isinstance(value, list) or not all(isinstance(v, dict) for v in value):
-        raise err(key, "must be an array of tables ([[" + key + "]])")
-    return value
-
-
-def _points(value, key: str, err) -> np.ndarray:
-    if value is None:
-        raise err(key, "missing")
-    try:
-        arr = np.asarray(value, dtype=float)
-    except (TypeError, ValueError):
-        raise err(key, "must be a list of [x, y] number pairs") from None
-    if arr.ndim != 2 or arr.shape[1] != 2 or not np.all(np.isfinite(arr)):
-        raise err(key, "must be a list of [x, y] number pairs")
-    return arr
-
-
-def _polygon(value, key: str, err) -> Polygon:
-    pts = _points(value, key, err)
-    if len(pts) < 3:
-        raise err(key, f"a polygon needs at least 3 points, got {len(pts)}")
-    poly = Polygon(pts)
-    if not poly.is_valid:
-        raise err(key, f"invalid polygon: {shapely.is_valid_reason(poly)}")
-    if poly.area <= 0:
-        raise err(key, "polygon has zero area")
-    return shapely.orient_polygons(poly) if hasattr(shapely, "orient_polygons") else poly
 
 
 def _camera(cam, err) -> Camera:
@@ -836,13 +749,3 @@ def _camera(cam, err) -> Camera:
         raise err("camera.homography", "missing; give 'homography' (3x3) or 'points' (4 correspondences)")
     t0 = _number(cam.get("t0", 0.0), "camera.t0", err)
     return Camera(int(cam["width"]), int(cam["height"]), float(fps), h, float(t0))
-
-
-def _is_matrix(v) -> bool:
-    """A non-empty list of equally long lists of numbers (never bools)."""
-    return (
-        isinstance(v, list)
-        and len(v) > 0
-        and all(isinstance(r, list) and len(r) == len(v[0]) for r in v)
-        and all(isinstance(x, (int, float)) and not isinstance(x, bool) for r in v for x in r)
-    )

@@ -458,6 +458,46 @@ def day_files(house: Path) -> dict[int, Path]:
     return out
 
 
+def _annotations(notes: list[pl.DataFrame], spec) -> pl.DataFrame:
+    """``annotations.csv``: each resident's activity intervals (merged across days), named from
+    the README."""
+    return (
+        pl.concat(
+            [
+                _merge_intervals(pl.concat([n for n in notes if n["resident"][0] == r]).drop("resident")).with_columns(
+                    resident=pl.lit(r)
+                )
+                for r in ("1", "2")
+            ]
+        )
+        .rename({"value": "activity"})
+        .with_columns(name=pl.col("activity").replace_strict(spec.activities, default="?", return_dtype=pl.String))
+        .sort("t", "resident")
+        .select("t", "end", "resident", "activity", "name")
+    )
+
+
+def _import_info(house: Path, spec, counts: dict, a: int, b: int) -> dict:
+    """``import.toml``: the source, the counts, the notional time and how the truth was made."""
+    return {
+        "source": {"folder": str(house.resolve()), "format": "aras", "readme": spec.source},
+        "counts": counts,
+        "time": {
+            "epoch": EPOCH,
+            "notional": True,
+            "days": [a, b],
+            "rule": "day N starts (N - 1) x 86400 s after epoch",
+        },
+        "truth": {
+            "count": "people home = residents whose activity is not Going Out (2)",
+            "events": "an ON edge goes to resident r when the other is Going Out, Sleeping or Napping and r is not; "
+            "other events are unlabelled",
+        },
+        "sensors": {s.id: {"type": s.type, "place": s.place, "room": s.room, "person": s.person} for s in spec.sensors},
+        "layout": {"positions": "schematic (rooms from the README places), approximate"},
+    }
+
+
 def import_aras(house: str | Path, dataset: str | Path, *, days: tuple[int, int] | None = None) -> ArasImport:
     """Write a dataset folder from an ARAS house folder (module docstring)."""
     house, out = Path(house), Path(dataset)
@@ -508,20 +548,7 @@ def import_aras(house: str | Path, dataset: str | Path, *, days: tuple[int, int]
     motion_df = pl.concat(motion)
     other_df = pl.concat(other)
     count_df = _merge_intervals(pl.concat(counts_iv)).rename({"value": "count"})
-    note_df = (
-        pl.concat(
-            [
-                _merge_intervals(pl.concat([n for n in notes if n["resident"][0] == r]).drop("resident")).with_columns(
-                    resident=pl.lit(r)
-                )
-                for r in ("1", "2")
-            ]
-        )
-        .rename({"value": "activity"})
-        .with_columns(name=pl.col("activity").replace_strict(spec.activities, default="?", return_dtype=pl.String))
-        .sort("t", "resident")
-        .select("t", "end", "resident", "activity", "name")
-    )
+    note_df = _annotations(notes, spec)
     truth_events = pl.concat(events).filter(pl.col("residents") != "")
     rej = pl.concat(rejects)
     name = f"aras-{house.name}-days-{a}-{b}"
@@ -550,23 +577,7 @@ def import_aras(house: str | Path, dataset: str | Path, *, days: tuple[int, int]
         "person_sensors": int(person.sum()),
         "doors": sum(s.door for s in spec.sensors),
     }
-    info = {
-        "source": {"folder": str(house.resolve()), "format": "aras", "readme": spec.source},
-        "counts": counts,
-        "time": {
-            "epoch": EPOCH,
-            "notional": True,
-            "days": [a, b],
-            "rule": "day N starts (N - 1) x 86400 s after epoch",
-        },
-        "truth": {
-            "count": "people home = residents whose activity is not Going Out (2)",
-            "events": "an ON edge goes to resident r when the other is Going Out, Sleeping or Napping and r is not; "
-            "other events are unlabelled",
-        },
-        "sensors": {s.id: {"type": s.type, "place": s.place, "room": s.room, "person": s.person} for s in spec.sensors},
-        "layout": {"positions": "schematic (rooms from the README places), approximate"},
-    }
+    info = _import_info(house, spec, counts, a, b)
     write_text(to_toml(info), out / "import.toml")
     write_text(RUN_TOML, out / "run.toml")
     return ArasImport(out, counts, info)

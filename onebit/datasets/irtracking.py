@@ -195,6 +195,42 @@ def site_toml(
     return "\n".join(lines) + "\n"
 
 
+def _check_args(period: float, radius: float, r_inner: float | None, targets: int | None) -> None:
+    """The import's numbers, each checked (the error names the argument)."""
+    if not (period > 0 and np.isfinite(period)):
+        raise InputError(f"period = {period!r}: must be a positive number of seconds", field="period")
+    if not (radius > 0 and np.isfinite(radius)):
+        raise InputError(f"radius = {radius!r}: must be a positive number of metres", field="radius")
+    if r_inner is not None and not (0 <= r_inner <= radius):
+        raise InputError(f"r_inner = {r_inner!r}: must be between 0 and radius ({radius!r})", field="r_inner")
+    if targets is not None and (isinstance(targets, bool) or not isinstance(targets, int) or targets < 1):
+        raise InputError(f"targets = {targets!r}: must be a whole number >= 1", field="targets")
+
+
+def _import_info(
+    readings, source, coords, truth, period, start, first, radius, r_inner, n_targets, targets, counts
+) -> dict:
+    """``import.toml``: the sources, the time base, the site's choices and the counts."""
+    return {
+        "source": {
+            "readings": str(readings),
+            "kind": source,
+            "coordinates": str(coords),
+            "truth": str(truth) if truth else "",
+        },
+        "time": {"period_s": float(period), "start": start or "", "t0_frame": int(first)},
+        "site": {
+            "radius_m": float(radius),
+            "r_inner_m": float(r_inner if r_inner is not None else radius),
+            "targets": int(n_targets),
+            "targets_from": "--targets"
+            if targets is not None
+            else f"default ({DEFAULT_TARGETS}: the recordings' most people)",
+        },
+        "counts": counts,
+    }
+
+
 def import_irtracking(
     readings: str | Path,
     dataset: str | Path,
@@ -212,14 +248,7 @@ def import_irtracking(
     readings, out = Path(readings), Path(dataset)
     if not readings.exists():
         raise InputError("no such file", file=readings)
-    if not (period > 0 and np.isfinite(period)):
-        raise InputError(f"period = {period!r}: must be a positive number of seconds", field="period")
-    if not (radius > 0 and np.isfinite(radius)):
-        raise InputError(f"radius = {radius!r}: must be a positive number of metres", field="radius")
-    if r_inner is not None and not (0 <= r_inner <= radius):
-        raise InputError(f"r_inner = {r_inner!r}: must be between 0 and radius ({radius!r})", field="r_inner")
-    if targets is not None and (isinstance(targets, bool) or not isinstance(targets, int) or targets < 1):
-        raise InputError(f"targets = {targets!r}: must be a whole number >= 1", field="targets")
+    _check_args(period, radius, r_inner, targets)
     coords = Path(coordinates) if coordinates is not None else find_coordinates(readings)
     xy_mm = read_sensor_coordinates(coords)
     start = None
@@ -264,23 +293,8 @@ def import_irtracking(
         "active_readings": active.height,
         "rejected": rejects.height,
     }
-    info = {
-        "source": {
-            "readings": str(readings),
-            "kind": source,
-            "coordinates": str(coords),
-            "truth": str(truth) if truth else "",
-        },
-        "time": {"period_s": float(period), "start": start or "", "t0_frame": int(first)},
-        "site": {
-            "radius_m": float(radius),
-            "r_inner_m": float(r_inner if r_inner is not None else radius),
-            "targets": int(n_targets),
-            "targets_from": "--targets"
-            if targets is not None
-            else f"default ({DEFAULT_TARGETS}: the recordings' most people)",
-        },
-        "counts": counts,
-    }
+    info = _import_info(
+        readings, source, coords, truth, period, start, first, radius, r_inner, n_targets, targets, counts
+    )
     write_text(to_toml(info), out / "import.toml")
     return IrtrackingImport(out, info)

@@ -83,6 +83,33 @@ def sensing_squares(p: np.ndarray, cell: float) -> np.ndarray:
     return shapely.box(cx.ravel() - h, cy.ravel() - h, cx.ravel() + h, cy.ravel() + h)
 
 
+def _communicate(trk: np.ndarray, eta: list, last_pos: np.ndarray, last_seen: np.ndarray, k: int, cfg: ActiveConfig):
+    """Communication at stage ``k`` within ``r_c`` (section VI-B): each connected group of
+    trackers shares one intersected I-state and its freshest knowledge of every tracker
+    (``eta``, ``last_pos``, ``last_seen`` updated in place). Returns the links ``(L, 2, 2)``."""
+    m = len(trk)
+    d = np.hypot(*(trk[:, None, :] - trk[None, :, :]).transpose(2, 0, 1))
+    g = nx.Graph()
+    g.add_nodes_from(range(m))
+    ii, jj = np.nonzero(np.triu(d <= cfg.r_c, 1))
+    g.add_edges_from(zip(ii.tolist(), jj.tolist()))
+    for comp in nx.connected_components(g):
+        comp = sorted(comp)
+        if len(comp) < 2:
+            continue
+        merged = eta[comp[0]]
+        for o in comp[1:]:
+            merged = cap_elements(communicate(merged, eta[o], shape=cfg.shape), cfg.max_elements, shape=cfg.shape)
+        best = np.argmax(last_seen[comp], axis=0)  # freshest knowledge of each tracker
+        fresh_pos = last_pos[np.asarray(comp)[best], np.arange(m)]
+        fresh_seen = last_seen[np.asarray(comp)[best], np.arange(m)]
+        for j in comp:
+            eta[j] = merged
+            last_pos[j], last_seen[j] = fresh_pos, fresh_seen
+            last_pos[j, comp], last_seen[j, comp] = trk[comp], k
+    return np.stack([trk[ii], trk[jj]], axis=1) if len(ii) else np.zeros((0, 2, 2))
+
+
 def simulate_active(cfg: ActiveConfig, *, seed: int, environment=None, record_regions: bool = False) -> ActiveResult:
     """Run one active-tracking trial (see the module docstring)."""
     rng = np.random.default_rng(seed)
@@ -124,27 +151,7 @@ def simulate_active(cfg: ActiveConfig, *, seed: int, environment=None, record_re
                 shape=cfg.shape,
                 max_elements=cfg.max_elements,
             )
-        # communication within r_c: each connected group shares one intersected I-state
-        d = np.hypot(*(trk[:, None, :] - trk[None, :, :]).transpose(2, 0, 1))
-        g = nx.Graph()
-        g.add_nodes_from(range(m))
-        ii, jj = np.nonzero(np.triu(d <= cfg.r_c, 1))
-        g.add_edges_from(zip(ii.tolist(), jj.tolist()))
-        links.append(np.stack([trk[ii], trk[jj]], axis=1) if len(ii) else np.zeros((0, 2, 2)))
-        for comp in nx.connected_components(g):
-            comp = sorted(comp)
-            if len(comp) < 2:
-                continue
-            merged = eta[comp[0]]
-            for o in comp[1:]:
-                merged = cap_elements(communicate(merged, eta[o], shape=cfg.shape), cfg.max_elements, shape=cfg.shape)
-            best = np.argmax(last_seen[comp], axis=0)  # freshest knowledge of each tracker
-            fresh_pos = last_pos[np.asarray(comp)[best], np.arange(m)]
-            fresh_seen = last_seen[np.asarray(comp)[best], np.arange(m)]
-            for j in comp:
-                eta[j] = merged
-                last_pos[j], last_seen[j] = fresh_pos, fresh_seen
-                last_pos[j, comp], last_seen[j, comp] = trk[comp], k
+        links.append(_communicate(trk, eta, last_pos, last_seen, k, cfg))
         for j in range(m):
             last_pos[j, j], last_seen[j, j] = trk[j], k
             out_e[k, j] = eta[j].size

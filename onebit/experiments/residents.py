@@ -206,6 +206,13 @@ def run(
                 f"{r['method']} {r['accuracy']:.3f}" if r["accuracy"] is not None else f"{r['method']} -" for r in new
             )
         )
+    _write_results(rows, errors, res_dir, echo)
+    return res_dir
+
+
+def _write_results(rows: list[dict], errors: list[pl.DataFrame], res_dir: Path, echo) -> None:
+    """``results.csv``/``.parquet`` (with the means) and ``errors.csv`` of the study, and their
+    tables echoed."""
     df = with_means(pl.DataFrame(rows, schema=RESULTS, orient="row"))
     res_dir.mkdir(parents=True, exist_ok=True)
     write_csv(df, res_dir / "results.csv")
@@ -220,4 +227,3 @@ def run(
         wide = df.pivot(on="method", index="session", values="accuracy")
         echo("identity accuracy (fraction of labelled events) per session and method:")
         echo(str(wide))
-    return res_dir

@@ -129,6 +129,13 @@ def run(
     outputs.write_csv(summary, out / "summary.csv")
     echo(str(summary))
 
+    _figures(summary, out, plt)
+    return out
+
+
+def _figures(summary: pl.DataFrame, out: Path, plt) -> None:
+    """The study's two figures: error against sensor density (Fig. 6a) and the share of runs
+    finding every target beside the spurious tracks."""
     ideal = summary.filter(pl.col("setting") == "ideal")
     fig, ax = plt.subplots(figsize=(6, 4))
     ax.errorbar(ideal["rho_R"], ideal["error_R"], yerr=ideal["error_R_sd"], marker="o", label="ideal (ours)")
@@ -162,4 +169,3 @@ def run(
     with outputs.atomic_path(out / "found_spurious.png", suffix=".tmp.png") as tmp:
         fig.savefig(tmp, dpi=110)
     plt.close(fig)
-    return out

@@ -358,6 +358,26 @@ RESOLVED_BY = {
 }
 
 
+def _other_resident(t: list, sens: list, res: list, hops: dict) -> tuple[list, list[bool]]:
+    """Per labelled event, the other resident's latest labelled event before it -- ``(sensor,
+    hops, age)``, Nones without one -- and whether they met there (within ``MEET_HOPS`` hops
+    and ``MEET_S`` seconds)."""
+    other: list[tuple[str | None, int | None, float | None]] = []
+    met = []
+    latest: dict[frozenset, int] = {}  # the latest event of each set of residents
+    for i in range(len(t)):
+        mine = frozenset(res[i])
+        j = max((k for key, k in latest.items() if not key & mine), default=-1)
+        latest[mine] = i
+        o, oh, age = None, None, None
+        if j >= 0:
+            o, age = sens[j], t[i] - t[j]
+            oh = 0 if sens[i] == sens[j] else hops.get((sens[i], sens[j]))
+        other.append((o, oh, age))
+        met.append(oh is not None and oh <= MEET_HOPS and age is not None and age <= MEET_S)
+    return other, met
+
+
 def error_table(
     truth_events: pl.DataFrame, tracker_events: pl.DataFrame, hops: dict[tuple[str, str], int]
 ) -> pl.DataFrame:
@@ -393,20 +413,7 @@ def error_table(
     res = [r.split(";") for r in m["residents"].to_list()]
     wrong = m["wrong"].to_list()
     n = len(t)
-    # the other resident's latest labelled event before each event, and whether they met there
-    other: list[tuple[str | None, int | None, float | None]] = []
-    met = []
-    latest: dict[frozenset, int] = {}  # the latest event of each set of residents
-    for i in range(n):
-        mine = frozenset(res[i])
-        j = max((k for key, k in latest.items() if not key & mine), default=-1)
-        latest[mine] = i
-        o, oh, age = None, None, None
-        if j >= 0:
-            o, age = sens[j], t[i] - t[j]
-            oh = 0 if sens[i] == sens[j] else hops.get((sens[i], sens[j]))
-        other.append((o, oh, age))
-        met.append(oh is not None and oh <= MEET_HOPS and age is not None and age <= MEET_S)
+    other, met = _other_resident(t, sens, res, hops)
     runs: list[int] = []  # the length of each run of consecutive errors
     for i, bad in enumerate(wrong):
         if bad and (i == 0 or not wrong[i - 1]):

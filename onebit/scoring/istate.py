@@ -13,26 +13,10 @@ from onebit.trackers.istate.core import has_perfect_matching
 
 NAME = "istate"
 
-# --------------------------------------------------------------------------- scoring
 
-
-def score(tracker: str, tables: dict, site: Site, region_graph=None) -> tuple[list[tuple[str, str, float, str]], dict]:
-    """``istate/containment``: fraction of scored stages whose I-state contains the true joint
-    state; ``elements_mean``/``_max``; ``area_mean`` (mean area of the union of the regions
-    within the free space) and ``area_share`` (that area over the free space's: always beside
-    the containment); ``scored_stages``.
-
-    ``targets`` is the most targets present at once (:mod:`onebit.scoring.serve`), so the
-    truth may hold more ids than ``n`` over the run and fewer than ``n`` at a stage: a stage
-    is scored when at least one target is present (truth within a twentieth of a period of
-    the stage time), and contains the present ones when they lie in distinct regions of one
-    element (the absent targets' regions are free: a matching that saturates the present
-    targets). A stage with more targets present than ``n`` cannot be held by the I-state:
-    :class:`~onebit.scoring.serve.CannotServe`, naming the first such time."""
-    summ = tables.get(f"{NAME}_summary")
-    regs = tables.get(f"{NAME}_regions")
-    if summ is None or regs is None:
-        return [], {}
+def _summary_rows(summ: pl.DataFrame, site: Site) -> list[tuple[str, str, float, str]]:
+    """The rows of the I-state's own summary: its elements, its area and share of the free
+    space, the readings it rejected and the stages left empty."""
     free_area = float(site.free_space.area)
     rows = [
         (NAME, "elements_mean", float(summ["elements"].mean()) if summ.height else 0.0, "elements"),
@@ -64,6 +48,50 @@ def score(tracker: str, tables: dict, site: Site, region_graph=None) -> tuple[li
     empty = summ.filter(pl.col("elements") == 0).height
     if empty:  # the readings contradict n targets under the sensing model (a wrong n, a lagging sensor)
         rows.append((NAME, "empty_stages", empty / summ.height, "fraction"))
+    return rows
+
+
+def _contained(regs: pl.DataFrame, stages: pl.DataFrame, pos: np.ndarray, present: np.ndarray, ok_truth, n: int):
+    """Per stage, whether its I-state contains the present targets' true positions (``pos (K,
+    T, 2)``): a perfect matching of the targets into one element's regions, the absent
+    targets' regions free."""
+    geoms = geometries(regs["wkb"])  # each distinct region parsed once
+    st_idx = regs["stage"].to_numpy()
+    bounds = np.searchsorted(st_idx, stages["stage"].to_numpy())
+    bounds = np.r_[bounds, len(st_idx)]
+    inside = np.zeros(len(stages), dtype=bool)
+    for s in np.flatnonzero(ok_truth):  # one I-state per stage
+        g = geoms[bounds[s] : bounds[s + 1]].reshape(-1, n)
+        if len(g) == 0:
+            continue
+        pts = pos[s, present[s]]  # (m, 2), m <= n
+        adj = shapely.intersects_xy(g[:, :, None], pts[None, None, :, 0], pts[None, None, :, 1])  # (E, n, m)
+        free = np.ones(adj.shape[:2] + (n - pts.shape[0],), dtype=bool)  # absent targets fit any region
+        inside[s] = bool(has_perfect_matching(np.concatenate([adj, free], axis=2)).any())
+    return inside
+
+
+# --------------------------------------------------------------------------- scoring
+
+
+def score(tracker: str, tables: dict, site: Site, region_graph=None) -> tuple[list[tuple[str, str, float, str]], dict]:
+    """``istate/containment``: fraction of scored stages whose I-state contains the true joint
+    state; ``elements_mean``/``_max``; ``area_mean`` (mean area of the union of the regions
+    within the free space) and ``area_share`` (that area over the free space's: always beside
+    the containment); ``scored_stages``.
+
+    ``targets`` is the most targets present at once (:mod:`onebit.scoring.serve`), so the
+    truth may hold more ids than ``n`` over the run and fewer than ``n`` at a stage: a stage
+    is scored when at least one target is present (truth within a twentieth of a period of
+    the stage time), and contains the present ones when they lie in distinct regions of one
+    element (the absent targets' regions are free: a matching that saturates the present
+    targets). A stage with more targets present than ``n`` cannot be held by the I-state:
+    :class:`~onebit.scoring.serve.CannotServe`, naming the first such time."""
+    summ = tables.get(f"{NAME}_summary")
+    regs = tables.get(f"{NAME}_regions")
+    if summ is None or regs is None:
+        return [], {}
+    rows = _summary_rows(summ, site)
     truth = tables.get("truth")
     if truth is None or truth.height == 0 or summ.height == 0:
         return rows, {}
@@ -94,19 +122,7 @@ def score(tracker: str, tables: dict, site: Site, region_graph=None) -> tuple[li
             f"('targets' in site.toml, or [istate] targets): it must be the most targets present at once"
         )
     ok_truth = count > 0
-    geoms = geometries(regs["wkb"])  # each distinct region parsed once
-    st_idx = regs["stage"].to_numpy()
-    bounds = np.searchsorted(st_idx, stages["stage"].to_numpy())
-    bounds = np.r_[bounds, len(st_idx)]
-    inside = np.zeros(len(stages), dtype=bool)
-    for s in np.flatnonzero(ok_truth):  # one I-state per stage
-        g = geoms[bounds[s] : bounds[s + 1]].reshape(-1, n)
-        if len(g) == 0:
-            continue
-        pts = pos[s, present[s]]  # (m, 2), m <= n
-        adj = shapely.intersects_xy(g[:, :, None], pts[None, None, :, 0], pts[None, None, :, 1])  # (E, n, m)
-        free = np.ones(adj.shape[:2] + (n - pts.shape[0],), dtype=bool)  # absent targets fit any region
-        inside[s] = bool(has_perfect_matching(np.concatenate([adj, free], axis=2)).any())
+    inside = _contained(regs, stages, pos, present, ok_truth, n)
     scored = int(ok_truth.sum())
     rows += [
         (NAME, "containment", float(inside[ok_truth].mean()) if scored else float("nan"), "fraction"),

@@ -32,6 +32,20 @@ UNIQUE, AMBIGUOUS, TOO_LARGE = 0, 1, 2
 
 
 @kernel
+def _matchings_bound(ok, rows, k, n_cols):
+    """A bound of the matchings :func:`best_matching` enumerates: the product over its ``k``
+    rows of (1 + admissible columns)."""
+    bound = 1.0
+    for r in range(k):
+        c = 1
+        for j in range(n_cols):
+            if ok[rows[r] * n_cols + j]:
+                c += 1
+        bound *= c
+    return bound
+
+
+@kernel
 def best_matching(w, ok, n_rows, n_cols, by_count, choice):
     """The best matching of a small (n_rows x n_cols) problem, by enumeration.
 
@@ -56,15 +70,7 @@ def best_matching(w, ok, n_rows, n_cols, by_count, choice):
                 break
     if k == 0:
         return UNIQUE
-    # bound the enumeration: prod over rows of (1 + admissible columns)
-    bound = 1.0
-    for r in range(k):
-        c = 1
-        for j in range(n_cols):
-            if ok[rows[r] * n_cols + j]:
-                c += 1
-        bound *= c
-    if bound > MAX_MATCHINGS:
+    if _matchings_bound(ok, rows, k, n_cols) > MAX_MATCHINGS:
         return TOO_LARGE
     cur = np.full(k, -2, np.int64)  # -2: not started; -1: no column; else the column
     used = np.zeros(n_cols, np.bool_)
@@ -117,6 +123,30 @@ def best_matching(w, ok, n_rows, n_cols, by_count, choice):
 
 
 @kernel
+def _continuing_pairs(oids, hids, d, gate, last, omask, hmask, first):
+    """Step (1) of :func:`clear_pass` for one frame (its objects ``oids``, hypotheses ``hids``,
+    distances ``d`` row-major): each object, in id order, keeps its last matched hypothesis
+    when present, unclaimed and within the gate. Marks both in ``omask``/``hmask``, writes the
+    distances to ``first``; returns how many."""
+    no, nh = oids.shape[0], hids.shape[0]
+    n1 = 0
+    for i in range(no):
+        hp = last[oids[i]]
+        if hp < 0:
+            continue
+        for j in range(nh):
+            if hids[j] == hp and not hmask[j]:
+                x = d[i * nh + j]
+                if x <= gate:  # False for NaN
+                    omask[i] = True
+                    hmask[j] = True
+                    first[n1] = x
+                    n1 += 1
+                break
+    return n1
+
+
+@kernel
 def clear_pass(f0, o_ptr, oids, h_ptr, hids, d_ptr, d, gate, last, counts, events):
     """CLEAR MOT (``motmetrics.MOTAccumulator.update``) over frames ``f0, f0+1, ...``.
 
@@ -152,20 +182,7 @@ def clear_pass(f0, o_ptr, oids, h_ptr, hids, d_ptr, d, gate, last, counts, event
         omask = np.zeros(no, np.bool_)
         hmask = np.zeros(nh, np.bool_)
         first = np.empty(no, np.float64)
-        n1 = 0
-        for i in range(no):  # (1) continuing pairs
-            hp = last[oids[oa + i]]
-            if hp < 0:
-                continue
-            for j in range(nh):
-                if hids[ha + j] == hp and not hmask[j]:
-                    x = d[da + i * nh + j]
-                    if x <= gate:  # False for NaN
-                        omask[i] = True
-                        hmask[j] = True
-                        first[n1] = x
-                        n1 += 1
-                    break
+        n1 = _continuing_pairs(oids[oa:ob], hids[ha:hb], d[da : da + no * nh], gate, last, omask, hmask, first)
         ok = np.zeros(no * nh, np.bool_)
         for i in range(no):
             if omask[i]:

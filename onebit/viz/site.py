@@ -106,10 +106,22 @@ def _site_parts(site: Site, region_graph: RegionGraph | None) -> list[tuple[str,
                 ],
             )
         )
+    parts += _region_parts(site, region_graph)
+    marks = sensor_marks(site)
+    if marks:
+        parts.append((paths.join(paths.SITE, "sensors"), marks))
+    _SITE_PARTS[:] = [(site, region_graph, parts)]
+    return parts
+
+
+def _region_parts(site: Site, region_graph: RegionGraph | None) -> list[tuple[str, list]]:
+    """The regions' ``(entity, archetypes)``: the region graph's outlines and labels, else the
+    site's named region points."""
+    out: list[tuple[str, list]] = []
     if region_graph is not None:
         for name, poly in zip(region_graph.names, region_graph.polygons, strict=True):
             rp = poly.representative_point()
-            parts.append(
+            out.append(
                 (
                     paths.site_region(name),
                     [
@@ -127,7 +139,7 @@ def _site_parts(site: Site, region_graph: RegionGraph | None) -> list[tuple[str,
             )
     else:
         for spec in site.regions:
-            parts.append(
+            out.append(
                 (
                     paths.site_region(spec.name),
                     [
@@ -142,11 +154,7 @@ def _site_parts(site: Site, region_graph: RegionGraph | None) -> list[tuple[str,
                     ],
                 )
             )
-    marks = sensor_marks(site)
-    if marks:
-        parts.append((paths.join(paths.SITE, "sensors"), marks))
-    _SITE_PARTS[:] = [(site, region_graph, parts)]
-    return parts
+    return out
 
 
 #: Sensor marks: dim, so the map stays readable; the families highlight the sensors that fire.

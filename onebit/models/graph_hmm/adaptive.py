@@ -86,13 +86,13 @@ The baselines ``hmm1`` / ``hmm2`` run the same loop with the full state set and 
    meets an activation scores at most ``g0 + (L - 1)(t_max + g0)`` (``g0`` the free-and-off
    emission gain, the largest of an inactive state; ``t_max`` the largest log transition), and
    the local best must beat that strictly, else the user is decoded on every state. The paths
-   are the all-state decoder's (:func:`onebit.models.graph_hmm.kernels.coordinate_ascent`);
+   are the all-state decoder's (:func:`onebit.models.graph_hmm.ascent.coordinate_ascent`);
    so the full-state baselines cost per slot what the activity around the users costs, not
    what the building does (``benchmarks/bench_hmm_growth.py``).
 The window loop is inherently sequential (each window starts from the previous one's users),
 and so is the coordinate ascent inside a window: every restart of it (all user orders, sweeps
 and users, the Viterbi recursions included) runs as one compiled call
-(:func:`onebit.models.graph_hmm.kernels.coordinate_ascent`, ``DecoderParams.compiled``);
+(:func:`onebit.models.graph_hmm.ascent.coordinate_ascent`, ``DecoderParams.compiled``);
 :func:`coordinate_ascent_reference` with the numpy decoders of
 :mod:`onebit.models.graph_hmm.viterbi` is its plain reference and test oracle.
 """
@@ -107,20 +107,15 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from onebit.core.lazy import lazy_module
-from onebit.models.graph_hmm.eatg import Eatg, onsets
-from onebit.models.graph_hmm.kernels import (
+from onebit.models.graph_hmm.ascent import (
     coordinate_ascent,
     emission_tables,
-    support_from_blocks,
-    transition_support,
-    with_bases,
 )
-from onebit.models.graph_hmm.viterbi import log_safe, viterbi_first_order, viterbi_motion_second_order
+from onebit.models.graph_hmm.eatg import Eatg, onsets
+from onebit.models.graph_hmm.viterbi import viterbi_first_order, viterbi_motion_second_order
+from onebit.models.graph_hmm.window import max_independent, motion_components, second_order_tensor, window_transitions
 
-nx = lazy_module("networkx")
 _optimize = lazy_module("scipy.optimize")
-_csgraph = lazy_module("scipy.sparse.csgraph")
-_sparse = lazy_module("scipy.sparse")
 
 MODES = ("adaptive", "full1", "full2")
 
@@ -152,7 +147,7 @@ class DecoderParams:
     fresh_slots: int = 2
     restarts: int = 6  # coordinate-ascent restarts (all user orders when K! <= restarts, else rotations); best joint likelihood wins
     compiled: bool = (
-        True  # the coordinate ascent as one numba kernel (kernels.coordinate_ascent); False = the numpy reference
+        True  # the coordinate ascent as one numba kernel (ascent.coordinate_ascent); False = the numpy reference
     )
 
 
@@ -160,175 +155,6 @@ class DecoderParams:
 class DecodeResult:
     paths: np.ndarray  # (U, D) node index per user and slot, -1 when absent
     windows: list[dict] = field(default_factory=list)  # per window: slot, K, order, states, overlap
-
-
-# --------------------------------------------------------------------------- model pieces
-
-
-def restricted_first(a1: np.ndarray, idx: np.ndarray) -> np.ndarray:
-    """(S, S) log a' restricted to the states ``idx`` and renormalised."""
-    sub = a1[np.ix_(idx, idx)]
-    s = sub.sum(axis=1, keepdims=True)
-    sub = np.where(s > 0, sub / np.where(s > 0, s, 1.0), np.eye(len(idx)))
-    return log_safe(sub)
-
-
-def _restricted(a1: np.ndarray, a2: np.ndarray, idx: np.ndarray) -> tuple:
-    """``a1`` row-normalised on the states ``idx`` (a row without moves: stay), ``a2`` on them,
-    their number and the identity mask: what the second-order model is built from."""
-    p1 = a1[np.ix_(idx, idx)]
-    s = p1.sum(axis=1, keepdims=True)
-    p1 = np.where(s > 0, p1 / np.where(s > 0, s, 1.0), np.eye(len(idx)))
-    n = len(idx)
-    return p1, a2[np.ix_(idx, idx)], n, np.eye(n, dtype=bool)
-
-
-def second_order_tensor(a1: np.ndarray, a2: np.ndarray, idx: np.ndarray) -> np.ndarray:
-    """(S, S, S) log a(j3, j2, j1) on the states ``idx`` (module docstring, item 3)."""
-    p1, p2, n, eye = _restricted(a1, a2, idx)
-    stay = np.diag(p1)  # (j2,)
-    move = np.where(eye, 0.0, p1)  # (j2, j1), j1 != j2
-    w = move[None, :, :] * p2[:, None, :]  # (j3, j2, j1)
-    z = w.sum(axis=2, keepdims=True)
-    directed = np.where(z > 0, (1.0 - stay)[None, :, None] * w / np.where(z > 0, z, 1.0), move[None, :, :])
-    t = np.where(eye[:, :, None], move[None, :, :], directed)  # j3 == j2: first order
-    t = np.where(eye[None, :, :], stay[None, :, None] * np.ones((n, 1, 1)), t)  # j1 == j2: stay
-    return log_safe(t)
-
-
-class SecondOrderEntries:
-    """The entries of :func:`second_order_tensor` on every node (``idx = arange(N)``), one by
-    one, without its ``N^3`` array: ``T[j3, j2, j1]`` with index arrays (broadcast together)
-    gives ``log a(j3, j2, j1)`` of the module docstring (item 3)::
-
-        a(j3, j2, j2) = p1(j2, j2)                                   (stay)
-        a(j2, j2, j1) = p1(j2, j1)                                   (no direction yet: first order)
-        a(j3, j2, j1) = (1 - p1(j2, j2)) w(j3, j2, j1) / z(j3, j2)   (z > 0; else p1(j2, j1))
-        w(j3, j2, j1) = p1(j2, j1) p2(j3, j1),   z(j3, j2) = sum_{k != j2} w(j3, j2, k)
-
-    (``p1``/``p2`` the row-normalised ``a1`` and ``a2``). ``z`` is summed once per distinct
-    ``(j3, j2)`` of a call over the same row of ``N`` products as the dense tensor's, so each
-    entry equals the dense one bit for bit (tests); memory ``O(N^2)``, a call
-    ``O(m + pairs N)``. Used where only the entries along paths or of a few states are read:
-    the joint re-decoding of meetings (:mod:`onebit.models.graph_hmm.joint`) and the
-    likelihood of paths (:mod:`onebit.models.graph_hmm.likelihood`)."""
-
-    #: distinct ``(j3, j2)`` rows whose ``z`` is summed at once (bounds a call's memory)
-    CHUNK = 4096
-
-    def __init__(self, a1: np.ndarray, a2: np.ndarray):
-        p1, p2, n, eye = _restricted(a1, a2, np.arange(a1.shape[0]))
-        self.n = n
-        self.shape = (n, n, n)
-        self.stay = np.diag(p1).copy()
-        self.move = np.where(eye, 0.0, p1)
-        self.p2 = np.ascontiguousarray(p2)
-        # z of the contexts a path can have (j3 a neighbour of j2 either way), summed once per
-        # run: a call then sums only the rows of other contexts
-        j3, j2 = np.nonzero((self.move > 0) | (self.move.T > 0))
-        self._keys = j3.astype(np.int64) * n + j2
-        self._z = self._sums(j3, j2)
-
-    def _sums(self, j3: np.ndarray, j2: np.ndarray) -> np.ndarray:
-        z = np.empty(j3.size)
-        for lo in range(0, j3.size, self.CHUNK):  # bounded memory: CHUNK rows of N products at a time
-            hi = lo + self.CHUNK
-            z[lo:hi] = (self.move[j2[lo:hi]] * self.p2[j3[lo:hi]]).sum(axis=1)
-        return z
-
-    def __getitem__(self, key) -> np.ndarray:
-        j3, j2, j1 = np.broadcast_arrays(*(np.asarray(k, dtype=np.int64) for k in key))
-        shape = j3.shape
-        j3, j2, j1 = j3.ravel(), j2.ravel(), j1.ravel()
-        n = self.n
-        uniq, inv = np.unique(j3 * n + j2, return_inverse=True)
-        z = np.empty(uniq.size)
-        at = np.minimum(np.searchsorted(self._keys, uniq), max(self._keys.size - 1, 0))
-        known = self._keys[at] == uniq if self._keys.size else np.zeros(uniq.size, bool)
-        z[known] = self._z[at[known]]
-        other = uniq[~known]
-        z[~known] = self._sums(other // n, other % n)
-        z = z[inv.reshape(-1)]
-        move = self.move[j2, j1]
-        w = move * self.p2[j3, j1]
-        directed = np.where(z > 0, (1.0 - self.stay[j2]) * w / np.where(z > 0, z, 1.0), move)
-        t = np.where(j3 == j2, move, directed)
-        t = np.where(j1 == j2, self.stay[j2], t)
-        return log_safe(t).reshape(shape)
-
-
-def second_order_support(a1: np.ndarray, a2: np.ndarray, idx: np.ndarray) -> tuple:
-    """:func:`~onebit.models.graph_hmm.kernels.transition_support` of
-    :func:`second_order_tensor` on the states ``idx``, built without the ``S^3`` tensor: per
-    node ``j2`` only the contexts ``j3`` a path can have there (``j2`` itself and the nodes that
-    move to it) and the nodes it moves to -- ``O(S deg^2)`` values, ``O(S^2 deg)`` time. Each
-    value is computed as :func:`second_order_tensor` computes it (the same products, the same
-    row sums over all ``S`` nodes), so it equals the dense entry bit for bit (tests)."""
-    p1, p2, n, eye = _restricted(a1, a2, idx)
-    stay = np.diag(p1).copy()
-    move = np.where(eye, 0.0, p1)
-    nxt = (move > 0) | (eye & (stay > 0)[:, None])  # the finite entries of the tensor's rows: moves and the stay
-    k_ptr = np.zeros(n + 1, dtype=np.int64)
-    np.cumsum(nxt.sum(axis=1), out=k_ptr[1:])
-    k_idx = np.nonzero(nxt)[1].astype(np.int64)
-    came = (move > 0).T | eye  # came[j, p]: a path at j can have come from p (or no direction yet: p = j)
-    p_ptr = np.zeros(n + 1, dtype=np.int64)
-    np.cumsum(came.sum(axis=1), out=p_ptr[1:])
-    p_idx = np.nonzero(came)[1].astype(np.int64)
-    blk_ptr = np.zeros(n + 1, dtype=np.int64)
-    np.cumsum(np.diff(p_ptr) * np.diff(k_ptr), out=blk_ptr[1:])
-    vals = np.empty(int(blk_ptr[-1]))
-    for j2 in range(n):  # per node: its contexts x its next nodes (the tensor's formula, module item 3)
-        ctx = p_idx[p_ptr[j2] : p_ptr[j2 + 1]]
-        ks = k_idx[k_ptr[j2] : k_ptr[j2 + 1]]
-        w = move[j2][None, :] * p2[ctx, :]  # (contexts, S): the same products as the dense tensor's
-        z = w.sum(axis=1, keepdims=True)  # the same row sums over all S nodes
-        directed = np.where(z > 0, (1.0 - stay[j2]) * w / np.where(z > 0, z, 1.0), move[j2][None, :])
-        t = np.where((ctx == j2)[:, None], move[j2][None, :], directed)[:, ks]
-        t = np.where((ks == j2)[None, :], stay[j2] * np.ones((len(ctx), 1)), t)
-        vals[blk_ptr[j2] : blk_ptr[j2 + 1]] = log_safe(t).ravel()
-    return support_from_blocks(with_bases(p_ptr, p_idx, blk_ptr, k_ptr, vals, k_idx), k_idx, log_safe(stay))
-
-
-def window_transitions(
-    eatg: Eatg, states: np.ndarray, order: int, *, dense: bool = True
-) -> tuple[np.ndarray, np.ndarray | None, tuple]:
-    """``(log a1, log a2, support)`` restricted to ``states``: ``log a2`` only for ``order == 2``
-    and ``dense`` (else ``None``: the decoders read the sparse tensor of ``support``,
-    :func:`second_order_support`, built without the ``S^3`` array); ``support`` the moves the
-    decodes follow (:func:`onebit.models.graph_hmm.kernels.transition_support`)."""
-    log_a1 = restricted_first(eatg.a1, states)
-    if order != 2:
-        return log_a1, None, transition_support(log_a1, None)
-    if not dense:
-        return log_a1, None, second_order_support(eatg.a1, eatg.a2, states)
-    log_a2 = second_order_tensor(eatg.a1, eatg.a2, states)
-    return log_a1, log_a2, transition_support(log_a1, log_a2)
-
-
-def max_independent(nodes_on: np.ndarray, adj: np.ndarray, cache: dict) -> int:
-    """Size of a maximum set of active nodes pairwise >= 2 hops apart (exact)."""
-    key = tuple(nodes_on.tolist())
-    if len(key) <= 1:
-        return len(key)
-    if key not in cache:
-        sub = adj[np.ix_(nodes_on, nodes_on)]
-        comp = nx.from_numpy_array((~sub & ~np.eye(len(key), dtype=bool)).astype(int))
-        cache[key] = len(nx.max_weight_clique(comp, weight=None)[0])
-    return cache[key]
-
-
-def motion_components(obs: np.ndarray, hops: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Space-time components of the activations of a window: (slot, node, label) arrays."""
-    t, j = np.nonzero(obs)
-    if t.size == 0:
-        return t, j, t
-    near = (np.abs(t[:, None] - t[None, :]) <= 1) & (hops[j[:, None], j[None, :]] <= 1)
-    r, c = np.nonzero(near)
-    _, lab = _csgraph.connected_components(
-        _sparse.coo_matrix((np.ones(r.size), (r, c)), shape=(t.size, t.size)), directed=False
-    )
-    return t, j, lab
 
 
 # --------------------------------------------------------------------------- decoding users
@@ -451,7 +277,7 @@ def coordinate_ascent_reference(on, pos, prefixes, starts, entry_nodes, order_u,
     positions and the joint log-likelihood ``sum_u log P(path_u) + joint_emission``.
 
     The plain numpy reference (one numpy Viterbi per user and sweep) of the compiled
-    :func:`onebit.models.graph_hmm.kernels.coordinate_ascent`, which runs every order of a
+    :func:`onebit.models.graph_hmm.ascent.coordinate_ascent`, which runs every order of a
     window in one call; the tests check both give the same paths on random windows."""
     k = len(prefixes)
     n_slots, s = on.shape
@@ -582,6 +408,77 @@ class WindowDecoder:
         self._fresh[old:need] = recent_onsets(self._ons[lo:need], self.params.fresh_slots)[old - lo :]
         self.n_slots = need
 
+    def _entries(self, s: int, obs: np.ndarray, ons: np.ndarray, last: dict, alive: list) -> list[tuple[int, int]]:
+        """The window's entry signatures (from slot ``s``; ``obs``/``ons`` its activity and
+        onsets): an onset at ``outer``, then ``inner`` active later in the window, nobody near
+        ``outer``. One ``(slot in the window, outer)`` per onset, whatever the signature, sorted."""
+        hops, rows = self.eatg.hops, self.rows
+        entries = []
+        for outer, inner in self.signatures:
+            for t in np.flatnonzero(ons[:, outer]):
+                if not obs[t:, inner].any():
+                    continue
+                if any(hops[outer, lst[-1]] <= 1 for lst in last.values() if lst):
+                    continue
+                if any(
+                    hops[outer, rows[u][s + t - 1]] <= 1 for u in alive if s + t - 1 >= 0 and rows[u][s + t - 1] >= 0
+                ):
+                    continue
+                entries.append((t, outer))
+        return sorted({(t, o) for t, o in entries})
+
+    def _new_users(self, count: int, entries: list, obs: np.ndarray, s: int) -> list[int]:
+        """``count`` users more in the window from slot ``s``: each at its entry (the first
+        ``len(entries)``; then anywhere), a dormant user that just left by that door resumed
+        (``DecoderParams.resume``), else a new one. Returns their indices."""
+        users, rows, dormant, hops = self.users, self.rows, self.dormant, self.eatg.hops
+        new = []
+        for i in range(count):
+            t0, node = entries[i] if i < len(entries) else (0, -1)
+            seen = np.flatnonzero(obs.any(axis=0))
+            back = [
+                u
+                for u, (slot, outer) in dormant.items()
+                if s + t0 - slot <= self.params.resume
+                and (outer == node or (node < 0 and seen.size and hops[outer, seen].min() <= 1))
+            ]
+            if back:  # an exit at this door just before: the same user walked through it
+                u = max(back, key=lambda v: dormant[v][0])
+                slot, door = dormant.pop(u)
+                rows[u][slot : s + t0] = door
+                users[u].start, users[u].entry_node = s + t0, door
+                new.append(u)
+                continue
+            users.append(_User(len(users), s + t0, node))
+            rows.append(np.full(self._active.shape[0], -1, dtype=np.int64))
+            new.append(len(users) - 1)
+        return new
+
+    def _decode_window(self, obs: np.ndarray, prefixes: list, starts: list, entry_nodes: list) -> tuple:
+        """``(paths, info)`` of the window's users: staying put without any motion, else the
+        adaptive decoder or the full-state baseline of ``params.mode``."""
+        params = self.params
+        if not obs.any():
+            # no motion at all: every known user stays where it was
+            w = obs.shape[0]
+            paths = np.array([[p[-1] if p else -1] * w for p in prefixes], dtype=np.int64).reshape(len(prefixes), w)
+            return paths, dict(order=0, states=0, overlap=False)
+        if params.mode == "adaptive":
+            return _adaptive_window(obs, prefixes, starts, entry_nodes, self.eatg, params)
+        order = 1 if params.mode == "full1" else 2
+        paths = decode_users(
+            obs,
+            np.arange(self.n),
+            prefixes,
+            starts,
+            entry_nodes,
+            order=order,
+            eatg=self.eatg,
+            params=params,
+            transitions=self._full,
+        )
+        return paths, dict(order=order, states=self.n, overlap=None)
+
     def advance(self, *, final: bool = False, progress: Callable[[int, int], None] | None = None) -> None:
         """Decode every window whose slots have all arrived (with ``final``: every window left,
         the last accepting all its slots -- no slot arrives after)."""
@@ -591,7 +488,6 @@ class WindowDecoder:
         hops = self.eatg.hops
         adj = hops == 1
         users, rows, dormant = self.users, self.rows, self.dormant
-        resume = params.resume
         d_max = n_slots if params.offline else params.d_max
         tau = n_slots if params.offline else params.tau
         if params.offline and not final:
@@ -609,72 +505,16 @@ class WindowDecoder:
                 default=0,
             )
             last = {u: _last_nodes(rows[u], s) for u in alive}
-            # entry signatures: onset at outer, then inner active later in the window, nobody near outer
-            entries = []
-            for outer, inner in self.signatures:
-                for t in np.flatnonzero(ons[s:e, outer]):
-                    if not obs[t:, inner].any():
-                        continue
-                    if any(hops[outer, lst[-1]] <= 1 for lst in last.values() if lst):
-                        continue
-                    if any(
-                        hops[outer, rows[u][s + t - 1]] <= 1
-                        for u in alive
-                        if s + t - 1 >= 0 and rows[u][s + t - 1] >= 0
-                    ):
-                        continue
-                    entries.append((t, outer))
-            entries = sorted({(t, o) for t, o in entries})  # one entry per onset, whatever the signature
+            entries = self._entries(s, obs, ons[s:e], last, alive)
             k_pre = len(alive)
             k = max(k_pre + len(entries), k_now)
             if params.max_users > 0:  # the bound holds inside the decoder: never more users than it
                 k = min(k, max(params.max_users, k_pre))
-            new = []
-            for i in range(k - k_pre):
-                t0, node = entries[i] if i < len(entries) else (0, -1)
-                seen = np.flatnonzero(obs.any(axis=0))
-                back = [
-                    u
-                    for u, (slot, outer) in dormant.items()
-                    if s + t0 - slot <= resume
-                    and (outer == node or (node < 0 and seen.size and hops[outer, seen].min() <= 1))
-                ]
-                if back:  # an exit at this door just before: the same user walked through it
-                    u = max(back, key=lambda v: dormant[v][0])
-                    slot, door = dormant.pop(u)
-                    rows[u][slot : s + t0] = door
-                    users[u].start, users[u].entry_node = s + t0, door
-                    new.append(u)
-                    continue
-                users.append(_User(len(users), s + t0, node))
-                rows.append(np.full(self._active.shape[0], -1, dtype=np.int64))
-                new.append(len(users) - 1)
-            cur = alive + new
+            cur = alive + self._new_users(k - k_pre, entries, obs, s)
             prefixes = [last.get(u, []) for u in cur]
             starts = [max(0, users[u].start - s) for u in cur]
             entry_nodes = [users[u].entry_node for u in cur]
-            if not obs.any():
-                # no motion at all: every known user stays where it was
-                paths = np.array([[p[-1] if p else -1] * (e - s) for p in prefixes], dtype=np.int64).reshape(
-                    len(cur), e - s
-                )
-                info = dict(order=0, states=0, overlap=False)
-            elif params.mode == "adaptive":
-                paths, info = _adaptive_window(obs, prefixes, starts, entry_nodes, self.eatg, params)
-            else:
-                order = 1 if params.mode == "full1" else 2
-                paths = decode_users(
-                    obs,
-                    np.arange(self.n),
-                    prefixes,
-                    starts,
-                    entry_nodes,
-                    order=order,
-                    eatg=self.eatg,
-                    params=params,
-                    transitions=self._full,
-                )
-                info = dict(order=order, states=self.n, overlap=None)
+            paths, info = self._decode_window(obs, prefixes, starts, entry_nodes)
             gone = []
             for i, u in enumerate(cur):
                 rows[u][s:acc] = np.where(np.arange(s, acc) >= users[u].start, paths[i, : acc - s], -1)

@@ -8,7 +8,7 @@ states are decoded *together* over the meeting, with everyone else held fixed.
 
 User state ``s = (x, c)``: node ``x`` and the node ``c`` it came from (``-1`` before its first
 move), the context of the second-order transition ``a(c, x, y)``
-(:func:`~onebit.models.graph_hmm.adaptive.second_order_tensor`). Moves: stay
+(:func:`~onebit.models.graph_hmm.window.second_order_tensor`). Moves: stay
 ``(x, c) -> (x, c)`` with ``log a(c|x, x, x)``, or step to a neighbour ``y``:
 ``(x, c) -> (y, x)`` with ``log a(c|x, x, y)`` (``c|x``: ``c``, or ``x`` when unknown). The
 pair's state is ``(s_1, s_2)`` (``S^2`` states, ``S = sum_x (deg x + 1)``); the Viterbi
@@ -43,9 +43,10 @@ import numpy as np
 import polars as pl
 
 from onebit.core.compiled import kernel
-from onebit.models.graph_hmm.adaptive import SecondOrderEntries, joint_emission
+from onebit.models.graph_hmm.adaptive import joint_emission
 from onebit.models.graph_hmm.eatg import Eatg
 from onebit.models.graph_hmm.likelihood import claims, path_log_prior
+from onebit.models.graph_hmm.window import SecondOrderEntries
 
 
 class PairSpace:
@@ -53,8 +54,8 @@ class PairSpace:
     each state's predecessors with their log transition probabilities (module docstring).
 
     ``log_a`` gives ``log a(j3, j2, j1)`` by index arrays: the dense tensor of
-    :func:`~onebit.models.graph_hmm.adaptive.second_order_tensor` or its entries one by one
-    (:class:`~onebit.models.graph_hmm.adaptive.SecondOrderEntries`, no ``N^3`` array). On a
+    :func:`~onebit.models.graph_hmm.window.second_order_tensor` or its entries one by one
+    (:class:`~onebit.models.graph_hmm.window.SecondOrderEntries`, no ``N^3`` array). On a
     subset of the nodes a state ``(x, c)`` keeps every context ``c`` of ``x``; a move from a
     node outside the subset has no predecessor state (paths stay inside it). States are
     ordered by node, then context, and so are the predecessors, as on the whole graph: a
@@ -130,7 +131,7 @@ class JointSpaces:
     activations chained to them within ``r`` hops. Faster on long meetings but approximate: a
     joint optimum that leaves it is not found (on the simulated 24-hour home one hour-long
     meeting's gain in ``log L`` fell from 682 to 53). Transitions are read entry by entry
-    (:class:`~onebit.models.graph_hmm.adaptive.SecondOrderEntries`): no ``N^3`` tensor.
+    (:class:`~onebit.models.graph_hmm.window.SecondOrderEntries`): no ``N^3`` tensor.
     Spaces are cached by their node set (at most ``MAX_CACHED``). ``whole=True``: every meeting
     on every node (the reference the exact sets are tested against)."""
 
@@ -359,6 +360,35 @@ def pair_space(eatg: Eatg) -> PairSpace:
     return PairSpace(eatg.hops, SecondOrderEntries(eatg.a1, eatg.a2))
 
 
+def _window_columns(nodes: np.ndarray, n: int, rest: np.ndarray, active: np.ndarray) -> tuple:
+    """``(col, others, act)`` of a meeting's window on its space's nodes: each node's column
+    (-1 outside), the other users' claims (``rest``, their paths in the window) and the
+    activity, on those columns."""
+    col = np.full(n, -1, dtype=np.int64)
+    col[nodes] = np.arange(nodes.size)
+    others = claims(np.where(rest >= 0, col[np.maximum(rest, 0)], -1), nodes.size)
+    return col, others, active[:, nodes]
+
+
+def _best_candidate(seg: np.ndarray, window: tuple[int, int], candidates, score, cur: float):
+    """``(best log L, pick)``: the candidate pair path (``candidates``: one per pairing of the
+    tails, None when none) of highest exact ``log L`` over ``seg`` when it beats the current
+    ``cur`` by more than 1e-9 -- ``pick = (path, tails exchanged)`` -- else ``(cur, None)``."""
+    k0, k1 = window
+    best, pick = cur, None
+    for swap, path in enumerate(candidates):
+        if path is None:
+            continue
+        y = seg.copy()
+        y[:, k0:k1] = path
+        if swap:
+            y[:, k1:] = seg[::-1, k1:]
+        ll = score(y)
+        if ll > best + 1e-9:
+            best, pick = ll, (path, bool(swap))
+    return best, pick
+
+
 def redecode_meetings(
     paths: np.ndarray,
     active: np.ndarray,
@@ -406,11 +436,9 @@ def redecode_meetings(
         start = (space.state(x[u, a], ctx[0]), space.state(x[v, a], ctx[1]))
         # the window's emissions on the space's columns only: the pair's current and candidate
         # nodes are all in it, so the columns outside add the same to every candidate's log L
-        col = np.full(n, -1, dtype=np.int64)
-        col[space.nodes] = np.arange(space.nodes.size)
-        rest = np.delete(x[:, w0 : w1 + 1], [u, v], axis=0)
-        others = claims(np.where(rest >= 0, col[np.maximum(rest, 0)], -1), space.nodes.size)
-        act = active[w0 : w1 + 1][:, space.nodes]
+        col, others, act = _window_columns(
+            space.nodes, n, np.delete(x[:, w0 : w1 + 1], [u, v], axis=0), active[w0 : w1 + 1]
+        )
         b = min(max(w1 + 1, _first_change(x[u], w1 + 1), _first_change(x[v], w1 + 1)), d - 1)
         seg = x[[u, v], a : b + 1]  # the pair from the slot before the window to where their tails settle
         k0, k1 = w0 - a, w1 + 1 - a  # the window inside ``seg``
@@ -426,19 +454,8 @@ def redecode_meetings(
             col=col,
         )
         cur = score(seg)
-        best, pick = cur, None
-        for swap, path in enumerate(
-            decode_pair(space, start, act, others, ends, p_hit=p_hit, p_false=p_false, compiled=compiled)
-        ):
-            if path is None:
-                continue
-            y = seg.copy()
-            y[:, k0:k1] = path
-            if swap:
-                y[:, k1:] = seg[::-1, k1:]
-            ll = score(y)
-            if ll > best + 1e-9:
-                best, pick = ll, (path, bool(swap))
+        candidates = decode_pair(space, start, act, others, ends, p_hit=p_hit, p_false=p_false, compiled=compiled)
+        best, pick = _best_candidate(seg, (k0, k1), candidates, score, cur)
         if pick is not None:
             x[[u, v], w0 : w1 + 1] = pick[0]
             if pick[1]:  # the tails change hands: from here on each follows the other's path

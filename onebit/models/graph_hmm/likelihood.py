@@ -10,7 +10,7 @@ users at it::
              + sum_{t,j} log P(b_j(t) | c_j(t)),
     P(b_j = 1 | c) = 1 - (1 - p_hit)^c  (c >= 1),   p_false  (c = 0),
 
-with ``a(j3, j2, j1)`` the tensor of :func:`~onebit.models.graph_hmm.adaptive.second_order_tensor`
+with ``a(j3, j2, j1)`` the tensor of :func:`~onebit.models.graph_hmm.window.second_order_tensor`
 (``j3 = j2`` where no direction is known yet: first order). A slot where a user is absent
 (``-1``) ends its chain; the first slot after it is not scored (the same for every labelling).
 
@@ -25,8 +25,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from onebit.models.graph_hmm.adaptive import SecondOrderEntries, joint_emission
+from onebit.models.graph_hmm.adaptive import joint_emission
 from onebit.models.graph_hmm.eatg import Eatg
+from onebit.models.graph_hmm.window import SecondOrderEntries
 
 
 def came_from(paths: np.ndarray, ctx0: np.ndarray | None = None) -> np.ndarray:
@@ -52,7 +53,7 @@ def came_from(paths: np.ndarray, ctx0: np.ndarray | None = None) -> np.ndarray:
 def path_log_prior(paths: np.ndarray, log_a: np.ndarray, ctx0: np.ndarray | None = None) -> float:
     """``sum_u sum_t log a(c_u(t-1), x_u(t-1), x_u(t))`` over slots where the user is present
     at ``t - 1`` and ``t`` (``log_a`` indexed ``log_a[j3, j2, j1]``: the ``(N, N, N)`` tensor or
-    :class:`~onebit.models.graph_hmm.adaptive.SecondOrderEntries`; ``ctx0``
+    :class:`~onebit.models.graph_hmm.window.SecondOrderEntries`; ``ctx0``
     as in :func:`came_from`)."""
     paths = np.asarray(paths, dtype=np.int64)
     ctx = came_from(paths, ctx0)

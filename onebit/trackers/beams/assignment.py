@@ -354,6 +354,44 @@ class AssignmentState:
         self.unexplained: list[int] = []
         self.reasons: list[str] = []
 
+    def _eligible(self, q: list, s: int, t: int, tj: float) -> tuple[int, dict[str, int]]:
+        """``(position, refusals)``: the eligible agent of ``Q_source`` (``q``, of region ``s``;
+        the crossing goes to ``t`` at ``tj``) with the smallest key (-1: none), and how many
+        agents each reason refused."""
+        L, visits, entered, team, tau = self.L, self.visits, self.entered, self.team, self.tau
+        team_cap, team_count, rank, n_teams = self.team_cap, self.team_count, self.rank, self.n_teams
+        best, pos = None, -1
+        why: dict[str, int] = {}
+        order = range(len(q) - 1, -1, -1) if self.lifo else range(len(q))
+        for i in order:
+            a = q[i]
+            if L and visits[a] >= L:
+                why["track length"] = why.get("track length", 0) + 1
+                continue
+            if self.use_time and tj - entered[a] < tau[s]:
+                why["in region < traversal time"] = why.get("in region < traversal time", 0) + 1
+                continue
+            k = team[a]
+            if team_cap is not None and k >= 0 and 0 <= team_cap[t][k] <= team_count[t][k]:
+                why["team bound of target"] = why.get("team bound of target", 0) + 1
+                continue
+            key = (rank[k] if (rank is not None and k >= 0) else n_teams, visits[a] if self.prefer_short else 0)
+            if best is None or key < best:
+                best, pos = key, i
+        return pos, why
+
+    def _reason(self, q: list, s: int, can_create: bool, why: dict[str, int]) -> str:
+        """Why a crossing out of region ``s`` (its queue ``q``) has no agent."""
+        names = self.names
+        if q:
+            detail = ", ".join(f"{v} {k}" for k, v in why.items())
+            return f"no eligible agent among the {len(q)} in {names[s]} ({detail})"
+        if self.L == 1:
+            return f"no agent in {names[s]}; a new one would exceed max_track_length 1"
+        if not can_create:
+            return f"no agent in {names[s]} and all {self.max_agents} agents are known"
+        return f"no agent in {names[s]} and no room for a new one (capacity {self.cap[s]})"
+
     def feed(self, source, target, times=None) -> np.ndarray:
         """Assign the next crossings ``source[j] -> target[j]`` (``times`` for variation E);
         returns their agents (-1 = unexplainable)."""
@@ -374,8 +412,7 @@ class AssignmentState:
             self.team,
             self.peak,
         )
-        cap, tau, L, names, n_teams = self.cap, self.tau, self.L, self.names, self.n_teams
-        team_cap, rank = self.team_cap, self.rank
+        cap, L, names, n_teams = self.cap, self.L, self.names, self.n_teams
         out = [-1] * m
         base = len(self.agents)
         for j in range(m):
@@ -385,28 +422,11 @@ class AssignmentState:
                 self.unexplained.append(base + j)
                 self.reasons.append(f"capacity of {names[t]} ({cap[t]}) reached")
                 continue
-            pos = -1
+            pos, why = -1, {}
             if q and not self.scan:
                 pos = len(q) - 1 if self.lifo else 0
             elif q:
-                best = None
-                why: dict[str, int] = {}
-                order = range(len(q) - 1, -1, -1) if self.lifo else range(len(q))
-                for i in order:
-                    a = q[i]
-                    if L and visits[a] >= L:
-                        why["track length"] = why.get("track length", 0) + 1
-                        continue
-                    if self.use_time and tt[j] - entered[a] < tau[s]:
-                        why["in region < traversal time"] = why.get("in region < traversal time", 0) + 1
-                        continue
-                    k = team[a]
-                    if team_cap is not None and k >= 0 and 0 <= team_cap[t][k] <= team_count[t][k]:
-                        why["team bound of target"] = why.get("team bound of target", 0) + 1
-                        continue
-                    key = (rank[k] if (rank is not None and k >= 0) else n_teams, visits[a] if self.prefer_short else 0)
-                    if best is None or key < best:
-                        best, pos = key, i
+                pos, why = self._eligible(q, s, t, tt[j])
             if pos >= 0:
                 agent = q.pop(pos)
             else:
@@ -422,15 +442,7 @@ class AssignmentState:
                     peak[s] += 1
                 else:
                     self.unexplained.append(base + j)
-                    if q:
-                        detail = ", ".join(f"{v} {k}" for k, v in why.items())
-                        self.reasons.append(f"no eligible agent among the {len(q)} in {names[s]} ({detail})")
-                    elif L == 1:
-                        self.reasons.append(f"no agent in {names[s]}; a new one would exceed max_track_length 1")
-                    elif not can_create:
-                        self.reasons.append(f"no agent in {names[s]} and all {self.max_agents} agents are known")
-                    else:
-                        self.reasons.append(f"no agent in {names[s]} and no room for a new one (capacity {cap[s]})")
+                    self.reasons.append(self._reason(q, s, can_create, why))
                     continue
             k = team[agent]
             if k >= 0 and n_teams:

@@ -336,6 +336,56 @@ def _merge_and_prune(E, cost, node, diam):
     return E, cost, node
 
 
+def _start_states(initial, n_agents: int | None, p: int) -> tuple[np.ndarray, int]:
+    """``(start, n)``: the DP's start states -- the known ``eta_0``, or every count vector with
+    sum ``n`` over ``p`` regions (bounded by :data:`MAX_GRID_CELLS`) -- and the agents' count."""
+    if initial is not None:
+        start = np.asarray(initial, dtype=np.int64).reshape(1, p)
+        if np.any(start < 0):
+            raise ValueError(f"initial counts must be >= 0, got {start.ravel().tolist()}")
+        if n_agents is not None and int(start.sum()) != n_agents:
+            raise ValueError(f"initial counts sum to {int(start.sum())}, not n = {n_agents}")
+        n_agents = int(start.sum())
+    elif n_agents is None:
+        raise ValueError("give n_agents or initial")
+    else:
+        check_size(  # every count vector with sum n is a start state: C(n + p - 1, p - 1) rows of p
+            float(math.comb(n_agents + p - 1, p - 1)) * p if p else 0.0,
+            MAX_GRID_CELLS,
+            what=f"count-state cells ({n_agents} agents over {p} regions, every start unknown)",
+            field="[correct] n (or site.toml targets)",
+            hint="fewer agents, or the known initial counts ([correct] initial / start_region)",
+        )
+        start = count_states(p, n_agents)
+    return start, n_agents
+
+
+def _dropped_blocks(src, tgt, start, H, diam, max_chunk: int, compiled: bool | None):
+    """``(blocks, q, peak, events)`` of the correction DP: the ``(position, region)`` of each
+    block of insertions in string order, the best start state, the DP's peak width and events
+    (compiled from :data:`COMPILED_MIN` crossings on, see :func:`correct`)."""
+    if compiled if compiled is not None else len(src) >= COMPILED_MIN:
+        best, parent, position, region, q, peak, events, bad = kernels.correction_dp(
+            src,
+            tgt,
+            np.ascontiguousarray(start, dtype=np.int64),
+            np.ascontiguousarray(H, dtype=np.int64),
+            _FAR,
+            int(diam),
+        )
+        if bad >= 0:
+            raise ValueError(f"crossing {bad} cannot be explained: no agent can reach its source region")
+        blocks = []
+        node_q = int(best)
+        while parent[node_q] >= 0:
+            blocks.append((int(position[node_q]), int(region[node_q])))
+            node_q = int(parent[node_q])
+    else:
+        blocks, q, peak, events = _correction_dp_reference(src, tgt, start, H, diam, max_chunk)
+    blocks.reverse()
+    return blocks, q, peak, events
+
+
 def correct(
     source,
     target,
@@ -376,49 +426,14 @@ def correct(
     obs_times = None if times is None else np.asarray(times, dtype=np.float64)
     if obs_times is not None and (len(obs_times) != m or np.any(np.diff(obs_times) < 0)):
         raise ValueError(f"times must be {m} sorted values, one per observed crossing")
-    if initial is not None:
-        start = np.asarray(initial, dtype=np.int64).reshape(1, p)
-        if np.any(start < 0):
-            raise ValueError(f"initial counts must be >= 0, got {start.ravel().tolist()}")
-        if n_agents is not None and int(start.sum()) != n_agents:
-            raise ValueError(f"initial counts sum to {int(start.sum())}, not n = {n_agents}")
-        n_agents = int(start.sum())
-    elif n_agents is None:
-        raise ValueError("give n_agents or initial")
-    else:
-        check_size(  # every count vector with sum n is a start state: C(n + p - 1, p - 1) rows of p
-            float(math.comb(n_agents + p - 1, p - 1)) * p if p else 0.0,
-            MAX_GRID_CELLS,
-            what=f"count-state cells ({n_agents} agents over {p} regions, every start unknown)",
-            field="[correct] n (or site.toml targets)",
-            hint="fewer agents, or the known initial counts ([correct] initial / start_region)",
-        )
-        start = count_states(p, n_agents)
+    start, n_agents = _start_states(initial, n_agents, p)
     if n_agents < 1 and m > 0:
         raise ValueError("a non-empty crossing string needs n >= 1 agents")
     H = np.where(edges.hops >= 0, edges.hops, _FAR)
     diam = max(edges.diameter, 1)
 
-    if compiled if compiled is not None else m >= COMPILED_MIN:
-        best, parent, position, region, q, peak, events, bad = kernels.correction_dp(
-            src,
-            tgt,
-            np.ascontiguousarray(start, dtype=np.int64),
-            np.ascontiguousarray(H, dtype=np.int64),
-            _FAR,
-            int(diam),
-        )
-        if bad >= 0:
-            raise ValueError(f"crossing {bad} cannot be explained: no agent can reach its source region")
-        blocks = []
-        node_q = int(best)
-        while parent[node_q] >= 0:
-            blocks.append((int(position[node_q]), int(region[node_q])))
-            node_q = int(parent[node_q])
-    else:
-        blocks, q, peak, events = _correction_dp_reference(src, tgt, start, H, diam, max_chunk)
+    blocks, q, peak, events = _dropped_blocks(src, tgt, start, H, diam, max_chunk, compiled)
     eta0 = start[q].astype(np.int64)
-    blocks.reverse()
 
     ins_pos: list[int] = []
     ins_edge: list[int] = []

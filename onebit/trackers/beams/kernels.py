@@ -89,6 +89,111 @@ def assign_base(src, tgt, n_regions, lifo):
 
 
 @kernel
+def _initial_agents(init, init_team, p, cap_agents, n_teams):
+    """The queues of ``p`` regions holding the known initial agents (``init`` their regions,
+    ``init_team`` their teams, -1 none) and room for ``cap_agents`` agents in all: ``(head,
+    tail, size, nxt, prv, initial, visits, entered, team, team_count)``."""
+    head = np.full(p, -1, dtype=np.int64)
+    tail = np.full(p, -1, dtype=np.int64)
+    size = np.zeros(p, dtype=np.int64)
+    nxt = np.empty(cap_agents, dtype=np.int64)
+    prv = np.empty(cap_agents, dtype=np.int64)
+    initial = np.empty(cap_agents, dtype=np.int64)
+    visits = np.empty(cap_agents, dtype=np.int64)
+    entered = np.empty(cap_agents)
+    team = np.empty(cap_agents, dtype=np.int64)
+    team_count = np.zeros((p, max(n_teams, 1)), dtype=np.int64)
+    for a in range(init.shape[0]):
+        r = init[a]
+        _push(r, a, head, tail, nxt, prv, size)
+        initial[a] = r
+        visits[a] = 1
+        entered[a] = -np.inf
+        team[a] = init_team[a]
+        if init_team[a] >= 0 and n_teams > 0:
+            team_count[r, init_team[a]] += 1
+    return head, tail, size, nxt, prv, initial, visits, entered, team, team_count
+
+
+@kernel
+def _eligible_agent(
+    a,
+    j,
+    s,
+    t,
+    lifo,
+    L,
+    prefer_short,
+    use_time,
+    times,
+    tau,
+    has_team_cap,
+    team_cap,
+    has_rank,
+    rank,
+    n_teams,
+    visits,
+    entered,
+    team,
+    team_count,
+    nxt,
+    prv,
+    cnt,
+    order,
+):
+    """Line 5 of Algorithm 1 with the variations: the eligible agent of ``Q_source`` (``s``,
+    scanned from agent ``a`` in queue order) with the smallest key, or -1. ``cnt``/``order``
+    get the agents refused for each reason of :data:`WHY` and the order the reasons were met."""
+    cnt[:] = 0
+    order[:] = -1
+    seen = 0
+    best0, best1 = 0, 0
+    found = False
+    pick = -1
+    while a >= 0:
+        why_k = -1
+        k = team[a]
+        if L > 0 and visits[a] >= L:
+            why_k = 0
+        elif use_time and times[j] - entered[a] < tau[s]:
+            why_k = 1
+        elif has_team_cap and k >= 0 and 0 <= team_cap[t, k] and team_cap[t, k] <= team_count[t, k]:
+            why_k = 2
+        if why_k >= 0:
+            if cnt[why_k] == 0:
+                order[why_k] = seen
+                seen += 1
+            cnt[why_k] += 1
+        else:
+            k0 = rank[k] if (has_rank and k >= 0) else n_teams
+            k1 = visits[a] if prefer_short else 0
+            if not found or k0 < best0 or (k0 == best0 and k1 < best1):
+                found = True
+                best0, best1 = k0, k1
+                pick = a
+        a = prv[a] if lifo else nxt[a]
+    return pick
+
+
+@kernel
+def _unexplained(nu, j, q_size, L, can_create, cnt, order, un, code, why, why_order, q_len):
+    """Row ``nu`` of the unexplained crossings: crossing ``j``, its code, the refusals and
+    ``|Q_source| = q_size``."""
+    un[nu] = j
+    q_len[nu] = q_size
+    if q_size > 0:
+        code[nu] = NO_ELIGIBLE
+        why[nu] = cnt
+        why_order[nu] = order
+    elif L == 1:
+        code[nu] = LENGTH_ONE
+    elif not can_create:
+        code[nu] = ALL_KNOWN
+    else:
+        code[nu] = NO_ROOM
+
+
+@kernel
 def assign_constrained(
     src,
     tgt,
@@ -118,30 +223,11 @@ def assign_constrained(
     were first met in the scan (-1: not met) and ``|Q_source|``.
     """
     m = src.shape[0]
-    p = n_regions
     n0 = init.shape[0]
-    cap_agents = n0 + m
-    head = np.full(p, -1, dtype=np.int64)
-    tail = np.full(p, -1, dtype=np.int64)
-    size = np.zeros(p, dtype=np.int64)
-    nxt = np.empty(cap_agents, dtype=np.int64)
-    prv = np.empty(cap_agents, dtype=np.int64)
-    initial = np.empty(cap_agents, dtype=np.int64)
-    visits = np.empty(cap_agents, dtype=np.int64)
-    entered = np.empty(cap_agents)
-    team = np.empty(cap_agents, dtype=np.int64)
-    team_count = np.zeros((p, max(n_teams, 1)), dtype=np.int64)
-    n = 0
-    for a in range(n0):
-        r = init[a]
-        _push(r, a, head, tail, nxt, prv, size)
-        initial[a] = r
-        visits[a] = 1
-        entered[a] = -np.inf
-        team[a] = init_team[a]
-        if init_team[a] >= 0 and n_teams > 0:
-            team_count[r, init_team[a]] += 1
-        n += 1
+    head, tail, size, nxt, prv, initial, visits, entered, team, team_count = _initial_agents(
+        init, init_team, n_regions, n0 + m, n_teams
+    )
+    n = n0
     allow_new = not known_initial
     limit = n0 if known_initial else max_agents
     peak = size.copy()
@@ -165,34 +251,31 @@ def assign_constrained(
         if size[s] > 0 and not scan:
             pick = tail[s] if lifo else head[s]
         elif size[s] > 0:
-            cnt[:] = 0
-            order[:] = -1
-            seen = 0
-            best0, best1 = 0, 0
-            found = False
-            a = tail[s] if lifo else head[s]
-            while a >= 0:  # line 5: the eligible agent of Q_source with the smallest key
-                why_k = -1
-                k = team[a]
-                if L > 0 and visits[a] >= L:
-                    why_k = 0
-                elif use_time and times[j] - entered[a] < tau[s]:
-                    why_k = 1
-                elif has_team_cap and k >= 0 and 0 <= team_cap[t, k] and team_cap[t, k] <= team_count[t, k]:
-                    why_k = 2
-                if why_k >= 0:
-                    if cnt[why_k] == 0:
-                        order[why_k] = seen
-                        seen += 1
-                    cnt[why_k] += 1
-                else:
-                    k0 = rank[k] if (has_rank and k >= 0) else n_teams
-                    k1 = visits[a] if prefer_short else 0
-                    if not found or k0 < best0 or (k0 == best0 and k1 < best1):
-                        found = True
-                        best0, best1 = k0, k1
-                        pick = a
-                a = prv[a] if lifo else nxt[a]
+            pick = _eligible_agent(
+                tail[s] if lifo else head[s],
+                j,
+                s,
+                t,
+                lifo,
+                L,
+                prefer_short,
+                use_time,
+                times,
+                tau,
+                has_team_cap,
+                team_cap,
+                has_rank,
+                rank,
+                n_teams,
+                visits,
+                entered,
+                team,
+                team_count,
+                nxt,
+                prv,
+                cnt,
+                order,
+            )
         if pick >= 0:
             _unlink(s, pick, head, tail, nxt, prv, size)
             agent = pick
@@ -208,18 +291,7 @@ def assign_constrained(
                 n += 1
                 peak[s] += 1
             else:
-                un[nu] = j
-                q_len[nu] = size[s]
-                if size[s] > 0:
-                    code[nu] = NO_ELIGIBLE
-                    why[nu] = cnt
-                    why_order[nu] = order
-                elif L == 1:
-                    code[nu] = LENGTH_ONE
-                elif not can_create:
-                    code[nu] = ALL_KNOWN
-                else:
-                    code[nu] = NO_ROOM
+                _unexplained(nu, j, size[s], L, can_create, cnt, order, un, code, why, why_order, q_len)
                 nu += 1
                 continue
         k = team[agent]

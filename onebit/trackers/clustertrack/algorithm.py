@@ -341,6 +341,18 @@ def scan_clusters_reference(
     return order[kidx], label[kidx], is_head[kidx], scanned_upto
 
 
+def _traced_back(heads: np.ndarray, pos_hist: list, par_hist: list, order: np.ndarray, dim: int) -> np.ndarray:
+    """``(H, T, dim)`` tracks of the last step's ``heads``, traced back step by step through
+    each step's survivors (``pos_hist``) and parents (``par_hist``), by original instant."""
+    T = len(pos_hist)
+    tracks = np.empty((heads.size, T, dim))
+    idx = heads
+    for s in range(T - 1, -1, -1):
+        tracks[:, order[s], :] = pos_hist[s][idx]
+        idx = par_hist[s][idx]
+    return tracks
+
+
 def cluster_track(space: FeasibleSpace, p: Params, rng: np.random.Generator, *, record: bool = False) -> RunResult:
     """One pass of Algorithm 1 over the space's steps (sequential in time by nature).
 
@@ -410,11 +422,7 @@ def cluster_track(space: FeasibleSpace, p: Params, rng: np.random.Generator, *, 
         if record:
             particles.append((xk.copy(), label.copy(), cost.copy()))
     heads = np.flatnonzero(is_head)
-    tracks = np.empty((heads.size, T, dim))
-    idx = heads
-    for s in range(T - 1, -1, -1):  # trace the heads back, step by step
-        tracks[:, space.order[s], :] = pos_hist[s][idx]
-        idx = par_hist[s][idx]
+    tracks = _traced_back(heads, pos_hist, par_hist, space.order, dim)
     if record:
         # particles were recorded in step order; store them by original instant
         by_t = [None] * T

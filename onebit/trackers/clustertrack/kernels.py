@@ -229,6 +229,193 @@ def _sift_up(heap, v, key, ri):
 
 
 @kernel
+def _scan_prefix(o, par, sel, x, pd, steps, H, K, D0, heads, counts, kept, label, is_head):
+    """The sorted prefix ``o`` of the scan order, scanned in turn (:func:`scan_sorted`'s loop):
+    each candidate founds a head (nearest head ``>= D_0``), joins its nearest cluster if it
+    holds fewer than ``H``, or is dropped. Fills ``heads``/``counts``/``kept``/``label``/
+    ``is_head``; returns ``(heads, kept, scanned, stop)`` counts, ``stop`` the candidate at
+    which the ``K``-th was kept (-1: not reached, ``scanned`` then ``sel.size``)."""
+    nh = 0
+    nk = 0
+    scanned = sel.size
+    stop = -1
+    for r in range(o.size):
+        i = o[r]
+        best = np.inf
+        bh = -1
+        for h in range(nh):
+            d = _head_distance(i, heads[h], par, sel, x, pd, steps)
+            if d < best:
+                best = d
+                bh = h
+        if nh == 0 or best >= D0:
+            heads[nh] = i
+            counts[nh] = 1
+            kept[nk], label[nk], is_head[nk] = i, nh, True
+            nh += 1
+            nk += 1
+        elif counts[bh] < H:
+            counts[bh] += 1
+            kept[nk], label[nk], is_head[nk] = i, bh, False
+            nk += 1
+        if nk >= K:
+            scanned = r + 1
+            stop = i
+            break
+    return nh, nk, scanned, stop
+
+
+@kernel
+def _nearest_heads(ri, heads, nh, par, sel, x, pd, steps):
+    """``(best, head)``: each candidate ``ri[u]``'s distance to its nearest head so far and
+    that head (``inf``, -1 without heads)."""
+    m = ri.size
+    best_r = np.full(m, np.inf)
+    bh_r = np.full(m, -1, dtype=np.int64)
+    for h in range(nh):
+        for u in range(m):
+            d = _head_distance(ri[u], heads[h], par, sel, x, pd, steps)
+            if d < best_r[u]:
+                best_r[u] = d
+                bh_r[u] = h
+    return best_r, bh_r
+
+
+@kernel
+def _after_new_head(
+    i, h, key, ri, par, sel, x, pd, steps, H, D0, best_r, bh_r, heap, in_heap, near, counts, size, free, live
+):
+    """Head ``h`` founded by candidate ``i``: every candidate after ``i`` in the scan order
+    whose nearest head it becomes is updated -- its old state taken out of the live counts,
+    pushed on the heap if it became live, its new state counted. Returns ``(size, free, live)``."""
+    for w in range(ri.size):
+        if not _before(key, i, ri[w]):
+            continue
+        d = _head_distance(ri[w], i, par, sel, x, pd, steps)
+        if d >= best_r[w]:
+            continue
+        if in_heap[w]:  # take its old state out of the counts
+            if best_r[w] >= D0:
+                free -= 1
+                live -= 1
+            else:
+                near[bh_r[w]] -= 1
+                if counts[bh_r[w]] < H:
+                    live -= 1
+        best_r[w] = d
+        bh_r[w] = h
+        if best_r[w] >= D0 or counts[h] < H:
+            if not in_heap[w]:
+                in_heap[w] = True
+                heap[size] = w
+                size += 1
+                _sift_up(heap, size - 1, key, ri)
+        if in_heap[w]:
+            if best_r[w] >= D0:
+                free += 1
+                live += 1
+            else:
+                near[h] += 1
+                if counts[h] < H:
+                    live += 1
+    return size, free, live
+
+
+@kernel
+def _scan_rest(o, key, par, sel, x, pd, steps, H, K, D0, heads, counts, kept, label, is_head, nh, nk):
+    """The candidates after the sorted prefix ``o``, scanned through a heap of the live ones
+    (:func:`scan_step`'s docstring). Continues the fills of :func:`_scan_prefix` from ``nh``
+    heads and ``nk`` kept; returns ``(heads, kept, stop)`` as it does."""
+    n = sel.size
+    stop = -1
+    rest = np.ones(n, dtype=np.bool_)
+    for r in range(o.size):
+        rest[o[r]] = False
+    ri = np.flatnonzero(rest)
+    m = ri.size
+    best_r, bh_r = _nearest_heads(ri, heads, nh, par, sel, x, pd, steps)
+    # the live candidates (that would found a head or join a cluster not yet full) in a
+    # heap by scan order; `live` counts those in the heap, through `free` (would found)
+    # and `near[h]` (nearest head h, within D0); the scan ends when none is left
+    heap = np.empty(m, dtype=np.int64)  # indices into ri
+    in_heap = np.zeros(m, dtype=np.bool_)
+    near = np.zeros(heads.size, dtype=np.int64)
+    free = 0
+    live = 0
+    size = 0
+    for u in range(m):
+        if best_r[u] >= D0 or counts[bh_r[u]] < H:
+            heap[size] = u
+            size += 1
+            in_heap[u] = True
+            if best_r[u] >= D0:
+                free += 1
+                live += 1
+            else:
+                near[bh_r[u]] += 1
+                live += 1
+    for v in range(size // 2 - 1, -1, -1):
+        _sift_down(heap, v, size, key, ri)
+    while live > 0:
+        u = heap[0]  # the next live-or-not candidate in scan order
+        size -= 1
+        heap[0] = heap[size]
+        _sift_down(heap, 0, size, key, ri)
+        in_heap[u] = False
+        if best_r[u] >= D0:
+            free -= 1
+            live -= 1
+        else:
+            near[bh_r[u]] -= 1
+            if counts[bh_r[u]] < H:
+                live -= 1
+        i = ri[u]
+        if best_r[u] >= D0:  # founds a cluster; later candidates compare with it too
+            h = nh
+            heads[nh] = i
+            counts[nh] = 1
+            kept[nk], label[nk], is_head[nk] = i, nh, True
+            nh += 1
+            nk += 1
+            if nk >= K:
+                stop = i
+                break
+            size, free, live = _after_new_head(
+                i,
+                h,
+                key,
+                ri,
+                par,
+                sel,
+                x,
+                pd,
+                steps,
+                H,
+                D0,
+                best_r,
+                bh_r,
+                heap,
+                in_heap,
+                near,
+                counts,
+                size,
+                free,
+                live,
+            )
+        elif counts[bh_r[u]] < H:  # joins its nearest cluster
+            h = bh_r[u]
+            counts[h] += 1
+            kept[nk], label[nk], is_head[nk] = i, h, False
+            nk += 1
+            if counts[h] == H:  # full: its near candidates are no longer live
+                live -= near[h]
+            if nk >= K:
+                stop = i
+                break
+    return nh, nk, stop
+
+
+@kernel
 def scan_step(key, sel, x, m_t, pd, steps, H, K, D0, first, v):
     """Steps 3-18 of Algorithm 1 and the survivors' summed distances, in one call per instant.
 
@@ -265,134 +452,10 @@ def scan_step(key, sel, x, m_t, pd, steps, H, K, D0, first, v):
     kept = np.empty(cap, dtype=np.int64)  # positions in sel, in scan order
     label = np.empty(cap, dtype=np.int64)
     is_head = np.empty(cap, dtype=np.bool_)
-    nh = 0
-    nk = 0
-    scanned = n
-    stop = -1  # position at which the K-th was kept
     o = np.argsort(key, kind="mergesort") if first >= n else ordered_prefix_at(key, first, v)
-    for r in range(o.size):  # the sorted prefix, in turn (scan_sorted's loop)
-        i = o[r]
-        best = np.inf
-        bh = -1
-        for h in range(nh):
-            d = _head_distance(i, heads[h], par, sel, x, pd, steps)
-            if d < best:
-                best = d
-                bh = h
-        if nh == 0 or best >= D0:
-            heads[nh] = i
-            counts[nh] = 1
-            kept[nk], label[nk], is_head[nk] = i, nh, True
-            nh += 1
-            nk += 1
-        elif counts[bh] < H:
-            counts[bh] += 1
-            kept[nk], label[nk], is_head[nk] = i, bh, False
-            nk += 1
-        if nk >= K:
-            scanned = r + 1
-            stop = i
-            break
+    nh, nk, scanned, stop = _scan_prefix(o, par, sel, x, pd, steps, H, K, D0, heads, counts, kept, label, is_head)
     if stop < 0 and o.size < n:
-        rest = np.ones(n, dtype=np.bool_)
-        for r in range(o.size):
-            rest[o[r]] = False
-        ri = np.flatnonzero(rest)
-        m = ri.size
-        best_r = np.full(m, np.inf)
-        bh_r = np.full(m, -1, dtype=np.int64)
-        for h in range(nh):
-            for u in range(m):
-                d = _head_distance(ri[u], heads[h], par, sel, x, pd, steps)
-                if d < best_r[u]:
-                    best_r[u] = d
-                    bh_r[u] = h
-        # the live candidates (that would found a head or join a cluster not yet full) in a
-        # heap by scan order; `live` counts those in the heap, through `free` (would found)
-        # and `near[h]` (nearest head h, within D0); the scan ends when none is left
-        heap = np.empty(m, dtype=np.int64)  # indices into ri
-        in_heap = np.zeros(m, dtype=np.bool_)
-        near = np.zeros(cap, dtype=np.int64)
-        free = 0
-        live = 0
-        size = 0
-        for u in range(m):
-            if best_r[u] >= D0 or counts[bh_r[u]] < H:
-                heap[size] = u
-                size += 1
-                in_heap[u] = True
-                if best_r[u] >= D0:
-                    free += 1
-                    live += 1
-                else:
-                    near[bh_r[u]] += 1
-                    live += 1
-        for v in range(size // 2 - 1, -1, -1):
-            _sift_down(heap, v, size, key, ri)
-        while live > 0:
-            u = heap[0]  # the next live-or-not candidate in scan order
-            size -= 1
-            heap[0] = heap[size]
-            _sift_down(heap, 0, size, key, ri)
-            in_heap[u] = False
-            if best_r[u] >= D0:
-                free -= 1
-                live -= 1
-            else:
-                near[bh_r[u]] -= 1
-                if counts[bh_r[u]] < H:
-                    live -= 1
-            i = ri[u]
-            if best_r[u] >= D0:  # founds a cluster; later candidates compare with it too
-                h = nh
-                heads[nh] = i
-                counts[nh] = 1
-                kept[nk], label[nk], is_head[nk] = i, nh, True
-                nh += 1
-                nk += 1
-                if nk >= K:
-                    stop = i
-                    break
-                for w in range(m):
-                    if not _before(key, i, ri[w]):
-                        continue
-                    d = _head_distance(ri[w], i, par, sel, x, pd, steps)
-                    if d >= best_r[w]:
-                        continue
-                    if in_heap[w]:  # take its old state out of the counts
-                        if best_r[w] >= D0:
-                            free -= 1
-                            live -= 1
-                        else:
-                            near[bh_r[w]] -= 1
-                            if counts[bh_r[w]] < H:
-                                live -= 1
-                    best_r[w] = d
-                    bh_r[w] = h
-                    if best_r[w] >= D0 or counts[h] < H:
-                        if not in_heap[w]:
-                            in_heap[w] = True
-                            heap[size] = w
-                            size += 1
-                            _sift_up(heap, size - 1, key, ri)
-                    if in_heap[w]:
-                        if best_r[w] >= D0:
-                            free += 1
-                            live += 1
-                        else:
-                            near[h] += 1
-                            if counts[h] < H:
-                                live += 1
-            elif counts[bh_r[u]] < H:  # joins its nearest cluster
-                h = bh_r[u]
-                counts[h] += 1
-                kept[nk], label[nk], is_head[nk] = i, h, False
-                nk += 1
-                if counts[h] == H:  # full: its near candidates are no longer live
-                    live -= near[h]
-                if nk >= K:
-                    stop = i
-                    break
+        nh, nk, stop = _scan_rest(o, key, par, sel, x, pd, steps, H, K, D0, heads, counts, kept, label, is_head, nh, nk)
         if stop >= 0:  # its rank in the order
             scanned = 0
             for i in range(n):

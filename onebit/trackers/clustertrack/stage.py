@@ -286,76 +286,19 @@ def run(inputs: dict, site: Site, config: ClusterTrackConfig) -> dict[str, pl.Da
         workers=cores - 1,
     )
     made = {s: runs[0] for s, runs in zip(others, theirs)}
-    N = res.tracks.shape[0]
-    names = [f"c{i + 1}" for i in range(N)]
-    x, y = _xy(res.tracks)
-    tracks = conform(
-        pl.DataFrame(
-            {
-                "tracker": NAME,
-                "track": np.repeat(names, T) if N else np.array([], dtype=str),
-                "t": np.tile(times, N),
-                "x": x.ravel(),
-                "y": y.ravel(),
-            },
-            schema_overrides={"track": pl.String},
-        ),
-        TRACKS,
-    ).sort(["t", "track"], maintain_order=True)
-    # an instant whose F is empty has no feasible position at all (every sensor off over a
-    # fully covered site: nobody is there; or readings no target explains): no track rows there
-    nowhere = np.array([cb.size == 0 for cb in space.comp_bounds_all], dtype=bool)
-    if nowhere.any():
-        tracks = tracks.filter(~pl.col("t").is_in(times[nowhere].tolist()))
-    info = pl.DataFrame(
+    names = [f"c{i + 1}" for i in range(res.tracks.shape[0])]
+    out = {"tracks": _tracks(res, space, names)}
+    out["track_info"] = pl.DataFrame(
         {"track": names, "cost": res.costs, "origin": res.origin},
         schema={"track": pl.String, "cost": pl.Float64, "origin": pl.Int64},
     )
     ncomp = np.array([cb.size for cb in space.comp_bounds_all], dtype=np.int64)
-    counts = pl.DataFrame({"t": times, "size": space.sizes_all, "components": ncomp, "lower_bound": space.bounds_all})
-    fr = res.first
-    steps = pl.DataFrame(
-        {
-            "t": times[space.order],
-            "candidates": fr.candidates,
-            "scanned": fr.scanned,
-            "kept": fr.kept,
-            "clusters": fr.clusters,
-            "max_cluster": fr.max_cluster,
-        }
+    out["counts"] = pl.DataFrame(
+        {"t": times, "size": space.sizes_all, "components": ncomp, "lower_bound": space.bounds_all}
     )
-    # survivors of every instant in one table: the per-instant arrays are concatenated once
-    n_t = np.array([fr.particles[t][1].size for t in range(T)], dtype=np.int64)
-    pxy = np.concatenate([fr.particles[t][0] for t in range(T)]).reshape(-1, space.dim)
-    px, py = _xy(pxy)
-    particles = pl.DataFrame(
-        {
-            "t": np.repeat(times, n_t),
-            "particle": np.arange(n_t.sum()) - np.repeat(np.cumsum(n_t) - n_t, n_t),
-            "cluster": np.concatenate([fr.particles[t][1] for t in range(T)]).astype(np.int64),
-            "x": px,
-            "y": py,
-            "cost": np.concatenate([fr.particles[t][2] for t in range(T)]).astype(np.float64),
-        }
-    )
-    out = {"tracks": tracks, "track_info": info, "counts": counts, "steps": steps, "particles": particles}
+    out["steps"], out["particles"] = _first_run(res.first, space)
     if space.dim == 1:
-        n_c = np.array([len(f.components) for f in space.f1d], dtype=np.int64)
-        comps = np.concatenate([f.components for f in space.f1d]).reshape(-1, 2)
-        out["feasible"] = pl.DataFrame(
-            {
-                "t": np.repeat(times, n_c),
-                "component": np.arange(n_c.sum()) - np.repeat(np.cumsum(n_c) - n_c, n_c),
-                "lo": comps[:, 0],
-                "hi": comps[:, 1],
-            }
-        )
-        out["minimal_targets"] = pl.DataFrame(
-            {
-                "t": np.repeat(times, [m.size for m in space.minimal_targets]),
-                "x": np.concatenate(space.minimal_targets) if T else np.zeros(0),
-            }
-        )
+        out["feasible"], out["minimal_targets"] = _feasible_1d(space)
     count_consensus = -1
     if config.consensus_runs > 0:
         cons = consensus(
@@ -378,7 +321,93 @@ def run(inputs: dict, site: Site, config: ClusterTrackConfig) -> dict[str, pl.Da
                 "support": cons.support[cons.cluster] if cons.cluster.size else np.zeros(0),
             }
         )
-    out["params"] = pl.DataFrame(
+    out["params"] = _params_row(space, R, p, res, count_consensus, len(names))
+    out[ARTIFACTS] = _artifacts(space, R, on, config)
+    return {k: (v.cast(dict(OUTPUT_SCHEMAS[k])) if k in OUTPUT_SCHEMAS else v) for k, v in out.items()}
+
+
+def _tracks(res, space, names: list[str]) -> pl.DataFrame:
+    """The tracks table of the stage's run: one row per track and instant, none at an instant
+    whose F is empty."""
+    T, times, N = space.T, space.times, len(names)
+    x, y = _xy(res.tracks)
+    tracks = conform(
+        pl.DataFrame(
+            {
+                "tracker": NAME,
+                "track": np.repeat(names, T) if N else np.array([], dtype=str),
+                "t": np.tile(times, N),
+                "x": x.ravel(),
+                "y": y.ravel(),
+            },
+            schema_overrides={"track": pl.String},
+        ),
+        TRACKS,
+    ).sort(["t", "track"], maintain_order=True)
+    # an instant whose F is empty has no feasible position at all (every sensor off over a
+    # fully covered site: nobody is there; or readings no target explains): no track rows there
+    nowhere = np.array([cb.size == 0 for cb in space.comp_bounds_all], dtype=bool)
+    if nowhere.any():
+        tracks = tracks.filter(~pl.col("t").is_in(times[nowhere].tolist()))
+    return tracks
+
+
+def _first_run(fr, space) -> tuple[pl.DataFrame, pl.DataFrame]:
+    """``(steps, particles)`` of the first run: the scan's counts per instant, and the
+    survivors of every instant in one table (the per-instant arrays concatenated once)."""
+    T, times = space.T, space.times
+    steps = pl.DataFrame(
+        {
+            "t": times[space.order],
+            "candidates": fr.candidates,
+            "scanned": fr.scanned,
+            "kept": fr.kept,
+            "clusters": fr.clusters,
+            "max_cluster": fr.max_cluster,
+        }
+    )
+    n_t = np.array([fr.particles[t][1].size for t in range(T)], dtype=np.int64)
+    pxy = np.concatenate([fr.particles[t][0] for t in range(T)]).reshape(-1, space.dim)
+    px, py = _xy(pxy)
+    particles = pl.DataFrame(
+        {
+            "t": np.repeat(times, n_t),
+            "particle": np.arange(n_t.sum()) - np.repeat(np.cumsum(n_t) - n_t, n_t),
+            "cluster": np.concatenate([fr.particles[t][1] for t in range(T)]).astype(np.int64),
+            "x": px,
+            "y": py,
+            "cost": np.concatenate([fr.particles[t][2] for t in range(T)]).astype(np.float64),
+        }
+    )
+    return steps, particles
+
+
+def _feasible_1d(space) -> tuple[pl.DataFrame, pl.DataFrame]:
+    """``(feasible, minimal_targets)`` of a 1-d site: F's components and the minimal target
+    positions of every instant."""
+    times = space.times
+    n_c = np.array([len(f.components) for f in space.f1d], dtype=np.int64)
+    comps = np.concatenate([f.components for f in space.f1d]).reshape(-1, 2)
+    feasible = pl.DataFrame(
+        {
+            "t": np.repeat(times, n_c),
+            "component": np.arange(n_c.sum()) - np.repeat(np.cumsum(n_c) - n_c, n_c),
+            "lo": comps[:, 0],
+            "hi": comps[:, 1],
+        }
+    )
+    minimal = pl.DataFrame(
+        {
+            "t": np.repeat(times, [m.size for m in space.minimal_targets]),
+            "x": np.concatenate(space.minimal_targets) if space.T else np.zeros(0),
+        }
+    )
+    return feasible, minimal
+
+
+def _params_row(space, R: float, p, res, count_consensus: int, n_tracks: int) -> pl.DataFrame:
+    """The run's parameters and outcome, one row."""
+    return pl.DataFrame(
         [
             {
                 "dim": space.dim,
@@ -394,22 +423,26 @@ def run(inputs: dict, site: Site, config: ClusterTrackConfig) -> dict[str, pl.Da
                 "satisfied": res.satisfied,
                 "count_lower_bound": space.max_lower_bound,
                 "count_consensus": count_consensus,
-                "tracks": N,
+                "tracks": n_tracks,
             }
         ]
     )
+
+
+def _artifacts(space, R: float, on, config: ClusterTrackConfig) -> dict:
+    """What the viewer draws beside the tables: the instants, the frames on, the cells of F
+    (2-d) and the cell size."""
     cells = None
     if space.dim == 2:
         ti, ci = np.nonzero(space.labels > 0)
         cxy = space.raster.centres[ci]
-        cells = pl.DataFrame({"t": times[ti], "x": cxy[:, 0], "y": cxy[:, 1], "component": space.labels[ti, ci]})
-    out[ARTIFACTS] = {
-        "times": times,
+        cells = pl.DataFrame({"t": space.times[ti], "x": cxy[:, 0], "y": cxy[:, 1], "component": space.labels[ti, ci]})
+    return {
+        "times": space.times,
         "frames_on": on,
         "cells": cells,
         "cell": space.raster.cell if space.raster is not None else R / config.raster_per_r,
     }
-    return {k: (v.cast(dict(OUTPUT_SCHEMAS[k])) if k in OUTPUT_SCHEMAS else v) for k, v in out.items()}
 
 
 SPEC = TrackerSpec(

@@ -188,6 +188,65 @@ def _propagate_box(
 
 
 @kernel
+def _sensor_factors(fired, blind, p0, xi):
+    """Per sensor, relative to no touched cell (``F = 1``, ``D = 0``): fired, the factor
+    ``clip(alpha + beta D) * gamma``; silent, ``max(F, lo)`` (``slow``: the floor binds with no
+    touched cell, summed in logs). Returns ``(alpha, beta, lo, gamma, c, slow, base)``, ``c_i =
+    xi_i log(1 - p0_i)`` and ``base`` the live sensors' log-probabilities with no touched cell."""
+    n = p0.shape[0]
+    alpha = np.empty(n)
+    beta = np.empty(n)
+    lo = np.empty(n)
+    gamma = np.empty(n)
+    ci = np.empty(n)
+    slow = np.zeros(n, dtype=np.bool_)
+    base = 0.0
+    for i in range(n):
+        ci[i] = xi[i] * math.log1p(-min(p0[i], 1.0 - PROB_FLOOR))
+        if fired[i]:
+            hc = -math.expm1(ci[i])
+            p_empty = min(max(hc, PROB_FLOOR), 1.0)
+            alpha[i], beta[i], lo[i], gamma[i] = hc, -(1.0 - hc), PROB_FLOOR, 1.0 / p_empty
+            const = math.log(p_empty)
+        else:
+            alpha[i], beta[i], lo[i], gamma[i] = 1.0, 1.0, math.exp(LOG_FLOOR - ci[i]), 1.0
+            slow[i] = ci[i] < LOG_FLOOR  # the floor binds with no touched cell: summed in logs
+            const = max(ci[i], LOG_FLOOR)
+        if not blind[i]:
+            base += const
+    return alpha, beta, lo, gamma, ci, slow, base
+
+
+@kernel
+def _live_cell_entries(blind, cell_ptr, cell_sensor, cell_q, p0, a):
+    """The live sensors' entries per cell (:func:`cell_lists` without the blind sensors):
+    ``(ptr, sensor, 1 - p0, max(q, p0) - p0, 1 / a)``."""
+    n_cells = cell_ptr.shape[0] - 1
+    lptr = np.zeros(n_cells + 1, dtype=np.int64)
+    nnz = 0
+    for e in range(cell_sensor.shape[0]):
+        if not blind[cell_sensor[e]]:
+            nnz += 1
+    lsen = np.empty(nnz, dtype=np.int64)
+    lomp = np.empty(nnz)
+    lqq = np.empty(nnz)
+    linv = np.empty(nnz)
+    m = 0
+    for cell in range(n_cells):
+        for e in range(cell_ptr[cell], cell_ptr[cell + 1]):
+            i = cell_sensor[e]
+            if blind[i]:
+                continue
+            lsen[m] = i
+            lomp[m] = 1.0 - p0[i]
+            lqq[m] = max(cell_q[e], p0[i]) - p0[i]
+            linv[m] = 1.0 / a[i]
+            m += 1
+        lptr[cell + 1] = m
+    return lptr, lsen, lomp, lqq, linv
+
+
+@kernel
 def _log_likelihood(x, y, fired, blind, grid, cell_ptr, cell_sensor, cell_q, p0, xi, a, half_w, half_d, out):
     """``out[p] = log P(E | x_p)`` over the live sensors (:func:`onebit.models.pir.log_weights`).
 
@@ -213,51 +272,8 @@ def _log_likelihood(x, y, fired, blind, grid, cell_ptr, cell_sensor, cell_q, p0,
         for p in range(N):
             out[p] = 0.0
         return
-    # per sensor, relative to no touched cell (F = 1, D = 0): fired, factor
-    # clip(alpha + beta D) * gamma; silent, max(F, lo)
-    alpha = np.empty(n)
-    beta = np.empty(n)
-    lo = np.empty(n)
-    gamma = np.empty(n)
-    ci = np.empty(n)
-    slow = np.zeros(n, dtype=np.bool_)
-    base = 0.0
-    for i in range(n):
-        ci[i] = xi[i] * math.log1p(-min(p0[i], 1.0 - PROB_FLOOR))
-        if fired[i]:
-            hc = -math.expm1(ci[i])
-            p_empty = min(max(hc, PROB_FLOOR), 1.0)
-            alpha[i], beta[i], lo[i], gamma[i] = hc, -(1.0 - hc), PROB_FLOOR, 1.0 / p_empty
-            const = math.log(p_empty)
-        else:
-            alpha[i], beta[i], lo[i], gamma[i] = 1.0, 1.0, math.exp(LOG_FLOOR - ci[i]), 1.0
-            slow[i] = ci[i] < LOG_FLOOR  # the floor binds with no touched cell: summed in logs
-            const = max(ci[i], LOG_FLOOR)
-        if not blind[i]:
-            base += const
-    # the live sensors' entries per cell
-    n_cells = cell_ptr.shape[0] - 1
-    lptr = np.zeros(n_cells + 1, dtype=np.int64)
-    nnz = 0
-    for e in range(cell_sensor.shape[0]):
-        if not blind[cell_sensor[e]]:
-            nnz += 1
-    lsen = np.empty(nnz, dtype=np.int64)
-    lomp = np.empty(nnz)
-    lqq = np.empty(nnz)
-    linv = np.empty(nnz)
-    m = 0
-    for cell in range(n_cells):
-        for e in range(cell_ptr[cell], cell_ptr[cell + 1]):
-            i = cell_sensor[e]
-            if blind[i]:
-                continue
-            lsen[m] = i
-            lomp[m] = 1.0 - p0[i]
-            lqq[m] = max(cell_q[e], p0[i]) - p0[i]
-            linv[m] = 1.0 / a[i]
-            m += 1
-        lptr[cell + 1] = m
+    alpha, beta, lo, gamma, ci, slow, base = _sensor_factors(fired, blind, p0, xi)
+    lptr, lsen, lomp, lqq, linv = _live_cell_entries(blind, cell_ptr, cell_sensor, cell_q, p0, a)
     kx = int(math.ceil(2 * half_w / c)) + 1
     ky = int(math.ceil(2 * half_d / c)) + 1
     # particles by the first cell (ix0, iy0) of their box: those sharing it touch the same
@@ -276,114 +292,30 @@ def _log_likelihood(x, y, fired, blind, grid, cell_ptr, cell_sensor, cell_q, p0,
     ox = np.empty(kx)
     oy = np.empty(ky)
     touched = np.zeros(n, dtype=np.bool_)
+    geom = (gx, gy, kx, ky, x0, y0, c, nx, ny, half_w, half_d)
+    cells = (lptr, lsen, lomp, lqq, linv)
+    scratch = (Vs, F, D, ox, oy, touched)
+    sensors = (n_live, live, base, fired, slow, alpha, beta, gamma, lo, ci)
     for w0 in range(0, N, WINDOW):
-        _likelihood_window(
-            x,
-            y,
-            w0,
-            min(N, w0 + WINDOW),
-            org,
-            order,
-            count,
-            gx,
-            gy,
-            kx,
-            ky,
-            x0,
-            y0,
-            c,
-            nx,
-            ny,
-            half_w,
-            half_d,
-            lptr,
-            lsen,
-            lomp,
-            lqq,
-            linv,
-            Vs,
-            F,
-            D,
-            ox,
-            oy,
-            touched,
-            n_live,
-            live,
-            base,
-            fired,
-            slow,
-            alpha,
-            beta,
-            gamma,
-            lo,
-            ci,
-            out,
-        )
+        _likelihood_window(x, y, w0, min(N, w0 + WINDOW), org, order, count, geom, cells, scratch, sensors, out)
 
 
 @kernel
-def _likelihood_window(
-    x,
-    y,
-    w0,
-    w1,
-    org,
-    order,
-    count,
-    gx,
-    gy,
-    kx,
-    ky,
-    x0,
-    y0,
-    c,
-    nx,
-    ny,
-    half_w,
-    half_d,
-    lptr,
-    lsen,
-    lomp,
-    lqq,
-    linv,
-    Vs,
-    F,
-    D,
-    ox,
-    oy,
-    touched,
-    n_live,
-    live,
-    base,
-    fired,
-    slow,
-    alpha,
-    beta,
-    gamma,
-    lo,
-    ci,
-    out,
-):
+def _likelihood_window(x, y, w0, w1, org, order, count, geom, cells, scratch, sensors, out):
     """:func:`_log_likelihood` for particles ``w0:w1``: grouped by the first cell of their box
-    (a counting sort), then each cell's entries applied to a batch of them at once."""
+    (a counting sort), then each cell's entries applied to a batch of them at once. ``geom``,
+    ``cells``, ``scratch`` and ``sensors`` bundle the arrays and numbers it shares with
+    :func:`_log_likelihood` (the block's and grid's shape, the live cell entries, the batch's
+    work arrays, the sensors' factors)."""
+    gx, gy, kx, ky, x0, y0, c, nx, ny, half_w, half_d = geom
+    lptr, lsen, lomp, lqq, linv = cells
+    Vs, F, D, ox, oy, touched = scratch
+    n_live, live, base, fired, slow, alpha, beta, gamma, lo, ci = sensors
     n = F.shape[0]
     CH = F.shape[1]
     acc_b = np.empty(CH)
     prod_b = np.empty(CH)
-    for o in range(gx * gy + 2):
-        count[o] = 0
-    for p in range(w0, w1):
-        jx = int(math.floor((x[p] - half_w - x0) / c)) + kx - 1
-        jy = int(math.floor((y[p] - half_d - y0) / c)) + ky - 1
-        o = jy * gx + jx if 0 <= jx < gx and 0 <= jy < gy else gx * gy
-        org[p - w0] = o
-        count[o + 2] += 1
-    for o in range(gx * gy + 1):
-        count[o + 2] += count[o + 1]
-    for p in range(w0, w1):
-        o = org[p - w0] + 1
-        order[count[o]] = p
-        count[o] += 1
+    _group_by_origin(x, y, w0, w1, org, order, count, gx, gy, kx, ky, x0, y0, c, half_w, half_d)
     # origin o's particles: order[count[o]:count[o + 1]] (o = gx gy: no cell of the block in the grid)
     for o in range(gx * gy + 1):
         lo_o, hi_o = count[o], count[o + 1]
@@ -391,22 +323,7 @@ def _likelihood_window(
             m = min(CH, hi_o - b0)
             if o < gx * gy:
                 ix0, iy0 = o % gx - (kx - 1), o // gx - (ky - 1)
-                for j in range(m):  # each particle's fractions of the block's cells
-                    p = order[b0 + j]
-                    xp, yp = x[p], y[p]
-                    for b in range(kx):
-                        ix = ix0 + b
-                        left = x0 + ix * c
-                        ov = min(xp + half_w, left + c) - max(xp - half_w, left)
-                        ox[b] = min(max(ov, 0.0), c) / c if 0 <= ix < nx else 0.0
-                    for b in range(ky):
-                        iy = iy0 + b
-                        bottom = y0 + iy * c
-                        ov = min(yp + half_d, bottom + c) - max(yp - half_d, bottom)
-                        oy[b] = min(max(ov, 0.0), c) / c if 0 <= iy < ny else 0.0
-                    for by in range(ky):
-                        for bx in range(kx):
-                            Vs[by * kx + bx, j] = oy[by] * ox[bx]
+                _block_fractions(x, y, order, b0, m, ix0, iy0, kx, ky, x0, y0, c, nx, ny, half_w, half_d, ox, oy, Vs)
                 for by in range(ky):
                     iy = iy0 + by
                     if iy < 0 or iy >= ny:
@@ -432,30 +349,82 @@ def _likelihood_window(
                 _combine_batch(F, D, m, n_live, live, base, fired, slow, alpha, beta, gamma, lo, ci, acc_b, prod_b)
                 for j in range(m):
                     out[order[b0 + j]] = acc_b[j] + math.log(prod_b[j])
-            for j in range(m if n_live > 16 else 0):
-                p = order[b0 + j]
-                acc = base
-                prod = 1.0
-                for t in range(n_live):
-                    i = live[t]
-                    Fi = F[i, j]
-                    Di = D[i, j] if Fi > 0.5 else Fi - 1.0
-                    if fired[i]:
-                        prod *= min(max(alpha[i] + beta[i] * Di, PROB_FLOOR), 1.0) * gamma[i]
-                    elif slow[i]:
-                        acc += max(ci[i] + math.log(Fi), LOG_FLOOR) - LOG_FLOOR
-                    else:
-                        prod *= max(Fi, lo[i])
-                    if prod < 1e-200 or prod > 1e200:
-                        acc += math.log(prod)
-                        prod = 1.0
-                out[p] = acc + math.log(prod)
+            else:  # particle by particle, rescaled when the product leaves [1e-200, 1e200]
+                _combine_each(F, D, m, n_live, live, base, fired, slow, alpha, beta, gamma, lo, ci, order, b0, out)
             for i in range(n):  # reset what this batch touched
                 if touched[i]:
                     touched[i] = False
                     for j in range(m):
                         F[i, j] = 1.0
                         D[i, j] = 0.0
+
+
+@kernel
+def _group_by_origin(x, y, w0, w1, org, order, count, gx, gy, kx, ky, x0, y0, c, half_w, half_d):
+    """Particles ``w0:w1`` grouped by the first cell of their box (a counting sort): origin
+    ``o``'s particles are ``order[count[o]:count[o + 1]]`` (``o = gx gy``: no cell of the block
+    in the grid)."""
+    for o in range(gx * gy + 2):
+        count[o] = 0
+    for p in range(w0, w1):
+        jx = int(math.floor((x[p] - half_w - x0) / c)) + kx - 1
+        jy = int(math.floor((y[p] - half_d - y0) / c)) + ky - 1
+        o = jy * gx + jx if 0 <= jx < gx and 0 <= jy < gy else gx * gy
+        org[p - w0] = o
+        count[o + 2] += 1
+    for o in range(gx * gy + 1):
+        count[o + 2] += count[o + 1]
+    for p in range(w0, w1):
+        o = org[p - w0] + 1
+        order[count[o]] = p
+        count[o] += 1
+
+
+@kernel
+def _block_fractions(x, y, order, b0, m, ix0, iy0, kx, ky, x0, y0, c, nx, ny, half_w, half_d, ox, oy, Vs):
+    """``Vs[by kx + bx, j]``: the fraction of cell ``(ix0 + bx, iy0 + by)`` that the box of
+    particle ``order[b0 + j]`` covers (0 outside the grid), for the ``m`` particles of a batch."""
+    for j in range(m):
+        p = order[b0 + j]
+        xp, yp = x[p], y[p]
+        for b in range(kx):
+            ix = ix0 + b
+            left = x0 + ix * c
+            ov = min(xp + half_w, left + c) - max(xp - half_w, left)
+            ox[b] = min(max(ov, 0.0), c) / c if 0 <= ix < nx else 0.0
+        for b in range(ky):
+            iy = iy0 + b
+            bottom = y0 + iy * c
+            ov = min(yp + half_d, bottom + c) - max(yp - half_d, bottom)
+            oy[b] = min(max(ov, 0.0), c) / c if 0 <= iy < ny else 0.0
+        for by in range(ky):
+            for bx in range(kx):
+                Vs[by * kx + bx, j] = oy[by] * ox[bx]
+
+
+@kernel
+def _combine_each(F, D, m, n_live, live, base, fired, slow, alpha, beta, gamma, lo, ci, order, b0, out):
+    """The per-particle combination of :func:`_log_likelihood` for a batch of ``m`` particles
+    one at a time (many live sensors): the product rescaled into logs whenever it leaves
+    ``[1e-200, 1e200]``; ``out[order[b0 + j]]`` gets particle ``j``'s log-likelihood."""
+    for j in range(m):
+        p = order[b0 + j]
+        acc = base
+        prod = 1.0
+        for t in range(n_live):
+            i = live[t]
+            Fi = F[i, j]
+            Di = D[i, j] if Fi > 0.5 else Fi - 1.0
+            if fired[i]:
+                prod *= min(max(alpha[i] + beta[i] * Di, PROB_FLOOR), 1.0) * gamma[i]
+            elif slow[i]:
+                acc += max(ci[i] + math.log(Fi), LOG_FLOOR) - LOG_FLOOR
+            else:
+                prod *= max(Fi, lo[i])
+            if prod < 1e-200 or prod > 1e200:
+                acc += math.log(prod)
+                prod = 1.0
+        out[p] = acc + math.log(prod)
 
 
 @kernel

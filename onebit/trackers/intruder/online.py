@@ -105,6 +105,74 @@ def _empty(config: IntruderConfig) -> dict[str, pl.DataFrame]:
     return out
 
 
+def _due_observations(state: OnlineIntruder, motion: pl.DataFrame, settled: pl.DataFrame, final: bool):
+    """``(fired, blind, t_end, todo)``: the slots' observations and the number of iterations
+    final now (every one the batch run has when the log has ended, which marks the state
+    ended), or None when none is."""
+    cfg = state.config
+    if final:
+        fired, blind, t_end = observations(
+            motion, state.site, period=cfg.period, start=cfg.start, end=cfg.end, held=cfg.held
+        )
+        todo = len(t_end)
+        state.ended = True
+    else:
+        if state.start is None:
+            return None
+        last = settled["t"].max() if settled.height else None
+        if last is None:
+            return None
+        # iteration k runs when a settled edge lies at or after t_k = start + (k + 1) t_P
+        todo = int(math.floor((last - state.start) / cfg.period + 1e-9))
+        if cfg.end is not None:
+            todo = min(todo, int(math.ceil((cfg.end - state.start) / cfg.period - 1e-9)))
+        if todo <= state.done:
+            return None
+        # the slots' firings from the settled edges; every slot is closed by a later settled edge
+        fired, blind, t_end = observations(
+            settled,
+            state.site,
+            period=cfg.period,
+            start=state.start,
+            end=state.start + todo * cfg.period,
+            held=cfg.held,
+        )
+        todo = min(todo, len(t_end))
+    return fired, blind, t_end, todo
+
+
+def _iterations(t: np.ndarray, rows: list, fired: np.ndarray, blind: np.ndarray, c: float) -> pl.DataFrame:
+    """The ``iterations`` rows of the steps just run (``fired``/``blind`` their slots)."""
+    return pl.DataFrame(
+        {
+            "t": t,
+            "ess": np.array([r.ess for r in rows], dtype=np.float64),
+            "redraws": np.array([r.redraws for r in rows], dtype=np.int64),
+            "clamped": np.array([r.clamped for r in rows], dtype=np.int64),
+            "resampled": np.array([r.resampled for r in rows], dtype=bool),
+            "spread": np.array([r.spread for r in rows], dtype=np.float64),
+            "fired": fired.sum(axis=1).astype(np.int64),
+            "blind": blind.sum(axis=1).astype(np.int64),
+            "cell": np.full(len(t), c),
+        }
+    )
+
+
+def _camera(est: np.ndarray, t: np.ndarray, cfg) -> pl.DataFrame:
+    """The PTZ ``camera`` commands that keep each estimate's box in view."""
+    c = cfg.cell
+    ptz = pan_tilt_zoom(
+        est,
+        tuple(cfg.camera_position),
+        width=cfg.box_width * c,
+        depth=cfg.box_depth * c,
+        height=cfg.box_height * c,
+        fov_deg=cfg.camera_fov,
+        aspect=cfg.camera_aspect,
+    )
+    return pl.DataFrame({"t": t, "pan": ptz[:, 0], "tilt": ptz[:, 1], "zoom": ptz[:, 2]})
+
+
 def advance(
     state: OnlineIntruder, motion: pl.DataFrame, *, horizon: float, settle: float, final: bool = False
 ) -> dict[str, pl.DataFrame]:
@@ -136,34 +204,10 @@ def advance(
             state.start = cfg.start
         elif settled.height:
             state.start = math.floor(settled["t"].min() / cfg.period) * cfg.period
-    if final:
-        fired, blind, t_end = observations(
-            motion, state.site, period=cfg.period, start=cfg.start, end=cfg.end, held=cfg.held
-        )
-        todo = len(t_end)
-        state.ended = True
-    else:
-        if state.start is None:
-            return out
-        last = settled["t"].max() if settled.height else None
-        if last is None:
-            return out
-        # iteration k runs when a settled edge lies at or after t_k = start + (k + 1) t_P
-        todo = int(math.floor((last - state.start) / cfg.period + 1e-9))
-        if cfg.end is not None:
-            todo = min(todo, int(math.ceil((cfg.end - state.start) / cfg.period - 1e-9)))
-        if todo <= state.done:
-            return out
-        # the slots' firings from the settled edges; every slot is closed by a later settled edge
-        fired, blind, t_end = observations(
-            settled,
-            state.site,
-            period=cfg.period,
-            start=state.start,
-            end=state.start + todo * cfg.period,
-            held=cfg.held,
-        )
-        todo = min(todo, len(t_end))
+    due = _due_observations(state, motion, settled, final)
+    if due is None:
+        return out
+    fired, blind, t_end, todo = due
     k0 = state.done
     if todo <= k0:
         return out
@@ -195,28 +239,7 @@ def advance(
     est = np.array([r.estimate for r in rows], dtype=np.float64).reshape(-1, 2)
     tracks = outside_silence(track_frame(NAME, t, est), silent_stretches([settled], min_s=cfg.absent_after))
     out["tracks"] = tracks
-    out["iterations"] = pl.DataFrame(
-        {
-            "t": t,
-            "ess": np.array([r.ess for r in rows], dtype=np.float64),
-            "redraws": np.array([r.redraws for r in rows], dtype=np.int64),
-            "clamped": np.array([r.clamped for r in rows], dtype=np.int64),
-            "resampled": np.array([r.resampled for r in rows], dtype=bool),
-            "spread": np.array([r.spread for r in rows], dtype=np.float64),
-            "fired": fired[k0:todo].sum(axis=1).astype(np.int64),
-            "blind": blind[k0:todo].sum(axis=1).astype(np.int64),
-            "cell": np.full(len(t), c),
-        }
-    )
+    out["iterations"] = _iterations(t, rows, fired[k0:todo], blind[k0:todo], c)
     if cfg.camera_position is not None:
-        ptz = pan_tilt_zoom(
-            est,
-            tuple(cfg.camera_position),
-            width=cfg.box_width * c,
-            depth=cfg.box_depth * c,
-            height=cfg.box_height * c,
-            fov_deg=cfg.camera_fov,
-            aspect=cfg.camera_aspect,
-        )
-        out["camera"] = pl.DataFrame({"t": t, "pan": ptz[:, 0], "tilt": ptz[:, 1], "zoom": ptz[:, 2]})
+        out["camera"] = _camera(est, t, cfg)
     return out

@@ -378,84 +378,13 @@ def run(inputs: dict, site: Site, config: IStateConfig) -> dict[str, pl.DataFram
         raise ConfigError("istate: the number of targets is unknown; set 'targets' in site.toml or [istate] targets")
     sr = sensing_regions(site, config)
     index = {s: i for i, s in enumerate(sr.ids)}
-    tables = []
-    for name, schema in (("motion", MOTION), ("proximity", PROXIMITY)):
-        if name in inputs:
-            df = check_schema(inputs[name], schema, name=name).filter(pl.col("sensor").is_in(list(index)))
-            tables.append(df)
-    cross = None
-    if "crossings" in inputs:
-        cross = check_schema(inputs["crossings"], CROSSINGS, name="crossings").filter(pl.col("beam").is_in(list(index)))
-    T = config.period_s
-    times = stage_times(tables + ([cross] if cross is not None else []), T)
-    v = config.max_speed
-    levels = pl.concat([df.select("t", "sensor", "on") for df in tables]) if tables else None
-    latency = config.latency_s
-    if config.latency_auto and levels is not None:
-        latency = max(latency, time_resolution(levels["t"]))
-    used = pl.col("detect") | (pl.col("negative") & pl.lit(config.reliable_negatives))  # the rows the filter reads
-    readings = [state_readings(levels, times, T, latency, v).filter(used)] if tables else []
-    if cross is not None:  # a crossing's stamp lags the body by up to the raw beam log's sampling interval
-        events = inputs.get("beam_events")
-        stamps = events["t"] if events is not None and events.height else cross["t"]
-        lag = max(config.latency_s, time_resolution(stamps)) if config.latency_auto else config.latency_s
-        readings.append(crossing_readings(cross, times, T, v, lag))
-    rd = (
-        pl.concat(readings)
-        if readings
-        else pl.DataFrame(
-            schema={
-                "stage": pl.Int64,
-                "sensor": pl.String,
-                "detect": pl.Boolean,
-                "inflation": pl.Float64,
-                "negative": pl.Boolean,
-            }
-        )
-    )
-    rd = rd.with_columns(idx=pl.col("sensor").replace_strict(index, return_dtype=pl.Int64)).sort("stage", "idx")
-
+    tables, cross = _binary_tables(inputs, index)
+    times = stage_times(tables + ([cross] if cross is not None else []), config.period_s)
+    rd, latency = _readings(inputs, tables, cross, times, index, config)
     # the filter runs in the site's normalised frame, its inputs snapped (unit-free, SiteFrame)
     frame = SiteFrame.of(site.free_space)
-    free = frame.outer(site.free_space)
-    det = rd.filter("detect")
-    pos = frame.outer(sr.positive)
-    det_geom = (  # each distinct (sensor, inflation) grown and clipped once, shared by its readings
-        _per_distinct(
-            lambda i, d: shapely.intersection(grow(pos[i], d), free),
-            det["idx"].to_numpy(),
-            frame.length(det["inflation"].to_numpy()),
-        )
-        if det.height
-        else np.zeros(0, object)
-    )
-    det_stage = det["stage"].to_numpy()
-    neg = rd.filter(pl.col("negative") & pl.lit(config.reliable_negatives)) if config.reliable_negatives else rd.clear()
-    # a reading may lag the target by latency_s: only S eroded by v latency_s is surely empty
-    cleared = frame.inner(sr.negative)
-    neg_geom = (
-        _per_distinct(
-            lambda i, d: shrink(cleared[i], d), neg["idx"].to_numpy(), np.full(neg.height, frame.length(v * latency))
-        )
-        if neg.height
-        else np.zeros(0, object)
-    )
-    neg_stage = neg["stage"].to_numpy()
-    keep_neg = ~shapely.is_empty(neg_geom) if len(neg_geom) else np.zeros(0, bool)
-    neg_geom, neg_stage = neg_geom[keep_neg], neg_stage[keep_neg]
-
-    det_bounds = np.searchsorted(det_stage, np.arange(len(times) + 1))
-    neg_bounds = np.searchsorted(neg_stage, np.arange(len(times) + 1))
-    steps = Stages(
-        times=times,
-        detections=det_geom,
-        det_bounds=det_bounds,
-        negatives=neg_geom,
-        neg_bounds=neg_bounds,
-        free=free,
-        n=n,
-        step=float(frame.length(v * T)),
-    )
+    steps, det = _stages(rd, sr, frame, site, times, n, latency, config)
+    det_stage, det_bounds = det["stage"].to_numpy(), steps.det_bounds
     stage_state, state_rows, summ, track_xy = _filter(steps, config)
     summ[:, 3] *= frame.scale**2  # area in site units
     summary = pl.DataFrame(
@@ -503,6 +432,99 @@ def run(inputs: dict, site: Site, config: IStateConfig) -> dict[str, pl.DataFram
         "region_geometries": np.concatenate(row_geoms) if row_geoms else np.zeros(0, dtype=object),
     }
     return {"tracks": tracks, "summary": summary, "regions": regions, "detections": detections, ARTIFACTS: artifacts}
+
+
+def _binary_tables(inputs: dict, index: dict) -> tuple[list[pl.DataFrame], pl.DataFrame | None]:
+    """``(tables, crossings)``: the motion and proximity tables present and the crossings (or
+    None), checked and kept to the sensors the filter knows (``index``)."""
+    tables = []
+    for name, schema in (("motion", MOTION), ("proximity", PROXIMITY)):
+        if name in inputs:
+            df = check_schema(inputs[name], schema, name=name).filter(pl.col("sensor").is_in(list(index)))
+            tables.append(df)
+    cross = None
+    if "crossings" in inputs:
+        cross = check_schema(inputs["crossings"], CROSSINGS, name="crossings").filter(pl.col("beam").is_in(list(index)))
+    return tables, cross
+
+
+def _readings(
+    inputs: dict, tables: list, cross, times, index: dict, config: IStateConfig
+) -> tuple[pl.DataFrame, float]:
+    """``(readings, latency)``: the rows the filter reads, per stage and sensor (sorted by stage
+    and sensor index ``idx``), and the latency the levels' readings were built with."""
+    T = config.period_s
+    v = config.max_speed
+    levels = pl.concat([df.select("t", "sensor", "on") for df in tables]) if tables else None
+    latency = config.latency_s
+    if config.latency_auto and levels is not None:
+        latency = max(latency, time_resolution(levels["t"]))
+    used = pl.col("detect") | (pl.col("negative") & pl.lit(config.reliable_negatives))  # the rows the filter reads
+    readings = [state_readings(levels, times, T, latency, v).filter(used)] if tables else []
+    if cross is not None:  # a crossing's stamp lags the body by up to the raw beam log's sampling interval
+        events = inputs.get("beam_events")
+        stamps = events["t"] if events is not None and events.height else cross["t"]
+        lag = max(config.latency_s, time_resolution(stamps)) if config.latency_auto else config.latency_s
+        readings.append(crossing_readings(cross, times, T, v, lag))
+    rd = (
+        pl.concat(readings)
+        if readings
+        else pl.DataFrame(
+            schema={
+                "stage": pl.Int64,
+                "sensor": pl.String,
+                "detect": pl.Boolean,
+                "inflation": pl.Float64,
+                "negative": pl.Boolean,
+            }
+        )
+    )
+    rd = rd.with_columns(idx=pl.col("sensor").replace_strict(index, return_dtype=pl.Int64)).sort("stage", "idx")
+    return rd, latency
+
+
+def _stages(rd: pl.DataFrame, sr, frame: SiteFrame, site: Site, times, n: int, latency: float, config: IStateConfig):
+    """``(stages, detections)``: the filter's input in the frame (:class:`Stages`: each stage's
+    detection regions, grown by their inflation and clipped to the free space, and its cleared
+    regions) and the detection readings."""
+    v = config.max_speed
+    free = frame.outer(site.free_space)
+    det = rd.filter("detect")
+    pos = frame.outer(sr.positive)
+    det_geom = (  # each distinct (sensor, inflation) grown and clipped once, shared by its readings
+        _per_distinct(
+            lambda i, d: shapely.intersection(grow(pos[i], d), free),
+            det["idx"].to_numpy(),
+            frame.length(det["inflation"].to_numpy()),
+        )
+        if det.height
+        else np.zeros(0, object)
+    )
+    det_stage = det["stage"].to_numpy()
+    neg = rd.filter(pl.col("negative") & pl.lit(config.reliable_negatives)) if config.reliable_negatives else rd.clear()
+    # a reading may lag the target by latency_s: only S eroded by v latency_s is surely empty
+    cleared = frame.inner(sr.negative)
+    neg_geom = (
+        _per_distinct(
+            lambda i, d: shrink(cleared[i], d), neg["idx"].to_numpy(), np.full(neg.height, frame.length(v * latency))
+        )
+        if neg.height
+        else np.zeros(0, object)
+    )
+    neg_stage = neg["stage"].to_numpy()
+    keep_neg = ~shapely.is_empty(neg_geom) if len(neg_geom) else np.zeros(0, bool)
+    neg_geom, neg_stage = neg_geom[keep_neg], neg_stage[keep_neg]
+    steps = Stages(
+        times=times,
+        detections=det_geom,
+        det_bounds=np.searchsorted(det_stage, np.arange(len(times) + 1)),
+        negatives=neg_geom,
+        neg_bounds=np.searchsorted(neg_stage, np.arange(len(times) + 1)),
+        free=free,
+        n=n,
+        step=float(frame.length(v * config.period_s)),
+    )
+    return steps, det
 
 
 def _per_distinct(make, idx: np.ndarray, dist: np.ndarray) -> np.ndarray:
@@ -558,7 +580,7 @@ def _filter(stages: Stages, config: IStateConfig) -> tuple[np.ndarray, list, np.
     space, or regions at walls), and a log whose readings recur (a beam crossed again and
     again) goes through the same I-states. A looked-up stage is the one computed (the same
     GEOS operations on the same coordinates give the same bits), so the result is
-    :func:`_filter_reference`'s, which computes every stage (the test oracle)."""
+    :func:`onebit._testing.oracles.istate_filter_reference`'s, which computes every stage (the test oracle)."""
     times, n = stages.times, stages.n
     K = len(times)
     memo = PairMemo()  # region-pair results of the whole run (regions recur across stages)
@@ -667,38 +689,6 @@ class _Transitions:
         if a is None:
             a = self._area[state] = float(IState.total_area(self.etas[state], free))
         return a
-
-
-def _filter_reference(stages: Stages, config: IStateConfig) -> tuple[np.ndarray, list, np.ndarray, np.ndarray]:
-    """:func:`_filter` computing every stage (the plain loop; its test oracle): an I-state per stage."""
-    times, n = stages.times, stages.n
-    K = len(times)
-    db, nb = stages.det_bounds, stages.neg_bounds
-    eta = IState.initial(stages.free, n)
-    cap = config.max_elements or None
-    reg_rows, summ, track_xy = [], np.zeros((K, 4)), np.zeros((K, n, 2))
-    prev = None
-    memo = PairMemo()
-    free_area = float(stages.free.area) or 1.0
-    for k in range(K):
-        rejected: list | None = [] if config.contradictions == "reject" else None
-        eta = info_state_update(
-            eta,
-            stages.detections[db[k] : db[k + 1]],
-            step=stages.step if k else 0.0,
-            free_space=stages.free,
-            shape=config.shape,
-            max_elements=cap,
-            negatives=stages.negatives[nb[k] : nb[k + 1]],
-            substeps=config.substeps,
-            memo=memo,
-            rejected=rejected,
-        )
-        reg_rows.append(eta.regions.ravel())
-        area = memo.recall(eta, stages.free, "total_area", IState.total_area)  # as the filter always did
-        summ[k] = (eta.size, len(rejected or ()), area / free_area, area)
-        track_xy[k] = prev = _point_summary(eta, prev, n)
-    return np.arange(K, dtype=np.int64), reg_rows, summ, track_xy
 
 
 def _regions_table(

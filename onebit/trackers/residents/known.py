@@ -54,7 +54,7 @@ values) once per event:
     beta_i(p) = sum_r T_r(p_r, s_{i+1}) beta_{i+1}(r, p_{-r})
 
 in log space, vectorised over ``p``; sequential over events (numpy per step: tens of
-microseconds for two residents). :func:`posteriors_bruteforce` enumerates all ``K^n`` firer
+microseconds for two residents). :func:`onebit._testing.oracles.posteriors_bruteforce` enumerates all ``K^n`` firer
 sequences of a short log (the test oracle).
 """
 
@@ -62,7 +62,6 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 from datetime import datetime
-from itertools import product
 
 import numpy as np
 import polars as pl
@@ -282,30 +281,6 @@ def posteriors(node: np.ndarray, ch: Chains, bonus: np.ndarray | None = None) ->
             beta[i, r] = b[tuple(idx)].reshape(-1)
     post = logsumexp(alpha + beta, axis=2) - log_z
     return np.exp(post), log_z
-
-
-def posteriors_bruteforce(node: np.ndarray, ch: Chains, bonus: np.ndarray | None = None) -> tuple[np.ndarray, float]:
-    """(K2)-(K3) by enumeration of all ``K^n`` firer sequences (test oracle for short logs)."""
-    K = len(ch.residents)
-    bonus = np.zeros((len(node), K)) if bonus is None else bonus
-    S = ch.log_t.shape[2]
-    n = len(node)
-    logs, seqs = [], []
-    for z in product(range(K), repeat=n):
-        last = [S] * K
-        total = 0.0
-        for i, r in enumerate(z):
-            total += ch.log_t[r, last[r], node[i]] + bonus[i, r]
-            last[r] = int(node[i])
-        logs.append(total)
-        seqs.append(z)
-    logs = np.array(logs)
-    log_z = float(logsumexp(logs))
-    w = np.exp(logs - log_z)
-    post = np.zeros((n, K))
-    for wk, z in zip(w, seqs):
-        post[np.arange(n), list(z)] += wk
-    return post, log_z
 
 
 # --------------------------------------------------------------------------- turns (K4)

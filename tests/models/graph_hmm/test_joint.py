@@ -11,10 +11,11 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from onebit.datasets.builtin import builtin_site
-from onebit.models.graph_hmm.adaptive import joint_emission, second_order_tensor
+from onebit.models.graph_hmm.adaptive import joint_emission
 from onebit.models.graph_hmm.eatg import hop_matrix, layout_eatg
 from onebit.models.graph_hmm.joint import PairSpace, decode_pair, joint_table, meetings, redecode_meetings
 from onebit.models.graph_hmm.likelihood import model_log_likelihood
+from onebit.models.graph_hmm.window import second_order_tensor
 
 G = builtin_site("hallway").sensor_graph
 EATG = layout_eatg(G.nodes, hop_matrix(G.nodes, G.edges))
@@ -283,7 +284,7 @@ def test_a_meeting_after_an_exchange_of_tails_is_listed_on_the_new_paths():
     density=st.floats(0.0, 1.0),
 )
 def test_second_order_entries_equal_the_dense_tensor_bit_for_bit(n, seed, density):
-    from onebit.models.graph_hmm.adaptive import SecondOrderEntries
+    from onebit.models.graph_hmm.window import SecondOrderEntries
 
     rng = np.random.default_rng(seed)
     a1 = rng.random((n, n)) * (rng.random((n, n)) < density)  # rows without moves too
@@ -298,7 +299,7 @@ def test_second_order_entries_equal_the_dense_tensor_bit_for_bit(n, seed, densit
 
 
 def test_a_subset_space_holds_the_whole_graphs_states_and_moves_inside_it():
-    from onebit.models.graph_hmm.adaptive import SecondOrderEntries
+    from onebit.models.graph_hmm.window import SecondOrderEntries
 
     nodes = np.flatnonzero(EATG.hops[IDX["95"]] <= 2)  # a neighbourhood of 95
     sub = PairSpace(EATG.hops, SecondOrderEntries(EATG.a1, EATG.a2), nodes)

@@ -9,10 +9,11 @@ import networkx as nx
 import numpy as np
 import pytest
 
-from onebit.models.graph_hmm import kernels, viterbi
-from onebit.models.graph_hmm.adaptive import DecoderParams, decode_run, decode_users, emission_gain, window_transitions
+from onebit.models.graph_hmm import ascent, kernels, viterbi
+from onebit.models.graph_hmm.adaptive import DecoderParams, decode_run, decode_users, emission_gain
 from onebit.models.graph_hmm.decoding import cap_users
 from onebit.models.graph_hmm.eatg import hop_matrix, layout_eatg, trained_eatg
+from onebit.models.graph_hmm.window import window_transitions
 
 
 def _log_model(rng, s, d, *, sparse):
@@ -146,7 +147,7 @@ def test_decode_run_compiled_equals_reference(mode):
 def test_emission_table_matches_the_reference_gain():
     from onebit.models.graph_hmm.adaptive import emission_gain, joint_emission
 
-    table = kernels.emission_tables(5, 0.9, 0.05, emission_gain)
+    table = ascent.emission_tables(5, 0.9, 0.05, emission_gain)
     c = np.arange(7)[None, :]
     on = np.ones_like(c, bool)
     np.testing.assert_array_equal(table[0], emission_gain(on, c, 0.9, 0.05)[0])
@@ -257,7 +258,7 @@ def _brute_force(on, table, prefix, entry, order, log_a1, log_a2):
 @pytest.mark.parametrize("seed", range(6))
 @pytest.mark.parametrize("order", [1, 2])
 def test_local_decodes_equal_brute_force(seed, order):
-    """One user decoded on the states it can reach (kernels.coordinate_ascent) scores the best
+    """One user decoded on the states it can reach (ascent.coordinate_ascent) scores the best
     of every path, enumerated: with a known last node, an entry node or anywhere, on a graph
     larger than the window's reach; and with activations that repel (the certificate of a
     user that may start anywhere fails, and it is decoded again on every state)."""
@@ -268,7 +269,7 @@ def test_local_decodes_equal_brute_force(seed, order):
     eatg = trained_eatg(act, nodes, hops, horizon=5) if seed % 2 else layout_eatg(nodes, hops)
     states = np.arange(len(nodes))
     log_a1, log_a2, support = window_transitions(eatg, states, order)
-    table = kernels.emission_tables(1, 0.9, 0.05, emission_gain)
+    table = ascent.emission_tables(1, 0.9, 0.05, emission_gain)
     repel = table.copy()
     repel[0] = table[1, 0] - 3.0
     local = redone = 0
@@ -281,8 +282,8 @@ def test_local_decodes_equal_brute_force(seed, order):
         prefix = came + [last] if kind == 0 else []
         entry = int(rng.integers(len(nodes))) if kind == 1 else -1
         for tab in (table, repel) if kind == 2 else (table,):
-            before = kernels.DECODE_STATS.copy()
-            best, _ = kernels.coordinate_ascent(
+            before = ascent.DECODE_STATS.copy()
+            best, _ = ascent.coordinate_ascent(
                 on,
                 [prefix],
                 [0],
@@ -295,7 +296,7 @@ def test_local_decodes_equal_brute_force(seed, order):
                 sweeps=1,
                 support=support,
             )
-            stats = kernels.DECODE_STATS - before
+            stats = ascent.DECODE_STATS - before
             top, scores = _brute_force(on, tab, prefix, entry, order, log_a1, log_a2)
             got = scores[tuple(best[0].tolist())]
             assert got == pytest.approx(top, rel=1e-12, abs=1e-12), f"trial {trial}, kind {kind}"
@@ -318,7 +319,7 @@ def test_local_decodes_equal_the_all_state_reference_on_a_large_graph(order):
     eatg = trained_eatg(act, nodes, hops, horizon=5)
     states = np.arange(len(nodes))
     transitions = window_transitions(eatg, states, order)
-    before = kernels.DECODE_STATS.copy()
+    before = ascent.DECODE_STATS.copy()
     for trial in range(10):
         k = int(rng.integers(1, 4))
         n_slots = int(rng.integers(2, 6))
@@ -337,7 +338,7 @@ def test_local_decodes_equal_the_all_state_reference_on_a_large_graph(order):
             )
             new = decode_users(obs, states, prefixes, starts, entries, params=DecoderParams(sweeps=sweeps), **kw)
             np.testing.assert_array_equal(new, ref, err_msg=f"trial {trial}, k={k}, sweeps={sweeps}")
-    stats = kernels.DECODE_STATS - before
+    stats = ascent.DECODE_STATS - before
     assert stats[1] < stats[0] / 2  # most decodes on the user's reach, not on the 48 states
 
 

@@ -7,7 +7,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from onebit.datasets.builtin import builtin_site
-from onebit.models.graph_hmm.adaptive import joint_emission, second_order_tensor
+from onebit.models.graph_hmm.adaptive import joint_emission
 from onebit.models.graph_hmm.eatg import hop_matrix, layout_eatg
 from onebit.models.graph_hmm.likelihood import (
     came_from,
@@ -18,6 +18,7 @@ from onebit.models.graph_hmm.likelihood import (
     path_log_prior,
     tie_relabelling,
 )
+from onebit.models.graph_hmm.window import second_order_tensor
 
 
 def _eatg():

@@ -13,8 +13,9 @@ from onebit.core.site import load_site
 from onebit.core.tables import MOTION, TRACKS
 from onebit.datasets.builtin import builtin_site
 from onebit.datasets.hallway_sim import write_hallway_dataset
-from onebit.models.graph_hmm.adaptive import DecoderParams, decode_run, decode_users, max_independent
+from onebit.models.graph_hmm.adaptive import DecoderParams, decode_run, decode_users
 from onebit.models.graph_hmm.eatg import hop_matrix, layout_eatg
+from onebit.models.graph_hmm.window import max_independent
 from onebit.pipeline.report import metric
 from onebit.pipeline.runner import run_pipeline
 from onebit.readers.motion import read_motion_csv

@@ -17,6 +17,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from shapely.geometry import Point, box
 
+from onebit._testing.oracles import communicate_bruteforce
 from onebit.trackers.istate.core import (
     FRAME_GRID,
     IState,
@@ -25,7 +26,6 @@ from onebit.trackers.istate.core import (
     cap_elements,
     clean_up,
     communicate,
-    communicate_bruteforce,
     constrain,
     contains,
     contains_states,
@@ -246,7 +246,7 @@ def test_region_vanishing_in_an_obstacle_empties_its_element_and_never_becomes_m
 @given(st.integers(1, 8), st.integers(1, 40), st.integers(1, 500), st.integers(0, 2**32 - 1))
 def test_row_codes_keep_the_lexicographic_order_of_rows(n, E, hi, seed):
     """Unique rows by their int codes: the same rows in the same order as numpy's unique rows."""
-    from onebit.trackers.istate.core import _row_codes
+    from onebit.trackers.istate.cleanup import _row_codes
 
     ids = np.random.default_rng(seed).integers(0, hi, (E, n))
     codes = _row_codes(ids)

@@ -8,6 +8,7 @@ import polars as pl
 import pytest
 import shapely
 
+from onebit._testing.oracles import istate_filter_reference
 from onebit.core.config import config_from_mapping
 from onebit.core.errors import ConfigError
 from onebit.core.site import load_site, site_from_dict
@@ -294,7 +295,7 @@ def _tiled_room(tmp_path, n: int, copies: int = 3, span: float = 30.0):
 )
 def test_transitions_looked_up_equal_every_stage_computed(tmp_path, monkeypatch, cfg):
     """The stage loop that looks up recurring transitions (:func:`_filter`) gives every table
-    of the plain loop (:func:`_filter_reference`), bit for bit -- also when its cache is
+    of the plain loop (:func:`onebit._testing.oracles.istate_filter_reference`), bit for bit -- also when its cache is
     dropped every few entries; and it does look stages up (fewer filter steps computed)."""
     from onebit.trackers.istate import stage as st
 
@@ -314,7 +315,7 @@ def test_transitions_looked_up_equal_every_stage_computed(tmp_path, monkeypatch,
     with monkeypatch.context() as m:
         m.setattr(st, "TRANSITIONS_CAPACITY", 7)
         small = run({"motion": motion}, site, cfg)
-        m.setattr(st, "_filter", st._filter_reference)
+        m.setattr(st, "_filter", istate_filter_reference)
         plain = run({"motion": motion}, site, cfg)
     for name in ("summary", "regions", "tracks", "detections"):
         assert fast[name].equals(plain[name]), name
@@ -325,7 +326,7 @@ def test_transitions_looked_up_equal_every_stage_computed(tmp_path, monkeypatch,
 def test_transitions_are_keyed_by_the_negatives_too():
     """Stages with the same I-state and the same reading 1 but a different reading 0 (a
     reliable negative) are different transitions: the looked-up loop equals the plain one."""
-    from onebit.trackers.istate.stage import Stages, _filter, _filter_reference
+    from onebit.trackers.istate.stage import Stages, _filter
 
     free = shapely.box(0, 0, 1, 1)
     a, b = shapely.box(0, 0, 0.6, 1), shapely.box(0.3, 0, 1, 1)
@@ -342,7 +343,7 @@ def test_transitions_are_keyed_by_the_negatives_too():
         step=2.0,
     )
     cfg = IStateConfig(reliable_negatives=True)
-    fast, plain = _filter(stages, cfg), _filter_reference(stages, cfg)
+    fast, plain = _filter(stages, cfg), istate_filter_reference(stages, cfg)
     areas = plain[2][:, 3]
     assert np.allclose(areas, [1.0, 0.6, 0.6, 0.3, 0.6, 0.3])
     assert np.array_equal(fast[2], plain[2]) and np.array_equal(fast[3], plain[3], equal_nan=True)

@@ -9,6 +9,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
+from onebit._testing.oracles import posteriors_bruteforce
 from onebit.core.errors import ConfigError, InputError
 from onebit.core.tables import RESIDENTS_PROFILE
 from onebit.scoring.identity import identity_scores
@@ -21,7 +22,6 @@ from onebit.trackers.residents.known import (
     clock_of,
     learn_profile,
     posteriors,
-    posteriors_bruteforce,
 )
 from tests.trackers.residents.test_stage import corridor_home, motion_log
 
