@@ -59,7 +59,7 @@ from __future__ import annotations
 
 import re
 import tomllib
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
@@ -498,6 +498,84 @@ def _import_info(house: Path, spec, counts: dict, a: int, b: int) -> dict:
     }
 
 
+@dataclass
+class _Days:
+    """The tables of the days read so far (:func:`import_aras`)."""
+
+    motion: list = field(default_factory=list)
+    other: list = field(default_factory=list)
+    counts: list = field(default_factory=list)
+    notes: list = field(default_factory=list)
+    events: list = field(default_factory=list)
+    rejects: list = field(default_factory=list)
+    lines: int = 0
+    short: int = 0
+
+
+def _add_day(acc: _Days, day, d: int, spec, carry) -> None:
+    """One day's level changes, count intervals, activities and labelled events into ``acc``."""
+    ids = [s.id for s in spec.sensors]
+    person = {s.id: s.person for s in spec.sensors}
+    people_ids = [i for i in ids if person[i]]
+    lv, acts = day.levels, day.activities
+    t = (d - 1) * DAY_S + np.arange(lv.shape[0])
+    acc.lines += day.lines
+    acc.short += int(day.lines < DAY_S)
+    acc.rejects.append(day.rejects)
+    if carry is not None and t.size:  # changes from the day before's last second count, at this day's first
+        ch = edges(np.r_[t[0] - 1, t], np.vstack([carry[0][None, :], lv]), ids, first=False)
+    else:
+        ch = edges(t, lv, ids, first=True)
+    kinds = {s.id: s.type for s in spec.sensors}
+    acc.motion.append(ch.filter(pl.col("sensor").is_in(people_ids)))
+    acc.other.append(
+        ch.filter(~pl.col("sensor").is_in(people_ids)).with_columns(
+            kind=pl.col("sensor").replace_strict(kinds, default="binary")
+        )
+    )
+    end = float(t[-1] + 1) if t.size else float((d - 1) * DAY_S)
+    acc.counts.append(intervals(t, (acts != GOING_OUT).sum(axis=1), end))
+    for r in range(2):
+        acc.notes.append(intervals(t, acts[:, r], end).with_columns(resident=pl.lit(str(r + 1))))
+    who = truth_event_residents(acts)
+    on = ch.filter((pl.col("value") == 1) & pl.col("sensor").is_in(people_ids))
+    k = (on["t"].to_numpy() - (d - 1) * DAY_S).astype(np.int64)
+    acc.events.append(on.select("t", "sensor").with_columns(residents=pl.Series(who[k].tolist(), dtype=pl.String)))
+
+
+def _write_dataset(out: Path, acc: _Days, spec, name: str) -> dict:
+    """Write the dataset's files from the days read; its counts for ``import.toml``."""
+    motion_df = pl.concat(acc.motion)
+    other_df = pl.concat(acc.other)
+    count_df = _merge_intervals(pl.concat(acc.counts)).rename({"value": "count"})
+    truth_events = pl.concat(acc.events).filter(pl.col("residents") != "")
+    rej = pl.concat(acc.rejects)
+    text = site_text(spec, name)
+    site_from_dict(tomllib.loads(text), source=str(out / "site.toml"))
+    out.mkdir(parents=True, exist_ok=True)
+    write_text(text, out / "site.toml")
+    write_csv(motion_df, out / "motion.csv")
+    if other_df.height:
+        write_csv(other_df.select("t", "sensor", "kind", "value"), out / "other.csv")
+    write_csv(count_df.select("t", "end", "count"), out / "truth_count.csv")
+    write_csv(_annotations(acc.notes, spec), out / "annotations.csv")
+    write_csv(truth_events, out / "truth_events.csv")
+    if rej.height:
+        write_csv(rej, out / "rejects.csv")
+    elif (out / "rejects.csv").exists():
+        (out / "rejects.csv").unlink()
+    return {
+        "lines": acc.lines,
+        "rejected": rej.height,
+        "short_days": acc.short,
+        "motion_csv": motion_df.height,
+        "other_csv": other_df.height,
+        "truth_events": truth_events.height,
+        "person_sensors": sum(bool(s.person) for s in spec.sensors),
+        "doors": sum(s.door for s in spec.sensors),
+    }
+
+
 def import_aras(house: str | Path, dataset: str | Path, *, days: tuple[int, int] | None = None) -> ArasImport:
     """Write a dataset folder from an ARAS house folder (module docstring)."""
     house, out = Path(house), Path(dataset)
@@ -511,72 +589,12 @@ def import_aras(house: str | Path, dataset: str | Path, *, days: tuple[int, int]
     missing = [d for d in range(a, b + 1) if d not in files]
     if missing:
         raise InputError(f"no day file for day(s) {missing} (found {min(files)}-{max(files)})", file=house)
-    ids = [s.id for s in spec.sensors]
-    person = np.array([s.person for s in spec.sensors])
-    S = len(ids)
-    motion, other, counts_iv, notes, events, rejects = [], [], [], [], [], []
-    carry = None
-    lines = short = 0
+    acc, carry = _Days(), None
     for d in range(a, b + 1):
-        day = read_day(files[d], d, S, carry=carry)
-        lv, acts = day.levels, day.activities
-        t = (d - 1) * DAY_S + np.arange(lv.shape[0])
-        lines += day.lines
-        short += int(day.lines < DAY_S)
-        rejects.append(day.rejects)
-        if carry is not None and t.size:  # changes from the day before's last second count, at this day's first
-            ch = edges(np.r_[t[0] - 1, t], np.vstack([carry[0][None, :], lv]), ids, first=False)
-        else:
-            ch = edges(t, lv, ids, first=True)
-        kinds = {s.id: s.type for s in spec.sensors}
-        motion.append(ch.filter(pl.col("sensor").is_in([i for i, p in zip(ids, person) if p])))
-        other.append(
-            ch.filter(pl.col("sensor").is_in([i for i, p in zip(ids, person) if not p])).with_columns(
-                kind=pl.col("sensor").replace_strict(kinds, default="binary")
-            )
-        )
-        end = float(t[-1] + 1) if t.size else float((d - 1) * DAY_S)
-        n_home = (acts != GOING_OUT).sum(axis=1)
-        counts_iv.append(intervals(t, n_home, end))
-        for r in range(2):
-            notes.append(intervals(t, acts[:, r], end).with_columns(resident=pl.lit(str(r + 1))))
-        who = truth_event_residents(acts)
-        on = ch.filter((pl.col("value") == 1) & pl.col("sensor").is_in([i for i, p in zip(ids, person) if p]))
-        k = (on["t"].to_numpy() - (d - 1) * DAY_S).astype(np.int64)
-        events.append(on.select("t", "sensor").with_columns(residents=pl.Series(who[k].tolist(), dtype=pl.String)))
+        day = read_day(files[d], d, len(spec.sensors), carry=carry)
+        _add_day(acc, day, d, spec, carry)
         carry = (day.levels[-1], day.activities[-1]) if day.levels.shape[0] else carry
-    motion_df = pl.concat(motion)
-    other_df = pl.concat(other)
-    count_df = _merge_intervals(pl.concat(counts_iv)).rename({"value": "count"})
-    note_df = _annotations(notes, spec)
-    truth_events = pl.concat(events).filter(pl.col("residents") != "")
-    rej = pl.concat(rejects)
-    name = f"aras-{house.name}-days-{a}-{b}"
-    text = site_text(spec, name)
-    site_from_dict(tomllib.loads(text), source=str(out / "site.toml"))
-    out.mkdir(parents=True, exist_ok=True)
-    write_text(text, out / "site.toml")
-    write_csv(motion_df, out / "motion.csv")
-    if other_df.height:
-        write_csv(other_df.select("t", "sensor", "kind", "value"), out / "other.csv")
-    write_csv(count_df.select("t", "end", "count"), out / "truth_count.csv")
-    write_csv(note_df, out / "annotations.csv")
-    write_csv(truth_events, out / "truth_events.csv")
-    if rej.height:
-        write_csv(rej, out / "rejects.csv")
-    elif (out / "rejects.csv").exists():
-        (out / "rejects.csv").unlink()
-    counts = {
-        "days": b - a + 1,
-        "lines": lines,
-        "rejected": rej.height,
-        "short_days": short,
-        "motion_csv": motion_df.height,
-        "other_csv": other_df.height,
-        "truth_events": truth_events.height,
-        "person_sensors": int(person.sum()),
-        "doors": sum(s.door for s in spec.sensors),
-    }
+    counts = {"days": b - a + 1, **_write_dataset(out, acc, spec, f"aras-{house.name}-days-{a}-{b}")}
     info = _import_info(house, spec, counts, a, b)
     write_text(to_toml(info), out / "import.toml")
     write_text(RUN_TOML, out / "run.toml")
