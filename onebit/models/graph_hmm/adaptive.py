@@ -107,10 +107,12 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from onebit.core.lazy import lazy_module
+from onebit.core.params import derived, param
 from onebit.models.graph_hmm.ascent import (
     coordinate_ascent,
     emission_tables,
 )
+from onebit.models.graph_hmm.config import RESUME_SLOTS, HmmConfig
 from onebit.models.graph_hmm.eatg import Eatg, onsets
 from onebit.models.graph_hmm.viterbi import viterbi_first_order, viterbi_motion_second_order
 from onebit.models.graph_hmm.window import max_independent, motion_components, second_order_tensor, window_transitions
@@ -126,29 +128,27 @@ LOOKBACK = 120
 NEAR_HOPS = 1
 
 
-#: slots after an exit in which an entry at the same door continues that user (DecoderParams.resume)
-RESUME_SLOTS = 10
-
-
-@dataclass(frozen=True, kw_only=True)
-class DecoderParams:
-    """Parameters of the window decoder (see the module docstring)."""
-
-    mode: str = "adaptive"
-    d_max: int = 5
-    tau: int = 3
-    p_hit: float = 0.9
-    p_false: float = 0.05
-    sweeps: int = 3
-    offline: bool = False
-    resume: int = RESUME_SLOTS  # slots after an exit in which an entry at the same door continues that user
-    max_users: int = 0  # the most users decoded at once (a bound inside the decoder; 0 = none)
-    count: str = "fresh"  # K_now over nodes turned on in the last fresh_slots slots ("fresh") or every node on ("on")
-    fresh_slots: int = 2
-    restarts: int = 6  # coordinate-ascent restarts (all user orders when K! <= restarts, else rotations); best joint likelihood wins
-    compiled: bool = (
-        True  # the coordinate ascent as one numba kernel (ascent.coordinate_ascent); False = the numpy reference
-    )
+#: The window decoder's parameters: the declarations of :class:`HmmConfig` it shares (type,
+#: default, doc, bounds: not copied), then its own -- the mode, the resume span, compiled or not.
+#: ``max_users`` here is the bound in force (:func:`onebit.models.graph_hmm.decoding.user_bound`).
+DecoderParams = derived(
+    "DecoderParams",
+    HmmConfig,
+    ("d_max", "tau", "p_hit", "p_false", "sweeps", "restarts", "offline", "max_users", "count", "fresh_slots"),
+    extra={
+        "mode": param("adaptive", "decoder: the paper's Adaptive-HMM, or a full-state baseline", choices=MODES),
+        "resume": param(
+            RESUME_SLOTS, "slots after an exit in which an entry at the same door continues that user", lo=0
+        ),
+        "compiled": param(
+            True, "the coordinate ascent as one numba kernel (ascent.coordinate_ascent); False = the numpy reference"
+        ),
+    },
+    doc="Parameters of the window decoder (see the module docstring).",
+    module=__name__,
+)
+#: the paper's decoder (every default)
+DEFAULT_DECODER = DecoderParams()
 
 
 @dataclass
@@ -321,7 +321,7 @@ def decode_run(
     eatg: Eatg,
     *,
     signatures: list[tuple[int, int]] = (),
-    params: DecoderParams = DecoderParams(),
+    params: DecoderParams = DEFAULT_DECODER,
     progress: Callable[[int, int], None] | None = None,
 ) -> DecodeResult:
     """Decode every user's node path from slot activity ``active`` (D, N) bool.
@@ -356,7 +356,7 @@ class WindowDecoder:
         n_nodes: int,
         *,
         signatures: list[tuple[int, int]] = (),
-        params: DecoderParams = DecoderParams(),
+        params: DecoderParams = DEFAULT_DECODER,
     ):
         self.eatg = eatg
         self.signatures = list(signatures)
