@@ -10,9 +10,11 @@ from __future__ import annotations
 
 import os
 import re
+import shutil
 import stat
 import subprocess
 import sys
+import tempfile
 import textwrap
 from pathlib import Path
 
@@ -108,7 +110,8 @@ CLIENT = textwrap.dedent(
 def onebit_bin(tmp_path_factory):
     """A folder holding ``onebit`` (module docstring), with its server running."""
     root = tmp_path_factory.mktemp("bin")
-    sock = root / "s"
+    sock_dir = Path(tempfile.mkdtemp(prefix="onebit-"))  # a short path: a socket's is at most 107 bytes
+    sock = sock_dir / "s"
     env = dict(os.environ, RERUN_ANALYTICS="0")
     env["PYTHONPATH"] = os.pathsep.join(filter(None, [str(ROOT), env.get("PYTHONPATH")]))
     server = subprocess.Popen(
@@ -125,6 +128,7 @@ def onebit_bin(tmp_path_factory):
         server.kill()
         server.wait()
         server.stdout.close()
+        shutil.rmtree(sock_dir, ignore_errors=True)
 
 
 @pytest.mark.parametrize("tutorial", TUTORIALS, ids=lambda p: p.stem)
