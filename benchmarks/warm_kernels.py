@@ -131,6 +131,9 @@ def clustertrack() -> None:
         kernels.scan_step(np.arange(6.0), np.arange(6), x, 3, np.zeros((2, 2)), 2.0, 2, 4, 0.5, 2, 1.0)
     kernels.map_intervals(np.random.default_rng(0).random(5), np.array([[0.0, 1.0], [2.0, 3.0]]), 2.0)
     kernels.jitter_cells(np.zeros((2, 2)), np.zeros(3, dtype=np.int64), np.zeros((3, 2)), 0.1)
+    key = np.random.default_rng(0).random(8)
+    kernels.ordered_prefix(key, 3)  # the scan order's sorted start (large scans)
+    kernels.kth_smallest(key, 2)
 
 
 def binpf() -> None:
@@ -148,6 +151,62 @@ def binpf() -> None:
     kernels.resampled_mean_near(d, np.zeros((2, 5), dtype=np.int64), near)
     idx = kernels.systematic_resample(np.zeros((2, 5)), rng.random((2, 1)))
     kernels.gather_particles(x, np.zeros((2, 5, 5, 2)), idx)
+    y = rng.uniform(-5.0, 5.0, 7)
+    kernels.exp_into(y, np.empty_like(y), np.empty(y.size, dtype=np.int64))
+
+
+def binpf_runs() -> None:
+    """The compiled frame loop (``kernels.run_frames`` and what it calls) as runs reach it: the
+    batch filter (from ``COMPILED_MIN_FRAMES`` frames on) and the online driver (``commit_lag``,
+    what ``onebit follow`` runs), with the stage's own argument types."""
+    import tempfile
+    from pathlib import Path
+
+    from onebit.datasets.catalogue import get_scenario
+    from onebit.pipeline.runner import run_pipeline
+    from onebit.trackers.binpf.filter import COMPILED_MIN_FRAMES
+
+    with tempfile.TemporaryDirectory(prefix="onebit-warm-") as tmp:
+        data = get_scenario("proximity-grid").write(
+            Path(tmp) / "d",
+            seed=0,
+            duration=float(COMPILED_MIN_FRAMES + 10),
+            agents=None,
+            drop=0.0,
+            camera=False,
+            params={},
+        )
+        for lag in (0, 5):
+            config = {"binpf": {"particles": 20, "commit_lag": lag, "log_particles": 2}}
+            run_pipeline(data, Path(tmp) / f"run{lag}", trackers=("binpf",), config=config, rrd=False, progress=False)
+
+
+def simulators() -> None:
+    """A PIR's refractory time in ``onebit simulate from-truth``, and the second-order Viterbi
+    decoders (their compiled forms, as the graph HMM tests call them)."""
+    from onebit.datasets import kernels
+    from onebit.models.graph_hmm import kernels as hmm
+
+    runs = np.array([[0, 0, 1], [0, 5, 2], [3, 9, 6]], dtype=np.int64)
+    kernels.pir_refractory(runs[0], runs[1], runs[2], np.arange(10.0), np.array([1.0, 0.0]), 0.5)
+    s = 3
+    lp = np.log(np.full(s, 1 / s))
+    b = np.log(np.full((4, s), 0.5))
+    hmm.viterbi_second_order(lp, np.log(np.full((s, s), 1 / s)), np.log(np.full((s, s, s), 1 / s)), b)
+    log_stay, log_move = np.log(np.full(s, 0.5)), np.log(np.full((s, s, s), 0.25))
+    hmm._viterbi_motion2(lp, log_stay, log_move, b)
+    hmm._viterbi_motion2_sparse(lp, log_stay, log_move, b, *hmm.move_support(log_move))
+
+
+def homes() -> None:
+    """The count model's Viterbi and the known residents' turns (compiled when numba is loaded)."""
+    from onebit.models.occupancy import _viterbi_kernel
+    from onebit.trackers.residents.known import _turns_kernel
+
+    rng = np.random.default_rng(0)
+    logp = np.log(np.full((3, 3), 1 / 3))
+    _viterbi_kernel(np.log(rng.uniform(0.1, 1.0, (6, 3))), rng.random(6) < 0.5, logp, logp, logp[0].copy())
+    _turns_kernel(rng.dirichlet(np.ones(2), size=5), np.cumsum(rng.random(5)), 120.0)
 
 
 def readers() -> None:
@@ -164,13 +223,18 @@ def readers() -> None:
         }
     )
     decode_passes(ev, compiled=True)
+    from onebit.readers import kernels
+
+    # what a reader calls once numba is loaded: a toggle log's repeats, the separators of messy lines
+    kernels.toggle_repeats(np.array([0, 1, 0], dtype=np.int64), np.array([True, True, False]), 2)
+    kernels.separators_per_line(np.frombuffer(b"a,b\nc\n", dtype=np.uint8), ord(","))
     edges = pl.DataFrame({"line": [2, 3], "t": [0.0, 1.0], "sensor": "s", "on": [True, False]})
     debounce(edges, ["s"], DebounceRules(chatter_window=0.1, min_on=0.1), compiled=True)
 
 
 def main() -> None:
     t_all = time.perf_counter()
-    for warm in (findinghumo, intruder, beams, clustertrack, binpf, readers, scoring):
+    for warm in (findinghumo, intruder, beams, clustertrack, binpf, binpf_runs, homes, simulators, readers, scoring):
         t0 = time.perf_counter()
         warm()
         print(f"kernels: {warm.__name__:<13} {time.perf_counter() - t0:6.2f} s", flush=True)

@@ -8,7 +8,7 @@ import polars as pl
 from onebit.datasets.builtin import builtin_site
 from onebit.experiments import findinghumo_diagnose as fd
 from onebit.models.graph_hmm.eatg import hop_matrix
-from onebit.pipeline.executors import LocalPoolExecutor
+from onebit.pipeline.executors import SerialExecutor
 
 
 def _hallway():
@@ -80,18 +80,22 @@ def test_the_model_floor_is_zero_without_meetings_and_positive_at_a_shared_arriv
     assert fd.slot_error(together, drawn[swapped.index(True)], hops, 8) == 0.0  # positions stay exact
 
 
-def test_issue_15_what_is_reached_on_the_first_20_seeds():
+def test_issue_15_what_is_reached_on_the_first_20_seeds(monkeypatch):
     """Issue #15's setting (hallway, 3 users, 150 s, drop 0.02, seeds 0-19), measured: hmm1
-    1.413, hmm2 0.613, findinghumo 0.583, findinghumo-flow 0.473 hops, and the model-ties floor
-    (true positions, model-optimal labels, exact ties by chance) 0.440 -- above the issue's
+    1.426, hmm2 0.628, findinghumo 0.598, findinghumo-flow 0.523 hops, and the model-ties floor
+    (true positions, model-optimal labels, exact ties by chance) 0.439 -- above the issue's
     0.1, which is why that is not reached. findinghumo < hmm2 < hmm1 is the issue's order; on
     these 20 seeds findinghumo's lead over hmm2 is within noise (-0.030 +- 0.073; over 60
-    seeds -0.14 +- 0.05, docs/findinghumo.md)."""
+    seeds -0.14 +- 0.05, docs/findinghumo.md).
+
+    The floor is the mean over 5 random tie-breaks a seed here (the study draws 20; the floor
+    is most of a seed's cost), so 100 draws in all; the seeds run in this process (the
+    executors give equal tables, tests/experiments/test_executors.py)."""
+    monkeypatch.setattr(fd, "FLOOR_DRAWS", 5)
     jobs = [(seed, fd.DURATION, fd.USERS, fd.DROP, "routes") for seed in range(20)]
-    with LocalPoolExecutor(workers=2) as ex:  # the 20 seeds on both cores (the executors give equal tables)
-        done = ex.map(fd.diagnose_seed, jobs)
+    done = SerialExecutor().map(fd.diagnose_seed, jobs)
     assert all(d.error is None for d in done), [d.error for d in done]
-    rows = [r for d in sorted(done, key=lambda d: d.index) for r in d.value[0]]
+    rows = [r for d in done for r in d.value[0]]
     mean = pl.DataFrame(rows).group_by("tracker").agg(pl.col("hop_error").mean())
     m = dict(zip(mean["tracker"], mean["hop_error"]))
     assert m["findinghumo"] < m["hmm2"] < m["hmm1"], m

@@ -28,7 +28,7 @@ from onebit.viz.inspect import entity_paths, store_ids, verify
 @pytest.fixture(scope="module")
 def lab_run(tmp_path_factory):
     root = tmp_path_factory.mktemp("lab")
-    data = write_beams_dataset(root / "data", "beams-lab", seed=3, duration=60.0, agents=2, drop=0.0, camera=True)
+    data = write_beams_dataset(root / "data", "beams-lab", seed=3, duration=30.0, agents=2, drop=0.0, camera=True)
     res = run_pipeline(data, root / "run")
     return data, res
 
@@ -148,11 +148,14 @@ def test_a_tracker_whose_every_input_failed_is_skipped_not_run_on_nothing(lab_ru
     )
 
 
-def test_mcap_dataset_gives_the_same_crossings(lab_run, tmp_path):
+def test_mcap_dataset_gives_the_same_crossings(lab_run, tmp_path, monkeypatch):
+    import onebit.readers.mcap_io as mcap_io
+
     data, res = lab_run
     d = tmp_path / "data"
     d.mkdir()
     shutil.copy(data / "site.toml", d / "site.toml")
+    monkeypatch.setattr(mcap_io, "CHUNK_SIZE", 256 * 1024)  # chunks of a quarter of the default: several here
     assert main(["logs", "convert", str(data), str(d / "recording.mcap")]) == 0
     r2 = run_pipeline(d, tmp_path / "run")
     assert r2.ok, r2.status
@@ -163,7 +166,7 @@ def test_mcap_dataset_gives_the_same_crossings(lab_run, tmp_path):
     raw = (d / "recording.mcap").read_bytes()
     with open(d / "recording.mcap", "rb") as fh:
         chunks = make_reader(fh).get_summary().chunk_indexes
-    assert len(chunks) >= 2  # chunked (1 MiB of messages each), zstd
+    assert len(chunks) >= 2  # chunked (CHUNK_SIZE of messages each), zstd
     (d / "recording.mcap").write_bytes(raw[: chunks[1].chunk_start_offset + (chunks[1].chunk_length // 2)])
     r3 = run_pipeline(d, tmp_path / "run3")
     rej = pl.read_parquet(tmp_path / "run3" / "tables" / "rejects.parquet")
@@ -312,7 +315,7 @@ def test_run_record_times_work_recording_and_writing_of_every_stage(lab_run, tmp
 
 def test_istate_beyond_its_stage_bound_is_skipped_saying_why(lab_run, tmp_path):
     data, full = lab_run
-    assert full.status["istate"].startswith("ok")  # 60 s = 61 stages: within the default bound
+    assert full.status["istate"].startswith("ok")  # 30 s = 31 stages: within the default bound
     res = run_pipeline(data, tmp_path / "bounded", config={"istate": {"max_stages": 10}}, rrd=False)
     reason = res.status["istate"]
     assert reason.startswith("skipped") and "max_stages = 10" in reason and "stages of period_s = 1 s" in reason

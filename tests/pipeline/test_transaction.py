@@ -147,6 +147,8 @@ SERVER = textwrap.dedent(
     """
     import json, os, signal, sys
     from onebit.pipeline.runner import run_pipeline   # imported once; every run is a forked child
+    # what a run imports on first use, imported here once (a forked child would import it again)
+    import networkx, PIL.Image, pyarrow, rerun, scipy.optimize, scipy.spatial
 
     for line in sys.stdin:
         cmd = json.loads(line)
