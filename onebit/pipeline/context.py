@@ -14,6 +14,7 @@ from onebit.core.errors import InputError
 from onebit.core.region_graph import RegionGraph
 from onebit.core.site import Site
 from onebit.core.tables import REJECTS
+from onebit.readers.logs import CsvLog
 from onebit.readers.rows import RawRows
 from onebit.readers.timebase import TimeOrigin
 
@@ -58,18 +59,25 @@ class RunContext:
     time_origin: TimeOrigin | None = None
     #: each stage's config as it ran, by section (``run.toml``'s stage sections)
     resolved: dict[str, dict[str, Any]] = field(default_factory=dict)
+    #: the run's CSV logs by stem, one :class:`~onebit.readers.logs.CsvLog` each (:meth:`log`)
+    csv_logs: dict[str, CsvLog] = field(default_factory=dict)
 
     def record(self, section: str, cfg: Any, **extra: Any) -> None:
         """Keep ``cfg`` (a config dataclass) as the resolved ``[section]`` of the run record:
         its fields that are set (``None`` is left out: TOML has no null), then ``extra``."""
         self.resolved[section] = {k: v for k, v in asdict(cfg).items() if v is not None} | extra
 
-    def log(self, stem: str) -> Path | RawRows | None:
+    def log(self, stem: str) -> CsvLog | RawRows | None:
         """The raw log ``<stem>`` (:data:`~onebit.readers.logs.Log`): the dataset's
-        ``<stem>.csv``, else the rows of the MCAP channel ``/<stem>``, else ``None``."""
+        ``<stem>.csv`` (one :class:`~onebit.readers.logs.CsvLog` for the run, so that the
+        time-origin step and the reader share its one typed read), else the rows of the MCAP
+        channel ``/<stem>``, else ``None``."""
         p = self.dataset / f"{stem}.csv"
         if p.exists():
-            return p
+            log = self.csv_logs.get(stem)
+            if log is None:
+                log = self.csv_logs[stem] = CsvLog(p)
+            return log
         return self.mcap_channels.get(f"/{stem}")
 
     def has_source(self, stem: str) -> bool:

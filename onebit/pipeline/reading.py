@@ -10,6 +10,12 @@ one declared stage; the declarations (names, what each needs and makes, its conf
 :func:`onebit.pipeline.stages.stages`. A stage reads its log through the format's one reader
 (``read_beams``, ``read_motion``, ...: :mod:`onebit.readers.logs`), which takes the CSV file
 or the MCAP channel's rows (``ctx.log(stem)``) and chooses its own path.
+
+Each CSV log is read once per run: ``ctx.log(stem)`` is the run's one
+:class:`~onebit.readers.logs.CsvLog` of the file; the time-origin step of a beam or toggle log
+reads it in its reader's types and the log keeps that read for the reader, which takes it
+(and the log drops it) -- when the stage that reads it will run (:func:`_read_taken`), else
+nothing is kept.
 """
 
 from __future__ import annotations
@@ -66,7 +72,7 @@ def run_time_origin(ctx: RunContext) -> TimeOrigin:
     frames: dict[str, Stamps] = {}
     for stem in TIME_SOURCES:
         log = ctx.log(stem)
-        stamps = None if log is None else origin_stamps(ctx.site, stem, log)
+        stamps = None if log is None else origin_stamps(ctx.site, stem, log, keep=_read_taken(ctx, stem))
         if stamps is not None:
             frames[log_name(log)] = stamps
     origin = time_origin(frames, epoch=ctx.site.epoch)
@@ -74,17 +80,26 @@ def run_time_origin(ctx: RunContext) -> TimeOrigin:
     return origin
 
 
-def origin_stamps(site, stem: str, log: Log) -> Stamps | None:
+def origin_stamps(site, stem: str, log: Log, *, keep: bool = True) -> Stamps | None:
     """The time-origin step of the log ``stem``: its stamps, read as its reader reads them (a
     beam or toggle log in its reader's types, :func:`~onebit.readers.logs.typed_stamps`: the
-    same numbers, and an absurd span names them the same way), ``None`` when it cannot be read."""
+    same numbers, and an absurd span names them the same way; a
+    :class:`~onebit.readers.logs.CsvLog` keeps that read for its reader unless ``keep`` is
+    false), ``None`` when it cannot be read."""
     if stem == "beams":
         ids = tuple(site.beam_ids)
-        return typed_stamps(log, beam_dtypes(ids) if ids else None)
+        return typed_stamps(log, beam_dtypes(ids) if ids else None, keep=keep)
     if stem in ("motion", "proximity"):
         ids = [m.id for m in (site.motion_sensors if stem == "motion" else site.proximity_sensors)]
-        return typed_stamps(log, toggle_dtypes(ids) if ids else None)
+        return typed_stamps(log, toggle_dtypes(ids) if ids else None, keep=keep)
     return log_stamps(log)
+
+
+def _read_taken(ctx: RunContext, stem: str) -> bool:
+    """Whether the stage that reads the log ``stem`` in its typed read will run (so the
+    time-origin step keeps that read for it): ``crossings`` for beams, ``motion``, ``proximity``."""
+    available = {"beams": crossings_available, "motion": motion_available, "proximity": proximity_available}.get(stem)
+    return available is not None and available(ctx) is None
 
 
 # --------------------------------------------------------------------------- reader stages

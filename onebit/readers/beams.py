@@ -34,7 +34,7 @@ from onebit.core.compiled import numba_loaded
 from onebit.core.sensing import body_radius
 from onebit.core.tables import ABORTED, BEAM_EVENTS, CROSSINGS, REJECTS, conform
 from onebit.readers import kernels
-from onebit.readers.logs import Log
+from onebit.readers.logs import CsvLog, Log, csv_path, typed_read
 from onebit.readers.rows import (
     FileLines,
     RawRows,
@@ -51,7 +51,6 @@ from onebit.readers.rows import (
     raw_lines,
     read_clean_csv,
     read_csv_rows,
-    read_typed_csv,
     type_rows,
 )
 from onebit.readers.timebase import TimeOrigin
@@ -102,11 +101,12 @@ def beam_dtypes(beam_ids: tuple[str, ...]) -> dict[str, pl.DataType]:
 _beam_dtypes = beam_dtypes  # the earlier private name
 
 
-def typed_beam_events(path: Path, beam_ids: tuple[str, ...], *, epoch=None) -> TypedRows | None:
-    """:func:`read_beam_events` of ``beams.csv`` by one typed read (:func:`~onebit.readers.rows.read_typed_csv`),
+def typed_beam_events(path: Path | CsvLog, beam_ids: tuple[str, ...], *, epoch=None) -> TypedRows | None:
+    """:func:`read_beam_events` of ``beams.csv`` by one typed read (:func:`~onebit.readers.rows.read_typed_csv`;
+    the one its :class:`~onebit.readers.logs.CsvLog` kept, :func:`~onebit.readers.logs.typed_read`),
     the lines it cannot take typed row by row; ``None`` when the header is not a plain first
     line (the row-by-row path reads the file). Beam and pair stay enums (the decoder's codes)."""
-    split = read_typed_csv(path, beam_dtypes(beam_ids))
+    split = typed_read(path, beam_dtypes(beam_ids))
     if split is None:
         return None
     good = split.good.with_columns(pl.col("blocked").to_physical() == 1)
@@ -117,7 +117,7 @@ def typed_beam_events(path: Path, beam_ids: tuple[str, ...], *, epoch=None) -> T
         epoch=epoch,
         key=BEAM_COLUMNS,
         tolerance=0.0,
-        path=path,
+        path=csv_path(path),
     )
 
 
@@ -356,15 +356,15 @@ def read_beams(log: Log, beam_ids: tuple[str, ...], *, epoch: str | TimeOrigin |
 
 
 def decode_beam_log(
-    path: str | Path, beam_ids: tuple[str, ...], *, epoch: str | TimeOrigin | None = None
+    path: str | Path | CsvLog, beam_ids: tuple[str, ...], *, epoch: str | TimeOrigin | None = None
 ) -> BeamDecode:
     """Read ``beams.csv`` and decode it: the whole raw-beam reader.
 
     The file is typed by one ``pl.read_csv`` (:func:`typed_beam_events`); only the lines it
     cannot take go through the row-by-row CSV layer, which names each bad line. The result is
     the row-by-row path's on the whole file (:func:`decode_raw_beams`)."""
-    path = Path(path)
-    typed = typed_beam_events(path, tuple(beam_ids), epoch=epoch)
+    log, path = path, csv_path(path)
+    typed = typed_beam_events(log, tuple(beam_ids), epoch=epoch)
     if typed is None:
         raw = read_csv_rows(path, BEAM_COLUMNS)
         return decode_raw_beams(raw, beam_ids, epoch=epoch, path=path)

@@ -43,7 +43,7 @@ import polars as pl
 
 from onebit.core.errors import InputError
 from onebit.core.tables import FRAMES, MOTION, REJECTS
-from onebit.readers.logs import Log
+from onebit.readers.logs import Log, csv_path
 from onebit.readers.motion import TOGGLE_VALUES
 from onebit.readers.rows import RawRows, check_rows, header_names, parse_choice, parse_time, read_csv_rows
 from onebit.readers.timebase import TimeOrigin
@@ -90,7 +90,7 @@ def read_frames(log: Log, sensors: Sequence[str], *, epoch: str | TimeOrigin | N
     ``/frames`` channel's rows, in the list layout (``t``, ``active``)."""
     if isinstance(log, RawRows):
         return read_frame_rows(log, sensors, layout="list", epoch=epoch)
-    return read_frames_csv(log, sensors, epoch=epoch)
+    return read_frames_csv(csv_path(log), sensors, epoch=epoch)
 
 
 def read_frames_csv(path: str | Path, sensors: Sequence[str], *, epoch: str | TimeOrigin | None = None) -> FrameLog:

@@ -64,6 +64,7 @@ from onebit.core.errors import ConfigError
 from onebit.core.params import param, validate
 from onebit.core.tables import MOTION, REJECTS, conform
 from onebit.readers import kernels
+from onebit.readers.logs import CsvLog, csv_path, typed_read
 from onebit.readers.rows import (
     REORDER_TOLERANCE_S,
     RawRows,
@@ -81,7 +82,6 @@ from onebit.readers.rows import (
     parse_time,
     read_clean_csv,
     read_csv_rows,
-    read_typed_csv,
 )
 from onebit.readers.timebase import TimeOrigin
 
@@ -171,7 +171,7 @@ class MotionRead:
 
 
 def read_motion(
-    raw: RawRows | Path,
+    raw: RawRows | Path | CsvLog,
     sensors: Sequence[str],
     *,
     epoch: str | TimeOrigin | None = None,
@@ -462,7 +462,7 @@ def debounce_reference(
 
 
 def read_motion_csv(
-    path: str | Path,
+    path: str | Path | CsvLog,
     sensors: Sequence[str],
     *,
     epoch: str | TimeOrigin | None = None,
@@ -472,9 +472,9 @@ def read_motion_csv(
 ) -> MotionRead:
     """Read ``motion.csv`` (or ``proximity.csv``): the whole toggle reader for one file, typed
     in one read (:func:`typed_toggle_rows`), the row-by-row path when that read cannot take it."""
-    path = Path(path)
+    log, path = path, csv_path(path)
     sensors = tuple(sensors)
-    typed = typed_toggle_rows(path, sensors, epoch=epoch, tolerance=tolerance)
+    typed = typed_toggle_rows(log, sensors, epoch=epoch, tolerance=tolerance)
     if typed is None:
         raw = read_csv_rows(path, TOGGLE_COLUMNS)
         return read_motion(raw, sensors, epoch=epoch, path=path, rules=rules, held=held, tolerance=tolerance)
@@ -487,19 +487,20 @@ def toggle_dtypes(sensors: Sequence[str]) -> dict[str, pl.DataType]:
 
 
 def typed_toggle_rows(
-    path: Path,
+    path: Path | CsvLog,
     sensors: tuple[str, ...],
     *,
     epoch: str | TimeOrigin | None = None,
     tolerance: float = REORDER_TOLERANCE_S,
 ) -> TypedRows | None:
     """Pass 1 of :func:`read_motion` for a toggle log typed by one ``pl.read_csv``
-    (:func:`~onebit.readers.rows.read_typed_csv`: numeric ``t``, known sensors, values spelled
+    (:func:`~onebit.readers.rows.read_typed_csv`, the one its :class:`~onebit.readers.logs.CsvLog`
+    kept: :func:`~onebit.readers.logs.typed_read`; numeric ``t``, known sensors, values spelled
     as in :data:`TOGGLE_VALUES`, lower case); the lines it cannot take are typed row by row.
     ``None`` when the header is not a plain first line (the row-by-row path reads the file).
     The sensor stays an enum (the debounce's codes); every output table casts it to String."""
     spellings = list(TOGGLE_VALUES)
-    split = read_typed_csv(path, toggle_dtypes(sensors))
+    split = typed_read(path, toggle_dtypes(sensors))
     if split is None:
         return None
     on_codes = [i for i, v in enumerate(spellings) if TOGGLE_VALUES[v]]  # the spellings of "on", by code
@@ -511,7 +512,7 @@ def typed_toggle_rows(
         key=TOGGLE_COLUMNS,
         tolerance=tolerance,
         epoch=epoch,
-        path=path,
+        path=csv_path(path),
     )
 
 

@@ -20,6 +20,7 @@ import polars as pl
 from onebit.core.config import MAX_FRAME_CELLS, MAX_STEPS, check_size
 from onebit.core.params import param, validate
 from onebit.core.tables import FRAMES, PROXIMITY, conform
+from onebit.readers.logs import CsvLog
 from onebit.readers.motion import TOGGLE_COLUMNS, DebounceRules, MotionRead, read_motion, read_motion_csv
 from onebit.readers.rows import RawRows
 
@@ -64,7 +65,7 @@ class ProximityConfig:
 
 
 def read_proximity(
-    raw: RawRows | Path,
+    raw: RawRows | Path | CsvLog,
     sensors: Sequence[str],
     *,
     epoch=None,

@@ -26,7 +26,7 @@ from onebit.core.tables import (
     TRUTH_EVENTS,
     conform,
 )
-from onebit.readers.logs import Log
+from onebit.readers.logs import Log, csv_path
 from onebit.readers.rows import (
     RawRows,
     TypedRows,
@@ -196,7 +196,7 @@ def read_crossings(log: Log, beam_ids, *, epoch=None) -> tuple[pl.DataFrame, pl.
     ``/crossings`` channel's rows (:func:`crossings_from_rows`)."""
     if isinstance(log, RawRows):
         return crossings_from_rows(log, beam_ids, epoch=epoch)
-    return read_crossings_csv(log, beam_ids, epoch=epoch)
+    return read_crossings_csv(csv_path(log), beam_ids, epoch=epoch)
 
 
 def read_truth(log: Log, *, epoch=None) -> tuple[pl.DataFrame, pl.DataFrame]:
@@ -204,7 +204,7 @@ def read_truth(log: Log, *, epoch=None) -> tuple[pl.DataFrame, pl.DataFrame]:
     rows (:func:`truth_from_rows`)."""
     if isinstance(log, RawRows):
         return truth_from_rows(log, epoch=epoch)
-    return read_truth_csv(log, epoch=epoch)
+    return read_truth_csv(csv_path(log), epoch=epoch)
 
 
 def read_true_crossings(log: Log, beam_ids, *, epoch=None) -> tuple[pl.DataFrame, pl.DataFrame]:
@@ -213,6 +213,7 @@ def read_true_crossings(log: Log, beam_ids, *, epoch=None) -> tuple[pl.DataFrame
     ``/truth_crossings`` channel's rows (:func:`true_crossings_from_rows`)."""
     if isinstance(log, RawRows):
         return true_crossings_from_rows(log, beam_ids, epoch=epoch)
+    log = csv_path(log)
     columns = true_crossings_columns(log)
     if "dropped" in columns:
         return true_crossings_from_rows(read_csv_rows(log, columns), beam_ids, epoch=epoch, path=log)
@@ -224,7 +225,7 @@ def read_truth_events(log: Log, *, epoch=None) -> tuple[pl.DataFrame, pl.DataFra
     or an MCAP ``/truth_events`` channel's rows (:func:`truth_events_from_rows`)."""
     if isinstance(log, RawRows):
         return truth_events_from_rows(log, epoch=epoch)
-    return read_truth_events_csv(log, epoch=epoch)
+    return read_truth_events_csv(csv_path(log), epoch=epoch)
 
 
 #: A profile row's ``bin``: ``session k/n`` or ``day k/n`` with ``0 <= k < n``.

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import shutil
 import tomllib
+from pathlib import Path
 
 import polars as pl
 import pytest
@@ -15,8 +16,10 @@ from onebit.datasets.builtin import builtin_site_path
 from onebit.pipeline import runner
 from onebit.pipeline import stages as declaration
 from onebit.pipeline.context import RunContext, Stage, StageContractError, check_made
+from onebit.pipeline.reading import run_time_origin
 from onebit.pipeline.runner import run_pipeline
 from onebit.pipeline.stages import stages
+from onebit.readers import logs
 from onebit.readers.timebase import TimeOrigin
 
 FRAME = pl.DataFrame({"t": [0.0]})
@@ -99,3 +102,36 @@ def test_the_run_record_holds_the_resolved_sections_and_the_time_origin(hallway,
     )
     assert tomllib.loads((tmp_path / "again" / "run.toml").read_text())["hmm1"] == record["hmm1"]
     assert again.ok
+
+
+def _typed_reads(monkeypatch) -> list[str]:
+    """The files typed in one read through their log (:mod:`onebit.readers.logs`), in order."""
+    calls: list[str] = []
+    real = logs.read_typed_csv
+    monkeypatch.setattr(
+        logs, "read_typed_csv", lambda path, dtypes: calls.append(Path(path).name) or real(path, dtypes)
+    )
+    return calls
+
+
+def test_a_run_reads_each_csv_log_once(hallway, tmp_path, monkeypatch):
+    """``ctx.log`` is the run's one log of a file: its time-origin step reads it, its stage
+    takes that read, and nothing of it is kept after the stage."""
+    site = load_site(hallway / "site.toml")
+    ctx = RunContext(hallway, tmp_path, site, build_region_graph(site), {})
+    log = ctx.log("motion")
+    assert log is ctx.log("motion") and log.path == hallway / "motion.csv"
+    calls = _typed_reads(monkeypatch)
+    run_time_origin(ctx)
+    assert log.holds_read and calls == ["motion.csv"]
+    made = next(st for st in stages() if st.name == "motion").work(ctx)
+    assert made["motion"].height == 6 and calls == ["motion.csv"] and not log.holds_read
+
+
+def test_a_log_whose_stage_will_not_run_keeps_no_read(hallway, tmp_path, monkeypatch):
+    (hallway / "frames.csv").write_text("t,active\n0,104\n1,\n")  # the readings come from the frames
+    site = load_site(hallway / "site.toml")
+    ctx = RunContext(hallway, tmp_path, site, build_region_graph(site), {})
+    calls = _typed_reads(monkeypatch)
+    run_time_origin(ctx)
+    assert "motion.csv" in calls and not ctx.log("motion").holds_read
