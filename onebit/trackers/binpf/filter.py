@@ -2,21 +2,11 @@
 
 Model
 -----
-Sensor :math:`s` at :math:`p_s` with footprint radius :math:`R_s` reports a level
-:math:`z_s \\in \\{0, 1\\}` every frame (a sensor held on is presence, not only its rising
-edge). A person at :math:`x` triggers it with the soft footprint probability
-
-.. math::
-
-    d_s(x) = p_d \\, \\sigma\\!\\left(\\frac{R_s - \\lVert x - p_s \\rVert}{w}\\right),
-    \\qquad \\sigma(u) = \\frac{1}{1 + e^{-u}}                                     \\tag{1}
-
-(:math:`w \\to 0` is the hard disk of radius :math:`R_s`). People trigger independently and
-the sensor fires on its own with the false-alarm rate :math:`p_f` (noisy-OR):
-
-.. math::
-
-    P(z_s = 0 \\mid x_1..x_n) = (1 - p_f) \\prod_i \\big(1 - d_s(x_i)\\big).        \\tag{2}
+The sensor model is :mod:`onebit.trackers.binpf.footprint`: sensor :math:`s` reports a level
+:math:`z_s \\in \\{0, 1\\}` every frame, a person at :math:`x` triggers it with its soft footprint
+probability :math:`d_s(x)` (Eq. (1)), people trigger independently and the sensor fires on its
+own with the false-alarm rate :math:`p_f`: :math:`P(z_s = 0 \\mid x_1..x_n)` is the noisy-OR of
+Eq. (2).
 
 Filter
 ------
@@ -91,63 +81,10 @@ of people. A confirmed track with :math:`r_i \\ge r_{\\mathrm{out}}` is reported
 particle mean; at most ``max_out`` (the site's ``targets``) are reported per frame, the
 largest :math:`r` first. Identities are the tracks' labels.
 
-*Split* (two people under overlapping footprints; ``split_ratio > 0``). The mean-field update
-cannot resolve two people half a metre apart: given a track's marginal, a second track's
-best place is on top of it (it shares both people's firings), so two tracks of a close pair
-drift together and merge. A split is a move of the field's kind (a twin proposed, kept if the
-likelihood supports the larger cardinality) with a joint update of the pair:
-
-1. *Proposal.* For every on sensor :math:`c` the tracks already explain
-   (:math:`1 - \\prod_j q_{jc} \\ge \\beta`), a twin with particles uniform in :math:`c`'s
-   footprint is scored by its Bernoulli likelihood ratio :math:`L_c` of Eq. (5), the tracks
-   entering through their posterior :math:`q`; twins with :math:`L_c \\ge` ``split_ratio``
-   (the frame is more probable with one more person there than without) are born, the
-   largest :math:`L_c` first, none within ``birth_link`` of another, each coupled to the
-   nearest uncoupled track.
-2. *Joint update of a couple* :math:`(a, b)`: their particles are taken side by side, particle
-   :math:`n` of both scored by the joint likelihood of Eq. (2) with both present
-
-   .. math::
-
-       \\ell_{ab}^{(n)} = \\sum_s \\log\\big[z_s (1 - o_s^{(n)}) + (1 - z_s)\\, o_s^{(n)}\\big],
-       \\quad o_s^{(n)} = (1 - p_f) \\prod_{j \\ne a, b} q_{js}\\,
-                          \\big(1 - d_s(x_a^{(n)})\\big)\\big(1 - d_s(x_b^{(n)})\\big)   \\tag{6}
-
-   and both resampled with the same indices, so a pair of positions that explains the
-   firings' spread together survives (particle :math:`n` of :math:`a` on the left is weighed
-   with particle :math:`n` of :math:`b` on the right), not each track alone at the centre.
-   Existences stay Eq. (5). A couple is not merged; it ends when either dies or their means
-   are more than ``couple_distance`` apart.
-
-*Count* (a cardinality the likelihood supports; ``count_ratio > 0``). The on sensors within
-``birth_link`` of each other form clusters; cluster :math:`C` is judged on the sensors
-:math:`S_C` within :math:`2(R + 3w)` of its on sensors (on and off). With people at
-:math:`Y = (y_1..y_n)` Eq. (2) gives
-
-.. math::
-
-    \\ell_C(Y) = \\sum_{s \\in S_C} \\log\\big[z_s (1 - o_s(Y)) + (1 - z_s)\\, o_s(Y)\\big],
-    \\qquad o_s(Y) = (1 - p_f) \\prod_{k} \\big(1 - d_s(y_k)\\big),                 \\tag{7}
-
-and the count is the local MAP under a prior that charges each person a factor
-:math:`\\kappa` (``count_ratio``), :math:`P(n) \\propto \\kappa^{-n}`:
-
-.. math::
-
-    \\hat n_C = \\max\\{n : \\ell_C(\\hat Y_n) - \\ell_C(\\hat Y_{n-1}) \\ge \\log \\kappa\\}   \\tag{8}
-
-(the search adds people one at a time and stops at the first that falls short).
-:math:`\\hat Y_n` is searched on a 0.2 m grid over the cluster's footprints: the better of
-:math:`\\hat Y_{n-1}` plus the best new point and :math:`\\hat Y_{n-1}` with one person replaced
-by the best pair of points within :math:`R` of it (two people 0.5 m apart are better
-explained by a pair than by one in the middle plus one anywhere), then two passes moving
-each person to its best point given the others. The tracks whose particle mean lies within
-:math:`R + 3w` of the cluster's on sensors take the places nearest them (closest pair first);
-a place left over is a person no track explains. It is born -- particles
-:math:`\\mathcal N(y, \\max(w, 0.1)^2)`, existence ``birth_r``, updated on the frame like
-any newborn -- when the frame before also left an untracked place within :math:`R` of it
-(``count_persist`` = 2 frames; a single frame's firings are too noisy a count). The regular
-births of the frame count as tracks here.
+*Split* and *count* (``split_ratio > 0``, ``count_ratio > 0``): the opt-in moves of
+:mod:`onebit.trackers.binpf.moves` (Eqs. (6)-(8)) -- a twin proposed beside a track where the
+firings' spread says two people stand close, and births where a cluster's local MAP count
+exceeds its tracks.
 
 The split and the count run in :func:`run_filter_reference` (``run_filter`` uses it whatever
 the length when ``split_ratio > 0`` or ``count_ratio > 0``; the compiled loop has neither).
@@ -167,8 +104,13 @@ import numpy as np
 from onebit.core.params import kernel_tuple
 from onebit.trackers.binpf import kernels
 from onebit.trackers.binpf.config import FilterParams
-
-_TINY = 1e-12
+from onebit.trackers.binpf.footprint import TINY as _TINY
+from onebit.trackers.binpf.footprint import birth_particles as birth_particles  # re-exported
+from onebit.trackers.binpf.footprint import footprint_probability as footprint_probability  # re-exported
+from onebit.trackers.binpf.footprint import frame_probability_off as frame_probability_off  # re-exported
+from onebit.trackers.binpf.moves import count_births as count_births  # re-exported
+from onebit.trackers.binpf.moves import count_particles, couple, pair_loglik, split_proposals
+from onebit.trackers.binpf.moves import local_map_people as local_map_people  # re-exported
 
 #: :func:`run_filter` uses the compiled update from this many frames on.
 COMPILED_MIN_FRAMES = 300
@@ -200,25 +142,6 @@ def kernel_params(p: FilterParams, log_particles: int) -> kernels.KernelParams:
     """The compiled loop's parameters: ``p``'s of the same names, and ``log_particles`` (>= 0)."""
     values = {n: getattr(p, n) for n in kernels.KernelParams._fields if n != "log_particles"}
     return kernel_tuple(kernels.KernelParams, **values, log_particles=max(int(log_particles), 0))
-
-
-def footprint_probability(
-    xy: np.ndarray, sensors: np.ndarray, radii: np.ndarray, *, pd: float, edge: float
-) -> np.ndarray:
-    """Eq. (1): ``d[..., s]`` for positions ``xy (..., 2)``, sensors ``(S, 2)``, radii ``(S,)``."""
-    dist = np.sqrt(((xy[..., None, :] - sensors) ** 2).sum(-1))
-    if edge <= 0:
-        return np.where(dist <= radii, pd, 0.0)
-    u = np.clip((radii - dist) / edge, -50.0, 50.0)
-    return pd / (1.0 + np.exp(-u))
-
-
-def frame_probability_off(
-    positions: np.ndarray, sensors: np.ndarray, radii: np.ndarray, *, pd: float, pf: float, edge: float
-) -> np.ndarray:
-    """Eq. (2): ``P(z_s = 0 | positions (n, 2))`` for every sensor, ``(S,)``."""
-    d = footprint_probability(positions, sensors, radii, pd=pd, edge=edge)
-    return (1.0 - pf) * np.prod(1.0 - d, axis=0)
 
 
 def predict(
@@ -300,184 +223,6 @@ def birth_groups(z: np.ndarray, q: np.ndarray, sensors: np.ndarray, p: FilterPar
     return [cand[lab == g] for g in np.unique(lab)]
 
 
-def birth_particles(
-    group: np.ndarray, sensors: np.ndarray, radii: np.ndarray, rng: np.random.Generator, p: FilterParams
-) -> np.ndarray:
-    """``(N, 4)`` particles uniform in the footprints of ``group``'s sensors, velocities
-    :math:`\\mathcal N(0, \\sigma_b^2)`."""
-    N = p.particles
-    which = group[rng.integers(0, len(group), N)]
-    rad = radii[which] * np.sqrt(rng.random(N))
-    ang = rng.random(N) * 2 * np.pi
-    xy = sensors[which] + np.c_[rad * np.cos(ang), rad * np.sin(ang)]
-    v = p.birth_speed * rng.standard_normal((N, 2))
-    return np.c_[xy, v]
-
-
-def split_proposals(z, q, x, r, sensors, radii, rng, p, update, room):
-    """Twin particles ``(B, N, 4)`` for the on sensors the tracks explain whose twin's
-    likelihood ratio (Eq. (5), the tracks entering through their posterior) is at least
-    ``split_ratio``; see "Split"."""
-    explained = 1.0 - np.prod(q, axis=0)
-    cand = np.flatnonzero(z & (explained >= p.birth_explained))
-    if cand.size == 0:
-        return np.zeros((0, p.particles, 4))
-    tx = np.stack([birth_particles(np.array([s]), sensors, radii, rng, p) for s in cand])
-    L = np.empty(cand.size)
-    for c in range(cand.size):
-        _, rr, _ = update(np.concatenate([x, tx[c : c + 1]]), np.concatenate([r, [p.birth_r]]))
-        rb = min(max(rr[-1], 1e-300), 1 - 1e-16)
-        L[c] = rb * (1 - p.birth_r) / (p.birth_r * (1 - rb))
-    order = np.argsort(-L, kind="stable")
-    chosen: list[int] = []
-    for c in order:
-        if L[c] < p.split_ratio or len(chosen) >= room:
-            break
-        if all(np.hypot(*(sensors[cand[c]] - sensors[cand[o]])) > p.birth_link for o in chosen):
-            chosen.append(int(c))
-    return tx[chosen]
-
-
-def _cluster_loglik(y: np.ndarray, z: np.ndarray, sensors: np.ndarray, radii: np.ndarray, p: FilterParams) -> float:
-    """Eq. (2)'s log-likelihood of the levels ``z`` of ``sensors`` with people at ``y (n, 2)``."""
-    off = frame_probability_off(y, sensors, radii, pd=p.pd, pf=p.pf, edge=p.edge)
-    return float(np.log(np.maximum(np.where(z, 1.0 - off, off), _TINY)).sum())
-
-
-def local_map_people(z, sensors, radii, p: FilterParams, step: float = 0.2, passes: int = 2):
-    """The local MAP configurations of Eq. (7) for one cluster's sensors: ``[Y_0, Y_1, ...]``,
-    ``Y_n (n, 2)`` the best ``n`` people found on a grid of ``step``, while a person adds at
-    least ``log count_ratio`` to the log-likelihood, and their log-likelihoods
-    :math:`\\ell(Y_n)`; see "Count"."""
-    if not z.any():
-        return [np.zeros((0, 2))], [_cluster_loglik(np.zeros((0, 2)), z, sensors, radii, p)]
-    lo = sensors[z].min(axis=0) - radii[z].max()
-    hi = sensors[z].max(axis=0) + radii[z].max()
-    gx, gy = np.meshgrid(np.arange(lo[0], hi[0] + step / 2, step), np.arange(lo[1], hi[1] + step / 2, step))
-    grid = np.c_[gx.ravel(), gy.ravel()]
-    dg = footprint_probability(grid, sensors, radii, pd=p.pd, edge=p.edge)  # (G, S)
-    reach = radii[z].max()
-
-    def loglik(off):  # Eq. (2) summed over the sensors (last axis)
-        return np.log(np.maximum(np.where(z, 1.0 - off, off), _TINY)).sum(axis=-1)
-
-    def best(others: list[int]) -> tuple[int, float]:  # one person's best grid point, the others fixed
-        ll = loglik((1.0 - p.pf) * np.prod(1.0 - dg[others], axis=0)[None, :] * (1.0 - dg))
-        g = int(np.argmax(ll))
-        return g, float(ll[g])
-
-    def split(chosen: list[int]) -> tuple[list[int], float]:  # person a replaced by the best pair near it
-        top: tuple[list[int], float] = ([], -np.inf)
-        for a in range(len(chosen)):
-            rest = chosen[:a] + chosen[a + 1 :]
-            near = np.flatnonzero(np.hypot(*(grid - grid[chosen[a]]).T) <= reach)
-            base = (1.0 - p.pf) * np.prod(1.0 - dg[rest], axis=0) * (1.0 - dg[near])  # (P, S)
-            ll = loglik(base[:, None, :] * (1.0 - dg[near])[None, :, :])  # (P, P)
-            u, v = np.unravel_index(int(np.argmax(ll)), ll.shape)
-            if ll[u, v] > top[1]:
-                top = ([*rest, int(near[u]), int(near[v])], float(ll[u, v]))
-        return top
-
-    chosen: list[int] = []
-    ll = float(loglik((1.0 - p.pf) * np.ones(len(z))))
-    out, lls = [np.zeros((0, 2))], [ll]
-    while len(chosen) <= int(z.sum()):
-        g, ll_new = best(chosen)
-        trial = [*chosen, g]
-        if chosen:  # or one person split into two where the firings' spread says so
-            two, ll_two = split(chosen)
-            if ll_two > ll_new:
-                trial, ll_new = two, ll_two
-        for _ in range(passes if len(trial) > 1 else 0):  # each person to its best place given the others
-            for a in range(len(trial)):
-                trial[a], ll_new = best(trial[:a] + trial[a + 1 :])
-        if ll_new - ll < np.log(p.count_ratio):
-            break
-        chosen, ll = trial, ll_new
-        out.append(grid[chosen])
-        lls.append(ll)
-    return out, lls
-
-
-def count_births(z, means, sensors, radii, p: FilterParams, before=None) -> tuple[np.ndarray, np.ndarray]:
-    """The people the local MAP count of each cluster of on sensors finds beyond the tracks
-    near it (Eq. (7)): ``(born (B, 2), places (P, 2))`` -- ``places`` every such untracked
-    place of this frame, ``born`` those of them within a footprint radius of an untracked
-    place of the frame before (``before``) when ``count_persist >= 2`` (one frame before is
-    looked at, whatever the value), every place when ``count_persist <= 1``; see "Count"."""
-    on = np.flatnonzero(z)
-    if on.size == 0:
-        return np.zeros((0, 2)), np.zeros((0, 2))
-    pts = sensors[on]
-    adj = np.sqrt(((pts[:, None] - pts[None]) ** 2).sum(-1)) <= p.birth_link
-    lab = np.arange(on.size)
-    while True:  # clusters of on sensors: connected components, as birth_groups
-        new = np.where(adj, lab[None, :], on.size).min(axis=1)
-        if np.array_equal(new, lab):
-            break
-        lab = new
-    reach = radii.max() + 3.0 * max(p.edge, 0.0)
-    places = []
-    for g in np.unique(lab):
-        c = on[lab == g]
-        near = np.flatnonzero(np.sqrt(((sensors[:, None] - sensors[c][None]) ** 2).sum(-1)).min(axis=1) <= 2 * reach)
-        Y = local_map_people(z[near], sensors[near], radii[near], p)[0][-1]
-        dt = np.sqrt(((means[:, None] - sensors[c][None]) ** 2).sum(-1)).min(axis=1) if len(means) else np.zeros(0)
-        mine = means[dt <= reach]  # the tracks under this cluster
-        if len(Y) <= len(mine):
-            continue
-        cost = np.sqrt(((Y[:, None] - mine[None]) ** 2).sum(-1))  # (places, tracks)
-        free = np.ones(len(Y), bool)
-        for _ in range(len(mine)):  # the tracks take the places nearest them, closest pair first
-            a, b = np.unravel_index(np.argmin(cost), cost.shape)
-            free[a] = False
-            cost[a, :] = cost[:, b] = np.inf
-        places.extend(Y[free])
-    places = np.array(places).reshape(-1, 2)
-    if p.count_persist <= 1:
-        return places, places
-    before = np.zeros((0, 2)) if before is None else before
-    seen = np.sqrt(((places[:, None] - before[None]) ** 2).sum(-1)).min(axis=1) <= radii.max() if len(before) else []
-    return places[np.asarray(seen, bool)] if len(before) else np.zeros((0, 2)), places
-
-
-def count_particles(y: np.ndarray, rng: np.random.Generator, p: FilterParams, lo, hi) -> np.ndarray:
-    """``(N, 4)`` particles of a person the count places at ``y``: positions
-    :math:`\\mathcal N(y, \\sigma_c^2)`, :math:`\\sigma_c` = ``max(edge, 0.1)``, clipped to the
-    site; velocities :math:`\\mathcal N(0, \\sigma_b^2)`."""
-    N = p.particles
-    xy = np.clip(y + max(p.edge, 0.1) * rng.standard_normal((N, 2)), lo, hi)
-    return np.c_[xy, p.birth_speed * rng.standard_normal((N, 2))]
-
-
-def couple(partner: dict, labels, mean_old, mean_new, first_label: int, reach: float) -> None:
-    """Couple newborn ``first_label + t`` (mean ``mean_new[t]``) to the nearest uncoupled old track
-    within ``reach`` (``partner``: label -> label, both ways); see "Split" and "Count"."""
-    for t, m in enumerate(mean_new):
-        dd = np.hypot(*(mean_old - m).T)
-        for j in np.argsort(dd):
-            if dd[j] > reach:
-                break
-            if int(labels[j]) not in partner:
-                a, b = int(labels[j]), first_label + t
-                partner[a], partner[b] = b, a
-                break
-
-
-def pair_loglik(x, r, z, ia, ib, sensors, radii, p):
-    """Joint log-likelihood ``(N,)`` of a coupled pair's particles taken side by side: track
-    ``ia``'s particle ``n`` and track ``ib``'s particle ``n`` present together, the other tracks
-    entering through their marginal miss probabilities; see "Split"."""
-    d = footprint_probability(x[..., :2], sensors, radii, pd=p.pd, edge=p.edge)  # (I, N, S)
-    q = 1.0 - r[:, None] * d.mean(axis=1)
-    others = np.ones(len(r), bool)
-    others[[ia, ib]] = False
-    m = (1.0 - p.pf) * np.prod(q[others], axis=0)  # (S,)
-    off = m[None, :] * (1.0 - d[ia]) * (1.0 - d[ib])  # (N, S)
-    like = np.where(z[None, :], 1.0 - off, off)
-    return np.log(np.maximum(like, _TINY)).sum(-1)
-
-
 def report_rows(
     frame: np.ndarray, label: np.ndarray, r: np.ndarray, confirmed_labels: np.ndarray, p: FilterParams
 ) -> np.ndarray:
@@ -543,10 +288,7 @@ def run_filter(
     labels = np.zeros(M, dtype=np.int64)
     confirmed = np.zeros(M, dtype=bool)
     ever = np.zeros(0, dtype=bool)
-    est = np.zeros((0, 2))
-    rows_frame = np.zeros(0, dtype=np.int64)
-    rows_label = np.zeros(0, dtype=np.int64)
-    rows_r = np.zeros(0)
+    rows = (np.zeros((0, 2)), np.zeros(0, dtype=np.int64), np.zeros(0, dtype=np.int64), np.zeros(0))
     counts = np.zeros((T, 4), dtype=np.int64)
     kp = kernel_params(p, log_particles)
     pxy, pfr, plab = [], [], []
@@ -556,25 +298,24 @@ def run_filter(
     for k0 in range(0, T, CHUNK_FRAMES):
         k1 = min(T, k0 + CHUNK_FRAMES)
         n_rows, next_label = int(state[2]), int(state[1])
-        need = n_rows + M * (k1 - k0)  # at most M rows and M births a frame
-        if est.shape[0] < need:
-            cap = max(need, 2 * est.shape[0])
-            est = np.concatenate([est, np.zeros((cap - est.shape[0], 2))])
-            rows_frame = np.concatenate([rows_frame, np.zeros(cap - rows_frame.size, dtype=np.int64)])
-            rows_label = np.concatenate([rows_label, np.zeros(cap - rows_label.size, dtype=np.int64)])
-            rows_r = np.concatenate([rows_r, np.zeros(cap - rows_r.size)])
+        rows = _grown(rows, n_rows + M * (k1 - k0))  # at most M rows and M births a frame
         if ever.size < next_label + M * (k1 - k0):
             ever = np.concatenate([ever, np.zeros(max(M * (k1 - k0), ever.size), dtype=bool)])
         a, b, c = kernels.run_frames(
-            on, k0, k1, state, x, hist, rowidx, r, labels, confirmed, ever, est,
-            rows_frame, rows_label, rows_r, counts, sensors, radii, lo, hi, rng, kp, dbuf,
+            on, k0, k1, state, x, hist, rowidx, r, labels, confirmed, ever, *rows,
+            counts, sensors, radii, lo, hi, rng, kp, dbuf,
         )  # fmt: skip
         pxy.append(a)
         pfr.append(b)
         plab.append(c)
         if progress is not None:
             progress(k1, T)
-    n_rows = int(state[2])
+    return _compiled_result(rows, int(state[2]), ever, counts, (pxy, pfr, plab), p)
+
+
+def _compiled_result(rows: tuple, n_rows: int, ever, counts, logged: tuple, p: FilterParams) -> FilterResult:
+    """The compiled run's :class:`FilterResult` from its buffers (``n_rows`` rows written)."""
+    est, rows_frame, rows_label, rows_r = rows
     frame, label, rr = rows_frame[:n_rows].copy(), rows_label[:n_rows].copy(), rows_r[:n_rows].copy()
     reported = report_rows(frame, label, rr, np.flatnonzero(ever).astype(np.int64), p)
     return FilterResult(
@@ -588,10 +329,26 @@ def run_filter(
         deaths=counts[:, 1].copy(),
         merges=counts[:, 2].copy(),
         live=counts[:, 3].copy(),
-        particles_xy=np.concatenate(pxy) if pxy else np.zeros((0, 2)),
-        particles_frame=np.concatenate(pfr) if pfr else np.zeros(0, np.int64),
-        particles_label=np.concatenate(plab) if plab else np.zeros(0, np.int64),
+        **_logged(*logged),
     )
+
+
+def _grown(rows: tuple, need: int) -> tuple:
+    """The compiled loop's row buffers ``(est (cap, 2), frame, label, r)``, grown (doubling) to at
+    least ``need`` rows."""
+    if rows[0].shape[0] >= need:
+        return rows
+    cap = max(need, 2 * rows[0].shape[0])
+    return tuple(np.concatenate([a, np.zeros((cap - a.shape[0], *a.shape[1:]), dtype=a.dtype)]) for a in rows)
+
+
+def _logged(pxy: list, pfr: list, plab: list) -> dict[str, np.ndarray]:
+    """:class:`FilterResult`'s logged particles from the per-frame (or per-chunk) lists."""
+    return {
+        "particles_xy": np.concatenate(pxy) if pxy else np.zeros((0, 2)),
+        "particles_frame": np.concatenate(pfr) if pfr else np.zeros(0, np.int64),
+        "particles_label": np.concatenate(plab) if plab else np.zeros(0, np.int64),
+    }
 
 
 def run_filter_reference(
@@ -622,181 +379,275 @@ def run_filter_reference(
     :data:`COMPILED_MIN_FRAMES` frames on (below, numba's start-up in a fresh process costs
     more than it saves).
     """
-    rng = np.random.default_rng(seed)
-    T, S = on.shape
+    T = on.shape[0]
     if compiled is None:
         compiled = T >= COMPILED_MIN_FRAMES
+    rng = np.random.default_rng(seed)
     sensors = np.ascontiguousarray(sensors, dtype=np.float64)
     radii = np.ascontiguousarray(radii, dtype=np.float64)
-
-    def update(xs, rs):
-        if compiled:
-            return kernels.observation_update(
-                np.ascontiguousarray(xs), rs, z, sensors, radii, p.pd, p.pf, p.edge, p.silent
-            )
-        return (*observation_update(xs, rs, z, sensors, radii, p), None)
-
-    N = p.particles
-    L = p.smooth_lag
-    x = np.zeros((0, N, 4))
-    hist = np.zeros((0, N, L + 1, 2))  # positions at frames k-L..k (last = now)
-    rowidx = np.zeros((0, L + 1), dtype=np.int64)  # row of (track, frame k-L+j), -1 = none
-    r = np.zeros(0)
-    labels = np.zeros(0, dtype=np.int64)
-    partner: dict[int, int] = {}  # label -> label of its coupled twin ("Split")
-    places = np.zeros((0, 2))  # the count's untracked places of the frame before ("Count")
-    confirmed = np.zeros(0, dtype=bool)
-    ever_confirmed: set[int] = set()
-    next_label = 0
-    n_rows = 0
-    cap = 1024
-    est = np.zeros((cap, 2))
-    rows: dict[str, list] = {k: [] for k in ("frame", "label", "r")}
-    births = np.zeros(T, np.int64)
-    deaths = np.zeros(T, np.int64)
-    merges = np.zeros(T, np.int64)
-    live = np.zeros(T, np.int64)
-    pxy, pfr, plab = [], [], []
-
-    def resampled(ell, xs, hs):
-        if compiled:  # the same draw per track, the walk and the copies compiled
-            idx = kernels.systematic_resample(np.ascontiguousarray(ell), rng.random((len(ell), 1)))
-            return (*kernels.gather_particles(np.ascontiguousarray(xs), np.ascontiguousarray(hs), idx), idx)
-        idx = systematic_resample(ell, rng)
-        return np.take_along_axis(xs, idx[..., None], axis=1), np.take_along_axis(hs, idx[..., None, None], axis=1), idx
-
+    m = _Steps(sensors, radii, lo, hi, p, rng, compiled)
+    st = _State.empty(T, p)
     for k in range(T):
         z = on[k]
-        x, r = predict(x, r, rng, p, lo, hi)
-        hist = np.concatenate([hist[:, :, 1:], x[:, :, None, :2]], axis=2)
-        rowidx = np.concatenate([rowidx[:, 1:], np.full((len(r), 1), -1)], axis=1)
-        if len(r):  # existing tracks first: they get the first chance to explain the frame
-            ell, r, d = update(x, r)
-            pairs = [
-                (int(np.flatnonzero(labels == a)[0]), int(np.flatnonzero(labels == b)[0]))
-                for a, b in partner.items()
-                if a < b and a in labels and b in labels
-            ]
-            if pairs:
-                ell = ell.copy()
-                for ia, ib in pairs:
-                    ell[ia] = ell[ib] = pair_loglik(x, r, z, ia, ib, sensors, radii, p)
-                idx = systematic_resample(ell, rng)
-                for ia, ib in pairs:
-                    idx[ib] = idx[ia]
-                x = np.take_along_axis(x, idx[..., None], axis=1)
-                hist = np.take_along_axis(hist, idx[..., None, None], axis=1)
-            else:
-                x, hist, idx = resampled(ell, x, hist)
-        # birth from the on sensors the updated tracks' particles leave unexplained (whatever
-        # their existence: a tentative track near a firing gathers its evidence, no twin is born)
-        if not len(r):
-            q = np.zeros((0, S))
-        elif compiled:  # the resampled particles' footprints are the update's, copied
-            q = 1.0 - kernels.resampled_mean(d, idx)
-        else:
-            q = 1.0 - footprint_probability(x[..., :2], sensors, radii, pd=p.pd, edge=p.edge).mean(axis=1)
-        groups = birth_groups(z, q, sensors, p)
-        room = p.max_tracks - len(r)
-        newx = None
-        if groups and room > 0:
-            groups = sorted(groups, key=len, reverse=True)[:room]
-            newx = np.stack([birth_particles(g, sensors, radii, rng, p) for g in groups])
-        twins = np.zeros((0, N, 4))
-        if p.split_ratio > 0 and len(r) and room - len(groups) > 0:
-            twins = split_proposals(z, q, x, r, sensors, radii, rng, p, update, room - len(groups))
-        elif p.count_ratio > 0 and room - len(groups) > 0:
-            means = x[..., :2].mean(axis=1)
-            if newx is not None:
-                means = np.concatenate([means, newx[..., :2].mean(axis=1)])
-            ys, places = count_births(z, means, sensors, radii, p, places)
-            ys = ys[: room - len(groups)]
-            twins = np.stack([count_particles(y, rng, p, lo, hi) for y in ys]) if len(ys) else twins
-        if len(twins) and p.split_ratio > 0:  # each twin is coupled to the nearest uncoupled track
-            couple(
-                partner, labels, x[..., :2].mean(axis=1), twins[..., :2].mean(axis=1), next_label + len(groups), np.inf
-            )
-        if len(twins):
-            groups = [*groups, *([None] * len(twins))]
-            newx = twins if newx is None else np.concatenate([newx, twins])
-        if newx is not None:
-            newr = np.full(len(groups), p.birth_r)
-            # the newborn are updated on this frame with the others' posterior miss probabilities
-            ell, rall, _ = update(np.concatenate([x, newx]), np.concatenate([r, newr]))
-            nb = slice(len(r), None)
-            newh = np.repeat(newx[:, :, None, :2], L + 1, axis=2)
-            newx, newh, _ = resampled(ell[nb], newx, newh)
-            x, hist, r = np.concatenate([x, newx]), np.concatenate([hist, newh]), np.concatenate([r, rall[nb]])
-            rowidx = np.concatenate([rowidx, np.full((len(groups), L + 1), -1)])
-            labels = np.concatenate([labels, np.arange(next_label, next_label + len(groups))])
-            confirmed = np.concatenate([confirmed, np.zeros(len(groups), bool)])
-            next_label += len(groups)
-            births[k] = len(groups)
-        confirmed |= r >= p.r_confirm
-        keep = r >= p.r_delete
-        # merge: of two tracks closer than merge_distance keep the larger r
-        mean = x[..., :2].mean(axis=1)
-        if len(r) > 1 and p.merge_distance > 0:
-            dm = np.sqrt(((mean[:, None] - mean[None]) ** 2).sum(-1))
-            order = np.argsort(-r, kind="stable")
-            for a_pos, a in enumerate(order):  # tracks are few (<= max_tracks)
-                if not keep[a]:
-                    continue
-                for b in order[a_pos + 1 :]:
-                    if keep[b] and dm[a, b] < p.merge_distance and partner.get(int(labels[a])) != int(labels[b]):
-                        keep[b] = False
-                        confirmed[a] |= confirmed[b]
-                        merges[k] += 1
-        deaths[k] = int((~keep).sum()) - merges[k]
-        x, hist, rowidx, r, labels, confirmed = (
-            x[keep],
-            hist[keep],
-            rowidx[keep],
-            r[keep],
-            labels[keep],
-            confirmed[keep],
-        )
-        ever_confirmed.update(labels[confirmed].tolist())
-        if partner:  # a couple ends when one dies or the two are far apart
-            mean = x[..., :2].mean(axis=1)
-            pos = {int(lab): i for i, lab in enumerate(labels)}
-            for a, b in list(partner.items()):
-                if a not in pos or b not in pos or np.hypot(*(mean[pos[a]] - mean[pos[b]])) > p.couple_distance:
-                    partner.pop(a, None)
-        live[k] = len(r)
-        # this frame's rows, then every smoothed estimate still in the window
-        rowidx[:, -1] = n_rows + np.arange(len(r))
-        n_rows += len(r)
-        if n_rows > cap:
-            cap = max(2 * cap, n_rows)
-            est = np.concatenate([est, np.zeros((cap - len(est), 2))])
-        m = rowidx >= 0
-        est[rowidx[m]] = hist.mean(axis=1)[m]
-        rows["frame"].append(np.full(len(r), k))
-        rows["label"].append(labels.copy())
-        rows["r"].append(r.copy())
-        if log_particles > 0 and len(r):
-            sub = x[:, : min(log_particles, N), :2]
-            pxy.append(sub.reshape(-1, 2))
-            pfr.append(np.full(sub.shape[0] * sub.shape[1], k))
-            plab.append(np.repeat(labels, sub.shape[1]))
+        q = _update_tracks(st, m, z)
+        newx, born = _births(st, m, z, q)
+        if born:
+            _add_newborn(st, m, z, newx, born, k)
+        _confirm_delete_merge(st, p, k)
+        _end_couples(st, p)
+        st.live[k] = len(st.r)
+        _write_rows(st, k)
+        if log_particles > 0 and len(st.r):
+            _log_particles(st, k, min(log_particles, p.particles))
         if progress is not None:
             progress(k + 1, T)
-    cat = {k: (np.concatenate(v) if v else np.zeros(0)) for k, v in rows.items()}
+    return _result(st, p)
+
+
+@dataclass
+class _State:
+    """The reference loop's state between frames: the live tracks (one row each) and what the run
+    has written so far."""
+
+    x: np.ndarray  # (I, N, 4) particles
+    hist: np.ndarray  # (I, N, L + 1, 2) positions at frames k-L..k (last = now)
+    rowidx: np.ndarray  # (I, L + 1) row of (track, frame k-L+j), -1 = none
+    r: np.ndarray  # (I,) existences
+    labels: np.ndarray  # (I,)
+    confirmed: np.ndarray  # (I,) bool
+    partner: dict[int, int]  # label -> label of its coupled twin ("Split")
+    places: np.ndarray  # the count's untracked places of the frame before ("Count")
+    next_label: int
+    ever_confirmed: set[int]
+    n_rows: int  # rows written
+    est: np.ndarray  # (cap, 2) the rows' smoothed positions
+    rows: dict[str, list]  # frame, label, r of every row, a list of arrays per frame
+    births: np.ndarray  # (T,) per frame
+    deaths: np.ndarray
+    merges: np.ndarray
+    live: np.ndarray
+    particles: tuple[list, list, list]  # logged particles: xy, frame, label
+
+    @classmethod
+    def empty(cls, T: int, p: FilterParams) -> _State:
+        N, L = p.particles, p.smooth_lag
+        return cls(
+            x=np.zeros((0, N, 4)),
+            hist=np.zeros((0, N, L + 1, 2)),
+            rowidx=np.zeros((0, L + 1), dtype=np.int64),
+            r=np.zeros(0),
+            labels=np.zeros(0, dtype=np.int64),
+            confirmed=np.zeros(0, dtype=bool),
+            partner={},
+            places=np.zeros((0, 2)),
+            next_label=0,
+            ever_confirmed=set(),
+            n_rows=0,
+            est=np.zeros((1024, 2)),
+            rows={k: [] for k in ("frame", "label", "r")},
+            births=np.zeros(T, np.int64),
+            deaths=np.zeros(T, np.int64),
+            merges=np.zeros(T, np.int64),
+            live=np.zeros(T, np.int64),
+            particles=([], [], []),
+        )
+
+    def keep(self, keep: np.ndarray) -> None:
+        """Only the tracks where ``keep``."""
+        self.x, self.hist, self.rowidx = self.x[keep], self.hist[keep], self.rowidx[keep]
+        self.r, self.labels, self.confirmed = self.r[keep], self.labels[keep], self.confirmed[keep]
+
+
+@dataclass
+class _Steps:
+    """What every frame's steps share: the sensors, the site's box, the parameters, the generator
+    and whether the update and the resampling are the compiled kernels."""
+
+    sensors: np.ndarray
+    radii: np.ndarray
+    lo: np.ndarray
+    hi: np.ndarray
+    p: FilterParams
+    rng: np.random.Generator
+    compiled: bool
+
+    def update(self, xs, rs, z):
+        """Eqs. (4)-(5): ``(ell, r_new, d)`` (``d`` the footprints when compiled, else ``None``)."""
+        p = self.p
+        if self.compiled:
+            return kernels.observation_update(
+                np.ascontiguousarray(xs), rs, z, self.sensors, self.radii, p.pd, p.pf, p.edge, p.silent
+            )
+        return (*observation_update(xs, rs, z, self.sensors, self.radii, p), None)
+
+    def resampled(self, ell, xs, hs):
+        """Particles and histories resampled by the log-weights ``ell``, and the indices."""
+        if self.compiled:  # the same draw per track, the walk and the copies compiled
+            idx = kernels.systematic_resample(np.ascontiguousarray(ell), self.rng.random((len(ell), 1)))
+            return (*kernels.gather_particles(np.ascontiguousarray(xs), np.ascontiguousarray(hs), idx), idx)
+        idx = systematic_resample(ell, self.rng)
+        return np.take_along_axis(xs, idx[..., None], axis=1), np.take_along_axis(hs, idx[..., None, None], axis=1), idx
+
+
+def _update_tracks(st: _State, m: _Steps, z: np.ndarray) -> np.ndarray:
+    """Predict (Eq. (3)) and update (Eqs. (4)-(5), a couple jointly by Eq. (6)) the existing tracks,
+    which get the first chance to explain the frame; returns their posterior miss
+    probabilities ``q (I, S)`` (from the particles, whatever their existence: see the birth)."""
+    p = m.p
+    st.x, st.r = predict(st.x, st.r, m.rng, p, m.lo, m.hi)
+    st.hist = np.concatenate([st.hist[:, :, 1:], st.x[:, :, None, :2]], axis=2)
+    st.rowidx = np.concatenate([st.rowidx[:, 1:], np.full((len(st.r), 1), -1)], axis=1)
+    if not len(st.r):
+        return np.zeros((0, len(z)))
+    ell, st.r, d = m.update(st.x, st.r, z)
+    labels = st.labels
+    pairs = [
+        (int(np.flatnonzero(labels == a)[0]), int(np.flatnonzero(labels == b)[0]))
+        for a, b in st.partner.items()
+        if a < b and a in labels and b in labels
+    ]
+    if pairs:
+        ell = ell.copy()
+        for ia, ib in pairs:
+            ell[ia] = ell[ib] = pair_loglik(st.x, st.r, z, ia, ib, m.sensors, m.radii, p)
+        idx = systematic_resample(ell, m.rng)
+        for ia, ib in pairs:
+            idx[ib] = idx[ia]
+        st.x = np.take_along_axis(st.x, idx[..., None], axis=1)
+        st.hist = np.take_along_axis(st.hist, idx[..., None, None], axis=1)
+    else:
+        st.x, st.hist, idx = m.resampled(ell, st.x, st.hist)
+    if m.compiled:  # the resampled particles' footprints are the update's, copied
+        return 1.0 - kernels.resampled_mean(d, idx)
+    return 1.0 - footprint_probability(st.x[..., :2], m.sensors, m.radii, pd=p.pd, edge=p.edge).mean(axis=1)
+
+
+def _births(st: _State, m: _Steps, z: np.ndarray, q: np.ndarray) -> tuple[np.ndarray | None, int]:
+    """The frame's newborn particles ``(B, N, 4)`` (``None`` when none) and ``B``: a track per
+    group of on sensors the updated tracks leave unexplained (whatever their existence: a
+    tentative track near a firing gathers its evidence, no twin is born), then the split's
+    twins, each coupled to the nearest uncoupled track, or the count's births."""
+    p = m.p
+    groups = birth_groups(z, q, m.sensors, p)
+    room = p.max_tracks - len(st.r)
+    newx = None
+    if groups and room > 0:
+        groups = sorted(groups, key=len, reverse=True)[:room]
+        newx = np.stack([birth_particles(g, m.sensors, m.radii, m.rng, p) for g in groups])
+    twins = np.zeros((0, p.particles, 4))
+    if p.split_ratio > 0 and len(st.r) and room - len(groups) > 0:
+        update = lambda xs, rs: m.update(xs, rs, z)  # noqa: E731
+        twins = split_proposals(z, q, st.x, st.r, m.sensors, m.radii, m.rng, p, update, room - len(groups))
+    elif p.count_ratio > 0 and room - len(groups) > 0:
+        means = st.x[..., :2].mean(axis=1)
+        if newx is not None:
+            means = np.concatenate([means, newx[..., :2].mean(axis=1)])
+        ys, st.places = count_births(z, means, m.sensors, m.radii, p, st.places)
+        ys = ys[: room - len(groups)]
+        twins = np.stack([count_particles(y, m.rng, p, m.lo, m.hi) for y in ys]) if len(ys) else twins
+    if len(twins) and p.split_ratio > 0:  # each twin is coupled to the nearest uncoupled track
+        mean_old, mean_new = st.x[..., :2].mean(axis=1), twins[..., :2].mean(axis=1)
+        couple(st.partner, st.labels, mean_old, mean_new, st.next_label + len(groups), np.inf)
+    if len(twins):
+        newx = twins if newx is None else np.concatenate([newx, twins])
+    return newx, 0 if newx is None else len(groups) + len(twins)
+
+
+def _add_newborn(st: _State, m: _Steps, z: np.ndarray, newx: np.ndarray, born: int, k: int) -> None:
+    """The newborn, updated on this frame with the others' posterior miss probabilities (Eqs.
+    (4)-(5)) and resampled, join the tracks with existence ``birth_r`` and new labels."""
+    p = m.p
+    newr = np.full(born, p.birth_r)
+    ell, rall, _ = m.update(np.concatenate([st.x, newx]), np.concatenate([st.r, newr]), z)
+    nb = slice(len(st.r), None)
+    newh = np.repeat(newx[:, :, None, :2], p.smooth_lag + 1, axis=2)
+    newx, newh, _ = m.resampled(ell[nb], newx, newh)
+    st.x, st.hist, st.r = (
+        np.concatenate([st.x, newx]),
+        np.concatenate([st.hist, newh]),
+        np.concatenate([st.r, rall[nb]]),
+    )
+    st.rowidx = np.concatenate([st.rowidx, np.full((born, p.smooth_lag + 1), -1)])
+    st.labels = np.concatenate([st.labels, np.arange(st.next_label, st.next_label + born)])
+    st.confirmed = np.concatenate([st.confirmed, np.zeros(born, bool)])
+    st.next_label += born
+    st.births[k] = born
+
+
+def _confirm_delete_merge(st: _State, p: FilterParams, k: int) -> None:
+    """Track management: confirm at ``r_confirm``, delete below ``r_delete``, and of two tracks
+    closer than ``merge_distance`` (not a couple) keep the larger ``r``."""
+    st.confirmed |= st.r >= p.r_confirm
+    keep = st.r >= p.r_delete
+    r, labels = st.r, st.labels
+    mean = st.x[..., :2].mean(axis=1)
+    if len(r) > 1 and p.merge_distance > 0:
+        dm = np.sqrt(((mean[:, None] - mean[None]) ** 2).sum(-1))
+        order = np.argsort(-r, kind="stable")
+        for a_pos, a in enumerate(order):  # tracks are few (<= max_tracks)
+            if not keep[a]:
+                continue
+            for b in order[a_pos + 1 :]:
+                if keep[b] and dm[a, b] < p.merge_distance and st.partner.get(int(labels[a])) != int(labels[b]):
+                    keep[b] = False
+                    st.confirmed[a] |= st.confirmed[b]
+                    st.merges[k] += 1
+    st.deaths[k] = int((~keep).sum()) - st.merges[k]
+    st.keep(keep)
+    st.ever_confirmed.update(st.labels[st.confirmed].tolist())
+
+
+def _end_couples(st: _State, p: FilterParams) -> None:
+    """A couple ends when one dies or the two are farther apart than ``couple_distance``."""
+    if not st.partner:
+        return
+    mean = st.x[..., :2].mean(axis=1)
+    pos = {int(lab): i for i, lab in enumerate(st.labels)}
+    for a, b in list(st.partner.items()):
+        if a not in pos or b not in pos or np.hypot(*(mean[pos[a]] - mean[pos[b]])) > p.couple_distance:
+            st.partner.pop(a, None)
+
+
+def _write_rows(st: _State, k: int) -> None:
+    """This frame's rows, then every smoothed estimate still in the window."""
+    n = len(st.r)
+    st.rowidx[:, -1] = st.n_rows + np.arange(n)
+    st.n_rows += n
+    if st.n_rows > len(st.est):
+        cap = max(2 * len(st.est), st.n_rows)
+        st.est = np.concatenate([st.est, np.zeros((cap - len(st.est), 2))])
+    m = st.rowidx >= 0
+    st.est[st.rowidx[m]] = st.hist.mean(axis=1)[m]
+    st.rows["frame"].append(np.full(n, k))
+    st.rows["label"].append(st.labels.copy())
+    st.rows["r"].append(st.r.copy())
+
+
+def _log_particles(st: _State, k: int, n: int) -> None:
+    """The first ``n`` particles of every track at frame ``k``, for drawing."""
+    sub = st.x[:, :n, :2]
+    pxy, pfr, plab = st.particles
+    pxy.append(sub.reshape(-1, 2))
+    pfr.append(np.full(sub.shape[0] * sub.shape[1], k))
+    plab.append(np.repeat(st.labels, sub.shape[1]))
+
+
+def _result(st: _State, p: FilterParams) -> FilterResult:
+    """The run's :class:`FilterResult` from the loop's final state."""
+    cat = {k: (np.concatenate(v) if v else np.zeros(0)) for k, v in st.rows.items()}
     frame, label = cat["frame"].astype(np.int64), cat["label"].astype(np.int64)
-    reported = report_rows(frame, label, cat["r"], np.array(sorted(ever_confirmed), dtype=np.int64), p)
+    reported = report_rows(frame, label, cat["r"], np.array(sorted(st.ever_confirmed), dtype=np.int64), p)
+    pxy, pfr, plab = st.particles
     return FilterResult(
         frame=frame,
         label=label,
-        x=est[:n_rows, 0].copy(),
-        y=est[:n_rows, 1].copy(),
+        x=st.est[: st.n_rows, 0].copy(),
+        y=st.est[: st.n_rows, 1].copy(),
         r=cat["r"],
         reported=reported,
-        births=births,
-        deaths=deaths,
-        merges=merges,
-        live=live,
-        particles_xy=np.concatenate(pxy) if pxy else np.zeros((0, 2)),
-        particles_frame=np.concatenate(pfr) if pfr else np.zeros(0, np.int64),
-        particles_label=np.concatenate(plab) if plab else np.zeros(0, np.int64),
+        births=st.births,
+        deaths=st.deaths,
+        merges=st.merges,
+        live=st.live,
+        **_logged(pxy, pfr, plab),
     )

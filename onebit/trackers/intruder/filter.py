@@ -199,11 +199,25 @@ def run_filter(
             log_particles=log_particles,
             progress=progress,
         )
-    cxs, cys = dep.grid.centres()
-    mask = np.ascontiguousarray(room.contains(cxs.ravel(), cys.ravel()).reshape(cxs.shape))
     p = prior(n_particles, room, motion, rng)
     L = logged_per_iteration(log_particles, n_particles, T)
-    res = FilterResult(
+    res = empty_result(T, L)
+    if T == 0:
+        return res
+    pick = np.linspace(0, n_particles - 1, L).round().astype(np.int64) if L else np.zeros(0, np.int64)
+    model = kernel_model(dep, room, half_w, half_d)
+    rs = kernels.Resampling(resample == "systematic", resample_when == "always", float(ess_threshold), pick)
+    parts = tuple(np.ascontiguousarray(c, dtype=np.float64) for c in (p.x, p.y, p.theta, p.v, p.w))
+    fired = np.ascontiguousarray(fired, dtype=np.bool_)
+    blind = np.ascontiguousarray(blind, dtype=np.bool_)
+    run = _run_box_room if room.is_box else _run_any_room
+    run(parts, fired, blind, room, motion, rng, model, rs, res, progress)
+    return res
+
+
+def empty_result(T: int, L: int) -> FilterResult:
+    """A :class:`FilterResult` of ``T`` iterations of zeros, ``L`` particles logged per iteration."""
+    return FilterResult(
         np.zeros((T, 2)),
         np.zeros(T),
         np.zeros(T, np.int64),
@@ -213,9 +227,13 @@ def run_filter(
         np.zeros((T, L)),
         np.zeros(T),
     )
-    if T == 0:
-        return res
-    pick = np.linspace(0, n_particles - 1, L).round().astype(np.int64) if L else np.zeros(0, np.int64)
+
+
+def kernel_model(dep: Deployment, room: Room, half_w: float, half_d: float) -> kernels.Model:
+    """The compiled kernel's sensor model: the cells' lists of sensors, ``p0``, ``xi``, the box
+    and the mask of the cells whose centre is in the room."""
+    cxs, cys = dep.grid.centres()
+    mask = np.ascontiguousarray(room.contains(cxs.ravel(), cys.ravel()).reshape(cxs.shape))
     g = dep.grid
     grid = np.array([g.x0, g.y0, g.cell, g.nx, g.ny], dtype=np.float64)
     ptr, sensor, q = kernels.cell_lists(dep.q)
@@ -223,33 +241,43 @@ def run_filter(
     # 1 - p0 as the reference divides by it: exp(log1p(-p0)) (math.exp, as log_p_silent)
     a = np.array([math.exp(v) for v in np.log1p(-np.minimum(p0, 1 - PROB_FLOOR))], dtype=np.float64)
     xi = np.asarray(dep.xi, dtype=np.float64)
-    fired = np.ascontiguousarray(fired, dtype=np.bool_)
-    blind = np.ascontiguousarray(blind, dtype=np.bool_)
-    systematic, always = resample == "systematic", resample_when == "always"
-    x, y, theta, v, w = (np.ascontiguousarray(c, dtype=np.float64) for c in (p.x, p.y, p.theta, p.v, p.w))
-    model = kernels.Model(grid, ptr, sensor, q, p0, xi, a, float(half_w), float(half_d), mask)
-    rs = kernels.Resampling(systematic, always, float(ess_threshold), pick)
-    outs = kernels.Outputs(res.estimates, res.ess, res.resampled, res.logged_xy, res.logged_w, res.spread)
-    if room.is_box:
-        mot = kernel_tuple(kernels.MotionParams, **{n: getattr(motion, n) for n in kernels.MotionParams._fields})
-        step = T if progress is None else max(1, -(-T // PROGRESS_CHUNKS))
-        for k0 in range(0, T, step):
-            k1 = min(k0 + step, T)
-            kernels._run_box(
-                x, y, theta, v, w, rng, fired[k0:k1], blind[k0:k1], mot, np.asarray(room.bounds, dtype=np.float64),
-                model, rs, kernels.Outputs(*(o[k0:k1] for o in outs)), res.redraws[k0:k1], res.clamped[k0:k1],
-            )  # fmt: skip
-            if progress is not None:
-                progress(k1, T)
-        return res
+    return kernels.Model(grid, ptr, sensor, q, p0, xi, a, float(half_w), float(half_d), mask)
+
+
+def _outputs(res: FilterResult) -> kernels.Outputs:
+    return kernels.Outputs(res.estimates, res.ess, res.resampled, res.logged_xy, res.logged_w, res.spread)
+
+
+def _run_box_room(parts, fired, blind, room, motion, rng, model, rs, res, progress) -> None:
+    """Every iteration in one compiled kernel (box room), in :data:`PROGRESS_CHUNKS` slices when
+    ``progress`` is given; fills ``res``."""
+    T = fired.shape[0]
+    x, y, theta, v, w = parts
+    outs = _outputs(res)
+    mot = kernel_tuple(kernels.MotionParams, **{n: getattr(motion, n) for n in kernels.MotionParams._fields})
+    step = T if progress is None else max(1, -(-T // PROGRESS_CHUNKS))
+    for k0 in range(0, T, step):
+        k1 = min(k0 + step, T)
+        kernels._run_box(
+            x, y, theta, v, w, rng, fired[k0:k1], blind[k0:k1], mot, np.asarray(room.bounds, dtype=np.float64),
+            model, rs, kernels.Outputs(*(o[k0:k1] for o in outs)), res.redraws[k0:k1], res.clamped[k0:k1],
+        )  # fmt: skip
+        if progress is not None:
+            progress(k1, T)
+
+
+def _run_any_room(parts, fired, blind, room, motion, rng, model, rs, res, progress) -> None:
+    """Any room: the propagation in numpy (its rejection test needs shapely), the rest of each
+    iteration compiled; fills ``res``."""
+    x, y, theta, v, w = parts
+    outs = _outputs(res)
     uniform = False
-    for k in range(T):  # sequential: each iteration needs the previous posterior
+    for k in range(fired.shape[0]):  # sequential: each iteration needs the previous posterior
         p, res.redraws[k], res.clamped[k] = propagate(Particles(x, y, theta, v, w), room, motion, rng)
         x, y, theta, v, w = (np.ascontiguousarray(c, dtype=np.float64) for c in (p.x, p.y, p.theta, p.v, p.w))
         uniform = kernels._update_one(k, x, y, theta, v, w, uniform, rng, fired[k], blind[k], model, rs, outs)
         if progress is not None:
-            progress(k + 1, T)
-    return res
+            progress(k + 1, fired.shape[0])
 
 
 def logged_per_iteration(log_particles: int, n_particles: int, iterations: int) -> int:
@@ -289,16 +317,7 @@ def run_filter_reference(
     mask = room.contains(cxs.ravel(), cys.ravel()).reshape(cxs.shape)
     p = prior(n_particles, room, motion, rng)
     L = logged_per_iteration(log_particles, n_particles, T)
-    res = FilterResult(
-        np.zeros((T, 2)),
-        np.zeros(T),
-        np.zeros(T, np.int64),
-        np.zeros(T, np.int64),
-        np.zeros(T, bool),
-        np.zeros((T, L, 2)),
-        np.zeros((T, L)),
-        np.zeros(T),
-    )
+    res = empty_result(T, L)
     pick = np.linspace(0, n_particles - 1, L).round().astype(np.int64) if L else np.zeros(0, np.int64)
     for k in range(T):
         p, step = filter_step(
