@@ -331,7 +331,7 @@ def separators_per_line(buf, sep):
     """How many ``sep`` bytes each line of ``buf`` (uint8; lines end at ``\\n``) holds: one
     entry per line, the text after the last ``\\n`` being a line (empty at the end of a file
     that ends with one). One pass over the bytes; the numpy reference is
-    :func:`separators_per_line_reference`."""
+    :func:`onebit._testing.reader_oracles.separators_per_line_reference`."""
     n_lines = 1
     for i in range(buf.shape[0]):
         if buf[i] == 10:
@@ -347,20 +347,12 @@ def separators_per_line(buf, sep):
     return out
 
 
-def separators_per_line_reference(buf: np.ndarray, sep: int) -> np.ndarray:
-    """:func:`separators_per_line` with numpy (sorted positions, one ``searchsorted``): its test oracle."""
-    nl = np.flatnonzero(buf == 10)
-    at = np.flatnonzero(buf == sep)
-    before = np.searchsorted(at, np.concatenate([nl, [buf.shape[0]]]), side="left")
-    return np.diff(np.concatenate([[0], before])).astype(np.int64)
-
-
 def separators_per_line_vectorised(buf: np.ndarray, sep: int, step: int = 1 << 22) -> np.ndarray:
     """:func:`separators_per_line` with numpy, ``step`` bytes at a time (bounded temporaries):
     what a reader uses while numba is not loaded (its load costs 0.3-0.5 s, ten times this on a
     16 MB file). In each step the offsets of the separators and newlines, in order, are found
     at once; the separators of a line are the offsets between two newlines, plus those carried
-    from the step before. Equal to :func:`separators_per_line_reference` (tests)."""
+    from the step before. Equal to :func:`onebit._testing.reader_oracles.separators_per_line_reference` (tests)."""
     out, carry = [], 0
     for lo in range(0, buf.shape[0], step):
         block = buf[lo : lo + step]

@@ -13,7 +13,7 @@ import polars as pl
 
 from onebit.core.errors import MAX_QUOTE, InputError, bounded
 from onebit.core.tables import REJECTS
-from onebit.readers.lines import _FEW_LINES, _bounds, newlines, physical_lines, read_bytes
+from onebit.readers.lines import _FEW_LINES, newlines, physical_lines, read_bytes
 
 
 def _bounded(col: str, limit: int = MAX_QUOTE) -> pl.Expr:
@@ -57,24 +57,6 @@ def _ascii_line_texts(data: bytes, want: np.ndarray, starts: np.ndarray, ends: n
     )
 
 
-def _line_texts_reference(data: bytes, lines) -> pl.DataFrame:
-    """:func:`line_texts` one line at a time (its path for a few lines or text that is not
-    ASCII): the test oracle of :func:`_ascii_line_texts`."""
-    want = np.unique(np.asarray(lines, dtype=np.int64))
-    nl = newlines(data)
-    n_lines = nl.size + (len(data) > 0 and not data.endswith(b"\n"))
-    want = want[(want >= 1) & (want <= n_lines)]
-    starts, ends = _bounds(nl, len(data), want)
-    rows = [
-        (k, data[s:e].decode("utf-8", errors="replace").removesuffix("\r"))
-        for k, s, e in zip(want.tolist(), starts, ends)
-    ]
-    return pl.DataFrame(
-        {"line": [r[0] for r in rows], "text": [r[1] for r in rows], "_reason": [None] * len(rows)},
-        schema={"line": pl.Int64, "text": pl.String, "_reason": pl.String},
-    )
-
-
 #: Bytes per step of :class:`FileLines`' newline count (its index of where the lines are).
 _LINE_STEP = 1 << 20
 
@@ -108,13 +90,6 @@ def block_newlines(buf: np.ndarray, step: int = _LINE_STEP) -> np.ndarray:
     if full < n:
         out[-1] = np.count_nonzero(buf[full:] == 0x0A)
     return out
-
-
-def block_newlines_reference(buf: np.ndarray) -> np.ndarray:
-    """:func:`block_newlines` one block at a time: its test oracle."""
-    return np.array(
-        [np.count_nonzero(buf[lo : lo + _BLOCK] == 0x0A) for lo in range(0, buf.shape[0], _BLOCK)], dtype=np.uint8
-    )
 
 
 class FileLines:

@@ -29,7 +29,6 @@ __all__ = [
     "read_proximity",
     "read_proximity_csv",
     "proximity_frames",
-    "proximity_frames_reference",
     "TOGGLE_COLUMNS",
 ]
 
@@ -139,7 +138,7 @@ def proximity_frames(
     ``k_e = min {k : t_k >= t_e}`` (``searchsorted`` on the instants' own stamps, computed as
     the table's ``t``); per sensor the state over instants is the value of its latest edge by
     ``k_e`` (the later row of a slot), held until its next edge's slot: one ``repeat`` of the
-    values over the run lengths. :func:`proximity_frames_reference` (an ``as-of`` join of
+    values over the run lengths. :func:`onebit._testing.reader_oracles.proximity_frames_reference` (an ``as-of`` join of
     every instant to the edges) is its test oracle.
     """
     sensors = list(dict.fromkeys(sensors))
@@ -182,39 +181,3 @@ def proximity_frames(
         },
         schema=FRAMES,
     )
-
-
-def proximity_frames_reference(
-    proximity: pl.DataFrame,
-    sensors: Sequence[str],
-    *,
-    period: float,
-    start: float | None = None,
-    instants: int | None = None,
-) -> pl.DataFrame:
-    """:func:`proximity_frames` by polars joins (every instant x sensor, an as-of join backward
-    on ``t`` to the edges sorted by stamp in row order): its plain reference and test oracle."""
-    sensors = list(dict.fromkeys(sensors))
-    ev = (
-        proximity.select("t", "sensor", pl.col("on").alias("state"))
-        .filter(pl.col("sensor").is_in(sensors))
-        .sort("t", maintain_order=True)
-    )
-    span = _frame_span(ev, sensors, period, start, instants)
-    if span is None:
-        return pl.DataFrame(schema=FRAMES)
-    start, instants = span
-    grid = (
-        pl.DataFrame({"slot": pl.arange(0, instants, eager=True).cast(pl.Int64)})
-        .join(
-            pl.DataFrame(
-                {"sensor": sensors, "_k": list(range(len(sensors)))}, schema={"sensor": pl.String, "_k": pl.Int64}
-            ),
-            how="cross",
-        )
-        .with_columns(t=pl.lit(float(start)) + pl.col("slot").cast(pl.Float64) * period)
-        .sort("t")
-    )
-    out = grid.join_asof(ev, on="t", by="sensor", strategy="backward", check_sortedness=False, tolerance=None)
-    out = out.with_columns(on=pl.col("state").fill_null(False)).sort(["slot", "_k"])
-    return conform(out, FRAMES)

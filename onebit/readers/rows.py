@@ -79,7 +79,6 @@ from onebit.readers.lines import (
 from onebit.readers.linetext import (
     FileLines,
     block_newlines,
-    block_newlines_reference,
     line_texts,
     make_rejects,
     raw_lines,
@@ -129,7 +128,6 @@ __all__ = [
     "TypedSplit",
     "backwards_reason",
     "block_newlines",
-    "block_newlines_reference",
     "by_time",
     "check_line_lengths",
     "check_rows",

@@ -8,6 +8,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
+from onebit._testing.reader_oracles import proximity_frames_reference
 from onebit.core.errors import ConfigError, InputError
 from onebit.core.tables import FRAMES, PROXIMITY
 from onebit.datasets.proximity_sim import SCENARIO_SPECS, make_world
@@ -16,7 +17,6 @@ from onebit.pipeline.runner import run_pipeline
 from onebit.readers.proximity import (
     ProximityConfig,
     proximity_frames,
-    proximity_frames_reference,
     read_proximity_csv,
 )
 

@@ -457,7 +457,8 @@ def test_ascii_lines_cut_out_at_once_equal_one_by_one(body, trailing_newline, wa
     """line_texts of many lines of an ASCII file (cut out in one go) equals the line-by-line cut."""
     import numpy as np
 
-    from onebit.readers.linetext import _ascii_line_texts, _line_texts_reference
+    from onebit._testing.reader_oracles import line_texts_reference as _line_texts_reference
+    from onebit.readers.linetext import _ascii_line_texts
     from onebit.readers.rows import FileLines, line_texts, newlines
 
     data = "\n".join(body).encode() + (b"\n" if trailing_newline and body else b"")
@@ -480,7 +481,7 @@ def test_ascii_lines_cut_out_at_once_equal_one_by_one(body, trailing_newline, wa
 def test_lines_found_by_step_counts_equal_the_newline_list(body, trailing_newline, wanted, step):
     """FileLines finds a named line's text from its newlines counted per step (steps of any
     size, lines across steps) as from the list of every newline, and as one by one."""
-    from onebit.readers.linetext import _line_texts_reference
+    from onebit._testing.reader_oracles import line_texts_reference as _line_texts_reference
     from onebit.readers.rows import FileLines, newlines
 
     data = "\n".join(body).encode() + (b"\n" if trailing_newline and body else b"")
@@ -546,7 +547,8 @@ def test_newlines_per_block_equal_one_block_at_a_time(data, step):
     block at a time does."""
     import numpy as np
 
-    from onebit.readers.rows import block_newlines, block_newlines_reference
+    from onebit._testing.reader_oracles import block_newlines_reference
+    from onebit.readers.rows import block_newlines
 
     buf = np.frombuffer(data.replace(b"\x00", b"\n"), dtype=np.uint8)  # (more newlines)
     assert block_newlines(buf, step).tolist() == block_newlines_reference(buf).tolist()
