@@ -37,11 +37,13 @@ from onebit.core.writers import write_csv, write_parquet
 from onebit.datasets.importers import import_casas
 from onebit.pipeline.learn import learn_residents, write_profile
 from onebit.pipeline.runner import run_pipeline
+from onebit.pipeline.stages import TRACKERS
 from onebit.scoring.identity import ERRORS, error_table, graph_hops
 from onebit.trackers.residents.known import Clock
 
-#: The multi-person trackers that write ``<tracker>_events`` (the default ``--trackers``).
-DEFAULT_TRACKERS = ("residents", "hmm1", "hmm2", "findinghumo", "findinghumo-flow")
+#: The multi-person trackers of a motion log, which write ``<tracker>_events`` (the default
+#: ``--trackers``): from their declarations, in the pipeline's order.
+DEFAULT_TRACKERS = tuple(e.name for e in TRACKERS if e.spec.counts_people and e.spec.needs == ("motion",))
 #: The baselines' report stages and their names here.
 BASELINES = {
     "identity-busier": "baseline-busier",
