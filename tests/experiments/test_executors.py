@@ -18,6 +18,10 @@ ray = pytest.importorskip("ray", reason="the ray extra (pip install 'onebit[ray]
 
 #: (study, trials) small enough for a test; each study's own `quick` grid otherwise.
 STUDIES = (("okane", 1), ("singh", 1), ("schiff", 1), ("correct", 2), ("findinghumo", 2))
+#: the studies also run on Ray (its tasks are pickled more leniently than the local pool's, which
+#: runs every study: a trial function the pool can take, Ray can take): a plain trial study and a
+#: seed sweep with its summary
+RAY_STUDIES = ("okane", "correct")
 
 
 @pytest.fixture(scope="module")
@@ -83,6 +87,8 @@ def studies(tmp_path_factory, ray_local):
     for kind, ex in _executors().items():
         with ex:
             for name, trials in STUDIES:
+                if kind == "ray" and name not in RAY_STUDIES:
+                    continue
                 outs[(name, kind)] = get_experiment(name).run(
                     root / f"{name}-{kind}", seed=0, trials=trials, quick=True, echo=lambda s: None, executor=ex
                 )
@@ -93,7 +99,7 @@ def studies(tmp_path_factory, ray_local):
 def test_serial_local_pool_and_ray_give_equal_tables(studies, name):
     serial = studies[(name, "serial")]
     tables = ["results.parquet", *(["summary.csv"] if (serial / "summary.csv").exists() else [])]
-    for kind in ("local", "ray"):
+    for kind in ("local", "ray") if name in RAY_STUDIES else ("local",):
         other = studies[(name, kind)]
         for t in tables:
             read = pl.read_parquet if t.endswith(".parquet") else pl.read_csv
