@@ -31,16 +31,18 @@ pair is weak evidence. Stronger is how much of the log one walker can explain. F
     hops(s_i, s_j) <= walk_slack + (t_j - t_i + tick) / walk_s                             (W1)
 
 (``walk_s`` seconds per hop; ``walk_slack`` hops of the graph's looseness; sensors the graph
-does not join: hops 0, nothing known). ``tick`` is the log's clock resolution: a logger that
+does not join: hops 0, nothing known). ``tick`` is the slack of the log's clock: a logger that
 polls its sensors once every ``clock_s`` stamps the events of one poll together (CASAS: within
-a few hundredths of a second, at one phase of the second), so two stamps ``dt`` apart may be
-``dt + clock_s`` apart in truth, and firings stamped by one poll come in the poll's order, not
-the walk's. Such a log is told by the phase of its firings' times modulo ``clock_s``: their
-mean resultant length::
+a few hundredths of a second, at one phase of the second), each event late by ``U(0, clock_s)``,
+so two stamps ``dt`` apart are ``dt + (U_i - U_j)`` apart in truth, and the firings stamped by
+one poll come in the poll's order, not the walk's. ``|U_i - U_j| <= clock_s / 2`` for 3 pairs in
+4, and that is the slack given: the whole period would let one walker reach a second person
+two hops further (on a generated polled two-walker log it decodes 1). Such a log is told by
+the phase of its firings' times modulo ``clock_s``, their mean resultant length::
 
-    R = | mean_j exp(2 pi i t_j / clock_s) |,     tick = clock_s if R >= tick_phase else 0      (W0)
+    R = | mean_j exp(2 pi i t_j / clock_s) |,   tick = clock_s / 2 if R >= tick_phase else 0    (W0)
 
-is near 1 when every stamp shares one phase, near 0 on a log stamped to the microsecond. A site
+near 1 when every stamp shares one phase, near 0 on a log stamped to the microsecond. A site
 with an entry/exit sensor keeps ``tick = 0`` (the homes with door sensors, ARAS, were measured
 without it; their 1 Hz readings are a tick too). A re-fire of a sensor the walker stood at, or of one it
 just left (lingering, a late PIR), is feasible, so lingering is one source. The walker's path
@@ -167,7 +169,7 @@ def features(
     apart for one person to fire both within ``window_s``. ``span``: the time range to cover
     (default: the motion's first to last edge). ``hops``: the sensors' hop distances (0 where
     the graph does not join them), for the strays of one walker (W1)-(W2) when ``walk_s > 0``
-    (else no firing is a stray); ``tick``: the log's clock resolution in (W1)."""
+    (else no firing is a stray); ``tick``: the slack of the log's clock in (W1), eq. W0."""
     index = {s: k for k, s in enumerate(sensors)}
     m = motion.filter(pl.col("sensor").is_in(sensors)).sort("t")
     t = m["t"].to_numpy().astype(float)
@@ -214,14 +216,14 @@ WALK_LOOKBACK = 64
 
 
 def clock_tick(t: np.ndarray, *, clock_s: float, tick_phase: float) -> float:
-    """The log's clock resolution (module docstring, eq. W0): ``clock_s`` when the times ``t``
-    share one phase modulo ``clock_s`` (mean resultant length at least ``tick_phase``), else 0
-    (also for ``clock_s = 0`` and for fewer than two times)."""
+    """The slack of the log's clock (module docstring, eq. W0): ``clock_s / 2`` when the times
+    ``t`` share one phase modulo ``clock_s`` (mean resultant length at least ``tick_phase``),
+    else 0 (also for ``clock_s = 0`` and for fewer than two times)."""
     t = np.asarray(t, dtype=float)
     if clock_s <= 0 or t.size < 2:
         return 0.0
     R = float(np.abs(np.exp(2j * np.pi * (t - t[0]) / clock_s).mean()))
-    return float(clock_s) if R >= tick_phase else 0.0
+    return 0.5 * float(clock_s) if R >= tick_phase else 0.0
 
 
 def one_walker(
@@ -229,7 +231,7 @@ def one_walker(
 ) -> np.ndarray:
     """Which firings (times ``t``, sorted; sensor indices ``k`` into ``hops``) lie on the longest
     path one walker can make of them (module docstring, eq. W1-W2; ``tick`` the log's clock
-    resolution, W0): a boolean mask."""
+    slack, W0): a boolean mask."""
     n = t.size
     best = np.zeros(n, dtype=np.int64)
     prev = np.full(n, -1, dtype=np.int64)
@@ -594,7 +596,7 @@ class OccupancyConfig:
     clock_s: float = param(
         1.0,
         "(W0): the polling period of a logger that stamps events at one phase of it (CASAS: 1 s); a log so "
-        "stamped gives (W1) this much slack in time (0: never)",
+        "stamped gives (W1) half of it as slack in time (0: never)",
         lo=0.0,
         hi=60.0,
         unit="s",
