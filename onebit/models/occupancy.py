@@ -28,10 +28,23 @@ distances: two sensors many hops apart may be neighbours the log rarely joined, 
 pair is weak evidence. Stronger is how much of the log one walker can explain. Firing ``j``
 (ON edge at sensor ``s_j``, time ``t_j``) can follow firing ``i < j`` on one walker's path when::
 
-    hops(s_i, s_j) <= walk_slack + (t_j - t_i) / walk_s                                    (W1)
+    hops(s_i, s_j) <= walk_slack + (t_j - t_i + tick) / walk_s                             (W1)
 
 (``walk_s`` seconds per hop; ``walk_slack`` hops of the graph's looseness; sensors the graph
-does not join: hops 0, nothing known). A re-fire of a sensor the walker stood at, or of one it
+does not join: hops 0, nothing known). ``tick`` is the slack of the log's clock: a logger that
+polls its sensors once every ``clock_s`` stamps the events of one poll together (CASAS: within
+a few hundredths of a second, at one phase of the second), each event late by ``U(0, clock_s)``,
+so two stamps ``dt`` apart are ``dt + (U_i - U_j)`` apart in truth, and the firings stamped by
+one poll come in the poll's order, not the walk's. ``|U_i - U_j| <= clock_s / 2`` for 3 pairs in
+4, and that is the slack given: the whole period would let one walker reach a second person
+two hops further (on a generated polled two-walker log it decodes 1). Such a log is told by
+the phase of its firings' times modulo ``clock_s``, their mean resultant length::
+
+    R = | mean_j exp(2 pi i t_j / clock_s) |,   tick = clock_s / 2 if R >= tick_phase else 0    (W0)
+
+near 1 when every stamp shares one phase, near 0 on a log stamped to the microsecond. A site
+with an entry/exit sensor keeps ``tick = 0`` (the homes with door sensors, ARAS, were measured
+without it; their 1 Hz readings are a tick too). A re-fire of a sensor the walker stood at, or of one it
 just left (lingering, a late PIR), is feasible, so lingering is one source. The walker's path
 is the longest chain of firings linked by (W1) (a longest path in the DAG of feasible links,
 each firing linked to at most ``M = 64`` predecessors)::
@@ -148,6 +161,7 @@ def features(
     hops: np.ndarray | None = None,
     walk_s: float = 0.0,
     walk_slack: float = 2.0,
+    tick: float = 0.0,
 ) -> Features:
     """The bins' evidence from a MOTION table (t, sensor, on) restricted to ``sensors``.
 
@@ -155,7 +169,7 @@ def features(
     apart for one person to fire both within ``window_s``. ``span``: the time range to cover
     (default: the motion's first to last edge). ``hops``: the sensors' hop distances (0 where
     the graph does not join them), for the strays of one walker (W1)-(W2) when ``walk_s > 0``
-    (else no firing is a stray)."""
+    (else no firing is a stray); ``tick``: the slack of the log's clock in (W1), eq. W0."""
     index = {s: k for k, s in enumerate(sensors)}
     m = motion.filter(pl.col("sensor").is_in(sensors)).sort("t")
     t = m["t"].to_numpy().astype(float)
@@ -192,7 +206,7 @@ def features(
     firings = strays = None  # no walker: no stray term
     if hops is not None and walk_s > 0:
         firings = np.bincount(bs, minlength=B)[:B]
-        off = ~one_walker(ts, ks, hops, walk_s=walk_s, walk_slack=walk_slack)
+        off = ~one_walker(ts, ks, hops, walk_s=walk_s, walk_slack=walk_slack, tick=tick)
         strays = np.bincount(bs[off], minlength=B)[:B]
     return Features(float(t0), float(bin_s), door, active, far_b, fired, held_bs, hour, tuple(sensors), firings, strays)
 
@@ -201,15 +215,29 @@ def features(
 WALK_LOOKBACK = 64
 
 
-def one_walker(t: np.ndarray, k: np.ndarray, hops: np.ndarray, *, walk_s: float, walk_slack: float) -> np.ndarray:
+def clock_tick(t: np.ndarray, *, clock_s: float, tick_phase: float) -> float:
+    """The slack of the log's clock (module docstring, eq. W0): ``clock_s / 2`` when the times
+    ``t`` share one phase modulo ``clock_s`` (mean resultant length at least ``tick_phase``),
+    else 0 (also for ``clock_s = 0`` and for fewer than two times)."""
+    t = np.asarray(t, dtype=float)
+    if clock_s <= 0 or t.size < 2:
+        return 0.0
+    R = float(np.abs(np.exp(2j * np.pi * (t - t[0]) / clock_s).mean()))
+    return 0.5 * float(clock_s) if R >= tick_phase else 0.0
+
+
+def one_walker(
+    t: np.ndarray, k: np.ndarray, hops: np.ndarray, *, walk_s: float, walk_slack: float, tick: float = 0.0
+) -> np.ndarray:
     """Which firings (times ``t``, sorted; sensor indices ``k`` into ``hops``) lie on the longest
-    path one walker can make of them (module docstring, eq. W1-W2): a boolean mask."""
+    path one walker can make of them (module docstring, eq. W1-W2; ``tick`` the log's clock
+    slack, W0): a boolean mask."""
     n = t.size
     best = np.zeros(n, dtype=np.int64)
     prev = np.full(n, -1, dtype=np.int64)
     for j in range(n):
         lo = max(0, j - WALK_LOOKBACK)
-        ok = hops[k[lo:j], k[j]] <= walk_slack + (t[j] - t[lo:j]) / walk_s
+        ok = hops[k[lo:j], k[j]] <= walk_slack + (t[j] - t[lo:j] + tick) / walk_s
         best[j] = 1
         if ok.any():
             c = np.flatnonzero(ok)
@@ -565,6 +593,20 @@ class OccupancyConfig:
         unit="s",
     )
     walk_slack: float = param(2.0, "(W1): hops of slack of one walker's walk", lo=0.0, hi=1000.0)
+    clock_s: float = param(
+        1.0,
+        "(W0): the polling period of a logger that stamps events at one phase of it (CASAS: 1 s); a log so "
+        "stamped gives (W1) half of it as slack in time (0: never)",
+        lo=0.0,
+        hi=60.0,
+        unit="s",
+    )
+    tick_phase: float = param(
+        0.9,
+        "(W0): mean resultant length of the firings' phases modulo clock_s from which the log counts as polled",
+        lo=0.0,
+        hi=1.0,
+    )
     stray_one: float = param(
         0.05,
         "(O3) g_n: the share of firings one walker leaves unexplained with at most one person in",
@@ -695,10 +737,15 @@ def site_features(motion: pl.DataFrame, site, cfg: OccupancyConfig, span: tuple[
     far pairs, with the config's bins and window."""
     sensors = [m.id for m in site.motion_sensors]
     hops = hop_matrix(site, sensors) if cfg.walk_s > 0 else None
+    doors = site_doors(site)
+    tick = 0.0
+    if hops is not None and not doors:  # (W0); sites with a door sensor were measured without it
+        on = motion.filter(pl.col("on") & pl.col("sensor").is_in(sensors))["t"].to_numpy()
+        tick = clock_tick(on, clock_s=cfg.clock_s, tick_phase=cfg.tick_phase)
     return features(
         motion,
         sensors,
-        site_doors(site),
+        doors,
         set(site.level_sensors),
         far_matrix(site, sensors, cfg),
         bin_s=cfg.bin_s,
@@ -709,4 +756,5 @@ def site_features(motion: pl.DataFrame, site, cfg: OccupancyConfig, span: tuple[
         hops=None if hops is None else np.where(np.isfinite(hops), hops, 0.0),  # not joined: nothing known
         walk_s=cfg.walk_s,
         walk_slack=cfg.walk_slack,
+        tick=tick,
     )

@@ -19,6 +19,7 @@ from onebit.models.occupancy import (
     Features,
     OccupancyConfig,
     _viterbi_kernel,
+    clock_tick,
     estimate,
     features,
     learn_stats,
@@ -351,6 +352,80 @@ def test_two_walkers_at_once_leave_many_strays_and_are_two():
     # the strays carry it: without them (walk_s = 0) and with far pairs made no evidence, one
     neutral, _ = estimate(motion, _line_site(), OccupancyConfig(walk_s=0.0, far_noise=0.5, far_rate=0.5))
     assert (neutral["present"].to_numpy() == 2).mean() < 0.5
+
+
+# -- a polled log's clock (eq. W0) -----------------------------------------------------------
+
+
+def test_clock_tick_by_hand():
+    # phases 0, 0 and half a period: |(1 + 1 - 1) / 3| = 1/3 < 0.9, not polled
+    assert clock_tick(np.array([0.0, 1.0, 2.5]), clock_s=1.0, tick_phase=0.9) == 0.0
+    # one phase (+0.01..+0.03 s after the second): R = 0.998, polled, half the period of slack
+    assert clock_tick(np.array([0.01, 3.02, 7.03]), clock_s=1.0, tick_phase=0.9) == 0.5
+    assert clock_tick(np.array([0.01, 3.02, 7.03]), clock_s=0.0, tick_phase=0.9) == 0.0
+    assert clock_tick(np.array([5.0]), clock_s=1.0, tick_phase=0.9) == 0.0
+
+
+def test_one_walker_with_a_tick_by_hand():
+    """Two firings of one poll 0.01 s apart, 3 hops: beyond 2 hops of slack + 0.02 hops of
+    time, but within 2 + (0.01 + 0.5) / 0.5 = 3.02 with half a 1 s poll."""
+    hops = _chain_hops(10)
+    t, k = np.array([0.0, 0.01]), np.array([0, 3])
+    assert one_walker(t, k, hops, walk_s=0.5, walk_slack=2.0).sum() == 1
+    assert one_walker(t, k, hops, walk_s=0.5, walk_slack=2.0, tick=0.5).all()
+
+
+def _polled(rows, rng) -> pl.DataFrame:
+    """Events (true time, sensor) as a 1 Hz logger stamps them: at the next whole second plus
+    0.01-0.04 s, the events of one poll in a random order, each a 2 s pulse."""
+    stamped = sorted((np.ceil(t) + 0.01 + 0.03 * rng.random(), rng.random(), s) for t, s in rows)
+    out = [r for st, _, s in stamped for r in ((st, s, True), (st + 2.0, s, False))]
+    return pl.DataFrame(out, schema=MOTION, orient="row").sort("t", maintain_order=True)
+
+
+def test_a_polled_one_person_log_is_one():
+    """One person crossing 3 hops of the graph every 0.3-0.6 s in bursts (a graph whose hops
+    are short, as a learned one's), stamped by a 1 Hz logger: one poll's firings 3 hops apart
+    look simultaneous. Without the clock's slack a quarter of them are strays: two people."""
+    rng = np.random.default_rng(0)
+    rows, t, pos = [], 0.0, 0
+    while t < 2 * 3600.0:
+        for _ in range(int(rng.integers(2, 7))):
+            rows.append((t, f"s{pos}"))
+            pos = int(np.clip(pos + 3 * rng.choice([-1, 1]), 0, N_LINE - 2))
+            t += rng.uniform(0.3, 0.6)
+        t += rng.uniform(5.0, 60.0)
+    motion = _polled(rows, rng)
+    bins, _ = estimate(motion, _line_site(), OccupancyConfig())
+    assert (bins["present"].to_numpy() == 1).mean() >= 0.95
+    blind, _ = estimate(motion, _line_site(), OccupancyConfig(clock_s=0.0))
+    assert (blind["present"].to_numpy() == 2).mean() >= 0.9
+
+
+def test_a_polled_two_walker_log_is_still_two():
+    """The two walkers of the chain's halves (above), stamped by a 1 Hz logger."""
+    rng = np.random.default_rng(4)
+    rows: list = []
+    for lo in (0, 5):
+        t, pos = 0.0, lo
+        while t < 2 * 3600.0:
+            rows.append((t, f"s{pos}"))
+            pos = int(np.clip(pos + rng.choice([-1, 1]), lo, lo + 3))
+            t += rng.uniform(2.0, 20.0)
+    bins, _ = estimate(_polled(rows, rng), _line_site(), OccupancyConfig())
+    assert (bins["present"].to_numpy() == 2).mean() >= 0.9
+
+
+def test_a_site_with_a_door_sensor_gets_no_clock_slack():
+    rng = np.random.default_rng(1)
+    rows = [(float(t), f"s{int(rng.integers(0, 9))}") for t in np.cumsum(rng.uniform(0.1, 3.0, 2000))]
+    motion = _polled(rows, rng)
+    site = _line_site(door=True)
+    got = site_features(motion, site, OccupancyConfig(), None)
+    want = site_features(motion, site, OccupancyConfig(clock_s=0.0), None)
+    assert got.strays.tolist() == want.strays.tolist()
+    free = site_features(motion, _line_site(), OccupancyConfig(), None)
+    assert free.strays.sum() < site_features(motion, _line_site(), OccupancyConfig(clock_s=0.0), None).strays.sum()
 
 
 def test_the_learned_model_keeps_its_far_pairs_and_has_no_stray_term():
