@@ -29,6 +29,7 @@ from onebit.core.tables import FRAMES, TRACKS, check_schema, conform
 from onebit.trackers.base import ARTIFACTS, TrackerSpec, instants_bound, progress_of
 from onebit.trackers.binpf import online as binpf_online
 from onebit.trackers.binpf.config import BinPFConfig
+from onebit.trackers.binpf.evidence import evidence_rows
 from onebit.trackers.binpf.filter import FilterParams, run_filter
 from onebit.trackers.binpf.link import link_tracklets
 from onebit.trackers.binpf.online import frame_levels
@@ -143,6 +144,19 @@ def filter_params(config: BinPFConfig, site: Site, *, period: float) -> FilterPa
     )
 
 
+def evidence_reported(res, on: np.ndarray, sensors: np.ndarray, radii: np.ndarray, config: BinPFConfig, p) -> np.ndarray:
+    """The rows reported by the sensors' support (``evidence_ratio > 0``,
+    :mod:`onebit.trackers.binpf.evidence`): among every row of the tracks the filter reported
+    at some frame, those whose support over ``evidence_window`` frames either side reaches
+    ``log evidence_ratio``; at most ``max_out`` a frame."""
+    once = np.isin(res.label, np.unique(res.label[res.reported]))
+    return evidence_rows(
+        res.frame, res.label, res.r, np.c_[res.x, res.y], on, sensors, radii, candidates=once,
+        ratio=config.evidence_ratio, window=config.evidence_window, pd=p.pd, pf=p.pf, edge=p.edge,
+        silent=p.silent, max_out=p.max_out,
+    )  # fmt: skip
+
+
 def run(inputs: dict, site: Site, config: BinPFConfig) -> dict:
     """The ``binpf`` stage (see the module docstring)."""
     frames = check_schema(inputs["proximity_frames"], FRAMES, name="proximity_frames")
@@ -164,6 +178,9 @@ def run(inputs: dict, site: Site, config: BinPFConfig) -> dict:
         )
     track = np.char.add("b", res.label.astype(str)) if res.label.size else np.zeros(0, dtype=str)
     t = times[res.frame] if res.frame.size else np.zeros(0)
+    reported = res.reported
+    if config.evidence_ratio > 0 and not config.commit_lag:
+        reported = evidence_reported(res, on, sensors, radii, config, p)
     existence = pl.DataFrame(
         {
             "frame": res.frame,
@@ -172,7 +189,7 @@ def run(inputs: dict, site: Site, config: BinPFConfig) -> dict:
             "x": res.x,
             "y": res.y,
             "r": res.r,
-            "reported": res.reported,
+            "reported": reported,
         },
         schema={
             "frame": pl.Int64,
