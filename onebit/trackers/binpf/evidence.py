@@ -161,9 +161,7 @@ def evidence_rows(
     idx = np.flatnonzero(candidates)
     if idx.size == 0:
         return rep
-    delta = row_support(
-        frame[idx], r[idx], xy[idx], on, sensors, radii, pd=pd, pf=pf, edge=edge, silent=silent
-    )
+    delta = row_support(frame[idx], r[idx], xy[idx], on, sensors, radii, pd=pd, pf=pf, edge=edge, silent=silent)
     rep[idx] = window_support(frame[idx], label[idx], delta, window) >= np.log(ratio)
     if max_out > 0 and rep.any():
         k = np.flatnonzero(rep)

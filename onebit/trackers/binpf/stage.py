@@ -144,7 +144,9 @@ def filter_params(config: BinPFConfig, site: Site, *, period: float) -> FilterPa
     )
 
 
-def evidence_reported(res, on: np.ndarray, sensors: np.ndarray, radii: np.ndarray, config: BinPFConfig, p) -> np.ndarray:
+def evidence_reported(
+    res, on: np.ndarray, sensors: np.ndarray, radii: np.ndarray, config: BinPFConfig, p
+) -> np.ndarray:
     """The rows reported by the sensors' support (``evidence_ratio > 0``,
     :mod:`onebit.trackers.binpf.evidence`): among every row of the tracks the filter reported
     at some frame, those whose support over ``evidence_window`` frames either side reaches
