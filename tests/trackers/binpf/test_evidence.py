@@ -11,7 +11,8 @@ from onebit.core.errors import ConfigError
 from onebit.trackers.binpf import evidence
 from onebit.trackers.binpf.evidence import evidence_rows, row_support, window_support, window_support_reference
 from onebit.trackers.binpf.footprint import frame_probability_off
-from onebit.trackers.binpf.stage import BinPFConfig
+from onebit.trackers.binpf.stage import BinPFConfig, run
+from tests.trackers.binpf.test_stage import XY, _frames, _site
 
 # the split's dense array (docs/binpf.md): sensors every 0.5 m, footprints of 0.6 m
 GRID = np.array([(0.5 * i, 0.5 * j) for i in range(9) for j in range(9)], dtype=float)
@@ -152,3 +153,23 @@ def test_the_evidence_rule_is_batch_only_and_its_ratio_positive():
             np.zeros(1, int), np.zeros(1, int), np.ones(1), np.zeros((1, 2)), np.zeros((1, len(GRID)), bool),
             GRID, RADII, candidates=np.ones(1, bool), ratio=0.0, window=2, silent=0.3, **MODEL,
         )  # fmt: skip
+
+
+def test_the_stage_reports_the_rows_the_rule_selects_within_the_bound():
+    """The stage tests' three walkers, two reported at most: the filter's rows are the rule's off."""
+    frames, _ = _frames(T=30)
+    off = run({"proximity_frames": frames}, _site(2), BinPFConfig(particles=80))
+    on = run({"proximity_frames": frames}, _site(2), BinPFConfig(particles=80, evidence_ratio=1e3, evidence_window=0))
+    ex_off, ex = off["existence"], on["existence"]
+    assert ex.drop("reported").equals(ex_off.drop("reported"))  # the filter itself is unchanged
+    once = ex["track"].is_in(ex_off.filter("reported")["track"].unique().implode()).to_numpy()
+    lv = frames.sort("slot", "sensor").pivot(on="sensor", index="slot", values="on").drop("slot")
+    levels = lv.select([f"s{k}" for k in range(len(XY))]).to_numpy()
+    want = evidence_rows(
+        ex["frame"].to_numpy(), ex["track"].to_numpy().astype(str), ex["r"].to_numpy(),
+        ex.select("x", "y").to_numpy(), levels, XY, np.ones(len(XY)), candidates=once, ratio=1e3, window=0,
+        pd=0.75, pf=0.01, edge=0.3, silent=0.3, max_out=2,
+    )  # fmt: skip
+    np.testing.assert_array_equal(ex["reported"].to_numpy(), want)
+    assert on["tracks"].group_by("t").len()["len"].max() <= 2
+    assert not np.array_equal(ex["reported"].to_numpy(), ex_off["reported"].to_numpy())
