@@ -12,7 +12,9 @@ Outputs (tables ``binpf_<key>``):
 - ``tracks`` (TRACKS): one row per reported track per frame (``track`` = ``b<label>``),
   after joining tracklets across short gaps (:mod:`onebit.trackers.binpf.link`; the filled
   frames are interpolated).
-- ``existence``: frame, t, track, x, y, r, reported -- every live Bernoulli component.
+- ``existence``: frame, t, track, x, y, r, reported -- every live Bernoulli component;
+  ``reported`` is the filter's rule (:math:`r \\ge r_{out}`), or with ``evidence_ratio > 0``
+  the sensors' support over a window (:mod:`onebit.trackers.binpf.evidence`).
 - ``frames``: t, on (sensors on), live, births, deaths, merges, reported (tracks in
   ``tracks`` at the frame), count = the expected number of people :math:`\\sum_i r_i`.
 - ``links``: joins (tracklets joined).
@@ -24,6 +26,7 @@ import numpy as np
 import polars as pl
 
 from onebit.core.config import MAX_PARTICLES, check_size
+from onebit.core.errors import ConfigError
 from onebit.core.site import Site
 from onebit.core.tables import FRAMES, TRACKS, check_schema, conform
 from onebit.trackers.base import ARTIFACTS, TrackerSpec, instants_bound, progress_of
@@ -272,6 +275,11 @@ SPEC = TrackerSpec(
 
 def start_follow(site: Site, config: BinPFConfig) -> binpf_online.FollowBinPF:
     """The driver for ``onebit follow`` from the ``[binpf]`` config (:class:`~onebit.trackers.binpf.stage.BinPFConfig`)."""
+    if config.evidence_ratio:
+        raise ConfigError(
+            f"BinPFConfig.evidence_ratio = {config.evidence_ratio}: the evidence rule reads the frames after a row, "
+            "so it runs in the batch stage only; set it to 0 for onebit follow"
+        )
     ids, sensors, radii, lo, hi = site_arrays(site, config)
     p = filter_params(config, site, period=1.0)
     lag = config.commit_lag or max(binpf_online.DEFAULT_COMMIT_LAG, config.smooth_lag)

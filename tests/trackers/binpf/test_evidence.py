@@ -11,7 +11,7 @@ from onebit.core.errors import ConfigError
 from onebit.trackers.binpf import evidence
 from onebit.trackers.binpf.evidence import evidence_rows, row_support, window_support, window_support_reference
 from onebit.trackers.binpf.footprint import frame_probability_off
-from onebit.trackers.binpf.stage import BinPFConfig, run
+from onebit.trackers.binpf.stage import BinPFConfig, run, start_follow
 from tests.trackers.binpf.test_stage import XY, _frames, _site
 
 # the split's dense array (docs/binpf.md): sensors every 0.5 m, footprints of 0.6 m
@@ -148,6 +148,8 @@ def test_rows_outside_the_candidates_are_never_reported_nor_counted():
 def test_the_evidence_rule_is_batch_only_and_its_ratio_positive():
     with pytest.raises(ConfigError, match="evidence_ratio"):
         BinPFConfig(evidence_ratio=3.0, commit_lag=6)
+    with pytest.raises(ConfigError, match="evidence_ratio"):
+        start_follow(_site(2), BinPFConfig(evidence_ratio=3.0))
     with pytest.raises(ValueError, match="ratio"):
         evidence_rows(
             np.zeros(1, int), np.zeros(1, int), np.ones(1), np.zeros((1, 2)), np.zeros((1, len(GRID)), bool),
