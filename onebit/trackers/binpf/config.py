@@ -55,6 +55,16 @@ class BinPFConfig:
         lo=0.0,
         hi=1e9,
     )
+    evidence_ratio: float = param(
+        0.0,
+        "kappa of Eq. (10): report a row of a once-reported track where the sensors' support over "
+        "+-evidence_window frames is at least log kappa, instead of r >= r_out (binpf/evidence.py); 0 = off",
+        lo=0.0,
+        hi=1e9,
+    )
+    evidence_window: int = param(
+        2, "h of Eq. (10), frames either side summed in a row's support", lo=0, hi=1000, unit="frames"
+    )
     smooth_lag: int = param(
         4,
         "fixed-lag smoothing of the positions (particle genealogy); 0 = filter only",
@@ -114,6 +124,11 @@ class BinPFConfig:
             raise ConfigError(
                 f"BinPFConfig.count_ratio = {self.count_ratio}: the count runs in the batch filter only; "
                 "set commit_lag = 0 (the online driver has no count)"
+            )
+        if self.commit_lag and self.evidence_ratio:
+            raise ConfigError(
+                f"BinPFConfig.evidence_ratio = {self.evidence_ratio}: the evidence rule reads frames after a row, "
+                "so it runs in the batch stage only; set commit_lag = 0"
             )
 
 

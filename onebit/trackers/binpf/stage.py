@@ -12,7 +12,9 @@ Outputs (tables ``binpf_<key>``):
 - ``tracks`` (TRACKS): one row per reported track per frame (``track`` = ``b<label>``),
   after joining tracklets across short gaps (:mod:`onebit.trackers.binpf.link`; the filled
   frames are interpolated).
-- ``existence``: frame, t, track, x, y, r, reported -- every live Bernoulli component.
+- ``existence``: frame, t, track, x, y, r, reported -- every live Bernoulli component;
+  ``reported`` is the filter's rule (:math:`r \\ge r_{out}`), or with ``evidence_ratio > 0``
+  the sensors' support over a window (:mod:`onebit.trackers.binpf.evidence`).
 - ``frames``: t, on (sensors on), live, births, deaths, merges, reported (tracks in
   ``tracks`` at the frame), count = the expected number of people :math:`\\sum_i r_i`.
 - ``links``: joins (tracklets joined).
@@ -24,11 +26,13 @@ import numpy as np
 import polars as pl
 
 from onebit.core.config import MAX_PARTICLES, check_size
+from onebit.core.errors import ConfigError
 from onebit.core.site import Site
 from onebit.core.tables import FRAMES, TRACKS, check_schema, conform
 from onebit.trackers.base import ARTIFACTS, TrackerSpec, instants_bound, progress_of
 from onebit.trackers.binpf import online as binpf_online
 from onebit.trackers.binpf.config import BinPFConfig
+from onebit.trackers.binpf.evidence import evidence_rows
 from onebit.trackers.binpf.filter import FilterParams, run_filter
 from onebit.trackers.binpf.link import link_tracklets
 from onebit.trackers.binpf.online import frame_levels
@@ -143,6 +147,21 @@ def filter_params(config: BinPFConfig, site: Site, *, period: float) -> FilterPa
     )
 
 
+def evidence_reported(
+    res, on: np.ndarray, sensors: np.ndarray, radii: np.ndarray, config: BinPFConfig, p
+) -> np.ndarray:
+    """The rows reported by the sensors' support (``evidence_ratio > 0``,
+    :mod:`onebit.trackers.binpf.evidence`): among every row of the tracks the filter reported
+    at some frame, those whose support over ``evidence_window`` frames either side reaches
+    ``log evidence_ratio``; at most ``max_out`` a frame."""
+    once = np.isin(res.label, np.unique(res.label[res.reported]))
+    return evidence_rows(
+        res.frame, res.label, res.r, np.c_[res.x, res.y], on, sensors, radii, candidates=once,
+        ratio=config.evidence_ratio, window=config.evidence_window, pd=p.pd, pf=p.pf, edge=p.edge,
+        silent=p.silent, max_out=p.max_out,
+    )  # fmt: skip
+
+
 def run(inputs: dict, site: Site, config: BinPFConfig) -> dict:
     """The ``binpf`` stage (see the module docstring)."""
     frames = check_schema(inputs["proximity_frames"], FRAMES, name="proximity_frames")
@@ -164,6 +183,9 @@ def run(inputs: dict, site: Site, config: BinPFConfig) -> dict:
         )
     track = np.char.add("b", res.label.astype(str)) if res.label.size else np.zeros(0, dtype=str)
     t = times[res.frame] if res.frame.size else np.zeros(0)
+    reported = res.reported
+    if config.evidence_ratio > 0 and not config.commit_lag:
+        reported = evidence_reported(res, on, sensors, radii, config, p)
     existence = pl.DataFrame(
         {
             "frame": res.frame,
@@ -172,7 +194,7 @@ def run(inputs: dict, site: Site, config: BinPFConfig) -> dict:
             "x": res.x,
             "y": res.y,
             "r": res.r,
-            "reported": res.reported,
+            "reported": reported,
         },
         schema={
             "frame": pl.Int64,
@@ -253,6 +275,11 @@ SPEC = TrackerSpec(
 
 def start_follow(site: Site, config: BinPFConfig) -> binpf_online.FollowBinPF:
     """The driver for ``onebit follow`` from the ``[binpf]`` config (:class:`~onebit.trackers.binpf.stage.BinPFConfig`)."""
+    if config.evidence_ratio:
+        raise ConfigError(
+            f"BinPFConfig.evidence_ratio = {config.evidence_ratio}: the evidence rule reads the frames after a row, "
+            "so it runs in the batch stage only; set it to 0 for onebit follow"
+        )
     ids, sensors, radii, lo, hi = site_arrays(site, config)
     p = filter_params(config, site, period=1.0)
     lag = config.commit_lag or max(binpf_online.DEFAULT_COMMIT_LAG, config.smooth_lag)
