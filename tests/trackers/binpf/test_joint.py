@@ -151,3 +151,16 @@ def test_the_joint_update_is_batch_only():
     assert BinPFConfig(joint_distance=1.5).joint_ratio == 2.0
     with pytest.raises(ConfigError, match="joint_ratio"):
         BinPFConfig(joint_ratio=0.5)
+
+
+def test_the_stage_runs_the_joint_update_and_follow_refuses_it():
+    from onebit.core.tables import TRACKS
+    from onebit.trackers.binpf.stage import run, start_follow
+    from tests.trackers.binpf.test_stage import _frames, _site
+
+    frames, _ = _frames(T=30)
+    out = run({"proximity_frames": frames}, _site(3), BinPFConfig(particles=80, joint_distance=1.5))
+    assert out["tracks"].schema == TRACKS and out["tracks"].height > 0
+    assert out["tracks"].group_by("t").len()["len"].max() <= 3
+    with pytest.raises(ConfigError, match="joint_distance"):
+        start_follow(_site(2), BinPFConfig(joint_distance=1.5))
