@@ -164,3 +164,16 @@ def test_the_stage_runs_the_joint_update_and_follow_refuses_it():
     assert out["tracks"].group_by("t").len()["len"].max() <= 3
     with pytest.raises(ConfigError, match="joint_distance"):
         start_follow(_site(2), BinPFConfig(joint_distance=1.5))
+
+
+@pytest.mark.parametrize("seed", range(3))
+def test_two_people_standing_half_a_metre_apart_are_mostly_two_tracks(seed):
+    """Born as one group, the pair gets a second track from a newborn beside the first that the
+    joint update keeps; without it one track explains both (test_filter's split case)."""
+    rng = np.random.default_rng(seed)
+    p_off = frame_probability_off(np.array([[1.75, 1.5], [2.25, 1.5]]), DENSE, DENSE_R, **SENSOR_MODEL)
+    on = rng.random((30, len(DENSE))) > p_off[None, :]
+    _, without = _run(on, seed)
+    assert without.max() == 1
+    _, count = _run(on, seed, joint_distance=1.5, joint_ratio=2.0)
+    assert count.max() <= 2 and (count == 2).sum() >= 15
