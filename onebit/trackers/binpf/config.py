@@ -55,6 +55,20 @@ class BinPFConfig:
         lo=0.0,
         hi=1e9,
     )
+    joint_distance: float = length(
+        0.0,
+        "tracks whose means are closer than this are updated in pairs by the joint likelihood "
+        "(binpf/joint.py, Eqs. 11-13) instead of the mean field; 0 = off",
+        lo=0.0,
+        hi=1e9,
+    )
+    joint_ratio: float = param(
+        2.0,
+        "kappa_j of Eq. (13): a joint pair's labels are ordered, and the pair not merged, where two "
+        "people explain the frame this many times better than one",
+        lo=1.0,
+        hi=1e9,
+    )
     evidence_ratio: float = param(
         0.0,
         "kappa of Eq. (10): report a row of a once-reported track where the sensors' support over "
@@ -125,6 +139,11 @@ class BinPFConfig:
                 f"BinPFConfig.count_ratio = {self.count_ratio}: the count runs in the batch filter only; "
                 "set commit_lag = 0 (the online driver has no count)"
             )
+        if self.commit_lag and self.joint_distance:
+            raise ConfigError(
+                f"BinPFConfig.joint_distance = {self.joint_distance}: the joint update runs in the batch filter "
+                "only; set commit_lag = 0 (the online driver has no joint update)"
+            )
         if self.commit_lag and self.evidence_ratio:
             raise ConfigError(
                 f"BinPFConfig.evidence_ratio = {self.evidence_ratio}: the evidence rule reads frames after a row, "
@@ -136,7 +155,7 @@ class BinPFConfig:
 FILTER_FIELDS = (
     "particles", "pd", "pf", "edge", "damping", "accel_sigma", "survival", "birth_r", "birth_explained",
     "birth_link", "birth_speed", "r_confirm", "r_delete", "r_out", "merge_distance", "silent", "smooth_lag",
-    "max_tracks", "split_ratio", "count_ratio",
+    "max_tracks", "split_ratio", "count_ratio", "joint_distance", "joint_ratio",
 )  # fmt: skip
 
 FilterParams = derived(

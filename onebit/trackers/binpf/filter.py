@@ -84,10 +84,11 @@ largest :math:`r` first. Identities are the tracks' labels.
 *Split* and *count* (``split_ratio > 0``, ``count_ratio > 0``): the opt-in moves of
 :mod:`onebit.trackers.binpf.moves` (Eqs. (6)-(8)) -- a twin proposed beside a track where the
 firings' spread says two people stand close, and births where a cluster's local MAP count
-exceeds its tracks.
+exceeds its tracks. *Joint update* (``joint_distance > 0``, :mod:`onebit.trackers.binpf.joint`,
+Eqs. (11)-(13)): close tracks weighed in pairs by the joint likelihood instead of Eq. (4).
 
-The split and the count run in :func:`run_filter_reference` (``run_filter`` uses it whatever
-the length when ``split_ratio > 0`` or ``count_ratio > 0``; the compiled loop has neither).
+The split, the count and the joint update run in :func:`run_filter_reference` (``run_filter``
+uses it, uncompiled, whatever the length when any of them is on; the compiled loop has none).
 
 The frames are processed in order (a filter is sequential); every step inside a frame is
 vectorised over tracks, particles and sensors -- or, on logs of :data:`COMPILED_MIN_FRAMES`
@@ -108,6 +109,7 @@ from onebit.trackers.binpf.footprint import TINY as _TINY
 from onebit.trackers.binpf.footprint import birth_particles as birth_particles  # re-exported
 from onebit.trackers.binpf.footprint import footprint_probability as footprint_probability  # re-exported
 from onebit.trackers.binpf.footprint import frame_probability_off as frame_probability_off  # re-exported
+from onebit.trackers.binpf.joint import close_pairs, joint_update
 from onebit.trackers.binpf.moves import count_births as count_births  # re-exported
 from onebit.trackers.binpf.moves import count_particles, couple, pair_loglik, split_proposals
 from onebit.trackers.binpf.moves import local_map_people as local_map_people  # re-exported
@@ -271,7 +273,7 @@ def run_filter(
     T, S = on.shape
     if compiled is None:
         compiled = T >= COMPILED_MIN_FRAMES
-    if not compiled or p.split_ratio > 0 or p.count_ratio > 0:  # the split and the count: reference loop only
+    if not compiled or p.split_ratio > 0 or p.count_ratio > 0 or p.joint_distance > 0:  # reference loop only
         return run_filter_reference(
             on, sensors, radii, lo, hi, p, seed=seed, log_particles=log_particles, progress=progress, compiled=False
         )
@@ -417,6 +419,7 @@ class _State:
     confirmed: np.ndarray  # (I,) bool
     partner: dict[int, int]  # label -> label of its coupled twin ("Split")
     places: np.ndarray  # the count's untracked places of the frame before ("Count")
+    apart: set  # label pairs the joint update keeps apart, from merging (joint.py, Eq. (13))
     next_label: int
     ever_confirmed: set[int]
     n_rows: int  # rows written
@@ -440,6 +443,7 @@ class _State:
             confirmed=np.zeros(0, dtype=bool),
             partner={},
             places=np.zeros((0, 2)),
+            apart=set(),
             next_label=0,
             ever_confirmed=set(),
             n_rows=0,
@@ -499,6 +503,7 @@ def _update_tracks(st: _State, m: _Steps, z: np.ndarray) -> np.ndarray:
     st.rowidx = np.concatenate([st.rowidx[:, 1:], np.full((len(st.r), 1), -1)], axis=1)
     if not len(st.r):
         return np.zeros((0, len(z)))
+    xp, hp, rp = st.x, st.hist, st.r  # predicted (the joint update's input)
     ell, st.r, d = m.update(st.x, st.r, z)
     labels = st.labels
     pairs = [
@@ -517,9 +522,38 @@ def _update_tracks(st: _State, m: _Steps, z: np.ndarray) -> np.ndarray:
         st.hist = np.take_along_axis(st.hist, idx[..., None, None], axis=1)
     else:
         st.x, st.hist, idx = m.resampled(ell, st.x, st.hist)
-    if m.compiled:  # the resampled particles' footprints are the update's, copied
+    joined = _joint_pairs(st, m, z, xp, hp, rp) if p.joint_distance > 0 else 0
+    if m.compiled and not joined:  # the resampled particles' footprints are the update's, copied
         return 1.0 - kernels.resampled_mean(d, idx)
     return 1.0 - footprint_probability(st.x[..., :2], m.sensors, m.radii, pd=p.pd, edge=p.edge).mean(axis=1)
+
+
+def _joint_pairs(st: _State, m: _Steps, z: np.ndarray, xp: np.ndarray, hp: np.ndarray, rp: np.ndarray) -> int:
+    """The joint update (:mod:`onebit.trackers.binpf.joint`, Eqs. (11)-(13)) of the close pairs of
+    predicted tracks ``xp, hp, rp`` (a split couple excluded): their existences, particles and
+    histories replace the mean-field ones in ``st``; a pair that two people explain best is
+    kept from merging (``st.apart``, carried to the next frame: Eq. (13)). Returns the number
+    of pairs."""
+    p = m.p
+    before, st.apart = st.apart, set()
+    in_couple = np.array([int(lab) in st.partner for lab in st.labels], bool)
+    pairs = close_pairs(xp[..., :2].mean(axis=1), p.joint_distance, skip=in_couple, first=st.confirmed)
+    if not pairs:
+        return 0
+    was = np.array([frozenset((int(st.labels[a]), int(st.labels[b]))) in before for a, b in pairs], bool)
+    r2, idx, swap, two = joint_update(xp, rp, z, m.sensors, m.radii, p, pairs, m.rng.random(len(pairs)), was)
+    x, h, r = st.x.copy(), st.hist.copy(), st.r.copy()
+    for k, (a, b) in enumerate(pairs):
+        xa, xb = xp[a, idx[k, 0]], xp[b, idx[k, 1]]
+        ha, hb = hp[a, idx[k, 0]], hp[b, idx[k, 1]]
+        s = swap[k]
+        x[a], x[b] = np.where(s[:, None], xb, xa), np.where(s[:, None], xa, xb)
+        h[a], h[b] = np.where(s[:, None, None], hb, ha), np.where(s[:, None, None], ha, hb)
+        r[a], r[b] = r2[k]
+        if two[k]:
+            st.apart.add(frozenset((int(st.labels[a]), int(st.labels[b]))))
+    st.x, st.hist, st.r = x, h, r
+    return len(pairs)
 
 
 def _births(st: _State, m: _Steps, z: np.ndarray, q: np.ndarray) -> tuple[np.ndarray | None, int]:
@@ -576,7 +610,8 @@ def _add_newborn(st: _State, m: _Steps, z: np.ndarray, newx: np.ndarray, born: i
 
 def _confirm_delete_merge(st: _State, p: FilterParams, k: int) -> None:
     """Track management: confirm at ``r_confirm``, delete below ``r_delete``, and of two tracks
-    closer than ``merge_distance`` (not a couple) keep the larger ``r``."""
+    closer than ``merge_distance`` (not a couple, not a joint pair two people explain) keep the
+    larger ``r``."""
     st.confirmed |= st.r >= p.r_confirm
     keep = st.r >= p.r_delete
     r, labels = st.r, st.labels
@@ -588,7 +623,12 @@ def _confirm_delete_merge(st: _State, p: FilterParams, k: int) -> None:
             if not keep[a]:
                 continue
             for b in order[a_pos + 1 :]:
-                if keep[b] and dm[a, b] < p.merge_distance and st.partner.get(int(labels[a])) != int(labels[b]):
+                if (
+                    keep[b]
+                    and dm[a, b] < p.merge_distance
+                    and st.partner.get(int(labels[a])) != int(labels[b])
+                    and frozenset((int(labels[a]), int(labels[b]))) not in st.apart
+                ):
                     keep[b] = False
                     st.confirmed[a] |= st.confirmed[b]
                     st.merges[k] += 1

@@ -141,6 +141,8 @@ def filter_params(config: BinPFConfig, site: Site, *, period: float) -> FilterPa
         merge_distance=config.merge_distance,
         split_ratio=config.split_ratio,
         count_ratio=config.count_ratio,
+        joint_distance=config.joint_distance,
+        joint_ratio=config.joint_ratio,
         smooth_lag=config.smooth_lag,
         max_tracks=max_tracks,
         max_out=bound,
@@ -279,6 +281,11 @@ def start_follow(site: Site, config: BinPFConfig) -> binpf_online.FollowBinPF:
         raise ConfigError(
             f"BinPFConfig.evidence_ratio = {config.evidence_ratio}: the evidence rule reads the frames after a row, "
             "so it runs in the batch stage only; set it to 0 for onebit follow"
+        )
+    if config.joint_distance:
+        raise ConfigError(
+            f"BinPFConfig.joint_distance = {config.joint_distance}: the joint update runs in the batch filter only; "
+            "set it to 0 for onebit follow"
         )
     ids, sensors, radii, lo, hi = site_arrays(site, config)
     p = filter_params(config, site, period=1.0)
