@@ -167,8 +167,11 @@ def test_messy_toggle_logs_give_the_row_by_row_result(tmp_path_factory, blob, ep
 
 
 def _beam_rows(rng, n):
-    t = np.round(np.cumsum(rng.exponential(0.05, n)), 3)
-    return [f"{t[k]},{rng.choice(BEAMS)},{rng.choice(['a', 'b'])},{rng.integers(0, 2)}" for k in range(n)]
+    """``n`` good lines of a beam log in time order (drawn as whole columns: a large file in
+    milliseconds, not one draw per field)."""
+    t = np.round(np.cumsum(rng.exponential(0.05, n)), 3).tolist()
+    beam, pair = rng.choice(BEAMS, n).tolist(), rng.choice(["a", "b"], n).tolist()
+    return [f"{a},{b},{c},{d}" for a, b, c, d in zip(t, beam, pair, rng.integers(0, 2, n).tolist())]
 
 
 @pytest.mark.parametrize(
