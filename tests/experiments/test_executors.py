@@ -122,11 +122,12 @@ def test_the_seed_sweeps_are_experiments(studies):
 
 
 def test_cli_experiment_takes_the_executor_options(tmp_path, capsys):
+    """The experiment command takes the executor options (on schiff, the quickest study on a pool)."""
     assert (
         main(
             [
                 "experiment",
-                "okane",
+                "schiff",
                 str(tmp_path / "ok"),
                 "--quick",
                 "--trials",
@@ -140,6 +141,6 @@ def test_cli_experiment_takes_the_executor_options(tmp_path, capsys):
         == 0
     )
     assert "local process pool, 2 worker(s)" in capsys.readouterr().out
-    assert pl.read_parquet(tmp_path / "ok" / "results.parquet").height == 4
+    assert pl.read_parquet(tmp_path / "ok" / "results.parquet").height == 5
     assert main(["experiment", "okane", str(tmp_path / "x"), "--quick", "--ray-address", "auto"]) == 2
     assert "--ray-address: only with --executor ray" in capsys.readouterr().err

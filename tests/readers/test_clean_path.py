@@ -21,17 +21,19 @@ SENSORS = ("p1", "p2", "p3")
 
 
 def _beam_lines(rng, n):
-    t = np.round(np.cumsum(rng.exponential(0.05, n)), 3)
-    rows = []
-    for k in range(n):
-        rows.append(f"{t[k]},{rng.choice(BEAMS)},{rng.choice(['a', 'b'])},{rng.integers(0, 2)}")
+    """(header, ``n`` lines) of a beam log in time order, drawn as whole columns (a large file
+    in milliseconds, not one draw per field)."""
+    t = np.round(np.cumsum(rng.exponential(0.05, n)), 3).tolist()
+    beam, pair = rng.choice(BEAMS, n).tolist(), rng.choice(["a", "b"], n).tolist()
+    rows = [f"{a},{b},{c},{d}" for a, b, c, d in zip(t, beam, pair, rng.integers(0, 2, n).tolist())]
     return ["t,beam,pair,blocked"], rows
 
 
 def _toggle_lines(rng, n):
-    t = np.round(np.cumsum(rng.exponential(0.3, n)), 2)
-    rows = [f"{t[k]},{rng.choice(SENSORS)},{rng.choice(['0', '1', 'on', 'off'])}" for k in range(n)]
-    return ["t,sensor,value"], rows
+    """(header, ``n`` lines) of a motion log in time order, drawn as whole columns."""
+    t = np.round(np.cumsum(rng.exponential(0.3, n)), 2).tolist()
+    sensor, value = rng.choice(SENSORS, n).tolist(), rng.choice(["0", "1", "on", "off"], n).tolist()
+    return ["t,sensor,value"], [f"{a},{b},{c}" for a, b, c in zip(t, sensor, value)]
 
 
 #: Faults injected into a valid file's data lines: each returns the new list of lines.

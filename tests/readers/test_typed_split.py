@@ -100,22 +100,35 @@ BAD_LINES = st.sampled_from(
 )
 
 
+#: the strategies of the files' lines, made once (a strategy made inside a draw is made and
+#: checked again for every line)
+ONE_IN_TEN = st.integers(0, 9)
+BEAM_NAMES = st.sampled_from(["a", "b", "c", "a", "b", "zz", " a", "A"])
+PAIR_NAMES = st.sampled_from(["a", "b", "a", "b", "A", "B", "c"])
+BLOCKED = st.sampled_from(["0", "1", "0", "1", "on", "OFF", "true", "2", "01"])
+BEAM_ENDS = st.sampled_from(["\n", "", "\r\n"])
+TOGGLE_BAD_LINES = BAD_LINES.map(lambda line: line.replace("1,a,b,1", "1,p1,1"))
+TOGGLE_SENSORS = st.sampled_from(["p1", "p2", "p3", "p1", "zz", " p2"])
+TOGGLE_SPELLINGS = st.sampled_from([*TOGGLE_VALUES, "ON", "Off", "2", "yes", ""])
+ENDS = st.sampled_from(["\n", ""])
+
+
 @st.composite
 def beam_file(draw) -> bytes:
     n = draw(st.integers(0, 40))
     lines = []
     for _ in range(n):
-        if draw(st.integers(0, 9)) == 0:
+        if draw(ONE_IN_TEN) == 0:
             lines.append(draw(BAD_LINES))
         else:
             t = draw(STAMPS)
-            beam = draw(st.sampled_from(["a", "b", "c", "a", "b", "zz", " a", "A"]))
-            pair = draw(st.sampled_from(["a", "b", "a", "b", "A", "B", "c"]))
-            blocked = draw(st.sampled_from(["0", "1", "0", "1", "on", "OFF", "true", "2", "01"]))
+            beam = draw(BEAM_NAMES)
+            pair = draw(PAIR_NAMES)
+            blocked = draw(BLOCKED)
             lines.append(f"{t},{beam},{pair},{blocked}")
     if lines and draw(st.booleans()):  # duplicates
         lines.insert(draw(st.integers(0, len(lines))), draw(st.sampled_from(lines)))
-    end = draw(st.sampled_from(["\n", "", "\r\n"]))
+    end = draw(BEAM_ENDS)
     sep = "\r\n" if end == "\r\n" else "\n"
     return (sep.join(["t,beam,pair,blocked", *lines]) + end).encode("utf-8", errors="surrogateescape")
 
@@ -124,19 +137,16 @@ def beam_file(draw) -> bytes:
 def toggle_file(draw) -> bytes:
     n = draw(st.integers(0, 40))
     lines = []
-    values = [*TOGGLE_VALUES, "ON", "Off", "2", "yes", ""]
     for _ in range(n):
-        if draw(st.integers(0, 9)) == 0:
-            lines.append(draw(BAD_LINES).replace("1,a,b,1", "1,p1,1"))
+        if draw(ONE_IN_TEN) == 0:
+            lines.append(draw(TOGGLE_BAD_LINES))
         else:
             t = draw(STAMPS)
-            sensor = draw(st.sampled_from(["p1", "p2", "p3", "p1", "zz", " p2"]))
-            lines.append(f"{t},{sensor},{draw(st.sampled_from(values))}")
+            sensor = draw(TOGGLE_SENSORS)
+            lines.append(f"{t},{sensor},{draw(TOGGLE_SPELLINGS)}")
     if lines and draw(st.booleans()):
         lines.insert(draw(st.integers(0, len(lines))), draw(st.sampled_from(lines)))
-    return ("\n".join(["t,sensor,value", *lines]) + draw(st.sampled_from(["\n", ""]))).encode(
-        "utf-8", errors="surrogateescape"
-    )
+    return ("\n".join(["t,sensor,value", *lines]) + draw(ENDS)).encode("utf-8", errors="surrogateescape")
 
 
 EPOCHS = st.sampled_from(
@@ -167,8 +177,11 @@ def test_messy_toggle_logs_give_the_row_by_row_result(tmp_path_factory, blob, ep
 
 
 def _beam_rows(rng, n):
-    t = np.round(np.cumsum(rng.exponential(0.05, n)), 3)
-    return [f"{t[k]},{rng.choice(BEAMS)},{rng.choice(['a', 'b'])},{rng.integers(0, 2)}" for k in range(n)]
+    """``n`` good lines of a beam log in time order (drawn as whole columns: a large file in
+    milliseconds, not one draw per field)."""
+    t = np.round(np.cumsum(rng.exponential(0.05, n)), 3).tolist()
+    beam, pair = rng.choice(BEAMS, n).tolist(), rng.choice(["a", "b"], n).tolist()
+    return [f"{a},{b},{c},{d}" for a, b, c, d in zip(t, beam, pair, rng.integers(0, 2, n).tolist())]
 
 
 @pytest.mark.parametrize(
@@ -275,13 +288,13 @@ def test_parts_origin_equals_column_origin(stamps, cut, epoch):
 def table_file(draw, header: str, fields) -> bytes:
     lines = []
     for _ in range(draw(st.integers(0, 30))):
-        if draw(st.integers(0, 9)) == 0:
+        if draw(ONE_IN_TEN) == 0:
             lines.append(draw(BAD_LINES))
         else:
             lines.append(",".join(draw(f) for f in fields))
     if lines and draw(st.booleans()):
         lines.insert(draw(st.integers(0, len(lines))), draw(st.sampled_from(lines)))
-    return ("\n".join([header, *lines]) + draw(st.sampled_from(["\n", ""]))).encode("utf-8", errors="surrogateescape")
+    return ("\n".join([header, *lines]) + draw(ENDS)).encode("utf-8", errors="surrogateescape")
 
 
 NAMES = st.sampled_from(["w1", "w2", "w1", " w2", "w3 ", ""])

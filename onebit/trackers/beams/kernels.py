@@ -23,6 +23,8 @@ as text by the caller, in the reference's words.
 
 from __future__ import annotations
 
+from typing import NamedTuple
+
 import numpy as np
 
 from onebit.core.compiled import kernel
@@ -115,35 +117,40 @@ def _initial_agents(init, init_team, p, cap_agents, n_teams):
     return head, tail, size, nxt, prv, initial, visits, entered, team, team_count
 
 
+class ScanRules(NamedTuple):
+    """What makes an agent of ``Q_source`` eligible at line 5 (the variations), fixed for a
+    string of crossings (:func:`assign_constrained`'s arguments of the same names)."""
+
+    lifo: bool  #: scan from the queue's tail (LIFO), else from its head
+    L: int  #: maximum track length (variation B), 0: none
+    prefer_short: bool  #: the eligible agent with the fewest regions visited first (B)
+    use_time: bool  #: minimum traversal times apply (E)
+    times: np.ndarray  #: (m,) the crossings' times
+    tau: np.ndarray  #: (p,) minimum traversal time per region
+    has_team_cap: bool  #: team capacities apply (D)
+    team_cap: np.ndarray  #: (p, teams) ``U_r``, -1: unbounded
+    has_rank: bool  #: team ranks apply (D)
+    rank: np.ndarray  #: (teams,) exit priority of each team, lower leaves first
+    n_teams: int  #: number of teams (the key of an agent without one)
+
+
+class AgentState(NamedTuple):
+    """The agents as :func:`assign_constrained` changes them (in place), by agent index."""
+
+    visits: np.ndarray  #: (agents,) crossings so far, the initial region counted
+    entered: np.ndarray  #: (agents,) time the agent entered its region
+    team: np.ndarray  #: (agents,) team, -1: none
+    team_count: np.ndarray  #: (p, teams) agents of each team per region
+    nxt: np.ndarray  #: (agents,) next agent in its region's queue, -1: none
+    prv: np.ndarray  #: (agents,) previous agent in its region's queue, -1: none
+
+
 @kernel
-def _eligible_agent(
-    a,
-    j,
-    s,
-    t,
-    lifo,
-    L,
-    prefer_short,
-    use_time,
-    times,
-    tau,
-    has_team_cap,
-    team_cap,
-    has_rank,
-    rank,
-    n_teams,
-    visits,
-    entered,
-    team,
-    team_count,
-    nxt,
-    prv,
-    cnt,
-    order,
-):
-    """Line 5 of Algorithm 1 with the variations: the eligible agent of ``Q_source`` (``s``,
-    scanned from agent ``a`` in queue order) with the smallest key, or -1. ``cnt``/``order``
-    get the agents refused for each reason of :data:`WHY` and the order the reasons were met."""
+def _eligible_agent(a, j, s, t, rules, agents, cnt, order):
+    """Line 5 of Algorithm 1 with the variations (``rules``, :class:`ScanRules`; ``agents``,
+    :class:`AgentState`): the eligible agent of ``Q_source`` (``s``, scanned from agent ``a``
+    in queue order) with the smallest key, or -1. ``cnt``/``order`` get the agents refused
+    for each reason of :data:`WHY` and the order the reasons were met."""
     cnt[:] = 0
     order[:] = -1
     seen = 0
@@ -152,12 +159,17 @@ def _eligible_agent(
     pick = -1
     while a >= 0:
         why_k = -1
-        k = team[a]
-        if L > 0 and visits[a] >= L:
+        k = agents.team[a]
+        if rules.L > 0 and agents.visits[a] >= rules.L:
             why_k = 0
-        elif use_time and times[j] - entered[a] < tau[s]:
+        elif rules.use_time and rules.times[j] - agents.entered[a] < rules.tau[s]:
             why_k = 1
-        elif has_team_cap and k >= 0 and 0 <= team_cap[t, k] and team_cap[t, k] <= team_count[t, k]:
+        elif (
+            rules.has_team_cap
+            and k >= 0
+            and 0 <= rules.team_cap[t, k]
+            and rules.team_cap[t, k] <= agents.team_count[t, k]
+        ):
             why_k = 2
         if why_k >= 0:
             if cnt[why_k] == 0:
@@ -165,13 +177,13 @@ def _eligible_agent(
                 seen += 1
             cnt[why_k] += 1
         else:
-            k0 = rank[k] if (has_rank and k >= 0) else n_teams
-            k1 = visits[a] if prefer_short else 0
+            k0 = rules.rank[k] if (rules.has_rank and k >= 0) else rules.n_teams
+            k1 = agents.visits[a] if rules.prefer_short else 0
             if not found or k0 < best0 or (k0 == best0 and k1 < best1):
                 found = True
                 best0, best1 = k0, k1
                 pick = a
-        a = prv[a] if lifo else nxt[a]
+        a = agents.prv[a] if rules.lifo else agents.nxt[a]
     return pick
 
 
@@ -227,6 +239,8 @@ def assign_constrained(
     head, tail, size, nxt, prv, initial, visits, entered, team, team_count = _initial_agents(
         init, init_team, n_regions, n0 + m, n_teams
     )
+    rules = ScanRules(lifo, L, prefer_short, use_time, times, tau, has_team_cap, team_cap, has_rank, rank, n_teams)
+    agents = AgentState(visits, entered, team, team_count, nxt, prv)
     n = n0
     allow_new = not known_initial
     limit = n0 if known_initial else max_agents
@@ -251,31 +265,7 @@ def assign_constrained(
         if size[s] > 0 and not scan:
             pick = tail[s] if lifo else head[s]
         elif size[s] > 0:
-            pick = _eligible_agent(
-                tail[s] if lifo else head[s],
-                j,
-                s,
-                t,
-                lifo,
-                L,
-                prefer_short,
-                use_time,
-                times,
-                tau,
-                has_team_cap,
-                team_cap,
-                has_rank,
-                rank,
-                n_teams,
-                visits,
-                entered,
-                team,
-                team_count,
-                nxt,
-                prv,
-                cnt,
-                order,
-            )
+            pick = _eligible_agent(tail[s] if lifo else head[s], j, s, t, rules, agents, cnt, order)
         if pick >= 0:
             _unlink(s, pick, head, tail, nxt, prv, size)
             agent = pick
