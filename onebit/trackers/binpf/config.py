@@ -69,6 +69,11 @@ class BinPFConfig:
         lo=1.0,
         hi=1e9,
     )
+    joint_met: bool = param(
+        False,
+        "the joint update only for pairs that met: both confirmed and at least joint_distance apart before "
+        "they first came closer (binpf/joint.py, Eq. 14); a newborn beside a track keeps the mean field",
+    )
     evidence_ratio: float = param(
         0.0,
         "kappa of Eq. (10): report a row of a once-reported track where the sensors' support over "
@@ -144,6 +149,10 @@ class BinPFConfig:
                 f"BinPFConfig.joint_distance = {self.joint_distance}: the joint update runs in the batch filter "
                 "only; set commit_lag = 0 (the online driver has no joint update)"
             )
+        if self.joint_met and not self.joint_distance:
+            raise ConfigError(
+                "BinPFConfig.joint_met = true: it restricts the joint update, which is off; set joint_distance > 0"
+            )
         if self.commit_lag and self.evidence_ratio:
             raise ConfigError(
                 f"BinPFConfig.evidence_ratio = {self.evidence_ratio}: the evidence rule reads frames after a row, "
@@ -155,7 +164,7 @@ class BinPFConfig:
 FILTER_FIELDS = (
     "particles", "pd", "pf", "edge", "damping", "accel_sigma", "survival", "birth_r", "birth_explained",
     "birth_link", "birth_speed", "r_confirm", "r_delete", "r_out", "merge_distance", "silent", "smooth_lag",
-    "max_tracks", "split_ratio", "count_ratio", "joint_distance", "joint_ratio",
+    "max_tracks", "split_ratio", "count_ratio", "joint_distance", "joint_ratio", "joint_met",
 )  # fmt: skip
 
 FilterParams = derived(

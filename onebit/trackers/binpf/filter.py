@@ -85,7 +85,8 @@ largest :math:`r` first. Identities are the tracks' labels.
 :mod:`onebit.trackers.binpf.moves` (Eqs. (6)-(8)) -- a twin proposed beside a track where the
 firings' spread says two people stand close, and births where a cluster's local MAP count
 exceeds its tracks. *Joint update* (``joint_distance > 0``, :mod:`onebit.trackers.binpf.joint`,
-Eqs. (11)-(13)): close tracks weighed in pairs by the joint likelihood instead of Eq. (4).
+Eqs. (11)-(13)): close tracks weighed in pairs by the joint likelihood instead of Eq. (4); with
+``joint_met`` only the pairs that met (Eq. (14): both confirmed and apart before they came close).
 
 The split, the count and the joint update run in :func:`run_filter_reference` (``run_filter``
 uses it, uncompiled, whatever the length when any of them is on; the compiled loop has none).
@@ -109,7 +110,7 @@ from onebit.trackers.binpf.footprint import TINY as _TINY
 from onebit.trackers.binpf.footprint import birth_particles as birth_particles  # re-exported
 from onebit.trackers.binpf.footprint import footprint_probability as footprint_probability  # re-exported
 from onebit.trackers.binpf.footprint import frame_probability_off as frame_probability_off  # re-exported
-from onebit.trackers.binpf.joint import close_pairs, joint_update
+from onebit.trackers.binpf.joint import close_pairs, joint_update, met_matrix, met_update
 from onebit.trackers.binpf.moves import count_births as count_births  # re-exported
 from onebit.trackers.binpf.moves import count_particles, couple, pair_loglik, split_proposals
 from onebit.trackers.binpf.moves import local_map_people as local_map_people  # re-exported
@@ -420,6 +421,8 @@ class _State:
     partner: dict[int, int]  # label -> label of its coupled twin ("Split")
     places: np.ndarray  # the count's untracked places of the frame before ("Count")
     apart: set  # label pairs the joint update keeps apart, from merging (joint.py, Eq. (13))
+    far: set  # label pairs that met: both confirmed and apart before they came close (Eq. (14))
+    near: set  # label pairs close before they met (Eq. (14))
     next_label: int
     ever_confirmed: set[int]
     n_rows: int  # rows written
@@ -444,6 +447,8 @@ class _State:
             partner={},
             places=np.zeros((0, 2)),
             apart=set(),
+            far=set(),
+            near=set(),
             next_label=0,
             ever_confirmed=set(),
             n_rows=0,
@@ -532,12 +537,17 @@ def _joint_pairs(st: _State, m: _Steps, z: np.ndarray, xp: np.ndarray, hp: np.nd
     """The joint update (:mod:`onebit.trackers.binpf.joint`, Eqs. (11)-(13)) of the close pairs of
     predicted tracks ``xp, hp, rp`` (a split couple excluded): their existences, particles and
     histories replace the mean-field ones in ``st``; a pair that two people explain best is
-    kept from merging (``st.apart``, carried to the next frame: Eq. (13)). Returns the number
-    of pairs."""
+    kept from merging (``st.apart``, carried to the next frame: Eq. (13)); with ``joint_met`` only
+    the pairs that met (Eq. (14), ``st.far``). Returns the number of pairs."""
     p = m.p
     before, st.apart = st.apart, set()
     in_couple = np.array([int(lab) in st.partner for lab in st.labels], bool)
-    pairs = close_pairs(xp[..., :2].mean(axis=1), p.joint_distance, skip=in_couple, first=st.confirmed)
+    means = xp[..., :2].mean(axis=1)
+    allow = None
+    if p.joint_met:
+        st.far, st.near = met_update(st.labels, means, st.confirmed, p.joint_distance, st.far, st.near)
+        allow = met_matrix(st.labels, st.far)
+    pairs = close_pairs(means, p.joint_distance, skip=in_couple, first=st.confirmed, allow=allow)
     if not pairs:
         return 0
     was = np.array([frozenset((int(st.labels[a]), int(st.labels[b]))) in before for a, b in pairs], bool)

@@ -3,7 +3,7 @@ weighed together under Eq. (2), instead of each against the other's marginal (Eq
 
 Equation numbers continue those of :mod:`onebit.trackers.binpf.footprint` (1-2),
 :mod:`onebit.trackers.binpf.filter` (3-5), :mod:`onebit.trackers.binpf.moves` (6-8) and
-:mod:`onebit.trackers.binpf.evidence` (9-10).
+:mod:`onebit.trackers.binpf.evidence` (9-10); Eq. (14) restricts the pairs (``joint_met``).
 
 Why
 ---
@@ -79,6 +79,25 @@ the pair is not merged (``merge_distance``). A pair kept apart stays apart, orde
 next frames while :math:`\\beta_{ab} \\ge 1 / \\kappa_j` (one frame whose few firings one person
 explains as well does not undo it) and while the two stay paired. Otherwise nothing is ordered
 and the two may merge as before (a second track on one person: :math:`\\beta \\approx 1`).
+
+Pairs that met (``joint_met``)
+------------------------------
+On the real array one walker often fires two sensors 1-1.6 m apart, which Eq. (2) explains
+better by two people than by one (:math:`\\beta_{ab} > 2` in most frames); a newborn beside the
+walker's track then gains existence from Eq. (12) and is kept apart by Eq. (13): a second track
+on one person. Two people who *meet* come from two places. With ``joint_met`` the joint update
+is given only to the pairs that met: tracks :math:`a, b` both confirmed and at least
+:math:`D` = ``joint_distance`` apart at some frame before the first frame they were closer,
+
+.. math::
+
+    \\mathrm{met}(a, b) \\iff \\exists k' < k_0(a, b):\\; c_a(k') \\wedge c_b(k') \\wedge
+        \\lVert \\mu_a(k') - \\mu_b(k') \\rVert \\ge D,
+    \\quad k_0(a, b) = \\min\\{k : \\lVert \\mu_a(k) - \\mu_b(k) \\rVert < D\\}          \\tag{14}
+
+(:math:`c` confirmed at the frame before, :math:`\\mu` the predicted means); every other close
+pair -- a newborn beside a track above all -- keeps the mean-field update (Eq. (4)), as
+without ``joint_distance``. A pair once close before it met never meets.
 """
 
 from __future__ import annotations
@@ -91,17 +110,24 @@ from onebit.trackers.binpf.footprint import footprint_probability
 
 
 def close_pairs(
-    means: np.ndarray, reach: float, skip: np.ndarray | None = None, first: np.ndarray | None = None
+    means: np.ndarray,
+    reach: float,
+    skip: np.ndarray | None = None,
+    first: np.ndarray | None = None,
+    allow: np.ndarray | None = None,
 ) -> list[tuple[int, int]]:
     """Pairs ``(a, b)``, ``a < b``, of tracks whose means ``(I, 2)`` are closer than ``reach``,
     each track in at most one pair: the pairs of two tracks where ``first`` (the confirmed ones)
-    before the others, each group the closest first; tracks where ``skip`` take no part."""
+    before the others, each group the closest first; tracks where ``skip`` take no part; with
+    ``allow (I, I)`` (symmetric) only the pairs it allows (Eq. (14): the pairs that met)."""
     n = len(means)
     if n < 2 or reach <= 0:
         return []
     dm = np.sqrt(((means[:, None] - means[None]) ** 2).sum(-1))
     iu, ju = np.triu_indices(n, 1)
     close = dm[iu, ju] < reach
+    if allow is not None:
+        close &= np.asarray(allow, bool)[iu, ju]
     iu, ju, dd = iu[close], ju[close], dm[iu, ju][close]
     used = np.zeros(n, bool) if skip is None else np.asarray(skip, bool).copy()
     out = []
@@ -218,3 +244,39 @@ def joint_update(
         if two[k]:
             swap[k] = order_swaps(x[a, ia, :2] - x[b, ib, :2], means[a] - means[b])
     return r_out, idx, swap, two
+
+
+def met_update(
+    labels: np.ndarray, means: np.ndarray, confirmed: np.ndarray, reach: float, far: set, near: set
+) -> tuple[set, set]:
+    """Eq. (14)'s bookkeeping for the live tracks ``labels (I,)`` with means ``(I, 2)`` and
+    ``confirmed (I,)``: ``far`` holds the label pairs (frozensets) seen both confirmed and at
+    least ``reach`` apart before they were ever closer (they met), ``near`` those seen closer first.
+    Returns both updated and kept to the live labels."""
+    live = {int(v) for v in labels}
+    far = {key for key in far if key <= live}
+    near = {key for key in near if key <= live}
+    n = len(labels)
+    if n < 2:
+        return far, near
+    dm = np.sqrt(((means[:, None] - means[None]) ** 2).sum(-1))
+    for a in range(n):
+        for b in range(a + 1, n):
+            key = frozenset((int(labels[a]), int(labels[b])))
+            if key in far or key in near:
+                continue
+            if dm[a, b] < reach:
+                near.add(key)
+            elif confirmed[a] and confirmed[b]:
+                far.add(key)
+    return far, near
+
+
+def met_matrix(labels: np.ndarray, far: set) -> np.ndarray:
+    """``(I, I)`` bool: the tracks ``labels`` whose pair is in ``far`` (Eq. (14))."""
+    n = len(labels)
+    out = np.zeros((n, n), bool)
+    for a in range(n):
+        for b in range(a + 1, n):
+            out[a, b] = out[b, a] = frozenset((int(labels[a]), int(labels[b]))) in far
+    return out

@@ -143,6 +143,7 @@ def filter_params(config: BinPFConfig, site: Site, *, period: float) -> FilterPa
         count_ratio=config.count_ratio,
         joint_distance=config.joint_distance,
         joint_ratio=config.joint_ratio,
+        joint_met=config.joint_met,
         smooth_lag=config.smooth_lag,
         max_tracks=max_tracks,
         max_out=bound,
