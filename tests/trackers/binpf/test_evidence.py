@@ -14,7 +14,7 @@ from onebit.trackers.binpf.footprint import frame_probability_off
 from onebit.trackers.binpf.stage import BinPFConfig, run, start_follow
 from tests.trackers.binpf.test_stage import XY, _frames, _site
 
-# the split's dense array (docs/binpf.md): sensors every 0.5 m, footprints of 0.6 m
+# the split's dense array (docs/binpf-record.md): sensors every 0.5 m, footprints of 0.6 m
 GRID = np.array([(0.5 * i, 0.5 * j) for i in range(9) for j in range(9)], dtype=float)
 RADII = np.full(len(GRID), 0.6)
 MODEL = {"pd": 0.95, "pf": 0.005, "edge": 0.1}
