@@ -207,7 +207,8 @@ def sample_path(way: list, times: np.ndarray) -> np.ndarray:
 def _dist_to_segment(pts: np.ndarray, a: np.ndarray, b: np.ndarray) -> np.ndarray:
     ab = b - a
     u = np.clip(((pts - a) @ ab) / (ab @ ab), 0.0, 1.0)
-    return np.hypot(*(pts - (a + u[:, None] * ab)).T)
+    # per coordinate, not ``pts - (a + u[:, None] * ab)``: numpy broadcasts over a length-2 axis slowly
+    return np.hypot(pts[:, 0] - (a[0] + u * ab[0]), pts[:, 1] - (a[1] + u * ab[1]))
 
 
 def simulate_beams(site: Site, cfg: BeamsSimConfig, *, seed: int) -> BeamsSimulation:

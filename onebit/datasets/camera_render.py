@@ -210,7 +210,10 @@ def _composite(
     img = background.copy()
     if len(centres) == 0:
         return img
-    d = np.sqrt(((world[None, :, :, :] - centres[:, None, None, :].astype(np.float32)) ** 2).sum(axis=-1))
+    xy = centres.astype(np.float32)
+    dx = world[None, :, :, 0] - xy[:, 0, None, None]
+    dy = world[None, :, :, 1] - xy[:, 1, None, None]
+    d = np.sqrt(dx * dx + dy * dy)  # not ``(...) ** 2).sum(axis=-1)``: numpy reduces a length-2 axis slowly
     cov = np.clip((radius - d) / soft + 0.5, 0.0, 1.0)
     best = cov.argmax(axis=0)
     c = np.take_along_axis(cov, best[None], axis=0)[0]

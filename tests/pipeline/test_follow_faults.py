@@ -21,7 +21,7 @@ from onebit.pipeline.follow import FollowConfig, follow, read_live_table
 from onebit.pipeline.report import metric
 from onebit.pipeline.runner import run_pipeline
 
-CHUNK = 12  # lines a logger action appends
+CHUNK = 24  # lines a logger action appends (320 lines: 14 appends, 3 to 6 parts published before a fault)
 
 
 class SimClock:

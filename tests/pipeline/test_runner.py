@@ -5,7 +5,6 @@ from __future__ import annotations
 import os
 import shutil
 import tomllib
-from dataclasses import dataclass
 from pathlib import Path
 
 import polars as pl
@@ -14,8 +13,9 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from mcap.reader import make_reader
 
+from onebit._testing.workers import NoConfig, bad_input_run, bug_run, where
 from onebit.cli import main
-from onebit.core.errors import MAX_MESSAGE, ConfigError, InputError, OnebitError
+from onebit.core.errors import MAX_MESSAGE, ConfigError, OnebitError
 from onebit.datasets.beams_sim import write_beams_dataset
 from onebit.datasets.builtin import builtin_site_path
 from onebit.pipeline.report import load_report, metric
@@ -354,27 +354,14 @@ def test_trackers_side_by_side_give_the_same_run(lab_run, tmp_path):
         run_pipeline(data, tmp_path / "bad", cores=-1)
 
 
-def _bug_run(inputs, site, config):
-    raise RuntimeError("a bug in the tracker")
-
-
-def _bad_input_run(inputs, site, config):
-    raise InputError("the crossings say nothing this tracker can use")
-
-
-@dataclass(frozen=True, kw_only=True)
-class _NoConfig:
-    pass
-
-
 def test_a_tracker_failing_beside_the_others_fails_as_it_would_alone(lab_run, tmp_path):
     """A detached tracker's error is its stage's, as in one process: an OnebitError is said as it
     is, a bug keeps its traceback in logs/; the other trackers' tables are unchanged."""
     data, _ = lab_run
     entries = (
         *TRACKERS,
-        TrackerEntry(TrackerSpec(name="bug", needs=("crossings",), config=_NoConfig, run=_bug_run), None, None),
-        TrackerEntry(TrackerSpec(name="bad", needs=("crossings",), config=_NoConfig, run=_bad_input_run), None, None),
+        TrackerEntry(TrackerSpec(name="bug", needs=("crossings",), config=NoConfig, run=bug_run), None, None),
+        TrackerEntry(TrackerSpec(name="bad", needs=("crossings",), config=NoConfig, run=bad_input_run), None, None),
     )
     runs = {
         cores: run_pipeline(
@@ -397,10 +384,6 @@ def test_a_tracker_failing_beside_the_others_fails_as_it_would_alone(lab_run, tm
     )
 
 
-def _where(name: str) -> dict:
-    return {f"{name}_where": pl.DataFrame({"pid": [os.getpid()]})}
-
-
 def test_stages_that_share_work_stay_in_one_call():
     """hmm2 and findinghumo-flow decode the same run and share it one after the other in one
     process: a side-by-side batch keeps stages of one ``shares`` key in one call."""
@@ -413,8 +396,8 @@ def test_stages_that_share_work_stay_in_one_call():
             (),
             (f"{name}_*",),
             lambda ctx: None,
-            lambda ctx: _where(name),
-            detach=lambda ctx: (_where, (name,), key),
+            lambda ctx: where(name),
+            detach=lambda ctx: (where, (name,), key),
         )
 
     batch = [stage("a", None), stage("b", "decode"), stage("c", None), stage("d", "decode")]

@@ -55,7 +55,7 @@ def assert_same(fast: dict, ref: dict) -> None:
         assert (math.isnan(a) and math.isnan(b)) or abs(a - b) <= 1e-9, (k, a, b)
 
 
-@settings(max_examples=100, deadline=None, derandomize=True)
+@settings(max_examples=50, deadline=None, derandomize=True)
 @given(scenes(hops=True))
 def test_equals_the_libraries_on_scenes_full_of_ties(scene):
     objects, hypotheses, distances, gate = scene
@@ -65,7 +65,7 @@ def test_equals_the_libraries_on_scenes_full_of_ties(scene):
     )
 
 
-@settings(max_examples=100, deadline=None, derandomize=True)
+@settings(max_examples=50, deadline=None, derandomize=True)
 @given(scenes(hops=False))
 def test_equals_the_libraries_on_scenes_with_continuous_distances(scene):
     objects, hypotheses, distances, gate = scene

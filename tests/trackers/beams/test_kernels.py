@@ -123,7 +123,7 @@ def test_counting_dp_kernel_equals_reference(building, seed, n):
 
     _, rg = building
     edges = RegionEdges.from_region_graph(rg)
-    src, tgt = _dropped_walks(edges, 600, n, 50 * n + seed)
+    src, tgt = _dropped_walks(edges, 300, n, 50 * n + seed)
     times = np.cumsum(np.random.default_rng(seed).exponential(1.0, len(src)))
     states = count_states(edges.n_regions, n)
     for kw in (dict(n_agents=n), dict(initial=states[seed % count_space_size(edges.n_regions, n)])):

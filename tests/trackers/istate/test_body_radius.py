@@ -39,7 +39,7 @@ def test_containment_is_one_on_every_scenario_with_targets(tmp_path, name):
 def test_the_body_radius_is_what_keeps_the_truth_in(tmp_path):
     """Without the body (radius 0 and the old 5 cm beam width) the building loses the truth."""
     data = get_scenario("beams-building").write(
-        tmp_path / "d", seed=7, duration=120.0, agents=None, drop=0.0, camera=False, params={}
+        tmp_path / "d", seed=7, duration=60.0, agents=None, drop=0.0, camera=False, params={}
     )
     text = (data / "site.toml").read_text()
     assert "body_radius = 0.25" in text

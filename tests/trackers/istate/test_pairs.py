@@ -48,7 +48,7 @@ def _wkb(eta):
 def test_cap_branch_and_bound_equals_reference(seed, shape):
     rng = np.random.default_rng(seed)
     n = int(rng.integers(1, 4))
-    eta = _istate(rng, int(rng.integers(3, 30)), n, shape)
+    eta = _istate(rng, int(rng.integers(3, 16)), n, shape)
     # copies sharing regions, as an observation update makes them
     eta = observation_update(eta, box(*rng.uniform([0, 0, 5, 4], [5, 4, 10, 8])))
     for M in (1, 2, 5):
