@@ -8,12 +8,13 @@
 from __future__ import annotations
 
 import argparse
-import os
 import sys
-import tempfile
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parent.parent
+sys.path.insert(0, str(ROOT))
+from tools.generated import write_or_check  # noqa: E402 -- the checkout's tools, beside this file
+
 OUT = ROOT / "docs" / "parameters.md"
 
 
@@ -24,22 +25,10 @@ def main(argv: list[str] | None = None) -> int:
     )
     ap.add_argument("--out", type=Path, default=OUT)
     args = ap.parse_args(argv)
-    sys.path.insert(0, str(ROOT))
     from onebit.pipeline.config_show import reference_markdown  # noqa: PLC0415 -- the checkout's own package
 
     text = reference_markdown()
-    if args.check:
-        current = args.out.read_text(encoding="utf-8") if args.out.exists() else ""
-        if current != text:
-            print(f"{args.out} is not current: run python tools/params_md.py", file=sys.stderr)
-            return 1
-        return 0
-    fd, tmp = tempfile.mkstemp(dir=args.out.parent, prefix=".parameters-", suffix=".md")
-    with os.fdopen(fd, "w", encoding="utf-8") as fh:
-        fh.write(text)
-    os.replace(tmp, args.out)
-    print(f"wrote {args.out}")
-    return 0
+    return write_or_check(text, args.out, check=args.check, tool="tools/params_md.py")
 
 
 if __name__ == "__main__":

@@ -15,13 +15,14 @@ from __future__ import annotations
 
 import argparse
 import csv
-import os
 import sys
-import tempfile
 import tomllib
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parent.parent
+sys.path.insert(0, str(ROOT))
+from tools.generated import write_or_check  # noqa: E402 -- the checkout's tools, beside this file
+
 STUDIES = ROOT / "docs" / "results" / "studies.toml"
 BENCH = ROOT / "benchmarks" / "results.csv"
 OUT = ROOT / "docs" / "results.md"
@@ -124,18 +125,7 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--out", type=Path, default=OUT)
     args = ap.parse_args(argv)
     text = render()
-    if args.check:
-        current = args.out.read_text(encoding="utf-8") if args.out.exists() else ""
-        if current != text:
-            print(f"{args.out} is not current: run python tools/results_md.py", file=sys.stderr)
-            return 1
-        return 0
-    fd, tmp = tempfile.mkstemp(dir=args.out.parent, prefix=".results-", suffix=".md")
-    with os.fdopen(fd, "w", encoding="utf-8") as fh:
-        fh.write(text)
-    os.replace(tmp, args.out)
-    print(f"wrote {args.out}")
-    return 0
+    return write_or_check(text, args.out, check=args.check, tool="tools/results_md.py")
 
 
 if __name__ == "__main__":
