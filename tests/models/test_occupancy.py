@@ -19,16 +19,15 @@ from onebit.models.occupancy import (
     Features,
     OccupancyConfig,
     _viterbi_kernel,
-    clock_tick,
     estimate,
     features,
     learn_stats,
-    one_walker,
     site_features,
     stats,
     viterbi,
     viterbi_reference,
 )
+from onebit.models.walks import clock_tick, far_pairs, lifted_sensors, one_walker
 
 # -- Viterbi ------------------------------------------------------------------------------
 
@@ -437,3 +436,85 @@ def test_the_learned_model_keeps_its_far_pairs_and_has_no_stray_term():
     assert not st.filter(pl.col("term").is_in(["firings", "strays"])).height
     bins, _ = estimate(motion, site, cfg, st)
     assert (bins["present"].to_numpy() == 1).mean() >= 0.95
+
+
+# -- sensors out of place (eq. F1) ----------------------------------------------------------
+
+
+@pytest.mark.parametrize("seed", range(6))
+def test_far_pairs_equal_every_pair_by_hand(seed):
+    rng = np.random.default_rng(seed)
+    n, S = int(rng.integers(0, 60)), 6
+    ts = np.sort(rng.uniform(0.0, 30.0, n))
+    ks = rng.integers(0, S, n)
+    far = rng.random((S, S)) < 0.4
+    got = set(zip(*(a.tolist() for a in far_pairs(ts, ks, far, 1.5))))
+    want = {(i, j) for i in range(n) for j in range(i + 1, n) if ts[j] - ts[i] <= 1.5 and far[ks[i], ks[j]]}
+    assert got == want
+
+
+def test_lifted_sensors_by_hand():
+    # firings: sensor 0 x4, 1 x4, 2 x2 (N = 10); far pairs (0,2) (1,2) (0,2): ends 0 x2, 1 x1, 2 x3 (2P = 6)
+    ks = np.array([0, 0, 0, 0, 1, 1, 1, 1, 2, 2])
+    first, second = np.array([0, 4, 1]), np.array([8, 9, 8])
+    # lambda = (p / 6) / (n / 10): sensor 0 (2/6)/(4/10) = 0.83, 1 (1/6)/(4/10) = 0.42, 2 (3/6)/(2/10) = 2.5
+    assert lifted_sensors(ks, first, second, 4, lift=2.0, least=1).tolist() == [False, False, True, False]
+    assert lifted_sensors(ks, first, second, 4, lift=2.0, least=4).tolist() == [False, False, False, False]
+    assert lifted_sensors(ks, first, second, 4, lift=0.8, least=1).tolist() == [True, False, True, False]
+
+
+def _with_a_misplaced_sensor(
+    motion: pl.DataFrame, rng, *, near=("s1", "s2", "s3"), odd="s8", share=0.3
+) -> pl.DataFrame:
+    """The plan puts ``odd`` at the far end of the line, but it sees the place by ``near``: a
+    ``share`` of the ON edges there fire it too, within half a second. (F1) finds it while its
+    firings are a small share of all (``lambda <= 0.5 N / n_odd``: not at a quarter or more)."""
+    at = motion.filter(pl.col("on") & pl.col("sensor").is_in(list(near)))
+    at = at.filter(pl.Series(rng.random(at.height) < share))
+    rows: list = []
+    for t in (at["t"].to_numpy() + rng.uniform(0.0, 0.5, at.height)).tolist():
+        _pulse(rows, t, odd, 2.0)
+    extra = pl.DataFrame(rows, schema=MOTION, orient="row")
+    return pl.concat([motion, extra]).sort("t")
+
+
+PLAN = dict(walk_s=0.0)  # a floor plan's run.toml: far pairs F, no walker
+
+
+@pytest.mark.parametrize("seed", [7, 11])
+def test_one_person_beside_a_sensor_out_of_place_is_one(seed):
+    rng = np.random.default_rng(seed)
+    motion = _with_a_misplaced_sensor(_one_person(rng, hours=12.0), rng)
+    site = _line_site()
+    off, _ = estimate(motion, site, OccupancyConfig(**PLAN, far_lift=0.0))
+    on, _ = estimate(motion, site, OccupancyConfig(**PLAN))
+    assert (off["present"].to_numpy() >= 2).mean() > 0.15  # without (F1) the far pairs make two
+    assert (on["present"].to_numpy() == 1).mean() >= 0.95, np.bincount(on["present"].to_numpy())
+
+
+def test_two_people_far_apart_stay_two_with_sensors_out_of_place_left_out():
+    """Two people's far pairs fall on the sensors they use in proportion: no sensor is out of place."""
+    rng = np.random.default_rng(3)
+    rows: list = []
+    t = 0.0
+    while t < 4 * 3600.0:
+        a, b = int(rng.integers(0, 3)), int(rng.integers(7, 9))
+        _pulse(rows, t, f"s{a}", 2.0)
+        _pulse(rows, t + rng.uniform(0.0, 0.8), f"s{b}", 2.0)
+        t += rng.exponential(40.0) + 5.0
+    motion = pl.DataFrame(rows, schema=MOTION, orient="row").sort("t")
+    site = _line_site()
+    f = site_features(motion, site, OccupancyConfig(**PLAN), None)
+    assert f.far.sum() == site_features(motion, site, OccupancyConfig(**PLAN, far_lift=0.0), None).far.sum()
+    bins, _ = estimate(motion, site, OccupancyConfig(**PLAN))
+    assert (bins["present"].to_numpy() == 2).mean() >= 0.9
+
+
+def test_a_learned_model_keeps_the_far_pairs_of_sensors_out_of_place():
+    rng = np.random.default_rng(7)
+    motion = _with_a_misplaced_sensor(_one_person(rng, hours=6.0), rng)
+    site, cfg = _line_site(), OccupancyConfig(**PLAN)
+    unlearned = site_features(motion, site, cfg, None).far.sum()
+    learned = site_features(motion, site, cfg, None, learned=True).far.sum()
+    assert learned == site_features(motion, site, replace(cfg, far_lift=0.0), None).far.sum()
+    assert learned > unlearned
