@@ -272,7 +272,7 @@ def test_a_silent_log_gives_no_people():
     assert bins.schema == BINS and people.schema == PEOPLE
 
 
-def test_two_people_firing_far_apart_at_once_are_two():
+def _two_people_far_apart() -> pl.DataFrame:
     """Two people at the two ends of the chain (7+ hops apart), often firing within a second."""
     rng = np.random.default_rng(3)
     rows: list = []
@@ -282,7 +282,12 @@ def test_two_people_firing_far_apart_at_once_are_two():
         _pulse(rows, t, f"s{a}", 2.0)
         _pulse(rows, t + rng.uniform(0.0, 0.8), f"s{b}", 2.0)
         t += rng.exponential(40.0) + 5.0
-    motion = pl.DataFrame(rows, schema=MOTION, orient="row").sort("t")
+    return pl.DataFrame(rows, schema=MOTION, orient="row").sort("t")
+
+
+def test_two_people_firing_far_apart_at_once_are_two():
+    """Two people at the two ends of the chain (7+ hops apart), often firing within a second."""
+    motion = _two_people_far_apart()
     bins, _ = estimate(motion, _line_site(), OccupancyConfig())
     n = bins["present"].to_numpy()
     assert (n == 2).mean() >= 0.9, np.bincount(n)
@@ -494,15 +499,7 @@ def test_one_person_beside_a_sensor_out_of_place_is_one(seed):
 
 def test_two_people_far_apart_stay_two_with_sensors_out_of_place_left_out():
     """Two people's far pairs fall on the sensors they use in proportion: no sensor is out of place."""
-    rng = np.random.default_rng(3)
-    rows: list = []
-    t = 0.0
-    while t < 4 * 3600.0:
-        a, b = int(rng.integers(0, 3)), int(rng.integers(7, 9))
-        _pulse(rows, t, f"s{a}", 2.0)
-        _pulse(rows, t + rng.uniform(0.0, 0.8), f"s{b}", 2.0)
-        t += rng.exponential(40.0) + 5.0
-    motion = pl.DataFrame(rows, schema=MOTION, orient="row").sort("t")
+    motion = _two_people_far_apart()
     site = _line_site()
     f = site_features(motion, site, OccupancyConfig(**PLAN), None)
     assert f.far.sum() == site_features(motion, site, OccupancyConfig(**PLAN, far_lift=0.0), None).far.sum()
