@@ -37,8 +37,9 @@ and the far pairs with an end at a sensor out of place are left out of ``far_b``
 learned from labelled days has (F1) off: its learned ``F`` already holds that home's misplaced
 sensors (measured on ARAS House B, (F1) there raised the count error from 0.167 to 0.177).
 ``far_lift = 2``: on the one- and two-resident sessions the defaults were chosen on, the
-sensors that pair far with others are at most ``lambda = 1.5`` with two people in, and at least
-2.85 where one person's session has a sensor out of place (a Kyoto plan's M025 in most of them).
+sensor with the most far-pair ends has ``lambda`` 1.05-1.5 with two people in, and 2.85-13.8
+where one person's session has a sensor out of place (a Kyoto plan's M025 in most of them);
+rarely firing sensors reach 2-5 in both and are left out too (docs/homes.md).
 
 One walker or two (a graph learned from the log, no plan). On a learned graph hops are not
 distances: two sensors many hops apart may be neighbours the log rarely joined, so a single far
@@ -122,7 +123,7 @@ from onebit.core.lazy import lazy_module
 from onebit.core.params import param, validate
 from onebit.core.tables import COUNT_PROFILE, MOTION, check_schema
 from onebit.core.units import length
-from onebit.models.walks import clock_tick, far_pairs, lifted_sensors, one_walker
+from onebit.models.walks import clock_tick, far_lift_of, far_pairs, lifted_sensors, one_walker
 
 nx = lazy_module("networkx")
 
@@ -709,6 +710,33 @@ def learn_stats(motion: pl.DataFrame, truth_count: pl.DataFrame, site, cfg: Occu
     span = (float(truth_count["t"].min()), float(truth_count["end"].max()) - 1e-9)
     f = site_features(check_schema(motion, MOTION, name="motion"), site, cfg, span, learned=True)
     return stats(f, truth_bins(truth_count, f))
+
+
+def out_of_place(motion: pl.DataFrame, site, cfg: OccupancyConfig) -> pl.DataFrame:
+    """The sensors (F1) finds out of place over the whole of ``motion``: one row per sensor
+    with ``sensor``, ``ons`` (its ON edges), ``far_ends`` (far pairs with an end at it) and
+    ``lift`` (``lambda_s``), largest ``lift`` first. Empty when ``cfg.far_lift`` is 0, and on a
+    site where the count weighs one walker's strays instead of far pairs (a sensor graph and
+    ``walk_s > 0``): there the far pairs are not evidence, and a learned graph's positions are
+    no plan to be out of place on."""
+    schema = {"sensor": pl.String, "ons": pl.Int64, "far_ends": pl.Int64, "lift": pl.Float64}
+    if cfg.far_lift <= 0 or (cfg.walk_s > 0 and site.sensor_graph is not None):
+        return pl.DataFrame(schema=schema)
+    sensors = [m.id for m in site.motion_sensors]
+    doors = site_doors(site)
+    m = check_schema(motion, MOTION, name="motion").filter(
+        pl.col("on") & pl.col("sensor").is_in(sensors) & ~pl.col("sensor").is_in(list(doors))
+    )
+    m = m.sort("t")
+    index = {s: k for k, s in enumerate(sensors)}
+    ks = np.array([index[s] for s in m["sensor"].to_list()], dtype=np.int64)
+    first, second = far_pairs(m["t"].to_numpy().astype(float), ks, far_matrix(site, sensors, cfg), cfg.window_s)
+    if first.size == 0:
+        return pl.DataFrame(schema=schema)
+    n, ends, lam = far_lift_of(ks, first, second, len(sensors))
+    odd = (lam >= cfg.far_lift) & (ends >= cfg.far_lift_min)
+    rows = [(sensors[j], int(n[j]), int(ends[j]), float(lam[j])) for j in np.flatnonzero(odd)]
+    return pl.DataFrame(rows, schema=schema, orient="row").sort("lift", descending=True)
 
 
 def site_doors(site) -> set[str]:

@@ -46,11 +46,22 @@ def lifted_sensors(
     A second person's far pairs fall on the sensors people use, in proportion to their use
     (``lambda_s`` near 1); one sensor that pairs far with everything around it is a sensor out of
     place, and one person beside it makes them all."""
-    n = np.bincount(ks, minlength=S).astype(float)
-    p = (np.bincount(ks[first], minlength=S) + np.bincount(ks[second], minlength=S)).astype(float)
-    with np.errstate(divide="ignore", invalid="ignore"):
-        lam = np.where(n > 0, (p / (2.0 * first.size)) / (n / n.sum()), 0.0)
+    _, p, lam = far_lift_of(ks, first, second, S)
     return (lam >= lift) & (p >= least)
+
+
+def far_lift_of(
+    ks: np.ndarray, first: np.ndarray, second: np.ndarray, S: int
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Per sensor (F1): ``n_s`` its ON edges, ``p_s`` the far pairs with an end at it, and
+    ``lambda_s = (p_s / 2P) / (n_s / N)`` (0 for a sensor with no ON edge or without far pairs)."""
+    n = np.bincount(ks, minlength=S)
+    p = np.bincount(ks[first], minlength=S) + np.bincount(ks[second], minlength=S)
+    lam = np.zeros(S)
+    if first.size:
+        fired = n > 0
+        lam[fired] = (p[fired] / (2.0 * first.size)) / (n[fired] / n.sum())
+    return n, p, lam
 
 
 def clock_tick(t: np.ndarray, *, clock_s: float, tick_phase: float) -> float:

@@ -21,6 +21,13 @@ tables of rising edges (an ``on``):
 
 Both are hints: a person alone in a room for an hour also fires one sensor alone. The report
 names the numbers so the user can judge, and says how to leave a sensor out (``ignore = true``).
+
+Sensors **out of place on the plan** (:func:`onebit.models.occupancy.out_of_place`, eq. F1 of
+the home's count model): where the count weighs far pairs (a floor plan's ``run.toml``, ``walk_s
+= 0``, or a site without a sensor graph), a sensor whose share of the far pairs' ends is
+``far_lift`` times its share of the firings -- moved since the plan was drawn, or seeing into the
+next room. The count model already leaves their far pairs out; the check names them so the
+plan can be corrected.
 """
 
 from __future__ import annotations
@@ -33,10 +40,13 @@ from pathlib import Path
 import numpy as np
 import polars as pl
 
+from onebit.core.config import config_from_mapping
 from onebit.core.errors import InputError
 from onebit.core.params import param, validate
 from onebit.core.region_graph import build_region_graph
 from onebit.core.site import Site, load_site
+from onebit.core.units import config_in_site_units
+from onebit.models.occupancy import OccupancyConfig, out_of_place
 from onebit.pipeline.context import RunContext
 from onebit.pipeline.stages import TRACKERS, stages
 
@@ -81,6 +91,7 @@ class CheckResult:
     cannot: dict[str, str] = field(default_factory=dict)  #: tracker -> why not
     missing: list[str] = field(default_factory=list)  #: what the dataset lacks, in words
     suspects: pl.DataFrame | None = None  #: sensor, reason, ons, numbers
+    out_of_place: pl.DataFrame | None = None  #: sensor, ons, far_ends, lift (eq. F1)
     problems: list[str] = field(default_factory=list)  #: readers that failed, in words
 
 
@@ -93,7 +104,8 @@ def check_dataset(dataset: str | Path, config: SuspectConfig = SuspectConfig()) 
     site = load_site(site_path)
     logs = sorted(p.name for p in dataset.iterdir() if p.suffix in (".csv", ".mcap", ".mp4"))
     res = CheckResult(site, logs)
-    tables = _read(dataset, site, res)
+    ctx = _read(dataset, site, res)
+    tables = ctx.tables
     tracked = site.tracked
     for entry in TRACKERS:
         spec = entry.spec
@@ -131,11 +143,15 @@ def check_dataset(dataset: str | Path, config: SuspectConfig = SuspectConfig()) 
         else pl.DataFrame(schema={"t": pl.Float64, "sensor": pl.String})
     )
     res.suspects = suspect_sensors(ons, site, config)
+    if "motion" in tables and tracked.motion_sensors:
+        occ = config_from_mapping(OccupancyConfig, ctx.section("occupancy"), section="occupancy")
+        res.out_of_place = out_of_place(tables["motion"], tracked, config_in_site_units(occ, site))
     return res
 
 
-def _read(dataset: Path, site: Site, res: CheckResult) -> dict[str, pl.DataFrame]:
-    """The reader stages' tables, made as a run makes them (its time origin, its rules)."""
+def _read(dataset: Path, site: Site, res: CheckResult) -> RunContext:
+    """The reader stages' tables (in the returned context's ``tables``), made as a run makes
+    them (its time origin, its rules)."""
     with tempfile.TemporaryDirectory(prefix="onebit-check-") as tmp:
         ctx = RunContext(dataset, Path(tmp), site, build_region_graph(site), {})
         for stage in stages():
@@ -147,7 +163,7 @@ def _read(dataset: Path, site: Site, res: CheckResult) -> dict[str, pl.DataFrame
                 ctx.tables.update({k: v for k, v in stage.work(ctx).items() if isinstance(v, pl.DataFrame)})
             except InputError as exc:
                 res.problems.append(f"{stage.name}: {exc}")
-    return ctx.tables
+    return ctx
 
 
 def _neighbours(site: Site, ids: list[str], k: int) -> dict[str, list[str]]:
@@ -246,4 +262,13 @@ def format_check(res: CheckResult) -> str:
                 f"  {s}: {reason} ({n} ons, {solo:.0%} with no other sensor on within the quiet time, "
                 f"{co:.0%} with a neighbour's on nearby against {ch:.0%} by chance)"
             )
+    odd = res.out_of_place
+    if odd is not None and odd.height:
+        out.append(
+            "sensors out of place on the plan? (they pair far with other sensors out of proportion to their "
+            "firings: moved, or seeing into the next room; a rare sensor can too. The count leaves their far "
+            "pairs out; check their positions):"
+        )
+        for s, n, ends, lam in odd.iter_rows():
+            out.append(f"  {s}: {ends} far-pair ends of {n} ons, {lam:.1f} times its share of the firings")
     return "\n".join(out)

@@ -22,6 +22,7 @@ from onebit.models.occupancy import (
     estimate,
     features,
     learn_stats,
+    out_of_place,
     site_features,
     stats,
     viterbi,
@@ -515,3 +516,15 @@ def test_a_learned_model_keeps_the_far_pairs_of_sensors_out_of_place():
     learned = site_features(motion, site, cfg, None, learned=True).far.sum()
     assert learned == site_features(motion, site, replace(cfg, far_lift=0.0), None).far.sum()
     assert learned > unlearned
+
+
+def test_out_of_place_names_the_misplaced_sensor_where_far_pairs_count():
+    rng = np.random.default_rng(7)
+    motion = _with_a_misplaced_sensor(_one_person(rng, hours=12.0), rng)
+    site = _line_site()
+    odd = out_of_place(motion, site, OccupancyConfig(**PLAN))
+    assert odd["sensor"].to_list() == ["s8"]
+    assert odd["lift"][0] >= 2.0 and odd["far_ends"][0] >= 5
+    assert out_of_place(motion, site, OccupancyConfig()).height == 0  # the walker's strays count there, not far pairs
+    assert out_of_place(motion, site, OccupancyConfig(**PLAN, far_lift=0.0)).height == 0
+    assert out_of_place(_two_people_far_apart(), site, OccupancyConfig(**PLAN)).height == 0

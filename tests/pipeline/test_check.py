@@ -10,6 +10,7 @@ from onebit.cli import main
 from onebit.datasets.hallway_sim import write_hallway_dataset
 from onebit.datasets.skeleton import init_dataset
 from onebit.pipeline.check import SuspectConfig, check_dataset, suspect_sensors
+from tests.models.test_occupancy import _line_site, _one_person, _with_a_misplaced_sensor
 
 FLICKER = "92"
 
@@ -66,3 +67,42 @@ def test_quiet_sensors_are_not_judged():
 
     site = site_from_dict({"boundary": {"polygon": [[0, 0], [4, 0], [4, 4], [0, 4]]}})
     assert suspect_sensors(ons, site, SuspectConfig(min_ons=5)).height == 0
+
+
+def _line_dataset(folder, motion: pl.DataFrame):
+    """A dataset of the count model's test line (ten sensors 2 m apart, a chain graph) with a
+    floor plan's run.toml (far pairs, no walker)."""
+    site = _line_site()
+    folder.mkdir()
+    lines = ['name = "line"', 'units = "m"', "[boundary]", "polygon = [[-1, -1], [20, -1], [20, 1], [-1, 1]]"]
+    for m in site.motion_sensors:
+        lines += [
+            "[[motion_sensors]]",
+            f'id = "{m.id}"',
+            f"position = [{m.position[0]}, {m.position[1]}]",
+            "range = 1.0",
+        ]
+    edges = ", ".join(f'["{a}", "{b}"]' for a, b in site.sensor_graph.edges)
+    lines += ["[sensor_graph]", f"edges = [{edges}]"]
+    (folder / "site.toml").write_text("\n".join(lines) + "\n")
+    (folder / "run.toml").write_text("[occupancy]\nwalk_s = 0.0\n")
+    motion.with_columns(value=pl.col("on").cast(pl.Int64)).select("t", "sensor", "value").write_csv(
+        folder / "motion.csv"
+    )
+    return folder
+
+
+def test_check_names_a_sensor_out_of_place_on_the_plan(tmp_path, capsys):
+    rng = np.random.default_rng(7)
+    data = _line_dataset(tmp_path / "line", _with_a_misplaced_sensor(_one_person(rng, hours=12.0), rng))
+    res = check_dataset(data)
+    assert res.out_of_place["sensor"].to_list() == ["s8"]
+    assert main(["check", str(data)]) == 0
+    out = capsys.readouterr().out
+    assert "sensors out of place on the plan?" in out and "  s8: " in out
+
+
+def test_check_finds_no_sensor_out_of_place_without_one(tmp_path, flickering):
+    rng = np.random.default_rng(7)
+    assert check_dataset(_line_dataset(tmp_path / "line", _one_person(rng, hours=12.0))).out_of_place.height == 0
+    assert check_dataset(flickering).out_of_place.height == 0  # a learned walker's strays count there
