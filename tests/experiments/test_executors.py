@@ -18,25 +18,9 @@ ray = pytest.importorskip("ray", reason="the ray extra (pip install 'onebit[ray]
 
 #: (study, trials) small enough for a test; each study's own `quick` grid otherwise.
 STUDIES = (("okane", 1), ("singh", 1), ("schiff", 1), ("correct", 2), ("findinghumo", 2))
-#: the studies also run on Ray (its tasks are pickled more leniently than the local pool's, which
-#: runs every study: a trial function the pool can take, Ray can take): a plain trial study and a
-#: seed sweep with its summary
-RAY_STUDIES = ("okane", "correct")
-
-
-@pytest.fixture(scope="module")
-def ray_local():
-    os.environ["RAY_USAGE_STATS_ENABLED"] = "0"
-    ray.init(
-        address="local",
-        num_cpus=2,
-        include_dashboard=False,
-        object_store_memory=100 * 1024**2,
-        log_to_driver=False,
-        logging_level="ERROR",
-    )
-    yield ray
-    ray.shutdown()
+#: the study also run on Ray (its tasks are pickled more leniently than the local pool's, which
+#: runs every study: a trial function the pool can take, Ray can take): a seed sweep with its summary
+RAY_STUDIES = ("correct",)
 
 
 def _executors():
