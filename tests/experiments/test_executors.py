@@ -1,5 +1,6 @@
-"""The studies on every executor: serial, a local process pool and Ray give equal tables;
-the executors keep the items' order, report failing tasks, and the CLI takes the options."""
+"""The executors keep the items' order, report failing tasks, give a pool worker's stages one
+core; the trial studies on serial and a local process pool give equal tables (the seed sweeps
+and Ray: test_executors_sweeps.py); the CLI takes the options."""
 
 from __future__ import annotations
 
@@ -10,17 +11,15 @@ import polars as pl
 import pytest
 
 from onebit.cli import main
-from onebit.experiments import EXPERIMENTS, get_experiment
 from onebit.experiments.trials import StudyError, run_trials
 from onebit.pipeline.executors import LocalPoolExecutor, RayExecutor, SerialExecutor
 
 ray = pytest.importorskip("ray", reason="the ray extra (pip install 'onebit[ray]'; make test installs it)")
 
-#: (study, trials) small enough for a test; each study's own `quick` grid otherwise.
-STUDIES = (("okane", 1), ("singh", 1), ("schiff", 1), ("correct", 2), ("findinghumo", 2))
-#: the study also run on Ray (its tasks are pickled more leniently than the local pool's, which
-#: runs every study: a trial function the pool can take, Ray can take): a seed sweep with its summary
-RAY_STUDIES = ("correct",)
+#: (study, trials) small enough for a test; each study's own `quick` grid otherwise (the studies
+#: fixture, tests/experiments/conftest.py; the seed sweeps and Ray: test_executors_sweeps.py)
+STUDIES = (("okane", 1), ("singh", 1), ("schiff", 1))
+RAY_STUDIES = ()
 
 
 def _executors():
@@ -63,46 +62,9 @@ def test_a_failed_trial_fails_the_study_naming_it():
     assert values == [1.0, 2.0] and timings["trial"].to_list() == ["1.0", "4.0"]
 
 
-@pytest.fixture(scope="module")
-def studies(tmp_path_factory, ray_local):
-    """Every small study on every executor: {(study, executor): output folder}."""
-    root = tmp_path_factory.mktemp("studies")
-    outs = {}
-    for kind, ex in _executors().items():
-        with ex:
-            for name, trials in STUDIES:
-                if kind == "ray" and name not in RAY_STUDIES:
-                    continue
-                outs[(name, kind)] = get_experiment(name).run(
-                    root / f"{name}-{kind}", seed=0, trials=trials, quick=True, echo=lambda s: None, executor=ex
-                )
-    return outs
-
-
 @pytest.mark.parametrize("name", [s for s, _ in STUDIES])
-def test_serial_local_pool_and_ray_give_equal_tables(studies, name):
-    serial = studies[(name, "serial")]
-    tables = ["results.parquet", *(["summary.csv"] if (serial / "summary.csv").exists() else [])]
-    for kind in ("local", "ray") if name in RAY_STUDIES else ("local",):
-        other = studies[(name, kind)]
-        for t in tables:
-            read = pl.read_parquet if t.endswith(".parquet") else pl.read_csv
-            a, b = read(serial / t), read(other / t)
-            assert a.height > 0 and a.equals(b), (name, kind, t)
-        timings = pl.read_csv(other / "timings.csv")
-        assert timings.height == pl.read_csv(serial / "timings.csv").height and (timings["seconds"] >= 0).all()
-
-
-def test_the_seed_sweeps_are_experiments(studies):
-    assert {"correct", "findinghumo"} <= set(EXPERIMENTS)
-    fh = pl.read_parquet(studies[("findinghumo", "serial")] / "results.parquet")
-    assert fh.height == 2 * 4 and set(fh["tracker"]) == {"findinghumo", "findinghumo-flow", "hmm1", "hmm2"}
-    assert (fh["users_true"] == 3).all() and (fh["hop_error"] >= 0).all()
-    corr = pl.read_parquet(studies[("correct", "serial")] / "results.parquet")
-    assert corr["seed"].to_list() == [0, 1]
-    assert ((corr["restored"] <= corr["dropped"]) & (corr["restored"] <= corr["inserted"])).all()
-    summary = pl.read_csv(studies[("correct", "serial")] / "summary.csv")
-    assert summary["seeds"][0] == 2
+def test_serial_and_local_pool_give_equal_tables(equal_tables, name):
+    equal_tables(name)
 
 
 def test_cli_experiment_takes_the_executor_options(tmp_path, capsys):
