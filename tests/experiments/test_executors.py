@@ -30,6 +30,7 @@ def _executors():
 def test_map_keeps_the_order_and_reports_a_failing_task_without_stopping(kind, ray_local):
     with _executors()[kind] as ex:
         out = ex.map(math.sqrt, [16.0, -1.0, 9.0, 4.0])
+        assert ex.map(math.sqrt, []) == []  # a second map on the same executor (Ray: connected once)
     assert [o.index for o in out] == [0, 1, 2, 3]
     assert [o.value for o in out] == [4.0, None, 3.0, 2.0]
     assert [o.ok for o in out] == [True, False, True, True]
