@@ -1,5 +1,6 @@
-"""The small studies on every executor, for ``test_executors.py`` and ``test_executors_sweeps.py``
-(two files, so that under ``pytest -n --dist loadfile`` the studies are shared by both workers)."""
+"""The small studies on every executor, for ``test_executors.py`` (the seed sweeps, with Ray) and
+``test_executors_trials.py`` (the trial studies, without Ray): two files, so that under
+``pytest -n --dist loadfile`` the studies are shared by both workers, and one of them starts Ray."""
 
 from __future__ import annotations
 

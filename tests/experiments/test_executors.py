@@ -1,6 +1,6 @@
 """The executors keep the items' order, report failing tasks, give a pool worker's stages one
-core; the trial studies on serial and a local process pool give equal tables (the seed sweeps
-and Ray: test_executors_sweeps.py); the CLI takes the options."""
+core; the seed sweeps on serial, a local process pool and Ray give equal tables (the trial
+studies: test_executors_trials.py, which needs no Ray); the CLI takes the options."""
 
 from __future__ import annotations
 
@@ -11,15 +11,18 @@ import polars as pl
 import pytest
 
 from onebit.cli import main
+from onebit.experiments import EXPERIMENTS
 from onebit.experiments.trials import StudyError, run_trials
 from onebit.pipeline.executors import LocalPoolExecutor, RayExecutor, SerialExecutor
 
 ray = pytest.importorskip("ray", reason="the ray extra (pip install 'onebit[ray]'; make test installs it)")
 
 #: (study, trials) small enough for a test; each study's own `quick` grid otherwise (the studies
-#: fixture, tests/experiments/conftest.py; the seed sweeps and Ray: test_executors_sweeps.py)
-STUDIES = (("okane", 1), ("singh", 1), ("schiff", 1))
-RAY_STUDIES = ()
+#: fixture, tests/experiments/conftest.py; the trial studies: test_executors_trials.py)
+STUDIES = (("correct", 2), ("findinghumo", 2))
+#: the study also run on Ray (its tasks are pickled more leniently than the local pool's, which
+#: runs every study: a trial function the pool can take, Ray can take): a seed sweep with its summary
+RAY_STUDIES = ("correct",)
 
 
 def _executors():
@@ -64,8 +67,20 @@ def test_a_failed_trial_fails_the_study_naming_it():
 
 
 @pytest.mark.parametrize("name", [s for s, _ in STUDIES])
-def test_serial_and_local_pool_give_equal_tables(equal_tables, name):
+def test_serial_local_pool_and_ray_give_equal_tables(equal_tables, name):
     equal_tables(name)
+
+
+def test_the_seed_sweeps_are_experiments(studies):
+    assert {"correct", "findinghumo"} <= set(EXPERIMENTS)
+    fh = pl.read_parquet(studies[("findinghumo", "serial")] / "results.parquet")
+    assert fh.height == 2 * 4 and set(fh["tracker"]) == {"findinghumo", "findinghumo-flow", "hmm1", "hmm2"}
+    assert (fh["users_true"] == 3).all() and (fh["hop_error"] >= 0).all()
+    corr = pl.read_parquet(studies[("correct", "serial")] / "results.parquet")
+    assert corr["seed"].to_list() == [0, 1]
+    assert ((corr["restored"] <= corr["dropped"]) & (corr["restored"] <= corr["inserted"])).all()
+    summary = pl.read_csv(studies[("correct", "serial")] / "summary.csv")
+    assert summary["seeds"][0] == 2
 
 
 def test_cli_experiment_takes_the_executor_options(tmp_path, capsys):
