@@ -67,6 +67,8 @@ from onebit.trackers.findinghumo.cpda import colocation_events
 _optimize = lazy_module("scipy.optimize")
 
 TRACKERS = ("hmm1", "hmm2", "findinghumo", "findinghumo-flow")
+#: the order the trackers are run in: findinghumo-flow right after hmm2, whose decode it shares
+_SHARING_ORDER = ("hmm1", "hmm2", "findinghumo-flow", "findinghumo")
 SEEDS = 20
 DURATION = 150.0
 USERS = 3
@@ -242,9 +244,13 @@ def diagnose_seed(job: tuple[int, float, int, float, str]) -> tuple[list[dict], 
     diameter = int(hops[hops <= len(nodes)].max())
     by_name = {e.name: e for e in ENTRIES}
     results, swaps = [], []
+    inputs = {"motion": motion}
+    # in the order that lets trackers of one decode share it (hmm2's with findinghumo-flow's,
+    # :func:`onebit.models.graph_hmm.decoding.decode_motion`), as a pipeline run does
+    outs = {name: by_name[name].spec.run(inputs, site, by_name[name].spec.config()) for name in _SHARING_ORDER}
     for name in TRACKERS:
         spec = by_name[name].spec
-        out = spec.run({"motion": motion}, site, spec.config())
+        out = outs[name]
         rows, _ = score(name, {f"{name}_tracks": out["tracks"], "truth": truth}, site)
         hop = next(v for tr, m, v, _ in rows if m == "hop_error")
         art = out["artifacts"]

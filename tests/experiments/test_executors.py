@@ -1,5 +1,6 @@
-"""The studies on every executor: serial, a local process pool and Ray give equal tables;
-the executors keep the items' order, report failing tasks, and the CLI takes the options."""
+"""The executors keep the items' order, report failing tasks, give a pool worker's stages one
+core; the seed sweeps on serial, a local process pool and Ray give equal tables (the trial
+studies: test_executors_trials.py, which needs no Ray); the CLI takes the options."""
 
 from __future__ import annotations
 
@@ -10,33 +11,18 @@ import polars as pl
 import pytest
 
 from onebit.cli import main
-from onebit.experiments import EXPERIMENTS, get_experiment
+from onebit.experiments import EXPERIMENTS
 from onebit.experiments.trials import StudyError, run_trials
 from onebit.pipeline.executors import LocalPoolExecutor, RayExecutor, SerialExecutor
 
 ray = pytest.importorskip("ray", reason="the ray extra (pip install 'onebit[ray]'; make test installs it)")
 
-#: (study, trials) small enough for a test; each study's own `quick` grid otherwise.
-STUDIES = (("okane", 1), ("singh", 1), ("schiff", 1), ("correct", 2), ("findinghumo", 2))
-#: the studies also run on Ray (its tasks are pickled more leniently than the local pool's, which
-#: runs every study: a trial function the pool can take, Ray can take): a plain trial study and a
-#: seed sweep with its summary
-RAY_STUDIES = ("okane", "correct")
-
-
-@pytest.fixture(scope="module")
-def ray_local():
-    os.environ["RAY_USAGE_STATS_ENABLED"] = "0"
-    ray.init(
-        address="local",
-        num_cpus=2,
-        include_dashboard=False,
-        object_store_memory=100 * 1024**2,
-        log_to_driver=False,
-        logging_level="ERROR",
-    )
-    yield ray
-    ray.shutdown()
+#: (study, trials) small enough for a test; each study's own `quick` grid otherwise (the studies
+#: fixture, tests/experiments/conftest.py; the trial studies: test_executors_trials.py)
+STUDIES = (("correct", 2), ("findinghumo", 2))
+#: the study also run on Ray (its tasks are pickled more leniently than the local pool's, which
+#: runs every study: a trial function the pool can take, Ray can take): a seed sweep with its summary
+RAY_STUDIES = ("correct",)
 
 
 def _executors():
@@ -47,6 +33,7 @@ def _executors():
 def test_map_keeps_the_order_and_reports_a_failing_task_without_stopping(kind, ray_local):
     with _executors()[kind] as ex:
         out = ex.map(math.sqrt, [16.0, -1.0, 9.0, 4.0])
+        assert ex.map(math.sqrt, []) == []  # a second map on the same executor (Ray: connected once)
     assert [o.index for o in out] == [0, 1, 2, 3]
     assert [o.value for o in out] == [4.0, None, 3.0, 2.0]
     assert [o.ok for o in out] == [True, False, True, True]
@@ -79,34 +66,9 @@ def test_a_failed_trial_fails_the_study_naming_it():
     assert values == [1.0, 2.0] and timings["trial"].to_list() == ["1.0", "4.0"]
 
 
-@pytest.fixture(scope="module")
-def studies(tmp_path_factory, ray_local):
-    """Every small study on every executor: {(study, executor): output folder}."""
-    root = tmp_path_factory.mktemp("studies")
-    outs = {}
-    for kind, ex in _executors().items():
-        with ex:
-            for name, trials in STUDIES:
-                if kind == "ray" and name not in RAY_STUDIES:
-                    continue
-                outs[(name, kind)] = get_experiment(name).run(
-                    root / f"{name}-{kind}", seed=0, trials=trials, quick=True, echo=lambda s: None, executor=ex
-                )
-    return outs
-
-
 @pytest.mark.parametrize("name", [s for s, _ in STUDIES])
-def test_serial_local_pool_and_ray_give_equal_tables(studies, name):
-    serial = studies[(name, "serial")]
-    tables = ["results.parquet", *(["summary.csv"] if (serial / "summary.csv").exists() else [])]
-    for kind in ("local", "ray") if name in RAY_STUDIES else ("local",):
-        other = studies[(name, kind)]
-        for t in tables:
-            read = pl.read_parquet if t.endswith(".parquet") else pl.read_csv
-            a, b = read(serial / t), read(other / t)
-            assert a.height > 0 and a.equals(b), (name, kind, t)
-        timings = pl.read_csv(other / "timings.csv")
-        assert timings.height == pl.read_csv(serial / "timings.csv").height and (timings["seconds"] >= 0).all()
+def test_serial_local_pool_and_ray_give_equal_tables(equal_tables, name):
+    equal_tables(name)
 
 
 def test_the_seed_sweeps_are_experiments(studies):

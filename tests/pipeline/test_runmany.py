@@ -27,22 +27,6 @@ TINY = ("d0", "d1", "d2")
 
 
 @pytest.fixture(scope="module")
-def ray_local():
-    """One small local Ray instance for the module (2 CPUs, no dashboard, no usage stats)."""
-    os.environ["RAY_USAGE_STATS_ENABLED"] = "0"
-    ray.init(
-        address="local",
-        num_cpus=2,
-        include_dashboard=False,
-        object_store_memory=100 * 1024**2,
-        log_to_driver=False,
-        logging_level="ERROR",
-    )
-    yield ray
-    ray.shutdown()
-
-
-@pytest.fixture(scope="module")
 def data(tmp_path_factory) -> Path:
     """Three short beams-lab datasets, one folder without a site.toml, and a slower PIR
     dataset (its own run.toml asks for many particles) that a test can kill mid-run."""

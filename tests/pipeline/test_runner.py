@@ -278,21 +278,48 @@ def test_a_dataset_run_toml_motion_and_scores_sections_are_used(tmp_path):
     assert metric(res.report, "motion/suppressed") == 2.0  # the 1.6 off / 2.1 on pair: within 0.6 s
 
 
-def test_no_rrd_writes_the_same_tables_and_report_without_recordings(lab_run, tmp_path, capsys):
-    data, res = lab_run
-    out = tmp_path / "norrd"
-    assert main(["run", str(data), "--out", str(out), "--no-rrd"]) == 0
-    assert "Rerun recordings: none (--no-rrd)" in capsys.readouterr().out
-    assert not (out / "rrd").exists()
-    names = sorted(p.name for p in (res.out / "tables").glob("*.parquet"))
+@pytest.fixture(scope="module")
+def side_run(lab_run, tmp_path_factory):
+    """The lab dataset run again as ``onebit run --no-rrd --cores 2`` (trackers worked side by
+    side, one of them in a worker) with every table a worker makes passed back through a file
+    (``SPILL_BYTES`` 0): (run folder, what it printed, the spill files before and after)."""
+    import contextlib
+    import io
+    import tempfile
+
+    import onebit.pipeline.detach as detach
+
+    data, _ = lab_run
+    out = tmp_path_factory.mktemp("side") / "side"
+    printed = io.StringIO()
+    spills = lambda: set(Path(tempfile.gettempdir()).glob("onebit-table-*.arrow"))  # noqa: E731
+    before = spills()
+    with pytest.MonkeyPatch.context() as mp, contextlib.redirect_stdout(printed):
+        mp.setattr(detach, "SPILL_BYTES", 0)
+        assert main(["run", str(data), "--out", str(out), "--no-rrd", "--cores", "2"]) == 0
+    return out, printed.getvalue(), before, spills()
+
+
+def _same_tables_and_report(out: Path, ref: Path) -> None:
+    """Every table (but the timings) and the report (but seconds) of ``out`` are ``ref``'s."""
+    names = sorted(p.name for p in (ref / "tables").glob("*.parquet"))
     assert sorted(p.name for p in (out / "tables").glob("*.parquet")) == names
     for name in names:
         if name == "timings.parquet":  # seconds differ from run to run
             continue
-        assert pl.read_parquet(out / "tables" / name).equals(pl.read_parquet(res.out / "tables" / name)), name
-    ours, theirs = load_report(out), load_report(res.out)
+        assert pl.read_parquet(out / "tables" / name).equals(pl.read_parquet(ref / "tables" / name)), name
     seconds = pl.col("unit") != "s"
-    assert ours.filter(seconds).equals(theirs.filter(seconds))
+    assert load_report(out).filter(seconds).equals(load_report(ref).filter(seconds))
+
+
+def test_no_rrd_writes_the_same_tables_and_report_without_recordings(lab_run, side_run):
+    """``--no-rrd`` (here with ``--cores 2``, :func:`side_run`): no recording, the tables and
+    report of the run with recordings."""
+    _, res = lab_run
+    out, printed, _, _ = side_run
+    assert "Rerun recordings: none (--no-rrd)" in printed
+    assert not (out / "rrd").exists()
+    _same_tables_and_report(out, res.out)
     record = tomllib.loads((out / "run.toml").read_text())
     assert record["timing"]["rrd"] is False
     assert all(v["viz_s"] < 0.01 for k, v in record["timing"].items() if isinstance(v, dict))
@@ -330,23 +357,15 @@ def test_istate_beyond_its_stage_bound_is_skipped_saying_why(lab_run, tmp_path):
     assert lifted.status["istate"].startswith("ok")
 
 
-def test_trackers_side_by_side_give_the_same_run(lab_run, tmp_path):
+def test_trackers_side_by_side_give_the_same_run(lab_run, side_run, tmp_path):
     """``--cores 2``: the trackers are worked side by side (here and in a worker process, each on
     one core); every table, the report and each stage's status are the ones of one tracker
     after another, and the worker's CPU is in the run's."""
     data, res = lab_run
-    out = tmp_path / "side"
-    assert main(["run", str(data), "--out", str(out), "--no-rrd", "--cores", "2"]) == 0
+    out = side_run[0]
     ran = [n for n, s in res.status.items() if s.startswith("ok") and n in {e.name for e in TRACKERS}]
     assert len(ran) >= 2, ran  # two trackers or more: one of them worked in a worker
-    names = sorted(p.name for p in (res.out / "tables").glob("*.parquet"))
-    assert sorted(p.name for p in (out / "tables").glob("*.parquet")) == names
-    for name in names:
-        if name == "timings.parquet":
-            continue
-        assert pl.read_parquet(out / "tables" / name).equals(pl.read_parquet(res.out / "tables" / name)), name
-    seconds = pl.col("unit") != "s"
-    assert load_report(out).filter(seconds).equals(load_report(res.out).filter(seconds))
+    _same_tables_and_report(out, res.out)
     record = tomllib.loads((out / "run.toml").read_text())
     assert [s.split(" (")[0] for s in record["stages"].values()] == [s.split(" (")[0] for s in res.status.values()]
     assert record["timing"]["worker_cpu_s"] > 0.0
@@ -422,19 +441,12 @@ def test_hmm2_and_findinghumo_flow_share_a_key_and_others_do_not():
     assert spec["hmm2"].shares(HmmConfig(decoding="lagged", eatg="layout")) is None
 
 
-def test_a_workers_large_tables_come_back_through_files(lab_run, tmp_path, monkeypatch):
+def test_a_workers_large_tables_come_back_through_files(lab_run, side_run):
     """Tables of SPILL_BYTES or more pass from a worker as Arrow IPC files read here (every
-    table, with the bound at 0): the same tables as one process, and no file is left."""
-    import tempfile
-
-    import onebit.pipeline.detach as detach
-
-    data, res = lab_run
-    monkeypatch.setattr(detach, "SPILL_BYTES", 0)
-    before = set(Path(tempfile.gettempdir()).glob("onebit-table-*.arrow"))
-    side = run_pipeline(data, tmp_path / "spilled", rrd=False, cores=2)
-    assert side.ok and side.status.keys() == res.status.keys()
-    for p in (res.out / "tables").glob("*.parquet"):
-        if p.name != "timings.parquet":
-            assert pl.read_parquet(tmp_path / "spilled" / "tables" / p.name).equals(pl.read_parquet(p)), p.name
-    assert set(Path(tempfile.gettempdir()).glob("onebit-table-*.arrow")) == before
+    table, with the bound at 0, :func:`side_run`): the same tables as one process, and no file
+    is left."""
+    _, res = lab_run
+    out, _, before, after = side_run
+    assert tomllib.loads((out / "run.toml").read_text())["stages"].keys() == res.status.keys()
+    _same_tables_and_report(out, res.out)
+    assert after == before

@@ -3,7 +3,6 @@ pool and Ray) with the same tables as ``onebit run`` on each part; no line lost.
 
 from __future__ import annotations
 
-import os
 from pathlib import Path
 
 import polars as pl
@@ -14,7 +13,7 @@ from hypothesis import strategies as st
 from onebit.cli import main
 from onebit.core.errors import ConfigError, InputError
 from onebit.datasets.home_sim import write_home_dataset
-from onebit.pipeline.executors import LocalPoolExecutor
+from onebit.pipeline.executors import LocalPoolExecutor, RayExecutor
 from onebit.pipeline.runmany import run_many
 from onebit.pipeline.runner import run_pipeline
 from onebit.pipeline.split import parse_period, split_dataset
@@ -49,36 +48,33 @@ def test_no_line_is_lost_and_every_part_is_a_dataset(parts):
     assert t.min() >= 300.0 and t.max() < 600.0
 
 
-def test_run_many_on_the_local_pool_and_ray_gives_the_tables_of_one_run_per_part(parts, tmp_path):
+@pytest.fixture(scope="module")
+def one_run_per_part(parts, tmp_path_factory) -> dict[str, Path]:
+    """``onebit run`` on each of the first two parts: {part: run folder}."""
+    root = tmp_path_factory.mktemp("one")
     folders = sorted((parts / "parts").glob("part-*"))[:2]
-    single = {f.name: run_pipeline(f, tmp_path / "one" / f.name, trackers=TRACKERS, rrd=False) for f in folders}
+    single = {f.name: run_pipeline(f, root / f.name, trackers=TRACKERS, rrd=False) for f in folders}
     assert all(r.status["residents"].startswith("ok") for r in single.values())
-    executors = [LocalPoolExecutor(workers=2)]
-    ray = None
-    try:
-        import ray  # the ray extra: make test installs it
-    except ImportError:
-        pass
-    if ray is not None:
-        from onebit.pipeline.executors import RayExecutor
+    return {name: r.out for name, r in single.items()}
 
-        os.environ["RAY_USAGE_STATS_ENABLED"] = "0"
-        ray.init(address="local", num_cpus=2, include_dashboard=False, log_to_driver=False, logging_level="ERROR")
-        executors.append(RayExecutor(workers=2))
-    try:
-        for ex in executors:
-            with ex:
-                res = run_many([str(f) for f in folders], tmp_path / ex.kind, trackers=TRACKERS, executor=ex, rrd=False)
-            assert res.ok, ex.kind
-            for f in folders:
-                got = _tables(res.out / f.name)
-                want = _tables(tmp_path / "one" / f.name)
-                assert got.keys() == want.keys(), ex.kind
-                for name in want:
-                    assert got[name].equals(want[name]), (ex.kind, f.name, name)
-    finally:
-        if ray is not None:
-            ray.shutdown()
+
+@pytest.mark.parametrize("kind", ["local", "ray"])
+def test_run_many_on_the_local_pool_and_ray_gives_the_tables_of_one_run_per_part(
+    parts, one_run_per_part, tmp_path, request, kind
+):
+    folders = sorted((parts / "parts").glob("part-*"))[:2]
+    if kind == "ray":
+        request.getfixturevalue("ray_local")  # the session's Ray (tests/conftest.py); skips without the ray extra
+    ex = RayExecutor(workers=2) if kind == "ray" else LocalPoolExecutor(workers=2)
+    with ex:
+        res = run_many([str(f) for f in folders], tmp_path / ex.kind, trackers=TRACKERS, executor=ex, rrd=False)
+    assert res.ok, ex.kind
+    for f in folders:
+        got = _tables(res.out / f.name)
+        want = _tables(one_run_per_part[f.name])
+        assert got.keys() == want.keys(), ex.kind
+        for name in want:
+            assert got[name].equals(want[name]), (ex.kind, f.name, name)
 
 
 def test_refusals(tmp_path):
