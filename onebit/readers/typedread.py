@@ -352,8 +352,12 @@ def _line_numbers(n: int) -> pl.Series:
 def _widths_hold(data: bytes, header: list[str], dtypes: dict[str, pl.DataType], n_lines: int) -> bool:
     """Whether no line can be longer than the header: the strict read raises on a long line
     only when it reads every column, so when some are not read the separators are counted
-    (every line of the header's width holds ``n - 1``; fewer is caught by the read)."""
+    (every line of the header's width holds ``n - 1``; fewer is caught by the read). A last line
+    without its newline is counted in every case: the strict read takes ``1,a,b,1,`` there as
+    the header's four fields."""
     n = len(header)
+    if not data.endswith(b"\n") and data[data.rfind(b"\n") + 1 :].count(SEPARATOR.encode()) != n - 1:
+        return False
     if len({header.index(c) for c in dtypes} | {n - 1}) == n:
         return True
     return int(np.count_nonzero(np.frombuffer(data, dtype=np.uint8) == ord(SEPARATOR))) == (n - 1) * (n_lines + 1)

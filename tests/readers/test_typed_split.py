@@ -315,6 +315,23 @@ def test_messy_truth_gives_the_row_by_row_result(tmp_path_factory, blob, epoch):
         assert a.schema == b.schema and a.equals(b), (a, b)
 
 
+@pytest.mark.parametrize("end", [b"", b"\n"])
+def test_a_last_line_with_a_field_too_many_is_rejected_with_or_without_its_newline(tmp_path, end):
+    """The strict read takes ``1,a,b,1,`` as four fields when it is the last line and has no
+    newline; the fast read must reject it as the row-by-row one does."""
+    from onebit.readers.tables_csv import read_true_crossings_csv, true_crossings_from_rows
+
+    path = tmp_path / "crossings.csv"
+    path.write_bytes(b"t,beam,direction,target\n0,a,1,w1\n1,a,b,1," + end)
+    fast = read_true_crossings_csv(path, BEAMS, epoch=None)
+    slow = true_crossings_from_rows(
+        read_csv_rows(path, ("t", "beam", "direction", "target")), BEAMS, epoch=None, path=path
+    )
+    assert fast[0].height == 1 and fast[1]["reason"].to_list() == ["too many fields (5 of 4)"]
+    for a, b in zip(fast, slow):
+        assert a.schema == b.schema and a.equals(b), (a, b)
+
+
 @SETTINGS
 @given(
     blob=table_file("t,beam,direction,target", [STAMPS, st.sampled_from(["a", "b", "zz", " a"]), DIRECTIONS, NAMES]),
