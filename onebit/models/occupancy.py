@@ -37,7 +37,7 @@ and the far pairs with an end at a sensor out of place are left out of ``far_b``
 learned from labelled days has (F1) off: its learned ``F`` already holds that home's misplaced
 sensors (measured on ARAS House B, (F1) there raised the count error from 0.167 to 0.177).
 ``far_lift = 2``: on the one- and two-resident sessions the defaults were chosen on, the
-sensor with the most far-pair ends has ``lambda`` 1.05-1.5 with two people in, and 2.85-13.8
+sensor with the most far-pair ends has ``lambda`` 0.8-1.5 with two people in, and 2.85-13.8
 where one person's session has a sensor out of place (a Kyoto plan's M025 in most of them);
 rarely firing sensors reach 2-5 in both and are left out too (docs/homes.md).
 
